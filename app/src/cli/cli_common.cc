@@ -1,0 +1,89 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "cli/cli_common.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <sstream>
+
+namespace spidarcad::app {
+
+namespace {
+std::string Trim(const std::string& s) {
+  const auto begin = s.find_first_not_of(" \t\r");
+  if (begin == std::string::npos) return "";
+  const auto end = s.find_last_not_of(" \t\r");
+  return s.substr(begin, end - begin + 1);
+}
+}  // namespace
+
+void ForEachCsvRecord(std::istream& in, const std::string& source, int expected_fields,
+                      const std::function<void(const std::vector<double>&, int)>& row) {
+  std::string line;
+  int line_number = 0;
+  std::vector<double> values;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const std::string trimmed = Trim(line);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    values.clear();
+    std::stringstream fields(trimmed);
+    std::string field;
+    int column = 0;
+    while (std::getline(fields, field, ',')) {
+      ++column;
+      const std::string f = Trim(field);
+      double v = 0;
+      const char* first = f.data();
+      const char* last = f.data() + f.size();
+      auto [ptr, ec] = std::from_chars(first, last, v);
+      if (f == "nan" || f == "NaN") {
+        v = std::nan("");
+      } else if (f.empty() || ec != std::errc() || ptr != last) {
+        throw InputError(source + ":" + std::to_string(line_number) + ": column " +
+                         std::to_string(column) + ": '" + f + "' is not a number");
+      }
+      values.push_back(v);
+    }
+    if (expected_fields > 0 && static_cast<int>(values.size()) != expected_fields) {
+      throw InputError(source + ":" + std::to_string(line_number) + ": expected " +
+                       std::to_string(expected_fields) + " comma-separated numbers, found " +
+                       std::to_string(values.size()));
+    }
+    row(values, line_number);
+  }
+}
+
+std::string FormatNumber(double value) {
+  if (std::isnan(value)) return "nan";
+  char buffer[64];
+  auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, ptr);
+}
+
+void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry) {
+  command
+      .add_option_function<std::vector<double>>(
+          "--frame",
+          [geometry](const std::vector<double>& v) {
+            geometry->a = v[0];
+            geometry->b = v[1];
+            geometry->c = v[2];
+          },
+          "Frame half-sides A,B,C in metres (default 0.24,0.24,0.24: the paper's 48 cm frame)")
+      ->delimiter(',')
+      ->expected(3);
+  command.add_option("--pole", geometry->d,
+                     "Pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
+}
+
+void ValidateGeometry(const haptics::SpidarGeometry& geometry) {
+  try {
+    geometry.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("--frame/--pole: ") + e.what());
+  }
+}
+
+}  // namespace spidarcad::app

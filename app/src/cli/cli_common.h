@@ -1,0 +1,46 @@
+// Helpers shared by the headless subcommands: input errors that say where, CSV parsing,
+// device geometry options.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <istream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "spidarcad/haptics/geometry.h"
+
+namespace spidarcad::app {
+
+// Bad user input: carries where it was found. The CLI prints what() and exits with status 2.
+class InputError : public std::runtime_error {
+ public:
+  explicit InputError(const std::string& message) : std::runtime_error(message) {}
+};
+
+// Exit status of the CLI for bad input.
+inline constexpr int kExitBadInput = 2;
+
+// Thrown by a subcommand callback to end the program with a status (after its output).
+struct CommandExit {
+  int status = 0;
+};
+
+// Reads numeric CSV records from `in`, one per line. Blank lines and lines starting with '#'
+// are skipped. Calls `row(values, line_number)` for each record. Throws InputError naming
+// `source`, the line and the column when a field is not a number or the count is not
+// `expected_fields` (when > 0).
+void ForEachCsvRecord(std::istream& in, const std::string& source, int expected_fields,
+                      const std::function<void(const std::vector<double>&, int)>& row);
+
+// Formats a double for CSV output: shortest round-trip representation, "nan" for NaN.
+std::string FormatNumber(double value);
+
+// Adds --frame A,B,C and --pole D options that fill `geometry` (metres).
+void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry);
+// Validates geometry options, turning errors into InputError.
+void ValidateGeometry(const haptics::SpidarGeometry& geometry);
+
+}  // namespace spidarcad::app

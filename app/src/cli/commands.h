@@ -1,0 +1,21 @@
+// Registration of the spidarcad subcommands. Each Register* adds one subcommand to the CLI11
+// app; its callback runs the command and returns through CommandExit.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace spidarcad::app {
+
+// `spidarcad fk --batch`: forward kinematics, lengths in, poses out (cli/fk_command.cc).
+void RegisterFkCommand(CLI::App& app);
+// `spidarcad ik --batch`: inverse kinematics, poses in, lengths out (cli/fk_command.cc).
+void RegisterIkCommand(CLI::App& app);
+// `spidarcad tension --batch`: tension distribution (cli/tension_command.cc).
+void RegisterTensionCommand(CLI::App& app);
+// `spidarcad workspace`: deliverable force across the workspace (cli/workspace_command.cc).
+void RegisterWorkspaceCommand(CLI::App& app);
+// `spidarcad calibrate --simulated`: calibration of string parameters (cli/calibrate_command.cc).
+void RegisterCalibrateCommand(CLI::App& app);
+
+}  // namespace spidarcad::app

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs what spidarcad needs from Debian 12 packages (only what is missing) and builds it
+# into ./build. Sourced by run-app.sh and run-tests.sh; safe to run again.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+packages=(
+  build-essential cmake ninja-build pkg-config
+  libeigen3-dev libsuitesparse-dev libopenblas-dev
+  libvtk9-dev libcgal-dev libtet1.5-dev
+  libglfw3-dev libimgui-dev libusb-1.0-0-dev
+  nlohmann-json3-dev libcli11-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  xvfb xauth
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "spidarcad setup: installing ${missing[*]}"
+  sudo_cmd=()
+  [ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+build_type="${SPIDARCAD_BUILD_TYPE:-RelWithDebInfo}"
+cmake -S "$here" -B "$here/build" -G Ninja -DCMAKE_BUILD_TYPE="$build_type" >/dev/null
+cmake --build "$here/build" -j "$(nproc)"
