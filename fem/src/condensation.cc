@@ -1,0 +1,237 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/fem/condensation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace spidarcad::fem {
+
+Compliance::Compliance(const StaticSolver& solver, const std::vector<int>& output_nodes,
+                       const std::vector<int>& condensed_nodes, const CondensationSettings& settings)
+    : output_nodes_(output_nodes), condensed_nodes_(condensed_nodes) {
+  const int n = solver.bcs().num_nodes();
+  std::vector<int> output_index(n, -1);
+  for (size_t a = 0; a < output_nodes.size(); ++a) {
+    const int v = output_nodes[a];
+    if (v < 0 || v >= n) {
+      throw std::invalid_argument("Compliance: output node " + std::to_string(v) +
+                                  " is out of range [0, " + std::to_string(n) + ")");
+    }
+    if (output_index[v] >= 0) {
+      throw std::invalid_argument("Compliance: output node " + std::to_string(v) + " is listed twice");
+    }
+    output_index[v] = static_cast<int>(a);
+  }
+  node_to_condensed_.assign(n, -1);
+  for (size_t b = 0; b < condensed_nodes.size(); ++b) {
+    const int v = condensed_nodes[b];
+    if (v < 0 || v >= n || output_index[v] < 0) {
+      throw std::invalid_argument("Compliance: condensed node " + std::to_string(v) +
+                                  " is not one of the output nodes");
+    }
+    if (node_to_condensed_[v] >= 0) {
+      throw std::invalid_argument("Compliance: condensed node " + std::to_string(v) + " is listed twice");
+    }
+    node_to_condensed_[v] = static_cast<int>(b);
+    condensed_row_.push_back(output_index[v]);
+    bool fixed = false;
+    for (int i = 0; i < 3; ++i) fixed = fixed || solver.FreeIndex(3 * v + i) < 0;
+    fixed_.push_back(fixed ? 1 : 0);
+  }
+  const int num_out = static_cast<int>(output_nodes.size());
+  const int num_cond = static_cast<int>(condensed_nodes.size());
+  g_ = Eigen::MatrixXd::Zero(3 * num_out, 3 * num_cond);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const StaticSolution base = solver.Solve();
+  u0_.resize(3 * num_out);
+  for (int a = 0; a < num_out; ++a) u0_.segment<3>(3 * a) = base.displacement.segment<3>(3 * output_nodes[a]);
+  status_ = base.status;
+  if (!solver.factor_status().converged) return;
+  status_.converged = true;
+  status_.message.clear();
+
+  const int block = std::max(1, settings.block_nodes);
+  Eigen::MatrixXd rhs, x;
+  for (int start = 0; start < num_cond; start += block) {
+    if (settings.cancel && settings.cancel->load()) {
+      status_.converged = false;
+      status_.message = "cancelled";
+      return;
+    }
+    const int count = std::min(block, num_cond - start);
+    rhs.setZero(solver.num_free(), 3 * count);
+    for (int c = 0; c < count; ++c)
+      for (int j = 0; j < 3; ++j) {
+        const int fi = solver.FreeIndex(3 * condensed_nodes[start + c] + j);
+        if (fi >= 0) rhs(fi, 3 * c + j) = 1.0;
+      }
+    const SolveStatus s = solver.SolveFree(rhs, &x);
+    status_.residual = std::max(status_.residual, s.residual);
+    if (!s.converged) {
+      status_.converged = false;
+      status_.message = s.message;
+      return;
+    }
+    for (int a = 0; a < num_out; ++a)
+      for (int i = 0; i < 3; ++i) {
+        const int fi = solver.FreeIndex(3 * output_nodes[a] + i);
+        if (fi < 0) continue;
+        g_.block(3 * a + i, 3 * start, 1, 3 * count) = x.row(fi);
+      }
+    if (settings.progress) settings.progress(static_cast<double>(start + count) / num_cond);
+  }
+  compute_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+int Compliance::CondensedIndexOfNode(int v) const {
+  if (v < 0 || v >= static_cast<int>(node_to_condensed_.size())) return -1;
+  return node_to_condensed_[v];
+}
+
+ContactSolver::ContactSolver(const Compliance& compliance, int max_contacts)
+    : c_(compliance), max_contacts_(max_contacts) {
+  if (max_contacts < 1) {
+    throw std::invalid_argument("ContactSolver: max_contacts must be >= 1, got " +
+                                std::to_string(max_contacts));
+  }
+  l_ = FactorMatrix::Zero(3 * max_contacts, 3 * max_contacts);
+  work_ = Eigen::VectorXd::Zero(3 * max_contacts);
+  slots_.assign(max_contacts, -1);
+  slot_of_.assign(compliance.condensed_nodes().size(), -1);
+}
+
+ContactStatus ContactSolver::Add(int b) {
+  if (b < 0 || b >= static_cast<int>(slot_of_.size())) return ContactStatus::kBadIndex;
+  if (slot_of_[b] >= 0) return ContactStatus::kAlreadyInContact;
+  if (c_.IsFixed(b)) return ContactStatus::kFixedNode;
+  if (k_ >= max_contacts_) return ContactStatus::kFull;
+  const int n3 = 3 * k_;
+  const Eigen::MatrixXd& g = c_.matrix();
+  // Off-diagonal border: solve L y_j = G(contacts, b_j) for the three columns of node b and
+  // store y_jᵀ as row n3 + j of L.
+  for (int j = 0; j < 3; ++j) {
+    const int col = 3 * b + j;
+    for (int i = 0; i < n3; ++i) {
+      const int row = 3 * c_.OutputIndexOfCondensed(slots_[i / 3]) + i % 3;
+      double sum = g(row, col);
+      for (int m = 0; m < i; ++m) sum -= l_(i, m) * l_(n3 + j, m);
+      l_(n3 + j, i) = sum / l_(i, i);
+    }
+  }
+  // Diagonal block: Cholesky of S = G_bb − Yᵀ Y (3 by 3).
+  const int rb = 3 * c_.OutputIndexOfCondensed(b);
+  double scale = 0.0;
+  for (int j = 0; j < 3; ++j) scale = std::max(scale, std::abs(g(rb + j, 3 * b + j)));
+  for (int a = 0; a < 3; ++a) {
+    for (int j = 0; j <= a; ++j) {
+      double s = 0.5 * (g(rb + a, 3 * b + j) + g(rb + j, 3 * b + a));
+      for (int m = 0; m < n3; ++m) s -= l_(n3 + a, m) * l_(n3 + j, m);
+      for (int m = 0; m < j; ++m) s -= l_(n3 + a, n3 + m) * l_(n3 + j, n3 + m);
+      if (a == j) {
+        if (!(s > 1e-12 * scale)) return ContactStatus::kNotPositiveDefinite;
+        l_(n3 + a, n3 + a) = std::sqrt(s);
+      } else {
+        l_(n3 + a, n3 + j) = s / l_(n3 + j, n3 + j);
+      }
+    }
+  }
+  slots_[k_] = b;
+  slot_of_[b] = k_;
+  ++k_;
+  return ContactStatus::kOk;
+}
+
+ContactStatus ContactSolver::Remove(int b) {
+  if (b < 0 || b >= static_cast<int>(slot_of_.size())) return ContactStatus::kBadIndex;
+  const int s = slot_of_[b];
+  if (s < 0) return ContactStatus::kNotInContact;
+  const int n3 = 3 * k_;
+  const int p = 3 * s;
+  // Trailing block L33 (rows/cols p+3 .. n3−1) absorbs L32 L32ᵀ by three successive rank-one
+  // (Givens-type) updates, applied together column by column. The update vectors are columns
+  // p, p+1, p+2 of L itself (rows p+3 .. n3−1), which are discarded when the gap is closed.
+  // Each column's inner loop has no carried dependency (unlike a row-by-row sweep).
+  for (int m = p + 3; m < n3; ++m) {
+    for (int j = 0; j < 3; ++j) {
+      const double xm = l_(m, p + j);
+      const double lmm = l_(m, m);
+      const double r = std::sqrt(lmm * lmm + xm * xm);
+      const double c_inv = lmm / r, sn = xm / lmm, c = r / lmm;
+      l_(m, m) = r;
+      for (int i = m + 1; i < n3; ++i) {
+        double* row = &l_(i, 0);
+        const double lim = (row[m] + sn * row[p + j]) * c_inv;
+        row[m] = lim;
+        row[p + j] = c * row[p + j] - sn * lim;
+      }
+    }
+  }
+  // Close the gap: rows and columns after the removed block move up and left by three.
+  for (int r = p + 3; r < n3; ++r) {
+    for (int col = 0; col < p; ++col) l_(r - 3, col) = l_(r, col);
+    for (int col = p + 3; col <= r; ++col) l_(r - 3, col - 3) = l_(r, col);
+  }
+  for (int t = s; t + 1 < k_; ++t) {
+    slots_[t] = slots_[t + 1];
+    slot_of_[slots_[t]] = t;
+  }
+  slots_[k_ - 1] = -1;
+  slot_of_[b] = -1;
+  --k_;
+  return ContactStatus::kOk;
+}
+
+void ContactSolver::Clear() {
+  for (int t = 0; t < k_; ++t) {
+    slot_of_[slots_[t]] = -1;
+    slots_[t] = -1;
+  }
+  k_ = 0;
+}
+
+bool ContactSolver::Solve(const double* target, double* forces) {
+  if (k_ == 0) return false;
+  const int n3 = 3 * k_;
+  const Eigen::VectorXd& u0 = c_.baseline();
+  for (int i = 0; i < n3; ++i) {
+    const int row = 3 * c_.OutputIndexOfCondensed(slots_[i / 3]) + i % 3;
+    work_(i) = target[i] - u0(row);
+  }
+  // L y = rhs.
+  for (int i = 0; i < n3; ++i) {
+    const double* row = &l_(i, 0);
+    double sum = work_(i);
+    for (int m = 0; m < i; ++m) sum -= row[m] * work_(m);
+    work_(i) = sum / row[i];
+  }
+  // Lᵀ f = y, column-oriented so that it reads rows of L.
+  for (int i = n3 - 1; i >= 0; --i) {
+    const double fi = work_(i) / l_(i, i);
+    work_(i) = fi;
+    const double* row = &l_(i, 0);
+    for (int m = 0; m < i; ++m) work_(m) -= row[m] * fi;
+  }
+  for (int i = 0; i < n3; ++i) forces[i] = work_(i);
+  return true;
+}
+
+void ContactSolver::OutputDisplacement(const double* forces, Eigen::VectorXd* u_out) const {
+  *u_out = c_.baseline();
+  const Eigen::MatrixXd& g = c_.matrix();
+  for (int s = 0; s < k_; ++s)
+    for (int j = 0; j < 3; ++j) u_out->noalias() += forces[3 * s + j] * g.col(3 * slots_[s] + j);
+}
+
+Eigen::MatrixXd ContactSolver::ContactBlock() const {
+  Eigen::MatrixXd m(3 * k_, 3 * k_);
+  for (int a = 0; a < k_; ++a)
+    for (int b = 0; b < k_; ++b) m.block<3, 3>(3 * a, 3 * b) = c_.Block(slots_[a], slots_[b]);
+  return m;
+}
+
+}  // namespace spidarcad::fem

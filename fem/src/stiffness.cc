@@ -1,0 +1,198 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/fem/stiffness.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
+namespace spidarcad::fem {
+namespace {
+
+// Derivatives of the shape functions with respect to barycentric coordinates L0..L3
+// (npe by 4); the shape functions are treated as functions of four independent L.
+Eigen::Matrix<double, Eigen::Dynamic, 4> ShapeDerivativesL(int npe, const Eigen::Vector4d& l) {
+  Eigen::Matrix<double, Eigen::Dynamic, 4> d = Eigen::Matrix<double, Eigen::Dynamic, 4>::Zero(npe, 4);
+  if (npe == 4) {
+    d.setIdentity();
+    return d;
+  }
+  for (int i = 0; i < 4; ++i) d(i, i) = 4.0 * l(i) - 1.0;
+  for (int k = 0; k < 6; ++k) {
+    const int a = kTetEdges[k][0], b = kTetEdges[k][1];
+    d(4 + k, a) = 4.0 * l(b);
+    d(4 + k, b) = 4.0 * l(a);
+  }
+  return d;
+}
+
+}  // namespace
+
+Eigen::MatrixXd StrainDisplacement(const ElementNodes& x, const Eigen::Vector4d& barycentric,
+                                   double* det_j) {
+  const int npe = static_cast<int>(x.rows());
+  const auto dl = ShapeDerivativesL(npe, barycentric);
+  // Natural coordinates ξ = (L1, L2, L3), L0 = 1 − ξ1 − ξ2 − ξ3.
+  Eigen::Matrix<double, Eigen::Dynamic, 3> dxi(npe, 3);
+  for (int j = 0; j < 3; ++j) dxi.col(j) = dl.col(j + 1) - dl.col(0);
+  const Eigen::Matrix3d jac = x.transpose() * dxi;  // J_ij = ∂x_i/∂ξ_j
+  if (det_j) *det_j = jac.determinant();
+  const Eigen::Matrix<double, Eigen::Dynamic, 3> grad = dxi * jac.inverse();  // ∂N_a/∂x_i
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(6, 3 * npe);
+  for (int a = 0; a < npe; ++a) {
+    const double gx = grad(a, 0), gy = grad(a, 1), gz = grad(a, 2);
+    b(0, 3 * a) = gx;
+    b(1, 3 * a + 1) = gy;
+    b(2, 3 * a + 2) = gz;
+    b(3, 3 * a + 1) = gz;
+    b(3, 3 * a + 2) = gy;
+    b(4, 3 * a) = gz;
+    b(4, 3 * a + 2) = gx;
+    b(5, 3 * a) = gy;
+    b(5, 3 * a + 1) = gx;
+  }
+  return b;
+}
+
+Eigen::MatrixXd ElementStiffness(const ElementNodes& x, const Material& material) {
+  const int npe = static_cast<int>(x.rows());
+  if (npe != 4 && npe != 10) {
+    throw std::invalid_argument("ElementStiffness: element must have 4 or 10 nodes, got " +
+                                std::to_string(npe));
+  }
+  const Matrix6d d = material.ElasticityMatrix();
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(3 * npe, 3 * npe);
+  if (npe == 4) {
+    double det = 0.0;
+    const Eigen::MatrixXd b = StrainDisplacement(x, Eigen::Vector4d::Constant(0.25), &det);
+    k.noalias() = (det / 6.0) * b.transpose() * d * b;
+  } else {
+    // Four-point rule of degree 2 on the reference tetrahedron (volume 1/6).
+    constexpr double kA = 0.5854101966249685, kB = 0.1381966011250105;
+    for (int q = 0; q < 4; ++q) {
+      Eigen::Vector4d l = Eigen::Vector4d::Constant(kB);
+      l(q) = kA;
+      double det = 0.0;
+      const Eigen::MatrixXd b = StrainDisplacement(x, l, &det);
+      k.noalias() += (det / 24.0) * b.transpose() * d * b;
+    }
+  }
+  return 0.5 * (k + k.transpose());
+}
+
+ElementNodes GetElementNodes(const TetMesh& mesh, int e) {
+  const int npe = mesh.NodesPerElement();
+  ElementNodes x(npe, 3);
+  for (int a = 0; a < npe; ++a) x.row(a) = mesh.nodes.row(mesh.elements(e, a));
+  return x;
+}
+
+SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materials) {
+  const int n = mesh.num_nodes();
+  const int npe = mesh.NodesPerElement();
+  // Node adjacency (including the node itself), sorted.
+  std::vector<std::vector<int>> adj(n);
+  for (int e = 0; e < mesh.num_elements(); ++e)
+    for (int a = 0; a < npe; ++a)
+      for (int b = 0; b < npe; ++b) adj[mesh.elements(e, a)].push_back(mesh.elements(e, b));
+  for (auto& v : adj) {
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+  }
+  // Compressed column pattern: column (b, j) holds rows (a, i) for a in adj(b), i = 0..2.
+  SparseMatrixd k(3 * n, 3 * n);
+  std::vector<int> col_start(3 * n + 1, 0);
+  for (int b = 0; b < n; ++b)
+    for (int j = 0; j < 3; ++j) col_start[3 * b + j + 1] = 3 * static_cast<int>(adj[b].size());
+  for (int c = 0; c < 3 * n; ++c) col_start[c + 1] += col_start[c];
+  k.resizeNonZeros(col_start.back());
+  std::copy(col_start.begin(), col_start.end(), k.outerIndexPtr());
+  int* inner = k.innerIndexPtr();
+  double* values = k.valuePtr();
+  for (int b = 0; b < n; ++b)
+    for (int j = 0; j < 3; ++j) {
+      int p = col_start[3 * b + j];
+      for (int a : adj[b])
+        for (int i = 0; i < 3; ++i) {
+          inner[p] = 3 * a + i;
+          values[p] = 0.0;
+          ++p;
+        }
+    }
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const Eigen::MatrixXd ke = ElementStiffness(GetElementNodes(mesh, e), materials.Get(mesh.regions(e)));
+    for (int lb = 0; lb < npe; ++lb) {
+      const int b = mesh.elements(e, lb);
+      const auto& nb = adj[b];
+      for (int la = 0; la < npe; ++la) {
+        const int a = mesh.elements(e, la);
+        const int rank = static_cast<int>(std::lower_bound(nb.begin(), nb.end(), a) - nb.begin());
+        for (int j = 0; j < 3; ++j) {
+          double* col = values + col_start[3 * b + j] + 3 * rank;
+          for (int i = 0; i < 3; ++i) col[i] += ke(3 * la + i, 3 * lb + j);
+        }
+      }
+    }
+  }
+  return k;
+}
+
+Eigen::MatrixXd RigidBodyModes(const Eigen::MatrixX3d& nodes) {
+  const int n = static_cast<int>(nodes.rows());
+  const Eigen::RowVector3d centre = nodes.colwise().mean();
+  const double size =
+      std::max((nodes.colwise().maxCoeff() - nodes.colwise().minCoeff()).norm(), 1e-300);
+  Eigen::MatrixXd r = Eigen::MatrixXd::Zero(3 * n, 6);
+  for (int v = 0; v < n; ++v) {
+    const Eigen::Vector3d p = (nodes.row(v) - centre).transpose() / size;
+    for (int i = 0; i < 3; ++i) r(3 * v + i, i) = 1.0;
+    // u = ω × p for unit ω along x, y, z.
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d u = Eigen::Vector3d::Unit(k).cross(p);
+      r.block<3, 1>(3 * v, 3 + k) = u;
+    }
+  }
+  return r;
+}
+
+Eigen::Matrix<double, 6, 1> ElementStress(const TetMesh& mesh, const MaterialTable& materials,
+                                         const Eigen::VectorXd& u, int e) {
+  const int npe = mesh.NodesPerElement();
+  Eigen::VectorXd ue(3 * npe);
+  for (int a = 0; a < npe; ++a) ue.segment<3>(3 * a) = u.segment<3>(3 * mesh.elements(e, a));
+  const Eigen::MatrixXd b =
+      StrainDisplacement(GetElementNodes(mesh, e), Eigen::Vector4d::Constant(0.25));
+  return materials.Get(mesh.regions(e)).ElasticityMatrix() * (b * ue);
+}
+
+double VonMises(const Eigen::Matrix<double, 6, 1>& s) {
+  const double a = s(0) - s(1), b = s(1) - s(2), c = s(2) - s(0);
+  return std::sqrt(0.5 * (a * a + b * b + c * c) + 3.0 * (s(3) * s(3) + s(4) * s(4) + s(5) * s(5)));
+}
+
+Eigen::VectorXd ElementVonMises(const TetMesh& mesh, const MaterialTable& materials,
+                                const Eigen::VectorXd& u) {
+  Eigen::VectorXd vm(mesh.num_elements());
+  for (int e = 0; e < mesh.num_elements(); ++e) vm(e) = VonMises(ElementStress(mesh, materials, u, e));
+  return vm;
+}
+
+Eigen::VectorXd AverageToNodes(const TetMesh& mesh, const Eigen::VectorXd& element_values) {
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(mesh.num_nodes());
+  Eigen::VectorXd weight = Eigen::VectorXd::Zero(mesh.num_nodes());
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const double vol = std::abs(mesh.CornerVolume(e));
+    for (int a = 0; a < mesh.NodesPerElement(); ++a) {
+      sum(mesh.elements(e, a)) += vol * element_values(e);
+      weight(mesh.elements(e, a)) += vol;
+    }
+  }
+  for (int v = 0; v < mesh.num_nodes(); ++v) sum(v) = weight(v) > 0.0 ? sum(v) / weight(v) : 0.0;
+  return sum;
+}
+
+}  // namespace spidarcad::fem

@@ -1,0 +1,308 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/fem/condensation.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cstddef>
+#include <random>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+// Counting allocator for the whole test program: every malloc (hence every operator new and
+// every Eigen heap allocation) is counted while g_count_allocations is set.
+namespace {
+std::atomic<bool> g_count_allocations{false};
+std::atomic<long> g_allocations{0};
+void Count() {
+  if (g_count_allocations.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+}
+}  // namespace
+
+extern "C" {
+void* __libc_malloc(std::size_t);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void* __libc_memalign(std::size_t, std::size_t);
+void __libc_free(void*);
+void* malloc(std::size_t n) {
+  Count();
+  return __libc_malloc(n);
+}
+void* calloc(std::size_t n, std::size_t s) {
+  Count();
+  return __libc_calloc(n, s);
+}
+void* realloc(void* p, std::size_t n) {
+  Count();
+  return __libc_realloc(p, n);
+}
+void* memalign(std::size_t a, std::size_t n) {
+  Count();
+  return __libc_memalign(a, n);
+}
+void* aligned_alloc(std::size_t a, std::size_t n) {
+  Count();
+  return __libc_memalign(a, n);
+}
+int posix_memalign(void** p, std::size_t a, std::size_t n) {
+  Count();
+  *p = __libc_memalign(a, n);
+  return *p ? 0 : 12;  // ENOMEM
+}
+void free(void* p) { __libc_free(p); }
+}
+
+namespace spidarcad::fem {
+namespace {
+
+// A clamped block (x = 0 fixed) with a baseline point load, condensed on its top face.
+struct Scene {
+  TetMesh mesh;
+  MaterialTable materials{Material{5.0e7, 0.35}};
+  std::unique_ptr<BoundaryConditions> bcs;
+  std::unique_ptr<StaticSolver> solver;
+  std::unique_ptr<Compliance> compliance;
+
+  explicit Scene(int order, int nx = 4, int nyz = 2) {
+    BoxMeshSettings s;
+    s.upper = Eigen::Vector3d(0.2, 0.1, 0.1);
+    s.nx = nx;
+    s.ny = nyz;
+    s.nz = nyz;
+    s.order = order;
+    mesh = MakeBoxMesh(s);
+    bcs = std::make_unique<BoundaryConditions>(mesh.num_nodes());
+    FixNodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), bcs.get());
+    bcs->AddPointLoad(NodesInBox(mesh, Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0.2, 0, 0)).at(0),
+                      Eigen::Vector3d(0.0, 3.0, -2.0));
+    solver = std::make_unique<StaticSolver>(mesh, materials, *bcs);
+    const Surface surf = ExtractSurface(mesh);
+    const auto top = NodesInBox(mesh, Eigen::Vector3d(-1, -1, 0.1), Eigen::Vector3d(1, 1, 1));
+    CondensationSettings settings;
+    settings.block_nodes = 5;  // several blocks
+    compliance = std::make_unique<Compliance>(*solver, surf.nodes, top, settings);
+  }
+
+  // Condensed indices of top nodes that are not fixed.
+  std::vector<int> FreeCondensed() const {
+    std::vector<int> out;
+    for (int b = 0; b < static_cast<int>(compliance->condensed_nodes().size()); ++b)
+      if (!compliance->IsFixed(b)) out.push_back(b);
+    return out;
+  }
+};
+
+TEST(Compliance, IsSymmetricPositiveDefiniteWhenRestrictedToCondensedNodes) {
+  const Scene scene(1);
+  const Compliance& c = *scene.compliance;
+  ASSERT_TRUE(c.status().converged) << c.status().message;
+  const auto free = scene.FreeCondensed();
+  Eigen::MatrixXd gcc(3 * free.size(), 3 * free.size());
+  for (size_t a = 0; a < free.size(); ++a)
+    for (size_t b = 0; b < free.size(); ++b) gcc.block<3, 3>(3 * a, 3 * b) = c.Block(free[a], free[b]);
+  // Maxwell–Betti reciprocity.
+  EXPECT_LT((gcc - gcc.transpose()).norm(), 1e-12 * gcc.norm());
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gcc);
+  EXPECT_GT(eig.eigenvalues().minCoeff(), 0.0);
+  // A column equals a direct solve with a unit point load (second computation).
+  const int b = free[3];
+  const int node = c.condensed_nodes()[b];
+  BoundaryConditions unit(scene.mesh.num_nodes());
+  FixNodesInBox(scene.mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), &unit);
+  unit.AddPointLoad(node, Eigen::Vector3d(0, 1, 0));
+  const StaticSolution direct = StaticSolver(scene.mesh, scene.materials, unit).Solve();
+  for (size_t a = 0; a < c.output_nodes().size(); ++a)
+    EXPECT_LT((c.matrix().block<3, 1>(3 * a, 3 * b + 1) -
+               direct.displacement.segment<3>(3 * c.output_nodes()[a])).norm(),
+              1e-12 * direct.displacement.norm());
+}
+
+// The condensed contact solve against a full sparse solve in which the contact nodes are
+// prescribed: forces (reactions) and displacements of every surface node agree to 1e-9.
+void ExpectMatchesFullSolve(const Scene& scene, const std::vector<int>& contacts) {
+  const Compliance& c = *scene.compliance;
+  ContactSolver solver(c, 8);
+  std::vector<double> target(3 * contacts.size()), forces(3 * contacts.size());
+  BoundaryConditions full_bcs = *scene.bcs;
+  for (size_t s = 0; s < contacts.size(); ++s) {
+    ASSERT_EQ(solver.Add(contacts[s]), ContactStatus::kOk);
+    const int node = c.condensed_nodes()[contacts[s]];
+    const Eigen::Vector3d d(1e-4 * (s + 1), -2e-4, -5e-4 + 1e-4 * s);
+    for (int i = 0; i < 3; ++i) target[3 * s + i] = d(i);
+    full_bcs.PrescribeNode(node, d);
+  }
+  ASSERT_TRUE(solver.Solve(target.data(), forces.data()));
+  Eigen::VectorXd u(3 * c.output_nodes().size());
+  solver.OutputDisplacement(forces.data(), &u);
+
+  StaticSolver full(scene.mesh, scene.materials, full_bcs);
+  const StaticSolution sol = full.Solve();
+  ASSERT_TRUE(sol.status.converged) << sol.status.message;
+  Eigen::VectorXd f_full(3 * contacts.size()), f_cond(3 * contacts.size());
+  for (size_t s = 0; s < contacts.size(); ++s) {
+    f_full.segment<3>(3 * s) = sol.reaction.segment<3>(3 * c.condensed_nodes()[contacts[s]]);
+    f_cond.segment<3>(3 * s) = Eigen::Map<const Eigen::Vector3d>(&forces[3 * s]);
+  }
+  EXPECT_LT((f_full - f_cond).norm(), 1e-9 * f_full.norm()) << "k = " << contacts.size();
+  Eigen::VectorXd u_full(u.size());
+  for (size_t a = 0; a < c.output_nodes().size(); ++a)
+    u_full.segment<3>(3 * a) = sol.displacement.segment<3>(3 * c.output_nodes()[a]);
+  EXPECT_LT((u_full - u).norm(), 1e-9 * u_full.norm()) << "k = " << contacts.size();
+}
+
+TEST(ContactSolver, EqualsFullSparseSolveWhenOneOrSeveralNodesPushed) {
+  for (int order : {1, 2}) {
+    const Scene scene(order);
+    const auto free = scene.FreeCondensed();
+    ASSERT_GE(free.size(), 8u);
+    ExpectMatchesFullSolve(scene, {free[2]});
+    ExpectMatchesFullSolve(scene, {free[0], free[5]});
+    ExpectMatchesFullSolve(scene, {free[7], free[1], free[4], free[3], free[6]});
+  }
+}
+
+// From-scratch reference: Cholesky of the current contact block.
+double FactorError(const ContactSolver& solver) {
+  const Eigen::MatrixXd g = solver.ContactBlock();
+  const Eigen::MatrixXd gs = 0.5 * (g + g.transpose());
+  const Eigen::MatrixXd l_ref = gs.llt().matrixL();
+  const int n = static_cast<int>(g.rows());
+  const Eigen::MatrixXd l = solver.factor().topLeftCorner(n, n).triangularView<Eigen::Lower>();
+  return (l - l_ref).norm() / l_ref.norm();
+}
+
+TEST(ContactSolver, IncrementalFactorEqualsFromScratchWhenNodesEnterAndLeave) {
+  const Scene scene(2);
+  const auto free = scene.FreeCondensed();
+  ContactSolver solver(*scene.compliance, 6);
+  ASSERT_EQ(solver.Add(free[0]), ContactStatus::kOk);
+  ASSERT_EQ(solver.Add(free[3]), ContactStatus::kOk);
+  ASSERT_EQ(solver.Add(free[5]), ContactStatus::kOk);
+  ASSERT_EQ(solver.Add(free[1]), ContactStatus::kOk);
+  EXPECT_LT(FactorError(solver), 1e-12);
+  ASSERT_EQ(solver.Remove(free[3]), ContactStatus::kOk);  // middle
+  EXPECT_EQ(solver.num_contacts(), 3);
+  EXPECT_EQ(solver.contact(1), free[5]);
+  EXPECT_LT(FactorError(solver), 1e-12);
+  ASSERT_EQ(solver.Remove(free[1]), ContactStatus::kOk);  // last
+  ASSERT_EQ(solver.Remove(free[0]), ContactStatus::kOk);  // first
+  ASSERT_EQ(solver.Add(free[7]), ContactStatus::kOk);
+  EXPECT_LT(FactorError(solver), 1e-12);
+  // Status codes.
+  EXPECT_EQ(solver.Add(free[7]), ContactStatus::kAlreadyInContact);
+  EXPECT_EQ(solver.Remove(free[2]), ContactStatus::kNotInContact);
+  EXPECT_EQ(solver.Add(-1), ContactStatus::kBadIndex);
+  for (int b = 0; b < static_cast<int>(scene.compliance->condensed_nodes().size()); ++b) {
+    if (scene.compliance->IsFixed(b)) {
+      EXPECT_EQ(solver.Add(b), ContactStatus::kFixedNode);  // contact on a clamped node
+      break;
+    }
+  }
+  for (int i = 0; i < 4; ++i) ASSERT_EQ(solver.Add(free[8 + i]), ContactStatus::kOk);
+  EXPECT_EQ(solver.Add(free[12]), ContactStatus::kFull);
+  solver.Clear();
+  EXPECT_EQ(solver.num_contacts(), 0);
+  EXPECT_EQ(solver.SlotOf(free[7]), -1);
+}
+
+// A long session of random touch and release: the incrementally updated factor does not
+// drift from the from-scratch one, and forces match a dense solve.
+TEST(ContactSolver, DoesNotDriftWhenTouchedAndReleasedManyTimes) {
+  const Scene scene(1);
+  const auto free = scene.FreeCondensed();
+  ContactSolver solver(*scene.compliance, 12);
+  std::mt19937 rng(2024);
+  double worst = 0.0;
+  for (int step = 0; step < 3000; ++step) {
+    const int b = free[rng() % free.size()];
+    if (solver.SlotOf(b) >= 0) {
+      ASSERT_EQ(solver.Remove(b), ContactStatus::kOk);
+    } else if (solver.num_contacts() < 12) {
+      ASSERT_EQ(solver.Add(b), ContactStatus::kOk);
+    }
+    if (step % 500 == 499 && solver.num_contacts() > 0) worst = std::max(worst, FactorError(solver));
+  }
+  ASSERT_GT(solver.num_contacts(), 0);
+  EXPECT_LT(worst, 1e-11);
+  const int n = 3 * solver.num_contacts();
+  Eigen::VectorXd target = Eigen::VectorXd::LinSpaced(n, -1e-4, 2e-4), f(n);
+  ASSERT_TRUE(solver.Solve(target.data(), f.data()));
+  Eigen::VectorXd rhs(n);
+  for (int s = 0; s < solver.num_contacts(); ++s)
+    rhs.segment<3>(3 * s) = target.segment<3>(3 * s) -
+        scene.compliance->baseline().segment<3>(3 * scene.compliance->OutputIndexOfCondensed(solver.contact(s)));
+  const Eigen::VectorXd f_ref = solver.ContactBlock().ldlt().solve(rhs);
+  EXPECT_LT((f - f_ref).norm(), 1e-10 * f_ref.norm());
+}
+
+// Hundreds of contact nodes: the whole free surface of a quadratic block is pushed.
+TEST(ContactSolver, EqualsFullSparseSolveWhenHundredsOfNodesPushed) {
+  Scene scene(2, 6, 3);
+  const Surface surf = ExtractSurface(scene.mesh);
+  scene.compliance = std::make_unique<Compliance>(*scene.solver, surf.nodes, surf.nodes);
+  const Compliance& c = *scene.compliance;
+  std::vector<int> contacts;
+  for (int b = 0; b < static_cast<int>(c.condensed_nodes().size()); ++b)
+    if (!c.IsFixed(b)) contacts.push_back(b);
+  ASSERT_GE(contacts.size(), 300u);
+  ContactSolver solver(c, static_cast<int>(contacts.size()));
+  BoundaryConditions full_bcs = *scene.bcs;
+  std::vector<double> target, forces(3 * contacts.size());
+  for (int b : contacts) {
+    ASSERT_EQ(solver.Add(b), ContactStatus::kOk) << "node " << c.condensed_nodes()[b];
+    const int v = c.condensed_nodes()[b];
+    // A smooth imposed field: u = 1e-4 (z, x, −y) m/m.
+    const Eigen::Vector3d p = scene.mesh.nodes.row(v).transpose();
+    const Eigen::Vector3d d = 1e-3 * Eigen::Vector3d(p.z(), p.x(), -p.y());
+    target.insert(target.end(), {d.x(), d.y(), d.z()});
+    full_bcs.PrescribeNode(v, d);
+  }
+  ASSERT_TRUE(solver.Solve(target.data(), forces.data()));
+  const StaticSolution sol = StaticSolver(scene.mesh, scene.materials, full_bcs).Solve();
+  ASSERT_TRUE(sol.status.converged) << sol.status.message;
+  Eigen::VectorXd f_full(forces.size());
+  for (size_t s = 0; s < contacts.size(); ++s)
+    f_full.segment<3>(3 * s) = sol.reaction.segment<3>(3 * c.condensed_nodes()[contacts[s]]);
+  const Eigen::VectorXd f_cond = Eigen::Map<const Eigen::VectorXd>(forces.data(), forces.size());
+  EXPECT_LT((f_full - f_cond).norm(), 1e-9 * f_full.norm()) << "k = " << contacts.size();
+}
+
+TEST(ContactSolver, AllocatesNothingWhenContactsChangeAndSolve) {
+  const Scene scene(1);
+  const auto free = scene.FreeCondensed();
+  ContactSolver solver(*scene.compliance, 16);
+  std::vector<double> target(48, -1e-4), forces(48, 0.0);
+  Eigen::VectorXd u(3 * scene.compliance->output_nodes().size());
+  // Sanity: the counter sees allocations.
+  g_allocations = 0;
+  g_count_allocations = true;
+  { std::vector<int> probe(100, 1); EXPECT_EQ(probe[99], 1); }
+  g_count_allocations = false;
+  ASSERT_GT(g_allocations.load(), 0);
+
+  g_allocations = 0;
+  g_count_allocations = true;
+  int ok = 0;
+  for (int round = 0; round < 20; ++round) {
+    for (int i = 0; i < 8; ++i) ok += solver.Add(free[(round + 3 * i) % free.size()]) == ContactStatus::kOk;
+    ok += solver.Solve(target.data(), forces.data());
+    solver.OutputDisplacement(forces.data(), &u);
+    ok += solver.Remove(solver.contact(0)) == ContactStatus::kOk;
+    ok += solver.Solve(target.data(), forces.data());
+    solver.Clear();
+  }
+  g_count_allocations = false;
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_GT(ok, 100);
+}
+
+TEST(Compliance, ThrowsWhenCondensedNodeIsNotAnOutputNode) {
+  const Scene scene(1);
+  EXPECT_THROW(Compliance(*scene.solver, {1, 2, 3}, {4}), std::invalid_argument);
+  EXPECT_THROW(Compliance(*scene.solver, {1, 1}, {1}), std::invalid_argument);
+  EXPECT_THROW(ContactSolver(*scene.compliance, 0), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace spidarcad::fem

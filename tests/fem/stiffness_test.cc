@@ -1,0 +1,183 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/fem/stiffness.h"
+
+#include <random>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+namespace spidarcad::fem {
+namespace {
+
+// A box mesh of the given order with interior corner nodes moved randomly (fixed seed);
+// midside nodes stay at edge midpoints, so elements remain straight-edged.
+TetMesh DistortedBox(int order, unsigned seed) {
+  BoxMeshSettings s;
+  s.nx = 3;
+  s.ny = 2;
+  s.nz = 2;
+  s.upper = Eigen::Vector3d(0.3, 0.2, 0.2);
+  TetMesh lin = MakeBoxMesh(s);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
+  for (int v = 0; v < lin.num_nodes(); ++v) {
+    const Eigen::Vector3d p = lin.nodes.row(v).transpose();
+    const bool interior = (p.array() > 1e-9).all() && (p.array() < s.upper.array() - 1e-9).all();
+    if (interior) lin.nodes.row(v) += Eigen::RowVector3d(jitter(rng), jitter(rng), jitter(rng));
+  }
+  return order == 2 ? MakeQuadratic(lin) : lin;
+}
+
+ElementNodes SkewTet(int order) {
+  ElementNodes x(4, 3);
+  x << 0.01, 0.02, 0.0, 0.13, 0.0, 0.01, 0.03, 0.11, 0.02, 0.02, 0.04, 0.09;
+  if (order == 1) return x;
+  ElementNodes q(10, 3);
+  q.topRows(4) = x;
+  for (int k = 0; k < 6; ++k) q.row(4 + k) = 0.5 * (x.row(kTetEdges[k][0]) + x.row(kTetEdges[k][1]));
+  return q;
+}
+
+class ElementOrderTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(ElementOrderTest, ElementStiffnessIsSymmetricWithSixRigidModesWhenComputed) {
+  const ElementNodes x = SkewTet(GetParam());
+  const Material mat{2.0e9, 0.3};
+  const Eigen::MatrixXd k = ElementStiffness(x, mat);
+  EXPECT_LT((k - k.transpose()).norm(), 1e-12 * k.norm());
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(k);
+  const double max_ev = eig.eigenvalues().maxCoeff();
+  for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(eig.eigenvalues()(i)), 1e-10 * max_ev);
+  EXPECT_GT(eig.eigenvalues()(6), 1e-6 * max_ev);
+  const Eigen::MatrixXd r = RigidBodyModes(x);
+  EXPECT_LT((k * r).norm(), 1e-10 * k.norm() * r.norm());
+}
+
+TEST_P(ElementOrderTest, StrainEnergyMatchesClosedFormWhenFieldIsLinear) {
+  // u = A x gives the constant strain ε = sym(A); energy ½ uᵀ K u = ½ V εᵀ D ε.
+  const ElementNodes x = SkewTet(GetParam());
+  const Material mat{1.0e6, 0.25};
+  Eigen::Matrix3d a;
+  a << 0.01, -0.02, 0.005, 0.003, 0.02, 0.001, -0.004, 0.007, -0.01;
+  Eigen::VectorXd u(3 * x.rows());
+  for (int i = 0; i < x.rows(); ++i) u.segment<3>(3 * i) = a * x.row(i).transpose();
+  const Eigen::Matrix3d e = 0.5 * (a + a.transpose());
+  Eigen::Matrix<double, 6, 1> voigt;
+  voigt << e(0, 0), e(1, 1), e(2, 2), 2 * e(1, 2), 2 * e(0, 2), 2 * e(0, 1);
+  Eigen::Matrix3d edges;
+  for (int k = 0; k < 3; ++k) edges.col(k) = (x.row(k + 1) - x.row(0)).transpose();
+  const double volume = edges.determinant() / 6.0;
+  const double expected = 0.5 * volume * voigt.dot(mat.ElasticityMatrix() * voigt);
+  const double energy = 0.5 * u.dot(ElementStiffness(x, mat) * u);
+  EXPECT_NEAR(energy, expected, 1e-12 * expected);
+}
+
+TEST_P(ElementOrderTest, GlobalStiffnessHasRigidModesInNullSpaceWhenUnconstrained) {
+  const TetMesh mesh = DistortedBox(GetParam(), 7);
+  MaterialTable mats(Material{3.0e9, 0.35});
+  const SparseMatrixd k = AssembleStiffness(mesh, mats);
+  ASSERT_EQ(k.rows(), 3 * mesh.num_nodes());
+  const SparseMatrixd kt = k.transpose();
+  EXPECT_LT((k - kt).norm(), 1e-13 * k.norm());
+  const Eigen::MatrixXd r = RigidBodyModes(mesh.nodes);
+  const Eigen::MatrixXd kr = k * r;
+  for (int m = 0; m < 6; ++m)
+    EXPECT_LT(kr.col(m).norm(), 1e-11 * k.norm() * r.col(m).norm()) << "mode " << m;
+  // A non-rigid field (a bending shape) is not in the null space.
+  Eigen::VectorXd bend = Eigen::VectorXd::Zero(k.rows());
+  for (int v = 0; v < mesh.num_nodes(); ++v) bend(3 * v + 2) = mesh.nodes(v, 0) * mesh.nodes(v, 0);
+  EXPECT_GT((k * bend).norm(), 1e-3 * k.norm() * bend.norm());
+}
+
+TEST_P(ElementOrderTest, AssemblyEqualsDenseSumOfElementMatricesWhenComputed) {
+  // Second algorithm: scatter element matrices into a dense matrix.
+  const TetMesh mesh = DistortedBox(GetParam(), 3);
+  MaterialTable mats(Material{1.0e9, 0.3});
+  const SparseMatrixd k = AssembleStiffness(mesh, mats);
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(k.rows(), k.cols());
+  const int npe = mesh.NodesPerElement();
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const Eigen::MatrixXd ke = ElementStiffness(GetElementNodes(mesh, e), mats.Get(0));
+    for (int a = 0; a < npe; ++a)
+      for (int b = 0; b < npe; ++b)
+        dense.block<3, 3>(3 * mesh.elements(e, a), 3 * mesh.elements(e, b)) += ke.block<3, 3>(3 * a, 3 * b);
+  }
+  EXPECT_LT((Eigen::MatrixXd(k) - dense).norm(), 1e-13 * dense.norm());
+}
+
+TEST_P(ElementOrderTest, SliverKeepsRigidModesAndExactEnergyWhenNearlyFlat) {
+  // Classic sliver: the corners of a unit square lifted alternately by ±h, h = 1e-3.
+  const double h = 1e-3;
+  ElementNodes c(4, 3);
+  c << 0, 0, 0, 1, 0, h, 1, 1, 0, 0, 1, h;
+  Eigen::Matrix3d edges;
+  for (int k = 0; k < 3; ++k) edges.col(k) = (c.row(k + 1) - c.row(0)).transpose();
+  if (edges.determinant() < 0) c.row(1).swap(c.row(3));
+  for (int k = 0; k < 3; ++k) edges.col(k) = (c.row(k + 1) - c.row(0)).transpose();
+  ASSERT_GT(edges.determinant(), 0.0);
+  ElementNodes x = c;
+  if (GetParam() == 2) {
+    x.resize(10, 3);
+    x.topRows(4) = c;
+    for (int k = 0; k < 6; ++k) x.row(4 + k) = 0.5 * (c.row(kTetEdges[k][0]) + c.row(kTetEdges[k][1]));
+  }
+  const Material mat{1.0e9, 0.3};
+  const Eigen::MatrixXd k = ElementStiffness(x, mat);
+  const Eigen::MatrixXd r = RigidBodyModes(x);
+  EXPECT_LT((k * r).norm(), 1e-9 * k.norm() * r.norm());
+  // Energy of u = A x against ½ V εᵀ D ε, with A a pure shear in the thin direction.
+  Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+  a(0, 2) = 1e-3;
+  Eigen::VectorXd u(3 * x.rows());
+  for (int i = 0; i < x.rows(); ++i) u.segment<3>(3 * i) = a * x.row(i).transpose();
+  Eigen::Matrix<double, 6, 1> voigt = Eigen::Matrix<double, 6, 1>::Zero();
+  voigt(4) = 1e-3;
+  const double expected = 0.5 * edges.determinant() / 6.0 * voigt.dot(mat.ElasticityMatrix() * voigt);
+  EXPECT_NEAR(0.5 * u.dot(k * u), expected, 1e-9 * expected);
+}
+
+INSTANTIATE_TEST_SUITE_P(Orders, ElementOrderTest, ::testing::Values(1, 2));
+
+TEST(VonMises, MatchesUniaxialAndPureShearWhenEvaluated) {
+  Eigen::Matrix<double, 6, 1> s = Eigen::Matrix<double, 6, 1>::Zero();
+  s(0) = 5.0e6;
+  EXPECT_NEAR(VonMises(s), 5.0e6, 1e-6);
+  s.setZero();
+  s(5) = 2.0e6;
+  EXPECT_NEAR(VonMises(s), std::sqrt(3.0) * 2.0e6, 1e-6);
+  s.setConstant(0.0);
+  s.head<3>().setConstant(-1e6);  // hydrostatic: zero
+  EXPECT_NEAR(VonMises(s), 0.0, 1e-9);
+}
+
+TEST(ElementStress, IsUniformAndExactWhenFieldIsLinear) {
+  for (int order : {1, 2}) {
+    const TetMesh mesh = DistortedBox(order, 11);
+    MaterialTable mats(Material{2.0e11, 0.3});
+    const double strain = 1e-4;  // u_x = ε x: σxx = (λ + 2μ) ε, σyy = σzz = λ ε.
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * mesh.num_nodes());
+    for (int v = 0; v < mesh.num_nodes(); ++v) u(3 * v) = strain * mesh.nodes(v, 0);
+    const Material& m = mats.Get(0);
+    Eigen::Matrix<double, 6, 1> expected;
+    expected << (m.Lambda() + 2 * m.Mu()) * strain, m.Lambda() * strain, m.Lambda() * strain, 0, 0, 0;
+    const Eigen::VectorXd vm = ElementVonMises(mesh, mats, u);
+    const Eigen::VectorXd nodal = AverageToNodes(mesh, vm);
+    for (int e = 0; e < mesh.num_elements(); ++e) {
+      EXPECT_LT((ElementStress(mesh, mats, u, e) - expected).norm(), 1e-9 * expected.norm());
+      EXPECT_NEAR(vm(e), VonMises(expected), 1e-9 * VonMises(expected));
+    }
+    EXPECT_NEAR(nodal.maxCoeff(), VonMises(expected), 1e-9 * VonMises(expected));
+    EXPECT_NEAR(nodal.minCoeff(), VonMises(expected), 1e-9 * VonMises(expected));
+  }
+}
+
+TEST(AssembleStiffness, ThrowsNamingRegionWhenMaterialMissing) {
+  TetMesh mesh = DistortedBox(1, 1);
+  mesh.regions(0) = 9;
+  MaterialTable mats;
+  mats.Set(0, Material{1e9, 0.3});
+  EXPECT_THROW(AssembleStiffness(mesh, mats), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace spidarcad::fem
