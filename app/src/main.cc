@@ -22,7 +22,9 @@ int main(int argc, char** argv) {
       "at the frame centre, corners at (±a, ±b, ±c).\n"
       "\n"
       "Examples:\n"
-      "  echo 0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3 | spidarcad fk --batch\n"
+      "  # the rest pose: all 8 strings 0.3939543 m long\n"
+      "  echo 0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543 \\\n"
+      "    | spidarcad fk --batch\n"
       "  spidarcad workspace --out-csv ws.csv --out-png ws.png\n"
       "  spidarcad calibrate --simulated\n",
       "spidarcad"};
