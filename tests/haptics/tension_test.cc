@@ -1,0 +1,403 @@
+// Tests of the wrench matrix and the tension solver against independent computations: hand
+// numbers at rest, the virtual-work identity by finite differences of the kinematics, brute
+// force over all 3^8 active sets, and explicit KKT conditions.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/haptics/tension.h"
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+namespace spidarcad::haptics {
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::Vector3d;
+using Eigen::VectorXd;
+
+Eigen::Matrix3d RandomRotation(std::mt19937* rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::Quaterniond q(normal(*rng), normal(*rng), normal(*rng), normal(*rng));
+  q.normalize();
+  return q.toRotationMatrix();
+}
+
+Vector3d RandomVector(std::mt19937* rng, double half_range) {
+  std::uniform_real_distribution<double> u(-half_range, half_range);
+  return Vector3d(u(*rng), u(*rng), u(*rng));
+}
+
+// Objective written out from ERRATA.md Eq. 17, term by term.
+double Objective(const Matrix78d& A, const Vector7d& q, const TensionSettings& s,
+                 const Vector8d& tau) {
+  double force_error = 0, moment_error = 0;
+  for (int r = 0; r < 3; ++r) {
+    double fr = q(r), mr = q(3 + r);
+    for (int i = 0; i < 8; ++i) {
+      fr -= tau(i) * A(r, i);
+      mr -= tau(i) * A(3 + r, i);
+    }
+    force_error += fr * fr;
+    moment_error += mr * mr;
+  }
+  double grasp_error = q(6);
+  for (int i = 0; i < 8; ++i) grasp_error -= tau(i) * A(6, i);
+  return force_error + s.s0 * moment_error + s.s1 * grasp_error * grasp_error +
+         s.s2 * tau.squaredNorm();
+}
+
+// Quadratic form of J: J = τᵀHτ − 2bᵀτ + const, built with dynamic matrices.
+void QuadraticForm(const Matrix78d& A, const Vector7d& q, const TensionSettings& s, MatrixXd* H,
+                   VectorXd* b) {
+  VectorXd w(7);
+  w << 1, 1, 1, s.s0, s.s0, s.s0, s.s1;
+  const MatrixXd Ad = A;
+  *H = Ad.transpose() * w.asDiagonal() * Ad + s.s2 * MatrixXd::Identity(8, 8);
+  *b = Ad.transpose() * (w.asDiagonal() * VectorXd(q));
+}
+
+struct Reference {
+  Vector8d tau;
+  double objective = std::numeric_limits<double>::infinity();
+};
+
+// Brute force: for each of the 3^8 patterns (free / at τ_min / at τ_max) solve the equality-
+// constrained problem; the optimum is the feasible candidate of least objective (the optimum's
+// own pattern is among them and yields it).
+Reference BruteForce(const Matrix78d& A, const Vector7d& q, const TensionSettings& s) {
+  MatrixXd H;
+  VectorXd b;
+  QuadraticForm(A, q, s, &H, &b);
+  Reference best;
+  for (int pattern = 0; pattern < 6561; ++pattern) {
+    int code = pattern;
+    int kind[8];
+    std::vector<int> free;
+    Vector8d tau = Vector8d::Zero();
+    for (int i = 0; i < 8; ++i) {
+      kind[i] = code % 3;
+      code /= 3;
+      if (kind[i] == 0) free.push_back(i);
+      if (kind[i] == 1) tau(i) = s.tau_min;
+      if (kind[i] == 2) tau(i) = s.tau_max;
+    }
+    const int k = static_cast<int>(free.size());
+    if (k > 0) {
+      MatrixXd Hff(k, k);
+      VectorXd rhs(k);
+      for (int a = 0; a < k; ++a) {
+        rhs(a) = b(free[a]);
+        for (int j = 0; j < 8; ++j) {
+          if (kind[j] != 0) rhs(a) -= H(free[a], j) * tau(j);
+        }
+        for (int c = 0; c < k; ++c) Hff(a, c) = H(free[a], free[c]);
+      }
+      const VectorXd x = Hff.ldlt().solve(rhs);
+      bool feasible = true;
+      for (int a = 0; a < k; ++a) {
+        if (x(a) < s.tau_min - 1e-12 || x(a) > s.tau_max + 1e-12) feasible = false;
+        tau(free[a]) = std::clamp(x(a), s.tau_min, s.tau_max);
+      }
+      if (!feasible) continue;
+    }
+    const double J = Objective(A, q, s, tau);
+    if (J < best.objective) {
+      best.objective = J;
+      best.tau = tau;
+    }
+  }
+  return best;
+}
+
+// Explicit KKT conditions of the box-constrained problem at τ: ∂J/∂τ_i = 0 for free strings,
+// >= 0 at τ_min, <= 0 at τ_max, within a tolerance scaled by the problem.
+::testing::AssertionResult SatisfiesKkt(const Matrix78d& A, const Vector7d& q,
+                                        const TensionSettings& s, const Vector8d& tau) {
+  MatrixXd H;
+  VectorXd b;
+  QuadraticForm(A, q, s, &H, &b);
+  const VectorXd grad = 2.0 * (H * VectorXd(tau) - b);
+  const double tol = 1e-7 * (1.0 + b.cwiseAbs().maxCoeff() + H.cwiseAbs().maxCoeff() * s.tau_max);
+  const double bound_tol = 1e-9;
+  for (int i = 0; i < 8; ++i) {
+    if (tau(i) < s.tau_min - bound_tol || tau(i) > s.tau_max + bound_tol) {
+      return ::testing::AssertionFailure() << "tau(" << i << ") = " << tau(i) << " out of bounds";
+    }
+    const bool at_min = tau(i) <= s.tau_min + bound_tol;
+    const bool at_max = tau(i) >= s.tau_max - bound_tol;
+    if (at_min && grad(i) < -tol) {
+      return ::testing::AssertionFailure() << "string " << i << " at tau_min with gradient "
+                                           << grad(i) << " (should be >= 0)";
+    }
+    if (at_max && grad(i) > tol) {
+      return ::testing::AssertionFailure() << "string " << i << " at tau_max with gradient "
+                                           << grad(i) << " (should be <= 0)";
+    }
+    if (!at_min && !at_max && std::abs(grad(i)) > tol) {
+      return ::testing::AssertionFailure() << "free string " << i << " has gradient " << grad(i);
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+TEST(WrenchMatrix, MatchesHandComputedColumnsAtRest) {
+  const SpidarGeometry g;  // a = b = c = 0.24 m, d = 0.04 m
+  const Matrix78d A = WrenchMatrix(g, GripPose::Rest(g.d));
+  // String 1: P+1 = (0, 0.04, 0) to Q1 = (0.24, 0.24, 0.24); v = (0.24, 0.20, 0.24).
+  // n = p1 × p2 / |.| = (0, 0, −1). r × c = (0.04·0.24, 0, −0.04·0.24) / L, g = +0.0096 / L.
+  const double L = std::sqrt(0.1552);
+  Vector7d w1;
+  w1 << 0.24 / L, 0.20 / L, 0.24 / L, 0.0096 / L, 0, -0.0096 / L, 0.0096 / L;
+  EXPECT_LT((A.col(0) - w1).norm(), 1e-14) << A.col(0).transpose();
+  // String 6: P−2 = (−0.04, 0, 0) to Q6 = (−0.24, 0.24, −0.24); v = (−0.20, 0.24, −0.24).
+  // r × c = (0, 0.04·cz, −0.04·cy) = (0, −0.0096, −0.0096) / L; δ = −1, n·(r×c) = 0.0096 / L.
+  Vector7d w6;
+  w6 << -0.20 / L, 0.24 / L, -0.24 / L, 0, -0.0096 / L, -0.0096 / L, -0.0096 / L;
+  EXPECT_LT((A.col(5) - w6).norm(), 1e-14) << A.col(5).transpose();
+  // String 3: P−1 = (0, −0.04, 0) to Q3 = (0.24, −0.24, 0.24); v = (0.24, −0.20, 0.24).
+  // r × c = (−0.04·0.24, 0, 0.04·0.24) / L; δ = +1, n·(r×c) = −0.0096 / L.
+  Vector7d w3;
+  w3 << 0.24 / L, -0.20 / L, 0.24 / L, -0.0096 / L, 0, 0.0096 / L, -0.0096 / L;
+  EXPECT_LT((A.col(2) - w3).norm(), 1e-14) << A.col(2).transpose();
+  // By the symmetry of the rest pose equal tensions cancel exactly: A·1 = 0 (force closure).
+  EXPECT_LT((A * Vector8d::Ones()).norm(), 1e-14);
+}
+
+TEST(WrenchMatrix, SatisfiesVirtualWorkIdentityForSmallMotions) {
+  // Power of the strings Σ τ_i c_i·Ṗ_i equals f·ṗ0 + m·ω − (g/2) θ̇ for (f, m, g) = A τ, with Ṗ_i
+  // from central differences of the attachment points along a pose path.
+  const SpidarGeometry g;
+  std::mt19937 rng(20261122);
+  std::uniform_real_distribution<double> grasp_dist(0.3, 2.8), tension(0.0, 8.0);
+  const double h = 1e-6;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Vector3d p0 = RandomVector(&rng, 0.1);
+    const Eigen::Matrix3d R = RandomRotation(&rng);
+    const double theta = grasp_dist(rng);
+    const Vector3d v = RandomVector(&rng, 1.0);
+    const Vector3d omega = RandomVector(&rng, 1.0);
+    const double theta_dot = std::uniform_real_distribution<double>(-1.0, 1.0)(rng);
+    auto pose_at = [&](double t) {
+      const double angle = omega.norm() * t;
+      const Eigen::Matrix3d Rt =
+          Eigen::AngleAxisd(angle, omega.normalized()).toRotationMatrix() * R;
+      return GripPose::FromFrame(p0 + t * v, Rt, theta + t * theta_dot, g.d);
+    };
+    const GripPose pose = pose_at(0.0), plus = pose_at(h), minus = pose_at(-h);
+    Vector8d tau;
+    for (int i = 0; i < 8; ++i) tau(i) = tension(rng);
+    const Matrix78d A = WrenchMatrix(g, pose);
+    const Vector7d q = A * tau;
+    double string_power = 0;
+    for (int i = 0; i < 8; ++i) {
+      const Vector3d c = (g.Corner(i) - pose.Attachment(i)).normalized();
+      const Vector3d P_dot = (plus.Attachment(i) - minus.Attachment(i)) / (2 * h);
+      string_power += tau(i) * c.dot(P_dot);
+    }
+    const double grip_power = q.head<3>().dot(v) + q.segment<3>(3).dot(omega) - 0.5 * q(6) * theta_dot;
+    EXPECT_NEAR(string_power, grip_power, 1e-7 * (1.0 + std::abs(string_power)))
+        << "trial " << trial;
+  }
+}
+
+TEST(TensionSettings, ValidateRejectsOutOfRangeFields) {
+  TensionSettings s;
+  EXPECT_NO_THROW(s.Validate());
+  auto expect_throw = [](TensionSettings bad) {
+    EXPECT_THROW(bad.Validate(), std::invalid_argument);
+  };
+  s = {};
+  s.tau_min = -0.1;
+  expect_throw(s);
+  s = {};
+  s.tau_max = s.tau_min;
+  expect_throw(s);
+  s = {};
+  s.s0 = 0;
+  expect_throw(s);
+  s = {};
+  s.s1 = -1;
+  expect_throw(s);
+  s = {};
+  s.s2 = 0;
+  expect_throw(s);
+  s = {};
+  s.s2 = std::nan("");
+  expect_throw(s);
+  EXPECT_THROW(TensionSolver{s}, std::invalid_argument);
+  const TensionSettings scaled = TensionSettings::ForPoleLength(0.05);
+  EXPECT_DOUBLE_EQ(scaled.s0, 400.0);
+  EXPECT_DOUBLE_EQ(scaled.s1, 400.0);
+}
+
+struct Case {
+  GripPose pose;
+  Vector7d q;
+  const char* kind;
+};
+
+std::vector<Case> MakeCases(const SpidarGeometry& g) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> grasp_dist(0.4, 2.7), unit(-1.0, 1.0);
+  auto random_wrench = [&](double force, double moment) {
+    Vector7d q;
+    q << force * unit(rng), force * unit(rng), force * unit(rng), moment * unit(rng),
+        moment * unit(rng), moment * unit(rng), moment * unit(rng);
+    return q;
+  };
+  std::vector<Case> cases;
+  for (int k = 0; k < 30; ++k) {  // ordinary poses, displayable requests
+    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng),
+                                         grasp_dist(rng), g.d),
+                     random_wrench(2.0, 0.04), "feasible"});
+  }
+  for (int k = 0; k < 15; ++k) {  // huge requests
+    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng),
+                                         grasp_dist(rng), g.d),
+                     random_wrench(200.0, 5.0), "huge"});
+  }
+  for (int k = 0; k < 10; ++k) {  // grasp near 0 and near π
+    const double grasp = (k % 2 == 0) ? 1e-4 * (1 + k) : M_PI - 1e-4 * (1 + k);
+    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng), grasp,
+                                         g.d),
+                     random_wrench(3.0, 0.06), "grasp_singular"});
+  }
+  for (int k = 0; k < 6; ++k) {  // grip 1 mm from a frame face, pushing toward that face
+    const int axis = k % 3;
+    const double sign = k < 3 ? 1.0 : -1.0;
+    GripPose pose = GripPose::Rest(g.d);
+    const double half = axis == 0 ? g.a : (axis == 1 ? g.b : g.c);
+    // At rest pole 2 lies along x and pole 1 along y; along z the poles lie in the xy-plane.
+    pose.p0(axis) = sign * (half - (axis == 2 ? 0.0 : g.d) - 1e-3);
+    Vector7d q = random_wrench(1.0, 0.02);
+    q(axis) = sign * 20.0;
+    cases.push_back({pose, q, "near_face_push"});
+  }
+  cases.push_back({GripPose::Rest(g.d), Vector7d::Zero(), "zero"});
+  return cases;
+}
+
+TEST(TensionSolver, MatchesBruteForceOverAllActiveSetsAndSatisfiesKkt) {
+  const SpidarGeometry g;
+  const TensionSettings s;
+  TensionSolver solver(s);
+  int saturated = 0;
+  for (const Case& c : MakeCases(g)) {
+    const Matrix78d A = WrenchMatrix(g, c.pose);
+    solver.Reset();
+    const TensionResult r = solver.Solve(A, c.q);
+    ASSERT_NE(r.status, TensionStatus::kInvalidInput) << c.kind;
+    ASSERT_NE(r.status, TensionStatus::kNotConverged) << c.kind;
+    const Reference ref = BruteForce(A, c.q, s);
+    EXPECT_LT((r.tau - ref.tau).cwiseAbs().maxCoeff(), 1e-7)
+        << c.kind << "\n solver " << r.tau.transpose() << "\n brute  " << ref.tau.transpose();
+    EXPECT_NEAR(r.objective, ref.objective, 1e-9 * (1 + ref.objective)) << c.kind;
+    EXPECT_NEAR(r.objective, Objective(A, c.q, s, r.tau), 1e-9 * (1 + ref.objective));
+    EXPECT_TRUE(SatisfiesKkt(A, c.q, s, r.tau)) << c.kind;
+    EXPECT_LT((r.achieved - A * r.tau).norm(), 1e-12);
+    EXPECT_LT((r.lost - (c.q - A * r.tau)).norm(), 1e-12);
+    if (std::string(c.kind) == "huge" || std::string(c.kind) == "near_face_push") {
+      EXPECT_EQ(r.status, TensionStatus::kSaturated) << c.kind;
+    }
+    if (r.status == TensionStatus::kSaturated) ++saturated;
+  }
+  EXPECT_GE(saturated, 21);
+}
+
+TEST(TensionSolver, MatchesBruteForceWithWeightsOfOrderOneAndTightBounds) {
+  const SpidarGeometry g;
+  TensionSettings s;
+  s.s0 = 1.0;
+  s.s1 = 2.0;
+  s.s2 = 0.05;
+  s.tau_min = 1.0;
+  s.tau_max = 3.0;
+  TensionSolver solver(s);
+  for (const Case& c : MakeCases(g)) {
+    const Matrix78d A = WrenchMatrix(g, c.pose);
+    const TensionResult r = solver.Solve(A, c.q);  // warm-started across unrelated cases
+    const Reference ref = BruteForce(A, c.q, s);
+    EXPECT_LT((r.tau - ref.tau).cwiseAbs().maxCoeff(), 1e-7) << c.kind;
+    EXPECT_TRUE(SatisfiesKkt(A, c.q, s, r.tau)) << c.kind;
+  }
+}
+
+TEST(TensionSolver, DisplaysAFeasibleRequestAlmostExactly) {
+  // q = A τ* with τ* strictly inside the bounds: only the S2 bias may remain.
+  const SpidarGeometry g;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> tension(1.0, 6.0);
+  TensionSolver solver;
+  for (int trial = 0; trial < 20; ++trial) {
+    const GripPose pose = GripPose::FromFrame(RandomVector(&rng, 0.08), RandomRotation(&rng),
+                                              1.2 + 0.02 * trial, g.d);
+    const Matrix78d A = WrenchMatrix(g, pose);
+    Vector8d tau_star;
+    for (int i = 0; i < 8; ++i) tau_star(i) = tension(rng);
+    const Vector7d q = A * tau_star;
+    const TensionResult r = solver.Solve(A, q);
+    EXPECT_EQ(r.status, TensionStatus::kOk);
+    EXPECT_LT(r.lost.head<3>().norm(), 0.01 * q.head<3>().norm() + 1e-3) << trial;
+    EXPECT_LT(r.lost.segment<3>(3).norm(), 0.01 * q.segment<3>(3).norm() + 1e-4) << trial;
+  }
+}
+
+TEST(TensionSolver, ReturnsMinimumTensionsAndInvalidStatusOnNaN) {
+  const SpidarGeometry g;
+  TensionSolver solver;
+  const Matrix78d A = WrenchMatrix(g, GripPose::Rest(g.d));
+  for (int k = 0; k < 7; ++k) {
+    Vector7d q = Vector7d::Zero();
+    q(k) = (k % 2 == 0) ? std::nan("") : std::numeric_limits<double>::infinity();
+    const TensionResult r = solver.Solve(A, q);
+    EXPECT_EQ(r.status, TensionStatus::kInvalidInput);
+    EXPECT_TRUE((r.tau.array() == solver.settings().tau_min).all()) << r.tau.transpose();
+    EXPECT_TRUE(std::isnan(r.objective));
+  }
+  Matrix78d bad = A;
+  bad(2, 3) = std::nan("");
+  const TensionResult r = solver.Solve(bad, Vector7d::Zero());
+  EXPECT_EQ(r.status, TensionStatus::kInvalidInput);
+  EXPECT_TRUE((r.tau.array() == solver.settings().tau_min).all());
+  // A string of zero length (attachment on its corner) makes A non-finite.
+  GripPose on_corner = GripPose::Rest(g.d);
+  on_corner.p0 = g.Corner(0) - on_corner.p1;
+  EXPECT_EQ(solver.Solve(WrenchMatrix(g, on_corner), Vector7d::Zero()).status,
+            TensionStatus::kInvalidInput);
+  // The solver recovers on the next valid request.
+  EXPECT_NE(solver.Solve(A, Vector7d::Zero()).status, TensionStatus::kInvalidInput);
+}
+
+TEST(TensionSolver, WarmStartGivesTheColdAnswerWithFewerIterations) {
+  const SpidarGeometry g;
+  TensionSolver warm, cold;
+  int warm_iterations = 0, cold_iterations = 0;
+  for (int k = 0; k < 300; ++k) {
+    const double t = 0.01 * k;
+    const Eigen::Matrix3d R =
+        Eigen::AngleAxisd(0.6 * std::sin(t), Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    const GripPose pose = GripPose::FromFrame(Vector3d(0.1 * std::sin(t), 0.05 * std::cos(2 * t),
+                                                       0.08 * std::sin(3 * t)),
+                                              R, 1.5 + 0.5 * std::sin(t), g.d);
+    Vector7d q;
+    q << 6 * std::sin(t), 4 * std::cos(1.3 * t), -5 + 10 * std::sin(0.7 * t),
+        0.1 * std::sin(2 * t), 0.05, -0.08 * std::cos(t), 0.1 * std::sin(4 * t);
+    const Matrix78d A = WrenchMatrix(g, pose);
+    const TensionResult rw = warm.Solve(A, q);
+    cold.Reset();
+    const TensionResult rc = cold.Solve(A, q);
+    ASSERT_EQ(rw.status, rc.status) << k;
+    EXPECT_LT((rw.tau - rc.tau).cwiseAbs().maxCoeff(), 1e-10) << k;
+    warm_iterations += rw.iterations;
+    cold_iterations += rc.iterations;
+  }
+  EXPECT_LT(warm_iterations, cold_iterations / 2);
+}
+
+}  // namespace
+}  // namespace spidarcad::haptics
