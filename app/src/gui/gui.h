@@ -4,6 +4,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <array>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -16,15 +17,26 @@ struct GuiOptions {
   std::string screenshot;        // when set: render, write this PNG and exit
   int frames = 0;                // when > 0: exit after this many frames
   std::string device = "simulated";
+  // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.
+  std::array<double, 7> grip = {0, 0, 0, 0, 0, 0, 90};
 };
 
 // True when an X display is available (DISPLAY set and reachable): VTK aborts without one.
+// On success GLFW stays initialised (RunGui terminates it), see app_window.cc.
 bool DisplayAvailable();
 
 // Opens the window and runs until closed. Returns the process exit status.
 int RunGui(const GuiOptions& options);
 
-// Adds the window options (--screenshot, --frames, --size) to the top-level app.
+// Adds the window options (--screenshot, --frames, --size, --grip) to the top-level app.
 void AddGuiOptions(CLI::App& app, GuiOptions* options);
+
+// Parses "WxH" (e.g. "1280x800") into width and height; throws CLI::ValidationError naming the
+// option and value when it is not two integers in [200, 8192].
+void ParseWindowSize(const std::string& text, int* width, int* height);
+
+// Parses "x,y,z[,roll,pitch,yaw[,grasp]]" (mm, deg) into `grip` (missing fields keep their
+// defaults); throws CLI::ValidationError naming the field and value when a field is not a number.
+void ParseGripPose(const std::string& text, std::array<double, 7>* grip);
 
 }  // namespace spidarcad::app

@@ -1,0 +1,394 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// The window loop: GLFW events → grip control → device session → VTK scene + ImGui panel.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+#include <vtkCallbackCommand.h>
+#include <vtkCommand.h>
+#include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkNew.h>
+#include <vtkRenderer.h>
+
+#include <Eigen/Geometry>
+
+#include "gui/device_session.h"
+#include "gui/device_view.h"
+#include "gui/gl_capture.h"
+#include "gui/grip_control.h"
+#include "gui/gui.h"
+#include "gui/panels.h"
+
+namespace spidarcad::app {
+
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+constexpr double kGraspStep = 5.0 * kDegToRad;    // per wheel notch or key press
+constexpr double kRotateGain = 0.008;              // rad per pixel of right-drag
+constexpr double kOrbitGain = 0.3;                 // deg per pixel
+constexpr int kScreenshotFrames = 6;               // frames rendered before the capture
+constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+
+void GlfwError(int code, const char* text) {
+  std::cerr << "spidarcad: GLFW error " << code << ": " << text << "\n";
+}
+
+// Mouse action in progress in the 3D view.
+enum class DragMode { kNone, kMoveGrip, kRotateGrip, kRollGrip, kOrbit };
+
+const char* DragModeText(DragMode mode) {
+  switch (mode) {
+    case DragMode::kMoveGrip: return "moving grip";
+    case DragMode::kRotateGrip: return "rotating grip";
+    case DragMode::kRollGrip: return "rolling grip";
+    case DragMode::kOrbit: return "orbit";
+    case DragMode::kNone: break;
+  }
+  return "";
+}
+
+void OnMakeCurrent(vtkObject*, unsigned long, void* client, void*) {
+  glfwMakeContextCurrent(static_cast<GLFWwindow*>(client));
+}
+
+void OnIsCurrent(vtkObject*, unsigned long, void* client, void* call) {
+  *static_cast<bool*>(call) = glfwGetCurrentContext() == static_cast<GLFWwindow*>(client);
+}
+
+// RAII for GLFW and ImGui so that every exit path cleans up.
+struct GlfwSession {
+  bool ok = glfwInit() == GLFW_TRUE;
+  ~GlfwSession() {
+    if (ok) glfwTerminate();
+  }
+};
+
+struct ImGuiSession {
+  bool glfw = false, gl3 = false;
+  ImGuiSession() { ImGui::CreateContext(); }
+  ~ImGuiSession() {
+    if (gl3) ImGui_ImplOpenGL3_Shutdown();
+    if (glfw) ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+  }
+};
+
+void LoadFont() {
+  ImGuiIO& io = ImGui::GetIO();
+  // Latin-1, Greek (τ, θ), general punctuation (–, ·), super/subscripts, arrows, maths, shapes.
+  static const ImWchar kRanges[] = {0x0020, 0x00FF, 0x0370, 0x03FF, 0x2010, 0x2044,
+                                    0x2070, 0x209F, 0x2190, 0x21FF, 0x2200, 0x22FF,
+                                    0x25A0, 0x25FF, 0};
+  std::error_code ec;
+  if (std::filesystem::exists(kFontPath, ec)) {
+    if (io.Fonts->AddFontFromFileTTF(kFontPath, 14.5f, nullptr, kRanges) != nullptr) return;
+  }
+  io.Fonts->AddFontDefault();
+}
+
+}  // namespace
+
+bool DisplayAvailable() {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') return false;
+  // glfwInit connects to the X server and fails cleanly when it cannot. The connection is
+  // kept (RunGui's glfwInit is then a no-op): closing it would let an Xvfb with no other
+  // client reset, and a connection opened during the reset fails.
+  glfwSetErrorCallback(nullptr);
+  return glfwInit() == GLFW_TRUE;
+}
+
+void ParseWindowSize(const std::string& text, int* width, int* height) {
+  int w = 0, h = 0;
+  char x = 0;
+  std::istringstream in(text);
+  if (!(in >> w >> x >> h) || (x != 'x' && x != 'X') || !(in >> std::ws).eof() || w < 200 ||
+      h < 200 || w > 8192 || h > 8192) {
+    throw CLI::ValidationError("--size", "expected WxH with both in [200, 8192] pixels, got '" +
+                                             text + "'");
+  }
+  *width = w;
+  *height = h;
+}
+
+void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
+  static const char* kFields[7] = {"x [mm]",   "y [mm]",   "z [mm]",    "roll [deg]",
+                                   "pitch [deg]", "yaw [deg]", "grasp [deg]"};
+  std::array<double, 7> out = *grip;
+  std::stringstream in(text);
+  std::string field;
+  int k = 0;
+  while (std::getline(in, field, ',')) {
+    if (k >= 7) {
+      throw CLI::ValidationError("--grip", "at most 7 fields (x,y,z,roll,pitch,yaw,grasp), got '" +
+                                               text + "'");
+    }
+    try {
+      size_t used = 0;
+      out[k] = std::stod(field, &used);
+      if (used != field.size() || !std::isfinite(out[k])) throw std::invalid_argument(field);
+    } catch (const std::exception&) {
+      throw CLI::ValidationError("--grip", std::string("field ") + std::to_string(k + 1) + " (" +
+                                               kFields[k] + ") is not a number: '" + field +
+                                               "'");
+    }
+    ++k;
+  }
+  if (k != 3 && k != 6 && k != 7) {
+    throw CLI::ValidationError("--grip", "expected 3, 6 or 7 comma-separated fields "
+                                         "(x,y,z[,roll,pitch,yaw[,grasp]]), got '" + text + "'");
+  }
+  *grip = out;
+}
+
+void AddGuiOptions(CLI::App& app, GuiOptions* options) {
+  app.add_option("--screenshot", options->screenshot,
+                 "Render a few frames, write the window (scene and panel) to this PNG and exit");
+  app.add_option("--frames", options->frames, "Exit after this many frames (0: run until closed)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--device", options->device,
+                 "Where string lengths come from: 'simulated' (SimulatedSpidarG with encoder "
+                 "errors, calibrated at start-up) or 'ideal' (exact lengths)")
+      ->check(CLI::IsMember({"simulated", "ideal"}));
+  app.add_option_function<std::string>(
+         "--size", [options](const std::string& s) {
+           ParseWindowSize(s, &options->width, &options->height);
+         },
+         "Window size WxH in pixels (default 1280x800)")
+      ->type_name("WxH");
+  app.add_option_function<std::string>(
+         "--grip", [options](const std::string& s) { ParseGripPose(s, &options->grip); },
+         "Starting hand pose in the device frame: x,y,z[,roll,pitch,yaw[,grasp]] "
+         "(mm and degrees; grasp 20..160, default 90)")
+      ->type_name("X,Y,Z[,R,P,Y[,G]]");
+}
+
+int RunGui(const GuiOptions& options) {
+  glfwSetErrorCallback(GlfwError);
+  GlfwSession glfw;
+  if (!glfw.ok) {
+    std::cerr << "spidarcad: cannot initialise GLFW (no display?). Run under "
+                 "`xvfb-run -a spidarcad` or use the headless subcommands.\n";
+    return 1;
+  }
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 2);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  glfwWindowHint(GLFW_DEPTH_BITS, 24);
+  GLFWwindow* window = glfwCreateWindow(options.width, options.height,
+                                        "spidarcad — SPIDAR-G", nullptr, nullptr);
+  if (window == nullptr) {
+    std::cerr << "spidarcad: cannot create a " << options.width << "x" << options.height
+              << " OpenGL 3.2 window\n";
+    return 1;
+  }
+  struct WindowGuard {
+    GLFWwindow* w;
+    ~WindowGuard() { glfwDestroyWindow(w); }
+  } window_guard{window};
+  glfwMakeContextCurrent(window);
+  const bool capture = !options.screenshot.empty();
+  glfwSwapInterval(capture || options.frames > 0 ? 0 : 1);
+
+  // Device side.
+  const haptics::SpidarGeometry geometry;  // the paper's device
+  const haptics::TensionSettings tension_settings =
+      haptics::TensionSettings::ForPoleLength(geometry.d);
+  DeviceSession session(geometry, tension_settings,
+                        options.device == "ideal" ? LengthSource::kIdeal
+                                                  : LengthSource::kSimulatedDevice);
+  GripControl grip(geometry);
+  const auto& g0 = options.grip;
+  const Eigen::Matrix3d R0 = (Eigen::AngleAxisd(g0[5] * kDegToRad, Eigen::Vector3d::UnitZ()) *
+                              Eigen::AngleAxisd(g0[4] * kDegToRad, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(g0[3] * kDegToRad, Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix();
+  grip.SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
+
+  // VTK in the GLFW context.
+  DeviceView view(geometry, tension_settings.tau_min, tension_settings.tau_max);
+  vtkNew<vtkGenericOpenGLRenderWindow> render_window;
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(window, &fb_w, &fb_h);
+  render_window->SetSize(fb_w, fb_h);
+  vtkNew<vtkCallbackCommand> make_current;
+  make_current->SetCallback(OnMakeCurrent);
+  make_current->SetClientData(window);
+  render_window->AddObserver(vtkCommand::WindowMakeCurrentEvent, make_current);
+  vtkNew<vtkCallbackCommand> is_current;
+  is_current->SetCallback(OnIsCurrent);
+  is_current->SetClientData(window);
+  render_window->AddObserver(vtkCommand::WindowIsCurrentEvent, is_current);
+  if (!render_window->InitializeFromCurrentContext()) {
+    std::cerr << "spidarcad: VTK cannot use the window's OpenGL context (needs OpenGL 3.2)\n";
+    return 1;
+  }
+  render_window->SetFrameBlitModeToBlitToCurrent();
+  render_window->AddRenderer(view.renderer());
+
+  // ImGui on top.
+  ImGuiSession imgui;
+  ImGuiIO& io = ImGui::GetIO();
+  io.IniFilename = nullptr;  // the panel is docked; there is nothing worth saving
+  ApplyPanelStyle();
+  LoadFont();
+  imgui.glfw = ImGui_ImplGlfw_InitForOpenGL(window, true);
+  imgui.gl3 = ImGui_ImplOpenGL3_Init("#version 150");
+  if (!imgui.glfw || !imgui.gl3) {
+    std::cerr << "spidarcad: cannot initialise the ImGui backends\n";
+    return 1;
+  }
+
+  DragMode drag = DragMode::kNone;
+  double last_time = glfwGetTime();
+  bool quit = false;
+  const int last_frame = capture ? std::max(kScreenshotFrames, options.frames) : options.frames;
+  for (int frame_index = 1; !quit && !glfwWindowShouldClose(window); ++frame_index) {
+    glfwPollEvents();
+    glfwGetFramebufferSize(window, &fb_w, &fb_h);
+    int win_w = 0, win_h = 0;
+    glfwGetWindowSize(window, &win_w, &win_h);
+    if (fb_w <= 0 || fb_h <= 0 || win_w <= 0 || win_h <= 0) {  // minimised
+      glfwWaitEvents();
+      continue;
+    }
+    const double sx = static_cast<double>(fb_w) / win_w, sy = static_cast<double>(fb_h) / win_h;
+    render_window->SetSize(fb_w, fb_h);
+    const double panel_fb = std::min(kPanelWidth * sx, 0.6 * fb_w);
+    view.renderer()->SetViewport(panel_fb / fb_w, 0.0, 1.0, 1.0);
+
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+
+    // Mouse in the 3D view (display pixels, origin bottom left).
+    const ImVec2 mouse = io.MousePos;
+    const double mx = mouse.x * sx, my = fb_h - mouse.y * sy;
+    const bool in_view = !io.WantCaptureMouse && mouse.x >= kPanelWidth && mouse.x >= 0 &&
+                         std::isfinite(mouse.x);
+    bool over_grip = false;
+    if (in_view) {
+      double distance = 0;
+      over_grip = IntersectRaySphere(view.PickRay(mx, my), grip.p0(), 1.15 * geometry.d,
+                                     &distance);
+    }
+    if (drag == DragMode::kNone && in_view) {
+      if (ImGui::IsMouseClicked(ImGuiMouseButton_Left)) {
+        if (io.KeyCtrl) {
+          drag = io.KeyShift ? DragMode::kRollGrip : DragMode::kRotateGrip;
+        } else if (over_grip && grip.BeginTranslate(view.PickRay(mx, my), view.ViewDirection())) {
+          drag = DragMode::kMoveGrip;
+        } else {
+          drag = DragMode::kOrbit;
+        }
+      } else if (ImGui::IsMouseClicked(ImGuiMouseButton_Right)) {
+        drag = io.KeyShift ? DragMode::kRollGrip : DragMode::kRotateGrip;
+      } else if (ImGui::IsMouseClicked(ImGuiMouseButton_Middle)) {
+        drag = DragMode::kOrbit;
+      }
+    }
+    if (drag != DragMode::kNone && !ImGui::IsMouseDown(ImGuiMouseButton_Left) &&
+        !ImGui::IsMouseDown(ImGuiMouseButton_Right) &&
+        !ImGui::IsMouseDown(ImGuiMouseButton_Middle)) {
+      drag = DragMode::kNone;
+      grip.EndTranslate();
+    }
+    const double dx = io.MouseDelta.x, dy = io.MouseDelta.y;  // screen pixels, y down
+    const bool moved = std::isfinite(dx) && std::isfinite(dy) && (dx != 0.0 || dy != 0.0);
+    if (moved) {
+      switch (drag) {
+        case DragMode::kMoveGrip:
+          grip.Translate(view.PickRay(mx, my));
+          break;
+        case DragMode::kRotateGrip:
+          // Dragging right turns the near side of the grip right; dragging down turns it down.
+          grip.Rotate(view.ViewUp(), kRotateGain * dx);
+          grip.Rotate(view.ViewRight(), kRotateGain * dy);
+          break;
+        case DragMode::kRollGrip:
+          grip.Rotate(-view.ViewDirection(), -kRotateGain * dx);
+          break;
+        case DragMode::kOrbit:
+          view.Orbit(-kOrbitGain * dx, kOrbitGain * dy);
+          break;
+        case DragMode::kNone:
+          break;
+      }
+    }
+    if (in_view && io.MouseWheel != 0.0f) {
+      if (io.KeyCtrl) {
+        view.Zoom(std::pow(1.1, io.MouseWheel));
+      } else {
+        grip.AdjustGrasp(kGraspStep * io.MouseWheel);
+      }
+    }
+    if (over_grip || drag == DragMode::kMoveGrip) ImGui::SetMouseCursor(ImGuiMouseCursor_Hand);
+    if (!io.WantCaptureKeyboard) {
+      if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE)) quit = true;
+      if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
+      if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
+      if (ImGui::IsKeyPressed(GLFW_KEY_R, false)) grip.Reset();
+      if (ImGui::IsKeyPressed(GLFW_KEY_C, false)) view.ResetCamera();
+      if (ImGui::IsKeyPressed(GLFW_KEY_EQUAL) || ImGui::IsKeyPressed(GLFW_KEY_KP_ADD)) {
+        view.Zoom(1.1);
+      }
+      if (ImGui::IsKeyPressed(GLFW_KEY_MINUS) || ImGui::IsKeyPressed(GLFW_KEY_KP_SUBTRACT)) {
+        view.Zoom(1.0 / 1.1);
+      }
+    }
+
+    // State, then what shows it.
+    const double now = glfwGetTime();
+    const double dt = std::clamp(now - last_time, 1e-3, 0.1);
+    last_time = now;
+    const DeviceFrame& state = session.Update(grip.Pose(), dt);
+    view.Update(state);
+    PanelContext context;
+    context.geometry = &geometry;
+    context.tau_min = tension_settings.tau_min;
+    context.tau_max = tension_settings.tau_max;
+    context.fps = io.Framerate;
+    context.drag_mode = DragModeText(drag);
+    const PanelActions actions =
+        DrawDevicePanel(state, context, &session.field(), static_cast<float>(win_h));
+    if (actions.reset_grip) grip.Reset();
+    if (actions.reset_camera) view.ResetCamera();
+    if (actions.quit) quit = true;
+    ImGui::Render();
+
+    // VTK draws the scene into the window, then ImGui draws the panel over it.
+    BindDefaultFramebuffer(fb_w, fb_h);
+    ClearDefaultFramebuffer(0.965f, 0.968f, 0.975f);
+    render_window->Render();
+    BindDefaultFramebuffer(fb_w, fb_h);
+    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+
+    if (capture && frame_index >= last_frame) {
+      const std::string error =
+          WritePng(options.screenshot, ReadBackBuffer(fb_w, fb_h), fb_w, fb_h);
+      if (!error.empty()) {
+        std::cerr << "spidarcad: " << error << "\n";
+        return 1;
+      }
+      std::cout << "spidarcad: wrote " << options.screenshot << " (" << fb_w << "x" << fb_h
+                << ")\n";
+      return 0;
+    }
+    glfwSwapBuffers(window);
+    if (last_frame > 0 && frame_index >= last_frame) break;
+  }
+  return 0;
+}
+
+}  // namespace spidarcad::app

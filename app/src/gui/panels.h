@@ -1,0 +1,39 @@
+// ImGui side of the window: the device panel (string lengths, pose, tensions with bars and the
+// colour legend, wrench, demo field settings, controls help). Reads a DeviceFrame; returns what
+// the user asked for. No VTK and no device computation here.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include "gui/device_session.h"
+#include "spidarcad/haptics/geometry.h"
+
+namespace spidarcad::app {
+
+// Width of the panel docked on the left of the window, pixels.
+inline constexpr float kPanelWidth = 380.0f;
+
+// What the panel needs besides the frame.
+struct PanelContext {
+  const haptics::SpidarGeometry* geometry = nullptr;
+  double tau_min = 0.0;  // N, ends of the colour legend
+  double tau_max = 1.0;
+  double fps = 0.0;      // frames per second of the window
+  const char* drag_mode = "";  // current mouse action ("", "moving grip", "orbit", ...)
+};
+
+// What the user asked for through the panel this frame.
+struct PanelActions {
+  bool reset_grip = false;
+  bool reset_camera = false;
+  bool quit = false;
+};
+
+// Draws the panel (full window height, kPanelWidth wide, at the left edge). `field` may be
+// edited in place (checkbox and stiffness sliders).
+PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& context,
+                             DemoFieldSettings* field, float window_height);
+
+// Applies the window's colour style (light, engineering look) to the current ImGui context.
+void ApplyPanelStyle();
+
+}  // namespace spidarcad::app
