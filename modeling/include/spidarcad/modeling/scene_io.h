@@ -1,0 +1,77 @@
+// JSON scene files holding implicit solids (docs/scene-format.md): a versioned header
+// ("format": "spidarcad-scene", "version": 1, "units": "m") and a list of named solids, each a
+// node tree. Loading validates every tree; errors name the file, line, column and the JSON
+// pointer of the offending field.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "spidarcad/modeling/implicit_node.h"
+
+namespace spidarcad::modeling {
+
+// Value of the "format" field of a scene file.
+inline constexpr const char* kSceneFormat = "spidarcad-scene";
+// The scene format version this code reads and writes.
+inline constexpr int kSceneVersion = 1;
+
+// One named implicit solid of a scene.
+struct Solid {
+  std::string name;
+  ImplicitNode root;
+};
+
+// A scene: a description and its solids.
+struct Scene {
+  std::string description;
+  std::vector<Solid> solids;
+};
+
+// A bad scene file or document: where (file, line, column, JSON pointer) and what.
+class SceneError : public std::runtime_error {
+ public:
+  // line and column are 1-based, 0 when unknown; pointer is a JSON pointer ("" for the file).
+  SceneError(const std::string& file, int line, int column, const std::string& pointer, const std::string& what);
+  const std::string& file() const { return file_; }
+  int line() const { return line_; }
+  int column() const { return column_; }
+  // JSON pointer of the offending field, e.g. "/solids/0/root/children/1/radius".
+  const std::string& pointer() const { return pointer_; }
+  // What was wrong, without the location prefix that what() carries.
+  const std::string& message() const { return message_; }
+
+ private:
+  std::string file_;
+  int line_;
+  int column_;
+  std::string pointer_;
+  std::string message_;
+};
+
+// Node tree from JSON. path is the JSON pointer of `json` used in errors. Throws SceneError
+// (file empty, line 0) for a wrong type, unknown field or missing field; does not validate
+// values (call ValidateTree).
+ImplicitNode NodeFromJson(const nlohmann::json& json, const std::string& path = "");
+// JSON of a node tree (every field written, so that a load restores it exactly).
+nlohmann::json NodeToJson(const ImplicitNode& node);
+
+// Scene from a parsed document; validates every solid. `source` names the document in errors.
+Scene SceneFromJson(const nlohmann::json& json, const std::string& source = "<json>");
+// JSON document of a scene, with the format header.
+nlohmann::json SceneToJson(const Scene& scene);
+
+// Parses and validates scene text. Errors carry `source` as the file and the line and column
+// of the offending text (syntax errors) or field (semantic errors).
+Scene ParseScene(const std::string& text, const std::string& source = "<string>");
+// Reads a scene file. Throws SceneError (unreadable file, syntax, bad field) naming path.
+Scene LoadScene(const std::string& path);
+// Writes a scene file (indented JSON) through a temporary file renamed over path. Throws
+// SceneError if it cannot be written.
+void SaveScene(const Scene& scene, const std::string& path);
+
+}  // namespace spidarcad::modeling

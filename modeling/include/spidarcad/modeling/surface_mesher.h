@@ -1,0 +1,82 @@
+// Surface meshing of an implicit solid: a closed, manifold, consistently oriented triangle mesh
+// of the zero set on a regular grid (marching tetrahedra on the Kuhn subdivision of each cube,
+// which is conforming across cubes, so the result is watertight). An octree descent with the
+// solid's interval bounds skips every region the bounds prove wholly inside or outside; vertex
+// positions are refined along the grid edge by regula falsi on the field.
+//
+// Limits: sharp edges of boxes and booleans are cut off by up to about one cell (no feature
+// preservation yet); triangles can be thin.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <atomic>
+#include <functional>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "spidarcad/modeling/implicit_evaluator.h"
+
+namespace spidarcad::modeling {
+
+// A triangle mesh: vertices (3 by V, m) and triangles (3 by F, vertex indices), each triangle
+// counter-clockwise seen from outside the solid (right-hand normal points out).
+struct TriangleMesh {
+  Eigen::Matrix3Xd vertices;
+  Eigen::Matrix3Xi triangles;
+};
+
+// Settings of MeshSurface.
+struct SurfaceMeshSettings {
+  // Region to mesh (m). The solid is clipped to it: where the solid crosses the region's
+  // boundary the mesh is closed along the boundary, so the result is always closed.
+  Eigen::AlignedBox3d bounds;
+  // Grid cell edge (m), > 0. The grid has ceil(extent / cell_size) cells per axis.
+  double cell_size = 0.002;
+  // Regula falsi steps placing each vertex on its grid edge (0: linear interpolation only).
+  int refine_steps = 4;
+  // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
+  const std::atomic<bool>* cancel = nullptr;
+  // Called now and then with the fraction done in [0, 1].
+  std::function<void(double)> progress;
+};
+
+// Figures of one MeshSurface run.
+struct SurfaceMeshStats {
+  long grid_cells = 0;       // cells of the full grid
+  long evaluated_cells = 0;  // cells the interval bounds could not rule out
+  long field_evaluations = 0;
+  double seconds = 0.0;
+};
+
+// Thrown when SurfaceMeshSettings::cancel is raised.
+class MeshingCancelled : public std::runtime_error {
+ public:
+  MeshingCancelled() : std::runtime_error("surface meshing cancelled") {}
+};
+
+// A box containing every part of the solid inside `search` (m), found by an octree descent with
+// the interval bounds down to cells of edge <= `resolution`; it overestimates the tight box by
+// at most about one cell per side. Empty when the bounds prove the solid absent from `search`.
+// An unbounded solid (a half-space) fills the search box.
+Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search, double resolution);
+
+// Meshes the zero set of solid inside settings.bounds. Throws std::invalid_argument for bad
+// settings (empty bounds, cell_size <= 0, a grid over 2^30 cells) and MeshingCancelled.
+TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& settings,
+                         SurfaceMeshStats* stats = nullptr);
+
+// Error of a mesh against the solid, measured as |value| at every vertex, edge midpoint and
+// triangle centroid: for an exact-distance solid it is the distance to the true surface, so
+// `max` is a sampled one-sided Hausdorff distance (mesh to surface), m.
+struct SurfaceError {
+  double max = 0.0;
+  double rms = 0.0;
+};
+// Measures SurfaceError of mesh against solid.
+SurfaceError MeasureSurfaceError(const CompiledSolid& solid, const TriangleMesh& mesh);
+
+// Enclosed volume of a closed, outward-oriented mesh (divergence theorem), m³.
+double MeshVolume(const TriangleMesh& mesh);
+
+}  // namespace spidarcad::modeling

@@ -1,0 +1,383 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/modeling/implicit_evaluator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/SVD>
+
+#include "primitives.h"
+
+namespace spidarcad::modeling {
+
+using internal::Dual;
+using Op = CompiledSolid::Op;
+
+namespace {
+
+// Constant layout of a primitive instruction: the map q = A p + b from world to local frame
+// (A row-major, 9 values; b, 3 values), the value scale k, the Lipschitz constant L = k·|A|₂
+// of the world field, then the primitive's own parameters.
+constexpr int kA = 0;
+constexpr int kB = 9;
+constexpr int kScale = 12;
+constexpr int kLipschitz = 13;
+constexpr int kParams = 14;
+
+// Primitives whose formulas have no branches: interval arithmetic applies directly.
+template <typename T>
+T EvalBranchFree(Op op, const double* c, T x, T y, T z) noexcept {
+  using namespace internal;
+  switch (op) {
+    case Op::kSphere: return SphereField(x, y, z, c[0]);
+    case Op::kBox: return BoxField(x, y, z, c[0], c[1], c[2]);
+    case Op::kRoundedBox: return RoundedBoxField(x, y, z, c[0], c[1], c[2], c[3]);
+    case Op::kCylinder: return CylinderField(x, y, z, c[0], c[1]);
+    case Op::kCapsule: return CapsuleField(x, y, z, c, c + 3, c[6], c[7]);
+    case Op::kTorus: return TorusField(x, y, z, c[0], c[1]);
+    case Op::kHalfSpace: return HalfSpaceField(x, y, z, c[0], c[1], c[2], c[3]);
+    default: return x * 0.0;  // unreachable for branch-free opcodes
+  }
+}
+
+// Every primitive, for the point types (double and Dual).
+template <typename T>
+T EvalPrimitive(Op op, const double* c, T x, T y, T z) noexcept {
+  using namespace internal;
+  switch (op) {
+    case Op::kCone: return ConeField(x, y, z, c[0], c[1], c[2]);
+    case Op::kExtrusion: return ExtrusionField(x, y, z, c + 2, static_cast<int>(c[1]), c[0]);
+    default: return EvalBranchFree(op, c, x, y, z);
+  }
+}
+
+bool IsBranchFree(Op op) { return op != Op::kCone && op != Op::kExtrusion; }
+
+// The world-to-local map accumulated while descending the tree.
+struct Affine {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  double k = 1.0;
+};
+
+template <class... Ts>
+struct Overloaded : Ts... {
+  using Ts::operator()...;
+};
+template <class... Ts>
+Overloaded(Ts...) -> Overloaded<Ts...>;
+
+}  // namespace
+
+// Emits the tape for a tree; each Emit returns the stack depth its code needs.
+class TapeCompiler {
+ public:
+  explicit TapeCompiler(CompiledSolid* out) : out_(out) {}
+
+  int Emit(const ImplicitNode& node, const Affine& m, const std::string& path) {
+    return std::visit(
+        Overloaded{
+            [&](const SphereParams& p) { return Primitive(Op::kSphere, m, {p.radius}, path); },
+            [&](const BoxParams& p) { return Primitive(Op::kBox, m, {p.size.x() / 2, p.size.y() / 2, p.size.z() / 2}, path); },
+            [&](const RoundedBoxParams& p) {
+              return Primitive(Op::kRoundedBox, m, {p.size.x() / 2, p.size.y() / 2, p.size.z() / 2, p.radius}, path);
+            },
+            [&](const CylinderParams& p) { return Primitive(Op::kCylinder, m, {p.radius, p.height / 2}, path); },
+            [&](const CapsuleParams& p) {
+              const double len2 = (p.b - p.a).squaredNorm();
+              return Primitive(Op::kCapsule, m,
+                               {p.a.x(), p.a.y(), p.a.z(), p.b.x(), p.b.y(), p.b.z(), p.radius, len2 > 0 ? 1 / len2 : 0.0},
+                               path);
+            },
+            [&](const ConeParams& p) { return Primitive(Op::kCone, m, {p.radius_bottom, p.radius_top, p.height / 2}, path); },
+            [&](const TorusParams& p) { return Primitive(Op::kTorus, m, {p.major_radius, p.minor_radius}, path); },
+            [&](const HalfSpaceParams& p) {
+              const Eigen::Vector3d n = p.normal.normalized();
+              return Primitive(Op::kHalfSpace, m, {n.x(), n.y(), n.z(), p.offset}, path);
+            },
+            [&](const ExtrusionParams& p) {
+              std::vector<double> params = {p.height / 2, static_cast<double>(p.profile.size())};
+              for (const Eigen::Vector2d& v : p.profile) {
+                params.push_back(v.x());
+                params.push_back(v.y());
+              }
+              return Primitive(Op::kExtrusion, m, params, path);
+            },
+            [&](const UnionParams&) { return Fold(node, m, path, Op::kMin, -1.0); },
+            [&](const IntersectionParams&) { return Fold(node, m, path, Op::kMax, -1.0); },
+            [&](const DifferenceParams&) { return Fold(node, m, path, Op::kMaxNeg, -1.0); },
+            [&](const SmoothUnionParams& p) { return Fold(node, m, path, Op::kSmoothMin, p.radius * m.k); },
+            [&](const SmoothIntersectionParams& p) { return Fold(node, m, path, Op::kSmoothMax, p.radius * m.k); },
+            [&](const SmoothDifferenceParams& p) { return Fold(node, m, path, Op::kSmoothMaxNeg, p.radius * m.k); },
+            [&](const OffsetParams& p) {
+              const int depth = Group(node, m, path);
+              Push(Op::kOffset, {p.distance * m.k}, path);
+              return depth;
+            },
+            [&](const ShellParams& p) {
+              const int depth = Group(node, m, path);
+              Push(Op::kShell, {p.thickness * m.k}, path);
+              return depth;
+            },
+            [&](const TranslateParams& p) {
+              Affine c = m;
+              c.b -= p.translation;
+              return Group(node, c, path);
+            },
+            [&](const RotateParams& p) {
+              return Group(node, Rotated(m, p.axis, p.angle), path);
+            },
+            [&](const ScaleParams& p) {
+              Affine c = m;
+              const Eigen::Vector3d inv = p.factors.cwiseInverse();
+              c.A = inv.asDiagonal() * m.A;
+              c.b = inv.asDiagonal() * m.b;
+              c.k = m.k * p.factors.minCoeff();
+              return Group(node, c, path);
+            },
+            [&](const MirrorParams& p) {
+              const Eigen::Vector3d n = p.normal.normalized();
+              const Eigen::Matrix3d H = Eigen::Matrix3d::Identity() - 2.0 * n * n.transpose();
+              Affine c = m;
+              c.A = H * m.A;
+              c.b = H * m.b + 2.0 * p.offset * n;
+              if (!p.keep_original) return Group(node, c, path);
+              const int d0 = Group(node, m, path);
+              const int d1 = Group(node, c, path);
+              Push(Op::kMin, {}, path);
+              return std::max(d0, d1 + 1);
+            },
+            [&](const LinearArrayParams& p) {
+              int depth = 0;
+              for (int i = 0; i < p.count; ++i) {
+                Affine c = m;
+                c.b -= i * p.step;
+                const int d = Group(node, c, path);
+                depth = std::max(depth, d + (i > 0 ? 1 : 0));
+                if (i > 0) Push(Op::kMin, {}, path);
+              }
+              return depth;
+            },
+            [&](const PolarArrayParams& p) {
+              int depth = 0;
+              for (int i = 0; i < p.count; ++i) {
+                const int d = Group(node, Rotated(m, p.axis, i * p.step_angle), path);
+                depth = std::max(depth, d + (i > 0 ? 1 : 0));
+                if (i > 0) Push(Op::kMin, {}, path);
+              }
+              return depth;
+            },
+        },
+        node.params);
+  }
+
+ private:
+  // Child frame of a rotation R (child to parent): q_child = Rᵀ q_parent.
+  static Affine Rotated(const Affine& m, const Eigen::Vector3d& axis, double angle) {
+    const Eigen::Matrix3d Rt = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix().transpose();
+    Affine c = m;
+    c.A = Rt * m.A;
+    c.b = Rt * m.b;
+    return c;
+  }
+
+  void Push(Op op, std::initializer_list<double> constants, const std::string& path) {
+    PushRange(op, constants.begin(), constants.end(), path);
+  }
+  void PushRange(Op op, const double* begin, const double* end, const std::string& path) {
+    if (static_cast<int>(out_->code_.size()) >= CompiledSolid::kMaxInstructions) {
+      throw ModelError(path, "count", "node at " + (path.empty() ? std::string("/") : path) +
+                                          ": the compiled solid exceeds " + std::to_string(CompiledSolid::kMaxInstructions) +
+                                          " instructions (arrays nested too deep?)");
+    }
+    out_->code_.push_back({op, static_cast<std::uint32_t>(out_->constants_.size())});
+    out_->constants_.insert(out_->constants_.end(), begin, end);
+  }
+
+  int Primitive(Op op, const Affine& m, const std::vector<double>& params, const std::string& path) {
+    std::vector<double> c(kParams);
+    for (int r = 0; r < 3; ++r) {
+      for (int col = 0; col < 3; ++col) c[kA + 3 * r + col] = m.A(r, col);
+      c[kB + r] = m.b[r];
+    }
+    c[kScale] = m.k;
+    c[kLipschitz] = m.k * Eigen::JacobiSVD<Eigen::Matrix3d>(m.A).singularValues()[0];
+    c.insert(c.end(), params.begin(), params.end());
+    PushRange(op, c.data(), c.data() + c.size(), path);
+    ++out_->primitive_count_;
+    return 1;
+  }
+
+  // Union of a node's children (the argument of a unary node).
+  int Group(const ImplicitNode& node, const Affine& m, const std::string& path) {
+    int depth = 0;
+    for (size_t i = 0; i < node.children.size(); ++i) {
+      const int d = Emit(node.children[i], m, path + "/children/" + std::to_string(i));
+      depth = std::max(depth, d + (i > 0 ? 1 : 0));
+      if (i > 0) Push(Op::kMin, {}, path);
+    }
+    return depth;
+  }
+
+  // Left fold of the children with a binary operator (radius < 0: none).
+  int Fold(const ImplicitNode& node, const Affine& m, const std::string& path, Op op, double radius) {
+    int depth = 0;
+    for (size_t i = 0; i < node.children.size(); ++i) {
+      const int d = Emit(node.children[i], m, path + "/children/" + std::to_string(i));
+      depth = std::max(depth, d + (i > 0 ? 1 : 0));
+      if (i > 0) {
+        if (radius >= 0.0) {
+          Push(op, {radius}, path);
+        } else {
+          Push(op, {}, path);
+        }
+      }
+    }
+    return depth;
+  }
+
+  CompiledSolid* out_;
+};
+
+CompiledSolid CompiledSolid::Compile(const ImplicitNode& root, const std::string& root_path) {
+  ValidateTree(root, root_path);
+  CompiledSolid solid;
+  TapeCompiler compiler(&solid);
+  solid.stack_depth_ = compiler.Emit(root, Affine{}, root_path);
+  if (solid.stack_depth_ > kMaxStackDepth) {
+    throw ModelError(root_path, "children",
+                     "solid at " + (root_path.empty() ? std::string("/") : root_path) + " needs a value stack of " +
+                         std::to_string(solid.stack_depth_) + " entries, more than the evaluator's " +
+                         std::to_string(kMaxStackDepth) + ": nest booleans less deeply");
+  }
+  return solid;
+}
+
+template <typename T, typename Primitive>
+T CompiledSolid::Run(Primitive&& primitive) const noexcept {
+  using namespace internal;
+  T stack[kMaxStackDepth];
+  int top = 0;
+  const double* pool = constants_.data();
+  for (const Instruction& ins : code_) {
+    const double* c = pool + ins.constants;
+    switch (ins.op) {
+      case Op::kMin:
+        --top;
+        stack[top - 1] = Min(stack[top - 1], stack[top]);
+        break;
+      case Op::kMax:
+        --top;
+        stack[top - 1] = Max(stack[top - 1], stack[top]);
+        break;
+      case Op::kMaxNeg:
+        --top;
+        stack[top - 1] = Max(stack[top - 1], -stack[top]);
+        break;
+      case Op::kSmoothMin:
+        --top;
+        stack[top - 1] = SmoothMin(stack[top - 1], stack[top], c[0]);
+        break;
+      case Op::kSmoothMax:
+        --top;
+        stack[top - 1] = SmoothMax(stack[top - 1], stack[top], c[0]);
+        break;
+      case Op::kSmoothMaxNeg:
+        --top;
+        stack[top - 1] = SmoothMax(stack[top - 1], -stack[top], c[0]);
+        break;
+      case Op::kOffset:
+        stack[top - 1] = stack[top - 1] - c[0];
+        break;
+      case Op::kShell:
+        stack[top - 1] = Abs(stack[top - 1] + 0.5 * c[0]) - 0.5 * c[0];
+        break;
+      default:
+        stack[top++] = primitive(ins.op, c);
+        break;
+    }
+  }
+  return stack[0];
+}
+
+double CompiledSolid::Value(const Eigen::Vector3d& p) const noexcept {
+  if (code_.empty()) return INFINITY;
+  const double px = p.x(), py = p.y(), pz = p.z();
+  return Run<double>([px, py, pz](Op op, const double* c) {
+    const double x = c[0] * px + c[1] * py + c[2] * pz + c[kB];
+    const double y = c[3] * px + c[4] * py + c[5] * pz + c[kB + 1];
+    const double z = c[6] * px + c[7] * py + c[8] * pz + c[kB + 2];
+    return c[kScale] * EvalPrimitive(op, c + kParams, x, y, z);
+  });
+}
+
+double CompiledSolid::ValueAndGradient(const Eigen::Vector3d& p, Eigen::Vector3d* gradient) const noexcept {
+  if (code_.empty()) {
+    gradient->setZero();
+    return INFINITY;
+  }
+  const double px = p.x(), py = p.y(), pz = p.z();
+  const Dual r = Run<Dual>([px, py, pz](Op op, const double* c) {
+    const Dual x{c[0] * px + c[1] * py + c[2] * pz + c[kB], c[0], c[1], c[2]};
+    const Dual y{c[3] * px + c[4] * py + c[5] * pz + c[kB + 1], c[3], c[4], c[5]};
+    const Dual z{c[6] * px + c[7] * py + c[8] * pz + c[kB + 2], c[6], c[7], c[8]};
+    return EvalPrimitive(op, c + kParams, x, y, z) * c[kScale];
+  });
+  *gradient = Eigen::Vector3d(r.gx, r.gy, r.gz);
+  return r.v;
+}
+
+void CompiledSolid::Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points, Eigen::Ref<Eigen::VectorXd> values) const noexcept {
+  const Eigen::Index n = std::min<Eigen::Index>(points.cols(), values.size());
+  for (Eigen::Index i = 0; i < n; ++i) values[i] = Value(points.col(i));
+}
+
+void CompiledSolid::ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points, Eigen::Ref<Eigen::VectorXd> values,
+                                       Eigen::Ref<Eigen::Matrix3Xd> gradients) const noexcept {
+  const Eigen::Index n = std::min({points.cols(), values.size(), gradients.cols()});
+  Eigen::Vector3d g;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    values[i] = ValueAndGradient(points.col(i), &g);
+    gradients.col(i) = g;
+  }
+}
+
+Interval CompiledSolid::Bounds(const Eigen::AlignedBox3d& box) const noexcept {
+  if (code_.empty()) return {INFINITY, INFINITY};
+  const Eigen::Vector3d lo = box.min(), hi = box.max();
+  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const double half_diagonal = 0.5 * (hi - lo).norm();
+  return Run<Interval>([&](Op op, const double* c) {
+    double qc[3];
+    Interval q[3];
+    for (int r = 0; r < 3; ++r) {
+      Interval acc = Interval::Point(c[kB + r]);
+      qc[r] = c[kB + r];
+      for (int j = 0; j < 3; ++j) {
+        const double a = c[3 * r + j];
+        acc = acc + Interval{lo[j], hi[j]} * a;
+        qc[r] += a * centre[j];
+      }
+      q[r] = acc;
+    }
+    const double k = c[kScale];
+    const double value_at_centre = k * EvalPrimitive(op, c + kParams, qc[0], qc[1], qc[2]);
+    const double reach = c[kLipschitz] * half_diagonal;
+    // Widen by a few ulps so rounding in the two evaluations cannot exclude a true value.
+    const double slack = 1e-12 * (std::fabs(value_at_centre) + reach) + 1e-15;
+    const Interval lipschitz{value_at_centre - reach - slack, value_at_centre + reach + slack};
+    if (!IsBranchFree(op)) return lipschitz;
+    const Interval ia = EvalBranchFree(op, c + kParams, q[0], q[1], q[2]) * k;
+    return Intersect(Interval{ia.lo - slack, ia.hi + slack}, lipschitz);
+  });
+}
+
+BoxClass CompiledSolid::Classify(const Eigen::AlignedBox3d& box) const noexcept {
+  const Interval b = Bounds(box);
+  if (b.hi < 0.0) return BoxClass::kInside;
+  if (b.lo > 0.0) return BoxClass::kOutside;
+  return BoxClass::kAmbiguous;
+}
+
+}  // namespace spidarcad::modeling

@@ -1,0 +1,301 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/modeling/surface_mesher.h"
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <unordered_map>
+#include <vector>
+
+namespace spidarcad::modeling {
+
+namespace {
+
+// The six tetrahedra of the Kuhn (Freudenthal) subdivision of a cube, as corner codes
+// (bit 0: +x, bit 1: +y, bit 2: +z). Every cube of the grid is split along the same
+// diagonal 0-7, so the tetrahedra of neighbouring cubes share whole faces.
+constexpr std::array<std::array<int, 4>, 6> kKuhnTets = {{
+    {0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7},
+}};
+
+class Mesher {
+ public:
+  Mesher(const CompiledSolid& solid, const SurfaceMeshSettings& s) : solid_(solid), settings_(s) {
+    if (s.bounds.isEmpty() || !s.bounds.min().allFinite() || !s.bounds.max().allFinite()) {
+      throw std::invalid_argument("MeshSurface: settings.bounds must be a finite, non-empty box");
+    }
+    if (!(s.cell_size > 0.0) || !std::isfinite(s.cell_size)) {
+      throw std::invalid_argument("MeshSurface: settings.cell_size must be > 0 m, got " + std::to_string(s.cell_size));
+    }
+    if (s.refine_steps < 0) throw std::invalid_argument("MeshSurface: settings.refine_steps must be >= 0");
+    h_ = s.cell_size;
+    const Eigen::Vector3d extent = s.bounds.sizes();
+    double cells = 1.0;
+    for (int a = 0; a < 3; ++a) {
+      n_[a] = std::max<long>(1, static_cast<long>(std::ceil(extent[a] / h_ - 1e-9)));
+      cells *= static_cast<double>(n_[a]);
+    }
+    if (cells > static_cast<double>(1L << 30)) {
+      throw std::invalid_argument("MeshSurface: the grid would have " + std::to_string(cells) +
+                                  " cells (more than 2^30): raise cell_size");
+    }
+    // Centre the grid on the bounds.
+    origin_ = s.bounds.center() - 0.5 * h_ * Eigen::Vector3d(double(n_[0]), double(n_[1]), double(n_[2]));
+    total_cells_ = n_[0] * n_[1] * n_[2];
+  }
+
+  TriangleMesh Run(SurfaceMeshStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    Visit({0, 0, 0}, {n_[0], n_[1], n_[2]});
+    if (settings_.progress) settings_.progress(1.0);
+    TriangleMesh mesh;
+    mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices_.size()));
+    for (size_t i = 0; i < vertices_.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = vertices_[i];
+    mesh.triangles.resize(3, static_cast<Eigen::Index>(triangles_.size()));
+    for (size_t i = 0; i < triangles_.size(); ++i) {
+      for (int k = 0; k < 3; ++k) mesh.triangles(k, static_cast<Eigen::Index>(i)) = triangles_[i][k];
+    }
+    if (stats) {
+      stats->grid_cells = total_cells_;
+      stats->evaluated_cells = evaluated_cells_;
+      stats->field_evaluations = evaluations_;
+      stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    return mesh;
+  }
+
+ private:
+  using Index3 = std::array<long, 3>;
+
+  Eigen::Vector3d Position(const Index3& v) const {
+    return origin_ + h_ * Eigen::Vector3d(double(v[0]), double(v[1]), double(v[2]));
+  }
+  long VertexId(const Index3& v) const { return v[0] + (n_[0] + 1) * (v[1] + (n_[1] + 1) * v[2]); }
+  bool OnBoundary(const Index3& v) const {
+    for (int a = 0; a < 3; ++a) {
+      if (v[a] == 0 || v[a] == n_[a]) return true;
+    }
+    return false;
+  }
+
+  // Field value at a grid vertex, cached; boundary vertices count as outside so the mesh closes.
+  double VertexValue(const Index3& v) {
+    const long id = VertexId(v);
+    const auto it = values_.find(id);
+    if (it != values_.end()) return it->second;
+    double f = solid_.Value(Position(v));
+    ++evaluations_;
+    if (OnBoundary(v)) f = std::max(f, 1e-9 * h_);
+    values_.emplace(id, f);
+    return f;
+  }
+
+  // Descends the index box [lo, hi) of cells, skipping what the interval bounds rule out.
+  void Visit(const Index3& lo, const Index3& hi) {
+    const Eigen::AlignedBox3d box(Position(lo), Position(hi));
+    const BoxClass cls = solid_.Classify(box);
+    bool touches_boundary = false;
+    for (int a = 0; a < 3; ++a) touches_boundary |= lo[a] == 0 || hi[a] == n_[a];
+    if (cls == BoxClass::kOutside || (cls == BoxClass::kInside && !touches_boundary)) {
+      Done(lo, hi);
+      return;
+    }
+    int axis = 0;
+    for (int a = 1; a < 3; ++a) {
+      if (hi[a] - lo[a] > hi[axis] - lo[axis]) axis = a;
+    }
+    if (hi[axis] - lo[axis] == 1) {
+      Cell(lo);
+      Done(lo, hi);
+      return;
+    }
+    const long mid = (lo[axis] + hi[axis]) / 2;
+    Index3 hi_a = hi, lo_b = lo;
+    hi_a[axis] = mid;
+    lo_b[axis] = mid;
+    Visit(lo, hi_a);
+    Visit(lo_b, hi);
+  }
+
+  void Done(const Index3& lo, const Index3& hi) {
+    done_cells_ += (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+    if (++visits_ % 4096 == 0) {
+      if (settings_.cancel && settings_.cancel->load(std::memory_order_relaxed)) throw MeshingCancelled();
+      if (settings_.progress) settings_.progress(double(done_cells_) / double(total_cells_));
+    }
+  }
+
+  void Cell(const Index3& c) {
+    ++evaluated_cells_;
+    std::array<double, 8> f;
+    std::array<Index3, 8> v;
+    bool any_in = false, any_out = false;
+    for (int code = 0; code < 8; ++code) {
+      v[code] = {c[0] + (code & 1), c[1] + ((code >> 1) & 1), c[2] + ((code >> 2) & 1)};
+      f[code] = VertexValue(v[code]);
+      (f[code] < 0.0 ? any_in : any_out) = true;
+    }
+    if (!any_in || !any_out) return;
+    for (const auto& tet : kKuhnTets) Tetrahedron(c, tet, f, v);
+  }
+
+  // Mesh vertex on the grid edge between corner codes a and b of cell c (one inside, one out).
+  int EdgeVertex(const Index3& c, int a, int b, const std::array<double, 8>& f, const std::array<Index3, 8>& v) {
+    if ((a & b) != a) std::swap(a, b);  // Kuhn edges join u to v with bits(u) ⊂ bits(v)
+    const long key = VertexId(v[a]) * 8 + (a ^ b);
+    const auto it = edge_vertices_.find(key);
+    if (it != edge_vertices_.end()) return it->second;
+    Eigen::Vector3d pa = Position(v[a]), pb = Position(v[b]);
+    double fa = f[a], fb = f[b];
+    double t = fa / (fa - fb);
+    if (!OnBoundary(v[a]) && !OnBoundary(v[b])) {
+      // Regula falsi (Illinois variant: halve the stale end's value so it cannot stagnate),
+      // keeping the bracket [pa, pb] with opposite signs.
+      int last = 0;
+      for (int s = 0; s < settings_.refine_steps; ++s) {
+        const Eigen::Vector3d p = pa + t * (pb - pa);
+        const double fp = solid_.Value(p);
+        ++evaluations_;
+        if (fp == 0.0) break;
+        if ((fp < 0.0) == (fa < 0.0)) {
+          pa = p;
+          fa = fp;
+          if (last == -1) fb *= 0.5;
+          last = -1;
+        } else {
+          pb = p;
+          fb = fp;
+          if (last == 1) fa *= 0.5;
+          last = 1;
+        }
+        t = fa / (fa - fb);
+      }
+    }
+    const int id = static_cast<int>(vertices_.size());
+    vertices_.push_back(pa + t * (pb - pa));
+    edge_vertices_.emplace(key, id);
+    return id;
+  }
+
+  // Appends triangle (i0, i1, i2), oriented by the triangle (m0, m1, m2) of the midpoints of
+  // the same grid edges: the midpoints never coincide, so the orientation stays consistent even
+  // where mesh vertices do (a grid vertex exactly on the surface).
+  void Emit(int i0, int i1, int i2, const Eigen::Vector3d& m0, const Eigen::Vector3d& m1, const Eigen::Vector3d& m2,
+            const Eigen::Vector3d& outward) {
+    if ((m1 - m0).cross(m2 - m0).dot(outward) < 0.0) std::swap(i1, i2);
+    triangles_.push_back({i0, i1, i2});
+  }
+
+  void Tetrahedron(const Index3& c, const std::array<int, 4>& tet, const std::array<double, 8>& f,
+                   const std::array<Index3, 8>& v) {
+    int in[4], out[4], n_in = 0, n_out = 0;
+    for (int code : tet) (f[code] < 0.0 ? in[n_in++] : out[n_out++]) = code;
+    if (n_in == 0 || n_out == 0) return;
+    Eigen::Vector3d in_centre = Eigen::Vector3d::Zero(), out_centre = Eigen::Vector3d::Zero();
+    for (int i = 0; i < n_in; ++i) in_centre += Position(v[in[i]]) / n_in;
+    for (int i = 0; i < n_out; ++i) out_centre += Position(v[out[i]]) / n_out;
+    // The plane through the edge midpoints separates the inside corners from the outside ones.
+    const Eigen::Vector3d outward = out_centre - in_centre;
+    auto mid = [&](int a, int b) -> Eigen::Vector3d { return 0.5 * (Position(v[a]) + Position(v[b])); };
+    if (n_in == 1) {
+      Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[0], out[1], f, v), EdgeVertex(c, in[0], out[2], f, v),
+           mid(in[0], out[0]), mid(in[0], out[1]), mid(in[0], out[2]), outward);
+    } else if (n_in == 3) {
+      Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[1], out[0], f, v), EdgeVertex(c, in[2], out[0], f, v),
+           mid(in[0], out[0]), mid(in[1], out[0]), mid(in[2], out[0]), outward);
+    } else {
+      // Quad with corners on edges (a,c), (a,d), (b,d), (b,c), in cyclic order.
+      const int ac = EdgeVertex(c, in[0], out[0], f, v), ad = EdgeVertex(c, in[0], out[1], f, v);
+      const int bd = EdgeVertex(c, in[1], out[1], f, v), bc = EdgeVertex(c, in[1], out[0], f, v);
+      const Eigen::Vector3d m_ac = mid(in[0], out[0]), m_ad = mid(in[0], out[1]);
+      const Eigen::Vector3d m_bd = mid(in[1], out[1]), m_bc = mid(in[1], out[0]);
+      Emit(ac, ad, bd, m_ac, m_ad, m_bd, outward);
+      Emit(ac, bd, bc, m_ac, m_bd, m_bc, outward);
+    }
+  }
+
+  const CompiledSolid& solid_;
+  const SurfaceMeshSettings& settings_;
+  double h_ = 0.0;
+  Index3 n_{};
+  Eigen::Vector3d origin_;
+  long total_cells_ = 0;
+  long done_cells_ = 0;
+  long visits_ = 0;
+  long evaluated_cells_ = 0;
+  long evaluations_ = 0;
+  std::unordered_map<long, double> values_;
+  std::unordered_map<long, int> edge_vertices_;
+  std::vector<Eigen::Vector3d> vertices_;
+  std::vector<std::array<int, 3>> triangles_;
+};
+
+void GrowBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, double resolution, Eigen::AlignedBox3d* found) {
+  if (found->contains(box)) return;  // nothing to add
+  const BoxClass cls = solid.Classify(box);
+  if (cls == BoxClass::kOutside) return;
+  if (cls == BoxClass::kInside || box.sizes().maxCoeff() <= resolution) {
+    found->extend(box);
+    return;
+  }
+  int axis = 0;
+  box.sizes().maxCoeff(&axis);
+  Eigen::AlignedBox3d a = box, b = box;
+  a.max()[axis] = b.min()[axis] = box.center()[axis];
+  GrowBounds(solid, a, resolution, found);
+  GrowBounds(solid, b, resolution, found);
+}
+
+}  // namespace
+
+Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search, double resolution) {
+  if (search.isEmpty() || !(resolution > 0.0)) {
+    throw std::invalid_argument("FindBounds: need a non-empty search box and a resolution > 0");
+  }
+  Eigen::AlignedBox3d found;  // empty
+  GrowBounds(solid, search, resolution, &found);
+  return found;
+}
+
+TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& settings, SurfaceMeshStats* stats) {
+  Mesher mesher(solid, settings);
+  return mesher.Run(stats);
+}
+
+SurfaceError MeasureSurfaceError(const CompiledSolid& solid, const TriangleMesh& mesh) {
+  SurfaceError e;
+  double sum2 = 0.0;
+  long count = 0;
+  auto sample = [&](const Eigen::Vector3d& p) {
+    const double d = std::abs(solid.Value(p));
+    e.max = std::max(e.max, d);
+    sum2 += d * d;
+    ++count;
+  };
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) sample(mesh.vertices.col(i));
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, t));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.triangles(1, t));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.triangles(2, t));
+    sample((a + b + c) / 3.0);
+    sample((a + b) / 2.0);
+    sample((b + c) / 2.0);
+    sample((c + a) / 2.0);
+  }
+  e.rms = count > 0 ? std::sqrt(sum2 / double(count)) : 0.0;
+  return e;
+}
+
+double MeshVolume(const TriangleMesh& mesh) {
+  double v = 0.0;
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, t));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.triangles(1, t));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.triangles(2, t));
+    v += a.dot(b.cross(c));
+  }
+  return v / 6.0;
+}
+
+}  // namespace spidarcad::modeling

@@ -1,0 +1,440 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/modeling/tetgen_mesher.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <new>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+// TetGen defines REAL and many lowercase macros: this is the only file that includes it.
+#define TETLIBRARY
+#include <tetgen.h>
+
+namespace spidarcad::modeling {
+
+namespace internal {
+int TetgenTerminateAnchor();  // tetgen_terminate.cc
+}  // namespace internal
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+// Six times the signed volume of (a, b, c, d): > 0 when d is below the plane of the
+// counter-clockwise triangle abc (right-hand normal up).
+double Orient(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+  return (a - d).dot((b - d).cross(c - d));
+}
+
+// Sign of Orient(a, b, c, d), 0 when it is within rounding (1e-12 of the product of the edge
+// lengths at d): a nearly coplanar configuration counts as coplanar.
+int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+  const double v = Orient(a, b, c, d);
+  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
+  if (std::abs(v) <= 1e-12 * scale) return 0;
+  return v > 0 ? 1 : -1;
+}
+
+// Whether point t, in the plane of triangle abc, lies in the closed triangle (within rounding).
+bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const Eigen::Vector3d corner[3] = {a, b, c};
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d& u = corner[k];
+    const Eigen::Vector3d& v = corner[(k + 1) % 3];
+    const double side = n.dot((v - u).cross(t - u));
+    if (side < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
+  }
+  return true;
+}
+
+// Whether segment pq meets triangle abc (touching counts). A segment lying in (or within
+// rounding of) the triangle's plane is reported as not meeting it: coplanar contacts are not
+// detected here (TetGen reports them, and its error is caught).
+bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a,
+                          const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
+  if (sp == sq) return false;  // same side, or both in the plane
+  // One endpoint in the plane: they meet iff that endpoint lies in the (closed) triangle.
+  if (sp == 0) return PointInTriangle(p, a, b, c);
+  if (sq == 0) return PointInTriangle(q, a, b, c);
+  const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
+  const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
+  return !(has_pos && has_neg) && (has_pos || has_neg);
+}
+
+std::string TriangleText(const TriangleMesh& m, Eigen::Index f) {
+  return std::to_string(f) + " (" + std::to_string(m.triangles(0, f)) + ", " + std::to_string(m.triangles(1, f)) + ", " +
+         std::to_string(m.triangles(2, f)) + ")";
+}
+
+// Whether triangles f and g intersect other than along what they share.
+bool TrianglesIntersect(const TriangleMesh& m, Eigen::Index f, Eigen::Index g) {
+  std::array<int, 3> a, b;
+  for (int k = 0; k < 3; ++k) {
+    a[k] = m.triangles(k, f);
+    b[k] = m.triangles(k, g);
+  }
+  int shared = 0;
+  for (int i : a)
+    for (int j : b) shared += i == j;
+  auto pa = [&](int k) -> Eigen::Vector3d { return m.vertices.col(a[k]); };
+  auto pb = [&](int k) -> Eigen::Vector3d { return m.vertices.col(b[k]); };
+  auto in_b = [&](int v) { return v == b[0] || v == b[1] || v == b[2]; };
+  auto in_a = [&](int v) { return v == a[0] || v == a[1] || v == a[2]; };
+  if (shared >= 3) return true;  // a duplicated triangle
+  if (shared == 2) {
+    // Folded onto each other: the unshared vertex of g in f's plane, on the same side of the
+    // shared edge as f's unshared vertex.
+    int fa = 0, gb = 0;
+    while (in_b(a[fa])) ++fa;
+    while (in_a(b[gb])) ++gb;
+    const Eigen::Vector3d e0 = pa((fa + 1) % 3), e1 = pa((fa + 2) % 3);
+    const Eigen::Vector3d n = (e1 - e0).cross(pa(fa) - e0);
+    const double scale = n.norm() * (pb(gb) - e0).norm();
+    if (std::abs(n.dot(pb(gb) - e0)) > 1e-12 * scale) return false;
+    const Eigen::Vector3d edge = e1 - e0;
+    return (edge.cross(pa(fa) - e0)).dot(edge.cross(pb(gb) - e0)) > 0;
+  }
+  if (shared == 1) {
+    // Away from the shared vertex, only the opposite edges can cross the other triangle.
+    std::array<int, 2> ea{}, eb{};
+    int na = 0, nb = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (!in_b(a[k])) ea[na++] = k;
+      if (!in_a(b[k])) eb[nb++] = k;
+    }
+    return SegmentMeetsTriangle(pa(ea[0]), pa(ea[1]), pb(0), pb(1), pb(2)) ||
+           SegmentMeetsTriangle(pb(eb[0]), pb(eb[1]), pa(0), pa(1), pa(2));
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (SegmentMeetsTriangle(pa(k), pa((k + 1) % 3), pb(0), pb(1), pb(2))) return true;
+    if (SegmentMeetsTriangle(pb(k), pb((k + 1) % 3), pa(0), pa(1), pa(2))) return true;
+  }
+  return false;
+}
+
+void CheckSelfIntersections(const TriangleMesh& m) {
+  const Eigen::Index nf = m.triangles.cols();
+  std::vector<Eigen::AlignedBox3d> boxes(nf);
+  Eigen::AlignedBox3d all;
+  double mean_extent = 0.0;
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) boxes[f].extend(Eigen::Vector3d(m.vertices.col(m.triangles(k, f))));
+    all.extend(boxes[f]);
+    mean_extent += boxes[f].sizes().maxCoeff();
+  }
+  mean_extent /= std::max<Eigen::Index>(nf, 1);
+  const Eigen::Vector3d size = all.sizes();
+  // Cells about twice the mean triangle size, at most ~2 cells per triangle overall.
+  double h = std::max(2.0 * mean_extent, 1e-12 * size.maxCoeff() + 1e-300);
+  Eigen::Vector3i dims;
+  for (int iter = 0;; ++iter) {
+    for (int a = 0; a < 3; ++a) dims[a] = std::max(1, static_cast<int>(std::ceil(size[a] / h)));
+    if (double(dims[0]) * dims[1] * dims[2] <= 2.0 * nf + 8 || iter > 60) break;
+    h *= 1.25;
+  }
+  auto cell_of = [&](const Eigen::Vector3d& p) {
+    Eigen::Vector3i c;
+    for (int a = 0; a < 3; ++a) c[a] = std::clamp(static_cast<int>((p[a] - all.min()[a]) / h), 0, dims[a] - 1);
+    return c;
+  };
+  auto flat = [&](const Eigen::Vector3i& c) { return (static_cast<long>(c[2]) * dims[1] + c[1]) * dims[0] + c[0]; };
+  // Bucket triangles (counting sort into one array).
+  const long ncells = static_cast<long>(dims[0]) * dims[1] * dims[2];
+  std::vector<long> start(ncells + 1, 0);
+  std::vector<std::pair<Eigen::Vector3i, Eigen::Vector3i>> range(nf);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    range[f] = {cell_of(boxes[f].min()), cell_of(boxes[f].max())};
+    const auto& [lo, hi] = range[f];
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x) ++start[flat({x, y, z}) + 1];
+  }
+  for (long c = 0; c < ncells; ++c) start[c + 1] += start[c];
+  std::vector<int> items(start[ncells]);
+  std::vector<long> fill(start.begin(), start.end() - 1);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    const auto& [lo, hi] = range[f];
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x) items[fill[flat({x, y, z})]++] = static_cast<int>(f);
+  }
+  for (long c = 0; c < ncells; ++c) {
+    for (long i = start[c]; i < start[c + 1]; ++i) {
+      for (long j = i + 1; j < start[c + 1]; ++j) {
+        const int f = items[i], g = items[j];
+        const Eigen::AlignedBox3d overlap = boxes[f].intersection(boxes[g]);
+        if (overlap.isEmpty()) continue;
+        if (flat(cell_of(overlap.min())) != c) continue;  // the pair is tested in one cell only
+        if (TrianglesIntersect(m, f, g)) {
+          throw SurfaceDefectError("surface intersects itself: triangles " + TriangleText(m, std::min(f, g)) + " and " +
+                                   TriangleText(m, std::max(f, g)));
+        }
+      }
+    }
+  }
+}
+
+// Fixed-point text of a positive number for a TetGen switch (its parser takes no exponent).
+std::string SwitchNumber(double x) {
+  // 15 significant digits, in fixed notation.
+  const int decimals = std::clamp(14 - static_cast<int>(std::floor(std::log10(x))), 0, 60);
+  char buffer[128];
+  std::snprintf(buffer, sizeof(buffer), "%.*f", decimals, x);
+  std::string s = buffer;
+  while (!s.empty() && s.back() == '0') s.pop_back();
+  if (!s.empty() && s.back() == '.') s.pop_back();
+  return s;
+}
+
+}  // namespace
+
+TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* welded, long* dropped) {
+  const Eigen::Index nv = surface.vertices.cols(), nf = surface.triangles.cols();
+  for (Eigen::Index f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k)
+      if (surface.triangles(k, f) < 0 || surface.triangles(k, f) >= nv)
+        throw SurfaceDefectError("triangle " + TriangleText(surface, f) + " has a vertex index outside [0, " +
+                                    std::to_string(nv) + ")");
+  Eigen::AlignedBox3d box;
+  for (Eigen::Index i = 0; i < nv; ++i) box.extend(Eigen::Vector3d(surface.vertices.col(i)));
+  const double eps = nv ? tolerance * box.diagonal().norm() : 0.0;
+  // Hash vertices on a grid of cell 2 eps (at least the smallest positive double); compare each
+  // with the vertices of its cell and the neighbours.
+  std::vector<int> target(nv);
+  for (Eigen::Index i = 0; i < nv; ++i) target[i] = static_cast<int>(i);
+  long n_welded = 0;
+  if (eps > 0 || tolerance == 0) {
+    const double h = std::max(2 * eps, 1e-300);
+    using Key = Eigen::Matrix<int64_t, 3, 1>;
+    struct KeyHash {
+      size_t operator()(const Key& k) const { return (size_t(k[0]) * 73856093u) ^ (size_t(k[1]) * 19349663u) ^ (size_t(k[2]) * 83492791u); }
+    };
+    struct KeyEq {
+      bool operator()(const Key& a, const Key& b) const { return a == b; }
+    };
+    std::unordered_map<Key, std::vector<int>, KeyHash, KeyEq> cells;
+    for (Eigen::Index i = 0; i < nv; ++i) {
+      const Eigen::Vector3d p = surface.vertices.col(i);
+      const Key c = ((p - box.min()) / h).array().floor().cast<int64_t>();
+      int found = -1;
+      for (int dz = -1; dz <= 1 && found < 0; ++dz)
+        for (int dy = -1; dy <= 1 && found < 0; ++dy)
+          for (int dx = -1; dx <= 1 && found < 0; ++dx) {
+            const auto it = cells.find(c + Key(dx, dy, dz));
+            if (it == cells.end()) continue;
+            for (int j : it->second)
+              if ((surface.vertices.col(j) - p).norm() <= eps) {
+                found = j;
+                break;
+              }
+          }
+      if (found >= 0) {
+        target[i] = found;
+        ++n_welded;
+      } else {
+        cells[c].push_back(static_cast<int>(i));
+      }
+    }
+  }
+  // Keep the triangles with three distinct corners, renumber the used vertices in order.
+  std::vector<int> new_index(nv, -1);
+  std::vector<Eigen::Vector3i> kept;
+  kept.reserve(nf);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    const Eigen::Vector3i t(target[surface.triangles(0, f)], target[surface.triangles(1, f)], target[surface.triangles(2, f)]);
+    if (t[0] != t[1] && t[1] != t[2] && t[0] != t[2]) kept.push_back(t);
+  }
+  for (const auto& t : kept)
+    for (int k = 0; k < 3; ++k) new_index[t[k]] = 0;
+  int count = 0;
+  for (Eigen::Index i = 0; i < nv; ++i)
+    if (new_index[i] == 0) new_index[i] = count++;
+  TriangleMesh out;
+  out.vertices.resize(3, count);
+  for (Eigen::Index i = 0; i < nv; ++i)
+    if (new_index[i] >= 0) out.vertices.col(new_index[i]) = surface.vertices.col(i);
+  out.triangles.resize(3, static_cast<Eigen::Index>(kept.size()));
+  for (size_t f = 0; f < kept.size(); ++f)
+    for (int k = 0; k < 3; ++k) out.triangles(k, f) = new_index[kept[f][k]];
+  if (welded) *welded = n_welded;
+  if (dropped) *dropped = static_cast<long>(nf - kept.size());
+  return out;
+}
+
+void CheckSurface(const TriangleMesh& m) {
+  const Eigen::Index nv = m.vertices.cols(), nf = m.triangles.cols();
+  if (nf < 4) throw SurfaceDefectError("surface has " + std::to_string(nf) + " triangles: a closed surface needs at least 4");
+  if (!m.vertices.allFinite()) throw SurfaceDefectError("surface has a non-finite vertex coordinate");
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (m.triangles(k, f) < 0 || m.triangles(k, f) >= nv) {
+        throw SurfaceDefectError("triangle " + TriangleText(m, f) + " has a vertex index outside [0, " + std::to_string(nv) + ")");
+      }
+    }
+    const int a = m.triangles(0, f), b = m.triangles(1, f), c = m.triangles(2, f);
+    if (a == b || b == c || a == c) throw SurfaceDefectError("triangle " + TriangleText(m, f) + " repeats a vertex");
+    const Eigen::Vector3d pa = m.vertices.col(a), pb = m.vertices.col(b), pc = m.vertices.col(c);
+    const double longest = std::max({(pb - pa).norm(), (pc - pb).norm(), (pa - pc).norm()});
+    if ((pb - pa).cross(pc - pa).norm() <= 1e-14 * longest * longest) {
+      throw SurfaceDefectError("triangle " + TriangleText(m, f) + " is degenerate (zero area)");
+    }
+  }
+  // Directed edges: each must occur once, and its reverse once.
+  std::unordered_map<uint64_t, Eigen::Index> edges;
+  edges.reserve(3 * nf);
+  auto key = [](int a, int b) { return (static_cast<uint64_t>(static_cast<uint32_t>(a)) << 32) | static_cast<uint32_t>(b); };
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = m.triangles(k, f), b = m.triangles((k + 1) % 3, f);
+      const auto [it, inserted] = edges.emplace(key(a, b), f);
+      if (!inserted) {
+        throw SurfaceDefectError("edge (" + std::to_string(a) + ", " + std::to_string(b) + ") is traversed the same way by triangles " +
+                                 TriangleText(m, it->second) + " and " + TriangleText(m, f) +
+                                 ": the surface is non-manifold or inconsistently oriented");
+      }
+    }
+  }
+  for (const auto& [k, f] : edges) {
+    const int a = static_cast<int>(k >> 32), b = static_cast<int>(k & 0xffffffffu);
+    if (!edges.count(key(b, a))) {
+      throw SurfaceDefectError("edge (" + std::to_string(a) + ", " + std::to_string(b) + ") of triangle " + TriangleText(m, f) +
+                               " has no neighbour across it: the surface is open (or inconsistently oriented)");
+    }
+  }
+  const double volume = MeshVolume(m);
+  if (!(volume > 0)) {
+    throw SurfaceDefectError("surface encloses volume " + std::to_string(volume) +
+                             " m^3 <= 0: triangles must be counter-clockwise seen from outside");
+  }
+  CheckSelfIntersections(m);
+}
+
+TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& settings, TetMeshStats* stats) {
+  if (!(settings.max_radius_edge == 0.0 || (settings.max_radius_edge > 1.0 && std::isfinite(settings.max_radius_edge)))) {
+    throw std::invalid_argument("TetMeshSettings::max_radius_edge = " + std::to_string(settings.max_radius_edge) +
+                                ": must be 0 (off) or > 1");
+  }
+  if (!(settings.min_dihedral_deg >= 0.0 && settings.min_dihedral_deg < 30.0)) {
+    throw std::invalid_argument("TetMeshSettings::min_dihedral_deg = " + std::to_string(settings.min_dihedral_deg) +
+                                ": must be in [0, 30)");
+  }
+  if (!(settings.max_volume >= 0.0 && std::isfinite(settings.max_volume))) {
+    throw std::invalid_argument("TetMeshSettings::max_volume = " + std::to_string(settings.max_volume) + ": must be >= 0");
+  }
+  if (internal::TetgenTerminateAnchor() != 1) throw std::logic_error("tetgen_terminate.cc not linked");
+  auto cancelled = [&] { return settings.cancel && settings.cancel->load(); };
+  auto progress = [&](double x) {
+    if (settings.progress) settings.progress(x);
+  };
+  if (!std::isfinite(settings.weld_tolerance)) throw std::invalid_argument("TetMeshSettings::weld_tolerance is not finite");
+  TetMeshStats local_stats;
+  TetMeshStats& st = stats ? *stats : local_stats;
+  st = TetMeshStats{};
+  progress(0.0);
+  if (cancelled()) throw TetMeshingCancelled();
+  auto t0 = Clock::now();
+  TriangleMesh repaired_storage;
+  if (settings.weld_tolerance >= 0) {
+    repaired_storage = RepairSurface(input, settings.weld_tolerance, &st.welded_vertices, &st.dropped_triangles);
+  }
+  const TriangleMesh& surface = settings.weld_tolerance >= 0 ? repaired_storage : input;
+  if (settings.check_surface) {
+    CheckSurface(surface);
+  } else {
+    // Even unchecked, an index out of range would make TetGen read out of bounds.
+    for (Eigen::Index f = 0; f < surface.triangles.cols(); ++f)
+      for (int k = 0; k < 3; ++k)
+        if (surface.triangles(k, f) < 0 || surface.triangles(k, f) >= surface.vertices.cols())
+          throw SurfaceDefectError("triangle " + TriangleText(surface, f) + " has a vertex index outside [0, " +
+                                   std::to_string(surface.vertices.cols()) + ")");
+  }
+  st.check_seconds = Seconds(t0);
+  progress(0.2);
+  if (cancelled()) throw TetMeshingCancelled();
+
+  std::string switches = "pzA";
+  if (settings.max_radius_edge > 0) {
+    switches += "q" + SwitchNumber(settings.max_radius_edge);
+    if (settings.min_dihedral_deg > 0) switches += "/" + SwitchNumber(settings.min_dihedral_deg);
+  }
+  if (settings.max_volume > 0) switches += "a" + SwitchNumber(settings.max_volume);
+  if (settings.preserve_surface) switches += "Y";
+  if (settings.keep_facets) switches += "M";
+  switches += settings.extra_switches;
+  switches += settings.quiet ? "Q" : "V";
+  st.switches = switches;
+
+  tetgenio in, out;
+  in.firstnumber = 0;
+  in.numberofpoints = static_cast<int>(surface.vertices.cols());
+  in.pointlist = new REAL[3 * in.numberofpoints];
+  std::copy(surface.vertices.data(), surface.vertices.data() + 3 * in.numberofpoints, in.pointlist);
+  in.numberoffacets = static_cast<int>(surface.triangles.cols());
+  in.facetlist = new tetgenio::facet[in.numberoffacets];
+  for (int f = 0; f < in.numberoffacets; ++f) {
+    tetgenio::facet& facet = in.facetlist[f];
+    tetgenio::init(&facet);
+    facet.numberofpolygons = 1;
+    facet.polygonlist = new tetgenio::polygon[1];
+    tetgenio::init(&facet.polygonlist[0]);
+    facet.polygonlist[0].numberofvertices = 3;
+    facet.polygonlist[0].vertexlist = new int[3];
+    for (int k = 0; k < 3; ++k) facet.polygonlist[0].vertexlist[k] = surface.triangles(k, f);
+  }
+  t0 = Clock::now();
+  try {
+    std::vector<char> command(switches.begin(), switches.end());
+    command.push_back('\0');
+    tetrahedralize(command.data(), &in, &out);
+  } catch (const TetgenError&) {
+    throw;
+  } catch (int code) {
+    throw TetgenError(code, "TetGen failed with code " + std::to_string(code));
+  } catch (const std::bad_alloc&) {
+    throw TetgenError(1, "TetGen failed: out of memory");
+  }
+  st.tetgen_seconds = Seconds(t0);
+  progress(0.9);
+
+  const int nv = out.numberofpoints, nt = out.numberoftetrahedra;
+  if (nt <= 0 || nv < 4 || out.tetrahedronlist == nullptr || out.pointlist == nullptr) {
+    throw TetgenError(0, "TetGen returned " + std::to_string(nt) + " tetrahedra and " + std::to_string(nv) +
+                             " points for a surface of " + std::to_string(surface.triangles.cols()) + " triangles");
+  }
+  if (out.numberofcorners != 4) throw TetgenError(0, "TetGen returned " + std::to_string(out.numberofcorners) + "-node tetrahedra");
+  TetMesh mesh;
+  mesh.nodes.resize(3, nv);
+  std::copy(out.pointlist, out.pointlist + 3 * nv, mesh.nodes.data());
+  mesh.tets.resize(4, nt);
+  mesh.regions.setZero(nt);
+  for (int t = 0; t < nt; ++t) {
+    for (int k = 0; k < 4; ++k) {
+      const int i = out.tetrahedronlist[4 * t + k];
+      if (i < 0 || i >= nv) throw TetgenError(0, "TetGen returned tet " + std::to_string(t) + " with node index " + std::to_string(i));
+      mesh.tets(k, t) = i;
+    }
+    if (out.numberoftetrahedronattributes > 0 && out.tetrahedronattributelist) {
+      mesh.regions[t] = static_cast<int>(std::lround(out.tetrahedronattributelist[t * out.numberoftetrahedronattributes]));
+    }
+    if (TetVolume(mesh, t) < 0) std::swap(mesh.tets(2, t), mesh.tets(3, t));
+  }
+  st.quality = MeasureTetQuality(mesh);
+  if (!(st.quality.min_volume > 0)) {
+    throw TetgenError(0, "TetGen returned a tetrahedron of volume " + std::to_string(st.quality.min_volume) + " m^3");
+  }
+  progress(1.0);
+  return mesh;
+}
+
+}  // namespace spidarcad::modeling

@@ -1,0 +1,158 @@
+// Tests of the surface mesher: closed, manifold, outward-oriented meshes with the right topology
+// (Euler characteristic), volumes against closed forms, vertices on the surface, clipping,
+// cancel and bad settings.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/modeling/surface_mesher.h"
+
+#include <cmath>
+#include <map>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "spidarcad/modeling/scene_io.h"
+
+namespace spidarcad::modeling {
+namespace {
+
+// Checks that every directed edge occurs once and its reverse once (closed, consistently
+// oriented), that the triangles around each vertex form one fan (vertex-manifold), and that no
+// triangle is repeated. Returns the Euler characteristic V - E + F.
+long CheckClosedManifold(const TriangleMesh& mesh) {
+  std::map<std::pair<int, int>, int> directed;
+  std::vector<std::map<int, int>> link(mesh.vertices.cols());  // per vertex: a -> b for triangles (v, a, b)
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t), c = mesh.triangles((k + 2) % 3, t);
+      EXPECT_NE(a, b);
+      ++directed[{a, b}];
+      EXPECT_TRUE(link[a].emplace(b, c).second) << "vertex " << a << " has two triangles starting at " << b;
+    }
+  }
+  for (const auto& [edge, count] : directed) {
+    EXPECT_EQ(count, 1) << "edge " << edge.first << "-" << edge.second;
+    const auto reverse = directed.find({edge.second, edge.first});
+    EXPECT_TRUE(reverse != directed.end()) << "open edge " << edge.first << "-" << edge.second;
+  }
+  for (size_t v = 0; v < link.size(); ++v) {
+    if (link[v].empty()) continue;
+    // Walk the fan once around: it must visit every triangle of the vertex.
+    const int start = link[v].begin()->first;
+    int at = start;
+    size_t steps = 0;
+    do {
+      const auto it = link[v].find(at);
+      if (it == link[v].end()) break;
+      at = it->second;
+      ++steps;
+    } while (at != start && steps <= link[v].size());
+    EXPECT_EQ(steps, link[v].size()) << "vertex " << v << " is not manifold";
+  }
+  const long edges = static_cast<long>(directed.size()) / 2;
+  return static_cast<long>(mesh.vertices.cols()) - edges + static_cast<long>(mesh.triangles.cols());
+}
+
+SurfaceMeshSettings Settings(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double cell) {
+  SurfaceMeshSettings s;
+  s.bounds = Eigen::AlignedBox3d(lo, hi);
+  s.cell_size = cell;
+  return s;
+}
+
+TEST(SurfaceMesher, SphereIsClosedGenusZeroWithTheRightVolume) {
+  const double r = 0.05;
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{r}));
+  const double h = r / 20;
+  SurfaceMeshStats stats;
+  const TriangleMesh mesh = MeshSurface(sphere, Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), h), &stats);
+  ASSERT_GT(mesh.triangles.cols(), 1000);
+  EXPECT_EQ(CheckClosedManifold(mesh), 2);
+  const double exact = 4.0 / 3.0 * M_PI * r * r * r;
+  EXPECT_NEAR(MeshVolume(mesh), exact, 0.01 * exact);  // positive: outward orientation
+  EXPECT_LT(MeshVolume(mesh), exact);                  // inscribed polyhedron of a convex solid
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) EXPECT_NEAR(mesh.vertices.col(i).norm(), r, 1e-9);
+  const SurfaceError e = MeasureSurfaceError(sphere, mesh);
+  EXPECT_LT(e.max, 3 * h * h / (8 * r) + 1e-12);  // sagitta of an edge no longer than the cell diagonal
+  // The interval bounds rule out most of the grid.
+  EXPECT_LT(stats.evaluated_cells, stats.grid_cells / 4);
+  EXPECT_EQ(stats.grid_cells, 48L * 48 * 48);
+}
+
+TEST(SurfaceMesher, TorusHasEulerCharacteristicZero) {
+  const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.04, 0.012}));
+  const TriangleMesh mesh = MeshSurface(torus, Settings(Eigen::Vector3d(-0.06, -0.06, -0.02), Eigen::Vector3d(0.06, 0.06, 0.02), 0.002));
+  EXPECT_EQ(CheckClosedManifold(mesh), 0);
+  const double exact = 2 * M_PI * M_PI * 0.04 * 0.012 * 0.012;
+  EXPECT_NEAR(MeshVolume(mesh), exact, 0.02 * exact);
+}
+
+TEST(SurfaceMesher, BoxCrossingTheBoundsIsClosedAlongThem) {
+  // A 0.1 m cube cut by bounds at x = 0: the mesh is the closed half, volume 0.05 * 0.1 * 0.1.
+  const CompiledSolid box = CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d::Constant(0.1)}));
+  const TriangleMesh mesh = MeshSurface(box, Settings(Eigen::Vector3d(0.0, -0.06, -0.06), Eigen::Vector3d(0.06, 0.06, 0.06), 0.004));
+  EXPECT_EQ(CheckClosedManifold(mesh), 2);
+  EXPECT_NEAR(MeshVolume(mesh), 0.05 * 0.1 * 0.1, 0.05 * 0.05 * 0.1 * 0.1);
+}
+
+TEST(SurfaceMesher, PlatformIsClosedWithSixHoles) {
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  const TriangleMesh mesh =
+      MeshSurface(platform, Settings(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02), 0.0015));
+  // Genus 6 (four bolt holes, two load holes): χ = 2 - 2·6.
+  EXPECT_EQ(CheckClosedManifold(mesh), -10);
+  // Volume: plate + bracket + gusset minus holes, to a few percent (fillets, rounded edges).
+  const double plate = 0.3 * 0.2 * 0.01, bracket = 0.01 * 0.2 * 0.16, gusset = 0.5 * 0.195 * 0.142 * 0.01;
+  const double holes = 4 * M_PI * 0.0055 * 0.0055 * 0.01 + 2 * M_PI * 0.004 * 0.004 * 0.01;
+  const double approx = plate + bracket + gusset - holes;
+  EXPECT_NEAR(MeshVolume(mesh), approx, 0.05 * approx);
+}
+
+TEST(SurfaceMesher, CancelStopsAndProgressReachesOne) {
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
+  SurfaceMeshSettings s = Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), 0.001);
+  std::atomic<bool> cancel{true};
+  s.cancel = &cancel;
+  EXPECT_THROW(MeshSurface(sphere, s), MeshingCancelled);
+  cancel = false;
+  double last = -1;
+  bool monotone = true;
+  s.cell_size = 0.004;
+  s.progress = [&](double f) {
+    monotone &= f >= last;
+    last = f;
+  };
+  MeshSurface(sphere, s);
+  EXPECT_TRUE(monotone);
+  EXPECT_EQ(last, 1.0);
+}
+
+TEST(SurfaceMesher, FindBoundsEnclosesTheSolidTightly) {
+  // A capsule from (0.1, 0.2, -0.3) to (0.15, 0.2, -0.3), radius 0.02: box [0.08, 0.17] x
+  // [0.18, 0.22] x [-0.32, -0.28].
+  CapsuleParams capsule;
+  capsule.a = Eigen::Vector3d(0.1, 0.2, -0.3);
+  capsule.b = Eigen::Vector3d(0.15, 0.2, -0.3);
+  capsule.radius = 0.02;
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(capsule));
+  const double resolution = 0.002;
+  const Eigen::AlignedBox3d box = FindBounds(solid, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1)), resolution);
+  const Eigen::AlignedBox3d tight(Eigen::Vector3d(0.08, 0.18, -0.32), Eigen::Vector3d(0.17, 0.22, -0.28));
+  EXPECT_TRUE(box.contains(tight));
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_LE(tight.min()[a] - box.min()[a], 2 * resolution);
+    EXPECT_LE(box.max()[a] - tight.max()[a], 2 * resolution);
+  }
+  // Far from the solid: empty.
+  EXPECT_TRUE(FindBounds(solid, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(2), Eigen::Vector3d::Constant(3)), resolution).isEmpty());
+}
+
+TEST(SurfaceMesher, RejectsBadSettings) {
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
+  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 0.0)), std::invalid_argument);
+  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Ones(), Eigen::Vector3d::Zero(), 0.01)), std::invalid_argument);
+  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 1e-4)), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace spidarcad::modeling
