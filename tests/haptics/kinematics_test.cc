@@ -17,21 +17,7 @@
 #include <Eigen/SVD>
 #include <gtest/gtest.h>
 
-// Counting malloc: the executable's malloc interposes the C library's for every allocation of
-// the process (operator new included), so a test can prove that Solve allocates nothing.
-// Weak, so that another test file with its own interposer still links; the test checks that
-// this one is the active one before trusting the count.
-extern "C" void* __libc_malloc(std::size_t size);
-namespace {
-std::atomic<long> g_malloc_count{0};
-std::atomic<bool> g_count_mallocs{false};
-}  // namespace
-extern "C" __attribute__((weak)) void* malloc(std::size_t size) {
-  if (g_count_mallocs.load(std::memory_order_relaxed)) {
-    g_malloc_count.fetch_add(1, std::memory_order_relaxed);
-  }
-  return __libc_malloc(size);
-}
+#include "support/malloc_counter.h"
 
 namespace spidarcad::haptics {
 namespace {
@@ -602,15 +588,7 @@ TEST(FkStatusName, GivesOneWordPerStatus) {
 TEST(ForwardKinematics, SolveDoesNotAllocate) {
   const SpidarGeometry g;
   ForwardKinematics fk(g);
-  // Check that the counting malloc above is the one in use.
-  g_malloc_count = 0;
-  g_count_mallocs = true;
-  {
-    std::vector<double>* probe = new std::vector<double>(100);
-    delete probe;
-  }
-  g_count_mallocs = false;
-  if (g_malloc_count.load() == 0) GTEST_SKIP() << "another malloc interposer is active";
+  ASSERT_TRUE(test_support::MallocCounterActive()) << "the counting malloc is not in use";
 
   std::vector<Vector8d> inputs;
   for (int tick = 0; tick < 50; ++tick) inputs.push_back(Quantize(Eq7Lengths(g, FastTrajectory(g, tick))));
@@ -619,13 +597,15 @@ TEST(ForwardKinematics, SolveDoesNotAllocate) {
   nan_input(2) = std::nan("");
   inputs.push_back(nan_input);
   long ok = 0;
-  g_malloc_count = 0;
-  g_count_mallocs = true;
-  for (const Vector8d& l : inputs) ok += fk.Solve(l).status == FkStatus::kOk;
-  fk.Reset();
-  ok += fk.Solve(inputs[10]).status == FkStatus::kOk;
-  g_count_mallocs = false;
-  EXPECT_EQ(g_malloc_count.load(), 0);
+  long allocations = 0;
+  {
+    test_support::MallocCounter counter;
+    for (const Vector8d& l : inputs) ok += fk.Solve(l).status == FkStatus::kOk;
+    fk.Reset();
+    ok += fk.Solve(inputs[10]).status == FkStatus::kOk;
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
   EXPECT_EQ(ok, 51);
 }
 
