@@ -38,6 +38,10 @@ int main(int argc, char** argv) {
   RegisterTensionCommand(app);
   RegisterWorkspaceCommand(app);
   RegisterCalibrateCommand(app);
+  RegisterMeshCommand(app);
+  RegisterFemCommand(app);
+  RegisterRunCommand(app);
+  RegisterDeviceCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -18,4 +18,13 @@ void RegisterWorkspaceCommand(CLI::App& app);
 // `spidarcad calibrate --simulated`: calibration of string parameters (cli/calibrate_command.cc).
 void RegisterCalibrateCommand(CLI::App& app);
 
+// `spidarcad mesh`: implicit scene -> surface / tetrahedral mesh files (cli/mesh_command.cc).
+void RegisterMeshCommand(CLI::App& app);
+// `spidarcad fem`: static FE solve of a meshed scene or mesh file (cli/fem_command.cc).
+void RegisterFemCommand(CLI::App& app);
+// `spidarcad run`: headless haptic session on a scripted trajectory (cli/run_command.cc).
+void RegisterRunCommand(CLI::App& app);
+// `spidarcad device list`: USB SPIDAR-G controllers (cli/device_command.cc).
+void RegisterDeviceCommand(CLI::App& app);
+
 }  // namespace spidarcad::app
