@@ -10,31 +10,20 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
 #include <nlohmann/json.hpp>
+
+#include "spidarcad_runner.h"
 
 #include "spidarcad/haptics/simulated_device.h"
 
 namespace {
 
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::RunSpidarcad;
+
 using testing::HasSubstr;
 
-struct CommandRun {
-  int status = -1;
-  std::string out;  // stdout and stderr, in order
-};
-
-CommandRun RunSpidarcad(const std::string& args) {
-  const std::string command = std::string(SPIDARCAD_EXE) + " " + args + " 2>&1";
-  CommandRun run;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return run;
-  char buffer[4096];
-  size_t n;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) run.out.append(buffer, n);
-  const int raw = pclose(pipe);
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return run;
-}
 
 std::string OutputPath(const std::string& name) {
   return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/calibrate_" + name;
@@ -45,7 +34,7 @@ TEST(CalibrateCommand, HelpTeachesMethodsAndOptions) {
   EXPECT_EQ(run.status, 0);
   for (const char* word : {"--simulated", "--seed", "--poses", "--method", "--out", "--load",
                            "self-calibration", "6.24", "Examples"}) {
-    EXPECT_THAT(run.out, HasSubstr(word));
+    EXPECT_THAT(run.all(), HasSubstr(word));
   }
 }
 
@@ -53,11 +42,11 @@ TEST(CalibrateCommand, PrintsBeforeAfterTableAndWritesARecoveredCalibration) {
   const std::string out = OutputPath("seed3.json");
   std::filesystem::remove(out);
   const CommandRun run = RunSpidarcad("calibrate --simulated --seed 3 --poses 60 --eval-poses 80 --out " + out);
-  ASSERT_EQ(run.status, 0) << run.out;
-  EXPECT_THAT(run.out, HasSubstr("uncalibrated"));
-  EXPECT_THAT(run.out, HasSubstr("line fit"));
-  EXPECT_THAT(run.out, HasSubstr("self-calibration"));
-  EXPECT_THAT(run.out, HasSubstr("0.80 +- 0.4"));
+  ASSERT_EQ(run.status, 0) << run.all();
+  EXPECT_THAT(run.all(), HasSubstr("uncalibrated"));
+  EXPECT_THAT(run.all(), HasSubstr("line fit"));
+  EXPECT_THAT(run.all(), HasSubstr("self-calibration"));
+  EXPECT_THAT(run.all(), HasSubstr("0.80 +- 0.4"));
   // The file holds the self-calibration; its gains match the simulator's hidden truth for
   // the same seed (an independent reference: the test builds the device itself).
   std::ifstream in(out);
@@ -80,20 +69,20 @@ TEST(CalibrateCommand, PrintsBeforeAfterTableAndWritesARecoveredCalibration) {
   // Loading it back evaluates it as another row.
   const CommandRun load = RunSpidarcad("calibrate --simulated --seed 3 --method line --poses 30 "
                                 "--eval-poses 40 --load " + out);
-  EXPECT_EQ(load.status, 0) << load.out;
-  EXPECT_THAT(load.out, HasSubstr("loaded calibrate_seed3.json"));
+  EXPECT_EQ(load.status, 0) << load.all();
+  EXPECT_THAT(load.all(), HasSubstr("loaded calibrate_seed3.json"));
 }
 
 TEST(CalibrateCommand, TooFewPosesFailsWithTheReason) {
   const CommandRun run = RunSpidarcad("calibrate --simulated --method self --poses 5 --eval-poses 10");
-  EXPECT_EQ(run.status, 1) << run.out;
-  EXPECT_THAT(run.out, HasSubstr("too_few_samples"));
-  EXPECT_THAT(run.out, HasSubstr("unknown poses"));
+  EXPECT_EQ(run.status, 1) << run.all();
+  EXPECT_THAT(run.all(), HasSubstr("too_few_samples"));
+  EXPECT_THAT(run.all(), HasSubstr("unknown poses"));
 }
 
 TEST(CalibrateCommand, BadInputExitsWithStatus2) {
   EXPECT_EQ(RunSpidarcad("calibrate").status, 2);
-  EXPECT_THAT(RunSpidarcad("calibrate").out, HasSubstr("--simulated"));
+  EXPECT_THAT(RunSpidarcad("calibrate").all(), HasSubstr("--simulated"));
   EXPECT_EQ(RunSpidarcad("calibrate --simulated --method magic").status, 2);
   EXPECT_EQ(RunSpidarcad("calibrate --simulated --poses 0").status, 2);
 }
@@ -112,9 +101,9 @@ TEST(CalibrateCommand, BadCalibrationFileNamesFileAndField) {
     f << "]}";
   }
   const CommandRun run = RunSpidarcad("calibrate --simulated --load " + path);
-  EXPECT_EQ(run.status, 2) << run.out;
-  EXPECT_THAT(run.out, HasSubstr(path));
-  EXPECT_THAT(run.out, HasSubstr("strings[2].gain"));
+  EXPECT_EQ(run.status, 2) << run.all();
+  EXPECT_THAT(run.all(), HasSubstr(path));
+  EXPECT_THAT(run.all(), HasSubstr("strings[2].gain"));
 
   const std::string missing = OutputPath("missing.json");
   {
@@ -123,11 +112,11 @@ TEST(CalibrateCommand, BadCalibrationFileNamesFileAndField) {
   }
   const CommandRun run2 = RunSpidarcad("calibrate --simulated --load " + missing);
   EXPECT_EQ(run2.status, 2);
-  EXPECT_THAT(run2.out, HasSubstr("encoder.pulley_radius"));
+  EXPECT_THAT(run2.all(), HasSubstr("encoder.pulley_radius"));
 
   const CommandRun run3 = RunSpidarcad("calibrate --simulated --load " + OutputPath("nonexistent.json"));
   EXPECT_EQ(run3.status, 2);
-  EXPECT_THAT(run3.out, HasSubstr("cannot open"));
+  EXPECT_THAT(run3.all(), HasSubstr("cannot open"));
 }
 
 }  // namespace

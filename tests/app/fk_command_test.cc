@@ -16,38 +16,15 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "spidarcad_runner.h"
+
 namespace {
+
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::RunSpidarcad;
 
 constexpr double kPi = std::numbers::pi;
 
-struct ProcessRun {
-  int status = -1;
-  std::string out, err;
-};
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// Runs `spidarcad ARGS < input` and captures stdout, stderr and the exit status.
-ProcessRun RunSpidarcad(const std::string& args, const std::string& input, const std::string& tag) {
-  const std::string dir = SPIDARCAD_TEST_OUTPUT_DIR;
-  const std::string in_path = dir + "/fk_cmd_" + tag + ".in";
-  const std::string out_path = dir + "/fk_cmd_" + tag + ".out";
-  const std::string err_path = dir + "/fk_cmd_" + tag + ".err";
-  std::ofstream(in_path) << input;
-  const std::string command = std::string("'") + SPIDARCAD_EXE + "' " + args + " < '" + in_path +
-                              "' > '" + out_path + "' 2> '" + err_path + "'";
-  const int raw = std::system(command.c_str());
-  ProcessRun run;
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  run.out = ReadFile(out_path);
-  run.err = ReadFile(err_path);
-  return run;
-}
 
 std::vector<std::string> Lines(const std::string& text) {
   std::vector<std::string> lines;
@@ -124,7 +101,7 @@ TEST(FkCommand, RecoversPosesFromExactLengths) {
   const std::vector<Pose> poses = RandomPoses(40, 1, 0.04);
   std::string input = "# l1,...,l8\n";
   for (const Pose& p : poses) input += Csv(Eq7(p, 0.24, 0.24, 0.24));
-  const ProcessRun run = RunSpidarcad("fk --batch", input, "exact");
+  const CommandRun run = RunSpidarcad("fk --batch", input, "exact");
   ASSERT_EQ(run.status, 0) << run.err;
   EXPECT_EQ(run.err, "");
   const std::vector<std::string> lines = DataLines(run.out);
@@ -156,7 +133,7 @@ TEST(FkCommand, GivesOneLinePerCaseWithAStatusAndNamesBadLines) {
   input += "0.05,0.05,0.05,0.05,0.05,0.05,0.05,0.05\n";     // line 8: no pose
   input += "0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3\n";         // line 9: 9 fields
   input += good;                                            // line 10: ok
-  const ProcessRun run = RunSpidarcad("fk --batch", input, "mixed");
+  const CommandRun run = RunSpidarcad("fk --batch", input, "mixed");
   EXPECT_EQ(run.status, 0);
   const std::vector<std::string> lines = DataLines(run.out);
   const std::vector<std::string> expected_status = {"ok",           "invalid_input",
@@ -199,8 +176,8 @@ TEST(FkCommand, AnswerOfALineDoesNotDependOnTheLinesBeforeIt) {
     forward += rows[k];
     backward += rows[rows.size() - 1 - k];
   }
-  const ProcessRun a = RunSpidarcad("fk --batch", forward, "order_a");
-  const ProcessRun b = RunSpidarcad("fk --batch", backward, "order_b");
+  const CommandRun a = RunSpidarcad("fk --batch", forward, "order_a");
+  const CommandRun b = RunSpidarcad("fk --batch", backward, "order_b");
   const std::vector<std::string> la = DataLines(a.out), lb = DataLines(b.out);
   ASSERT_EQ(la.size(), rows.size());
   ASSERT_EQ(lb.size(), rows.size());
@@ -214,7 +191,7 @@ TEST(FkCommand, UsesFrameAndPoleOptions) {
   const Pose p = MakePose(Eigen::Vector3d(0.05, -0.03, 0.02),
                           Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitX()).toRotationMatrix(),
                           1.2, 0.05);
-  const ProcessRun run = RunSpidarcad("fk --batch --no-header --frame 0.3,0.2,0.25 --pole 0.05",
+  const CommandRun run = RunSpidarcad("fk --batch --no-header --frame 0.3,0.2,0.25 --pole 0.05",
                                Csv(Eq7(p, 0.3, 0.2, 0.25)), "frame");
   ASSERT_EQ(run.status, 0) << run.err;
   const std::vector<std::string> lines = Lines(run.out);
@@ -229,14 +206,14 @@ TEST(FkCommand, UsesFrameAndPoleOptions) {
 TEST(FkCommand, RejectsBadOptionsWithStatus2) {
   EXPECT_EQ(RunSpidarcad("fk --batch --pole 0.5", "", "badpole").status, 2);
   EXPECT_EQ(RunSpidarcad("fk --batch --frame 0.2,-0.1,0.2", "", "badframe").status, 2);
-  const ProcessRun no_batch = RunSpidarcad("fk", "", "nobatch");
+  const CommandRun no_batch = RunSpidarcad("fk", "", "nobatch");
   EXPECT_EQ(no_batch.status, 2);
   EXPECT_NE(no_batch.err.find("--batch"), std::string::npos);
 }
 
 TEST(FkCommand, HelpTeachesUnitsFrameNumberingAndExample) {
   for (const char* command : {"fk --help", "ik --help"}) {
-    const ProcessRun run = RunSpidarcad(command, "", "help");
+    const CommandRun run = RunSpidarcad(command, "", "help");
     EXPECT_EQ(run.status, 0);
     for (const char* needle : {"metres", "Q1 = ( A, B, C)", "Strings 1, 2 end at p0 + p1",
                                "--batch", "Example", "--frame", "--pole"}) {
@@ -253,7 +230,7 @@ TEST(IkCommand, ComputesEq7LengthsAndFlagsBadLines) {
                   p.p2.y(), p.p2.z()});
   }
   input += "1,2,3\n";  // line 21: bad
-  const ProcessRun run = RunSpidarcad("ik --batch", input, "ik");
+  const CommandRun run = RunSpidarcad("ik --batch", input, "ik");
   ASSERT_EQ(run.status, 0) << run.err;
   const std::vector<std::string> lines = DataLines(run.out);
   ASSERT_EQ(lines.size(), poses.size() + 1);
@@ -275,9 +252,9 @@ TEST(IkCommand, RoundTripsThroughFk) {
     input += Csv({p.p0.x(), p.p0.y(), p.p0.z(), p.p1.x(), p.p1.y(), p.p1.z(), p.p2.x(),
                   p.p2.y(), p.p2.z()});
   }
-  const ProcessRun ik = RunSpidarcad("ik --batch", input, "rt_ik");
+  const CommandRun ik = RunSpidarcad("ik --batch", input, "rt_ik");
   ASSERT_EQ(ik.status, 0);
-  const ProcessRun fk = RunSpidarcad("fk --batch", ik.out, "rt_fk");  // ik's '#' header is skipped
+  const CommandRun fk = RunSpidarcad("fk --batch", ik.out, "rt_fk");  // ik's '#' header is skipped
   ASSERT_EQ(fk.status, 0);
   const std::vector<std::string> lines = DataLines(fk.out);
   ASSERT_EQ(lines.size(), poses.size());

@@ -12,37 +12,13 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include "spidarcad_runner.h"
+
 namespace {
 
-struct ProcessResult {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::RunSpidarcad;
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// Runs the spidarcad executable with `args`, feeding `input` on stdin.
-ProcessResult RunSpidarcad(const std::string& args, const std::string& input, const std::string& tag) {
-  const std::string dir = SPIDARCAD_TEST_OUTPUT_DIR;
-  const std::string in_path = dir + "/tension_" + tag + ".in";
-  const std::string out_path = dir + "/tension_" + tag + ".out";
-  const std::string err_path = dir + "/tension_" + tag + ".err";
-  std::ofstream(in_path) << input;
-  const std::string command = std::string("'") + SPIDARCAD_EXE + "' " + args + " < '" + in_path +
-                              "' > '" + out_path + "' 2> '" + err_path + "'";
-  const int raw = std::system(command.c_str());
-  ProcessResult run;
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  run.out = ReadFile(out_path);
-  run.err = ReadFile(err_path);
-  return run;
-}
 
 std::vector<std::vector<double>> ParseLines(const std::string& text) {
   std::vector<std::vector<double>> rows;
@@ -93,7 +69,7 @@ TEST(TensionCommand, DisplaysFeasibleRequestsWithinBoundsAndReportsTheObjective)
   std::string input = "# x,y,z,x1,y1,z1,x2,y2,z2,fx,fy,fz,mx,my,mz,g\n";
   for (const std::string& w : wrenches) input += std::string(kRestPose) + "," + w + "\n";
   input += "0.03,-0.02,0.05,0,0.04,0,0.037588,0,0.013681,1,1,-1,0.01,0.01,0,0.01\n";
-  const ProcessResult run = RunSpidarcad("tension --batch", input, "feasible");
+  const CommandRun run = RunSpidarcad("tension --batch", input, "feasible");
   ASSERT_EQ(run.status, 0) << run.err;
   const auto rows = ParseLines(run.out);
   const auto requests = ParseLines(input.substr(input.find('\n') + 1));
@@ -133,15 +109,15 @@ TEST(TensionCommand, SolvesEachLineIndependentlyOfTheOthers) {
     forward += lines[k] + "\n";
     backward += lines[lines.size() - 1 - k] + "\n";
   }
-  const ProcessResult a = RunSpidarcad("tension --batch", forward, "forward");
-  const ProcessResult b = RunSpidarcad("tension --batch", backward, "backward");
+  const CommandRun a = RunSpidarcad("tension --batch", forward, "forward");
+  const CommandRun b = RunSpidarcad("tension --batch", backward, "backward");
   ASSERT_EQ(a.status, 0) << a.err;
   ASSERT_EQ(b.status, 0) << b.err;
   const auto ra = ParseLines(a.out), rb = ParseLines(b.out);
   ASSERT_EQ(ra.size(), lines.size());
   ASSERT_EQ(rb.size(), lines.size());
   for (size_t k = 0; k < lines.size(); ++k) {
-    const ProcessResult single = RunSpidarcad("tension --batch", lines[k] + "\n", "single");
+    const CommandRun single = RunSpidarcad("tension --batch", lines[k] + "\n", "single");
     EXPECT_EQ(ra[k], rb[lines.size() - 1 - k]) << k;
     EXPECT_EQ(ra[k], ParseLines(single.out)[0]) << k;
   }
@@ -150,7 +126,7 @@ TEST(TensionCommand, SolvesEachLineIndependentlyOfTheOthers) {
 TEST(TensionCommand, PrintsNanLineForNanInputAndKeepsGoing) {
   const std::string input = std::string(kRestPose) + ",nan,0,0,0,0,0,0\n" + "0,nan,0,0,0.04,0,0.04,0,0,0,0,0,0,0,0,0\n" +
                             kRestPose + ",1,0,0,0,0,0,0\n";
-  const ProcessResult run = RunSpidarcad("tension --batch", input, "nan");
+  const CommandRun run = RunSpidarcad("tension --batch", input, "nan");
   ASSERT_EQ(run.status, 0) << run.err;
   const auto rows = ParseLines(run.out);
   ASSERT_EQ(rows.size(), 3u);
@@ -183,14 +159,14 @@ TEST(TensionCommand, RejectsBadSettingsAndInputWithStatus2) {
   };
   int k = 0;
   for (const Bad& c : cases) {
-    const ProcessResult run = RunSpidarcad(c.args, c.input, "bad" + std::to_string(k++));
+    const CommandRun run = RunSpidarcad(c.args, c.input, "bad" + std::to_string(k++));
     EXPECT_EQ(run.status, 2) << c.args << "\n" << run.err;
     EXPECT_NE(run.err.find(c.mention), std::string::npos) << c.args << "\n" << run.err;
   }
 }
 
 TEST(TensionCommand, HelpTeachesUnitsAndSignConventions) {
-  const ProcessResult run = RunSpidarcad("tension --help", "", "help");
+  const CommandRun run = RunSpidarcad("tension --help", "", "help");
   EXPECT_EQ(run.status, 0);
   for (const char* needle : {"[N]", "[N·m]", "[m]", "g > 0 squeezes", "t1,...,t8,objective",
                              "x,y,z, x1,y1,z1, x2,y2,z2, fx,fy,fz, mx,my,mz, g", "nan"}) {

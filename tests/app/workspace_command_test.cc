@@ -11,37 +11,15 @@
 
 #include <gtest/gtest.h>
 
+#include "spidarcad_runner.h"
+
 namespace {
 
-struct ProcessResult {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::RunSpidarcad;
+using spidarcad::test_support::ReadWholeFile;
+using spidarcad::test_support::TestOutputPath;
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string OutputPath(const std::string& name) {
-  return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/" + name;
-}
-
-ProcessResult RunSpidarcad(const std::string& env, const std::string& args, const std::string& tag) {
-  const std::string out_path = OutputPath("workspace_" + tag + ".out");
-  const std::string err_path = OutputPath("workspace_" + tag + ".err");
-  const std::string command = env + " '" + SPIDARCAD_EXE + "' " + args + " < /dev/null > '" +
-                              out_path + "' 2> '" + err_path + "'";
-  const int raw = std::system(command.c_str());
-  ProcessResult run;
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  run.out = ReadFile(out_path);
-  run.err = ReadFile(err_path);
-  return run;
-}
 
 std::vector<std::string> Split(const std::string& line) {
   std::vector<std::string> fields;
@@ -52,14 +30,13 @@ std::vector<std::string> Split(const std::string& line) {
 }
 
 TEST(WorkspaceCommand, WritesDocumentedCsvAndExplainsHowToGetThePngWithoutDisplay) {
-  const std::string csv = OutputPath("ws_nodisplay.csv");
-  const std::string png = OutputPath("ws_nodisplay.png");
+  const std::string csv = TestOutputPath("ws_nodisplay.csv");
+  const std::string png = TestOutputPath("ws_nodisplay.png");
   std::remove(csv.c_str());
   std::remove(png.c_str());
-  const ProcessResult run = RunSpidarcad("env -u DISPLAY",
-                               "workspace --step 0.02 --angle-step 15 --out-csv '" + csv +
-                                   "' --out-png '" + png + "'",
-                               "nodisplay");
+  const CommandRun run = RunSpidarcad("workspace --step 0.02 --angle-step 15 --out-csv '" + csv +
+                                          "' --out-png '" + png + "'",
+                                      "", "nodisplay", "env -u DISPLAY");
   EXPECT_EQ(run.status, 0) << run.err;
   EXPECT_NE(run.err.find("xvfb-run"), std::string::npos) << run.err;
   EXPECT_FALSE(std::ifstream(png).good());
@@ -109,14 +86,14 @@ TEST(WorkspaceCommand, WritesAReadablePngUnderADisplay) {
   if (display == nullptr || display[0] == '\0') {
     GTEST_SKIP() << "no X display; run under xvfb-run -a -s \"-screen 0 1280x1024x24\"";
   }
-  const std::string csv = OutputPath("ws_display.csv");
-  const std::string png = OutputPath("ws_display.png");
+  const std::string csv = TestOutputPath("ws_display.csv");
+  const std::string png = TestOutputPath("ws_display.png");
   std::remove(png.c_str());
-  const ProcessResult run = RunSpidarcad(
-      "", "workspace --step 0.02 --angle-step 10 --out-csv '" + csv + "' --out-png '" + png + "'",
+  const CommandRun run = RunSpidarcad(
+      "workspace --step 0.02 --angle-step 10 --out-csv '" + csv + "' --out-png '" + png + "'", "",
       "display");
   ASSERT_EQ(run.status, 0) << run.err;
-  const std::string bytes = ReadFile(png);
+  const std::string bytes = ReadWholeFile(png);
   ASSERT_GT(bytes.size(), 10000u);
   EXPECT_EQ(bytes.substr(1, 3), "PNG");
 }
@@ -127,7 +104,7 @@ TEST(WorkspaceCommand, RejectsBadOptionsWithStatus2) {
         std::string("workspace --frame 0.1,0.1 --out-png ''"),
         std::string("workspace --pole 0.3 --out-png ''"),
         std::string("workspace --out-csv /nonexistent/dir/ws.csv --out-png ''")}) {
-    const ProcessResult run = RunSpidarcad("", args, "bad");
+    const CommandRun run = RunSpidarcad(args, "", "bad");
     EXPECT_EQ(run.status, 2) << args << "\n" << run.err;
     EXPECT_FALSE(run.err.empty()) << args;
   }
