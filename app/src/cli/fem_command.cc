@@ -1,9 +1,431 @@
+// `spidarcad fem`: static linear-elastic solve of a tetrahedral mesh (.vtu) or of a scene's
+// solid meshed on the fly, with clamped boxes, pushed surface nodes and point loads. Writes the
+// displacement and von Mises stress to a .vtu and a JSON summary to stdout.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// Placeholder: the subcommand is being written.
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "cli/vtu_io.h"
+#include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/material.h"
+#include "spidarcad/fem/mesh.h"
+#include "spidarcad/fem/static_solver.h"
+#include "spidarcad/fem/stiffness.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/modeling/tetgen_mesher.h"
 
 namespace spidarcad::app {
-void RegisterFemCommand(CLI::App& app) {
-  app.add_subcommand("fem", "(not yet available)")->group("");
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
 }
+
+struct FemOptions {
+  std::string input;
+  std::string out;
+  double youngs_modulus = 200e9;
+  double poisson_ratio = 0.3;
+  std::vector<std::string> fix;
+  std::vector<std::string> push, disp;
+  std::vector<std::string> load, force;
+  int order = 0;  // 0: keep the input's order
+  double resolution = 0.004;
+  double max_radius_edge = 2.0;
+  std::string solid;
+};
+
+// Parses "a,b,c,..." into exactly n finite numbers; errors name the option, its occurrence and
+// the text.
+std::vector<double> ParseList(const std::string& text, int n, const std::string& option,
+                              int occurrence) {
+  std::vector<double> values;
+  std::stringstream fields(text);
+  std::string field;
+  const std::string where =
+      option + " #" + std::to_string(occurrence + 1) + " '" + text + "': ";
+  while (std::getline(fields, field, ',')) {
+    size_t used = 0;
+    double value = 0.0;
+    try {
+      value = std::stod(field, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    while (used < field.size() && std::isspace(static_cast<unsigned char>(field[used]))) ++used;
+    if (field.empty() || used != field.size() || !std::isfinite(value)) {
+      throw InputError(where + "'" + field + "' is not a finite number");
+    }
+    values.push_back(value);
+  }
+  if (!text.empty() && text.back() == ',') {
+    throw InputError(where + "trailing comma");
+  }
+  if (static_cast<int>(values.size()) != n) {
+    throw InputError(where + "expected " + std::to_string(n) + " comma-separated numbers, got " +
+                     std::to_string(values.size()));
+  }
+  return values;
+}
+
+Eigen::Vector3d ParseVector(const std::string& text, const std::string& option, int occurrence) {
+  const std::vector<double> v = ParseList(text, 3, option, occurrence);
+  return Eigen::Vector3d(v[0], v[1], v[2]);
+}
+
+bool EndsWith(const std::string& text, const std::string& suffix) {
+  if (text.size() < suffix.size()) return false;
+  std::string tail = text.substr(text.size() - suffix.size());
+  for (char& c : tail) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return tail == suffix;
+}
+
+// Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen.
+fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report) {
+  modeling::Scene scene;
+  try {
+    scene = modeling::LoadScene(options.input);
+  } catch (const modeling::SceneError& e) {
+    throw InputError(e.what());
+  }
+  if (scene.solids.empty()) throw InputError(options.input + ": the scene has no solid");
+  const modeling::Solid* solid = &scene.solids.front();
+  if (!options.solid.empty()) {
+    solid = nullptr;
+    for (const auto& s : scene.solids) {
+      if (s.name == options.solid) solid = &s;
+    }
+    if (solid == nullptr) {
+      std::string names;
+      for (const auto& s : scene.solids) names += (names.empty() ? "" : ", ") + s.name;
+      throw InputError("--solid '" + options.solid + "': no such solid in " + options.input +
+                       " (solids: " + names + ")");
+    }
+  }
+  const modeling::CompiledSolid compiled = modeling::CompiledSolid::Compile(solid->root);
+  const double cell = options.resolution;
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-10.0),
+                                   Eigen::Vector3d::Constant(10.0));
+  Eigen::AlignedBox3d bounds = modeling::FindBounds(compiled, search, cell);
+  if (bounds.isEmpty()) {
+    throw InputError(options.input + ": solid '" + solid->name +
+                     "' is empty within 10 m of the origin");
+  }
+  bounds.min().array() -= 2 * cell;
+  bounds.max().array() += 2 * cell;
+  modeling::SurfaceMeshSettings surface_settings;
+  surface_settings.bounds = bounds;
+  surface_settings.cell_size = cell;
+  modeling::SurfaceMeshStats surface_stats;
+  const modeling::TriangleMesh surface =
+      modeling::MeshSurface(compiled, surface_settings, &surface_stats);
+  modeling::TetMeshSettings tet_settings;
+  tet_settings.max_radius_edge = options.max_radius_edge;
+  modeling::TetMeshStats tet_stats;
+  modeling::TetMesh tets;
+  try {
+    tets = modeling::TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  } catch (const std::exception& e) {
+    throw InputError(options.input + ": solid '" + solid->name + "' at --resolution " +
+                     FormatNumber(cell) + " m cannot be tetrahedralized: " + e.what() +
+                     " (try another --resolution)");
+  }
+  (*report)["meshing"] = {{"solid", solid->name},
+                          {"resolution_m", cell},
+                          {"surface_triangles", surface.triangles.cols()},
+                          {"surface_seconds", surface_stats.seconds},
+                          {"tetgen_seconds", tet_stats.tetgen_seconds},
+                          {"tetgen_switches", tet_stats.switches},
+                          {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg}};
+  return ToFemMesh(tets);
+}
+
+nlohmann::ordered_json JsonVector(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+// Index (into mesh nodes) of the surface node nearest p.
+int NearestNode(const fem::TetMesh& mesh, const std::vector<int>& candidates,
+                const Eigen::Vector3d& p) {
+  int best = -1;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (int v : candidates) {
+    const double d2 = (mesh.nodes.row(v).transpose() - p).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best = v;
+    }
+  }
+  return best;
+}
+
+void RunFem(const FemOptions& options) {
+  const Clock::time_point start = Clock::now();
+  nlohmann::ordered_json report;
+  report["input"] = options.input;
+
+  // Options that do not need the mesh first.
+  fem::Material material;
+  material.youngs_modulus = options.youngs_modulus;
+  material.poisson_ratio = options.poisson_ratio;
+  try {
+    material.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("--E/--nu: ") + e.what());
+  }
+  if (options.push.size() != options.disp.size()) {
+    throw InputError("--push and --disp come in pairs: got " + std::to_string(options.push.size()) +
+                     " --push and " + std::to_string(options.disp.size()) + " --disp");
+  }
+  if (options.load.size() != options.force.size()) {
+    throw InputError("--load and --force come in pairs: got " + std::to_string(options.load.size()) +
+                     " --load and " + std::to_string(options.force.size()) + " --force");
+  }
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> fix_boxes;
+  for (size_t i = 0; i < options.fix.size(); ++i) {
+    const std::vector<double> b = ParseList(options.fix[i], 6, "--fix", static_cast<int>(i));
+    const Eigen::Vector3d lower(b[0], b[1], b[2]), upper(b[3], b[4], b[5]);
+    if ((lower.array() > upper.array()).any()) {
+      throw InputError("--fix #" + std::to_string(i + 1) + " '" + options.fix[i] +
+                       "': XMIN,YMIN,ZMIN must not exceed XMAX,YMAX,ZMAX");
+    }
+    fix_boxes.emplace_back(lower, upper);
+  }
+  std::vector<Eigen::Vector3d> push_points, push_disps, load_points, load_forces;
+  for (size_t i = 0; i < options.push.size(); ++i) {
+    push_points.push_back(ParseVector(options.push[i], "--push", static_cast<int>(i)));
+    push_disps.push_back(ParseVector(options.disp[i], "--disp", static_cast<int>(i)));
+  }
+  for (size_t i = 0; i < options.load.size(); ++i) {
+    load_points.push_back(ParseVector(options.load[i], "--load", static_cast<int>(i)));
+    load_forces.push_back(ParseVector(options.force[i], "--force", static_cast<int>(i)));
+  }
+  if (!(options.resolution > 0.0) || !std::isfinite(options.resolution)) {
+    throw InputError("--resolution: must be a finite length > 0 m, got " +
+                     FormatNumber(options.resolution));
+  }
+
+  // The mesh.
+  Clock::time_point t = Clock::now();
+  fem::TetMesh mesh;
+  if (EndsWith(options.input, ".vtu")) {
+    VtuReadInfo info;
+    mesh = ReadTetVtu(options.input, &info);
+    if (info.flipped_elements > 0) report["flipped_elements"] = info.flipped_elements;
+  } else if (EndsWith(options.input, ".json")) {
+    mesh = MeshScene(options, &report);
+  } else {
+    throw InputError(options.input + ": unknown input kind (expected a .vtu mesh or a .json scene)");
+  }
+  const int input_order = mesh.Order();
+  const int input_nodes = mesh.num_nodes();
+  if (options.order == 2 && input_order == 1) {
+    mesh = fem::MakeQuadratic(mesh);
+  } else if (options.order == 1 && input_order == 2) {
+    throw InputError("--order 1: the mesh " + options.input +
+                     " has quadratic (10-node) tetrahedra; use --order 2 or a linear mesh");
+  }
+  const double mesh_seconds = SecondsSince(t);
+
+  const fem::Surface surface = fem::ExtractSurface(mesh);
+  fem::BoundaryConditions bcs(mesh.num_nodes());
+  std::vector<char> clamped(mesh.num_nodes(), 0);
+  int num_fixed = 0;
+  for (size_t i = 0; i < fix_boxes.size(); ++i) {
+    const std::vector<int> nodes = fem::NodesInBox(mesh, fix_boxes[i].first, fix_boxes[i].second);
+    if (nodes.empty()) {
+      throw InputError("--fix #" + std::to_string(i + 1) + " '" + options.fix[i] +
+                       "': the box contains no node of the mesh");
+    }
+    for (int v : nodes) {
+      if (!clamped[v]) ++num_fixed;
+      clamped[v] = 1;
+    }
+    bcs.FixNodes(nodes);
+  }
+  std::vector<char> used(mesh.num_nodes(), 0);
+  std::vector<int> push_nodes, load_nodes;
+  for (size_t i = 0; i < push_points.size(); ++i) {
+    const int v = NearestNode(mesh, surface.nodes, push_points[i]);
+    const std::string where = "--push #" + std::to_string(i + 1) + " '" + options.push[i] + "': ";
+    if (clamped[v]) {
+      throw InputError(where + "the nearest surface node " + std::to_string(v) +
+                       " is clamped by a --fix box");
+    }
+    if (used[v]) {
+      throw InputError(where + "the nearest surface node " + std::to_string(v) +
+                       " is already pushed by an earlier --push");
+    }
+    used[v] = 1;
+    bcs.PrescribeNode(v, push_disps[i]);
+    push_nodes.push_back(v);
+  }
+  for (size_t i = 0; i < load_points.size(); ++i) {
+    const int v = NearestNode(mesh, surface.nodes, load_points[i]);
+    if (clamped[v] || used[v]) {
+      throw InputError("--load #" + std::to_string(i + 1) + " '" + options.load[i] +
+                       "': the nearest surface node " + std::to_string(v) +
+                       " has a prescribed displacement (--fix or --push), a force there does "
+                       "nothing");
+    }
+    bcs.AddPointLoad(v, load_forces[i]);
+    load_nodes.push_back(v);
+  }
+
+  // Solve.
+  const fem::MaterialTable materials(material);
+  std::unique_ptr<fem::StaticSolver> solver;
+  try {
+    solver = std::make_unique<fem::StaticSolver>(mesh, materials, bcs);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(options.input + ": " + e.what());
+  }
+  if (!solver->factor_status().converged) {
+    throw InputError(options.input + ": the stiffness could not be factored: " +
+                     solver->factor_status().message);
+  }
+  t = Clock::now();
+  const fem::StaticSolution solution = solver->Solve();
+  const double solve_seconds = SecondsSince(t);
+  t = Clock::now();
+  const Eigen::VectorXd element_vm = fem::ElementVonMises(mesh, materials, solution.displacement);
+  const Eigen::VectorXd node_vm = fem::AverageToNodes(mesh, element_vm);
+  const double stress_seconds = SecondsSince(t);
+
+  t = Clock::now();
+  VtuDataArrays point_data, cell_data;
+  point_data["displacement"] =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
+          solution.displacement.data(), mesh.num_nodes(), 3);
+  point_data["von_mises"] = node_vm;
+  cell_data["von_mises"] = element_vm;
+  try {
+    WriteTetVtu(mesh, options.out, point_data, cell_data);
+  } catch (const std::runtime_error& e) {
+    throw InputError(std::string("--out: ") + e.what());
+  }
+  const double write_seconds = SecondsSince(t);
+
+  // Report.
+  report["output"] = options.out;
+  report["material"] = {{"youngs_modulus_pa", material.youngs_modulus},
+                        {"poisson_ratio", material.poisson_ratio}};
+  report["order"] = mesh.Order();
+  report["nodes"] = mesh.num_nodes();
+  report["input_nodes"] = input_nodes;
+  report["elements"] = mesh.num_elements();
+  report["surface_nodes"] = surface.nodes.size();
+  report["fixed_nodes"] = num_fixed;
+  report["unknowns"] = solver->num_free();
+  nlohmann::ordered_json pushes = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < push_nodes.size(); ++i) {
+    const int v = push_nodes[i];
+    pushes.push_back({{"node", v},
+                      {"position", JsonVector(mesh.nodes.row(v).transpose())},
+                      {"displacement", JsonVector(push_disps[i])},
+                      {"reaction_force", JsonVector(solution.reaction.segment<3>(3 * v))}});
+  }
+  report["pushes"] = pushes;
+  nlohmann::ordered_json loads = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < load_nodes.size(); ++i) {
+    const int v = load_nodes[i];
+    loads.push_back({{"node", v},
+                     {"position", JsonVector(mesh.nodes.row(v).transpose())},
+                     {"force", JsonVector(load_forces[i])},
+                     {"displacement", JsonVector(solution.displacement.segment<3>(3 * v))}});
+  }
+  report["loads"] = loads;
+  Eigen::Vector3d support = Eigen::Vector3d::Zero();
+  for (int v = 0; v < mesh.num_nodes(); ++v) {
+    if (clamped[v]) support += solution.reaction.segment<3>(3 * v);
+  }
+  report["fixed_reaction_force"] = JsonVector(support);
+  double max_disp = 0.0;
+  for (int v = 0; v < mesh.num_nodes(); ++v) {
+    max_disp = std::max(max_disp, solution.displacement.segment<3>(3 * v).norm());
+  }
+  report["max_displacement_m"] = max_disp;
+  report["max_von_mises_pa"] = element_vm.size() ? element_vm.maxCoeff() : 0.0;
+  report["status"] = {{"converged", solution.status.converged},
+                      {"residual", solution.status.residual},
+                      {"message", solution.status.message}};
+  const fem::FactorStats& stats = solver->stats();
+  report["timing_s"] = {{"mesh", mesh_seconds},
+                        {"assembly", stats.assembly_seconds},
+                        {"factor", stats.factor_seconds},
+                        {"solve", solve_seconds},
+                        {"stress", stress_seconds},
+                        {"write", write_seconds},
+                        {"total", SecondsSince(start)}};
+  report["factor_peak_bytes"] = stats.factor_peak_bytes;
+  std::cout << report.dump(2) << "\n";
+  std::cout.flush();
+  if (!solution.status.converged) {
+    std::cerr << "spidarcad: error: the solve did not converge (residual "
+              << solution.status.residual << "): " << solution.status.message << "\n";
+    throw CommandExit{1};
+  }
+}
+
+}  // namespace
+
+void RegisterFemCommand(CLI::App& app) {
+  auto options = std::make_shared<FemOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "fem",
+      "Static linear-elastic FE solve of a tetrahedral mesh or a scene solid.\n"
+      "\n"
+      "Input: a .vtu with VTK_TETRA or VTK_QUADRATIC_TETRA cells, or a .json scene whose solid\n"
+      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen).\n"
+      "Nodes inside a --fix box are clamped; --push prescribes the displacement (all three\n"
+      "components) of the surface node nearest the point; --load applies a point force at the\n"
+      "surface node nearest the point. Material defaults to steel (E = 200 GPa, nu = 0.3).\n"
+      "Writes OUT.vtu (point data displacement [m], von_mises [Pa, volume-weighted average of\n"
+      "the elements]; cell data von_mises [Pa, at the element centroid], region) and prints JSON:\n"
+      "for each pushed node its index, position and reaction_force (N, the force the push\n"
+      "applies ON the body), for each load its node and force, counts, status and timings.\n"
+      "\n"
+      "Example (a 1 x 0.1 x 0.1 m steel beam clamped at x = 0, tip pushed 1 mm down):\n"
+      "  spidarcad fem beam.vtu --fix -1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
+      "    --order 2 --out result.vtu");
+  cmd->add_option("input", options->input, "Mesh (.vtu) or scene (.json)")->required();
+  cmd->add_option("--out", options->out, "Result .vtu to write")->required();
+  cmd->add_option("--E", options->youngs_modulus, "Young's modulus [Pa] (default 200e9, steel)");
+  cmd->add_option("--nu", options->poisson_ratio, "Poisson's ratio (default 0.3, steel)");
+  cmd->add_option("--fix", options->fix, "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [m]: clamp nodes in box")
+      ->allow_extra_args(false);
+  cmd->add_option("--push", options->push, "X,Y,Z [m]: push the surface node nearest here")
+      ->allow_extra_args(false);
+  cmd->add_option("--disp", options->disp, "DX,DY,DZ [m]: displacement of the matching --push")
+      ->allow_extra_args(false);
+  cmd->add_option("--load", options->load, "X,Y,Z [m]: point force at the surface node nearest here")
+      ->allow_extra_args(false);
+  cmd->add_option("--force", options->force, "FX,FY,FZ [N]: force of the matching --load")
+      ->allow_extra_args(false);
+  cmd->add_option("--order", options->order,
+                  "Element order: 1 (4-node) or 2 (10-node; a linear mesh gets midside nodes). "
+                  "Default: the input's")
+      ->check(CLI::IsMember({1, 2}));
+  cmd->add_option("--resolution", options->resolution,
+                  "Scene input: surface grid cell [m] (default 0.004)");
+  cmd->add_option("--quality", options->max_radius_edge,
+                  "Scene input: TetGen radius-edge bound (default 2; 0 = no refinement)");
+  cmd->add_option("--solid", options->solid, "Scene input: name of the solid (default: the first)");
+  cmd->callback([options]() { RunFem(*options); });
+}
+
 }  // namespace spidarcad::app
