@@ -1,7 +1,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/surface_mesher.h"
 
+#include <algorithm>
 #include <array>
+#include <iterator>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -18,6 +20,245 @@ namespace {
 constexpr std::array<std::array<int, 4>, 6> kKuhnTets = {{
     {0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7},
 }};
+
+// Post-pass of MeshSurface: edge collapses (with the link condition, so a closed manifold
+// stays a closed manifold of the same genus) and edge flips that remove the zero-area, needle
+// and cap triangles marching tetrahedra produces where the surface passes at or near grid
+// vertices.
+class Cleaner {
+ public:
+  Cleaner(std::vector<Eigen::Vector3d>* positions, std::vector<std::array<int, 3>>* triangles)
+      : pos_(*positions), tris_(*triangles), alive_(triangles->size(), true), vertex_tris_(positions->size()) {
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      for (int k = 0; k < 3; ++k) vertex_tris_[tris_[t][k]].push_back(static_cast<int>(t));
+    }
+  }
+
+  // Runs the passes: collapse edges shorter than short_edge and the short edge of needles,
+  // flip the long edge of caps (angles below small_angle_rad). Returns collapses and flips.
+  void Run(double short_edge, double small_angle_rad, double max_edge, long* collapses, long* flips) {
+    max_edge2_ = max_edge * max_edge;
+    for (int pass = 0; pass < 4; ++pass) {
+      long changed = 0;
+      for (size_t t = 0; t < tris_.size(); ++t) {
+        if (!alive_[t]) continue;
+        changed += Improve(static_cast<int>(t), short_edge, small_angle_rad, collapses, flips);
+      }
+      if (changed == 0) break;
+    }
+  }
+
+  // Removes dead triangles and unused vertices (renumbering, order kept).
+  void Compact() {
+    std::vector<int> new_id(pos_.size(), -1);
+    std::vector<std::array<int, 3>> tris;
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      if (alive_[t]) tris.push_back(tris_[t]);
+    }
+    std::vector<Eigen::Vector3d> pos;
+    for (auto& tri : tris) {
+      for (int& v : tri) {
+        if (new_id[v] < 0) {
+          new_id[v] = static_cast<int>(pos.size());
+          pos.push_back(pos_[v]);
+        }
+        v = new_id[v];
+      }
+    }
+    // Keep the mesher's vertex order (first use order changes it): sort ids by old index.
+    std::vector<int> order;  // old ids in increasing order
+    for (size_t v = 0; v < new_id.size(); ++v) {
+      if (new_id[v] >= 0) order.push_back(static_cast<int>(v));
+    }
+    std::vector<int> remap(pos.size());
+    for (size_t i = 0; i < order.size(); ++i) remap[new_id[order[i]]] = static_cast<int>(i);
+    std::vector<Eigen::Vector3d> sorted(pos.size());
+    for (size_t i = 0; i < order.size(); ++i) sorted[i] = pos_[order[i]];
+    for (auto& tri : tris) {
+      for (int& v : tri) v = remap[v];
+    }
+    pos_ = std::move(sorted);
+    tris_ = std::move(tris);
+  }
+
+ private:
+  Eigen::Vector3d Normal(const std::array<int, 3>& t) const {
+    return (pos_[t[1]] - pos_[t[0]]).cross(pos_[t[2]] - pos_[t[0]]);
+  }
+
+  static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+    auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) {
+      return std::atan2(u.cross(w).norm(), u.dot(w));
+    };
+    return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
+  }
+
+  // Neighbour vertices of v (over its live triangles), sorted, unique.
+  std::vector<int> Neighbours(int v) const {
+    std::vector<int> n;
+    for (int t : vertex_tris_[v]) {
+      for (int w : tris_[t]) {
+        if (w != v) n.push_back(w);
+      }
+    }
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+    return n;
+  }
+
+  // The live triangles holding edge (u, v).
+  std::vector<int> EdgeTriangles(int u, int v) const {
+    std::vector<int> result;
+    for (int t : vertex_tris_[u]) {
+      const auto& tri = tris_[t];
+      if (tri[0] == v || tri[1] == v || tri[2] == v) result.push_back(t);
+    }
+    return result;
+  }
+
+  static int Third(const std::array<int, 3>& tri, int u, int v) {
+    for (int w : tri) {
+      if (w != u && w != v) return w;
+    }
+    return -1;
+  }
+
+  // Merges u into v (u's triangles take v; the two triangles of edge uv die) if that keeps
+  // the mesh a closed manifold and turns no triangle over.
+  bool Collapse(int u, int v) {
+    const std::vector<int> shared = EdgeTriangles(u, v);
+    if (shared.size() != 2) return false;
+    const int a = Third(tris_[shared[0]], u, v), b = Third(tris_[shared[1]], u, v);
+    if (a == b || a < 0 || b < 0) return false;
+    if (vertex_tris_[a].size() <= 3 || vertex_tris_[b].size() <= 3) return false;
+    // Link condition: the common neighbours of u and v are exactly a and b.
+    const std::vector<int> nu = Neighbours(u), nv = Neighbours(v);
+    std::vector<int> common;
+    std::set_intersection(nu.begin(), nu.end(), nv.begin(), nv.end(), std::back_inserter(common));
+    if (common.size() != 2) return false;
+    // Geometry: the triangles of u that survive keep their facing (within 60°), and none
+    // becomes a sliver worse than it was (when u and v do not coincide).
+    // Vertices closer than 1e-8 × max_edge count as one point: no geometric check.
+    const bool coincident = (pos_[u] - pos_[v]).squaredNorm() <= 1e-16 * max_edge2_;
+    // No edge longer than 1.5 cells (the raw mesh has edges up to a cube diagonal, 1.73 cells,
+    // but inside one tet), so triangles stay as close to the surface as the raw ones.
+    if (!coincident) {
+      for (int w : nu) {
+        const double new2 = (pos_[w] - pos_[v]).squaredNorm();
+        if (w != v && new2 > max_edge2_ && new2 > (pos_[w] - pos_[u]).squaredNorm()) return false;
+      }
+    }
+    for (int t : vertex_tris_[u]) {
+      if (t == shared[0] || t == shared[1]) continue;
+      std::array<int, 3> moved = tris_[t];
+      for (int& w : moved) {
+        if (w == u) w = v;
+      }
+      if (coincident) continue;
+      const Eigen::Vector3d n_old = Normal(tris_[t]), n_new = Normal(moved);
+      if (n_new.norm() <= 0.5 * n_old.norm() * 1e-3 && n_old.norm() > 0.0) return false;
+      if (n_old.norm() > 0.0 && n_new.dot(n_old) < 0.5 * n_new.norm() * n_old.norm()) return false;
+    }
+    for (int t : shared) alive_[t] = false;
+    for (int t : vertex_tris_[u]) {
+      if (!alive_[t]) continue;
+      for (int& w : tris_[t]) {
+        if (w == u) w = v;
+      }
+      vertex_tris_[v].push_back(t);
+    }
+    vertex_tris_[u].clear();
+    for (int w : {v, a, b}) {
+      auto& list = vertex_tris_[w];
+      list.erase(std::remove_if(list.begin(), list.end(), [&](int t) { return !alive_[t]; }), list.end());
+    }
+    return true;
+  }
+
+  // Flips edge (p, q) of triangle t to the diagonal of its two triangles' quad if that is
+  // legal (no existing edge, degrees stay >= 3), keeps the surface's facing and improves the
+  // smaller minimum angle.
+  bool Flip(int t, int p, int q) {
+    const std::vector<int> shared = EdgeTriangles(p, q);
+    if (shared.size() != 2) return false;
+    const int t2 = shared[0] == t ? shared[1] : shared[0];
+    // Orient so that t = (p, q, c): rotate t until p is first and q follows.
+    std::array<int, 3> tri = tris_[t];
+    while (tri[0] != p) std::rotate(tri.begin(), tri.begin() + 1, tri.end());
+    if (tri[1] != q) std::swap(p, q), tri = tris_[t];
+    while (tri[0] != p) std::rotate(tri.begin(), tri.begin() + 1, tri.end());
+    if (tri[1] != q) return false;
+    const int c = tri[2], d = Third(tris_[t2], p, q);
+    if (c == d || d < 0) return false;
+    if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
+    const std::vector<int> nc = Neighbours(c);
+    if (std::binary_search(nc.begin(), nc.end(), d)) return false;
+    if ((pos_[c] - pos_[d]).squaredNorm() > max_edge2_) return false;
+    const std::array<int, 3> n1 = {p, d, c}, n2 = {q, c, d};
+    const Eigen::Vector3d ref = Normal(tris_[t]) + Normal(tris_[t2]);
+    const Eigen::Vector3d m1 = Normal(n1), m2 = Normal(n2);
+    const double cos30 = std::cos(M_PI / 6);
+    if (m1.dot(m2) < cos30 * m1.norm() * m2.norm()) return false;
+    if (m1.dot(ref) <= 0.0 || m2.dot(ref) <= 0.0) return false;
+    const double old_min = std::min(MinAngle(pos_[p], pos_[q], pos_[c]), MinAngle(pos_[q], pos_[p], pos_[d]));
+    const double new_min = std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
+    if (!(new_min > old_min)) return false;
+    tris_[t] = n1;
+    tris_[t2] = n2;
+    // t lost q, gained d; t2 lost p, gained c.
+    auto erase = [&](int v, int tt) {
+      auto& list = vertex_tris_[v];
+      list.erase(std::remove(list.begin(), list.end(), tt), list.end());
+    };
+    erase(q, t);
+    vertex_tris_[d].push_back(t);
+    erase(p, t2);
+    vertex_tris_[c].push_back(t2);
+    return true;
+  }
+
+  int Improve(int t, double short_edge, double small_angle, long* collapses, long* flips) {
+    const auto tri = tris_[t];
+    double len[3];
+    for (int k = 0; k < 3; ++k) len[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).norm();  // edge k: k -> k+1
+    const int shortest = static_cast<int>(std::min_element(len, len + 3) - len);
+    const int longest = static_cast<int>(std::max_element(len, len + 3) - len);
+    const double min_angle = MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]);
+    const bool tiny = len[shortest] < short_edge;
+    if (!tiny && !(min_angle < small_angle)) return 0;
+    const int u = tri[shortest], v = tri[(shortest + 1) % 3];
+    // A needle has a short edge (the angle across it is the small one); a cap has none.
+    const bool needle = len[shortest] < 2.0 * std::sin(0.5 * small_angle) * len[longest] * 1.5;
+    if (tiny || needle) {
+      if (Collapse(u, v) || Collapse(v, u)) {
+        ++*collapses;
+        return 1;
+      }
+    }
+    if (!tiny) {
+      const int p = tri[longest], q = tri[(longest + 1) % 3], apex = tri[(longest + 2) % 3];
+      if (Flip(t, p, q)) {
+        ++*flips;
+        return 1;
+      }
+      // A cap that cannot be flipped (its neighbour lies across a crease): move its apex onto
+      // the nearer end of the long edge.
+      const bool p_nearer = (pos_[apex] - pos_[p]).squaredNorm() <= (pos_[apex] - pos_[q]).squaredNorm();
+      const int near = p_nearer ? p : q, far = p_nearer ? q : p;
+      if (Collapse(apex, near) || Collapse(apex, far)) {
+        ++*collapses;
+        return 1;
+      }
+    }
+    return 0;
+  }
+
+  std::vector<Eigen::Vector3d>& pos_;
+  std::vector<std::array<int, 3>>& tris_;
+  std::vector<bool> alive_;
+  double max_edge2_ = 0.0;
+  std::vector<std::vector<int>> vertex_tris_;
+};
 
 class Mesher {
  public:
@@ -48,6 +289,13 @@ class Mesher {
   TriangleMesh Run(SurfaceMeshStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     Visit({0, 0, 0}, {n_[0], n_[1], n_[2]});
+    long collapses = 0, flips = 0;
+    if (settings_.clean) {
+      Cleaner cleaner(&vertices_, &triangles_);
+      cleaner.Run(settings_.short_edge_fraction * h_, settings_.small_angle_deg * M_PI / 180.0,
+                  1.5 * h_, &collapses, &flips);
+      cleaner.Compact();
+    }
     if (settings_.progress) settings_.progress(1.0);
     TriangleMesh mesh;
     mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices_.size()));
@@ -60,6 +308,8 @@ class Mesher {
       stats->grid_cells = total_cells_;
       stats->evaluated_cells = evaluated_cells_;
       stats->field_evaluations = evaluations_;
+      stats->collapsed_edges = collapses;
+      stats->flipped_edges = flips;
       stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
     return mesh;
@@ -285,6 +535,25 @@ SurfaceError MeasureSurfaceError(const CompiledSolid& solid, const TriangleMesh&
   }
   e.rms = count > 0 ? std::sqrt(sum2 / double(count)) : 0.0;
   return e;
+}
+
+TriangleAngleStats MeasureTriangleAngles(const TriangleMesh& mesh, double small_angle_deg) {
+  TriangleAngleStats stats;
+  if (mesh.triangles.cols() == 0) return stats;
+  stats.min_angle_deg = 180.0;
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, t));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.triangles(1, t));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.triangles(2, t));
+    auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) {
+      return std::atan2(u.cross(w).norm(), u.dot(w)) * 180.0 / M_PI;
+    };
+    const double m = std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
+    if ((b - a).cross(c - a).norm() == 0.0) ++stats.zero_area;
+    if (m < small_angle_deg) ++stats.small_angle;
+    stats.min_angle_deg = std::min(stats.min_angle_deg, m);
+  }
+  return stats;
 }
 
 double MeshVolume(const TriangleMesh& mesh) {

