@@ -1,0 +1,243 @@
+// Tests of `spidarcad mesh`, run as a separate process on the built binary (SPIDARCAD_EXE): the
+// platform scene to STL (read back with ReadTriangleMesh) and to VTU (parsed here: counts,
+// indices and the enclosed volume against the platform's dimensions), bad scene files, bad
+// options and unknown extensions exit with status 2 and a message that says where.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "spidarcad/modeling/triangle_mesh_io.h"
+
+namespace {
+
+using spidarcad::modeling::ReadTriangleMesh;
+using spidarcad::modeling::TriangleMesh;
+
+struct ProcessRun {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string OutputPath(const std::string& name) { return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/mesh_cmd_" + name; }
+
+std::string Platform() { return std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json"; }
+
+// Runs `spidarcad mesh ARGS` and captures stdout, stderr and the exit status.
+ProcessRun RunMesh(const std::string& args, const std::string& tag) {
+  const std::string out_path = OutputPath(tag + ".stdout"), err_path = OutputPath(tag + ".stderr");
+  const std::string command =
+      std::string("'") + SPIDARCAD_EXE + "' mesh " + args + " > '" + out_path + "' 2> '" + err_path + "' < /dev/null";
+  const int raw = std::system(command.c_str());
+  ProcessRun run;
+  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  run.out = ReadFile(out_path);
+  run.err = ReadFile(err_path);
+  return run;
+}
+
+// The number printed before `word` (e.g. "123 triangles"), -1 if absent.
+long PrintedCount(const std::string& text, const std::string& word) {
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex("([0-9]+) " + word))) return -1;
+  return std::stol(m[1]);
+}
+
+// Volume of the platform from its dimensions (plate, bracket, gusset, minus six holes); the
+// fillets and rounded edges change it by a few percent.
+double PlatformVolume() {
+  const double plate = 0.3 * 0.2 * 0.01, bracket = 0.01 * 0.2 * 0.16, gusset = 0.5 * 0.195 * 0.142 * 0.01;
+  const double holes = 4 * M_PI * 0.0055 * 0.0055 * 0.01 + 2 * M_PI * 0.004 * 0.004 * 0.01;
+  return plate + bracket + gusset - holes;
+}
+
+// Enclosed volume of a triangle mesh, computed here (divergence theorem).
+double Volume(const TriangleMesh& mesh) {
+  double v = 0.0;
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, t));
+    const Eigen::Vector3d b = mesh.vertices.col(mesh.triangles(1, t));
+    const Eigen::Vector3d c = mesh.vertices.col(mesh.triangles(2, t));
+    v += a.dot(b.cross(c)) / 6.0;
+  }
+  return v;
+}
+
+// The whitespace-separated numbers of the DataArray named `name` in VTU text.
+std::vector<double> DataArray(const std::string& vtu, const std::string& name) {
+  const auto at = vtu.find("Name=\"" + name + "\"");
+  if (at == std::string::npos) return {};
+  const auto begin = vtu.find('>', at) + 1;
+  const auto end = vtu.find("</DataArray>", begin);
+  std::stringstream s(vtu.substr(begin, end - begin));
+  std::vector<double> values;
+  double v;
+  while (s >> v) values.push_back(v);
+  return values;
+}
+
+TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
+  const std::string stl = OutputPath("platform.stl");
+  std::remove(stl.c_str());
+  const ProcessRun run = RunMesh("'" + Platform() + "' --out '" + stl + "' --resolution 0.004", "stl");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const TriangleMesh mesh = ReadTriangleMesh(stl);
+  EXPECT_EQ(mesh.triangles.cols(), PrintedCount(run.out, "triangles")) << run.out;
+  EXPECT_EQ(mesh.vertices.cols(), PrintedCount(run.out, "vertices")) << run.out;
+  // Closed and consistently oriented: every directed edge once, and its reverse.
+  std::map<std::pair<int, int>, int> directed;
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    for (int k = 0; k < 3; ++k) ++directed[{mesh.triangles(k, t), mesh.triangles((k + 1) % 3, t)}];
+  }
+  for (const auto& [edge, count] : directed) {
+    ASSERT_EQ(count, 1);
+    ASSERT_EQ(directed.count({edge.second, edge.first}), 1u) << "open edge";
+  }
+  EXPECT_NEAR(Volume(mesh), PlatformVolume(), 0.05 * PlatformVolume());
+  EXPECT_NE(run.out.find("min triangle angle"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("error max"), std::string::npos) << run.out;
+}
+
+TEST(MeshCommand, WritesPlatformTetsAsVtuWithThePrintedCounts) {
+  const std::string vtu_path = OutputPath("platform.vtu");
+  std::remove(vtu_path.c_str());
+  const ProcessRun run =
+      RunMesh("'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.005 --tets tetgen --quality 2", "vtu");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::string vtu = ReadFile(vtu_path);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
+  const long points = std::stol(m[1]), cells = std::stol(m[2]);
+  EXPECT_EQ(points, PrintedCount(run.out, "nodes")) << run.out;
+  EXPECT_EQ(cells, PrintedCount(run.out, "tets")) << run.out;
+  EXPECT_GT(cells, 1000);
+  const std::vector<double> xyz = DataArray(vtu, "Points");
+  const std::vector<double> connectivity = DataArray(vtu, "connectivity");
+  ASSERT_EQ(static_cast<long>(xyz.size()), 3 * points);
+  ASSERT_EQ(static_cast<long>(connectivity.size()), 4 * cells);
+  // Every tet positively oriented; together they fill the platform's volume.
+  double volume = 0.0;
+  for (long t = 0; t < cells; ++t) {
+    Eigen::Vector3d p[4];
+    for (int k = 0; k < 4; ++k) {
+      const long i = static_cast<long>(connectivity[4 * t + k]);
+      ASSERT_GE(i, 0);
+      ASSERT_LT(i, points);
+      p[k] = Eigen::Vector3d(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    }
+    const double v = (p[1] - p[0]).dot((p[2] - p[0]).cross(p[3] - p[0])) / 6.0;
+    EXPECT_GT(v, 0.0) << "tet " << t;
+    volume += v;
+  }
+  EXPECT_NEAR(volume, PlatformVolume(), 0.05 * PlatformVolume());
+  EXPECT_NE(run.out.find("dihedral"), std::string::npos) << run.out;
+}
+
+TEST(MeshCommand, WritesTetgenNodeAndEleFiles) {
+  const std::string base = OutputPath("platform_tets");
+  std::remove((base + ".node").c_str());
+  std::remove((base + ".ele").c_str());
+  const ProcessRun run = RunMesh("'" + Platform() + "' --out '" + base + ".node' --resolution 0.008 --tets tetgen --quality 0", "node");
+  ASSERT_EQ(run.status, 0) << run.err;
+  // First data line (after '#' comments) of .node: count, dimension 3; of .ele: count, 4
+  // nodes per tet.
+  auto header = [](const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    while (std::getline(in, line) && (line.empty() || line[0] == '#')) {
+    }
+    return std::stringstream(line);
+  };
+  long nodes = -1, dim = -1, tets = -1, per = -1;
+  header(base + ".node") >> nodes >> dim;
+  header(base + ".ele") >> tets >> per;
+  EXPECT_EQ(nodes, PrintedCount(run.out, "nodes"));
+  EXPECT_EQ(dim, 3);
+  EXPECT_EQ(tets, PrintedCount(run.out, "tets"));
+  EXPECT_EQ(per, 4);
+}
+
+TEST(MeshCommand, BadSceneFileExitsTwoNamingFileAndLine) {
+  const std::string scene = OutputPath("bad_scene.json");
+  // Line 7 holds a negative radius.
+  std::ofstream(scene) << "{\n"
+                          "  \"format\": \"spidarcad-scene\",\n"
+                          "  \"version\": 1,\n"
+                          "  \"units\": \"m\",\n"
+                          "  \"solids\": [\n"
+                          "    {\"name\": \"ball\", \"root\":\n"
+                          "      {\"type\": \"sphere\", \"radius\": -0.1}}\n"
+                          "  ]\n"
+                          "}\n";
+  const ProcessRun run = RunMesh("'" + scene + "' --out '" + OutputPath("bad.stl") + "'", "bad_scene");
+  EXPECT_EQ(run.status, 2);
+  EXPECT_NE(run.err.find(scene + ":7:"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("radius"), std::string::npos) << run.err;
+
+  const std::string syntax = OutputPath("syntax_scene.json");
+  std::ofstream(syntax) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1\n  \"units\": \"m\"\n}\n";
+  const ProcessRun run2 = RunMesh("'" + syntax + "' --out '" + OutputPath("bad.stl") + "'", "syntax_scene");
+  EXPECT_EQ(run2.status, 2);
+  EXPECT_NE(run2.err.find(syntax + ":4:"), std::string::npos) << run2.err;
+
+  const ProcessRun missing = RunMesh("'" + OutputPath("no_such_scene.json") + "' --out x.stl", "missing");
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_NE(missing.err.find("no_such_scene.json"), std::string::npos) << missing.err;
+}
+
+TEST(MeshCommand, UnknownExtensionAndBadOptionsExitTwo) {
+  const ProcessRun ext = RunMesh("'" + Platform() + "' --out '" + OutputPath("platform.xyz") + "'", "ext");
+  EXPECT_EQ(ext.status, 2);
+  EXPECT_NE(ext.err.find(".xyz"), std::string::npos) << ext.err;
+
+  const ProcessRun cgal = RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets cgal", "cgal");
+  EXPECT_EQ(cgal.status, 2);
+  EXPECT_NE(cgal.err.find("not available yet"), std::string::npos) << cgal.err;
+
+  const ProcessRun vtu_without_tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("n.vtu") + "'", "notets");
+  EXPECT_EQ(vtu_without_tets.status, 2);
+  EXPECT_NE(vtu_without_tets.err.find("--tets"), std::string::npos) << vtu_without_tets.err;
+
+  const ProcessRun solid = RunMesh("'" + Platform() + "' --out '" + OutputPath("s.stl") + "' --solid nope", "solid");
+  EXPECT_EQ(solid.status, 2);
+  EXPECT_NE(solid.err.find("'platform'"), std::string::npos) << solid.err;
+
+  const ProcessRun resolution = RunMesh("'" + Platform() + "' --out '" + OutputPath("r.stl") + "' --resolution -1", "res");
+  EXPECT_EQ(resolution.status, 2);
+  EXPECT_NE(resolution.err.find("--resolution"), std::string::npos) << resolution.err;
+
+  const ProcessRun quality =
+      RunMesh("'" + Platform() + "' --out '" + OutputPath("q.vtu") + "' --tets tetgen --quality 0.5", "quality");
+  EXPECT_EQ(quality.status, 2);
+  EXPECT_NE(quality.err.find("--quality"), std::string::npos) << quality.err;
+
+  const ProcessRun unwritable = RunMesh("'" + Platform() + "' --out /nonexistent-dir/p.stl --resolution 0.008", "unwritable");
+  EXPECT_EQ(unwritable.status, 2);
+  EXPECT_NE(unwritable.err.find("/nonexistent-dir/p.stl"), std::string::npos) << unwritable.err;
+}
+
+TEST(MeshCommand, HelpTeachesWithPlatformExamples) {
+  const ProcessRun run = RunMesh("--help", "help");
+  EXPECT_EQ(run.status, 0);
+  EXPECT_NE(run.out.find("assets/scenes/platform.json --out platform.vtu --tets tetgen"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("not available yet"), std::string::npos) << run.out;
+}
+
+}  // namespace
