@@ -12,6 +12,8 @@
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "spidarcad_runner.h"
 #include <nlohmann/json.hpp>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
@@ -28,34 +30,16 @@
 namespace spidarcad::app {
 namespace {
 
-struct ProcessResult {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::ReadWholeFile;
 
 std::string OutputPath(const std::string& name) {
   return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/" + name;
 }
 
-ProcessResult RunSpidarcad(const std::string& args, const std::string& tag) {
-  const std::string out_path = OutputPath("fem_" + tag + ".out");
-  const std::string err_path = OutputPath("fem_" + tag + ".err");
-  const std::string command = std::string("'") + SPIDARCAD_EXE + "' fem " + args + " > '" +
-                              out_path + "' 2> '" + err_path + "'";
-  const int raw = std::system(command.c_str());
-  ProcessResult run;
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  run.out = ReadFile(out_path);
-  run.err = ReadFile(err_path);
-  return run;
+// Runs `spidarcad fem ARGS`; `tag` names the scratch files.
+CommandRun RunSpidarcad(const std::string& args, const std::string& tag) {
+  return spidarcad::test_support::RunSpidarcad("fem " + args, "", "fem_" + tag);
 }
 
 // Beam 1 x 0.1 x 0.1 m, 10 x 2 x 2 cells, linear tets (node (1, 0.05, 0.05) exists: the
@@ -98,7 +82,7 @@ TEST(FemCommand, PushReactionEqualsDirectSolveForBothOrders) {
   const Eigen::Vector3d tip(kLength, 0.5 * kSide, 0.5 * kSide), d(0.0002, -0.0003, -0.001);
   for (int order : {1, 2}) {
     const std::string out = OutputPath("fem_push_" + std::to_string(order) + ".vtu");
-    const ProcessResult run = RunSpidarcad(
+    const CommandRun run = RunSpidarcad(
         beam + " " + kClampX0 + " --push 1,0.05,0.05 --disp 0.0002,-0.0003,-0.001 --order " +
             std::to_string(order) + " --out " + out,
         "push" + std::to_string(order));
@@ -170,7 +154,7 @@ TEST(FemCommand, TipLoadMatchesEulerBernoulliQuadraticAndShowsLinearLocking) {
   double ratio[3] = {0, 0, 0};
   for (int order : {1, 2}) {
     const std::string out = OutputPath("fem_tip_" + std::to_string(order) + ".vtu");
-    const ProcessResult run = RunSpidarcad(beam + " " + kClampX0 +
+    const CommandRun run = RunSpidarcad(beam + " " + kClampX0 +
                                                " --load 1,0.05,0.05 --force 0,0,-1000 --order " +
                                                std::to_string(order) + " --out " + out,
                                            "tip" + std::to_string(order));
@@ -194,7 +178,7 @@ TEST(FemCommand, TipLoadMatchesEulerBernoulliQuadraticAndShowsLinearLocking) {
 TEST(FemCommand, ResultVtuHasDisplacementAndVonMisesArrays) {
   const std::string beam = BeamPath();
   const std::string out = OutputPath("fem_arrays.vtu");
-  const ProcessResult run = RunSpidarcad(
+  const CommandRun run = RunSpidarcad(
       beam + " " + kClampX0 + " --push 1,0.1,0.1 --disp 0,0,-0.0005 --out " + out, "arrays");
   ASSERT_EQ(run.status, 0) << run.err;
   const nlohmann::json report = nlohmann::json::parse(run.out);
@@ -236,7 +220,7 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
   std::ofstream(scene) << R"({"format": "spidarcad-scene", "version": 1, "units": "m",
     "solids": [{"name": "ball", "root": {"type": "sphere", "radius": 0.05}}]})";
   const std::string out = OutputPath("fem_ball.vtu");
-  const ProcessResult run = RunSpidarcad(scene +
+  const CommandRun run = RunSpidarcad(scene +
                                              " --resolution 0.01 --fix=-1,-1,-1,1,1,-0.035"
                                              " --push 0,0,0.05 --disp 0,0,-0.0001 --out " + out,
                                          "ball");
@@ -280,7 +264,7 @@ TEST(FemCommand, BadInputExitsWithStatusTwoNamingTheProblem) {
   std::ofstream(OutputPath("fem_beam.txt")) << "not a mesh\n";
   int index = 0;
   for (const Case& c : cases) {
-    const ProcessResult run = RunSpidarcad(c.args, "bad" + std::to_string(index++));
+    const CommandRun run = RunSpidarcad(c.args, "bad" + std::to_string(index++));
     EXPECT_EQ(run.status, 2) << c.args << "\n" << run.err;
     EXPECT_NE(run.err.find(c.expected), std::string::npos)
         << c.args << ": expected '" << c.expected << "' in: " << run.err;

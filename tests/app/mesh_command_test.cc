@@ -17,40 +17,25 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "spidarcad_runner.h"
+
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
 namespace {
 
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::ReadWholeFile;
+
 using spidarcad::modeling::ReadTriangleMesh;
 using spidarcad::modeling::TriangleMesh;
-
-struct ProcessRun {
-  int status = -1;
-  std::string out, err;
-};
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 std::string OutputPath(const std::string& name) { return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/mesh_cmd_" + name; }
 
 std::string Platform() { return std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json"; }
 
 // Runs `spidarcad mesh ARGS` and captures stdout, stderr and the exit status.
-ProcessRun RunMesh(const std::string& args, const std::string& tag) {
-  const std::string out_path = OutputPath(tag + ".stdout"), err_path = OutputPath(tag + ".stderr");
-  const std::string command =
-      std::string("'") + SPIDARCAD_EXE + "' mesh " + args + " > '" + out_path + "' 2> '" + err_path + "' < /dev/null";
-  const int raw = std::system(command.c_str());
-  ProcessRun run;
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  run.out = ReadFile(out_path);
-  run.err = ReadFile(err_path);
-  return run;
+CommandRun RunMesh(const std::string& args, const std::string& tag) {
+  return spidarcad::test_support::RunSpidarcad("mesh " + args, "", "mesh_" + tag);
 }
 
 // The number printed before `word` (e.g. "123 triangles"), -1 if absent.
@@ -96,7 +81,7 @@ std::vector<double> DataArray(const std::string& vtu, const std::string& name) {
 TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
   const std::string stl = OutputPath("platform.stl");
   std::remove(stl.c_str());
-  const ProcessRun run = RunMesh("'" + Platform() + "' --out '" + stl + "' --resolution 0.004", "stl");
+  const CommandRun run = RunMesh("'" + Platform() + "' --out '" + stl + "' --resolution 0.004", "stl");
   ASSERT_EQ(run.status, 0) << run.err;
   const TriangleMesh mesh = ReadTriangleMesh(stl);
   EXPECT_EQ(mesh.triangles.cols(), PrintedCount(run.out, "triangles")) << run.out;
@@ -118,10 +103,10 @@ TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
 TEST(MeshCommand, WritesPlatformTetsAsVtuWithThePrintedCounts) {
   const std::string vtu_path = OutputPath("platform.vtu");
   std::remove(vtu_path.c_str());
-  const ProcessRun run =
+  const CommandRun run =
       RunMesh("'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.005 --tets tetgen --quality 2", "vtu");
   ASSERT_EQ(run.status, 0) << run.err;
-  const std::string vtu = ReadFile(vtu_path);
+  const std::string vtu = ReadWholeFile(vtu_path);
   std::smatch m;
   ASSERT_TRUE(std::regex_search(vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
   const long points = std::stol(m[1]), cells = std::stol(m[2]);
@@ -154,7 +139,7 @@ TEST(MeshCommand, WritesTetgenNodeAndEleFiles) {
   const std::string base = OutputPath("platform_tets");
   std::remove((base + ".node").c_str());
   std::remove((base + ".ele").c_str());
-  const ProcessRun run = RunMesh("'" + Platform() + "' --out '" + base + ".node' --resolution 0.008 --tets tetgen --quality 0", "node");
+  const CommandRun run = RunMesh("'" + Platform() + "' --out '" + base + ".node' --resolution 0.008 --tets tetgen --quality 0", "node");
   ASSERT_EQ(run.status, 0) << run.err;
   // First data line (after '#' comments) of .node: count, dimension 3; of .ele: count, 4
   // nodes per tet.
@@ -186,55 +171,55 @@ TEST(MeshCommand, BadSceneFileExitsTwoNamingFileAndLine) {
                           "      {\"type\": \"sphere\", \"radius\": -0.1}}\n"
                           "  ]\n"
                           "}\n";
-  const ProcessRun run = RunMesh("'" + scene + "' --out '" + OutputPath("bad.stl") + "'", "bad_scene");
+  const CommandRun run = RunMesh("'" + scene + "' --out '" + OutputPath("bad.stl") + "'", "bad_scene");
   EXPECT_EQ(run.status, 2);
   EXPECT_NE(run.err.find(scene + ":7:"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("radius"), std::string::npos) << run.err;
 
   const std::string syntax = OutputPath("syntax_scene.json");
   std::ofstream(syntax) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1\n  \"units\": \"m\"\n}\n";
-  const ProcessRun run2 = RunMesh("'" + syntax + "' --out '" + OutputPath("bad.stl") + "'", "syntax_scene");
+  const CommandRun run2 = RunMesh("'" + syntax + "' --out '" + OutputPath("bad.stl") + "'", "syntax_scene");
   EXPECT_EQ(run2.status, 2);
   EXPECT_NE(run2.err.find(syntax + ":4:"), std::string::npos) << run2.err;
 
-  const ProcessRun missing = RunMesh("'" + OutputPath("no_such_scene.json") + "' --out x.stl", "missing");
+  const CommandRun missing = RunMesh("'" + OutputPath("no_such_scene.json") + "' --out x.stl", "missing");
   EXPECT_EQ(missing.status, 2);
   EXPECT_NE(missing.err.find("no_such_scene.json"), std::string::npos) << missing.err;
 }
 
 TEST(MeshCommand, UnknownExtensionAndBadOptionsExitTwo) {
-  const ProcessRun ext = RunMesh("'" + Platform() + "' --out '" + OutputPath("platform.xyz") + "'", "ext");
+  const CommandRun ext = RunMesh("'" + Platform() + "' --out '" + OutputPath("platform.xyz") + "'", "ext");
   EXPECT_EQ(ext.status, 2);
   EXPECT_NE(ext.err.find(".xyz"), std::string::npos) << ext.err;
 
-  const ProcessRun cgal = RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets cgal", "cgal");
+  const CommandRun cgal = RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets cgal", "cgal");
   EXPECT_EQ(cgal.status, 2);
   EXPECT_NE(cgal.err.find("not available yet"), std::string::npos) << cgal.err;
 
-  const ProcessRun vtu_without_tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("n.vtu") + "'", "notets");
+  const CommandRun vtu_without_tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("n.vtu") + "'", "notets");
   EXPECT_EQ(vtu_without_tets.status, 2);
   EXPECT_NE(vtu_without_tets.err.find("--tets"), std::string::npos) << vtu_without_tets.err;
 
-  const ProcessRun solid = RunMesh("'" + Platform() + "' --out '" + OutputPath("s.stl") + "' --solid nope", "solid");
+  const CommandRun solid = RunMesh("'" + Platform() + "' --out '" + OutputPath("s.stl") + "' --solid nope", "solid");
   EXPECT_EQ(solid.status, 2);
   EXPECT_NE(solid.err.find("'platform'"), std::string::npos) << solid.err;
 
-  const ProcessRun resolution = RunMesh("'" + Platform() + "' --out '" + OutputPath("r.stl") + "' --resolution -1", "res");
+  const CommandRun resolution = RunMesh("'" + Platform() + "' --out '" + OutputPath("r.stl") + "' --resolution -1", "res");
   EXPECT_EQ(resolution.status, 2);
   EXPECT_NE(resolution.err.find("--resolution"), std::string::npos) << resolution.err;
 
-  const ProcessRun quality =
+  const CommandRun quality =
       RunMesh("'" + Platform() + "' --out '" + OutputPath("q.vtu") + "' --tets tetgen --quality 0.5", "quality");
   EXPECT_EQ(quality.status, 2);
   EXPECT_NE(quality.err.find("--quality"), std::string::npos) << quality.err;
 
-  const ProcessRun unwritable = RunMesh("'" + Platform() + "' --out /nonexistent-dir/p.stl --resolution 0.008", "unwritable");
+  const CommandRun unwritable = RunMesh("'" + Platform() + "' --out /nonexistent-dir/p.stl --resolution 0.008", "unwritable");
   EXPECT_EQ(unwritable.status, 2);
   EXPECT_NE(unwritable.err.find("/nonexistent-dir/p.stl"), std::string::npos) << unwritable.err;
 }
 
 TEST(MeshCommand, HelpTeachesWithPlatformExamples) {
-  const ProcessRun run = RunMesh("--help", "help");
+  const CommandRun run = RunMesh("--help", "help");
   EXPECT_EQ(run.status, 0);
   EXPECT_NE(run.out.find("assets/scenes/platform.json --out platform.vtu --tets tetgen"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("not available yet"), std::string::npos) << run.out;

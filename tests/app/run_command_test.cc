@@ -11,36 +11,20 @@
 
 #include <gtest/gtest.h>
 
+#include "spidarcad_runner.h"
+
 namespace {
 
-struct ProcessResult {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::ReadWholeFile;
 
 std::string OutputPath(const std::string& name) {
   return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/run_" + name;
 }
 
-ProcessResult RunSpidarcad(const std::string& args, const std::string& tag) {
-  const std::string out_path = OutputPath(tag + ".stdout");
-  const std::string err_path = OutputPath(tag + ".stderr");
-  const std::string command = std::string("'") + SPIDARCAD_EXE + "' run " + args + " > '" +
-                              out_path + "' 2> '" + err_path + "'";
-  const int raw = std::system(command.c_str());
-  ProcessResult r;
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  r.out = Slurp(out_path);
-  r.err = Slurp(err_path);
-  return r;
+// Runs `spidarcad run ARGS`; `tag` names the scratch files.
+CommandRun RunSpidarcad(const std::string& args, const std::string& tag) {
+  return spidarcad::test_support::RunSpidarcad("run " + args, "", "run_" + tag);
 }
 
 // Press into the demo floor (z = −0.03 m) from 2 cm above, the hand aiming 1 cm deep, in 1.5 s.
@@ -73,7 +57,7 @@ std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
 TEST(RunCommand, WritesOneRowPerTickWithTheWallForceOfTheDemoScene) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("press_result.csv");
-  const ProcessResult r = RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "'", "press");
+  const CommandRun r = RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "'", "press");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("tick time [us]: p50"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("ramping="), std::string::npos);
@@ -140,7 +124,7 @@ TEST(RunCommand, BadInputExitsWithStatusTwoAndSaysWhere) {
   const std::string bad = OutputPath("bad.csv");
   std::ofstream(bad) << "# comment\n0,0,0,0,1,0,0,0,1.5\n0.1,0,zz,0,1,0,0,0,1.5\n";
   const std::string out = OutputPath("bad_result.csv");
-  ProcessResult r = RunSpidarcad("--trajectory '" + bad + "' --out '" + out + "'", "bad_traj");
+  CommandRun r = RunSpidarcad("--trajectory '" + bad + "' --out '" + out + "'", "bad_traj");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find(bad + ":3: field 'y': 'zz' is not a number"), std::string::npos) << r.err;
 
@@ -159,7 +143,7 @@ TEST(RunCommand, BadInputExitsWithStatusTwoAndSaysWhere) {
 TEST(RunCommand, EmptySceneCommandsNoForce) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("empty_result.csv");
-  const ProcessResult r = RunSpidarcad("--trajectory '" + traj + "' --out '" + out + "'", "empty");
+  const CommandRun r = RunSpidarcad("--trajectory '" + traj + "' --out '" + out + "'", "empty");
   ASSERT_EQ(r.status, 0) << r.err;
   const auto rows = ReadCsv(out);
   ASSERT_GT(rows.size(), 1000u);
