@@ -335,7 +335,9 @@ TEST(UsbSpidarG, LibusbWithNoBoardAttachedReportsNotConnected) {
     EXPECT_EQ(driver.WriteTensions(Vector8d::Constant(1.0)), DeviceStatus::kNotConnected);
   }
   const UsbEnumeration list = ListUsbBoards();
-  if (list.usb_available) EXPECT_TRUE(list.boards.empty());
+  if (list.usb_available) {
+    EXPECT_TRUE(list.boards.empty());
+  }
 }
 
 }  // namespace
