@@ -26,7 +26,12 @@ int main(int argc, char** argv) {
       "  echo 0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543 \\\n"
       "    | spidarcad fk --batch\n"
       "  spidarcad workspace --out-csv ws.csv --out-png ws.png\n"
-      "  spidarcad calibrate --simulated\n",
+      "  spidarcad calibrate --simulated\n"
+      "  spidarcad mesh assets/scenes/platform.json --out platform.stl\n"
+      "  spidarcad fem assets/scenes/platform.json --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 \\\n"
+      "    --push 0.29,0,0.01 --disp 0,0,-0.001 --out platform.vtu\n"
+      "  spidarcad run demo --trajectory assets/trajectories/press.csv --out press.csv\n"
+      "  spidarcad device list\n",
       "spidarcad"};
   app.set_version_flag("--version", "spidarcad 0.1.0");
   app.require_subcommand(0, 1);

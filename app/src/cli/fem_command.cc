@@ -386,9 +386,8 @@ void RunFem(const FemOptions& options) {
 void RegisterFemCommand(CLI::App& app) {
   auto options = std::make_shared<FemOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "fem",
-      "Static linear-elastic FE solve of a tetrahedral mesh or a scene solid.\n"
-      "\n"
+      "fem", "Static linear-elastic FE solve of a tetrahedral mesh or a scene solid (VTU out)");
+  cmd->footer(
       "Input: a .vtu with VTK_TETRA or VTK_QUADRATIC_TETRA cells, or a .json scene whose solid\n"
       "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen).\n"
       "Nodes inside a --fix box are clamped; --push prescribes the displacement (all three\n"
@@ -400,8 +399,9 @@ void RegisterFemCommand(CLI::App& app) {
       "applies ON the body), for each load its node and force, counts, status and timings.\n"
       "\n"
       "Example (a 1 x 0.1 x 0.1 m steel beam clamped at x = 0, tip pushed 1 mm down):\n"
-      "  spidarcad fem beam.vtu --fix -1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
-      "    --order 2 --out result.vtu");
+      "  spidarcad fem beam.vtu --fix=-1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
+      "    --order 2 --out result.vtu\n"
+      "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)");
   cmd->add_option("input", options->input, "Mesh (.vtu) or scene (.json)")->required();
   cmd->add_option("--out", options->out, "Result .vtu to write")->required();
   cmd->add_option("--E", options->youngs_modulus, "Young's modulus [Pa] (default 200e9, steel)");
