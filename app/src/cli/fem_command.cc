@@ -17,6 +17,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "cli/scene_solid.h"
 #include "cli/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/material.h"
@@ -98,43 +99,15 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 
 // Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen.
 fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report) {
-  modeling::Scene scene;
-  try {
-    scene = modeling::LoadScene(options.input);
-  } catch (const modeling::SceneError& e) {
-    throw InputError(e.what());
-  }
-  if (scene.solids.empty()) throw InputError(options.input + ": the scene has no solid");
-  const modeling::Solid* solid = &scene.solids.front();
-  if (!options.solid.empty()) {
-    solid = nullptr;
-    for (const auto& s : scene.solids) {
-      if (s.name == options.solid) solid = &s;
-    }
-    if (solid == nullptr) {
-      std::string names;
-      for (const auto& s : scene.solids) names += (names.empty() ? "" : ", ") + s.name;
-      throw InputError("--solid '" + options.solid + "': no such solid in " + options.input +
-                       " (solids: " + names + ")");
-    }
-  }
-  const modeling::CompiledSolid compiled = modeling::CompiledSolid::Compile(solid->root);
-  const double cell = options.resolution;
-  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-10.0),
-                                   Eigen::Vector3d::Constant(10.0));
-  Eigen::AlignedBox3d bounds = modeling::FindBounds(compiled, search, cell);
-  if (bounds.isEmpty()) {
-    throw InputError(options.input + ": solid '" + solid->name +
-                     "' is empty within 10 m of the origin");
-  }
-  bounds.min().array() -= 2 * cell;
-  bounds.max().array() += 2 * cell;
+  const SceneSolidGrid grid =
+      PrepareSceneSolid(options.input, options.solid, options.resolution);
+  const double cell = grid.cell;
   modeling::SurfaceMeshSettings surface_settings;
-  surface_settings.bounds = bounds;
+  surface_settings.bounds = grid.bounds;
   surface_settings.cell_size = cell;
   modeling::SurfaceMeshStats surface_stats;
   const modeling::TriangleMesh surface =
-      modeling::MeshSurface(compiled, surface_settings, &surface_stats);
+      modeling::MeshSurface(grid.compiled, surface_settings, &surface_stats);
   modeling::TetMeshSettings tet_settings;
   tet_settings.max_radius_edge = options.max_radius_edge;
   modeling::TetMeshStats tet_stats;
@@ -142,11 +115,11 @@ fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report
   try {
     tets = modeling::TetrahedralizeSurface(surface, tet_settings, &tet_stats);
   } catch (const std::exception& e) {
-    throw InputError(options.input + ": solid '" + solid->name + "' at --resolution " +
+    throw InputError(options.input + ": solid '" + grid.solid_name + "' at --resolution " +
                      FormatNumber(cell) + " m cannot be tetrahedralized: " + e.what() +
                      " (try another --resolution)");
   }
-  (*report)["meshing"] = {{"solid", solid->name},
+  (*report)["meshing"] = {{"solid", grid.solid_name},
                           {"resolution_m", cell},
                           {"surface_triangles", surface.triangles.cols()},
                           {"surface_seconds", surface_stats.seconds},

@@ -13,6 +13,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "cli/scene_solid.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -40,8 +41,6 @@ struct MeshOptions {
 
 // Cells along the largest side of the solid's box for the default resolution.
 constexpr double kDefaultCellsAcross = 80.0;
-// Half-side of the box searched for the solid (m).
-constexpr double kSearchHalfSide = 10.0;
 
 constexpr const char* kMeshHelp =
     "Meshes an implicit solid of a scene file (docs/scene-format.md).\n"
@@ -118,45 +117,10 @@ void RunMesh(const MeshOptions& o) {
     throw InputError("--max-volume: must be >= 0 m^3, got " + Fmt(o.max_volume));
   }
 
-  Scene scene;
-  try {
-    scene = LoadScene(o.scene);
-  } catch (const SceneError& e) {
-    throw InputError(e.what());
-  }
-  if (scene.solids.empty()) throw InputError(o.scene + ": the scene has no solids");
-  const Solid* solid = &scene.solids.front();
-  if (!o.solid.empty()) {
-    solid = nullptr;
-    std::string names;
-    for (const Solid& s : scene.solids) {
-      if (s.name == o.solid) solid = &s;
-      names += (names.empty() ? "" : ", ") + ("'" + s.name + "'");
-    }
-    if (!solid) throw InputError("--solid '" + o.solid + "': no such solid in " + o.scene + " (it has " + names + ")");
-  }
-  CompiledSolid compiled;
-  try {
-    compiled = CompiledSolid::Compile(solid->root, "/solids/" + std::to_string(solid - scene.solids.data()) + "/root");
-  } catch (const std::exception& e) {
-    throw InputError(o.scene + ": solid '" + solid->name + "': " + e.what());
-  }
-
-  // Where the solid is: a coarse search, then the grid box.
-  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide), Eigen::Vector3d::Constant(kSearchHalfSide));
-  const double coarse = o.resolution > 0.0 ? std::max(o.resolution, 0.005) : 0.01;
-  const Eigen::AlignedBox3d rough = FindBounds(compiled, search, coarse);
-  if (rough.isEmpty()) throw InputError(o.scene + ": solid '" + solid->name + "' is empty (nothing inside the search box)");
-  for (int a = 0; a < 3; ++a) {
-    if (rough.min()[a] <= -kSearchHalfSide + coarse || rough.max()[a] >= kSearchHalfSide - coarse) {
-      throw InputError(o.scene + ": solid '" + solid->name + "' reaches the " + Fmt(2 * kSearchHalfSide) +
-                       " m search box (unbounded, e.g. a bare half-space): intersect it with a box");
-    }
-  }
-  const double cell = o.resolution > 0.0 ? o.resolution : rough.sizes().maxCoeff() / kDefaultCellsAcross;
-  Eigen::AlignedBox3d bounds = FindBounds(compiled, rough, cell);
-  bounds.min().array() -= 2.0 * cell;
-  bounds.max().array() += 2.0 * cell;
+  const SceneSolidGrid grid = PrepareSceneSolid(o.scene, o.solid, o.resolution, kDefaultCellsAcross);
+  const CompiledSolid& compiled = grid.compiled;
+  const Eigen::AlignedBox3d& bounds = grid.bounds;
+  const double cell = grid.cell;
 
   SurfaceMeshSettings settings;
   settings.bounds = bounds;
@@ -169,10 +133,10 @@ void RunMesh(const MeshOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw InputError(std::string("--resolution ") + Fmt(cell) + ": " + e.what());
   }
-  if (surface.triangles.cols() == 0) throw InputError("solid '" + solid->name + "': the surface mesh is empty at cell " + Fmt(cell) + " m");
+  if (surface.triangles.cols() == 0) throw InputError("solid '" + grid.solid_name + "': the surface mesh is empty at cell " + Fmt(cell) + " m");
   const TriangleAngleStats angles = MeasureTriangleAngles(surface, 5.0);
   const SurfaceError error = MeasureSurfaceError(compiled, surface);
-  std::cout << "scene " << o.scene << ", solid '" << solid->name << "'\n";
+  std::cout << "scene " << o.scene << ", solid '" << grid.solid_name << "'\n";
   std::cout << "surface: cell " << Fmt(cell) << " m, box " << Fmt(bounds.sizes().x()) << " x " << Fmt(bounds.sizes().y())
             << " x " << Fmt(bounds.sizes().z()) << " m, " << surface.vertices.cols() << " vertices, "
             << surface.triangles.cols() << " triangles, " << Fmt(stats.seconds, 3) << " s"

@@ -1,0 +1,29 @@
+// One solid of a scene file, compiled and located, ready to mesh: shared by `spidarcad mesh`
+// and `spidarcad fem`.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <string>
+
+#include <Eigen/Geometry>
+
+#include "spidarcad/modeling/implicit_evaluator.h"
+
+namespace spidarcad::app {
+
+// A compiled solid with the grid it will be meshed on.
+struct SceneSolidGrid {
+  std::string solid_name;              // the solid's name in the scene
+  modeling::CompiledSolid compiled;    // its evaluator
+  Eigen::AlignedBox3d bounds;          // grid box in m, the solid's box padded by two cells
+  double cell = 0.0;                   // grid cell size, m
+};
+
+// Loads `scene_path`, picks the solid named `solid_name` (empty: the first), compiles it and
+// finds its box on a grid of `resolution` m (<= 0: the solid's largest side / `cells_across`).
+// Throws InputError naming the file, the solid or the option when the scene does not load, the
+// solid is missing, empty or unbounded (reaches 10 m from the origin).
+SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::string& solid_name,
+                                 double resolution, double cells_across = 80.0);
+
+}  // namespace spidarcad::app
