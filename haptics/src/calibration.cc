@@ -119,6 +119,22 @@ void ApplyParamStep(const ParamLayout& layout, const Eigen::VectorXd& delta,
 
 std::string StringName(int i) { return "string " + std::to_string(i + 1); }
 
+// Starts `result` from `initial`. Returns false, with status kInvalidInput and the reason,
+// when the geometry or the initial calibration does not validate.
+bool StartResult(const SpidarGeometry& geometry, const EncoderCalibration& initial,
+                 CalibrationResult* result) {
+  result->calibration = initial;
+  try {
+    geometry.Validate();
+    initial.Validate();
+  } catch (const std::exception& e) {
+    result->status = CalibrationStatus::kInvalidInput;
+    result->message = e.what();
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 const char* CalibrationStatusName(CalibrationStatus status) {
@@ -137,15 +153,7 @@ CalibrationResult FitLinesPerString(const SpidarGeometry& geometry,
                                     const std::vector<KnownPoseSample>& samples,
                                     const LineFitSettings& settings) {
   CalibrationResult result;
-  result.calibration = initial;
-  try {
-    geometry.Validate();
-    initial.Validate();
-  } catch (const std::exception& e) {
-    result.status = CalibrationStatus::kInvalidInput;
-    result.message = e.what();
-    return result;
-  }
+  if (!StartResult(geometry, initial, &result)) return result;
   const int np = settings.fit_quadratic ? 3 : 2;
   const int K = static_cast<int>(samples.size());
   if (K < np) {
@@ -232,15 +240,7 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
                                 const std::vector<UnknownPoseSample>& unknown,
                                 const SelfCalibrationSettings& settings) {
   CalibrationResult result;
-  result.calibration = initial;
-  try {
-    geometry.Validate();
-    initial.Validate();
-  } catch (const std::exception& e) {
-    result.status = CalibrationStatus::kInvalidInput;
-    result.message = e.what();
-    return result;
-  }
+  if (!StartResult(geometry, initial, &result)) return result;
   ParamLayout layout;
   layout.offset = settings.estimate_offset;
   layout.quadratic = settings.estimate_quadratic;
