@@ -53,7 +53,10 @@ struct TensionSettings {
 
 // Outcome of a tension solve.
 enum class TensionStatus : std::uint8_t {
-  kOk = 0,         // exact optimum; weighted |lost| <= 1 % of weighted |q| + 1 mN
+  // Exact optimum; weighted |lost| <= 1 % of (weighted |q| + |τ|) + 1 mN. The |τ| term
+  // covers the S2 bias, which scales with the tensions (the pretension that keeps strings taut
+  // off centre), not with q: at q = 0 and 5 cm off centre it is ~3 mN.
+  kOk = 0,
   kSaturated,      // exact optimum, but part of the request lies outside what the strings can
                    // deliver within [τ_min, τ_max] (see TensionResult::lost)
   kInvalidInput,   // q or A contained NaN or infinity: τ = τ_min everywhere
