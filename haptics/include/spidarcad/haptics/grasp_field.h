@@ -1,0 +1,98 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Grasp rendering, the SPIDAR-G's 7th DOF: closing the grip on an object renders its width.
+//
+// The grip's poles (geometry.h; in T, pole 1 along u1 = c·b − s·a, pole 2 along
+// u2 = c·b + s·a, c = cos θ/2, s = sin θ/2, b = (x+y)/√2, a = (x−y)/√2, each from −d to +d about
+// p_WT) are sampled against the object's DistanceField (in its body frame O, placed by X_WO).
+// Per pole k the deepest point (samples, then a golden-section refinement along the pole) gives
+// the depth δ_k = max(0, −φ) at t_k along the pole, the object's outward unit normal n_k and
+// the velocity of that point per unit of closing (−dθ): w_k = R_WT·t_k·∂u_k/∂(−θ), |w_k| = |t_k|/2.
+// Closing pushes pole k into the object when a_k = n_k·w_k < 0. When BOTH poles touch that way
+// the fingers squeeze the object: a penalty energy ½ k_n Σ δ_k² gives the generalised force on θ
+//   Q = Σ_k k_n δ_k (−a_k) − b_n min(θ̇, 0)    (> 0, opening; damping only while closing),
+// and, since the generalised force on θ is −g/2 (tension.h), the grasp torque g = −2Q < 0: the
+// grip stops where the fingers meet the object and pushes back; opening is free (Q = 0 as soon
+// as a pole leaves the object). One pole alone touching gives no grasp torque (the object would
+// be pushed, not squeezed: six-DOF contact renders that).
+//
+// Grasping: when both depths reach `grab_depth`, grasped() turns true and the object's pose
+// relative to the tool X_TO is recorded; while grasped the object moves with the grip
+// (X_WO = X_WT·X_TO, published for the app through LatestState()). It is released, where it
+// is, as soon as the two poles no longer both touch it (the grip opened).
+//
+// Closed form for a check: a sphere of radius r centred at distance L from p_WT on the grip's
+// bisector b (with L·cos(θ/2) ≤ d) meets both poles at θ* = 2·asin(r/L), and
+//   Q(θ) = k_n (r − L sin θ/2) L cos θ/2 for θ < θ*.
+// Stability: the angular stiffness on θ is k_n L² cos²(θ/2)/2 (3.4 N·m/rad for the defaults,
+// L = 3 cm); with the grasp inertia of a hand (~1e-5 kg·m²) that is ω ≈ 580 rad/s, ω·T = 0.58
+// at 1 kHz, stable with a hand's grasp damping above k_θ·T/2 ≈ 1.7e-3 N·m·s/rad.
+#pragma once
+
+#include <atomic>
+#include <memory>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "spidarcad/haptics/distance_field.h"
+#include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/triple_buffer.h"
+
+namespace spidarcad::haptics {
+
+// Parameters of a GraspField. SI units, lengths in W.
+struct GraspSettings {
+  double pole_length = 0.04;     // d in W (world_scale × the device's d), m
+  int samples = 17;              // samples per pole over [−d, d], >= 3
+  int refine_iterations = 20;    // golden-section steps around the deepest sample
+  double stiffness = 1e4;        // k_n, finger contact stiffness, N/m
+  double damping = 2e-3;         // b_n, on θ while closing in contact, N·m·s/rad
+  double grab_depth = 1e-4;      // both poles this deep: grasped, m
+  // Throws std::invalid_argument naming the field and value when out of range.
+  void Validate() const;
+};
+
+// What the grasp field publishes for the app.
+struct GraspState {
+  bool grasped = false;
+  Eigen::Isometry3d X_WO = Eigen::Isometry3d::Identity();  // the object's current pose
+  double depth1 = 0.0, depth2 = 0.0;                       // δ per pole, m
+};
+
+// The grasp field (see the file comment). Evaluate keeps state; allocates nothing.
+class GraspField final : public ForceField {
+ public:
+  // `object_O` (not null) in the object's frame O, placed at X_WO (rigid). Throws
+  // std::invalid_argument on a null field, a non-rigid X_WO or bad settings.
+  GraspField(std::shared_ptr<const DistanceField> object_O, const Eigen::Isometry3d& X_WO,
+             const GraspSettings& settings = {});
+  ToolWrench Evaluate(const ToolKinematics& tool) noexcept override;
+  const char* name() const noexcept override { return "grasp"; }
+
+  // Any thread: whether the object is held.
+  bool grasped() const noexcept { return grasped_flag_.load(std::memory_order_acquire); }
+  // Haptic thread (or tests): the object's pose, its pose in the tool frame while grasped,
+  // and the last depths per pole (m).
+  const Eigen::Isometry3d& X_WO() const noexcept { return X_WO_; }
+  const Eigen::Isometry3d& X_TO() const noexcept { return X_TO_; }
+  double depth(int pole) const noexcept { return pole == 0 ? depth_[0] : depth_[1]; }
+  // App side (one reader thread): the state published by the latest Evaluate.
+  const GraspState& LatestState() noexcept { return published_.Latest(); }
+  const GraspSettings& settings() const noexcept { return settings_; }
+
+ private:
+  // φ of the object at p_W.
+  double Phi(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept;
+
+  std::shared_ptr<const DistanceField> object_;
+  GraspSettings settings_;
+  Eigen::Isometry3d X_WO_;
+  Eigen::Isometry3d X_OW_;
+  Eigen::Isometry3d X_TO_ = Eigen::Isometry3d::Identity();
+  bool grasped_ = false;
+  double depth_[2] = {0.0, 0.0};
+  std::atomic<bool> grasped_flag_{false};
+  TripleBuffer<GraspState> published_;
+};
+
+}  // namespace spidarcad::haptics

@@ -1,0 +1,151 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/haptics/grasp_field.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace spidarcad::haptics {
+
+namespace {
+void Require(bool ok, const char* field, double value, const char* what) {
+  if (!ok) {
+    throw std::invalid_argument(std::string("GraspSettings.") + field + " = " + std::to_string(value) +
+                                ": " + what);
+  }
+}
+}  // namespace
+
+void GraspSettings::Validate() const {
+  Require(pole_length > 0 && std::isfinite(pole_length), "pole_length", pole_length, "must be finite and > 0");
+  Require(samples >= 3 && samples <= 10000, "samples", samples, "must be in [3, 10000]");
+  Require(refine_iterations >= 0 && refine_iterations <= 100, "refine_iterations", refine_iterations,
+          "must be in [0, 100]");
+  Require(stiffness >= 0 && std::isfinite(stiffness), "stiffness", stiffness, "must be finite and >= 0");
+  Require(damping >= 0 && std::isfinite(damping), "damping", damping, "must be finite and >= 0");
+  Require(grab_depth > 0 && std::isfinite(grab_depth), "grab_depth", grab_depth, "must be finite and > 0");
+}
+
+GraspField::GraspField(std::shared_ptr<const DistanceField> object_O, const Eigen::Isometry3d& X_WO,
+                       const GraspSettings& settings)
+    : object_(std::move(object_O)), settings_(settings), X_WO_(X_WO) {
+  if (object_ == nullptr) throw std::invalid_argument("GraspField: the object field is null");
+  settings_.Validate();
+  const Eigen::Matrix3d R = X_WO.linear();
+  if (!X_WO.matrix().allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-9 ||
+      R.determinant() < 0) {
+    throw std::invalid_argument("GraspField: X_WO is not a rigid transform");
+  }
+  X_OW_ = X_WO_.inverse(Eigen::Isometry);
+  GraspState s;
+  s.X_WO = X_WO_;
+  published_.Write(s);
+}
+
+double GraspField::Phi(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept {
+  if (gradient_W == nullptr) return object_->Evaluate(X_OW_ * p_W, nullptr);
+  Eigen::Vector3d g_O;
+  const double v = object_->Evaluate(X_OW_ * p_W, &g_O);
+  *gradient_W = X_WO_.linear() * g_O;
+  return v;
+}
+
+ToolWrench GraspField::Evaluate(const ToolKinematics& tool) noexcept {
+  const GraspSettings& s = settings_;
+  if (grasped_) {
+    // The held object moves with the grip.
+    Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+    X_WT.linear() = tool.R_WT;
+    X_WT.translation() = tool.p_WT;
+    X_WO_ = X_WT * X_TO_;
+    X_OW_ = X_WO_.inverse(Eigen::Isometry);
+  }
+  const double c = std::cos(0.5 * tool.grasp), sn = std::sin(0.5 * tool.grasp);
+  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
+  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
+  // Pole directions and their velocity per unit of closing (−dθ), in T.
+  const Eigen::Vector3d u_T[2] = {c * b_T - sn * a_T, c * b_T + sn * a_T};
+  const Eigen::Vector3d du_T[2] = {0.5 * (sn * b_T + c * a_T), 0.5 * (sn * b_T - c * a_T)};
+  const double d = s.pole_length;
+  double q = 0.0;
+  bool pushing[2] = {false, false};
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
+    auto phi_at = [&](double t) { return Phi(tool.p_WT + t * u_W, nullptr); };
+    const double spacing = 2.0 * d / (s.samples - 1);
+    double best_t = -d, best_phi = phi_at(-d);
+    for (int j = 1; j < s.samples; ++j) {
+      const double t = -d + j * spacing;
+      const double v = phi_at(t);
+      if (v < best_phi) {
+        best_phi = v;
+        best_t = t;
+      }
+    }
+    // Golden-section refinement of the minimum of φ along the pole.
+    double lo = std::max(-d, best_t - spacing), hi = std::min(d, best_t + spacing);
+    constexpr double kInvPhi = 0.6180339887498949;
+    double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
+    double f1 = phi_at(x1), f2 = phi_at(x2);
+    for (int i = 0; i < s.refine_iterations; ++i) {
+      if (f1 < f2) {
+        hi = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = hi - kInvPhi * (hi - lo);
+        f1 = phi_at(x1);
+      } else {
+        lo = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = lo + kInvPhi * (hi - lo);
+        f2 = phi_at(x2);
+      }
+    }
+    if (f1 < best_phi) {
+      best_phi = f1;
+      best_t = x1;
+    }
+    if (f2 < best_phi) {
+      best_phi = f2;
+      best_t = x2;
+    }
+    depth_[k] = std::max(0.0, -best_phi);
+    if (depth_[k] <= 0) continue;
+    Eigen::Vector3d g;
+    Phi(tool.p_WT + best_t * u_W, &g);
+    const double gn = g.norm();
+    if (!(gn > 0)) continue;
+    const double a = (g / gn).dot(tool.R_WT * (best_t * du_T[k]));
+    if (a < 0) {
+      pushing[k] = true;
+      q += s.stiffness * depth_[k] * (-a);
+    }
+  }
+
+  ToolWrench w;
+  if (pushing[0] && pushing[1]) {
+    q -= s.damping * std::min(tool.grasp_rate, 0.0);
+    w.g = -2.0 * q;
+    if (!grasped_ && depth_[0] >= s.grab_depth && depth_[1] >= s.grab_depth) {
+      grasped_ = true;
+      Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+      X_WT.linear() = tool.R_WT;
+      X_WT.translation() = tool.p_WT;
+      X_TO_ = X_WT.inverse(Eigen::Isometry) * X_WO_;
+    }
+  } else if (grasped_) {
+    grasped_ = false;  // released where it is
+  }
+  grasped_flag_.store(grasped_, std::memory_order_release);
+  GraspState& out = published_.WriteSlot();
+  out.grasped = grasped_;
+  out.X_WO = X_WO_;
+  out.depth1 = depth_[0];
+  out.depth2 = depth_[1];
+  published_.Publish();
+  return w;
+}
+
+}  // namespace spidarcad::haptics

@@ -1,0 +1,186 @@
+// Tests of the grasp field: the grasp torque against its closed form on a sphere, the
+// simulated hand closing on a sphere stops at the closed-form angle, opening is free, one
+// pole alone gives no grasp torque, a grasped object follows the grip, and Evaluate allocates
+// nothing.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/haptics/grasp_field.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "spidarcad/haptics/geometry.h"
+#include "spidarcad/haptics/simulated_hand.h"
+#include "support/malloc_counter.h"
+
+namespace spidarcad::haptics {
+namespace {
+
+// A sphere of radius r centred at distance L from the grip centre along the grip's bisector
+// b = (x + y)/√2, in the object's frame O = W.
+constexpr double kRadius = 0.015;
+constexpr double kDistance = 0.03;
+const Eigen::Vector3d kBisector = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
+
+std::shared_ptr<DistanceField> Ball() {
+  return std::make_shared<SphereDistanceField>(Eigen::Vector3d::Zero(), kRadius);
+}
+Eigen::Isometry3d BallPose() { return Eigen::Isometry3d(Eigen::Translation3d(kDistance * kBisector)); }
+
+// Contact angle and generalised opening force of the closed form (grasp_field.h).
+double ContactAngle() { return 2.0 * std::asin(kRadius / kDistance); }
+double ClosedFormQ(double theta, double k_n) {
+  if (theta >= ContactAngle()) return 0.0;
+  return k_n * (kRadius - kDistance * std::sin(theta / 2)) * kDistance * std::cos(theta / 2);
+}
+
+ToolKinematics Grip(double grasp, double time = 0.0, double rate = 0.0) {
+  ToolKinematics t;
+  t.grasp = grasp;
+  t.time = time;
+  t.grasp_rate = rate;
+  return t;
+}
+
+TEST(GraspField, GraspTorqueMatchesTheClosedFormOnASphere) {
+  GraspSettings s;
+  GraspField field(Ball(), BallPose(), s);
+  // Check that the poles (GripPose::FromFrame) meet the ball where the closed form says.
+  const GripPose at_contact = GripPose::FromFrame(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(),
+                                                  ContactAngle(), s.pole_length);
+  const Eigen::Vector3d centre = kDistance * kBisector;
+  const Eigen::Vector3d u1 = at_contact.p1.normalized();
+  EXPECT_NEAR((centre - centre.dot(u1) * u1).norm(), kRadius, 1e-15);
+  EXPECT_EQ(field.Evaluate(Grip(ContactAngle() + 0.01)).g, 0.0);
+  for (const double below : {0.005, 0.02, 0.05}) {
+    const double theta = ContactAngle() - below;
+    const ToolWrench w = field.Evaluate(Grip(theta));
+    // The lever arm comes from a golden-section search (its error is linear in the search's).
+    EXPECT_NEAR(w.g, -2.0 * ClosedFormQ(theta, s.stiffness), 1e-4 * ClosedFormQ(theta, s.stiffness)) << below;
+    EXPECT_NEAR(field.depth(0), kRadius - kDistance * std::sin(theta / 2), 1e-9);
+    EXPECT_NEAR(field.depth(1), field.depth(0), 1e-9);
+    EXPECT_EQ(w.f_T_W.norm() + w.m_T_W.norm(), 0.0);
+  }
+  // Closing adds damping (more opening torque), opening at the same angle does not.
+  const double theta = ContactAngle() - 0.02;
+  EXPECT_NEAR(field.Evaluate(Grip(theta, 0, -1.0)).g, -2.0 * (ClosedFormQ(theta, s.stiffness) + s.damping), 3e-5);
+  EXPECT_NEAR(field.Evaluate(Grip(theta, 0, +1.0)).g, -2.0 * ClosedFormQ(theta, s.stiffness), 3e-5);
+}
+
+TEST(GraspField, ClosingOnASphereStopsWhereThePolesMeetItAndOpeningIsFree) {
+  GraspSettings s;
+  GraspField field(Ball(), BallPose(), s);
+  TrajectorySample start;
+  start.grasp = M_PI / 2;
+  TrajectorySample target = start;
+  target.grasp = ContactAngle() - 0.1;  // the hand squeezes 0.1 rad past the contact
+  HandSettings hs;
+  SimulatedHand hand(hs, start, s.pole_length);
+  Eigen::Matrix<double, 7, 1> wrench = Eigen::Matrix<double, 7, 1>::Zero();
+  double theta_min = M_PI;
+  auto tick = [&](int k) {
+    ToolKinematics tool = Grip(hand.grasp(), 1e-3 * k, hand.grasp_rate());
+    tool.p_WT = hand.position();
+    tool.R_WT = hand.rotation().toRotationMatrix();
+    const ToolWrench w = field.Evaluate(tool);
+    wrench(6) = w.g;
+    hand.Step(target, wrench, 1e-3);
+    return w.g;
+  };
+  for (int k = 0; k < 1500; ++k) {
+    tick(k);
+    theta_min = std::min(theta_min, hand.grasp());
+  }
+  // Equilibrium of the hand's grasp spring and Q (closed form), by bisection.
+  double lo = target.grasp, hi = ContactAngle();
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const double balance = hs.grasp_stiffness * (target.grasp - mid) + ClosedFormQ(mid, s.stiffness);
+    (balance > 0 ? lo : hi) = mid;
+  }
+  EXPECT_NEAR(hand.grasp(), lo, 1e-4);
+  EXPECT_NEAR(hand.grasp(), ContactAngle(), 0.03);  // stops at the fingers' contact...
+  EXPECT_GT(theta_min, ContactAngle() - 0.05);      // ...without closing through the ball
+  EXPECT_TRUE(field.grasped());
+  EXPECT_LT((field.X_TO().translation() - kDistance * kBisector).norm(), 1e-12);
+  // Opening: no grasp torque once the poles leave the ball; released.
+  target.grasp = M_PI / 2;
+  for (int k = 1500; k < 2500; ++k) {
+    const double before = hand.grasp();
+    const double g = tick(k);
+    if (before > ContactAngle() + 1e-3) {
+      ASSERT_EQ(g, 0.0) << k;
+    }
+  }
+  EXPECT_FALSE(field.grasped());
+  EXPECT_NEAR(hand.grasp(), M_PI / 2, 0.01);
+}
+
+TEST(GraspField, OnePoleTouchingGivesNoGraspTorque) {
+  // Touches pole 1 (along y at rest) only.
+  GraspField field(std::make_shared<SphereDistanceField>(Eigen::Vector3d(-0.01, 0.02, 0.0), 0.012),
+                   Eigen::Isometry3d::Identity());
+  const ToolWrench w = field.Evaluate(Grip(M_PI / 2));
+  EXPECT_GT(field.depth(0), 0.001);
+  EXPECT_EQ(field.depth(1), 0.0);
+  EXPECT_EQ(w.g, 0.0);
+  EXPECT_FALSE(field.grasped());
+}
+
+TEST(GraspField, GraspedObjectFollowsTheGrip) {
+  GraspSettings s;
+  GraspField field(Ball(), BallPose(), s);
+  const double theta = ContactAngle() - 0.02;
+  field.Evaluate(Grip(M_PI / 2));
+  const double g_held = field.Evaluate(Grip(theta, 1e-3)).g;
+  ASSERT_TRUE(field.grasped());
+  ToolKinematics moved = Grip(theta, 2e-3);
+  moved.p_WT = Eigen::Vector3d(0.1, 0.2, 0.3);
+  moved.R_WT = Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, -2, 1).normalized()).toRotationMatrix();
+  const double g_moved = field.Evaluate(moved).g;
+  EXPECT_TRUE(field.grasped());
+  const Eigen::Vector3d centre = moved.p_WT + moved.R_WT * (kDistance * kBisector);
+  EXPECT_LT((field.X_WO().translation() - centre).norm(), 1e-12);
+  EXPECT_LT((field.X_WO().linear() - moved.R_WT).norm(), 1e-12);
+  EXPECT_NEAR(g_moved, g_held, 1e-9);
+  EXPECT_TRUE(field.LatestState().grasped);
+  // Opened: released where it is.
+  moved.grasp = M_PI / 2;
+  field.Evaluate(moved);
+  EXPECT_FALSE(field.grasped());
+  moved.p_WT.setZero();
+  field.Evaluate(moved);
+  EXPECT_LT((field.X_WO().translation() - centre).norm(), 1e-12);
+}
+
+TEST(GraspField, RejectsBadInput) {
+  EXPECT_THROW(GraspField(nullptr, Eigen::Isometry3d::Identity()), std::invalid_argument);
+  GraspSettings s;
+  s.samples = 2;
+  EXPECT_THROW(GraspField(Ball(), BallPose(), s), std::invalid_argument);
+}
+
+TEST(GraspField, EvaluateAllocatesNothing) {
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  GraspField field(Ball(), BallPose());
+  int grasped = 0;
+  long allocations = 0;
+  {
+    test_support::MallocCounter counter;
+    for (int k = 0; k < 2000; ++k) {
+      ToolKinematics tool = Grip(1.3 + 0.35 * std::sin(0.01 * k), 1e-3 * k);
+      tool.p_WT = Eigen::Vector3d(0.001 * std::sin(0.02 * k), 0, 0);
+      field.Evaluate(tool);
+      grasped += field.grasped();
+      (void)field.LatestState();
+    }
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GT(grasped, 100);
+}
+
+}  // namespace
+}  // namespace spidarcad::haptics
