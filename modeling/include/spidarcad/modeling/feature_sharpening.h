@@ -1,0 +1,77 @@
+// Feature sharpening of a surface mesh of an implicit solid: marching tetrahedra cuts the sharp
+// edges (creases) and corners of boxes and booleans off by up to about one cell; this pass puts
+// mesh vertices back onto the creases and corners of the true surface and flips edges so that
+// chains of mesh edges run along them.
+//
+// Method (per iteration):
+//  1. Planes of the true surface near each vertex: its own position and its one-ring neighbours
+//     (mesh vertices lie on the surface), and the centroid of each adjacent triangle projected
+//     onto the surface by Newton steps; each plane is the point with the unit gradient there.
+//  2. A vertex whose plane normals spread by more than the crease angle is a feature vertex. Its
+//     quadric error function sum_i (n_i·(x - p_i))² is minimised by a truncated SVD as in dual
+//     contouring: singular values below singular_threshold × the largest are dropped, so the
+//     minimiser is the point of the crease line nearest to the vertex (rank 2) or the corner
+//     (rank 3). The point is projected onto the surface by Newton steps (curved creases).
+//  3. Feature vertices are moved, nearest target first, when the move is at most
+//     max_move_cells cells, keeps every adjacent triangle facing the same way as before and as
+//     the surface, makes no triangle sharper than min_angle_deg (unless it already was), keeps
+//     the vertex min_separation_cells away from every other vertex, and lowers the sampled
+//     distance of the adjacent triangles to the surface. Otherwise the vertex stays.
+//  4. Edges next to feature vertices are flipped when the flip lowers the sampled distance of
+//     the two triangles to the surface by half, keeps both facing outward and makes no
+//     degenerate triangle: this turns the chamfer's diagonals into edges along the crease.
+// Only vertex moves and edge flips that pass the link test are used, so the mesh stays closed,
+// manifold, consistently oriented and of the same genus; vertex count and triangle count are
+// unchanged.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <atomic>
+
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/surface_mesher.h"
+
+namespace spidarcad::modeling {
+
+// Settings of SharpenFeatures.
+struct FeatureSettings {
+  // Grid cell edge the mesh was made with (m), > 0: scales every length below.
+  double cell_size = 0.002;
+  // Plane normals near a vertex that spread by more than this (degrees, in (0, 180)) make it a
+  // feature vertex.
+  double crease_angle_deg = 30.0;
+  // Rounds of (target, move, flip); each round sees the neighbourhoods the last one made.
+  int iterations = 3;
+  // Truncated SVD: singular values of the normal matrix below this fraction of the largest are
+  // dropped (in (0, 1)).
+  double singular_threshold = 0.1;
+  // A vertex moves at most this many cells; farther targets are left alone (> 0).
+  double max_move_cells = 1.5;
+  // No moved vertex comes closer than this many cells to another vertex (>= 0).
+  double min_separation_cells = 0.05;
+  // Moves and flips may not make a triangle angle below this (degrees) unless the triangle
+  // already had one.
+  double min_angle_deg = 1.0;
+  // Polled between rounds and passes; when true SharpenFeatures throws MeshingCancelled.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+// Figures of one SharpenFeatures run.
+struct FeatureStats {
+  long feature_vertices = 0;  // vertices classified as crease or corner (last round)
+  long corner_vertices = 0;   // of which rank 3 (corners, last round)
+  long vertices_moved = 0;    // moves done, over all rounds
+  long edges_flipped = 0;     // flips done, over all rounds
+  long rejected_moves = 0;    // feature targets a safety test refused
+  double seconds = 0.0;
+};
+
+// Moves vertices of mesh (from MeshSurface of solid: closed, manifold, outward-oriented,
+// vertices on the surface) onto the creases and corners of solid and flips edges along them
+// (see the top of this file). Returns the sharpened mesh, same vertex and triangle counts.
+// Throws std::invalid_argument for bad settings or a mesh that is not a closed edge-manifold
+// (index out of range, an edge not shared by exactly two triangles), MeshingCancelled on cancel.
+TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh, const FeatureSettings& settings,
+                             FeatureStats* stats = nullptr);
+
+}  // namespace spidarcad::modeling

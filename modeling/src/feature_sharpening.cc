@@ -1,0 +1,486 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/modeling/feature_sharpening.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+namespace spidarcad::modeling {
+
+namespace {
+
+// A plane of the true surface: a point on it and the unit outward normal there.
+struct Plane {
+  Eigen::Vector3d point;
+  Eigen::Vector3d normal;
+};
+
+// Barycentric sample points of a triangle for the sampled distance: the centroid, the three edge
+// midpoints and three inner points.
+constexpr std::array<std::array<double, 3>, 7> kSamples = {{
+    {1.0 / 3, 1.0 / 3, 1.0 / 3},
+    {0.5, 0.5, 0.0},
+    {0.0, 0.5, 0.5},
+    {0.5, 0.0, 0.5},
+    {2.0 / 3, 1.0 / 6, 1.0 / 6},
+    {1.0 / 6, 2.0 / 3, 1.0 / 6},
+    {1.0 / 6, 1.0 / 6, 2.0 / 3},
+}};
+
+// Sampled distance of one or more triangles to the surface: sum of squares and max of |value|.
+struct Deviation {
+  double sum2 = 0.0;
+  double max = 0.0;
+  void Add(const Deviation& d) {
+    sum2 += d.sum2;
+    max = std::max(max, d.max);
+  }
+};
+
+double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) { return std::atan2(u.cross(w).norm(), u.dot(w)); };
+  return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
+}
+
+class Sharpener {
+ public:
+  Sharpener(const CompiledSolid& solid, const TriangleMesh& mesh, const FeatureSettings& s) : solid_(solid), s_(s) {
+    h_ = s.cell_size;
+    const Eigen::Index nv = mesh.vertices.cols(), nt = mesh.triangles.cols();
+    pos_.resize(nv);
+    for (Eigen::Index i = 0; i < nv; ++i) {
+      pos_[i] = mesh.vertices.col(i);
+      if (!pos_[i].allFinite()) {
+        throw std::invalid_argument("SharpenFeatures: mesh vertex " + std::to_string(i) + " is not finite");
+      }
+    }
+    tris_.resize(nt);
+    vertex_tris_.resize(nv);
+    std::map<std::pair<int, int>, int> directed;
+    for (Eigen::Index t = 0; t < nt; ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const int v = mesh.triangles(k, t);
+        if (v < 0 || v >= nv) {
+          throw std::invalid_argument("SharpenFeatures: triangle " + std::to_string(t) + " corner " + std::to_string(k) +
+                                      ": vertex index " + std::to_string(v) + " out of range [0, " + std::to_string(nv) + ")");
+        }
+        tris_[t][k] = v;
+      }
+      for (int k = 0; k < 3; ++k) {
+        const int a = tris_[t][k], b = tris_[t][(k + 1) % 3];
+        if (a == b) throw std::invalid_argument("SharpenFeatures: triangle " + std::to_string(t) + " repeats vertex " + std::to_string(a));
+        if (++directed[{a, b}] > 1) {
+          throw std::invalid_argument("SharpenFeatures: directed edge " + std::to_string(a) + "-" + std::to_string(b) +
+                                      " occurs twice (triangle " + std::to_string(t) + "): mesh not manifold or not oriented");
+        }
+        vertex_tris_[a].push_back(static_cast<int>(t));
+      }
+    }
+    for (const auto& [edge, count] : directed) {
+      if (directed.find({edge.second, edge.first}) == directed.end()) {
+        throw std::invalid_argument("SharpenFeatures: edge " + std::to_string(edge.first) + "-" + std::to_string(edge.second) +
+                                    " has one triangle: the mesh is not closed");
+      }
+    }
+    for (int v = 0; v < static_cast<int>(nv); ++v) HashInsert(v);
+  }
+
+  TriangleMesh Run(FeatureStats* stats) {
+    const double cos_crease = std::cos(s_.crease_angle_deg * M_PI / 180.0);
+    const double cos_half_crease = std::cos(0.5 * s_.crease_angle_deg * M_PI / 180.0);
+    long feature = 0, corners = 0;
+    for (int round = 0; round < s_.iterations; ++round) {
+      Poll();
+      // 1. Planes at the vertices (Jacobi: from this round's mesh); planes at projected triangle
+      // centroids are made on demand (TrianglePlane), only around vertices whose own planes
+      // already spread past the crease angle.
+      ++round_stamp_;
+      vertex_normal_.assign(pos_.size(), Eigen::Vector3d::Zero());
+      for (size_t v = 0; v < pos_.size(); ++v) vertex_normal_[v] = UnitGradient(pos_[v]);
+      tri_plane_.resize(tris_.size());
+      tri_stamp_.resize(tris_.size(), 0);
+      // 2. Targets of feature vertices.
+      struct Candidate {
+        int rank;
+        double distance;
+        int vertex;
+        Eigen::Vector3d target;
+      };
+      std::vector<Candidate> candidates;
+      is_feature_.assign(pos_.size(), false);
+      feature = corners = 0;
+      std::vector<Plane> planes;
+      for (int v = 0; v < static_cast<int>(pos_.size()); ++v) {
+        if (!VertexNormalsSpread(v, cos_crease, cos_half_crease)) continue;
+        GatherPlanes(v, &planes);
+        int rank = 0;
+        Eigen::Vector3d target;
+        if (!Solve(v, planes, cos_crease, &rank, &target)) continue;
+        is_feature_[v] = true;
+        ++feature;
+        corners += rank == 3;
+        const double d = (target - pos_[v]).norm();
+        if (d > 1e-9 * h_) candidates.push_back({rank, d, v, target});
+      }
+      // 3. Moves, nearest target first.
+      std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+        return a.distance < b.distance || (a.distance == b.distance && a.vertex < b.vertex);
+      });
+      long moved = 0;
+      for (const Candidate& c : candidates) {
+        if (TryMove(c.vertex, c.target)) {
+          ++moved;
+        } else {
+          ++rejected_;
+        }
+      }
+      moved_ += moved;
+      // 4. Flips next to feature vertices.
+      long flipped = 0;
+      dirty_.assign(tris_.size(), 1);
+      for (int pass = 0; pass < 8; ++pass) {
+        Poll();
+        const long f = FlipPass();
+        flipped += f;
+        if (f == 0) break;
+      }
+      flipped_ += flipped;
+      if (moved == 0 && flipped == 0) break;
+    }
+    if (stats) {
+      stats->feature_vertices = feature;
+      stats->corner_vertices = corners;
+      stats->vertices_moved = moved_;
+      stats->edges_flipped = flipped_;
+      stats->rejected_moves = rejected_;
+    }
+    TriangleMesh out;
+    out.vertices.resize(3, static_cast<Eigen::Index>(pos_.size()));
+    for (size_t i = 0; i < pos_.size(); ++i) out.vertices.col(static_cast<Eigen::Index>(i)) = pos_[i];
+    out.triangles.resize(3, static_cast<Eigen::Index>(tris_.size()));
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      for (int k = 0; k < 3; ++k) out.triangles(k, static_cast<Eigen::Index>(t)) = tris_[t][k];
+    }
+    return out;
+  }
+
+ private:
+  void Poll() const {
+    if (s_.cancel && s_.cancel->load(std::memory_order_relaxed)) throw MeshingCancelled();
+  }
+
+  // Unit gradient at p (zero where the gradient vanishes).
+  Eigen::Vector3d UnitGradient(const Eigen::Vector3d& p) const {
+    Eigen::Vector3d g;
+    solid_.ValueAndGradient(p, &g);
+    const double n = g.norm();
+    return n > 1e-12 ? Eigen::Vector3d(g / n) : Eigen::Vector3d::Zero();
+  }
+
+  // Newton steps p -= f ∇f / |∇f|² towards the zero set; stops when |f| <= 1e-9 cells.
+  Eigen::Vector3d Project(Eigen::Vector3d p, int steps) const {
+    for (int i = 0; i < steps; ++i) {
+      Eigen::Vector3d g;
+      const double f = solid_.ValueAndGradient(p, &g);
+      const double g2 = g.squaredNorm();
+      if (std::abs(f) <= 1e-9 * h_ || g2 < 1e-12) break;
+      p -= (f / g2) * g;
+    }
+    return p;
+  }
+
+  Deviation TriangleDeviation(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) const {
+    Deviation d;
+    for (const auto& w : kSamples) {
+      const double f = std::abs(solid_.Value(w[0] * a + w[1] * b + w[2] * c));
+      d.sum2 += f * f;
+      d.max = std::max(d.max, f);
+    }
+    return d;
+  }
+
+  // Plane at the centroid of triangle t projected onto the surface, made once per round.
+  const Plane& TrianglePlane(int t) {
+    if (tri_stamp_[t] != round_stamp_) {
+      const Eigen::Vector3d c = (pos_[tris_[t][0]] + pos_[tris_[t][1]] + pos_[tris_[t][2]]) / 3.0;
+      const Eigen::Vector3d p = Project(c, 4);
+      tri_plane_[t] = {p, UnitGradient(p)};
+      tri_stamp_[t] = round_stamp_;
+    }
+    return tri_plane_[t];
+  }
+
+  // Whether the normals at v and its one-ring neighbours spread past the crease angle, or an
+  // adjacent triangle turns by more than half of it from the normal at v (a cheap test before the
+  // triangle planes are made; the second part catches a vertex on a crease, whose gradient is
+  // that of one face only, among neighbours on that face).
+  bool VertexNormalsSpread(int v, double cos_crease, double cos_half_crease) {
+    for (int t : vertex_tris_[v]) {
+      const auto& tri = tris_[t];
+      const Eigen::Vector3d n = (pos_[tri[1]] - pos_[tri[0]]).cross(pos_[tri[2]] - pos_[tri[0]]);
+      if (n.dot(vertex_normal_[v]) < cos_half_crease * n.norm()) return true;
+    }
+    ring_.clear();
+    for (int t : vertex_tris_[v]) {
+      for (int w : tris_[t]) ring_.push_back(w);
+    }
+    std::sort(ring_.begin(), ring_.end());
+    ring_.erase(std::unique(ring_.begin(), ring_.end()), ring_.end());
+    for (size_t i = 0; i < ring_.size(); ++i) {
+      for (size_t j = i + 1; j < ring_.size(); ++j) {
+        if (vertex_normal_[ring_[i]].dot(vertex_normal_[ring_[j]]) < cos_crease) return true;
+      }
+    }
+    return false;
+  }
+
+  void GatherPlanes(int v, std::vector<Plane>* planes) {
+    planes->clear();
+    auto add = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
+      if (n.squaredNorm() > 0.5) planes->push_back({p, n});
+    };
+    add(pos_[v], vertex_normal_[v]);
+    for (int t : vertex_tris_[v]) {
+      const Plane& tp = TrianglePlane(t);
+      add(tp.point, tp.normal);
+      for (int w : tris_[t]) {
+        // Each neighbour appears in two triangles of the fan: take it from the one where it
+        // follows v, so it is added once.
+        if (w == v) continue;
+        const auto& tri = tris_[t];
+        const int at = tri[0] == v ? 0 : tri[1] == v ? 1 : 2;
+        if (tri[(at + 1) % 3] == w) add(pos_[w], vertex_normal_[w]);
+      }
+    }
+  }
+
+  // Classifies vertex v by its planes; for a feature vertex writes the rank (2 crease, 3 corner)
+  // and the target (QEF minimiser nearest to the vertex, projected onto the surface). Returns
+  // whether v is a feature vertex with a usable target.
+  bool Solve(int v, const std::vector<Plane>& planes, double cos_crease, int* rank, Eigen::Vector3d* target) const {
+    if (planes.size() < 2) return false;
+    double min_dot = 1.0;
+    for (size_t i = 0; i < planes.size(); ++i) {
+      for (size_t j = i + 1; j < planes.size(); ++j) min_dot = std::min(min_dot, planes[i].normal.dot(planes[j].normal));
+    }
+    if (min_dot >= cos_crease) return false;
+    // Normal equations around the vertex: M = Σ n nᵀ, r = Σ n (n·(p_i - x0)).
+    const Eigen::Vector3d x0 = pos_[v];
+    Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d r = Eigen::Vector3d::Zero();
+    for (const Plane& p : planes) {
+      m += p.normal * p.normal.transpose();
+      r += p.normal * p.normal.dot(p.point - x0);
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m);  // ascending eigenvalues
+    const Eigen::Vector3d lambda = eig.eigenvalues();
+    const double sigma1 = std::sqrt(std::max(lambda[2], 0.0));
+    if (!(sigma1 > 0.0)) return false;
+    int k = 1;
+    if (std::sqrt(std::max(lambda[1], 0.0)) > s_.singular_threshold * sigma1) ++k;
+    if (k == 2 && std::sqrt(std::max(lambda[0], 0.0)) > s_.singular_threshold * sigma1) ++k;
+    if (k == 1) k = 2;  // the normals spread past the crease angle: at least a crease
+    Eigen::Vector3d x = x0;
+    for (int i = 0; i < k; ++i) {
+      const Eigen::Vector3d e = eig.eigenvectors().col(2 - i);
+      const double l = lambda[2 - i];
+      if (l <= 1e-12 * lambda[2]) continue;
+      x += e * (e.dot(r) / l);
+    }
+    x = Project(x, 6);
+    if (!x.allFinite() || std::abs(solid_.Value(x)) > 1e-4 * h_) return false;
+    *rank = k;
+    *target = x;
+    return true;
+  }
+
+  // Whether a triangle (a, b, c) with normal n faces the way the surface does: positive dot
+  // product with the unit gradient at its centroid projected onto the surface. (The gradients at
+  // its corners are no help: on a crease or corner the gradient is that of one face only.)
+  bool FacesOutward(const Eigen::Vector3d& n, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) const {
+    return n.dot(UnitGradient(Project((a + b + c) / 3.0, 3))) > 0.0;
+  }
+
+  // Moves v to x if every safety test passes (see the header). Returns whether it moved.
+  bool TryMove(int v, const Eigen::Vector3d& x) {
+    const Eigen::Vector3d old = pos_[v];
+    if ((x - old).norm() > s_.max_move_cells * h_) return false;
+    if (TooClose(v, x)) return false;
+    const double min_angle = s_.min_angle_deg * M_PI / 180.0;
+    Deviation before, after;
+    for (int t : vertex_tris_[v]) {
+      const auto& tri = tris_[t];
+      std::array<Eigen::Vector3d, 3> p{pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]};
+      const Eigen::Vector3d n_old = (p[1] - p[0]).cross(p[2] - p[0]);
+      const double angle_old = MinAngle(p[0], p[1], p[2]);
+      before.Add(TriangleDeviation(p[0], p[1], p[2]));
+      for (int k = 0; k < 3; ++k) {
+        if (tri[k] == v) p[k] = x;
+      }
+      const Eigen::Vector3d n_new = (p[1] - p[0]).cross(p[2] - p[0]);
+      if (!(n_new.dot(n_old) > 0.0)) return false;
+      const double angle_new = MinAngle(p[0], p[1], p[2]);
+      if (angle_new < std::min(angle_old, min_angle)) return false;
+      if (!FacesOutward(n_new, p[0], p[1], p[2])) return false;
+      after.Add(TriangleDeviation(p[0], p[1], p[2]));
+    }
+    if (!(after.sum2 < before.sum2) || after.max > before.max + 1e-9 * h_) return false;
+    HashErase(v);
+    pos_[v] = x;
+    HashInsert(v);
+    return true;
+  }
+
+  // Flips edges of triangles around feature vertices that lower the sampled deviation by half.
+  // Only triangles marked dirty (all at the start of a round, then those near a flip) are tried.
+  long FlipPass() {
+    long flips = 0;
+    const double min_angle = s_.min_angle_deg * M_PI / 180.0;
+    for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
+      if (!dirty_[t]) continue;  // nothing near it changed since it was last tried
+      dirty_[t] = 0;
+      for (int k = 0; k < 3; ++k) {
+        const int p = tris_[t][k], q = tris_[t][(k + 1) % 3];
+        if (p > q) continue;  // each edge once, from the triangle where it runs p -> q with p < q
+        if (!is_feature_[p] && !is_feature_[q]) continue;
+        if (TryFlip(t, p, q, min_angle)) {
+          ++flips;
+          break;  // triangle t changed
+        }
+      }
+    }
+    return flips;
+  }
+
+  // Triangle t = (p, q, c) and its neighbour (q, p, d) become (c, p, d) and (d, q, c).
+  bool TryFlip(int t, int p, int q, double min_angle) {
+    int t2 = -1;
+    for (int u : vertex_tris_[q]) {
+      if (u == t) continue;
+      const auto& tri = tris_[u];
+      for (int k = 0; k < 3; ++k) {
+        if (tri[k] == q && tri[(k + 1) % 3] == p) t2 = u;
+      }
+    }
+    if (t2 < 0) return false;
+    const auto& tri = tris_[t];
+    const int at = tri[0] == p ? 0 : tri[1] == p ? 1 : 2;
+    const int c = tri[(at + 2) % 3];
+    const auto& tri2 = tris_[t2];
+    const int d = tri2[0] != p && tri2[0] != q ? tri2[0] : tri2[1] != p && tri2[1] != q ? tri2[1] : tri2[2];
+    if (c == d) return false;
+    if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
+    for (int u : vertex_tris_[c]) {
+      for (int w : tris_[u]) {
+        if (w == d) return false;  // c-d is already an edge
+      }
+    }
+    const Eigen::Vector3d &P = pos_[p], &Q = pos_[q], &C = pos_[c], &D = pos_[d];
+    const Eigen::Vector3d n1 = (Q - P).cross(C - P), n2 = (P - Q).cross(D - Q);
+    const Eigen::Vector3d m1 = (P - C).cross(D - C), m2 = (Q - D).cross(C - D);
+    const Eigen::Vector3d ref = n1 + n2;
+    if (!(m1.dot(ref) > 0.0) || !(m2.dot(ref) > 0.0)) return false;
+    const double old_angle = std::min(MinAngle(P, Q, C), MinAngle(Q, P, D));
+    if (std::min(MinAngle(C, P, D), MinAngle(D, Q, C)) < std::min(old_angle, min_angle)) return false;
+    if (!FacesOutward(m1, C, P, D) || !FacesOutward(m2, D, Q, C)) return false;
+    Deviation before = TriangleDeviation(P, Q, C), after = TriangleDeviation(C, P, D);
+    before.Add(TriangleDeviation(Q, P, D));
+    after.Add(TriangleDeviation(D, Q, C));
+    if (!(after.sum2 < 0.5 * before.sum2) || after.max > before.max) return false;
+    tris_[t] = {c, p, d};
+    tris_[t2] = {d, q, c};
+    // t lost q and gained d; t2 lost p and gained c.
+    auto erase = [&](int v, int u) {
+      auto& list = vertex_tris_[v];
+      list.erase(std::remove(list.begin(), list.end(), u), list.end());
+    };
+    erase(q, t);
+    vertex_tris_[d].push_back(t);
+    erase(p, t2);
+    vertex_tris_[c].push_back(t2);
+    for (int v : {p, q, c, d}) {
+      for (int u : vertex_tris_[v]) dirty_[u] = 1;
+    }
+    return true;
+  }
+
+  // Spatial hash of vertex positions on cells of edge h, for the separation test.
+  long long Key(const Eigen::Vector3d& p) const {
+    const long long i = static_cast<long long>(std::floor(p.x() / h_)) & 0x1fffff;
+    const long long j = static_cast<long long>(std::floor(p.y() / h_)) & 0x1fffff;
+    const long long k = static_cast<long long>(std::floor(p.z() / h_)) & 0x1fffff;
+    return (i << 42) | (j << 21) | k;
+  }
+  void HashInsert(int v) { hash_[Key(pos_[v])].push_back(v); }
+  void HashErase(int v) {
+    auto& list = hash_[Key(pos_[v])];
+    list.erase(std::remove(list.begin(), list.end(), v), list.end());
+  }
+  bool TooClose(int v, const Eigen::Vector3d& x) const {
+    const double r2 = (s_.min_separation_cells * h_) * (s_.min_separation_cells * h_);
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = hash_.find(Key(x + h_ * Eigen::Vector3d(dx, dy, dz)));
+          if (it == hash_.end()) continue;
+          for (int w : it->second) {
+            if (w != v && (pos_[w] - x).squaredNorm() < r2) return true;
+          }
+        }
+      }
+    }
+    return false;
+  }
+
+  const CompiledSolid& solid_;
+  const FeatureSettings& s_;
+  double h_ = 0.0;
+  std::vector<Eigen::Vector3d> pos_;
+  std::vector<std::array<int, 3>> tris_;
+  std::vector<std::vector<int>> vertex_tris_;
+  std::vector<Eigen::Vector3d> vertex_normal_;
+  std::vector<Plane> tri_plane_;
+  std::vector<int> tri_stamp_;
+  std::vector<int> ring_;     // scratch of VertexNormalsSpread
+  std::vector<char> dirty_;   // per triangle: to be tried by the next FlipPass
+  int round_stamp_ = 0;
+  std::vector<bool> is_feature_;
+  std::unordered_map<long long, std::vector<int>> hash_;
+  long moved_ = 0, flipped_ = 0, rejected_ = 0;
+};
+
+void Validate(const FeatureSettings& s) {
+  auto bad = [](const std::string& field, double value, const std::string& rule) {
+    throw std::invalid_argument("SharpenFeatures: settings." + field + " = " + std::to_string(value) + ": " + rule);
+  };
+  if (!(s.cell_size > 0.0) || !std::isfinite(s.cell_size)) bad("cell_size", s.cell_size, "must be a finite length > 0 m");
+  if (!(s.crease_angle_deg > 0.0 && s.crease_angle_deg < 180.0)) bad("crease_angle_deg", s.crease_angle_deg, "must be in (0, 180)");
+  if (s.iterations < 0) bad("iterations", s.iterations, "must be >= 0");
+  if (!(s.singular_threshold > 0.0 && s.singular_threshold < 1.0)) bad("singular_threshold", s.singular_threshold, "must be in (0, 1)");
+  if (!(s.max_move_cells > 0.0) || !std::isfinite(s.max_move_cells)) bad("max_move_cells", s.max_move_cells, "must be > 0");
+  if (!(s.min_separation_cells >= 0.0) || !std::isfinite(s.min_separation_cells)) {
+    bad("min_separation_cells", s.min_separation_cells, "must be >= 0");
+  }
+  if (!(s.min_angle_deg >= 0.0 && s.min_angle_deg < 60.0)) bad("min_angle_deg", s.min_angle_deg, "must be in [0, 60)");
+}
+
+}  // namespace
+
+TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh, const FeatureSettings& settings, FeatureStats* stats) {
+  const auto start = std::chrono::steady_clock::now();
+  Validate(settings);
+  Sharpener sharpener(solid, mesh, settings);
+  TriangleMesh out = sharpener.Run(stats);
+  if (stats) stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace spidarcad::modeling
