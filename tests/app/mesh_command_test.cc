@@ -135,6 +135,40 @@ TEST(MeshCommand, WritesPlatformTetsAsVtuWithThePrintedCounts) {
   EXPECT_NE(run.out.find("dihedral"), std::string::npos) << run.out;
 }
 
+TEST(MeshCommand, CgalWritesPositivePlatformTetsWithThePrintedCounts) {
+  const std::string vtu_path = OutputPath("platform_cgal.vtu");
+  std::remove(vtu_path.c_str());
+  const CommandRun run = RunMesh("'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.006 --tets cgal", "cgal");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::string vtu = ReadWholeFile(vtu_path);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
+  const long points = std::stol(m[1]), cells = std::stol(m[2]);
+  EXPECT_EQ(points, PrintedCount(run.out, "nodes")) << run.out;
+  EXPECT_EQ(cells, PrintedCount(run.out, "tets")) << run.out;
+  EXPECT_GT(cells, 1000);
+  const std::vector<double> xyz = DataArray(vtu, "Points");
+  const std::vector<double> connectivity = DataArray(vtu, "connectivity");
+  ASSERT_EQ(static_cast<long>(xyz.size()), 3 * points);
+  ASSERT_EQ(static_cast<long>(connectivity.size()), 4 * cells);
+  double volume = 0.0;
+  for (long t = 0; t < cells; ++t) {
+    Eigen::Vector3d p[4];
+    for (int k = 0; k < 4; ++k) {
+      const long i = static_cast<long>(connectivity[4 * t + k]);
+      ASSERT_GE(i, 0);
+      ASSERT_LT(i, points);
+      p[k] = Eigen::Vector3d(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    }
+    const double v = (p[1] - p[0]).dot((p[2] - p[0]).cross(p[3] - p[0])) / 6.0;
+    EXPECT_GT(v, 0.0) << "tet " << t;
+    volume += v;
+  }
+  EXPECT_NEAR(volume, PlatformVolume(), 0.05 * PlatformVolume());
+  EXPECT_NE(run.out.find("dihedral"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("error max"), std::string::npos) << run.out;
+}
+
 TEST(MeshCommand, WritesTetgenNodeAndEleFiles) {
   const std::string base = OutputPath("platform_tets");
   std::remove((base + ".node").c_str());
@@ -192,9 +226,10 @@ TEST(MeshCommand, UnknownExtensionAndBadOptionsExitTwo) {
   EXPECT_EQ(ext.status, 2);
   EXPECT_NE(ext.err.find(".xyz"), std::string::npos) << ext.err;
 
-  const CommandRun cgal = RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets cgal", "cgal");
-  EXPECT_EQ(cgal.status, 2);
-  EXPECT_NE(cgal.err.find("not available yet"), std::string::npos) << cgal.err;
+  const CommandRun tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets netgen", "tets");
+  EXPECT_EQ(tets.status, 2);
+  EXPECT_NE(tets.err.find("netgen"), std::string::npos) << tets.err;
+  EXPECT_NE(tets.err.find("tetgen or cgal"), std::string::npos) << tets.err;
 
   const CommandRun vtu_without_tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("n.vtu") + "'", "notets");
   EXPECT_EQ(vtu_without_tets.status, 2);
@@ -222,7 +257,7 @@ TEST(MeshCommand, HelpTeachesWithPlatformExamples) {
   const CommandRun run = RunMesh("--help", "help");
   EXPECT_EQ(run.status, 0);
   EXPECT_NE(run.out.find("assets/scenes/platform.json --out platform.vtu --tets tetgen"), std::string::npos) << run.out;
-  EXPECT_NE(run.out.find("not available yet"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("--tets cgal"), std::string::npos) << run.out;
 }
 
 }  // namespace

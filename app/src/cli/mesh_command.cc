@@ -1,5 +1,5 @@
 // `spidarcad mesh`: an implicit solid of a scene file -> a surface mesh (STL, OBJ, PLY) or, with
-// --tets tetgen, a tetrahedral mesh (VTU for ParaView, TetGen .node/.ele), with figures.
+// --tets tetgen|cgal, a tetrahedral mesh (VTU for ParaView, TetGen .node/.ele), with figures.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <algorithm>
 #include <cctype>
@@ -14,6 +14,7 @@
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "cli/scene_solid.h"
+#include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -48,8 +49,12 @@ constexpr const char* kMeshHelp =
     "collapses and flips) that removes zero-area and sliver triangles; closed and manifold.\n"
     "Volume (--tets tetgen): TetGen 1.5 tetrahedralizes that surface; --quality Q bounds the\n"
     "radius-edge ratio (TetGen's q switch, > 1; 0 turns refinement off), --max-volume V bounds\n"
-    "the tet volume in m^3 (TetGen's a switch). --tets cgal (CGAL Mesh_3 straight from the\n"
-    "implicit function) is a later step and answers 'not available yet'.\n"
+    "the tet volume in m^3 (TetGen's a switch).\n"
+    "Volume (--tets cgal): CGAL Mesh_3 straight from the implicit function (no surface mesh):\n"
+    "facet and cell size R (the resolution), facet distance R/10, facet angle 25 deg, then sliver\n"
+    "perturbation and exudation; --quality Q is the cell radius-edge bound (> 1; 0: 3), and\n"
+    "--max-volume V lowers the cell size to the circumradius of a regular tet of volume V.\n"
+    "Boundary nodes lie on the surface; sharp edges are cut off by up to about R/10.\n"
     "Output by extension: .stl (binary), .obj, .ply (binary) for the surface; .vtu (ParaView,\n"
     "cell data region/volume/min_dihedral_deg) or .node (+ .ele beside it) with --tets.\n"
     "Prints counts, times, the smallest triangle angle, the surface error (max |f| sampled at\n"
@@ -63,7 +68,8 @@ constexpr const char* kMeshHelp =
     "  spidarcad mesh assets/scenes/platform.json --out platform.vtu --tets tetgen \\\n"
     "      --resolution 0.003 --quality 1.5 --max-volume 1e-7\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.node --tets tetgen\n"
-    "      (writes platform.node and platform.ele)\n";
+    "      (writes platform.node and platform.ele)\n"
+    "  spidarcad mesh assets/scenes/platform.json --out platform.vtu --tets cgal --resolution 0.004\n";
 
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -87,22 +93,65 @@ double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// Writes tets to o.out (.vtu, or .node with .ele beside it) and says so.
+void WriteTets(const TetMesh& tets, const std::string& out, const std::string& ext) {
+  const auto start = std::chrono::steady_clock::now();
+  if (ext == ".vtu") {
+    WriteVtu(tets, out);
+    std::cout << "wrote " << out;
+  } else {
+    const std::string base = out.substr(0, out.size() - ext.size());
+    WriteTetgenFiles(tets, base);
+    std::cout << "wrote " << base << ".node and " << base << ".ele";
+  }
+  std::cout << " (" << Fmt(Seconds(start), 3) << " s)\n";
+}
+
+// --tets cgal: CGAL Mesh_3 from the implicit function on the grid's box, sizes from its cell.
+void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string& ext) {
+  CgalMeshSettings settings = CgalMeshSettings::ForSize(grid.cell);
+  settings.cell_radius_edge_ratio = o.quality > 0.0 ? o.quality : 3.0;
+  if (o.max_volume > 0.0) {
+    // Circumradius of the regular tet of volume V: edge a = (6 sqrt(2) V)^(1/3), R = sqrt(6)/4 a.
+    const double edge = std::cbrt(6.0 * std::sqrt(2.0) * o.max_volume);
+    settings.cell_size = std::min(settings.cell_size, std::sqrt(6.0) / 4.0 * edge);
+  }
+  CgalMeshStats stats;
+  const TetMesh tets = MeshImplicitWithCgal(grid.compiled, grid.bounds, settings, &stats);
+  const TriangleMesh boundary = BoundarySurface(tets);
+  const TriangleAngleStats angles = MeasureTriangleAngles(boundary, 5.0);
+  const SurfaceError error = MeasureSurfaceError(grid.compiled, boundary);
+  const TetQuality& q = stats.quality;
+  std::cout << "scene " << o.scene << ", solid '" << grid.solid_name << "'\n";
+  std::cout << "cgal mesh_3: facet size " << Fmt(settings.facet_size) << " m, facet distance "
+            << Fmt(settings.facet_distance) << " m, cell size " << Fmt(settings.cell_size) << " m, radius-edge "
+            << Fmt(settings.cell_radius_edge_ratio) << ", box " << Fmt(grid.bounds.sizes().x()) << " x "
+            << Fmt(grid.bounds.sizes().y()) << " x " << Fmt(grid.bounds.sizes().z()) << " m\n";
+  std::cout << "cgal: " << tets.nodes.cols() << " nodes, " << tets.tets.cols() << " tets, " << stats.seed_points
+            << " seeds, refine " << Fmt(stats.refine_seconds, 3) << " s, optimize " << Fmt(stats.optimize_seconds, 3)
+            << " s, total " << Fmt(stats.seconds, 3) << " s\n";
+  std::cout << "boundary: " << boundary.vertices.cols() << " vertices, " << boundary.triangles.cols()
+            << " triangles, min triangle angle " << Fmt(angles.min_angle_deg, 3) << " deg; error max "
+            << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3) << " m\n";
+  std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. " << Fmt(q.max_dihedral_deg, 4)
+            << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3) << ", volume " << Fmt(q.total_volume * 1e6, 6)
+            << " cm^3\n";
+  WriteTets(tets, o.out, ext);
+}
+
 void RunMesh(const MeshOptions& o) {
   const std::string ext = Extension(o.out);
   const bool surface_ext = ext == ".stl" || ext == ".obj" || ext == ".ply";
   const bool volume_ext = ext == ".vtu" || ext == ".node";
   if (!surface_ext && !volume_ext) {
     throw InputError("--out '" + o.out + "': unknown extension '" + ext +
-                     "' (use .stl, .obj, .ply for a surface; .vtu or .node with --tets tetgen)");
+                     "' (use .stl, .obj, .ply for a surface; .vtu or .node with --tets tetgen|cgal)");
   }
-  if (o.tets == "cgal") {
-    throw InputError("--tets cgal: not available yet (CGAL Mesh_3 meshing is a later step); use --tets tetgen");
-  }
-  if (!o.tets.empty() && o.tets != "tetgen") {
-    throw InputError("--tets '" + o.tets + "': expected tetgen (or cgal, not available yet)");
+  if (!o.tets.empty() && o.tets != "tetgen" && o.tets != "cgal") {
+    throw InputError("--tets '" + o.tets + "': expected tetgen or cgal");
   }
   if (volume_ext && o.tets.empty()) {
-    throw InputError("--out '" + o.out + "': " + ext + " holds tetrahedra; add --tets tetgen");
+    throw InputError("--out '" + o.out + "': " + ext + " holds tetrahedra; add --tets tetgen or --tets cgal");
   }
   if (surface_ext && !o.tets.empty()) {
     throw InputError("--out '" + o.out + "': with --tets the output is .vtu or .node, not " + ext);
@@ -121,6 +170,11 @@ void RunMesh(const MeshOptions& o) {
   const CompiledSolid& compiled = grid.compiled;
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;
+
+  if (o.tets == "cgal") {
+    RunCgal(o, grid, ext);
+    return;
+  }
 
   SurfaceMeshSettings settings;
   settings.bounds = bounds;
@@ -173,16 +227,7 @@ void RunMesh(const MeshOptions& o) {
   std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. " << Fmt(q.max_dihedral_deg, 4)
             << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3) << ", volume " << Fmt(q.total_volume * 1e6, 6)
             << " cm^3\n";
-  const auto start = std::chrono::steady_clock::now();
-  if (ext == ".vtu") {
-    WriteVtu(tets, o.out);
-    std::cout << "wrote " << o.out;
-  } else {
-    const std::string base = o.out.substr(0, o.out.size() - ext.size());
-    WriteTetgenFiles(tets, base);
-    std::cout << "wrote " << base << ".node and " << base << ".ele";
-  }
-  std::cout << " (" << Fmt(Seconds(start), 3) << " s)\n";
+  WriteTets(tets, o.out, ext);
 }
 
 }  // namespace
@@ -196,8 +241,9 @@ void RegisterMeshCommand(CLI::App& app) {
   cmd->add_option("--solid", options->solid, "Name of the solid to mesh (default: the first)");
   cmd->add_option("--resolution", options->resolution,
                   "Grid cell edge [m] (default: the solid's largest side / 80; platform: 3.9 mm)");
-  cmd->add_option("--tets", options->tets, "Tetrahedralize: tetgen (cgal: not available yet)");
-  cmd->add_option("--quality", options->quality, "Radius-edge bound for --tets (default 2; > 1; 0: no refinement)");
+  cmd->add_option("--tets", options->tets, "Tetrahedralize: tetgen (of the surface mesh) or cgal (Mesh_3 from the function)");
+  cmd->add_option("--quality", options->quality,
+                  "Radius-edge bound for --tets (default 2; > 1; 0: none for tetgen, 3 for cgal)");
   cmd->add_option("--max-volume", options->max_volume, "Largest tet volume [m^3] for --tets (default 0: unbounded)");
   cmd->add_flag("--raw-surface", options->raw_surface,
                 "Skip the surface clean-up pass (raw marching tetrahedra, for comparison)");
@@ -213,6 +259,9 @@ void RegisterMeshCommand(CLI::App& app) {
     } catch (const TetgenError& e) {
       std::cout.flush();
       throw InputError(std::string("TetGen failed: ") + e.what() + " (try another --resolution or --quality)");
+    } catch (const CgalMeshError& e) {
+      std::cout.flush();
+      throw InputError(std::string("CGAL meshing failed: ") + e.what() + " (try another --resolution or --quality)");
     } catch (const MeshFileError& e) {
       std::cout.flush();
       throw InputError(e.what());
