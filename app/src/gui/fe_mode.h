@@ -1,0 +1,142 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// FE mode of the window (modes.md contract): pick a meshed part, set its material, clamped
+// region and element order, precompute (a Job with progress and cancel), then push it with the
+// grip: the reaction force is felt (FeTouchField) and shown as numbers, and the deformed
+// surface is drawn coloured by von Mises stress with a legend (MPa), the displacement
+// magnified by a slider.
+//
+// The logic lives in runtime/fe_model.h and runtime/fe_touch_field.h (no VTK, no ImGui, tested
+// headless in tests/app/fe_mode_test.cc); this class is the thin VTK/ImGui layer. Main thread
+// only. The haptic thread is the single producer of the column focus (FeTouchField::Evaluate).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <vtkSmartPointer.h>
+
+#include "doc/job.h"
+#include "runtime/fe_model.h"
+#include "runtime/fe_touch_field.h"
+#include "spidarcad/fem/mesh.h"
+#include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/haptic_loop.h"
+
+class vtkRenderer;
+class vtkActor;
+class vtkPolyData;
+class vtkLookupTable;
+class vtkScalarBarActor;
+class vtkSphereSource;
+class vtkDoubleArray;
+
+namespace spidarcad::app {
+
+// Figures of the live FE state shown in the panel (and read by tests/demos).
+struct FeLiveFigures {
+  // FE force on the tool (unscaled), N, in W.
+  Eigen::Vector3d f_tool_W = Eigen::Vector3d::Zero();
+  // Contact nodes, and how many still read a substitute column.
+  int contacts = 0;
+  int substituted = 0;
+  // Largest displacement magnitude of a surface node, m.
+  double max_displacement = 0.0;
+  // Largest nodal von Mises stress on the surface, Pa.
+  double max_von_mises = 0.0;
+  // Columns ready in the cache.
+  int ready_columns = 0;
+};
+
+// The FE mode.
+class FeMode {
+ public:
+  // Adds the mode's actors (deformed part, legend, tool sphere) to `renderer`, hidden until the
+  // mode is active and a model is ready. `jobs` runs meshing and precomputation. Both must
+  // outlive the mode.
+  FeMode(vtkRenderer* renderer, JobQueue* jobs);
+  ~FeMode();
+  FeMode(const FeMode&) = delete;
+  FeMode& operator=(const FeMode&) = delete;
+
+  // Shows or hides the actors. Activating with a ready model queues a field for TakeField;
+  // deactivating saves the ready columns to the disk cache (a Job) and publishes nothing.
+  void SetActive(bool active);
+  // True while active.
+  bool active() const { return active_; }
+  // ImGui widgets of the panel (no Begin/End).
+  void DrawPanel();
+  // Per frame: reads the latest contact state and updates the deformed surface and figures.
+  void OnFrame(const haptics::ToolState& tool);
+  // The force field to publish when it changed since the last call (new model, new tool
+  // settings, activation), else nullptr. Inactive: nullptr.
+  std::unique_ptr<haptics::ForceField> TakeField();
+
+  // Places the actors in the view frame: p_D = (p_W − p_WDo) / world_scale (world_scale > 0),
+  // as SculptMode does.
+  void SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo);
+  // The part to work on (tetrahedra in W, m); drops the current model (precompute again).
+  void SetMesh(fem::TetMesh mesh, std::string name);
+  // Meshes assets/scenes/platform.json at `resolution` m (TetGen) in a Job; its finisher calls
+  // SetMesh(mesh, "platform").
+  void MeshPlatform(double resolution = 0.012);
+  // Starts the precomputation Job with the panel's settings (material, clamps, order).
+  void Precompute();
+
+  // Model settings the next Precompute uses (editable by code as by the panel).
+  FeModelSettings& model_settings() { return model_settings_; }
+  // Touch settings of the next field (tool_radius <= 0: the mesh's mean edge length).
+  FeTouchSettings& touch_settings() { return touch_settings_; }
+  // The ready model (null before the first precomputation finished).
+  const std::shared_ptr<FeModel>& model() const { return model_; }
+  // Live figures of the last OnFrame.
+  const FeLiveFigures& figures() const { return figures_; }
+  // Status line (what is happening or went wrong).
+  const std::string& status() const { return status_; }
+
+ private:
+  void BuildSurfaceActor();
+  void UpdateSurface(const FeContactState* state);
+  void QueueField();
+  Job* RunningJob() const;
+
+  vtkRenderer* renderer_;
+  JobQueue* jobs_;
+  bool active_ = false;
+  std::string mesh_name_;
+  std::shared_ptr<const fem::TetMesh> mesh_;
+  std::shared_ptr<FeModel> model_;
+  std::shared_ptr<FeContactChannel> channel_;
+  std::unique_ptr<haptics::ForceField> pending_field_;
+  FeModelSettings model_settings_;
+  FeTouchSettings touch_settings_;
+  FeLiveFigures figures_;
+  std::string status_ = "no part: mesh the platform or pick a meshed object";
+  std::string job_title_;
+  // Panel state.
+  int preset_ = 0;
+  bool box_fixed_ = false;
+  float box_[6] = {-1.0f, -1.0f, -1.0f, 0.001f, 1.0f, 1.0f};
+  float magnify_ = 100.0f;
+  float log_force_scale_ = -3.0f;
+  float resolution_mm_ = 12.0f;
+  bool auto_range_ = true;
+  float range_mpa_ = 100.0f;
+  double magnify_shown_ = -1.0;
+  double world_scale_ = 1.0;
+  Eigen::Vector3d p_WDo_ = Eigen::Vector3d::Zero();
+  // VTK.
+  vtkSmartPointer<vtkPolyData> poly_;
+  vtkSmartPointer<vtkDoubleArray> scalars_;
+  vtkSmartPointer<vtkActor> actor_;
+  vtkSmartPointer<vtkLookupTable> lut_;
+  vtkSmartPointer<vtkScalarBarActor> legend_;
+  vtkSmartPointer<vtkSphereSource> sphere_source_;
+  vtkSmartPointer<vtkActor> sphere_actor_;
+  FeContactState last_state_;
+  // Finishers of this mode's Jobs run only while the mode lives (they hold a weak_ptr to this).
+  std::shared_ptr<int> alive_ = std::make_shared<int>(0);
+};
+
+}  // namespace spidarcad::app

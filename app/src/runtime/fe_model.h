@@ -1,0 +1,177 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// An FE part ready to be touched (FE mode): a tetrahedral mesh with one material and clamped
+// regions, assembled and factored once (fem::StaticSolver), with lazily computed compliance
+// columns of its surface nodes (fem::ColumnCache, reused from the disk cache when the same model
+// was seen before), and the stress recovery the display needs (von Mises on the surface).
+//
+// Frames and units: the mesh is given in the world frame W (m); displacements in m, forces in N
+// (ON the body), stresses in Pa. No VTK or ImGui here.
+//
+// Threads: Build runs on a Job's worker (progress and cancel); a built model is shared between
+// the main thread (display, stress) and the haptic thread (FeTouchField reads the ColumnCache).
+// Only the ColumnCache's worker uses the StaticSolver while it runs (CHOLMOD is not re-entrant).
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/column_cache.h"
+#include "spidarcad/fem/material.h"
+#include "spidarcad/fem/mesh.h"
+#include "spidarcad/fem/precompute_cache.h"
+#include "spidarcad/fem/static_solver.h"
+
+namespace spidarcad::app {
+
+// Thrown by FeModel::Build when its cancel flag was raised; nothing was kept or written.
+class FeModelCancelled : public std::runtime_error {
+ public:
+  FeModelCancelled() : std::runtime_error("FE precompute cancelled") {}
+};
+
+// A named material preset of the FE panel.
+struct MaterialPreset {
+  const char* name;
+  fem::Material material;  // E [Pa], ν [-]
+};
+
+// Steel (200 GPa, 0.30), aluminium (70 GPa, 0.33), ABS (2.3 GPa, 0.35).
+inline constexpr MaterialPreset kMaterialPresets[] = {
+    {"steel", {200.0e9, 0.30}},
+    {"aluminium", {70.0e9, 0.33}},
+    {"ABS", {2.3e9, 0.35}},
+};
+
+// Settings of FeModel::Build (libfive style: documented fields, progress, cancel).
+struct FeModelSettings {
+  // One material for the whole part.
+  fem::Material material = kMaterialPresets[0].material;
+  // Element order: 1 (4-node) or 2 (10-node, midside nodes added with fem::MakeQuadratic).
+  int order = 1;
+  // Clamped regions: every node inside one of these boxes (W, m) is fixed. Empty: the nodes on
+  // the minimum-x face (x <= min x + min_x_tolerance), e.g. the wall of assets/scenes/platform.json.
+  std::vector<Eigen::AlignedBox3d> fixed_boxes;
+  // Thickness of the minimum-x face layer, m; < 0: a quarter of the mean boundary edge length.
+  double min_x_tolerance = -1.0;
+  // Lazy compliance columns (precision, memory bound, worker). start_worker is honoured after
+  // the disk cache was imported.
+  fem::ColumnCacheSettings cache;
+  // Look up (and later save) columns in the disk cache.
+  bool use_disk_cache = true;
+  // Disk cache directory; empty: fem::DefaultCacheDirectory().
+  std::filesystem::path cache_directory;
+  // Fraction done in [0, 1] at phase boundaries; may be empty.
+  std::function<void(double)> progress;
+  // Phase text ("factor", "columns", ...); may be empty.
+  std::function<void(const std::string&)> phase;
+  // When not null and set, Build throws FeModelCancelled at the next phase boundary.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+// An assembled, factored FE part with lazy surface compliance columns.
+class FeModel {
+ public:
+  // Builds the model: validates, upgrades to `settings.order`, clamps, assembles and factors,
+  // extracts the surface, precomputes per-element stress operators of the surface elements,
+  // creates the ColumnCache (imports columns from the disk cache when its key matches).
+  // Throws std::invalid_argument for a bad mesh, material or constraint (naming what),
+  // std::runtime_error when the factorisation fails, FeModelCancelled on cancel. Either a
+  // whole model comes back or nothing does.
+  static std::unique_ptr<FeModel> Build(fem::TetMesh mesh, const FeModelSettings& settings);
+  // Stops the column worker first.
+  ~FeModel();
+  FeModel(const FeModel&) = delete;
+  FeModel& operator=(const FeModel&) = delete;
+
+  // The mesh (W, m), after the order upgrade.
+  const fem::TetMesh& mesh() const { return mesh_; }
+  // Its boundary.
+  const fem::Surface& surface() const { return surface_; }
+  // The material used.
+  const fem::Material& material() const { return material_; }
+  // Constraints (clamps only; no loads).
+  const fem::BoundaryConditions& bcs() const { return *bcs_; }
+  // The factored model (use only while the cache worker is stopped).
+  const fem::StaticSolver& solver() const { return *solver_; }
+  // The lazy compliance columns: candidates = surface nodes, outputs = nodes of the surface
+  // elements (so that their stress can be recovered from the columns).
+  fem::ColumnCache& cache() { return *cache_; }
+  const fem::ColumnCache& cache() const { return *cache_; }
+  // Number of clamped nodes.
+  int num_fixed_nodes() const { return num_fixed_nodes_; }
+  // Mean length of the boundary edges, m (a natural tool radius).
+  double mean_edge_length() const { return mean_edge_; }
+  // Outward unit normal of each candidate (surface node), #candidates by 3 (area-weighted
+  // average of its faces' normals).
+  const Eigen::MatrixX3d& candidate_normals() const { return normals_; }
+  // Nodes whose columns came from the disk cache.
+  int imported_nodes() const { return imported_nodes_; }
+  // Disk-cache key of the columns.
+  std::uint64_t cache_key() const { return key_; }
+  // Wall time of Build, s.
+  double build_seconds() const { return build_seconds_; }
+
+  // Elements that own a boundary face (sorted, unique).
+  const std::vector<int>& surface_elements() const { return surface_elements_; }
+  // Output-list index of mesh node v, or −1 if v is not an output node.
+  int OutputIndexOfNode(int v) const { return output_index_[v]; }
+
+  // Von Mises stress (Pa) at the centroid of each surface element (#surface_elements) for the
+  // output displacement u_out (3·#outputs, as ColumnCache/CachedContactSolver produce).
+  // Allocates: main thread.
+  Eigen::VectorXd SurfaceElementVonMises(const Eigen::VectorXd& u_out) const;
+  // Volume-weighted average of SurfaceElementVonMises onto the nodes of those elements;
+  // returns #V values (0 for nodes in no surface element), Pa.
+  Eigen::VectorXd NodalVonMises(const Eigen::VectorXd& u_out) const;
+  // Scatters u_out (3·#outputs) into a full displacement (#V by 3, zero at non-output nodes).
+  Eigen::MatrixX3d FullDisplacement(const Eigen::VectorXd& u_out) const;
+
+  // Writes the ready columns to the disk cache (stops and restarts the worker). Returns false
+  // and the reason in *error when it cannot be written or use_disk_cache was off.
+  bool SaveColumns(std::string* error = nullptr);
+
+ private:
+  FeModel() = default;
+  fem::TetMesh mesh_;
+  fem::Material material_;
+  fem::Surface surface_;
+  std::unique_ptr<fem::MaterialTable> materials_;
+  std::unique_ptr<fem::BoundaryConditions> bcs_;
+  std::unique_ptr<fem::StaticSolver> solver_;
+  std::unique_ptr<fem::ColumnCache> cache_;
+  std::vector<int> output_nodes_, output_index_;
+  std::vector<int> surface_elements_;
+  std::vector<Eigen::MatrixXd> stress_ops_;  // per surface element: D·B at the centroid, 6 by 3·npe
+  std::vector<double> element_volume_;
+  Eigen::MatrixX3d normals_;
+  int num_fixed_nodes_ = 0;
+  double mean_edge_ = 0.0;
+  int imported_nodes_ = 0;
+  std::uint64_t key_ = 0;
+  bool use_disk_cache_ = false;
+  std::filesystem::path cache_directory_;
+  double build_seconds_ = 0.0;
+};
+
+// Meshes solid `solid_name` (empty: the first) of a scene file for FE: surface on a grid of
+// `resolution` m (modeling::MeshSurface), then TetGen (quality bound 2), linear tetrahedra in W.
+// Polls `cancel` between stages (throws FeModelCancelled) and reports progress in [0, 1].
+// Throws InputError naming the file or solid on bad input, modeling's errors on meshing failure.
+fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,
+                                 double resolution, const std::atomic<bool>* cancel = nullptr,
+                                 const std::function<void(double)>& progress = {});
+
+// assets/scenes/platform.json of the source tree (the demo part of FE mode): $SPIDARCAD_PLATFORM_SCENE
+// when set, else found from this source file's location, else relative to the working directory.
+std::string PlatformScenePath();
+
+}  // namespace spidarcad::app

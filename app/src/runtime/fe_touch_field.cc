@@ -1,0 +1,362 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "runtime/fe_touch_field.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <sstream>
+#include <stdexcept>
+
+namespace spidarcad::app {
+namespace {
+
+[[noreturn]] void BadSetting(const char* field, double value, const char* rule) {
+  std::ostringstream msg;
+  msg << "FE touch field: " << field << " = " << value << " (" << rule << ")";
+  throw std::invalid_argument(msg.str());
+}
+
+constexpr int kMaxGridCellsPerAxis = 128;
+// Active-set passes per tick (each: targets, solve, release the pulling nodes).
+constexpr int kActiveSetPasses = 4;
+
+}  // namespace
+
+FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings& settings,
+                           std::shared_ptr<FeContactChannel> channel)
+    : model_(std::move(model)), cache_(nullptr), settings_(settings), channel_(std::move(channel)) {
+  if (!model_) throw std::invalid_argument("FE touch field: no model");
+  if (!(settings_.tool_radius > 0.0) || !std::isfinite(settings_.tool_radius))
+    BadSetting("tool_radius", settings_.tool_radius, "must be > 0 m");
+  if (settings_.max_contacts < 1 || settings_.max_contacts > kMaxFeContacts)
+    BadSetting("max_contacts", settings_.max_contacts, "must be in 1..16");
+  if (!(settings_.force_scale >= 0.0) || !std::isfinite(settings_.force_scale))
+    BadSetting("force_scale", settings_.force_scale, "must be >= 0");
+  if (!(settings_.max_force > 0.0)) BadSetting("max_force", settings_.max_force, "must be > 0 N");
+  if (settings_.grasp && !(settings_.pole_length > 0.0))
+    BadSetting("pole_length", settings_.pole_length, "must be > 0 m");
+  if (!(settings_.focus_radius > 0.0)) settings_.focus_radius = 3.0 * settings_.tool_radius;
+
+  cache_ = &model_->cache();
+  solver_ = std::make_unique<fem::CachedContactSolver>(cache_, settings_.max_contacts);
+  const int n = cache_->num_candidates();
+  const Eigen::MatrixX3d& nodes = model_->mesh().nodes;
+  positions_.resize(n);
+  fixed_.resize(n);
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  for (int b = 0; b < n; ++b) {
+    positions_[b] = nodes.row(cache_->candidate_node(b)).transpose();
+    fixed_[b] = cache_->IsFixed(b) ? 1 : 0;
+    lo = lo.cwiseMin(positions_[b]);
+    hi = hi.cwiseMax(positions_[b]);
+  }
+  if (n == 0) lo = hi = Eigen::Vector3d::Zero();
+  const double extent = (hi - lo).maxCoeff();
+  cell_ = std::max(settings_.tool_radius, extent / kMaxGridCellsPerAxis);
+  grid_min_ = lo;
+  for (int i = 0; i < 3; ++i) dims_(i) = static_cast<int>(std::floor((hi(i) - lo(i)) / cell_)) + 1;
+  const long cells = static_cast<long>(dims_(0)) * dims_(1) * dims_(2);
+  cell_start_.assign(cells + 1, 0);
+  std::vector<long> cell_of(n);
+  for (int b = 0; b < n; ++b) {
+    const Eigen::Vector3i ijk = ((positions_[b] - grid_min_) / cell_).array().floor().cast<int>().cwiseMin(dims_.array() - 1);
+    cell_of[b] = (static_cast<long>(ijk(2)) * dims_(1) + ijk(1)) * dims_(0) + ijk(0);
+    ++cell_start_[cell_of[b] + 1];
+  }
+  for (long c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
+  cell_items_.resize(n);
+  std::vector<int> fill(cell_start_.begin(), cell_start_.end() - 1);
+  for (int b = 0; b < n; ++b) cell_items_[fill[cell_of[b]]++] = b;
+}
+
+FeTouchField::~FeTouchField() = default;
+
+Eigen::Vector3d FeTouchField::PoleTip(const haptics::ToolKinematics& tool, int i) const {
+  const double h = 0.5 * tool.grasp;
+  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
+  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
+  const Eigen::Vector3d p_hat = std::cos(h) * b_T + (i == 0 ? -1.0 : 1.0) * std::sin(h) * a_T;
+  return tool.p_WT + settings_.pole_length * (tool.R_WT * p_hat);
+}
+
+int FeTouchField::Collect(const Eigen::Vector3d& c, int sphere) {
+  const double r = settings_.tool_radius;
+  Eigen::Vector3i lo, hi;
+  for (int i = 0; i < 3; ++i) {
+    const double a = std::floor((c(i) - r - grid_min_(i)) / cell_), z = std::floor((c(i) + r - grid_min_(i)) / cell_);
+    if (z < 0.0 || a > dims_(i) - 1) return 0;
+    lo(i) = static_cast<int>(std::max(0.0, a));
+    hi(i) = static_cast<int>(std::min<double>(dims_(i) - 1, z));
+  }
+  int inside = 0;
+  for (int z = lo(2); z <= hi(2); ++z)
+    for (int y = lo(1); y <= hi(1); ++y)
+      for (int x = lo(0); x <= hi(0); ++x) {
+        const long cell = (static_cast<long>(z) * dims_(1) + y) * dims_(0) + x;
+        for (int it = cell_start_[cell]; it < cell_start_[cell + 1]; ++it) {
+          const int b = cell_items_[it];
+          if (fixed_[b]) continue;
+          const double dist = (positions_[b] - c).norm();
+          if (!(dist < r)) continue;
+          ++inside;
+          // Already found through the other sphere: keep the nearer.
+          int at = -1;
+          for (int j = 0; j < num_found_; ++j)
+            if (found_[j] == b) at = j;
+          if (at >= 0) {
+            if (dist >= found_dist_[at]) continue;
+            for (int j = at; j + 1 < num_found_; ++j) {
+              found_[j] = found_[j + 1];
+              found_dist_[j] = found_dist_[j + 1];
+              found_sphere_[j] = found_sphere_[j + 1];
+            }
+            --num_found_;
+          }
+          if (num_found_ == settings_.max_contacts && dist >= found_dist_[num_found_ - 1]) continue;
+          int j = std::min(num_found_, settings_.max_contacts - 1);
+          while (j > 0 && found_dist_[j - 1] > dist) {
+            found_[j] = found_[j - 1];
+            found_dist_[j] = found_dist_[j - 1];
+            found_sphere_[j] = found_sphere_[j - 1];
+            --j;
+          }
+          found_[j] = b;
+          found_dist_[j] = dist;
+          found_sphere_[j] = sphere;
+          num_found_ = std::min(num_found_ + 1, settings_.max_contacts);
+        }
+      }
+  return inside;
+}
+
+haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) noexcept {
+  haptics::ToolWrench w;
+  FeContactState& st = state_;
+  st.time = tool.time;
+  st.p_WT = tool.p_WT;
+  st.f_tool_W.setZero();
+  st.refused = 0;
+  st.waiting_for_columns = false;
+  if (!tool.p_WT.allFinite() || !tool.R_WT.allFinite() || !std::isfinite(tool.grasp)) {
+    solver_->Clear();
+    st.num_contacts = 0;
+    st.num_substituted = 0;
+    if (channel_) channel_->buffer.Write(st);
+    return w;
+  }
+
+  // Focus of the column worker (this thread is its single producer).
+  if ((tool.p_WT - focus_).norm() > 0.25 * settings_.focus_radius) {
+    focus_ = tool.p_WT;
+    cache_->RequestNear(focus_, settings_.focus_radius);
+  }
+
+  // Nodes inside the sphere(s), nearest first.
+  const int spheres = settings_.grasp ? 2 : 1;
+  Eigen::Vector3d centre[2];
+  if (settings_.grasp) {
+    centre[0] = PoleTip(tool, 0);
+    centre[1] = PoleTip(tool, 1);
+  } else {
+    centre[0] = tool.p_WT;
+  }
+  num_found_ = 0;
+  int inside = 0;
+  for (int i = 0; i < spheres; ++i) inside += Collect(centre[i], i);
+
+  // Admission on the deformed surface: a found node that is not in contact is taken only if
+  // the sphere reaches it where the current contact forces have moved it, i.e. its predicted
+  // normal displacement n·u (u = u0 + Σ Ĝ(node, slot) f, last tick's forces and still pinned
+  // columns) has not gone past the sphere: n·u > −t. This keeps released (pulling) nodes out
+  // and avoids adding and releasing them every tick.
+  const double r = settings_.tool_radius;
+  const int k_prev = solver_->num_contacts() == st.num_contacts ? st.num_contacts : 0;
+  for (int j = 0; j < num_found_; ++j) {
+    admit_[j] = 1;
+    const int a = found_[j];
+    bool have = false;
+    for (int s = 0; s < solver_->num_contacts(); ++s) have = have || solver_->contact(s) == a;
+    if (have || k_prev == 0) continue;
+    const Eigen::Vector3d n = model_->candidate_normals().row(a).transpose();
+    const Eigen::Vector3d q = positions_[a] - centre[found_sphere_[j]];
+    const double qn = q.dot(n);
+    const double t = qn + std::sqrt(std::max(0.0, qn * qn - q.squaredNorm() + r * r));
+    Eigen::Vector3d u = cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(a));
+    for (int s = 0; s < k_prev; ++s) {
+      const int b = st.candidate[s], sub = st.substitute[s];
+      if (solver_->contact(s) != b || solver_->substitute(s) != sub) continue;  // not pinned as read
+      const int row_node = sub == b ? a : cache_->ShiftedCandidate(a, b, sub);
+      u += cache_->Block(cache_->OutputIndexOfCandidate(row_node), sub) *
+           Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
+    }
+    if (n.dot(u) <= -t) admit_[j] = 0;
+  }
+
+  // Contact set update: remove the nodes that left, then add the new ones (nearest first).
+  if (num_found_ == 0) {
+    solver_->Clear();
+  } else {
+    for (int s = solver_->num_contacts() - 1; s >= 0; --s) {
+      const int b = solver_->contact(s);
+      bool keep = false;
+      for (int j = 0; j < num_found_; ++j) keep = keep || found_[j] == b;
+      if (!keep) solver_->Remove(b);
+    }
+    for (int j = 0; j < num_found_; ++j) {
+      if (!admit_[j]) continue;
+      bool have = false;
+      for (int s = 0; s < solver_->num_contacts(); ++s) have = have || solver_->contact(s) == found_[j];
+      if (have) continue;
+      const fem::CachedContactStatus status = solver_->Add(found_[j]);
+      if (status == fem::CachedContactStatus::kNoColumnReady) st.waiting_for_columns = true;
+    }
+    solver_->Refresh();
+  }
+
+  // Targets and forces, then release the nodes that would pull the body (n·f > 0: adhesion),
+  // a few passes of the active set per tick.
+  bool solved = false;
+  int k = solver_->num_contacts();
+  for (int pass = 0; pass < kActiveSetPasses && k > 0; ++pass) {
+    // Each contact node pushed along its inward normal −n until it leaves the sphere:
+    // |X − t n − c| = r, t = q·n + sqrt((q·n)² − |q|² + r²) > 0 with q = X − c.
+    for (int s = 0; s < k; ++s) {
+      const int b = solver_->contact(s);
+      int sphere = 0;
+      for (int j = 0; j < num_found_; ++j)
+        if (found_[j] == b) sphere = found_sphere_[j];
+      sphere_of_slot_[s] = sphere;
+      const Eigen::Vector3d q = positions_[b] - centre[sphere];
+      const Eigen::Vector3d n = model_->candidate_normals().row(b).transpose();
+      const double qn = q.dot(n);
+      const double t = qn + std::sqrt(std::max(0.0, qn * qn - q.squaredNorm() + r * r));
+      st.candidate[s] = b;
+      st.substitute[s] = solver_->substitute(s);
+      normal_[s] = n;
+      for (int i = 0; i < 3; ++i) st.target[3 * s + i] = -t * n(i);
+    }
+    if (settings_.frictionless) FrictionlessTargets(k);
+    solved = solver_->Solve(st.target.data(), st.force.data());
+    if (!solved || pass + 1 == kActiveSetPasses) break;
+    int pulling = 0;
+    for (int s = k - 1; s >= 0; --s) {
+      const double fn = normal_[s].x() * st.force[3 * s] + normal_[s].y() * st.force[3 * s + 1] +
+                        normal_[s].z() * st.force[3 * s + 2];
+      if (fn > 0.0) {
+        solver_->Remove(solver_->contact(s));
+        ++pulling;
+      }
+    }
+    if (pulling == 0) break;
+    k = solver_->num_contacts();
+    solved = false;
+  }
+  st.refused = inside - k;
+  st.num_contacts = k;
+  st.num_substituted = solver_->num_substituted();
+  if (k > 0 && solved) {
+    Eigen::Vector3d f_sphere[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    for (int s = 0; s < k; ++s) {
+      const Eigen::Vector3d f_body(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
+      f_sphere[sphere_of_slot_[s]] -= f_body;
+      const Eigen::Vector3d x = positions_[st.candidate[s]] +
+                                Eigen::Vector3d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]);
+      m += (x - tool.p_WT).cross(-f_body);
+    }
+    st.f_tool_W = f_sphere[0] + f_sphere[1];
+    w.f_T_W = st.f_tool_W;
+    if (settings_.grasp) {
+      w.m_T_W = m;
+      // g = −Σ F_i · ∂tip_i/∂θ, ∂p̂_i/∂θ = (−sin(θ/2) b ∓ cos(θ/2) a)/2.
+      const double h = 0.5 * tool.grasp;
+      const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
+      const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
+      double g = 0.0;
+      for (int i = 0; i < 2; ++i) {
+        const Eigen::Vector3d dp_T = 0.5 * (-std::sin(h) * b_T + (i == 0 ? -1.0 : 1.0) * std::cos(h) * a_T);
+        g -= f_sphere[i].dot(settings_.pole_length * (tool.R_WT * dp_T));
+      }
+      w.g = g;
+    }
+    // Felt wrench: scaled, magnitude of the force bounded.
+    double scale = settings_.force_scale;
+    const double felt = scale * w.f_T_W.norm();
+    if (felt > settings_.max_force) scale *= settings_.max_force / felt;
+    w.f_T_W *= scale;
+    w.m_T_W *= scale;
+    w.g *= scale;
+  }
+  if (channel_) channel_->buffer.Write(st);
+  return w;
+}
+
+bool FeTouchField::FrictionlessTargets(int k) {
+  // Unknown contact displacement u = u0 + N α + T c with N α fixed by the normal targets
+  // (n_s·u_s = n_s·d_s) and c chosen so that Tᵀ f = 0, f = K_c (u − u0).
+  const int n3 = 3 * k, n2 = 2 * k;
+  FeContactState& st = state_;
+  const Eigen::VectorXd& u0 = cache_->baseline();
+  u0c_.resize(n3);
+  for (int s = 0; s < k; ++s)
+    for (int i = 0; i < 3; ++i) u0c_(3 * s + i) = u0(3 * cache_->OutputIndexOfCandidate(st.candidate[s]) + i);
+  vk_.resize(n3);
+  wk_.resize(n3);
+  // Tangent basis T (3k by 2k, block diagonal) and the fixed normal part v = N α.
+  tan_.setZero(n3, n2);
+  for (int s = 0; s < k; ++s) {
+    const Eigen::Vector3d& n = normal_[s];
+    int axis = 0;
+    n.cwiseAbs().minCoeff(&axis);
+    const Eigen::Vector3d t1 = n.cross(Eigen::Vector3d::Unit(axis)).normalized();
+    const Eigen::Vector3d t2 = n.cross(t1);
+    tan_.block<3, 1>(3 * s, 2 * s) = t1;
+    tan_.block<3, 1>(3 * s, 2 * s + 1) = t2;
+    const Eigen::Vector3d d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]);
+    const Eigen::Vector3d u0s = u0c_.segment<3>(3 * s);
+    vk_.segment<3>(3 * s) = n * n.dot(d - u0s);
+  }
+  // K_c T column by column (2k solves): K_c x = Ĝ⁻¹ x = Solve(u0_c + x).
+  kt_.resize(n3, n2);
+  for (int j = 0; j < n2; ++j) {
+    wk_ = u0c_ + tan_.col(j);
+    solver_->Solve(wk_.data(), kt_.col(j).data());
+  }
+  a_.noalias() = tan_.transpose() * kt_;
+  rhs_.noalias() = -(kt_.transpose() * vk_);
+  Eigen::LLT<MatA> llt(a_);
+  if (llt.info() != Eigen::Success) return false;
+  llt.solveInPlace(rhs_);
+  wk_.noalias() = tan_ * rhs_;
+  for (int i = 0; i < n3; ++i) st.target[i] = vk_(i) + wk_(i) + u0c_(i);
+  return true;
+}
+
+int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state, Eigen::VectorXd* u_out) {
+  *u_out = cache->baseline();
+  double* u = u_out->data();
+  int skipped = 0;
+  for (int s = 0; s < state.num_contacts; ++s) {
+    const int b = state.candidate[s], r = state.substitute[s];
+    if (r < 0 || !cache->Pin(r)) {
+      ++skipped;
+      continue;
+    }
+    const int rb = 3 * cache->OutputIndexOfCandidate(b), rr = 3 * cache->OutputIndexOfCandidate(r);
+    for (int j = 0; j < 3; ++j) {
+      const double f = state.force[3 * s + j];
+      cache->AddColumn(r, j, f, u);
+      if (r == b) continue;
+      for (int i = 0; i < 3; ++i) {  // shift: swap the row blocks of b and r in r's column
+        const double g_rr = cache->Value(rr + i, r, j), g_br = cache->Value(rb + i, r, j);
+        u[rb + i] += f * (g_rr - g_br);
+        u[rr + i] += f * (g_br - g_rr);
+      }
+    }
+    cache->Unpin(r);
+  }
+  return skipped;
+}
+
+}  // namespace spidarcad::app

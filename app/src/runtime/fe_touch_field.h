@@ -1,0 +1,171 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// FE contact as a haptic force field: the tool pushes an FeModel and feels its reaction.
+//
+// Contact model (node-to-sphere, sticking): the tool is a sphere
+// of radius r around a contact point (the tool origin p_WT, or, with grasp contact, each pole
+// tip). Every undeformed surface node X inside a sphere (|X − c| < r) is a contact node (at
+// most max_contacts of them, nearest the centre first; clamped nodes excluded). It is pushed
+// along its inward normal −n (the area-weighted face normal) until it leaves the sphere:
+// n·d = −t, |X − t n − c| = r, t > 0. Frictionless (default): the tangential displacements
+// are left free, i.e. chosen so that the tangential contact forces vanish (a 2k by 2k solve on
+// the condensed contact stiffness K_c = Ĝ_cc⁻¹: K_c T from 2k solves with the contact factor);
+// sticking: the tangential displacement is held at zero. Either way the contact nodes end up
+// with a full prescribed displacement d (published as the target) and the forces on the body
+// f (N) solve Ĝ_cc f = d − u0_c with fem::CachedContactSolver (exact columns once ready, the
+// nearest ready column until then). Nodes whose force would pull the body (n·f > 0) are
+// released and the rest solved again (up to 4 passes a tick). A node inside the sphere that is
+// not in contact is admitted only while the sphere reaches it on the deformed surface (its
+// displacement predicted from the current contact forces is not already past the sphere). The force on the tool is −Σ f_s (no moment: the contact
+// sphere is centred on the tool origin; grasp contact adds a squeeze torque, below). The force
+// felt is force_scale times the FE force, clamped to max_force in magnitude (a steel part is
+// far stiffer than a string device can render); the published numbers are the unscaled FE ones.
+//
+// Threads: Evaluate runs on the haptic thread and is real-time safe (no allocation, lock,
+// I/O or exception; bounded work): the node lookup uses a uniform grid built at construction.
+// The haptic thread is the single producer of the ColumnCache focus (RequestNear, sent when the
+// tool moved by more than a quarter of the focus radius). Each tick's contact state goes to
+// the main thread through a lock-free triple buffer in an FeContactChannel, which the field and
+// the FE mode share (shared_ptr), so that the mode can draw the deformed part at 60 Hz with
+// ContactDisplacement.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "runtime/fe_model.h"
+#include "spidarcad/fem/column_cache.h"
+#include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/triple_buffer.h"
+
+namespace spidarcad::app {
+
+// Largest number of contact nodes a touch field handles (per field, both poles together).
+inline constexpr int kMaxFeContacts = 16;
+
+// One tick's contact state, as published to the main thread (fixed size, copy without allocation).
+struct FeContactState {
+  // Loop time of the tick, s.
+  double time = 0.0;
+  // Number of contact nodes k (<= kMaxFeContacts).
+  int num_contacts = 0;
+  // Contacts whose column is still a substitute (nearest ready node).
+  int num_substituted = 0;
+  // Per slot s < k: candidate index (FeModel::cache()), the candidate whose column it reads.
+  std::array<int, kMaxFeContacts> candidate{};
+  std::array<int, kMaxFeContacts> substitute{};
+  // Per slot: prescribed total displacement (3 per slot, m) and force ON the body (3, N).
+  std::array<double, 3 * kMaxFeContacts> target{};
+  std::array<double, 3 * kMaxFeContacts> force{};
+  // FE force on the tool, −Σ f_s, N, in W (unscaled).
+  Eigen::Vector3d f_tool_W = Eigen::Vector3d::Zero();
+  // Tool origin of the tick, W, m.
+  Eigen::Vector3d p_WT = Eigen::Vector3d::Zero();
+  // Nodes inside the sphere(s) that could not be taken this tick (full, refused, no column).
+  int refused = 0;
+  // True when no column at all is ready yet (no force could be computed).
+  bool waiting_for_columns = false;
+};
+
+// The hand-off of contact states from the haptic thread (single writer) to the main thread
+// (single reader).
+struct FeContactChannel {
+  haptics::TripleBuffer<FeContactState> buffer;
+};
+
+// Settings of an FeTouchField.
+struct FeTouchSettings {
+  // Radius of the tool sphere, m (> 0). A radius near the mesh's surface edge length makes
+  // contact smooth; smaller spheres slip between nodes.
+  double tool_radius = 0.01;
+  // Contact nodes at most (1..kMaxFeContacts).
+  int max_contacts = kMaxFeContacts;
+  // Felt force = force_scale · FE force (>= 0).
+  double force_scale = 1.0;
+  // Magnitude bound of the felt force, N (> 0).
+  double max_force = 10.0;
+  // Frictionless contact (tangential forces zero); false: sticking nodes.
+  bool frictionless = true;
+  // Radius of the column focus around the tool, m; <= 0: 3 × tool_radius.
+  double focus_radius = -1.0;
+  // Two-point grasp contact: one sphere at each pole tip p_WT + pole_length·R_WT·p̂_i(θ), with
+  // p̂_1 = cos(θ/2) b − sin(θ/2) a, p̂_2 = cos(θ/2) b + sin(θ/2) a, b = (x + y)/√2,
+  // a = (x − y)/√2 in T (ARCHITECTURE.md grip frame; p̂_1 = y, p̂_2 = x at rest). The wrench
+  // then has the moment of the tip forces about p_WT and the grasp torque
+  // g = −Σ_i F_i · ∂tip_i/∂θ (N·m; g < 0 when the part pushes the poles apart).
+  bool grasp = false;
+  // Pole length in W, m (distance from the grip centre to each tip), for grasp contact.
+  double pole_length = 0.02;
+};
+
+// The FE part as a haptic force field (see the header comment).
+class FeTouchField final : public haptics::ForceField {
+ public:
+  // Field on `model` (shared with the app), publishing to `channel` (may be null: nothing
+  // published). Throws std::invalid_argument naming the setting when out of range.
+  FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings& settings,
+               std::shared_ptr<FeContactChannel> channel);
+  ~FeTouchField() override;
+
+  haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override;
+  const char* name() const noexcept override { return "fe_touch"; }
+
+  // The last tick's state (the haptic thread's copy; for tests and benchmarks on that thread).
+  const FeContactState& last_state() const { return state_; }
+  // The settings in use.
+  const FeTouchSettings& settings() const { return settings_; }
+  // Position (W) of the tip of pole i (0, 1) for a tool state, grasp contact geometry.
+  Eigen::Vector3d PoleTip(const haptics::ToolKinematics& tool, int i) const;
+
+ private:
+  // Collects up to max_contacts candidates inside the sphere (c, r), nearest first, into
+  // found_/found_dist_ (merging with what is there). Returns the number of nodes inside.
+  int Collect(const Eigen::Vector3d& c, int sphere);
+
+  std::shared_ptr<FeModel> model_;
+  fem::ColumnCache* cache_;
+  FeTouchSettings settings_;
+  std::shared_ptr<FeContactChannel> channel_;
+  std::unique_ptr<fem::CachedContactSolver> solver_;
+  // Candidate positions (undeformed, W) and fixed flags, copied for locality.
+  std::vector<Eigen::Vector3d> positions_;
+  std::vector<char> fixed_;
+  // Uniform grid over the candidates: cell of size cell_, CSR lists.
+  Eigen::Vector3d grid_min_ = Eigen::Vector3d::Zero();
+  double cell_ = 1.0;
+  Eigen::Vector3i dims_ = Eigen::Vector3i::Ones();
+  std::vector<int> cell_start_, cell_items_;
+  // Scratch of a tick (fixed size).
+  std::array<int, kMaxFeContacts> found_{};
+  std::array<double, kMaxFeContacts> found_dist_{};
+  std::array<int, kMaxFeContacts> found_sphere_{};
+  std::array<char, kMaxFeContacts> admit_{};
+  int num_found_ = 0;
+  std::array<int, kMaxFeContacts> sphere_of_slot_{};
+  Eigen::Vector3d focus_ = Eigen::Vector3d::Constant(1e30);
+  // Frictionless solve scratch (fixed maximum sizes: no heap).
+  using MatK = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFeContacts, 3 * kMaxFeContacts>;
+  using MatT = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFeContacts, 2 * kMaxFeContacts>;
+  using MatA = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 2 * kMaxFeContacts, 2 * kMaxFeContacts>;
+  using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3 * kMaxFeContacts, 1>;
+  using VecA = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * kMaxFeContacts, 1>;
+  // Fills state_.target for frictionless contact from the normal displacement targets in
+  // state_.target (already set as −t n); returns false (targets untouched) on failure.
+  bool FrictionlessTargets(int k);
+  MatT tan_, kt_;
+  MatA a_;
+  VecK u0c_, vk_, wk_;
+  VecA rhs_;
+  std::array<Eigen::Vector3d, kMaxFeContacts> normal_{};
+  FeContactState state_;
+};
+
+// Displacement of the output nodes (3·#outputs, m) under a published contact state:
+// u = u0 + Σ_s Ĝ(:, s) f_s, reading each contact's substitute column shifted to the contact node
+// as CachedContactSolver::OutputDisplacement does. Columns that were evicted meanwhile are
+// skipped (returns how many contacts were skipped). Main thread; u_out is resized.
+int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state, Eigen::VectorXd* u_out);
+
+}  // namespace spidarcad::app

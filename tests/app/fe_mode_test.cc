@@ -1,0 +1,443 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// FE mode without a window: FeModel (build, cancel, stress, disk cache) and FeTouchField (the
+// force felt when pushing the platform), checked against full sparse solves of the same
+// prescribed displacements.
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+#include <chrono>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "doc/job.h"
+#include "gui/fe_mode.h"
+#include "runtime/fe_model.h"
+#include "runtime/fe_touch_field.h"
+#include "spidarcad/fem/static_solver.h"
+#include "spidarcad/fem/stiffness.h"
+#include "support/malloc_counter.h"
+
+namespace spidarcad::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kCoarse = 0.012;  // m: platform grid cell (about 12k tets)
+
+fs::path ScratchDir(const std::string& name) {
+  const fs::path dir = fs::path(SPIDARCAD_TEST_OUTPUT_DIR) / ("fe_mode_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// The coarse platform mesh, made once for the whole file.
+const fem::TetMesh& PlatformMesh() {
+  static const fem::TetMesh mesh = MeshSceneSolidForFe(PlatformScenePath(), "platform", kCoarse);
+  return mesh;
+}
+
+FeModelSettings SteelSettings() {
+  FeModelSettings s;
+  s.material = kMaterialPresets[0].material;
+  s.use_disk_cache = false;
+  return s;
+}
+
+std::shared_ptr<FeModel> PlatformModel() {
+  static std::shared_ptr<FeModel> model = FeModel::Build(PlatformMesh(), SteelSettings());
+  return model;
+}
+
+// Tool state with the tool origin at p.
+haptics::ToolKinematics ToolAt(const Eigen::Vector3d& p) {
+  haptics::ToolKinematics t;
+  t.p_WT = p;
+  return t;
+}
+
+// Full sparse solve with the model's clamps and the state's contact nodes prescribed to their
+// targets.
+fem::StaticSolution FullSolve(const FeModel& model, const FeContactState& st) {
+  fem::BoundaryConditions bcs = model.bcs();
+  for (int s = 0; s < st.num_contacts; ++s)
+    bcs.PrescribeNode(model.cache().candidate_node(st.candidate[s]),
+                      Eigen::Vector3d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]));
+  const fem::MaterialTable materials(model.material());
+  const fem::StaticSolver solver(model.mesh(), materials, bcs);
+  EXPECT_TRUE(solver.factor_status().converged);
+  return solver.Solve();
+}
+
+// Pushes the plate top near its free end with columns ready; returns the field's state.
+FeContactState PushPlate(FeModel* model, FeTouchField* field, double depth_fraction, double x = 0.25) {
+  const double r = field->settings().tool_radius;
+  const Eigen::Vector3d p(x, 0.01, 0.010 + r * (1.0 - depth_fraction));
+  field->Evaluate(ToolAt(p));  // sets the focus
+  model->cache().Start();
+  EXPECT_TRUE(model->cache().WaitUntilIdle(60.0));
+  model->cache().Stop();  // the full solves below must not share CHOLMOD with the worker
+  field->Evaluate(ToolAt(p));
+  return field->last_state();
+}
+
+TEST(FeModel, ClampsTheWallFaceAndFindsTheSurface) {
+  const auto model = PlatformModel();
+  EXPECT_GT(model->num_fixed_nodes(), 10);
+  const double min_x = model->mesh().nodes.col(0).minCoeff();
+  for (int v = 0; v < model->mesh().num_nodes(); ++v) {
+    const bool fixed = model->bcs().prescribed().count(3 * v) > 0;
+    const bool on_wall = model->mesh().nodes(v, 0) <= min_x + 0.25 * model->mean_edge_length();
+    ASSERT_EQ(fixed, on_wall) << "node " << v;
+  }
+  EXPECT_GT(model->mean_edge_length(), 0.3 * kCoarse);
+  EXPECT_LT(model->mean_edge_length(), 3.0 * kCoarse);
+  // Normals of the plate-top nodes point up.
+  int top = 0;
+  for (int b = 0; b < model->cache().num_candidates(); ++b) {
+    const int v = model->cache().candidate_node(b);
+    const Eigen::Vector3d x = model->mesh().nodes.row(v);
+    if (x.z() > 0.0099 && x.x() > 0.05 && x.x() < 0.28 && std::abs(x.y()) < 0.08) {
+      ++top;
+      EXPECT_GT(model->candidate_normals()(b, 2), 0.9) << "node " << v;
+    }
+  }
+  EXPECT_GT(top, 10);
+}
+
+TEST(FeTouchField, PushGivesForceOppositeToPushEqualToFullSolve) {
+  const auto model = PlatformModel();
+  FeTouchSettings ts;
+  ts.tool_radius = 3.0 * model->mean_edge_length();
+  auto channel = std::make_shared<FeContactChannel>();
+  FeTouchField field(model, ts, channel);
+  const FeContactState st = PushPlate(model.get(), &field, 0.4, 0.1);
+  ASSERT_GE(st.num_contacts, 2);
+  EXPECT_EQ(st.num_substituted, 0);
+  // Frictionless: each contact force lies along its node's normal, pushing into the body.
+  for (int s = 0; s < st.num_contacts; ++s) {
+    const Eigen::Vector3d n = model->candidate_normals().row(st.candidate[s]).transpose();
+    const Eigen::Vector3d f(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
+    EXPECT_LT((f - n * n.dot(f)).norm(), 1e-8 * f.norm()) << "slot " << s;
+    EXPECT_LT(n.dot(f), 0.0) << "slot " << s;
+  }
+  // Pushed down: the part pushes the tool up.
+  EXPECT_GT(st.f_tool_W.z(), 0.0);
+  EXPECT_GT(st.f_tool_W.z(), 3.0 * std::hypot(st.f_tool_W.x(), st.f_tool_W.y()));
+
+  const fem::StaticSolution full = FullSolve(*model, st);
+  ASSERT_TRUE(full.status.converged);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double fmax = 0.0;
+  for (int s = 0; s < st.num_contacts; ++s)
+    fmax = std::max(fmax, Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]).norm());
+  for (int s = 0; s < st.num_contacts; ++s) {
+    const int v = model->cache().candidate_node(st.candidate[s]);
+    const Eigen::Vector3d reaction = full.reaction.segment<3>(3 * v);
+    const Eigen::Vector3d f(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
+    EXPECT_LT((f - reaction).norm(), 1e-6 * fmax) << "slot " << s;
+    sum += reaction;
+  }
+  EXPECT_LT((st.f_tool_W + sum).norm(), 1e-6 * sum.norm());
+  // The main thread got the same state.
+  EXPECT_TRUE(channel->buffer.Update());
+  EXPECT_EQ(channel->buffer.Read().num_contacts, st.num_contacts);
+  EXPECT_EQ(channel->buffer.Read().f_tool_W, st.f_tool_W);
+  // Felt force: scaled, bounded.
+  FeTouchSettings soft = ts;
+  soft.force_scale = 1e-6;
+  soft.max_force = 1e9;
+  FeTouchField scaled(model, soft, nullptr);
+  const haptics::ToolWrench w = scaled.Evaluate(ToolAt(st.p_WT));
+  EXPECT_NEAR((w.f_T_W - 1e-6 * st.f_tool_W).norm(), 0.0, 1e-9 * st.f_tool_W.norm());
+  soft.max_force = 0.5;
+  FeTouchField bounded(model, soft, nullptr);
+  EXPECT_NEAR(bounded.Evaluate(ToolAt(st.p_WT)).f_T_W.norm(), std::min(0.5, 1e-6 * st.f_tool_W.norm()), 1e-12);
+}
+
+TEST(FeTouchField, DeformedSurfaceAndStressMatchFullSolveWhenSticking) {
+  const auto model = PlatformModel();
+  FeTouchSettings ts;
+  ts.tool_radius = 3.0 * model->mean_edge_length();
+  ts.frictionless = false;
+  FeTouchField field(model, ts, nullptr);
+  const FeContactState st = PushPlate(model.get(), &field, 0.4, 0.1);
+  ASSERT_GE(st.num_contacts, 2);
+  // Sticking: contact nodes move straight down (no tangential displacement).
+  for (int s = 0; s < st.num_contacts; ++s)
+    EXPECT_LT(std::hypot(st.target[3 * s], st.target[3 * s + 1]), 1e-12) << "slot " << s;
+  Eigen::VectorXd u_out;
+  EXPECT_EQ(ContactDisplacement(&model->cache(), st, &u_out), 0);
+  const fem::StaticSolution full = FullSolve(*model, st);
+  const Eigen::MatrixX3d u = model->FullDisplacement(u_out);
+  double umax = 0.0, err = 0.0;
+  for (int v = 0; v < model->mesh().num_nodes(); ++v) {
+    if (model->OutputIndexOfNode(v) < 0) continue;
+    umax = std::max(umax, full.displacement.segment<3>(3 * v).norm());
+    err = std::max(err, (u.row(v).transpose() - full.displacement.segment<3>(3 * v)).norm());
+  }
+  EXPECT_GT(umax, 0.1 * ts.tool_radius * 0.5);
+  EXPECT_LT(err, 1e-6 * umax);
+  // Von Mises of the surface elements against fem's own stress recovery on the full solution.
+  const Eigen::VectorXd vm = model->SurfaceElementVonMises(u_out);
+  const Eigen::VectorXd vm_full =
+      fem::ElementVonMises(model->mesh(), fem::MaterialTable(model->material()), full.displacement);
+  double vmax = 0.0, verr = 0.0;
+  for (std::size_t i = 0; i < model->surface_elements().size(); ++i) {
+    const double ref = vm_full(model->surface_elements()[i]);
+    vmax = std::max(vmax, ref);
+    verr = std::max(verr, std::abs(vm(static_cast<Eigen::Index>(i)) - ref));
+  }
+  EXPECT_GT(vmax, 1e6);  // steel pushed by millimetres: MPa at least
+  EXPECT_LT(verr, 1e-6 * vmax);
+}
+
+TEST(FeTouchField, ZeroForceOutOfContact) {
+  const auto model = PlatformModel();
+  FeTouchSettings ts;
+  ts.tool_radius = model->mean_edge_length();
+  FeTouchField field(model, ts, nullptr);
+  const Eigen::Vector3d above(0.25, 0.01, 0.010 + 1.5 * ts.tool_radius);
+  haptics::ToolWrench w = field.Evaluate(ToolAt(above));
+  EXPECT_EQ(field.last_state().num_contacts, 0);
+  EXPECT_EQ(w.f_T_W, Eigen::Vector3d::Zero());
+  // In, then out again.
+  PushPlate(model.get(), &field, 0.3);
+  ASSERT_GT(field.last_state().num_contacts, 0);
+  w = field.Evaluate(ToolAt(above));
+  EXPECT_EQ(field.last_state().num_contacts, 0);
+  EXPECT_EQ(w.f_T_W, Eigen::Vector3d::Zero());
+  EXPECT_EQ(w.m_T_W, Eigen::Vector3d::Zero());
+  // NaN tool: zero.
+  w = field.Evaluate(ToolAt(Eigen::Vector3d::Constant(std::nan(""))));
+  EXPECT_EQ(w.f_T_W, Eigen::Vector3d::Zero());
+}
+
+TEST(FeTouchField, EvaluateAllocatesNothing) {
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  const auto model = PlatformModel();
+  FeTouchSettings ts;
+  ts.tool_radius = model->mean_edge_length();
+  auto channel = std::make_shared<FeContactChannel>();
+  FeTouchField field(model, ts, channel);
+  FeTouchSettings gs = ts;
+  gs.grasp = true;
+  gs.pole_length = 0.03;
+  FeTouchField grasp(model, gs, channel);
+  PushPlate(model.get(), &field, 0.3);  // some columns ready; worker stopped
+  int max_k = 0;
+  long allocations = 0;
+  {
+    test_support::MallocCounter counter;
+    for (int i = 0; i < 400; ++i) {  // slide across the plate, in and out of contact
+      const double s = i / 400.0;
+      const Eigen::Vector3d p(0.1 + 0.18 * s, -0.05 + 0.1 * s, 0.010 + ts.tool_radius * (0.5 + std::sin(20 * s)));
+      field.Evaluate(ToolAt(p));
+      max_k = std::max(max_k, field.last_state().num_contacts);
+      grasp.Evaluate(ToolAt(p));
+    }
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GT(max_k, 1);
+}
+
+TEST(FeTouchField, GraspSqueezePushesThePolesApart) {
+  const auto model = PlatformModel();
+  FeTouchSettings gs;
+  gs.tool_radius = model->mean_edge_length();
+  gs.grasp = true;
+  gs.pole_length = 0.03;
+  gs.max_force = 1e15;  // felt = FE wrench
+  FeTouchField field(model, gs, nullptr);
+  // Tool frame turned so that the tips straddle the plate (10 mm thick) vertically: the poles
+  // lie in the T x-y plane; put T's (x − y) axis along W z, (x + y) along W x.
+  haptics::ToolKinematics t;
+  Eigen::Matrix3d R;
+  const Eigen::Vector3d b_W(1, 0, 0), a_W(0, 0, 1);  // images of b_T, a_T
+  R.col(0) = (b_W + a_W) / std::sqrt(2.0);
+  R.col(1) = (b_W - a_W) / std::sqrt(2.0);
+  R.col(2) = R.col(0).cross(R.col(1));
+  t.R_WT = R;
+  // Tips at x = p.x + d cos(θ/2), z = p.z ∓ d sin(θ/2); choose θ so the tips are 10 mm + 2r − 2δ apart.
+  const double r = gs.tool_radius, gap = 0.010 + 2.0 * r - 0.6 * r;
+  t.grasp = 2.0 * std::asin(0.5 * gap / gs.pole_length);
+  t.p_WT = Eigen::Vector3d(0.25 - gs.pole_length * std::cos(0.5 * t.grasp), 0.01, 0.005);
+  EXPECT_LT((field.PoleTip(t, 0) - Eigen::Vector3d(0.25, 0.01, 0.005 - 0.5 * gap)).norm(), 1e-12);
+  EXPECT_LT((field.PoleTip(t, 1) - Eigen::Vector3d(0.25, 0.01, 0.005 + 0.5 * gap)).norm(), 1e-12);
+  field.Evaluate(t);
+  model->cache().Start();
+  ASSERT_TRUE(model->cache().WaitUntilIdle(60.0));
+  model->cache().Stop();
+  const haptics::ToolWrench w = field.Evaluate(t);
+  const FeContactState& st = field.last_state();
+  ASSERT_GT(st.num_contacts, 1);
+  // Pushed apart: g < 0; the net force is much smaller than either tip's.
+  EXPECT_LT(w.g, 0.0);
+  double tip = 0.0;
+  for (int s = 0; s < st.num_contacts; ++s) tip = std::max(tip, std::abs(st.force[3 * s + 2]));
+  // Work check: g equals −F·∂tip/∂θ by finite differences of the tip positions.
+  const double h = 1e-6;
+  haptics::ToolKinematics tp = t, tm = t;
+  tp.grasp += h;
+  tm.grasp -= h;
+  Eigen::Vector3d f_lo = Eigen::Vector3d::Zero(), f_hi = Eigen::Vector3d::Zero();
+  for (int s = 0; s < st.num_contacts; ++s) {
+    const Eigen::Vector3d x = model->mesh().nodes.row(model->cache().candidate_node(st.candidate[s])).transpose();
+    const Eigen::Vector3d f(-st.force[3 * s], -st.force[3 * s + 1], -st.force[3 * s + 2]);
+    ((x - field.PoleTip(t, 0)).norm() < (x - field.PoleTip(t, 1)).norm() ? f_lo : f_hi) += f;
+  }
+  const double g_fd = -(f_lo.dot(field.PoleTip(tp, 0) - field.PoleTip(tm, 0)) +
+                        f_hi.dot(field.PoleTip(tp, 1) - field.PoleTip(tm, 1))) / (2 * h);
+  EXPECT_NEAR(w.g, g_fd, 1e-6 * std::abs(g_fd));
+  EXPECT_GT(f_hi.z(), 0.0);  // the upper tip is pushed up
+  EXPECT_LT(f_lo.z(), 0.0);  // the lower tip down
+  EXPECT_GT(tip, 0.0);
+}
+
+TEST(FeModel, CancelledBuildReturnsNothingAndWritesNothing) {
+  const fs::path dir = ScratchDir("cancel");
+  for (double at : {0.05, 0.1, 0.7, 0.8}) {
+    std::atomic<bool> cancel{false};
+    FeModelSettings s = SteelSettings();
+    s.use_disk_cache = true;
+    s.cache_directory = dir;
+    s.cancel = &cancel;
+    double last = -1.0;
+    s.progress = [&](double f) {
+      last = f;
+      if (f >= at) cancel = true;
+    };
+    std::unique_ptr<FeModel> model;
+    EXPECT_THROW(model = FeModel::Build(PlatformMesh(), s), FeModelCancelled) << "at " << at;
+    EXPECT_EQ(model, nullptr);
+    EXPECT_LT(last, 1.0);
+  }
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(FeModel, BadInputSaysWhat) {
+  FeModelSettings s = SteelSettings();
+  s.fixed_boxes.push_back(Eigen::AlignedBox3d(Eigen::Vector3d(5, 5, 5), Eigen::Vector3d(6, 6, 6)));
+  try {
+    FeModel::Build(PlatformMesh(), s);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("fixed region"), std::string::npos) << e.what();
+  }
+  s = SteelSettings();
+  s.material.poisson_ratio = 0.5;
+  EXPECT_THROW(FeModel::Build(PlatformMesh(), s), std::invalid_argument);
+  s = SteelSettings();
+  s.order = 3;
+  try {
+    FeModel::Build(PlatformMesh(), s);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("order"), std::string::npos) << e.what();
+  }
+}
+
+TEST(FeModel, SavedColumnsComeBackFromTheDiskCache) {
+  const fs::path dir = ScratchDir("disk");
+  FeModelSettings s = SteelSettings();
+  s.use_disk_cache = true;
+  s.cache_directory = dir;
+  s.cache.start_worker = false;
+  auto first = FeModel::Build(PlatformMesh(), s);
+  EXPECT_EQ(first->imported_nodes(), 0);
+  std::vector<int> some;
+  for (int b = 0; b < first->cache().num_candidates() && some.size() < 5; ++b)
+    if (!first->cache().IsFixed(b)) some.push_back(b);
+  ASSERT_EQ(first->cache().ComputeNodes(some), 5);
+  std::string error;
+  ASSERT_TRUE(first->SaveColumns(&error)) << error;
+  auto second = FeModel::Build(PlatformMesh(), s);
+  EXPECT_EQ(second->imported_nodes(), 5);
+  EXPECT_EQ(second->cache_key(), first->cache_key());
+  for (int b : some) {
+    ASSERT_TRUE(second->cache().IsReady(b));
+    ASSERT_TRUE(first->cache().Pin(b));
+    ASSERT_TRUE(second->cache().Pin(b));
+    EXPECT_EQ(first->cache().Block(5, b), second->cache().Block(5, b));
+    first->cache().Unpin(b);
+    second->cache().Unpin(b);
+  }
+  // Another material: another key, nothing imported.
+  s.material = kMaterialPresets[1].material;
+  EXPECT_EQ(FeModel::Build(PlatformMesh(), s)->imported_nodes(), 0);
+}
+
+TEST(FeTouchField, BorrowsTheNearestReadyColumnUntilItsOwnIsReady) {
+  FeModelSettings s = SteelSettings();
+  s.cache.start_worker = false;
+  std::shared_ptr<FeModel> model = FeModel::Build(PlatformMesh(), s);
+  FeTouchSettings ts;
+  ts.tool_radius = 3.0 * model->mean_edge_length();
+  FeTouchField field(model, ts, nullptr);
+  haptics::ToolKinematics tool = ToolAt(Eigen::Vector3d(0.1, 0.01, 0.010 + 0.6 * ts.tool_radius));
+  haptics::ToolWrench w = field.Evaluate(tool);
+  EXPECT_TRUE(field.last_state().waiting_for_columns);
+  EXPECT_EQ(field.last_state().num_contacts, 0);
+  EXPECT_EQ(w.f_T_W, Eigen::Vector3d::Zero());
+  // One column far from the tool (a plate-top node near the free end) is ready: borrowed.
+  int far = -1;
+  for (int b = 0; b < model->cache().num_candidates() && far < 0; ++b) {
+    const Eigen::Vector3d x = model->mesh().nodes.row(model->cache().candidate_node(b));
+    if (x.z() > 0.0099 && x.x() > 0.2 && std::abs(x.y()) < 0.05) far = b;
+  }
+  ASSERT_GE(far, 0);
+  ASSERT_EQ(model->cache().ComputeNodes({far}), 1);
+  field.Evaluate(tool);
+  const FeContactState st = field.last_state();
+  ASSERT_GT(st.num_contacts, 0);
+  EXPECT_EQ(st.num_substituted, st.num_contacts);
+  EXPECT_FALSE(st.waiting_for_columns);
+  EXPECT_GT(st.f_tool_W.z(), 0.0);  // still pushes back, with the borrowed compliance
+}
+
+TEST(FeMode, PrecomputesInAJobThenPublishesAFieldAndShowsStress) {
+  JobQueue jobs;
+  FeMode mode(nullptr, &jobs);  // no renderer: VTK data only
+  EXPECT_EQ(mode.TakeField(), nullptr);
+  mode.SetMesh(PlatformMesh(), "platform");
+  mode.model_settings().use_disk_cache = false;
+  mode.Precompute();
+  for (int i = 0; i < 6000 && jobs.busy(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_FALSE(jobs.busy());
+  EXPECT_EQ(jobs.Poll(), 1);
+  ASSERT_NE(mode.model(), nullptr);
+  EXPECT_EQ(mode.TakeField(), nullptr);  // inactive: nothing published
+  mode.SetActive(true);
+  std::unique_ptr<haptics::ForceField> field = mode.TakeField();
+  ASSERT_NE(field, nullptr);
+  EXPECT_EQ(mode.TakeField(), nullptr);  // once
+  // Push as the haptic thread would, then a frame on the main thread.
+  const double r = mode.model()->mean_edge_length();
+  haptics::ToolState tool;
+  tool.tool_W.p_WT = Eigen::Vector3d(0.1, 0.01, 0.010 + 0.5 * r);
+  field->Evaluate(tool.tool_W);
+  ASSERT_TRUE(mode.model()->cache().WaitUntilIdle(60.0));
+  const haptics::ToolWrench w = field->Evaluate(tool.tool_W);
+  mode.OnFrame(tool);
+  EXPECT_GT(mode.figures().contacts, 0);
+  EXPECT_GT(mode.figures().f_tool_W.z(), 0.0);
+  EXPECT_GT(mode.figures().max_displacement, 0.1 * 0.5 * r);
+  EXPECT_GT(mode.figures().max_von_mises, 1e6);
+  // Felt force: the mode's default scale and bound.
+  EXPECT_LE(w.f_T_W.norm(), mode.touch_settings().max_force * (1 + 1e-12));
+  EXPECT_GT(w.f_T_W.z(), 0.0);
+  mode.SetActive(false);
+  EXPECT_EQ(mode.TakeField(), nullptr);
+  for (int i = 0; i < 3000 && jobs.busy(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  jobs.Poll();
+}
+
+}  // namespace
+}  // namespace spidarcad::app
