@@ -129,9 +129,9 @@ TEST(RunCommand, BadInputExitsWithStatusTwoAndSaysWhere) {
   EXPECT_NE(r.err.find(bad + ":3: field 'y': 'zz' is not a number"), std::string::npos) << r.err;
 
   const std::string traj = WritePressTrajectory();
-  r = RunSpidarcad("scene.json --trajectory '" + traj + "' --out '" + out + "'", "bad_scene");
+  r = RunSpidarcad("no_such_scene.json --trajectory '" + traj + "' --out '" + out + "'", "bad_scene");
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.err.find("SCENE: 'scene.json'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("SCENE: no_such_scene.json"), std::string::npos) << r.err;
   r = RunSpidarcad("--trajectory '" + traj + "' --out '" + out + "' --hand -1,2", "bad_hand");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--hand"), std::string::npos) << r.err;

@@ -5,6 +5,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -17,12 +18,14 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "runtime/scene_haptics.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/loop_runner.h"
 #include "spidarcad/haptics/simulated_device.h"
 #include "spidarcad/haptics/simulated_hand.h"
 #include "spidarcad/haptics/trajectory.h"
+#include "spidarcad/modeling/scene_io.h"
 
 namespace spidarcad::app {
 
@@ -33,9 +36,19 @@ constexpr const char* kRunHelp =
     "errors, noise, string stretch, motor lag; nominal calibration) is gripped by a simulated\n"
     "hand (mass-spring-damper) that follows the trajectory and is pushed by the device.\n"
     "\n"
-    "SCENE: omit it for an empty scene, or 'demo' for the built-in demo: a floor wall at\n"
-    "z = -0.03 m (normal +z, 2000 N/m, 5 N·s/m) and a 20 N/m spring toward (0.05, 0, 0) m.\n"
-    "Scene files (implicit solids, FE parts) are not rendered by `run` yet.\n"
+    "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
+    "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
+    "coordinates), or a scene file (docs/scene-format.md) of implicit solids:\n"
+    "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
+    "  --tool shell   the cross grip (poles +-d, radius 6 mm) is a six-DOF point shell with\n"
+    "                 virtual coupling against the union of the solids: torques are felt\n"
+    "--stiffness and --damping are what the hand feels at the grip (N/m and N·s/m of grip motion;\n"
+    "the fields get them divided by the world scale s). FE parts are not rendered by `run` yet.\n"
+    "\n"
+    "X_WD (scene files): p_W = s·p_D + p_WDo. By default the scene is fitted to the device's\n"
+    "reachable cube (+-0.1 m): the box of its bounded solids (modeling::FindBounds) is centred on\n"
+    "the device origin (p_WDo = box centre) and its largest side spans 80 % of the cube\n"
+    "(s = side / 0.16 m). --world-scale and --world-origin override either part.\n"
     "\n"
     "Trajectory CSV: t,x,y,z,qw,qx,qy,qz,grasp (s; m in the device frame D; unit quaternion\n"
     "of the grip frame R_DT; grasp angle in rad, pi/2 at rest); '#' comments allowed.\n"
@@ -53,7 +66,9 @@ constexpr const char* kRunHelp =
     "  fk_x,fk_y,fk_z    grip centre measured by forward kinematics, m\n"
     "\n"
     "Example:\n"
-    "  spidarcad run demo --trajectory assets/trajectories/press.csv --out press_result.csv";
+    "  spidarcad run demo --trajectory assets/trajectories/press.csv --out press_result.csv\n"
+    "  spidarcad run assets/scenes/platform.json --trajectory assets/trajectories/press.csv \\\n"
+    "      --out platform_press.csv --world-scale 1 --world-origin 0.1,0,0.04";
 
 struct RunOptions {
   std::string scene;
@@ -62,6 +77,12 @@ struct RunOptions {
   std::string device = "simulated";
   std::vector<double> hand;
   std::uint64_t seed = 1;
+  std::string tool = "proxy";
+  double stiffness = 1500.0;
+  double damping = 1.0;
+  std::vector<double> friction;
+  double world_scale = 0.0;  // 0: fitted
+  std::vector<double> world_origin;
 };
 
 std::string Fixed(double v, int digits) {
@@ -77,15 +98,83 @@ void RunRun(const RunOptions& options) {
   }
   std::unique_ptr<haptics::HapticScene> scene;
   std::string scene_name = "empty";
+  std::string fields_line;  // per-field names for the summary
+  std::string map_line = "X_WD: identity (device coordinates)";
+  haptics::LoopSettings settings;
+  settings.fk.max_residual = 5e-3;  // nominal (uncalibrated) encoder model: mm-level errors
   if (options.scene.empty() || options.scene == "none") {
     scene = std::make_unique<haptics::HapticScene>();
   } else if (options.scene == "demo") {
     scene = haptics::MakeDemoScene();
     scene_name = "demo";
+    fields_line = "fields: plane_wall (floor z = -0.03 m), spring (toward (0.05, 0, 0) m)";
   } else {
-    throw InputError("SCENE: '" + options.scene +
-                     "': `run` renders only the built-in 'demo' scene (or none) for now; "
-                     "implicit-solid and FE scenes are not yet turned into force fields");
+    modeling::Scene loaded;
+    try {
+      loaded = modeling::LoadScene(options.scene);
+    } catch (const modeling::SceneError& e) {
+      throw InputError(std::string("SCENE: ") + e.what());
+    }
+    SceneHapticsOptions haptic_options;
+    if (options.tool == "proxy") {
+      haptic_options.tool = ToolModel::kProxy;
+    } else if (options.tool == "shell") {
+      haptic_options.tool = ToolModel::kShell;
+    } else {
+      throw InputError("--tool: '" + options.tool + "' is not a tool model; use proxy or shell");
+    }
+    haptic_options.stiffness = options.stiffness;
+    haptic_options.damping = options.damping;
+    haptic_options.coupling_stiffness = std::min(options.stiffness, 1000.0);
+    if (!options.friction.empty()) {
+      if (options.friction.size() != 2) {
+        throw InputError("--friction: expected static,dynamic, got " +
+                         std::to_string(options.friction.size()) + " numbers");
+      }
+      haptic_options.static_friction = options.friction[0];
+      haptic_options.dynamic_friction = options.friction[1];
+    }
+    if (options.world_scale != 0.0) haptic_options.world_scale = options.world_scale;
+    if (!options.world_origin.empty()) {
+      if (options.world_origin.size() != 3) {
+        throw InputError("--world-origin: expected x,y,z (m), got " +
+                         std::to_string(options.world_origin.size()) + " numbers");
+      }
+      haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
+                                             options.world_origin[2]);
+    }
+    haptic_options.grip_d = haptics::SpidarGeometry().d;
+    SceneHaptics built;
+    try {
+      haptic_options.Validate();
+      built = BuildHapticScene(loaded, haptic_options);
+    } catch (const std::invalid_argument& e) {
+      const std::string what = e.what();
+      // Option problems name the option; solid problems name the file.
+      if (what.rfind("scene haptics option", 0) == 0) {
+        throw InputError("--stiffness/--damping/--friction/--world-scale: " + what);
+      }
+      throw InputError(options.scene + ": " + what);
+    }
+    built.ApplyTo(&settings);
+    scene = std::move(built.scene);
+    scene_name = options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
+    fields_line = "fields:";
+    for (std::size_t i = 0; i < built.fields.size(); ++i) {
+      fields_line += std::string(i ? "," : "") + " " + built.fields[i].kind + " '" +
+                     built.fields[i].solid + "'";
+    }
+    const Eigen::Vector3d& o = built.map.p_WDo;
+    map_line = "X_WD: p_W = " + FormatNumber(built.map.world_scale) + " p_D + (" +
+               FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
+               ") m; scale " + (built.map.scale_fitted ? "fitted" : "given") + ", origin " +
+               (built.map.origin_fitted ? "fitted" : "given");
+    if (!built.map.bounds_W.isEmpty()) {
+      const Eigen::AlignedBox3d& b = built.map.bounds_W;
+      map_line += "; scene box (" + FormatNumber(b.min().x()) + ", " + FormatNumber(b.min().y()) +
+                  ", " + FormatNumber(b.min().z()) + ") .. (" + FormatNumber(b.max().x()) + ", " +
+                  FormatNumber(b.max().y()) + ", " + FormatNumber(b.max().z()) + ") m";
+    }
   }
   const int num_fields = scene->size();
 
@@ -120,8 +209,6 @@ void RunRun(const RunOptions& options) {
   const haptics::DeviceInfo& info = device.info();
   const haptics::EncoderCalibration calibration = haptics::EncoderCalibration::Nominal(
       info.encoder, haptics::InverseKinematics(info.geometry, info.home_pose));
-  haptics::LoopSettings settings;
-  settings.fk.max_residual = 5e-3;  // nominal (uncalibrated) encoder model: mm-level errors
   haptics::HapticLoop loop(info, calibration, settings);
   loop.Publish(std::move(scene));
 
@@ -177,6 +264,8 @@ void RunRun(const RunOptions& options) {
             << " field" << (num_fields == 1 ? "" : "s") << "), device simulated (seed "
             << options.seed << "), hand " << FormatNumber(hand_settings.stiffness) << " N/m, "
             << FormatNumber(hand_settings.damping) << " N·s/m\n";
+  if (!fields_line.empty()) std::cout << fields_line << "\n";
+  std::cout << map_line << "\n";
   std::cout << "tick time [us]: p50 " << Fixed(tick_time.Percentile(0.5) * 1e6, 1) << "  p99 "
             << Fixed(tick_time.Percentile(0.99) * 1e6, 1) << "  p99.9 "
             << Fixed(tick_time.Percentile(0.999) * 1e6, 1) << "  max "
@@ -199,7 +288,7 @@ void RegisterRunCommand(CLI::App& app) {
   auto options = std::make_shared<RunOptions>();
   CLI::App* cmd = app.add_subcommand("run", "Headless haptic session on a scripted trajectory");
   cmd->footer(kRunHelp);
-  cmd->add_option("scene", options->scene, "Scene: omitted (empty) or 'demo'");
+  cmd->add_option("scene", options->scene, "Scene: omitted (empty), 'demo' or a scene file (.json)");
   cmd->add_option("--trajectory", options->trajectory, "Trajectory CSV (t,x,y,z,qw,qx,qy,qz,grasp)")
       ->required();
   cmd->add_option("--out", options->out, "Result CSV, one row per tick")->required();
@@ -209,6 +298,22 @@ void RegisterRunCommand(CLI::App& app) {
       ->delimiter(',')
       ->expected(2);
   cmd->add_option("--seed", options->seed, "Seed of the simulated device's errors (default 1)");
+  cmd->add_option("--tool", options->tool, "Scene files: tool model proxy (default) or shell");
+  cmd->add_option("--stiffness", options->stiffness,
+                  "Scene files: contact stiffness at the grip, N/m (default 1500; shell coupling "
+                  "min(K, 1000))");
+  cmd->add_option("--damping", options->damping,
+                  "Scene files: proxy normal damping at the grip, N·s/m (default 1)");
+  cmd->add_option("--friction", options->friction,
+                  "Scene files: proxy friction static,dynamic (default 0.3,0.2)")
+      ->delimiter(',')
+      ->expected(2);
+  cmd->add_option("--world-scale", options->world_scale,
+                  "Scene files: world metres per grip metre (default: fitted)");
+  cmd->add_option("--world-origin", options->world_origin,
+                  "Scene files: world position of the device origin x,y,z, m (default: fitted)")
+      ->delimiter(',')
+      ->expected(3);
   cmd->callback([options]() { RunRun(*options); });
 }
 

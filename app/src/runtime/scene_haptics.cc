@@ -1,0 +1,172 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "runtime/scene_haptics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "runtime/solid_distance_field.h"
+#include "spidarcad/haptics/point_shell_field.h"
+#include "spidarcad/haptics/proxy_field.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/surface_mesher.h"
+
+namespace spidarcad::app {
+
+namespace {
+
+// Half side of the box searched for each solid, m: a solid reaching it is unbounded.
+constexpr double kSearchHalfSide = 10.0;
+// Cell of the coarse bounds search, m.
+constexpr double kCoarseCell = 0.01;
+
+void Require(bool ok, const char* field, double value, const char* what) {
+  if (ok) return;
+  std::ostringstream os;
+  os << "scene haptics option '" << field << "' = " << value << ": " << what;
+  throw std::invalid_argument(os.str());
+}
+
+bool PositiveFinite(double v) { return std::isfinite(v) && v > 0.0; }
+
+// The solid's box, or an empty box when it is empty; *unbounded when it reaches the search box.
+Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded) {
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
+                                   Eigen::Vector3d::Constant(kSearchHalfSide));
+  const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, search, kCoarseCell);
+  *unbounded = false;
+  if (rough.isEmpty()) return rough;
+  for (int a = 0; a < 3; ++a) {
+    if (rough.min()[a] <= -kSearchHalfSide + kCoarseCell ||
+        rough.max()[a] >= kSearchHalfSide - kCoarseCell) {
+      *unbounded = true;
+      return Eigen::AlignedBox3d();
+    }
+  }
+  return modeling::FindBounds(solid, rough, std::max(rough.sizes().maxCoeff() / 64.0, 1e-4));
+}
+
+}  // namespace
+
+const char* ToolModelName(ToolModel model) {
+  return model == ToolModel::kShell ? "shell" : "proxy";
+}
+
+void SceneHapticsOptions::Validate() const {
+  Require(PositiveFinite(stiffness), "stiffness", stiffness, "must be finite and > 0 N/m");
+  Require(std::isfinite(damping) && damping >= 0, "damping", damping, "must be finite and >= 0 N·s/m");
+  Require(std::isfinite(static_friction) && static_friction >= 0, "static_friction", static_friction,
+          "must be finite and >= 0");
+  Require(std::isfinite(dynamic_friction) && dynamic_friction >= 0 && dynamic_friction <= static_friction,
+          "dynamic_friction", dynamic_friction, "must be in [0, static_friction]");
+  Require(PositiveFinite(shell_radius), "shell_radius", shell_radius, "must be finite and > 0 m");
+  Require(shell_rings >= 2, "shell_rings", shell_rings, "must be >= 2");
+  Require(shell_around >= 3, "shell_around", shell_around, "must be >= 3");
+  Require(PositiveFinite(coupling_stiffness), "coupling_stiffness", coupling_stiffness,
+          "must be finite and > 0 N/m");
+  Require(std::isfinite(coupling_damping) && coupling_damping >= 0, "coupling_damping",
+          coupling_damping, "must be finite and >= 0 N·s/m");
+  if (world_scale) Require(PositiveFinite(*world_scale), "world_scale", *world_scale, "must be finite and > 0");
+  if (p_WDo) Require(p_WDo->allFinite(), "p_WDo", p_WDo->norm(), "must be finite");
+  Require(PositiveFinite(device_half_side), "device_half_side", device_half_side, "must be finite and > 0 m");
+  Require(PositiveFinite(fit_fraction) && fit_fraction <= 1.0, "fit_fraction", fit_fraction,
+          "must be in (0, 1]");
+  Require(PositiveFinite(grip_d), "grip_d", grip_d, "must be finite and > 0 m");
+}
+
+WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side, double fraction) {
+  if (bounds_W.isEmpty()) throw std::invalid_argument("FitWorkspace: the scene's box is empty");
+  Require(PositiveFinite(half_side), "device_half_side", half_side, "must be finite and > 0 m");
+  Require(PositiveFinite(fraction) && fraction <= 1.0, "fit_fraction", fraction, "must be in (0, 1]");
+  WorkspaceMap map;
+  map.bounds_W = bounds_W;
+  const double side = std::max(bounds_W.sizes().maxCoeff(), 1e-6);
+  map.world_scale = side / (2.0 * half_side * fraction);
+  map.p_WDo = bounds_W.center();
+  map.scale_fitted = map.origin_fitted = true;
+  return map;
+}
+
+void SceneHaptics::ApplyTo(haptics::LoopSettings* settings) const {
+  settings->world_scale = map.world_scale;
+  settings->p_WDo = map.p_WDo;
+}
+
+SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOptions& options) {
+  options.Validate();
+  if (scene.solids.empty()) throw std::invalid_argument("the scene has no solids");
+
+  // Compile every solid and find its box.
+  std::vector<std::shared_ptr<const haptics::DistanceField>> fields;
+  Eigen::AlignedBox3d bounds;  // empty
+  for (std::size_t i = 0; i < scene.solids.size(); ++i) {
+    const modeling::Solid& solid = scene.solids[i];
+    const std::string pointer = "/solids/" + std::to_string(i) + "/root";
+    std::shared_ptr<const modeling::CompiledSolid> compiled;
+    try {
+      compiled = std::make_shared<const modeling::CompiledSolid>(
+          modeling::CompiledSolid::Compile(solid.root, pointer));
+    } catch (const std::exception& e) {
+      throw std::invalid_argument("solid '" + solid.name + "' (" + pointer + "): " + e.what());
+    }
+    bool unbounded = false;
+    const Eigen::AlignedBox3d box = SolidBounds(*compiled, &unbounded);
+    if (!box.isEmpty()) bounds.extend(box);
+    fields.push_back(std::make_shared<const SolidDistanceField>(std::move(compiled)));
+  }
+
+  SceneHaptics out;
+  if (!bounds.isEmpty()) {
+    out.map = FitWorkspace(bounds, options.device_half_side, options.fit_fraction);
+  } else {
+    out.map.scale_fitted = out.map.origin_fitted = true;  // nothing bounded: identity
+  }
+  if (options.world_scale) {
+    out.map.world_scale = *options.world_scale;
+    out.map.scale_fitted = false;
+  }
+  if (options.p_WDo) {
+    out.map.p_WDo = *options.p_WDo;
+    out.map.origin_fitted = false;
+  }
+  const double s = out.map.world_scale;
+
+  out.scene = std::make_unique<haptics::HapticScene>();
+  if (options.tool == ToolModel::kProxy) {
+    haptics::ProxySettings proxy;
+    proxy.stiffness = options.stiffness / s;
+    proxy.damping = options.damping / s;
+    proxy.static_friction = options.static_friction;
+    proxy.dynamic_friction = options.dynamic_friction;
+    proxy.min_step = 2e-4 * s;
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      out.scene->Add(std::make_unique<haptics::ProxyField>(fields[i], proxy));
+      out.fields.push_back({"proxy", scene.solids[i].name});
+    }
+  } else {
+    std::shared_ptr<const haptics::DistanceField> environment =
+        fields.size() == 1 ? fields.front()
+                           : std::make_shared<const haptics::UnionDistanceField>(fields);
+    haptics::PointShell shell = haptics::PointShell::CrossGrip(
+        options.grip_d * s, options.shell_radius * s, options.shell_rings, options.shell_around);
+    haptics::PointShellSettings settings;
+    settings.coupling_stiffness = options.coupling_stiffness / s;
+    settings.coupling_damping = options.coupling_damping / s;
+    settings.contact_stiffness = options.coupling_stiffness / s;
+    settings.contact_margin = 2e-3 * s;
+    settings.max_points = std::max(settings.max_points, shell.size());
+    // Mass and inertia scale with the world so the virtual tool's dynamics (ω = √(k/m)) do not
+    // change with s: m ∝ 1/s keeps k/m fixed; inertia keeps k_r/I fixed (k_r is not rescaled).
+    settings.mass = settings.mass / s;
+    out.scene->Add(std::make_unique<haptics::PointShellField>(environment, std::move(shell), settings));
+    out.fields.push_back({"point_shell", fields.size() == 1
+                                              ? scene.solids.front().name
+                                              : "union of " + std::to_string(fields.size()) + " solids"});
+  }
+  return out;
+}
+
+}  // namespace spidarcad::app

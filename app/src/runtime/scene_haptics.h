@@ -1,0 +1,113 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Scene objects as haptic force fields: the adapter between a loaded scene (modeling::Scene, a
+// list of implicit solids in metres, W) and the haptic loop's immutable HapticScene.
+//
+// Tool models (SceneHapticsOptions::tool):
+//  - kProxy: each solid becomes one ProxyField (god-object on the solid's SolidDistanceField)
+//    acting on the grip centre p_WT; the proxies add up.
+//  - kShell: the grip as a rigid six-DOF tool: one PointShellField whose shell is the cross grip
+//    (two capsules, poles ±d, radius shell_radius, both scaled into W), against the union of
+//    every solid (min of the values); torques are felt.
+//
+// Device workspace to scene, X_WD (haptics::LoopSettings): p_W = s·p_D + p_WDo, no rotation.
+// Fit (when the options give no scale or origin): every solid's box is found with
+// modeling::FindBounds (interval bounds, search box ±10 m; solids that reach it, such as a bare
+// half-space, are unbounded and left out of the fit); the union box B of the bounded solids is
+// mapped into the device's reachable cube, ±device_half_side (0.1 m) around the device origin,
+// filling fit_fraction (0.8) of it along B's largest side:
+//     s = max side of B / (2 · device_half_side · fit_fraction),   p_WDo = centre of B.
+// So the scene's centre sits at the device origin and its largest side spans 160 mm of grip
+// motion. Stiffness and damping in the options are what the hand feels at the grip (N/m of grip
+// motion, N·s/m of grip velocity): the fields get k/s and b/s in world units, because the loop
+// displays world forces unscaled (LoopSettings::force_scale = 1) while a grip displacement δ is
+// a world displacement s·δ. Moments are displayed as computed in W (no length rescaling).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "spidarcad/haptics/haptic_loop.h"
+#include "spidarcad/modeling/scene_io.h"
+
+namespace spidarcad::app {
+
+// How the grip touches the scene.
+enum class ToolModel {
+  kProxy,  // a god-object point per solid (three DOF force)
+  kShell,  // the cross grip as a point shell with virtual coupling (six DOF)
+};
+
+// "proxy" or "shell".
+const char* ToolModelName(ToolModel model);
+
+// Settings of BuildHapticScene. SI units; stiffness and damping as felt at the grip (device).
+struct SceneHapticsOptions {
+  ToolModel tool = ToolModel::kProxy;
+  // Proxy: wall stiffness k [N/m] and normal damping b [N·s/m] at the grip; 1500 N/m and
+  // 1 N·s/m are passive at 1 kHz with a hand's damping (see proxy_field.h).
+  double stiffness = 1500.0;
+  double damping = 1.0;
+  // Proxy Coulomb friction, static μs >= dynamic μd >= 0.
+  double static_friction = 0.3;
+  double dynamic_friction = 0.2;
+  // Shell: capsule radius of the grip's poles at the grip, m; points per ring, rings per pole.
+  double shell_radius = 0.006;
+  int shell_rings = 12;
+  int shell_around = 8;
+  // Shell: coupling stiffness at the grip [N/m] (the contact per point is the same value, see
+  // point_shell_field.h), coupling damping [N·s/m].
+  double coupling_stiffness = 1000.0;
+  double coupling_damping = 3.0;
+  // X_WD: the scale s and the world position of the device origin; each one not given is fitted.
+  std::optional<double> world_scale;
+  std::optional<Eigen::Vector3d> p_WDo;
+  // The device's reachable cube, half side [m], and the fraction of it the scene fills.
+  double device_half_side = 0.1;
+  double fit_fraction = 0.8;
+  // Pole half-length d of the grip [m] (the device's geometry.d), for the shell.
+  double grip_d = 0.04;
+  // Throws std::invalid_argument naming the field and value when out of range.
+  void Validate() const;
+};
+
+// The device-to-scene map chosen for a scene.
+struct WorkspaceMap {
+  double world_scale = 1.0;                         // s: world metres per grip metre
+  Eigen::Vector3d p_WDo = Eigen::Vector3d::Zero();  // world position of the device origin, m
+  Eigen::AlignedBox3d bounds_W;                     // union box of the bounded solids (may be empty)
+  bool scale_fitted = false;                        // s came from the fit
+  bool origin_fitted = false;                       // p_WDo came from the fit
+};
+
+// The map that puts `bounds_W` (non-empty) at the centre of the cube ±half_side, filling
+// `fraction` of it along its largest side (see the file comment). Throws std::invalid_argument
+// for an empty box or a non-positive half side or fraction.
+WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side, double fraction);
+
+// One field of a built scene, for summaries.
+struct FieldInfo {
+  std::string kind;   // "proxy", "point_shell"
+  std::string solid;  // the solid's name, or "union of N solids"
+};
+
+// A HapticScene built from a scene, with the X_WD it was built for.
+struct SceneHaptics {
+  std::unique_ptr<haptics::HapticScene> scene;
+  WorkspaceMap map;
+  std::vector<FieldInfo> fields;
+  // Copies map.world_scale and map.p_WDo into `settings` (the loop that renders the scene).
+  void ApplyTo(haptics::LoopSettings* settings) const;
+};
+
+// Builds the force fields of `scene` (see the file comment). Compiles every solid (the tape is
+// shared by the field and nothing else). Throws std::invalid_argument naming the solid (its
+// name and JSON pointer /solids/i/root) when it does not compile, or the option when the
+// options are bad, or when the scene has no solids.
+SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOptions& options);
+
+}  // namespace spidarcad::app

@@ -1,0 +1,204 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Golden regression runs of `spidarcad run`: each demo scene on a scripted trajectory, compared
+// with a golden result in tests/golden/<scene>_<trajectory>.csv under stated tolerances. The
+// run is deterministic on the virtual clock (the simulated device's errors are seeded), so the
+// tolerances are tight; they only allow for floating-point differences between compilers and
+// libm versions. tick_us (wall-clock time) and fk_x..fk_z (derived from the compared tensions'
+// inputs) are never compared. Goldens keep every 20th tick (and the last) of the compared
+// columns.
+//
+// Tolerances per signal (absolute):
+//   t 1e-9 s; x, y, z 1e-6 m; qw..qz 1e-6; grasp 1e-6 rad; fx, fy, fz 1e-4 N;
+//   mx, my, mz 1e-5 N·m; g 1e-5 N·m; tau1..tau8 1e-4 N; events exact (bit set).
+//
+// Regenerating the goldens (after a deliberate change of the physics; check the new runs'
+// physics first, see scene_haptics_test.cc and the README):
+//   SPIDARCAD_UPDATE_GOLDEN=1 build/tests/app_tests --gtest_filter='Regression.*'
+// or scripts/update-golden.sh [build dir]. The tests then write tests/golden/*.csv in the source
+// tree instead of comparing, and say so.
+//
+// The comparison itself (golden_compare.h) is tested here too: it must catch a perturbed signal.
+#include <cmath>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "golden_compare.h"
+#include "spidarcad_runner.h"
+
+namespace {
+
+using spidarcad::test_support::CompareToGolden;
+using spidarcad::test_support::CsvTable;
+using spidarcad::test_support::Decimate;
+using spidarcad::test_support::GoldenComparison;
+using spidarcad::test_support::SignalTolerance;
+
+// Every this many ticks a row goes into the golden file.
+constexpr int kDecimation = 20;
+
+std::vector<SignalTolerance> Tolerances() {
+  std::vector<SignalTolerance> t = {{"t", 1e-9, "s"}};
+  for (const char* c : {"x", "y", "z"}) t.push_back({c, 1e-6, "m"});
+  for (const char* c : {"qw", "qx", "qy", "qz"}) t.push_back({c, 1e-6, ""});
+  t.push_back({"grasp", 1e-6, "rad"});
+  for (const char* c : {"fx", "fy", "fz"}) t.push_back({c, 1e-4, "N"});
+  for (const char* c : {"mx", "my", "mz", "g"}) t.push_back({c, 1e-5, "N·m"});
+  for (int i = 1; i <= 8; ++i) t.push_back({"tau" + std::to_string(i), 1e-4, "N"});
+  t.push_back({"events", 0.0, "bits"});
+  return t;
+}
+
+std::vector<std::string> ComparedColumns() {
+  std::vector<std::string> columns;
+  for (const SignalTolerance& s : Tolerances()) columns.push_back(s.column);
+  return columns;
+}
+
+std::string Source(const std::string& relative) {
+  return std::string(SPIDARCAD_SOURCE_DIR) + "/" + relative;
+}
+
+bool UpdateGolden() {
+  const char* v = std::getenv("SPIDARCAD_UPDATE_GOLDEN");
+  return v != nullptr && std::string(v) == "1";
+}
+
+// Runs `spidarcad run ARGS --out ...` and compares (or, when updating, writes) the golden
+// tests/golden/<name>.csv.
+void RunAndCompare(const std::string& name, const std::string& args) {
+  const std::string out = spidarcad::test_support::TestOutputPath("regression_" + name + ".csv");
+  const auto run = spidarcad::test_support::RunSpidarcad("run " + args + " --out '" + out + "'",
+                                                         "", "regression_" + name);
+  ASSERT_EQ(run.status, 0) << run.err;
+  const CsvTable actual = Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation,
+                                   ComparedColumns());
+  const std::string golden_path = Source("tests/golden/" + name + ".csv");
+  if (UpdateGolden()) {
+    std::string shown = args;  // paths relative to the source tree in the comment
+    const std::string root = std::string(SPIDARCAD_SOURCE_DIR) + "/";
+    for (std::size_t at; (at = shown.find(root)) != std::string::npos;) shown.erase(at, root.size());
+    spidarcad::test_support::WriteCsvTable(
+        actual, golden_path,
+        {"golden result of: spidarcad run " + shown, "every " + std::to_string(kDecimation) +
+             "th tick; regenerate with SPIDARCAD_UPDATE_GOLDEN=1 (tests/app/regression_test.cc)"});
+    std::cout << "[ UPDATED  ] " << golden_path << "\n";
+    return;
+  }
+  const CsvTable golden = spidarcad::test_support::ReadCsvTable(golden_path);
+  const GoldenComparison result = CompareToGolden(golden, actual, Tolerances());
+  EXPECT_TRUE(result.ok()) << name << " (" << golden_path << " vs " << out << "):\n"
+                           << result.Report();
+}
+
+// The assets' paths with arguments in the form used by the goldens' comments.
+std::string Asset(const std::string& relative) { return "'" + Source("assets/" + relative) + "'"; }
+
+TEST(Regression, DemoSceneWithPressMatchesGolden) {
+  RunAndCompare("demo_press", "demo --trajectory " + Asset("trajectories/press.csv"));
+}
+
+// The plate's top face (z = 0.01 m) at grip z = −0.03 m: the press's 1 cm-deep aim.
+TEST(Regression, PlatformProxyWithPressMatchesGolden) {
+  RunAndCompare("platform_press", Asset("scenes/platform.json") + " --trajectory " +
+                                      Asset("trajectories/press.csv") +
+                                      " --world-scale 1 --world-origin 0.1,0,0.04");
+}
+
+// The circle (grip z = −0.035 m, radius 4 cm) at world z = 0.06 m: it cuts the blob's top.
+TEST(Regression, ClayProxyWithCircleMatchesGolden) {
+  RunAndCompare("clay_circle", Asset("scenes/clay.json") + " --trajectory " +
+                                   Asset("trajectories/circle.csv") +
+                                   " --world-scale 1 --world-origin 0,0,0.095");
+}
+
+// The cross grip's pole 2 (along x, end at 4.6 cm) 3 mm into the wall face x = 0, twisting.
+TEST(Regression, PlatformShellToolWithTwistMatchesGolden) {
+  RunAndCompare("platform_shell_twist", Asset("scenes/platform.json") +
+                                            " --tool shell --trajectory " +
+                                            Asset("trajectories/twist.csv") +
+                                            " --world-scale 1 --world-origin 0.043,0.2,-0.1");
+}
+
+CsvTable SmallTable() {
+  CsvTable t;
+  t.columns = {"t", "x", "fx", "events"};
+  for (int i = 0; i < 10; ++i) {
+    t.rows.push_back({0.02 * i, 0.001 * i, std::sin(0.3 * i), static_cast<double>(i % 3)});
+  }
+  return t;
+}
+
+std::vector<SignalTolerance> SmallTolerances() {
+  return {{"t", 1e-9, "s"}, {"x", 1e-6, "m"}, {"fx", 1e-4, "N"}, {"events", 0.0, "bits"}};
+}
+
+TEST(GoldenCompare, DetectsAPerturbedSignalAndSaysWhereAndByHowMuch) {
+  const CsvTable golden = SmallTable();
+  CsvTable actual = golden;
+  actual.rows[6][2] += 3e-4;  // fx off by 3× its tolerance at row 6 (t = 0.12 s)
+  actual.rows[8][2] -= 5e-4;
+  const GoldenComparison r = CompareToGolden(golden, actual, SmallTolerances());
+  ASSERT_FALSE(r.ok());
+  ASSERT_EQ(r.divergences.size(), 1u);
+  const auto& d = r.divergences[0];
+  EXPECT_EQ(d.column, "fx");
+  EXPECT_EQ(d.row, 6u);
+  EXPECT_DOUBLE_EQ(d.time, 0.12);
+  EXPECT_DOUBLE_EQ(d.expected, std::sin(1.8));
+  EXPECT_NEAR(d.difference, 3e-4, 1e-12);
+  EXPECT_EQ(d.rows_over, 2u);
+  EXPECT_NEAR(d.max_difference, 5e-4, 1e-12);
+  const std::string report = r.Report();
+  EXPECT_NE(report.find("signal 'fx' diverged at row 6 (t = 0.12 s)"), std::string::npos) << report;
+}
+
+TEST(GoldenCompare, AcceptsDifferencesWithinToleranceButNotAFlippedEventBit) {
+  const CsvTable golden = SmallTable();
+  CsvTable actual = golden;
+  for (auto& row : actual.rows) {
+    row[1] += 0.9e-6;
+    row[2] -= 0.9e-4;
+  }
+  EXPECT_TRUE(CompareToGolden(golden, actual, SmallTolerances()).ok());
+  actual.rows[3][3] = 1.0;  // events: was 0
+  const GoldenComparison r = CompareToGolden(golden, actual, SmallTolerances());
+  ASSERT_EQ(r.divergences.size(), 1u);
+  EXPECT_EQ(r.divergences[0].column, "events");
+  EXPECT_EQ(r.divergences[0].row, 3u);
+}
+
+TEST(GoldenCompare, ReportsMissingColumnsRowCountsAndNan) {
+  const CsvTable golden = SmallTable();
+  CsvTable actual = golden;
+  actual.rows.pop_back();
+  actual.rows[2][1] = NAN;
+  const GoldenComparison r = CompareToGolden(golden, actual, {{"x", 1e-6, "m"}, {"fy", 1e-4, "N"}});
+  EXPECT_EQ(r.structural.size(), 2u);  // row count, fy missing
+  ASSERT_EQ(r.divergences.size(), 1u);
+  EXPECT_EQ(r.divergences[0].row, 2u);
+  EXPECT_TRUE(std::isinf(r.divergences[0].difference));
+}
+
+TEST(GoldenCompare, DecimateKeepsEveryNthAndTheLastRowInTheGivenColumnOrder) {
+  const CsvTable t = SmallTable();
+  const CsvTable d = Decimate(t, 4, {"fx", "t"});
+  ASSERT_EQ(d.columns, (std::vector<std::string>{"fx", "t"}));
+  ASSERT_EQ(d.rows.size(), 4u);  // rows 0, 4, 8, 9
+  EXPECT_DOUBLE_EQ(d.rows[1][1], 0.08);
+  EXPECT_DOUBLE_EQ(d.rows[3][1], 0.18);
+  EXPECT_DOUBLE_EQ(d.rows[2][0], std::sin(2.4));
+}
+
+TEST(GoldenCompare, WrittenTableReadsBackBitForBit) {
+  const CsvTable t = SmallTable();
+  const std::string path = spidarcad::test_support::TestOutputPath("golden_roundtrip.csv");
+  spidarcad::test_support::WriteCsvTable(t, path, {"comment"});
+  const CsvTable back = spidarcad::test_support::ReadCsvTable(path);
+  ASSERT_EQ(back.columns, t.columns);
+  ASSERT_EQ(back.rows, t.rows);
+}
+
+}  // namespace
