@@ -545,6 +545,105 @@ json NodeToJson(const ImplicitNode& node) {
   return j;
 }
 
+namespace {
+
+// Reads a pose's rotation: "quaternion": [w, x, y, z] (normalised here), or "axis": [x, y, z]
+// with "angle" (rad), or neither (identity).
+Eigen::Quaterniond ReadRotation(ObjectReader& r, const std::string& path) {
+  if (r.Has("quaternion")) {
+    if (r.Has("axis") || r.Has("angle")) {
+      Fail(path, "give the rotation either as 'quaternion' or as 'axis' and 'angle', not both");
+    }
+    const json& v = r.Get("quaternion");
+    if (!v.is_array() || v.size() != 4) Fail(path + "/quaternion", "must be an array of 4 numbers [w, x, y, z], got " + v.dump());
+    double q[4];
+    for (int i = 0; i < 4; ++i) {
+      if (!v[i].is_number()) Fail(path + "/quaternion/" + std::to_string(i), "must be a number, got " + v[i].dump());
+      q[i] = v[i].get<double>();
+    }
+    Eigen::Quaterniond out(q[0], q[1], q[2], q[3]);
+    const double n = out.norm();
+    if (!(n > 1e-12) || !std::isfinite(n)) Fail(path + "/quaternion", "must be a non-zero finite quaternion, got " + v.dump());
+    // A unit quaternion (as saved) is kept bit for bit, so that save/load round trips exactly.
+    if (std::abs(n - 1.0) > 1e-15) out.normalize();
+    return out;
+  }
+  const double angle = r.Number("angle", 0.0);
+  if (!std::isfinite(angle)) Fail(path + "/angle", "must be finite");
+  const Eigen::Vector3d axis = r.Vector3("axis", Eigen::Vector3d::UnitZ());
+  if (!axis.allFinite() || !(axis.norm() > 1e-12)) Fail(path + "/axis", "must be a non-zero finite vector");
+  return Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized()));
+}
+
+double ReadTolerance(ObjectReader& r, const char* key, double fallback, const std::string& path) {
+  const double v = r.Number(key, fallback);
+  if (!(v >= 0) || !std::isfinite(v)) Fail(path + "/" + key, "must be finite and >= 0, got " + std::to_string(v));
+  return v;
+}
+
+json QuaternionJson(const Eigen::Quaterniond& q) { return json::array({q.w(), q.x(), q.y(), q.z()}); }
+
+// The "parts" array of a scene; checks names against the scene's solids and parts.
+std::vector<ScenePart> ReadParts(const json& parts, const std::vector<Solid>& solids) {
+  if (!parts.is_array()) Fail("/parts", "must be an array of parts, got " + std::string(parts.type_name()));
+  std::vector<ScenePart> out;
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const std::string path = "/parts/" + std::to_string(i);
+    ObjectReader r(parts[i], path, "a part");
+    ScenePart part;
+    part.name = r.String("name", "");
+    if (part.name.empty()) Fail(path + "/name", "a part needs a non-empty name");
+    for (const ScenePart& other : out) {
+      if (other.name == part.name) Fail(path + "/name", "duplicate part name '" + part.name + "'");
+    }
+    part.solid = r.String("solid", "");
+    if (std::none_of(solids.begin(), solids.end(), [&](const Solid& s) { return s.name == part.solid; })) {
+      Fail(path + "/solid", "no solid named '" + part.solid + "' in the scene");
+    }
+    part.position = r.Vector3("position", Eigen::Vector3d::Zero());
+    if (!part.position.allFinite()) Fail(path + "/position", "must be finite");
+    part.rotation = ReadRotation(r, path);
+    const std::string kind = r.String("kind", "graspable");
+    if (kind != "fixed" && kind != "graspable") {
+      Fail(path + "/kind", "must be \"fixed\" or \"graspable\", got \"" + kind + "\"");
+    }
+    part.fixed = kind == "fixed";
+    if (r.Has("seats")) {
+      const json& seats = r.Get("seats");
+      if (!seats.is_array()) Fail(path + "/seats", "must be an array of seats, got " + std::string(seats.type_name()));
+      for (size_t k = 0; k < seats.size(); ++k) {
+        const std::string sp = path + "/seats/" + std::to_string(k);
+        ObjectReader sr(seats[k], sp, "a seat");
+        SceneSeat seat;
+        seat.on = sr.String("on", "");
+        if (seat.on.empty()) Fail(sp + "/on", "a seat needs the name of the part it sits on");
+        if (seat.on == part.name) Fail(sp + "/on", "a part cannot sit on itself ('" + seat.on + "')");
+        seat.position = sr.Vector3("position", Eigen::Vector3d::Zero());
+        if (!seat.position.allFinite()) Fail(sp + "/position", "must be finite");
+        seat.rotation = ReadRotation(sr, sp);
+        seat.position_tolerance = ReadTolerance(sr, "position_tolerance", seat.position_tolerance, sp);
+        seat.angle_tolerance = ReadTolerance(sr, "angle_tolerance", seat.angle_tolerance, sp);
+        sr.RejectUnknown({});
+        part.seats.push_back(seat);
+      }
+    }
+    r.RejectUnknown({});
+    out.push_back(std::move(part));
+  }
+  // Seats name parts that exist (any order).
+  for (size_t i = 0; i < out.size(); ++i) {
+    for (size_t k = 0; k < out[i].seats.size(); ++k) {
+      const std::string& on = out[i].seats[k].on;
+      if (std::none_of(out.begin(), out.end(), [&](const ScenePart& p) { return p.name == on; })) {
+        Fail("/parts/" + std::to_string(i) + "/seats/" + std::to_string(k) + "/on", "no part named '" + on + "'");
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 Scene SceneFromJson(const json& j, const std::string& source) {
   try {
     ObjectReader r(j, "", "a scene document");
@@ -577,6 +676,7 @@ Scene SceneFromJson(const json& j, const std::string& source) {
       }
       scene.solids.push_back(std::move(solid));
     }
+    if (r.Has("parts")) scene.parts = ReadParts(r.Get("parts"), scene.solids);
     r.RejectUnknown({});
     return scene;
   } catch (const SceneError& e) {
@@ -598,6 +698,32 @@ json SceneToJson(const Scene& scene) {
     solids.push_back(js);
   }
   j["solids"] = solids;
+  if (!scene.parts.empty()) {
+    json parts = json::array();
+    for (const ScenePart& p : scene.parts) {
+      json jp;
+      jp["name"] = p.name;
+      jp["solid"] = p.solid;
+      jp["position"] = Vec(p.position);
+      jp["quaternion"] = QuaternionJson(p.rotation);
+      jp["kind"] = p.fixed ? "fixed" : "graspable";
+      if (!p.seats.empty()) {
+        json seats = json::array();
+        for (const SceneSeat& seat : p.seats) {
+          json js;
+          js["on"] = seat.on;
+          js["position"] = Vec(seat.position);
+          js["quaternion"] = QuaternionJson(seat.rotation);
+          js["position_tolerance"] = seat.position_tolerance;
+          js["angle_tolerance"] = seat.angle_tolerance;
+          seats.push_back(js);
+        }
+        jp["seats"] = seats;
+      }
+      parts.push_back(jp);
+    }
+    j["parts"] = parts;
+  }
   return j;
 }
 

@@ -257,5 +257,119 @@ TEST(SceneIo, MissingFileIsNamed) {
   EXPECT_THAT(e.what(), HasSubstr("cannot open"));
 }
 
+
+// Assembly parts (the optional "parts" array).
+
+TEST(SceneIo, AssemblyLoadsWithTheFig9Parts) {
+  const Scene scene = LoadScene(kScenes + "assembly.json");
+  ASSERT_EQ(scene.parts.size(), 6u);
+  int fixed = 0, seats = 0;
+  for (const ScenePart& p : scene.parts) {
+    fixed += p.fixed;
+    seats += static_cast<int>(p.seats.size());
+    EXPECT_NO_THROW(FindSolid(scene, p.solid)) << p.name;
+    EXPECT_NEAR(p.rotation.norm(), 1.0, 1e-15);
+    for (const SceneSeat& s : p.seats) EXPECT_EQ(s.on, "body");
+  }
+  EXPECT_EQ(fixed, 1);
+  EXPECT_TRUE(scene.parts[0].fixed);
+  EXPECT_EQ(seats, 5);
+  // The right arm's axis-angle (y, π/2) is a quaternion (cos π/4, 0, sin π/4, 0).
+  const ScenePart& arm = scene.parts[2];
+  EXPECT_EQ(arm.name, "right_arm");
+  EXPECT_NEAR(arm.rotation.w(), std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(arm.rotation.y(), std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(arm.seats[0].rotation.angularDistance(arm.rotation), 0.0, 1e-12);
+}
+
+TEST(SceneIo, PartsRoundTripThroughSaveAndLoad) {
+  const Scene scene = ParseScene(R"({"format": "spidarcad-scene", "version": 1,
+    "solids": [{"name": "a", "root": {"type": "sphere", "radius": 0.01}},
+               {"name": "b", "root": {"type": "box", "size": [0.01, 0.02, 0.03]}}],
+    "parts": [{"name": "base", "solid": "b", "kind": "fixed", "quaternion": [2, 0, 0, 0]},
+              {"name": "ball", "solid": "a", "position": [0.1, -0.2, 0.3], "axis": [1, 1, 0], "angle": 0.7,
+               "seats": [{"on": "base", "position": [0, 0, 0.02], "quaternion": [0.5, 0.5, 0.5, 0.5],
+                          "position_tolerance": 0.001, "angle_tolerance": 0.05}]}]})");
+  ASSERT_EQ(scene.parts.size(), 2u);
+  EXPECT_TRUE(scene.parts[0].fixed);
+  EXPECT_EQ(scene.parts[0].rotation.coeffs(), Eigen::Quaterniond::Identity().coeffs());  // normalised
+  const ScenePart& ball = scene.parts[1];
+  EXPECT_FALSE(ball.fixed);
+  const Eigen::Quaterniond expected(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 1, 0).normalized()));
+  EXPECT_LT(ball.rotation.angularDistance(expected), 1e-14);
+  EXPECT_EQ(ball.position, Eigen::Vector3d(0.1, -0.2, 0.3));
+  ASSERT_EQ(ball.seats.size(), 1u);
+  EXPECT_EQ(ball.seats[0].on, "base");
+  EXPECT_EQ(ball.seats[0].position_tolerance, 0.001);
+  EXPECT_EQ(ball.seats[0].angle_tolerance, 0.05);
+  // Rotation about (1,1,1) by 2π/3 maps x to y.
+  EXPECT_LT((ball.seats[0].rotation * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-15);
+
+  for (const Scene& original : {scene, LoadScene(kScenes + "assembly.json")}) {
+    const std::string path = kOut + "round_trip_parts.json";
+    SaveScene(original, path);
+    const Scene again = LoadScene(path);
+    EXPECT_EQ(SceneToJson(again), SceneToJson(original));
+    ASSERT_EQ(again.parts.size(), original.parts.size());
+    for (size_t i = 0; i < original.parts.size(); ++i) {
+      const ScenePart& a = again.parts[i];
+      const ScenePart& o = original.parts[i];
+      EXPECT_EQ(a.name, o.name);
+      EXPECT_EQ(a.solid, o.solid);
+      EXPECT_EQ(a.fixed, o.fixed);
+      EXPECT_EQ(a.position, o.position);
+      EXPECT_EQ(a.rotation.coeffs(), o.rotation.coeffs());
+      ASSERT_EQ(a.seats.size(), o.seats.size());
+      for (size_t k = 0; k < o.seats.size(); ++k) {
+        EXPECT_EQ(a.seats[k].on, o.seats[k].on);
+        EXPECT_EQ(a.seats[k].position, o.seats[k].position);
+        EXPECT_EQ(a.seats[k].rotation.coeffs(), o.seats[k].rotation.coeffs());
+        EXPECT_EQ(a.seats[k].position_tolerance, o.seats[k].position_tolerance);
+        EXPECT_EQ(a.seats[k].angle_tolerance, o.seats[k].angle_tolerance);
+      }
+    }
+  }
+}
+
+TEST(SceneIo, BadPartsAreNamedWithLineAndField) {
+  const std::string head =
+      "{\n  \"format\": \"spidarcad-scene\", \"version\": 1,\n"
+      "  \"solids\": [{\"name\": \"a\", \"root\": {\"type\": \"sphere\", \"radius\": 0.01}}],\n"
+      "  \"parts\": [\n";
+  struct Case {
+    const char* parts;
+    const char* pointer;
+    int line;
+    const char* text;
+  };
+  const Case cases[] = {
+      {"    {\"name\": \"p\", \"solid\": \"a\"},\n    {\"name\": \"q\", \"solid\": \"nope\"}\n", "/parts/1/solid", 6,
+       "no solid named 'nope'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"bdy\"}]}\n", "/parts/0/seats/0/on", 5,
+       "no part named 'bdy'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"kind\": \"glued\"}\n", "/parts/0/kind", 5, "\"fixed\" or \"graspable\""},
+      {"    {\"name\": \"p\", \"solid\": \"a\"},\n    {\"name\": \"p\", \"solid\": \"a\"}\n", "/parts/1/name", 6,
+       "duplicate part name 'p'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"positon\": [0, 0, 0]}\n", "/parts/0/positon", 5,
+       "unknown field 'positon'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"quaternion\": [0, 0, 0, 0]}\n", "/parts/0/quaternion", 5,
+       "non-zero"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"p\"}]}\n", "/parts/0/seats/0/on", 5,
+       "cannot sit on itself"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"q\", \"angle_tolerance\": -1}]},\n"
+       "    {\"name\": \"q\", \"solid\": \"a\"}\n",
+       "/parts/0/seats/0/angle_tolerance", 5, ">= 0"},
+  };
+  int index = 0;
+  for (const Case& c : cases) {
+    const std::string path = WriteFile("bad_parts_" + std::to_string(index++) + ".json", head + c.parts + "  ]\n}\n");
+    const SceneError e = LoadError(path);
+    EXPECT_EQ(e.pointer(), c.pointer) << c.parts;
+    EXPECT_EQ(e.line(), c.line) << c.parts;
+    EXPECT_THAT(e.what(), HasSubstr(path + ":" + std::to_string(c.line) + ":")) << c.parts;
+    EXPECT_THAT(e.what(), HasSubstr(c.text)) << c.parts;
+  }
+}
+
 }  // namespace
 }  // namespace spidarcad::modeling

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "spidarcad/modeling/implicit_node.h"
@@ -26,10 +28,32 @@ struct Solid {
   ImplicitNode root;
 };
 
-// A scene: a description and its solids.
+// Where an assembly part fits on another part: its pose in the other part's frame O when
+// seated, X_OS = (position, rotation), and how close a release must come to snap to it.
+struct SceneSeat {
+  std::string on;                                                  // the other part's name
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();              // p_OS, m
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();    // R_OS (unit)
+  double position_tolerance = 2e-3;                                // m, >= 0
+  double angle_tolerance = 0.1;                                    // rad, >= 0
+};
+
+// A rigid part of an assembly scene (docs/scene-format.md, "parts"): a solid of the scene is its
+// geometry in the part's own frame P, placed in the world at X_WP = (position, rotation).
+struct ScenePart {
+  std::string name;                                                // unique, not empty
+  std::string solid;                                               // name of a solid of the scene
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();              // p_WP, m
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();    // R_WP (unit)
+  bool fixed = false;                                              // true: "kind": "fixed"; false: "graspable"
+  std::vector<SceneSeat> seats;                                    // where it fits
+};
+
+// A scene: a description, its solids and (optionally) assembly parts made of them.
 struct Scene {
   std::string description;
   std::vector<Solid> solids;
+  std::vector<ScenePart> parts;
 };
 
 // A bad scene file or document: where (file, line, column, JSON pointer) and what.

@@ -1,0 +1,117 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "runtime/assembly_scene.h"
+
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "runtime/solid_distance_field.h"
+#include "spidarcad/modeling/surface_mesher.h"
+
+namespace spidarcad::app {
+
+haptics::PointShell SampleSurfaceShell(const modeling::CompiledSolid& solid, double spacing,
+                                       double search_half_extent) {
+  if (!(spacing > 0) || !std::isfinite(spacing)) {
+    throw std::invalid_argument("SampleSurfaceShell: spacing = " + std::to_string(spacing) + " must be > 0");
+  }
+  const Eigen::Vector3d h = Eigen::Vector3d::Constant(search_half_extent);
+  const Eigen::AlignedBox3d bounds = modeling::FindBounds(solid, Eigen::AlignedBox3d(-h, h), spacing);
+  if (bounds.isEmpty()) throw std::invalid_argument("SampleSurfaceShell: the solid is empty");
+  modeling::SurfaceMeshSettings mesh_settings;
+  mesh_settings.bounds = Eigen::AlignedBox3d(bounds.min() - Eigen::Vector3d::Constant(spacing),
+                                             bounds.max() + Eigen::Vector3d::Constant(spacing));
+  mesh_settings.cell_size = spacing;
+  const modeling::TriangleMesh mesh = modeling::MeshSurface(solid, mesh_settings);
+  std::vector<Eigen::Vector3d> points, normals;
+  points.reserve(mesh.vertices.cols());
+  normals.reserve(mesh.vertices.cols());
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) {
+    const Eigen::Vector3d p = mesh.vertices.col(i);
+    Eigen::Vector3d g;
+    solid.ValueAndGradient(p, &g);
+    const double n = g.norm();
+    if (!(n > 1e-9) || !std::isfinite(n)) continue;  // a point on a crease with no gradient
+    points.push_back(p);
+    normals.push_back(-g / n);
+  }
+  if (points.empty()) throw std::invalid_argument("SampleSurfaceShell: no surface points");
+  return haptics::PointShell::FromPoints(points, normals);
+}
+
+Eigen::Isometry3d PartPose(const Eigen::Vector3d& position, const Eigen::Quaterniond& rotation) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = rotation.normalized().toRotationMatrix();
+  X.translation() = position;
+  return X;
+}
+
+std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene& scene,
+                                                           const AssemblySceneSettings& settings) {
+  const int n = static_cast<int>(scene.parts.size());
+  if (n == 0) throw std::invalid_argument("BuildAssemblyField: the scene has no parts");
+  if (n > haptics::kMaxAssemblyParts) {
+    throw std::invalid_argument("BuildAssemblyField: " + std::to_string(n) + " parts, at most " +
+                                std::to_string(haptics::kMaxAssemblyParts));
+  }
+  std::map<std::string, int> index;
+  for (int i = 0; i < n; ++i) index[scene.parts[i].name] = i;
+  // One compiled solid, field and shell per solid name (parts may share a solid).
+  struct Compiled {
+    std::shared_ptr<const SolidDistanceField> field;
+    haptics::PointShell shell;
+    bool sampled = false;
+  };
+  std::map<std::string, Compiled> compiled;
+  std::vector<haptics::AssemblyPart> parts;
+  for (int i = 0; i < n; ++i) {
+    const modeling::ScenePart& sp = scene.parts[i];
+    const std::string where = "BuildAssemblyField: part '" + sp.name + "' (solid '" + sp.solid + "')";
+    Compiled& c = compiled[sp.solid];
+    if (c.field == nullptr) {
+      const modeling::Solid* solid = nullptr;
+      for (const modeling::Solid& s : scene.solids) {
+        if (s.name == sp.solid) solid = &s;
+      }
+      if (solid == nullptr) throw std::invalid_argument(where + ": no such solid");
+      try {
+        auto cs = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(solid->root));
+        c.field = std::make_shared<const SolidDistanceField>(cs);
+      } catch (const std::exception& e) {
+        throw std::invalid_argument(where + ": " + e.what());
+      }
+    }
+    if (!sp.fixed && !c.sampled) {
+      try {
+        c.shell = SampleSurfaceShell(c.field->solid(), settings.shell_spacing, settings.search_half_extent);
+      } catch (const std::exception& e) {
+        throw std::invalid_argument(where + ": " + e.what());
+      }
+      c.sampled = true;
+    }
+    haptics::AssemblyPart part;
+    part.name = sp.name;
+    part.field_P = c.field;
+    if (!sp.fixed) part.shell_P = c.shell;
+    part.X_WP = PartPose(sp.position, sp.rotation);
+    part.fixed = sp.fixed;
+    for (const modeling::SceneSeat& ss : sp.seats) {
+      const auto it = index.find(ss.on);
+      if (it == index.end()) throw std::invalid_argument(where + ": seat on unknown part '" + ss.on + "'");
+      haptics::AssemblySeat seat;
+      seat.other = it->second;
+      seat.X_OS = PartPose(ss.position, ss.rotation);
+      seat.position_tolerance = ss.position_tolerance;
+      seat.angle_tolerance = ss.angle_tolerance;
+      part.seats.push_back(seat);
+    }
+    parts.push_back(std::move(part));
+  }
+  haptics::PointShell tool;
+  if (settings.tool_radius > 0) tool = haptics::PointShell::Sphere(settings.tool_radius, settings.tool_points);
+  return std::make_unique<haptics::AssemblyField>(std::move(parts), std::move(tool), settings.field);
+}
+
+}  // namespace spidarcad::app

@@ -1,0 +1,184 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Assembly by touch (issue 5, the toy robot of the paper's Fig. 9): N rigid parts that the
+// user picks up with the grasp (the 7th DOF), carries with six-DOF contact and seats peg in
+// hole.
+//
+// Each part P has a body-frame DistanceField φ_P, a point shell sampled from its surface (in
+// P), a pose X_WP, a kind (fixed: the body on the table, never moves; graspable) and seats:
+// where it fits on another part O (X_OS, the pose of P in O's frame when seated, with position
+// and angle tolerances).
+//
+// Per tick (Evaluate):
+//  * Not carrying: the grip's two poles (grasp_field.h: pole k along u_k in T, from −d to +d
+//    about p_WT) are sampled against every graspable part near the tool. When both poles push
+//    into one part while closing, the grasp torque g = −2Q < 0 renders the part's width
+//    (Q = Σ_k k_n δ_k (−a_k) − b_n min(θ̇, 0), as in GraspField); once both depths reach
+//    `grab_depth` the part is picked up at its current relative pose X_TP = X_WT⁻¹ X_WP.
+//    The tool itself touches the parts through its own point shell (`tool_shell`, in T, may
+//    be empty): a direct penalty, each point inside part j pushed out along ∇φ_j,
+//    f_i = s·k_p·max(0, −φ_j) n, s = min(1, N_ref/N_contact), moment about p_WT.
+//  * Carrying part c: the part is a virtual object V (pose X_WV, mass m, inertia diag(I))
+//    coupled to the target pose X_WT·X_TP through a 6-DOF spring-damper (as PointShellField,
+//    with the coupling at the part's origin):
+//      f_c = k_c (p_target − p_WV) + b_c (v_target − v_WV),
+//      τ_c = k_r log(R_target R_WVᵀ) + b_r (ω_WT − ω_WV);
+//    its shell points x_i = p_WV + R_WV r_i against every other part j get penalty forces
+//      f_ij = s·max(0, k_p (−φ_j(x_i)) − b_p n·v(x_i)) n   (n = unit ∇φ_j, s as above).
+//    V is integrated with semi-implicit Euler in `substeps` steps. The shell points within
+//    `contact_margin` (plus the tick's travel) of another part are found once per tick, where
+//    φ_j and ∇φ_j are evaluated once; the substeps use the first-order expansion
+//    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick), so a
+//    tick costs one φ per shell point near another part plus one gradient per candidate. The user feels the
+//    coupling's reaction at the target point: f_T_W = −f_c, m_T_W = (p_target − p_WT) × (−f_c)
+//    − τ_c, plus the grasp torque of the poles on the part at its target pose (the fingers keep
+//    squeezing while it is held). The part is released as soon as the two poles no longer both
+//    push into it (the grip opened): it stays at X_WV. If it then lies within a seat's
+//    tolerance (|p_WP − p_WS| <= position_tolerance and the angle of R_WSᵀ R_WP <=
+//    angle_tolerance, X_WS = X_WO·X_OS) its pose snaps to X_WS exactly and `seated` is set.
+//    A released part cannot be picked up again until the poles have stopped squeezing it (so
+//    a snap into the seat does not grab it back). There is no gravity: a part released in the air stays where it was let go. Parts not
+//    carried never move (the tool does not push them around).
+//
+// Publishing: every tick the poses and seated flags go to the app through a TripleBuffer of a
+// fixed-size AssemblyState. Evaluate is real-time safe: every buffer is sized at construction.
+#pragma once
+#include <array>
+#include <atomic>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "spidarcad/haptics/distance_field.h"
+#include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/grasp_field.h"
+#include "spidarcad/haptics/point_shell_field.h"
+#include "spidarcad/haptics/triple_buffer.h"
+
+namespace spidarcad::haptics {
+
+// Most parts an AssemblyField manages (the size of the published state).
+inline constexpr int kMaxAssemblyParts = 16;
+
+// Where a part fits on another part.
+struct AssemblySeat {
+  int other = -1;                                          // index of the other part O
+  Eigen::Isometry3d X_OS = Eigen::Isometry3d::Identity();  // this part's pose in O when seated
+  double position_tolerance = 2e-3;                        // m
+  double angle_tolerance = 0.1;                            // rad
+};
+
+// One rigid part.
+struct AssemblyPart {
+  std::string name;                                        // for logs and the app
+  std::shared_ptr<const DistanceField> field_P;            // φ in the part's frame P
+  PointShell shell_P;                                      // surface samples in P (may be empty if fixed)
+  Eigen::Isometry3d X_WP = Eigen::Isometry3d::Identity();  // initial pose
+  bool fixed = false;                                      // true: never moves, cannot be grasped
+  std::vector<AssemblySeat> seats;                         // where it fits
+};
+
+// Parameters of an AssemblyField. SI units, lengths in W.
+struct AssemblySettings {
+  GraspSettings grasp;                                        // poles, finger stiffness, grab depth
+  double mass = 0.05;                                         // carried part's virtual mass, kg
+  Eigen::Vector3d inertia = Eigen::Vector3d::Constant(2e-5);  // its body inertia diag, kg·m²
+  double coupling_stiffness = 1000.0;                         // k_c, N/m
+  double coupling_damping = 3.0;                              // b_c, N·s/m
+  double rot_coupling_stiffness = 2.0;                        // k_r, N·m/rad
+  double rot_coupling_damping = 0.01;                         // b_r, N·m·s/rad
+  double contact_stiffness = 1000.0;                          // k_p per point, N/m
+  double contact_damping = 1.0;                               // b_p per point, N·s/m
+  int reference_contacts = 10;                                // N_ref (force averaging)
+  int substeps = 10;                                          // integration steps per tick
+  double contact_margin = 2e-3;                               // candidate margin, m
+  int max_points = 4096;                                      // largest shell per part
+  double max_dt = 0.01;                                       // longer ticks are clamped, s
+  // Throws std::invalid_argument naming the field and value when out of range.
+  void Validate() const;
+};
+
+// What the field publishes for the app (fixed size: no allocation to copy).
+struct AssemblyState {
+  // All poses identity, nothing seated.
+  AssemblyState() { X_WP.fill(Eigen::Isometry3d::Identity()); }
+  int count = 0;                                          // number of parts
+  int carried = -1;                                       // index of the carried part, −1 none
+  int contacts = 0;                                       // penetrating shell points, last tick
+  std::array<Eigen::Isometry3d, kMaxAssemblyParts> X_WP;  // poses (carried: its virtual pose)
+  std::array<bool, kMaxAssemblyParts> seated{};           // seated flags
+};
+
+// The assembly field (see the file comment).
+class AssemblyField final : public ForceField {
+ public:
+  // 1..kMaxAssemblyParts parts with non-null fields, rigid poses, shells of at most
+  // settings.max_points points (a graspable part needs a non-empty shell) and seats naming
+  // another existing part. `tool_shell` (in T) may be empty. Throws std::invalid_argument
+  // naming the part and field otherwise.
+  AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_shell = {},
+                const AssemblySettings& settings = {});
+
+  ToolWrench Evaluate(const ToolKinematics& tool) noexcept override;
+  const char* name() const noexcept override { return "assembly"; }
+
+  // Haptic thread (or tests): number of parts, their current poses (the carried one at its
+  // virtual pose), seated flags, the carried part (−1 none), its pose in T.
+  int size() const noexcept { return static_cast<int>(parts_.size()); }
+  const Eigen::Isometry3d& X_WP(int i) const noexcept { return poses_[i]; }
+  bool seated(int i) const noexcept { return seated_[i]; }
+  int carried() const noexcept { return carried_; }
+  const Eigen::Isometry3d& X_TP() const noexcept { return X_TP_; }
+  // Penetrating shell points in the last tick.
+  int contacts() const noexcept { return contacts_; }
+  // The parts as given (names, seats, initial poses).
+  const AssemblyPart& part(int i) const noexcept { return parts_[i]; }
+  // Whether pose X_WP of part i is within the tolerance of one of its seats (with the other
+  // parts at their current poses); writes the seated pose to *X_WS when it is. Real-time safe.
+  bool FindSeat(int i, const Eigen::Isometry3d& X_WP, Eigen::Isometry3d* X_WS) const noexcept;
+  // App side (one reader thread): the state published by the latest Evaluate.
+  const AssemblyState& LatestState() noexcept { return published_.Latest(); }
+  const AssemblySettings& settings() const noexcept { return settings_; }
+
+ private:
+  // φ of part j at p_W with the gradient in W (when not null).
+  double Phi(int j, const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept;
+  // Grasp generalised force Q (>= 0) of the poles on part j at pose X_WP_j (for the carried part,
+  // its target pose); *both_pushing tells whether both poles push into it; depths to *depths.
+  double PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool, bool* both_pushing,
+                   double depths[2]) const noexcept;
+  // Tool shell penalty against all parts at the grip pose.
+  ToolWrench ToolContact(const ToolKinematics& tool) noexcept;
+  // One tick of the carried part's virtual coupling; returns the coupling wrench on the user.
+  ToolWrench CarryStep(const ToolKinematics& tool, double dt) noexcept;
+  // Publishes the state.
+  void Publish() noexcept;
+
+  std::vector<AssemblyPart> parts_;
+  PointShell tool_shell_;
+  AssemblySettings settings_;
+  std::vector<Eigen::Isometry3d> poses_;    // X_WP per part
+  std::vector<Eigen::Isometry3d> inverse_;  // X_PW per part
+  std::vector<double> radius_;              // shell radius per part
+  std::vector<char> seated_;
+  std::vector<int> candidate_point_;  // capacity max shell × parts
+  std::vector<int> candidate_part_;
+  std::vector<double> candidate_phi_;              // φ at the tick's start, m
+  std::vector<Eigen::Vector3d> candidate_grad_;    // ∇φ there (W)
+  std::vector<Eigen::Vector3d> candidate_x0_;      // the point there (W), m
+  int num_candidates_ = 0;
+  int carried_ = -1;
+  int released_ = -1;  // just released: not grasped again until the poles stop squeezing it
+  int contacts_ = 0;
+  Eigen::Isometry3d X_TP_ = Eigen::Isometry3d::Identity();
+  Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();  // carried part's rotation R_WV
+  Eigen::Vector3d v_ = Eigen::Vector3d::Zero();  // carried part's velocity (origin), W
+  Eigen::Vector3d w_ = Eigen::Vector3d::Zero();  // its angular velocity, W
+  bool initialized_ = false;
+  double last_time_ = 0.0;
+  TripleBuffer<AssemblyState> published_;
+};
+
+}  // namespace spidarcad::haptics

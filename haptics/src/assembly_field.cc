@@ -1,0 +1,403 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/haptics/assembly_field.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace spidarcad::haptics {
+
+namespace {
+void Require(bool ok, const char* field, double value, const char* what) {
+  if (!ok) {
+    throw std::invalid_argument(std::string("AssemblySettings.") + field + " = " + std::to_string(value) +
+                                ": " + what);
+  }
+}
+bool PositiveFinite(double v) { return v > 0 && std::isfinite(v); }
+bool NonNegativeFinite(double v) { return v >= 0 && std::isfinite(v); }
+
+bool IsRigid(const Eigen::Isometry3d& X) {
+  const Eigen::Matrix3d R = X.linear();
+  return X.matrix().allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-9 &&
+         R.determinant() > 0;
+}
+
+// Rotation vector of the rotation q (angle·axis, angle in [0, π]).
+Eigen::Vector3d RotationVector(Eigen::Quaterniond q) {
+  if (q.w() < 0) q.coeffs() *= -1;
+  const double s = q.vec().norm();
+  if (s < 1e-12) return 2.0 * q.vec();
+  return (2.0 * std::atan2(s, q.w()) / s) * q.vec();
+}
+
+Eigen::Isometry3d Pose(const Eigen::Vector3d& p, const Eigen::Matrix3d& R) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = R;
+  X.translation() = p;
+  return X;
+}
+}  // namespace
+
+void AssemblySettings::Validate() const {
+  grasp.Validate();
+  Require(PositiveFinite(mass), "mass", mass, "must be finite and > 0");
+  Require(inertia.allFinite() && (inertia.array() > 0).all(), "inertia", inertia.minCoeff(),
+          "must be finite and > 0");
+  Require(NonNegativeFinite(coupling_stiffness), "coupling_stiffness", coupling_stiffness, "must be finite and >= 0");
+  Require(NonNegativeFinite(coupling_damping), "coupling_damping", coupling_damping, "must be finite and >= 0");
+  Require(NonNegativeFinite(rot_coupling_stiffness), "rot_coupling_stiffness", rot_coupling_stiffness,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(rot_coupling_damping), "rot_coupling_damping", rot_coupling_damping,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(contact_stiffness), "contact_stiffness", contact_stiffness, "must be finite and >= 0");
+  Require(NonNegativeFinite(contact_damping), "contact_damping", contact_damping, "must be finite and >= 0");
+  Require(reference_contacts >= 1, "reference_contacts", reference_contacts, "must be >= 1");
+  Require(substeps >= 1 && substeps <= 1000, "substeps", substeps, "must be in [1, 1000]");
+  Require(NonNegativeFinite(contact_margin), "contact_margin", contact_margin, "must be finite and >= 0");
+  Require(max_points >= 1, "max_points", max_points, "must be >= 1");
+  Require(PositiveFinite(max_dt), "max_dt", max_dt, "must be finite and > 0");
+}
+
+AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_shell,
+                             const AssemblySettings& settings)
+    : parts_(std::move(parts)), tool_shell_(std::move(tool_shell)), settings_(settings) {
+  settings_.Validate();
+  const int n = static_cast<int>(parts_.size());
+  if (n < 1 || n > kMaxAssemblyParts) {
+    throw std::invalid_argument("AssemblyField: " + std::to_string(n) + " parts, need 1.." +
+                                std::to_string(kMaxAssemblyParts));
+  }
+  std::size_t max_shell = 0;
+  for (int i = 0; i < n; ++i) {
+    const AssemblyPart& p = parts_[i];
+    const std::string where = "AssemblyField: part " + std::to_string(i) + " ('" + p.name + "')";
+    if (p.field_P == nullptr) throw std::invalid_argument(where + ": field_P is null");
+    if (!IsRigid(p.X_WP)) throw std::invalid_argument(where + ": X_WP is not a rigid transform");
+    if (p.shell_P.points_T.size() != p.shell_P.normals_T.size()) {
+      throw std::invalid_argument(where + ": shell has different numbers of points and normals");
+    }
+    if (p.shell_P.size() > settings_.max_points) {
+      throw std::invalid_argument(where + ": shell has " + std::to_string(p.shell_P.size()) +
+                                  " points, more than max_points = " + std::to_string(settings_.max_points));
+    }
+    if (!p.fixed && p.shell_P.size() == 0) throw std::invalid_argument(where + ": graspable part has an empty shell");
+    for (std::size_t k = 0; k < p.seats.size(); ++k) {
+      const AssemblySeat& s = p.seats[k];
+      const std::string sw = where + ": seats[" + std::to_string(k) + "]";
+      if (s.other < 0 || s.other >= n || s.other == i) {
+        throw std::invalid_argument(sw + ".other = " + std::to_string(s.other) + " is not another part");
+      }
+      if (!IsRigid(s.X_OS)) throw std::invalid_argument(sw + ".X_OS is not a rigid transform");
+      if (!NonNegativeFinite(s.position_tolerance)) {
+        throw std::invalid_argument(sw + ".position_tolerance = " + std::to_string(s.position_tolerance) +
+                                    " must be finite and >= 0");
+      }
+      if (!NonNegativeFinite(s.angle_tolerance)) {
+        throw std::invalid_argument(sw + ".angle_tolerance = " + std::to_string(s.angle_tolerance) +
+                                    " must be finite and >= 0");
+      }
+    }
+    max_shell = std::max(max_shell, p.shell_P.points_T.size());
+    poses_.push_back(p.X_WP);
+    inverse_.push_back(p.X_WP.inverse(Eigen::Isometry));
+    radius_.push_back(p.shell_P.size() > 0 ? p.shell_P.Radius() : 0.0);
+    seated_.push_back(0);
+  }
+  for (const Eigen::Vector3d& r : tool_shell_.points_T) {
+    if (!r.allFinite()) throw std::invalid_argument("AssemblyField: tool shell point not finite");
+  }
+  candidate_point_.assign(max_shell * n, 0);
+  candidate_part_.assign(max_shell * n, 0);
+  candidate_phi_.assign(max_shell * n, 0.0);
+  candidate_grad_.assign(max_shell * n, Eigen::Vector3d::Zero());
+  candidate_x0_.assign(max_shell * n, Eigen::Vector3d::Zero());
+  Publish();
+}
+
+double AssemblyField::Phi(int j, const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept {
+  if (gradient_W == nullptr) return parts_[j].field_P->Evaluate(inverse_[j] * p_W, nullptr);
+  Eigen::Vector3d g_P;
+  const double v = parts_[j].field_P->Evaluate(inverse_[j] * p_W, &g_P);
+  *gradient_W = poses_[j].linear() * g_P;
+  return v;
+}
+
+bool AssemblyField::FindSeat(int i, const Eigen::Isometry3d& X_WP, Eigen::Isometry3d* X_WS) const noexcept {
+  for (const AssemblySeat& s : parts_[i].seats) {
+    const Eigen::Isometry3d seat = poses_[s.other] * s.X_OS;
+    const double dp = (X_WP.translation() - seat.translation()).norm();
+    const Eigen::Quaterniond dq(Eigen::Matrix3d(seat.linear().transpose() * X_WP.linear()));
+    const double angle = RotationVector(dq.normalized()).norm();
+    if (dp <= s.position_tolerance && angle <= s.angle_tolerance) {
+      if (X_WS != nullptr) *X_WS = seat;
+      return true;
+    }
+  }
+  return false;
+}
+
+double AssemblyField::PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool,
+                                bool* both_pushing, double depths[2]) const noexcept {
+  const GraspSettings& s = settings_.grasp;
+  const Eigen::Isometry3d X_PW = X_WPj.inverse(Eigen::Isometry);
+  const DistanceField& field = *parts_[j].field_P;
+  const double c = std::cos(0.5 * tool.grasp), sn = std::sin(0.5 * tool.grasp);
+  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
+  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
+  // Pole directions and their velocity per unit of closing (−dθ), in T (grasp_field.h).
+  const Eigen::Vector3d u_T[2] = {c * b_T - sn * a_T, c * b_T + sn * a_T};
+  const Eigen::Vector3d du_T[2] = {0.5 * (sn * b_T + c * a_T), 0.5 * (sn * b_T - c * a_T)};
+  const double d = s.pole_length;
+  double q = 0.0;
+  int pushing = 0;
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
+    auto phi_at = [&](double t) { return field.Evaluate(X_PW * (tool.p_WT + t * u_W), nullptr); };
+    const double spacing = 2.0 * d / (s.samples - 1);
+    double best_t = -d, best_phi = phi_at(-d);
+    for (int i = 1; i < s.samples; ++i) {
+      const double t = -d + i * spacing;
+      const double v = phi_at(t);
+      if (v < best_phi) {
+        best_phi = v;
+        best_t = t;
+      }
+    }
+    // Golden-section refinement of the minimum of φ along the pole.
+    double lo = std::max(-d, best_t - spacing), hi = std::min(d, best_t + spacing);
+    constexpr double kInvPhi = 0.6180339887498949;
+    double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
+    double f1 = phi_at(x1), f2 = phi_at(x2);
+    for (int i = 0; i < s.refine_iterations; ++i) {
+      if (f1 < f2) {
+        hi = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = hi - kInvPhi * (hi - lo);
+        f1 = phi_at(x1);
+      } else {
+        lo = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = lo + kInvPhi * (hi - lo);
+        f2 = phi_at(x2);
+      }
+    }
+    if (f1 < best_phi) {
+      best_phi = f1;
+      best_t = x1;
+    }
+    if (f2 < best_phi) {
+      best_phi = f2;
+      best_t = x2;
+    }
+    depths[k] = std::max(0.0, -best_phi);
+    if (depths[k] <= 0) continue;
+    Eigen::Vector3d g_P;
+    field.Evaluate(X_PW * (tool.p_WT + best_t * u_W), &g_P);
+    const Eigen::Vector3d g = X_WPj.linear() * g_P;
+    const double gn = g.norm();
+    if (!(gn > 0)) continue;
+    const double a = (g / gn).dot(tool.R_WT * (best_t * du_T[k]));
+    if (a < 0) {
+      ++pushing;
+      q += s.stiffness * depths[k] * (-a);
+    }
+  }
+  *both_pushing = pushing == 2;
+  if (!*both_pushing) return 0.0;
+  return q - s.damping * std::min(tool.grasp_rate, 0.0);
+}
+
+ToolWrench AssemblyField::ToolContact(const ToolKinematics& tool) noexcept {
+  ToolWrench w;
+  const int n = size();
+  const double tool_radius = tool_shell_.size() > 0 ? tool_shell_.Radius() : 0.0;
+  int contacts = 0;
+  Eigen::Vector3d g;
+  for (int j = 0; j < n; ++j) {
+    if (tool_shell_.size() == 0 || Phi(j, tool.p_WT, nullptr) > tool_radius) continue;
+    for (const Eigen::Vector3d& r_T : tool_shell_.points_T) {
+      const Eigen::Vector3d r = tool.R_WT * r_T;
+      const double phi = Phi(j, tool.p_WT + r, &g);
+      const double gn = g.norm();
+      if (!(phi < 0) || !(gn > 0)) continue;
+      const Eigen::Vector3d f = settings_.contact_stiffness * (-phi) * (g / gn);
+      w.f_T_W += f;
+      w.m_T_W += r.cross(f);
+      ++contacts;
+    }
+  }
+  const double s = std::min(1.0, settings_.reference_contacts / std::max(1.0, double(contacts)));
+  w.f_T_W *= s;
+  w.m_T_W *= s;
+  contacts_ = contacts;
+  return w;
+}
+
+ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexcept {
+  const AssemblySettings& s = settings_;
+  const int c = carried_;
+  const int n = size();
+  const PointShell& shell = parts_[c].shell_P;
+  const double radius = radius_[c];
+  const Eigen::Isometry3d X_WT = Pose(tool.p_WT, tool.R_WT);
+  const Eigen::Isometry3d X_Wtarget = X_WT * X_TP_;
+  const Eigen::Vector3d p_target = X_Wtarget.translation();
+  const Eigen::Quaterniond q_target(Eigen::Matrix3d(X_Wtarget.linear()));
+  const Eigen::Vector3d v_target = tool.v_WT + tool.w_WT.cross(p_target - tool.p_WT);
+  Eigen::Vector3d p = poses_[c].translation();
+
+  // Candidates (point, part) at the start of the tick.
+  num_candidates_ = 0;
+  {
+    const double reach = s.contact_margin + 2.0 * dt * (v_.norm() + w_.norm() * radius + v_target.norm() +
+                                                        tool.w_WT.norm() * radius);
+    const Eigen::Matrix3d R = q_.toRotationMatrix();
+    for (int j = 0; j < n; ++j) {
+      if (j == c || Phi(j, p, nullptr) >= radius + reach) continue;
+      for (int i = 0; i < shell.size(); ++i) {
+        const Eigen::Vector3d x = p + R * shell.points_T[i];
+        if (Phi(j, x, nullptr) < reach) {
+          const int k = num_candidates_++;
+          candidate_point_[k] = i;
+          candidate_part_[k] = j;
+          candidate_x0_[k] = x;
+          candidate_phi_[k] = Phi(j, x, &candidate_grad_[k]);
+        }
+      }
+    }
+  }
+
+  const double h = dt / s.substeps;
+  const Eigen::Vector3d inv_inertia = s.inertia.cwiseInverse();
+  Eigen::Vector3d g;
+  for (int step = 0; step < s.substeps; ++step) {
+    const Eigen::Matrix3d R = q_.toRotationMatrix();
+    Eigen::Vector3d f_contact = Eigen::Vector3d::Zero(), t_contact = Eigen::Vector3d::Zero();
+    int contacts = 0;
+    for (int k = 0; k < num_candidates_; ++k) {
+      const Eigen::Vector3d r = R * shell.points_T[candidate_point_[k]];
+      g = candidate_grad_[k];
+      const double phi = candidate_phi_[k] + g.dot(p + r - candidate_x0_[k]);
+      const double gn = g.norm();
+      if (!(phi < 0) || !(gn > 0)) continue;
+      const Eigen::Vector3d nrm = g / gn;
+      const double v_n = nrm.dot(v_ + w_.cross(r));
+      const double magnitude = std::max(0.0, s.contact_stiffness * (-phi) - s.contact_damping * v_n);
+      const Eigen::Vector3d f = magnitude * nrm;
+      f_contact += f;
+      t_contact += r.cross(f);
+      ++contacts;
+    }
+    const double scale = std::min(1.0, s.reference_contacts / std::max(1.0, double(contacts)));
+    contacts_ = contacts;
+    const Eigen::Vector3d f_c = s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
+    const Eigen::Vector3d tau_c = s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
+                                  s.rot_coupling_damping * (tool.w_WT - w_);
+    v_ += (h / s.mass) * (f_c + scale * f_contact);
+    w_ += h * (R * inv_inertia.asDiagonal() * (R.transpose() * (tau_c + scale * t_contact)));
+    p += h * v_;
+    const double angle = w_.norm() * h;
+    if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_ / w_.norm())) * q_;
+    q_.normalize();
+  }
+  const Eigen::Vector3d f_c = s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
+  const Eigen::Vector3d tau_c = s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
+                                s.rot_coupling_damping * (tool.w_WT - w_);
+  if (!(p.allFinite() && q_.coeffs().allFinite() && v_.allFinite() && w_.allFinite())) {
+    // Recover on the target pose (the loop zeroes this tick's NaN wrench).
+    p = p_target;
+    q_ = q_target;
+    v_.setZero();
+    w_.setZero();
+  }
+  poses_[c] = Pose(p, q_.toRotationMatrix());
+  inverse_[c] = poses_[c].inverse(Eigen::Isometry);
+  ToolWrench w;
+  w.f_T_W = -f_c;
+  w.m_T_W = (p_target - tool.p_WT).cross(-f_c) - tau_c;
+  return w;
+}
+
+ToolWrench AssemblyField::Evaluate(const ToolKinematics& tool) noexcept {
+  if (!initialized_) {
+    initialized_ = true;
+    last_time_ = tool.time;
+  }
+  double dt = tool.time - last_time_;
+  last_time_ = tool.time;
+  if (!(dt > 0)) dt = 1e-3;
+  dt = std::min(dt, settings_.max_dt);
+
+  ToolWrench w;
+  double depths[2];
+  bool both = false;
+  if (carried_ >= 0) {
+    const Eigen::Isometry3d X_Wtarget = Pose(tool.p_WT, tool.R_WT) * X_TP_;
+    const double q = PoleGrasp(carried_, X_Wtarget, tool, &both, depths);
+    if (both) {
+      w = CarryStep(tool, dt);
+      w.g = -2.0 * q;
+    } else {
+      // Released where it is; seated if it fits.
+      const int c = carried_;
+      carried_ = -1;
+      released_ = c;
+      v_.setZero();
+      w_.setZero();
+      Eigen::Isometry3d X_WS;
+      if (FindSeat(c, poses_[c], &X_WS)) {
+        poses_[c] = X_WS;
+        inverse_[c] = X_WS.inverse(Eigen::Isometry);
+        seated_[c] = 1;
+      }
+    }
+  }
+  if (carried_ < 0) {
+    w = ToolContact(tool);
+    const double reach = settings_.grasp.pole_length;
+    for (int j = 0; j < size(); ++j) {
+      if (parts_[j].fixed) continue;
+      if (Phi(j, tool.p_WT, nullptr) > reach) {
+        if (j == released_) released_ = -1;
+        continue;
+      }
+      const double q = PoleGrasp(j, poses_[j], tool, &both, depths);
+      if (!both) {
+        if (j == released_) released_ = -1;
+        continue;
+      }
+      w.g = -2.0 * q;
+      const double grab = settings_.grasp.grab_depth;
+      if (j != released_ && depths[0] >= grab && depths[1] >= grab) {
+        carried_ = j;
+        seated_[j] = 0;
+        X_TP_ = Pose(tool.p_WT, tool.R_WT).inverse(Eigen::Isometry) * poses_[j];
+        q_ = Eigen::Quaterniond(Eigen::Matrix3d(poses_[j].linear())).normalized();
+        v_ = tool.v_WT + tool.w_WT.cross(poses_[j].translation() - tool.p_WT);
+        w_ = tool.w_WT;
+      }
+      break;
+    }
+  }
+  Publish();
+  return w;
+}
+
+void AssemblyField::Publish() noexcept {
+  AssemblyState& out = published_.WriteSlot();
+  const int n = size();
+  out.count = n;
+  out.carried = carried_;
+  out.contacts = contacts_;
+  for (int i = 0; i < n; ++i) {
+    out.X_WP[i] = poses_[i];
+    out.seated[i] = seated_[i] != 0;
+  }
+  published_.Publish();
+}
+
+}  // namespace spidarcad::haptics

@@ -1,0 +1,190 @@
+// Tests of the assembly scene: assets/scenes/assembly.json loads into an AssemblyField, each
+// peg fits its hole with clearance (measured on the compiled solids by bisection, and no shell
+// point of a seated part inside the body), and a scripted grip (approach the right arm, close,
+// carry it to the body, insert, open) ends with the arm seated.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "runtime/assembly_scene.h"
+
+#include <cmath>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/scene_io.h"
+
+namespace spidarcad::app {
+namespace {
+
+const std::string kScene = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json";
+constexpr double kPi = 3.14159265358979323846;
+
+const modeling::Solid& FindSolid(const modeling::Scene& scene, const std::string& name) {
+  for (const modeling::Solid& s : scene.solids) {
+    if (s.name == name) return s;
+  }
+  throw std::runtime_error("no solid " + name);
+}
+
+// Smallest r in [lo, hi] where inside(r) turns true (inside(lo) false, inside(hi) true), by bisection.
+template <class F>
+double Crossing(const F& inside, double lo, double hi) {
+  EXPECT_FALSE(inside(lo));
+  EXPECT_TRUE(inside(hi));
+  for (int i = 0; i < 50; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (inside(mid) ? hi : lo) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+TEST(AssemblyScene, EachPegFitsItsHoleWithClearance) {
+  const modeling::Scene scene = modeling::LoadScene(kScene);
+  const auto field = BuildAssemblyField(scene);
+  ASSERT_EQ(field->size(), 6);
+  int checked = 0;
+  for (int i = 0; i < field->size(); ++i) {
+    const modeling::ScenePart& sp = scene.parts[i];
+    if (sp.seats.empty()) continue;
+    const modeling::ScenePart& body = scene.parts[field->part(i).seats[0].other];
+    const auto peg = modeling::CompiledSolid::Compile(FindSolid(scene, sp.solid).root);
+    const auto hole = modeling::CompiledSolid::Compile(FindSolid(scene, body.solid).root);
+    const Eigen::Isometry3d X_OS = field->part(i).seats[0].X_OS;
+    double peg_max = 0, hole_min = 1;
+    for (int k = 0; k < 16; ++k) {
+      const double a = 2 * kPi * k / 16;
+      // Half way down the peg (peg along −z of P from the origin, 8 mm long).
+      auto at = [&](double r) { return Eigen::Vector3d(r * std::cos(a), r * std::sin(a), -0.004); };
+      const double r_peg =
+          Crossing([&](double r) { return peg.Value(at(r)) > 0; }, 0.0, 0.008);
+      const double r_hole =
+          Crossing([&](double r) { return hole.Value(X_OS * at(r)) < 0; }, 0.0, 0.008);
+      peg_max = std::max(peg_max, r_peg);
+      hole_min = std::min(hole_min, r_hole);
+    }
+    EXPECT_NEAR(peg_max, 0.004, 1e-6) << sp.name;
+    EXPECT_NEAR(hole_min, 0.0046, 1e-6) << sp.name;
+    EXPECT_LT(peg_max, hole_min) << sp.name;
+    // Seated, no surface point of the part is inside the body.
+    const haptics::PointShell& shell = field->part(i).shell_P;
+    ASSERT_GT(shell.size(), 100) << sp.name;
+    double min_phi = 1;
+    for (const Eigen::Vector3d& r : shell.points_T) {
+      min_phi = std::min(min_phi, hole.Value(X_OS * r));
+    }
+    EXPECT_GT(min_phi, 2e-4) << sp.name;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5);
+}
+
+TEST(AssemblyScene, PartsStartApartAndWithinTheWorkspace) {
+  const modeling::Scene scene = modeling::LoadScene(kScene);
+  const auto field = BuildAssemblyField(scene);
+  // No part's surface is inside another part at the start, and every seated surface point lies
+  // within a 0.15 m cube.
+  Eigen::AlignedBox3d seated_box;
+  for (int i = 0; i < field->size(); ++i) {
+    for (const Eigen::Vector3d& r : field->part(i).shell_P.points_T) {
+      const Eigen::Vector3d p_W = field->X_WP(i) * r;
+      for (int j = 0; j < field->size(); ++j) {
+        if (j == i) continue;
+        const Eigen::Vector3d p_Pj = field->X_WP(j).inverse() * p_W;
+        EXPECT_GT(field->part(j).field_P->Evaluate(p_Pj, nullptr), 0.0) << field->part(i).name << " in "
+                                                                          << field->part(j).name;
+      }
+      if (!field->part(i).seats.empty()) {
+        const auto& seat = field->part(i).seats[0];
+        seated_box.extend(field->X_WP(seat.other) * seat.X_OS * r);
+      }
+    }
+  }
+  EXPECT_LT(seated_box.sizes().maxCoeff(), 0.15);
+}
+
+TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
+  const modeling::Scene scene = modeling::LoadScene(kScene);
+  const auto field = BuildAssemblyField(scene);
+  const int arm = 2;
+  ASSERT_EQ(field->part(arm).name, "right_arm");
+  // The grip's plane (T's xy) is the world's yz plane, so the arm's 12 mm square section lies
+  // between the poles: x_T → y_W, y_T → z_W, z_T → x_W.
+  haptics::ToolKinematics tool;
+  tool.R_WT << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  const Eigen::Vector3d b_W = tool.R_WT * Eigen::Vector3d(1, 1, 0).normalized();
+  const Eigen::Vector3d centre_P(0, 0, 0.0175);  // middle of the arm's bulk
+  auto grip_for = [&](const Eigen::Isometry3d& X_WP) { return Eigen::Vector3d(X_WP * centre_P - 0.02 * b_W); };
+  auto tick = [&] {
+    tool.time += 1e-3;
+    return field->Evaluate(tool);
+  };
+  auto move_to = [&](const Eigen::Vector3d& p, int ticks) {
+    const Eigen::Vector3d start = tool.p_WT;
+    for (int k = 1; k <= ticks; ++k) {
+      const Eigen::Vector3d next = start + (p - start) * (double(k) / ticks);
+      tool.v_WT = (next - tool.p_WT) / 1e-3;
+      tool.p_WT = next;
+      tick();
+    }
+    tool.v_WT.setZero();
+    for (int k = 0; k < 200; ++k) tick();
+  };
+  // Approach.
+  const Eigen::Isometry3d start = field->X_WP(arm);
+  tool.p_WT = grip_for(start);
+  tick();
+  EXPECT_EQ(field->carried(), -1);
+  // Close the grasp.
+  double min_g = 0;
+  while (field->carried() < 0 && tool.grasp > 0.3) {
+    tool.grasp -= 1e-3;
+    tool.grasp_rate = -1.0;
+    min_g = std::min(min_g, tick().g);
+  }
+  tool.grasp_rate = 0;
+  ASSERT_EQ(field->carried(), arm);
+  EXPECT_LT(min_g, 0.0);
+  // Carry: lift, over to the body's right side, in front of the hole, then insert along −x.
+  const Eigen::Isometry3d seat = field->X_WP(field->part(arm).seats[0].other) * field->part(arm).seats[0].X_OS;
+  Eigen::Isometry3d waypoint = seat;
+  waypoint.translation() += Eigen::Vector3d(0.025, 0.06, 0);
+  move_to(grip_for(waypoint), 600);
+  waypoint.translation().y() = seat.translation().y();
+  move_to(grip_for(waypoint), 600);
+  EXPECT_EQ(field->contacts(), 0);
+  Eigen::Isometry3d inserted = seat;
+  inserted.translation().x() += 0.001;  // 1 mm short of the seat
+  move_to(grip_for(inserted), 600);
+  ASSERT_EQ(field->carried(), arm);
+  EXPECT_LT((field->X_WP(arm).translation() - inserted.translation()).norm(), 1e-3);
+  // Open.
+  while (tool.grasp < kPi / 2) {
+    tool.grasp = std::min(kPi / 2, tool.grasp + 2e-3);
+    tick();
+  }
+  EXPECT_EQ(field->carried(), -1);
+  EXPECT_TRUE(field->seated(arm));
+  EXPECT_EQ(field->X_WP(arm).matrix(), seat.matrix());
+  // The grip leaves; the arm stays.
+  move_to(tool.p_WT + Eigen::Vector3d(0.03, 0.04, 0.0), 200);
+  EXPECT_TRUE(field->seated(arm));
+  EXPECT_EQ(field->X_WP(arm).matrix(), seat.matrix());
+  const haptics::AssemblyState& state = field->LatestState();
+  EXPECT_TRUE(state.seated[arm]);
+  EXPECT_EQ(state.carried, -1);
+  for (int i = 0; i < field->size(); ++i) {
+    if (i != arm) {
+      EXPECT_FALSE(state.seated[i]);
+      EXPECT_EQ(field->X_WP(i).matrix(), field->part(i).X_WP.matrix()) << field->part(i).name;
+    }
+  }
+}
+
+TEST(AssemblyScene, SceneWithoutPartsIsRejected) {
+  modeling::Scene scene = modeling::LoadScene(kScene);
+  scene.parts.clear();
+  EXPECT_THROW(BuildAssemblyField(scene), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace spidarcad::app

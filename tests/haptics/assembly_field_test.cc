@@ -1,0 +1,379 @@
+// Tests of the assembly field: closing the poles on a graspable part grasps it (the same grasp
+// torque as GraspField on that part), the part follows the grip, carrying it into the body gives
+// a contact force opposing the penetration, releasing it aligned over its hole seats it exactly
+// and it stays, releasing it elsewhere leaves it there, the tool's own shell touches the parts,
+// and Evaluate allocates nothing.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/haptics/assembly_field.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "spidarcad/haptics/grasp_field.h"
+#include "support/malloc_counter.h"
+
+namespace spidarcad::haptics {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// φ of a capped cylinder along z, radius r, from z0 to z1 (exact).
+double CylinderPhi(const Eigen::Vector3d& p, double r, double z0, double z1) {
+  const double zc = 0.5 * (z0 + z1), hz = 0.5 * (z1 - z0);
+  const Eigen::Vector2d d(std::hypot(p.x(), p.y()) - r, std::abs(p.z() - zc) - hz);
+  return std::min(std::max(d.x(), d.y()), 0.0) + d.cwiseMax(0.0).norm();
+}
+
+// Central-difference gradient of a scalar function.
+template <class F>
+Eigen::Vector3d Gradient(const F& f, const Eigen::Vector3d& p) {
+  constexpr double h = 1e-6;
+  Eigen::Vector3d g;
+  for (int i = 0; i < 3; ++i) {
+    Eigen::Vector3d e = Eigen::Vector3d::Zero();
+    e(i) = h;
+    g(i) = (f(p + e) - f(p - e)) / (2 * h);
+  }
+  return g;
+}
+
+// The body: a box of half sides (30, 30, 20) mm centred at the origin minus a vertical hole of
+// radius 4.6 mm from z = 5 mm up through the top face (z = 20 mm).
+constexpr double kHoleRadius = 4.6e-3;
+constexpr double kTopZ = 0.02;
+class BodyField final : public DistanceField {
+ public:
+  double Phi(const Eigen::Vector3d& p) const noexcept {
+    return std::max(box_.Evaluate(p, nullptr), -CylinderPhi(p, kHoleRadius, 0.005, 0.04));
+  }
+  double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
+    if (g != nullptr) *g = Gradient([this](const Eigen::Vector3d& x) { return Phi(x); }, p);
+    return Phi(p);
+  }
+
+ private:
+  BoxDistanceField box_{Eigen::Vector3d(0.03, 0.03, 0.02)};
+};
+
+// The peg part, in its frame P: a handle cube of half side 8 mm centred at (0, 0, 8 mm) and a
+// peg of radius 4 mm below it, from z = −12 mm to 1 mm.
+constexpr double kPegRadius = 4e-3;
+constexpr double kHandle = 0.008;
+class PegField final : public DistanceField {
+ public:
+  double Phi(const Eigen::Vector3d& p) const noexcept {
+    return std::min(box_.Evaluate(p - Eigen::Vector3d(0, 0, kHandle), nullptr),
+                    CylinderPhi(p, kPegRadius, -0.012, 0.001));
+  }
+  double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
+    if (g != nullptr) *g = Gradient([this](const Eigen::Vector3d& x) { return Phi(x); }, p);
+    return Phi(p);
+  }
+
+ private:
+  BoxDistanceField box_{Eigen::Vector3d::Constant(kHandle)};
+};
+
+// The peg's point shell: the handle's faces (2 mm grid) and the peg's side and bottom.
+PointShell PegShell() {
+  PointShell handle = PointShell::Box(Eigen::Vector3d::Constant(kHandle), 0.002);
+  std::vector<Eigen::Vector3d> points, normals;
+  for (int i = 0; i < handle.size(); ++i) {
+    const Eigen::Vector3d p = handle.points_T[i] + Eigen::Vector3d(0, 0, kHandle);
+    if (p.z() < 1e-9 && std::hypot(p.x(), p.y()) < kPegRadius) continue;  // inside the peg's base
+    points.push_back(p);
+    normals.push_back(handle.normals_T[i]);
+  }
+  for (int ring = 0; ring <= 6; ++ring) {
+    const double z = -0.012 + 0.002 * ring;
+    for (int k = 0; k < 12; ++k) {
+      const double a = 2 * kPi * k / 12;
+      points.emplace_back(kPegRadius * std::cos(a), kPegRadius * std::sin(a), z);
+      normals.emplace_back(-std::cos(a), -std::sin(a), 0);
+    }
+  }
+  for (int k = 0; k < 6; ++k) {
+    const double a = 2 * kPi * k / 6;
+    points.emplace_back(0.5 * kPegRadius * std::cos(a), 0.5 * kPegRadius * std::sin(a), -0.012);
+    normals.emplace_back(0, 0, 1);
+  }
+  points.emplace_back(0, 0, -0.012);
+  normals.emplace_back(0, 0, 1);
+  return PointShell::FromPoints(points, normals);
+}
+
+// The seated pose of the peg in the body frame: peg in the hole, handle 1 mm above the top.
+const Eigen::Isometry3d kSeat_BP(Eigen::Translation3d(0, 0, kTopZ + 0.001));
+// The peg's initial pose: beside the body.
+const Eigen::Isometry3d kStart_WP(Eigen::Translation3d(0.07, 0, 0));
+// The handle's centre lies at L along the grip bisector from the grip centre.
+constexpr double kL = 0.02;
+const Eigen::Vector3d kBisector = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
+
+std::vector<AssemblyPart> Parts() {
+  AssemblyPart body;
+  body.name = "body";
+  body.field_P = std::make_shared<BodyField>();
+  body.fixed = true;
+  AssemblyPart peg;
+  peg.name = "peg";
+  peg.field_P = std::make_shared<PegField>();
+  peg.shell_P = PegShell();
+  peg.X_WP = kStart_WP;
+  AssemblySeat seat;
+  seat.other = 0;
+  seat.X_OS = kSeat_BP;
+  seat.position_tolerance = 2e-3;
+  seat.angle_tolerance = 0.1;
+  peg.seats.push_back(seat);
+  return {body, peg};
+}
+
+// Drives the field with a scripted grip at 1 kHz (velocities by finite differences).
+struct Driver {
+  AssemblyField& field;
+  ToolKinematics tool;
+  ToolWrench last;
+
+  void Tick() {
+    tool.time += 1e-3;
+    last = field.Evaluate(tool);
+  }
+  // Moves the grip centre linearly to p in `ticks` ticks.
+  void MoveTo(const Eigen::Vector3d& p, int ticks) {
+    const Eigen::Vector3d start = tool.p_WT;
+    for (int k = 1; k <= ticks; ++k) {
+      const Eigen::Vector3d next = start + (p - start) * (double(k) / ticks);
+      tool.v_WT = (next - tool.p_WT) / 1e-3;
+      tool.p_WT = next;
+      Tick();
+    }
+    tool.v_WT.setZero();
+  }
+  void Hold(int ticks) {
+    for (int k = 0; k < ticks; ++k) Tick();
+  }
+  // Closes the grip (rate rad/s < 0) until the field carries a part or the angle hits `limit`.
+  void CloseUntilGrasped(double rate, double limit) {
+    tool.grasp_rate = rate;
+    while (field.carried() < 0 && tool.grasp > limit) {
+      tool.grasp += rate * 1e-3;
+      Tick();
+    }
+    tool.grasp_rate = 0;
+  }
+  // Opens the grip to π/2.
+  void Open() {
+    tool.grasp_rate = 2.0;
+    while (tool.grasp < kPi / 2) {
+      tool.grasp = std::min(kPi / 2, tool.grasp + 2e-3);
+      Tick();
+    }
+    tool.grasp_rate = 0;
+  }
+};
+
+// Grip centre that puts the handle's centre at L along the bisector (R_WT = I).
+Eigen::Vector3d GripFor(const Eigen::Isometry3d& X_WP) {
+  return X_WP * Eigen::Vector3d(0, 0, kHandle) - kL * kBisector;
+}
+
+// Picks the peg up at its start pose; returns the driver.
+Driver PickUp(AssemblyField& field) {
+  Driver d{field, ToolKinematics{}, ToolWrench{}};
+  d.tool.p_WT = GripFor(kStart_WP);
+  d.Hold(5);
+  d.CloseUntilGrasped(-1.0, 0.2);
+  return d;
+}
+
+TEST(AssemblyField, ClosingThePolesOnAPartGrabsItWithTheGraspFieldTorque) {
+  AssemblyField field(Parts());
+  // The same part alone in a GraspField gives the reference torque at each angle.
+  GraspField reference(std::make_shared<PegField>(), kStart_WP);
+  Driver d{field, ToolKinematics{}, ToolWrench{}};
+  d.tool.p_WT = GripFor(kStart_WP);
+  d.tool.grasp_rate = -1.0;
+  bool touched = false;
+  while (field.carried() < 0 && d.tool.grasp > 0.2) {
+    d.tool.grasp -= 1e-3;
+    const ToolWrench expected = reference.Evaluate(d.tool);
+    d.Tick();
+    EXPECT_NEAR(d.last.g, expected.g, 1e-9) << "at θ = " << d.tool.grasp;
+    if (d.last.g != 0) {
+      EXPECT_LT(d.last.g, 0.0);
+      touched = true;
+    }
+  }
+  EXPECT_TRUE(touched);
+  ASSERT_EQ(field.carried(), 1);
+  EXPECT_TRUE(reference.grasped());
+  // The grab happens at the current pose: X_TP = X_WT⁻¹ X_WP with R_WT = I.
+  EXPECT_TRUE(field.X_TP().isApprox(Eigen::Isometry3d(Eigen::Translation3d(kStart_WP.translation() - d.tool.p_WT)),
+                                    1e-12));
+  EXPECT_GT(d.tool.grasp, 0.2);
+}
+
+TEST(AssemblyField, CarriedPartFollowsTheGrip) {
+  AssemblyField field(Parts());
+  Driver d = PickUp(field);
+  ASSERT_EQ(field.carried(), 1);
+  const Eigen::Isometry3d X_TP = field.X_TP();
+  d.MoveTo(d.tool.p_WT + Eigen::Vector3d(-0.01, 0.02, 0.04), 300);
+  d.Hold(500);
+  Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+  X_WT.translation() = d.tool.p_WT;
+  EXPECT_LT((field.X_WP(1).translation() - (X_WT * X_TP).translation()).norm(), 1e-5);
+  EXPECT_TRUE(field.X_WP(1).linear().isApprox(Eigen::Matrix3d::Identity(), 1e-4));
+  EXPECT_EQ(field.carried(), 1);
+  // At rest in free space the user feels (almost) nothing but the grasp.
+  EXPECT_LT(d.last.f_T_W.norm(), 1e-2);
+  EXPECT_LT(d.last.g, 0.0);
+  // The published state agrees.
+  const AssemblyState& s = field.LatestState();
+  EXPECT_EQ(s.count, 2);
+  EXPECT_EQ(s.carried, 1);
+  EXPECT_TRUE(s.X_WP[1].isApprox(field.X_WP(1)));
+}
+
+TEST(AssemblyField, CarryingThePartIntoTheBodyPushesBack) {
+  AssemblyField field(Parts());
+  Driver d = PickUp(field);
+  ASSERT_EQ(field.carried(), 1);
+  // Peg bottom 3 mm below the top face, away from the hole.
+  Eigen::Isometry3d target(Eigen::Translation3d(0.015, -0.012, kTopZ + 0.012 - 0.003));
+  Eigen::Isometry3d above = target;
+  above.translation().z() += 0.03;
+  d.MoveTo(GripFor(above), 400);
+  d.Hold(300);
+  EXPECT_LT(d.last.f_T_W.norm(), 1e-2);
+  d.MoveTo(GripFor(target), 300);
+  d.Hold(400);
+  ASSERT_EQ(field.carried(), 1);
+  // The user is pushed up, out of the body; the part stays above the target, less deep.
+  EXPECT_GT(d.last.f_T_W.z(), 1.0);
+  EXPECT_LT(std::abs(d.last.f_T_W.x()) + std::abs(d.last.f_T_W.y()), 0.1 * d.last.f_T_W.z());
+  EXPECT_GT(field.X_WP(1).translation().z(), target.translation().z() + 1e-3);
+  EXPECT_GT(field.contacts(), 0);
+  // The part's lowest point is within 1 mm of the top face.
+  EXPECT_GT(field.X_WP(1).translation().z() - 0.012, kTopZ - 1e-3);
+  // Opening there releases it unseated.
+  d.Open();
+  EXPECT_EQ(field.carried(), -1);
+  EXPECT_FALSE(field.seated(1));
+}
+
+TEST(AssemblyField, ReleasingOverTheHoleSeatsThePartExactlyAndItStays) {
+  AssemblyField field(Parts());
+  Driver d = PickUp(field);
+  ASSERT_EQ(field.carried(), 1);
+  const Eigen::Isometry3d seat = kSeat_BP;  // body at the origin
+  Eigen::Isometry3d above = seat;
+  above.translation().z() += 0.03;
+  d.MoveTo(GripFor(above), 400);
+  d.Hold(200);
+  // Down into the hole, stopping 1 mm short of the seat (within its 2 mm tolerance).
+  Eigen::Isometry3d near = seat;
+  near.translation() += Eigen::Vector3d(0.0003, -0.0002, 0.001);
+  d.MoveTo(GripFor(near), 400);
+  d.Hold(300);
+  ASSERT_EQ(field.carried(), 1);
+  EXPECT_LT((field.X_WP(1).translation() - near.translation()).norm(), 2e-4);
+  d.Open();
+  EXPECT_EQ(field.carried(), -1);
+  EXPECT_TRUE(field.seated(1));
+  EXPECT_EQ(field.X_WP(1).matrix(), seat.matrix());
+  // It stays when the grip leaves.
+  d.MoveTo(d.tool.p_WT + Eigen::Vector3d(0.05, -0.03, 0.05), 300);
+  d.Hold(100);
+  EXPECT_TRUE(field.seated(1));
+  EXPECT_EQ(field.X_WP(1).matrix(), seat.matrix());
+  const AssemblyState& s = field.LatestState();
+  EXPECT_TRUE(s.seated[1]);
+  EXPECT_FALSE(s.seated[0]);
+  EXPECT_EQ(s.X_WP[1].matrix(), seat.matrix());
+}
+
+TEST(AssemblyField, ReleasingElsewhereLeavesThePartWhereItWasLetGo) {
+  AssemblyField field(Parts());
+  Driver d = PickUp(field);
+  ASSERT_EQ(field.carried(), 1);
+  d.MoveTo(d.tool.p_WT + Eigen::Vector3d(-0.02, 0.01, 0.05), 300);
+  d.Hold(300);
+  Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+  X_WT.translation() = d.tool.p_WT;
+  const Eigen::Isometry3d expected = X_WT * field.X_TP();
+  d.Open();
+  ASSERT_EQ(field.carried(), -1);
+  EXPECT_FALSE(field.seated(1));
+  const Eigen::Isometry3d released = field.X_WP(1);
+  EXPECT_LT((released.translation() - expected.translation()).norm(), 1e-5);
+  const Eigen::Vector3d release_grip = d.tool.p_WT;
+  d.MoveTo(d.tool.p_WT + Eigen::Vector3d(0, -0.05, 0), 200);
+  d.Hold(100);
+  EXPECT_EQ(field.X_WP(1).matrix(), released.matrix());
+  EXPECT_FALSE(field.seated(1));
+  // Coming back and closing picks it up again where it was left.
+  d.MoveTo(release_grip, 200);
+  d.CloseUntilGrasped(-1.0, 0.2);
+  EXPECT_EQ(field.carried(), 1);
+  EXPECT_EQ(field.X_WP(1).matrix(), released.matrix());
+}
+
+TEST(AssemblyField, ToolShellTouchesTheBody) {
+  AssemblyField field(Parts(), PointShell::Sphere(0.003, 60));
+  ToolKinematics tool;
+  tool.p_WT = Eigen::Vector3d(0.01, 0.015, kTopZ + 0.004);  // sphere 1 mm above the top face
+  EXPECT_EQ(field.Evaluate(tool).f_T_W.norm(), 0.0);
+  tool.time = 1e-3;
+  tool.p_WT.z() = kTopZ + 0.002;  // sphere bottom 1 mm into the top face
+  const ToolWrench w = field.Evaluate(tool);
+  EXPECT_GT(w.f_T_W.z(), 0.5);
+  EXPECT_NEAR(w.f_T_W.x(), 0.0, 1e-3 * w.f_T_W.z() + 1e-9);
+  EXPECT_GT(field.contacts(), 0);
+  EXPECT_EQ(field.carried(), -1);
+}
+
+TEST(AssemblyField, RejectsBadInput) {
+  EXPECT_THROW(AssemblyField(std::vector<AssemblyPart>{}), std::invalid_argument);
+  std::vector<AssemblyPart> parts = Parts();
+  parts[1].seats[0].other = 1;  // itself
+  EXPECT_THROW(AssemblyField{parts}, std::invalid_argument);
+  parts = Parts();
+  parts[1].shell_P = PointShell{};
+  EXPECT_THROW(AssemblyField{parts}, std::invalid_argument);
+  parts = Parts();
+  parts[0].field_P = nullptr;
+  EXPECT_THROW(AssemblyField{parts}, std::invalid_argument);
+  AssemblySettings s;
+  s.substeps = 0;
+  EXPECT_THROW(AssemblyField(Parts(), PointShell{}, s), std::invalid_argument);
+}
+
+TEST(AssemblyField, EvaluateAllocatesNothing) {
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  AssemblyField field(Parts(), PointShell::Sphere(0.003, 30));
+  Driver d{field, ToolKinematics{}, ToolWrench{}};
+  d.tool.p_WT = GripFor(kStart_WP);
+  d.Hold(2);
+  long allocations = 0;
+  {
+    test_support::MallocCounter counter;
+    d.CloseUntilGrasped(-1.0, 0.2);
+    Eigen::Isometry3d target(Eigen::Translation3d(0.015, -0.012, kTopZ + 0.012 - 0.003));
+    d.MoveTo(GripFor(target), 300);
+    d.Hold(50);
+    d.Open();
+    (void)field.LatestState();
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(field.carried(), -1);
+}
+
+}  // namespace
+}  // namespace spidarcad::haptics
