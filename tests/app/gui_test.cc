@@ -1,10 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // Tests of the window's pieces that need no display (colour map, picking and drag math, the
-// demo field, the device session, option parsing), and a smoke test of the window itself that
-// runs the spidarcad binary with --screenshot when an X display is available (CI: xvfb-run).
+// demo field, the haptic runtime on a virtual clock and on its thread, the scene model with its
+// mesh jobs and export, option parsing), and screenshot tests of the window itself that run the
+// spidarcad binary with --screenshot when an X display is available (CI: xvfb-run).
 #include <sys/wait.h>
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -12,6 +14,7 @@
 #include <numbers>
 #include <set>
 #include <string>
+#include <thread>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -19,13 +22,22 @@
 #include <vtkNew.h>
 #include <vtkPNGReader.h>
 
+#include "doc/job.h"
 #include "gui/colour_map.h"
 #include "gui/device_session.h"
 #include "gui/grip_control.h"
 #include "gui/gui.h"
+#include "gui/haptic_runtime.h"
 #include "gui/panels.h"
+#include "gui/scene_fields.h"
+#include "gui/scene_model.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
+#include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/tet_mesh.h"
+#include "spidarcad/modeling/triangle_mesh_io.h"
+#include "support/command_runner.h"
+#include "support/malloc_counter.h"
 
 namespace spidarcad::app {
 namespace {
@@ -184,49 +196,325 @@ TEST(DemoSpringWrench, MatchesTheClosedFormSprings) {
   EXPECT_EQ(DemoSpringWrench(field, pose), haptics::Vector7d::Zero());
 }
 
-TEST(DeviceSession, IdealDeviceMeasuresTheHandPoseAndDisplaysTheSolvedWrench) {
-  const SpidarGeometry g;
-  const haptics::TensionSettings ts = haptics::TensionSettings::ForPoleLength(g.d);
-  DeviceSession session(g, ts, LengthSource::kIdeal);
-  const GripPose hand = GripPose::FromFrame(
-      {0.06, -0.04, 0.05}, Eigen::AngleAxisd(0.2, Eigen::Vector3d(1, 2, 3).normalized()).matrix(),
-      1.8, g.d);
-  const DeviceFrame& f = session.Update(hand);
-  ASSERT_EQ(f.fk_status, haptics::FkStatus::kOk);
-  EXPECT_NEAR((f.measured_pose.p0 - hand.p0).norm(), 0.0, 1e-8);
-  EXPECT_NEAR((f.measured_pose.p1 - hand.p1).norm(), 0.0, 1e-8);
-  EXPECT_NEAR((f.measured_pose.p2 - hand.p2).norm(), 0.0, 1e-8);
-  for (int i = 0; i < haptics::kNumStrings; ++i) {
-    EXPECT_NEAR(f.lengths[i], (g.Corner(i) - hand.Attachment(i)).norm(), 1e-12);
-    EXPECT_GE(f.tensions[i], ts.tau_min - 1e-9);
-    EXPECT_LE(f.tensions[i], ts.tau_max + 1e-9);
+// A runtime on a virtual clock: `ticks` ticks of 1 ms, called directly (no thread).
+void RunTicks(HapticRuntime* runtime, int ticks) {
+  haptics::TickTiming timing;
+  for (int k = 0; k < ticks; ++k) {
+    runtime->Tick(timing);
+    ++timing.tick;
   }
-  // The displayed wrench is A τ at the measured pose; the field pulls back toward the centre.
-  const haptics::Vector7d achieved = haptics::WrenchMatrix(g, f.measured_pose) * f.tensions;
-  EXPECT_NEAR((achieved - f.achieved).norm(), 0.0, 1e-9);
-  EXPECT_NEAR((f.wrench.head<3>() - (-100.0 * hand.p0)).norm(), 0.0, 1e-6);
-  EXPECT_LT(f.achieved.head<3>().dot(hand.p0), 0.0);
 }
 
-TEST(DeviceSession, SimulatedDeviceMeasuresTheHandPoseWithinCalibrationError) {
+// A scene of the centring springs only, in device coordinates (X_WD = identity).
+std::unique_ptr<haptics::HapticScene> SpringScene(const DemoFieldSettings& field) {
+  auto scene = std::make_unique<haptics::HapticScene>();
+  scene->Add(std::make_unique<CentringSpringField>(field, 1.0, Eigen::Vector3d::Zero()));
+  return scene;
+}
+
+TEST(HapticRuntime, IdealDeviceMeasuresTheTargetAndCommandsTheClosedFormSpringWrench) {
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kIdeal;
   const SpidarGeometry g;
-  DeviceSession session(g, haptics::TensionSettings::ForPoleLength(g.d),
-                        LengthSource::kSimulatedDevice);
-  EXPECT_NE(session.calibration_note().find("line fit"), std::string::npos)
-      << session.calibration_note();
-  const GripPose hand = GripPose::FromFrame(
-      {-0.05, 0.07, -0.03}, Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()).matrix(), 1.4, g.d);
-  for (int k = 0; k < 10; ++k) session.Update(hand);  // let the motors settle
-  const DeviceFrame& f = session.frame();
-  ASSERT_EQ(f.fk_status, haptics::FkStatus::kOk);
-  // Calibrated encoders: within a millimetre and a degree of the hand (uncalibrated, the
-  // paper's 6 % gain error would give centimetres).
-  EXPECT_LT((f.measured_pose.p0 - hand.p0).norm(), 1e-3);
-  EXPECT_LT(haptics::RotationAngleBetween(f.measured_pose.Rotation(), hand.Rotation()),
-            kPi / 180.0);
-  const haptics::Vector8d exact = haptics::InverseKinematics(g, hand);
-  EXPECT_LT((f.lengths - exact).cwiseAbs().maxCoeff(), 1e-3);
-  EXPECT_FALSE((f.lengths - exact).isZero(1e-9));  // really measured, not copied from IK
+  const GripPose target = GripPose::FromFrame(
+      {0.06, -0.04, 0.05}, Eigen::AngleAxisd(0.2, Eigen::Vector3d(1, 2, 3).normalized()).matrix(),
+      1.8, g.d);
+  HapticRuntime runtime(settings, GripPose::Rest(g.d));
+  DemoFieldSettings field;
+  runtime.Publish(SpringScene(field));
+  runtime.SetTarget(target);
+  RunTicks(&runtime, 800);  // past the 0.5 s force ramp
+  const RuntimeFrame& f = runtime.Latest();
+  ASSERT_EQ(f.tool.fk_status, haptics::FkStatus::kOk);
+  EXPECT_EQ(f.tool.ramp, 1.0);
+  // The rigid hand puts the grip at the target; the encoders see it to within quantisation.
+  EXPECT_NEAR((f.hand_pose.p0 - target.p0).norm(), 0.0, 1e-12);
+  EXPECT_LT((f.tool.pose_D.p0 - target.p0).norm(), 1e-4);
+  const haptics::Vector8d exact = haptics::InverseKinematics(g, target);
+  EXPECT_LT((f.lengths - exact).cwiseAbs().maxCoeff(), 1e-4);
+  // The commanded wrench is the closed-form spring wrench at the measured pose (no damping at
+  // rest, no limit reached: |f| = 100 N/m · 8.8 cm).
+  const haptics::Vector7d expected = DemoSpringWrench(field, f.tool.pose_D);
+  EXPECT_LT((f.tool.wrench_D - expected).norm(), 0.02 * expected.norm())
+      << f.tool.wrench_D.transpose() << " vs " << expected.transpose();
+  // Displayed = A τ at the measured pose, tensions within the solver's bounds.
+  const haptics::TensionSettings& ts = runtime.loop().settings().tension;
+  EXPECT_LT((haptics::WrenchMatrix(g, f.tool.pose_D) * f.tool.tau - f.tool.displayed_D).norm(), 1e-9);
+  for (int i = 0; i < haptics::kNumStrings; ++i) {
+    EXPECT_GE(f.tool.tau[i], ts.tau_min - 1e-9);
+    EXPECT_LE(f.tool.tau[i], ts.tau_max + 1e-9);
+  }
+  EXPECT_EQ(runtime.ticks(), 800u);
+}
+
+TEST(HapticRuntime, SimulatedHandSettlesWhereItsSpringBalancesTheField) {
+  // Hand spring k_h toward the target p_t, centring spring k toward 0: at rest
+  // k_h (p_t − p) = k p, so p = k_h p_t / (k_h + k).
+  RuntimeSettings settings;  // simulated device with encoder errors, calibrated; hand 300 N/m
+  const SpidarGeometry g;
+  HapticRuntime runtime(settings, GripPose::Rest(g.d));
+  DemoFieldSettings field;
+  field.k_translation = 150.0;
+  field.k_rotation = 0.0;
+  field.k_grasp = 0.0;
+  runtime.Publish(SpringScene(field));
+  const Eigen::Vector3d p_target(0.05, 0.03, -0.04);
+  runtime.SetTarget(GripPose::FromFrame(p_target, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+  RunTicks(&runtime, 3000);
+  const RuntimeFrame& f = runtime.Latest();
+  const double kh = settings.hand.stiffness, k = field.k_translation;
+  const Eigen::Vector3d expected = kh * p_target / (kh + k);
+  // Calibrated encoders measure to ~0.3 mm; the strings display the spring to a few per cent.
+  EXPECT_LT((f.hand_pose.p0 - expected).norm(), 2e-3)
+      << f.hand_pose.p0.transpose() << " vs " << expected.transpose();
+  EXPECT_LT((f.tool.pose_D.p0 - f.hand_pose.p0).norm(), 1.5e-3);
+  EXPECT_GT((f.hand_pose.p0 - p_target).norm(), 0.01);  // really pushed back by the device
+  EXPECT_NE(runtime.description().find("line-fit"), std::string::npos) << runtime.description();
+}
+
+TEST(HapticRuntime, TicksAllocateNothingWithSolidsAndSprings) {
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  SceneModel model;
+  model.Load(kDemoSceneName, GripControl(SpidarGeometry{}).limits());
+  RuntimeSettings settings;
+  settings.loop.world_scale = model.device_to_world().world_scale;
+  settings.loop.p_WDo = model.device_to_world().p_WDo;
+  const SpidarGeometry g;
+  HapticRuntime runtime(settings, GripPose::Rest(g.d));
+  DemoFieldSettings field;
+  runtime.Publish(model.BuildHapticScene(field));
+  // Push the grip down into the bracket, so that the penalty field works too.
+  runtime.SetTarget(GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+  RunTicks(&runtime, 300);
+  long allocations = 0;
+  {
+    test_support::MallocCounter counter;
+    RunTicks(&runtime, 1000);
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  // The solid pushes up (+z) on the grip centre inside the bracket.
+  EXPECT_GT(runtime.Latest().tool.wrench_D.z(), 1.0);
+}
+
+TEST(HapticRuntime, EmergencyStopLatchesZeroForceAndRearmRampsBackLinearly) {
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kIdeal;
+  const SpidarGeometry g;
+  HapticRuntime runtime(settings, GripPose::Rest(g.d));
+  runtime.Publish(SpringScene(DemoFieldSettings{}));
+  runtime.SetTarget(GripPose::FromFrame({0.05, 0.0, 0.0}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+  RunTicks(&runtime, 700);
+  ASSERT_GT(runtime.Latest().tool.wrench_D.head<3>().norm(), 4.0);
+  runtime.EmergencyStop();
+  const haptics::TensionSettings& ts = runtime.loop().settings().tension;
+  for (int k = 0; k < 200; ++k) {
+    RunTicks(&runtime, 1);
+    const RuntimeFrame& f = runtime.Latest();
+    ASSERT_TRUE(f.tool.events & haptics::kEventEmergencyStop) << "tick " << k;
+    ASSERT_EQ(f.tool.wrench_D, haptics::Vector7d::Zero()) << "tick " << k;
+    ASSERT_LE(f.tool.tau.maxCoeff(), ts.tau_min + 1e-12) << "tick " << k;
+  }
+  EXPECT_TRUE(runtime.emergency_stopped());
+  EXPECT_GE(runtime.loop().event_counts()[4], 200u);  // bit 4: emergency_stop
+  runtime.Rearm();
+  const double ramp_time = runtime.loop().settings().ramp_time;
+  for (int n = 1; n <= 300; ++n) {
+    RunTicks(&runtime, 1);
+    ASSERT_NEAR(runtime.Latest().tool.ramp, std::min(1.0, n * 1e-3 / ramp_time), 1e-9) << n;
+  }
+  RunTicks(&runtime, 300);
+  EXPECT_EQ(runtime.Latest().tool.ramp, 1.0);
+  EXPECT_GT(runtime.Latest().tool.wrench_D.head<3>().norm(), 4.0);
+}
+
+TEST(HapticRuntime, RunsOnItsOwnThreadAndReportsOrderedStatistics) {
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kIdeal;
+  HapticRuntime runtime(settings, GripPose::Rest(SpidarGeometry{}.d));
+  runtime.Publish(SpringScene(DemoFieldSettings{}));
+  runtime.Start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  runtime.Stop();
+  const LoopStats s = CollectLoopStats(runtime, runtime.Latest());
+  EXPECT_GT(s.ticks, 0u);
+  EXPECT_NE(s.realtime, haptics::RealtimeStatus::kNotStarted);
+  for (const auto* v : {&s.step, &s.tick, &s.jitter}) {
+    EXPECT_LE((*v)[0], (*v)[1]);
+    EXPECT_LE((*v)[1], (*v)[2]);
+    EXPECT_LE((*v)[2], (*v)[3] + 1e-7);  // percentiles are bin upper edges (0.1 µs)
+  }
+  EXPECT_GT(s.step[3], 0.0);
+  EXPECT_GE(s.tick[3], s.step[3] - 1e-7);  // the tick contains the step
+  const std::string text = FormatLoopSummary(s);
+  EXPECT_NE(text.find("loop: " + std::to_string(s.ticks) + " ticks"), std::string::npos) << text;
+  for (int i = 0; i < haptics::kNumSafetyEvents; ++i) {
+    EXPECT_NE(text.find(haptics::SafetyEventName(i)), std::string::npos) << text;
+  }
+}
+
+TEST(SolidPenaltyField, PushesOutAlongTheNormalByStiffnessTimesDepth) {
+  modeling::ImplicitNode sphere = modeling::ParseScene(R"({"format": "spidarcad-scene",
+      "version": 1, "units": "m", "solids": [{"name": "s", "root": {"type": "translate",
+      "translation": [0.1, 0, 0], "children": [{"type": "sphere", "radius": 0.05}]}}]})")
+                                      .solids[0]
+                                      .root;
+  auto solid = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(sphere));
+  SolidPenaltyField field(solid, 800.0, 4.0);
+  haptics::ToolKinematics tool;
+  // 1 cm deep along the direction (1, 2, 2)/3 from the centre: f = 800 · 0.01 · n.
+  const Eigen::Vector3d n = Eigen::Vector3d(1, 2, 2) / 3.0;
+  tool.p_WT = Eigen::Vector3d(0.1, 0, 0) + 0.04 * n;
+  haptics::ToolWrench w = field.Evaluate(tool);
+  EXPECT_LT((w.f_T_W - 8.0 * n).norm(), 1e-9);
+  EXPECT_EQ(w.m_T_W, Eigen::Vector3d::Zero());
+  EXPECT_EQ(w.g, 0.0);
+  // Moving in at 0.5 m/s adds 4 · 0.5 N; moving out fast enough never pulls in.
+  tool.v_WT = -0.5 * n;
+  w = field.Evaluate(tool);
+  EXPECT_LT((w.f_T_W - 10.0 * n).norm(), 1e-9);
+  tool.v_WT = 5.0 * n;
+  EXPECT_EQ(field.Evaluate(tool).f_T_W, Eigen::Vector3d::Zero());
+  // Outside: nothing.
+  tool.v_WT.setZero();
+  tool.p_WT = Eigen::Vector3d(0.1, 0, 0) + 0.06 * n;
+  EXPECT_EQ(field.Evaluate(tool).f_T_W, Eigen::Vector3d::Zero());
+  EXPECT_THROW(SolidPenaltyField(solid, -1.0, 0.0), std::invalid_argument);
+  EXPECT_THROW(SolidPenaltyField(nullptr, 1.0, 0.0), std::invalid_argument);
+}
+
+TEST(CentringSpringField, FeelsLikeTheDeviceFrameSpringsThroughXwd) {
+  const SpidarGeometry g;
+  DemoFieldSettings demo;
+  const double s = 2.5;
+  const Eigen::Vector3d o(0.3, -0.2, 1.0);
+  CentringSpringField field(demo, s, o);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0, 1, 1).normalized()).matrix();
+  const Eigen::Vector3d p_D(0.05, -0.02, 0.03);
+  haptics::ToolKinematics tool;
+  tool.p_WT = s * p_D + o;  // the loop's X_WD
+  tool.R_WT = R;
+  tool.grasp = 1.9;
+  const haptics::ToolWrench w = field.Evaluate(tool);
+  const haptics::Vector7d q = DemoSpringWrench(demo, GripPose::FromFrame(p_D, R, 1.9, g.d));
+  EXPECT_LT((w.f_T_W - q.head<3>()).norm(), 1e-12);
+  EXPECT_LT((w.m_T_W - q.segment<3>(3)).norm(), 1e-12);
+  EXPECT_NEAR(w.g, q[6], 1e-12);
+}
+
+TEST(ChooseDeviceToWorld, KeepsSmallScenesAtScaleOneAndFitsLargeOnesInReach) {
+  const Eigen::Vector3d travel(0.19, 0.19, 0.19);
+  const Eigen::AlignedBox3d small(Eigen::Vector3d(-0.05, 0.0, 0.1), Eigen::Vector3d(0.05, 0.1, 0.15));
+  DeviceToWorld x = ChooseDeviceToWorld(small, travel);
+  EXPECT_EQ(x.world_scale, 1.0);
+  EXPECT_LT((x.p_WDo - Eigen::Vector3d(0.0, 0.05, 0.15 + 0.06)).norm(), 1e-12);
+  // A 4 m platform: every corner lands inside the travel, below the device centre.
+  const Eigen::AlignedBox3d big(Eigen::Vector3d(0, -1, -0.5), Eigen::Vector3d(4, 1, 0.2));
+  x = ChooseDeviceToWorld(big, travel);
+  EXPECT_NEAR(x.world_scale, 4.0 / (1.6 * 0.19), 1e-12);
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d p_D =
+        (big.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)) - x.p_WDo) / x.world_scale;
+    EXPECT_LE(p_D.cwiseAbs().maxCoeff(), 0.19 + 1e-12) << p_D.transpose();
+    EXPECT_LT(p_D.z(), 0.0);
+  }
+  EXPECT_EQ(ChooseDeviceToWorld(Eigen::AlignedBox3d(), travel).world_scale, 1.0);
+}
+
+// Waits for every job of `jobs` to end, then polls the queue.
+void Drain(JobQueue* jobs) {
+  for (const auto& job : jobs->jobs()) job->Wait();
+  jobs->Poll();
+}
+
+TEST(SceneModel, LoadsTheDemoAndMeshesPreviewsThatMatchTheKnobSphere) {
+  SceneModel model;
+  model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  ASSERT_EQ(model.objects().size(), 2u);
+  EXPECT_EQ(model.objects()[1].name, "knob");
+  EXPECT_EQ(model.objects()[0].shown().triangles.cols(), 0);
+  JobQueue jobs;
+  model.StartPreviewJobs(&jobs, 24.0);
+  Drain(&jobs);
+  const SceneObject& knob = model.objects()[1];
+  ASSERT_GT(knob.preview.triangles.cols(), 100);
+  EXPECT_EQ(knob.revision, 1);
+  const double r = 0.035, exact = 4.0 / 3.0 * kPi * r * r * r;
+  EXPECT_NEAR(modeling::MeshVolume(knob.preview), exact, 0.03 * exact);
+  // 'none' is empty; a bad file names itself and leaves the model as it was.
+  EXPECT_THROW(model.Load("/nonexistent/scene.json", Eigen::Vector3d::Constant(0.19)), std::exception);
+  EXPECT_EQ(model.objects().size(), 2u);
+  try {
+    model.Load("/nonexistent/scene.json", Eigen::Vector3d::Constant(0.19));
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/scene.json"), std::string::npos) << e.what();
+  }
+  model.Load(kNoSceneName, Eigen::Vector3d::Constant(0.19));
+  EXPECT_TRUE(model.objects().empty());
+  EXPECT_EQ(model.BuildHapticScene(DemoFieldSettings{})->size(), 1);  // the springs only
+}
+
+TEST(SceneModel, MeshJobsLandOnSuccessAndChangeNothingOnFailureOrCancel) {
+  SceneModel model;
+  model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  JobQueue jobs;
+  // Failure: a grid far beyond 2^30 cells is refused by the mesher.
+  Job& bad = model.StartMeshJob(&jobs, 1, MeshKind::kSurface, 1e-6);
+  Drain(&jobs);
+  EXPECT_EQ(bad.state(), Job::State::kFailed);
+  EXPECT_FALSE(bad.error().empty());
+  EXPECT_EQ(model.objects()[1].revision, 0);
+  EXPECT_EQ(model.objects()[1].surface.triangles.cols(), 0);
+  jobs.Prune();
+  // Cancel before the worker gets far: no result lands.
+  Job& cancelled = model.StartMeshJob(&jobs, 0, MeshKind::kSurface, 0.0005);
+  cancelled.Cancel();
+  Drain(&jobs);
+  EXPECT_EQ(cancelled.state(), Job::State::kCancelled);
+  EXPECT_EQ(model.objects()[0].revision, 0);
+  jobs.Prune();
+  // Success: tetrahedra of the knob whose volume matches the sphere's.
+  Job& good = model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, 0.005);
+  Drain(&jobs);
+  ASSERT_EQ(good.state(), Job::State::kSucceeded) << good.error();
+  const SceneObject& knob = model.objects()[1];
+  EXPECT_EQ(knob.revision, 1);
+  ASSERT_GT(knob.tets.tets.cols(), 50);
+  const double r = 0.035, exact = 4.0 / 3.0 * kPi * r * r * r;
+  EXPECT_NEAR(modeling::TotalVolume(knob.tets), exact, 0.05 * exact);
+  EXPECT_NEAR(modeling::TotalVolume(knob.tets), modeling::MeshVolume(knob.surface), 1e-6 * exact);
+  EXPECT_THROW(model.StartMeshJob(&jobs, 7, MeshKind::kSurface, 0.01), std::out_of_range);
+}
+
+TEST(Export, WritesFilesThatReadBackAndExplainsBadPaths) {
+  SceneModel model;
+  model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  JobQueue jobs;
+  model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, 0.006);
+  Drain(&jobs);
+  const SceneObject& knob = model.objects()[1];
+  ASSERT_GT(knob.tets.tets.cols(), 0);
+  const std::string dir = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_export";
+  std::filesystem::create_directories(dir);
+  for (const char* ext : {".stl", ".obj", ".ply"}) {
+    const std::string path = dir + "/knob" + ext;
+    ASSERT_EQ(ExportSurface(knob.shown(), path), "") << path;
+    const modeling::TriangleMesh back = modeling::ReadTriangleMesh(path);
+    EXPECT_EQ(back.triangles.cols(), knob.surface.triangles.cols()) << ext;
+    EXPECT_NEAR(modeling::MeshVolume(back), modeling::MeshVolume(knob.surface),
+                1e-5 * modeling::MeshVolume(knob.surface)) << ext;
+  }
+  EXPECT_NE(ExportSurface(knob.surface, dir + "/knob.xyz").find(".stl"), std::string::npos);
+  EXPECT_FALSE(ExportSurface(knob.surface, "/nonexistent/dir/knob.stl").empty());
+  EXPECT_NE(ExportSurface(modeling::TriangleMesh{}, dir + "/x.stl").find("nothing"), std::string::npos);
+  ASSERT_EQ(ExportTetrahedra(knob.tets, dir + "/knob.vtu"), "");
+  const std::string vtu = test_support::ReadWholeFile(dir + "/knob.vtu");
+  EXPECT_NE(vtu.find("NumberOfCells=\"" + std::to_string(knob.tets.tets.cols()) + "\""),
+            std::string::npos);
+  ASSERT_EQ(ExportTetrahedra(knob.tets, dir + "/knob.node"), "");
+  EXPECT_TRUE(std::filesystem::exists(dir + "/knob.ele"));
+  EXPECT_NE(ExportTetrahedra(knob.tets, dir + "/knob.stl").find(".vtu"), std::string::npos);
+  EXPECT_NE(ExportTetrahedra(modeling::TetMesh{}, dir + "/x.vtu").find("nothing"), std::string::npos);
 }
 
 TEST(GuiOptions, ParsesSizeAndGripAndRejectsBadValues) {
@@ -278,11 +566,12 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
   }
   const std::string png = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_screenshot.png";
   std::filesystem::remove(png);
-  // A displaced, turned grip on the ideal device, so that the expected tensions are known.
-  const double x = 90, y = -60, z = 50, grasp = 110;
+  // A displaced grip on the ideal device (rigid hand) in the empty scene, where the centring
+  // springs are on, so that the expected tensions are known once the force ramp is over.
+  const double x = 70, y = -50, z = 40, grasp = 110;
   std::string output;
-  const int status = RunCommand(std::string("'") + SPIDARCAD_EXE + "' --screenshot '" + png +
-                             "' --size 1100x720 --device ideal --grip 90,-60,50,0,0,0,110 2>&1",
+  const int status = RunCommand(std::string("'") + SPIDARCAD_EXE + "' none --screenshot '" + png +
+                             "' --size 1100x720 --device ideal --grip 70,-50,40,0,0,0,110 2>&1",
                          &output);
   ASSERT_EQ(status, 0) << output;
   vtkNew<vtkPNGReader> reader;
@@ -332,6 +621,7 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
     }
     return count;
   };
+  EXPECT_EQ(output.find("before the loop settled"), std::string::npos) << output;
   const Rgb low = TensionColour(tension.tau[lo], ts.tau_min, ts.tau_max);
   const Rgb high = TensionColour(tension.tau[hi], ts.tau_min, ts.tau_max);
   EXPECT_GT(count_colour(low), 40) << "least-tensioned string " << lo + 1 << " not seen";
@@ -362,6 +652,91 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
   }
   EXPECT_GT(dark, 2000);
   EXPECT_GT(differing, (panel - 4) * dims[1] / 2);
+}
+
+// Counts pixels of `image` in columns [i0, i1) and rows [j0, j1) (bottom up) whose chromaticity
+// is within `tolerance` of `rgb`'s and that are not too dark.
+int CountChromaticity(vtkImageData* image, int i0, int i1, int j0, int j1, const Rgb& rgb,
+                      double tolerance) {
+  int dims[3];
+  image->GetDimensions(dims);
+  const int comps = image->GetNumberOfScalarComponents();
+  const auto* px = static_cast<const unsigned char*>(image->GetScalarPointer());
+  const double s = rgb[0] + rgb[1] + rgb[2];
+  int count = 0;
+  for (int j = std::max(0, j0); j < std::min(dims[1], j1); ++j) {
+    for (int i = std::max(0, i0); i < std::min(dims[0], i1); ++i) {
+      const unsigned char* p = px + (static_cast<size_t>(j) * dims[0] + i) * comps;
+      const double ps = p[0] + p[1] + p[2];
+      if (ps < 60) continue;
+      double err = 0;
+      for (int k = 0; k < 3; ++k) err = std::max(err, std::abs(p[k] / ps - rgb[k] / s));
+      if (err < tolerance) ++count;
+    }
+  }
+  return count;
+}
+
+TEST(SpidarcadWindow, DemoSceneDrawsItsSolidsAndTheEmergencyStopZeroesTheStrings) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') {
+    GTEST_SKIP() << "no X display: run under xvfb-run to include the window tests";
+  }
+  const std::string png = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_demo_estop.png";
+  std::filesystem::remove(png);
+  // The built-in demo scene; Space pressed at frame 2 (same path as the key).
+  std::string output;
+  const int status = RunCommand(std::string("'") + SPIDARCAD_EXE + "' demo --screenshot '" + png +
+                                    "' --size 1100x720 --device ideal --estop-frame 2 2>&1",
+                                &output);
+  ASSERT_EQ(status, 0) << output;
+  EXPECT_EQ(output.find("before the loop settled"), std::string::npos) << output;
+  vtkNew<vtkPNGReader> reader;
+  reader->SetFileName(png.c_str());
+  reader->Update();
+  vtkImageData* image = reader->GetOutput();
+  int dims[3];
+  image->GetDimensions(dims);
+  ASSERT_EQ(dims[0], 1100);
+  ASSERT_EQ(dims[1], 720);
+  const int panel = static_cast<int>(kPanelWidth) + 2;
+  const int view_right = dims[0] - 350;  // left of the scene and loop overlays
+  // The solids in their colours in the middle of the view (shading keeps chromaticity).
+  const int sand = CountChromaticity(image, panel, view_right, 0, dims[1] - 60,
+                                     SceneModel::kColours[0], 0.03);
+  const int sage = CountChromaticity(image, panel, dims[0], 0, dims[1] - 60,
+                                     SceneModel::kColours[1], 0.03);
+  EXPECT_GT(sand, 3000) << "the bracket (sand) is not drawn";
+  EXPECT_GT(sage, 500) << "the knob (sage) is not drawn";
+  // The stop banner (205, 25, 25) near the top of the view.
+  EXPECT_GT(CountChromaticity(image, panel, dims[0], dims[1] - 80, dims[1], {0.80, 0.10, 0.10},
+                              0.02), 1500);
+  // Zero force: every string at the minimum tension colour, none at the maximum.
+  const SpidarGeometry g;
+  const haptics::TensionSettings ts = haptics::TensionSettings::ForPoleLength(g.d);
+  EXPECT_GT(CountChromaticity(image, panel, view_right, 0, dims[1] - 80,
+                              TensionColour(ts.tau_min, ts.tau_min, ts.tau_max), 0.035), 200);
+  EXPECT_EQ(CountChromaticity(image, panel, view_right, 0, dims[1] - 80,
+                              TensionColour(ts.tau_max, ts.tau_min, ts.tau_max), 0.02), 0);
+  // The loop statistics the panel shows, as the exit summary prints them.
+  EXPECT_NE(output.find("emergency stop: latched"), std::string::npos) << output;
+  const size_t at = output.find("loop: ");
+  ASSERT_NE(at, std::string::npos) << output;
+  EXPECT_GT(std::stol(output.substr(at + 6)), 100) << output;
+  const size_t estop = output.find("emergency_stop=");
+  ASSERT_NE(estop, std::string::npos) << output;
+  EXPECT_GT(std::stol(output.substr(estop + 15)), 0) << output;
+  EXPECT_NE(output.find("period jitter [us]: p50"), std::string::npos) << output;
+}
+
+TEST(SpidarcadWindow, RefusesABadSceneFileWithStatusTwo) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
+  std::string output;
+  const int status = RunCommand(std::string("'") + SPIDARCAD_EXE +
+                                    "' /nonexistent/scene.json --frames 1 2>&1", &output);
+  EXPECT_EQ(status, 2) << output;
+  EXPECT_NE(output.find("/nonexistent/scene.json"), std::string::npos) << output;
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// The window loop: GLFW events → grip control → device session → VTK scene + ImGui panel.
+// The window loop: GLFW events → grip control → target of the simulated hand → (haptic thread:
+// hand, device, HapticLoop at 1 kHz) → latest ToolState → VTK scene + ImGui panels; scene
+// meshing in background Jobs.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,12 +23,17 @@
 
 #include <Eigen/Geometry>
 
+#include "doc/job.h"
 #include "gui/device_session.h"
 #include "gui/device_view.h"
 #include "gui/gl_capture.h"
 #include "gui/grip_control.h"
 #include "gui/gui.h"
+#include "gui/haptic_runtime.h"
 #include "gui/panels.h"
+#include "gui/scene_model.h"
+#include "gui/scene_view.h"
+#include "gui/workbench_panels.h"
 
 namespace spidarcad::app {
 
@@ -37,6 +44,9 @@ constexpr double kGraspStep = 5.0 * kDegToRad;    // per wheel notch or key pres
 constexpr double kRotateGain = 0.008;              // rad per pixel of right-drag
 constexpr double kOrbitGain = 0.3;                 // deg per pixel
 constexpr int kScreenshotFrames = 6;               // frames rendered before the capture
+constexpr double kSettleTimeout = 20.0;            // s a screenshot waits for ramp and jobs
+constexpr float kScenePanelWidth = 330.0f;         // pixels
+constexpr int kReloadCheckFrames = 30;             // frames between scene-file mtime checks
 constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
 void GlfwError(int code, const char* text) {
@@ -152,13 +162,21 @@ void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
 }
 
 void AddGuiOptions(CLI::App& app, GuiOptions* options) {
+  app.add_option("scene", options->scene,
+                 "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "
+                 "(built-in, the default) or 'none'. The file is re-read when it changes on disk.");
+  app.add_option("--estop-frame", options->estop_frame,
+                 "Press the emergency stop (Space) at this frame (scripted runs and tests)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--screenshot", options->screenshot,
                  "Render a few frames, write the window (scene and panel) to this PNG and exit");
   app.add_option("--frames", options->frames, "Exit after this many frames (0: run until closed)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--device", options->device,
-                 "Where string lengths come from: 'simulated' (SimulatedSpidarG with encoder "
-                 "errors, calibrated at start-up) or 'ideal' (exact lengths)")
+                 "The device the 1 kHz haptic loop drives: 'simulated' (SimulatedSpidarG with "
+                 "encoder errors, calibrated at start-up, held by a simulated hand that follows "
+                 "the mouse) or 'ideal' (no encoder errors, the grip exactly where the mouse "
+                 "puts it)")
       ->check(CLI::IsMember({"simulated", "ideal"}));
   app.add_option_function<std::string>(
          "--size", [options](const std::string& s) {
@@ -174,6 +192,21 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
 }
 
 int RunGui(const GuiOptions& options) {
+  // The scene first: a bad file fails before any window opens.
+  GripControl grip(haptics::SpidarGeometry{});
+  const auto& g0 = options.grip;
+  const Eigen::Matrix3d R0 = (Eigen::AngleAxisd(g0[5] * kDegToRad, Eigen::Vector3d::UnitZ()) *
+                              Eigen::AngleAxisd(g0[4] * kDegToRad, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(g0[3] * kDegToRad, Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix();
+  grip.SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
+  SceneModel model;
+  try {
+    model.Load(options.scene, grip.limits());
+  } catch (const std::exception& e) {
+    std::cerr << "spidarcad: error: scene: " << e.what() << "\n";
+    return 2;
+  }
   glfwSetErrorCallback(GlfwError);
   GlfwSession glfw;
   if (!glfw.ok) {
@@ -201,20 +234,27 @@ int RunGui(const GuiOptions& options) {
   const bool capture = !options.screenshot.empty();
   glfwSwapInterval(capture || options.frames > 0 ? 0 : 1);
 
-  // Device side.
-  const haptics::SpidarGeometry geometry;  // the paper's device
-  const haptics::TensionSettings tension_settings =
-      haptics::TensionSettings::ForPoleLength(geometry.d);
-  DeviceSession session(geometry, tension_settings,
-                        options.device == "ideal" ? LengthSource::kIdeal
-                                                  : LengthSource::kSimulatedDevice);
-  GripControl grip(geometry);
-  const auto& g0 = options.grip;
-  const Eigen::Matrix3d R0 = (Eigen::AngleAxisd(g0[5] * kDegToRad, Eigen::Vector3d::UnitZ()) *
-                              Eigen::AngleAxisd(g0[4] * kDegToRad, Eigen::Vector3d::UnitY()) *
-                              Eigen::AngleAxisd(g0[3] * kDegToRad, Eigen::Vector3d::UnitX()))
-                                 .toRotationMatrix();
-  grip.SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
+  // The haptic runtime (its own 1 kHz thread) and the jobs.
+  RuntimeSettings runtime_settings;
+  runtime_settings.device =
+      options.device == "ideal" ? RuntimeDevice::kIdeal : RuntimeDevice::kSimulated;
+  runtime_settings.loop.world_scale = model.device_to_world().world_scale;
+  runtime_settings.loop.p_WDo = model.device_to_world().p_WDo;
+  HapticRuntime runtime(runtime_settings, grip.Pose());
+  const haptics::SpidarGeometry& geometry = runtime.info().geometry;
+  const haptics::TensionSettings& tension_settings = runtime.loop().settings().tension;
+  DemoFieldSettings field;
+  // With solids to touch, the springs would fight the contact: off unless the scene is empty.
+  field.enabled = model.objects().empty();
+  runtime.Publish(model.BuildHapticScene(field));
+  runtime.Start();
+  struct RuntimeGuard {
+    HapticRuntime* r;
+    ~RuntimeGuard() { r->Stop(); }
+  } runtime_guard{&runtime};
+  JobQueue jobs;  // after model: its destructor joins the workers before model goes
+  model.StartPreviewJobs(&jobs);
+  WorkbenchState workbench;
 
   // VTK in the GLFW context.
   DeviceView view(geometry, tension_settings.tau_min, tension_settings.tau_max);
@@ -236,6 +276,7 @@ int RunGui(const GuiOptions& options) {
   }
   render_window->SetFrameBlitModeToBlitToCurrent();
   render_window->AddRenderer(view.renderer());
+  SceneView scene_view(view.renderer());
 
   // ImGui on top.
   ImGuiSession imgui;
@@ -251,8 +292,9 @@ int RunGui(const GuiOptions& options) {
   }
 
   DragMode drag = DragMode::kNone;
-  double last_time = glfwGetTime();
   bool quit = false;
+  const double start_time = glfwGetTime();
+  int exit_status = 0;
   const int last_frame = capture ? std::max(kScreenshotFrames, options.frames) : options.frames;
   for (int frame_index = 1; !quit && !glfwWindowShouldClose(window); ++frame_index) {
     glfwPollEvents();
@@ -336,6 +378,7 @@ int RunGui(const GuiOptions& options) {
     if (over_grip || drag == DragMode::kMoveGrip) ImGui::SetMouseCursor(ImGuiMouseCursor_Hand);
     if (!io.WantCaptureKeyboard) {
       if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE)) quit = true;
+      if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) runtime.EmergencyStop();
       if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
       if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
       if (ImGui::IsKeyPressed(GLFW_KEY_R, false)) grip.Reset();
@@ -348,23 +391,76 @@ int RunGui(const GuiOptions& options) {
       }
     }
 
-    // State, then what shows it.
-    const double now = glfwGetTime();
-    const double dt = std::clamp(now - last_time, 1e-3, 0.1);
-    last_time = now;
-    const DeviceFrame& state = session.Update(grip.Pose(), dt);
+    if (options.estop_frame > 0 && frame_index == options.estop_frame) runtime.EmergencyStop();
+
+    // The hand follows the mouse's grip; the haptic thread's latest tick is what we show.
+    runtime.SetTarget(grip.Pose());
+    const RuntimeFrame& latest = runtime.Latest();
+    const DeviceFrame state = MakeDeviceFrame(latest, geometry, runtime.description());
     view.Update(state);
+
+    // Jobs: finishers land their meshes; outcomes go to the status line.
+    jobs.Poll();
+    for (const auto& job : jobs.jobs()) {
+      switch (job->state()) {
+        case Job::State::kSucceeded:
+          workbench.status = job->title() + ": done";
+          workbench.status_error = false;
+          break;
+        case Job::State::kFailed:
+          workbench.status = job->title() + " failed: " + job->error() + " (nothing changed)";
+          workbench.status_error = true;
+          break;
+        case Job::State::kCancelled:
+          workbench.status = job->title() + ": cancelled (nothing changed)";
+          workbench.status_error = false;
+          break;
+        case Job::State::kRunning:
+          break;
+      }
+    }
+    jobs.Prune();
+    if (frame_index % kReloadCheckFrames == 0 && model.SourceChanged()) {
+      try {
+        jobs.CancelAll();
+        model.Load(model.source(), grip.limits(), &model.device_to_world());
+        runtime.Publish(model.BuildHapticScene(field));
+        model.StartPreviewJobs(&jobs);
+        workbench.status = "reloaded " + model.source();
+        workbench.status_error = false;
+      } catch (const std::exception& e) {
+        workbench.status = std::string("reload failed (kept the old scene): ") + e.what();
+        workbench.status_error = true;
+      }
+    }
+    scene_view.Sync(model, workbench.show_edges ? workbench.selected : -1);
+
+    WorkbenchActions wb;
+    const float menu_height = DrawMenuBar(&model, &jobs, &workbench, &wb);
     PanelContext context;
     context.geometry = &geometry;
     context.tau_min = tension_settings.tau_min;
     context.tau_max = tension_settings.tau_max;
     context.fps = io.Framerate;
     context.drag_mode = DragModeText(drag);
+    context.top = menu_height;
     const PanelActions actions =
-        DrawDevicePanel(state, context, &session.field(), static_cast<float>(win_h));
-    if (actions.reset_grip) grip.Reset();
-    if (actions.reset_camera) view.ResetCamera();
-    if (actions.quit) quit = true;
+        DrawDevicePanel(state, context, &field, static_cast<float>(win_h));
+    if (actions.field_changed) runtime.Publish(model.BuildHapticScene(field));
+    DrawScenePanel(&model, &jobs, &workbench, static_cast<float>(win_w) - kScenePanelWidth - 8.0f,
+                   menu_height + 8.0f, kScenePanelWidth);
+    const LoopStats stats = CollectLoopStats(runtime, latest);
+    DrawLoopPanel(stats, static_cast<float>(win_w) - 8.0f, static_cast<float>(win_h) - 8.0f, &wb);
+    if (stats.emergency_stop) {
+      DrawStopBanner(kPanelWidth, kPanelWidth + 0.5f * (win_w - kPanelWidth - kScenePanelWidth),
+                     menu_height + 10.0f);
+    }
+    DrawExportDialog(model, &workbench);
+    if (actions.reset_grip || wb.reset_grip) grip.Reset();
+    if (actions.reset_camera || wb.reset_camera) view.ResetCamera();
+    if (actions.quit || wb.quit) quit = true;
+    if (wb.emergency_stop) runtime.EmergencyStop();
+    if (wb.rearm) runtime.Rearm();
     ImGui::Render();
 
     // VTK draws the scene into the window, then ImGui draws the panel over it.
@@ -374,7 +470,13 @@ int RunGui(const GuiOptions& options) {
     BindDefaultFramebuffer(fb_w, fb_h);
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 
-    if (capture && frame_index >= last_frame) {
+    // A screenshot waits (within kSettleTimeout) for the preview meshes and for the loop to
+    // settle: force ramp complete, or the stop's zero force in effect.
+    const bool settled =
+        !jobs.busy() && (stats.emergency_stop ? (latest.tool.events & haptics::kEventEmergencyStop) != 0
+                                              : latest.tool.ramp >= 1.0);
+    const bool waited_enough = settled || glfwGetTime() - start_time > kSettleTimeout;
+    if (capture && frame_index >= last_frame && waited_enough) {
       const std::string error =
           WritePng(options.screenshot, ReadBackBuffer(fb_w, fb_h), fb_w, fb_h);
       if (!error.empty()) {
@@ -382,13 +484,17 @@ int RunGui(const GuiOptions& options) {
         return 1;
       }
       std::cout << "spidarcad: wrote " << options.screenshot << " (" << fb_w << "x" << fb_h
-                << ")\n";
-      return 0;
+                << ")" << (settled ? "" : " before the loop settled") << "\n";
+      break;
     }
     glfwSwapBuffers(window);
-    if (last_frame > 0 && frame_index >= last_frame) break;
+    if (!capture && last_frame > 0 && frame_index >= last_frame) break;
   }
-  return 0;
+  runtime.Stop();
+  if (capture || options.frames > 0) {
+    std::cout << FormatLoopSummary(CollectLoopStats(runtime, runtime.Latest())) << std::flush;
+  }
+  return exit_status;
 }
 
 }  // namespace spidarcad::app

@@ -1,21 +1,15 @@
-// State side of the window: one update of the simulated SPIDAR-G per frame. The mouse sets the
-// TRUE grip pose; the device reports string lengths; forward kinematics gives the MEASURED pose
-// (what the app uses); a demo force field gives the wrench request q, and the tension solver
-// turns it into 8 string tensions. No rendering or ImGui here. Frame D, SI units.
+// What the window shows of the device for one frame (DeviceFrame, filled from the haptic
+// runtime's latest tick: gui/haptic_runtime.h) and the demo field's centring springs. No
+// rendering or ImGui here. Frame D, SI units.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include <memory>
 #include <string>
 
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
-
-namespace spidarcad::haptics {
-class SimulatedSpidarG;
-}  // namespace spidarcad::haptics
 
 namespace spidarcad::app {
 
@@ -45,51 +39,6 @@ struct DeviceFrame {
   haptics::Vector7d achieved = haptics::Vector7d::Zero();  // displayed A τ
   haptics::TensionStatus tension_status = haptics::TensionStatus::kInvalidInput;
   std::string source;               // where the lengths come from (shown in the panel)
-};
-
-// Where the window's string lengths come from.
-enum class LengthSource {
-  // haptics::SimulatedSpidarG (encoder errors, noise, quantisation, stretch, motor lag), read
-  // through an encoder calibration fitted at start-up on simulated jig poses.
-  kSimulatedDevice,
-  // Exact lengths of the hand pose (InverseKinematics): an ideal device.
-  kIdeal,
-};
-
-// The simulated device pipeline of the window (one call per frame, main thread).
-class DeviceSession {
- public:
-  // With kSimulatedDevice, builds the device (seed 1) and calibrates it (FitLinesPerString on
-  // 24 jig poses; the nominal calibration if that fails, see calibration_note()).
-  DeviceSession(const haptics::SpidarGeometry& geometry,
-                const haptics::TensionSettings& tension_settings, LengthSource source);
-  ~DeviceSession();
-
-  // Runs one update with the hand at `true_pose`, `dt` seconds after the previous one, and
-  // returns the frame to show.
-  const DeviceFrame& Update(const haptics::GripPose& true_pose, double dt = 1.0 / 60.0);
-
-  // How the encoder calibration was obtained (empty for kIdeal).
-  const std::string& calibration_note() const { return calibration_note_; }
-
-  const haptics::SpidarGeometry& geometry() const { return geometry_; }
-  const haptics::TensionSettings& tension_settings() const { return solver_.settings(); }
-  DemoFieldSettings& field() { return field_; }
-  const DeviceFrame& frame() const { return frame_; }
-
- private:
-  // Lengths the device reports for the hand at `true_pose` (m, shape 8), after dt seconds.
-  haptics::Vector8d MeasureLengths(const haptics::GripPose& true_pose, double dt);
-
-  haptics::SpidarGeometry geometry_;
-  haptics::ForwardKinematics fk_;
-  haptics::TensionSolver solver_;
-  DemoFieldSettings field_;
-  DeviceFrame frame_;
-  bool has_measured_ = false;
-  std::unique_ptr<haptics::SimulatedSpidarG> device_;  // null for LengthSource::kIdeal
-  haptics::EncoderCalibration calibration_;
-  std::string calibration_note_;
 };
 
 }  // namespace spidarcad::app

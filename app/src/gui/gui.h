@@ -1,6 +1,6 @@
 // The spidarcad window: GLFW + VTK + Dear ImGui. Shows the SPIDAR-G frame, its 8 strings
-// coloured by tension and the cross grip, driven by the simulated device when no device is
-// plugged in.
+// coloured by tension, the cross grip and the scene's solids, with the 1 kHz haptic loop running
+// on its own thread against the simulated device when no device is plugged in.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -17,6 +17,8 @@ struct GuiOptions {
   std::string screenshot;        // when set: render, write this PNG and exit
   int frames = 0;                // when > 0: exit after this many frames
   std::string device = "simulated";
+  std::string scene = "demo";    // scene file, "demo" (built-in) or "none"
+  int estop_frame = 0;           // when > 0: press the emergency stop at this frame
   // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.
   std::array<double, 7> grip = {0, 0, 0, 0, 0, 0, 90};
 };
@@ -28,7 +30,8 @@ bool DisplayAvailable();
 // Opens the window and runs until closed. Returns the process exit status.
 int RunGui(const GuiOptions& options);
 
-// Adds the window options (--screenshot, --frames, --size, --grip) to the top-level app.
+// Adds the window options (SCENE, --screenshot, --frames, --size, --grip, --device,
+// --estop-frame) to the top-level app.
 void AddGuiOptions(CLI::App& app, GuiOptions* options);
 
 // Parses "WxH" (e.g. "1280x800") into width and height; throws CLI::ValidationError naming the

@@ -126,8 +126,8 @@ void ApplyPanelStyle() {
 PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& context,
                              DemoFieldSettings* field, float window_height) {
   PanelActions actions;
-  ImGui::SetNextWindowPos(ImVec2(0.0f, 0.0f));
-  ImGui::SetNextWindowSize(ImVec2(kPanelWidth, window_height));
+  ImGui::SetNextWindowPos(ImVec2(0.0f, context.top));
+  ImGui::SetNextWindowSize(ImVec2(kPanelWidth, window_height - context.top));
   const ImGuiWindowFlags flags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
                                  ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoTitleBar |
                                  ImGuiWindowFlags_NoSavedSettings;
@@ -135,13 +135,13 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
   const haptics::SpidarGeometry& g = *context.geometry;
   const haptics::GripPose& pose = frame.measured_pose;
 
-  ImGui::Text("SPIDAR-G  simulated device");
+  ImGui::Text("SPIDAR-G  1 kHz haptic loop");
   ImGui::SameLine(kPanelWidth - 90.0f);
   ImGui::TextDisabled("%5.1f fps", context.fps);
   ImGui::TextDisabled("frame %.0f×%.0f×%.0f mm, poles 2d = %.0f mm", 2e3 * g.a, 2e3 * g.b,
                       2e3 * g.c, 2e3 * g.d);
   ImGui::PushTextWrapPos(kPanelWidth - 10.0f);
-  ImGui::TextDisabled("lengths: %s", frame.source.c_str());
+  ImGui::TextDisabled("device: %s", frame.source.c_str());
   ImGui::PopTextWrapPos();
   ImGui::Separator();
 
@@ -159,7 +159,7 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
     ImGui::TextColored(fk_ok ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f) : ImVec4(0.8f, 0.1f, 0.1f, 1.0f),
                        "FK %s", haptics::FkStatusName(frame.fk_status));
     ImGui::SameLine();
-    ImGui::TextDisabled("rms %.3f mm, %d it.", frame.fk_residual * 1e3, frame.fk_iterations);
+    ImGui::TextDisabled("rms %.3f mm", frame.fk_residual * 1e3);
     const double dp = (frame.true_pose.p0 - pose.p0).norm();
     const double dr = haptics::RotationAngleBetween(frame.true_pose.Rotation(), pose.Rotation());
     ImGui::TextDisabled("hand − measured: %.3f mm, %.3f°", dp * 1e3, dr * kRadToDeg);
@@ -219,15 +219,24 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
   }
 
   // Demo field.
-  if (ImGui::CollapsingHeader("Demo force field", ImGuiTreeNodeFlags_DefaultOpen)) {
-    ImGui::Checkbox("springs to the centre", &field->enabled);
+  if (ImGui::CollapsingHeader("Centring springs (demo field)", ImGuiTreeNodeFlags_DefaultOpen)) {
+    if (ImGui::Checkbox("springs to the device centre", &field->enabled)) actions.field_changed = true;
     ImGui::PushItemWidth(170.0f);
     float kt = static_cast<float>(field->k_translation);
-    if (ImGui::SliderFloat("k  [N/m]", &kt, 0.0f, 300.0f, "%.0f")) field->k_translation = kt;
+    if (ImGui::SliderFloat("k  [N/m]", &kt, 0.0f, 300.0f, "%.0f")) {
+      field->k_translation = kt;
+      actions.field_changed = true;
+    }
     float kr = static_cast<float>(field->k_rotation);
-    if (ImGui::SliderFloat("k_rot [N·m/rad]", &kr, 0.0f, 1.0f, "%.2f")) field->k_rotation = kr;
+    if (ImGui::SliderFloat("k_rot [N·m/rad]", &kr, 0.0f, 1.0f, "%.2f")) {
+      field->k_rotation = kr;
+      actions.field_changed = true;
+    }
     float kg = static_cast<float>(field->k_grasp);
-    if (ImGui::SliderFloat("k_grasp [N·m/rad]", &kg, 0.0f, 0.2f, "%.3f")) field->k_grasp = kg;
+    if (ImGui::SliderFloat("k_grasp [N·m/rad]", &kg, 0.0f, 0.2f, "%.3f")) {
+      field->k_grasp = kg;
+      actions.field_changed = true;
+    }
     ImGui::PopItemWidth();
   }
 
@@ -243,6 +252,7 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
     help("wheel or [ ]", "grasp angle 20°–160°");
     help("drag elsewhere", "orbit (or middle); ctrl+wheel zoom");
     help("R  C  Esc", "reset grip, reset camera, quit");
+    help("Space", "emergency stop (zero force, latched)");
     if (ImGui::Button("Reset grip")) actions.reset_grip = true;
     ImGui::SameLine();
     if (ImGui::Button("Reset camera")) actions.reset_camera = true;

@@ -1,5 +1,5 @@
 // ImGui side of the window: the device panel (string lengths, pose, tensions with bars and the
-// colour legend, wrench, demo field settings, controls help). Reads a DeviceFrame; returns what
+// colour legend, wrench, centring-spring settings, controls help). Reads a DeviceFrame; returns what
 // the user asked for. No VTK and no device computation here.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
@@ -19,6 +19,7 @@ struct PanelContext {
   double tau_max = 1.0;
   double fps = 0.0;      // frames per second of the window
   const char* drag_mode = "";  // current mouse action ("", "moving grip", "orbit", ...)
+  float top = 0.0f;            // y of the panel's top edge (below the menu bar), pixels
 };
 
 // What the user asked for through the panel this frame.
@@ -26,6 +27,7 @@ struct PanelActions {
   bool reset_grip = false;
   bool reset_camera = false;
   bool quit = false;
+  bool field_changed = false;  // the centring springs were edited (publish a new scene)
 };
 
 // Draws the panel (full window height, kPanelWidth wide, at the left edge). `field` may be

@@ -1,0 +1,96 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "gui/scene_view.h"
+
+#include <vtkActor.h>
+#include <vtkCellArray.h>
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkPolyDataNormals.h>
+#include <vtkProperty.h>
+#include <vtkRenderer.h>
+#include <vtkSmartPointer.h>
+
+namespace spidarcad::app {
+
+struct SceneView::Entry {
+  vtkNew<vtkPolyData> poly;
+  vtkNew<vtkPolyDataNormals> normals;
+  vtkNew<vtkPolyDataMapper> mapper;
+  vtkNew<vtkActor> actor;
+  int revision = -1;
+};
+
+SceneView::SceneView(vtkRenderer* renderer) : renderer_(renderer) {}
+
+SceneView::~SceneView() {
+  for (auto& e : entries_) renderer_->RemoveActor(e->actor);
+}
+
+namespace {
+
+void Fill(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
+  vtkNew<vtkPoints> points;
+  points->SetNumberOfPoints(mesh.vertices.cols());
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) {
+    points->SetPoint(i, mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i));
+  }
+  vtkNew<vtkCellArray> cells;
+  cells->AllocateExact(mesh.triangles.cols(), 3 * mesh.triangles.cols());
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    const vtkIdType ids[3] = {mesh.triangles(0, t), mesh.triangles(1, t), mesh.triangles(2, t)};
+    cells->InsertNextCell(3, ids);
+  }
+  poly->Initialize();
+  poly->SetPoints(points);
+  poly->SetPolys(cells);
+  poly->Modified();
+}
+
+}  // namespace
+
+void SceneView::Sync(const SceneModel& model, int highlight) {
+  const auto& objects = model.objects();
+  if (model.generation() != generation_ || entries_.size() != objects.size()) {
+    for (auto& e : entries_) renderer_->RemoveActor(e->actor);
+    entries_.clear();
+    for (size_t i = 0; i < objects.size(); ++i) {
+      auto e = std::make_unique<Entry>();
+      e->normals->SetInputData(e->poly);
+      e->normals->SetFeatureAngle(35.0);
+      e->normals->SplittingOn();
+      e->normals->ConsistencyOff();
+      e->mapper->SetInputConnection(e->normals->GetOutputPort());
+      e->mapper->ScalarVisibilityOff();
+      e->actor->SetMapper(e->mapper);
+      const auto& c = objects[i].colour;
+      e->actor->GetProperty()->SetColor(c[0], c[1], c[2]);
+      e->actor->GetProperty()->SetAmbient(0.25);
+      e->actor->GetProperty()->SetDiffuse(0.75);
+      e->actor->GetProperty()->SetSpecular(0.1);
+      e->actor->VisibilityOff();
+      renderer_->AddActor(e->actor);
+      entries_.push_back(std::move(e));
+    }
+    generation_ = model.generation();
+  }
+  const DeviceToWorld& x = model.device_to_world();
+  const double inv = 1.0 / x.world_scale;
+  for (size_t i = 0; i < objects.size(); ++i) {
+    Entry& e = *entries_[i];
+    const SceneObject& o = objects[i];
+    if (o.revision != e.revision) {
+      Fill(o.shown(), e.poly);
+      e.revision = o.revision;
+    }
+    e.actor->SetVisibility(o.shown().triangles.cols() > 0);
+    // p_D = p_W / s − p_WDo / s.
+    e.actor->SetScale(inv, inv, inv);
+    e.actor->SetPosition(-inv * x.p_WDo.x(), -inv * x.p_WDo.y(), -inv * x.p_WDo.z());
+    e.actor->GetProperty()->SetEdgeVisibility(static_cast<int>(i) == highlight);
+    e.actor->GetProperty()->SetEdgeColor(0.35, 0.3, 0.25);
+  }
+}
+
+}  // namespace spidarcad::app

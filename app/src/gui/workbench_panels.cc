@@ -1,0 +1,280 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "gui/workbench_panels.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+
+#include <imgui.h>
+
+namespace spidarcad::app {
+
+namespace {
+
+constexpr ImGuiWindowFlags kOverlayFlags =
+    ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
+    ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_AlwaysAutoResize;
+const ImVec4 kRed(0.80f, 0.10f, 0.10f, 1.0f);
+const ImVec4 kGreen(0.10f, 0.50f, 0.20f, 1.0f);
+
+const SceneObject* Selected(const SceneModel& model, const WorkbenchState& state) {
+  const auto& objects = model.objects();
+  if (state.selected < 0 || state.selected >= static_cast<int>(objects.size())) return nullptr;
+  return &objects[state.selected];
+}
+
+void OpenExport(WorkbenchState* state, const SceneModel& model, bool tets) {
+  state->open_export = true;
+  state->export_tets = tets;
+  state->export_message.clear();
+  const SceneObject* o = Selected(model, *state);
+  const std::string name = o != nullptr ? o->name : "mesh";
+  const std::string path = name + (tets ? ".vtu" : ".stl");
+  std::snprintf(state->export_path, sizeof(state->export_path), "%s", path.c_str());
+}
+
+}  // namespace
+
+void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, MeshKind kind) {
+  if (Selected(*model, *state) == nullptr) {
+    state->status = "Mesh: the scene has no object to mesh";
+    state->status_error = true;
+    return;
+  }
+  try {
+    model->StartMeshJob(jobs, state->selected, kind, state->resolution_mm * 1e-3);
+    state->status.clear();
+  } catch (const std::exception& e) {
+    state->status = std::string("Mesh: ") + e.what();
+    state->status_error = true;
+  }
+}
+
+float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
+                  WorkbenchActions* actions) {
+  float height = 0.0f;
+  if (!ImGui::BeginMainMenuBar()) return height;
+  height = ImGui::GetWindowSize().y;
+  if (ImGui::BeginMenu("File")) {
+    const SceneObject* o = Selected(*model, *state);
+    if (ImGui::MenuItem("Export surface (STL/OBJ/PLY)...", nullptr, false, o != nullptr)) {
+      OpenExport(state, *model, false);
+    }
+    if (ImGui::MenuItem("Export tetrahedra (VTU, .node/.ele)...", nullptr, false,
+                        o != nullptr && o->tets.tets.cols() > 0)) {
+      OpenExport(state, *model, true);
+    }
+    ImGui::Separator();
+    if (ImGui::MenuItem("Quit", "Esc")) actions->quit = true;
+    ImGui::EndMenu();
+  }
+  if (ImGui::BeginMenu("Mesh")) {
+    if (ImGui::MenuItem("Surface")) StartMeshAction(model, jobs, state, MeshKind::kSurface);
+    if (ImGui::MenuItem("Tetrahedra (TetGen)")) {
+      StartMeshAction(model, jobs, state, MeshKind::kTetrahedra);
+    }
+    ImGui::Separator();
+    if (ImGui::MenuItem("Cancel all jobs", nullptr, false, jobs->busy())) jobs->CancelAll();
+    ImGui::EndMenu();
+  }
+  if (ImGui::BeginMenu("Haptics")) {
+    if (ImGui::MenuItem("Emergency stop", "Space")) actions->emergency_stop = true;
+    if (ImGui::MenuItem("Re-arm (force ramp)")) actions->rearm = true;
+    ImGui::EndMenu();
+  }
+  if (ImGui::BeginMenu("View")) {
+    if (ImGui::MenuItem("Reset camera", "C")) actions->reset_camera = true;
+    if (ImGui::MenuItem("Reset grip", "R")) actions->reset_grip = true;
+    ImGui::MenuItem("Show mesh edges of the selected object", nullptr, &state->show_edges);
+    ImGui::EndMenu();
+  }
+  ImGui::EndMainMenuBar();
+  return height;
+}
+
+void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
+                    float width) {
+  ImGui::SetNextWindowPos(ImVec2(x, y));
+  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, 1e5f));
+  ImGui::SetNextWindowBgAlpha(0.92f);
+  ImGui::Begin("Scene", nullptr, kOverlayFlags);
+  ImGui::PushTextWrapPos(width - 10.0f);
+  ImGui::TextDisabled("%s", model->source().c_str());
+  if (!model->description().empty()) ImGui::TextDisabled("%s", model->description().c_str());
+  ImGui::PopTextWrapPos();
+  const DeviceToWorld& x_wd = model->device_to_world();
+  ImGui::TextDisabled("X_WD: scale %.2f, device centre at (%.0f, %.0f, %.0f) mm", x_wd.world_scale,
+                      x_wd.p_WDo.x() * 1e3, x_wd.p_WDo.y() * 1e3, x_wd.p_WDo.z() * 1e3);
+  const auto& objects = model->objects();
+  if (objects.empty()) ImGui::TextDisabled("no solids");
+  for (int i = 0; i < static_cast<int>(objects.size()); ++i) {
+    const SceneObject& o = objects[i];
+    ImGui::PushID(i);
+    const ImVec4 c(static_cast<float>(o.colour[0]), static_cast<float>(o.colour[1]),
+                   static_cast<float>(o.colour[2]), 1.0f);
+    ImGui::ColorButton("##c", c, ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
+    ImGui::SameLine();
+    char label[160];
+    const long tris = o.shown().triangles.cols();
+    if (o.tets.tets.cols() > 0) {
+      std::snprintf(label, sizeof(label), "%s  (%ld tri, %ld tets)", o.name.c_str(), tris,
+                    static_cast<long>(o.tets.tets.cols()));
+    } else if (o.surface.triangles.cols() > 0) {
+      std::snprintf(label, sizeof(label), "%s  (%ld tri, %.1f mm)", o.name.c_str(), tris,
+                    o.surface_cell * 1e3);
+    } else if (tris > 0) {
+      std::snprintf(label, sizeof(label), "%s  (preview %ld tri)", o.name.c_str(), tris);
+    } else {
+      std::snprintf(label, sizeof(label), "%s  (meshing preview...)", o.name.c_str());
+    }
+    if (ImGui::Selectable(label, state->selected == i)) state->selected = i;
+    ImGui::PopID();
+  }
+  ImGui::Separator();
+  ImGui::PushItemWidth(90.0f);
+  ImGui::InputFloat("cell [mm]", &state->resolution_mm, 0.5f, 2.0f, "%.1f");
+  state->resolution_mm = std::clamp(state->resolution_mm, 0.5f, 50.0f);
+  ImGui::PopItemWidth();
+  ImGui::SameLine();
+  if (ImGui::Button("Surface")) StartMeshAction(model, jobs, state, MeshKind::kSurface);
+  ImGui::SameLine();
+  if (ImGui::Button("Tetrahedra")) StartMeshAction(model, jobs, state, MeshKind::kTetrahedra);
+  int row = 0;
+  for (const auto& job : jobs->jobs()) {
+    if (job->state() != Job::State::kRunning) continue;
+    ImGui::PushID(row++);
+    char overlay[160];
+    std::snprintf(overlay, sizeof(overlay), "%s: %s %.0f%%", job->title().c_str(),
+                  job->phase().c_str(), 100.0 * job->progress());
+    ImGui::ProgressBar(static_cast<float>(job->progress()), ImVec2(width - 90.0f, 0.0f), overlay);
+    ImGui::SameLine();
+    if (job->cancel_requested()) {
+      ImGui::TextDisabled("cancelling");
+    } else if (ImGui::Button("Cancel")) {
+      job->Cancel();
+    }
+    ImGui::PopID();
+  }
+  if (!state->status.empty()) {
+    ImGui::PushTextWrapPos(width - 10.0f);
+    ImGui::TextColored(state->status_error ? kRed : kGreen, "%s", state->status.c_str());
+    ImGui::PopTextWrapPos();
+  }
+  ImGui::End();
+}
+
+void DrawLoopPanel(const LoopStats& s, float right, float bottom, WorkbenchActions* actions) {
+  ImGui::SetNextWindowPos(ImVec2(right, bottom), ImGuiCond_Always, ImVec2(1.0f, 1.0f));
+  ImGui::SetNextWindowBgAlpha(0.92f);
+  ImGui::Begin("Haptic loop", nullptr, kOverlayFlags);
+  const bool fifo = s.realtime == haptics::RealtimeStatus::kFifo;
+  ImGui::Text("1 kHz loop, %llu ticks", static_cast<unsigned long long>(s.ticks));
+  ImGui::SameLine();
+  ImGui::TextColored(fifo ? kGreen : ImVec4(0.75f, 0.35f, 0.0f, 1.0f), "%s",
+                     fifo ? "SCHED_FIFO" : haptics::RealtimeStatusName(s.realtime));
+  if (!fifo) {
+    ImGui::SameLine();
+    ImGui::TextDisabled("(normal scheduling)");
+  }
+  if (ImGui::BeginTable("loopstats", 5, ImGuiTableFlags_RowBg | ImGuiTableFlags_SizingFixedFit)) {
+    ImGui::TableSetupColumn("µs", ImGuiTableColumnFlags_WidthFixed, 112.0f);
+    ImGui::TableSetupColumn("p50", ImGuiTableColumnFlags_WidthFixed, 52.0f);
+    ImGui::TableSetupColumn("p99", ImGuiTableColumnFlags_WidthFixed, 52.0f);
+    ImGui::TableSetupColumn("p99.9", ImGuiTableColumnFlags_WidthFixed, 52.0f);
+    ImGui::TableSetupColumn("max", ImGuiTableColumnFlags_WidthFixed, 58.0f);
+    ImGui::TableHeadersRow();
+    auto row = [](const char* name, const std::array<double, 4>& v) {
+      ImGui::TableNextRow();
+      ImGui::TableSetColumnIndex(0);
+      ImGui::TextUnformatted(name);
+      for (int k = 0; k < 4; ++k) {
+        ImGui::TableSetColumnIndex(k + 1);
+        ImGui::Text("%7.1f", v[k] * 1e6);
+      }
+    };
+    row("loop step", s.step);
+    row("tick + simulation", s.tick);
+    row("period jitter", s.jitter);
+    ImGui::EndTable();
+  }
+  ImGui::TextDisabled("overruns %llu   force ramp %.2f", static_cast<unsigned long long>(s.overruns),
+                      s.ramp);
+  // Safety events in two columns, non-zero counts highlighted.
+  if (ImGui::BeginTable("events", 4, ImGuiTableFlags_SizingFixedFit)) {
+    for (int i = 0; i < haptics::kNumSafetyEvents; ++i) {
+      if (i % 2 == 0) ImGui::TableNextRow();
+      ImGui::TableSetColumnIndex((i % 2) * 2);
+      ImGui::TextDisabled("%s", haptics::SafetyEventName(i));
+      ImGui::TableSetColumnIndex((i % 2) * 2 + 1);
+      if (s.events[i] > 0) {
+        ImGui::Text("%8llu", static_cast<unsigned long long>(s.events[i]));
+      } else {
+        ImGui::TextDisabled("%8d", 0);
+      }
+    }
+    ImGui::EndTable();
+  }
+  if (s.emergency_stop) {
+    if (ImGui::Button("Re-arm forces")) actions->rearm = true;
+    ImGui::SameLine();
+    ImGui::TextColored(kRed, "stopped: zero force");
+  } else {
+    ImGui::PushStyleColor(ImGuiCol_Button, ImVec4(0.85f, 0.15f, 0.12f, 1.0f));
+    ImGui::PushStyleColor(ImGuiCol_ButtonHovered, ImVec4(0.95f, 0.25f, 0.2f, 1.0f));
+    ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 1, 1, 1));
+    if (ImGui::Button("EMERGENCY STOP (Space)")) actions->emergency_stop = true;
+    ImGui::PopStyleColor(3);
+  }
+  ImGui::End();
+}
+
+void DrawStopBanner(float x0, float x1, float y) {
+  const char* text = "EMERGENCY STOP: zero force. Re-arm in the loop panel.";
+  ImDrawList* draw = ImGui::GetForegroundDrawList();
+  const ImVec2 size = ImGui::CalcTextSize(text);
+  const float cx = 0.5f * (x0 + x1);
+  const ImVec2 a(cx - 0.5f * size.x - 16.0f, y), b(cx + 0.5f * size.x + 16.0f, y + size.y + 14.0f);
+  draw->AddRectFilled(a, b, IM_COL32(205, 25, 25, 255), 4.0f);
+  draw->AddText(ImVec2(a.x + 16.0f, a.y + 7.0f), IM_COL32(255, 255, 255, 255), text);
+}
+
+void DrawExportDialog(const SceneModel& model, WorkbenchState* state) {
+  if (state->open_export) {
+    ImGui::OpenPopup("Export");
+    state->open_export = false;
+  }
+  ImGui::SetNextWindowSize(ImVec2(520.0f, 0.0f));
+  if (!ImGui::BeginPopupModal("Export", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) return;
+  const SceneObject* o = Selected(model, *state);
+  if (o == nullptr) {
+    ImGui::TextUnformatted("No object selected.");
+  } else if (state->export_tets) {
+    ImGui::Text("Tetrahedra of '%s' (%ld nodes, %ld tets)", o->name.c_str(),
+                static_cast<long>(o->tets.nodes.cols()), static_cast<long>(o->tets.tets.cols()));
+    ImGui::TextDisabled("path ending in .vtu (ParaView) or .node/.ele (TetGen files)");
+  } else {
+    const bool final_mesh = o->surface.triangles.cols() > 0;
+    ImGui::Text("Surface of '%s' (%s, %ld triangles)", o->name.c_str(),
+                final_mesh ? "Mesh action result" : "preview", static_cast<long>(o->shown().triangles.cols()));
+    ImGui::TextDisabled("path ending in .stl, .obj or .ply; coordinates in metres (W)");
+  }
+  ImGui::SetNextItemWidth(500.0f);
+  ImGui::InputText("##path", state->export_path, sizeof(state->export_path));
+  if (ImGui::Button("Export") && o != nullptr) {
+    const std::string path = state->export_path;
+    const std::string error = state->export_tets ? ExportTetrahedra(o->tets, path)
+                                                 : ExportSurface(o->shown(), path);
+    state->export_failed = !error.empty();
+    state->export_message = error.empty() ? "wrote " + path : error;
+  }
+  ImGui::SameLine();
+  if (ImGui::Button("Close")) ImGui::CloseCurrentPopup();
+  if (!state->export_message.empty()) {
+    ImGui::PushTextWrapPos(500.0f);
+    ImGui::TextColored(state->export_failed ? kRed : kGreen, "%s", state->export_message.c_str());
+    ImGui::PopTextWrapPos();
+  }
+  ImGui::EndPopup();
+}
+
+}  // namespace spidarcad::app

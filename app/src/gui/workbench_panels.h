@@ -1,0 +1,63 @@
+// ImGui side of the workbench: the menu bar (File → Export, Mesh, Haptics, View), the scene
+// panel (objects, Mesh action with progress bars and Cancel, status line), the loop panel
+// (tick time and period jitter percentiles, safety events, scheduling, emergency stop) and the
+// export dialog. They act on SceneModel and JobQueue directly and return the rest.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <string>
+
+#include "doc/job.h"
+#include "gui/haptic_runtime.h"
+#include "gui/scene_model.h"
+
+namespace spidarcad::app {
+
+// UI state of the workbench that lives across frames.
+struct WorkbenchState {
+  int selected = 0;               // scene object the Mesh action and Export work on
+  float resolution_mm = 4.0f;     // grid cell of the Mesh action, mm (in W)
+  bool show_edges = false;        // draw the selected object's mesh edges
+  char export_path[512] = "";     // path field of the export dialog
+  bool export_tets = false;       // the dialog exports tetrahedra (else the surface)
+  bool open_export = false;       // request to open the export dialog this frame
+  std::string export_message;     // result of the last export (error or "wrote ...")
+  bool export_failed = false;
+  std::string status;             // status line (last job outcome)
+  bool status_error = false;
+};
+
+// What the menu bar and panels asked for this frame.
+struct WorkbenchActions {
+  bool emergency_stop = false;
+  bool rearm = false;
+  bool reset_grip = false;
+  bool reset_camera = false;
+  bool quit = false;
+};
+
+// Draws the main menu bar; returns its height in pixels.
+float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
+                  WorkbenchActions* actions);
+
+// Draws the scene panel at (x, y), `width` wide: source, objects (select), Mesh action
+// (resolution, Surface / Tetrahedra buttons), running jobs with progress bar and Cancel,
+// status line.
+void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
+                    float width);
+
+// Draws the loop panel with its bottom-right corner at (right, bottom): statistics and the
+// emergency stop / re-arm buttons.
+void DrawLoopPanel(const LoopStats& stats, float right, float bottom, WorkbenchActions* actions);
+
+// Draws a red "EMERGENCY STOP" banner centred at the top of the view (x0..x1 at y).
+void DrawStopBanner(float x0, float x1, float y);
+
+// Opens (when requested) and draws the export dialog.
+void DrawExportDialog(const SceneModel& model, WorkbenchState* state);
+
+// Starts the Mesh action of `kind` on the selected object at the state's resolution; errors
+// (no object) go to the status line.
+void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, MeshKind kind);
+
+}  // namespace spidarcad::app
