@@ -261,3 +261,39 @@ TEST(MeshCommand, HelpTeachesWithPlatformExamples) {
 }
 
 }  // namespace
+
+namespace {
+
+// Distance from each corner of the box [−h, h]³ to the nearest mesh vertex, worst over the corners.
+double WorstCornerGap(const TriangleMesh& mesh, const Eigen::Vector3d& h) {
+  double worst = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner((c & 1) ? h.x() : -h.x(), (c & 2) ? h.y() : -h.y(), (c & 4) ? h.z() : -h.z());
+    double best = 1e9;
+    for (Eigen::Index v = 0; v < mesh.vertices.cols(); ++v) best = std::min(best, (mesh.vertices.col(v) - corner).norm());
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+TEST(MeshCommand, PutsBoxCornersBackWhenSharpIsGiven) {
+  // A box off the grid: plain marching tetrahedra cuts its corners; --sharp restores them.
+  const std::string scene = OutputPath("sharp_box.json");
+  std::ofstream(scene) << R"({"format": "spidarcad-scene", "version": 1, "solids": [
+    {"name": "block", "root": {"type": "box", "size": [0.0413, 0.0291, 0.0187]}}]})";
+  const Eigen::Vector3d h(0.0413 / 2, 0.0291 / 2, 0.0187 / 2);
+  const CommandRun plain = RunMesh(scene + " --resolution 0.004 --out " + OutputPath("plain_box.stl"), "plain_box");
+  ASSERT_EQ(plain.status, 0) << plain.all();
+  const CommandRun sharp = RunMesh(scene + " --resolution 0.004 --sharp --out " + OutputPath("sharp_box.stl"), "sharp_box");
+  ASSERT_EQ(sharp.status, 0) << sharp.all();
+  EXPECT_NE(sharp.out.find("sharpen: "), std::string::npos) << sharp.out;
+  const double plain_gap = WorstCornerGap(ReadTriangleMesh(OutputPath("plain_box.stl")), h);
+  const double sharp_gap = WorstCornerGap(ReadTriangleMesh(OutputPath("sharp_box.stl")), h);
+  EXPECT_GT(plain_gap, 4e-4);  // a tenth of a cell: the chamfer is there without --sharp
+  EXPECT_LT(sharp_gap, 4e-6);  // a thousandth of a cell (STL stores float)
+  const CommandRun bad = RunMesh(scene + " --sharp --raw-surface --out " + OutputPath("bad.stl"), "sharp_raw");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--sharp"), std::string::npos) << bad.all();
+}
+
+}  // namespace

@@ -2,6 +2,7 @@
 // against the wall law applied to the output's own grip positions, and the tensions against
 // their bounds; errors must exit with status 2 and say where.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -150,6 +151,48 @@ TEST(RunCommand, EmptySceneCommandsNoForce) {
   for (std::size_t i = 1; i < rows.size(); ++i) {
     for (int c = 9; c < 16; ++c) ASSERT_EQ(std::stod(rows[i][c]), 0.0) << "row " << i;
   }
+}
+
+}  // namespace
+
+namespace {
+
+TEST(RunCommand, AssemblySceneRendersTheFixedBodyWhenPressedAgainst) {
+  // assets/scenes/assembly.json: the torso (fixed) spans y in [-0.015, 0.015] m at z 0.055..0.115
+  // with X_WD identity. The hand comes from y = -0.04 toward y = -0.005 (1 cm into the plain front
+  // face) at z = 0.085, holds, and leaves; the assembly field must push the grip back along -y.
+  const std::string traj = OutputPath("assembly_press.csv");
+  {
+    std::ofstream out(traj);
+    out << "# t,x,y,z,qw,qx,qy,qz,grasp\n";
+    for (int k = 0; k <= 200; ++k) {
+      const double t = 0.01 * k;
+      const double s = t < 0.8 ? t / 0.8 : (t < 1.6 ? 1.0 : 1.0 - (t - 1.6) / 0.4);
+      out << t << ",0," << (-0.04 + 0.035 * s) << ",0.085,1,0,0,0,1.5707963\n";
+    }
+  }
+  const std::string scene = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json";
+  const std::string out = OutputPath("assembly_result.csv");
+  const CommandRun r = RunSpidarcad("'" + scene + "' --trajectory '" + traj + "' --out '" + out + "'", "assembly");
+  ASSERT_EQ(r.status, 0) << r.all();
+  EXPECT_NE(r.out.find("fields: assembly (6 parts)"), std::string::npos) << r.out;
+  const auto rows = ReadCsv(out);
+  ASSERT_GT(rows.size(), 1000u);
+  const auto& header = rows.front();
+  const auto column = [&](const std::string& name) {
+    return static_cast<int>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  const int iy = column("y"), ify = column("fy"), ifx = column("fx"), ifz = column("fz");
+  ASSERT_LT(ify, static_cast<int>(header.size()));
+  double min_fy = 0.0, max_free = 0.0;
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    const double y = std::stod(rows[i][iy]), fy = std::stod(rows[i][ify]);
+    const double f = std::hypot(std::stod(rows[i][ifx]), fy, std::stod(rows[i][ifz]));
+    min_fy = std::min(min_fy, fy);
+    if (y < -0.025) max_free = std::max(max_free, f);  // 7 mm clear of the face (sphere 3 mm)
+  }
+  EXPECT_LT(min_fy, -0.5) << "the grip pressed 1 cm into the torso but felt no push back along -y";
+  EXPECT_LT(max_free, 0.05) << "force felt while clear of every part";
 }
 
 }  // namespace

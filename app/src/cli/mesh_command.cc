@@ -15,6 +15,7 @@
 #include "cli/commands.h"
 #include "cli/scene_solid.h"
 #include "spidarcad/modeling/cgal_mesher.h"
+#include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -38,6 +39,7 @@ struct MeshOptions {
   double quality = 2.0;     // radius-edge bound, 0: no refinement
   double max_volume = 0.0;  // m³, 0: unbounded
   bool raw_surface = false;
+  bool sharp = false;
 };
 
 // Cells along the largest side of the solid's box for the default resolution.
@@ -171,6 +173,10 @@ void RunMesh(const MeshOptions& o) {
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;
 
+  if (o.sharp && o.raw_surface) throw InputError("--sharp needs the clean-up pass: drop --raw-surface");
+  if (o.sharp && o.tets == "cgal") {
+    throw InputError("--sharp sharpens the marching-tetrahedra surface; --tets cgal does not use one");
+  }
   if (o.tets == "cgal") {
     RunCgal(o, grid, ext);
     return;
@@ -188,6 +194,12 @@ void RunMesh(const MeshOptions& o) {
     throw InputError(std::string("--resolution ") + Fmt(cell) + ": " + e.what());
   }
   if (surface.triangles.cols() == 0) throw InputError("solid '" + grid.solid_name + "': the surface mesh is empty at cell " + Fmt(cell) + " m");
+  FeatureStats feature_stats;
+  if (o.sharp) {
+    FeatureSettings features;
+    features.cell_size = cell;
+    surface = SharpenFeatures(compiled, std::move(surface), features, &feature_stats);
+  }
   const TriangleAngleStats angles = MeasureTriangleAngles(surface, 5.0);
   const SurfaceError error = MeasureSurfaceError(compiled, surface);
   std::cout << "scene " << o.scene << ", solid '" << grid.solid_name << "'\n";
@@ -197,6 +209,11 @@ void RunMesh(const MeshOptions& o) {
             << (o.raw_surface ? " (raw, no clean-up)" : "") << "\n";
   if (!o.raw_surface) {
     std::cout << "clean-up: " << stats.collapsed_edges << " edge collapses, " << stats.flipped_edges << " flips\n";
+  }
+  if (o.sharp) {
+    std::cout << "sharpen: " << feature_stats.feature_vertices << " feature vertices (" << feature_stats.corner_vertices
+              << " corners), " << feature_stats.vertices_moved << " moved, " << feature_stats.edges_flipped
+              << " flips, " << Fmt(feature_stats.seconds, 3) << " s\n";
   }
   std::cout << "surface quality: min triangle angle " << Fmt(angles.min_angle_deg, 3) << " deg, "
             << angles.small_angle << " triangles under 5 deg, " << angles.zero_area << " zero-area; error max "
@@ -245,6 +262,8 @@ void RegisterMeshCommand(CLI::App& app) {
   cmd->add_option("--quality", options->quality,
                   "Radius-edge bound for --tets (default 2; > 1; 0: none for tetgen, 3 for cgal)");
   cmd->add_option("--max-volume", options->max_volume, "Largest tet volume [m^3] for --tets (default 0: unbounded)");
+  cmd->add_flag("--sharp", options->sharp,
+                "Sharpen features: move vertices onto the solid's creases and corners and flip edges along them");
   cmd->add_flag("--raw-surface", options->raw_surface,
                 "Skip the surface clean-up pass (raw marching tetrahedra, for comparison)");
   cmd->callback([options]() {

@@ -18,6 +18,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "runtime/assembly_scene.h"
 #include "runtime/scene_haptics.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -44,6 +45,9 @@ constexpr const char* kRunHelp =
     "                 virtual coupling against the union of the solids: torques are felt\n"
     "--stiffness and --damping are what the hand feels at the grip (N/m and N·s/m of grip motion;\n"
     "the fields get them divided by the world scale s). FE parts are not rendered by `run` yet.\n"
+    "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
+    "assembly field instead: parts are picked with the grasp, carried with six-DOF contact and\n"
+    "seated peg in hole; X_WD is then identity unless --world-scale/--world-origin say otherwise.\n"
     "\n"
     "X_WD (scene files): p_W = s·p_D + p_WDo. By default the scene is fitted to the device's\n"
     "reachable cube (+-0.1 m): the box of its bounded solids (modeling::FindBounds) is centred on\n"
@@ -115,6 +119,32 @@ void RunRun(const RunOptions& options) {
     } catch (const modeling::SceneError& e) {
       throw InputError(std::string("SCENE: ") + e.what());
     }
+    if (!loaded.parts.empty()) {
+      // An assembly: one field owns every part (grasp, carry, contact, seats).
+      std::unique_ptr<haptics::AssemblyField> assembly;
+      try {
+        assembly = BuildAssemblyField(loaded);
+      } catch (const std::invalid_argument& e) {
+        throw InputError(options.scene + ": " + e.what());
+      }
+      if (options.world_scale < 0.0) throw InputError("--world-scale: must be > 0 (0: default)");
+      if (options.world_scale > 0.0) settings.world_scale = options.world_scale;
+      if (!options.world_origin.empty()) {
+        if (options.world_origin.size() != 3) {
+          throw InputError("--world-origin: expected x,y,z (m), got " +
+                           std::to_string(options.world_origin.size()) + " numbers");
+        }
+        settings.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
+                                         options.world_origin[2]);
+      }
+      scene = std::make_unique<haptics::HapticScene>();
+      scene->Add(std::move(assembly));
+      scene_name = options.scene + " (assembly, " + std::to_string(loaded.parts.size()) + " parts)";
+      fields_line = "fields: assembly (" + std::to_string(loaded.parts.size()) + " parts)";
+      map_line = "X_WD: p_W = " + FormatNumber(settings.world_scale) + " p_D + (" +
+                 FormatNumber(settings.p_WDo.x()) + ", " + FormatNumber(settings.p_WDo.y()) + ", " +
+                 FormatNumber(settings.p_WDo.z()) + ") m";
+    } else {
     SceneHapticsOptions haptic_options;
     if (options.tool == "proxy") {
       haptic_options.tool = ToolModel::kProxy;
@@ -175,6 +205,7 @@ void RunRun(const RunOptions& options) {
                   ", " + FormatNumber(b.min().z()) + ") .. (" + FormatNumber(b.max().x()) + ", " +
                   FormatNumber(b.max().y()) + ", " + FormatNumber(b.max().z()) + ") m";
     }
+    }  // not an assembly
   }
   const int num_fields = scene->size();
 
