@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <sstream>
 
 #define GLFW_INCLUDE_NONE
@@ -26,6 +27,7 @@
 #include "doc/job.h"
 #include "gui/device_session.h"
 #include "gui/device_view.h"
+#include "gui/fe_mode.h"
 #include "gui/gl_capture.h"
 #include "gui/grip_control.h"
 #include "gui/gui.h"
@@ -33,7 +35,9 @@
 #include "gui/panels.h"
 #include "gui/scene_model.h"
 #include "gui/scene_view.h"
+#include "gui/sculpt_mode.h"
 #include "gui/workbench_panels.h"
+#include "runtime/shared_field.h"
 
 namespace spidarcad::app {
 
@@ -44,7 +48,7 @@ constexpr double kGraspStep = 5.0 * kDegToRad;    // per wheel notch or key pres
 constexpr double kRotateGain = 0.008;              // rad per pixel of right-drag
 constexpr double kOrbitGain = 0.3;                 // deg per pixel
 constexpr int kScreenshotFrames = 6;               // frames rendered before the capture
-constexpr double kSettleTimeout = 20.0;            // s a screenshot waits for ramp and jobs
+constexpr double kSettleTimeout = 90.0;            // s a screenshot waits for ramp and jobs
 constexpr float kScenePanelWidth = 330.0f;         // pixels
 constexpr int kReloadCheckFrames = 30;             // frames between scene-file mtime checks
 constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
@@ -165,6 +169,12 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
   app.add_option("scene", options->scene,
                  "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "
                  "(built-in, the default) or 'none'. The file is re-read when it changes on disk.");
+  app.add_option("--mode", options->mode,
+                 "Start in a mode: 'fe' meshes assets/scenes/platform.json (TetGen, 12 mm), "
+                 "precomputes it (steel, clamped at the wall face) and lets the grip push it; "
+                 "'sculpt' meshes assets/scenes/clay.json and lets the grip sculpt it (close the "
+                 "grasp or hold G). Both are also in the 'Modes' window.")
+      ->check(CLI::IsMember({"fe", "sculpt"}));
   app.add_option("--estop-frame", options->estop_frame,
                  "Press the emergency stop (Space) at this frame (scripted runs and tests)")
       ->check(CLI::NonNegativeNumber);
@@ -277,6 +287,27 @@ int RunGui(const GuiOptions& options) {
   render_window->SetFrameBlitModeToBlitToCurrent();
   render_window->AddRenderer(view.renderer());
   SceneView scene_view(view.renderer());
+
+  // The modes (FE push, sculpt): each may contribute one force field, kept across scene rebuilds
+  // through SharedField so its state between ticks survives a republish.
+  FeMode fe_mode(view.renderer(), &jobs);
+  SculptMode sculpt_mode(view.renderer(), &jobs);
+  fe_mode.SetWorldToView(runtime_settings.loop.world_scale, runtime_settings.loop.p_WDo);
+  sculpt_mode.SetWorldToView(runtime_settings.loop.world_scale, runtime_settings.loop.p_WDo);
+  std::shared_ptr<haptics::ForceField> fe_field, sculpt_field;
+  bool fe_precompute_started = false;
+  if (options.mode == "fe") {
+    fe_mode.SetActive(true);
+    fe_mode.MeshPlatform();
+  } else if (options.mode == "sculpt") {
+    sculpt_mode.SetActive(true);
+  }
+  const auto publish_scene = [&] {
+    std::unique_ptr<haptics::HapticScene> scene = model.BuildHapticScene(field);
+    if (fe_field && fe_mode.active()) scene->Add(std::make_unique<SharedField>(fe_field));
+    if (sculpt_field && sculpt_mode.active()) scene->Add(std::make_unique<SharedField>(sculpt_field));
+    runtime.Publish(std::move(scene));
+  };
 
   // ImGui on top.
   ImGuiSession imgui;
@@ -424,7 +455,7 @@ int RunGui(const GuiOptions& options) {
       try {
         jobs.CancelAll();
         model.Load(model.source(), grip.limits(), &model.device_to_world());
-        runtime.Publish(model.BuildHapticScene(field));
+        publish_scene();
         model.StartPreviewJobs(&jobs);
         workbench.status = "reloaded " + model.source();
         workbench.status_error = false;
@@ -446,7 +477,50 @@ int RunGui(const GuiOptions& options) {
     context.top = menu_height;
     const PanelActions actions =
         DrawDevicePanel(state, context, &field, static_cast<float>(win_h));
-    if (actions.field_changed) runtime.Publish(model.BuildHapticScene(field));
+    bool republish = actions.field_changed;
+    {
+      // Modes: a small window of collapsing headers (collapsed at start, so it never hides the
+      // view); each mode's own panel inside.
+      ImGui::SetNextWindowPos(ImVec2(kPanelWidth + 8.0f, menu_height + 8.0f), ImGuiCond_FirstUseEver);
+      ImGui::SetNextWindowSize(ImVec2(380.0f, 0.0f), ImGuiCond_FirstUseEver);
+      ImGui::SetNextWindowCollapsed(options.mode.empty(), ImGuiCond_FirstUseEver);
+      if (ImGui::Begin("Modes: FE push, sculpt")) {
+        ImGui::SetNextItemOpen(options.mode == "fe", ImGuiCond_FirstUseEver);
+        if (ImGui::CollapsingHeader("FE mode: push a part, feel its stiffness")) {
+          bool on = fe_mode.active();
+          if (ImGui::Checkbox("FE mode on", &on)) {
+            fe_mode.SetActive(on);
+            republish = true;
+          }
+          fe_mode.DrawPanel();
+        }
+        ImGui::SetNextItemOpen(options.mode == "sculpt", ImGuiCond_FirstUseEver);
+        if (ImGui::CollapsingHeader("Sculpt mode: shape the clay with the grip")) {
+          bool on = sculpt_mode.active();
+          if (ImGui::Checkbox("Sculpt mode on", &on)) {
+            sculpt_mode.SetActive(on);
+            republish = true;
+          }
+          sculpt_mode.DrawPanel();
+        }
+      }
+      ImGui::End();
+    }
+    if (options.mode == "fe" && !fe_precompute_started && !jobs.busy()) {
+      fe_mode.Precompute();  // the platform mesh has landed (or failed: the panel says so)
+      fe_precompute_started = true;
+    }
+    fe_mode.OnFrame(latest.tool);
+    sculpt_mode.OnFrame(latest.tool);
+    if (auto f = fe_mode.TakeField()) {
+      fe_field = std::shared_ptr<haptics::ForceField>(std::move(f));
+      republish = true;
+    }
+    if (auto f = sculpt_mode.TakeField()) {
+      sculpt_field = std::shared_ptr<haptics::ForceField>(std::move(f));
+      republish = true;
+    }
+    if (republish) publish_scene();
     DrawScenePanel(&model, &jobs, &workbench, static_cast<float>(win_w) - kScenePanelWidth - 8.0f,
                    menu_height + 8.0f, kScenePanelWidth);
     const LoopStats stats = CollectLoopStats(runtime, latest);

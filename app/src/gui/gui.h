@@ -18,6 +18,7 @@ struct GuiOptions {
   int frames = 0;                // when > 0: exit after this many frames
   std::string device = "simulated";
   std::string scene = "demo";    // scene file, "demo" (built-in) or "none"
+  std::string mode;              // 'fe' or 'sculpt': start in that mode (demo, screenshots)
   int estop_frame = 0;           // when > 0: press the emergency stop at this frame
   // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.
   std::array<double, 7> grip = {0, 0, 0, 0, 0, 0, 90};
