@@ -250,10 +250,8 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
 std::string PlatformScenePath() {
   namespace fs = std::filesystem;
   if (const char* p = std::getenv("SPIDARCAD_PLATFORM_SCENE"); p != nullptr && *p != 0) return p;
-  const fs::path from_source =
-      fs::path(__FILE__).parent_path().parent_path().parent_path().parent_path() / "assets" / "scenes" / "platform.json";
-  if (fs::exists(from_source)) return from_source.string();
-  return "assets/scenes/platform.json";
+  if (fs::exists("assets/scenes/platform.json")) return "assets/scenes/platform.json";
+  return (fs::path(SPIDARCAD_SOURCE_DIR) / "assets" / "scenes" / "platform.json").string();
 }
 
 }  // namespace spidarcad::app
