@@ -24,6 +24,7 @@
 
 #include <Eigen/Geometry>
 
+#include "cli/vtu_io.h"
 #include "doc/job.h"
 #include "gui/device_session.h"
 #include "gui/device_view.h"
@@ -491,6 +492,20 @@ int RunGui(const GuiOptions& options) {
           if (ImGui::Checkbox("FE mode on", &on)) {
             fe_mode.SetActive(on);
             republish = true;
+          }
+          // "Pick a meshed object": the selected scene object's tetrahedra (Mesh → Tetrahedra).
+          const bool has_tets = workbench.selected >= 0 &&
+                                workbench.selected < static_cast<int>(model.objects().size()) &&
+                                model.objects()[workbench.selected].tets.tets.cols() > 0;
+          if (!has_tets) ImGui::BeginDisabled();
+          if (ImGui::Button("Use the selected object's tetrahedra")) {
+            const SceneObject& object = model.objects()[workbench.selected];
+            fe_mode.SetMesh(ToFemMesh(object.tets), object.name);
+          }
+          if (!has_tets) {
+            ImGui::EndDisabled();
+            ImGui::SameLine();
+            ImGui::TextDisabled("(select an object, Mesh > Tetrahedra first)");
           }
           fe_mode.DrawPanel();
         }
