@@ -73,44 +73,8 @@ ToolWrench GraspField::Evaluate(const ToolKinematics& tool) noexcept {
   for (int k = 0; k < 2; ++k) {
     const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
     auto phi_at = [&](double t) { return Phi(tool.p_WT + t * u_W, nullptr); };
-    const double spacing = 2.0 * d / (s.samples - 1);
-    double best_t = -d, best_phi = phi_at(-d);
-    for (int j = 1; j < s.samples; ++j) {
-      const double t = -d + j * spacing;
-      const double v = phi_at(t);
-      if (v < best_phi) {
-        best_phi = v;
-        best_t = t;
-      }
-    }
-    // Golden-section refinement of the minimum of φ along the pole.
-    double lo = std::max(-d, best_t - spacing), hi = std::min(d, best_t + spacing);
-    constexpr double kInvPhi = 0.6180339887498949;
-    double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
-    double f1 = phi_at(x1), f2 = phi_at(x2);
-    for (int i = 0; i < s.refine_iterations; ++i) {
-      if (f1 < f2) {
-        hi = x2;
-        x2 = x1;
-        f2 = f1;
-        x1 = hi - kInvPhi * (hi - lo);
-        f1 = phi_at(x1);
-      } else {
-        lo = x1;
-        x1 = x2;
-        f1 = f2;
-        x2 = lo + kInvPhi * (hi - lo);
-        f2 = phi_at(x2);
-      }
-    }
-    if (f1 < best_phi) {
-      best_phi = f1;
-      best_t = x1;
-    }
-    if (f2 < best_phi) {
-      best_phi = f2;
-      best_t = x2;
-    }
+    const PoleMinimum m = FindPoleMinimum(phi_at, d, s.samples, s.refine_iterations);
+    const double best_t = m.t, best_phi = m.phi;
     depth_[k] = std::max(0.0, -best_phi);
     if (depth_[k] <= 0) continue;
     Eigen::Vector3d g;

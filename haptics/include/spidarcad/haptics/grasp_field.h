@@ -40,6 +40,48 @@
 
 namespace spidarcad::haptics {
 
+
+// The deepest point of a field along a pole, t ∈ [−d, d] (m along the pole's unit vector from the
+// grip centre): `samples` (>= 2) evenly spaced values of phi(t), then `refine_iterations` steps of
+// golden-section search around the best sample. Real-time safe (phi must be too).
+struct PoleMinimum {
+  double t = 0.0;    // where, m
+  double phi = 0.0;  // the field's value there, m (< 0: inside)
+};
+template <class Phi>
+PoleMinimum FindPoleMinimum(const Phi& phi, double d, int samples, int refine_iterations) noexcept {
+  const double spacing = 2.0 * d / (samples - 1);
+  PoleMinimum best{-d, phi(-d)};
+  for (int j = 1; j < samples; ++j) {
+    const double t = -d + j * spacing;
+    const double v = phi(t);
+    if (v < best.phi) best = {t, v};
+  }
+  double lo = best.t - spacing > -d ? best.t - spacing : -d;
+  double hi = best.t + spacing < d ? best.t + spacing : d;
+  constexpr double kInvPhi = 0.6180339887498949;
+  double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
+  double f1 = phi(x1), f2 = phi(x2);
+  for (int i = 0; i < refine_iterations; ++i) {
+    if (f1 < f2) {
+      hi = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = hi - kInvPhi * (hi - lo);
+      f1 = phi(x1);
+    } else {
+      lo = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = lo + kInvPhi * (hi - lo);
+      f2 = phi(x2);
+    }
+  }
+  if (f1 < best.phi) best = {x1, f1};
+  if (f2 < best.phi) best = {x2, f2};
+  return best;
+}
+
 // Parameters of a GraspField. SI units, lengths in W.
 struct GraspSettings {
   double pole_length = 0.04;     // d in W (world_scale × the device's d), m
