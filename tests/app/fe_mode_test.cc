@@ -2,6 +2,7 @@
 // FE mode without a window: FeModel (build, cancel, stress, disk cache) and FeTouchField (the
 // force felt when pushing the platform), checked against full sparse solves of the same
 // prescribed displacements.
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +20,7 @@
 #include "gui/fe_mode.h"
 #include "runtime/fe_model.h"
 #include "runtime/fe_touch_field.h"
+#include "spidarcad/haptics/simulated_hand.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
 #include "support/malloc_counter.h"
@@ -437,6 +439,61 @@ TEST(FeMode, PrecomputesInAJobThenPublishesAFieldAndShowsStress) {
   EXPECT_EQ(mode.TakeField(), nullptr);
   for (int i = 0; i < 3000 && jobs.busy(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   jobs.Poll();
+}
+
+}  // namespace
+}  // namespace spidarcad::app
+
+namespace spidarcad::app {
+namespace {
+
+// The simulated hand (haptics::SimulatedHand: 0.3 kg, 300 N/m, 20 N·s/m) pushes the steel platform
+// through FeTouchField at FE mode's defaults (force scale kDefaultFeForceScale, at most 8 N, tool
+// radius = mean edge), stepped at 1 kHz with no device damping: the grip must come to rest against
+// the plate, not chatter on it. With a force scale of 1e-3 it chatters (measured: force 0 .. 8 N,
+// the grip moving 0.25 mm in the last second), which is why the default is lower.
+TEST(FeTouchField, HandPushingThePlateComesToRestWithoutChatter) {
+  const auto model = PlatformModel();
+  FeTouchSettings ts;
+  ts.tool_radius = model->mean_edge_length();
+  ts.force_scale = kDefaultFeForceScale;
+  ts.max_force = 8.0;
+  FeTouchField field(model, ts, nullptr);
+  const double r = ts.tool_radius;
+  const Eigen::Vector3d target(0.1, 0.01, 0.010 + r - 0.005);  // sphere aimed 5 mm into the plate
+  field.Evaluate(ToolAt(target));                               // focus the column cache there
+  model->cache().Start();
+  ASSERT_TRUE(model->cache().WaitUntilIdle(60.0));
+  haptics::TrajectorySample start;
+  start.p_DT = target + Eigen::Vector3d(0, 0, 0.01);  // 5 mm clear of the plate
+  haptics::SimulatedHand hand(haptics::HandSettings{}, start, 0.04);
+  haptics::TrajectorySample aim = start;
+  aim.p_DT = target;
+  const double dt = 1e-3;
+  std::vector<double> z, fz;
+  for (int tick = 0; tick < 3000; ++tick) {
+    haptics::ToolKinematics tool = ToolAt(hand.position());
+    tool.v_WT = hand.velocity();
+    const haptics::ToolWrench w = field.Evaluate(tool);
+    Eigen::Matrix<double, 7, 1> q;
+    q << w.f_T_W, w.m_T_W, w.g;
+    hand.Step(aim, q, dt);
+    z.push_back(hand.position().z());
+    fz.push_back(w.f_T_W.z());
+  }
+  model->cache().Stop();
+  // Last second: at rest against the plate (force up, equal to the hand spring's pull).
+  double z_min = 1e9, z_max = -1e9, f_min = 1e9, f_max = -1e9;
+  for (int i = 2000; i < 3000; ++i) {
+    z_min = std::min(z_min, z[i]);
+    z_max = std::max(z_max, z[i]);
+    f_min = std::min(f_min, fz[i]);
+    f_max = std::max(f_max, fz[i]);
+  }
+  const double spring = 300.0 * (hand.position().z() - target.z());  // hand pull, N
+  EXPECT_GT(f_min, 0.5) << "contact lost in the last second (chatter): force " << f_min << " .. " << f_max;
+  EXPECT_LT(z_max - z_min, 1e-4) << "grip still moving: z " << z_min << " .. " << z_max;
+  EXPECT_NEAR(0.5 * (f_min + f_max), spring, 0.05 * std::abs(spring) + 0.05);
 }
 
 }  // namespace

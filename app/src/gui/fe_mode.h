@@ -10,6 +10,8 @@
 // only. The haptic thread is the single producer of the column focus (FeTouchField::Evaluate).
 #pragma once
 
+#include <cmath>
+
 #include <memory>
 #include <string>
 
@@ -119,7 +121,7 @@ class FeMode {
   bool box_fixed_ = false;
   float box_[6] = {-1.0f, -1.0f, -1.0f, 0.001f, 1.0f, 1.0f};
   float magnify_ = 100.0f;
-  float log_force_scale_ = -3.0f;
+  float log_force_scale_ = static_cast<float>(std::log10(kDefaultFeForceScale));
   float resolution_mm_ = 12.0f;
   bool auto_range_ = true;
   float range_mpa_ = 100.0f;

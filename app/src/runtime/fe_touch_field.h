@@ -44,6 +44,11 @@ namespace spidarcad::app {
 
 // Largest number of contact nodes a touch field handles (per field, both poles together).
 inline constexpr int kMaxFeContacts = 16;
+// Felt force per FE newton that FE mode starts with. A steel part's contact is far stiffer than a
+// 1 kHz loop can render: on the 12 mm steel platform, with the simulated hand (0.3 kg, 300 N/m,
+// 20 N·s/m) pushing through the field, 1e-3 chatters (contact lost and regained, 0..8 N, the grip
+// moving 0.25 mm) while 1e-4 and below come to rest (fe_mode_test, HandPushingThePlate...).
+inline constexpr double kDefaultFeForceScale = 1e-4;
 
 // One tick's contact state, as published to the main thread (fixed size, copy without allocation).
 struct FeContactState {
