@@ -20,6 +20,9 @@
 #include "gui/fe_mode.h"
 #include "runtime/fe_model.h"
 #include "runtime/fe_touch_field.h"
+#include "spidarcad/haptics/haptic_loop.h"
+#include "runtime/shared_field.h"
+#include "gui/haptic_runtime.h"
 #include "spidarcad/haptics/simulated_hand.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
@@ -494,6 +497,51 @@ TEST(FeTouchField, HandPushingThePlateComesToRestWithoutChatter) {
   EXPECT_GT(f_min, 0.5) << "contact lost in the last second (chatter): force " << f_min << " .. " << f_max;
   EXPECT_LT(z_max - z_min, 1e-4) << "grip still moving: z " << z_min << " .. " << z_max;
   EXPECT_NEAR(0.5 * (f_min + f_max), spring, 0.05 * std::abs(spring) + 0.05);
+}
+
+}  // namespace
+}  // namespace spidarcad::app
+
+namespace spidarcad::app {
+namespace {
+
+// The window's path: FE mode's field, wrapped as the window wraps it (SharedField), published to
+// the HapticRuntime (ideal device, simulated hand, HapticLoop), ticked on a virtual clock. The
+// hand comes down onto the plate; the loop must command an upward force while it presses.
+TEST(FeTouchField, WindowRuntimeFeelsThePlateWhenTheHandPressesIt) {
+  const auto model = PlatformModel();
+  FeTouchSettings ts;
+  ts.tool_radius = model->mean_edge_length();
+  ts.force_scale = kDefaultFeForceScale;
+  ts.max_force = 8.0;
+  auto field = std::make_shared<FeTouchField>(model, ts, nullptr);
+  const double r = ts.tool_radius;
+  const Eigen::Vector3d press(0.1, 0.01, 0.010 + r - 0.005);
+  field->Evaluate(ToolAt(press));  // focus the columns there, and compute them
+  model->cache().Start();
+  ASSERT_TRUE(model->cache().WaitUntilIdle(60.0));
+  model->cache().Stop();
+
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kIdeal;  // X_WD identity: W = D
+  const haptics::SpidarGeometry g;
+  const Eigen::Vector3d above = press + Eigen::Vector3d(0, 0, 0.01);
+  HapticRuntime runtime(settings, haptics::GripPose::FromFrame(above, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+  auto scene = std::make_unique<haptics::HapticScene>();
+  scene->Add(std::make_unique<SharedField>(field));
+  runtime.Publish(std::move(scene));
+  haptics::TickTiming timing;
+  for (int k = 0; k < 3000; ++k) {
+    if (k == 700) runtime.SetTarget(haptics::GripPose::FromFrame(press, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+    timing.tick = static_cast<std::uint64_t>(k);
+    timing.elapsed = timing.period;
+    runtime.Tick(timing);
+  }
+  const haptics::ToolState& tool = runtime.Latest().tool;
+  EXPECT_GT(tool.wrench_D(2), 0.5) << "pressing 5 mm into the plate, the loop commands "
+                                   << tool.wrench_D.head<3>().transpose() << " N; grip at "
+                                   << tool.tool_W.p_WT.transpose() << ", events " << tool.events;
+  EXPECT_FALSE(haptics::IsZeroForceEvent(tool.events));
 }
 
 }  // namespace
