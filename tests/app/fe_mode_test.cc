@@ -450,6 +450,26 @@ TEST(FeMode, PrecomputesInAJobThenPublishesAFieldAndShowsStress) {
 namespace spidarcad::app {
 namespace {
 
+// FE mode's default touch settings on `model`: tool radius = mean edge, felt force scale
+// kDefaultFeForceScale, at most 8 N.
+FeTouchSettings DefaultTouch(const FeModel& model) {
+  FeTouchSettings ts;
+  ts.tool_radius = model.mean_edge_length();
+  ts.force_scale = kDefaultFeForceScale;
+  ts.max_force = 8.0;
+  return ts;
+}
+
+// Where a tool sphere of radius r aimed 5 mm into the plate top (z = 0.01 m) at (0.1, 0.01) has
+// its centre; the field is evaluated there once (the column focus) and the columns computed.
+Eigen::Vector3d FocusFiveMillimetresIntoThePlate(FeModel* model, FeTouchField* field) {
+  const Eigen::Vector3d press(0.1, 0.01, 0.010 + field->settings().tool_radius - 0.005);
+  field->Evaluate(ToolAt(press));
+  model->cache().Start();
+  EXPECT_TRUE(model->cache().WaitUntilIdle(60.0));
+  return press;
+}
+
 // The simulated hand (haptics::SimulatedHand: 0.3 kg, 300 N/m, 20 N·s/m) pushes the steel platform
 // through FeTouchField at FE mode's defaults (force scale kDefaultFeForceScale, at most 8 N, tool
 // radius = mean edge), stepped at 1 kHz with no device damping: the grip must come to rest against
@@ -457,16 +477,8 @@ namespace {
 // the grip moving 0.25 mm in the last second), which is why the default is lower.
 TEST(FeTouchField, HandPushingThePlateComesToRestWithoutChatter) {
   const auto model = PlatformModel();
-  FeTouchSettings ts;
-  ts.tool_radius = model->mean_edge_length();
-  ts.force_scale = kDefaultFeForceScale;
-  ts.max_force = 8.0;
-  FeTouchField field(model, ts, nullptr);
-  const double r = ts.tool_radius;
-  const Eigen::Vector3d target(0.1, 0.01, 0.010 + r - 0.005);  // sphere aimed 5 mm into the plate
-  field.Evaluate(ToolAt(target));                               // focus the column cache there
-  model->cache().Start();
-  ASSERT_TRUE(model->cache().WaitUntilIdle(60.0));
+  FeTouchField field(model, DefaultTouch(*model), nullptr);
+  const Eigen::Vector3d target = FocusFiveMillimetresIntoThePlate(model.get(), &field);
   haptics::TrajectorySample start;
   start.p_DT = target + Eigen::Vector3d(0, 0, 0.01);  // 5 mm clear of the plate
   haptics::SimulatedHand hand(haptics::HandSettings{}, start, 0.04);
@@ -499,27 +511,13 @@ TEST(FeTouchField, HandPushingThePlateComesToRestWithoutChatter) {
   EXPECT_NEAR(0.5 * (f_min + f_max), spring, 0.05 * std::abs(spring) + 0.05);
 }
 
-}  // namespace
-}  // namespace spidarcad::app
-
-namespace spidarcad::app {
-namespace {
-
 // The window's path: FE mode's field, wrapped as the window wraps it (SharedField), published to
 // the HapticRuntime (ideal device, simulated hand, HapticLoop), ticked on a virtual clock. The
 // hand comes down onto the plate; the loop must command an upward force while it presses.
 TEST(FeTouchField, WindowRuntimeFeelsThePlateWhenTheHandPressesIt) {
   const auto model = PlatformModel();
-  FeTouchSettings ts;
-  ts.tool_radius = model->mean_edge_length();
-  ts.force_scale = kDefaultFeForceScale;
-  ts.max_force = 8.0;
-  auto field = std::make_shared<FeTouchField>(model, ts, nullptr);
-  const double r = ts.tool_radius;
-  const Eigen::Vector3d press(0.1, 0.01, 0.010 + r - 0.005);
-  field->Evaluate(ToolAt(press));  // focus the columns there, and compute them
-  model->cache().Start();
-  ASSERT_TRUE(model->cache().WaitUntilIdle(60.0));
+  auto field = std::make_shared<FeTouchField>(model, DefaultTouch(*model), nullptr);
+  const Eigen::Vector3d press = FocusFiveMillimetresIntoThePlate(model.get(), field.get());
   model->cache().Stop();
 
   RuntimeSettings settings;
