@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -16,6 +17,29 @@ void Require(bool ok, const char* where, const char* field, double value, const 
   }
 }
 bool PositiveFinite(double v) { return v > 0 && std::isfinite(v); }
+bool NonNegativeFinite(double v) { return v >= 0 && std::isfinite(v); }
+
+constexpr int kImpulsePasses = 4;
+
+// g / |g|, or zero when |g| is zero or not finite.
+Eigen::Vector3d UnitOrZero(const Eigen::Vector3d& g) {
+  const double n = g.norm();
+  return n > 0 && std::isfinite(n) ? Eigen::Vector3d(g / n) : Eigen::Vector3d::Zero();
+}
+
+// Spring-damper with a soft zone (see the header): stretch x (3), relative velocity dx (3),
+// stiffness k, damping b, zone radius zone (0: off), ratio eps. Returns k·x + b·dx inside the
+// law: ε(k x + b dx) for |x| ≤ δ; beyond, spring (k|x| − (1 − ε) k δ) x/|x| and damping
+// b (ε + (1 − ε) min(1, (|x| − δ)/δ)) dx.
+Eigen::Vector3d SoftCoupling(const Eigen::Vector3d& x, const Eigen::Vector3d& dx, double k, double b,
+                             double zone, double eps) {
+  if (!(zone > 0)) return k * x + b * dx;
+  const double r = x.norm();
+  if (r <= zone) return eps * (k * x + b * dx);
+  const double spring = k * r - (1.0 - eps) * k * zone;
+  const double ramp = std::min(1.0, (r - zone) / zone);
+  return (spring / r) * x + (b * (eps + (1.0 - eps) * ramp)) * dx;
+}
 
 // Rotation vector of the rotation q (angle·axis, angle in [0, π]).
 Eigen::Vector3d RotationVector(Eigen::Quaterniond q) {
@@ -144,6 +168,14 @@ void PointShellSettings::Validate() const {
           "must be finite and >= 0");
   Require(max_points >= 1, w, "max_points", max_points, "must be >= 1");
   Require(PositiveFinite(max_dt), w, "max_dt", max_dt, "must be finite and > 0");
+  Require(NonNegativeFinite(coupling_soft_zone), w, "coupling_soft_zone", coupling_soft_zone,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(rot_coupling_soft_zone), w, "rot_coupling_soft_zone", rot_coupling_soft_zone,
+          "must be finite and >= 0");
+  Require(soft_zone_ratio >= 0 && soft_zone_ratio <= 1, w, "soft_zone_ratio", soft_zone_ratio,
+          "must be in [0, 1]");
+  Require(NonNegativeFinite(max_penetration), w, "max_penetration", max_penetration, "must be finite and >= 0");
+  Require(PositiveFinite(min_step), w, "min_step", min_step, "must be finite and > 0");
 }
 
 PointShellField::PointShellField(std::shared_ptr<const DistanceField> environment, PointShell shell,
@@ -162,6 +194,11 @@ PointShellField::PointShellField(std::shared_ptr<const DistanceField> environmen
   }
   shell_radius_ = shell_.Radius();
   candidates_.assign(shell_.points_T.size(), 0);
+  candidate_phi_.assign(shell_.points_T.size(), 0.0);
+  candidate_g_.assign(shell_.points_T.size(), Eigen::Vector3d::Zero());
+  candidate_r_.assign(shell_.points_T.size(), Eigen::Vector3d::Zero());
+  point_radius_.resize(shell_.points_T.size());
+  for (int i = 0; i < shell_.size(); ++i) point_radius_[i] = shell_.points_T[i].norm();
 }
 
 ShellContact PointShellField::ContactAt(const Eigen::Isometry3d& X_WV) const noexcept {
@@ -193,6 +230,9 @@ ShellContact PointShellField::CandidateContact(const Eigen::Matrix3d& R_WV) noex
     const Eigen::Vector3d r = R_WV * shell_.points_T[i];
     const double phi = env_->Evaluate(p_ + r, &g);
     const double gn = g.norm();
+    candidate_phi_[k] = phi;
+    candidate_r_[k] = r;
+    candidate_g_[k] = g;
     if (!(phi < 0) || !(gn > 0)) continue;
     const Eigen::Vector3d n = g / gn;
     const double v_n = n.dot(v_ + w_.cross(r));
@@ -206,6 +246,71 @@ ShellContact PointShellField::CandidateContact(const Eigen::Matrix3d& R_WV) noex
   c.force_W *= s;
   c.torque_W *= s;
   return c;
+}
+
+void PointShellField::Coupling(const ToolKinematics& tool, const Eigen::Quaterniond& q_T,
+                               Eigen::Vector3d* f_c, Eigen::Vector3d* tau_c) const noexcept {
+  const PointShellSettings& s = settings_;
+  *f_c = SoftCoupling(tool.p_WT - p_, tool.v_WT - v_, s.coupling_stiffness, s.coupling_damping,
+                      s.coupling_soft_zone, s.soft_zone_ratio);
+  *tau_c = SoftCoupling(RotationVector(q_T * q_.conjugate()), tool.w_WT - w_, s.rot_coupling_stiffness,
+                        s.rot_coupling_damping, s.rot_coupling_soft_zone, s.soft_zone_ratio);
+}
+
+void PointShellField::ConstrainMotion(double h, double budget, double travelled,
+                                      const Eigen::Matrix3d& inv_inertia_W) noexcept {
+  const double d_max = settings_.max_penetration;
+  // Sequential inelastic impulses λ n_i at the points whose local plane says they would pass the
+  // depth limit in this substep: each point's inward speed drops to what just reaches it.
+  for (int pass = 0; pass < kImpulsePasses; ++pass) {
+    bool applied = false;
+    const double reach_h = h * (v_.norm() + w_.norm() * shell_radius_);  // no point moves further
+    for (int k = 0; k < num_candidates_; ++k) {
+      if (candidate_phi_[k] + d_max >= reach_h) continue;
+      const Eigen::Vector3d n = UnitOrZero(candidate_g_[k]);
+      if (n.squaredNorm() == 0.0) continue;
+      const Eigen::Vector3d& r = candidate_r_[k];
+      const double u_n = n.dot(v_ + w_.cross(r));
+      const double u_min = -std::max(0.0, candidate_phi_[k] + d_max) / h;
+      if (u_n >= u_min) continue;
+      const Eigen::Vector3d rn = r.cross(n);
+      const Eigen::Vector3d dw = inv_inertia_W * rn;  // Δω per unit impulse
+      const double lambda = (u_min - u_n) / (1.0 / settings_.mass + rn.dot(dw));
+      v_ += (lambda / settings_.mass) * n;
+      w_ += lambda * dw;
+      applied = true;
+    }
+    if (!applied) break;
+  }
+  // The safe fraction t of the substep's motion: the travel budget of the non-candidates, and
+  // per candidate the Lipschitz bound or (for moves up to min_step) its local plane.
+  const Eigen::Vector3d dp = h * v_, dtheta = h * w_;
+  const double move = dp.norm(), turn = dtheta.norm();
+  double t = 1.0;
+  const double bound = move + turn * shell_radius_;
+  if (bound > 0 && travelled + bound > budget) t = std::max(0.0, budget - travelled) / bound;
+  for (int k = 0; k < num_candidates_; ++k) {
+    if (candidate_phi_[k] + d_max >= t * bound) continue;  // cannot limit t (μ_k ≤ bound)
+    const double mu = move + turn * point_radius_[candidates_[k]];
+    if (!(mu > 0)) continue;
+    const double room = std::max(0.0, candidate_phi_[k] + d_max);  // distance to the depth limit
+    const Eigen::Vector3d n = UnitOrZero(candidate_g_[k]);
+    if (room == 0.0 && n.squaredNorm() == 0.0) continue;  // past the limit, no direction to guard
+    double t_k = room / mu;                                 // φ is 1-Lipschitz
+    if (t_k >= t) continue;
+    if (n.squaredNorm() > 0) {
+      const double inward = -n.dot(dp + dtheta.cross(candidate_r_[k]));
+      const double t_plane = inward > 1e-9 * mu ? room / inward : std::numeric_limits<double>::infinity();
+      t_k = std::max(t_k, std::min(t_plane, settings_.min_step / mu));
+    }
+    t = std::min(t, t_k);
+  }
+  if (t < 1.0) {
+    // Still blocked (budget, a far point, a tangential move beyond min_step, or impulses that
+    // did not settle): move only the safe fraction.
+    v_ *= t;
+    w_ *= t;
+  }
 }
 
 ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
@@ -224,41 +329,46 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
   if (!(dt > 0)) dt = 1e-3;
   dt = std::min(dt, s.max_dt);
 
-  // Broad and narrow phase at the start of the tick: the candidate points.
+  // Broad and narrow phase at the start of the tick: the candidate points. Points beyond
+  // `reach` stay free as long as V travels less than `reach` in this tick (ConstrainMotion).
   num_candidates_ = 0;
-  {
-    const double reach = s.contact_margin + 2.0 * dt * (v_.norm() + w_.norm() * shell_radius_ +
-                                                        tool.v_WT.norm() + tool.w_WT.norm() * shell_radius_);
-    if (env_->Evaluate(p_, nullptr) < shell_radius_ + reach) {
-      const Eigen::Matrix3d R = q_.toRotationMatrix();
-      for (int i = 0; i < shell_.size(); ++i) {
-        if (env_->Evaluate(p_ + R * shell_.points_T[i], nullptr) < reach) candidates_[num_candidates_++] = i;
-      }
+  const double reach = s.contact_margin + 2.0 * dt * (v_.norm() + w_.norm() * shell_radius_ +
+                                                      tool.v_WT.norm() + tool.w_WT.norm() * shell_radius_);
+  // How far V may travel this tick with the non-candidates still free: the reach, or, when the
+  // broad phase finds the whole shell clear, its clearance.
+  double budget = reach;
+  const double phi_centre = env_->Evaluate(p_, nullptr);
+  if (phi_centre >= shell_radius_ + reach) {
+    budget = phi_centre - shell_radius_;
+  } else {
+    const Eigen::Matrix3d R = q_.toRotationMatrix();
+    for (int i = 0; i < shell_.size(); ++i) {
+      if (env_->Evaluate(p_ + R * shell_.points_T[i], nullptr) < reach) candidates_[num_candidates_++] = i;
     }
   }
 
   const double h = dt / s.substeps;
   Eigen::Vector3d f_c = Eigen::Vector3d::Zero(), tau_c = Eigen::Vector3d::Zero();
   const Eigen::Vector3d inv_inertia = s.inertia.cwiseInverse();
+  double travelled = 0.0;  // bound on any point's motion so far in this tick, m
   for (int step = 0; step < s.substeps; ++step) {
     const Eigen::Matrix3d R = q_.toRotationMatrix();
     const ShellContact contact = CandidateContact(R);
     contacts_ = contact.contacts;
-    f_c = s.coupling_stiffness * (tool.p_WT - p_) + s.coupling_damping * (tool.v_WT - v_);
-    tau_c = s.rot_coupling_stiffness * RotationVector(q_T * q_.conjugate()) +
-            s.rot_coupling_damping * (tool.w_WT - w_);
-    v_ += (h / s.mass) * (f_c + contact.force_W);
+    Coupling(tool, q_T, &f_c, &tau_c);
     // ω̇ = R I⁻¹ Rᵀ τ (body inertia, gyroscopic term neglected).
-    w_ += h * (R * inv_inertia.asDiagonal() * (R.transpose() * (tau_c + contact.torque_W)));
+    const Eigen::Matrix3d inv_inertia_W = R * inv_inertia.asDiagonal() * R.transpose();
+    v_ += (h / s.mass) * (f_c + contact.force_W);
+    w_ += h * (inv_inertia_W * (tau_c + contact.torque_W));
+    ConstrainMotion(h, budget, travelled, inv_inertia_W);
     p_ += h * v_;
     const double angle = w_.norm() * h;
+    travelled += h * v_.norm() + angle * shell_radius_;
     if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_ / w_.norm())) * q_;
     q_.normalize();
   }
   // The coupling's reaction at the end of the tick is what the user feels.
-  f_c = s.coupling_stiffness * (tool.p_WT - p_) + s.coupling_damping * (tool.v_WT - v_);
-  tau_c = s.rot_coupling_stiffness * RotationVector(q_T * q_.conjugate()) +
-          s.rot_coupling_damping * (tool.w_WT - w_);
+  Coupling(tool, q_T, &f_c, &tau_c);
   if (!(p_.allFinite() && q_.coeffs().allFinite() && v_.allFinite() && w_.allFinite())) {
     // Recover: restart on the grip next tick (the loop zeroes this tick's NaN wrench).
     initialized_ = false;

@@ -1,8 +1,11 @@
 // Tests of the six-DOF point-shell field: the contact wrench of a box resting flat on a plane
 // (zero torque, force in closed form), an off-centre touch (torque = r × f), the torque felt
-// through the virtual coupling at equilibrium, stability and energy with the simulated hand
-// pushing a box tool into a 10 kN/m wall, the shell generators, the size bound, and no
-// allocation in Evaluate.
+// through the virtual coupling at equilibrium (penalty only, and held by the depth limit),
+// stability and energy with the simulated hand pushing a box tool into a 10 kN/m wall, the
+// shell generators, the size bound, no allocation in Evaluate; free-space noise on the
+// simulated device's quantised readings (bounded from the encoder quantum), contact
+// stiffness with and without the soft zone (closed form), and 4 cm / 10 cm grip jumps at a
+// 2 mm plate (no tunnelling; through the haptic loop, the wrench limit holds).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/point_shell_field.h"
 
@@ -12,6 +15,9 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "spidarcad/haptics/haptic_loop.h"
+#include "spidarcad/haptics/kinematics.h"
+#include "spidarcad/haptics/simulated_device.h"
 #include "spidarcad/haptics/simulated_hand.h"
 #include "support/malloc_counter.h"
 
@@ -85,6 +91,7 @@ TEST(PointShellField, OffCentreTouchGivesTorqueRCrossF) {
 
 TEST(PointShellField, UserFeelsTheOffCentreTorqueThroughTheCoupling) {
   PointShellSettings s;
+  s.max_penetration = 0.01;  // the penalty law alone holds the point (1.2 mm deep)
   const Eigen::Vector3d r_T(0.03, 0.01, -0.02);
   PointShellField field(Floor(), PointShell::FromPoints({r_T}, {Eigen::Vector3d::UnitZ()}), s);
   ToolKinematics tool;
@@ -105,6 +112,13 @@ TEST(PointShellField, UserFeelsTheOffCentreTorqueThroughTheCoupling) {
   EXPECT_LT((w.m_T_W - m).norm(), 0.02 * m.norm()) << w.m_T_W.transpose() << " vs " << m.transpose();
 }
 
+// Potential of a coupling spring of stiffness k with a soft zone of radius δ and ratio ε at
+// stretch r: the integral of ε k r (r ≤ δ), then of k r − (1 − ε) k δ.
+double SoftZonePotential(double k, double zone, double eps, double r) {
+  if (r <= zone) return 0.5 * eps * k * r * r;
+  return 0.5 * eps * k * zone * zone + 0.5 * k * (r * r - zone * zone) - (1.0 - eps) * k * zone * (r - zone);
+}
+
 // Energy of the hand + grip + virtual tool + contact system (the hand's target is fixed, so
 // nothing but the hand's initial spring energy ever enters).
 double SystemEnergy(const SimulatedHand& hand, const TrajectorySample& target, const PointShellField& field,
@@ -117,9 +131,10 @@ double SystemEnergy(const SimulatedHand& hand, const TrajectorySample& target, c
   const Eigen::Matrix3d R_V = field.q_WV().toRotationMatrix();
   e += 0.5 * s.mass * field.v_WV().squaredNorm() +
        0.5 * field.w_WV().dot(R_V * s.inertia.asDiagonal() * R_V.transpose() * field.w_WV());
-  e += 0.5 * s.coupling_stiffness * (p_WT - field.p_WV()).squaredNorm();
+  e += SoftZonePotential(s.coupling_stiffness, s.coupling_soft_zone, s.soft_zone_ratio,
+                         (p_WT - field.p_WV()).norm());
   const double coupling_angle = Eigen::AngleAxisd(q_WT * field.q_WV().conjugate()).angle();
-  e += 0.5 * s.rot_coupling_stiffness * coupling_angle * coupling_angle;
+  e += SoftZonePotential(s.rot_coupling_stiffness, s.rot_coupling_soft_zone, s.soft_zone_ratio, coupling_angle);
   double sum_sq = 0;
   int n = 0;
   for (const auto& r_T : field.shell().points_T) {
@@ -218,6 +233,217 @@ TEST(PointShellField, EvaluateAllocatesNothing) {
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(contact, 100);
+}
+
+TEST(PointShellField, PointPressedPastTheDepthLimitIsHeldAndTheWrenchActsThroughIt) {
+  // The same single point as above, but with the default depth limit (0.6 mm): the penalty
+  // (1000 N/m) alone would let it sink 1.2 mm; the limit holds it, so the felt force exceeds
+  // the penalty force, and at rest it is still a force along the normal through the contact.
+  PointShellSettings s;
+  const Eigen::Vector3d r_T(0.03, 0.01, -0.02);
+  PointShellField field(Floor(), PointShell::FromPoints({r_T}, {Eigen::Vector3d::UnitZ()}), s);
+  ToolKinematics tool;
+  tool.p_WT = Eigen::Vector3d(0.0, 0.0, 0.023);  // the point 3 mm above the floor
+  for (int k = 0; k < 100; ++k) {  // settle on the grip in free space
+    tool.time = 1e-3 * k;
+    field.Evaluate(tool);
+  }
+  tool.p_WT.z() = 0.017;  // then 3 mm inside, over a few ticks
+  ToolWrench w;
+  double deepest = 0;
+  for (int k = 100; k < 3000; ++k) {
+    tool.time = 1e-3 * k;
+    w = field.Evaluate(tool);
+    deepest = std::min(deepest, (field.p_WV() + field.q_WV() * r_T).z());
+  }
+  EXPECT_GE(deepest, -s.max_penetration - 1e-6);
+  EXPECT_LT(field.v_WV().norm() + field.w_WV().norm(), 1e-6);
+  const Eigen::Vector3d contact = field.p_WV() + field.q_WV() * r_T;
+  EXPECT_GT(w.f_T_W.z(), 1.2 * s.contact_stiffness * -contact.z());  // more than the penalty
+  EXPECT_LT(w.f_T_W.head<2>().norm(), 1e-6 * w.f_T_W.norm());           // along the normal
+  const Eigen::Vector3d m = (contact - tool.p_WT).cross(w.f_T_W);
+  EXPECT_LT((w.m_T_W - m).norm(), 0.02 * m.norm()) << w.m_T_W.transpose() << " vs " << m.transpose();
+}
+
+// A flat 3 cm box tool (36 points on its bottom face, 10 kN/m wall) held with its grip `depth`
+// below the resting height; returns the felt force along +z at rest.
+double RestingForce(const PointShellSettings& s, double depth) {
+  PointShellField field(Floor(), PointShell::Box(Eigen::Vector3d::Constant(0.015), 0.005), s);
+  ToolKinematics tool;
+  tool.p_WT = Eigen::Vector3d(0.01, -0.02, 0.015 - depth);
+  ToolWrench w;
+  for (int k = 0; k < 1500; ++k) {
+    tool.time = 1e-3 * k;
+    w = field.Evaluate(tool);
+  }
+  EXPECT_LT(field.v_WV().norm(), 1e-6);
+  return w.f_T_W.z();
+}
+
+TEST(PointShellField, SoftZoneKeepsTheContactStiffness) {
+  PointShellSettings before;  // the coupling without soft zone or depth limit
+  before.coupling_soft_zone = 0;
+  before.rot_coupling_soft_zone = 0;
+  before.max_penetration = 1.0;
+  const PointShellSettings after;  // defaults
+  const double d1 = 1e-3, d2 = 3e-3;
+  const double k_before = (RestingForce(before, d2) - RestingForce(before, d1)) / (d2 - d1);
+  const double f1 = RestingForce(after, d1), f2 = RestingForce(after, d2);
+  const double k_after = (f2 - f1) / (d2 - d1);
+  // Coupling and wall in series: 1 / (1/k_c + 1/(N_ref k_p)) = 909 N/m.
+  const double wall = after.reference_contacts * after.contact_stiffness;
+  const double series = 1.0 / (1.0 / after.coupling_stiffness + 1.0 / wall);
+  EXPECT_NEAR(k_before, series, 0.01 * series);
+  EXPECT_NEAR(k_after, k_before, 0.02 * k_before);
+  // Closed form with the zone: k_c (r − (1 − ε) δ) = wall · penetration, r + penetration = depth.
+  const double offset = (1.0 - after.soft_zone_ratio) * after.coupling_stiffness * after.coupling_soft_zone;
+  const double expected = (after.coupling_stiffness * d2 - offset) / (1.0 + after.coupling_stiffness / wall);
+  EXPECT_NEAR(f2, expected, 1e-3 * expected);
+}
+
+// The simulated device (quantised, noisy, uncalibrated encoders) with the grip held still at a
+// tilted pose; returns the largest felt force over ticks [1000, 4000) of a shell field whose
+// environment is 0.5 m away, evaluated on the loop's tool state.
+double FreeSpaceForceOnTheSimulatedDevice(const PointShellSettings& s, double* quantum) {
+  SimulatedSpidarG device(SimulatedDeviceConfig{});
+  LoopSettings loop_settings;
+  loop_settings.fk.max_residual = 5e-3;  // uncalibrated
+  HapticLoop loop(device.info(),
+                  EncoderCalibration::Nominal(device.info().encoder,
+                                              InverseKinematics(device.info().geometry, device.info().home_pose)),
+                  loop_settings);
+  auto far_floor = std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d(0, 0, -0.5), Eigen::Vector3d::UnitZ());
+  PointShellField field(far_floor, PointShell::CrossGrip(0.04, 0.005, 9, 8), s);
+  const GripPose still = GripPose::FromFrame(
+      Eigen::Vector3d(0.01, -0.02, 0.015),
+      Eigen::AngleAxisd(0.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(), M_PI / 2, 0.04);
+  double largest = 0;
+  for (int k = 0; k < 4000; ++k) {
+    device.SetTruePose(still);
+    device.Step(1e-3);
+    TickInputs in;
+    device.Read(&in.reading);
+    const TickOutputs out = loop.Step(in, 1e-3);
+    device.WriteTensions(out.tau);
+    const ToolWrench w = field.Evaluate(out.tool_W);
+    EXPECT_EQ(field.contacts(), 0);
+    if (k >= 1000) largest = std::max(largest, w.f_T_W.norm());
+  }
+  *quantum = device.info().encoder.MetresPerCount();
+  return largest;
+}
+
+TEST(PointShellField, StillGripInFreeSpaceFeelsAlmostNothingOnQuantisedReadings) {
+  // Held still, p_WT jitters within about 2 encoder quanta q (0.025 mm each) and the loop's
+  // velocity estimate (a difference quotient through a low-pass) within 2q/dt. Inside the soft
+  // zone (δ = 2q) the coupling acts at ε of its strength, so
+  //   |F| ≤ ε (k_c · 2q + b_c · 2q/dt) = 0.1 (0.050 + 0.151) N ≈ 0.02 N.
+  // Without the zone the same jitter gives ~0.09 N peaks (0.03 N rms).
+  const PointShellSettings s;
+  double q = 0;
+  const double with_zone = FreeSpaceForceOnTheSimulatedDevice(s, &q);
+  const double bound = s.soft_zone_ratio * (s.coupling_stiffness * 2 * q + s.coupling_damping * 2 * q / 1e-3);
+  EXPECT_NEAR(s.coupling_soft_zone, 2 * q, 0.02 * q);  // the default zone is 2 quanta
+  EXPECT_LT(with_zone, bound);
+  PointShellSettings no_zone = s;
+  no_zone.coupling_soft_zone = 0;
+  no_zone.rot_coupling_soft_zone = 0;
+  const double without_zone = FreeSpaceForceOnTheSimulatedDevice(no_zone, &q);
+  EXPECT_GT(without_zone, 3 * bound);  // the chatter the zone removes
+}
+
+// A 2 mm plate (|z| < 1 mm, 20 cm wide) under a 3 cm box tool whose grip starts 5 mm above it
+// and jumps `jump` down in one tick, then stays. The grip velocity follows the haptic loop's
+// estimate (difference quotient through the 100 Hz low-pass). Returns the deepest any point
+// went into the plate (m, ≥ 0) and, via `far_side`, whether V's centre ever got below the plate.
+double JumpAtAPlate(double jump, bool* far_side, double* largest_force) {
+  auto plate = std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.1, 0.1, 0.001));
+  const PointShellSettings s;
+  PointShellField field(plate, PointShell::Box(Eigen::Vector3d::Constant(0.015), 0.005), s);
+  ToolKinematics tool;
+  tool.p_WT = Eigen::Vector3d(0.0, 0.0, 0.001 + 0.015 + 0.005);
+  const double alpha = 1e-3 / (1e-3 + 1.0 / (2 * M_PI * 100.0));
+  Eigen::Vector3d previous = tool.p_WT;
+  double deepest = 0;
+  *far_side = false;
+  *largest_force = 0;
+  for (int k = 0; k < 1000; ++k) {
+    tool.time = 1e-3 * k;
+    if (k == 100) tool.p_WT.z() -= jump;
+    tool.v_WT += alpha * ((tool.p_WT - previous) / 1e-3 - tool.v_WT);
+    previous = tool.p_WT;
+    const ToolWrench w = field.Evaluate(tool);
+    EXPECT_TRUE(w.f_T_W.allFinite());
+    *largest_force = std::max(*largest_force, w.f_T_W.norm());
+    const Eigen::Matrix3d R = field.q_WV().toRotationMatrix();
+    for (const Eigen::Vector3d& r_T : field.shell().points_T) {
+      deepest = std::max(deepest, -plate->Evaluate(field.p_WV() + R * r_T, nullptr));
+    }
+    *far_side |= field.p_WV().z() < 0;
+  }
+  return deepest;
+}
+
+TEST(PointShellField, GripJumpingPastAThinPlateLeavesTheToolOnTheNearSide) {
+  const PointShellSettings s;
+  for (const double jump : {0.04, 0.10}) {
+    bool far_side = true;
+    double largest_force = 0;
+    const double deepest = JumpAtAPlate(jump, &far_side, &largest_force);
+    EXPECT_FALSE(far_side) << jump;
+    // No point ever past the depth limit plus one trusted step (0.8 mm < half the plate).
+    EXPECT_LT(deepest, s.max_penetration + s.min_step) << jump;
+    // The felt force is the coupling's stretch (at most the jump plus the 5 mm gap) and its
+    // damping on the loop's velocity estimate (≤ α · jump/dt ≈ 0.39 · jump/dt).
+    EXPECT_LT(largest_force, s.coupling_stiffness * (jump + 0.005) + s.coupling_damping * 0.39 * jump / 1e-3)
+        << jump;
+  }
+}
+
+// A field wrapper so the test keeps access to the shell field the loop owns.
+class Borrowed final : public ForceField {
+ public:
+  explicit Borrowed(ForceField* field) : field_(field) {}
+  ToolWrench Evaluate(const ToolKinematics& tool) noexcept override { return field_->Evaluate(tool); }
+  const char* name() const noexcept override { return "borrowed"; }
+
+ private:
+  ForceField* field_;
+};
+
+TEST(PointShellField, GripGlitchThroughTheLoopKeepsTheWrenchLimitAndTheNearSide) {
+  // The simulated device and the haptic loop: the true grip teleports 4 cm down through a 2 mm
+  // plate in one tick (a glitch) and stays; the loop's commanded force never exceeds its limit.
+  SimulatedSpidarG device(SimulatedDeviceConfig{});
+  LoopSettings loop_settings;
+  loop_settings.fk.max_residual = 5e-3;
+  loop_settings.ramp_time = 0.05;
+  HapticLoop loop(device.info(),
+                  EncoderCalibration::Nominal(device.info().encoder,
+                                              InverseKinematics(device.info().geometry, device.info().home_pose)),
+                  loop_settings);
+  auto plate = std::make_shared<TransformedDistanceField>(std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.1, 0.1, 0.001)),
+                                                          Eigen::Isometry3d(Eigen::Translation3d(0, 0, -0.03)));
+  PointShellField field(plate, PointShell::CrossGrip(0.04, 0.005, 9, 8));
+  auto scene = std::make_unique<HapticScene>();
+  scene->Add(std::make_unique<Borrowed>(&field));
+  loop.Publish(std::move(scene));
+  // The grip's lowest points (pole ends ± radius) are 5 mm above the plate's top.
+  const double above = -0.03 + 0.001 + 0.005 + 0.005;
+  int limited = 0;
+  for (int k = 0; k < 1500; ++k) {
+    const double z = k < 500 ? above : above - 0.04;
+    device.SetTruePose(GripPose::FromFrame(Eigen::Vector3d(0, 0, z), Eigen::Matrix3d::Identity(), M_PI / 2, 0.04));
+    device.Step(1e-3);
+    TickInputs in;
+    device.Read(&in.reading);
+    const TickOutputs out = loop.Step(in, 1e-3);
+    device.WriteTensions(out.tau);
+    ASSERT_LE(out.wrench_D.head<3>().norm(), loop_settings.max_force + 1e-9) << k;
+    limited += (out.events & kEventWrenchLimited) != 0;
+    EXPECT_GT(field.p_WV().z(), -0.03 + 0.001) << k;  // V's centre stays above the plate
+  }
+  EXPECT_GT(limited, 500);  // the coupling pulls hard (~35 N): the limit is what holds
 }
 
 }  // namespace

@@ -9,8 +9,9 @@
 // the field; the grip pose X_WT (what the user holds) pulls it through a 6-DOF spring-damper:
 //   f_c = k_c (p_WT − p_WV) + b_c (v_WT − v_WV)                       (force on V, at p_WV)
 //   τ_c = k_r log(R_WT R_WVᵀ) + b_r (ω_WT − ω_WV)                      (torque on V)
-// Each shell point x_i = p_WV + R_WV r_i with φ_i = φ(x_i) < 0 gets a penalty force along the
-// environment's unit gradient n_i,
+// with a soft zone (below): within `coupling_soft_zone` of the grip the spring and the damper
+// act at `soft_zone_ratio` of their strength. Each shell point x_i = p_WV + R_WV r_i with
+// φ_i = φ(x_i) < 0 gets a penalty force along the environment's unit gradient n_i,
 //   f_i = s · max(0, k_p (−φ_i) − b_p n_i·v(x_i)) n_i,  torque (x_i − p_WV) × f_i,
 // where s = min(1, N_ref / N_contact) averages the force when many points touch (McNeely's
 // trick: the contact stiffness never exceeds N_ref·k_p, which bounds the integration's
@@ -18,6 +19,37 @@
 // steps per tick (gyroscopic term neglected); the grip pose is held over the tick. The user
 // feels the coupling's reaction: f_T_W = −f_c, m_T_W = −τ_c (the spring joins p_WT and p_WV,
 // so no moment arm about p_WT), grasp torque 0.
+//
+// Soft zone (free-space noise). The grip pose comes from quantised encoders: held still, p_WT
+// jitters by about one encoder quantum (0.025 mm per string; ~0.02 mm rms in p_WT on the
+// simulated device) and the loop's finite-difference velocity by ~7 mm/s rms. V does not
+// follow that jitter (its coupling resonance is ~22 Hz), so a full-strength coupling renders
+// k_c·jitter + b_c·v_noise ≈ 0.03 N rms (0.09 N peaks) of chatter in free space, where the
+// proxy renders nothing. Inside a zone of radius δ = coupling_soft_zone (2 quanta) around the
+// grip the spring and the damper both act at ε = soft_zone_ratio of their strength; beyond δ
+// the spring has its full slope k_c and the damping ramps to b_c over [δ, 2δ]:
+//   F_s(r) = ε k_c r                 (r ≤ δ)      F_s(r) = k_c r − (1 − ε) k_c δ   (r > δ)
+// along the stretch, r = |p_WT − p_WV| (likewise for rotation with rot_coupling_soft_zone).
+// The spring stays conservative (a convex radial potential) and the damper dissipative (a
+// non-negative coefficient), so the coupling stays passive; contact keeps its stiffness (the
+// slope beyond δ is k_c; the felt force is only offset by (1 − ε) k_c δ = 0.045 N).
+//
+// Tunnelling (conservative advancement). Each substep's motion of V is limited so that no
+// shell point ends deeper than `max_penetration` in the environment: for a point at distance
+// φ_i moving by at most μ_i = |Δp| + |Δθ| |r_i| (Δp = h v, Δθ = h ω), φ is 1-Lipschitz, so the
+// move is safe while μ_i ≤ φ_i + d_max; a point near the surface may also use the local
+// plane, n_i·δx_i ≥ −(φ_i + d_max), for moves up to `min_step`. Points that are not
+// candidates this tick stay free while V's accumulated motion in the tick is below the reach
+// they were selected with. A point that would pass the depth limit receives an inelastic
+// impulse along n_i (its inward velocity is cut to what reaches the limit; rigid-body
+// effective mass); what is still blocked after a few impulses scales the whole substep's
+// motion and V's velocities (both only remove energy). So a grip that jumps 4 or 10 cm in one
+// tick (a glitch, a fast flick) pulls V against a 2 mm plate, never through it; the felt
+// force is then the coupling's k_c·stretch, which the loop's wrench limit caps. Keep
+// max_penetration + min_step below half of the thinnest wall of the scene. The limit also
+// holds ordinary contacts once the penalty runs out of depth (beyond s·k_p·d_max per point:
+// 0.6 N for a single touching point, 6 N for a face): V then rests on the limit and the user
+// feels the coupling alone (k_c, stiffer than the coupling and penalty in series).
 //
 // Cost: once per tick every shell point is tested at V's pose (a broad phase first: when
 // φ(p_WV) exceeds the shell's radius plus a margin nothing is tested); points within
@@ -28,7 +60,8 @@
 // k_p = 1000 N/m per point, N_ref = 10, 10 substeps): the coupling is what the device renders
 // (1 kN/m, within what a 1 kHz loop renders stably with a hand's damping; see proxy_field.h);
 // the contact (at most 10 kN/m) and the coupling give ω·h < 0.05 per substep, far inside the
-// explicit integrator's stability bound of 2.
+// explicit integrator's stability bound of 2. Lengths (soft zone, margin, max_penetration,
+// min_step) are in W: scale them with the world scale.
 #pragma once
 
 #include <memory>
@@ -83,6 +116,11 @@ struct PointShellSettings {
   double contact_margin = 2e-3;                               // candidate margin, m
   int max_points = 4096;                                      // shell size bound
   double max_dt = 0.01;                                       // longer ticks are clamped, s
+  double coupling_soft_zone = 5e-5;       // δ: radius of the soft zone (2 encoder quanta), m; 0: off
+  double rot_coupling_soft_zone = 2e-3;   // rotational soft zone, rad; 0: off
+  double soft_zone_ratio = 0.1;           // ε in [0, 1]: coupling strength inside the zone
+  double max_penetration = 6e-4;          // d_max: deepest a shell point may go, m
+  double min_step = 2e-4;                 // longest substep move judged by the local plane, m
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -127,14 +165,28 @@ class PointShellField final : public ForceField {
   const PointShellSettings& settings() const noexcept { return settings_; }
 
  private:
-  // Contact wrench from the candidate points at the current state (damping included).
+  // Contact wrench from the candidate points at the current state (damping included); stores
+  // each candidate's φ, gradient and lever r = R_WV r_T.
   ShellContact CandidateContact(const Eigen::Matrix3d& R_WV) noexcept;
+  // Coupling force and torque on V (soft zone included) for the grip state `tool` (q_T its
+  // rotation) at V's current state.
+  void Coupling(const ToolKinematics& tool, const Eigen::Quaterniond& q_T, Eigen::Vector3d* f_c,
+                Eigen::Vector3d* tau_c) const noexcept;
+  // Conservative advancement of one substep of length h: applies impulses and scales v_, w_
+  // so that moving by h v_, h w_ keeps every point above −max_penetration and the tick's
+  // travel (`travelled` so far) within `budget` (m). `inv_inertia_W` is R I⁻¹ Rᵀ.
+  void ConstrainMotion(double h, double budget, double travelled,
+                       const Eigen::Matrix3d& inv_inertia_W) noexcept;
 
   std::shared_ptr<const DistanceField> env_;
   PointShell shell_;
   PointShellSettings settings_;
   double shell_radius_;
   std::vector<int> candidates_;  // capacity #P, sized at construction
+  std::vector<double> candidate_phi_;             // φ of candidate k at the substep's start, m
+  std::vector<Eigen::Vector3d> candidate_g_;      // ∇φ of candidate k (normalised where used)
+  std::vector<Eigen::Vector3d> candidate_r_;      // lever R_WV r_T of candidate k, m
+  std::vector<double> point_radius_;              // |r_T| of each shell point, m
   int num_candidates_ = 0;
   int contacts_ = 0;
   bool initialized_ = false;
