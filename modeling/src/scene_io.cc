@@ -642,6 +642,25 @@ std::vector<ScenePart> ReadParts(const json& parts, const std::vector<Solid>& so
   return out;
 }
 
+// The "snap" object of a scene: every field optional, each > 0 and finite.
+SceneSnap ReadSnap(const json& j) {
+  ObjectReader r(j, "/snap", "the snap settings");
+  SceneSnap snap;
+  const auto positive = [&](const char* key, double fallback) {
+    const double v = r.Number(key, fallback);
+    if (!(v > 0) || !std::isfinite(v)) {
+      Fail(std::string("/snap/") + key, std::string("field '") + key + "' must be finite and > 0, got " + json(v).dump());
+    }
+    return v;
+  };
+  snap.max_force = positive("max_force", snap.max_force);
+  snap.vertex_radius = positive("vertex_radius", snap.vertex_radius);
+  snap.edge_radius = positive("edge_radius", snap.edge_radius);
+  snap.face_radius = positive("face_radius", snap.face_radius);
+  r.RejectUnknown({});
+  return snap;
+}
+
 }  // namespace
 
 Scene SceneFromJson(const json& j, const std::string& source) {
@@ -677,6 +696,7 @@ Scene SceneFromJson(const json& j, const std::string& source) {
       scene.solids.push_back(std::move(solid));
     }
     if (r.Has("parts")) scene.parts = ReadParts(r.Get("parts"), scene.solids);
+    if (r.Has("snap")) scene.snap = ReadSnap(r.Get("snap"));
     r.RejectUnknown({});
     return scene;
   } catch (const SceneError& e) {
@@ -723,6 +743,14 @@ json SceneToJson(const Scene& scene) {
       parts.push_back(jp);
     }
     j["parts"] = parts;
+  }
+  if (scene.snap) {
+    json snap;
+    snap["max_force"] = scene.snap->max_force;
+    snap["vertex_radius"] = scene.snap->vertex_radius;
+    snap["edge_radius"] = scene.snap->edge_radius;
+    snap["face_radius"] = scene.snap->face_radius;
+    j["snap"] = snap;
   }
   return j;
 }

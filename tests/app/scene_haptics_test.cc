@@ -3,6 +3,7 @@
 // force fields with their device-to-scene map, and `spidarcad run` on a scene file. Expected
 // values are closed forms (a sphere's distance, a plate face's spring law k × depth, the fit's
 // formula applied to known boxes), not the code's own output.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <memory>
@@ -13,9 +14,11 @@
 
 #include "golden_compare.h"
 #include "runtime/scene_haptics.h"
+#include "runtime/snap_features.h"
 #include "runtime/solid_distance_field.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/proxy_field.h"
+#include "spidarcad/haptics/snap_field.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad_runner.h"
@@ -255,6 +258,160 @@ TEST(RunCommandScene, BadSceneOrToolExitsTwoNamingTheFileOrOption) {
           "' --out '" + out + "'", "", "bad_tool");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--tool: 'hammer'"), std::string::npos) << r.err;
+}
+
+}  // namespace
+
+namespace {
+
+using spidarcad::app::CountSnapFeatures;
+using spidarcad::app::ExtractSnapFeatures;
+
+modeling::Scene Parse(const std::string& solids, const std::string& extra = "") {
+  return modeling::ParseScene(R"({"format": "spidarcad-scene", "version": 1, )" + extra +
+                              R"("solids": )" + solids + "}");
+}
+
+// True when `set` holds a point within 1e-9 m of p.
+bool Holds(const std::vector<Eigen::Vector3d>& set, const Eigen::Vector3d& p) {
+  return std::any_of(set.begin(), set.end(), [&](const Eigen::Vector3d& q) { return (p - q).norm() < 1e-9; });
+}
+
+TEST(SnapFeatures, RotatedMovedBoxHasItsEightCornersTwelveEdgesAndSixFaces) {
+  // A 40 x 20 x 10 mm box turned 30° about z and moved to (0.1, 0.05, -0.02): corners by hand.
+  const modeling::Scene scene = Parse(R"([{"name": "b", "root": {"type": "translate",
+      "translation": [0.1, 0.05, -0.02], "children": [{"type": "rotate", "axis": [0, 0, 1],
+      "angle": 0.5235987755982988, "children": [{"type": "box", "size": [0.04, 0.02, 0.01]}]}]}}])");
+  const haptics::SnapFeatures f = ExtractSnapFeatures(scene);
+  ASSERT_EQ(f.vertices_W.size(), 8u);
+  ASSERT_EQ(f.edges_W.size(), 12u);
+  ASSERT_EQ(f.faces_W.size(), 6u);
+  const double c = std::cos(M_PI / 6), s = std::sin(M_PI / 6);
+  for (int i = 0; i < 8; ++i) {
+    const double x = (i & 1 ? 0.02 : -0.02), y = (i & 2 ? 0.01 : -0.01), z = (i & 4 ? 0.005 : -0.005);
+    const Eigen::Vector3d corner(0.1 + c * x - s * y, 0.05 + s * x + c * y, -0.02 + z);
+    EXPECT_TRUE(Holds(f.vertices_W, corner)) << "corner " << corner.transpose();
+  }
+  // Edges: four of each length, both ends at corners.
+  int lengths[3] = {0, 0, 0};
+  for (const auto& [a, b] : f.edges_W) {
+    EXPECT_TRUE(Holds(f.vertices_W, a) && Holds(f.vertices_W, b));
+    const double l = (b - a).norm();
+    for (int k = 0; k < 3; ++k) lengths[k] += std::abs(l - std::array<double, 3>{0.04, 0.02, 0.01}[k]) < 1e-12;
+  }
+  EXPECT_EQ(lengths[0], 4);
+  EXPECT_EQ(lengths[1], 4);
+  EXPECT_EQ(lengths[2], 4);
+  // Faces: rectangles of corners; their areas are the box's, two of each.
+  double area_sum = 0;
+  for (const haptics::SnapFace& face : f.faces_W) {
+    ASSERT_EQ(face.polygon_W.size(), 4u);
+    for (const Eigen::Vector3d& p : face.polygon_W) EXPECT_TRUE(Holds(f.vertices_W, p));
+    area_sum += (face.polygon_W[1] - face.polygon_W[0]).cross(face.polygon_W[3] - face.polygon_W[0]).norm();
+  }
+  EXPECT_NEAR(area_sum, 2 * (0.04 * 0.02 + 0.04 * 0.01 + 0.02 * 0.01), 1e-15);
+}
+
+TEST(SnapFeatures, KeepsOnlyFeaturesOnTheSurfaceAndEachOnce) {
+  // A 20 mm cube with a 10 mm cube cut out of its (+,+,+) corner: the cube keeps 7 corners (the
+  // cut one is gone), the cutter gives its one corner inside the cube (5, 5, 5) mm; of the
+  // cutter's edges, the three from that corner are half inside, half out: dropped.
+  const modeling::Scene notch = Parse(R"([{"name": "n", "root": {"type": "difference", "children": [
+      {"type": "box", "size": [0.02, 0.02, 0.02]},
+      {"type": "translate", "translation": [0.01, 0.01, 0.01],
+       "children": [{"type": "box", "size": [0.01, 0.01, 0.01]}]}]}}])");
+  const haptics::SnapFeatures f = ExtractSnapFeatures(notch);
+  ASSERT_EQ(f.vertices_W.size(), 8u);
+  EXPECT_FALSE(Holds(f.vertices_W, Eigen::Vector3d(0.01, 0.01, 0.01)));
+  EXPECT_TRUE(Holds(f.vertices_W, Eigen::Vector3d(0.005, 0.005, 0.005)));
+  EXPECT_TRUE(Holds(f.vertices_W, Eigen::Vector3d(-0.01, -0.01, -0.01)));
+  // Cube edges not touching the notch: the 12 minus the 3 through the cut corner.
+  EXPECT_EQ(f.edges_W.size(), 9u);
+  // Faces: the cube's three faces away from the notch. The three it cuts lose a quarter: their
+  // test point 90 % of the way to the cut corner, (10, 9, 9) mm and alike, is in the air. The
+  // cutter's faces reach outside the cube.
+  EXPECT_EQ(f.faces_W.size(), 3u);
+  for (const haptics::SnapFace& face : f.faces_W) {
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : face.polygon_W) centroid += p / 4.0;
+    EXPECT_NEAR(centroid.minCoeff(), -0.01, 1e-12) << "a face away from the notch is at -10 mm";
+  }
+  // A box straddling a keep_original mirror plane maps onto itself: each feature once.
+  const modeling::Scene mirrored = Parse(R"([{"name": "m", "root": {"type": "mirror",
+      "normal": [1, 0, 0], "keep_original": true,
+      "children": [{"type": "box", "size": [0.02, 0.01, 0.01]}]}}])");
+  const spidarcad::app::SnapFeatureCounts counts = CountSnapFeatures(ExtractSnapFeatures(mirrored));
+  EXPECT_EQ(counts.ToString(), "8 vertices, 12 edges, 6 faces");
+  // Spheres have no features.
+  EXPECT_EQ(CountSnapFeatures(ExtractSnapFeatures(SphereScene())).ToString(), "0 vertices, 0 edges, 0 faces");
+}
+
+TEST(BuildHapticScene, SnapSceneAddsASnapFieldPullingTowardTheCornerWithTheDocumentedProfile) {
+  const std::string box = R"([{"name": "b", "root": {"type": "box", "size": [0.04, 0.04, 0.04]}}])";
+  SceneHapticsOptions options;
+  options.world_scale = 1.0;
+  options.p_WDo = Eigen::Vector3d::Zero();
+  // Without "snap": the proxy only.
+  EXPECT_EQ(BuildHapticScene(Parse(box), options).fields.size(), 1u);
+  SceneHaptics built = BuildHapticScene(
+      Parse(box, R"("snap": {"max_force": 0.8, "vertex_radius": 0.01, "edge_radius": 0.006, "face_radius": 0.004}, )"),
+      options);
+  ASSERT_EQ(built.fields.size(), 2u);
+  EXPECT_EQ(built.fields[1].kind, "snap");
+  EXPECT_EQ(built.fields[1].solid, "8 vertices, 12 edges, 6 faces");
+  // Outside the box, 3 mm from the corner (0.02, 0.02, 0.02) along the diagonal: only the vertex
+  // pulls (within half its radius), toward the corner, 0.8 N · tanh(4d/r) · w(d),
+  // w = 1 (d < r/2). The proxy is out of contact.
+  const Eigen::Vector3d corner(0.02, 0.02, 0.02);
+  const Eigen::Vector3d u = Eigen::Vector3d::Ones().normalized();
+  for (double d : {0.001, 0.003, 0.0045}) {
+    haptics::ToolKinematics tool;
+    tool.p_WT = corner + d * u;
+    const haptics::ToolWrench w = built.scene->Evaluate(tool);
+    const double expected = 0.8 * std::tanh(4.0 * d / 0.01);
+    EXPECT_NEAR(w.f_T_W.norm(), expected, 1e-9) << "d " << d;
+    EXPECT_NEAR(w.f_T_W.normalized().dot(-u), 1.0, 1e-9) << "d " << d;
+  }
+}
+
+TEST(SnapFeatures, PrismCylinderAndPlaneGiveTheirFeaturesAndHugeArraysAreRefused) {
+  // A right triangle (legs 30 and 20 mm) extruded 10 mm: 6 vertices, 9 edges, 3 sides + 2 caps.
+  const modeling::Scene prism = Parse(R"([{"name": "p", "root": {"type": "extrusion",
+      "profile": [[0, 0], [0.03, 0], [0, 0.02]], "height": 0.01}}])");
+  const haptics::SnapFeatures f = ExtractSnapFeatures(prism);
+  EXPECT_EQ(CountSnapFeatures(f).ToString(), "6 vertices, 9 edges, 5 faces");
+  EXPECT_TRUE(Holds(f.vertices_W, Eigen::Vector3d(0.03, 0, 0.005)));
+  EXPECT_TRUE(Holds(f.vertices_W, Eigen::Vector3d(0, 0.02, -0.005)));
+  // A cylinder: its two rims as chords (every chord end on the circle r = 10 mm), two caps.
+  const modeling::Scene post = Parse(R"([{"name": "c", "root": {"type": "cylinder", "radius": 0.01, "height": 0.02}}])");
+  const haptics::SnapFeatures c = ExtractSnapFeatures(post);
+  EXPECT_EQ(CountSnapFeatures(c).ToString(),
+            "0 vertices, " + std::to_string(2 * spidarcad::app::kCylinderSegments) + " edges, 2 faces");
+  for (const auto& [a, b] : c.edges_W) {
+    EXPECT_NEAR(a.head<2>().norm(), 0.01, 1e-12);
+    EXPECT_NEAR(std::abs(a.z()), 0.01, 1e-12);
+    EXPECT_NEAR(b.z(), a.z(), 1e-12);
+  }
+  // A half-space turned by 90° about x: the plane y = -0.05 (normal (0, -1, 0) after the turn of
+  // the normal (0, 0, 1)), as one unbounded face.
+  const modeling::Scene ground = Parse(R"([{"name": "g", "root": {"type": "rotate", "axis": [1, 0, 0],
+      "angle": 1.5707963267948966, "children": [{"type": "half_space", "normal": [0, 0, 1], "offset": 0.05}]}}])");
+  const haptics::SnapFeatures g = ExtractSnapFeatures(ground);
+  ASSERT_EQ(g.faces_W.size(), 1u);
+  EXPECT_TRUE(g.faces_W[0].polygon_W.empty());
+  EXPECT_NEAR(std::abs(g.faces_W[0].normal_W.y()), 1.0, 1e-12);
+  EXPECT_NEAR(g.faces_W[0].point_W.y(), -0.05, 1e-12);
+  // 300 separate boxes: 2400 corners alone, more than a tick can scan: refused, saying so.
+  const modeling::Scene many = Parse(R"([{"name": "m", "root": {"type": "linear_array", "step": [0.01, 0, 0],
+      "count": 300, "children": [{"type": "box", "size": [0.005, 0.005, 0.005]}]}}])");
+  try {
+    ExtractSnapFeatures(many);
+    ADD_FAILURE() << "no error for 300 boxes";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("7800 snap features (2400 vertices, 3600 edges, 1800 faces)"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -371,5 +371,62 @@ TEST(SceneIo, BadPartsAreNamedWithLineAndField) {
   }
 }
 
+TEST(SceneIo, SnapIsOptionalTakesDefaultsAndRoundTrips) {
+  const std::string solids =
+      "\"solids\": [{\"name\": \"a\", \"root\": {\"type\": \"box\", \"size\": [0.02, 0.02, 0.02]}}]";
+  // Absent: no snap (old files load as before).
+  const Scene plain = ParseScene("{\"format\": \"spidarcad-scene\", \"version\": 1, " + solids + "}");
+  EXPECT_FALSE(plain.snap.has_value());
+  EXPECT_EQ(SceneToJson(plain).count("snap"), 0u);
+  EXPECT_FALSE(LoadScene(kScenes + "platform.json").snap.has_value());
+  // Empty object: every default (the documented values).
+  const Scene defaults =
+      ParseScene("{\"format\": \"spidarcad-scene\", \"version\": 1, \"snap\": {}, " + solids + "}");
+  ASSERT_TRUE(defaults.snap.has_value());
+  EXPECT_EQ(defaults.snap->max_force, 1.0);
+  EXPECT_EQ(defaults.snap->vertex_radius, 0.008);
+  EXPECT_EQ(defaults.snap->edge_radius, 0.005);
+  EXPECT_EQ(defaults.snap->face_radius, 0.003);
+  // Given values survive save and load bit for bit.
+  const Scene given = ParseScene("{\"format\": \"spidarcad-scene\", \"version\": 1, \"snap\": "
+                                 "{\"max_force\": 0.7, \"vertex_radius\": 0.011, \"edge_radius\": 0.0061, "
+                                 "\"face_radius\": 0.0023}, " + solids + "}");
+  const std::string path = kOut + "snap_round_trip.json";
+  SaveScene(given, path);
+  const Scene back = LoadScene(path);
+  ASSERT_TRUE(back.snap.has_value());
+  EXPECT_EQ(back.snap->max_force, 0.7);
+  EXPECT_EQ(back.snap->vertex_radius, 0.011);
+  EXPECT_EQ(back.snap->edge_radius, 0.0061);
+  EXPECT_EQ(back.snap->face_radius, 0.0023);
+}
+
+TEST(SceneIo, BadSnapIsNamedWithLineAndField) {
+  const std::string head =
+      "{\n  \"format\": \"spidarcad-scene\", \"version\": 1,\n"
+      "  \"solids\": [{\"name\": \"a\", \"root\": {\"type\": \"sphere\", \"radius\": 0.01}}],\n";
+  struct Case {
+    const char* snap;
+    const char* pointer;
+    const char* text;
+  };
+  const Case cases[] = {
+      {"  \"snap\": {\"vertex_radius\": -0.01}\n", "/snap/vertex_radius", "must be finite and > 0, got -0.01"},
+      {"  \"snap\": {\"max_force\": 0}\n", "/snap/max_force", "must be finite and > 0, got 0"},
+      {"  \"snap\": {\"radius\": 0.01}\n", "/snap/radius", "unknown field 'radius'"},
+      {"  \"snap\": {\"edge_radius\": \"big\"}\n", "/snap/edge_radius", "must be a number"},
+      {"  \"snap\": true\n", "/snap", "must be a JSON object"},
+  };
+  int index = 0;
+  for (const Case& c : cases) {
+    const std::string path = WriteFile("bad_snap_" + std::to_string(index++) + ".json", head + c.snap + "}\n");
+    const SceneError e = LoadError(path);
+    EXPECT_EQ(e.pointer(), c.pointer) << c.snap;
+    EXPECT_EQ(e.line(), 4) << c.snap;
+    EXPECT_THAT(e.what(), HasSubstr(path + ":4:")) << c.snap;
+    EXPECT_THAT(e.what(), HasSubstr(c.text)) << c.snap;
+  }
+}
+
 }  // namespace
 }  // namespace spidarcad::modeling

@@ -1,10 +1,13 @@
 // `spidarcad run`: a headless haptic session. The full haptic loop (HapticLoop) runs on a
 // virtual clock at 1 kHz against the simulated SPIDAR-G (strings, encoders and calibration
 // error included), gripped by a simulated hand that follows a scripted trajectory and is pushed
-// by the device's wrench. One CSV row per tick; a summary on stdout.
+// by the device's wrench. One CSV row per tick; a summary on stdout. --device picks the path to
+// the device (RunRig): the simulated SPIDAR-G directly, the USB driver over the in-process board
+// simulator (board-sim), or the USB driver over libusb to a real board (usb, real time).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <chrono>
 #include <cmath>
+#include <thread>
 #include <algorithm>
 #include <fstream>
 #include <iomanip>
@@ -24,7 +27,10 @@
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/loop_runner.h"
 #include "spidarcad/haptics/simulated_device.h"
+#include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/simulated_hand.h"
+#include "spidarcad/haptics/usb_device.h"
+#include "spidarcad/haptics/usb_transport.h"
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/scene_io.h"
 
@@ -37,6 +43,20 @@ constexpr const char* kRunHelp =
     "errors, noise, string stretch, motor lag; nominal calibration) is gripped by a simulated\n"
     "hand (mass-spring-damper) that follows the trajectory and is pushed by the device.\n"
     "\n"
+    "--device:\n"
+    "  simulated  (default) the loop reads and commands the simulated SPIDAR-G directly\n"
+    "  board-sim  the same simulated SPIDAR-G behind the controller board's firmware\n"
+    "             simulator, driven by the USB driver (UsbSpidarG) over the in-process loopback\n"
+    "             transport: the driver's whole path, packets byte for byte (docs/protocol.md),\n"
+    "             without hardware. Forces match `simulated` to within a few hundredths of a\n"
+    "             newton (tensions travel in mN; the handshake shifts the device's noise by a\n"
+    "             sample); the summary adds the link statistics.\n"
+    "  usb        a real controller board over libusb. The user's hand moves the grip: the loop\n"
+    "             runs in real time (absolute 1 ms sleeps) for the trajectory's duration, which\n"
+    "             is otherwise unused; x..grasp are then the pose measured by forward\n"
+    "             kinematics. Nothing attached or no permission: exit 2 naming what to check\n"
+    "             (`spidarcad device list`, the udev rules in assets/udev/).\n"
+    "\n"
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
     "coordinates), or a scene file (docs/scene-format.md) of implicit solids:\n"
@@ -45,6 +65,8 @@ constexpr const char* kRunHelp =
     "                 virtual coupling against the union of the solids: torques are felt\n"
     "--stiffness and --damping are what the hand feels at the grip (N/m and N·s/m of grip motion;\n"
     "the fields get them divided by the world scale s). FE parts are not rendered by `run` yet.\n"
+    "A scene with a \"snap\" object adds snap forces toward its solids' vertices, edges and\n"
+    "faces (docs/scene-format.md, \"Snap forces\"); the summary gives the feature counts.\n"
     "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
     "assembly field instead: parts are picked with the grasp, carried with six-DOF contact and\n"
     "seated peg in hole; X_WD is then identity unless --world-scale/--world-origin say otherwise.\n"
@@ -60,8 +82,8 @@ constexpr const char* kRunHelp =
     "\n"
     "Output CSV, one row per tick, header line first:\n"
     "  t                 time, s\n"
-    "  x,y,z,qw..qz      true grip pose (the hand's), D\n"
-    "  grasp             true grasp angle, rad\n"
+    "  x,y,z,qw..qz      true grip pose (the hand's), D (usb: the measured pose)\n"
+    "  grasp             true grasp angle, rad (usb: measured)\n"
     "  fx,fy,fz,mx,my,mz,g  wrench commanded by the loop (after safety), D: N, N·m about p0,\n"
     "                    grasp torque N·m (> 0 squeezes)\n"
     "  tau1..tau8        string tensions sent to the device, N\n"
@@ -95,10 +117,156 @@ std::string Fixed(double v, int digits) {
   return os.str();
 }
 
+// The device side of a run: the Device the loop reads and commands, and (simulated devices)
+// the physical SPIDAR-G the simulated hand grips.
+class RunRig {
+ public:
+  virtual ~RunRig() = default;
+  // The loop's description of the device.
+  virtual const haptics::DeviceInfo& info() const = 0;
+  // The simulated SPIDAR-G the hand grips; null for a real board (the user's hand).
+  virtual haptics::SimulatedSpidarG* physical() = 0;
+  // Before the first tick, with the hand's initial grip pose (D): opens the link; throws
+  // InputError when it cannot.
+  virtual void Start(const haptics::GripPose& /*initial*/) {}
+  // One sample period dt (s): advances the physics (simulated) and reads the encoders.
+  virtual void Read(double dt, haptics::EncoderReading* reading) = 0;
+  // Commands the tensions of the tick, N.
+  virtual void Write(const haptics::Vector8d& tau) = 0;
+  // For the summary: "simulated (seed 1)".
+  virtual std::string Describe() const = 0;
+  // For the summary: the link statistics (empty: none).
+  virtual std::string LinkSummary() const { return {}; }
+};
+
+// --device simulated: the loop talks to SimulatedSpidarG directly.
+class SimulatedRig final : public RunRig {
+ public:
+  explicit SimulatedRig(std::uint64_t seed) : seed_(seed), device_(Config(seed)) {}
+  const haptics::DeviceInfo& info() const override { return device_.info(); }
+  haptics::SimulatedSpidarG* physical() override { return &device_; }
+  void Read(double dt, haptics::EncoderReading* reading) override {
+    device_.Step(dt);
+    device_.Read(reading);
+  }
+  void Write(const haptics::Vector8d& tau) override { device_.WriteTensions(tau); }
+  std::string Describe() const override {
+    return "simulated (seed " + std::to_string(seed_) + ")";
+  }
+
+ private:
+  static haptics::SimulatedDeviceConfig Config(std::uint64_t seed) {
+    haptics::SimulatedDeviceConfig config;
+    config.seed = seed;
+    return config;
+  }
+  std::uint64_t seed_;
+  haptics::SimulatedSpidarG device_;
+};
+
+// Shared by board-sim and usb: the USB driver and its link summary.
+std::string DriverLinkSummary(const haptics::usb::UsbSpidarG& driver) {
+  const haptics::usb::UsbLinkStats& s = driver.stats();
+  std::ostringstream os;
+  os << "usb link: states " << s.states << ", lost " << s.lost << ", corrupt " << s.corrupt
+     << ", stale " << s.stale << ", timeouts " << s.timeouts << ", comm_error ticks "
+     << s.comm_error_ticks << ", disconnects " << s.disconnects << ", connects " << s.connects
+     << "; final status " << haptics::DeviceStatusName(driver.status());
+  return os.str();
+}
+
+// --device board-sim: UsbSpidarG over LoopbackTransport to a BoardSimulator whose physical
+// device has the same configuration (and seed) as `simulated`. The board advances one sample
+// period each time the driver waits for a State (Read), so the run stays on the virtual clock.
+class BoardSimRig final : public RunRig {
+ public:
+  explicit BoardSimRig(std::uint64_t seed)
+      : seed_(seed),
+        board_(Config(seed)),
+        driver_(std::make_unique<haptics::usb::LoopbackTransport>(&board_), board_.device().info()) {}
+  const haptics::DeviceInfo& info() const override { return driver_.info(); }
+  haptics::SimulatedSpidarG* physical() override { return &board_.device(); }
+  void Start(const haptics::GripPose& initial) override {
+    // The board's device runs during the handshake: put the grip where the hand holds it.
+    board_.device().SetTruePose(initial);
+    if (driver_.Open() != haptics::DeviceStatus::kOk) {
+      throw InputError(std::string("--device board-sim: the driver's handshake with the board "
+                                   "simulator failed: ") + driver_.last_error());
+    }
+  }
+  void Read(double, haptics::EncoderReading* reading) override { driver_.Read(reading); }
+  void Write(const haptics::Vector8d& tau) override { driver_.WriteTensions(tau); }
+  std::string Describe() const override {
+    return "board-sim (USB driver over the board simulator, seed " + std::to_string(seed_) + ")";
+  }
+  std::string LinkSummary() const override {
+    return DriverLinkSummary(driver_) + "; board rejected " +
+           std::to_string(board_.rejected_packets()) + ", watchdog trips " +
+           std::to_string(board_.watchdog_trips());
+  }
+
+ private:
+  static haptics::usb::BoardConfig Config(std::uint64_t seed) {
+    haptics::usb::BoardConfig config;
+    config.device.seed = seed;
+    return config;
+  }
+  std::uint64_t seed_;
+  haptics::usb::BoardSimulator board_;  // declared before the driver: outlives it
+  haptics::usb::UsbSpidarG driver_;
+};
+
+// --device usb: a real board over libusb. The board cannot report its geometry: the nominal
+// SPIDAR-G's (the simulated device's defaults, without its errors) is assumed.
+class UsbRig final : public RunRig {
+ public:
+  UsbRig() : driver_(std::make_unique<haptics::usb::LibusbTransport>(), NominalInfo()) {}
+  const haptics::DeviceInfo& info() const override { return driver_.info(); }
+  haptics::SimulatedSpidarG* physical() override { return nullptr; }
+  void Start(const haptics::GripPose&) override {
+    const haptics::DeviceStatus status = driver_.Open();
+    if (status == haptics::DeviceStatus::kOk) return;
+    std::string what = std::string("--device usb: no SPIDAR-G controller board could be opened (") +
+                       haptics::DeviceStatusName(status) + ": " + driver_.last_error() + ").\n";
+    what +=
+        "  Check that the board is plugged in and powered, and run `spidarcad device list`: it\n"
+        "  lists the boards on the bus and says when permission is missing. To use the board\n"
+        "  without root, install the udev rules assets/udev/99-spidarcad.rules once:\n"
+        "    sudo cp assets/udev/99-spidarcad.rules /etc/udev/rules.d/\n"
+        "    sudo udevadm control --reload-rules && sudo udevadm trigger\n"
+        "  and replug the board. To run without hardware use --device simulated or board-sim.";
+    throw InputError(what);
+  }
+  void Read(double, haptics::EncoderReading* reading) override { driver_.Read(reading); }
+  void Write(const haptics::Vector8d& tau) override { driver_.WriteTensions(tau); }
+  std::string Describe() const override { return "usb (libusb)"; }
+  std::string LinkSummary() const override { return DriverLinkSummary(driver_); }
+
+ private:
+  static haptics::DeviceInfo NominalInfo() {
+    const haptics::SimulatedDeviceConfig nominal;
+    haptics::DeviceInfo info;
+    info.geometry = nominal.geometry;
+    info.encoder = nominal.encoder;
+    info.home_pose = nominal.home_pose;
+    info.tension_min = 0.0;
+    info.tension_max = nominal.tension_max;
+    return info;
+  }
+  haptics::usb::UsbSpidarG driver_;
+};
+
+// The rig of --device `name` (simulated, board-sim or usb; checked by the caller).
+std::unique_ptr<RunRig> MakeRig(const std::string& name, std::uint64_t seed) {
+  if (name == "board-sim") return std::make_unique<BoardSimRig>(seed);
+  if (name == "usb") return std::make_unique<UsbRig>();
+  return std::make_unique<SimulatedRig>(seed);
+}
+
 void RunRun(const RunOptions& options) {
-  if (options.device != "simulated") {
+  if (options.device != "simulated" && options.device != "board-sim" && options.device != "usb") {
     throw InputError("--device: '" + options.device +
-                     "' is not available for `run`; only 'simulated' exists");
+                     "' is not a device; use simulated, board-sim or usb");
   }
   std::unique_ptr<haptics::HapticScene> scene;
   std::string scene_name = "empty";
@@ -231,13 +399,9 @@ void RunRun(const RunOptions& options) {
     throw InputError(std::string("--trajectory: ") + e.what());
   }
 
-  std::ofstream out(options.out);
-  if (!out) throw InputError("--out: cannot write '" + options.out + "'");
-
-  haptics::SimulatedDeviceConfig config;
-  config.seed = options.seed;
-  haptics::SimulatedSpidarG device(config);
-  const haptics::DeviceInfo& info = device.info();
+  std::unique_ptr<RunRig> rig = MakeRig(options.device, options.seed);
+  const haptics::DeviceInfo& info = rig->info();
+  haptics::SimulatedSpidarG* physical = rig->physical();  // null for a real board
   const haptics::EncoderCalibration calibration = haptics::EncoderCalibration::Nominal(
       info.encoder, haptics::InverseKinematics(info.geometry, info.home_pose));
   haptics::HapticLoop loop(info, calibration, settings);
@@ -248,29 +412,47 @@ void RunRun(const RunOptions& options) {
   const long ticks = static_cast<long>(std::floor((trajectory.end_time() - t0) / dt + 1e-9)) + 1;
   haptics::SimulatedHand hand(hand_settings, trajectory.Sample(t0), info.geometry.d);
   haptics::LatencyHistogram tick_time(1e-7, 100000);
+  rig->Start(hand.pose());  // board-sim / usb: the driver's handshake (throws when no board answers)
 
+  std::ofstream out(options.out);
+  if (!out) throw InputError("--out: cannot write '" + options.out + "'");
   out << "t,x,y,z,qw,qx,qy,qz,grasp,fx,fy,fz,mx,my,mz,g,tau1,tau2,tau3,tau4,tau5,tau6,tau7,tau8,"
          "tick_us,events,fk_x,fk_y,fk_z\n";
   std::string buffer;
   double max_force = 0.0;
+  const auto wall_start = std::chrono::steady_clock::now();
   for (long k = 0; k < ticks; ++k) {
     const double t = t0 + k * dt;
-    hand.Step(trajectory.Sample(t), device.TrueWrench(), dt);
-    device.SetTruePose(hand.pose());
-    device.Step(dt);
     haptics::TickInputs inputs;
-    device.Read(&inputs.reading);
+    if (physical) {
+      hand.Step(trajectory.Sample(t), physical->TrueWrench(), dt);
+      physical->SetTruePose(hand.pose());
+    } else {
+      // A real board: tick k starts at its absolute time (no drift); lateness is reported.
+      const auto due = wall_start + std::chrono::microseconds(k * 1000);
+      std::this_thread::sleep_until(due);
+      inputs.lateness = std::chrono::duration<double>(std::chrono::steady_clock::now() - due).count();
+    }
+    rig->Read(dt, &inputs.reading);
     const auto start = std::chrono::steady_clock::now();
     const haptics::TickOutputs result = loop.Step(inputs, dt);
     const auto stop = std::chrono::steady_clock::now();
-    device.WriteTensions(result.tau);
+    rig->Write(result.tau);
     const double seconds = std::chrono::duration<double>(stop - start).count();
     tick_time.Add(seconds);
     max_force = std::max(max_force, result.wrench_D.head<3>().norm());
 
-    const Eigen::Quaterniond q(hand.rotation());
-    const double row[] = {t, hand.position().x(), hand.position().y(), hand.position().z(),
-                          q.w(), q.x(), q.y(), q.z(), hand.grasp()};
+    Eigen::Vector3d p = hand.position();
+    Eigen::Quaterniond q(hand.rotation());
+    double grasp = hand.grasp();
+    if (!physical) {  // a real board: the measured pose (NaN without one)
+      const bool ok = result.fk_status == haptics::FkStatus::kOk;
+      p = ok ? result.pose_D.p0 : Eigen::Vector3d::Constant(std::nan(""));
+      q = ok ? Eigen::Quaterniond(result.pose_D.Rotation())
+             : Eigen::Quaterniond(std::nan(""), std::nan(""), std::nan(""), std::nan(""));
+      grasp = ok ? result.pose_D.Grasp() : std::nan("");
+    }
+    const double row[] = {t, p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), grasp};
     for (double v : row) buffer += FormatNumber(v) + ',';
     for (int i = 0; i < 7; ++i) buffer += FormatNumber(result.wrench_D(i)) + ',';
     for (int i = 0; i < 8; ++i) buffer += FormatNumber(result.tau(i)) + ',';
@@ -291,10 +473,15 @@ void RunRun(const RunOptions& options) {
   if (!out) throw InputError("--out: failed writing '" + options.out + "'");
 
   std::cout << "run: " << ticks << " ticks (" << Fixed((ticks - 1) * dt, 3)
-            << " s at 1000 Hz, virtual clock), scene " << scene_name << " (" << num_fields
-            << " field" << (num_fields == 1 ? "" : "s") << "), device simulated (seed "
-            << options.seed << "), hand " << FormatNumber(hand_settings.stiffness) << " N/m, "
-            << FormatNumber(hand_settings.damping) << " N·s/m\n";
+            << " s at 1000 Hz, " << (physical ? "virtual clock" : "real time") << "), scene " << scene_name << " (" << num_fields
+            << " field" << (num_fields == 1 ? "" : "s") << "), device " << rig->Describe();
+  if (physical) {
+    std::cout << ", hand " << FormatNumber(hand_settings.stiffness) << " N/m, "
+              << FormatNumber(hand_settings.damping) << " N·s/m";
+  }
+  std::cout << "\n";
+  const std::string link = rig->LinkSummary();
+  if (!link.empty()) std::cout << link << "\n";
   if (!fields_line.empty()) std::cout << fields_line << "\n";
   std::cout << map_line << "\n";
   std::cout << "tick time [us]: p50 " << Fixed(tick_time.Percentile(0.5) * 1e6, 1) << "  p99 "
@@ -323,7 +510,9 @@ void RegisterRunCommand(CLI::App& app) {
   cmd->add_option("--trajectory", options->trajectory, "Trajectory CSV (t,x,y,z,qw,qx,qy,qz,grasp)")
       ->required();
   cmd->add_option("--out", options->out, "Result CSV, one row per tick")->required();
-  cmd->add_option("--device", options->device, "Device: simulated (default)");
+  cmd->add_option("--device", options->device,
+                  "Device: simulated (default), board-sim (USB driver over the board simulator) "
+                  "or usb (a real board)");
   cmd->add_option("--hand", options->hand,
                   "Hand spring stiffness,damping [N/m,N·s/m] (default 300,20)")
       ->delimiter(',')

@@ -8,9 +8,11 @@
 #include <stdexcept>
 #include <utility>
 
+#include "runtime/snap_features.h"
 #include "runtime/solid_distance_field.h"
 #include "spidarcad/haptics/point_shell_field.h"
 #include "spidarcad/haptics/proxy_field.h"
+#include "spidarcad/haptics/snap_field.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
@@ -75,6 +77,7 @@ void SceneHapticsOptions::Validate() const {
   Require(PositiveFinite(fit_fraction) && fit_fraction <= 1.0, "fit_fraction", fit_fraction,
           "must be in (0, 1]");
   Require(PositiveFinite(grip_d), "grip_d", grip_d, "must be finite and > 0 m");
+  Require(PositiveFinite(snap_tolerance), "snap_tolerance", snap_tolerance, "must be finite and > 0 m");
 }
 
 WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side, double fraction) {
@@ -157,6 +160,11 @@ SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOp
     settings.coupling_damping = options.coupling_damping / s;
     settings.contact_stiffness = options.coupling_stiffness / s;
     settings.contact_margin = 2e-3 * s;
+    // Lengths of the coupling's soft zone (2 encoder quanta of grip jitter) and of the swept
+    // step are grip lengths: map them into W. max_penetration stays 0.6 mm in W (it must stay
+    // below half the thinnest wall of the scene, and the scenes' walls do not scale with s).
+    settings.coupling_soft_zone = 5e-5 * s;
+    settings.min_step = 2e-4 * s;
     settings.max_points = std::max(settings.max_points, shell.size());
     // Mass and inertia scale with the world so the virtual tool's dynamics (ω = √(k/m)) do not
     // change with s: m ∝ 1/s keeps k/m fixed; inertia keeps k_r/I fixed (k_r is not rescaled).
@@ -165,6 +173,21 @@ SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOp
     out.fields.push_back({"point_shell", fields.size() == 1
                                               ? scene.solids.front().name
                                               : "union of " + std::to_string(fields.size()) + " solids"});
+  }
+  if (scene.snap) {
+    // Snap forces: the solids' features in W, radii in W, the force as felt (force_scale 1).
+    const haptics::SnapFeatures features = ExtractSnapFeatures(scene, options.snap_tolerance);
+    const SnapFeatureCounts counts = CountSnapFeatures(features);
+    out.snap = counts;
+    if (counts.vertices + counts.edges + counts.faces > 0) {
+      haptics::SnapSettings snap;
+      snap.max_force = scene.snap->max_force;
+      snap.vertex_radius = scene.snap->vertex_radius;
+      snap.edge_radius = scene.snap->edge_radius;
+      snap.face_radius = scene.snap->face_radius;
+      out.scene->Add(std::make_unique<haptics::SnapField>(features, snap));
+      out.fields.push_back({"snap", counts.ToString()});
+    }
   }
   return out;
 }

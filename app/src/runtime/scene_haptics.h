@@ -8,6 +8,10 @@
 //  - kShell: the grip as a rigid six-DOF tool: one PointShellField whose shell is the cross grip
 //    (two capsules, poles ±d, radius shell_radius, both scaled into W), against the union of
 //    every solid (min of the values); torques are felt.
+// Snap (either tool model): when the scene has a "snap" object (modeling::SceneSnap), one more
+// field, a haptics::SnapField on the vertices, edges and faces of the solids that lie on the
+// scene's surface (runtime/snap_features.h), pulls the grip centre toward the feature nearest
+// it; radii in W, the force as felt. No field is added when no feature survives.
 //
 // Device workspace to scene, X_WD (haptics::LoopSettings): p_W = s·p_D + p_WDo, no rotation.
 // Fit (when the options give no scale or origin): every solid's box is found with
@@ -31,6 +35,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "runtime/snap_features.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/modeling/scene_io.h"
 
@@ -71,6 +76,9 @@ struct SceneHapticsOptions {
   double fit_fraction = 0.8;
   // Pole half-length d of the grip [m] (the device's geometry.d), for the shell.
   double grip_d = 0.04;
+  // Snap features: how far off the scene's surface (m, W) a primitive's feature may lie and
+  // still count as on it (see ExtractSnapFeatures).
+  double snap_tolerance = 1e-5;
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -91,8 +99,8 @@ WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side,
 
 // One field of a built scene, for summaries.
 struct FieldInfo {
-  std::string kind;   // "proxy", "point_shell"
-  std::string solid;  // the solid's name, or "union of N solids"
+  std::string kind;   // "proxy", "point_shell", "snap"
+  std::string solid;  // the solid's name, "union of N solids", or (snap) the feature counts
 };
 
 // A HapticScene built from a scene, with the X_WD it was built for.
@@ -100,6 +108,8 @@ struct SceneHaptics {
   std::unique_ptr<haptics::HapticScene> scene;
   WorkspaceMap map;
   std::vector<FieldInfo> fields;
+  // The snap features found (all zero when the scene has no "snap" or none survived).
+  SnapFeatureCounts snap;
   // Copies map.world_scale and map.p_WDo into `settings` (the loop that renders the scene).
   void ApplyTo(haptics::LoopSettings* settings) const;
 };
@@ -107,7 +117,7 @@ struct SceneHaptics {
 // Builds the force fields of `scene` (see the file comment). Compiles every solid (the tape is
 // shared by the field and nothing else). Throws std::invalid_argument naming the solid (its
 // name and JSON pointer /solids/i/root) when it does not compile, or the option when the
-// options are bad, or when the scene has no solids.
+// options are bad, or when the scene has no solids, or (snap) too many features.
 SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOptions& options);
 
 }  // namespace spidarcad::app

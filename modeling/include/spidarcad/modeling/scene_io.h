@@ -5,6 +5,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -49,11 +50,22 @@ struct ScenePart {
   std::vector<SceneSeat> seats;                                    // where it fits
 };
 
-// A scene: a description, its solids and (optionally) assembly parts made of them.
+// Snap forces of a scene (docs/scene-format.md, "snap"): a gentle pull of the grip toward the
+// vertices, edges and faces of the solids near it (haptics::SnapField). Radii in scene metres
+// (W), the force in N as felt at the grip. Every field is > 0 and finite.
+struct SceneSnap {
+  double max_force = 1.0;       // F_max, N
+  double vertex_radius = 8e-3;  // capture radius of vertices, m
+  double edge_radius = 5e-3;    // capture radius of edges, m
+  double face_radius = 3e-3;    // capture radius of faces, m
+};
+
+// A scene: a description, its solids, (optionally) assembly parts made of them and snap forces.
 struct Scene {
   std::string description;
   std::vector<Solid> solids;
   std::vector<ScenePart> parts;
+  std::optional<SceneSnap> snap;  // absent: no snap forces
 };
 
 // A bad scene file or document: where (file, line, column, JSON pointer) and what.
