@@ -451,11 +451,12 @@ namespace spidarcad::app {
 namespace {
 
 // FE mode's default touch settings on `model`: tool radius = mean edge, felt force scale
-// kDefaultFeForceScale, at most 8 N.
+// kDefaultFeForceScale, coupling kDefaultFeCoupling, at most 8 N.
 FeTouchSettings DefaultTouch(const FeModel& model) {
   FeTouchSettings ts;
   ts.tool_radius = model.mean_edge_length();
   ts.force_scale = kDefaultFeForceScale;
+  ts.coupling_stiffness = kDefaultFeCoupling;
   ts.max_force = 8.0;
   return ts;
 }
@@ -471,10 +472,11 @@ Eigen::Vector3d FocusFiveMillimetresIntoThePlate(FeModel* model, FeTouchField* f
 }
 
 // The simulated hand (haptics::SimulatedHand: 0.3 kg, 300 N/m, 20 N·s/m) pushes the steel platform
-// through FeTouchField at FE mode's defaults (force scale kDefaultFeForceScale, at most 8 N, tool
-// radius = mean edge), stepped at 1 kHz with no device damping: the grip must come to rest against
-// the plate, not chatter on it. With a force scale of 1e-3 it chatters (measured: force 0 .. 8 N,
-// the grip moving 0.25 mm in the last second), which is why the default is lower.
+// through FeTouchField at FE mode's defaults (force scale kDefaultFeForceScale, coupling
+// kDefaultFeCoupling, at most 8 N, tool radius = mean edge), stepped at 1 kHz with no device
+// damping: the grip must come to rest against the plate, not chatter on it. Without the coupling,
+// a force scale of 1e-3 chatters (measured: force 0 .. 8 N, the grip moving 0.25 mm in the last
+// second).
 TEST(FeTouchField, HandPushingThePlateComesToRestWithoutChatter) {
   const auto model = PlatformModel();
   FeTouchField field(model, DefaultTouch(*model), nullptr);
@@ -540,6 +542,139 @@ TEST(FeTouchField, WindowRuntimeFeelsThePlateWhenTheHandPressesIt) {
                                    << tool.wrench_D.head<3>().transpose() << " N; grip at "
                                    << tool.tool_W.p_WT.transpose() << ", events " << tool.events;
   EXPECT_FALSE(haptics::IsZeroForceEvent(tool.events));
+}
+
+// The plate-top surface node (z = 0.01 m, normal up) nearest to (x, y).
+Eigen::Vector3d TopNodeNear(const FeModel& model, const Eigen::Vector2d& xy) {
+  Eigen::Vector3d best = Eigen::Vector3d::Constant(1e9);
+  for (int b = 0; b < model.cache().num_candidates(); ++b) {
+    const Eigen::Vector3d x = model.mesh().nodes.row(model.cache().candidate_node(b)).transpose();
+    if (std::abs(x.z() - 0.01) > 1e-6 || model.candidate_normals()(b, 2) < 0.99) continue;
+    if ((x.head<2>() - xy).norm() < (best.head<2>() - xy).norm()) best = x;
+  }
+  return best;
+}
+
+// The virtual coupling (FE mode's defaults: σ = kDefaultFeForceScale, k_c = kDefaultFeCoupling)
+// with the tool held still past the plate top: the coupled sphere must settle within a few
+// hundred ticks at the quasi-static equilibrium k_c (x_c − x_t) = σF(x_c), and the felt
+// stiffness (force change over 1 mm more depth) must stay below k_c and be lower at the plate's
+// free corner than over the gusset near the wall (what FE mode is for: feeling where a design is
+// compliant). The plate's bending at the corner is about 4e5 N/m in W, i.e. σK ≈ 400 N/m.
+TEST(FeTouchField, CouplingSettlesAtTheSeriesEquilibriumAndTheFreeCornerFeelsSofter) {
+  const auto model = PlatformModel();
+  const FeTouchSettings ts = DefaultTouch(*model);
+  const double r = ts.tool_radius;
+  double felt_stiffness[2] = {0, 0};
+  const Eigen::Vector2d spots[2] = {{0.28, 0.08}, {0.05, 0.0}};
+  for (int i = 0; i < 2; ++i) {
+    SCOPED_TRACE("spot " + std::to_string(i));
+    double felt[2] = {0, 0};
+    for (int j = 0; j < 2; ++j) {
+      const double depth = 0.003 + 0.001 * j;
+      FeTouchField field(model, ts, nullptr);
+      const Eigen::Vector3d top = TopNodeNear(*model, spots[i]);
+      const Eigen::Vector3d tool = top + Eigen::Vector3d(0, 0, r - depth);
+      field.Evaluate(ToolAt(tool));
+      model->cache().Start();
+      ASSERT_TRUE(model->cache().WaitUntilIdle(60.0));
+      haptics::ToolWrench w, previous;
+      for (int tick = 0; tick < 400; ++tick) {
+        previous = w;
+        w = field.Evaluate(ToolAt(tool));
+      }
+      const FeContactState& st = field.last_state();
+      ASSERT_GT(st.num_contacts, 0);
+      EXPECT_EQ(st.num_substituted, 0);
+      EXPECT_LT((w.f_T_W - previous.f_T_W).norm(), 1e-6 * w.f_T_W.norm()) << "still moving";
+      const Eigen::Vector3d spring = ts.coupling_stiffness * (st.p_WC - tool);
+      const Eigen::Vector3d fe = ts.force_scale * st.f_tool_W;
+      EXPECT_LT((spring - fe).norm(), 0.01 * fe.norm()) << "coupling " << spring.transpose() << " N, FE " << fe.transpose() << " N";
+      EXPECT_GT(w.f_T_W.z(), 0.0);
+      felt[j] = w.f_T_W.z();
+    }
+    felt_stiffness[i] = (felt[1] - felt[0]) / 0.001;
+    EXPECT_GT(felt_stiffness[i], 0.0);
+    EXPECT_LT(felt_stiffness[i], ts.coupling_stiffness * 1.001);
+  }
+  model->cache().Stop();
+  std::printf("felt stiffness: free corner %.0f N/m, over the gusset %.0f N/m (coupling %.0f N/m)\n",
+              felt_stiffness[0], felt_stiffness[1], ts.coupling_stiffness);
+  EXPECT_LT(felt_stiffness[0], 0.6 * felt_stiffness[1]) << "free corner " << felt_stiffness[0]
+                                                       << " N/m, over the gusset " << felt_stiffness[1] << " N/m";
+}
+
+// FE mode as the window drives it (FeMode: precompute Job, TakeField, SharedField, the
+// HapticRuntime on the simulated device held by the simulated hand), with the part drawn at world
+// scale s (X_WD: p_W = s·p_D + p_WDo; the window puts the platform scene at s ≈ 4.6). The hand
+// aims 5 mm (in D) past the plate top. At every s the grip must come to rest on the plate and feel
+// the hand's pull (its spring times the gap), not chatter: at s = 4.6 with the force scale not divided by
+// s the felt stiffness is 4.6 times higher and the hand bounced on the plate (measured).
+TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
+  JobQueue jobs;
+  FeMode mode(nullptr, &jobs);
+  mode.model_settings() = SteelSettings();
+  mode.SetMesh(PlatformMesh(), "platform");
+  mode.SetActive(true);
+  mode.Precompute();
+  while (jobs.busy()) {
+    jobs.Poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  jobs.Poll();
+  ASSERT_TRUE(mode.model()) << mode.status();
+  const double r = mode.model()->mean_edge_length();  // the tool radius FE mode uses
+  const Eigen::Vector3d top_W(0.1, 0.01, 0.01);       // a point of the plate top (z = 0.01 m)
+  const haptics::SpidarGeometry g;
+  for (const double s : {1.0, 4.6}) {
+    SCOPED_TRACE("world scale " + std::to_string(s));
+    const Eigen::Vector3d p_WDo = top_W - s * Eigen::Vector3d(0, 0, -0.03);  // top_W at z_D = −3 cm
+    mode.SetWorldToView(s, p_WDo);
+    std::shared_ptr<haptics::ForceField> field(mode.TakeField());
+    ASSERT_TRUE(field);
+    auto* fe = dynamic_cast<FeTouchField*>(field.get());
+    ASSERT_NE(fe, nullptr);
+    EXPECT_DOUBLE_EQ(fe->settings().force_scale, kDefaultFeForceScale / s);
+    EXPECT_DOUBLE_EQ(fe->settings().coupling_stiffness, kDefaultFeCoupling / s);
+    // Tool centre in D when the sphere just touches the top, then where the hand aims.
+    const Eigen::Vector3d touch_D(0, 0, -0.03 + r / s);
+    const Eigen::Vector3d aim_D = touch_D - Eigen::Vector3d(0, 0, 0.005);
+    fe->Evaluate(ToolAt(s * aim_D + p_WDo));  // column focus, then wait for the columns
+    ASSERT_TRUE(mode.model()->cache().WaitUntilIdle(60.0));
+
+    RuntimeSettings settings;
+    settings.device = RuntimeDevice::kSimulated;
+    settings.loop.world_scale = s;
+    settings.loop.p_WDo = p_WDo;
+    HapticRuntime runtime(settings, haptics::GripPose::FromFrame(touch_D + Eigen::Vector3d(0, 0, 0.005),
+                                                                 Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+    auto scene = std::make_unique<haptics::HapticScene>();
+    scene->Add(std::make_unique<SharedField>(field));
+    runtime.Publish(std::move(scene));
+    haptics::TickTiming timing;
+    double z_min = 1e9, z_max = -1e9, f_min = 1e9, f_max = -1e9;
+    for (int k = 0; k < 4000; ++k) {
+      if (k == 700) runtime.SetTarget(haptics::GripPose::FromFrame(aim_D, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+      timing.tick = static_cast<std::uint64_t>(k);
+      timing.elapsed = timing.period;
+      runtime.Tick(timing);
+      if (k >= 3000) {
+        const RuntimeFrame& frame = runtime.Latest();
+        z_min = std::min(z_min, frame.hand_pose.p0.z());
+        z_max = std::max(z_max, frame.hand_pose.p0.z());
+        f_min = std::min(f_min, frame.tool.wrench_D(2));
+        f_max = std::max(f_max, frame.tool.wrench_D(2));
+      }
+    }
+    // The hand's spring pulls 300 N/m times the gap between aim and grip; the plate holds it.
+    const double pull = settings.hand.stiffness * (0.5 * (z_min + z_max) - aim_D.z());
+    EXPECT_GT(f_min, 0.3) << "contact lost in the last second: force " << f_min << " .. " << f_max << " N";
+    EXPECT_LT(z_max - z_min, 1e-4) << "grip still moving: z_D " << z_min << " .. " << z_max;
+    EXPECT_NEAR(0.5 * (f_min + f_max), pull, 0.1 * std::abs(pull) + 0.05);
+  }
+  mode.SetActive(false);
+  jobs.CancelAll();
+  while (jobs.busy()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
 }
 
 }  // namespace

@@ -28,6 +28,7 @@ FeMode::FeMode(vtkRenderer* renderer, JobQueue* jobs)
   touch_settings_.tool_radius = 0.0;  // auto: the mesh's mean edge length
   touch_settings_.force_scale = std::pow(10.0, log_force_scale_);
   touch_settings_.max_force = 8.0;
+  touch_settings_.coupling_stiffness = kDefaultFeCoupling;
   poly_ = vtkSmartPointer<vtkPolyData>::New();
   scalars_ = vtkSmartPointer<vtkDoubleArray>::New();
   scalars_->SetName("von_mises_MPa");
@@ -79,8 +80,10 @@ FeMode::~FeMode() {
 
 void FeMode::SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo) {
   if (!(world_scale > 0.0)) return;
+  const bool rescaled = world_scale != world_scale_;
   world_scale_ = world_scale;
   p_WDo_ = p_WDo;
+  if (rescaled && active_ && model_) QueueField();  // the felt force scale depends on it
   for (vtkActor* a : {actor_.Get(), sphere_actor_.Get()}) {
     a->SetScale(1.0 / world_scale);
     a->SetPosition(-p_WDo.x() / world_scale, -p_WDo.y() / world_scale, -p_WDo.z() / world_scale);
@@ -125,12 +128,15 @@ void FeMode::MeshPlatform(double resolution) {
   if (jobs_ == nullptr) return;
   status_ = "meshing the platform...";
   std::weak_ptr<int> alive = alive_;
-  jobs_->Start("Mesh platform (FE)", [this, resolution, alive](JobContext& ctx) -> Job::Finisher {
+  awaiting_title_ = "Mesh platform (FE)";
+  jobs_->Start(awaiting_title_, [this, resolution, alive](JobContext& ctx) -> Job::Finisher {
     ctx.SetPhase("surface and TetGen");
     auto mesh = std::make_shared<fem::TetMesh>(
         MeshSceneSolidForFe(PlatformScenePath(), "platform", resolution, ctx.cancel_flag(), ctx.ProgressRange(0, 1)));
     return [this, mesh, alive] {
-      if (alive.lock()) SetMesh(std::move(*mesh), "platform");
+      if (!alive.lock()) return;
+      awaiting_title_.clear();
+      SetMesh(std::move(*mesh), "platform");
     };
   });
 }
@@ -144,6 +150,7 @@ void FeMode::Precompute() {
                                       Eigen::Vector3d(box_[3], box_[4], box_[5]));
   std::shared_ptr<const fem::TetMesh> mesh = mesh_;
   job_title_ = "FE precompute " + mesh_name_;
+  awaiting_title_ = job_title_;
   status_ = "precomputing...";
   std::weak_ptr<int> alive = alive_;
   jobs_->Start(job_title_, [this, settings, mesh, alive](JobContext& ctx) mutable -> Job::Finisher {
@@ -154,7 +161,9 @@ void FeMode::Precompute() {
     settings.progress = nullptr;
     settings.phase = nullptr;
     return [this, model, mesh, alive] {
-      if (!alive.lock() || mesh != mesh_) return;  // mode gone or part changed: drop the result
+      if (!alive.lock()) return;
+      awaiting_title_.clear();
+      if (mesh != mesh_) return;  // part changed: drop the result
       model_ = model;
       char line[160];
       std::snprintf(line, sizeof line, "ready: %d nodes clamped, %zu surface nodes, %d columns from disk, %.1f s",
@@ -180,15 +189,32 @@ Job* FeMode::RunningJob() const {
 
 void FeMode::QueueField() {
   if (!model_) return;
-  FeTouchSettings ts = touch_settings_;
+  FeTouchSettings ts = FieldTouchSettings(touch_settings_, world_scale_);
   if (!(ts.tool_radius > 0.0)) ts.tool_radius = model_->mean_edge_length();
   sphere_source_->SetRadius(ts.tool_radius);
   pending_field_ = std::make_unique<FeTouchField>(model_, ts, channel_);
 }
 
 std::unique_ptr<haptics::ForceField> FeMode::TakeField() {
-  if (!active_) return nullptr;
+  if (!active_ || !pending_field_) return nullptr;
+  field_taken_ = true;
+  field_start_time_ = -1.0;
   return std::move(pending_field_);
+}
+
+bool FeMode::Settled() const {
+  if (!active_) return true;
+  if (!model_) {
+    // Waiting while a job of ours runs or has succeeded with its finisher still to run.
+    if (awaiting_title_.empty() || jobs_ == nullptr) return true;
+    for (const auto& job : jobs_->jobs())
+      if (job->title() == awaiting_title_ &&
+          (job->state() == Job::State::kRunning || job->state() == Job::State::kSucceeded))
+        return false;
+    return true;
+  }
+  if (pending_field_ || !field_taken_ || field_start_time_ < 0.0) return false;
+  return last_state_.time - field_start_time_ >= kSettleSeconds && model_->cache().WaitUntilIdle(0.0);
 }
 
 void FeMode::BuildSurfaceActor() {
@@ -215,7 +241,10 @@ void FeMode::BuildSurfaceActor() {
 
 void FeMode::UpdateSurface(const FeContactState* state) {
   if (!model_) return;
-  if (state != nullptr) last_state_ = *state;
+  if (state != nullptr) {
+    last_state_ = *state;
+    if (field_taken_ && field_start_time_ < 0.0) field_start_time_ = state->time;
+  }
   Eigen::VectorXd u_out;
   ContactDisplacement(&model_->cache(), last_state_, &u_out);
   const Eigen::MatrixX3d u = model_->FullDisplacement(u_out);
@@ -320,6 +349,11 @@ void FeMode::DrawPanel() {
     touch_settings_.force_scale = std::pow(10.0, log_force_scale_);
     changed = true;
   }
+  float coupling = static_cast<float>(touch_settings_.coupling_stiffness);
+  if (ImGui::SliderFloat("coupling [N/m] (0: off)", &coupling, 0.0f, 5000.0f, "%.0f")) {
+    touch_settings_.coupling_stiffness = std::max(0.0f, coupling);
+    changed = true;
+  }
   float max_force = static_cast<float>(touch_settings_.max_force);
   if (ImGui::SliderFloat("max felt force [N]", &max_force, 0.5f, 20.0f, "%.1f")) {
     touch_settings_.max_force = max_force;
@@ -342,14 +376,38 @@ void FeMode::DrawPanel() {
   if (model_) {
     const Eigen::Vector3d& f = figures_.f_tool_W;
     ImGui::Text("reaction on tool: %.3f N  (%.3f, %.3f, %.3f)", f.norm(), f.x(), f.y(), f.z());
+    const double felt_scale = FieldTouchSettings(touch_settings_, world_scale_).force_scale;
     ImGui::Text("felt: %.3f N (scale %.1e, max %.1f N)",
-                std::min(touch_settings_.max_force, touch_settings_.force_scale * f.norm()),
-                touch_settings_.force_scale, touch_settings_.max_force);
+                std::min(touch_settings_.max_force, felt_scale * f.norm()), felt_scale,
+                touch_settings_.max_force);
     ImGui::Text("contacts: %d (%d on borrowed columns)", figures_.contacts, figures_.substituted);
     ImGui::Text("max displacement: %.4f mm", 1e3 * figures_.max_displacement);
     ImGui::Text("max von Mises: %.3f MPa", 1e-6 * figures_.max_von_mises);
     ImGui::Text("columns ready: %d of %d", figures_.ready_columns, model_->cache().num_candidates());
   }
+}
+
+FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale) {
+  FeTouchSettings ts = panel;
+  if (world_scale > 0.0) {
+    ts.force_scale = panel.force_scale / world_scale;
+    ts.coupling_stiffness = panel.coupling_stiffness / world_scale;
+  }
+  return ts;
+}
+
+std::string FormatFeSummary(const FeMode& mode, const haptics::ToolState& tool) {
+  const FeLiveFigures& f = mode.figures();
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "fe: %s; columns ready %d; contacts %d (substituted %d); FE force on tool "
+                "(%.4g, %.4g, %.4g) N; max displacement %.3g mm; max von Mises %.3g MPa\n"
+                "fe tool: p_WT (%.4f, %.4f, %.4f) m; commanded force D (%.3f, %.3f, %.3f) N\n",
+                mode.status().c_str(), f.ready_columns, f.contacts, f.substituted, f.f_tool_W.x(),
+                f.f_tool_W.y(), f.f_tool_W.z(), 1e3 * f.max_displacement, 1e-6 * f.max_von_mises,
+                tool.tool_W.p_WT.x(), tool.tool_W.p_WT.y(), tool.tool_W.p_WT.z(), tool.wrench_D(0),
+                tool.wrench_D(1), tool.wrench_D(2));
+  return text;
 }
 
 }  // namespace spidarcad::app

@@ -94,6 +94,13 @@ class FeMode {
   const std::shared_ptr<FeModel>& model() const { return model_; }
   // Live figures of the last OnFrame.
   const FeLiveFigures& figures() const { return figures_; }
+  // True when a screenshot of the mode may be taken: the mode is off; or nothing is running
+  // and there is no model (a job failed or nothing was asked); or the live field has run for
+  // kSettleSeconds of loop time since it was published and the column worker has caught up
+  // with the tool.
+  bool Settled() const;
+  // Loop time the live field runs before Settled(), s.
+  static constexpr double kSettleSeconds = 0.5;
   // Status line (what is happening or went wrong).
   const std::string& status() const { return status_; }
 
@@ -137,8 +144,25 @@ class FeMode {
   vtkSmartPointer<vtkSphereSource> sphere_source_;
   vtkSmartPointer<vtkActor> sphere_actor_;
   FeContactState last_state_;
+  // A field was handed out by TakeField; loop time of its first published state (−1: none yet).
+  bool field_taken_ = false;
+  // Title of the mesh or precompute Job whose finisher has not run yet (empty: none).
+  std::string awaiting_title_;
+  double field_start_time_ = -1.0;
   // Finishers of this mode's Jobs run only while the mode lives (they hold a weak_ptr to this).
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };
+
+// The settings of the field FeMode publishes from the panel's: the felt force scale and the
+// coupling stiffness are divided by the world scale of X_WD (p_W = s·p_D + p_WDo, forces
+// displayed as they are), so that a grip displacement δ in D, which moves the tool s·δ in W, is
+// felt as force_scale · K · δ (and at most coupling · δ) whatever s is: the stiffness felt in
+// the hand does not depend on how big the scene is drawn.
+FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale);
+
+// Two lines for the end of a scripted run (--frames, --screenshot): the FE part's state (columns
+// ready, contacts, FE force on the tool) and the tool's position and the wrench the loop
+// commanded at the last tick (D, N).
+std::string FormatFeSummary(const FeMode& mode, const haptics::ToolState& tool);
 
 }  // namespace spidarcad::app

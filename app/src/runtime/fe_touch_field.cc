@@ -34,6 +34,8 @@ FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings
   if (!(settings_.force_scale >= 0.0) || !std::isfinite(settings_.force_scale))
     BadSetting("force_scale", settings_.force_scale, "must be >= 0");
   if (!(settings_.max_force > 0.0)) BadSetting("max_force", settings_.max_force, "must be > 0 N");
+  if (!(settings_.coupling_stiffness >= 0.0) || !std::isfinite(settings_.coupling_stiffness))
+    BadSetting("coupling_stiffness", settings_.coupling_stiffness, "must be >= 0 N/m");
   if (settings_.grasp && !(settings_.pole_length > 0.0))
     BadSetting("pole_length", settings_.pole_length, "must be > 0 m");
   if (!(settings_.focus_radius > 0.0)) settings_.focus_radius = 3.0 * settings_.tool_radius;
@@ -139,6 +141,7 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
   st.refused = 0;
   st.waiting_for_columns = false;
   if (!tool.p_WT.allFinite() || !tool.R_WT.allFinite() || !std::isfinite(tool.grasp)) {
+    coupled_valid_ = false;
     solver_->Clear();
     st.num_contacts = 0;
     st.num_substituted = 0;
@@ -154,13 +157,19 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
 
   // Nodes inside the sphere(s), nearest first.
   const int spheres = settings_.grasp ? 2 : 1;
+  const bool coupled = !settings_.grasp && settings_.coupling_stiffness > 0.0;
+  if (coupled && !coupled_valid_) {
+    coupled_ = tool.p_WT;
+    coupled_valid_ = true;
+  }
   Eigen::Vector3d centre[2];
   if (settings_.grasp) {
     centre[0] = PoleTip(tool, 0);
     centre[1] = PoleTip(tool, 1);
   } else {
-    centre[0] = tool.p_WT;
+    centre[0] = coupled ? coupled_ : tool.p_WT;
   }
+  st.p_WC = centre[0];
   num_found_ = 0;
   int inside = 0;
   for (int i = 0; i < spheres; ++i) inside += Collect(centre[i], i);
@@ -280,6 +289,9 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
       }
       w.g = g;
     }
+  }
+  if (coupled) CoupledStep(tool.p_WT, k > 0 && solved ? k : 0, &w);
+  if (!coupled && k > 0 && solved) {
     // Felt wrench: scaled, magnitude of the force bounded.
     double scale = settings_.force_scale;
     const double felt = scale * w.f_T_W.norm();
@@ -290,6 +302,89 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
   }
   if (channel_) channel_->buffer.Write(st);
   return w;
+}
+
+void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::ToolWrench* w) {
+  // See the header: one Newton step on r(x_c) = k_c (x_t − x_c) + σF(x_c) while in contact,
+  // conservative advancement toward x_t while not.
+  const double kc = settings_.coupling_stiffness, sigma = settings_.force_scale;
+  const Eigen::Vector3d force = k > 0 ? state_.f_tool_W : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d r = kc * (p_WT - coupled_) + sigma * force;
+  Eigen::Vector3d step = r / kc;
+  if (k > 0) {
+    Eigen::Vector3d n = force;
+    if (!(n.norm() > 0.0)) {
+      n.setZero();
+      for (int s = 0; s < k; ++s) n += normal_[s];
+    }
+    if (n.norm() > 0.0) {
+      n.normalize();
+      // Normal stiffness of the contact set: forces for the sphere pushed 1 m further along −n
+      // (each node's target moved by −(n·n_s) n_s on top of the baseline), sticking.
+      for (int s = 0; s < k; ++s) {
+        const Eigen::Vector3d d = -n.dot(normal_[s]) * normal_[s];
+        for (int i = 0; i < 3; ++i)
+          probe_target_[3 * s + i] = cache_->baseline()(3 * cache_->OutputIndexOfCandidate(state_.candidate[s]) + i) + d(i);
+      }
+      double stiffness = 0.0;
+      if (solver_->Solve(probe_target_.data(), probe_force_.data())) {
+        Eigen::Vector3d f_tool = Eigen::Vector3d::Zero();
+        for (int s = 0; s < k; ++s) f_tool -= Eigen::Vector3d(probe_force_[3 * s], probe_force_[3 * s + 1], probe_force_[3 * s + 2]);
+        stiffness = std::max(0.0, n.dot(f_tool));
+      }
+      const double sk = sigma * stiffness;
+      step -= (sk / (kc + sk)) * n.dot(step) * n;
+    }
+  } else {
+    // Free: move toward x_t, but stop just past where the first node would enter the sphere
+    // (so a fast move cannot carry the sphere through a thin wall, and the next tick starts
+    // contact at a vanishing depth instead of deep inside).
+    double length = step.norm();
+    if (length > 0.0) {
+      const Eigen::Vector3d d = step / length;
+      length = std::min(length, 4.0 * settings_.tool_radius);
+      const double entry = FirstEntry(coupled_, d, length);
+      step = d * std::min(length, entry + 1e-3 * settings_.tool_radius);
+    }
+  }
+  coupled_ += step;
+  if (!coupled_.allFinite()) coupled_ = p_WT;
+  w->f_T_W = kc * (coupled_ - p_WT);
+  const double felt = w->f_T_W.norm();
+  if (felt > settings_.max_force) w->f_T_W *= settings_.max_force / felt;
+}
+
+double FeTouchField::FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d& d, double length) const {
+  const double r = settings_.tool_radius;
+  const Eigen::Vector3d lo_p = c.cwiseMin(c + length * d).array() - r;
+  const Eigen::Vector3d hi_p = c.cwiseMax(c + length * d).array() + r;
+  Eigen::Vector3i lo, hi;
+  for (int i = 0; i < 3; ++i) {
+    const double a = std::floor((lo_p(i) - grid_min_(i)) / cell_), z = std::floor((hi_p(i) - grid_min_(i)) / cell_);
+    if (z < 0.0 || a > dims_(i) - 1) return length;
+    lo(i) = static_cast<int>(std::max(0.0, a));
+    hi(i) = static_cast<int>(std::min<double>(dims_(i) - 1, z));
+  }
+  double first = length;
+  for (int z = lo(2); z <= hi(2); ++z)
+    for (int y = lo(1); y <= hi(1); ++y)
+      for (int x = lo(0); x <= hi(0); ++x) {
+        const long cell = (static_cast<long>(z) * dims_(1) + y) * dims_(0) + x;
+        for (int it = cell_start_[cell]; it < cell_start_[cell + 1]; ++it) {
+          const int b = cell_items_[it];
+          if (fixed_[b]) continue;
+          // |X − c − λ d| = r: λ = q·d − sqrt((q·d)² − |q|² + r²), q = X − c; nodes already
+          // inside (not admitted as contacts) do not stop the sphere.
+          const Eigen::Vector3d q = positions_[b] - c;
+          const double qd = q.dot(d), cc = q.squaredNorm() - r * r;
+          if (cc <= 0.0) continue;
+          const double disc = qd * qd - cc;
+          if (disc < 0.0) continue;
+          const double lambda = qd - std::sqrt(disc);
+          if (lambda >= 0.0 && lambda < first) first = lambda;
+        }
+      }
+  return first;
 }
 
 bool FeTouchField::FrictionlessTargets(int k) {

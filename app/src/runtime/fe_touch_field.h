@@ -15,10 +15,26 @@
 // nearest ready column until then). Nodes whose force would pull the body (n·f > 0) are
 // released and the rest solved again (up to 4 passes a tick). A node inside the sphere that is
 // not in contact is admitted only while the sphere reaches it on the deformed surface (its
-// displacement predicted from the current contact forces is not already past the sphere). The force on the tool is −Σ f_s (no moment: the contact
-// sphere is centred on the tool origin; grasp contact adds a squeeze torque, below). The force
-// felt is force_scale times the FE force, clamped to max_force in magnitude (a steel part is
-// far stiffer than a string device can render); the published numbers are the unscaled FE ones.
+// displacement predicted from the current contact forces is not already past the sphere). The
+// force on the sphere is F = −Σ f_s (no moment: the contact sphere is centred on its point;
+// grasp contact adds a squeeze torque, below). The published numbers are the unscaled FE ones.
+//
+// Felt force. Without coupling (coupling_stiffness = 0, and always with grasp contact) the
+// sphere is centred on the tool and the felt force is σF, σ = force_scale, clamped to
+// max_force. With a virtual coupling k_c > 0 (Colgate et al. 1995) the contact sphere sits at a
+// point x_c of its own, joined to the tool point x_t by a spring k_c and in quasi-static
+// equilibrium r(x_c) = k_c (x_t − x_c) + σF(x_c) = 0; the tool feels k_c (x_c − x_t), which
+// equals σF(x_c) at equilibrium. So the felt stiffness is that of k_c and σK in series: never
+// above k_c, however stiff the part's contact (local indentation of a steel node is ~1e8 N/m,
+// and the encoders' 25 µm quantum times that made the force jump by newtons every tick), and
+// close to σK where the part is soft (a cantilever's tip), which is what the engineer should
+// feel. While in contact, each tick takes one Newton step on r from the previous x_c with the
+// contact set's normal stiffness K along n̄ = F/|F| (one extra solve: the sphere pushed along
+// −n̄ with the contact nodes sticking, an upper bound of the frictionless stiffness, so the step
+// undershoots rather than overshoots and contact is not lost and regained every tick). Out of
+// contact, x_c moves to x_t in one step (no drag in free space) unless a node would enter the
+// sphere on the way: it then stops just past that point (conservative advancement), so contact
+// always starts at a vanishing depth and a fast move cannot carry the sphere through a wall.
 //
 // Threads: Evaluate runs on the haptic thread and is real-time safe (no allocation, lock,
 // I/O or exception; bounded work): the node lookup uses a uniform grid built at construction.
@@ -44,11 +60,16 @@ namespace spidarcad::app {
 
 // Largest number of contact nodes a touch field handles (per field, both poles together).
 inline constexpr int kMaxFeContacts = 16;
-// Felt force per FE newton that FE mode starts with. A steel part's contact is far stiffer than a
-// 1 kHz loop can render: on the 12 mm steel platform, with the simulated hand (0.3 kg, 300 N/m,
-// 20 N·s/m) pushing through the field, 1e-3 chatters (contact lost and regained, 0..8 N, the grip
-// moving 0.25 mm) while 1e-4 and below come to rest (fe_mode_test, HandPushingThePlate...).
+// Felt force per FE newton that FE mode starts with (σ, per metre of grip motion in D: FE mode
+// divides it by the world scale). With the coupling below, σ sets how much of the part's
+// structural compliance is felt: the felt stiffness is k_c and σK in series. On the 12 mm steel
+// platform (K ≈ 7e6 N/m at the free corner, including the local indentation) 1e-4 makes the corner
+// feel several times softer than the plate over its gusset, which is felt near k_c
+// (fe_mode_test, CouplingSettles...); 1e-3 makes the whole plate feel nearly rigid.
 inline constexpr double kDefaultFeForceScale = 1e-4;
+// Virtual coupling FE mode starts with, N/m of grip motion in D: the stiffest the contact is
+// ever felt. The window's demo solids are felt at 1000 N/m.
+inline constexpr double kDefaultFeCoupling = 1500.0;
 
 // One tick's contact state, as published to the main thread (fixed size, copy without allocation).
 struct FeContactState {
@@ -68,6 +89,8 @@ struct FeContactState {
   Eigen::Vector3d f_tool_W = Eigen::Vector3d::Zero();
   // Tool origin of the tick, W, m.
   Eigen::Vector3d p_WT = Eigen::Vector3d::Zero();
+  // Centre of the contact sphere, W, m: the coupled point x_c with a virtual coupling, else p_WT.
+  Eigen::Vector3d p_WC = Eigen::Vector3d::Zero();
   // Nodes inside the sphere(s) that could not be taken this tick (full, refused, no column).
   int refused = 0;
   // True when no column at all is ready yet (no force could be computed).
@@ -91,6 +114,10 @@ struct FeTouchSettings {
   double force_scale = 1.0;
   // Magnitude bound of the felt force, N (> 0).
   double max_force = 10.0;
+  // Virtual coupling stiffness k_c between the tool and the contact sphere, felt newtons per
+  // metre of tool motion in W (>= 0; 0: no coupling, the sphere is on the tool). Ignored with
+  // grasp contact.
+  double coupling_stiffness = 0.0;
   // Frictionless contact (tangential forces zero); false: sticking nodes.
   bool frictionless = true;
   // Radius of the column focus around the tool, m; <= 0: 3 × tool_radius.
@@ -128,6 +155,12 @@ class FeTouchField final : public haptics::ForceField {
   // Collects up to max_contacts candidates inside the sphere (c, r), nearest first, into
   // found_/found_dist_ (merging with what is there). Returns the number of nodes inside.
   int Collect(const Eigen::Vector3d& c, int sphere);
+  // The virtual coupling's update of the tick (k contacts solved at the coupled centre, 0: none):
+  // moves coupled_ and sets w's force.
+  void CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::ToolWrench* w);
+  // Distance λ in [0, length] at which the sphere moving from c along unit d first takes in a
+  // free (unclamped) node not inside it already; `length` when none.
+  double FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d& d, double length) const;
 
   std::shared_ptr<FeModel> model_;
   fem::ColumnCache* cache_;
@@ -150,6 +183,12 @@ class FeTouchField final : public haptics::ForceField {
   int num_found_ = 0;
   std::array<int, kMaxFeContacts> sphere_of_slot_{};
   Eigen::Vector3d focus_ = Eigen::Vector3d::Constant(1e30);
+  // Coupled sphere centre x_c (W, m) and whether it holds a value (reset by non-finite input).
+  Eigen::Vector3d coupled_ = Eigen::Vector3d::Zero();
+  bool coupled_valid_ = false;
+  // Stiffness probe of the coupling (targets and forces, 3 per slot).
+  std::array<double, 3 * kMaxFeContacts> probe_target_{};
+  std::array<double, 3 * kMaxFeContacts> probe_force_{};
   // Frictionless solve scratch (fixed maximum sizes: no heap).
   using MatK = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFeContacts, 3 * kMaxFeContacts>;
   using MatT = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFeContacts, 2 * kMaxFeContacts>;
