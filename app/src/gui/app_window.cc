@@ -37,7 +37,9 @@
 #include "gui/scene_model.h"
 #include "gui/scene_view.h"
 #include "gui/sculpt_mode.h"
+#include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
+#include "runtime/fe_model.h"
 #include "runtime/shared_field.h"
 
 namespace spidarcad::app {
@@ -169,12 +171,15 @@ void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
 void AddGuiOptions(CLI::App& app, GuiOptions* options) {
   app.add_option("scene", options->scene,
                  "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "
-                 "(built-in, the default) or 'none'. The file is re-read when it changes on disk.");
+                 "(built-in, the default) or 'none'; with --mode fe the default is "
+                 "assets/scenes/platform.json, with --mode sculpt assets/scenes/clay.json. The "
+                 "file is re-read when it changes on disk.");
   app.add_option("--mode", options->mode,
                  "Start in a mode: 'fe' meshes assets/scenes/platform.json (TetGen, 12 mm), "
                  "precomputes it (steel, clamped at the wall face) and lets the grip push it; "
                  "'sculpt' meshes assets/scenes/clay.json and lets the grip sculpt it (close the "
-                 "grasp or hold G). Both are also in the 'Modes' window.")
+                 "grasp or hold G). Both are also in the 'Modes' window. While a mode's part "
+                 "is live, it alone is felt: the scene's solids are shown but not touched.")
       ->check(CLI::IsMember({"fe", "sculpt"}));
   app.add_option("--estop-frame", options->estop_frame,
                  "Press the emergency stop (Space) at this frame (scripted runs and tests)")
@@ -202,6 +207,17 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
       ->type_name("X,Y,Z[,R,P,Y[,G]]");
 }
 
+// The scene the window opens: the positional argument, else the mode's part, else the demo.
+static std::string DefaultSceneFor(const GuiOptions& options) {
+  if (!options.scene.empty()) return options.scene;
+  if (options.mode == "fe") return PlatformScenePath();
+  if (options.mode == "sculpt") {
+    const std::string local = "assets/scenes/clay.json";
+    return std::filesystem::exists(local) ? local : std::string(SPIDARCAD_SOURCE_DIR) + "/" + local;
+  }
+  return kDemoSceneName;
+}
+
 int RunGui(const GuiOptions& options) {
   // The scene first: a bad file fails before any window opens.
   GripControl grip(haptics::SpidarGeometry{});
@@ -213,11 +229,24 @@ int RunGui(const GuiOptions& options) {
   grip.SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
   SceneModel model;
   try {
-    model.Load(options.scene, grip.limits());
+    model.Load(DefaultSceneFor(options), grip.limits());
   } catch (const std::exception& e) {
     std::cerr << "spidarcad: error: scene: " << e.what() << "\n";
     return 2;
   }
+  // The tree panel's controller on the model's Document; the first solid selected, or --select.
+  TreeController tree(&model);
+  TreePanelState tree_state;
+  if (!StartupTreeSelection().empty()) {
+    if (!tree.SelectByName(StartupTreeSelection())) {
+      std::cerr << "spidarcad: error: --select: no solid or node named '" << StartupTreeSelection()
+                << "' in the scene\n";
+      return 2;
+    }
+  } else if (!model.objects().empty()) {
+    tree.Select(model.objects().front().id);
+  }
+  std::string window_title;
   glfwSetErrorCallback(GlfwError);
   GlfwSession glfw;
   if (!glfw.ok) {
@@ -304,9 +333,15 @@ int RunGui(const GuiOptions& options) {
     sculpt_mode.SetActive(true);
   }
   const auto publish_scene = [&] {
-    std::unique_ptr<haptics::HapticScene> scene = model.BuildHapticScene(field);
-    if (fe_field && fe_mode.active()) scene->Add(std::make_unique<SharedField>(fe_field));
-    if (sculpt_field && sculpt_mode.active()) scene->Add(std::make_unique<SharedField>(sculpt_field));
+    // A live mode part stands in for the scene's solids: the FE part and the clay usually sit
+    // where a solid of the scene is (they are meshed from it), and the solid's penalty contact
+    // would hold the tool off the part.
+    const bool fe_live = fe_field && fe_mode.active();
+    const bool sculpt_live = sculpt_field && sculpt_mode.active();
+    std::unique_ptr<haptics::HapticScene> scene =
+        fe_live || sculpt_live ? std::make_unique<haptics::HapticScene>() : model.BuildHapticScene(field);
+    if (fe_live) scene->Add(std::make_unique<SharedField>(fe_field));
+    if (sculpt_live) scene->Add(std::make_unique<SharedField>(sculpt_field));
     runtime.Publish(std::move(scene));
   };
 
@@ -413,8 +448,8 @@ int RunGui(const GuiOptions& options) {
       if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) runtime.EmergencyStop();
       if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
       if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
-      if (ImGui::IsKeyPressed(GLFW_KEY_R, false)) grip.Reset();
-      if (ImGui::IsKeyPressed(GLFW_KEY_C, false)) view.ResetCamera();
+      if (ImGui::IsKeyPressed(GLFW_KEY_R, false) && !io.KeyCtrl) grip.Reset();
+      if (ImGui::IsKeyPressed(GLFW_KEY_C, false) && !io.KeyCtrl) view.ResetCamera();  // Ctrl+C: copy
       if (ImGui::IsKeyPressed(GLFW_KEY_EQUAL) || ImGui::IsKeyPressed(GLFW_KEY_KP_ADD)) {
         view.Zoom(1.1);
       }
@@ -468,7 +503,7 @@ int RunGui(const GuiOptions& options) {
     scene_view.Sync(model, workbench.show_edges ? workbench.selected : -1);
 
     WorkbenchActions wb;
-    const float menu_height = DrawMenuBar(&model, &jobs, &workbench, &wb);
+    const float menu_height = DrawMenuBar(&model, &jobs, &workbench, &wb, &tree, &tree_state);
     PanelContext context;
     context.geometry = &geometry;
     context.tau_min = tension_settings.tau_min;
@@ -537,7 +572,18 @@ int RunGui(const GuiOptions& options) {
     }
     if (republish) publish_scene();
     DrawScenePanel(&model, &jobs, &workbench, static_cast<float>(win_w) - kScenePanelWidth - 8.0f,
-                   menu_height + 8.0f, kScenePanelWidth);
+                   menu_height + 8.0f, kScenePanelWidth, &tree, &tree_state,
+                   static_cast<float>(win_h) - menu_height - 300.0f);  // above the loop panel
+    // Tree edits, undo and redo: recompile what changed, republish the haptic scene (X_WD
+    // stays), re-mesh the previews (coarse first).
+    HandleTreeShortcuts(&tree, &tree_state);
+    DrawSaveAsDialog(&tree, &tree_state);
+    if (model.Refresh()) publish_scene();
+    model.UpdatePreviews(&jobs);
+    if (const std::string title = tree.Title(); title != window_title) {
+      glfwSetWindowTitle(window, title.c_str());
+      window_title = title;
+    }
     const LoopStats stats = CollectLoopStats(runtime, latest);
     DrawLoopPanel(stats, static_cast<float>(win_w) - 8.0f, static_cast<float>(win_h) - 8.0f, &wb);
     if (stats.emergency_stop) {
@@ -559,10 +605,11 @@ int RunGui(const GuiOptions& options) {
     BindDefaultFramebuffer(fb_w, fb_h);
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 
-    // A screenshot waits (within kSettleTimeout) for the preview meshes and for the loop to
-    // settle: force ramp complete, or the stop's zero force in effect.
+    // A screenshot waits (within kSettleTimeout) for the preview meshes, for FE mode's part to
+    // be live (FeMode::Settled) and for the loop to settle: force ramp complete, or the stop's
+    // zero force in effect.
     const bool settled =
-        !jobs.busy() && (stats.emergency_stop ? (latest.tool.events & haptics::kEventEmergencyStop) != 0
+        !jobs.busy() && fe_mode.Settled() && (stats.emergency_stop ? (latest.tool.events & haptics::kEventEmergencyStop) != 0
                                               : latest.tool.ramp >= 1.0);
     const bool waited_enough = settled || glfwGetTime() - start_time > kSettleTimeout;
     if (capture && frame_index >= last_frame && waited_enough) {
@@ -581,7 +628,9 @@ int RunGui(const GuiOptions& options) {
   }
   runtime.Stop();
   if (capture || options.frames > 0) {
-    std::cout << FormatLoopSummary(CollectLoopStats(runtime, runtime.Latest())) << std::flush;
+    std::cout << FormatLoopSummary(CollectLoopStats(runtime, runtime.Latest()));
+    if (fe_mode.active()) std::cout << FormatFeSummary(fe_mode, runtime.Latest().tool);
+    std::cout << std::flush;
   }
   return exit_status;
 }

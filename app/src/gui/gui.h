@@ -17,7 +17,9 @@ struct GuiOptions {
   std::string screenshot;        // when set: render, write this PNG and exit
   int frames = 0;                // when > 0: exit after this many frames
   std::string device = "simulated";
-  std::string scene = "demo";    // scene file, "demo" (built-in) or "none"
+  // Scene file, "demo" (built-in) or "none"; empty: the mode's part (platform.json for 'fe',
+  // clay.json for 'sculpt') or, without a mode, the demo.
+  std::string scene;
   std::string mode;              // 'fe' or 'sculpt': start in that mode (demo, screenshots)
   int estop_frame = 0;           // when > 0: press the emergency stop at this frame
   // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.

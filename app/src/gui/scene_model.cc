@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <stdexcept>
+#include <variant>
 
 #include "gui/scene_fields.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -62,87 +63,253 @@ DeviceToWorld ChooseDeviceToWorld(const Eigen::AlignedBox3d& bounds_W,
   return x;
 }
 
+SceneModel::SceneModel() : doc_(std::make_unique<Document>()) {}
+
+SceneModel::~SceneModel() = default;
+
+namespace {
+
+// Result of a preview job's work: a surface and the box it was meshed in, or why not.
+struct PreviewResult {
+  std::string error;
+  Eigen::AlignedBox3d bounds_W;
+  modeling::TriangleMesh mesh;
+  double cell = 0.0;
+};
+
+// Box of `solid` (FindBounds at about 1/64 of its size); throws std::runtime_error naming
+// `what` when the solid is empty or unbounded.
+Eigen::AlignedBox3d SolidBox(const modeling::CompiledSolid& solid, const std::string& what) {
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
+                                   Eigen::Vector3d::Constant(kSearchHalfSide));
+  const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, search, 0.01);
+  if (rough.isEmpty()) throw std::runtime_error(what + " is empty");
+  if ((rough.min().array() <= -kSearchHalfSide + 0.01).any() ||
+      (rough.max().array() >= kSearchHalfSide - 0.01).any()) {
+    throw std::runtime_error(what + " is unbounded (reaches the 20 m search box)");
+  }
+  return modeling::FindBounds(solid, rough, rough.sizes().maxCoeff() / 64.0);
+}
+
+}  // namespace
+
 void SceneModel::Load(const std::string& source, const Eigen::Vector3d& travel,
                       const DeviceToWorld* keep) {
-  modeling::Scene scene;
+  auto doc = std::make_unique<Document>();
   std::filesystem::file_time_type mtime{};
   if (source == kNoSceneName) {
+    modeling::Scene scene;
     scene.description = "empty scene";
+    doc->LoadScene(scene, "<empty scene>");
   } else if (source == kDemoSceneName) {
-    scene = modeling::ParseScene(DemoSceneJson(), "<built-in demo scene>");
+    doc->LoadScene(modeling::ParseScene(DemoSceneJson(), "<built-in demo scene>"),
+                   "<built-in demo scene>");
   } else {
-    scene = modeling::LoadScene(source);  // SceneError names file, line and field
+    doc->Load(source);  // SceneError names file, line and field
     std::error_code ec;
     mtime = std::filesystem::last_write_time(source, ec);
   }
   std::vector<SceneObject> objects;
   Eigen::AlignedBox3d all;
-  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
-                                   Eigen::Vector3d::Constant(kSearchHalfSide));
-  for (size_t i = 0; i < scene.solids.size(); ++i) {
-    const modeling::Solid& s = scene.solids[i];
+  int i = 0;
+  for (const DocObject& d : doc->objects()) {
+    const auto* data = std::get_if<SolidData>(&d.data);
+    if (data == nullptr) continue;
     SceneObject object;
-    object.name = s.name;
+    object.id = d.id;
+    object.name = d.name;
+    object.source_revision = d.revision;
     try {
       object.solid = std::make_shared<const modeling::CompiledSolid>(
-          modeling::CompiledSolid::Compile(s.root, "/solids/" + std::to_string(i) + "/root"));
+          modeling::CompiledSolid::Compile(data->root, "/solids/" + std::to_string(i) + "/root"));
+      object.bounds_W = SolidBox(*object.solid, "solid '" + d.name + "'");
     } catch (const std::exception& e) {
-      throw std::runtime_error(source + ": solid '" + s.name + "': " + e.what());
+      const std::string text = e.what();
+      // SolidBox's messages already name the solid.
+      throw std::runtime_error(source + ": " +
+                               (text.rfind("solid '", 0) == 0 ? text
+                                                              : "solid '" + d.name + "': " + text));
     }
-    const Eigen::AlignedBox3d rough = modeling::FindBounds(*object.solid, search, 0.01);
-    if (rough.isEmpty()) {
-      throw std::runtime_error(source + ": solid '" + s.name + "' is empty");
-    }
-    if ((rough.min().array() <= -kSearchHalfSide + 0.01).any() ||
-        (rough.max().array() >= kSearchHalfSide - 0.01).any()) {
-      throw std::runtime_error(source + ": solid '" + s.name +
-                               "' is unbounded (reaches the 20 m search box)");
-    }
-    object.bounds_W = modeling::FindBounds(*object.solid, rough, rough.sizes().maxCoeff() / 64.0);
     object.colour = kColours[i % kColours.size()];
     all.extend(object.bounds_W);
     objects.push_back(std::move(object));
+    ++i;
   }
+  doc_ = std::move(doc);
+  synced_revision_ = doc_->revision();
   objects_ = std::move(objects);
   x_wd_ = keep != nullptr ? DeviceToWorld(*keep) : ChooseDeviceToWorld(all, travel);
   source_ = source;
-  description_ = scene.description;
   mtime_ = mtime;
   ++generation_;
 }
 
+void SceneModel::Save(const std::string& path) {
+  doc_->Save(path);  // temporary file renamed over path; SceneError on failure
+  source_ = path;
+  std::error_code ec;
+  mtime_ = std::filesystem::last_write_time(path, ec);
+}
+
+int SceneModel::IndexOf(ObjectId id) const {
+  for (size_t i = 0; i < objects_.size(); ++i) {
+    if (objects_[i].id == id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+bool SceneModel::Refresh() {
+  if (doc_->revision() == synced_revision_) return false;
+  synced_revision_ = doc_->revision();
+  bool changed = false;
+  std::vector<SceneObject> next;
+  for (const DocObject& d : doc_->objects()) {
+    const auto* data = std::get_if<SolidData>(&d.data);
+    if (data == nullptr) continue;
+    SceneObject o;
+    const int old = IndexOf(d.id);
+    if (old >= 0) {
+      o = std::move(objects_[old]);
+    } else {
+      o.id = d.id;
+    }
+    o.name = d.name;
+    if (o.solid != nullptr && d.revision == o.source_revision) {
+      o.error.clear();  // back at the compiled revision (e.g. undo of a failing edit)
+      o.error_revision = 0;
+    } else if (d.revision != o.error_revision) {
+      try {
+        o.solid = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(
+            data->root, "/objects/" + std::to_string(d.id) + "/root"));
+        o.source_revision = d.revision;
+        o.error.clear();
+        o.error_revision = 0;
+        // The Mesh action's results are of the old shape.
+        const bool had_mesh = o.surface.triangles.cols() > 0;
+        o.surface = modeling::TriangleMesh{};
+        o.surface_cell = 0.0;
+        o.tets = modeling::TetMesh{};
+        if (had_mesh) ++o.revision;
+        changed = true;
+      } catch (const std::exception& e) {
+        o.error = e.what();  // keep the last good solid, preview and haptics
+        o.error_revision = d.revision;
+      }
+    }
+    next.push_back(std::move(o));
+  }
+  // Objects that went away change the haptic scene too.
+  for (const SceneObject& o : objects_) {
+    const bool kept = std::any_of(next.begin(), next.end(),
+                                  [&](const SceneObject& n) { return n.id == o.id; });
+    if (!kept && o.solid != nullptr) changed = true;
+  }
+  for (size_t i = 0; i < next.size(); ++i) next[i].colour = kColours[i % kColours.size()];
+  objects_ = std::move(next);
+  return changed;
+}
+
 bool SceneModel::SourceChanged() const {
   if (source_ == kNoSceneName || source_ == kDemoSceneName || source_.empty()) return false;
+  if (doc_->dirty()) return false;  // a reload would lose the edits
   std::error_code ec;
   const auto now = std::filesystem::last_write_time(source_, ec);
   return !ec && now != mtime_;
 }
 
+void SceneModel::StartPreview(JobQueue* jobs, SceneObject* object, double cells_across) {
+  const std::shared_ptr<const modeling::CompiledSolid> solid = object->solid;
+  const int generation = generation_;
+  const int sequence = ++preview_counter_;
+  const ObjectId id = object->id;
+  const std::uint64_t revision = object->source_revision;
+  const std::string name = object->name;
+  Job& job = jobs->Start(
+      "Preview " + name, [this, id, solid, generation, sequence, revision, cells_across,
+                          name](JobContext& context) -> Job::Finisher {
+        auto result = std::make_shared<PreviewResult>();
+        try {
+          context.SetPhase("bounds");
+          result->bounds_W = SolidBox(*solid, "solid '" + name + "'");
+          const double cell = result->bounds_W.sizes().maxCoeff() / cells_across;
+          modeling::SurfaceMeshSettings s;
+          s.bounds = result->bounds_W;
+          s.bounds.min().array() -= 2.0 * cell;
+          s.bounds.max().array() += 2.0 * cell;
+          s.cell_size = cell;
+          s.cancel = context.cancel_flag();
+          s.progress = context.ProgressRange(0.0, 1.0);
+          context.SetPhase("surface");
+          result->mesh = modeling::MeshSurface(*solid, s);
+          result->cell = cell;
+        } catch (const std::exception& e) {
+          if (context.cancelled()) throw;  // superseded or cancelled: nothing lands
+          // A solid that cannot be previewed (empty, unbounded, too fine a grid): the error lands
+          // on the object, which keeps its last preview; no retry for this revision.
+          result->error = e.what();
+        }
+        return [this, id, generation, sequence, revision, cells_across, result]() {
+          if (generation != generation_) return;  // scene reloaded
+          const int i = IndexOf(id);
+          if (i < 0) return;  // object deleted
+          SceneObject& o = objects_[i];
+          if (sequence <= o.preview_sequence) return;  // a newer preview already landed
+          o.preview_sequence = sequence;
+          o.preview_revision = revision;
+          o.preview_cells_across = cells_across;
+          if (!result->error.empty()) {
+            if (revision == o.source_revision) {
+              o.error = result->error;
+              o.error_revision = revision;
+            }
+            return;
+          }
+          if (revision == o.source_revision && o.error_revision == revision) {
+            o.error.clear();
+            o.error_revision = 0;
+          }
+          o.bounds_W = result->bounds_W;
+          o.preview = std::move(result->mesh);
+          o.preview_cell = result->cell;
+          ++o.revision;
+        };
+      });
+  object->preview_job = &job;
+  object->preview_job_revision = revision;
+  object->preview_job_cells_across = cells_across;
+}
+
 void SceneModel::StartPreviewJobs(JobQueue* jobs, double cells_across) {
-  for (size_t i = 0; i < objects_.size(); ++i) {
-    const SceneObject& o = objects_[i];
-    const double cell = o.bounds_W.sizes().maxCoeff() / cells_across;
-    modeling::SurfaceMeshSettings settings;
-    settings.bounds = o.bounds_W;
-    settings.bounds.min().array() -= 2.0 * cell;
-    settings.bounds.max().array() += 2.0 * cell;
-    settings.cell_size = cell;
-    const std::shared_ptr<const modeling::CompiledSolid> solid = o.solid;
-    const int generation = generation_;
-    jobs->Start("Preview " + o.name, [this, i, solid, settings, generation,
-                                      cell](JobContext& context) -> Job::Finisher {
-      modeling::SurfaceMeshSettings s = settings;
-      s.cancel = context.cancel_flag();
-      s.progress = context.ProgressRange(0.0, 1.0);
-      context.SetPhase("surface");
-      auto mesh = std::make_shared<modeling::TriangleMesh>(modeling::MeshSurface(*solid, s));
-      return [this, i, mesh, generation, cell]() {
-        if (generation != generation_ || i >= objects_.size()) return;  // scene reloaded
-        objects_[i].preview = std::move(*mesh);
-        objects_[i].preview_cell = cell;
-        ++objects_[i].revision;
-      };
-    });
+  for (SceneObject& o : objects_) {
+    if (o.solid != nullptr) StartPreview(jobs, &o, cells_across);
+  }
+}
+
+void SceneModel::UpdatePreviews(JobQueue* jobs, double coarse_cells_across,
+                                double fine_cells_across) {
+  for (SceneObject& o : objects_) {
+    if (o.solid == nullptr) continue;
+    Job* running = nullptr;
+    if (o.preview_job != nullptr) {
+      for (const auto& job : jobs->jobs()) {
+        if (job.get() == o.preview_job && job->state() == Job::State::kRunning) running = job.get();
+      }
+    }
+    if (running == nullptr) o.preview_job = nullptr;
+    const bool current = o.preview_revision == o.source_revision;
+    if (running != nullptr) {
+      // A fine pass of a shape that has changed since only delays the coarse pass of the new one.
+      if (o.preview_job_revision != o.source_revision &&
+          o.preview_job_cells_across > coarse_cells_across && !running->cancel_requested()) {
+        running->Cancel();
+      }
+      continue;
+    }
+    if (!current) {
+      StartPreview(jobs, &o, coarse_cells_across);
+    } else if (o.preview_cells_across < fine_cells_across) {
+      StartPreview(jobs, &o, fine_cells_across);
+    }
   }
 }
 
@@ -152,6 +319,9 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double c
   }
   if (!(cell > 0.0)) throw std::invalid_argument("mesh resolution must be > 0");
   const SceneObject& o = objects_[index];
+  if (o.solid == nullptr) {
+    throw std::invalid_argument("solid '" + o.name + "' does not compile: " + o.error);
+  }
   modeling::SurfaceMeshSettings settings;
   settings.bounds = o.bounds_W;
   settings.bounds.min().array() -= 2.0 * cell;
@@ -159,9 +329,11 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double c
   settings.cell_size = cell;
   const std::shared_ptr<const modeling::CompiledSolid> solid = o.solid;
   const int generation = generation_;
+  const ObjectId id = o.id;
+  const std::uint64_t revision = o.source_revision;
   const std::string title = std::string(kind == MeshKind::kSurface ? "Surface" : "Tetrahedra") +
                             " of " + o.name;
-  return jobs->Start(title, [this, index, solid, settings, generation, kind,
+  return jobs->Start(title, [this, id, revision, solid, settings, generation, kind,
                              cell](JobContext& context) -> Job::Finisher {
     const bool tets = kind == MeshKind::kTetrahedra;
     modeling::SurfaceMeshSettings s = settings;
@@ -178,8 +350,11 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double c
       *tet = modeling::TetrahedralizeSurface(*surface, t);
     }
     if (context.cancelled()) throw std::runtime_error("cancelled");
-    return [this, index, surface, tet, generation, tets, cell]() {
-      if (generation != generation_ || index >= static_cast<int>(objects_.size())) return;
+    return [this, id, revision, surface, tet, generation, tets, cell]() {
+      if (generation != generation_) return;
+      const int index = IndexOf(id);
+      // Dropped when the object is gone or its shape changed while meshing.
+      if (index < 0 || objects_[index].source_revision != revision) return;
       SceneObject& object = objects_[index];
       object.surface = std::move(*surface);
       object.surface_cell = cell;
@@ -195,6 +370,7 @@ std::unique_ptr<haptics::HapticScene> SceneModel::BuildHapticScene(const DemoFie
   auto scene = std::make_unique<haptics::HapticScene>();
   const double s = x_wd_.world_scale;
   for (const SceneObject& o : objects_) {
+    if (o.solid == nullptr) continue;  // never compiled: nothing to touch
     // Felt in D: a world displacement of s·x is a device displacement of x.
     scene->Add(std::make_unique<SolidPenaltyField>(o.solid, stiffness_D / s, damping_D / s));
   }

@@ -1,13 +1,22 @@
-// The window's scene: the implicit solids of a scene file (or the built-in demo), where they sit
-// in the device workspace (X_WD), their meshes (a preview surface meshed in the background at
-// load, and the surface / tetrahedra of the Mesh action, kept for export), the HapticScene
-// built from them, and export. Meshing runs as Jobs (doc/job.h); a job's result lands on the
-// main thread through its finisher, a failed or cancelled job changes nothing.
-// Main thread only (except what the jobs' work functions capture: immutable copies).
+// The window's scene: an app::Document (doc/document.h) holding the implicit solids of a scene
+// file (or the built-in demo) with their undo history, where they sit in the device workspace
+// (X_WD, chosen at Load and never changed by edits), the compiled solids and their meshes (a
+// preview surface meshed in the background, and the surface / tetrahedra of the Mesh action,
+// kept for export), the HapticScene built from them, and export.
+//
+// Edits go through document() (commands); Refresh() then recompiles the solids whose object
+// revision moved and UpdatePreviews() re-meshes their previews: a coarse pass first (live
+// preview while a parameter is dragged), then a fine one. A solid that fails to compile keeps its
+// last good compiled solid, preview and haptics and carries the error text.
+// Meshing runs as Jobs (doc/job.h); a job's result lands on the main thread through its
+// finisher, a failed or cancelled job changes nothing, and a result made from an object
+// revision that is no longer current is dropped (previews: an older pass never replaces a newer
+// one). Main thread only (except what the jobs' work functions capture: immutable copies).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -15,6 +24,7 @@
 
 #include <Eigen/Geometry>
 
+#include "doc/document.h"
 #include "doc/job.h"
 #include "gui/device_session.h"
 #include "spidarcad/haptics/geometry.h"
@@ -49,14 +59,29 @@ DeviceToWorld ChooseDeviceToWorld(const Eigen::AlignedBox3d& bounds_W,
 // Which mesh the Mesh action makes.
 enum class MeshKind { kSurface, kTetrahedra };
 
-// One solid of the scene and its meshes.
+// One solid of the scene (a solid object of the Document) and its meshes.
 struct SceneObject {
+  ObjectId id = 0;                   // the Document object
   std::string name;
+  // Last good compiled solid (null only when the object never compiled) and the Document object
+  // revision it was compiled from.
   std::shared_ptr<const modeling::CompiledSolid> solid;
-  Eigen::AlignedBox3d bounds_W;      // box of the solid, m
+  std::uint64_t source_revision = 0;
+  // Why the object's current revision could not be compiled or meshed ("" when it is fine), and
+  // that revision.
+  std::string error;
+  std::uint64_t error_revision = 0;
+  Eigen::AlignedBox3d bounds_W;      // box of the solid, m (updated when a preview lands)
   std::array<double, 3> colour{};    // RGB in [0, 1] in the view
   modeling::TriangleMesh preview;    // background preview surface (empty until meshed)
   double preview_cell = 0.0;         // its grid cell, m
+  double preview_cells_across = 0.0; // its resolution (cells across the largest side)
+  std::uint64_t preview_revision = 0;  // object revision it was meshed from (0: none)
+  int preview_sequence = 0;          // start number of the landed preview job (newer wins)
+  const Job* preview_job = nullptr;  // preview job in flight (compared with the queue's jobs,
+                                     // never dereferenced on its own)
+  std::uint64_t preview_job_revision = 0;  // object revision that job meshes
+  double preview_job_cells_across = 0.0;   // and its resolution
   modeling::TriangleMesh surface;    // the Mesh action's surface (empty until made)
   double surface_cell = 0.0;
   modeling::TetMesh tets;            // the Mesh action's tetrahedra (empty until made)
@@ -71,19 +96,54 @@ class SceneModel {
   // Colours given to the solids in order (cycled).
   static const std::array<std::array<double, 3>, 3> kColours;
 
-  // Loads `source`: kDemoSceneName, kNoSceneName or a scene file path. Compiles every solid and
-  // finds its box; places the scene with ChooseDeviceToWorld(travel), or keeps `*keep` when
-  // given (a reload: the running loop's X_WD cannot change). Throws std::runtime_error (or
-  // modeling::SceneError) naming the file and solid when that fails; the model is then unchanged.
+  // Preview resolutions (cells across the largest side of a solid's box): the coarse first pass
+  // after an edit and the fine pass that follows once the object stops changing.
+  static constexpr double kCoarseCellsAcross = 16.0;
+  static constexpr double kFineCellsAcross = 48.0;
+
+  SceneModel();
+  ~SceneModel();
+  SceneModel(const SceneModel&) = delete;
+  SceneModel& operator=(const SceneModel&) = delete;
+
+  // Loads `source`: kDemoSceneName, kNoSceneName or a scene file path, into a new Document (the
+  // undo history starts empty). Compiles every solid and finds its box; places the scene with
+  // ChooseDeviceToWorld(travel), or keeps `*keep` when given (a reload: the running loop's X_WD
+  // cannot change). Throws std::runtime_error (or modeling::SceneError) naming the file and
+  // solid when that fails; the model (and its Document) is then unchanged.
   void Load(const std::string& source, const Eigen::Vector3d& travel,
             const DeviceToWorld* keep = nullptr);
-  // Starts a preview-surface job per solid (cell = largest side / cells_across).
-  void StartPreviewJobs(JobQueue* jobs, double cells_across = 48.0);
+  // Writes the Document as a scene file (temporary file renamed over `path`), which becomes the
+  // source (its new mtime is not taken for an outside change). Throws modeling::SceneError.
+  void Save(const std::string& path);
+  // Brings the compiled solids in line with the Document after edits, undo or redo: recompiles
+  // every solid object whose revision moved (a failure keeps the last good solid and sets
+  // `error`), adds and drops objects, drops Mesh-action results of changed solids. Returns true
+  // when the set of compiled solids changed (the haptic scene must be rebuilt). Cheap when the
+  // Document's revision has not moved.
+  bool Refresh();
+  // Starts preview jobs where needed, at most one in flight per object: a coarse pass for an
+  // object whose preview is not from its current revision, else a fine pass when the preview
+  // is coarse. Cancels a fine pass in flight when its object has changed since. Call once per
+  // frame after JobQueue::Poll.
+  void UpdatePreviews(JobQueue* jobs, double coarse_cells_across = kCoarseCellsAcross,
+                      double fine_cells_across = kFineCellsAcross);
+  // Starts a preview-surface job per compiled solid (cell = largest side / cells_across).
+  void StartPreviewJobs(JobQueue* jobs, double cells_across = kFineCellsAcross);
   // Starts the Mesh action on object `index`: surface at `cell` m and, for kTetrahedra, TetGen
-  // (radius-edge bound 2) on it. Returns the job. Throws std::out_of_range for a bad index.
+  // (radius-edge bound 2) on it. Returns the job. Throws std::out_of_range for a bad index,
+  // std::invalid_argument when the object has no compiled solid.
   Job& StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double cell);
-  // True once the scene file changed on disk since it was loaded (checked by mtime).
+  // True once the scene file changed on disk since it was loaded or saved (checked by mtime),
+  // unless the Document has unsaved edits (a reload would lose them).
   bool SourceChanged() const;
+
+  // The Document (edit it through commands, then call Refresh).
+  Document& document() { return *doc_; }
+  // Read-only Document.
+  const Document& document() const { return *doc_; }
+  // Position of the scene object of Document object `id` in objects(), or -1.
+  int IndexOf(ObjectId id) const;
 
   // The haptic scene of the solids (penalty contact, stiffness felt in D `stiffness_D` N/m and
   // damping `damping_D` N·s/m) plus the centring springs when field.enabled.
@@ -94,15 +154,20 @@ class SceneModel {
   const std::vector<SceneObject>& objects() const { return objects_; }
   const DeviceToWorld& device_to_world() const { return x_wd_; }
   const std::string& source() const { return source_; }
-  const std::string& description() const { return description_; }
+  const std::string& description() const { return doc_->description(); }
   // Incremented by every Load (jobs of an older scene are dropped when they finish).
   int generation() const { return generation_; }
 
  private:
+  // Starts one preview job for `object` (an element of objects_) at this resolution.
+  void StartPreview(JobQueue* jobs, SceneObject* object, double cells_across);
+
+  std::unique_ptr<Document> doc_;
+  std::uint64_t synced_revision_ = 0;  // Document revision objects_ were brought in line with
+  int preview_counter_ = 0;
   std::vector<SceneObject> objects_;
   DeviceToWorld x_wd_;
   std::string source_;
-  std::string description_;
   std::filesystem::file_time_type mtime_{};
   int generation_ = 0;
 };

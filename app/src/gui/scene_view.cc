@@ -20,6 +20,7 @@ struct SceneView::Entry {
   vtkNew<vtkPolyDataMapper> mapper;
   vtkNew<vtkActor> actor;
   int revision = -1;
+  ObjectId id = 0;
 };
 
 SceneView::SceneView(vtkRenderer* renderer) : renderer_(renderer) {}
@@ -52,11 +53,14 @@ void Fill(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
 
 void SceneView::Sync(const SceneModel& model, int highlight) {
   const auto& objects = model.objects();
-  if (model.generation() != generation_ || entries_.size() != objects.size()) {
+  bool same_ids = entries_.size() == objects.size();
+  for (size_t i = 0; same_ids && i < objects.size(); ++i) same_ids = entries_[i]->id == objects[i].id;
+  if (model.generation() != generation_ || !same_ids) {
     for (auto& e : entries_) renderer_->RemoveActor(e->actor);
     entries_.clear();
     for (size_t i = 0; i < objects.size(); ++i) {
       auto e = std::make_unique<Entry>();
+      e->id = objects[i].id;
       e->normals->SetInputData(e->poly);
       e->normals->SetFeatureAngle(35.0);
       e->normals->SplittingOn();
@@ -64,8 +68,6 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
       e->mapper->SetInputConnection(e->normals->GetOutputPort());
       e->mapper->ScalarVisibilityOff();
       e->actor->SetMapper(e->mapper);
-      const auto& c = objects[i].colour;
-      e->actor->GetProperty()->SetColor(c[0], c[1], c[2]);
       e->actor->GetProperty()->SetAmbient(0.25);
       e->actor->GetProperty()->SetDiffuse(0.75);
       e->actor->GetProperty()->SetSpecular(0.1);
@@ -85,6 +87,12 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
       e.revision = o.revision;
     }
     e.actor->SetVisibility(o.shown().triangles.cols() > 0);
+    const auto& c = o.colour;
+    if (o.error.empty()) {
+      e.actor->GetProperty()->SetColor(c[0], c[1], c[2]);
+    } else {
+      e.actor->GetProperty()->SetColor(0.5 * c[0] + 0.45, 0.5 * c[1], 0.5 * c[2]);
+    }
     // p_D = p_W / s − p_WDo / s.
     e.actor->SetScale(inv, inv, inv);
     e.actor->SetPosition(-inv * x.p_WDo.x(), -inv * x.p_WDo.y(), -inv * x.p_WDo.z());

@@ -22,9 +22,12 @@ class SceneView {
   SceneView(const SceneView&) = delete;
   SceneView& operator=(const SceneView&) = delete;
 
-  // Brings the actors in line with `model`: rebuilds an object's polydata when its revision or
-  // the scene's generation changed, and places every actor by the inverse of X_WD.
-  // `highlight` (an object index, or −1) is drawn with a darker edge colour.
+  // Brings the actors in line with `model`: one actor per scene object, matched by Document
+  // object id (objects added, deleted or reordered by edits get their own actors); rebuilds an
+  // object's polydata when its revision, its id or the scene's generation changed, colours it
+  // (a solid whose latest edit did not compile is tinted red while it shows its last good
+  // mesh) and places every actor by the inverse of X_WD. `highlight` (an object index, or −1)
+  // is drawn with its mesh edges.
   void Sync(const SceneModel& model, int highlight = -1);
 
  private:

@@ -51,11 +51,15 @@ void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, M
 }
 
 float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
-                  WorkbenchActions* actions) {
+                  WorkbenchActions* actions, TreeController* tree, TreePanelState* tree_state) {
   float height = 0.0f;
   if (!ImGui::BeginMainMenuBar()) return height;
   height = ImGui::GetWindowSize().y;
   if (ImGui::BeginMenu("File")) {
+    if (tree != nullptr && tree_state != nullptr) {
+      DrawSaveMenuItems(tree, tree_state);
+      ImGui::Separator();
+    }
     const SceneObject* o = Selected(*model, *state);
     if (ImGui::MenuItem("Export surface (STL/OBJ/PLY)...", nullptr, false, o != nullptr)) {
       OpenExport(state, *model, false);
@@ -66,6 +70,10 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
     }
     ImGui::Separator();
     if (ImGui::MenuItem("Quit", "Esc")) actions->quit = true;
+    ImGui::EndMenu();
+  }
+  if (tree != nullptr && ImGui::BeginMenu("Edit")) {
+    DrawEditMenuItems(tree);
     ImGui::EndMenu();
   }
   if (ImGui::BeginMenu("Mesh")) {
@@ -93,21 +101,53 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
 }
 
 void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
-                    float width) {
+                    float width, TreeController* tree, TreePanelState* tree_state,
+                    float max_height) {
   ImGui::SetNextWindowPos(ImVec2(x, y));
-  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, 1e5f));
+  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, max_height));
   ImGui::SetNextWindowBgAlpha(0.92f);
   ImGui::Begin("Scene", nullptr, kOverlayFlags);
   ImGui::PushTextWrapPos(width - 10.0f);
   ImGui::TextDisabled("%s", model->source().c_str());
-  if (!model->description().empty()) ImGui::TextDisabled("%s", model->description().c_str());
+  if (!model->description().empty()) {
+    if (tree == nullptr) {
+      ImGui::TextDisabled("%s", model->description().c_str());
+    } else {
+      // One line (the tree needs the room); the whole text as a tooltip.
+      const std::string& d = model->description();
+      const size_t cut = std::min<size_t>(d.find_first_of(".:\n"), 44);
+      ImGui::TextDisabled("%s%s", d.substr(0, cut).c_str(), cut < d.size() ? " ..." : "");
+      if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", d.c_str());
+    }
+  }
   ImGui::PopTextWrapPos();
   const DeviceToWorld& x_wd = model->device_to_world();
   ImGui::TextDisabled("X_WD: scale %.2f, device centre at (%.0f, %.0f, %.0f) mm", x_wd.world_scale,
                       x_wd.p_WDo.x() * 1e3, x_wd.p_WDo.y() * 1e3, x_wd.p_WDo.z() * 1e3);
   const auto& objects = model->objects();
-  if (objects.empty()) ImGui::TextDisabled("no solids");
-  for (int i = 0; i < static_cast<int>(objects.size()); ++i) {
+  if (tree != nullptr && tree_state != nullptr) {
+    // The tree takes what is left of max_height after the rest of the panel (about 12 lines);
+    // the panel scrolls when a node has many parameters.
+    const float line = ImGui::GetFrameHeightWithSpacing();
+    const float tree_height = std::clamp(max_height - 12.0f * line, 4.0f * line, 12.0f * line);
+    DrawTreePanel(tree, tree_state, tree_height);
+    if (tree->selection()) {
+      const int index = model->IndexOf(tree->selection()->object);
+      if (index >= 0) state->selected = index;
+    }
+    const SceneObject* o = Selected(*model, *state);
+    if (o != nullptr) {
+      const long tris = o->shown().triangles.cols();
+      ImGui::TextDisabled("mesh of '%s': %ld tri%s", o->name.c_str(), tris,
+                          o->tets.tets.cols() > 0   ? ", tets"
+                          : o->surface_cell > 0.0   ? " (Mesh action)"
+                          : tris > 0                ? " (preview)"
+                                                    : " (meshing preview...)");
+    }
+  } else if (objects.empty()) {
+    ImGui::TextDisabled("no solids");
+  }
+  for (int i = 0; tree == nullptr && i < static_cast<int>(objects.size()); ++i) {
     const SceneObject& o = objects[i];
     ImGui::PushID(i);
     const ImVec4 c(static_cast<float>(o.colour[0]), static_cast<float>(o.colour[1]),

@@ -1,5 +1,5 @@
-// ImGui side of the workbench: the menu bar (File → Export, Mesh, Haptics, View), the scene
-// panel (objects, Mesh action with progress bars and Cancel, status line), the loop panel
+// ImGui side of the workbench: the menu bar (File → Save / Export, Edit, Mesh, Haptics, View),
+// the scene panel (the tree panel of gui/tree_panel.h: objects, nodes, parameters; Mesh action with progress bars and Cancel, status line), the loop panel
 // (tick time and period jitter percentiles, safety events, scheduling, emergency stop) and the
 // export dialog. They act on SceneModel and JobQueue directly and return the rest.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
@@ -10,6 +10,7 @@
 #include "doc/job.h"
 #include "gui/haptic_runtime.h"
 #include "gui/scene_model.h"
+#include "gui/tree_panel.h"
 
 namespace spidarcad::app {
 
@@ -36,15 +37,20 @@ struct WorkbenchActions {
   bool quit = false;
 };
 
-// Draws the main menu bar; returns its height in pixels.
+// Draws the main menu bar (File → Save / Save As when `tree` is given, Edit menu from `tree`);
+// returns its height in pixels.
 float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
-                  WorkbenchActions* actions);
+                  WorkbenchActions* actions, TreeController* tree = nullptr,
+                  TreePanelState* tree_state = nullptr);
 
-// Draws the scene panel at (x, y), `width` wide: source, objects (select), Mesh action
-// (resolution, Surface / Tetrahedra buttons), running jobs with progress bar and Cancel,
-// status line.
+// Draws the scene panel at (x, y), `width` wide: source, the tree panel (objects and their node
+// trees, the selected node's parameters; it also selects the object of the Mesh action) or,
+// without `tree`, the object list; Mesh action (resolution, Surface / Tetrahedra buttons),
+// running jobs with progress bar and Cancel, status line. `max_height` bounds the panel
+// (pixels); the tree region scrolls within it.
 void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
-                    float width);
+                    float width, TreeController* tree = nullptr,
+                    TreePanelState* tree_state = nullptr, float max_height = 1e5f);
 
 // Draws the loop panel with its bottom-right corner at (right, bottom): statistics and the
 // emergency stop / re-arm buttons.
