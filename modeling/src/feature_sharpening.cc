@@ -50,6 +50,75 @@ double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
   return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
 }
 
+// Sign of the orientation of d against the plane of (a, b, c), 0 within rounding: the same
+// predicate, tolerance included, as CheckSurface (tetgen_mesher.cc), so that a move or flip the
+// guard lets through is one CheckSurface will not call an intersection.
+int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+  const double v = (a - d).dot((b - d).cross(c - d));
+  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
+  if (std::abs(v) <= 1e-12 * scale) return 0;
+  return v > 0 ? 1 : -1;
+}
+
+// Whether t, in the plane of (a, b, c), lies in the closed triangle (within rounding).
+bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const Eigen::Vector3d corner[3] = {a, b, c};
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d& u = corner[k];
+    const Eigen::Vector3d& v = corner[(k + 1) % 3];
+    if (n.dot((v - u).cross(t - u)) < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
+  }
+  return true;
+}
+
+// Whether segment pq meets triangle (a, b, c), touching included (coplanar contacts excepted).
+bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                          const Eigen::Vector3d& c) {
+  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
+  if (sp == sq) return false;
+  if (sp == 0) return PointInTriangle(p, a, b, c);
+  if (sq == 0) return PointInTriangle(q, a, b, c);
+  const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
+  const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
+  return !(has_pos && has_neg) && (has_pos || has_neg);
+}
+
+// Whether triangles a and b (vertex indices ia, ib; corner positions pa, pb) meet other than
+// along what they share: a shared edge with the two folded onto each other, a shared vertex
+// with an opposite edge through the other triangle, or disjoint triangles crossing.
+bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::Vector3d, 3>& pa, const std::array<int, 3>& ib,
+                   const std::array<Eigen::Vector3d, 3>& pb) {
+  auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
+  int shared = 0;
+  for (int v : ia) shared += in(ib, v);
+  if (shared >= 3) return true;
+  if (shared == 2) {
+    int fa = 0, gb = 0;
+    while (in(ib, ia[fa])) ++fa;
+    while (in(ia, ib[gb])) ++gb;
+    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
+    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
+    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
+    const Eigen::Vector3d edge = e1 - e0;
+    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+  }
+  if (shared == 1) {
+    int ea[2], eb[2], na = 0, nb = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (!in(ib, ia[k])) ea[na++] = k;
+      if (!in(ia, ib[k])) eb[nb++] = k;
+    }
+    return SegmentMeetsTriangle(pa[ea[0]], pa[ea[1]], pb[0], pb[1], pb[2]) ||
+           SegmentMeetsTriangle(pb[eb[0]], pb[eb[1]], pa[0], pa[1], pa[2]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (SegmentMeetsTriangle(pa[k], pa[(k + 1) % 3], pb[0], pb[1], pb[2])) return true;
+    if (SegmentMeetsTriangle(pb[k], pb[(k + 1) % 3], pa[0], pa[1], pa[2])) return true;
+  }
+  return false;
+}
+
 class Sharpener {
  public:
   Sharpener(const CompiledSolid& solid, const TriangleMesh& mesh, const FeatureSettings& s) : solid_(solid), s_(s) {
@@ -309,6 +378,40 @@ class Sharpener {
     return n.dot(UnitGradient(Project((a + b + c) / 3.0, 3))) > 0.0;
   }
 
+  // Whether one of the triangles `changed` (as they stand now) meets, other than along what they
+  // share, a triangle incident to one of its vertices (TrianglesMeet). A vertex move or an edge
+  // flip only reshapes the triangles around it, so this local test keeps it from folding a
+  // triangle onto its neighbour (a sliver turned over against its neighbours, near a concave
+  // corner) or a fan over itself.
+  bool ChangedTrianglesMeetOthers(const std::vector<int>& changed) {
+    nearby_.clear();
+    for (int t : changed) {
+      for (int w : tris_[t]) nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+    }
+    std::sort(nearby_.begin(), nearby_.end());
+    nearby_.erase(std::unique(nearby_.begin(), nearby_.end()), nearby_.end());
+    for (int t : changed) {
+      const std::array<Eigen::Vector3d, 3> pt{pos_[tris_[t][0]], pos_[tris_[t][1]], pos_[tris_[t][2]]};
+      const Eigen::AlignedBox3d bt = Box(pt);
+      for (int u : nearby_) {
+        if (u == t) continue;
+        // Each changed pair once.
+        if (u < t && std::find(changed.begin(), changed.end(), u) != changed.end()) continue;
+        const std::array<Eigen::Vector3d, 3> pu{pos_[tris_[u][0]], pos_[tris_[u][1]], pos_[tris_[u][2]]};
+        if (!bt.intersects(Box(pu))) continue;
+        if (TrianglesMeet(tris_[t], pt, tris_[u], pu)) return true;
+      }
+    }
+    return false;
+  }
+
+  static Eigen::AlignedBox3d Box(const std::array<Eigen::Vector3d, 3>& p) {
+    Eigen::AlignedBox3d b(p[0]);
+    b.extend(p[1]);
+    b.extend(p[2]);
+    return b;
+  }
+
   // Moves v to x if every safety test passes (see the header). Returns whether it moved.
   bool TryMove(int v, const Eigen::Vector3d& x) {
     const Eigen::Vector3d old = pos_[v];
@@ -333,6 +436,14 @@ class Sharpener {
       after.Add(TriangleDeviation(p[0], p[1], p[2]));
     }
     if (!(after.sum2 < before.sum2) || after.max > before.max + 1e-9 * h_) return false;
+    // Last (the costliest): with v at x, no adjacent triangle may fold onto a neighbour or cut
+    // through a nearby triangle.
+    pos_[v] = x;
+    if (ChangedTrianglesMeetOthers(vertex_tris_[v])) {
+      pos_[v] = old;
+      return false;
+    }
+    pos_[v] = old;
     HashErase(v);
     pos_[v] = x;
     HashInsert(v);
@@ -395,8 +506,15 @@ class Sharpener {
     before.Add(TriangleDeviation(Q, P, D));
     after.Add(TriangleDeviation(D, Q, C));
     if (!(after.sum2 < 0.5 * before.sum2) || after.max > before.max) return false;
+    const std::array<int, 3> old_t = tris_[t], old_t2 = tris_[t2];
     tris_[t] = {c, p, d};
     tris_[t2] = {d, q, c};
+    // The new pair may not fold onto each other or onto a neighbour (a non-convex quad).
+    if (ChangedTrianglesMeetOthers({t, t2})) {
+      tris_[t] = old_t;
+      tris_[t2] = old_t2;
+      return false;
+    }
     // t lost q and gained d; t2 lost p and gained c.
     auto erase = [&](int v, int u) {
       auto& list = vertex_tris_[v];
@@ -450,6 +568,7 @@ class Sharpener {
   std::vector<Plane> tri_plane_;
   std::vector<int> tri_stamp_;
   std::vector<int> ring_;     // scratch of VertexNormalsSpread
+  std::vector<int> nearby_;   // scratch of ChangedTrianglesMeetOthers
   std::vector<char> dirty_;   // per triangle: to be tried by the next FlipPass
   int round_stamp_ = 0;
   std::vector<bool> is_feature_;

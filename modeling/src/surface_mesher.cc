@@ -21,14 +21,95 @@ constexpr std::array<std::array<int, 4>, 6> kKuhnTets = {{
     {0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7},
 }};
 
+// Grid vertex values within kZeroBand cells of zero count as exactly zero (see VertexValue):
+// far above rounding noise (1e-17 m), far below any error that matters.
+constexpr double kZeroBand = 1e-6;
+// Mesh vertices at a zero grid vertex that the clean-up could not merge move the first of these
+// fractions of their grid edge towards its inside end that keeps the triangles around them
+// unfolded (see Cleaner::SeparateCoincident); the last is taken regardless.
+constexpr std::array<double, 3> kZeroOffsets = {0.05, 1e-3, 1e-5};
+// The clean-up merges vertices closer than kCoincident cells without geometric checks.
+constexpr double kCoincident = 1e-4;
+
+// Sign of the orientation of d against the plane of (a, b, c), 0 within rounding: the same
+// predicate, tolerance included, as CheckSurface (tetgen_mesher.cc), so that what the clean-up
+// lets through CheckSurface will not call an intersection.
+int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+  const double v = (a - d).dot((b - d).cross(c - d));
+  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
+  if (std::abs(v) <= 1e-12 * scale) return 0;
+  return v > 0 ? 1 : -1;
+}
+
+// Whether t, in the plane of (a, b, c), lies in the closed triangle (within rounding).
+bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const Eigen::Vector3d corner[3] = {a, b, c};
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d& u = corner[k];
+    const Eigen::Vector3d& v = corner[(k + 1) % 3];
+    if (n.dot((v - u).cross(t - u)) < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
+  }
+  return true;
+}
+
+// Whether segment pq meets triangle (a, b, c), touching included (coplanar contacts excepted).
+bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                          const Eigen::Vector3d& c) {
+  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
+  if (sp == sq) return false;
+  if (sp == 0) return PointInTriangle(p, a, b, c);
+  if (sq == 0) return PointInTriangle(q, a, b, c);
+  const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
+  const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
+  return !(has_pos && has_neg) && (has_pos || has_neg);
+}
+
+// Whether triangles with vertex indices ia, ib and corners pa, pb meet other than along what
+// they share: a shared edge with the two folded onto each other, a shared vertex with an
+// opposite edge through the other triangle, or disjoint triangles crossing.
+bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::Vector3d, 3>& pa, const std::array<int, 3>& ib,
+                   const std::array<Eigen::Vector3d, 3>& pb) {
+  auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
+  int shared = 0;
+  for (int v : ia) shared += in(ib, v);
+  if (shared >= 3) return true;
+  if (shared == 2) {
+    int fa = 0, gb = 0;
+    while (in(ib, ia[fa])) ++fa;
+    while (in(ia, ib[gb])) ++gb;
+    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
+    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
+    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
+    const Eigen::Vector3d edge = e1 - e0;
+    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+  }
+  if (shared == 1) {
+    int ea[2], eb[2], na = 0, nb = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (!in(ib, ia[k])) ea[na++] = k;
+      if (!in(ia, ib[k])) eb[nb++] = k;
+    }
+    return SegmentMeetsTriangle(pa[ea[0]], pa[ea[1]], pb[0], pb[1], pb[2]) ||
+           SegmentMeetsTriangle(pb[eb[0]], pb[eb[1]], pa[0], pa[1], pa[2]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (SegmentMeetsTriangle(pa[k], pa[(k + 1) % 3], pb[0], pb[1], pb[2])) return true;
+    if (SegmentMeetsTriangle(pb[k], pb[(k + 1) % 3], pa[0], pa[1], pa[2])) return true;
+  }
+  return false;
+}
+
 // Post-pass of MeshSurface: edge collapses (with the link condition, so a closed manifold
 // stays a closed manifold of the same genus) and edge flips that remove the zero-area, needle
 // and cap triangles marching tetrahedra produces where the surface passes at or near grid
 // vertices.
 class Cleaner {
  public:
-  Cleaner(std::vector<Eigen::Vector3d>* positions, std::vector<std::array<int, 3>>* triangles)
-      : pos_(*positions), tris_(*triangles), alive_(triangles->size(), true), vertex_tris_(positions->size()) {
+  // solid: the field whose gradient says which way is out (FacesOut).
+  Cleaner(const CompiledSolid& solid, std::vector<Eigen::Vector3d>* positions, std::vector<std::array<int, 3>>* triangles)
+      : solid_(solid), pos_(*positions), tris_(*triangles), alive_(triangles->size(), true),
+        vertex_tris_(positions->size()), gradient_(positions->size()), has_gradient_(positions->size(), false) {
     for (size_t t = 0; t < tris_.size(); ++t) {
       for (int k = 0; k < 3; ++k) vertex_tris_[tris_[t][k]].push_back(static_cast<int>(t));
     }
@@ -36,8 +117,10 @@ class Cleaner {
 
   // Runs the passes: collapse edges shorter than short_edge and the short edge of needles,
   // flip the long edge of caps (angles below small_angle_rad). Returns collapses and flips.
-  void Run(double short_edge, double small_angle_rad, double max_edge, long* collapses, long* flips) {
+  // Vertices closer than `coincident` are merged without geometric checks.
+  void Run(double short_edge, double small_angle_rad, double max_edge, double coincident, long* collapses, long* flips) {
     max_edge2_ = max_edge * max_edge;
+    coincident2_ = coincident * coincident;
     for (int pass = 0; pass < 4; ++pass) {
       long changed = 0;
       for (size_t t = 0; t < tris_.size(); ++t) {
@@ -46,6 +129,60 @@ class Cleaner {
       }
       if (changed == 0) break;
     }
+  }
+
+  // Moves apart the live vertices that still share one position after Run (the link condition
+  // kept them from merging: the zero set pinches there, e.g. a hole about one cell wide whose
+  // diameter is a grid edge with both ends at zero, so the surface touches itself along it):
+  // each moves along its own grid edge into the solid, by the first fraction of kZeroOffsets of
+  // inward[v] (its edge, zero end to inside end) that turns none of its triangles over and folds
+  // none onto a neighbour, so the surface stays embedded, the two sides of the pinch end up a
+  // tenth of a cell apart (not a crack that TetGen fills with flat tets), and no weld tolerance
+  // downstream joins them. Returns the number moved.
+  long SeparateCoincident(const std::vector<Eigen::Vector3d>& inward) {
+    std::vector<int> live;
+    for (size_t v = 0; v < pos_.size(); ++v) {
+      if (!vertex_tris_[v].empty()) live.push_back(static_cast<int>(v));
+    }
+    auto less = [&](int a, int b) {
+      const Eigen::Vector3d &p = pos_[a], &q = pos_[b];
+      return p.x() < q.x() || (p.x() == q.x() && (p.y() < q.y() || (p.y() == q.y() && p.z() < q.z())));
+    };
+    std::sort(live.begin(), live.end(), less);
+    long moved = 0;
+    for (size_t i = 0; i < live.size();) {
+      size_t j = i + 1;
+      while (j < live.size() && pos_[live[j]] == pos_[live[i]]) ++j;
+      if (j - i > 1) {
+        // All of the group first (each side of the pinch moves off the other), then each one
+        // steps back to a smaller fraction while its triangles fold.
+        const Eigen::Vector3d start = pos_[live[i]];
+        for (size_t k = i; k < j; ++k) pos_[live[k]] = start + kZeroOffsets[0] * inward[live[k]];
+        for (size_t k = i; k < j; ++k) {
+          const int v = live[k];
+          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start); ++f) pos_[v] = start + kZeroOffsets[f] * inward[v];
+          moved += inward[v].squaredNorm() > 0.0;
+        }
+      }
+      i = j;
+    }
+    return moved;
+  }
+
+  // Whether the triangles of v, with v moved from `before` to where it is now, keep facing the
+  // way they did (positive dot product of old and new normals) and meet no triangle around them.
+  bool Unfolded(int v, const Eigen::Vector3d& before) {
+    const Eigen::Vector3d now = pos_[v];
+    changed_.clear();
+    for (int t : vertex_tris_[v]) {
+      const Eigen::Vector3d n_new = Normal(tris_[t]);
+      pos_[v] = before;
+      const Eigen::Vector3d n_old = Normal(tris_[t]);
+      pos_[v] = now;
+      if (!(n_new.dot(n_old) > 0.0)) return false;
+      changed_.emplace_back(t, tris_[t]);
+    }
+    return !WouldMeet(changed_, -1, -1);
   }
 
   // Removes dead triangles and unused vertices (renumbering, order kept).
@@ -84,6 +221,74 @@ class Cleaner {
  private:
   Eigen::Vector3d Normal(const std::array<int, 3>& t) const {
     return (pos_[t[1]] - pos_[t[0]]).cross(pos_[t[2]] - pos_[t[0]]);
+  }
+
+  // Unit gradient of the field at p (zero where it vanishes).
+  Eigen::Vector3d UnitGradient(const Eigen::Vector3d& p) const {
+    Eigen::Vector3d g;
+    solid_.ValueAndGradient(p, &g);
+    const double n = g.norm();
+    return n > 0.0 ? Eigen::Vector3d(g / n) : Eigen::Vector3d::Zero();
+  }
+
+  // Whether triangle t faces out of the solid: its normal has a positive dot product with the
+  // field's gradient at one or more of its corners (cached: the clean-up moves no vertex) or
+  // its centroid. Several points, because at a crease a corner's gradient is that of one face
+  // only, and a triangle of the other face may see only crease corners. The check is against
+  // the field, not the triangle's previous normal, so successive collapses and flips that each
+  // turn a triangle a little cannot add up to turning it over.
+  bool FacesOut(const std::array<int, 3>& t) {
+    const Eigen::Vector3d n = Normal(t);
+    for (int v : t) {
+      if (!has_gradient_[v]) {
+        gradient_[v] = UnitGradient(pos_[v]);
+        has_gradient_[v] = true;
+      }
+      if (n.dot(gradient_[v]) > 0.0) return true;
+    }
+    return n.dot(UnitGradient((pos_[t[0]] + pos_[t[1]] + pos_[t[2]]) / 3.0)) > 0.0;
+  }
+
+  // Whether one of the `changed` triangles (id, new corners) would meet, other than along what
+  // they share, a live triangle incident to one of its corners (with the changes applied;
+  // `dying` triangles left out). Collapses and flips only reshape triangles around them, so this
+  // local test keeps them from folding a triangle onto a neighbour or a fan over itself.
+  bool WouldMeet(const std::vector<std::pair<int, std::array<int, 3>>>& changed, int dying0, int dying1) {
+    auto corners = [&](const std::array<int, 3>& t) {
+      return std::array<Eigen::Vector3d, 3>{pos_[t[0]], pos_[t[1]], pos_[t[2]]};
+    };
+    auto box = [](const std::array<Eigen::Vector3d, 3>& p) {
+      Eigen::AlignedBox3d b(p[0]);
+      b.extend(p[1]);
+      b.extend(p[2]);
+      return b;
+    };
+    nearby_.clear();
+    for (const auto& [id, tri] : changed) {
+      for (int w : tri) nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+    }
+    std::sort(nearby_.begin(), nearby_.end());
+    nearby_.erase(std::unique(nearby_.begin(), nearby_.end()), nearby_.end());
+    for (size_t i = 0; i < changed.size(); ++i) {
+      const auto& [id, tri] = changed[i];
+      const std::array<Eigen::Vector3d, 3> p = corners(tri);
+      const Eigen::AlignedBox3d b = box(p);
+      // Against the other changed triangles (each pair once) ...
+      for (size_t j = i + 1; j < changed.size(); ++j) {
+        const std::array<Eigen::Vector3d, 3> q = corners(changed[j].second);
+        if (b.intersects(box(q)) && TrianglesMeet(tri, p, changed[j].second, q)) return true;
+      }
+      // ... and the unchanged ones nearby.
+      for (int u : nearby_) {
+        if (!alive_[u] || u == dying0 || u == dying1) continue;
+        bool is_changed = false;
+        for (const auto& c : changed) is_changed |= c.first == u;
+        if (is_changed) continue;
+        const std::array<Eigen::Vector3d, 3> q = corners(tris_[u]);
+        if (b.intersects(box(q)) && TrianglesMeet(tri, p, tris_[u], q)) return true;
+      }
+    }
+    return false;
   }
 
   static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
@@ -136,10 +341,12 @@ class Cleaner {
     std::vector<int> common;
     std::set_intersection(nu.begin(), nu.end(), nv.begin(), nv.end(), std::back_inserter(common));
     if (common.size() != 2) return false;
-    // Geometry: the triangles of u that survive keep their facing (within 60°), and none
-    // becomes a sliver worse than it was (when u and v do not coincide).
-    // Vertices closer than 1e-8 × max_edge count as one point: no geometric check.
-    const bool coincident = (pos_[u] - pos_[v]).squaredNorm() <= 1e-16 * max_edge2_;
+    // Geometry (when u and v do not coincide): the triangles of u that survive keep their facing
+    // (within 60° of their previous normal, and out of the solid by the field's gradient if they
+    // faced out before), none shrinks to a sliver, and none folds onto or cuts through a
+    // triangle around it (WouldMeet).
+    // Vertices closer than `coincident` (Run) count as one point: no geometric check.
+    const bool coincident = (pos_[u] - pos_[v]).squaredNorm() <= coincident2_;
     // No edge longer than 1.5 cells (the raw mesh has edges up to a cube diagonal, 1.73 cells,
     // but inside one tet), so triangles stay as close to the surface as the raw ones.
     if (!coincident) {
@@ -148,6 +355,7 @@ class Cleaner {
         if (w != v && new2 > max_edge2_ && new2 > (pos_[w] - pos_[u]).squaredNorm()) return false;
       }
     }
+    changed_.clear();
     for (int t : vertex_tris_[u]) {
       if (t == shared[0] || t == shared[1]) continue;
       std::array<int, 3> moved = tris_[t];
@@ -158,7 +366,10 @@ class Cleaner {
       const Eigen::Vector3d n_old = Normal(tris_[t]), n_new = Normal(moved);
       if (n_new.norm() <= 0.5 * n_old.norm() * 1e-3 && n_old.norm() > 0.0) return false;
       if (n_old.norm() > 0.0 && n_new.dot(n_old) < 0.5 * n_new.norm() * n_old.norm()) return false;
+      if (!FacesOut(moved) && FacesOut(tris_[t])) return false;
+      changed_.emplace_back(t, moved);
     }
+    if (!coincident && WouldMeet(changed_, shared[0], shared[1])) return false;
     for (int t : shared) alive_[t] = false;
     for (int t : vertex_tris_[u]) {
       if (!alive_[t]) continue;
@@ -203,6 +414,10 @@ class Cleaner {
     const double old_min = std::min(MinAngle(pos_[p], pos_[q], pos_[c]), MinAngle(pos_[q], pos_[p], pos_[d]));
     const double new_min = std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
     if (!(new_min > old_min)) return false;
+    // Neither new triangle turned over (against the field), nor folded onto a neighbour.
+    if (!(FacesOut(n1) && FacesOut(n2)) && FacesOut(tris_[t]) && FacesOut(tris_[t2])) return false;
+    changed_.assign({{t, n1}, {t2, n2}});
+    if (WouldMeet(changed_, -1, -1)) return false;
     tris_[t] = n1;
     tris_[t2] = n2;
     // t lost q, gained d; t2 lost p, gained c.
@@ -226,13 +441,21 @@ class Cleaner {
     const double min_angle = MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]);
     const bool tiny = len[shortest] < short_edge;
     if (!tiny && !(min_angle < small_angle)) return 0;
-    const int u = tri[shortest], v = tri[(shortest + 1) % 3];
     // A needle has a short edge (the angle across it is the small one); a cap has none.
     const bool needle = len[shortest] < 2.0 * std::sin(0.5 * small_angle) * len[longest] * 1.5;
     if (tiny || needle) {
-      if (Collapse(u, v) || Collapse(v, u)) {
-        ++*collapses;
-        return 1;
+      // Every short edge, shortest first: in a zero-area triangle all three edges are equally
+      // short, and the first may fail the link condition where another passes (a fan of three
+      // coincident triangles around a vertex of degree 3: only the spokes can go).
+      std::array<int, 3> order = {shortest, (shortest + 1) % 3, (shortest + 2) % 3};
+      std::sort(order.begin(), order.end(), [&](int i, int j) { return len[i] < len[j] || (len[i] == len[j] && i < j); });
+      for (int k : order) {
+        if (k != shortest && !(len[k] < short_edge)) break;
+        const int u = tri[k], v = tri[(k + 1) % 3];
+        if (Collapse(u, v) || Collapse(v, u)) {
+          ++*collapses;
+          return 1;
+        }
       }
     }
     if (!tiny) {
@@ -253,11 +476,17 @@ class Cleaner {
     return 0;
   }
 
+  const CompiledSolid& solid_;
   std::vector<Eigen::Vector3d>& pos_;
   std::vector<std::array<int, 3>>& tris_;
   std::vector<bool> alive_;
   double max_edge2_ = 0.0;
+  double coincident2_ = 0.0;
   std::vector<std::vector<int>> vertex_tris_;
+  std::vector<Eigen::Vector3d> gradient_;  // per vertex: unit gradient, once has_gradient_
+  std::vector<bool> has_gradient_;
+  std::vector<int> nearby_;                                  // scratch of WouldMeet
+  std::vector<std::pair<int, std::array<int, 3>>> changed_;  // scratch of Collapse and Flip
 };
 
 class Mesher {
@@ -291,9 +520,10 @@ class Mesher {
     Visit({0, 0, 0}, {n_[0], n_[1], n_[2]});
     long collapses = 0, flips = 0;
     if (settings_.clean) {
-      Cleaner cleaner(&vertices_, &triangles_);
+      Cleaner cleaner(solid_, &vertices_, &triangles_);
       cleaner.Run(settings_.short_edge_fraction * h_, settings_.small_angle_deg * M_PI / 180.0,
-                  1.5 * h_, &collapses, &flips);
+                  1.5 * h_, kCoincident * h_, &collapses, &flips);
+      cleaner.SeparateCoincident(inward_);
       cleaner.Compact();
     }
     if (settings_.progress) settings_.progress(1.0);
@@ -329,21 +559,31 @@ class Mesher {
     return false;
   }
 
-  // Field value at a grid vertex, cached; boundary vertices count as outside so the mesh closes.
+  // Field value at a grid vertex, cached. Values within kZeroBand cells of zero become exactly
+  // zero, and zero counts as outside: where the surface runs through grid vertices (a face on a
+  // grid plane) rounding noise (±1e-17 m) or a blend's tail (-1e-12 m) would otherwise give those
+  // vertices random signs, and the surface would weave through them with mesh vertices a hair
+  // apart (distinct, but within any weld tolerance). Boundary vertices count as outside (value
+  // at least zero) so the mesh closes along the bounds.
   double VertexValue(const Index3& v) {
     const long id = VertexId(v);
     const auto it = values_.find(id);
     if (it != values_.end()) return it->second;
     double f = solid_.Value(Position(v));
     ++evaluations_;
-    if (OnBoundary(v)) f = std::max(f, 1e-9 * h_);
+    if (std::abs(f) <= kZeroBand * h_) f = 0.0;
+    if (OnBoundary(v)) f = std::max(f, 0.0);
     values_.emplace(id, f);
     return f;
   }
 
   // Descends the index box [lo, hi) of cells, skipping what the interval bounds rule out.
   void Visit(const Index3& lo, const Index3& hi) {
-    const Eigen::AlignedBox3d box(Position(lo), Position(hi));
+    // Classified with a margin of a few kZeroBand: a box the bounds call inside (or outside)
+    // must have no grid vertex that VertexValue snaps to zero, or skipping it would leave a
+    // hole (distance-like fields change by at most the distance moved).
+    const Eigen::Vector3d margin = Eigen::Vector3d::Constant(4 * kZeroBand * h_);
+    const Eigen::AlignedBox3d box(Position(lo) - margin, Position(hi) + margin);
     const BoxClass cls = solid_.Classify(box);
     bool touches_boundary = false;
     for (int a = 0; a < 3; ++a) touches_boundary |= lo[a] == 0 || hi[a] == n_[a];
@@ -398,8 +638,11 @@ class Mesher {
     if (it != edge_vertices_.end()) return it->second;
     Eigen::Vector3d pa = Position(v[a]), pb = Position(v[b]);
     double fa = f[a], fb = f[b];
+    // An outside end at exactly zero (on the surface, or clamped on the boundary): the vertex is
+    // that grid vertex exactly, so the vertices of all edges ending there coincide and the
+    // clean-up merges them; inward_ says where it goes if it cannot (SeparateCoincident).
     double t = fa / (fa - fb);
-    if (!OnBoundary(v[a]) && !OnBoundary(v[b])) {
+    if (fa != 0.0 && fb != 0.0) {
       // Regula falsi (Illinois variant: halve the stale end's value so it cannot stagnate),
       // keeping the bracket [pa, pb] with opposite signs.
       int last = 0;
@@ -423,7 +666,17 @@ class Mesher {
       }
     }
     const int id = static_cast<int>(vertices_.size());
-    vertices_.push_back(pa + t * (pb - pa));
+    const Eigen::Vector3d edge = Position(v[b]) - Position(v[a]);
+    if (f[a] == 0.0) {
+      vertices_.push_back(Position(v[a]));
+      inward_.push_back(edge);
+    } else if (f[b] == 0.0) {
+      vertices_.push_back(Position(v[b]));
+      inward_.push_back(-edge);
+    } else {
+      vertices_.push_back(pa + t * (pb - pa));
+      inward_.push_back(Eigen::Vector3d::Zero());
+    }
     edge_vertices_.emplace(key, id);
     return id;
   }
@@ -478,6 +731,7 @@ class Mesher {
   std::unordered_map<long, double> values_;
   std::unordered_map<long, int> edge_vertices_;
   std::vector<Eigen::Vector3d> vertices_;
+  std::vector<Eigen::Vector3d> inward_;  // per vertex at a zero grid vertex: its edge, into the solid
   std::vector<std::array<int, 3>> triangles_;
 };
 

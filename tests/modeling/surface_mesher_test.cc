@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/tetgen_mesher.h"
 
 namespace spidarcad::modeling {
 namespace {
@@ -201,6 +202,214 @@ TEST(SurfaceMesher, PlatformCleanMeshHasNoDegenerateTrianglesAndKeepsItsShape) {
                 raw_defects.min_angle_deg, d.min_angle_deg);
     EXPECT_LE(error, 1.15 * raw_error) << "cell " << cell;
     EXPECT_NEAR(MeshVolume(mesh), MeshVolume(raw), 0.01 * MeshVolume(raw)) << "cell " << cell;
+  }
+}
+
+// Pairs of vertices closer than tol (brute force over a list sorted by x).
+long CloseVertexPairs(const TriangleMesh& mesh, double tol) {
+  std::vector<std::array<double, 3>> points;
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) points.push_back({mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i)});
+  std::sort(points.begin(), points.end());
+  long pairs = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    for (size_t j = i + 1; j < points.size() && points[j][0] - points[i][0] <= tol; ++j) {
+      const double dy = points[j][1] - points[i][1], dz = points[j][2] - points[i][2];
+      const double dx = points[j][0] - points[i][0];
+      if (dx * dx + dy * dy + dz * dz <= tol * tol) ++pairs;
+    }
+  }
+  return pairs;
+}
+
+// What TetrahedralizeSurface does before TetGen, with its default weld tolerance: the mesher's
+// output must need no welding (welding two vertices of a closed manifold can make it
+// non-manifold: the defect of issue 3) and must pass CheckSurface as it is.
+void ExpectReadyForTetgen(const TriangleMesh& mesh, const std::string& what) {
+  long welded = -1, dropped = -1;
+  const TriangleMesh repaired = RepairSurface(mesh, TetMeshSettings{}.weld_tolerance, &welded, &dropped);
+  EXPECT_EQ(welded, 0) << what;
+  EXPECT_EQ(dropped, 0) << what;
+  try {
+    CheckSurface(mesh);
+  } catch (const SurfaceDefectError& e) {
+    ADD_FAILURE() << what << ": " << e.what();
+  }
+}
+
+// Vertex positions sorted lexicographically (to compare two meshes' vertex sets).
+std::vector<std::array<double, 3>> SortedVertices(const TriangleMesh& mesh) {
+  std::vector<std::array<double, 3>> points;
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) {
+    const Eigen::Vector3d p = mesh.vertices.col(i);
+    // Rounded to 1e-12 m: refined vertices of the two meshes may differ in the last bits.
+    points.push_back({std::round(p.x() * 1e12), std::round(p.y() * 1e12), std::round(p.z() * 1e12)});
+  }
+  std::sort(points.begin(), points.end());
+  return points;
+}
+
+TEST(SurfaceMesher, FacesThroughGridVerticesGiveTheSameMeshWithRoundingNoise) {
+  // A box whose faces lie on grid planes, rotated by exact symmetries of the grid: the rotation
+  // leaves values of ±1e-17 m (cos(π/2) = 6e-17) at the grid vertices on the faces, which
+  // used to give them random signs, so the surface wove through them with vertices a hair apart
+  // (and different meshes for the same solid). Reference: the same box placed without rotation
+  // (exact zeros), meshed on the same grid; both must have the same vertices, and none may be
+  // within any weld tolerance of another.
+  const Eigen::Vector3d size(0.06, 0.04, 0.03);
+  const double h = 0.005;
+  const Eigen::AlignedBox3d bounds(Eigen::Vector3d::Constant(-0.05), Eigen::Vector3d::Constant(0.05));
+  const struct {
+    Eigen::Vector3d axis;
+    double angle;
+  } rotations[] = {{Eigen::Vector3d::UnitZ(), M_PI / 2}, {Eigen::Vector3d::UnitZ(), M_PI}, {Eigen::Vector3d::UnitZ(), 1.5 * M_PI},
+                   {Eigen::Vector3d(1, 1, 1).normalized(), 2 * M_PI / 3}, {Eigen::Vector3d::UnitX(), M_PI / 2}};
+  for (const auto& rotation : rotations) {
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(rotation.angle, rotation.axis).toRotationMatrix();
+    // The unrotated box that occupies the same region: sizes permuted by R (|R| is a permutation).
+    const Eigen::Matrix3d permutation = R.cwiseAbs().array().round().matrix();
+    const Eigen::Vector3d placed_size = permutation * size;
+    const CompiledSolid rotated = CompiledSolid::Compile(ImplicitNode(RotateParams{rotation.axis, rotation.angle}, {ImplicitNode(BoxParams{size})}));
+    const CompiledSolid placed = CompiledSolid::Compile(ImplicitNode(BoxParams{placed_size}));
+    SurfaceMeshSettings s = Settings(bounds.min(), bounds.max(), h);
+    const TriangleMesh mesh = MeshSurface(rotated, s), reference = MeshSurface(placed, s);
+    const std::string what = "rotation " + std::to_string(rotation.angle) + " about (" + std::to_string(rotation.axis.x()) + ", " +
+                             std::to_string(rotation.axis.y()) + ", " + std::to_string(rotation.axis.z()) + ")";
+    EXPECT_EQ(CheckClosedManifold(mesh), 2) << what;
+    EXPECT_EQ(mesh.triangles.cols(), reference.triangles.cols()) << what;
+    EXPECT_TRUE(SortedVertices(mesh) == SortedVertices(reference)) << what << ": the vertices differ";
+    EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * h), 0) << what;
+    ExpectReadyForTetgen(mesh, what);
+  }
+}
+
+// The meshing box the CLI uses (app/src/cli/scene_solid.cc): FindBounds at the resolution,
+// padded by two cells.
+Eigen::AlignedBox3d CliBounds(const CompiledSolid& solid, double cell) {
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-10), Eigen::Vector3d::Constant(10));
+  const Eigen::AlignedBox3d rough = FindBounds(solid, search, std::max(cell, 0.005));
+  Eigen::AlignedBox3d bounds = FindBounds(solid, rough, cell);
+  bounds.min().array() -= 2 * cell;
+  bounds.max().array() += 2 * cell;
+  return bounds;
+}
+
+// The CLI's box moved out to whole multiples of the cell, so that every plane x, y or z = k·cell
+// (the platform's faces at 0, 0.01, ±0.1 m ...) is a grid plane.
+Eigen::AlignedBox3d GridAlignedBounds(const CompiledSolid& solid, double cell) {
+  Eigen::AlignedBox3d b = CliBounds(solid, cell);
+  for (int a = 0; a < 3; ++a) {
+    const double lo = std::floor(b.min()[a] / cell) * cell;
+    const long n = std::lround((std::ceil(b.max()[a] / cell) * cell - lo) / cell);
+    b.min()[a] = lo;
+    b.max()[a] = lo + static_cast<double>(n) * cell;
+  }
+  return b;
+}
+
+TEST(SurfaceMesher, PlatformAtEightAndTenMillimetresNeedsNoWelding) {
+  // Issue 3: `spidarcad mesh platform.json --resolution 0.008 --tets tetgen` failed in
+  // CheckSurface (an edge traversed twice) after RepairSurface welded vertices that marching
+  // tetrahedra had put a hair apart where faces of the platform (the bracket face x = 0.01, the
+  // gusset face y = 0, where the smooth union leaves values of -2e-12 m) run through grid
+  // vertices. These boxes reproduced it (10 mm, grid-aligned: an edge traversed twice; 8 mm:
+  // vertices welded) before grid values near zero were made exactly zero.
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  const Eigen::AlignedBox3d fixed(Eigen::Vector3d(-0.03, -0.13, -0.18), Eigen::Vector3d(0.33, 0.13, 0.04));
+  const struct {
+    const char* name;
+    Eigen::AlignedBox3d bounds;
+    double cell;
+  } cases[] = {{"cli 8 mm", CliBounds(platform, 0.008), 0.008},
+               {"fixed 8 mm", fixed, 0.008},
+               {"fixed 10 mm", fixed, 0.01},
+               {"grid-aligned 10 mm", GridAlignedBounds(platform, 0.01), 0.01}};
+  for (const auto& c : cases) {
+    const TriangleMesh mesh = MeshSurface(platform, Settings(c.bounds.min(), c.bounds.max(), c.cell));
+    CheckClosedManifold(mesh);
+    EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * c.cell), 0) << c.name;
+    ExpectReadyForTetgen(mesh, c.name);
+  }
+}
+
+TEST(SurfaceMesher, PinchedZeroSetKeepsItsVerticesApart) {
+  // A cylindrical hole of radius h/2 through a slab, centred between two grid vertices: the
+  // grid edge across the hole has both ends exactly on the surface (zero) and no grid vertex
+  // lies in the hole, so the zero set the grid sees pinches along that edge and the clean-up
+  // cannot merge the vertices at its ends (link condition). They must stay apart (moved up to a
+  // twentieth of their own grid edge into the solid) and the surface must stay closed and
+  // embedded.
+  const double h = 0.008;
+  ImplicitNode slab(BoxParams{Eigen::Vector3d(0.08, 0.08, 0.024)});
+  ImplicitNode hole(TranslateParams{Eigen::Vector3d(0.5 * h, 0.0, 0.0)}, {ImplicitNode(CylinderParams{0.5 * h, 0.1})});
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(DifferenceParams{}, {slab, hole}));
+  // Grid vertices at multiples of h: the hole's rim meets the x axis at grid vertices 0 and h.
+  const TriangleMesh mesh = MeshSurface(solid, Settings(Eigen::Vector3d::Constant(-0.048), Eigen::Vector3d::Constant(0.048), h));
+  CheckClosedManifold(mesh);
+  EXPECT_EQ(CloseVertexPairs(mesh, 1e-7 * h), 0);
+  ExpectReadyForTetgen(mesh, "pinched hole");
+}
+
+// Meshes each solid across resolutions and grid placements (the CLI's box, and one moved to
+// whole cells so that planes k·cell, where the assets' faces lie, are grid planes) and checks
+// every surface the way TetrahedralizeSurface will.
+TEST(SurfaceMesher, SceneSolidsAcrossResolutionsAreReadyForTetgen) {
+  struct Case {
+    const char* scene;
+    size_t solid;
+    std::vector<double> cells;
+  };
+  const Case cases[] = {
+      {"platform.json", 0, {0.005, 0.006, 0.007, 0.008, 0.009, 0.01, 0.012}},
+      {"clay.json", 0, {0.004, 0.006, 0.008, 0.01}},
+      {"assembly.json", 0, {0.003, 0.004, 0.006, 0.008}},
+      {"assembly.json", 1, {0.002, 0.004, 0.006, 0.008}},
+      {"assembly.json", 2, {0.002, 0.003, 0.004, 0.005}},
+      {"assembly.json", 3, {0.002, 0.004, 0.006, 0.008}},
+  };
+  for (const Case& c : cases) {
+    const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + c.scene);
+    const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(c.solid).root);
+    for (double cell : c.cells) {
+      for (bool aligned : {false, true}) {
+        const Eigen::AlignedBox3d bounds = aligned ? GridAlignedBounds(solid, cell) : CliBounds(solid, cell);
+        const TriangleMesh mesh = MeshSurface(solid, Settings(bounds.min(), bounds.max(), cell));
+        const std::string what = std::string(c.scene) + " solid " + std::to_string(c.solid) + " cell " + std::to_string(cell) +
+                                 (aligned ? " grid-aligned" : "");
+        ASSERT_GT(mesh.triangles.cols(), 0) << what;
+        CheckClosedManifold(mesh);
+        EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
+        ExpectReadyForTetgen(mesh, what);
+      }
+    }
+  }
+}
+
+TEST(SurfaceMesher, TestSolidsOnAndOffTheGridAreReadyForTetgen) {
+  // Faces through grid vertices (box, half-cell offsets), a sphere through grid vertices
+  // (radius a whole number of cells), a torus, and a union of boxes at an angle.
+  const CompiledSolid box = CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.03)}));
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.03}));
+  const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.03, 0.01}));
+  ImplicitNode tilted(TranslateParams{Eigen::Vector3d(0.02, 0.01, 0.005)},
+                      {ImplicitNode(RotateParams{Eigen::Vector3d(0.2, 0.1, 1).normalized(), 0.5}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.04, 0.03, 0.03)})})});
+  const CompiledSolid boxes = CompiledSolid::Compile(ImplicitNode(UnionParams{}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.04)}), tilted}));
+  const struct {
+    const char* name;
+    const CompiledSolid* solid;
+    long euler;
+  } solids[] = {{"box", &box, 2}, {"sphere", &sphere, 2}, {"torus", &torus, 0}, {"union of boxes", &boxes, 2}};
+  for (const auto& c : solids) {
+    for (double cell : {0.002, 0.0025, 0.003, 0.004, 0.005, 0.006}) {
+      for (double shift : {0.0, 0.5, 0.37}) {
+        const Eigen::Vector3d lo = Eigen::Vector3d::Constant(-0.06 + shift * cell);
+        const TriangleMesh mesh = MeshSurface(*c.solid, Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell));
+        const std::string what = std::string(c.name) + " cell " + std::to_string(cell) + " shift " + std::to_string(shift);
+        EXPECT_EQ(CheckClosedManifold(mesh), c.euler) << what;
+        EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
+        ExpectReadyForTetgen(mesh, what);
+      }
+    }
   }
 }
 

@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "spidarcad/modeling/scene_io.h"
+
 namespace spidarcad::modeling {
 namespace {
 
@@ -129,6 +131,45 @@ TEST(TetgenMesher, SphereTetsSumToTheEnclosedVolume) {
   // Every surface vertex is a node: each one is at most the weld tolerance from a node.
   for (Eigen::Index i = 0; i < surface.vertices.cols(); ++i) {
     ASSERT_LE((mesh.nodes.colwise() - surface.vertices.col(i)).colwise().norm().minCoeff(), 1e-9);
+  }
+}
+
+TEST(TetgenMesher, PlatformSurfacesAtEightAndTenMillimetresTetrahedralize) {
+  // Issue 3: `spidarcad mesh assets/scenes/platform.json --resolution 0.008 --tets tetgen` was
+  // refused by CheckSurface ("edge traversed the same way twice") after RepairSurface welded
+  // vertices MeshSurface had put a hair apart on faces through grid vertices. The CLI's box
+  // (FindBounds at the resolution, padded by two cells) at 8 mm, and a box whose grid planes
+  // hold the platform's faces (0.01 m multiples) at 10 mm, which failed the same way.
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  const Eigen::AlignedBox3d rough =
+      FindBounds(platform, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-10), Eigen::Vector3d::Constant(10)), 0.008);
+  Eigen::AlignedBox3d cli = FindBounds(platform, rough, 0.008);
+  cli.min().array() -= 0.016;
+  cli.max().array() += 0.016;
+  const Eigen::AlignedBox3d aligned(Eigen::Vector3d(-0.03, -0.13, -0.18), Eigen::Vector3d(0.33, 0.13, 0.04));
+  for (const auto& [bounds, cell] : {std::pair{cli, 0.008}, std::pair{aligned, 0.01}}) {
+    SurfaceMeshSettings s;
+    s.bounds = bounds;
+    s.cell_size = cell;
+    const TriangleMesh surface = MeshSurface(platform, s);
+    TetMeshSettings settings;  // the CLI's defaults
+    TetMeshStats stats;
+    TetMesh mesh;
+    ASSERT_NO_THROW(mesh = TetrahedralizeSurface(surface, settings, &stats)) << "cell " << cell;
+    EXPECT_EQ(stats.welded_vertices, 0) << "cell " << cell;
+    EXPECT_EQ(stats.dropped_triangles, 0) << "cell " << cell;
+    EXPECT_GT(stats.quality.min_volume, 0.0) << "cell " << cell;
+    // The tets fill the surface (divergence theorem, an independent sum), to TetGen's merging
+    // of nearly coplanar facets (see SphereTetsSumToTheEnclosedVolume).
+    const double enclosed = MeshVolume(surface);
+    EXPECT_NEAR(TotalVolume(mesh), enclosed, 1e-5 * enclosed) << "cell " << cell;
+    // Plate + bracket + gusset minus holes (1.0e-3 m³), to the 8 mm grid's rounding of the 1 cm
+    // plates. (At 10 mm on the aligned grid the 1 cm plates are one cell thick with both faces on
+    // grid planes: no grid vertex lies inside them, so marching tetrahedra sees no plate there.)
+    if (cell == 0.008) {
+      EXPECT_NEAR(enclosed, 1.0e-3, 0.1e-3);
+    }
   }
 }
 

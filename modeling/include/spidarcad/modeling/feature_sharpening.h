@@ -16,10 +16,13 @@
 //     max_move_cells cells, keeps every adjacent triangle facing the same way as before and as
 //     the surface, makes no triangle sharper than min_angle_deg (unless it already was), keeps
 //     the vertex min_separation_cells away from every other vertex, and lowers the sampled
-//     distance of the adjacent triangles to the surface. Otherwise the vertex stays.
+//     distance of the adjacent triangles to the surface, and none of the adjacent triangles then
+//     meets, other than along what they share, a triangle around it (the same predicates as
+//     CheckSurface). Otherwise the vertex stays.
 //  4. Edges next to feature vertices are flipped when the flip lowers the sampled distance of
-//     the two triangles to the surface by half, keeps both facing outward and makes no
-//     degenerate triangle: this turns the chamfer's diagonals into edges along the crease.
+//     the two triangles to the surface by half, keeps both facing outward, makes no degenerate
+//     triangle and folds neither triangle onto, or through, a triangle around it: this turns
+//     the chamfer's diagonals into edges along the crease.
 // Only vertex moves and edge flips that pass the link test are used, so the mesh stays closed,
 // manifold, consistently oriented and of the same genus; vertex count and triangle count are
 // unchanged.

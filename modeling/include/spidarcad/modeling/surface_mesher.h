@@ -8,10 +8,20 @@
 // tetrahedra makes where the surface passes at or near grid vertices (two mesh vertices at one
 // point, collinear corners): edge collapses that respect the link condition (so the mesh stays a
 // closed manifold of the same genus; the kept vertex keeps its position on the surface) and
-// edge flips between nearly coplanar triangles.
+// edge flips between nearly coplanar triangles. No collapse or flip turns a triangle over
+// (against the field's gradient) or folds it onto, or through, a triangle around it.
 //
-// Limits: sharp edges of boxes and booleans are cut off by up to about one cell (no feature
-// preservation yet).
+// Grid values within 1e-6 cells of zero count as exactly zero, and zero as outside, so rounding
+// noise on a face through grid vertices cannot make the surface weave through them; the
+// vertices there coincide and are merged, and where the zero set pinches (a feature about one
+// cell across) the few that cannot be merged are moved up to a twentieth of their grid edge
+// into the solid, as far as their triangles allow without folding.
+// So no two vertices of the clean mesh are within TetrahedralizeSurface's weld tolerance (1e-10
+// of the box diagonal): welding, which can make a closed manifold non-manifold, finds nothing. A wall exactly one cell thick with both faces on grid planes has
+// no grid vertex inside and is lost: use cells under half the thinnest wall.
+//
+// Limits: sharp edges of boxes and booleans are cut off by up to about one cell here;
+// SharpenFeatures (feature_sharpening.h) restores them as a post-pass.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
