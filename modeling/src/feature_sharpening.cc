@@ -1,5 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/feature_sharpening.h"
+#include "triangle_predicates.h"
 
 #include <algorithm>
 #include <array>
@@ -16,6 +17,8 @@
 namespace spidarcad::modeling {
 
 namespace {
+
+using internal::TrianglesMeet;
 
 // A plane of the true surface: a point on it and the unit outward normal there.
 struct Plane {
@@ -48,75 +51,6 @@ struct Deviation {
 double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) { return std::atan2(u.cross(w).norm(), u.dot(w)); };
   return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
-}
-
-// Sign of the orientation of d against the plane of (a, b, c), 0 within rounding: the same
-// predicate, tolerance included, as CheckSurface (tetgen_mesher.cc), so that a move or flip the
-// guard lets through is one CheckSurface will not call an intersection.
-int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
-  const double v = (a - d).dot((b - d).cross(c - d));
-  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
-  if (std::abs(v) <= 1e-12 * scale) return 0;
-  return v > 0 ? 1 : -1;
-}
-
-// Whether t, in the plane of (a, b, c), lies in the closed triangle (within rounding).
-bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const Eigen::Vector3d n = (b - a).cross(c - a);
-  const Eigen::Vector3d corner[3] = {a, b, c};
-  for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d& u = corner[k];
-    const Eigen::Vector3d& v = corner[(k + 1) % 3];
-    if (n.dot((v - u).cross(t - u)) < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
-  }
-  return true;
-}
-
-// Whether segment pq meets triangle (a, b, c), touching included (coplanar contacts excepted).
-bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                          const Eigen::Vector3d& c) {
-  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
-  if (sp == sq) return false;
-  if (sp == 0) return PointInTriangle(p, a, b, c);
-  if (sq == 0) return PointInTriangle(q, a, b, c);
-  const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
-  const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
-  return !(has_pos && has_neg) && (has_pos || has_neg);
-}
-
-// Whether triangles a and b (vertex indices ia, ib; corner positions pa, pb) meet other than
-// along what they share: a shared edge with the two folded onto each other, a shared vertex
-// with an opposite edge through the other triangle, or disjoint triangles crossing.
-bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::Vector3d, 3>& pa, const std::array<int, 3>& ib,
-                   const std::array<Eigen::Vector3d, 3>& pb) {
-  auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
-  int shared = 0;
-  for (int v : ia) shared += in(ib, v);
-  if (shared >= 3) return true;
-  if (shared == 2) {
-    int fa = 0, gb = 0;
-    while (in(ib, ia[fa])) ++fa;
-    while (in(ia, ib[gb])) ++gb;
-    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
-    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
-    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
-    const Eigen::Vector3d edge = e1 - e0;
-    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
-  }
-  if (shared == 1) {
-    int ea[2], eb[2], na = 0, nb = 0;
-    for (int k = 0; k < 3; ++k) {
-      if (!in(ib, ia[k])) ea[na++] = k;
-      if (!in(ia, ib[k])) eb[nb++] = k;
-    }
-    return SegmentMeetsTriangle(pa[ea[0]], pa[ea[1]], pb[0], pb[1], pb[2]) ||
-           SegmentMeetsTriangle(pb[eb[0]], pb[eb[1]], pa[0], pa[1], pa[2]);
-  }
-  for (int k = 0; k < 3; ++k) {
-    if (SegmentMeetsTriangle(pa[k], pa[(k + 1) % 3], pb[0], pb[1], pb[2])) return true;
-    if (SegmentMeetsTriangle(pb[k], pb[(k + 1) % 3], pa[0], pa[1], pa[2])) return true;
-  }
-  return false;
 }
 
 class Sharpener {

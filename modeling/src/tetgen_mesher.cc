@@ -1,5 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "triangle_predicates.h"
 
 #include <algorithm>
 #include <array>
@@ -29,49 +30,6 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
 
-// Six times the signed volume of (a, b, c, d): > 0 when d is below the plane of the
-// counter-clockwise triangle abc (right-hand normal up).
-double Orient(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
-  return (a - d).dot((b - d).cross(c - d));
-}
-
-// Sign of Orient(a, b, c, d), 0 when it is within rounding (1e-12 of the product of the edge
-// lengths at d): a nearly coplanar configuration counts as coplanar.
-int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
-  const double v = Orient(a, b, c, d);
-  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
-  if (std::abs(v) <= 1e-12 * scale) return 0;
-  return v > 0 ? 1 : -1;
-}
-
-// Whether point t, in the plane of triangle abc, lies in the closed triangle (within rounding).
-bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const Eigen::Vector3d n = (b - a).cross(c - a);
-  const Eigen::Vector3d corner[3] = {a, b, c};
-  for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d& u = corner[k];
-    const Eigen::Vector3d& v = corner[(k + 1) % 3];
-    const double side = n.dot((v - u).cross(t - u));
-    if (side < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
-  }
-  return true;
-}
-
-// Whether segment pq meets triangle abc (touching counts). A segment lying in (or within
-// rounding of) the triangle's plane is reported as not meeting it: coplanar contacts are not
-// detected here (TetGen reports them, and its error is caught).
-bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a,
-                          const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
-  if (sp == sq) return false;  // same side, or both in the plane
-  // One endpoint in the plane: they meet iff that endpoint lies in the (closed) triangle.
-  if (sp == 0) return PointInTriangle(p, a, b, c);
-  if (sq == 0) return PointInTriangle(q, a, b, c);
-  const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
-  const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
-  return !(has_pos && has_neg) && (has_pos || has_neg);
-}
-
 std::string TriangleText(const TriangleMesh& m, Eigen::Index f) {
   return std::to_string(f) + " (" + std::to_string(m.triangles(0, f)) + ", " + std::to_string(m.triangles(1, f)) + ", " +
          std::to_string(m.triangles(2, f)) + ")";
@@ -80,47 +38,14 @@ std::string TriangleText(const TriangleMesh& m, Eigen::Index f) {
 // Whether triangles f and g intersect other than along what they share.
 bool TrianglesIntersect(const TriangleMesh& m, Eigen::Index f, Eigen::Index g) {
   std::array<int, 3> a, b;
+  std::array<Eigen::Vector3d, 3> pa, pb;
   for (int k = 0; k < 3; ++k) {
     a[k] = m.triangles(k, f);
     b[k] = m.triangles(k, g);
+    pa[k] = m.vertices.col(a[k]);
+    pb[k] = m.vertices.col(b[k]);
   }
-  int shared = 0;
-  for (int i : a)
-    for (int j : b) shared += i == j;
-  auto pa = [&](int k) -> Eigen::Vector3d { return m.vertices.col(a[k]); };
-  auto pb = [&](int k) -> Eigen::Vector3d { return m.vertices.col(b[k]); };
-  auto in_b = [&](int v) { return v == b[0] || v == b[1] || v == b[2]; };
-  auto in_a = [&](int v) { return v == a[0] || v == a[1] || v == a[2]; };
-  if (shared >= 3) return true;  // a duplicated triangle
-  if (shared == 2) {
-    // Folded onto each other: the unshared vertex of g in f's plane, on the same side of the
-    // shared edge as f's unshared vertex.
-    int fa = 0, gb = 0;
-    while (in_b(a[fa])) ++fa;
-    while (in_a(b[gb])) ++gb;
-    const Eigen::Vector3d e0 = pa((fa + 1) % 3), e1 = pa((fa + 2) % 3);
-    const Eigen::Vector3d n = (e1 - e0).cross(pa(fa) - e0);
-    const double scale = n.norm() * (pb(gb) - e0).norm();
-    if (std::abs(n.dot(pb(gb) - e0)) > 1e-12 * scale) return false;
-    const Eigen::Vector3d edge = e1 - e0;
-    return (edge.cross(pa(fa) - e0)).dot(edge.cross(pb(gb) - e0)) > 0;
-  }
-  if (shared == 1) {
-    // Away from the shared vertex, only the opposite edges can cross the other triangle.
-    std::array<int, 2> ea{}, eb{};
-    int na = 0, nb = 0;
-    for (int k = 0; k < 3; ++k) {
-      if (!in_b(a[k])) ea[na++] = k;
-      if (!in_a(b[k])) eb[nb++] = k;
-    }
-    return SegmentMeetsTriangle(pa(ea[0]), pa(ea[1]), pb(0), pb(1), pb(2)) ||
-           SegmentMeetsTriangle(pb(eb[0]), pb(eb[1]), pa(0), pa(1), pa(2));
-  }
-  for (int k = 0; k < 3; ++k) {
-    if (SegmentMeetsTriangle(pa(k), pa((k + 1) % 3), pb(0), pb(1), pb(2))) return true;
-    if (SegmentMeetsTriangle(pb(k), pb((k + 1) % 3), pa(0), pa(1), pa(2))) return true;
-  }
-  return false;
+  return internal::TrianglesMeet(a, pa, b, pb);
 }
 
 void CheckSelfIntersections(const TriangleMesh& m) {

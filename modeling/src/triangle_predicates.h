@@ -1,0 +1,92 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Internal to modeling/: the triangle-triangle predicates of CheckSurface (tetgen_mesher.cc),
+// shared with the surface mesher's clean-up and the sharpening pass so that what they let
+// through CheckSurface will not call an intersection (same predicates, same tolerances).
+#pragma once
+
+#include <array>
+#include <cmath>
+
+#include <Eigen/Core>
+
+namespace spidarcad::modeling::internal {
+
+// Sign of the orientation of d against the plane of (a, b, c) (six times the signed volume of
+// (a, b, c, d), > 0 when d is below the counter-clockwise triangle abc), 0 when within rounding
+// (1e-12 of the product of the edge lengths at d): nearly coplanar counts as coplanar.
+inline int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                      const Eigen::Vector3d& d) {
+  const double v = (a - d).dot((b - d).cross(c - d));
+  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
+  if (std::abs(v) <= 1e-12 * scale) return 0;
+  return v > 0 ? 1 : -1;
+}
+
+// Whether point t, in the plane of triangle abc, lies in the closed triangle (within rounding).
+inline bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                            const Eigen::Vector3d& c) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const Eigen::Vector3d corner[3] = {a, b, c};
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d& u = corner[k];
+    const Eigen::Vector3d& v = corner[(k + 1) % 3];
+    if (n.dot((v - u).cross(t - u)) < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
+  }
+  return true;
+}
+
+// Whether segment pq meets triangle abc (touching counts). A segment lying in (or within
+// rounding of) the triangle's plane is reported as not meeting it: coplanar contacts are not
+// detected here (TetGen reports them, and its error is caught).
+inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a,
+                                 const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
+  if (sp == sq) return false;  // same side, or both in the plane
+  // One endpoint in the plane: they meet iff that endpoint lies in the (closed) triangle.
+  if (sp == 0) return PointInTriangle(p, a, b, c);
+  if (sq == 0) return PointInTriangle(q, a, b, c);
+  const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
+  const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
+  return !(has_pos && has_neg) && (has_pos || has_neg);
+}
+
+// Whether triangles a and b (vertex indices ia, ib; corner positions pa, pb) meet other than
+// along what they share: a duplicated triangle, a shared edge with the two folded onto each
+// other, a shared vertex with an opposite edge through the other triangle, or disjoint
+// triangles crossing.
+inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::Vector3d, 3>& pa,
+                          const std::array<int, 3>& ib, const std::array<Eigen::Vector3d, 3>& pb) {
+  auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
+  int shared = 0;
+  for (int v : ia) shared += in(ib, v);
+  if (shared >= 3) return true;
+  if (shared == 2) {
+    // Folded: the unshared vertex of b in a's plane, on the same side of the shared edge as
+    // a's unshared vertex.
+    int fa = 0, gb = 0;
+    while (in(ib, ia[fa])) ++fa;
+    while (in(ia, ib[gb])) ++gb;
+    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
+    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
+    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
+    const Eigen::Vector3d edge = e1 - e0;
+    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+  }
+  if (shared == 1) {
+    // Away from the shared vertex, only the opposite edges can cross the other triangle.
+    int ea[2], eb[2], na = 0, nb = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (!in(ib, ia[k])) ea[na++] = k;
+      if (!in(ia, ib[k])) eb[nb++] = k;
+    }
+    return SegmentMeetsTriangle(pa[ea[0]], pa[ea[1]], pb[0], pb[1], pb[2]) ||
+           SegmentMeetsTriangle(pb[eb[0]], pb[eb[1]], pa[0], pa[1], pa[2]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (SegmentMeetsTriangle(pa[k], pa[(k + 1) % 3], pb[0], pb[1], pb[2])) return true;
+    if (SegmentMeetsTriangle(pb[k], pb[(k + 1) % 3], pa[0], pa[1], pa[2])) return true;
+  }
+  return false;
+}
+
+}  // namespace spidarcad::modeling::internal
