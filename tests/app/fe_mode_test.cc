@@ -224,6 +224,9 @@ TEST(FeTouchField, ZeroForceOutOfContact) {
   EXPECT_EQ(w.f_T_W, Eigen::Vector3d::Zero());
 }
 
+// DefaultTouch is defined further down (FE mode's defaults); declared here for the allocation test.
+FeTouchSettings DefaultTouch(const FeModel& model);
+
 TEST(FeTouchField, EvaluateAllocatesNothing) {
   ASSERT_TRUE(test_support::MallocCounterActive());
   const auto model = PlatformModel();
@@ -235,8 +238,9 @@ TEST(FeTouchField, EvaluateAllocatesNothing) {
   gs.grasp = true;
   gs.pole_length = 0.03;
   FeTouchField grasp(model, gs, channel);
+  FeTouchField coupled(model, DefaultTouch(*model), channel);  // FE mode's virtual coupling
   PushPlate(model.get(), &field, 0.3);  // some columns ready; worker stopped
-  int max_k = 0;
+  int max_k = 0, max_k_coupled = 0;
   long allocations = 0;
   {
     test_support::MallocCounter counter;
@@ -246,11 +250,14 @@ TEST(FeTouchField, EvaluateAllocatesNothing) {
       field.Evaluate(ToolAt(p));
       max_k = std::max(max_k, field.last_state().num_contacts);
       grasp.Evaluate(ToolAt(p));
+      coupled.Evaluate(ToolAt(p));
+      max_k_coupled = std::max(max_k_coupled, coupled.last_state().num_contacts);
     }
     allocations = counter.count();
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(max_k, 1);
+  EXPECT_GT(max_k_coupled, 0);  // the coupled path's contact solve and stiffness probe ran
 }
 
 TEST(FeTouchField, GraspSqueezePushesThePolesApart) {

@@ -82,53 +82,60 @@ Eigen::Vector3d FeTouchField::PoleTip(const haptics::ToolKinematics& tool, int i
   return tool.p_WT + settings_.pole_length * (tool.R_WT * p_hat);
 }
 
-int FeTouchField::Collect(const Eigen::Vector3d& c, int sphere) {
-  const double r = settings_.tool_radius;
+template <typename Visit>
+bool FeTouchField::ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p, Visit visit) const {
   Eigen::Vector3i lo, hi;
   for (int i = 0; i < 3; ++i) {
-    const double a = std::floor((c(i) - r - grid_min_(i)) / cell_), z = std::floor((c(i) + r - grid_min_(i)) / cell_);
-    if (z < 0.0 || a > dims_(i) - 1) return 0;
+    const double a = std::floor((lo_p(i) - grid_min_(i)) / cell_), z = std::floor((hi_p(i) - grid_min_(i)) / cell_);
+    if (z < 0.0 || a > dims_(i) - 1) return false;
     lo(i) = static_cast<int>(std::max(0.0, a));
     hi(i) = static_cast<int>(std::min<double>(dims_(i) - 1, z));
   }
-  int inside = 0;
   for (int z = lo(2); z <= hi(2); ++z)
     for (int y = lo(1); y <= hi(1); ++y)
       for (int x = lo(0); x <= hi(0); ++x) {
         const long cell = (static_cast<long>(z) * dims_(1) + y) * dims_(0) + x;
         for (int it = cell_start_[cell]; it < cell_start_[cell + 1]; ++it) {
           const int b = cell_items_[it];
-          if (fixed_[b]) continue;
-          const double dist = (positions_[b] - c).norm();
-          if (!(dist < r)) continue;
-          ++inside;
-          // Already found through the other sphere: keep the nearer.
-          int at = -1;
-          for (int j = 0; j < num_found_; ++j)
-            if (found_[j] == b) at = j;
-          if (at >= 0) {
-            if (dist >= found_dist_[at]) continue;
-            for (int j = at; j + 1 < num_found_; ++j) {
-              found_[j] = found_[j + 1];
-              found_dist_[j] = found_dist_[j + 1];
-              found_sphere_[j] = found_sphere_[j + 1];
-            }
-            --num_found_;
-          }
-          if (num_found_ == settings_.max_contacts && dist >= found_dist_[num_found_ - 1]) continue;
-          int j = std::min(num_found_, settings_.max_contacts - 1);
-          while (j > 0 && found_dist_[j - 1] > dist) {
-            found_[j] = found_[j - 1];
-            found_dist_[j] = found_dist_[j - 1];
-            found_sphere_[j] = found_sphere_[j - 1];
-            --j;
-          }
-          found_[j] = b;
-          found_dist_[j] = dist;
-          found_sphere_[j] = sphere;
-          num_found_ = std::min(num_found_ + 1, settings_.max_contacts);
+          if (!fixed_[b]) visit(b);
         }
       }
+  return true;
+}
+
+int FeTouchField::Collect(const Eigen::Vector3d& c, int sphere) {
+  const double r = settings_.tool_radius;
+  int inside = 0;
+  ForEachFreeCandidate(c.array() - r, c.array() + r, [&](int b) {
+    const double dist = (positions_[b] - c).norm();
+    if (!(dist < r)) return;
+    ++inside;
+    // Already found through the other sphere: keep the nearer.
+    int at = -1;
+    for (int j = 0; j < num_found_; ++j)
+      if (found_[j] == b) at = j;
+    if (at >= 0) {
+      if (dist >= found_dist_[at]) return;
+      for (int j = at; j + 1 < num_found_; ++j) {
+        found_[j] = found_[j + 1];
+        found_dist_[j] = found_dist_[j + 1];
+        found_sphere_[j] = found_sphere_[j + 1];
+      }
+      --num_found_;
+    }
+    if (num_found_ == settings_.max_contacts && dist >= found_dist_[num_found_ - 1]) return;
+    int j = std::min(num_found_, settings_.max_contacts - 1);
+    while (j > 0 && found_dist_[j - 1] > dist) {
+      found_[j] = found_[j - 1];
+      found_dist_[j] = found_dist_[j - 1];
+      found_sphere_[j] = found_sphere_[j - 1];
+      --j;
+    }
+    found_[j] = b;
+    found_dist_[j] = dist;
+    found_sphere_[j] = sphere;
+    num_found_ = std::min(num_found_ + 1, settings_.max_contacts);
+  });
   return inside;
 }
 
@@ -356,34 +363,18 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
 
 double FeTouchField::FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d& d, double length) const {
   const double r = settings_.tool_radius;
-  const Eigen::Vector3d lo_p = c.cwiseMin(c + length * d).array() - r;
-  const Eigen::Vector3d hi_p = c.cwiseMax(c + length * d).array() + r;
-  Eigen::Vector3i lo, hi;
-  for (int i = 0; i < 3; ++i) {
-    const double a = std::floor((lo_p(i) - grid_min_(i)) / cell_), z = std::floor((hi_p(i) - grid_min_(i)) / cell_);
-    if (z < 0.0 || a > dims_(i) - 1) return length;
-    lo(i) = static_cast<int>(std::max(0.0, a));
-    hi(i) = static_cast<int>(std::min<double>(dims_(i) - 1, z));
-  }
   double first = length;
-  for (int z = lo(2); z <= hi(2); ++z)
-    for (int y = lo(1); y <= hi(1); ++y)
-      for (int x = lo(0); x <= hi(0); ++x) {
-        const long cell = (static_cast<long>(z) * dims_(1) + y) * dims_(0) + x;
-        for (int it = cell_start_[cell]; it < cell_start_[cell + 1]; ++it) {
-          const int b = cell_items_[it];
-          if (fixed_[b]) continue;
-          // |X − c − λ d| = r: λ = q·d − sqrt((q·d)² − |q|² + r²), q = X − c; nodes already
-          // inside (not admitted as contacts) do not stop the sphere.
-          const Eigen::Vector3d q = positions_[b] - c;
-          const double qd = q.dot(d), cc = q.squaredNorm() - r * r;
-          if (cc <= 0.0) continue;
-          const double disc = qd * qd - cc;
-          if (disc < 0.0) continue;
-          const double lambda = qd - std::sqrt(disc);
-          if (lambda >= 0.0 && lambda < first) first = lambda;
-        }
-      }
+  ForEachFreeCandidate(c.cwiseMin(c + length * d).array() - r, c.cwiseMax(c + length * d).array() + r, [&](int b) {
+    // |X − c − λ d| = r: λ = q·d − sqrt((q·d)² − |q|² + r²), q = X − c; nodes already inside
+    // (not admitted as contacts) do not stop the sphere.
+    const Eigen::Vector3d q = positions_[b] - c;
+    const double qd = q.dot(d), cc = q.squaredNorm() - r * r;
+    if (cc <= 0.0) return;
+    const double disc = qd * qd - cc;
+    if (disc < 0.0) return;
+    const double lambda = qd - std::sqrt(disc);
+    if (lambda >= 0.0 && lambda < first) first = lambda;
+  });
   return first;
 }
 

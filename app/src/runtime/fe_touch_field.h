@@ -155,6 +155,10 @@ class FeTouchField final : public haptics::ForceField {
   // Collects up to max_contacts candidates inside the sphere (c, r), nearest first, into
   // found_/found_dist_ (merging with what is there). Returns the number of nodes inside.
   int Collect(const Eigen::Vector3d& c, int sphere);
+  // Calls visit(b) for every unclamped candidate b in the grid cells that overlap the box
+  // [lo_p, hi_p] (W, m); false when the box misses the grid. Real-time safe.
+  template <typename Visit>
+  bool ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p, Visit visit) const;
   // The virtual coupling's update of the tick (k contacts solved at the coupled centre, 0: none):
   // moves coupled_ and sets w's force.
   void CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::ToolWrench* w);
