@@ -31,7 +31,8 @@ int main(int argc, char** argv) {
       "  spidarcad mesh assets/scenes/platform.json --out platform.stl\n"
       "  spidarcad fem assets/scenes/platform.json --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 \\\n"
       "    --push 0.29,0,0.01 --disp 0,0,-0.001 --out platform.vtu\n"
-      "  spidarcad run demo --trajectory assets/trajectories/press.csv --out press.csv\n"
+      "  spidarcad trajectory press --depth 0.005 --out press.csv\n"
+      "  spidarcad run demo --trajectory press.csv --out press_result.csv\n"
       "  spidarcad device list\n",
       "spidarcad"};
   app.set_version_flag("--version", "spidarcad 0.1.0");
@@ -53,6 +54,7 @@ int main(int argc, char** argv) {
   RegisterMeshCommand(app);
   RegisterFemCommand(app);
   RegisterRunCommand(app);
+  RegisterTrajectoryCommand(app);
   RegisterDeviceCommand(app);
 
   try {

@@ -24,6 +24,8 @@ void RegisterMeshCommand(CLI::App& app);
 void RegisterFemCommand(CLI::App& app);
 // `spidarcad run`: headless haptic session on a scripted trajectory (cli/run_command.cc).
 void RegisterRunCommand(CLI::App& app);
+// `spidarcad trajectory KIND --out T.csv`: scripted grip trajectories (cli/trajectory_command.cc).
+void RegisterTrajectoryCommand(CLI::App& app);
 // `spidarcad device list`: USB SPIDAR-G controllers (cli/device_command.cc).
 void RegisterDeviceCommand(CLI::App& app);
 
