@@ -2,6 +2,7 @@
 #include "spidarcad/haptics/assembly_field.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -108,6 +109,35 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   for (const Eigen::Vector3d& r : tool_shell_.points_T) {
     if (!r.allFinite()) throw std::invalid_argument("AssemblyField: tool shell point not finite");
   }
+  // Shell clusters: points grouped by their cell of kClusterCell in P.
+  clusters_.resize(n);
+  cluster_points_.resize(n);
+  for (int j = 0; j < n; ++j) {
+    const std::vector<Eigen::Vector3d>& r = parts_[j].shell_P.points_T;
+    std::vector<std::array<long, 3>> cell(r.size());
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      for (int a = 0; a < 3; ++a) cell[i][a] = static_cast<long>(std::floor(r[i](a) / kClusterCell));
+    }
+    std::vector<int>& order = cluster_points_[j];
+    order.resize(r.size());
+    for (std::size_t i = 0; i < r.size(); ++i) order[i] = static_cast<int>(i);
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return cell[a] < cell[b]; });
+    for (std::size_t begin = 0; begin < order.size();) {
+      std::size_t end = begin;
+      Eigen::AlignedBox3d box;
+      while (end < order.size() && cell[order[end]] == cell[order[begin]]) box.extend(r[order[end++]]);
+      ShellCluster cluster;
+      cluster.centre_P = box.center();
+      for (std::size_t k = begin; k < end; ++k) {
+        cluster.radius = std::max(cluster.radius, (r[order[k]] - cluster.centre_P).norm());
+      }
+      cluster.begin = static_cast<int>(begin);
+      cluster.end = static_cast<int>(end);
+      clusters_[j].push_back(cluster);
+      begin = end;
+    }
+  }
+  near_.assign(max_shell, 0);
   candidate_point_.assign(max_shell * n, 0);
   candidate_part_.assign(max_shell * n, 0);
   candidate_phi_.assign(max_shell * n, 0.0);
@@ -222,7 +252,15 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
     const Eigen::Matrix3d R = q_.toRotationMatrix();
     for (int j = 0; j < n; ++j) {
       if (j == c || Phi(j, p, nullptr) >= radius + reach) continue;
+      // Clusters near part j mark their points; the points are then tested in shell order (so
+      // the candidates, and every sum over them, come in the same order as without clusters).
+      std::fill(near_.begin(), near_.begin() + shell.size(), 0);
+      for (const ShellCluster& cluster : clusters_[c]) {
+        if (Phi(j, p + R * cluster.centre_P, nullptr) >= cluster.radius + reach) continue;
+        for (int k = cluster.begin; k < cluster.end; ++k) near_[cluster_points_[c][k]] = 1;
+      }
       for (int i = 0; i < shell.size(); ++i) {
+        if (!near_[i]) continue;
         const Eigen::Vector3d x = p + R * shell.points_T[i];
         if (Phi(j, x, nullptr) < reach) {
           const int k = num_candidates_++;

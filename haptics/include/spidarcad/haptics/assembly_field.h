@@ -25,7 +25,9 @@
 //    its shell points x_i = p_WV + R_WV r_i against every other part j get penalty forces
 //      f_ij = s·max(0, k_p (−φ_j(x_i)) − b_p n·v(x_i)) n   (n = unit ∇φ_j, s as above).
 //    V is integrated with semi-implicit Euler in `substeps` steps. The shell points within
-//    `contact_margin` (plus the tick's travel) of another part are found once per tick, where
+//    `contact_margin` (plus the tick's travel) of another part are found once per tick (the
+//    shell's clusters of nearby points, cells of 1 cm, are skipped whole when their centre is
+//    farther from the part than their radius plus that reach: φ is 1-Lipschitz), where
 //    φ_j and ∇φ_j are evaluated once; the substeps use the first-order expansion
 //    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick), so a
 //    tick costs one φ per shell point near another part plus one gradient per candidate. The user feels the
@@ -163,6 +165,18 @@ class AssemblyField final : public ForceField {
   std::vector<Eigen::Isometry3d> inverse_;  // X_PW per part
   std::vector<double> radius_;              // shell radius per part
   std::vector<char> seated_;
+  // Each part's shell in clusters of nearby points (cells of kClusterCell in P), for the carried
+  // part's per-tick candidate search: a cluster whose centre lies at φ_j >= its radius + reach
+  // from part j holds no candidate (φ_j is 1-Lipschitz), so its points are not evaluated.
+  struct ShellCluster {
+    Eigen::Vector3d centre_P = Eigen::Vector3d::Zero();  // m, in P
+    double radius = 0.0;                                 // largest |r_i − centre|, m
+    int begin = 0, end = 0;                              // its points: cluster_points_[part][begin, end)
+  };
+  static constexpr double kClusterCell = 0.01;  // m
+  std::vector<std::vector<ShellCluster>> clusters_;  // per part
+  std::vector<std::vector<int>> cluster_points_;     // per part: shell indices in cluster order
+  std::vector<char> near_;                           // per shell point: in a cluster near part j
   std::vector<int> candidate_point_;  // capacity max shell × parts
   std::vector<int> candidate_part_;
   std::vector<double> candidate_phi_;              // φ at the tick's start, m
