@@ -553,6 +553,41 @@ TEST(Document, SaveWritesFileThatLoadSceneReadsBack) {
   std::remove(path.c_str());
 }
 
+// Assembly parts survive Load -> Save -> Load unchanged (seats included, compared as JSON by
+// modeling's serialiser); a part whose solid was renamed away stops the save, names the part and
+// leaves the file as it was.
+TEST(Document, SaveKeepsAssemblyPartsAndRefusesAPartWithoutItsSolid) {
+  const std::string source = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json";
+  const modeling::Scene original = modeling::LoadScene(source);
+  ASSERT_EQ(original.parts.size(), 6u);
+  Document doc;
+  doc.Load(source);
+  ASSERT_EQ(doc.parts().size(), 6u);
+  const std::string path = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/document_assembly.json";
+  doc.Save(path);
+  const modeling::Scene read = modeling::LoadScene(path);
+  EXPECT_EQ(modeling::SceneToJson(read)["parts"], modeling::SceneToJson(original)["parts"]);
+  EXPECT_EQ(read.parts.size(), 6u);
+
+  const DocObject* head = doc.FindByName(original.parts[1].solid);
+  ASSERT_NE(head, nullptr);
+  doc.Execute(edit::RenameObject(head->id, "renamed"));
+  try {
+    doc.Save(path);
+    ADD_FAILURE() << "saved a part without its solid";
+  } catch (const modeling::SceneError& e) {
+    EXPECT_EQ(e.pointer(), "/parts/1/solid");
+    EXPECT_NE(std::string(e.what()).find("'" + original.parts[1].name + "'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("rename a solid back"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(modeling::SceneToJson(modeling::LoadScene(path)), modeling::SceneToJson(read));
+  EXPECT_TRUE(doc.dirty());
+  doc.Undo();
+  doc.Save(path);
+  EXPECT_EQ(modeling::LoadScene(path).parts.size(), 6u);
+  std::remove(path.c_str());
+}
+
 TEST(Document, LoadRejectsIdsRepeatedAcrossSolidsAndKeepsContent) {
   Fixture f;
   const std::string before = FullText(f.doc);

@@ -284,7 +284,7 @@ TEST(HapticRuntime, TicksAllocateNothingWithSolidsAndSprings) {
   HapticRuntime runtime(settings, GripPose::Rest(g.d));
   DemoFieldSettings field;
   runtime.Publish(model.BuildHapticScene(field));
-  // Push the grip down into the bracket, so that the penalty field works too.
+  // Push the grip down into the bracket, so that the contact (proxy) fields work too.
   runtime.SetTarget(GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
   RunTicks(&runtime, 300);
   long allocations = 0;
@@ -352,36 +352,6 @@ TEST(HapticRuntime, RunsOnItsOwnThreadAndReportsOrderedStatistics) {
   for (int i = 0; i < haptics::kNumSafetyEvents; ++i) {
     EXPECT_NE(text.find(haptics::SafetyEventName(i)), std::string::npos) << text;
   }
-}
-
-TEST(SolidPenaltyField, PushesOutAlongTheNormalByStiffnessTimesDepth) {
-  modeling::ImplicitNode sphere = modeling::ParseScene(R"({"format": "spidarcad-scene",
-      "version": 1, "units": "m", "solids": [{"name": "s", "root": {"type": "translate",
-      "translation": [0.1, 0, 0], "children": [{"type": "sphere", "radius": 0.05}]}}]})")
-                                      .solids[0]
-                                      .root;
-  auto solid = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(sphere));
-  SolidPenaltyField field(solid, 800.0, 4.0);
-  haptics::ToolKinematics tool;
-  // 1 cm deep along the direction (1, 2, 2)/3 from the centre: f = 800 · 0.01 · n.
-  const Eigen::Vector3d n = Eigen::Vector3d(1, 2, 2) / 3.0;
-  tool.p_WT = Eigen::Vector3d(0.1, 0, 0) + 0.04 * n;
-  haptics::ToolWrench w = field.Evaluate(tool);
-  EXPECT_LT((w.f_T_W - 8.0 * n).norm(), 1e-9);
-  EXPECT_EQ(w.m_T_W, Eigen::Vector3d::Zero());
-  EXPECT_EQ(w.g, 0.0);
-  // Moving in at 0.5 m/s adds 4 · 0.5 N; moving out fast enough never pulls in.
-  tool.v_WT = -0.5 * n;
-  w = field.Evaluate(tool);
-  EXPECT_LT((w.f_T_W - 10.0 * n).norm(), 1e-9);
-  tool.v_WT = 5.0 * n;
-  EXPECT_EQ(field.Evaluate(tool).f_T_W, Eigen::Vector3d::Zero());
-  // Outside: nothing.
-  tool.v_WT.setZero();
-  tool.p_WT = Eigen::Vector3d(0.1, 0, 0) + 0.06 * n;
-  EXPECT_EQ(field.Evaluate(tool).f_T_W, Eigen::Vector3d::Zero());
-  EXPECT_THROW(SolidPenaltyField(solid, -1.0, 0.0), std::invalid_argument);
-  EXPECT_THROW(SolidPenaltyField(nullptr, 1.0, 0.0), std::invalid_argument);
 }
 
 TEST(CentringSpringField, FeelsLikeTheDeviceFrameSpringsThroughXwd) {

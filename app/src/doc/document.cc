@@ -195,9 +195,11 @@ std::vector<std::pair<ObjectId, std::uint64_t>> Document::Signature() const {
 modeling::Scene Document::ToScene() const {
   modeling::Scene scene;
   scene.description = description_;
+  scene.snap = snap_;
   for (const DocObject& o : objects_) {
     if (const auto* s = std::get_if<SolidData>(&o.data)) scene.solids.push_back({o.name, s->root});
   }
+  scene.parts = parts_;
   return scene;
 }
 
@@ -281,6 +283,8 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
   objects_ = std::move(objects);
   description_ = scene.description;
   description_revision_ = NewRevision();
+  snap_ = scene.snap;
+  parts_ = scene.parts;
   history_->Clear();
   fe_cache_.clear();
   last_created_.clear();
@@ -290,7 +294,22 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
 }
 
 void Document::Save(const std::string& path) {
-  modeling::SaveScene(ToScene(), path);
+  const modeling::Scene scene = ToScene();
+  // Parts name their solid: one renamed or deleted since the load would make a file that does
+  // not load again.
+  for (std::size_t i = 0; i < scene.parts.size(); ++i) {
+    const modeling::ScenePart& part = scene.parts[i];
+    const bool found = std::any_of(scene.solids.begin(), scene.solids.end(),
+                                   [&](const modeling::Solid& s) { return s.name == part.solid; });
+    if (!found) {
+      throw modeling::SceneError(
+          path, 0, 0, "/parts/" + std::to_string(i) + "/solid",
+          "not saved: assembly part '" + part.name + "' is made of solid '" + part.solid +
+              "', which is no longer in the scene; rename a solid back to '" + part.solid +
+              "' or undo its deletion, then save again");
+    }
+  }
+  modeling::SaveScene(scene, path);
   file_path_ = path;
   saved_signature_ = Signature();
 }
@@ -299,6 +318,8 @@ void Document::Clear() {
   objects_.clear();
   description_.clear();
   description_revision_ = NewRevision();
+  snap_.reset();
+  parts_.clear();
   history_->Clear();
   fe_cache_.clear();
   last_created_.clear();

@@ -147,6 +147,11 @@ class Document {
   bool IsMeshOutOfDate(ObjectId mesh) const;
   // Free text description of the scene.
   const std::string& description() const { return description_; }
+  // The scene's snap forces as loaded ("snap" of the scene file; kept as is, not editable).
+  const std::optional<modeling::SceneSnap>& snap() const { return snap_; }
+  // The scene's assembly parts as loaded ("parts"; kept as they are, not editable here). Save
+  // writes them back and refuses, naming the part, when one names a solid no longer in the scene.
+  const std::vector<modeling::ScenePart>& parts() const { return parts_; }
   // Grows on every change (edit, undo, redo, load).
   std::uint64_t revision() const { return revision_; }
   // True when the content differs from the last Save or Load (undoing back to it clears it).
@@ -232,6 +237,8 @@ class Document {
   std::vector<DocObject> objects_;
   std::string description_;
   std::uint64_t description_revision_ = 0;
+  std::optional<modeling::SceneSnap> snap_;
+  std::vector<modeling::ScenePart> parts_;
   ObjectId next_id_ = 1;
   std::uint64_t next_revision_ = 1;
   std::uint64_t revision_ = 0;

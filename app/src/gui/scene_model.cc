@@ -7,6 +7,7 @@
 #include <variant>
 
 #include "gui/scene_fields.h"
+#include "runtime/snap_features.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
@@ -364,20 +365,123 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double c
   });
 }
 
+namespace {
+
+// True when fields built with `a` at scale sa are the fields built with `b` at scale sb.
+bool SameFieldOptions(const SceneHapticsOptions& a, double sa, const SceneHapticsOptions& b,
+                      double sb) {
+  return sa == sb && a.tool == b.tool && a.stiffness == b.stiffness && a.damping == b.damping &&
+         a.static_friction == b.static_friction && a.dynamic_friction == b.dynamic_friction &&
+         a.shell_radius == b.shell_radius && a.shell_rings == b.shell_rings &&
+         a.shell_around == b.shell_around && a.coupling_stiffness == b.coupling_stiffness &&
+         a.coupling_damping == b.coupling_damping && a.grip_d == b.grip_d;
+}
+
+}  // namespace
+
+SceneModel::ContactEntry SceneModel::TakeContactEntry(
+    ObjectId id, ToolModel tool, const std::vector<const modeling::CompiledSolid*>& solids,
+    const SceneHapticsOptions& options, double world_scale) {
+  ContactEntry e;
+  const auto it = std::find_if(contacts_.begin(), contacts_.end(),
+                               [&](const ContactEntry& c) { return c.id == id && c.tool == tool; });
+  if (it != contacts_.end()) {
+    e = std::move(*it);
+    contacts_.erase(it);
+  } else {
+    e.id = id;
+    e.tool = tool;
+    e.channel = std::make_shared<ContactChannel>();
+  }
+  // The wrapper of the previous scene ran its fallback (the reused field was stale): that is
+  // the field to go on with.
+  if (e.fallback && e.channel->marker.Latest().field == e.fallback.get()) e.current = e.fallback;
+  e.fallback.reset();
+  if (e.solids != solids || !SameFieldOptions(e.options, e.world_scale, options, world_scale)) {
+    e.current.reset();
+  }
+  e.solids = solids;
+  e.options = options;
+  e.world_scale = world_scale;
+  return e;
+}
+
 std::unique_ptr<haptics::HapticScene> SceneModel::BuildHapticScene(const DemoFieldSettings& field,
-                                                                   double stiffness_D,
-                                                                   double damping_D) const {
-  auto scene = std::make_unique<haptics::HapticScene>();
+                                                                   const SceneHapticsOptions& options) {
   const double s = x_wd_.world_scale;
+  std::vector<CompiledSceneSolid> solids;
+  std::vector<ObjectId> ids;
+  std::vector<const modeling::CompiledSolid*> keys;
   for (const SceneObject& o : objects_) {
     if (o.solid == nullptr) continue;  // never compiled: nothing to touch
-    // Felt in D: a world displacement of s·x is a device displacement of x.
-    scene->Add(std::make_unique<SolidPenaltyField>(o.solid, stiffness_D / s, damping_D / s));
+    solids.push_back({o.name, o.solid});
+    ids.push_back(o.id);
+    keys.push_back(o.solid.get());
   }
+  // Snap features of the Document's scene, found again only when the Document changed.
+  const SnapInput* snap = nullptr;
+  if (doc_->snap() && !solids.empty()) {
+    if (snap_generation_ != generation_ || snap_revision_ != doc_->revision() ||
+        snap_tolerance_ != options.snap_tolerance) {
+      snap_generation_ = generation_;
+      snap_revision_ = doc_->revision();
+      snap_tolerance_ = options.snap_tolerance;
+      try {
+        snap_input_ = SnapInput{*doc_->snap(), ExtractSnapFeatures(doc_->ToScene(), options.snap_tolerance)};
+      } catch (const std::exception&) {
+        snap_input_.reset();  // a tree that does not evaluate (its error shows on the object)
+      }
+    }
+    if (snap_input_) snap = &*snap_input_;
+  }
+  SolidFields built = BuildSolidFields(solids, options, s, snap);
+
+  ContinuitySettings continuity;  // lengths are grip lengths: into W
+  continuity.max_move *= s;
+  continuity.max_seed_move *= s;
+  continuity.seed_clearance *= s;
+  auto scene = std::make_unique<haptics::HapticScene>();
+  std::vector<ContactEntry> next;
+  if (options.tool == ToolModel::kProxy) {
+    for (std::size_t i = 0; i < built.proxies.size(); ++i) {
+      ContactEntry e = TakeContactEntry(ids[i], ToolModel::kProxy, {keys[i]}, options, s);
+      std::shared_ptr<haptics::ProxyField> fresh(std::move(built.proxies[i]));
+      auto reuse = std::static_pointer_cast<haptics::ProxyField>(e.current);
+      scene->Add(std::make_unique<ContinuousProxyField>(reuse, fresh, built.distance[i], e.channel,
+                                                        continuity));
+      if (reuse) {
+        e.fallback = fresh;
+      } else {
+        e.current = fresh;
+      }
+      next.push_back(std::move(e));
+    }
+  } else if (built.shell) {
+    ContactEntry e = TakeContactEntry(0, ToolModel::kShell, keys, options, s);
+    std::shared_ptr<haptics::PointShellField> fresh(std::move(built.shell));
+    auto reuse = std::static_pointer_cast<haptics::PointShellField>(e.current);
+    scene->Add(std::make_unique<ContinuousShellField>(reuse, fresh, built.shell_environment,
+                                                      e.channel, continuity));
+    if (reuse) {
+      e.fallback = fresh;
+    } else {
+      e.current = fresh;
+    }
+    next.push_back(std::move(e));
+  }
+  contacts_ = std::move(next);
+  if (built.snap) scene->Add(std::move(built.snap));
   if (field.enabled) {
     scene->Add(std::make_unique<CentringSpringField>(field, s, x_wd_.p_WDo));
   }
   return scene;
+}
+
+std::vector<ContactMarker> SceneModel::ContactMarkers() {
+  std::vector<ContactMarker> out;
+  out.reserve(contacts_.size());
+  for (ContactEntry& e : contacts_) out.push_back(e.channel->marker.Latest());
+  return out;
 }
 
 std::string ExportSurface(const modeling::TriangleMesh& mesh, const std::string& path) {

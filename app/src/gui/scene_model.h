@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,8 @@
 #include "doc/document.h"
 #include "doc/job.h"
 #include "gui/device_session.h"
+#include "gui/scene_fields.h"
+#include "runtime/scene_haptics.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
@@ -145,11 +148,21 @@ class SceneModel {
   // Position of the scene object of Document object `id` in objects(), or -1.
   int IndexOf(ObjectId id) const;
 
-  // The haptic scene of the solids (penalty contact, stiffness felt in D `stiffness_D` N/m and
-  // damping `damping_D` N·s/m) plus the centring springs when field.enabled.
+  // The haptic scene of the solids as `spidarcad run` renders them: the compiled solids go
+  // through the same builder (runtime/scene_haptics.h BuildSolidFields) with `options` (tool
+  // model, stiffness, damping, friction, shell: as felt at the grip; the defaults are run's) at
+  // this model's X_WD (options.world_scale and p_WDo are not read); a snap field when the
+  // Document's scene has "snap" (features found again when the Document changed); the centring
+  // springs when field.enabled. Each contact field is wrapped so that its state carries over
+  // from the scene built by the previous call (gui/scene_fields.h: the same field when its
+  // solid and the options are unchanged, else a warm start): call this for every scene the
+  // window publishes. Throws std::invalid_argument for bad options.
   std::unique_ptr<haptics::HapticScene> BuildHapticScene(const DemoFieldSettings& field,
-                                                         double stiffness_D = 1000.0,
-                                                         double damping_D = 3.0) const;
+                                                         const SceneHapticsOptions& options = {});
+  // The markers of the contact fields of the latest BuildHapticScene (one per solid for the
+  // proxy, one for the shell), as their fields last published them. Main thread only (it is the
+  // one reader of their triple buffers).
+  std::vector<ContactMarker> ContactMarkers();
 
   const std::vector<SceneObject>& objects() const { return objects_; }
   const DeviceToWorld& device_to_world() const { return x_wd_; }
@@ -162,6 +175,30 @@ class SceneModel {
   // Starts one preview job for `object` (an element of objects_) at this resolution.
   void StartPreview(JobQueue* jobs, SceneObject* object, double cells_across);
 
+  // The contact fields of the latest BuildHapticScene: per solid object (proxy) or one for the
+  // scene (shell, id 0), what they were built from, the field that runs (`current`), the fresh
+  // one its wrapper falls back on, and the channel that carries state to the next scene.
+  struct ContactEntry {
+    ObjectId id = 0;
+    ToolModel tool = ToolModel::kProxy;
+    std::vector<const modeling::CompiledSolid*> solids;
+    SceneHapticsOptions options;
+    double world_scale = 0.0;
+    std::shared_ptr<haptics::ForceField> current;
+    std::shared_ptr<haptics::ForceField> fallback;
+    std::shared_ptr<ContactChannel> channel;
+  };
+  // The entry of `id` from contacts_ (moved out), or a new one; brings `current` up to date
+  // with what ran (the fallback, when its wrapper used it) and drops it when the key changed.
+  ContactEntry TakeContactEntry(ObjectId id, ToolModel tool,
+                                const std::vector<const modeling::CompiledSolid*>& solids,
+                                const SceneHapticsOptions& options, double world_scale);
+
+  std::vector<ContactEntry> contacts_;
+  std::optional<SnapInput> snap_input_;  // snap features of the Document at snap_revision_
+  std::uint64_t snap_revision_ = 0;
+  int snap_generation_ = -1;
+  double snap_tolerance_ = 0.0;
   std::unique_ptr<Document> doc_;
   std::uint64_t synced_revision_ = 0;  // Document revision objects_ were brought in line with
   int preview_counter_ = 0;

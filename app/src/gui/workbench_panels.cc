@@ -88,6 +88,8 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
   if (ImGui::BeginMenu("Haptics")) {
     if (ImGui::MenuItem("Emergency stop", "Space")) actions->emergency_stop = true;
     if (ImGui::MenuItem("Re-arm (force ramp)")) actions->rearm = true;
+    ImGui::Separator();
+    DrawContactControls(state);
     ImGui::EndMenu();
   }
   if (ImGui::BeginMenu("View")) {
@@ -201,6 +203,55 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
     ImGui::PopTextWrapPos();
   }
   ImGui::End();
+}
+
+void DrawContactControls(WorkbenchState* state) {
+  SceneHapticsOptions& c = state->contact;
+  ImGui::TextDisabled("Touch: how the grip feels the solids");
+  if (ImGui::MenuItem("Point (proxy)", nullptr, c.tool == ToolModel::kProxy) &&
+      c.tool != ToolModel::kProxy) {
+    c.tool = ToolModel::kProxy;
+    state->contact_changed = true;
+  }
+  if (ImGui::IsItemHovered()) {
+    ImGui::SetTooltip("A god-object proxy per solid on the grip centre, with friction.");
+  }
+  if (ImGui::MenuItem("Grip (six-DOF)", nullptr, c.tool == ToolModel::kShell) &&
+      c.tool != ToolModel::kShell) {
+    c.tool = ToolModel::kShell;
+    state->contact_changed = true;
+  }
+  if (ImGui::IsItemHovered()) {
+    ImGui::SetTooltip("The cross grip as a rigid six-DOF tool (point shell with virtual coupling):\n"
+                      "its poles touch, torques are felt.");
+  }
+  ImGui::PushItemWidth(150.0f);
+  float k = static_cast<float>(c.stiffness);
+  if (ImGui::SliderFloat("stiffness [N/m]", &k, 200.0f, 3000.0f, "%.0f")) {
+    c.stiffness = std::clamp(static_cast<double>(k), 200.0, 3000.0);
+    c.coupling_stiffness = std::min(c.stiffness, 1000.0);
+    state->contact_changed = true;
+  }
+  if (c.tool == ToolModel::kProxy) {
+    float b = static_cast<float>(c.damping);
+    if (ImGui::SliderFloat("damping [N·s/m]", &b, 0.0f, 5.0f, "%.1f")) {
+      c.damping = std::clamp(static_cast<double>(b), 0.0, 5.0);
+      state->contact_changed = true;
+    }
+    float mu[2] = {static_cast<float>(c.static_friction), static_cast<float>(c.dynamic_friction)};
+    if (ImGui::SliderFloat2("friction μs, μd", mu, 0.0f, 1.0f, "%.2f")) {
+      c.static_friction = std::clamp(static_cast<double>(mu[0]), 0.0, 1.0);
+      c.dynamic_friction = std::clamp(static_cast<double>(mu[1]), 0.0, c.static_friction);
+      state->contact_changed = true;
+    }
+  } else {
+    float b = static_cast<float>(c.coupling_damping);
+    if (ImGui::SliderFloat("coupling damping [N·s/m]", &b, 0.0f, 10.0f, "%.1f")) {
+      c.coupling_damping = std::clamp(static_cast<double>(b), 0.0, 10.0);
+      state->contact_changed = true;
+    }
+  }
+  ImGui::PopItemWidth();
 }
 
 void DrawLoopPanel(const LoopStats& s, float right, float bottom, WorkbenchActions* actions) {

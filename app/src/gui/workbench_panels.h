@@ -26,6 +26,11 @@ struct WorkbenchState {
   bool export_failed = false;
   std::string status;             // status line (last job outcome)
   bool status_error = false;
+  // How the grip touches the solids (Haptics menu, Touch): the options of
+  // SceneModel::BuildHapticScene, `spidarcad run`'s defaults; set when the user changed them
+  // this frame (publish a new scene).
+  SceneHapticsOptions contact;
+  bool contact_changed = false;
 };
 
 // What the menu bar and panels asked for this frame.
@@ -51,6 +56,13 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
 void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
                     float width, TreeController* tree = nullptr,
                     TreePanelState* tree_state = nullptr, float max_height = 1e5f);
+
+// Draws the Touch controls (tool model "Point (proxy)" / "Grip (six-DOF)", stiffness, damping
+// and, for the proxy, friction; values as felt at the grip) into the current menu (the menu
+// bar's Haptics menu draws them: a panel line would hide part of the view); sets
+// state->contact_changed when the user changed one. The shell's coupling stiffness follows the
+// stiffness as in `spidarcad run` (min(k, 1000 N/m)).
+void DrawContactControls(WorkbenchState* state);
 
 // Draws the loop panel with its bottom-right corner at (right, bottom): statistics and the
 // emergency stop / re-arm buttons.

@@ -10,10 +10,6 @@
 
 #include "runtime/snap_features.h"
 #include "runtime/solid_distance_field.h"
-#include "spidarcad/haptics/point_shell_field.h"
-#include "spidarcad/haptics/proxy_field.h"
-#include "spidarcad/haptics/snap_field.h"
-#include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {
@@ -98,46 +94,26 @@ void SceneHaptics::ApplyTo(haptics::LoopSettings* settings) const {
   settings->p_WDo = map.p_WDo;
 }
 
-SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOptions& options) {
+void SolidFields::MoveInto(haptics::HapticScene* scene) {
+  for (auto& proxy : proxies) scene->Add(std::move(proxy));
+  proxies.clear();
+  if (shell) scene->Add(std::move(shell));
+  if (snap) scene->Add(std::move(snap));
+}
+
+SolidFields BuildSolidFields(const std::vector<CompiledSceneSolid>& solids,
+                             const SceneHapticsOptions& options, double world_scale,
+                             const SnapInput* snap) {
   options.Validate();
-  if (scene.solids.empty()) throw std::invalid_argument("the scene has no solids");
-
-  // Compile every solid and find its box.
-  std::vector<std::shared_ptr<const haptics::DistanceField>> fields;
-  Eigen::AlignedBox3d bounds;  // empty
-  for (std::size_t i = 0; i < scene.solids.size(); ++i) {
-    const modeling::Solid& solid = scene.solids[i];
-    const std::string pointer = "/solids/" + std::to_string(i) + "/root";
-    std::shared_ptr<const modeling::CompiledSolid> compiled;
-    try {
-      compiled = std::make_shared<const modeling::CompiledSolid>(
-          modeling::CompiledSolid::Compile(solid.root, pointer));
-    } catch (const std::exception& e) {
-      throw std::invalid_argument("solid '" + solid.name + "' (" + pointer + "): " + e.what());
+  Require(PositiveFinite(world_scale), "world_scale", world_scale, "must be finite and > 0");
+  SolidFields out;
+  for (const CompiledSceneSolid& solid : solids) {
+    if (solid.solid == nullptr) {
+      throw std::invalid_argument("BuildSolidFields: solid '" + solid.name + "' is null");
     }
-    bool unbounded = false;
-    const Eigen::AlignedBox3d box = SolidBounds(*compiled, &unbounded);
-    if (!box.isEmpty()) bounds.extend(box);
-    fields.push_back(std::make_shared<const SolidDistanceField>(std::move(compiled)));
+    out.distance.push_back(std::make_shared<const SolidDistanceField>(solid.solid));
   }
-
-  SceneHaptics out;
-  if (!bounds.isEmpty()) {
-    out.map = FitWorkspace(bounds, options.device_half_side, options.fit_fraction);
-  } else {
-    out.map.scale_fitted = out.map.origin_fitted = true;  // nothing bounded: identity
-  }
-  if (options.world_scale) {
-    out.map.world_scale = *options.world_scale;
-    out.map.scale_fitted = false;
-  }
-  if (options.p_WDo) {
-    out.map.p_WDo = *options.p_WDo;
-    out.map.origin_fitted = false;
-  }
-  const double s = out.map.world_scale;
-
-  out.scene = std::make_unique<haptics::HapticScene>();
+  const double s = world_scale;
   if (options.tool == ToolModel::kProxy) {
     haptics::ProxySettings proxy;
     proxy.stiffness = options.stiffness / s;
@@ -145,14 +121,14 @@ SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOp
     proxy.static_friction = options.static_friction;
     proxy.dynamic_friction = options.dynamic_friction;
     proxy.min_step = 2e-4 * s;
-    for (std::size_t i = 0; i < fields.size(); ++i) {
-      out.scene->Add(std::make_unique<haptics::ProxyField>(fields[i], proxy));
-      out.fields.push_back({"proxy", scene.solids[i].name});
+    for (std::size_t i = 0; i < out.distance.size(); ++i) {
+      out.proxies.push_back(std::make_unique<haptics::ProxyField>(out.distance[i], proxy));
+      out.fields.push_back({"proxy", solids[i].name});
     }
-  } else {
+  } else if (!out.distance.empty()) {
     std::shared_ptr<const haptics::DistanceField> environment =
-        fields.size() == 1 ? fields.front()
-                           : std::make_shared<const haptics::UnionDistanceField>(fields);
+        out.distance.size() == 1 ? out.distance.front()
+                                 : std::make_shared<const haptics::UnionDistanceField>(out.distance);
     haptics::PointShell shell = haptics::PointShell::CrossGrip(
         options.grip_d * s, options.shell_radius * s, options.shell_rings, options.shell_around);
     haptics::PointShellSettings settings;
@@ -169,26 +145,75 @@ SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOp
     // Mass and inertia scale with the world so the virtual tool's dynamics (ω = √(k/m)) do not
     // change with s: m ∝ 1/s keeps k/m fixed; inertia keeps k_r/I fixed (k_r is not rescaled).
     settings.mass = settings.mass / s;
-    out.scene->Add(std::make_unique<haptics::PointShellField>(environment, std::move(shell), settings));
-    out.fields.push_back({"point_shell", fields.size() == 1
-                                              ? scene.solids.front().name
-                                              : "union of " + std::to_string(fields.size()) + " solids"});
+    out.shell = std::make_unique<haptics::PointShellField>(environment, std::move(shell), settings);
+    out.shell_environment = environment;
+    out.fields.push_back({"point_shell", out.distance.size() == 1
+                                             ? solids.front().name
+                                             : "union of " + std::to_string(out.distance.size()) + " solids"});
   }
-  if (scene.snap) {
+  if (snap != nullptr) {
     // Snap forces: the solids' features in W, radii in W, the force as felt (force_scale 1).
-    const haptics::SnapFeatures features = ExtractSnapFeatures(scene, options.snap_tolerance);
-    const SnapFeatureCounts counts = CountSnapFeatures(features);
-    out.snap = counts;
+    const SnapFeatureCounts counts = CountSnapFeatures(snap->features);
+    out.snap_counts = counts;
     if (counts.vertices + counts.edges + counts.faces > 0) {
-      haptics::SnapSettings snap;
-      snap.max_force = scene.snap->max_force;
-      snap.vertex_radius = scene.snap->vertex_radius;
-      snap.edge_radius = scene.snap->edge_radius;
-      snap.face_radius = scene.snap->face_radius;
-      out.scene->Add(std::make_unique<haptics::SnapField>(features, snap));
+      haptics::SnapSettings settings;
+      settings.max_force = snap->settings.max_force;
+      settings.vertex_radius = snap->settings.vertex_radius;
+      settings.edge_radius = snap->settings.edge_radius;
+      settings.face_radius = snap->settings.face_radius;
+      out.snap = std::make_unique<haptics::SnapField>(snap->features, settings);
       out.fields.push_back({"snap", counts.ToString()});
     }
   }
+  return out;
+}
+
+SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOptions& options) {
+  options.Validate();
+  if (scene.solids.empty()) throw std::invalid_argument("the scene has no solids");
+
+  // Compile every solid and find its box.
+  std::vector<CompiledSceneSolid> solids;
+  Eigen::AlignedBox3d bounds;  // empty
+  for (std::size_t i = 0; i < scene.solids.size(); ++i) {
+    const modeling::Solid& solid = scene.solids[i];
+    const std::string pointer = "/solids/" + std::to_string(i) + "/root";
+    std::shared_ptr<const modeling::CompiledSolid> compiled;
+    try {
+      compiled = std::make_shared<const modeling::CompiledSolid>(
+          modeling::CompiledSolid::Compile(solid.root, pointer));
+    } catch (const std::exception& e) {
+      throw std::invalid_argument("solid '" + solid.name + "' (" + pointer + "): " + e.what());
+    }
+    bool unbounded = false;
+    const Eigen::AlignedBox3d box = SolidBounds(*compiled, &unbounded);
+    if (!box.isEmpty()) bounds.extend(box);
+    solids.push_back({solid.name, std::move(compiled)});
+  }
+
+  SceneHaptics out;
+  if (!bounds.isEmpty()) {
+    out.map = FitWorkspace(bounds, options.device_half_side, options.fit_fraction);
+  } else {
+    out.map.scale_fitted = out.map.origin_fitted = true;  // nothing bounded: identity
+  }
+  if (options.world_scale) {
+    out.map.world_scale = *options.world_scale;
+    out.map.scale_fitted = false;
+  }
+  if (options.p_WDo) {
+    out.map.p_WDo = *options.p_WDo;
+    out.map.origin_fitted = false;
+  }
+
+  std::optional<SnapInput> snap;
+  if (scene.snap) snap = SnapInput{*scene.snap, ExtractSnapFeatures(scene, options.snap_tolerance)};
+  SolidFields fields =
+      BuildSolidFields(solids, options, out.map.world_scale, snap ? &*snap : nullptr);
+  out.scene = std::make_unique<haptics::HapticScene>();
+  out.fields = fields.fields;
+  out.snap = fields.snap_counts;
+  fields.MoveInto(out.scene.get());
   return out;
 }
 

@@ -25,6 +25,10 @@
 // motion, N·s/m of grip velocity): the fields get k/s and b/s in world units, because the loop
 // displays world forces unscaled (LoopSettings::force_scale = 1) while a grip displacement δ is
 // a world displacement s·δ. Moments are displayed as computed in W (no length rescaling).
+//
+// BuildHapticScene = compile + fit X_WD + BuildSolidFields. The window (gui/scene_model.h) has
+// its solids compiled already and its own X_WD (ChooseDeviceToWorld), and calls BuildSolidFields
+// directly, so `run` and the window feel the same fields.
 #pragma once
 
 #include <memory>
@@ -36,7 +40,12 @@
 #include <Eigen/Geometry>
 
 #include "runtime/snap_features.h"
+#include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
+#include "spidarcad/haptics/point_shell_field.h"
+#include "spidarcad/haptics/proxy_field.h"
+#include "spidarcad/haptics/snap_field.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 
 namespace spidarcad::app {
@@ -113,6 +122,52 @@ struct SceneHaptics {
   // Copies map.world_scale and map.p_WDo into `settings` (the loop that renders the scene).
   void ApplyTo(haptics::LoopSettings* settings) const;
 };
+
+// One compiled solid of a scene, in W (metres), as BuildSolidFields takes it.
+struct CompiledSceneSolid {
+  std::string name;                                      // for summaries
+  std::shared_ptr<const modeling::CompiledSolid> solid;  // not null
+};
+
+// The snap forces of a scene: its "snap" settings and the features found on its surface
+// (ExtractSnapFeatures), both in W.
+struct SnapInput {
+  modeling::SceneSnap settings;
+  haptics::SnapFeatures features;
+};
+
+// The force fields of a list of compiled solids, typed so that a caller may keep them (the window
+// keeps them across republishes, gui/scene_model.h). Every pointer is owned here until moved out.
+struct SolidFields {
+  // Per input solid, in order: its SolidDistanceField (W).
+  std::vector<std::shared_ptr<const haptics::DistanceField>> distance;
+  // kProxy: one ProxyField per input solid, in order (empty for kShell).
+  std::vector<std::unique_ptr<haptics::ProxyField>> proxies;
+  // kShell: the point shell against the union of the solids (null for kProxy or no solids),
+  // and that environment (the one solid's field, or their UnionDistanceField).
+  std::unique_ptr<haptics::PointShellField> shell;
+  std::shared_ptr<const haptics::DistanceField> shell_environment;
+  // The snap field (null without snap input or when no feature survived).
+  std::unique_ptr<haptics::SnapField> snap;
+  // Summaries of the fields above, in the order MoveInto adds them.
+  std::vector<FieldInfo> fields;
+  // The snap features given (all zero without snap input).
+  SnapFeatureCounts snap_counts;
+  // Adds the fields to `scene` in the order proxies, shell, snap (and releases them here).
+  void MoveInto(haptics::HapticScene* scene);
+};
+
+// The one builder of contact fields, used by `spidarcad run` (BuildHapticScene below) and by the
+// window (SceneModel::BuildHapticScene): turns compiled solids into fields for the tool model,
+// stiffness, damping, friction and shell settings of `options` (as felt at the grip) and the
+// world scale s of X_WD (world metres per grip metre, > 0; options.world_scale and p_WDo are not
+// read): stiffness and damping k/s, b/s; proxy sweep floor 0.2 mm·s; shell radius, pole length,
+// soft zone, margin and swept step times s, virtual mass / s (see the file comment). `snap`
+// (optional) adds the snap field. No solids give no contact field. Throws std::invalid_argument
+// for bad options, a non-positive scale, a null solid or bad snap features.
+SolidFields BuildSolidFields(const std::vector<CompiledSceneSolid>& solids,
+                             const SceneHapticsOptions& options, double world_scale,
+                             const SnapInput* snap = nullptr);
 
 // Builds the force fields of `scene` (see the file comment). Compiles every solid (the tape is
 // shared by the field and nothing else). Throws std::invalid_argument naming the solid (its
