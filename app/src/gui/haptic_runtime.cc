@@ -6,11 +6,12 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Geometry>
 
-#include "spidarcad/haptics/calibration.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
 
@@ -18,18 +19,25 @@ namespace spidarcad::app {
 
 namespace {
 
-// Jig poses and their tension for the start-up calibration of the simulated device.
-constexpr int kJigPoses = 24;
-constexpr double kJigTension = 1.0;
-
-std::unique_ptr<haptics::SimulatedSpidarG> MakeDevice(const RuntimeSettings& settings) {
-  haptics::SimulatedDeviceConfig config = settings.device == RuntimeDevice::kIdeal
-                                              ? haptics::SimulatedDeviceConfig::Ideal()
-                                              : haptics::SimulatedDeviceConfig{};
-  config.seed = settings.seed;
-  config.home_pose = haptics::GripPose::Rest(config.geometry.d);
-  config.Validate();
-  return std::make_unique<haptics::SimulatedSpidarG>(config);
+// The device rig of `settings.device`.
+std::unique_ptr<DeviceRig> MakeRig(const RuntimeSettings& settings) {
+  RigOptions options;
+  options.device = settings.device == RuntimeDevice::kIdeal ? haptics::SimulatedDeviceConfig::Ideal()
+                                                            : haptics::SimulatedDeviceConfig{};
+  options.device.seed = settings.seed;
+  options.device.home_pose = haptics::GripPose::Rest(options.device.geometry.d);
+  options.device.Validate();
+  options.usb = settings.usb;
+  // The tick must not open libusb (it allocates): a lost board is re-opened off the tick.
+  options.reconnect_off_tick = true;
+  options.make_transport = settings.usb_transport;
+  switch (settings.device) {
+    case RuntimeDevice::kBoardSim: return MakeDeviceRig(RigKind::kBoardSim, options);
+    case RuntimeDevice::kUsb: return MakeDeviceRig(RigKind::kUsb, options);
+    case RuntimeDevice::kSimulated:
+    case RuntimeDevice::kIdeal: break;
+  }
+  return MakeDeviceRig(RigKind::kSimulated, options);
 }
 
 // The loop settings with the tension weights scaled for the device's grip.
@@ -43,6 +51,31 @@ haptics::LoopSettings LoopSettingsFor(const RuntimeSettings& settings, double d)
 
 }  // namespace
 
+bool ParseRuntimeDevice(const std::string& name, RuntimeDevice* device) {
+  if (name == "simulated") {
+    *device = RuntimeDevice::kSimulated;
+  } else if (name == "ideal") {
+    *device = RuntimeDevice::kIdeal;
+  } else if (name == "board-sim") {
+    *device = RuntimeDevice::kBoardSim;
+  } else if (name == "usb") {
+    *device = RuntimeDevice::kUsb;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+const char* RuntimeDeviceName(RuntimeDevice device) {
+  switch (device) {
+    case RuntimeDevice::kSimulated: return "simulated";
+    case RuntimeDevice::kIdeal: return "ideal";
+    case RuntimeDevice::kBoardSim: return "board-sim";
+    case RuntimeDevice::kUsb: return "usb";
+  }
+  return "unknown";
+}
+
 haptics::TrajectorySample TargetFromPose(const haptics::GripPose& pose) {
   haptics::TrajectorySample sample;
   sample.p_DT = pose.p0;
@@ -54,52 +87,65 @@ haptics::TrajectorySample TargetFromPose(const haptics::GripPose& pose) {
 HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
                              const haptics::GripPose& initial_target)
     : settings_(settings),
-      device_(MakeDevice(settings)),
+      rig_(MakeRig(settings)),
+      device_(rig_->physical()),
       hand_((settings.hand.Validate(), settings.hand), TargetFromPose(initial_target),
-            device_->info().geometry.d),
+            rig_->info().geometry.d),
       targets_(TargetFromPose(initial_target)),
       step_time_(1e-7, 100000),
-      runner_(settings.runner) {
-  const haptics::DeviceInfo& info = device_->info();
-  const haptics::Vector8d home_lengths = haptics::InverseKinematics(info.geometry, info.home_pose);
-  const haptics::EncoderCalibration nominal =
-      haptics::EncoderCalibration::Nominal(info.encoder, home_lengths);
-  calibration_ = nominal;
-  char text[200];
+      runner_(settings.runner),
+      last_measured_(initial_target) {
+  const haptics::DeviceInfo& info = rig_->info();
+  calibration_ = NominalCalibration(info);
+  char text[240];
   if (settings.device == RuntimeDevice::kIdeal) {
     description_ = "ideal simulated SPIDAR-G (no encoder errors), rigid hand";
-  } else {
-    const haptics::SpidarGeometry& g = info.geometry;
-    const std::vector<haptics::GripPose> jig = haptics::RandomGripPoses(
-        g, kJigPoses, 0.5 * std::min({g.a, g.b, g.c}), 0.5, 0.4, /*seed=*/7);
-    const haptics::CalibrationResult fit = haptics::FitLinesPerString(
-        g, nominal, haptics::GatherKnownSamples(device_.get(), jig, kJigTension));
-    if (fit.status == haptics::CalibrationStatus::kOk) {
-      calibration_ = fit.calibration;
+  } else if (settings.device == RuntimeDevice::kBoardSim || settings.device == RuntimeDevice::kUsb) {
+    // What `spidarcad run` uses on these paths: the nominal calibration, so FK accepts
+    // millimetre residuals.
+    settings_.loop.fk.max_residual = std::max(settings_.loop.fk.max_residual, kNominalFkMaxResidual);
+    if (settings.device == RuntimeDevice::kBoardSim) {
       std::snprintf(text, sizeof(text),
-                    "simulated SPIDAR-G (seed %llu), line-fit calibration on %d jig poses "
-                    "(rms %.3f mm), simulated hand %.0f N/m",
-                    static_cast<unsigned long long>(settings.seed), kJigPoses,
-                    fit.rms_residual * 1e3, settings.hand.stiffness);
+                    "board-sim: USB driver over the board simulator (simulated SPIDAR-G, seed "
+                    "%llu), nominal calibration, simulated hand %.0f N/m",
+                    static_cast<unsigned long long>(settings.seed), settings.hand.stiffness);
     } else {
       std::snprintf(text, sizeof(text),
-                    "simulated SPIDAR-G (seed %llu), NOMINAL calibration (line fit failed: %s)",
-                    static_cast<unsigned long long>(settings.seed),
-                    haptics::CalibrationStatusName(fit.status));
-      settings_.loop.fk.max_residual = std::max(settings_.loop.fk.max_residual, 5e-3);
+                    "usb: SPIDAR-G controller board over %s, nominal geometry and calibration",
+                    settings.usb_transport ? "a test transport" : "libusb");
+    }
+    description_ = text;
+  } else {
+    // The start-up calibration (device_rig.h), shared with `spidarcad run --calibrate`.
+    const SimulatedCalibration fit = CalibrateSimulated(device_);
+    calibration_ = fit.calibration;
+    if (fit.ok) {
+      std::snprintf(text, sizeof(text), "simulated SPIDAR-G (seed %llu), %s, simulated hand %.0f N/m",
+                    static_cast<unsigned long long>(settings.seed), fit.description.c_str(),
+                    settings.hand.stiffness);
+    } else {
+      std::snprintf(text, sizeof(text), "simulated SPIDAR-G (seed %llu), %s",
+                    static_cast<unsigned long long>(settings.seed), fit.description.c_str());
+      settings_.loop.fk.max_residual = std::max(settings_.loop.fk.max_residual, kNominalFkMaxResidual);
     }
     description_ = text;
   }
   loop_ = std::make_unique<haptics::HapticLoop>(info, calibration_,
                                                 LoopSettingsFor(settings_, info.geometry.d));
-  // The hand holds the grip at the target; the motors start at the minimum tension.
-  device_->SetTruePose(initial_target);
-  device_->WriteTensions(haptics::Vector8d::Constant(loop_->settings().tension.tau_min));
-  device_->Step(settings_.runner.period);
+  if (settings.device == RuntimeDevice::kSimulated || settings.device == RuntimeDevice::kIdeal) {
+    // The hand holds the grip at the target; the motors start at the minimum tension.
+    device_->SetTruePose(initial_target);
+    device_->WriteTensions(haptics::Vector8d::Constant(loop_->settings().tension.tau_min));
+    device_->Step(settings_.runner.period);
+  } else if (!rig_->Start(initial_target)) {
+    // No board (yet): the window runs at zero force and the link is retried.
+    link_at_start_ = rig_->StartFailure();
+  }
   RuntimeFrame initial;
   initial.hand_pose = initial_target;
   initial.tool.pose_D = initial_target;
   initial.lengths = haptics::InverseKinematics(info.geometry, initial_target);
+  rig_->Link(&initial.link);
   for (int k = 0; k < 3; ++k) frames_.Write(initial);
 }
 
@@ -107,9 +153,35 @@ HapticRuntime::~HapticRuntime() { Stop(); }
 
 void HapticRuntime::Start() {
   runner_.Start([this](const haptics::TickTiming& timing) { Tick(timing); });
+  const double interval = rig_->service_interval();
+  if (interval > 0.0 && !service_thread_.joinable()) {
+    // Created here, on the main thread: threads inherit SCHED_FIFO from a real-time creator.
+    service_stop_.store(false, std::memory_order_relaxed);
+    service_thread_ = std::thread([this, interval] {
+      const auto slice = std::chrono::milliseconds(10);
+      auto next = std::chrono::steady_clock::now();
+      while (!service_stop_.load(std::memory_order_acquire)) {
+        const auto now = std::chrono::steady_clock::now();
+        if (now >= next) {
+          if (rig_->Service()) {
+            next = std::chrono::steady_clock::now() +
+                   std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                       std::chrono::duration<double>(interval));
+          }
+        }
+        std::this_thread::sleep_for(slice);
+      }
+    });
+  }
 }
 
-void HapticRuntime::Stop() { runner_.Stop(); }
+void HapticRuntime::Stop() {
+  runner_.Stop();
+  if (service_thread_.joinable()) {
+    service_stop_.store(true, std::memory_order_release);
+    service_thread_.join();
+  }
+}
 
 void HapticRuntime::SetTarget(const haptics::GripPose& target_D) noexcept {
   targets_.Write(TargetFromPose(target_D));
@@ -123,22 +195,32 @@ void HapticRuntime::Tick(const haptics::TickTiming& timing) noexcept {
   const double dt = timing.period;
   const haptics::TrajectorySample& target = targets_.Latest();
   RuntimeFrame& frame = frames_.WriteSlot();
-  if (settings_.device == RuntimeDevice::kIdeal) {
-    frame.hand_pose = haptics::GripPose::FromFrame(target.p_DT, target.q_DT.toRotationMatrix(),
-                                                   target.grasp, device_->info().geometry.d);
-  } else {
-    hand_.Step(target, device_->TrueWrench(), dt);
-    frame.hand_pose = hand_.pose();
+  if (device_ != nullptr) {
+    if (settings_.device == RuntimeDevice::kIdeal) {
+      frame.hand_pose = haptics::GripPose::FromFrame(target.p_DT, target.q_DT.toRotationMatrix(),
+                                                     target.grasp, rig_->info().geometry.d);
+    } else {
+      hand_.Step(target, device_->TrueWrench(), dt);
+      frame.hand_pose = hand_.pose();
+    }
+    device_->SetTruePose(frame.hand_pose);
   }
-  device_->SetTruePose(frame.hand_pose);
-  device_->Step(dt);
   haptics::TickInputs inputs;
-  device_->Read(&inputs.reading);
+  rig_->Read(dt, &inputs.reading);
   inputs.lateness = timing.lateness;
   const auto start = std::chrono::steady_clock::now();
   frame.tool = loop_->Step(inputs, dt);
   const auto stop = std::chrono::steady_clock::now();
-  device_->WriteTensions(frame.tool.tau);
+  rig_->Write(frame.tool.tau);
+  if (device_ == nullptr) {
+    // A real board: the user's hand is where the encoders say (the last pose FK accepted).
+    if (frame.tool.fk_status == haptics::FkStatus::kOk &&
+        inputs.reading.status == haptics::DeviceStatus::kOk) {
+      last_measured_ = frame.tool.pose_D;
+    }
+    frame.hand_pose = last_measured_;
+  }
+  rig_->Link(&frame.link);
   frame.step_seconds = std::chrono::duration<double>(stop - start).count();
   step_time_.Add(frame.step_seconds);
   frame.lengths = calibration_.Lengths(inputs.reading.counts, frame.tool.tau);
@@ -161,6 +243,7 @@ LoopStats CollectLoopStats(const HapticRuntime& runtime, const RuntimeFrame& lat
   s.events = runtime.loop().event_counts();
   s.emergency_stop = runtime.emergency_stopped();
   s.ramp = latest.tool.ramp;
+  s.link = latest.link;
   return s;
 }
 
@@ -182,6 +265,7 @@ std::string FormatLoopSummary(const LoopStats& s) {
     out += std::string(" ") + haptics::SafetyEventName(i) + "=" + std::to_string(s.events[i]);
   }
   out += s.emergency_stop ? "\nemergency stop: latched\n" : "\nemergency stop: released\n";
+  if (s.link.has_driver) out += "device link: " + DescribeLink(s.link) + "\n";
   return out;
 }
 

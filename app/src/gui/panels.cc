@@ -142,6 +142,26 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
                       2e3 * g.c, 2e3 * g.d);
   ImGui::PushTextWrapPos(kPanelWidth - 10.0f);
   ImGui::TextDisabled("device: %s", frame.source.c_str());
+  if (context.link != nullptr && context.link->has_driver) {
+    // The driver's link: green when data flows, orange on errors, red when down (zero force).
+    const RigLink& link = *context.link;
+    const bool ok = link.status == haptics::DeviceStatus::kOk;
+    const bool down = link.status == haptics::DeviceStatus::kNotConnected;
+    const ImVec4 colour = ok     ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f)
+                          : down ? ImVec4(0.8f, 0.1f, 0.1f, 1.0f)
+                                 : ImVec4(0.75f, 0.35f, 0.0f, 1.0f);
+    ImGui::TextColored(colour, "link %s%s", DescribeLink(link).c_str(),
+                       ok ? "" : "; zero force");
+    if (context.board_sim) {
+      bool plugged = link.plugged;
+      if (ImGui::Checkbox("board plugged in (simulated unplug)", &plugged)) {
+        actions.board_plug = plugged ? 1 : -1;
+      }
+    }
+  }
+  if (context.real_hand) {
+    ImGui::TextDisabled("the grip is your hand on the device: the mouse does not move it");
+  }
   ImGui::PopTextWrapPos();
   ImGui::Separator();
 
@@ -160,9 +180,11 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
                        "FK %s", haptics::FkStatusName(frame.fk_status));
     ImGui::SameLine();
     ImGui::TextDisabled("rms %.3f mm", frame.fk_residual * 1e3);
-    const double dp = (frame.true_pose.p0 - pose.p0).norm();
-    const double dr = haptics::RotationAngleBetween(frame.true_pose.Rotation(), pose.Rotation());
-    ImGui::TextDisabled("hand − measured: %.3f mm, %.3f°", dp * 1e3, dr * kRadToDeg);
+    if (!context.real_hand) {  // a real hand's true pose is unknown
+      const double dp = (frame.true_pose.p0 - pose.p0).norm();
+      const double dr = haptics::RotationAngleBetween(frame.true_pose.Rotation(), pose.Rotation());
+      ImGui::TextDisabled("hand − measured: %.3f mm, %.3f°", dp * 1e3, dr * kRadToDeg);
+    }
   }
 
   // Strings.

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "gui/device_session.h"
+#include "runtime/device_rig.h"
 #include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
@@ -20,6 +21,11 @@ struct PanelContext {
   double fps = 0.0;      // frames per second of the window
   const char* drag_mode = "";  // current mouse action ("", "moving grip", "orbit", ...)
   float top = 0.0f;            // y of the panel's top edge (below the menu bar), pixels
+  // The device link (board-sim, usb): status, counters, "not connected — retrying ..."; null
+  // or !has_driver: no link line.
+  const RigLink* link = nullptr;
+  bool real_hand = false;  // usb: the user's hand holds the grip; the mouse does not move it
+  bool board_sim = false;  // board-sim: offer the simulated cable's plug checkbox
 };
 
 // What the user asked for through the panel this frame.
@@ -28,6 +34,7 @@ struct PanelActions {
   bool reset_camera = false;
   bool quit = false;
   bool field_changed = false;  // the centring springs were edited (publish a new scene)
+  int board_plug = 0;          // board-sim: +1 plug the simulated board in, -1 unplug it
 };
 
 // Draws the panel (full window height, kPanelWidth wide, at the left edge). `field` may be
