@@ -26,6 +26,7 @@
 
 #include "cli/vtu_io.h"
 #include "doc/job.h"
+#include "gui/assembly_mode.h"
 #include "gui/device_session.h"
 #include "gui/device_view.h"
 #include "gui/fe_mode.h"
@@ -37,10 +38,12 @@
 #include "gui/scene_model.h"
 #include "gui/scene_view.h"
 #include "gui/sculpt_mode.h"
+#include "gui/trajectory_player.h"
 #include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
 #include "runtime/fe_model.h"
 #include "runtime/shared_field.h"
+#include "spidarcad/haptics/trajectory.h"
 
 namespace spidarcad::app {
 
@@ -184,16 +187,33 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
   app.add_option("--estop-frame", options->estop_frame,
                  "Press the emergency stop (Space) at this frame (scripted runs and tests)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--trajectory", options->trajectory,
+                 "Scripted grip: the simulated hand's target follows this trajectory CSV "
+                 "(t,x,y,z,qw,qx,qy,qz,grasp in D, as `spidarcad run --trajectory`) in wall-clock "
+                 "time from the first frame, then holds its last sample and the mouse takes over; "
+                 "the grip starts at its first sample. --screenshot waits until it has ended "
+                 "(+0.5 s), --frames runs at least that long.");
   app.add_option("--screenshot", options->screenshot,
                  "Render a few frames, write the window (scene and panel) to this PNG and exit");
   app.add_option("--frames", options->frames, "Exit after this many frames (0: run until closed)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--device", options->device,
-                 "The device the 1 kHz haptic loop drives: 'simulated' (SimulatedSpidarG with "
-                 "encoder errors, calibrated at start-up, held by a simulated hand that follows "
-                 "the mouse) or 'ideal' (no encoder errors, the grip exactly where the mouse "
-                 "puts it)")
-      ->check(CLI::IsMember({"simulated", "ideal"}));
+                 "The device the 1 kHz haptic loop drives: 'simulated' (default: the simulated "
+                 "SPIDAR-G with encoder errors, calibrated at start-up, held by a simulated hand "
+                 "that follows the mouse); 'ideal' (no encoder errors, the grip exactly where the "
+                 "mouse puts it); 'board-sim' (the same simulated SPIDAR-G behind the controller "
+                 "board's firmware simulator, driven by the USB driver byte for byte, no "
+                 "hardware; the panel can unplug it); 'usb' (a real controller board over libusb: "
+                 "your hand moves the grip, the mouse does not; without a board the window runs "
+                 "at zero force, says 'not connected' and retries every 0.2 s: see `spidarcad "
+                 "device list` and assets/udev/99-spidarcad.rules)")
+      ->check(CLI::Validator(
+          [](std::string& name) -> std::string {
+            RuntimeDevice device;
+            if (ParseRuntimeDevice(name, &device)) return {};
+            return "'" + name + "' is not a device; use simulated, ideal, board-sim or usb";
+          },
+          "DEVICE"));
   app.add_option_function<std::string>(
          "--size", [options](const std::string& s) {
            ParseWindowSize(s, &options->width, &options->height);
@@ -227,9 +247,26 @@ int RunGui(const GuiOptions& options) {
                               Eigen::AngleAxisd(g0[3] * kDegToRad, Eigen::Vector3d::UnitX()))
                                  .toRotationMatrix();
   grip.SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
+  // --trajectory: read before any window opens; the grip starts at its first sample.
+  haptics::Trajectory trajectory;
+  if (!options.trajectory.empty()) {
+    try {
+      trajectory = haptics::Trajectory::Load(options.trajectory);
+    } catch (const std::exception& e) {
+      std::cerr << "spidarcad: error: --trajectory: " << e.what() << "\n";
+      return 2;
+    }
+    const haptics::TrajectorySample first = trajectory.Sample(trajectory.start_time());
+    grip.SetPose(first.p_DT, first.q_DT.toRotationMatrix(), first.grasp);
+  }
   SceneModel model;
+  // An assembly scene (one with `parts`) keeps X_WD = identity, as `spidarcad run` does, so that
+  // one trajectory file works in both.
+  modeling::Scene assembly_scene;
+  const bool assembly = LoadAssemblyScene(DefaultSceneFor(options), &assembly_scene);
   try {
-    model.Load(DefaultSceneFor(options), grip.limits());
+    const DeviceToWorld identity;
+    model.Load(DefaultSceneFor(options), grip.limits(), assembly ? &identity : nullptr);
   } catch (const std::exception& e) {
     std::cerr << "spidarcad: error: scene: " << e.what() << "\n";
     return 2;
@@ -276,17 +313,26 @@ int RunGui(const GuiOptions& options) {
 
   // The haptic runtime (its own 1 kHz thread) and the jobs.
   RuntimeSettings runtime_settings;
-  runtime_settings.device =
-      options.device == "ideal" ? RuntimeDevice::kIdeal : RuntimeDevice::kSimulated;
+  if (!ParseRuntimeDevice(options.device, &runtime_settings.device)) {
+    std::cerr << "spidarcad: error: --device: '" << options.device
+              << "' is not a device; use simulated, ideal, board-sim or usb\n";
+    return 2;
+  }
   runtime_settings.loop.world_scale = model.device_to_world().world_scale;
   runtime_settings.loop.p_WDo = model.device_to_world().p_WDo;
   HapticRuntime runtime(runtime_settings, grip.Pose());
+  if (!runtime.link_at_start().empty()) {  // no board: the window runs at zero force, retrying
+    std::cerr << "spidarcad: " << runtime.link_at_start()
+              << "\nspidarcad: the window runs at zero force and retries the board.\n";
+  }
   const haptics::SpidarGeometry& geometry = runtime.info().geometry;
   const haptics::TensionSettings& tension_settings = runtime.loop().settings().tension;
   DemoFieldSettings field;
   // With solids to touch, the springs would fight the contact: off unless the scene is empty.
   field.enabled = model.objects().empty();
-  runtime.Publish(model.BuildHapticScene(field));
+  // An assembly's part solids sit at their frame origins until the assembly field (below) places
+  // them: nothing is felt until it is published.
+  runtime.Publish(assembly ? std::make_unique<haptics::HapticScene>() : model.BuildHapticScene(field));
   runtime.Start();
   struct RuntimeGuard {
     HapticRuntime* r;
@@ -332,16 +378,34 @@ int RunGui(const GuiOptions& options) {
   } else if (options.mode == "sculpt") {
     sculpt_mode.SetActive(true);
   }
+  // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
+  // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
+  AssemblyMode assembly_mode(view.renderer());
+  if (assembly) {
+    try {
+      assembly_mode.Load(assembly_scene);
+    } catch (const std::exception& e) {
+      std::cerr << "spidarcad: error: scene: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  assembly_mode.SetWorldToView(runtime_settings.loop.world_scale, runtime_settings.loop.p_WDo);
+  scene_view.SetHidden(assembly_mode.part_solids());
+  if (assembly_mode.has_parts()) view.Zoom(1.7);  // the robot is small in the frame (C: whole frame)
   const auto publish_scene = [&] {
     // A live mode part stands in for the scene's solids: the FE part and the clay usually sit
-    // where a solid of the scene is (they are meshed from it), and the solid's penalty contact
-    // would hold the tool off the part.
+    // where a solid of the scene is (they are meshed from it), and the solid's contact would
+    // hold the tool off the part.
     const bool fe_live = fe_field && fe_mode.active();
     const bool sculpt_live = sculpt_field && sculpt_mode.active();
+    // An assembly's field stands in for the part solids (when no mode part is live).
+    const bool assembly_live = assembly_mode.has_parts() && !fe_live && !sculpt_live;
     std::unique_ptr<haptics::HapticScene> scene =
-        fe_live || sculpt_live ? std::make_unique<haptics::HapticScene>() : model.BuildHapticScene(field);
+        fe_live || sculpt_live || assembly_live ? std::make_unique<haptics::HapticScene>()
+                                                : model.BuildHapticScene(field, workbench.contact);
     if (fe_live) scene->Add(std::make_unique<SharedField>(fe_field));
     if (sculpt_live) scene->Add(std::make_unique<SharedField>(sculpt_field));
+    if (assembly_live) scene->Add(std::make_unique<SharedField>(assembly_mode.field()));
     runtime.Publish(std::move(scene));
   };
 
@@ -357,6 +421,19 @@ int RunGui(const GuiOptions& options) {
     std::cerr << "spidarcad: cannot initialise the ImGui backends\n";
     return 1;
   }
+
+  if (assembly_mode.TakeFieldChanged()) publish_scene();
+  // --trajectory: played into the hand's target from here on (its own thread, 1 kHz); the main
+  // thread takes the target back (the mouse's grip, set to the last sample) once it has ended.
+  std::unique_ptr<TrajectoryPlayer> player;
+  if (!trajectory.empty()) {
+    const double d = geometry.d;
+    player = std::make_unique<TrajectoryPlayer>(trajectory, [&runtime, d](const haptics::TrajectorySample& s) {
+      runtime.SetTarget(haptics::GripPose::FromFrame(s.p_DT, s.q_DT.toRotationMatrix(), s.grasp, d));
+    });
+    player->Start();
+  }
+  bool player_live = player != nullptr;
 
   DragMode drag = DragMode::kNone;
   bool quit = false;
@@ -460,8 +537,18 @@ int RunGui(const GuiOptions& options) {
 
     if (options.estop_frame > 0 && frame_index == options.estop_frame) runtime.EmergencyStop();
 
-    // The hand follows the mouse's grip; the haptic thread's latest tick is what we show.
-    runtime.SetTarget(grip.Pose());
+    // The hand follows the mouse's grip (or the trajectory); the haptic thread's latest tick is
+    // what we show.
+    if (player_live) {
+      const haptics::TrajectorySample s = player->Current();
+      grip.SetPose(s.p_DT, s.q_DT.toRotationMatrix(), s.grasp);  // picking and the panel follow
+      if (player->done()) {
+        player->Stop();
+        player_live = false;
+      }
+    } else {
+      runtime.SetTarget(grip.Pose());
+    }
     const RuntimeFrame& latest = runtime.Latest();
     const DeviceFrame state = MakeDeviceFrame(latest, geometry, runtime.description());
     view.Update(state);
@@ -491,6 +578,11 @@ int RunGui(const GuiOptions& options) {
       try {
         jobs.CancelAll();
         model.Load(model.source(), grip.limits(), &model.device_to_world());
+        modeling::Scene reloaded;  // no parts (any more): the assembly empties
+        if (LoadAssemblyScene(model.source(), &reloaded) || assembly_mode.has_parts()) {
+          assembly_mode.Load(reloaded);
+          scene_view.SetHidden(assembly_mode.part_solids());
+        }
         publish_scene();
         model.StartPreviewJobs(&jobs);
         workbench.status = "reloaded " + model.source();
@@ -501,6 +593,7 @@ int RunGui(const GuiOptions& options) {
       }
     }
     scene_view.Sync(model, workbench.show_edges ? workbench.selected : -1);
+    scene_view.ShowContacts(model.ContactMarkers(), latest.tool.time, model.device_to_world());
 
     WorkbenchActions wb;
     const float menu_height = DrawMenuBar(&model, &jobs, &workbench, &wb, &tree, &tree_state);
@@ -511,6 +604,9 @@ int RunGui(const GuiOptions& options) {
     context.fps = io.Framerate;
     context.drag_mode = DragModeText(drag);
     context.top = menu_height;
+    context.link = &latest.link;
+    context.real_hand = runtime_settings.device == RuntimeDevice::kUsb;
+    context.board_sim = runtime_settings.device == RuntimeDevice::kBoardSim;
     const PanelActions actions =
         DrawDevicePanel(state, context, &field, static_cast<float>(win_h));
     bool republish = actions.field_changed;
@@ -519,7 +615,7 @@ int RunGui(const GuiOptions& options) {
       // view); each mode's own panel inside.
       ImGui::SetNextWindowPos(ImVec2(kPanelWidth + 8.0f, menu_height + 8.0f), ImGuiCond_FirstUseEver);
       ImGui::SetNextWindowSize(ImVec2(380.0f, 0.0f), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowCollapsed(options.mode.empty(), ImGuiCond_FirstUseEver);
+      ImGui::SetNextWindowCollapsed(options.mode.empty() && !assembly_mode.has_parts(), ImGuiCond_FirstUseEver);
       if (ImGui::Begin("Modes: FE push, sculpt")) {
         ImGui::SetNextItemOpen(options.mode == "fe", ImGuiCond_FirstUseEver);
         if (ImGui::CollapsingHeader("FE mode: push a part, feel its stiffness")) {
@@ -553,6 +649,12 @@ int RunGui(const GuiOptions& options) {
           }
           sculpt_mode.DrawPanel();
         }
+        if (assembly_mode.has_parts()) {
+          ImGui::SetNextItemOpen(true, ImGuiCond_FirstUseEver);
+          if (ImGui::CollapsingHeader("Assembly: pick, carry and seat the parts")) {
+            assembly_mode.DrawPanel();
+          }
+        }
       }
       ImGui::End();
     }
@@ -562,6 +664,8 @@ int RunGui(const GuiOptions& options) {
     }
     fe_mode.OnFrame(latest.tool);
     sculpt_mode.OnFrame(latest.tool);
+    assembly_mode.OnFrame();
+    if (assembly_mode.TakeFieldChanged()) republish = true;  // Reset parts
     if (auto f = fe_mode.TakeField()) {
       fe_field = std::shared_ptr<haptics::ForceField>(std::move(f));
       republish = true;
@@ -579,6 +683,10 @@ int RunGui(const GuiOptions& options) {
     HandleTreeShortcuts(&tree, &tree_state);
     DrawSaveAsDialog(&tree, &tree_state);
     if (model.Refresh()) publish_scene();
+    if (workbench.contact_changed) {  // the Touch controls (Haptics menu)
+      workbench.contact_changed = false;
+      publish_scene();
+    }
     model.UpdatePreviews(&jobs);
     if (const std::string title = tree.Title(); title != window_title) {
       glfwSetWindowTitle(window, title.c_str());
@@ -592,6 +700,7 @@ int RunGui(const GuiOptions& options) {
     }
     DrawExportDialog(model, &workbench);
     if (actions.reset_grip || wb.reset_grip) grip.Reset();
+    if (actions.board_plug != 0) runtime.RequestBoardPlugged(actions.board_plug > 0);
     if (actions.reset_camera || wb.reset_camera) view.ResetCamera();
     if (actions.quit || wb.quit) quit = true;
     if (wb.emergency_stop) runtime.EmergencyStop();
@@ -610,9 +719,13 @@ int RunGui(const GuiOptions& options) {
     // zero force in effect.
     const bool settled =
         !jobs.busy() && fe_mode.Settled() && (stats.emergency_stop ? (latest.tool.events & haptics::kEventEmergencyStop) != 0
-                                              : latest.tool.ramp >= 1.0);
+                                              : latest.tool.ramp >= 1.0 ||
+                                                    // no board: zero force is the settled state
+                                                    latest.link.status == haptics::DeviceStatus::kNotConnected);
     const bool waited_enough = settled || glfwGetTime() - start_time > kSettleTimeout;
-    if (capture && frame_index >= last_frame && waited_enough) {
+    // A trajectory's outcome: the capture waits until it has ended (+0.5 s), --frames runs on.
+    const bool trajectory_over = player == nullptr || player->finished(0.5);
+    if (capture && frame_index >= last_frame && waited_enough && trajectory_over) {
       const std::string error =
           WritePng(options.screenshot, ReadBackBuffer(fb_w, fb_h), fb_w, fb_h);
       if (!error.empty()) {
@@ -624,12 +737,16 @@ int RunGui(const GuiOptions& options) {
       break;
     }
     glfwSwapBuffers(window);
-    if (!capture && last_frame > 0 && frame_index >= last_frame) break;
+    if (!capture && last_frame > 0 && frame_index >= last_frame && trajectory_over) break;
   }
   runtime.Stop();
   if (capture || options.frames > 0) {
     std::cout << FormatLoopSummary(CollectLoopStats(runtime, runtime.Latest()));
     if (fe_mode.active()) std::cout << FormatFeSummary(fe_mode, runtime.Latest().tool);
+    if (assembly_mode.has_parts()) {
+      assembly_mode.OnFrame();  // the field's last tick
+      std::cout << FormatAssemblySummary(assembly_mode);
+    }
     std::cout << std::flush;
   }
   return exit_status;

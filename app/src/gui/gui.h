@@ -16,12 +16,16 @@ struct GuiOptions {
   int height = 800;
   std::string screenshot;        // when set: render, write this PNG and exit
   int frames = 0;                // when > 0: exit after this many frames
+  // --device: simulated, ideal, board-sim or usb (RuntimeDevice, gui/haptic_runtime.h).
   std::string device = "simulated";
   // Scene file, "demo" (built-in) or "none"; empty: the mode's part (platform.json for 'fe',
   // clay.json for 'sculpt') or, without a mode, the demo.
   std::string scene;
   std::string mode;              // 'fe' or 'sculpt': start in that mode (demo, screenshots)
   int estop_frame = 0;           // when > 0: press the emergency stop at this frame
+  // When set: a trajectory CSV (haptics/trajectory.h) the hand's target follows instead of the
+  // mouse, in wall-clock time from the first frame (the grip starts at its first sample).
+  std::string trajectory;
   // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.
   std::array<double, 7> grip = {0, 0, 0, 0, 0, 0, 90};
 };

@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/scene_view.h"
 
+#include <algorithm>
+
 #include <vtkActor.h>
 #include <vtkCellArray.h>
 #include <vtkNew.h>
@@ -11,6 +13,7 @@
 #include <vtkProperty.h>
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
+#include <vtkSphereSource.h>
 
 namespace spidarcad::app {
 
@@ -23,15 +26,51 @@ struct SceneView::Entry {
   ObjectId id = 0;
 };
 
+// A contact marker's sphere.
+struct SceneView::Marker {
+  vtkNew<vtkSphereSource> sphere;
+  vtkNew<vtkPolyDataMapper> mapper;
+  vtkNew<vtkActor> actor;
+};
+
 SceneView::SceneView(vtkRenderer* renderer) : renderer_(renderer) {}
 
 SceneView::~SceneView() {
   for (auto& e : entries_) renderer_->RemoveActor(e->actor);
+  for (auto& m : markers_) renderer_->RemoveActor(m->actor);
 }
 
-namespace {
+int SceneView::ShowContacts(const std::vector<ContactMarker>& markers, double now,
+                            const DeviceToWorld& x_wd) {
+  const double inv = 1.0 / x_wd.world_scale;
+  int shown = 0;
+  for (const ContactMarker& m : markers) {
+    const Eigen::Vector3d p_D = inv * (m.p_W - x_wd.p_WDo);
+    const bool visible = m.contact && m.time >= 0.0 && now - m.time <= kMarkerMaxAge &&
+                         p_D.allFinite() && inv * (m.p_W - m.tool_W).norm() > kMarkerMinOffset;
+    if (!visible) continue;
+    if (shown == static_cast<int>(markers_.size())) {
+      auto marker = std::make_unique<Marker>();
+      marker->sphere->SetRadius(kMarkerRadius);
+      marker->sphere->SetThetaResolution(16);
+      marker->sphere->SetPhiResolution(12);
+      marker->mapper->SetInputConnection(marker->sphere->GetOutputPort());
+      marker->actor->SetMapper(marker->mapper);
+      marker->actor->GetProperty()->SetColor(0.85, 0.08, 0.35);  // crimson: the god-object
+      marker->actor->GetProperty()->SetAmbient(0.4);
+      marker->actor->PickableOff();
+      renderer_->AddActor(marker->actor);
+      markers_.push_back(std::move(marker));
+    }
+    Marker& marker = *markers_[shown++];
+    marker.actor->SetPosition(p_D.x(), p_D.y(), p_D.z());
+    marker.actor->VisibilityOn();
+  }
+  for (std::size_t i = shown; i < markers_.size(); ++i) markers_[i]->actor->VisibilityOff();
+  return shown;
+}
 
-void Fill(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
+void FillPolyData(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
   vtkNew<vtkPoints> points;
   points->SetNumberOfPoints(mesh.vertices.cols());
   for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) {
@@ -48,8 +87,6 @@ void Fill(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
   poly->SetPolys(cells);
   poly->Modified();
 }
-
-}  // namespace
 
 void SceneView::Sync(const SceneModel& model, int highlight) {
   const auto& objects = model.objects();
@@ -83,10 +120,11 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
     Entry& e = *entries_[i];
     const SceneObject& o = objects[i];
     if (o.revision != e.revision) {
-      Fill(o.shown(), e.poly);
+      FillPolyData(o.shown(), e.poly);
       e.revision = o.revision;
     }
-    e.actor->SetVisibility(o.shown().triangles.cols() > 0);
+    const bool hidden = std::find(hidden_.begin(), hidden_.end(), o.name) != hidden_.end();
+    e.actor->SetVisibility(o.shown().triangles.cols() > 0 && !hidden);
     const auto& c = o.colour;
     if (o.error.empty()) {
       e.actor->GetProperty()->SetColor(c[0], c[1], c[2]);

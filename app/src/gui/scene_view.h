@@ -5,13 +5,20 @@
 #pragma once
 
 #include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "gui/scene_model.h"
 
+class vtkPolyData;
 class vtkRenderer;
 
 namespace spidarcad::app {
+
+// Replaces `poly`'s points and polygons with `mesh`'s vertices and triangles (coordinates as
+// they are) and marks it modified.
+void FillPolyData(const modeling::TriangleMesh& mesh, vtkPolyData* poly);
 
 // The scene objects' actors in a renderer.
 class SceneView {
@@ -30,11 +37,28 @@ class SceneView {
   // is drawn with its mesh edges.
   void Sync(const SceneModel& model, int highlight = -1);
 
+  // The contact markers (SceneModel::ContactMarkers): a small sphere (radius kMarkerRadius in
+  // D) at each marker's proxy / virtual tool centre that is in contact, was written at most
+  // kMarkerMaxAge before `now` (the loop time of the latest ToolState; an older one belongs to
+  // a scene no longer felt) and lies more than kMarkerMinOffset (in D) from the tool point, in
+  // the view's frame D through the inverse of `x_wd`; every other marker hidden. Returns the
+  // number shown.
+  int ShowContacts(const std::vector<ContactMarker>& markers, double now, const DeviceToWorld& x_wd);
+  static constexpr double kMarkerRadius = 0.005;     // m in D
+  static constexpr double kMarkerMaxAge = 0.1;       // s
+  static constexpr double kMarkerMinOffset = 3e-4;   // m in D
+  // Solids (by name) whose actors stay hidden: an assembly's part solids, which AssemblyMode
+  // draws where the parts are (the solids themselves sit at their own frame origins).
+  void SetHidden(std::vector<std::string> names) { hidden_ = std::move(names); }
+
  private:
   struct Entry;
   vtkRenderer* renderer_;
   std::vector<std::unique_ptr<Entry>> entries_;
   int generation_ = -1;
+  struct Marker;
+  std::vector<std::unique_ptr<Marker>> markers_;  // sphere actors, grown on demand
+  std::vector<std::string> hidden_;
 };
 
 }  // namespace spidarcad::app

@@ -1,8 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "runtime/assembly_scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -112,6 +114,42 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
   haptics::PointShell tool;
   if (settings.tool_radius > 0) tool = haptics::PointShell::Sphere(settings.tool_radius, settings.tool_points);
   return std::make_unique<haptics::AssemblyField>(std::move(parts), std::move(tool), settings.field);
+}
+
+std::string FormatAssemblySummary(const std::vector<std::string>& names,
+                                  const std::vector<bool>& fixed,
+                                  const haptics::AssemblyState& state) {
+  const int n = static_cast<int>(std::min(names.size(), fixed.size()));
+  const bool published = state.count == static_cast<int>(names.size());
+  int graspable = 0, seated_count = 0, carried = -1;
+  std::string seated;
+  for (int i = 0; i < n; ++i) {
+    if (fixed[i]) continue;
+    ++graspable;
+    if (!published) continue;
+    if (state.carried == i) {
+      carried = i;  // a carried part is not seated
+    } else if (i < haptics::kMaxAssemblyParts && state.seated[i]) {
+      ++seated_count;
+      seated += (seated.empty() ? "" : ", ") + names[i];
+    }
+  }
+  std::ostringstream os;
+  os << "assembly: " << seated_count << " of " << graspable << " parts seated";
+  if (!seated.empty()) os << " (" << seated << ")";
+  os << ", carried: " << (carried >= 0 ? names[carried] : std::string("none")) << "\n";
+  return os.str();
+}
+
+std::string FormatAssemblySummary(const haptics::AssemblyField& field,
+                                  const haptics::AssemblyState& state) {
+  std::vector<std::string> names;
+  std::vector<bool> fixed;
+  for (int i = 0; i < field.size(); ++i) {
+    names.push_back(field.part(i).name);
+    fixed.push_back(field.part(i).fixed);
+  }
+  return FormatAssemblySummary(names, fixed, state);
 }
 
 }  // namespace spidarcad::app

@@ -8,6 +8,8 @@
 #pragma once
 
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "spidarcad/haptics/assembly_field.h"
 #include "spidarcad/haptics/point_shell_field.h"
@@ -39,5 +41,17 @@ Eigen::Isometry3d PartPose(const Eigen::Vector3d& position, const Eigen::Quatern
 // (the message names the part).
 std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene& scene,
                                                            const AssemblySceneSettings& settings = {});
+
+// One line for stdout, shared by the window (AssemblyMode) and `spidarcad run`:
+// "assembly: 1 of 5 parts seated (right_leg), carried: none\n". Part i is named names[i] and is
+// fixed when fixed[i] (fixed parts are neither counted nor listed); `state` is a state the field
+// published. While state.count != names.size() (nothing published yet) no part is seated or
+// carried. names and fixed must have the same size.
+std::string FormatAssemblySummary(const std::vector<std::string>& names,
+                                  const std::vector<bool>& fixed,
+                                  const haptics::AssemblyState& state);
+// The same for the parts of `field` (their names and fixed flags).
+std::string FormatAssemblySummary(const haptics::AssemblyField& field,
+                                  const haptics::AssemblyState& state);
 
 }  // namespace spidarcad::app

@@ -1,0 +1,393 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "gui/assembly_mode.h"
+
+#include "gui/scene_view.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include <imgui.h>
+#include <vtkActor.h>
+#include <vtkCellArray.h>
+#include <vtkMatrix4x4.h>
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkPolyDataNormals.h>
+#include <vtkProperty.h>
+#include <vtkRenderer.h>
+#include <vtkSmartPointer.h>
+
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/surface_mesher.h"
+
+namespace spidarcad::app {
+
+namespace {
+
+// Half side of the cube searched for a part's solid about its frame origin, m (as BuildAssemblyField).
+constexpr double kSearchHalfSide = 0.5;
+
+// The surface of `solid` in its own frame: a cell of 1/40 of its box's largest side, at most
+// `max_cell`. Throws std::invalid_argument when the solid is empty near its origin.
+modeling::TriangleMesh MeshPartSolid(const modeling::CompiledSolid& solid, double max_cell) {
+  const Eigen::Vector3d h = Eigen::Vector3d::Constant(kSearchHalfSide);
+  const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, Eigen::AlignedBox3d(-h, h), 0.005);
+  if (rough.isEmpty()) throw std::invalid_argument("the solid is empty within 0.5 m of its origin");
+  const Eigen::AlignedBox3d box = modeling::FindBounds(solid, rough, rough.sizes().maxCoeff() / 64.0);
+  if (box.isEmpty()) throw std::invalid_argument("the solid is empty within 0.5 m of its origin");
+  const double cell = std::min(max_cell, box.sizes().maxCoeff() / 40.0);
+  modeling::SurfaceMeshSettings settings;
+  settings.bounds = Eigen::AlignedBox3d(box.min() - Eigen::Vector3d::Constant(2 * cell),
+                                        box.max() + Eigen::Vector3d::Constant(2 * cell));
+  settings.cell_size = cell;
+  return modeling::MeshSurface(solid, settings);
+}
+
+std::string StateName(AssemblyPartState s) {
+  switch (s) {
+    case AssemblyPartState::kFixed: return "fixed";
+    case AssemblyPartState::kFree: return "free";
+    case AssemblyPartState::kCarried: return "carried";
+    case AssemblyPartState::kSeated: return "seated";
+  }
+  return "";
+}
+
+const std::array<double, 3>& StateColour(AssemblyPartState s) {
+  switch (s) {
+    case AssemblyPartState::kFixed: return kAssemblyFixedColour;
+    case AssemblyPartState::kCarried: return kAssemblyCarriedColour;
+    case AssemblyPartState::kSeated: return kAssemblySeatedColour;
+    case AssemblyPartState::kFree: break;
+  }
+  return kAssemblyFreeColour;
+}
+
+void SetMatrix(vtkActor* actor, const Eigen::Matrix4d& M) {
+  vtkNew<vtkMatrix4x4> m;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) m->SetElement(r, c, M(r, c));
+  }
+  actor->SetUserMatrix(m);
+}
+
+}  // namespace
+
+struct AssemblyMode::Vtk {
+  struct Mesh {
+    vtkNew<vtkPolyData> poly;
+    vtkNew<vtkPolyDataNormals> normals;
+  };
+  struct Actor {
+    vtkNew<vtkPolyDataMapper> mapper;
+    vtkNew<vtkActor> actor;
+  };
+  std::vector<std::unique_ptr<Mesh>> meshes;
+  std::vector<std::unique_ptr<Actor>> actors;  // one per part
+  Actor ghost;
+  int ghost_mesh = -1;
+};
+
+AssemblyMode::AssemblyMode(vtkRenderer* renderer) : renderer_(renderer), vtk_(std::make_unique<Vtk>()) {
+  vtkActor* g = vtk_->ghost.actor;
+  g->SetMapper(vtk_->ghost.mapper);
+  vtk_->ghost.mapper->ScalarVisibilityOff();
+  g->GetProperty()->SetColor(kAssemblySeatedColour[0], kAssemblySeatedColour[1], kAssemblySeatedColour[2]);
+  g->GetProperty()->SetOpacity(0.3);
+  g->PickableOff();
+  g->VisibilityOff();
+  if (renderer_) renderer_->AddActor(g);
+}
+
+AssemblyMode::~AssemblyMode() {
+  if (renderer_) {
+    for (auto& a : vtk_->actors) renderer_->RemoveActor(a->actor);
+    renderer_->RemoveActor(vtk_->ghost.actor);
+  }
+}
+
+void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSettings& settings,
+                        double display_cell) {
+  if (scene.parts.empty()) {
+    if (renderer_) {
+      for (auto& a : vtk_->actors) renderer_->RemoveActor(a->actor);
+    }
+    vtk_->actors.clear();
+    vtk_->meshes.clear();
+    vtk_->ghost_mesh = -1;
+    vtk_->ghost.actor->VisibilityOff();
+    parts_.clear();
+    field_.reset();
+    field_changed_ = true;
+    scene_ = scene;
+    state_ = haptics::AssemblyState{};
+    return;
+  }
+  if (!(display_cell > 0.0) || !std::isfinite(display_cell)) {
+    throw std::invalid_argument("AssemblyMode: display cell " + std::to_string(display_cell) + " must be > 0");
+  }
+  // Everything that can fail first, so that a failure leaves the mode as it was.
+  std::shared_ptr<haptics::AssemblyField> field = BuildAssemblyField(scene, settings);
+  std::map<std::string, int> mesh_of;  // solid name -> mesh index
+  std::vector<modeling::TriangleMesh> meshes;
+  std::vector<Part> parts;
+  for (const modeling::ScenePart& sp : scene.parts) {
+    Part part;
+    part.name = sp.name;
+    part.solid = sp.solid;
+    part.fixed = sp.fixed;
+    const auto it = mesh_of.find(sp.solid);
+    if (it != mesh_of.end()) {
+      part.mesh = it->second;
+    } else {
+      const modeling::Solid* solid = nullptr;
+      for (const modeling::Solid& s : scene.solids) {
+        if (s.name == sp.solid) solid = &s;
+      }
+      const std::string where = "AssemblyMode: part '" + sp.name + "' (solid '" + sp.solid + "')";
+      if (solid == nullptr) throw std::invalid_argument(where + ": no such solid");
+      try {
+        meshes.push_back(MeshPartSolid(modeling::CompiledSolid::Compile(solid->root), display_cell));
+      } catch (const std::exception& e) {
+        throw std::invalid_argument(where + ": " + e.what());
+      }
+      part.mesh = static_cast<int>(meshes.size()) - 1;
+      mesh_of[sp.solid] = part.mesh;
+    }
+    parts.push_back(std::move(part));
+  }
+
+  // Commit.
+  if (renderer_) {
+    for (auto& a : vtk_->actors) renderer_->RemoveActor(a->actor);
+  }
+  vtk_->actors.clear();
+  vtk_->meshes.clear();
+  for (const modeling::TriangleMesh& m : meshes) {
+    auto mesh = std::make_unique<Vtk::Mesh>();
+    FillPolyData(m, mesh->poly);
+    mesh->normals->SetInputData(mesh->poly);
+    mesh->normals->SetFeatureAngle(35.0);
+    mesh->normals->SplittingOn();
+    mesh->normals->ConsistencyOff();
+    vtk_->meshes.push_back(std::move(mesh));
+  }
+  for (const Part& part : parts) {
+    auto a = std::make_unique<Vtk::Actor>();
+    a->mapper->SetInputConnection(vtk_->meshes[part.mesh]->normals->GetOutputPort());
+    a->mapper->ScalarVisibilityOff();
+    a->actor->SetMapper(a->mapper);
+    a->actor->GetProperty()->SetAmbient(0.25);
+    a->actor->GetProperty()->SetDiffuse(0.75);
+    a->actor->GetProperty()->SetSpecular(0.15);
+    if (renderer_) renderer_->AddActor(a->actor);
+    vtk_->actors.push_back(std::move(a));
+  }
+  vtk_->ghost_mesh = -1;
+  vtk_->ghost.actor->VisibilityOff();
+  scene_ = scene;
+  settings_ = settings;
+  parts_ = std::move(parts);
+  field_ = std::move(field);
+  field_changed_ = true;
+  message_.clear();
+  // The initial poses until the field's first tick.
+  haptics::AssemblyState initial;
+  initial.count = field_->size();
+  for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
+  Show(initial);
+}
+
+bool AssemblyMode::TakeFieldChanged() {
+  const bool changed = field_changed_;
+  field_changed_ = false;
+  return changed;
+}
+
+void AssemblyMode::Reset() {
+  if (scene_.parts.empty()) return;
+  field_ = BuildAssemblyField(scene_, settings_);
+  field_changed_ = true;
+  haptics::AssemblyState initial;
+  initial.count = field_->size();
+  for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
+  Show(initial);
+}
+
+void AssemblyMode::OnFrame() {
+  if (!field_) return;
+  const haptics::AssemblyState& latest = field_->LatestState();
+  if (latest.count == field_->size()) {
+    Show(latest);
+  } else if (state_.count != field_->size()) {  // not ticked yet: the initial poses
+    haptics::AssemblyState initial;
+    initial.count = field_->size();
+    for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
+    Show(initial);
+  }
+}
+
+Eigen::Matrix4d AssemblyMode::ViewMatrix(const Eigen::Isometry3d& X_WP) const {
+  // X_DW: p_D = (p_W − p_WDo) / s.
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  M.topLeftCorner<3, 3>() = X_WP.linear() / world_scale_;
+  M.topRightCorner<3, 1>() = (X_WP.translation() - p_WDo_) / world_scale_;
+  return M;
+}
+
+void AssemblyMode::Show(const haptics::AssemblyState& state) {
+  if (state.count != size()) return;
+  state_ = state;
+  if (!renderer_) return;
+  for (int i = 0; i < size(); ++i) {
+    vtkActor* a = vtk_->actors[i]->actor;
+    SetMatrix(a, ViewMatrix(state.X_WP[i]));
+    const auto& c = StateColour(part_state(i));
+    a->GetProperty()->SetColor(c[0], c[1], c[2]);
+    const bool carried = state.carried == i;
+    a->GetProperty()->SetEdgeVisibility(carried);
+    a->GetProperty()->SetEdgeColor(0.55, 0.25, 0.0);
+    a->GetProperty()->SetAmbient(carried ? 0.45 : 0.25);
+  }
+  UpdateGhost();
+}
+
+void AssemblyMode::UpdateGhost() {
+  vtkActor* g = vtk_->ghost.actor;
+  const int c = state_.carried;
+  if (!field_ || c < 0 || c >= size() || field_->part(c).seats.empty()) {
+    g->VisibilityOff();
+    return;
+  }
+  // The seat nearest the carried part's current position.
+  const Eigen::Vector3d p = state_.X_WP[c].translation();
+  double best = INFINITY;
+  Eigen::Isometry3d X_WS = Eigen::Isometry3d::Identity();
+  for (const haptics::AssemblySeat& seat : field_->part(c).seats) {
+    const Eigen::Isometry3d candidate = state_.X_WP[seat.other] * seat.X_OS;
+    const double d = (candidate.translation() - p).norm();
+    if (d < best) {
+      best = d;
+      X_WS = candidate;
+    }
+  }
+  if (vtk_->ghost_mesh != parts_[c].mesh) {
+    vtk_->ghost.mapper->SetInputConnection(vtk_->meshes[parts_[c].mesh]->normals->GetOutputPort());
+    vtk_->ghost_mesh = parts_[c].mesh;
+  }
+  SetMatrix(g, ViewMatrix(X_WS));
+  g->VisibilityOn();
+}
+
+void AssemblyMode::SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo) {
+  if (!(world_scale > 0.0) || !std::isfinite(world_scale)) return;
+  world_scale_ = world_scale;
+  p_WDo_ = p_WDo;
+  if (state_.count == size() && size() > 0) Show(state_);
+}
+
+AssemblyPartState AssemblyMode::part_state(int i) const {
+  if (parts_[i].fixed) return AssemblyPartState::kFixed;
+  if (state_.count == size() && state_.carried == i) return AssemblyPartState::kCarried;
+  if (state_.count == size() && state_.seated[i]) return AssemblyPartState::kSeated;
+  return AssemblyPartState::kFree;
+}
+
+int AssemblyMode::graspable_count() const {
+  return static_cast<int>(std::count_if(parts_.begin(), parts_.end(), [](const Part& p) { return !p.fixed; }));
+}
+
+int AssemblyMode::seated_count() const {
+  int n = 0;
+  for (int i = 0; i < size(); ++i) n += part_state(i) == AssemblyPartState::kSeated;
+  return n;
+}
+
+std::vector<std::string> AssemblyMode::part_solids() const {
+  std::vector<std::string> names;
+  for (const Part& p : parts_) {
+    if (std::find(names.begin(), names.end(), p.solid) == names.end()) names.push_back(p.solid);
+  }
+  return names;
+}
+
+vtkActor* AssemblyMode::actor(int i) const { return renderer_ ? vtk_->actors[i]->actor.GetPointer() : nullptr; }
+
+vtkActor* AssemblyMode::ghost() const { return renderer_ ? vtk_->ghost.actor.GetPointer() : nullptr; }
+
+void AssemblyMode::DrawPanel() {
+  if (!has_parts()) {
+    ImGui::TextDisabled("The scene has no parts (see docs/scene-format.md, \"parts\").");
+    return;
+  }
+  ImGui::Text("%d of %d parts seated", seated_count(), graspable_count());
+  const int c = state_.count == size() ? state_.carried : -1;
+  if (c >= 0 && c < size()) {
+    ImGui::Text("Carried: %s (open the grasp at its seat to fit it)", parts_[c].name.c_str());
+  } else {
+    ImGui::TextWrapped("Carried: none. Close the grasp (wheel or [ ]) with a part between the poles "
+                       "to pick it up; open it near the part's seat to fit it.");
+  }
+  if (ImGui::BeginTable("assembly_parts", 2, ImGuiTableFlags_SizingStretchProp | ImGuiTableFlags_RowBg)) {
+    for (int i = 0; i < size(); ++i) {
+      const AssemblyPartState s = part_state(i);
+      const auto& colour = StateColour(s);
+      ImGui::TableNextRow();
+      ImGui::TableNextColumn();
+      ImGui::ColorButton(("##c" + std::to_string(i)).c_str(),
+                         ImVec4(static_cast<float>(colour[0]), static_cast<float>(colour[1]),
+                                static_cast<float>(colour[2]), 1.0f),
+                         ImGuiColorEditFlags_NoTooltip | ImGuiColorEditFlags_NoBorder, ImVec2(10, 10));
+      ImGui::SameLine();
+      ImGui::TextUnformatted(parts_[i].name.c_str());
+      ImGui::TableNextColumn();
+      ImGui::TextUnformatted(StateName(s).c_str());
+    }
+    ImGui::EndTable();
+  }
+  if (ImGui::Button("Reset parts")) {
+    try {
+      Reset();
+      message_ = "parts back at their starting poses";
+    } catch (const std::exception& e) {
+      message_ = std::string("reset failed: ") + e.what();
+    }
+  }
+  if (!message_.empty()) {
+    ImGui::SameLine();
+    ImGui::TextDisabled("%s", message_.c_str());
+  }
+}
+
+std::string FormatAssemblySummary(const AssemblyMode& mode) {
+  // The text is runtime/assembly_scene.h's (shared with `spidarcad run`).
+  std::vector<std::string> names;
+  std::vector<bool> fixed;
+  for (int i = 0; i < mode.size(); ++i) {
+    names.push_back(mode.part_name(i));
+    fixed.push_back(mode.part_fixed(i));
+  }
+  return FormatAssemblySummary(names, fixed, mode.state());
+}
+
+bool LoadAssemblyScene(const std::string& source, modeling::Scene* scene) {
+  if (source.empty() || source == "demo" || source == "none") return false;
+  try {
+    modeling::Scene loaded = modeling::LoadScene(source);
+    if (loaded.parts.empty()) return false;
+    *scene = std::move(loaded);
+    return true;
+  } catch (const std::exception&) {
+    return false;  // the SceneModel names the problem
+  }
+}
+
+}  // namespace spidarcad::app
