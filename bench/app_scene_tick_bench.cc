@@ -12,7 +12,10 @@
 // the k reached is printed; see MeasureFe); sculpt (assets/scenes/clay.json meshed at 3 mm,
 // SculptToolField during a grab stroke the closed grip drags up and down; the main-thread stroke
 // update, SculptSession::Step, runs every 16th tick outside the timing, as the window does at
-// 60 Hz).
+// 60 Hz); assembly (assets/scenes/assembly.json, the AssemblyField of the toy robot, X_WD
+// identity, the device calibrated at start-up as the window does, the hand following
+// assets/trajectories/seat_right_leg.csv: grasp, carry, seat the right leg; one row over every
+// tick, one over the ticks while a part is carried).
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -27,6 +30,8 @@
 #include <vector>
 
 #include "cli/scene_solid.h"
+#include "runtime/assembly_scene.h"
+#include "runtime/device_rig.h"
 #include "runtime/fe_model.h"
 #include "runtime/fe_touch_field.h"
 #include "runtime/scene_haptics.h"
@@ -102,18 +107,23 @@ Row Summarize(const std::string& name, const std::vector<double>& us, const std:
 Row Measure(const std::string& name, std::unique_ptr<haptics::HapticScene> scene,
             const haptics::LoopSettings& loop_settings, const haptics::Trajectory& trajectory,
             long ticks, const AfterTick& after_tick = {},
-            const haptics::HandSettings& hand_settings = {}) {
+            const haptics::HandSettings& hand_settings = {}, bool calibrate = false) {
   haptics::SimulatedDeviceConfig config;
   config.seed = 1;
   haptics::SimulatedSpidarG device(config);
   const haptics::DeviceInfo& info = device.info();
-  const haptics::EncoderCalibration calibration = haptics::EncoderCalibration::Nominal(
+  haptics::EncoderCalibration calibration = haptics::EncoderCalibration::Nominal(
       info.encoder, haptics::InverseKinematics(info.geometry, info.home_pose));
+  if (calibrate) {  // as the window: the line fit at start-up, then the grip back at the hand
+    const app::SimulatedCalibration fit = app::CalibrateSimulated(&device);
+    if (fit.ok) calibration = fit.calibration;
+  }
   haptics::HapticLoop loop(info, calibration, loop_settings);
   loop.Publish(std::move(scene));
   const double dt = 1e-3, t0 = trajectory.start_time();
   const double duration = trajectory.end_time() - t0;
   haptics::SimulatedHand hand(hand_settings, trajectory.Sample(t0), info.geometry.d);
+  device.SetTruePose(hand.pose());
   std::vector<double> us, cpu;
   us.reserve(ticks);
   cpu.reserve(ticks);
@@ -293,6 +303,44 @@ Row MeasureSculpt(long ticks) {
   return row;
 }
 
+// Assembly: the toy robot's AssemblyField (X_WD identity), the device calibrated as the window
+// does, the hand following seat_right_leg.csv once (ticks beyond its length repeat it, each
+// repeat finding the leg where the previous one left it). Rows: every tick, the carrying ticks.
+std::vector<Row> MeasureAssembly(long ticks) {
+  const spidarcad::modeling::Scene scene = spidarcad::modeling::LoadScene(AssetDir() + "scenes/assembly.json");
+  std::unique_ptr<haptics::AssemblyField> field = app::BuildAssemblyField(scene);
+  haptics::AssemblyField* assembly = field.get();
+  auto haptic_scene = std::make_unique<haptics::HapticScene>();
+  haptic_scene->Add(std::move(field));
+  std::vector<char> carrying;
+  carrying.reserve(ticks);
+  long seated = 0;
+  const int parts = assembly->size();
+  Row row = Measure("assembly (assembly.json, seat the right leg, every tick)", std::move(haptic_scene),
+                    BaseSettings(), haptics::Trajectory::Load(AssetDir() + "trajectories/seat_right_leg.csv"),
+                    ticks,
+                    [&](long, const haptics::TickOutputs&) {
+                      carrying.push_back(assembly->carried() >= 0);
+                      seated = 0;  // the field dies with the loop: count while it lives
+                      for (int i = 0; i < assembly->size(); ++i) seated += assembly->seated(i);
+                    },
+                    {}, /*calibrate=*/true);
+  std::vector<double> us, cpu;
+  for (std::size_t i = 0; i < carrying.size(); ++i) {
+    if (carrying[i]) {
+      us.push_back(row.us[i]);
+      cpu.push_back(row.cpu[i]);
+    }
+  }
+  char note[200];
+  std::snprintf(note, sizeof(note), "assembly: a part carried in %.1f %% of ticks; %ld of %d parts seated at the end",
+                100.0 * us.size() / ticks, seated, parts);
+  row.note = note;
+  std::vector<Row> rows{row};
+  if (!us.empty()) rows.push_back(Summarize("assembly (the ticks carrying a part)", us, cpu));
+  return rows;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -310,6 +358,7 @@ int main(int argc, char** argv) {
                               "trajectories/twist.csv", ticks));
   for (Row& r : MeasureFe(ticks)) rows.push_back(std::move(r));
   rows.push_back(MeasureSculpt(ticks));
+  for (Row& r : MeasureAssembly(ticks)) rows.push_back(std::move(r));
   std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n\n", ticks);
   std::printf("| scene | p50 µs | p99 µs | p99.9 µs | max µs | mean µs |\n|---|---|---|---|---|---|\n");
   for (const Row& r : rows) {
