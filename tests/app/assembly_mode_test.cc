@@ -40,9 +40,12 @@
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad_runner.h"
+#include "window_test_support.h"
 
 namespace spidarcad::app {
 namespace {
+
+using window_test::ReadPng;
 
 constexpr double kPi = std::numbers::pi;
 const std::string kScene = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json";
@@ -385,29 +388,12 @@ TEST(SpidarcadWindow, AssemblySceneSeatsTheRightLegAlongTheTrajectory) {
   ASSERT_EQ(r.status, 0) << r.all();
   EXPECT_NE(r.out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"), std::string::npos)
       << r.all();
-  vtkNew<vtkPNGReader> reader;
-  reader->SetFileName(png.c_str());
-  reader->Update();
-  vtkImageData* image = reader->GetOutput();
+  const vtkSmartPointer<vtkImageData> image = ReadPng(png);
   int dims[3];
   image->GetDimensions(dims);
   ASSERT_EQ(dims[0], 1100);
-  const int comps = image->GetNumberOfScalarComponents();
-  const auto* px = static_cast<const unsigned char*>(image->GetScalarPointer());
   // Pixels whose chromaticity is the seated green (shaded: compare ratios).
-  const auto& c = kAssemblySeatedColour;
-  const double cs = c[0] + c[1] + c[2];
-  int green = 0;
-  for (int j = 0; j < dims[1]; ++j) {
-    for (int i = 0; i < dims[0]; ++i) {
-      const unsigned char* p = px + (static_cast<size_t>(j) * dims[0] + i) * comps;
-      const double ps = p[0] + p[1] + p[2];
-      if (ps < 60) continue;
-      double err = 0;
-      for (int k = 0; k < 3; ++k) err = std::max(err, std::abs(p[k] / ps - c[k] / cs));
-      green += err < 0.03;
-    }
-  }
+  const int green = window_test::CountChromaticity(image, 0, dims[0], 0, dims[1], kAssemblySeatedColour, 0.03);
   EXPECT_GT(green, 200) << "the seated arm is not drawn in the seated colour";
 }
 

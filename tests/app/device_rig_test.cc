@@ -24,30 +24,17 @@
 #include "spidarcad/haptics/simulated_device.h"
 #include "spidarcad_runner.h"
 #include "support/malloc_counter.h"
+#include "window_test_support.h"
 
 namespace spidarcad::app {
 namespace {
 
 using haptics::DeviceStatus;
 using haptics::GripPose;
+using window_test::RunTicks;
+using window_test::SpringScene;
 using haptics::SpidarGeometry;
 constexpr double kPi = std::numbers::pi;
-
-// `ticks` ticks of 1 ms on a virtual clock (no thread).
-void RunTicks(HapticRuntime* runtime, int ticks) {
-  haptics::TickTiming timing;
-  for (int k = 0; k < ticks; ++k) {
-    runtime->Tick(timing);
-    ++timing.tick;
-  }
-}
-
-// The centring springs only, in device coordinates (X_WD = identity).
-std::unique_ptr<haptics::HapticScene> SpringScene(const DemoFieldSettings& field) {
-  auto scene = std::make_unique<haptics::HapticScene>();
-  scene->Add(std::make_unique<CentringSpringField>(field, 1.0, Eigen::Vector3d::Zero()));
-  return scene;
-}
 
 DemoFieldSettings TranslationSprings(double k) {
   DemoFieldSettings field;

@@ -39,11 +39,16 @@
 #include "spidarcad/modeling/triangle_mesh_io.h"
 #include "support/command_runner.h"
 #include "support/malloc_counter.h"
+#include "window_test_support.h"
 
 namespace spidarcad::app {
 namespace {
 
 using haptics::GripPose;
+using window_test::CountChromaticity;
+using window_test::ReadPng;
+using window_test::RunTicks;
+using window_test::SpringScene;
 using haptics::SpidarGeometry;
 constexpr double kPi = std::numbers::pi;
 
@@ -195,22 +200,6 @@ TEST(DemoSpringWrench, MatchesTheClosedFormSprings) {
   EXPECT_GT(q[6], 0.0);  // opened beyond rest: the field squeezes (g > 0 closes)
   field.enabled = false;
   EXPECT_EQ(DemoSpringWrench(field, pose), haptics::Vector7d::Zero());
-}
-
-// A runtime on a virtual clock: `ticks` ticks of 1 ms, called directly (no thread).
-void RunTicks(HapticRuntime* runtime, int ticks) {
-  haptics::TickTiming timing;
-  for (int k = 0; k < ticks; ++k) {
-    runtime->Tick(timing);
-    ++timing.tick;
-  }
-}
-
-// A scene of the centring springs only, in device coordinates (X_WD = identity).
-std::unique_ptr<haptics::HapticScene> SpringScene(const DemoFieldSettings& field) {
-  auto scene = std::make_unique<haptics::HapticScene>();
-  scene->Add(std::make_unique<CentringSpringField>(field, 1.0, Eigen::Vector3d::Zero()));
-  return scene;
 }
 
 TEST(HapticRuntime, IdealDeviceMeasuresTheTargetAndCommandsTheClosedFormSpringWrench) {
@@ -545,10 +534,7 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
                              "' --size 1100x720 --device ideal --grip 70,-50,40,0,0,0,110 2>&1",
                          &output);
   ASSERT_EQ(status, 0) << output;
-  vtkNew<vtkPNGReader> reader;
-  reader->SetFileName(png.c_str());
-  reader->Update();
-  vtkImageData* image = reader->GetOutput();
+  const vtkSmartPointer<vtkImageData> image = ReadPng(png);
   int dims[3];
   image->GetDimensions(dims);
   ASSERT_EQ(dims[0], 1100);
@@ -627,27 +613,6 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
 
 // Counts pixels of `image` in columns [i0, i1) and rows [j0, j1) (bottom up) whose chromaticity
 // is within `tolerance` of `rgb`'s and that are not too dark.
-int CountChromaticity(vtkImageData* image, int i0, int i1, int j0, int j1, const Rgb& rgb,
-                      double tolerance) {
-  int dims[3];
-  image->GetDimensions(dims);
-  const int comps = image->GetNumberOfScalarComponents();
-  const auto* px = static_cast<const unsigned char*>(image->GetScalarPointer());
-  const double s = rgb[0] + rgb[1] + rgb[2];
-  int count = 0;
-  for (int j = std::max(0, j0); j < std::min(dims[1], j1); ++j) {
-    for (int i = std::max(0, i0); i < std::min(dims[0], i1); ++i) {
-      const unsigned char* p = px + (static_cast<size_t>(j) * dims[0] + i) * comps;
-      const double ps = p[0] + p[1] + p[2];
-      if (ps < 60) continue;
-      double err = 0;
-      for (int k = 0; k < 3; ++k) err = std::max(err, std::abs(p[k] / ps - rgb[k] / s));
-      if (err < tolerance) ++count;
-    }
-  }
-  return count;
-}
-
 TEST(SpidarcadWindow, DemoSceneDrawsItsSolidsAndTheEmergencyStopZeroesTheStrings) {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || display[0] == '\0') {
@@ -662,10 +627,7 @@ TEST(SpidarcadWindow, DemoSceneDrawsItsSolidsAndTheEmergencyStopZeroesTheStrings
                                 &output);
   ASSERT_EQ(status, 0) << output;
   EXPECT_EQ(output.find("before the loop settled"), std::string::npos) << output;
-  vtkNew<vtkPNGReader> reader;
-  reader->SetFileName(png.c_str());
-  reader->Update();
-  vtkImageData* image = reader->GetOutput();
+  const vtkSmartPointer<vtkImageData> image = ReadPng(png);
   int dims[3];
   image->GetDimensions(dims);
   ASSERT_EQ(dims[0], 1100);

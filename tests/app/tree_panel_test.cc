@@ -32,9 +32,12 @@
 #include "gui/tree_panel.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "window_test_support.h"
 
 namespace spidarcad::app {
 namespace {
+
+using window_test::ReadPng;
 
 constexpr double kPi = std::numbers::pi;
 // Demo scene (scene_model.cc): knob = sphere r 35 mm at (80, 30, −85) mm; bracket = rounded box
@@ -555,10 +558,7 @@ TEST(TreeControllerWindow, ScreenshotShowsTheTreeWithTheSelectedNodeHighlighted)
                      "' --size 1280x800 --device ideal 2>&1",
                  &output);
   ASSERT_EQ(status, 0) << output;
-  vtkNew<vtkPNGReader> reader;
-  reader->SetFileName(png.c_str());
-  reader->Update();
-  vtkImageData* image = reader->GetOutput();
+  const vtkSmartPointer<vtkImageData> image = ReadPng(png);
   int dims[3];
   image->GetDimensions(dims);
   ASSERT_EQ(dims[0], 1280);
