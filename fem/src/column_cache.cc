@@ -572,6 +572,9 @@ CachedContactSolver::CachedContactSolver(ColumnCache* cache, int max_contacts)
   }
   l_ = FactorMatrix::Zero(3 * max_contacts, 3 * max_contacts);
   work_ = Eigen::VectorXd::Zero(3 * max_contacts);
+  normal_b_ = Eigen::MatrixXd::Zero(3 * max_contacts, max_contacts);
+  normal_a_ = Eigen::MatrixXd::Zero(max_contacts, max_contacts);
+  normal_beta_ = Eigen::VectorXd::Zero(max_contacts);
   slots_.assign(max_contacts, -1);
   subs_.assign(max_contacts, -1);
   slot_of_.assign(cache->num_candidates(), -1);
@@ -760,6 +763,79 @@ bool CachedContactSolver::Solve(const double* target, double* forces) {
     for (int m = 0; m < i; ++m) work_(m) -= row[m] * fi;
   }
   for (int i = 0; i < n3; ++i) forces[i] = work_(i);
+  return true;
+}
+
+bool CachedContactSolver::SolveNormal(const double* normals, const double* target,
+                                      double* forces, double* displacement) {
+  if (k_ == 0) return false;
+  const int n3 = 3 * k_;
+  const Eigen::VectorXd& u0 = cache_->baseline();
+  // B(:, s) = Lᵀ(:, 3s..3s+2) n_s: rows 3s..3s+2 of L, nonzero in columns m <= 3s + 2.
+  for (int s = 0; s < k_; ++s) {
+    double* b = &normal_b_(0, s);
+    for (int m = 0; m < n3; ++m) b[m] = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      const double n = normals[3 * s + i];
+      const double* row = &l_(3 * s + i, 0);
+      for (int m = 0; m <= 3 * s + i; ++m) b[m] += n * row[m];
+    }
+  }
+  // A = BᵀB (lower triangle), factored in place: A = C Cᵀ.
+  double scale = 0.0;
+  for (int s = 0; s < k_; ++s) {
+    const double* bs = &normal_b_(0, s);
+    for (int t = 0; t <= s; ++t) {
+      const double* bt = &normal_b_(0, t);
+      const int top = 3 * t + 3;  // B(m, t) = 0 for m >= 3t + 3
+      double sum = 0.0;
+      for (int m = 0; m < top; ++m) sum += bs[m] * bt[m];
+      normal_a_(s, t) = sum;
+    }
+    scale = std::max(scale, normal_a_(s, s));
+  }
+  if (!(scale > 0.0) || !std::isfinite(scale)) return false;
+  for (int s = 0; s < k_; ++s) {
+    for (int t = 0; t <= s; ++t) {
+      double sum = normal_a_(s, t);
+      for (int m = 0; m < t; ++m) sum -= normal_a_(s, m) * normal_a_(t, m);
+      if (s == t) {
+        if (!(sum > 1e-14 * scale)) return false;
+        normal_a_(s, s) = std::sqrt(sum);
+      } else {
+        normal_a_(s, t) = sum / normal_a_(t, t);
+      }
+    }
+  }
+  // β = A⁻¹ Nᵀ(target − u0_c).
+  for (int s = 0; s < k_; ++s) {
+    const int row = 3 * cache_->OutputIndexOfCandidate(slots_[s]);
+    double rhs = 0.0;
+    for (int i = 0; i < 3; ++i) rhs += normals[3 * s + i] * (target[3 * s + i] - u0(row + i));
+    for (int m = 0; m < s; ++m) rhs -= normal_a_(s, m) * normal_beta_(m);
+    normal_beta_(s) = rhs / normal_a_(s, s);
+  }
+  for (int s = k_ - 1; s >= 0; --s) {
+    const double beta = normal_beta_(s) / normal_a_(s, s);
+    normal_beta_(s) = beta;
+    for (int m = 0; m < s; ++m) normal_beta_(m) -= normal_a_(s, m) * beta;
+  }
+  // y = B β (= Lᵀ f), u_c − u0_c = L y.
+  for (int m = 0; m < n3; ++m) work_(m) = 0.0;
+  for (int s = 0; s < k_; ++s) {
+    const double* bs = &normal_b_(0, s);
+    const double beta = normal_beta_(s);
+    for (int m = 0; m < 3 * s + 3; ++m) work_(m) += bs[m] * beta;
+  }
+  for (int i = 0; i < n3; ++i) {
+    const double* row = &l_(i, 0);
+    double sum = 0.0;
+    for (int m = 0; m <= i; ++m) sum += row[m] * work_(m);
+    const int out = 3 * cache_->OutputIndexOfCandidate(slots_[i / 3]) + i % 3;
+    displacement[i] = u0(out) + sum;
+  }
+  for (int s = 0; s < k_; ++s)
+    for (int i = 0; i < 3; ++i) forces[3 * s + i] = normal_beta_(s) * normals[3 * s + i];
   return true;
 }
 

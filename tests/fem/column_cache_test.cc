@@ -407,6 +407,86 @@ TEST(CachedContactSolver, RefreshSwitchesToTheExactColumnOnceReadyAndKeepsTheFac
   EXPECT_LT((a - c).norm(), 1e-10 * a.norm());
 }
 
+// Frictionless contact: SolveNormal's forces must lie along the normals and the displacements
+// they cause, read back through the columns themselves (OutputDisplacement, exact columns) or
+// through the dense block the factor stands for (ContactBlock, substituted columns), must reach
+// each target along its normal. Together these fix the solution uniquely (Ĝ_cc is SPD).
+TEST(CachedContactSolver, SolveNormalGivesNormalForcesThatReachTheTargetsAlongTheNormals) {
+  const Scene scene(0.4, 8, 2);
+  ColumnCacheSettings settings;
+  settings.start_worker = false;
+  for (const bool all_ready : {true, false}) {
+    SCOPED_TRACE(all_ready ? "every column ready" : "every third column ready");
+    ColumnCache cache(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+    std::vector<int> free;
+    for (int b = 0; b < cache.num_candidates(); ++b)
+      if (!cache.IsFixed(b)) free.push_back(b);
+    std::vector<int> ready;
+    for (size_t i = 0; i < free.size(); i += all_ready ? 1 : 3) ready.push_back(free[i]);
+    cache.ComputeNodes(ready);
+    CachedContactSolver lazy(&cache, 8);
+    std::vector<double> normals(24), target(24), forces(24, 7.0), disp(24, 7.0);
+    EXPECT_FALSE(lazy.SolveNormal(normals.data(), target.data(), forces.data(), disp.data()));
+    EXPECT_EQ(forces[0], 7.0);
+    for (size_t i = 0; i < free.size() && lazy.num_contacts() < 8; i += 2) lazy.Add(free[i]);
+    const int k = lazy.num_contacts();
+    ASSERT_GE(k, 5);
+    EXPECT_EQ(lazy.num_substituted() > 0, !all_ready);
+    std::mt19937 rng(11);
+    std::normal_distribution<double> gauss;
+    for (int s = 0; s < k; ++s) {
+      Eigen::Vector3d n(gauss(rng), gauss(rng), 3.0 + gauss(rng));
+      n.normalize();
+      for (int i = 0; i < 3; ++i) {
+        normals[3 * s + i] = n(i);
+        target[3 * s + i] = 2e-5 * gauss(rng);
+      }
+    }
+    t_new_count = 0;
+    t_count_new = true;
+    const bool ok = lazy.SolveNormal(normals.data(), target.data(), forces.data(), disp.data());
+    t_count_new = false;
+    ASSERT_TRUE(ok);
+    EXPECT_EQ(t_new_count, 0);
+    const int n3 = 3 * k;
+    const Eigen::Map<const Eigen::VectorXd> f(forces.data(), n3), u(disp.data(), n3);
+    Eigen::VectorXd u0c(n3);
+    for (int s = 0; s < k; ++s)
+      u0c.segment<3>(3 * s) = cache.baseline().segment<3>(3 * cache.OutputIndexOfCandidate(lazy.contact(s)));
+    // u_c − u0_c from an independent path.
+    Eigen::VectorXd du(n3);
+    if (all_ready) {
+      Eigen::VectorXd all(3 * cache.num_outputs());
+      lazy.OutputDisplacement(forces.data(), &all);
+      for (int s = 0; s < k; ++s)
+        du.segment<3>(3 * s) = all.segment<3>(3 * cache.OutputIndexOfCandidate(lazy.contact(s))) - u0c.segment<3>(3 * s);
+    } else {
+      du = lazy.ContactBlock() * f;
+    }
+    EXPECT_LT((u - u0c - du).norm(), 1e-9 * du.norm());
+    double fmax = 0.0;
+    for (int s = 0; s < k; ++s) {
+      const Eigen::Vector3d n(normals[3 * s], normals[3 * s + 1], normals[3 * s + 2]);
+      const Eigen::Vector3d fs = f.segment<3>(3 * s);
+      fmax = std::max(fmax, fs.norm());
+      EXPECT_LT(fs.cross(n).norm(), 1e-12 * fs.norm() + 1e-300) << "slot " << s << ": tangential force";
+      const Eigen::Vector3d ts(target[3 * s], target[3 * s + 1], target[3 * s + 2]);
+      EXPECT_NEAR(n.dot(u0c.segment<3>(3 * s) + du.segment<3>(3 * s)), n.dot(ts), 1e-9 * 2e-5)
+          << "slot " << s << ": normal displacement";
+    }
+    EXPECT_GT(fmax, 0.0);
+    // Held tangentially instead (Solve, the same targets in full), the forces differ.
+    std::vector<double> sticking(24);
+    ASSERT_TRUE(lazy.Solve(target.data(), sticking.data()));
+    EXPECT_GT((Eigen::Map<const Eigen::VectorXd>(sticking.data(), n3) - f).norm(), 0.1 * f.norm());
+    // A non-finite normal is refused and nothing is written.
+    normals[0] = std::nan("");
+    std::vector<double> untouched(24, 3.0);
+    EXPECT_FALSE(lazy.SolveNormal(normals.data(), target.data(), untouched.data(), untouched.data()));
+    EXPECT_EQ(untouched, std::vector<double>(24, 3.0));
+  }
+}
+
 TEST(CachedContactSolver, ReportsNoColumnWhenNothingIsReadyAndRefusesFixedNodes) {
   const Scene scene(0.2, 4, 2);
   ColumnCacheSettings settings;

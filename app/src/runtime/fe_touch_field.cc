@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/Cholesky>
 #include <sstream>
 #include <stdexcept>
 
@@ -250,10 +249,16 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
       st.candidate[s] = b;
       st.substitute[s] = solver_->substitute(s);
       normal_[s] = n;
-      for (int i = 0; i < 3; ++i) st.target[3 * s + i] = -t * n(i);
+      for (int i = 0; i < 3; ++i) {
+        st.target[3 * s + i] = -t * n(i);
+        normal_flat_[3 * s + i] = n(i);
+      }
     }
-    if (settings_.frictionless) FrictionlessTargets(k);
-    solved = solver_->Solve(st.target.data(), st.force.data());
+    // Frictionless: normal forces only, the tangential displacements follow (the targets become
+    // the resulting displacements); sticking, or if that fails: the full displacement prescribed.
+    solved = settings_.frictionless &&
+             solver_->SolveNormal(normal_flat_.data(), st.target.data(), st.force.data(), st.target.data());
+    if (!solved) solved = solver_->Solve(st.target.data(), st.force.data());
     if (!solved || pass + 1 == kActiveSetPasses) break;
     int pulling = 0;
     for (int s = k - 1; s >= 0; --s) {
@@ -376,47 +381,6 @@ double FeTouchField::FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d&
     if (lambda >= 0.0 && lambda < first) first = lambda;
   });
   return first;
-}
-
-bool FeTouchField::FrictionlessTargets(int k) {
-  // Unknown contact displacement u = u0 + N α + T c with N α fixed by the normal targets
-  // (n_s·u_s = n_s·d_s) and c chosen so that Tᵀ f = 0, f = K_c (u − u0).
-  const int n3 = 3 * k, n2 = 2 * k;
-  FeContactState& st = state_;
-  const Eigen::VectorXd& u0 = cache_->baseline();
-  u0c_.resize(n3);
-  for (int s = 0; s < k; ++s)
-    for (int i = 0; i < 3; ++i) u0c_(3 * s + i) = u0(3 * cache_->OutputIndexOfCandidate(st.candidate[s]) + i);
-  vk_.resize(n3);
-  wk_.resize(n3);
-  // Tangent basis T (3k by 2k, block diagonal) and the fixed normal part v = N α.
-  tan_.setZero(n3, n2);
-  for (int s = 0; s < k; ++s) {
-    const Eigen::Vector3d& n = normal_[s];
-    int axis = 0;
-    n.cwiseAbs().minCoeff(&axis);
-    const Eigen::Vector3d t1 = n.cross(Eigen::Vector3d::Unit(axis)).normalized();
-    const Eigen::Vector3d t2 = n.cross(t1);
-    tan_.block<3, 1>(3 * s, 2 * s) = t1;
-    tan_.block<3, 1>(3 * s, 2 * s + 1) = t2;
-    const Eigen::Vector3d d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]);
-    const Eigen::Vector3d u0s = u0c_.segment<3>(3 * s);
-    vk_.segment<3>(3 * s) = n * n.dot(d - u0s);
-  }
-  // K_c T column by column (2k solves): K_c x = Ĝ⁻¹ x = Solve(u0_c + x).
-  kt_.resize(n3, n2);
-  for (int j = 0; j < n2; ++j) {
-    wk_ = u0c_ + tan_.col(j);
-    solver_->Solve(wk_.data(), kt_.col(j).data());
-  }
-  a_.noalias() = tan_.transpose() * kt_;
-  rhs_.noalias() = -(kt_.transpose() * vk_);
-  Eigen::LLT<MatA> llt(a_);
-  if (llt.info() != Eigen::Success) return false;
-  llt.solveInPlace(rhs_);
-  wk_.noalias() = tan_ * rhs_;
-  for (int i = 0; i < n3; ++i) st.target[i] = vk_(i) + wk_(i) + u0c_(i);
-  return true;
 }
 
 int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state, Eigen::VectorXd* u_out) {

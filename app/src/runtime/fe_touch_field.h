@@ -7,8 +7,8 @@
 // most max_contacts of them, nearest the centre first; clamped nodes excluded). It is pushed
 // along its inward normal −n (the area-weighted face normal) until it leaves the sphere:
 // n·d = −t, |X − t n − c| = r, t > 0. Frictionless (default): the tangential displacements
-// are left free, i.e. chosen so that the tangential contact forces vanish (a 2k by 2k solve on
-// the condensed contact stiffness K_c = Ĝ_cc⁻¹: K_c T from 2k solves with the contact factor);
+// are left free, i.e. the contact forces are normal, f_s = β_s n_s, with n_s·u_s = −t_s (a k by
+// k solve, CachedContactSolver::SolveNormal);
 // sticking: the tangential displacement is held at zero. Either way the contact nodes end up
 // with a full prescribed displacement d (published as the target) and the forces on the body
 // f (N) solve Ĝ_cc f = d − u0_c with fem::CachedContactSolver (exact columns once ready, the
@@ -193,19 +193,8 @@ class FeTouchField final : public haptics::ForceField {
   // Stiffness probe of the coupling (targets and forces, 3 per slot).
   std::array<double, 3 * kMaxFeContacts> probe_target_{};
   std::array<double, 3 * kMaxFeContacts> probe_force_{};
-  // Frictionless solve scratch (fixed maximum sizes: no heap).
-  using MatK = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFeContacts, 3 * kMaxFeContacts>;
-  using MatT = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFeContacts, 2 * kMaxFeContacts>;
-  using MatA = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 2 * kMaxFeContacts, 2 * kMaxFeContacts>;
-  using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3 * kMaxFeContacts, 1>;
-  using VecA = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * kMaxFeContacts, 1>;
-  // Fills state_.target for frictionless contact from the normal displacement targets in
-  // state_.target (already set as −t n); returns false (targets untouched) on failure.
-  bool FrictionlessTargets(int k);
-  MatT tan_, kt_;
-  MatA a_;
-  VecK u0c_, vk_, wk_;
-  VecA rhs_;
+  // Unit inward normals of the contact slots (3 per slot), for the frictionless solve.
+  std::array<double, 3 * kMaxFeContacts> normal_flat_{};
   std::array<Eigen::Vector3d, kMaxFeContacts> normal_{};
   FeContactState state_;
 };

@@ -302,6 +302,17 @@ class CachedContactSolver {
   // Forces on the body f (3k, N, slot order) so that each contact node's total displacement
   // equals target (3k, m, slot order). Returns false (forces untouched) when k = 0.
   bool Solve(const double* target, double* forces);
+  // Frictionless contact: forces along the given unit normals only, f_s = β_s n_s, such that
+  // each contact node's displacement along its normal reaches the target's:
+  // n_s·u_s = n_s·target_s with u_c = u0_c + Ĝ_cc f (tangential displacements free).
+  // normals, target: 3k (slot order; unit normals, m). Writes forces (3k, N) and displacement,
+  // the contact nodes' resulting total displacement u_c (3k, m; may be the target's buffer). With Ĝ_cc = L Lᵀ (the factor)
+  // and B = Lᵀ N (3k by k), β solves (BᵀB) β = Nᵀ(target − u0_c) and u_c = u0_c + L B β:
+  // O(k³) work instead of the 2k solves that freeing the tangents with K_c = Ĝ_cc⁻¹ takes.
+  // Returns false (outputs untouched) when k = 0 or BᵀB is not positive definite (parallel
+  // normals cannot make it so; a non-finite normal can). Allocation-free.
+  bool SolveNormal(const double* normals, const double* target, double* forces,
+                   double* displacement);
   // Displacement of all output nodes (3·#output, m) for contact forces f (3k, slot order),
   // u = u0 + Σ Ĝ(:, slot s) f_s. u_out must already have size 3·#output.
   void OutputDisplacement(const double* forces, Eigen::VectorXd* u_out) const;
@@ -323,6 +334,9 @@ class CachedContactSolver {
   using FactorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   FactorMatrix l_;
   Eigen::VectorXd work_;
+  // SolveNormal scratch: B = Lᵀ N (3k by k, column s contiguous) and the Cholesky factor of BᵀB.
+  Eigen::MatrixXd normal_b_, normal_a_;
+  Eigen::VectorXd normal_beta_;
   std::vector<int> slots_, subs_, slot_of_;
 };
 
