@@ -112,6 +112,7 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   // Shell clusters: points grouped by their cell of kClusterCell in P.
   clusters_.resize(n);
   cluster_points_.resize(n);
+  cluster_point_offset_.resize(n);
   for (int j = 0; j < n; ++j) {
     const std::vector<Eigen::Vector3d>& r = parts_[j].shell_P.points_T;
     std::vector<std::array<long, 3>> cell(r.size());
@@ -120,6 +121,7 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
     }
     std::vector<int>& order = cluster_points_[j];
     order.resize(r.size());
+    cluster_point_offset_[j].assign(r.size(), 0.0);
     for (std::size_t i = 0; i < r.size(); ++i) order[i] = static_cast<int>(i);
     std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return cell[a] < cell[b]; });
     for (std::size_t begin = 0; begin < order.size();) {
@@ -129,7 +131,8 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
       ShellCluster cluster;
       cluster.centre_P = box.center();
       for (std::size_t k = begin; k < end; ++k) {
-        cluster.radius = std::max(cluster.radius, (r[order[k]] - cluster.centre_P).norm());
+        cluster_point_offset_[j][k] = (r[order[k]] - cluster.centre_P).norm();
+        cluster.radius = std::max(cluster.radius, cluster_point_offset_[j][k]);
       }
       cluster.begin = static_cast<int>(begin);
       cluster.end = static_cast<int>(end);
@@ -255,9 +258,14 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       // Clusters near part j mark their points; the points are then tested in shell order (so
       // the candidates, and every sum over them, come in the same order as without clusters).
       std::fill(near_.begin(), near_.begin() + shell.size(), 0);
+      // Within a cluster, a point at d_i from its centre has φ_j >= φ_j(centre) − d_i: it is
+      // tested only when that bound is below the reach (the slack covers rounding).
       for (const ShellCluster& cluster : clusters_[c]) {
-        if (Phi(j, p + R * cluster.centre_P, nullptr) >= cluster.radius + reach) continue;
-        for (int k = cluster.begin; k < cluster.end; ++k) near_[cluster_points_[c][k]] = 1;
+        const double phi_centre = s.cull_shell_search ? Phi(j, p + R * cluster.centre_P, nullptr) : -1e300;
+        if (phi_centre >= cluster.radius + reach) continue;
+        for (int k = cluster.begin; k < cluster.end; ++k) {
+          if (phi_centre - cluster_point_offset_[c][k] < reach + 1e-9) near_[cluster_points_[c][k]] = 1;
+        }
       }
       for (int i = 0; i < shell.size(); ++i) {
         if (!near_[i]) continue;

@@ -298,6 +298,74 @@ TEST(AssemblyField, ReleasingOverTheHoleSeatsThePartExactlyAndItStays) {
   EXPECT_EQ(s.X_WP[1].matrix(), seat.matrix());
 }
 
+// The body field, counting its evaluations.
+class CountingBodyField final : public DistanceField {
+ public:
+  double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
+    ++calls;
+    return body_.Evaluate(p, g);
+  }
+  mutable long calls = 0;
+
+ private:
+  BodyField body_;
+};
+
+// The carried part's candidate search skips shell points that cannot be within reach of another
+// part (by clusters, and by each point's offset from its cluster's centre: φ is 1-Lipschitz).
+// Against the search that tests every shell point, every tick of a grab, a carry down into the
+// hole (the peg against its wall) and a release must give the same wrench and the same poses,
+// bit for bit, with fewer evaluations of the body.
+TEST(AssemblyField, CullingTheShellSearchChangesNothingButTheWork) {
+  std::vector<std::shared_ptr<CountingBodyField>> bodies;
+  std::vector<std::unique_ptr<AssemblyField>> fields;
+  for (const bool cull : {true, false}) {
+    std::vector<AssemblyPart> parts = Parts();
+    bodies.push_back(std::make_shared<CountingBodyField>());
+    parts[0].field_P = bodies.back();
+    AssemblySettings settings;
+    settings.cull_shell_search = cull;
+    fields.push_back(std::make_unique<AssemblyField>(parts, PointShell{}, settings));
+  }
+  Driver culled = PickUp(*fields[0]);
+  Driver every = PickUp(*fields[1]);
+  ASSERT_EQ(fields[0]->carried(), 1);
+  ASSERT_EQ(fields[1]->carried(), 1);
+  const long calls_before[2] = {bodies[0]->calls, bodies[1]->calls};
+  // Above the hole, then down and off-centre so the peg presses on the hole's wall.
+  Eigen::Isometry3d above = kSeat_BP;
+  above.translation().z() += 0.03;
+  Eigen::Isometry3d in = kSeat_BP;
+  in.translation() += Eigen::Vector3d(0.0012, -0.0008, 0.004);
+  std::vector<Eigen::Vector3d> path;
+  for (int k = 1; k <= 300; ++k) path.push_back(GripFor(kStart_WP) + (GripFor(above) - GripFor(kStart_WP)) * (k / 300.0));
+  for (int k = 1; k <= 400; ++k) path.push_back(GripFor(above) + (GripFor(in) - GripFor(above)) * (k / 400.0));
+  for (int k = 0; k < 200; ++k) path.push_back(GripFor(in) + Eigen::Vector3d(0.001 * std::sin(0.05 * k), 0, 0));
+  int touching = 0;
+  for (std::size_t t = 0; t < path.size(); ++t) {
+    for (Driver* d : {&culled, &every}) {
+      d->tool.v_WT = (path[t] - d->tool.p_WT) / 1e-3;
+      d->tool.p_WT = path[t];
+      d->Tick();
+    }
+    ASSERT_EQ(culled.last.f_T_W, every.last.f_T_W) << "tick " << t;
+    ASSERT_EQ(culled.last.m_T_W, every.last.m_T_W) << "tick " << t;
+    ASSERT_EQ(culled.last.g, every.last.g) << "tick " << t;
+    ASSERT_EQ(fields[0]->X_WP(1).matrix(), fields[1]->X_WP(1).matrix()) << "tick " << t;
+    ASSERT_EQ(fields[0]->contacts(), fields[1]->contacts()) << "tick " << t;
+    ASSERT_EQ(fields[0]->candidates(), fields[1]->candidates()) << "tick " << t;
+    touching += fields[0]->contacts() > 0;
+  }
+  EXPECT_GT(touching, 100);  // the peg did press on the body
+  culled.Open();
+  every.Open();
+  EXPECT_EQ(fields[0]->seated(1), fields[1]->seated(1));
+  EXPECT_EQ(fields[0]->X_WP(1).matrix(), fields[1]->X_WP(1).matrix());
+  const long work[2] = {bodies[0]->calls - calls_before[0], bodies[1]->calls - calls_before[1]};
+  std::printf("body evaluations while carrying: culled %ld, every point %ld\n", work[0], work[1]);
+  EXPECT_LT(work[0], work[1] / 2);
+}
+
 TEST(AssemblyField, ReleasingElsewhereLeavesThePartWhereItWasLetGo) {
   AssemblyField field(Parts());
   Driver d = PickUp(field);

@@ -27,7 +27,8 @@
 //    V is integrated with semi-implicit Euler in `substeps` steps. The shell points within
 //    `contact_margin` (plus the tick's travel) of another part are found once per tick (the
 //    shell's clusters of nearby points, cells of 1 cm, are skipped whole when their centre is
-//    farther from the part than their radius plus that reach: φ is 1-Lipschitz), where
+//    farther from the part than their radius plus that reach, and a point of a cluster when the
+//    centre is farther than its offset from the centre plus the reach: φ is 1-Lipschitz), where
 //    φ_j and ∇φ_j are evaluated once; the substeps use the first-order expansion
 //    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick), so a
 //    tick costs one φ per shell point near another part plus one gradient per candidate. The user feels the
@@ -98,6 +99,7 @@ struct AssemblySettings {
   double contact_margin = 2e-3;                               // candidate margin, m
   int max_points = 4096;                                      // largest shell per part
   double max_dt = 0.01;                                       // longer ticks are clamped, s
+  bool cull_shell_search = true;  // false: test every shell point each tick (same result, slower; for tests)
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -135,6 +137,9 @@ class AssemblyField final : public ForceField {
   const Eigen::Isometry3d& X_TP() const noexcept { return X_TP_; }
   // Penetrating shell points in the last tick.
   int contacts() const noexcept { return contacts_; }
+  // Shell points of the carried part found within reach of another part in the last carrying
+  // tick (the candidates its substeps test; 0 when nothing is carried).
+  int candidates() const noexcept { return carried_ >= 0 ? num_candidates_ : 0; }
   // The parts as given (names, seats, initial poses).
   const AssemblyPart& part(int i) const noexcept { return parts_[i]; }
   // Whether pose X_WP of part i is within the tolerance of one of its seats (with the other
@@ -176,6 +181,7 @@ class AssemblyField final : public ForceField {
   static constexpr double kClusterCell = 0.01;  // m
   std::vector<std::vector<ShellCluster>> clusters_;  // per part
   std::vector<std::vector<int>> cluster_points_;     // per part: shell indices in cluster order
+  std::vector<std::vector<double>> cluster_point_offset_;  // per part, cluster order: |r_i − centre|, m
   std::vector<char> near_;                           // per shell point: in a cluster near part j
   std::vector<int> candidate_point_;  // capacity max shell × parts
   std::vector<int> candidate_part_;
