@@ -1,12 +1,19 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// The only file that includes <libusb.h>.
+// The only file that includes <libusb.h>. libusb does everything off the haptic tick (find,
+// open, claim, release); the per-tick Send/Receive are USBDEVFS_BULK ioctls (usbfs_bulk.h) on
+// the device node this file opens itself and hands to libusb with libusb_wrap_sys_device.
+#include <fcntl.h>
 #include <libusb.h>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <utility>
 
 #include "spidarcad/haptics/usb_transport.h"
+#include "usbfs_bulk.h"
 
 namespace spidarcad::haptics::usb {
 namespace {
@@ -60,6 +67,47 @@ void LibusbTransport::SetError(const char* what, int code) noexcept {
                 libusb_strerror(static_cast<libusb_error>(code)));
 }
 
+// Opens /dev/bus/usb/BBB/DDD ourselves, so that the fd used by the tick's ioctls is ours, and
+// wraps it in a libusb handle for the claim, the serial string and the release. Wrapping works
+// with an ordinary (device-discovery) context: libusb's Linux backend builds a separate device
+// for the fd, reads its descriptors through it, and its libusb_close leaves the fd open.
+TransportResult LibusbTransport::OpenNode(int bus, int address, libusb_device_handle** handle,
+                                          int* fd) noexcept {
+  *handle = nullptr;
+  *fd = -1;
+  char path[40];
+  std::snprintf(path, sizeof(path), "/dev/bus/usb/%03d/%03d", bus, address);
+  const int node = ::open(path, O_RDWR | O_CLOEXEC);
+  if (node < 0) {
+    const int e = errno;
+    if (e == EACCES || e == EPERM) {
+      std::snprintf(error_, sizeof(error_),
+                    "permission denied on %s (udev rules missing, see assets/udev)", path);
+      return TransportResult::kNoAccess;
+    }
+    if (e == ENOENT) {
+      std::snprintf(error_, sizeof(error_), "%s does not exist (unplugged, or no devtmpfs)", path);
+      return TransportResult::kNotFound;
+    }
+    if (e == ENODEV) {
+      std::snprintf(error_, sizeof(error_), "%s: the device is gone (unplugged)", path);
+      return TransportResult::kDisconnected;
+    }
+    std::snprintf(error_, sizeof(error_), "open %s: %s", path, std::strerror(e));
+    return TransportResult::kError;
+  }
+  const int rc = libusb_wrap_sys_device(context_, static_cast<intptr_t>(node), handle);
+  if (rc != LIBUSB_SUCCESS) {
+    *handle = nullptr;
+    ::close(node);
+    SetError("libusb_wrap_sys_device", rc);
+    const TransportResult result = FromLibusb(rc);
+    return result == TransportResult::kNotFound ? TransportResult::kError : result;
+  }
+  *fd = node;
+  return TransportResult::kOk;
+}
+
 TransportResult LibusbTransport::Open() noexcept {
   Close();
   error_[0] = '\0';
@@ -85,20 +133,24 @@ TransportResult LibusbTransport::Open() noexcept {
     if (libusb_get_device_descriptor(list[i], &desc) != LIBUSB_SUCCESS) continue;
     if (desc.idVendor != vendor_id_ || desc.idProduct != product_id_) continue;
     libusb_device_handle* handle = nullptr;
-    const int rc = libusb_open(list[i], &handle);
-    if (rc != LIBUSB_SUCCESS) {
-      result = FromLibusb(rc);
-      if (result == TransportResult::kNotFound) result = TransportResult::kError;
-      SetError("libusb_open", rc);
+    int fd = -1;
+    const TransportResult opened = OpenNode(libusb_get_bus_number(list[i]),
+                                            libusb_get_device_address(list[i]), &handle, &fd);
+    if (opened != TransportResult::kOk) {
+      result = opened;
       continue;
     }
+    const auto discard = [&handle, &fd]() noexcept {
+      libusb_close(handle);  // does not close a wrapped fd
+      ::close(fd);
+    };
     std::string serial;
     try {
       serial = ReadSerial(handle, desc);
     } catch (...) {
     }
     if (!serial_.empty() && serial != serial_) {
-      libusb_close(handle);
+      discard();
       continue;
     }
     kernel_driver_detached_ = false;
@@ -111,10 +163,15 @@ TransportResult LibusbTransport::Open() noexcept {
       SetError("libusb_claim_interface", claim);
       result = FromLibusb(claim);
       if (result == TransportResult::kNotFound) result = TransportResult::kError;
-      libusb_close(handle);
+      if (kernel_driver_detached_) libusb_attach_kernel_driver(handle, kInterface);
+      kernel_driver_detached_ = false;
+      discard();
       continue;
     }
     handle_ = handle;
+    fd_ = fd;
+    lost_ = false;
+    abandoned_ = false;
     result = TransportResult::kOk;
     error_[0] = '\0';
   }
@@ -122,57 +179,72 @@ TransportResult LibusbTransport::Open() noexcept {
   return result;
 }
 
+// Off the tick only (libusb locks and frees). After an unplug seen by a transfer (lost_), the
+// device is gone: skip the release and the driver re-attach, just free the handle and the fd.
 void LibusbTransport::Close() noexcept {
-  if (handle_ == nullptr) return;
-  libusb_release_interface(handle_, kInterface);
-  if (kernel_driver_detached_) libusb_attach_kernel_driver(handle_, kInterface);
-  libusb_close(handle_);
+  if (handle_ != nullptr) {
+    if (!lost_) {
+      libusb_release_interface(handle_, kInterface);
+      if (kernel_driver_detached_) libusb_attach_kernel_driver(handle_, kInterface);
+    }
+    libusb_close(handle_);  // leaves the wrapped fd open: close it after
+  }
+  if (fd_ >= 0) ::close(fd_);
   handle_ = nullptr;
+  fd_ = -1;
+  lost_ = false;
+  abandoned_ = false;
   kernel_driver_detached_ = false;
+}
+
+// Tick path: snprintf into the fixed error_ buffer, no strerror, no libusb call. A device-gone
+// errno does not Close() here (libusb_close locks and frees): it marks the link lost, so
+// is_open() turns false at once and the next Open() or Close(), made off the tick, releases it.
+TransportResult LibusbTransport::TransferFailed(const char* what, TransportResult result,
+                                                int error_number) noexcept {
+  if (result == TransportResult::kTimeout) return result;
+  const char* name = detail::UsbfsErrnoName(error_number);
+  if (name != nullptr) {
+    std::snprintf(error_, sizeof(error_), "%s: %s", what, name);
+  } else {
+    std::snprintf(error_, sizeof(error_), "%s: errno %d", what, error_number);
+  }
+  if (result == TransportResult::kDisconnected) lost_ = true;
+  return result;
 }
 
 TransportResult LibusbTransport::Send(const std::uint8_t* data, std::size_t size,
                                       int timeout_ms) noexcept {
-  if (handle_ == nullptr) return TransportResult::kDisconnected;
-  int transferred = 0;
-  // libusb takes a non-const buffer for both directions; an OUT transfer does not write it.
-  const int rc = libusb_bulk_transfer(handle_, kEndpointOut, const_cast<std::uint8_t*>(data),
-                                      static_cast<int>(size), &transferred,
-                                      timeout_ms > 0 ? static_cast<unsigned>(timeout_ms) : 1u);
-  if (rc == LIBUSB_SUCCESS && transferred != static_cast<int>(size)) {
-    std::snprintf(error_, sizeof(error_), "short write: %d of %d bytes", transferred,
-                  static_cast<int>(size));
+  if (!is_open()) return TransportResult::kDisconnected;
+  std::size_t transferred = 0;
+  int error_number = 0;
+  // The ioctl's struct takes a non-const pointer for both directions; OUT only reads it.
+  const TransportResult result =
+      detail::UsbfsBulk(fd_, kEndpointOut, const_cast<std::uint8_t*>(data), size, timeout_ms,
+                        &transferred, &error_number);
+  if (result != TransportResult::kOk) return TransferFailed("bulk OUT", result, error_number);
+  if (transferred != size) {
+    std::snprintf(error_, sizeof(error_), "short write: %d of %d bytes",
+                  static_cast<int>(transferred), static_cast<int>(size));
     return TransportResult::kError;
   }
-  const TransportResult result = FromLibusb(rc);
-  if (result == TransportResult::kDisconnected) {
-    SetError("bulk OUT", rc);
-    Close();
-  } else if (result != TransportResult::kOk && result != TransportResult::kTimeout) {
-    SetError("bulk OUT", rc);
-  }
-  return result;
+  return TransportResult::kOk;
 }
 
 TransportResult LibusbTransport::Receive(std::uint8_t* data, std::size_t capacity,
                                          std::size_t* received, int timeout_ms) noexcept {
   *received = 0;
-  if (handle_ == nullptr) return TransportResult::kDisconnected;
-  int transferred = 0;
-  const int rc = libusb_bulk_transfer(handle_, kEndpointIn, data, static_cast<int>(capacity),
-                                      &transferred,
-                                      timeout_ms > 0 ? static_cast<unsigned>(timeout_ms) : 1u);
-  // A timeout may still have delivered bytes; a partial packet fails the length check later.
-  *received = static_cast<std::size_t>(transferred > 0 ? transferred : 0);
-  if (rc == LIBUSB_ERROR_TIMEOUT && transferred > 0) return TransportResult::kOk;
-  const TransportResult result = FromLibusb(rc);
-  if (result == TransportResult::kDisconnected) {
-    SetError("bulk IN", rc);
-    Close();
-  } else if (result != TransportResult::kOk && result != TransportResult::kTimeout) {
-    SetError("bulk IN", rc);
-  }
-  return result;
+  if (!is_open()) return TransportResult::kDisconnected;
+  std::size_t transferred = 0;
+  int error_number = 0;
+  const TransportResult result = detail::UsbfsBulk(fd_, kEndpointIn, data, capacity, timeout_ms,
+                                                   &transferred, &error_number);
+  // USBDEVFS_BULK reports a timeout as -ETIMEDOUT and drops any partial IN data, so the
+  // "timeout that still delivered bytes" case of libusb_bulk_transfer no longer exists: a
+  // timeout delivers nothing, and a short packet (kOk) fails the length check in Decode.
+  if (result != TransportResult::kOk) return TransferFailed("bulk IN", result, error_number);
+  *received = transferred;
+  return TransportResult::kOk;
 }
 
 UsbEnumeration ListUsbBoards(std::uint16_t vendor_id, std::uint16_t product_id) noexcept {

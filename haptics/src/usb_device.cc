@@ -33,8 +33,10 @@ void UsbSpidarG::Close() noexcept {
   status_ = DeviceStatus::kNotConnected;
 }
 
+// Runs on the tick (Read/WriteTensions): Abandon, not Close, so that a real board's release
+// (libusb locks and frees) waits for the next Open or Close, off the tick.
 void UsbSpidarG::Disconnect(const char* why) noexcept {
-  if (transport_->is_open()) transport_->Close();
+  if (transport_->is_open()) transport_->Abandon();
   if (status_ != DeviceStatus::kNotConnected) ++stats_.disconnects;
   status_ = DeviceStatus::kNotConnected;
   reads_since_attempt_ = 0;

@@ -163,6 +163,78 @@ TEST(UsbSpidarG, TotalCorruptionGivesCommErrorZeroForceThenNotConnected) {
   EXPECT_EQ(rig.driver->stats().disconnects, 1u);
 }
 
+// A transport that forwards to the loopback and records how the driver lets go of the link:
+// Abandon (tick-safe) marks it unused like LibusbTransport does; Close releases it.
+class RecordingTransport final : public Transport {
+ public:
+  explicit RecordingTransport(std::unique_ptr<LoopbackTransport> inner) : inner_(std::move(inner)) {}
+  TransportResult Open() noexcept override {
+    if (abandoned_) Close();  // LibusbTransport::Open releases an abandoned link first
+    return inner_->Open();
+  }
+  void Close() noexcept override {
+    ++closes;
+    abandoned_ = false;
+    inner_->Close();
+  }
+  void Abandon() noexcept override {
+    ++abandons;
+    abandoned_ = true;
+  }
+  bool is_open() const noexcept override { return inner_->is_open() && !abandoned_; }
+  TransportResult Send(const std::uint8_t* data, std::size_t size, int timeout_ms) noexcept override {
+    return abandoned_ ? TransportResult::kDisconnected : inner_->Send(data, size, timeout_ms);
+  }
+  TransportResult Receive(std::uint8_t* data, std::size_t capacity, std::size_t* received,
+                          int timeout_ms) noexcept override {
+    *received = 0;
+    return abandoned_ ? TransportResult::kDisconnected : inner_->Receive(data, capacity, received, timeout_ms);
+  }
+  const char* last_error() const noexcept override { return inner_->last_error(); }
+  LoopbackTransport& inner() { return *inner_; }
+  int closes = 0, abandons = 0;
+
+ private:
+  std::unique_ptr<LoopbackTransport> inner_;
+  bool abandoned_ = false;
+};
+
+// When the driver gives up on a link from the tick (no valid data), it abandons the transport
+// instead of closing it (a real board's close goes through libusb, which locks and frees); the
+// release happens at the next Open, off the tick.
+TEST(UsbSpidarG, GivingUpOnTheTickAbandonsTheLinkAndTheNextOpenReleasesIt) {
+  BoardSimulator board(TestBoard());
+  UsbDeviceConfig config;
+  config.reconnect_every = 0;  // re-opening is the caller's, off the tick
+  auto recording = std::make_unique<RecordingTransport>(std::make_unique<LoopbackTransport>(&board));
+  RecordingTransport* link = recording.get();
+  UsbSpidarG driver(std::move(recording), board.device().info(), config);
+  ASSERT_EQ(driver.Open(), DeviceStatus::kOk);
+  EncoderReading reading;
+  for (int i = 0; i < 20; ++i) {
+    driver.Read(&reading);
+    driver.WriteTensions(Tensions());
+  }
+  ASSERT_EQ(driver.status(), DeviceStatus::kOk);
+  const int closes_before = link->closes;
+  LinkFaults all;
+  all.corruption = 1.0;
+  link->inner().set_faults(all);
+  for (int i = 0; i < 200 && driver.status() != DeviceStatus::kNotConnected; ++i) {
+    driver.Read(&reading);
+    driver.WriteTensions(Tensions());
+  }
+  ASSERT_EQ(driver.status(), DeviceStatus::kNotConnected);
+  EXPECT_EQ(link->abandons, 1);
+  EXPECT_EQ(link->closes, closes_before) << "the tick closed the transport";
+  EXPECT_FALSE(link->is_open());
+  EXPECT_NE(std::string(driver.last_error()).find("no valid data"), std::string::npos);
+  // Off the tick: the faults cleared, Open releases the abandoned link and reconnects.
+  link->inner().set_faults({});
+  EXPECT_EQ(driver.Open(), DeviceStatus::kOk);
+  EXPECT_GT(link->closes, closes_before);
+}
+
 TEST(UsbSpidarG, ReorderedPacketsAreDroppedAsStale) {
   LinkFaults faults;
   faults.reorder = 0.2;

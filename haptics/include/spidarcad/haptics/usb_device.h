@@ -101,7 +101,7 @@ class UsbSpidarG final : public Device {
   bool emergency_stop_ = false;
   bool clear_stop_ = false;
   Packet buffer_{};
-  char error_[200] = {};
+  char error_[320] = {};
 };
 
 }  // namespace spidarcad::haptics::usb
