@@ -3,12 +3,14 @@
 // scene. Run from anywhere: build-dir/bench/implicit_bench (finds the scene from __FILE__).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <cmath>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include <benchmark/benchmark.h>
 
+#include "spidarcad/modeling/cell_specialized_solid.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -256,6 +258,85 @@ void BM_MeshSphere(benchmark::State& state) {
   state.counters["volume_err_pct"] = 100.0 * (MeshVolume(mesh) - exact) / exact;
 }
 BENCHMARK(BM_MeshSphere)->Arg(10)->Arg(20)->Arg(40)->Unit(benchmark::kMillisecond);
+
+// Per-cell pruned tapes (CompiledSolid::Specialize, CellSpecializedSolid) on the assembly's
+// torso, "a box less five cylinders" (assets/scenes/assembly.json, solid "body", frame of the
+// part): value and gradient at points around the bottom right hole where a leg's peg sits.
+// Arg 0: the full tape; 1: the grid of 5 mm cells; 2: one tape specialized for the whole query box.
+std::shared_ptr<const CompiledSolid> TorsoSolid() {
+  const Scene scene = LoadScene(SourceDir() + "/assets/scenes/assembly.json");
+  for (const Solid& s : scene.solids) {
+    if (s.name == "body") return std::make_shared<const CompiledSolid>(CompiledSolid::Compile(s.root));
+  }
+  return nullptr;
+}
+const Eigen::AlignedBox3d kTorsoGrid(Eigen::Vector3d(-0.045, -0.035, -0.05), Eigen::Vector3d(0.045, 0.035, 0.05));
+const Eigen::Vector3d kHoleLo(0.006, -0.006, -0.045), kHoleHi(0.018, 0.006, -0.022);
+
+void BM_TorsoHoleValueAndGradient(benchmark::State& state) {
+  const auto torso = TorsoSolid();
+  CellSpecializationSettings settings;
+  settings.cell_size = 0.005;
+  const CellSpecializedSolid cells(torso, kTorsoGrid, settings);
+  const CompiledSolid one = torso->Specialize(Eigen::AlignedBox3d(kHoleLo, kHoleHi));
+  const auto points = RandomPoints(1024, kHoleLo, kHoleHi);
+  size_t i = 0;
+  Eigen::Vector3d g;
+  const int mode = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    const Eigen::Vector3d& p = points[i++ & 1023];
+    if (mode == 0) {
+      benchmark::DoNotOptimize(torso->ValueAndGradient(p, &g));
+    } else if (mode == 1) {
+      benchmark::DoNotOptimize(cells.ValueAndGradient(p, &g));
+    } else {
+      benchmark::DoNotOptimize(one.ValueAndGradient(p, &g));
+    }
+    benchmark::DoNotOptimize(g);
+  }
+  double instructions = 0;
+  for (const Eigen::Vector3d& p : points) {
+    instructions += mode == 0 ? torso->instruction_count() : mode == 1 ? cells.TapeAt(p).instruction_count() : one.instruction_count();
+  }
+  state.counters["mean_instructions"] = instructions / points.size();
+}
+BENCHMARK(BM_TorsoHoleValueAndGradient)->Arg(0)->Arg(1)->Arg(2);
+
+// Build time of the torso's grid (state.range(0) / 10 mm cells) and its figures.
+void BM_TorsoCellBuild(benchmark::State& state) {
+  const auto torso = TorsoSolid();
+  CellSpecializationSettings settings;
+  settings.cell_size = state.range(0) * 1e-4;
+  CellSpecializationStats stats;
+  for (auto _ : state) stats = CellSpecializedSolid(torso, kTorsoGrid, settings).stats();
+  state.counters["cells"] = stats.cells;
+  state.counters["specialized_cells"] = stats.specialized_cells;
+  state.counters["distinct_tapes"] = stats.distinct_tapes;
+  state.counters["mean_instructions"] = stats.mean_instructions;
+  state.counters["full_instructions"] = stats.full_instructions;
+}
+BENCHMARK(BM_TorsoCellBuild)->Arg(100)->Arg(50)->Arg(25)->Unit(benchmark::kMillisecond);
+
+// The platform through a grid of 5 mm cells over its bounds: build time, and value and gradient
+// at random points of the box as BM_PlatformValueAndGradient.
+void BM_PlatformCellsValueAndGradient(benchmark::State& state) {
+  const auto solid = std::make_shared<const CompiledSolid>(CompiledSolid::Compile(PlatformTree()));
+  CellSpecializationSettings settings;
+  settings.cell_size = 0.005;
+  const CellSpecializedSolid cells(solid, Eigen::AlignedBox3d(kPlatformLo, kPlatformHi), settings);
+  const auto points = RandomPoints(1024, kPlatformLo, kPlatformHi);
+  size_t i = 0;
+  Eigen::Vector3d g;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(cells.ValueAndGradient(points[i++ & 1023], &g));
+    benchmark::DoNotOptimize(g);
+  }
+  state.counters["build_ms"] = cells.stats().build_seconds * 1e3;
+  state.counters["cells"] = cells.stats().cells;
+  state.counters["mean_instructions"] = cells.stats().mean_instructions;
+  state.counters["full_instructions"] = cells.stats().full_instructions;
+}
+BENCHMARK(BM_PlatformCellsValueAndGradient);
 
 }  // namespace
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <Eigen/SVD>
 
@@ -67,6 +68,40 @@ struct Overloaded : Ts... {
 };
 template <class... Ts>
 Overloaded(Ts...) -> Overloaded<Ts...>;
+
+// Interval bounds of one primitive instruction over a box (interval arithmetic, tightened by
+// the Lipschitz bound value(centre) ± L·half-diagonal).
+struct PrimitiveBounder {
+  explicit PrimitiveBounder(const Eigen::AlignedBox3d& box)
+      : lo(box.min()), hi(box.max()), centre(0.5 * (lo + hi)), half_diagonal(0.5 * (hi - lo).norm()) {}
+
+  Interval operator()(Op op, const double* c) const noexcept {
+    double qc[3];
+    Interval q[3];
+    for (int r = 0; r < 3; ++r) {
+      Interval acc = Interval::Point(c[kB + r]);
+      qc[r] = c[kB + r];
+      for (int j = 0; j < 3; ++j) {
+        const double a = c[3 * r + j];
+        acc = acc + Interval{lo[j], hi[j]} * a;
+        qc[r] += a * centre[j];
+      }
+      q[r] = acc;
+    }
+    const double k = c[kScale];
+    const double value_at_centre = k * EvalPrimitive(op, c + kParams, qc[0], qc[1], qc[2]);
+    const double reach = c[kLipschitz] * half_diagonal;
+    // Widen by a few ulps so rounding in the two evaluations cannot exclude a true value.
+    const double slack = 1e-12 * (std::fabs(value_at_centre) + reach) + 1e-15;
+    const Interval lipschitz{value_at_centre - reach - slack, value_at_centre + reach + slack};
+    if (!IsBranchFree(op)) return lipschitz;
+    const Interval ia = EvalBranchFree(op, c + kParams, q[0], q[1], q[2]) * k;
+    return Intersect(Interval{ia.lo - slack, ia.hi + slack}, lipschitz);
+  }
+
+  Eigen::Vector3d lo, hi, centre;
+  double half_diagonal;
+};
 
 }  // namespace
 
@@ -293,6 +328,9 @@ T CompiledSolid::Run(Primitive&& primitive) const noexcept {
       case Op::kShell:
         stack[top - 1] = Abs(stack[top - 1] + 0.5 * c[0]) - 0.5 * c[0];
         break;
+      case Op::kNeg:
+        stack[top - 1] = -stack[top - 1];
+        break;
       default:
         stack[top++] = primitive(ins.op, c);
         break;
@@ -345,32 +383,7 @@ void CompiledSolid::ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>&
 
 Interval CompiledSolid::Bounds(const Eigen::AlignedBox3d& box) const noexcept {
   if (code_.empty()) return {INFINITY, INFINITY};
-  const Eigen::Vector3d lo = box.min(), hi = box.max();
-  const Eigen::Vector3d centre = 0.5 * (lo + hi);
-  const double half_diagonal = 0.5 * (hi - lo).norm();
-  return Run<Interval>([&](Op op, const double* c) {
-    double qc[3];
-    Interval q[3];
-    for (int r = 0; r < 3; ++r) {
-      Interval acc = Interval::Point(c[kB + r]);
-      qc[r] = c[kB + r];
-      for (int j = 0; j < 3; ++j) {
-        const double a = c[3 * r + j];
-        acc = acc + Interval{lo[j], hi[j]} * a;
-        qc[r] += a * centre[j];
-      }
-      q[r] = acc;
-    }
-    const double k = c[kScale];
-    const double value_at_centre = k * EvalPrimitive(op, c + kParams, qc[0], qc[1], qc[2]);
-    const double reach = c[kLipschitz] * half_diagonal;
-    // Widen by a few ulps so rounding in the two evaluations cannot exclude a true value.
-    const double slack = 1e-12 * (std::fabs(value_at_centre) + reach) + 1e-15;
-    const Interval lipschitz{value_at_centre - reach - slack, value_at_centre + reach + slack};
-    if (!IsBranchFree(op)) return lipschitz;
-    const Interval ia = EvalBranchFree(op, c + kParams, q[0], q[1], q[2]) * k;
-    return Intersect(Interval{ia.lo - slack, ia.hi + slack}, lipschitz);
-  });
+  return Run<Interval>(PrimitiveBounder(box));
 }
 
 BoxClass CompiledSolid::Classify(const Eigen::AlignedBox3d& box) const noexcept {
@@ -378,6 +391,140 @@ BoxClass CompiledSolid::Classify(const Eigen::AlignedBox3d& box) const noexcept 
   if (b.hi < 0.0) return BoxClass::kInside;
   if (b.lo > 0.0) return BoxClass::kOutside;
   return BoxClass::kAmbiguous;
+}
+
+namespace {
+
+// How many operands an opcode pops (primitives pop none and push one).
+int Arity(Op op) {
+  switch (op) {
+    case Op::kMin: case Op::kMax: case Op::kMaxNeg: case Op::kSmoothMin: case Op::kSmoothMax: case Op::kSmoothMaxNeg:
+      return 2;
+    case Op::kOffset: case Op::kShell: case Op::kNeg:
+      return 1;
+    default:
+      return 0;
+  }
+}
+
+// True when every value in x is below every value in y by more than `gap` plus a margin that
+// covers rounding in the bounds (which are widened by ~1e-12 relative) and in the blend's
+// difference. Non-finite bounds never qualify.
+bool SurelyBelow(const Interval& x, const Interval& y, double gap) {
+  if (!std::isfinite(x.lo) || !std::isfinite(x.hi) || !std::isfinite(y.lo) || !std::isfinite(y.hi)) return false;
+  const double margin = 1e-9 * (std::fabs(x.hi) + std::fabs(y.lo) + gap) + 1e-12;
+  return y.lo - x.hi > gap + margin;
+}
+
+// Which operand of a binary instruction survives over the box: 0 both, 1 the left one (a), 2
+// the right one (b; for the *Neg ops the result is then −b).
+//  - Min(a, b): double std::min and Dual Min both return a when a < b strictly, else b.
+//  - SmoothMin(a, b, r) with |a − b| > r: h = max(r − |a − b|, 0)/r is exactly +0 (value and
+//    gradient), so the result is Min(a, b) − (+0), bit-identical to the selected operand.
+//    SmoothMax = −SmoothMin(−a, −b) and negation is exact. r <= 0 is a plain min/max.
+int Survivor(Op op, const double* c, const Interval& a, const Interval& b0) {
+  const bool negated = op == Op::kMaxNeg || op == Op::kSmoothMaxNeg;
+  const Interval b = negated ? -b0 : b0;
+  double gap = 0.0;
+  if (op == Op::kSmoothMin || op == Op::kSmoothMax || op == Op::kSmoothMaxNeg) {
+    // A radius so small that 1/r overflows makes the blend's h = 0·∞ = NaN: keep both.
+    if (!std::isfinite(c[0]) || (c[0] > 0.0 && !std::isfinite(1.0 / c[0]))) return 0;
+    gap = std::max(c[0], 0.0);
+  }
+  const bool is_min = op == Op::kMin || op == Op::kSmoothMin;
+  if (SurelyBelow(a, b, gap)) return is_min ? 1 : 2;
+  if (SurelyBelow(b, a, gap)) return is_min ? 2 : 1;
+  return 0;
+}
+
+}  // namespace
+
+CompiledSolid CompiledSolid::Specialize(const Eigen::AlignedBox3d& box) const {
+  const int n = static_cast<int>(code_.size());
+  if (n == 0 || box.isEmpty() || !box.min().allFinite() || !box.max().allFinite()) return *this;
+  using namespace internal;
+  // Forward pass: the bounds of every instruction's result over the box and its operands.
+  const PrimitiveBounder bound(box);
+  std::vector<Interval> value(n);
+  std::vector<int> left(n, -1), right(n, -1);
+  std::vector<int> stack;
+  stack.reserve(static_cast<std::size_t>(stack_depth_) + 1);
+  const double* pool = constants_.data();
+  for (int i = 0; i < n; ++i) {
+    const Op op = code_[i].op;
+    const double* c = pool + code_[i].constants;
+    const int arity = Arity(op);
+    if (arity == 2) {
+      right[i] = stack.back();
+      stack.pop_back();
+      left[i] = stack.back();
+      stack.pop_back();
+      const Interval a = value[left[i]], b = value[right[i]];
+      switch (op) {
+        case Op::kMin: value[i] = Min(a, b); break;
+        case Op::kMax: value[i] = Max(a, b); break;
+        case Op::kMaxNeg: value[i] = Max(a, -b); break;
+        case Op::kSmoothMin: value[i] = SmoothMin(a, b, c[0]); break;
+        case Op::kSmoothMax: value[i] = SmoothMax(a, b, c[0]); break;
+        default: value[i] = SmoothMax(a, -b, c[0]); break;  // kSmoothMaxNeg
+      }
+    } else if (arity == 1) {
+      left[i] = stack.back();
+      stack.pop_back();
+      const Interval a = value[left[i]];
+      switch (op) {
+        case Op::kOffset: value[i] = a - c[0]; break;
+        case Op::kShell: value[i] = Abs(a + 0.5 * c[0]) - 0.5 * c[0]; break;
+        default: value[i] = -a; break;  // kNeg
+      }
+    } else {
+      value[i] = bound(op, c);
+    }
+    stack.push_back(i);
+  }
+  // Backward pass (parents come after their operands): mark what the root still needs.
+  // emit: 0 dropped, 1 kept, 2 replaced by kNeg.
+  std::vector<std::uint8_t> live(n, 0), emit(n, 0);
+  live[n - 1] = 1;
+  for (int i = n - 1; i >= 0; --i) {
+    if (!live[i]) continue;
+    const Op op = code_[i].op;
+    const int arity = Arity(op);
+    emit[i] = 1;
+    if (arity == 2) {
+      const int keep = Survivor(op, pool + code_[i].constants, value[left[i]], value[right[i]]);
+      if (keep == 1) {
+        live[left[i]] = 1;
+        emit[i] = 0;
+      } else if (keep == 2) {
+        live[right[i]] = 1;
+        emit[i] = (op == Op::kMaxNeg || op == Op::kSmoothMaxNeg) ? 2 : 0;
+      } else {
+        live[left[i]] = live[right[i]] = 1;
+      }
+    } else if (arity == 1) {
+      live[left[i]] = 1;
+    }
+  }
+  // Emit the kept instructions in order with their constants.
+  CompiledSolid out;
+  int depth = 0, max_depth = 0;
+  for (int i = 0; i < n; ++i) {
+    if (emit[i] == 0) continue;
+    const Op op = emit[i] == 2 ? Op::kNeg : code_[i].op;
+    out.code_.push_back({op, static_cast<std::uint32_t>(out.constants_.size())});
+    if (emit[i] == 1) {
+      const std::size_t begin = code_[i].constants;
+      const std::size_t end = i + 1 < n ? code_[i + 1].constants : constants_.size();
+      out.constants_.insert(out.constants_.end(), constants_.begin() + begin, constants_.begin() + end);
+    }
+    const int arity = Arity(op);
+    if (arity == 0) ++out.primitive_count_;
+    depth += arity == 2 ? -1 : arity == 0 ? 1 : 0;
+    max_depth = std::max(max_depth, depth);
+  }
+  out.stack_depth_ = max_depth;
+  return out;
 }
 
 }  // namespace spidarcad::modeling

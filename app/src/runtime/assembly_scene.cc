@@ -80,7 +80,20 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
       if (solid == nullptr) throw std::invalid_argument(where + ": no such solid");
       try {
         auto cs = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(solid->root));
-        c.field = std::make_shared<const SolidDistanceField>(cs);
+        if (settings.specialization_cell > 0) {
+          // Pruned tapes over the part's bounds plus a margin where other parts' shells come near.
+          const Eigen::Vector3d h = Eigen::Vector3d::Constant(settings.search_half_extent);
+          const Eigen::AlignedBox3d b = modeling::FindBounds(*cs, Eigen::AlignedBox3d(-h, h), settings.specialization_cell);
+          const Eigen::Vector3d margin = Eigen::Vector3d::Constant(0.02);
+          modeling::CellSpecializationSettings cell;
+          cell.cell_size = settings.specialization_cell;
+          c.field = std::make_shared<const SolidDistanceField>(
+              cs, b.isEmpty() ? nullptr
+                              : std::make_shared<const modeling::CellSpecializedSolid>(
+                                    cs, Eigen::AlignedBox3d(b.min() - margin, b.max() + margin), cell));
+        } else {
+          c.field = std::make_shared<const SolidDistanceField>(cs);
+        }
       } catch (const std::exception& e) {
         throw std::invalid_argument(where + ": " + e.what());
       }

@@ -25,6 +25,8 @@ struct AssemblySceneSettings {
   double tool_radius = 0.003;       // the bare tool's sphere shell radius, m (0: no tool shell)
   int tool_points = 40;             // points on that sphere
   double search_half_extent = 0.5;  // parts are looked for in a cube of this half side about P's origin, m
+  double specialization_cell = 0.005;  // cell of the per-cell pruned tapes of each part's field
+                                       // (modeling::CellSpecializedSolid), m; 0: the full tape only
   haptics::AssemblySettings field;  // the field's parameters
 };
 

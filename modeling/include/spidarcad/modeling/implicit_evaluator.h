@@ -61,6 +61,14 @@ class CompiledSolid {
   // kOutside are guaranteed, kAmbiguous may be returned for a box that is wholly in or out.
   BoxClass Classify(const Eigen::AlignedBox3d& box_W) const noexcept;
 
+  // A pruned tape for the closed box box_W: Value and ValueAndGradient of the result are
+  // bit-identical to this solid's at every point of box_W (outside box_W they are not
+  // meaningful). A min/max or smooth blend whose interval bounds over box_W prove that one
+  // operand is never selected (strictly, with a margin; ties keep both) is replaced by the
+  // other operand and the dead sub-tape is dropped. Returns a copy when nothing can be pruned
+  // or box_W is empty. Allocates: call it off the haptic tick.
+  CompiledSolid Specialize(const Eigen::AlignedBox3d& box_W) const;
+
   // Number of tape instructions.
   int instruction_count() const { return static_cast<int>(code_.size()); }
   // Number of primitive instructions (after array unrolling).
@@ -72,6 +80,7 @@ class CompiledSolid {
   enum class Op : std::uint8_t {
     kSphere, kBox, kRoundedBox, kCylinder, kCapsule, kCone, kTorus, kHalfSpace, kExtrusion,
     kMin, kMax, kMaxNeg, kSmoothMin, kSmoothMax, kSmoothMaxNeg, kOffset, kShell,
+    kNeg,  // negates the top of the stack (emitted only by Specialize)
   };
   // One tape instruction: opcode and the offset of its constants in the constant pool.
   struct Instruction {
@@ -81,6 +90,7 @@ class CompiledSolid {
 
  private:
   friend class TapeCompiler;
+  friend class CellSpecializedSolid;  // compares and hashes tapes to share identical ones
   template <typename T, typename Primitive>
   T Run(Primitive&& primitive) const noexcept;
 
