@@ -21,7 +21,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
-#include <filesystem>
 #include <map>
 #include <memory>
 #include <string>
@@ -35,6 +34,7 @@
 #include "spidarcad/fem/condensation.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "bench_paths.h"
 
 namespace spidarcad {
 namespace {
@@ -53,10 +53,7 @@ double CpuSeconds() {
 
 std::string ScenePath() {
   if (const char* p = std::getenv("SPIDARCAD_PLATFORM_SCENE"); p && *p) return p;
-  namespace fs = std::filesystem;
-  const fs::path from_source = fs::path(__FILE__).parent_path().parent_path() / "assets" / "scenes" / "platform.json";
-  if (fs::exists(from_source)) return from_source.string();
-  return "assets/scenes/platform.json";
+  return spidarcad::bench::RepoPath("assets/scenes/platform.json");
 }
 
 struct Platform {

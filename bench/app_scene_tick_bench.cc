@@ -43,6 +43,7 @@
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "bench_paths.h"
 
 namespace {
 
@@ -50,14 +51,7 @@ namespace haptics = spidarcad::haptics;
 namespace app = spidarcad::app;
 namespace fem = spidarcad::fem;
 
-std::string AssetDir() {
-#ifdef SPIDARCAD_SOURCE_DIR
-  return std::string(SPIDARCAD_SOURCE_DIR) + "/assets/";
-#endif
-  std::string file = __FILE__;  // .../bench/app_scene_tick_bench.cc (may be relative)
-  file = file.substr(0, file.rfind('/'));
-  return file.substr(0, file.rfind('/')) + "/assets/";
-}
+std::string AssetDir() { return spidarcad::bench::RepoPath("assets/"); }
 
 struct Row {
   std::string name;

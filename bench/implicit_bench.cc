@@ -1,6 +1,6 @@
 // Speed of the compiled implicit evaluator: point queries with gradient (the haptic proxy's
 // per-tick cost), batch throughput, interval bounds per box, octree culling, and the platform
-// scene. Run from anywhere: build-dir/bench/implicit_bench (finds the scene from __FILE__).
+// scene. Run from anywhere: build-dir/bench/implicit_bench (bench_paths.h finds the scene).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <cmath>
 #include <memory>
@@ -14,6 +14,7 @@
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "bench_paths.h"
 
 
 namespace {
@@ -156,15 +157,8 @@ void BM_Compile_50Nodes(benchmark::State& state) {
 }
 BENCHMARK(BM_Compile_50Nodes);
 
-// The repository root, from this file's path (bench/implicit_bench.cc).
-std::string SourceDir() {
-  const std::string file = __FILE__;
-  const size_t cut = file.rfind("bench/");
-  return cut == std::string::npos ? std::string(".") : file.substr(0, cut);
-}
-
 ImplicitNode PlatformTree() {
-  const Scene scene = LoadScene(SourceDir() + "/assets/scenes/platform.json");
+  const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
   return scene.solids.at(0).root;
 }
 const Eigen::Vector3d kPlatformLo(-0.01, -0.11, -0.16), kPlatformHi(0.31, 0.11, 0.02);
@@ -264,7 +258,7 @@ BENCHMARK(BM_MeshSphere)->Arg(10)->Arg(20)->Arg(40)->Unit(benchmark::kMillisecon
 // part): value and gradient at points around the bottom right hole where a leg's peg sits.
 // Arg 0: the full tape; 1: the grid of 5 mm cells; 2: one tape specialized for the whole query box.
 std::shared_ptr<const CompiledSolid> TorsoSolid() {
-  const Scene scene = LoadScene(SourceDir() + "/assets/scenes/assembly.json");
+  const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/assembly.json"));
   for (const Solid& s : scene.solids) {
     if (s.name == "body") return std::make_shared<const CompiledSolid>(CompiledSolid::Compile(s.root));
   }

@@ -27,15 +27,11 @@
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tet_mesh.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "bench_paths.h"
 
 namespace {
 
 using namespace spidarcad::modeling;
-
-std::string SourceDir() {
-  const std::string file = __FILE__;
-  return file.substr(0, file.rfind("/bench/"));
-}
 
 struct Case {
   std::string name;
@@ -111,7 +107,7 @@ int main(int argc, char** argv) {
                      size.prod() - M_PI * bore * bore * size.z(), {0.008, 0.005, 0.0035}});
   }
   {
-    const Scene scene = LoadScene(SourceDir() + "/assets/scenes/platform.json");
+    const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
     cases.push_back({"platform", CompiledSolid::Compile(scene.solids[0].root),
                      Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02)), 0.0,
                      {0.008, 0.006, 0.004}});

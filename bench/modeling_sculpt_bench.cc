@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
 #include <memory>
 #include <numbers>
 #include <string>
@@ -19,6 +18,7 @@
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "bench_paths.h"
 
 namespace spidarcad::modeling {
 namespace {
@@ -28,8 +28,7 @@ const TriangleMesh& Blob() {
   static const TriangleMesh mesh = [] {
     const char* cell_env = std::getenv("SPIDARCAD_SCULPT_CELL");
     const double cell = cell_env != nullptr ? std::atof(cell_env) : 0.00104;
-    // The source tree from this file's path (bench/..), as the other benches find their scenes.
-    const std::string path = (std::filesystem::path(__FILE__).parent_path().parent_path() / "assets" / "scenes" / "clay.json").string();
+    const std::string path = spidarcad::bench::RepoPath("assets/scenes/clay.json");
     const Scene scene = LoadScene(path);
     const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(0).root);
     SurfaceMeshSettings settings;

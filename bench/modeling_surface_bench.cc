@@ -8,7 +8,7 @@
 //    the zero set by Newton steps; points outside a convex edge or corner land exactly on it),
 //    each measured to the nearest triangle through a uniform grid of triangles.
 // Max and mean of both directions are printed as a markdown table after the benchmarks.
-// Run: build-dir/bench/modeling_surface_bench (finds the scene from __FILE__), about 1-2 min.
+// Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <algorithm>
 #include <array>
@@ -25,17 +25,12 @@
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "bench_paths.h"
 
 namespace {
 
 using namespace spidarcad::modeling;
 using Vec = Eigen::Vector3d;
-
-std::string SourceDir() {
-  const std::string file = __FILE__;
-  const size_t cut = file.rfind("bench/");
-  return cut == std::string::npos ? std::string(".") : file.substr(0, cut);
-}
 
 struct Case {
   std::string name;
@@ -52,7 +47,7 @@ const std::vector<Case>& Cases() {
     c.push_back({"box", CompiledSolid::Compile(ImplicitNode(TranslateParams{offset}, {ImplicitNode(BoxParams{size})})), around});
     ImplicitNode holed(DifferenceParams{}, {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})});
     c.push_back({"box-cylinder", CompiledSolid::Compile(ImplicitNode(TranslateParams{offset}, {holed})), around});
-    const Scene scene = LoadScene(SourceDir() + "/assets/scenes/platform.json");
+    const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
     c.push_back({"platform", CompiledSolid::Compile(scene.solids.at(0).root),
                  Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02))});
     return c;

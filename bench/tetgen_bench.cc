@@ -12,20 +12,16 @@
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "bench_paths.h"
 
 namespace {
 
 using namespace spidarcad::modeling;
 
-std::string SourceDir() {
-  const std::string file = __FILE__;
-  return file.substr(0, file.rfind("/bench/"));
-}
-
 // Args: cell size in 0.1 mm, radius-edge bound in 0.1 (0: none), max volume in mm³ (0: none).
 void BM_TetgenPlatform(benchmark::State& state) {
   const double cell = state.range(0) * 1e-4;
-  const Scene scene = LoadScene(SourceDir() + "/assets/scenes/platform.json");
+  const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
   SurfaceMeshSettings surface_settings;
   surface_settings.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02));
