@@ -5,6 +5,7 @@
 // the off-tick re-open of a real board's link, allocation-free ticks, and the window's
 // --device runs.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -67,6 +68,50 @@ TEST(DeviceRig, ParsesTheDeviceNamesOfRun) {
   // The existing numbers stay.
   EXPECT_EQ(static_cast<int>(RuntimeDevice::kSimulated), 0);
   EXPECT_EQ(static_cast<int>(RuntimeDevice::kIdeal), 1);
+}
+
+// A rig that only counts Service calls (the interval is its setting).
+class ServiceCountingRig final : public DeviceRig {
+ public:
+  explicit ServiceCountingRig(double interval) : interval_(interval) {}
+  const haptics::DeviceInfo& info() const override { return info_; }
+  haptics::SimulatedSpidarG* physical() override { return nullptr; }
+  bool Start(const haptics::GripPose&) override { return true; }
+  void Read(double, haptics::EncoderReading*) noexcept override {}
+  void Write(const haptics::Vector8d&) noexcept override {}
+  bool Service() override {
+    calls.fetch_add(1);
+    return true;
+  }
+  double service_interval() const override { return interval_; }
+  std::string Describe() const override { return "counting"; }
+  std::atomic<int> calls{0};
+
+ private:
+  double interval_;
+  haptics::DeviceInfo info_;
+};
+
+// run --device usb and the window re-open a lost board from this thread: it calls Service
+// repeatedly while it lives, never when the rig needs no service, and stops when destroyed.
+TEST(DeviceRig, ServiceThreadServicesTheRigUntilItIsDestroyed) {
+  ServiceCountingRig rig(0.02);
+  {
+    const RigServiceThread service(&rig);
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (rig.calls.load() < 3 && std::chrono::steady_clock::now() < give_up)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    EXPECT_GE(rig.calls.load(), 3);
+  }
+  const int after = rig.calls.load();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(rig.calls.load(), after) << "Service called after the thread was destroyed";
+  ServiceCountingRig idle(0.0);
+  {
+    const RigServiceThread service(&idle);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(idle.calls.load(), 0);
 }
 
 TEST(DeviceRig, SimulatedRigReadsExactlyWhatTheDeviceItWrapsReads) {

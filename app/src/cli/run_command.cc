@@ -275,6 +275,10 @@ void RunRun(const RunOptions& options) {
   ParseRigKind(options.device, &kind);  // checked above
   RigOptions rig_options;
   rig_options.device.seed = options.seed;
+  // A real board lost mid-run is re-opened by a service thread, not inside the tick (re-opening
+  // goes through libusb, which allocates and locks); board-sim keeps its deterministic re-open
+  // on the virtual clock.
+  rig_options.reconnect_off_tick = kind == RigKind::kUsb;
   std::unique_ptr<DeviceRig> rig = MakeDeviceRig(kind, rig_options);
   const haptics::DeviceInfo& info = rig->info();
   haptics::SimulatedSpidarG* physical = rig->physical();  // null for a real board
@@ -301,6 +305,7 @@ void RunRun(const RunOptions& options) {
   haptics::LatencyHistogram tick_time(1e-7, 100000);
   // board-sim / usb: the driver's handshake; no board answering is bad input (exit 2).
   if (!rig->Start(hand.pose())) throw InputError(rig->StartFailure());
+  const RigServiceThread service(rig.get());  // a thread only when the rig needs one (usb)
 
   std::ofstream out(options.out);
   if (!out) throw InputError("--out: cannot write '" + options.out + "'");

@@ -153,34 +153,13 @@ HapticRuntime::~HapticRuntime() { Stop(); }
 
 void HapticRuntime::Start() {
   runner_.Start([this](const haptics::TickTiming& timing) { Tick(timing); });
-  const double interval = rig_->service_interval();
-  if (interval > 0.0 && !service_thread_.joinable()) {
-    // Created here, on the main thread: threads inherit SCHED_FIFO from a real-time creator.
-    service_stop_.store(false, std::memory_order_relaxed);
-    service_thread_ = std::thread([this, interval] {
-      const auto slice = std::chrono::milliseconds(10);
-      auto next = std::chrono::steady_clock::now();
-      while (!service_stop_.load(std::memory_order_acquire)) {
-        const auto now = std::chrono::steady_clock::now();
-        if (now >= next) {
-          if (rig_->Service()) {
-            next = std::chrono::steady_clock::now() +
-                   std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                       std::chrono::duration<double>(interval));
-          }
-        }
-        std::this_thread::sleep_for(slice);
-      }
-    });
-  }
+  // Created here, on the main thread: threads inherit SCHED_FIFO from a real-time creator.
+  if (!service_) service_ = std::make_unique<RigServiceThread>(rig_.get());
 }
 
 void HapticRuntime::Stop() {
   runner_.Stop();
-  if (service_thread_.joinable()) {
-    service_stop_.store(true, std::memory_order_release);
-    service_thread_.join();
-  }
+  service_.reset();
 }
 
 void HapticRuntime::SetTarget(const haptics::GripPose& target_D) noexcept {

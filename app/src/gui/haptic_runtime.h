@@ -162,8 +162,7 @@ class HapticRuntime {
   std::string description_;
   std::string link_at_start_;
   haptics::GripPose last_measured_;  // kUsb: the last pose FK accepted (haptic thread)
-  std::thread service_thread_;
-  std::atomic<bool> service_stop_{false};
+  std::unique_ptr<RigServiceThread> service_;  // re-opens a lost board (kUsb) while started
 };
 
 // Loop statistics for the window's panel and the exit summary (read on the main thread while

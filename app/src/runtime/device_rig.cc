@@ -2,6 +2,7 @@
 #include "runtime/device_rig.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
@@ -308,6 +309,28 @@ SimulatedCalibration CalibrateSimulated(haptics::SimulatedSpidarG* device) {
   }
   result.description = text;
   return result;
+}
+
+RigServiceThread::RigServiceThread(DeviceRig* rig) {
+  const double interval = rig->service_interval();
+  if (!(interval > 0.0)) return;
+  thread_ = std::thread([this, rig, interval] {
+    const auto slice = std::chrono::milliseconds(10);
+    const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(interval));
+    auto next = std::chrono::steady_clock::now();
+    while (!stop_.load(std::memory_order_acquire)) {
+      if (std::chrono::steady_clock::now() >= next && rig->Service()) {
+        next = std::chrono::steady_clock::now() + period;
+      }
+      std::this_thread::sleep_for(slice);
+    }
+  });
+}
+
+RigServiceThread::~RigServiceThread() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
 }
 
 }  // namespace spidarcad::app

@@ -20,6 +20,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "spidarcad/haptics/device.h"
 #include "spidarcad/haptics/encoder.h"
@@ -96,6 +97,22 @@ class DeviceRig {
   virtual std::string Describe() const = 0;
   // For summaries: the link statistics (empty: none). Not while the tick runs.
   virtual std::string LinkSummary() const { return {}; }
+};
+
+// While it lives, a thread of its own calls rig->Service() (re-opening a failed link off the
+// haptic thread) at most every rig->service_interval() s, polling every 10 ms; nothing when the
+// interval is 0. Create it from a thread that is not real time: threads inherit SCHED_FIFO from
+// their creator. The destructor stops and joins the thread.
+class RigServiceThread {
+ public:
+  explicit RigServiceThread(DeviceRig* rig);
+  ~RigServiceThread();
+  RigServiceThread(const RigServiceThread&) = delete;
+  RigServiceThread& operator=(const RigServiceThread&) = delete;
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
 };
 
 // The rig of `kind`. Throws std::invalid_argument on a bad device configuration.
