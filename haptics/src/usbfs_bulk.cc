@@ -12,7 +12,9 @@ namespace spidarcad::haptics::usb::detail {
 TransportResult TransportResultFromErrno(int error_number) noexcept {
   switch (error_number) {
     case 0: return TransportResult::kOk;
-    case ETIMEDOUT: return TransportResult::kTimeout;
+    case ETIMEDOUT:
+    case EINTR:  // a signal cut the wait short: nothing moved, try again next tick
+      return TransportResult::kTimeout;
     case ENODEV:     // the device node's device was unplugged
     case ESHUTDOWN:  // its host controller or port was shut down
     case ENOENT:     // the transfer was killed because the device went away

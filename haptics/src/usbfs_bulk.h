@@ -15,7 +15,7 @@ namespace spidarcad::haptics::usb::detail {
 
 // The TransportResult of a failed USBDEVFS_BULK (or of opening a device node) with this errno:
 //   0                                   -> kOk
-//   ETIMEDOUT                           -> kTimeout
+//   ETIMEDOUT, EINTR (a signal)         -> kTimeout
 //   ENODEV, ESHUTDOWN, ENOENT           -> kDisconnected (the device is gone)
 //   everything else (EPIPE = endpoint stalled, EPROTO, EILSEQ, EOVERFLOW = the device sent more
 //   than the buffer holds, ENOTTY = not a usbfs node, EBADF, EINVAL, ...) -> kError

@@ -47,7 +47,7 @@ TEST(Usbfs, ErrnoMappingTable) {
       {EBADF, TransportResult::kError},
       {EINVAL, TransportResult::kError},
       {ENOMEM, TransportResult::kError},
-      {EINTR, TransportResult::kError},
+      {EINTR, TransportResult::kTimeout},
       {EIO, TransportResult::kError},
       {EAGAIN, TransportResult::kError},
       {12345, TransportResult::kError},
