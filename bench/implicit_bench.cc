@@ -311,12 +311,12 @@ void BM_TorsoCellBuild(benchmark::State& state) {
 }
 BENCHMARK(BM_TorsoCellBuild)->Arg(100)->Arg(50)->Arg(25)->Unit(benchmark::kMillisecond);
 
-// The platform through a grid of 5 mm cells over its bounds: build time, and value and gradient
-// at random points of the box as BM_PlatformValueAndGradient.
+// The platform through a grid of 20, 10 or 5 mm cells over its bounds: build time, and value and
+// gradient at random points of the box as BM_PlatformValueAndGradient.
 void BM_PlatformCellsValueAndGradient(benchmark::State& state) {
   const auto solid = std::make_shared<const CompiledSolid>(CompiledSolid::Compile(PlatformTree()));
   CellSpecializationSettings settings;
-  settings.cell_size = 0.005;
+  settings.cell_size = state.range(0) * 1e-4;  // arg: cell edge in 0.1 mm
   const CellSpecializedSolid cells(solid, Eigen::AlignedBox3d(kPlatformLo, kPlatformHi), settings);
   const auto points = RandomPoints(1024, kPlatformLo, kPlatformHi);
   size_t i = 0;
@@ -330,7 +330,7 @@ void BM_PlatformCellsValueAndGradient(benchmark::State& state) {
   state.counters["mean_instructions"] = cells.stats().mean_instructions;
   state.counters["full_instructions"] = cells.stats().full_instructions;
 }
-BENCHMARK(BM_PlatformCellsValueAndGradient);
+BENCHMARK(BM_PlatformCellsValueAndGradient)->Arg(200)->Arg(100)->Arg(50);
 
 }  // namespace
 
