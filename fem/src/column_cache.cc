@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/column_cache.h"
 
+#include "node_lists.h"
+
 #include <pthread.h>
 #include <sched.h>
 
@@ -45,31 +47,11 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
     throw std::runtime_error("ColumnCache: the model's factorisation failed: " +
                              solver.factor_status().message);
   }
-  std::vector<int> output_index(n, -1);
-  for (size_t a = 0; a < output_nodes.size(); ++a) {
-    const int v = output_nodes[a];
-    if (v < 0 || v >= n) {
-      throw std::invalid_argument("ColumnCache: output node " + std::to_string(v) +
-                                  " is out of range [0, " + std::to_string(n) + ")");
-    }
-    if (output_index[v] >= 0) {
-      throw std::invalid_argument("ColumnCache: output node " + std::to_string(v) + " is listed twice");
-    }
-    output_index[v] = static_cast<int>(a);
-  }
-  node_to_candidate_.assign(n, -1);
-  for (size_t b = 0; b < candidate_nodes.size(); ++b) {
-    const int v = candidate_nodes[b];
-    if (v < 0 || v >= n || output_index[v] < 0) {
-      throw std::invalid_argument("ColumnCache: candidate node " + std::to_string(v) +
-                                  " is not one of the output nodes");
-    }
-    if (node_to_candidate_[v] >= 0) {
-      throw std::invalid_argument("ColumnCache: candidate node " + std::to_string(v) +
-                                  " is listed twice");
-    }
-    node_to_candidate_[v] = static_cast<int>(b);
-    candidate_row_.push_back(output_index[v]);
+  const detail::NodeListIndex index =
+      detail::IndexNodeLists("ColumnCache", "candidate", n, output_nodes, candidate_nodes);
+  node_to_candidate_ = index.subset_index;
+  candidate_row_ = index.subset_row;
+  for (const int v : candidate_nodes) {
     positions_.push_back(nodes.row(v).transpose());
     bool fixed = false;
     for (int i = 0; i < 3; ++i) fixed = fixed || solver.FreeIndex(3 * v + i) < 0;

@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/condensation.h"
 
+#include "node_lists.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,30 +15,11 @@ Compliance::Compliance(const StaticSolver& solver, const std::vector<int>& outpu
                        const std::vector<int>& condensed_nodes, const CondensationSettings& settings)
     : output_nodes_(output_nodes), condensed_nodes_(condensed_nodes) {
   const int n = solver.bcs().num_nodes();
-  std::vector<int> output_index(n, -1);
-  for (size_t a = 0; a < output_nodes.size(); ++a) {
-    const int v = output_nodes[a];
-    if (v < 0 || v >= n) {
-      throw std::invalid_argument("Compliance: output node " + std::to_string(v) +
-                                  " is out of range [0, " + std::to_string(n) + ")");
-    }
-    if (output_index[v] >= 0) {
-      throw std::invalid_argument("Compliance: output node " + std::to_string(v) + " is listed twice");
-    }
-    output_index[v] = static_cast<int>(a);
-  }
-  node_to_condensed_.assign(n, -1);
-  for (size_t b = 0; b < condensed_nodes.size(); ++b) {
-    const int v = condensed_nodes[b];
-    if (v < 0 || v >= n || output_index[v] < 0) {
-      throw std::invalid_argument("Compliance: condensed node " + std::to_string(v) +
-                                  " is not one of the output nodes");
-    }
-    if (node_to_condensed_[v] >= 0) {
-      throw std::invalid_argument("Compliance: condensed node " + std::to_string(v) + " is listed twice");
-    }
-    node_to_condensed_[v] = static_cast<int>(b);
-    condensed_row_.push_back(output_index[v]);
+  const detail::NodeListIndex index =
+      detail::IndexNodeLists("Compliance", "condensed", n, output_nodes, condensed_nodes);
+  node_to_condensed_ = index.subset_index;
+  condensed_row_ = index.subset_row;
+  for (const int v : condensed_nodes) {
     bool fixed = false;
     for (int i = 0; i < 3; ++i) fixed = fixed || solver.FreeIndex(3 * v + i) < 0;
     fixed_.push_back(fixed ? 1 : 0);
