@@ -16,8 +16,6 @@ namespace spidarcad::app {
 
 namespace {
 
-// Half-side of the box searched for each solid, m.
-constexpr double kSearchHalfSide = 10.0;
 // Height of the device centre above the top of the solids, in D, m.
 constexpr double kClearance = 0.06;
 
@@ -81,15 +79,11 @@ struct PreviewResult {
 // Box of `solid` (FindBounds at about 1/64 of its size); throws std::runtime_error naming
 // `what` when the solid is empty or unbounded.
 Eigen::AlignedBox3d SolidBox(const modeling::CompiledSolid& solid, const std::string& what) {
-  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
-                                   Eigen::Vector3d::Constant(kSearchHalfSide));
-  const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, search, 0.01);
-  if (rough.isEmpty()) throw std::runtime_error(what + " is empty");
-  if ((rough.min().array() <= -kSearchHalfSide + 0.01).any() ||
-      (rough.max().array() >= kSearchHalfSide - 0.01).any()) {
-    throw std::runtime_error(what + " is unbounded (reaches the 20 m search box)");
-  }
-  return modeling::FindBounds(solid, rough, rough.sizes().maxCoeff() / 64.0);
+  bool unbounded = false;
+  const Eigen::AlignedBox3d box = SolidBounds(solid, &unbounded);
+  if (unbounded) throw std::runtime_error(what + " is unbounded (reaches the 20 m search box)");
+  if (box.isEmpty()) throw std::runtime_error(what + " is empty");
+  return box;
 }
 
 }  // namespace

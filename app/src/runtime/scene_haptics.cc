@@ -30,7 +30,8 @@ void Require(bool ok, const char* field, double value, const char* what) {
 
 bool PositiveFinite(double v) { return std::isfinite(v) && v > 0.0; }
 
-// The solid's box, or an empty box when it is empty; *unbounded when it reaches the search box.
+}  // namespace
+
 Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded) {
   const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
                                    Eigen::Vector3d::Constant(kSearchHalfSide));
@@ -46,8 +47,6 @@ Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbo
   }
   return modeling::FindBounds(solid, rough, std::max(rough.sizes().maxCoeff() / 64.0, 1e-4));
 }
-
-}  // namespace
 
 const char* ToolModelName(ToolModel model) {
   return model == ToolModel::kShell ? "shell" : "proxy";

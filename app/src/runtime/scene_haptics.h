@@ -106,6 +106,11 @@ struct WorkspaceMap {
 // for an empty box or a non-positive half side or fraction.
 WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side, double fraction);
 
+// The box of a compiled solid (W, m): found on 1 cm cells inside a ±10 m search cube, then refined
+// on cells of 1/64 of its largest side (at least 0.1 mm). Empty when the solid is empty, and
+// empty with *unbounded set when it reaches the search cube (a half-space, say).
+Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded);
+
 // One field of a built scene, for summaries.
 struct FieldInfo {
   std::string kind;   // "proxy", "point_shell", "snap"
