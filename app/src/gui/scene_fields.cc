@@ -61,16 +61,8 @@ ContinuousProxyField::ContinuousProxyField(std::shared_ptr<haptics::ProxyField> 
                                            std::shared_ptr<const haptics::DistanceField> environment,
                                            std::shared_ptr<ContactChannel> channel,
                                            const ContinuitySettings& settings)
-    : reuse_(std::move(reuse)),
-      fresh_(std::move(fresh)),
-      env_(std::move(environment)),
-      channel_(std::move(channel)),
-      settings_(settings) {
-  if (!fresh_ || !env_ || !channel_) {
-    throw std::invalid_argument("ContinuousProxyField: the fresh field, environment and channel must not be null");
-  }
-  settings_.Validate();
-}
+    : ContinuousField("ContinuousProxyField", std::move(reuse), std::move(fresh),
+                      std::move(environment), std::move(channel), settings) {}
 
 void ContinuousProxyField::WarmStart(const ContactChannel::Handoff& h,
                                      const haptics::ToolKinematics& tool) noexcept {
@@ -123,13 +115,7 @@ haptics::ToolWrench ContinuousProxyField::Evaluate(const haptics::ToolKinematics
   // A free proxy sits on the tool point; one that does not has not started (the tool point was
   // inside since the field began) or stopped short: nothing a successor should start from.
   h.seedable = contact || proxy == x_t;
-  ContactMarker& m = channel_->marker.WriteSlot();
-  m.time = tool.time;
-  m.p_W = proxy;
-  m.tool_W = x_t;
-  m.contact = contact;
-  m.field = active_;
-  channel_->marker.Publish();
+  PublishMarker(tool.time, proxy, x_t, contact, active_);
   return w;
 }
 
@@ -140,16 +126,8 @@ ContinuousShellField::ContinuousShellField(std::shared_ptr<haptics::PointShellFi
                                            std::shared_ptr<const haptics::DistanceField> environment,
                                            std::shared_ptr<ContactChannel> channel,
                                            const ContinuitySettings& settings)
-    : reuse_(std::move(reuse)),
-      fresh_(std::move(fresh)),
-      env_(std::move(environment)),
-      channel_(std::move(channel)),
-      settings_(settings) {
-  if (!fresh_ || !env_ || !channel_) {
-    throw std::invalid_argument("ContinuousShellField: the fresh field, environment and channel must not be null");
-  }
-  settings_.Validate();
-}
+    : ContinuousField("ContinuousShellField", std::move(reuse), std::move(fresh),
+                      std::move(environment), std::move(channel), settings) {}
 
 bool ContinuousShellField::WarmStart(const ContactChannel::Handoff& h,
                                      const haptics::ToolKinematics& tool) noexcept {
@@ -209,13 +187,7 @@ haptics::ToolWrench ContinuousShellField::Evaluate(const haptics::ToolKinematics
   h.m_W = w.m_T_W;
   h.contact = started_ && active_->contacts() > 0;
   h.seedable = started_;
-  ContactMarker& m = channel_->marker.WriteSlot();
-  m.time = tool.time;
-  m.p_W = started_ ? active_->p_WV() : tool.p_WT;
-  m.tool_W = tool.p_WT;
-  m.contact = h.contact;
-  m.field = active_;
-  channel_->marker.Publish();
+  PublishMarker(tool.time, started_ ? active_->p_WV() : tool.p_WT, tool.p_WT, h.contact, active_);
   return w;
 }
 

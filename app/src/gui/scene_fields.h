@@ -26,6 +26,9 @@
 #pragma once
 
 #include <memory>
+#include <stdexcept>
+#include <string>
+#include <utility>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -97,6 +100,48 @@ struct ContinuitySettings {
   void Validate() const;
 };
 
+// What both continuous fields hold: the field of the previous scene to go on with (`reuse`, may
+// be null), the fresh one, its environment (W), the channel and the settings; and the marker
+// they publish each tick. The constructor throws std::invalid_argument, naming `who`, when
+// fresh, environment or channel is null or a setting is bad.
+template <typename Field>
+class ContinuousField : public haptics::ForceField {
+ protected:
+  ContinuousField(const char* who, std::shared_ptr<Field> reuse, std::shared_ptr<Field> fresh,
+                  std::shared_ptr<const haptics::DistanceField> environment,
+                  std::shared_ptr<ContactChannel> channel, const ContinuitySettings& settings)
+      : reuse_(std::move(reuse)),
+        fresh_(std::move(fresh)),
+        env_(std::move(environment)),
+        channel_(std::move(channel)),
+        settings_(settings) {
+    if (!fresh_ || !env_ || !channel_) {
+      throw std::invalid_argument(std::string(who) +
+                                  ": the fresh field, environment and channel must not be null");
+    }
+    settings_.Validate();
+  }
+  // Publishes the tick's marker for the view (haptic thread).
+  void PublishMarker(double time, const Eigen::Vector3d& p_W, const Eigen::Vector3d& tool_W,
+                     bool contact, const void* field) noexcept {
+    ContactMarker& m = channel_->marker.WriteSlot();
+    m.time = time;
+    m.p_W = p_W;
+    m.tool_W = tool_W;
+    m.contact = contact;
+    m.field = field;
+    channel_->marker.Publish();
+  }
+
+  std::shared_ptr<Field> reuse_;
+  std::shared_ptr<Field> fresh_;
+  std::shared_ptr<const haptics::DistanceField> env_;
+  std::shared_ptr<ContactChannel> channel_;
+  ContinuitySettings settings_;
+  Field* active_ = nullptr;
+  bool warm_started_ = false;
+};
+
 // A ProxyField kept continuous across republishes (see the file comment). Warm start: the
 // handed-over proxy x_h (when inside the new solid it is first projected onto its surface, at
 // most max_seed_move away, else no warm start) is put seed_clearance outside the surface; the
@@ -104,7 +149,7 @@ struct ContinuitySettings {
 // real Evaluate sweeps it from the seed toward the tool point and holds it on the surface where
 // the sweep meets it (within about seed_clearance of x_h when x_h was in contact). Friction
 // restarts as sticking.
-class ContinuousProxyField final : public haptics::ForceField {
+class ContinuousProxyField final : public ContinuousField<haptics::ProxyField> {
  public:
   // `fresh` and `environment` (the proxy's solid, W) and `channel` not null; `reuse` may be
   // null. Throws std::invalid_argument otherwise or for bad settings.
@@ -122,14 +167,6 @@ class ContinuousProxyField final : public haptics::ForceField {
 
  private:
   void WarmStart(const ContactChannel::Handoff& h, const haptics::ToolKinematics& tool) noexcept;
-
-  std::shared_ptr<haptics::ProxyField> reuse_;
-  std::shared_ptr<haptics::ProxyField> fresh_;
-  std::shared_ptr<const haptics::DistanceField> env_;
-  std::shared_ptr<ContactChannel> channel_;
-  ContinuitySettings settings_;
-  haptics::ProxyField* active_ = nullptr;
-  bool warm_started_ = false;
 };
 
 // A PointShellField kept continuous across republishes (see the file comment). Warm start: the
@@ -140,7 +177,7 @@ class ContinuousProxyField final : public haptics::ForceField {
 // contact gives it in that tick (≈ the handed-over felt wrench, which balanced the contact:
 // Δv = f dt / m, Δω = I_W⁻¹ m dt), and ends it close to the handed-over state. Not warm-started, the shell is held back (zero force, no Evaluate) while any
 // shell point at the grip's pose touches the environment.
-class ContinuousShellField final : public haptics::ForceField {
+class ContinuousShellField final : public ContinuousField<haptics::PointShellField> {
  public:
   // `fresh`, `environment` (the union of the solids, W) and `channel` not null; `reuse` may be
   // null. Throws std::invalid_argument otherwise or for bad settings.
@@ -158,15 +195,8 @@ class ContinuousShellField final : public haptics::ForceField {
  private:
   bool WarmStart(const ContactChannel::Handoff& h, const haptics::ToolKinematics& tool) noexcept;
 
-  std::shared_ptr<haptics::PointShellField> reuse_;
-  std::shared_ptr<haptics::PointShellField> fresh_;
-  std::shared_ptr<const haptics::DistanceField> env_;
-  std::shared_ptr<ContactChannel> channel_;
-  ContinuitySettings settings_;
-  haptics::PointShellField* active_ = nullptr;
   bool decided_ = false;
   bool started_ = false;  // fresh: Evaluate has run (held back while the shell touched)
-  bool warm_started_ = false;
 };
 
 }  // namespace spidarcad::app
