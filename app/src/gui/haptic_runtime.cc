@@ -52,17 +52,16 @@ haptics::LoopSettings LoopSettingsFor(const RuntimeSettings& settings, double d)
 }  // namespace
 
 bool ParseRuntimeDevice(const std::string& name, RuntimeDevice* device) {
-  if (name == "simulated") {
-    *device = RuntimeDevice::kSimulated;
-  } else if (name == "ideal") {
+  // The names of `run`'s rigs (ParseRigKind) plus the window's "ideal".
+  if (name == "ideal") {
     *device = RuntimeDevice::kIdeal;
-  } else if (name == "board-sim") {
-    *device = RuntimeDevice::kBoardSim;
-  } else if (name == "usb") {
-    *device = RuntimeDevice::kUsb;
-  } else {
-    return false;
+    return true;
   }
+  RigKind kind = RigKind::kSimulated;
+  if (!ParseRigKind(name, &kind)) return false;
+  *device = kind == RigKind::kBoardSim ? RuntimeDevice::kBoardSim
+            : kind == RigKind::kUsb    ? RuntimeDevice::kUsb
+                                       : RuntimeDevice::kSimulated;
   return true;
 }
 
