@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -68,27 +67,6 @@ CellSpecializedSolid::CellSpecializedSolid(std::shared_ptr<const CompiledSolid> 
     const Eigen::Vector3d hi = origin_ + h * Eigen::Vector3d(x1, y1, z1) + Eigen::Vector3d::Constant(pad);
     return Eigen::AlignedBox3d(lo, hi);
   };
-  auto hash_of = [](const CompiledSolid& t) {
-    std::uint64_t hsh = 1469598103934665603ull;
-    auto mix = [&](const void* data, std::size_t bytes) {
-      const auto* b = static_cast<const unsigned char*>(data);
-      for (std::size_t i = 0; i < bytes; ++i) hsh = (hsh ^ b[i]) * 1099511628211ull;
-    };
-    for (const CompiledSolid::Instruction& ins : t.code_) {
-      mix(&ins.op, sizeof(ins.op));
-      mix(&ins.constants, sizeof(ins.constants));
-    }
-    mix(t.constants_.data(), t.constants_.size() * sizeof(double));
-    return hsh;
-  };
-  auto same = [](const CompiledSolid& a, const CompiledSolid& b) {
-    if (a.code_.size() != b.code_.size() || a.constants_.size() != b.constants_.size()) return false;
-    for (std::size_t i = 0; i < a.code_.size(); ++i) {
-      if (a.code_[i].op != b.code_[i].op || a.code_[i].constants != b.code_[i].constants) return false;
-    }
-    return a.constants_.empty() ||
-           std::memcmp(a.constants_.data(), b.constants_.data(), a.constants_.size() * sizeof(double)) == 0;
-  };
   std::unordered_multimap<std::uint64_t, std::uint32_t> index;
   const int full = solid_->instruction_count();
   double instruction_sum = 0;
@@ -105,10 +83,10 @@ CellSpecializedSolid::CellSpecializedSolid(std::shared_ptr<const CompiledSolid> 
               instruction_sum += std::min(count_here, full);
               if (count_here >= full) continue;  // nothing pruned: the full tape
               ++stats_.specialized_cells;
-              const std::uint64_t key = hash_of(tape);
+              const std::uint64_t key = tape.TapeHash();
               std::uint32_t k = 0;
               for (auto [it, end] = index.equal_range(key); it != end; ++it) {
-                if (same(tapes_[it->second - 1], tape)) {
+                if (tapes_[it->second - 1].SameTape(tape)) {
                   k = it->second;
                   break;
                 }

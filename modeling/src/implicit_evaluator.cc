@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -438,6 +439,29 @@ int Survivor(Op op, const double* c, const Interval& a, const Interval& b0) {
 }
 
 }  // namespace
+
+bool CompiledSolid::SameTape(const CompiledSolid& other) const noexcept {
+  if (code_.size() != other.code_.size() || constants_.size() != other.constants_.size()) return false;
+  for (std::size_t i = 0; i < code_.size(); ++i) {
+    if (code_[i].op != other.code_[i].op || code_[i].constants != other.code_[i].constants) return false;
+  }
+  return constants_.empty() ||
+         std::memcmp(constants_.data(), other.constants_.data(), constants_.size() * sizeof(double)) == 0;
+}
+
+std::uint64_t CompiledSolid::TapeHash() const noexcept {
+  std::uint64_t hash = 1469598103934665603ull;
+  auto mix = [&](const void* data, std::size_t bytes) {
+    const auto* b = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < bytes; ++i) hash = (hash ^ b[i]) * 1099511628211ull;
+  };
+  for (const Instruction& ins : code_) {
+    mix(&ins.op, sizeof(ins.op));
+    mix(&ins.constants, sizeof(ins.constants));
+  }
+  mix(constants_.data(), constants_.size() * sizeof(double));
+  return hash;
+}
 
 CompiledSolid CompiledSolid::Specialize(const Eigen::AlignedBox3d& box) const {
   const int n = static_cast<int>(code_.size());

@@ -71,6 +71,11 @@ class CompiledSolid {
 
   // Number of tape instructions.
   int instruction_count() const { return static_cast<int>(code_.size()); }
+  // True when `other` runs the same program: same instructions and bitwise the same constants.
+  bool SameTape(const CompiledSolid& other) const noexcept;
+  // A hash of the program (FNV-1a over opcodes, constant offsets and constant bits): equal for
+  // tapes that SameTape calls equal.
+  std::uint64_t TapeHash() const noexcept;
   // Number of primitive instructions (after array unrolling).
   int primitive_count() const { return primitive_count_; }
   // Deepest value stack the tape uses.
@@ -90,7 +95,6 @@ class CompiledSolid {
 
  private:
   friend class TapeCompiler;
-  friend class CellSpecializedSolid;  // compares and hashes tapes to share identical ones
   template <typename T, typename Primitive>
   T Run(Primitive&& primitive) const noexcept;
 
