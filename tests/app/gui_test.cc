@@ -287,6 +287,44 @@ TEST(HapticRuntime, TicksAllocateNothingWithSolidsAndSprings) {
   EXPECT_GT(runtime.Latest().tool.wrench_D.z(), 1.0);
 }
 
+// The six-DOF shell (ContinuousShellField) and the proxy (ContinuousProxyField) in contact, and
+// the first ticks after a republish, when the fresh field warm-starts from the hand-off: no tick
+// allocates.
+TEST(HapticRuntime, TicksAllocateNothingInContactAndAcrossARepublishForEitherTool) {
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  for (const ToolModel tool : {ToolModel::kShell, ToolModel::kProxy}) {
+    SCOPED_TRACE(ToolModelName(tool));
+    SceneModel model;
+    model.Load(kDemoSceneName, GripControl(SpidarGeometry{}).limits());
+    RuntimeSettings settings;
+    settings.loop.world_scale = model.device_to_world().world_scale;
+    settings.loop.p_WDo = model.device_to_world().p_WDo;
+    const SpidarGeometry g;
+    HapticRuntime runtime(settings, GripPose::Rest(g.d));
+    DemoFieldSettings field;
+    SceneHapticsOptions options;
+    options.tool = tool;
+    runtime.Publish(model.BuildHapticScene(field, options));
+    runtime.SetTarget(GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+    RunTicks(&runtime, 300);
+    ASSERT_GT(runtime.Latest().tool.wrench_D.z(), 1.0);  // in contact
+    // The same fields again (the old field goes on), then a stiffer setting (a fresh field,
+    // warm-started from the hand-off), as slider moves do.
+    for (const double stiffness_factor : {1.0, 1.2}) {
+      options.stiffness *= stiffness_factor;
+      runtime.Publish(model.BuildHapticScene(field, options));
+      long allocations = 0;
+      {
+        test_support::MallocCounter counter;
+        RunTicks(&runtime, 300);
+        allocations = counter.count();
+      }
+      EXPECT_EQ(allocations, 0) << "stiffness x" << stiffness_factor;
+      EXPECT_GT(runtime.Latest().tool.wrench_D.z(), 1.0);  // still in contact after the republish
+    }
+  }
+}
+
 TEST(HapticRuntime, EmergencyStopLatchesZeroForceAndRearmRampsBackLinearly) {
   RuntimeSettings settings;
   settings.device = RuntimeDevice::kIdeal;
