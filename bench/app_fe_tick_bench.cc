@@ -21,8 +21,8 @@
 
 #include <benchmark/benchmark.h>
 
-#include "runtime/fe_model.h"
-#include "runtime/fe_touch_field.h"
+#include "scene/fe_model.h"
+#include "scene/fe_touch_field.h"
 
 namespace spidarcad::app {
 namespace {

@@ -28,8 +28,8 @@
 
 #include <benchmark/benchmark.h>
 
-#include "cli/scene_solid.h"
-#include "cli/vtu_io.h"
+#include "scene/scene_solid.h"
+#include "scene/vtu_io.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
 #include "spidarcad/modeling/surface_mesher.h"

@@ -29,13 +29,13 @@
 #include <ctime>
 #include <vector>
 
-#include "cli/scene_solid.h"
-#include "runtime/assembly_scene.h"
-#include "runtime/device_rig.h"
-#include "runtime/fe_model.h"
-#include "runtime/fe_touch_field.h"
-#include "runtime/scene_haptics.h"
-#include "runtime/sculpt_field.h"
+#include "scene/scene_solid.h"
+#include "scene/assembly_scene.h"
+#include "scene/device_rig.h"
+#include "scene/fe_model.h"
+#include "scene/fe_touch_field.h"
+#include "scene/scene_haptics.h"
+#include "scene/sculpt_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/simulated_device.h"

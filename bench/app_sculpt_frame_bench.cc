@@ -21,8 +21,8 @@
 #include <vtkPolyData.h>
 #include <vtkPolyDataNormals.h>
 
-#include "cli/scene_solid.h"
-#include "runtime/sculpt_field.h"
+#include "scene/scene_solid.h"
+#include "scene/sculpt_field.h"
 #include "spidarcad/modeling/sculpt.h"
 
 namespace {

@@ -22,9 +22,9 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "runtime/assembly_scene.h"
-#include "runtime/device_rig.h"
-#include "runtime/scene_haptics.h"
+#include "scene/assembly_scene.h"
+#include "scene/device_rig.h"
+#include "scene/scene_haptics.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/loop_runner.h"

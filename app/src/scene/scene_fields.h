@@ -33,7 +33,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "gui/device_session.h"
+#include "scene/device_session.h"
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/point_shell_field.h"

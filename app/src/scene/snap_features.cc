@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/snap_features.h"
+#include "scene/snap_features.h"
 
 #include <algorithm>
 #include <array>

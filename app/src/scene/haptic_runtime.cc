@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "gui/haptic_runtime.h"
+#include "scene/haptic_runtime.h"
 
 #include <algorithm>
 #include <chrono>

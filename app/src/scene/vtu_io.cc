@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "cli/vtu_io.h"
+#include "scene/vtu_io.h"
 
 #include <cmath>
 #include <fstream>
@@ -22,7 +22,7 @@
 #include <vtkXMLUnstructuredGridReader.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
-#include "cli/cli_common.h"
+#include "doc/input_error.h"
 
 namespace spidarcad::app {
 namespace {

@@ -27,9 +27,9 @@
 
 #include "doc/document.h"
 #include "doc/job.h"
-#include "gui/device_session.h"
-#include "gui/scene_fields.h"
-#include "runtime/scene_haptics.h"
+#include "scene/device_session.h"
+#include "scene/scene_fields.h"
+#include "scene/scene_haptics.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/modeling/implicit_evaluator.h"

@@ -51,7 +51,7 @@
 
 #include <Eigen/Core>
 
-#include "runtime/fe_model.h"
+#include "scene/fe_model.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/triple_buffer.h"

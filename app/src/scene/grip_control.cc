@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "gui/grip_control.h"
+#include "scene/grip_control.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/fe_model.h"
+#include "scene/fe_model.h"
+
+#include "doc/assets.h"
 
 #include <algorithm>
 #include <chrono>
@@ -7,8 +9,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "cli/scene_solid.h"
-#include "cli/vtu_io.h"
+#include "scene/scene_solid.h"
+#include "scene/vtu_io.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -250,8 +252,7 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
 std::string PlatformScenePath() {
   namespace fs = std::filesystem;
   if (const char* p = std::getenv("SPIDARCAD_PLATFORM_SCENE"); p != nullptr && *p != 0) return p;
-  if (fs::exists("assets/scenes/platform.json")) return "assets/scenes/platform.json";
-  return (fs::path(SPIDARCAD_SOURCE_DIR) / "assets" / "scenes" / "platform.json").string();
+  return AssetPath("scenes/platform.json");
 }
 
 }  // namespace spidarcad::app

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "gui/device_session.h"
+#include "scene/device_session.h"
 
 #include <Eigen/Geometry>
 

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "gui/scene_fields.h"
+#include "scene/scene_fields.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/fe_touch_field.h"
+#include "scene/fe_touch_field.h"
 
 #include <algorithm>
 #include <cmath>

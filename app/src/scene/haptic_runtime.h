@@ -19,8 +19,8 @@
 #include <string>
 #include <thread>
 
-#include "gui/device_session.h"
-#include "runtime/device_rig.h"
+#include "scene/device_session.h"
+#include "scene/device_rig.h"
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/geometry.h"

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "gui/trajectory_player.h"
+#include "scene/trajectory_player.h"
 
 #include <stdexcept>
 #include <utility>

@@ -1,13 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "gui/scene_model.h"
+#include "scene/scene_model.h"
 
 #include <algorithm>
 #include <cctype>
 #include <stdexcept>
 #include <variant>
 
-#include "gui/scene_fields.h"
-#include "runtime/snap_features.h"
+#include "scene/scene_fields.h"
+#include "scene/snap_features.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/solid_distance_field.h"
+#include "scene/solid_distance_field.h"
 
 #include <stdexcept>
 #include <utility>

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/sculpt_field.h"
+#include "scene/sculpt_field.h"
 
 #include <chrono>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "cli/scene_solid.h"
+#include "scene/scene_solid.h"
 #include "doc/job.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 

@@ -39,7 +39,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "runtime/snap_features.h"
+#include "scene/snap_features.h"
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/point_shell_field.h"

@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/scene_haptics.h"
+#include "scene/scene_haptics.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include "runtime/snap_features.h"
-#include "runtime/solid_distance_field.h"
+#include "scene/snap_features.h"
+#include "scene/solid_distance_field.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {

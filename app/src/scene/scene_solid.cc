@@ -1,10 +1,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "cli/scene_solid.h"
+#include "scene/scene_solid.h"
 
 #include <algorithm>
 #include <exception>
 
-#include "cli/cli_common.h"
+#include "doc/input_error.h"
+#include "doc/number_format.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 

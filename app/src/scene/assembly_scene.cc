@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/assembly_scene.h"
+#include "scene/assembly_scene.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "runtime/solid_distance_field.h"
+#include "scene/solid_distance_field.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {

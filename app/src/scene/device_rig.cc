@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/device_rig.h"
+#include "scene/device_rig.h"
 
 #include <algorithm>
 #include <chrono>
