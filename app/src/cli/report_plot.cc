@@ -90,7 +90,8 @@ bool AddSeries(vtkChart* chart, const Chart& c, const ChartSeries& s) {
     table->SetValue(static_cast<vtkIdType>(k), 0, points[k].first);
     table->SetValue(static_cast<vtkIdType>(k), 1, points[k].second);
   }
-  vtkPlot* plot = chart->AddPlot(s.lines ? vtkChart::LINE : vtkChart::POINTS);
+  const bool lines = s.lines && points.size() >= 2;  // a line needs two points
+  vtkPlot* plot = chart->AddPlot(lines ? vtkChart::LINE : vtkChart::POINTS);
   plot->SetInputData(table, 0, 1);
   const unsigned char* rgb = PlotPaletteColor(s.color);
   plot->SetColor(rgb[0], rgb[1], rgb[2], 255);
@@ -99,10 +100,10 @@ bool AddSeries(vtkChart* chart, const Chart& c, const ChartSeries& s) {
     static const int kStyles[] = {vtkPlotPoints::CIRCLE, vtkPlotPoints::SQUARE,
                                   vtkPlotPoints::DIAMOND, vtkPlotPoints::PLUS,
                                   vtkPlotPoints::CROSS};
-    markers->SetMarkerStyle(s.lines ? vtkPlotPoints::NONE : kStyles[((s.marker % 5) + 5) % 5]);
+    markers->SetMarkerStyle(lines ? vtkPlotPoints::NONE : kStyles[((s.marker % 5) + 5) % 5]);
     markers->SetMarkerSize(8.0f);
   }
-  if (s.lines) {
+  if (lines) {
     plot->SetWidth(2.0f);
     if (s.dashed) plot->GetPen()->SetLineType(vtkPen::DASH_LINE);
   }
@@ -121,7 +122,8 @@ void WriteChartsPng(const std::vector<Chart>& charts, const std::string& path, i
   vtkNew<vtkChartMatrix> matrix;
   view->GetScene()->AddItem(matrix);
   matrix->SetSize(vtkVector2i(static_cast<int>(charts.size()), 1));
-  matrix->SetGutter(vtkVector2f(80.0f, 60.0f));
+  matrix->SetGutter(vtkVector2f(90.0f, 60.0f));
+  matrix->SetBorders(70, 50, 20, 30);  // left, bottom, right, top: room for the axis titles
   for (size_t p = 0; p < charts.size(); ++p) {
     const Chart& c = charts[p];
     vtkChart* chart = matrix->GetChart(vtkVector2i(static_cast<int>(p), 0));

@@ -177,9 +177,12 @@ void ReportWorkspace(ReportContext& ctx) {
              {"z", "23 cm", "25 cm", Cm(z.first), Cm(z.second)},
              {"rotation", "45°", "—", Deg(r.first), Deg(r.second)}});
   ctx.Headline("centre: " + Sig(centre_force, 3) + " N force, " + Sig(centre_moment, 3) +
-               " N·m moment in every direction; force full to " + Cm(xy.first) +
-               " along x/y (paper 10 cm), to " + Cm(z.first) + " along z (paper 23 cm); " +
-               Sig(lp_us, 2) + " µs per LP");
+               " N·m moment in every direction; force toward a side face zero from " +
+               Cm(xy.second) + " (paper: about 23 cm), toward top/bottom " +
+               (std::isnan(z.second) ? std::string("never zero in the frame")
+                                     : "zero from " + Cm(z.second)) +
+               " (paper: 25 cm); moment zero from " + Deg(r.second) +
+               " of rotation (paper: full to 45°); " + Sig(lp_us, 2) + " µs per LP");
 }
 
 }  // namespace spidarcad::app
