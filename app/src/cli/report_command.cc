@@ -111,6 +111,14 @@ std::string CpuModel() {
   return "unknown";
 }
 
+// The first three fields of /proc/loadavg: other work on the machine inflates wall-clock times.
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  if (!(in >> a >> b >> c)) return "unknown";
+  return a + ", " + b + ", " + c;
+}
+
 std::string UtcNow() {
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
@@ -263,6 +271,8 @@ void RunReport(const ReportOptions& options) {
     std::cerr << "spidarcad report: no X display and no xvfb-run: writing tables only (install "
                  "xvfb, or run under xvfb-run -a, for the charts)\n";
   }
+  const auto stamp =
+      Stamp(options);  // before the run: the load average of the machine's other work
   const auto start = std::chrono::steady_clock::now();
   struct Done {
     const ReportSection* section;
@@ -296,9 +306,10 @@ void RunReport(const ReportOptions& options) {
      << (options.quick ? " --quick" : "")
      << (Trim(options.only).empty() ? "" : " --only " + options.only)
      << "`. Every figure below was measured in that run; the charts plot speed against error "
-        "on log axes wherever both exist.\n\n";
+        "on log axes wherever both exist. Times are wall clock (steady clock, medians over "
+        "repeats): on a shared machine other work inflates them (see the load average).\n\n";
   md << "| stamp | |\n|---|---|\n";
-  for (const auto& [key, value] : Stamp(options)) md << "| " << key << " | " << value << " |\n";
+  for (const auto& [key, value] : stamp) md << "| " << key << " | " << value << " |\n";
   md << "| report wall time | " << Fixed(total, 0) << " s |\n\n";
   if (!settings.plots) {
     md << "**The charts were not drawn (" << (options.no_plots ? "--no-plots" : "no X display")
