@@ -137,9 +137,13 @@ std::vector<std::pair<std::string, std::string>> Stamp(const ReportOptions& o) {
   if (!now.empty() && commit.rfind(now, 0) != 0) {
     commit += " (configured at this commit; the source tree is now at " + now + ")";
   }
-  return {{"commit", commit},  {"build type", SPIDARCAD_BUILD_TYPE},
-          {"CPU", CpuModel()}, {"cores", std::to_string(std::thread::hardware_concurrency())},
-          {"date", UtcNow()},  {"mode", o.quick ? "--quick" : "full"}};
+  return {{"commit", commit},
+          {"build type", SPIDARCAD_BUILD_TYPE},
+          {"CPU", CpuModel()},
+          {"cores", std::to_string(std::thread::hardware_concurrency())},
+          {"load average at the start (1, 5, 15 min)", LoadAverage()},
+          {"date", UtcNow()},
+          {"mode", o.quick ? "--quick" : "full"}};
 }
 
 // Re-executes this process under xvfb-run (no return on success). False when impossible.
