@@ -71,8 +71,9 @@ for h in "${harnesses[@]}"; do
     -max_total_time="$seconds" -timeout="${FUZZ_TIMEOUT:-10}" -rss_limit_mb="${FUZZ_RSS_MB:-2048}" \
     -artifact_prefix="$findings/" -print_final_stats=1 "${dirs[@]}" >"$log" 2>&1) || true
   after=$(find "$findings" -type f | wc -l)
-  runs=$(grep -o 'exec/s: [0-9]*' "$log" | tail -1 | awk '{print $2}')
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | awk '{print $2}')
+  # Fork mode prints "exec/s N" per job; the last one is the rate of the last job.
+  runs=$(grep -Eo 'exec/s:? [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
+  cov=$(grep -Eo 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
   new=$((after - before))
   ((new > 0)) && status=1
   summary+=("$(printf '%-14s %8s exec/s  cov %6s  corpus %5s  new findings %d' "$h" "${runs:-?}" \

@@ -67,7 +67,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   CheckFinite(trajectory.Sample(trajectory.start_time() - 1.0), "before the start");
   CheckFinite(trajectory.Sample(trajectory.end_time() + 1.0), "after the end");
   for (std::size_t i = 0; i + 1 < samples.size() && i < 64; ++i) {
-    const double mid = samples[i].t + 0.5 * (samples[i + 1].t - samples[i].t);
+    const double mid = 0.5 * samples[i].t + 0.5 * samples[i + 1].t;  // no overflow
     CheckFinite(trajectory.Sample(mid), "between two samples");
   }
   return 0;
