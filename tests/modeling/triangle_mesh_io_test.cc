@@ -169,5 +169,48 @@ TEST(TriangleMeshIo, UnknownExtensionAndMissingFileAreErrors) {
   EXPECT_THROW(WriteTriangleMesh(bad, OutPath("bad_out.obj")), std::invalid_argument);
 }
 
+// The regressions below were found by the ply fuzz harness; each input is also replayed from
+// tests/fuzz/regressions/ply/ (ctest -L fuzz).
+
+// A list count far beyond long's range was converted to long before it was checked (undefined
+// behaviour, caught by UBSan): it must be refused with its line.
+TEST(TriangleMeshIo, PlyListCountBeyondLongIsAnErrorWithItsLine) {
+  const std::string path = OutPath("list_count_beyond_long.ply");
+  WriteText(path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            "0 0 0\n1 0 0\n0 1 0\n1e300 0 1 2\n");
+  ExpectFileError([&] { ReadTriangleMesh(path); }, path, 14, -1, "bad list count");
+}
+
+// Entries of a list other than the face corners were converted to int whatever their value
+// (undefined behaviour beyond int's range): they are skipped, and the mesh reads.
+TEST(TriangleMeshIo, PlySkipsEntriesOfOtherListsWhateverTheirValue) {
+  const std::string path = OutPath("other_list_entry_beyond_int.ply");
+  WriteText(path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nproperty list uchar double weights\nelement face 1\n"
+            "property list uchar int vertex_indices\nend_header\n"
+            "0 0 0 2 1e300 -1e300\n1 0 0 0\n0 1 0 1 -3e9\n3 0 1 2\n");
+  const TriangleMesh mesh = ReadTriangleMesh(path);
+  ASSERT_EQ(mesh.vertices.cols(), 3);
+  ASSERT_EQ(mesh.triangles.cols(), 1);
+  EXPECT_EQ(mesh.vertices.col(2), Eigen::Vector3d(0, 1, 0));
+  EXPECT_EQ(mesh.triangles.col(0), Eigen::Vector3i(0, 1, 2));
+}
+
+// An element with no properties and a count of 2^63 - 1 made the reader spin through every
+// (empty) item: it has no data, so it is passed over at once.
+TEST(TriangleMeshIo, PlyElementWithoutPropertiesIsPassedOverWhateverItsCount) {
+  const std::string path = OutPath("element_without_properties.ply");
+  WriteText(path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement nothing 9223372036854775807\nelement face 1\n"
+            "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const TriangleMesh mesh = ReadTriangleMesh(path);
+  EXPECT_EQ(mesh.vertices.cols(), 3);
+  EXPECT_EQ(mesh.triangles.cols(), 1);
+}
+
 }  // namespace
 }  // namespace spidarcad::modeling
