@@ -105,7 +105,9 @@ double ParseDouble(const std::string& s, const std::string& file, long line, con
   char* end = nullptr;
   errno = 0;
   const double v = std::strtod(s.c_str(), &end);
-  if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE || !std::isfinite(v)) {
+  // Not errno == ERANGE: strtod sets it for underflow too, i.e. for a subnormal (finite) value
+  // that the binary formats carry and the writers print. Overflow gives inf, refused here.
+  if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v)) {
     throw MeshFileError(file, line, -1, "expected a finite number for " + what + ", found '" + s + "'");
   }
   return v;
