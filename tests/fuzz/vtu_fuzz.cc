@@ -11,8 +11,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "cli/cli_common.h"
-#include "cli/vtu_io.h"
+#include "doc/input_error.h"
+#include "scene/vtu_io.h"
 #include "fuzz_support.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
