@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   RegisterRunCommand(app);
   RegisterTrajectoryCommand(app);
   RegisterDeviceCommand(app);
+  RegisterInfoCommand(app);
 
   try {
     app.parse(argc, argv);
