@@ -281,7 +281,7 @@ template <class Scalar>
 json ArrayJson(const Scalar* data, Eigen::Index rows, Eigen::Index cols) {
   const char* dtype = std::is_same_v<Scalar, double> ? "f64" : "i32";
   return {{"dtype", dtype},
-          {"shape", json::array({cols, rows})},
+          {"shape", rows == 1 ? json::array({cols}) : json::array({cols, rows})},
           {"base64", Base64Encode(data, sizeof(Scalar) * static_cast<std::size_t>(rows * cols))}};
 }
 
