@@ -56,7 +56,8 @@ void RunInfo(const std::string& path) {
   try {
     doc.Load(path);
   } catch (const modeling::SceneError& e) {
-    throw InputError(std::string(e.what()) + " (fix that field, or open the file in spidarcad to see it in context)");
+    throw InputError(std::string(e.what()) +
+                     (e.pointer().empty() ? "" : " (fix that field; docs/scene-format.md describes every field)"));
   }
   for (const DocObject& o : doc.objects()) {
     std::string kind = ObjectKindName(o.data);
