@@ -9,6 +9,7 @@
 #include <numbers>
 #include <string>
 
+#include "bench_cli.h"
 #include "doc/command.h"
 #include "doc/document.h"
 
@@ -27,7 +28,8 @@ SculptMesh UvSphere(int rings, int segments) {
     for (int s = 0; s < segments; ++s) {
       const double phi = 2 * std::numbers::pi * s / segments;
       m.vertices.col(r * segments + s) =
-          0.1 * Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+          0.1 * Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                                std::cos(theta));
     }
   }
   m.triangles.resize(3, 2 * (rings - 1) * segments);
@@ -57,8 +59,10 @@ modeling::TetMesh GridTets(int n) {
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
-        const int v0 = id(i, j, k), v1 = id(i + 1, j, k), v2 = id(i, j + 1, k), v3 = id(i + 1, j + 1, k);
-        const int v4 = id(i, j, k + 1), v5 = id(i + 1, j, k + 1), v6 = id(i, j + 1, k + 1), v7 = id(i + 1, j + 1, k + 1);
+        const int v0 = id(i, j, k), v1 = id(i + 1, j, k), v2 = id(i, j + 1, k),
+                  v3 = id(i + 1, j + 1, k);
+        const int v4 = id(i, j, k + 1), v5 = id(i + 1, j, k + 1), v6 = id(i, j + 1, k + 1),
+                  v7 = id(i + 1, j + 1, k + 1);
         // Kuhn subdivision along the diagonal v0-v7.
         const int tets[6][4] = {{v0, v1, v3, v7}, {v0, v3, v2, v7}, {v0, v2, v6, v7},
                                 {v0, v6, v4, v7}, {v0, v4, v5, v7}, {v0, v5, v1, v7}};
@@ -69,17 +73,22 @@ modeling::TetMesh GridTets(int n) {
 }
 
 void Fill(Document* doc) {
-  doc->Execute(edit::AddSolid("ball", modeling::ImplicitNode(modeling::SphereParams{0.05}, {}, "ball")));
+  doc->Execute(
+      edit::AddSolid("ball", modeling::ImplicitNode(modeling::SphereParams{0.05}, {}, "ball")));
   doc->Execute(edit::AddSculpt("clay", UvSphere(400, 500)));  // 200k vertices, 399k triangles
   MeshData mesh;
-  mesh.volume = std::make_shared<const modeling::TetMesh>(GridTets(26));  // 105 456 tets, 19 683 nodes
+  mesh.volume =
+      std::make_shared<const modeling::TetMesh>(GridTets(26));  // 105 456 tets, 19 683 nodes
   doc->Execute(edit::AddObject("block tets", mesh));
   const ObjectId tets = doc->last_created().at(0);
-  doc->Execute(edit::AddFeModel("block FE", tets, fem::Material{2e11, 0.3},
-                                {Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d(1e-4, 1, 1))}));
+  doc->Execute(edit::AddFeModel(
+      "block FE", tets, fem::Material{2e11, 0.3},
+      {Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d(1e-4, 1, 1))}));
 }
 
-std::string BenchPath() { return (fs::temp_directory_path() / "spidarcad_app_document_bench.json").string(); }
+std::string BenchPath() {
+  return (fs::temp_directory_path() / "spidarcad_app_document_bench.json").string();
+}
 
 void BM_SaveDocument(benchmark::State& state) {
   Document doc;
@@ -108,4 +117,10 @@ BENCHMARK(BM_OpenDocument)->Unit(benchmark::kMillisecond)->UseRealTime();
 }  // namespace
 }  // namespace spidarcad::app
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(argc, argv,
+                                            "app_document_bench: save and open times of a document "
+                                            "file (docs/scene-format.md, version 2) holding a\n"
+                                            "200k-vertex sculpt, a 105k-tet mesh with its FE model "
+                                            "and a solid; file_MB is the file size.");
+}

@@ -4,14 +4,13 @@
 // next start lists and that loads to the same content.
 #include "doc/autosave.h"
 
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
-
-#include <gtest/gtest.h>
 
 #include "doc/command.h"
 #include "doc/document.h"

@@ -5,6 +5,7 @@
 // and leave the document unchanged; saving is atomic.
 #include "doc/document_io.h"
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -17,8 +18,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "doc/command.h"
 #include "doc/document.h"
@@ -64,11 +63,14 @@ json Canonical(const Document& doc) {
     }
     if (o["kind"] == "fe_model") o["tet_mesh"] = doc.IndexOf(o["tet_mesh"].get<ObjectId>());
   }
-  j["parts"] = modeling::SceneToJson({"", {}, doc.parts(), std::nullopt}).value("parts", json::array());
+  j["parts"] =
+      modeling::SceneToJson({"", {}, doc.parts(), std::nullopt}).value("parts", json::array());
   return j;
 }
 
-ImplicitNode Sphere(double r, std::string id = {}) { return ImplicitNode(modeling::SphereParams{r}, {}, std::move(id)); }
+ImplicitNode Sphere(double r, std::string id = {}) {
+  return ImplicitNode(modeling::SphereParams{r}, {}, std::move(id));
+}
 
 modeling::TetMesh TwoTets() {
   modeling::TetMesh m;
@@ -105,7 +107,9 @@ struct Fixture {
   Document doc;
   ObjectId solid = 0, mesh = 0, surface = 0, fe = 0, sculpt = 0, base = 0, lid = 0;
   Fixture() {
-    doc.Execute(edit::AddSolid("platform", ImplicitNode(modeling::UnionParams{}, {Sphere(0.05, "ball"), Sphere(0.02, "pip")}, "u")));
+    doc.Execute(edit::AddSolid(
+        "platform",
+        ImplicitNode(modeling::UnionParams{}, {Sphere(0.05, "ball"), Sphere(0.02, "pip")}, "u")));
     solid = doc.last_created().at(0);
     MeshData m;
     m.source = solid;
@@ -120,20 +124,24 @@ struct Fixture {
     imported.import_source = "/tmp/bunny.stl";
     doc.Execute(edit::AddObject("bunny", imported));
     surface = doc.last_created().at(0);
-    doc.Execute(edit::AddFeModel("platform fe", mesh, fem::Material{2e11, 0.3},
-                                 {Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.001, 1, 1))}));
+    doc.Execute(edit::AddFeModel(
+        "platform fe", mesh, fem::Material{2e11, 0.3},
+        {Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.001, 1, 1))}));
     fe = doc.last_created().at(0);
-    doc.Execute(edit::SetFeLoads(fe, {{Eigen::AlignedBox3d(Eigen::Vector3d(0.9, -1, -1), Eigen::Vector3d(1, 1, 1)),
-                                       Eigen::Vector3d(0, 0, -10.5)}}));
+    doc.Execute(edit::SetFeLoads(
+        fe, {{Eigen::AlignedBox3d(Eigen::Vector3d(0.9, -1, -1), Eigen::Vector3d(1, 1, 1)),
+              Eigen::Vector3d(0, 0, -10.5)}}));
     doc.Execute(edit::SetRegionMaterials(fe, {{2, fem::Material{7e10, 0.33}}}));
     doc.Execute(edit::SetElementOrder(fe, 2));
     doc.Execute(edit::SetPrecomputeKey(fe, 0xfedcba9876543210ull));
     doc.Execute(edit::AddSculpt("clay", RandomMesh(50, 40, 3)));
     sculpt = doc.last_created().at(0);
-    doc.Execute(edit::AddRigidPart("base", Sphere(0.03, "base_ball"), Pose(0.3, Eigen::Vector3d(0.1, 0.2, 0.3))));
+    doc.Execute(edit::AddRigidPart("base", Sphere(0.03, "base_ball"),
+                                   Pose(0.3, Eigen::Vector3d(0.1, 0.2, 0.3))));
     base = doc.last_created().at(0);
     doc.Execute(edit::SetRigidFixed(base, true));
-    doc.Execute(edit::AddRigidPart("lid", Sphere(0.01, "lid_ball"), Pose(1.1, Eigen::Vector3d(-0.1, 0, 0.05))));
+    doc.Execute(edit::AddRigidPart("lid", Sphere(0.01, "lid_ball"),
+                                   Pose(1.1, Eigen::Vector3d(-0.1, 0, 0.05))));
     lid = doc.last_created().at(0);
     modeling::SceneSeat seat;
     seat.on = "base";
@@ -157,8 +165,13 @@ json SaveAndOpen(const Document& doc, const std::string& path, Document* into) {
 }
 
 TEST(DocumentIo, Base64MatchesRfc4648Vectors) {
-  const std::pair<std::string, std::string> cases[] = {
-      {"", ""}, {"f", "Zg=="}, {"fo", "Zm8="}, {"foo", "Zm9v"}, {"foob", "Zm9vYg=="}, {"fooba", "Zm9vYmE="}, {"foobar", "Zm9vYmFy"}};
+  const std::pair<std::string, std::string> cases[] = {{"", ""},
+                                                       {"f", "Zg=="},
+                                                       {"fo", "Zm8="},
+                                                       {"foo", "Zm9v"},
+                                                       {"foob", "Zm9vYg=="},
+                                                       {"fooba", "Zm9vYmE="},
+                                                       {"foobar", "Zm9vYmFy"}};
   for (const auto& [plain, coded] : cases) {
     EXPECT_EQ(Base64Encode(plain.data(), plain.size()), coded);
     const std::vector<std::uint8_t> back = Base64Decode(coded);
@@ -206,36 +219,53 @@ TEST(DocumentIo, OutOfDateMeshStaysOutOfDateAfterOpen) {
 // Undo and redo of an edit of each kind across a save: the history outlives the save, and what
 // undo and redo give saves and reopens to the same content.
 TEST(DocumentIo, UndoAndRedoOfEachKindWorkAcrossASave) {
-  const std::vector<std::pair<std::string, std::function<std::unique_ptr<Command>(const Fixture&)>>> edits = {
-      {"solid", [](const Fixture& f) { return edit::SetNodeField(f.solid, {1}, "radius", 0.025); }},
-      {"add solid", [](const Fixture&) { return edit::AddSolid("extra", Sphere(0.2, "extra")); }},
-      {"mesh", [](const Fixture& f) {
-         MeshData m = std::get<MeshData>(f.doc.Get(f.mesh).data);
-         m.settings.cell_size = 0.002;
-         return edit::SetObjectData(f.mesh, m);
-       }},
-      {"delete mesh", [](const Fixture& f) { return edit::DeleteObject(f.mesh); }},
-      {"fe material", [](const Fixture& f) { return edit::SetFeMaterial(f.fe, fem::Material{1e9, 0.4}); }},
-      {"fe loads", [](const Fixture& f) { return edit::SetFeLoads(f.fe, {}); }},
-      {"fe order", [](const Fixture& f) { return edit::SetElementOrder(f.fe, 1); }},
-      {"fe regions", [](const Fixture& f) { return edit::SetRegionMaterials(f.fe, {{1, fem::Material{3e9, 0.2}}}); }},
-      {"delete fe", [](const Fixture& f) { return edit::DeleteObject(f.fe); }},
-      {"sculpt stroke", [](const Fixture& f) {
-         Eigen::Matrix3Xd p(3, 2);
-         p << 0.5, 0.6, 0.5, 0.6, 0.5, 0.6;
-         return edit::SculptStroke(f.sculpt, {1, 3}, p);
-       }},
-      {"sculpt replace", [](const Fixture& f) { return edit::ReplaceSculptMesh(f.sculpt, RandomMesh(20, 10, 9)); }},
-      {"delete sculpt", [](const Fixture& f) { return edit::DeleteObject(f.sculpt); }},
-      {"part pose", [](const Fixture& f) { return edit::SetRigidPose(f.lid, Pose(0.7, Eigen::Vector3d(0.01, 0.02, 0.03))); }},
-      {"part fixed", [](const Fixture& f) { return edit::SetRigidFixed(f.lid, true); }},
-      {"part seats", [](const Fixture& f) { return edit::SetRigidSeats(f.lid, {}); }},
-      {"delete part", [](const Fixture& f) { return edit::DeleteObject(f.lid); }},
-      {"snap", [](const Fixture&) { return edit::SetSnap(std::nullopt); }},
-      {"duplicate sculpt", [](const Fixture& f) { return edit::DuplicateObject(f.sculpt); }},
-      {"rename", [](const Fixture& f) { return edit::RenameObject(f.fe, "renamed"); }},
-      {"move", [](const Fixture& f) { return edit::MoveObject(f.lid, 0); }},
-  };
+  const std::vector<std::pair<std::string, std::function<std::unique_ptr<Command>(const Fixture&)>>>
+      edits = {
+          {"solid",
+           [](const Fixture& f) { return edit::SetNodeField(f.solid, {1}, "radius", 0.025); }},
+          {"add solid",
+           [](const Fixture&) { return edit::AddSolid("extra", Sphere(0.2, "extra")); }},
+          {"mesh",
+           [](const Fixture& f) {
+             MeshData m = std::get<MeshData>(f.doc.Get(f.mesh).data);
+             m.settings.cell_size = 0.002;
+             return edit::SetObjectData(f.mesh, m);
+           }},
+          {"delete mesh", [](const Fixture& f) { return edit::DeleteObject(f.mesh); }},
+          {"fe material",
+           [](const Fixture& f) {
+             return edit::SetFeMaterial(f.fe, fem::Material{1e9, 0.4});
+           }},
+          {"fe loads", [](const Fixture& f) { return edit::SetFeLoads(f.fe, {}); }},
+          {"fe order", [](const Fixture& f) { return edit::SetElementOrder(f.fe, 1); }},
+          {"fe regions",
+           [](const Fixture& f) {
+             return edit::SetRegionMaterials(f.fe, {{1, fem::Material{3e9, 0.2}}});
+           }},
+          {"delete fe", [](const Fixture& f) { return edit::DeleteObject(f.fe); }},
+          {"sculpt stroke",
+           [](const Fixture& f) {
+             Eigen::Matrix3Xd p(3, 2);
+             p << 0.5, 0.6, 0.5, 0.6, 0.5, 0.6;
+             return edit::SculptStroke(f.sculpt, {1, 3}, p);
+           }},
+          {"sculpt replace",
+           [](const Fixture& f) {
+             return edit::ReplaceSculptMesh(f.sculpt, RandomMesh(20, 10, 9));
+           }},
+          {"delete sculpt", [](const Fixture& f) { return edit::DeleteObject(f.sculpt); }},
+          {"part pose",
+           [](const Fixture& f) {
+             return edit::SetRigidPose(f.lid, Pose(0.7, Eigen::Vector3d(0.01, 0.02, 0.03)));
+           }},
+          {"part fixed", [](const Fixture& f) { return edit::SetRigidFixed(f.lid, true); }},
+          {"part seats", [](const Fixture& f) { return edit::SetRigidSeats(f.lid, {}); }},
+          {"delete part", [](const Fixture& f) { return edit::DeleteObject(f.lid); }},
+          {"snap", [](const Fixture&) { return edit::SetSnap(std::nullopt); }},
+          {"duplicate sculpt", [](const Fixture& f) { return edit::DuplicateObject(f.sculpt); }},
+          {"rename", [](const Fixture& f) { return edit::RenameObject(f.fe, "renamed"); }},
+          {"move", [](const Fixture& f) { return edit::MoveObject(f.lid, 0); }},
+      };
   for (std::size_t e = 0; e < edits.size(); ++e) {
     const auto& [name, make] = edits[e];
     SCOPED_TRACE(name);
@@ -269,7 +299,8 @@ TEST(DocumentIo, UndoAndRedoOfEachKindWorkAcrossASave) {
 TEST(DocumentIo, Version1ScenesOpenUnchangedAndSaveAsVersion1) {
   for (const char* name : {"platform", "clay", "assembly"}) {
     SCOPED_TRACE(name);
-    const std::string source = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + name + ".json";
+    const std::string source =
+        std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + name + ".json";
     const modeling::Scene expected = modeling::LoadScene(source);
     Document doc;
     doc.Load(source);
@@ -318,22 +349,25 @@ TEST(DocumentIo, LargeArraysAreStoredAsRawBytes) {
 TEST(DocumentIo, GeneratedMeshesMatchTheirSolid) {
   const std::string path = OutDir("generate") + "/doc.json";
   const double r = 0.05, h = 0.005;
-  WriteText(path, json{{"format", "spidarcad-scene"},
-                       {"version", 2},
-                       {"objects",
-                        {{{"kind", "solid"}, {"name", "ball"}, {"root", {{"type", "sphere"}, {"radius", r}}}},
-                         {{"kind", "mesh"},
-                          {"name", "ball tets"},
-                          {"source", 0},
-                          {"generate", "volume"},
-                          {"settings", {{"cell_size", h}}}},
-                         {{"kind", "sculpt"},
-                          {"name", "clay"},
-                          {"generate_from", {{"root", {{"type", "sphere"}, {"radius", r}}}, {"cell_size", h}}}},
-                         {{"kind", "sculpt"},
-                          {"name", "tri"},
-                          {"mesh", {{"vertices", {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}, {"triangles", {{0, 1, 2}}}}}}}}}
-                      .dump(1));
+  WriteText(
+      path,
+      json{{"format", "spidarcad-scene"},
+           {"version", 2},
+           {"objects",
+            {{{"kind", "solid"}, {"name", "ball"}, {"root", {{"type", "sphere"}, {"radius", r}}}},
+             {{"kind", "mesh"},
+              {"name", "ball tets"},
+              {"source", 0},
+              {"generate", "volume"},
+              {"settings", {{"cell_size", h}}}},
+             {{"kind", "sculpt"},
+              {"name", "clay"},
+              {"generate_from", {{"root", {{"type", "sphere"}, {"radius", r}}}, {"cell_size", h}}}},
+             {{"kind", "sculpt"},
+              {"name", "tri"},
+              {"mesh",
+               {{"vertices", {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}, {"triangles", {{0, 1, 2}}}}}}}}}
+          .dump(1));
   Document doc;
   doc.Load(path);
   ASSERT_EQ(doc.objects().size(), 4u);
@@ -341,10 +375,12 @@ TEST(DocumentIo, GeneratedMeshesMatchTheirSolid) {
   ASSERT_TRUE(mesh.volume && mesh.surface);
   EXPECT_FALSE(doc.IsMeshOutOfDate(doc.objects()[1].id));
   const double volume = modeling::TotalVolume(*mesh.volume);
-  EXPECT_NEAR(volume, 4.0 / 3.0 * std::numbers::pi * r * r * r, 0.05 * 4.0 / 3.0 * std::numbers::pi * r * r * r);
+  EXPECT_NEAR(volume, 4.0 / 3.0 * std::numbers::pi * r * r * r,
+              0.05 * 4.0 / 3.0 * std::numbers::pi * r * r * r);
   const SculptMesh& clay = *std::get<SculptData>(doc.objects()[2].data).mesh;
   ASSERT_GT(clay.vertices.cols(), 100);
-  for (Eigen::Index v = 0; v < clay.vertices.cols(); ++v) EXPECT_NEAR(clay.vertices.col(v).norm(), r, 0.2 * h);
+  for (Eigen::Index v = 0; v < clay.vertices.cols(); ++v)
+    EXPECT_NEAR(clay.vertices.col(v).norm(), r, 0.2 * h);
   const SculptMesh& tri = *std::get<SculptData>(doc.objects()[3].data).mesh;
   EXPECT_EQ(tri.vertices.col(1), Eigen::Vector3d(1, 0, 0));
   EXPECT_EQ(tri.triangles.col(0), Eigen::Vector3i(0, 1, 2));
@@ -361,28 +397,44 @@ struct BadCase {
 // Each bad file: SceneError with the file, the line of the field and its JSON pointer; the
 // document keeps its content.
 TEST(DocumentIo, BadFileNamesLineAndFieldAndLeavesDocumentUnchanged) {
-  const std::string header = "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"objects\": [\n";
-  const std::string solid = "{\"kind\": \"solid\", \"name\": \"s\", \"root\": {\"type\": \"sphere\", \"id\": \"a\", \"radius\": 0.1}}";
+  const std::string header =
+      "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"objects\": [\n";
+  const std::string solid =
+      "{\"kind\": \"solid\", \"name\": \"s\", \"root\": {\"type\": \"sphere\", \"id\": \"a\", "
+      "\"radius\": 0.1}}";
   const std::string tets =
-      "{\"kind\": \"mesh\", \"name\": \"m\", \"volume\": {\"nodes\": [[0,0,0],[1,0,0],[0,1,0],[0,0,1]], \"tets\": [[0,1,2,3]]}}";
+      "{\"kind\": \"mesh\", \"name\": \"m\", \"volume\": {\"nodes\": "
+      "[[0,0,0],[1,0,0],[0,1,0],[0,0,1]], \"tets\": [[0,1,2,3]]}}";
   const std::vector<BadCase> cases = {
-      {"unknown kind", "{\"kind\": \"teapot\", \"name\": \"x\"}", 5, "/objects/0/kind", "unknown kind"},
-      {"bad radius", "{\"kind\": \"solid\", \"name\": \"s\", \"root\": {\"type\": \"sphere\", \"radius\": -1}}", 5,
-       "/objects/0/root/radius", "radius"},
-      {"tet index", "{\"kind\": \"mesh\", \"name\": \"m\", \"volume\": {\"nodes\": [[0,0,0]], \"tets\": [[0,1,2,3]]}}", 5,
-       "/objects/0/volume/tets", "outside"},
-      {"bad base64", "{\"kind\": \"sculpt\", \"name\": \"c\", \"mesh\": {\"vertices\": {\"dtype\": \"f64\", \"shape\": [1, 3], "
-                     "\"base64\": \"AAAA\"}, \"triangles\": []}}",
+      {"unknown kind", "{\"kind\": \"teapot\", \"name\": \"x\"}", 5, "/objects/0/kind",
+       "unknown kind"},
+      {"bad radius",
+       "{\"kind\": \"solid\", \"name\": \"s\", \"root\": {\"type\": \"sphere\", \"radius\": -1}}",
+       5, "/objects/0/root/radius", "radius"},
+      {"tet index",
+       "{\"kind\": \"mesh\", \"name\": \"m\", \"volume\": {\"nodes\": [[0,0,0]], \"tets\": "
+       "[[0,1,2,3]]}}",
+       5, "/objects/0/volume/tets", "outside"},
+      {"bad base64",
+       "{\"kind\": \"sculpt\", \"name\": \"c\", \"mesh\": {\"vertices\": {\"dtype\": \"f64\", "
+       "\"shape\": [1, 3], "
+       "\"base64\": \"AAAA\"}, \"triangles\": []}}",
        5, "/objects/0/mesh/vertices/base64", "bytes"},
-      {"fe without tets", "{\"kind\": \"fe_model\", \"name\": \"f\", \"tet_mesh\": 7, \"material\": {\"youngs_modulus\": 1e9, "
-                          "\"poisson_ratio\": 0.3}}",
+      {"fe without tets",
+       "{\"kind\": \"fe_model\", \"name\": \"f\", \"tet_mesh\": 7, \"material\": "
+       "{\"youngs_modulus\": 1e9, "
+       "\"poisson_ratio\": 0.3}}",
        5, "/objects/0/tet_mesh", "index"},
-      {"fe material", (tets + ",\n{\"kind\": \"fe_model\", \"name\": \"f\", \"tet_mesh\": 0, \"material\": {\"youngs_modulus\": "
-                              "1e9, \"poisson_ratio\": 0.7}}"),
+      {"fe material",
+       (tets + ",\n{\"kind\": \"fe_model\", \"name\": \"f\", \"tet_mesh\": 0, \"material\": "
+               "{\"youngs_modulus\": "
+               "1e9, \"poisson_ratio\": 0.7}}"),
        6, "/objects/1/material", "0.7"},
       {"repeated node id", solid + ",\n" + solid, 6, "/objects/1/root/id", "already used"},
-      {"seat on nothing", "{\"kind\": \"rigid_part\", \"name\": \"p\", \"root\": {\"type\": \"sphere\", \"radius\": 0.1}, "
-                          "\"position\": [0,0,0], \"seats\": [{\"on\": \"ghost\", \"position\": [0,0,0]}]}",
+      {"seat on nothing",
+       "{\"kind\": \"rigid_part\", \"name\": \"p\", \"root\": {\"type\": \"sphere\", \"radius\": "
+       "0.1}, "
+       "\"position\": [0,0,0], \"seats\": [{\"on\": \"ghost\", \"position\": [0,0,0]}]}",
        5, "/objects/0/seats/0/on", "ghost"},
   };
   for (const BadCase& c : cases) {
@@ -409,7 +461,8 @@ TEST(DocumentIo, BadFileNamesLineAndFieldAndLeavesDocumentUnchanged) {
 
 TEST(DocumentIo, NewerVersionAndSyntaxErrorsNameTheLine) {
   const std::string path = OutDir("version") + "/doc.json";
-  WriteText(path, "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 3,\n  \"objects\": []\n}\n");
+  WriteText(path,
+            "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 3,\n  \"objects\": []\n}\n");
   Document doc;
   try {
     doc.Load(path);
@@ -418,7 +471,8 @@ TEST(DocumentIo, NewerVersionAndSyntaxErrorsNameTheLine) {
     EXPECT_EQ(e.line(), 3);
     EXPECT_EQ(e.pointer(), "/version");
   }
-  WriteText(path, "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 2,\n  \"objects\": [,]\n}\n");
+  WriteText(path,
+            "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 2,\n  \"objects\": [,]\n}\n");
   try {
     doc.Load(path);
     ADD_FAILURE() << "no error";

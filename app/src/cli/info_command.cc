@@ -30,7 +30,8 @@ std::string Num(double v) {
 
 // Seat of a part at pose X_WP that X_WO of the part it names satisfies, or "".
 template <class FindPose>
-std::string SeatedOn(const Eigen::Isometry3d& X_WP, const std::vector<modeling::SceneSeat>& seats, FindPose&& find_pose) {
+std::string SeatedOn(const Eigen::Isometry3d& X_WP, const std::vector<modeling::SceneSeat>& seats,
+                     FindPose&& find_pose) {
   for (const modeling::SceneSeat& seat : seats) {
     Eigen::Isometry3d X_WO;
     if (!find_pose(seat.on, &X_WO)) continue;
@@ -57,7 +58,9 @@ void RunInfo(const std::string& path) {
     doc.Load(path);
   } catch (const modeling::SceneError& e) {
     throw InputError(std::string(e.what()) +
-                     (e.pointer().empty() ? "" : " (fix that field; docs/scene-format.md describes every field)"));
+                     (e.pointer().empty()
+                          ? ""
+                          : " (fix that field; docs/scene-format.md describes every field)"));
   }
   for (const DocObject& o : doc.objects()) {
     std::string kind = ObjectKindName(o.data);
@@ -67,7 +70,8 @@ void RunInfo(const std::string& path) {
     } else if (const auto* m = std::get_if<MeshData>(&o.data)) {
       if (m->volume) {
         kind = "tet_mesh";
-        counts = "nodes=" + std::to_string(m->volume->nodes.cols()) + " tets=" + std::to_string(m->volume->tets.cols());
+        counts = "nodes=" + std::to_string(m->volume->nodes.cols()) +
+                 " tets=" + std::to_string(m->volume->tets.cols());
         if (m->surface) counts += " triangles=" + std::to_string(m->surface->triangles.cols());
       } else {
         counts = "nodes=" + std::to_string(m->surface->vertices.cols()) +
@@ -80,28 +84,33 @@ void RunInfo(const std::string& path) {
       }
       if (!m->import_source.empty()) counts += " imported_from='" + m->import_source + "'";
     } else if (const auto* s = std::get_if<SculptData>(&o.data)) {
-      counts = "nodes=" + std::to_string(s->mesh->vertices.cols()) + " triangles=" + std::to_string(s->mesh->triangles.cols());
+      counts = "nodes=" + std::to_string(s->mesh->vertices.cols()) +
+               " triangles=" + std::to_string(s->mesh->triangles.cols());
     } else if (const auto* f = std::get_if<FeModelData>(&o.data)) {
       const DocObject* mesh = doc.Find(f->tet_mesh);
       const auto& md = std::get<MeshData>(mesh->data);
       counts = "tet_mesh='" + mesh->name + "' nodes=" + std::to_string(md.volume->nodes.cols()) +
-               " tets=" + std::to_string(md.volume->tets.cols()) + " material=E" + Num(f->material.youngs_modulus) +
-               "Pa,nu" + Num(f->material.poisson_ratio) + " region_materials=" + std::to_string(f->region_materials.size()) +
-               " order=" + std::to_string(f->element_order) + " clamps=" + std::to_string(f->fixed_boxes.size()) +
+               " tets=" + std::to_string(md.volume->tets.cols()) + " material=E" +
+               Num(f->material.youngs_modulus) + "Pa,nu" + Num(f->material.poisson_ratio) +
+               " region_materials=" + std::to_string(f->region_materials.size()) +
+               " order=" + std::to_string(f->element_order) +
+               " clamps=" + std::to_string(f->fixed_boxes.size()) +
                " loads=" + std::to_string(f->loads.size());
     } else if (const auto* r = std::get_if<RigidPartData>(&o.data)) {
       kind = "part";
-      const std::string on = SeatedOn(r->X_WP, r->seats, [&](const std::string& name, Eigen::Isometry3d* X) {
-        for (const DocObject& other : doc.objects()) {
-          const auto* rp = std::get_if<RigidPartData>(&other.data);
-          if (rp != nullptr && other.name == name && other.id != o.id) {
-            *X = rp->X_WP;
-            return true;
-          }
-        }
-        return false;
-      });
-      counts = "tree_nodes=" + std::to_string(TreeNodeCount(r->root)) + " " + SeatText(r->fixed, !r->seats.empty(), on);
+      const std::string on =
+          SeatedOn(r->X_WP, r->seats, [&](const std::string& name, Eigen::Isometry3d* X) {
+            for (const DocObject& other : doc.objects()) {
+              const auto* rp = std::get_if<RigidPartData>(&other.data);
+              if (rp != nullptr && other.name == name && other.id != o.id) {
+                *X = rp->X_WP;
+                return true;
+              }
+            }
+            return false;
+          });
+      counts = "tree_nodes=" + std::to_string(TreeNodeCount(r->root)) + " " +
+               SeatText(r->fixed, !r->seats.empty(), on);
     }
     std::printf("%-9s '%s' %s\n", kind.c_str(), o.name.c_str(), counts.c_str());
   }
@@ -113,15 +122,16 @@ void RunInfo(const std::string& path) {
     return X;
   };
   for (const modeling::ScenePart& p : doc.parts()) {
-    const std::string on = SeatedOn(pose(p), p.seats, [&](const std::string& name, Eigen::Isometry3d* X) {
-      for (const modeling::ScenePart& other : doc.parts()) {
-        if (other.name == name && &other != &p) {
-          *X = pose(other);
-          return true;
-        }
-      }
-      return false;
-    });
+    const std::string on =
+        SeatedOn(pose(p), p.seats, [&](const std::string& name, Eigen::Isometry3d* X) {
+          for (const modeling::ScenePart& other : doc.parts()) {
+            if (other.name == name && &other != &p) {
+              *X = pose(other);
+              return true;
+            }
+          }
+          return false;
+        });
     std::printf("%-9s '%s' solid='%s' %s\n", "part", p.name.c_str(), p.solid.c_str(),
                 SeatText(p.fixed, !p.seats.empty(), on).c_str());
   }
@@ -131,7 +141,8 @@ void RunInfo(const std::string& path) {
 
 void RegisterInfoCommand(CLI::App& app) {
   auto path = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand("info", "List the objects of a document or scene file, one line each");
+  CLI::App* cmd =
+      app.add_subcommand("info", "List the objects of a document or scene file, one line each");
   cmd->footer(
       "\nEach line: kind (solid, mesh, tet_mesh, sculpt, fe_model, part), 'name', key counts.\n"
       "A file that does not load exits with status 2 and names the file, line and field.\n"

@@ -17,7 +17,8 @@ namespace fs = std::filesystem;
 
 fs::path DefaultRecoveryDirectory() {
   if (const char* d = std::getenv("SPIDARCAD_RECOVERY_DIR"); d != nullptr && *d != 0) return d;
-  if (const char* d = std::getenv("XDG_STATE_HOME"); d != nullptr && *d != 0) return fs::path(d) / "spidarcad" / "recovery";
+  if (const char* d = std::getenv("XDG_STATE_HOME"); d != nullptr && *d != 0)
+    return fs::path(d) / "spidarcad" / "recovery";
   if (const char* h = std::getenv("HOME"); h != nullptr && *h != 0) {
     return fs::path(h) / ".local" / "state" / "spidarcad" / "recovery";
   }
@@ -37,7 +38,8 @@ std::vector<RecoveryFile> ListRecoveryFiles(const fs::path& directory) {
     f.written = fs::last_write_time(p, ec);
     out.push_back(std::move(f));
   }
-  std::sort(out.begin(), out.end(), [](const RecoveryFile& a, const RecoveryFile& b) { return a.written > b.written; });
+  std::sort(out.begin(), out.end(),
+            [](const RecoveryFile& a, const RecoveryFile& b) { return a.written > b.written; });
   return out;
 }
 
@@ -45,12 +47,14 @@ Autosaver::Autosaver(fs::path directory, Clock::duration interval)
     : directory_(std::move(directory)), interval_(interval), last_write_(Clock::now()) {}
 
 fs::path Autosaver::RecoveryPathFor(const Document& doc) const {
-  if (doc.file_path().empty()) return directory_ / ("untitled-" + std::to_string(::getpid()) + ".spidarcad");
+  if (doc.file_path().empty())
+    return directory_ / ("untitled-" + std::to_string(::getpid()) + ".spidarcad");
   std::error_code ec;
   fs::path absolute = fs::absolute(doc.file_path(), ec);
   const std::string key = ec ? doc.file_path() : absolute.lexically_normal().string();
   char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fem::Fnv1a64(key.data(), key.size())));
+  std::snprintf(hex, sizeof hex, "%016llx",
+                static_cast<unsigned long long>(fem::Fnv1a64(key.data(), key.size())));
   return directory_ / (std::string(hex) + ".spidarcad");
 }
 
@@ -65,7 +69,8 @@ bool Autosaver::Tick(const Document& doc, Clock::time_point now) {
     DocumentWriteOptions options;
     options.force_version2 = true;
     options.mark_recovery = true;
-    if (!doc.file_path().empty()) options.recovered_from = fs::absolute(doc.file_path(), ec).lexically_normal().string();
+    if (!doc.file_path().empty())
+      options.recovered_from = fs::absolute(doc.file_path(), ec).lexically_normal().string();
     WriteDocumentFile(doc, path.string(), options);
   } catch (const std::exception& e) {
     last_error_ = e.what();

@@ -24,13 +24,14 @@ std::filesystem::path DefaultRecoveryDirectory();
 
 // A file left by an Autosaver.
 struct RecoveryFile {
-  std::filesystem::path path;  // the recovery file (load it with Document::Load)
-  std::string original;        // the document's own file, "" for an untitled document
+  std::filesystem::path path;               // the recovery file (load it with Document::Load)
+  std::string original;                     // the document's own file, "" for an untitled document
   std::filesystem::file_time_type written;  // when it was written
 };
 
 // Recovery files in directory, newest first; unreadable files and others are skipped.
-std::vector<RecoveryFile> ListRecoveryFiles(const std::filesystem::path& directory = DefaultRecoveryDirectory());
+std::vector<RecoveryFile> ListRecoveryFiles(
+    const std::filesystem::path& directory = DefaultRecoveryDirectory());
 
 // Writes recovery copies of one document (main thread; call Tick from the event loop).
 class Autosaver {

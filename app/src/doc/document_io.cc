@@ -25,11 +25,14 @@ namespace {
 using json = nlohmann::json;
 using modeling::SceneError;
 
-static_assert(std::endian::native == std::endian::little, "document arrays are little-endian raw bytes");
+static_assert(std::endian::native == std::endian::little,
+              "document arrays are little-endian raw bytes");
 
 constexpr const char kBase64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
 
-[[noreturn]] void Fail(const std::string& pointer, const std::string& what) { throw SceneError("", 0, 0, pointer, what); }
+[[noreturn]] void Fail(const std::string& pointer, const std::string& what) {
+  throw SceneError("", 0, 0, pointer, what);
+}
 
 std::string Hex16(std::uint64_t v) {
   char buf[17];
@@ -48,7 +51,8 @@ class Locator {
     std::size_t start = 1;
     while (start <= pointer.size() && !pointer.empty()) {
       const std::size_t slash = pointer.find('/', start);
-      tokens.push_back(pointer.substr(start, slash == std::string::npos ? std::string::npos : slash - start));
+      tokens.push_back(
+          pointer.substr(start, slash == std::string::npos ? std::string::npos : slash - start));
       if (slash == std::string::npos) break;
       start = slash + 1;
     }
@@ -183,7 +187,8 @@ void RequireObject(const json& j, const std::string& p) {
   if (!j.is_object()) Fail(p, "expected a JSON object, got " + std::string(j.type_name()));
 }
 
-void RejectUnknown(const json& obj, const std::string& p, std::initializer_list<const char*> known) {
+void RejectUnknown(const json& obj, const std::string& p,
+                   std::initializer_list<const char*> known) {
   for (auto it = obj.begin(); it != obj.end(); ++it) {
     if (std::none_of(known.begin(), known.end(), [&](const char* k) { return it.key() == k; })) {
       std::string list;
@@ -226,9 +231,12 @@ json VecJson(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()
 
 Eigen::Quaterniond Quat(const json& j, const std::string& p) {
   if (!j.is_array() || j.size() != 4) Fail(p, "expected a quaternion [w, x, y, z]");
-  Eigen::Quaterniond q(Number(j[0], p + "/0"), Number(j[1], p + "/1"), Number(j[2], p + "/2"), Number(j[3], p + "/3"));
-  if (std::abs(q.norm() - 1.0) > 1e-6) Fail(p, "the quaternion must have unit norm, got norm " + std::to_string(q.norm()));
-  return std::abs(q.norm() - 1.0) > 1e-12 ? q.normalized() : q;  // unit quaternions kept bit for bit
+  Eigen::Quaterniond q(Number(j[0], p + "/0"), Number(j[1], p + "/1"), Number(j[2], p + "/2"),
+                       Number(j[3], p + "/3"));
+  if (std::abs(q.norm() - 1.0) > 1e-6)
+    Fail(p, "the quaternion must have unit norm, got norm " + std::to_string(q.norm()));
+  return std::abs(q.norm() - 1.0) > 1e-12 ? q.normalized()
+                                          : q;  // unit quaternions kept bit for bit
 }
 
 // A rotation matrix written as three rows (exact, unlike a quaternion round trip).
@@ -236,26 +244,32 @@ Eigen::Matrix3d Rotation(const json& j, const std::string& p) {
   if (!j.is_array() || j.size() != 3) Fail(p, "expected 3 rows of 3 numbers");
   Eigen::Matrix3d R;
   for (int r = 0; r < 3; ++r) R.row(r) = Vec3(j[r], p + "/" + std::to_string(r)).transpose();
-  if (!(R.transpose() * R).isIdentity(1e-9) || R.determinant() < 0) Fail(p, "must be a rotation (orthonormal, det +1)");
+  if (!(R.transpose() * R).isIdentity(1e-9) || R.determinant() < 0)
+    Fail(p, "must be a rotation (orthonormal, det +1)");
   return R;
 }
 
 json RotationJson(const Eigen::Matrix3d& R) {
-  return json::array({VecJson(R.row(0).transpose()), VecJson(R.row(1).transpose()), VecJson(R.row(2).transpose())});
+  return json::array({VecJson(R.row(0).transpose()), VecJson(R.row(1).transpose()),
+                      VecJson(R.row(2).transpose())});
 }
 
 json QuatJson(const Eigen::Quaterniond& q) { return json::array({q.w(), q.x(), q.y(), q.z()}); }
 
-Eigen::AlignedBox3d Box(const json& j, const std::string& p, std::initializer_list<const char*> extra = {}) {
+Eigen::AlignedBox3d Box(const json& j, const std::string& p,
+                        std::initializer_list<const char*> extra = {}) {
   RequireObject(j, p);
   const Eigen::Vector3d lo = Vec3(Need(j, p, "min"), Join(p, "min"));
   const Eigen::Vector3d hi = Vec3(Need(j, p, "max"), Join(p, "max"));
-  if ((lo.array() > hi.array()).any()) Fail(Join(p, "max"), "every coordinate of max must be >= the one of min");
+  if ((lo.array() > hi.array()).any())
+    Fail(Join(p, "max"), "every coordinate of max must be >= the one of min");
   (void)extra;
   return Eigen::AlignedBox3d(lo, hi);
 }
 
-json BoxJson(const Eigen::AlignedBox3d& b) { return {{"min", VecJson(b.min())}, {"max", VecJson(b.max())}}; }
+json BoxJson(const Eigen::AlignedBox3d& b) {
+  return {{"min", VecJson(b.min())}, {"max", VecJson(b.max())}};
+}
 
 fem::Material MaterialFrom(const json& j, const std::string& p) {
   fem::Material m;
@@ -288,7 +302,8 @@ json ArrayJson(const Scalar* data, Eigen::Index rows, Eigen::Index cols) {
 // Reads an array written by ArrayJson, or a plain JSON array of `rows`-tuples (hand-written
 // files). rows = 1 reads a flat list.
 template <class Scalar>
-Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> ArrayFrom(const json& j, const std::string& p, Eigen::Index rows) {
+Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> ArrayFrom(const json& j, const std::string& p,
+                                                                Eigen::Index rows) {
   using M = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>;
   constexpr bool kFloat = std::is_same_v<Scalar, double>;
   const char* want = kFloat ? "f64" : "i32";
@@ -298,9 +313,13 @@ Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> ArrayFrom(const json& j, c
       const std::string pc = p + "/" + std::to_string(c);
       const json& item = j[c];
       for (Eigen::Index r = 0; r < rows; ++r) {
-        const json& v = rows == 1 ? item : (item.is_array() && item.size() == static_cast<std::size_t>(rows)
-                                                ? item[r]
-                                                : (Fail(pc, "expected an array of " + std::to_string(rows) + " numbers"), item));
+        const json& v =
+            rows == 1
+                ? item
+                : (item.is_array() && item.size() == static_cast<std::size_t>(rows)
+                       ? item[r]
+                       : (Fail(pc, "expected an array of " + std::to_string(rows) + " numbers"),
+                          item));
         const std::string pv = rows == 1 ? pc : pc + "/" + std::to_string(r);
         if constexpr (kFloat) {
           m(r, c) = Number(v, pv);
@@ -315,25 +334,32 @@ Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> ArrayFrom(const json& j, c
   RequireObject(j, p);
   RejectUnknown(j, p, {"dtype", "shape", "base64"});
   const std::string dtype = Text(Need(j, p, "dtype"), Join(p, "dtype"));
-  if (dtype != want) Fail(Join(p, "dtype"), "expected \"" + std::string(want) + "\", got \"" + dtype + "\"");
+  if (dtype != want)
+    Fail(Join(p, "dtype"), "expected \"" + std::string(want) + "\", got \"" + dtype + "\"");
   const json& shape = Need(j, p, "shape");
-  const bool shape_ok = rows == 1 ? (shape.is_array() && shape.size() == 1 && shape[0].is_number_unsigned())
-                                  : (shape.is_array() && shape.size() == 2 && shape[0].is_number_unsigned() &&
-                                     shape[1].is_number_unsigned() && shape[1].get<std::uint64_t>() == static_cast<std::uint64_t>(rows));
+  const bool shape_ok =
+      rows == 1 ? (shape.is_array() && shape.size() == 1 && shape[0].is_number_unsigned())
+                : (shape.is_array() && shape.size() == 2 && shape[0].is_number_unsigned() &&
+                   shape[1].is_number_unsigned() &&
+                   shape[1].get<std::uint64_t>() == static_cast<std::uint64_t>(rows));
   if (!shape_ok) {
-    Fail(Join(p, "shape"), rows == 1 ? std::string("expected [count]") : "expected [count, " + std::to_string(rows) + "]");
+    Fail(Join(p, "shape"), rows == 1 ? std::string("expected [count]")
+                                     : "expected [count, " + std::to_string(rows) + "]");
   }
   const std::uint64_t count = shape[0].get<std::uint64_t>();
-  if (count > (std::uint64_t{1} << 31)) Fail(Join(p, "shape"), "count " + std::to_string(count) + " is too large");
+  if (count > (std::uint64_t{1} << 31))
+    Fail(Join(p, "shape"), "count " + std::to_string(count) + " is too large");
   std::vector<std::uint8_t> bytes;
   try {
     bytes = Base64Decode(Text(Need(j, p, "base64"), Join(p, "base64")));
   } catch (const std::invalid_argument& e) {
     Fail(Join(p, "base64"), e.what());
   }
-  const std::size_t expect = sizeof(Scalar) * static_cast<std::size_t>(count) * static_cast<std::size_t>(rows);
+  const std::size_t expect =
+      sizeof(Scalar) * static_cast<std::size_t>(count) * static_cast<std::size_t>(rows);
   if (bytes.size() != expect) {
-    Fail(Join(p, "base64"), "holds " + std::to_string(bytes.size()) + " bytes; shape and dtype need " + std::to_string(expect));
+    Fail(Join(p, "base64"), "holds " + std::to_string(bytes.size()) +
+                                " bytes; shape and dtype need " + std::to_string(expect));
   }
   M m(rows, static_cast<Eigen::Index>(count));
   if (expect > 0) std::memcpy(m.data(), bytes.data(), expect);
@@ -356,7 +382,8 @@ modeling::TriangleMesh SurfaceFrom(const json& j, const std::string& p) {
   m.triangles = ArrayFrom<int>(Need(j, p, "triangles"), Join(p, "triangles"), 3);
   const auto n = m.vertices.cols();
   if (m.triangles.size() > 0 && (m.triangles.minCoeff() < 0 || m.triangles.maxCoeff() >= n)) {
-    Fail(Join(p, "triangles"), "a triangle refers to a vertex outside [0, " + std::to_string(n) + ")");
+    Fail(Join(p, "triangles"),
+         "a triangle refers to a vertex outside [0, " + std::to_string(n) + ")");
   }
   return m;
 }
@@ -376,7 +403,8 @@ modeling::TetMesh VolumeFrom(const json& j, const std::string& p) {
   if (j.contains("regions")) {
     Eigen::MatrixXi r = ArrayFrom<int>(j.at("regions"), Join(p, "regions"), 1);
     if (r.cols() != m.tets.cols()) {
-      Fail(Join(p, "regions"), "has " + std::to_string(r.cols()) + " labels for " + std::to_string(m.tets.cols()) + " tets");
+      Fail(Join(p, "regions"), "has " + std::to_string(r.cols()) + " labels for " +
+                                   std::to_string(m.tets.cols()) + " tets");
     }
     m.regions = r.row(0).transpose();
   } else {
@@ -390,13 +418,15 @@ modeling::TetMesh VolumeFrom(const json& j, const std::string& p) {
 }
 
 // Surface mesh of a tree at cell size h (the bounds found within ±2 m, padded by a cell).
-modeling::TriangleMesh MeshTree(const modeling::ImplicitNode& root, double h, const std::string& p) {
+modeling::TriangleMesh MeshTree(const modeling::ImplicitNode& root, double h,
+                                const std::string& p) {
   const modeling::CompiledSolid solid = modeling::CompiledSolid::Compile(root, p);
   const Eigen::Vector3d r = Eigen::Vector3d::Constant(2.0);
   const Eigen::AlignedBox3d bounds = modeling::FindBounds(solid, Eigen::AlignedBox3d(-r, r), h);
   if (bounds.isEmpty()) Fail(p, "the solid is empty: nothing to mesh");
   modeling::SurfaceMeshSettings s;
-  s.bounds = Eigen::AlignedBox3d(bounds.min() - Eigen::Vector3d::Constant(h), bounds.max() + Eigen::Vector3d::Constant(h));
+  s.bounds = Eigen::AlignedBox3d(bounds.min() - Eigen::Vector3d::Constant(h),
+                                 bounds.max() + Eigen::Vector3d::Constant(h));
   s.cell_size = h;
   try {
     return modeling::MeshSurface(solid, s);
@@ -434,14 +464,18 @@ DocView ViewFrom(const json& j, const std::string& p) {
   if (v.view_up.norm() < 1e-12) Fail(Join(p, "view_up"), "must not be zero");
   v.view_up.normalize();
   if (j.contains("view_angle")) v.view_angle = Number(j.at("view_angle"), Join(p, "view_angle"));
-  if (!(v.view_angle > 0 && v.view_angle < 180)) Fail(Join(p, "view_angle"), "must be in (0, 180) degrees");
+  if (!(v.view_angle > 0 && v.view_angle < 180))
+    Fail(Join(p, "view_angle"), "must be in (0, 180) degrees");
   return v;
 }
 
-int IndexRef(const json& obj, const std::string& p, const char* key, std::size_t count, std::size_t self) {
+int IndexRef(const json& obj, const std::string& p, const char* key, std::size_t count,
+             std::size_t self) {
   const json& j = Need(obj, p, key);
-  if (!j.is_number_unsigned() || j.get<std::uint64_t>() >= count || j.get<std::uint64_t>() == self) {
-    Fail(Join(p, key), "expected the index of another object in /objects (0 to " + std::to_string(count - 1) + ")");
+  if (!j.is_number_unsigned() || j.get<std::uint64_t>() >= count ||
+      j.get<std::uint64_t>() == self) {
+    Fail(Join(p, key), "expected the index of another object in /objects (0 to " +
+                           std::to_string(count - 1) + ")");
   }
   return j.get<int>();
 }
@@ -449,8 +483,11 @@ int IndexRef(const json& obj, const std::string& p, const char* key, std::size_t
 Content ContentFromJson(const json& j) {
   Content c;
   RequireObject(j, "");
-  RejectUnknown(j, "", {"format", "version", "units", "description", "objects", "parts", "snap", "view", "recovered_from"});
-  if (j.contains("units") && Text(j.at("units"), "/units") != "m") Fail("/units", "only \"m\" is supported");
+  RejectUnknown(j, "",
+                {"format", "version", "units", "description", "objects", "parts", "snap", "view",
+                 "recovered_from"});
+  if (j.contains("units") && Text(j.at("units"), "/units") != "m")
+    Fail("/units", "only \"m\" is supported");
   if (j.contains("description")) c.description = Text(j.at("description"), "/description");
   if (j.contains("view")) c.view = ViewFrom(j.at("view"), "/view");
   if (j.contains("recovered_from")) Text(j.at("recovered_from"), "/recovered_from");
@@ -486,11 +523,15 @@ Content ContentFromJson(const json& j) {
       solids.push_back({{"name", d.name}, {"root", o.at("root")}});
       solid_at.push_back(i);
     } else if (kind == "mesh") {
-      RejectUnknown(o, p, {"kind", "name", "source", "up_to_date", "settings", "import_source", "surface", "volume", "generate"});
+      RejectUnknown(o, p,
+                    {"kind", "name", "source", "up_to_date", "settings", "import_source", "surface",
+                     "volume", "generate"});
       MeshData m;
-      if (o.contains("source") && !o.at("source").is_null()) mesh_source[i] = IndexRef(o, p, "source", n, i);
+      if (o.contains("source") && !o.at("source").is_null())
+        mesh_source[i] = IndexRef(o, p, "source", n, i);
       if (o.contains("up_to_date")) up_to_date[i] = Bool(o.at("up_to_date"), p + "/up_to_date");
-      if (o.contains("import_source")) m.import_source = Text(o.at("import_source"), p + "/import_source");
+      if (o.contains("import_source"))
+        m.import_source = Text(o.at("import_source"), p + "/import_source");
       if (o.contains("settings")) {
         const json& s = o.at("settings");
         const std::string sp = p + "/settings";
@@ -503,14 +544,21 @@ Content ContentFromJson(const json& j) {
           Fail(sp + "/max_radius_edge", "must be 0 (default) or >= 1");
         }
       }
-      if (o.contains("surface")) m.surface = std::make_shared<modeling::TriangleMesh>(SurfaceFrom(o.at("surface"), p + "/surface"));
-      if (o.contains("volume")) m.volume = std::make_shared<modeling::TetMesh>(VolumeFrom(o.at("volume"), p + "/volume"));
+      if (o.contains("surface"))
+        m.surface =
+            std::make_shared<modeling::TriangleMesh>(SurfaceFrom(o.at("surface"), p + "/surface"));
+      if (o.contains("volume"))
+        m.volume = std::make_shared<modeling::TetMesh>(VolumeFrom(o.at("volume"), p + "/volume"));
       if (o.contains("generate")) {
         generate[i] = Text(o.at("generate"), p + "/generate");
-        if (generate[i] != "surface" && generate[i] != "volume") Fail(p + "/generate", "expected \"surface\" or \"volume\"");
-        if (m.surface || m.volume) Fail(p + "/generate", "a mesh is either stored (surface, volume) or generated, not both");
-        if (mesh_source[i] < 0) Fail(p + "/source", "a generated mesh needs the index of its source solid");
-        if (!(m.settings.cell_size > 0)) Fail(p + "/settings/cell_size", "a generated mesh needs a cell size > 0");
+        if (generate[i] != "surface" && generate[i] != "volume")
+          Fail(p + "/generate", "expected \"surface\" or \"volume\"");
+        if (m.surface || m.volume)
+          Fail(p + "/generate", "a mesh is either stored (surface, volume) or generated, not both");
+        if (mesh_source[i] < 0)
+          Fail(p + "/source", "a generated mesh needs the index of its source solid");
+        if (!(m.settings.cell_size > 0))
+          Fail(p + "/settings/cell_size", "a generated mesh needs a cell size > 0");
         up_to_date[i] = true;
       } else if (!m.surface && !m.volume) {
         Fail(p, "a mesh object needs \"surface\", \"volume\" or \"generate\"");
@@ -528,12 +576,14 @@ Content ContentFromJson(const json& j) {
         RejectUnknown(g, gp, {"root", "cell_size"});
         const double h = Number(Need(g, gp, "cell_size"), gp + "/cell_size");
         if (!(h >= 1e-4)) Fail(gp + "/cell_size", "must be >= 1e-4 m");
-        s.mesh = std::make_shared<SculptMesh>(MeshTree(tree(Need(g, gp, "root"), gp + "/root"), h, gp + "/root"));
+        s.mesh = std::make_shared<SculptMesh>(
+            MeshTree(tree(Need(g, gp, "root"), gp + "/root"), h, gp + "/root"));
       }
       d.data = std::move(s);
     } else if (kind == "fe_model") {
-      RejectUnknown(o, p, {"kind", "name", "tet_mesh", "material", "region_materials", "fixed_boxes", "loads",
-                           "element_order", "precompute_key"});
+      RejectUnknown(o, p,
+                    {"kind", "name", "tet_mesh", "material", "region_materials", "fixed_boxes",
+                     "loads", "element_order", "precompute_key"});
       FeModelData f;
       fe_mesh[i] = IndexRef(o, p, "tet_mesh", n, i);
       f.material = MaterialFrom(Need(o, p, "material"), p + "/material");
@@ -547,7 +597,8 @@ Content ContentFromJson(const json& j) {
           const json& r = Need(rm[k], rp, "region");
           if (!r.is_number_integer()) Fail(rp + "/region", "expected an integer region label");
           for (const RegionMaterial& prev : f.region_materials) {
-            if (prev.region == r.get<int>()) Fail(rp + "/region", "region " + std::to_string(prev.region) + " is listed twice");
+            if (prev.region == r.get<int>())
+              Fail(rp + "/region", "region " + std::to_string(prev.region) + " is listed twice");
           }
           f.region_materials.push_back({r.get<int>(), MaterialFrom(rm[k], rp)});
         }
@@ -574,7 +625,8 @@ Content ContentFromJson(const json& j) {
       }
       if (o.contains("element_order")) {
         const json& e = o.at("element_order");
-        if (!e.is_number_integer() || (e.get<int>() != 1 && e.get<int>() != 2)) Fail(p + "/element_order", "expected 1 or 2");
+        if (!e.is_number_integer() || (e.get<int>() != 1 && e.get<int>() != 2))
+          Fail(p + "/element_order", "expected 1 or 2");
         f.element_order = e.get<int>();
       }
       if (o.contains("precompute_key")) {
@@ -586,16 +638,21 @@ Content ContentFromJson(const json& j) {
       }
       d.data = std::move(f);
     } else if (kind == "rigid_part") {
-      RejectUnknown(o, p, {"kind", "name", "root", "position", "quaternion", "rotation", "axis", "angle", "fixed", "seats"});
+      RejectUnknown(o, p,
+                    {"kind", "name", "root", "position", "quaternion", "rotation", "axis", "angle",
+                     "fixed", "seats"});
       RigidPartData r;
       r.root = tree(Need(o, p, "root"), p + "/root");
       r.X_WP.translation() = Vec3(Need(o, p, "position"), p + "/position");
-      if (o.contains("quaternion")) r.X_WP.linear() = Quat(o.at("quaternion"), p + "/quaternion").toRotationMatrix();
+      if (o.contains("quaternion"))
+        r.X_WP.linear() = Quat(o.at("quaternion"), p + "/quaternion").toRotationMatrix();
       if (o.contains("rotation")) r.X_WP.linear() = Rotation(o.at("rotation"), p + "/rotation");
       if (o.contains("axis") || o.contains("angle")) {
         const Eigen::Vector3d axis = Vec3(Need(o, p, "axis"), p + "/axis");
         if (axis.norm() < 1e-12) Fail(p + "/axis", "must not be zero");
-        r.X_WP.linear() = Eigen::AngleAxisd(Number(Need(o, p, "angle"), p + "/angle"), axis.normalized()).toRotationMatrix();
+        r.X_WP.linear() =
+            Eigen::AngleAxisd(Number(Need(o, p, "angle"), p + "/angle"), axis.normalized())
+                .toRotationMatrix();
       }
       if (o.contains("fixed")) r.fixed = Bool(o.at("fixed"), p + "/fixed");
       if (o.contains("seats")) {
@@ -604,19 +661,23 @@ Content ContentFromJson(const json& j) {
         for (std::size_t k = 0; k < s.size(); ++k) {
           const std::string sp = p + "/seats/" + std::to_string(k);
           RequireObject(s[k], sp);
-          RejectUnknown(s[k], sp, {"on", "position", "quaternion", "position_tolerance", "angle_tolerance"});
+          RejectUnknown(s[k], sp,
+                        {"on", "position", "quaternion", "position_tolerance", "angle_tolerance"});
           modeling::SceneSeat seat;
           seat.on = Text(Need(s[k], sp, "on"), sp + "/on");
           seat.position = Vec3(Need(s[k], sp, "position"), sp + "/position");
-          if (s[k].contains("quaternion")) seat.rotation = Quat(s[k].at("quaternion"), sp + "/quaternion");
-          seat.position_tolerance = NonNegative(s[k], sp, "position_tolerance", seat.position_tolerance);
+          if (s[k].contains("quaternion"))
+            seat.rotation = Quat(s[k].at("quaternion"), sp + "/quaternion");
+          seat.position_tolerance =
+              NonNegative(s[k], sp, "position_tolerance", seat.position_tolerance);
           seat.angle_tolerance = NonNegative(s[k], sp, "angle_tolerance", seat.angle_tolerance);
           r.seats.push_back(seat);
         }
       }
       d.data = std::move(r);
     } else {
-      Fail(p + "/kind", "unknown kind \"" + kind + "\" (expected solid, mesh, sculpt, fe_model or rigid_part)");
+      Fail(p + "/kind",
+           "unknown kind \"" + kind + "\" (expected solid, mesh, sculpt, fe_model or rigid_part)");
     }
     c.objects.push_back(std::move(d));
   }
@@ -625,7 +686,8 @@ Content ContentFromJson(const json& j) {
     if (const auto* r = std::get_if<RigidPartData>(&c.objects[i].data)) {
       for (std::size_t k = 0; k < r->seats.size(); ++k) {
         const bool found = std::any_of(c.objects.begin(), c.objects.end(), [&](const DocObject& o) {
-          return &o != &c.objects[i] && std::holds_alternative<RigidPartData>(o.data) && o.name == r->seats[k].on;
+          return &o != &c.objects[i] && std::holds_alternative<RigidPartData>(o.data) &&
+                 o.name == r->seats[k].on;
         });
         if (!found) {
           Fail("/objects/" + std::to_string(i) + "/seats/" + std::to_string(k) + "/on",
@@ -641,13 +703,15 @@ Content ContentFromJson(const json& j) {
     const auto* src = std::get_if<SolidData>(&c.objects[mesh_source[i]].data);
     if (src == nullptr) Fail(p + "/source", "a generated mesh's source must be a solid");
     auto& m = std::get<MeshData>(c.objects[i].data);
-    auto surface = MeshTree(src->root, m.settings.cell_size, "/objects/" + std::to_string(mesh_source[i]) + "/root");
+    auto surface = MeshTree(src->root, m.settings.cell_size,
+                            "/objects/" + std::to_string(mesh_source[i]) + "/root");
     if (generate[i] == "volume") {
       modeling::TetMeshSettings ts;
       if (m.settings.max_radius_edge > 0) ts.max_radius_edge = m.settings.max_radius_edge;
       ts.max_volume = m.settings.max_tet_volume;
       try {
-        m.volume = std::make_shared<modeling::TetMesh>(modeling::TetrahedralizeSurface(surface, ts));
+        m.volume =
+            std::make_shared<modeling::TetMesh>(modeling::TetrahedralizeSurface(surface, ts));
       } catch (const std::exception& e) {
         Fail(p + "/generate", std::string("tetrahedral meshing failed: ") + e.what());
       }
@@ -655,7 +719,8 @@ Content ContentFromJson(const json& j) {
     m.surface = std::make_shared<modeling::TriangleMesh>(std::move(surface));
   }
   // Parts and snap: the version 1 reader checks them against the solids.
-  json v1 = {{"format", modeling::kSceneFormat}, {"version", 1}, {"units", "m"}, {"solids", solids}};
+  json v1 = {
+      {"format", modeling::kSceneFormat}, {"version", 1}, {"units", "m"}, {"solids", solids}};
   if (j.contains("parts")) v1["parts"] = j.at("parts");
   if (j.contains("snap")) v1["snap"] = j.at("snap");
   try {
@@ -667,7 +732,8 @@ Content ContentFromJson(const json& j) {
     if (pointer.rfind("/solids/", 0) == 0) {  // map back to the object index
       const std::size_t end = pointer.find('/', 8);
       const std::size_t k = std::stoul(pointer.substr(8, end - 8));
-      pointer = "/objects/" + std::to_string(solid_at.at(k)) + (end == std::string::npos ? "" : pointer.substr(end));
+      pointer = "/objects/" + std::to_string(solid_at.at(k)) +
+                (end == std::string::npos ? "" : pointer.substr(end));
     }
     Fail(pointer, e.message());
   }
@@ -677,7 +743,8 @@ Content ContentFromJson(const json& j) {
       m->source = mesh_source[i] >= 0 ? static_cast<ObjectId>(mesh_source[i]) + 1 : 0;
       m->source_revision = up_to_date[i] ? 1 : 0;  // AdoptContent: 1 = up to date
     }
-    if (auto* f = std::get_if<FeModelData>(&c.objects[i].data)) f->tet_mesh = static_cast<ObjectId>(fe_mesh[i]) + 1;
+    if (auto* f = std::get_if<FeModelData>(&c.objects[i].data))
+      f->tet_mesh = static_cast<ObjectId>(fe_mesh[i]) + 1;
   }
   return c;
 }
@@ -776,7 +843,8 @@ std::vector<std::uint8_t> Base64Decode(const std::string& text) {
     return t;
   }();
   if (text.size() % 4 != 0) {
-    throw std::invalid_argument("base64 text length " + std::to_string(text.size()) + " is not a multiple of 4");
+    throw std::invalid_argument("base64 text length " + std::to_string(text.size()) +
+                                " is not a multiple of 4");
   }
   std::vector<std::uint8_t> out;
   out.reserve(text.size() / 4 * 3);
@@ -791,7 +859,8 @@ std::vector<std::uint8_t> Base64Decode(const std::string& text) {
         continue;
       }
       v[k] = table[static_cast<unsigned char>(ch)];
-      if (v[k] < 0 || pad > 0) throw std::invalid_argument("bad base64 character at offset " + std::to_string(i + k));
+      if (v[k] < 0 || pad > 0)
+        throw std::invalid_argument("bad base64 character at offset " + std::to_string(i + k));
     }
     const std::uint32_t w = (v[0] << 18) | (v[1] << 12) | (v[2] << 6) | v[3];
     out.push_back(static_cast<std::uint8_t>(w >> 16));
@@ -808,13 +877,15 @@ bool FitsSceneVersion1(const Document& doc) {
 }
 
 json DocumentToFileJson(const Document& doc, const DocumentWriteOptions& options) {
-  if (!options.force_version2 && FitsSceneVersion1(doc)) return modeling::SceneToJson(doc.ToScene());
+  if (!options.force_version2 && FitsSceneVersion1(doc))
+    return modeling::SceneToJson(doc.ToScene());
   json j;
   j["format"] = modeling::kSceneFormat;
   j["version"] = kDocumentVersion;
   j["units"] = "m";
   if (!doc.description().empty()) j["description"] = doc.description();
-  if (options.mark_recovery || !options.recovered_from.empty()) j["recovered_from"] = options.recovered_from;
+  if (options.mark_recovery || !options.recovered_from.empty())
+    j["recovered_from"] = options.recovered_from;
   if (const auto& v = doc.view()) {
     j["view"] = {{"position", VecJson(v->position)},
                  {"focal_point", VecJson(v->focal_point)},
@@ -830,22 +901,26 @@ json DocumentToFileJson(const Document& doc, const DocumentWriteOptions& options
   return j;
 }
 
-void WriteDocumentFile(const Document& doc, const std::string& path, const DocumentWriteOptions& options) {
+void WriteDocumentFile(const Document& doc, const std::string& path,
+                       const DocumentWriteOptions& options) {
   namespace fs = std::filesystem;
   const json j = DocumentToFileJson(doc, options);
   const bool v1 = j.at("version") == 1;
   const std::string text = j.dump(v1 ? 2 : 1) + "\n";
   const fs::path target(path);
   std::mt19937_64 rng(std::random_device{}());
-  const fs::path tmp = target.parent_path() / (target.filename().string() + ".tmp" + Hex16(rng()).substr(0, 8));
+  const fs::path tmp =
+      target.parent_path() / (target.filename().string() + ".tmp" + Hex16(rng()).substr(0, 8));
   auto fail = [&](const std::string& what) {
     std::error_code ec;
     fs::remove(tmp, ec);
     throw SceneError(path, 0, 0, "", what);
   };
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) throw SceneError(path, 0, 0, "", "cannot write the file: " + std::string(std::strerror(errno)) +
-                                                   " (check that the folder exists and is writable)");
+  if (fd < 0)
+    throw SceneError(path, 0, 0, "",
+                     "cannot write the file: " + std::string(std::strerror(errno)) +
+                         " (check that the folder exists and is writable)");
   std::size_t done = 0;
   while (done < text.size()) {
     const ssize_t w = ::write(fd, text.data() + done, text.size() - done);
@@ -863,7 +938,8 @@ void WriteDocumentFile(const Document& doc, const std::string& path, const Docum
     fail("cannot flush the file to disk: " + why);
   }
   if (::close(fd) != 0) fail("cannot close the file: " + std::string(std::strerror(errno)));
-  if (::rename(tmp.c_str(), target.c_str()) != 0) fail("cannot replace the file: " + std::string(std::strerror(errno)));
+  if (::rename(tmp.c_str(), target.c_str()) != 0)
+    fail("cannot replace the file: " + std::string(std::strerror(errno)));
 }
 
 void ParseDocumentText(const std::string& text, const std::string& source, Document* doc) {
@@ -889,11 +965,13 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
     return;
   }
   try {
-    if (!j.contains("format") || !j.at("format").is_string() || j.at("format").get<std::string>() != modeling::kSceneFormat) {
+    if (!j.contains("format") || !j.at("format").is_string() ||
+        j.at("format").get<std::string>() != modeling::kSceneFormat) {
       Fail("/format", std::string("expected \"") + modeling::kSceneFormat + "\"");
     }
     Content c = ContentFromJson(j);
-    doc->AdoptContent(std::move(c.objects), std::move(c.description), c.snap, std::move(c.parts), c.view, source);
+    doc->AdoptContent(std::move(c.objects), std::move(c.description), c.snap, std::move(c.parts),
+                      c.view, source);
   } catch (const SceneError& e) {
     if (e.line() > 0 || e.pointer().empty()) throw;
     int line = 0, column = 0;
@@ -915,7 +993,8 @@ bool ReadRecoveredFrom(const std::string& path, std::string* original) {
   if (!in) return false;
   try {
     const json j = json::parse(in);
-    if (!j.is_object() || !j.contains("recovered_from") || !j.at("recovered_from").is_string()) return false;
+    if (!j.is_object() || !j.contains("recovered_from") || !j.at("recovered_from").is_string())
+      return false;
     *original = j.at("recovered_from").get<std::string>();
     return true;
   } catch (const json::exception&) {

@@ -9,10 +9,9 @@
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "doc/document.h"
 
@@ -37,7 +36,8 @@ bool FitsSceneVersion1(const Document& doc);
 nlohmann::json DocumentToFileJson(const Document& doc, const DocumentWriteOptions& options = {});
 // Writes the file atomically (temporary file in the same directory, fsync, rename). Throws
 // modeling::SceneError naming path when it cannot be written; path is untouched then.
-void WriteDocumentFile(const Document& doc, const std::string& path, const DocumentWriteOptions& options = {});
+void WriteDocumentFile(const Document& doc, const std::string& path,
+                       const DocumentWriteOptions& options = {});
 // Replaces doc's content with the document text (version 1 or 2). Throws modeling::SceneError
 // naming source, the line and column and the JSON pointer of the bad field; doc is unchanged then.
 void ParseDocumentText(const std::string& text, const std::string& source, Document* doc);
