@@ -50,6 +50,7 @@ int main(int argc, char** argv) {
   RegisterTrajectoryCommand(app);
   RegisterDeviceCommand(app);
   RegisterReportCommand(app);
+  RegisterInfoCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -31,4 +31,7 @@ void RegisterDeviceCommand(CLI::App& app);
 // `spidarcad report --out DIR`: the performance report (cli/report_command.cc).
 void RegisterReportCommand(CLI::App& app);
 
+// `spidarcad info FILE`: the objects of a document, one line each (cli/info_command.cc).
+void RegisterInfoCommand(CLI::App& app);
+
 }  // namespace spidarcad::app
