@@ -760,7 +760,7 @@ void CountAmbiguous(const CompiledSolid& solid, const Eigen::Vector3d& origin, d
 // test solids (sphere, torus, platform) at 1 to 8 mm (see EstimateSurfaceMesh's test).
 constexpr double kCoarseCellsAcross = 32.0;
 constexpr double kCoarseTapeBudget = 2000.0;
-constexpr double kTrianglesPerSurfaceCell = 2.0;
+constexpr double kTrianglesPerSurfaceCell = 4.0;
 // Point evaluations per meshed cell: new grid vertices, refinement steps per new edge vertex
 // (about 1.5 edge vertices per cell), clean-up gradients (about 4 evaluations' work each).
 constexpr double kVertexEvaluationsPerCell = 2.5;

@@ -99,7 +99,7 @@ inline constexpr double kMinFindBoundsFraction = 1.0 / (1 << 16);
 struct SurfaceMeshEstimate {
   double grid_cells = 0.0;     // cells of the full grid: the product of ceil(extent / cell_size)
   double surface_cells = 0.0;  // cells the surface is expected to cross (meshed cells)
-  double triangles = 0.0;      // triangles of the mesh, about two per surface cell
+  double triangles = 0.0;      // triangles of the mesh, about four per surface cell
   int tape_instructions = 0;   // instructions run by one field evaluation
   double evaluations = 0.0;    // field evaluations (grid vertices, refinement, bounds, clean-up)
   double work = 0.0;           // tape instructions executed: evaluations × tape_instructions
