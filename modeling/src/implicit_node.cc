@@ -1,12 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/implicit_node.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <set>
 #include <sstream>
-
-#include <Eigen/Geometry>
+#include <vector>
 
 #include "primitives.h"
 
@@ -210,6 +210,49 @@ void ValidateNode(const ImplicitNode& node, const std::string& path, std::set<st
   for (int i = 0; i < n; ++i) ValidateNode(node.children[i], path + "/children/" + std::to_string(i), ids);
 }
 
+// Depth-first walk with an explicit stack (no recursion): throws ModelError at the first node
+// deeper than kMaxTreeDepth or past kMaxTreeNodes, naming its path.
+void CheckTreeSize(const ImplicitNode& root, const std::string& root_path) {
+  struct Frame {
+    const ImplicitNode* node;
+    size_t next_child;
+  };
+  std::vector<Frame> stack = {{&root, 0}};
+  long nodes = 1;
+  auto path_of_top = [&]() {
+    std::string path = root_path;
+    for (size_t i = 1; i < stack.size(); ++i)
+      path += "/children/" + std::to_string(stack[i - 1].next_child - 1);
+    return path;
+  };
+  while (!stack.empty()) {
+    Frame& top = stack.back();
+    if (top.next_child == top.node->children.size()) {
+      stack.pop_back();
+      continue;
+    }
+    const ImplicitNode* child = &top.node->children[top.next_child++];
+    stack.push_back({child, 0});
+    ++nodes;
+    if (static_cast<int>(stack.size()) > kMaxTreeDepth) {
+      const std::string path = path_of_top();
+      throw ModelError(
+          path, "children",
+          "node at " + path + ": the tree is deeper than " + std::to_string(kMaxTreeDepth) +
+              " levels (the limit of docs/limits.md); flatten it, e.g. fold nested translate nodes "
+              "into one, or put siblings under one union instead of nesting them");
+    }
+    if (nodes > kMaxTreeNodes) {
+      const std::string path = path_of_top();
+      throw ModelError(
+          path, "children",
+          "node at " + path + ": the tree has more than " + std::to_string(kMaxTreeNodes) +
+              " nodes (the limit of docs/limits.md); use linear_array or polar_array nodes for "
+              "repeated parts, or split the solid");
+    }
+  }
+}
+
 Eigen::Vector3d Reflect(const Eigen::Vector3d& p, const Eigen::Vector3d& normal, double offset) {
   const Eigen::Vector3d n = normal.normalized();
   return p - 2.0 * (n.dot(p) - offset) * n;
@@ -244,12 +287,19 @@ const char* NodeTypeName(const NodeParams& params) {
 bool IsPrimitive(const NodeParams& params) { return params.index() <= 8; }
 
 int CountNodes(const ImplicitNode& node) {
-  int n = 1;
-  for (const ImplicitNode& c : node.children) n += CountNodes(c);
+  int n = 0;
+  std::vector<const ImplicitNode*> stack = {&node};
+  while (!stack.empty()) {
+    const ImplicitNode* top = stack.back();
+    stack.pop_back();
+    ++n;
+    for (const ImplicitNode& c : top->children) stack.push_back(&c);
+  }
   return n;
 }
 
 void ValidateTree(const ImplicitNode& root, const std::string& root_path) {
+  CheckTreeSize(root, root_path);
   std::set<std::string> ids;
   ValidateNode(root, root_path, &ids);
 }

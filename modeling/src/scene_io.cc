@@ -1,15 +1,18 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/scene_io.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
-#include <algorithm>
 #include <filesystem>
-#include <map>
 #include <fstream>
+#include <map>
+#include <new>
 #include <set>
 #include <sstream>
+#include <vector>
 
 namespace spidarcad::modeling {
 
@@ -31,6 +34,21 @@ struct Overloaded : Ts... {
 };
 template <class... Ts>
 Overloaded(Ts...) -> Overloaded<Ts...>;
+
+// A key as a JSON pointer token (RFC 6901): '~' -> "~0", '/' -> "~1".
+std::string EscapePointerToken(const std::string& key) {
+  std::string out;
+  for (char c : key) {
+    if (c == '~') {
+      out += "~0";
+    } else if (c == '/') {
+      out += "~1";
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
 
 // Error without file position yet (filled in by ParseScene). `message` is kept raw in what().
 [[noreturn]] void Fail(const std::string& pointer, const std::string& message) {
@@ -136,7 +154,7 @@ class ObjectReader {
     }
   }
 
-  std::string Path(const std::string& key) const { return path_ + "/" + key; }
+  std::string Path(const std::string& key) const { return path_ + "/" + EscapePointerToken(key); }
 
  private:
   static std::string Dump(const json& v) {
@@ -283,7 +301,7 @@ std::vector<std::string> PointerTokens(const std::string& pointer) {
     std::string token = pointer.substr(i + 1, next == std::string::npos ? std::string::npos : next - i - 1);
     std::string out;
     for (size_t k = 0; k < token.size(); ++k) {
-      if (token[k] == '~' && k + 1 < token.size()) {
+      if (token[k] == '~' && k + 1 < token.size() && (token[k + 1] == '0' || token[k + 1] == '1')) {
         out += token[k + 1] == '1' ? '/' : '~';
         ++k;
       } else {
@@ -336,10 +354,14 @@ class PointerLocator {
         if (!hit) return found;
         found = i_;
       } else if (s_[i_] == '[') {
-        if (token.empty() || token.find_first_not_of("0123456789") != std::string::npos) return found;
-        const long index = std::stol(token);
+        // An index the text cannot hold (too many digits for any array here) points nowhere.
+        if (token.empty() || token.size() > 15 ||
+            token.find_first_not_of("0123456789") != std::string::npos) {
+          return found;
+        }
+        const long long index = std::stoll(token);
         ++i_;
-        for (long k = 0; k < index; ++k) {
+        for (long long k = 0; k < index; ++k) {
           Ws();
           if (i_ < s_.size() && s_[i_] == ']') return found;
           SkipValue();
@@ -436,7 +458,22 @@ SceneError::SceneError(const std::string& file, int line, int column, const std:
       pointer_(pointer),
       message_(what) {}
 
-ImplicitNode NodeFromJson(const json& j, const std::string& path) {
+namespace {
+
+// NodeFromJson below one node: depth is the node's level (root 1), *count the nodes read so far.
+ImplicitNode ReadNode(const json& j, const std::string& path, int depth, long* count) {
+  if (depth > kMaxTreeDepth) {
+    Fail(path, "the node tree is deeper than " + std::to_string(kMaxTreeDepth) +
+                   " levels (the limit of docs/limits.md); flatten it, e.g. fold nested translate "
+                   "nodes into one, "
+                   "or put siblings under one union instead of nesting them");
+  }
+  if (++*count > kMaxTreeNodes) {
+    Fail(path, "the node tree has more than " + std::to_string(kMaxTreeNodes) +
+                   " nodes (the limit of docs/limits.md); use linear_array or polar_array nodes "
+                   "for repeated parts, "
+                   "or split the solid");
+  }
   ObjectReader r(j, path.empty() ? "" : path, "a node");
   if (!r.Has("type")) Fail(path, "a node needs a field 'type' (e.g. \"sphere\", \"union\", \"translate\")");
   const std::string type = r.String("type", "");
@@ -451,7 +488,8 @@ ImplicitNode NodeFromJson(const json& j, const std::string& path) {
       if (std::find(fields->second.begin(), fields->second.end(), key) == fields->second.end()) {
         std::string known = "type, id, name, children";
         for (const char* f : fields->second) known += std::string(", ") + f;
-        Fail(path + "/" + key, "unknown field '" + key + "' in a " + type + " node (fields: " + known + ")");
+        Fail(path + "/" + EscapePointerToken(key),
+             "unknown field '" + key + "' in a " + type + " node (fields: " + known + ")");
       }
     }
   }
@@ -462,11 +500,19 @@ ImplicitNode NodeFromJson(const json& j, const std::string& path) {
     const json& children = params.Get("children");
     if (!children.is_array()) Fail(path + "/children", "field 'children' must be an array of nodes, got " + std::string(children.type_name()));
     for (size_t i = 0; i < children.size(); ++i) {
-      node.children.push_back(NodeFromJson(children[i], path + "/children/" + std::to_string(i)));
+      node.children.push_back(
+          ReadNode(children[i], path + "/children/" + std::to_string(i), depth + 1, count));
     }
   }
   params.RejectUnknown({"type"});
   return node;
+}
+
+}  // namespace
+
+ImplicitNode NodeFromJson(const json& j, const std::string& path) {
+  long count = 0;
+  return ReadNode(j, path, 1, &count);
 }
 
 json NodeToJson(const ImplicitNode& node) {
@@ -755,20 +801,152 @@ json SceneToJson(const Scene& scene) {
   return j;
 }
 
-Scene ParseScene(const std::string& text, const std::string& source) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::parse_error& e) {
-    // e.byte is the 1-based index of the last character read.
-    int line = 0, column = 0;
-    LineColumn(text, e.byte > 0 ? e.byte - 1 : 0, &line, &column);
-    std::string what = e.what();
+namespace {
+
+// Streaming pass over the text before the document is built (nlohmann's SAX parser is not
+// recursive): refuses nesting deeper than kMaxJsonDepth and keeps the JSON pointer of the value
+// being read, so that errors (a number beyond a double) can name the field.
+class PrescanHandler {
+ public:
+  bool null() { return Value(); }
+  bool boolean(bool) { return Value(); }
+  bool number_integer(json::number_integer_t) { return Value(); }
+  bool number_unsigned(json::number_unsigned_t) { return Value(); }
+  bool number_float(json::number_float_t, const json::string_t&) { return Value(); }
+  bool string(json::string_t&) { return Value(); }
+  bool binary(json::binary_t&) { return Value(); }
+  bool start_object(std::size_t) { return Open(false); }
+  bool key(json::string_t& k) {
+    frames_.back().key = k;
+    return true;
+  }
+  bool end_object() { return Close(); }
+  bool start_array(std::size_t) { return Open(true); }
+  bool end_array() { return Close(); }
+  bool parse_error(std::size_t position, const std::string& last_token,
+                   const nlohmann::detail::exception& e) {
+    error_position = position;
+    error_token = last_token;
+    error_id = e.id;
+    error_what = e.what();
+    error_pointer = Pointer(true);
+    return false;
+  }
+
+  bool too_deep = false;           // nesting passed kMaxJsonDepth
+  std::size_t error_position = 0;  // parse_error: bytes read (1-based index of the last one)
+  std::string error_token;
+  int error_id = 0;
+  std::string error_what;
+  std::string error_pointer;  // of the value being read when it stopped
+
+ private:
+  struct Frame {
+    bool array = false;
+    long long next = 0;  // arrays: index of the next element
+    std::string key;     // objects: the current key
+  };
+
+  bool Value() {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().next;
+    return true;
+  }
+  bool Open(bool array) {
+    Value();
+    if (static_cast<int>(frames_.size()) >= kMaxJsonDepth) {
+      too_deep = true;
+      error_pointer = Pointer(false);
+      return false;
+    }
+    frames_.push_back({array, 0, {}});
+    return true;
+  }
+  bool Close() {
+    frames_.pop_back();
+    return true;
+  }
+  // Pointer of the value begun last (pending: of the value about to begin).
+  std::string Pointer(bool pending) const {
+    std::string out;
+    for (size_t i = 0; i < frames_.size(); ++i) {
+      const Frame& f = frames_[i];
+      const bool last = i + 1 == frames_.size();
+      if (f.array) {
+        out += "/" + std::to_string(pending && last ? f.next : f.next - 1);
+      } else {
+        out += "/" + EscapePointerToken(f.key);
+      }
+    }
+    return out;
+  }
+
+  std::vector<Frame> frames_;
+};
+
+// Byte offset of the bracket that opens nesting level kMaxJsonDepth + 1 (strings skipped), or
+// the text's size.
+size_t TooDeepOffset(const std::string& text) {
+  int depth = 0;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '"') {
+      for (++i; i < text.size() && text[i] != '"'; ++i) {
+        if (text[i] == '\\') ++i;
+      }
+    } else if (c == '[' || c == '{') {
+      if (++depth > kMaxJsonDepth) return i;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return text.size();
+}
+
+// The document of scene text; every failure a SceneError with line, column and (where known)
+// the pointer of the field.
+json ParseJsonText(const std::string& text, const std::string& source) {
+  PrescanHandler prescan;
+  int line = 0, column = 0;
+  if (!json::sax_parse(text, &prescan)) {
+    if (prescan.too_deep) {
+      LineColumn(text, TooDeepOffset(text), &line, &column);
+      throw SceneError(
+          source, line, column, prescan.error_pointer,
+          "JSON arrays and objects nest deeper than " + std::to_string(kMaxJsonDepth) +
+              " levels (the limit of docs/limits.md); a scene needs far fewer: check the file is a "
+              "spidarcad scene and flatten its node tree");
+    }
+    if (prescan.error_id == 406) {
+      // A number beyond a double: point at its first character (the lexer stopped just after it).
+      const size_t end = std::min(prescan.error_position, text.size());
+      size_t begin = end >= prescan.error_token.size() ? end - prescan.error_token.size() : 0;
+      while (begin > 0 && text.compare(begin, prescan.error_token.size(), prescan.error_token) != 0)
+        --begin;
+      LineColumn(text, begin, &line, &column);
+      throw SceneError(source, line, column, prescan.error_pointer,
+                       "the number " + prescan.error_token +
+                           " is out of range (a double holds magnitudes up to about 1.8e308); "
+                           "write a finite number");
+    }
+    // e.byte-style position: the 1-based index of the last character read.
+    LineColumn(text, prescan.error_position > 0 ? prescan.error_position - 1 : 0, &line, &column);
+    std::string what = prescan.error_what;
     // Drop nlohmann's own "[json.exception.parse_error.101] parse error at line L, column C: ".
     const size_t colon = what.find(": ");
     if (colon != std::string::npos) what = what.substr(colon + 2);
     throw SceneError(source, line, column, "", "JSON syntax error: " + what);
   }
+  try {
+    return json::parse(text);
+  } catch (const json::exception& e) {  // not expected after the prescan
+    throw SceneError(source, 0, 0, "", std::string("JSON error: ") + e.what());
+  }
+}
+
+}  // namespace
+
+Scene ParseScene(const std::string& text, const std::string& source) {
+  const json j = ParseJsonText(text, source);
   try {
     return SceneFromJson(j, source);
   } catch (const SceneError& e) {
@@ -780,11 +958,45 @@ Scene ParseScene(const std::string& text, const std::string& source) {
 }
 
 Scene LoadScene(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    throw SceneError(path, 0, 0, "",
+                     "cannot open the scene file for reading (no such file); check the path");
+  }
+  if (!std::filesystem::is_regular_file(status)) {
+    throw SceneError(
+        path, 0, 0, "",
+        "is not a regular file (a directory, device or pipe); give the path of a JSON scene file");
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw SceneError(path, 0, 0, "", "cannot read the size of the scene file");
+  if (size > static_cast<std::uintmax_t>(kMaxSceneFileBytes)) {
+    throw SceneError(
+        path, 0, 0, "",
+        "the file is " + std::to_string(size) + " bytes, more than the " +
+            std::to_string(kMaxSceneFileBytes) +
+            " bytes (64 MiB) a scene file may have (docs/limits.md); is it a scene file?");
+  }
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path, 0, 0, "", "cannot open the scene file for reading");
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return ParseScene(buffer.str(), path);
+  if (!in)
+    throw SceneError(path, 0, 0, "",
+                     "cannot open the scene file for reading (check its permissions)");
+  // Read at most the cap (plus one byte to notice a file that grew meanwhile).
+  std::string text(static_cast<size_t>(size) + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (text.size() > static_cast<size_t>(kMaxSceneFileBytes)) {
+    throw SceneError(path, 0, 0, "",
+                     "the file grew past the 64 MiB scene file limit while being read");
+  }
+  try {
+    return ParseScene(text, path);
+  } catch (const std::bad_alloc&) {
+    throw SceneError(
+        path, 0, 0, "",
+        "out of memory while reading the scene (" + std::to_string(text.size()) + " bytes)");
+  }
 }
 
 void SaveScene(const Scene& scene, const std::string& path) {

@@ -1,15 +1,19 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/surface_mesher.h"
-#include "triangle_predicates.h"
 
 #include <algorithm>
 #include <array>
-#include <iterator>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <iterator>
+#include <queue>
 #include <stdexcept>
+#include <string>
 #include <unordered_map>
 #include <vector>
+
+#include "triangle_predicates.h"
 
 namespace spidarcad::modeling {
 
@@ -669,31 +673,175 @@ class Mesher {
   std::vector<std::array<int, 3>> triangles_;
 };
 
-void GrowBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, double resolution, Eigen::AlignedBox3d* found) {
-  if (found->contains(box)) return;  // nothing to add
-  const BoxClass cls = solid.Classify(box);
-  if (cls == BoxClass::kOutside) return;
-  if (cls == BoxClass::kInside || box.sizes().maxCoeff() <= resolution) {
-    found->extend(box);
+// The largest coordinate along `axis` (times `sign`, +1 or -1) of the leaves of the octree
+// descent over `search` (halving the largest side at its centre down to boxes of side <=
+// `resolution`; a box the bounds call inside is a leaf too) that the bounds do not call
+// outside. Best first, with no recursion: boxes are taken in decreasing order of their extreme
+// (ties: the smaller box first, so the search dives), so the first leaf taken holds the answer
+// and every box whose extreme cannot beat it is never split. NaN when every leaf is outside.
+double FarthestLeaf(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
+                    double resolution, int axis, double sign) {
+  struct Entry {
+    double extreme;  // sign × the box's extreme along axis
+    double size;     // its largest side
+    Eigen::AlignedBox3d box;
+    bool operator<(const Entry& other) const {
+      return extreme < other.extreme || (extreme == other.extreme && size > other.size);
+    }
+  };
+  auto entry = [&](const Eigen::AlignedBox3d& box) {
+    return Entry{sign > 0 ? box.max()[axis] : -box.min()[axis], box.sizes().maxCoeff(), box};
+  };
+  std::priority_queue<Entry> queue;
+  queue.push(entry(search));
+  while (!queue.empty()) {
+    const Entry top = queue.top();
+    queue.pop();
+    const BoxClass cls = solid.Classify(top.box);
+    if (cls == BoxClass::kOutside) continue;
+    if (cls == BoxClass::kInside || top.size <= resolution) return sign * top.extreme;
+    int split = 0;
+    top.box.sizes().maxCoeff(&split);
+    Eigen::AlignedBox3d a = top.box, b = top.box;
+    a.max()[split] = b.min()[split] = top.box.center()[split];
+    queue.push(entry(a));
+    queue.push(entry(b));
+  }
+  return std::nan("");
+}
+
+// Checks the settings MeshSurface needs before it can size its grid.
+void CheckGridSettings(const SurfaceMeshSettings& s) {
+  if (s.bounds.isEmpty() || !s.bounds.min().allFinite() || !s.bounds.max().allFinite()) {
+    throw std::invalid_argument("MeshSurface: settings.bounds must be a finite, non-empty box");
+  }
+  if (!(s.cell_size > 0.0) || !std::isfinite(s.cell_size)) {
+    throw std::invalid_argument("MeshSurface: settings.cell_size must be > 0 m, got " +
+                                std::to_string(s.cell_size));
+  }
+}
+
+// Cells per axis of a grid of `cell` over `extent` (as MeshSurface sizes it; doubles, may be inf).
+Eigen::Vector3d GridCells(const Eigen::Vector3d& extent, double cell) {
+  Eigen::Vector3d n;
+  for (int a = 0; a < 3; ++a) n[a] = std::max(1.0, std::ceil(extent[a] / cell - 1e-9));
+  return n;
+}
+
+// Coarse-grid look of EstimateSurfaceMesh: counts the leaves of an octree descent over a grid
+// of cell h (n cells per axis from origin) that the bounds cannot rule out, and the boxes
+// classified on the way.
+void CountAmbiguous(const CompiledSolid& solid, const Eigen::Vector3d& origin, double h,
+                    const std::array<long, 3>& lo, const std::array<long, 3>& hi, double* leaves,
+                    double* classified) {
+  const Eigen::Vector3d p_lo =
+      origin + h * Eigen::Vector3d(double(lo[0]), double(lo[1]), double(lo[2]));
+  const Eigen::Vector3d p_hi =
+      origin + h * Eigen::Vector3d(double(hi[0]), double(hi[1]), double(hi[2]));
+  *classified += 1.0;
+  if (solid.Classify(Eigen::AlignedBox3d(p_lo, p_hi)) != BoxClass::kAmbiguous) return;
+  int axis = 0;
+  for (int a = 1; a < 3; ++a) {
+    if (hi[a] - lo[a] > hi[axis] - lo[axis]) axis = a;
+  }
+  if (hi[axis] - lo[axis] == 1) {
+    *leaves += 1.0;
     return;
   }
-  int axis = 0;
-  box.sizes().maxCoeff(&axis);
-  Eigen::AlignedBox3d a = box, b = box;
-  a.max()[axis] = b.min()[axis] = box.center()[axis];
-  GrowBounds(solid, a, resolution, found);
-  GrowBounds(solid, b, resolution, found);
+  const long mid = (lo[axis] + hi[axis]) / 2;
+  std::array<long, 3> hi_a = hi, lo_b = lo;
+  hi_a[axis] = mid;
+  lo_b[axis] = mid;
+  CountAmbiguous(solid, origin, h, lo, hi_a, leaves, classified);
+  CountAmbiguous(solid, origin, h, lo_b, hi, leaves, classified);
+}
+
+// Constants of the estimate, fitted to MeshSurface's SurfaceMeshStats and peak memory on the
+// test solids (sphere, torus, platform) at 1 to 8 mm (see EstimateSurfaceMesh's test).
+constexpr double kCoarseCellsAcross = 32.0;
+constexpr double kCoarseTapeBudget = 2000.0;
+constexpr double kTrianglesPerSurfaceCell = 4.0;
+// Point evaluations per meshed cell: new grid vertices, refinement steps per new edge vertex
+// (about 1.5 edge vertices per cell), clean-up gradients (about 4 evaluations' work each).
+constexpr double kVertexEvaluationsPerCell = 2.5;
+constexpr double kEdgeVerticesPerCell = 1.5;
+constexpr double kCleanupEvaluationsPerCell = 6.0;
+// Interval-bound classifications cost about 4 point evaluations; about 2 per meshed cell.
+constexpr double kBoundsEvaluationsPerCell = 8.0;
+// Bytes per meshed cell at the peak (value and edge hash maps, vertices, triangles, the
+// clean-up's per-vertex adjacency) and the fixed overhead.
+constexpr double kBytesPerSurfaceCell = 600.0;
+constexpr double kFixedBytes = 1 << 20;
+
+std::string Sci(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.2g", v);
+  return buffer;
 }
 
 }  // namespace
 
 Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search, double resolution) {
-  if (search.isEmpty() || !(resolution > 0.0)) {
-    throw std::invalid_argument("FindBounds: need a non-empty search box and a resolution > 0");
+  if (search.isEmpty() || !search.min().allFinite() || !search.max().allFinite() ||
+      !(resolution > 0.0)) {
+    throw std::invalid_argument(
+        "FindBounds: need a finite, non-empty search box and a resolution > 0");
   }
+  // Halving stops at this size: bounded depth, and no box so thin that its centre rounds to a
+  // side (which would split forever).
+  const double finest = search.sizes().maxCoeff() * kMinFindBoundsFraction;
+  const double cell = std::max(resolution, finest);
   Eigen::AlignedBox3d found;  // empty
-  GrowBounds(solid, search, resolution, &found);
+  for (int axis = 0; axis < 3; ++axis) {
+    const double lo = FarthestLeaf(solid, search, cell, axis, -1.0);
+    if (std::isnan(lo)) return Eigen::AlignedBox3d();  // no leaf anywhere: empty
+    found.min()[axis] = lo;
+    found.max()[axis] = FarthestLeaf(solid, search, cell, axis, +1.0);
+  }
   return found;
+}
+
+std::string SurfaceMeshEstimate::Describe() const {
+  return "grid " + Sci(grid_cells) + " cells, surface ~" + Sci(surface_cells) + " cells, ~" +
+         Sci(triangles) + " triangles, tape " + std::to_string(tape_instructions) +
+         " instructions, ~" + Sci(evaluations) + " evaluations, work ~" + Sci(work) +
+         " instructions, memory ~" + Sci(bytes / (1 << 20)) + " MiB";
+}
+
+SurfaceMeshEstimate EstimateSurfaceMesh(const CompiledSolid& solid,
+                                        const SurfaceMeshSettings& settings) {
+  CheckGridSettings(settings);
+  SurfaceMeshEstimate e;
+  const Eigen::Vector3d extent = settings.bounds.sizes();
+  const double h = settings.cell_size;
+  const Eigen::Vector3d n = GridCells(extent, h);
+  e.grid_cells = n.prod();
+  e.tape_instructions = solid.instruction_count();
+  // The coarse grid: at most kCoarseCellsAcross cells along the largest side, never finer than
+  // the real one; centred on the bounds as MeshSurface centres its grid.
+  // Long tapes (large unions) make each classification dear: fewer coarse cells keep the
+  // estimate's own cost near kCoarseCellsAcross² × kCoarseTapeBudget instructions.
+  const double across = std::max(
+      4.0, kCoarseCellsAcross *
+               std::sqrt(std::min(1.0, kCoarseTapeBudget / std::max(1, e.tape_instructions))));
+  const double hc = std::max(h, extent.maxCoeff() / across);
+  const Eigen::Vector3d nc = GridCells(extent, hc);
+  const Eigen::Vector3d origin = settings.bounds.center() - 0.5 * hc * nc;
+  double leaves = 0.0, classified = 0.0;
+  CountAmbiguous(solid, origin, hc, {0, 0, 0}, {long(nc[0]), long(nc[1]), long(nc[2])}, &leaves,
+                 &classified);
+  // The surface's area in fine cells: each coarse cell it crosses holds (hc/h)² of them.
+  const double ratio = hc / h;
+  e.surface_cells = leaves > 0.0 ? std::min(leaves * ratio * ratio, e.grid_cells) : 0.0;
+  e.triangles = kTrianglesPerSurfaceCell * e.surface_cells;
+  e.evaluations =
+      e.surface_cells *
+          (kVertexEvaluationsPerCell + kEdgeVerticesPerCell * settings.refine_steps +
+           (settings.clean ? kCleanupEvaluationsPerCell : 0.0) + kBoundsEvaluationsPerCell) +
+      4.0 * classified;
+  e.work = e.evaluations * std::max(1, e.tape_instructions);
+  e.bytes = kFixedBytes + kBytesPerSurfaceCell * e.surface_cells;
+  return e;
 }
 
 TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& settings, SurfaceMeshStats* stats) {

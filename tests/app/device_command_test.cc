@@ -62,4 +62,14 @@ TEST(DeviceCommand, SelftestRejectsABadProbability) {
   EXPECT_THAT(run.all(), HasSubstr("1.5"));
 }
 
+TEST(DeviceCommand, SelftestRefusesMoreTicksThanItsLimitNamingTheRange) {
+  // 2e9 ticks used to reserve 16 GB of timings and end in std::bad_alloc (exit 1).
+  for (const char* ticks : {"2000000000", "10000001", "0"}) {
+    const CommandRun run = RunSpidarcad(std::string("device selftest --ticks ") + ticks);
+    EXPECT_EQ(run.status, 2) << ticks << "\n" << run.all();
+    EXPECT_THAT(run.err, HasSubstr("--ticks: must be in [1, 10000000]"));
+    EXPECT_THAT(run.err, HasSubstr(std::string("got ") + ticks));
+  }
+}
+
 }  // namespace

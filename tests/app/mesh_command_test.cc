@@ -296,4 +296,169 @@ TEST(MeshCommand, PutsBoxCornersBackWhenSharpIsGiven) {
   EXPECT_NE(bad.err.find("--sharp"), std::string::npos) << bad.all();
 }
 
+// Writes a scene file whose one solid's root is `root` (JSON text on line 6); returns its path.
+std::string WriteScene(const std::string& name, const std::string& root) {
+  const std::string path = OutputPath(name);
+  std::ofstream(path)
+      << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n  \"solids\": [\n"
+         "    {\"name\": \"s\", \"root\":\n"
+      << root << "}\n  ]\n}\n";
+  return path;
+}
+
+std::string Repeat(const std::string& s, int times) {
+  std::string out;
+  for (int i = 0; i < times; ++i) out += s;
+  return out;
+}
+
+bool FileExists(const std::string& path) { return std::ifstream(path).good(); }
+
+TEST(MeshCommand, HostileScenesExitTwoNamingFileLineAndField) {
+  struct Case {
+    std::string name, root, expected;
+  };
+  const Case cases[] = {
+      // 10,000 nested translate nodes (used to overflow the stack: segmentation fault).
+      {"chain.json",
+       Repeat(R"({"type": "translate", "translation": [0, 0, 0], "children": [)", 9999) +
+           R"({"type": "sphere", "radius": 0.01})" + Repeat("]}", 9999),
+       ":6:"},
+      // An array nested 100,000 deep.
+      {"nested.json",
+       R"({"type": "sphere", "radius": )" + Repeat("[", 100000) + Repeat("]", 100000) + "}", ":6:"},
+      // A number beyond a double (used to exit 1 with nlohmann's out_of_range.406).
+      {"huge.json", R"({"type": "sphere", "radius": 1e999})",
+       ":6:30: field /solids/0/root/radius: "},
+      // A key with a '/' and a 20-digit index (used to exit 1 with "stol").
+      {"slash.json", R"({"type": "sphere", "radius": 0.1, "children/99999999999999999999": 1})",
+       "field /solids/0/root/children~199999999999999999999"},
+      // A polar array of a billion copies.
+      {"billion.json",
+       R"({"type": "polar_array", "count": 1000000000, "children": [{"type": "sphere", "radius": 0.01}]})",
+       "field /solids/0/root/count"},
+  };
+  for (const Case& c : cases) {
+    const std::string scene = WriteScene(c.name, c.root);
+    const std::string out = OutputPath("hostile_" + c.name + ".stl");
+    std::remove(out.c_str());
+    const CommandRun run = RunMesh("'" + scene + "' --out '" + out + "'", "hostile");
+    EXPECT_EQ(run.status, 2) << c.name << "\n" << run.err;
+    EXPECT_NE(run.err.find(scene + c.expected), std::string::npos) << c.name << "\n"
+                                                                   << run.err.substr(0, 2000);
+    EXPECT_FALSE(FileExists(out)) << c.name;
+  }
+}
+
+TEST(MeshCommand, DeviceOrDirectoryAsTheSceneIsRefusedBeforeReading) {
+  // /dev/zero used to be read until std::bad_alloc (exit 1).
+  const CommandRun zero = RunMesh("/dev/zero --out '" + OutputPath("zero.stl") + "'", "zero");
+  EXPECT_EQ(zero.status, 2) << zero.all();
+  EXPECT_NE(zero.err.find("/dev/zero: is not a regular file"), std::string::npos) << zero.err;
+  const CommandRun directory = RunMesh(
+      "'" + std::string(SPIDARCAD_SOURCE_DIR) + "' --out '" + OutputPath("dir.stl") + "'", "dir");
+  EXPECT_EQ(directory.status, 2) << directory.all();
+  EXPECT_NE(directory.err.find("not a regular file"), std::string::npos) << directory.err;
+}
+
+TEST(MeshCommand, AbsurdResolutionsAreRefusedWithTheGridEstimate) {
+  struct Case {
+    std::string resolution, cells;
+  };
+  // The platform's box is about 0.30 x 0.20 x 0.17 m (plus the coarse search's slack).
+  const Case cases[] = {{"5e-324", "inf grid cells"}, {"1e-6", "e+16 grid cells"}};
+  for (const Case& c : cases) {
+    const std::string out = OutputPath("absurd.stl");
+    std::remove(out.c_str());
+    const CommandRun run =
+        RunMesh("'" + Platform() + "' --out '" + out + "' --resolution " + c.resolution, "absurd");
+    EXPECT_EQ(run.status, 2) << c.resolution << "\n" << run.all();
+    EXPECT_NE(run.err.find("--resolution " + c.resolution), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find(c.cells), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("raise the limit with --max-cells"), std::string::npos) << run.err;
+    EXPECT_FALSE(FileExists(out));
+  }
+}
+
+TEST(MeshCommand, BudgetRefusesWithTheEstimateAndTheOptionThatRaisesIt) {
+  struct Case {
+    std::string options, option;
+  };
+  const Case cases[] = {
+      {"--max-cells 1000", "--max-cells"},
+      {"--max-memory 1000", "--max-memory"},
+      {"--max-work 1000", "--max-work"},
+  };
+  for (const Case& c : cases) {
+    const std::string out = OutputPath("budget.stl");
+    std::remove(out.c_str());
+    const CommandRun run =
+        RunMesh("'" + Platform() + "' --out '" + out + "' " + c.options, "budget");
+    EXPECT_EQ(run.status, 2) << c.options << "\n" << run.all();
+    EXPECT_NE(run.err.find("raise the limit with " + c.option), std::string::npos) << run.err;
+    EXPECT_FALSE(FileExists(out));
+  }
+  // The estimate's figures are in the refusal.
+  const CommandRun memory = RunMesh(
+      "'" + Platform() + "' --out '" + OutputPath("budget.stl") + "' --max-memory 1000", "memory");
+  EXPECT_NE(memory.err.find("estimate: grid "), std::string::npos) << memory.err;
+  EXPECT_NE(memory.err.find(" triangles"), std::string::npos) << memory.err;
+  EXPECT_NE(memory.err.find(" MiB"), std::string::npos) << memory.err;
+  // Out of range limits name the option.
+  for (const std::string& bad :
+       {"--max-cells 0", "--max-cells 2e9", "--max-memory -1", "--max-work nan"}) {
+    const CommandRun run = RunMesh(
+        "'" + Platform() + "' --out '" + OutputPath("budget.stl") + "' " + bad, "bad_budget");
+    EXPECT_EQ(run.status, 2) << bad << "\n" << run.all();
+    EXPECT_NE(run.err.find(bad.substr(0, bad.find(' '))), std::string::npos) << run.err;
+  }
+}
+
+TEST(MeshCommand, ProgressGoesToStderrWithTheFlag) {
+  const std::string out = OutputPath("progress.stl");
+  const CommandRun run =
+      RunMesh("'" + Platform() + "' --out '" + out + "' --resolution 0.008 --progress", "progress");
+  EXPECT_EQ(run.status, 0) << run.all();
+  EXPECT_NE(run.err.find("spidarcad mesh: estimate: grid "), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("spidarcad mesh: surface 100.0 %"), std::string::npos) << run.err;
+  EXPECT_EQ(run.out.find("estimate"), std::string::npos);  // stdout keeps its figures only
+  // Without the flag (stderr is a file here, not a terminal): nothing on stderr.
+  const CommandRun quiet =
+      RunMesh("'" + Platform() + "' --out '" + out + "' --resolution 0.008", "quiet");
+  EXPECT_EQ(quiet.status, 0) << quiet.all();
+  EXPECT_EQ(quiet.err, "");
+}
+
+TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
+  // A sphere of 10 cm at 0.2 mm: a run of minutes, so it is still meshing when the signal comes
+  // (sent once the progress line shows the surface stage has begun).
+  const std::string scene = WriteScene("ctrl_c.json", R"({"type": "sphere", "radius": 0.1})");
+  const std::string out = OutputPath("ctrl_c.stl");
+  const std::string err = OutputPath("ctrl_c.err");
+  std::remove(out.c_str());
+  std::remove(err.c_str());
+  const std::string script =
+      "'" + std::string(SPIDARCAD_EXE) + "' mesh '" + scene + "' --out '" + out +
+      "' --resolution 0.0002 --max-cells 1e9 --max-memory 1e11 --max-work 1e15 --progress 2> '" +
+      err +
+      "' & pid=$!; "
+      "i=0; while ! grep -q 'surface' '" +
+      err +
+      "' 2>/dev/null && [ $i -lt 1200 ]; do sleep 0.05; i=$((i+1)); done; "
+      "kill -INT $pid; (sleep 60; kill -KILL $pid 2>/dev/null) & guard=$!; "
+      "wait $pid; status=$?; kill $guard 2>/dev/null; echo status=$status";
+  const CommandRun run = spidarcad::test_support::RunCommand(script, "", OutputPath("ctrl_c_run"));
+  const std::string stderr_text = ReadWholeFile(err);
+  EXPECT_NE(run.out.find("status=130"), std::string::npos) << run.all() << stderr_text;
+  EXPECT_NE(stderr_text.find("interrupted (Ctrl+C): stopped, nothing written"), std::string::npos)
+      << stderr_text;
+  EXPECT_FALSE(FileExists(out));
+  // No temporary left beside it either.
+  const std::string listing =
+      spidarcad::test_support::RunCommand("ls -a '" + std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "'",
+                                          "", OutputPath("ctrl_c_ls"))
+          .out;
+  EXPECT_EQ(listing.find(".ctrl_c.partial-"), std::string::npos) << listing;
+}
+
 }  // namespace

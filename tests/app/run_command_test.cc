@@ -143,6 +143,41 @@ TEST(RunCommand, BadInputExitsWithStatusTwoAndSaysWhere) {
   EXPECT_NE(r.err.find("--device"), std::string::npos) << r.err;
 }
 
+TEST(RunCommand, TrajectoryLongerThanTheLimitExitsTwoNamingLineAndField) {
+  // From 0 to 1e300 s: used to report -9223372036854775807 ticks and exit 0.
+  const std::string path = OutputPath("forever.csv");
+  std::ofstream(path)
+      << "# t,x,y,z,qw,qx,qy,qz,grasp\n0,0.05,0,0,1,0,0,0,1.5\n1,0.05,0,0,1,0,0,0,1.5\n"
+         "1e300,0.05,0,0,1,0,0,0,1.5\n";
+  const std::string out = OutputPath("forever_result.csv");
+  std::remove(out.c_str());
+  const CommandRun r =
+      RunSpidarcad("demo --trajectory '" + path + "' --out '" + out + "'", "forever");
+  EXPECT_EQ(r.status, 2) << r.all();
+  EXPECT_NE(r.err.find(path + ":4: field t:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--max-duration"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("3600 s"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::ifstream(out).good());
+  // --max-duration raises the limit (here lowers it: 1 s of trajectory is over 0.5 s).
+  std::ofstream(path) << "0,0.05,0,0,1,0,0,0,1.5\n1,0.05,0,0,1,0,0,0,1.5\n";
+  const CommandRun lowered = RunSpidarcad(
+      "demo --trajectory '" + path + "' --out '" + out + "' --max-duration 0.5", "lowered");
+  EXPECT_EQ(lowered.status, 2) << lowered.all();
+  EXPECT_NE(lowered.err.find(path + ":2: field t:"), std::string::npos) << lowered.err;
+  const CommandRun bad = RunSpidarcad(
+      "demo --trajectory '" + path + "' --out '" + out + "' --max-duration 1e300", "bad_max");
+  EXPECT_EQ(bad.status, 2) << bad.all();
+  EXPECT_NE(bad.err.find("--max-duration: must be in (0, 1e7] s"), std::string::npos) << bad.err;
+}
+
+TEST(RunCommand, TrajectoryThatIsNotARegularFileIsRefusedBeforeReading) {
+  // /dev/zero used to be read as one endless line until std::bad_alloc (exit 1).
+  const CommandRun r =
+      RunSpidarcad("demo --trajectory /dev/zero --out '" + OutputPath("zero.csv") + "'", "zero");
+  EXPECT_EQ(r.status, 2) << r.all();
+  EXPECT_NE(r.err.find("--trajectory '/dev/zero': not a regular file"), std::string::npos) << r.err;
+}
+
 TEST(RunCommand, EmptySceneCommandsNoForce) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("empty_result.csv");

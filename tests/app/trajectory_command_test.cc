@@ -139,6 +139,10 @@ TEST(TrajectoryCommand, BadOptionsExitWithStatusTwoNamingTheOption) {
       {"press --center 1,2 --out -", "--center"},
       {"press --out /nonexistent-dir/t.csv", "/nonexistent-dir/t.csv"},
       {"press", "--out"},
+      // A trajectory `run` would refuse (and 1e300 s used to give it a negative tick count).
+      {"press --duration 1e300 --rate 1e-300 --out -", "--duration: must be in (0, 3600] s"},
+      {"press --duration 3601 --rate 1 --out -", "--duration"},
+      {"press --rate 1e6 --duration 1 --out -", "--rate: must be in (0, 100000]"},
   };
   for (const Case& c : cases) {
     const CommandRun run = RunSpidarcad("trajectory " + c.args, "", "bad");

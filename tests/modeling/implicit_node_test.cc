@@ -4,13 +4,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/implicit_node.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <functional>
 #include <random>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
+#include <vector>
 
 namespace spidarcad::modeling {
 namespace {
@@ -313,6 +314,53 @@ TEST(ImplicitNodeValidation, RejectsRepeatedId) {
   const ModelError e = ValidationError(root);
   EXPECT_EQ(e.field(), "id");
   EXPECT_EQ(e.path(), "/children/1");
+}
+
+// A chain of `levels` nodes: levels - 1 translate nodes, each the only child of the one above,
+// around a sphere (built bottom-up, without recursion).
+ImplicitNode TranslateChain(int levels) {
+  ImplicitNode node(SphereParams{0.01});
+  for (int i = 1; i < levels; ++i) {
+    std::vector<ImplicitNode> children;
+    children.push_back(std::move(node));
+    node = ImplicitNode(TranslateParams{Eigen::Vector3d(1e-4, 0, 0)}, std::move(children));
+  }
+  return node;
+}
+
+std::string RepeatedChildPath(int times) {
+  std::string path;
+  for (int i = 0; i < times; ++i) path += "/children/0";
+  return path;
+}
+
+TEST(ImplicitNodeValidation, TenThousandNestedTranslatesAreRefusedAtLevel257) {
+  const ImplicitNode chain = TranslateChain(10000);
+  EXPECT_EQ(CountNodes(chain), 10000);
+  const ModelError e = ValidationError(chain, "/solids/0/root");
+  // The first node past the limit: level kMaxTreeDepth + 1, i.e. 256 steps below the root.
+  EXPECT_EQ(e.path(), "/solids/0/root" + RepeatedChildPath(kMaxTreeDepth));
+  EXPECT_EQ(e.field(), "children");
+  EXPECT_THAT(e.what(), HasSubstr("deeper than 256 levels"));
+  EXPECT_THAT(e.what(), HasSubstr("flatten"));
+}
+
+TEST(ImplicitNodeValidation, TreeOfExactlyTheDepthLimitIsAccepted) {
+  const ImplicitNode chain = TranslateChain(kMaxTreeDepth);
+  EXPECT_NO_THROW(ValidateTree(chain));
+  // The reference evaluator walks it: the sphere moved by 255 × 0.1 mm along x.
+  const double shift = (kMaxTreeDepth - 1) * 1e-4;
+  EXPECT_NEAR(EvaluateTree(chain, Eigen::Vector3d(shift, 0, 0)), -0.01, 1e-12);
+  EXPECT_THROW(ValidateTree(TranslateChain(kMaxTreeDepth + 1)), ModelError);
+}
+
+TEST(ImplicitNodeValidation, TreeOverTheNodeLimitIsRefusedNamingTheFirstNodePastIt) {
+  std::vector<ImplicitNode> spheres(kMaxTreeNodes, ImplicitNode(SphereParams{0.01}));
+  const ImplicitNode too_many(UnionParams{}, std::move(spheres));  // kMaxTreeNodes + 1 nodes
+  const ModelError e = ValidationError(too_many, "/solids/2/root");
+  // The root is node 1, child i is node i + 2: node kMaxTreeNodes + 1 is child kMaxTreeNodes - 1.
+  EXPECT_EQ(e.path(), "/solids/2/root/children/" + std::to_string(kMaxTreeNodes - 1));
+  EXPECT_THAT(e.what(), HasSubstr("more than 500000 nodes"));
 }
 
 TEST(ImplicitNodeValidation, AcceptsValidTree) {

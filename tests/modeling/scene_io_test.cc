@@ -260,6 +260,119 @@ TEST(SceneIo, MissingFileIsNamed) {
 
 // Assembly parts (the optional "parts" array).
 
+// Scene text whose one solid's root is `root` (a JSON node), on line 5.
+std::string SceneWithRoot(const std::string& root) {
+  return std::string(kHeader) + "    {\"name\": \"s\", \"root\":\n" + root + "}\n  ]\n}\n";
+}
+
+// A node chain in JSON: `levels` - 1 translate nodes around a sphere.
+std::string JsonTranslateChain(int levels) {
+  std::string text;
+  for (int i = 1; i < levels; ++i)
+    text += R"({"type": "translate", "translation": [0, 0, 0], "children": [)";
+  text += R"({"type": "sphere", "radius": 0.01})";
+  for (int i = 1; i < levels; ++i) text += "]}";
+  return text;
+}
+
+std::string Repeat(const std::string& s, int times) {
+  std::string out;
+  for (int i = 0; i < times; ++i) out += s;
+  return out;
+}
+
+TEST(SceneIo, TreeDeeperThanTheLimitIsRefusedWithTheNodePath) {
+  // 300 levels nest JSON about 600 deep (under kMaxJsonDepth): the tree limit speaks.
+  const std::string path = WriteFile("deep_tree.json", SceneWithRoot(JsonTranslateChain(300)));
+  const SceneError e = LoadError(path);
+  EXPECT_EQ(e.pointer(), "/solids/0/root" + Repeat("/children/0", kMaxTreeDepth));
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_GT(e.column(), 1);
+  EXPECT_THAT(e.what(), HasSubstr(path + ":6:"));
+  EXPECT_THAT(e.what(), HasSubstr("deeper than 256 levels"));
+}
+
+TEST(SceneIo, TenThousandNestedTranslatesAreRefusedBeforeTheDocumentIsBuilt) {
+  const std::string path = WriteFile("chain_10000.json", SceneWithRoot(JsonTranslateChain(10000)));
+  const SceneError e = LoadError(path);
+  EXPECT_EQ(e.line(), 6);
+  // Level kMaxJsonDepth + 1 opens inside the chain: its pointer runs down the children.
+  EXPECT_EQ(e.pointer().rfind("/solids/0/root/children/0/children/0", 0), 0u) << e.pointer();
+  EXPECT_THAT(e.what(), HasSubstr("nest deeper than 1000 levels"));
+}
+
+TEST(SceneIo, ArrayNestedHundredThousandDeepIsRefusedWithItsPosition) {
+  const std::string root =
+      R"({"type": "sphere", "radius": )" + Repeat("[", 100000) + Repeat("]", 100000) + "}";
+  const std::string path = WriteFile("nested_array.json", SceneWithRoot(root));
+  const SceneError e = LoadError(path);
+  // The document, solids, solid and root make four levels: level 1001 is the 997th '[', element
+  // 0 of the 996th.
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_EQ(e.column(), static_cast<int>(root.find('[')) + 997);
+  EXPECT_EQ(e.pointer(), "/solids/0/root/radius" + Repeat("/0", 996));
+  EXPECT_THAT(e.what(), HasSubstr("nest deeper than 1000 levels"));
+}
+
+TEST(SceneIo, NumberBeyondADoubleNamesLineColumnAndField) {
+  const std::string path =
+      WriteFile("huge_number.json", SceneWithRoot(R"(      {"type": "sphere", "radius": 1e999})"));
+  const SceneError e = LoadError(path);
+  EXPECT_EQ(e.file(), path);
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_EQ(e.column(), 36);  // the '1' of 1e999
+  EXPECT_EQ(e.pointer(), "/solids/0/root/radius");
+  EXPECT_THAT(e.what(), HasSubstr(path + ":6:36: field /solids/0/root/radius: "));
+  EXPECT_THAT(e.what(), HasSubstr("1e999 is out of range"));
+  EXPECT_THAT(e.what(), HasSubstr("write a finite number"));
+  // In an array too: the element's index is named.
+  const std::string in_array = WriteFile(
+      "huge_in_array.json", SceneWithRoot(R"(      {"type": "box", "size": [0.1, -1e400, 0.1]})"));
+  EXPECT_EQ(LoadError(in_array).pointer(), "/solids/0/root/size/1");
+}
+
+TEST(SceneIo, KeyWithASlashAndAHugeIndexIsAnUnknownFieldAtItsPosition) {
+  const std::string path = WriteFile(
+      "slash_key.json",
+      SceneWithRoot(
+          R"(      {"type": "sphere", "radius": 0.1, "children/99999999999999999999": 1})"));
+  const SceneError e = LoadError(path);
+  // The key is one pointer token, its '/' escaped as ~1 (RFC 6901).
+  EXPECT_EQ(e.pointer(), "/solids/0/root/children~199999999999999999999");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_EQ(e.column(), 74);  // its value
+  EXPECT_THAT(e.what(), HasSubstr("unknown field 'children/99999999999999999999'"));
+}
+
+TEST(SceneIo, DeviceAndDirectoryAreRefusedBeforeReading) {
+  const SceneError zero = LoadError("/dev/zero");
+  EXPECT_EQ(zero.file(), "/dev/zero");
+  EXPECT_THAT(zero.what(), HasSubstr("not a regular file"));
+  const SceneError directory = LoadError(kOut);
+  EXPECT_THAT(directory.what(), HasSubstr("not a regular file"));
+}
+
+TEST(SceneIo, FileOverTheSizeCapIsRefusedBeforeReading) {
+  const std::string path = kOut + "oversized.json";
+  { std::ofstream(path) << "{"; }
+  std::filesystem::resize_file(path, kMaxSceneFileBytes + 1);  // sparse: costs no disk
+  const SceneError e = LoadError(path);
+  EXPECT_THAT(e.what(), HasSubstr("67108865 bytes"));
+  EXPECT_THAT(e.what(), HasSubstr("64 MiB"));
+  std::filesystem::remove(path);
+}
+
+TEST(SceneIo, ArrayCountOfABillionIsRefusedNamingTheField) {
+  const std::string path = WriteFile(
+      "billion.json",
+      SceneWithRoot(
+          R"(      {"type": "polar_array", "count": 1000000000, "children": [{"type": "sphere", "radius": 0.01}]})"));
+  const SceneError e = LoadError(path);
+  EXPECT_EQ(e.pointer(), "/solids/0/root/count");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_THAT(e.what(), HasSubstr("[1, 1000]"));
+}
+
 TEST(SceneIo, AssemblyLoadsWithTheFig9Parts) {
   const Scene scene = LoadScene(kScenes + "assembly.json");
   ASSERT_EQ(scene.parts.size(), 6u);

@@ -452,6 +452,97 @@ TEST(SurfaceMesher, FindBoundsEnclosesTheSolidTightly) {
   EXPECT_TRUE(FindBounds(solid, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(2), Eigen::Vector3d::Constant(3)), resolution).isEmpty());
 }
 
+// The octree descent FindBounds stands for, written out in full (no pruning, recursive): the box
+// of every leaf the bounds do not call outside.
+void ReferenceBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, double resolution,
+                     Eigen::AlignedBox3d* found) {
+  const BoxClass cls = solid.Classify(box);
+  if (cls == BoxClass::kOutside) return;
+  if (cls == BoxClass::kInside || box.sizes().maxCoeff() <= resolution) {
+    found->extend(box);
+    return;
+  }
+  int axis = 0;
+  box.sizes().maxCoeff(&axis);
+  Eigen::AlignedBox3d a = box, b = box;
+  a.max()[axis] = b.min()[axis] = box.center()[axis];
+  ReferenceBounds(solid, a, resolution, found);
+  ReferenceBounds(solid, b, resolution, found);
+}
+
+TEST(SurfaceMesher, FindBoundsEqualsTheFullOctreeDescent) {
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-0.5), Eigen::Vector3d::Constant(0.5));
+  for (double resolution : {0.02, 0.008}) {
+    Eigen::AlignedBox3d reference;
+    ReferenceBounds(platform, search, resolution, &reference);
+    const Eigen::AlignedBox3d found = FindBounds(platform, search, resolution);
+    EXPECT_EQ(found.min(), reference.min()) << resolution;
+    EXPECT_EQ(found.max(), reference.max()) << resolution;
+  }
+}
+
+TEST(SurfaceMesher, FindBoundsAtAResolutionOf5e324StopsAtItsFinestCell) {
+  // 5e-324 (the smallest double) used to halve boxes until their centre rounded onto a side,
+  // then recurse on the same box until the stack overflowed.
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
+  const Eigen::AlignedBox3d box = FindBounds(sphere, search, 5e-324);
+  const double finest = 2.0 * kMinFindBoundsFraction;  // 2 m search box
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_LE(box.min()[a], -0.05);
+    EXPECT_GE(box.min()[a], -0.05 - 2 * finest);
+    EXPECT_GE(box.max()[a], 0.05);
+    EXPECT_LE(box.max()[a], 0.05 + 2 * finest);
+  }
+  EXPECT_THROW(FindBounds(sphere, search, 0.0), std::invalid_argument);
+  EXPECT_THROW(
+      FindBounds(sphere,
+                 Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-INFINITY), Eigen::Vector3d::Zero()),
+                 0.01),
+      std::invalid_argument);
+}
+
+TEST(SurfaceMesher, EstimateBracketsTheRunAndCountsTheGridExactly) {
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
+  for (double h : {0.004, 0.002, 0.001}) {
+    const SurfaceMeshSettings s =
+        Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.0605), h);
+    const SurfaceMeshEstimate e = EstimateSurfaceMesh(sphere, s);
+    const double per_axis = std::ceil(0.1205 / h - 1e-9);
+    EXPECT_EQ(e.grid_cells, per_axis * per_axis * per_axis) << h;
+    EXPECT_EQ(e.tape_instructions, sphere.instruction_count());
+    SurfaceMeshStats stats;
+    const TriangleMesh mesh = MeshSurface(sphere, s, &stats);
+    // Conservative, but not wildly: between the cells the run meshed and 4 times as many.
+    EXPECT_GE(e.surface_cells, double(stats.evaluated_cells)) << h;
+    EXPECT_LE(e.surface_cells, 4.0 * double(stats.evaluated_cells)) << h;
+    EXPECT_GE(e.evaluations, double(stats.field_evaluations)) << h;
+    EXPECT_LE(e.evaluations, 8.0 * double(stats.field_evaluations)) << h;
+    EXPECT_GE(e.triangles, double(mesh.triangles.cols())) << h;
+    EXPECT_LE(e.triangles, 4.0 * double(mesh.triangles.cols())) << h;
+    // Sphere area over cell area: the surface crosses at least that many cells.
+    EXPECT_GE(e.surface_cells, 4 * M_PI * 0.05 * 0.05 / (h * h)) << h;
+  }
+}
+
+TEST(SurfaceMesher, EstimateOfAnAbsurdCellIsInfiniteNotACrash) {
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.15}));
+  const SurfaceMeshSettings micro =
+      Settings(Eigen::Vector3d::Constant(-0.15), Eigen::Vector3d::Constant(0.15), 1e-6);
+  const SurfaceMeshEstimate e = EstimateSurfaceMesh(sphere, micro);
+  EXPECT_NEAR(e.grid_cells, 2.7e16, 1e13);  // (0.3 m / 1 µm)³
+  EXPECT_GT(e.bytes, 1e12);
+  const SurfaceMeshEstimate tiny = EstimateSurfaceMesh(
+      sphere, Settings(Eigen::Vector3d::Constant(-0.15), Eigen::Vector3d::Constant(0.15), 5e-324));
+  EXPECT_EQ(tiny.grid_cells, INFINITY);
+  EXPECT_EQ(tiny.surface_cells, INFINITY);
+  EXPECT_THROW(
+      EstimateSurfaceMesh(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 0.0)),
+      std::invalid_argument);
+}
+
 TEST(SurfaceMesher, RejectsBadSettings) {
   const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
   EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 0.0)), std::invalid_argument);

@@ -66,6 +66,9 @@ void RunList() {
   }
 }
 
+// Most ticks one selftest runs: it keeps every tick's time (8 bytes each) for the percentiles.
+constexpr int kMaxSelftestTicks = 10000000;
+
 struct SelftestOptions {
   int ticks = 5000;
   double loss = 0.0;
@@ -86,7 +89,12 @@ void RunSelftest(const SelftestOptions& o) {
   check_probability("--corruption", o.corruption);
   check_probability("--reorder", o.reorder);
   check_probability("--stall", o.stall);
-  if (o.ticks < 1) throw InputError("--ticks: must be at least 1, got " + std::to_string(o.ticks));
+  if (o.ticks < 1 || o.ticks > kMaxSelftestTicks) {
+    throw InputError("--ticks: must be in [1, " + std::to_string(kMaxSelftestTicks) +
+                     "] (10000 s of 1 kHz ticks, 80 MB of kept timings; docs/limits.md), got " +
+                     std::to_string(o.ticks) +
+                     "; for a longer soak run several selftests with different --seed");
+  }
 
   usb::BoardConfig board_config;
   board_config.device.seed = o.seed;
@@ -164,7 +172,8 @@ void RegisterDeviceCommand(CLI::App& app) {
       "selftest",
       "Run the USB driver against the in-process board simulator (no hardware) with optional "
       "link faults, and print link statistics and round-trip times");
-  selftest->add_option("--ticks", options->ticks, "Haptic ticks to run (default 5000)");
+  selftest->add_option("--ticks", options->ticks,
+                       "Haptic ticks to run, in [1, 10000000] (default 5000)");
   selftest->add_option("--loss", options->loss, "Packet loss probability (default 0)");
   selftest->add_option("--corruption", options->corruption,
                        "Packet corruption probability (default 0)");

@@ -1,15 +1,22 @@
 // `spidarcad mesh`: an implicit solid of a scene file -> a surface mesh (STL, OBJ, PLY) or, with
 // --tets tetgen|cgal, a tetrahedral mesh (VTU for ParaView, TetGen .node/.ele), with figures.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <signal.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
@@ -40,7 +47,153 @@ struct MeshOptions {
   double max_volume = 0.0;  // m³, 0: unbounded
   bool raw_surface = false;
   bool sharp = false;
+  double max_cells = 0.0;   // grid cells allowed; set from kDefaultMeshMaxCells
+  double max_memory = 0.0;  // estimated peak bytes allowed
+  double max_work = 0.0;    // estimated tape instructions allowed
+  bool progress = false;    // progress on stderr even when it is not a terminal
 };
+
+// Default budget of `spidarcad mesh` (docs/limits.md): 2^27 grid cells (512^3), 2 GiB of
+// estimated memory, 2e11 estimated tape instructions (about a minute on one core).
+constexpr double kDefaultMeshMaxCells = 134217728.0;
+constexpr double kDefaultMeshMaxMemory = 2147483648.0;
+constexpr double kDefaultMeshMaxWork = 2e11;
+// MeshSurface's own ceiling on the grid: --max-cells cannot go past it.
+constexpr double kMeshMaxCellsCeiling = 1073741824.0;
+
+// Raised by SIGINT (Ctrl+C) while `mesh` runs; the meshers poll it.
+std::atomic<bool> g_interrupted{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "the SIGINT handler stores to g_interrupted");
+
+void OnMeshInterrupt(int) {
+  if (g_interrupted.load()) {
+    // A second Ctrl+C: stop now, the default way.
+    signal(SIGINT, SIG_DFL);
+    raise(SIGINT);
+    return;
+  }
+  g_interrupted.store(true);
+}
+
+// Installs OnMeshInterrupt for its lifetime (even where the shell ignored SIGINT for a
+// background job: the flag only asks the meshers to stop).
+class InterruptScope {
+ public:
+  InterruptScope() {
+    g_interrupted.store(false);
+    struct sigaction action = {};
+    action.sa_handler = OnMeshInterrupt;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &previous_);
+  }
+  ~InterruptScope() { sigaction(SIGINT, &previous_, nullptr); }
+  InterruptScope(const InterruptScope&) = delete;
+  InterruptScope& operator=(const InterruptScope&) = delete;
+
+ private:
+  struct sigaction previous_ = {};
+};
+
+// Thrown between stages when Ctrl+C was pressed.
+struct MeshInterrupted {};
+
+void CheckInterrupted() {
+  if (g_interrupted.load()) throw MeshInterrupted{};
+}
+
+// Progress of the long stages on stderr: one line redrawn at most 5 times a second.
+class Progress {
+ public:
+  explicit Progress(bool enabled) : enabled_(enabled) {}
+  ~Progress() { Finish(); }
+
+  // A callback for the meshers' `progress` that shows `stage` with its fraction done.
+  std::function<void(double)> Stage(const std::string& stage) {
+    if (!enabled_) return {};
+    return [this, stage](double fraction) { Show(stage, fraction); };
+  }
+  // A line of its own (the estimate), between the bars.
+  void Note(const std::string& line) {
+    if (!enabled_) return;
+    Finish();
+    std::cerr << "spidarcad mesh: " << line << "\n" << std::flush;
+  }
+  void Finish() {
+    if (open_) std::cerr << "\n" << std::flush;
+    open_ = false;
+  }
+
+ private:
+  void Show(const std::string& stage, double fraction) {
+    const auto now = std::chrono::steady_clock::now();
+    if (open_ && stage == stage_ && fraction < 1.0 && now - last_ < std::chrono::milliseconds(200))
+      return;
+    if (open_ && stage != stage_) Finish();
+    last_ = now;
+    stage_ = stage;
+    open_ = true;
+    char line[96];
+    std::snprintf(line, sizeof line, "\rspidarcad mesh: %s %5.1f %%", stage.c_str(),
+                  100.0 * std::clamp(fraction, 0.0, 1.0));
+    std::cerr << line << std::flush;
+  }
+
+  bool enabled_;
+  bool open_ = false;
+  std::string stage_;
+  std::chrono::steady_clock::time_point last_;
+};
+
+// Where an output goes while it is written: a hidden file beside it with the same extension,
+// renamed over it when complete, so an interrupted or failed run leaves no half-written file.
+std::string TemporaryPath(const std::string& out, const std::string& ext) {
+  const std::filesystem::path path(out);
+  const std::string stem =
+      path.filename().string().substr(0, path.filename().string().size() - ext.size());
+  return (path.parent_path() / ("." + stem + ".partial-" + std::to_string(getpid()) + ext))
+      .string();
+}
+
+// Writes files through temporaries: write(temporaries) fills each of temporaries, then, unless
+// Ctrl+C came meanwhile, each is renamed over its final path. On any failure the temporaries
+// are removed and the final paths left as they were.
+void WriteThrough(const std::vector<std::string>& temporaries,
+                  const std::vector<std::string>& finals, const std::function<void()>& write) {
+  auto remove_all = [&]() {
+    std::error_code ec;
+    for (const std::string& t : temporaries) std::filesystem::remove(t, ec);
+  };
+  try {
+    write();
+    CheckInterrupted();
+  } catch (...) {
+    remove_all();
+    throw;
+  }
+  for (size_t i = 0; i < temporaries.size(); ++i) {
+    std::error_code ec;
+    std::filesystem::rename(temporaries[i], finals[i], ec);
+    if (ec) {
+      remove_all();
+      throw InputError("--out '" + finals[i] + "': cannot move the finished file into place (" +
+                       ec.message() + ")");
+    }
+  }
+}
+
+// The budget check of one figure: throws InputError with the estimate and the option.
+void CheckBudget(double value, double limit, const char* what, const char* option,
+                 const SurfaceMeshEstimate& estimate, const std::string& unit) {
+  if (value <= limit) return;
+  char text[256];
+  std::snprintf(text, sizeof text, "estimated %s %.3g%s is over %s %.6g%s", what, value,
+                unit.c_str(), option, limit, unit.c_str());
+  char raised[64];
+  std::snprintf(raised, sizeof raised, "%.3g", std::ceil(value * 1.1));
+  throw InputError(std::string("mesh: ") + text + " (estimate: " + estimate.Describe() +
+                   "; docs/limits.md): use a coarser --resolution, or raise the limit with " +
+                   option + " " + raised);
+}
 
 // Cells along the largest side of the solid's box for the default resolution.
 constexpr double kDefaultCellsAcross = 80.0;
@@ -63,6 +216,14 @@ constexpr const char* kMeshHelp =
     "vertices, edge midpoints and centroids: the distance to the true surface for exact\n"
     "distance fields) and the tets' worst dihedral angles. Bad input exits with status 2.\n"
     "\n"
+    "Budget (docs/limits.md): before meshing, the cost is estimated from the box and the\n"
+    "resolution (grid cells, surface cells, triangles, field evaluations, memory); past a limit\n"
+    "the command refuses (status 2) with the estimate: --max-cells (grid cells, default 2^27,\n"
+    "at most 2^30), --max-memory (bytes, default 2 GiB), --max-work (tape instructions, default\n"
+    "2e11, about a minute). Progress goes to stderr when it is a terminal or with --progress.\n"
+    "Ctrl+C stops cleanly: exit status 130 and no output file (outputs are written to a hidden\n"
+    "file beside --out and renamed when complete); a second Ctrl+C kills at once.\n"
+    "\n"
     "Examples:\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.stl\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.obj --resolution 0.002\n"
@@ -71,7 +232,8 @@ constexpr const char* kMeshHelp =
     "      --resolution 0.003 --quality 1.5 --max-volume 1e-7\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.node --tets tetgen\n"
     "      (writes platform.node and platform.ele)\n"
-    "  spidarcad mesh assets/scenes/platform.json --out platform.vtu --tets cgal --resolution 0.004\n";
+    "  spidarcad mesh assets/scenes/platform.json --out platform.vtu --tets cgal --resolution "
+    "0.004\n";
 
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -98,20 +260,27 @@ double Seconds(std::chrono::steady_clock::time_point start) {
 // Writes tets to o.out (.vtu, or .node with .ele beside it) and says so.
 void WriteTets(const TetMesh& tets, const std::string& out, const std::string& ext) {
   const auto start = std::chrono::steady_clock::now();
+  const std::string temporary = TemporaryPath(out, ext);
   if (ext == ".vtu") {
-    WriteVtu(tets, out);
+    WriteThrough({temporary}, {out}, [&]() { WriteVtu(tets, temporary); });
     std::cout << "wrote " << out;
   } else {
     const std::string base = out.substr(0, out.size() - ext.size());
-    WriteTetgenFiles(tets, base);
+    const std::string temporary_base = temporary.substr(0, temporary.size() - ext.size());
+    WriteThrough({temporary_base + ".node", temporary_base + ".ele"},
+                 {base + ".node", base + ".ele"},
+                 [&]() { WriteTetgenFiles(tets, temporary_base); });
     std::cout << "wrote " << base << ".node and " << base << ".ele";
   }
   std::cout << " (" << Fmt(Seconds(start), 3) << " s)\n";
 }
 
 // --tets cgal: CGAL Mesh_3 from the implicit function on the grid's box, sizes from its cell.
-void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string& ext) {
+void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string& ext,
+             Progress* progress) {
   CgalMeshSettings settings = CgalMeshSettings::ForSize(grid.cell);
+  settings.cancel = &g_interrupted;
+  settings.progress = progress->Stage("cgal mesh_3");
   settings.cell_radius_edge_ratio = o.quality > 0.0 ? o.quality : 3.0;
   if (o.max_volume > 0.0) {
     // Circumradius of the regular tet of volume V: edge a = (6 sqrt(2) V)^(1/3), R = sqrt(6)/4 a.
@@ -120,6 +289,8 @@ void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string
   }
   CgalMeshStats stats;
   const TetMesh tets = MeshImplicitWithCgal(grid.compiled, grid.bounds, settings, &stats);
+  progress->Finish();
+  CheckInterrupted();
   const TriangleMesh boundary = BoundarySurface(tets);
   const TriangleAngleStats angles = MeasureTriangleAngles(boundary, 5.0);
   const SurfaceError error = MeasureSurfaceError(grid.compiled, boundary);
@@ -167,8 +338,36 @@ void RunMesh(const MeshOptions& o) {
   if (!(o.max_volume >= 0.0) || !std::isfinite(o.max_volume)) {
     throw InputError("--max-volume: must be >= 0 m^3, got " + Fmt(o.max_volume));
   }
+  if (!(o.max_cells >= 1.0 && o.max_cells <= kMeshMaxCellsCeiling)) {
+    throw InputError(
+        "--max-cells: must be in [1, 2^30 = 1073741824] (the mesher's grid ceiling), got " +
+        Fmt(o.max_cells, 6));
+  }
+  if (!(o.max_memory > 0.0) || !std::isfinite(o.max_memory)) {
+    throw InputError("--max-memory: must be a number of bytes > 0 (e.g. 4e9), got " +
+                     Fmt(o.max_memory, 6));
+  }
+  if (!(o.max_work > 0.0) || !std::isfinite(o.max_work)) {
+    throw InputError("--max-work: must be a number of tape instructions > 0 (e.g. 1e12), got " +
+                     Fmt(o.max_work, 6));
+  }
 
-  const SceneSolidGrid grid = PrepareSceneSolid(o.scene, o.solid, o.resolution, kDefaultCellsAcross);
+  // The output's directory must take the file (checked now, not after the meshing).
+  {
+    const std::filesystem::path parent = std::filesystem::path(o.out).parent_path();
+    const std::string directory = parent.empty() ? std::string(".") : parent.string();
+    std::error_code ec;
+    if (!std::filesystem::is_directory(directory, ec) ||
+        access(directory.c_str(), W_OK | X_OK) != 0) {
+      throw InputError("--out '" + o.out + "': cannot write into '" + directory +
+                       "' (no such directory, or no permission); create it or pick another path");
+    }
+  }
+
+  const InterruptScope interrupt_scope;
+  Progress progress(o.progress || isatty(STDERR_FILENO) == 1);
+  const SceneSolidGrid grid = PrepareSceneSolid(o.scene, o.solid, o.resolution, kDefaultCellsAcross,
+                                                o.max_cells, "--max-cells");
   const CompiledSolid& compiled = grid.compiled;
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;
@@ -178,7 +377,7 @@ void RunMesh(const MeshOptions& o) {
     throw InputError("--sharp sharpens the marching-tetrahedra surface; --tets cgal does not use one");
   }
   if (o.tets == "cgal") {
-    RunCgal(o, grid, ext);
+    RunCgal(o, grid, ext, &progress);
     return;
   }
 
@@ -186,19 +385,30 @@ void RunMesh(const MeshOptions& o) {
   settings.bounds = bounds;
   settings.cell_size = cell;
   settings.clean = !o.raw_surface;
+  settings.cancel = &g_interrupted;
+  settings.progress = progress.Stage("surface");
   SurfaceMeshStats stats;
   TriangleMesh surface;
   try {
+    const SurfaceMeshEstimate estimate = EstimateSurfaceMesh(compiled, settings);
+    progress.Note("estimate: " + estimate.Describe());
+    CheckBudget(estimate.grid_cells, o.max_cells, "grid cells", "--max-cells", estimate, "");
+    CheckBudget(estimate.bytes, o.max_memory, "memory", "--max-memory", estimate, " bytes");
+    CheckBudget(estimate.work, o.max_work, "work", "--max-work", estimate, " tape instructions");
     surface = MeshSurface(compiled, settings, &stats);
   } catch (const std::invalid_argument& e) {
     throw InputError(std::string("--resolution ") + Fmt(cell) + ": " + e.what());
   }
+  progress.Finish();
+  CheckInterrupted();
   if (surface.triangles.cols() == 0) throw InputError("solid '" + grid.solid_name + "': the surface mesh is empty at cell " + Fmt(cell) + " m");
   FeatureStats feature_stats;
   if (o.sharp) {
     FeatureSettings features;
     features.cell_size = cell;
+    features.cancel = &g_interrupted;
     surface = SharpenFeatures(compiled, std::move(surface), features, &feature_stats);
+    CheckInterrupted();
   }
   const TriangleAngleStats angles = MeasureTriangleAngles(surface, 5.0);
   const SurfaceError error = MeasureSurfaceError(compiled, surface);
@@ -222,7 +432,8 @@ void RunMesh(const MeshOptions& o) {
 
   if (o.tets.empty()) {
     const auto start = std::chrono::steady_clock::now();
-    WriteTriangleMesh(surface, o.out);
+    const std::string temporary = TemporaryPath(o.out, ext);
+    WriteThrough({temporary}, {o.out}, [&]() { WriteTriangleMesh(surface, temporary); });
     std::cout << "wrote " << o.out << " (" << Fmt(Seconds(start), 3) << " s)\n";
     return;
   }
@@ -230,8 +441,12 @@ void RunMesh(const MeshOptions& o) {
   TetMeshSettings tet_settings;
   tet_settings.max_radius_edge = o.quality;
   tet_settings.max_volume = o.max_volume;
+  tet_settings.cancel = &g_interrupted;
+  tet_settings.progress = progress.Stage("tetgen");
   TetMeshStats tet_stats;
   const TetMesh tets = TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  progress.Finish();
+  CheckInterrupted();
   const TetQuality& q = tet_stats.quality;
   std::cout << "tetgen -" << tet_stats.switches << ": " << tets.nodes.cols() << " nodes, " << tets.tets.cols()
             << " tets, check " << Fmt(tet_stats.check_seconds, 3) << " s, tetgen " << Fmt(tet_stats.tetgen_seconds, 3)
@@ -247,10 +462,20 @@ void RunMesh(const MeshOptions& o) {
   WriteTets(tets, o.out, ext);
 }
 
+// Ctrl+C: say so and end with status 130 (128 + SIGINT), as a shell does for a killed job.
+[[noreturn]] void Interrupted() {
+  std::cout.flush();
+  std::cerr << "\nspidarcad mesh: interrupted (Ctrl+C): stopped, nothing written\n" << std::flush;
+  throw CommandExit{130};
+}
+
 }  // namespace
 
 void RegisterMeshCommand(CLI::App& app) {
   auto options = std::make_shared<MeshOptions>();
+  options->max_cells = kDefaultMeshMaxCells;
+  options->max_memory = kDefaultMeshMaxMemory;
+  options->max_work = kDefaultMeshMaxWork;
   CLI::App* cmd = app.add_subcommand("mesh", "Mesh an implicit solid of a scene: surface (STL/OBJ/PLY) or tets (VTU, .node)");
   cmd->footer(kMeshHelp);
   cmd->add_option("scene", options->scene, "Scene file (JSON, docs/scene-format.md)")->required();
@@ -266,11 +491,29 @@ void RegisterMeshCommand(CLI::App& app) {
                 "Sharpen features: move vertices onto the solid's creases and corners and flip edges along them");
   cmd->add_flag("--raw-surface", options->raw_surface,
                 "Skip the surface clean-up pass (raw marching tetrahedra, for comparison)");
+  cmd->add_option("--max-cells", options->max_cells,
+                  "Largest meshing grid, cells (default 134217728 = 2^27; at most 2^30)");
+  cmd->add_option(
+      "--max-memory", options->max_memory,
+      "Largest estimated peak memory of the surface meshing, bytes (default 2147483648 = 2 GiB)");
+  cmd->add_option("--max-work", options->max_work,
+                  "Largest estimated work of the surface meshing, tape instructions (default 2e11, "
+                  "about a minute)");
+  cmd->add_flag("--progress", options->progress,
+                "Show progress on stderr even when it is not a terminal");
   cmd->callback([options]() {
     try {
       RunMesh(*options);
     } catch (const InputError&) {
       throw;
+    } catch (const MeshInterrupted&) {
+      Interrupted();
+    } catch (const MeshingCancelled&) {
+      Interrupted();
+    } catch (const TetMeshingCancelled&) {
+      Interrupted();
+    } catch (const CgalMeshCancelled&) {
+      Interrupted();
     } catch (const SurfaceDefectError& e) {
       std::cout.flush();
       throw InputError(std::string("the surface cannot be tetrahedralized: ") + e.what() +

@@ -6,19 +6,23 @@
 // directly, the USB driver over the in-process board simulator (board-sim), or the USB driver
 // over libusb to a real board (usb, real time).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
-#include <thread>
-#include <algorithm>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
@@ -88,7 +92,10 @@ constexpr const char* kRunHelp =
     "\n"
     "Trajectory CSV: t,x,y,z,qw,qx,qy,qz,grasp (s; m in the device frame D; unit quaternion\n"
     "of the grip frame R_DT; grasp angle in rad, pi/2 at rest); '#' comments allowed.\n"
-    "Samples are interpolated (linear, slerp); the run lasts from the first to the last t.\n"
+    "Samples are interpolated (linear, slerp); the run lasts from the first to the last t, at "
+    "most\n"
+    "--max-duration (default 3600 s; docs/limits.md). The file may have at most 256 MiB.\n"
+    "Progress goes to stderr when it is a terminal or with --progress.\n"
     "\n"
     "Output CSV, one row per tick, header line first:\n"
     "  t                 time, s\n"
@@ -120,6 +127,81 @@ struct RunOptions {
   double world_scale = 0.0;  // 0: fitted
   std::vector<double> world_origin;
   bool calibrate = false;  // line-fit calibration of the simulated device before the run
+  double max_duration = 3600.0;  // s: longest run accepted (docs/limits.md)
+  bool progress = false;         // progress on stderr even when it is not a terminal
+};
+
+// Ceiling of --max-duration, s: 1e7 s is 1e10 ticks, far inside a long tick counter.
+constexpr double kMaxRunDurationCeiling = 1e7;
+// Largest trajectory file `run` reads, bytes (docs/limits.md); refused before reading.
+constexpr long long kMaxTrajectoryFileBytes = 256LL << 20;
+
+// Checks --trajectory is a regular file of at most kMaxTrajectoryFileBytes (not a directory,
+// device or pipe, which would be read without end).
+void CheckTrajectoryFile(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) return;  // Trajectory::Load names it
+  if (!std::filesystem::is_regular_file(status)) {
+    throw InputError("--trajectory '" + path +
+                     "': not a regular file (a directory, device or pipe); give a CSV file "
+                     "(t,x,y,z,qw,qx,qy,qz,grasp)");
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (!ec && size > static_cast<std::uintmax_t>(kMaxTrajectoryFileBytes)) {
+    throw InputError(
+        "--trajectory '" + path + "': " + std::to_string(size) + " bytes, more than the " +
+        std::to_string(kMaxTrajectoryFileBytes) +
+        " bytes (256 MiB) a trajectory may have (docs/limits.md); sample it more coarsely (run "
+        "interpolates between samples)");
+  }
+}
+
+// Line (1-based) of the first sample of the trajectory file whose time is past `limit`, 0 if
+// none is found.
+int LineOfTimePast(const std::string& path, double limit) {
+  std::ifstream in(path);
+  std::string raw;
+  int line = 0;
+  while (std::getline(in, raw)) {
+    ++line;
+    const auto begin = raw.find_first_not_of(" \t\r");
+    if (begin == std::string::npos || raw[begin] == '#') continue;
+    const auto comma = raw.find(',', begin);
+    std::string field =
+        raw.substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
+    while (!field.empty() && (field.back() == ' ' || field.back() == '\t')) field.pop_back();
+    double t = 0.0;
+    const auto r = std::from_chars(field.data(), field.data() + field.size(), t);
+    if (r.ec == std::errc() && t > limit) return line;
+  }
+  return 0;
+}
+
+// Progress of a long run on stderr: a line redrawn at most 5 times a second.
+class RunProgress {
+ public:
+  RunProgress(bool enabled, long ticks) : enabled_(enabled), ticks_(ticks) {}
+  void Tick(long k) {
+    if (!enabled_ || k % 1000 != 0) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (shown_ && now - last_ < std::chrono::milliseconds(200)) return;
+    last_ = now;
+    shown_ = true;
+    std::fprintf(stderr, "\rspidarcad run: %ld / %ld ticks (%5.1f %%)", k, ticks_,
+                 100.0 * double(k) / double(ticks_));
+    std::fflush(stderr);
+  }
+  ~RunProgress() {
+    if (shown_)
+      std::fprintf(stderr, "\rspidarcad run: %ld / %ld ticks (100.0 %%)\n", ticks_, ticks_);
+  }
+
+ private:
+  bool enabled_;
+  long ticks_;
+  bool shown_ = false;
+  std::chrono::steady_clock::time_point last_;
 };
 
 std::string Fixed(double v, int digits) {
@@ -138,6 +220,33 @@ void RunRun(const RunOptions& options) {
         "--calibrate: not with --device usb; it calibrates the simulated SPIDAR-G (simulated, "
         "board-sim). Calibrate a real board with `spidarcad calibrate`");
   }
+  if (!(options.max_duration > 0.0 && options.max_duration <= kMaxRunDurationCeiling)) {
+    throw InputError("--max-duration: must be in (0, 1e7] s, got " +
+                     FormatNumber(options.max_duration));
+  }
+  haptics::Trajectory trajectory;
+  CheckTrajectoryFile(options.trajectory);
+  try {
+    trajectory = haptics::Trajectory::Load(options.trajectory);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("--trajectory: ") + e.what());
+  }
+  // The run lasts from the first sample to the last: refuse it before any tick if that is longer
+  // than --max-duration (also when the difference overflows).
+  if (!(trajectory.end_time() - trajectory.start_time() <= options.max_duration)) {
+    const double limit = trajectory.start_time() + options.max_duration;
+    const int line = LineOfTimePast(options.trajectory, limit);
+    throw InputError(
+        "--trajectory " + options.trajectory +
+        (line > 0 ? ":" + std::to_string(line) : std::string("")) +
+        ": field t: the trajectory runs from t = " + FormatNumber(trajectory.start_time()) +
+        " s to t = " + FormatNumber(trajectory.end_time()) + " s, longer than the " +
+        FormatNumber(options.max_duration) +
+        " s a run may last (--max-duration, in (0, 1e7] s; docs/limits.md); shorten the trajectory "
+        "or "
+        "raise --max-duration");
+  }
+
   std::unique_ptr<haptics::HapticScene> scene;
   std::string scene_name = "empty";
   std::string fields_line;  // per-field names for the summary
@@ -264,13 +373,6 @@ void RunRun(const RunOptions& options) {
     throw InputError(std::string("--hand: ") + e.what());
   }
 
-  haptics::Trajectory trajectory;
-  try {
-    trajectory = haptics::Trajectory::Load(options.trajectory);
-  } catch (const std::invalid_argument& e) {
-    throw InputError(std::string("--trajectory: ") + e.what());
-  }
-
   RigKind kind = RigKind::kSimulated;
   ParseRigKind(options.device, &kind);  // checked above
   RigOptions rig_options;
@@ -285,6 +387,7 @@ void RunRun(const RunOptions& options) {
   haptics::EncoderCalibration calibration = NominalCalibration(info);
   const double dt = 1e-3;
   const double t0 = trajectory.start_time();
+  // At most 1e10 + 1 (duration checked above): fits a long.
   const long ticks = static_cast<long>(std::floor((trajectory.end_time() - t0) / dt + 1e-9)) + 1;
   haptics::SimulatedHand hand(hand_settings, trajectory.Sample(t0), info.geometry.d);
   std::string calibration_line;
@@ -314,7 +417,9 @@ void RunRun(const RunOptions& options) {
   std::string buffer;
   double max_force = 0.0;
   const auto wall_start = std::chrono::steady_clock::now();
+  RunProgress progress(options.progress || isatty(STDERR_FILENO) == 1, ticks);
   for (long k = 0; k < ticks; ++k) {
+    progress.Tick(k);
     const double t = t0 + k * dt;
     haptics::TickInputs inputs;
     if (physical) {
@@ -435,6 +540,11 @@ void RegisterRunCommand(CLI::App& app) {
                   "Scene files: world position of the device origin x,y,z, m (default: fitted)")
       ->delimiter(',')
       ->expected(3);
+  cmd->add_option("--max-duration", options->max_duration,
+                  "Longest run accepted, s: the trajectory's last minus first time (default 3600; "
+                  "at most 1e7)");
+  cmd->add_flag("--progress", options->progress,
+                "Show progress on stderr even when it is not a terminal");
   cmd->callback([options]() { RunRun(*options); });
 }
 

@@ -41,6 +41,11 @@ constexpr const char* kTrajectoryHelp =
     "  spidarcad trajectory circle --center 0,0,-0.035 --radius 0.02 --turns 2 --out c.csv\n"
     "  spidarcad trajectory squeeze --grasp-min 0.6 --out - | head\n";
 
+// Longest trajectory written, s: the longest `spidarcad run` accepts by default.
+constexpr double kMaxTrajectorySeconds = 3600.0;
+// Highest sample rate, samples per second (100 per haptic tick of 1 ms is already pointless).
+constexpr double kMaxTrajectoryRate = 1e5;
+
 struct TrajectoryOptions {
   std::string kind;
   std::string out;
@@ -110,8 +115,20 @@ void RunTrajectory(TrajectoryOptions o) {
   if (o.duration == 0.0) o.duration = o.kind == "circle" ? 4.0 : 3.0;
   RequirePositive(o.duration, "--duration");
   RequirePositive(o.rate, "--rate");
+  if (o.duration > kMaxTrajectorySeconds) {
+    throw InputError(
+        "--duration: must be in (0, 3600] s (what `spidarcad run` accepts by default; "
+        "docs/limits.md), got " +
+        FormatNumber(o.duration));
+  }
+  if (o.rate > kMaxTrajectoryRate) {
+    throw InputError("--rate: must be in (0, 100000] samples per second (docs/limits.md), got " +
+                     FormatNumber(o.rate));
+  }
   if (o.rate * o.duration > 1e7) {
-    throw InputError("--rate × --duration: more than 10 million samples; lower the rate");
+    throw InputError("--rate × --duration: " + FormatNumber(o.rate * o.duration) +
+                     " samples, more than 10 million (docs/limits.md); lower --rate (run "
+                     "interpolates between samples)");
   }
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
   if (!o.center.empty()) {
@@ -196,8 +213,11 @@ void RegisterTrajectoryCommand(CLI::App& app) {
   cmd->add_option("--amplitude", o->amplitude, "twist: amplitude, rad (default 0.5)");
   cmd->add_option("--cycles", o->cycles, "twist, squeeze: number of cycles (default 2)");
   cmd->add_option("--grasp-min", o->grasp_min, "squeeze: smallest grasp angle, rad (default 0.9)");
-  cmd->add_option("--duration", o->duration, "seconds (default 4 for circle, 3 otherwise)");
-  cmd->add_option("--rate", o->rate, "samples per second (default 50; run interpolates between them)");
+  cmd->add_option("--duration", o->duration,
+                  "seconds, in (0, 3600] (default 4 for circle, 3 otherwise)");
+  cmd->add_option(
+      "--rate", o->rate,
+      "samples per second, in (0, 1e5], at most 1e7 samples in all (default 50; run interpolates)");
   cmd->callback([o]() { RunTrajectory(*o); });
 }
 

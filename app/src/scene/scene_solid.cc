@@ -2,6 +2,8 @@
 #include "scene/scene_solid.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <exception>
 
 #include "doc/input_error.h"
@@ -17,7 +19,8 @@ constexpr double kSearchHalfSide = 10.0;
 }  // namespace
 
 SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::string& solid_name,
-                                 double resolution, double cells_across) {
+                                 double resolution, double cells_across, double max_grid_cells,
+                                 const std::string& cells_option) {
   modeling::Scene scene;
   try {
     scene = modeling::LoadScene(scene_path);
@@ -64,6 +67,26 @@ SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::strin
     }
   }
   grid.cell = resolution > 0.0 ? resolution : rough.sizes().maxCoeff() / cells_across;
+  // The grid over the coarse box (padded as below) bounds the fine grid's: refuse before the
+  // fine search, which costs about as much as meshing.
+  double cells = 1.0;
+  for (int a = 0; a < 3; ++a) cells *= std::max(1.0, std::ceil(rough.sizes()[a] / grid.cell + 4.0));
+  if (!(cells <= max_grid_cells)) {
+    char figures[160];
+    std::snprintf(figures, sizeof figures,
+                  "%.3g x %.3g x %.3g m box at %.3g m cells is %.3g grid cells", rough.sizes().x(),
+                  rough.sizes().y(), rough.sizes().z(), grid.cell, cells);
+    char limit[32];
+    std::snprintf(limit, sizeof limit, "%.6g", max_grid_cells);
+    const double suggested = std::cbrt(cells / max_grid_cells) * grid.cell;
+    char coarser[32];
+    std::snprintf(coarser, sizeof coarser, "%.3g", suggested);
+    throw InputError(
+        "--resolution " + FormatNumber(grid.cell) + ": solid '" + solid->name + "' of " +
+        scene_path + ": the " + figures + ", more than the limit of " + limit +
+        " (docs/limits.md); use a coarser --resolution (about " + coarser + " m fits)" +
+        (cells_option.empty() ? std::string("") : " or raise the limit with " + cells_option));
+  }
   grid.bounds = modeling::FindBounds(grid.compiled, rough, grid.cell);
   grid.bounds.min().array() -= 2.0 * grid.cell;
   grid.bounds.max().array() += 2.0 * grid.cell;

@@ -19,11 +19,19 @@ struct SceneSolidGrid {
   double cell = 0.0;                   // grid cell size, m
 };
 
+// Grid cells PrepareSceneSolid allows by default: MeshSurface's own ceiling, 2^30.
+inline constexpr double kDefaultMaxGridCells = 1073741824.0;
+
 // Loads `scene_path`, picks the solid named `solid_name` (empty: the first), compiles it and
 // finds its box on a grid of `resolution` m (<= 0: the solid's largest side / `cells_across`).
 // Throws InputError naming the file, the solid or the option when the scene does not load, the
-// solid is missing, empty or unbounded (reaches 10 m from the origin).
+// solid is missing, empty or unbounded (reaches 10 m from the origin), or when the grid over
+// the solid's coarse box would have more than `max_grid_cells` cells (checked before the fine
+// search for the box, whose cost grows with the grid); `cells_option` names the option that
+// raises that limit in the message (empty: none).
 SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::string& solid_name,
-                                 double resolution, double cells_across = 80.0);
+                                 double resolution, double cells_across = 80.0,
+                                 double max_grid_cells = kDefaultMaxGridCells,
+                                 const std::string& cells_option = "");
 
 }  // namespace spidarcad::app

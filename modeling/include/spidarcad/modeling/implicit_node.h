@@ -153,11 +153,17 @@ struct ImplicitNode {
       : id(std::move(node_id)), params(std::move(p)), children(std::move(c)) {}
 };
 
+// Deepest tree ValidateTree accepts: the root is level 1 (docs/limits.md). Bounds the recursion of
+// every tree walk (validation, compilation, the reference evaluator, JSON output).
+inline constexpr int kMaxTreeDepth = 256;
+// Most nodes in one tree ValidateTree accepts (docs/limits.md).
+inline constexpr int kMaxTreeNodes = 500000;
+
 // The scene-file name of the type of params, e.g. "sphere", "smooth_union", "polar_array".
 const char* NodeTypeName(const NodeParams& params);
 // True for the primitive types (those that take no children).
 bool IsPrimitive(const NodeParams& params);
-// Number of nodes in the tree rooted at node (node included).
+// Number of nodes in the tree rooted at node (node included). Iterative: any depth.
 int CountNodes(const ImplicitNode& node);
 
 // An invalid tree: says which node (id, name, type, path) and which field was wrong.
@@ -177,14 +183,16 @@ class ModelError : public std::invalid_argument {
   std::string field_;
 };
 
-// Checks every node below (and including) root: finite values, positive sizes, radii that fit,
-// child counts, simple polygons, unique non-empty ids. root_path is the location of root used
-// in the error (e.g. "/solids/0/root"). Throws ModelError naming the first bad node and field.
+// Checks every node below (and including) root: depth at most kMaxTreeDepth and at most
+// kMaxTreeNodes nodes (checked first, without recursion, so any tree is safe to pass), finite
+// values, positive sizes, radii that fit, child counts, simple polygons, unique non-empty ids.
+// root_path is the location of root used in the error (e.g. "/solids/0/root"). Throws
+// ModelError naming the first bad node and field (field "children" for the size limits).
 void ValidateTree(const ImplicitNode& root, const std::string& root_path = "");
 
 // Reference evaluator: walks the tree recursively, transforming the point node by node. Slow
 // (allocation-free but recursive); meant for tests and tools, not for the haptic tick. The tree
-// must be valid.
+// must be valid (ValidateTree: so the recursion is at most kMaxTreeDepth deep).
 double EvaluateTree(const ImplicitNode& node, const Eigen::Vector3d& p_W);
 
 }  // namespace spidarcad::modeling

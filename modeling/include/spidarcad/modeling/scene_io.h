@@ -22,6 +22,12 @@ namespace spidarcad::modeling {
 inline constexpr const char* kSceneFormat = "spidarcad-scene";
 // The scene format version this code reads and writes.
 inline constexpr int kSceneVersion = 1;
+// Largest scene file LoadScene reads, bytes (64 MiB; docs/limits.md). Larger files, and paths
+// that are not regular files (a directory, /dev/zero, a pipe), are refused before reading.
+inline constexpr long long kMaxSceneFileBytes = 64LL << 20;
+// Deepest nesting of JSON arrays and objects ParseScene accepts (docs/limits.md); checked by a
+// streaming pass before the document is built, so deeper text cannot exhaust the stack.
+inline constexpr int kMaxJsonDepth = 1000;
 
 // One named implicit solid of a scene.
 struct Solid {
@@ -90,8 +96,9 @@ class SceneError : public std::runtime_error {
 };
 
 // Node tree from JSON. path is the JSON pointer of `json` used in errors. Throws SceneError
-// (file empty, line 0) for a wrong type, unknown field or missing field; does not validate
-// values (call ValidateTree).
+// (file empty, line 0) for a wrong type, unknown field or missing field, and for a tree deeper
+// than kMaxTreeDepth or larger than kMaxTreeNodes (naming the node where the limit is passed,
+// before building further); does not validate values (call ValidateTree).
 ImplicitNode NodeFromJson(const nlohmann::json& json, const std::string& path = "");
 // JSON of a node tree (every field written, so that a load restores it exactly).
 nlohmann::json NodeToJson(const ImplicitNode& node);
@@ -102,9 +109,12 @@ Scene SceneFromJson(const nlohmann::json& json, const std::string& source = "<js
 nlohmann::json SceneToJson(const Scene& scene);
 
 // Parses and validates scene text. Errors carry `source` as the file and the line and column
-// of the offending text (syntax errors) or field (semantic errors).
+// of the offending text (syntax errors, numbers beyond a double, nesting deeper than
+// kMaxJsonDepth) or field (semantic errors), and the JSON pointer of the field where known.
+// Never lets a JSON library exception escape: every failure is a SceneError.
 Scene ParseScene(const std::string& text, const std::string& source = "<string>");
-// Reads a scene file. Throws SceneError (unreadable file, syntax, bad field) naming path.
+// Reads a scene file. Throws SceneError (unreadable file, not a regular file, larger than
+// kMaxSceneFileBytes, syntax, bad field) naming path.
 Scene LoadScene(const std::string& path);
 // Writes a scene file (indented JSON) through a temporary file renamed over path. Throws
 // SceneError if it cannot be written.

@@ -25,11 +25,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include <atomic>
-#include <functional>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <atomic>
+#include <functional>
+#include <string>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
 
@@ -83,8 +83,40 @@ class MeshingCancelled : public std::runtime_error {
 // A box containing every part of the solid inside `search` (m), found by an octree descent with
 // the interval bounds down to cells of edge <= `resolution`; it overestimates the tight box by
 // at most about one cell per side. Empty when the bounds prove the solid absent from `search`.
-// An unbounded solid (a half-space) fills the search box.
+// An unbounded solid (a half-space) fills the search box. One best-first search per side of the
+// box, without recursion: its cost grows with the boxes needed to pin down each extreme (about
+// the extreme's radius of curvature / resolution near a smooth pole), not with the whole
+// surface. A resolution finer than kMinFindBoundsFraction of the search box's largest side is
+// raised to it, which bounds that cost (and the depth) whatever the resolution (even 5e-324).
+// Throws std::invalid_argument for a non-finite or empty search box or a resolution not > 0.
 Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search, double resolution);
+// Finest resolution FindBounds descends to, as a fraction of the search box's largest side.
+inline constexpr double kMinFindBoundsFraction = 1.0 / (1 << 16);
+
+// The cost of a MeshSurface run, estimated from the settings and a coarse octree look at the
+// solid (EstimateSurfaceMesh) before any fine work. Counts are doubles: they may exceed every
+// integer type, or be +inf for an absurd cell size.
+struct SurfaceMeshEstimate {
+  double grid_cells = 0.0;     // cells of the full grid: the product of ceil(extent / cell_size)
+  double surface_cells = 0.0;  // cells the surface is expected to cross (meshed cells)
+  double triangles = 0.0;      // triangles of the mesh, about four per surface cell
+  int tape_instructions = 0;   // instructions run by one field evaluation
+  double evaluations = 0.0;    // field evaluations (grid vertices, refinement, bounds, clean-up)
+  double work = 0.0;           // tape instructions executed: evaluations × tape_instructions
+  double bytes = 0.0;          // peak memory of the run, bytes
+  // The figures on one line, e.g. "grid 1.2e+07 cells, surface ~3.1e+05 cells, ...".
+  std::string Describe() const;
+};
+
+// Estimates the cost of MeshSurface(solid, settings) (docs/limits.md) cheaply (a few thousand
+// interval classifications at most): counts the cells the interval bounds cannot rule out on a
+// coarse grid of at most 32 cells across (fewer, down to 4, for tapes over 2000 instructions) and
+// scales the count by the area ratio (coarse cell / cell)². Conservative: interval bounds are
+// loose, so surface_cells errs high. Throws std::invalid_argument for bounds or a cell size
+// MeshSurface would refuse as malformed (not for a grid that is merely too large: that is what the
+// estimate is for).
+SurfaceMeshEstimate EstimateSurfaceMesh(const CompiledSolid& solid,
+                                        const SurfaceMeshSettings& settings);
 
 // Meshes the zero set of solid inside settings.bounds. Throws std::invalid_argument for bad
 // settings (empty bounds, cell_size <= 0, a grid over 2^30 cells) and MeshingCancelled.
