@@ -35,9 +35,14 @@ struct StaticSolver::Factor {
 namespace {
 
 std::string FormatPoint(const Eigen::Vector3d& p) {
+  // Rounding noise (e.g. 1e-18 for a coordinate that is 0) is shown as 0.
+  const double scale = p.cwiseAbs().maxCoeff();
+  Eigen::Vector3d q = p;
+  for (int i = 0; i < 3; ++i)
+    if (std::abs(q(i)) <= 1e-9 * scale) q(i) = 0.0;
   std::ostringstream s;
   s.precision(4);
-  s << "(" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+  s << "(" << q.x() << ", " << q.y() << ", " << q.z() << ")";
   return s.str();
 }
 
