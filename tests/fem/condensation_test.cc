@@ -371,13 +371,14 @@ TEST(HardIncompressible, CondensationGivesTheFullSolveTipDisplacementAtNu04999) 
   ASSERT_TRUE(push.status.converged) << push.status.message;
   const Eigen::Vector3d reaction = push.reaction.segment<3>(3 * centre);
   const double force_error = (force - reaction).norm() / reaction.norm();
-  EXPECT_LT(force_error, 1e-9);
+  // The reference reaction K u − f of the full solve cancels about λ/μ = 5000 times more.
+  EXPECT_LT(force_error, 1e-7);
   char figure[160];
   std::snprintf(figure, sizeof(figure),
                 "tip displacement error %.1e, push force error %.1e (relative)", worst / scale,
                 force_error);
   RecordProperty("figure", figure);
-  RecordProperty("bar", "1e-9 relative");
+  RecordProperty("bar", "tip displacement 1e-9, push force 1e-7 relative");
 }
 
 }  // namespace
