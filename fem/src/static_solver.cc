@@ -345,19 +345,7 @@ SolveStatus StaticSolver::SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd*
     return status;
   }
   *x = factor_->llt.solve(rhs);
-  Eigen::MatrixXd r = ExtendedResidual(k_ff_, rhs, *x);
-  // Iterative refinement when the residual is large against the load (ill-conditioned K_ff:
-  // thin plates, slivers, stiffness contrast), with the residual accumulated in extended
-  // precision so that each step gains accuracy; well-conditioned solves skip it.
-  const double rhs_norm = rhs.norm();
-  for (int step = 0; step < kMaxRefinementSteps && r.norm() > kRefineAbove * rhs_norm; ++step) {
-    const Eigen::MatrixXd refined = *x + factor_->llt.solve(r);
-    Eigen::MatrixXd r_refined = ExtendedResidual(k_ff_, rhs, refined);
-    if (!(r_refined.norm() < 0.5 * r.norm())) break;  // no longer gaining
-    *x = refined;
-    r = std::move(r_refined);
-    ++status.refinement_steps;
-  }
+  const Eigen::MatrixXd r = ExtendedResidual(k_ff_, rhs, *x);
   // Normwise backward error ||b − K x|| / (||K|| ||x|| + ||b||): meaningful also when
   // regions differ in stiffness by many orders of magnitude.
   const double denom = k_norm_ * x->norm() + rhs.norm();

@@ -382,7 +382,6 @@ void RunFem(const FemOptions& options) {
   report["status"] = {{"converged", solution.status.converged},
                       {"residual", solution.status.residual},
                       {"backward_error", solution.status.residual},
-                      {"refinement_steps", solution.status.refinement_steps},
                       {"message", solution.status.message}};
   const fem::FactorStats& stats = solver->stats();
   report["timing_s"] = {{"mesh", mesh_seconds},           {"assembly", stats.assembly_seconds},

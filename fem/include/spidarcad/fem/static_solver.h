@@ -28,7 +28,8 @@ struct SolveStatus {
   double residual = 0.0;
   // Empty on success, otherwise what went wrong.
   std::string message;
-  // Steps of iterative refinement taken (0 unless ||b − K x|| > kRefineAbove ||b||).
+  // Reserved, always 0: iterative refinement (long double residual) was tried on thin plates
+  // and did not reduce the forward error (docs/fem.md); to be removed with the next ABI change.
   int refinement_steps = 0;
 };
 
@@ -81,14 +82,10 @@ class StaticSolver {
   StaticSolution Solve() const;
   // Backward error above which a solve is reported not converged.
   static constexpr double kResidualTolerance = 1e-12;
-  // Relative residual ||b − K x|| / ||b|| above which SolveFree refines the solution (residual
-  // in long double, correction with the same factor), at most kMaxRefinementSteps times.
-  static constexpr double kRefineAbove = 1e-12;
-  static constexpr int kMaxRefinementSteps = 3;
 
   // Solves K_ff X = B for free-dof right-hand sides B (#free by m); X is resized. The
   // residual is accumulated in long double; when it is large against B (an ill-conditioned
-  // model) the solution is iteratively refined (status.refinement_steps).
+  // model) the forward error can still exceed it by cond(K_ff).
   SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const;
 
   // Index of global dof d (3v + axis) among the free dofs, or −1 if it is prescribed.
