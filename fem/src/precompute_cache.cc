@@ -114,6 +114,9 @@ std::uint64_t PrecomputeKey(const TetMesh& mesh, const MaterialTable& materials,
     h = HashValue(label, h);
     h = HashValue(m.youngs_modulus, h);
     h = HashValue(m.poisson_ratio, h);
+    // Hashed only when not the default, so that keys of older files stay valid.
+    if (m.formulation != Formulation::kDisplacement)
+      h = HashValue(static_cast<std::int32_t>(m.formulation), h);
   }
   h = HashValue(static_cast<std::int64_t>(bcs.prescribed().size()), h);
   for (const auto& [dof, value] : bcs.prescribed()) {
@@ -183,9 +186,9 @@ bool PrecomputeCache::Save(const ColumnSet& set, std::string* error) const {
   if (ec) return fail("cannot create cache directory " + directory_.string() + ": " + ec.message());
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path final_path = PathFor(set.key);
-  const std::filesystem::path temp_path =
-      final_path.string() + ".tmp." + std::to_string(::getpid()) + "." +
-      std::to_string(counter.fetch_add(1));
+  const std::filesystem::path temp_path = final_path.string() + ".tmp." +
+                                          std::to_string(::getpid()) + "." +
+                                          std::to_string(counter.fetch_add(1));
   {
     std::ofstream out(temp_path, std::ios::binary | std::ios::trunc);
     if (!out) return fail("cannot open " + temp_path.string() + " for writing");
@@ -218,7 +221,8 @@ std::optional<ColumnSet> PrecomputeCache::Load(std::uint64_t key, std::string* r
   if (!in) return fail("no cached columns (file absent or unreadable)");
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
                                          std::istreambuf_iterator<char>());
-  if (bytes.size() < 8 + sizeof(std::uint64_t)) return fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
+  if (bytes.size() < 8 + sizeof(std::uint64_t))
+    return fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
   Reader r(bytes.data(), bytes.size() - sizeof(std::uint64_t));
   char magic[8];
   r.GetArray(magic, 8);
@@ -243,7 +247,8 @@ std::optional<ColumnSet> PrecomputeCache::Load(std::uint64_t key, std::string* r
                 std::to_string(static_cast<double>(expected)) + " expected): truncated or corrupt");
   }
   std::uint64_t stored_checksum = 0;
-  std::memcpy(&stored_checksum, bytes.data() + bytes.size() - sizeof(std::uint64_t), sizeof(std::uint64_t));
+  std::memcpy(&stored_checksum, bytes.data() + bytes.size() - sizeof(std::uint64_t),
+              sizeof(std::uint64_t));
   if (Fnv1a64(bytes.data(), bytes.size() - sizeof(std::uint64_t)) != stored_checksum)
     return fail("checksum mismatch: corrupt");
   ColumnSet set;

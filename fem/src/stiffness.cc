@@ -1,14 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/stiffness.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <Eigen/LU>
 
 namespace spidarcad::fem {
 namespace {
@@ -16,7 +15,8 @@ namespace {
 // Derivatives of the shape functions with respect to barycentric coordinates L0..L3
 // (npe by 4); the shape functions are treated as functions of four independent L.
 Eigen::Matrix<double, Eigen::Dynamic, 4> ShapeDerivativesL(int npe, const Eigen::Vector4d& l) {
-  Eigen::Matrix<double, Eigen::Dynamic, 4> d = Eigen::Matrix<double, Eigen::Dynamic, 4>::Zero(npe, 4);
+  Eigen::Matrix<double, Eigen::Dynamic, 4> d =
+      Eigen::Matrix<double, Eigen::Dynamic, 4>::Zero(npe, 4);
   if (npe == 4) {
     d.setIdentity();
     return d;
@@ -58,27 +58,78 @@ Eigen::MatrixXd StrainDisplacement(const ElementNodes& x, const Eigen::Vector4d&
   return b;
 }
 
+namespace {
+
+// Four-point rule of degree 2 on the reference tetrahedron (volume 1/6): barycentric point q.
+constexpr double kQuadA = 0.5854101966249685, kQuadB = 0.1381966011250105;
+Eigen::Vector4d QuadraturePoint(int q) {
+  Eigen::Vector4d l = Eigen::Vector4d::Constant(kQuadB);
+  l(q) = kQuadA;
+  return l;
+}
+
+// D with λ removed: the μ part 2μ ε:ε alone (still positive definite on strains).
+Matrix6d ShearElasticity(const Material& material) {
+  Matrix6d d = material.ElasticityMatrix();
+  d.topLeftCorner<3, 3>().array() -= material.Lambda();
+  return d;
+}
+
+void CheckFormulation(int npe, const Material& material) {
+  if (material.formulation == Formulation::kMeanDilatation && npe != 10) {
+    throw std::invalid_argument(
+        "Formulation::kMeanDilatation needs 10-node (quadratic) tetrahedra, got " +
+        std::to_string(npe) +
+        "-node elements: a linear element's dilatation is already constant, so its mean "
+        "changes nothing and it still locks (upgrade the mesh with MakeQuadratic / --order 2)");
+  }
+}
+
+}  // namespace
+
+Eigen::RowVectorXd MeanDilatation(const ElementNodes& x, double* volume) {
+  const int npe = static_cast<int>(x.rows());
+  Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(3 * npe);
+  double v = 0.0;
+  const int points = npe == 4 ? 1 : 4;
+  for (int q = 0; q < points; ++q) {
+    double det = 0.0;
+    const Eigen::MatrixXd b = StrainDisplacement(
+        x, npe == 4 ? Eigen::Vector4d::Constant(0.25) : QuadraturePoint(q), &det);
+    const double w = det / (npe == 4 ? 6.0 : 24.0);
+    sum += w * (b.row(0) + b.row(1) + b.row(2));
+    v += w;
+  }
+  if (volume) *volume = v;
+  return sum / v;
+}
+
 Eigen::MatrixXd ElementStiffness(const ElementNodes& x, const Material& material) {
   const int npe = static_cast<int>(x.rows());
   if (npe != 4 && npe != 10) {
     throw std::invalid_argument("ElementStiffness: element must have 4 or 10 nodes, got " +
                                 std::to_string(npe));
   }
-  const Matrix6d d = material.ElasticityMatrix();
+  CheckFormulation(npe, material);
+  const bool mean = material.formulation == Formulation::kMeanDilatation;
+  const Matrix6d d = mean ? ShearElasticity(material) : material.ElasticityMatrix();
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(3 * npe, 3 * npe);
   if (npe == 4) {
     double det = 0.0;
     const Eigen::MatrixXd b = StrainDisplacement(x, Eigen::Vector4d::Constant(0.25), &det);
     k.noalias() = (det / 6.0) * b.transpose() * d * b;
   } else {
-    // Four-point rule of degree 2 on the reference tetrahedron (volume 1/6).
-    constexpr double kA = 0.5854101966249685, kB = 0.1381966011250105;
     for (int q = 0; q < 4; ++q) {
-      Eigen::Vector4d l = Eigen::Vector4d::Constant(kB);
-      l(q) = kA;
       double det = 0.0;
-      const Eigen::MatrixXd b = StrainDisplacement(x, l, &det);
+      const Eigen::MatrixXd b = StrainDisplacement(x, QuadraturePoint(q), &det);
       k.noalias() += (det / 24.0) * b.transpose() * d * b;
+    }
+    if (mean) {
+      // λ V θ̄ᵀ θ̄: the volumetric energy of the element-mean dilatation (P0 pressure
+      // p = λ θ̄ eliminated element by element).
+      double volume = 0.0;
+      const Eigen::RowVectorXd theta = MeanDilatation(x, &volume);
+      k.noalias() += (material.Lambda() * volume) * theta.transpose() * theta;
     }
   }
   return 0.5 * (k + k.transpose());
@@ -124,7 +175,8 @@ SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materi
         }
     }
   for (int e = 0; e < mesh.num_elements(); ++e) {
-    const Eigen::MatrixXd ke = ElementStiffness(GetElementNodes(mesh, e), materials.Get(mesh.regions(e)));
+    const Eigen::MatrixXd ke =
+        ElementStiffness(GetElementNodes(mesh, e), materials.Get(mesh.regions(e)));
     for (int lb = 0; lb < npe; ++lb) {
       const int b = mesh.elements(e, lb);
       const auto& nb = adj[b];
@@ -160,13 +212,21 @@ Eigen::MatrixXd RigidBodyModes(const Eigen::MatrixX3d& nodes) {
 }
 
 Eigen::Matrix<double, 6, 1> ElementStress(const TetMesh& mesh, const MaterialTable& materials,
-                                         const Eigen::VectorXd& u, int e) {
+                                          const Eigen::VectorXd& u, int e) {
   const int npe = mesh.NodesPerElement();
   Eigen::VectorXd ue(3 * npe);
   for (int a = 0; a < npe; ++a) ue.segment<3>(3 * a) = u.segment<3>(3 * mesh.elements(e, a));
-  const Eigen::MatrixXd b =
-      StrainDisplacement(GetElementNodes(mesh, e), Eigen::Vector4d::Constant(0.25));
-  return materials.Get(mesh.regions(e)).ElasticityMatrix() * (b * ue);
+  const ElementNodes x = GetElementNodes(mesh, e);
+  const Eigen::MatrixXd b = StrainDisplacement(x, Eigen::Vector4d::Constant(0.25));
+  const Material& material = materials.Get(mesh.regions(e));
+  if (material.formulation != Formulation::kMeanDilatation) {
+    return material.ElasticityMatrix() * (b * ue);
+  }
+  CheckFormulation(npe, material);
+  // Shear part at the centroid plus the element pressure λ θ̄ on the normal stresses.
+  Eigen::Matrix<double, 6, 1> stress = ShearElasticity(material) * (b * ue);
+  stress.head<3>().array() += material.Lambda() * MeanDilatation(x).dot(ue);
+  return stress;
 }
 
 double VonMises(const Eigen::Matrix<double, 6, 1>& s) {
@@ -177,7 +237,8 @@ double VonMises(const Eigen::Matrix<double, 6, 1>& s) {
 Eigen::VectorXd ElementVonMises(const TetMesh& mesh, const MaterialTable& materials,
                                 const Eigen::VectorXd& u) {
   Eigen::VectorXd vm(mesh.num_elements());
-  for (int e = 0; e < mesh.num_elements(); ++e) vm(e) = VonMises(ElementStress(mesh, materials, u, e));
+  for (int e = 0; e < mesh.num_elements(); ++e)
+    vm(e) = VonMises(ElementStress(mesh, materials, u, e));
   return vm;
 }
 

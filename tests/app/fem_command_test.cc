@@ -3,18 +3,7 @@
 // direct StaticSolver call made here, the tip deflection with Euler-Bernoulli's closed form,
 // and the written .vtu is read back with plain VTK.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
-#include <limits>
-#include <sstream>
-#include <string>
-
 #include <gtest/gtest.h>
-
-#include "spidarcad_runner.h"
-#include <nlohmann/json.hpp>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
 #include <vtkPointData.h>
@@ -22,10 +11,22 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/static_solver.h"
+#include "spidarcad/modeling/tet_mesh.h"
+#include "spidarcad_runner.h"
 
 namespace spidarcad::app {
 namespace {
@@ -154,10 +155,10 @@ TEST(FemCommand, TipLoadMatchesEulerBernoulliQuadraticAndShowsLinearLocking) {
   double ratio[3] = {0, 0, 0};
   for (int order : {1, 2}) {
     const std::string out = OutputPath("fem_tip_" + std::to_string(order) + ".vtu");
-    const CommandRun run = RunSpidarcad(beam + " " + kClampX0 +
-                                               " --load 1,0.05,0.05 --force 0,0,-1000 --order " +
-                                               std::to_string(order) + " --out " + out,
-                                           "tip" + std::to_string(order));
+    const CommandRun run =
+        RunSpidarcad(beam + " " + kClampX0 + " --load 1,0.05,0.05 --force 0,0,-1000 --order " +
+                         std::to_string(order) + " --out " + out,
+                     "tip" + std::to_string(order));
     ASSERT_EQ(run.status, 0) << run.err;
     const nlohmann::json report = nlohmann::json::parse(run.out);
     ASSERT_EQ(report["loads"].size(), 1u);
@@ -166,7 +167,8 @@ TEST(FemCommand, TipLoadMatchesEulerBernoulliQuadraticAndShowsLinearLocking) {
     EXPECT_NEAR(report["fixed_reaction_force"][2].get<double>(), force, 1e-6 * force);
     ratio[order] = -MeanTipDeflection(out) / euler_bernoulli;
   }
-  std::printf("tip deflection / Euler-Bernoulli: linear %.4f, quadratic %.4f\n", ratio[1], ratio[2]);
+  std::printf("tip deflection / Euler-Bernoulli: linear %.4f, quadratic %.4f\n", ratio[1],
+              ratio[2]);
   // Quadratic tets: within 3 % of Euler-Bernoulli (Timoshenko's shear adds 0.8 % at L/h = 10).
   EXPECT_NEAR(ratio[2], 1.0, 0.03) << "quadratic / Euler-Bernoulli";
   // Linear tets lock in bending: on 10 x 2 x 2 cells the fem tests measure 0.35 of the exact
@@ -221,9 +223,10 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
     "solids": [{"name": "ball", "root": {"type": "sphere", "radius": 0.05}}]})";
   const std::string out = OutputPath("fem_ball.vtu");
   const CommandRun run = RunSpidarcad(scene +
-                                             " --resolution 0.01 --fix=-1,-1,-1,1,1,-0.035"
-                                             " --push 0,0,0.05 --disp 0,0,-0.0001 --out " + out,
-                                         "ball");
+                                          " --resolution 0.01 --fix=-1,-1,-1,1,1,-0.035"
+                                          " --push 0,0,0.05 --disp 0,0,-0.0001 --out " +
+                                          out,
+                                      "ball");
   ASSERT_EQ(run.status, 0) << run.err;
   const nlohmann::json report = nlohmann::json::parse(run.out);
   EXPECT_EQ(report["meshing"]["solid"], "ball");
@@ -269,6 +272,111 @@ TEST(FemCommand, BadInputExitsWithStatusTwoNamingTheProblem) {
     EXPECT_NE(run.err.find(c.expected), std::string::npos)
         << c.args << ": expected '" << c.expected << "' in: " << run.err;
   }
+}
+
+// --incompressible at ν = 0.4999 on the linear 10 x 2 x 2 beam: upgraded to quadratic
+// mean-dilatation elements, the tip deflection is Timoshenko's (independent closed form, shear
+// included) within 5 %; without the flag linear elements lock. The JSON reports the backward
+// error. --order 1 with the flag is refused.
+TEST(FemCommand, IncompressibleFlagGivesLockingFreeTipDeflectionAtNu04999) {
+  const std::string beam = BeamPath();
+  const double force = 1000.0, e = 200e9, nu = 0.4999;
+  const double inertia = std::pow(kSide, 4) / 12.0;
+  const double kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+  const double timoshenko = force * std::pow(kLength, 3) / (3.0 * e * inertia) +
+                            force * kLength / (kappa * e / (2.0 * (1.0 + nu)) * kSide * kSide);
+  double ratio[2] = {0, 0};
+  for (int flag : {0, 1}) {
+    const std::string out = OutputPath("fem_incompressible_" + std::to_string(flag) + ".vtu");
+    const CommandRun run =
+        RunSpidarcad(beam + " " + kClampX0 + " --nu 0.4999 --load 1,0.05,0.05 --force 0,0,-1000" +
+                         (flag ? " --incompressible" : "") + " --out " + out,
+                     "incompressible" + std::to_string(flag));
+    ASSERT_EQ(run.status, 0) << run.err;
+    const nlohmann::json report = nlohmann::json::parse(run.out);
+    EXPECT_EQ(report["order"].get<int>(), flag ? 2 : 1);
+    EXPECT_EQ(report["formulation"], flag ? "mean_dilatation" : "displacement");
+    EXPECT_LT(report["status"]["backward_error"].get<double>(), 1e-12);
+    ratio[flag] = -MeanTipDeflection(out) / timoshenko;
+  }
+  std::printf("nu = 0.4999 tip / Timoshenko: linear %.4f, --incompressible %.4f\n", ratio[0],
+              ratio[1]);
+  EXPECT_LT(ratio[0], 0.1);
+  EXPECT_NEAR(ratio[1], 1.0, 0.05);
+  const CommandRun order1 = RunSpidarcad(beam + " " + kClampX0 + " --incompressible --order 1" +
+                                             " --out " + OutputPath("fem_inc1.vtu"),
+                                         "incompressible_order1");
+  EXPECT_EQ(order1.status, 2);
+  EXPECT_NE(order1.err.find("--incompressible needs quadratic"), std::string::npos) << order1.err;
+}
+
+// Hostile input of issue 15, each an exit status 2 naming the file, field and value, and no
+// output file written.
+TEST(HardFemInput, HostileInputExitsWithStatusTwoAndNothingWritten) {
+  // Two tetrahedra written as ASCII, then edited.
+  modeling::VtuGrid g;
+  g.points.resize(3, 8);
+  g.points << 0, 1, 0, 0, 1, 1, 0, 1,  //
+      0, 0, 1, 0, 1, 0, 1, 1,          //
+      0, 0, 0, 1, 0, 1, 1, 1;
+  g.cells.resize(4, 2);
+  g.cells << 0, 1, 1, 4, 2, 2, 3, 7;
+  g.regions = Eigen::VectorXi::Zero(2);
+  const std::string good_path = OutputPath("fem_hostile_good.vtu");
+  modeling::WriteVtuGrid(g, good_path, modeling::VtuEncoding::kAscii);
+  std::stringstream text;
+  text << std::ifstream(good_path).rdbuf();
+  const std::string good = text.str();
+  auto variant = [&](const std::string& name, const std::string& from, const std::string& to) {
+    std::string bytes = good;
+    const size_t at = bytes.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) bytes.replace(at, from.size(), to);
+    const std::string path = OutputPath("fem_hostile_" + name + ".vtu");
+    std::ofstream(path, std::ios::binary) << bytes;
+    return path;
+  };
+  const std::string huge = variant("point_1e9", "1 4 2 7", "1 4 2 1000000000");
+  const std::string wrap = variant("point_2p32", "1 4 2 7", "1 4 2 4294967300");
+  std::string nan_region =
+      variant("region_type", "type=\"Int32\" Name=\"region\"", "type=\"Float64\" Name=\"region\"");
+  {
+    std::stringstream t;
+    t << std::ifstream(nan_region).rdbuf();
+    std::string bytes = t.str();
+    bytes.replace(bytes.find("          0 0\n"), 14, "          nan 0\n");
+    nan_region = OutputPath("fem_hostile_region_nan.vtu");
+    std::ofstream(nan_region, std::ios::binary) << bytes;
+  }
+  const std::string beam = BeamPath();
+  const std::string out_path = OutputPath("fem_hostile_out.vtu");
+  std::remove(out_path.c_str());
+  const std::string out = " --out " + out_path;
+  const std::string fix = " --fix=-1,-1,-1,1e-9,2,2";
+  struct Case {
+    std::string args;
+    std::vector<std::string> expected;
+  };
+  const std::vector<Case> cases = {
+      {huge + fix + out, {huge, "connectivity", "1000000000", "byte "}},
+      {wrap + fix + out, {wrap, "connectivity", "4294967300"}},
+      {nan_region + fix + out, {nan_region, "region", "nan"}},
+      {beam + " --fix=-1,-1,-1,2,2,2" + out, {"--fix", "clamp all"}},
+      {beam + " " + kClampX0 + " --push 1,0.05,0.05 --disp 0,0,-1e300" + out,
+       {"not finite", "--disp #1 '0,0,-1e300'"}},
+  };
+  int index = 0;
+  for (const Case& c : cases) {
+    const CommandRun run = RunSpidarcad(c.args, "hostile" + std::to_string(index++));
+    EXPECT_EQ(run.status, 2) << c.args << "\n" << run.err;
+    for (const std::string& part : c.expected)
+      EXPECT_NE(run.err.find(part), std::string::npos)
+          << c.args << ": '" << part << "' not in: " << run.err;
+    EXPECT_FALSE(std::ifstream(out_path).good()) << c.args << ": an output was written";
+  }
+  RecordProperty("figure", std::to_string(cases.size()) + " of " + std::to_string(cases.size()) +
+                               " hostile inputs: exit 2, named, nothing written");
+  RecordProperty("bar", "exit status 2 with file/field/value named; no output file");
 }
 
 }  // namespace

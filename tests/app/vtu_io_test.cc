@@ -1,15 +1,17 @@
-// Tests of the .vtu reader and writer for tetrahedral meshes (app/src/cli/vtu_io.h): round
-// trips, orientation repair checked against element geometry, arrays read back with plain VTK,
-// and refusals of files that hold no tetrahedra.
+// Tests of the .vtu reader and writer for tetrahedral meshes (app/src/cli/vtu_io.h, on
+// modeling's own VTU reader): round trips, every encoding VTK's own writer produces read back
+// exactly, orientation repair checked against element geometry, arrays read back with plain
+// VTK (what ParaView uses), refusals of files that hold no tetrahedra, hostile files (issue 15)
+// and a mutation loop over VTK-written files.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include <cmath>
-#include <fstream>
-#include <string>
+#include "cli/vtu_io.h"
 
 #include <gtest/gtest.h>
 #include <vtkCellData.h>
 #include <vtkCellType.h>
 #include <vtkDataArray.h>
+#include <vtkDoubleArray.h>
+#include <vtkIntArray.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkSmartPointer.h>
@@ -17,9 +19,19 @@
 #include <vtkXMLUnstructuredGridReader.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
 #include "cli/cli_common.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/mesh.h"
+#include "spidarcad/modeling/tet_mesh.h"
 
 namespace spidarcad::app {
 namespace {
@@ -74,9 +86,10 @@ TEST(VtuIo, WriteThenReadKeepsNodesElementsAndRegionsForBothOrders) {
 
 TEST(VtuIo, ArraysReadBackWithPlainVtkReader) {
   const fem::TetMesh mesh = SmallBox(1);
-  Eigen::MatrixXd disp(mesh.num_nodes(), 3);
-  for (int v = 0; v < mesh.num_nodes(); ++v) disp.row(v) = 2.0 * mesh.nodes.row(v);
-  Eigen::VectorXd cell_value(mesh.num_elements());
+  // Arrays are k by N: one column per point (or cell).
+  Eigen::MatrixXd disp(3, mesh.num_nodes());
+  for (int v = 0; v < mesh.num_nodes(); ++v) disp.col(v) = 2.0 * mesh.nodes.row(v).transpose();
+  Eigen::RowVectorXd cell_value(mesh.num_elements());
   for (int e = 0; e < mesh.num_elements(); ++e) cell_value(e) = 0.5 * e;
   const std::string path = OutputPath("vtu_arrays.vtu");
   WriteTetVtu(mesh, path, {{"displacement", disp}}, {{"value", cell_value}});
@@ -101,8 +114,10 @@ TEST(VtuIo, ArraysReadBackWithPlainVtkReader) {
   for (int e = 0; e < mesh.num_elements(); ++e) EXPECT_EQ(c->GetTuple1(e), 0.5 * e);
   EXPECT_NE(grid->GetCellData()->GetArray("region"), nullptr);
 
-  // A row count that does not match is refused.
+  // A column count that does not match is refused, and so is the N by k orientation.
   EXPECT_THROW(WriteTetVtu(mesh, path, {{"bad", Eigen::MatrixXd::Zero(3, 1)}}),
+               std::invalid_argument);
+  EXPECT_THROW(WriteTetVtu(mesh, path, {{"bad", Eigen::MatrixXd::Zero(mesh.num_nodes(), 3)}}),
                std::invalid_argument);
 }
 
@@ -189,6 +204,261 @@ TEST(VtuIo, ToFemMeshTransposesModelingLayout) {
   }
   EXPECT_TRUE(f.regions.isZero());
   EXPECT_EQ(f.regions.size(), 2);
+}
+
+// The fem mesh as a VTK grid (cells VTK_TETRA or VTK_QUADRATIC_TETRA, "region" Int32, and a
+// point array "position" holding 2·x + (0, 1, 2)).
+vtkSmartPointer<vtkUnstructuredGrid> ToVtkGrid(const fem::TetMesh& mesh) {
+  auto grid = vtkSmartPointer<vtkUnstructuredGrid>::New();
+  auto points = vtkSmartPointer<vtkPoints>::New();
+  points->SetDataTypeToDouble();
+  for (int v = 0; v < mesh.num_nodes(); ++v)
+    points->InsertNextPoint(mesh.nodes(v, 0), mesh.nodes(v, 1), mesh.nodes(v, 2));
+  grid->SetPoints(points);
+  const int npe = mesh.NodesPerElement();
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    vtkIdType ids[10];
+    for (int j = 0; j < npe; ++j) ids[j] = mesh.elements(e, j);
+    grid->InsertNextCell(npe == 4 ? VTK_TETRA : VTK_QUADRATIC_TETRA, npe, ids);
+  }
+  auto region = vtkSmartPointer<vtkIntArray>::New();
+  region->SetName("region");
+  for (int e = 0; e < mesh.num_elements(); ++e) region->InsertNextValue(mesh.regions(e));
+  grid->GetCellData()->AddArray(region);
+  auto position = vtkSmartPointer<vtkDoubleArray>::New();
+  position->SetName("position");
+  position->SetNumberOfComponents(3);
+  for (int v = 0; v < mesh.num_nodes(); ++v) {
+    const double t[3] = {2 * mesh.nodes(v, 0), 2 * mesh.nodes(v, 1) + 1, 2 * mesh.nodes(v, 2) + 2};
+    position->InsertNextTuple(t);
+  }
+  grid->GetPointData()->AddArray(position);
+  return grid;
+}
+
+// One way VTK's writer can store a file.
+struct VtkEncoding {
+  int mode;  // 0 ascii, 1 binary (inline base64), 2 appended
+  bool encode_appended, zlib, header64, big_endian;
+  std::string Name() const {
+    const char* modes[] = {"ascii", "binary", "appended"};
+    return std::string(modes[mode]) + (mode == 2 ? (encode_appended ? "-base64" : "-raw") : "") +
+           (zlib ? "-zlib" : "") + (header64 ? "-u64" : "-u32") + (big_endian ? "-be" : "-le");
+  }
+};
+
+std::vector<VtkEncoding> AllVtkEncodings() {
+  std::vector<VtkEncoding> out;
+  out.push_back({0, false, false, false, false});
+  for (int mode : {1, 2})
+    for (bool encode : {false, true}) {
+      if (mode == 1 && encode) continue;
+      for (bool zlib : {false, true})
+        for (bool header64 : {false, true})
+          for (bool big : {false, true}) out.push_back({mode, encode, zlib, header64, big});
+    }
+  return out;
+}
+
+std::string WriteWithVtk(const fem::TetMesh& mesh, const VtkEncoding& enc,
+                         const std::string& path) {
+  auto writer = vtkSmartPointer<vtkXMLUnstructuredGridWriter>::New();
+  writer->SetFileName(path.c_str());
+  writer->SetInputData(ToVtkGrid(mesh));
+  if (enc.mode == 0) writer->SetDataModeToAscii();
+  if (enc.mode == 1) writer->SetDataModeToBinary();
+  if (enc.mode == 2) writer->SetDataModeToAppended();
+  writer->SetEncodeAppendedData(enc.encode_appended);
+  if (enc.zlib) {
+    writer->SetCompressorTypeToZLib();
+    writer->SetBlockSize(256);  // several blocks per array
+  } else {
+    writer->SetCompressorTypeToNone();
+  }
+  if (enc.header64) {
+    writer->SetHeaderTypeToUInt64();
+  } else {
+    writer->SetHeaderTypeToUInt32();
+  }
+  if (enc.big_endian) {
+    writer->SetByteOrderToBigEndian();
+  } else {
+    writer->SetByteOrderToLittleEndian();
+  }
+  EXPECT_EQ(writer->Write(), 1) << enc.Name();
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
+}
+
+// Every encoding VTK 9's XML writer produces (ascii; inline base64; appended raw or base64;
+// each plain or zlib in several blocks, UInt32 or UInt64 headers, either byte order) reads back
+// exactly through the app's reader, with arrays in the k by N orientation.
+TEST(VtuIo, ReadsEveryEncodingVtkWritesExactly) {
+  for (int order : {1, 2}) {
+    const fem::TetMesh mesh = SmallBox(order);
+    for (const VtkEncoding& enc : AllVtkEncodings()) {
+      const std::string path = OutputPath("vtu_vtk_" + enc.Name() + std::to_string(order) + ".vtu");
+      WriteWithVtk(mesh, enc, path);
+      VtuReadInfo info;
+      const fem::TetMesh back = ReadTetVtu(path, &info);
+      ASSERT_EQ(back.num_nodes(), mesh.num_nodes()) << enc.Name();
+      EXPECT_EQ((back.nodes - mesh.nodes).cwiseAbs().maxCoeff(), 0.0) << enc.Name();
+      EXPECT_TRUE(back.elements == mesh.elements) << enc.Name();
+      EXPECT_TRUE(back.regions == mesh.regions) << enc.Name();
+      EXPECT_TRUE(info.has_regions);
+      const modeling::VtuGrid grid = modeling::ReadVtuGrid(path);
+      const Eigen::MatrixXd& position = grid.point_data.at("position");
+      ASSERT_EQ(position.rows(), 3);
+      ASSERT_EQ(position.cols(), mesh.num_nodes());
+      for (int v = 0; v < mesh.num_nodes(); ++v)
+        for (int i = 0; i < 3; ++i)
+          EXPECT_EQ(position(i, v), 2 * mesh.nodes(v, i) + i) << enc.Name();
+    }
+  }
+}
+
+// The file with the given text replaced (the text must occur).
+std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+// Hostile files of issue 15: each is refused with InputError naming the file, the byte offset
+// and the offending value, and never reaches a solver or VTK.
+TEST(HardVtu, HostileFilesAreRefusedNamingByteFieldAndValue) {
+  fem::TetMesh tiny;
+  tiny.nodes.resize(8, 3);
+  tiny.nodes << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 0, 1, 0, 1, 0, 1, 1, 1, 1, 1;
+  tiny.elements.resize(2, 4);
+  tiny.elements << 0, 1, 2, 3, 1, 4, 2, 7;
+  tiny.regions = Eigen::VectorXi::Zero(2);
+  const std::string good_path = OutputPath("vtu_hostile_good.vtu");
+  modeling::VtuGrid g;
+  g.points = tiny.nodes.transpose();
+  g.cells = tiny.elements.transpose();
+  g.regions = tiny.regions;
+  g.cell_data["value"] = Eigen::RowVector2d(1.0, 2.0);
+  modeling::WriteVtuGrid(g, good_path, modeling::VtuEncoding::kAscii);
+  std::stringstream text;
+  text << std::ifstream(good_path).rdbuf();
+  const std::string good = text.str();
+  ASSERT_NO_THROW(ReadTetVtu(good_path));
+  // A zlib-compressed, inline-binary variant written by VTK for the corrupted-binary case.
+  const std::string zlib_path = OutputPath("vtu_hostile_zlib.vtu");
+  const std::string zlib = WriteWithVtk(tiny, {1, false, true, false, false}, zlib_path);
+  const size_t data_at = zlib.find("format=\"binary\"");
+  ASSERT_NE(data_at, std::string::npos);
+  std::string corrupt = zlib;
+  const size_t payload = corrupt.find('>', data_at) + 30;
+  corrupt[payload] = corrupt[payload] == 'A' ? 'B' : 'A';
+
+  struct Case {
+    std::string name, bytes;
+    std::vector<std::string> expected;
+  };
+  const std::vector<Case> cases = {
+      {"point_1e9",
+       Replace(good, "1 4 2 7", "1 4 2 1000000000"),
+       {"connectivity", "1000000000", "byte "}},
+      {"point_2p32", Replace(good, "1 4 2 7", "1 4 2 4294967300"), {"connectivity", "4294967300"}},
+      {"negative_cells",
+       Replace(good, "NumberOfCells=\"2\"", "NumberOfCells=\"-1\""),
+       {"NumberOfCells", "-1"}},
+      {"short_cell_array",
+       Replace(good, " 1 2\n", " 1\n"),
+       {"Name=\"value\"", "1 values, expected 2"}},
+      {"region_nan",
+       Replace(Replace(good, "type=\"Int32\" Name=\"region\"", "type=\"Float64\" Name=\"region\""),
+               "          0 0\n", "          0 nan\n"),
+       {"region", "nan", "not an integer"}},
+      {"corrupt_zlib", corrupt, {"byte "}},
+      {"truncated", good.substr(0, good.size() / 2), {"byte "}},
+      {"wrong_offsets", Replace(good, " 4 8\n", " 4 9\n"), {"offsets", "9"}},
+  };
+  for (const Case& c : cases) {
+    const std::string path = OutputPath("vtu_hostile_" + c.name + ".vtu");
+    std::ofstream(path, std::ios::binary) << c.bytes;
+    std::vector<std::string> parts = c.expected;
+    parts.push_back(path);
+    try {
+      ReadTetVtu(path);
+      ADD_FAILURE() << c.name << ": nothing thrown";
+    } catch (const InputError& e) {
+      for (const std::string& part : parts)
+        EXPECT_NE(std::string(e.what()).find(part), std::string::npos)
+            << c.name << ": '" << part << "' not in: " << e.what();
+    }
+  }
+  RecordProperty("figure", std::to_string(cases.size()) + " of " + std::to_string(cases.size()) +
+                               " hostile files refused with byte offset and value");
+  RecordProperty("bar", "every one refused with InputError naming file, byte and value");
+}
+
+// Mutation loop (not a fuzzer): VTK-written files in eight encodings, each mutated 60 times
+// with a fixed seed (bit flips, byte overwrites, truncation, duplicated or deleted spans,
+// inserted digits or signs). modeling::ParseVtuGrid must read the result or throw VtuError:
+// never crash, hang or throw anything else.
+TEST(HardVtuMutation, ReaderReadsOrRefusesEveryMutatedVtkFile) {
+  const fem::TetMesh mesh = SmallBox(1);
+  std::vector<std::string> seeds;
+  for (const VtkEncoding& enc : AllVtkEncodings()) {
+    if (enc.big_endian || enc.header64) continue;  // eight seeds: the other axes are tested above
+    seeds.push_back(WriteWithVtk(mesh, enc, OutputPath("vtu_seed_" + enc.Name() + ".vtu")));
+  }
+  seeds.push_back(WriteWithVtk(mesh, {2, false, true, true, true}, OutputPath("vtu_seed_be.vtu")));
+  std::mt19937 rng(20261202);
+  int read = 0, refused = 0, other = 0;
+  for (const std::string& seed : seeds) {
+    for (int m = 0; m < 60; ++m) {
+      std::string bytes = seed;
+      const int edits = 1 + static_cast<int>(rng() % 3);
+      for (int k = 0; k < edits && !bytes.empty(); ++k) {
+        const size_t at = rng() % bytes.size();
+        const size_t span = std::min<size_t>(1 + rng() % 16, bytes.size() - at);
+        switch (rng() % 6) {
+          case 0:
+            bytes[at] = static_cast<char>(bytes[at] ^ (1 << (rng() % 8)));
+            break;
+          case 1:
+            bytes[at] = static_cast<char>(rng() % 256);
+            break;
+          case 2:
+            bytes.resize(at);
+            break;
+          case 3:
+            bytes.insert(at, bytes.substr(at, span));
+            break;
+          case 4:
+            bytes.erase(at, span);
+            break;
+          default:
+            bytes.insert(at, std::string(1, "-9+0e."[rng() % 6]));
+            break;
+        }
+      }
+      try {
+        modeling::ParseVtuGrid(bytes, "mutant");
+        ++read;
+      } catch (const modeling::VtuError&) {
+        ++refused;
+      } catch (...) {
+        ++other;
+      }
+    }
+  }
+  std::printf("%zu mutated files: %d read, %d refused with VtuError, %d other exceptions\n",
+              seeds.size() * 60, read, refused, other);
+  EXPECT_EQ(other, 0);
+  EXPECT_GT(refused, 0);
+  RecordProperty("figure", std::to_string(read + refused + other) +
+                               " mutants: " + std::to_string(read) + " read, " +
+                               std::to_string(refused) + " refused (VtuError), " +
+                               std::to_string(other) + " other, 0 crashes");
+  RecordProperty("bar", "no crash and no exception other than VtuError");
 }
 
 }  // namespace

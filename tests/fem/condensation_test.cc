@@ -1,13 +1,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/condensation.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
 #include <cstddef>
+#include <cstdio>
 #include <random>
-
-#include <Eigen/Dense>
-#include <gtest/gtest.h>
 
 // Counting allocator for the whole test program: every malloc (hence every operator new and
 // every Eigen heap allocation) is counted while g_count_allocations is set.
@@ -74,8 +75,9 @@ struct Scene {
     mesh = MakeBoxMesh(s);
     bcs = std::make_unique<BoundaryConditions>(mesh.num_nodes());
     FixNodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), bcs.get());
-    bcs->AddPointLoad(NodesInBox(mesh, Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0.2, 0, 0)).at(0),
-                      Eigen::Vector3d(0.0, 3.0, -2.0));
+    bcs->AddPointLoad(
+        NodesInBox(mesh, Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0.2, 0, 0)).at(0),
+        Eigen::Vector3d(0.0, 3.0, -2.0));
     solver = std::make_unique<StaticSolver>(mesh, materials, *bcs);
     const Surface surf = ExtractSurface(mesh);
     const auto top = NodesInBox(mesh, Eigen::Vector3d(-1, -1, 0.1), Eigen::Vector3d(1, 1, 1));
@@ -100,7 +102,8 @@ TEST(Compliance, IsSymmetricPositiveDefiniteWhenRestrictedToCondensedNodes) {
   const auto free = scene.FreeCondensed();
   Eigen::MatrixXd gcc(3 * free.size(), 3 * free.size());
   for (size_t a = 0; a < free.size(); ++a)
-    for (size_t b = 0; b < free.size(); ++b) gcc.block<3, 3>(3 * a, 3 * b) = c.Block(free[a], free[b]);
+    for (size_t b = 0; b < free.size(); ++b)
+      gcc.block<3, 3>(3 * a, 3 * b) = c.Block(free[a], free[b]);
   // Maxwell–Betti reciprocity.
   EXPECT_LT((gcc - gcc.transpose()).norm(), 1e-12 * gcc.norm());
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gcc);
@@ -114,7 +117,8 @@ TEST(Compliance, IsSymmetricPositiveDefiniteWhenRestrictedToCondensedNodes) {
   const StaticSolution direct = StaticSolver(scene.mesh, scene.materials, unit).Solve();
   for (size_t a = 0; a < c.output_nodes().size(); ++a)
     EXPECT_LT((c.matrix().block<3, 1>(3 * a, 3 * b + 1) -
-               direct.displacement.segment<3>(3 * c.output_nodes()[a])).norm(),
+               direct.displacement.segment<3>(3 * c.output_nodes()[a]))
+                  .norm(),
               1e-12 * direct.displacement.norm());
 }
 
@@ -221,7 +225,8 @@ TEST(ContactSolver, DoesNotDriftWhenTouchedAndReleasedManyTimes) {
     } else if (solver.num_contacts() < 12) {
       ASSERT_EQ(solver.Add(b), ContactStatus::kOk);
     }
-    if (step % 500 == 499 && solver.num_contacts() > 0) worst = std::max(worst, FactorError(solver));
+    if (step % 500 == 499 && solver.num_contacts() > 0)
+      worst = std::max(worst, FactorError(solver));
   }
   ASSERT_GT(solver.num_contacts(), 0);
   EXPECT_LT(worst, 1e-11);
@@ -231,7 +236,8 @@ TEST(ContactSolver, DoesNotDriftWhenTouchedAndReleasedManyTimes) {
   Eigen::VectorXd rhs(n);
   for (int s = 0; s < solver.num_contacts(); ++s)
     rhs.segment<3>(3 * s) = target.segment<3>(3 * s) -
-        scene.compliance->baseline().segment<3>(3 * scene.compliance->OutputIndexOfCondensed(solver.contact(s)));
+                            scene.compliance->baseline().segment<3>(
+                                3 * scene.compliance->OutputIndexOfCondensed(solver.contact(s)));
   const Eigen::VectorXd f_ref = solver.ContactBlock().ldlt().solve(rhs);
   EXPECT_LT((f - f_ref).norm(), 1e-10 * f_ref.norm());
 }
@@ -277,7 +283,10 @@ TEST(ContactSolver, AllocatesNothingWhenContactsChangeAndSolve) {
   // Sanity: the counter sees allocations.
   g_allocations = 0;
   g_count_allocations = true;
-  { std::vector<int> probe(100, 1); EXPECT_EQ(probe[99], 1); }
+  {
+    std::vector<int> probe(100, 1);
+    EXPECT_EQ(probe[99], 1);
+  }
   g_count_allocations = false;
   ASSERT_GT(g_allocations.load(), 0);
 
@@ -285,7 +294,8 @@ TEST(ContactSolver, AllocatesNothingWhenContactsChangeAndSolve) {
   g_count_allocations = true;
   int ok = 0;
   for (int round = 0; round < 20; ++round) {
-    for (int i = 0; i < 8; ++i) ok += solver.Add(free[(round + 3 * i) % free.size()]) == ContactStatus::kOk;
+    for (int i = 0; i < 8; ++i)
+      ok += solver.Add(free[(round + 3 * i) % free.size()]) == ContactStatus::kOk;
     ok += solver.Solve(target.data(), forces.data());
     solver.OutputDisplacement(forces.data(), &u);
     ok += solver.Remove(solver.contact(0)) == ContactStatus::kOk;
@@ -302,6 +312,73 @@ TEST(Compliance, ThrowsWhenCondensedNodeIsNotAnOutputNode) {
   EXPECT_THROW(Compliance(*scene.solver, {1, 2, 3}, {4}), std::invalid_argument);
   EXPECT_THROW(Compliance(*scene.solver, {1, 1}, {1}), std::invalid_argument);
   EXPECT_THROW(ContactSolver(*scene.compliance, 0), std::invalid_argument);
+}
+
+// The mean-dilatation (P2–P0) cantilever at ν = 0.4999, 10 x 2 x 2 cells, condensed on its
+// surface: the tip load applied through the compliance columns, and a push of the tip through
+// the contact solve, give the full sparse solve's tip displacement to 1e-9.
+TEST(HardIncompressible, CondensationGivesTheFullSolveTipDisplacementAtNu04999) {
+  BoxMeshSettings s;
+  s.upper = Eigen::Vector3d(1.0, 0.1, 0.1);
+  s.nx = 10;
+  s.ny = s.nz = 2;
+  s.order = 2;
+  const TetMesh mesh = MakeBoxMesh(s);
+  Material rubber{1.0e7, 0.4999};
+  rubber.formulation = Formulation::kMeanDilatation;
+  const MaterialTable materials(rubber);
+  BoundaryConditions clamp(mesh.num_nodes());
+  FixNodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), &clamp);
+  const Surface surf = ExtractSurface(mesh);
+  BoundaryConditions loaded = clamp;
+  AddTractionInBox(mesh, surf, Eigen::Vector3d(1 - 1e-9, -1, -1), Eigen::Vector3d(2, 2, 2),
+                   Eigen::Vector3d(0, 0, -100.0 / 0.01), &loaded);
+  const std::vector<int> tip =
+      NodesInBox(mesh, Eigen::Vector3d(1 - 1e-9, -1, -1), Eigen::Vector3d(2, 2, 2));
+  const StaticSolution full = StaticSolver(mesh, materials, loaded).Solve();
+  ASSERT_TRUE(full.status.converged) << full.status.message;
+
+  // Superposition: u = G f over the tip nodes (the clamped model has no load of its own).
+  const StaticSolver solver(mesh, materials, clamp);
+  const Compliance compliance(solver, surf.nodes, tip);
+  ASSERT_TRUE(compliance.status().converged) << compliance.status().message;
+  Eigen::VectorXd f(3 * tip.size());
+  for (size_t b = 0; b < tip.size(); ++b)
+    f.segment<3>(3 * b) = loaded.loads().segment<3>(3 * tip[b]);
+  const Eigen::VectorXd u = compliance.baseline() + compliance.matrix() * f;
+  double worst = 0.0, scale = 0.0;
+  for (size_t b = 0; b < tip.size(); ++b) {
+    const int row = compliance.OutputIndexOfCondensed(static_cast<int>(b));
+    const Eigen::Vector3d exact = full.displacement.segment<3>(3 * tip[b]);
+    worst = std::max(worst, (u.segment<3>(3 * row) - exact).norm());
+    scale = std::max(scale, exact.norm());
+  }
+  EXPECT_LT(worst, 1e-9 * scale);
+
+  // Contact: push the tip centre node 10 mm down; the contact force equals the reaction of a
+  // full solve that prescribes the same displacement there.
+  const int centre =
+      NodesInBox(mesh, Eigen::Vector3d(1, 0.05, 0.05), Eigen::Vector3d(1, 0.05, 0.05)).at(0);
+  const int b = compliance.CondensedIndexOfNode(centre);
+  ContactSolver contact(compliance, 4);
+  ASSERT_EQ(contact.Add(b), ContactStatus::kOk);
+  const Eigen::Vector3d target(0.0, 0.0, -0.01);
+  Eigen::Vector3d force;
+  ASSERT_TRUE(contact.Solve(target.data(), force.data()));
+  BoundaryConditions pushed = clamp;
+  pushed.PrescribeNode(centre, target);
+  const StaticSolution push = StaticSolver(mesh, materials, pushed).Solve();
+  ASSERT_TRUE(push.status.converged) << push.status.message;
+  const Eigen::Vector3d reaction = push.reaction.segment<3>(3 * centre);
+  const double force_error = (force - reaction).norm() / reaction.norm();
+  // The reference reaction K u − f of the full solve cancels about λ/μ = 5000 times more.
+  EXPECT_LT(force_error, 1e-7);
+  char figure[160];
+  std::snprintf(figure, sizeof(figure),
+                "tip displacement error %.1e, push force error %.1e (relative)", worst / scale,
+                force_error);
+  RecordProperty("figure", figure);
+  RecordProperty("bar", "tip displacement 1e-9, push force 1e-7 relative");
 }
 
 }  // namespace

@@ -1,10 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/stiffness.h"
 
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Dense>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
 
 namespace spidarcad::fem {
 namespace {
@@ -34,7 +37,8 @@ ElementNodes SkewTet(int order) {
   if (order == 1) return x;
   ElementNodes q(10, 3);
   q.topRows(4) = x;
-  for (int k = 0; k < 6; ++k) q.row(4 + k) = 0.5 * (x.row(kTetEdges[k][0]) + x.row(kTetEdges[k][1]));
+  for (int k = 0; k < 6; ++k)
+    q.row(4 + k) = 0.5 * (x.row(kTetEdges[k][0]) + x.row(kTetEdges[k][1]));
   return q;
 }
 
@@ -100,7 +104,8 @@ TEST_P(ElementOrderTest, AssemblyEqualsDenseSumOfElementMatricesWhenComputed) {
     const Eigen::MatrixXd ke = ElementStiffness(GetElementNodes(mesh, e), mats.Get(0));
     for (int a = 0; a < npe; ++a)
       for (int b = 0; b < npe; ++b)
-        dense.block<3, 3>(3 * mesh.elements(e, a), 3 * mesh.elements(e, b)) += ke.block<3, 3>(3 * a, 3 * b);
+        dense.block<3, 3>(3 * mesh.elements(e, a), 3 * mesh.elements(e, b)) +=
+            ke.block<3, 3>(3 * a, 3 * b);
   }
   EXPECT_LT((Eigen::MatrixXd(k) - dense).norm(), 1e-13 * dense.norm());
 }
@@ -119,7 +124,8 @@ TEST_P(ElementOrderTest, SliverKeepsRigidModesAndExactEnergyWhenNearlyFlat) {
   if (GetParam() == 2) {
     x.resize(10, 3);
     x.topRows(4) = c;
-    for (int k = 0; k < 6; ++k) x.row(4 + k) = 0.5 * (c.row(kTetEdges[k][0]) + c.row(kTetEdges[k][1]));
+    for (int k = 0; k < 6; ++k)
+      x.row(4 + k) = 0.5 * (c.row(kTetEdges[k][0]) + c.row(kTetEdges[k][1]));
   }
   const Material mat{1.0e9, 0.3};
   const Eigen::MatrixXd k = ElementStiffness(x, mat);
@@ -132,11 +138,88 @@ TEST_P(ElementOrderTest, SliverKeepsRigidModesAndExactEnergyWhenNearlyFlat) {
   for (int i = 0; i < x.rows(); ++i) u.segment<3>(3 * i) = a * x.row(i).transpose();
   Eigen::Matrix<double, 6, 1> voigt = Eigen::Matrix<double, 6, 1>::Zero();
   voigt(4) = 1e-3;
-  const double expected = 0.5 * edges.determinant() / 6.0 * voigt.dot(mat.ElasticityMatrix() * voigt);
+  const double expected =
+      0.5 * edges.determinant() / 6.0 * voigt.dot(mat.ElasticityMatrix() * voigt);
   EXPECT_NEAR(0.5 * u.dot(k * u), expected, 1e-9 * expected);
 }
 
 INSTANTIATE_TEST_SUITE_P(Orders, ElementOrderTest, ::testing::Values(1, 2));
+
+// The mean dilatation of a quadratic field u(x) is the mean of its (linear) divergence over
+// the element, i.e. div u at the centroid: computed here from the field's coefficients.
+TEST(MeanDilatation, EqualsTheDivergenceAtTheCentroidWhenFieldIsQuadratic) {
+  const ElementNodes x = SkewTet(2);
+  // u_i = b_i + Σ_j A_ij x_j + Σ_j C_ij x_j², div u = tr A + 2 Σ_i C_ii x_i.
+  Eigen::Matrix3d a, c;
+  a << 0.3, -0.1, 0.2, 0.05, -0.4, 0.1, 0.2, 0.3, 0.7;
+  c << 1.5, 0.2, -0.3, 0.4, -2.0, 0.6, -0.7, 0.1, 3.0;
+  const Eigen::Vector3d b(0.01, -0.02, 0.03);
+  Eigen::VectorXd ue(30);
+  for (int n = 0; n < 10; ++n) {
+    const Eigen::Vector3d p = x.row(n).transpose();
+    ue.segment<3>(3 * n) = b + a * p + c * p.cwiseProduct(p);
+  }
+  double volume = 0.0;
+  const Eigen::RowVectorXd theta = MeanDilatation(x, &volume);
+  const Eigen::Vector3d centroid = x.topRows(4).colwise().mean().transpose();
+  const double exact = a.trace() + 2.0 * c.diagonal().dot(centroid);
+  EXPECT_NEAR(theta.dot(ue), exact, 1e-12 * std::abs(exact));
+  const Eigen::Vector3d e1 = (x.row(1) - x.row(0)).transpose(),
+                        e2 = (x.row(2) - x.row(0)).transpose(),
+                        e3 = (x.row(3) - x.row(0)).transpose();
+  EXPECT_NEAR(volume, e1.dot(e2.cross(e3)) / 6.0, 1e-15);
+}
+
+// Mean dilatation keeps the six rigid modes (and only them) in the kernel and is exact for
+// constant strain (the patch test): its dilatation is the mean one.
+TEST(ElementStiffness, MeanDilatationKeepsRigidModesAndIsExactForConstantStrain) {
+  const ElementNodes x = SkewTet(2);
+  Material mat{1.0e6, 0.4999};
+  mat.formulation = Formulation::kMeanDilatation;
+  const Eigen::MatrixXd k = ElementStiffness(x, mat);
+  EXPECT_LT((k - k.transpose()).norm(), 1e-12 * k.norm());
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(k);
+  const double max_ev = eig.eigenvalues().maxCoeff();
+  for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(eig.eigenvalues()(i)), 1e-10 * max_ev);
+  EXPECT_GT(eig.eigenvalues()(6), 0.0);
+  const Eigen::MatrixXd r = RigidBodyModes(x);
+  EXPECT_LT((k * r).norm(), 1e-10 * k.norm() * r.norm());
+  // u = A x: energy ½ uᵀ K u = ½ V εᵀ D ε with the full D.
+  Eigen::Matrix3d a;
+  a << 1e-3, 2e-4, -3e-4, 5e-4, -2e-3, 1e-4, -1e-4, 4e-4, 3e-3;
+  Eigen::VectorXd ue(30);
+  for (int n = 0; n < 10; ++n) ue.segment<3>(3 * n) = a * x.row(n).transpose();
+  const Eigen::Matrix3d eps = 0.5 * (a + a.transpose());
+  Eigen::Matrix<double, 6, 1> voigt;
+  voigt << eps(0, 0), eps(1, 1), eps(2, 2), 2 * eps(1, 2), 2 * eps(0, 2), 2 * eps(0, 1);
+  double volume = 0.0;
+  MeanDilatation(x, &volume);
+  const double exact = volume * voigt.dot(mat.ElasticityMatrix() * voigt);
+  EXPECT_NEAR(ue.dot(k * ue), exact, 1e-10 * exact);
+  // The stress of a constant strain is D ε, as with the plain element.
+  TetMesh mesh;
+  mesh.nodes = x;
+  mesh.elements.resize(1, 10);
+  for (int n = 0; n < 10; ++n) mesh.elements(0, n) = n;
+  mesh.regions = Eigen::VectorXi::Zero(1);
+  const Eigen::Matrix<double, 6, 1> stress = ElementStress(mesh, MaterialTable(mat), ue, 0);
+  const Eigen::Matrix<double, 6, 1> expected = mat.ElasticityMatrix() * voigt;
+  EXPECT_LT((stress - expected).norm(), 1e-9 * expected.norm());
+}
+
+// Linear elements have a constant dilatation already: mean dilatation would still lock, so it
+// is refused with a message that says what to do.
+TEST(ElementStiffness, MeanDilatationThrowsNamingTheFixWhenElementsAreLinear) {
+  Material mat{1.0e6, 0.49};
+  mat.formulation = Formulation::kMeanDilatation;
+  try {
+    ElementStiffness(SkewTet(1), mat);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("10-node"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("MakeQuadratic"), std::string::npos) << e.what();
+  }
+}
 
 TEST(VonMises, MatchesUniaxialAndPureShearWhenEvaluated) {
   Eigen::Matrix<double, 6, 1> s = Eigen::Matrix<double, 6, 1>::Zero();
@@ -159,7 +242,8 @@ TEST(ElementStress, IsUniformAndExactWhenFieldIsLinear) {
     for (int v = 0; v < mesh.num_nodes(); ++v) u(3 * v) = strain * mesh.nodes(v, 0);
     const Material& m = mats.Get(0);
     Eigen::Matrix<double, 6, 1> expected;
-    expected << (m.Lambda() + 2 * m.Mu()) * strain, m.Lambda() * strain, m.Lambda() * strain, 0, 0, 0;
+    expected << (m.Lambda() + 2 * m.Mu()) * strain, m.Lambda() * strain, m.Lambda() * strain, 0, 0,
+        0;
     const Eigen::VectorXd vm = ElementVonMises(mesh, mats, u);
     const Eigen::VectorXd nodal = AverageToNodes(mesh, vm);
     for (int e = 0; e < mesh.num_elements(); ++e) {

@@ -9,11 +9,10 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
@@ -47,6 +46,7 @@ struct FemOptions {
   std::vector<std::string> push, disp;
   std::vector<std::string> load, force;
   int order = 0;  // 0: keep the input's order
+  bool incompressible = false;
   double resolution = 0.004;
   double max_radius_edge = 2.0;
   std::string solid;
@@ -59,8 +59,7 @@ std::vector<double> ParseList(const std::string& text, int n, const std::string&
   std::vector<double> values;
   std::stringstream fields(text);
   std::string field;
-  const std::string where =
-      option + " #" + std::to_string(occurrence + 1) + " '" + text + "': ";
+  const std::string where = option + " #" + std::to_string(occurrence + 1) + " '" + text + "': ";
   while (std::getline(fields, field, ',')) {
     size_t used = 0;
     double value = 0.0;
@@ -99,8 +98,7 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 
 // Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen.
 fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report) {
-  const SceneSolidGrid grid =
-      PrepareSceneSolid(options.input, options.solid, options.resolution);
+  const SceneSolidGrid grid = PrepareSceneSolid(options.input, options.solid, options.resolution);
   const double cell = grid.cell;
   modeling::SurfaceMeshSettings surface_settings;
   surface_settings.bounds = grid.bounds;
@@ -155,6 +153,15 @@ void RunFem(const FemOptions& options) {
   fem::Material material;
   material.youngs_modulus = options.youngs_modulus;
   material.poisson_ratio = options.poisson_ratio;
+  if (options.incompressible) {
+    if (options.order == 1) {
+      throw InputError(
+          "--incompressible needs quadratic (10-node) elements: linear tetrahedra lock whatever "
+          "their volumetric integration; drop --order 1 (a linear mesh is then upgraded) or use "
+          "--order 2");
+    }
+    material.formulation = fem::Formulation::kMeanDilatation;
+  }
   try {
     material.Validate();
   } catch (const std::invalid_argument& e) {
@@ -165,8 +172,9 @@ void RunFem(const FemOptions& options) {
                      " --push and " + std::to_string(options.disp.size()) + " --disp");
   }
   if (options.load.size() != options.force.size()) {
-    throw InputError("--load and --force come in pairs: got " + std::to_string(options.load.size()) +
-                     " --load and " + std::to_string(options.force.size()) + " --force");
+    throw InputError("--load and --force come in pairs: got " +
+                     std::to_string(options.load.size()) + " --load and " +
+                     std::to_string(options.force.size()) + " --force");
   }
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> fix_boxes;
   for (size_t i = 0; i < options.fix.size(); ++i) {
@@ -202,11 +210,12 @@ void RunFem(const FemOptions& options) {
   } else if (EndsWith(options.input, ".json")) {
     mesh = MeshScene(options, &report);
   } else {
-    throw InputError(options.input + ": unknown input kind (expected a .vtu mesh or a .json scene)");
+    throw InputError(options.input +
+                     ": unknown input kind (expected a .vtu mesh or a .json scene)");
   }
   const int input_order = mesh.Order();
   const int input_nodes = mesh.num_nodes();
-  if (options.order == 2 && input_order == 1) {
+  if ((options.order == 2 || options.incompressible) && input_order == 1) {
     mesh = fem::MakeQuadratic(mesh);
   } else if (options.order == 1 && input_order == 2) {
     throw InputError("--order 1: the mesh " + options.input +
@@ -229,6 +238,11 @@ void RunFem(const FemOptions& options) {
       clamped[v] = 1;
     }
     bcs.FixNodes(nodes);
+  }
+  if (num_fixed == mesh.num_nodes()) {
+    throw InputError("--fix: the box(es) clamp all " + std::to_string(num_fixed) +
+                     " nodes of the mesh, so nothing is left to solve; make the --fix box cover "
+                     "only the supported part (e.g. the nodes at one end)");
   }
   std::vector<char> used(mesh.num_nodes(), 0);
   std::vector<int> push_nodes, load_nodes;
@@ -268,8 +282,8 @@ void RunFem(const FemOptions& options) {
     throw InputError(options.input + ": " + e.what());
   }
   if (!solver->factor_status().converged) {
-    throw InputError(options.input + ": the stiffness could not be factored: " +
-                     solver->factor_status().message);
+    throw InputError(options.input +
+                     ": the stiffness could not be factored: " + solver->factor_status().message);
   }
   t = Clock::now();
   const fem::StaticSolution solution = solver->Solve();
@@ -279,16 +293,45 @@ void RunFem(const FemOptions& options) {
   const Eigen::VectorXd node_vm = fem::AverageToNodes(mesh, element_vm);
   const double stress_seconds = SecondsSince(t);
 
+  // A result that overflowed is refused before anything is written: name the largest input.
+  if (!solution.displacement.allFinite() || !solution.reaction.allFinite() ||
+      !element_vm.allFinite() || !std::isfinite(solution.status.residual)) {
+    std::string culprit = "--E " + FormatNumber(options.youngs_modulus);
+    double largest = -1.0;
+    for (size_t i = 0; i < push_disps.size(); ++i) {
+      if (push_disps[i].norm() > largest) {
+        largest = push_disps[i].norm();
+        culprit = "--disp #" + std::to_string(i + 1) + " '" + options.disp[i] + "'";
+      }
+    }
+    double largest_force = -1.0;
+    std::string force_culprit;
+    for (size_t i = 0; i < load_forces.size(); ++i) {
+      if (load_forces[i].norm() > largest_force) {
+        largest_force = load_forces[i].norm();
+        force_culprit = "--force #" + std::to_string(i + 1) + " '" + options.force[i] + "'";
+      }
+    }
+    if (!force_culprit.empty()) culprit += (largest >= 0.0 ? " or " : "") + force_culprit;
+    if (largest < 0.0 && force_culprit.empty()) culprit = "--E/--nu";
+    throw InputError(options.input +
+                     ": the solution is not finite (it overflows double "
+                     "precision): an input is out of range: " +
+                     culprit +
+                     "; use displacements of the order of the model size and forces and moduli "
+                     "of physical magnitude");
+  }
+
   t = Clock::now();
-  VtuDataArrays point_data, cell_data;
+  modeling::VtuArrays point_data, cell_data;
+  // k by N arrays: the displacement vector (3·#V, node-major) is already 3 by #V column-major.
   point_data["displacement"] =
-      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
-          solution.displacement.data(), mesh.num_nodes(), 3);
-  point_data["von_mises"] = node_vm;
-  cell_data["von_mises"] = element_vm;
+      Eigen::Map<const Eigen::Matrix3Xd>(solution.displacement.data(), 3, mesh.num_nodes());
+  point_data["von_mises"] = node_vm.transpose();
+  cell_data["von_mises"] = element_vm.transpose();
   try {
     WriteTetVtu(mesh, options.out, point_data, cell_data);
-  } catch (const std::runtime_error& e) {
+  } catch (const std::exception& e) {
     throw InputError(std::string("--out: ") + e.what());
   }
   const double write_seconds = SecondsSince(t);
@@ -297,6 +340,7 @@ void RunFem(const FemOptions& options) {
   report["output"] = options.out;
   report["material"] = {{"youngs_modulus_pa", material.youngs_modulus},
                         {"poisson_ratio", material.poisson_ratio}};
+  report["formulation"] = options.incompressible ? "mean_dilatation" : "displacement";
   report["order"] = mesh.Order();
   report["nodes"] = mesh.num_nodes();
   report["input_nodes"] = input_nodes;
@@ -333,16 +377,16 @@ void RunFem(const FemOptions& options) {
   }
   report["max_displacement_m"] = max_disp;
   report["max_von_mises_pa"] = element_vm.size() ? element_vm.maxCoeff() : 0.0;
+  // residual is the normwise backward error ||K u - f|| / (||K|| ||u|| + ||f||) of the free
+  // dofs (kept under its old name); backward_error says the same under its proper name.
   report["status"] = {{"converged", solution.status.converged},
                       {"residual", solution.status.residual},
+                      {"backward_error", solution.status.residual},
                       {"message", solution.status.message}};
   const fem::FactorStats& stats = solver->stats();
-  report["timing_s"] = {{"mesh", mesh_seconds},
-                        {"assembly", stats.assembly_seconds},
-                        {"factor", stats.factor_seconds},
-                        {"solve", solve_seconds},
-                        {"stress", stress_seconds},
-                        {"write", write_seconds},
+  report["timing_s"] = {{"mesh", mesh_seconds},           {"assembly", stats.assembly_seconds},
+                        {"factor", stats.factor_seconds}, {"solve", solve_seconds},
+                        {"stress", stress_seconds},       {"write", write_seconds},
                         {"total", SecondsSince(start)}};
   report["factor_peak_bytes"] = stats.factor_peak_bytes;
   std::cout << report.dump(2) << "\n";
@@ -369,7 +413,11 @@ void RegisterFemCommand(CLI::App& app) {
       "Writes OUT.vtu (point data displacement [m], von_mises [Pa, volume-weighted average of\n"
       "the elements]; cell data von_mises [Pa, at the element centroid], region) and prints JSON:\n"
       "for each pushed node its index, position and reaction_force (N, the force the push\n"
-      "applies ON the body), for each load its node and force, counts, status and timings.\n"
+      "applies ON the body), for each load its node and force, counts, status (converged,\n"
+      "backward_error ||K u - f|| / (||K|| ||u|| + ||f||)) and timings.\n"
+      "--incompressible (for nu near 0.5, e.g. rubber or soft tissue): quadratic elements with\n"
+      "the volumetric term on the element-mean dilatation (P2-P0, locking-free); a linear mesh\n"
+      "is upgraded to 10-node elements, and --order 1 with it is an error.\n"
       "\n"
       "Example (a 1 x 0.1 x 0.1 m steel beam clamped at x = 0, tip pushed 1 mm down):\n"
       "  spidarcad fem beam.vtu --fix=-1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
@@ -385,7 +433,8 @@ void RegisterFemCommand(CLI::App& app) {
       ->allow_extra_args(false);
   cmd->add_option("--disp", options->disp, "DX,DY,DZ [m]: displacement of the matching --push")
       ->allow_extra_args(false);
-  cmd->add_option("--load", options->load, "X,Y,Z [m]: point force at the surface node nearest here")
+  cmd->add_option("--load", options->load,
+                  "X,Y,Z [m]: point force at the surface node nearest here")
       ->allow_extra_args(false);
   cmd->add_option("--force", options->force, "FX,FY,FZ [N]: force of the matching --load")
       ->allow_extra_args(false);
@@ -393,6 +442,8 @@ void RegisterFemCommand(CLI::App& app) {
                   "Element order: 1 (4-node) or 2 (10-node; a linear mesh gets midside nodes). "
                   "Default: the input's")
       ->check(CLI::IsMember({1, 2}));
+  cmd->add_flag("--incompressible", options->incompressible,
+                "Locking-free near-incompressible elements (quadratic, mean dilatation)");
   cmd->add_option("--resolution", options->resolution,
                   "Scene input: surface grid cell [m] (default 0.004)");
   cmd->add_option("--quality", options->max_radius_edge,

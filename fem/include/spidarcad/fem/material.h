@@ -2,18 +2,32 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include <map>
-
 #include <Eigen/Core>
+#include <map>
 
 namespace spidarcad::fem {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
+// How an element integrates the volumetric (λ) part of the strain energy
+// W = μ ε:ε + (λ/2) (tr ε)².
+enum class Formulation {
+  // Plain displacement elements: (λ/2) (tr ε)² integrated pointwise like the rest. Locks as
+  // ν → 1/2 (λ/μ → ∞), linear tetrahedra badly, quadratic ones mildly.
+  kDisplacement,
+  // Mean dilatation, 10-node elements only: the λ term acts on the element mean of tr ε,
+  // (λ/2) V_e (θ̄_e)² with θ̄_e = (1/V_e) ∫ div u dV. This is the P2–P0 mixed element
+  // (piecewise-constant pressure p = λ θ̄_e, condensed per element): the stiffness stays
+  // symmetric positive definite and displacement-only, and does not lock as ν → 1/2.
+  kMeanDilatation,
+};
+
 // Isotropic linear elastic material: Young's modulus E [Pa] and Poisson's ratio ν [-].
 struct Material {
   double youngs_modulus = 1.0e9;
   double poisson_ratio = 0.3;
+  // Element formulation of the volumetric term (kMeanDilatation needs 10-node elements).
+  Formulation formulation = Formulation::kDisplacement;
 
   // Throws std::invalid_argument naming the field and its value unless E > 0 (finite) and
   // -1 < ν < 0.5.

@@ -1,9 +1,10 @@
 // Precomputed compliance columns cached on disk, keyed by a hash of everything they depend on.
 //
 // Key: FNV-1a 64 over the file format version, the storage precision, the element order, the
-// node positions, the connectivity and region labels, the material (E, ν) of every region the
-// mesh uses, the prescribed dofs with their values, the nodal loads (they set the baseline) and
-// the output node list. Change any of these and the key changes, so a stale file is never used.
+// node positions, the connectivity and region labels, the material (E, ν, and the formulation
+// unless kDisplacement) of every region the mesh uses, the prescribed dofs with their values, the
+// nodal loads (they set the baseline) and the output node list. Change any of these and the key
+// changes, so a stale file is never used.
 //
 // File (little-endian, as written by this machine): magic "SPDCOLS1", u32 format version, u64 key,
 // u32 precision (0 double, 1 float), u64 #output, u64 #nodes, i32[#output] output nodes,
@@ -15,14 +16,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/material.h"

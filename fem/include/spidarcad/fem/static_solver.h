@@ -7,11 +7,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/material.h"
@@ -29,6 +28,9 @@ struct SolveStatus {
   double residual = 0.0;
   // Empty on success, otherwise what went wrong.
   std::string message;
+  // Reserved, always 0: iterative refinement (long double residual) was tried on thin plates
+  // and did not reduce the forward error (docs/fem.md); to be removed with the next ABI change.
+  int refinement_steps = 0;
 };
 
 // Result of StaticSolver::Solve.
@@ -60,9 +62,11 @@ class StaticSolver {
  public:
   // Validates mesh, materials and constraints, assembles K and factors K_ff. Throws
   // std::invalid_argument when the input is bad, when nothing is constrained ("no constraint:
-  // the stiffness is singular") or when the constraints leave a rigid-body mode free (named).
-  // A factorisation failure (e.g. a disconnected, unconstrained part) is reported through
-  // factor_status(), not thrown.
+  // the stiffness is singular"), when nothing is free, or when the constraints leave a
+  // rigid-body mode of the model or of one of its parts free (CheckModelConstrained, the mode
+  // named). A factorisation failure (a mechanism the rigid-mode check cannot see, such as
+  // parts hinged at an edge) is reported through factor_status(), naming the node of the first
+  // zero pivot, not thrown.
   StaticSolver(const TetMesh& mesh, const MaterialTable& materials, const BoundaryConditions& bcs);
   ~StaticSolver();
   StaticSolver(const StaticSolver&) = delete;
@@ -79,7 +83,9 @@ class StaticSolver {
   // Backward error above which a solve is reported not converged.
   static constexpr double kResidualTolerance = 1e-12;
 
-  // Solves K_ff X = B for free-dof right-hand sides B (#free by m); X is resized.
+  // Solves K_ff X = B for free-dof right-hand sides B (#free by m); X is resized. The
+  // residual is accumulated in long double; when it is large against B (an ill-conditioned
+  // model) the forward error can still exceed it by cond(K_ff).
   SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const;
 
   // Index of global dof d (3v + axis) among the free dofs, or −1 if it is prescribed.
@@ -108,6 +114,14 @@ class StaticSolver {
 
 // Throws std::invalid_argument unless the prescribed dofs remove all six rigid-body modes of
 // the nodes (checked on the 6 by 6 Gram matrix of the modes restricted to prescribed dofs).
+// The message names each free mode: "free translation along y", "free rotation about x
+// through (x, y, z)" (a point on the axis, m), or a general direction.
 void CheckRigidModesConstrained(const Eigen::MatrixX3d& nodes, const BoundaryConditions& bcs);
+
+// The checks StaticSolver runs before assembly, throwing std::invalid_argument with the
+// reason: nothing prescribed; every dof prescribed (nothing to solve); a node in no element
+// with a free dof; a part of the mesh (elements connected through shared nodes) whose
+// prescribed dofs leave a rigid-body mode free (the part and the mode named as above).
+void CheckModelConstrained(const TetMesh& mesh, const BoundaryConditions& bcs);
 
 }  // namespace spidarcad::fem

@@ -26,8 +26,15 @@ Eigen::MatrixXd StrainDisplacement(const ElementNodes& x, const Eigen::Vector4d&
 
 // Element stiffness K_e = ∫ Bᵀ D B dV (12 by 12 or 30 by 30), symmetric. Linear elements use
 // the exact one-point rule; quadratic ones the 4-point rule of degree 2 (exact for
-// straight-edged elements, whose B is linear).
+// straight-edged elements, whose B is linear). With Formulation::kMeanDilatation (10-node
+// only; 4-node elements throw std::invalid_argument) the λ part of D acts on the mean
+// dilatation: K_e = ∫ Bᵀ D_μ B dV + λ V_e θ̄ᵀ θ̄ (D_μ = D with λ = 0, θ̄ = MeanDilatation).
 Eigen::MatrixXd ElementStiffness(const ElementNodes& x, const Material& material);
+
+// Mean dilatation operator θ̄ (1 by 3·npe, 1/m) of a 4- or 10-node element:
+// θ̄ u_e = (1/V_e) ∫ div u dV (exact for straight-edged elements). The element volume V_e
+// (m^3) goes to *volume when not null.
+Eigen::RowVectorXd MeanDilatation(const ElementNodes& x, double* volume = nullptr);
 
 // Positions of the nodes of element e of a mesh (npe by 3).
 ElementNodes GetElementNodes(const TetMesh& mesh, int e);
@@ -42,9 +49,10 @@ SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materi
 Eigen::MatrixXd RigidBodyModes(const Eigen::MatrixX3d& nodes);
 
 // Stress of element e at its centroid (6: σxx, σyy, σzz, σyz, σxz, σxy, in Pa) for global
-// displacement u (3·#V).
+// displacement u (3·#V). Mean-dilatation elements: D_μ ε at the centroid plus the element
+// pressure λ θ̄ on σxx, σyy, σzz.
 Eigen::Matrix<double, 6, 1> ElementStress(const TetMesh& mesh, const MaterialTable& materials,
-                                         const Eigen::VectorXd& u, int e);
+                                          const Eigen::VectorXd& u, int e);
 
 // Von Mises equivalent of a Voigt stress, in Pa.
 double VonMises(const Eigen::Matrix<double, 6, 1>& stress);
