@@ -1,10 +1,9 @@
-// Tests of the .vtu reader and writer for tetrahedral meshes (app/src/cli/vtu_io.h, on
+// Tests of the .vtu reader and writer for tetrahedral meshes (app/src/scene/vtu_io.h, on
 // modeling's own VTU reader): round trips, every encoding VTK's own writer produces read back
 // exactly, orientation repair checked against element geometry, arrays read back with plain
 // VTK (what ParaView uses), refusals of files that hold no tetrahedra, hostile files (issue 15)
 // and a mutation loop over VTK-written files.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "cli/vtu_io.h"
 
 #include <gtest/gtest.h>
 #include <vtkCellData.h>
