@@ -219,6 +219,22 @@ void WeakDirections(const SpidarGeometry& geometry, const PoseParams& q, Vector7
   *v2 = eigen.eigenvectors().col(1);
 }
 
+// Start `index` (0..47) of the branch check's orientation grid at centre p0.
+PoseParams OrientationStart(const Eigen::Vector3d& p0, int index) {
+  const int axis = index % 6, spin = (index / 6) % 4, grasp = index / 24;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  normal(axis / 2) = (axis % 2 == 0) ? 1.0 : -1.0;
+  const Eigen::Matrix3d tilt =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal).toRotationMatrix();
+  PoseParams q;
+  q.p0 = p0;
+  q.R =
+      tilt *
+      Eigen::AngleAxisd(spin * 0.5 * std::numbers::pi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  q.grasp = grasp == 0 ? std::numbers::pi / 3 : 2 * std::numbers::pi / 3;
+  return q;
+}
+
 // --- Closed form ---------------------------------------------------------------------------
 
 double Cubic(const double k[4], double w) { return ((k[3] * w + k[2]) * w + k[1]) * w + k[0]; }
@@ -534,16 +550,23 @@ FkResult ForwardKinematics::Solve(const Vector8d& lengths) {
       Vector7d weak[2];
       WeakDirections(geometry_, gn.q, &weak[0], &weak[1]);
       constexpr int kWeakStarts = 8;
-      for (int j = 0; j < num_starts + kWeakStarts; ++j) {
+      constexpr int kOrientationStarts = 48;
+      for (int j = 0; j < num_starts + kWeakStarts + kOrientationStarts; ++j) {
         GripPose start;
         if (j < num_starts) {
           if (refined[j] || !(costs[j] <= screen)) continue;
           start = starts[j];
-        } else {
+        } else if (j < num_starts + kWeakStarts) {
           const int w = j - num_starts;
           Vector7d step = ((w & 1) ? -1.0 : 1.0) * ((w & 2) ? 0.04 : 0.01) * weak[w >> 2];
           step.tail<4>() /= d;
           start = PoseFromParams(Apply(gn.q, step), d);
+        } else {
+          // The chosen centre with the grip normal along each of ±x, ±y, ±z, turned by
+          // multiples of 90° about it, at grasps of 60° and 120°: a shallow minimum of a
+          // wrong-looking branch (the true one under noise) is often far in rotation.
+          const int o = j - num_starts - kWeakStarts;
+          start = PoseFromParams(OrientationStart(gn.q.p0, o), d);
         }
         if (PoseSeparation(start, pose) <= settings_.branch_separation) continue;
         if (!(std::sin(start.Grasp()) > 1e-9)) continue;
