@@ -242,7 +242,11 @@ ToolWrench ProxyField::Evaluate(const ToolKinematics& tool) noexcept {
     // The surface met lies at the first sample inside: at a concave edge or corner the
     // gradient at x may still belong to the face the proxy slides on, and only there the
     // new face shows (without it the proxy stalls on the edge as if held by friction).
-    AddPlane(x, blocked);
+    Eigen::Vector3d g_x, g_blocked;
+    env_->Evaluate(x, &g_x);
+    env_->Evaluate(blocked, &g_blocked);
+    constexpr double kNewFace = 0.99;  // normals more than ~8° apart: another face
+    if (g_x.dot(g_blocked) < kNewFace * g_x.norm() * g_blocked.norm()) AddPlane(x, blocked);
     goal = ConstrainedGoal(x_t, x);  // later rounds without friction (see the header)
     free_goal = false;
   }
