@@ -56,15 +56,12 @@ bool ProxyField::Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
   for (int step = 0; step < settings_.max_sweep_steps; ++step) {
     const double t_next = std::min(length, t + std::max(phi, settings_.min_step));
     const double phi_next = env_->Evaluate(from + t_next * u, nullptr);
-    // Inside means deeper than the projection tolerance: a proxy projected onto the surface
-    // may sit a rounding error inside it, and sliding along the surface from there must not
-    // count as meeting it again (the sweep would stall and the proxy lag the tool).
-    if (phi_next < -settings_.surface_tolerance) {
+    if (phi_next < 0) {
       // The surface lies in (t, t_next]: bisect, keeping the free end.
       double lo = t, hi = t_next;
       for (int i = 0; i < kBisections; ++i) {
         const double mid = 0.5 * (lo + hi);
-        if (env_->Evaluate(from + mid * u, nullptr) < -settings_.surface_tolerance) {
+        if (env_->Evaluate(from + mid * u, nullptr) < 0) {
           hi = mid;
         } else {
           lo = mid;

@@ -93,7 +93,6 @@ class ProxyField final : public ForceField {
   // Moves from `from` toward `to`; returns true when `to` is reached through free space,
   // else false with *stop on the free side just before the surface (or short of `to`) and,
   // when a surface blocked the way, *blocked (if not null) at the first sample past it.
-  // Points within surface_tolerance inside the surface count as free.
   bool Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Eigen::Vector3d* stop,
              Eigen::Vector3d* blocked = nullptr) const noexcept;
   // Newton steps along the gradient onto φ = 0.
