@@ -209,6 +209,60 @@ void BenchFk(benchmark::State& state, Poses poses, Noise noise, bool warm) {
   SetCounters(state, acc, kSetSize);
 }
 
+// Cold FK with the branch check on (FkSettings::branch_residual = half an encoder count, as
+// `spidarcad fk --bound` sets it) on quantized lengths.
+void BenchFkBranchCheck(benchmark::State& state) {
+  const SpidarGeometry g;
+  const DataSet set = MakeDataSet(g, Poses::kCube40cm, Noise::kQuantized);
+  FkSettings settings;
+  settings.branch_residual = 0.5 * kQuantum;
+  ForwardKinematics fk(g, settings);
+  Accuracy acc;
+  for (int k = 0; k < kSetSize; ++k) {
+    fk.Reset();
+    const FkResult r = fk.Solve(set.lengths[k]);
+    acc.iterations += r.iterations + r.branch_iterations;
+    if (r.status == FkStatus::kOk) Accumulate(set.truth[k], r.pose, &acc);
+  }
+  int k = 0;
+  for (auto _ : state) {
+    fk.Reset();
+    benchmark::DoNotOptimize(fk.Solve(set.lengths[k]));
+    k = (k + 1) % kSetSize;
+  }
+  SetCounters(state, acc, kSetSize);
+}
+
+// FkPositionBound for a solved pose (lengths known to ±half a count); counters: median bound
+// and median actual error (mm) and the share of poses with a finite bound.
+void BenchPositionBound(benchmark::State& state) {
+  const SpidarGeometry g;
+  const DataSet set = MakeDataSet(g, Poses::kCube40cm, Noise::kQuantized);
+  ForwardKinematics fk(g);
+  std::vector<GripPose> fits(kSetSize);
+  std::vector<double> bounds, errors;
+  for (int k = 0; k < kSetSize; ++k) {
+    fk.Reset();
+    const FkResult r = fk.Solve(set.lengths[k]);
+    fits[k] = r.status == FkStatus::kOk ? r.pose : set.truth[k];
+    const double b = FkPositionBound(g, fits[k], set.lengths[k], 0.5 * kQuantum).position;
+    if (r.status == FkStatus::kOk && std::isfinite(b)) {
+      bounds.push_back(b * 1e3);
+      errors.push_back((r.pose.p0 - set.truth[k].p0).norm() * 1e3);
+    }
+  }
+  std::sort(bounds.begin(), bounds.end());
+  std::sort(errors.begin(), errors.end());
+  int k = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(FkPositionBound(g, fits[k], set.lengths[k], 0.5 * kQuantum));
+    k = (k + 1) % kSetSize;
+  }
+  state.counters["bound_mm_median"] = bounds.empty() ? 0 : bounds[bounds.size() / 2];
+  state.counters["err_mm_median"] = errors.empty() ? 0 : errors[errors.size() / 2];
+  state.counters["finite_frac"] = static_cast<double>(bounds.size()) / kSetSize;
+}
+
 void BenchIk(benchmark::State& state) {
   const SpidarGeometry g;
   const DataSet set = MakeDataSet(g, Poses::kCube40cm, Noise::kExact);
@@ -246,6 +300,8 @@ void RegisterAll() {
       benchmark::RegisterBenchmark(("fk_warm" + suffix).c_str(), BenchFk, poses, noise, true);
     }
   }
+  benchmark::RegisterBenchmark("fk_cold_branch_check/cube40/quantized", BenchFkBranchCheck);
+  benchmark::RegisterBenchmark("position_bound/cube40/quantized", BenchPositionBound);
   benchmark::RegisterBenchmark("ik/cube40", BenchIk);
   benchmark::RegisterBenchmark("string_jacobian/cube40", BenchStringJacobian);
 }

@@ -99,6 +99,18 @@ void BM_WrenchMatrix(benchmark::State& state) {
 }
 BENCHMARK(BM_WrenchMatrix);
 
+// Force-closure margin of a pose (SVD of the scaled 7 by 8 wrench matrix), as
+// `spidarcad tension --lost` prints it.
+void BM_ForceClosure(benchmark::State& state) {
+  const std::vector<Request> requests = RandomRequests(256, 1.0, 7);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ForceClosureAt(requests[k].A, kGeometry.d));
+    k = (k + 1) % requests.size();
+  }
+}
+BENCHMARK(BM_ForceClosure);
+
 void BM_SolveColdFeasible(benchmark::State& state) {
   static const auto requests = RandomRequests(512, 1.0, 1);
   RunSolves(state, requests, false);

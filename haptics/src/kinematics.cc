@@ -1,14 +1,16 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/kinematics.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-#include <Eigen/Geometry>
+#include <stdexcept>
+#include <string>
 
 namespace spidarcad::haptics {
 
@@ -22,8 +24,8 @@ using Matrix7d = Eigen::Matrix<double, 7, 7>;
 
 // Sum of squared residuals (model − measured) of a pose; optionally the residuals and the
 // 8 by 7 Jacobian of PoseJacobian.
-double EvaluatePose(const SpidarGeometry& geometry, const GripPose& pose,
-                    const Vector8d& lengths, Vector8d* residual, Matrix87d* jacobian) {
+double EvaluatePose(const SpidarGeometry& geometry, const GripPose& pose, const Vector8d& lengths,
+                    Vector8d* residual, Matrix87d* jacobian) {
   Eigen::Vector3d n = pose.p1.cross(pose.p2);
   const double n_norm = n.norm();
   if (n_norm > 0) n /= n_norm;
@@ -38,8 +40,7 @@ double EvaluatePose(const SpidarGeometry& geometry, const GripPose& pose,
     if (jacobian != nullptr) {
       const Eigen::Vector3d c = diff / l;
       const Eigen::Vector3d rc = r.cross(c);
-      jacobian->row(i) << -c.transpose(), -rc.transpose(),
-          0.5 * StringDelta(i) * n.dot(rc);
+      jacobian->row(i) << -c.transpose(), -rc.transpose(), 0.5 * StringDelta(i) * n.dot(rc);
     }
   }
   return cost;
@@ -86,10 +87,15 @@ double StepSize(const Vector7d& step) {
   return step.head<3>().norm() + step.segment<3>(3).norm() + 0.5 * std::abs(step(6));
 }
 
+// Largest distance between corresponding centres and pole tips of two poses, m.
+double PoseSeparation(const GripPose& a, const GripPose& b) {
+  return std::max({(a.p0 - b.p0).norm(), (a.p1 - b.p1).norm(), (a.p2 - b.p2).norm()});
+}
+
 struct GnOutcome {
   PoseParams q;
-  double cost = kNaN;        // sum of squared residuals at q
-  int iterations = 0;        // linear solves
+  double cost = kNaN;  // sum of squared residuals at q
+  int iterations = 0;  // linear solves
   bool converged = false;
   double error_gain = kNaN;  // 1/σ_min of the scaled Jacobian at the last linearisation
 };
@@ -198,6 +204,35 @@ GnOutcome GaussNewton(const SpidarGeometry& geometry, const Vector8d& lengths,
     }
   }
   return out;
+}
+
+// The two directions of least length change at q (unit, scaled pose coordinates): the
+// eigenvectors of Jsᵀ Js with the two smallest eigenvalues. Along them lie the flat valleys
+// of the fit near the singular set, and the minima a noisy fit can jump between.
+void WeakDirections(const SpidarGeometry& geometry, const PoseParams& q, Vector7d* v1,
+                    Vector7d* v2) {
+  Matrix87d J;
+  EvaluatePose(geometry, PoseFromParams(q, geometry.d), Vector8d::Zero(), nullptr, &J);
+  J.rightCols<4>() /= geometry.d;
+  const Eigen::SelfAdjointEigenSolver<Matrix7d> eigen(J.transpose().lazyProduct(J));
+  *v1 = eigen.eigenvectors().col(0);
+  *v2 = eigen.eigenvectors().col(1);
+}
+
+// Start `index` (0..47) of the branch check's orientation grid at centre p0.
+PoseParams OrientationStart(const Eigen::Vector3d& p0, int index) {
+  const int axis = index % 6, spin = (index / 6) % 4, grasp = index / 24;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  normal(axis / 2) = (axis % 2 == 0) ? 1.0 : -1.0;
+  const Eigen::Matrix3d tilt =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal).toRotationMatrix();
+  PoseParams q;
+  q.p0 = p0;
+  q.R =
+      tilt *
+      Eigen::AngleAxisd(spin * 0.5 * std::numbers::pi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  q.grasp = grasp == 0 ? std::numbers::pi / 3 : 2 * std::numbers::pi / 3;
+  return q;
 }
 
 // --- Closed form ---------------------------------------------------------------------------
@@ -317,11 +352,21 @@ const char* FkStatusName(FkStatus status) {
       return "not_converged";
     case FkStatus::kSingular:
       return "singular";
+    case FkStatus::kAmbiguous:
+      return "ambiguous";
   }
   return "unknown";
 }
 
-bool ClosedFormPose(const SpidarGeometry& geometry, const Vector8d& lengths, GripPose* pose) {
+namespace {
+
+// Most closed-form candidates (5 per pole).
+constexpr int kMaxCandidates = 10;
+
+// Every closed-form candidate pose (see ClosedFormPose) with its sum of squared residuals,
+// sorted by that cost, best first. Returns their number.
+int ClosedFormCandidates(const SpidarGeometry& geometry, const Vector8d& lengths,
+                         GripPose poses[kMaxCandidates], double costs[kMaxCandidates]) {
   const double a = geometry.a, b = geometry.b, c = geometry.c, d = geometry.d;
   const Vector8d L = lengths.array().square();
   // Pairwise differences (ERRATA): u = P+1, v = P−1, s = P+2, t = P−2.
@@ -364,8 +409,7 @@ bool ClosedFormPose(const SpidarGeometry& geometry, const Vector8d& lengths, Gri
   const int n2 = CubicCandidates(k, 0.0, 4 * c * c, roots);
   for (int j = 0; j < n2; ++j) z_candidates[num_z++] = -c + std::sqrt(std::max(0.0, roots[j]));
 
-  double best_cost = std::numeric_limits<double>::infinity();
-  GripPose best;
+  int count = 0;
   for (int j = 0; j < num_z; ++j) {
     const double z = z_candidates[j];
     const double Z = z - c, Vp = z + c;
@@ -384,13 +428,28 @@ bool ClosedFormPose(const SpidarGeometry& geometry, const Vector8d& lengths, Gri
     candidate.p1 *= d / n1_norm;
     candidate.p2 *= d / n2_norm;
     const double cost = EvaluatePose(geometry, candidate, lengths, nullptr, nullptr);
-    if (cost < best_cost) {
-      best_cost = cost;
-      best = candidate;
+    if (!std::isfinite(cost)) continue;
+    // Insertion by cost.
+    int at = count;
+    while (at > 0 && costs[at - 1] > cost) {
+      costs[at] = costs[at - 1];
+      poses[at] = poses[at - 1];
+      --at;
     }
+    costs[at] = cost;
+    poses[at] = candidate;
+    ++count;
   }
-  if (!std::isfinite(best_cost)) return false;
-  *pose = best;
+  return count;
+}
+
+}  // namespace
+
+bool ClosedFormPose(const SpidarGeometry& geometry, const Vector8d& lengths, GripPose* pose) {
+  GripPose poses[kMaxCandidates];
+  double costs[kMaxCandidates];
+  if (ClosedFormCandidates(geometry, lengths, poses, costs) == 0) return false;
+  *pose = poses[0];
   return true;
 }
 
@@ -444,19 +503,88 @@ FkResult ForwardKinematics::Solve(const Vector8d& lengths) {
   }
   if (status != FkStatus::kOk) {
     result.used_closed_form = true;
-    GripPose start;
-    if (!ClosedFormPose(geometry_, lengths, &start)) {
+    GripPose starts[kMaxCandidates];
+    double costs[kMaxCandidates];
+    const int num_starts = ClosedFormCandidates(geometry_, lengths, starts, costs);
+    if (num_starts == 0) {
       result.iterations = iterations;
       return refuse(FkStatus::kUnreachable);
     }
-    const double grasp = start.Grasp();
-    if (!(std::sin(grasp) > 1e-9)) {
-      result.iterations = iterations;
-      return refuse(FkStatus::kSingular);
+    // Closed-form candidates worth refining: RMS residual within 10 × max_residual (a wrong
+    // branch of exact lengths is typically centimetres off; noise moves a right one by less).
+    const double screen = kNumStrings * std::pow(10 * settings_.max_residual, 2);
+    bool refined[kMaxCandidates] = {};
+    int chosen = -1;
+    for (int j = 0; j < num_starts; ++j) {
+      // The best start is always tried; further ones only when it did not converge to a pose
+      // that fits (a singular or degenerate fit is refused as such, never replaced).
+      if (j > 0 && !(costs[j] <= screen)) break;
+      if (!(std::sin(starts[j].Grasp()) > 1e-9)) {
+        if (j == 0) {
+          status = FkStatus::kSingular;
+          break;
+        }
+        continue;
+      }
+      const GnOutcome trial = GaussNewton(geometry_, lengths, ParamsFromPose(starts[j]), settings_);
+      iterations += trial.iterations;
+      refined[j] = true;
+      const FkStatus trial_status = judge(trial);
+      if (j == 0 || trial_status == FkStatus::kOk) {
+        gn = trial;
+        status = trial_status;
+      }
+      if (trial_status == FkStatus::kOk) {
+        chosen = j;
+        break;
+      }
+      if (trial_status != FkStatus::kNotConverged && trial_status != FkStatus::kUnreachable) {
+        break;
+      }
     }
-    gn = GaussNewton(geometry_, lengths, ParamsFromPose(start), settings_);
-    iterations += gn.iterations;
-    status = judge(gn);
+    if (chosen >= 0 && settings_.branch_residual > 0) {
+      // Branch check: another candidate converging to a second acceptable pose. Starts: the
+      // other closed-form candidates, then the chosen pose moved 1 and 4 cm (scaled) both
+      // ways along its two weakest directions.
+      const GripPose pose = PoseFromParams(gn.q, d);
+      Vector7d weak[2];
+      WeakDirections(geometry_, gn.q, &weak[0], &weak[1]);
+      constexpr int kWeakStarts = 8;
+      constexpr int kOrientationStarts = 48;
+      for (int j = 0; j < num_starts + kWeakStarts + kOrientationStarts; ++j) {
+        GripPose start;
+        if (j < num_starts) {
+          if (refined[j] || !(costs[j] <= screen)) continue;
+          start = starts[j];
+        } else if (j < num_starts + kWeakStarts) {
+          const int w = j - num_starts;
+          Vector7d step = ((w & 1) ? -1.0 : 1.0) * ((w & 2) ? 0.04 : 0.01) * weak[w >> 2];
+          step.tail<4>() /= d;
+          start = PoseFromParams(Apply(gn.q, step), d);
+        } else {
+          // The chosen centre with the grip normal along each of ±x, ±y, ±z, turned by
+          // multiples of 90° about it, at grasps of 60° and 120°: a shallow minimum of a
+          // wrong-looking branch (the true one under noise) is often far in rotation.
+          const int o = j - num_starts - kWeakStarts;
+          start = PoseFromParams(OrientationStart(gn.q.p0, o), d);
+        }
+        if (PoseSeparation(start, pose) <= settings_.branch_separation) continue;
+        if (!(std::sin(start.Grasp()) > 1e-9)) continue;
+        const GnOutcome other = GaussNewton(geometry_, lengths, ParamsFromPose(start), settings_);
+        result.branch_iterations += other.iterations;
+        if (!other.converged) continue;
+        const Eigen::Vector3d& c0 = other.q.p0;
+        const bool inside = std::abs(c0.x()) < geometry_.a && std::abs(c0.y()) < geometry_.b &&
+                            std::abs(c0.z()) < geometry_.c;
+        if (inside &&
+            std::sqrt(other.cost / kNumStrings) <=
+                std::min(settings_.branch_residual, settings_.max_residual) &&
+            PoseSeparation(PoseFromParams(other.q, d), pose) > settings_.branch_separation) {
+          status = FkStatus::kAmbiguous;
+          break;
+        }
+      }
+    }
   }
   result.iterations = iterations;
   if (status != FkStatus::kOk) return refuse(status);
@@ -470,6 +598,192 @@ FkResult ForwardKinematics::Solve(const Vector8d& lengths) {
   last_pose_ = result.pose;
   has_last_ = true;
   return result;
+}
+
+// --- Conditioning, singular set, error bound ------------------------------------------------
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Js = ∂l/∂(δp0, d·δω, d·δθ), 8 by 7, and its pseudo-inverse (7 by 8). Returns false (G
+// untouched) when Js is not finite or loses rank to rounding.
+bool ScaledJacobianPseudoInverse(const SpidarGeometry& geometry, const GripPose& pose,
+                                 Vector7d* singular_values, Matrix78d* pinv) {
+  Matrix87d Js = PoseJacobian(geometry, pose);
+  Js.rightCols<4>() /= geometry.d;
+  if (!Js.allFinite()) return false;
+  const Eigen::JacobiSVD<Matrix87d> svd(Js, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  *singular_values = svd.singularValues();
+  const double s_max = (*singular_values)(0), s_min = (*singular_values)(6);
+  if (!(s_min > 1e-13 * s_max)) return false;
+  const Vector7d inv = singular_values->cwiseInverse();
+  *pinv = svd.matrixV() * inv.asDiagonal() * svd.matrixU().leftCols<7>().transpose();
+  return true;
+}
+
+}  // namespace
+
+FkConditioning FkConditioningAt(const SpidarGeometry& geometry, const GripPose& pose) {
+  FkConditioning out;
+  Vector7d sv = Vector7d::Zero();
+  Matrix78d pinv;
+  if (!ScaledJacobianPseudoInverse(geometry, pose, &sv, &pinv)) {
+    const bool finite = pose.p0.allFinite() && pose.p1.allFinite() && pose.p2.allFinite();
+    out.sigma_max = finite ? sv(0) : kNaN;
+    out.sigma_min = finite ? 0.0 : kNaN;
+    out.error_gain = finite ? kInf : kNaN;
+    out.position_gain.setConstant(finite ? kInf : kNaN);
+    return out;
+  }
+  out.sigma_max = sv(0);
+  out.sigma_min = sv(6);
+  out.error_gain = 1 / sv(6);
+  for (int k = 0; k < 3; ++k) out.position_gain(k) = pinv.row(k).cwiseAbs().sum();
+  return out;
+}
+
+const char* PoseAxisName(PoseAxis axis) {
+  switch (axis) {
+    case PoseAxis::kX:
+      return "x";
+    case PoseAxis::kY:
+      return "y";
+    case PoseAxis::kZ:
+      return "z";
+    case PoseAxis::kRoll:
+      return "roll";
+    case PoseAxis::kPitch:
+      return "pitch";
+    case PoseAxis::kYaw:
+      return "yaw";
+    case PoseAxis::kGrasp:
+      return "grasp";
+  }
+  return "unknown";
+}
+
+GripPose SlicePose(const FkSlice& slice, double u, double v, double d) {
+  double coords[7] = {slice.p0.x(),  slice.p0.y(),  slice.p0.z(), slice.rpy.x(),
+                      slice.rpy.y(), slice.rpy.z(), slice.grasp};
+  coords[static_cast<int>(slice.u_axis)] = u;
+  coords[static_cast<int>(slice.v_axis)] = v;
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(coords[5], Eigen::Vector3d::UnitZ()) *
+                             Eigen::AngleAxisd(coords[4], Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(coords[3], Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  return GripPose::FromFrame(Eigen::Vector3d(coords[0], coords[1], coords[2]), R, coords[6], d);
+}
+
+FkConditioningMap SampleFkConditioning(const SpidarGeometry& geometry, const FkSlice& slice) {
+  geometry.Validate();
+  if (slice.u_count < 2 || slice.v_count < 2) {
+    throw std::invalid_argument("FkSlice: u_count and v_count must be at least 2, got " +
+                                std::to_string(slice.u_count) + " and " +
+                                std::to_string(slice.v_count));
+  }
+  if (!(std::isfinite(slice.u_min) && std::isfinite(slice.u_max) && slice.u_min < slice.u_max &&
+        std::isfinite(slice.v_min) && std::isfinite(slice.v_max) && slice.v_min < slice.v_max)) {
+    throw std::invalid_argument("FkSlice: ranges must be finite with min < max, got u [" +
+                                std::to_string(slice.u_min) + ", " + std::to_string(slice.u_max) +
+                                "], v [" + std::to_string(slice.v_min) + ", " +
+                                std::to_string(slice.v_max) + "]");
+  }
+  if (slice.u_axis == slice.v_axis) {
+    throw std::invalid_argument(std::string("FkSlice: u_axis and v_axis are both ") +
+                                PoseAxisName(slice.u_axis));
+  }
+  FkConditioningMap map;
+  map.u = Eigen::VectorXd::LinSpaced(slice.u_count, slice.u_min, slice.u_max);
+  map.v = Eigen::VectorXd::LinSpaced(slice.v_count, slice.v_min, slice.v_max);
+  map.error_gain.resize(slice.v_count, slice.u_count);
+  map.position_gain.resize(slice.v_count, slice.u_count);
+  map.fk_status.resize(slice.v_count, slice.u_count);
+  FkSettings settings;
+  settings.branch_residual = slice.branch_residual;
+  ForwardKinematics fk(geometry, settings);
+  for (int j = 0; j < slice.v_count; ++j) {
+    for (int k = 0; k < slice.u_count; ++k) {
+      const GripPose pose = SlicePose(slice, map.u(k), map.v(j), geometry.d);
+      const Vector8d l = InverseKinematics(geometry, pose);
+      const bool inside = std::abs(pose.p0.x()) < geometry.a &&
+                          std::abs(pose.p0.y()) < geometry.b && std::abs(pose.p0.z()) < geometry.c;
+      if (!inside || !(l.minCoeff() >= 1e-3)) {
+        map.error_gain(j, k) = map.position_gain(j, k) = map.fk_status(j, k) = kNaN;
+        continue;
+      }
+      const FkConditioning cond = FkConditioningAt(geometry, pose);
+      map.error_gain(j, k) = cond.error_gain;
+      map.position_gain(j, k) = cond.position_gain.norm();
+      fk.Reset();
+      map.fk_status(j, k) = static_cast<double>(fk.Solve(l).status);
+    }
+  }
+  return map;
+}
+
+FkBound FkPositionBound(const SpidarGeometry& geometry, const GripPose& estimate,
+                        const Vector8d& lengths, double tolerance) {
+  FkBound out;
+  if (!lengths.allFinite() || !(tolerance >= 0) || !std::isfinite(tolerance) ||
+      !estimate.p0.allFinite() || !estimate.p1.allFinite() || !estimate.p2.allFinite()) {
+    return out;
+  }
+  // Rounding of the lengths and of the arithmetic below: a few ulps of the longest length.
+  const double q = tolerance + 64 * std::numeric_limits<double>::epsilon() *
+                                   std::max(1.0, lengths.cwiseAbs().maxCoeff());
+  const double sqrt8 = std::sqrt(8.0);
+
+  // x and y: exact functions of the squared lengths, monotone in each (ERRATA.md).
+  Vector8d sq_lo, sq_hi;
+  for (int i = 0; i < kNumStrings; ++i) {
+    const double lo = std::max(0.0, lengths(i) - q);
+    sq_lo(i) = lo * lo;
+    sq_hi(i) = (lengths(i) + q) * (lengths(i) + q);
+  }
+  const double x_hi = (-sq_lo(0) + sq_hi(1) - sq_lo(2) + sq_hi(3)) / (8 * geometry.a);
+  const double x_lo = (-sq_hi(0) + sq_lo(1) - sq_hi(2) + sq_lo(3)) / (8 * geometry.a);
+  const double y_hi = (-sq_lo(4) - sq_lo(5) + sq_hi(6) + sq_hi(7)) / (8 * geometry.b);
+  const double y_lo = (-sq_hi(4) - sq_hi(5) + sq_lo(6) + sq_lo(7)) / (8 * geometry.b);
+  const double slack = 1e-15;  // rounding of the interval ends, m
+  const double x_bound = std::max(x_hi - estimate.p0.x(), estimate.p0.x() - x_lo) + slack;
+  const double y_bound = std::max(y_hi - estimate.p0.y(), estimate.p0.y() - y_lo) + slack;
+  out.axis = Eigen::Vector3d(x_bound, y_bound, kInf);
+  out.pose = kInf;
+  out.uniqueness_radius = 0;
+
+  // Every coordinate: Δ = −G r̂ − G e − G R2 with G = Js⁺ (G Js = I), r̂ = l(p̂) − m, |e_i| ≤ q,
+  // |R2_i| ≤ ½ M δ², M = 2.25 (1/d + 1/l_min), δ = |Δ| (scaled pose coordinates).
+  Vector7d sv;
+  Matrix78d G;
+  if (ScaledJacobianPseudoInverse(geometry, estimate, &sv, &G)) {
+    const Vector8d model = InverseKinematics(geometry, estimate);
+    const Vector8d residual = model - lengths;
+    const Vector7d g_residual = G * residual;
+    const double g_norm = 1 / sv(6);  // |G|₂
+    const double l_low = model.minCoeff();
+    // Valid while every string stays longer than l_low/2 on the way: 1.5 δ ≤ l_low/2.
+    const double M = 2.25 * (1 / geometry.d + 2 / l_low);
+    const double A = g_residual.norm() + g_norm * sqrt8 * q;
+    const double B = g_norm * sqrt8 * 0.5 * M;
+    const double disc = 1 - 4 * A * B;
+    if (l_low > 0 && disc > 0) {
+      const double root = std::sqrt(disc);
+      const double delta = 2 * A / (1 + root);
+      if (1.5 * delta <= 0.5 * l_low) {
+        out.pose = delta;
+        out.uniqueness_radius = (1 + root) / (2 * B);
+        const double remainder = 0.5 * M * delta * delta;
+        for (int k = 0; k < 3; ++k) {
+          const double linear =
+              std::abs(g_residual(k)) + G.row(k).cwiseAbs().sum() * (q + remainder) + slack;
+          out.axis(k) = std::min(out.axis(k), linear);
+        }
+      }
+    }
+  }
+  out.position = out.axis.norm();
+  return out;
 }
 
 }  // namespace spidarcad::haptics

@@ -1,13 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/proxy_field.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/LU>
 
 namespace spidarcad::haptics {
 
@@ -22,10 +21,11 @@ constexpr int kBisections = 24;
 }  // namespace
 
 void ProxySettings::Validate() const {
-  Require(stiffness > 0 && std::isfinite(stiffness), "stiffness", stiffness, "must be finite and > 0");
+  Require(stiffness > 0 && std::isfinite(stiffness), "stiffness", stiffness,
+          "must be finite and > 0");
   Require(damping >= 0 && std::isfinite(damping), "damping", damping, "must be finite and >= 0");
-  Require(static_friction >= 0 && std::isfinite(static_friction), "static_friction", static_friction,
-          "must be finite and >= 0");
+  Require(static_friction >= 0 && std::isfinite(static_friction), "static_friction",
+          static_friction, "must be finite and >= 0");
   Require(dynamic_friction >= 0 && dynamic_friction <= static_friction, "dynamic_friction",
           dynamic_friction, "must be in [0, static_friction]");
   Require(tip_T.allFinite(), "tip_T", tip_T.norm(), "must be finite");
@@ -35,14 +35,15 @@ void ProxySettings::Validate() const {
           surface_tolerance, "must be finite and > 0");
 }
 
-ProxyField::ProxyField(std::shared_ptr<const DistanceField> environment, const ProxySettings& settings)
+ProxyField::ProxyField(std::shared_ptr<const DistanceField> environment,
+                       const ProxySettings& settings)
     : env_(std::move(environment)), settings_(settings) {
   if (env_ == nullptr) throw std::invalid_argument("ProxyField: the environment field is null");
   settings_.Validate();
 }
 
 bool ProxyField::Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
-                       Eigen::Vector3d* stop) const noexcept {
+                       Eigen::Vector3d* stop, Eigen::Vector3d* blocked) const noexcept {
   const Eigen::Vector3d d = to - from;
   const double length = d.norm();
   if (!(length > 0)) {
@@ -67,6 +68,7 @@ bool ProxyField::Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
         }
       }
       *stop = from + lo * u;
+      if (blocked != nullptr) *blocked = from + hi * u;
       return false;
     }
     t = t_next;
@@ -92,9 +94,9 @@ void ProxyField::Project(Eigen::Vector3d* x) const noexcept {
   }
 }
 
-void ProxyField::AddPlane(const Eigen::Vector3d& x) noexcept {
+void ProxyField::AddPlane(const Eigen::Vector3d& x, const Eigen::Vector3d& probe) noexcept {
   Eigen::Vector3d g;
-  env_->Evaluate(x, &g);
+  env_->Evaluate(probe, &g);
   const double n = g.norm();
   if (!(n > 0)) return;
   const Eigen::Vector3d normal = g / n;
@@ -160,8 +162,8 @@ Eigen::Vector3d ProxyField::FrictionGoal(const Eigen::Vector3d& x, const Eigen::
     sliding_ = true;
     return g0;
   }
-  const double normal = (x_t - g0).norm();    // normal force / k
-  const Eigen::Vector3d offset = g0 - x;      // tangential force / k, reversed
+  const double normal = (x_t - g0).norm();  // normal force / k
+  const Eigen::Vector3d offset = g0 - x;    // tangential force / k, reversed
   const double tangential = offset.norm();
   const double limit = (sliding_ ? mu_d : mu_s) * normal;
   if (tangential <= limit) {
@@ -221,19 +223,27 @@ ToolWrench ProxyField::Evaluate(const ToolKinematics& tool) noexcept {
     sweep_exhausted_ = false;  // blocked or short: stay in contact and constrain as usual
   }
 
-  AddPlane(x);
+  AddPlane(x, x);
   Eigen::Vector3d goal = FrictionGoal(x, ConstrainedGoal(x_t, x), x_t);
   bool free_goal = (goal - x_t).squaredNorm() == 0.0;
   for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
-    Eigen::Vector3d stop;
-    if (Sweep(x, goal, &stop)) {
+    Eigen::Vector3d stop, blocked = goal;
+    if (Sweep(x, goal, &stop, &blocked)) {
       x = goal;
       break;
     }
     x = stop;
     if (sweep_exhausted_) break;  // short of the goal in free space: no plane to add
     Project(&x);
-    AddPlane(x);
+    AddPlane(x, x);
+    // The surface met lies at the first sample inside: at a concave edge or corner the
+    // gradient at x may still belong to the face the proxy slides on, and only there the
+    // new face shows (without it the proxy stalls on the edge as if held by friction).
+    Eigen::Vector3d g_x, g_blocked;
+    env_->Evaluate(x, &g_x);
+    env_->Evaluate(blocked, &g_blocked);
+    constexpr double kNewFace = 0.99;  // normals more than ~8° apart: another face
+    if (g_x.dot(g_blocked) < kNewFace * g_x.norm() * g_blocked.norm()) AddPlane(x, blocked);
     goal = ConstrainedGoal(x_t, x);  // later rounds without friction (see the header)
     free_goal = false;
   }

@@ -1,13 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/tension.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Geometry>
 
 namespace spidarcad::haptics {
 
@@ -53,17 +53,41 @@ Matrix78d WrenchMatrix(const SpidarGeometry& geometry, const GripPose& pose) {
   return A;
 }
 
+ForceClosure ForceClosureAt(const Matrix78d& A, double d) {
+  ForceClosure out;
+  if (!A.allFinite() || !(d > 0)) {
+    out.margin = out.sigma_min = std::nan("");
+    out.null_vector.setConstant(std::nan(""));
+    return out;
+  }
+  Matrix78d scaled = A;
+  scaled.bottomRows<4>() /= d;
+  // Square 8 by 8 (a zero last row) so the full right singular basis has fixed size.
+  Matrix8d padded = Matrix8d::Zero();
+  padded.topRows<7>() = scaled;
+  const Eigen::JacobiSVD<Matrix8d> svd(padded, Eigen::ComputeFullV);
+  out.sigma_min = svd.singularValues()(6);
+  Vector8d n = svd.matrixV().col(7);
+  if (n.sum() < 0) n = -n;
+  out.null_vector = n;
+  out.margin = n.minCoeff() / n.cwiseAbs().maxCoeff();
+  out.closure = out.margin > 0 && out.sigma_min > 1e-9 * svd.singularValues()(0);
+  return out;
+}
+
 void TensionSettings::Validate() const {
   CheckFinite(tau_min, "tau_min");
   CheckFinite(tau_max, "tau_max");
   if (tau_min < 0.0) {
-    throw std::invalid_argument("TensionSettings: field 'tau_min' must be >= 0 N (strings can "
-                                "only pull), got " + std::to_string(tau_min));
+    throw std::invalid_argument(
+        "TensionSettings: field 'tau_min' must be >= 0 N (strings can "
+        "only pull), got " +
+        std::to_string(tau_min));
   }
   if (!(tau_min < tau_max)) {
     throw std::invalid_argument("TensionSettings: field 'tau_max' (" + std::to_string(tau_max) +
-                                " N) must be larger than 'tau_min' (" +
-                                std::to_string(tau_min) + " N)");
+                                " N) must be larger than 'tau_min' (" + std::to_string(tau_min) +
+                                " N)");
   }
   CheckPositive(s0, "s0");
   CheckPositive(s1, "s1");
@@ -79,10 +103,14 @@ TensionSettings TensionSettings::ForPoleLength(double d) {
 
 const char* TensionStatusName(TensionStatus status) {
   switch (status) {
-    case TensionStatus::kOk: return "ok";
-    case TensionStatus::kSaturated: return "saturated";
-    case TensionStatus::kInvalidInput: return "invalid_input";
-    case TensionStatus::kNotConverged: return "not_converged";
+    case TensionStatus::kOk:
+      return "ok";
+    case TensionStatus::kSaturated:
+      return "saturated";
+    case TensionStatus::kInvalidInput:
+      return "invalid_input";
+    case TensionStatus::kNotConverged:
+      return "not_converged";
   }
   return "unknown";
 }
@@ -100,8 +128,7 @@ TensionResult TensionSolver::Solve(const Matrix78d& A, const Vector7d& q) {
   result.tau.setConstant(lo);
   if (!A.allFinite() || !q.allFinite()) {
     // Safe output: every string at its minimum tension, no wrench is trusted.
-    result.achieved = A.allFinite() ? Vector7d(A * result.tau)
-                                    : Vector7d::Constant(std::nan(""));
+    result.achieved = A.allFinite() ? Vector7d(A * result.tau) : Vector7d::Constant(std::nan(""));
     result.lost = q - result.achieved;
     result.objective = std::nan("");
     result.num_at_min = kNumStrings;

@@ -3,6 +3,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -264,6 +265,84 @@ TEST(IkCommand, RoundTripsThroughFk) {
     EXPECT_NEAR(std::stod(f[2]), poses[k].p0.z(), 1e-9);
     EXPECT_NEAR(std::stod(f[8]), poses[k].p2.z(), 1e-9);
   }
+}
+
+
+TEST(FkCommand, BoundColumnHoldsOnQuantizedLengthsAndIsAbsentWithoutTheOption) {
+  // Lengths quantized to the paper's encoder count are within ±Q = half a count of the truth:
+  // the bound_m column must exceed the actual distance of the printed p0 from the true one.
+  const double quantum = 2 * kPi * 0.008 / 2000;
+  const std::vector<Pose> poses = RandomPoses(80, 5, 0.04);
+  std::string input;
+  for (const Pose& p : poses) {
+    std::vector<double> l = Eq7(p, 0.24, 0.24, 0.24);
+    for (double& x : l) x = std::round(x / quantum) * quantum;
+    input += Csv(l);
+  }
+  char q_text[64];
+  std::snprintf(q_text, sizeof(q_text), "%.17g", 0.5 * quantum);
+  const CommandRun run = RunSpidarcad(std::string("fk --batch --bound ") + q_text, input, "bound");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_EQ(Lines(run.out)[0], "# x,y,z,x1,y1,z1,x2,y2,z2,grasp_rad,residual_m,status,bound_m");
+  const CommandRun plain = RunSpidarcad("fk --batch", input, "plain");
+  ASSERT_EQ(plain.status, 0);
+  EXPECT_EQ(Lines(plain.out)[0], "# x,y,z,x1,y1,z1,x2,y2,z2,grasp_rad,residual_m,status");
+  const std::vector<std::string> lines = DataLines(run.out), plain_lines = DataLines(plain.out);
+  ASSERT_EQ(lines.size(), poses.size());
+  ASSERT_EQ(plain_lines.size(), poses.size());
+  std::vector<double> actual, bound;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const std::vector<std::string> f = Fields(lines[k]);
+    ASSERT_EQ(f.size(), 13u) << lines[k];
+    EXPECT_EQ(Fields(plain_lines[k]).size(), 12u);
+    if (f[11] != "ok") {
+      EXPECT_EQ(f[12], "nan");
+      continue;
+    }
+    // The pose columns are those of the plain run.
+    EXPECT_EQ(lines[k].substr(0, lines[k].rfind(',')), plain_lines[k]);
+    const double b = std::stod(f[12]);
+    const double error = (Eigen::Vector3d(std::stod(f[0]), std::stod(f[1]), std::stod(f[2])) - poses[k].p0).norm();
+    EXPECT_LE(error, b) << "line " << k;
+    if (std::isfinite(b)) {
+      actual.push_back(error);
+      bound.push_back(b);
+    }
+  }
+  ASSERT_GT(actual.size(), 50u);
+  std::sort(actual.begin(), actual.end());
+  std::sort(bound.begin(), bound.end());
+  EXPECT_LE(bound[bound.size() / 2], 10 * actual[actual.size() / 2]);
+  EXPECT_GT(bound[bound.size() / 2], 0.0);
+}
+
+TEST(FkCommand, RejectsANegativeOrNonFiniteBoundWithStatus2) {
+  for (const char* value : {"-1e-5", "inf", "abc"}) {
+    const CommandRun run = RunSpidarcad(std::string("fk --batch --bound ") + value, "", "badbound");
+    EXPECT_EQ(run.status, 2) << value;
+    EXPECT_NE(run.err.find("--bound"), std::string::npos) << value << ": " << run.err;
+  }
+}
+
+TEST(IkCommand, RefusesInfiniteAndNanCoordinatesLikeOtherBadLines) {
+  std::string input;
+  input += "0,0,0,0,0.04,0,0.04,0,0\n";     // line 1: ok
+  input += "inf,0,0,0,0.04,0,0.04,0,0\n";   // line 2: x infinite
+  input += "0,0,0,0,-inf,0,0.04,0,0\n";     // line 3: y1 minus infinity
+  input += "0,0,0,0,0.04,0,0.04,0,nan\n";   // line 4: z2 NaN
+  input += "0,0,0,0,0.04,0,0.04,0,0\n";     // line 5: ok
+  const CommandRun run = RunSpidarcad("ik --batch", input, "inf");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::vector<std::string> lines = DataLines(run.out);
+  ASSERT_EQ(lines.size(), 5u);
+  for (int k : {1, 2, 3}) EXPECT_EQ(lines[k], "nan,nan,nan,nan,nan,nan,nan,nan") << k;
+  EXPECT_EQ(lines[0], lines[4]);
+  EXPECT_EQ(Fields(lines[0]).size(), 8u);
+  EXPECT_NE(lines[0].find("0.39395"), std::string::npos) << lines[0];
+  for (const char* where : {"<stdin>:2: column 1 (x)", "<stdin>:3: column 5 (y1)", "<stdin>:4: column 9 (z2)"}) {
+    EXPECT_NE(run.err.find(where), std::string::npos) << where << " in\n" << run.err;
+  }
+  EXPECT_EQ(run.err.find("<stdin>:1:"), std::string::npos);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // geometry written out by hand, not against the library.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -172,6 +173,85 @@ TEST(TensionCommand, HelpTeachesUnitsAndSignConventions) {
                              "x,y,z, x1,y1,z1, x2,y2,z2, fx,fy,fz, mx,my,mz, g", "nan"}) {
     EXPECT_NE(run.out.find(needle), std::string::npos) << needle;
   }
+}
+
+
+std::vector<std::string> SplitFields(const std::string& line) {
+  std::vector<std::string> fields;
+  std::stringstream s(line);
+  std::string f;
+  while (std::getline(s, f, ',')) fields.push_back(f);
+  return fields;
+}
+
+TEST(TensionCommand, LostFlagAppendsStatusTheLostWrenchAndTheClosureMargin) {
+  // Line 1: 1 N at rest (displayed). Line 2: 100 N along x at rest (beyond eight 8 N strings).
+  // Line 3: the grip turned 90° about z (pole 1 along x, pole 2 along y): A loses rank there
+  // and force closure is lost; the request lies along the wrench direction no tension
+  // displays. Line 4: NaN.
+  const std::vector<double> turned = {0, 0, 0.05, -0.04, 0, 0, 0, 0.04, 0};
+  // The lost direction: the left singular vector of A (unit tensions through WrenchOf) with
+  // zero singular value, scaled to a 2 N force part.
+  Eigen::Matrix<double, 7, 8> A;
+  for (int i = 0; i < 8; ++i) {
+    std::vector<double> unit(8, 0.0);
+    unit[i] = 1;
+    A.col(i) = WrenchOf(turned, unit);
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullU);
+  ASSERT_LT(svd.singularValues()(6), 1e-9);
+  Eigen::Matrix<double, 7, 1> y = svd.matrixU().col(6);
+  y *= 2.0 / y.head<3>().norm();
+  std::string input;
+  input += std::string(kRestPose) + ",1,0,0,0,0,0,0\n";
+  input += std::string(kRestPose) + ",100,0,0,0,0,0,0\n";
+  char buffer[64];
+  for (double v : turned) {
+    std::snprintf(buffer, sizeof(buffer), "%.17g,", v);
+    input += buffer;
+  }
+  for (int i = 0; i < 7; ++i) {
+    std::snprintf(buffer, sizeof(buffer), i < 6 ? "%.17g," : "%.17g\n", y(i));
+    input += buffer;
+  }
+  input += std::string(kRestPose) + ",nan,0,0,0,0,0,0\n";
+  const CommandRun run = RunSpidarcad("tension --batch --lost", input, "lost");
+  ASSERT_EQ(run.status, 0) << run.err;
+  std::vector<std::string> lines;
+  std::stringstream out(run.out);
+  for (std::string line; std::getline(out, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 4u) << run.out;
+  const auto requests = ParseLines(input);
+  for (std::size_t k = 0; k < 3; ++k) {
+    const std::vector<std::string> f = SplitFields(lines[k]);
+    ASSERT_EQ(f.size(), 18u) << lines[k];
+    std::vector<double> tau;
+    for (int i = 0; i < 8; ++i) tau.push_back(std::stod(f[i]));
+    // lost = request − displayed wrench, the displayed wrench computed here from the tensions.
+    const Eigen::Matrix<double, 7, 1> shown = WrenchOf(requests[k], tau);
+    for (int i = 0; i < 7; ++i) {
+      EXPECT_NEAR(std::stod(f[10 + i]), requests[k][9 + i] - shown(i), 1e-9) << k << " " << i;
+    }
+  }
+  const std::vector<std::string> ok = SplitFields(lines[0]), big = SplitFields(lines[1]),
+                                  lost = SplitFields(lines[2]), bad = SplitFields(lines[3]);
+  EXPECT_EQ(ok[9], "ok");
+  EXPECT_NEAR(std::stod(ok[17]), 1.0, 1e-9);  // at rest every string has the same share
+  EXPECT_EQ(big[9], "saturated");
+  EXPECT_GT(std::stod(big[10]), 50.0);  // most of the 100 N is lost, and reported
+  EXPECT_EQ(lost[9], "saturated");
+  EXPECT_LE(std::stod(lost[17]), 0.0);  // no force closure
+  // Nothing of the request along the lost direction is displayed: lost·y = |y|².
+  Eigen::Matrix<double, 7, 1> lost_wrench;
+  for (int i = 0; i < 7; ++i) lost_wrench(i) = std::stod(lost[10 + i]);
+  EXPECT_NEAR(lost_wrench.dot(y), y.squaredNorm(), 1e-6 * y.squaredNorm());
+  ASSERT_EQ(bad.size(), 18u);
+  EXPECT_EQ(bad[9], "invalid_input");
+  // Without --lost the output is the nine columns it always was.
+  const CommandRun plain = RunSpidarcad("tension --batch", input, "plain");
+  ASSERT_EQ(plain.status, 0);
+  std::stringstream plain_out(plain.out);
+  for (std::string line; std::getline(plain_out, line);) EXPECT_EQ(SplitFields(line).size(), 9u) << line;
 }
 
 }  // namespace

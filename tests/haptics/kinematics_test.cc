@@ -4,16 +4,21 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/kinematics.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <numbers>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <gtest/gtest.h>
 
@@ -583,6 +588,7 @@ TEST(FkStatusName, GivesOneWordPerStatus) {
   EXPECT_STREQ(FkStatusName(FkStatus::kUnreachable), "unreachable");
   EXPECT_STREQ(FkStatusName(FkStatus::kNotConverged), "not_converged");
   EXPECT_STREQ(FkStatusName(FkStatus::kSingular), "singular");
+  EXPECT_STREQ(FkStatusName(FkStatus::kAmbiguous), "ambiguous");
 }
 
 TEST(ForwardKinematics, SolveDoesNotAllocate) {
@@ -607,6 +613,360 @@ TEST(ForwardKinematics, SolveDoesNotAllocate) {
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_EQ(ok, 51);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// Conditioning, singular set, branch check and error bound
+
+// Pose from 7 coordinates (p0, rotation vector applied on the left of R, grasp), for finite
+// differences.
+GripPose Perturbed(const GripPose& base, const Vector7d& delta, double d) {
+  const Eigen::Vector3d w = delta.segment<3>(3);
+  Eigen::Matrix3d R = base.Rotation();
+  if (w.norm() > 0) R = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() * R;
+  return GripPose::FromFrame(base.p0 + delta.head<3>(), R, base.Grasp() + delta(6), d);
+}
+
+// The scaled Jacobian ∂l/∂(δp0, d·δω, d·δθ) by central differences of Eq. 7.
+Eigen::MatrixXd FiniteDifferenceScaledJacobian(const SpidarGeometry& g, const GripPose& pose) {
+  Eigen::MatrixXd J(8, 7);
+  const double h = 1e-6;
+  for (int k = 0; k < 7; ++k) {
+    Vector7d e = Vector7d::Zero();
+    e(k) = h;
+    J.col(k) = (Eq7Lengths(g, Perturbed(pose, e, g.d)) - Eq7Lengths(g, Perturbed(pose, -e, g.d))) / (2 * h);
+    if (k >= 3) J.col(k) /= g.d;
+  }
+  return J;
+}
+
+// The known interior singular family: centre on the z axis, grip turned 90° about z at a 90°
+// grasp (pole 1 along x, pole 2 along y). Each pole's 4 strings then leave its height to
+// second order.
+GripPose SingularPose(const SpidarGeometry& g, double z) {
+  return GripPose::FromFrame(Eigen::Vector3d(0, 0, z), AxisRotation(2, kPi / 2), kPi / 2, g.d);
+}
+
+TEST(FkConditioningAt, MatchesAnSvdOfTheFiniteDifferenceJacobian) {
+  const SpidarGeometry g;
+  std::mt19937 rng(21);
+  for (int trial = 0; trial < 40; ++trial) {
+    const GripPose pose = RandomPose(rng, g, 0.15, kPi, 40 * kDeg, 140 * kDeg);
+    const Eigen::MatrixXd J = FiniteDifferenceScaledJacobian(g, pose);
+    const Eigen::BDCSVD<Eigen::MatrixXd> svd(J);
+    const double s_min = svd.singularValues()(6);
+    const Eigen::MatrixXd pinv = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(J).pseudoInverse();
+    const FkConditioning c = FkConditioningAt(g, pose);
+    EXPECT_NEAR(c.sigma_min, s_min, 1e-6 * svd.singularValues()(0)) << trial;
+    EXPECT_NEAR(c.sigma_max, svd.singularValues()(0), 1e-6 * svd.singularValues()(0)) << trial;
+    EXPECT_NEAR(c.error_gain, 1 / s_min, 1e-5 / s_min) << trial;
+    for (int k = 0; k < 3; ++k) {
+      const double gain = pinv.row(k).cwiseAbs().sum();
+      EXPECT_NEAR(c.position_gain(k), gain, 1e-5 * gain) << trial << " " << k;
+    }
+  }
+}
+
+TEST(FkConditioningAt, LosesRankOnTheSingularFamilyAndNowhereNearTheCentreOtherwise) {
+  const SpidarGeometry g;
+  for (double z : {-0.15, -0.05, 0.0, 0.08, 0.15}) {
+    const FkConditioning c = FkConditioningAt(g, SingularPose(g, z));
+    // Independent: the finite-difference Jacobian's smallest singular value vanishes too.
+    const Eigen::BDCSVD<Eigen::MatrixXd> svd(FiniteDifferenceScaledJacobian(g, SingularPose(g, z)));
+    EXPECT_LT(svd.singularValues()(6), 1e-6 * svd.singularValues()(0)) << z;
+    EXPECT_GT(c.error_gain, 1e4) << z;
+  }
+  // Turned 30° away from the family the lengths determine the pose well again.
+  const GripPose away = GripPose::FromFrame(Eigen::Vector3d(0, 0, 0.05), AxisRotation(2, kPi / 3), kPi / 2, g.d);
+  EXPECT_LT(FkConditioningAt(g, away).error_gain, 10);
+  EXPECT_TRUE(std::isnan(FkConditioningAt(g, GripPose::Unpacked(Vector9d::Constant(std::nan("")))).error_gain));
+}
+
+TEST(SampleFkConditioning, MapsASliceAndMarksWhereFkRefuses) {
+  const SpidarGeometry g;
+  FkSlice slice;
+  slice.u_axis = PoseAxis::kZ;
+  slice.u_min = -0.3;  // beyond the frame (c = 0.24): NaN there
+  slice.u_max = 0.2;
+  slice.u_count = 6;
+  slice.v_axis = PoseAxis::kYaw;
+  slice.v_min = -kPi;
+  slice.v_max = kPi;
+  slice.v_count = 9;  // yaw steps of 45°: ±90° lie on the singular family
+  const FkConditioningMap map = SampleFkConditioning(g, slice);
+  ASSERT_EQ(map.error_gain.rows(), 9);
+  ASSERT_EQ(map.error_gain.cols(), 6);
+  ASSERT_EQ(map.position_gain.rows(), 9);
+  ASSERT_EQ(map.fk_status.cols(), 6);
+  EXPECT_NEAR(map.u(1), -0.2, 1e-12);
+  EXPECT_NEAR(map.v(2), -kPi / 2, 1e-12);
+  for (int j = 0; j < 9; ++j) {
+    EXPECT_TRUE(std::isnan(map.error_gain(j, 0)) && std::isnan(map.fk_status(j, 0))) << j;
+    for (int k = 1; k < 6; ++k) {
+      const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0, 0, map.u(k)), AxisRotation(2, map.v(j)), kPi / 2, g.d);
+      EXPECT_LT(PoseDistance(SlicePose(slice, map.u(k), map.v(j), g.d), pose), 1e-15);
+      const bool singular = j == 2 || j == 6;
+      if (singular) {
+        EXPECT_GT(map.error_gain(j, k), 1e4) << j << " " << k;
+        EXPECT_NE(map.fk_status(j, k), 0.0) << j << " " << k;  // FK refuses there
+      } else {
+        EXPECT_NEAR(map.error_gain(j, k), FkConditioningAt(g, pose).error_gain, 1e-9 * map.error_gain(j, k));
+        EXPECT_LT(map.error_gain(j, k), 20) << j << " " << k;
+        EXPECT_EQ(map.fk_status(j, k), 0.0) << j << " " << k;
+      }
+    }
+  }
+  FkSlice bad = slice;
+  bad.u_count = 1;
+  EXPECT_THROW(SampleFkConditioning(g, bad), std::invalid_argument);
+  bad = slice;
+  bad.v_max = bad.v_min;
+  EXPECT_THROW(SampleFkConditioning(g, bad), std::invalid_argument);
+  bad = slice;
+  bad.v_axis = PoseAxis::kZ;
+  EXPECT_THROW(SampleFkConditioning(g, bad), std::invalid_argument);
+  EXPECT_STREQ(PoseAxisName(PoseAxis::kGrasp), "grasp");
+}
+
+TEST(ForwardKinematics, RefusesAsAmbiguousAFlippedPoleThatFitsWithinTheBranchResidual) {
+  // Centre 20 cm below the middle, pitched 0.9 rad: a second pose, pole 1 reversed and the
+  // centre 46 mm higher, reproduces the exact lengths to 71 µm RMS (found here by a warm start
+  // from that flipped pose, independent of the closed form).
+  const SpidarGeometry g;
+  FkSlice slice;
+  slice.u_axis = PoseAxis::kZ;
+  slice.v_axis = PoseAxis::kPitch;
+  const GripPose truth = SlicePose(slice, -0.2, 0.9, g.d);
+  const Vector8d lengths = Eq7Lengths(g, truth);
+  GripPose flipped = truth;
+  flipped.p0.z() += 0.046;
+  flipped.p1 = -truth.p1;
+  FkSettings loose;
+  loose.max_residual = 1;
+  loose.branch_residual = 0;
+  ForwardKinematics probe(g, loose);
+  ASSERT_EQ(probe.Solve(Eq7Lengths(g, flipped)).status, FkStatus::kOk);
+  const FkResult other = probe.Solve(lengths);
+  ASSERT_EQ(other.status, FkStatus::kOk);
+  ASSERT_FALSE(other.used_closed_form);
+  EXPECT_GT(PoseDistance(other.pose, truth), 0.04);
+  EXPECT_LT(other.residual, 1e-4);
+  // With a branch residual above the other branch's fit: ambiguous. Below it: the exact pose.
+  FkSettings settings;
+  settings.branch_residual = 1e-4;
+  ForwardKinematics fk(g, settings);
+  const FkResult refused = fk.Solve(lengths);
+  EXPECT_EQ(refused.status, FkStatus::kAmbiguous);
+  ExpectAllNaN(refused);
+  settings.branch_residual = 2.5e-5;
+  ForwardKinematics strict(g, settings);
+  const FkResult r = strict.Solve(lengths);
+  ASSERT_EQ(r.status, FkStatus::kOk);
+  EXPECT_LT(PoseDistance(r.pose, truth), 1e-9);
+}
+
+std::string Format(const char* format, double value) {
+  char buffer[160];
+  std::snprintf(buffer, sizeof(buffer), format, value);
+  return buffer;
+}
+
+// Poses across the workspace and near the singular set (fixed seed): random poses with any
+// rotation, poses of the singular family perturbed by 1e-4 to 0.3 in every coordinate, and
+// poses where a random local search drove σ_min below 1e-3.
+std::vector<GripPose> HardPoses(const SpidarGeometry& g, int n_random, int n_family, int n_search, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  std::normal_distribution<double> normal;
+  std::vector<GripPose> poses;
+  for (int k = 0; k < n_random; ++k) poses.push_back(RandomPose(rng, g, 0.18, kPi, 30 * kDeg, 150 * kDeg));
+  for (int k = 0; k < n_family; ++k) {
+    const double scale = std::pow(10.0, -4 + 3.5 * (0.5 + 0.5 * uni(rng)));
+    Vector7d delta;
+    for (int i = 0; i < 7; ++i) delta(i) = scale * normal(rng) * (i < 3 ? 0.1 : 1.0);
+    poses.push_back(Perturbed(SingularPose(g, 0.18 * uni(rng)), delta, g.d));
+  }
+  for (int k = 0; k < n_search; ++k) {
+    GripPose pose = RandomPose(rng, g, 0.15, kPi, 50 * kDeg, 130 * kDeg);
+    double best = FkConditioningAt(g, pose).sigma_min;
+    double step = 0.05;
+    for (int it = 0; it < 1500 && best > 1e-3; ++it) {
+      Vector7d delta;
+      for (int i = 0; i < 7; ++i) delta(i) = step * normal(rng) * (i < 3 ? 0.5 : 1.0);
+      const GripPose trial = Perturbed(pose, delta, g.d);
+      if (trial.p0.cwiseAbs().maxCoeff() > 0.2 || trial.Grasp() < 0.4 || trial.Grasp() > 2.7) continue;
+      const double s = FkConditioningAt(g, trial).sigma_min;
+      if (s < best) {
+        best = s;
+        pose = trial;
+      }
+      if (it % 300 == 299) step *= 0.5;
+    }
+    poses.push_back(pose);
+  }
+  return poses;
+}
+
+TEST(HardFk, NoFlippedBranchComesBackOkWithIndependentLengthErrorsOfPointEightPercent) {
+  // 0.8 % independent Gaussian error on every length (the paper's calibrated figure taken as
+  // independent per string and sample), max_residual and branch_residual 5 mm. A branch is
+  // flipped when the returned pose is not the minimum that Gauss-Newton reaches from the true
+  // pose (a warm start from the truth) but another one more than 1 mm from it.
+  const SpidarGeometry g;
+  FkSettings settings;
+  settings.max_residual = 5e-3;
+  settings.branch_residual = 5e-3;
+  const std::vector<GripPose> poses = HardPoses(g, 300, 300, 60, 31);
+  std::mt19937 rng(32);
+  std::normal_distribution<double> noise(0, 1);
+  int ok = 0, flipped_ok = 0, refused_ambiguous = 0, refused_singular = 0, refused_other = 0, undecided = 0;
+  double worst_ok_error = 0;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    for (int draw = 0; draw < 3; ++draw) {
+      Vector8d measured = Eq7Lengths(g, poses[k]);
+      for (int i = 0; i < 8; ++i) measured(i) *= 1 + 0.008 * noise(rng);
+      ForwardKinematics fk(g, settings);
+      const FkResult r = fk.Solve(measured);
+      if (r.status == FkStatus::kAmbiguous) ++refused_ambiguous;
+      else if (r.status == FkStatus::kSingular) ++refused_singular;
+      else if (r.status != FkStatus::kOk) ++refused_other;
+      if (r.status != FkStatus::kOk) continue;
+      ++ok;
+      // The true branch's minimum: a warm start from the true pose.
+      FkSettings basin_settings = settings;
+      basin_settings.max_residual = 1;
+      basin_settings.max_error_gain = 1e300;
+      basin_settings.min_grasp = 0;
+      basin_settings.branch_residual = 0;
+      ForwardKinematics basin(g, basin_settings);
+      ASSERT_EQ(basin.Solve(Eq7Lengths(g, poses[k])).status, FkStatus::kOk);
+      const FkResult b = basin.Solve(measured);
+      if (b.status != FkStatus::kOk || b.used_closed_form) {
+        ++undecided;  // no minimum in the true pose's basin: nothing to flip from
+        continue;
+      }
+      const bool flipped = PoseDistance(r.pose, b.pose) > 1e-3;
+      flipped_ok += flipped;
+      EXPECT_FALSE(flipped) << "pose " << k << " draw " << draw << ": returned p0 " << r.pose.p0.transpose()
+                            << ", true branch " << b.pose.p0.transpose() << ", truth " << poses[k].p0.transpose();
+      worst_ok_error = std::max(worst_ok_error, PoseDistance(r.pose, poses[k]));
+    }
+  }
+  const int total = static_cast<int>(poses.size()) * 3;
+  RecordProperty("figure", std::to_string(flipped_ok) + " flipped of " + std::to_string(ok) + " ok (of " +
+                               std::to_string(total) + " solves; refused: " + std::to_string(refused_ambiguous) +
+                               " ambiguous, " + std::to_string(refused_singular) + " singular, " +
+                               std::to_string(refused_other) + " other; " + std::to_string(undecided) +
+                               " without a true-branch minimum); " +
+                               Format("worst ok pose error %.3g m", worst_ok_error));
+  RecordProperty("bar", "0 flipped branches returned ok");
+  EXPECT_EQ(flipped_ok, 0);
+  EXPECT_GT(ok, total / 3);  // the check refuses where it must, not everywhere
+}
+
+// Actual position errors and bounds of FK over poses, for lengths made by `measure`.
+struct BoundStats {
+  std::vector<double> actual, bound;
+  int violations = 0, infinite = 0, refused = 0;
+};
+
+template <typename Measure>
+BoundStats BoundOverPoses(const SpidarGeometry& g, const std::vector<GripPose>& poses, double tolerance, Measure measure) {
+  BoundStats stats;
+  FkSettings settings;
+  settings.branch_residual = tolerance;  // as `spidarcad fk --bound` does
+  ForwardKinematics fk(g, settings);
+  for (const GripPose& truth : poses) {
+    const Vector8d l = measure(Eq7Lengths(g, truth));
+    fk.Reset();
+    const FkResult r = fk.Solve(l);
+    if (r.status != FkStatus::kOk) {
+      ++stats.refused;
+      continue;
+    }
+    const FkBound bound = FkPositionBound(g, r.pose, l, tolerance);
+    const double actual = (r.pose.p0 - truth.p0).norm();
+    if (!std::isfinite(bound.position)) {
+      ++stats.infinite;
+      continue;
+    }
+    stats.actual.push_back(actual);
+    stats.bound.push_back(bound.position);
+    // Per axis too.
+    for (int k = 0; k < 3; ++k) stats.violations += std::abs(r.pose.p0(k) - truth.p0(k)) > bound.axis(k);
+    stats.violations += actual > bound.position;
+  }
+  return stats;
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? std::nan("") : v[v.size() / 2];
+}
+
+TEST(HardFk, PositionBoundHoldsAndStaysWithinTenTimesTheActualError) {
+  // Lengths known to ±Q, Q = half an encoder count: quantized lengths, and lengths with
+  // independent uniform errors in [−Q, Q]. The bound must hold for every pose (actual error
+  // ≤ bound) and be useful (median bound ≤ 10 × median actual error).
+  const SpidarGeometry g;
+  const double Q = 0.5 * kQuantum;
+  std::mt19937 pose_rng(41);
+  std::vector<GripPose> poses;
+  for (int k = 0; k < 2000; ++k) poses.push_back(RandomPose(pose_rng, g, 0.18, kPi, 30 * kDeg, 150 * kDeg));
+  const std::vector<GripPose> hard = HardPoses(g, 0, 300, 0, 42);
+  poses.insert(poses.end(), hard.begin(), hard.end());
+  std::mt19937 rng(43);
+  std::uniform_real_distribution<double> uni(-Q, Q);
+  const BoundStats quantized = BoundOverPoses(g, poses, Q, [](const Vector8d& l) { return Quantize(l); });
+  const BoundStats uniform = BoundOverPoses(g, poses, Q, [&](const Vector8d& l) {
+    Vector8d m = l;
+    for (int i = 0; i < 8; ++i) m(i) += uni(rng);
+    return m;
+  });
+  std::string figure;
+  for (const auto* s : {&quantized, &uniform}) {
+    const double ratio = Median(s->bound) / Median(s->actual);
+    figure += std::string(s == &quantized ? "quantized: " : "; uniform ±Q: ") + std::to_string(s->violations) +
+              " violations over " + std::to_string(s->actual.size()) + " bounded poses (" +
+              std::to_string(s->infinite) + " unbounded, " + std::to_string(s->refused) + " refused), " +
+              Format("median actual %.3g m, ", Median(s->actual)) + Format("median bound %.3g m, ", Median(s->bound)) +
+              Format("ratio %.2f", ratio);
+    EXPECT_EQ(s->violations, 0);
+    EXPECT_LE(ratio, 10.0);
+    EXPECT_GT(s->actual.size(), 1800u);
+  }
+  RecordProperty("figure", figure);
+  RecordProperty("bar", "actual <= bound for every pose and axis; median bound <= 10 x median actual");
+}
+
+TEST(FkPositionBound, IsInfiniteOnTheSingularSetNaNForBadInputAndAllocatesNothing) {
+  const SpidarGeometry g;
+  const GripPose singular = SingularPose(g, 0.05);
+  const Vector8d l = Eq7Lengths(g, singular);
+  EXPECT_TRUE(std::isinf(FkPositionBound(g, singular, l, 1e-5).position));
+  // x and y stay bounded there: exact functions of the lengths.
+  const FkBound b = FkPositionBound(g, singular, l, 1e-5);
+  EXPECT_LT(b.axis.x(), 1e-4);
+  EXPECT_LT(b.axis.y(), 1e-4);
+  Vector8d bad = l;
+  bad(3) = std::nan("");
+  EXPECT_TRUE(std::isnan(FkPositionBound(g, singular, bad, 1e-5).position));
+  EXPECT_TRUE(std::isnan(FkPositionBound(g, singular, l, -1).position));
+  // Zero tolerance at the exact pose: the bound is rounding-small.
+  const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0.03, -0.02, 0.05), AxisRotation(0, 0.3), 1.3, g.d);
+  EXPECT_LT(FkPositionBound(g, pose, Eq7Lengths(g, pose), 0).position, 1e-12);
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  long allocations = 0;
+  double sink = 0;
+  {
+    test_support::MallocCounter counter;
+    sink += FkPositionBound(g, pose, Eq7Lengths(g, pose), 1e-5).position;
+    sink += FkConditioningAt(g, pose).error_gain;
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GT(sink, 0);
 }
 
 }  // namespace

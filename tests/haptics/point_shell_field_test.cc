@@ -9,8 +9,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/point_shell_field.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
+#include <string>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -444,6 +447,107 @@ TEST(PointShellField, GripGlitchThroughTheLoopKeepsTheWrenchLimitAndTheNearSide)
     EXPECT_GT(field.p_WV().z(), -0.03 + 0.001) << k;  // V's centre stays above the plate
   }
   EXPECT_GT(limited, 500);  // the coupling pulls hard (~35 N): the limit is what holds
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// Hard case: the six-DOF shell against a 10 kN/m wall with a stiff hand.
+
+std::string Format(const char* format, double value) {
+  char buffer[128];
+  std::snprintf(buffer, sizeof(buffer), format, value);
+  return buffer;
+}
+
+TEST(HardPointShell, StiffHandAgainstA10kNPerMetreWallStaysPassiveBoundedAndOutside) {
+  // The wall: N_ref · k_p = 10 kN/m. The hand is ten times stiffer than the default (3 kN/m,
+  // 10 N·m/rad wrist) and less damped relative to its stiffness (ζ ≈ 0.18): it drives a box tool
+  // (tilted, so an edge lands first) and the cross grip (its pole ends land first) from 3 cm
+  // above the floor to a target 2 cm below it, and holds. With the target fixed, nothing but the
+  // hand's initial spring energy ever enters: the energy of hand, grip, virtual tool, coupling
+  // and contact must never exceed it; no shell point may pass the depth limit plus one trusted
+  // step; the felt force is bounded by what that energy allows the coupling.
+  HandSettings stiff;
+  stiff.stiffness = 3000.0;
+  stiff.damping = 10.0;
+  stiff.rot_stiffness = 10.0;
+  stiff.rot_damping = 0.02;
+  struct Case {
+    const char* name;
+    PointShell shell;
+    Eigen::Quaterniond tilt;
+    double bottom;  // lowest shell point below the tool origin at rest orientation, m
+  };
+  const Case cases[] = {
+      {"box", PointShell::Box(Eigen::Vector3d::Constant(0.015), 0.005),
+       Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX())), 0.015},
+      {"cross grip", PointShell::CrossGrip(0.04, 0.005, 9, 8),
+       Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized())), 0.02}};
+  double worst_ratio = 0, worst_depth = 0, worst_force_ratio = 0, worst_late_motion = 0;
+  for (const Case& c : cases) {
+    PointShellSettings s;
+    s.contact_stiffness = 1000.0;
+    s.reference_contacts = 10;
+    PointShellField field(Floor(), c.shell, s);
+    TrajectorySample start;
+    start.p_DT = Eigen::Vector3d(0, 0, 0.03 + c.bottom);
+    start.q_DT = c.tilt;
+    TrajectorySample target = start;
+    target.p_DT.z() = -0.02;
+    SimulatedHand hand(stiff, start, 0.04);
+    const double e0 = 0.5 * stiff.stiffness * (target.p_DT - start.p_DT).squaredNorm();
+    // Energy bounds every stretch and speed: the coupling's force is at most
+    // k_c·r + b_c·|v_T − v_V| with ½ k_c r² ≤ E, ½ m_hand v_T² ≤ E, ½ m_V v_V² ≤ E (the soft
+    // zone only lowers the spring).
+    const double force_bound = std::sqrt(2 * s.coupling_stiffness * e0) +
+                               s.coupling_damping * (std::sqrt(2 * e0 / stiff.mass) +
+                                                     std::sqrt(2 * e0 / s.mass));
+    Eigen::Matrix<double, 7, 1> wrench = Eigen::Matrix<double, 7, 1>::Zero();
+    double e_max = 0, deepest = 0, largest_force = 0;
+    Eigen::Vector3d late_min = Eigen::Vector3d::Constant(1), late_max = Eigen::Vector3d::Constant(-1);
+    int contact_ticks = 0;
+    for (int k = 0; k < 3000; ++k) {
+      ToolKinematics tool;
+      tool.time = 1e-3 * k;
+      tool.p_WT = hand.position();
+      tool.R_WT = hand.rotation().toRotationMatrix();
+      tool.v_WT = hand.velocity();
+      tool.w_WT = hand.angular_velocity();
+      tool.grasp = hand.grasp();
+      const ToolWrench w = field.Evaluate(tool);
+      ASSERT_TRUE(w.f_T_W.allFinite() && w.m_T_W.allFinite()) << c.name << " " << k;
+      wrench.head<3>() = w.f_T_W;
+      wrench.segment<3>(3) = w.m_T_W;
+      largest_force = std::max(largest_force, w.f_T_W.norm());
+      hand.Step(target, wrench, 1e-3);
+      contact_ticks += field.contacts() > 0;
+      e_max = std::max(e_max, SystemEnergy(hand, target, field, hand.position(), hand.rotation()));
+      const Eigen::Matrix3d R_V = field.q_WV().toRotationMatrix();
+      for (const Eigen::Vector3d& r_T : field.shell().points_T) {
+        deepest = std::max(deepest, -(field.p_WV() + R_V * r_T).z());
+      }
+      if (k >= 2500) {
+        late_min = late_min.cwiseMin(hand.position());
+        late_max = late_max.cwiseMax(hand.position());
+      }
+    }
+    EXPECT_GT(contact_ticks, 2500) << c.name;
+    EXPECT_LE(e_max, e0 * 1.01) << c.name << ": energy rose from " << e0 << " to " << e_max;
+    EXPECT_LT(deepest, s.max_penetration + s.min_step) << c.name;
+    EXPECT_LT(largest_force, force_bound) << c.name;
+    // Settled: the hand's force is what the wall holds; no oscillation remains.
+    EXPECT_LT((late_max - late_min).norm(), 1e-5) << c.name;
+    worst_ratio = std::max(worst_ratio, e_max / e0);
+    worst_depth = std::max(worst_depth, deepest);
+    worst_force_ratio = std::max(worst_force_ratio, largest_force / force_bound);
+    worst_late_motion = std::max(worst_late_motion, (late_max - late_min).norm());
+  }
+  RecordProperty("figure", Format("max energy / energy put in %.4f; ", worst_ratio) +
+                               Format("deepest shell point %.3g m; ", worst_depth) +
+                               Format("largest force / energy bound %.3f; ", worst_force_ratio) +
+                               Format("motion in the last 0.5 s %.3g m", worst_late_motion));
+  RecordProperty("bar", "energy <= 1.01 x put in; depth < max_penetration + min_step (8e-4 m); "
+                        "force < energy bound; settled motion < 1e-5 m");
 }
 
 }  // namespace

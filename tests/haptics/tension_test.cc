@@ -4,10 +4,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/tension.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
@@ -436,6 +439,159 @@ TEST(TensionSolver, WarmStartGivesTheColdAnswerWithFewerIterations) {
     cold_iterations += rc.iterations;
   }
   EXPECT_LT(warm_iterations, cold_iterations / 2);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// Force closure and the lost wrench
+
+// Null vector of a 7 by 8 matrix by the generalised cross product: n_i = (−1)^i det(A without
+// column i) (independent of ForceClosureAt's SVD).
+Vector8d CrossProductNullVector(const MatrixXd& A) {
+  Vector8d n;
+  for (int i = 0; i < 8; ++i) {
+    MatrixXd minor(7, 7);
+    for (int j = 0, c = 0; j < 8; ++j) {
+      if (j != i) minor.col(c++) = A.col(j);
+    }
+    n(i) = ((i % 2 == 0) ? 1.0 : -1.0) * minor.determinant();
+  }
+  return n;
+}
+
+// Scales the moment and grasp rows by 1/d (every row in N per N).
+MatrixXd ScaledRows(const Matrix78d& A, double d) {
+  MatrixXd S = A;
+  S.bottomRows(4) /= d;
+  return S;
+}
+
+TEST(ForceClosureAt, AgreesWithTheSignsOfTheCrossProductNullVector) {
+  const SpidarGeometry g;
+  std::mt19937 rng(51);
+  std::uniform_real_distribution<double> grasp(0.8, 2.3);
+  int with = 0, without = 0;
+  std::uniform_real_distribution<double> angle(-0.5, 0.5);
+  for (int trial = 0; trial < 300; ++trial) {
+    // Half near the centre with small turns (closure mostly holds), half anywhere.
+    const bool near = trial % 2 == 0;
+    const Eigen::Matrix3d R =
+        near ? Eigen::AngleAxisd(angle(rng), RandomVector(&rng, 1).normalized()).toRotationMatrix()
+             : RandomRotation(&rng);
+    const GripPose pose = GripPose::FromFrame(RandomVector(&rng, near ? 0.05 : 0.15), R, grasp(rng), g.d);
+    const Matrix78d A = WrenchMatrix(g, pose);
+    const ForceClosure c = ForceClosureAt(A, g.d);
+    Vector8d n = CrossProductNullVector(ScaledRows(A, g.d));
+    n /= n.norm();
+    if (n.sum() < 0) n = -n;
+    EXPECT_LT((c.null_vector - n).norm(), 1e-8) << trial;
+    EXPECT_LT((A * c.null_vector).norm(), 1e-12) << trial;
+    EXPECT_EQ(c.closure, (n.array() > 0).all()) << trial;
+    EXPECT_NEAR(c.margin, n.minCoeff() / n.cwiseAbs().maxCoeff(), 1e-8) << trial;
+    (c.closure ? with : without) += 1;
+  }
+  EXPECT_GT(with, 20);
+  EXPECT_GT(without, 20);
+  // At rest every string carries the same share; NaN in, NaN out.
+  const ForceClosure rest = ForceClosureAt(WrenchMatrix(g, GripPose::Rest(g.d)), g.d);
+  EXPECT_TRUE(rest.closure);
+  EXPECT_NEAR(rest.margin, 1.0, 1e-12);
+  Matrix78d bad = WrenchMatrix(g, GripPose::Rest(g.d));
+  bad(2, 3) = std::nan("");
+  EXPECT_TRUE(std::isnan(ForceClosureAt(bad, g.d).margin));
+  EXPECT_FALSE(ForceClosureAt(bad, g.d).closure);
+}
+
+// A direction y with yᵀA ≥ 0 column by column (the strings' cone lies on one side of the plane
+// y = 0), found by brute force over the cone's facets: y ⊥ six columns, oriented to be ≥ 0 on
+// the other two. Exists exactly when force closure is lost. Returns false when none is found.
+bool SeparatingDirection(const Matrix78d& A, double d, Vector7d* y) {
+  const MatrixXd S = ScaledRows(A, d);
+  for (int a = 0; a < 8; ++a) {
+    for (int b = a + 1; b < 8; ++b) {
+      MatrixXd six(7, 6);
+      for (int j = 0, c = 0; j < 8; ++j) {
+        if (j != a && j != b) six.col(c++) = S.col(j);
+      }
+      const Eigen::JacobiSVD<MatrixXd> svd(six.transpose(), Eigen::ComputeFullV);
+      Vector7d v = svd.matrixV().col(6);
+      const double va = v.dot(S.col(a)), vb = v.dot(S.col(b));
+      if (va < 0 && vb < 0) v = -v;
+      if (v.dot(S.col(a)) >= -1e-12 && v.dot(S.col(b)) >= -1e-12) {
+        // Back to the unscaled rows: yᵀA = vᵀS with y = diag(1,1,1,1/d,...) v.
+        *y = v;
+        y->tail<4>() /= d;
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+TEST(HardTension, ReportsTheLostWrenchWhereForceClosureIsLostAndBeyondTheBounds) {
+  // Poses without force closure (random poses off centre with large rotations, and the
+  // interior singular family where A loses rank) and with it: requests the strings cannot
+  // display (against the strings' cone, or beyond τ_max) and ordinary ones. Every answer must
+  // equal the brute-force optimum over all 3^8 active sets, report lost = q − Aτ, flag it as
+  // saturated when the loss is real, and, against the cone, lose at least the request's
+  // component along the separating direction (no τ ≥ 0 has yᵀAτ < 0).
+  const SpidarGeometry g;
+  const TensionSettings s = TensionSettings::ForPoleLength(g.d);
+  TensionSolver solver(s);
+  std::mt19937 rng(52);
+  std::uniform_real_distribution<double> grasp(0.9, 2.2);
+  std::vector<GripPose> poses;
+  while (poses.size() < 16) {
+    const GripPose pose = GripPose::FromFrame(RandomVector(&rng, 0.15), RandomRotation(&rng), grasp(rng), g.d);
+    if (!ForceClosureAt(WrenchMatrix(g, pose), g.d).closure) poses.push_back(pose);
+  }
+  poses.push_back(GripPose::FromFrame(Vector3d(0, 0, 0.05), Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitZ()).toRotationMatrix(),
+                                      M_PI / 2, g.d));  // rank 6
+  double worst_tau = 0, worst_lost = 0, worst_cone = 0;
+  int cone_cases = 0, saturated = 0;
+  for (const GripPose& pose : poses) {
+    const Matrix78d A = WrenchMatrix(g, pose);
+    const ForceClosure closure = ForceClosureAt(A, g.d);
+    ASSERT_FALSE(closure.closure);
+    Vector7d y;
+    ASSERT_TRUE(SeparatingDirection(A, g.d, &y));
+    std::vector<Vector7d> requests;
+    requests.push_back(-5.0 * y / y.head<3>().norm());  // straight against the cone
+    Vector7d huge = Vector7d::Zero();
+    huge(0) = 60;  // beyond what eight 8 N strings can give along x
+    requests.push_back(huge);
+    Vector7d ordinary;
+    for (int k = 0; k < 7; ++k) ordinary(k) = (k < 3 ? 2.0 : 0.04) * std::uniform_real_distribution<double>(-1, 1)(rng);
+    requests.push_back(ordinary);
+    for (std::size_t r = 0; r < requests.size(); ++r) {
+      const Vector7d& q = requests[r];
+      solver.Reset();
+      const TensionResult result = solver.Solve(A, q);
+      ASSERT_NE(result.status, TensionStatus::kNotConverged);
+      const Reference ref = BruteForce(A, q, s);
+      worst_tau = std::max(worst_tau, (result.tau - ref.tau).cwiseAbs().maxCoeff());
+      worst_lost = std::max(worst_lost, (result.lost - (q - A * ref.tau)).cwiseAbs().maxCoeff());
+      if (r == 0) {
+        ++cone_cases;
+        // y·lost = y·q − y·Aτ ≤ y·q < 0: all of the request along y (at least) is lost.
+        const double excess = y.dot(result.lost) - y.dot(q);
+        worst_cone = std::max(worst_cone, excess / std::abs(y.dot(q)));
+        EXPECT_EQ(result.status, TensionStatus::kSaturated);
+      }
+      if (r == 1) EXPECT_EQ(result.status, TensionStatus::kSaturated);
+      saturated += result.status == TensionStatus::kSaturated;
+    }
+  }
+  RecordProperty("figure", "tensions off brute force by " + std::to_string(worst_tau) + " N, lost wrench by " +
+                               std::to_string(worst_lost) + " over " + std::to_string(poses.size()) +
+                               " poses without closure; lost along the separating direction exceeds the request's "
+                               "component by " + std::to_string(worst_cone) + " (relative, must be <= 0) in " +
+                               std::to_string(cone_cases) + " cases; " + std::to_string(saturated) + " saturated");
+  RecordProperty("bar", "tensions and lost wrench within 1e-7 of brute force; all of the request along the "
+                        "separating direction lost; infeasible requests flagged saturated");
+  EXPECT_LT(worst_tau, 1e-7);
+  EXPECT_LT(worst_lost, 1e-6);
+  EXPECT_LE(worst_cone, 1e-9);
 }
 
 }  // namespace

@@ -1,13 +1,12 @@
 // `spidarcad tension --batch`: tension distribution for poses and wrench requests read from
 // stdin, one CSV line in, one CSV line out.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <Eigen/Geometry>
 #include <cmath>
 #include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
@@ -42,6 +41,17 @@ constexpr const char* kTensionHelp =
     "  objective   J = |f − Fτ|² + S0|m − Mτ|² + S1(g − Gτ)² + S2|τ|² at the exact optimum\n"
     "              (J well above S2|τ|² means part of the request could not be displayed)\n"
     "\n"
+    "With --lost each output line goes on with what could not be displayed:\n"
+    "  t1,...,t8,objective,status,lost_fx,lost_fy,lost_fz,lost_mx,lost_my,lost_mz,lost_g,closure\n"
+    "  status      ok (displayed to 1 %), saturated (part of the request is lost: beyond the\n"
+    "              tension bounds, or a direction the strings cannot pull in at this pose)\n"
+    "  lost_*      the request minus the displayed wrench A·τ, per component [N, N·m]\n"
+    "  closure     force-closure margin of the pose: min_i n_i / max_i |n_i| of the null\n"
+    "              vector n of A (A n = 0). > 0: higher tensions can display any wrench;\n"
+    "              <= 0: force closure is lost and some wrench directions are lost whatever\n"
+    "              --tmax is.\n"
+    "A line with NaN or infinity then gives status invalid_input and nan elsewhere.\n"
+    "\n"
     "Every line is solved independently (no warm start carries over). The pole vectors are\n"
     "used as given (|p1| = |p2| = d is not enforced); a line whose pose is degenerate (a pole\n"
     "of zero length, parallel poles, an attachment point on its frame corner) is an error\n"
@@ -60,6 +70,7 @@ struct TensionOptions {
   double tau_min = haptics::TensionSettings{}.tau_min;
   double tau_max = haptics::TensionSettings{}.tau_max;
   std::vector<double> weights;
+  bool lost = false;
   haptics::SpidarGeometry geometry;
 };
 
@@ -68,13 +79,15 @@ void CheckPose(const haptics::SpidarGeometry& g, const haptics::GripPose& pose, 
   const std::string where = "<stdin>:" + std::to_string(line) + ": ";
   const double n1 = pose.p1.norm(), n2 = pose.p2.norm();
   if (n1 < 1e-6 || n2 < 1e-6) {
-    throw InputError(where + "degenerate pose: pole vector " + std::string(n1 < 1e-6 ? "p1" : "p2") +
-                     " has length " + FormatNumber(n1 < 1e-6 ? n1 : n2) +
+    throw InputError(where + "degenerate pose: pole vector " +
+                     std::string(n1 < 1e-6 ? "p1" : "p2") + " has length " +
+                     FormatNumber(n1 < 1e-6 ? n1 : n2) +
                      " m (expected about d = " + FormatNumber(g.d) + " m)");
   }
   if (pose.p1.cross(pose.p2).norm() < 1e-9 * n1 * n2) {
-    throw InputError(where + "degenerate pose: poles p1 and p2 are parallel, the grasp axis is "
-                             "undefined");
+    throw InputError(where +
+                     "degenerate pose: poles p1 and p2 are parallel, the grasp axis is "
+                     "undefined");
   }
   for (int i = 0; i < haptics::kNumStrings; ++i) {
     if ((g.Corner(i) - pose.Attachment(i)).norm() < 1e-9) {
@@ -87,12 +100,12 @@ void CheckPose(const haptics::SpidarGeometry& g, const haptics::GripPose& pose, 
 
 void RunTension(const TensionOptions& options) {
   if (!options.batch) {
-    throw InputError("tension: only batch mode exists; pass --batch and write requests on "
-                     "stdin (see `spidarcad tension --help`)");
+    throw InputError(
+        "tension: only batch mode exists; pass --batch and write requests on "
+        "stdin (see `spidarcad tension --help`)");
   }
   ValidateGeometry(options.geometry);
-  haptics::TensionSettings settings =
-      haptics::TensionSettings::ForPoleLength(options.geometry.d);
+  haptics::TensionSettings settings = haptics::TensionSettings::ForPoleLength(options.geometry.d);
   settings.tau_min = options.tau_min;
   settings.tau_max = options.tau_max;
   if (!options.weights.empty()) {
@@ -115,7 +128,8 @@ void RunTension(const TensionOptions& options) {
     bool finite = true;
     for (double x : v) finite = finite && std::isfinite(x);
     if (!finite) {
-      out += "nan,nan,nan,nan,nan,nan,nan,nan,nan\n";
+      out += "nan,nan,nan,nan,nan,nan,nan,nan,nan";
+      out += options.lost ? ",invalid_input,nan,nan,nan,nan,nan,nan,nan,nan\n" : "\n";
       return;
     }
     haptics::GripPose pose;
@@ -126,14 +140,20 @@ void RunTension(const TensionOptions& options) {
     haptics::Vector7d q;
     for (int k = 0; k < 7; ++k) q(k) = v[9 + k];
     solver.Reset();  // each line independent of the previous ones
-    const haptics::TensionResult r =
-        solver.Solve(haptics::WrenchMatrix(options.geometry, pose), q);
+    const haptics::Matrix78d A = haptics::WrenchMatrix(options.geometry, pose);
+    const haptics::TensionResult r = solver.Solve(A, q);
     for (int i = 0; i < haptics::kNumStrings; ++i) {
-      out += FormatNumber(r.status == haptics::TensionStatus::kInvalidInput ? std::nan("")
-                                                                           : r.tau(i));
+      out +=
+          FormatNumber(r.status == haptics::TensionStatus::kInvalidInput ? std::nan("") : r.tau(i));
       out += ',';
     }
     out += FormatNumber(r.objective);
+    if (options.lost) {
+      out += ',';
+      out += haptics::TensionStatusName(r.status);
+      for (int k = 0; k < 7; ++k) out += "," + FormatNumber(r.lost(k));
+      out += "," + FormatNumber(haptics::ForceClosureAt(A, options.geometry.d).margin);
+    }
     out += '\n';
     if (out.size() > (1 << 16)) {
       std::cout << out;
@@ -159,6 +179,9 @@ void RegisterTensionCommand(CLI::App& app) {
                   "(default 1/d²,1/d²,0.001)")
       ->delimiter(',')
       ->expected(3);
+  cmd->add_flag("--lost", options->lost,
+                "Append status, the lost wrench (request minus displayed, 7 columns) and the\n"
+                "force-closure margin of the pose to every line");
   AddGeometryOptions(*cmd, &options->geometry);
   cmd->callback([options]() { RunTension(*options); });
 }

@@ -32,9 +32,8 @@
 // rest. Stiffer walls (2-3 kN/m) need LoopSettings::linear_damping of a few N·s/m.
 #pragma once
 
-#include <memory>
-
 #include <Eigen/Core>
+#include <memory>
 
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
@@ -44,10 +43,10 @@ namespace spidarcad::haptics {
 
 // Parameters of a ProxyField. SI units.
 struct ProxySettings {
-  double stiffness = 1500.0;        // k, N/m, > 0
-  double damping = 1.0;             // b along the contact normal, N·s/m, >= 0 (contact only)
-  double static_friction = 0.0;     // μs >= 0
-  double dynamic_friction = 0.0;    // μd, 0 <= μd <= μs
+  double stiffness = 1500.0;      // k, N/m, > 0
+  double damping = 1.0;           // b along the contact normal, N·s/m, >= 0 (contact only)
+  double static_friction = 0.0;   // μs >= 0
+  double dynamic_friction = 0.0;  // μd, 0 <= μd <= μs
   Eigen::Vector3d tip_T = Eigen::Vector3d::Zero();  // tool point offset in T, m
   double min_step = 2e-4;           // sweep step floor, m: thinner walls may be crossed
   int max_sweep_steps = 256;        // sweep step budget per sweep (then stops short, free side)
@@ -92,14 +91,18 @@ class ProxyField final : public ForceField {
     Eigen::Vector3d normal;  // unit, pointing to the free side
   };
   // Moves from `from` toward `to`; returns true when `to` is reached through free space,
-  // else false with *stop on the free side just before the surface (or short of `to`).
-  bool Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Eigen::Vector3d* stop) const noexcept;
+  // else false with *stop on the free side just before the surface (or short of `to`) and,
+  // when a surface blocked the way, *blocked (if not null) at the first sample past it.
+  bool Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Eigen::Vector3d* stop,
+             Eigen::Vector3d* blocked = nullptr) const noexcept;
   // Newton steps along the gradient onto φ = 0.
   void Project(Eigen::Vector3d* x) const noexcept;
-  // Adds the tangent plane at x (merging one with nearly the same normal).
-  void AddPlane(const Eigen::Vector3d& x) noexcept;
+  // Adds the plane through x with the unit gradient at `probe` as its normal (the tangent
+  // plane when probe = x), merging one with nearly the same normal.
+  void AddPlane(const Eigen::Vector3d& x, const Eigen::Vector3d& probe) noexcept;
   // The point closest to p on the free side of every plane (p itself when none is active).
-  Eigen::Vector3d ConstrainedGoal(const Eigen::Vector3d& p, const Eigen::Vector3d& fallback) const noexcept;
+  Eigen::Vector3d ConstrainedGoal(const Eigen::Vector3d& p,
+                                  const Eigen::Vector3d& fallback) const noexcept;
   // Moves the frictionless goal g0 back toward the proxy x by the friction cone; updates sliding_.
   Eigen::Vector3d FrictionGoal(const Eigen::Vector3d& x, const Eigen::Vector3d& g0,
                                const Eigen::Vector3d& x_t) noexcept;

@@ -22,6 +22,28 @@ namespace spidarcad::haptics {
 // then reports kInvalidInput).
 Matrix78d WrenchMatrix(const SpidarGeometry& geometry, const GripPose& pose);
 
+// Force closure of the strings at a pose: whether tensions within bounds can display every
+// small wrench. It holds when A has rank 7 and its null vector n (A n = 0, 8 strings, 7 DOF)
+// can be taken strictly positive: then adding a multiple of n raises every tension without
+// changing the wrench, so any wrench is displayed with high enough tensions. Without closure
+// some wrench directions need a negative tension (a string pushing) and are lost whatever
+// τ_max is.
+struct ForceClosure {
+  bool closure = false;  // rank 7 and every component of null_vector > 0
+  // min_i n_i / max_i |n_i| of the unit null vector oriented so Σ n_i ≥ 0: in (0, 1] with
+  // closure, ≤ 0 without (the most negative string's share). NaN for non-finite A.
+  double margin = 0;
+  // Unit null vector of the scaled A (moment and grasp rows times 1/d), oriented as above.
+  Vector8d null_vector = Vector8d::Zero();
+  // Smallest singular value of the scaled A (N per N of tension): near 0 the strings lose a
+  // wrench direction altogether (rank < 7).
+  double sigma_min = 0;
+};
+
+// Force closure of the wrench matrix A (7 by 8, from WrenchMatrix) for pole half-length d [m]
+// (the moment and grasp rows are scaled by 1/d so every row is in N per N). No allocation.
+ForceClosure ForceClosureAt(const Matrix78d& A, double d);
+
 // Weights and bounds of the tension distribution problem
 //   J = |f − F τ|² + S0 |m − M τ|² + S1 (g − G τ)² + S2 |τ|²,  τ_min ≤ τ_i ≤ τ_max,
 // where F (3 by 8), M (3 by 8) and G (1 by 8) are the force, moment and grasp rows of A.
@@ -57,10 +79,10 @@ enum class TensionStatus : std::uint8_t {
   // covers the S2 bias, which scales with the tensions (the pretension that keeps strings taut
   // off centre), not with q: at q = 0 and 5 cm off centre it is ~3 mN.
   kOk = 0,
-  kSaturated,      // exact optimum, but part of the request lies outside what the strings can
-                   // deliver within [τ_min, τ_max] (see TensionResult::lost)
-  kInvalidInput,   // q or A contained NaN or infinity: τ = τ_min everywhere
-  kNotConverged,   // iteration cap reached (not expected: 8 variables); τ is feasible
+  kSaturated,     // exact optimum, but part of the request lies outside what the strings can
+                  // deliver within [τ_min, τ_max] (see TensionResult::lost)
+  kInvalidInput,  // q or A contained NaN or infinity: τ = τ_min everywhere
+  kNotConverged,  // iteration cap reached (not expected: 8 variables); τ is feasible
 };
 
 // One word for a status ("ok", "saturated", "invalid_input", "not_converged").
