@@ -873,7 +873,7 @@ const WindowLayout& AppWindow::layout() const { return s_->layout; }
 
 Rect AppWindow::DrawnPanel(const std::string& name) const {
   ImGuiWindow* w = ImGui::FindWindowByName(name.c_str());
-  if (w == nullptr || !w->WasActive) return {};
+  if (w == nullptr || !w->Active) return {};  // not begun in the latest frame
   return {w->Pos.x, w->Pos.y, w->Size.x, w->Size.y};
 }
 

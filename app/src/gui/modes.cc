@@ -37,17 +37,27 @@ bool SqueezeDetector::Update(double t, double grasp) {
   if (!std::isfinite(t) || !std::isfinite(grasp)) return false;
   if (!samples_.empty() && t < samples_.back().first) samples_.clear();  // the clock restarted
   samples_.emplace_back(t, grasp);
-  while (samples_.size() > 1 && t - samples_.front().first > kWindow) samples_.pop_front();
-  // The smallest angle in the window, the largest before it and the current one.
-  std::size_t lowest = 0;
-  for (std::size_t i = 1; i < samples_.size(); ++i) {
+  while (samples_.size() > 1 && t - samples_.front().first > kHistory) samples_.pop_front();
+  // The smallest angle of the last kWindow s.
+  std::size_t lowest = samples_.size() - 1;
+  for (std::size_t i = samples_.size(); i-- > 0 && t - samples_[i].first <= kWindow;) {
     if (samples_[i].second < samples_[lowest].second) lowest = i;
   }
-  double highest_before = samples_[lowest].second;
-  for (std::size_t i = 0; i < lowest; ++i)
-    highest_before = std::max(highest_before, samples_[i].second);
+  // Where the closing toward it began: back from the lowest sample while the angle rises
+  // (going back in time), allowing kNoise of jitter.
+  std::size_t first = lowest;
+  while (first > 0 && samples_[first - 1].second >= samples_[first].second - kNoise) --first;
+  // The gesture starts when the angle last left its top (a steady hold before it is not part
+  // of the squeeze).
+  double top = samples_[first].second;
+  for (std::size_t i = first; i <= lowest; ++i) top = std::max(top, samples_[i].second);
+  std::size_t start = first;
+  for (std::size_t i = first; i <= lowest; ++i) {
+    if (samples_[i].second >= top - kNoise) start = i;
+  }
   const double low = samples_[lowest].second;
-  if (highest_before - low >= kDepth && grasp - low >= kDepth) {
+  const bool deep = samples_[start].second - low >= kDepth && grasp - low >= kDepth;
+  if (deep && t - samples_[start].first <= kWindow) {
     samples_.clear();
     samples_.emplace_back(t, grasp);
     return true;

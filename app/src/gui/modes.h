@@ -34,18 +34,20 @@ class vtkRenderer;
 
 namespace spidarcad::app {
 
-// Detects a short squeeze of the grasp: the angle closes by at least kDepth from its largest
-// value and opens again by at least kDepth from its smallest, all within kWindow seconds.
+// Detects a short squeeze of the grasp: from where the closing began, the angle closes by at
+// least kDepth and opens again by at least kDepth, the whole gesture within kWindow seconds.
 class SqueezeDetector {
  public:
   static constexpr double kWindow = 0.4;                                 // s
   static constexpr double kDepth = 10.0 * 3.14159265358979323846 / 180;  // rad (10°)
+  static constexpr double kNoise = 0.5 * 3.14159265358979323846 / 180;   // rad of jitter ignored
+  static constexpr double kHistory = 2.0;                                 // s of samples kept
   // Adds the grasp angle θ (rad) at time t (s, increasing); true when this sample completes a
   // squeeze (once per squeeze: the history restarts after one).
   bool Update(double t, double grasp);
 
  private:
-  std::deque<std::pair<double, double>> samples_;  // (t, θ) within the last kWindow s
+  std::deque<std::pair<double, double>> samples_;  // (t, θ) within the last kHistory s
 };
 
 // The index in model.objects() of the solid the tool touches: the solid with the smallest value
