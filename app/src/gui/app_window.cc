@@ -55,6 +55,7 @@ constexpr double kClickSlop = 3.0;              // pixels a click may move and s
 constexpr int kScreenshotFrames = 6;            // frames rendered before the capture
 constexpr double kSettleTimeout = 90.0;         // s a screenshot waits for ramp and jobs
 constexpr int kReloadCheckFrames = 30;          // frames between scene-file mtime checks
+constexpr int kFiguresOpenHeight = 800;         // window height from which the strip starts open
 constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 constexpr char kDocumentPanel[] = "Document";
 constexpr char kModePanel[] = "Mode";
@@ -193,7 +194,9 @@ struct AppWindow::State {
   WindowLayout layout;
   float menu_height = 21.0f;
   float frame_height = 21.0f;
-  bool figures_applied = true;  // the strip's collapsed state as last set on the ImGui window
+  bool figures_applied = true;
+  bool fit_pending = false;  // fit the view to the scene and the grip at the first frame  // the
+                             // strip's collapsed state as last set on the ImGui window
   int fb_w = 0, fb_h = 0, win_w = 0, win_h = 0;
   DragMode drag = DragMode::kNone;
   ImVec2 press{0.0f, 0.0f};   // where the left button went down (a click if it stays)
@@ -351,7 +354,16 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   s.modes.push_back(std::move(assembly));
   s.model_mode->SetFelt(!s.assembly_mode->available());
   ApplyHidden();
-  if (s.assembly_mode->available()) s.view->Zoom(1.4);  // the robot is small (C: whole frame)
+  if (s.assembly_mode->available()) {
+    s.view->Zoom(1.4);  // the robot is small (C: whole frame)
+  } else {
+    // A scene with solids opens fitted to them and the grip (C: the whole device).
+    s.fit_pending = !s.model.objects().empty();
+  }
+
+  // The figures strip starts open in windows at least kFiguresOpenHeight tall (the default
+  // 1280x800); in smaller ones it starts collapsed so that the viewport keeps its height.
+  s.workbench.show_figures = options.height >= kFiguresOpenHeight;
 
   s.context.model = &s.model;
   s.context.jobs = s.jobs.get();
@@ -453,6 +465,14 @@ bool AppWindow::Frame() {
   const Rect& v = s.layout.viewport;
   s.view->renderer()->SetViewport(v.x / s.win_w, 1.0 - v.bottom() / s.win_h, v.right() / s.win_w,
                                   1.0 - v.y / s.win_h);
+  if (s.fit_pending) {  // the first frame: the viewport's aspect is known now
+    s.fit_pending = false;
+    Eigen::AlignedBox3d box = SubjectBox(s.model, -1, false, *s.view);
+    const Eigen::Vector3d reach = Eigen::Vector3d::Constant(1.2 * s.geometry->d);
+    box.extend(s.grip->p0() + reach);
+    box.extend(s.grip->p0() - reach);
+    s.view->FitBox(box);
+  }
 
   ImGui_ImplOpenGL3_NewFrame();
   ImGui_ImplGlfw_NewFrame();

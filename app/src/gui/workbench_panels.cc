@@ -151,8 +151,16 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
                           : tris > 0                ? " (preview)"
                                                     : " (meshing preview...)");
     }
-  } else if (model->objects().empty()) {
-    ImGui::TextDisabled("no solids");
+  }
+  if (model->objects().empty()) {
+    // An empty document: how to start, and the controls (also in the Help menu).
+    ImGui::Separator();
+    ImGui::PushTextWrapPos(width - 10.0f);
+    ImGui::TextUnformatted("No solids in this scene: add one with Add..., or open a scene file "
+                           "(spidarcad SCENE.json).");
+    ImGui::PopTextWrapPos();
+    ImGui::Separator();
+    DrawControlsHelp();
   }
   DrawJobs(jobs, state, width);
   ImGui::End();
@@ -242,6 +250,18 @@ void DrawContactControls(WorkbenchState* state) {
 }
 
 void DrawLoopFigures(const LoopStats& s, WorkbenchActions* actions) {
+  // The stop first: always in sight, whatever the strip's height.
+  if (s.emergency_stop) {
+    if (ImGui::Button("Re-arm forces")) actions->rearm = true;
+    ImGui::SameLine();
+    ImGui::TextColored(kRed, "stopped: zero force");
+  } else {
+    ImGui::PushStyleColor(ImGuiCol_Button, ImVec4(0.85f, 0.15f, 0.12f, 1.0f));
+    ImGui::PushStyleColor(ImGuiCol_ButtonHovered, ImVec4(0.95f, 0.25f, 0.2f, 1.0f));
+    ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 1, 1, 1));
+    if (ImGui::Button("EMERGENCY STOP (Space)")) actions->emergency_stop = true;
+    ImGui::PopStyleColor(3);
+  }
   const bool fifo = s.realtime == haptics::RealtimeStatus::kFifo;
   ImGui::Text("1 kHz loop, %llu ticks", static_cast<unsigned long long>(s.ticks));
   ImGui::SameLine();
@@ -288,17 +308,6 @@ void DrawLoopFigures(const LoopStats& s, WorkbenchActions* actions) {
       }
     }
     ImGui::EndTable();
-  }
-  if (s.emergency_stop) {
-    if (ImGui::Button("Re-arm forces")) actions->rearm = true;
-    ImGui::SameLine();
-    ImGui::TextColored(kRed, "stopped: zero force");
-  } else {
-    ImGui::PushStyleColor(ImGuiCol_Button, ImVec4(0.85f, 0.15f, 0.12f, 1.0f));
-    ImGui::PushStyleColor(ImGuiCol_ButtonHovered, ImVec4(0.95f, 0.25f, 0.2f, 1.0f));
-    ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 1, 1, 1));
-    if (ImGui::Button("EMERGENCY STOP (Space)")) actions->emergency_stop = true;
-    ImGui::PopStyleColor(3);
   }
 }
 
