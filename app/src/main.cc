@@ -49,6 +49,8 @@ int main(int argc, char** argv) {
   RegisterRunCommand(app);
   RegisterTrajectoryCommand(app);
   RegisterDeviceCommand(app);
+  RegisterReportCommand(app);
+  RegisterInfoCommand(app);
 
   try {
     app.parse(argc, argv);
