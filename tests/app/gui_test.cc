@@ -5,6 +5,7 @@
 // spidarcad binary with --screenshot when an X display is available (CI: xvfb-run).
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -30,6 +31,7 @@
 #include "gui/gui.h"
 #include "scene/haptic_runtime.h"
 #include "gui/panels.h"
+#include "gui/window_layout.h"
 #include "scene/scene_fields.h"
 #include "scene/scene_model.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -633,12 +635,18 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
   EXPECT_GT(colours.size(), 1000u);
 
   // The panel is drawn: its region differs from the 3D background and contains text (dark
-  // pixels) on its light window colour.
+  // pixels) on its light window colour. The background is sampled at the viewport's left edge
+  // (the docked layout puts the mode panel at the window's right edge), in the viewport row
+  // nearest this row.
+  const WindowLayout layout = ComputeLayout(static_cast<float>(dims[0]), static_cast<float>(dims[1]));
+  const int view_x = static_cast<int>(layout.viewport.x) + 3;
+  const int view_lowest = dims[1] - static_cast<int>(layout.viewport.bottom()) + 2;  // bottom up
+  const int view_highest = dims[1] - static_cast<int>(layout.viewport.y) - 3;
   int dark = 0, differing = 0;
   for (int j = 0; j < dims[1]; ++j) {
     for (int i = 0; i < panel - 4; ++i) {
       const auto p = at(i, j);
-      const auto bg = at(dims[0] - 3, j);  // the 3D view's gradient background at this row
+      const auto bg = at(view_x, std::clamp(j, view_lowest, view_highest));  // the 3D background
       if (p[0] + p[1] + p[2] < 200) ++dark;
       if (std::abs(p[0] - bg[0]) + std::abs(p[1] - bg[1]) + std::abs(p[2] - bg[2]) > 20) {
         ++differing;

@@ -565,11 +565,12 @@ TEST(TreeControllerWindow, ScreenshotShowsTheTreeWithTheSelectedNodeHighlighted)
   ASSERT_EQ(dims[1], 800);
   const int comps = image->GetNumberOfScalarComponents();
   const auto* px = static_cast<const unsigned char*>(image->GetScalarPointer());
-  // The selected row: ImGui's header colour (0.80, 0.85, 0.93) in the scene panel (right side).
-  const int x0 = dims[0] - 340;
+  // The selected row: ImGui's header colour (0.80, 0.85, 0.93) in the document panel (docked
+  // on the left, kPanelWidth wide).
+  const int x1 = static_cast<int>(kPanelWidth);
   int highlighted = 0, dark = 0;
   for (int j = 0; j < dims[1]; ++j) {
-    for (int i = x0; i < dims[0]; ++i) {
+    for (int i = 0; i < x1; ++i) {
       const unsigned char* p = px + (static_cast<size_t>(j) * dims[0] + i) * comps;
       if (std::abs(p[0] - 204) <= 2 && std::abs(p[1] - 217) <= 2 && std::abs(p[2] - 237) <= 2) {
         ++highlighted;

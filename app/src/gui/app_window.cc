@@ -1,50 +1,46 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // The window loop: GLFW events → grip control → target of the simulated hand → (haptic thread:
-// hand, device, HapticLoop at 1 kHz) → latest ToolState → VTK scene + ImGui panels; scene
-// meshing in background Jobs.
+// hand, device, HapticLoop at 1 kHz) → latest ToolState → modes → VTK scene + ImGui panels;
+// scene meshing in background Jobs.
+#include "gui/app_window.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <sstream>
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 #include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
+#include <imgui_internal.h>
 #include <vtkCallbackCommand.h>
 #include <vtkCommand.h>
 #include <vtkGenericOpenGLRenderWindow.h>
 #include <vtkNew.h>
 #include <vtkRenderer.h>
+#include <vtkSmartPointer.h>
 
 #include <Eigen/Geometry>
 
-#include "scene/vtu_io.h"
-#include "doc/job.h"
-#include "gui/assembly_mode.h"
-#include "scene/device_session.h"
-#include "gui/device_view.h"
-#include "gui/fe_mode.h"
-#include "gui/gl_capture.h"
-#include "scene/grip_control.h"
-#include "gui/gui.h"
-
 #include "doc/assets.h"
-#include "scene/haptic_runtime.h"
+#include "doc/job.h"
+#include "gui/device_view.h"
+#include "gui/gl_capture.h"
+#include "gui/mode.h"
+#include "gui/modes.h"
 #include "gui/panels.h"
-#include "scene/scene_model.h"
 #include "gui/scene_view.h"
-#include "gui/sculpt_mode.h"
-#include "scene/trajectory_player.h"
 #include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
-#include "scene/fe_model.h"
-#include "scene/shared_field.h"
+#include "scene/device_session.h"
+#include "scene/grip_control.h"
+#include "scene/haptic_runtime.h"
+#include "scene/scene_model.h"
+#include "scene/trajectory_player.h"
 #include "spidarcad/haptics/trajectory.h"
 
 namespace spidarcad::app {
@@ -52,14 +48,18 @@ namespace spidarcad::app {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-constexpr double kGraspStep = 5.0 * kDegToRad;    // per wheel notch or key press
-constexpr double kRotateGain = 0.008;              // rad per pixel of right-drag
-constexpr double kOrbitGain = 0.3;                 // deg per pixel
-constexpr int kScreenshotFrames = 6;               // frames rendered before the capture
-constexpr double kSettleTimeout = 90.0;            // s a screenshot waits for ramp and jobs
-constexpr float kScenePanelWidth = 330.0f;         // pixels
-constexpr int kReloadCheckFrames = 30;             // frames between scene-file mtime checks
+constexpr double kGraspStep = 5.0 * kDegToRad;  // per wheel notch or key press
+constexpr double kRotateGain = 0.008;           // rad per pixel of right-drag
+constexpr double kOrbitGain = 0.3;              // deg per pixel
+constexpr double kClickSlop = 3.0;              // pixels a click may move and stay a click
+constexpr int kScreenshotFrames = 6;            // frames rendered before the capture
+constexpr double kSettleTimeout = 90.0;         // s a screenshot waits for ramp and jobs
+constexpr int kReloadCheckFrames = 30;          // frames between scene-file mtime checks
+constexpr int kFiguresOpenHeight = 800;         // window height from which the strip starts open
 constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+constexpr char kDocumentPanel[] = "Document";
+constexpr char kModePanel[] = "Mode";
+constexpr char kFiguresPanel[] = "Device and haptic loop";
 
 void GlfwError(int code, const char* text) {
   std::cerr << "spidarcad: GLFW error " << code << ": " << text << "\n";
@@ -70,11 +70,16 @@ enum class DragMode { kNone, kMoveGrip, kRotateGrip, kRollGrip, kOrbit };
 
 const char* DragModeText(DragMode mode) {
   switch (mode) {
-    case DragMode::kMoveGrip: return "moving grip";
-    case DragMode::kRotateGrip: return "rotating grip";
-    case DragMode::kRollGrip: return "rolling grip";
-    case DragMode::kOrbit: return "orbit";
-    case DragMode::kNone: break;
+    case DragMode::kMoveGrip:
+      return "moving grip";
+    case DragMode::kRotateGrip:
+      return "rotating grip";
+    case DragMode::kRollGrip:
+      return "rolling grip";
+    case DragMode::kOrbit:
+      return "orbit";
+    case DragMode::kNone:
+      break;
   }
   return "";
 }
@@ -108,9 +113,8 @@ struct ImGuiSession {
 void LoadFont() {
   ImGuiIO& io = ImGui::GetIO();
   // Latin-1, Greek (τ, θ), general punctuation (–, ·), super/subscripts, arrows, maths, shapes.
-  static const ImWchar kRanges[] = {0x0020, 0x00FF, 0x0370, 0x03FF, 0x2010, 0x2044,
-                                    0x2070, 0x209F, 0x2190, 0x21FF, 0x2200, 0x22FF,
-                                    0x25A0, 0x25FF, 0};
+  static const ImWchar kRanges[] = {0x0020, 0x00FF, 0x0370, 0x03FF, 0x2010, 0x2044, 0x2070, 0x209F,
+                                    0x2190, 0x21FF, 0x2200, 0x22FF, 0x25A0, 0x25FF, 0};
   std::error_code ec;
   if (std::filesystem::exists(kFontPath, ec)) {
     if (io.Fonts->AddFontFromFileTTF(kFontPath, 14.5f, nullptr, kRanges) != nullptr) return;
@@ -118,642 +122,850 @@ void LoadFont() {
   io.Fonts->AddFontDefault();
 }
 
-}  // namespace
-
-bool DisplayAvailable() {
-  const char* display = std::getenv("DISPLAY");
-  if (display == nullptr || display[0] == '\0') return false;
-  // glfwInit connects to the X server and fails cleanly when it cannot. The connection is
-  // kept (RunGui's glfwInit is then a no-op): closing it would let an Xvfb with no other
-  // client reset, and a connection opened during the reset fails.
-  glfwSetErrorCallback(nullptr);
-  return glfwInit() == GLFW_TRUE;
-}
-
-void ParseWindowSize(const std::string& text, int* width, int* height) {
-  int w = 0, h = 0;
-  char x = 0;
-  std::istringstream in(text);
-  if (!(in >> w >> x >> h) || (x != 'x' && x != 'X') || !(in >> std::ws).eof() || w < 200 ||
-      h < 200 || w > 8192 || h > 8192) {
-    throw CLI::ValidationError("--size", "expected WxH with both in [200, 8192] pixels, got '" +
-                                             text + "'");
-  }
-  *width = w;
-  *height = h;
-}
-
-void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
-  static const char* kFields[7] = {"x [mm]",   "y [mm]",   "z [mm]",    "roll [deg]",
-                                   "pitch [deg]", "yaw [deg]", "grasp [deg]"};
-  std::array<double, 7> out = *grip;
-  std::stringstream in(text);
-  std::string field;
-  int k = 0;
-  while (std::getline(in, field, ',')) {
-    if (k >= 7) {
-      throw CLI::ValidationError("--grip", "at most 7 fields (x,y,z,roll,pitch,yaw,grasp), got '" +
-                                               text + "'");
-    }
-    try {
-      size_t used = 0;
-      out[k] = std::stod(field, &used);
-      if (used != field.size() || !std::isfinite(out[k])) throw std::invalid_argument(field);
-    } catch (const std::exception&) {
-      throw CLI::ValidationError("--grip", std::string("field ") + std::to_string(k + 1) + " (" +
-                                               kFields[k] + ") is not a number: '" + field +
-                                               "'");
-    }
-    ++k;
-  }
-  if (k != 3 && k != 6 && k != 7) {
-    throw CLI::ValidationError("--grip", "expected 3, 6 or 7 comma-separated fields "
-                                         "(x,y,z[,roll,pitch,yaw[,grasp]]), got '" + text + "'");
-  }
-  *grip = out;
-}
-
-void AddGuiOptions(CLI::App& app, GuiOptions* options) {
-  app.add_option("--select", options->select,
-                 "Select this solid or node in the tree panel at start, showing its parameters: a "
-                 "solid's name, a node's name or id, or SOLID/i/j for child j of child i of the "
-                 "solid's root (default: the first solid). Not in the scene: exit status 2")
-      ->type_name("NAME");
-  app.add_option("scene", options->scene,
-                 "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "
-                 "(built-in, the default) or 'none'; with --mode fe the default is "
-                 "assets/scenes/platform.json, with --mode sculpt assets/scenes/clay.json. The "
-                 "file is re-read when it changes on disk.");
-  app.add_option("--mode", options->mode,
-                 "Start in a mode: 'fe' meshes assets/scenes/platform.json (TetGen, 12 mm), "
-                 "precomputes it (steel, clamped at the wall face) and lets the grip push it; "
-                 "'sculpt' meshes assets/scenes/clay.json and lets the grip sculpt it (close the "
-                 "grasp or hold G). Both are also in the 'Modes' window. While a mode's part "
-                 "is live, it alone is felt: the scene's solids are shown but not touched.")
-      ->check(CLI::IsMember({"fe", "sculpt"}));
-  app.add_option("--estop-frame", options->estop_frame,
-                 "Press the emergency stop (Space) at this frame (scripted runs and tests)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--trajectory", options->trajectory,
-                 "Scripted grip: the simulated hand's target follows this trajectory CSV "
-                 "(t,x,y,z,qw,qx,qy,qz,grasp in D, as `spidarcad run --trajectory`) in wall-clock "
-                 "time from the first frame, then holds its last sample and the mouse takes over; "
-                 "the grip starts at its first sample. --screenshot waits until it has ended "
-                 "(+0.5 s), --frames runs at least that long.");
-  app.add_option("--screenshot", options->screenshot,
-                 "Render a few frames, write the window (scene and panel) to this PNG and exit");
-  app.add_option("--frames", options->frames, "Exit after this many frames (0: run until closed)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--device", options->device,
-                 "The device the 1 kHz haptic loop drives: 'simulated' (default: the simulated "
-                 "SPIDAR-G with encoder errors, calibrated at start-up, held by a simulated hand "
-                 "that follows the mouse); 'ideal' (no encoder errors, the grip exactly where the "
-                 "mouse puts it); 'board-sim' (the same simulated SPIDAR-G behind the controller "
-                 "board's firmware simulator, driven by the USB driver byte for byte, no "
-                 "hardware; the panel can unplug it); 'usb' (a real controller board over libusb: "
-                 "your hand moves the grip, the mouse does not; without a board the window runs "
-                 "at zero force, says 'not connected' and retries every 0.2 s: see `spidarcad "
-                 "device list` and assets/udev/99-spidarcad.rules)")
-      ->check(CLI::Validator(
-          [](std::string& name) -> std::string {
-            RuntimeDevice device;
-            if (ParseRuntimeDevice(name, &device)) return {};
-            return "'" + name + "' is not a device; use simulated, ideal, board-sim or usb";
-          },
-          "DEVICE"));
-  app.add_option_function<std::string>(
-         "--size", [options](const std::string& s) {
-           ParseWindowSize(s, &options->width, &options->height);
-         },
-         "Window size WxH in pixels (default 1280x800)")
-      ->type_name("WxH");
-  app.add_option_function<std::string>(
-         "--grip", [options](const std::string& s) { ParseGripPose(s, &options->grip); },
-         "Starting hand pose in the device frame: x,y,z[,roll,pitch,yaw[,grasp]] "
-         "(mm and degrees; grasp 20..160, default 90)")
-      ->type_name("X,Y,Z[,R,P,Y[,G]]");
-}
-
 // The scene the window opens: the positional argument, else the mode's part, else the demo.
-static std::string DefaultSceneFor(const GuiOptions& options) {
+std::string DefaultSceneFor(const GuiOptions& options) {
   if (!options.scene.empty()) return options.scene;
   if (options.mode == "fe") return PlatformScenePath();
   if (options.mode == "sculpt") return AssetPath("scenes/clay.json");
   return kDemoSceneName;
 }
 
-int RunGui(const GuiOptions& options) {
+// Box of `box_W` in the view frame D: p_D = (p_W − p_WDo) / s.
+Eigen::AlignedBox3d ToView(const Eigen::AlignedBox3d& box_W, const DeviceToWorld& x) {
+  if (box_W.isEmpty()) return box_W;
+  return Eigen::AlignedBox3d((box_W.min() - x.p_WDo) / x.world_scale,
+                             (box_W.max() - x.p_WDo) / x.world_scale);
+}
+
+// The box (in D) the camera fits: the selected solid's (selection) or every solid's, else the
+// device frame.
+Eigen::AlignedBox3d SubjectBox(const SceneModel& model, int selected, bool selection,
+                               const DeviceView& view) {
+  Eigen::AlignedBox3d box;
+  const auto& objects = model.objects();
+  for (int i = 0; i < static_cast<int>(objects.size()); ++i) {
+    if (selection && i != selected) continue;
+    if (!objects[i].bounds_W.isEmpty()) box.extend(objects[i].bounds_W);
+  }
+  if (box.isEmpty() && selection) return SubjectBox(model, selected, false, view);
+  if (box.isEmpty()) return view.FrameBox();
+  return ToView(box, model.device_to_world());
+}
+
+}  // namespace
+
+struct AppWindow::State {
+  GuiOptions options;
+  // The scene and its tree.
+  std::unique_ptr<GripControl> grip;
+  haptics::Trajectory trajectory;
+  SceneModel model;
+  modeling::Scene assembly_scene;
+  bool assembly = false;
+  std::unique_ptr<TreeController> tree;
+  TreePanelState tree_state;
+  // GLFW, the loop, the jobs.
+  std::unique_ptr<GlfwSession> glfw;
+  GLFWwindow* window = nullptr;
+  RuntimeSettings runtime_settings;
+  std::unique_ptr<HapticRuntime> runtime;
+  DemoFieldSettings springs;
+  std::unique_ptr<JobQueue> jobs;  // destroyed before model: joins the workers first
+  WorkbenchState workbench;
+  // VTK.
+  std::unique_ptr<DeviceView> view;
+  vtkSmartPointer<vtkGenericOpenGLRenderWindow> render_window;
+  vtkNew<vtkCallbackCommand> make_current;
+  vtkNew<vtkCallbackCommand> is_current;
+  std::unique_ptr<SceneView> scene_view;
+  // The modes: modelling first; exactly one active.
+  std::vector<std::unique_ptr<Mode>> modes;
+  ModelMode* model_mode = nullptr;
+  AssemblyWindowMode* assembly_mode = nullptr;
+  Mode* active = nullptr;
+  ModeContext context;
+  // ImGui.
+  std::unique_ptr<ImGuiSession> imgui;
+  // --trajectory.
+  std::unique_ptr<TrajectoryPlayer> player;
+  bool player_live = false;
+  // Frame state.
+  const haptics::SpidarGeometry* geometry = nullptr;
+  WindowLayout layout;
+  float menu_height = 21.0f;
+  float frame_height = 21.0f;
+  bool figures_applied = true;
+  bool fit_pending = false;  // fit the view to the scene and the grip at the first frame  // the
+                             // strip's collapsed state as last set on the ImGui window
+  int fb_w = 0, fb_h = 0, win_w = 0, win_h = 0;
+  DragMode drag = DragMode::kNone;
+  ImVec2 press{0.0f, 0.0f};   // where the left button went down (a click if it stays)
+  double press_travel = 0.0;  // pixels the mouse moved since
+  bool select_key = false;    // Enter this frame
+  bool quit = false;
+  bool capture = false;
+  bool done = false;
+  bool print_summary = true;
+  int exit_status = 0;
+  int frame_index = 0;
+  int last_frame = 0;
+  double start_time = 0.0;
+  int publishes = 0;
+  bool republish = false;
+  std::string window_title;
+  RuntimeFrame latest;
+  DeviceFrame device_frame;
+  LoopStats stats;
+  PanelActions panel_actions;
+  WorkbenchActions actions;
+};
+
+AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) {
+  State& s = *s_;
+  s.options = options;
   // The scene first: a bad file fails before any window opens.
-  GripControl grip(haptics::SpidarGeometry{});
+  s.grip = std::make_unique<GripControl>(haptics::SpidarGeometry{});
   const auto& g0 = options.grip;
   const Eigen::Matrix3d R0 = (Eigen::AngleAxisd(g0[5] * kDegToRad, Eigen::Vector3d::UnitZ()) *
                               Eigen::AngleAxisd(g0[4] * kDegToRad, Eigen::Vector3d::UnitY()) *
                               Eigen::AngleAxisd(g0[3] * kDegToRad, Eigen::Vector3d::UnitX()))
                                  .toRotationMatrix();
-  grip.SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
+  s.grip->SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
   // --trajectory: read before any window opens; the grip starts at its first sample.
-  haptics::Trajectory trajectory;
   if (!options.trajectory.empty()) {
     try {
-      trajectory = haptics::Trajectory::Load(options.trajectory);
+      s.trajectory = haptics::Trajectory::Load(options.trajectory);
     } catch (const std::exception& e) {
-      std::cerr << "spidarcad: error: --trajectory: " << e.what() << "\n";
-      return 2;
+      throw WindowStartError(2, std::string("spidarcad: error: --trajectory: ") + e.what());
     }
-    const haptics::TrajectorySample first = trajectory.Sample(trajectory.start_time());
-    grip.SetPose(first.p_DT, first.q_DT.toRotationMatrix(), first.grasp);
+    const haptics::TrajectorySample first = s.trajectory.Sample(s.trajectory.start_time());
+    s.grip->SetPose(first.p_DT, first.q_DT.toRotationMatrix(), first.grasp);
   }
-  SceneModel model;
   // An assembly scene (one with `parts`) keeps X_WD = identity, as `spidarcad run` does, so that
   // one trajectory file works in both.
-  modeling::Scene assembly_scene;
-  const bool assembly = LoadAssemblyScene(DefaultSceneFor(options), &assembly_scene);
+  const std::string source = DefaultSceneFor(options);
+  s.assembly = LoadAssemblyScene(source, &s.assembly_scene);
   try {
     const DeviceToWorld identity;
-    model.Load(DefaultSceneFor(options), grip.limits(), assembly ? &identity : nullptr);
+    s.model.Load(source, s.grip->limits(), s.assembly ? &identity : nullptr);
   } catch (const std::exception& e) {
-    std::cerr << "spidarcad: error: scene: " << e.what() << "\n";
-    return 2;
+    throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
   }
   // The tree panel's controller on the model's Document; the first solid selected, or --select.
-  TreeController tree(&model);
-  TreePanelState tree_state;
+  s.tree = std::make_unique<TreeController>(&s.model);
   if (!options.select.empty()) {
-    if (!tree.SelectByName(options.select)) {
-      std::cerr << "spidarcad: error: --select: no solid or node named '" << options.select
-                << "' in the scene\n";
-      return 2;
+    if (!s.tree->SelectByName(options.select)) {
+      throw WindowStartError(2, "spidarcad: error: --select: no solid or node named '" +
+                                    options.select + "' in the scene");
     }
-  } else if (!model.objects().empty()) {
-    tree.Select(model.objects().front().id);
+  } else if (!s.model.objects().empty()) {
+    s.tree->Select(s.model.objects().front().id);
   }
-  std::string window_title;
+  if (!ParseRuntimeDevice(options.device, &s.runtime_settings.device)) {
+    throw WindowStartError(2, "spidarcad: error: --device: '" + options.device +
+                                  "' is not a device; use simulated, ideal, board-sim or usb");
+  }
+
+  // The window.
   glfwSetErrorCallback(GlfwError);
-  GlfwSession glfw;
-  if (!glfw.ok) {
-    std::cerr << "spidarcad: cannot initialise GLFW (no display?). Run under "
-                 "`xvfb-run -a spidarcad` or use the headless subcommands.\n";
-    return 1;
+  s.glfw = std::make_unique<GlfwSession>();
+  if (!s.glfw->ok) {
+    throw WindowStartError(1,
+                           "spidarcad: cannot initialise GLFW (no display?). Run under "
+                           "`xvfb-run -a spidarcad` or use the headless subcommands.");
   }
   glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
   glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 2);
   glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
   glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
   glfwWindowHint(GLFW_DEPTH_BITS, 24);
-  GLFWwindow* window = glfwCreateWindow(options.width, options.height,
-                                        "spidarcad — SPIDAR-G", nullptr, nullptr);
-  if (window == nullptr) {
-    std::cerr << "spidarcad: cannot create a " << options.width << "x" << options.height
-              << " OpenGL 3.2 window\n";
-    return 1;
+  s.window =
+      glfwCreateWindow(options.width, options.height, "spidarcad — SPIDAR-G", nullptr, nullptr);
+  if (s.window == nullptr) {
+    throw WindowStartError(1, "spidarcad: cannot create a " + std::to_string(options.width) + "x" +
+                                  std::to_string(options.height) + " OpenGL 3.2 window");
   }
-  struct WindowGuard {
-    GLFWwindow* w;
-    ~WindowGuard() { glfwDestroyWindow(w); }
-  } window_guard{window};
-  glfwMakeContextCurrent(window);
-  const bool capture = !options.screenshot.empty();
-  glfwSwapInterval(capture || options.frames > 0 ? 0 : 1);
+  glfwMakeContextCurrent(s.window);
+  s.capture = !options.screenshot.empty();
+  glfwSwapInterval(s.capture || options.frames > 0 ? 0 : 1);
 
-  // The haptic runtime (its own 1 kHz thread) and the jobs.
-  RuntimeSettings runtime_settings;
-  if (!ParseRuntimeDevice(options.device, &runtime_settings.device)) {
-    std::cerr << "spidarcad: error: --device: '" << options.device
-              << "' is not a device; use simulated, ideal, board-sim or usb\n";
-    return 2;
-  }
-  runtime_settings.loop.world_scale = model.device_to_world().world_scale;
-  runtime_settings.loop.p_WDo = model.device_to_world().p_WDo;
-  HapticRuntime runtime(runtime_settings, grip.Pose());
-  if (!runtime.link_at_start().empty()) {  // no board: the window runs at zero force, retrying
-    std::cerr << "spidarcad: " << runtime.link_at_start()
+  // The haptic runtime (its own 1 kHz thread, started once the modes have published) and jobs.
+  s.runtime_settings.loop.world_scale = s.model.device_to_world().world_scale;
+  s.runtime_settings.loop.p_WDo = s.model.device_to_world().p_WDo;
+  s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
+    std::cerr << "spidarcad: " << s.runtime->link_at_start()
               << "\nspidarcad: the window runs at zero force and retries the board.\n";
   }
-  const haptics::SpidarGeometry& geometry = runtime.info().geometry;
-  const haptics::TensionSettings& tension_settings = runtime.loop().settings().tension;
-  DemoFieldSettings field;
+  s.geometry = &s.runtime->info().geometry;
+  const haptics::TensionSettings& tension = s.runtime->loop().settings().tension;
   // With solids to touch, the springs would fight the contact: off unless the scene is empty.
-  field.enabled = model.objects().empty();
-  // An assembly's part solids sit at their frame origins until the assembly field (below) places
-  // them: nothing is felt until it is published.
-  runtime.Publish(assembly ? std::make_unique<haptics::HapticScene>() : model.BuildHapticScene(field));
-  runtime.Start();
-  struct RuntimeGuard {
-    HapticRuntime* r;
-    ~RuntimeGuard() { r->Stop(); }
-  } runtime_guard{&runtime};
-  JobQueue jobs;  // after model: its destructor joins the workers before model goes
-  model.StartPreviewJobs(&jobs);
-  WorkbenchState workbench;
+  s.springs.enabled = s.model.objects().empty();
+  s.jobs = std::make_unique<JobQueue>();
+  s.model.StartPreviewJobs(s.jobs.get());
 
   // VTK in the GLFW context.
-  DeviceView view(geometry, tension_settings.tau_min, tension_settings.tau_max);
-  vtkNew<vtkGenericOpenGLRenderWindow> render_window;
-  int fb_w = 0, fb_h = 0;
-  glfwGetFramebufferSize(window, &fb_w, &fb_h);
-  render_window->SetSize(fb_w, fb_h);
-  vtkNew<vtkCallbackCommand> make_current;
-  make_current->SetCallback(OnMakeCurrent);
-  make_current->SetClientData(window);
-  render_window->AddObserver(vtkCommand::WindowMakeCurrentEvent, make_current);
-  vtkNew<vtkCallbackCommand> is_current;
-  is_current->SetCallback(OnIsCurrent);
-  is_current->SetClientData(window);
-  render_window->AddObserver(vtkCommand::WindowIsCurrentEvent, is_current);
-  if (!render_window->InitializeFromCurrentContext()) {
-    std::cerr << "spidarcad: VTK cannot use the window's OpenGL context (needs OpenGL 3.2)\n";
-    return 1;
+  s.view = std::make_unique<DeviceView>(*s.geometry, tension.tau_min, tension.tau_max);
+  s.render_window = vtkSmartPointer<vtkGenericOpenGLRenderWindow>::New();
+  glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
+  s.render_window->SetSize(s.fb_w, s.fb_h);
+  s.make_current->SetCallback(OnMakeCurrent);
+  s.make_current->SetClientData(s.window);
+  s.render_window->AddObserver(vtkCommand::WindowMakeCurrentEvent, s.make_current);
+  s.is_current->SetCallback(OnIsCurrent);
+  s.is_current->SetClientData(s.window);
+  s.render_window->AddObserver(vtkCommand::WindowIsCurrentEvent, s.is_current);
+  if (!s.render_window->InitializeFromCurrentContext()) {
+    throw WindowStartError(1,
+                           "spidarcad: VTK cannot use the window's OpenGL context (needs "
+                           "OpenGL 3.2)");
   }
-  render_window->SetFrameBlitModeToBlitToCurrent();
-  render_window->AddRenderer(view.renderer());
-  SceneView scene_view(view.renderer());
+  s.render_window->SetFrameBlitModeToBlitToCurrent();
+  s.render_window->AddRenderer(s.view->renderer());
+  s.scene_view = std::make_unique<SceneView>(s.view->renderer());
 
-  // The modes (FE push, sculpt): each may contribute one force field, kept across scene rebuilds
-  // through SharedField so its state between ticks survives a republish.
-  FeMode fe_mode(view.renderer(), &jobs);
-  SculptMode sculpt_mode(view.renderer(), &jobs);
-  fe_mode.SetWorldToView(runtime_settings.loop.world_scale, runtime_settings.loop.p_WDo);
-  sculpt_mode.SetWorldToView(runtime_settings.loop.world_scale, runtime_settings.loop.p_WDo);
-  std::shared_ptr<haptics::ForceField> fe_field, sculpt_field;
-  bool fe_precompute_started = false;
-  if (options.mode == "fe") {
-    fe_mode.SetActive(true);
-    fe_mode.MeshPlatform();
-  } else if (options.mode == "sculpt") {
-    sculpt_mode.SetActive(true);
-  }
+  // The modes. Each may contribute force fields, kept across scene rebuilds through SharedField
+  // so their state between ticks survives a republish.
+  vtkRenderer* renderer = s.view->renderer();
+  const double scale = s.runtime_settings.loop.world_scale;
+  const Eigen::Vector3d p_WDo = s.runtime_settings.loop.p_WDo;
+  auto model_mode = std::make_unique<ModelMode>(renderer, &s.springs, s.geometry->d);
+  model_mode->SetWorldToView(scale, p_WDo);
+  s.model_mode = model_mode.get();
+  auto fe = std::make_unique<FeWindowMode>(renderer, s.jobs.get());
+  fe->fe().SetWorldToView(scale, p_WDo);
+  auto sculpt = std::make_unique<SculptWindowMode>(renderer, s.jobs.get());
+  sculpt->sculpt().SetWorldToView(scale, p_WDo);
   // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
   // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
-  AssemblyMode assembly_mode(view.renderer());
-  if (assembly) {
+  auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
+  if (s.assembly) {
     try {
-      assembly_mode.Load(assembly_scene);
+      assembly->assembly().Load(s.assembly_scene);
     } catch (const std::exception& e) {
-      std::cerr << "spidarcad: error: scene: " << e.what() << "\n";
-      return 2;
+      throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
     }
   }
-  assembly_mode.SetWorldToView(runtime_settings.loop.world_scale, runtime_settings.loop.p_WDo);
-  scene_view.SetHidden(assembly_mode.part_solids());
-  if (assembly_mode.has_parts()) view.Zoom(1.7);  // the robot is small in the frame (C: whole frame)
-  const auto publish_scene = [&] {
-    // A live mode part stands in for the scene's solids: the FE part and the clay usually sit
-    // where a solid of the scene is (they are meshed from it), and the solid's contact would
-    // hold the tool off the part.
-    const bool fe_live = fe_field && fe_mode.active();
-    const bool sculpt_live = sculpt_field && sculpt_mode.active();
-    // An assembly's field stands in for the part solids (when no mode part is live).
-    const bool assembly_live = assembly_mode.has_parts() && !fe_live && !sculpt_live;
-    std::unique_ptr<haptics::HapticScene> scene =
-        fe_live || sculpt_live || assembly_live ? std::make_unique<haptics::HapticScene>()
-                                                : model.BuildHapticScene(field, workbench.contact);
-    if (fe_live) scene->Add(std::make_unique<SharedField>(fe_field));
-    if (sculpt_live) scene->Add(std::make_unique<SharedField>(sculpt_field));
-    if (assembly_live) scene->Add(std::make_unique<SharedField>(assembly_mode.field()));
-    runtime.Publish(std::move(scene));
-  };
+  assembly->assembly().SetWorldToView(scale, p_WDo);
+  s.assembly_mode = assembly.get();
+  s.modes.push_back(std::move(model_mode));
+  s.modes.push_back(std::move(fe));
+  s.modes.push_back(std::move(sculpt));
+  s.modes.push_back(std::move(assembly));
+  s.model_mode->SetFelt(!s.assembly_mode->available());
+  ApplyHidden();
+  if (s.assembly_mode->available()) {
+    s.view->Zoom(1.4);  // the robot is small (C: whole frame)
+  } else {
+    // A scene with solids opens fitted to them and the grip (C: the whole device).
+    s.fit_pending = !s.model.objects().empty();
+  }
+
+  // The figures strip starts open in windows at least kFiguresOpenHeight tall (the default
+  // 1280x800); in smaller ones it starts collapsed so that the viewport keeps its height.
+  s.workbench.show_figures = options.height >= kFiguresOpenHeight;
+
+  s.context.model = &s.model;
+  s.context.jobs = s.jobs.get();
+  s.context.tree = s.tree.get();
+  s.context.workbench = &s.workbench;
 
   // ImGui on top.
-  ImGuiSession imgui;
+  s.imgui = std::make_unique<ImGuiSession>();
   ImGuiIO& io = ImGui::GetIO();
-  io.IniFilename = nullptr;  // the panel is docked; there is nothing worth saving
+  io.IniFilename = nullptr;  // the panels are docked; there is nothing worth saving
   ApplyPanelStyle();
   LoadFont();
-  imgui.glfw = ImGui_ImplGlfw_InitForOpenGL(window, true);
-  imgui.gl3 = ImGui_ImplOpenGL3_Init("#version 150");
-  if (!imgui.glfw || !imgui.gl3) {
-    std::cerr << "spidarcad: cannot initialise the ImGui backends\n";
-    return 1;
+  s.imgui->glfw = ImGui_ImplGlfw_InitForOpenGL(s.window, true);
+  s.imgui->gl3 = ImGui_ImplOpenGL3_Init("#version 150");
+  if (!s.imgui->glfw || !s.imgui->gl3) {
+    throw WindowStartError(1, "spidarcad: cannot initialise the ImGui backends");
   }
 
-  if (assembly_mode.TakeFieldChanged()) publish_scene();
+  // The starting mode: --mode, else the base mode (assembly for a scene with parts, else
+  // modelling). Then the first scene, and the loop starts.
+  Mode* start = FindMode(options.mode);
+  if (start != nullptr && start != s.model_mode) {
+    s.active = start;
+    start->Launch();
+  } else {
+    s.active = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
+    s.active->Enter();
+  }
+  for (auto& m : s.modes) m->TakeSceneChanged();
+  PublishScene();
+  s.runtime->Start();
+
   // --trajectory: played into the hand's target from here on (its own thread, 1 kHz); the main
   // thread takes the target back (the mouse's grip, set to the last sample) once it has ended.
-  std::unique_ptr<TrajectoryPlayer> player;
-  if (!trajectory.empty()) {
-    const double d = geometry.d;
-    player = std::make_unique<TrajectoryPlayer>(trajectory, [&runtime, d](const haptics::TrajectorySample& s) {
-      runtime.SetTarget(haptics::GripPose::FromFrame(s.p_DT, s.q_DT.toRotationMatrix(), s.grasp, d));
-    });
-    player->Start();
+  if (!s.trajectory.empty()) {
+    const double d = s.geometry->d;
+    HapticRuntime* runtime = s.runtime.get();
+    s.player = std::make_unique<TrajectoryPlayer>(
+        s.trajectory, [runtime, d](const haptics::TrajectorySample& sample) {
+          runtime->SetTarget(haptics::GripPose::FromFrame(
+              sample.p_DT, sample.q_DT.toRotationMatrix(), sample.grasp, d));
+        });
+    s.player->Start();
   }
-  bool player_live = player != nullptr;
+  s.player_live = s.player != nullptr;
+  s.start_time = glfwGetTime();
+  s.last_frame = s.capture ? std::max(kScreenshotFrames, options.frames) : options.frames;
+}
 
-  DragMode drag = DragMode::kNone;
-  bool quit = false;
-  const double start_time = glfwGetTime();
-  int exit_status = 0;
-  const int last_frame = capture ? std::max(kScreenshotFrames, options.frames) : options.frames;
-  for (int frame_index = 1; !quit && !glfwWindowShouldClose(window); ++frame_index) {
-    glfwPollEvents();
-    glfwGetFramebufferSize(window, &fb_w, &fb_h);
-    int win_w = 0, win_h = 0;
-    glfwGetWindowSize(window, &win_w, &win_h);
-    if (fb_w <= 0 || fb_h <= 0 || win_w <= 0 || win_h <= 0) {  // minimised
-      glfwWaitEvents();
-      continue;
-    }
-    const double sx = static_cast<double>(fb_w) / win_w, sy = static_cast<double>(fb_h) / win_h;
-    render_window->SetSize(fb_w, fb_h);
-    const double panel_fb = std::min(kPanelWidth * sx, 0.6 * fb_w);
-    view.renderer()->SetViewport(panel_fb / fb_w, 0.0, 1.0, 1.0);
+AppWindow::~AppWindow() {
+  State& s = *s_;
+  if (s.player) s.player->Stop();
+  s.player.reset();
+  if (s.runtime) s.runtime->Stop();
+  s.imgui.reset();
+  s.modes.clear();
+  s.scene_view.reset();
+  s.render_window = nullptr;
+  s.view.reset();
+  s.jobs.reset();
+  s.runtime.reset();
+  if (s.window != nullptr) glfwDestroyWindow(s.window);
+  s.glfw.reset();
+}
 
-    ImGui_ImplOpenGL3_NewFrame();
-    ImGui_ImplGlfw_NewFrame();
-    ImGui::NewFrame();
-
-    // Mouse in the 3D view (display pixels, origin bottom left).
-    const ImVec2 mouse = io.MousePos;
-    const double mx = mouse.x * sx, my = fb_h - mouse.y * sy;
-    const bool in_view = !io.WantCaptureMouse && mouse.x >= kPanelWidth && mouse.x >= 0 &&
-                         std::isfinite(mouse.x);
-    bool over_grip = false;
-    if (in_view) {
-      double distance = 0;
-      over_grip = IntersectRaySphere(view.PickRay(mx, my), grip.p0(), 1.15 * geometry.d,
-                                     &distance);
-    }
-    if (drag == DragMode::kNone && in_view) {
-      if (ImGui::IsMouseClicked(ImGuiMouseButton_Left)) {
-        if (io.KeyCtrl) {
-          drag = io.KeyShift ? DragMode::kRollGrip : DragMode::kRotateGrip;
-        } else if (over_grip && grip.BeginTranslate(view.PickRay(mx, my), view.ViewDirection())) {
-          drag = DragMode::kMoveGrip;
-        } else {
-          drag = DragMode::kOrbit;
-        }
-      } else if (ImGui::IsMouseClicked(ImGuiMouseButton_Right)) {
-        drag = io.KeyShift ? DragMode::kRollGrip : DragMode::kRotateGrip;
-      } else if (ImGui::IsMouseClicked(ImGuiMouseButton_Middle)) {
-        drag = DragMode::kOrbit;
-      }
-    }
-    if (drag != DragMode::kNone && !ImGui::IsMouseDown(ImGuiMouseButton_Left) &&
-        !ImGui::IsMouseDown(ImGuiMouseButton_Right) &&
-        !ImGui::IsMouseDown(ImGuiMouseButton_Middle)) {
-      drag = DragMode::kNone;
-      grip.EndTranslate();
-    }
-    const double dx = io.MouseDelta.x, dy = io.MouseDelta.y;  // screen pixels, y down
-    const bool moved = std::isfinite(dx) && std::isfinite(dy) && (dx != 0.0 || dy != 0.0);
-    if (moved) {
-      switch (drag) {
-        case DragMode::kMoveGrip:
-          grip.Translate(view.PickRay(mx, my));
-          break;
-        case DragMode::kRotateGrip:
-          // Dragging right turns the near side of the grip right; dragging down turns it down.
-          grip.Rotate(view.ViewUp(), kRotateGain * dx);
-          grip.Rotate(view.ViewRight(), kRotateGain * dy);
-          break;
-        case DragMode::kRollGrip:
-          grip.Rotate(-view.ViewDirection(), -kRotateGain * dx);
-          break;
-        case DragMode::kOrbit:
-          view.Orbit(-kOrbitGain * dx, kOrbitGain * dy);
-          break;
-        case DragMode::kNone:
-          break;
-      }
-    }
-    if (in_view && io.MouseWheel != 0.0f) {
-      if (io.KeyCtrl) {
-        view.Zoom(std::pow(1.1, io.MouseWheel));
-      } else {
-        grip.AdjustGrasp(kGraspStep * io.MouseWheel);
-      }
-    }
-    if (over_grip || drag == DragMode::kMoveGrip) ImGui::SetMouseCursor(ImGuiMouseCursor_Hand);
-    if (!io.WantCaptureKeyboard) {
-      if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE)) quit = true;
-      if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) runtime.EmergencyStop();
-      if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
-      if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
-      if (ImGui::IsKeyPressed(GLFW_KEY_R, false) && !io.KeyCtrl) grip.Reset();
-      if (ImGui::IsKeyPressed(GLFW_KEY_C, false) && !io.KeyCtrl) view.ResetCamera();  // Ctrl+C: copy
-      if (ImGui::IsKeyPressed(GLFW_KEY_EQUAL) || ImGui::IsKeyPressed(GLFW_KEY_KP_ADD)) {
-        view.Zoom(1.1);
-      }
-      if (ImGui::IsKeyPressed(GLFW_KEY_MINUS) || ImGui::IsKeyPressed(GLFW_KEY_KP_SUBTRACT)) {
-        view.Zoom(1.0 / 1.1);
-      }
-    }
-
-    if (options.estop_frame > 0 && frame_index == options.estop_frame) runtime.EmergencyStop();
-
-    // The hand follows the mouse's grip (or the trajectory); the haptic thread's latest tick is
-    // what we show.
-    if (player_live) {
-      const haptics::TrajectorySample s = player->Current();
-      grip.SetPose(s.p_DT, s.q_DT.toRotationMatrix(), s.grasp);  // picking and the panel follow
-      if (player->done()) {
-        player->Stop();
-        player_live = false;
-      }
-    } else {
-      runtime.SetTarget(grip.Pose());
-    }
-    const RuntimeFrame& latest = runtime.Latest();
-    const DeviceFrame state = MakeDeviceFrame(latest, geometry, runtime.description());
-    view.Update(state);
-
-    // Jobs: finishers land their meshes; outcomes go to the status line.
-    jobs.Poll();
-    for (const auto& job : jobs.jobs()) {
-      switch (job->state()) {
-        case Job::State::kSucceeded:
-          workbench.status = job->title() + ": done";
-          workbench.status_error = false;
-          break;
-        case Job::State::kFailed:
-          workbench.status = job->title() + " failed: " + job->error() + " (nothing changed)";
-          workbench.status_error = true;
-          break;
-        case Job::State::kCancelled:
-          workbench.status = job->title() + ": cancelled (nothing changed)";
-          workbench.status_error = false;
-          break;
-        case Job::State::kRunning:
-          break;
-      }
-    }
-    jobs.Prune();
-    if (frame_index % kReloadCheckFrames == 0 && model.SourceChanged()) {
-      try {
-        jobs.CancelAll();
-        model.Load(model.source(), grip.limits(), &model.device_to_world());
-        modeling::Scene reloaded;  // no parts (any more): the assembly empties
-        if (LoadAssemblyScene(model.source(), &reloaded) || assembly_mode.has_parts()) {
-          assembly_mode.Load(reloaded);
-          scene_view.SetHidden(assembly_mode.part_solids());
-        }
-        publish_scene();
-        model.StartPreviewJobs(&jobs);
-        workbench.status = "reloaded " + model.source();
-        workbench.status_error = false;
-      } catch (const std::exception& e) {
-        workbench.status = std::string("reload failed (kept the old scene): ") + e.what();
-        workbench.status_error = true;
-      }
-    }
-    scene_view.Sync(model, workbench.show_edges ? workbench.selected : -1);
-    scene_view.ShowContacts(model.ContactMarkers(), latest.tool.time, model.device_to_world());
-
-    WorkbenchActions wb;
-    const float menu_height = DrawMenuBar(&model, &jobs, &workbench, &wb, &tree, &tree_state);
-    PanelContext context;
-    context.geometry = &geometry;
-    context.tau_min = tension_settings.tau_min;
-    context.tau_max = tension_settings.tau_max;
-    context.fps = io.Framerate;
-    context.drag_mode = DragModeText(drag);
-    context.top = menu_height;
-    context.link = &latest.link;
-    context.real_hand = runtime_settings.device == RuntimeDevice::kUsb;
-    context.board_sim = runtime_settings.device == RuntimeDevice::kBoardSim;
-    const PanelActions actions =
-        DrawDevicePanel(state, context, &field, static_cast<float>(win_h));
-    bool republish = actions.field_changed;
-    {
-      // Modes: a small window of collapsing headers (collapsed at start, so it never hides the
-      // view); each mode's own panel inside.
-      ImGui::SetNextWindowPos(ImVec2(kPanelWidth + 8.0f, menu_height + 8.0f), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowSize(ImVec2(380.0f, 0.0f), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowCollapsed(options.mode.empty() && !assembly_mode.has_parts(), ImGuiCond_FirstUseEver);
-      if (ImGui::Begin("Modes: FE push, sculpt")) {
-        ImGui::SetNextItemOpen(options.mode == "fe", ImGuiCond_FirstUseEver);
-        if (ImGui::CollapsingHeader("FE mode: push a part, feel its stiffness")) {
-          bool on = fe_mode.active();
-          if (ImGui::Checkbox("FE mode on", &on)) {
-            fe_mode.SetActive(on);
-            republish = true;
-          }
-          // "Pick a meshed object": the selected scene object's tetrahedra (Mesh → Tetrahedra).
-          const bool has_tets = workbench.selected >= 0 &&
-                                workbench.selected < static_cast<int>(model.objects().size()) &&
-                                model.objects()[workbench.selected].tets.tets.cols() > 0;
-          if (!has_tets) ImGui::BeginDisabled();
-          if (ImGui::Button("Use the selected object's tetrahedra")) {
-            const SceneObject& object = model.objects()[workbench.selected];
-            fe_mode.SetMesh(ToFemMesh(object.tets), object.name);
-          }
-          if (!has_tets) {
-            ImGui::EndDisabled();
-            ImGui::SameLine();
-            ImGui::TextDisabled("(select an object, Mesh > Tetrahedra first)");
-          }
-          fe_mode.DrawPanel();
-        }
-        ImGui::SetNextItemOpen(options.mode == "sculpt", ImGuiCond_FirstUseEver);
-        if (ImGui::CollapsingHeader("Sculpt mode: shape the clay with the grip")) {
-          bool on = sculpt_mode.active();
-          if (ImGui::Checkbox("Sculpt mode on", &on)) {
-            sculpt_mode.SetActive(on);
-            republish = true;
-          }
-          sculpt_mode.DrawPanel();
-        }
-        if (assembly_mode.has_parts()) {
-          ImGui::SetNextItemOpen(true, ImGuiCond_FirstUseEver);
-          if (ImGui::CollapsingHeader("Assembly: pick, carry and seat the parts")) {
-            assembly_mode.DrawPanel();
-          }
-        }
-      }
-      ImGui::End();
-    }
-    if (options.mode == "fe" && !fe_precompute_started && !jobs.busy()) {
-      fe_mode.Precompute();  // the platform mesh has landed (or failed: the panel says so)
-      fe_precompute_started = true;
-    }
-    fe_mode.OnFrame(latest.tool);
-    sculpt_mode.OnFrame(latest.tool);
-    assembly_mode.OnFrame();
-    if (assembly_mode.TakeFieldChanged()) republish = true;  // Reset parts
-    if (auto f = fe_mode.TakeField()) {
-      fe_field = std::shared_ptr<haptics::ForceField>(std::move(f));
-      republish = true;
-    }
-    if (auto f = sculpt_mode.TakeField()) {
-      sculpt_field = std::shared_ptr<haptics::ForceField>(std::move(f));
-      republish = true;
-    }
-    if (republish) publish_scene();
-    DrawScenePanel(&model, &jobs, &workbench, static_cast<float>(win_w) - kScenePanelWidth - 8.0f,
-                   menu_height + 8.0f, kScenePanelWidth, &tree, &tree_state,
-                   static_cast<float>(win_h) - menu_height - 300.0f);  // above the loop panel
-    // Tree edits, undo and redo: recompile what changed, republish the haptic scene (X_WD
-    // stays), re-mesh the previews (coarse first).
-    HandleTreeShortcuts(&tree, &tree_state);
-    DrawSaveAsDialog(&tree, &tree_state);
-    if (model.Refresh()) publish_scene();
-    if (workbench.contact_changed) {  // the Touch controls (Haptics menu)
-      workbench.contact_changed = false;
-      publish_scene();
-    }
-    model.UpdatePreviews(&jobs);
-    if (const std::string title = tree.Title(); title != window_title) {
-      glfwSetWindowTitle(window, title.c_str());
-      window_title = title;
-    }
-    const LoopStats stats = CollectLoopStats(runtime, latest);
-    DrawLoopPanel(stats, static_cast<float>(win_w) - 8.0f, static_cast<float>(win_h) - 8.0f, &wb);
-    if (stats.emergency_stop) {
-      DrawStopBanner(kPanelWidth, kPanelWidth + 0.5f * (win_w - kPanelWidth - kScenePanelWidth),
-                     menu_height + 10.0f);
-    }
-    DrawExportDialog(model, &workbench);
-    if (actions.reset_grip || wb.reset_grip) grip.Reset();
-    if (actions.board_plug != 0) runtime.RequestBoardPlugged(actions.board_plug > 0);
-    if (actions.reset_camera || wb.reset_camera) view.ResetCamera();
-    if (actions.quit || wb.quit) quit = true;
-    if (wb.emergency_stop) runtime.EmergencyStop();
-    if (wb.rearm) runtime.Rearm();
-    ImGui::Render();
-
-    // VTK draws the scene into the window, then ImGui draws the panel over it.
-    BindDefaultFramebuffer(fb_w, fb_h);
-    ClearDefaultFramebuffer(0.965f, 0.968f, 0.975f);
-    render_window->Render();
-    BindDefaultFramebuffer(fb_w, fb_h);
-    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-
-    // A screenshot waits (within kSettleTimeout) for the preview meshes, for FE mode's part to
-    // be live (FeMode::Settled) and for the loop to settle: force ramp complete, or the stop's
-    // zero force in effect.
-    const bool settled =
-        !jobs.busy() && fe_mode.Settled() && (stats.emergency_stop ? (latest.tool.events & haptics::kEventEmergencyStop) != 0
-                                              : latest.tool.ramp >= 1.0 ||
-                                                    // no board: zero force is the settled state
-                                                    latest.link.status == haptics::DeviceStatus::kNotConnected);
-    const bool waited_enough = settled || glfwGetTime() - start_time > kSettleTimeout;
-    // A trajectory's outcome: the capture waits until it has ended (+0.5 s), --frames runs on.
-    const bool trajectory_over = player == nullptr || player->finished(0.5);
-    if (capture && frame_index >= last_frame && waited_enough && trajectory_over) {
-      const std::string error =
-          WritePng(options.screenshot, ReadBackBuffer(fb_w, fb_h), fb_w, fb_h);
-      if (!error.empty()) {
-        std::cerr << "spidarcad: " << error << "\n";
-        return 1;
-      }
-      std::cout << "spidarcad: wrote " << options.screenshot << " (" << fb_w << "x" << fb_h
-                << ")" << (settled ? "" : " before the loop settled") << "\n";
-      break;
-    }
-    glfwSwapBuffers(window);
-    if (!capture && last_frame > 0 && frame_index >= last_frame && trajectory_over) break;
+int AppWindow::Run() {
+  State& s = *s_;
+  while (Frame()) {
   }
-  runtime.Stop();
-  if (capture || options.frames > 0) {
-    std::cout << FormatLoopSummary(CollectLoopStats(runtime, runtime.Latest()));
-    if (fe_mode.active()) std::cout << FormatFeSummary(fe_mode, runtime.Latest().tool);
-    if (assembly_mode.has_parts()) {
-      assembly_mode.OnFrame();  // the field's last tick
-      std::cout << FormatAssemblySummary(assembly_mode);
-    }
+  s.runtime->Stop();
+  if ((s.capture || s.options.frames > 0) && s.print_summary) {
+    const haptics::ToolState tool = s.runtime->Latest().tool;
+    std::cout << FormatLoopSummary(CollectLoopStats(*s.runtime, s.runtime->Latest()));
+    for (auto& m : s.modes) std::cout << m->Summary(tool);
     std::cout << std::flush;
   }
-  return exit_status;
+  return s.exit_status;
+}
+
+bool AppWindow::Frame() {
+  State& s = *s_;
+  if (s.done || s.quit) return false;
+  glfwPollEvents();
+  if (glfwWindowShouldClose(s.window)) return false;
+  ++s.frame_index;
+  glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
+  glfwGetWindowSize(s.window, &s.win_w, &s.win_h);
+  if (s.fb_w <= 0 || s.fb_h <= 0 || s.win_w <= 0 || s.win_h <= 0) {  // minimised
+    glfwWaitEvents();
+    return true;
+  }
+  s.render_window->SetSize(s.fb_w, s.fb_h);
+  LayoutSizes sizes;
+  sizes.menu_height = s.menu_height;
+  sizes.collapsed_height = s.frame_height;
+  sizes.bottom_collapsed = !s.workbench.show_figures;
+  s.layout = ComputeLayout(static_cast<float>(s.win_w), static_cast<float>(s.win_h), sizes);
+  // The renderer draws exactly in the viewport rectangle (VTK: normalised, origin bottom left).
+  const Rect& v = s.layout.viewport;
+  s.view->renderer()->SetViewport(v.x / s.win_w, 1.0 - v.bottom() / s.win_h, v.right() / s.win_w,
+                                  1.0 - v.y / s.win_h);
+  if (s.fit_pending) {  // the first frame: the viewport's aspect is known now
+    s.fit_pending = false;
+    Eigen::AlignedBox3d box = SubjectBox(s.model, -1, false, *s.view);
+    const Eigen::Vector3d reach = Eigen::Vector3d::Constant(1.2 * s.geometry->d);
+    box.extend(s.grip->p0() + reach);
+    box.extend(s.grip->p0() - reach);
+    s.view->FitBox(box);
+  }
+
+  ImGui_ImplOpenGL3_NewFrame();
+  ImGui_ImplGlfw_NewFrame();
+  ImGui::NewFrame();
+  s.frame_height = ImGui::GetFrameHeight();
+
+  s.actions = WorkbenchActions{};
+  HandleInput();
+  if (s.options.estop_frame > 0 && s.frame_index == s.options.estop_frame) {
+    s.runtime->EmergencyStop();
+  }
+  FollowTarget();
+  s.latest = s.runtime->Latest();
+  s.device_frame = MakeDeviceFrame(s.latest, *s.geometry, s.runtime->description());
+  s.view->Update(s.device_frame);
+  PollJobs();
+  s.scene_view->Sync(s.model, s.workbench.show_edges ? s.workbench.selected : -1);
+  s.scene_view->ShowContacts(s.model.ContactMarkers(), s.latest.tool.time,
+                             s.model.device_to_world());
+
+  s.menu_height =
+      DrawMenuBar(&s.model, s.jobs.get(), &s.workbench, &s.actions, s.tree.get(), &s.tree_state);
+  UpdateModes();
+  DrawPanels();
+  // Tree edits, undo and redo: recompile what changed, republish the haptic scene (X_WD stays),
+  // re-mesh the previews (coarse first).
+  HandleTreeShortcuts(s.tree.get(), &s.tree_state);
+  DrawSaveAsDialog(s.tree.get(), &s.tree_state);
+  if (s.model.Refresh()) s.republish = true;
+  if (s.workbench.contact_changed) {  // the Touch controls (Haptics menu)
+    s.workbench.contact_changed = false;
+    s.republish = true;
+  }
+  if (s.republish) PublishScene();
+  s.model.UpdatePreviews(s.jobs.get());
+  if (const std::string title = s.tree->Title(); title != s.window_title) {
+    glfwSetWindowTitle(s.window, title.c_str());
+    s.window_title = title;
+  }
+  if (s.stats.emergency_stop) {
+    DrawStopBanner(s.layout.viewport.x, s.layout.viewport.right(), s.layout.viewport.y + 10.0f);
+  }
+  DrawExportDialog(s.model, &s.workbench);
+  ApplyActions();
+  ImGui::Render();
+  RenderFrame();
+  if (CaptureScreenshot()) return false;
+  glfwSwapBuffers(s.window);
+  const bool trajectory_over = s.player == nullptr || s.player->finished(0.5);
+  if (!s.capture && s.last_frame > 0 && s.frame_index >= s.last_frame && trajectory_over) {
+    return false;
+  }
+  return !s.quit;
+}
+
+void AppWindow::HandleInput() {
+  State& s = *s_;
+  ImGuiIO& io = ImGui::GetIO();
+  GripControl& grip = *s.grip;
+  DeviceView& view = *s.view;
+  const double sx = static_cast<double>(s.fb_w) / s.win_w;
+  const double sy = static_cast<double>(s.fb_h) / s.win_h;
+  // Mouse in the 3D view (display pixels, origin bottom left).
+  const ImVec2 mouse = io.MousePos;
+  const double mx = mouse.x * sx, my = s.fb_h - mouse.y * sy;
+  const bool in_view = !io.WantCaptureMouse && std::isfinite(mouse.x) &&
+                       s.layout.viewport.Contains(mouse.x, mouse.y);
+  bool over_grip = false;
+  if (in_view) {
+    double distance = 0;
+    over_grip =
+        IntersectRaySphere(view.PickRay(mx, my), grip.p0(), 1.15 * s.geometry->d, &distance);
+  }
+  if (s.drag == DragMode::kNone && in_view) {
+    if (ImGui::IsMouseClicked(ImGuiMouseButton_Left)) {
+      if (io.KeyCtrl) {
+        s.drag = io.KeyShift ? DragMode::kRollGrip : DragMode::kRotateGrip;
+      } else if (over_grip && grip.BeginTranslate(view.PickRay(mx, my), view.ViewDirection())) {
+        s.drag = DragMode::kMoveGrip;
+      } else {
+        s.drag = DragMode::kOrbit;  // a click without travel selects (below)
+        s.press = mouse;
+        s.press_travel = 0.0;
+      }
+    } else if (ImGui::IsMouseClicked(ImGuiMouseButton_Right)) {
+      s.drag = io.KeyShift ? DragMode::kRollGrip : DragMode::kRotateGrip;
+    } else if (ImGui::IsMouseClicked(ImGuiMouseButton_Middle)) {
+      s.drag = DragMode::kOrbit;
+      s.press_travel = 1e9;  // never a selection click
+    }
+  }
+  const double dx = io.MouseDelta.x, dy = io.MouseDelta.y;  // screen pixels, y down
+  const bool moved = std::isfinite(dx) && std::isfinite(dy) && (dx != 0.0 || dy != 0.0);
+  if (s.drag != DragMode::kNone && !ImGui::IsMouseDown(ImGuiMouseButton_Left) &&
+      !ImGui::IsMouseDown(ImGuiMouseButton_Right) && !ImGui::IsMouseDown(ImGuiMouseButton_Middle)) {
+    if (s.drag == DragMode::kOrbit && s.press_travel <= kClickSlop) ClickAt(s.press.x, s.press.y);
+    s.drag = DragMode::kNone;
+    grip.EndTranslate();
+  }
+  if (moved) {
+    s.press_travel += std::hypot(dx, dy);
+    switch (s.drag) {
+      case DragMode::kMoveGrip:
+        grip.Translate(view.PickRay(mx, my));
+        break;
+      case DragMode::kRotateGrip:
+        // Dragging right turns the near side of the grip right; dragging down turns it down.
+        grip.Rotate(view.ViewUp(), kRotateGain * dx);
+        grip.Rotate(view.ViewRight(), kRotateGain * dy);
+        break;
+      case DragMode::kRollGrip:
+        grip.Rotate(-view.ViewDirection(), -kRotateGain * dx);
+        break;
+      case DragMode::kOrbit:
+        // A small wobble of a click does not turn the view.
+        if (s.press_travel > kClickSlop) view.Orbit(-kOrbitGain * dx, kOrbitGain * dy);
+        break;
+      case DragMode::kNone:
+        break;
+    }
+  }
+  if (in_view && io.MouseWheel != 0.0f) {
+    if (io.KeyCtrl) {
+      view.Zoom(std::pow(1.1, io.MouseWheel));
+    } else {
+      grip.AdjustGrasp(kGraspStep * io.MouseWheel);
+    }
+  }
+  if (over_grip || s.drag == DragMode::kMoveGrip) ImGui::SetMouseCursor(ImGuiMouseCursor_Hand);
+  s.select_key = false;
+  if (!io.WantCaptureKeyboard) {
+    if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE)) s.quit = true;
+    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) s.runtime->EmergencyStop();
+    if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
+    if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
+    if (ImGui::IsKeyPressed(GLFW_KEY_R, false) && !io.KeyCtrl) grip.Reset();
+    if (ImGui::IsKeyPressed(GLFW_KEY_C, false) && !io.KeyCtrl) view.ResetCamera();  // Ctrl+C: copy
+    if (ImGui::IsKeyPressed(GLFW_KEY_F, false) && !io.KeyCtrl) s.actions.fit_view = true;
+    const int view_keys[4][2] = {{GLFW_KEY_1, GLFW_KEY_KP_1},
+                                 {GLFW_KEY_3, GLFW_KEY_KP_3},
+                                 {GLFW_KEY_7, GLFW_KEY_KP_7},
+                                 {GLFW_KEY_0, GLFW_KEY_KP_0}};
+    for (int k = 0; k < 4; ++k) {
+      if (ImGui::IsKeyPressed(view_keys[k][0], false) ||
+          ImGui::IsKeyPressed(view_keys[k][1], false)) {
+        s.actions.standard_view = k;
+      }
+    }
+    if (ImGui::IsKeyPressed(GLFW_KEY_ENTER, false) ||
+        ImGui::IsKeyPressed(GLFW_KEY_KP_ENTER, false)) {
+      s.select_key = true;
+    }
+    if (ImGui::IsKeyPressed(GLFW_KEY_EQUAL) || ImGui::IsKeyPressed(GLFW_KEY_KP_ADD)) view.Zoom(1.1);
+    if (ImGui::IsKeyPressed(GLFW_KEY_MINUS) || ImGui::IsKeyPressed(GLFW_KEY_KP_SUBTRACT)) {
+      view.Zoom(1.0 / 1.1);
+    }
+  }
+}
+
+void AppWindow::FollowTarget() {
+  State& s = *s_;
+  // The hand follows the mouse's grip (or the trajectory); the haptic thread's latest tick is
+  // what we show.
+  if (s.player_live) {
+    const haptics::TrajectorySample sample = s.player->Current();
+    s.grip->SetPose(sample.p_DT, sample.q_DT.toRotationMatrix(), sample.grasp);  // picking, panel
+    if (s.player->done()) {
+      s.player->Stop();
+      s.player_live = false;
+    }
+  } else {
+    s.runtime->SetTarget(s.grip->Pose());
+  }
+}
+
+void AppWindow::PollJobs() {
+  State& s = *s_;
+  // Jobs: finishers land their meshes; outcomes go to the status line.
+  s.jobs->Poll();
+  for (const auto& job : s.jobs->jobs()) {
+    switch (job->state()) {
+      case Job::State::kSucceeded:
+        s.workbench.status = job->title() + ": done";
+        s.workbench.status_error = false;
+        break;
+      case Job::State::kFailed:
+        s.workbench.status = job->title() + " failed: " + job->error() + " (nothing changed)";
+        s.workbench.status_error = true;
+        break;
+      case Job::State::kCancelled:
+        s.workbench.status = job->title() + ": cancelled (nothing changed)";
+        s.workbench.status_error = false;
+        break;
+      case Job::State::kRunning:
+        break;
+    }
+  }
+  s.jobs->Prune();
+  if (s.frame_index % kReloadCheckFrames == 0 && s.model.SourceChanged()) {
+    try {
+      s.jobs->CancelAll();
+      s.model.Load(s.model.source(), s.grip->limits(), &s.model.device_to_world());
+      modeling::Scene reloaded;  // no parts (any more): the assembly empties
+      AssemblyMode& assembly = s.assembly_mode->assembly();
+      if (LoadAssemblyScene(s.model.source(), &reloaded) || assembly.has_parts()) {
+        assembly.Load(reloaded);
+      }
+      s.model_mode->SetFelt(!s.assembly_mode->available());
+      if (!s.active->available()) SwitchMode(s.model_mode);
+      ApplyHidden();
+      s.republish = true;
+      s.model.StartPreviewJobs(s.jobs.get());
+      s.workbench.status = "reloaded " + s.model.source();
+      s.workbench.status_error = false;
+    } catch (const std::exception& e) {
+      s.workbench.status = std::string("reload failed (kept the old scene): ") + e.what();
+      s.workbench.status_error = true;
+    }
+  }
+}
+
+void AppWindow::UpdateModes() {
+  State& s = *s_;
+  s.context.select_key = s.select_key;
+  for (auto& m : s.modes) {
+    m->Update(s.latest.tool, s.context);
+    if (m->TakeSceneChanged()) s.republish = true;
+  }
+  s.select_key = false;
+  s.context.select_key = false;
+}
+
+void AppWindow::DrawPanels() {
+  State& s = *s_;
+  const Rect& l = s.layout.left;
+  DrawScenePanel(&s.model, s.jobs.get(), &s.workbench, l.x, l.y, l.w, l.h, s.tree.get(),
+                 &s.tree_state);
+  DrawModePanel();
+  DrawFiguresStrip();
+}
+
+void AppWindow::DrawModePanel() {
+  State& s = *s_;
+  const Rect& r = s.layout.right;
+  ImGui::SetNextWindowPos(ImVec2(r.x, r.y));
+  ImGui::SetNextWindowSize(ImVec2(r.w, r.h));
+  const ImGuiWindowFlags flags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                                 ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoSavedSettings |
+                                 ImGuiWindowFlags_NoTitleBar;
+  ImGui::Begin(kModePanel, nullptr, flags);
+  // The mode switcher: one radio button per mode this scene offers.
+  ImGui::TextUnformatted("Mode");
+  Mode* chosen = nullptr;
+  const ImGuiStyle& style = ImGui::GetStyle();
+  const float right_edge = ImGui::GetWindowPos().x + ImGui::GetWindowContentRegionMax().x;
+  for (auto& m : s.modes) {
+    if (!m->available()) continue;
+    // On the same line while it fits, else on the next.
+    const float width =
+        ImGui::GetFrameHeight() + style.ItemInnerSpacing.x + ImGui::CalcTextSize(m->name()).x;
+    if (ImGui::GetItemRectMax().x + style.ItemSpacing.x + width <= right_edge) ImGui::SameLine();
+    if (ImGui::RadioButton(m->name(), m.get() == s.active)) chosen = m.get();
+  }
+  if (chosen != nullptr && chosen != s.active) SwitchMode(chosen);
+  const std::vector<std::string> targets = s.active->Targets(s.model);
+  if (!targets.empty()) {
+    std::string text = "acts on:";
+    for (const std::string& t : targets) text += " " + t;
+    ImGui::PushTextWrapPos(0.0f);
+    ImGui::TextDisabled("%s", text.c_str());
+    ImGui::PopTextWrapPos();
+  }
+  if (!s.active->live() && s.active != s.model_mode) {
+    ImGui::TextDisabled("(no part yet: the scene's solids are felt)");
+  }
+  ImGui::Separator();
+  ImGui::PushItemWidth(0.5f * r.w);  // room for the labels right of the widgets
+  s.active->DrawPanel(s.context);
+  ImGui::PopItemWidth();
+  ImGui::End();
+}
+
+void AppWindow::DrawFiguresStrip() {
+  State& s = *s_;
+  const Rect& b = s.layout.bottom;
+  ImGui::SetNextWindowPos(ImVec2(b.x, b.y));
+  ImGui::SetNextWindowSize(ImVec2(b.w, std::max(b.h, s.frame_height)));
+  if (s.figures_applied != s.workbench.show_figures) {  // View menu toggled it
+    ImGui::SetNextWindowCollapsed(!s.workbench.show_figures);
+  }
+  const ImGuiWindowFlags flags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                                 ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoScrollbar;
+  const bool open = ImGui::Begin(kFiguresPanel, nullptr, flags);
+  s.workbench.show_figures = !ImGui::IsWindowCollapsed();
+  s.figures_applied = s.workbench.show_figures;
+  s.stats = CollectLoopStats(*s.runtime, s.latest);
+  s.panel_actions = PanelActions{};
+  if (open) {
+    PanelContext context;
+    context.geometry = s.geometry;
+    context.tau_min = s.runtime->loop().settings().tension.tau_min;
+    context.tau_max = s.runtime->loop().settings().tension.tau_max;
+    context.fps = ImGui::GetIO().Framerate;
+    context.drag_mode = DragModeText(s.drag);
+    context.link = &s.latest.link;
+    context.real_hand = s.runtime_settings.device == RuntimeDevice::kUsb;
+    context.board_sim = s.runtime_settings.device == RuntimeDevice::kBoardSim;
+    // Three columns under the three panels above: strings, device figures, loop figures.
+    const float top = ImGui::GetCursorScreenPos().y;
+    const float height = b.bottom() - top - 4.0f;
+    const Rect columns[3] = {s.layout.left, s.layout.viewport, s.layout.right};
+    const char* names[3] = {"strings", "device", "loop"};
+    for (int k = 0; k < 3; ++k) {
+      ImGui::SetCursorScreenPos(ImVec2(columns[k].x + 6.0f, top));
+      const float width = columns[k].w - 12.0f;
+      ImGui::BeginChild(names[k], ImVec2(width, height), false);
+      if (k == 0) DrawStringFigures(s.device_frame, context, width);
+      if (k == 1) s.panel_actions = DrawDeviceFigures(s.device_frame, context);
+      if (k == 2) DrawLoopFigures(s.stats, &s.actions);
+      ImGui::EndChild();
+    }
+  }
+  ImGui::End();
+}
+
+void AppWindow::ApplyActions() {
+  State& s = *s_;
+  const PanelActions& p = s.panel_actions;
+  WorkbenchActions& w = s.actions;
+  if (p.field_changed) s.republish = true;
+  if (p.reset_grip || w.reset_grip) s.grip->Reset();
+  if (p.board_plug != 0) s.runtime->RequestBoardPlugged(p.board_plug > 0);
+  if (p.reset_camera || w.reset_camera) s.view->ResetCamera();
+  if (w.fit_view) FitView();
+  if (w.standard_view >= 0 && w.standard_view < 4) {
+    s.view->SetStandardView(static_cast<StandardView>(w.standard_view),
+                            SubjectBox(s.model, s.workbench.selected, false, *s.view));
+  }
+  if (p.quit || w.quit) s.quit = true;
+  if (w.emergency_stop) s.runtime->EmergencyStop();
+  if (w.rearm) s.runtime->Rearm();
+  if (s.republish) PublishScene();
+}
+
+void AppWindow::PublishScene() {
+  State& s = *s_;
+  s.republish = false;
+  // The active mode's part, when live, stands in for the scene's solids; else the base mode's
+  // (the assembly of a scene with parts, else the solids of the modelling mode).
+  Mode* base = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
+  Mode* source = s.active->live() ? s.active : base;
+  s.runtime->Publish(source->live() ? source->BuildScene(s.context)
+                                    : std::make_unique<haptics::HapticScene>());
+  ++s.publishes;
+}
+
+void AppWindow::ApplyHidden() {
+  State& s = *s_;
+  std::vector<std::string> hidden;
+  for (auto& m : s.modes) {
+    if (!m->draws_targets() || !m->available()) continue;
+    for (std::string& name : m->Targets(s.model)) hidden.push_back(std::move(name));
+  }
+  s.scene_view->SetHidden(std::move(hidden));
+}
+
+void AppWindow::FitView() {
+  State& s = *s_;
+  s.view->FitBox(SubjectBox(s.model, s.workbench.selected, true, *s.view));
+}
+
+void AppWindow::RenderFrame() {
+  State& s = *s_;
+  // VTK draws the scene into its viewport, then ImGui draws the panels around it.
+  BindDefaultFramebuffer(s.fb_w, s.fb_h);
+  ClearDefaultFramebuffer(0.965f, 0.968f, 0.975f);
+  s.render_window->Render();
+  BindDefaultFramebuffer(s.fb_w, s.fb_h);
+  ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+}
+
+bool AppWindow::CaptureScreenshot() {
+  State& s = *s_;
+  if (!s.capture || s.frame_index < s.last_frame) return false;
+  // A screenshot waits (within kSettleTimeout) for the preview meshes, for the modes' parts to
+  // be live (Mode::Settled) and for the loop to settle: force ramp complete, or the stop's zero
+  // force in effect.
+  bool modes_settled = true;
+  for (auto& m : s.modes) modes_settled = modes_settled && m->Settled();
+  const haptics::ToolState& tool = s.latest.tool;
+  const bool settled =
+      !s.jobs->busy() && modes_settled &&
+      (s.stats.emergency_stop ? (tool.events & haptics::kEventEmergencyStop) != 0
+                              : tool.ramp >= 1.0 ||
+                                    // no board: zero force is the settled state
+                                    s.latest.link.status == haptics::DeviceStatus::kNotConnected);
+  const bool waited_enough = settled || glfwGetTime() - s.start_time > kSettleTimeout;
+  // A trajectory's outcome: the capture waits until it has ended (+0.5 s).
+  const bool trajectory_over = s.player == nullptr || s.player->finished(0.5);
+  if (!waited_enough || !trajectory_over) return false;
+  const std::string error =
+      WritePng(s.options.screenshot, ReadBackBuffer(s.fb_w, s.fb_h), s.fb_w, s.fb_h);
+  s.done = true;
+  if (!error.empty()) {
+    std::cerr << "spidarcad: " << error << "\n";
+    s.exit_status = 1;
+    s.print_summary = false;
+    return true;
+  }
+  std::cout << "spidarcad: wrote " << s.options.screenshot << " (" << s.fb_w << "x" << s.fb_h << ")"
+            << (settled ? "" : " before the loop settled") << "\n";
+  return true;
+}
+
+// ---- for scripted use and tests ----
+
+const WindowLayout& AppWindow::layout() const { return s_->layout; }
+
+Rect AppWindow::DrawnPanel(const std::string& name) const {
+  ImGuiWindow* w = ImGui::FindWindowByName(name.c_str());
+  if (w == nullptr || !w->Active) return {};  // not begun in the latest frame
+  return {w->Pos.x, w->Pos.y, w->Size.x, w->Size.y};
+}
+
+void AppWindow::Resize(int width, int height) { glfwSetWindowSize(s_->window, width, height); }
+
+bool AppWindow::ClickAt(double x, double y) {
+  State& s = *s_;
+  if (!s.layout.viewport.Contains(static_cast<float>(x), static_cast<float>(y))) return false;
+  const double sx = static_cast<double>(s.fb_w) / s.win_w;
+  const double sy = static_cast<double>(s.fb_h) / s.win_h;
+  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy);
+  if (id == 0) return false;
+  s.tree->Select(id);
+  const int index = s.model.IndexOf(id);
+  if (index >= 0) s.workbench.selected = index;
+  return true;
+}
+
+bool AppWindow::SelectTouched() {
+  State& s = *s_;
+  return s.model_mode->SelectTouched(s.runtime->Latest().tool, s.context, "Enter");
+}
+
+std::vector<Mode*> AppWindow::modes() const {
+  std::vector<Mode*> out;
+  for (const auto& m : s_->modes) out.push_back(m.get());
+  return out;
+}
+
+Mode* AppWindow::active_mode() const { return s_->active; }
+
+Mode* AppWindow::FindMode(const std::string& key) const {
+  for (const auto& m : s_->modes) {
+    if (key == m->key()) return m.get();
+  }
+  return nullptr;
+}
+
+void AppWindow::SwitchMode(Mode* mode) {
+  State& s = *s_;
+  if (mode == nullptr || mode == s.active || !mode->available()) return;
+  s.active->Leave();
+  s.active = mode;
+  s.active->Enter();
+  ApplyHidden();
+  PublishScene();
+}
+
+Mode* AppWindow::AddMode(std::unique_ptr<Mode> mode) {
+  s_->modes.push_back(std::move(mode));
+  ApplyHidden();
+  return s_->modes.back().get();
+}
+
+int AppWindow::publish_count() const { return s_->publishes; }
+ModelMode& AppWindow::model_mode() { return *s_->model_mode; }
+SceneModel& AppWindow::model() { return s_->model; }
+TreeController& AppWindow::tree() { return *s_->tree; }
+HapticRuntime& AppWindow::runtime() { return *s_->runtime; }
+GripControl& AppWindow::grip() { return *s_->grip; }
+DeviceView& AppWindow::view() { return *s_->view; }
+SceneView& AppWindow::scene_view() { return *s_->scene_view; }
+vtkRenderer* AppWindow::renderer() { return s_->view->renderer(); }
+
+int RunGui(const GuiOptions& options) {
+  try {
+    AppWindow window(options);
+    return window.Run();
+  } catch (const WindowStartError& e) {
+    std::cerr << e.what() << "\n";
+    return e.status();
+  }
 }
 
 }  // namespace spidarcad::app

@@ -24,6 +24,7 @@
 #include <vtkPolyData.h>
 #include <vtkPolyDataMapper.h>
 #include <vtkProperty.h>
+#include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
 #include <vtkSphereSource.h>
@@ -481,5 +482,68 @@ Eigen::Vector3d DeviceView::ViewUp() const {
 }
 
 Eigen::Vector3d DeviceView::ViewRight() const { return ViewDirection().cross(ViewUp()).normalized(); }
+
+void DeviceView::FitBox(const Eigen::AlignedBox3d& box_D) {
+  if (box_D.isEmpty() || !box_D.min().allFinite() || !box_D.max().allFinite()) return;
+  vtkRenderer* ren = actors_->renderer;
+  vtkCamera* cam = ren->GetActiveCamera();
+  const Eigen::Vector3d centre = box_D.center();
+  const double radius = std::max(0.5 * box_D.diagonal().norm(), 1e-3);
+  // The narrower of the two view angles (VTK's view angle is the vertical one).
+  double aspect = 1.0;
+  if (ren->GetRenderWindow() != nullptr) {
+    const double* vp = ren->GetViewport();
+    const double vx0 = vp[0], vy0 = vp[1], vx1 = vp[2], vy1 = vp[3];
+    const int* size = ren->GetRenderWindow()->GetSize();
+    const double w = (vx1 - vx0) * size[0], h = (vy1 - vy0) * size[1];
+    if (w > 0.0 && h > 0.0) aspect = w / h;
+  }
+  const double half_v = 0.5 * cam->GetViewAngle() * 3.14159265358979323846 / 180.0;
+  const double half_h = std::atan(std::tan(half_v) * aspect);
+  const double distance = 1.05 * radius / std::sin(std::min(half_v, half_h));
+  const Eigen::Vector3d dir = ViewDirection();
+  const Eigen::Vector3d pos = centre - distance * dir;
+  cam->SetFocalPoint(centre.x(), centre.y(), centre.z());
+  cam->SetPosition(pos.x(), pos.y(), pos.z());
+  cam->OrthogonalizeViewUp();
+  ren->ResetCameraClippingRange();
+}
+
+void DeviceView::SetStandardView(StandardView view, const Eigen::AlignedBox3d& box_D) {
+  vtkCamera* cam = actors_->renderer->GetActiveCamera();
+  Eigen::Vector3d dir;  // from the camera toward the subject
+  Eigen::Vector3d up(0, 0, 1);
+  switch (view) {
+    case StandardView::kFront: dir = Eigen::Vector3d(0, 1, 0); break;
+    case StandardView::kRight: dir = Eigen::Vector3d(-1, 0, 0); break;
+    case StandardView::kTop:
+      dir = Eigen::Vector3d(0, 0, -1);
+      up = Eigen::Vector3d(0, 1, 0);
+      break;
+    case StandardView::kIso: dir = -Eigen::Vector3d(0.62, -1.0, 0.52).normalized(); break;
+  }
+  double focal[3];
+  cam->GetFocalPoint(focal);
+  const Eigen::Vector3d f(focal[0], focal[1], focal[2]);
+  const Eigen::Vector3d pos = f - cam->GetDistance() * dir;
+  cam->SetPosition(pos.x(), pos.y(), pos.z());
+  cam->SetViewUp(up.x(), up.y(), up.z());
+  cam->OrthogonalizeViewUp();
+  FitBox(box_D);
+}
+
+Eigen::AlignedBox3d DeviceView::FrameBox() const {
+  const Eigen::Vector3d half(geometry_.a, geometry_.b, geometry_.c);
+  return Eigen::AlignedBox3d(-half, half);
+}
+
+Eigen::Vector3d DeviceView::WorldToDisplay(const Eigen::Vector3d& p_D) const {
+  vtkRenderer* ren = actors_->renderer;
+  ren->SetWorldPoint(p_D.x(), p_D.y(), p_D.z(), 1.0);
+  ren->WorldToDisplay();
+  double d[3];
+  ren->GetDisplayPoint(d);
+  return Eigen::Vector3d(d[0], d[1], d[2]);
+}
 
 }  // namespace spidarcad::app

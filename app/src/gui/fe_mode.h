@@ -101,6 +101,8 @@ class FeMode {
   bool Settled() const;
   // Loop time the live field runs before Settled(), s.
   static constexpr double kSettleSeconds = 0.5;
+  // Name of the part (the mesh given to SetMesh; "" before one).
+  const std::string& mesh_name() const { return mesh_name_; }
   // Status line (what is happening or went wrong).
   const std::string& status() const { return status_; }
 

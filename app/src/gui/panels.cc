@@ -113,6 +113,9 @@ void ApplyPanelStyle() {
   style.GrabRounding = 3.0f;
   style.WindowBorderSize = 1.0f;
   style.ItemSpacing = ImVec2(6.0f, 4.0f);
+  // With the 14.5 px font: 21 px frames, so the menu bar and title bars (the docked layout's
+  // edges) fall on whole pixels.
+  style.FramePadding.y = 3.25f;
   style.CellPadding = ImVec2(4.0f, 1.0f);
   ImVec4* c = style.Colors;
   c[ImGuiCol_WindowBg] = ImVec4(0.965f, 0.968f, 0.975f, 1.0f);
@@ -123,24 +126,18 @@ void ApplyPanelStyle() {
   c[ImGuiCol_Border] = ImVec4(0.70f, 0.72f, 0.76f, 1.0f);
 }
 
-PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& context,
-                             DemoFieldSettings* field, float window_height) {
+PanelActions DrawDeviceFigures(const DeviceFrame& frame, const PanelContext& context) {
   PanelActions actions;
-  ImGui::SetNextWindowPos(ImVec2(0.0f, context.top));
-  ImGui::SetNextWindowSize(ImVec2(kPanelWidth, window_height - context.top));
-  const ImGuiWindowFlags flags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
-                                 ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoTitleBar |
-                                 ImGuiWindowFlags_NoSavedSettings;
-  ImGui::Begin("SPIDAR-G", nullptr, flags);
   const haptics::SpidarGeometry& g = *context.geometry;
   const haptics::GripPose& pose = frame.measured_pose;
 
   ImGui::Text("SPIDAR-G  1 kHz haptic loop");
-  ImGui::SameLine(kPanelWidth - 90.0f);
+  ImGui::SameLine();
   ImGui::TextDisabled("%5.1f fps", context.fps);
+  ImGui::SameLine();
   ImGui::TextDisabled("frame %.0f×%.0f×%.0f mm, poles 2d = %.0f mm", 2e3 * g.a, 2e3 * g.b,
                       2e3 * g.c, 2e3 * g.d);
-  ImGui::PushTextWrapPos(kPanelWidth - 10.0f);
+  ImGui::PushTextWrapPos(0.0f);
   ImGui::TextDisabled("device: %s", frame.source.c_str());
   if (context.link != nullptr && context.link->has_driver) {
     // The driver's link: green when data flows, orange on errors, red when down (zero force).
@@ -163,130 +160,122 @@ PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& conte
     ImGui::TextDisabled("the grip is your hand on the device: the mouse does not move it");
   }
   ImGui::PopTextWrapPos();
-  ImGui::Separator();
 
   // Pose.
-  if (ImGui::CollapsingHeader("Grip pose (measured, forward kinematics)",
-                              ImGuiTreeNodeFlags_DefaultOpen)) {
-    if (BeginVecTable("pose", "x | roll", "y | pitch", "z | yaw")) {
-      Vec3Row("p0", pose.p0, 1e3, "%8.2f", "mm");
-      Vec3Row("rotation", RollPitchYaw(pose.Rotation()), kRadToDeg, "%8.2f", "°");
-      ImGui::EndTable();
-    }
-    ImGui::Text("grasp θ  %7.2f°", pose.Grasp() * kRadToDeg);
-    ImGui::SameLine();
-    const bool fk_ok = frame.fk_status == haptics::FkStatus::kOk;
-    ImGui::TextColored(fk_ok ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f) : ImVec4(0.8f, 0.1f, 0.1f, 1.0f),
-                       "FK %s", haptics::FkStatusName(frame.fk_status));
-    ImGui::SameLine();
-    ImGui::TextDisabled("rms %.3f mm", frame.fk_residual * 1e3);
-    if (!context.real_hand) {  // a real hand's true pose is unknown
-      const double dp = (frame.true_pose.p0 - pose.p0).norm();
-      const double dr = haptics::RotationAngleBetween(frame.true_pose.Rotation(), pose.Rotation());
-      ImGui::TextDisabled("hand − measured: %.3f mm, %.3f°", dp * 1e3, dr * kRadToDeg);
-    }
+  if (BeginVecTable("pose", "x | roll", "y | pitch", "z | yaw")) {
+    Vec3Row("p0", pose.p0, 1e3, "%8.2f", "mm");
+    Vec3Row("rotation", RollPitchYaw(pose.Rotation()), kRadToDeg, "%8.2f", "°");
+    ImGui::EndTable();
   }
-
-  // Strings.
-  if (ImGui::CollapsingHeader("Strings", ImGuiTreeNodeFlags_DefaultOpen)) {
-    const float bar_width = 150.0f;
-    if (ImGui::BeginTable("strings", 4, ImGuiTableFlags_SizingFixedFit | ImGuiTableFlags_RowBg)) {
-      ImGui::TableSetupColumn("#", ImGuiTableColumnFlags_WidthFixed, 22.0f);
-      ImGui::TableSetupColumn("l_i [mm]", ImGuiTableColumnFlags_WidthFixed, 70.0f);
-      ImGui::TableSetupColumn("τ_i [N]", ImGuiTableColumnFlags_WidthFixed, 56.0f);
-      ImGui::TableSetupColumn("tension", ImGuiTableColumnFlags_WidthFixed, bar_width);
-      ImGui::TableHeadersRow();
-      for (int i = 0; i < haptics::kNumStrings; ++i) {
-        const double tau = frame.tensions[i];
-        const Rgb rgb = TensionColour(tau, context.tau_min, context.tau_max);
-        ImGui::TableNextRow();
-        ImGui::TableSetColumnIndex(0);
-        const double* pole = haptics::StringPole(i) == 0 ? kPole1Colour : kPole2Colour;
-        ImGui::TextColored(ImVec4(pole[0], pole[1], pole[2], 1.0f), "%d", i + 1);
-        ImGui::TableSetColumnIndex(1);
-        ImGui::Text("%8.2f", frame.lengths[i] * 1e3);
-        ImGui::TableSetColumnIndex(2);
-        ImGui::Text("%6.2f", tau);
-        ImGui::TableSetColumnIndex(3);
-        Bar(tau / context.tau_max, ToImColour(rgb), bar_width, 10.0f);
-      }
-      ImGui::EndTable();
-    }
-    Legend(context.tau_min, context.tau_max, kPanelWidth - 30.0f);
-    ImGui::TextColored(ImVec4(kPole1Colour[0], kPole1Colour[1], kPole1Colour[2], 1.0f),
-                       "■ pole 1 (strings 1–4)");
+  ImGui::Text("grasp θ  %7.2f°", pose.Grasp() * kRadToDeg);
+  ImGui::SameLine();
+  const bool fk_ok = frame.fk_status == haptics::FkStatus::kOk;
+  ImGui::TextColored(fk_ok ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f) : ImVec4(0.8f, 0.1f, 0.1f, 1.0f),
+                     "FK %s", haptics::FkStatusName(frame.fk_status));
+  ImGui::SameLine();
+  ImGui::TextDisabled("rms %.3f mm", frame.fk_residual * 1e3);
+  if (!context.real_hand) {  // a real hand's true pose is unknown
+    const double dp = (frame.true_pose.p0 - pose.p0).norm();
+    const double dr = haptics::RotationAngleBetween(frame.true_pose.Rotation(), pose.Rotation());
     ImGui::SameLine();
-    ImGui::TextColored(ImVec4(kPole2Colour[0], kPole2Colour[1], kPole2Colour[2], 1.0f),
-                       " ■ pole 2 (strings 5–8)");
-    ImGui::SameLine();
-    ImGui::TextDisabled(" τ [N]");
+    ImGui::TextDisabled("hand − measured: %.3f mm, %.3f°", dp * 1e3, dr * kRadToDeg);
   }
 
   // Wrench.
-  if (ImGui::CollapsingHeader("Wrench on the grip", ImGuiTreeNodeFlags_DefaultOpen)) {
-    if (BeginVecTable("wrench", "x", "y", "z")) {
-      Vec3Row("f asked", frame.wrench.head<3>(), 1.0, "%7.3f", "N");
-      Vec3Row("f shown", frame.achieved.head<3>(), 1.0, "%7.3f", "N");
-      Vec3Row("m asked", frame.wrench.segment<3>(3), 1e3, "%7.1f", "N·mm");
-      Vec3Row("m shown", frame.achieved.segment<3>(3), 1e3, "%7.1f", "N·mm");
-      ImGui::EndTable();
-    }
-    ImGui::Text("grasp torque g  asked %6.1f  shown %6.1f N·mm", frame.wrench[6] * 1e3,
-                frame.achieved[6] * 1e3);
-    const bool ok = frame.tension_status == haptics::TensionStatus::kOk;
-    ImGui::TextColored(ok ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f) : ImVec4(0.75f, 0.35f, 0.0f, 1.0f),
-                       "tension solve: %s", TensionStatusText(frame.tension_status));
-    ImGui::SameLine();
-    ImGui::TextDisabled("|f| %.2f N", frame.achieved.head<3>().norm());
+  if (BeginVecTable("wrench", "x", "y", "z")) {
+    Vec3Row("f asked", frame.wrench.head<3>(), 1.0, "%7.3f", "N");
+    Vec3Row("f shown", frame.achieved.head<3>(), 1.0, "%7.3f", "N");
+    Vec3Row("m asked", frame.wrench.segment<3>(3), 1e3, "%7.1f", "N·mm");
+    Vec3Row("m shown", frame.achieved.segment<3>(3), 1e3, "%7.1f", "N·mm");
+    ImGui::EndTable();
   }
-
-  // Demo field.
-  if (ImGui::CollapsingHeader("Centring springs (demo field)", ImGuiTreeNodeFlags_DefaultOpen)) {
-    if (ImGui::Checkbox("springs to the device centre", &field->enabled)) actions.field_changed = true;
-    ImGui::PushItemWidth(170.0f);
-    float kt = static_cast<float>(field->k_translation);
-    if (ImGui::SliderFloat("k  [N/m]", &kt, 0.0f, 300.0f, "%.0f")) {
-      field->k_translation = kt;
-      actions.field_changed = true;
-    }
-    float kr = static_cast<float>(field->k_rotation);
-    if (ImGui::SliderFloat("k_rot [N·m/rad]", &kr, 0.0f, 1.0f, "%.2f")) {
-      field->k_rotation = kr;
-      actions.field_changed = true;
-    }
-    float kg = static_cast<float>(field->k_grasp);
-    if (ImGui::SliderFloat("k_grasp [N·m/rad]", &kg, 0.0f, 0.2f, "%.3f")) {
-      field->k_grasp = kg;
-      actions.field_changed = true;
-    }
-    ImGui::PopItemWidth();
-  }
-
-  // Controls.
-  if (ImGui::CollapsingHeader("Controls", ImGuiTreeNodeFlags_DefaultOpen)) {
-    auto help = [](const char* input, const char* action) {
-      ImGui::TextDisabled("%s", input);
-      ImGui::SameLine(128.0f);
-      ImGui::TextUnformatted(action);
-    };
-    help("left-drag grip", "move it in the view plane");
-    help("right-drag", "rotate grip (shift: roll; or ctrl+left)");
-    help("wheel or [ ]", "grasp angle 20°–160°");
-    help("drag elsewhere", "orbit (or middle); ctrl+wheel zoom");
-    help("R  C  Esc", "reset grip, reset camera, quit");
-    help("Space", "emergency stop (zero force, latched)");
-    if (ImGui::Button("Reset grip")) actions.reset_grip = true;
+  ImGui::Text("grasp torque g  asked %6.1f  shown %6.1f N·mm", frame.wrench[6] * 1e3,
+              frame.achieved[6] * 1e3);
+  const bool ok = frame.tension_status == haptics::TensionStatus::kOk;
+  ImGui::TextColored(ok ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f) : ImVec4(0.75f, 0.35f, 0.0f, 1.0f),
+                     "tension solve: %s", TensionStatusText(frame.tension_status));
+  ImGui::SameLine();
+  ImGui::TextDisabled("|f| %.2f N", frame.achieved.head<3>().norm());
+  if (context.drag_mode[0] != '\0') {
     ImGui::SameLine();
-    if (ImGui::Button("Reset camera")) actions.reset_camera = true;
-    ImGui::SameLine();
-    if (ImGui::Button("Quit")) actions.quit = true;
-    if (context.drag_mode[0] != '\0') {
-      ImGui::SameLine();
-      ImGui::TextDisabled("%s", context.drag_mode);
-    }
+    ImGui::TextDisabled("  %s", context.drag_mode);
   }
-  ImGui::End();
   return actions;
+}
+
+void DrawStringFigures(const DeviceFrame& frame, const PanelContext& context, float width) {
+  const float bar_width = std::max(60.0f, width - 170.0f);
+  if (ImGui::BeginTable("strings", 4, ImGuiTableFlags_SizingFixedFit | ImGuiTableFlags_RowBg)) {
+    ImGui::TableSetupColumn("#", ImGuiTableColumnFlags_WidthFixed, 22.0f);
+    ImGui::TableSetupColumn("l_i [mm]", ImGuiTableColumnFlags_WidthFixed, 70.0f);
+    ImGui::TableSetupColumn("τ_i [N]", ImGuiTableColumnFlags_WidthFixed, 56.0f);
+    ImGui::TableSetupColumn("tension", ImGuiTableColumnFlags_WidthFixed, bar_width);
+    ImGui::TableHeadersRow();
+    for (int i = 0; i < haptics::kNumStrings; ++i) {
+      const double tau = frame.tensions[i];
+      const Rgb rgb = TensionColour(tau, context.tau_min, context.tau_max);
+      ImGui::TableNextRow();
+      ImGui::TableSetColumnIndex(0);
+      const double* pole = haptics::StringPole(i) == 0 ? kPole1Colour : kPole2Colour;
+      ImGui::TextColored(ImVec4(pole[0], pole[1], pole[2], 1.0f), "%d", i + 1);
+      ImGui::TableSetColumnIndex(1);
+      ImGui::Text("%8.2f", frame.lengths[i] * 1e3);
+      ImGui::TableSetColumnIndex(2);
+      ImGui::Text("%6.2f", tau);
+      ImGui::TableSetColumnIndex(3);
+      Bar(tau / context.tau_max, ToImColour(rgb), bar_width, 10.0f);
+    }
+    ImGui::EndTable();
+  }
+  Legend(context.tau_min, context.tau_max, width - 20.0f);
+  ImGui::TextColored(ImVec4(kPole1Colour[0], kPole1Colour[1], kPole1Colour[2], 1.0f),
+                     "■ pole 1 (1–4)");
+  ImGui::SameLine();
+  ImGui::TextColored(ImVec4(kPole2Colour[0], kPole2Colour[1], kPole2Colour[2], 1.0f),
+                     " ■ pole 2 (5–8)");
+  ImGui::SameLine();
+  ImGui::TextDisabled(" τ [N]");
+}
+
+bool DrawSpringControls(DemoFieldSettings* field) {
+  bool changed = false;
+  if (ImGui::Checkbox("springs to the device centre", &field->enabled)) changed = true;
+  ImGui::PushItemWidth(150.0f);
+  float kt = static_cast<float>(field->k_translation);
+  if (ImGui::SliderFloat("k  [N/m]", &kt, 0.0f, 300.0f, "%.0f")) {
+    field->k_translation = kt;
+    changed = true;
+  }
+  float kr = static_cast<float>(field->k_rotation);
+  if (ImGui::SliderFloat("k_rot [N·m/rad]", &kr, 0.0f, 1.0f, "%.2f")) {
+    field->k_rotation = kr;
+    changed = true;
+  }
+  float kg = static_cast<float>(field->k_grasp);
+  if (ImGui::SliderFloat("k_grasp [N·m/rad]", &kg, 0.0f, 0.2f, "%.3f")) {
+    field->k_grasp = kg;
+    changed = true;
+  }
+  ImGui::PopItemWidth();
+  return changed;
+}
+
+void DrawControlsHelp() {
+  auto help = [](const char* input, const char* action) {
+    ImGui::TextDisabled("%s", input);
+    ImGui::SameLine(150.0f);
+    ImGui::TextUnformatted(action);
+  };
+  help("left-drag grip", "move it in the view plane");
+  help("right-drag", "rotate grip (shift: roll; or ctrl+left)");
+  help("wheel or [ ]", "grasp angle 20°–160°");
+  help("drag elsewhere", "orbit (or middle); ctrl+wheel zoom");
+  help("click a solid", "select it in the tree");
+  help("Enter or squeeze", "select the solid the grip touches");
+  help("F", "fit the view to the selection (or the scene)");
+  help("1  3  7  0", "front, right, top, iso view");
+  help("R  C  Esc", "reset grip, reset camera, quit");
+  help("Space", "emergency stop (zero force, latched)");
 }
 
 }  // namespace spidarcad::app

@@ -10,7 +10,7 @@
 
 namespace spidarcad::app {
 
-// Width of the panel docked on the left of the window, pixels.
+// Width of the document panel docked on the left of the window, pixels.
 inline constexpr float kPanelWidth = 380.0f;
 
 // What the panel needs besides the frame.
@@ -37,10 +37,17 @@ struct PanelActions {
   int board_plug = 0;          // board-sim: +1 plug the simulated board in, -1 unplug it
 };
 
-// Draws the panel (full window height, kPanelWidth wide, at the left edge). `field` may be
-// edited in place (checkbox and stiffness sliders).
-PanelActions DrawDevicePanel(const DeviceFrame& frame, const PanelContext& context,
-                             DemoFieldSettings* field, float window_height);
+// Draws the device figures (inside a window or child; no Begin/End): device and link line,
+// the grip pose measured by forward kinematics, the wrench asked and shown, the tension solve.
+PanelActions DrawDeviceFigures(const DeviceFrame& frame, const PanelContext& context);
+// Draws the strings' lengths and tensions (bars in the tension colours) and the colour legend,
+// `width` pixels wide (no Begin/End).
+void DrawStringFigures(const DeviceFrame& frame, const PanelContext& context, float width);
+// Draws the centring springs' checkbox and stiffness sliders; true when one was edited (publish
+// a new scene).
+bool DrawSpringControls(DemoFieldSettings* field);
+// Draws the list of mouse and key controls (no Begin/End).
+void DrawControlsHelp();
 
 // Applies the window's colour style (light, engineering look) to the current ImGui context.
 void ApplyPanelStyle();

@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include <vtkActor.h>
+#include <vtkCellPicker.h>
 #include <vtkCellArray.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
@@ -137,6 +138,28 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
     e.actor->GetProperty()->SetEdgeVisibility(static_cast<int>(i) == highlight);
     e.actor->GetProperty()->SetEdgeColor(0.35, 0.3, 0.25);
   }
+}
+
+ObjectId SceneView::PickObject(double x, double y) const {
+  vtkNew<vtkCellPicker> picker;
+  picker->SetTolerance(0.0005);
+  picker->PickFromListOn();
+  for (const auto& e : entries_) {
+    if (e->actor->GetVisibility()) picker->AddPickList(e->actor);
+  }
+  if (picker->Pick(x, y, 0.0, renderer_) == 0) return 0;
+  vtkActor* hit = picker->GetActor();
+  for (const auto& e : entries_) {
+    if (e->actor.GetPointer() == hit) return e->id;
+  }
+  return 0;
+}
+
+vtkActor* SceneView::ActorOf(ObjectId id) const {
+  for (const auto& e : entries_) {
+    if (e->id == id) return e->actor;
+  }
+  return nullptr;
 }
 
 }  // namespace spidarcad::app

@@ -11,6 +11,7 @@
 
 #include "scene/scene_model.h"
 
+class vtkActor;
 class vtkPolyData;
 class vtkRenderer;
 
@@ -50,6 +51,12 @@ class SceneView {
   // Solids (by name) whose actors stay hidden: an assembly's part solids, which AssemblyMode
   // draws where the parts are (the solids themselves sit at their own frame origins).
   void SetHidden(std::vector<std::string> names) { hidden_ = std::move(names); }
+  // The Document object whose actor is nearest the eye under display pixel (x, y) of the
+  // renderer's window (origin bottom left): a VTK cell picker on the visible scene actors only
+  // (the device, the grip and the markers are not picked). 0 when none is there.
+  ObjectId PickObject(double x, double y) const;
+  // The actor of Document object `id` (null when it has none yet).
+  vtkActor* ActorOf(ObjectId id) const;
 
  private:
   struct Entry;

@@ -7,13 +7,15 @@
 
 #include <imgui.h>
 
+#include "gui/panels.h"
+
 namespace spidarcad::app {
 
 namespace {
 
-constexpr ImGuiWindowFlags kOverlayFlags =
-    ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
-    ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_AlwaysAutoResize;
+constexpr ImGuiWindowFlags kDockedFlags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                                         ImGuiWindowFlags_NoCollapse |
+                                         ImGuiWindowFlags_NoSavedSettings;
 const ImVec4 kRed(0.80f, 0.10f, 0.10f, 1.0f);
 const ImVec4 kGreen(0.10f, 0.50f, 0.20f, 1.0f);
 
@@ -93,9 +95,20 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
     ImGui::EndMenu();
   }
   if (ImGui::BeginMenu("View")) {
+    if (ImGui::MenuItem("Fit to the selection", "F")) actions->fit_view = true;
+    if (ImGui::MenuItem("Front", "1")) actions->standard_view = 0;
+    if (ImGui::MenuItem("Right", "3")) actions->standard_view = 1;
+    if (ImGui::MenuItem("Top", "7")) actions->standard_view = 2;
+    if (ImGui::MenuItem("Iso", "0")) actions->standard_view = 3;
+    ImGui::Separator();
     if (ImGui::MenuItem("Reset camera", "C")) actions->reset_camera = true;
     if (ImGui::MenuItem("Reset grip", "R")) actions->reset_grip = true;
     ImGui::MenuItem("Show mesh edges of the selected object", nullptr, &state->show_edges);
+    ImGui::MenuItem("Device and loop figures", nullptr, &state->show_figures);
+    ImGui::EndMenu();
+  }
+  if (ImGui::BeginMenu("Help")) {
+    DrawControlsHelp();
     ImGui::EndMenu();
   }
   ImGui::EndMainMenuBar();
@@ -103,35 +116,27 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
 }
 
 void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
-                    float width, TreeController* tree, TreePanelState* tree_state,
-                    float max_height) {
+                    float width, float height, TreeController* tree, TreePanelState* tree_state) {
   ImGui::SetNextWindowPos(ImVec2(x, y));
-  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, max_height));
-  ImGui::SetNextWindowBgAlpha(0.92f);
-  ImGui::Begin("Scene", nullptr, kOverlayFlags);
+  ImGui::SetNextWindowSize(ImVec2(width, height));
+  ImGui::Begin("Document", nullptr, kDockedFlags);
   ImGui::PushTextWrapPos(width - 10.0f);
   ImGui::TextDisabled("%s", model->source().c_str());
   if (!model->description().empty()) {
-    if (tree == nullptr) {
-      ImGui::TextDisabled("%s", model->description().c_str());
-    } else {
-      // One line (the tree needs the room); the whole text as a tooltip.
-      const std::string& d = model->description();
-      const size_t cut = std::min<size_t>(d.find_first_of(".:\n"), 44);
-      ImGui::TextDisabled("%s%s", d.substr(0, cut).c_str(), cut < d.size() ? " ..." : "");
-      if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", d.c_str());
-    }
+    // One line (the tree needs the room); the whole text as a tooltip.
+    const std::string& d = model->description();
+    const size_t cut = std::min<size_t>(d.find_first_of(".:\n"), 52);
+    ImGui::TextDisabled("%s%s", d.substr(0, cut).c_str(), cut < d.size() ? " ..." : "");
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", d.c_str());
   }
   ImGui::PopTextWrapPos();
   const DeviceToWorld& x_wd = model->device_to_world();
   ImGui::TextDisabled("X_WD: scale %.2f, device centre at (%.0f, %.0f, %.0f) mm", x_wd.world_scale,
                       x_wd.p_WDo.x() * 1e3, x_wd.p_WDo.y() * 1e3, x_wd.p_WDo.z() * 1e3);
-  const auto& objects = model->objects();
   if (tree != nullptr && tree_state != nullptr) {
-    // The tree takes what is left of max_height after the rest of the panel (about 12 lines);
-    // the panel scrolls when a node has many parameters.
+    // The tree takes about 40 % of the panel; the properties below it scroll with the panel.
     const float line = ImGui::GetFrameHeightWithSpacing();
-    const float tree_height = std::clamp(max_height - 12.0f * line, 4.0f * line, 12.0f * line);
+    const float tree_height = std::clamp(0.4f * height, 4.0f * line, 16.0f * line);
     DrawTreePanel(tree, tree_state, tree_height);
     if (tree->selection()) {
       const int index = model->IndexOf(tree->selection()->object);
@@ -146,41 +151,32 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
                           : tris > 0                ? " (preview)"
                                                     : " (meshing preview...)");
     }
-  } else if (objects.empty()) {
-    ImGui::TextDisabled("no solids");
   }
-  for (int i = 0; tree == nullptr && i < static_cast<int>(objects.size()); ++i) {
-    const SceneObject& o = objects[i];
-    ImGui::PushID(i);
-    const ImVec4 c(static_cast<float>(o.colour[0]), static_cast<float>(o.colour[1]),
-                   static_cast<float>(o.colour[2]), 1.0f);
-    ImGui::ColorButton("##c", c, ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
-    ImGui::SameLine();
-    char label[160];
-    const long tris = o.shown().triangles.cols();
-    if (o.tets.tets.cols() > 0) {
-      std::snprintf(label, sizeof(label), "%s  (%ld tri, %ld tets)", o.name.c_str(), tris,
-                    static_cast<long>(o.tets.tets.cols()));
-    } else if (o.surface.triangles.cols() > 0) {
-      std::snprintf(label, sizeof(label), "%s  (%ld tri, %.1f mm)", o.name.c_str(), tris,
-                    o.surface_cell * 1e3);
-    } else if (tris > 0) {
-      std::snprintf(label, sizeof(label), "%s  (preview %ld tri)", o.name.c_str(), tris);
-    } else {
-      std::snprintf(label, sizeof(label), "%s  (meshing preview...)", o.name.c_str());
-    }
-    if (ImGui::Selectable(label, state->selected == i)) state->selected = i;
-    ImGui::PopID();
+  if (model->objects().empty()) {
+    // An empty document: how to start, and the controls (also in the Help menu).
+    ImGui::Separator();
+    ImGui::PushTextWrapPos(width - 10.0f);
+    ImGui::TextUnformatted("No solids in this scene: add one with Add..., or open a scene file "
+                           "(spidarcad SCENE.json).");
+    ImGui::PopTextWrapPos();
+    ImGui::Separator();
+    DrawControlsHelp();
   }
-  ImGui::Separator();
+  DrawJobs(jobs, state, width);
+  ImGui::End();
+}
+
+void DrawMeshControls(SceneModel* model, JobQueue* jobs, WorkbenchState* state) {
   ImGui::PushItemWidth(90.0f);
   ImGui::InputFloat("cell [mm]", &state->resolution_mm, 0.5f, 2.0f, "%.1f");
   state->resolution_mm = std::clamp(state->resolution_mm, 0.5f, 50.0f);
   ImGui::PopItemWidth();
-  ImGui::SameLine();
   if (ImGui::Button("Surface")) StartMeshAction(model, jobs, state, MeshKind::kSurface);
   ImGui::SameLine();
   if (ImGui::Button("Tetrahedra")) StartMeshAction(model, jobs, state, MeshKind::kTetrahedra);
+}
+
+void DrawJobs(JobQueue* jobs, WorkbenchState* state, float width) {
   int row = 0;
   for (const auto& job : jobs->jobs()) {
     if (job->state() != Job::State::kRunning) continue;
@@ -202,7 +198,6 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
     ImGui::TextColored(state->status_error ? kRed : kGreen, "%s", state->status.c_str());
     ImGui::PopTextWrapPos();
   }
-  ImGui::End();
 }
 
 void DrawContactControls(WorkbenchState* state) {
@@ -254,10 +249,19 @@ void DrawContactControls(WorkbenchState* state) {
   ImGui::PopItemWidth();
 }
 
-void DrawLoopPanel(const LoopStats& s, float right, float bottom, WorkbenchActions* actions) {
-  ImGui::SetNextWindowPos(ImVec2(right, bottom), ImGuiCond_Always, ImVec2(1.0f, 1.0f));
-  ImGui::SetNextWindowBgAlpha(0.92f);
-  ImGui::Begin("Haptic loop", nullptr, kOverlayFlags);
+void DrawLoopFigures(const LoopStats& s, WorkbenchActions* actions) {
+  // The stop first: always in sight, whatever the strip's height.
+  if (s.emergency_stop) {
+    if (ImGui::Button("Re-arm forces")) actions->rearm = true;
+    ImGui::SameLine();
+    ImGui::TextColored(kRed, "stopped: zero force");
+  } else {
+    ImGui::PushStyleColor(ImGuiCol_Button, ImVec4(0.85f, 0.15f, 0.12f, 1.0f));
+    ImGui::PushStyleColor(ImGuiCol_ButtonHovered, ImVec4(0.95f, 0.25f, 0.2f, 1.0f));
+    ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 1, 1, 1));
+    if (ImGui::Button("EMERGENCY STOP (Space)")) actions->emergency_stop = true;
+    ImGui::PopStyleColor(3);
+  }
   const bool fifo = s.realtime == haptics::RealtimeStatus::kFifo;
   ImGui::Text("1 kHz loop, %llu ticks", static_cast<unsigned long long>(s.ticks));
   ImGui::SameLine();
@@ -268,11 +272,11 @@ void DrawLoopPanel(const LoopStats& s, float right, float bottom, WorkbenchActio
     ImGui::TextDisabled("(normal scheduling)");
   }
   if (ImGui::BeginTable("loopstats", 5, ImGuiTableFlags_RowBg | ImGuiTableFlags_SizingFixedFit)) {
-    ImGui::TableSetupColumn("µs", ImGuiTableColumnFlags_WidthFixed, 112.0f);
-    ImGui::TableSetupColumn("p50", ImGuiTableColumnFlags_WidthFixed, 52.0f);
-    ImGui::TableSetupColumn("p99", ImGuiTableColumnFlags_WidthFixed, 52.0f);
-    ImGui::TableSetupColumn("p99.9", ImGuiTableColumnFlags_WidthFixed, 52.0f);
-    ImGui::TableSetupColumn("max", ImGuiTableColumnFlags_WidthFixed, 58.0f);
+    ImGui::TableSetupColumn("µs", ImGuiTableColumnFlags_WidthFixed, 104.0f);
+    ImGui::TableSetupColumn("p50", ImGuiTableColumnFlags_WidthFixed, 42.0f);
+    ImGui::TableSetupColumn("p99", ImGuiTableColumnFlags_WidthFixed, 42.0f);
+    ImGui::TableSetupColumn("p99.9", ImGuiTableColumnFlags_WidthFixed, 46.0f);
+    ImGui::TableSetupColumn("max", ImGuiTableColumnFlags_WidthFixed, 48.0f);
     ImGui::TableHeadersRow();
     auto row = [](const char* name, const std::array<double, 4>& v) {
       ImGui::TableNextRow();
@@ -280,7 +284,7 @@ void DrawLoopPanel(const LoopStats& s, float right, float bottom, WorkbenchActio
       ImGui::TextUnformatted(name);
       for (int k = 0; k < 4; ++k) {
         ImGui::TableSetColumnIndex(k + 1);
-        ImGui::Text("%7.1f", v[k] * 1e6);
+        ImGui::Text("%.1f", v[k] * 1e6);
       }
     };
     row("loop step", s.step);
@@ -305,18 +309,6 @@ void DrawLoopPanel(const LoopStats& s, float right, float bottom, WorkbenchActio
     }
     ImGui::EndTable();
   }
-  if (s.emergency_stop) {
-    if (ImGui::Button("Re-arm forces")) actions->rearm = true;
-    ImGui::SameLine();
-    ImGui::TextColored(kRed, "stopped: zero force");
-  } else {
-    ImGui::PushStyleColor(ImGuiCol_Button, ImVec4(0.85f, 0.15f, 0.12f, 1.0f));
-    ImGui::PushStyleColor(ImGuiCol_ButtonHovered, ImVec4(0.95f, 0.25f, 0.2f, 1.0f));
-    ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 1, 1, 1));
-    if (ImGui::Button("EMERGENCY STOP (Space)")) actions->emergency_stop = true;
-    ImGui::PopStyleColor(3);
-  }
-  ImGui::End();
 }
 
 void DrawStopBanner(float x0, float x1, float y) {

@@ -1,7 +1,8 @@
-// ImGui side of the workbench: the menu bar (File → Save / Export, Edit, Mesh, Haptics, View),
-// the scene panel (the tree panel of gui/tree_panel.h: objects, nodes, parameters; Mesh action with progress bars and Cancel, status line), the loop panel
-// (tick time and period jitter percentiles, safety events, scheduling, emergency stop) and the
-// export dialog. They act on SceneModel and JobQueue directly and return the rest.
+// ImGui side of the workbench: the menu bar (File → Save / Export, Edit, Mesh, Haptics, View,
+// Help), the document panel (the tree panel of gui/tree_panel.h: objects, nodes, parameters;
+// jobs with progress bars and Cancel, status line), the Mesh action's controls, the loop
+// figures (tick time and period jitter percentiles, safety events, scheduling, emergency stop)
+// and the export dialog. They act on SceneModel and JobQueue directly and return the rest.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -19,6 +20,7 @@ struct WorkbenchState {
   int selected = 0;               // scene object the Mesh action and Export work on
   float resolution_mm = 4.0f;     // grid cell of the Mesh action, mm (in W)
   bool show_edges = false;        // draw the selected object's mesh edges
+  bool show_figures = true;       // the device and loop figures strip is open (else collapsed)
   char export_path[512] = "";     // path field of the export dialog
   bool export_tets = false;       // the dialog exports tetrahedra (else the surface)
   bool open_export = false;       // request to open the export dialog this frame
@@ -39,6 +41,8 @@ struct WorkbenchActions {
   bool rearm = false;
   bool reset_grip = false;
   bool reset_camera = false;
+  bool fit_view = false;          // View → Fit (F)
+  int standard_view = -1;         // View → Front, Right, Top, Iso (0..3; StandardView), −1: none
   bool quit = false;
 };
 
@@ -48,14 +52,19 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
                   WorkbenchActions* actions, TreeController* tree = nullptr,
                   TreePanelState* tree_state = nullptr);
 
-// Draws the scene panel at (x, y), `width` wide: source, the tree panel (objects and their node
-// trees, the selected node's parameters; it also selects the object of the Mesh action) or,
-// without `tree`, the object list; Mesh action (resolution, Surface / Tetrahedra buttons),
-// running jobs with progress bar and Cancel, status line. `max_height` bounds the panel
-// (pixels); the tree region scrolls within it.
+// Draws the document panel docked at (x, y), `width` × `height` pixels: source, the tree panel
+// (gui/tree_panel.h: objects and their node trees, the selected node's parameters; it also
+// selects the object of the Mesh action) or, without `tree`, "no solids"; the mesh of the
+// selected object, running jobs with progress bar and Cancel, the status line.
 void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
-                    float width, TreeController* tree = nullptr,
-                    TreePanelState* tree_state = nullptr, float max_height = 1e5f);
+                    float width, float height, TreeController* tree = nullptr,
+                    TreePanelState* tree_state = nullptr);
+
+// Draws the Mesh action's controls (cell size, Surface and Tetrahedra buttons; no Begin/End).
+void DrawMeshControls(SceneModel* model, JobQueue* jobs, WorkbenchState* state);
+
+// Draws the running jobs (progress bar, Cancel) and the status line (no Begin/End).
+void DrawJobs(JobQueue* jobs, WorkbenchState* state, float width);
 
 // Draws the Touch controls (tool model "Point (proxy)" / "Grip (six-DOF)", stiffness, damping
 // and, for the proxy, friction; values as felt at the grip) into the current menu (the menu
@@ -64,9 +73,8 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
 // stiffness as in `spidarcad run` (min(k, 1000 N/m)).
 void DrawContactControls(WorkbenchState* state);
 
-// Draws the loop panel with its bottom-right corner at (right, bottom): statistics and the
-// emergency stop / re-arm buttons.
-void DrawLoopPanel(const LoopStats& stats, float right, float bottom, WorkbenchActions* actions);
+// Draws the loop statistics and the emergency stop / re-arm buttons (no Begin/End).
+void DrawLoopFigures(const LoopStats& stats, WorkbenchActions* actions);
 
 // Draws a red "EMERGENCY STOP" banner centred at the top of the view (x0..x1 at y).
 void DrawStopBanner(float x0, float x1, float y);

@@ -1,0 +1,131 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// The window's command-line options (gui/gui.h): parsing and registration, and the display check.
+#include <cmath>
+#include <cstdlib>
+#include <sstream>
+#include <stdexcept>
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+
+#include "gui/gui.h"
+#include "scene/haptic_runtime.h"
+
+namespace spidarcad::app {
+
+bool DisplayAvailable() {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') return false;
+  // glfwInit connects to the X server and fails cleanly when it cannot. The connection is
+  // kept (RunGui's glfwInit is then a no-op): closing it would let an Xvfb with no other
+  // client reset, and a connection opened during the reset fails.
+  glfwSetErrorCallback(nullptr);
+  return glfwInit() == GLFW_TRUE;
+}
+
+void ParseWindowSize(const std::string& text, int* width, int* height) {
+  int w = 0, h = 0;
+  char x = 0;
+  std::istringstream in(text);
+  if (!(in >> w >> x >> h) || (x != 'x' && x != 'X') || !(in >> std::ws).eof() || w < 200 ||
+      h < 200 || w > 8192 || h > 8192) {
+    throw CLI::ValidationError("--size",
+                               "expected WxH with both in [200, 8192] pixels, got '" + text + "'");
+  }
+  *width = w;
+  *height = h;
+}
+
+void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
+  static const char* kFields[7] = {"x [mm]",      "y [mm]",    "z [mm]",     "roll [deg]",
+                                   "pitch [deg]", "yaw [deg]", "grasp [deg]"};
+  std::array<double, 7> out = *grip;
+  std::stringstream in(text);
+  std::string field;
+  int k = 0;
+  while (std::getline(in, field, ',')) {
+    if (k >= 7) {
+      throw CLI::ValidationError(
+          "--grip", "at most 7 fields (x,y,z,roll,pitch,yaw,grasp), got '" + text + "'");
+    }
+    try {
+      size_t used = 0;
+      out[k] = std::stod(field, &used);
+      if (used != field.size() || !std::isfinite(out[k])) throw std::invalid_argument(field);
+    } catch (const std::exception&) {
+      throw CLI::ValidationError("--grip", std::string("field ") + std::to_string(k + 1) + " (" +
+                                               kFields[k] + ") is not a number: '" + field + "'");
+    }
+    ++k;
+  }
+  if (k != 3 && k != 6 && k != 7) {
+    throw CLI::ValidationError("--grip",
+                               "expected 3, 6 or 7 comma-separated fields "
+                               "(x,y,z[,roll,pitch,yaw[,grasp]]), got '" +
+                                   text + "'");
+  }
+  *grip = out;
+}
+
+void AddGuiOptions(CLI::App& app, GuiOptions* options) {
+  app.add_option("--select", options->select,
+                 "Select this solid or node in the tree panel at start, showing its parameters: a "
+                 "solid's name, a node's name or id, or SOLID/i/j for child j of child i of the "
+                 "solid's root (default: the first solid). Not in the scene: exit status 2")
+      ->type_name("NAME");
+  app.add_option("scene", options->scene,
+                 "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "
+                 "(built-in, the default) or 'none'; with --mode fe the default is "
+                 "assets/scenes/platform.json, with --mode sculpt assets/scenes/clay.json. The "
+                 "file is re-read when it changes on disk.");
+  app.add_option(
+         "--mode", options->mode,
+         "Start in a mode: 'fe' meshes assets/scenes/platform.json (TetGen, 12 mm), "
+         "precomputes it (steel, clamped at the wall face) and lets the grip push it; "
+         "'sculpt' meshes assets/scenes/clay.json and lets the grip sculpt it (close the "
+         "grasp or hold G). Both are also in the mode switcher (right panel). While a mode's part "
+         "is live, it alone is felt: the scene's solids are shown but not touched.")
+      ->check(CLI::IsMember({"fe", "sculpt"}));
+  app.add_option("--estop-frame", options->estop_frame,
+                 "Press the emergency stop (Space) at this frame (scripted runs and tests)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--trajectory", options->trajectory,
+                 "Scripted grip: the simulated hand's target follows this trajectory CSV "
+                 "(t,x,y,z,qw,qx,qy,qz,grasp in D, as `spidarcad run --trajectory`) in wall-clock "
+                 "time from the first frame, then holds its last sample and the mouse takes over; "
+                 "the grip starts at its first sample. --screenshot waits until it has ended "
+                 "(+0.5 s), --frames runs at least that long.");
+  app.add_option("--screenshot", options->screenshot,
+                 "Render a few frames, write the window (scene and panel) to this PNG and exit");
+  app.add_option("--frames", options->frames, "Exit after this many frames (0: run until closed)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--device", options->device,
+                 "The device the 1 kHz haptic loop drives: 'simulated' (default: the simulated "
+                 "SPIDAR-G with encoder errors, calibrated at start-up, held by a simulated hand "
+                 "that follows the mouse); 'ideal' (no encoder errors, the grip exactly where the "
+                 "mouse puts it); 'board-sim' (the same simulated SPIDAR-G behind the controller "
+                 "board's firmware simulator, driven by the USB driver byte for byte, no "
+                 "hardware; the panel can unplug it); 'usb' (a real controller board over libusb: "
+                 "your hand moves the grip, the mouse does not; without a board the window runs "
+                 "at zero force, says 'not connected' and retries every 0.2 s: see `spidarcad "
+                 "device list` and assets/udev/99-spidarcad.rules)")
+      ->check(CLI::Validator(
+          [](std::string& name) -> std::string {
+            RuntimeDevice device;
+            if (ParseRuntimeDevice(name, &device)) return {};
+            return "'" + name + "' is not a device; use simulated, ideal, board-sim or usb";
+          },
+          "DEVICE"));
+  app.add_option_function<std::string>(
+         "--size",
+         [options](const std::string& s) { ParseWindowSize(s, &options->width, &options->height); },
+         "Window size WxH in pixels (default 1280x800)")
+      ->type_name("WxH");
+  app.add_option_function<std::string>(
+         "--grip", [options](const std::string& s) { ParseGripPose(s, &options->grip); },
+         "Starting hand pose in the device frame: x,y,z[,roll,pitch,yaw[,grasp]] "
+         "(mm and degrees; grasp 20..160, default 90)")
+      ->type_name("X,Y,Z[,R,P,Y[,G]]");
+}
+
+}  // namespace spidarcad::app
