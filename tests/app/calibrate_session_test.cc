@@ -29,8 +29,8 @@ TEST(HardCalibrateSession, BoardSimSessionReachesTwoTenthsOfAMillimetre) {
   const CommandRun run = RunSpidarcad("calibrate --device board-sim --seed 2 --json --out " + out);
   ASSERT_EQ(run.status, 0) << run.all();
   // Progress on stderr: useful poses collected / needed, and the octants that need more.
-  EXPECT_THAT(run.err, HasSubstr("/100 useful poses; more needed in octants"));
-  EXPECT_THAT(run.err, HasSubstr("100/100 useful poses; every octant covered"));
+  EXPECT_THAT(run.err, HasSubstr("/200 useful poses; more needed in octants"));
+  EXPECT_THAT(run.err, HasSubstr("200/200 useful poses; every octant covered"));
   const nlohmann::json j = nlohmann::json::parse(run.out);
   const double before = j["uncalibrated"]["position_mm"]["max"].get<double>();
   const double after = j["self"]["position_mm"]["max"].get<double>();

@@ -101,7 +101,7 @@ struct CalibrateOptions {
   bool simulated = false;
   std::string device;  // "" (use --simulated), board-sim, usb
   std::uint64_t seed = 1;
-  int poses = 100;
+  int poses = -1;  // -1: 100 (--simulated) or 200 (--device)
   int eval_poses = 200;
   std::string method = "both";
   std::string out;
@@ -191,7 +191,7 @@ nlohmann::json TableJson(const std::vector<Row>& rows) {
 }
 
 void CheckCounts(const CalibrateOptions& options) {
-  if (options.poses < 1) {
+  if (options.poses != -1 && options.poses < 1) {
     throw InputError("--poses: must be at least 1, got " + std::to_string(options.poses));
   }
   if (options.eval_poses < 1) {
@@ -201,8 +201,10 @@ void CheckCounts(const CalibrateOptions& options) {
 
 // --simulated: line fit and self-calibration on the simulated SPIDAR-G, judged against its
 // hidden truth.
-void RunSimulatedStudy(const CalibrateOptions& options) {
-  CheckCounts(options);
+void RunSimulatedStudy(const CalibrateOptions& given) {
+  CheckCounts(given);
+  CalibrateOptions options = given;
+  if (options.poses == -1) options.poses = 100;
   ValidateGeometry(options.geometry);
   haptics::SimulatedDeviceConfig config;
   config.seed = options.seed;
@@ -352,7 +354,8 @@ void RunCalibrate(const CalibrateOptions& options) {
     session.device = options.device;
     session.seed = options.seed;
     session.geometry = options.geometry;
-    session.poses = options.poses;
+    CheckCounts(options);
+    session.poses = options.poses == -1 ? 200 : options.poses;
     session.out = options.out;
     session.json = options.json;
     session.max_seconds = options.timeout;
@@ -384,7 +387,7 @@ void RegisterCalibrateCommand(CLI::App& app) {
                   "Seed of the simulated device's imperfections and noise (default 1)");
   cmd->add_option("--poses", options->poses,
                   "Calibration poses: --simulated: the number used (default 100); --device: "
-                  "the useful poses to collect (default 100)");
+                  "the useful poses to collect (default 200)");
   cmd->add_option("--eval-poses", options->eval_poses,
                   "Number of evaluation poses (--simulated; default 200)");
   cmd->add_option("--method", options->method, "line, self or both (--simulated; default both)")

@@ -17,7 +17,7 @@ struct CalibrationSessionOptions {
   std::string device = "board-sim";  // board-sim or usb
   std::uint64_t seed = 1;            // board-sim: the simulated device's seed
   haptics::SpidarGeometry geometry;  // the device's frame and pole, m
-  int poses = 100;                   // useful poses to collect
+  int poses = 200;                   // useful poses to collect
   std::string out;                   // calibration file to write ("" for none)
   bool json = false;                 // the table as JSON on stdout
   double max_seconds = 0.0;          // give up after this long; 0: 180 s (board-sim, virtual
