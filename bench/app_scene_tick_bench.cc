@@ -2,8 +2,9 @@
 // Tick time per scene type: the compute time of HapticLoop::Step (calibration, FK, the scene's
 // force fields, safety, tension solve) on the simulated SPIDAR-G gripped by the simulated hand,
 // as in `spidarcad run`, over N ticks (default 20 000; the trajectory repeats). Prints p50,
-// p99, p99.9 and max per scene as a markdown table for the README.
-//   build/bench/app_scene_tick_bench [ticks]
+// p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in
+// app/src/cli/report_tick.cc (shared with `spidarcad report`, section "tick").
+//   build/bench/app_scene_tick_bench [--ticks N]     (--help: what it measures)
 // Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two
 // ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point shell
 // against the union of both solids, twist against the wall); FE contact (platform.json meshed
@@ -16,391 +17,103 @@
 // identity, the device calibrated at start-up as the window does, the hand following
 // assets/trajectories/seat_right_leg.csv: grasp, carry, seat the right leg; one row over every
 // tick, one over the ticks while a part is carried).
-#include <algorithm>
-#include <array>
-#include <chrono>
-#include <cmath>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
-#include <functional>
-#include <memory>
-#include <numbers>
+#include <cstring>
 #include <string>
-#include <ctime>
 #include <vector>
 
-#include "cli/scene_solid.h"
-#include "runtime/assembly_scene.h"
-#include "runtime/device_rig.h"
-#include "runtime/fe_model.h"
-#include "runtime/fe_touch_field.h"
-#include "runtime/scene_haptics.h"
-#include "runtime/sculpt_field.h"
-#include "spidarcad/haptics/haptic_loop.h"
-#include "spidarcad/haptics/kinematics.h"
-#include "spidarcad/haptics/simulated_device.h"
-#include "spidarcad/haptics/simulated_hand.h"
-#include "spidarcad/haptics/trajectory.h"
-#include "spidarcad/modeling/scene_io.h"
-#include "spidarcad/modeling/surface_mesher.h"
-#include "bench_paths.h"
+#include "cli/report_tick.h"
 
 namespace {
 
-namespace haptics = spidarcad::haptics;
-namespace app = spidarcad::app;
-namespace fem = spidarcad::fem;
+// What this program measures (its --help).
+constexpr const char* kDescription =
+    "Tick time per scene type: the compute time of HapticLoop::Step (calibration, FK, the scene's\n"
+    "force fields, safety, tension solve) on the simulated SPIDAR-G gripped by the simulated "
+    "hand,\n"
+    "as in `spidarcad run`, over N ticks (default 20 000; the trajectory repeats). Prints p50,\n"
+    "p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in\n"
+    "app/src/cli/report_tick.cc (shared with `spidarcad report`, section \"tick\").\n"
+    "  build/bench/app_scene_tick_bench [--ticks N]     (--help: what it measures)\n"
+    "Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two\n"
+    "ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point "
+    "shell\n"
+    "against the union of both solids, twist against the wall); FE contact (platform.json meshed\n"
+    "at 12 mm, FeTouchField on the steel part, the hand driving the tool sphere into the plate;\n"
+    "one row over every tick, one over the ticks where the field holds k = 16 contact nodes, and\n"
+    "the k reached is printed; see MeasureFe); sculpt (assets/scenes/clay.json meshed at 3 mm,\n"
+    "SculptToolField during a grab stroke the closed grip drags up and down; the main-thread "
+    "stroke\n"
+    "update, SculptSession::Step, runs every 16th tick outside the timing, as the window does at\n"
+    "60 Hz); assembly (assets/scenes/assembly.json, the AssemblyField of the toy robot, X_WD\n"
+    "identity, the device calibrated at start-up as the window does, the hand following\n"
+    "assets/trajectories/seat_right_leg.csv: grasp, carry, seat the right leg; one row over every\n"
+    "tick, one over the ticks while a part is carried).\n"
+    "\n"
+    "Options:\n"
+    "  --ticks N   ticks per scene, N >= 1000 (default 20000; the assembly trajectory is 18400\n"
+    "              ticks long: with fewer the part is never carried to its seat)\n"
+    "  --help      this text\n"
+    "This program is not a Google Benchmark: --benchmark_* flags are not taken.";
 
-std::string AssetDir() { return spidarcad::bench::RepoPath("assets/"); }
-
-struct Row {
-  std::string name;
-  double p50 = 0, p99 = 0, p999 = 0, max = 0, mean = 0;
-  double cpu_p50 = 0, cpu_p99 = 0, cpu_p999 = 0, cpu_max = 0;
-  std::string note;  // scene-specific figures (FE: contact nodes reached)
-  std::vector<double> us, cpu;  // the samples, per tick (wall clock, thread CPU), µs
-};
-
-// Called after each tick with its index and outputs, outside the timed region (main-thread
-// work such as the sculpt session's stroke update).
-using AfterTick = std::function<void(long, const haptics::TickOutputs&)>;
-
-// CPU time of the calling thread, µs (not advanced while the thread is preempted).
-double ThreadCpuMicros() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e6 + ts.tv_nsec * 1e-3;
-}
-
-double Quantile(std::vector<double> v, double p) {
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(std::ceil(p * v.size())) - 1);
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
-
-// Percentiles of per-tick samples (wall clock `us`, thread CPU `cpu`, µs; same length, not empty).
-Row Summarize(const std::string& name, const std::vector<double>& us, const std::vector<double>& cpu) {
-  Row row;
-  row.name = name;
-  row.p50 = Quantile(us, 0.5);
-  row.p99 = Quantile(us, 0.99);
-  row.p999 = Quantile(us, 0.999);
-  row.max = *std::max_element(us.begin(), us.end());
-  row.cpu_p50 = Quantile(cpu, 0.5);
-  row.cpu_p99 = Quantile(cpu, 0.99);
-  row.cpu_p999 = Quantile(cpu, 0.999);
-  row.cpu_max = *std::max_element(cpu.begin(), cpu.end());
-  double sum = 0;
-  for (double v : us) sum += v;
-  row.mean = sum / us.size();
-  row.us = us;
-  row.cpu = cpu;
-  return row;
-}
-
-Row Measure(const std::string& name, std::unique_ptr<haptics::HapticScene> scene,
-            const haptics::LoopSettings& loop_settings, const haptics::Trajectory& trajectory,
-            long ticks, const AfterTick& after_tick = {},
-            const haptics::HandSettings& hand_settings = {}, bool calibrate = false) {
-  haptics::SimulatedDeviceConfig config;
-  config.seed = 1;
-  haptics::SimulatedSpidarG device(config);
-  const haptics::DeviceInfo& info = device.info();
-  haptics::EncoderCalibration calibration = haptics::EncoderCalibration::Nominal(
-      info.encoder, haptics::InverseKinematics(info.geometry, info.home_pose));
-  if (calibrate) {  // as the window: the line fit at start-up, then the grip back at the hand
-    const app::SimulatedCalibration fit = app::CalibrateSimulated(&device);
-    if (fit.ok) calibration = fit.calibration;
-  }
-  haptics::HapticLoop loop(info, calibration, loop_settings);
-  loop.Publish(std::move(scene));
-  const double dt = 1e-3, t0 = trajectory.start_time();
-  const double duration = trajectory.end_time() - t0;
-  haptics::SimulatedHand hand(hand_settings, trajectory.Sample(t0), info.geometry.d);
-  device.SetTruePose(hand.pose());
-  std::vector<double> us, cpu;
-  us.reserve(ticks);
-  cpu.reserve(ticks);
-  for (long k = 0; k < ticks; ++k) {
-    const double t = t0 + std::fmod(k * dt, duration);
-    hand.Step(trajectory.Sample(t), device.TrueWrench(), dt);
-    device.SetTruePose(hand.pose());
-    device.Step(dt);
-    haptics::TickInputs inputs;
-    device.Read(&inputs.reading);
-    const double cpu_start = ThreadCpuMicros();
-    const auto start = std::chrono::steady_clock::now();
-    const haptics::TickOutputs out = loop.Step(inputs, dt);
-    const auto stop = std::chrono::steady_clock::now();
-    cpu.push_back(ThreadCpuMicros() - cpu_start);
-    device.WriteTensions(out.tau);
-    if (after_tick) after_tick(k, out);
-    us.push_back(std::chrono::duration<double, std::micro>(stop - start).count());
-  }
-  return Summarize(name, us, cpu);
-}
-
-haptics::LoopSettings BaseSettings() {
-  haptics::LoopSettings s;
-  s.fk.max_residual = 5e-3;  // as `spidarcad run`: nominal calibration
-  return s;
-}
-
-Row MeasureScene(const std::string& name, app::ToolModel tool, const Eigen::Vector3d& p_WDo,
-                 const std::string& trajectory_file, long ticks) {
-  const spidarcad::modeling::Scene scene =
-      spidarcad::modeling::LoadScene(AssetDir() + "scenes/platform.json");
-  app::SceneHapticsOptions options;
-  options.tool = tool;
-  options.world_scale = 1.0;
-  options.p_WDo = p_WDo;
-  app::SceneHaptics built = app::BuildHapticScene(scene, options);
-  haptics::LoopSettings settings = BaseSettings();
-  built.ApplyTo(&settings);
-  return Measure(name, std::move(built.scene), settings,
-                 haptics::Trajectory::Load(AssetDir() + trajectory_file), ticks);
-}
-
-// Lowers the grip from `above` to `press` over 0.5 s (cosine blend), then holds it there until
-// `duration`; grasp angle `grasp` throughout (rad). Device frame.
-haptics::Trajectory LowerAndHold(const Eigen::Vector3d& above, const Eigen::Vector3d& press,
-                                 double grasp, double duration) {
-  haptics::Trajectory trajectory;
-  for (int i = 0; i <= 50; ++i) {
-    haptics::TrajectorySample s;
-    s.t = 0.01 * i;
-    s.p_DT = above + (press - above) * 0.5 * (1.0 - std::cos(std::numbers::pi * i / 50.0));
-    s.grasp = grasp;
-    trajectory.Add(s);
-  }
-  haptics::TrajectorySample hold;
-  hold.t = std::max(duration, 0.6);
-  hold.p_DT = press;
-  hold.grasp = grasp;
-  trajectory.Add(hold);
-  return trajectory;
-}
-
-// FE contact: the steel platform (12 mm grid, 12.5k linear tets, clamped at the wall) as an
-// FeTouchField: tool sphere of 3 mean edges (23 mm), at most 16 contact nodes, felt force scale
-// 2e-5, at most 8 N. X_WD: s = 1, p_WDo = (0.1, 0, 0). The hand (default: 300 N/m) lowers the
-// grip from 40 mm above onto an aim with the sphere's centre 3 mm below the plate's underside at
-// W (0.1, 0.01): the sphere takes in the plate's whole thickness. That is what it takes to load
-// 16 nodes: a sphere resting on the plate holds 2 to 5 (the plate bends away and the solve
-// releases the rest). The note line gives how often the contact set changed and the mean felt
-// force. The columns around the aim are computed before the run. Rows: every tick, and the ticks with k = 16.
-std::vector<Row> MeasureFe(long ticks) {
-  fem::TetMesh mesh = app::MeshSceneSolidForFe(app::PlatformScenePath(), "platform", 0.012);
-  app::FeModelSettings model_settings;
-  model_settings.use_disk_cache = false;
-  std::shared_ptr<app::FeModel> model = app::FeModel::Build(std::move(mesh), model_settings);
-  app::FeTouchSettings ts;
-  ts.tool_radius = 3.0 * model->mean_edge_length();
-  ts.max_contacts = 16;
-  ts.force_scale = 2e-5;
-  ts.max_force = 8.0;
-  auto field = std::make_unique<app::FeTouchField>(model, ts, nullptr);
-  app::FeTouchField* fe = field.get();
-  const Eigen::Vector3d press_W(0.1, 0.01, -0.003);
-  const Eigen::Vector3d p_WDo(press_W.x(), 0.0, 0.0);
-  haptics::ToolKinematics focus;
-  focus.p_WT = press_W;
-  fe->Evaluate(focus);  // sets the column focus
-  model->cache().Start();
-  model->cache().WaitUntilIdle(300.0);
-  auto scene = std::make_unique<haptics::HapticScene>();
-  scene->Add(std::move(field));
-  haptics::LoopSettings settings = BaseSettings();
-  settings.p_WDo = p_WDo;
-  const Eigen::Vector3d press_D = press_W - p_WDo;
-  std::vector<int> k_of_tick;
-  k_of_tick.reserve(ticks);
-  double felt_sum = 0.0;  // felt force magnitude, N (force_scale · FE force, clamped)
-  long changes = 0;       // ticks whose contact set differs from the previous tick's
-  std::array<int, app::kMaxFeContacts> previous{};
-  int previous_k = 0;
-  Row row = Measure(
-      "FE contact (platform, k ≤ 16, every tick)", std::move(scene), settings,
-      LowerAndHold(press_D + Eigen::Vector3d(0, 0, 0.04), press_D, std::numbers::pi / 2, 30.0), ticks,
-      [&](long, const haptics::TickOutputs&) {
-        const app::FeContactState& st = fe->last_state();
-        k_of_tick.push_back(st.num_contacts);
-        felt_sum += std::min(ts.max_force, ts.force_scale * st.f_tool_W.norm());
-        bool same = st.num_contacts == previous_k;
-        for (int i = 0; same && i < st.num_contacts; ++i) same = st.candidate[i] == previous[i];
-        changes += !same;
-        previous = st.candidate;
-        previous_k = st.num_contacts;
-      });
-  model->cache().Stop();
-  long in_contact = 0, k_sum = 0, at_16 = 0;
-  std::vector<double> us16, cpu16;
-  for (std::size_t i = 0; i < k_of_tick.size(); ++i) {
-    const int k = k_of_tick[i];
-    in_contact += k > 0;
-    k_sum += k;
-    if (k >= 16) {
-      ++at_16;
-      us16.push_back(row.us[i]);
-      cpu16.push_back(row.cpu[i]);
-    }
-  }
-  char note[320];
-  std::snprintf(note, sizeof(note),
-                "FE: %d tets, tool radius %.1f mm; k > 0 in %.1f %% of ticks, k = 16 in %.1f %% (%ld ticks), "
-                "mean k %.1f; contact set changed in %.1f %% of ticks; mean felt force %.2f N",
-                model->mesh().num_elements(), 1e3 * ts.tool_radius, 100.0 * in_contact / ticks,
-                100.0 * at_16 / ticks, at_16, static_cast<double>(k_sum) / ticks, 100.0 * changes / ticks,
-                felt_sum / ticks);
-  row.note = note;
-  std::vector<Row> rows{row};
-  if (!us16.empty()) rows.push_back(Summarize("FE contact (platform, the ticks with k = 16)", us16, cpu16));
-  return rows;
-}
-
-// Sculpt: assets/scenes/clay.json meshed at 3 mm as the clay of a SculptSession; X_WD identity.
-// The grip starts just above the clay's top with the grasp closed (40°, below the 70° stroke
-// trigger), so the first session step begins a grab stroke; the grip then moves up 15 mm and
-// back every 2 s, dragging the clay. The session steps every 16 ticks (outside the timing).
-Row MeasureSculpt(long ticks) {
-  const app::SceneSolidGrid grid = app::PrepareSceneSolid(AssetDir() + "scenes/clay.json", "", 0.003);
-  spidarcad::modeling::SurfaceMeshSettings mesh_settings;
-  mesh_settings.bounds = grid.bounds;
-  mesh_settings.cell_size = grid.cell;
-  app::SculptSession session;
-  session.SetMesh(spidarcad::modeling::MeshSurface(grid.compiled, mesh_settings));
-  const double grasp = 40.0 * std::numbers::pi / 180.0;
-  const Eigen::Vector3d top(0.0, 0.0, 0.062);
-  haptics::Trajectory trajectory;
-  for (int i = 0; i <= 200; ++i) {
-    haptics::TrajectorySample s;
-    s.t = 0.01 * i;
-    s.p_DT = top + Eigen::Vector3d(0, 0, 0.0075 * (1.0 - std::cos(std::numbers::pi * i / 100.0)));
-    s.grasp = grasp;
-    trajectory.Add(s);
-  }
-  auto scene = std::make_unique<haptics::HapticScene>();
-  scene->Add(session.MakeField());
-  long stroke_ticks = 0, strokes = 0;
-  Row row = Measure("sculpt (clay.json, grab stroke)", std::move(scene), BaseSettings(), trajectory,
-                    ticks, [&](long k, const haptics::TickOutputs& out) {
-                      if (k % 16 == 0 && out.fk_status == haptics::FkStatus::kOk) {
-                        if (session.Step(out.tool_W, false) == app::SculptFrameEvent::kBegan) ++strokes;
-                      }
-                      stroke_ticks += session.stroke_active();
-                    });
-  char note[200];
-  std::snprintf(note, sizeof(note), "sculpt: %d clay vertices; stroke active in %.1f %% of ticks (%ld stroke%s)",
-                session.mesh()->vertex_count(), 100.0 * stroke_ticks / ticks, strokes,
-                strokes == 1 ? "" : "s");
-  row.note = note;
-  return row;
-}
-
-// Forwards to a field and keeps the thread CPU time of each Evaluate (µs; reserved up front).
-class TimedField final : public haptics::ForceField {
- public:
-  TimedField(std::unique_ptr<haptics::ForceField> field, long ticks) : field_(std::move(field)) {
-    cpu_.reserve(ticks);
-  }
-  haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override {
-    const double start = ThreadCpuMicros();
-    const haptics::ToolWrench w = field_->Evaluate(tool);
-    if (cpu_.size() < cpu_.capacity()) cpu_.push_back(ThreadCpuMicros() - start);
-    return w;
-  }
-  const char* name() const noexcept override { return field_->name(); }
-  const std::vector<double>& cpu() const { return cpu_; }
-
- private:
-  std::unique_ptr<haptics::ForceField> field_;
-  std::vector<double> cpu_;
-};
-
-// Assembly: the toy robot's AssemblyField (X_WD identity), the device calibrated as the window
-// does, the hand following seat_right_leg.csv once (ticks beyond its length repeat it, each
-// repeat finding the leg where the previous one left it). Rows: every tick, the carrying ticks.
-std::vector<Row> MeasureAssembly(long ticks) {
-  const spidarcad::modeling::Scene scene = spidarcad::modeling::LoadScene(AssetDir() + "scenes/assembly.json");
-  std::unique_ptr<haptics::AssemblyField> field = app::BuildAssemblyField(scene);
-  haptics::AssemblyField* assembly = field.get();
-  auto timed = std::make_unique<TimedField>(std::move(field), ticks);
-  TimedField* timer = timed.get();
-  auto haptic_scene = std::make_unique<haptics::HapticScene>();
-  haptic_scene->Add(std::move(timed));
-  std::vector<char> carrying;
-  std::vector<double> field_cpu;  // copied out while the field lives
-  field_cpu.reserve(ticks);
-  carrying.reserve(ticks);
-  long seated = 0;
-  const int parts = assembly->size();
-  Row row = Measure("assembly (assembly.json, seat the right leg, every tick)", std::move(haptic_scene),
-                    BaseSettings(), haptics::Trajectory::Load(AssetDir() + "trajectories/seat_right_leg.csv"),
-                    ticks,
-                    [&](long, const haptics::TickOutputs&) {
-                      carrying.push_back(assembly->carried() >= 0);
-                      if (!timer->cpu().empty()) field_cpu.push_back(timer->cpu().back());
-                      seated = 0;  // the field dies with the loop: count while it lives
-                      for (int i = 0; i < assembly->size(); ++i) seated += assembly->seated(i);
-                    },
-                    {}, /*calibrate=*/true);
-  std::vector<double> us, cpu;
-  for (std::size_t i = 0; i < carrying.size(); ++i) {
-    if (carrying[i]) {
-      us.push_back(row.us[i]);
-      cpu.push_back(row.cpu[i]);
-    }
-  }
-  std::vector<double> field_carrying;
-  for (std::size_t i = 0; i < carrying.size() && i < field_cpu.size(); ++i) {
-    if (carrying[i]) field_carrying.push_back(field_cpu[i]);
-  }
-  char note[400];
-  std::snprintf(note, sizeof(note),
-                "assembly: a part carried in %.1f %% of ticks; %ld of %d parts seated at the end; "
-                "AssemblyField::Evaluate alone (thread CPU) while carrying: p50 %.1f, p99 %.1f, p99.9 %.1f µs",
-                100.0 * us.size() / ticks, seated, parts,
-                field_carrying.empty() ? 0.0 : Quantile(field_carrying, 0.5),
-                field_carrying.empty() ? 0.0 : Quantile(field_carrying, 0.99),
-                field_carrying.empty() ? 0.0 : Quantile(field_carrying, 0.999));
-  row.note = note;
-  std::vector<Row> rows{row};
-  if (!us.empty()) rows.push_back(Summarize("assembly (the ticks carrying a part)", us, cpu));
-  return rows;
+// Parses a tick count (an integer >= 1000); false when `text` is not one.
+bool ParseTicks(const char* text, long* ticks) {
+  errno = 0;
+  char* end = nullptr;
+  const long value = std::strtol(text, &end, 10);
+  if (errno != 0 || end == text || *end != '\0' || value < 1000) return false;
+  *ticks = value;
+  return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const long ticks = argc > 1 ? std::max(1000L, std::atol(argv[1])) : 20000L;
-  std::vector<Row> rows;
-  const haptics::Trajectory press = haptics::Trajectory::Load(AssetDir() + "trajectories/press.csv");
-  rows.push_back(Measure("empty", std::make_unique<haptics::HapticScene>(), BaseSettings(), press,
-                         ticks));
-  rows.push_back(Measure("demo (plane wall + spring)", haptics::MakeDemoScene(), BaseSettings(),
-                         press, ticks));
-  rows.push_back(MeasureScene("implicit proxy (platform.json, 2 solids, press)", app::ToolModel::kProxy,
-                              Eigen::Vector3d(0.1, 0, 0.04), "trajectories/press.csv", ticks));
-  rows.push_back(MeasureScene("six-DOF shell tool (platform.json, 196 points, twist)",
-                              app::ToolModel::kShell, Eigen::Vector3d(0.043, 0.2, -0.1),
-                              "trajectories/twist.csv", ticks));
-  for (Row& r : MeasureFe(ticks)) rows.push_back(std::move(r));
-  rows.push_back(MeasureSculpt(ticks));
-  for (Row& r : MeasureAssembly(ticks)) rows.push_back(std::move(r));
-  std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n\n", ticks);
-  std::printf("| scene | p50 µs | p99 µs | p99.9 µs | max µs | mean µs |\n|---|---|---|---|---|---|\n");
-  for (const Row& r : rows) {
+  long ticks = 20000;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::printf("%s\n", kDescription);
+      return 0;
+    }
+    const char* value = nullptr;
+    if (arg == "--ticks" && i + 1 < argc) {
+      value = argv[++i];
+    } else if (arg.rfind("--ticks=", 0) == 0) {
+      value = argv[i] + 8;
+    }
+    if (value != nullptr) {
+      if (!ParseTicks(value, &ticks)) {
+        std::fprintf(stderr, "%s: --ticks: '%s' is not an integer >= 1000\n", argv[0], value);
+        return 2;
+      }
+      continue;
+    }
+    std::fprintf(stderr, "%s: unknown argument '%s' (this program takes --ticks N and --help)\n",
+                 argv[0], argv[i]);
+    return 2;
+  }
+  const std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(ticks);
+  std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n\n",
+              ticks);
+  std::printf(
+      "| scene | p50 µs | p99 µs | p99.9 µs | max µs | mean µs |\n|---|---|---|---|---|---|\n");
+  for (const auto& r : rows) {
     std::printf("| %s | %.1f | %.1f | %.1f | %.1f | %.1f |\n", r.name.c_str(), r.p50, r.p99, r.p999,
                 r.max, r.mean);
   }
-  std::printf("\nThe same ticks in thread CPU time (CLOCK_THREAD_CPUTIME_ID: preemption by other "
-              "processes excluded)\n\n| scene | p50 µs | p99 µs | p99.9 µs | max µs |\n|---|---|---|---|---|\n");
-  for (const Row& r : rows) {
+  std::printf(
+      "\nThe same ticks in thread CPU time (CLOCK_THREAD_CPUTIME_ID: preemption by other "
+      "processes excluded)\n\n| scene | p50 µs | p99 µs | p99.9 µs | max µs "
+      "|\n|---|---|---|---|---|\n");
+  for (const auto& r : rows) {
     std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", r.name.c_str(), r.cpu_p50, r.cpu_p99,
                 r.cpu_p999, r.cpu_max);
   }
   std::printf("\n");
-  for (const Row& r : rows) {
+  for (const auto& r : rows) {
     if (!r.note.empty()) std::printf("%s\n", r.note.c_str());
   }
   return 0;

@@ -1,6 +1,7 @@
 // Speed of the sensing path: the per-tick count -> length conversion and simulated device
 // step (haptic thread), and the calibrations (off-line).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "bench_cli.h"
 #include <benchmark/benchmark.h>
 
 #include "spidarcad/haptics/calibration.h"
@@ -115,4 +116,11 @@ BENCHMARK(BM_SelfCalibrationAccuracy)
 }  // namespace
 }  // namespace spidarcad::haptics
 
-BENCHMARK_MAIN();
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "Speed of the sensing path: the per-tick count -> length conversion and simulated device\n"
+    "step (haptic thread), and the calibrations (off-line).";
+
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription);
+}

@@ -21,6 +21,7 @@
 // After the run, markdown tables of the figures are printed (speed against error; column
 // cache; fallback error) for the README.
 // Run e.g.: build/bench/fem_bench --benchmark_filter='Precompute|/1/12/' (see README).
+#include "bench_cli.h"
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -557,11 +558,35 @@ BENCHMARK(BM_FallbackError)->Args({1, 4})->Args({1, 12})->Args({2, 4})->Iteratio
 }  // namespace
 }  // namespace spidarcad::fem
 
-int main(int argc, char** argv) {
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "FE benchmarks on a cantilever (L = 1 m, 0.1 m × 0.1 m section, clamped at x = 0, 1 kN tip\n"
+    "shear) meshed with 10r × r × r cells, six tetrahedra each, linear or quadratic:\n"
+    "  BM_Precompute/order/r      assembly + CHOLMOD factorisation time and memory, compliance\n"
+    "                             column time, tip deflection against Timoshenko.\n"
+    "  BM_ContactTick/order/r/k   one haptic tick: contact forces for k pushed nodes.\n"
+    "  BM_ContactTickUpdate/...   one node leaves and re-enters contact (incremental factor\n"
+    "                             update) plus the solve.\n"
+    "  BM_SurfaceDisplacement/... displacement of every surface node by superposition (display).\n"
+    "  BM_FullSparseSolve/...     the same contact problem as a full sparse solve per tick\n"
+    "                             (re-factor with the contact nodes prescribed, then solve), and\n"
+    "                             the lower bound of one back-substitution with a kept factor.\n"
+    "  BM_ColumnCacheWorker/order/r/float   lazy columns: the background worker computes the\n"
+    "                             columns of the top-face nodes near the tip; columns per second,\n"
+    "                             memory per node, and what the whole surface would take.\n"
+    "  BM_CachedContactTick/order/r/k       the tick on lazy columns (CachedContactSolver).\n"
+    "  BM_FallbackError/order/r   force error of a single push when the column of a node 1..4\n"
+    "                             cells away stands in for the pushed node's.\n"
+    "  BM_FloatError/order/r      contact force error of float columns against double, k = 16.\n"
+    "After the run, markdown tables of the figures are printed (speed against error; column\n"
+    "cache; fallback error) for the README.\n"
+    "Run e.g.: build/bench/fem_bench --benchmark_filter='Precompute|/1/12/' (see README).";
+
+// Tables printed after the benchmarks.
+void PrintAfterRun() {
   spidarcad::fem::PrintTables();
-  return 0;
+}
+
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, nullptr, PrintAfterRun);
 }

@@ -6,6 +6,7 @@
 //
 // Run: build/bench/fk_bench   (add --benchmark_filter=... to pick cases)
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "bench_cli.h"
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -251,11 +252,17 @@ void RegisterAll() {
 
 }  // namespace
 
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "Speed and accuracy of SPIDAR-G kinematics: closed form alone, refined from a cold start,\n"
+    "refined from a warm start during motion, and inverse kinematics, on exact, quantized and\n"
+    "noisy string lengths. Besides time per call, each benchmark reports (as counters) the\n"
+    "position error of p0 in mm and the rotation error of R_DT in degrees against the true pose,\n"
+    "mean and max over its data set, the mean Gauss-Newton iterations and the fraction solved.\n"
+    "\n"
+    "Run: build/bench/fk_bench   (add --benchmark_filter=... to pick cases)";
+
 int main(int argc, char** argv) {
   RegisterAll();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription);
 }

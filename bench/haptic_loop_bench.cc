@@ -4,6 +4,7 @@
 // time percentiles p50/p99/p99.9/max (µs) from a per-tick histogram.
 // Run: build/bench/haptic_loop_bench
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "bench_cli.h"
 #include <chrono>
 #include <cmath>
 #include <vector>
@@ -73,4 +74,14 @@ BENCHMARK(BM_TickWallScene)->Iterations(60000)->Unit(benchmark::kMicrosecond);
 }  // namespace
 }  // namespace spidarcad::haptics
 
-BENCHMARK_MAIN();
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "Tick time of the haptic loop (HapticLoop::Step: calibration, FK, force fields, safety,\n"
+    "tension solve) on readings of the simulated SPIDAR-G along a moving grip path, for the empty\n"
+    "scene and the demo wall scene. Besides Google Benchmark's mean, each run reports the tick\n"
+    "time percentiles p50/p99/p99.9/max (µs) from a per-tick histogram.\n"
+    "Run: build/bench/haptic_loop_bench";
+
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription);
+}

@@ -2,6 +2,7 @@
 // per-tick cost), batch throughput, interval bounds per box, octree culling, and the platform
 // scene. Run from anywhere: build-dir/bench/implicit_bench (bench_paths.h finds the scene).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "bench_cli.h"
 #include <cmath>
 #include <memory>
 #include <random>
@@ -334,4 +335,12 @@ BENCHMARK(BM_PlatformCellsValueAndGradient)->Arg(200)->Arg(100)->Arg(50);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "Speed of the compiled implicit evaluator: point queries with gradient (the haptic proxy's\n"
+    "per-tick cost), batch throughput, interval bounds per box, octree culling, and the platform\n"
+    "scene. Run from anywhere: build-dir/bench/implicit_bench (bench_paths.h finds the scene).";
+
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription);
+}

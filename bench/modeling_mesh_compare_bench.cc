@@ -8,8 +8,8 @@
 // rms of |f| sampled on the tet mesh's boundary: vertices, edge midpoints, centroids) and the
 // volume (relative error against the closed form where there is one). One run each; a failure
 // is printed in its row. Whole run: about a minute on the 2-core machine. Run:
-//   build-dir/bench/modeling_mesh_compare_bench [--quick]
-// (--quick: the coarsest size only.)
+//   build-dir/bench/modeling_mesh_compare_bench [--quick]   (--help: what it measures)
+// (--quick: the coarsest size only.) Any other argument is an error (exit status 2).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <chrono>
 #include <cmath>
@@ -86,10 +86,42 @@ void Print(const Case& c, double h, const char* path, const Row& r) {
   std::fflush(stdout);
 }
 
+// What this program measures (its --help).
+constexpr const char* kDescription =
+    "TetGen path vs CGAL path on the same solids, printed as a markdown table for the README:\n"
+    "  TetGen: MeshSurface (marching tetrahedra, cell h) + TetrahedralizeSurface (q = 2),\n"
+    "  CGAL:   MeshImplicitWithCgal (Mesh_3 from the function, CgalMeshSettings::ForSize(h),\n"
+    "          radius-edge 2, perturb + exude).\n"
+    "Solids: a sphere (r 50 mm), a box with a hole (100 x 60 x 40 mm minus a 12 mm radius bore:\n"
+    "sharp edges) and the platform of assets/scenes/platform.json, each at three sizes h. Columns:\n"
+    "CPU and wall time, nodes, tets, worst (smallest and largest) dihedral angle, surface error (max and\n"
+    "rms of |f| sampled on the tet mesh's boundary: vertices, edge midpoints, centroids) and the\n"
+    "volume (relative error against the closed form where there is one). One run each; a failure\n"
+    "is printed in its row. Whole run: about a minute on the 2-core machine. Run:\n"
+    "  build-dir/bench/modeling_mesh_compare_bench [--quick]   (--help: what it measures)\n"
+    "(--quick: the coarsest size only.) Any other argument is an error (exit status 2).\n"
+    "\n"
+    "Options:\n"
+    "  --quick   the coarsest size of each solid only\n"
+    "  --help    this text\n"
+    "This program is not a Google Benchmark: --benchmark_* flags are not taken.";
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  const bool quick = argc > 1 && std::strcmp(argv[1], "--quick") == 0;
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
+      std::printf("%s\n", kDescription);
+      return 0;
+    }
+    if (std::strcmp(argv[i], "--quick") == 0) {
+      quick = true;
+      continue;
+    }
+    std::fprintf(stderr, "%s: unknown argument '%s' (this program takes --quick and --help)\n", argv[0], argv[i]);
+    return 2;
+  }
   std::vector<Case> cases;
   {
     const double r = 0.05;

@@ -3,6 +3,7 @@
 //   build-*/bench/tension_bench                 # report + all benchmarks
 //   build-*/bench/tension_bench --benchmark_filter=Solve
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "bench_cli.h"
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -222,11 +223,13 @@ void PrintWeightReport() {
 }  // namespace
 }  // namespace spidarcad::haptics
 
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "Tension distribution and workspace LP timings, and the achieved-wrench error of the default\n"
+    "weights (S0 = S1 = 1/d²) against weights of order 1.\n"
+    "  build-*/bench/tension_bench                 # report + all benchmarks\n"
+    "  build-*/bench/tension_bench --benchmark_filter=Solve";
+
 int main(int argc, char** argv) {
-  spidarcad::haptics::PrintWeightReport();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, spidarcad::haptics::PrintWeightReport);
 }

@@ -1,5 +1,6 @@
 // Benchmarks of the USB protocol and the driver round trip through the board simulator.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "bench_cli.h"
 #include <benchmark/benchmark.h>
 
 #include <memory>
@@ -85,4 +86,10 @@ static void BM_SimulatedDeviceStepOnly(benchmark::State& st) {
 }
 BENCHMARK(BM_SimulatedDeviceStepOnly);
 
-BENCHMARK_MAIN();
+// What this program measures (its --help).
+constexpr const char* kBenchDescription =
+    "Benchmarks of the USB protocol and the driver round trip through the board simulator.";
+
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription);
+}

@@ -8,7 +8,6 @@
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "gui/gui.h"
-#include "gui/tree_panel.h"
 
 int main(int argc, char** argv) {
   using namespace spidarcad::app;
@@ -40,12 +39,6 @@ int main(int argc, char** argv) {
 
   GuiOptions gui_options;
   AddGuiOptions(app, &gui_options);
-  app.add_option_function<std::string>(
-      "--select", [](const std::string& name) { SetStartupTreeSelection(name); },
-      "Select this solid or node in the tree panel at start, showing its parameters: a solid's "
-      "name, a node's name or id, or SOLID/i/j for child j of child i of the solid's root "
-      "(default: the first solid). Not in the scene: exit status 2")
-      ->type_name("NAME");
   RegisterFkCommand(app);
   RegisterIkCommand(app);
   RegisterTensionCommand(app);
@@ -56,6 +49,8 @@ int main(int argc, char** argv) {
   RegisterRunCommand(app);
   RegisterTrajectoryCommand(app);
   RegisterDeviceCommand(app);
+  RegisterReportCommand(app);
+  RegisterInfoCommand(app);
 
   try {
     app.parse(argc, argv);

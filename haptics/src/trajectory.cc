@@ -159,10 +159,14 @@ TrajectorySample Trajectory::Sample(double t) const noexcept {
                                    [](double v, const TrajectorySample& s) { return v < s.t; });
   const TrajectorySample& b = *it;
   const TrajectorySample& a = *(it - 1);
-  const double s = (t - a.t) / (b.t - a.t);
+  // Times more than the largest double apart: b.t - a.t overflows; their halves do not.
+  const double s = std::isfinite(b.t - a.t) ? (t - a.t) / (b.t - a.t)
+                                            : (0.5 * t - 0.5 * a.t) / (0.5 * b.t - 0.5 * a.t);
   TrajectorySample out;
   out.t = t;
   out.p_DT = a.p_DT + s * (b.p_DT - a.p_DT);
+  // Coordinates of opposite signs that far apart: b - a overflows; the weighted sum does not.
+  if (!out.p_DT.allFinite()) out.p_DT = (1.0 - s) * a.p_DT + s * b.p_DT;
   out.q_DT = a.q_DT.slerp(s, b.q_DT);
   out.grasp = a.grasp + s * (b.grasp - a.grasp);
   return out;

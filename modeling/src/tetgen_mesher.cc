@@ -1,5 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/tetgen_mesher.h"
+
+#include "spidarcad/base/check.h"
 #include "triangle_predicates.h"
 
 #include <algorithm>
@@ -257,7 +259,8 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
   if (!(settings.max_volume >= 0.0 && std::isfinite(settings.max_volume))) {
     throw std::invalid_argument("TetMeshSettings::max_volume = " + std::to_string(settings.max_volume) + ": must be >= 0");
   }
-  if (internal::TetgenTerminateAnchor() != 1) throw std::logic_error("tetgen_terminate.cc not linked");
+  // Without tetgen_terminate.cc linked, a TetGen failure would exit the process.
+  SPIDARCAD_CHECK_MSG(internal::TetgenTerminateAnchor() == 1, "tetgen_terminate.cc is not linked");
   auto cancelled = [&] { return settings.cancel && settings.cancel->load(); };
   auto progress = [&](double x) {
     if (settings.progress) settings.progress(x);

@@ -105,7 +105,9 @@ double ParseDouble(const std::string& s, const std::string& file, long line, con
   char* end = nullptr;
   errno = 0;
   const double v = std::strtod(s.c_str(), &end);
-  if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE || !std::isfinite(v)) {
+  // Not errno == ERANGE: strtod sets it for underflow too, i.e. for a subnormal (finite) value
+  // that the binary formats carry and the writers print. Overflow gives inf, refused here.
+  if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v)) {
     throw MeshFileError(file, line, -1, "expected a finite number for " + what + ", found '" + s + "'");
   }
   return v;
@@ -313,6 +315,10 @@ size_t PlySize(PlyType t) {
   return 0;
 }
 
+// Longest list a PLY file may declare (a count, e.g. of a face's corners, beyond int's range
+// cannot be a real face and would not fit the indices).
+constexpr double kMaxPlyListLength = 2147483647.0;
+
 struct PlyProperty {
   std::string name;
   bool is_list = false;
@@ -462,6 +468,9 @@ TriangleMesh ReadPly(const std::string& file) {
       if (face_prop < 0) throw MeshFileError(file, e.header_line, -1, "element face lacks a list property vertex_indices");
       have_faces = true;
     }
+    // An element without properties has no data to read, whatever its count (which may be
+    // huge: looping over it would only spin).
+    if (e.properties.empty()) continue;
     for (long item = 0; item < e.count; ++item) {
       double p_xyz[3] = {0, 0, 0};
       for (size_t i = 0; i < e.properties.size(); ++i) {
@@ -474,13 +483,20 @@ TriangleMesh ReadPly(const std::string& file) {
         }
         const long at_line = cursor.Line(), at_offset = cursor.Offset();
         const double n_real = cursor.Read(p.count_type, what + " count");
+        // Checked before the conversion: a double beyond long's range has no long value.
+        if (!(n_real >= 0 && n_real <= kMaxPlyListLength && n_real == std::floor(n_real))) {
+          throw MeshFileError(file, at_line, at_offset,
+                              "bad list count " + std::to_string(n_real) + " in " + what + " (an integer in [0, " +
+                                  std::to_string(static_cast<long>(kMaxPlyListLength)) + "])");
+        }
         const long n = static_cast<long>(n_real);
-        if (n != n_real || n < 0) throw MeshFileError(file, at_line, at_offset, "bad list count " + std::to_string(n_real) + " in " + what);
         std::vector<int> corners;
         for (long c = 0; c < n; ++c) {
           const long c_line = cursor.Line(), c_offset = cursor.Offset();
           const double v = cursor.Read(p.type, what + " entry");
-          if (static_cast<int>(i) == face_prop && (v != std::floor(v) || v < 0 || v > 2e9)) {
+          // Entries of other lists are skipped (any value; only face corners become ints).
+          if (static_cast<int>(i) != face_prop) continue;
+          if (v != std::floor(v) || v < 0 || v > 2e9) {
             throw MeshFileError(file, c_line, c_offset, "bad vertex index " + std::to_string(v) + " in " + what);
           }
           corners.push_back(static_cast<int>(v));

@@ -32,11 +32,11 @@
 #include <vtkRenderer.h>
 
 #include "doc/job.h"
-#include "gui/grip_control.h"
-#include "gui/haptic_runtime.h"
-#include "gui/scene_model.h"
+#include "scene/grip_control.h"
+#include "scene/haptic_runtime.h"
+#include "scene/scene_model.h"
 #include "gui/scene_view.h"
-#include "runtime/shared_field.h"
+#include "scene/shared_field.h"
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad_runner.h"

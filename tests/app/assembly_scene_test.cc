@@ -3,7 +3,7 @@
 // point of a seated part inside the body), and a scripted grip (approach the right arm, close,
 // carry it to the body, insert, open) ends with the arm seated.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "runtime/assembly_scene.h"
+#include "scene/assembly_scene.h"
 
 #include <cmath>
 #include <string>

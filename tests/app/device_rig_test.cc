@@ -17,9 +17,9 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
-#include "gui/haptic_runtime.h"
-#include "gui/scene_fields.h"
-#include "runtime/device_rig.h"
+#include "scene/haptic_runtime.h"
+#include "scene/scene_fields.h"
+#include "scene/device_rig.h"
 #include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/simulated_device.h"

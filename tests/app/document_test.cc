@@ -4,6 +4,7 @@
 // dirty flag and Save/Load.
 #include "doc/document.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -136,6 +137,28 @@ std::vector<NamedEdit> EveryEdit() {
        }},
       {"AddRigidPart", [pose](const Fixture&) { return edit::AddRigidPart("part2", Box("pb"), pose); }},
       {"SetRigidPose", [pose](const Fixture& f) { return edit::SetRigidPose(f.part, pose); }},
+      {"SetRigidFixed", [](const Fixture& f) { return edit::SetRigidFixed(f.part, true); }},
+      {"SetRigidSeats", [](const Fixture& f) {
+         modeling::SceneSeat seat;
+         seat.on = "base";
+         seat.position = Eigen::Vector3d(0, 0, 0.01);
+         return edit::SetRigidSeats(f.part, {seat});
+       }},
+      {"SetFeLoads", [](const Fixture& f) {
+         return edit::SetFeLoads(f.fe, {{Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()), Eigen::Vector3d(0, 0, -1)}});
+       }},
+      {"SetRegionMaterials", [](const Fixture& f) { return edit::SetRegionMaterials(f.fe, {{0, fem::Material{7e10, 0.33}}}); }},
+      {"SetElementOrder", [](const Fixture& f) { return edit::SetElementOrder(f.fe, 2); }},
+      {"SetPrecomputeKey", [](const Fixture& f) { return edit::SetPrecomputeKey(f.fe, 42); }},
+      {"SetSnap", [](const Fixture&) { return edit::SetSnap(modeling::SceneSnap{}); }},
+      {"AddObjectSculpt", [](const Fixture&) {
+         return edit::AddObject("clay3", SculptData{std::make_shared<SculptMesh>(TinyTriangleMesh())});
+       }},
+      {"SetObjectDataMesh", [](const Fixture& f) {
+         MeshData m = std::get<MeshData>(f.doc.Get(f.mesh).data);
+         m.import_source = "part.vtu";
+         return edit::SetObjectData(f.mesh, m);
+       }},
       {"PasteAsSolid", [](const Fixture& f) {
          Clipboard c;
          c.CopySolid(f.doc, f.platform);
@@ -256,6 +279,17 @@ TEST(Document, InvalidEditThrowsAndLeavesDocumentUnchanged) {
   Eigen::Isometry3d skew = Eigen::Isometry3d::Identity();
   skew.linear()(0, 1) = 0.5;
   ExpectRejected<DocumentError>(f, [&] { return edit::SetRigidPose(f.part, skew); }, "X_WP");
+  ExpectRejected<DocumentError>(f, [&] { return edit::SetElementOrder(f.fe, 3); }, "element_order");
+  ExpectRejected<DocumentError>(f, [&] {
+    return edit::SetRegionMaterials(f.fe, {{1, fem::Material{}}, {1, fem::Material{2e9, 0.2}}});
+  }, "listed twice");
+  ExpectRejected<DocumentError>(f, [&] {
+    return edit::SetFeLoads(f.fe, {{Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()),
+                                    Eigen::Vector3d(0, std::nan(""), 0)}});
+  }, "loads/0");
+  ExpectRejected<DocumentError>(f, [&] { return edit::SetRigidSeats(f.part, {modeling::SceneSeat{}}); }, "seats/0");
+  ExpectRejected<DocumentError>(f, [&] { return edit::SetSnap(modeling::SceneSnap{0.0, 1, 1, 1}); }, "snap");
+  ExpectRejected<DocumentError>(f, [&] { return edit::SetObjectData(f.clay, SolidData{Sphere(0.1)}); }, "does not match");
   // A macro whose second step fails undoes its first.
   ExpectRejected<modeling::ModelError>(f, [&] {
     std::vector<std::unique_ptr<Command>> steps;
@@ -535,19 +569,34 @@ TEST(Document, DirtyFlagFollowsEditsUndoAndSave) {
   std::remove(path.c_str());
 }
 
-TEST(Document, SaveWritesFileThatLoadSceneReadsBack) {
+// A document of solids only is written as a version 1 scene that modeling's reader reads; one
+// with other kinds as version 2, which keeps every object (doc/document_io.h).
+TEST(Document, SaveWritesFileThatLoadReadsBack) {
   Fixture f;
   f.doc.Execute(edit::SetNodeField(f.platform, {0}, "radius", 0.1 + 0.2));  // not exactly 0.3
   f.doc.Execute(edit::SetDescription("saved"));
+  const std::string solids_only = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/document_save_solids.json";
+  {
+    Document solids;
+    solids.LoadScene(f.doc.ToScene());
+    solids.Save(solids_only);
+    const modeling::Scene read = modeling::LoadScene(solids_only);
+    EXPECT_EQ(modeling::SceneToJson(read), modeling::SceneToJson(f.doc.ToScene()));
+    EXPECT_EQ(read.solids.size(), 2u);
+    EXPECT_EQ(read.description, "saved");
+    std::remove(solids_only.c_str());
+  }
   const std::string path = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/document_save.json";
   f.doc.Save(path);
-  const modeling::Scene read = modeling::LoadScene(path);
-  EXPECT_EQ(modeling::SceneToJson(read), modeling::SceneToJson(f.doc.ToScene()));
-  EXPECT_EQ(read.solids.size(), 2u);  // rigid parts, meshes, FE models and sculpts are not saved
-  EXPECT_EQ(read.description, "saved");
+  EXPECT_THROW(modeling::LoadScene(path), modeling::SceneError);  // version 2: not a version 1 reader's
   Document other;
   other.Load(path);
   EXPECT_EQ(SceneText(other), SceneText(f.doc));
+  ASSERT_EQ(other.objects().size(), f.doc.objects().size());  // every kind is saved
+  for (std::size_t i = 0; i < other.objects().size(); ++i) {
+    EXPECT_EQ(other.objects()[i].name, f.doc.objects()[i].name);
+    EXPECT_EQ(other.objects()[i].data.index(), f.doc.objects()[i].data.index());
+  }
   EXPECT_FALSE(other.dirty());
   EXPECT_FALSE(other.history().CanUndo());
   std::remove(path.c_str());

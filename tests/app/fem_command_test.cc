@@ -22,7 +22,7 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
-#include "cli/vtu_io.h"
+#include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/static_solver.h"

@@ -20,12 +20,12 @@
 #include <vtkRenderer.h>
 
 #include "doc/command.h"
-#include "gui/grip_control.h"
-#include "gui/scene_fields.h"
-#include "gui/scene_model.h"
+#include "scene/grip_control.h"
+#include "scene/scene_fields.h"
+#include "scene/scene_model.h"
 #include "gui/scene_view.h"
-#include "runtime/scene_haptics.h"
-#include "runtime/solid_distance_field.h"
+#include "scene/scene_haptics.h"
+#include "scene/solid_distance_field.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/modeling/scene_io.h"
 

@@ -13,9 +13,9 @@
 #include <gtest/gtest.h>
 
 #include "golden_compare.h"
-#include "runtime/scene_haptics.h"
-#include "runtime/snap_features.h"
-#include "runtime/solid_distance_field.h"
+#include "scene/scene_haptics.h"
+#include "scene/snap_features.h"
+#include "scene/solid_distance_field.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/proxy_field.h"
 #include "spidarcad/haptics/snap_field.h"

@@ -2,7 +2,7 @@
 // Sculpt mode without a window: scripted tool states drive strokes on a sphere of clay; undo and
 // redo restore positions exactly; the sculpt tool field renders −k·s·Δp inside a stroke and zero
 // outside, without allocating; the TetGen job changes nothing when it fails.
-#include "runtime/sculpt_field.h"
+#include "scene/sculpt_field.h"
 
 #include <cmath>
 #include <memory>

@@ -11,8 +11,8 @@
 
 #include <gtest/gtest.h>
 
-#include "runtime/assembly_scene.h"
-#include "runtime/solid_distance_field.h"
+#include "scene/assembly_scene.h"
+#include "scene/solid_distance_field.h"
 #include "spidarcad/modeling/cell_specialized_solid.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"

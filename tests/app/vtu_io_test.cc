@@ -18,7 +18,7 @@
 #include <vtkXMLUnstructuredGridWriter.h>
 
 #include "cli/cli_common.h"
-#include "cli/vtu_io.h"
+#include "scene/vtu_io.h"
 #include "spidarcad/fem/mesh.h"
 
 namespace spidarcad::app {

@@ -16,8 +16,8 @@
 #include <vtkSmartPointer.h>
 
 #include "gui/colour_map.h"
-#include "gui/haptic_runtime.h"
-#include "gui/scene_fields.h"
+#include "scene/haptic_runtime.h"
+#include "scene/scene_fields.h"
 
 namespace spidarcad::app::window_test {
 

@@ -78,6 +78,23 @@ TEST(Trajectory, InterpolatesPositionGraspAndRotation) {
   EXPECT_THROW(tr.Add(a), std::invalid_argument);
 }
 
+// Found by the trajectory fuzz harness (tests/fuzz/regressions/trajectory/huge_span.csv): times
+// and coordinates of opposite signs near the largest double made b.t - a.t and b - a overflow,
+// and Sample returned NaN between the two samples.
+TEST(Trajectory, SampleStaysFiniteWhenTimesAndPositionsSpanMoreThanTheLargestDouble) {
+  std::istringstream in(
+      "-1e308,-1e308,0,0,1,0,0,0,1\n"
+      "1e308,1e308,0,0,1,0,0,0,2\n");
+  const Trajectory tr = Trajectory::Parse(in, "huge.csv");
+  // At t = 0.5e308 the fraction is (0.5e308 + 1e308) / 2e308 = 0.75, so x = -0.25e308 + 0.75e308.
+  const TrajectorySample s = tr.Sample(0.5e308);
+  EXPECT_NEAR(s.p_DT.x() / 0.5e308, 1.0, 1e-12);
+  EXPECT_EQ(s.p_DT.y(), 0.0);
+  EXPECT_NEAR(s.grasp, 1.75, 1e-12);
+  // Halfway (t = 0): x = 0 up to the rounding of 1e308 (the overflowing code gave NaN).
+  EXPECT_NEAR(tr.Sample(0.0).p_DT.x(), 0.0, 1e295);
+}
+
 TEST(Trajectory, WriteThenParseRoundTripsExactly) {
   const Trajectory tr = Twist(Eigen::Vector3d(0.01, 0.02, -0.03), Eigen::Vector3d(1, 1, 0), 0.4,
                               1.0, 0.5, 100.0);

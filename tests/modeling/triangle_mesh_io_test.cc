@@ -1,9 +1,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <tuple>
 #include <vector>
@@ -167,6 +169,71 @@ TEST(TriangleMeshIo, UnknownExtensionAndMissingFileAreErrors) {
   bad.triangles.resize(3, 1);
   bad.triangles << 0, 1, 3;
   EXPECT_THROW(WriteTriangleMesh(bad, OutPath("bad_out.obj")), std::invalid_argument);
+}
+
+// The regressions below were found by the ply fuzz harness; each input is also replayed from
+// tests/fuzz/regressions/ply/ (ctest -L fuzz).
+
+// A list count far beyond long's range was converted to long before it was checked (undefined
+// behaviour, caught by UBSan): it must be refused with its line.
+TEST(TriangleMeshIo, PlyListCountBeyondLongIsAnErrorWithItsLine) {
+  const std::string path = OutPath("list_count_beyond_long.ply");
+  WriteText(path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            "0 0 0\n1 0 0\n0 1 0\n1e300 0 1 2\n");
+  ExpectFileError([&] { ReadTriangleMesh(path); }, path, 13, -1, "bad list count");
+}
+
+// Entries of a list other than the face corners were converted to int whatever their value
+// (undefined behaviour beyond int's range): they are skipped, and the mesh reads.
+TEST(TriangleMeshIo, PlySkipsEntriesOfOtherListsWhateverTheirValue) {
+  const std::string path = OutPath("other_list_entry_beyond_int.ply");
+  WriteText(path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nproperty list uchar double weights\nelement face 1\n"
+            "property list uchar int vertex_indices\nend_header\n"
+            "0 0 0 2 1e300 -1e300\n1 0 0 0\n0 1 0 1 -3e9\n3 0 1 2\n");
+  const TriangleMesh mesh = ReadTriangleMesh(path);
+  ASSERT_EQ(mesh.vertices.cols(), 3);
+  ASSERT_EQ(mesh.triangles.cols(), 1);
+  EXPECT_EQ(mesh.vertices.col(2), Eigen::Vector3d(0, 1, 0));
+  EXPECT_EQ(mesh.triangles.col(0), Eigen::Vector3i(0, 1, 2));
+}
+
+// An element with no properties and a count of 2^63 - 1 made the reader spin through every
+// (empty) item: it has no data, so it is passed over at once.
+TEST(TriangleMeshIo, PlyElementWithoutPropertiesIsPassedOverWhateverItsCount) {
+  const std::string path = OutPath("element_without_properties.ply");
+  WriteText(path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement nothing 9223372036854775807\nelement face 1\n"
+            "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const TriangleMesh mesh = ReadTriangleMesh(path);
+  EXPECT_EQ(mesh.vertices.cols(), 3);
+  EXPECT_EQ(mesh.triangles.cols(), 1);
+}
+
+// Subnormal coordinates (found by the ply fuzz harness, tests/fuzz/regressions/ply/
+// subnormal_coordinate.ply): binary PLY and STL carry them, but the text readers refused the
+// text the writers print for them, because strtod flags underflow with ERANGE.
+TEST(TriangleMeshIo, SubnormalCoordinatesRoundTripThroughTheTextFormats) {
+  TriangleMesh mesh;
+  mesh.vertices.resize(3, 3);
+  const double tiny = std::numeric_limits<double>::denorm_min();
+  mesh.vertices << tiny, 1, 0,
+      3.3527533497251303e-312, 0, 1, -2.1219957909652723e-314, 0, 0;
+  mesh.triangles.resize(3, 1);
+  mesh.triangles << 0, 1, 2;
+  ASSERT_LT(std::abs(mesh.vertices(1, 0)), std::numeric_limits<double>::min());  // subnormal
+  for (const auto& [name, format] : {std::pair{"subnormal.obj", MeshFileFormat::kObj},
+                                     std::pair{"subnormal_ascii.ply", MeshFileFormat::kPlyAscii},
+                                     std::pair{"subnormal_binary.ply", MeshFileFormat::kPlyBinary}}) {
+    WriteTriangleMesh(mesh, OutPath(name), format);
+    const TriangleMesh back = ReadTriangleMesh(OutPath(name));
+    EXPECT_EQ(back.vertices, mesh.vertices) << name;
+    EXPECT_EQ(back.triangles, mesh.triangles) << name;
+  }
 }
 
 }  // namespace

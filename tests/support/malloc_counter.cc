@@ -6,13 +6,37 @@
 #include <cstdlib>
 #include <vector>
 
+#if defined(__SANITIZE_ADDRESS__)
+#define SPIDARCAD_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SPIDARCAD_ASAN 1
+#endif
+#endif
+
+#ifdef SPIDARCAD_ASAN
+#include <sanitizer/allocator_interface.h>
+#else
 extern "C" void* __libc_malloc(std::size_t size);
+#endif
 
 namespace {
 std::atomic<long> g_malloc_count{0};
 std::atomic<bool> g_counting{false};
 }  // namespace
 
+#ifdef SPIDARCAD_ASAN
+// Under AddressSanitizer (scripts/sanitize.sh) the sanitizer owns malloc: an interposer would
+// hand it blocks it did not allocate. Its allocation hook counts instead (malloc and new alike).
+namespace {
+void CountAllocation(const volatile void* /*ptr*/, std::size_t /*size*/) {
+  if (g_counting.load(std::memory_order_relaxed)) {
+    g_malloc_count.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+const int g_hook_installed = __sanitizer_install_malloc_and_free_hooks(CountAllocation, nullptr);
+}  // namespace
+#else
 // Weak, so that a test executable with its own interposer still links; MallocCounterActive
 // tells whether this one is in use.
 extern "C" __attribute__((weak)) void* malloc(std::size_t size) {
@@ -21,6 +45,7 @@ extern "C" __attribute__((weak)) void* malloc(std::size_t size) {
   }
   return __libc_malloc(size);
 }
+#endif
 
 namespace spidarcad::test_support {
 

@@ -55,13 +55,6 @@ void ForEachCsvRecord(std::istream& in, const std::string& source, int expected_
   }
 }
 
-std::string FormatNumber(double value) {
-  if (std::isnan(value)) return "nan";
-  char buffer[64];
-  auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, ptr);
-}
-
 void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry) {
   command
       .add_option_function<std::vector<double>>(

@@ -10,15 +10,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include "doc/input_error.h"
+#include "doc/number_format.h"
 #include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
-
-// Bad user input: carries where it was found. The CLI prints what() and exits with status 2.
-class InputError : public std::runtime_error {
- public:
-  explicit InputError(const std::string& message) : std::runtime_error(message) {}
-};
 
 // Exit status of the CLI for bad input.
 inline constexpr int kExitBadInput = 2;
@@ -34,9 +30,6 @@ struct CommandExit {
 // `expected_fields` (when > 0).
 void ForEachCsvRecord(std::istream& in, const std::string& source, int expected_fields,
                       const std::function<void(const std::vector<double>&, int)>& row);
-
-// Formats a double for CSV output: shortest round-trip representation, "nan" for NaN.
-std::string FormatNumber(double value);
 
 // Adds --frame A,B,C and --pole D options that fill `geometry` (metres).
 void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry);

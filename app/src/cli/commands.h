@@ -28,5 +28,10 @@ void RegisterRunCommand(CLI::App& app);
 void RegisterTrajectoryCommand(CLI::App& app);
 // `spidarcad device list`: USB SPIDAR-G controllers (cli/device_command.cc).
 void RegisterDeviceCommand(CLI::App& app);
+// `spidarcad report --out DIR`: the performance report (cli/report_command.cc).
+void RegisterReportCommand(CLI::App& app);
+
+// `spidarcad info FILE`: the objects of a document, one line each (cli/info_command.cc).
+void RegisterInfoCommand(CLI::App& app);
 
 }  // namespace spidarcad::app

@@ -17,8 +17,8 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "cli/scene_solid.h"
-#include "cli/vtu_io.h"
+#include "scene/scene_solid.h"
+#include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/material.h"
 #include "spidarcad/fem/mesh.h"

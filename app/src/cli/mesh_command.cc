@@ -13,7 +13,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "cli/scene_solid.h"
+#include "scene/scene_solid.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"

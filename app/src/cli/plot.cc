@@ -34,6 +34,8 @@ constexpr unsigned char kPalette[8][3] = {{0, 114, 178},  {213, 94, 0},   {0, 15
                                           {0, 0, 0},      {240, 228, 66}};
 }  // namespace
 
+const unsigned char* PlotPaletteColor(int index) { return kPalette[((index % 8) + 8) % 8]; }
+
 bool PlotDisplayAvailable() {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || display[0] == '\0') return false;
@@ -96,7 +98,7 @@ void WriteLinePlotPng(const std::vector<PlotPanel>& panels, const std::string& p
       }
       vtkPlot* line = chart->AddPlot(vtkChart::LINE);
       line->SetInputData(table, 0, 1);
-      const unsigned char* c = kPalette[((s.color % 8) + 8) % 8];
+      const unsigned char* c = PlotPaletteColor(s.color);
       line->SetColor(c[0], c[1], c[2], 255);
       line->SetWidth(2.5f);
       line->SetLabel(s.label);

@@ -25,6 +25,10 @@ struct PlotPanel {
   std::vector<PlotSeries> series;
 };
 
+// RGB of colour `index` of the fixed 8-colour palette (Okabe-Ito, colour-blind friendly);
+// any integer index wraps around.
+const unsigned char* PlotPaletteColor(int index);
+
 // True when an X display looks reachable (DISPLAY set and, for a local display ":N", its
 // socket /tmp/.X11-unix/XN exists). VTK aborts the process without one.
 bool PlotDisplayAvailable();

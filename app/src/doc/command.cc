@@ -2,6 +2,7 @@
 #include "doc/command.h"
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <set>
 #include <stdexcept>
@@ -186,6 +187,34 @@ class DescriptionCommand : public Command {
 
  private:
   std::string new_text_, old_text_;
+  std::uint64_t old_revision_ = 0, new_revision_ = 0;
+};
+
+// Sets the snap forces.
+class SnapCommand : public Command {
+ public:
+  explicit SnapCommand(std::optional<modeling::SceneSnap> snap) : new_(snap) {}
+  void Do(Document& doc) override {
+    if (new_revision_ == 0) {
+      if (new_) {
+        const modeling::SceneSnap& s = *new_;
+        for (double v : {s.max_force, s.vertex_radius, s.edge_radius, s.face_radius}) {
+          if (!(v > 0) || !std::isfinite(v)) {
+            throw DocumentError("snap: every field (max_force, vertex_radius, edge_radius, face_radius) must be > 0 and finite");
+          }
+        }
+      }
+      old_ = doc.snap();
+      old_revision_ = doc.snap_revision();
+      new_revision_ = doc.NewRevision();
+    }
+    doc.RawSetSnap(new_, new_revision_);
+  }
+  void Undo(Document& doc) override { doc.RawSetSnap(old_, old_revision_); }
+  std::string Description() const override { return new_ ? "Set snap forces" : "Remove snap forces"; }
+
+ private:
+  std::optional<modeling::SceneSnap> new_, old_;
   std::uint64_t old_revision_ = 0, new_revision_ = 0;
 };
 
@@ -447,6 +476,32 @@ std::unique_ptr<Command> DuplicateObject(ObjectId id) {
 
 std::unique_ptr<Command> SetDescription(std::string text) { return std::make_unique<DescriptionCommand>(std::move(text)); }
 
+std::unique_ptr<Command> AddObject(std::string name, ObjectData data, int index) {
+  DocObject o;
+  o.name = name;
+  o.data = std::move(data);
+  if (auto* s = std::get_if<SculptData>(&o.data)) {
+    // A private copy, so that in-place strokes never reach the caller's mesh.
+    if (s->mesh) s->mesh = std::make_shared<SculptMesh>(*s->mesh);
+  }
+  const std::string kind = ObjectKindName(o.data);
+  return InsertConstant("Add " + kind + " " + name, std::move(o), index);
+}
+
+std::unique_ptr<Command> SetObjectData(ObjectId id, ObjectData data) {
+  return EditObject(id, "Edit object", [data = std::move(data)](const Document&, DocObject& o) {
+    if (data.index() != o.data.index()) {
+      throw DocumentError(Describe(o) + ": new data of kind " + ObjectKindName(data) + " does not match its kind");
+    }
+    o.data = data;
+    if (auto* s = std::get_if<SculptData>(&o.data)) {
+      if (s->mesh) s->mesh = std::make_shared<SculptMesh>(*s->mesh);
+    }
+  });
+}
+
+std::unique_ptr<Command> SetSnap(std::optional<modeling::SceneSnap> snap) { return std::make_unique<SnapCommand>(snap); }
+
 std::unique_ptr<Command> AddNode(ObjectId id, NodePath parent, int index, modeling::ImplicitNode node) {
   const std::string type = modeling::NodeTypeName(node.params);
   return EditObject(id, "Add " + type, [parent = std::move(parent), index, node = std::move(node)](const Document& doc, DocObject& o) {
@@ -584,6 +639,28 @@ std::unique_ptr<Command> SetFixedBoxes(ObjectId id, std::vector<Eigen::AlignedBo
   });
 }
 
+std::unique_ptr<Command> SetFeLoads(ObjectId id, std::vector<FeLoad> loads) {
+  return EditObject(id, "Set loads", [loads = std::move(loads)](const Document&, DocObject& o) {
+    DataAs<FeModelData>(o, "an FE model").loads = loads;
+  });
+}
+
+std::unique_ptr<Command> SetRegionMaterials(ObjectId id, std::vector<RegionMaterial> materials) {
+  return EditObject(id, "Set region materials", [materials = std::move(materials)](const Document&, DocObject& o) {
+    DataAs<FeModelData>(o, "an FE model").region_materials = materials;
+  });
+}
+
+std::unique_ptr<Command> SetElementOrder(ObjectId id, int order) {
+  return EditObject(id, "Set element order",
+                    [order](const Document&, DocObject& o) { DataAs<FeModelData>(o, "an FE model").element_order = order; });
+}
+
+std::unique_ptr<Command> SetPrecomputeKey(ObjectId id, std::uint64_t key) {
+  return EditObject(id, "Record precomputation",
+                    [key](const Document&, DocObject& o) { DataAs<FeModelData>(o, "an FE model").precompute_key = key; });
+}
+
 std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh) {
   auto shared = std::make_shared<SculptMesh>(std::move(mesh));
   return EditObject(id, "Replace sculpt mesh", [shared](const Document&, DocObject& o) {
@@ -600,6 +677,17 @@ std::unique_ptr<Command> SetRigidPose(ObjectId id, const Eigen::Isometry3d& X_WP
   return EditObject(
       id, "Move part", [X_WP](const Document&, DocObject& o) { DataAs<RigidPartData>(o, "a rigid part").X_WP = X_WP; },
       dragging ? "pose:" + std::to_string(id) : "");
+}
+
+std::unique_ptr<Command> SetRigidFixed(ObjectId id, bool fixed) {
+  return EditObject(id, fixed ? "Fix part" : "Free part",
+                    [fixed](const Document&, DocObject& o) { DataAs<RigidPartData>(o, "a rigid part").fixed = fixed; });
+}
+
+std::unique_ptr<Command> SetRigidSeats(ObjectId id, std::vector<modeling::SceneSeat> seats) {
+  return EditObject(id, "Set seats", [seats = std::move(seats)](const Document&, DocObject& o) {
+    DataAs<RigidPartData>(o, "a rigid part").seats = seats;
+  });
 }
 
 }  // namespace edit

@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <deque>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -129,6 +130,12 @@ std::unique_ptr<Command> MoveObject(ObjectId id, int index);
 std::unique_ptr<Command> DuplicateObject(ObjectId id);
 // Sets the scene description.
 std::unique_ptr<Command> SetDescription(std::string text);
+// Adds an object of any kind at index (-1: at the end); the new id is in doc.last_created().
+std::unique_ptr<Command> AddObject(std::string name, ObjectData data, int index = -1);
+// Replaces the data of an object by data of the same kind (e.g. a re-meshed mesh object).
+std::unique_ptr<Command> SetObjectData(ObjectId id, ObjectData data);
+// Sets (or, with nullopt, removes) the snap forces; every field > 0 and finite.
+std::unique_ptr<Command> SetSnap(std::optional<modeling::SceneSnap> snap);
 
 // ---- nodes of a solid's or rigid part's tree ----
 // Inserts `node` (a subtree) as child `index` of the node at parent (-1: last child). Its ids
@@ -166,6 +173,14 @@ std::unique_ptr<Command> ReplaceTree(ObjectId id, modeling::ImplicitNode root);
 std::unique_ptr<Command> SetFeMaterial(ObjectId id, const fem::Material& material, bool dragging = false);
 // Sets the boxes of clamped nodes (each finite, min <= max).
 std::unique_ptr<Command> SetFixedBoxes(ObjectId id, std::vector<Eigen::AlignedBox3d> boxes);
+// Sets the loads (boxes with a total force each).
+std::unique_ptr<Command> SetFeLoads(ObjectId id, std::vector<FeLoad> loads);
+// Sets the per-region materials (regions unique, each material valid).
+std::unique_ptr<Command> SetRegionMaterials(ObjectId id, std::vector<RegionMaterial> materials);
+// Sets the element order (1 or 2).
+std::unique_ptr<Command> SetElementOrder(ObjectId id, int order);
+// Records the disk cache key of the model's precomputation (fem::PrecomputeKey).
+std::unique_ptr<Command> SetPrecomputeKey(ObjectId id, std::uint64_t key);
 
 // ---- sculpt meshes ----
 // Replaces the whole mesh (after a topology change or a remesh).
@@ -177,6 +192,10 @@ std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices, Ei
 // ---- rigid parts ----
 // Sets the pose X_WP (rotation must be orthonormal).
 std::unique_ptr<Command> SetRigidPose(ObjectId id, const Eigen::Isometry3d& X_WP, bool dragging = false);
+// Sets whether the part is fixed (never grasped).
+std::unique_ptr<Command> SetRigidFixed(ObjectId id, bool fixed);
+// Sets the seats of a part (each names another rigid part).
+std::unique_ptr<Command> SetRigidSeats(ObjectId id, std::vector<modeling::SceneSeat> seats);
 
 }  // namespace edit
 

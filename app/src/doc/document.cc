@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "doc/command.h"
+#include "doc/document_io.h"
 
 namespace spidarcad::app {
 namespace {
@@ -188,6 +189,7 @@ std::vector<std::pair<ObjectId, std::uint64_t>> Document::Signature() const {
   std::vector<std::pair<ObjectId, std::uint64_t>> s;
   s.reserve(objects_.size() + 1);
   s.emplace_back(0, description_revision_);
+  s.emplace_back(0, snap_revision_);
   for (const DocObject& o : objects_) s.emplace_back(o.id, o.revision);
   return s;
 }
@@ -213,6 +215,8 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
                    [&](const MeshData& m) {
                      j["source"] = m.source;
                      j["source_revision"] = m.source_revision;
+                     j["settings"] = {m.settings.cell_size, m.settings.max_tet_volume, m.settings.max_radius_edge};
+                     j["import_source"] = m.import_source;
                      if (m.surface) {
                        j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},
                                        {"triangles", IntMatrixJson(m.surface->triangles)}};
@@ -230,6 +234,20 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
                      nlohmann::json boxes = nlohmann::json::array();
                      for (const auto& b : f.fixed_boxes) boxes.push_back(BoxJson(b));
                      j["fixed_boxes"] = boxes;
+                     nlohmann::json loads = nlohmann::json::array();
+                     for (const auto& l : f.loads) {
+                       nlohmann::json e = BoxJson(l.box);
+                       e["force"] = {l.force.x(), l.force.y(), l.force.z()};
+                       loads.push_back(e);
+                     }
+                     j["loads"] = loads;
+                     nlohmann::json regions = nlohmann::json::array();
+                     for (const auto& r : f.region_materials) {
+                       regions.push_back({r.region, r.material.youngs_modulus, r.material.poisson_ratio});
+                     }
+                     j["region_materials"] = regions;
+                     j["element_order"] = f.element_order;
+                     j["precompute_key"] = f.precompute_key;
                    },
                    [&](const SculptData& s) {
                      j["vertices"] = MatrixJson(s.mesh->vertices);
@@ -238,20 +256,104 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
                    [&](const RigidPartData& r) {
                      j["root"] = modeling::NodeToJson(r.root);
                      j["X_WP"] = MatrixJson(r.X_WP.matrix());
+                     j["fixed"] = r.fixed;
+                     nlohmann::json seats = nlohmann::json::array();
+                     for (const auto& seat : r.seats) {
+                       seats.push_back({{"on", seat.on},
+                                        {"position", {seat.position.x(), seat.position.y(), seat.position.z()}},
+                                        {"quaternion", {seat.rotation.w(), seat.rotation.x(), seat.rotation.y(), seat.rotation.z()}},
+                                        {"position_tolerance", seat.position_tolerance},
+                                        {"angle_tolerance", seat.angle_tolerance}});
+                     }
+                     j["seats"] = seats;
                    },
                },
                o.data);
     objects.push_back(std::move(j));
   }
   nlohmann::json doc = {{"description", description_}, {"objects", objects}};
-  if (with_revisions) doc["description_revision"] = description_revision_;
+  if (snap_) {
+    doc["snap"] = {snap_->max_force, snap_->vertex_radius, snap_->edge_radius, snap_->face_radius};
+  }
+  if (view_) {
+    doc["view"] = {view_->position.x(), view_->position.y(), view_->position.z(), view_->focal_point.x(),
+                   view_->focal_point.y(), view_->focal_point.z(), view_->view_up.x(), view_->view_up.y(),
+                   view_->view_up.z(), view_->view_angle};
+  }
+  if (with_revisions) {
+    doc["description_revision"] = description_revision_;
+    doc["snap_revision"] = snap_revision_;
+  }
   return doc;
 }
 
 void Document::Load(const std::string& path) {
-  modeling::Scene scene = modeling::LoadScene(path);  // throws SceneError naming the file
-  LoadScene(scene, path);
+  ReadDocumentFile(path, this);  // throws SceneError naming the file; nothing changed then
   file_path_ = path;
+}
+
+void Document::AdoptContent(std::vector<DocObject> objects, std::string description,
+                            std::optional<modeling::SceneSnap> snap, std::vector<modeling::ScenePart> parts,
+                            std::optional<DocView> view, const std::string& source) {
+  // Ids and revisions in order; references arrive as index + 1 (document.h).
+  const ObjectId first_id = next_id_;
+  const std::uint64_t first_revision = next_revision_;
+  std::vector<ObjectId> ids;
+  for (DocObject& o : objects) {
+    o.id = first_id + ids.size();
+    o.revision = first_revision + ids.size();
+    ids.push_back(o.id);
+  }
+  auto pointer = [](std::size_t i) { return "/objects/" + std::to_string(i); };
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    if (auto* m = std::get_if<MeshData>(&objects[i].data)) {
+      const bool up_to_date = m->source_revision == 1;
+      if (m->source != 0) {
+        const std::size_t k = m->source - 1;
+        m->source = ids.at(k);
+        m->source_revision = up_to_date ? objects[k].revision : 0;
+      } else {
+        m->source_revision = 0;
+      }
+    }
+    if (auto* f = std::get_if<FeModelData>(&objects[i].data)) f->tet_mesh = ids.at(f->tet_mesh - 1);
+  }
+  // Validate each object as a command adding it would: against the objects without a tree and
+  // the trees before it (so that a repeated node id is reported at its second use).
+  Document scratch;
+  for (const DocObject& o : objects) {
+    if (TreeOf(o) == nullptr) scratch.objects_.push_back(o);
+  }
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    try {
+      scratch.ValidateChange({objects[i]});
+      if (TreeOf(objects[i]) != nullptr) scratch.objects_.push_back(objects[i]);
+    } catch (const modeling::ModelError& e) {
+      const std::string path = e.path();
+      const std::size_t root = path.find("/root");
+      throw modeling::SceneError(source, 0, 0,
+                                 pointer(i) + (root == std::string::npos ? "" : path.substr(root)) + "/" + e.field(),
+                                 e.what());
+    } catch (const DocumentError& e) {
+      throw modeling::SceneError(source, 0, 0, pointer(i), e.what());
+    }
+  }
+  // Commit (nothing below throws).
+  next_id_ = first_id + objects.size();
+  next_revision_ = first_revision + objects.size();
+  objects_ = std::move(objects);
+  description_ = std::move(description);
+  description_revision_ = NewRevision();
+  snap_ = snap;
+  snap_revision_ = NewRevision();
+  view_ = std::move(view);
+  parts_ = std::move(parts);
+  history_->Clear();
+  fe_cache_.clear();
+  last_created_.clear();
+  file_path_.clear();
+  Touch();
+  saved_signature_ = Signature();
 }
 
 void Document::LoadScene(const modeling::Scene& scene, const std::string& source) {
@@ -284,6 +386,8 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
   description_ = scene.description;
   description_revision_ = NewRevision();
   snap_ = scene.snap;
+  snap_revision_ = NewRevision();
+  view_.reset();
   parts_ = scene.parts;
   history_->Clear();
   fe_cache_.clear();
@@ -309,7 +413,7 @@ void Document::Save(const std::string& path) {
               "' or undo its deletion, then save again");
     }
   }
-  modeling::SaveScene(scene, path);
+  WriteDocumentFile(*this, path);
   file_path_ = path;
   saved_signature_ = Signature();
 }
@@ -319,6 +423,8 @@ void Document::Clear() {
   description_.clear();
   description_revision_ = NewRevision();
   snap_.reset();
+  snap_revision_ = NewRevision();
+  view_.reset();
   parts_.clear();
   history_->Clear();
   fe_cache_.clear();
@@ -398,6 +504,15 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
                      if (!m.surface && !m.volume) throw DocumentError(Describe(c) + " holds neither a surface nor a volume mesh");
                      if (m.surface && !AllFinite(m.surface->vertices)) throw DocumentError(Describe(c) + ": surface vertices must be finite");
                      if (m.volume && !AllFinite(m.volume->nodes)) throw DocumentError(Describe(c) + ": volume nodes must be finite");
+                     if (m.volume && m.volume->regions.size() != m.volume->tets.cols()) {
+                       throw DocumentError(Describe(c) + ": field 'volume/regions': " + std::to_string(m.volume->regions.size()) +
+                                           " labels for " + std::to_string(m.volume->tets.cols()) + " tets");
+                     }
+                     const MeshSettings& s = m.settings;
+                     if (!(s.cell_size >= 0) || !(s.max_tet_volume >= 0) || !(s.max_radius_edge >= 0) ||
+                         !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
+                       throw DocumentError(Describe(c) + ": field 'settings': every setting must be finite and >= 0");
+                     }
                    },
                    [&](const FeModelData& f) {
                      const DocObject* mesh = find(f.tet_mesh);
@@ -410,6 +525,31 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
                        f.material.Validate();
                      } catch (const std::invalid_argument& e) {
                        throw DocumentError(Describe(c) + ": field 'material': " + e.what());
+                     }
+                     if (f.element_order != 1 && f.element_order != 2) {
+                       throw DocumentError(Describe(c) + ": field 'element_order' must be 1 or 2, got " +
+                                           std::to_string(f.element_order));
+                     }
+                     std::set<int> regions;
+                     for (size_t k = 0; k < f.region_materials.size(); ++k) {
+                       const RegionMaterial& r = f.region_materials[k];
+                       if (!regions.insert(r.region).second) {
+                         throw DocumentError(Describe(c) + ": field 'region_materials/" + std::to_string(k) + "': region " +
+                                             std::to_string(r.region) + " is listed twice");
+                       }
+                       try {
+                         r.material.Validate();
+                       } catch (const std::invalid_argument& e) {
+                         throw DocumentError(Describe(c) + ": field 'region_materials/" + std::to_string(k) + "': " + e.what());
+                       }
+                     }
+                     for (size_t k = 0; k < f.loads.size(); ++k) {
+                       const FeLoad& l = f.loads[k];
+                       if (!l.force.allFinite() || !l.box.min().allFinite() || !l.box.max().allFinite() ||
+                           (l.box.min().array() > l.box.max().array()).any()) {
+                         throw DocumentError(Describe(c) + ": field 'loads/" + std::to_string(k) +
+                                             "': needs a finite force and finite corners with min <= max");
+                       }
                      }
                      for (size_t b = 0; b < f.fixed_boxes.size(); ++b) {
                        const auto& box = f.fixed_boxes[b];
@@ -436,6 +576,15 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
                      const Eigen::Matrix3d R = r.X_WP.linear();
                      if (!(R.transpose() * R).isIdentity(1e-9) || R.determinant() < 0) {
                        throw DocumentError(Describe(c) + ": field 'X_WP' must have a proper rotation (orthonormal, det +1)");
+                     }
+                     for (size_t k = 0; k < r.seats.size(); ++k) {
+                       const modeling::SceneSeat& seat = r.seats[k];
+                       if (seat.on.empty() || !seat.position.allFinite() || !seat.rotation.coeffs().allFinite() ||
+                           std::abs(seat.rotation.norm() - 1.0) > 1e-6 || !(seat.position_tolerance >= 0) ||
+                           !(seat.angle_tolerance >= 0)) {
+                         throw DocumentError(Describe(c) + ": field 'seats/" + std::to_string(k) +
+                                             "': needs a part name, a finite position, a unit quaternion and tolerances >= 0");
+                       }
                      }
                    },
                },
@@ -505,6 +654,12 @@ void Document::RawMove(ObjectId id, int index) {
   DocObject o = std::move(objects_[i]);
   objects_.erase(objects_.begin() + i);
   objects_.insert(objects_.begin() + index, std::move(o));
+  Touch();
+}
+
+void Document::RawSetSnap(std::optional<modeling::SceneSnap> snap, std::uint64_t revision) {
+  snap_ = snap;
+  snap_revision_ = revision;
   Touch();
 }
 

@@ -61,30 +61,64 @@ void SetSculptVertex(SculptMesh* mesh, int v, const Eigen::Vector3d& position);
 struct SolidData {
   modeling::ImplicitNode root;
 };
-// Meshes made from another object (usually a solid) by a Job. Either mesh may be absent. The data
-// are immutable and shared between copies (undo snapshots, duplicates).
+// How a mesh object was made from its source, kept so that it can be made again (0: the
+// mesher's default).
+struct MeshSettings {
+  double cell_size = 0.0;          // surface grid cell edge, m (>= 0)
+  double max_tet_volume = 0.0;     // largest tet volume, m³ (>= 0)
+  double max_radius_edge = 0.0;    // TetGen radius-edge bound, -, (0 or >= 1)
+};
+// Meshes made from another object (usually a solid) by a Job, or imported from a file. Either
+// mesh may be absent. The data are immutable and shared between copies (undo snapshots,
+// duplicates).
 struct MeshData {
   ObjectId source = 0;                  // object meshed (0: none)
   std::uint64_t source_revision = 0;    // revision of the source that was meshed
   std::shared_ptr<const modeling::TriangleMesh> surface;  // boundary surface, or null
   std::shared_ptr<const modeling::TetMesh> volume;        // tetrahedra, or null
+  MeshSettings settings;                // how it was meshed from source
+  std::string import_source;            // file it was imported from (STL/OBJ/PLY/VTU), or ""
+};
+// A load of an FE model: the force spread evenly over the nodes inside a box.
+struct FeLoad {
+  Eigen::AlignedBox3d box;                           // m, closed
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // total force, N (W)
+};
+// A material for one region label of the tet mesh (overrides FeModelData::material there).
+struct RegionMaterial {
+  int region = 0;          // TetMesh::regions label
+  fem::Material material;  // E [Pa], ν [-]
 };
 // A linear elastic FE model of a tet mesh. Its precomputation is cached outside the undo state
-// (Document::SetFePrecomputation).
+// (Document::SetFePrecomputation) and on disk under precompute_key (fem::PrecomputeCache).
 struct FeModelData {
   ObjectId tet_mesh = 0;                          // a mesh object holding a volume mesh
-  fem::Material material;                         // E [Pa], ν [-]
+  fem::Material material;                         // E [Pa], ν [-] (every region not listed below)
   std::vector<Eigen::AlignedBox3d> fixed_boxes;   // nodes inside any box (m, closed) are clamped
+  std::vector<FeLoad> loads;                      // applied loads
+  std::vector<RegionMaterial> region_materials;   // per-region materials (regions unique)
+  int element_order = 1;                          // 1 (4-node) or 2 (10-node tets)
+  std::uint64_t precompute_key = 0;               // fem::PrecomputeKey of its columns (0: none yet)
 };
 // A freeform sculpt mesh. Copy on write: strokes change it in place only when no undo snapshot
 // shares it.
 struct SculptData {
   std::shared_ptr<SculptMesh> mesh;
 };
-// A rigid part: an implicit solid (in its part frame P) placed in the world by X_WP.
+// A rigid part: an implicit solid (in its part frame P) placed in the world by X_WP, with the
+// seats where it fits on other parts (SceneSeat::on names another rigid part object).
 struct RigidPartData {
   modeling::ImplicitNode root;
   Eigen::Isometry3d X_WP = Eigen::Isometry3d::Identity();
+  bool fixed = false;                       // true: never grasped (the base)
+  std::vector<modeling::SceneSeat> seats;   // seats on other parts
+};
+// The camera of the window, saved with the document (not part of the undo state).
+struct DocView {
+  Eigen::Vector3d position = Eigen::Vector3d(0.5, -0.5, 0.4);  // eye, m (W)
+  Eigen::Vector3d focal_point = Eigen::Vector3d::Zero();       // m (W)
+  Eigen::Vector3d view_up = Eigen::Vector3d::UnitZ();          // unit
+  double view_angle = 30.0;                                    // vertical field of view, degrees
 };
 // What an object is; the alternative held is its kind.
 using ObjectData = std::variant<SolidData, MeshData, FeModelData, SculptData, RigidPartData>;
@@ -147,8 +181,12 @@ class Document {
   bool IsMeshOutOfDate(ObjectId mesh) const;
   // Free text description of the scene.
   const std::string& description() const { return description_; }
-  // The scene's snap forces as loaded ("snap" of the scene file; kept as is, not editable).
+  // The scene's snap forces ("snap" of the scene file; edit::SetSnap changes them).
   const std::optional<modeling::SceneSnap>& snap() const { return snap_; }
+  // The saved camera, if any.
+  const std::optional<DocView>& view() const { return view_; }
+  // Sets the camera saved with the document (not undoable; does not make the document dirty).
+  void set_view(std::optional<DocView> view) { view_ = std::move(view); }
   // The scene's assembly parts as loaded ("parts"; kept as they are, not editable here). Save
   // writes them back and refuses, naming the part, when one names a solid no longer in the scene.
   const std::vector<modeling::ScenePart>& parts() const { return parts_; }
@@ -169,15 +207,23 @@ class Document {
   nlohmann::json ToJson(bool with_revisions = false) const;
 
   // ---- files (not undoable: they reset the history) ----
-  // Replaces the content with the solids of a scene file. Throws modeling::SceneError (file,
-  // line, pointer) and leaves the document as it was when the file is bad, including node ids
-  // repeated across solids.
+  // Replaces the content with a document file (docs/scene-format.md: version 1 scenes and
+  // version 2 documents). Throws modeling::SceneError (file, line, pointer) and leaves the
+  // document as it was when the file is bad, including node ids repeated across solids.
   void Load(const std::string& path);
   // Replaces the content with the solids of a scene (source names it in errors).
   void LoadScene(const modeling::Scene& scene, const std::string& source = "<scene>");
-  // Writes the solids as a scene file (temporary file renamed over path) and marks the document
-  // clean. Throws modeling::SceneError when the file cannot be written (then nothing changes).
+  // Writes the document (temporary file renamed over path: version 1 when it holds only what a
+  // version 1 scene can, else version 2) and marks the document clean. Throws
+  // modeling::SceneError when the file cannot be written (then nothing changes).
   void Save(const std::string& path);
+  // Replaces the whole content (objects get fresh ids and revisions in this order; references
+  // between them are given as indices into `objects`, see document_io.h) after validating it.
+  // Throws SceneError naming `source` and the object; the document is unchanged then.
+  // Used by the file reader; clean afterwards, history cleared.
+  void AdoptContent(std::vector<DocObject> objects, std::string description,
+                    std::optional<modeling::SceneSnap> snap, std::vector<modeling::ScenePart> parts,
+                    std::optional<DocView> view, const std::string& source);
   // Empties the document and its history; clean.
   void Clear();
 
@@ -223,6 +269,10 @@ class Document {
   void RawMove(ObjectId id, int index);
   // Sets the description with its revision tag.
   void RawSetDescription(std::string text, std::uint64_t revision);
+  // Sets the snap forces with their revision tag.
+  void RawSetSnap(std::optional<modeling::SceneSnap> snap, std::uint64_t revision);
+  // Revision tag of the snap settings.
+  std::uint64_t snap_revision() const { return snap_revision_; }
   // Revision tag of the description.
   std::uint64_t description_revision() const { return description_revision_; }
   // Records that an object was created (for last_created()).
@@ -238,6 +288,8 @@ class Document {
   std::string description_;
   std::uint64_t description_revision_ = 0;
   std::optional<modeling::SceneSnap> snap_;
+  std::uint64_t snap_revision_ = 0;
+  std::optional<DocView> view_;
   std::vector<modeling::ScenePart> parts_;
   ObjectId next_id_ = 1;
   std::uint64_t next_revision_ = 1;

@@ -24,25 +24,27 @@
 
 #include <Eigen/Geometry>
 
-#include "cli/vtu_io.h"
+#include "scene/vtu_io.h"
 #include "doc/job.h"
 #include "gui/assembly_mode.h"
-#include "gui/device_session.h"
+#include "scene/device_session.h"
 #include "gui/device_view.h"
 #include "gui/fe_mode.h"
 #include "gui/gl_capture.h"
-#include "gui/grip_control.h"
+#include "scene/grip_control.h"
 #include "gui/gui.h"
-#include "gui/haptic_runtime.h"
+
+#include "doc/assets.h"
+#include "scene/haptic_runtime.h"
 #include "gui/panels.h"
-#include "gui/scene_model.h"
+#include "scene/scene_model.h"
 #include "gui/scene_view.h"
 #include "gui/sculpt_mode.h"
-#include "gui/trajectory_player.h"
+#include "scene/trajectory_player.h"
 #include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
-#include "runtime/fe_model.h"
-#include "runtime/shared_field.h"
+#include "scene/fe_model.h"
+#include "scene/shared_field.h"
 #include "spidarcad/haptics/trajectory.h"
 
 namespace spidarcad::app {
@@ -172,6 +174,11 @@ void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
 }
 
 void AddGuiOptions(CLI::App& app, GuiOptions* options) {
+  app.add_option("--select", options->select,
+                 "Select this solid or node in the tree panel at start, showing its parameters: a "
+                 "solid's name, a node's name or id, or SOLID/i/j for child j of child i of the "
+                 "solid's root (default: the first solid). Not in the scene: exit status 2")
+      ->type_name("NAME");
   app.add_option("scene", options->scene,
                  "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "
                  "(built-in, the default) or 'none'; with --mode fe the default is "
@@ -231,10 +238,7 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
 static std::string DefaultSceneFor(const GuiOptions& options) {
   if (!options.scene.empty()) return options.scene;
   if (options.mode == "fe") return PlatformScenePath();
-  if (options.mode == "sculpt") {
-    const std::string local = "assets/scenes/clay.json";
-    return std::filesystem::exists(local) ? local : std::string(SPIDARCAD_SOURCE_DIR) + "/" + local;
-  }
+  if (options.mode == "sculpt") return AssetPath("scenes/clay.json");
   return kDemoSceneName;
 }
 
@@ -274,9 +278,9 @@ int RunGui(const GuiOptions& options) {
   // The tree panel's controller on the model's Document; the first solid selected, or --select.
   TreeController tree(&model);
   TreePanelState tree_state;
-  if (!StartupTreeSelection().empty()) {
-    if (!tree.SelectByName(StartupTreeSelection())) {
-      std::cerr << "spidarcad: error: --select: no solid or node named '" << StartupTreeSelection()
+  if (!options.select.empty()) {
+    if (!tree.SelectByName(options.select)) {
+      std::cerr << "spidarcad: error: --select: no solid or node named '" << options.select
                 << "' in the scene\n";
       return 2;
     }

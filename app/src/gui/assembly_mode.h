@@ -23,7 +23,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "runtime/assembly_scene.h"
+#include "scene/assembly_scene.h"
 #include "spidarcad/haptics/assembly_field.h"
 #include "spidarcad/modeling/scene_io.h"
 

@@ -8,8 +8,8 @@
 
 #include <Eigen/Core>
 
-#include "gui/device_session.h"
-#include "gui/grip_control.h"
+#include "scene/device_session.h"
+#include "scene/grip_control.h"
 #include "spidarcad/haptics/geometry.h"
 
 class vtkRenderer;

@@ -20,8 +20,8 @@
 #include <vtkSmartPointer.h>
 
 #include "doc/job.h"
-#include "runtime/fe_model.h"
-#include "runtime/fe_touch_field.h"
+#include "scene/fe_model.h"
+#include "scene/fe_touch_field.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/haptic_loop.h"

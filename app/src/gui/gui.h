@@ -28,6 +28,9 @@ struct GuiOptions {
   std::string trajectory;
   // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.
   std::array<double, 7> grip = {0, 0, 0, 0, 0, 0, 90};
+  // --select: the solid or node selected in the tree panel at start (a solid's name, a node's
+  // name or id, or SOLID/i/j); empty: the first solid.
+  std::string select;
 };
 
 // True when an X display is available (DISPLAY set and reachable): VTK aborts without one.

@@ -8,7 +8,7 @@
 
 #include "gui/colour_map.h"
 #include "gui/device_view.h"
-#include "gui/grip_control.h"
+#include "scene/grip_control.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
 

@@ -4,8 +4,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include "gui/device_session.h"
-#include "runtime/device_rig.h"
+#include "scene/device_session.h"
+#include "scene/device_rig.h"
 #include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {

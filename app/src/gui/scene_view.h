@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "gui/scene_model.h"
+#include "scene/scene_model.h"
 
 class vtkPolyData;
 class vtkRenderer;

@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/sculpt_mode.h"
 
+#include "doc/assets.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -48,10 +50,7 @@ struct SculptMode::Vtk {
 
 SculptMode::SculptMode(vtkRenderer* renderer, JobQueue* jobs)
     : renderer_(renderer), jobs_(jobs), vtk_(std::make_unique<Vtk>()) {
-  scene_path_ = "assets/scenes/clay.json";
-#ifdef SPIDARCAD_SOURCE_DIR
-  if (!std::filesystem::exists(scene_path_)) scene_path_ = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/clay.json";
-#endif
+  scene_path_ = AssetPath("scenes/clay.json");
   Vtk& v = *vtk_;
   v.points->SetDataTypeToFloat();
   v.normals->SetNumberOfComponents(3);

@@ -18,7 +18,7 @@
 
 #include <Eigen/Core>
 
-#include "runtime/sculpt_field.h"
+#include "scene/sculpt_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 
 class vtkRenderer;

@@ -51,8 +51,6 @@ const modeling::ImplicitNode* Walk(const modeling::ImplicitNode& root, const Nod
   return node;
 }
 
-std::string StartupSelectionStorage;
-
 }  // namespace
 
 FieldUnit UnitOfField(const std::string& field) {
@@ -423,10 +421,6 @@ std::string TreeController::Title() const {
                          : std::filesystem::path(doc.file_path()).filename().string();
   return std::string(doc.dirty() ? "*" : "") + "spidarcad — " + name;
 }
-
-void SetStartupTreeSelection(const std::string& name) { StartupSelectionStorage = name; }
-
-const std::string& StartupTreeSelection() { return StartupSelectionStorage; }
 
 // ---- ImGui ----
 

@@ -22,7 +22,7 @@
 
 #include "doc/clipboard.h"
 #include "doc/document.h"
-#include "gui/scene_model.h"
+#include "scene/scene_model.h"
 
 namespace spidarcad::app {
 
@@ -174,10 +174,5 @@ void DrawSaveAsDialog(TreeController* tree, TreePanelState* state);
 // Keyboard shortcuts when no text field has the keyboard: Ctrl+Z undo, Ctrl+Y / Ctrl+Shift+Z
 // redo, Ctrl+C copy, Ctrl+V paste, Delete, Ctrl+S save, Ctrl+Shift+S save as.
 void HandleTreeShortcuts(TreeController* tree, TreePanelState* state);
-
-// Node to select at start (--select NAME; "" keeps the default: the first object's root).
-void SetStartupTreeSelection(const std::string& name);
-// The name given to SetStartupTreeSelection.
-const std::string& StartupTreeSelection();
 
 }  // namespace spidarcad::app

@@ -8,8 +8,8 @@
 #include <string>
 
 #include "doc/job.h"
-#include "gui/haptic_runtime.h"
-#include "gui/scene_model.h"
+#include "scene/haptic_runtime.h"
+#include "scene/scene_model.h"
 #include "gui/tree_panel.h"
 
 namespace spidarcad::app {

@@ -1,0 +1,482 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Tick time per scene type: the compute time of HapticLoop::Step (calibration, FK, the scene's
+// force fields, safety, tension solve) on the simulated SPIDAR-G gripped by the simulated hand,
+// as in `spidarcad run`, over N ticks (the trajectory repeats); and the report section that
+// shows their distributions.
+// Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two
+// ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point shell
+// against the union of both solids, twist against the wall); FE contact (platform.json meshed
+// at 12 mm, FeTouchField on the steel part, the hand driving the tool sphere into the plate;
+// one row over every tick, one over the ticks where the field holds k = 16 contact nodes, and
+// the k reached is printed; see MeasureFe); sculpt (assets/scenes/clay.json meshed at 3 mm,
+// SculptToolField during a grab stroke the closed grip drags up and down; the main-thread stroke
+// update, SculptSession::Step, runs every 16th tick outside the timing, as the window does at
+// 60 Hz); assembly (assets/scenes/assembly.json, the AssemblyField of the toy robot, X_WD
+// identity, the device calibrated at start-up as the window does, the hand following
+// assets/trajectories/seat_right_leg.csv: grasp, carry, seat the right leg; one row over every
+// tick, one over the ticks while a part is carried).
+#include "cli/report_tick.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <functional>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "cli/report_common.h"
+#include "cli/report_sections.h"
+#include "doc/assets.h"
+#include "scene/assembly_scene.h"
+#include "scene/scene_solid.h"
+#include "scene/device_rig.h"
+#include "scene/fe_model.h"
+#include "scene/fe_touch_field.h"
+#include "scene/scene_haptics.h"
+#include "scene/sculpt_field.h"
+#include "spidarcad/haptics/haptic_loop.h"
+#include "spidarcad/haptics/kinematics.h"
+#include "spidarcad/haptics/simulated_device.h"
+#include "spidarcad/haptics/simulated_hand.h"
+#include "spidarcad/haptics/trajectory.h"
+#include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/surface_mesher.h"
+
+namespace spidarcad::app {
+
+namespace {
+
+using Row = SceneTickRow;
+
+std::string AssetDir() { return AssetPath("") + "/"; }
+
+// Called after each tick with its index and outputs, outside the timed region (main-thread
+// work such as the sculpt session's stroke update).
+using AfterTick = std::function<void(long, const haptics::TickOutputs&)>;
+
+// CPU time of the calling thread, µs (not advanced while the thread is preempted).
+double ThreadCpuMicros() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e6 + ts.tv_nsec * 1e-3;
+}
+
+// Percentiles of per-tick samples (wall clock `us`, thread CPU `cpu`, µs; same length, not empty).
+Row Summarize(const std::string& name, const std::vector<double>& us,
+              const std::vector<double>& cpu) {
+  Row row;
+  row.name = name;
+  row.p50 = Quantile(us, 0.5);
+  row.p99 = Quantile(us, 0.99);
+  row.p999 = Quantile(us, 0.999);
+  row.max = *std::max_element(us.begin(), us.end());
+  row.cpu_p50 = Quantile(cpu, 0.5);
+  row.cpu_p99 = Quantile(cpu, 0.99);
+  row.cpu_p999 = Quantile(cpu, 0.999);
+  row.cpu_max = *std::max_element(cpu.begin(), cpu.end());
+  double sum = 0;
+  for (double v : us) sum += v;
+  row.mean = sum / us.size();
+  row.us = us;
+  row.cpu = cpu;
+  return row;
+}
+
+Row Measure(const std::string& name, std::unique_ptr<haptics::HapticScene> scene,
+            const haptics::LoopSettings& loop_settings, const haptics::Trajectory& trajectory,
+            long ticks, const AfterTick& after_tick = {},
+            const haptics::HandSettings& hand_settings = {}, bool calibrate = false) {
+  haptics::SimulatedDeviceConfig config;
+  config.seed = 1;
+  haptics::SimulatedSpidarG device(config);
+  const haptics::DeviceInfo& info = device.info();
+  haptics::EncoderCalibration calibration = haptics::EncoderCalibration::Nominal(
+      info.encoder, haptics::InverseKinematics(info.geometry, info.home_pose));
+  if (calibrate) {  // as the window: the line fit at start-up, then the grip back at the hand
+    const SimulatedCalibration fit = CalibrateSimulated(&device);
+    if (fit.ok) calibration = fit.calibration;
+  }
+  haptics::HapticLoop loop(info, calibration, loop_settings);
+  loop.Publish(std::move(scene));
+  const double dt = 1e-3, t0 = trajectory.start_time();
+  const double duration = trajectory.end_time() - t0;
+  haptics::SimulatedHand hand(hand_settings, trajectory.Sample(t0), info.geometry.d);
+  device.SetTruePose(hand.pose());
+  std::vector<double> us, cpu;
+  us.reserve(ticks);
+  cpu.reserve(ticks);
+  for (long k = 0; k < ticks; ++k) {
+    const double t = t0 + std::fmod(k * dt, duration);
+    hand.Step(trajectory.Sample(t), device.TrueWrench(), dt);
+    device.SetTruePose(hand.pose());
+    device.Step(dt);
+    haptics::TickInputs inputs;
+    device.Read(&inputs.reading);
+    const double cpu_start = ThreadCpuMicros();
+    const auto start = std::chrono::steady_clock::now();
+    const haptics::TickOutputs out = loop.Step(inputs, dt);
+    const auto stop = std::chrono::steady_clock::now();
+    cpu.push_back(ThreadCpuMicros() - cpu_start);
+    device.WriteTensions(out.tau);
+    if (after_tick) after_tick(k, out);
+    us.push_back(std::chrono::duration<double, std::micro>(stop - start).count());
+  }
+  return Summarize(name, us, cpu);
+}
+
+haptics::LoopSettings BaseSettings() {
+  haptics::LoopSettings s;
+  s.fk.max_residual = 5e-3;  // as `spidarcad run`: nominal calibration
+  return s;
+}
+
+Row MeasureScene(const std::string& name, ToolModel tool, const Eigen::Vector3d& p_WDo,
+                 const std::string& trajectory_file, long ticks) {
+  const modeling::Scene scene = modeling::LoadScene(AssetDir() + "scenes/platform.json");
+  SceneHapticsOptions options;
+  options.tool = tool;
+  options.world_scale = 1.0;
+  options.p_WDo = p_WDo;
+  SceneHaptics built = BuildHapticScene(scene, options);
+  haptics::LoopSettings settings = BaseSettings();
+  built.ApplyTo(&settings);
+  return Measure(name, std::move(built.scene), settings,
+                 haptics::Trajectory::Load(AssetDir() + trajectory_file), ticks);
+}
+
+// Lowers the grip from `above` to `press` over 0.5 s (cosine blend), then holds it there until
+// `duration`; grasp angle `grasp` throughout (rad). Device frame.
+haptics::Trajectory LowerAndHold(const Eigen::Vector3d& above, const Eigen::Vector3d& press,
+                                 double grasp, double duration) {
+  haptics::Trajectory trajectory;
+  for (int i = 0; i <= 50; ++i) {
+    haptics::TrajectorySample s;
+    s.t = 0.01 * i;
+    s.p_DT = above + (press - above) * 0.5 * (1.0 - std::cos(std::numbers::pi * i / 50.0));
+    s.grasp = grasp;
+    trajectory.Add(s);
+  }
+  haptics::TrajectorySample hold;
+  hold.t = std::max(duration, 0.6);
+  hold.p_DT = press;
+  hold.grasp = grasp;
+  trajectory.Add(hold);
+  return trajectory;
+}
+
+// FE contact: the steel platform (12 mm grid, 12.5k linear tets, clamped at the wall) as an
+// FeTouchField: tool sphere of 3 mean edges (23 mm), at most 16 contact nodes, felt force scale
+// 2e-5, at most 8 N. X_WD: s = 1, p_WDo = (0.1, 0, 0). The hand (default: 300 N/m) lowers the
+// grip from 40 mm above onto an aim with the sphere's centre 3 mm below the plate's underside at
+// W (0.1, 0.01): the sphere takes in the plate's whole thickness. That is what it takes to load
+// 16 nodes: a sphere resting on the plate holds 2 to 5 (the plate bends away and the solve
+// releases the rest). The note line gives how often the contact set changed and the mean felt
+// force. The columns around the aim are computed before the run. Rows: every tick, and the ticks
+// with k = 16.
+std::vector<Row> MeasureFe(long ticks) {
+  fem::TetMesh mesh = MeshSceneSolidForFe(PlatformScenePath(), "platform", 0.012);
+  FeModelSettings model_settings;
+  model_settings.use_disk_cache = false;
+  std::shared_ptr<FeModel> model = FeModel::Build(std::move(mesh), model_settings);
+  FeTouchSettings ts;
+  ts.tool_radius = 3.0 * model->mean_edge_length();
+  ts.max_contacts = 16;
+  ts.force_scale = 2e-5;
+  ts.max_force = 8.0;
+  auto field = std::make_unique<FeTouchField>(model, ts, nullptr);
+  FeTouchField* fe = field.get();
+  const Eigen::Vector3d press_W(0.1, 0.01, -0.003);
+  const Eigen::Vector3d p_WDo(press_W.x(), 0.0, 0.0);
+  haptics::ToolKinematics focus;
+  focus.p_WT = press_W;
+  fe->Evaluate(focus);  // sets the column focus
+  model->cache().Start();
+  model->cache().WaitUntilIdle(300.0);
+  auto scene = std::make_unique<haptics::HapticScene>();
+  scene->Add(std::move(field));
+  haptics::LoopSettings settings = BaseSettings();
+  settings.p_WDo = p_WDo;
+  const Eigen::Vector3d press_D = press_W - p_WDo;
+  std::vector<int> k_of_tick;
+  k_of_tick.reserve(ticks);
+  double felt_sum = 0.0;  // felt force magnitude, N (force_scale · FE force, clamped)
+  long changes = 0;       // ticks whose contact set differs from the previous tick's
+  std::array<int, kMaxFeContacts> previous{};
+  int previous_k = 0;
+  Row row = Measure(
+      "FE contact (platform, k ≤ 16, every tick)", std::move(scene), settings,
+      LowerAndHold(press_D + Eigen::Vector3d(0, 0, 0.04), press_D, std::numbers::pi / 2, 30.0),
+      ticks, [&](long, const haptics::TickOutputs&) {
+        const FeContactState& st = fe->last_state();
+        k_of_tick.push_back(st.num_contacts);
+        felt_sum += std::min(ts.max_force, ts.force_scale * st.f_tool_W.norm());
+        bool same = st.num_contacts == previous_k;
+        for (int i = 0; same && i < st.num_contacts; ++i) same = st.candidate[i] == previous[i];
+        changes += !same;
+        previous = st.candidate;
+        previous_k = st.num_contacts;
+      });
+  model->cache().Stop();
+  long in_contact = 0, k_sum = 0, at_16 = 0;
+  std::vector<double> us16, cpu16;
+  for (std::size_t i = 0; i < k_of_tick.size(); ++i) {
+    const int k = k_of_tick[i];
+    in_contact += k > 0;
+    k_sum += k;
+    if (k >= 16) {
+      ++at_16;
+      us16.push_back(row.us[i]);
+      cpu16.push_back(row.cpu[i]);
+    }
+  }
+  char note[320];
+  std::snprintf(
+      note, sizeof(note),
+      "FE: %d tets, tool radius %.1f mm; k > 0 in %.1f %% of ticks, k = 16 in %.1f %% (%ld ticks), "
+      "mean k %.1f; contact set changed in %.1f %% of ticks; mean felt force %.2f N",
+      model->mesh().num_elements(), 1e3 * ts.tool_radius, 100.0 * in_contact / ticks,
+      100.0 * at_16 / ticks, at_16, static_cast<double>(k_sum) / ticks, 100.0 * changes / ticks,
+      felt_sum / ticks);
+  row.note = note;
+  std::vector<Row> rows{row};
+  if (!us16.empty())
+    rows.push_back(Summarize("FE contact (platform, the ticks with k = 16)", us16, cpu16));
+  return rows;
+}
+
+// Sculpt: assets/scenes/clay.json meshed at 3 mm as the clay of a SculptSession; X_WD identity.
+// The grip starts just above the clay's top with the grasp closed (40°, below the 70° stroke
+// trigger), so the first session step begins a grab stroke; the grip then moves up 15 mm and
+// back every 2 s, dragging the clay. The session steps every 16 ticks (outside the timing).
+Row MeasureSculpt(long ticks) {
+  const SceneSolidGrid grid = PrepareSceneSolid(AssetDir() + "scenes/clay.json", "", 0.003);
+  modeling::SurfaceMeshSettings mesh_settings;
+  mesh_settings.bounds = grid.bounds;
+  mesh_settings.cell_size = grid.cell;
+  SculptSession session;
+  session.SetMesh(modeling::MeshSurface(grid.compiled, mesh_settings));
+  const double grasp = 40.0 * std::numbers::pi / 180.0;
+  const Eigen::Vector3d top(0.0, 0.0, 0.062);
+  haptics::Trajectory trajectory;
+  for (int i = 0; i <= 200; ++i) {
+    haptics::TrajectorySample s;
+    s.t = 0.01 * i;
+    s.p_DT = top + Eigen::Vector3d(0, 0, 0.0075 * (1.0 - std::cos(std::numbers::pi * i / 100.0)));
+    s.grasp = grasp;
+    trajectory.Add(s);
+  }
+  auto scene = std::make_unique<haptics::HapticScene>();
+  scene->Add(session.MakeField());
+  long stroke_ticks = 0, strokes = 0;
+  Row row = Measure("sculpt (clay.json, grab stroke)", std::move(scene), BaseSettings(), trajectory,
+                    ticks, [&](long k, const haptics::TickOutputs& out) {
+                      if (k % 16 == 0 && out.fk_status == haptics::FkStatus::kOk) {
+                        if (session.Step(out.tool_W, false) == SculptFrameEvent::kBegan) ++strokes;
+                      }
+                      stroke_ticks += session.stroke_active();
+                    });
+  char note[200];
+  std::snprintf(note, sizeof(note),
+                "sculpt: %d clay vertices; stroke active in %.1f %% of ticks (%ld stroke%s)",
+                session.mesh()->vertex_count(), 100.0 * stroke_ticks / ticks, strokes,
+                strokes == 1 ? "" : "s");
+  row.note = note;
+  return row;
+}
+
+// Forwards to a field and keeps the thread CPU time of each Evaluate (µs; reserved up front).
+class TimedField final : public haptics::ForceField {
+ public:
+  TimedField(std::unique_ptr<haptics::ForceField> field, long ticks) : field_(std::move(field)) {
+    cpu_.reserve(ticks);
+  }
+  haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override {
+    const double start = ThreadCpuMicros();
+    const haptics::ToolWrench w = field_->Evaluate(tool);
+    if (cpu_.size() < cpu_.capacity()) cpu_.push_back(ThreadCpuMicros() - start);
+    return w;
+  }
+  const char* name() const noexcept override { return field_->name(); }
+  const std::vector<double>& cpu() const { return cpu_; }
+
+ private:
+  std::unique_ptr<haptics::ForceField> field_;
+  std::vector<double> cpu_;
+};
+
+// Assembly: the toy robot's AssemblyField (X_WD identity), the device calibrated as the window
+// does, the hand following seat_right_leg.csv once (ticks beyond its length repeat it, each
+// repeat finding the leg where the previous one left it). Rows: every tick, the carrying ticks.
+std::vector<Row> MeasureAssembly(long ticks) {
+  const modeling::Scene scene = modeling::LoadScene(AssetDir() + "scenes/assembly.json");
+  std::unique_ptr<haptics::AssemblyField> field = BuildAssemblyField(scene);
+  haptics::AssemblyField* assembly = field.get();
+  auto timed = std::make_unique<TimedField>(std::move(field), ticks);
+  TimedField* timer = timed.get();
+  auto haptic_scene = std::make_unique<haptics::HapticScene>();
+  haptic_scene->Add(std::move(timed));
+  std::vector<char> carrying;
+  std::vector<double> field_cpu;  // copied out while the field lives
+  field_cpu.reserve(ticks);
+  carrying.reserve(ticks);
+  long seated = 0;
+  const int parts = assembly->size();
+  Row row = Measure(
+      "assembly (assembly.json, seat the right leg, every tick)", std::move(haptic_scene),
+      BaseSettings(), haptics::Trajectory::Load(AssetDir() + "trajectories/seat_right_leg.csv"),
+      ticks,
+      [&](long, const haptics::TickOutputs&) {
+        carrying.push_back(assembly->carried() >= 0);
+        if (!timer->cpu().empty()) field_cpu.push_back(timer->cpu().back());
+        seated = 0;  // the field dies with the loop: count while it lives
+        for (int i = 0; i < assembly->size(); ++i) seated += assembly->seated(i);
+      },
+      {}, /*calibrate=*/true);
+  std::vector<double> us, cpu;
+  for (std::size_t i = 0; i < carrying.size(); ++i) {
+    if (carrying[i]) {
+      us.push_back(row.us[i]);
+      cpu.push_back(row.cpu[i]);
+    }
+  }
+  std::vector<double> field_carrying;
+  for (std::size_t i = 0; i < carrying.size() && i < field_cpu.size(); ++i) {
+    if (carrying[i]) field_carrying.push_back(field_cpu[i]);
+  }
+  char note[400];
+  std::snprintf(note, sizeof(note),
+                "assembly: a part carried in %.1f %% of ticks; %ld of %d parts seated at the end; "
+                "AssemblyField::Evaluate alone (thread CPU) while carrying: p50 %.1f, p99 %.1f, "
+                "p99.9 %.1f µs",
+                100.0 * us.size() / ticks, seated, parts,
+                field_carrying.empty() ? 0.0 : Quantile(field_carrying, 0.5),
+                field_carrying.empty() ? 0.0 : Quantile(field_carrying, 0.99),
+                field_carrying.empty() ? 0.0 : Quantile(field_carrying, 0.999));
+  row.note = note;
+  std::vector<Row> rows{row};
+  if (!us.empty()) rows.push_back(Summarize("assembly (the ticks carrying a part)", us, cpu));
+  return rows;
+}
+
+}  // namespace
+
+std::vector<SceneTickRow> MeasureSceneTicks(long ticks,
+                                            const std::function<void(double)>& progress) {
+  ticks = std::max(1L, ticks);
+  constexpr int kScenes = 7;
+  int done = 0;
+  auto step = [&] {
+    if (progress) progress(static_cast<double>(++done) / kScenes);
+  };
+  std::vector<Row> rows;
+  const haptics::Trajectory press =
+      haptics::Trajectory::Load(AssetDir() + "trajectories/press.csv");
+  rows.push_back(
+      Measure("empty", std::make_unique<haptics::HapticScene>(), BaseSettings(), press, ticks));
+  step();
+  rows.push_back(Measure("demo (plane wall + spring)", haptics::MakeDemoScene(), BaseSettings(),
+                         press, ticks));
+  step();
+  rows.push_back(MeasureScene("implicit proxy (platform.json, 2 solids, press)", ToolModel::kProxy,
+                              Eigen::Vector3d(0.1, 0, 0.04), "trajectories/press.csv", ticks));
+  step();
+  rows.push_back(MeasureScene("six-DOF shell tool (platform.json, 196 points, twist)",
+                              ToolModel::kShell, Eigen::Vector3d(0.043, 0.2, -0.1),
+                              "trajectories/twist.csv", ticks));
+  step();
+  for (Row& r : MeasureFe(ticks)) rows.push_back(std::move(r));
+  step();
+  rows.push_back(MeasureSculpt(ticks));
+  step();
+  for (Row& r : MeasureAssembly(ticks)) rows.push_back(std::move(r));
+  step();
+  return rows;
+}
+
+void ReportTick(ReportContext& ctx) {
+  const long ticks = ctx.Pick(20000L, 60000L);
+  const std::vector<SceneTickRow> rows =
+      MeasureSceneTicks(ticks, [&](double f) { ctx.Progress(f); });
+  ctx.md() << "HapticLoop::Step compute time (calibration, FK, the scene's force fields, safety, "
+              "tension solve) on the simulated SPIDAR-G gripped by the simulated hand, as in "
+              "`spidarcad run`, "
+           << ticks
+           << " ticks per scene kind (the trajectory repeats). Wall clock (steady clock) per "
+              "tick; thread CPU time excludes preemption by other processes.\n";
+  std::vector<std::vector<std::string>> table, csv;
+  for (const SceneTickRow& r : rows) {
+    table.push_back({r.name, Fixed(r.p50, 1), Fixed(r.p99, 1), Fixed(r.p999, 1), Fixed(r.max, 1),
+                     Fixed(r.mean, 1), Fixed(r.cpu_p50, 1), Fixed(r.cpu_p99, 1)});
+    csv.push_back({"\"" + r.name + "\"", Sig(r.p50, 6), Sig(r.p99, 6), Sig(r.p999, 6),
+                   Sig(r.max, 6), Sig(r.mean, 6), Sig(r.cpu_p50, 6), Sig(r.cpu_p99, 6),
+                   Sig(r.cpu_p999, 6), Sig(r.cpu_max, 6)});
+  }
+  ctx.Table(
+      {"scene", "p50 µs", "p99 µs", "p99.9 µs", "max µs", "mean µs", "CPU p50 µs", "CPU p99 µs"},
+      table);
+  for (const SceneTickRow& r : rows) {
+    if (!r.note.empty()) ctx.md() << "- " << r.note << "\n";
+  }
+  ctx.md() << "\n";
+  ctx.Csv("tick",
+          {"scene", "p50_us", "p99_us", "p999_us", "max_us", "mean_us", "cpu_p50_us", "cpu_p99_us",
+           "cpu_p999_us", "cpu_max_us"},
+          csv);
+  // Distributions: the share of ticks slower than t, against t (log-log), per scene.
+  Chart tail{"Tick time distribution (wall clock)",
+             "tick time t [us]",
+             "share of ticks slower than t",
+             true,
+             true,
+             {}};
+  Chart cpu_tail{"Tick time distribution (thread CPU)",
+                 "tick time t [us]",
+                 "share of ticks slower than t",
+                 true,
+                 true,
+                 {}};
+  for (size_t k = 0; k < rows.size(); ++k) {
+    for (int which = 0; which < 2; ++which) {
+      std::vector<double> v = which == 0 ? rows[k].us : rows[k].cpu;
+      std::sort(v.begin(), v.end());
+      ChartSeries s{rows[k].name, {}, {}, static_cast<int>(k), true, k >= 8, 0};
+      const size_t n = v.size();
+      // About 200 points per curve, denser in the tail.
+      for (size_t i = 0; i < n; i += std::max<size_t>(1, (n - i) / 100)) {
+        s.x.push_back(v[i]);
+        s.y.push_back(static_cast<double>(n - i) / n);
+      }
+      (which == 0 ? tail : cpu_tail).series.push_back(s);
+    }
+  }
+  ctx.Figure("tick_distribution", {tail, cpu_tail},
+             "Complementary cumulative distribution of the tick time per scene: the curve at t "
+             "gives the share of ticks that took longer than t (1 ms is the whole budget).",
+             1600, 640);
+  double worst_p99 = 0;
+  std::string worst;
+  for (const SceneTickRow& r : rows) {
+    if (r.p99 > worst_p99) {
+      worst_p99 = r.p99;
+      worst = r.name;
+    }
+  }
+  ctx.Headline("p50 " + Fixed(rows.front().p50, 1) + " µs (empty scene) to " +
+               Fixed(rows.size() > 1
+                         ? std::max_element(rows.begin(), rows.end(),
+                                            [](const SceneTickRow& a, const SceneTickRow& b) {
+                                              return a.p50 < b.p50;
+                                            })
+                               ->p50
+                         : 0.0,
+                     1) +
+               " µs; worst p99 " + Fixed(worst_p99, 1) + " µs (" + worst + ") of the 1000 µs tick");
+}
+
+}  // namespace spidarcad::app

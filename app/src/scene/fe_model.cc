@@ -1,0 +1,258 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "scene/fe_model.h"
+
+#include "doc/assets.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <cmath>
+#include <sstream>
+
+#include "scene/scene_solid.h"
+#include "scene/vtu_io.h"
+#include "spidarcad/fem/stiffness.h"
+#include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/modeling/tetgen_mesher.h"
+
+namespace spidarcad::app {
+namespace {
+
+void CheckCancel(const FeModelSettings& s) {
+  if (s.cancel != nullptr && s.cancel->load(std::memory_order_relaxed)) throw FeModelCancelled();
+}
+
+void Progress(const FeModelSettings& s, double fraction, const char* phase) {
+  if (s.phase && phase != nullptr) s.phase(phase);
+  if (s.progress) s.progress(fraction);
+}
+
+}  // namespace
+
+std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings& settings) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (settings.order != 1 && settings.order != 2) {
+    std::ostringstream msg;
+    msg << "FE model: element order must be 1 or 2, got " << settings.order;
+    throw std::invalid_argument(msg.str());
+  }
+  settings.material.Validate();
+  Progress(settings, 0.0, "check mesh");
+  mesh.Validate();
+  if (mesh.Order() != 1 && settings.order == 1)
+    throw std::invalid_argument("FE model: the mesh is quadratic (10-node) but order 1 was asked");
+  CheckCancel(settings);
+
+  std::unique_ptr<FeModel> m(new FeModel());
+  m->material_ = settings.material;
+  m->mesh_ = (settings.order == 2 && mesh.Order() == 1) ? fem::MakeQuadratic(mesh) : std::move(mesh);
+  m->mesh_.regions.setZero(m->mesh_.num_elements());
+  m->materials_ = std::make_unique<fem::MaterialTable>(settings.material);
+  m->surface_ = fem::ExtractSurface(m->mesh_);
+  const fem::TetMesh& tm = m->mesh_;
+  const int nv = tm.num_nodes();
+
+  // Mean boundary edge length (corner edges of the faces).
+  double edge_sum = 0.0;
+  const int nf = static_cast<int>(m->surface_.faces.rows());
+  for (int f = 0; f < nf; ++f)
+    for (int i = 0; i < 3; ++i) {
+      const int a = m->surface_.faces(f, i), b = m->surface_.faces(f, (i + 1) % 3);
+      edge_sum += (tm.nodes.row(a) - tm.nodes.row(b)).norm();
+    }
+  m->mean_edge_ = nf > 0 ? edge_sum / (3.0 * nf) : 0.0;
+  CheckCancel(settings);
+
+  // Clamps.
+  Progress(settings, 0.05, "constraints");
+  m->bcs_ = std::make_unique<fem::BoundaryConditions>(nv);
+  if (settings.fixed_boxes.empty()) {
+    const double tol = settings.min_x_tolerance >= 0.0 ? settings.min_x_tolerance : 0.25 * m->mean_edge_;
+    const double min_x = tm.nodes.col(0).minCoeff();
+    m->num_fixed_nodes_ = fem::FixNodesInBox(
+        tm, Eigen::Vector3d(min_x - 1.0, -1e30, -1e30), Eigen::Vector3d(min_x + tol, 1e30, 1e30), m->bcs_.get());
+  } else {
+    std::vector<char> fixed(nv, 0);
+    for (std::size_t i = 0; i < settings.fixed_boxes.size(); ++i) {
+      const Eigen::AlignedBox3d& box = settings.fixed_boxes[i];
+      if (box.isEmpty()) {
+        std::ostringstream msg;
+        msg << "FE model: fixed box " << i << " is empty (min must not exceed max)";
+        throw std::invalid_argument(msg.str());
+      }
+      for (int v : fem::NodesInBox(tm, box.min(), box.max())) fixed[v] = 1;
+    }
+    for (int v = 0; v < nv; ++v)
+      if (fixed[v]) {
+        m->bcs_->FixNode(v);
+        ++m->num_fixed_nodes_;
+      }
+  }
+  if (m->num_fixed_nodes_ == 0)
+    throw std::invalid_argument("FE model: no node lies in the fixed region: the part would float");
+  CheckCancel(settings);
+
+  // Assembly and factorisation (the expensive, uninterruptible part).
+  Progress(settings, 0.1, "assemble and factor");
+  m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_);
+  if (!m->solver_->factor_status().converged)
+    throw std::runtime_error("FE model: factorisation failed: " + m->solver_->factor_status().message);
+  CheckCancel(settings);
+
+  // Surface elements, output nodes (every node of a surface element), stress operators.
+  Progress(settings, 0.7, "stress operators");
+  m->surface_elements_.assign(m->surface_.face_element.data(),
+                              m->surface_.face_element.data() + m->surface_.face_element.size());
+  std::sort(m->surface_elements_.begin(), m->surface_elements_.end());
+  m->surface_elements_.erase(std::unique(m->surface_elements_.begin(), m->surface_elements_.end()),
+                             m->surface_elements_.end());
+  m->output_index_.assign(nv, -1);
+  for (int e : m->surface_elements_)
+    for (int j = 0; j < tm.NodesPerElement(); ++j) m->output_index_[tm.elements(e, j)] = 0;
+  for (int v : m->surface_.nodes) m->output_index_[v] = 0;
+  for (int v = 0; v < nv; ++v)
+    if (m->output_index_[v] == 0) {
+      m->output_index_[v] = static_cast<int>(m->output_nodes_.size());
+      m->output_nodes_.push_back(v);
+    }
+  const fem::Matrix6d d = settings.material.ElasticityMatrix();
+  m->stress_ops_.reserve(m->surface_elements_.size());
+  m->element_volume_.reserve(m->surface_elements_.size());
+  for (std::size_t i = 0; i < m->surface_elements_.size(); ++i) {
+    const int e = m->surface_elements_[i];
+    const Eigen::MatrixXd b = fem::StrainDisplacement(fem::GetElementNodes(tm, e), Eigen::Vector4d::Constant(0.25));
+    m->stress_ops_.push_back(d * b);
+    m->element_volume_.push_back(std::abs(tm.CornerVolume(e)));
+    if ((i & 1023) == 0) CheckCancel(settings);
+  }
+
+  // Outward normals of the surface nodes (candidates), area weighted.
+  const std::vector<int>& candidates = m->surface_.nodes;
+  std::vector<int> cand_of(nv, -1);
+  for (std::size_t b = 0; b < candidates.size(); ++b) cand_of[candidates[b]] = static_cast<int>(b);
+  m->normals_.setZero(static_cast<Eigen::Index>(candidates.size()), 3);
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d p0 = tm.nodes.row(m->surface_.faces(f, 0)), p1 = tm.nodes.row(m->surface_.faces(f, 1)),
+                          p2 = tm.nodes.row(m->surface_.faces(f, 2));
+    const Eigen::RowVector3d n = (p1 - p0).cross(p2 - p0).transpose();  // 2·area·normal
+    for (int i = 0; i < 3; ++i) m->normals_.row(cand_of[m->surface_.faces(f, i)]) += n;
+    if (m->surface_.faces6.rows() == nf)
+      for (int i = 3; i < 6; ++i) m->normals_.row(cand_of[m->surface_.faces6(f, i)]) += n;
+  }
+  for (Eigen::Index b = 0; b < m->normals_.rows(); ++b) {
+    const double len = m->normals_.row(b).norm();
+    if (len > 0.0) m->normals_.row(b) /= len;
+  }
+  CheckCancel(settings);
+
+  // Column cache (baseline solve), disk cache import.
+  Progress(settings, 0.8, "columns");
+  fem::ColumnCacheSettings cs = settings.cache;
+  cs.start_worker = false;
+  auto cache = std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes, m->output_nodes_, candidates, cs);
+  m->use_disk_cache_ = settings.use_disk_cache;
+  m->cache_directory_ = settings.cache_directory.empty() ? fem::DefaultCacheDirectory() : settings.cache_directory;
+  m->key_ = fem::PrecomputeKey(tm, *m->materials_, *m->bcs_, m->output_nodes_, cs.precision);
+  if (m->use_disk_cache_) {
+    Progress(settings, 0.9, "disk cache");
+    const fem::PrecomputeCache disk(m->cache_directory_);
+    if (std::optional<fem::ColumnSet> set = disk.Load(m->key_)) m->imported_nodes_ = cache->Import(*set);
+  }
+  CheckCancel(settings);
+  m->cache_ = std::move(cache);
+  if (settings.cache.start_worker) m->cache_->Start();
+  m->build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  Progress(settings, 1.0, "ready");
+  return m;
+}
+
+FeModel::~FeModel() {
+  if (cache_) cache_->Stop();
+}
+
+Eigen::VectorXd FeModel::SurfaceElementVonMises(const Eigen::VectorXd& u_out) const {
+  const int npe = mesh_.NodesPerElement();
+  Eigen::VectorXd vm(static_cast<Eigen::Index>(surface_elements_.size()));
+  Eigen::VectorXd ue(3 * npe);
+  for (std::size_t i = 0; i < surface_elements_.size(); ++i) {
+    const int e = surface_elements_[i];
+    for (int j = 0; j < npe; ++j) ue.segment<3>(3 * j) = u_out.segment<3>(3 * output_index_[mesh_.elements(e, j)]);
+    const Eigen::Matrix<double, 6, 1> s = stress_ops_[i] * ue;
+    vm(static_cast<Eigen::Index>(i)) = fem::VonMises(s);
+  }
+  return vm;
+}
+
+Eigen::VectorXd FeModel::NodalVonMises(const Eigen::VectorXd& u_out) const {
+  const Eigen::VectorXd vm = SurfaceElementVonMises(u_out);
+  const int nv = mesh_.num_nodes(), npe = mesh_.NodesPerElement();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(nv), weight = Eigen::VectorXd::Zero(nv);
+  for (std::size_t i = 0; i < surface_elements_.size(); ++i)
+    for (int j = 0; j < npe; ++j) {
+      const int v = mesh_.elements(surface_elements_[i], j);
+      sum(v) += element_volume_[i] * vm(static_cast<Eigen::Index>(i));
+      weight(v) += element_volume_[i];
+    }
+  for (int v = 0; v < nv; ++v) sum(v) = weight(v) > 0.0 ? sum(v) / weight(v) : 0.0;
+  return sum;
+}
+
+Eigen::MatrixX3d FeModel::FullDisplacement(const Eigen::VectorXd& u_out) const {
+  Eigen::MatrixX3d u = Eigen::MatrixX3d::Zero(mesh_.num_nodes(), 3);
+  for (std::size_t a = 0; a < output_nodes_.size(); ++a)
+    u.row(output_nodes_[a]) = u_out.segment<3>(3 * static_cast<Eigen::Index>(a)).transpose();
+  return u;
+}
+
+bool FeModel::SaveColumns(std::string* error) {
+  if (!use_disk_cache_) {
+    if (error) *error = "the disk cache is off for this model";
+    return false;
+  }
+  const bool was_running = cache_->running();
+  cache_->Stop();
+  const fem::ColumnSet set = cache_->Export(key_);
+  if (was_running) cache_->Start();
+  if (set.nodes.empty()) {
+    if (error) *error = "no column is ready: nothing to save";
+    return false;
+  }
+  return fem::PrecomputeCache(cache_directory_).Save(set, error);
+}
+
+fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,
+                                 double resolution, const std::atomic<bool>* cancel,
+                                 const std::function<void(double)>& progress) {
+  const auto check = [&] {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw FeModelCancelled();
+  };
+  if (progress) progress(0.0);
+  const SceneSolidGrid grid = PrepareSceneSolid(scene_path, solid_name, resolution);
+  check();
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = grid.bounds;
+  ss.cell_size = grid.cell;
+  const modeling::TriangleMesh surface = modeling::MeshSurface(grid.compiled, ss);
+  if (progress) progress(0.3);
+  check();
+  modeling::TetMeshSettings ts;
+  ts.max_radius_edge = 2.0;
+  ts.cancel = cancel;
+  if (progress) ts.progress = [&](double f) { progress(0.3 + 0.7 * f); };
+  modeling::TetMesh tets;
+  try {
+    tets = modeling::TetrahedralizeSurface(surface, ts);
+  } catch (const modeling::TetMeshingCancelled&) {
+    throw FeModelCancelled();
+  }
+  check();
+  return ToFemMesh(tets);
+}
+
+std::string PlatformScenePath() {
+  namespace fs = std::filesystem;
+  if (const char* p = std::getenv("SPIDARCAD_PLATFORM_SCENE"); p != nullptr && *p != 0) return p;
+  return AssetPath("scenes/platform.json");
+}
+
+}  // namespace spidarcad::app

@@ -1,0 +1,201 @@
+// The window's haptic runtime: the device path of --device (a DeviceRig: the simulated SPIDAR-G,
+// the USB driver over the board simulator, or the USB driver to a real board), a simulated hand
+// holding the simulated device's grip, read and driven by haptics::HapticLoop at 1 kHz on
+// haptics::LoopRunner's thread (SCHED_FIFO when allowed), wired as `spidarcad run` wires them
+// headless. The main thread sets the hand's TARGET pose (what the mouse sets; a real board
+// ignores it: the user's hand holds the grip), reads the latest RuntimeFrame, publishes
+// HapticScenes and presses the emergency stop; it never waits for the haptic thread, and the
+// haptic thread never waits for it (triple buffers both ways). A real board that is absent or
+// unplugged gives zero force (the loop's device-error path) while a service thread re-opens it
+// off the tick. Frame D, SI units.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "scene/device_session.h"
+#include "scene/device_rig.h"
+#include "spidarcad/haptics/encoder.h"
+#include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/geometry.h"
+#include "spidarcad/haptics/haptic_loop.h"
+#include "spidarcad/haptics/loop_runner.h"
+#include "spidarcad/haptics/simulated_device.h"
+#include "spidarcad/haptics/simulated_hand.h"
+#include "spidarcad/haptics/trajectory.h"
+#include "spidarcad/haptics/triple_buffer.h"
+
+namespace spidarcad::app {
+
+// Which device the runtime drives (--device of the window).
+enum class RuntimeDevice {
+  // haptics::SimulatedSpidarG with the paper's encoder errors, noise, stretch and motor lag,
+  // read through a line-fit encoder calibration made at start-up on 24 simulated jig poses
+  // (CalibrateSimulated, runtime/device_rig.h, as `spidarcad run --calibrate`);
+  // the grip is held by a haptics::SimulatedHand (mass-spring-damper) that follows the target.
+  kSimulated = 0,
+  // SimulatedDeviceConfig::Ideal() (no encoder error, noise or stretch; quantisation and motor
+  // lag remain) with the nominal calibration, and a rigid hand: the grip IS the target pose.
+  kIdeal = 1,
+  // The simulated SPIDAR-G of kSimulated (same seed) behind the controller board's firmware
+  // simulator, driven by the USB driver over the in-process loopback (the driver's whole path,
+  // docs/protocol.md); the simulated hand holds the board's device. Nominal calibration, as
+  // `spidarcad run --device board-sim` uses. The driver reconnects in the tick (the loopback
+  // allocates nothing); RequestBoardPlugged simulates an unplug.
+  kBoardSim = 2,
+  // A real SPIDAR-G controller board over libusb: the nominal device and calibration, no
+  // simulated hand (the target is ignored; the grip pose is the board's, measured). No board,
+  // or unplugged: zero force, and the service thread re-opens it every
+  // RuntimeSettings::usb.reconnect_every sample periods.
+  kUsb = 3,
+};
+
+// "simulated", "ideal", "board-sim" or "usb" -> device; false for any other name.
+bool ParseRuntimeDevice(const std::string& name, RuntimeDevice* device);
+// The --device name of `device`.
+const char* RuntimeDeviceName(RuntimeDevice device);
+
+// Settings of HapticRuntime.
+struct RuntimeSettings {
+  RuntimeDevice device = RuntimeDevice::kSimulated;
+  std::uint64_t seed = 1;          // seed of the simulated device's errors and noise
+  haptics::HandSettings hand;      // the simulated hand (kSimulated, kBoardSim)
+  haptics::LoopSettings loop;      // X_WD, damping, limits, ramp; tension set from the grip size
+  haptics::RunnerSettings runner;  // 1 kHz, SCHED_FIFO when permitted
+  haptics::usb::UsbDeviceConfig usb;  // kBoardSim, kUsb: the driver's timeouts and recovery
+  // kUsb: makes the transport (tests: a LoopbackTransport to a BoardSimulator); empty: libusb.
+  std::function<std::unique_ptr<haptics::usb::Transport>()> usb_transport;
+};
+
+// What the haptic thread publishes each tick for the window.
+struct RuntimeFrame {
+  haptics::ToolState tool;                              // the loop's output of the tick
+  haptics::GripPose hand_pose;                          // true grip pose (the hand's), D;
+                                                        // kUsb: the measured pose (last good)
+  haptics::Vector8d lengths = haptics::Vector8d::Zero();  // calibrated string lengths, m
+  double step_seconds = 0.0;                            // compute time of HapticLoop::Step, s
+  RigLink link;                                         // the driver's link (kBoardSim, kUsb)
+};
+
+// Device + calibration + hand + loop + runner. Construct, Publish a scene, Start.
+class HapticRuntime {
+ public:
+  // Builds the device (and calibrates it for kSimulated), the hand at `initial_target`, and the
+  // loop; kBoardSim and kUsb open the link (a board that does not answer is not an error: see
+  // link_at_start()). Throws std::invalid_argument on bad settings.
+  HapticRuntime(const RuntimeSettings& settings, const haptics::GripPose& initial_target);
+  // Stops the thread.
+  ~HapticRuntime();
+  HapticRuntime(const HapticRuntime&) = delete;
+  HapticRuntime& operator=(const HapticRuntime&) = delete;
+
+  // Starts the 1 kHz thread (LoopRunner::Start), and for kUsb the thread that re-opens a lost
+  // board (ServiceDevice). Do not call Tick or ServiceDevice yourself while they run.
+  void Start();
+  // Stops and joins the threads. Safe when not running.
+  void Stop();
+
+  // One tick: hand toward the target under the device wrench, device step, encoder read,
+  // HapticLoop::Step, tensions out, RuntimeFrame published. Real-time safe (no allocation,
+  // lock, I/O or exception). Called by the runner's thread, or directly by tests (virtual clock).
+  void Tick(const haptics::TickTiming& timing) noexcept;
+
+  // Main thread: the pose the hand moves toward (the mouse's grip pose), D. Ignored by kUsb.
+  void SetTarget(const haptics::GripPose& target_D) noexcept;
+  // Any thread: kBoardSim unplugs (false) or replugs (true) the simulated board at the next
+  // tick (fault injection; the panel's checkbox). Ignored by the other devices.
+  void RequestBoardPlugged(bool plugged) noexcept { rig_->RequestPlugged(plugged); }
+  // Not while Start()ed: one re-open attempt of a lost board (kUsb; what the service thread
+  // does every reconnect period). Returns true when it tried. For tests on a virtual clock.
+  bool ServiceDevice() { return rig_->Service(); }
+  // Main thread: the latest frame published by the haptic thread (lock-free, never waits).
+  const RuntimeFrame& Latest() noexcept { return frames_.Latest(); }
+  // Main thread: hands `scene` to the loop (HapticLoop::Publish; frees retired scenes).
+  void Publish(std::unique_ptr<haptics::HapticScene> scene);
+
+  // Any thread: latches zero force (HapticLoop::RequestEmergencyStop).
+  void EmergencyStop() noexcept { loop_->RequestEmergencyStop(); }
+  // Any thread: releases the stop; forces come back through the loop's ramp.
+  void Rearm() noexcept { loop_->ClearEmergencyStop(); }
+  // True while the emergency stop is latched.
+  bool emergency_stopped() const noexcept { return loop_->emergency_stop(); }
+
+  // The loop (event counts, settings), the runner (jitter and tick histograms, SCHED_FIFO
+  // state) and the histogram of HapticLoop::Step's own compute time.
+  const haptics::HapticLoop& loop() const { return *loop_; }
+  const haptics::LoopRunner& runner() const { return runner_; }
+  const haptics::LatencyHistogram& step_time() const { return step_time_; }
+  // Ticks run (by the thread or by Tick calls).
+  std::uint64_t ticks() const noexcept { return ticks_.load(std::memory_order_relaxed); }
+  // One line on the device and its calibration ("simulated SPIDAR-G, line-fit calibration ...").
+  const std::string& description() const { return description_; }
+  const haptics::DeviceInfo& info() const { return rig_->info(); }
+  // The simulated SPIDAR-G the hand holds (kSimulated, kIdeal, kBoardSim: the board's device);
+  // null for kUsb. Test oracle: read it only while the thread is stopped.
+  const haptics::SimulatedSpidarG* physical_device() const { return device_; }
+  const RuntimeSettings& settings() const { return settings_; }
+  // kBoardSim, kUsb: empty when the link opened at construction, else what to check (the
+  // window keeps running, at zero force, and retries).
+  const std::string& link_at_start() const { return link_at_start_; }
+  // The device rig's link summary ("usb link: states ..."; empty for the simulated devices).
+  // Not while Start()ed.
+  std::string LinkSummary() const { return rig_->LinkSummary(); }
+
+ private:
+  RuntimeSettings settings_;
+  std::unique_ptr<DeviceRig> rig_;
+  haptics::SimulatedSpidarG* device_ = nullptr;  // the rig's physical device; null for kUsb
+  haptics::EncoderCalibration calibration_;
+  std::unique_ptr<haptics::HapticLoop> loop_;
+  haptics::SimulatedHand hand_;
+  haptics::TripleBuffer<haptics::TrajectorySample> targets_;  // main -> haptic
+  haptics::TripleBuffer<RuntimeFrame> frames_;                // haptic -> main
+  haptics::LatencyHistogram step_time_;
+  haptics::LoopRunner runner_;
+  std::atomic<std::uint64_t> ticks_{0};
+  std::string description_;
+  std::string link_at_start_;
+  haptics::GripPose last_measured_;  // kUsb: the last pose FK accepted (haptic thread)
+  std::unique_ptr<RigServiceThread> service_;  // re-opens a lost board (kUsb) while started
+};
+
+// Loop statistics for the window's panel and the exit summary (read on the main thread while
+// the haptic thread runs: counts may be one tick apart).
+struct LoopStats {
+  haptics::RealtimeStatus realtime = haptics::RealtimeStatus::kNotStarted;
+  std::uint64_t ticks = 0;       // ticks run
+  std::uint64_t overruns = 0;    // runner wake-ups so late that slots were skipped
+  // Percentiles p50, p99, p99.9 and the maximum, s, of: HapticLoop::Step's compute time; the
+  // whole tick (hand and device simulation included, LoopRunner::compute()); the period jitter
+  // |actual − nominal period| (LoopRunner::jitter()).
+  std::array<double, 4> step{};
+  std::array<double, 4> tick{};
+  std::array<double, 4> jitter{};
+  std::array<std::uint64_t, haptics::kNumSafetyEvents> events{};  // ticks with each event
+  bool emergency_stop = false;   // latched stop
+  double ramp = 0.0;             // force ramp of the latest tick
+  RigLink link;                  // the device link of the latest tick (has_driver: board paths)
+};
+
+// Gathers LoopStats from `runtime` and its latest frame.
+LoopStats CollectLoopStats(const HapticRuntime& runtime, const RuntimeFrame& latest);
+
+// Lines for stdout: "loop: N ticks, SCHED_FIFO|fallback (...), step p50 ... µs ...",
+// "safety events: name=count, ...", and with a driver "device link: <DescribeLink>".
+std::string FormatLoopSummary(const LoopStats& stats);
+
+// The device part of the window's frame from the haptic runtime's frame: poses, lengths,
+// tensions, wrenches, statuses; the FK residual is recomputed from the lengths.
+DeviceFrame MakeDeviceFrame(const RuntimeFrame& frame, const haptics::SpidarGeometry& geometry,
+                            const std::string& source);
+
+// Turns a grip pose into the hand's target sample (centre, rotation, grasp), D.
+haptics::TrajectorySample TargetFromPose(const haptics::GripPose& pose);
+
+}  // namespace spidarcad::app

@@ -1,0 +1,25 @@
+cmake_minimum_required(VERSION 3.22)
+# Fails when a source of the app layer LAYER (in DIR) includes a header of an app layer not in
+# ALLOWED (comma-separated), e.g. scene including "gui/...": the app's layers point one way,
+# doc <- scene <- {cli, gui}. Run by the build (app/CMakeLists.txt); writes STAMP on success.
+string(REPLACE "," ";" allowed "${ALLOWED}")
+set(layers doc scene cli gui)
+file(GLOB files "${DIR}/*.cc" "${DIR}/*.h")
+set(errors "")
+foreach(file IN LISTS files)
+  file(STRINGS "${file}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*\"")
+  foreach(line IN LISTS lines)
+    if(line MATCHES "#[ \t]*include[ \t]*\"([a-z_]+)/")
+      set(layer "${CMAKE_MATCH_1}")
+      if(layer IN_LIST layers AND NOT layer IN_LIST allowed)
+        get_filename_component(name "${file}" NAME)
+        string(APPEND errors "\n  app/src/${LAYER}/${name}: ${line}")
+      endif()
+    endif()
+  endforeach()
+endforeach()
+if(errors)
+  message(FATAL_ERROR "app layer '${LAYER}' may include only ${ALLOWED}; these include a layer "
+                      "above it (move the code down a layer, or the include up):${errors}")
+endif()
+file(WRITE "${STAMP}" "ok\n")

@@ -1,0 +1,154 @@
+// Tests of `spidarcad report`, run as a separate process: the files, the stamp, figures checked
+// against independent expectations (FK on exact lengths, the tension optimum), the tables-only
+// path without a display, and bad --only names.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "spidarcad_runner.h"
+
+namespace {
+
+using spidarcad::test_support::CommandRun;
+using spidarcad::test_support::ReadWholeFile;
+using spidarcad::test_support::RunSpidarcad;
+using spidarcad::test_support::TestOutputPath;
+
+// Splits a CSV line (fields without commas, quotes kept).
+std::vector<std::string> Split(const std::string& line) {
+  std::vector<std::string> fields;
+  std::stringstream in(line);
+  std::string field;
+  while (std::getline(in, field, ',')) fields.push_back(field);
+  return fields;
+}
+
+// Rows of a CSV file keyed by its first `key_columns` columns joined with '|'.
+std::map<std::string, std::vector<std::string>> ReadCsv(const std::string& path, int key_columns,
+                                                        std::vector<std::string>* header) {
+  std::ifstream in(path);
+  std::string line;
+  std::map<std::string, std::vector<std::string>> rows;
+  if (!std::getline(in, line)) return rows;
+  *header = Split(line);
+  while (std::getline(in, line)) {
+    const std::vector<std::string> f = Split(line);
+    if (static_cast<int>(f.size()) < key_columns) continue;
+    std::string key = f[0];
+    for (int i = 1; i < key_columns; ++i) key += "|" + f[i];
+    rows[key] = f;
+  }
+  return rows;
+}
+
+// Column index of `name` in `header` (-1 when missing).
+int Column(const std::vector<std::string>& header, const std::string& name) {
+  for (size_t i = 0; i < header.size(); ++i) {
+    if (header[i] == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+std::string FreshDir(const std::string& name) {
+  const std::string dir = TestOutputPath(name);
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+TEST(ReportCommand, WritesStampedReportWhoseFkAndTensionFiguresMatchIndependentReferences) {
+  const std::string dir = FreshDir("report_fk_tensions");
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only fk,tensions", "", "fk_tensions");
+  ASSERT_EQ(run.status, 0) << run.err;
+  // Progress on stderr, one line per section at least.
+  EXPECT_NE(run.err.find("[ 1/2] fk"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("[ 2/2] tensions"), std::string::npos) << run.err;
+
+  const std::string md = ReadWholeFile(dir + "/report.md");
+  ASSERT_FALSE(md.empty());
+  for (const char* key :
+       {"| commit |", "| build type |", "| CPU |", "| cores |", "| date |", "| mode | --quick |",
+        "## Summary", "## Forward kinematics", "## Tension distribution"}) {
+    EXPECT_NE(md.find(key), std::string::npos) << key;
+  }
+  EXPECT_EQ(md.find("## Workspace"), std::string::npos);  // not asked for
+  EXPECT_EQ(md.find("| commit |  |"), std::string::npos);
+  EXPECT_EQ(md.find("failed"), std::string::npos);
+
+  // FK: on exact lengths the closed form and the refinement recover the true pose to rounding;
+  // 0.8 % noise per string costs millimetres (the paper's calibrated accuracy).
+  std::vector<std::string> header;
+  const auto fk = ReadCsv(dir + "/fk.csv", 2, &header);
+  const int pos_max = Column(header, "pos_err_max_m");
+  const int solved = Column(header, "solved_fraction");
+  ASSERT_GE(pos_max, 0);
+  ASSERT_GE(solved, 0);
+  ASSERT_TRUE(fk.count("closed form|exact"));
+  ASSERT_TRUE(fk.count("refined (cold)|exact"));
+  ASSERT_TRUE(fk.count("refined (cold)|0.8 % per string"));
+  EXPECT_LT(std::stod(fk.at("closed form|exact")[pos_max]), 1e-9);
+  EXPECT_LT(std::stod(fk.at("refined (cold)|exact")[pos_max]), 1e-9);
+  EXPECT_EQ(std::stod(fk.at("closed form|exact")[solved]), 1.0);
+  EXPECT_GT(std::stod(fk.at("refined (cold)|0.8 % per string")[pos_max]), 1e-4);
+
+  // Tensions: the solver is exact, so its gap to the brute-force optimum is at rounding level;
+  // feasible requests are displayed in full, saturating ones only in part.
+  const auto tensions = ReadCsv(dir + "/tensions.csv", 3, &header);
+  const int gap_max = Column(header, "gap_max");
+  const int share = Column(header, "share_force");
+  ASSERT_GE(gap_max, 0);
+  ASSERT_GE(share, 0);
+  ASSERT_TRUE(tensions.count("random_poses|cold|feasible"));
+  ASSERT_TRUE(tensions.count("random_poses|cold|saturated"));
+  int checked = 0;
+  for (const auto& [key, row] : tensions) {
+    EXPECT_LT(std::stod(row[gap_max]), 1e-6) << key;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 6);
+  EXPECT_GT(std::stod(tensions.at("random_poses|cold|feasible")[share]), 0.95);
+  EXPECT_LT(std::stod(tensions.at("random_poses|cold|saturated")[share]), 0.5);
+
+  // A chart when there was a display (directly or through xvfb-run).
+  if (md.find("skipped (no X display)") == std::string::npos) {
+    const std::string png = ReadWholeFile(dir + "/fk_time_vs_error.png");
+    ASSERT_GT(png.size(), 1000u);
+    EXPECT_EQ(png.substr(1, 3), "PNG");
+  }
+}
+
+TEST(ReportCommand, WithoutDisplayOrXvfbWritesTablesOnlyAndSaysSo) {
+  const std::string dir = FreshDir("report_tables_only");
+  // SPIDARCAD_REPORT_UNDER_XVFB stops the re-execution under xvfb-run, as when it is missing.
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only fk", "", "tables_only",
+                   "env -u DISPLAY SPIDARCAD_REPORT_UNDER_XVFB=1");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.err.find("tables only"), std::string::npos) << run.err;
+  const std::string md = ReadWholeFile(dir + "/report.md");
+  EXPECT_NE(md.find("charts were not drawn"), std::string::npos);
+  EXPECT_NE(md.find("| closed form | exact |"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/fk_time_vs_error.png"));
+}
+
+TEST(ReportCommand, UnknownOnlyNameExitsTwoListingTheValidNamesAndWritesNothing) {
+  const std::string dir = FreshDir("report_bad_only");
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only fk,bogus", "", "bad_only");
+  EXPECT_EQ(run.status, 2);
+  EXPECT_NE(run.err.find("'bogus'"), std::string::npos) << run.err;
+  for (const char* name : {"fk", "tensions", "calibration", "workspace", "implicit", "surface",
+                           "tets", "fe", "tick", "sculpt"}) {
+    EXPECT_NE(run.err.find(name), std::string::npos) << name;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir));
+}
+
+}  // namespace

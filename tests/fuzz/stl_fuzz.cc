@@ -1,0 +1,8 @@
+// Fuzz harness: STL files, ASCII and binary (detected by ReadTriangleMesh) through
+// modeling::ReadTriangleMesh (see mesh_fuzz_common.h). Copyright the spidarcad authors.
+// SPDX-License-Identifier: AGPL-3.0-or-later
+#include "mesh_fuzz_common.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  return spidarcad::fuzz::RunMeshHarness("stl", "stl", data, size);
+}
