@@ -15,7 +15,7 @@
 
 #include "cli/calibration_file.h"
 #include "cli/cli_common.h"
-#include "runtime/device_rig.h"
+#include "scene/device_rig.h"
 #include "spidarcad/haptics/calibration.h"
 #include "spidarcad/haptics/calibration_session.h"
 #include "spidarcad/haptics/kinematics.h"

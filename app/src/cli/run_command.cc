@@ -2,7 +2,7 @@
 // virtual clock at 1 kHz against the simulated SPIDAR-G (strings, encoders and calibration
 // error included), gripped by a simulated hand that follows a scripted trajectory and is pushed
 // by the device's wrench. One CSV row per tick; a summary on stdout. --device picks the path to
-// the device (DeviceRig, runtime/device_rig.h, shared with the window): the simulated SPIDAR-G
+// the device (DeviceRig, scene/device_rig.h, shared with the window): the simulated SPIDAR-G
 // directly, the USB driver over the in-process board simulator (board-sim), or the USB driver
 // over libusb to a real board (usb, real time).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
