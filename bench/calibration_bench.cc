@@ -13,8 +13,8 @@ namespace spidarcad::haptics {
 namespace {
 
 EncoderCalibration NominalOf(const SimulatedSpidarG& dev) {
-  return EncoderCalibration::Nominal(
-      dev.info().encoder, InverseKinematics(dev.info().geometry, dev.info().home_pose));
+  return EncoderCalibration::Nominal(dev.info().encoder,
+                                     InverseKinematics(dev.info().geometry, dev.info().home_pose));
 }
 
 // One tick's conversion of 8 counters to lengths (with stretch correction).
@@ -61,18 +61,57 @@ void BM_FitLinesPerString(benchmark::State& state) {
 }
 BENCHMARK(BM_FitLinesPerString)->Arg(100)->Unit(benchmark::kMicrosecond);
 
-// Self-calibration (offset, gain, quadratic per string) with N unknown poses.
+// A self-calibration session as `spidarcad calibrate --simulated` runs it: the homing sample
+// and N waved poses in the 40 cm cube with the tensions varied per string in 0.3-3 N.
+struct Session {
+  std::vector<KnownPoseSample> home;
+  std::vector<UnknownPoseSample> wave;
+};
+Session WaveSession(SimulatedSpidarG* dev, int count, std::uint64_t seed) {
+  const auto poses = RandomGripPoses(dev->info().geometry, count, 0.2, 0.5236, 0.3, seed);
+  return {{HomingSample(dev->info(), dev->config().homing_tension)},
+          GatherUnknownSamples(dev, poses, CalibrationTensions(count, 0.3, 3.0, seed))};
+}
+
+// Self-calibration (offset, gain, quadratic and stretch per string) with N unknown poses.
 void BM_SelfCalibrate(benchmark::State& state) {
   SimulatedSpidarG dev;
-  const auto poses = RandomGripPoses(dev.info().geometry, state.range(0), 0.2, 0.5, 0.3, 3);
-  const auto home = GatherKnownSamples(&dev, {dev.info().home_pose}, 0.5);
-  const auto wave = GatherUnknownSamples(&dev, poses, 0.5);
+  const Session s = WaveSession(&dev, static_cast<int>(state.range(0)), 3);
   const EncoderCalibration nominal = NominalOf(dev);
   for (auto _ : state) {
-    benchmark::DoNotOptimize(SelfCalibrate(dev.info().geometry, nominal, home, wave));
+    benchmark::DoNotOptimize(SelfCalibrate(dev.info().geometry, nominal, s.home, s.wave));
   }
 }
-BENCHMARK(BM_SelfCalibrate)->Arg(30)->Arg(100)->Arg(300)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SelfCalibrate)->Arg(40)->Arg(100)->Arg(300)->Unit(benchmark::kMillisecond);
+
+// Accuracy of self-calibration on the simulated device of seed N (100 poses), as counters:
+// position and rotation error (mean, max) over 200 evaluation poses at 0.2-3 N, mm and deg,
+// and the floor of the true parameters. Issue 15's bar: pos_max_mm <= 0.2 on seeds 1-5.
+void BM_SelfCalibrationAccuracy(benchmark::State& state) {
+  const std::uint64_t seed = static_cast<std::uint64_t>(state.range(0));
+  SimulatedDeviceConfig config;
+  config.seed = seed;
+  AccuracyReport after, floor;
+  for (auto _ : state) {
+    SimulatedSpidarG dev(config);
+    const Session s = WaveSession(&dev, 100, seed * 104729 + 2);
+    const CalibrationResult r = SelfCalibrate(dev.info().geometry, NominalOf(dev), s.home, s.wave);
+    const auto eval = RandomGripPoses(dev.info().geometry, 200, 0.2, 0.5236, 0.3, seed * 7919 + 1);
+    after = EvaluateAccuracy(&dev, r.calibration, eval, 0.2, 3.0, 1);
+    floor = EvaluateAccuracy(&dev, dev.true_encoder(), eval, 0.2, 3.0, 1);
+  }
+  constexpr double kDeg = 180.0 / 3.141592653589793;
+  state.counters["pos_mean_mm"] = after.position_error_mean * 1e3;
+  state.counters["pos_max_mm"] = after.position_error_max * 1e3;
+  state.counters["rot_mean_deg"] = after.rotation_error_mean * kDeg;
+  state.counters["rot_max_deg"] = after.rotation_error_max * kDeg;
+  state.counters["floor_pos_max_mm"] = floor.position_error_max * 1e3;
+  state.counters["floor_rot_max_deg"] = floor.rotation_error_max * kDeg;
+}
+BENCHMARK(BM_SelfCalibrationAccuracy)
+    ->DenseRange(1, 5)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace spidarcad::haptics

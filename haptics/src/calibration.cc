@@ -1,13 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/calibration.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <sstream>
-
-#include <Eigen/Dense>
+#include <stdexcept>
 
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/simulated_device.h"
@@ -87,21 +87,27 @@ Matrix97d PoseTangent(const PoseState& s, double d) {
 
 bool AllFinite(const Vector8d& v) { return v.allFinite(); }
 
-// Layout of the per-string parameters in the self-calibration.
+// Layout of the per-string parameters in the self-calibration, in this order: offset, gain,
+// quadratic, stretch (the inactive ones left out).
 struct ParamLayout {
   bool offset = true;
   bool quadratic = false;
-  int PerString() const { return 1 + (offset ? 1 : 0) + (quadratic ? 1 : 0); }
+  bool stretch = false;
+  int PerString() const { return 1 + (offset ? 1 : 0) + (quadratic ? 1 : 0) + (stretch ? 1 : 0); }
   int Total() const { return kNumStrings * PerString(); }
 };
 
-// ∂h/∂(params of string i) for h = (o + g u + q u²) f: the active entries in layout order.
-Eigen::Vector3d ModelGradient(const ParamLayout& layout, double u, double f) {
-  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+// ∂h/∂(params of string i) for h = (o + g u + q u²)(1 + s τ): the active entries in layout
+// order (the unused tail is zero).
+Eigen::Vector4d ModelGradient(const ParamLayout& layout, const StringEncoderParams& p, double u,
+                              double tension) {
+  const double f = 1.0 + p.stretch * tension;
+  Eigen::Vector4d g = Eigen::Vector4d::Zero();
   int j = 0;
   if (layout.offset) g[j++] = f;
   g[j++] = u * f;
   if (layout.quadratic) g[j++] = u * u * f;
+  if (layout.stretch) g[j++] = (p.offset + u * (p.gain + p.quadratic * u)) * tension;
   return g;
 }
 
@@ -114,6 +120,7 @@ void ApplyParamStep(const ParamLayout& layout, const Eigen::VectorXd& delta,
     if (layout.offset) p.offset += delta[j++];
     p.gain += delta[j++];
     if (layout.quadratic) p.quadratic += delta[j++];
+    if (layout.stretch) p.stretch += delta[j++];
   }
 }
 
@@ -139,11 +146,16 @@ bool StartResult(const SpidarGeometry& geometry, const EncoderCalibration& initi
 
 const char* CalibrationStatusName(CalibrationStatus status) {
   switch (status) {
-    case CalibrationStatus::kOk: return "ok";
-    case CalibrationStatus::kInvalidInput: return "invalid_input";
-    case CalibrationStatus::kTooFewSamples: return "too_few_samples";
-    case CalibrationStatus::kDegenerate: return "degenerate";
-    case CalibrationStatus::kNotConverged: return "not_converged";
+    case CalibrationStatus::kOk:
+      return "ok";
+    case CalibrationStatus::kInvalidInput:
+      return "invalid_input";
+    case CalibrationStatus::kTooFewSamples:
+      return "too_few_samples";
+    case CalibrationStatus::kDegenerate:
+      return "degenerate";
+    case CalibrationStatus::kNotConverged:
+      return "not_converged";
   }
   return "unknown";
 }
@@ -168,8 +180,8 @@ CalibrationResult FitLinesPerString(const SpidarGeometry& geometry,
     reference[k] = InverseKinematics(geometry, samples[k].pose);
     if (!AllFinite(reference[k]) || !samples[k].tension.allFinite()) {
       result.status = CalibrationStatus::kInvalidInput;
-      result.message = "line fit: sample " + std::to_string(k) +
-                       " has a non-finite pose or tension";
+      result.message =
+          "line fit: sample " + std::to_string(k) + " has a non-finite pose or tension";
       return result;
     }
   }
@@ -210,7 +222,9 @@ CalibrationResult FitLinesPerString(const SpidarGeometry& geometry,
     const Eigen::JacobiSVD<Eigen::MatrixXd> svd(X);
     const auto& sv = svd.singularValues();
     worst_condition = std::max(worst_condition, sv[0] / sv[sv.size() - 1]);
-    sum_sq += (X * coef - y).squaredNorm();
+    const double string_sq = (X * coef - y).squaredNorm();
+    sum_sq += string_sq;
+    result.string_rms_residual[i] = std::sqrt(string_sq / K);
     StringEncoderParams& p = fitted.strings[i];
     p.offset = coef[0];
     p.gain = coef[1];
@@ -234,22 +248,83 @@ CalibrationResult FitLinesPerString(const SpidarGeometry& geometry,
   return result;
 }
 
-CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
-                                const EncoderCalibration& initial,
+CalibrationResult SelfCalibrate(const SpidarGeometry& geometry, const EncoderCalibration& initial,
                                 const std::vector<KnownPoseSample>& known,
                                 const std::vector<UnknownPoseSample>& unknown,
                                 const SelfCalibrationSettings& settings) {
   CalibrationResult result;
   if (!StartResult(geometry, initial, &result)) return result;
-  ParamLayout layout;
-  layout.offset = settings.estimate_offset;
-  layout.quadratic = settings.estimate_quadratic;
-  const int np = layout.PerString();
-  const int P = layout.Total();
+  const auto invalid_setting = [&](const char* field, double value, const char* what) {
+    std::ostringstream os;
+    os << "self-calibration: setting '" << field << "' " << what << ", got " << value;
+    result.status = CalibrationStatus::kInvalidInput;
+    result.message = os.str();
+    return result;
+  };
+  if (!(settings.known_position_sd >= 0.0) || !std::isfinite(settings.known_position_sd)) {
+    return invalid_setting("known_position_sd", settings.known_position_sd,
+                           "must be a finite length >= 0 (m)");
+  }
+  if (!(settings.known_rotation_sd >= 0.0) || !std::isfinite(settings.known_rotation_sd) ||
+      (settings.known_position_sd > 0.0) != (settings.known_rotation_sd > 0.0)) {
+    return invalid_setting("known_rotation_sd", settings.known_rotation_sd,
+                           "must be finite, and > 0 exactly when known_position_sd is");
+  }
+  if (!(settings.length_sd > 0.0) || !std::isfinite(settings.length_sd)) {
+    return invalid_setting("length_sd", settings.length_sd, "must be a finite length > 0 (m)");
+  }
   const int K = static_cast<int>(unknown.size());
   const int Kk = static_cast<int>(known.size());
   const double d = geometry.d;
   const double m = initial.spec.MetresPerCount();
+
+  for (int k = 0; k < Kk; ++k) {
+    if (!known[k].pose.Packed().allFinite() || !known[k].tension.allFinite()) {
+      result.status = CalibrationStatus::kInvalidInput;
+      result.message = "self-calibration: known sample " + std::to_string(k) +
+                       " has a non-finite pose or tension";
+      return result;
+    }
+  }
+  for (int k = 0; k < K; ++k) {
+    if (!unknown[k].tension.allFinite()) {
+      result.status = CalibrationStatus::kInvalidInput;
+      result.message =
+          "self-calibration: unknown sample " + std::to_string(k) + " has a non-finite tension";
+      return result;
+    }
+  }
+
+  // Stretch is estimated only when every string's tension varies enough over the samples:
+  // at one tension it cannot be told from the gain and offset.
+  ParamLayout layout;
+  layout.offset = settings.estimate_offset;
+  layout.quadratic = settings.estimate_quadratic;
+  std::string stretch_note;
+  if (settings.estimate_stretch) {
+    double narrowest = std::numeric_limits<double>::infinity();
+    int narrowest_string = 0;
+    for (int i = 0; i < kNumStrings; ++i) {
+      double lo = std::numeric_limits<double>::infinity();
+      double hi = -lo;
+      for (const auto& s : known) lo = std::min(lo, s.tension[i]), hi = std::max(hi, s.tension[i]);
+      for (const auto& s : unknown)
+        lo = std::min(lo, s.tension[i]), hi = std::max(hi, s.tension[i]);
+      const double spread = hi > lo ? hi - lo : 0.0;
+      if (spread < narrowest) narrowest = spread, narrowest_string = i;
+    }
+    if (narrowest >= settings.min_tension_spread) {
+      layout.stretch = true;
+    } else {
+      std::ostringstream os;
+      os << "stretch kept from the initial calibration (" << StringName(narrowest_string)
+         << "'s tension spans " << narrowest << " N, estimating it needs "
+         << settings.min_tension_spread << " N)";
+      stretch_note = os.str();
+    }
+  }
+  const int np = layout.PerString();
+  const int P = layout.Total();
 
   // Counting argument: 8 equations per sample, 7 unknowns per unknown pose, P parameters.
   if (settings.estimate_offset && Kk == 0) {
@@ -268,22 +343,41 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
                      " unknown poses (each adds one redundant length), preferably 10 times that";
     return result;
   }
-  for (int k = 0; k < Kk; ++k) {
-    if (!known[k].pose.Packed().allFinite() || !known[k].tension.allFinite()) {
-      result.status = CalibrationStatus::kInvalidInput;
-      result.message = "self-calibration: known sample " + std::to_string(k) +
-                       " has a non-finite pose or tension";
-      return result;
-    }
+
+  // The samples as pose blocks. Free blocks (pose estimated) come first: the unknown samples,
+  // then, when the known poses have a tolerance, the known samples (pose pulled toward the
+  // known one by a prior). Known samples without tolerance are fixed blocks.
+  const bool soft_known = settings.known_position_sd > 0.0;
+  const int Ks = soft_known ? Kk : 0;  // known samples with a free pose
+  const int Kf = soft_known ? 0 : Kk;  // known samples with a fixed pose
+  const int F = K + Ks;
+  std::vector<const EncoderCounts*> free_counts(F);
+  std::vector<const Vector8d*> free_tension(F);
+  for (int k = 0; k < K; ++k)
+    free_counts[k] = &unknown[k].counts, free_tension[k] = &unknown[k].tension;
+  for (int k = 0; k < Ks; ++k) {
+    free_counts[K + k] = &known[k].counts;
+    free_tension[K + k] = &known[k].tension;
   }
-  for (int k = 0; k < K; ++k) {
-    if (!unknown[k].tension.allFinite()) {
-      result.status = CalibrationStatus::kInvalidInput;
-      result.message = "self-calibration: unknown sample " + std::to_string(k) +
-                       " has a non-finite tension";
-      return result;
-    }
+  std::vector<Vector8d> fixed_lengths(Kf);
+  for (int k = 0; k < Kf; ++k) fixed_lengths[k] = InverseKinematics(geometry, known[k].pose);
+  std::vector<PoseState> prior(Ks);
+  for (int k = 0; k < Ks; ++k) prior[k] = StateFromPose(known[k].pose);
+  // Prior weights: a pose coordinate off by its sd costs as much as a length off by length_sd.
+  Vector7d prior_weight = Vector7d::Zero();
+  if (soft_known) {
+    prior_weight.head<3>().setConstant(settings.length_sd / settings.known_position_sd);
+    prior_weight.tail<4>().setConstant(settings.length_sd / settings.known_rotation_sd);
   }
+  // Prior residual (weighted known − estimated) of soft known sample k at state s.
+  const auto prior_residual = [&](int k, const PoseState& s) {
+    Vector7d e;
+    e.head<3>() = prior[k].p0 - s.p0;
+    const Eigen::AngleAxisd aa(prior[k].R * s.R.transpose());
+    e.segment<3>(3) = aa.angle() * aa.axis();
+    e[6] = prior[k].grasp - s.grasp;
+    return Vector7d(prior_weight.cwiseProduct(e));
+  };
 
   // Starting poses: forward kinematics on a calibration's lengths. Returns the number of
   // samples FK could not solve; adds the FK residual cost to *fk_cost.
@@ -315,6 +409,9 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
         (*out)[k] = StateFromPose(fallback_pose);
       }
     }
+    if (out != nullptr) {
+      for (int k = 0; k < Ks; ++k) (*out)[K + k] = prior[k];
+    }
     if (fk_cost != nullptr) *fk_cost = total;
     return failures;
   };
@@ -340,7 +437,7 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
     }
     for (auto& p : start.strings) p.gain *= best_scale;
   }
-  std::vector<PoseState> states(K);
+  std::vector<PoseState> states(F);
   const int fk_failures = seed_poses(start, &states, nullptr);
   if (fk_failures * 2 > K) {
     result.status = CalibrationStatus::kDegenerate;
@@ -351,37 +448,41 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
   }
 
   EncoderCalibration cal = start;
-  // Residuals r = IK(pose) − h(counts; params), for a given state.
-  const auto cost_of = [&](const EncoderCalibration& c, const std::vector<PoseState>& s) {
+  // Length part of the cost: Σ |IK(pose) − h(counts; params)|² over all samples.
+  const auto length_cost_of = [&](const EncoderCalibration& c, const std::vector<PoseState>& s) {
     double cost = 0.0;
-    for (int k = 0; k < Kk; ++k) {
-      const Vector8d r = InverseKinematics(geometry, known[k].pose) -
-                         c.Lengths(known[k].counts, known[k].tension);
-      cost += r.squaredNorm();
+    for (int k = 0; k < Kf; ++k) {
+      cost += (fixed_lengths[k] - c.Lengths(known[k].counts, known[k].tension)).squaredNorm();
     }
-    for (int k = 0; k < K; ++k) {
+    for (int k = 0; k < F; ++k) {
       const Vector8d r = InverseKinematics(geometry, PoseFromState(s[k], d)) -
-                         c.Lengths(unknown[k].counts, unknown[k].tension);
+                         c.Lengths(*free_counts[k], *free_tension[k]);
       cost += r.squaredNorm();
     }
     return cost;
   };
+  // Whole cost: lengths plus the known poses' priors.
+  const auto cost_of = [&](const EncoderCalibration& c, const std::vector<PoseState>& s) {
+    double cost = length_cost_of(c, s);
+    for (int k = 0; k < Ks; ++k) cost += prior_residual(k, s[K + k]).squaredNorm();
+    return cost;
+  };
 
-  // Normal equations: U (P×P) for the parameters, V_k (7×7) per pose, W_k (P×7) coupling.
+  // Normal equations: U (P×P) for the parameters, V_k (7×7) per free pose, W_k (P×7) coupling.
   Eigen::MatrixXd U(P, P);
   Eigen::VectorXd bp(P);
-  std::vector<Matrix7d> V(K);
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 7>> W(K);
-  std::vector<Vector7d> bx(K);
+  std::vector<Matrix7d> V(F);
+  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 7>> W(F);
+  std::vector<Vector7d> bx(F);
 
-  // Adds one sample's contribution; pose Jacobian Jx may be null (known pose).
+  // Adds one sample's contribution; pose Jacobian Jx may be null (fixed pose).
   const auto accumulate = [&](const Vector8d& r, const EncoderCounts& counts,
                               const Vector8d& tension, const Matrix87d* Jx, int k) {
     for (int i = 0; i < kNumStrings; ++i) {
+      const StringEncoderParams& p = cal.strings[i];
       const double u = counts[i] * m;
-      const double f = 1.0 + cal.strings[i].stretch * tension[i];
       // r_i = IK_i − h_i: ∂r_i/∂params_i = −∂h_i/∂params_i.
-      const Eigen::Vector3d gp = -ModelGradient(layout, u, f);
+      const Eigen::Vector4d gp = -ModelGradient(layout, p, u, tension[i]);
       const int j0 = i * np;
       for (int a = 0; a < np; ++a) {
         for (int b = 0; b < np; ++b) U(j0 + a, j0 + b) += gp[a] * gp[b];
@@ -398,18 +499,23 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
   const auto build = [&]() {
     U.setZero();
     bp.setZero();
-    for (int k = 0; k < Kk; ++k) {
-      const Vector8d r = InverseKinematics(geometry, known[k].pose) -
-                         cal.Lengths(known[k].counts, known[k].tension);
+    for (int k = 0; k < Kf; ++k) {
+      const Vector8d r = fixed_lengths[k] - cal.Lengths(known[k].counts, known[k].tension);
       accumulate(r, known[k].counts, known[k].tension, nullptr, -1);
     }
-    for (int k = 0; k < K; ++k) {
+    for (int k = 0; k < F; ++k) {
       const GripPose pose = PoseFromState(states[k], d);
       const Matrix87d Jx = StringJacobian(geometry, pose) * PoseTangent(states[k], d);
       const Vector8d r =
-          InverseKinematics(geometry, pose) - cal.Lengths(unknown[k].counts, unknown[k].tension);
+          InverseKinematics(geometry, pose) - cal.Lengths(*free_counts[k], *free_tension[k]);
       W[k].setZero(P, 7);
-      accumulate(r, unknown[k].counts, unknown[k].tension, &Jx, k);
+      accumulate(r, *free_counts[k], *free_tension[k], &Jx, k);
+      if (k >= K) {
+        // Prior r_p = w ⊙ (known ⊖ pose): ∂r_p/∂δ ≈ −diag(w).
+        const Vector7d rp = prior_residual(k - K, states[k]);
+        V[k].diagonal() += prior_weight.cwiseAbs2();
+        bx[k] += prior_weight.cwiseProduct(rp);
+      }
     }
   };
 
@@ -419,7 +525,7 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
     *S = U;
     for (int j = 0; j < P; ++j) (*S)(j, j) += lambda * (U(j, j) + 1e-12);
     *rhs = bp;
-    for (int k = 0; k < K; ++k) {
+    for (int k = 0; k < F; ++k) {
       Matrix7d Vd = V[k];
       for (int j = 0; j < 7; ++j) Vd(j, j) += lambda * V[k](j, j) + 1e-14;
       (*Vinv)[k] = Vd.ldlt().solve(Matrix7d::Identity());
@@ -430,9 +536,9 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
   };
 
   double cost = cost_of(cal, states);
-  const double initial_cost = cost;
+  const double initial_length_cost = length_cost_of(cal, states);
   double lambda = 1e-4;
-  std::vector<Matrix7d> Vinv(K);
+  std::vector<Matrix7d> Vinv(F);
   Eigen::MatrixXd S;
   Eigen::VectorXd rhs;
   bool converged = false;
@@ -455,8 +561,8 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
         }
         EncoderCalibration trial_cal = cal;
         ApplyParamStep(layout, dp, &trial_cal);
-        std::vector<PoseState> trial_states(K);
-        for (int k = 0; k < K; ++k) {
+        std::vector<PoseState> trial_states(F);
+        for (int k = 0; k < F; ++k) {
           const Vector7d dx = Vinv[k] * (bx[k] - W[k].transpose() * dp);
           trial_states[k] = Retract(states[k], dx);
         }
@@ -495,7 +601,19 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
   }
   result.iterations = iteration;
   const int total_residuals = kNumStrings * (K + Kk);
-  result.rms_residual = std::sqrt(cost / total_residuals);
+  result.rms_residual = std::sqrt(length_cost_of(cal, states) / total_residuals);
+  {
+    Vector8d sq = Vector8d::Zero();
+    for (int k = 0; k < Kf; ++k) {
+      sq += (fixed_lengths[k] - cal.Lengths(known[k].counts, known[k].tension)).cwiseAbs2();
+    }
+    for (int k = 0; k < F; ++k) {
+      sq += (InverseKinematics(geometry, PoseFromState(states[k], d)) -
+             cal.Lengths(*free_counts[k], *free_tension[k]))
+                .cwiseAbs2();
+    }
+    result.string_rms_residual = (sq / (K + Kk)).cwiseSqrt();
+  }
 
   // Identifiability: condition of the undamped, Jacobi-scaled reduced information matrix.
   build();
@@ -511,10 +629,12 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
                          : std::numeric_limits<double>::infinity();
 
   std::ostringstream os;
-  os << "self-calibration: " << K << " unknown + " << Kk << " known poses, " << P
-     << " parameters, " << iteration << " iterations, RMS residual " << result.rms_residual * 1e3
-     << " mm (start " << std::sqrt(initial_cost / total_residuals) * 1e3 << " mm), condition "
+  os << "self-calibration: " << K << " unknown + " << Kk << " known poses, " << P << " parameters"
+     << (layout.stretch ? " (stretch estimated)" : "") << ", " << iteration
+     << " iterations, RMS residual " << result.rms_residual * 1e3 << " mm (start "
+     << std::sqrt(initial_length_cost / total_residuals) * 1e3 << " mm), condition "
      << result.condition;
+  if (!stretch_note.empty()) os << "; " << stretch_note;
   if (!(result.condition <= settings.max_condition)) {
     result.status = CalibrationStatus::kDegenerate;
     result.message = os.str() +
@@ -522,6 +642,8 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
                      "or repeated poses); wave the grip through the whole workspace";
     return result;
   }
+  // A string whose compliance is below the noise may come out slightly negative.
+  for (auto& p : cal.strings) p.stretch = std::max(0.0, p.stretch);
   try {
     cal.Validate();
   } catch (const std::exception& e) {
@@ -542,9 +664,8 @@ CalibrationResult SelfCalibrate(const SpidarGeometry& geometry,
   return result;
 }
 
-std::vector<GripPose> RandomGripPoses(const SpidarGeometry& geometry, int count,
-                                      double half_side, double max_rotation, double grasp_range,
-                                      std::uint64_t seed) {
+std::vector<GripPose> RandomGripPoses(const SpidarGeometry& geometry, int count, double half_side,
+                                      double max_rotation, double grasp_range, std::uint64_t seed) {
   std::vector<GripPose> poses;
   poses.reserve(std::max(count, 0));
   std::uint64_t state = seed ^ 0x5DEECE66DULL;
@@ -571,6 +692,14 @@ std::vector<GripPose> RandomGripPoses(const SpidarGeometry& geometry, int count,
     if (inside) poses.push_back(pose);
   }
   return poses;
+}
+
+KnownPoseSample HomingSample(const DeviceInfo& info, double homing_tension) {
+  KnownPoseSample sample;
+  sample.pose = info.home_pose;
+  sample.counts.fill(0);
+  sample.tension = Vector8d::Constant(homing_tension);
+  return sample;
 }
 
 namespace {
@@ -611,6 +740,33 @@ std::vector<UnknownPoseSample> GatherUnknownSamples(SimulatedSpidarG* device,
     samples.push_back({reading.counts, tau});
   }
   return samples;
+}
+
+std::vector<UnknownPoseSample> GatherUnknownSamples(SimulatedSpidarG* device,
+                                                    const std::vector<GripPose>& poses,
+                                                    const std::vector<Vector8d>& tensions) {
+  if (tensions.size() != poses.size()) {
+    throw std::invalid_argument("GatherUnknownSamples: " + std::to_string(tensions.size()) +
+                                " tension vectors for " + std::to_string(poses.size()) +
+                                " poses (need one per pose)");
+  }
+  std::vector<UnknownPoseSample> samples;
+  samples.reserve(poses.size());
+  for (size_t k = 0; k < poses.size(); ++k) {
+    const Vector8d& tau = tensions[k];
+    const EncoderReading reading = SettleAndRead(device, poses[k], tau);
+    samples.push_back({reading.counts, tau});
+  }
+  return samples;
+}
+
+std::vector<Vector8d> CalibrationTensions(int count, double lo, double hi, std::uint64_t seed) {
+  std::vector<Vector8d> tensions(std::max(count, 0));
+  std::uint64_t state = seed ^ 0x7E5510A5ULL;
+  for (Vector8d& tau : tensions) {
+    for (int i = 0; i < kNumStrings; ++i) tau[i] = UniformIn(&state, lo, hi);
+  }
+  return tensions;
 }
 
 AccuracyReport EvaluateAccuracy(SimulatedSpidarG* device, const EncoderCalibration& calibration,
@@ -658,8 +814,8 @@ AccuracyReport EvaluateAccuracy(SimulatedSpidarG* device, const EncoderCalibrati
   }
   if (n_len > 0) {
     report.length_error_mean = sum / n_len;
-    report.length_error_sd =
-        std::sqrt(std::max(0.0, sum_sq / n_len - report.length_error_mean * report.length_error_mean));
+    report.length_error_sd = std::sqrt(
+        std::max(0.0, sum_sq / n_len - report.length_error_mean * report.length_error_mean));
     report.length_abs_error_rms = std::sqrt(abs_sq / n_len);
   }
   if (n_pose > 0) {

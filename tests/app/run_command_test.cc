@@ -458,4 +458,102 @@ TEST(RunCommand, CalibrateWithTheUsbDeviceExitsTwoNamingTheOption) {
   EXPECT_FALSE(std::ifstream(out).good()) << "no output file for a refused option";
 }
 
+// A self-calibration file of the simulated SPIDAR-G of seed 1 (`calibrate --out`), made once.
+std::string SelfCalibrationFile() {
+  static const std::string path = [] {
+    const std::string p = OutputPath("self_seed1.json");
+    const CommandRun r = spidarcad::test_support::RunSpidarcad(
+        "calibrate --simulated --seed 1 --method self --eval-poses 5 --out '" + p + "'", "",
+        "run_make_calibration");
+    EXPECT_EQ(r.status, 0) << r.all();
+    return p;
+  }();
+  return path;
+}
+
+// --calibration reads the encoders through a file made by `calibrate`: along the circle,
+// forward kinematics lands within a fraction of a millimetre of the hand's true grip (the
+// self-calibration fits stretch too; measured: 0.03 mm mean).
+TEST(RunCommand, CalibrationFileBringsForwardKinematicsToTheTrueGrip) {
+  const std::string traj = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/trajectories/circle.csv";
+  const std::string file = SelfCalibrationFile();
+  const std::string out = OutputPath("fk_file.csv");
+  const CommandRun r = RunSpidarcad(
+      "--trajectory '" + traj + "' --out '" + out + "' --calibration '" + file + "'", "fk_file");
+  ASSERT_EQ(r.status, 0) << r.all();
+  EXPECT_NE(r.out.find("calibration: " + file +
+                       " (self-calibration of the simulated SPIDAR-G seed 1, 20"),
+            std::string::npos)
+      << r.out;
+  int refused = 0;
+  const std::vector<double> e = FkErrors(out, &refused);
+  ASSERT_EQ(e.size() + refused, 4001u);
+  EXPECT_EQ(refused, 0);
+  EXPECT_LT(Mean(e), 0.1e-3);
+  EXPECT_LT(*std::max_element(e.begin(), e.end()), 0.2e-3);
+  // The same simulated SPIDAR-G behind the board simulator takes the same file.
+  const CommandRun b =
+      RunSpidarcad("--trajectory '" + traj + "' --out '" + OutputPath("fk_file_b.csv") +
+                       "' --device board-sim --calibration '" + file + "'",
+                   "fk_file_board");
+  EXPECT_EQ(b.status, 0) << b.all();
+}
+
+// A file made on another device or for another frame is refused before anything is written,
+// with the reason.
+TEST(RunCommand, CalibrationFileOfAnotherSeedOrFrameIsRefusedWithTheReason) {
+  const std::string traj = WritePressTrajectory();
+  const std::string file = SelfCalibrationFile();
+  const std::string out = OutputPath("refused.csv");
+  std::remove(out.c_str());
+  const CommandRun seed = RunSpidarcad(
+      "--trajectory '" + traj + "' --out '" + out + "' --seed 2 --calibration '" + file + "'",
+      "cal_seed");
+  EXPECT_EQ(seed.status, 2) << seed.all();
+  EXPECT_NE(seed.err.find("does not fit: it was made on the simulated SPIDAR-G seed 1, this "
+                          "session uses seed 2"),
+            std::string::npos)
+      << seed.err;
+  const CommandRun frame = RunSpidarcad("--trajectory '" + traj + "' --out '" + out +
+                                            "' --frame 0.3,0.3,0.3 --calibration '" + file + "'",
+                                        "cal_frame");
+  EXPECT_EQ(frame.status, 2) << frame.all();
+  EXPECT_NE(frame.err.find("frame --frame 0.24,0.24,0.24 --pole 0.04, this session's frame is "
+                           "--frame 0.3,0.3,0.3 --pole 0.04"),
+            std::string::npos)
+      << frame.err;
+  EXPECT_FALSE(std::ifstream(out).good());
+  const CommandRun both = RunSpidarcad(
+      "--trajectory '" + traj + "' --out '" + out + "' --calibrate --calibration '" + file + "'",
+      "cal_both");
+  EXPECT_EQ(both.status, 2) << both.all();
+  EXPECT_NE(both.err.find("choose one"), std::string::npos) << both.err;
+  const CommandRun missing = RunSpidarcad("--trajectory '" + traj + "' --out '" + out +
+                                              "' --calibration '" + OutputPath("none.json") + "'",
+                                          "cal_missing");
+  EXPECT_EQ(missing.status, 2) << missing.all();
+  EXPECT_NE(missing.err.find("--calibration: "), std::string::npos) << missing.err;
+}
+
+// --frame/--pole size the simulated SPIDAR-G: the loop's forward kinematics then places the
+// grip where the hand holds it in that frame (millimetres, the nominal model's gain error), and
+// a grip that does not fit the frame is refused.
+TEST(RunCommand, FrameAndPoleSizeTheDevice) {
+  const std::string traj = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/trajectories/circle.csv";
+  const std::string out = OutputPath("frame.csv");
+  const CommandRun r = RunSpidarcad(
+      "--trajectory '" + traj + "' --out '" + out + "' --frame 0.3,0.28,0.26 --pole 0.05", "frame");
+  ASSERT_EQ(r.status, 0) << r.all();
+  int refused = 0;
+  const std::vector<double> e = FkErrors(out, &refused);
+  ASSERT_EQ(e.size() + refused, 4001u);
+  EXPECT_EQ(refused, 0);
+  EXPECT_LT(Mean(e), 1e-2);
+  const CommandRun bad = RunSpidarcad(
+      "--trajectory '" + traj + "' --out '" + out + "' --frame 0.2,0.2,0.2 --pole 0.25",
+      "frame_bad");
+  EXPECT_EQ(bad.status, 2) << bad.all();
+  EXPECT_NE(bad.err.find("--frame/--pole"), std::string::npos) << bad.err;
+}
+
 }  // namespace

@@ -1,20 +1,23 @@
-// `spidarcad calibrate --simulated`: calibrates the string-length sensing of a simulated
-// SPIDAR-G with the paper's line fit and with self-calibration, prints a before/after table,
-// and saves / loads calibration files (JSON).
+// `spidarcad calibrate`: calibrates the string-length sensing of a SPIDAR-G.
+//   --simulated          a study on the simulated SPIDAR-G, whose hidden truth is known: the
+//                        paper's line fit and self-calibration, a before/after table (text or
+//                        --json), optionally the calibration file (--out).
+//   --device board-sim|usb  a self-calibration session on a connected board (calibrate_session.cc).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <numbers>
-#include <sstream>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
+#include "cli/calibrate_session.h"
+#include "cli/calibration_file.h"
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "spidarcad/haptics/calibration.h"
@@ -23,80 +26,89 @@
 
 namespace spidarcad::app {
 
-// Calibration file (JSON), format "spidarcad-calibration" version 1:
-//   {"format": "spidarcad-calibration", "version": 1, "method": "self",
-//    "encoder": {"counts_per_rev": 2000, "pulley_radius": 0.008},
-//    "strings": [{"offset": m, "gain": 1, "quadratic": 1/m, "stretch": 1/N}, ... 8 entries],
-//    "geometry": {"a": m, "b": m, "c": m, "d": m}}   (geometry: informative only)
-// Writes `calibration` to `path` (through a temporary file and a rename). Throws InputError
-// naming the file when it cannot be written.
-void SaveCalibrationJson(const haptics::EncoderCalibration& calibration,
-                         const haptics::SpidarGeometry& geometry, const std::string& method,
-                         const std::string& path);
-// Reads a calibration file. Throws InputError naming the file and the field that is missing
-// or wrong (e.g. "cal.json: field 'strings[2].gain': expected a number, got \"x\"").
-haptics::EncoderCalibration LoadCalibrationJson(const std::string& path);
-
 namespace {
 
 using haptics::AccuracyReport;
 using haptics::CalibrationResult;
 using haptics::CalibrationStatus;
 using haptics::EncoderCalibration;
-using haptics::GripPose;
 using haptics::SimulatedSpidarG;
 
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
 constexpr const char* kCalibrateHelp =
-    "Calibrates the string-length sensing (per-string encoder gain, offset and winding\n"
-    "nonlinearity; see haptics/include/spidarcad/haptics/encoder.h) and shows how much it\n"
-    "improves the measured string lengths and the grip pose.\n"
+    "Calibrates the string-length sensing (per-string encoder offset, gain, winding\n"
+    "nonlinearity and string stretch; see haptics/include/spidarcad/haptics/encoder.h) and\n"
+    "shows how much it improves the measured string lengths and the grip pose.\n"
     "\n"
-    "Only the simulated SPIDAR-G exists so far (--simulated). Its hidden imperfections are\n"
-    "modelled on the paper's device: length-per-count error 6.24 +- 1.54 % per string, winding\n"
-    "nonlinearity, string stretch under tension, a homing jig error, noise and quantisation\n"
-    "to 0.0251 mm counts. --seed draws a different device.\n"
+    "Two uses:\n"
+    "  --simulated            a study on the simulated SPIDAR-G, whose hidden imperfections are\n"
+    "                         known: the paper's line fit and self-calibration side by side.\n"
+    "  --device board-sim|usb a self-calibration session on a connected board: wave the grip\n"
+    "                         through the workspace until the progress line says enough poses\n"
+    "                         were collected in every octant (board-sim: a simulated hand\n"
+    "                         waves it). Then the before/after table and --out FILE.\n"
     "\n"
-    "Methods:\n"
+    "The simulated SPIDAR-G's imperfections are modelled on the paper's device: length-per-\n"
+    "count error 6.24 +- 1.54 % per string, winding nonlinearity, string stretch under\n"
+    "tension, a homing jig error, noise and quantisation to 0.0251 mm counts. --seed draws a\n"
+    "different device; --frame A,B,C --pole D another size (the paper's Sec. 8).\n"
+    "\n"
+    "Methods (--simulated):\n"
     "  line  the paper's: the grip is held in a jig at --poses known poses; each string's\n"
     "        reference lengths are fitted to a line in its counts (offset, gain).\n"
-    "  self  self-calibration: the user waves the grip through --poses unknown poses; the\n"
-    "        8th string's redundancy (8 strings, 7 DOF) lets Levenberg-Marquardt estimate every\n"
-    "        pose and each string's offset, gain and winding quadratic, anchored by the\n"
-    "        homing pose only. Needs 22 poses at least, 100 or more spread over the\n"
-    "        workspace for accuracy.\n"
+    "  self  self-calibration: the user waves the grip through --poses unknown poses while\n"
+    "        the motors vary each string's tension (0.3-3 N); the 8th string's redundancy\n"
+    "        (8 strings, 7 DOF) lets Levenberg-Marquardt estimate every pose and each\n"
+    "        string's offset, gain, winding quadratic and stretch, anchored by the homing\n"
+    "        pose only (held to a 1 mm / 0.6 deg tolerance: the jig is not exact). Needs 32\n"
+    "        poses at least, 100 or more spread over the workspace for accuracy.\n"
     "  both  runs both (default).\n"
     "\n"
-    "Evaluation: --eval-poses poses drawn in the 40 cm cube at the frame centre (rotations up\n"
-    "to 30 deg, grasp 90 +- 17 deg, string tensions 0.2-3 N). Columns:\n"
+    "Evaluation (--simulated): --eval-poses poses drawn in a cube of 5/6 of the frame (the\n"
+    "40 cm cube of the 48 cm frame; rotations up to 30 deg, grasp 90 +- 17 deg, string\n"
+    "tensions 0.2-3 N). Columns:\n"
     "  gain err %     |gain - true gain| / true gain per string, mean +- sd (before\n"
     "                 calibration this is the paper's 6.24 +- 1.54 %)\n"
     "  length err %   |l - l_true| / l_true over strings and poses, mean +- sd\n"
     "  len rms mm     RMS of l - l_true\n"
     "  pos mm, rot deg  grip position / rotation error of forward kinematics, mean and max\n"
     "The 'true parameters' row uses the simulator's hidden truth (its stretch included): what\n"
-    "remains there is noise and quantisation. Most of the gap between self-calibration and it\n"
-    "is string stretch under the varying tension, which data taken at one pretension cannot\n"
-    "reveal (the calibration keeps the nominal stretch, 0).\n"
+    "remains there is noise and quantisation. The line fit's jig poses are all held at one\n"
+    "pretension, which cannot reveal string stretch (it keeps the nominal stretch, 0): most\n"
+    "of its error is stretch under the evaluation's varying tensions.\n"
+    "--json prints the table as JSON instead: {\"uncalibrated\"|\"line\"|\"self\"|\"loaded\"|\n"
+    "\"true_parameters\": {\"status\", \"position_mm\": {\"mean\", \"max\"}, \"rotation_deg\":\n"
+    "{\"mean\", \"max\"}, \"length_rms_mm\", \"fk_failures\", ...}}.\n"
     "\n"
-    "--out writes the best calibration (self if it succeeded, else line) as JSON; --load\n"
-    "evaluates a saved file on the same simulated device. Exit status: 0 when every requested\n"
-    "calibration succeeded, 1 when one failed (the reason is printed), 2 for bad input.\n"
+    "--out writes the calibration file (self if it succeeded, else line): JSON with the\n"
+    "device's identity (kind, seed or serial, frame and pole), the date, the method, the\n"
+    "per-string parameters and the fit residuals; docs/calibration-format.md. `spidarcad run\n"
+    "--calibration FILE` reads it. --load evaluates a saved file on the same simulated device\n"
+    "(a file made on another device or frame is refused with the reason). Exit status: 0 when\n"
+    "every requested calibration succeeded, 1 when one failed (the reason is printed), 2 for\n"
+    "bad input.\n"
     "\n"
     "Examples:\n"
     "  spidarcad calibrate --simulated\n"
+    "  spidarcad calibrate --simulated --seed 3 --json\n"
     "  spidarcad calibrate --simulated --seed 7 --poses 40 --method self --out cal.json\n"
-    "  spidarcad calibrate --simulated --seed 7 --method line --load cal.json";
+    "  spidarcad calibrate --simulated --seed 7 --method line --load cal.json\n"
+    "  spidarcad calibrate --device board-sim --seed 7 --out cal.json\n"
+    "  spidarcad calibrate --device usb --out board.json";
 
 struct CalibrateOptions {
   bool simulated = false;
+  std::string device;  // "" (use --simulated), board-sim, usb
   std::uint64_t seed = 1;
-  int poses = 100;
+  int poses = -1;  // -1: 100 (--simulated) or 200 (--device)
   int eval_poses = 200;
   std::string method = "both";
   std::string out;
   std::string load;
+  bool json = false;
+  double timeout = 0.0;  // --device: give up after this long, s (0: the default)
+  haptics::SpidarGeometry geometry;
 };
 
 std::string Format(const char* fmt, double a, double b) {
@@ -105,8 +117,8 @@ std::string Format(const char* fmt, double a, double b) {
   return buffer;
 }
 
-// Mean ± sd of the relative gain error of `cal` against the device's hidden truth, in %.
-std::string GainError(const EncoderCalibration& cal, const SimulatedSpidarG& dev) {
+// Mean and sd of the relative gain error of `cal` against the device's hidden truth, in %.
+std::pair<double, double> GainError(const EncoderCalibration& cal, const SimulatedSpidarG& dev) {
   double sum = 0, sum_sq = 0;
   for (int i = 0; i < haptics::kNumStrings; ++i) {
     const double truth = dev.true_encoder().strings[i].gain;
@@ -115,256 +127,282 @@ std::string GainError(const EncoderCalibration& cal, const SimulatedSpidarG& dev
     sum_sq += e * e;
   }
   const double mean = sum / haptics::kNumStrings;
-  const double sd = std::sqrt(std::max(0.0, sum_sq / haptics::kNumStrings - mean * mean));
-  return Format("%.2f +- %.2f", mean, sd);
+  return {mean, std::sqrt(std::max(0.0, sum_sq / haptics::kNumStrings - mean * mean))};
 }
 
-void PrintHeader() {
+// One row of the before/after table.
+struct Row {
+  std::string key;      // JSON key: uncalibrated, line, self, loaded, true_parameters
+  std::string name;     // table label
+  std::string status;   // "ok", a CalibrationStatusName, or "-" (not a calibration)
+  std::string message;  // why, when it failed
+  std::optional<AccuracyReport> accuracy;          // absent when the calibration failed
+  std::pair<double, double> gain_error{0.0, 0.0};  // %, mean and sd (simulated truth)
+};
+
+void PrintTable(const std::vector<Row>& rows) {
   std::printf("%-26s %-15s %-14s %-14s %8s %16s %16s %5s\n", "method", "status", "gain err %",
               "length err %", "len rms", "pos mm", "rot deg", "fk");
-  std::printf("%-26s %-15s %-14s %-14s %8s %16s %16s %5s\n", "", "", "(mean +- sd)",
-              "(mean +- sd)", "mm", "(mean / max)", "(mean / max)", "fail");
+  std::printf("%-26s %-15s %-14s %-14s %8s %16s %16s %5s\n", "", "", "(mean +- sd)", "(mean +- sd)",
+              "mm", "(mean / max)", "(mean / max)", "fail");
+  for (const Row& row : rows) {
+    if (!row.accuracy) {
+      std::printf("%-26s %-15s %-14s %-14s %8s %16s %16s %5s\n", row.name.c_str(),
+                  row.status.c_str(), "-", "-", "-", "-", "-", "-");
+      continue;
+    }
+    const AccuracyReport& r = *row.accuracy;
+    std::printf(
+        "%-26s %-15s %-14s %-14s %8.3f %16s %16s %5d\n", row.name.c_str(), row.status.c_str(),
+        Format("%.2f +- %.2f", row.gain_error.first, row.gain_error.second).c_str(),
+        Format("%.2f +- %.2f", 100 * r.length_error_mean, 100 * r.length_error_sd).c_str(),
+        1e3 * r.length_abs_error_rms,
+        Format("%.2f / %.2f", 1e3 * r.position_error_mean, 1e3 * r.position_error_max).c_str(),
+        Format("%.2f / %.2f", kRadToDeg * r.rotation_error_mean, kRadToDeg * r.rotation_error_max)
+            .c_str(),
+        r.fk_failures);
+  }
 }
 
-void PrintRow(const std::string& name, const std::string& status, const std::string& gain,
-              const AccuracyReport* r) {
-  if (r == nullptr) {
-    std::printf("%-26s %-15s %-14s %-14s %8s %16s %16s %5s\n", name.c_str(), status.c_str(),
-                "-", "-", "-", "-", "-", "-");
-    return;
+nlohmann::json TableJson(const std::vector<Row>& rows) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const Row& row : rows) {
+    nlohmann::json entry;
+    entry["status"] = row.status == "-" ? "ok" : row.status;
+    if (!row.accuracy) {
+      entry["message"] = row.message;
+      j[row.key] = entry;
+      continue;
+    }
+    const AccuracyReport& r = *row.accuracy;
+    entry["position_mm"] = {{"mean", 1e3 * r.position_error_mean},
+                            {"max", 1e3 * r.position_error_max}};
+    entry["rotation_deg"] = {{"mean", kRadToDeg * r.rotation_error_mean},
+                             {"max", kRadToDeg * r.rotation_error_max}};
+    entry["length_rms_mm"] = 1e3 * r.length_abs_error_rms;
+    entry["length_error_percent"] = {{"mean", 100 * r.length_error_mean},
+                                     {"sd", 100 * r.length_error_sd}};
+    entry["gain_error_percent"] = {{"mean", row.gain_error.first}, {"sd", row.gain_error.second}};
+    entry["fk_failures"] = r.fk_failures;
+    entry["poses"] = r.num_poses;
+    j[row.key] = entry;
   }
-  std::printf("%-26s %-15s %-14s %-14s %8.3f %16s %16s %5d\n", name.c_str(), status.c_str(),
-              gain.c_str(),
-              Format("%.2f +- %.2f", 100 * r->length_error_mean, 100 * r->length_error_sd).c_str(),
-              1e3 * r->length_abs_error_rms,
-              Format("%.2f / %.2f", 1e3 * r->position_error_mean, 1e3 * r->position_error_max)
-                  .c_str(),
-              Format("%.2f / %.2f", kRadToDeg * r->rotation_error_mean,
-                     kRadToDeg * r->rotation_error_max)
-                  .c_str(),
-              r->fk_failures);
+  return j;
 }
 
-void RunCalibrate(const CalibrateOptions& options) {
-  if (!options.simulated) {
-    throw InputError(
-        "calibrate: only the simulated device is available (no hardware driver yet); "
-        "add --simulated");
-  }
-  if (options.poses < 1) {
+void CheckCounts(const CalibrateOptions& options) {
+  if (options.poses != -1 && options.poses < 1) {
     throw InputError("--poses: must be at least 1, got " + std::to_string(options.poses));
   }
   if (options.eval_poses < 1) {
-    throw InputError("--eval-poses: must be at least 1, got " +
-                     std::to_string(options.eval_poses));
+    throw InputError("--eval-poses: must be at least 1, got " + std::to_string(options.eval_poses));
   }
-  // Read the file to evaluate first, so that a bad file fails before any work.
-  EncoderCalibration loaded;
-  if (!options.load.empty()) loaded = LoadCalibrationJson(options.load);
+}
 
+// --simulated: line fit and self-calibration on the simulated SPIDAR-G, judged against its
+// hidden truth.
+void RunSimulatedStudy(const CalibrateOptions& given) {
+  CheckCounts(given);
+  CalibrateOptions options = given;
+  if (options.poses == -1) options.poses = 100;
+  ValidateGeometry(options.geometry);
   haptics::SimulatedDeviceConfig config;
   config.seed = options.seed;
+  config.geometry = options.geometry;
+  config.home_pose = haptics::GripPose::Rest(options.geometry.d);
+  CalibrationDevice identity;
+  identity.kind = "simulated";
+  identity.seed = options.seed;
+  identity.geometry = options.geometry;
+  identity.encoder = config.encoder;
+  // Read the file to evaluate first, so that a bad or foreign file fails before any work.
+  std::optional<CalibrationFile> loaded;
+  if (!options.load.empty()) {
+    loaded = LoadCalibrationFile(options.load);
+    const std::string why = CalibrationMismatch(*loaded, identity);
+    if (!why.empty()) throw InputError("--load: " + options.load + " does not fit: " + why);
+  }
+
   SimulatedSpidarG device(config);
   const haptics::SpidarGeometry& geometry = device.info().geometry;
   const double pretension = config.homing_tension;
   const EncoderCalibration nominal = EncoderCalibration::Nominal(
       device.info().encoder, haptics::InverseKinematics(geometry, device.info().home_pose));
 
-  constexpr double kHalfCube = 0.2;
+  // The 40 cm cube of the paper's 48 cm frame, scaled with the frame.
+  const double half_cube = std::min({geometry.a, geometry.b, geometry.c}) * (0.2 / 0.24);
   constexpr double kMaxRotation = 30.0 / kRadToDeg;
   constexpr double kGraspRange = 0.3;
   constexpr double kTensionLo = 0.2, kTensionHi = 3.0;
-  const auto eval_poses = haptics::RandomGripPoses(geometry, options.eval_poses, kHalfCube,
-                                                   kMaxRotation, kGraspRange,
-                                                   options.seed * 7919 + 1);
+  constexpr double kWaveTensionLo = 0.3, kWaveTensionHi = 3.0;  // self: tensions while waving
+  const auto eval_poses = haptics::RandomGripPoses(
+      geometry, options.eval_poses, half_cube, kMaxRotation, kGraspRange, options.seed * 7919 + 1);
   const auto calibration_poses = haptics::RandomGripPoses(
-      geometry, options.poses, kHalfCube, kMaxRotation, kGraspRange, options.seed * 104729 + 2);
+      geometry, options.poses, half_cube, kMaxRotation, kGraspRange, options.seed * 104729 + 2);
 
-  std::printf(
-      "Simulated SPIDAR-G (seed %llu): 48 cm frame, 4 cm grip, 0.0251 mm per count.\n"
-      "Calibration: %d poses. Evaluation: %d poses in a 40 cm cube, rotation <= 30 deg, grasp\n"
-      "90 +- 17 deg, tensions 0.2-3 N.\n\n",
-      static_cast<unsigned long long>(options.seed), options.poses, options.eval_poses);
-  PrintHeader();
-  const AccuracyReport before =
-      haptics::EvaluateAccuracy(&device, nominal, eval_poses, kTensionLo, kTensionHi, 1);
-  PrintRow("uncalibrated (nominal)", "-", GainError(nominal, device), &before);
+  std::vector<Row> rows;
+  const auto evaluate = [&](const EncoderCalibration& cal) {
+    return haptics::EvaluateAccuracy(&device, cal, eval_poses, kTensionLo, kTensionHi, 1);
+  };
+  rows.push_back({"uncalibrated", "uncalibrated (nominal)", "-", "", evaluate(nominal),
+                  GainError(nominal, device)});
 
-  bool all_ok = true;
   std::vector<std::string> failures;
-  const EncoderCalibration* best = nullptr;
-  std::string best_method;
-  CalibrationResult line, self;
   const bool run_line = options.method == "line" || options.method == "both";
   const bool run_self = options.method == "self" || options.method == "both";
-  const auto report = [&](const std::string& name, const CalibrationResult& r) {
-    const std::string status = haptics::CalibrationStatusName(r.status);
+  CalibrationResult line, self;
+  const CalibrationResult* best = nullptr;
+  std::string best_method;
+  int best_samples = 0;
+  const auto report = [&](const std::string& key, const std::string& name,
+                          const CalibrationResult& r) {
+    Row row{key, name, haptics::CalibrationStatusName(r.status), r.message, std::nullopt, {}};
     if (r.status != CalibrationStatus::kOk) {
-      all_ok = false;
-      failures.push_back(name + ": " + status + ": " + r.message);
-      PrintRow(name, status, "", nullptr);
-      return false;
+      failures.push_back(name + ": " + row.status + ": " + r.message);
+    } else {
+      row.accuracy = evaluate(r.calibration);
+      row.gain_error = GainError(r.calibration, device);
     }
-    const AccuracyReport after =
-        haptics::EvaluateAccuracy(&device, r.calibration, eval_poses, kTensionLo, kTensionHi, 1);
-    PrintRow(name, status, GainError(r.calibration, device), &after);
-    return true;
+    rows.push_back(row);
+    return r.status == CalibrationStatus::kOk;
   };
   if (run_line) {
     const auto jig = haptics::GatherKnownSamples(&device, calibration_poses, pretension);
     line = haptics::FitLinesPerString(geometry, nominal, jig);
-    if (report("line fit (paper, jig)", line)) {
-      best = &line.calibration;
+    if (report("line", "line fit (paper, jig)", line)) {
+      best = &line;
       best_method = "line";
+      best_samples = static_cast<int>(jig.size());
     }
   }
   if (run_self) {
-    const auto home = haptics::GatherKnownSamples(&device, {device.info().home_pose}, pretension);
-    const auto wave = haptics::GatherUnknownSamples(&device, calibration_poses, pretension);
+    // As on a real device: the homing sample (counters zero at the jig's pose, reproduced only
+    // to the jig's tolerance) and the waved poses, with the tensions varied per string so
+    // that stretch is estimated too.
+    const std::vector<haptics::KnownPoseSample> home = {
+        haptics::HomingSample(device.info(), config.homing_tension)};
+    const auto wave = haptics::GatherUnknownSamples(
+        &device, calibration_poses,
+        haptics::CalibrationTensions(options.poses, kWaveTensionLo, kWaveTensionHi, options.seed));
     self = haptics::SelfCalibrate(geometry, nominal, home, wave);
-    if (report("self-calibration", self)) {
-      best = &self.calibration;
+    if (report("self", "self-calibration", self)) {
+      best = &self;
       best_method = "self";
+      best_samples = static_cast<int>(wave.size() + home.size());
     }
   }
-  if (!options.load.empty()) {
-    const AccuracyReport r =
-        haptics::EvaluateAccuracy(&device, loaded, eval_poses, kTensionLo, kTensionHi, 1);
-    PrintRow("loaded " + std::filesystem::path(options.load).filename().string(), "-",
-             GainError(loaded, device), &r);
+  if (loaded) {
+    rows.push_back({"loaded", "loaded " + std::filesystem::path(options.load).filename().string(),
+                    "-", "", evaluate(loaded->calibration),
+                    GainError(loaded->calibration, device)});
   }
-  const AccuracyReport floor = haptics::EvaluateAccuracy(&device, device.true_encoder(),
-                                                         eval_poses, kTensionLo, kTensionHi, 1);
-  PrintRow("true parameters (floor)", "-", GainError(device.true_encoder(), device), &floor);
-  std::printf(
-      "\nPaper (Sec. 6): length error 6.24 +- 1.54 %% before, 0.80 +- 0.4 %% after the line fit;\n"
-      "position error under 4 mm in a 40 cm cube.\n");
-  if (run_line && line.status == CalibrationStatus::kOk) std::printf("line: %s\n", line.message.c_str());
-  if (run_self && self.status == CalibrationStatus::kOk) std::printf("self: %s\n", self.message.c_str());
+  rows.push_back({"true_parameters", "true parameters (floor)", "-", "",
+                  evaluate(device.true_encoder()), GainError(device.true_encoder(), device)});
 
+  // Output: the table on stdout (text or JSON), notes on stdout (text) or stderr (JSON).
+  std::FILE* notes = options.json ? stderr : stdout;
+  if (options.json) {
+    std::printf("%s\n", TableJson(rows).dump(2).c_str());
+  } else {
+    std::printf(
+        "Simulated SPIDAR-G (seed %llu): frame %.0f x %.0f x %.0f cm, pole %.1f cm, 0.0251 mm "
+        "per count.\nCalibration: %d poses. Evaluation: %d poses in a %.0f cm cube, rotation <= "
+        "30 deg, grasp\n90 +- 17 deg, tensions 0.2-3 N.\n\n",
+        static_cast<unsigned long long>(options.seed), 200 * geometry.a, 200 * geometry.b,
+        200 * geometry.c, 100 * geometry.d, options.poses, options.eval_poses, 200 * half_cube);
+    PrintTable(rows);
+    std::printf(
+        "\nPaper (Sec. 6): length error 6.24 +- 1.54 %% before, 0.80 +- 0.4 %% after the line "
+        "fit;\nposition error under 4 mm in a 40 cm cube.\n");
+  }
+  if (run_line && line.status == CalibrationStatus::kOk) {
+    std::fprintf(notes, "line: %s\n", line.message.c_str());
+  }
+  if (run_self && self.status == CalibrationStatus::kOk) {
+    std::fprintf(notes, "self: %s\n", self.message.c_str());
+  }
   if (!options.out.empty()) {
     if (best != nullptr) {
-      SaveCalibrationJson(*best, geometry, best_method, options.out);
-      std::printf("wrote %s (%s)\n", options.out.c_str(), best_method.c_str());
+      CalibrationFile file;
+      file.device = identity;
+      file.date = NowIso8601Utc();
+      file.method = best_method;
+      file.calibration = best->calibration;
+      file.fit = FitOf(*best, best_samples);
+      SaveCalibrationFile(file, options.out);
+      std::fprintf(notes, "wrote %s (%s)\n", options.out.c_str(), best_method.c_str());
     } else {
       failures.push_back("--out: no calibration succeeded, '" + options.out + "' not written");
     }
   }
   std::fflush(stdout);
   for (const std::string& f : failures) std::cerr << "spidarcad calibrate: " << f << "\n";
-  if (!all_ok || !failures.empty()) throw CommandExit{1};
+  if (!failures.empty()) throw CommandExit{1};
 }
 
-double NumberField(const nlohmann::json& object, const std::string& key,
-                   const std::string& where, const std::string& path) {
-  const std::string field = where.empty() ? key : where + "." + key;
-  if (!object.is_object() || !object.contains(key)) {
-    throw InputError(path + ": field '" + field + "' is missing");
+void RunCalibrate(const CalibrateOptions& options) {
+  if (!options.device.empty() && options.device != "simulated") {
+    if (options.simulated) {
+      throw InputError("--simulated and --device " + options.device +
+                       ": choose one (--simulated is the study on the simulated SPIDAR-G)");
+    }
+    if (options.device != "board-sim" && options.device != "usb") {
+      throw InputError("--device: '" + options.device +
+                       "' is not a device; use board-sim or usb (or --simulated)");
+    }
+    CalibrationSessionOptions session;
+    session.device = options.device;
+    session.seed = options.seed;
+    session.geometry = options.geometry;
+    CheckCounts(options);
+    session.poses = options.poses == -1 ? 200 : options.poses;
+    session.out = options.out;
+    session.json = options.json;
+    session.max_seconds = options.timeout;
+    RunCalibrationSession(session);
+    return;
   }
-  const nlohmann::json& v = object.at(key);
-  if (!v.is_number()) {
-    throw InputError(path + ": field '" + field + "': expected a number, got " + v.dump());
+  if (!options.simulated && options.device.empty()) {
+    throw InputError(
+        "calibrate: say which device: --simulated (a study on the simulated SPIDAR-G) or "
+        "--device board-sim|usb (a self-calibration session on a board)");
   }
-  const double x = v.get<double>();
-  if (!std::isfinite(x)) {
-    throw InputError(path + ": field '" + field + "': expected a finite number");
-  }
-  return x;
+  RunSimulatedStudy(options);
 }
 
 }  // namespace
 
-void SaveCalibrationJson(const EncoderCalibration& calibration,
-                         const haptics::SpidarGeometry& geometry, const std::string& method,
-                         const std::string& path) {
-  nlohmann::json j;
-  j["format"] = "spidarcad-calibration";
-  j["version"] = 1;
-  j["method"] = method;
-  j["encoder"] = {{"counts_per_rev", calibration.spec.counts_per_rev},
-                  {"pulley_radius", calibration.spec.pulley_radius}};
-  nlohmann::json strings = nlohmann::json::array();
-  for (const auto& p : calibration.strings) {
-    strings.push_back({{"offset", p.offset},
-                       {"gain", p.gain},
-                       {"quadratic", p.quadratic},
-                       {"stretch", p.stretch}});
-  }
-  j["strings"] = strings;
-  j["geometry"] = {{"a", geometry.a}, {"b", geometry.b}, {"c", geometry.c}, {"d", geometry.d}};
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream out(temporary);
-    if (!out) throw InputError("--out: cannot open '" + temporary + "' for writing");
-    out << j.dump(2) << "\n";
-    if (!out) throw InputError("--out: writing '" + temporary + "' failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) throw InputError("--out: cannot rename '" + temporary + "' to '" + path + "': " + ec.message());
-}
-
-EncoderCalibration LoadCalibrationJson(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open calibration file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path + ": not valid JSON: " + e.what());
-  }
-  if (!j.is_object()) throw InputError(path + ": expected a JSON object at the top level");
-  if (!j.contains("format") || j["format"] != "spidarcad-calibration") {
-    throw InputError(path + ": field 'format' must be \"spidarcad-calibration\"");
-  }
-  if (!j.contains("version") || j["version"] != 1) {
-    throw InputError(path + ": field 'version': only version 1 is supported");
-  }
-  EncoderCalibration cal;
-  if (!j.contains("encoder")) throw InputError(path + ": field 'encoder' is missing");
-  const double counts = NumberField(j["encoder"], "counts_per_rev", "encoder", path);
-  if (counts != std::floor(counts) || counts <= 0 || counts > 1e9) {
-    throw InputError(path + ": field 'encoder.counts_per_rev': expected a positive integer");
-  }
-  cal.spec.counts_per_rev = static_cast<int>(counts);
-  cal.spec.pulley_radius = NumberField(j["encoder"], "pulley_radius", "encoder", path);
-  if (!j.contains("strings") || !j["strings"].is_array() ||
-      j["strings"].size() != haptics::kNumStrings) {
-    throw InputError(path + ": field 'strings' must be an array of 8 objects (one per string)");
-  }
-  for (int i = 0; i < haptics::kNumStrings; ++i) {
-    const nlohmann::json& s = j["strings"][i];
-    const std::string where = "strings[" + std::to_string(i) + "]";
-    cal.strings[i].offset = NumberField(s, "offset", where, path);
-    cal.strings[i].gain = NumberField(s, "gain", where, path);
-    cal.strings[i].quadratic = NumberField(s, "quadratic", where, path);
-    cal.strings[i].stretch = NumberField(s, "stretch", where, path);
-  }
-  try {
-    cal.Validate();
-  } catch (const std::invalid_argument& e) {
-    throw InputError(path + ": " + e.what());
-  }
-  return cal;
-}
-
 void RegisterCalibrateCommand(CLI::App& app) {
   auto options = std::make_shared<CalibrateOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "calibrate", "Calibrate string-length sensing (simulated device): before/after table");
+      "calibrate", "Calibrate string-length sensing: before/after table and calibration file");
   cmd->footer(kCalibrateHelp);
   cmd->add_flag("--simulated", options->simulated,
-                "Use the simulated SPIDAR-G (required: no hardware driver yet)");
+                "Study on the simulated SPIDAR-G: line fit and self-calibration against its "
+                "hidden truth");
+  cmd->add_option("--device", options->device,
+                  "Self-calibration session on a board: board-sim (the board simulator, a "
+                  "simulated hand waves the grip) or usb (a real board, you wave it)");
   cmd->add_option("--seed", options->seed,
                   "Seed of the simulated device's imperfections and noise (default 1)");
-  cmd->add_option("--poses", options->poses, "Number of calibration poses (default 100)");
+  cmd->add_option("--poses", options->poses,
+                  "Calibration poses: --simulated: the number used (default 100); --device: "
+                  "the useful poses to collect (default 200)");
   cmd->add_option("--eval-poses", options->eval_poses,
-                  "Number of evaluation poses in the 40 cm cube (default 200)");
-  cmd->add_option("--method", options->method, "line, self or both (default both)")
+                  "Number of evaluation poses (--simulated; default 200)");
+  cmd->add_option("--method", options->method, "line, self or both (--simulated; default both)")
       ->check(CLI::IsMember({"line", "self", "both"}));
-  cmd->add_option("--out", options->out, "Write the calibration to this JSON file");
+  cmd->add_option("--out", options->out,
+                  "Write the calibration file (JSON, docs/calibration-format.md)");
   cmd->add_option("--load", options->load,
-                  "Evaluate the calibration in this JSON file on the same simulated device");
+                  "Evaluate the calibration file on the same simulated device (--simulated)");
+  cmd->add_flag("--json", options->json,
+                "Print the before/after table as JSON (position error in mm, rotation error in "
+                "deg, mean and max, per method)");
+  cmd->add_option("--timeout", options->timeout,
+                  "--device: give up after this many seconds without enough poses (default 180 "
+                  "of simulated time for board-sim, 300 for usb)");
+  AddGeometryOptions(*cmd, &options->geometry);
   cmd->callback([options]() { RunCalibrate(*options); });
 }
 

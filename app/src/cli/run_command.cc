@@ -2,7 +2,7 @@
 // virtual clock at 1 kHz against the simulated SPIDAR-G (strings, encoders and calibration
 // error included), gripped by a simulated hand that follows a scripted trajectory and is pushed
 // by the device's wrench. One CSV row per tick; a summary on stdout. --device picks the path to
-// the device (DeviceRig, runtime/device_rig.h, shared with the window): the simulated SPIDAR-G
+// the device (DeviceRig, scene/device_rig.h, shared with the window): the simulated SPIDAR-G
 // directly, the USB driver over the in-process board simulator (board-sim), or the USB driver
 // over libusb to a real board (usb, real time).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
@@ -19,11 +19,13 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "cli/calibration_file.h"
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "scene/assembly_scene.h"
@@ -56,6 +58,15 @@ constexpr const char* kRunHelp =
     "peg (assets/trajectories/seat_right_leg.csv on assets/scenes/assembly.json seats the right\n"
     "leg only with it). Off by default (the golden runs use the nominal model). Simulated and\n"
     "board-sim only: a real board is calibrated with `spidarcad calibrate`.\n"
+    "\n"
+    "--calibration FILE: read the encoders through a calibration file written by `spidarcad\n"
+    "calibrate --out` (docs/calibration-format.md) instead of the nominal model. The file must\n"
+    "be this device's: the same simulated seed (simulated and board-sim share it) or the same\n"
+    "board serial (usb), and the same --frame/--pole; otherwise exit 2 with the reason.\n"
+    "\n"
+    "--frame A,B,C --pole D: the device's size (frame half-sides and pole half-length, m;\n"
+    "default 0.24,0.24,0.24 and 0.04, the paper's 48 cm frame and 4 cm grip; Sec. 8 scales\n"
+    "the frame). The simulated SPIDAR-G is built that size; a real board is assumed to be.\n"
     "\n"
     "--device:\n"
     "  simulated  (default) the loop reads and commands the simulated SPIDAR-G directly\n"
@@ -127,6 +138,8 @@ struct RunOptions {
   double world_scale = 0.0;  // 0: fitted
   std::vector<double> world_origin;
   bool calibrate = false;  // line-fit calibration of the simulated device before the run
+  std::string calibration;           // calibration file to read the encoders through
+  haptics::SpidarGeometry geometry;  // the device's frame and pole (--frame, --pole)
   double max_duration = 3600.0;  // s: longest run accepted (docs/limits.md)
   bool progress = false;         // progress on stderr even when it is not a terminal
 };
@@ -214,6 +227,21 @@ void RunRun(const RunOptions& options) {
   if (options.device != "simulated" && options.device != "board-sim" && options.device != "usb") {
     throw InputError("--device: '" + options.device +
                      "' is not a device; use simulated, board-sim or usb");
+  }
+  if (options.calibrate && !options.calibration.empty()) {
+    throw InputError(
+        "--calibrate and --calibration: choose one (--calibrate fits the simulated device at "
+        "start-up, --calibration reads a file made by `spidarcad calibrate --out`)");
+  }
+  ValidateGeometry(options.geometry);
+  // A bad or foreign calibration file fails before any work.
+  std::optional<CalibrationFile> calibration_file;
+  if (!options.calibration.empty()) {
+    try {
+      calibration_file = LoadCalibrationFile(options.calibration);
+    } catch (const InputError& e) {
+      throw InputError(std::string("--calibration: ") + e.what());
+    }
   }
   if (options.calibrate && options.device == "usb") {
     throw InputError(
@@ -322,7 +350,7 @@ void RunRun(const RunOptions& options) {
       haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
                                              options.world_origin[2]);
     }
-    haptic_options.grip_d = haptics::SpidarGeometry().d;
+    haptic_options.grip_d = options.geometry.d;
     SceneHaptics built;
     try {
       haptic_options.Validate();
@@ -377,6 +405,8 @@ void RunRun(const RunOptions& options) {
   ParseRigKind(options.device, &kind);  // checked above
   RigOptions rig_options;
   rig_options.device.seed = options.seed;
+  rig_options.device.geometry = options.geometry;
+  rig_options.device.home_pose = haptics::GripPose::Rest(options.geometry.d);
   // A real board lost mid-run is re-opened by a service thread, not inside the tick (re-opening
   // goes through libusb, which allocates and locks); board-sim keeps its deterministic re-open
   // on the virtual clock.
@@ -403,11 +433,35 @@ void RunRun(const RunOptions& options) {
     physical->WriteTensions(haptics::Vector8d::Constant(settings.tension.tau_min));
     physical->Step(dt);
   }
+  // The calibration file must belong to this device and frame (usb: checked after the
+  // handshake, which reports the board's serial number).
+  const auto check_file = [&](const std::string& serial) {
+    CalibrationDevice device;
+    device.kind = options.device;
+    device.seed = options.seed;
+    device.serial = serial;
+    device.geometry = info.geometry;
+    device.encoder = info.encoder;
+    const std::string why = CalibrationMismatch(*calibration_file, device);
+    if (!why.empty()) {
+      throw InputError("--calibration: " + options.calibration + " does not fit: " + why);
+    }
+  };
+  if (calibration_file) {
+    if (physical != nullptr) check_file("");
+    calibration = calibration_file->calibration;
+    settings.fk.max_residual = haptics::FkSettings().max_residual;  // calibrated, as the window
+    calibration_line = "calibration: " + options.calibration + " (" +
+                       (calibration_file->method == "self" ? "self-calibration" : "line fit") +
+                       " of the " + calibration_file->device.Describe() + ", " +
+                       calibration_file->date + ")";
+  }
   haptics::HapticLoop loop(info, calibration, settings);
   loop.Publish(std::move(scene));
   haptics::LatencyHistogram tick_time(1e-7, 100000);
   // board-sim / usb: the driver's handshake; no board answering is bad input (exit 2).
   if (!rig->Start(hand.pose())) throw InputError(rig->StartFailure());
+  if (calibration_file && physical == nullptr) check_file(rig->Serial());
   const RigServiceThread service(rig.get());  // a thread only when the rig needs one (usb)
 
   std::ofstream out(options.out);
@@ -524,6 +578,10 @@ void RegisterRunCommand(CLI::App& app) {
   cmd->add_flag("--calibrate", options->calibrate,
                 "Calibrate the simulated device first (line fit on 24 jig poses, as the window) "
                 "and read it through that fit; for scripts that must hit mm targets");
+  cmd->add_option("--calibration", options->calibration,
+                  "Read the encoders through this calibration file (`spidarcad calibrate --out`; "
+                  "it must be this device's and frame's)");
+  AddGeometryOptions(*cmd, &options->geometry);
   cmd->add_option("--tool", options->tool, "Scene files: tool model proxy (default) or shell");
   cmd->add_option("--stiffness", options->stiffness,
                   "Scene files: contact stiffness at the grip, N/m (default 1500; shell coupling "

@@ -43,6 +43,26 @@ std::string DriverLinkSummary(const haptics::usb::UsbSpidarG& driver) {
   return os.str();
 }
 
+// The serial number of the driver's last handshake ("" before one).
+std::string BoardSerial(const haptics::usb::UsbSpidarG& driver) {
+  const auto& serial = driver.board_info().serial;
+  std::size_t n = 0;
+  while (n < serial.size() && serial[n] != '\0') ++n;
+  return std::string(serial.data(), n);
+}
+
+// What a real board is assumed to be: the options' device description.
+haptics::DeviceInfo AssumedInfo(const haptics::SimulatedDeviceConfig& device) {
+  device.Validate();
+  haptics::DeviceInfo info;
+  info.geometry = device.geometry;
+  info.encoder = device.encoder;
+  info.home_pose = device.home_pose;
+  info.tension_min = 0.0;
+  info.tension_max = device.tension_max;
+  return info;
+}
+
 // --device simulated: the loop talks to SimulatedSpidarG directly.
 class SimulatedRig final : public DeviceRig {
  public:
@@ -108,6 +128,7 @@ class BoardSimRig final : public DeviceRig {
   std::string Describe() const override {
     return "board-sim (USB driver over the board simulator, seed " + std::to_string(seed_) + ")";
   }
+  std::string Serial() const override { return BoardSerial(driver_); }
   std::string LinkSummary() const override {
     return DriverLinkSummary(driver_) + "; board rejected " +
            std::to_string(board_.rejected_packets()) + ", watchdog trips " +
@@ -143,7 +164,7 @@ class UsbRig final : public DeviceRig {
         libusb_(!options.make_transport),
         driver_(options.make_transport ? options.make_transport()
                                        : std::make_unique<haptics::usb::LibusbTransport>(),
-                NominalDeviceInfo(), DriverConfig(options)) {
+                AssumedInfo(options.device), DriverConfig(options)) {
     CopyDriverState(driver_, &link_);
   }
   const haptics::DeviceInfo& info() const override { return driver_.info(); }
@@ -197,6 +218,7 @@ class UsbRig final : public DeviceRig {
     return libusb_ ? "usb (libusb)" : "usb (test transport)";
   }
   std::string LinkSummary() const override { return DriverLinkSummary(driver_); }
+  std::string Serial() const override { return BoardSerial(driver_); }
 
  private:
   static haptics::usb::UsbDeviceConfig DriverConfig(const RigOptions& options) {

@@ -9,7 +9,9 @@
 //              it is silent (unplugged, link closed) the rig runs the physics itself with the
 //              motors unpowered, so a hand holding the grip feels no force.
 //   usb        the USB driver over libusb to a real board; no physical device (the user's hand
-//              moves the grip). The board cannot report geometry: the nominal SPIDAR-G is assumed.
+//              moves the grip). The board cannot report geometry: RigOptions::device's geometry,
+//              encoder, homing pose and tension limit are assumed (the nominal SPIDAR-G by
+//              default, --frame/--pole otherwise).
 // Tick path (Read, Write, Link, RequestPlugged): noexcept, no allocation, lock or exception
 // beyond the transfer itself (see usb_device.h). Start, Service and the strings are not for the
 // tick. Frame D, SI units (N, s).
@@ -52,7 +54,8 @@ std::string DescribeLink(const RigLink& link);
 
 // How to build a rig.
 struct RigOptions {
-  // simulated, board-sim: the physical device (its seed included).
+  // simulated, board-sim: the physical device (its seed included). usb: what the board is
+  // assumed to be (geometry, encoder, homing pose, tension limit).
   haptics::SimulatedDeviceConfig device;
   // board-sim, usb: the driver's timeouts and recovery policy.
   haptics::usb::UsbDeviceConfig usb;
@@ -93,6 +96,9 @@ class DeviceRig {
   virtual bool Service() { return false; }
   // Seconds between Service calls; 0: the rig needs none.
   virtual double service_interval() const { return 0.0; }
+  // The board's serial number from its handshake (board-sim: the simulator's "SIM-0001");
+  // empty for the simulated rig or before Start succeeded. Not for the tick.
+  virtual std::string Serial() const { return {}; }
   // For summaries: "simulated (seed 1)", "board-sim (...)", "usb (libusb)".
   virtual std::string Describe() const = 0;
   // For summaries: the link statistics (empty: none). Not while the tick runs.
