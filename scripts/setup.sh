@@ -6,7 +6,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libsuitesparse-dev libopenblas-dev
-  libvtk9-dev libcgal-dev libtet1.5-dev
+  libvtk9-dev libcgal-dev libtet1.5-dev zlib1g-dev
   libglfw3-dev libimgui-dev libusb-1.0-0-dev
   nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
