@@ -86,6 +86,11 @@ TEST(CalibrateCommand, BadInputExitsWithStatus2) {
   EXPECT_THAT(RunSpidarcad("calibrate").all(), HasSubstr("--device board-sim|usb"));
   EXPECT_EQ(RunSpidarcad("calibrate --simulated --method magic").status, 2);
   EXPECT_EQ(RunSpidarcad("calibrate --simulated --poses 0").status, 2);
+  // A count that would allocate gigabytes is refused up front, naming the option and the range.
+  const CommandRun huge = RunSpidarcad("calibrate --simulated --poses 2000000000");
+  EXPECT_EQ(huge.status, 2);
+  EXPECT_THAT(huge.all(), HasSubstr("--poses: must be in [1, 100000]"));
+  EXPECT_EQ(RunSpidarcad("calibrate --simulated --eval-poses 2000000000").status, 2);
   EXPECT_EQ(RunSpidarcad("calibrate --device bluetooth").status, 2);
   EXPECT_THAT(RunSpidarcad("calibrate --device bluetooth").all(), HasSubstr("board-sim or usb"));
   EXPECT_EQ(RunSpidarcad("calibrate --simulated --device usb").status, 2);

@@ -191,11 +191,15 @@ nlohmann::json TableJson(const std::vector<Row>& rows) {
 }
 
 void CheckCounts(const CalibrateOptions& options) {
-  if (options.poses != -1 && options.poses < 1) {
-    throw InputError("--poses: must be at least 1, got " + std::to_string(options.poses));
+  // A calibration uses tens to hundreds of poses; 100,000 bounds the memory and time it may take.
+  constexpr int kMaxPoses = 100000;
+  if (options.poses != -1 && (options.poses < 1 || options.poses > kMaxPoses)) {
+    throw InputError("--poses: must be in [1, " + std::to_string(kMaxPoses) + "], got " +
+                     std::to_string(options.poses) + " (100 to 300 poses reach the floor; see --help)");
   }
-  if (options.eval_poses < 1) {
-    throw InputError("--eval-poses: must be at least 1, got " + std::to_string(options.eval_poses));
+  if (options.eval_poses < 1 || options.eval_poses > kMaxPoses) {
+    throw InputError("--eval-poses: must be in [1, " + std::to_string(kMaxPoses) + "], got " +
+                     std::to_string(options.eval_poses));
   }
 }
 
