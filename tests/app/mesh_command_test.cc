@@ -332,11 +332,11 @@ TEST(MeshCommand, HostileScenesExitTwoNamingFileLineAndField) {
        ":6:30: field /solids/0/root/radius: "},
       // A key with a '/' and a 20-digit index (used to exit 1 with "stol").
       {"slash.json", R"({"type": "sphere", "radius": 0.1, "children/99999999999999999999": 1})",
-       "field /solids/0/root/children~199999999999999999999"},
+       ":6:68: field /solids/0/root/children~199999999999999999999"},
       // A polar array of a billion copies.
       {"billion.json",
        R"({"type": "polar_array", "count": 1000000000, "children": [{"type": "sphere", "radius": 0.01}]})",
-       "field /solids/0/root/count"},
+       ":6:34: field /solids/0/root/count"},
   };
   for (const Case& c : cases) {
     const std::string scene = WriteScene(c.name, c.root);
@@ -366,7 +366,7 @@ TEST(MeshCommand, AbsurdResolutionsAreRefusedWithTheGridEstimate) {
     std::string resolution, cells;
   };
   // The platform's box is about 0.30 x 0.20 x 0.17 m (plus the coarse search's slack).
-  const Case cases[] = {{"5e-324", "inf grid cells"}, {"1e-6", "e+16 grid cells"}};
+  const Case cases[] = {{"5e-324", "inf grid cells"}, {"1e-06", "e+16 grid cells"}};
   for (const Case& c : cases) {
     const std::string out = OutputPath("absurd.stl");
     std::remove(out.c_str());
@@ -430,7 +430,7 @@ TEST(MeshCommand, ProgressGoesToStderrWithTheFlag) {
 }
 
 TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
-  // A sphere of 10 cm at 0.2 mm: a run of minutes, so it is still meshing when the signal comes
+  // A sphere of 10 cm at 0.3 mm (3.2e8 grid cells, inside --max-cells 1e9): a long run, so it is still meshing when the signal comes
   // (sent once the progress line shows the surface stage has begun).
   const std::string scene = WriteScene("ctrl_c.json", R"({"type": "sphere", "radius": 0.1})");
   const std::string out = OutputPath("ctrl_c.stl");
@@ -439,7 +439,7 @@ TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
   std::remove(err.c_str());
   const std::string script =
       "'" + std::string(SPIDARCAD_EXE) + "' mesh '" + scene + "' --out '" + out +
-      "' --resolution 0.0002 --max-cells 1e9 --max-memory 1e11 --max-work 1e15 --progress 2> '" +
+      "' --resolution 0.0003 --max-cells 1e9 --max-memory 1e11 --max-work 1e15 --progress 2> '" +
       err +
       "' & pid=$!; "
       "i=0; while ! grep -q 'surface' '" +
