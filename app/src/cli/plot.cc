@@ -105,6 +105,10 @@ void WriteLinePlotPng(const std::vector<PlotPanel>& panels, const std::string& p
       if (s.dashed) line->GetPen()->SetLineType(vtkPen::DASH_LINE);
     }
   }
+  SaveChartPng(view, path);
+}
+
+void SaveChartPng(vtkContextView* view, const std::string& path) {
   view->GetRenderWindow()->Render();
   vtkNew<vtkWindowToImageFilter> grab;
   grab->SetInput(view->GetRenderWindow());

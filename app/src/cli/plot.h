@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+class vtkContextView;
+
 namespace spidarcad::app {
 
 // One line of a plot: points (x[k], y[k]); non-finite points are left out.
@@ -37,5 +39,9 @@ bool PlotDisplayAvailable();
 // Throws std::runtime_error when there is no display or the file cannot be written.
 void WriteLinePlotPng(const std::vector<PlotPanel>& panels, const std::string& path,
                       int width = 1400, int height = 600);
+
+// Renders a chart view (off screen) and writes it as a PNG at `path`. Throws
+// std::runtime_error when the file cannot be written.
+void SaveChartPng(vtkContextView* view, const std::string& path);
 
 }  // namespace spidarcad::app

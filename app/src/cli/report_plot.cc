@@ -44,19 +44,6 @@ void CheckWritable(const std::string& path) {
   if (!probe) throw std::runtime_error("cannot write " + path);
 }
 
-void SavePng(vtkContextView* view, const std::string& path) {
-  view->GetRenderWindow()->Render();
-  vtkNew<vtkWindowToImageFilter> grab;
-  grab->SetInput(view->GetRenderWindow());
-  grab->ReadFrontBufferOff();
-  grab->Update();
-  vtkNew<vtkPNGWriter> writer;
-  writer->SetFileName(path.c_str());
-  writer->SetInputConnection(grab->GetOutputPort());
-  writer->Write();
-  if (writer->GetErrorCode() != 0) throw std::runtime_error("cannot write " + path);
-}
-
 void StyleAxes(vtkChart* chart, const std::string& title, const std::string& x_label,
                const std::string& y_label) {
   chart->SetTitle(title);
@@ -137,7 +124,7 @@ void WriteChartsPng(const std::vector<Chart>& charts, const std::string& path, i
     chart->GetLegend()->SetVerticalAlignment(vtkChartLegend::TOP);
     chart->GetLegend()->GetLabelProperties()->SetFontSize(11);
   }
-  SavePng(view, path);
+  SaveChartPng(view, path);
 }
 
 void WriteColourMapPng(const ColourMap& map, const std::string& path, int width, int height) {
@@ -178,7 +165,7 @@ void WriteColourMapPng(const ColourMap& map, const std::string& path, int width,
   if (auto* legend = vtkColorLegend::SafeDownCast(chart->GetLegend())) {
     legend->SetTitle(map.value_label);
   }
-  SavePng(view, path);
+  SaveChartPng(view, path);
 }
 
 }  // namespace spidarcad::app
