@@ -4,13 +4,15 @@
 // set, frictionless solve on the lazy columns, triple-buffer publish) without the HapticLoop,
 // on assets/scenes/platform.json meshed by TetGen (linear tets, steel, clamped at the wall),
 // at k = 1, 4, 16 contact nodes (max_contacts = k, the tool pushed until k nodes carry load).
-//   BM_FeTick/cell_mm/k/frictionless   per-call thread CPU time over 2000 calls of a tool held still
+//   BM_FeTick/cell_mm/k/frictionless   per-call thread CPU time over 2000 calls of a tool held
+//   still
 //                                      in contact (columns ready), as p50 / p99 / max in µs,
 //                                      the mean k reached, tets.
 // A markdown table is printed after the run. Scene: $SPIDARCAD_PLATFORM_SCENE, else the source
 // tree's assets/scenes/platform.json.
 // Run: build/bench/app_fe_tick_bench
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,8 +22,7 @@
 #include <tuple>
 #include <vector>
 
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
 #include "scene/fe_model.h"
 #include "scene/fe_touch_field.h"
 
@@ -123,12 +124,14 @@ void Args(benchmark::internal::Benchmark* b) {
 BENCHMARK(BM_FeTick)->Apply(Args)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 void PrintTable() {
-  std::printf("\n| cell | tets | contact | k asked | mean k | p50 µs | p99 µs | max µs | mesh + precompute s |\n");
+  std::printf(
+      "\n| cell | tets | contact | k asked | mean k | p50 µs | p99 µs | max µs | mesh + precompute "
+      "s |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& [key, row] : Rows())
-    std::printf("| %d mm | %d | %s | %d | %.1f | %.1f | %.1f | %.1f | %.1f |\n", std::get<0>(key), row.tets,
-                std::get<2>(key) ? "frictionless" : "sticking", std::get<1>(key), row.mean_k, row.p50, row.p99,
-                row.max, row.build_s);
+    std::printf("| %d mm | %d | %s | %d | %.1f | %.1f | %.1f | %.1f | %.1f |\n", std::get<0>(key),
+                row.tets, std::get<2>(key) ? "frictionless" : "sticking", std::get<1>(key),
+                row.mean_k, row.p50, row.p99, row.max, row.build_s);
 }
 
 }  // namespace
@@ -140,7 +143,8 @@ constexpr const char* kBenchDescription =
     "set, frictionless solve on the lazy columns, triple-buffer publish) without the HapticLoop,\n"
     "on assets/scenes/platform.json meshed by TetGen (linear tets, steel, clamped at the wall),\n"
     "at k = 1, 4, 16 contact nodes (max_contacts = k, the tool pushed until k nodes carry load).\n"
-    "  BM_FeTick/cell_mm/k/frictionless   per-call thread CPU time over 2000 calls of a tool held still\n"
+    "  BM_FeTick/cell_mm/k/frictionless   per-call thread CPU time over 2000 calls of a tool held "
+    "still\n"
     "                                     in contact (columns ready), as p50 / p99 / max in µs,\n"
     "                                     the mean k reached, tets.\n"
     "A markdown table is printed after the run. Scene: $SPIDARCAD_PLATFORM_SCENE, else the source\n"
@@ -148,9 +152,7 @@ constexpr const char* kBenchDescription =
     "Run: build/bench/app_fe_tick_bench";
 
 // Tables printed after the benchmarks.
-void PrintAfterRun() {
-  spidarcad::app::PrintTable();
-}
+void PrintAfterRun() { spidarcad::app::PrintTable(); }
 
 int main(int argc, char** argv) {
   return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, nullptr, PrintAfterRun);

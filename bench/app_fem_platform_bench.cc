@@ -15,7 +15,8 @@
 // else <source>/assets/scenes/platform.json (from this file's path), else
 // assets/scenes/platform.json in the working directory.
 // Run: build/bench/app_fem_platform_bench
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -27,22 +28,21 @@
 #include <string>
 #include <vector>
 
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
+#include "bench_paths.h"
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
-#include "bench_paths.h"
 
 namespace spidarcad {
 namespace {
 
-constexpr double kLoad = 200.0;      // N, down, on the free end
-constexpr int kCondensed = 64;       // eager compliance nodes (tick benchmarks)
-constexpr int kCacheNodes = 48;      // column-cache benchmark
+constexpr double kLoad = 200.0;  // N, down, on the free end
+constexpr int kCondensed = 64;   // eager compliance nodes (tick benchmarks)
+constexpr int kCacheNodes = 48;  // column-cache benchmark
 const fem::Material kSteel{2.0e11, 0.3};
 
 // CPU time of the process, s (on a shared machine wall time counts others' work too).
@@ -93,8 +93,10 @@ Platform& GetPlatform(int order, int resolution_um) {
   p.fixed_nodes = fem::FixNodesInBox(p.mesh, Eigen::Vector3d(-1, -1, -1),
                                      Eigen::Vector3d(min_x + 0.25 * grid.cell, 1, 1), p.bcs.get());
   if (std::getenv("SPIDARCAD_BENCH_VERBOSE"))
-    std::fprintf(stderr, "platform: min x %.3g m, cell %.3g m, %d nodes fixed\n", min_x, grid.cell, p.fixed_nodes);
-  const auto end = fem::NodesInBox(p.mesh, Eigen::Vector3d(max_x - 0.004, -1, -1), Eigen::Vector3d(1, 1, 1));
+    std::fprintf(stderr, "platform: min x %.3g m, cell %.3g m, %d nodes fixed\n", min_x, grid.cell,
+                 p.fixed_nodes);
+  const auto end =
+      fem::NodesInBox(p.mesh, Eigen::Vector3d(max_x - 0.004, -1, -1), Eigen::Vector3d(1, 1, 1));
   for (int v : end) p.bcs->AddPointLoad(v, Eigen::Vector3d(0, 0, -kLoad / end.size()));
   p.solver = std::make_unique<fem::StaticSolver>(p.mesh, p.materials, *p.bcs);
   const fem::StaticSolution sol = p.solver->Solve();
@@ -105,9 +107,11 @@ Platform& GetPlatform(int order, int resolution_um) {
   for (int v : p.surface)
     if (p.mesh.nodes(v, 2) > 0.009) p.top.push_back(v);
   std::sort(p.top.begin(), p.top.end(), [&](int a, int b) {
-    return (p.mesh.nodes.row(a).transpose() - tip).norm() < (p.mesh.nodes.row(b).transpose() - tip).norm();
+    return (p.mesh.nodes.row(a).transpose() - tip).norm() <
+           (p.mesh.nodes.row(b).transpose() - tip).norm();
   });
-  std::vector<int> condensed(p.top.begin(), p.top.begin() + std::min<size_t>(kCondensed, p.top.size()));
+  std::vector<int> condensed(p.top.begin(),
+                             p.top.begin() + std::min<size_t>(kCondensed, p.top.size()));
   p.compliance = std::make_unique<fem::Compliance>(*p.solver, p.surface, condensed);
   return p;
 }
@@ -136,7 +140,8 @@ void BM_PlatformPrecompute(benchmark::State& state) {
   row.surface_nodes = static_cast<int>(p->surface.size());
   row.mesh_s = p->mesh_seconds;
   row.factor_s = st.assembly_seconds + st.factor_seconds;
-  row.column_ms_per_node = 1e3 * p->compliance->compute_seconds() / p->compliance->condensed_nodes().size();
+  row.column_ms_per_node =
+      1e3 * p->compliance->compute_seconds() / p->compliance->condensed_nodes().size();
   row.peak_mb = st.factor_peak_bytes / 1e6;
   row.g_mb_per_node = 72.0 * p->surface.size() / 1e6;
   row.deflection_mm = 1e3 * p->deflection;
@@ -163,7 +168,9 @@ void BM_PlatformTick(benchmark::State& state) {
   const int k = static_cast<int>(state.range(2));
   const Platform& p = GetPlatform(order, res);
   fem::ContactSolver solver(*p.compliance, kCondensed);
-  for (int b = 0; b < static_cast<int>(p.compliance->condensed_nodes().size()) && solver.num_contacts() < k; ++b)
+  for (int b = 0;
+       b < static_cast<int>(p.compliance->condensed_nodes().size()) && solver.num_contacts() < k;
+       ++b)
     solver.Add(b);
   const auto target = Targets(*p.compliance, solver);
   std::vector<double> f(target.size());
@@ -172,7 +179,8 @@ void BM_PlatformTick(benchmark::State& state) {
     solver.Solve(target.data(), f.data());
     benchmark::DoNotOptimize(f.data());
   }
-  const double us = 1e6 * (CpuSeconds() - t0) / std::max<double>(1.0, static_cast<double>(state.iterations()));
+  const double us =
+      1e6 * (CpuSeconds() - t0) / std::max<double>(1.0, static_cast<double>(state.iterations()));
   Rows()[{order, res}].tick_us[k] = us;
   state.counters["k"] = solver.num_contacts();
 }
@@ -200,7 +208,8 @@ void BM_PlatformFullSolve(benchmark::State& state) {
     full_s = CpuSeconds() - t0;
     Eigen::VectorXd a(target.size()), b(target.size());
     for (int s = 0; s < solver.num_contacts(); ++s) {
-      a.segment<3>(3 * s) = sol.reaction.segment<3>(3 * p.compliance->condensed_nodes()[solver.contact(s)]);
+      a.segment<3>(3 * s) =
+          sol.reaction.segment<3>(3 * p.compliance->condensed_nodes()[solver.contact(s)]);
       b.segment<3>(3 * s) = Eigen::Vector3d(f[3 * s], f[3 * s + 1], f[3 * s + 2]);
     }
     max_rel = (a - b).norm() / a.norm();
@@ -252,14 +261,21 @@ void PrintTable() {
       ref_res = key.second;
       reference = row.deflection_mm;
     }
-  std::printf("\nTick, full-solve and worker times are CPU time of this process (mesh, assembly and "
-              "factor times are wall time).\n");
-  std::printf("\n### Speed against error: platform (steel, clamped at the wall, %.0f N on the free end)\n\n", kLoad);
-  std::printf("Deflection error against the finest quadratic mesh of this run (%.1f mm grid: %.4f mm).\n\n",
-              ref_res * 1e-3, reference);
-  std::printf("| order | grid mm | tets | free dofs | mesh s | assembly+factor s | column ms/node | "
-              "CHOLMOD peak MB | G MB/node | deflection mm | error %% | tick us k=1 | k=4 | k=16 | k=64 | "
-              "full sparse solve ms (k=16) | full / tick | worker columns per CPU s | whole surface GB |\n");
+  std::printf(
+      "\nTick, full-solve and worker times are CPU time of this process (mesh, assembly and "
+      "factor times are wall time).\n");
+  std::printf(
+      "\n### Speed against error: platform (steel, clamped at the wall, %.0f N on the free "
+      "end)\n\n",
+      kLoad);
+  std::printf(
+      "Deflection error against the finest quadratic mesh of this run (%.1f mm grid: %.4f mm).\n\n",
+      ref_res * 1e-3, reference);
+  std::printf(
+      "| order | grid mm | tets | free dofs | mesh s | assembly+factor s | column ms/node | "
+      "CHOLMOD peak MB | G MB/node | deflection mm | error %% | tick us k=1 | k=4 | k=16 | k=64 | "
+      "full sparse solve ms (k=16) | full / tick | worker columns per CPU s | whole surface GB "
+      "|\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& [key, r] : Rows()) {
     if (r.tets == 0) continue;
@@ -267,13 +283,17 @@ void PrintTable() {
       const auto it = r.tick_us.find(k);
       return it == r.tick_us.end() ? std::string("-") : std::to_string(it->second).substr(0, 6);
     };
-    const double err = reference > 0 ? 100.0 * std::abs(r.deflection_mm - reference) / reference : 0.0;
-    std::printf("| %d | %.1f | %d | %d | %.2f | %.2f | %.2f | %.1f | %.3f | %.4f | %.2f | %s | %s | %s | %s | "
-                "%.1f | %.0f | %.0f | %.2f |\n",
-                key.first, key.second * 1e-3, r.tets, r.dofs, r.mesh_s, r.factor_s, r.column_ms_per_node,
-                r.peak_mb, r.g_mb_per_node, r.deflection_mm, err, tick(1).c_str(), tick(4).c_str(),
-                tick(16).c_str(), tick(64).c_str(), r.full_ms, r.full_ms > 0 ? 1e3 * r.full_ms / r.tick16_us : 0.0,
-                r.cache_columns_per_s, r.full_surface_gb);
+    const double err =
+        reference > 0 ? 100.0 * std::abs(r.deflection_mm - reference) / reference : 0.0;
+    std::printf(
+        "| %d | %.1f | %d | %d | %.2f | %.2f | %.2f | %.1f | %.3f | %.4f | %.2f | %s | %s | %s | "
+        "%s | "
+        "%.1f | %.0f | %.0f | %.2f |\n",
+        key.first, key.second * 1e-3, r.tets, r.dofs, r.mesh_s, r.factor_s, r.column_ms_per_node,
+        r.peak_mb, r.g_mb_per_node, r.deflection_mm, err, tick(1).c_str(), tick(4).c_str(),
+        tick(16).c_str(), tick(64).c_str(), r.full_ms,
+        r.full_ms > 0 ? 1e3 * r.full_ms / r.tick16_us : 0.0, r.cache_columns_per_s,
+        r.full_surface_gb);
   }
 }
 
@@ -290,7 +310,11 @@ void TickSizes(benchmark::internal::Benchmark* b) {
 BENCHMARK(BM_PlatformPrecompute)->Apply(Sizes)->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK(BM_PlatformTick)->Apply(TickSizes)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PlatformFullSolve)->Apply(Sizes)->Iterations(1)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_PlatformColumnCache)->Args({1, 6000})->Args({2, 10000})->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK(BM_PlatformColumnCache)
+    ->Args({1, 6000})
+    ->Args({2, 10000})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
 
 }  // namespace
 }  // namespace spidarcad
@@ -298,7 +322,8 @@ BENCHMARK(BM_PlatformColumnCache)->Args({1, 6000})->Args({2, 10000})->Iterations
 // What this program measures (its --help).
 constexpr const char* kBenchDescription =
     "FE figures on the platform scene (assets/scenes/platform.json, the paper's Fig. 7: a\n"
-    "0.3 × 0.2 × 0.01 m plate on a wall bracket with a gusset), meshed by modeling (MeshSurface on\n"
+    "0.3 × 0.2 × 0.01 m plate on a wall bracket with a gusset), meshed by modeling (MeshSurface "
+    "on\n"
     "a grid of `resolution`, then TetGen), linear or quadratic (MakeQuadratic), steel, clamped\n"
     "at the wall face x = 0, 200 N down on the free end of the plate (x >= 0.296 m).\n"
     "  BM_PlatformPrecompute/order/res_um   meshing, assembly, factorisation, 64 compliance\n"
@@ -314,9 +339,7 @@ constexpr const char* kBenchDescription =
     "Run: build/bench/app_fem_platform_bench";
 
 // Tables printed after the benchmarks.
-void PrintAfterRun() {
-  spidarcad::PrintTable();
-}
+void PrintAfterRun() { spidarcad::PrintTable(); }
 
 int main(int argc, char** argv) {
   return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, nullptr, PrintAfterRun);

@@ -6,13 +6,8 @@
 // whole mesh. Rendering itself is not included (it needs a display).
 //
 // Clay: the icosphere with 7 subdivisions scaled to 0.1 m radius (163842 vertices), or, with the
-// environment variable SCULPT_BENCH_CLAY=<path of assets/scenes/clay.json>, that scene meshed at 0.85 mm.
-#include "bench_cli.h"
-#include <cmath>
-#include <cstdlib>
-#include <memory>
-#include <numbers>
-
+// environment variable SCULPT_BENCH_CLAY=<path of assets/scenes/clay.json>, that scene meshed at
+// 0.85 mm.
 #include <benchmark/benchmark.h>
 #include <vtkCellArray.h>
 #include <vtkFloatArray.h>
@@ -22,6 +17,12 @@
 #include <vtkPolyData.h>
 #include <vtkPolyDataNormals.h>
 
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <numbers>
+
+#include "bench_cli.h"
 #include "scene/scene_solid.h"
 #include "scene/sculpt_field.h"
 #include "spidarcad/modeling/sculpt.h"
@@ -109,11 +110,12 @@ void BM_StrokeFrame(benchmark::State& state) {
   long i = 0;
   for (auto _ : state) {
     const double t = 0.01 * static_cast<double>(i++ % 100);
-    const Eigen::Vector3d p = p0 + 0.01 * Eigen::Vector3d(std::sin(t), 0.5 * std::cos(t), std::sin(2 * t));
+    const Eigen::Vector3d p =
+        p0 + 0.01 * Eigen::Vector3d(std::sin(t), 0.5 * std::cos(t), std::sin(2 * t));
     session.Step(Tool(p), false);
-    spidarcad::app::CopyVerticesToFloat(*session.mesh(), session.display_vertices(),
-                                        static_cast<float*>(vtk.points->GetData()->GetVoidPointer(0)),
-                                        vtk.normals->GetPointer(0));
+    spidarcad::app::CopyVerticesToFloat(
+        *session.mesh(), session.display_vertices(),
+        static_cast<float*>(vtk.points->GetData()->GetVoidPointer(0)), vtk.normals->GetPointer(0));
     vtk.points->Modified();
     vtk.normals->Modified();
     vtk.poly->Modified();
@@ -192,13 +194,18 @@ BENCHMARK(BM_EndStrokeWithRefinement)->Unit(benchmark::kMillisecond)->Iterations
 // What this program measures (its --help).
 constexpr const char* kBenchDescription =
     "Per-frame cost of sculpt mode's display update on a ~200k-vertex clay: one stroke step\n"
-    "(SculptSession::Step -> UpdateStroke) plus copying the touched vertices' positions and normals\n"
-    "into the VTK arrays (what SculptMode::OnFrame does), against the alternatives: rebuilding the\n"
-    "whole polydata (what happens once at the stroke's end) and running vtkPolyDataNormals over the\n"
+    "(SculptSession::Step -> UpdateStroke) plus copying the touched vertices' positions and "
+    "normals\n"
+    "into the VTK arrays (what SculptMode::OnFrame does), against the alternatives: rebuilding "
+    "the\n"
+    "whole polydata (what happens once at the stroke's end) and running vtkPolyDataNormals over "
+    "the\n"
     "whole mesh. Rendering itself is not included (it needs a display).\n"
     "\n"
-    "Clay: the icosphere with 7 subdivisions scaled to 0.1 m radius (163842 vertices), or, with the\n"
-    "environment variable SCULPT_BENCH_CLAY=<path of assets/scenes/clay.json>, that scene meshed at 0.85 mm.";
+    "Clay: the icosphere with 7 subdivisions scaled to 0.1 m radius (163842 vertices), or, with "
+    "the\n"
+    "environment variable SCULPT_BENCH_CLAY=<path of assets/scenes/clay.json>, that scene meshed "
+    "at 0.85 mm.";
 
 int main(int argc, char** argv) {
   return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription);

@@ -1,9 +1,9 @@
 // Speed of the sensing path: the per-tick count -> length conversion and simulated device
 // step (haptic thread), and the calibrations (off-line).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
 #include <benchmark/benchmark.h>
 
+#include "bench_cli.h"
 #include "spidarcad/haptics/calibration.h"
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/kinematics.h"

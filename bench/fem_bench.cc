@@ -25,7 +25,6 @@
 // After the run, markdown tables of the figures are printed (speed against error; column
 // cache; fallback error) for the README.
 // Run e.g.: build/bench/fem_bench --benchmark_filter='Precompute|/1/12/' (see README).
-#include "bench_cli.h"
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -38,6 +37,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_cli.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
 
@@ -720,9 +720,7 @@ constexpr const char* kBenchDescription =
     "Run e.g.: build/bench/fem_bench --benchmark_filter='Precompute|/1/12/' (see README).";
 
 // Tables printed after the benchmarks.
-void PrintAfterRun() {
-  spidarcad::fem::PrintTables();
-}
+void PrintAfterRun() { spidarcad::fem::PrintTables(); }
 
 int main(int argc, char** argv) {
   return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, nullptr, PrintAfterRun);

@@ -6,9 +6,9 @@
 //
 // Run: build/bench/fk_bench   (add --benchmark_filter=... to pick cases)
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
 #include <benchmark/benchmark.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -17,8 +17,7 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Geometry>
-
+#include "bench_cli.h"
 #include "spidarcad/haptics/kinematics.h"
 
 namespace {
@@ -38,11 +37,16 @@ enum class Noise { kExact, kQuantized, kGauss10um, kCalibrated08, kScale08 };
 
 const char* NoiseName(Noise noise) {
   switch (noise) {
-    case Noise::kExact: return "exact";
-    case Noise::kQuantized: return "quantized";
-    case Noise::kGauss10um: return "gauss_0.01mm";
-    case Noise::kCalibrated08: return "random_0.8pct";
-    case Noise::kScale08: return "gain_0.8+-0.4pct";
+    case Noise::kExact:
+      return "exact";
+    case Noise::kQuantized:
+      return "quantized";
+    case Noise::kGauss10um:
+      return "gauss_0.01mm";
+    case Noise::kCalibrated08:
+      return "random_0.8pct";
+    case Noise::kScale08:
+      return "gain_0.8+-0.4pct";
   }
   return "?";
 }
@@ -53,11 +57,20 @@ Vector8d Measure(const SpidarGeometry& g, const GripPose& pose, Noise noise, std
   Vector8d l = InverseKinematics(g, pose);
   for (int i = 0; i < 8; ++i) {
     switch (noise) {
-      case Noise::kExact: break;
-      case Noise::kQuantized: l(i) = std::round(l(i) / kQuantum) * kQuantum; break;
-      case Noise::kGauss10um: l(i) += 1e-5 * normal(rng); break;
-      case Noise::kCalibrated08: l(i) *= 1 + 0.008 * normal(rng); break;
-      case Noise::kScale08: l(i) = std::round(l(i) * gain(i) / kQuantum) * kQuantum; break;
+      case Noise::kExact:
+        break;
+      case Noise::kQuantized:
+        l(i) = std::round(l(i) / kQuantum) * kQuantum;
+        break;
+      case Noise::kGauss10um:
+        l(i) += 1e-5 * normal(rng);
+        break;
+      case Noise::kCalibrated08:
+        l(i) *= 1 + 0.008 * normal(rng);
+        break;
+      case Noise::kScale08:
+        l(i) = std::round(l(i) * gain(i) / kQuantum) * kQuantum;
+        break;
     }
   }
   return l;
@@ -72,11 +85,16 @@ enum class Poses { kCube40cm, kRot45Centre, kRot45Off20cm, kSlowPath, kFastPath 
 
 const char* PosesName(Poses poses) {
   switch (poses) {
-    case Poses::kCube40cm: return "cube40";
-    case Poses::kRot45Centre: return "rot45_centre";
-    case Poses::kRot45Off20cm: return "rot45_off20cm";
-    case Poses::kSlowPath: return "path_0.1m/s";
-    case Poses::kFastPath: return "path_2m/s_20rad/s";
+    case Poses::kCube40cm:
+      return "cube40";
+    case Poses::kRot45Centre:
+      return "rot45_centre";
+    case Poses::kRot45Off20cm:
+      return "rot45_off20cm";
+    case Poses::kSlowPath:
+      return "path_0.1m/s";
+    case Poses::kFastPath:
+      return "path_2m/s_20rad/s";
   }
   return "?";
 }
@@ -110,10 +128,10 @@ DataSet MakeDataSet(const SpidarGeometry& g, Poses poses, Noise noise) {
     GripPose pose;
     switch (poses) {
       case Poses::kCube40cm: {
-        const Eigen::Vector3d p0 = 0.2 * Eigen::Vector3d(2 * uni(rng) - 1, 2 * uni(rng) - 1,
-                                                         2 * uni(rng) - 1);
-        const Eigen::Matrix3d R = Eigen::AngleAxisd(45 * kDeg * uni(rng), random_axis())
-                                      .toRotationMatrix();
+        const Eigen::Vector3d p0 =
+            0.2 * Eigen::Vector3d(2 * uni(rng) - 1, 2 * uni(rng) - 1, 2 * uni(rng) - 1);
+        const Eigen::Matrix3d R =
+            Eigen::AngleAxisd(45 * kDeg * uni(rng), random_axis()).toRotationMatrix();
         pose = GripPose::FromFrame(p0, R, (60 + 60 * uni(rng)) * kDeg, g.d);
         break;
       }
@@ -121,12 +139,16 @@ DataSet MakeDataSet(const SpidarGeometry& g, Poses poses, Noise noise) {
       case Poses::kRot45Off20cm: {
         Eigen::Vector3d p0 = Eigen::Vector3d::Zero();
         if (poses == Poses::kRot45Off20cm) p0 = 0.2 * random_axis();
-        pose = GripPose::FromFrame(p0, Eigen::AngleAxisd(45 * kDeg, random_axis()).toRotationMatrix(),
-                                   kPi / 2, g.d);
+        pose = GripPose::FromFrame(
+            p0, Eigen::AngleAxisd(45 * kDeg, random_axis()).toRotationMatrix(), kPi / 2, g.d);
         break;
       }
-      case Poses::kSlowPath: pose = PathPose(g, k, 1.0); break;
-      case Poses::kFastPath: pose = PathPose(g, k, 20.0); break;
+      case Poses::kSlowPath:
+        pose = PathPose(g, k, 1.0);
+        break;
+      case Poses::kFastPath:
+        pose = PathPose(g, k, 20.0);
+        break;
     }
     set.truth.push_back(pose);
     set.lengths.push_back(Measure(g, pose, noise, rng, gain));
@@ -284,13 +306,12 @@ void BenchStringJacobian(benchmark::State& state) {
 }
 
 void RegisterAll() {
-  const Noise noises[] = {Noise::kExact, Noise::kQuantized, Noise::kGauss10um,
-                          Noise::kCalibrated08, Noise::kScale08};
+  const Noise noises[] = {Noise::kExact, Noise::kQuantized, Noise::kGauss10um, Noise::kCalibrated08,
+                          Noise::kScale08};
   for (Poses poses : {Poses::kCube40cm, Poses::kRot45Centre, Poses::kRot45Off20cm}) {
     for (Noise noise : noises) {
       const std::string suffix = std::string("/") + PosesName(poses) + "/" + NoiseName(noise);
-      benchmark::RegisterBenchmark(("closed_form" + suffix).c_str(), BenchClosedForm, poses,
-                                   noise);
+      benchmark::RegisterBenchmark(("closed_form" + suffix).c_str(), BenchClosedForm, poses, noise);
       benchmark::RegisterBenchmark(("fk_cold" + suffix).c_str(), BenchFk, poses, noise, false);
     }
   }

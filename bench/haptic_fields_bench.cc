@@ -2,18 +2,18 @@
 // them busy (in contact most of the time): the god-object proxy on a sphere and on a rotated
 // box, the six-DOF point shell with 100/500/2000 points against a box, the point shell (a 3 cm
 // box tool, 216 points) flicked 4 cm through a 2 mm plate and back every 50 ticks (the
-// conservative advancement's worst case), snap with 100 features, grasp on a sphere. Besides Google Benchmark's mean, each run reports p50/p99/max (µs) from a
-// per-call histogram.
-// Run: build/bench/haptic_fields_bench
-// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
+// conservative advancement's worst case), snap with 100 features, grasp on a sphere. Besides Google
+// Benchmark's mean, each run reports p50/p99/max (µs) from a per-call histogram. Run:
+// build/bench/haptic_fields_bench Copyright the spidarcad authors. SPDX-License-Identifier:
+// AGPL-3.0-or-later
+#include <benchmark/benchmark.h>
+
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <memory>
 
-#include <Eigen/Geometry>
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/grasp_field.h"
 #include "spidarcad/haptics/loop_runner.h"
@@ -57,8 +57,8 @@ ToolKinematics SpherePath(long k) {
   const double t = 1e-3 * k;
   ToolKinematics tool;
   tool.time = t;
-  const Eigen::Vector3d dir(std::cos(1.3 * t) * std::sin(0.7 * t + 0.5), std::sin(1.3 * t) * std::sin(0.7 * t + 0.5),
-                            std::cos(0.7 * t + 0.5));
+  const Eigen::Vector3d dir(std::cos(1.3 * t) * std::sin(0.7 * t + 0.5),
+                            std::sin(1.3 * t) * std::sin(0.7 * t + 0.5), std::cos(0.7 * t + 0.5));
   tool.p_WT = (0.047 + 0.004 * std::sin(9 * t)) * dir;
   return tool;
 }
@@ -90,7 +90,8 @@ void BM_PointShellBox(benchmark::State& state) {
     const double t = 1e-3 * k;
     ToolKinematics tool;
     tool.time = t;
-    tool.p_WT = Eigen::Vector3d(0.05 * std::sin(t), 0.05 * std::cos(0.7 * t), 0.0185 - 0.0015 * std::sin(5 * t));
+    tool.p_WT = Eigen::Vector3d(0.05 * std::sin(t), 0.05 * std::cos(0.7 * t),
+                                0.0185 - 0.0015 * std::sin(5 * t));
     tool.R_WT = Eigen::AngleAxisd(t, Eigen::Vector3d(0.2, 0.3, 1).normalized()).toRotationMatrix();
     return tool;
   });
@@ -104,7 +105,8 @@ void BM_PointShellPlateFlick(benchmark::State& state) {
     tool.time = 1e-3 * k;
     const bool below = (k / 50) % 2 == 1;  // 4 cm down through the plate, then back up
     tool.p_WT = Eigen::Vector3d(0.002 * std::sin(1e-3 * k), 0.0, below ? -0.019 : 0.021);
-    tool.R_WT = Eigen::AngleAxisd(0.1 * std::sin(2e-3 * k), Eigen::Vector3d::UnitX()).toRotationMatrix();
+    tool.R_WT =
+        Eigen::AngleAxisd(0.1 * std::sin(2e-3 * k), Eigen::Vector3d::UnitX()).toRotationMatrix();
     return tool;
   });
 }
@@ -117,13 +119,20 @@ void BM_Snap100Features(benchmark::State& state) {
   for (int i = 0; i <= 4; ++i)
     for (int j = 0; j <= 5; ++j) f.vertices_W.emplace_back(a * i, a * j, 0);
   for (int i = 0; i <= 4; ++i)
-    for (int j = 0; j < 5; ++j) f.edges_W.emplace_back(Eigen::Vector3d(a * i, a * j, 0), Eigen::Vector3d(a * i, a * (j + 1), 0));
+    for (int j = 0; j < 5; ++j)
+      f.edges_W.emplace_back(Eigen::Vector3d(a * i, a * j, 0),
+                             Eigen::Vector3d(a * i, a * (j + 1), 0));
   for (int i = 0; i < 4; ++i)
-    for (int j = 0; j <= 5; ++j) f.edges_W.emplace_back(Eigen::Vector3d(a * i, a * j, 0), Eigen::Vector3d(a * (i + 1), a * j, 0));
+    for (int j = 0; j <= 5; ++j)
+      f.edges_W.emplace_back(Eigen::Vector3d(a * i, a * j, 0),
+                             Eigen::Vector3d(a * (i + 1), a * j, 0));
   for (int i = 0; i < 4; ++i) {
     for (int j = 0; j < 5; ++j) {
       SnapFace face;
-      face.polygon_W = {{a * i, a * j, 0}, {a * (i + 1), a * j, 0}, {a * (i + 1), a * (j + 1), 0}, {a * i, a * (j + 1), 0}};
+      face.polygon_W = {{a * i, a * j, 0},
+                        {a * (i + 1), a * j, 0},
+                        {a * (i + 1), a * (j + 1), 0},
+                        {a * i, a * (j + 1), 0}};
       f.faces_W.push_back(face);
     }
   }
@@ -133,7 +142,8 @@ void BM_Snap100Features(benchmark::State& state) {
   TimeField(state, &field, [](long k) {
     const double t = 1e-3 * k;
     ToolKinematics tool;
-    tool.p_WT = Eigen::Vector3d(0.04 + 0.04 * std::sin(0.9 * t), 0.05 + 0.05 * std::cos(0.6 * t), 0.003 * std::sin(4 * t));
+    tool.p_WT = Eigen::Vector3d(0.04 + 0.04 * std::sin(0.9 * t), 0.05 + 0.05 * std::cos(0.6 * t),
+                                0.003 * std::sin(4 * t));
     return tool;
   });
 }
@@ -154,7 +164,12 @@ void BM_GraspSphere(benchmark::State& state) {
 
 BENCHMARK(BM_ProxySphere)->Iterations(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ProxyBox)->Iterations(50000)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_PointShellBox)->Arg(100)->Arg(500)->Arg(2000)->Iterations(20000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PointShellBox)
+    ->Arg(100)
+    ->Arg(500)
+    ->Arg(2000)
+    ->Iterations(20000)
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PointShellPlateFlick)->Iterations(20000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Snap100Features)->Iterations(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_GraspSphere)->Iterations(50000)->Unit(benchmark::kMicrosecond);
@@ -168,7 +183,8 @@ constexpr const char* kBenchDescription =
     "them busy (in contact most of the time): the god-object proxy on a sphere and on a rotated\n"
     "box, the six-DOF point shell with 100/500/2000 points against a box, the point shell (a 3 cm\n"
     "box tool, 216 points) flicked 4 cm through a 2 mm plate and back every 50 ticks (the\n"
-    "conservative advancement's worst case), snap with 100 features, grasp on a sphere. Besides Google Benchmark's mean, each run reports p50/p99/max (µs) from a\n"
+    "conservative advancement's worst case), snap with 100 features, grasp on a sphere. Besides "
+    "Google Benchmark's mean, each run reports p50/p99/max (µs) from a\n"
     "per-call histogram.\n"
     "Run: build/bench/haptic_fields_bench";
 

@@ -4,14 +4,14 @@
 // time percentiles p50/p99/p99.9/max (µs) from a per-tick histogram.
 // Run: build/bench/haptic_loop_bench
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <vector>
 
-#include <Eigen/Geometry>
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/loop_runner.h"
@@ -25,7 +25,8 @@ std::vector<EncoderReading> Readings(SimulatedSpidarG* device, int count) {
   std::vector<EncoderReading> readings(count);
   for (int k = 0; k < count; ++k) {
     const double t = 1e-3 * k;
-    const Eigen::Vector3d p0(0.04 * std::cos(t), 0.04 * std::sin(t), -0.03 + 0.005 * std::cos(3 * t));
+    const Eigen::Vector3d p0(0.04 * std::cos(t), 0.04 * std::sin(t),
+                             -0.03 + 0.005 * std::cos(3 * t));
     const Eigen::Matrix3d R =
         Eigen::AngleAxisd(0.2 * std::sin(t), Eigen::Vector3d(0.3, 0.5, 0.8).normalized())
             .toRotationMatrix();
@@ -41,10 +42,10 @@ void RunTicks(benchmark::State& state, bool demo) {
   const DeviceInfo& info = device.info();
   LoopSettings settings;
   settings.fk.max_residual = 5e-3;
-  HapticLoop loop(info,
-                  EncoderCalibration::Nominal(info.encoder,
-                                              InverseKinematics(info.geometry, info.home_pose)),
-                  settings);
+  HapticLoop loop(
+      info,
+      EncoderCalibration::Nominal(info.encoder, InverseKinematics(info.geometry, info.home_pose)),
+      settings);
   loop.Publish(demo ? MakeDemoScene() : std::make_unique<HapticScene>());
   // 6.3 s: one full circle, so the path closes and the FK warm start stays valid on wrap.
   const std::vector<EncoderReading> readings = Readings(&device, 6283);

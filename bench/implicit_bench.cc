@@ -2,21 +2,20 @@
 // per-tick cost), batch throughput, interval bounds per box, octree culling, and the platform
 // scene. Run from anywhere: build-dir/bench/implicit_bench (bench_paths.h finds the scene).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
 #include <cmath>
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
+#include "bench_paths.h"
 #include "spidarcad/modeling/cell_specialized_solid.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
-#include "bench_paths.h"
-
 
 namespace {
 
@@ -28,10 +27,12 @@ ImplicitNode FiftyNodeTree() {
   std::mt19937 rng(42);
   std::uniform_real_distribution<double> u(-0.05, 0.05);
   auto at = [&](ImplicitNode child) {
-    return ImplicitNode(TranslateParams{Eigen::Vector3d(u(rng), u(rng), u(rng))}, {std::move(child)});
+    return ImplicitNode(TranslateParams{Eigen::Vector3d(u(rng), u(rng), u(rng))},
+                        {std::move(child)});
   };
   ExtrusionParams hexagon;
-  for (int i = 0; i < 6; ++i) hexagon.profile.emplace_back(0.02 * std::cos(i * M_PI / 3), 0.02 * std::sin(i * M_PI / 3));
+  for (int i = 0; i < 6; ++i)
+    hexagon.profile.emplace_back(0.02 * std::cos(i * M_PI / 3), 0.02 * std::sin(i * M_PI / 3));
   hexagon.height = 0.03;
   const std::vector<NodeParams> lumps = {
       SphereParams{0.03},
@@ -46,12 +47,15 @@ ImplicitNode FiftyNodeTree() {
       BoxParams{Eigen::Vector3d(0.02, 0.05, 0.02)}};
   ImplicitNode cluster(SmoothUnionParams{0.01});
   for (const NodeParams& p : lumps) {
-    cluster.children.push_back(at(ImplicitNode(RotateParams{Eigen::Vector3d(u(rng), u(rng), 1.0), u(rng) * 30}, {ImplicitNode(p)})));
+    cluster.children.push_back(at(ImplicitNode(
+        RotateParams{Eigen::Vector3d(u(rng), u(rng), 1.0), u(rng) * 30}, {ImplicitNode(p)})));
   }
   ImplicitNode holes(UnionParams{});
-  for (int i = 0; i < 6; ++i) holes.children.push_back(at(ImplicitNode(CylinderParams{0.006, 0.2})));
+  for (int i = 0; i < 6; ++i)
+    holes.children.push_back(at(ImplicitNode(CylinderParams{0.006, 0.2})));
   ImplicitNode part(DifferenceParams{}, {cluster, holes});
-  ImplicitNode base(TranslateParams{Eigen::Vector3d(0, 0, -0.06)}, {ImplicitNode(RoundedBoxParams{Eigen::Vector3d(0.15, 0.15, 0.02), 0.005})});
+  ImplicitNode base(TranslateParams{Eigen::Vector3d(0, 0, -0.06)},
+                    {ImplicitNode(RoundedBoxParams{Eigen::Vector3d(0.15, 0.15, 0.02), 0.005})});
   ImplicitNode with_base(UnionParams{}, {part, base});
   ImplicitNode offset(OffsetParams{0.001}, {with_base});
   MirrorParams mirror;
@@ -61,7 +65,8 @@ ImplicitNode FiftyNodeTree() {
   return ImplicitNode(mirror, {offset});
 }
 
-std::vector<Eigen::Vector3d> RandomPoints(int n, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+std::vector<Eigen::Vector3d> RandomPoints(int n, const Eigen::Vector3d& lo,
+                                          const Eigen::Vector3d& hi) {
   std::mt19937 rng(7);
   std::vector<Eigen::Vector3d> points;
   for (int i = 0; i < n; ++i) {
@@ -147,7 +152,8 @@ void BM_IntervalBounds_50Nodes(benchmark::State& state) {
   size_t i = 0;
   for (auto _ : state) {
     const Eigen::Vector3d& p = points[i++ & 1023];
-    benchmark::DoNotOptimize(solid.Bounds(Eigen::AlignedBox3d(p, p + Eigen::Vector3d::Constant(edge))));
+    benchmark::DoNotOptimize(
+        solid.Bounds(Eigen::AlignedBox3d(p, p + Eigen::Vector3d::Constant(edge))));
   }
 }
 BENCHMARK(BM_IntervalBounds_50Nodes)->Arg(2)->Arg(20);
@@ -181,8 +187,8 @@ BENCHMARK(BM_PlatformValueAndGradient);
 
 // Counts the cells of edge <= `leaf` that an octree descent over box must evaluate: boxes the
 // interval bounds classify as inside or outside are skipped whole.
-void Descend(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, double leaf, long* ambiguous_leaves,
-             double* skipped_volume) {
+void Descend(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, double leaf,
+             long* ambiguous_leaves, double* skipped_volume) {
   if (solid.Classify(box) != BoxClass::kAmbiguous) {
     *skipped_volume += box.volume();
     return;
@@ -194,7 +200,8 @@ void Descend(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, double 
   const Eigen::Vector3d c = box.center();
   for (int k = 0; k < 8; ++k) {
     const Eigen::Vector3d corner = box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k));
-    Descend(solid, Eigen::AlignedBox3d(c.cwiseMin(corner), c.cwiseMax(corner)), leaf, ambiguous_leaves, skipped_volume);
+    Descend(solid, Eigen::AlignedBox3d(c.cwiseMin(corner), c.cwiseMax(corner)), leaf,
+            ambiguous_leaves, skipped_volume);
   }
 }
 
@@ -223,7 +230,8 @@ BENCHMARK(BM_PlatformOctreeCulling)->Unit(benchmark::kMillisecond);
 void BM_MeshPlatform(benchmark::State& state) {
   const CompiledSolid solid = CompiledSolid::Compile(PlatformTree());
   SurfaceMeshSettings settings;
-  settings.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02));
+  settings.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02));
   settings.cell_size = state.range(0) * 1e-4;
   TriangleMesh mesh;
   SurfaceMeshStats stats;
@@ -242,7 +250,8 @@ void BM_MeshSphere(benchmark::State& state) {
   const double r = 0.05;
   const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(SphereParams{r}));
   SurfaceMeshSettings settings;
-  settings.bounds = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06));
+  settings.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06));
   settings.cell_size = r / state.range(0);
   TriangleMesh mesh;
   for (auto _ : state) mesh = MeshSurface(solid, settings);
@@ -261,11 +270,13 @@ BENCHMARK(BM_MeshSphere)->Arg(10)->Arg(20)->Arg(40)->Unit(benchmark::kMillisecon
 std::shared_ptr<const CompiledSolid> TorsoSolid() {
   const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/assembly.json"));
   for (const Solid& s : scene.solids) {
-    if (s.name == "body") return std::make_shared<const CompiledSolid>(CompiledSolid::Compile(s.root));
+    if (s.name == "body")
+      return std::make_shared<const CompiledSolid>(CompiledSolid::Compile(s.root));
   }
   return nullptr;
 }
-const Eigen::AlignedBox3d kTorsoGrid(Eigen::Vector3d(-0.045, -0.035, -0.05), Eigen::Vector3d(0.045, 0.035, 0.05));
+const Eigen::AlignedBox3d kTorsoGrid(Eigen::Vector3d(-0.045, -0.035, -0.05),
+                                     Eigen::Vector3d(0.045, 0.035, 0.05));
 const Eigen::Vector3d kHoleLo(0.006, -0.006, -0.045), kHoleHi(0.018, 0.006, -0.022);
 
 void BM_TorsoHoleValueAndGradient(benchmark::State& state) {
@@ -291,7 +302,9 @@ void BM_TorsoHoleValueAndGradient(benchmark::State& state) {
   }
   double instructions = 0;
   for (const Eigen::Vector3d& p : points) {
-    instructions += mode == 0 ? torso->instruction_count() : mode == 1 ? cells.TapeAt(p).instruction_count() : one.instruction_count();
+    instructions += mode == 0   ? torso->instruction_count()
+                    : mode == 1 ? cells.TapeAt(p).instruction_count()
+                                : one.instruction_count();
   }
   state.counters["mean_instructions"] = instructions / points.size();
 }

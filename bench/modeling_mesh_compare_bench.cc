@@ -4,8 +4,8 @@
 //           radius-edge 2, perturb + exude).
 // Solids: a sphere (r 50 mm), a box with a hole (100 x 60 x 40 mm minus a 12 mm radius bore:
 // sharp edges) and the platform of assets/scenes/platform.json, each at three sizes h. Columns:
-// CPU and wall time, nodes, tets, worst (smallest and largest) dihedral angle, surface error (max and
-// rms of |f| sampled on the tet mesh's boundary: vertices, edge midpoints, centroids) and the
+// CPU and wall time, nodes, tets, worst (smallest and largest) dihedral angle, surface error (max
+// and rms of |f| sampled on the tet mesh's boundary: vertices, edge midpoints, centroids) and the
 // volume (relative error against the closed form where there is one). One run each; a failure
 // is printed in its row. Whole run: about a minute on the 2-core machine. Run:
 //   build-dir/bench/modeling_mesh_compare_bench [--quick]   (--help: what it measures)
@@ -21,13 +21,13 @@
 #include <string>
 #include <vector>
 
+#include "bench_paths.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tet_mesh.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
-#include "bench_paths.h"
 
 namespace {
 
@@ -71,17 +71,20 @@ Row Measure(const CompiledSolid& solid, const std::function<TetMesh()>& mesh) {
 
 void Print(const Case& c, double h, const char* path, const Row& r) {
   if (!r.failure.empty()) {
-    std::printf("| %s | %.1f | %s | failed: %s | | | | | | |\n", c.name.c_str(), h * 1e3, path, r.failure.c_str());
+    std::printf("| %s | %.1f | %s | failed: %s | | | | | | |\n", c.name.c_str(), h * 1e3, path,
+                r.failure.c_str());
     return;
   }
   char volume[64];
   if (c.exact_volume > 0) {
-    std::snprintf(volume, sizeof volume, "%+.2f %%", 100.0 * (r.quality.total_volume - c.exact_volume) / c.exact_volume);
+    std::snprintf(volume, sizeof volume, "%+.2f %%",
+                  100.0 * (r.quality.total_volume - c.exact_volume) / c.exact_volume);
   } else {
     std::snprintf(volume, sizeof volume, "%.2f cm³", r.quality.total_volume * 1e6);
   }
-  std::printf("| %s | %.1f | %s | %.2f | %.2f | %ld | %ld | %.1f / %.1f | %.3f / %.3f | %s |\n", c.name.c_str(), h * 1e3, path,
-              r.cpu_seconds, r.seconds, r.nodes, r.tets, r.quality.min_dihedral_deg, r.quality.max_dihedral_deg, r.error.max * 1e3,
+  std::printf("| %s | %.1f | %s | %.2f | %.2f | %ld | %ld | %.1f / %.1f | %.3f / %.3f | %s |\n",
+              c.name.c_str(), h * 1e3, path, r.cpu_seconds, r.seconds, r.nodes, r.tets,
+              r.quality.min_dihedral_deg, r.quality.max_dihedral_deg, r.error.max * 1e3,
               r.error.rms * 1e3, volume);
   std::fflush(stdout);
 }
@@ -93,8 +96,10 @@ constexpr const char* kDescription =
     "  CGAL:   MeshImplicitWithCgal (Mesh_3 from the function, CgalMeshSettings::ForSize(h),\n"
     "          radius-edge 2, perturb + exude).\n"
     "Solids: a sphere (r 50 mm), a box with a hole (100 x 60 x 40 mm minus a 12 mm radius bore:\n"
-    "sharp edges) and the platform of assets/scenes/platform.json, each at three sizes h. Columns:\n"
-    "CPU and wall time, nodes, tets, worst (smallest and largest) dihedral angle, surface error (max and\n"
+    "sharp edges) and the platform of assets/scenes/platform.json, each at three sizes h. "
+    "Columns:\n"
+    "CPU and wall time, nodes, tets, worst (smallest and largest) dihedral angle, surface error "
+    "(max and\n"
     "rms of |f| sampled on the tet mesh's boundary: vertices, edge midpoints, centroids) and the\n"
     "volume (relative error against the closed form where there is one). One run each; a failure\n"
     "is printed in its row. Whole run: about a minute on the 2-core machine. Run:\n"
@@ -119,34 +124,45 @@ int main(int argc, char** argv) {
       quick = true;
       continue;
     }
-    std::fprintf(stderr, "%s: unknown argument '%s' (this program takes --quick and --help)\n", argv[0], argv[i]);
+    std::fprintf(stderr, "%s: unknown argument '%s' (this program takes --quick and --help)\n",
+                 argv[0], argv[i]);
     return 2;
   }
   std::vector<Case> cases;
   {
     const double r = 0.05;
-    cases.push_back({"sphere r 50 mm", CompiledSolid::Compile(ImplicitNode(SphereParams{r})),
-                     Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06)),
-                     4.0 / 3.0 * M_PI * r * r * r, {0.01, 0.006, 0.004}});
+    cases.push_back(
+        {"sphere r 50 mm",
+         CompiledSolid::Compile(ImplicitNode(SphereParams{r})),
+         Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06)),
+         4.0 / 3.0 * M_PI * r * r * r,
+         {0.01, 0.006, 0.004}});
   }
   {
     const Eigen::Vector3d size(0.1, 0.06, 0.04);
     const double bore = 0.012;
-    const ImplicitNode root(DifferenceParams{},
-                            {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{bore, 0.06})});
-    cases.push_back({"box with bore", CompiledSolid::Compile(root),
-                     Eigen::AlignedBox3d(Eigen::Vector3d(-0.06, -0.04, -0.03), Eigen::Vector3d(0.06, 0.04, 0.03)),
-                     size.prod() - M_PI * bore * bore * size.z(), {0.008, 0.005, 0.0035}});
+    const ImplicitNode root(DifferenceParams{}, {ImplicitNode(BoxParams{size}),
+                                                 ImplicitNode(CylinderParams{bore, 0.06})});
+    cases.push_back({"box with bore",
+                     CompiledSolid::Compile(root),
+                     Eigen::AlignedBox3d(Eigen::Vector3d(-0.06, -0.04, -0.03),
+                                         Eigen::Vector3d(0.06, 0.04, 0.03)),
+                     size.prod() - M_PI * bore * bore * size.z(),
+                     {0.008, 0.005, 0.0035}});
   }
   {
     const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
-    cases.push_back({"platform", CompiledSolid::Compile(scene.solids[0].root),
-                     Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02)), 0.0,
+    cases.push_back({"platform",
+                     CompiledSolid::Compile(scene.solids[0].root),
+                     Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16),
+                                         Eigen::Vector3d(0.31, 0.11, 0.02)),
+                     0.0,
                      {0.008, 0.006, 0.004}});
   }
 
-  std::printf("| solid | h (mm) | path | CPU (s) | wall (s) | nodes | tets | dihedral min / max (deg) | "
-              "surface error max / rms (mm) | volume |\n");
+  std::printf(
+      "| solid | h (mm) | path | CPU (s) | wall (s) | nodes | tets | dihedral min / max (deg) | "
+      "surface error max / rms (mm) | volume |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Case& c : cases) {
     for (const double h : c.sizes) {

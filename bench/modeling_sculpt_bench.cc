@@ -5,7 +5,8 @@
 // SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything.
 // Run: build/bench/modeling_sculpt_bench  (SPIDARCAD_SCULPT_CELL=0.00104 sets the cell, m)
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,18 +14,18 @@
 #include <numbers>
 #include <string>
 
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
+#include "bench_paths.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
-#include "bench_paths.h"
 
 namespace spidarcad::modeling {
 namespace {
 
-// The clay blob meshed once (cell from SPIDARCAD_SCULPT_CELL, default 1.04 mm: about 200k vertices).
+// The clay blob meshed once (cell from SPIDARCAD_SCULPT_CELL, default 1.04 mm: about 200k
+// vertices).
 const TriangleMesh& Blob() {
   static const TriangleMesh mesh = [] {
     const char* cell_env = std::getenv("SPIDARCAD_SCULPT_CELL");
@@ -33,12 +34,15 @@ const TriangleMesh& Blob() {
     const Scene scene = LoadScene(path);
     const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(0).root);
     SurfaceMeshSettings settings;
-    settings.bounds = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.15), Eigen::Vector3d::Constant(0.15));
+    settings.bounds =
+        Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.15), Eigen::Vector3d::Constant(0.15));
     settings.cell_size = cell;
     SurfaceMeshStats stats;
     TriangleMesh result = MeshSurface(solid, settings, &stats);
-    std::fprintf(stderr, "clay blob at cell %.4f m: %ld vertices, %ld triangles (meshed in %.1f s)\n", cell,
-                 static_cast<long>(result.vertices.cols()), static_cast<long>(result.triangles.cols()), stats.seconds);
+    std::fprintf(stderr,
+                 "clay blob at cell %.4f m: %ld vertices, %ld triangles (meshed in %.1f s)\n", cell,
+                 static_cast<long>(result.vertices.cols()),
+                 static_cast<long>(result.triangles.cols()), stats.seconds);
     return result;
   }();
   return mesh;
@@ -57,13 +61,15 @@ Eigen::Isometry3d StartPose(const SculptMesh& sculpt) {
     if (sculpt.positions()[v].z() > sculpt.positions()[top].z()) top = v;
   }
   Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), sculpt.normals()[top]).toRotationMatrix();
+  X.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), sculpt.normals()[top])
+                   .toRotationMatrix();
   X.translation() = sculpt.positions()[top];
   return X;
 }
 
 // The pose a stroke of `tool` reaches (amount 1) from X0.
-Eigen::Isometry3d TargetPose(SculptTool tool, const Eigen::Isometry3d& X0, double radius, double amount) {
+Eigen::Isometry3d TargetPose(SculptTool tool, const Eigen::Isometry3d& X0, double radius,
+                             double amount) {
   Eigen::Isometry3d X = X0;
   const Eigen::Vector3d z = X0.linear().col(2), y = X0.linear().col(1);
   switch (tool) {
@@ -102,7 +108,8 @@ void BM_StrokeStep(benchmark::State& state) {
   const bool conserve = state.range(2) != 0;
   SculptMesh& sculpt = Sculpt();
   const Eigen::Isometry3d X0 = StartPose(sculpt);
-  const Eigen::Isometry3d full = TargetPose(tool, X0, radius, 1.0), half = TargetPose(tool, X0, radius, 0.5);
+  const Eigen::Isometry3d full = TargetPose(tool, X0, radius, 1.0),
+                          half = TargetPose(tool, X0, radius, 0.5);
   sculpt.BeginStroke(Settings(tool, radius, conserve), X0, 0.0);
   long i = 0;
   for (auto _ : state) {
@@ -113,7 +120,8 @@ void BM_StrokeStep(benchmark::State& state) {
   const StrokeStats stats = sculpt.stroke_stats();
   state.counters["touched"] = stats.affected_vertices;
   state.counters["normals"] = stats.normal_updates;
-  state.counters["vol_err_pct"] = 100.0 * std::abs(sculpt.ComputeVolume() / stats.start_volume - 1.0);
+  state.counters["vol_err_pct"] =
+      100.0 * std::abs(sculpt.ComputeVolume() / stats.start_volume - 1.0);
   state.counters["newton"] = stats.volume_iterations;
   state.SetLabel(std::string(SculptToolName(tool)) + (conserve ? " conserve" : ""));
   sculpt.CancelStroke();
@@ -140,7 +148,8 @@ void BM_Stroke60(benchmark::State& state) {
   long splits = 0;
   for (auto _ : state) {
     sculpt.BeginStroke(settings, X0, 0.0);
-    for (int step = 1; step <= 60; ++step) sculpt.UpdateStroke(TargetPose(tool, X0, radius, step / 60.0), 0.0);
+    for (int step = 1; step <= 60; ++step)
+      sculpt.UpdateStroke(TargetPose(tool, X0, radius, step / 60.0), 0.0);
     const SculptEdit edit = sculpt.EndStroke();
     state.PauseTiming();
     splits = edit.splits;

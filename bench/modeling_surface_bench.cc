@@ -10,7 +10,8 @@
 // Max and mean of both directions are printed as a markdown table after the benchmarks.
 // Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -20,13 +21,12 @@
 #include <unordered_map>
 #include <vector>
 
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
+#include "bench_paths.h"
 #include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
-#include "bench_paths.h"
 
 namespace {
 
@@ -44,10 +44,16 @@ const std::vector<Case>& Cases() {
   static const std::vector<Case> cases = [] {
     std::vector<Case> c;
     const Vec offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
-    const Eigen::AlignedBox3d around(offset - size / 2 - Vec(0.0107, 0.0113, 0.0109), offset + size / 2 + Vec::Constant(0.01));
-    c.push_back({"box", CompiledSolid::Compile(ImplicitNode(TranslateParams{offset}, {ImplicitNode(BoxParams{size})})), around});
-    ImplicitNode holed(DifferenceParams{}, {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})});
-    c.push_back({"box-cylinder", CompiledSolid::Compile(ImplicitNode(TranslateParams{offset}, {holed})), around});
+    const Eigen::AlignedBox3d around(offset - size / 2 - Vec(0.0107, 0.0113, 0.0109),
+                                     offset + size / 2 + Vec::Constant(0.01));
+    c.push_back({"box",
+                 CompiledSolid::Compile(
+                     ImplicitNode(TranslateParams{offset}, {ImplicitNode(BoxParams{size})})),
+                 around});
+    ImplicitNode holed(DifferenceParams{},
+                       {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})});
+    c.push_back({"box-cylinder",
+                 CompiledSolid::Compile(ImplicitNode(TranslateParams{offset}, {holed})), around});
     const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
     c.push_back({"platform", CompiledSolid::Compile(scene.solids.at(0).root),
                  Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02))});
@@ -72,12 +78,14 @@ double PointTriangleDistance2(const Vec& p, const Vec& a, const Vec& b, const Ve
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + ac * (d2 / (d2 - d6)))).squaredNorm();
   const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).squaredNorm();
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).squaredNorm();
   const double denom = 1.0 / (va + vb + vc);
   return (p - (a + ab * (vb * denom) + ac * (vc * denom))).squaredNorm();
 }
 
-// Nearest-triangle queries through a uniform grid (cells of edge `cell`) of triangle bounding boxes.
+// Nearest-triangle queries through a uniform grid (cells of edge `cell`) of triangle bounding
+// boxes.
 class TriangleGrid {
  public:
   TriangleGrid(const TriangleMesh& mesh, double cell) : mesh_(mesh), cell_(cell) {
@@ -103,21 +111,24 @@ class TriangleGrid {
           for (int t : it->second) best2 = std::min(best2, Triangle2(p, t));
         }
     if (best2 <= cell_ * cell_) return std::sqrt(best2);  // nothing outside the block can be nearer
-    for (Eigen::Index t = 0; t < mesh_.triangles.cols(); ++t) best2 = std::min(best2, Triangle2(p, static_cast<int>(t)));
+    for (Eigen::Index t = 0; t < mesh_.triangles.cols(); ++t)
+      best2 = std::min(best2, Triangle2(p, static_cast<int>(t)));
     return std::sqrt(best2);
   }
 
  private:
   std::array<long, 3> Index(const Vec& p) const {
-    return {static_cast<long>(std::floor(p.x() / cell_)), static_cast<long>(std::floor(p.y() / cell_)),
+    return {static_cast<long>(std::floor(p.x() / cell_)),
+            static_cast<long>(std::floor(p.y() / cell_)),
             static_cast<long>(std::floor(p.z() / cell_))};
   }
   static long long Key(long i, long j, long k) {
-    return ((static_cast<long long>(i) & 0x1fffff) << 42) | ((static_cast<long long>(j) & 0x1fffff) << 21) |
-           (static_cast<long long>(k) & 0x1fffff);
+    return ((static_cast<long long>(i) & 0x1fffff) << 42) |
+           ((static_cast<long long>(j) & 0x1fffff) << 21) | (static_cast<long long>(k) & 0x1fffff);
   }
   double Triangle2(const Vec& p, int t) const {
-    return PointTriangleDistance2(p, mesh_.vertices.col(mesh_.triangles(0, t)), mesh_.vertices.col(mesh_.triangles(1, t)),
+    return PointTriangleDistance2(p, mesh_.vertices.col(mesh_.triangles(0, t)),
+                                  mesh_.vertices.col(mesh_.triangles(1, t)),
                                   mesh_.vertices.col(mesh_.triangles(2, t)));
   }
   const TriangleMesh& mesh_;
@@ -125,7 +136,8 @@ class TriangleGrid {
   std::unordered_map<long long, std::vector<int>> cells_;
 };
 
-// Points on the true surface: random points of the bounds, Newton-projected; kept when |f| <= 1e-10 m.
+// Points on the true surface: random points of the bounds, Newton-projected; kept when |f| <= 1e-10
+// m.
 const std::vector<Vec>& SurfaceSamples(const Case& c) {
   static std::unordered_map<std::string, std::vector<Vec>> cache;
   auto& points = cache[c.name];
@@ -153,7 +165,8 @@ Error MeasureHausdorff(const Case& c, const TriangleMesh& mesh, double cell) {
   Error e;
   double area_sum = 0.0;
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-    const Vec a = mesh.vertices.col(mesh.triangles(0, t)), b = mesh.vertices.col(mesh.triangles(1, t));
+    const Vec a = mesh.vertices.col(mesh.triangles(0, t)),
+              b = mesh.vertices.col(mesh.triangles(1, t));
     const Vec d = mesh.vertices.col(mesh.triangles(2, t));
     const double area = 0.5 * (b - a).cross(d - a).norm();
     double sum = 0.0;
@@ -222,8 +235,9 @@ void BM_Surface(benchmark::State& state) {
   state.counters["out_max_mm"] = e.out_max * 1e3;
   state.counters["in_max_mm"] = e.in_max * 1e3;
   state.counters["in_mean_mm"] = e.in_mean * 1e3;
-  Rows().push_back({c.name, cell * 1e3, sharp, static_cast<long>(mesh.triangles.cols()), mesh_stats.seconds,
-                    sharp ? feature_stats.seconds : 0.0, e, feature_stats.vertices_moved, feature_stats.edges_flipped});
+  Rows().push_back({c.name, cell * 1e3, sharp, static_cast<long>(mesh.triangles.cols()),
+                    mesh_stats.seconds, sharp ? feature_stats.seconds : 0.0, e,
+                    feature_stats.vertices_moved, feature_stats.edges_flipped});
 }
 BENCHMARK(BM_Surface)
     ->ArgsProduct({{0, 1}, {80, 40, 20, 10}, {0, 1}})
@@ -235,10 +249,12 @@ BENCHMARK(BM_Surface)
 
 // What this program measures (its --help).
 constexpr const char* kBenchDescription =
-    "Surface meshing: speed against error across resolutions, with and without feature sharpening,\n"
+    "Surface meshing: speed against error across resolutions, with and without feature "
+    "sharpening,\n"
     "for a box, a box minus a cylinder and the platform scene (assets/scenes/platform.json).\n"
     "\n"
-    "Error is the two-sided Hausdorff distance between mesh and true surface, estimated by sampling:\n"
+    "Error is the two-sided Hausdorff distance between mesh and true surface, estimated by "
+    "sampling:\n"
     " - mesh -> surface: 10 barycentric points on every triangle, distance |f| / |grad f| (first\n"
     "   order; exact for the exact-distance box);\n"
     " - surface -> mesh: 20000 points on the true surface (random points of the bounds moved onto\n"
@@ -249,13 +265,16 @@ constexpr const char* kBenchDescription =
 
 // Tables printed after the benchmarks.
 void PrintAfterRun() {
-  std::printf("\n| solid | cell mm | sharpen | triangles | mesh s | sharpen s | mesh->surface max mm | mean mm |"
-              " surface->mesh max mm | mean mm | moved | flipped |\n");
+  std::printf(
+      "\n| solid | cell mm | sharpen | triangles | mesh s | sharpen s | mesh->surface max mm | "
+      "mean mm |"
+      " surface->mesh max mm | mean mm | moved | flipped |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : Rows()) {
-    std::printf("| %s | %g | %s | %ld | %.3f | %.3f | %.4f | %.5f | %.4f | %.5f | %ld | %ld |\n", r.name.c_str(), r.cell_mm,
-                r.sharp ? "yes" : "no", r.triangles, r.mesh_s, r.sharpen_s, r.error.out_max * 1e3, r.error.out_mean * 1e3,
-                r.error.in_max * 1e3, r.error.in_mean * 1e3, r.sharp ? r.moved : 0L, r.sharp ? r.flipped : 0L);
+    std::printf("| %s | %g | %s | %ld | %.3f | %.3f | %.4f | %.5f | %.4f | %.5f | %ld | %ld |\n",
+                r.name.c_str(), r.cell_mm, r.sharp ? "yes" : "no", r.triangles, r.mesh_s,
+                r.sharpen_s, r.error.out_max * 1e3, r.error.out_mean * 1e3, r.error.in_max * 1e3,
+                r.error.in_mean * 1e3, r.sharp ? r.moved : 0L, r.sharp ? r.flipped : 0L);
   }
 }
 

@@ -3,15 +3,15 @@
 //   build-*/bench/tension_bench                 # report + all benchmarks
 //   build-*/bench/tension_bench --benchmark_filter=Solve
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
+#include <benchmark/benchmark.h>
+
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
 #include <random>
 #include <vector>
 
-#include <Eigen/Geometry>
-#include <benchmark/benchmark.h>
-
+#include "bench_cli.h"
 #include "spidarcad/haptics/tension.h"
 #include "spidarcad/haptics/workspace.h"
 
@@ -62,8 +62,8 @@ std::vector<Request> Trajectory(int count, double scale) {
         Eigen::Vector3d(0.08 * std::sin(t), 0.05 * std::cos(2 * t), 0.06 * std::sin(3 * t)), R,
         1.5 + 0.3 * std::sin(t), kGeometry.d);
     Vector7d q;
-    q << 3 * std::sin(5 * t), 2 * std::cos(7 * t), -2 + 2 * std::sin(3 * t),
-        0.03 * std::sin(4 * t), 0.02, -0.03 * std::cos(6 * t), 0.03 * std::sin(8 * t);
+    q << 3 * std::sin(5 * t), 2 * std::cos(7 * t), -2 + 2 * std::sin(3 * t), 0.03 * std::sin(4 * t),
+        0.02, -0.03 * std::cos(6 * t), 0.03 * std::sin(8 * t);
     out.push_back({WrenchMatrix(kGeometry, pose), scale * q});
   }
   return out;
@@ -88,10 +88,9 @@ void RunSolves(benchmark::State& state, const std::vector<Request>& requests, bo
 }
 
 void BM_WrenchMatrix(benchmark::State& state) {
-  GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0.02, -0.03, 0.05),
-                                      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())
-                                          .toRotationMatrix(),
-                                      1.4, kGeometry.d);
+  GripPose pose = GripPose::FromFrame(
+      Eigen::Vector3d(0.02, -0.03, 0.05),
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix(), 1.4, kGeometry.d);
   for (auto _ : state) {
     pose.p0.x() += 1e-12;
     benchmark::DoNotOptimize(WrenchMatrix(kGeometry, pose));
@@ -182,8 +181,8 @@ Displayed MeanDisplayed(const std::vector<Request>& requests, const TensionSetti
       ++nf;
     }
     if (r.q.segment<3>(3).norm() > 1e-9) {
-      sum.moment += result.achieved.segment<3>(3).dot(r.q.segment<3>(3)) /
-                    r.q.segment<3>(3).squaredNorm();
+      sum.moment +=
+          result.achieved.segment<3>(3).dot(r.q.segment<3>(3)) / r.q.segment<3>(3).squaredNorm();
       ++nm;
     }
     if (std::abs(r.q(6)) > 1e-9) {
@@ -219,8 +218,9 @@ void PrintWeightReport() {
   TensionSettings ones = by_d;
   ones.s0 = 1;
   ones.s1 = 1;
-  std::printf("Fraction of the commanded wrench displayed (mean of achieved.q/|q|^2, 400 random "
-              "poses each)\n");
+  std::printf(
+      "Fraction of the commanded wrench displayed (mean of achieved.q/|q|^2, 400 random "
+      "poses each)\n");
   std::printf("%-52s | %-26s | %-26s\n", "request", "S0=S1=1/d^2=625 f / m / g",
               "S0=S1=1 f / m / g");
   for (const Row& row : rows) {
@@ -243,5 +243,6 @@ constexpr const char* kBenchDescription =
     "  build-*/bench/tension_bench --benchmark_filter=Solve";
 
 int main(int argc, char** argv) {
-  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, spidarcad::haptics::PrintWeightReport);
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription,
+                                            spidarcad::haptics::PrintWeightReport);
 }

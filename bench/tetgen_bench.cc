@@ -1,19 +1,19 @@
 // TetGen meshing of the platform scene (assets/scenes/platform.json): surface by MeshSurface at
 // a cell size (4 and 3 mm: at 2.5 and 2 mm MeshSurface's slivers make TetGen or CheckSurface
-// refuse the surface), then TetrahedralizeSurface with and without quality refinement. Reports time,
-// tet count and quality as counters. One iteration each (seconds per run). Run:
+// refuse the surface), then TetrahedralizeSurface with and without quality refinement. Reports
+// time, tet count and quality as counters. One iteration each (seconds per run). Run:
 //   build-dir/bench/tetgen_bench --benchmark_counters_tabular=true
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
-#include <string>
-
 #include <benchmark/benchmark.h>
 
+#include <string>
+
+#include "bench_cli.h"
+#include "bench_paths.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
-#include "bench_paths.h"
 
 namespace {
 
@@ -25,7 +25,8 @@ void BM_TetgenPlatform(benchmark::State& state) {
   const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
   SurfaceMeshSettings surface_settings;
-  surface_settings.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02));
+  surface_settings.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02));
   surface_settings.cell_size = cell;
   const TriangleMesh surface = MeshSurface(platform, surface_settings);
   TetMeshSettings settings;
@@ -61,9 +62,11 @@ BENCHMARK(BM_TetgenPlatform)
 
 // What this program measures (its --help).
 constexpr const char* kBenchDescription =
-    "TetGen meshing of the platform scene (assets/scenes/platform.json): surface by MeshSurface at\n"
+    "TetGen meshing of the platform scene (assets/scenes/platform.json): surface by MeshSurface "
+    "at\n"
     "a cell size (4 and 3 mm: at 2.5 and 2 mm MeshSurface's slivers make TetGen or CheckSurface\n"
-    "refuse the surface), then TetrahedralizeSurface with and without quality refinement. Reports time,\n"
+    "refuse the surface), then TetrahedralizeSurface with and without quality refinement. Reports "
+    "time,\n"
     "tet count and quality as counters. One iteration each (seconds per run). Run:\n"
     "  build-dir/bench/tetgen_bench --benchmark_counters_tabular=true";
 

@@ -1,10 +1,10 @@
 // Benchmarks of the USB protocol and the driver round trip through the board simulator.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "bench_cli.h"
 #include <benchmark/benchmark.h>
 
 #include <memory>
 
+#include "bench_cli.h"
 #include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/usb_device.h"
 #include "spidarcad/haptics/usb_protocol.h"

@@ -1,17 +1,17 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/boundary.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
-#include <Eigen/Geometry>
-
 namespace spidarcad::fem {
 
 BoundaryConditions::BoundaryConditions(int num_nodes)
-    : num_nodes_(num_nodes), loads_(Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(num_nodes))) {
+    : num_nodes_(num_nodes),
+      loads_(Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(num_nodes))) {
   if (num_nodes < 0) {
     throw std::invalid_argument("BoundaryConditions: num_nodes must be >= 0, got " +
                                 std::to_string(num_nodes));
@@ -86,7 +86,8 @@ double AddTractionInBox(const TetMesh& mesh, const Surface& surface, const Eigen
   const bool quadratic = mesh.NodesPerElement() == 10;
   double total = 0.0;
   for (int f = 0; f < surface.faces.rows(); ++f) {
-    if (!inside(surface.faces(f, 0)) || !inside(surface.faces(f, 1)) || !inside(surface.faces(f, 2)))
+    if (!inside(surface.faces(f, 0)) || !inside(surface.faces(f, 1)) ||
+        !inside(surface.faces(f, 2)))
       continue;
     const Eigen::Vector3d a = mesh.nodes.row(surface.faces(f, 0)).transpose();
     const Eigen::Vector3d b = mesh.nodes.row(surface.faces(f, 1)).transpose();

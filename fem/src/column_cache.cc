@@ -1,8 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/column_cache.h"
 
-#include "node_lists.h"
-
 #include <pthread.h>
 #include <sched.h>
 
@@ -13,6 +11,8 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+
+#include "node_lists.h"
 
 namespace spidarcad::fem {
 
@@ -66,7 +66,8 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
     u0_.segment<3>(3 * a) = base.displacement.segment<3>(3 * output_nodes[a]);
 
   bytes_per_node_ = static_cast<std::size_t>(9) * num_out * BytesPerValue(precision_);
-  const double fit = std::floor(settings.memory_budget_bytes / static_cast<double>(bytes_per_node_));
+  const double fit =
+      std::floor(settings.memory_budget_bytes / static_cast<double>(bytes_per_node_));
   num_slots_ = static_cast<int>(std::clamp(fit, 1.0, static_cast<double>(std::max(1, num_cand))));
   slots_ = std::make_unique<Slot[]>(num_slots_);
   slot_of_ = std::make_unique<std::atomic<int>[]>(std::max(1, num_cand));
@@ -89,7 +90,8 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
         if (c != b && !fixed_[c]) d.emplace_back((positions_[c] - positions_[b]).squaredNorm(), c);
       const int m = std::min<int>(num_neighbours_, static_cast<int>(d.size()));
       std::partial_sort(d.begin(), d.begin() + m, d.end());
-      for (int i = 0; i < m; ++i) neighbours_[static_cast<size_t>(b) * num_neighbours_ + i] = d[i].second;
+      for (int i = 0; i < m; ++i)
+        neighbours_[static_cast<size_t>(b) * num_neighbours_ + i] = d[i].second;
     }
   }
   if (settings.start_worker) Start();
@@ -499,18 +501,16 @@ ColumnSet ColumnCache::Export(std::uint64_t key) const {
 int ColumnCache::Import(const ColumnSet& set) {
   if (running()) throw std::logic_error("ColumnCache::Import: stop the worker first");
   if (set.output_nodes != output_nodes_) {
-    throw std::invalid_argument("ColumnCache::Import: the set's " +
-                                std::to_string(set.output_nodes.size()) +
-                                " output nodes differ from the cache's " +
-                                std::to_string(output_nodes_.size()));
+    throw std::invalid_argument(
+        "ColumnCache::Import: the set's " + std::to_string(set.output_nodes.size()) +
+        " output nodes differ from the cache's " + std::to_string(output_nodes_.size()));
   }
   if (set.columns.rows() != 3 * num_outputs() ||
       set.columns.cols() != 3 * static_cast<Eigen::Index>(set.nodes.size())) {
-    throw std::invalid_argument("ColumnCache::Import: the set's columns are " +
-                                std::to_string(set.columns.rows()) + " by " +
-                                std::to_string(set.columns.cols()) + ", expected " +
-                                std::to_string(3 * num_outputs()) + " by " +
-                                std::to_string(3 * set.nodes.size()));
+    throw std::invalid_argument(
+        "ColumnCache::Import: the set's columns are " + std::to_string(set.columns.rows()) +
+        " by " + std::to_string(set.columns.cols()) + ", expected " +
+        std::to_string(3 * num_outputs()) + " by " + std::to_string(3 * set.nodes.size()));
   }
   int loaded = 0;
   const size_t rows = 3 * static_cast<size_t>(num_outputs());
@@ -748,8 +748,8 @@ bool CachedContactSolver::Solve(const double* target, double* forces) {
   return true;
 }
 
-bool CachedContactSolver::SolveNormal(const double* normals, const double* target,
-                                      double* forces, double* displacement) {
+bool CachedContactSolver::SolveNormal(const double* normals, const double* target, double* forces,
+                                      double* displacement) {
   if (k_ == 0) return false;
   const int n3 = 3 * k_;
   const Eigen::VectorXd& u0 = cache_->baseline();
@@ -826,7 +826,8 @@ void CachedContactSolver::OutputDisplacement(const double* forces, Eigen::Vector
   double* u = u_out->data();
   for (int s = 0; s < k_; ++s) {
     const int b = slots_[s], r = subs_[s];
-    const int rb = 3 * cache_->OutputIndexOfCandidate(b), rr = 3 * cache_->OutputIndexOfCandidate(r);
+    const int rb = 3 * cache_->OutputIndexOfCandidate(b),
+              rr = 3 * cache_->OutputIndexOfCandidate(r);
     for (int j = 0; j < 3; ++j) {
       const double f = forces[3 * s + j];
       cache_->AddColumn(r, j, f, u);

@@ -1,18 +1,19 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/condensation.h"
 
-#include "node_lists.h"
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
+#include "node_lists.h"
+
 namespace spidarcad::fem {
 
 Compliance::Compliance(const StaticSolver& solver, const std::vector<int>& output_nodes,
-                       const std::vector<int>& condensed_nodes, const CondensationSettings& settings)
+                       const std::vector<int>& condensed_nodes,
+                       const CondensationSettings& settings)
     : output_nodes_(output_nodes), condensed_nodes_(condensed_nodes) {
   const int n = solver.bcs().num_nodes();
   const detail::NodeListIndex index =
@@ -31,7 +32,8 @@ Compliance::Compliance(const StaticSolver& solver, const std::vector<int>& outpu
   const auto t0 = std::chrono::steady_clock::now();
   const StaticSolution base = solver.Solve();
   u0_.resize(3 * num_out);
-  for (int a = 0; a < num_out; ++a) u0_.segment<3>(3 * a) = base.displacement.segment<3>(3 * output_nodes[a]);
+  for (int a = 0; a < num_out; ++a)
+    u0_.segment<3>(3 * a) = base.displacement.segment<3>(3 * output_nodes[a]);
   status_ = base.status;
   if (!solver.factor_status().converged) return;
   status_.converged = true;
@@ -67,8 +69,7 @@ Compliance::Compliance(const StaticSolver& solver, const std::vector<int>& outpu
       }
     if (settings.progress) settings.progress(static_cast<double>(start + count) / num_cond);
   }
-  compute_seconds_ =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  compute_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 int Compliance::CondensedIndexOfNode(int v) const {

@@ -3,10 +3,9 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
-
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -79,13 +78,13 @@ void TetMesh::Validate() const {
 
 TetMesh MakeBoxMesh(const BoxMeshSettings& st) {
   if (st.nx < 1 || st.ny < 1 || st.nz < 1) {
-    throw std::invalid_argument("MakeBoxMesh: cell counts must be >= 1, got nx=" +
-                                std::to_string(st.nx) + " ny=" + std::to_string(st.ny) +
-                                " nz=" + std::to_string(st.nz));
+    throw std::invalid_argument(
+        "MakeBoxMesh: cell counts must be >= 1, got nx=" + std::to_string(st.nx) +
+        " ny=" + std::to_string(st.ny) + " nz=" + std::to_string(st.nz));
   }
   if (!((st.upper - st.lower).array() > 0.0).all()) {
-    throw std::invalid_argument("MakeBoxMesh: upper " + Fmt(st.upper) +
-                                " must exceed lower " + Fmt(st.lower));
+    throw std::invalid_argument("MakeBoxMesh: upper " + Fmt(st.upper) + " must exceed lower " +
+                                Fmt(st.lower));
   }
   if (st.order != 1 && st.order != 2) {
     throw std::invalid_argument("MakeBoxMesh: order must be 1 or 2, got " +
@@ -108,7 +107,9 @@ TetMesh MakeBoxMesh(const BoxMeshSettings& st) {
   for (int k = 0; k < nz; ++k) {
     for (int j = 0; j < ny; ++j) {
       for (int i = 0; i < nx; ++i) {
-        auto corner = [&](int c) { return node_id(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)); };
+        auto corner = [&](int c) {
+          return node_id(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+        };
         if (st.split == HexSplit::kSix) {
           // Kuhn split: paths 0 -> 7 along the three axes in every order.
           static constexpr int kPerm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
@@ -126,7 +127,10 @@ TetMesh MakeBoxMesh(const BoxMeshSettings& st) {
           int nc = 0, no = 0;
           for (int c = 0; c < 8; ++c) {
             const int bits = (c & 1) + ((c >> 1) & 1) + ((c >> 2) & 1);
-            if (((bits + parity) & 1) == 0) centre[nc++] = c; else others[no++] = c;
+            if (((bits + parity) & 1) == 0)
+              centre[nc++] = c;
+            else
+              others[no++] = c;
           }
           mesh.elements.row(e++) << corner(centre[0]), corner(centre[1]), corner(centre[2]),
               corner(centre[3]);
@@ -164,7 +168,8 @@ TetMesh MakeQuadratic(const TetMesh& linear) {
     for (int k = 0; k < 6; ++k) {
       const int a = linear.elements(e, kTetEdges[k][0]);
       const int b = linear.elements(e, kTetEdges[k][1]);
-      auto [it, inserted] = edge_node.try_emplace(EdgeKey(a, b), n0 + static_cast<int>(extra.size()));
+      auto [it, inserted] =
+          edge_node.try_emplace(EdgeKey(a, b), n0 + static_cast<int>(extra.size()));
       if (inserted) {
         extra.push_back(0.5 * (linear.nodes.row(a) + linear.nodes.row(b)).transpose());
       }

@@ -12,8 +12,8 @@ NodeListIndex IndexNodeLists(const std::string& who, const std::string& subset_n
   for (std::size_t a = 0; a < outputs.size(); ++a) {
     const int v = outputs[a];
     if (v < 0 || v >= num_nodes) {
-      throw std::invalid_argument(who + ": output node " + std::to_string(v) + " is out of range [0, " +
-                                  std::to_string(num_nodes) + ")");
+      throw std::invalid_argument(who + ": output node " + std::to_string(v) +
+                                  " is out of range [0, " + std::to_string(num_nodes) + ")");
     }
     if (out.output_index[v] >= 0) {
       throw std::invalid_argument(who + ": output node " + std::to_string(v) + " is listed twice");

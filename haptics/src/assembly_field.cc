@@ -12,8 +12,8 @@ namespace spidarcad::haptics {
 namespace {
 void Require(bool ok, const char* field, double value, const char* what) {
   if (!ok) {
-    throw std::invalid_argument(std::string("AssemblySettings.") + field + " = " + std::to_string(value) +
-                                ": " + what);
+    throw std::invalid_argument(std::string("AssemblySettings.") + field + " = " +
+                                std::to_string(value) + ": " + what);
   }
 }
 bool PositiveFinite(double v) { return v > 0 && std::isfinite(v); }
@@ -21,8 +21,8 @@ bool NonNegativeFinite(double v) { return v >= 0 && std::isfinite(v); }
 
 bool IsRigid(const Eigen::Isometry3d& X) {
   const Eigen::Matrix3d R = X.linear();
-  return X.matrix().allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-9 &&
-         R.determinant() > 0;
+  return X.matrix().allFinite() &&
+         (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-9 && R.determinant() > 0;
 }
 
 // Rotation vector of the rotation q (angle·axis, angle in [0, π]).
@@ -46,17 +46,22 @@ void AssemblySettings::Validate() const {
   Require(PositiveFinite(mass), "mass", mass, "must be finite and > 0");
   Require(inertia.allFinite() && (inertia.array() > 0).all(), "inertia", inertia.minCoeff(),
           "must be finite and > 0");
-  Require(NonNegativeFinite(coupling_stiffness), "coupling_stiffness", coupling_stiffness, "must be finite and >= 0");
-  Require(NonNegativeFinite(coupling_damping), "coupling_damping", coupling_damping, "must be finite and >= 0");
-  Require(NonNegativeFinite(rot_coupling_stiffness), "rot_coupling_stiffness", rot_coupling_stiffness,
+  Require(NonNegativeFinite(coupling_stiffness), "coupling_stiffness", coupling_stiffness,
           "must be finite and >= 0");
+  Require(NonNegativeFinite(coupling_damping), "coupling_damping", coupling_damping,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(rot_coupling_stiffness), "rot_coupling_stiffness",
+          rot_coupling_stiffness, "must be finite and >= 0");
   Require(NonNegativeFinite(rot_coupling_damping), "rot_coupling_damping", rot_coupling_damping,
           "must be finite and >= 0");
-  Require(NonNegativeFinite(contact_stiffness), "contact_stiffness", contact_stiffness, "must be finite and >= 0");
-  Require(NonNegativeFinite(contact_damping), "contact_damping", contact_damping, "must be finite and >= 0");
+  Require(NonNegativeFinite(contact_stiffness), "contact_stiffness", contact_stiffness,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(contact_damping), "contact_damping", contact_damping,
+          "must be finite and >= 0");
   Require(reference_contacts >= 1, "reference_contacts", reference_contacts, "must be >= 1");
   Require(substeps >= 1 && substeps <= 1000, "substeps", substeps, "must be in [1, 1000]");
-  Require(NonNegativeFinite(contact_margin), "contact_margin", contact_margin, "must be finite and >= 0");
+  Require(NonNegativeFinite(contact_margin), "contact_margin", contact_margin,
+          "must be finite and >= 0");
   Require(max_points >= 1, "max_points", max_points, "must be >= 1");
   Require(PositiveFinite(max_dt), "max_dt", max_dt, "must be finite and > 0");
 }
@@ -80,20 +85,24 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
       throw std::invalid_argument(where + ": shell has different numbers of points and normals");
     }
     if (p.shell_P.size() > settings_.max_points) {
-      throw std::invalid_argument(where + ": shell has " + std::to_string(p.shell_P.size()) +
-                                  " points, more than max_points = " + std::to_string(settings_.max_points));
+      throw std::invalid_argument(
+          where + ": shell has " + std::to_string(p.shell_P.size()) +
+          " points, more than max_points = " + std::to_string(settings_.max_points));
     }
-    if (!p.fixed && p.shell_P.size() == 0) throw std::invalid_argument(where + ": graspable part has an empty shell");
+    if (!p.fixed && p.shell_P.size() == 0)
+      throw std::invalid_argument(where + ": graspable part has an empty shell");
     for (std::size_t k = 0; k < p.seats.size(); ++k) {
       const AssemblySeat& s = p.seats[k];
       const std::string sw = where + ": seats[" + std::to_string(k) + "]";
       if (s.other < 0 || s.other >= n || s.other == i) {
-        throw std::invalid_argument(sw + ".other = " + std::to_string(s.other) + " is not another part");
+        throw std::invalid_argument(sw + ".other = " + std::to_string(s.other) +
+                                    " is not another part");
       }
       if (!IsRigid(s.X_OS)) throw std::invalid_argument(sw + ".X_OS is not a rigid transform");
       if (!NonNegativeFinite(s.position_tolerance)) {
-        throw std::invalid_argument(sw + ".position_tolerance = " + std::to_string(s.position_tolerance) +
-                                    " must be finite and >= 0");
+        throw std::invalid_argument(
+            sw + ".position_tolerance = " + std::to_string(s.position_tolerance) +
+            " must be finite and >= 0");
       }
       if (!NonNegativeFinite(s.angle_tolerance)) {
         throw std::invalid_argument(sw + ".angle_tolerance = " + std::to_string(s.angle_tolerance) +
@@ -117,7 +126,8 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
     const std::vector<Eigen::Vector3d>& r = parts_[j].shell_P.points_T;
     std::vector<std::array<long, 3>> cell(r.size());
     for (std::size_t i = 0; i < r.size(); ++i) {
-      for (int a = 0; a < 3; ++a) cell[i][a] = static_cast<long>(std::floor(r[i](a) / kClusterCell));
+      for (int a = 0; a < 3; ++a)
+        cell[i][a] = static_cast<long>(std::floor(r[i](a) / kClusterCell));
     }
     std::vector<int>& order = cluster_points_[j];
     order.resize(r.size());
@@ -127,7 +137,8 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
     for (std::size_t begin = 0; begin < order.size();) {
       std::size_t end = begin;
       Eigen::AlignedBox3d box;
-      while (end < order.size() && cell[order[end]] == cell[order[begin]]) box.extend(r[order[end++]]);
+      while (end < order.size() && cell[order[end]] == cell[order[begin]])
+        box.extend(r[order[end++]]);
       ShellCluster cluster;
       cluster.centre_P = box.center();
       for (std::size_t k = begin; k < end; ++k) {
@@ -149,7 +160,8 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   Publish();
 }
 
-double AssemblyField::Phi(int j, const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept {
+double AssemblyField::Phi(int j, const Eigen::Vector3d& p_W,
+                          Eigen::Vector3d* gradient_W) const noexcept {
   if (gradient_W == nullptr) return parts_[j].field_P->Evaluate(inverse_[j] * p_W, nullptr);
   Eigen::Vector3d g_P;
   const double v = parts_[j].field_P->Evaluate(inverse_[j] * p_W, &g_P);
@@ -157,7 +169,8 @@ double AssemblyField::Phi(int j, const Eigen::Vector3d& p_W, Eigen::Vector3d* gr
   return v;
 }
 
-bool AssemblyField::FindSeat(int i, const Eigen::Isometry3d& X_WP, Eigen::Isometry3d* X_WS) const noexcept {
+bool AssemblyField::FindSeat(int i, const Eigen::Isometry3d& X_WP,
+                             Eigen::Isometry3d* X_WS) const noexcept {
   for (const AssemblySeat& s : parts_[i].seats) {
     const Eigen::Isometry3d seat = poses_[s.other] * s.X_OS;
     const double dp = (X_WP.translation() - seat.translation()).norm();
@@ -250,8 +263,9 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
   // Candidates (point, part) at the start of the tick.
   num_candidates_ = 0;
   {
-    const double reach = s.contact_margin + 2.0 * dt * (v_.norm() + w_.norm() * radius + v_target.norm() +
-                                                        tool.w_WT.norm() * radius);
+    const double reach =
+        s.contact_margin +
+        2.0 * dt * (v_.norm() + w_.norm() * radius + v_target.norm() + tool.w_WT.norm() * radius);
     const Eigen::Matrix3d R = q_.toRotationMatrix();
     for (int j = 0; j < n; ++j) {
       if (j == c || Phi(j, p, nullptr) >= radius + reach) continue;
@@ -261,10 +275,12 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       // Within a cluster, a point at d_i from its centre has φ_j >= φ_j(centre) − d_i: it is
       // tested only when that bound is below the reach (the slack covers rounding).
       for (const ShellCluster& cluster : clusters_[c]) {
-        const double phi_centre = s.cull_shell_search ? Phi(j, p + R * cluster.centre_P, nullptr) : -1e300;
+        const double phi_centre =
+            s.cull_shell_search ? Phi(j, p + R * cluster.centre_P, nullptr) : -1e300;
         if (phi_centre >= cluster.radius + reach) continue;
         for (int k = cluster.begin; k < cluster.end; ++k) {
-          if (phi_centre - cluster_point_offset_[c][k] < reach + 1e-9) near_[cluster_points_[c][k]] = 1;
+          if (phi_centre - cluster_point_offset_[c][k] < reach + 1e-9)
+            near_[cluster_points_[c][k]] = 1;
         }
       }
       for (int i = 0; i < shell.size(); ++i) {
@@ -296,7 +312,8 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       if (!(phi < 0) || !(gn > 0)) continue;
       const Eigen::Vector3d nrm = g / gn;
       const double v_n = nrm.dot(v_ + w_.cross(r));
-      const double magnitude = std::max(0.0, s.contact_stiffness * (-phi) - s.contact_damping * v_n);
+      const double magnitude =
+          std::max(0.0, s.contact_stiffness * (-phi) - s.contact_damping * v_n);
       const Eigen::Vector3d f = magnitude * nrm;
       f_contact += f;
       t_contact += r.cross(f);
@@ -304,9 +321,11 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
     }
     const double scale = std::min(1.0, s.reference_contacts / std::max(1.0, double(contacts)));
     contacts_ = contacts;
-    const Eigen::Vector3d f_c = s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
-    const Eigen::Vector3d tau_c = s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
-                                  s.rot_coupling_damping * (tool.w_WT - w_);
+    const Eigen::Vector3d f_c =
+        s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
+    const Eigen::Vector3d tau_c =
+        s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
+        s.rot_coupling_damping * (tool.w_WT - w_);
     v_ += (h / s.mass) * (f_c + scale * f_contact);
     w_ += h * (R * inv_inertia.asDiagonal() * (R.transpose() * (tau_c + scale * t_contact)));
     p += h * v_;
@@ -314,9 +333,11 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
     if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_ / w_.norm())) * q_;
     q_.normalize();
   }
-  const Eigen::Vector3d f_c = s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
-  const Eigen::Vector3d tau_c = s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
-                                s.rot_coupling_damping * (tool.w_WT - w_);
+  const Eigen::Vector3d f_c =
+      s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
+  const Eigen::Vector3d tau_c =
+      s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
+      s.rot_coupling_damping * (tool.w_WT - w_);
   if (!(p.allFinite() && q_.coeffs().allFinite() && v_.allFinite() && w_.allFinite())) {
     // Recover on the target pose (the loop zeroes this tick's NaN wrench).
     p = p_target;

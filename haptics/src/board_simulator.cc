@@ -52,8 +52,7 @@ DecodeResult BoardSimulator::HandlePacket(const std::uint8_t* data, std::size_t 
     reply_.watchdog_ms = watchdog_ms_;
     reply_.tension_max_mn = TensionToMilliNewton(config_.device.tension_max);
     reply_.counts_per_rev = static_cast<std::uint16_t>(config_.device.encoder.counts_per_rev);
-    reply_.sample_period_us =
-        static_cast<std::uint16_t>(std::lround(config_.sample_period * 1e6));
+    reply_.sample_period_us = static_cast<std::uint16_t>(std::lround(config_.sample_period * 1e6));
     reply_.serial = config_.serial;
     reply_pending_ = true;
     return result;
@@ -166,9 +165,7 @@ bool BoardSimulator::SentCounts(std::uint32_t sequence, EncoderCounts* counts) c
 LoopbackTransport::LoopbackTransport(BoardSimulator* board, const LinkFaults& faults)
     : board_(board), faults_(faults), rng_state_(faults.seed * 0x9E3779B97F4A7C15ull + 1) {}
 
-void LoopbackTransport::set_faults(const LinkFaults& faults) noexcept {
-  faults_ = faults;
-}
+void LoopbackTransport::set_faults(const LinkFaults& faults) noexcept { faults_ = faults; }
 
 double LoopbackTransport::Uniform() noexcept {
   // splitmix64

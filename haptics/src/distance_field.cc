@@ -21,7 +21,8 @@ std::string Str(const Eigen::Vector3d& v) {
 
 SphereDistanceField::SphereDistanceField(const Eigen::Vector3d& center_W, double radius)
     : center_W_(center_W), radius_(radius) {
-  if (!center_W.allFinite()) Bad("SphereDistanceField", "centre " + Str(center_W) + " is not finite");
+  if (!center_W.allFinite())
+    Bad("SphereDistanceField", "centre " + Str(center_W) + " is not finite");
   if (!(radius > 0 && std::isfinite(radius))) {
     Bad("SphereDistanceField", "radius = " + std::to_string(radius) + " must be finite and > 0");
   }
@@ -31,7 +32,8 @@ double SphereDistanceField::Evaluate(const Eigen::Vector3d& p_W,
                                      Eigen::Vector3d* gradient_W) const noexcept {
   const Eigen::Vector3d r = p_W - center_W_;
   const double n = r.norm();
-  if (gradient_W != nullptr) *gradient_W = n > 0 ? Eigen::Vector3d(r / n) : Eigen::Vector3d::UnitZ();
+  if (gradient_W != nullptr)
+    *gradient_W = n > 0 ? Eigen::Vector3d(r / n) : Eigen::Vector3d::UnitZ();
   return n - radius_;
 }
 
@@ -64,10 +66,12 @@ double BoxDistanceField::Evaluate(const Eigen::Vector3d& p_W,
   return q(axis);
 }
 
-HalfSpaceDistanceField::HalfSpaceDistanceField(const Eigen::Vector3d& p_WP, const Eigen::Vector3d& n_W)
+HalfSpaceDistanceField::HalfSpaceDistanceField(const Eigen::Vector3d& p_WP,
+                                               const Eigen::Vector3d& n_W)
     : p_WP_(p_WP) {
   const double n = n_W.norm();
-  if (!(n > 0 && std::isfinite(n))) Bad("HalfSpaceDistanceField", "normal " + Str(n_W) + " is zero or not finite");
+  if (!(n > 0 && std::isfinite(n)))
+    Bad("HalfSpaceDistanceField", "normal " + Str(n_W) + " is zero or not finite");
   if (!p_WP.allFinite()) Bad("HalfSpaceDistanceField", "point " + Str(p_WP) + " is not finite");
   n_W_ = n_W / n;
 }
@@ -82,7 +86,8 @@ UnionDistanceField::UnionDistanceField(std::vector<std::shared_ptr<const Distanc
     : children_(std::move(children)) {
   if (children_.empty()) Bad("UnionDistanceField", "needs at least one child");
   for (std::size_t i = 0; i < children_.size(); ++i) {
-    if (children_[i] == nullptr) Bad("UnionDistanceField", "child " + std::to_string(i) + " is null");
+    if (children_[i] == nullptr)
+      Bad("UnionDistanceField", "child " + std::to_string(i) + " is null");
   }
 }
 

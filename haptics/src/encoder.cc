@@ -92,7 +92,8 @@ void EncoderCalibration::Validate() const {
                                   std::to_string(value));
     };
     if (!std::isfinite(p.offset)) fail("offset", p.offset, "must be finite");
-    if (!std::isfinite(p.gain) || p.gain <= 0.0) fail("gain", p.gain, "must be finite and positive");
+    if (!std::isfinite(p.gain) || p.gain <= 0.0)
+      fail("gain", p.gain, "must be finite and positive");
     if (!std::isfinite(p.quadratic)) fail("quadratic", p.quadratic, "must be finite");
     if (!std::isfinite(p.stretch) || p.stretch < 0.0) {
       fail("stretch", p.stretch, "must be finite and non-negative");

@@ -1,11 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/geometry.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
-
-#include <Eigen/Geometry>
 
 namespace spidarcad::haptics {
 
@@ -25,10 +24,10 @@ void SpidarGeometry::Validate() const {
   CheckPositive(c, "c");
   CheckPositive(d, "d");
   if (d >= std::min({a, b, c})) {
-    throw std::invalid_argument("SpidarGeometry: pole half-length d = " + std::to_string(d) +
-                                " m does not fit inside the frame (half-sides a, b, c = " +
-                                std::to_string(a) + ", " + std::to_string(b) + ", " +
-                                std::to_string(c) + " m); d must be smaller than all three");
+    throw std::invalid_argument(
+        "SpidarGeometry: pole half-length d = " + std::to_string(d) +
+        " m does not fit inside the frame (half-sides a, b, c = " + std::to_string(a) + ", " +
+        std::to_string(b) + ", " + std::to_string(c) + " m); d must be smaller than all three");
   }
 }
 

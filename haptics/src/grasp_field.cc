@@ -11,20 +11,23 @@ namespace spidarcad::haptics {
 namespace {
 void Require(bool ok, const char* field, double value, const char* what) {
   if (!ok) {
-    throw std::invalid_argument(std::string("GraspSettings.") + field + " = " + std::to_string(value) +
-                                ": " + what);
+    throw std::invalid_argument(std::string("GraspSettings.") + field + " = " +
+                                std::to_string(value) + ": " + what);
   }
 }
 }  // namespace
 
 void GraspSettings::Validate() const {
-  Require(pole_length > 0 && std::isfinite(pole_length), "pole_length", pole_length, "must be finite and > 0");
+  Require(pole_length > 0 && std::isfinite(pole_length), "pole_length", pole_length,
+          "must be finite and > 0");
   Require(samples >= 3 && samples <= 10000, "samples", samples, "must be in [3, 10000]");
-  Require(refine_iterations >= 0 && refine_iterations <= 100, "refine_iterations", refine_iterations,
-          "must be in [0, 100]");
-  Require(stiffness >= 0 && std::isfinite(stiffness), "stiffness", stiffness, "must be finite and >= 0");
+  Require(refine_iterations >= 0 && refine_iterations <= 100, "refine_iterations",
+          refine_iterations, "must be in [0, 100]");
+  Require(stiffness >= 0 && std::isfinite(stiffness), "stiffness", stiffness,
+          "must be finite and >= 0");
   Require(damping >= 0 && std::isfinite(damping), "damping", damping, "must be finite and >= 0");
-  Require(grab_depth > 0 && std::isfinite(grab_depth), "grab_depth", grab_depth, "must be finite and > 0");
+  Require(grab_depth > 0 && std::isfinite(grab_depth), "grab_depth", grab_depth,
+          "must be finite and > 0");
 }
 
 GraspField::GraspField(std::shared_ptr<const DistanceField> object_O, const Eigen::Isometry3d& X_WO,
@@ -33,8 +36,8 @@ GraspField::GraspField(std::shared_ptr<const DistanceField> object_O, const Eige
   if (object_ == nullptr) throw std::invalid_argument("GraspField: the object field is null");
   settings_.Validate();
   const Eigen::Matrix3d R = X_WO.linear();
-  if (!X_WO.matrix().allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-9 ||
-      R.determinant() < 0) {
+  if (!X_WO.matrix().allFinite() ||
+      (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-9 || R.determinant() < 0) {
     throw std::invalid_argument("GraspField: X_WO is not a rigid transform");
   }
   X_OW_ = X_WO_.inverse(Eigen::Isometry);

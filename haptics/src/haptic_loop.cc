@@ -1,12 +1,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/haptic_loop.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
 
 namespace spidarcad::haptics {
 
@@ -94,9 +93,9 @@ std::unique_ptr<HapticScene> MakeDemoScene() {
 
 const char* SafetyEventName(int index) {
   static constexpr const char* kNames[kNumSafetyEvents] = {
-      "nan",           "fk_refused",        "device_error", "deadline_missed",
-      "emergency_stop", "bad_dt",           "wrench_limited", "tension_saturated",
-      "ramping",       "energy_limited",    "slack"};
+      "nan",    "fk_refused",     "device_error",      "deadline_missed", "emergency_stop",
+      "bad_dt", "wrench_limited", "tension_saturated", "ramping",         "energy_limited",
+      "slack"};
   return index >= 0 && index < kNumSafetyEvents ? kNames[index] : "unknown";
 }
 
@@ -106,10 +105,10 @@ void LoopSettings::Validate() const {
   Require(p_WDo.allFinite(), "p_WDo", p_WDo.norm(), "must be finite");
   Require(std::isfinite(force_scale) && force_scale >= 0, "force_scale", force_scale,
           "must be finite and >= 0");
-  Require(velocity_cutoff > 0 && std::isfinite(velocity_cutoff), "velocity_cutoff",
-          velocity_cutoff, "must be finite and > 0 (Hz)");
-  Require(linear_damping >= 0 && std::isfinite(linear_damping), "linear_damping",
-          linear_damping, "must be finite and >= 0");
+  Require(velocity_cutoff > 0 && std::isfinite(velocity_cutoff), "velocity_cutoff", velocity_cutoff,
+          "must be finite and > 0 (Hz)");
+  Require(linear_damping >= 0 && std::isfinite(linear_damping), "linear_damping", linear_damping,
+          "must be finite and >= 0");
   Require(angular_damping >= 0 && std::isfinite(angular_damping), "angular_damping",
           angular_damping, "must be finite and >= 0");
   Require(grasp_damping >= 0 && std::isfinite(grasp_damping), "grasp_damping", grasp_damping,
@@ -122,8 +121,8 @@ void LoopSettings::Validate() const {
           max_grasp_torque, "must be finite and >= 0");
   Require(ramp_time >= 0 && std::isfinite(ramp_time), "ramp_time", ramp_time,
           "must be finite and >= 0");
-  Require(max_observer_damping >= 0 && std::isfinite(max_observer_damping),
-          "max_observer_damping", max_observer_damping, "must be finite and >= 0");
+  Require(max_observer_damping >= 0 && std::isfinite(max_observer_damping), "max_observer_damping",
+          max_observer_damping, "must be finite and >= 0");
   Require(max_lateness > 0, "max_lateness", max_lateness, "must be > 0");
   Require(max_dt > 0 && std::isfinite(max_dt), "max_dt", max_dt, "must be finite and > 0");
   tension.Validate();

@@ -20,12 +20,18 @@ namespace {
 
 TransportResult FromLibusb(int code) noexcept {
   switch (code) {
-    case LIBUSB_SUCCESS: return TransportResult::kOk;
-    case LIBUSB_ERROR_TIMEOUT: return TransportResult::kTimeout;
-    case LIBUSB_ERROR_NO_DEVICE: return TransportResult::kDisconnected;
-    case LIBUSB_ERROR_NOT_FOUND: return TransportResult::kNotFound;
-    case LIBUSB_ERROR_ACCESS: return TransportResult::kNoAccess;
-    default: return TransportResult::kError;
+    case LIBUSB_SUCCESS:
+      return TransportResult::kOk;
+    case LIBUSB_ERROR_TIMEOUT:
+      return TransportResult::kTimeout;
+    case LIBUSB_ERROR_NO_DEVICE:
+      return TransportResult::kDisconnected;
+    case LIBUSB_ERROR_NOT_FOUND:
+      return TransportResult::kNotFound;
+    case LIBUSB_ERROR_ACCESS:
+      return TransportResult::kNoAccess;
+    default:
+      return TransportResult::kError;
   }
 }
 
@@ -33,8 +39,8 @@ TransportResult FromLibusb(int code) noexcept {
 std::string ReadSerial(libusb_device_handle* handle, const libusb_device_descriptor& desc) {
   if (handle == nullptr || desc.iSerialNumber == 0) return {};
   unsigned char buffer[128] = {};
-  const int n = libusb_get_string_descriptor_ascii(handle, desc.iSerialNumber, buffer,
-                                                   sizeof(buffer));
+  const int n =
+      libusb_get_string_descriptor_ascii(handle, desc.iSerialNumber, buffer, sizeof(buffer));
   if (n <= 0) return {};
   return std::string(reinterpret_cast<const char*>(buffer), static_cast<std::size_t>(n));
 }
@@ -43,12 +49,18 @@ std::string ReadSerial(libusb_device_handle* handle, const libusb_device_descrip
 
 const char* TransportResultName(TransportResult result) noexcept {
   switch (result) {
-    case TransportResult::kOk: return "ok";
-    case TransportResult::kTimeout: return "timeout";
-    case TransportResult::kDisconnected: return "disconnected";
-    case TransportResult::kNotFound: return "not_found";
-    case TransportResult::kNoAccess: return "no_access";
-    case TransportResult::kError: return "error";
+    case TransportResult::kOk:
+      return "ok";
+    case TransportResult::kTimeout:
+      return "timeout";
+    case TransportResult::kDisconnected:
+      return "disconnected";
+    case TransportResult::kNotFound:
+      return "not_found";
+    case TransportResult::kNoAccess:
+      return "no_access";
+    case TransportResult::kError:
+      return "error";
   }
   return "unknown";
 }
@@ -134,8 +146,8 @@ TransportResult LibusbTransport::Open() noexcept {
     if (desc.idVendor != vendor_id_ || desc.idProduct != product_id_) continue;
     libusb_device_handle* handle = nullptr;
     int fd = -1;
-    const TransportResult opened = OpenNode(libusb_get_bus_number(list[i]),
-                                            libusb_get_device_address(list[i]), &handle, &fd);
+    const TransportResult opened =
+        OpenNode(libusb_get_bus_number(list[i]), libusb_get_device_address(list[i]), &handle, &fd);
     if (opened != TransportResult::kOk) {
       result = opened;
       continue;
@@ -237,8 +249,8 @@ TransportResult LibusbTransport::Receive(std::uint8_t* data, std::size_t capacit
   if (!is_open()) return TransportResult::kDisconnected;
   std::size_t transferred = 0;
   int error_number = 0;
-  const TransportResult result = detail::UsbfsBulk(fd_, kEndpointIn, data, capacity, timeout_ms,
-                                                   &transferred, &error_number);
+  const TransportResult result =
+      detail::UsbfsBulk(fd_, kEndpointIn, data, capacity, timeout_ms, &transferred, &error_number);
   // USBDEVFS_BULK reports a timeout as -ETIMEDOUT and drops any partial IN data, so the
   // "timeout that still delivered bytes" case of libusb_bulk_transfer no longer exists: a
   // timeout delivers nothing, and a short packet (kOk) fails the length check in Decode.
@@ -253,8 +265,8 @@ UsbEnumeration ListUsbBoards(std::uint16_t vendor_id, std::uint16_t product_id) 
     libusb_context* context = nullptr;
     const int rc = libusb_init(&context);
     if (rc != LIBUSB_SUCCESS) {
-      out.error = std::string("libusb_init failed: ") +
-                  libusb_strerror(static_cast<libusb_error>(rc));
+      out.error =
+          std::string("libusb_init failed: ") + libusb_strerror(static_cast<libusb_error>(rc));
       return out;
     }
     out.usb_available = true;

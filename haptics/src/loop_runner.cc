@@ -54,7 +54,8 @@ void LatencyHistogram::Add(double seconds) noexcept {
   bins_[bin].fetch_add(1, std::memory_order_relaxed);
   count_.fetch_add(1, std::memory_order_relaxed);
   // One writer thread: plain load/store is enough for max and sum.
-  if (seconds > max_.load(std::memory_order_relaxed)) max_.store(seconds, std::memory_order_relaxed);
+  if (seconds > max_.load(std::memory_order_relaxed))
+    max_.store(seconds, std::memory_order_relaxed);
   sum_.store(sum_.load(std::memory_order_relaxed) + seconds, std::memory_order_relaxed);
 }
 
@@ -88,11 +89,16 @@ double LatencyHistogram::Percentile(double p) const noexcept {
 
 const char* RealtimeStatusName(RealtimeStatus status) {
   switch (status) {
-    case RealtimeStatus::kNotStarted: return "not_started";
-    case RealtimeStatus::kFifo: return "fifo";
-    case RealtimeStatus::kNoPermission: return "no_permission";
-    case RealtimeStatus::kNotRequested: return "not_requested";
-    case RealtimeStatus::kFailed: return "failed";
+    case RealtimeStatus::kNotStarted:
+      return "not_started";
+    case RealtimeStatus::kFifo:
+      return "fifo";
+    case RealtimeStatus::kNoPermission:
+      return "no_permission";
+    case RealtimeStatus::kNotRequested:
+      return "not_requested";
+    case RealtimeStatus::kFailed:
+      return "failed";
   }
   return "unknown";
 }
@@ -103,8 +109,8 @@ LoopRunner::LoopRunner(const RunnerSettings& settings) : settings_(settings) {
                                 " s: must be in (0, 1]");
   }
   if (settings.priority < 1 || settings.priority > 99) {
-    throw std::invalid_argument("RunnerSettings.priority = " +
-                                std::to_string(settings.priority) + ": must be in 1..99");
+    throw std::invalid_argument("RunnerSettings.priority = " + std::to_string(settings.priority) +
+                                ": must be in 1..99");
   }
   if (settings.skip_after_periods < 1) {
     throw std::invalid_argument("RunnerSettings.skip_after_periods must be >= 1");

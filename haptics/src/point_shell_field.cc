@@ -31,8 +31,8 @@ Eigen::Vector3d UnitOrZero(const Eigen::Vector3d& g) {
 // stiffness k, damping b, zone radius zone (0: off), ratio eps. Returns k·x + b·dx inside the
 // law: ε(k x + b dx) for |x| ≤ δ; beyond, spring (k|x| − (1 − ε) k δ) x/|x| and damping
 // b (ε + (1 − ε) min(1, (|x| − δ)/δ)) dx.
-Eigen::Vector3d SoftCoupling(const Eigen::Vector3d& x, const Eigen::Vector3d& dx, double k, double b,
-                             double zone, double eps) {
+Eigen::Vector3d SoftCoupling(const Eigen::Vector3d& x, const Eigen::Vector3d& dx, double k,
+                             double b, double zone, double eps) {
   if (!(zone > 0)) return k * x + b * dx;
   const double r = x.norm();
   if (r <= zone) return eps * (k * x + b * dx);
@@ -65,7 +65,8 @@ PointShell PointShell::FromPoints(const std::vector<Eigen::Vector3d>& points_T,
       throw std::invalid_argument("PointShell: point " + std::to_string(i) + " is not finite");
     }
     if (!(n > 0 && std::isfinite(n))) {
-      throw std::invalid_argument("PointShell: normal " + std::to_string(i) + " is zero or not finite");
+      throw std::invalid_argument("PointShell: normal " + std::to_string(i) +
+                                  " is zero or not finite");
     }
     shell.normals_T.push_back(normals_T[i] / n);
   }
@@ -116,7 +117,8 @@ PointShell PointShell::Box(const Eigen::Vector3d& half_sides, double spacing) {
 
 PointShell PointShell::CrossGrip(double d, double radius, int rings, int around) {
   Require(PositiveFinite(d), "PointShell::CrossGrip", "d", d, "must be finite and > 0");
-  Require(PositiveFinite(radius), "PointShell::CrossGrip", "radius", radius, "must be finite and > 0");
+  Require(PositiveFinite(radius), "PointShell::CrossGrip", "radius", radius,
+          "must be finite and > 0");
   Require(rings >= 2, "PointShell::CrossGrip", "rings", rings, "must be >= 2");
   Require(around >= 3, "PointShell::CrossGrip", "around", around, "must be >= 3");
   PointShell shell;
@@ -152,16 +154,18 @@ void PointShellSettings::Validate() const {
   Require(PositiveFinite(mass), w, "mass", mass, "must be finite and > 0");
   Require(inertia.allFinite() && (inertia.array() > 0).all(), w, "inertia", inertia.minCoeff(),
           "must be finite and > 0");
-  Require(PositiveFinite(coupling_stiffness), w, "coupling_stiffness", coupling_stiffness, "must be finite and > 0");
-  Require(coupling_damping >= 0 && std::isfinite(coupling_damping), w, "coupling_damping", coupling_damping,
-          "must be finite and >= 0");
-  Require(PositiveFinite(rot_coupling_stiffness), w, "rot_coupling_stiffness", rot_coupling_stiffness,
+  Require(PositiveFinite(coupling_stiffness), w, "coupling_stiffness", coupling_stiffness,
           "must be finite and > 0");
-  Require(rot_coupling_damping >= 0 && std::isfinite(rot_coupling_damping), w, "rot_coupling_damping",
-          rot_coupling_damping, "must be finite and >= 0");
-  Require(PositiveFinite(contact_stiffness), w, "contact_stiffness", contact_stiffness, "must be finite and > 0");
-  Require(contact_damping >= 0 && std::isfinite(contact_damping), w, "contact_damping", contact_damping,
-          "must be finite and >= 0");
+  Require(coupling_damping >= 0 && std::isfinite(coupling_damping), w, "coupling_damping",
+          coupling_damping, "must be finite and >= 0");
+  Require(PositiveFinite(rot_coupling_stiffness), w, "rot_coupling_stiffness",
+          rot_coupling_stiffness, "must be finite and > 0");
+  Require(rot_coupling_damping >= 0 && std::isfinite(rot_coupling_damping), w,
+          "rot_coupling_damping", rot_coupling_damping, "must be finite and >= 0");
+  Require(PositiveFinite(contact_stiffness), w, "contact_stiffness", contact_stiffness,
+          "must be finite and > 0");
+  Require(contact_damping >= 0 && std::isfinite(contact_damping), w, "contact_damping",
+          contact_damping, "must be finite and >= 0");
   Require(reference_contacts >= 1, w, "reference_contacts", reference_contacts, "must be >= 1");
   Require(substeps >= 1 && substeps <= 1000, w, "substeps", substeps, "must be in [1, 1000]");
   Require(contact_margin >= 0 && std::isfinite(contact_margin), w, "contact_margin", contact_margin,
@@ -170,27 +174,29 @@ void PointShellSettings::Validate() const {
   Require(PositiveFinite(max_dt), w, "max_dt", max_dt, "must be finite and > 0");
   Require(NonNegativeFinite(coupling_soft_zone), w, "coupling_soft_zone", coupling_soft_zone,
           "must be finite and >= 0");
-  Require(NonNegativeFinite(rot_coupling_soft_zone), w, "rot_coupling_soft_zone", rot_coupling_soft_zone,
-          "must be finite and >= 0");
+  Require(NonNegativeFinite(rot_coupling_soft_zone), w, "rot_coupling_soft_zone",
+          rot_coupling_soft_zone, "must be finite and >= 0");
   Require(soft_zone_ratio >= 0 && soft_zone_ratio <= 1, w, "soft_zone_ratio", soft_zone_ratio,
           "must be in [0, 1]");
-  Require(NonNegativeFinite(max_penetration), w, "max_penetration", max_penetration, "must be finite and >= 0");
+  Require(NonNegativeFinite(max_penetration), w, "max_penetration", max_penetration,
+          "must be finite and >= 0");
   Require(PositiveFinite(min_step), w, "min_step", min_step, "must be finite and > 0");
 }
 
 PointShellField::PointShellField(std::shared_ptr<const DistanceField> environment, PointShell shell,
                                  const PointShellSettings& settings)
     : env_(std::move(environment)), shell_(std::move(shell)), settings_(settings) {
-  if (env_ == nullptr) throw std::invalid_argument("PointShellField: the environment field is null");
+  if (env_ == nullptr)
+    throw std::invalid_argument("PointShellField: the environment field is null");
   settings_.Validate();
   if (shell_.size() == 0) throw std::invalid_argument("PointShellField: the point shell is empty");
   if (shell_.points_T.size() != shell_.normals_T.size()) {
     throw std::invalid_argument("PointShellField: shell points and normals differ in number");
   }
   if (shell_.size() > settings_.max_points) {
-    throw std::invalid_argument("PointShellField: the shell has " + std::to_string(shell_.size()) +
-                                " points, more than max_points = " +
-                                std::to_string(settings_.max_points));
+    throw std::invalid_argument(
+        "PointShellField: the shell has " + std::to_string(shell_.size()) +
+        " points, more than max_points = " + std::to_string(settings_.max_points));
   }
   shell_radius_ = shell_.Radius();
   candidates_.assign(shell_.points_T.size(), 0);
@@ -236,7 +242,8 @@ ShellContact PointShellField::CandidateContact(const Eigen::Matrix3d& R_WV) noex
     if (!(phi < 0) || !(gn > 0)) continue;
     const Eigen::Vector3d n = g / gn;
     const double v_n = n.dot(v_ + w_.cross(r));
-    const double magnitude = std::max(0.0, settings_.contact_stiffness * (-phi) - settings_.contact_damping * v_n);
+    const double magnitude =
+        std::max(0.0, settings_.contact_stiffness * (-phi) - settings_.contact_damping * v_n);
     const Eigen::Vector3d f = magnitude * n;
     c.force_W += f;
     c.torque_W += r.cross(f);
@@ -253,8 +260,9 @@ void PointShellField::Coupling(const ToolKinematics& tool, const Eigen::Quaterni
   const PointShellSettings& s = settings_;
   *f_c = SoftCoupling(tool.p_WT - p_, tool.v_WT - v_, s.coupling_stiffness, s.coupling_damping,
                       s.coupling_soft_zone, s.soft_zone_ratio);
-  *tau_c = SoftCoupling(RotationVector(q_T * q_.conjugate()), tool.w_WT - w_, s.rot_coupling_stiffness,
-                        s.rot_coupling_damping, s.rot_coupling_soft_zone, s.soft_zone_ratio);
+  *tau_c =
+      SoftCoupling(RotationVector(q_T * q_.conjugate()), tool.w_WT - w_, s.rot_coupling_stiffness,
+                   s.rot_coupling_damping, s.rot_coupling_soft_zone, s.soft_zone_ratio);
 }
 
 void PointShellField::ConstrainMotion(double h, double budget, double travelled,
@@ -296,11 +304,12 @@ void PointShellField::ConstrainMotion(double h, double budget, double travelled,
     const double room = std::max(0.0, candidate_phi_[k] + d_max);  // distance to the depth limit
     const Eigen::Vector3d n = UnitOrZero(candidate_g_[k]);
     if (room == 0.0 && n.squaredNorm() == 0.0) continue;  // past the limit, no direction to guard
-    double t_k = room / mu;                                 // φ is 1-Lipschitz
+    double t_k = room / mu;                               // φ is 1-Lipschitz
     if (t_k >= t) continue;
     if (n.squaredNorm() > 0) {
       const double inward = -n.dot(dp + dtheta.cross(candidate_r_[k]));
-      const double t_plane = inward > 1e-9 * mu ? room / inward : std::numeric_limits<double>::infinity();
+      const double t_plane =
+          inward > 1e-9 * mu ? room / inward : std::numeric_limits<double>::infinity();
       t_k = std::max(t_k, std::min(t_plane, settings_.min_step / mu));
     }
     t = std::min(t, t_k);
@@ -332,8 +341,9 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
   // Broad and narrow phase at the start of the tick: the candidate points. Points beyond
   // `reach` stay free as long as V travels less than `reach` in this tick (ConstrainMotion).
   num_candidates_ = 0;
-  const double reach = s.contact_margin + 2.0 * dt * (v_.norm() + w_.norm() * shell_radius_ +
-                                                      tool.v_WT.norm() + tool.w_WT.norm() * shell_radius_);
+  const double reach = s.contact_margin + 2.0 * dt *
+                                              (v_.norm() + w_.norm() * shell_radius_ +
+                                               tool.v_WT.norm() + tool.w_WT.norm() * shell_radius_);
   // How far V may travel this tick with the non-candidates still free: the reach, or, when the
   // broad phase finds the whole shell clear, its clearance.
   double budget = reach;
@@ -343,7 +353,8 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
   } else {
     const Eigen::Matrix3d R = q_.toRotationMatrix();
     for (int i = 0; i < shell_.size(); ++i) {
-      if (env_->Evaluate(p_ + R * shell_.points_T[i], nullptr) < reach) candidates_[num_candidates_++] = i;
+      if (env_->Evaluate(p_ + R * shell_.points_T[i], nullptr) < reach)
+        candidates_[num_candidates_++] = i;
     }
   }
 

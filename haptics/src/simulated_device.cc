@@ -1,13 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/simulated_device.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
@@ -154,7 +153,8 @@ void SimulatedSpidarG::Sample() noexcept {
   }
   std::uint8_t slack = 0;
   for (int i = 0; i < kNumStrings; ++i) {
-    if (commanded_tension_[i] < config_.slack_threshold) slack |= static_cast<std::uint8_t>(1u << i);
+    if (commanded_tension_[i] < config_.slack_threshold)
+      slack |= static_cast<std::uint8_t>(1u << i);
   }
   reading_.slack_mask = slack;
   reading_.time = time_;

@@ -31,13 +31,16 @@ void HandSettings::Validate() const {
 
 SimulatedHand::SimulatedHand(const HandSettings& settings, const TrajectorySample& initial,
                              double d)
-    : settings_(settings), d_(d), p_(initial.p_DT), q_(initial.q_DT.normalized()),
+    : settings_(settings),
+      d_(d),
+      p_(initial.p_DT),
+      q_(initial.q_DT.normalized()),
       grasp_(initial.grasp) {
   settings_.Validate();
 }
 
-void SimulatedHand::Step(const TrajectorySample& target, const Eigen::Matrix<double, 7, 1>& wrench_D,
-                         double dt) noexcept {
+void SimulatedHand::Step(const TrajectorySample& target,
+                         const Eigen::Matrix<double, 7, 1>& wrench_D, double dt) noexcept {
   const HandSettings& s = settings_;
   const double h = dt / s.substeps;
   const Eigen::Vector3d f = wrench_D.head<3>();
@@ -51,7 +54,8 @@ void SimulatedHand::Step(const TrajectorySample& target, const Eigen::Matrix<dou
     Eigen::Quaterniond error = target.q_DT * q_.conjugate();
     if (error.w() < 0) error.coeffs() *= -1;  // shortest way
     const Eigen::AngleAxisd aa(error);
-    const Eigen::Vector3d moment = s.rot_stiffness * aa.angle() * aa.axis() - s.rot_damping * w_ + m;
+    const Eigen::Vector3d moment =
+        s.rot_stiffness * aa.angle() * aa.axis() - s.rot_damping * w_ + m;
     w_ += h * moment / s.inertia;
     const double angle = w_.norm() * h;
     if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_.normalized())) * q_;

@@ -1,13 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/snap_field.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
 
 namespace spidarcad::haptics {
 
@@ -53,8 +52,9 @@ struct Layer {
 void SnapSettings::Validate() const {
   Require(max_force >= 0 && std::isfinite(max_force),
           "SnapSettings.max_force = " + std::to_string(max_force) + ": must be finite and >= 0");
-  Require(PositiveFinite(vertex_radius),
-          "SnapSettings.vertex_radius = " + std::to_string(vertex_radius) + ": must be finite and > 0");
+  Require(
+      PositiveFinite(vertex_radius),
+      "SnapSettings.vertex_radius = " + std::to_string(vertex_radius) + ": must be finite and > 0");
   Require(PositiveFinite(edge_radius),
           "SnapSettings.edge_radius = " + std::to_string(edge_radius) + ": must be finite and > 0");
   Require(PositiveFinite(face_radius),
@@ -90,7 +90,8 @@ SnapField::SnapField(const SnapFeatures& features, const SnapSettings& settings)
     Face face;
     if (in.polygon_W.empty()) {
       const double n = in.normal_W.norm();
-      Require(in.point_W.allFinite() && n > 0 && std::isfinite(n), name + ": point or normal not finite, or zero normal");
+      Require(in.point_W.allFinite() && n > 0 && std::isfinite(n),
+              name + ": point or normal not finite, or zero normal");
       face.origin = in.point_W;
       face.normal = in.normal_W / n;
     } else {
@@ -162,7 +163,8 @@ ToolWrench SnapField::Evaluate(const ToolKinematics& tool) noexcept {
     vertex.Add(x, vertices_[i], s.vertex_radius, s.max_force, i);
   }
   for (int i = 0; i < static_cast<int>(edges_.size()); ++i) {
-    edge.Add(x, ClosestOnSegment(edges_[i].first, edges_[i].second, x), s.edge_radius, s.max_force, i);
+    edge.Add(x, ClosestOnSegment(edges_[i].first, edges_[i].second, x), s.edge_radius, s.max_force,
+             i);
   }
   for (int i = 0; i < static_cast<int>(faces_.size()); ++i) {
     face.Add(x, ClosestOnFace(i, x), s.face_radius, s.max_force, i);
@@ -178,9 +180,9 @@ ToolWrench SnapField::Evaluate(const ToolKinematics& tool) noexcept {
   } else if (face.index >= 0) {
     target = {SnapKind::kFace, face.index};
   }
-  snapped_.store(static_cast<std::int64_t>(target.kind) |
-                     (static_cast<std::int64_t>(target.index + 1) << 8),
-                 std::memory_order_release);
+  snapped_.store(
+      static_cast<std::int64_t>(target.kind) | (static_cast<std::int64_t>(target.index + 1) << 8),
+      std::memory_order_release);
   return w;
 }
 

@@ -109,9 +109,9 @@ Trajectory Trajectory::Parse(std::istream& in, const std::string& source) {
     Eigen::Quaterniond q(v[4], v[5], v[6], v[7]);
     const double norm = q.norm();
     if (std::abs(norm - 1.0) > 1e-3) {
-      Fail(source, line, "qw", "quaternion (" + Format(v[4]) + "," + Format(v[5]) + "," +
-                                   Format(v[6]) + "," + Format(v[7]) + ") has norm " +
-                                   Format(norm) + ", expected 1");
+      Fail(source, line, "qw",
+           "quaternion (" + Format(v[4]) + "," + Format(v[5]) + "," + Format(v[6]) + "," +
+               Format(v[7]) + ") has norm " + Format(norm) + ", expected 1");
     }
     s.q_DT = q.normalized();
     if (!(v[8] > 0 && v[8] < M_PI)) {
@@ -238,8 +238,8 @@ Trajectory Twist(const Eigen::Vector3d& center, const Eigen::Vector3d& axis, dou
   return tr;
 }
 
-Trajectory Squeeze(const Eigen::Vector3d& center, double grasp_min, double cycles,
-                   double duration, double rate) {
+Trajectory Squeeze(const Eigen::Vector3d& center, double grasp_min, double cycles, double duration,
+                   double rate) {
   CheckGenerator(duration, rate);
   if (!(grasp_min > 0 && grasp_min < M_PI)) {
     throw std::invalid_argument("Squeeze: grasp_min " + Format(grasp_min) +

@@ -52,9 +52,9 @@ DeviceStatus UsbSpidarG::Open() noexcept {
     const char* hint = opened == TransportResult::kNoAccess
                            ? " (permission denied: install assets/udev/99-spidarcad.rules)"
                            : "";
-    std::snprintf(error_, sizeof(error_), "cannot open SPIDAR-G board %04x:%04x: %s%s%s",
-                  kVendorId, kProductId, TransportResultName(opened),
-                  transport_->last_error()[0] ? ": " : "", transport_->last_error());
+    std::snprintf(error_, sizeof(error_), "cannot open SPIDAR-G board %04x:%04x: %s%s%s", kVendorId,
+                  kProductId, TransportResultName(opened), transport_->last_error()[0] ? ": " : "",
+                  transport_->last_error());
     const std::size_t used = std::strlen(error_);
     std::snprintf(error_ + used, sizeof(error_) - used, "%s", hint);
     return status_;
@@ -70,8 +70,8 @@ DeviceStatus UsbSpidarG::Open() noexcept {
     // Skip States of a previous session until the reply (or a few tries).
     for (int k = 0; k < 4; ++k) {
       std::size_t n = 0;
-      const TransportResult got = transport_->Receive(buffer_.data(), buffer_.size(), &n,
-                                                      config_.handshake_timeout_ms);
+      const TransportResult got =
+          transport_->Receive(buffer_.data(), buffer_.size(), &n, config_.handshake_timeout_ms);
       if (got != TransportResult::kOk) break;
       HelloReplyPacket reply;
       const DecodeResult d = Decode(buffer_.data(), n, &reply);

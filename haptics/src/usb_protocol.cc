@@ -50,9 +50,7 @@ std::uint8_t* Begin(PacketType type, std::uint32_t sequence, Packet* out) noexce
   return p;
 }
 
-void Seal(Packet* out) noexcept {
-  Put16(out->data() + kCrcOffset, Crc16(out->data(), kCrcOffset));
-}
+void Seal(Packet* out) noexcept { Put16(out->data() + kCrcOffset, Crc16(out->data(), kCrcOffset)); }
 
 DecodeResult Check(const std::uint8_t* data, std::size_t size, PacketType want) noexcept {
   PacketType type{};
@@ -65,12 +63,18 @@ DecodeResult Check(const std::uint8_t* data, std::size_t size, PacketType want) 
 
 const char* DecodeResultName(DecodeResult result) noexcept {
   switch (result) {
-    case DecodeResult::kOk: return "ok";
-    case DecodeResult::kWrongLength: return "wrong_length";
-    case DecodeResult::kBadMagic: return "bad_magic";
-    case DecodeResult::kBadChecksum: return "bad_checksum";
-    case DecodeResult::kWrongVersion: return "wrong_version";
-    case DecodeResult::kWrongType: return "wrong_type";
+    case DecodeResult::kOk:
+      return "ok";
+    case DecodeResult::kWrongLength:
+      return "wrong_length";
+    case DecodeResult::kBadMagic:
+      return "bad_magic";
+    case DecodeResult::kBadChecksum:
+      return "bad_checksum";
+    case DecodeResult::kWrongVersion:
+      return "wrong_version";
+    case DecodeResult::kWrongType:
+      return "wrong_type";
   }
   return "unknown";
 }

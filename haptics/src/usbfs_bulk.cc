@@ -11,7 +11,8 @@ namespace spidarcad::haptics::usb::detail {
 
 TransportResult TransportResultFromErrno(int error_number) noexcept {
   switch (error_number) {
-    case 0: return TransportResult::kOk;
+    case 0:
+      return TransportResult::kOk;
     case ETIMEDOUT:
     case EINTR:  // a signal cut the wait short: nothing moved, try again next tick
       return TransportResult::kTimeout;
@@ -19,34 +20,50 @@ TransportResult TransportResultFromErrno(int error_number) noexcept {
     case ESHUTDOWN:  // its host controller or port was shut down
     case ENOENT:     // the transfer was killed because the device went away
       return TransportResult::kDisconnected;
-    default: return TransportResult::kError;
+    default:
+      return TransportResult::kError;
   }
 }
 
 const char* UsbfsErrnoName(int error_number) noexcept {
   switch (error_number) {
-    case ETIMEDOUT: return "ETIMEDOUT (timed out)";
-    case ENODEV: return "ENODEV (device unplugged)";
-    case ESHUTDOWN: return "ESHUTDOWN (host controller or port shut down)";
-    case ENOENT: return "ENOENT (transfer killed, device gone)";
-    case EPIPE: return "EPIPE (endpoint stalled)";
-    case EPROTO: return "EPROTO (USB protocol error)";
-    case EILSEQ: return "EILSEQ (CRC or bit-stuffing error)";
-    case EOVERFLOW: return "EOVERFLOW (device sent more than the buffer holds)";
-    case ENOTTY: return "ENOTTY (not a usbfs device node)";
-    case EBADF: return "EBADF (bad file descriptor)";
-    case EINVAL: return "EINVAL (invalid endpoint or length)";
-    case ENOMEM: return "ENOMEM (usbfs memory limit)";
-    case EINTR: return "EINTR (interrupted)";
-    case EACCES: return "EACCES (permission denied)";
-    case EPERM: return "EPERM (operation not permitted)";
-    default: return nullptr;
+    case ETIMEDOUT:
+      return "ETIMEDOUT (timed out)";
+    case ENODEV:
+      return "ENODEV (device unplugged)";
+    case ESHUTDOWN:
+      return "ESHUTDOWN (host controller or port shut down)";
+    case ENOENT:
+      return "ENOENT (transfer killed, device gone)";
+    case EPIPE:
+      return "EPIPE (endpoint stalled)";
+    case EPROTO:
+      return "EPROTO (USB protocol error)";
+    case EILSEQ:
+      return "EILSEQ (CRC or bit-stuffing error)";
+    case EOVERFLOW:
+      return "EOVERFLOW (device sent more than the buffer holds)";
+    case ENOTTY:
+      return "ENOTTY (not a usbfs device node)";
+    case EBADF:
+      return "EBADF (bad file descriptor)";
+    case EINVAL:
+      return "EINVAL (invalid endpoint or length)";
+    case ENOMEM:
+      return "ENOMEM (usbfs memory limit)";
+    case EINTR:
+      return "EINTR (interrupted)";
+    case EACCES:
+      return "EACCES (permission denied)";
+    case EPERM:
+      return "EPERM (operation not permitted)";
+    default:
+      return nullptr;
   }
 }
 
 TransportResult UsbfsBulk(int fd, unsigned char endpoint, std::uint8_t* data, std::size_t length,
-                          int timeout_ms, std::size_t* transferred,
-                          int* error_number) noexcept {
+                          int timeout_ms, std::size_t* transferred, int* error_number) noexcept {
   *transferred = 0;
   *error_number = 0;
   if (length > static_cast<std::size_t>(UINT_MAX)) {

@@ -1,14 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/workspace.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-
-#include <Eigen/Geometry>
-#include <Eigen/SVD>
 
 #include "spidarcad/haptics/tension.h"
 
@@ -75,8 +74,8 @@ DeliverableWrench MaxWrenchAlong(const Matrix78d& A, const Vector7d& e, double t
 
 void WorkspaceSweepSettings::Validate() const {
   auto fail = [](const std::string& field, double v, const std::string& rule) {
-    throw std::invalid_argument("WorkspaceSweepSettings: field '" + field + "' " + rule +
-                                ", got " + std::to_string(v));
+    throw std::invalid_argument("WorkspaceSweepSettings: field '" + field + "' " + rule + ", got " +
+                                std::to_string(v));
   };
   if (!std::isfinite(step) || step <= 0) fail("step", step, "must be a positive length in m");
   if (!std::isfinite(angle_step_deg) || angle_step_deg <= 0) {
@@ -163,8 +162,7 @@ std::vector<WorkspaceSample> SweepWorkspace(const SpidarGeometry& geometry,
         const Eigen::Matrix3d R =
             Eigen::AngleAxisd(sign * angle_deg * M_PI / 180.0, Eigen::Vector3d::Unit(axis))
                 .toRotationMatrix();
-        const GripPose pose =
-            GripPose::FromFrame(Eigen::Vector3d::Zero(), R, M_PI / 2, geometry.d);
+        const GripPose pose = GripPose::FromFrame(Eigen::Vector3d::Zero(), R, M_PI / 2, geometry.d);
         if (!AttachmentsInside(geometry, pose)) break;
         const Matrix78d A = WrenchMatrix(geometry, pose);
         WorkspaceSample sample;

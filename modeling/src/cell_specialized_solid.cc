@@ -20,7 +20,8 @@ constexpr int kBlock = 4;
 
 std::string Describe(const Eigen::AlignedBox3d& box) {
   auto v = [](const Eigen::Vector3d& p) {
-    return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) + ")";
+    return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " +
+           std::to_string(p.z()) + ")";
   };
   return "[" + v(box.min()) + ", " + v(box.max()) + "]";
 }
@@ -34,15 +35,16 @@ CellSpecializedSolid::CellSpecializedSolid(std::shared_ptr<const CompiledSolid> 
   const auto start = std::chrono::steady_clock::now();
   if (solid_ == nullptr) throw std::invalid_argument("CellSpecializedSolid: the solid is null");
   if (region.isEmpty() || !region.min().allFinite() || !region.max().allFinite()) {
-    throw std::invalid_argument("CellSpecializedSolid: the region " + Describe(region) + " is empty or not finite");
+    throw std::invalid_argument("CellSpecializedSolid: the region " + Describe(region) +
+                                " is empty or not finite");
   }
   if (!(settings.cell_size > 0) || !std::isfinite(settings.cell_size)) {
-    throw std::invalid_argument("CellSpecializedSolid: cell_size = " + std::to_string(settings.cell_size) +
-                                " must be finite and > 0");
+    throw std::invalid_argument("CellSpecializedSolid: cell_size = " +
+                                std::to_string(settings.cell_size) + " must be finite and > 0");
   }
   if (settings.max_cells <= 0) {
-    throw std::invalid_argument("CellSpecializedSolid: max_cells = " + std::to_string(settings.max_cells) +
-                                " must be > 0");
+    throw std::invalid_argument(
+        "CellSpecializedSolid: max_cells = " + std::to_string(settings.max_cells) + " must be > 0");
   }
   const Eigen::Vector3d extent = region.max() - region.min();
   double h = settings.cell_size;
@@ -63,8 +65,10 @@ CellSpecializedSolid::CellSpecializedSolid(std::shared_ptr<const CompiledSolid> 
   // (p − origin)/h) lies inside the box the tape was specialized for.
   const double pad = 1e-6 * h + 1e-12;
   auto box_of = [&](int x0, int y0, int z0, int x1, int y1, int z1) {
-    const Eigen::Vector3d lo = origin_ + h * Eigen::Vector3d(x0, y0, z0) - Eigen::Vector3d::Constant(pad);
-    const Eigen::Vector3d hi = origin_ + h * Eigen::Vector3d(x1, y1, z1) + Eigen::Vector3d::Constant(pad);
+    const Eigen::Vector3d lo =
+        origin_ + h * Eigen::Vector3d(x0, y0, z0) - Eigen::Vector3d::Constant(pad);
+    const Eigen::Vector3d hi =
+        origin_ + h * Eigen::Vector3d(x1, y1, z1) + Eigen::Vector3d::Constant(pad);
     return Eigen::AlignedBox3d(lo, hi);
   };
   std::unordered_multimap<std::uint64_t, std::uint32_t> index;
@@ -73,7 +77,8 @@ CellSpecializedSolid::CellSpecializedSolid(std::shared_ptr<const CompiledSolid> 
   for (int bz = 0; bz < nz_; bz += kBlock) {
     for (int by = 0; by < ny_; by += kBlock) {
       for (int bx = 0; bx < nx_; bx += kBlock) {
-        const int ex = std::min(bx + kBlock, nx_), ey = std::min(by + kBlock, ny_), ez = std::min(bz + kBlock, nz_);
+        const int ex = std::min(bx + kBlock, nx_), ey = std::min(by + kBlock, ny_),
+                  ez = std::min(bz + kBlock, nz_);
         const CompiledSolid block = solid_->Specialize(box_of(bx, by, bz, ex, ey, ez));
         for (int z = bz; z < ez; ++z) {
           for (int y = by; y < ey; ++y) {
@@ -108,7 +113,8 @@ CellSpecializedSolid::CellSpecializedSolid(std::shared_ptr<const CompiledSolid> 
   stats_.mean_instructions = instruction_sum / static_cast<double>(cells);
   stats_.full_instructions = full;
   stats_.cell_size = h;
-  stats_.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stats_.build_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 const CompiledSolid& CellSpecializedSolid::TapeAt(const Eigen::Vector3d& p) const noexcept {
@@ -117,10 +123,10 @@ const CompiledSolid& CellSpecializedSolid::TapeAt(const Eigen::Vector3d& p) cons
   const double fz = (p.z() - origin_.z()) * inverse_cell_;
   // Negated comparisons also send NaN to the full tape.
   if (!(fx >= 0.0 && fx < nx_ && fy >= 0.0 && fy < ny_ && fz >= 0.0 && fz < nz_)) return *solid_;
-  const std::size_t cell =
-      (static_cast<std::size_t>(fz) * static_cast<std::size_t>(ny_) + static_cast<std::size_t>(fy)) *
-          static_cast<std::size_t>(nx_) +
-      static_cast<std::size_t>(fx);
+  const std::size_t cell = (static_cast<std::size_t>(fz) * static_cast<std::size_t>(ny_) +
+                            static_cast<std::size_t>(fy)) *
+                               static_cast<std::size_t>(nx_) +
+                           static_cast<std::size_t>(fx);
   const std::uint32_t k = cell_tape_[cell];
   return k == 0 ? *solid_ : tapes_[k - 1];
 }

@@ -3,6 +3,18 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/cgal_mesher.h"
 
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Labeled_mesh_domain_3.h>
+#include <CGAL/Mesh_complex_3_in_triangulation_3.h>
+#include <CGAL/Mesh_criteria_3.h>
+#include <CGAL/Mesh_triangulation_3.h>
+#include <CGAL/Random.h>
+#include <CGAL/exude_mesh_3.h>
+#include <CGAL/lloyd_optimize_mesh_3.h>
+#include <CGAL/make_mesh_3.h>
+#include <CGAL/odt_optimize_mesh_3.h>
+#include <CGAL/perturb_mesh_3.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -15,18 +27,6 @@
 #include <unordered_set>
 #include <utility>
 #include <vector>
-
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Labeled_mesh_domain_3.h>
-#include <CGAL/Mesh_complex_3_in_triangulation_3.h>
-#include <CGAL/Mesh_criteria_3.h>
-#include <CGAL/Mesh_triangulation_3.h>
-#include <CGAL/Random.h>
-#include <CGAL/exude_mesh_3.h>
-#include <CGAL/lloyd_optimize_mesh_3.h>
-#include <CGAL/make_mesh_3.h>
-#include <CGAL/odt_optimize_mesh_3.h>
-#include <CGAL/perturb_mesh_3.h>
 
 namespace spidarcad::modeling {
 
@@ -42,7 +42,9 @@ using Point = Kernel::Point_3;
 
 using Clock = std::chrono::steady_clock;
 
-double Since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+double Since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 std::string Fmt(double v) {
   char buffer[64];
@@ -50,33 +52,45 @@ std::string Fmt(double v) {
   return buffer;
 }
 
-std::string FmtPoint(const Eigen::Vector3d& p) { return "(" + Fmt(p.x()) + ", " + Fmt(p.y()) + ", " + Fmt(p.z()) + ")"; }
+std::string FmtPoint(const Eigen::Vector3d& p) {
+  return "(" + Fmt(p.x()) + ", " + Fmt(p.y()) + ", " + Fmt(p.z()) + ")";
+}
 
-std::string FmtBox(const Eigen::AlignedBox3d& b) { return FmtPoint(b.min()) + " .. " + FmtPoint(b.max()); }
+std::string FmtBox(const Eigen::AlignedBox3d& b) {
+  return FmtPoint(b.min()) + " .. " + FmtPoint(b.max());
+}
 
 void CheckSettings(const Eigen::AlignedBox3d& bounds, const CgalMeshSettings& s) {
   auto bad = [](const std::string& what) { throw CgalMeshError("CGAL mesher settings: " + what); };
   if (bounds.isEmpty() || !bounds.min().allFinite() || !bounds.max().allFinite() ||
       (bounds.sizes().array() <= 0.0).any()) {
-    bad("bounds " + FmtBox(bounds) + " are empty or not finite; give the solid's box (e.g. FindBounds) padded by a facet_size");
+    bad("bounds " + FmtBox(bounds) +
+        " are empty or not finite; give the solid's box (e.g. FindBounds) padded by a facet_size");
   }
   if (!(s.facet_angle_deg > 0.0 && s.facet_angle_deg <= 30.0)) {
-    bad("facet_angle_deg must be in (0, 30] (termination is guaranteed up to 30), got " + Fmt(s.facet_angle_deg));
+    bad("facet_angle_deg must be in (0, 30] (termination is guaranteed up to 30), got " +
+        Fmt(s.facet_angle_deg));
   }
-  if (!(s.facet_size > 0.0) || !std::isfinite(s.facet_size)) bad("facet_size must be > 0 m, got " + Fmt(s.facet_size));
+  if (!(s.facet_size > 0.0) || !std::isfinite(s.facet_size))
+    bad("facet_size must be > 0 m, got " + Fmt(s.facet_size));
   if (!(s.facet_distance > 0.0) || !std::isfinite(s.facet_distance)) {
     bad("facet_distance must be > 0 m, got " + Fmt(s.facet_distance));
   }
   if (!(s.cell_radius_edge_ratio > 1.0) || !std::isfinite(s.cell_radius_edge_ratio)) {
-    bad("cell_radius_edge_ratio must be > 1 (2 to 3 is usual), got " + Fmt(s.cell_radius_edge_ratio));
+    bad("cell_radius_edge_ratio must be > 1 (2 to 3 is usual), got " +
+        Fmt(s.cell_radius_edge_ratio));
   }
-  if (!(s.cell_size >= 0.0) || !std::isfinite(s.cell_size)) bad("cell_size must be >= 0 m (0: unbounded), got " + Fmt(s.cell_size));
-  if (!(s.optimizer_time_limit >= 0.0)) bad("optimizer_time_limit must be >= 0 s, got " + Fmt(s.optimizer_time_limit));
+  if (!(s.cell_size >= 0.0) || !std::isfinite(s.cell_size))
+    bad("cell_size must be >= 0 m (0: unbounded), got " + Fmt(s.cell_size));
+  if (!(s.optimizer_time_limit >= 0.0))
+    bad("optimizer_time_limit must be >= 0 s, got " + Fmt(s.optimizer_time_limit));
   if (!(s.sliver_bound_deg >= 0.0 && s.sliver_bound_deg < 70.0)) {
     bad("sliver_bound_deg must be in [0, 70) degrees, got " + Fmt(s.sliver_bound_deg));
   }
-  if (!(s.exude_time_limit >= 0.0)) bad("exude_time_limit must be >= 0 s, got " + Fmt(s.exude_time_limit));
-  if (s.smoothing_iterations < 1) bad("smoothing_iterations must be >= 1, got " + std::to_string(s.smoothing_iterations));
+  if (!(s.exude_time_limit >= 0.0))
+    bad("exude_time_limit must be >= 0 s, got " + Fmt(s.exude_time_limit));
+  if (s.smoothing_iterations < 1)
+    bad("smoothing_iterations must be >= 1, got " + std::to_string(s.smoothing_iterations));
   if (s.max_vertices < 4) bad("max_vertices must be >= 4, got " + std::to_string(s.max_vertices));
   if (!(s.relative_error_bound > 0.0 && s.relative_error_bound < 0.1)) {
     bad("relative_error_bound must be in (0, 0.1), got " + Fmt(s.relative_error_bound));
@@ -91,15 +105,20 @@ void CheckSettings(const Eigen::AlignedBox3d& bounds, const CgalMeshSettings& s)
 // that the solid is present in the box and does not reach its faces.
 constexpr int kMaxSeedCells = 64;
 
-std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& solid, const Domain& domain,
-                                                        const Eigen::AlignedBox3d& bounds, const CgalMeshSettings& s) {
+std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& solid,
+                                                        const Domain& domain,
+                                                        const Eigen::AlignedBox3d& bounds,
+                                                        const CgalMeshSettings& s) {
   const Eigen::Vector3d lo = bounds.min(), size = bounds.sizes();
   const double spacing = std::max(s.facet_size, size.maxCoeff() / kMaxSeedCells);
   Eigen::Vector3i n;
-  for (int a = 0; a < 3; ++a) n[a] = std::clamp(static_cast<int>(std::ceil(size[a] / spacing)), 1, kMaxSeedCells);
+  for (int a = 0; a < 3; ++a)
+    n[a] = std::clamp(static_cast<int>(std::ceil(size[a] / spacing)), 1, kMaxSeedCells);
   const Eigen::Vector3d step = size.cwiseQuotient(n.cast<double>());
   const Eigen::Vector3i m = n.array() + 1;
-  auto node = [&](int i, int j, int k) -> Eigen::Vector3d { return lo + Eigen::Vector3d(i * step.x(), j * step.y(), k * step.z()); };
+  auto node = [&](int i, int j, int k) -> Eigen::Vector3d {
+    return lo + Eigen::Vector3d(i * step.x(), j * step.y(), k * step.z());
+  };
   auto id = [&](int i, int j, int k) { return (static_cast<long>(k) * m.y() + j) * m.x() + i; };
 
   std::vector<double> values(static_cast<size_t>(m.prod()));
@@ -116,17 +135,20 @@ std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& sol
         if (v < min_value) min_value = v, min_at = p;
         const bool on_face = i == 0 || j == 0 || k == 0 || i == n.x() || j == n.y() || k == n.z();
         if (on_face && v < 0.0) {
-          throw CgalMeshError("CGAL mesher: the solid reaches the face of the box " + FmtBox(bounds) + " at " +
-                              FmtPoint(p) + " (value " + Fmt(v) +
-                              " m): enlarge the bounds so that the solid lies strictly inside (pad by a facet_size)");
+          throw CgalMeshError("CGAL mesher: the solid reaches the face of the box " +
+                              FmtBox(bounds) + " at " + FmtPoint(p) + " (value " + Fmt(v) +
+                              " m): enlarge the bounds so that the solid lies strictly inside (pad "
+                              "by a facet_size)");
         }
       }
     }
   }
   if (inside == 0) {
-    throw CgalMeshError("CGAL mesher: the solid is empty in the box " + FmtBox(bounds) + " (no grid point of spacing " +
-                        Fmt(spacing) + " m inside; smallest value " + Fmt(min_value) + " m at " + FmtPoint(min_at) +
-                        "): move or enlarge the bounds, or use a facet_size below the solid's thickness");
+    throw CgalMeshError(
+        "CGAL mesher: the solid is empty in the box " + FmtBox(bounds) +
+        " (no grid point of spacing " + Fmt(spacing) + " m inside; smallest value " +
+        Fmt(min_value) + " m at " + FmtPoint(min_at) +
+        "): move or enlarge the bounds, or use a facet_size below the solid's thickness");
   }
 
   std::vector<std::pair<Point, Domain::Index>> seeds;
@@ -139,7 +161,8 @@ std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& sol
   std::unordered_map<std::array<long, 3>, std::vector<Eigen::Vector3d>, KeyHash> accepted;
   auto key = [&](const Eigen::Vector3d& p) {
     const Eigen::Vector3d q = (p - lo) / cell;
-    return std::array<long, 3>{static_cast<long>(std::floor(q.x())), static_cast<long>(std::floor(q.y())),
+    return std::array<long, 3>{static_cast<long>(std::floor(q.x())),
+                               static_cast<long>(std::floor(q.y())),
                                static_cast<long>(std::floor(q.z()))};
   };
   auto far_enough = [&](const Eigen::Vector3d& p) {
@@ -158,7 +181,8 @@ std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& sol
     return true;
   };
   const auto intersect = domain.construct_intersection_object();
-  const std::array<Eigen::Vector3i, 3> axes = {Eigen::Vector3i(1, 0, 0), Eigen::Vector3i(0, 1, 0), Eigen::Vector3i(0, 0, 1)};
+  const std::array<Eigen::Vector3i, 3> axes = {Eigen::Vector3i(1, 0, 0), Eigen::Vector3i(0, 1, 0),
+                                               Eigen::Vector3i(0, 0, 1)};
   for (int k = 0; k < m.z(); ++k) {
     for (int j = 0; j < m.y(); ++j) {
       for (int i = 0; i < m.x(); ++i) {
@@ -169,7 +193,8 @@ std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& sol
           const double v1 = values[id(i1, j1, k1)];
           if ((v0 < 0.0) == (v1 < 0.0)) continue;
           const Eigen::Vector3d a = node(i, j, k), b = node(i1, j1, k1);
-          const auto hit = intersect(Kernel::Segment_3(Point(a.x(), a.y(), a.z()), Point(b.x(), b.y(), b.z())));
+          const auto hit =
+              intersect(Kernel::Segment_3(Point(a.x(), a.y(), a.z()), Point(b.x(), b.y(), b.z())));
           if (std::get<2>(hit) == 0) continue;
           const Point& p = std::get<0>(hit);
           const Eigen::Vector3d q(p.x(), p.y(), p.z());
@@ -181,8 +206,9 @@ std::vector<std::pair<Point, Domain::Index>> SeedPoints(const CompiledSolid& sol
     }
   }
   if (seeds.empty()) {
-    throw CgalMeshError("CGAL mesher: no surface found in the box " + FmtBox(bounds) + " on a grid of spacing " +
-                        Fmt(spacing) + " m: the box lies wholly inside the solid? enlarge the bounds");
+    throw CgalMeshError("CGAL mesher: no surface found in the box " + FmtBox(bounds) +
+                        " on a grid of spacing " + Fmt(spacing) +
+                        " m: the box lies wholly inside the solid? enlarge the bounds");
   }
   return seeds;
 }
@@ -211,7 +237,8 @@ Eigen::VectorXi ComponentRegions(const Eigen::Matrix4Xi& tets) {
   Eigen::VectorXi regions(count);
   std::map<int, int> number;
   for (Eigen::Index t = 0; t < count; ++t) {
-    const auto [it, inserted] = number.emplace(find(static_cast<int>(t)), static_cast<int>(number.size()) + 1);
+    const auto [it, inserted] =
+        number.emplace(find(static_cast<int>(t)), static_cast<int>(number.size()) + 1);
     regions[t] = it->second;
   }
   return regions;
@@ -256,7 +283,8 @@ void PollCancel(const CgalMeshSettings& s) {
   if (s.cancel != nullptr && s.cancel->load(std::memory_order_relaxed)) throw CgalMeshCancelled();
 }
 
-TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const CgalMeshSettings& s, CgalMeshStats& stats) {
+TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds,
+            const CgalMeshSettings& s, CgalMeshStats& stats) {
   namespace params = CGAL::parameters;
   const auto start = Clock::now();
   CGAL::get_default_random() = CGAL::Random(s.seed);
@@ -265,12 +293,14 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
   PollCancel(s);
 
   if (solid.Classify(bounds) == BoxClass::kOutside) {
-    throw CgalMeshError("CGAL mesher: the solid is empty in the box " + FmtBox(bounds) +
-                        " (its interval bounds are > 0 on the whole box): move or enlarge the bounds");
+    throw CgalMeshError(
+        "CGAL mesher: the solid is empty in the box " + FmtBox(bounds) +
+        " (its interval bounds are > 0 on the whole box): move or enlarge the bounds");
   }
   if (solid.Classify(bounds) == BoxClass::kInside) {
-    throw CgalMeshError("CGAL mesher: the box " + FmtBox(bounds) +
-                        " lies wholly inside the solid: enlarge the bounds to contain the whole solid");
+    throw CgalMeshError(
+        "CGAL mesher: the box " + FmtBox(bounds) +
+        " lies wholly inside the solid: enlarge the bounds to contain the whole solid");
   }
 
   // The labeling function: subdomain 1 inside (value < 0), 0 outside. CompiledSolid::Value is
@@ -278,9 +308,10 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
   const std::function<int(const Point&)> label = [&solid](const Point& p) {
     return solid.Value(Eigen::Vector3d(p.x(), p.y(), p.z())) < 0.0 ? 1 : 0;
   };
-  const CGAL::Bbox_3 bbox(bounds.min().x(), bounds.min().y(), bounds.min().z(), bounds.max().x(), bounds.max().y(),
-                          bounds.max().z());
-  const Domain domain(label, bbox, s.relative_error_bound, CGAL::Null_subdomain_index(), &domain_random);
+  const CGAL::Bbox_3 bbox(bounds.min().x(), bounds.min().y(), bounds.min().z(), bounds.max().x(),
+                          bounds.max().y(), bounds.max().z());
+  const Domain domain(label, bbox, s.relative_error_bound, CGAL::Null_subdomain_index(),
+                      &domain_random);
 
   auto phase_start = Clock::now();
   const auto seeds = SeedPoints(solid, domain, bounds, s);
@@ -295,9 +326,10 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
     c3t3.set_index(v, index);
   }
   if (c3t3.triangulation().dimension() < 3) {
-    throw CgalMeshError("CGAL mesher: the " + std::to_string(seeds.size()) +
-                        " surface points found are coplanar; the solid is too thin or too small for facet_size " +
-                        Fmt(s.facet_size) + " m: reduce facet_size");
+    throw CgalMeshError(
+        "CGAL mesher: the " + std::to_string(seeds.size()) +
+        " surface points found are coplanar; the solid is too thin or too small for facet_size " +
+        Fmt(s.facet_size) + " m: reduce facet_size");
   }
   stats.seed_seconds = Since(phase_start);
   Report(s, 0.05);
@@ -306,7 +338,8 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
   phase_start = Clock::now();
   Criteria criteria(params::facet_angle = s.facet_angle_deg, params::facet_size = s.facet_size,
                     params::facet_distance = s.facet_distance,
-                    params::cell_radius_edge_ratio = s.cell_radius_edge_ratio, params::cell_size = s.cell_size);
+                    params::cell_radius_edge_ratio = s.cell_radius_edge_ratio,
+                    params::cell_size = s.cell_size);
   {
     Mesher mesher(c3t3, domain, criteria);
     mesher.initialize();
@@ -320,9 +353,10 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
       if ((steps & 255) == 0) {
         const long vertices = static_cast<long>(c3t3.triangulation().number_of_vertices());
         if (vertices > s.max_vertices) {
-          throw CgalMeshError("CGAL mesher: more than max_vertices = " + std::to_string(s.max_vertices) +
-                              " vertices; facet_size " + Fmt(s.facet_size) + " m / cell_size " + Fmt(s.cell_size) +
-                              " m are too small for the box " + FmtBox(bounds) + ": increase them");
+          throw CgalMeshError(
+              "CGAL mesher: more than max_vertices = " + std::to_string(s.max_vertices) +
+              " vertices; facet_size " + Fmt(s.facet_size) + " m / cell_size " + Fmt(s.cell_size) +
+              " m are too small for the box " + FmtBox(bounds) + ": increase them");
         }
         // Progress: a monotone estimate (the final size is unknown in advance).
         Report(s, 0.05 + 0.65 * (1.0 - 1.0 / (1.0 + steps / 5000.0)));
@@ -332,8 +366,10 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
   }
   stats.refine_seconds = Since(phase_start);
   if (c3t3.number_of_cells_in_complex() == 0) {
-    throw CgalMeshError("CGAL mesher: refinement gave no tetrahedra inside the solid; it is thinner than facet_size " +
-                        Fmt(s.facet_size) + " m or smaller than the seeds found: reduce facet_size and cell_size");
+    throw CgalMeshError(
+        "CGAL mesher: refinement gave no tetrahedra inside the solid; it is thinner than "
+        "facet_size " +
+        Fmt(s.facet_size) + " m or smaller than the seeds found: reduce facet_size and cell_size");
   }
   Report(s, 0.7);
 
@@ -364,7 +400,8 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
   }
   if (s.exude) {
     PollCancel(s);
-    CGAL::exude_mesh_3(c3t3, params::time_limit = s.exude_time_limit, params::sliver_bound = s.sliver_bound_deg);
+    CGAL::exude_mesh_3(c3t3, params::time_limit = s.exude_time_limit,
+                       params::sliver_bound = s.sliver_bound_deg);
     next();
   }
   PollCancel(s);
@@ -372,7 +409,8 @@ TetMesh Run(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, const
 
   TetMesh mesh = ToTetMesh(c3t3);
   if (mesh.tets.cols() == 0) {
-    throw CgalMeshError("CGAL mesher: the optimised mesh has no tetrahedra: reduce facet_size and cell_size");
+    throw CgalMeshError(
+        "CGAL mesher: the optimised mesh has no tetrahedra: reduce facet_size and cell_size");
   }
   stats.boundary_facets = static_cast<long>(c3t3.number_of_facets_in_complex());
   stats.vertices = mesh.nodes.cols();
@@ -408,7 +446,8 @@ TetMesh MeshImplicitWithCgal(const CompiledSolid& solid, const Eigen::AlignedBox
     throw CgalMeshError("CGAL mesher: out of memory; increase facet_size and cell_size");
   } catch (const std::exception& e) {
     throw CgalMeshError(std::string("CGAL Mesh_3 failed: ") + e.what() +
-                        " (try other facet_size / cell_size, or check that the solid is closed and inside the bounds)");
+                        " (try other facet_size / cell_size, or check that the solid is closed and "
+                        "inside the bounds)");
   }
 }
 
@@ -416,10 +455,12 @@ TriangleMesh BoundarySurface(const TetMesh& mesh) {
   // Outward faces of a positive tet (0, 1, 2, 3): the face opposite corner c, listed so that its
   // right-hand normal points away from c.
   static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;  // sorted -> (count, oriented)
+  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>>
+      faces;  // sorted -> (count, oriented)
   for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) {
     for (const auto& f : kFaces) {
-      const std::array<int, 3> oriented = {mesh.tets(f[0], t), mesh.tets(f[1], t), mesh.tets(f[2], t)};
+      const std::array<int, 3> oriented = {mesh.tets(f[0], t), mesh.tets(f[1], t),
+                                           mesh.tets(f[2], t)};
       std::array<int, 3> sorted = oriented;
       std::sort(sorted.begin(), sorted.end());
       auto [it, inserted] = faces.emplace(sorted, std::make_pair(1, oriented));
@@ -446,7 +487,8 @@ TriangleMesh BoundarySurface(const TetMesh& mesh) {
   Eigen::Index c = 0;
   for (const auto& [key, value] : faces) {
     if (value.first != 1) continue;
-    surface.triangles.col(c++) << new_index[value.second[0]], new_index[value.second[1]], new_index[value.second[2]];
+    surface.triangles.col(c++) << new_index[value.second[0]], new_index[value.second[1]],
+        new_index[value.second[2]];
   }
   return surface;
 }

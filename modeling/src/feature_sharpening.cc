@@ -1,7 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/feature_sharpening.h"
-#include "triangle_predicates.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
+#include "triangle_predicates.h"
 
 namespace spidarcad::modeling {
 
@@ -49,20 +49,24 @@ struct Deviation {
 };
 
 double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) { return std::atan2(u.cross(w).norm(), u.dot(w)); };
+  auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) {
+    return std::atan2(u.cross(w).norm(), u.dot(w));
+  };
   return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
 }
 
 class Sharpener {
  public:
-  Sharpener(const CompiledSolid& solid, const TriangleMesh& mesh, const FeatureSettings& s) : solid_(solid), s_(s) {
+  Sharpener(const CompiledSolid& solid, const TriangleMesh& mesh, const FeatureSettings& s)
+      : solid_(solid), s_(s) {
     h_ = s.cell_size;
     const Eigen::Index nv = mesh.vertices.cols(), nt = mesh.triangles.cols();
     pos_.resize(nv);
     for (Eigen::Index i = 0; i < nv; ++i) {
       pos_[i] = mesh.vertices.col(i);
       if (!pos_[i].allFinite()) {
-        throw std::invalid_argument("SharpenFeatures: mesh vertex " + std::to_string(i) + " is not finite");
+        throw std::invalid_argument("SharpenFeatures: mesh vertex " + std::to_string(i) +
+                                    " is not finite");
       }
     }
     tris_.resize(nt);
@@ -72,24 +76,30 @@ class Sharpener {
       for (int k = 0; k < 3; ++k) {
         const int v = mesh.triangles(k, t);
         if (v < 0 || v >= nv) {
-          throw std::invalid_argument("SharpenFeatures: triangle " + std::to_string(t) + " corner " + std::to_string(k) +
-                                      ": vertex index " + std::to_string(v) + " out of range [0, " + std::to_string(nv) + ")");
+          throw std::invalid_argument("SharpenFeatures: triangle " + std::to_string(t) +
+                                      " corner " + std::to_string(k) + ": vertex index " +
+                                      std::to_string(v) + " out of range [0, " +
+                                      std::to_string(nv) + ")");
         }
         tris_[t][k] = v;
       }
       for (int k = 0; k < 3; ++k) {
         const int a = tris_[t][k], b = tris_[t][(k + 1) % 3];
-        if (a == b) throw std::invalid_argument("SharpenFeatures: triangle " + std::to_string(t) + " repeats vertex " + std::to_string(a));
+        if (a == b)
+          throw std::invalid_argument("SharpenFeatures: triangle " + std::to_string(t) +
+                                      " repeats vertex " + std::to_string(a));
         if (++directed[{a, b}] > 1) {
-          throw std::invalid_argument("SharpenFeatures: directed edge " + std::to_string(a) + "-" + std::to_string(b) +
-                                      " occurs twice (triangle " + std::to_string(t) + "): mesh not manifold or not oriented");
+          throw std::invalid_argument("SharpenFeatures: directed edge " + std::to_string(a) + "-" +
+                                      std::to_string(b) + " occurs twice (triangle " +
+                                      std::to_string(t) + "): mesh not manifold or not oriented");
         }
         vertex_tris_[a].push_back(static_cast<int>(t));
       }
     }
     for (const auto& [edge, count] : directed) {
       if (directed.find({edge.second, edge.first}) == directed.end()) {
-        throw std::invalid_argument("SharpenFeatures: edge " + std::to_string(edge.first) + "-" + std::to_string(edge.second) +
+        throw std::invalid_argument("SharpenFeatures: edge " + std::to_string(edge.first) + "-" +
+                                    std::to_string(edge.second) +
                                     " has one triangle: the mesh is not closed");
       }
     }
@@ -167,7 +177,8 @@ class Sharpener {
     }
     TriangleMesh out;
     out.vertices.resize(3, static_cast<Eigen::Index>(pos_.size()));
-    for (size_t i = 0; i < pos_.size(); ++i) out.vertices.col(static_cast<Eigen::Index>(i)) = pos_[i];
+    for (size_t i = 0; i < pos_.size(); ++i)
+      out.vertices.col(static_cast<Eigen::Index>(i)) = pos_[i];
     out.triangles.resize(3, static_cast<Eigen::Index>(tris_.size()));
     for (size_t t = 0; t < tris_.size(); ++t) {
       for (int k = 0; k < 3; ++k) out.triangles(k, static_cast<Eigen::Index>(t)) = tris_[t][k];
@@ -200,7 +211,8 @@ class Sharpener {
     return p;
   }
 
-  Deviation TriangleDeviation(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) const {
+  Deviation TriangleDeviation(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                              const Eigen::Vector3d& c) const {
     Deviation d;
     for (const auto& w : kSamples) {
       const double f = std::abs(solid_.Value(w[0] * a + w[1] * b + w[2] * c));
@@ -268,11 +280,13 @@ class Sharpener {
   // Classifies vertex v by its planes; for a feature vertex writes the rank (2 crease, 3 corner)
   // and the target (QEF minimiser nearest to the vertex, projected onto the surface). Returns
   // whether v is a feature vertex with a usable target.
-  bool Solve(int v, const std::vector<Plane>& planes, double cos_crease, int* rank, Eigen::Vector3d* target) const {
+  bool Solve(int v, const std::vector<Plane>& planes, double cos_crease, int* rank,
+             Eigen::Vector3d* target) const {
     if (planes.size() < 2) return false;
     double min_dot = 1.0;
     for (size_t i = 0; i < planes.size(); ++i) {
-      for (size_t j = i + 1; j < planes.size(); ++j) min_dot = std::min(min_dot, planes[i].normal.dot(planes[j].normal));
+      for (size_t j = i + 1; j < planes.size(); ++j)
+        min_dot = std::min(min_dot, planes[i].normal.dot(planes[j].normal));
     }
     if (min_dot >= cos_crease) return false;
     // Normal equations around the vertex: M = Σ n nᵀ, r = Σ n (n·(p_i - x0)).
@@ -308,7 +322,8 @@ class Sharpener {
   // Whether a triangle (a, b, c) with normal n faces the way the surface does: positive dot
   // product with the unit gradient at its centroid projected onto the surface. (The gradients at
   // its corners are no help: on a crease or corner the gradient is that of one face only.)
-  bool FacesOutward(const Eigen::Vector3d& n, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) const {
+  bool FacesOutward(const Eigen::Vector3d& n, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                    const Eigen::Vector3d& c) const {
     return n.dot(UnitGradient(Project((a + b + c) / 3.0, 3))) > 0.0;
   }
 
@@ -320,18 +335,21 @@ class Sharpener {
   bool ChangedTrianglesMeetOthers(const std::vector<int>& changed) {
     nearby_.clear();
     for (int t : changed) {
-      for (int w : tris_[t]) nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+      for (int w : tris_[t])
+        nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
     }
     std::sort(nearby_.begin(), nearby_.end());
     nearby_.erase(std::unique(nearby_.begin(), nearby_.end()), nearby_.end());
     for (int t : changed) {
-      const std::array<Eigen::Vector3d, 3> pt{pos_[tris_[t][0]], pos_[tris_[t][1]], pos_[tris_[t][2]]};
+      const std::array<Eigen::Vector3d, 3> pt{pos_[tris_[t][0]], pos_[tris_[t][1]],
+                                              pos_[tris_[t][2]]};
       const Eigen::AlignedBox3d bt = Box(pt);
       for (int u : nearby_) {
         if (u == t) continue;
         // Each changed pair once.
         if (u < t && std::find(changed.begin(), changed.end(), u) != changed.end()) continue;
-        const std::array<Eigen::Vector3d, 3> pu{pos_[tris_[u][0]], pos_[tris_[u][1]], pos_[tris_[u][2]]};
+        const std::array<Eigen::Vector3d, 3> pu{pos_[tris_[u][0]], pos_[tris_[u][1]],
+                                                pos_[tris_[u][2]]};
         if (!bt.intersects(Box(pu))) continue;
         if (TrianglesMeet(tris_[t], pt, tris_[u], pu)) return true;
       }
@@ -420,7 +438,9 @@ class Sharpener {
     const int at = tri[0] == p ? 0 : tri[1] == p ? 1 : 2;
     const int c = tri[(at + 2) % 3];
     const auto& tri2 = tris_[t2];
-    const int d = tri2[0] != p && tri2[0] != q ? tri2[0] : tri2[1] != p && tri2[1] != q ? tri2[1] : tri2[2];
+    const int d = tri2[0] != p && tri2[0] != q   ? tri2[0]
+                  : tri2[1] != p && tri2[1] != q ? tri2[1]
+                                                 : tri2[2];
     if (c == d) return false;
     if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
     for (int u : vertex_tris_[c]) {
@@ -434,7 +454,8 @@ class Sharpener {
     const Eigen::Vector3d ref = n1 + n2;
     if (!(m1.dot(ref) > 0.0) || !(m2.dot(ref) > 0.0)) return false;
     const double old_angle = std::min(MinAngle(P, Q, C), MinAngle(Q, P, D));
-    if (std::min(MinAngle(C, P, D), MinAngle(D, Q, C)) < std::min(old_angle, min_angle)) return false;
+    if (std::min(MinAngle(C, P, D), MinAngle(D, Q, C)) < std::min(old_angle, min_angle))
+      return false;
     if (!FacesOutward(m1, C, P, D) || !FacesOutward(m2, D, Q, C)) return false;
     Deviation before = TriangleDeviation(P, Q, C), after = TriangleDeviation(C, P, D);
     before.Add(TriangleDeviation(Q, P, D));
@@ -501,9 +522,9 @@ class Sharpener {
   std::vector<Eigen::Vector3d> vertex_normal_;
   std::vector<Plane> tri_plane_;
   std::vector<int> tri_stamp_;
-  std::vector<int> ring_;     // scratch of VertexNormalsSpread
-  std::vector<int> nearby_;   // scratch of ChangedTrianglesMeetOthers
-  std::vector<char> dirty_;   // per triangle: to be tried by the next FlipPass
+  std::vector<int> ring_;    // scratch of VertexNormalsSpread
+  std::vector<int> nearby_;  // scratch of ChangedTrianglesMeetOthers
+  std::vector<char> dirty_;  // per triangle: to be tried by the next FlipPass
   int round_stamp_ = 0;
   std::vector<bool> is_feature_;
   std::unordered_map<long long, std::vector<int>> hash_;
@@ -512,27 +533,36 @@ class Sharpener {
 
 void Validate(const FeatureSettings& s) {
   auto bad = [](const std::string& field, double value, const std::string& rule) {
-    throw std::invalid_argument("SharpenFeatures: settings." + field + " = " + std::to_string(value) + ": " + rule);
+    throw std::invalid_argument("SharpenFeatures: settings." + field + " = " +
+                                std::to_string(value) + ": " + rule);
   };
-  if (!(s.cell_size > 0.0) || !std::isfinite(s.cell_size)) bad("cell_size", s.cell_size, "must be a finite length > 0 m");
-  if (!(s.crease_angle_deg > 0.0 && s.crease_angle_deg < 180.0)) bad("crease_angle_deg", s.crease_angle_deg, "must be in (0, 180)");
+  if (!(s.cell_size > 0.0) || !std::isfinite(s.cell_size))
+    bad("cell_size", s.cell_size, "must be a finite length > 0 m");
+  if (!(s.crease_angle_deg > 0.0 && s.crease_angle_deg < 180.0))
+    bad("crease_angle_deg", s.crease_angle_deg, "must be in (0, 180)");
   if (s.iterations < 0) bad("iterations", s.iterations, "must be >= 0");
-  if (!(s.singular_threshold > 0.0 && s.singular_threshold < 1.0)) bad("singular_threshold", s.singular_threshold, "must be in (0, 1)");
-  if (!(s.max_move_cells > 0.0) || !std::isfinite(s.max_move_cells)) bad("max_move_cells", s.max_move_cells, "must be > 0");
+  if (!(s.singular_threshold > 0.0 && s.singular_threshold < 1.0))
+    bad("singular_threshold", s.singular_threshold, "must be in (0, 1)");
+  if (!(s.max_move_cells > 0.0) || !std::isfinite(s.max_move_cells))
+    bad("max_move_cells", s.max_move_cells, "must be > 0");
   if (!(s.min_separation_cells >= 0.0) || !std::isfinite(s.min_separation_cells)) {
     bad("min_separation_cells", s.min_separation_cells, "must be >= 0");
   }
-  if (!(s.min_angle_deg >= 0.0 && s.min_angle_deg < 60.0)) bad("min_angle_deg", s.min_angle_deg, "must be in [0, 60)");
+  if (!(s.min_angle_deg >= 0.0 && s.min_angle_deg < 60.0))
+    bad("min_angle_deg", s.min_angle_deg, "must be in [0, 60)");
 }
 
 }  // namespace
 
-TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh, const FeatureSettings& settings, FeatureStats* stats) {
+TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh,
+                             const FeatureSettings& settings, FeatureStats* stats) {
   const auto start = std::chrono::steady_clock::now();
   Validate(settings);
   Sharpener sharpener(solid, mesh, settings);
   TriangleMesh out = sharpener.Run(stats);
-  if (stats) stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (stats)
+    stats->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }
 

@@ -1,13 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/implicit_evaluator.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
 #include <vector>
-
-#include <Eigen/SVD>
 
 #include "primitives.h"
 
@@ -32,14 +31,22 @@ template <typename T>
 T EvalBranchFree(Op op, const double* c, T x, T y, T z) noexcept {
   using namespace internal;
   switch (op) {
-    case Op::kSphere: return SphereField(x, y, z, c[0]);
-    case Op::kBox: return BoxField(x, y, z, c[0], c[1], c[2]);
-    case Op::kRoundedBox: return RoundedBoxField(x, y, z, c[0], c[1], c[2], c[3]);
-    case Op::kCylinder: return CylinderField(x, y, z, c[0], c[1]);
-    case Op::kCapsule: return CapsuleField(x, y, z, c, c + 3, c[6], c[7]);
-    case Op::kTorus: return TorusField(x, y, z, c[0], c[1]);
-    case Op::kHalfSpace: return HalfSpaceField(x, y, z, c[0], c[1], c[2], c[3]);
-    default: return x * 0.0;  // unreachable for branch-free opcodes
+    case Op::kSphere:
+      return SphereField(x, y, z, c[0]);
+    case Op::kBox:
+      return BoxField(x, y, z, c[0], c[1], c[2]);
+    case Op::kRoundedBox:
+      return RoundedBoxField(x, y, z, c[0], c[1], c[2], c[3]);
+    case Op::kCylinder:
+      return CylinderField(x, y, z, c[0], c[1]);
+    case Op::kCapsule:
+      return CapsuleField(x, y, z, c, c + 3, c[6], c[7]);
+    case Op::kTorus:
+      return TorusField(x, y, z, c[0], c[1]);
+    case Op::kHalfSpace:
+      return HalfSpaceField(x, y, z, c[0], c[1], c[2], c[3]);
+    default:
+      return x * 0.0;  // unreachable for branch-free opcodes
   }
 }
 
@@ -48,9 +55,12 @@ template <typename T>
 T EvalPrimitive(Op op, const double* c, T x, T y, T z) noexcept {
   using namespace internal;
   switch (op) {
-    case Op::kCone: return ConeField(x, y, z, c[0], c[1], c[2]);
-    case Op::kExtrusion: return ExtrusionField(x, y, z, c + 2, static_cast<int>(c[1]), c[0]);
-    default: return EvalBranchFree(op, c, x, y, z);
+    case Op::kCone:
+      return ConeField(x, y, z, c[0], c[1], c[2]);
+    case Op::kExtrusion:
+      return ExtrusionField(x, y, z, c + 2, static_cast<int>(c[1]), c[0]);
+    default:
+      return EvalBranchFree(op, c, x, y, z);
   }
 }
 
@@ -74,7 +84,10 @@ Overloaded(Ts...) -> Overloaded<Ts...>;
 // the Lipschitz bound value(centre) ± L·half-diagonal).
 struct PrimitiveBounder {
   explicit PrimitiveBounder(const Eigen::AlignedBox3d& box)
-      : lo(box.min()), hi(box.max()), centre(0.5 * (lo + hi)), half_diagonal(0.5 * (hi - lo).norm()) {}
+      : lo(box.min()),
+        hi(box.max()),
+        centre(0.5 * (lo + hi)),
+        half_diagonal(0.5 * (hi - lo).norm()) {}
 
   Interval operator()(Op op, const double* c) const noexcept {
     double qc[3];
@@ -115,19 +128,29 @@ class TapeCompiler {
     return std::visit(
         Overloaded{
             [&](const SphereParams& p) { return Primitive(Op::kSphere, m, {p.radius}, path); },
-            [&](const BoxParams& p) { return Primitive(Op::kBox, m, {p.size.x() / 2, p.size.y() / 2, p.size.z() / 2}, path); },
-            [&](const RoundedBoxParams& p) {
-              return Primitive(Op::kRoundedBox, m, {p.size.x() / 2, p.size.y() / 2, p.size.z() / 2, p.radius}, path);
+            [&](const BoxParams& p) {
+              return Primitive(Op::kBox, m, {p.size.x() / 2, p.size.y() / 2, p.size.z() / 2}, path);
             },
-            [&](const CylinderParams& p) { return Primitive(Op::kCylinder, m, {p.radius, p.height / 2}, path); },
+            [&](const RoundedBoxParams& p) {
+              return Primitive(Op::kRoundedBox, m,
+                               {p.size.x() / 2, p.size.y() / 2, p.size.z() / 2, p.radius}, path);
+            },
+            [&](const CylinderParams& p) {
+              return Primitive(Op::kCylinder, m, {p.radius, p.height / 2}, path);
+            },
             [&](const CapsuleParams& p) {
               const double len2 = (p.b - p.a).squaredNorm();
               return Primitive(Op::kCapsule, m,
-                               {p.a.x(), p.a.y(), p.a.z(), p.b.x(), p.b.y(), p.b.z(), p.radius, len2 > 0 ? 1 / len2 : 0.0},
+                               {p.a.x(), p.a.y(), p.a.z(), p.b.x(), p.b.y(), p.b.z(), p.radius,
+                                len2 > 0 ? 1 / len2 : 0.0},
                                path);
             },
-            [&](const ConeParams& p) { return Primitive(Op::kCone, m, {p.radius_bottom, p.radius_top, p.height / 2}, path); },
-            [&](const TorusParams& p) { return Primitive(Op::kTorus, m, {p.major_radius, p.minor_radius}, path); },
+            [&](const ConeParams& p) {
+              return Primitive(Op::kCone, m, {p.radius_bottom, p.radius_top, p.height / 2}, path);
+            },
+            [&](const TorusParams& p) {
+              return Primitive(Op::kTorus, m, {p.major_radius, p.minor_radius}, path);
+            },
             [&](const HalfSpaceParams& p) {
               const Eigen::Vector3d n = p.normal.normalized();
               return Primitive(Op::kHalfSpace, m, {n.x(), n.y(), n.z(), p.offset}, path);
@@ -143,9 +166,15 @@ class TapeCompiler {
             [&](const UnionParams&) { return Fold(node, m, path, Op::kMin, -1.0); },
             [&](const IntersectionParams&) { return Fold(node, m, path, Op::kMax, -1.0); },
             [&](const DifferenceParams&) { return Fold(node, m, path, Op::kMaxNeg, -1.0); },
-            [&](const SmoothUnionParams& p) { return Fold(node, m, path, Op::kSmoothMin, p.radius * m.k); },
-            [&](const SmoothIntersectionParams& p) { return Fold(node, m, path, Op::kSmoothMax, p.radius * m.k); },
-            [&](const SmoothDifferenceParams& p) { return Fold(node, m, path, Op::kSmoothMaxNeg, p.radius * m.k); },
+            [&](const SmoothUnionParams& p) {
+              return Fold(node, m, path, Op::kSmoothMin, p.radius * m.k);
+            },
+            [&](const SmoothIntersectionParams& p) {
+              return Fold(node, m, path, Op::kSmoothMax, p.radius * m.k);
+            },
+            [&](const SmoothDifferenceParams& p) {
+              return Fold(node, m, path, Op::kSmoothMaxNeg, p.radius * m.k);
+            },
             [&](const OffsetParams& p) {
               const int depth = Group(node, m, path);
               Push(Op::kOffset, {p.distance * m.k}, path);
@@ -161,9 +190,7 @@ class TapeCompiler {
               c.b -= p.translation;
               return Group(node, c, path);
             },
-            [&](const RotateParams& p) {
-              return Group(node, Rotated(m, p.axis, p.angle), path);
-            },
+            [&](const RotateParams& p) { return Group(node, Rotated(m, p.axis, p.angle), path); },
             [&](const ScaleParams& p) {
               Affine c = m;
               const Eigen::Vector3d inv = p.factors.cwiseInverse();
@@ -211,7 +238,8 @@ class TapeCompiler {
  private:
   // Child frame of a rotation R (child to parent): q_child = Rᵀ q_parent.
   static Affine Rotated(const Affine& m, const Eigen::Vector3d& axis, double angle) {
-    const Eigen::Matrix3d Rt = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix().transpose();
+    const Eigen::Matrix3d Rt =
+        Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix().transpose();
     Affine c = m;
     c.A = Rt * m.A;
     c.b = Rt * m.b;
@@ -223,15 +251,18 @@ class TapeCompiler {
   }
   void PushRange(Op op, const double* begin, const double* end, const std::string& path) {
     if (static_cast<int>(out_->code_.size()) >= CompiledSolid::kMaxInstructions) {
-      throw ModelError(path, "count", "node at " + (path.empty() ? std::string("/") : path) +
-                                          ": the compiled solid exceeds " + std::to_string(CompiledSolid::kMaxInstructions) +
-                                          " instructions (arrays nested too deep?)");
+      throw ModelError(path, "count",
+                       "node at " + (path.empty() ? std::string("/") : path) +
+                           ": the compiled solid exceeds " +
+                           std::to_string(CompiledSolid::kMaxInstructions) +
+                           " instructions (arrays nested too deep?)");
     }
     out_->code_.push_back({op, static_cast<std::uint32_t>(out_->constants_.size())});
     out_->constants_.insert(out_->constants_.end(), begin, end);
   }
 
-  int Primitive(Op op, const Affine& m, const std::vector<double>& params, const std::string& path) {
+  int Primitive(Op op, const Affine& m, const std::vector<double>& params,
+                const std::string& path) {
     std::vector<double> c(kParams);
     for (int r = 0; r < 3; ++r) {
       for (int col = 0; col < 3; ++col) c[kA + 3 * r + col] = m.A(r, col);
@@ -257,7 +288,8 @@ class TapeCompiler {
   }
 
   // Left fold of the children with a binary operator (radius < 0: none).
-  int Fold(const ImplicitNode& node, const Affine& m, const std::string& path, Op op, double radius) {
+  int Fold(const ImplicitNode& node, const Affine& m, const std::string& path, Op op,
+           double radius) {
     int depth = 0;
     for (size_t i = 0; i < node.children.size(); ++i) {
       const int d = Emit(node.children[i], m, path + "/children/" + std::to_string(i));
@@ -283,9 +315,10 @@ CompiledSolid CompiledSolid::Compile(const ImplicitNode& root, const std::string
   solid.stack_depth_ = compiler.Emit(root, Affine{}, root_path);
   if (solid.stack_depth_ > kMaxStackDepth) {
     throw ModelError(root_path, "children",
-                     "solid at " + (root_path.empty() ? std::string("/") : root_path) + " needs a value stack of " +
-                         std::to_string(solid.stack_depth_) + " entries, more than the evaluator's " +
-                         std::to_string(kMaxStackDepth) + ": nest booleans less deeply");
+                     "solid at " + (root_path.empty() ? std::string("/") : root_path) +
+                         " needs a value stack of " + std::to_string(solid.stack_depth_) +
+                         " entries, more than the evaluator's " + std::to_string(kMaxStackDepth) +
+                         ": nest booleans less deeply");
   }
   return solid;
 }
@@ -351,7 +384,8 @@ double CompiledSolid::Value(const Eigen::Vector3d& p) const noexcept {
   });
 }
 
-double CompiledSolid::ValueAndGradient(const Eigen::Vector3d& p, Eigen::Vector3d* gradient) const noexcept {
+double CompiledSolid::ValueAndGradient(const Eigen::Vector3d& p,
+                                       Eigen::Vector3d* gradient) const noexcept {
   if (code_.empty()) {
     gradient->setZero();
     return INFINITY;
@@ -367,12 +401,14 @@ double CompiledSolid::ValueAndGradient(const Eigen::Vector3d& p, Eigen::Vector3d
   return r.v;
 }
 
-void CompiledSolid::Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points, Eigen::Ref<Eigen::VectorXd> values) const noexcept {
+void CompiledSolid::Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points,
+                           Eigen::Ref<Eigen::VectorXd> values) const noexcept {
   const Eigen::Index n = std::min<Eigen::Index>(points.cols(), values.size());
   for (Eigen::Index i = 0; i < n; ++i) values[i] = Value(points.col(i));
 }
 
-void CompiledSolid::ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points, Eigen::Ref<Eigen::VectorXd> values,
+void CompiledSolid::ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points,
+                                       Eigen::Ref<Eigen::VectorXd> values,
                                        Eigen::Ref<Eigen::Matrix3Xd> gradients) const noexcept {
   const Eigen::Index n = std::min({points.cols(), values.size(), gradients.cols()});
   Eigen::Vector3d g;
@@ -399,9 +435,16 @@ namespace {
 // How many operands an opcode pops (primitives pop none and push one).
 int Arity(Op op) {
   switch (op) {
-    case Op::kMin: case Op::kMax: case Op::kMaxNeg: case Op::kSmoothMin: case Op::kSmoothMax: case Op::kSmoothMaxNeg:
+    case Op::kMin:
+    case Op::kMax:
+    case Op::kMaxNeg:
+    case Op::kSmoothMin:
+    case Op::kSmoothMax:
+    case Op::kSmoothMaxNeg:
       return 2;
-    case Op::kOffset: case Op::kShell: case Op::kNeg:
+    case Op::kOffset:
+    case Op::kShell:
+    case Op::kNeg:
       return 1;
     default:
       return 0;
@@ -412,7 +455,8 @@ int Arity(Op op) {
 // covers rounding in the bounds (which are widened by ~1e-12 relative) and in the blend's
 // difference. Non-finite bounds never qualify.
 bool SurelyBelow(const Interval& x, const Interval& y, double gap) {
-  if (!std::isfinite(x.lo) || !std::isfinite(x.hi) || !std::isfinite(y.lo) || !std::isfinite(y.hi)) return false;
+  if (!std::isfinite(x.lo) || !std::isfinite(x.hi) || !std::isfinite(y.lo) || !std::isfinite(y.hi))
+    return false;
   const double margin = 1e-9 * (std::fabs(x.hi) + std::fabs(y.lo) + gap) + 1e-12;
   return y.lo - x.hi > gap + margin;
 }
@@ -441,12 +485,14 @@ int Survivor(Op op, const double* c, const Interval& a, const Interval& b0) {
 }  // namespace
 
 bool CompiledSolid::SameTape(const CompiledSolid& other) const noexcept {
-  if (code_.size() != other.code_.size() || constants_.size() != other.constants_.size()) return false;
+  if (code_.size() != other.code_.size() || constants_.size() != other.constants_.size())
+    return false;
   for (std::size_t i = 0; i < code_.size(); ++i) {
-    if (code_[i].op != other.code_[i].op || code_[i].constants != other.code_[i].constants) return false;
+    if (code_[i].op != other.code_[i].op || code_[i].constants != other.code_[i].constants)
+      return false;
   }
-  return constants_.empty() ||
-         std::memcmp(constants_.data(), other.constants_.data(), constants_.size() * sizeof(double)) == 0;
+  return constants_.empty() || std::memcmp(constants_.data(), other.constants_.data(),
+                                           constants_.size() * sizeof(double)) == 0;
 }
 
 std::uint64_t CompiledSolid::TapeHash() const noexcept {
@@ -485,21 +531,39 @@ CompiledSolid CompiledSolid::Specialize(const Eigen::AlignedBox3d& box) const {
       stack.pop_back();
       const Interval a = value[left[i]], b = value[right[i]];
       switch (op) {
-        case Op::kMin: value[i] = Min(a, b); break;
-        case Op::kMax: value[i] = Max(a, b); break;
-        case Op::kMaxNeg: value[i] = Max(a, -b); break;
-        case Op::kSmoothMin: value[i] = SmoothMin(a, b, c[0]); break;
-        case Op::kSmoothMax: value[i] = SmoothMax(a, b, c[0]); break;
-        default: value[i] = SmoothMax(a, -b, c[0]); break;  // kSmoothMaxNeg
+        case Op::kMin:
+          value[i] = Min(a, b);
+          break;
+        case Op::kMax:
+          value[i] = Max(a, b);
+          break;
+        case Op::kMaxNeg:
+          value[i] = Max(a, -b);
+          break;
+        case Op::kSmoothMin:
+          value[i] = SmoothMin(a, b, c[0]);
+          break;
+        case Op::kSmoothMax:
+          value[i] = SmoothMax(a, b, c[0]);
+          break;
+        default:
+          value[i] = SmoothMax(a, -b, c[0]);
+          break;  // kSmoothMaxNeg
       }
     } else if (arity == 1) {
       left[i] = stack.back();
       stack.pop_back();
       const Interval a = value[left[i]];
       switch (op) {
-        case Op::kOffset: value[i] = a - c[0]; break;
-        case Op::kShell: value[i] = Abs(a + 0.5 * c[0]) - 0.5 * c[0]; break;
-        default: value[i] = -a; break;  // kNeg
+        case Op::kOffset:
+          value[i] = a - c[0];
+          break;
+        case Op::kShell:
+          value[i] = Abs(a + 0.5 * c[0]) - 0.5 * c[0];
+          break;
+        default:
+          value[i] = -a;
+          break;  // kNeg
       }
     } else {
       value[i] = bound(op, c);
@@ -540,7 +604,8 @@ CompiledSolid CompiledSolid::Specialize(const Eigen::AlignedBox3d& box) const {
     if (emit[i] == 1) {
       const std::size_t begin = code_[i].constants;
       const std::size_t end = i + 1 < n ? code_[i + 1].constants : constants_.size();
-      out.constants_.insert(out.constants_.end(), constants_.begin() + begin, constants_.begin() + end);
+      out.constants_.insert(out.constants_.end(), constants_.begin() + begin,
+                            constants_.begin() + end);
     }
     const int arity = Arity(op);
     if (arity == 0) ++out.primitive_count_;

@@ -20,11 +20,15 @@ struct Dual {
 };
 
 inline Dual Constant(double v) noexcept { return {v, 0.0, 0.0, 0.0}; }
-inline Dual operator+(Dual a, Dual b) noexcept { return {a.v + b.v, a.gx + b.gx, a.gy + b.gy, a.gz + b.gz}; }
+inline Dual operator+(Dual a, Dual b) noexcept {
+  return {a.v + b.v, a.gx + b.gx, a.gy + b.gy, a.gz + b.gz};
+}
 inline Dual operator+(Dual a, double b) noexcept { return {a.v + b, a.gx, a.gy, a.gz}; }
 inline Dual operator+(double a, Dual b) noexcept { return b + a; }
 inline Dual operator-(Dual a) noexcept { return {-a.v, -a.gx, -a.gy, -a.gz}; }
-inline Dual operator-(Dual a, Dual b) noexcept { return {a.v - b.v, a.gx - b.gx, a.gy - b.gy, a.gz - b.gz}; }
+inline Dual operator-(Dual a, Dual b) noexcept {
+  return {a.v - b.v, a.gx - b.gx, a.gy - b.gy, a.gz - b.gz};
+}
 inline Dual operator-(Dual a, double b) noexcept { return {a.v - b, a.gx, a.gy, a.gz}; }
 inline Dual operator-(double a, Dual b) noexcept { return {a - b.v, -b.gx, -b.gy, -b.gz}; }
 inline Dual operator*(Dual a, double s) noexcept { return {a.v * s, a.gx * s, a.gy * s, a.gz * s}; }
@@ -52,7 +56,9 @@ inline double Square(double a) noexcept { return a * a; }
 inline double Sqrt(double a) noexcept { return std::sqrt(std::max(a, 0.0)); }
 inline double Min(double a, double b) noexcept { return std::min(a, b); }
 inline double Max(double a, double b) noexcept { return std::max(a, b); }
-inline double Clamp(double a, double lo, double hi) noexcept { return std::min(std::max(a, lo), hi); }
+inline double Clamp(double a, double lo, double hi) noexcept {
+  return std::min(std::max(a, lo), hi);
+}
 
 // The value part of a scalar (for branch decisions).
 inline double ValueOf(double a) noexcept { return a; }
@@ -114,7 +120,8 @@ T HalfSpaceField(T x, T y, T z, double nx, double ny, double nz, double d) noexc
 // Capsule: points within r of the segment a-b. inv_len2 = 1 / |b - a|² (0 for a point).
 // Exact distance.
 template <typename T>
-T CapsuleField(T x, T y, T z, const double* a, const double* b, double r, double inv_len2) noexcept {
+T CapsuleField(T x, T y, T z, const double* a, const double* b, double r,
+               double inv_len2) noexcept {
   const double bax = b[0] - a[0], bay = b[1] - a[1], baz = b[2] - a[2];
   const T pax = x - a[0], pay = y - a[1], paz = z - a[2];
   const T h = Clamp((pax * bax + pay * bay + paz * baz) * inv_len2, 0.0, 1.0);
@@ -143,7 +150,8 @@ void SegmentOffset2(T px, T py, double ax, double ay, double bx, double by, T* d
 template <typename T>
 T ConeField(T x, T y, T z, double r_bottom, double r_top, double hh) noexcept {
   const T rho = Length2(x, y);
-  const double seg[3][4] = {{0.0, -hh, r_bottom, -hh}, {r_bottom, -hh, r_top, hh}, {r_top, hh, 0.0, hh}};
+  const double seg[3][4] = {
+      {0.0, -hh, r_bottom, -hh}, {r_bottom, -hh, r_top, hh}, {r_top, hh, 0.0, hh}};
   T best_x{}, best_y{};
   double best = INFINITY;
   for (const auto& s : seg) {

@@ -58,7 +58,8 @@ std::string EscapePointerToken(const std::string& key) {
 // Reads the fields of one JSON object, remembering which were used to reject unknown ones.
 class ObjectReader {
  public:
-  ObjectReader(const json& j, std::string path, std::string what) : j_(j), path_(std::move(path)), what_(std::move(what)) {
+  ObjectReader(const json& j, std::string path, std::string what)
+      : j_(j), path_(std::move(path)), what_(std::move(what)) {
     if (!j_.is_object()) Fail(path_, what_ + " must be a JSON object, got " + j_.type_name());
   }
 
@@ -72,18 +73,24 @@ class ObjectReader {
 
   double Number(const char* key) {
     const json& v = Get(key);
-    if (!v.is_number()) Fail(Path(key), "field '" + std::string(key) + "' of " + what_ + " must be a number, got " + Dump(v));
+    if (!v.is_number())
+      Fail(Path(key),
+           "field '" + std::string(key) + "' of " + what_ + " must be a number, got " + Dump(v));
     return v.get<double>();
   }
-  double Number(const char* key, double fallback) { return Has(key) ? Number(key) : (used_.insert(key), fallback); }
+  double Number(const char* key, double fallback) {
+    return Has(key) ? Number(key) : (used_.insert(key), fallback);
+  }
 
   int Count(const char* key) {
     const json& v = Get(key);
     if (!v.is_number_integer()) {
-      Fail(Path(key), "field '" + std::string(key) + "' of " + what_ + " must be an integer, got " + Dump(v));
+      Fail(Path(key),
+           "field '" + std::string(key) + "' of " + what_ + " must be an integer, got " + Dump(v));
     }
     const long long n = v.get<long long>();
-    if (n < -1000000000LL || n > 1000000000LL) Fail(Path(key), "field '" + std::string(key) + "' is out of range: " + Dump(v));
+    if (n < -1000000000LL || n > 1000000000LL)
+      Fail(Path(key), "field '" + std::string(key) + "' is out of range: " + Dump(v));
     return static_cast<int>(n);
   }
 
@@ -93,7 +100,9 @@ class ObjectReader {
       return fallback;
     }
     const json& v = Get(key);
-    if (!v.is_boolean()) Fail(Path(key), "field '" + std::string(key) + "' of " + what_ + " must be true or false, got " + Dump(v));
+    if (!v.is_boolean())
+      Fail(Path(key), "field '" + std::string(key) + "' of " + what_ +
+                          " must be true or false, got " + Dump(v));
     return v.get<bool>();
   }
 
@@ -103,18 +112,22 @@ class ObjectReader {
       return fallback;
     }
     const json& v = Get(key);
-    if (!v.is_string()) Fail(Path(key), "field '" + std::string(key) + "' of " + what_ + " must be a string, got " + Dump(v));
+    if (!v.is_string())
+      Fail(Path(key),
+           "field '" + std::string(key) + "' of " + what_ + " must be a string, got " + Dump(v));
     return v.get<std::string>();
   }
 
   Eigen::Vector3d Vector3(const char* key) {
     const json& v = Get(key);
     if (!v.is_array() || v.size() != 3) {
-      Fail(Path(key), "field '" + std::string(key) + "' of " + what_ + " must be an array of 3 numbers, got " + Dump(v));
+      Fail(Path(key), "field '" + std::string(key) + "' of " + what_ +
+                          " must be an array of 3 numbers, got " + Dump(v));
     }
     Eigen::Vector3d out;
     for (int i = 0; i < 3; ++i) {
-      if (!v[i].is_number()) Fail(Path(key) + "/" + std::to_string(i), "must be a number, got " + Dump(v[i]));
+      if (!v[i].is_number())
+        Fail(Path(key) + "/" + std::to_string(i), "must be a number, got " + Dump(v[i]));
       out[i] = v[i].get<double>();
     }
     return out;
@@ -129,7 +142,9 @@ class ObjectReader {
 
   std::vector<Eigen::Vector2d> Points2(const char* key) {
     const json& v = Get(key);
-    if (!v.is_array()) Fail(Path(key), "field '" + std::string(key) + "' of " + what_ + " must be an array of [x, y] pairs, got " + Dump(v));
+    if (!v.is_array())
+      Fail(Path(key), "field '" + std::string(key) + "' of " + what_ +
+                          " must be an array of [x, y] pairs, got " + Dump(v));
     std::vector<Eigen::Vector2d> out;
     for (size_t i = 0; i < v.size(); ++i) {
       const json& p = v[i];
@@ -149,7 +164,8 @@ class ObjectReader {
         std::string known;
         for (const std::string& k : used_) known += (known.empty() ? "" : ", ") + k;
         for (const std::string& k : also_allowed) known += (known.empty() ? "" : ", ") + k;
-        Fail(Path(it.key()), "unknown field '" + it.key() + "' in " + what_ + " (fields: " + known + ")");
+        Fail(Path(it.key()),
+             "unknown field '" + it.key() + "' in " + what_ + " (fields: " + known + ")");
       }
     }
   }
@@ -256,11 +272,12 @@ NodeParams ReadParams(const std::string& type, ObjectReader& r) {
     p.step_angle = r.Number("step_angle", p.count > 0 ? 2.0 * M_PI / p.count : 0.0);
     return p;
   }
-  Fail(r.Path("type"),
-       "unknown node type '" + type +
-           "' (types: sphere, box, rounded_box, cylinder, capsule, cone, torus, half_space, extrusion, union, "
-           "intersection, difference, smooth_union, smooth_intersection, smooth_difference, offset, shell, translate, "
-           "rotate, scale, mirror, linear_array, polar_array)");
+  Fail(r.Path("type"), "unknown node type '" + type +
+                           "' (types: sphere, box, rounded_box, cylinder, capsule, cone, torus, "
+                           "half_space, extrusion, union, "
+                           "intersection, difference, smooth_union, smooth_intersection, "
+                           "smooth_difference, offset, shell, translate, "
+                           "rotate, scale, mirror, linear_array, polar_array)");
 }
 
 // The parameter fields of each node type (besides type, id, name, children).
@@ -298,7 +315,8 @@ std::vector<std::string> PointerTokens(const std::string& pointer) {
   size_t i = 0;
   while (i < pointer.size() && pointer[i] == '/') {
     const size_t next = pointer.find('/', i + 1);
-    std::string token = pointer.substr(i + 1, next == std::string::npos ? std::string::npos : next - i - 1);
+    std::string token =
+        pointer.substr(i + 1, next == std::string::npos ? std::string::npos : next - i - 1);
     std::string out;
     for (size_t k = 0; k < token.size(); ++k) {
       if (token[k] == '~' && k + 1 < token.size() && (token[k + 1] == '0' || token[k + 1] == '1')) {
@@ -450,7 +468,8 @@ void LineColumn(const std::string& text, size_t offset, int* line, int* column) 
 
 }  // namespace
 
-SceneError::SceneError(const std::string& file, int line, int column, const std::string& pointer, const std::string& what)
+SceneError::SceneError(const std::string& file, int line, int column, const std::string& pointer,
+                       const std::string& what)
     : std::runtime_error(Location(file, line, column, pointer) + what),
       file_(file),
       line_(line),
@@ -475,7 +494,8 @@ ImplicitNode ReadNode(const json& j, const std::string& path, int depth, long* c
                    "or split the solid");
   }
   ObjectReader r(j, path.empty() ? "" : path, "a node");
-  if (!r.Has("type")) Fail(path, "a node needs a field 'type' (e.g. \"sphere\", \"union\", \"translate\")");
+  if (!r.Has("type"))
+    Fail(path, "a node needs a field 'type' (e.g. \"sphere\", \"union\", \"translate\")");
   const std::string type = r.String("type", "");
   ObjectReader params(j, path, "a " + type + " node");
   ImplicitNode node;
@@ -498,7 +518,9 @@ ImplicitNode ReadNode(const json& j, const std::string& path, int depth, long* c
   node.name = params.String("name", "");
   if (params.Has("children")) {
     const json& children = params.Get("children");
-    if (!children.is_array()) Fail(path + "/children", "field 'children' must be an array of nodes, got " + std::string(children.type_name()));
+    if (!children.is_array())
+      Fail(path + "/children",
+           "field 'children' must be an array of nodes, got " + std::string(children.type_name()));
     for (size_t i = 0; i < children.size(); ++i) {
       node.children.push_back(
           ReadNode(children[i], path + "/children/" + std::to_string(i), depth + 1, count));
@@ -555,7 +577,9 @@ json NodeToJson(const ImplicitNode& node) {
                    j["profile"] = profile;
                    j["height"] = p.height;
                  },
-                 [&](const UnionParams&) {}, [&](const IntersectionParams&) {}, [&](const DifferenceParams&) {},
+                 [&](const UnionParams&) {},
+                 [&](const IntersectionParams&) {},
+                 [&](const DifferenceParams&) {},
                  [&](const SmoothUnionParams& p) { j["radius"] = p.radius; },
                  [&](const SmoothIntersectionParams& p) { j["radius"] = p.radius; },
                  [&](const SmoothDifferenceParams& p) { j["radius"] = p.radius; },
@@ -601,15 +625,18 @@ Eigen::Quaterniond ReadRotation(ObjectReader& r, const std::string& path) {
       Fail(path, "give the rotation either as 'quaternion' or as 'axis' and 'angle', not both");
     }
     const json& v = r.Get("quaternion");
-    if (!v.is_array() || v.size() != 4) Fail(path + "/quaternion", "must be an array of 4 numbers [w, x, y, z], got " + v.dump());
+    if (!v.is_array() || v.size() != 4)
+      Fail(path + "/quaternion", "must be an array of 4 numbers [w, x, y, z], got " + v.dump());
     double q[4];
     for (int i = 0; i < 4; ++i) {
-      if (!v[i].is_number()) Fail(path + "/quaternion/" + std::to_string(i), "must be a number, got " + v[i].dump());
+      if (!v[i].is_number())
+        Fail(path + "/quaternion/" + std::to_string(i), "must be a number, got " + v[i].dump());
       q[i] = v[i].get<double>();
     }
     Eigen::Quaterniond out(q[0], q[1], q[2], q[3]);
     const double n = out.norm();
-    if (!(n > 1e-12) || !std::isfinite(n)) Fail(path + "/quaternion", "must be a non-zero finite quaternion, got " + v.dump());
+    if (!(n > 1e-12) || !std::isfinite(n))
+      Fail(path + "/quaternion", "must be a non-zero finite quaternion, got " + v.dump());
     // A unit quaternion (as saved) is kept bit for bit, so that save/load round trips exactly.
     if (std::abs(n - 1.0) > 1e-15) out.normalize();
     return out;
@@ -617,21 +644,26 @@ Eigen::Quaterniond ReadRotation(ObjectReader& r, const std::string& path) {
   const double angle = r.Number("angle", 0.0);
   if (!std::isfinite(angle)) Fail(path + "/angle", "must be finite");
   const Eigen::Vector3d axis = r.Vector3("axis", Eigen::Vector3d::UnitZ());
-  if (!axis.allFinite() || !(axis.norm() > 1e-12)) Fail(path + "/axis", "must be a non-zero finite vector");
+  if (!axis.allFinite() || !(axis.norm() > 1e-12))
+    Fail(path + "/axis", "must be a non-zero finite vector");
   return Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized()));
 }
 
 double ReadTolerance(ObjectReader& r, const char* key, double fallback, const std::string& path) {
   const double v = r.Number(key, fallback);
-  if (!(v >= 0) || !std::isfinite(v)) Fail(path + "/" + key, "must be finite and >= 0, got " + std::to_string(v));
+  if (!(v >= 0) || !std::isfinite(v))
+    Fail(path + "/" + key, "must be finite and >= 0, got " + std::to_string(v));
   return v;
 }
 
-json QuaternionJson(const Eigen::Quaterniond& q) { return json::array({q.w(), q.x(), q.y(), q.z()}); }
+json QuaternionJson(const Eigen::Quaterniond& q) {
+  return json::array({q.w(), q.x(), q.y(), q.z()});
+}
 
 // The "parts" array of a scene; checks names against the scene's solids and parts.
 std::vector<ScenePart> ReadParts(const json& parts, const std::vector<Solid>& solids) {
-  if (!parts.is_array()) Fail("/parts", "must be an array of parts, got " + std::string(parts.type_name()));
+  if (!parts.is_array())
+    Fail("/parts", "must be an array of parts, got " + std::string(parts.type_name()));
   std::vector<ScenePart> out;
   for (size_t i = 0; i < parts.size(); ++i) {
     const std::string path = "/parts/" + std::to_string(i);
@@ -643,7 +675,8 @@ std::vector<ScenePart> ReadParts(const json& parts, const std::vector<Solid>& so
       if (other.name == part.name) Fail(path + "/name", "duplicate part name '" + part.name + "'");
     }
     part.solid = r.String("solid", "");
-    if (std::none_of(solids.begin(), solids.end(), [&](const Solid& s) { return s.name == part.solid; })) {
+    if (std::none_of(solids.begin(), solids.end(),
+                     [&](const Solid& s) { return s.name == part.solid; })) {
       Fail(path + "/solid", "no solid named '" + part.solid + "' in the scene");
     }
     part.position = r.Vector3("position", Eigen::Vector3d::Zero());
@@ -656,18 +689,21 @@ std::vector<ScenePart> ReadParts(const json& parts, const std::vector<Solid>& so
     part.fixed = kind == "fixed";
     if (r.Has("seats")) {
       const json& seats = r.Get("seats");
-      if (!seats.is_array()) Fail(path + "/seats", "must be an array of seats, got " + std::string(seats.type_name()));
+      if (!seats.is_array())
+        Fail(path + "/seats", "must be an array of seats, got " + std::string(seats.type_name()));
       for (size_t k = 0; k < seats.size(); ++k) {
         const std::string sp = path + "/seats/" + std::to_string(k);
         ObjectReader sr(seats[k], sp, "a seat");
         SceneSeat seat;
         seat.on = sr.String("on", "");
         if (seat.on.empty()) Fail(sp + "/on", "a seat needs the name of the part it sits on");
-        if (seat.on == part.name) Fail(sp + "/on", "a part cannot sit on itself ('" + seat.on + "')");
+        if (seat.on == part.name)
+          Fail(sp + "/on", "a part cannot sit on itself ('" + seat.on + "')");
         seat.position = sr.Vector3("position", Eigen::Vector3d::Zero());
         if (!seat.position.allFinite()) Fail(sp + "/position", "must be finite");
         seat.rotation = ReadRotation(sr, sp);
-        seat.position_tolerance = ReadTolerance(sr, "position_tolerance", seat.position_tolerance, sp);
+        seat.position_tolerance =
+            ReadTolerance(sr, "position_tolerance", seat.position_tolerance, sp);
         seat.angle_tolerance = ReadTolerance(sr, "angle_tolerance", seat.angle_tolerance, sp);
         sr.RejectUnknown({});
         part.seats.push_back(seat);
@@ -681,7 +717,8 @@ std::vector<ScenePart> ReadParts(const json& parts, const std::vector<Solid>& so
     for (size_t k = 0; k < out[i].seats.size(); ++k) {
       const std::string& on = out[i].seats[k].on;
       if (std::none_of(out.begin(), out.end(), [&](const ScenePart& p) { return p.name == on; })) {
-        Fail("/parts/" + std::to_string(i) + "/seats/" + std::to_string(k) + "/on", "no part named '" + on + "'");
+        Fail("/parts/" + std::to_string(i) + "/seats/" + std::to_string(k) + "/on",
+             "no part named '" + on + "'");
       }
     }
   }
@@ -695,7 +732,8 @@ SceneSnap ReadSnap(const json& j) {
   const auto positive = [&](const char* key, double fallback) {
     const double v = r.Number(key, fallback);
     if (!(v > 0) || !std::isfinite(v)) {
-      Fail(std::string("/snap/") + key, std::string("field '") + key + "' must be finite and > 0, got " + json(v).dump());
+      Fail(std::string("/snap/") + key,
+           std::string("field '") + key + "' must be finite and > 0, got " + json(v).dump());
     }
     return v;
   };
@@ -718,15 +756,16 @@ Scene SceneFromJson(const json& j, const std::string& source) {
     }
     const json& version = r.Get("version");
     if (!version.is_number_integer() || version.get<long long>() != kSceneVersion) {
-      Fail("/version", "unsupported scene version " + version.dump() + " (this build reads version " +
-                           std::to_string(kSceneVersion) + ")");
+      Fail("/version", "unsupported scene version " + version.dump() +
+                           " (this build reads version " + std::to_string(kSceneVersion) + ")");
     }
     const std::string units = r.String("units", "m");
     if (units != "m") Fail("/units", "must be \"m\" (scenes are in metres), got \"" + units + "\"");
     Scene scene;
     scene.description = r.String("description", "");
     const json& solids = r.Get("solids");
-    if (!solids.is_array()) Fail("/solids", "must be an array of solids, got " + std::string(solids.type_name()));
+    if (!solids.is_array())
+      Fail("/solids", "must be an array of solids, got " + std::string(solids.type_name()));
     for (size_t i = 0; i < solids.size(); ++i) {
       const std::string path = "/solids/" + std::to_string(i);
       ObjectReader s(solids[i], path, "a solid");

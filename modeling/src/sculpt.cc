@@ -22,7 +22,8 @@ constexpr double kSmoothForceFraction = 0.1;
 constexpr double kTaubinLambda = 0.5;
 constexpr double kTaubinMu = -0.53;
 
-double TriangleVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+double TriangleVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                      const Eigen::Vector3d& c) {
   return a.dot(b.cross(c)) / 6.0;
 }
 
@@ -43,10 +44,13 @@ Eigen::Vector3d RotationVector(const Eigen::Matrix3d& R) {
 
 void ValidateSettings(const SculptToolSettings& s) {
   auto bad = [](const std::string& field, double value, const std::string& why) {
-    throw std::invalid_argument("sculpt tool settings: " + field + " = " + std::to_string(value) + ": " + why);
+    throw std::invalid_argument("sculpt tool settings: " + field + " = " + std::to_string(value) +
+                                ": " + why);
   };
-  if (!(s.radius > 0.0) || !std::isfinite(s.radius)) bad("radius", s.radius, "must be a positive length (m)");
-  if (!(s.stiffness > 0.0) || !std::isfinite(s.stiffness)) bad("stiffness", s.stiffness, "must be positive (N/m)");
+  if (!(s.radius > 0.0) || !std::isfinite(s.radius))
+    bad("radius", s.radius, "must be a positive length (m)");
+  if (!(s.stiffness > 0.0) || !std::isfinite(s.stiffness))
+    bad("stiffness", s.stiffness, "must be positive (N/m)");
   if (!(s.grasp_closed_angle < kHalfPi) || !(s.grasp_closed_angle >= 0.0)) {
     bad("grasp_closed_angle", s.grasp_closed_angle, "must be in [0, pi/2) rad");
   }
@@ -106,7 +110,8 @@ double SculptGrabStrength(double theta, double closed_angle) {
   return std::clamp((kHalfPi - theta) / (kHalfPi - closed_angle), 0.0, 1.0);
 }
 
-SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Isometry3d& X_WT, double theta) noexcept {
+SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Isometry3d& X_WT,
+                                 double theta) noexcept {
   SculptWrench wrench;
   if (!model.active) return wrench;
   const double s = Strength(model.grasp_controls_strength, theta, model.grasp_closed_angle);
@@ -139,29 +144,35 @@ SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Iso
 
 SculptMesh::SculptMesh(const TriangleMesh& mesh, double grid_cell) : grid_cell_(grid_cell) {
   if (!(grid_cell > 0.0) || !std::isfinite(grid_cell)) {
-    throw std::invalid_argument("SculptMesh: grid_cell = " + std::to_string(grid_cell) + " must be a positive length (m)");
+    throw std::invalid_argument("SculptMesh: grid_cell = " + std::to_string(grid_cell) +
+                                " must be a positive length (m)");
   }
   const Eigen::Index V = mesh.vertices.cols();
   const Eigen::Index F = mesh.triangles.cols();
   if (V < 4 || F < 4) {
-    throw std::invalid_argument("SculptMesh: a closed mesh needs at least 4 vertices and 4 triangles (got " +
-                                std::to_string(V) + " and " + std::to_string(F) + ")");
+    throw std::invalid_argument(
+        "SculptMesh: a closed mesh needs at least 4 vertices and 4 triangles (got " +
+        std::to_string(V) + " and " + std::to_string(F) + ")");
   }
-  if (!mesh.vertices.allFinite()) throw std::invalid_argument("SculptMesh: a vertex position is not finite");
+  if (!mesh.vertices.allFinite())
+    throw std::invalid_argument("SculptMesh: a vertex position is not finite");
   std::vector<std::uint64_t> directed;
   directed.reserve(3 * F);
   for (Eigen::Index t = 0; t < F; ++t) {
     for (int k = 0; k < 3; ++k) {
       const int v = mesh.triangles(k, t);
       if (v < 0 || v >= V) {
-        throw std::invalid_argument("SculptMesh: triangle " + std::to_string(t) + " has vertex index " + std::to_string(v) +
+        throw std::invalid_argument("SculptMesh: triangle " + std::to_string(t) +
+                                    " has vertex index " + std::to_string(v) +
                                     " out of range [0, " + std::to_string(V) + ")");
       }
     }
     for (int k = 0; k < 3; ++k) {
       const std::uint64_t a = static_cast<std::uint32_t>(mesh.triangles(k, t));
       const std::uint64_t b = static_cast<std::uint32_t>(mesh.triangles((k + 1) % 3, t));
-      if (a == b) throw std::invalid_argument("SculptMesh: triangle " + std::to_string(t) + " repeats vertex " + std::to_string(a));
+      if (a == b)
+        throw std::invalid_argument("SculptMesh: triangle " + std::to_string(t) +
+                                    " repeats vertex " + std::to_string(a));
       directed.push_back(a << 32 | b);
     }
   }
@@ -170,11 +181,14 @@ SculptMesh::SculptMesh(const TriangleMesh& mesh, double grid_cell) : grid_cell_(
     const std::uint64_t e = directed[i];
     const std::string name = std::to_string(e >> 32) + "->" + std::to_string(e & 0xffffffffu);
     if (i + 1 < directed.size() && directed[i + 1] == e) {
-      throw std::invalid_argument("SculptMesh: edge " + name + " is used twice in one direction (non-manifold or inconsistently oriented)");
+      throw std::invalid_argument(
+          "SculptMesh: edge " + name +
+          " is used twice in one direction (non-manifold or inconsistently oriented)");
     }
     const std::uint64_t reverse = (e & 0xffffffffu) << 32 | e >> 32;
     if (!std::binary_search(directed.begin(), directed.end(), reverse)) {
-      throw std::invalid_argument("SculptMesh: edge " + name + " has no opposite triangle (the mesh is not closed)");
+      throw std::invalid_argument("SculptMesh: edge " + name +
+                                  " has no opposite triangle (the mesh is not closed)");
     }
   }
   positions_.resize(V);
@@ -205,7 +219,8 @@ TriangleMesh SculptMesh::ToTriangleMesh() const {
 
 double SculptMesh::ComputeVolume() const {
   double volume = 0.0;
-  for (const Eigen::Vector3i& t : triangles_) volume += TriangleVolume(positions_[t[0]], positions_[t[1]], positions_[t[2]]);
+  for (const Eigen::Vector3i& t : triangles_)
+    volume += TriangleVolume(positions_[t[0]], positions_[t[1]], positions_[t[2]]);
   return volume;
 }
 
@@ -245,18 +260,24 @@ void SculptMesh::GridRemove(int v) {
   if (cell.empty()) grid_.erase(it);
 }
 
-void SculptMesh::QueryBall(const Eigen::Vector3d& centre_W, double radius, std::vector<int>* out) const {
+void SculptMesh::QueryBall(const Eigen::Vector3d& centre_W, double radius,
+                           std::vector<int>* out) const {
   out->clear();
   std::array<std::int64_t, 3> lo, hi;
   for (int i = 0; i < 3; ++i) {
-    lo[i] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((centre_W[i] - radius) / grid_cell_)) + kCellOffset, 0, kCellMask);
-    hi[i] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((centre_W[i] + radius) / grid_cell_)) + kCellOffset, 0, kCellMask);
+    lo[i] = std::clamp<std::int64_t>(
+        static_cast<std::int64_t>(std::floor((centre_W[i] - radius) / grid_cell_)) + kCellOffset, 0,
+        kCellMask);
+    hi[i] = std::clamp<std::int64_t>(
+        static_cast<std::int64_t>(std::floor((centre_W[i] + radius) / grid_cell_)) + kCellOffset, 0,
+        kCellMask);
   }
   const double r2 = radius * radius;
   for (std::int64_t x = lo[0]; x <= hi[0]; ++x) {
     for (std::int64_t y = lo[1]; y <= hi[1]; ++y) {
       for (std::int64_t z = lo[2]; z <= hi[2]; ++z) {
-        const CellKey key = static_cast<CellKey>(x) << 42 | static_cast<CellKey>(y) << 21 | static_cast<CellKey>(z);
+        const CellKey key =
+            static_cast<CellKey>(x) << 42 | static_cast<CellKey>(y) << 21 | static_cast<CellKey>(z);
         const auto it = grid_.find(key);
         if (it == grid_.end()) continue;
         for (int v : it->second) {
@@ -330,10 +351,12 @@ double SculptMesh::AffectedVolume() const {
   return volume;
 }
 
-void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Isometry3d& X_WT, double theta) {
+void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Isometry3d& X_WT,
+                             double theta) {
   if (stroke_active_) throw std::logic_error("SculptMesh::BeginStroke: a stroke is already active");
   ValidateSettings(settings);
-  if (!X_WT.matrix().allFinite()) throw std::invalid_argument("SculptMesh::BeginStroke: grip pose is not finite");
+  if (!X_WT.matrix().allFinite())
+    throw std::invalid_argument("SculptMesh::BeginStroke: grip pose is not finite");
   settings_ = settings;
   centre_W_ = X_WT.translation();
   QueryBall(centre_W_, settings.radius, &affected_);
@@ -348,7 +371,8 @@ void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Is
     const int v = affected_[i];
     start_positions_[i] = positions_[v];
     start_normals_[i] = normals_[v];
-    weights_[i] = SculptFalloffWeight((positions_[v] - centre_W_).norm(), settings.radius, exponent);
+    weights_[i] =
+        SculptFalloffWeight((positions_[v] - centre_W_).norm(), settings.radius, exponent);
     mean_normal += weights_[i] * normals_[v];
   }
   // Affected triangles (an affected corner) and the vertices whose normals they change.
@@ -379,7 +403,8 @@ void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Is
     local.reserve(2 * n);
     for (size_t i = 0; i < n; ++i) local.emplace(affected_[i], static_cast<int>(i));
     // Neighbours (each once per incident triangle side: every neighbour of a closed manifold
-    // vertex appears twice, so the uniform average is unchanged). -1 - u encodes an outside vertex u.
+    // vertex appears twice, so the uniform average is unchanged). -1 - u encodes an outside vertex
+    // u.
     std::vector<int> offsets(n + 1, 0), neighbours;
     for (size_t i = 0; i < n; ++i) {
       for (int t : vertex_triangles_[affected_[i]]) {
@@ -417,7 +442,8 @@ void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Is
   force_model_.grasp_closed_angle = settings.grasp_closed_angle;
   force_model_.X_WT_start = X_WT;
   const double mean_norm = mean_normal.norm();
-  force_model_.normal_W = mean_norm > 0.0 ? Eigen::Vector3d(mean_normal / mean_norm) : Eigen::Vector3d(X_WT.linear().col(2));
+  force_model_.normal_W = mean_norm > 0.0 ? Eigen::Vector3d(mean_normal / mean_norm)
+                                          : Eigen::Vector3d(X_WT.linear().col(2));
 
   stats_ = StrokeStats{};
   stats_.affected_vertices = static_cast<int>(n);
@@ -436,13 +462,15 @@ void SculptMesh::ApplyField(const Eigen::Isometry3d& X_WT, double s) {
   const double R = settings_.radius;
   switch (settings_.tool) {
     case SculptTool::kGrab:
-      for (size_t i = 0; i < n; ++i) positions_[affected_[i]] = start_positions_[i] + s * weights_[i] * dp;
+      for (size_t i = 0; i < n; ++i)
+        positions_[affected_[i]] = start_positions_[i] + s * weights_[i] * dp;
       break;
     case SculptTool::kTwist: {
       const Eigen::Vector3d z = X_WT0.linear().col(2);
       const double alpha = TwistAngle(R_rel, z);
       for (size_t i = 0; i < n; ++i) {
-        positions_[affected_[i]] = centre_W_ + Eigen::AngleAxisd(s * weights_[i] * alpha, z) * (start_positions_[i] - centre_W_);
+        positions_[affected_[i]] = centre_W_ + Eigen::AngleAxisd(s * weights_[i] * alpha, z) *
+                                                   (start_positions_[i] - centre_W_);
       }
       break;
     }
@@ -452,19 +480,23 @@ void SculptMesh::ApplyField(const Eigen::Isometry3d& X_WT, double s) {
       for (size_t i = 0; i < n; ++i) {
         const Eigen::Vector3d r = start_positions_[i] - centre_W_;
         const double t = std::clamp(r.dot(x) / R, -1.0, 1.0);
-        positions_[affected_[i]] = centre_W_ + Eigen::AngleAxisd(s * weights_[i] * aa.angle() * t, aa.axis()) * r;
+        positions_[affected_[i]] =
+            centre_W_ + Eigen::AngleAxisd(s * weights_[i] * aa.angle() * t, aa.axis()) * r;
       }
       break;
     }
     case SculptTool::kPushPull: {
       const double h = dp.dot(force_model_.normal_W);
-      for (size_t i = 0; i < n; ++i) positions_[affected_[i]] = start_positions_[i] + s * weights_[i] * h * start_normals_[i];
+      for (size_t i = 0; i < n; ++i)
+        positions_[affected_[i]] = start_positions_[i] + s * weights_[i] * h * start_normals_[i];
       break;
     }
     case SculptTool::kSmooth: {
       const double tau = std::min(1.0, dp.norm() / R);
       for (size_t i = 0; i < n; ++i) {
-        positions_[affected_[i]] = start_positions_[i] + s * weights_[i] * tau * (smooth_targets_[i] - start_positions_[i]);
+        positions_[affected_[i]] =
+            start_positions_[i] +
+            s * weights_[i] * tau * (smooth_targets_[i] - start_positions_[i]);
       }
       break;
     }
@@ -500,7 +532,8 @@ void SculptMesh::ConserveVolume() {
     if (!(std::abs(slope) > 0.0)) break;
     const double step = -error / slope;
     for (size_t i = 0; i < affected_.size(); ++i) {
-      positions_[affected_[i]] += step * 4.0 * weights_[i] * (1.0 - weights_[i]) * start_normals_[i];
+      positions_[affected_[i]] +=
+          step * 4.0 * weights_[i] * (1.0 - weights_[i]) * start_normals_[i];
     }
     ++stats_.volume_iterations;
   }
@@ -538,7 +571,8 @@ SculptEdit SculptMesh::EndStroke() {
   edit.old_vertex_count = vertex_count();
   edit.old_triangle_count = triangle_count();
   if (settings_.max_edge_length > 0.0) {
-    edit.splits = Refine(affected_triangles_, settings_.max_edge_length, settings_.max_splits, &edit);
+    edit.splits =
+        Refine(affected_triangles_, settings_.max_edge_length, settings_.max_splits, &edit);
   }
   edit.new_volume = volume_;
   stroke_active_ = false;
@@ -560,7 +594,8 @@ void SculptMesh::Undo(const SculptEdit& edit) {
   const int added_triangles = static_cast<int>(edit.added_triangles.size());
   if (vertex_count() != edit.old_vertex_count + added_vertices ||
       triangle_count() != edit.old_triangle_count + added_triangles) {
-    throw std::logic_error("SculptMesh::Undo: the edit is not the last one applied (counts differ)");
+    throw std::logic_error(
+        "SculptMesh::Undo: the edit is not the last one applied (counts differ)");
   }
   for (int t = triangle_count() - 1; t >= edit.old_triangle_count; --t) {
     for (int k = 0; k < 3; ++k) {
@@ -571,7 +606,8 @@ void SculptMesh::Undo(const SculptEdit& edit) {
     triangles_.pop_back();
   }
   triangle_mark_.resize(triangles_.size());
-  for (size_t i = 0; i < edit.rewritten.size(); ++i) SetTriangle(edit.rewritten[i], edit.old_triangles[i]);
+  for (size_t i = 0; i < edit.rewritten.size(); ++i)
+    SetTriangle(edit.rewritten[i], edit.old_triangles[i]);
   for (int v = vertex_count() - 1; v >= edit.old_vertex_count; --v) {
     GridRemove(v);
     positions_.pop_back();
@@ -587,7 +623,8 @@ void SculptMesh::Undo(const SculptEdit& edit) {
     GridInsert(v);
   }
   std::vector<int> around = edit.moved;
-  for (const Eigen::Vector3i& tri : edit.old_triangles) around.insert(around.end(), tri.data(), tri.data() + 3);
+  for (const Eigen::Vector3i& tri : edit.old_triangles)
+    around.insert(around.end(), tri.data(), tri.data() + 3);
   RefreshNormalsAround(around);
   volume_ = edit.old_volume;
 }
@@ -595,7 +632,8 @@ void SculptMesh::Undo(const SculptEdit& edit) {
 void SculptMesh::Redo(const SculptEdit& edit) {
   if (stroke_active_) throw std::logic_error("SculptMesh::Redo: a stroke is active");
   if (vertex_count() != edit.old_vertex_count || triangle_count() != edit.old_triangle_count) {
-    throw std::logic_error("SculptMesh::Redo: the mesh is not in the edit's starting state (counts differ)");
+    throw std::logic_error(
+        "SculptMesh::Redo: the mesh is not in the edit's starting state (counts differ)");
   }
   for (size_t i = 0; i < edit.moved.size(); ++i) {
     const int v = edit.moved[i];
@@ -604,11 +642,13 @@ void SculptMesh::Redo(const SculptEdit& edit) {
     GridInsert(v);
   }
   for (const Eigen::Vector3d& p : edit.added_positions) AddVertex(p);
-  for (size_t i = 0; i < edit.rewritten.size(); ++i) SetTriangle(edit.rewritten[i], edit.new_triangles[i]);
+  for (size_t i = 0; i < edit.rewritten.size(); ++i)
+    SetTriangle(edit.rewritten[i], edit.new_triangles[i]);
   for (const Eigen::Vector3i& tri : edit.added_triangles) AddTriangle(tri);
   std::vector<int> around = edit.moved;
   for (int v = edit.old_vertex_count; v < vertex_count(); ++v) around.push_back(v);
-  for (const Eigen::Vector3i& tri : edit.new_triangles) around.insert(around.end(), tri.data(), tri.data() + 3);
+  for (const Eigen::Vector3i& tri : edit.new_triangles)
+    around.insert(around.end(), tri.data(), tri.data() + 3);
   RefreshNormalsAround(around);
   volume_ = edit.new_volume;
 }

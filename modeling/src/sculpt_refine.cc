@@ -48,11 +48,14 @@ bool SculptMesh::SplitEdge(int a, int b, SculptEdit* edit, std::vector<int>* new
   return true;
 }
 
-long SculptMesh::Refine(const std::vector<int>& triangles, double max_edge_length, int max_splits, SculptEdit* edit) {
+long SculptMesh::Refine(const std::vector<int>& triangles, double max_edge_length, int max_splits,
+                        SculptEdit* edit) {
   if (!(max_edge_length > 0.0)) {
-    throw std::invalid_argument("SculptMesh::Refine: max_edge_length = " + std::to_string(max_edge_length) + " must be > 0");
+    throw std::invalid_argument("SculptMesh::Refine: max_edge_length = " +
+                                std::to_string(max_edge_length) + " must be > 0");
   }
-  if (stroke_active_ && edit == nullptr) throw std::logic_error("SculptMesh::Refine: a stroke is active");
+  if (stroke_active_ && edit == nullptr)
+    throw std::logic_error("SculptMesh::Refine: a stroke is active");
   const int old_vertices = vertex_count();
   if (edit != nullptr) {
     edit->old_vertex_count = old_vertices;
@@ -74,7 +77,8 @@ long SculptMesh::Refine(const std::vector<int>& triangles, double max_edge_lengt
       }
     }
     // Longest first (better shapes), each edge once.
-    std::sort(long_edges.begin(), long_edges.end(), [](const auto& x, const auto& y) { return x > y; });
+    std::sort(long_edges.begin(), long_edges.end(),
+              [](const auto& x, const auto& y) { return x > y; });
     long_edges.erase(std::unique(long_edges.begin(), long_edges.end()), long_edges.end());
     next.clear();
     for (const auto& [length2, a, b] : long_edges) {
@@ -99,15 +103,18 @@ long SculptMesh::Refine(const std::vector<int>& triangles, double max_edge_lengt
 
 TriangleMesh IcosphereMesh(double radius, int subdivisions) {
   if (!(radius > 0.0) || subdivisions < 0 || subdivisions > 9) {
-    throw std::invalid_argument("IcosphereMesh: radius = " + std::to_string(radius) + " (must be > 0), subdivisions = " +
-                                std::to_string(subdivisions) + " (must be in [0, 9])");
+    throw std::invalid_argument("IcosphereMesh: radius = " + std::to_string(radius) +
+                                " (must be > 0), subdivisions = " + std::to_string(subdivisions) +
+                                " (must be in [0, 9])");
   }
   const double g = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Eigen::Vector3d> vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
-                                           {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
-  std::vector<Eigen::Vector3i> faces = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                                        {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-                                        {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  std::vector<Eigen::Vector3d> vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0},
+                                           {0, -1, g}, {0, 1, g}, {0, -1, -g}, {0, 1, -g},
+                                           {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  std::vector<Eigen::Vector3i> faces = {
+      {0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+      {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+      {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   for (auto& v : vertices) v.normalize();
   for (int level = 0; level < subdivisions; ++level) {
     std::map<std::pair<int, int>, int> midpoint;
@@ -130,9 +137,11 @@ TriangleMesh IcosphereMesh(double radius, int subdivisions) {
   }
   TriangleMesh mesh;
   mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices.size()));
-  for (size_t v = 0; v < vertices.size(); ++v) mesh.vertices.col(static_cast<Eigen::Index>(v)) = radius * vertices[v];
+  for (size_t v = 0; v < vertices.size(); ++v)
+    mesh.vertices.col(static_cast<Eigen::Index>(v)) = radius * vertices[v];
   mesh.triangles.resize(3, static_cast<Eigen::Index>(faces.size()));
-  for (size_t t = 0; t < faces.size(); ++t) mesh.triangles.col(static_cast<Eigen::Index>(t)) = faces[t];
+  for (size_t t = 0; t < faces.size(); ++t)
+    mesh.triangles.col(static_cast<Eigen::Index>(t)) = faces[t];
   // The face list above is outward for this vertex order; make sure (flip all if not).
   if (MeshVolume(mesh) < 0.0) mesh.triangles.row(1).swap(mesh.triangles.row(2));
   return mesh;

@@ -25,7 +25,12 @@ using internal::TrianglesMeet;
 // (bit 0: +x, bit 1: +y, bit 2: +z). Every cube of the grid is split along the same
 // diagonal 0-7, so the tetrahedra of neighbouring cubes share whole faces.
 constexpr std::array<std::array<int, 4>, 6> kKuhnTets = {{
-    {0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7},
+    {0, 1, 3, 7},
+    {0, 1, 5, 7},
+    {0, 2, 3, 7},
+    {0, 2, 6, 7},
+    {0, 4, 5, 7},
+    {0, 4, 6, 7},
 }};
 
 // Grid vertex values within kZeroBand cells of zero count as exactly zero (see VertexValue):
@@ -45,9 +50,15 @@ constexpr double kCoincident = 1e-4;
 class Cleaner {
  public:
   // solid: the field whose gradient says which way is out (FacesOut).
-  Cleaner(const CompiledSolid& solid, std::vector<Eigen::Vector3d>* positions, std::vector<std::array<int, 3>>* triangles)
-      : solid_(solid), pos_(*positions), tris_(*triangles), alive_(triangles->size(), true),
-        vertex_tris_(positions->size()), gradient_(positions->size()), has_gradient_(positions->size(), false) {
+  Cleaner(const CompiledSolid& solid, std::vector<Eigen::Vector3d>* positions,
+          std::vector<std::array<int, 3>>* triangles)
+      : solid_(solid),
+        pos_(*positions),
+        tris_(*triangles),
+        alive_(triangles->size(), true),
+        vertex_tris_(positions->size()),
+        gradient_(positions->size()),
+        has_gradient_(positions->size(), false) {
     for (size_t t = 0; t < tris_.size(); ++t) {
       for (int k = 0; k < 3; ++k) vertex_tris_[tris_[t][k]].push_back(static_cast<int>(t));
     }
@@ -56,7 +67,8 @@ class Cleaner {
   // Runs the passes: collapse edges shorter than short_edge and the short edge of needles,
   // flip the long edge of caps (angles below small_angle_rad). Returns collapses and flips.
   // Vertices closer than `coincident` are merged without geometric checks.
-  void Run(double short_edge, double small_angle_rad, double max_edge, double coincident, long* collapses, long* flips) {
+  void Run(double short_edge, double small_angle_rad, double max_edge, double coincident,
+           long* collapses, long* flips) {
     max_edge2_ = max_edge * max_edge;
     coincident2_ = coincident * coincident;
     for (int pass = 0; pass < 4; ++pass) {
@@ -84,7 +96,8 @@ class Cleaner {
     }
     auto less = [&](int a, int b) {
       const Eigen::Vector3d &p = pos_[a], &q = pos_[b];
-      return p.x() < q.x() || (p.x() == q.x() && (p.y() < q.y() || (p.y() == q.y() && p.z() < q.z())));
+      return p.x() < q.x() ||
+             (p.x() == q.x() && (p.y() < q.y() || (p.y() == q.y() && p.z() < q.z())));
     };
     std::sort(live.begin(), live.end(), less);
     long moved = 0;
@@ -98,7 +111,8 @@ class Cleaner {
         for (size_t k = i; k < j; ++k) pos_[live[k]] = start + kZeroOffsets[0] * inward[live[k]];
         for (size_t k = i; k < j; ++k) {
           const int v = live[k];
-          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start); ++f) pos_[v] = start + kZeroOffsets[f] * inward[v];
+          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start); ++f)
+            pos_[v] = start + kZeroOffsets[f] * inward[v];
           moved += inward[v].squaredNorm() > 0.0;
         }
       }
@@ -191,7 +205,8 @@ class Cleaner {
   // they share, a live triangle incident to one of its corners (with the changes applied;
   // `dying` triangles left out). Collapses and flips only reshape triangles around them, so this
   // local test keeps them from folding a triangle onto a neighbour or a fan over itself.
-  bool WouldMeet(const std::vector<std::pair<int, std::array<int, 3>>>& changed, int dying0, int dying1) {
+  bool WouldMeet(const std::vector<std::pair<int, std::array<int, 3>>>& changed, int dying0,
+                 int dying1) {
     auto corners = [&](const std::array<int, 3>& t) {
       return std::array<Eigen::Vector3d, 3>{pos_[t[0]], pos_[t[1]], pos_[t[2]]};
     };
@@ -203,7 +218,8 @@ class Cleaner {
     };
     nearby_.clear();
     for (const auto& [id, tri] : changed) {
-      for (int w : tri) nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+      for (int w : tri)
+        nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
     }
     std::sort(nearby_.begin(), nearby_.end());
     nearby_.erase(std::unique(nearby_.begin(), nearby_.end()), nearby_.end());
@@ -229,7 +245,8 @@ class Cleaner {
     return false;
   }
 
-  static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                         const Eigen::Vector3d& c) {
     auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& w) {
       return std::atan2(u.cross(w).norm(), u.dot(w));
     };
@@ -319,7 +336,8 @@ class Cleaner {
     vertex_tris_[u].clear();
     for (int w : {v, a, b}) {
       auto& list = vertex_tris_[w];
-      list.erase(std::remove_if(list.begin(), list.end(), [&](int t) { return !alive_[t]; }), list.end());
+      list.erase(std::remove_if(list.begin(), list.end(), [&](int t) { return !alive_[t]; }),
+                 list.end());
     }
     return true;
   }
@@ -349,8 +367,10 @@ class Cleaner {
     const double cos30 = std::cos(M_PI / 6);
     if (m1.dot(m2) < cos30 * m1.norm() * m2.norm()) return false;
     if (m1.dot(ref) <= 0.0 || m2.dot(ref) <= 0.0) return false;
-    const double old_min = std::min(MinAngle(pos_[p], pos_[q], pos_[c]), MinAngle(pos_[q], pos_[p], pos_[d]));
-    const double new_min = std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
+    const double old_min =
+        std::min(MinAngle(pos_[p], pos_[q], pos_[c]), MinAngle(pos_[q], pos_[p], pos_[d]));
+    const double new_min =
+        std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
     if (!(new_min > old_min)) return false;
     // Neither new triangle turned over (against the field), nor folded onto a neighbour.
     if (!(FacesOut(n1) && FacesOut(n2)) && FacesOut(tris_[t]) && FacesOut(tris_[t2])) return false;
@@ -373,7 +393,8 @@ class Cleaner {
   int Improve(int t, double short_edge, double small_angle, long* collapses, long* flips) {
     const auto tri = tris_[t];
     double len[3];
-    for (int k = 0; k < 3; ++k) len[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).norm();  // edge k: k -> k+1
+    for (int k = 0; k < 3; ++k)
+      len[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).norm();  // edge k: k -> k+1
     const int shortest = static_cast<int>(std::min_element(len, len + 3) - len);
     const int longest = static_cast<int>(std::max_element(len, len + 3) - len);
     const double min_angle = MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]);
@@ -386,7 +407,8 @@ class Cleaner {
       // short, and the first may fail the link condition where another passes (a fan of three
       // coincident triangles around a vertex of degree 3: only the spokes can go).
       std::array<int, 3> order = {shortest, (shortest + 1) % 3, (shortest + 2) % 3};
-      std::sort(order.begin(), order.end(), [&](int i, int j) { return len[i] < len[j] || (len[i] == len[j] && i < j); });
+      std::sort(order.begin(), order.end(),
+                [&](int i, int j) { return len[i] < len[j] || (len[i] == len[j] && i < j); });
       for (int k : order) {
         if (k != shortest && !(len[k] < short_edge)) break;
         const int u = tri[k], v = tri[(k + 1) % 3];
@@ -404,7 +426,8 @@ class Cleaner {
       }
       // A cap that cannot be flipped (its neighbour lies across a crease): move its apex onto
       // the nearer end of the long edge.
-      const bool p_nearer = (pos_[apex] - pos_[p]).squaredNorm() <= (pos_[apex] - pos_[q]).squaredNorm();
+      const bool p_nearer =
+          (pos_[apex] - pos_[p]).squaredNorm() <= (pos_[apex] - pos_[q]).squaredNorm();
       const int near = p_nearer ? p : q, far = p_nearer ? q : p;
       if (Collapse(apex, near) || Collapse(apex, far)) {
         ++*collapses;
@@ -434,9 +457,11 @@ class Mesher {
       throw std::invalid_argument("MeshSurface: settings.bounds must be a finite, non-empty box");
     }
     if (!(s.cell_size > 0.0) || !std::isfinite(s.cell_size)) {
-      throw std::invalid_argument("MeshSurface: settings.cell_size must be > 0 m, got " + std::to_string(s.cell_size));
+      throw std::invalid_argument("MeshSurface: settings.cell_size must be > 0 m, got " +
+                                  std::to_string(s.cell_size));
     }
-    if (s.refine_steps < 0) throw std::invalid_argument("MeshSurface: settings.refine_steps must be >= 0");
+    if (s.refine_steps < 0)
+      throw std::invalid_argument("MeshSurface: settings.refine_steps must be >= 0");
     h_ = s.cell_size;
     const Eigen::Vector3d extent = s.bounds.sizes();
     double cells = 1.0;
@@ -449,7 +474,8 @@ class Mesher {
                                   " cells (more than 2^30): raise cell_size");
     }
     // Centre the grid on the bounds.
-    origin_ = s.bounds.center() - 0.5 * h_ * Eigen::Vector3d(double(n_[0]), double(n_[1]), double(n_[2]));
+    origin_ =
+        s.bounds.center() - 0.5 * h_ * Eigen::Vector3d(double(n_[0]), double(n_[1]), double(n_[2]));
     total_cells_ = n_[0] * n_[1] * n_[2];
   }
 
@@ -467,10 +493,12 @@ class Mesher {
     if (settings_.progress) settings_.progress(1.0);
     TriangleMesh mesh;
     mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices_.size()));
-    for (size_t i = 0; i < vertices_.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = vertices_[i];
+    for (size_t i = 0; i < vertices_.size(); ++i)
+      mesh.vertices.col(static_cast<Eigen::Index>(i)) = vertices_[i];
     mesh.triangles.resize(3, static_cast<Eigen::Index>(triangles_.size()));
     for (size_t i = 0; i < triangles_.size(); ++i) {
-      for (int k = 0; k < 3; ++k) mesh.triangles(k, static_cast<Eigen::Index>(i)) = triangles_[i][k];
+      for (int k = 0; k < 3; ++k)
+        mesh.triangles(k, static_cast<Eigen::Index>(i)) = triangles_[i][k];
     }
     if (stats) {
       stats->grid_cells = total_cells_;
@@ -478,7 +506,8 @@ class Mesher {
       stats->field_evaluations = evaluations_;
       stats->collapsed_edges = collapses;
       stats->flipped_edges = flips;
-      stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      stats->seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
     return mesh;
   }
@@ -549,7 +578,8 @@ class Mesher {
   void Done(const Index3& lo, const Index3& hi) {
     done_cells_ += (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
     if (++visits_ % 4096 == 0) {
-      if (settings_.cancel && settings_.cancel->load(std::memory_order_relaxed)) throw MeshingCancelled();
+      if (settings_.cancel && settings_.cancel->load(std::memory_order_relaxed))
+        throw MeshingCancelled();
       if (settings_.progress) settings_.progress(double(done_cells_) / double(total_cells_));
     }
   }
@@ -569,7 +599,8 @@ class Mesher {
   }
 
   // Mesh vertex on the grid edge between corner codes a and b of cell c (one inside, one out).
-  int EdgeVertex(const Index3& c, int a, int b, const std::array<double, 8>& f, const std::array<Index3, 8>& v) {
+  int EdgeVertex(const Index3& c, int a, int b, const std::array<double, 8>& f,
+                 const std::array<Index3, 8>& v) {
     if ((a & b) != a) std::swap(a, b);  // Kuhn edges join u to v with bits(u) ⊂ bits(v)
     const long key = VertexId(v[a]) * 8 + (a ^ b);
     const auto it = edge_vertices_.find(key);
@@ -622,8 +653,8 @@ class Mesher {
   // Appends triangle (i0, i1, i2), oriented by the triangle (m0, m1, m2) of the midpoints of
   // the same grid edges: the midpoints never coincide, so the orientation stays consistent even
   // where mesh vertices do (a grid vertex exactly on the surface).
-  void Emit(int i0, int i1, int i2, const Eigen::Vector3d& m0, const Eigen::Vector3d& m1, const Eigen::Vector3d& m2,
-            const Eigen::Vector3d& outward) {
+  void Emit(int i0, int i1, int i2, const Eigen::Vector3d& m0, const Eigen::Vector3d& m1,
+            const Eigen::Vector3d& m2, const Eigen::Vector3d& outward) {
     if ((m1 - m0).cross(m2 - m0).dot(outward) < 0.0) std::swap(i1, i2);
     triangles_.push_back({i0, i1, i2});
   }
@@ -638,13 +669,17 @@ class Mesher {
     for (int i = 0; i < n_out; ++i) out_centre += Position(v[out[i]]) / n_out;
     // The plane through the edge midpoints separates the inside corners from the outside ones.
     const Eigen::Vector3d outward = out_centre - in_centre;
-    auto mid = [&](int a, int b) -> Eigen::Vector3d { return 0.5 * (Position(v[a]) + Position(v[b])); };
+    auto mid = [&](int a, int b) -> Eigen::Vector3d {
+      return 0.5 * (Position(v[a]) + Position(v[b]));
+    };
     if (n_in == 1) {
-      Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[0], out[1], f, v), EdgeVertex(c, in[0], out[2], f, v),
-           mid(in[0], out[0]), mid(in[0], out[1]), mid(in[0], out[2]), outward);
+      Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[0], out[1], f, v),
+           EdgeVertex(c, in[0], out[2], f, v), mid(in[0], out[0]), mid(in[0], out[1]),
+           mid(in[0], out[2]), outward);
     } else if (n_in == 3) {
-      Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[1], out[0], f, v), EdgeVertex(c, in[2], out[0], f, v),
-           mid(in[0], out[0]), mid(in[1], out[0]), mid(in[2], out[0]), outward);
+      Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[1], out[0], f, v),
+           EdgeVertex(c, in[2], out[0], f, v), mid(in[0], out[0]), mid(in[1], out[0]),
+           mid(in[2], out[0]), outward);
     } else {
       // Quad with corners on edges (a,c), (a,d), (b,d), (b,c), in cyclic order.
       const int ac = EdgeVertex(c, in[0], out[0], f, v), ad = EdgeVertex(c, in[0], out[1], f, v);
@@ -669,7 +704,8 @@ class Mesher {
   std::unordered_map<long, double> values_;
   std::unordered_map<long, int> edge_vertices_;
   std::vector<Eigen::Vector3d> vertices_;
-  std::vector<Eigen::Vector3d> inward_;  // per vertex at a zero grid vertex: its edge, into the solid
+  std::vector<Eigen::Vector3d>
+      inward_;  // per vertex at a zero grid vertex: its edge, into the solid
   std::vector<std::array<int, 3>> triangles_;
 };
 
@@ -781,7 +817,8 @@ std::string Sci(double v) {
 
 }  // namespace
 
-Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search, double resolution) {
+Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
+                               double resolution) {
   if (search.isEmpty() || !search.min().allFinite() || !search.max().allFinite() ||
       !(resolution > 0.0)) {
     throw std::invalid_argument(
@@ -844,7 +881,8 @@ SurfaceMeshEstimate EstimateSurfaceMesh(const CompiledSolid& solid,
   return e;
 }
 
-TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& settings, SurfaceMeshStats* stats) {
+TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& settings,
+                         SurfaceMeshStats* stats) {
   Mesher mesher(solid, settings);
   return mesher.Run(stats);
 }

@@ -1,9 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/tetgen_mesher.h"
 
-#include "spidarcad/base/check.h"
-#include "triangle_predicates.h"
-
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -15,6 +12,9 @@
 #include <string>
 #include <unordered_map>
 #include <vector>
+
+#include "spidarcad/base/check.h"
+#include "triangle_predicates.h"
 
 // TetGen defines REAL and many lowercase macros: this is the only file that includes it.
 #define TETLIBRARY
@@ -30,11 +30,13 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
 
 std::string TriangleText(const TriangleMesh& m, Eigen::Index f) {
-  return std::to_string(f) + " (" + std::to_string(m.triangles(0, f)) + ", " + std::to_string(m.triangles(1, f)) + ", " +
-         std::to_string(m.triangles(2, f)) + ")";
+  return std::to_string(f) + " (" + std::to_string(m.triangles(0, f)) + ", " +
+         std::to_string(m.triangles(1, f)) + ", " + std::to_string(m.triangles(2, f)) + ")";
 }
 
 // Whether triangles f and g intersect other than along what they share.
@@ -72,10 +74,13 @@ void CheckSelfIntersections(const TriangleMesh& m) {
   }
   auto cell_of = [&](const Eigen::Vector3d& p) {
     Eigen::Vector3i c;
-    for (int a = 0; a < 3; ++a) c[a] = std::clamp(static_cast<int>((p[a] - all.min()[a]) / h), 0, dims[a] - 1);
+    for (int a = 0; a < 3; ++a)
+      c[a] = std::clamp(static_cast<int>((p[a] - all.min()[a]) / h), 0, dims[a] - 1);
     return c;
   };
-  auto flat = [&](const Eigen::Vector3i& c) { return (static_cast<long>(c[2]) * dims[1] + c[1]) * dims[0] + c[0]; };
+  auto flat = [&](const Eigen::Vector3i& c) {
+    return (static_cast<long>(c[2]) * dims[1] + c[1]) * dims[0] + c[0];
+  };
   // Bucket triangles (counting sort into one array).
   const long ncells = static_cast<long>(dims[0]) * dims[1] * dims[2];
   std::vector<long> start(ncells + 1, 0);
@@ -104,7 +109,8 @@ void CheckSelfIntersections(const TriangleMesh& m) {
         if (overlap.isEmpty()) continue;
         if (flat(cell_of(overlap.min())) != c) continue;  // the pair is tested in one cell only
         if (TrianglesIntersect(m, f, g)) {
-          throw SurfaceDefectError("surface intersects itself: triangles " + TriangleText(m, std::min(f, g)) + " and " +
+          throw SurfaceDefectError("surface intersects itself: triangles " +
+                                   TriangleText(m, std::min(f, g)) + " and " +
                                    TriangleText(m, std::max(f, g)));
         }
       }
@@ -126,13 +132,14 @@ std::string SwitchNumber(double x) {
 
 }  // namespace
 
-TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* welded, long* dropped) {
+TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* welded,
+                           long* dropped) {
   const Eigen::Index nv = surface.vertices.cols(), nf = surface.triangles.cols();
   for (Eigen::Index f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k)
       if (surface.triangles(k, f) < 0 || surface.triangles(k, f) >= nv)
-        throw SurfaceDefectError("triangle " + TriangleText(surface, f) + " has a vertex index outside [0, " +
-                                    std::to_string(nv) + ")");
+        throw SurfaceDefectError("triangle " + TriangleText(surface, f) +
+                                 " has a vertex index outside [0, " + std::to_string(nv) + ")");
   Eigen::AlignedBox3d box;
   for (Eigen::Index i = 0; i < nv; ++i) box.extend(Eigen::Vector3d(surface.vertices.col(i)));
   const double eps = nv ? tolerance * box.diagonal().norm() : 0.0;
@@ -145,7 +152,9 @@ TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* 
     const double h = std::max(2 * eps, 1e-300);
     using Key = Eigen::Matrix<int64_t, 3, 1>;
     struct KeyHash {
-      size_t operator()(const Key& k) const { return (size_t(k[0]) * 73856093u) ^ (size_t(k[1]) * 19349663u) ^ (size_t(k[2]) * 83492791u); }
+      size_t operator()(const Key& k) const {
+        return (size_t(k[0]) * 73856093u) ^ (size_t(k[1]) * 19349663u) ^ (size_t(k[2]) * 83492791u);
+      }
     };
     struct KeyEq {
       bool operator()(const Key& a, const Key& b) const { return a == b; }
@@ -179,7 +188,8 @@ TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* 
   std::vector<Eigen::Vector3i> kept;
   kept.reserve(nf);
   for (Eigen::Index f = 0; f < nf; ++f) {
-    const Eigen::Vector3i t(target[surface.triangles(0, f)], target[surface.triangles(1, f)], target[surface.triangles(2, f)]);
+    const Eigen::Vector3i t(target[surface.triangles(0, f)], target[surface.triangles(1, f)],
+                            target[surface.triangles(2, f)]);
     if (t[0] != t[1] && t[1] != t[2] && t[0] != t[2]) kept.push_back(t);
   }
   for (const auto& t : kept)
@@ -201,16 +211,21 @@ TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* 
 
 void CheckSurface(const TriangleMesh& m) {
   const Eigen::Index nv = m.vertices.cols(), nf = m.triangles.cols();
-  if (nf < 4) throw SurfaceDefectError("surface has " + std::to_string(nf) + " triangles: a closed surface needs at least 4");
-  if (!m.vertices.allFinite()) throw SurfaceDefectError("surface has a non-finite vertex coordinate");
+  if (nf < 4)
+    throw SurfaceDefectError("surface has " + std::to_string(nf) +
+                             " triangles: a closed surface needs at least 4");
+  if (!m.vertices.allFinite())
+    throw SurfaceDefectError("surface has a non-finite vertex coordinate");
   for (Eigen::Index f = 0; f < nf; ++f) {
     for (int k = 0; k < 3; ++k) {
       if (m.triangles(k, f) < 0 || m.triangles(k, f) >= nv) {
-        throw SurfaceDefectError("triangle " + TriangleText(m, f) + " has a vertex index outside [0, " + std::to_string(nv) + ")");
+        throw SurfaceDefectError("triangle " + TriangleText(m, f) +
+                                 " has a vertex index outside [0, " + std::to_string(nv) + ")");
       }
     }
     const int a = m.triangles(0, f), b = m.triangles(1, f), c = m.triangles(2, f);
-    if (a == b || b == c || a == c) throw SurfaceDefectError("triangle " + TriangleText(m, f) + " repeats a vertex");
+    if (a == b || b == c || a == c)
+      throw SurfaceDefectError("triangle " + TriangleText(m, f) + " repeats a vertex");
     const Eigen::Vector3d pa = m.vertices.col(a), pb = m.vertices.col(b), pc = m.vertices.col(c);
     const double longest = std::max({(pb - pa).norm(), (pc - pb).norm(), (pa - pc).norm()});
     if ((pb - pa).cross(pc - pa).norm() <= 1e-14 * longest * longest) {
@@ -220,13 +235,16 @@ void CheckSurface(const TriangleMesh& m) {
   // Directed edges: each must occur once, and its reverse once.
   std::unordered_map<uint64_t, Eigen::Index> edges;
   edges.reserve(3 * nf);
-  auto key = [](int a, int b) { return (static_cast<uint64_t>(static_cast<uint32_t>(a)) << 32) | static_cast<uint32_t>(b); };
+  auto key = [](int a, int b) {
+    return (static_cast<uint64_t>(static_cast<uint32_t>(a)) << 32) | static_cast<uint32_t>(b);
+  };
   for (Eigen::Index f = 0; f < nf; ++f) {
     for (int k = 0; k < 3; ++k) {
       const int a = m.triangles(k, f), b = m.triangles((k + 1) % 3, f);
       const auto [it, inserted] = edges.emplace(key(a, b), f);
       if (!inserted) {
-        throw SurfaceDefectError("edge (" + std::to_string(a) + ", " + std::to_string(b) + ") is traversed the same way by triangles " +
+        throw SurfaceDefectError("edge (" + std::to_string(a) + ", " + std::to_string(b) +
+                                 ") is traversed the same way by triangles " +
                                  TriangleText(m, it->second) + " and " + TriangleText(m, f) +
                                  ": the surface is non-manifold or inconsistently oriented");
       }
@@ -235,8 +253,10 @@ void CheckSurface(const TriangleMesh& m) {
   for (const auto& [k, f] : edges) {
     const int a = static_cast<int>(k >> 32), b = static_cast<int>(k & 0xffffffffu);
     if (!edges.count(key(b, a))) {
-      throw SurfaceDefectError("edge (" + std::to_string(a) + ", " + std::to_string(b) + ") of triangle " + TriangleText(m, f) +
-                               " has no neighbour across it: the surface is open (or inconsistently oriented)");
+      throw SurfaceDefectError(
+          "edge (" + std::to_string(a) + ", " + std::to_string(b) + ") of triangle " +
+          TriangleText(m, f) +
+          " has no neighbour across it: the surface is open (or inconsistently oriented)");
     }
   }
   const double volume = MeshVolume(m);
@@ -247,17 +267,21 @@ void CheckSurface(const TriangleMesh& m) {
   CheckSelfIntersections(m);
 }
 
-TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& settings, TetMeshStats* stats) {
-  if (!(settings.max_radius_edge == 0.0 || (settings.max_radius_edge > 1.0 && std::isfinite(settings.max_radius_edge)))) {
-    throw std::invalid_argument("TetMeshSettings::max_radius_edge = " + std::to_string(settings.max_radius_edge) +
-                                ": must be 0 (off) or > 1");
+TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& settings,
+                              TetMeshStats* stats) {
+  if (!(settings.max_radius_edge == 0.0 ||
+        (settings.max_radius_edge > 1.0 && std::isfinite(settings.max_radius_edge)))) {
+    throw std::invalid_argument(
+        "TetMeshSettings::max_radius_edge = " + std::to_string(settings.max_radius_edge) +
+        ": must be 0 (off) or > 1");
   }
   if (!(settings.min_dihedral_deg >= 0.0 && settings.min_dihedral_deg < 30.0)) {
-    throw std::invalid_argument("TetMeshSettings::min_dihedral_deg = " + std::to_string(settings.min_dihedral_deg) +
-                                ": must be in [0, 30)");
+    throw std::invalid_argument("TetMeshSettings::min_dihedral_deg = " +
+                                std::to_string(settings.min_dihedral_deg) + ": must be in [0, 30)");
   }
   if (!(settings.max_volume >= 0.0 && std::isfinite(settings.max_volume))) {
-    throw std::invalid_argument("TetMeshSettings::max_volume = " + std::to_string(settings.max_volume) + ": must be >= 0");
+    throw std::invalid_argument(
+        "TetMeshSettings::max_volume = " + std::to_string(settings.max_volume) + ": must be >= 0");
   }
   // Without tetgen_terminate.cc linked, a TetGen failure would exit the process.
   SPIDARCAD_CHECK_MSG(internal::TetgenTerminateAnchor() == 1, "tetgen_terminate.cc is not linked");
@@ -265,7 +289,8 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
   auto progress = [&](double x) {
     if (settings.progress) settings.progress(x);
   };
-  if (!std::isfinite(settings.weld_tolerance)) throw std::invalid_argument("TetMeshSettings::weld_tolerance is not finite");
+  if (!std::isfinite(settings.weld_tolerance))
+    throw std::invalid_argument("TetMeshSettings::weld_tolerance is not finite");
   TetMeshStats local_stats;
   TetMeshStats& st = stats ? *stats : local_stats;
   st = TetMeshStats{};
@@ -274,7 +299,8 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
   auto t0 = Clock::now();
   TriangleMesh repaired_storage;
   if (settings.weld_tolerance >= 0) {
-    repaired_storage = RepairSurface(input, settings.weld_tolerance, &st.welded_vertices, &st.dropped_triangles);
+    repaired_storage =
+        RepairSurface(input, settings.weld_tolerance, &st.welded_vertices, &st.dropped_triangles);
   }
   const TriangleMesh& surface = settings.weld_tolerance >= 0 ? repaired_storage : input;
   if (settings.check_surface) {
@@ -284,7 +310,8 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
     for (Eigen::Index f = 0; f < surface.triangles.cols(); ++f)
       for (int k = 0; k < 3; ++k)
         if (surface.triangles(k, f) < 0 || surface.triangles(k, f) >= surface.vertices.cols())
-          throw SurfaceDefectError("triangle " + TriangleText(surface, f) + " has a vertex index outside [0, " +
+          throw SurfaceDefectError("triangle " + TriangleText(surface, f) +
+                                   " has a vertex index outside [0, " +
                                    std::to_string(surface.vertices.cols()) + ")");
   }
   st.check_seconds = Seconds(t0);
@@ -337,10 +364,13 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
 
   const int nv = out.numberofpoints, nt = out.numberoftetrahedra;
   if (nt <= 0 || nv < 4 || out.tetrahedronlist == nullptr || out.pointlist == nullptr) {
-    throw TetgenError(0, "TetGen returned " + std::to_string(nt) + " tetrahedra and " + std::to_string(nv) +
-                             " points for a surface of " + std::to_string(surface.triangles.cols()) + " triangles");
+    throw TetgenError(0, "TetGen returned " + std::to_string(nt) + " tetrahedra and " +
+                             std::to_string(nv) + " points for a surface of " +
+                             std::to_string(surface.triangles.cols()) + " triangles");
   }
-  if (out.numberofcorners != 4) throw TetgenError(0, "TetGen returned " + std::to_string(out.numberofcorners) + "-node tetrahedra");
+  if (out.numberofcorners != 4)
+    throw TetgenError(
+        0, "TetGen returned " + std::to_string(out.numberofcorners) + "-node tetrahedra");
   TetMesh mesh;
   mesh.nodes.resize(3, nv);
   std::copy(out.pointlist, out.pointlist + 3 * nv, mesh.nodes.data());
@@ -349,17 +379,21 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
   for (int t = 0; t < nt; ++t) {
     for (int k = 0; k < 4; ++k) {
       const int i = out.tetrahedronlist[4 * t + k];
-      if (i < 0 || i >= nv) throw TetgenError(0, "TetGen returned tet " + std::to_string(t) + " with node index " + std::to_string(i));
+      if (i < 0 || i >= nv)
+        throw TetgenError(0, "TetGen returned tet " + std::to_string(t) + " with node index " +
+                                 std::to_string(i));
       mesh.tets(k, t) = i;
     }
     if (out.numberoftetrahedronattributes > 0 && out.tetrahedronattributelist) {
-      mesh.regions[t] = static_cast<int>(std::lround(out.tetrahedronattributelist[t * out.numberoftetrahedronattributes]));
+      mesh.regions[t] = static_cast<int>(
+          std::lround(out.tetrahedronattributelist[t * out.numberoftetrahedronattributes]));
     }
     if (TetVolume(mesh, t) < 0) std::swap(mesh.tets(2, t), mesh.tets(3, t));
   }
   st.quality = MeasureTetQuality(mesh);
   if (!(st.quality.min_volume > 0)) {
-    throw TetgenError(0, "TetGen returned a tetrahedron of volume " + std::to_string(st.quality.min_volume) + " m^3");
+    throw TetgenError(0, "TetGen returned a tetrahedron of volume " +
+                             std::to_string(st.quality.min_volume) + " m^3");
   }
   progress(1.0);
   return mesh;

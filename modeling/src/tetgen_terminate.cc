@@ -15,13 +15,20 @@ namespace {
 
 std::string Describe(int code) {
   switch (code) {
-    case 1: return "out of memory";
-    case 2: return "internal error";
-    case 3: return "the surface intersects itself";
-    case 4: return "a very small input feature (TetGen's -T tolerance)";
-    case 5: return "two very close input facets";
-    case 10: return "input error";
-    default: return "error code " + std::to_string(code);
+    case 1:
+      return "out of memory";
+    case 2:
+      return "internal error";
+    case 3:
+      return "the surface intersects itself";
+    case 4:
+      return "a very small input feature (TetGen's -T tolerance)";
+    case 5:
+      return "two very close input facets";
+    case 10:
+      return "input error";
+    default:
+      return "error code " + std::to_string(code);
   }
 }
 

@@ -21,8 +21,10 @@ namespace {
 
 std::string Location(const std::string& file, long line, long byte_offset) {
   std::string s = file;
-  if (line > 0) s += ":" + std::to_string(line);
-  else if (byte_offset >= 0) s += ": byte " + std::to_string(byte_offset);
+  if (line > 0)
+    s += ":" + std::to_string(line);
+  else if (byte_offset >= 0)
+    s += ": byte " + std::to_string(byte_offset);
   return s;
 }
 
@@ -40,15 +42,17 @@ std::string Extension(const std::string& path) {
 
 std::string ReadWholeFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw MeshFileError(path, 0, -1, std::string("cannot open for reading: ") + std::strerror(errno));
+  if (!in)
+    throw MeshFileError(path, 0, -1,
+                        std::string("cannot open for reading: ") + std::strerror(errno));
   std::ostringstream ss;
   ss << in.rdbuf();
   return ss.str();
 }
 
 // Builds a TriangleMesh from vectors, checking every index.
-TriangleMesh Assemble(const std::vector<double>& xyz, const std::vector<int>& tri, const std::vector<long>& tri_line,
-                      const std::string& file) {
+TriangleMesh Assemble(const std::vector<double>& xyz, const std::vector<int>& tri,
+                      const std::vector<long>& tri_line, const std::string& file) {
   const long nv = static_cast<long>(xyz.size() / 3);
   TriangleMesh mesh;
   mesh.vertices.resize(3, nv);
@@ -60,15 +64,17 @@ TriangleMesh Assemble(const std::vector<double>& xyz, const std::vector<int>& tr
       const int i = tri[3 * f + k];
       if (i < 0 || i >= nv) {
         throw MeshFileError(file, tri_line.empty() ? 0 : tri_line[f], -1,
-                            "face " + std::to_string(f) + " has vertex index " + std::to_string(i) + " outside [0, " +
-                                std::to_string(nv) + ")");
+                            "face " + std::to_string(f) + " has vertex index " + std::to_string(i) +
+                                " outside [0, " + std::to_string(nv) + ")");
       }
       mesh.triangles(k, f) = i;
     }
-    if (tri[3 * f] == tri[3 * f + 1] || tri[3 * f + 1] == tri[3 * f + 2] || tri[3 * f] == tri[3 * f + 2]) {
+    if (tri[3 * f] == tri[3 * f + 1] || tri[3 * f + 1] == tri[3 * f + 2] ||
+        tri[3 * f] == tri[3 * f + 2]) {
       throw MeshFileError(file, tri_line.empty() ? 0 : tri_line[f], -1,
-                          "face " + std::to_string(f) + " repeats a vertex (" + std::to_string(tri[3 * f]) + ", " +
-                              std::to_string(tri[3 * f + 1]) + ", " + std::to_string(tri[3 * f + 2]) + ")");
+                          "face " + std::to_string(f) + " repeats a vertex (" +
+                              std::to_string(tri[3 * f]) + ", " + std::to_string(tri[3 * f + 1]) +
+                              ", " + std::to_string(tri[3 * f + 2]) + ")");
     }
   }
   return mesh;
@@ -101,14 +107,16 @@ std::vector<Token> Tokenize(const std::string& text, size_t begin, size_t end, l
   return tokens;
 }
 
-double ParseDouble(const std::string& s, const std::string& file, long line, const std::string& what) {
+double ParseDouble(const std::string& s, const std::string& file, long line,
+                   const std::string& what) {
   char* end = nullptr;
   errno = 0;
   const double v = std::strtod(s.c_str(), &end);
   // Not errno == ERANGE: strtod sets it for underflow too, i.e. for a subnormal (finite) value
   // that the binary formats carry and the writers print. Overflow gives inf, refused here.
   if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v)) {
-    throw MeshFileError(file, line, -1, "expected a finite number for " + what + ", found '" + s + "'");
+    throw MeshFileError(file, line, -1,
+                        "expected a finite number for " + what + ", found '" + s + "'");
   }
   return v;
 }
@@ -144,12 +152,18 @@ TriangleMesh ReadStlAscii(const std::string& text, const std::string& file) {
   const std::vector<Token> t = Tokenize(text, 0, text.size(), 1);
   size_t k = 0;
   auto expect = [&](const char* word) {
-    if (k >= t.size()) throw MeshFileError(file, t.empty() ? 1 : t.back().line, -1, std::string("unexpected end of file, expected '") + word + "'");
-    if (Lower(t[k].text) != word) throw MeshFileError(file, t[k].line, -1, std::string("expected '") + word + "', found '" + t[k].text + "'");
+    if (k >= t.size())
+      throw MeshFileError(file, t.empty() ? 1 : t.back().line, -1,
+                          std::string("unexpected end of file, expected '") + word + "'");
+    if (Lower(t[k].text) != word)
+      throw MeshFileError(file, t[k].line, -1,
+                          std::string("expected '") + word + "', found '" + t[k].text + "'");
     ++k;
   };
   auto number = [&](const char* what) {
-    if (k >= t.size()) throw MeshFileError(file, t.back().line, -1, std::string("unexpected end of file, expected ") + what);
+    if (k >= t.size())
+      throw MeshFileError(file, t.back().line, -1,
+                          std::string("unexpected end of file, expected ") + what);
     const double v = ParseDouble(t[k].text, file, t[k].line, what);
     ++k;
     return v;
@@ -161,7 +175,9 @@ TriangleMesh ReadStlAscii(const std::string& text, const std::string& file) {
   std::vector<int> tri;
   std::vector<long> tri_line;
   while (true) {
-    if (k >= t.size()) throw MeshFileError(file, t.back().line, -1, "unexpected end of file, expected 'facet' or 'endsolid'");
+    if (k >= t.size())
+      throw MeshFileError(file, t.back().line, -1,
+                          "unexpected end of file, expected 'facet' or 'endsolid'");
     if (Lower(t[k].text) == "endsolid") break;
     const long facet_line = t[k].line;
     expect("facet");
@@ -195,15 +211,17 @@ T ReadLe(const std::string& data, size_t offset) {
 
 TriangleMesh ReadStlBinary(const std::string& data, const std::string& file) {
   if (data.size() < 84) {
-    throw MeshFileError(file, 0, static_cast<long>(data.size()),
-                        "binary STL shorter than its 84-byte header (" + std::to_string(data.size()) + " bytes)");
+    throw MeshFileError(
+        file, 0, static_cast<long>(data.size()),
+        "binary STL shorter than its 84-byte header (" + std::to_string(data.size()) + " bytes)");
   }
   const uint32_t n = ReadLe<uint32_t>(data, 80);
   const size_t expected = 84 + 50 * static_cast<size_t>(n);
   if (data.size() != expected) {
     throw MeshFileError(file, 0, 80,
-                        "binary STL header announces " + std::to_string(n) + " triangles (" + std::to_string(expected) +
-                            " bytes) but the file has " + std::to_string(data.size()) + " bytes");
+                        "binary STL header announces " + std::to_string(n) + " triangles (" +
+                            std::to_string(expected) + " bytes) but the file has " +
+                            std::to_string(data.size()) + " bytes");
   }
   Welder welder;
   std::vector<int> tri;
@@ -216,12 +234,15 @@ TriangleMesh ReadStlBinary(const std::string& data, const std::string& file) {
       for (int i = 0; i < 3; ++i) {
         const size_t at = base + 12 * c + 4 * i;
         const float x = ReadLe<float>(data, at);
-        if (!std::isfinite(x)) throw MeshFileError(file, 0, static_cast<long>(at), "non-finite vertex coordinate in triangle " + std::to_string(f));
+        if (!std::isfinite(x))
+          throw MeshFileError(file, 0, static_cast<long>(at),
+                              "non-finite vertex coordinate in triangle " + std::to_string(f));
         p[i] = x;
       }
       corner[c] = welder.Add(p);
     }
-    if (corner[0] != corner[1] && corner[1] != corner[2] && corner[0] != corner[2]) tri.insert(tri.end(), corner, corner + 3);
+    if (corner[0] != corner[1] && corner[1] != corner[2] && corner[0] != corner[2])
+      tri.insert(tri.end(), corner, corner + 3);
   }
   return Assemble(welder.xyz(), tri, {}, file);
 }
@@ -229,7 +250,8 @@ TriangleMesh ReadStlBinary(const std::string& data, const std::string& file) {
 TriangleMesh ReadStl(const std::string& file) {
   const std::string data = ReadWholeFile(file);
   bool size_matches = false;
-  if (data.size() >= 84) size_matches = data.size() == 84 + 50 * static_cast<size_t>(ReadLe<uint32_t>(data, 80));
+  if (data.size() >= 84)
+    size_matches = data.size() == 84 + 50 * static_cast<size_t>(ReadLe<uint32_t>(data, 80));
   size_t first = 0;
   while (first < data.size() && std::isspace(static_cast<unsigned char>(data[first]))) ++first;
   const bool starts_solid = Lower(data.substr(first, 5)) == "solid";
@@ -238,7 +260,8 @@ TriangleMesh ReadStl(const std::string& file) {
 }
 
 Eigen::Vector3d Normal(const TriangleMesh& mesh, Eigen::Index f) {
-  const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, f)), b = mesh.vertices.col(mesh.triangles(1, f)),
+  const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, f)),
+                        b = mesh.vertices.col(mesh.triangles(1, f)),
                         c = mesh.vertices.col(mesh.triangles(2, f));
   const Eigen::Vector3d n = (b - a).cross(c - a);
   const double len = n.norm();
@@ -261,10 +284,17 @@ TriangleMesh ReadObj(const std::string& file) {
     const std::vector<Token> t = Tokenize(line, 0, line.size(), line_no);
     if (t.empty() || t[0].text[0] == '#') continue;
     if (t[0].text == "v") {
-      if (t.size() < 4 || t.size() > 5) throw MeshFileError(file, line_no, -1, "vertex needs 3 coordinates (and an optional w), found " + std::to_string(t.size() - 1) + " values");
-      for (int i = 1; i <= 3; ++i) xyz.push_back(ParseDouble(t[i].text, file, line_no, "vertex coordinate"));
+      if (t.size() < 4 || t.size() > 5)
+        throw MeshFileError(file, line_no, -1,
+                            "vertex needs 3 coordinates (and an optional w), found " +
+                                std::to_string(t.size() - 1) + " values");
+      for (int i = 1; i <= 3; ++i)
+        xyz.push_back(ParseDouble(t[i].text, file, line_no, "vertex coordinate"));
     } else if (t[0].text == "f") {
-      if (t.size() < 4) throw MeshFileError(file, line_no, -1, "face needs at least 3 vertices, found " + std::to_string(t.size() - 1));
+      if (t.size() < 4)
+        throw MeshFileError(
+            file, line_no, -1,
+            "face needs at least 3 vertices, found " + std::to_string(t.size() - 1));
       std::vector<int> corners;
       const long nv = static_cast<long>(xyz.size() / 3);
       for (size_t i = 1; i < t.size(); ++i) {
@@ -273,7 +303,9 @@ TriangleMesh ReadObj(const std::string& file) {
         // 1-based; negative counts back from the last vertex defined so far.
         const long index = v > 0 ? v - 1 : nv + v;
         if (v == 0 || index < 0 || index >= nv) {
-          throw MeshFileError(file, line_no, -1, "face vertex index " + std::to_string(v) + " refers to no vertex (" + std::to_string(nv) + " defined so far)");
+          throw MeshFileError(file, line_no, -1,
+                              "face vertex index " + std::to_string(v) + " refers to no vertex (" +
+                                  std::to_string(nv) + " defined so far)");
         }
         corners.push_back(static_cast<int>(index));
       }
@@ -293,11 +325,11 @@ enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, 
 
 bool ParsePlyType(const std::string& s, PlyType* type) {
   static const std::map<std::string, PlyType> kTypes = {
-      {"char", PlyType::kInt8},     {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
-      {"uint8", PlyType::kUint8},   {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
-      {"ushort", PlyType::kUint16}, {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
-      {"int32", PlyType::kInt32},   {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
-      {"float", PlyType::kFloat32}, {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
+      {"char", PlyType::kInt8},      {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
+      {"uint8", PlyType::kUint8},    {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
+      {"ushort", PlyType::kUint16},  {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
+      {"int32", PlyType::kInt32},    {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
+      {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
       {"float64", PlyType::kFloat64}};
   const auto it = kTypes.find(s);
   if (it == kTypes.end()) return false;
@@ -307,10 +339,18 @@ bool ParsePlyType(const std::string& s, PlyType* type) {
 
 size_t PlySize(PlyType t) {
   switch (t) {
-    case PlyType::kInt8: case PlyType::kUint8: return 1;
-    case PlyType::kInt16: case PlyType::kUint16: return 2;
-    case PlyType::kInt32: case PlyType::kUint32: case PlyType::kFloat32: return 4;
-    case PlyType::kFloat64: return 8;
+    case PlyType::kInt8:
+    case PlyType::kUint8:
+      return 1;
+    case PlyType::kInt16:
+    case PlyType::kUint16:
+      return 2;
+    case PlyType::kInt32:
+    case PlyType::kUint32:
+    case PlyType::kFloat32:
+      return 4;
+    case PlyType::kFloat64:
+      return 8;
   }
   return 0;
 }
@@ -336,37 +376,63 @@ struct PlyElement {
 // Reads values either from ASCII tokens or from binary little-endian bytes.
 class PlyCursor {
  public:
-  PlyCursor(const std::string& data, size_t begin, long first_line, bool binary, const std::string& file)
+  PlyCursor(const std::string& data, size_t begin, long first_line, bool binary,
+            const std::string& file)
       : data_(data), pos_(begin), binary_(binary), file_(file) {
     if (!binary_) tokens_ = Tokenize(data, begin, data.size(), first_line);
   }
   double Read(PlyType type, const std::string& what) {
     if (!binary_) {
-      if (k_ >= tokens_.size()) throw MeshFileError(file_, tokens_.empty() ? 0 : tokens_.back().line, -1, "unexpected end of data, expected " + what);
+      if (k_ >= tokens_.size())
+        throw MeshFileError(file_, tokens_.empty() ? 0 : tokens_.back().line, -1,
+                            "unexpected end of data, expected " + what);
       const Token& t = tokens_[k_++];
       return ParseDouble(t.text, file_, t.line, what);
     }
     const size_t n = PlySize(type);
     if (pos_ + n > data_.size()) {
-      throw MeshFileError(file_, 0, static_cast<long>(pos_), "unexpected end of data, expected " + what + " (" + std::to_string(n) + " bytes)");
+      throw MeshFileError(
+          file_, 0, static_cast<long>(pos_),
+          "unexpected end of data, expected " + what + " (" + std::to_string(n) + " bytes)");
     }
     double v = 0;
     switch (type) {
-      case PlyType::kInt8: v = ReadLe<int8_t>(data_, pos_); break;
-      case PlyType::kUint8: v = ReadLe<uint8_t>(data_, pos_); break;
-      case PlyType::kInt16: v = ReadLe<int16_t>(data_, pos_); break;
-      case PlyType::kUint16: v = ReadLe<uint16_t>(data_, pos_); break;
-      case PlyType::kInt32: v = ReadLe<int32_t>(data_, pos_); break;
-      case PlyType::kUint32: v = ReadLe<uint32_t>(data_, pos_); break;
-      case PlyType::kFloat32: v = ReadLe<float>(data_, pos_); break;
-      case PlyType::kFloat64: v = ReadLe<double>(data_, pos_); break;
+      case PlyType::kInt8:
+        v = ReadLe<int8_t>(data_, pos_);
+        break;
+      case PlyType::kUint8:
+        v = ReadLe<uint8_t>(data_, pos_);
+        break;
+      case PlyType::kInt16:
+        v = ReadLe<int16_t>(data_, pos_);
+        break;
+      case PlyType::kUint16:
+        v = ReadLe<uint16_t>(data_, pos_);
+        break;
+      case PlyType::kInt32:
+        v = ReadLe<int32_t>(data_, pos_);
+        break;
+      case PlyType::kUint32:
+        v = ReadLe<uint32_t>(data_, pos_);
+        break;
+      case PlyType::kFloat32:
+        v = ReadLe<float>(data_, pos_);
+        break;
+      case PlyType::kFloat64:
+        v = ReadLe<double>(data_, pos_);
+        break;
     }
     pos_ += n;
-    if (!std::isfinite(v)) throw MeshFileError(file_, 0, static_cast<long>(pos_ - n), "non-finite " + what);
+    if (!std::isfinite(v))
+      throw MeshFileError(file_, 0, static_cast<long>(pos_ - n), "non-finite " + what);
     return v;
   }
   // Where the value about to be read sits: a line (ASCII) or byte offset (binary).
-  long Line() const { return binary_ ? 0 : (k_ < tokens_.size() ? tokens_[k_].line : (tokens_.empty() ? 0 : tokens_.back().line)); }
+  long Line() const {
+    return binary_ ? 0
+                   : (k_ < tokens_.size() ? tokens_[k_].line
+                                          : (tokens_.empty() ? 0 : tokens_.back().line));
+  }
   long Offset() const { return binary_ ? static_cast<long>(pos_) : -1; }
   bool AtEnd() const { return binary_ ? pos_ == data_.size() : k_ == tokens_.size(); }
 
@@ -395,7 +461,8 @@ TriangleMesh ReadPly(const std::string& file) {
     return true;
   };
   std::string line;
-  if (!next_line(&line) || line != "ply") throw MeshFileError(file, 1, -1, "not a PLY file: the first line must be 'ply'");
+  if (!next_line(&line) || line != "ply")
+    throw MeshFileError(file, 1, -1, "not a PLY file: the first line must be 'ply'");
   bool binary = false, have_format = false, ended = false;
   std::vector<PlyElement> elements;
   while (next_line(&line)) {
@@ -408,13 +475,20 @@ TriangleMesh ReadPly(const std::string& file) {
     } else if (key == "comment" || key == "obj_info") {
       continue;
     } else if (key == "format") {
-      if (t.size() != 3) throw MeshFileError(file, line_no, -1, "format line needs a format and a version");
-      if (t[1].text == "ascii") binary = false;
-      else if (t[1].text == "binary_little_endian") binary = true;
-      else throw MeshFileError(file, line_no, -1, "unsupported PLY format '" + t[1].text + "' (ascii or binary_little_endian)");
+      if (t.size() != 3)
+        throw MeshFileError(file, line_no, -1, "format line needs a format and a version");
+      if (t[1].text == "ascii")
+        binary = false;
+      else if (t[1].text == "binary_little_endian")
+        binary = true;
+      else
+        throw MeshFileError(
+            file, line_no, -1,
+            "unsupported PLY format '" + t[1].text + "' (ascii or binary_little_endian)");
       have_format = true;
     } else if (key == "element") {
-      if (t.size() != 3) throw MeshFileError(file, line_no, -1, "element line needs a name and a count");
+      if (t.size() != 3)
+        throw MeshFileError(file, line_no, -1, "element line needs a name and a count");
       const long count = ParseLong(t[2].text, file, line_no, "element count");
       if (count < 0) throw MeshFileError(file, line_no, -1, "negative element count " + t[2].text);
       elements.push_back({t[1].text, count, line_no, {}});
@@ -428,7 +502,8 @@ TriangleMesh ReadPly(const std::string& file) {
         }
         p.name = t[4].text;
       } else if (t.size() == 3) {
-        if (!ParsePlyType(t[1].text, &p.type)) throw MeshFileError(file, line_no, -1, "unknown property type '" + t[1].text + "'");
+        if (!ParsePlyType(t[1].text, &p.type))
+          throw MeshFileError(file, line_no, -1, "unknown property type '" + t[1].text + "'");
         p.name = t[2].text;
       } else {
         throw MeshFileError(file, line_no, -1, "malformed property line '" + line + "'");
@@ -456,16 +531,20 @@ TriangleMesh ReadPly(const std::string& file) {
         if (p.name == "y") xyz_prop[1] = static_cast<int>(i);
         if (p.name == "z") xyz_prop[2] = static_cast<int>(i);
       }
-      if (e.name == "face" && p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index")) face_prop = static_cast<int>(i);
+      if (e.name == "face" && p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index"))
+        face_prop = static_cast<int>(i);
     }
     if (e.name == "vertex") {
       if (xyz_prop[0] < 0 || xyz_prop[1] < 0 || xyz_prop[2] < 0) {
-        throw MeshFileError(file, e.header_line, -1, "element vertex lacks one of the properties x, y, z");
+        throw MeshFileError(file, e.header_line, -1,
+                            "element vertex lacks one of the properties x, y, z");
       }
       have_vertices = true;
     }
     if (e.name == "face") {
-      if (face_prop < 0) throw MeshFileError(file, e.header_line, -1, "element face lacks a list property vertex_indices");
+      if (face_prop < 0)
+        throw MeshFileError(file, e.header_line, -1,
+                            "element face lacks a list property vertex_indices");
       have_faces = true;
     }
     // An element without properties has no data to read, whatever its count (which may be
@@ -478,7 +557,8 @@ TriangleMesh ReadPly(const std::string& file) {
         const std::string what = e.name + " " + std::to_string(item) + " property " + p.name;
         if (!p.is_list) {
           const double v = cursor.Read(p.type, what);
-          for (int a = 0; a < 3; ++a) if (xyz_prop[a] == static_cast<int>(i)) p_xyz[a] = v;
+          for (int a = 0; a < 3; ++a)
+            if (xyz_prop[a] == static_cast<int>(i)) p_xyz[a] = v;
           continue;
         }
         const long at_line = cursor.Line(), at_offset = cursor.Offset();
@@ -486,7 +566,8 @@ TriangleMesh ReadPly(const std::string& file) {
         // Checked before the conversion: a double beyond long's range has no long value.
         if (!(n_real >= 0 && n_real <= kMaxPlyListLength && n_real == std::floor(n_real))) {
           throw MeshFileError(file, at_line, at_offset,
-                              "bad list count " + std::to_string(n_real) + " in " + what + " (an integer in [0, " +
+                              "bad list count " + std::to_string(n_real) + " in " + what +
+                                  " (an integer in [0, " +
                                   std::to_string(static_cast<long>(kMaxPlyListLength)) + "])");
         }
         const long n = static_cast<long>(n_real);
@@ -497,12 +578,16 @@ TriangleMesh ReadPly(const std::string& file) {
           // Entries of other lists are skipped (any value; only face corners become ints).
           if (static_cast<int>(i) != face_prop) continue;
           if (v != std::floor(v) || v < 0 || v > 2e9) {
-            throw MeshFileError(file, c_line, c_offset, "bad vertex index " + std::to_string(v) + " in " + what);
+            throw MeshFileError(file, c_line, c_offset,
+                                "bad vertex index " + std::to_string(v) + " in " + what);
           }
           corners.push_back(static_cast<int>(v));
         }
         if (static_cast<int>(i) == face_prop) {
-          if (n < 3) throw MeshFileError(file, at_line, at_offset, "face " + std::to_string(item) + " has " + std::to_string(n) + " vertices (at least 3)");
+          if (n < 3)
+            throw MeshFileError(file, at_line, at_offset,
+                                "face " + std::to_string(item) + " has " + std::to_string(n) +
+                                    " vertices (at least 3)");
           for (size_t c = 1; c + 1 < corners.size(); ++c) {
             tri.insert(tri.end(), {corners[0], corners[c], corners[c + 1]});
             tri_line.push_back(at_line);
@@ -514,7 +599,9 @@ TriangleMesh ReadPly(const std::string& file) {
   }
   if (!have_vertices) throw MeshFileError(file, line_no, -1, "header declares no element vertex");
   if (!have_faces) throw MeshFileError(file, line_no, -1, "header declares no element face");
-  if (!cursor.AtEnd()) throw MeshFileError(file, cursor.Line(), cursor.Offset(), "data continues after the last declared element");
+  if (!cursor.AtEnd())
+    throw MeshFileError(file, cursor.Line(), cursor.Offset(),
+                        "data continues after the last declared element");
   // Binary files have no lines: report index errors without one.
   if (binary) tri_line.clear();
   return Assemble(xyz, tri, tri_line, file);
@@ -525,7 +612,9 @@ TriangleMesh ReadPly(const std::string& file) {
 class Output {
  public:
   explicit Output(const std::string& path) : path_(path), f_(std::fopen(path.c_str(), "wb")) {
-    if (!f_) throw MeshFileError(path, 0, -1, std::string("cannot open for writing: ") + std::strerror(errno));
+    if (!f_)
+      throw MeshFileError(path, 0, -1,
+                          std::string("cannot open for writing: ") + std::strerror(errno));
   }
   ~Output() {
     if (f_) std::fclose(f_);
@@ -547,9 +636,9 @@ void CheckIndices(const TriangleMesh& mesh) {
   for (Eigen::Index f = 0; f < mesh.triangles.cols(); ++f) {
     for (int k = 0; k < 3; ++k) {
       if (mesh.triangles(k, f) < 0 || mesh.triangles(k, f) >= mesh.vertices.cols()) {
-        throw std::invalid_argument("WriteTriangleMesh: triangle " + std::to_string(f) + " has vertex index " +
-                                    std::to_string(mesh.triangles(k, f)) + " outside [0, " +
-                                    std::to_string(mesh.vertices.cols()) + ")");
+        throw std::invalid_argument("WriteTriangleMesh: triangle " + std::to_string(f) +
+                                    " has vertex index " + std::to_string(mesh.triangles(k, f)) +
+                                    " outside [0, " + std::to_string(mesh.vertices.cols()) + ")");
       }
     }
   }
@@ -557,7 +646,8 @@ void CheckIndices(const TriangleMesh& mesh) {
 
 }  // namespace
 
-MeshFileError::MeshFileError(const std::string& file, long line, long byte_offset, const std::string& what)
+MeshFileError::MeshFileError(const std::string& file, long line, long byte_offset,
+                             const std::string& what)
     : std::runtime_error(Location(file, line, byte_offset) + ": " + what),
       file_(file),
       line_(line),
@@ -603,7 +693,8 @@ void WriteTriangleMesh(const TriangleMesh& mesh, const std::string& path, MeshFi
         const Eigen::Vector3d normal = Normal(mesh, t);
         for (int i = 0; i < 3; ++i) rec[i] = static_cast<float>(normal[i]);
         for (int k = 0; k < 3; ++k)
-          for (int i = 0; i < 3; ++i) rec[3 + 3 * k + i] = static_cast<float>(mesh.vertices(i, mesh.triangles(k, t)));
+          for (int i = 0; i < 3; ++i)
+            rec[3 + 3 * k + i] = static_cast<float>(mesh.vertices(i, mesh.triangles(k, t)));
         const uint16_t attribute = 0;
         std::fwrite(rec, 4, 12, f);
         std::fwrite(&attribute, 2, 1, f);
@@ -613,19 +704,22 @@ void WriteTriangleMesh(const TriangleMesh& mesh, const std::string& path, MeshFi
     case MeshFileFormat::kObj: {
       std::fprintf(f, "# spidarcad triangle mesh, metres\n");
       for (Eigen::Index i = 0; i < nv; ++i)
-        std::fprintf(f, "v %.17g %.17g %.17g\n", mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i));
+        std::fprintf(f, "v %.17g %.17g %.17g\n", mesh.vertices(0, i), mesh.vertices(1, i),
+                     mesh.vertices(2, i));
       for (Eigen::Index t = 0; t < nf; ++t)
-        std::fprintf(f, "f %d %d %d\n", mesh.triangles(0, t) + 1, mesh.triangles(1, t) + 1, mesh.triangles(2, t) + 1);
+        std::fprintf(f, "f %d %d %d\n", mesh.triangles(0, t) + 1, mesh.triangles(1, t) + 1,
+                     mesh.triangles(2, t) + 1);
       break;
     }
     case MeshFileFormat::kPlyAscii:
     case MeshFileFormat::kPlyBinary: {
       const bool binary = format == MeshFileFormat::kPlyBinary;
-      std::fprintf(f,
-                   "ply\nformat %s 1.0\ncomment spidarcad triangle mesh, metres\nelement vertex %ld\n"
-                   "property double x\nproperty double y\nproperty double z\nelement face %ld\n"
-                   "property list uchar int vertex_indices\nend_header\n",
-                   binary ? "binary_little_endian" : "ascii", static_cast<long>(nv), static_cast<long>(nf));
+      std::fprintf(
+          f,
+          "ply\nformat %s 1.0\ncomment spidarcad triangle mesh, metres\nelement vertex %ld\n"
+          "property double x\nproperty double y\nproperty double z\nelement face %ld\n"
+          "property list uchar int vertex_indices\nend_header\n",
+          binary ? "binary_little_endian" : "ascii", static_cast<long>(nv), static_cast<long>(nf));
       if (binary) {
         std::fwrite(mesh.vertices.data(), sizeof(double), 3 * nv, f);
         for (Eigen::Index t = 0; t < nf; ++t) {
@@ -636,9 +730,11 @@ void WriteTriangleMesh(const TriangleMesh& mesh, const std::string& path, MeshFi
         }
       } else {
         for (Eigen::Index i = 0; i < nv; ++i)
-          std::fprintf(f, "%.17g %.17g %.17g\n", mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i));
+          std::fprintf(f, "%.17g %.17g %.17g\n", mesh.vertices(0, i), mesh.vertices(1, i),
+                       mesh.vertices(2, i));
         for (Eigen::Index t = 0; t < nf; ++t)
-          std::fprintf(f, "3 %d %d %d\n", mesh.triangles(0, t), mesh.triangles(1, t), mesh.triangles(2, t));
+          std::fprintf(f, "3 %d %d %d\n", mesh.triangles(0, t), mesh.triangles(1, t),
+                       mesh.triangles(2, t));
       }
       break;
     }
@@ -651,7 +747,8 @@ void WriteTriangleMesh(const TriangleMesh& mesh, const std::string& path) {
   if (ext == "stl") return WriteTriangleMesh(mesh, path, MeshFileFormat::kStlBinary);
   if (ext == "obj") return WriteTriangleMesh(mesh, path, MeshFileFormat::kObj);
   if (ext == "ply") return WriteTriangleMesh(mesh, path, MeshFileFormat::kPlyBinary);
-  throw std::invalid_argument("WriteTriangleMesh: unknown extension '" + ext + "' of " + path + " (stl, obj, ply)");
+  throw std::invalid_argument("WriteTriangleMesh: unknown extension '" + ext + "' of " + path +
+                              " (stl, obj, ply)");
 }
 
 }  // namespace spidarcad::modeling

@@ -4,10 +4,9 @@
 // through CheckSurface will not call an intersection (same predicates, same tolerances).
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <cmath>
-
-#include <Eigen/Core>
 
 namespace spidarcad::modeling::internal {
 
@@ -23,14 +22,15 @@ inline int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const 
 }
 
 // Whether point t, in the plane of triangle abc, lies in the closed triangle (within rounding).
-inline bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                            const Eigen::Vector3d& c) {
+inline bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a,
+                            const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   const Eigen::Vector3d n = (b - a).cross(c - a);
   const Eigen::Vector3d corner[3] = {a, b, c};
   for (int k = 0; k < 3; ++k) {
     const Eigen::Vector3d& u = corner[k];
     const Eigen::Vector3d& v = corner[(k + 1) % 3];
-    if (n.dot((v - u).cross(t - u)) < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm()) return false;
+    if (n.dot((v - u).cross(t - u)) < -1e-12 * n.norm() * (v - u).norm() * (t - u).norm())
+      return false;
   }
   return true;
 }
@@ -38,8 +38,9 @@ inline bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a, 
 // Whether segment pq meets triangle abc (touching counts). A segment lying in (or within
 // rounding of) the triangle's plane is reported as not meeting it: coplanar contacts are not
 // detected here (TetGen reports them, and its error is caught).
-inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& a,
-                                 const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q,
+                                 const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                 const Eigen::Vector3d& c) {
   const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
   if (sp == sq) return false;  // same side, or both in the plane
   // One endpoint in the plane: they meet iff that endpoint lies in the (closed) triangle.

@@ -8,17 +8,6 @@
 // with --frames, and prints "assembly: 1 of 5 parts seated (right_leg), carried: none".
 #include "gui/assembly_mode.h"
 
-#include <algorithm>
-#include <cmath>
-#include <cstdlib>
-#include <filesystem>
-#include <fstream>
-#include <memory>
-#include <numbers>
-#include <string>
-#include <vector>
-
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <vtkActor.h>
 #include <vtkActorCollection.h>
@@ -31,11 +20,22 @@
 #include <vtkProperty.h>
 #include <vtkRenderer.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
 #include "doc/job.h"
+#include "gui/scene_view.h"
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
-#include "gui/scene_view.h"
 #include "scene/shared_field.h"
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -75,7 +75,8 @@ Eigen::Matrix4d ActorMatrix(vtkActor* actor) {
 bool HasColour(vtkActor* actor, const std::array<double, 3>& rgb) {
   double c[3];
   actor->GetProperty()->GetColor(c);
-  return std::abs(c[0] - rgb[0]) < 1e-6 && std::abs(c[1] - rgb[1]) < 1e-6 && std::abs(c[2] - rgb[2]) < 1e-6;
+  return std::abs(c[0] - rgb[0]) < 1e-6 && std::abs(c[1] - rgb[1]) < 1e-6 &&
+         std::abs(c[2] - rgb[2]) < 1e-6;
 }
 
 // The polydata a part actor draws (its normals filter's output, brought up to date).
@@ -204,7 +205,8 @@ TEST(AssemblyMode, ColoursPartsByStateAndShowsTheCarriedPartsSeat) {
   EXPECT_TRUE(HasColour(mode.actor(3), kAssemblySeatedColour));
   EXPECT_EQ(mode.part_state(kRightArm), AssemblyPartState::kCarried);
   EXPECT_EQ(mode.seated_count(), 1);
-  EXPECT_EQ(FormatAssemblySummary(mode), "assembly: 1 of 5 parts seated (left_arm), carried: right_arm\n");
+  EXPECT_EQ(FormatAssemblySummary(mode),
+            "assembly: 1 of 5 parts seated (left_arm), carried: right_arm\n");
   // The ghost: the carried arm at its seat on the body, X_WS = X_W,body · X_OS (X_WD identity).
   ASSERT_TRUE(mode.ghost()->GetVisibility());
   const Eigen::Isometry3d X_WS = state.X_WP[0] * field->part(kRightArm).seats[0].X_OS;
@@ -308,7 +310,8 @@ TEST(AssemblyMode, PartSolidsAreNotDrawnAtTheOrigin) {
   const std::vector<vtkActor*> visible = VisibleActors(renderer);
   EXPECT_EQ(visible.size(), 6u);
   for (int i = 0; i < mode.size(); ++i) {
-    EXPECT_NE(std::find(visible.begin(), visible.end(), mode.actor(i)), visible.end()) << mode.part_name(i);
+    EXPECT_NE(std::find(visible.begin(), visible.end(), mode.actor(i)), visible.end())
+        << mode.part_name(i);
   }
   for (vtkActor* a : visible) EXPECT_FALSE(ContainsOrigin(a));
 }
@@ -335,7 +338,8 @@ std::string PlaySeatTrajectory(std::uint64_t seed, int update_ms, long late_tick
   scene->Add(std::make_unique<SharedField>(mode.field()));
   runtime.Publish(std::move(scene));
   haptics::TickTiming timing;
-  const long ticks = static_cast<long>((trajectory.end_time() - trajectory.start_time()) / 1e-3) + 500;
+  const long ticks =
+      static_cast<long>((trajectory.end_time() - trajectory.start_time()) / 1e-3) + 500;
   *carried = false;
   for (long k = 0; k < ticks; ++k) {
     if (k % update_ms == 0) runtime.SetTarget(target(trajectory.start_time() + k * 1e-3));
@@ -382,18 +386,21 @@ TEST(SpidarcadWindow, AssemblySceneSeatsTheRightLegAlongTheTrajectory) {
   if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
   const std::string png = test_support::TestOutputPath("gui_assembly.png");
   std::filesystem::remove(png);
-  const test_support::CommandRun r = test_support::RunSpidarcad(
-      "'" + kScene + "' --trajectory '" + kSeatTrajectory + "' --screenshot '" + png + "' --size 1100x760",
-      "", "assembly");
+  const test_support::CommandRun r =
+      test_support::RunSpidarcad("'" + kScene + "' --trajectory '" + kSeatTrajectory +
+                                     "' --screenshot '" + png + "' --size 1100x760",
+                                 "", "assembly");
   ASSERT_EQ(r.status, 0) << r.all();
-  EXPECT_NE(r.out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"), std::string::npos)
+  EXPECT_NE(r.out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"),
+            std::string::npos)
       << r.all();
   const vtkSmartPointer<vtkImageData> image = ReadPng(png);
   int dims[3];
   image->GetDimensions(dims);
   ASSERT_EQ(dims[0], 1100);
   // Pixels whose chromaticity is the seated green (shaded: compare ratios).
-  const int green = window_test::CountChromaticity(image, 0, dims[0], 0, dims[1], kAssemblySeatedColour, 0.03);
+  const int green =
+      window_test::CountChromaticity(image, 0, dims[0], 0, dims[1], kAssemblySeatedColour, 0.03);
   EXPECT_GT(green, 200) << "the seated arm is not drawn in the seated colour";
 }
 
@@ -402,9 +409,11 @@ TEST(SpidarcadWindow, FramesRunLastsUntilTheTrajectoryHasEnded) {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
   const test_support::CommandRun r = test_support::RunSpidarcad(
-      "'" + kScene + "' --trajectory '" + kSeatTrajectory + "' --frames 3 --size 800x600", "", "frames");
+      "'" + kScene + "' --trajectory '" + kSeatTrajectory + "' --frames 3 --size 800x600", "",
+      "frames");
   ASSERT_EQ(r.status, 0) << r.all();
-  EXPECT_NE(r.out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"), std::string::npos)
+  EXPECT_NE(r.out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"),
+            std::string::npos)
       << r.all();
 }
 
@@ -426,4 +435,3 @@ TEST(SpidarcadWindow, TrajectoryOptionRefusesABadFile) {
 
 }  // namespace
 }  // namespace spidarcad::app
-

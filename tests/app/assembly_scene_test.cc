@@ -5,10 +5,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/assembly_scene.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -26,7 +26,8 @@ const modeling::Solid& FindSolid(const modeling::Scene& scene, const std::string
   throw std::runtime_error("no solid " + name);
 }
 
-// Smallest r in [lo, hi] where inside(r) turns true (inside(lo) false, inside(hi) true), by bisection.
+// Smallest r in [lo, hi] where inside(r) turns true (inside(lo) false, inside(hi) true), by
+// bisection.
 template <class F>
 double Crossing(const F& inside, double lo, double hi) {
   EXPECT_FALSE(inside(lo));
@@ -55,8 +56,7 @@ TEST(AssemblyScene, EachPegFitsItsHoleWithClearance) {
       const double a = 2 * kPi * k / 16;
       // Half way down the peg (peg along −z of P from the origin, 8 mm long).
       auto at = [&](double r) { return Eigen::Vector3d(r * std::cos(a), r * std::sin(a), -0.004); };
-      const double r_peg =
-          Crossing([&](double r) { return peg.Value(at(r)) > 0; }, 0.0, 0.008);
+      const double r_peg = Crossing([&](double r) { return peg.Value(at(r)) > 0; }, 0.0, 0.008);
       const double r_hole =
           Crossing([&](double r) { return hole.Value(X_OS * at(r)) < 0; }, 0.0, 0.008);
       peg_max = std::max(peg_max, r_peg);
@@ -90,8 +90,8 @@ TEST(AssemblyScene, PartsStartApartAndWithinTheWorkspace) {
       for (int j = 0; j < field->size(); ++j) {
         if (j == i) continue;
         const Eigen::Vector3d p_Pj = field->X_WP(j).inverse() * p_W;
-        EXPECT_GT(field->part(j).field_P->Evaluate(p_Pj, nullptr), 0.0) << field->part(i).name << " in "
-                                                                          << field->part(j).name;
+        EXPECT_GT(field->part(j).field_P->Evaluate(p_Pj, nullptr), 0.0)
+            << field->part(i).name << " in " << field->part(j).name;
       }
       if (!field->part(i).seats.empty()) {
         const auto& seat = field->part(i).seats[0];
@@ -113,7 +113,9 @@ TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
   tool.R_WT << 0, 0, 1, 1, 0, 0, 0, 1, 0;
   const Eigen::Vector3d b_W = tool.R_WT * Eigen::Vector3d(1, 1, 0).normalized();
   const Eigen::Vector3d centre_P(0, 0, 0.0175);  // middle of the arm's bulk
-  auto grip_for = [&](const Eigen::Isometry3d& X_WP) { return Eigen::Vector3d(X_WP * centre_P - 0.02 * b_W); };
+  auto grip_for = [&](const Eigen::Isometry3d& X_WP) {
+    return Eigen::Vector3d(X_WP * centre_P - 0.02 * b_W);
+  };
   auto tick = [&] {
     tool.time += 1e-3;
     return field->Evaluate(tool);
@@ -145,7 +147,8 @@ TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
   ASSERT_EQ(field->carried(), arm);
   EXPECT_LT(min_g, 0.0);
   // Carry: lift, over to the body's right side, in front of the hole, then insert along −x.
-  const Eigen::Isometry3d seat = field->X_WP(field->part(arm).seats[0].other) * field->part(arm).seats[0].X_OS;
+  const Eigen::Isometry3d seat =
+      field->X_WP(field->part(arm).seats[0].other) * field->part(arm).seats[0].X_OS;
   Eigen::Isometry3d waypoint = seat;
   waypoint.translation() += Eigen::Vector3d(0.025, 0.06, 0);
   move_to(grip_for(waypoint), 600);

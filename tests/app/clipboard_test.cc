@@ -3,10 +3,10 @@
 // copy, undo, and malformed clipboard text.
 #include "doc/clipboard.h"
 
+#include <gtest/gtest.h>
+
 #include <set>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace spidarcad::app {
 namespace {
@@ -36,7 +36,8 @@ struct Fixture {
     ImplicitNode bore(modeling::CylinderParams{0.005, 0.03}, {}, "bore");
     ImplicitNode t(modeling::TranslateParams{Eigen::Vector3d(0.02, 0, 0)}, {bore}, "t");
     t.name = "hole";
-    ImplicitNode root(modeling::DifferenceParams{}, {ImplicitNode(modeling::BoxParams{}, {}, "plate"), t}, "d");
+    ImplicitNode root(modeling::DifferenceParams{},
+                      {ImplicitNode(modeling::BoxParams{}, {}, "plate"), t}, "d");
     modeling::Scene scene;
     scene.solids.push_back({"platform", root});
     doc.LoadScene(scene);
@@ -81,7 +82,8 @@ TEST(Clipboard, EditingTheCopyLeavesTheOriginal) {
   f.doc.Execute(edit::SetNodeField(f.platform, {2, 0}, "radius", 0.008));
   f.doc.Execute(edit::SetNodeField(f.platform, {2}, "translation", {-0.02, 0.0, 0.0}));
   EXPECT_EQ(modeling::NodeToJson(f.doc.Node(f.platform, {1})), original);
-  EXPECT_EQ(std::get<modeling::CylinderParams>(f.doc.Node(f.platform, {2, 0}).params).radius, 0.008);
+  EXPECT_EQ(std::get<modeling::CylinderParams>(f.doc.Node(f.platform, {2, 0}).params).radius,
+            0.008);
 }
 
 TEST(Clipboard, PasteAsSolidThenUndoRemovesIt) {
@@ -139,9 +141,12 @@ TEST(Clipboard, MalformedTextIsAnErrorNamingTheProblemAndChangesNothing) {
       {R"({"format": "spidarcad-clipboard", "version": 2, "node": {"type": "sphere"}})", "version"},
       {R"({"format": "other", "version": 1})", "/format"},
       {R"({"format": "spidarcad-clipboard", "version": 1})", "exactly one"},
-      {R"({"format": "spidarcad-clipboard", "version": 1, "node": {"type": "sphere", "radius": -1}})", "radius"},
-      {R"({"format": "spidarcad-clipboard", "version": 1, "node": {"type": "sphere", "raduis": 1}})", "raduis"},
-      {R"({"format": "spidarcad-clipboard", "version": 1, "solid": {"root": {"type": "box"}}})", "name"},
+      {R"({"format": "spidarcad-clipboard", "version": 1, "node": {"type": "sphere", "radius": -1}})",
+       "radius"},
+      {R"({"format": "spidarcad-clipboard", "version": 1, "node": {"type": "sphere", "raduis": 1}})",
+       "raduis"},
+      {R"({"format": "spidarcad-clipboard", "version": 1, "solid": {"root": {"type": "box"}}})",
+       "name"},
       {R"({"type": "blob"})", "blob"},
       {R"({"hello": 1})", "not a spidarcad"},
   };
@@ -171,7 +176,9 @@ TEST(Clipboard, TextIsVersionedJsonOfTheNode) {
   const nlohmann::json j = nlohmann::json::parse(clip.text());
   EXPECT_EQ(j["format"], "spidarcad-clipboard");
   EXPECT_EQ(j["version"], 1);
-  EXPECT_EQ(j["node"], nlohmann::json::parse(R"({"type": "cylinder", "id": "bore", "radius": 0.005, "height": 0.03})"));
+  EXPECT_EQ(j["node"],
+            nlohmann::json::parse(
+                R"({"type": "cylinder", "id": "bore", "radius": 0.005, "height": 0.03})"));
   EXPECT_THROW(clip.CopyNode(f.doc, f.platform, {5}), DocumentError);
 }
 

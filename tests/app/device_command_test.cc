@@ -1,18 +1,16 @@
 // Runs the built `spidarcad device` subcommands: `list` with no board attached (this machine
 // has no USB bus) and `selftest` against the board simulator.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <cstdio>
 #include <regex>
 #include <string>
 
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
-#include "spidarcad_runner.h"
-
 #include "spidarcad/haptics/usb_transport.h"
+#include "spidarcad_runner.h"
 
 namespace {
 

@@ -4,6 +4,11 @@
 // pose and the closed-form rest point of the hand, zero force on unplug and the reconnect,
 // the off-tick re-open of a real board's link, allocation-free ticks, and the window's
 // --device runs.
+#include "scene/device_rig.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -14,12 +19,8 @@
 #include <string>
 #include <thread>
 
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-
 #include "scene/haptic_runtime.h"
 #include "scene/scene_fields.h"
-#include "scene/device_rig.h"
 #include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/simulated_device.h"
@@ -32,9 +33,9 @@ namespace {
 
 using haptics::DeviceStatus;
 using haptics::GripPose;
+using haptics::SpidarGeometry;
 using window_test::RunTicks;
 using window_test::SpringScene;
-using haptics::SpidarGeometry;
 constexpr double kPi = std::numbers::pi;
 
 DemoFieldSettings TranslationSprings(double k) {
@@ -202,7 +203,8 @@ TEST(HapticRuntimeBoardSim, RestsWhereTheSimulatedDeviceRests) {
     RunTicks(&runtime, 3000);
     rest[i] = runtime.Latest().hand_pose.p0;
   }
-  EXPECT_LT((rest[0] - rest[1]).norm(), 2e-3) << rest[0].transpose() << " vs " << rest[1].transpose();
+  EXPECT_LT((rest[0] - rest[1]).norm(), 2e-3)
+      << rest[0].transpose() << " vs " << rest[1].transpose();
 }
 
 TEST(HapticRuntimeBoardSim, UnplugGivesZeroForceWithinATickAndReplugBringsTheLinkBack) {
@@ -231,7 +233,10 @@ TEST(HapticRuntimeBoardSim, UnplugGivesZeroForceWithinATickAndReplugBringsTheLin
   }
   const std::string down = DescribeLink(runtime.Latest().link);
   EXPECT_EQ(down.rfind("not connected — retrying; run `spidarcad device list`, udev rules "
-                       "assets/udev/99-spidarcad.rules", 0), 0u) << down;
+                       "assets/udev/99-spidarcad.rules",
+                       0),
+            0u)
+      << down;
 
   runtime.RequestBoardPlugged(true);
   int back = -1;
@@ -300,7 +305,10 @@ TEST(HapticRuntimeUsb, AbsentBoardRunsAtZeroForceAndIsReopenedOffTheTick) {
   HapticRuntime& runtime = *bench.runtime;
   EXPECT_EQ(runtime.physical_device(), nullptr);
   EXPECT_EQ(runtime.link_at_start().rfind("--device usb: no SPIDAR-G controller board could be "
-                                          "opened", 0), 0u) << runtime.link_at_start();
+                                          "opened",
+                                          0),
+            0u)
+      << runtime.link_at_start();
   EXPECT_NE(runtime.link_at_start().find("spidarcad device list"), std::string::npos);
   runtime.Publish(SpringScene(DemoFieldSettings{}));
   runtime.SetTarget(At({0.08, 0.0, 0.0}));  // ignored: the user's hand holds the grip
@@ -311,7 +319,8 @@ TEST(HapticRuntimeUsb, AbsentBoardRunsAtZeroForceAndIsReopenedOffTheTick) {
     ASSERT_EQ(runtime.Latest().link.status, DeviceStatus::kNotConnected);
   }
   EXPECT_EQ(DescribeLink(runtime.Latest().link)
-                .rfind("not connected — retrying; run `spidarcad device list`", 0), 0u);
+                .rfind("not connected — retrying; run `spidarcad device list`", 0),
+            0u);
   // The tick never re-opens the board (the driver's in-tick reconnect is off): only Service.
   EXPECT_EQ(runtime.Latest().link.stats.connects, 0u);
   EXPECT_TRUE(runtime.ServiceDevice());  // still unplugged: tried, failed
@@ -418,7 +427,8 @@ TEST(SpidarcadWindowDevice, BoardSimAndAbsentUsbBoardRunAndSayWhatTheLinkIs) {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
   using test_support::RunSpidarcad;
-  const test_support::CommandRun board = RunSpidarcad("none --device board-sim --frames 30", "", "board");
+  const test_support::CommandRun board =
+      RunSpidarcad("none --device board-sim --frames 30", "", "board");
   EXPECT_EQ(board.status, 0) << board.all();
   EXPECT_NE(board.out.find("device link: ok: states "), std::string::npos) << board.all();
   const test_support::CommandRun usb = RunSpidarcad("none --device usb --frames 30", "", "usb");
@@ -433,7 +443,8 @@ TEST(SpidarcadWindowDevice, BoardSimAndAbsentUsbBoardRunAndSayWhatTheLinkIs) {
 }
 
 TEST(SpidarcadWindowDevice, RejectsAnUnknownDeviceNamingIt) {
-  const test_support::CommandRun r = test_support::RunSpidarcad("--device bogus --frames 1", "", "bogus");
+  const test_support::CommandRun r =
+      test_support::RunSpidarcad("--device bogus --frames 1", "", "bogus");
   EXPECT_EQ(r.status, 2) << r.all();
   EXPECT_NE(r.all().find("'bogus' is not a device; use simulated, ideal, board-sim or usb"),
             std::string::npos)

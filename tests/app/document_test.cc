@@ -4,6 +4,8 @@
 // dirty flag and Save/Load.
 #include "doc/document.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,8 +14,6 @@
 #include <set>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "doc/clipboard.h"
 #include "doc/command.h"
@@ -29,13 +29,18 @@ std::string SceneText(const Document& doc) { return modeling::SceneToJson(doc.To
 // Everything (all object kinds, with revisions).
 std::string FullText(const Document& doc) { return doc.ToJson(true).dump() + SceneText(doc); }
 
-ImplicitNode Sphere(double r, std::string id = {}) { return ImplicitNode(modeling::SphereParams{r}, {}, std::move(id)); }
-ImplicitNode Box(std::string id = {}) { return ImplicitNode(modeling::BoxParams{}, {}, std::move(id)); }
+ImplicitNode Sphere(double r, std::string id = {}) {
+  return ImplicitNode(modeling::SphereParams{r}, {}, std::move(id));
+}
+ImplicitNode Box(std::string id = {}) {
+  return ImplicitNode(modeling::BoxParams{}, {}, std::move(id));
+}
 
 // union u { sphere ball, translate t { box b }, sphere pip }
 ImplicitNode PlatformTree() {
   ImplicitNode translate(modeling::TranslateParams{Eigen::Vector3d(0.1, 0, 0)}, {Box("b")}, "t");
-  ImplicitNode root(modeling::UnionParams{}, {Sphere(0.05, "ball"), translate, Sphere(0.01, "pip")}, "u");
+  ImplicitNode root(modeling::UnionParams{}, {Sphere(0.05, "ball"), translate, Sphere(0.01, "pip")},
+                    "u");
   root.children[0].name = "ball";
   return root;
 }
@@ -79,8 +84,9 @@ struct Fixture {
     fe = doc.last_created().at(0);
     doc.Execute(edit::AddSculpt("clay", TinyTriangleMesh()));
     clay = doc.last_created().at(0);
-    doc.Execute(edit::AddRigidPart("lid", ImplicitNode(modeling::UnionParams{}, {Sphere(0.03, "lid_ball")}, "lid"),
-                                   Eigen::Isometry3d::Identity()));
+    doc.Execute(edit::AddRigidPart(
+        "lid", ImplicitNode(modeling::UnionParams{}, {Sphere(0.03, "lid_ball")}, "lid"),
+        Eigen::Isometry3d::Identity()));
     part = doc.last_created().at(0);
     doc.history().Clear();
   }
@@ -104,72 +110,111 @@ std::vector<NamedEdit> EveryEdit() {
       {"DuplicateSolid", [](const Fixture& f) { return edit::DuplicateObject(f.platform); }},
       {"DuplicateSculpt", [](const Fixture& f) { return edit::DuplicateObject(f.clay); }},
       {"SetDescription", [](const Fixture&) { return edit::SetDescription("new text"); }},
-      {"AddNode", [](const Fixture& f) { return edit::AddNode(f.platform, {1}, 0, Sphere(0.02, "s2")); }},
-      {"WrapNode", [](const Fixture& f) { return edit::WrapNode(f.platform, {0}, modeling::TranslateParams{}, "w"); }},
-      {"WrapRoot", [](const Fixture& f) { return edit::WrapNode(f.knob, {}, modeling::OffsetParams{0.001}); }},
+      {"AddNode",
+       [](const Fixture& f) { return edit::AddNode(f.platform, {1}, 0, Sphere(0.02, "s2")); }},
+      {"WrapNode",
+       [](const Fixture& f) {
+         return edit::WrapNode(f.platform, {0}, modeling::TranslateParams{}, "w");
+       }},
+      {"WrapRoot",
+       [](const Fixture& f) { return edit::WrapNode(f.knob, {}, modeling::OffsetParams{0.001}); }},
       {"DeleteNode", [](const Fixture& f) { return edit::DeleteNode(f.platform, {1}); }},
-      {"SetNodeParams", [](const Fixture& f) { return edit::SetNodeParams(f.platform, {0}, modeling::SphereParams{0.07}, "radius"); }},
-      {"SetNodeField", [](const Fixture& f) { return edit::SetNodeField(f.platform, {1, 0}, "size", json::array({0.1, 0.2, 0.3})); }},
-      {"SetNodeId", [](const Fixture& f) { return edit::SetNodeField(f.platform, {2}, "id", "pip2"); }},
+      {"SetNodeParams",
+       [](const Fixture& f) {
+         return edit::SetNodeParams(f.platform, {0}, modeling::SphereParams{0.07}, "radius");
+       }},
+      {"SetNodeField",
+       [](const Fixture& f) {
+         return edit::SetNodeField(f.platform, {1, 0}, "size", json::array({0.1, 0.2, 0.3}));
+       }},
+      {"SetNodeId",
+       [](const Fixture& f) { return edit::SetNodeField(f.platform, {2}, "id", "pip2"); }},
       {"SetNodeName", [](const Fixture& f) { return edit::SetNodeName(f.platform, {2}, "pip"); }},
-      {"MoveNodeSameTree", [](const Fixture& f) { return edit::MoveNode(f.platform, {0}, f.platform, {1}, 1); }},
-      {"MoveNodeAcrossTrees", [](const Fixture& f) { return edit::MoveNode(f.platform, {2}, f.part, {}, -1); }},
+      {"MoveNodeSameTree",
+       [](const Fixture& f) { return edit::MoveNode(f.platform, {0}, f.platform, {1}, 1); }},
+      {"MoveNodeAcrossTrees",
+       [](const Fixture& f) { return edit::MoveNode(f.platform, {2}, f.part, {}, -1); }},
       {"ReorderNode", [](const Fixture& f) { return edit::ReorderNode(f.platform, {2}, 0); }},
       {"ReplaceTree", [](const Fixture& f) { return edit::ReplaceTree(f.knob, Box("kb")); }},
-      {"AddMesh", [](const Fixture& f) {
-         return edit::AddMesh("surf", f.knob, 1, std::make_shared<const modeling::TriangleMesh>(TinyTriangleMesh()), nullptr);
+      {"AddMesh",
+       [](const Fixture& f) {
+         return edit::AddMesh("surf", f.knob, 1,
+                              std::make_shared<const modeling::TriangleMesh>(TinyTriangleMesh()),
+                              nullptr);
        }},
-      {"AddFeModel", [](const Fixture& f) { return edit::AddFeModel("fe2", f.mesh, fem::Material{}, {}); }},
-      {"SetFeMaterial", [](const Fixture& f) { return edit::SetFeMaterial(f.fe, fem::Material{7e10, 0.33}); }},
-      {"SetFixedBoxes", [](const Fixture& f) {
-         return edit::SetFixedBoxes(f.fe, {Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 0.1))});
+      {"AddFeModel",
+       [](const Fixture& f) { return edit::AddFeModel("fe2", f.mesh, fem::Material{}, {}); }},
+      {"SetFeMaterial",
+       [](const Fixture& f) {
+         return edit::SetFeMaterial(f.fe, fem::Material{7e10, 0.33});
+       }},
+      {"SetFixedBoxes",
+       [](const Fixture& f) {
+         return edit::SetFixedBoxes(
+             f.fe, {Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 0.1))});
        }},
       {"AddSculpt", [](const Fixture&) { return edit::AddSculpt("clay2", TinyTriangleMesh()); }},
-      {"ReplaceSculptMesh", [](const Fixture& f) {
+      {"ReplaceSculptMesh",
+       [](const Fixture& f) {
          SculptMesh m = TinyTriangleMesh();
          m.vertices *= 2.0;
          return edit::ReplaceSculptMesh(f.clay, m);
        }},
-      {"SculptStroke", [](const Fixture& f) {
+      {"SculptStroke",
+       [](const Fixture& f) {
          Eigen::Matrix3Xd p(3, 2);
          p << 0.5, 0.6, 0.5, 0.6, 0.5, 0.6;
          return edit::SculptStroke(f.clay, {1, 3}, p);
        }},
-      {"AddRigidPart", [pose](const Fixture&) { return edit::AddRigidPart("part2", Box("pb"), pose); }},
+      {"AddRigidPart",
+       [pose](const Fixture&) { return edit::AddRigidPart("part2", Box("pb"), pose); }},
       {"SetRigidPose", [pose](const Fixture& f) { return edit::SetRigidPose(f.part, pose); }},
       {"SetRigidFixed", [](const Fixture& f) { return edit::SetRigidFixed(f.part, true); }},
-      {"SetRigidSeats", [](const Fixture& f) {
+      {"SetRigidSeats",
+       [](const Fixture& f) {
          modeling::SceneSeat seat;
          seat.on = "base";
          seat.position = Eigen::Vector3d(0, 0, 0.01);
          return edit::SetRigidSeats(f.part, {seat});
        }},
-      {"SetFeLoads", [](const Fixture& f) {
-         return edit::SetFeLoads(f.fe, {{Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()), Eigen::Vector3d(0, 0, -1)}});
+      {"SetFeLoads",
+       [](const Fixture& f) {
+         return edit::SetFeLoads(
+             f.fe, {{Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()),
+                     Eigen::Vector3d(0, 0, -1)}});
        }},
-      {"SetRegionMaterials", [](const Fixture& f) { return edit::SetRegionMaterials(f.fe, {{0, fem::Material{7e10, 0.33}}}); }},
+      {"SetRegionMaterials",
+       [](const Fixture& f) {
+         return edit::SetRegionMaterials(f.fe, {{0, fem::Material{7e10, 0.33}}});
+       }},
       {"SetElementOrder", [](const Fixture& f) { return edit::SetElementOrder(f.fe, 2); }},
       {"SetPrecomputeKey", [](const Fixture& f) { return edit::SetPrecomputeKey(f.fe, 42); }},
       {"SetSnap", [](const Fixture&) { return edit::SetSnap(modeling::SceneSnap{}); }},
-      {"AddObjectSculpt", [](const Fixture&) {
-         return edit::AddObject("clay3", SculptData{std::make_shared<SculptMesh>(TinyTriangleMesh())});
+      {"AddObjectSculpt",
+       [](const Fixture&) {
+         return edit::AddObject("clay3",
+                                SculptData{std::make_shared<SculptMesh>(TinyTriangleMesh())});
        }},
-      {"SetObjectDataMesh", [](const Fixture& f) {
+      {"SetObjectDataMesh",
+       [](const Fixture& f) {
          MeshData m = std::get<MeshData>(f.doc.Get(f.mesh).data);
          m.import_source = "part.vtu";
          return edit::SetObjectData(f.mesh, m);
        }},
-      {"PasteAsSolid", [](const Fixture& f) {
+      {"PasteAsSolid",
+       [](const Fixture& f) {
          Clipboard c;
          c.CopySolid(f.doc, f.platform);
          return PasteAsSolid(c.text());
        }},
-      {"PasteAsChild", [](const Fixture& f) {
+      {"PasteAsChild",
+       [](const Fixture& f) {
          Clipboard c;
          c.CopyNode(f.doc, f.platform, {1});
          return PasteAsChild(c.text(), f.platform, {}, 1);
        }},
-      {"Macro", [](const Fixture& f) {
+      {"Macro",
+       [](const Fixture& f) {
          std::vector<std::unique_ptr<Command>> steps;
          steps.push_back(edit::RenameObject(f.knob, "k2"));
          steps.push_back(edit::SetNodeField(f.knob, {}, "radius", 0.03));
@@ -203,11 +248,13 @@ TEST(Document, EditsGiveTheExpectedTreesWhenApplied) {
   f.doc.Execute(edit::SetNodeField(f.platform, {0}, "radius", 0.02));
   EXPECT_EQ(modeling::NodeToJson(f.doc.Node(f.platform, {0})),
             json::parse(R"({"type": "sphere", "id": "ball", "name": "ball", "radius": 0.02})"));
-  f.doc.Execute(edit::WrapNode(f.platform, {0}, modeling::TranslateParams{Eigen::Vector3d(0, 0, 1)}, "w"));
+  f.doc.Execute(
+      edit::WrapNode(f.platform, {0}, modeling::TranslateParams{Eigen::Vector3d(0, 0, 1)}, "w"));
   EXPECT_EQ(modeling::NodeToJson(f.doc.Node(f.platform, {0})),
             json::parse(R"({"type": "translate", "id": "w", "translation": [0.0, 0.0, 1.0],
                             "children": [{"type": "sphere", "id": "ball", "name": "ball", "radius": 0.02}]})"));
-  // Root children are now w, t, pip. Moving w to index 2 (counted before the move) puts it before pip.
+  // Root children are now w, t, pip. Moving w to index 2 (counted before the move) puts it before
+  // pip.
   f.doc.Execute(edit::MoveNode(f.platform, {0}, f.platform, {}, 2));
   auto ids = [&] {
     std::vector<std::string> out;
@@ -233,8 +280,8 @@ TEST(Document, EditsGiveTheExpectedTreesWhenApplied) {
 
 // Asserts that making and executing the command throws E, and the document is unchanged.
 template <class E>
-void ExpectRejected(Fixture& f, const std::function<std::unique_ptr<Command>()>& make, const std::string& fragment,
-                    bool same_revision = true) {
+void ExpectRejected(Fixture& f, const std::function<std::unique_ptr<Command>()>& make,
+                    const std::string& fragment, bool same_revision = true) {
   const std::string before = FullText(f.doc);
   const std::uint64_t revision = f.doc.revision();
   const size_t steps = f.doc.history().undo_size();
@@ -245,7 +292,8 @@ void ExpectRejected(Fixture& f, const std::function<std::unique_ptr<Command>()>&
     EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
   }
   EXPECT_EQ(FullText(f.doc), before);
-  // A failed macro undoes its done steps, which counts as changes for revision() (content is equal).
+  // A failed macro undoes its done steps, which counts as changes for revision() (content is
+  // equal).
   if (same_revision) {
     EXPECT_EQ(f.doc.revision(), revision);
   }
@@ -255,48 +303,105 @@ void ExpectRejected(Fixture& f, const std::function<std::unique_ptr<Command>()>&
 TEST(Document, InvalidEditThrowsAndLeavesDocumentUnchanged) {
   Fixture f;
   f.doc.Execute(edit::RenameObject(f.knob, "k"));  // something to undo, to see the stack unchanged
-  ExpectRejected<modeling::ModelError>(f, [&] { return edit::SetNodeField(f.platform, {0}, "radius", -0.02); }, "ball");
-  ExpectRejected<modeling::ModelError>(f, [&] { return edit::SetNodeParams(f.knob, {}, modeling::CylinderParams{0.01, -1}); }, "height");
-  ExpectRejected<modeling::ModelError>(f, [&] { return edit::AddNode(f.platform, {0}, 0, Sphere(0.01)); }, "children");
-  ExpectRejected<modeling::ModelError>(f, [&] { return edit::AddNode(f.platform, {}, 0, Sphere(0.01, "c")); }, "'c'");
-  ExpectRejected<modeling::ModelError>(f, [&] { return edit::SetNodeField(f.platform, {0}, "id", "lid_ball"); }, "lid_ball");
-  ExpectRejected<modeling::ModelError>(f, [&] { return edit::DeleteNode(f.platform, {1, 0}); }, "children");
-  ExpectRejected<modeling::SceneError>(f, [&] { return edit::SetNodeField(f.platform, {0}, "raduis", 0.1); }, "raduis");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetNodeField(f.platform, {7}, "radius", 0.1); }, "/children/7");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetNodeField(f.platform, {}, "children", json::array()); }, "children");
-  ExpectRejected<DocumentError>(f, [&] { return edit::DeleteNode(f.platform, {}); }, "root");
-  ExpectRejected<DocumentError>(f, [&] { return edit::MoveNode(f.platform, {1}, f.platform, {1, 0}, 0); }, "own subtree");
-  ExpectRejected<DocumentError>(f, [&] { return edit::AddNode(f.platform, {}, 9, Sphere(0.01)); }, "index 9");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetFeMaterial(f.fe, fem::Material{2e9, 0.5}); }, "material");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetFeMaterial(f.platform, fem::Material{}); }, "not an FE model");
-  ExpectRejected<DocumentError>(f, [&] { return edit::AddFeModel("x", f.platform, fem::Material{}, {}); }, "tet_mesh");
-  ExpectRejected<DocumentError>(f, [&] {
-    return edit::SetFixedBoxes(f.fe, {Eigen::AlignedBox3d(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 1))});
-  }, "fixed_boxes/0");
-  ExpectRejected<DocumentError>(f, [&] { return edit::RenameObject(f.knob, ""); }, "name");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SculptStroke(f.clay, {9}, Eigen::Matrix3Xd::Zero(3, 1)); }, "vertex 9");
-  ExpectRejected<DocumentError>(f, [&] { return edit::DeleteObject(12345); }, "12345");
+  ExpectRejected<modeling::ModelError>(
+      f, [&] { return edit::SetNodeField(f.platform, {0}, "radius", -0.02); }, "ball");
+  ExpectRejected<modeling::ModelError>(
+      f,
+      [&] {
+        return edit::SetNodeParams(f.knob, {}, modeling::CylinderParams{0.01, -1});
+      },
+      "height");
+  ExpectRejected<modeling::ModelError>(
+      f, [&] { return edit::AddNode(f.platform, {0}, 0, Sphere(0.01)); }, "children");
+  ExpectRejected<modeling::ModelError>(
+      f, [&] { return edit::AddNode(f.platform, {}, 0, Sphere(0.01, "c")); }, "'c'");
+  ExpectRejected<modeling::ModelError>(
+      f, [&] { return edit::SetNodeField(f.platform, {0}, "id", "lid_ball"); }, "lid_ball");
+  ExpectRejected<modeling::ModelError>(
+      f,
+      [&] {
+        return edit::DeleteNode(f.platform, {1, 0});
+      },
+      "children");
+  ExpectRejected<modeling::SceneError>(
+      f, [&] { return edit::SetNodeField(f.platform, {0}, "raduis", 0.1); }, "raduis");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetNodeField(f.platform, {7}, "radius", 0.1); }, "/children/7");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetNodeField(f.platform, {}, "children", json::array()); }, "children");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::DeleteNode(f.platform, {}); }, "root");
+  ExpectRejected<DocumentError>(
+      f,
+      [&] {
+        return edit::MoveNode(f.platform, {1}, f.platform, {1, 0}, 0);
+      },
+      "own subtree");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::AddNode(f.platform, {}, 9, Sphere(0.01)); }, "index 9");
+  ExpectRejected<DocumentError>(
+      f,
+      [&] {
+        return edit::SetFeMaterial(f.fe, fem::Material{2e9, 0.5});
+      },
+      "material");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetFeMaterial(f.platform, fem::Material{}); }, "not an FE model");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::AddFeModel("x", f.platform, fem::Material{}, {}); }, "tet_mesh");
+  ExpectRejected<DocumentError>(
+      f,
+      [&] {
+        return edit::SetFixedBoxes(
+            f.fe, {Eigen::AlignedBox3d(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 1))});
+      },
+      "fixed_boxes/0");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::RenameObject(f.knob, ""); }, "name");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SculptStroke(f.clay, {9}, Eigen::Matrix3Xd::Zero(3, 1)); }, "vertex 9");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::DeleteObject(12345); }, "12345");
   Eigen::Isometry3d skew = Eigen::Isometry3d::Identity();
   skew.linear()(0, 1) = 0.5;
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetRigidPose(f.part, skew); }, "X_WP");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetElementOrder(f.fe, 3); }, "element_order");
-  ExpectRejected<DocumentError>(f, [&] {
-    return edit::SetRegionMaterials(f.fe, {{1, fem::Material{}}, {1, fem::Material{2e9, 0.2}}});
-  }, "listed twice");
-  ExpectRejected<DocumentError>(f, [&] {
-    return edit::SetFeLoads(f.fe, {{Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()),
-                                    Eigen::Vector3d(0, std::nan(""), 0)}});
-  }, "loads/0");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetRigidSeats(f.part, {modeling::SceneSeat{}}); }, "seats/0");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetSnap(modeling::SceneSnap{0.0, 1, 1, 1}); }, "snap");
-  ExpectRejected<DocumentError>(f, [&] { return edit::SetObjectData(f.clay, SolidData{Sphere(0.1)}); }, "does not match");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetRigidPose(f.part, skew); }, "X_WP");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetElementOrder(f.fe, 3); }, "element_order");
+  ExpectRejected<DocumentError>(
+      f,
+      [&] {
+        return edit::SetRegionMaterials(f.fe, {{1, fem::Material{}}, {1, fem::Material{2e9, 0.2}}});
+      },
+      "listed twice");
+  ExpectRejected<DocumentError>(
+      f,
+      [&] {
+        return edit::SetFeLoads(
+            f.fe, {{Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()),
+                    Eigen::Vector3d(0, std::nan(""), 0)}});
+      },
+      "loads/0");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetRigidSeats(f.part, {modeling::SceneSeat{}}); }, "seats/0");
+  ExpectRejected<DocumentError>(
+      f,
+      [&] {
+        return edit::SetSnap(modeling::SceneSnap{0.0, 1, 1, 1});
+      },
+      "snap");
+  ExpectRejected<DocumentError>(
+      f, [&] { return edit::SetObjectData(f.clay, SolidData{Sphere(0.1)}); }, "does not match");
   // A macro whose second step fails undoes its first.
-  ExpectRejected<modeling::ModelError>(f, [&] {
-    std::vector<std::unique_ptr<Command>> steps;
-    steps.push_back(edit::RenameObject(f.knob, "k3"));
-    steps.push_back(edit::SetNodeField(f.knob, {}, "radius", -1.0));
-    return std::make_unique<MacroCommand>("Two edits", std::move(steps));
-  }, "radius", false);
+  ExpectRejected<modeling::ModelError>(
+      f,
+      [&] {
+        std::vector<std::unique_ptr<Command>> steps;
+        steps.push_back(edit::RenameObject(f.knob, "k3"));
+        steps.push_back(edit::SetNodeField(f.knob, {}, "radius", -1.0));
+        return std::make_unique<MacroCommand>("Two edits", std::move(steps));
+      },
+      "radius", false);
   EXPECT_EQ(f.doc.history().UndoDescription(), "Rename to k");
 }
 
@@ -336,10 +441,13 @@ TEST(Document, RandomEditsUndoToInitialAndRedoToFinalJson) {
         command = edit::SetNodeField(id, path, "radius", real(-0.01, 0.05));
         break;
       case 1:
-        command = edit::AddNode(id, path, uniform(3) - 1, Sphere(real(0.001, 0.02), uniform(2) ? "n" + std::to_string(fresh++) : ""));
+        command = edit::AddNode(
+            id, path, uniform(3) - 1,
+            Sphere(real(0.001, 0.02), uniform(2) ? "n" + std::to_string(fresh++) : ""));
         break;
       case 2:
-        command = edit::WrapNode(id, path, modeling::TranslateParams{Eigen::Vector3d(real(-1, 1), 0, 0)});
+        command =
+            edit::WrapNode(id, path, modeling::TranslateParams{Eigen::Vector3d(real(-1, 1), 0, 0)});
         break;
       case 3:
         command = edit::DeleteNode(id, path);
@@ -349,7 +457,8 @@ TEST(Document, RandomEditsUndoToInitialAndRedoToFinalJson) {
         std::vector<NodePath> dst_paths;
         NodePath s2;
         CollectPaths(*TreeOf(f.doc.Get(dst)), &s2, &dst_paths);
-        command = edit::MoveNode(id, path, dst, dst_paths[uniform(static_cast<int>(dst_paths.size()))], uniform(3) - 1);
+        command = edit::MoveNode(
+            id, path, dst, dst_paths[uniform(static_cast<int>(dst_paths.size()))], uniform(3) - 1);
         break;
       }
       case 5:
@@ -369,12 +478,14 @@ TEST(Document, RandomEditsUndoToInitialAndRedoToFinalJson) {
           command = edit::AddSolid("r" + std::to_string(step), Box());
           break;
         }
-        command = edit::DeleteObject(f.doc.objects()[uniform(static_cast<int>(f.doc.objects().size()))].id);
+        command = edit::DeleteObject(
+            f.doc.objects()[uniform(static_cast<int>(f.doc.objects().size()))].id);
         break;
       case 10:
         // Keep trees small: copies double them.
-        command = modeling::CountNodes(*TreeOf(f.doc.Get(id))) > 20 ? edit::SetNodeName(id, path, "big")
-                                                                      : edit::DuplicateObject(id);
+        command = modeling::CountNodes(*TreeOf(f.doc.Get(id))) > 20
+                      ? edit::SetNodeName(id, path, "big")
+                      : edit::DuplicateObject(id);
         break;
       case 11: {
         if (modeling::CountNodes(node) > 10) {
@@ -537,10 +648,12 @@ TEST(Document, StrokeOnSharedSculptMeshLeavesOtherCopyAlone) {
   Eigen::Matrix3Xd p(3, 1);
   p << 9, 9, 9;
   f.doc.Execute(edit::SculptStroke(f.clay, {2}, p));
-  EXPECT_EQ(SculptVertex(*std::get<SculptData>(f.doc.Get(f.clay).data).mesh, 2), Eigen::Vector3d(9, 9, 9));
+  EXPECT_EQ(SculptVertex(*std::get<SculptData>(f.doc.Get(f.clay).data).mesh, 2),
+            Eigen::Vector3d(9, 9, 9));
   EXPECT_EQ(f.doc.ToJson()["objects"][f.doc.IndexOf(copy)].dump(), copy_json);
   f.doc.Undo();
-  EXPECT_EQ(SculptVertex(*std::get<SculptData>(f.doc.Get(f.clay).data).mesh, 2), Eigen::Vector3d(0, 1, 0));
+  EXPECT_EQ(SculptVertex(*std::get<SculptData>(f.doc.Get(f.clay).data).mesh, 2),
+            Eigen::Vector3d(0, 1, 0));
 }
 
 TEST(Document, DirtyFlagFollowsEditsUndoAndSave) {
@@ -575,7 +688,8 @@ TEST(Document, SaveWritesFileThatLoadReadsBack) {
   Fixture f;
   f.doc.Execute(edit::SetNodeField(f.platform, {0}, "radius", 0.1 + 0.2));  // not exactly 0.3
   f.doc.Execute(edit::SetDescription("saved"));
-  const std::string solids_only = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/document_save_solids.json";
+  const std::string solids_only =
+      std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/document_save_solids.json";
   {
     Document solids;
     solids.LoadScene(f.doc.ToScene());
@@ -588,7 +702,8 @@ TEST(Document, SaveWritesFileThatLoadReadsBack) {
   }
   const std::string path = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/document_save.json";
   f.doc.Save(path);
-  EXPECT_THROW(modeling::LoadScene(path), modeling::SceneError);  // version 2: not a version 1 reader's
+  EXPECT_THROW(modeling::LoadScene(path),
+               modeling::SceneError);  // version 2: not a version 1 reader's
   Document other;
   other.Load(path);
   EXPECT_EQ(SceneText(other), SceneText(f.doc));
@@ -626,7 +741,8 @@ TEST(Document, SaveKeepsAssemblyPartsAndRefusesAPartWithoutItsSolid) {
     ADD_FAILURE() << "saved a part without its solid";
   } catch (const modeling::SceneError& e) {
     EXPECT_EQ(e.pointer(), "/parts/1/solid");
-    EXPECT_NE(std::string(e.what()).find("'" + original.parts[1].name + "'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'" + original.parts[1].name + "'"), std::string::npos)
+        << e.what();
     EXPECT_NE(std::string(e.what()).find("rename a solid back"), std::string::npos) << e.what();
   }
   EXPECT_EQ(modeling::SceneToJson(modeling::LoadScene(path)), modeling::SceneToJson(read));

@@ -2,30 +2,31 @@
 // FE mode without a window: FeModel (build, cancel, stress, disk cache) and FeTouchField (the
 // force felt when pushing the platform), checked against full sparse solves of the same
 // prescribed displacements.
-#include <algorithm>
-#include <atomic>
-#include <cmath>
-#include <cstdio>
-#include <sstream>
-#include <filesystem>
-#include <memory>
-#include <string>
-#include <thread>
-#include <chrono>
-#include <vector>
+#include "gui/fe_mode.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
 #include "doc/job.h"
-#include "gui/fe_mode.h"
 #include "scene/fe_model.h"
 #include "scene/fe_touch_field.h"
-#include "spidarcad/haptics/haptic_loop.h"
-#include "scene/shared_field.h"
 #include "scene/haptic_runtime.h"
-#include "spidarcad/haptics/simulated_hand.h"
+#include "scene/shared_field.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
+#include "spidarcad/haptics/haptic_loop.h"
+#include "spidarcad/haptics/simulated_hand.h"
 #include "support/malloc_counter.h"
 
 namespace spidarcad::app {
@@ -72,8 +73,9 @@ haptics::ToolKinematics ToolAt(const Eigen::Vector3d& p) {
 fem::StaticSolution FullSolve(const FeModel& model, const FeContactState& st) {
   fem::BoundaryConditions bcs = model.bcs();
   for (int s = 0; s < st.num_contacts; ++s)
-    bcs.PrescribeNode(model.cache().candidate_node(st.candidate[s]),
-                      Eigen::Vector3d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]));
+    bcs.PrescribeNode(
+        model.cache().candidate_node(st.candidate[s]),
+        Eigen::Vector3d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]));
   const fem::MaterialTable materials(model.material());
   const fem::StaticSolver solver(model.mesh(), materials, bcs);
   EXPECT_TRUE(solver.factor_status().converged);
@@ -81,7 +83,8 @@ fem::StaticSolution FullSolve(const FeModel& model, const FeContactState& st) {
 }
 
 // Pushes the plate top near its free end with columns ready; returns the field's state.
-FeContactState PushPlate(FeModel* model, FeTouchField* field, double depth_fraction, double x = 0.25) {
+FeContactState PushPlate(FeModel* model, FeTouchField* field, double depth_fraction,
+                         double x = 0.25) {
   const double r = field->settings().tool_radius;
   const Eigen::Vector3d p(x, 0.01, 0.010 + r * (1.0 - depth_fraction));
   field->Evaluate(ToolAt(p));  // sets the focus
@@ -141,7 +144,8 @@ TEST(FeTouchField, PushGivesForceOppositeToPushEqualToFullSolve) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double fmax = 0.0;
   for (int s = 0; s < st.num_contacts; ++s)
-    fmax = std::max(fmax, Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]).norm());
+    fmax = std::max(
+        fmax, Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]).norm());
   for (int s = 0; s < st.num_contacts; ++s) {
     const int v = model->cache().candidate_node(st.candidate[s]);
     const Eigen::Vector3d reaction = full.reaction.segment<3>(3 * v);
@@ -163,7 +167,8 @@ TEST(FeTouchField, PushGivesForceOppositeToPushEqualToFullSolve) {
   EXPECT_NEAR((w.f_T_W - 1e-6 * st.f_tool_W).norm(), 0.0, 1e-9 * st.f_tool_W.norm());
   soft.max_force = 0.5;
   FeTouchField bounded(model, soft, nullptr);
-  EXPECT_NEAR(bounded.Evaluate(ToolAt(st.p_WT)).f_T_W.norm(), std::min(0.5, 1e-6 * st.f_tool_W.norm()), 1e-12);
+  EXPECT_NEAR(bounded.Evaluate(ToolAt(st.p_WT)).f_T_W.norm(),
+              std::min(0.5, 1e-6 * st.f_tool_W.norm()), 1e-12);
 }
 
 TEST(FeTouchField, DeformedSurfaceAndStressMatchFullSolveWhenSticking) {
@@ -239,14 +244,15 @@ TEST(FeTouchField, EvaluateAllocatesNothing) {
   gs.pole_length = 0.03;
   FeTouchField grasp(model, gs, channel);
   FeTouchField coupled(model, DefaultTouch(*model), channel);  // FE mode's virtual coupling
-  PushPlate(model.get(), &field, 0.3);  // some columns ready; worker stopped
+  PushPlate(model.get(), &field, 0.3);                         // some columns ready; worker stopped
   int max_k = 0, max_k_coupled = 0;
   long allocations = 0;
   {
     test_support::MallocCounter counter;
     for (int i = 0; i < 400; ++i) {  // slide across the plate, in and out of contact
       const double s = i / 400.0;
-      const Eigen::Vector3d p(0.1 + 0.18 * s, -0.05 + 0.1 * s, 0.010 + ts.tool_radius * (0.5 + std::sin(20 * s)));
+      const Eigen::Vector3d p(0.1 + 0.18 * s, -0.05 + 0.1 * s,
+                              0.010 + ts.tool_radius * (0.5 + std::sin(20 * s)));
       field.Evaluate(ToolAt(p));
       max_k = std::max(max_k, field.last_state().num_contacts);
       grasp.Evaluate(ToolAt(p));
@@ -277,7 +283,8 @@ TEST(FeTouchField, GraspSqueezePushesThePolesApart) {
   R.col(1) = (b_W - a_W) / std::sqrt(2.0);
   R.col(2) = R.col(0).cross(R.col(1));
   t.R_WT = R;
-  // Tips at x = p.x + d cos(θ/2), z = p.z ∓ d sin(θ/2); choose θ so the tips are 10 mm + 2r − 2δ apart.
+  // Tips at x = p.x + d cos(θ/2), z = p.z ∓ d sin(θ/2); choose θ so the tips are 10 mm + 2r − 2δ
+  // apart.
   const double r = gs.tool_radius, gap = 0.010 + 2.0 * r - 0.6 * r;
   t.grasp = 2.0 * std::asin(0.5 * gap / gs.pole_length);
   t.p_WT = Eigen::Vector3d(0.25 - gs.pole_length * std::cos(0.5 * t.grasp), 0.01, 0.005);
@@ -301,12 +308,14 @@ TEST(FeTouchField, GraspSqueezePushesThePolesApart) {
   tm.grasp -= h;
   Eigen::Vector3d f_lo = Eigen::Vector3d::Zero(), f_hi = Eigen::Vector3d::Zero();
   for (int s = 0; s < st.num_contacts; ++s) {
-    const Eigen::Vector3d x = model->mesh().nodes.row(model->cache().candidate_node(st.candidate[s])).transpose();
+    const Eigen::Vector3d x =
+        model->mesh().nodes.row(model->cache().candidate_node(st.candidate[s])).transpose();
     const Eigen::Vector3d f(-st.force[3 * s], -st.force[3 * s + 1], -st.force[3 * s + 2]);
     ((x - field.PoleTip(t, 0)).norm() < (x - field.PoleTip(t, 1)).norm() ? f_lo : f_hi) += f;
   }
   const double g_fd = -(f_lo.dot(field.PoleTip(tp, 0) - field.PoleTip(tm, 0)) +
-                        f_hi.dot(field.PoleTip(tp, 1) - field.PoleTip(tm, 1))) / (2 * h);
+                        f_hi.dot(field.PoleTip(tp, 1) - field.PoleTip(tm, 1))) /
+                      (2 * h);
   EXPECT_NEAR(w.g, g_fd, 1e-6 * std::abs(g_fd));
   EXPECT_GT(f_hi.z(), 0.0);  // the upper tip is pushed up
   EXPECT_LT(f_lo.z(), 0.0);  // the lower tip down
@@ -421,7 +430,8 @@ TEST(FeMode, PrecomputesInAJobThenPublishesAFieldAndShowsStress) {
   mode.SetMesh(PlatformMesh(), "platform");
   mode.model_settings().use_disk_cache = false;
   mode.Precompute();
-  for (int i = 0; i < 6000 && jobs.busy(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 6000 && jobs.busy(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_FALSE(jobs.busy());
   EXPECT_EQ(jobs.Poll(), 1);
   ASSERT_NE(mode.model(), nullptr);
@@ -447,7 +457,8 @@ TEST(FeMode, PrecomputesInAJobThenPublishesAFieldAndShowsStress) {
   EXPECT_GT(w.f_T_W.z(), 0.0);
   mode.SetActive(false);
   EXPECT_EQ(mode.TakeField(), nullptr);
-  for (int i = 0; i < 3000 && jobs.busy(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 3000 && jobs.busy(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   jobs.Poll();
 }
 
@@ -515,7 +526,8 @@ TEST(FeTouchField, HandPushingThePlateComesToRestWithoutChatter) {
     f_max = std::max(f_max, fz[i]);
   }
   const double spring = 300.0 * (hand.position().z() - target.z());  // hand pull, N
-  EXPECT_GT(f_min, 0.5) << "contact lost in the last second (chatter): force " << f_min << " .. " << f_max;
+  EXPECT_GT(f_min, 0.5) << "contact lost in the last second (chatter): force " << f_min << " .. "
+                        << f_max;
   EXPECT_LT(z_max - z_min, 1e-4) << "grip still moving: z " << z_min << " .. " << z_max;
   EXPECT_NEAR(0.5 * (f_min + f_max), spring, 0.05 * std::abs(spring) + 0.05);
 }
@@ -533,21 +545,24 @@ TEST(FeTouchField, WindowRuntimeFeelsThePlateWhenTheHandPressesIt) {
   settings.device = RuntimeDevice::kIdeal;  // X_WD identity: W = D
   const haptics::SpidarGeometry g;
   const Eigen::Vector3d above = press + Eigen::Vector3d(0, 0, 0.01);
-  HapticRuntime runtime(settings, haptics::GripPose::FromFrame(above, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+  HapticRuntime runtime(
+      settings, haptics::GripPose::FromFrame(above, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
   auto scene = std::make_unique<haptics::HapticScene>();
   scene->Add(std::make_unique<SharedField>(field));
   runtime.Publish(std::move(scene));
   haptics::TickTiming timing;
   for (int k = 0; k < 3000; ++k) {
-    if (k == 700) runtime.SetTarget(haptics::GripPose::FromFrame(press, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+    if (k == 700)
+      runtime.SetTarget(
+          haptics::GripPose::FromFrame(press, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
     timing.tick = static_cast<std::uint64_t>(k);
     timing.elapsed = timing.period;
     runtime.Tick(timing);
   }
   const haptics::ToolState& tool = runtime.Latest().tool;
-  EXPECT_GT(tool.wrench_D(2), 0.5) << "pressing 5 mm into the plate, the loop commands "
-                                   << tool.wrench_D.head<3>().transpose() << " N; grip at "
-                                   << tool.tool_W.p_WT.transpose() << ", events " << tool.events;
+  EXPECT_GT(tool.wrench_D(2), 0.5)
+      << "pressing 5 mm into the plate, the loop commands " << tool.wrench_D.head<3>().transpose()
+      << " N; grip at " << tool.tool_W.p_WT.transpose() << ", events " << tool.events;
   EXPECT_FALSE(haptics::IsZeroForceEvent(tool.events));
 }
 
@@ -596,7 +611,8 @@ TEST(FeTouchField, CouplingSettlesAtTheSeriesEquilibriumAndTheFreeCornerFeelsSof
       EXPECT_LT((w.f_T_W - previous.f_T_W).norm(), 1e-6 * w.f_T_W.norm()) << "still moving";
       const Eigen::Vector3d spring = ts.coupling_stiffness * (st.p_WC - tool);
       const Eigen::Vector3d fe = ts.force_scale * st.f_tool_W;
-      EXPECT_LT((spring - fe).norm(), 0.01 * fe.norm()) << "coupling " << spring.transpose() << " N, FE " << fe.transpose() << " N";
+      EXPECT_LT((spring - fe).norm(), 0.01 * fe.norm())
+          << "coupling " << spring.transpose() << " N, FE " << fe.transpose() << " N";
       EXPECT_GT(w.f_T_W.z(), 0.0);
       felt[j] = w.f_T_W.z();
     }
@@ -605,18 +621,20 @@ TEST(FeTouchField, CouplingSettlesAtTheSeriesEquilibriumAndTheFreeCornerFeelsSof
     EXPECT_LT(felt_stiffness[i], ts.coupling_stiffness * 1.001);
   }
   model->cache().Stop();
-  std::printf("felt stiffness: free corner %.0f N/m, over the gusset %.0f N/m (coupling %.0f N/m)\n",
-              felt_stiffness[0], felt_stiffness[1], ts.coupling_stiffness);
-  EXPECT_LT(felt_stiffness[0], 0.6 * felt_stiffness[1]) << "free corner " << felt_stiffness[0]
-                                                       << " N/m, over the gusset " << felt_stiffness[1] << " N/m";
+  std::printf(
+      "felt stiffness: free corner %.0f N/m, over the gusset %.0f N/m (coupling %.0f N/m)\n",
+      felt_stiffness[0], felt_stiffness[1], ts.coupling_stiffness);
+  EXPECT_LT(felt_stiffness[0], 0.6 * felt_stiffness[1])
+      << "free corner " << felt_stiffness[0] << " N/m, over the gusset " << felt_stiffness[1]
+      << " N/m";
 }
 
 // FE mode as the window drives it (FeMode: precompute Job, TakeField, SharedField, the
 // HapticRuntime on the simulated device held by the simulated hand), with the part drawn at world
 // scale s (X_WD: p_W = s·p_D + p_WDo; the window puts the platform scene at s ≈ 4.6). The hand
 // aims 5 mm (in D) past the plate top. At every s the grip must come to rest on the plate and feel
-// the hand's pull (its spring times the gap), not chatter: at s = 4.6 with the force scale not divided by
-// s the felt stiffness is 4.6 times higher and the hand bounced on the plate (measured).
+// the hand's pull (its spring times the gap), not chatter: at s = 4.6 with the force scale not
+// divided by s the felt stiffness is 4.6 times higher and the hand bounced on the plate (measured).
 TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
   JobQueue jobs;
   FeMode mode(nullptr, &jobs);
@@ -653,15 +671,18 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
     settings.device = RuntimeDevice::kSimulated;
     settings.loop.world_scale = s;
     settings.loop.p_WDo = p_WDo;
-    HapticRuntime runtime(settings, haptics::GripPose::FromFrame(touch_D + Eigen::Vector3d(0, 0, 0.005),
-                                                                 Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+    HapticRuntime runtime(settings,
+                          haptics::GripPose::FromFrame(touch_D + Eigen::Vector3d(0, 0, 0.005),
+                                                       Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
     auto scene = std::make_unique<haptics::HapticScene>();
     scene->Add(std::make_unique<SharedField>(field));
     runtime.Publish(std::move(scene));
     haptics::TickTiming timing;
     double z_min = 1e9, z_max = -1e9, f_min = 1e9, f_max = -1e9;
     for (int k = 0; k < 4000; ++k) {
-      if (k == 700) runtime.SetTarget(haptics::GripPose::FromFrame(aim_D, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
+      if (k == 700)
+        runtime.SetTarget(
+            haptics::GripPose::FromFrame(aim_D, Eigen::Matrix3d::Identity(), M_PI / 2, g.d));
       timing.tick = static_cast<std::uint64_t>(k);
       timing.elapsed = timing.period;
       runtime.Tick(timing);
@@ -675,7 +696,8 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
     }
     // The hand's spring pulls 300 N/m times the gap between aim and grip; the plate holds it.
     const double pull = settings.hand.stiffness * (0.5 * (z_min + z_max) - aim_D.z());
-    EXPECT_GT(f_min, 0.3) << "contact lost in the last second: force " << f_min << " .. " << f_max << " N";
+    EXPECT_GT(f_min, 0.3) << "contact lost in the last second: force " << f_min << " .. " << f_max
+                          << " N";
     EXPECT_LT(z_max - z_min, 1e-4) << "grip still moving: z_D " << z_min << " .. " << z_max;
     EXPECT_NEAR(0.5 * (f_min + f_max), pull, 0.1 * std::abs(pull) + 0.05);
   }

@@ -1,8 +1,10 @@
 // Tests of `spidarcad fk --batch` and `spidarcad ik --batch`, run as a separate process on the
 // built binary (SPIDARCAD_EXE). Expected values come from the paper's Eq. 7 written out here.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,9 +16,6 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-
 #include "spidarcad_runner.h"
 
 namespace {
@@ -25,7 +24,6 @@ using spidarcad::test_support::CommandRun;
 using spidarcad::test_support::RunSpidarcad;
 
 constexpr double kPi = std::numbers::pi;
-
 
 std::vector<std::string> Lines(const std::string& text) {
   std::vector<std::string> lines;
@@ -124,23 +122,27 @@ TEST(FkCommand, GivesOneLinePerCaseWithAStatusAndNamesBadLines) {
   const Pose rest = MakePose(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(), kPi / 2, 0.04);
   const std::string good = Csv(Eq7(rest, 0.24, 0.24, 0.24));
   std::string input;
-  input += "# header\n";                                    // line 1: skipped
-  input += good;                                            // line 2: ok
-  input += "\n";                                            // line 3: blank, skipped
-  input += "0.3,0.3,0.3\n";                                 // line 4: 3 fields
-  input += "0.3,0.3,abc,0.3,0.3,0.3,0.3,0.3\n";             // line 5: not a number
-  input += "0.3,0.3,nan,0.3,0.3,0.3,0.3,0.3\n";             // line 6: NaN
-  input += "0.3,0.3,-0.3,0.3,0.3,0.3,0.3,0.3\n";            // line 7: negative
-  input += "0.05,0.05,0.05,0.05,0.05,0.05,0.05,0.05\n";     // line 8: no pose
-  input += "0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3\n";         // line 9: 9 fields
-  input += good;                                            // line 10: ok
+  input += "# header\n";                                 // line 1: skipped
+  input += good;                                         // line 2: ok
+  input += "\n";                                         // line 3: blank, skipped
+  input += "0.3,0.3,0.3\n";                              // line 4: 3 fields
+  input += "0.3,0.3,abc,0.3,0.3,0.3,0.3,0.3\n";          // line 5: not a number
+  input += "0.3,0.3,nan,0.3,0.3,0.3,0.3,0.3\n";          // line 6: NaN
+  input += "0.3,0.3,-0.3,0.3,0.3,0.3,0.3,0.3\n";         // line 7: negative
+  input += "0.05,0.05,0.05,0.05,0.05,0.05,0.05,0.05\n";  // line 8: no pose
+  input += "0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3,0.3\n";      // line 9: 9 fields
+  input += good;                                         // line 10: ok
   const CommandRun run = RunSpidarcad("fk --batch", input, "mixed");
   EXPECT_EQ(run.status, 0);
   const std::vector<std::string> lines = DataLines(run.out);
-  const std::vector<std::string> expected_status = {"ok",           "invalid_input",
-                                                    "invalid_input", "invalid_input",
-                                                    "invalid_input", "unreachable",
-                                                    "invalid_input", "ok"};
+  const std::vector<std::string> expected_status = {"ok",
+                                                    "invalid_input",
+                                                    "invalid_input",
+                                                    "invalid_input",
+                                                    "invalid_input",
+                                                    "unreachable",
+                                                    "invalid_input",
+                                                    "ok"};
   ASSERT_EQ(lines.size(), expected_status.size()) << run.out;
   for (std::size_t k = 0; k < lines.size(); ++k) {
     const std::vector<std::string> f = Fields(lines[k]);
@@ -189,11 +191,11 @@ TEST(FkCommand, AnswerOfALineDoesNotDependOnTheLinesBeforeIt) {
 }
 
 TEST(FkCommand, UsesFrameAndPoleOptions) {
-  const Pose p = MakePose(Eigen::Vector3d(0.05, -0.03, 0.02),
-                          Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitX()).toRotationMatrix(),
-                          1.2, 0.05);
+  const Pose p =
+      MakePose(Eigen::Vector3d(0.05, -0.03, 0.02),
+               Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitX()).toRotationMatrix(), 1.2, 0.05);
   const CommandRun run = RunSpidarcad("fk --batch --no-header --frame 0.3,0.2,0.25 --pole 0.05",
-                               Csv(Eq7(p, 0.3, 0.2, 0.25)), "frame");
+                                      Csv(Eq7(p, 0.3, 0.2, 0.25)), "frame");
   ASSERT_EQ(run.status, 0) << run.err;
   const std::vector<std::string> lines = Lines(run.out);
   ASSERT_EQ(lines.size(), 1u);
@@ -227,8 +229,8 @@ TEST(IkCommand, ComputesEq7LengthsAndFlagsBadLines) {
   const std::vector<Pose> poses = RandomPoses(20, 3, 0.04);
   std::string input;
   for (const Pose& p : poses) {
-    input += Csv({p.p0.x(), p.p0.y(), p.p0.z(), p.p1.x(), p.p1.y(), p.p1.z(), p.p2.x(),
-                  p.p2.y(), p.p2.z()});
+    input += Csv(
+        {p.p0.x(), p.p0.y(), p.p0.z(), p.p1.x(), p.p1.y(), p.p1.z(), p.p2.x(), p.p2.y(), p.p2.z()});
   }
   input += "1,2,3\n";  // line 21: bad
   const CommandRun run = RunSpidarcad("ik --batch", input, "ik");
@@ -250,8 +252,8 @@ TEST(IkCommand, RoundTripsThroughFk) {
   const std::vector<Pose> poses = RandomPoses(10, 4, 0.04);
   std::string input;
   for (const Pose& p : poses) {
-    input += Csv({p.p0.x(), p.p0.y(), p.p0.z(), p.p1.x(), p.p1.y(), p.p1.z(), p.p2.x(),
-                  p.p2.y(), p.p2.z()});
+    input += Csv(
+        {p.p0.x(), p.p0.y(), p.p0.z(), p.p1.x(), p.p1.y(), p.p1.z(), p.p2.x(), p.p2.y(), p.p2.z()});
   }
   const CommandRun ik = RunSpidarcad("ik --batch", input, "rt_ik");
   ASSERT_EQ(ik.status, 0);
@@ -266,7 +268,6 @@ TEST(IkCommand, RoundTripsThroughFk) {
     EXPECT_NEAR(std::stod(f[8]), poses[k].p2.z(), 1e-9);
   }
 }
-
 
 TEST(FkCommand, BoundColumnHoldsOnQuantizedLengthsAndIsAbsentWithoutTheOption) {
   // Lengths quantized to the paper's encoder count are within ±Q = half a count of the truth:
@@ -302,7 +303,8 @@ TEST(FkCommand, BoundColumnHoldsOnQuantizedLengthsAndIsAbsentWithoutTheOption) {
     // The pose columns are those of the plain run.
     EXPECT_EQ(lines[k].substr(0, lines[k].rfind(',')), plain_lines[k]);
     const double b = std::stod(f[12]);
-    const double error = (Eigen::Vector3d(std::stod(f[0]), std::stod(f[1]), std::stod(f[2])) - poses[k].p0).norm();
+    const double error =
+        (Eigen::Vector3d(std::stod(f[0]), std::stod(f[1]), std::stod(f[2])) - poses[k].p0).norm();
     EXPECT_LE(error, b) << "line " << k;
     if (std::isfinite(b)) {
       actual.push_back(error);
@@ -326,11 +328,11 @@ TEST(FkCommand, RejectsANegativeOrNonFiniteBoundWithStatus2) {
 
 TEST(IkCommand, RefusesInfiniteAndNanCoordinatesLikeOtherBadLines) {
   std::string input;
-  input += "0,0,0,0,0.04,0,0.04,0,0\n";     // line 1: ok
-  input += "inf,0,0,0,0.04,0,0.04,0,0\n";   // line 2: x infinite
-  input += "0,0,0,0,-inf,0,0.04,0,0\n";     // line 3: y1 minus infinity
-  input += "0,0,0,0,0.04,0,0.04,0,nan\n";   // line 4: z2 NaN
-  input += "0,0,0,0,0.04,0,0.04,0,0\n";     // line 5: ok
+  input += "0,0,0,0,0.04,0,0.04,0,0\n";    // line 1: ok
+  input += "inf,0,0,0,0.04,0,0.04,0,0\n";  // line 2: x infinite
+  input += "0,0,0,0,-inf,0,0.04,0,0\n";    // line 3: y1 minus infinity
+  input += "0,0,0,0,0.04,0,0.04,0,nan\n";  // line 4: z2 NaN
+  input += "0,0,0,0,0.04,0,0.04,0,0\n";    // line 5: ok
   const CommandRun run = RunSpidarcad("ik --batch", input, "inf");
   ASSERT_EQ(run.status, 0) << run.err;
   const std::vector<std::string> lines = DataLines(run.out);
@@ -339,7 +341,8 @@ TEST(IkCommand, RefusesInfiniteAndNanCoordinatesLikeOtherBadLines) {
   EXPECT_EQ(lines[0], lines[4]);
   EXPECT_EQ(Fields(lines[0]).size(), 8u);
   EXPECT_NE(lines[0].find("0.39395"), std::string::npos) << lines[0];
-  for (const char* where : {"<stdin>:2: column 1 (x)", "<stdin>:3: column 5 (y1)", "<stdin>:4: column 9 (z2)"}) {
+  for (const char* where :
+       {"<stdin>:2: column 1 (x)", "<stdin>:3: column 5 (y1)", "<stdin>:4: column 9 (z2)"}) {
     EXPECT_NE(run.err.find(where), std::string::npos) << where << " in\n" << run.err;
   }
   EXPECT_EQ(run.err.find("<stdin>:1:"), std::string::npos);

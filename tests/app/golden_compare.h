@@ -141,11 +141,11 @@ struct SignalTolerance {
 struct Divergence {
   std::string column;
   std::string unit;
-  std::size_t row = 0;       // 0-based data row of the first divergence
-  double time = NAN;         // the row's "t" (NaN when the table has no t column)
+  std::size_t row = 0;  // 0-based data row of the first divergence
+  double time = NAN;    // the row's "t" (NaN when the table has no t column)
   double expected = 0.0;
   double actual = 0.0;
-  double difference = 0.0;   // |actual − expected| (inf when one side is NaN)
+  double difference = 0.0;  // |actual − expected| (inf when one side is NaN)
   double tolerance = 0.0;
   std::size_t rows_over = 0;    // rows of this signal out of tolerance
   double max_difference = 0.0;  // worst |actual − expected| of this signal
@@ -153,8 +153,8 @@ struct Divergence {
 
 // Result of CompareToGolden.
 struct GoldenComparison {
-  std::vector<std::string> structural;   // missing columns, different row counts
-  std::vector<Divergence> divergences;   // one per diverging signal, in tolerance-list order
+  std::vector<std::string> structural;  // missing columns, different row counts
+  std::vector<Divergence> divergences;  // one per diverging signal, in tolerance-list order
   bool ok() const { return structural.empty() && divergences.empty(); }
   // Human-readable report of every problem ("" when ok).
   std::string Report() const {
@@ -163,10 +163,9 @@ struct GoldenComparison {
     for (const std::string& s : structural) os << s << "\n";
     for (const Divergence& d : divergences) {
       os << "signal '" << d.column << "' diverged at row " << d.row << " (t = " << d.time
-         << " s): expected " << d.expected << ", actual " << d.actual << ", off by "
-         << d.difference << " " << d.unit << " (tolerance " << d.tolerance << " " << d.unit
-         << "); " << d.rows_over << " rows out of tolerance, worst " << d.max_difference << " "
-         << d.unit << "\n";
+         << " s): expected " << d.expected << ", actual " << d.actual << ", off by " << d.difference
+         << " " << d.unit << " (tolerance " << d.tolerance << " " << d.unit << "); " << d.rows_over
+         << " rows out of tolerance, worst " << d.max_difference << " " << d.unit << "\n";
     }
     return os.str();
   }

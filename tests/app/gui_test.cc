@@ -3,8 +3,15 @@
 // demo field, the haptic runtime on a virtual clock and on its thread, the scene model with its
 // mesh jobs and export, option parsing), and screenshot tests of the window itself that run the
 // spidarcad binary with --screenshot when an X display is available (CI: xvfb-run).
-#include <sys/wait.h>
+#include "gui/gui.h"
 
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <vtkImageData.h>
+#include <vtkNew.h>
+#include <vtkPNGReader.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -18,20 +25,13 @@
 #include <string>
 #include <thread>
 
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-#include <vtkImageData.h>
-#include <vtkNew.h>
-#include <vtkPNGReader.h>
-
 #include "doc/job.h"
 #include "gui/colour_map.h"
-#include "scene/device_session.h"
-#include "scene/grip_control.h"
-#include "gui/gui.h"
-#include "scene/haptic_runtime.h"
 #include "gui/panels.h"
 #include "gui/window_layout.h"
+#include "scene/device_session.h"
+#include "scene/grip_control.h"
+#include "scene/haptic_runtime.h"
 #include "scene/scene_fields.h"
 #include "scene/scene_model.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -47,11 +47,11 @@ namespace spidarcad::app {
 namespace {
 
 using haptics::GripPose;
+using haptics::SpidarGeometry;
 using window_test::CountChromaticity;
 using window_test::ReadPng;
 using window_test::RunTicks;
 using window_test::SpringScene;
-using haptics::SpidarGeometry;
 constexpr double kPi = std::numbers::pi;
 
 TEST(TensionColourMap, HitsItsStopsAndInterpolatesLinearlyBetween) {
@@ -180,15 +180,17 @@ TEST(DemoSpringWrench, MatchesTheClosedFormSprings) {
   const SpidarGeometry g;
   DemoFieldSettings field;
   // Translation only: f = −k p0, no moment, no grasp torque.
-  GripPose pose = GripPose::FromFrame({0.05, -0.02, 0.03}, Eigen::Matrix3d::Identity(), kPi / 2, g.d);
+  GripPose pose =
+      GripPose::FromFrame({0.05, -0.02, 0.03}, Eigen::Matrix3d::Identity(), kPi / 2, g.d);
   haptics::Vector7d q = DemoSpringWrench(field, pose);
   EXPECT_NEAR(q[0], -5.0, 1e-12);
   EXPECT_NEAR(q[1], 2.0, 1e-12);
   EXPECT_NEAR(q[2], -3.0, 1e-12);
   EXPECT_NEAR(q.tail<4>().norm(), 0.0, 1e-12);
   // A turn of 0.3 rad about z: m = −k_r 0.3 z.
-  pose = GripPose::FromFrame(Eigen::Vector3d::Zero(),
-                             Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).matrix(), kPi / 2, g.d);
+  pose =
+      GripPose::FromFrame(Eigen::Vector3d::Zero(),
+                          Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).matrix(), kPi / 2, g.d);
   q = DemoSpringWrench(field, pose);
   EXPECT_NEAR((q.segment<3>(3) - Eigen::Vector3d(0, 0, -0.3 * field.k_rotation)).norm(), 0.0,
               1e-12);
@@ -231,7 +233,8 @@ TEST(HapticRuntime, IdealDeviceMeasuresTheTargetAndCommandsTheClosedFormSpringWr
       << f.tool.wrench_D.transpose() << " vs " << expected.transpose();
   // Displayed = A τ at the measured pose, tensions within the solver's bounds.
   const haptics::TensionSettings& ts = runtime.loop().settings().tension;
-  EXPECT_LT((haptics::WrenchMatrix(g, f.tool.pose_D) * f.tool.tau - f.tool.displayed_D).norm(), 1e-9);
+  EXPECT_LT((haptics::WrenchMatrix(g, f.tool.pose_D) * f.tool.tau - f.tool.displayed_D).norm(),
+            1e-9);
   for (int i = 0; i < haptics::kNumStrings; ++i) {
     EXPECT_GE(f.tool.tau[i], ts.tau_min - 1e-9);
     EXPECT_LE(f.tool.tau[i], ts.tau_max + 1e-9);
@@ -276,7 +279,8 @@ TEST(HapticRuntime, TicksAllocateNothingWithSolidsAndSprings) {
   DemoFieldSettings field;
   runtime.Publish(model.BuildHapticScene(field));
   // Push the grip down into the bracket, so that the contact (proxy) fields work too.
-  runtime.SetTarget(GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+  runtime.SetTarget(
+      GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
   RunTicks(&runtime, 300);
   long allocations = 0;
   {
@@ -307,7 +311,8 @@ TEST(HapticRuntime, TicksAllocateNothingInContactAndAcrossARepublishForEitherToo
     SceneHapticsOptions options;
     options.tool = tool;
     runtime.Publish(model.BuildHapticScene(field, options));
-    runtime.SetTarget(GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+    runtime.SetTarget(
+        GripPose::FromFrame({-0.04, 0, -0.07}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
     RunTicks(&runtime, 300);
     ASSERT_GT(runtime.Latest().tool.wrench_D.z(), 1.0);  // in contact
     // The same fields again (the old field goes on), then a stiffer setting (a fresh field,
@@ -333,7 +338,8 @@ TEST(HapticRuntime, EmergencyStopLatchesZeroForceAndRearmRampsBackLinearly) {
   const SpidarGeometry g;
   HapticRuntime runtime(settings, GripPose::Rest(g.d));
   runtime.Publish(SpringScene(DemoFieldSettings{}));
-  runtime.SetTarget(GripPose::FromFrame({0.05, 0.0, 0.0}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
+  runtime.SetTarget(
+      GripPose::FromFrame({0.05, 0.0, 0.0}, Eigen::Matrix3d::Identity(), kPi / 2, g.d));
   RunTicks(&runtime, 700);
   ASSERT_GT(runtime.Latest().tool.wrench_D.head<3>().norm(), 4.0);
   runtime.EmergencyStop();
@@ -404,7 +410,8 @@ TEST(CentringSpringField, FeelsLikeTheDeviceFrameSpringsThroughXwd) {
 
 TEST(ChooseDeviceToWorld, KeepsSmallScenesAtScaleOneAndFitsLargeOnesInReach) {
   const Eigen::Vector3d travel(0.19, 0.19, 0.19);
-  const Eigen::AlignedBox3d small(Eigen::Vector3d(-0.05, 0.0, 0.1), Eigen::Vector3d(0.05, 0.1, 0.15));
+  const Eigen::AlignedBox3d small(Eigen::Vector3d(-0.05, 0.0, 0.1),
+                                  Eigen::Vector3d(0.05, 0.1, 0.15));
   DeviceToWorld x = ChooseDeviceToWorld(small, travel);
   EXPECT_EQ(x.world_scale, 1.0);
   EXPECT_LT((x.p_WDo - Eigen::Vector3d(0.0, 0.05, 0.15 + 0.06)).norm(), 1e-12);
@@ -442,7 +449,8 @@ TEST(SceneModel, LoadsTheDemoAndMeshesPreviewsThatMatchTheKnobSphere) {
   const double r = 0.035, exact = 4.0 / 3.0 * kPi * r * r * r;
   EXPECT_NEAR(modeling::MeshVolume(knob.preview), exact, 0.03 * exact);
   // 'none' is empty; a bad file names itself and leaves the model as it was.
-  EXPECT_THROW(model.Load("/nonexistent/scene.json", Eigen::Vector3d::Constant(0.19)), std::exception);
+  EXPECT_THROW(model.Load("/nonexistent/scene.json", Eigen::Vector3d::Constant(0.19)),
+               std::exception);
   EXPECT_EQ(model.objects().size(), 2u);
   try {
     model.Load("/nonexistent/scene.json", Eigen::Vector3d::Constant(0.19));
@@ -502,11 +510,13 @@ TEST(Export, WritesFilesThatReadBackAndExplainsBadPaths) {
     const modeling::TriangleMesh back = modeling::ReadTriangleMesh(path);
     EXPECT_EQ(back.triangles.cols(), knob.surface.triangles.cols()) << ext;
     EXPECT_NEAR(modeling::MeshVolume(back), modeling::MeshVolume(knob.surface),
-                1e-5 * modeling::MeshVolume(knob.surface)) << ext;
+                1e-5 * modeling::MeshVolume(knob.surface))
+        << ext;
   }
   EXPECT_NE(ExportSurface(knob.surface, dir + "/knob.xyz").find(".stl"), std::string::npos);
   EXPECT_FALSE(ExportSurface(knob.surface, "/nonexistent/dir/knob.stl").empty());
-  EXPECT_NE(ExportSurface(modeling::TriangleMesh{}, dir + "/x.stl").find("nothing"), std::string::npos);
+  EXPECT_NE(ExportSurface(modeling::TriangleMesh{}, dir + "/x.stl").find("nothing"),
+            std::string::npos);
   ASSERT_EQ(ExportTetrahedra(knob.tets, dir + "/knob.vtu"), "");
   const std::string vtu = test_support::ReadWholeFile(dir + "/knob.vtu");
   EXPECT_NE(vtu.find("NumberOfCells=\"" + std::to_string(knob.tets.tets.cols()) + "\""),
@@ -514,7 +524,8 @@ TEST(Export, WritesFilesThatReadBackAndExplainsBadPaths) {
   ASSERT_EQ(ExportTetrahedra(knob.tets, dir + "/knob.node"), "");
   EXPECT_TRUE(std::filesystem::exists(dir + "/knob.ele"));
   EXPECT_NE(ExportTetrahedra(knob.tets, dir + "/knob.stl").find(".vtu"), std::string::npos);
-  EXPECT_NE(ExportTetrahedra(modeling::TetMesh{}, dir + "/x.vtu").find("nothing"), std::string::npos);
+  EXPECT_NE(ExportTetrahedra(modeling::TetMesh{}, dir + "/x.vtu").find("nothing"),
+            std::string::npos);
 }
 
 TEST(GuiOptions, ParsesSizeAndGripAndRejectsBadValues) {
@@ -551,7 +562,8 @@ int RunCommand(const std::string& command, std::string* output) {
 
 TEST(SpidarcadWindow, ExplainsHowToRunHeadlessWithoutADisplay) {
   std::string output;
-  const int status = RunCommand(std::string("env -u DISPLAY '") + SPIDARCAD_EXE + "' 2>&1", &output);
+  const int status =
+      RunCommand(std::string("env -u DISPLAY '") + SPIDARCAD_EXE + "' 2>&1", &output);
   EXPECT_EQ(status, 1) << output;
   EXPECT_NE(output.find("xvfb-run"), std::string::npos) << output;
 }
@@ -570,9 +582,10 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
   // springs are on, so that the expected tensions are known once the force ramp is over.
   const double x = 70, y = -50, z = 40, grasp = 110;
   std::string output;
-  const int status = RunCommand(std::string("'") + SPIDARCAD_EXE + "' none --screenshot '" + png +
-                             "' --size 1100x720 --device ideal --grip 70,-50,40,0,0,0,110 2>&1",
-                         &output);
+  const int status =
+      RunCommand(std::string("'") + SPIDARCAD_EXE + "' none --screenshot '" + png +
+                     "' --size 1100x720 --device ideal --grip 70,-50,40,0,0,0,110 2>&1",
+                 &output);
   ASSERT_EQ(status, 0) << output;
   const vtkSmartPointer<vtkImageData> image = ReadPng(png);
   int dims[3];
@@ -638,7 +651,8 @@ TEST(SpidarcadWindow, ScreenshotShowsTheDeviceStringsByTensionAndThePanel) {
   // pixels) on its light window colour. The background is sampled at the viewport's left edge
   // (the docked layout puts the mode panel at the window's right edge), in the viewport row
   // nearest this row.
-  const WindowLayout layout = ComputeLayout(static_cast<float>(dims[0]), static_cast<float>(dims[1]));
+  const WindowLayout layout =
+      ComputeLayout(static_cast<float>(dims[0]), static_cast<float>(dims[1]));
   const int view_x = static_cast<int>(layout.viewport.x) + 3;
   const int view_lowest = dims[1] - static_cast<int>(layout.viewport.bottom()) + 2;  // bottom up
   const int view_highest = dims[1] - static_cast<int>(layout.viewport.y) - 3;
@@ -681,22 +695,25 @@ TEST(SpidarcadWindow, DemoSceneDrawsItsSolidsAndTheEmergencyStopZeroesTheStrings
   const int panel = static_cast<int>(kPanelWidth) + 2;
   const int view_right = dims[0] - 350;  // left of the scene and loop overlays
   // The solids in their colours in the middle of the view (shading keeps chromaticity).
-  const int sand = CountChromaticity(image, panel, view_right, 0, dims[1] - 60,
-                                     SceneModel::kColours[0], 0.03);
-  const int sage = CountChromaticity(image, panel, dims[0], 0, dims[1] - 60,
-                                     SceneModel::kColours[1], 0.03);
+  const int sand =
+      CountChromaticity(image, panel, view_right, 0, dims[1] - 60, SceneModel::kColours[0], 0.03);
+  const int sage =
+      CountChromaticity(image, panel, dims[0], 0, dims[1] - 60, SceneModel::kColours[1], 0.03);
   EXPECT_GT(sand, 3000) << "the bracket (sand) is not drawn";
   EXPECT_GT(sage, 500) << "the knob (sage) is not drawn";
   // The stop banner (205, 25, 25) near the top of the view.
-  EXPECT_GT(CountChromaticity(image, panel, dims[0], dims[1] - 80, dims[1], {0.80, 0.10, 0.10},
-                              0.02), 1500);
+  EXPECT_GT(
+      CountChromaticity(image, panel, dims[0], dims[1] - 80, dims[1], {0.80, 0.10, 0.10}, 0.02),
+      1500);
   // Zero force: every string at the minimum tension colour, none at the maximum.
   const SpidarGeometry g;
   const haptics::TensionSettings ts = haptics::TensionSettings::ForPoleLength(g.d);
   EXPECT_GT(CountChromaticity(image, panel, view_right, 0, dims[1] - 80,
-                              TensionColour(ts.tau_min, ts.tau_min, ts.tau_max), 0.035), 200);
+                              TensionColour(ts.tau_min, ts.tau_min, ts.tau_max), 0.035),
+            200);
   EXPECT_EQ(CountChromaticity(image, panel, view_right, 0, dims[1] - 80,
-                              TensionColour(ts.tau_max, ts.tau_min, ts.tau_max), 0.02), 0);
+                              TensionColour(ts.tau_max, ts.tau_min, ts.tau_max), 0.02),
+            0);
   // The loop statistics the panel shows, as the exit summary prints them.
   EXPECT_NE(output.find("emergency stop: latched"), std::string::npos) << output;
   const size_t at = output.find("loop: ");
@@ -711,19 +728,20 @@ TEST(SpidarcadWindow, DemoSceneDrawsItsSolidsAndTheEmergencyStopZeroesTheStrings
 // FE mode end to end in the window: `--mode fe` opens the platform scene, meshes and precomputes
 // the platform in Jobs, publishes its field; the simulated hand aims the grip so that the tool
 // sphere presses the plate top (X_WD of the platform scene: scale 4.57, device centre at
-// z = 0.48 m in W; the target is 0.7 mm below the top in W, the hand rests about 5 mm above it). The screenshot waits until the field has
-// run (FeMode::Settled); the exit summary must show contact, the plate's reaction and an upward
-// commanded force (the FE part is the only field: it is felt, not only drawn), within 8 N.
+// z = 0.48 m in W; the target is 0.7 mm below the top in W, the hand rests about 5 mm above it).
+// The screenshot waits until the field has run (FeMode::Settled); the exit summary must show
+// contact, the plate's reaction and an upward commanded force (the FE part is the only field: it is
+// felt, not only drawn), within 8 N.
 TEST(SpidarcadWindow, FeModeFeelsThePlatformUnderTheGrip) {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
   const std::string png = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_fe_mode.png";
   std::filesystem::remove_all(std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/fe_cache");
   std::string output;
-  const int status = RunCommand(std::string("SPIDARCAD_CACHE_DIR='") + SPIDARCAD_TEST_OUTPUT_DIR +
-                                    "/fe_cache' '" + SPIDARCAD_EXE + "' --mode fe --grip 10,0,-103 --screenshot '" +
-                                    png + "' 2>&1",
-                                &output);
+  const int status =
+      RunCommand(std::string("SPIDARCAD_CACHE_DIR='") + SPIDARCAD_TEST_OUTPUT_DIR + "/fe_cache' '" +
+                     SPIDARCAD_EXE + "' --mode fe --grip 10,0,-103 --screenshot '" + png + "' 2>&1",
+                 &output);
   ASSERT_EQ(status, 0) << output;
   EXPECT_EQ(output.find("before the loop settled"), std::string::npos) << output;
   EXPECT_NE(output.find("fe: ready"), std::string::npos) << output;
@@ -751,8 +769,8 @@ TEST(SpidarcadWindow, RefusesABadSceneFileWithStatusTwo) {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
   std::string output;
-  const int status = RunCommand(std::string("'") + SPIDARCAD_EXE +
-                                    "' /nonexistent/scene.json --frames 1 2>&1", &output);
+  const int status = RunCommand(
+      std::string("'") + SPIDARCAD_EXE + "' /nonexistent/scene.json --frames 1 2>&1", &output);
   EXPECT_EQ(status, 2) << output;
   EXPECT_NE(output.find("/nonexistent/scene.json"), std::string::npos) << output;
 }

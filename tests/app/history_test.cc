@@ -1,10 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // The undo history: drag merging, redo clearing, bounded depth, macros, descriptions.
+#include <gtest/gtest.h>
+
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "doc/command.h"
 #include "doc/document.h"
@@ -35,13 +35,16 @@ struct Fixture {
     if (const auto* s = std::get_if<modeling::SphereParams>(&p)) return s->radius;
     return std::get<modeling::CylinderParams>(p).radius;
   }
-  double Height() const { return std::get<modeling::CylinderParams>(doc.Node(solid, {1}).params).height; }
+  double Height() const {
+    return std::get<modeling::CylinderParams>(doc.Node(solid, {1}).params).height;
+  }
 };
 
 TEST(History, MergesDragEditsOfOneFieldIntoOneStep) {
   Fixture f;
   const std::string before = SceneText(f.doc);
-  for (double r : {0.051, 0.052, 0.053, 0.054}) f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", r, true));
+  for (double r : {0.051, 0.052, 0.053, 0.054})
+    f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", r, true));
   EXPECT_EQ(f.Radius({0}), 0.054);
   EXPECT_EQ(f.doc.history().undo_size(), 1u);
   EXPECT_EQ(f.doc.history().UndoDescription(), "Set radius");
@@ -56,8 +59,10 @@ TEST(History, MergesDragEditsOfOneFieldIntoOneStep) {
 TEST(History, MergesTypedParamsDragAndKeepsFirstRevisionForUndo) {
   Fixture f;
   const std::uint64_t r0 = f.doc.Get(f.solid).revision;
-  f.doc.Execute(edit::SetNodeParams(f.solid, {1}, modeling::CylinderParams{0.03, 0.04}, "radius", true));
-  f.doc.Execute(edit::SetNodeParams(f.solid, {1}, modeling::CylinderParams{0.04, 0.04}, "radius", true));
+  f.doc.Execute(
+      edit::SetNodeParams(f.solid, {1}, modeling::CylinderParams{0.03, 0.04}, "radius", true));
+  f.doc.Execute(
+      edit::SetNodeParams(f.solid, {1}, modeling::CylinderParams{0.04, 0.04}, "radius", true));
   EXPECT_EQ(f.doc.history().undo_size(), 1u);
   f.doc.Undo();
   EXPECT_EQ(f.Radius({1}), 0.02);
@@ -106,7 +111,8 @@ TEST(History, DoesNotMergeAfterUndoOrRedo) {
 TEST(History, InvalidDragEditIsNotMergedAndKeepsState) {
   Fixture f;
   f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", 0.06, true));
-  EXPECT_THROW(f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", -0.01, true)), modeling::ModelError);
+  EXPECT_THROW(f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", -0.01, true)),
+               modeling::ModelError);
   EXPECT_EQ(f.Radius({0}), 0.06);
   f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", 0.07, true));
   EXPECT_EQ(f.doc.history().undo_size(), 1u);
@@ -121,7 +127,8 @@ TEST(History, NewCommandClearsRedoButFailedCommandKeepsIt) {
   f.doc.Undo();
   EXPECT_TRUE(f.doc.history().CanRedo());
   EXPECT_EQ(f.doc.history().RedoDescription(), "Set radius");
-  EXPECT_THROW(f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", 0.0)), modeling::ModelError);
+  EXPECT_THROW(f.doc.Execute(edit::SetNodeField(f.solid, {0}, "radius", 0.0)),
+               modeling::ModelError);
   EXPECT_TRUE(f.doc.history().CanRedo());
   f.doc.Execute(edit::SetNodeField(f.solid, {1}, "height", 0.1));
   EXPECT_FALSE(f.doc.history().CanRedo());
@@ -151,7 +158,8 @@ TEST(History, MacroIsOneStepAndUndoesInReverse) {
   Fixture f;
   const std::string before = SceneText(f.doc);
   std::vector<std::unique_ptr<Command>> steps;
-  steps.push_back(edit::WrapNode(f.solid, {0}, modeling::TranslateParams{Eigen::Vector3d(1, 0, 0)}, "t"));
+  steps.push_back(
+      edit::WrapNode(f.solid, {0}, modeling::TranslateParams{Eigen::Vector3d(1, 0, 0)}, "t"));
   steps.push_back(edit::SetNodeField(f.solid, {0, 0}, "radius", 0.01));  // the sphere, now inside t
   steps.push_back(edit::RenameObject(f.solid, "moved"));
   f.doc.Execute(std::make_unique<MacroCommand>("Move sphere", std::move(steps)));

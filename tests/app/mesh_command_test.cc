@@ -3,8 +3,10 @@
 // indices and the enclosed volume against the platform's dimensions), bad scene files, bad
 // options and unknown extensions exit with status 2 and a message that says where.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -14,12 +16,8 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-
-#include "spidarcad_runner.h"
-
 #include "spidarcad/modeling/triangle_mesh_io.h"
+#include "spidarcad_runner.h"
 
 namespace {
 
@@ -29,9 +27,13 @@ using spidarcad::test_support::ReadWholeFile;
 using spidarcad::modeling::ReadTriangleMesh;
 using spidarcad::modeling::TriangleMesh;
 
-std::string OutputPath(const std::string& name) { return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/mesh_cmd_" + name; }
+std::string OutputPath(const std::string& name) {
+  return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/mesh_cmd_" + name;
+}
 
-std::string Platform() { return std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json"; }
+std::string Platform() {
+  return std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json";
+}
 
 // Runs `spidarcad mesh ARGS` and captures stdout, stderr and the exit status.
 CommandRun RunMesh(const std::string& args, const std::string& tag) {
@@ -48,7 +50,8 @@ long PrintedCount(const std::string& text, const std::string& word) {
 // Volume of the platform from its dimensions (plate, bracket, gusset, minus six holes); the
 // fillets and rounded edges change it by a few percent.
 double PlatformVolume() {
-  const double plate = 0.3 * 0.2 * 0.01, bracket = 0.01 * 0.2 * 0.16, gusset = 0.5 * 0.195 * 0.142 * 0.01;
+  const double plate = 0.3 * 0.2 * 0.01, bracket = 0.01 * 0.2 * 0.16,
+               gusset = 0.5 * 0.195 * 0.142 * 0.01;
   const double holes = 4 * M_PI * 0.0055 * 0.0055 * 0.01 + 2 * M_PI * 0.004 * 0.004 * 0.01;
   return plate + bracket + gusset - holes;
 }
@@ -81,7 +84,8 @@ std::vector<double> DataArray(const std::string& vtu, const std::string& name) {
 TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
   const std::string stl = OutputPath("platform.stl");
   std::remove(stl.c_str());
-  const CommandRun run = RunMesh("'" + Platform() + "' --out '" + stl + "' --resolution 0.004", "stl");
+  const CommandRun run =
+      RunMesh("'" + Platform() + "' --out '" + stl + "' --resolution 0.004", "stl");
   ASSERT_EQ(run.status, 0) << run.err;
   const TriangleMesh mesh = ReadTriangleMesh(stl);
   EXPECT_EQ(mesh.triangles.cols(), PrintedCount(run.out, "triangles")) << run.out;
@@ -103,12 +107,14 @@ TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
 TEST(MeshCommand, WritesPlatformTetsAsVtuWithThePrintedCounts) {
   const std::string vtu_path = OutputPath("platform.vtu");
   std::remove(vtu_path.c_str());
-  const CommandRun run =
-      RunMesh("'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.005 --tets tetgen --quality 2", "vtu");
+  const CommandRun run = RunMesh(
+      "'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.005 --tets tetgen --quality 2",
+      "vtu");
   ASSERT_EQ(run.status, 0) << run.err;
   const std::string vtu = ReadWholeFile(vtu_path);
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
+  ASSERT_TRUE(std::regex_search(
+      vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
   const long points = std::stol(m[1]), cells = std::stol(m[2]);
   EXPECT_EQ(points, PrintedCount(run.out, "nodes")) << run.out;
   EXPECT_EQ(cells, PrintedCount(run.out, "tets")) << run.out;
@@ -138,11 +144,13 @@ TEST(MeshCommand, WritesPlatformTetsAsVtuWithThePrintedCounts) {
 TEST(MeshCommand, CgalWritesPositivePlatformTetsWithThePrintedCounts) {
   const std::string vtu_path = OutputPath("platform_cgal.vtu");
   std::remove(vtu_path.c_str());
-  const CommandRun run = RunMesh("'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.006 --tets cgal", "cgal");
+  const CommandRun run = RunMesh(
+      "'" + Platform() + "' --out '" + vtu_path + "' --resolution 0.006 --tets cgal", "cgal");
   ASSERT_EQ(run.status, 0) << run.err;
   const std::string vtu = ReadWholeFile(vtu_path);
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
+  ASSERT_TRUE(std::regex_search(
+      vtu, m, std::regex("NumberOfPoints=\"([0-9]+)\" NumberOfCells=\"([0-9]+)\"")));
   const long points = std::stol(m[1]), cells = std::stol(m[2]);
   EXPECT_EQ(points, PrintedCount(run.out, "nodes")) << run.out;
   EXPECT_EQ(cells, PrintedCount(run.out, "tets")) << run.out;
@@ -173,7 +181,9 @@ TEST(MeshCommand, WritesTetgenNodeAndEleFiles) {
   const std::string base = OutputPath("platform_tets");
   std::remove((base + ".node").c_str());
   std::remove((base + ".ele").c_str());
-  const CommandRun run = RunMesh("'" + Platform() + "' --out '" + base + ".node' --resolution 0.008 --tets tetgen --quality 0", "node");
+  const CommandRun run = RunMesh(
+      "'" + Platform() + "' --out '" + base + ".node' --resolution 0.008 --tets tetgen --quality 0",
+      "node");
   ASSERT_EQ(run.status, 0) << run.err;
   // First data line (after '#' comments) of .node: count, dimension 3; of .ele: count, 4
   // nodes per tet.
@@ -205,50 +215,61 @@ TEST(MeshCommand, BadSceneFileExitsTwoNamingFileAndLine) {
                           "      {\"type\": \"sphere\", \"radius\": -0.1}}\n"
                           "  ]\n"
                           "}\n";
-  const CommandRun run = RunMesh("'" + scene + "' --out '" + OutputPath("bad.stl") + "'", "bad_scene");
+  const CommandRun run =
+      RunMesh("'" + scene + "' --out '" + OutputPath("bad.stl") + "'", "bad_scene");
   EXPECT_EQ(run.status, 2);
   EXPECT_NE(run.err.find(scene + ":7:"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("radius"), std::string::npos) << run.err;
 
   const std::string syntax = OutputPath("syntax_scene.json");
-  std::ofstream(syntax) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1\n  \"units\": \"m\"\n}\n";
-  const CommandRun run2 = RunMesh("'" + syntax + "' --out '" + OutputPath("bad.stl") + "'", "syntax_scene");
+  std::ofstream(syntax)
+      << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1\n  \"units\": \"m\"\n}\n";
+  const CommandRun run2 =
+      RunMesh("'" + syntax + "' --out '" + OutputPath("bad.stl") + "'", "syntax_scene");
   EXPECT_EQ(run2.status, 2);
   EXPECT_NE(run2.err.find(syntax + ":4:"), std::string::npos) << run2.err;
 
-  const CommandRun missing = RunMesh("'" + OutputPath("no_such_scene.json") + "' --out x.stl", "missing");
+  const CommandRun missing =
+      RunMesh("'" + OutputPath("no_such_scene.json") + "' --out x.stl", "missing");
   EXPECT_EQ(missing.status, 2);
   EXPECT_NE(missing.err.find("no_such_scene.json"), std::string::npos) << missing.err;
 }
 
 TEST(MeshCommand, UnknownExtensionAndBadOptionsExitTwo) {
-  const CommandRun ext = RunMesh("'" + Platform() + "' --out '" + OutputPath("platform.xyz") + "'", "ext");
+  const CommandRun ext =
+      RunMesh("'" + Platform() + "' --out '" + OutputPath("platform.xyz") + "'", "ext");
   EXPECT_EQ(ext.status, 2);
   EXPECT_NE(ext.err.find(".xyz"), std::string::npos) << ext.err;
 
-  const CommandRun tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets netgen", "tets");
+  const CommandRun tets =
+      RunMesh("'" + Platform() + "' --out '" + OutputPath("c.vtu") + "' --tets netgen", "tets");
   EXPECT_EQ(tets.status, 2);
   EXPECT_NE(tets.err.find("netgen"), std::string::npos) << tets.err;
   EXPECT_NE(tets.err.find("tetgen or cgal"), std::string::npos) << tets.err;
 
-  const CommandRun vtu_without_tets = RunMesh("'" + Platform() + "' --out '" + OutputPath("n.vtu") + "'", "notets");
+  const CommandRun vtu_without_tets =
+      RunMesh("'" + Platform() + "' --out '" + OutputPath("n.vtu") + "'", "notets");
   EXPECT_EQ(vtu_without_tets.status, 2);
   EXPECT_NE(vtu_without_tets.err.find("--tets"), std::string::npos) << vtu_without_tets.err;
 
-  const CommandRun solid = RunMesh("'" + Platform() + "' --out '" + OutputPath("s.stl") + "' --solid nope", "solid");
+  const CommandRun solid =
+      RunMesh("'" + Platform() + "' --out '" + OutputPath("s.stl") + "' --solid nope", "solid");
   EXPECT_EQ(solid.status, 2);
   EXPECT_NE(solid.err.find("'platform'"), std::string::npos) << solid.err;
 
-  const CommandRun resolution = RunMesh("'" + Platform() + "' --out '" + OutputPath("r.stl") + "' --resolution -1", "res");
+  const CommandRun resolution =
+      RunMesh("'" + Platform() + "' --out '" + OutputPath("r.stl") + "' --resolution -1", "res");
   EXPECT_EQ(resolution.status, 2);
   EXPECT_NE(resolution.err.find("--resolution"), std::string::npos) << resolution.err;
 
-  const CommandRun quality =
-      RunMesh("'" + Platform() + "' --out '" + OutputPath("q.vtu") + "' --tets tetgen --quality 0.5", "quality");
+  const CommandRun quality = RunMesh(
+      "'" + Platform() + "' --out '" + OutputPath("q.vtu") + "' --tets tetgen --quality 0.5",
+      "quality");
   EXPECT_EQ(quality.status, 2);
   EXPECT_NE(quality.err.find("--quality"), std::string::npos) << quality.err;
 
-  const CommandRun unwritable = RunMesh("'" + Platform() + "' --out /nonexistent-dir/p.stl --resolution 0.008", "unwritable");
+  const CommandRun unwritable =
+      RunMesh("'" + Platform() + "' --out /nonexistent-dir/p.stl --resolution 0.008", "unwritable");
   EXPECT_EQ(unwritable.status, 2);
   EXPECT_NE(unwritable.err.find("/nonexistent-dir/p.stl"), std::string::npos) << unwritable.err;
 }
@@ -256,7 +277,9 @@ TEST(MeshCommand, UnknownExtensionAndBadOptionsExitTwo) {
 TEST(MeshCommand, HelpTeachesWithPlatformExamples) {
   const CommandRun run = RunMesh("--help", "help");
   EXPECT_EQ(run.status, 0);
-  EXPECT_NE(run.out.find("assets/scenes/platform.json --out platform.vtu --tets tetgen"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("assets/scenes/platform.json --out platform.vtu --tets tetgen"),
+            std::string::npos)
+      << run.out;
   EXPECT_NE(run.out.find("--tets cgal"), std::string::npos) << run.out;
 }
 
@@ -268,9 +291,11 @@ namespace {
 double WorstCornerGap(const TriangleMesh& mesh, const Eigen::Vector3d& h) {
   double worst = 0.0;
   for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3d corner((c & 1) ? h.x() : -h.x(), (c & 2) ? h.y() : -h.y(), (c & 4) ? h.z() : -h.z());
+    const Eigen::Vector3d corner((c & 1) ? h.x() : -h.x(), (c & 2) ? h.y() : -h.y(),
+                                 (c & 4) ? h.z() : -h.z());
     double best = 1e9;
-    for (Eigen::Index v = 0; v < mesh.vertices.cols(); ++v) best = std::min(best, (mesh.vertices.col(v) - corner).norm());
+    for (Eigen::Index v = 0; v < mesh.vertices.cols(); ++v)
+      best = std::min(best, (mesh.vertices.col(v) - corner).norm());
     worst = std::max(worst, best);
   }
   return worst;
@@ -282,16 +307,19 @@ TEST(MeshCommand, PutsBoxCornersBackWhenSharpIsGiven) {
   std::ofstream(scene) << R"({"format": "spidarcad-scene", "version": 1, "solids": [
     {"name": "block", "root": {"type": "box", "size": [0.0413, 0.0291, 0.0187]}}]})";
   const Eigen::Vector3d h(0.0413 / 2, 0.0291 / 2, 0.0187 / 2);
-  const CommandRun plain = RunMesh(scene + " --resolution 0.004 --out " + OutputPath("plain_box.stl"), "plain_box");
+  const CommandRun plain =
+      RunMesh(scene + " --resolution 0.004 --out " + OutputPath("plain_box.stl"), "plain_box");
   ASSERT_EQ(plain.status, 0) << plain.all();
-  const CommandRun sharp = RunMesh(scene + " --resolution 0.004 --sharp --out " + OutputPath("sharp_box.stl"), "sharp_box");
+  const CommandRun sharp = RunMesh(
+      scene + " --resolution 0.004 --sharp --out " + OutputPath("sharp_box.stl"), "sharp_box");
   ASSERT_EQ(sharp.status, 0) << sharp.all();
   EXPECT_NE(sharp.out.find("sharpen: "), std::string::npos) << sharp.out;
   const double plain_gap = WorstCornerGap(ReadTriangleMesh(OutputPath("plain_box.stl")), h);
   const double sharp_gap = WorstCornerGap(ReadTriangleMesh(OutputPath("sharp_box.stl")), h);
   EXPECT_GT(plain_gap, 4e-4);  // a tenth of a cell: the chamfer is there without --sharp
   EXPECT_LT(sharp_gap, 4e-6);  // a thousandth of a cell (STL stores float)
-  const CommandRun bad = RunMesh(scene + " --sharp --raw-surface --out " + OutputPath("bad.stl"), "sharp_raw");
+  const CommandRun bad =
+      RunMesh(scene + " --sharp --raw-surface --out " + OutputPath("bad.stl"), "sharp_raw");
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.err.find("--sharp"), std::string::npos) << bad.all();
 }
@@ -430,8 +458,9 @@ TEST(MeshCommand, ProgressGoesToStderrWithTheFlag) {
 }
 
 TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
-  // A sphere of 10 cm at 0.3 mm (3.2e8 grid cells, inside --max-cells 1e9): a long run, so it is still meshing when the signal comes
-  // (sent once the progress line shows the surface stage has begun).
+  // A sphere of 10 cm at 0.3 mm (3.2e8 grid cells, inside --max-cells 1e9): a long run, so it is
+  // still meshing when the signal comes (sent once the progress line shows the surface stage has
+  // begun).
   const std::string scene = WriteScene("ctrl_c.json", R"({"type": "sphere", "radius": 0.1})");
   const std::string out = OutputPath("ctrl_c.stl");
   const std::string err = OutputPath("ctrl_c.err");

@@ -18,12 +18,12 @@
 // tree instead of comparing, and say so.
 //
 // The comparison itself (golden_compare.h) is tested here too: it must catch a perturbed signal.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "golden_compare.h"
 #include "spidarcad_runner.h"
@@ -71,20 +71,22 @@ bool UpdateGolden() {
 void RunAndCompare(const std::string& name, const std::string& args,
                    std::string* stdout_text = nullptr) {
   const std::string out = spidarcad::test_support::TestOutputPath("regression_" + name + ".csv");
-  const auto run = spidarcad::test_support::RunSpidarcad("run " + args + " --out '" + out + "'",
-                                                         "", "regression_" + name);
+  const auto run = spidarcad::test_support::RunSpidarcad("run " + args + " --out '" + out + "'", "",
+                                                         "regression_" + name);
   ASSERT_EQ(run.status, 0) << run.err;
   if (stdout_text != nullptr) *stdout_text = run.out;
-  const CsvTable actual = Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation,
-                                   ComparedColumns());
+  const CsvTable actual =
+      Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation, ComparedColumns());
   const std::string golden_path = Source("tests/golden/" + name + ".csv");
   if (UpdateGolden()) {
     std::string shown = args;  // paths relative to the source tree in the comment
     const std::string root = std::string(SPIDARCAD_SOURCE_DIR) + "/";
-    for (std::size_t at; (at = shown.find(root)) != std::string::npos;) shown.erase(at, root.size());
+    for (std::size_t at; (at = shown.find(root)) != std::string::npos;)
+      shown.erase(at, root.size());
     spidarcad::test_support::WriteCsvTable(
         actual, golden_path,
-        {"golden result of: spidarcad run " + shown, "every " + std::to_string(kDecimation) +
+        {"golden result of: spidarcad run " + shown,
+         "every " + std::to_string(kDecimation) +
              "th tick; regenerate with SPIDARCAD_UPDATE_GOLDEN=1 (tests/app/regression_test.cc)"});
     std::cout << "[ UPDATED  ] " << golden_path << "\n";
     return;
@@ -135,11 +137,12 @@ TEST(Regression, PlatformShellToolWithTwistMatchesGolden) {
 // nan, fk_refused or device_error event; FK within 0.6 mm of the true grip.
 TEST(Regression, AssemblySeatRightLegMatchesGolden) {
   std::string out;
-  RunAndCompare("assembly_seat_right_leg", Asset("scenes/assembly.json") + " --trajectory " +
-                                               Asset("trajectories/seat_right_leg.csv") +
-                                               " --calibrate",
+  RunAndCompare("assembly_seat_right_leg",
+                Asset("scenes/assembly.json") + " --trajectory " +
+                    Asset("trajectories/seat_right_leg.csv") + " --calibrate",
                 &out);
-  EXPECT_NE(out.find("calibration: line-fit calibration on 24 jig poses"), std::string::npos) << out;
+  EXPECT_NE(out.find("calibration: line-fit calibration on 24 jig poses"), std::string::npos)
+      << out;
   EXPECT_NE(out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"), std::string::npos)
       << out;
 }

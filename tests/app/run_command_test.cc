@@ -2,6 +2,9 @@
 // against the wall law applied to the output's own grip positions, and the tensions against
 // their bounds; errors must exit with status 2 and say where.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,9 +13,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <gtest/gtest.h>
 
 #include "spidarcad_runner.h"
 
@@ -60,7 +60,8 @@ std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
 TEST(RunCommand, WritesOneRowPerTickWithTheWallForceOfTheDemoScene) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("press_result.csv");
-  const CommandRun r = RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "'", "press");
+  const CommandRun r =
+      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "'", "press");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("tick time [us]: p50"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("ramping="), std::string::npos);
@@ -98,7 +99,7 @@ TEST(RunCommand, WritesOneRowPerTickWithTheWallForceOfTheDemoScene) {
     // Above the floor on the way down, in the force ramp (0.5 s, from 0 at the first tick): the
     // ramped spring (its damping, 0.5 N·s/m × 5 cm/s, is within the tolerance).
     if (t < 0.6 && fk_z > -0.02) {
-      const double ramp = std::min(1.0, (i) * 1e-3 / 0.5);
+      const double ramp = std::min(1.0, (i)*1e-3 / 0.5);
       EXPECT_NEAR(fz, ramp * -20.0 * fk_z, 0.03) << "above the floor, t " << t;
       ++above;
     }
@@ -111,8 +112,14 @@ TEST(RunCommand, WritesOneRowPerTickWithTheWallForceOfTheDemoScene) {
 TEST(RunCommand, SameRunGivesTheSameNumbersExceptTickTime) {
   const std::string traj = WritePressTrajectory();
   const std::string a = OutputPath("det_a.csv"), b = OutputPath("det_b.csv");
-  ASSERT_EQ(RunSpidarcad("demo --trajectory '" + traj + "' --out '" + a + "' --hand 500,30", "det_a").status, 0);
-  ASSERT_EQ(RunSpidarcad("demo --trajectory '" + traj + "' --out '" + b + "' --hand 500,30", "det_b").status, 0);
+  ASSERT_EQ(
+      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + a + "' --hand 500,30", "det_a")
+          .status,
+      0);
+  ASSERT_EQ(
+      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + b + "' --hand 500,30", "det_b")
+          .status,
+      0);
   const auto ra = ReadCsv(a), rb = ReadCsv(b);
   ASSERT_EQ(ra.size(), rb.size());
   for (std::size_t i = 0; i < ra.size(); ++i) {
@@ -132,7 +139,8 @@ TEST(RunCommand, BadInputExitsWithStatusTwoAndSaysWhere) {
   EXPECT_NE(r.err.find(bad + ":3: field 'y': 'zz' is not a number"), std::string::npos) << r.err;
 
   const std::string traj = WritePressTrajectory();
-  r = RunSpidarcad("no_such_scene.json --trajectory '" + traj + "' --out '" + out + "'", "bad_scene");
+  r = RunSpidarcad("no_such_scene.json --trajectory '" + traj + "' --out '" + out + "'",
+                   "bad_scene");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("SCENE: no_such_scene.json"), std::string::npos) << r.err;
   r = RunSpidarcad("--trajectory '" + traj + "' --out '" + out + "' --hand -1,2", "bad_hand");
@@ -210,7 +218,8 @@ TEST(RunCommand, AssemblySceneRendersTheFixedBodyWhenPressedAgainst) {
   }
   const std::string scene = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json";
   const std::string out = OutputPath("assembly_result.csv");
-  const CommandRun r = RunSpidarcad("'" + scene + "' --trajectory '" + traj + "' --out '" + out + "'", "assembly");
+  const CommandRun r =
+      RunSpidarcad("'" + scene + "' --trajectory '" + traj + "' --out '" + out + "'", "assembly");
   ASSERT_EQ(r.status, 0) << r.all();
   EXPECT_NE(r.out.find("fields: assembly (6 parts)"), std::string::npos) << r.out;
   const auto rows = ReadCsv(out);
@@ -253,13 +262,16 @@ int ColumnOf(const std::vector<std::string>& header, const std::string& name) {
 // at most, 0.0007 N on average). The means over the 0.3 s hold must agree within 0.02 N.
 TEST(RunCommand, BoardSimDeviceFeelsTheSameFloorAsTheSimulatedDevice) {
   const std::string traj = WritePressTrajectory();
-  const std::string sim = OutputPath("device_simulated.csv"), board = OutputPath("device_board_sim.csv");
-  const CommandRun a = RunSpidarcad("demo --trajectory '" + traj + "' --out '" + sim + "'", "dev_sim");
+  const std::string sim = OutputPath("device_simulated.csv"),
+                    board = OutputPath("device_board_sim.csv");
+  const CommandRun a =
+      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + sim + "'", "dev_sim");
   ASSERT_EQ(a.status, 0) << a.err;
-  const CommandRun b =
-      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + board + "' --device board-sim", "dev_board");
+  const CommandRun b = RunSpidarcad(
+      "demo --trajectory '" + traj + "' --out '" + board + "' --device board-sim", "dev_board");
   ASSERT_EQ(b.status, 0) << b.err;
-  EXPECT_NE(b.out.find("device board-sim (USB driver over the board simulator, seed 1)"), std::string::npos)
+  EXPECT_NE(b.out.find("device board-sim (USB driver over the board simulator, seed 1)"),
+            std::string::npos)
       << b.out;
   EXPECT_NE(b.out.find("usb link: states 1501"), std::string::npos) << b.out;
   EXPECT_NE(b.out.find("disconnects 0"), std::string::npos) << b.out;
@@ -278,11 +290,13 @@ TEST(RunCommand, BoardSimDeviceFeelsTheSameFloorAsTheSimulatedDevice) {
     sum_b += fb;
     max_diff = std::max(max_diff, std::abs(fa - fb));
     EXPECT_NEAR(std::stod(ra[i][fx]), std::stod(rb[i][fx]), 0.1) << "t " << time;
-    EXPECT_EQ(std::stoi(rb[i][events]) & 0x3f, 0) << "zero-force event on the board-sim path at t " << time;
+    EXPECT_EQ(std::stoi(rb[i][events]) & 0x3f, 0)
+        << "zero-force event on the board-sim path at t " << time;
     ++held;
   }
   ASSERT_GT(held, 250);
-  EXPECT_GT(sum_b / held, 2.0) << "the hand pressed 1 cm into the floor: the floor's force must be felt";
+  EXPECT_GT(sum_b / held, 2.0)
+      << "the hand pressed 1 cm into the floor: the floor's force must be felt";
   EXPECT_NEAR(sum_b / held, sum_a / held, 0.02);
   EXPECT_LT(max_diff, 0.1);
 }
@@ -293,15 +307,20 @@ TEST(RunCommand, UsbDeviceWithNothingAttachedExitsTwoNamingWhatToCheck) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("usb_result.csv");
   std::remove(out.c_str());
-  const CommandRun r = RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "' --device usb", "usb");
+  const CommandRun r =
+      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "' --device usb", "usb");
   EXPECT_EQ(r.status, 2) << r.all();
-  EXPECT_NE(r.err.find("--device usb: no SPIDAR-G controller board could be opened"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--device usb: no SPIDAR-G controller board could be opened"),
+            std::string::npos)
+      << r.err;
   EXPECT_NE(r.err.find("spidarcad device list"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("assets/udev/99-spidarcad.rules"), std::string::npos) << r.err;
   EXPECT_FALSE(std::ifstream(out).good()) << "no output file when the device cannot be opened";
-  const CommandRun bad = RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "' --device bogus", "bogus");
+  const CommandRun bad =
+      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "' --device bogus", "bogus");
   EXPECT_EQ(bad.status, 2);
-  EXPECT_NE(bad.err.find("--device: 'bogus' is not a device; use simulated, board-sim or usb"), std::string::npos)
+  EXPECT_NE(bad.err.find("--device: 'bogus' is not a device; use simulated, board-sim or usb"),
+            std::string::npos)
       << bad.err;
 }
 
@@ -314,10 +333,14 @@ TEST(RunCommand, UsbDeviceWithNothingAttachedExitsTwoNamingWhatToCheck) {
 // the hand aims by the commanded force over the hand's stiffness (300 N/m), and closer to the
 // corner than the aim. The same scene without "snap" commands no force (no contact).
 TEST(RunCommand, SnapScenePullsTheGripTowardABoxCornerHeldNearIt) {
-  const std::string solids = R"("solids": [{"name": "cube", "root": {"type": "box", "size": [0.04, 0.04, 0.04]}}])";
-  const std::string with_snap = OutputPath("snap_cube.json"), without = OutputPath("plain_cube.json");
-  std::ofstream(with_snap) << R"({"format": "spidarcad-scene", "version": 1, "snap": {"max_force": 0.8,
-      "vertex_radius": 0.03, "edge_radius": 0.01, "face_radius": 0.006}, )" << solids << "}\n";
+  const std::string solids =
+      R"("solids": [{"name": "cube", "root": {"type": "box", "size": [0.04, 0.04, 0.04]}}])";
+  const std::string with_snap = OutputPath("snap_cube.json"),
+                    without = OutputPath("plain_cube.json");
+  std::ofstream(with_snap)
+      << R"({"format": "spidarcad-scene", "version": 1, "snap": {"max_force": 0.8,
+      "vertex_radius": 0.03, "edge_radius": 0.01, "face_radius": 0.006}, )"
+      << solids << "}\n";
   std::ofstream(without) << R"({"format": "spidarcad-scene", "version": 1, )" << solids << "}\n";
   const double d0 = 0.008, u = 1.0 / std::sqrt(3.0);
   const double aim = 0.02 + d0 * u;
@@ -329,13 +352,18 @@ TEST(RunCommand, SnapScenePullsTheGripTowardABoxCornerHeldNearIt) {
     out << "1.5," << aim << "," << aim << "," << aim << ",1,0,0,0,1.5707963\n";
   }
   const std::string map = " --world-scale 1 --world-origin 0,0,0";
-  const std::string out = OutputPath("snap_result.csv"), plain_out = OutputPath("snap_plain_result.csv");
-  const CommandRun r = RunSpidarcad("'" + with_snap + "' --trajectory '" + traj + "' --out '" + out + "'" + map, "snap");
+  const std::string out = OutputPath("snap_result.csv"),
+                    plain_out = OutputPath("snap_plain_result.csv");
+  const CommandRun r = RunSpidarcad(
+      "'" + with_snap + "' --trajectory '" + traj + "' --out '" + out + "'" + map, "snap");
   ASSERT_EQ(r.status, 0) << r.all();
-  EXPECT_NE(r.out.find("fields: proxy 'cube', snap '8 vertices, 12 edges, 6 faces'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("fields: proxy 'cube', snap '8 vertices, 12 edges, 6 faces'"),
+            std::string::npos)
+      << r.out;
   const auto rows = ReadCsv(out);
   const auto& h = rows.front();
-  const int t = ColumnOf(h, "t"), x = ColumnOf(h, "x"), fx = ColumnOf(h, "fx"), fk_x = ColumnOf(h, "fk_x");
+  const int t = ColumnOf(h, "t"), x = ColumnOf(h, "x"), fx = ColumnOf(h, "fx"),
+            fk_x = ColumnOf(h, "fk_x");
   const int events = ColumnOf(h, "events");
   ASSERT_GE(fk_x, 0);
   const Eigen::Vector3d corner(0.02, 0.02, 0.02);
@@ -349,9 +377,12 @@ TEST(RunCommand, SnapScenePullsTheGripTowardABoxCornerHeldNearIt) {
       ++observer;
       continue;
     }
-    const Eigen::Vector3d f(std::stod(rows[i][fx]), std::stod(rows[i][fx + 1]), std::stod(rows[i][fx + 2]));
-    const Eigen::Vector3d p_fk(std::stod(rows[i][fk_x]), std::stod(rows[i][fk_x + 1]), std::stod(rows[i][fk_x + 2]));
-    const Eigen::Vector3d p(std::stod(rows[i][x]), std::stod(rows[i][x + 1]), std::stod(rows[i][x + 2]));
+    const Eigen::Vector3d f(std::stod(rows[i][fx]), std::stod(rows[i][fx + 1]),
+                            std::stod(rows[i][fx + 2]));
+    const Eigen::Vector3d p_fk(std::stod(rows[i][fk_x]), std::stod(rows[i][fk_x + 1]),
+                               std::stod(rows[i][fk_x + 2]));
+    const Eigen::Vector3d p(std::stod(rows[i][x]), std::stod(rows[i][x + 1]),
+                            std::stod(rows[i][x + 2]));
     const Eigen::Vector3d to_corner = corner - p_fk;
     const double d = to_corner.norm();
     ASSERT_LT(d, 0.015) << "the measured grip left the vertex's inner zone at t " << rows[i][t];
@@ -359,12 +390,14 @@ TEST(RunCommand, SnapScenePullsTheGripTowardABoxCornerHeldNearIt) {
     // vanish at rest (tolerance 5 % + 5 mN).
     const double expected = 0.8 * std::tanh(4.0 * d / 0.03);
     EXPECT_NEAR(f.norm(), expected, 0.05 * expected + 0.005) << "t " << rows[i][t] << ", d " << d;
-    EXPECT_GT(f.normalized().dot(to_corner.normalized()), std::cos(5.0 * M_PI / 180.0)) << "t " << rows[i][t];
+    EXPECT_GT(f.normalized().dot(to_corner.normalized()), std::cos(5.0 * M_PI / 180.0))
+        << "t " << rows[i][t];
     // (2) The hand's spring balances the force the strings display: p − aim = f / 300 N/m
     // (within 10 % + 0.05 mm: the displayed force differs from the commanded by the tension
     // solve's and the motors' small errors).
     const Eigen::Vector3d displacement = p - Eigen::Vector3d::Constant(aim);
-    EXPECT_LT((displacement - f / 300.0).norm(), 0.1 * f.norm() / 300.0 + 5e-5) << "t " << rows[i][t];
+    EXPECT_LT((displacement - f / 300.0).norm(), 0.1 * f.norm() / 300.0 + 5e-5)
+        << "t " << rows[i][t];
     last_distance = (corner - p).norm();
     ++checked;
   }
@@ -373,7 +406,8 @@ TEST(RunCommand, SnapScenePullsTheGripTowardABoxCornerHeldNearIt) {
   EXPECT_LT(last_distance, d0 - 0.001) << "the grip was not pulled toward the corner";
 
   const CommandRun plain =
-      RunSpidarcad("'" + without + "' --trajectory '" + traj + "' --out '" + plain_out + "'" + map, "snap_plain");
+      RunSpidarcad("'" + without + "' --trajectory '" + traj + "' --out '" + plain_out + "'" + map,
+                   "snap_plain");
   ASSERT_EQ(plain.status, 0) << plain.all();
   const auto plain_rows = ReadCsv(plain_out);
   for (std::size_t i = 1; i < plain_rows.size(); ++i) {
@@ -423,16 +457,22 @@ double Mean(const std::vector<double>& v) {
 // calibrated; the rest is string stretch and noise, which a line per string cannot remove).
 TEST(RunCommand, CalibrateBringsForwardKinematicsCloseToTheTrueGrip) {
   const std::string traj = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/trajectories/circle.csv";
-  const std::string nominal = OutputPath("fk_nominal.csv"), calibrated = OutputPath("fk_calibrated.csv");
-  const CommandRun a = RunSpidarcad("--trajectory '" + traj + "' --out '" + nominal + "'", "fk_nominal");
+  const std::string nominal = OutputPath("fk_nominal.csv"),
+                    calibrated = OutputPath("fk_calibrated.csv");
+  const CommandRun a =
+      RunSpidarcad("--trajectory '" + traj + "' --out '" + nominal + "'", "fk_nominal");
   ASSERT_EQ(a.status, 0) << a.all();
-  EXPECT_EQ(a.out.find("calibration:"), std::string::npos) << "no calibration without --calibrate\n" << a.out;
-  const CommandRun b =
-      RunSpidarcad("--trajectory '" + traj + "' --out '" + calibrated + "' --calibrate", "fk_calibrated");
+  EXPECT_EQ(a.out.find("calibration:"), std::string::npos) << "no calibration without --calibrate\n"
+                                                           << a.out;
+  const CommandRun b = RunSpidarcad(
+      "--trajectory '" + traj + "' --out '" + calibrated + "' --calibrate", "fk_calibrated");
   ASSERT_EQ(b.status, 0) << b.all();
-  EXPECT_NE(b.out.find("calibration: line-fit calibration on 24 jig poses (rms "), std::string::npos) << b.out;
+  EXPECT_NE(b.out.find("calibration: line-fit calibration on 24 jig poses (rms "),
+            std::string::npos)
+      << b.out;
   int refused_a = 0, refused_b = 0;
-  const std::vector<double> ea = FkErrors(nominal, &refused_a), eb = FkErrors(calibrated, &refused_b);
+  const std::vector<double> ea = FkErrors(nominal, &refused_a),
+                            eb = FkErrors(calibrated, &refused_b);
   ASSERT_EQ(ea.size() + refused_a, 4001u);
   ASSERT_EQ(eb.size() + refused_b, 4001u);
   EXPECT_EQ(refused_b, 0) << "FK refused ticks of the calibrated run";
@@ -441,7 +481,8 @@ TEST(RunCommand, CalibrateBringsForwardKinematicsCloseToTheTrueGrip) {
   EXPECT_GT(mean_a, 1e-3) << "the nominal model was expected to be millimetres off";
   EXPECT_LT(mean_b, 0.6e-3);
   EXPECT_LT(max_b, 1e-3);
-  EXPECT_LT(mean_b, 0.25 * mean_a) << "nominal " << mean_a * 1e3 << " mm, calibrated " << mean_b * 1e3 << " mm";
+  EXPECT_LT(mean_b, 0.25 * mean_a)
+      << "nominal " << mean_a * 1e3 << " mm, calibrated " << mean_b * 1e3 << " mm";
 }
 
 // The calibration is the simulated device's: with a real board (--device usb) --calibrate is
@@ -450,8 +491,8 @@ TEST(RunCommand, CalibrateWithTheUsbDeviceExitsTwoNamingTheOption) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("calibrate_usb.csv");
   std::remove(out.c_str());
-  const CommandRun r =
-      RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "' --device usb --calibrate", "cal_usb");
+  const CommandRun r = RunSpidarcad(
+      "demo --trajectory '" + traj + "' --out '" + out + "' --device usb --calibrate", "cal_usb");
   EXPECT_EQ(r.status, 2) << r.all();
   EXPECT_NE(r.err.find("--calibrate: not with --device usb"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("spidarcad calibrate"), std::string::npos) << r.err;

@@ -5,6 +5,13 @@
 // force), the six-DOF shell's torque for an off-centre touch (lever × force), contact that stays
 // continuous when the window republishes its scene, no push on a grip that is inside a solid
 // when a scene starts, snap kept by the Document, and the view's proxy marker.
+#include "scene/scene_fields.h"
+
+#include <gtest/gtest.h>
+#include <vtkNew.h>
+#include <vtkRenderer.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -14,17 +21,11 @@
 #include <variant>
 #include <vector>
 
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-#include <vtkNew.h>
-#include <vtkRenderer.h>
-
 #include "doc/command.h"
-#include "scene/grip_control.h"
-#include "scene/scene_fields.h"
-#include "scene/scene_model.h"
 #include "gui/scene_view.h"
+#include "scene/grip_control.h"
 #include "scene/scene_haptics.h"
+#include "scene/scene_model.h"
 #include "scene/solid_distance_field.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -81,7 +82,8 @@ std::vector<Eigen::Vector3d> PlatePress(double depth, double slide, double x = 0
   std::vector<Eigen::Vector3d> path;
   const Eigen::Vector3d above(x, 0.05, 0.03 + offset);
   const double z_end = 0.01 + offset - depth;
-  for (int k = 0; k <= 200; ++k) path.emplace_back(x, 0.05, above.z() + (z_end - above.z()) * k / 200.0);
+  for (int k = 0; k <= 200; ++k)
+    path.emplace_back(x, 0.05, above.z() + (z_end - above.z()) * k / 200.0);
   for (int k = 0; k < 100; ++k) path.push_back(path.back());
   for (int k = 1; k <= 300; ++k) path.emplace_back(x + slide * k / 300.0, 0.05, z_end);
   for (int k = 0; k < 100; ++k) path.push_back(path.back());
@@ -117,7 +119,9 @@ TEST(WindowHaptics, PlatformSceneGivesRunsWrenchForTheSameGripPathWithBothTools)
       const haptics::ToolKinematics& k = path.Step(p);
       const haptics::ToolWrench a = window->Evaluate(k);
       const haptics::ToolWrench b = run.scene->Evaluate(k);
-      ASSERT_LE((a.f_T_W - b.f_T_W).norm(), 1e-12) << ToolModelName(tool) << " t " << k.time << " window " << a.f_T_W.transpose() << " run " << b.f_T_W.transpose() << " p " << k.p_WT.transpose();
+      ASSERT_LE((a.f_T_W - b.f_T_W).norm(), 1e-12)
+          << ToolModelName(tool) << " t " << k.time << " window " << a.f_T_W.transpose() << " run "
+          << b.f_T_W.transpose() << " p " << k.p_WT.transpose();
       ASSERT_LE((a.m_T_W - b.m_T_W).norm(), 1e-12) << ToolModelName(tool) << " t " << k.time;
       peak = std::max(peak, a.f_T_W.z());
     }
@@ -274,8 +278,10 @@ TEST(WindowHaptics, RepublishingWhilePressedKeepsTheForce) {
   for (int i = 0; i < 10; ++i) changed->Evaluate(b.Hold());
   const ObjectId wall_id = model.objects()[1].id, platform_id = model.objects()[0].id;
   ASSERT_EQ(model.objects()[1].name, "wall");
-  const modeling::ImplicitNode& wall_root = std::get<SolidData>(model.document().Get(wall_id).data).root;
-  const nlohmann::json moved = {{"type", "translate"}, {"translation", {-0.01, 0.0, 0.0}},
+  const modeling::ImplicitNode& wall_root =
+      std::get<SolidData>(model.document().Get(wall_id).data).root;
+  const nlohmann::json moved = {{"type", "translate"},
+                                {"translation", {-0.01, 0.0, 0.0}},
                                 {"children", {modeling::NodeToJson(wall_root)}}};
   model.document().Execute(edit::ReplaceTree(wall_id, modeling::NodeFromJson(moved)));
   ASSERT_TRUE(model.Refresh());
@@ -284,7 +290,8 @@ TEST(WindowHaptics, RepublishingWhilePressedKeepsTheForce) {
   const haptics::ToolWrench after = edited->Evaluate(b.Hold());
   EXPECT_EQ(after.f_T_W, before.f_T_W);
   // 5. The touched solid itself recompiled (same shape): warm-started, within 2 mN.
-  const modeling::ImplicitNode platform_root = std::get<SolidData>(model.document().Get(platform_id).data).root;
+  const modeling::ImplicitNode platform_root =
+      std::get<SolidData>(model.document().Get(platform_id).data).root;
   model.document().Execute(edit::ReplaceTree(platform_id, platform_root));
   ASSERT_TRUE(model.Refresh());
   std::unique_ptr<haptics::HapticScene> recompiled = model.BuildHapticScene(NoSprings(), damped);
@@ -296,7 +303,8 @@ TEST(WindowHaptics, RepublishingWhilePressedKeepsTheForce) {
   SceneHapticsOptions options;
   SolidFields fresh = BuildSolidFields({{"platform", model.objects()[0].solid}}, options,
                                        model.device_to_world().world_scale);
-  ContinuousProxyField cold(nullptr, std::shared_ptr<haptics::ProxyField>(std::move(fresh.proxies[0])),
+  ContinuousProxyField cold(nullptr,
+                            std::shared_ptr<haptics::ProxyField>(std::move(fresh.proxies[0])),
                             fresh.distance[0], std::make_shared<ContactChannel>());
   EXPECT_EQ(cold.Evaluate(b.Hold()).f_T_W.norm(), 0.0);
 }
@@ -347,9 +355,12 @@ TEST(WindowHaptics, GripInsideASolidWhenTheSceneStartsIsNotPushedUntilItComesOut
     std::unique_ptr<haptics::HapticScene> scene = model.BuildHapticScene(NoSprings(), options);
     // Inside the plate (3 mm below its top) from the first tick: no force at all. (The grip
     // tool turned 45° about z to lie over the plate, see the first test.)
-    const double lift = tool == ToolModel::kShell ? options.shell_radius * model.device_to_world().world_scale : 0.0;
+    const double lift = tool == ToolModel::kShell
+                            ? options.shell_radius * model.device_to_world().world_scale
+                            : 0.0;
     ToolPath path(Eigen::Vector3d(0.16, 0.05, 0.007));
-    if (tool == ToolModel::kShell) path.tool().R_WT = Eigen::AngleAxisd(0.25 * M_PI, Eigen::Vector3d::UnitZ()).matrix();
+    if (tool == ToolModel::kShell)
+      path.tool().R_WT = Eigen::AngleAxisd(0.25 * M_PI, Eigen::Vector3d::UnitZ()).matrix();
     for (int k = 0; k < 100; ++k) {
       EXPECT_EQ(scene->Evaluate(path.Hold()).f_T_W.norm(), 0.0) << ToolModelName(tool) << " " << k;
     }
@@ -361,10 +372,12 @@ TEST(WindowHaptics, GripInsideASolidWhenTheSceneStartsIsNotPushedUntilItComesOut
     }
     // Out above the plate (the shell clear too), then back in 2 mm: the plate pushes up again.
     const double out = 0.02 + lift;
-    for (int k = 1; k <= 400; ++k) scene->Evaluate(path.Step(Eigen::Vector3d(0.16, 0.05, 0.007 + (out - 0.007) * k / 400.0)));
+    for (int k = 1; k <= 400; ++k)
+      scene->Evaluate(path.Step(Eigen::Vector3d(0.16, 0.05, 0.007 + (out - 0.007) * k / 400.0)));
     haptics::ToolWrench w;
     for (int k = 1; k <= 300; ++k) {
-      w = scene->Evaluate(path.Step(Eigen::Vector3d(0.16, 0.05, std::max(0.008 + lift, out - 1e-4 * k))));
+      w = scene->Evaluate(
+          path.Step(Eigen::Vector3d(0.16, 0.05, std::max(0.008 + lift, out - 1e-4 * k))));
     }
     for (int k = 0; k < 300; ++k) w = scene->Evaluate(path.Hold());
     EXPECT_GT(w.f_T_W.z(), 0.3) << ToolModelName(tool);
@@ -427,7 +440,7 @@ TEST(WindowHaptics, MarkerShowsTheProxyOnTheSurfaceWhileTheGripIsBelowIt) {
   Drive(scene.get(), &path, points, 150, 300);  // 4 mm into the plate
   markers = model.ContactMarkers();
   ASSERT_TRUE(markers[0].contact);
-  EXPECT_NEAR(markers[0].p_W.z(), 0.01, 1e-6);   // on the top face
+  EXPECT_NEAR(markers[0].p_W.z(), 0.01, 1e-6);  // on the top face
   EXPECT_NEAR(markers[0].tool_W.z(), 0.006, 1e-12);
   EXPECT_FALSE(markers[1].contact);
   EXPECT_EQ(view.ShowContacts(markers, path.tool().time, x), 1);

@@ -3,6 +3,10 @@
 // force fields with their device-to-scene map, and `spidarcad run` on a scene file. Expected
 // values are closed forms (a sphere's distance, a plate face's spring law k × depth, the fit's
 // formula applied to known boxes), not the code's own output.
+#include "scene/scene_haptics.h"
+
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -10,10 +14,7 @@
 #include <random>
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "golden_compare.h"
-#include "scene/scene_haptics.h"
 #include "scene/snap_features.h"
 #include "scene/solid_distance_field.h"
 #include "spidarcad/haptics/force_field.h"
@@ -95,7 +96,8 @@ TEST(BuildHapticScene, ProxyOnThePlatformPlatePushesOutAlongTheNormalWithStiffne
   // The plate's top face z = 0.01 m, away from its edges, holes and the gusset.
   for (double depth : {0.0005, 0.002, 0.004}) {
     SceneHaptics fresh = BuildHapticScene(scene, options);
-    const haptics::ToolWrench w = PressPlate(fresh.scene.get(), Eigen::Vector3d(0.15, 0.05, 0.03), depth);
+    const haptics::ToolWrench w =
+        PressPlate(fresh.scene.get(), Eigen::Vector3d(0.15, 0.05, 0.03), depth);
     EXPECT_NEAR(w.f_T_W.z(), 1500.0 * depth, 1e-6 * 1500.0) << "depth " << depth;
     EXPECT_NEAR(w.f_T_W.head<2>().norm(), 0.0, 1e-9);
   }
@@ -109,7 +111,8 @@ TEST(BuildHapticScene, StiffnessIsWhatTheGripFeelsWhateverTheWorldScale) {
   options.stiffness = 1200.0;
   SceneHaptics built = BuildHapticScene(scene, options);
   const double depth_W = 0.003;
-  const haptics::ToolWrench w = PressPlate(built.scene.get(), Eigen::Vector3d(0.15, 0.05, 0.03), depth_W);
+  const haptics::ToolWrench w =
+      PressPlate(built.scene.get(), Eigen::Vector3d(0.15, 0.05, 0.03), depth_W);
   // Felt: k × grip depth = 1200 × (0.003 / 2.5) N.
   EXPECT_NEAR(w.f_T_W.z(), 1200.0 * depth_W / 2.5, 1e-5);
 }
@@ -127,7 +130,9 @@ TEST(FitWorkspace, MapsTheScenesBoxIntoTheDeviceCubeCentredAndFillingTheFraction
   }
   EXPECT_NEAR((box.max().y() - box.min().y()) / map.world_scale, 0.16, 1e-12);
   // A 4 cm part is magnified: s < 1.
-  const auto small = FitWorkspace(Eigen::AlignedBox3d(Eigen::Vector3d::Constant(0.0), Eigen::Vector3d::Constant(0.04)), 0.1, 0.8);
+  const auto small = FitWorkspace(
+      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(0.0), Eigen::Vector3d::Constant(0.04)), 0.1,
+      0.8);
   EXPECT_NEAR(small.world_scale, 0.25, 1e-12);
   EXPECT_THROW(FitWorkspace(Eigen::AlignedBox3d(), 0.1, 0.8), std::invalid_argument);
 }
@@ -198,15 +203,15 @@ TEST(RunCommandScene, WritesTheColumnsAndForceOnlyInContactAlongThePlateNormal) 
   const std::string out = spidarcad::test_support::TestOutputPath("scene_run_platform_press.csv");
   const auto run = spidarcad::test_support::RunSpidarcad(
       "run '" + Source("assets/scenes/platform.json") + "' --trajectory '" +
-          Source("assets/trajectories/press.csv") + "' --world-scale 1 --world-origin 0.1,0,0.04 --out '" +
-          out + "'",
+          Source("assets/trajectories/press.csv") +
+          "' --world-scale 1 --world-origin 0.1,0,0.04 --out '" + out + "'",
       "", "scene_press");
   ASSERT_EQ(run.status, 0) << run.err;
   EXPECT_NE(run.out.find("fields: proxy 'platform', proxy 'wall'"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("X_WD: p_W = 1 p_D + (0.1, 0, 0.04) m"), std::string::npos) << run.out;
   const auto table = spidarcad::test_support::ReadCsvTable(out);
-  for (const char* c : {"t", "x", "y", "z", "qw", "qx", "qy", "qz", "grasp", "fx", "fy", "fz", "mx",
-                        "my", "mz", "g", "tau1", "tau8", "tick_us", "fk_z"}) {
+  for (const char* c : {"t",  "x",  "y",  "z",  "qw", "qx", "qy",   "qz",   "grasp",   "fx",
+                        "fy", "fz", "mx", "my", "mz", "g",  "tau1", "tau8", "tick_us", "fk_z"}) {
     ASSERT_GE(table.Column(c), 0) << c;
   }
   ASSERT_EQ(table.rows.size(), 3001u);
@@ -253,9 +258,10 @@ TEST(RunCommandScene, BadSceneOrToolExitsTwoNamingTheFileOrOption) {
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find(bad), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("/solids/0/root/radius"), std::string::npos) << r.err;
-  r = spidarcad::test_support::RunSpidarcad(
-      "run '" + Source("assets/scenes/clay.json") + "' --tool hammer --trajectory '" + traj +
-          "' --out '" + out + "'", "", "bad_tool");
+  r = spidarcad::test_support::RunSpidarcad("run '" + Source("assets/scenes/clay.json") +
+                                                "' --tool hammer --trajectory '" + traj +
+                                                "' --out '" + out + "'",
+                                            "", "bad_tool");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--tool: 'hammer'"), std::string::npos) << r.err;
 }
@@ -274,7 +280,8 @@ modeling::Scene Parse(const std::string& solids, const std::string& extra = "") 
 
 // True when `set` holds a point within 1e-9 m of p.
 bool Holds(const std::vector<Eigen::Vector3d>& set, const Eigen::Vector3d& p) {
-  return std::any_of(set.begin(), set.end(), [&](const Eigen::Vector3d& q) { return (p - q).norm() < 1e-9; });
+  return std::any_of(set.begin(), set.end(),
+                     [&](const Eigen::Vector3d& q) { return (p - q).norm() < 1e-9; });
 }
 
 TEST(SnapFeatures, RotatedMovedBoxHasItsEightCornersTwelveEdgesAndSixFaces) {
@@ -288,7 +295,8 @@ TEST(SnapFeatures, RotatedMovedBoxHasItsEightCornersTwelveEdgesAndSixFaces) {
   ASSERT_EQ(f.faces_W.size(), 6u);
   const double c = std::cos(M_PI / 6), s = std::sin(M_PI / 6);
   for (int i = 0; i < 8; ++i) {
-    const double x = (i & 1 ? 0.02 : -0.02), y = (i & 2 ? 0.01 : -0.01), z = (i & 4 ? 0.005 : -0.005);
+    const double x = (i & 1 ? 0.02 : -0.02), y = (i & 2 ? 0.01 : -0.01),
+                 z = (i & 4 ? 0.005 : -0.005);
     const Eigen::Vector3d corner(0.1 + c * x - s * y, 0.05 + s * x + c * y, -0.02 + z);
     EXPECT_TRUE(Holds(f.vertices_W, corner)) << "corner " << corner.transpose();
   }
@@ -297,7 +305,8 @@ TEST(SnapFeatures, RotatedMovedBoxHasItsEightCornersTwelveEdgesAndSixFaces) {
   for (const auto& [a, b] : f.edges_W) {
     EXPECT_TRUE(Holds(f.vertices_W, a) && Holds(f.vertices_W, b));
     const double l = (b - a).norm();
-    for (int k = 0; k < 3; ++k) lengths[k] += std::abs(l - std::array<double, 3>{0.04, 0.02, 0.01}[k]) < 1e-12;
+    for (int k = 0; k < 3; ++k)
+      lengths[k] += std::abs(l - std::array<double, 3>{0.04, 0.02, 0.01}[k]) < 1e-12;
   }
   EXPECT_EQ(lengths[0], 4);
   EXPECT_EQ(lengths[1], 4);
@@ -307,7 +316,8 @@ TEST(SnapFeatures, RotatedMovedBoxHasItsEightCornersTwelveEdgesAndSixFaces) {
   for (const haptics::SnapFace& face : f.faces_W) {
     ASSERT_EQ(face.polygon_W.size(), 4u);
     for (const Eigen::Vector3d& p : face.polygon_W) EXPECT_TRUE(Holds(f.vertices_W, p));
-    area_sum += (face.polygon_W[1] - face.polygon_W[0]).cross(face.polygon_W[3] - face.polygon_W[0]).norm();
+    area_sum +=
+        (face.polygon_W[1] - face.polygon_W[0]).cross(face.polygon_W[3] - face.polygon_W[0]).norm();
   }
   EXPECT_NEAR(area_sum, 2 * (0.04 * 0.02 + 0.04 * 0.01 + 0.02 * 0.01), 1e-15);
 }
@@ -343,7 +353,8 @@ TEST(SnapFeatures, KeepsOnlyFeaturesOnTheSurfaceAndEachOnce) {
   const spidarcad::app::SnapFeatureCounts counts = CountSnapFeatures(ExtractSnapFeatures(mirrored));
   EXPECT_EQ(counts.ToString(), "8 vertices, 12 edges, 6 faces");
   // Spheres have no features.
-  EXPECT_EQ(CountSnapFeatures(ExtractSnapFeatures(SphereScene())).ToString(), "0 vertices, 0 edges, 0 faces");
+  EXPECT_EQ(CountSnapFeatures(ExtractSnapFeatures(SphereScene())).ToString(),
+            "0 vertices, 0 edges, 0 faces");
 }
 
 TEST(BuildHapticScene, SnapSceneAddsASnapFieldPullingTowardTheCornerWithTheDocumentedProfile) {
@@ -354,7 +365,9 @@ TEST(BuildHapticScene, SnapSceneAddsASnapFieldPullingTowardTheCornerWithTheDocum
   // Without "snap": the proxy only.
   EXPECT_EQ(BuildHapticScene(Parse(box), options).fields.size(), 1u);
   SceneHaptics built = BuildHapticScene(
-      Parse(box, R"("snap": {"max_force": 0.8, "vertex_radius": 0.01, "edge_radius": 0.006, "face_radius": 0.004}, )"),
+      Parse(
+          box,
+          R"("snap": {"max_force": 0.8, "vertex_radius": 0.01, "edge_radius": 0.006, "face_radius": 0.004}, )"),
       options);
   ASSERT_EQ(built.fields.size(), 2u);
   EXPECT_EQ(built.fields[1].kind, "snap");
@@ -383,10 +396,12 @@ TEST(SnapFeatures, PrismCylinderAndPlaneGiveTheirFeaturesAndHugeArraysAreRefused
   EXPECT_TRUE(Holds(f.vertices_W, Eigen::Vector3d(0.03, 0, 0.005)));
   EXPECT_TRUE(Holds(f.vertices_W, Eigen::Vector3d(0, 0.02, -0.005)));
   // A cylinder: its two rims as chords (every chord end on the circle r = 10 mm), two caps.
-  const modeling::Scene post = Parse(R"([{"name": "c", "root": {"type": "cylinder", "radius": 0.01, "height": 0.02}}])");
+  const modeling::Scene post =
+      Parse(R"([{"name": "c", "root": {"type": "cylinder", "radius": 0.01, "height": 0.02}}])");
   const haptics::SnapFeatures c = ExtractSnapFeatures(post);
-  EXPECT_EQ(CountSnapFeatures(c).ToString(),
-            "0 vertices, " + std::to_string(2 * spidarcad::app::kCylinderSegments) + " edges, 2 faces");
+  EXPECT_EQ(
+      CountSnapFeatures(c).ToString(),
+      "0 vertices, " + std::to_string(2 * spidarcad::app::kCylinderSegments) + " edges, 2 faces");
   for (const auto& [a, b] : c.edges_W) {
     EXPECT_NEAR(a.head<2>().norm(), 0.01, 1e-12);
     EXPECT_NEAR(std::abs(a.z()), 0.01, 1e-12);
@@ -394,7 +409,8 @@ TEST(SnapFeatures, PrismCylinderAndPlaneGiveTheirFeaturesAndHugeArraysAreRefused
   }
   // A half-space turned by 90° about x: the plane y = -0.05 (normal (0, -1, 0) after the turn of
   // the normal (0, 0, 1)), as one unbounded face.
-  const modeling::Scene ground = Parse(R"([{"name": "g", "root": {"type": "rotate", "axis": [1, 0, 0],
+  const modeling::Scene ground =
+      Parse(R"([{"name": "g", "root": {"type": "rotate", "axis": [1, 0, 0],
       "angle": 1.5707963267948966, "children": [{"type": "half_space", "normal": [0, 0, 1], "offset": 0.05}]}}])");
   const haptics::SnapFeatures g = ExtractSnapFeatures(ground);
   ASSERT_EQ(g.faces_W.size(), 1u);
@@ -402,14 +418,16 @@ TEST(SnapFeatures, PrismCylinderAndPlaneGiveTheirFeaturesAndHugeArraysAreRefused
   EXPECT_NEAR(std::abs(g.faces_W[0].normal_W.y()), 1.0, 1e-12);
   EXPECT_NEAR(g.faces_W[0].point_W.y(), -0.05, 1e-12);
   // 300 separate boxes: 2400 corners alone, more than a tick can scan: refused, saying so.
-  const modeling::Scene many = Parse(R"([{"name": "m", "root": {"type": "linear_array", "step": [0.01, 0, 0],
+  const modeling::Scene many =
+      Parse(R"([{"name": "m", "root": {"type": "linear_array", "step": [0.01, 0, 0],
       "count": 300, "children": [{"type": "box", "size": [0.005, 0.005, 0.005]}]}}])");
   try {
     ExtractSnapFeatures(many);
     ADD_FAILURE() << "no error for 300 boxes";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("7800 snap features (2400 vertices, 3600 edges, 1800 faces)"),
-              std::string::npos)
+    EXPECT_NE(
+        std::string(e.what()).find("7800 snap features (2400 vertices, 3600 edges, 1800 faces)"),
+        std::string::npos)
         << e.what();
   }
 }

@@ -2,12 +2,7 @@
 // Sculpt mode without a window: scripted tool states drive strokes on a sphere of clay; undo and
 // redo restore positions exactly; the sculpt tool field renders −k·s·Δp inside a stroke and zero
 // outside, without allocating; the TetGen job changes nothing when it fails.
-#include "scene/sculpt_field.h"
-
-#include <cmath>
-#include <memory>
-#include <numbers>
-#include <vector>
+#include "gui/sculpt_mode.h"
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
@@ -17,8 +12,13 @@
 #include <vtkPolyData.h>
 #include <vtkRenderer.h>
 
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <vector>
+
 #include "doc/job.h"
-#include "gui/sculpt_mode.h"
+#include "scene/sculpt_field.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "support/malloc_counter.h"
 
@@ -46,7 +46,8 @@ int TopVertex(const modeling::SculptMesh& mesh) {
   return best;
 }
 
-std::unique_ptr<SculptSession> MakeSession(SculptTool tool = SculptTool::kGrab, double max_edge = 0.0) {
+std::unique_ptr<SculptSession> MakeSession(SculptTool tool = SculptTool::kGrab,
+                                           double max_edge = 0.0) {
   auto owner = std::make_unique<SculptSession>();
   SculptSession& session = *owner;
   session.settings().tool.tool = tool;
@@ -76,7 +77,8 @@ TEST(SculptSession, GraspStrokeMovesGrabbedVertexByGripMotionAndUndoRestoresExac
   // Move 1 cm up in ten frames.
   const Eigen::Vector3d delta(0.0, 0.0, 0.01);
   for (int i = 1; i <= 10; ++i) {
-    EXPECT_EQ(session.Step(ToolAt(p0 + delta * (i / 10.0), 30.0), false), SculptFrameEvent::kUpdated);
+    EXPECT_EQ(session.Step(ToolAt(p0 + delta * (i / 10.0), 30.0), false),
+              SculptFrameEvent::kUpdated);
   }
   // Open: the stroke ends.
   EXPECT_EQ(session.Step(ToolAt(p0 + delta, 90.0), false), SculptFrameEvent::kEnded);
@@ -98,9 +100,11 @@ TEST(SculptSession, GraspStrokeMovesGrabbedVertexByGripMotionAndUndoRestoresExac
   EXPECT_GT(moved, 10);
 
   ASSERT_TRUE(session.Undo());
-  for (int v = 0; v < mesh.vertex_count(); ++v) ASSERT_EQ(mesh.positions()[v], before[v]) << "vertex " << v;
+  for (int v = 0; v < mesh.vertex_count(); ++v)
+    ASSERT_EQ(mesh.positions()[v], before[v]) << "vertex " << v;
   ASSERT_TRUE(session.Redo());
-  for (int v = 0; v < mesh.vertex_count(); ++v) ASSERT_EQ(mesh.positions()[v], after[v]) << "vertex " << v;
+  for (int v = 0; v < mesh.vertex_count(); ++v)
+    ASSERT_EQ(mesh.positions()[v], after[v]) << "vertex " << v;
 }
 
 TEST(SculptSession, RefinedStrokeUndoRestoresTopologyAndPositions) {
@@ -112,7 +116,8 @@ TEST(SculptSession, RefinedStrokeUndoRestoresTopologyAndPositions) {
   const Eigen::Vector3d p0 = before[TopVertex(mesh)];
   ASSERT_EQ(session.Step(ToolAt(p0, 30.0), false), SculptFrameEvent::kBegan);
   session.Step(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.02), 30.0), false);
-  ASSERT_EQ(session.Step(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.02), 90.0), false), SculptFrameEvent::kEnded);
+  ASSERT_EQ(session.Step(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.02), 90.0), false),
+            SculptFrameEvent::kEnded);
   EXPECT_GT(mesh.vertex_count(), static_cast<int>(before.size()));  // stretched edges were split
   const std::uint64_t revision = session.revision();
   ASSERT_TRUE(session.Undo());
@@ -141,7 +146,8 @@ TEST(SculptSession, KeyHeldStrokeUsesFullStrengthAndEndsOnRelease) {
   const Eigen::Vector3d start = p0;
   // Grasp at rest (strength 0 if the grasp controlled it), key held: full strength.
   ASSERT_EQ(session.Step(ToolAt(p0, 90.0), true), SculptFrameEvent::kBegan);
-  EXPECT_EQ(session.Step(ToolAt(p0 + Eigen::Vector3d(0.005, 0, 0), 90.0), true), SculptFrameEvent::kUpdated);
+  EXPECT_EQ(session.Step(ToolAt(p0 + Eigen::Vector3d(0.005, 0, 0), 90.0), true),
+            SculptFrameEvent::kUpdated);
   EXPECT_NEAR((mesh.positions()[top] - (start + Eigen::Vector3d(0.005, 0, 0))).norm(), 0.0, 1e-12);
   EXPECT_EQ(session.Step(ToolAt(p0, 90.0), false), SculptFrameEvent::kEnded);
 }
@@ -252,7 +258,8 @@ TEST(SculptSession, TetrahedralizeFailureChangesNothingAndSuccessLands) {
 TEST(SculptSession, MeshSceneJobLoadsClayScene) {
   JobQueue jobs;
   SculptSession session;
-  session.StartMeshScene(&jobs, std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/clay.json", 0.006);
+  session.StartMeshScene(&jobs, std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/clay.json",
+                         0.006);
   RunJobs(&jobs);
   ASSERT_EQ(jobs.jobs().back()->state(), Job::State::kSucceeded) << jobs.jobs().back()->error();
   ASSERT_TRUE(session.has_mesh());

@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // SolidDistanceField over per-cell pruned tapes (modeling::CellSpecializedSolid): the same
 // numbers, bit for bit, as the field over the full tape, and the assembly scene's fields use it.
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -8,8 +10,6 @@
 #include <random>
 #include <stdexcept>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "scene/assembly_scene.h"
 #include "scene/solid_distance_field.h"
@@ -27,10 +27,13 @@ std::uint64_t Bits(double v) {
 }
 
 TEST(SolidDistanceFieldCells, BitIdenticalToTheFullTape) {
-  const modeling::Scene scene = modeling::LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json");
+  const modeling::Scene scene =
+      modeling::LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json");
   for (const modeling::Solid& s : scene.solids) {
-    auto solid = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(s.root));
-    const Eigen::AlignedBox3d region(Eigen::Vector3d::Constant(-0.05), Eigen::Vector3d::Constant(0.05));
+    auto solid =
+        std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(s.root));
+    const Eigen::AlignedBox3d region(Eigen::Vector3d::Constant(-0.05),
+                                     Eigen::Vector3d::Constant(0.05));
     auto cells = std::make_shared<const modeling::CellSpecializedSolid>(solid, region);
     const SolidDistanceField full(solid), fast(solid, cells);
     std::mt19937 rng(9);
@@ -45,7 +48,8 @@ TEST(SolidDistanceFieldCells, BitIdenticalToTheFullTape) {
     }
     EXPECT_EQ(&fast.solid(), solid.get());
     // Cells of another solid are refused; null cells mean the full tape.
-    auto other = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(s.root));
+    auto other =
+        std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(s.root));
     EXPECT_THROW(SolidDistanceField(other, cells), std::invalid_argument);
     EXPECT_THROW(SolidDistanceField(nullptr, cells), std::invalid_argument);
     EXPECT_NO_THROW(SolidDistanceField(other, nullptr));
@@ -53,7 +57,8 @@ TEST(SolidDistanceFieldCells, BitIdenticalToTheFullTape) {
 }
 
 TEST(SolidDistanceFieldCells, AssemblyFieldsMatchWithAndWithoutCells) {
-  const modeling::Scene scene = modeling::LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json");
+  const modeling::Scene scene =
+      modeling::LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/assembly.json");
   AssemblySceneSettings on, off;
   off.specialization_cell = 0.0;
   const auto a = BuildAssemblyField(scene, on);
@@ -68,16 +73,20 @@ TEST(SolidDistanceFieldCells, AssemblyFieldsMatchWithAndWithoutCells) {
     ASSERT_NE(without, nullptr);
     ASSERT_NE(with->cells(), nullptr) << a->part(part).name;
     EXPECT_EQ(without->cells(), nullptr);
-    EXPECT_LT(with->cells()->stats().mean_instructions, with->cells()->stats().full_instructions) << a->part(part).name;
+    EXPECT_LT(with->cells()->stats().mean_instructions, with->cells()->stats().full_instructions)
+        << a->part(part).name;
     EXPECT_LT(with->cells()->stats().build_seconds, 1.0);
     const modeling::CellSpecializationStats& st = with->cells()->stats();
-    std::printf("part %s: %d cells of %.1f mm, %d specialized, %d distinct tapes, %.2f of %d instructions, %.2f ms\n",
-                a->part(part).name.c_str(), st.cells, st.cell_size * 1e3, st.specialized_cells, st.distinct_tapes,
-                st.mean_instructions, st.full_instructions, st.build_seconds * 1e3);
+    std::printf(
+        "part %s: %d cells of %.1f mm, %d specialized, %d distinct tapes, %.2f of %d instructions, "
+        "%.2f ms\n",
+        a->part(part).name.c_str(), st.cells, st.cell_size * 1e3, st.specialized_cells,
+        st.distinct_tapes, st.mean_instructions, st.full_instructions, st.build_seconds * 1e3);
     for (int i = 0; i < 2000; ++i) {
       const Eigen::Vector3d p(u(rng), u(rng), u(rng));
       Eigen::Vector3d g1, g2;
-      ASSERT_EQ(Bits(a->part(part).field_P->Evaluate(p, &g1)), Bits(b->part(part).field_P->Evaluate(p, &g2)));
+      ASSERT_EQ(Bits(a->part(part).field_P->Evaluate(p, &g1)),
+                Bits(b->part(part).field_P->Evaluate(p, &g2)));
       for (int k = 0; k < 3; ++k) ASSERT_EQ(Bits(g1[k]), Bits(g2[k]));
     }
   }

@@ -3,10 +3,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <atomic>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "support/command_runner.h"
 
@@ -24,14 +24,12 @@ inline CommandRun RunSpidarcad(const std::string& args, const std::string& input
                                const std::string& tag = "run", const std::string& env = "") {
   static std::atomic<int> calls{0};
   const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info();
-  std::string name = test != nullptr
-                         ? std::string(test->test_suite_name()) + "." + test->name()
-                         : std::string("no_test");
+  std::string name = test != nullptr ? std::string(test->test_suite_name()) + "." + test->name()
+                                     : std::string("no_test");
   for (char& c : name) {
     if (c == '/') c = '_';
   }
-  const std::string command =
-      (env.empty() ? "" : env + " ") + "'" + SPIDARCAD_EXE + "' " + args;
+  const std::string command = (env.empty() ? "" : env + " ") + "'" + SPIDARCAD_EXE + "' " + args;
   return RunCommand(command, input,
                     TestOutputPath("cmd_" + name + "_" + tag + "_" + std::to_string(calls++)));
 }

@@ -2,6 +2,9 @@
 // Tensions are checked against the wrench they must display, computed here from the string
 // geometry written out by hand, not against the library.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -10,16 +13,12 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Dense>
-#include <gtest/gtest.h>
-
 #include "spidarcad_runner.h"
 
 namespace {
 
 using spidarcad::test_support::CommandRun;
 using spidarcad::test_support::RunSpidarcad;
-
 
 std::vector<std::vector<double>> ParseLines(const std::string& text) {
   std::vector<std::vector<double>> rows;
@@ -45,8 +44,8 @@ Eigen::Matrix<double, 7, 1> WrenchOf(const std::vector<double>& pose,
       p2(pose[6], pose[7], pose[8]);
   const double h = 0.24;
   // Corner Q_i (1-based i): x = +h for odd i, y = +h for i in {1,2,5,6}, z = +h for i <= 4.
-  const Eigen::Vector3d corners[8] = {{h, h, h},   {-h, h, h},   {h, -h, h},   {-h, -h, h},
-                                      {h, h, -h},  {-h, h, -h},  {h, -h, -h},  {-h, -h, -h}};
+  const Eigen::Vector3d corners[8] = {{h, h, h},  {-h, h, h},  {h, -h, h},  {-h, -h, h},
+                                      {h, h, -h}, {-h, h, -h}, {h, -h, -h}, {-h, -h, -h}};
   // Strings 1,2 -> p0 + p1; 3,4 -> p0 − p1; 5,7 -> p0 + p2; 6,8 -> p0 − p2.
   const Eigen::Vector3d lever[8] = {p1, p1, -p1, -p1, p2, -p2, p2, -p2};
   const Eigen::Vector3d n = p1.cross(p2).normalized();
@@ -64,8 +63,8 @@ Eigen::Matrix<double, 7, 1> WrenchOf(const std::vector<double>& pose,
 constexpr const char* kRestPose = "0,0,0,0,0.04,0,0.04,0,0";
 
 TEST(TensionCommand, DisplaysFeasibleRequestsWithinBoundsAndReportsTheObjective) {
-  const std::vector<std::string> wrenches = {"0,0,0,0,0,0,0", "1,0,0,0,0,0,0",
-                                             "0,-2,1,0,0,0,0", "0,0,0,0.02,0,0,0",
+  const std::vector<std::string> wrenches = {"0,0,0,0,0,0,0",     "1,0,0,0,0,0,0",
+                                             "0,-2,1,0,0,0,0",    "0,0,0,0.02,0,0,0",
                                              "0,0,0,0,0,-0.03,0", "0.5,0,0,0,0,0,0.02"};
   std::string input = "# x,y,z,x1,y1,z1,x2,y2,z2,fx,fy,fz,mx,my,mz,g\n";
   for (const std::string& w : wrenches) input += std::string(kRestPose) + "," + w + "\n";
@@ -125,8 +124,9 @@ TEST(TensionCommand, SolvesEachLineIndependentlyOfTheOthers) {
 }
 
 TEST(TensionCommand, PrintsNanLineForNanInputAndKeepsGoing) {
-  const std::string input = std::string(kRestPose) + ",nan,0,0,0,0,0,0\n" + "0,nan,0,0,0.04,0,0.04,0,0,0,0,0,0,0,0,0\n" +
-                            kRestPose + ",1,0,0,0,0,0,0\n";
+  const std::string input = std::string(kRestPose) + ",nan,0,0,0,0,0,0\n" +
+                            "0,nan,0,0,0.04,0,0.04,0,0,0,0,0,0,0,0,0\n" + kRestPose +
+                            ",1,0,0,0,0,0,0\n";
   const CommandRun run = RunSpidarcad("tension --batch", input, "nan");
   ASSERT_EQ(run.status, 0) << run.err;
   const auto rows = ParseLines(run.out);
@@ -174,7 +174,6 @@ TEST(TensionCommand, HelpTeachesUnitsAndSignConventions) {
     EXPECT_NE(run.out.find(needle), std::string::npos) << needle;
   }
 }
-
 
 std::vector<std::string> SplitFields(const std::string& line) {
   std::vector<std::string> fields;
@@ -234,7 +233,7 @@ TEST(TensionCommand, LostFlagAppendsStatusTheLostWrenchAndTheClosureMargin) {
     }
   }
   const std::vector<std::string> ok = SplitFields(lines[0]), big = SplitFields(lines[1]),
-                                  lost = SplitFields(lines[2]), bad = SplitFields(lines[3]);
+                                 lost = SplitFields(lines[2]), bad = SplitFields(lines[3]);
   EXPECT_EQ(ok[9], "ok");
   EXPECT_NEAR(std::stod(ok[17]), 1.0, 1e-9);  // at rest every string has the same share
   EXPECT_EQ(big[9], "saturated");
@@ -251,7 +250,8 @@ TEST(TensionCommand, LostFlagAppendsStatusTheLostWrenchAndTheClosureMargin) {
   const CommandRun plain = RunSpidarcad("tension --batch", input, "plain");
   ASSERT_EQ(plain.status, 0);
   std::stringstream plain_out(plain.out);
-  for (std::string line; std::getline(plain_out, line);) EXPECT_EQ(SplitFields(line).size(), 9u) << line;
+  for (std::string line; std::getline(plain_out, line);)
+    EXPECT_EQ(SplitFields(line).size(), 9u) << line;
 }
 
 }  // namespace

@@ -2,15 +2,15 @@
 // trajectories, the defaults reproduce the shipped assets/trajectories files, the geometry of
 // each kind matches its closed form, and bad options exit with status 2 naming the option.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <sstream>
 #include <string>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad_runner.h"
@@ -75,7 +75,8 @@ TEST(TrajectoryCommand, PressReachesTheSurfacePlusDepthAlongTheNormal) {
 TEST(TrajectoryCommand, CircleLiesOnItsCircle) {
   const Eigen::Vector3d c(0.01, -0.02, 0.03);
   const Eigen::Vector3d axis = Eigen::Vector3d(1, 1, 0).normalized();
-  const Trajectory t = Generate("circle --center 0.01,-0.02,0.03 --axis 1,1,0 --radius 0.025 --turns 2");
+  const Trajectory t =
+      Generate("circle --center 0.01,-0.02,0.03 --axis 1,1,0 --radius 0.025 --turns 2");
   EXPECT_NEAR(t.end_time(), 4.0, 1e-12);  // the circle's default duration
   for (const auto& s : t.samples()) {
     const Eigen::Vector3d r = s.p_DT - c;
@@ -88,7 +89,8 @@ TEST(TrajectoryCommand, CircleLiesOnItsCircle) {
 
 TEST(TrajectoryCommand, TwistRotatesAboutItsAxisWithinTheAmplitude) {
   const Eigen::Vector3d axis = Eigen::Vector3d(0, 1, 1).normalized();
-  const Trajectory t = Generate("twist --axis 0,1,1 --amplitude 0.3 --cycles 1 --duration 1 --rate 400");
+  const Trajectory t =
+      Generate("twist --axis 0,1,1 --amplitude 0.3 --cycles 1 --duration 1 --rate 400");
   double largest = 0.0;
   for (const auto& s : t.samples()) {
     const Eigen::AngleAxisd aa(s.q_DT);
@@ -113,7 +115,8 @@ TEST(TrajectoryCommand, SqueezeClosesTheGraspToItsMinimumAndOpensAgain) {
 
 TEST(TrajectoryCommand, WritesAFileThatRunAccepts) {
   const std::string path = TestOutputPath("trajectory_press_for_run.csv");
-  const CommandRun made = RunSpidarcad("trajectory press --duration 0.5 --out '" + path + "'", "", "make");
+  const CommandRun made =
+      RunSpidarcad("trajectory press --duration 0.5 --out '" + path + "'", "", "make");
   ASSERT_EQ(made.status, 0) << made.all();
   EXPECT_NE(made.err.find("samples over 0.5 s written to"), std::string::npos) << made.err;
   const std::string result = TestOutputPath("trajectory_press_run_result.csv");

@@ -6,6 +6,7 @@
 // the window with a node selected (under Xvfb).
 #include <sys/wait.h>
 
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -14,8 +15,6 @@
 #include <numbers>
 #include <set>
 #include <string>
-
-#include <Eigen/Geometry>
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 #include <gtest/gtest.h>
@@ -27,9 +26,9 @@
 #include "doc/command.h"
 #include "doc/job.h"
 #include "gui/panels.h"
+#include "gui/tree_panel.h"
 #include "scene/scene_fields.h"
 #include "scene/scene_model.h"
-#include "gui/tree_panel.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "window_test_support.h"
@@ -159,15 +158,19 @@ TEST(TreeController, LivePreviewOfTheBracketBoreFollowsTheEditCoarseThenFine) {
   EXPECT_EQ(fine.preview_cells_across, SceneModel::kFineCellsAcross);
   // Block minus the bore (the rounded edges take away 4 (1 − π/4) r² per unit length of edge).
   const double r = 0.006, edges = 4 * (0.14 + 0.10 + 0.05);
-  const double exact = 0.14 * 0.10 * 0.05 - kPi * 0.03 * 0.03 * 0.05 - (1 - kPi / 4) * r * r * edges;
+  const double exact =
+      0.14 * 0.10 * 0.05 - kPi * 0.03 * 0.03 * 0.05 - (1 - kPi / 4) * r * r * edges;
   EXPECT_NEAR(modeling::MeshVolume(fine.preview), exact, 0.02 * exact);
   EXPECT_NEAR(volume_coarse, exact, 0.10 * exact);
   // Figures for the README (printed, not asserted).
-  const auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
-  std::printf("[ figures  ] bracket edit: recompile %.2f ms, coarse preview (%g cells) %.1f ms, "
-              "fine preview (%g cells) %.1f ms\n",
-              ms(t0, t1), SceneModel::kCoarseCellsAcross, ms(t1, t2), SceneModel::kFineCellsAcross,
-              ms(t2, t3));
+  const auto ms = [](auto a, auto b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  };
+  std::printf(
+      "[ figures  ] bracket edit: recompile %.2f ms, coarse preview (%g cells) %.1f ms, "
+      "fine preview (%g cells) %.1f ms\n",
+      ms(t0, t1), SceneModel::kCoarseCellsAcross, ms(t1, t2), SceneModel::kFineCellsAcross,
+      ms(t2, t3));
 }
 
 TEST(TreeController, ADragIsOneUndoStepAndUndoRestoresTheValueBeforeIt) {
@@ -236,7 +239,8 @@ TEST(TreeController, ASolidThatDoesNotCompileKeepsItsLastGoodShapeAndSaysWhy) {
   // CompiledSolid::kMaxStackDepth, so compiling fails (checked here first).
   modeling::ImplicitNode deep = DefaultNode("sphere");
   for (int k = 0; k < 80; ++k) {
-    deep = modeling::ImplicitNode(modeling::UnionParams{}, {DefaultNode("sphere"), std::move(deep)});
+    deep =
+        modeling::ImplicitNode(modeling::UnionParams{}, {DefaultNode("sphere"), std::move(deep)});
   }
   modeling::ImplicitNode root = d.model.document().Node(d.Id("knob"), {});
   root.children = {std::move(deep)};
@@ -298,7 +302,8 @@ TEST(TreeController, PastedSubtreesGetFreshIdsAndPastedSolidsBecomeNewObjects) {
   EXPECT_TRUE(d.model.Refresh());
   ASSERT_EQ(d.model.objects().size(), 3u);
   const Eigen::Vector3d p = kKnobCentre + Eigen::Vector3d(0.01, 0.0, 0.0);
-  EXPECT_EQ(d.model.objects()[d.model.IndexOf(copy)].solid->Value(p), d.Object("knob").solid->Value(p));
+  EXPECT_EQ(d.model.objects()[d.model.IndexOf(copy)].solid->Value(p),
+            d.Object("knob").solid->Value(p));
   EXPECT_EQ(d.model.BuildHapticScene(NoSprings())->size(), 3);
   // Undo the paste: two objects again, and the selection let go of the deleted one.
   ASSERT_TRUE(d.tree.Undo());
@@ -332,7 +337,8 @@ TEST(TreeController, AddWrapRenameDuplicateDeleteAllUndoBackToTheLoadedScene) {
   const size_t steps = d.model.document().history().undo_size();
   ASSERT_TRUE(d.tree.Wrap("difference")) << d.tree.error();
   EXPECT_EQ(d.model.document().history().undo_size(), steps + 1);
-  EXPECT_TRUE(std::holds_alternative<modeling::DifferenceParams>(d.model.document().Node(box, {0}).params));
+  EXPECT_TRUE(
+      std::holds_alternative<modeling::DifferenceParams>(d.model.document().Node(box, {0}).params));
   // Rename and duplicate the object; delete a node; delete the duplicate.
   d.tree.Select(box);
   ASSERT_TRUE(d.tree.RenameSelected("block"));
@@ -421,8 +427,8 @@ TEST(TreeController, NamesUnitsAndDefaultNodesCoverEveryType) {
           ADD_FAILURE() << t << "." << it.key() << " is an integer but not a count";
         }
         if (u == FieldUnit::kLength) {
-          static const std::set<std::string> lengths = {"radius", "distance", "thickness",
-                                                        "translation", "offset", "step"};
+          static const std::set<std::string> lengths = {"radius",      "distance", "thickness",
+                                                        "translation", "offset",   "step"};
           EXPECT_TRUE(lengths.count(it.key())) << t << "." << it.key() << " shown as mm";
         }
       }
@@ -474,7 +480,8 @@ TEST(TreeController, PanelDrawsEveryNodeAndItsShortcutsAndMenuActionsEditTheDocu
   HeadlessImGui imgui;
   TreePanelState state;
   // Every node of both solids selected and drawn with its parameters.
-  for (const char* name : {"bracket", "bracket/0", "bracket/0/0", "bracket/0/1", "knob", "knob/0"}) {
+  for (const char* name :
+       {"bracket", "bracket/0", "bracket/0/0", "bracket/0/1", "knob", "knob/0"}) {
     ASSERT_TRUE(d.tree.SelectByName(name)) << name;
     imgui.Frame(&d.tree, &state);
     EXPECT_EQ(*state.drawn_selection, *d.tree.selection()) << name;

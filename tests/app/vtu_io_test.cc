@@ -5,6 +5,8 @@
 // and a mutation loop over VTK-written files.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 
+#include "scene/vtu_io.h"
+
 #include <gtest/gtest.h>
 #include <vtkCellData.h>
 #include <vtkCellType.h>
@@ -28,7 +30,6 @@
 #include <vector>
 
 #include "cli/cli_common.h"
-#include "scene/vtu_io.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/modeling/tet_mesh.h"
 

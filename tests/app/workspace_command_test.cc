@@ -1,6 +1,8 @@
 // Tests of `spidarcad workspace`, run as a separate process: CSV columns and content, the
 // no-display path, the PNG under a display, and bad options.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -9,17 +11,14 @@
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
 #include "spidarcad_runner.h"
 
 namespace {
 
 using spidarcad::test_support::CommandRun;
-using spidarcad::test_support::RunSpidarcad;
 using spidarcad::test_support::ReadWholeFile;
+using spidarcad::test_support::RunSpidarcad;
 using spidarcad::test_support::TestOutputPath;
-
 
 std::vector<std::string> Split(const std::string& line) {
   std::vector<std::string> fields;
@@ -34,9 +33,9 @@ TEST(WorkspaceCommand, WritesDocumentedCsvAndExplainsHowToGetThePngWithoutDispla
   const std::string png = TestOutputPath("ws_nodisplay.png");
   std::remove(csv.c_str());
   std::remove(png.c_str());
-  const CommandRun run = RunSpidarcad("workspace --step 0.02 --angle-step 15 --out-csv '" + csv +
-                                          "' --out-png '" + png + "'",
-                                      "", "nodisplay", "env -u DISPLAY");
+  const CommandRun run = RunSpidarcad(
+      "workspace --step 0.02 --angle-step 15 --out-csv '" + csv + "' --out-png '" + png + "'", "",
+      "nodisplay", "env -u DISPLAY");
   EXPECT_EQ(run.status, 0) << run.err;
   EXPECT_NE(run.err.find("xvfb-run"), std::string::npos) << run.err;
   EXPECT_FALSE(std::ifstream(png).good());
@@ -100,7 +99,8 @@ TEST(WorkspaceCommand, WritesAReadablePngUnderADisplay) {
 
 TEST(WorkspaceCommand, RejectsBadOptionsWithStatus2) {
   for (const std::string& args :
-       {std::string("workspace --step 0 --out-png ''"), std::string("workspace --tmin 9 --out-png ''"),
+       {std::string("workspace --step 0 --out-png ''"),
+        std::string("workspace --tmin 9 --out-png ''"),
         std::string("workspace --frame 0.1,0.1 --out-png ''"),
         std::string("workspace --pole 0.3 --out-png ''"),
         std::string("workspace --out-csv /nonexistent/dir/ws.csv --out-png ''")}) {

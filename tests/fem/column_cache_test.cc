@@ -1,21 +1,21 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/column_cache.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <new>
-#include <cstdio>
 #include <random>
-#include <chrono>
-#include <thread>
 #include <string>
+#include <thread>
 #include <vector>
-
-#include <Eigen/Dense>
-#include <gtest/gtest.h>
 
 #include "spidarcad/fem/condensation.h"
 
@@ -63,8 +63,9 @@ struct Scene {
     mesh = MakeBoxMesh(s);
     bcs = std::make_unique<BoundaryConditions>(mesh.num_nodes());
     FixNodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), bcs.get());
-    bcs->AddPointLoad(NodesInBox(mesh, Eigen::Vector3d(length, 0, 0), Eigen::Vector3d(length, 0, 0)).at(0),
-                      Eigen::Vector3d(0.0, 3.0, -2.0));
+    bcs->AddPointLoad(
+        NodesInBox(mesh, Eigen::Vector3d(length, 0, 0), Eigen::Vector3d(length, 0, 0)).at(0),
+        Eigen::Vector3d(0.0, 3.0, -2.0));
     solver = std::make_unique<StaticSolver>(mesh, materials, *bcs);
     outputs = ExtractSurface(mesh).nodes;
     candidates = NodesInBox(mesh, Eigen::Vector3d(-1, -1, 0.1), Eigen::Vector3d(1, 1, 1));
@@ -86,8 +87,10 @@ void CompareColumns(ColumnCache* cache, const Compliance& eager, int b, double* 
     for (int r = 0; r < 3 * cache->num_outputs(); ++r) {
       const double g = eager.matrix()(r, 3 * b + j), v = cache->Value(r, b, j);
       *max_diff = std::max(*max_diff, std::abs(v - g));
-      if (g != 0.0) *worst_ratio = std::max(*worst_ratio, std::abs(v - g) / std::abs(g));
-      else *worst_ratio = std::max(*worst_ratio, v == 0.0 ? 0.0 : 1.0);
+      if (g != 0.0)
+        *worst_ratio = std::max(*worst_ratio, std::abs(v - g) / std::abs(g));
+      else
+        *worst_ratio = std::max(*worst_ratio, v == 0.0 ? 0.0 : 1.0);
     }
   cache->Unpin(b);
 }
@@ -114,7 +117,8 @@ TEST(ColumnCache, LazyColumnsEqualEagerComplianceWhenStoredInDouble) {
   }
   EXPECT_EQ(cache.ready_nodes(), free_nodes);
   EXPECT_LT(diff, 1e-12 * scale);
-  EXPECT_LT((cache.baseline() - scene.eager->baseline()).norm(), 1e-12 * scene.eager->baseline().norm());
+  EXPECT_LT((cache.baseline() - scene.eager->baseline()).norm(),
+            1e-12 * scene.eager->baseline().norm());
   EXPECT_EQ(cache.stats().computed_nodes, free_nodes);
 }
 
@@ -318,9 +322,10 @@ TEST(CachedContactSolver, FallbackErrorIsBoundedAndShrinksAsTheReadyNeighbourGet
   settings.start_worker = false;
   ColumnCache cache(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
   auto node_at = [&](double x) {
-    return cache.CandidateOfNode(
-        NodesInBox(scene.mesh, Eigen::Vector3d(x - 1e-9, 0.05 - 1e-9, 0.1 - 1e-9),
-                   Eigen::Vector3d(x + 1e-9, 0.05 + 1e-9, 0.1 + 1e-9)).at(0));
+    return cache.CandidateOfNode(NodesInBox(scene.mesh,
+                                            Eigen::Vector3d(x - 1e-9, 0.05 - 1e-9, 0.1 - 1e-9),
+                                            Eigen::Vector3d(x + 1e-9, 0.05 + 1e-9, 0.1 + 1e-9))
+                                     .at(0));
   };
   const int b = node_at(0.2);
   const Eigen::Vector3d d(0.0, 0.0, -1e-4);
@@ -399,7 +404,8 @@ TEST(CachedContactSolver, RefreshSwitchesToTheExactColumnOnceReadyAndKeepsTheFac
   check_factor();
   // Now exactly the eager contact solve.
   ContactSolver exact(*scene.eager, 6);
-  for (int s = 0; s < lazy.num_contacts(); ++s) ASSERT_EQ(exact.Add(lazy.contact(s)), ContactStatus::kOk);
+  for (int s = 0; s < lazy.num_contacts(); ++s)
+    ASSERT_EQ(exact.Add(lazy.contact(s)), ContactStatus::kOk);
   std::vector<double> target(3 * lazy.num_contacts(), -5e-5), fe(target.size()), fl(target.size());
   exact.Solve(target.data(), fe.data());
   lazy.Solve(target.data(), fl.data());
@@ -452,14 +458,16 @@ TEST(CachedContactSolver, SolveNormalGivesNormalForcesThatReachTheTargetsAlongTh
     const Eigen::Map<const Eigen::VectorXd> f(forces.data(), n3), u(disp.data(), n3);
     Eigen::VectorXd u0c(n3);
     for (int s = 0; s < k; ++s)
-      u0c.segment<3>(3 * s) = cache.baseline().segment<3>(3 * cache.OutputIndexOfCandidate(lazy.contact(s)));
+      u0c.segment<3>(3 * s) =
+          cache.baseline().segment<3>(3 * cache.OutputIndexOfCandidate(lazy.contact(s)));
     // u_c − u0_c from an independent path.
     Eigen::VectorXd du(n3);
     if (all_ready) {
       Eigen::VectorXd all(3 * cache.num_outputs());
       lazy.OutputDisplacement(forces.data(), &all);
       for (int s = 0; s < k; ++s)
-        du.segment<3>(3 * s) = all.segment<3>(3 * cache.OutputIndexOfCandidate(lazy.contact(s))) - u0c.segment<3>(3 * s);
+        du.segment<3>(3 * s) = all.segment<3>(3 * cache.OutputIndexOfCandidate(lazy.contact(s))) -
+                               u0c.segment<3>(3 * s);
     } else {
       du = lazy.ContactBlock() * f;
     }
@@ -469,7 +477,8 @@ TEST(CachedContactSolver, SolveNormalGivesNormalForcesThatReachTheTargetsAlongTh
       const Eigen::Vector3d n(normals[3 * s], normals[3 * s + 1], normals[3 * s + 2]);
       const Eigen::Vector3d fs = f.segment<3>(3 * s);
       fmax = std::max(fmax, fs.norm());
-      EXPECT_LT(fs.cross(n).norm(), 1e-12 * fs.norm() + 1e-300) << "slot " << s << ": tangential force";
+      EXPECT_LT(fs.cross(n).norm(), 1e-12 * fs.norm() + 1e-300)
+          << "slot " << s << ": tangential force";
       const Eigen::Vector3d ts(target[3 * s], target[3 * s + 1], target[3 * s + 2]);
       EXPECT_NEAR(n.dot(u0c.segment<3>(3 * s) + du.segment<3>(3 * s)), n.dot(ts), 1e-9 * 2e-5)
           << "slot " << s << ": normal displacement";
@@ -482,7 +491,8 @@ TEST(CachedContactSolver, SolveNormalGivesNormalForcesThatReachTheTargetsAlongTh
     // A non-finite normal is refused and nothing is written.
     normals[0] = std::nan("");
     std::vector<double> untouched(24, 3.0);
-    EXPECT_FALSE(lazy.SolveNormal(normals.data(), target.data(), untouched.data(), untouched.data()));
+    EXPECT_FALSE(
+        lazy.SolveNormal(normals.data(), target.data(), untouched.data(), untouched.data()));
     EXPECT_EQ(untouched, std::vector<double>(24, 3.0));
   }
 }
@@ -518,7 +528,10 @@ TEST(ColumnCache, HapticSideLookupAndContactAllocateNothing) {
   // Sanity: the counter sees this thread's allocations.
   t_new_count = 0;
   t_count_new = true;
-  { auto probe = std::make_unique<std::vector<int>>(10); EXPECT_EQ(probe->size(), 10u); }
+  {
+    auto probe = std::make_unique<std::vector<int>>(10);
+    EXPECT_EQ(probe->size(), 10u);
+  }
   t_count_new = false;
   ASSERT_GT(t_new_count, 0);
 

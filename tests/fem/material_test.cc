@@ -1,12 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/material.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
 #include <limits>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/LU>
-#include <gtest/gtest.h>
 
 namespace spidarcad::fem {
 namespace {

@@ -1,13 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/mesh.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <cmath>
 #include <set>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 namespace spidarcad::fem {
 namespace {
@@ -101,7 +101,8 @@ TEST(MakeQuadratic, AddsOneSharedMidpointPerEdgeWhenUpgraded) {
     const Eigen::Vector3d p = quad.nodes.row(v).transpose();
     const Eigen::Vector3d lo(-0.1, 0.2, 0.0), hi(0.5, 0.5, 0.2);
     bool on = false;
-    for (int i = 0; i < 3; ++i) on = on || std::abs(p(i) - lo(i)) < 1e-12 || std::abs(p(i) - hi(i)) < 1e-12;
+    for (int i = 0; i < 3; ++i)
+      on = on || std::abs(p(i) - lo(i)) < 1e-12 || std::abs(p(i) - hi(i)) < 1e-12;
     EXPECT_TRUE(on) << "node " << v;
   }
   EXPECT_EQ(TetEdgeNode(2, 1), 5);

@@ -1,14 +1,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/precompute_cache.h"
 
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/fem/column_cache.h"
 
@@ -87,8 +87,9 @@ TEST(PrecomputeKey, ChangesWhenMaterialConstraintLoadMeshOrPrecisionChange) {
   EXPECT_NE(moved.Key(), key);
   Model quadratic;
   quadratic.mesh = MakeQuadratic(quadratic.mesh);
-  EXPECT_NE(PrecomputeKey(quadratic.mesh, quadratic.materials, BoundaryConditions(quadratic.mesh.num_nodes()),
-                          quadratic.outputs, ColumnPrecision::kDouble),
+  EXPECT_NE(PrecomputeKey(quadratic.mesh, quadratic.materials,
+                          BoundaryConditions(quadratic.mesh.num_nodes()), quadratic.outputs,
+                          ColumnPrecision::kDouble),
             PrecomputeKey(m.mesh, m.materials, BoundaryConditions(m.mesh.num_nodes()), m.outputs,
                           ColumnPrecision::kDouble));
   EXPECT_NE(m.Key(ColumnPrecision::kFloat), key);
@@ -129,7 +130,8 @@ TEST(PrecomputeCache, RoundTripRestoresTheColumnsExactly) {
     EXPECT_EQ(files, 1);
     // The file size says the precision: 4 or 8 bytes per value.
     const double values = 9.0 * m.outputs.size() * 4;
-    EXPECT_GT(static_cast<double>(fs::file_size(disk.PathFor(key))), values * BytesPerValue(precision));
+    EXPECT_GT(static_cast<double>(fs::file_size(disk.PathFor(key))),
+              values * BytesPerValue(precision));
     EXPECT_LT(static_cast<double>(fs::file_size(disk.PathFor(key))),
               values * BytesPerValue(precision) + 8.0 * 3 * m.outputs.size() + 4096);
 
@@ -140,7 +142,8 @@ TEST(PrecomputeCache, RoundTripRestoresTheColumnsExactly) {
       ASSERT_TRUE(fresh.Pin(b));
       ASSERT_TRUE(cache.Pin(b));
       for (int j = 0; j < 3; ++j)
-        for (int r = 0; r < 3 * fresh.num_outputs(); ++r) ASSERT_EQ(fresh.Value(r, b, j), cache.Value(r, b, j));
+        for (int r = 0; r < 3 * fresh.num_outputs(); ++r)
+          ASSERT_EQ(fresh.Value(r, b, j), cache.Value(r, b, j));
       fresh.Unpin(b);
       cache.Unpin(b);
     }
@@ -233,8 +236,10 @@ TEST(DefaultCacheDirectory, HonoursOverrideThenXdgThenHome) {
   ::unsetenv("XDG_CACHE_HOME");
   EXPECT_EQ(DefaultCacheDirectory(), fs::path("/tmp/home/.cache/spidarcad"));
   auto restore = [](const char* name, const std::optional<std::string>& v) {
-    if (v) ::setenv(name, v->c_str(), 1);
-    else ::unsetenv(name);
+    if (v)
+      ::setenv(name, v->c_str(), 1);
+    else
+      ::unsetenv(name);
   };
   restore("SPIDARCAD_CACHE_DIR", own);
   restore("XDG_CACHE_HOME", xdg);

@@ -2,10 +2,10 @@
 //
 // Grasp: a part squeezed between the two grip poles gives two contact patches on opposite
 // faces, solved together in one condensed system.
+#include <gtest/gtest.h>
+
 #include <memory>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
@@ -39,7 +39,8 @@ struct Bar {
     FixNodesInBox(mesh, Eigen::Vector3d(mid, -1, kSide), Eigen::Vector3d(mid, 1, kSide), bcs.get());
     solver = std::make_unique<StaticSolver>(mesh, materials, *bcs);
     outputs = ExtractSurface(mesh).nodes;
-    std::vector<int> faces = NodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 1, 1));
+    std::vector<int> faces =
+        NodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 1, 1));
     const auto far = NodesInBox(mesh, Eigen::Vector3d(kLength, -1, -1), Eigen::Vector3d(2, 1, 1));
     faces.insert(faces.end(), far.begin(), far.end());
     // Patches: the face centre and its four nearest face nodes (a plus of five nodes). Only
@@ -112,7 +113,8 @@ TEST_P(TwoPointContact, JointCondensedSolveEqualsFullSparseSolveWhenSqueezed) {
   EXPECT_LT((u_cond - u_full).norm(), 1e-9 * u_full.norm());
   // A squeeze: the body pushes back on each pole (forces on the body point into it).
   double left_x = 0.0, right_x = 0.0;
-  for (size_t s = 0; s < both.size(); ++s) (s < bar.left.size() ? left_x : right_x) += f_cond(3 * s);
+  for (size_t s = 0; s < both.size(); ++s)
+    (s < bar.left.size() ? left_x : right_x) += f_cond(3 * s);
   EXPECT_GT(left_x, 0.0);
   EXPECT_LT(right_x, 0.0);
 }
@@ -125,7 +127,8 @@ TEST_P(TwoPointContact, DiffersFromSolvingEachPatchAlone) {
   CondensedSolve(bar, bar.left, &f_left, &u_left);
   CondensedSolve(bar, bar.right, &f_right, &u_right);
   const int nl = 3 * static_cast<int>(bar.left.size());
-  const Eigen::VectorXd joint_left = f_joint.head(nl), joint_right = f_joint.tail(f_joint.size() - nl);
+  const Eigen::VectorXd joint_left = f_joint.head(nl),
+                        joint_right = f_joint.tail(f_joint.size() - nl);
   // Each pole feels the other through the part: the coupled forces differ measurably.
   EXPECT_GT((joint_left - f_left).norm(), 1e-3 * f_left.norm());
   EXPECT_GT((joint_right - f_right).norm(), 1e-3 * f_right.norm());

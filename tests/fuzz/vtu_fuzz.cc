@@ -12,8 +12,8 @@
 #include <string>
 
 #include "doc/input_error.h"
-#include "scene/vtu_io.h"
 #include "fuzz_support.h"
+#include "scene/vtu_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using spidarcad::fuzz::Violated;

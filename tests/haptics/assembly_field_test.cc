@@ -6,12 +6,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/assembly_field.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "spidarcad/haptics/grasp_field.h"
 #include "support/malloc_counter.h"
@@ -213,8 +213,8 @@ TEST(AssemblyField, ClosingThePolesOnAPartGrabsItWithTheGraspFieldTorque) {
   ASSERT_EQ(field.carried(), 1);
   EXPECT_TRUE(reference.grasped());
   // The grab happens at the current pose: X_TP = X_WT⁻¹ X_WP with R_WT = I.
-  EXPECT_TRUE(field.X_TP().isApprox(Eigen::Isometry3d(Eigen::Translation3d(kStart_WP.translation() - d.tool.p_WT)),
-                                    1e-12));
+  EXPECT_TRUE(field.X_TP().isApprox(
+      Eigen::Isometry3d(Eigen::Translation3d(kStart_WP.translation() - d.tool.p_WT)), 1e-12));
   EXPECT_GT(d.tool.grasp, 0.2);
 }
 
@@ -338,9 +338,12 @@ TEST(AssemblyField, CullingTheShellSearchChangesNothingButTheWork) {
   Eigen::Isometry3d in = kSeat_BP;
   in.translation() += Eigen::Vector3d(0.0012, -0.0008, 0.004);
   std::vector<Eigen::Vector3d> path;
-  for (int k = 1; k <= 300; ++k) path.push_back(GripFor(kStart_WP) + (GripFor(above) - GripFor(kStart_WP)) * (k / 300.0));
-  for (int k = 1; k <= 400; ++k) path.push_back(GripFor(above) + (GripFor(in) - GripFor(above)) * (k / 400.0));
-  for (int k = 0; k < 200; ++k) path.push_back(GripFor(in) + Eigen::Vector3d(0.001 * std::sin(0.05 * k), 0, 0));
+  for (int k = 1; k <= 300; ++k)
+    path.push_back(GripFor(kStart_WP) + (GripFor(above) - GripFor(kStart_WP)) * (k / 300.0));
+  for (int k = 1; k <= 400; ++k)
+    path.push_back(GripFor(above) + (GripFor(in) - GripFor(above)) * (k / 400.0));
+  for (int k = 0; k < 200; ++k)
+    path.push_back(GripFor(in) + Eigen::Vector3d(0.001 * std::sin(0.05 * k), 0, 0));
   int touching = 0;
   for (std::size_t t = 0; t < path.size(); ++t) {
     for (Driver* d : {&culled, &every}) {

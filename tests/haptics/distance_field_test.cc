@@ -3,12 +3,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/distance_field.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 #include "support/malloc_counter.h"
 
@@ -81,8 +81,8 @@ TEST(BoxDistanceField, MatchesABruteForceDistanceInsideAndOutside) {
 
 TEST(BoxDistanceField, GradientMatchesFiniteDifferencesAwayFromCreases) {
   const BoxDistanceField box(Eigen::Vector3d(0.03, 0.02, 0.01));
-  const Eigen::Vector3d points[] = {{0.05, 0.0, 0.0},    {0.05, 0.04, 0.0},  {0.05, 0.04, -0.03},
-                                    {0.0, 0.0, 0.005},   {0.025, 0.0, 0.0},  {-0.01, -0.018, 0.0},
+  const Eigen::Vector3d points[] = {{0.05, 0.0, 0.0},   {0.05, 0.04, 0.0}, {0.05, 0.04, -0.03},
+                                    {0.0, 0.0, 0.005},  {0.025, 0.0, 0.0}, {-0.01, -0.018, 0.0},
                                     {0.0, -0.03, -0.02}};
   for (const auto& p : points) {
     Eigen::Vector3d g;
@@ -137,8 +137,9 @@ TEST(DistanceFields, RejectBadParametersNamingThem) {
   EXPECT_THROW(UnionDistanceField({}), std::invalid_argument);
   Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
   scaled.linear() *= 2.0;
-  EXPECT_THROW(TransformedDistanceField(std::make_shared<BoxDistanceField>(Eigen::Vector3d::Ones()), scaled),
-               std::invalid_argument);
+  EXPECT_THROW(
+      TransformedDistanceField(std::make_shared<BoxDistanceField>(Eigen::Vector3d::Ones()), scaled),
+      std::invalid_argument);
   try {
     SphereDistanceField(Eigen::Vector3d::Zero(), -1.0);
     FAIL();
@@ -151,15 +152,18 @@ TEST(DistanceFields, EvaluateAllocatesNothing) {
   ASSERT_TRUE(test_support::MallocCounterActive());
   auto box = std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.03, 0.02, 0.01));
   auto sphere = std::make_shared<SphereDistanceField>(Eigen::Vector3d(0.05, 0, 0), 0.02);
-  auto placed = std::make_shared<TransformedDistanceField>(box, Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.01)));
-  const UnionDistanceField all({placed, sphere, std::make_shared<HalfSpaceDistanceField>(
-                                                     Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ())});
+  auto placed = std::make_shared<TransformedDistanceField>(
+      box, Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.01)));
+  const UnionDistanceField all({placed, sphere,
+                                std::make_shared<HalfSpaceDistanceField>(
+                                    Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ())});
   double sum = 0;
   long allocations = 0;
   {
     test_support::MallocCounter counter;
     Eigen::Vector3d g;
-    for (int k = 0; k < 1000; ++k) sum += all.Evaluate(Eigen::Vector3d(1e-4 * k, 0.01, 0.0), &g) + g.x();
+    for (int k = 0; k < 1000; ++k)
+      sum += all.Evaluate(Eigen::Vector3d(1e-4 * k, 0.01, 0.0), &g) + g.x();
     allocations = counter.count();
   }
   EXPECT_EQ(allocations, 0);

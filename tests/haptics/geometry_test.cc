@@ -3,14 +3,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/geometry.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <cmath>
 #include <numbers>
 #include <random>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 namespace spidarcad::haptics {
 namespace {
@@ -29,8 +29,8 @@ TEST(SpidarGeometry, CornersFollowEq3) {
   g.b = 0.2;
   g.c = 0.1;
   // Eq. 3a-h, typed from the paper.
-  const double expected[8][3] = {{0.3, 0.2, 0.1},  {-0.3, 0.2, 0.1},  {0.3, -0.2, 0.1},
-                                 {-0.3, -0.2, 0.1}, {0.3, 0.2, -0.1}, {-0.3, 0.2, -0.1},
+  const double expected[8][3] = {{0.3, 0.2, 0.1},   {-0.3, 0.2, 0.1},  {0.3, -0.2, 0.1},
+                                 {-0.3, -0.2, 0.1}, {0.3, 0.2, -0.1},  {-0.3, 0.2, -0.1},
                                  {0.3, -0.2, -0.1}, {-0.3, -0.2, -0.1}};
   for (int i = 0; i < kNumStrings; ++i) {
     const Eigen::Vector3d q = g.Corner(i);

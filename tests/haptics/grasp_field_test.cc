@@ -5,11 +5,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/grasp_field.h"
 
-#include <cmath>
-#include <stdexcept>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <stdexcept>
 
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/simulated_hand.h"
@@ -27,7 +27,9 @@ const Eigen::Vector3d kBisector = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
 std::shared_ptr<DistanceField> Ball() {
   return std::make_shared<SphereDistanceField>(Eigen::Vector3d::Zero(), kRadius);
 }
-Eigen::Isometry3d BallPose() { return Eigen::Isometry3d(Eigen::Translation3d(kDistance * kBisector)); }
+Eigen::Isometry3d BallPose() {
+  return Eigen::Isometry3d(Eigen::Translation3d(kDistance * kBisector));
+}
 
 // Contact angle and generalised opening force of the closed form (grasp_field.h).
 double ContactAngle() { return 2.0 * std::asin(kRadius / kDistance); }
@@ -48,8 +50,8 @@ TEST(GraspField, GraspTorqueMatchesTheClosedFormOnASphere) {
   GraspSettings s;
   GraspField field(Ball(), BallPose(), s);
   // Check that the poles (GripPose::FromFrame) meet the ball where the closed form says.
-  const GripPose at_contact = GripPose::FromFrame(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(),
-                                                  ContactAngle(), s.pole_length);
+  const GripPose at_contact = GripPose::FromFrame(
+      Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(), ContactAngle(), s.pole_length);
   const Eigen::Vector3d centre = kDistance * kBisector;
   const Eigen::Vector3d u1 = at_contact.p1.normalized();
   EXPECT_NEAR((centre - centre.dot(u1) * u1).norm(), kRadius, 1e-15);
@@ -58,14 +60,16 @@ TEST(GraspField, GraspTorqueMatchesTheClosedFormOnASphere) {
     const double theta = ContactAngle() - below;
     const ToolWrench w = field.Evaluate(Grip(theta));
     // The lever arm comes from a golden-section search (its error is linear in the search's).
-    EXPECT_NEAR(w.g, -2.0 * ClosedFormQ(theta, s.stiffness), 1e-4 * ClosedFormQ(theta, s.stiffness)) << below;
+    EXPECT_NEAR(w.g, -2.0 * ClosedFormQ(theta, s.stiffness), 1e-4 * ClosedFormQ(theta, s.stiffness))
+        << below;
     EXPECT_NEAR(field.depth(0), kRadius - kDistance * std::sin(theta / 2), 1e-9);
     EXPECT_NEAR(field.depth(1), field.depth(0), 1e-9);
     EXPECT_EQ(w.f_T_W.norm() + w.m_T_W.norm(), 0.0);
   }
   // Closing adds damping (more opening torque), opening at the same angle does not.
   const double theta = ContactAngle() - 0.02;
-  EXPECT_NEAR(field.Evaluate(Grip(theta, 0, -1.0)).g, -2.0 * (ClosedFormQ(theta, s.stiffness) + s.damping), 3e-5);
+  EXPECT_NEAR(field.Evaluate(Grip(theta, 0, -1.0)).g,
+              -2.0 * (ClosedFormQ(theta, s.stiffness) + s.damping), 3e-5);
   EXPECT_NEAR(field.Evaluate(Grip(theta, 0, +1.0)).g, -2.0 * ClosedFormQ(theta, s.stiffness), 3e-5);
 }
 
@@ -97,7 +101,8 @@ TEST(GraspField, ClosingOnASphereStopsWhereThePolesMeetItAndOpeningIsFree) {
   double lo = target.grasp, hi = ContactAngle();
   for (int i = 0; i < 100; ++i) {
     const double mid = 0.5 * (lo + hi);
-    const double balance = hs.grasp_stiffness * (target.grasp - mid) + ClosedFormQ(mid, s.stiffness);
+    const double balance =
+        hs.grasp_stiffness * (target.grasp - mid) + ClosedFormQ(mid, s.stiffness);
     (balance > 0 ? lo : hi) = mid;
   }
   EXPECT_NEAR(hand.grasp(), lo, 1e-4);

@@ -4,15 +4,15 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/haptic_loop.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
 #include <thread>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/simulated_device.h"
@@ -31,9 +31,9 @@ struct Rig {
   explicit Rig(const SimulatedDeviceConfig& config, const LoopSettings& settings = TestSettings())
       : device(config),
         loop(device.info(),
-             EncoderCalibration::Nominal(device.info().encoder,
-                                         InverseKinematics(device.info().geometry,
-                                                           device.info().home_pose)),
+             EncoderCalibration::Nominal(
+                 device.info().encoder,
+                 InverseKinematics(device.info().geometry, device.info().home_pose)),
              settings) {}
   TickOutputs Tick(const GripPose& pose, double dt = 1e-3, double lateness = 0.0) {
     device.SetTruePose(pose);
@@ -59,11 +59,11 @@ GripPose MovingPose(double d, int k) {
   return GripPose::FromFrame(p0, R, M_PI / 2 + 0.2 * std::sin(t), d);
 }
 
-GripPose At(const Eigen::Vector3d& p0) { return GripPose::FromFrame(p0, Eigen::Matrix3d::Identity(), M_PI / 2, 0.04); }
-
-bool AllEqual(const Vector8d& tau, double value) {
-  return (tau.array() == value).all();
+GripPose At(const Eigen::Vector3d& p0) {
+  return GripPose::FromFrame(p0, Eigen::Matrix3d::Identity(), M_PI / 2, 0.04);
 }
+
+bool AllEqual(const Vector8d& tau, double value) { return (tau.array() == value).all(); }
 
 // A field that returns NaN.
 class NanField final : public ForceField {
@@ -188,7 +188,8 @@ TEST(HapticLoop, TensionBoundsAndWrenchLimitAlwaysHold) {
   settings.max_force = 6.0;
   Rig rig{SimulatedDeviceConfig{}, settings};
   // A spring so stiff that every pose asks for far more than the limit.
-  rig.loop.Publish(SceneWith(std::make_unique<SpringField>(Eigen::Vector3d(0.2, 0.2, 0.2), 1e4, 0)));
+  rig.loop.Publish(
+      SceneWith(std::make_unique<SpringField>(Eigen::Vector3d(0.2, 0.2, 0.2), 1e4, 0)));
   const double tau_min = settings.tension.tau_min, tau_max = settings.tension.tau_max;
   int limited = 0;
   for (int k = 0; k < 1000; ++k) {
@@ -256,9 +257,8 @@ TEST(HapticLoop, ZeroForceOnAMissedDeadlineBeyondTheThreshold) {
   // Below the threshold: forces stay on.
   const TickOutputs late = rig->Tick(At(Eigen::Vector3d(0.03, 0, 0)), 1e-3, 2e-3);
   EXPECT_FALSE(late.events & kEventDeadlineMissed);
-  ExpectZeroForceOn(rig.get(), kEventDeadlineMissed, [](Rig* r) {
-    return r->Tick(At(Eigen::Vector3d(0.03, 0, 0)), 1e-3, 4e-3);
-  });
+  ExpectZeroForceOn(rig.get(), kEventDeadlineMissed,
+                    [](Rig* r) { return r->Tick(At(Eigen::Vector3d(0.03, 0, 0)), 1e-3, 4e-3); });
 }
 
 TEST(HapticLoop, ZeroForceWhenForwardKinematicsRefuses) {
@@ -376,7 +376,7 @@ TEST(HapticLoop, SceneIsTakenAtTheNextTickAndTheOldOneRetired) {
   rig.loop.Publish(SceneWith(std::make_unique<SpringField>(Eigen::Vector3d::Zero(), 10, 0)));
   EXPECT_EQ(g_destroyed.load(), 0);
   rig.Tick(pose);
-  EXPECT_EQ(g_destroyed.load(), 0);   // retired, not freed by the tick
+  EXPECT_EQ(g_destroyed.load(), 0);  // retired, not freed by the tick
   EXPECT_TRUE(rig.loop.CollectRetired());
   EXPECT_EQ(g_destroyed.load(), 1);
 }
@@ -399,7 +399,8 @@ TEST(HapticLoop, MapsTheToolIntoTheWorldWithScaleAndOffset) {
   settings.ramp_time = 0.0;
   Rig rig{SimulatedDeviceConfig::Ideal(), settings};
   // Spring in W toward the world image of device point (0.01, 0, 0): (1.1, 2, 3).
-  rig.loop.Publish(SceneWith(std::make_unique<SpringField>(Eigen::Vector3d(1.1, 2.0, 3.0), 10.0, 0)));
+  rig.loop.Publish(
+      SceneWith(std::make_unique<SpringField>(Eigen::Vector3d(1.1, 2.0, 3.0), 10.0, 0)));
   const GripPose pose = At(Eigen::Vector3d(0.03, 0.01, 0.0));
   TickOutputs out;
   for (int k = 0; k < 20; ++k) out = rig.Tick(pose);

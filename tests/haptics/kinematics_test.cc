@@ -4,6 +4,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/kinematics.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/QR>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -16,11 +21,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <Eigen/QR>
-#include <Eigen/SVD>
-#include <gtest/gtest.h>
 
 #include "support/malloc_counter.h"
 
@@ -62,8 +62,8 @@ Eigen::Matrix3d AxisRotation(int axis, double angle) {
   return Eigen::AngleAxisd(angle, Eigen::Vector3d::Unit(axis)).toRotationMatrix();
 }
 
-GripPose RandomPose(std::mt19937& rng, const SpidarGeometry& g, double half_box,
-                    double max_angle, double grasp_lo, double grasp_hi) {
+GripPose RandomPose(std::mt19937& rng, const SpidarGeometry& g, double half_box, double max_angle,
+                    double grasp_lo, double grasp_hi) {
   std::uniform_real_distribution<double> pos(-half_box, half_box);
   std::uniform_real_distribution<double> grasp(grasp_lo, grasp_hi);
   const Eigen::Vector3d p0(pos(rng), pos(rng), pos(rng));
@@ -146,8 +146,8 @@ TEST(StringJacobian, MatchesCentralFiniteDifferences) {
       Vector9d vp = v, vm = v;
       vp(k) += h;
       vm(k) -= h;
-      const Vector8d fd = (Eq7Lengths(g, GripPose::Unpacked(vp)) -
-                           Eq7Lengths(g, GripPose::Unpacked(vm))) / (2 * h);
+      const Vector8d fd =
+          (Eq7Lengths(g, GripPose::Unpacked(vp)) - Eq7Lengths(g, GripPose::Unpacked(vm))) / (2 * h);
       for (int i = 0; i < 8; ++i) EXPECT_NEAR(J(i, k), fd(i), 1e-8) << i << "," << k;
     }
   }
@@ -169,9 +169,12 @@ TEST(PoseJacobian, MatchesFiniteDifferencesOfRotationAndGrasp) {
         Eigen::Vector3d q0 = p0;
         Eigen::Matrix3d Rq = R;
         double t = theta;
-        if (k < 3) q0(k) += eps;
-        else if (k < 6) Rq = AxisRotation(k - 3, eps) * R;  // rotation about p0, axes of D
-        else t += eps;
+        if (k < 3)
+          q0(k) += eps;
+        else if (k < 6)
+          Rq = AxisRotation(k - 3, eps) * R;  // rotation about p0, axes of D
+        else
+          t += eps;
         return Eq7Lengths(g, GripPose::FromFrame(q0, Rq, t, g.d));
       };
       const Vector8d fd = (perturbed(h) - perturbed(-h)) / (2 * h);
@@ -189,9 +192,9 @@ TEST(PoseJacobian, IsMinusTheWrenchColumnsOfEq10WithHalfGraspRow) {
     const Matrix87d J = PoseJacobian(g, pose);
     const Eigen::Vector3d n = pose.p1.cross(pose.p2).normalized();
     for (int i = 0; i < 8; ++i) {
-      const Eigen::Vector3d P = (i < 4 ? pose.p1 : pose.p2) *
-                                    ((i == 0 || i == 1 || i == 4 || i == 6) ? 1.0 : -1.0) +
-                                pose.p0;
+      const Eigen::Vector3d P =
+          (i < 4 ? pose.p1 : pose.p2) * ((i == 0 || i == 1 || i == 4 || i == 6) ? 1.0 : -1.0) +
+          pose.p0;
       const Eigen::Vector3d c = (g.Corner(i) - P).normalized();
       const Eigen::Vector3d r = P - pose.p0;
       const double delta = i < 4 ? 1.0 : -1.0;
@@ -300,8 +303,8 @@ TEST(ForwardKinematics, RecoversGripNearEveryFaceAndCorner) {
   }
   for (const Eigen::Vector3d& p0 : centres) {
     for (int trial = 0; trial < 20; ++trial) {
-      const Eigen::Matrix3d R = trial == 0 ? Eigen::Matrix3d::Identity()
-                                           : RandomRotation(rng, 45 * kDeg);
+      const Eigen::Matrix3d R =
+          trial == 0 ? Eigen::Matrix3d::Identity() : RandomRotation(rng, 45 * kDeg);
       const double grasp = (40 + 5 * trial) * kDeg;
       const GripPose truth = GripPose::FromFrame(p0, R, grasp, g.d);
       fk.Reset();
@@ -408,8 +411,7 @@ GripPose FastTrajectory(const SpidarGeometry& g, int tick) {
   const Eigen::Vector3d p0(0.1 * std::cos(omega * t), 0.1 * std::sin(omega * t),
                            0.05 * std::sin(2 * omega * t));
   const Eigen::Matrix3d R =
-      Eigen::AngleAxisd(omega * t, Eigen::Vector3d(0.3, -0.5, 1).normalized())
-          .toRotationMatrix();
+      Eigen::AngleAxisd(omega * t, Eigen::Vector3d(0.3, -0.5, 1).normalized()).toRotationMatrix();
   const double grasp = kPi / 2 + 40 * kDeg * std::sin(3 * t * 2 * kPi);
   return GripPose::FromFrame(p0, R, grasp, g.d);
 }
@@ -462,9 +464,9 @@ TEST(ForwardKinematics, WarmStartFallsBackToClosedFormAfterAJump) {
   ForwardKinematics fk(g);
   const GripPose a = GripPose::FromFrame(Eigen::Vector3d(0.15, 0.1, -0.1),
                                          Eigen::Matrix3d::Identity(), kPi / 2, g.d);
-  const GripPose b = GripPose::FromFrame(Eigen::Vector3d(-0.15, -0.12, 0.15),
-                                         AxisRotation(2, 170 * kDeg) * AxisRotation(0, 80 * kDeg),
-                                         40 * kDeg, g.d);
+  const GripPose b =
+      GripPose::FromFrame(Eigen::Vector3d(-0.15, -0.12, 0.15),
+                          AxisRotation(2, 170 * kDeg) * AxisRotation(0, 80 * kDeg), 40 * kDeg, g.d);
   ASSERT_EQ(fk.Solve(Eq7Lengths(g, a)).status, FkStatus::kOk);
   const FkResult r = fk.Solve(Eq7Lengths(g, b));
   ASSERT_EQ(r.status, FkStatus::kOk);
@@ -474,8 +476,8 @@ TEST(ForwardKinematics, WarmStartFallsBackToClosedFormAfterAJump) {
 TEST(ForwardKinematics, KeepsWarmStartAcrossARefusedSample) {
   const SpidarGeometry g;
   ForwardKinematics fk(g);
-  const GripPose a = GripPose::FromFrame(Eigen::Vector3d(0.05, 0.02, 0.01),
-                                         AxisRotation(1, 0.3), 1.4, g.d);
+  const GripPose a =
+      GripPose::FromFrame(Eigen::Vector3d(0.05, 0.02, 0.01), AxisRotation(1, 0.3), 1.4, g.d);
   ASSERT_EQ(fk.Solve(Eq7Lengths(g, a)).status, FkStatus::kOk);
   Vector8d bad = Eq7Lengths(g, a);
   bad(3) = std::nan("");
@@ -597,7 +599,8 @@ TEST(ForwardKinematics, SolveDoesNotAllocate) {
   ASSERT_TRUE(test_support::MallocCounterActive()) << "the counting malloc is not in use";
 
   std::vector<Vector8d> inputs;
-  for (int tick = 0; tick < 50; ++tick) inputs.push_back(Quantize(Eq7Lengths(g, FastTrajectory(g, tick))));
+  for (int tick = 0; tick < 50; ++tick)
+    inputs.push_back(Quantize(Eq7Lengths(g, FastTrajectory(g, tick))));
   inputs.push_back(Vector8d::Constant(0.05));
   Vector8d nan_input = inputs[0];
   nan_input(2) = std::nan("");
@@ -614,7 +617,6 @@ TEST(ForwardKinematics, SolveDoesNotAllocate) {
   EXPECT_EQ(allocations, 0);
   EXPECT_EQ(ok, 51);
 }
-
 
 // ---------------------------------------------------------------------------------------------
 // Conditioning, singular set, branch check and error bound
@@ -635,7 +637,8 @@ Eigen::MatrixXd FiniteDifferenceScaledJacobian(const SpidarGeometry& g, const Gr
   for (int k = 0; k < 7; ++k) {
     Vector7d e = Vector7d::Zero();
     e(k) = h;
-    J.col(k) = (Eq7Lengths(g, Perturbed(pose, e, g.d)) - Eq7Lengths(g, Perturbed(pose, -e, g.d))) / (2 * h);
+    J.col(k) = (Eq7Lengths(g, Perturbed(pose, e, g.d)) - Eq7Lengths(g, Perturbed(pose, -e, g.d))) /
+               (2 * h);
     if (k >= 3) J.col(k) /= g.d;
   }
   return J;
@@ -656,7 +659,8 @@ TEST(FkConditioningAt, MatchesAnSvdOfTheFiniteDifferenceJacobian) {
     const Eigen::MatrixXd J = FiniteDifferenceScaledJacobian(g, pose);
     const Eigen::BDCSVD<Eigen::MatrixXd> svd(J);
     const double s_min = svd.singularValues()(6);
-    const Eigen::MatrixXd pinv = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(J).pseudoInverse();
+    const Eigen::MatrixXd pinv =
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(J).pseudoInverse();
     const FkConditioning c = FkConditioningAt(g, pose);
     EXPECT_NEAR(c.sigma_min, s_min, 1e-6 * svd.singularValues()(0)) << trial;
     EXPECT_NEAR(c.sigma_max, svd.singularValues()(0), 1e-6 * svd.singularValues()(0)) << trial;
@@ -678,9 +682,11 @@ TEST(FkConditioningAt, LosesRankOnTheSingularFamilyAndNowhereNearTheCentreOtherw
     EXPECT_GT(c.error_gain, 1e4) << z;
   }
   // Turned 30° away from the family the lengths determine the pose well again.
-  const GripPose away = GripPose::FromFrame(Eigen::Vector3d(0, 0, 0.05), AxisRotation(2, kPi / 3), kPi / 2, g.d);
+  const GripPose away =
+      GripPose::FromFrame(Eigen::Vector3d(0, 0, 0.05), AxisRotation(2, kPi / 3), kPi / 2, g.d);
   EXPECT_LT(FkConditioningAt(g, away).error_gain, 10);
-  EXPECT_TRUE(std::isnan(FkConditioningAt(g, GripPose::Unpacked(Vector9d::Constant(std::nan("")))).error_gain));
+  EXPECT_TRUE(std::isnan(
+      FkConditioningAt(g, GripPose::Unpacked(Vector9d::Constant(std::nan("")))).error_gain));
 }
 
 TEST(SampleFkConditioning, MapsASliceAndMarksWhereFkRefuses) {
@@ -704,14 +710,16 @@ TEST(SampleFkConditioning, MapsASliceAndMarksWhereFkRefuses) {
   for (int j = 0; j < 9; ++j) {
     EXPECT_TRUE(std::isnan(map.error_gain(j, 0)) && std::isnan(map.fk_status(j, 0))) << j;
     for (int k = 1; k < 6; ++k) {
-      const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0, 0, map.u(k)), AxisRotation(2, map.v(j)), kPi / 2, g.d);
+      const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0, 0, map.u(k)),
+                                                AxisRotation(2, map.v(j)), kPi / 2, g.d);
       EXPECT_LT(PoseDistance(SlicePose(slice, map.u(k), map.v(j), g.d), pose), 1e-15);
       const bool singular = j == 2 || j == 6;
       if (singular) {
         EXPECT_GT(map.error_gain(j, k), 1e4) << j << " " << k;
         EXPECT_NE(map.fk_status(j, k), 0.0) << j << " " << k;  // FK refuses there
       } else {
-        EXPECT_NEAR(map.error_gain(j, k), FkConditioningAt(g, pose).error_gain, 1e-9 * map.error_gain(j, k));
+        EXPECT_NEAR(map.error_gain(j, k), FkConditioningAt(g, pose).error_gain,
+                    1e-9 * map.error_gain(j, k));
         EXPECT_LT(map.error_gain(j, k), 20) << j << " " << k;
         EXPECT_EQ(map.fk_status(j, k), 0.0) << j << " " << k;
       }
@@ -775,12 +783,14 @@ std::string Format(const char* format, double value) {
 // Poses across the workspace and near the singular set (fixed seed): random poses with any
 // rotation, poses of the singular family perturbed by 1e-4 to 0.3 in every coordinate, and
 // poses where a random local search drove σ_min below 1e-3.
-std::vector<GripPose> HardPoses(const SpidarGeometry& g, int n_random, int n_family, int n_search, unsigned seed) {
+std::vector<GripPose> HardPoses(const SpidarGeometry& g, int n_random, int n_family, int n_search,
+                                unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> uni(-1, 1);
   std::normal_distribution<double> normal;
   std::vector<GripPose> poses;
-  for (int k = 0; k < n_random; ++k) poses.push_back(RandomPose(rng, g, 0.18, kPi, 30 * kDeg, 150 * kDeg));
+  for (int k = 0; k < n_random; ++k)
+    poses.push_back(RandomPose(rng, g, 0.18, kPi, 30 * kDeg, 150 * kDeg));
   for (int k = 0; k < n_family; ++k) {
     const double scale = std::pow(10.0, -4 + 3.5 * (0.5 + 0.5 * uni(rng)));
     Vector7d delta;
@@ -795,7 +805,8 @@ std::vector<GripPose> HardPoses(const SpidarGeometry& g, int n_random, int n_fam
       Vector7d delta;
       for (int i = 0; i < 7; ++i) delta(i) = step * normal(rng) * (i < 3 ? 0.5 : 1.0);
       const GripPose trial = Perturbed(pose, delta, g.d);
-      if (trial.p0.cwiseAbs().maxCoeff() > 0.2 || trial.Grasp() < 0.4 || trial.Grasp() > 2.7) continue;
+      if (trial.p0.cwiseAbs().maxCoeff() > 0.2 || trial.Grasp() < 0.4 || trial.Grasp() > 2.7)
+        continue;
       const double s = FkConditioningAt(g, trial).sigma_min;
       if (s < best) {
         best = s;
@@ -820,7 +831,8 @@ TEST(HardFk, NoFlippedBranchComesBackOkWithIndependentLengthErrorsOfPointEightPe
   const std::vector<GripPose> poses = HardPoses(g, 300, 300, 60, 31);
   std::mt19937 rng(32);
   std::normal_distribution<double> noise(0, 1);
-  int ok = 0, flipped_ok = 0, refused_ambiguous = 0, refused_singular = 0, refused_other = 0, undecided = 0;
+  int ok = 0, flipped_ok = 0, refused_ambiguous = 0, refused_singular = 0, refused_other = 0,
+      undecided = 0;
   double worst_ok_error = 0;
   for (std::size_t k = 0; k < poses.size(); ++k) {
     for (int draw = 0; draw < 3; ++draw) {
@@ -828,9 +840,12 @@ TEST(HardFk, NoFlippedBranchComesBackOkWithIndependentLengthErrorsOfPointEightPe
       for (int i = 0; i < 8; ++i) measured(i) *= 1 + 0.008 * noise(rng);
       ForwardKinematics fk(g, settings);
       const FkResult r = fk.Solve(measured);
-      if (r.status == FkStatus::kAmbiguous) ++refused_ambiguous;
-      else if (r.status == FkStatus::kSingular) ++refused_singular;
-      else if (r.status != FkStatus::kOk) ++refused_other;
+      if (r.status == FkStatus::kAmbiguous)
+        ++refused_ambiguous;
+      else if (r.status == FkStatus::kSingular)
+        ++refused_singular;
+      else if (r.status != FkStatus::kOk)
+        ++refused_other;
       if (r.status != FkStatus::kOk) continue;
       ++ok;
       // The true branch's minimum: a warm start from the true pose.
@@ -848,17 +863,19 @@ TEST(HardFk, NoFlippedBranchComesBackOkWithIndependentLengthErrorsOfPointEightPe
       }
       const bool flipped = PoseDistance(r.pose, b.pose) > 1e-3;
       flipped_ok += flipped;
-      EXPECT_FALSE(flipped) << "pose " << k << " draw " << draw << ": returned p0 " << r.pose.p0.transpose()
-                            << ", true branch " << b.pose.p0.transpose() << ", truth " << poses[k].p0.transpose();
+      EXPECT_FALSE(flipped) << "pose " << k << " draw " << draw << ": returned p0 "
+                            << r.pose.p0.transpose() << ", true branch " << b.pose.p0.transpose()
+                            << ", truth " << poses[k].p0.transpose();
       worst_ok_error = std::max(worst_ok_error, PoseDistance(r.pose, poses[k]));
     }
   }
   const int total = static_cast<int>(poses.size()) * 3;
-  RecordProperty("figure", std::to_string(flipped_ok) + " flipped of " + std::to_string(ok) + " ok (of " +
-                               std::to_string(total) + " solves; refused: " + std::to_string(refused_ambiguous) +
+  RecordProperty("figure", std::to_string(flipped_ok) + " flipped of " + std::to_string(ok) +
+                               " ok (of " + std::to_string(total) +
+                               " solves; refused: " + std::to_string(refused_ambiguous) +
                                " ambiguous, " + std::to_string(refused_singular) + " singular, " +
-                               std::to_string(refused_other) + " other; " + std::to_string(undecided) +
-                               " without a true-branch minimum); " +
+                               std::to_string(refused_other) + " other; " +
+                               std::to_string(undecided) + " without a true-branch minimum); " +
                                Format("worst ok pose error %.3g m", worst_ok_error));
   RecordProperty("bar", "0 flipped branches returned ok");
   EXPECT_EQ(flipped_ok, 0);
@@ -872,7 +889,8 @@ struct BoundStats {
 };
 
 template <typename Measure>
-BoundStats BoundOverPoses(const SpidarGeometry& g, const std::vector<GripPose>& poses, double tolerance, Measure measure) {
+BoundStats BoundOverPoses(const SpidarGeometry& g, const std::vector<GripPose>& poses,
+                          double tolerance, Measure measure) {
   BoundStats stats;
   FkSettings settings;
   settings.branch_residual = tolerance;  // as `spidarcad fk --bound` does
@@ -894,7 +912,8 @@ BoundStats BoundOverPoses(const SpidarGeometry& g, const std::vector<GripPose>& 
     stats.actual.push_back(actual);
     stats.bound.push_back(bound.position);
     // Per axis too.
-    for (int k = 0; k < 3; ++k) stats.violations += std::abs(r.pose.p0(k) - truth.p0(k)) > bound.axis(k);
+    for (int k = 0; k < 3; ++k)
+      stats.violations += std::abs(r.pose.p0(k) - truth.p0(k)) > bound.axis(k);
     stats.violations += actual > bound.position;
   }
   return stats;
@@ -913,12 +932,14 @@ TEST(HardFk, PositionBoundHoldsAndStaysWithinTenTimesTheActualError) {
   const double Q = 0.5 * kQuantum;
   std::mt19937 pose_rng(41);
   std::vector<GripPose> poses;
-  for (int k = 0; k < 2000; ++k) poses.push_back(RandomPose(pose_rng, g, 0.18, kPi, 30 * kDeg, 150 * kDeg));
+  for (int k = 0; k < 2000; ++k)
+    poses.push_back(RandomPose(pose_rng, g, 0.18, kPi, 30 * kDeg, 150 * kDeg));
   const std::vector<GripPose> hard = HardPoses(g, 0, 300, 0, 42);
   poses.insert(poses.end(), hard.begin(), hard.end());
   std::mt19937 rng(43);
   std::uniform_real_distribution<double> uni(-Q, Q);
-  const BoundStats quantized = BoundOverPoses(g, poses, Q, [](const Vector8d& l) { return Quantize(l); });
+  const BoundStats quantized =
+      BoundOverPoses(g, poses, Q, [](const Vector8d& l) { return Quantize(l); });
   const BoundStats uniform = BoundOverPoses(g, poses, Q, [&](const Vector8d& l) {
     Vector8d m = l;
     for (int i = 0; i < 8; ++i) m(i) += uni(rng);
@@ -927,17 +948,19 @@ TEST(HardFk, PositionBoundHoldsAndStaysWithinTenTimesTheActualError) {
   std::string figure;
   for (const auto* s : {&quantized, &uniform}) {
     const double ratio = Median(s->bound) / Median(s->actual);
-    figure += std::string(s == &quantized ? "quantized: " : "; uniform ±Q: ") + std::to_string(s->violations) +
-              " violations over " + std::to_string(s->actual.size()) + " bounded poses (" +
-              std::to_string(s->infinite) + " unbounded, " + std::to_string(s->refused) + " refused), " +
-              Format("median actual %.3g m, ", Median(s->actual)) + Format("median bound %.3g m, ", Median(s->bound)) +
-              Format("ratio %.2f", ratio);
+    figure += std::string(s == &quantized ? "quantized: " : "; uniform ±Q: ") +
+              std::to_string(s->violations) + " violations over " +
+              std::to_string(s->actual.size()) + " bounded poses (" + std::to_string(s->infinite) +
+              " unbounded, " + std::to_string(s->refused) + " refused), " +
+              Format("median actual %.3g m, ", Median(s->actual)) +
+              Format("median bound %.3g m, ", Median(s->bound)) + Format("ratio %.2f", ratio);
     EXPECT_EQ(s->violations, 0);
     EXPECT_LE(ratio, 10.0);
     EXPECT_GT(s->actual.size(), 1800u);
   }
   RecordProperty("figure", figure);
-  RecordProperty("bar", "actual <= bound for every pose and axis; median bound <= 10 x median actual");
+  RecordProperty("bar",
+                 "actual <= bound for every pose and axis; median bound <= 10 x median actual");
 }
 
 TEST(FkPositionBound, IsInfiniteOnTheSingularSetNaNForBadInputAndAllocatesNothing) {
@@ -954,7 +977,8 @@ TEST(FkPositionBound, IsInfiniteOnTheSingularSetNaNForBadInputAndAllocatesNothin
   EXPECT_TRUE(std::isnan(FkPositionBound(g, singular, bad, 1e-5).position));
   EXPECT_TRUE(std::isnan(FkPositionBound(g, singular, l, -1).position));
   // Zero tolerance at the exact pose: the bound is rounding-small.
-  const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0.03, -0.02, 0.05), AxisRotation(0, 0.3), 1.3, g.d);
+  const GripPose pose =
+      GripPose::FromFrame(Eigen::Vector3d(0.03, -0.02, 0.05), AxisRotation(0, 0.3), 1.3, g.d);
   EXPECT_LT(FkPositionBound(g, pose, Eq7Lengths(g, pose), 0).position, 1e-12);
   ASSERT_TRUE(test_support::MallocCounterActive());
   long allocations = 0;

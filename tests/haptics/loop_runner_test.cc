@@ -4,6 +4,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/loop_runner.h"
 
+#include <gtest/gtest.h>
 #include <pthread.h>
 #include <sched.h>
 
@@ -13,8 +14,6 @@
 #include <random>
 #include <thread>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace spidarcad::haptics {
 namespace {

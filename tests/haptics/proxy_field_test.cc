@@ -6,6 +6,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/proxy_field.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,9 +17,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -27,7 +27,8 @@
 namespace spidarcad::haptics {
 namespace {
 
-ToolKinematics At(const Eigen::Vector3d& p, double time, const Eigen::Vector3d& v = Eigen::Vector3d::Zero()) {
+ToolKinematics At(const Eigen::Vector3d& p, double time,
+                  const Eigen::Vector3d& v = Eigen::Vector3d::Zero()) {
   ToolKinematics t;
   t.p_WT = p;
   t.time = time;
@@ -36,7 +37,8 @@ ToolKinematics At(const Eigen::Vector3d& p, double time, const Eigen::Vector3d& 
 }
 
 std::shared_ptr<DistanceField> Floor() {
-  return std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
+  return std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(),
+                                                  Eigen::Vector3d::UnitZ());
 }
 
 TEST(ProxyField, ForceIsStiffnessTimesDepthAlongThePlaneNormal) {
@@ -47,7 +49,8 @@ TEST(ProxyField, ForceIsStiffnessTimesDepthAlongThePlaneNormal) {
   const Eigen::Vector3d tool(0.013, 0.018, -0.003);
   const ToolWrench w = field.Evaluate(At(tool, 1e-3));
   EXPECT_TRUE(field.in_contact());
-  EXPECT_LT((w.f_T_W - Eigen::Vector3d(0, 0, s.stiffness * 0.003)).norm(), 1e-9) << w.f_T_W.transpose();
+  EXPECT_LT((w.f_T_W - Eigen::Vector3d(0, 0, s.stiffness * 0.003)).norm(), 1e-9)
+      << w.f_T_W.transpose();
   EXPECT_LT((field.proxy_W() - Eigen::Vector3d(0.013, 0.018, 0.0)).norm(), 1e-12);
   EXPECT_EQ(w.m_T_W.norm(), 0.0);
 }
@@ -69,14 +72,16 @@ TEST(ProxyField, StaysOnTheSphereWhileTheToolMovesInsideAndPushesAlongTheNormal)
     } else {
       const double depth = 0.005 + 0.003 * std::sin(5 * t);
       const Eigen::Vector3d dir(std::sin(0.8 * (t - 0.1)) * std::cos(1.3 * t),
-                                std::sin(0.8 * (t - 0.1)) * std::sin(1.3 * t), std::cos(0.8 * (t - 0.1)));
+                                std::sin(0.8 * (t - 0.1)) * std::sin(1.3 * t),
+                                std::cos(0.8 * (t - 0.1)));
       p = (radius - depth) * dir.normalized();
     }
     field.Evaluate(At(p, t));
     if (reference.Evaluate(p, nullptr) < 0) {
       ASSERT_TRUE(field.in_contact()) << k;
       ++ticks_in_contact;
-      worst_surface = std::max(worst_surface, std::abs(reference.Evaluate(field.proxy_W(), nullptr)));
+      worst_surface =
+          std::max(worst_surface, std::abs(reference.Evaluate(field.proxy_W(), nullptr)));
     }
   }
   EXPECT_GT(ticks_in_contact, 1900);
@@ -105,7 +110,8 @@ TEST(ProxyField, FrictionHoldsBelowStaticAndSlidesOnTheDynamicCone) {
   EXPECT_NEAR(w.f_T_W.x(), -s.stiffness * 0.0015, 1e-9);
   EXPECT_NEAR(w.f_T_W.z(), s.stiffness * depth, 1e-9);
   // 3 mm > 2 mm: slides; the proxy lags by μd·depth = 1.2 mm, force μd·k·depth sideways.
-  for (int k = 0; k < 20; ++k) w = field.Evaluate(At({0.003 + 0.0005 * k, 0.0, -depth}, 3e-3 + 1e-3 * k));
+  for (int k = 0; k < 20; ++k)
+    w = field.Evaluate(At({0.003 + 0.0005 * k, 0.0, -depth}, 3e-3 + 1e-3 * k));
   EXPECT_TRUE(field.sliding());
   EXPECT_NEAR(field.proxy_W().x(), 0.003 + 0.0005 * 19 - 0.3 * depth, 1e-12);
   EXPECT_NEAR(w.f_T_W.x(), -0.3 * s.stiffness * depth, 1e-9);
@@ -119,8 +125,10 @@ TEST(ProxyField, FrictionHoldsBelowStaticAndSlidesOnTheDynamicCone) {
 
 TEST(ProxyField, HoldsTheProxyInAConcaveCornerOfAUnion) {
   // Floor z < 0 united with a wall x < 0: a concave edge along y.
-  auto wall = std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitX());
-  auto corner = std::make_shared<UnionDistanceField>(std::vector<std::shared_ptr<const DistanceField>>{Floor(), wall});
+  auto wall =
+      std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitX());
+  auto corner = std::make_shared<UnionDistanceField>(
+      std::vector<std::shared_ptr<const DistanceField>>{Floor(), wall});
   ProxySettings s;
   s.damping = 0.0;
   ProxyField field(corner, s);
@@ -131,7 +139,8 @@ TEST(ProxyField, HoldsTheProxyInAConcaveCornerOfAUnion) {
     ASSERT_GE(field.proxy_W().x(), -1e-9) << k;
     ASSERT_GE(field.proxy_W().z(), -1e-9) << k;
   }
-  EXPECT_LT((field.proxy_W() - Eigen::Vector3d(0, 0.002, 0)).norm(), 1e-9) << field.proxy_W().transpose();
+  EXPECT_LT((field.proxy_W() - Eigen::Vector3d(0, 0.002, 0)).norm(), 1e-9)
+      << field.proxy_W().transpose();
   EXPECT_LT((w.f_T_W - s.stiffness * Eigen::Vector3d(0.003, 0.0, 0.004)).norm(), 1e-6);
 }
 
@@ -223,8 +232,11 @@ TEST(ProxyField, SimulatedHandPushingIntoA10kNPerMetreWallSettlesWithoutGainingE
     tool.R_WT = hand.rotation().toRotationMatrix();
     wrench.head<3>() = field.Evaluate(tool).f_T_W;
     hand.Step(target, wrench, 1e-3);
-    const double spring = field.in_contact() ? 0.5 * s.stiffness * (field.proxy_W() - hand.position()).squaredNorm() : 0.0;
-    const double e = hand.KineticEnergy() + 0.5 * k_hand * (target.p_DT - hand.position()).squaredNorm() + spring;
+    const double spring =
+        field.in_contact() ? 0.5 * s.stiffness * (field.proxy_W() - hand.position()).squaredNorm()
+                           : 0.0;
+    const double e = hand.KineticEnergy() +
+                     0.5 * k_hand * (target.p_DT - hand.position()).squaredNorm() + spring;
     e_max = std::max(e_max, e);
     const double z_rest = -k_hand * 0.02 / (k_hand + s.stiffness);  // closed-form rest depth
     if (k >= 1000 && k < 1500) early = std::max(early, std::abs(hand.position().z() - z_rest));
@@ -243,15 +255,17 @@ TEST(ProxyField, RendersThroughTheHapticLoopOnTheSimulatedDeviceWithoutAllocatin
   settings.fk.max_residual = 5e-3;
   settings.ramp_time = 0.0;
   HapticLoop loop(device.info(),
-                  EncoderCalibration::Nominal(device.info().encoder,
-                                              InverseKinematics(device.info().geometry, device.info().home_pose)),
+                  EncoderCalibration::Nominal(
+                      device.info().encoder,
+                      InverseKinematics(device.info().geometry, device.info().home_pose)),
                   settings);
   auto scene = std::make_unique<HapticScene>();
   scene->Add(std::make_unique<ProxyField>(std::make_shared<HalfSpaceDistanceField>(
       Eigen::Vector3d(0, 0, -0.03), Eigen::Vector3d::UnitZ())));
   loop.Publish(std::move(scene));
   auto tick = [&](const Eigen::Vector3d& p0) {
-    device.SetTruePose(GripPose::FromFrame(p0, Eigen::Matrix3d::Identity(), M_PI / 2, device.info().geometry.d));
+    device.SetTruePose(
+        GripPose::FromFrame(p0, Eigen::Matrix3d::Identity(), M_PI / 2, device.info().geometry.d));
     device.Step(1e-3);
     TickInputs in;
     device.Read(&in.reading);
@@ -306,7 +320,8 @@ TEST(ProxyField, EvaluateAllocatesNothing) {
     test_support::MallocCounter counter;
     for (int k = 0; k < 2000; ++k) {
       const double t = 1e-3 * k;
-      const Eigen::Vector3d p(0.04 * std::sin(2 * t), 0.02 * std::cos(3 * t), 0.018 * std::cos(7 * t));
+      const Eigen::Vector3d p(0.04 * std::sin(2 * t), 0.02 * std::cos(3 * t),
+                              0.018 * std::cos(7 * t));
       field.Evaluate(At(p, t));
       contact += field.in_contact();
       (void)field.LatestState();
@@ -316,7 +331,6 @@ TEST(ProxyField, EvaluateAllocatesNothing) {
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(contact, 200);
 }
-
 
 // ---------------------------------------------------------------------------------------------
 // Hard cases: 5 m/s into a 0.5 mm wall and into concave corners.
@@ -360,9 +374,9 @@ TEST(HardProxy, DISABLED_DoesNotTunnelThroughAHalfMillimetreWallAtFiveMetresPerS
   // the crossing (every 0.125 mm) and slants from straight down to 60° off the normal.
   const double half = 0.00025;
   auto wall = std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.2, 0.2, half));
-  double lowest = 1.0;      // lowest proxy height above the top face, m
-  double worst_force = 0;   // largest |f − k (top − z_t) e_z|, N
-  double worst_cone = 0;    // largest relative distance of f from the normal
+  double lowest = 1.0;     // lowest proxy height above the top face, m
+  double worst_force = 0;  // largest |f − k (top − z_t) e_z|, N
+  double worst_cone = 0;   // largest relative distance of f from the normal
   int ticks_below = 0;
   for (int phase = 0; phase < 40; ++phase) {
     for (const double slant_deg : {0.0, 30.0, 60.0}) {
@@ -393,8 +407,9 @@ TEST(HardProxy, DISABLED_DoesNotTunnelThroughAHalfMillimetreWallAtFiveMetresPerS
   RecordProperty("figure", Format("lowest proxy %.3g m relative to the top face; ", lowest) +
                                Format("force error %.3g N over ", worst_force) +
                                std::to_string(ticks_below) + " ticks below the top face");
-  RecordProperty("bar", "proxy never below the top face (>= -1e-9 m); force = k*depth along +z "
-                        "within 1e-6 N");
+  RecordProperty("bar",
+                 "proxy never below the top face (>= -1e-9 m); force = k*depth along +z "
+                 "within 1e-6 N");
   EXPECT_GE(lowest, -1e-9);
   EXPECT_LT(worst_force, 1e-6);
   EXPECT_LT(worst_cone, 1e-9);
@@ -412,7 +427,8 @@ Corner MakeCorner(const std::vector<Eigen::Vector3d>& normals) {
   std::vector<std::shared_ptr<const DistanceField>> parts;
   for (const Eigen::Vector3d& n : normals) {
     corner.normals.push_back(n.normalized());
-    parts.push_back(std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(), n.normalized()));
+    parts.push_back(
+        std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(), n.normalized()));
   }
   corner.field = std::make_shared<UnionDistanceField>(parts);
   return corner;
@@ -451,7 +467,8 @@ TEST(HardProxy, DISABLED_HoldsTheProxyInConcaveCornersAtFiveMetresPerSecond) {
       // Start 2 cm out in the free region, end inside near the corner.
       const Eigen::Vector3d start =
           0.02 * (inward + 0.3 * Eigen::Vector3d(uni(rng), uni(rng), uni(rng))).normalized();
-      const Eigen::Vector3d end = -depth_dist(rng) * inward + 0.002 * Eigen::Vector3d(uni(rng), uni(rng), uni(rng));
+      const Eigen::Vector3d end =
+          -depth_dist(rng) * inward + 0.002 * Eigen::Vector3d(uni(rng), uni(rng), uni(rng));
       const Eigen::Vector3d velocity = 5.0 * (end - start).normalized();
       const int travel_ticks = static_cast<int>(std::ceil((end - start).norm() / 5e-3));
       ToolWrench w;
@@ -496,15 +513,18 @@ TEST(HardProxy, DISABLED_HoldsTheProxyInConcaveCornersAtFiveMetresPerSecond) {
         }
       }
       worst_rest = std::max(worst_rest, (field.proxy_W() - best).norm());
-      worst_rest = std::max(worst_rest, (w.f_T_W - s.stiffness * (best - end)).norm() / s.stiffness);
+      worst_rest =
+          std::max(worst_rest, (w.f_T_W - s.stiffness * (best - end)).norm() / s.stiffness);
     }
   }
-  RecordProperty("figure", Format("proxy at most %.3g m inside a face; ", worst_outside) +
-                               Format("force off the normals' cone by %.3g (relative); ", worst_cone) +
-                               Format("rest proxy off the closest free point by %.3g m; ", worst_rest) +
-                               Format("largest force %.3g N", largest_force));
-  RecordProperty("bar", "proxy inside no face by more than 1e-9 m; force in the normals' cone "
-                        "within 1e-6; rest proxy and force within 1e-6 m of the QP solution");
+  RecordProperty("figure",
+                 Format("proxy at most %.3g m inside a face; ", worst_outside) +
+                     Format("force off the normals' cone by %.3g (relative); ", worst_cone) +
+                     Format("rest proxy off the closest free point by %.3g m; ", worst_rest) +
+                     Format("largest force %.3g N", largest_force));
+  RecordProperty("bar",
+                 "proxy inside no face by more than 1e-9 m; force in the normals' cone "
+                 "within 1e-6; rest proxy and force within 1e-6 m of the QP solution");
   EXPECT_LT(worst_outside, 1e-9);
   EXPECT_LT(worst_cone, 1e-6);
   EXPECT_LT(worst_rest, 1e-6);

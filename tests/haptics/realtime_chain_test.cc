@@ -4,10 +4,10 @@
 // device puts on the grip is the one asked for (a spring toward the centre, computed here from
 // the true pose: an independent reference).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include <cmath>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
 
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -31,14 +31,15 @@ GripPose HandPose(const SpidarGeometry& g, int k) {
 struct Chain {
   explicit Chain(const SimulatedDeviceConfig& config)
       : device(config),
-        encoder(EncoderCalibration::Nominal(device.info().encoder,
-                                            InverseKinematics(device.info().geometry,
-                                                              device.info().home_pose))),
-        fk(device.info().geometry, [] {
-          FkSettings s;
-          s.max_residual = 5e-3;  // an uncalibrated device: several mm of length error
-          return s;
-        }()),
+        encoder(EncoderCalibration::Nominal(
+            device.info().encoder,
+            InverseKinematics(device.info().geometry, device.info().home_pose))),
+        fk(device.info().geometry,
+           [] {
+             FkSettings s;
+             s.max_residual = 5e-3;  // an uncalibrated device: several mm of length error
+             return s;
+           }()),
         solver(TensionSettings::ForPoleLength(device.info().geometry.d)) {}
 
   // One tick: returns false when FK refused the reading (zero force is then commanded).

@@ -1,21 +1,20 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/simulated_device.h"
 
-#include <cmath>
-#include <stdexcept>
-
-#include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <stdexcept>
 
 namespace spidarcad::haptics {
 namespace {
 
 GripPose TestPose() {
-  return GripPose::FromFrame(Eigen::Vector3d(0.05, -0.03, 0.08),
-                             Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized())
-                                 .toRotationMatrix(),
-                             1.4, 0.04);
+  return GripPose::FromFrame(
+      Eigen::Vector3d(0.05, -0.03, 0.08),
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(), 1.4, 0.04);
 }
 
 // Wrench from tensions written out from the paper's Eq. 10-14, independently of WrenchMatrix.
@@ -111,8 +110,8 @@ TEST(SimulatedSpidarG, HiddenTruthReproducesTrueLengthsToQuantisation) {
   const Vector8d truth = StringLengthsByHand(config.geometry, TestPose());
   const Vector8d from_truth = dev.true_encoder().Lengths(reading.counts, dev.actual_tensions());
   const Vector8d nominal =
-      EncoderCalibration::Nominal(config.encoder, StringLengthsByHand(config.geometry,
-                                                                      config.home_pose))
+      EncoderCalibration::Nominal(config.encoder,
+                                  StringLengthsByHand(config.geometry, config.home_pose))
           .Lengths(reading.counts);
   for (int i = 0; i < kNumStrings; ++i) {
     // Half a count (slope ~1.1) plus 5 sigma of noise.

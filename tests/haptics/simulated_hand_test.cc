@@ -4,9 +4,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/simulated_hand.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -63,9 +63,9 @@ TEST(SimulatedHand, RestsAgainstAStiffWallWithoutGrowingOscillation) {
   LoopSettings settings;
   settings.ramp_time = 0.2;
   HapticLoop loop(device.info(),
-                  EncoderCalibration::Nominal(device.info().encoder,
-                                              InverseKinematics(device.info().geometry,
-                                                                device.info().home_pose)),
+                  EncoderCalibration::Nominal(
+                      device.info().encoder,
+                      InverseKinematics(device.info().geometry, device.info().home_pose)),
                   settings);
   const double k_wall = 3000.0;
   auto scene = std::make_unique<HapticScene>();
@@ -73,8 +73,8 @@ TEST(SimulatedHand, RestsAgainstAStiffWallWithoutGrowingOscillation) {
                                               Eigen::Vector3d::UnitZ(), k_wall, 5.0));
   loop.Publish(std::move(scene));
   HandSettings hs;
-  const Trajectory path = ApproachPressRelease({0, 0, 0.0}, {0, 0, -0.03}, {0, 0, 1}, 0.003, 2.0,
-                                               1000.0);
+  const Trajectory path =
+      ApproachPressRelease({0, 0, 0.0}, {0, 0, -0.03}, {0, 0, 1}, 0.003, 2.0, 1000.0);
   TrajectorySample target = path.Sample(0);
   SimulatedHand hand(hs, target, device.info().geometry.d);
   double max_energy_late = 0, z_min = 1, z_max = -1;
@@ -99,7 +99,7 @@ TEST(SimulatedHand, RestsAgainstAStiffWallWithoutGrowingOscillation) {
   const double z_target = -0.033;
   const double z_eq = (hs.stiffness * z_target + k_wall * -0.03) / (hs.stiffness + k_wall);
   EXPECT_NEAR(0.5 * (z_min + z_max), z_eq, 1e-4);
-  EXPECT_LT(z_max - z_min, 5e-5);   // no sustained oscillation
+  EXPECT_LT(z_max - z_min, 5e-5);  // no sustained oscillation
   EXPECT_LT(max_energy_late, 1e-6);
   EXPECT_LE(max_energy_late, energy_early_peak + 1e-12);
 }

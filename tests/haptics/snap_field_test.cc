@@ -5,10 +5,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/snap_field.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 #include "support/malloc_counter.h"
 
@@ -30,14 +30,17 @@ double ExpectedPull(double d, double r, double f_max) {
 
 TEST(SnapField, PullsTowardTheNearestVertexWithTheProfileMagnitude) {
   SnapFeatures features;
-  features.vertices_W = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.05, 0, 0), Eigen::Vector3d(0, 0.05, 0)};
+  features.vertices_W = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.05, 0, 0),
+                         Eigen::Vector3d(0, 0.05, 0)};
   SnapSettings s;
   SnapField field(features, s);
-  for (const Eigen::Vector3d& offset : {Eigen::Vector3d(0.003, 0.002, -0.001), Eigen::Vector3d(-0.005, 0.004, 0.0),
-                                        Eigen::Vector3d(0.0005, 0.0, 0.0)}) {
+  for (const Eigen::Vector3d& offset :
+       {Eigen::Vector3d(0.003, 0.002, -0.001), Eigen::Vector3d(-0.005, 0.004, 0.0),
+        Eigen::Vector3d(0.0005, 0.0, 0.0)}) {
     const Eigen::Vector3d tool = features.vertices_W[1] + offset;
     const ToolWrench w = field.Evaluate(At(tool));
-    const Eigen::Vector3d expected = -offset.normalized() * ExpectedPull(offset.norm(), s.vertex_radius, s.max_force);
+    const Eigen::Vector3d expected =
+        -offset.normalized() * ExpectedPull(offset.norm(), s.vertex_radius, s.max_force);
     EXPECT_LT((w.f_T_W - expected).norm(), 1e-12) << offset.transpose();
     EXPECT_EQ(field.snapped().kind, SnapKind::kVertex);
     EXPECT_EQ(field.snapped().index, 1);
@@ -58,7 +61,8 @@ TEST(SnapField, IsZeroBeyondTheCaptureRadiusAndFadesContinuouslyToIt) {
   // Just inside: the force and its slope vanish at r (C¹): |F(r − ε)| = O(ε²).
   double previous = 0.0;
   for (const double eps : {1e-2, 1e-3, 1e-4}) {
-    const double f = field.Evaluate(At(features.vertices_W[0] + (1.0 - eps) * r * dir)).f_T_W.norm();
+    const double f =
+        field.Evaluate(At(features.vertices_W[0] + (1.0 - eps) * r * dir)).f_T_W.norm();
     EXPECT_LT(f, 12.0 * s.max_force * eps * eps) << eps;  // 1 − S(1 − 2ε) ≈ 12ε²
     if (previous > 0) {
       EXPECT_LT(f, previous * 0.02);
@@ -95,7 +99,9 @@ TEST(SnapField, PrefersVerticesOverEdgesOverFaces) {
   w = field.Evaluate(At({0.02, 0.02, 0.002}));
   EXPECT_EQ(field.snapped().kind, SnapKind::kFace);
   EXPECT_EQ(field.snapped().index, 0);
-  EXPECT_LT((w.f_T_W - Eigen::Vector3d(0, 0, -ExpectedPull(0.002, s.face_radius, s.max_force))).norm(), 1e-12);
+  EXPECT_LT(
+      (w.f_T_W - Eigen::Vector3d(0, 0, -ExpectedPull(0.002, s.face_radius, s.max_force))).norm(),
+      1e-12);
 }
 
 TEST(SnapField, TotalForceIsContinuousAcrossLayerBoundaries) {
@@ -144,8 +150,12 @@ TEST(SnapField, BoundedPolygonPullsTowardItsNearestPointAndPlanesTowardTheirProj
   EXPECT_LT((field.ClosestOnFace(0, p) - nearest).norm(), 1e-15);
   const ToolWrench w = field.Evaluate(At(p));
   const Eigen::Vector3d delta = nearest - p;
-  EXPECT_LT((w.f_T_W - delta.normalized() * ExpectedPull(delta.norm(), s.face_radius, s.max_force)).norm(), 1e-12);
-  EXPECT_LT((field.ClosestOnFace(1, Eigen::Vector3d(1, 2, -0.048)) - Eigen::Vector3d(1, 2, -0.05)).norm(), 1e-15);
+  EXPECT_LT((w.f_T_W - delta.normalized() * ExpectedPull(delta.norm(), s.face_radius, s.max_force))
+                .norm(),
+            1e-12);
+  EXPECT_LT(
+      (field.ClosestOnFace(1, Eigen::Vector3d(1, 2, -0.048)) - Eigen::Vector3d(1, 2, -0.05)).norm(),
+      1e-15);
   field.Evaluate(At({1, 2, -0.048}));
   EXPECT_EQ(field.snapped().kind, SnapKind::kFace);
   EXPECT_EQ(field.snapped().index, 1);
@@ -174,7 +184,9 @@ TEST(SnapField, EvaluateAllocatesNothing) {
   ASSERT_TRUE(test_support::MallocCounterActive());
   SnapFeatures features;
   for (int i = 0; i < 40; ++i) features.vertices_W.emplace_back(0.01 * i, 0, 0);
-  for (int i = 0; i < 40; ++i) features.edges_W.emplace_back(Eigen::Vector3d(0.01 * i, 0, 0), Eigen::Vector3d(0.01 * i, 0.01, 0));
+  for (int i = 0; i < 40; ++i)
+    features.edges_W.emplace_back(Eigen::Vector3d(0.01 * i, 0, 0),
+                                  Eigen::Vector3d(0.01 * i, 0.01, 0));
   SnapFace face;
   face.polygon_W = {{0, 0, 0}, {0.4, 0, 0}, {0.4, 0.01, 0}, {0, 0.01, 0}};
   features.faces_W.push_back(face);

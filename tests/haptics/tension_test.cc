@@ -4,6 +4,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/tension.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -11,10 +15,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 namespace spidarcad::haptics {
 namespace {
@@ -134,12 +134,12 @@ Reference BruteForce(const Matrix78d& A, const Vector7d& q, const TensionSetting
     const bool at_min = tau(i) <= s.tau_min + bound_tol;
     const bool at_max = tau(i) >= s.tau_max - bound_tol;
     if (at_min && grad(i) < -tol) {
-      return ::testing::AssertionFailure() << "string " << i << " at tau_min with gradient "
-                                           << grad(i) << " (should be >= 0)";
+      return ::testing::AssertionFailure()
+             << "string " << i << " at tau_min with gradient " << grad(i) << " (should be >= 0)";
     }
     if (at_max && grad(i) > tol) {
-      return ::testing::AssertionFailure() << "string " << i << " at tau_max with gradient "
-                                           << grad(i) << " (should be <= 0)";
+      return ::testing::AssertionFailure()
+             << "string " << i << " at tau_max with gradient " << grad(i) << " (should be <= 0)";
     }
     if (!at_min && !at_max && std::abs(grad(i)) > tol) {
       return ::testing::AssertionFailure() << "free string " << i << " has gradient " << grad(i);
@@ -202,7 +202,8 @@ TEST(WrenchMatrix, SatisfiesVirtualWorkIdentityForSmallMotions) {
       const Vector3d P_dot = (plus.Attachment(i) - minus.Attachment(i)) / (2 * h);
       string_power += tau(i) * c.dot(P_dot);
     }
-    const double grip_power = q.head<3>().dot(v) + q.segment<3>(3).dot(omega) - 0.5 * q(6) * theta_dot;
+    const double grip_power =
+        q.head<3>().dot(v) + q.segment<3>(3).dot(omega) - 0.5 * q(6) * theta_dot;
     EXPECT_NEAR(string_power, grip_power, 1e-7 * (1.0 + std::abs(string_power)))
         << "trial " << trial;
   }
@@ -255,19 +256,18 @@ std::vector<Case> MakeCases(const SpidarGeometry& g) {
   };
   std::vector<Case> cases;
   for (int k = 0; k < 30; ++k) {  // ordinary poses, displayable requests
-    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng),
-                                         grasp_dist(rng), g.d),
-                     random_wrench(2.0, 0.04), "feasible"});
+    cases.push_back(
+        {GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng), grasp_dist(rng), g.d),
+         random_wrench(2.0, 0.04), "feasible"});
   }
   for (int k = 0; k < 15; ++k) {  // huge requests
-    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng),
-                                         grasp_dist(rng), g.d),
-                     random_wrench(200.0, 5.0), "huge"});
+    cases.push_back(
+        {GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng), grasp_dist(rng), g.d),
+         random_wrench(200.0, 5.0), "huge"});
   }
   for (int k = 0; k < 10; ++k) {  // grasp near 0 and near π
     const double grasp = (k % 2 == 0) ? 1e-4 * (1 + k) : M_PI - 1e-4 * (1 + k);
-    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng), grasp,
-                                         g.d),
+    cases.push_back({GripPose::FromFrame(RandomVector(&rng, 0.1), RandomRotation(&rng), grasp, g.d),
                      random_wrench(3.0, 0.06), "grasp_singular"});
   }
   for (int k = 0; k < 6; ++k) {  // grip 1 mm from a frame face, pushing toward that face
@@ -380,8 +380,8 @@ TEST(TensionSolver, ReportsOkWhenOnlyThePretensionBiasRemainsOffCentre) {
       }
       ASSERT_LT(lo, hi) << "not displayable: test premise broken at x " << x << " fz " << fz;
       EXPECT_GT(r.lost.norm(), 1e-4) << "the S2 bias this test is about is absent at " << x;
-      EXPECT_EQ(r.status, TensionStatus::kOk) << "x " << x << " fz " << fz << " lost "
-                                              << r.lost.transpose();
+      EXPECT_EQ(r.status, TensionStatus::kOk)
+          << "x " << x << " fz " << fz << " lost " << r.lost.transpose();
       // A request far beyond the motors at the same pose is still a saturation.
       q(2) = 100.0;
       EXPECT_EQ(solver.Solve(A, q).status, TensionStatus::kSaturated) << x;
@@ -423,12 +423,12 @@ TEST(TensionSolver, WarmStartGivesTheColdAnswerWithFewerIterations) {
     const double t = 0.01 * k;
     const Eigen::Matrix3d R =
         Eigen::AngleAxisd(0.6 * std::sin(t), Vector3d(1, 2, 3).normalized()).toRotationMatrix();
-    const GripPose pose = GripPose::FromFrame(Vector3d(0.1 * std::sin(t), 0.05 * std::cos(2 * t),
-                                                       0.08 * std::sin(3 * t)),
-                                              R, 1.5 + 0.5 * std::sin(t), g.d);
+    const GripPose pose = GripPose::FromFrame(
+        Vector3d(0.1 * std::sin(t), 0.05 * std::cos(2 * t), 0.08 * std::sin(3 * t)), R,
+        1.5 + 0.5 * std::sin(t), g.d);
     Vector7d q;
-    q << 6 * std::sin(t), 4 * std::cos(1.3 * t), -5 + 10 * std::sin(0.7 * t),
-        0.1 * std::sin(2 * t), 0.05, -0.08 * std::cos(t), 0.1 * std::sin(4 * t);
+    q << 6 * std::sin(t), 4 * std::cos(1.3 * t), -5 + 10 * std::sin(0.7 * t), 0.1 * std::sin(2 * t),
+        0.05, -0.08 * std::cos(t), 0.1 * std::sin(4 * t);
     const Matrix78d A = WrenchMatrix(g, pose);
     const TensionResult rw = warm.Solve(A, q);
     cold.Reset();
@@ -440,7 +440,6 @@ TEST(TensionSolver, WarmStartGivesTheColdAnswerWithFewerIterations) {
   }
   EXPECT_LT(warm_iterations, cold_iterations / 2);
 }
-
 
 // ---------------------------------------------------------------------------------------------
 // Force closure and the lost wrench
@@ -478,7 +477,8 @@ TEST(ForceClosureAt, AgreesWithTheSignsOfTheCrossProductNullVector) {
     const Eigen::Matrix3d R =
         near ? Eigen::AngleAxisd(angle(rng), RandomVector(&rng, 1).normalized()).toRotationMatrix()
              : RandomRotation(&rng);
-    const GripPose pose = GripPose::FromFrame(RandomVector(&rng, near ? 0.05 : 0.15), R, grasp(rng), g.d);
+    const GripPose pose =
+        GripPose::FromFrame(RandomVector(&rng, near ? 0.05 : 0.15), R, grasp(rng), g.d);
     const Matrix78d A = WrenchMatrix(g, pose);
     const ForceClosure c = ForceClosureAt(A, g.d);
     Vector8d n = CrossProductNullVector(ScaledRows(A, g.d));
@@ -542,11 +542,13 @@ TEST(HardTension, ReportsTheLostWrenchWhereForceClosureIsLostAndBeyondTheBounds)
   std::uniform_real_distribution<double> grasp(0.9, 2.2);
   std::vector<GripPose> poses;
   while (poses.size() < 16) {
-    const GripPose pose = GripPose::FromFrame(RandomVector(&rng, 0.15), RandomRotation(&rng), grasp(rng), g.d);
+    const GripPose pose =
+        GripPose::FromFrame(RandomVector(&rng, 0.15), RandomRotation(&rng), grasp(rng), g.d);
     if (!ForceClosureAt(WrenchMatrix(g, pose), g.d).closure) poses.push_back(pose);
   }
-  poses.push_back(GripPose::FromFrame(Vector3d(0, 0, 0.05), Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitZ()).toRotationMatrix(),
-                                      M_PI / 2, g.d));  // rank 6
+  poses.push_back(GripPose::FromFrame(
+      Vector3d(0, 0, 0.05), Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitZ()).toRotationMatrix(),
+      M_PI / 2, g.d));  // rank 6
   double worst_tau = 0, worst_lost = 0, worst_cone = 0;
   int cone_cases = 0, saturated = 0;
   for (const GripPose& pose : poses) {
@@ -561,7 +563,8 @@ TEST(HardTension, ReportsTheLostWrenchWhereForceClosureIsLostAndBeyondTheBounds)
     huge(0) = 60;  // beyond what eight 8 N strings can give along x
     requests.push_back(huge);
     Vector7d ordinary;
-    for (int k = 0; k < 7; ++k) ordinary(k) = (k < 3 ? 2.0 : 0.04) * std::uniform_real_distribution<double>(-1, 1)(rng);
+    for (int k = 0; k < 7; ++k)
+      ordinary(k) = (k < 3 ? 2.0 : 0.04) * std::uniform_real_distribution<double>(-1, 1)(rng);
     requests.push_back(ordinary);
     for (std::size_t r = 0; r < requests.size(); ++r) {
       const Vector7d& q = requests[r];
@@ -582,13 +585,18 @@ TEST(HardTension, ReportsTheLostWrenchWhereForceClosureIsLostAndBeyondTheBounds)
       saturated += result.status == TensionStatus::kSaturated;
     }
   }
-  RecordProperty("figure", "tensions off brute force by " + std::to_string(worst_tau) + " N, lost wrench by " +
-                               std::to_string(worst_lost) + " over " + std::to_string(poses.size()) +
-                               " poses without closure; lost along the separating direction exceeds the request's "
-                               "component by " + std::to_string(worst_cone) + " (relative, must be <= 0) in " +
-                               std::to_string(cone_cases) + " cases; " + std::to_string(saturated) + " saturated");
-  RecordProperty("bar", "tensions and lost wrench within 1e-7 of brute force; all of the request along the "
-                        "separating direction lost; infeasible requests flagged saturated");
+  RecordProperty(
+      "figure",
+      "tensions off brute force by " + std::to_string(worst_tau) + " N, lost wrench by " +
+          std::to_string(worst_lost) + " over " + std::to_string(poses.size()) +
+          " poses without closure; lost along the separating direction exceeds the request's "
+          "component by " +
+          std::to_string(worst_cone) + " (relative, must be <= 0) in " +
+          std::to_string(cone_cases) + " cases; " + std::to_string(saturated) + " saturated");
+  RecordProperty(
+      "bar",
+      "tensions and lost wrench within 1e-7 of brute force; all of the request along the "
+      "separating direction lost; infeasible requests flagged saturated");
   EXPECT_LT(worst_tau, 1e-7);
   EXPECT_LT(worst_lost, 1e-6);
   EXPECT_LE(worst_cone, 1e-9);

@@ -3,11 +3,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/trajectory.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <sstream>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace spidarcad::haptics {
 namespace {
@@ -96,8 +96,8 @@ TEST(Trajectory, SampleStaysFiniteWhenTimesAndPositionsSpanMoreThanTheLargestDou
 }
 
 TEST(Trajectory, WriteThenParseRoundTripsExactly) {
-  const Trajectory tr = Twist(Eigen::Vector3d(0.01, 0.02, -0.03), Eigen::Vector3d(1, 1, 0), 0.4,
-                              1.0, 0.5, 100.0);
+  const Trajectory tr =
+      Twist(Eigen::Vector3d(0.01, 0.02, -0.03), Eigen::Vector3d(1, 1, 0), 0.4, 1.0, 0.5, 100.0);
   std::stringstream io;
   tr.Write(io);
   const Trajectory back = Trajectory::Parse(io, "round-trip");
@@ -113,8 +113,8 @@ TEST(Trajectory, GeneratorsFollowTheirDefinitions) {
   const Eigen::Vector3d start(0, 0, 0.02), surface(0, 0, -0.03), n(0, 0, 1);
   const Trajectory press = ApproachPressRelease(start, surface, n, 0.005, 2.0, 1000.0);
   EXPECT_EQ(press.samples().front().p_DT, start);
-  EXPECT_NEAR((press.Sample(0.8).p_DT - surface).norm(), 0.0, 1e-12);        // 40 %: on the surface
-  EXPECT_NEAR(press.Sample(1.3).p_DT.z(), -0.035, 1e-12);                     // hold: 5 mm in
+  EXPECT_NEAR((press.Sample(0.8).p_DT - surface).norm(), 0.0, 1e-12);  // 40 %: on the surface
+  EXPECT_NEAR(press.Sample(1.3).p_DT.z(), -0.035, 1e-12);              // hold: 5 mm in
   EXPECT_NEAR((press.samples().back().p_DT - start).norm(), 0.0, 1e-12);
   EXPECT_NEAR(press.end_time(), 2.0, 1e-12);
 

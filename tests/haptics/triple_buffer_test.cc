@@ -3,12 +3,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/triple_buffer.h"
 
+#include <gtest/gtest.h>
+
 #include <array>
 #include <atomic>
 #include <cstdint>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 namespace spidarcad::haptics {
 namespace {

@@ -4,10 +4,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/usb_device.h"
 
+#include <gtest/gtest.h>
+
 #include <memory>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/haptics/board_simulator.h"
 #include "support/malloc_counter.h"
@@ -28,8 +28,8 @@ struct Rig {
       : board(board_config) {
     auto transport = std::make_unique<LoopbackTransport>(&board, faults);
     link = transport.get();
-    driver = std::make_unique<UsbSpidarG>(std::move(transport), board.device().info(),
-                                          driver_config);
+    driver =
+        std::make_unique<UsbSpidarG>(std::move(transport), board.device().info(), driver_config);
   }
   BoardSimulator board;
   LoopbackTransport* link = nullptr;
@@ -119,9 +119,9 @@ TEST(UsbSpidarG, PacketLossIsCountedAndNeverDeliversWrongData) {
   EXPECT_GT(ok, 1000);
   EXPECT_GT(rig.driver->stats().comm_error_ticks, 0u);
   EXPECT_GT(rig.link->counters().lost, 0u);
-  EXPECT_EQ(rig.driver->status() == DeviceStatus::kOk ||
-                rig.driver->status() == DeviceStatus::kCommError,
-            true);
+  EXPECT_EQ(
+      rig.driver->status() == DeviceStatus::kOk || rig.driver->status() == DeviceStatus::kCommError,
+      true);
 }
 
 TEST(UsbSpidarG, CorruptionIsDetectedByTheChecksum) {
@@ -167,7 +167,8 @@ TEST(UsbSpidarG, TotalCorruptionGivesCommErrorZeroForceThenNotConnected) {
 // Abandon (tick-safe) marks it unused like LibusbTransport does; Close releases it.
 class RecordingTransport final : public Transport {
  public:
-  explicit RecordingTransport(std::unique_ptr<LoopbackTransport> inner) : inner_(std::move(inner)) {}
+  explicit RecordingTransport(std::unique_ptr<LoopbackTransport> inner)
+      : inner_(std::move(inner)) {}
   TransportResult Open() noexcept override {
     if (abandoned_) Close();  // LibusbTransport::Open releases an abandoned link first
     return inner_->Open();
@@ -182,13 +183,15 @@ class RecordingTransport final : public Transport {
     abandoned_ = true;
   }
   bool is_open() const noexcept override { return inner_->is_open() && !abandoned_; }
-  TransportResult Send(const std::uint8_t* data, std::size_t size, int timeout_ms) noexcept override {
+  TransportResult Send(const std::uint8_t* data, std::size_t size,
+                       int timeout_ms) noexcept override {
     return abandoned_ ? TransportResult::kDisconnected : inner_->Send(data, size, timeout_ms);
   }
   TransportResult Receive(std::uint8_t* data, std::size_t capacity, std::size_t* received,
                           int timeout_ms) noexcept override {
     *received = 0;
-    return abandoned_ ? TransportResult::kDisconnected : inner_->Receive(data, capacity, received, timeout_ms);
+    return abandoned_ ? TransportResult::kDisconnected
+                      : inner_->Receive(data, capacity, received, timeout_ms);
   }
   const char* last_error() const noexcept override { return inner_->last_error(); }
   LoopbackTransport& inner() { return *inner_; }
@@ -206,7 +209,8 @@ TEST(UsbSpidarG, GivingUpOnTheTickAbandonsTheLinkAndTheNextOpenReleasesIt) {
   BoardSimulator board(TestBoard());
   UsbDeviceConfig config;
   config.reconnect_every = 0;  // re-opening is the caller's, off the tick
-  auto recording = std::make_unique<RecordingTransport>(std::make_unique<LoopbackTransport>(&board));
+  auto recording =
+      std::make_unique<RecordingTransport>(std::make_unique<LoopbackTransport>(&board));
   RecordingTransport* link = recording.get();
   UsbSpidarG driver(std::move(recording), board.device().info(), config);
   ASSERT_EQ(driver.Open(), DeviceStatus::kOk);

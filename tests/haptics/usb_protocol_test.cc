@@ -3,11 +3,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/usb_protocol.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
-
-#include <gtest/gtest.h>
 
 #include "support/malloc_counter.h"
 
@@ -27,8 +27,14 @@ StatePacket SampleState() {
   StatePacket s;
   s.sequence = 0xA1B2C3D4u;
   s.time_us = 0x0102030405060708ull;
-  s.counts = {1, -1, 123456, -123456, std::numeric_limits<std::int32_t>::max(),
-              std::numeric_limits<std::int32_t>::min(), 0, 42};
+  s.counts = {1,
+              -1,
+              123456,
+              -123456,
+              std::numeric_limits<std::int32_t>::max(),
+              std::numeric_limits<std::int32_t>::min(),
+              0,
+              42};
   s.command_sequence = 77;
   s.slack_mask = 0x81;
   s.flags = kStateMotorsEnabled | kStateWatchdogTripped;

@@ -5,9 +5,8 @@
 // tested: the errno table, that the ioctl on real non-usbfs fds (a pipe, /dev/null, a closed
 // fd) fails cleanly with 0 bytes and without allocating, and the not-open paths.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "usbfs_bulk.h"
-
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <array>
@@ -16,10 +15,9 @@
 #include <cstdint>
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "spidarcad/haptics/usb_transport.h"
 #include "support/malloc_counter.h"
+#include "usbfs_bulk.h"
 
 namespace spidarcad::haptics::usb {
 namespace {
@@ -87,10 +85,9 @@ void ExpectBulkFails(int fd, int expected_errno, const char* what) {
   long allocations = -1;
   {
     test_support::MallocCounter counter;
-    out_result = UsbfsBulk(fd, kEndpointOut, buffer.data(), buffer.size(), 5, &out_bytes,
-                           &out_errno);
-    in_result = UsbfsBulk(fd, kEndpointIn, buffer.data(), buffer.size(), 0, &in_bytes,
-                          &in_errno);
+    out_result =
+        UsbfsBulk(fd, kEndpointOut, buffer.data(), buffer.size(), 5, &out_bytes, &out_errno);
+    in_result = UsbfsBulk(fd, kEndpointIn, buffer.data(), buffer.size(), 0, &in_bytes, &in_errno);
     allocations = counter.count();
   }
   EXPECT_EQ(out_result, TransportResult::kError) << what;

@@ -3,13 +3,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/workspace.h"
 
-#include <cmath>
-#include <limits>
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <limits>
+#include <random>
 
 #include "spidarcad/haptics/tension.h"
 

@@ -5,6 +5,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/cgal_mesher.h"
 
+#include <gtest/gtest.h>
+
 #include <atomic>
 #include <cmath>
 #include <map>
@@ -12,14 +14,14 @@
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
 namespace spidarcad::modeling {
 namespace {
 
 CompiledSolid Sphere(double r) { return CompiledSolid::Compile(ImplicitNode(SphereParams{r})); }
 
-CompiledSolid Box(const Eigen::Vector3d& size) { return CompiledSolid::Compile(ImplicitNode(BoxParams{size})); }
+CompiledSolid Box(const Eigen::Vector3d& size) {
+  return CompiledSolid::Compile(ImplicitNode(BoxParams{size}));
+}
 
 Eigen::AlignedBox3d Around(double half) {
   return Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-half), Eigen::Vector3d::Constant(half));
@@ -27,8 +29,8 @@ Eigen::AlignedBox3d Around(double half) {
 
 // Volume of a tet computed here from its corners (independent of TetVolume).
 double SignedVolume(const TetMesh& m, Eigen::Index t) {
-  const Eigen::Vector3d a = m.nodes.col(m.tets(0, t)), b = m.nodes.col(m.tets(1, t)), c = m.nodes.col(m.tets(2, t)),
-                        d = m.nodes.col(m.tets(3, t));
+  const Eigen::Vector3d a = m.nodes.col(m.tets(0, t)), b = m.nodes.col(m.tets(1, t)),
+                        c = m.nodes.col(m.tets(2, t)), d = m.nodes.col(m.tets(3, t));
   return (b - a).dot((c - a).cross(d - a)) / 6.0;
 }
 
@@ -77,7 +79,8 @@ TEST(CgalMesher, SphereVolumeConvergesToTheClosedForm) {
   double previous_error = 1.0;
   for (const double h : {0.02, 0.01}) {
     CgalMeshStats stats;
-    const TetMesh mesh = MeshImplicitWithCgal(Sphere(r), Around(0.06), CgalMeshSettings::ForSize(h), &stats);
+    const TetMesh mesh =
+        MeshImplicitWithCgal(Sphere(r), Around(0.06), CgalMeshSettings::ForSize(h), &stats);
     const double error = std::abs(Volume(mesh) - exact) / exact;
     // An inscribed polyhedron: below the sphere's volume, the gap shrinking with h, and at
     // most (sphere area) × facet_distance, i.e. relative 3 d / r.
@@ -98,7 +101,8 @@ TEST(CgalMesher, EveryTetIsPositiveAndBoundaryNodesLieOnTheSurface) {
   const TetMesh mesh = MeshImplicitWithCgal(Sphere(r), Around(0.07), settings, &stats);
   ASSERT_GT(mesh.tets.cols(), 100);
   ValidateTetMesh(mesh);
-  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) ASSERT_GT(SignedVolume(mesh, t), 0.0) << "tet " << t;
+  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t)
+    ASSERT_GT(SignedVolume(mesh, t), 0.0) << "tet " << t;
   const std::set<int> boundary = BoundaryNodes(mesh);
   ASSERT_GT(boundary.size(), 20u);
   for (const int i : boundary) {
@@ -119,7 +123,8 @@ TEST(CgalMesher, EveryTetIsPositiveAndBoundaryNodesLieOnTheSurface) {
   EXPECT_EQ(surface.vertices.cols(), static_cast<Eigen::Index>(boundary.size()));
   double enclosed = 0.0;
   for (Eigen::Index f = 0; f < surface.triangles.cols(); ++f) {
-    const Eigen::Vector3d a = surface.vertices.col(surface.triangles(0, f)), b = surface.vertices.col(surface.triangles(1, f)),
+    const Eigen::Vector3d a = surface.vertices.col(surface.triangles(0, f)),
+                          b = surface.vertices.col(surface.triangles(1, f)),
                           c = surface.vertices.col(surface.triangles(2, f));
     EXPECT_GT((b - a).cross(c - a).dot((a + b + c) / 3.0), 0.0) << "face " << f;
     enclosed += a.dot(b.cross(c)) / 6.0;
@@ -137,23 +142,28 @@ TEST(CgalMesher, EveryTetIsPositiveAndBoundaryNodesLieOnTheSurface) {
 TEST(CgalMesher, BoxVolumeIsCloseToItsProductOfSides) {
   const Eigen::Vector3d size(0.1, 0.06, 0.04);
   CgalMeshStats stats;
-  const TetMesh mesh = MeshImplicitWithCgal(Box(size), Around(0.06), CgalMeshSettings::ForSize(0.01), &stats);
+  const TetMesh mesh =
+      MeshImplicitWithCgal(Box(size), Around(0.06), CgalMeshSettings::ForSize(0.01), &stats);
   const double exact = size.prod();
   // Sharp edges and corners are cut (no feature preservation): the mesh lies inside the box and
   // misses at most a few percent.
   EXPECT_LT(Volume(mesh), exact);
   EXPECT_NEAR(Volume(mesh), exact, 0.05 * exact);
   for (Eigen::Index i = 0; i < mesh.nodes.cols(); ++i) {
-    EXPECT_TRUE((mesh.nodes.col(i).cwiseAbs().array() <= 0.5 * size.array() + 1e-6).all()) << "node " << i;
+    EXPECT_TRUE((mesh.nodes.col(i).cwiseAbs().array() <= 0.5 * size.array() + 1e-6).all())
+        << "node " << i;
   }
   EXPECT_NEAR(stats.quality.total_volume, Volume(mesh), 1e-12);
 }
 
 TEST(CgalMesher, TwoSpheresGiveTwoRegionsAndSameSeedSameMesh) {
-  const CompiledSolid two = CompiledSolid::Compile(ImplicitNode(
-      UnionParams{}, {ImplicitNode(TranslateParams{Eigen::Vector3d(-0.04, 0, 0)}, {ImplicitNode(SphereParams{0.025})}),
-                      ImplicitNode(TranslateParams{Eigen::Vector3d(0.04, 0, 0)}, {ImplicitNode(SphereParams{0.025})})}));
-  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.08, -0.04, -0.04), Eigen::Vector3d(0.08, 0.04, 0.04));
+  const CompiledSolid two = CompiledSolid::Compile(
+      ImplicitNode(UnionParams{}, {ImplicitNode(TranslateParams{Eigen::Vector3d(-0.04, 0, 0)},
+                                                {ImplicitNode(SphereParams{0.025})}),
+                                   ImplicitNode(TranslateParams{Eigen::Vector3d(0.04, 0, 0)},
+                                                {ImplicitNode(SphereParams{0.025})})}));
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.08, -0.04, -0.04),
+                                Eigen::Vector3d(0.08, 0.04, 0.04));
   const CgalMeshSettings settings = CgalMeshSettings::ForSize(0.01);
   const TetMesh a = MeshImplicitWithCgal(two, box, settings);
   const TetMesh b = MeshImplicitWithCgal(two, box, settings);
@@ -162,8 +172,9 @@ TEST(CgalMesher, TwoSpheresGiveTwoRegionsAndSameSeedSameMesh) {
   // Tets left of x = 0 share one region, those right of it the other.
   std::map<bool, std::set<int>> regions_by_side;
   for (Eigen::Index t = 0; t < a.tets.cols(); ++t) {
-    const double x = (a.nodes.col(a.tets(0, t)) + a.nodes.col(a.tets(1, t)) + a.nodes.col(a.tets(2, t)) +
-                      a.nodes.col(a.tets(3, t))).x();
+    const double x = (a.nodes.col(a.tets(0, t)) + a.nodes.col(a.tets(1, t)) +
+                      a.nodes.col(a.tets(2, t)) + a.nodes.col(a.tets(3, t)))
+                         .x();
     regions_by_side[x < 0].insert(a.regions[t]);
   }
   ASSERT_EQ(regions_by_side[true].size(), 1u);
@@ -178,30 +189,38 @@ TEST(CgalMesher, EmptySolidInTheBoxThrowsSayingSo) {
   // A sphere far from the box.
   const CompiledSolid away = CompiledSolid::Compile(
       ImplicitNode(TranslateParams{Eigen::Vector3d(1, 0, 0)}, {ImplicitNode(SphereParams{0.05})}));
-  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(away, Around(0.1), CgalMeshSettings::ForSize(0.01)); },
-                                 "empty in the box");
+  ExpectThrowWith<CgalMeshError>(
+      [&] { MeshImplicitWithCgal(away, Around(0.1), CgalMeshSettings::ForSize(0.01)); },
+      "empty in the box");
 }
 
 TEST(CgalMesher, SolidCrossingTheBoxThrowsNamingTheBounds) {
-  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.04), CgalMeshSettings::ForSize(0.01)); },
-                                 "enlarge the bounds");
+  ExpectThrowWith<CgalMeshError>(
+      [&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.04), CgalMeshSettings::ForSize(0.01)); },
+      "enlarge the bounds");
 }
 
 TEST(CgalMesher, BadSettingsThrowNamingTheField) {
   CgalMeshSettings s = CgalMeshSettings::ForSize(0.01);
   s.facet_size = -1.0;
-  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.06), s); }, "facet_size");
+  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.06), s); },
+                                 "facet_size");
   s = CgalMeshSettings::ForSize(0.01);
   s.cell_radius_edge_ratio = 0.9;
-  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.06), s); }, "cell_radius_edge_ratio");
-  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Eigen::AlignedBox3d(), CgalMeshSettings::ForSize(0.01)); },
-                                 "bounds");
+  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.06), s); },
+                                 "cell_radius_edge_ratio");
+  ExpectThrowWith<CgalMeshError>(
+      [&] {
+        MeshImplicitWithCgal(Sphere(0.05), Eigen::AlignedBox3d(), CgalMeshSettings::ForSize(0.01));
+      },
+      "bounds");
 }
 
 TEST(CgalMesher, TooManyVerticesThrows) {
   CgalMeshSettings s = CgalMeshSettings::ForSize(0.002);
   s.max_vertices = 300;
-  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.06), s); }, "max_vertices");
+  ExpectThrowWith<CgalMeshError>([&] { MeshImplicitWithCgal(Sphere(0.05), Around(0.06), s); },
+                                 "max_vertices");
 }
 
 TEST(CgalMesher, CancelThrowsDuringRefinementAndProgressRises) {

@@ -7,6 +7,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/feature_sharpening.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -15,8 +17,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -36,7 +36,8 @@ long EulerOfClosedManifold(const TriangleMesh& mesh) {
   std::vector<std::map<int, int>> fan(mesh.vertices.cols());
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
     for (int k = 0; k < 3; ++k) {
-      const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t), c = mesh.triangles((k + 2) % 3, t);
+      const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t),
+                c = mesh.triangles((k + 2) % 3, t);
       EXPECT_NE(a, b);
       ++directed[{a, b}];
       EXPECT_TRUE(fan[a].emplace(b, c).second) << "vertex " << a;
@@ -63,7 +64,8 @@ long EulerOfClosedManifold(const TriangleMesh& mesh) {
          static_cast<long>(mesh.triangles.cols());
 }
 
-// Closed-form signed distance of a box with half-extents b centred at c, rotated by R (local to world).
+// Closed-form signed distance of a box with half-extents b centred at c, rotated by R (local to
+// world).
 double BoxDistance(const Vec& p, const Vec& c, const Eigen::Matrix3d& R, const Vec& b) {
   const Vec q = (R.transpose() * (p - c)).cwiseAbs() - b;
   return q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
@@ -104,7 +106,8 @@ double PointsToMesh(const std::vector<Vec>& points, const TriangleMesh& mesh) {
     double best = INFINITY;
     for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
       best = std::min(best, PointTriangleDistance(p, mesh.vertices.col(mesh.triangles(0, t)),
-                                                  mesh.vertices.col(mesh.triangles(1, t)), mesh.vertices.col(mesh.triangles(2, t))));
+                                                  mesh.vertices.col(mesh.triangles(1, t)),
+                                                  mesh.vertices.col(mesh.triangles(2, t))));
     }
     worst = std::max(worst, best);
   }
@@ -115,10 +118,12 @@ double PointsToMesh(const std::vector<Vec>& points, const TriangleMesh& mesh) {
 double MeshToSurface(const TriangleMesh& mesh, const Sdf& sdf) {
   double worst = 0.0;
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-    const Vec a = mesh.vertices.col(mesh.triangles(0, t)), b = mesh.vertices.col(mesh.triangles(1, t));
+    const Vec a = mesh.vertices.col(mesh.triangles(0, t)),
+              b = mesh.vertices.col(mesh.triangles(1, t));
     const Vec c = mesh.vertices.col(mesh.triangles(2, t));
     for (int i = 0; i <= 4; ++i) {
-      for (int j = 0; i + j <= 4; ++j) worst = std::max(worst, std::abs(sdf((i * a + j * b + (4 - i - j) * c) / 4.0)));
+      for (int j = 0; i + j <= 4; ++j)
+        worst = std::max(worst, std::abs(sdf((i * a + j * b + (4 - i - j) * c) / 4.0)));
     }
   }
   return worst;
@@ -146,7 +151,9 @@ std::vector<Vec> BoxEdgePoints(const Vec& c, const Eigen::Matrix3d& R, const Vec
 
 std::vector<Vec> BoxCorners(const Vec& c, const Eigen::Matrix3d& R, const Vec& b) {
   std::vector<Vec> corners;
-  for (int k = 0; k < 8; ++k) corners.push_back(c + R * Vec((k & 1 ? 1 : -1) * b.x(), (k & 2 ? 1 : -1) * b.y(), (k & 4 ? 1 : -1) * b.z()));
+  for (int k = 0; k < 8; ++k)
+    corners.push_back(
+        c + R * Vec((k & 1 ? 1 : -1) * b.x(), (k & 2 ? 1 : -1) * b.y(), (k & 4 ? 1 : -1) * b.z()));
   return corners;
 }
 
@@ -181,7 +188,8 @@ Pair MeshBoth(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, dou
 long CountTurnedOver(const TriangleMesh& mesh, const Sdf& sdf) {
   long inverted = 0;
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-    const Vec a = mesh.vertices.col(mesh.triangles(0, t)), b = mesh.vertices.col(mesh.triangles(1, t));
+    const Vec a = mesh.vertices.col(mesh.triangles(0, t)),
+              b = mesh.vertices.col(mesh.triangles(1, t));
     const Vec c = mesh.vertices.col(mesh.triangles(2, t));
     const Vec n = (b - a).cross(c - a).normalized();
     double best = -1.0;
@@ -196,8 +204,11 @@ long CountTurnedOver(const TriangleMesh& mesh, const Sdf& sdf) {
     }
     if (!(best > 0.0)) {
       ++inverted;
-      std::printf("triangle %ld turned over (best cosine %.3g, area %.3g m^2): (%.6g %.6g %.6g) (%.6g %.6g %.6g) (%.6g %.6g %.6g)\n",
-                  static_cast<long>(t), best, 0.5 * (b - a).cross(c - a).norm(), a.x(), a.y(), a.z(), b.x(), b.y(), b.z(), c.x(), c.y(), c.z());
+      std::printf(
+          "triangle %ld turned over (best cosine %.3g, area %.3g m^2): (%.6g %.6g %.6g) (%.6g %.6g "
+          "%.6g) (%.6g %.6g %.6g)\n",
+          static_cast<long>(t), best, 0.5 * (b - a).cross(c - a).norm(), a.x(), a.y(), a.z(), b.x(),
+          b.y(), b.z(), c.x(), c.y(), c.z());
     }
   }
   return inverted;
@@ -213,10 +224,13 @@ void ExpectSameTopology(const Pair& r) {
 TEST(SharpenFeatures, BoxOffTheGridGetsItsCornersAndEdgesBack) {
   const Vec c(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06), b = size / 2;
   const Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  const CompiledSolid solid = CompiledSolid::Compile(PlacedBox(c, Eigen::AngleAxisd(0, Vec::UnitZ()), size));
+  const CompiledSolid solid =
+      CompiledSolid::Compile(PlacedBox(c, Eigen::AngleAxisd(0, Vec::UnitZ()), size));
   const double h = 0.005;
   // Bounds chosen so that no grid plane meets a face of the box.
-  const Pair r = MeshBoth(solid, Eigen::AlignedBox3d(c - b - Vec(2.37, 2.29, 2.41) * h, c + b + Vec::Constant(2 * h)), h);
+  const Pair r = MeshBoth(
+      solid, Eigen::AlignedBox3d(c - b - Vec(2.37, 2.29, 2.41) * h, c + b + Vec::Constant(2 * h)),
+      h);
   ExpectSameTopology(r);
   EXPECT_EQ(EulerOfClosedManifold(r.sharp), 2);
   const Sdf sdf = [&](const Vec& p) { return BoxDistance(p, c, R, b); };
@@ -224,14 +238,18 @@ TEST(SharpenFeatures, BoxOffTheGridGetsItsCornersAndEdgesBack) {
   const std::vector<Vec> edges = BoxEdgePoints(c, R, b, 20);
   const double plain_in = PointsToMesh(edges, r.plain), sharp_in = PointsToMesh(edges, r.sharp);
   const double plain_out = MeshToSurface(r.plain, sdf), sharp_out = MeshToSurface(r.sharp, sdf);
-  std::printf("box: edges->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld flipped %ld\n",
-              plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved, r.stats.edges_flipped);
+  std::printf(
+      "box: edges->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld flipped "
+      "%ld\n",
+      plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved,
+      r.stats.edges_flipped);
   EXPECT_GT(plain_in, 0.2 * h);  // the chamfer is real
   EXPECT_LT(sharp_in, plain_in / 5);
   EXPECT_LT(sharp_out, plain_out / 5);
   for (const Vec& corner : BoxCorners(c, R, b)) {
     double nearest = INFINITY;
-    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i) nearest = std::min(nearest, (r.sharp.vertices.col(i) - corner).norm());
+    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i)
+      nearest = std::min(nearest, (r.sharp.vertices.col(i) - corner).norm());
     EXPECT_LT(nearest, 1e-3 * h) << "corner " << corner.transpose();
   }
   // The volume approaches the exact one.
@@ -246,21 +264,26 @@ TEST(SharpenFeatures, GridAlignedBoxGetsItsCornersBack) {
   const Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(BoxParams{size}));
   const double h = 0.005;
-  const Pair r = MeshBoth(solid, Eigen::AlignedBox3d(-b - Vec::Constant(2 * h), b + Vec::Constant(2 * h)), h);
+  const Pair r =
+      MeshBoth(solid, Eigen::AlignedBox3d(-b - Vec::Constant(2 * h), b + Vec::Constant(2 * h)), h);
   ExpectSameTopology(r);
   const Sdf sdf = [&](const Vec& p) { return BoxDistance(p, Vec::Zero(), R, b); };
   EXPECT_EQ(CountTurnedOver(r.sharp, sdf), 0);
   const std::vector<Vec> edges = BoxEdgePoints(Vec::Zero(), R, b, 20);
   const double plain_in = PointsToMesh(edges, r.plain), sharp_in = PointsToMesh(edges, r.sharp);
   const double plain_out = MeshToSurface(r.plain, sdf), sharp_out = MeshToSurface(r.sharp, sdf);
-  std::printf("grid-aligned box: edges->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld flipped %ld\n",
-              plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved, r.stats.edges_flipped);
+  std::printf(
+      "grid-aligned box: edges->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved "
+      "%ld flipped %ld\n",
+      plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved,
+      r.stats.edges_flipped);
   EXPECT_GT(plain_in, 0.5 * h);
   EXPECT_LT(sharp_in, plain_in / 5);
   EXPECT_LT(sharp_out, plain_out / 5);
   for (const Vec& corner : BoxCorners(Vec::Zero(), R, b)) {
     double nearest = INFINITY;
-    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i) nearest = std::min(nearest, (r.sharp.vertices.col(i) - corner).norm());
+    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i)
+      nearest = std::min(nearest, (r.sharp.vertices.col(i) - corner).norm());
     EXPECT_LT(nearest, 1e-3 * h) << "corner " << corner.transpose();
   }
 }
@@ -272,21 +295,26 @@ TEST(SharpenFeatures, RotatedBoxGetsItsCornersBack) {
   const CompiledSolid solid = CompiledSolid::Compile(PlacedBox(c, rotation, size));
   const double h = 0.004;
   const double reach = b.norm() + 2 * h;
-  const Pair r = MeshBoth(solid, Eigen::AlignedBox3d(c - Vec::Constant(reach), c + Vec::Constant(reach)), h);
+  const Pair r =
+      MeshBoth(solid, Eigen::AlignedBox3d(c - Vec::Constant(reach), c + Vec::Constant(reach)), h);
   ExpectSameTopology(r);
   const Sdf sdf = [&](const Vec& p) { return BoxDistance(p, c, R, b); };
   EXPECT_EQ(CountTurnedOver(r.sharp, sdf), 0);
   const std::vector<Vec> edges = BoxEdgePoints(c, R, b, 20);
   const double plain_in = PointsToMesh(edges, r.plain), sharp_in = PointsToMesh(edges, r.sharp);
   const double plain_out = MeshToSurface(r.plain, sdf), sharp_out = MeshToSurface(r.sharp, sdf);
-  std::printf("rotated box: edges->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld flipped %ld\n",
-              plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved, r.stats.edges_flipped);
+  std::printf(
+      "rotated box: edges->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld "
+      "flipped %ld\n",
+      plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved,
+      r.stats.edges_flipped);
   EXPECT_LT(sharp_in, plain_in / 3);
   EXPECT_LT(sharp_out, plain_out / 3);
   int found = 0;
   for (const Vec& corner : BoxCorners(c, R, b)) {
     double nearest = INFINITY;
-    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i) nearest = std::min(nearest, (r.sharp.vertices.col(i) - corner).norm());
+    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i)
+      nearest = std::min(nearest, (r.sharp.vertices.col(i) - corner).norm());
     found += nearest < 1e-3 * h;
   }
   EXPECT_EQ(found, 8);
@@ -297,24 +325,34 @@ TEST(SharpenFeatures, BoxMinusCylinderKeepsTheRimsAndEdges) {
   const Vec size(0.08, 0.06, 0.04), b = size / 2;
   const double radius = 0.015;
   const Vec offset(0.0011, 0.0007, -0.0013);
-  ImplicitNode part(DifferenceParams{}, {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{radius, 0.1})});
+  ImplicitNode part(DifferenceParams{},
+                    {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{radius, 0.1})});
   const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(TranslateParams{offset}, {part}));
   const double h = 0.004;
-  const Pair r = MeshBoth(solid, Eigen::AlignedBox3d(offset - b - Vec(2.31, 2.43, 2.27) * h, offset + b + Vec::Constant(2 * h)), h);
+  const Pair r = MeshBoth(solid,
+                          Eigen::AlignedBox3d(offset - b - Vec(2.31, 2.43, 2.27) * h,
+                                              offset + b + Vec::Constant(2 * h)),
+                          h);
   ExpectSameTopology(r);
   EXPECT_EQ(EulerOfClosedManifold(r.sharp), 0);  // genus 1
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
-  const Sdf sdf = [&](const Vec& p) { return std::max(BoxDistance(p, offset, I, b), -CylinderDistance(p - offset, radius, 0.05)); };
+  const Sdf sdf = [&](const Vec& p) {
+    return std::max(BoxDistance(p, offset, I, b), -CylinderDistance(p - offset, radius, 0.05));
+  };
   EXPECT_EQ(CountTurnedOver(r.sharp, sdf), 0);
   std::vector<Vec> creases = BoxEdgePoints(offset, I, b, 16);
   for (int i = 0; i < 64; ++i) {
     const double a = 2 * M_PI * i / 64;
-    for (double z : {-b.z(), b.z()}) creases.push_back(offset + Vec(radius * std::cos(a), radius * std::sin(a), z));
+    for (double z : {-b.z(), b.z()})
+      creases.push_back(offset + Vec(radius * std::cos(a), radius * std::sin(a), z));
   }
   const double plain_in = PointsToMesh(creases, r.plain), sharp_in = PointsToMesh(creases, r.sharp);
   const double plain_out = MeshToSurface(r.plain, sdf), sharp_out = MeshToSurface(r.sharp, sdf);
-  std::printf("box - cylinder: creases->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld flipped %ld\n",
-              plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved, r.stats.edges_flipped);
+  std::printf(
+      "box - cylinder: creases->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved "
+      "%ld flipped %ld\n",
+      plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved,
+      r.stats.edges_flipped);
   EXPECT_LT(sharp_in, plain_in / 3);
   EXPECT_LT(sharp_out, plain_out / 3);
 }
@@ -324,15 +362,17 @@ TEST(SharpenFeatures, UnionOfBoxesAtAnAngleKeepsConvexAndConcaveCreases) {
   const Vec c2(0.031, 0.021, 0.0053), size2(0.05, 0.03, 0.03), b2 = size2 / 2;
   const Eigen::AngleAxisd rot2(0.5, Vec(0.2, 0.1, 1).normalized());
   const Eigen::Matrix3d R1 = Eigen::Matrix3d::Identity(), R2 = rot2.toRotationMatrix();
-  const CompiledSolid solid = CompiledSolid::Compile(
-      ImplicitNode(UnionParams{}, {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(
+      UnionParams{},
+      {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
   const Sdf sdf1 = [&](const Vec& p) { return BoxDistance(p, c1, R1, b1); };
   const Sdf sdf2 = [&](const Vec& p) { return BoxDistance(p, c2, R2, b2); };
   const Sdf sdf = [&](const Vec& p) { return std::min(sdf1(p), sdf2(p)); };
   const double h = 0.004;
   const Eigen::AlignedBox3d bounds(Vec(-0.05, -0.035, -0.035), Vec(0.07, 0.06, 0.04));
   const Pair r = MeshBoth(solid, bounds, h);
-  ASSERT_TRUE(bounds.contains(Eigen::AlignedBox3d(c2 - Vec::Constant(b2.norm()), c2 + Vec::Constant(b2.norm()))));
+  ASSERT_TRUE(bounds.contains(
+      Eigen::AlignedBox3d(c2 - Vec::Constant(b2.norm()), c2 + Vec::Constant(b2.norm()))));
   ExpectSameTopology(r);
   EXPECT_EQ(EulerOfClosedManifold(r.sharp), 2);
   // Neither mesh has a turned-over triangle. (The plain mesh used to have one sliver near a
@@ -372,8 +412,11 @@ TEST(SharpenFeatures, UnionOfBoxesAtAnAngleKeepsConvexAndConcaveCreases) {
   ASSERT_GT(creases.size() - convex, 50u);
   const double plain_in = PointsToMesh(creases, r.plain), sharp_in = PointsToMesh(creases, r.sharp);
   const double plain_out = MeshToSurface(r.plain, sdf), sharp_out = MeshToSurface(r.sharp, sdf);
-  std::printf("union at an angle: creases->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; moved %ld flipped %ld\n",
-              plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved, r.stats.edges_flipped);
+  std::printf(
+      "union at an angle: creases->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; "
+      "moved %ld flipped %ld\n",
+      plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.vertices_moved,
+      r.stats.edges_flipped);
   EXPECT_LT(sharp_in, plain_in / 3);
   // Where a face of one box meets a face of the other at less than the crease angle (30°) the
   // crease is left as marching tetrahedra made it: a smaller factor.
@@ -386,10 +429,12 @@ TEST(SharpenFeatures, UnionOfBoxesAtAnAngleKeepsConvexAndConcaveCreases) {
 bool HasFoldedNeighbours(const TriangleMesh& mesh) {
   std::map<std::pair<int, int>, Eigen::Index> edge_triangle;
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-    for (int k = 0; k < 3; ++k) edge_triangle[{mesh.triangles(k, t), mesh.triangles((k + 1) % 3, t)}] = t;
+    for (int k = 0; k < 3; ++k)
+      edge_triangle[{mesh.triangles(k, t), mesh.triangles((k + 1) % 3, t)}] = t;
   }
   auto normal = [&](Eigen::Index t) {
-    const Vec a = mesh.vertices.col(mesh.triangles(0, t)), b = mesh.vertices.col(mesh.triangles(1, t));
+    const Vec a = mesh.vertices.col(mesh.triangles(0, t)),
+              b = mesh.vertices.col(mesh.triangles(1, t));
     const Vec c = mesh.vertices.col(mesh.triangles(2, t));
     return Vec((b - a).cross(c - a).normalized());
   };
@@ -397,7 +442,8 @@ bool HasFoldedNeighbours(const TriangleMesh& mesh) {
     const auto it = edge_triangle.find({edge.second, edge.first});
     if (it == edge_triangle.end()) continue;
     if (normal(t).dot(normal(it->second)) < std::cos(175.0 * M_PI / 180.0)) {
-      std::printf("triangles %ld and %ld folded onto each other\n", static_cast<long>(t), static_cast<long>(it->second));
+      std::printf("triangles %ld and %ld folded onto each other\n", static_cast<long>(t),
+                  static_cast<long>(it->second));
       return true;
     }
   }
@@ -412,13 +458,17 @@ TEST(SharpenFeatures, UnionOfBoxesOnShiftedGridsHasNoTurnedOverOrFoldedTriangles
   const Vec c2(0.031, 0.021, 0.0053), size2(0.05, 0.03, 0.03), b2 = size2 / 2;
   const Eigen::AngleAxisd rot2(0.5, Vec(0.2, 0.1, 1).normalized());
   const Eigen::Matrix3d R1 = Eigen::Matrix3d::Identity(), R2 = rot2.toRotationMatrix();
-  const CompiledSolid solid = CompiledSolid::Compile(
-      ImplicitNode(UnionParams{}, {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
-  const Sdf sdf = [&](const Vec& p) { return std::min(BoxDistance(p, c1, R1, b1), BoxDistance(p, c2, R2, b2)); };
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(
+      UnionParams{},
+      {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
+  const Sdf sdf = [&](const Vec& p) {
+    return std::min(BoxDistance(p, c1, R1, b1), BoxDistance(p, c2, R2, b2));
+  };
   for (double h : {0.003, 0.004, 0.005}) {
     for (int shift = 0; shift < 4; ++shift) {
       const Vec offset = shift * Vec(0.00031, 0.00017, 0.00023);
-      const Eigen::AlignedBox3d bounds(Vec(-0.05, -0.035, -0.035) + offset, Vec(0.07, 0.06, 0.04) + offset);
+      const Eigen::AlignedBox3d bounds(Vec(-0.05, -0.035, -0.035) + offset,
+                                       Vec(0.07, 0.06, 0.04) + offset);
       SurfaceMeshSettings s;
       s.bounds = bounds;
       s.cell_size = h;
@@ -444,7 +494,9 @@ TEST(SharpenFeatures, PlatformSharpenedAcrossResolutionsPassesTheSurfaceCheck) {
   // Grid vertices at whole (4 mm) or half (9 mm) multiples of h from the origin, around the box
   // the CLI meshes (FindBounds, padded by two cells).
   for (const auto& [h, half] : {std::pair{0.004, false}, std::pair{0.009, true}}) {
-    Eigen::AlignedBox3d bounds = FindBounds(platform, FindBounds(platform, Eigen::AlignedBox3d(Vec::Constant(-10), Vec::Constant(10)), 0.01), h);
+    Eigen::AlignedBox3d bounds = FindBounds(
+        platform,
+        FindBounds(platform, Eigen::AlignedBox3d(Vec::Constant(-10), Vec::Constant(10)), 0.01), h);
     for (int a = 0; a < 3; ++a) {
       double lo = std::floor((bounds.min()[a] - 2 * h) / h) * h;
       long n = std::lround((std::ceil((bounds.max()[a] + 2 * h) / h) * h - lo) / h);
@@ -470,19 +522,26 @@ TEST(SharpenFeatures, SphereIsNotMadeWorse) {
   std::mt19937 rng(11);
   std::normal_distribution<double> normal;
   std::vector<Vec> samples;
-  for (int i = 0; i < 300; ++i) samples.push_back(radius * Vec(normal(rng), normal(rng), normal(rng)).normalized());
+  for (int i = 0; i < 300; ++i)
+    samples.push_back(radius * Vec(normal(rng), normal(rng), normal(rng)).normalized());
   for (double h : {0.01, 0.004}) {
-    const Pair r = MeshBoth(solid, Eigen::AlignedBox3d(Vec::Constant(-0.06), Vec::Constant(0.06)), h);
+    const Pair r =
+        MeshBoth(solid, Eigen::AlignedBox3d(Vec::Constant(-0.06), Vec::Constant(0.06)), h);
     ExpectSameTopology(r);
     EXPECT_EQ(EulerOfClosedManifold(r.sharp), 2);
     EXPECT_EQ(CountTurnedOver(r.sharp, sdf), 0);
     const double plain_out = MeshToSurface(r.plain, sdf), sharp_out = MeshToSurface(r.sharp, sdf);
-    const double plain_in = PointsToMesh(samples, r.plain), sharp_in = PointsToMesh(samples, r.sharp);
-    std::printf("sphere h %g: surface->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; features %ld moved %ld\n", h,
-                plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.feature_vertices, r.stats.vertices_moved);
+    const double plain_in = PointsToMesh(samples, r.plain),
+                 sharp_in = PointsToMesh(samples, r.sharp);
+    std::printf(
+        "sphere h %g: surface->mesh %.3g -> %.3g cells, mesh->surface %.3g -> %.3g cells; features "
+        "%ld moved %ld\n",
+        h, plain_in / h, sharp_in / h, plain_out / h, sharp_out / h, r.stats.feature_vertices,
+        r.stats.vertices_moved);
     EXPECT_LE(sharp_out, plain_out * (1 + 1e-9));
     EXPECT_LE(sharp_in, plain_in * 1.05);
-    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i) EXPECT_NEAR(r.sharp.vertices.col(i).norm(), radius, 1e-4 * h);
+    for (Eigen::Index i = 0; i < r.sharp.vertices.cols(); ++i)
+      EXPECT_NEAR(r.sharp.vertices.col(i).norm(), radius, 1e-4 * h);
   }
 }
 

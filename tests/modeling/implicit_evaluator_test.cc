@@ -4,14 +4,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/implicit_evaluator.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <new>
 #include <random>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 // Counts every operator new in this test executable (the evaluator must not allocate).
 // GCC cannot see that the replaced new and delete below pair malloc with free.
@@ -32,7 +32,9 @@ namespace {
 
 constexpr int kNumNodeTypes = static_cast<int>(std::variant_size_v<NodeParams>);
 
-double Uniform(std::mt19937& rng, double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
+double Uniform(std::mt19937& rng, double lo, double hi) {
+  return std::uniform_real_distribution<double>(lo, hi)(rng);
+}
 
 Eigen::Vector3d RandomVector(std::mt19937& rng, double half) {
   return {Uniform(rng, -half, half), Uniform(rng, -half, half), Uniform(rng, -half, half)};
@@ -50,20 +52,26 @@ Eigen::Vector3d RandomDirection(std::mt19937& rng) {
 NodeParams RandomParams(int type, std::mt19937& rng) {
   auto len = [&](double lo = 0.02, double hi = 0.08) { return Uniform(rng, lo, hi); };
   switch (type) {
-    case 0: return SphereParams{len()};
-    case 1: return BoxParams{Eigen::Vector3d(len(), len(), len())};
+    case 0:
+      return SphereParams{len()};
+    case 1:
+      return BoxParams{Eigen::Vector3d(len(), len(), len())};
     case 2: {
       const Eigen::Vector3d size(len(), len(), len());
       return RoundedBoxParams{size, Uniform(rng, 0.0, 0.5 * size.minCoeff())};
     }
-    case 3: return CylinderParams{len(0.01, 0.05), len()};
-    case 4: return CapsuleParams{RandomVector(rng, 0.04), RandomVector(rng, 0.04), len(0.01, 0.03)};
-    case 5: return ConeParams{len(0.0, 0.05), len(0.01, 0.05), len()};
+    case 3:
+      return CylinderParams{len(0.01, 0.05), len()};
+    case 4:
+      return CapsuleParams{RandomVector(rng, 0.04), RandomVector(rng, 0.04), len(0.01, 0.03)};
+    case 5:
+      return ConeParams{len(0.0, 0.05), len(0.01, 0.05), len()};
     case 6: {
       const double big = len(0.03, 0.06);
       return TorusParams{big, Uniform(rng, 0.005, big)};
     }
-    case 7: return HalfSpaceParams{RandomDirection(rng), Uniform(rng, -0.03, 0.03)};
+    case 7:
+      return HalfSpaceParams{RandomDirection(rng), Uniform(rng, -0.03, 0.03)};
     case 8: {
       // A random star-shaped (hence simple) polygon around the origin.
       ExtrusionParams p;
@@ -76,19 +84,30 @@ NodeParams RandomParams(int type, std::mt19937& rng) {
       p.height = len();
       return p;
     }
-    case 9: return UnionParams{};
-    case 10: return IntersectionParams{};
-    case 11: return DifferenceParams{};
-    case 12: return SmoothUnionParams{len(0.0, 0.03)};
-    case 13: return SmoothIntersectionParams{len(0.0, 0.03)};
-    case 14: return SmoothDifferenceParams{len(0.0, 0.03)};
-    case 15: return OffsetParams{Uniform(rng, -0.01, 0.02)};
-    case 16: return ShellParams{len(0.002, 0.01)};
-    case 17: return TranslateParams{RandomVector(rng, 0.05)};
-    case 18: return RotateParams{RandomDirection(rng), Uniform(rng, -M_PI, M_PI)};
+    case 9:
+      return UnionParams{};
+    case 10:
+      return IntersectionParams{};
+    case 11:
+      return DifferenceParams{};
+    case 12:
+      return SmoothUnionParams{len(0.0, 0.03)};
+    case 13:
+      return SmoothIntersectionParams{len(0.0, 0.03)};
+    case 14:
+      return SmoothDifferenceParams{len(0.0, 0.03)};
+    case 15:
+      return OffsetParams{Uniform(rng, -0.01, 0.02)};
+    case 16:
+      return ShellParams{len(0.002, 0.01)};
+    case 17:
+      return TranslateParams{RandomVector(rng, 0.05)};
+    case 18:
+      return RotateParams{RandomDirection(rng), Uniform(rng, -M_PI, M_PI)};
     case 19: {
       if (rng() % 2) return ScaleParams{Eigen::Vector3d::Constant(Uniform(rng, 0.5, 2.0))};
-      return ScaleParams{Eigen::Vector3d(Uniform(rng, 0.5, 2.0), Uniform(rng, 0.5, 2.0), Uniform(rng, 0.5, 2.0))};
+      return ScaleParams{
+          Eigen::Vector3d(Uniform(rng, 0.5, 2.0), Uniform(rng, 0.5, 2.0), Uniform(rng, 0.5, 2.0))};
     }
     case 20: {
       MirrorParams p;
@@ -119,7 +138,8 @@ ImplicitNode RandomLeaf(std::mt19937& rng) {
   // Half-spaces are rare: they make every tree unbounded.
   int type = static_cast<int>(rng() % 9);
   if (type == 7 && rng() % 3) type = 0;
-  return ImplicitNode(TranslateParams{RandomVector(rng, 0.03)}, {ImplicitNode(RandomParams(type, rng))});
+  return ImplicitNode(TranslateParams{RandomVector(rng, 0.03)},
+                      {ImplicitNode(RandomParams(type, rng))});
 }
 
 // A node of `type` whose children are random leaves.
@@ -134,8 +154,9 @@ ImplicitNode ExampleOf(int type, std::mt19937& rng) {
 ImplicitNode RandomTree(std::mt19937& rng, int depth) {
   if (depth == 0 || rng() % 4 == 0) return RandomLeaf(rng);
   ImplicitNode node(RandomParams(9 + static_cast<int>(rng() % (kNumNodeTypes - 9)), rng));
-  const int children = 1 + static_cast<int>(rng() % 3) + (std::holds_alternative<DifferenceParams>(node.params) ||
-                                                          std::holds_alternative<SmoothDifferenceParams>(node.params));
+  const int children = 1 + static_cast<int>(rng() % 3) +
+                       (std::holds_alternative<DifferenceParams>(node.params) ||
+                        std::holds_alternative<SmoothDifferenceParams>(node.params));
   for (int i = 0; i < children; ++i) node.children.push_back(RandomTree(rng, depth - 1));
   return node;
 }
@@ -150,7 +171,8 @@ TEST(CompiledSolid, MatchesTreeWalkOnRandomTrees) {
       Eigen::Vector3d g;
       const double expected = EvaluateTree(tree, p);
       ASSERT_NEAR(solid.Value(p), expected, 1e-12 * (1 + std::abs(expected))) << "tree " << t;
-      ASSERT_NEAR(solid.ValueAndGradient(p, &g), expected, 1e-12 * (1 + std::abs(expected))) << "tree " << t;
+      ASSERT_NEAR(solid.ValueAndGradient(p, &g), expected, 1e-12 * (1 + std::abs(expected)))
+          << "tree " << t;
     }
   }
 }
@@ -164,7 +186,8 @@ TEST(CompiledSolid, MatchesTreeWalkForEveryNodeType) {
       for (int i = 0; i < 50; ++i) {
         const Eigen::Vector3d p = RandomVector(rng, 0.1);
         const double expected = EvaluateTree(tree, p);
-        ASSERT_NEAR(solid.Value(p), expected, 1e-12 * (1 + std::abs(expected))) << NodeTypeName(tree.params);
+        ASSERT_NEAR(solid.Value(p), expected, 1e-12 * (1 + std::abs(expected)))
+            << NodeTypeName(tree.params);
       }
     }
   }
@@ -199,8 +222,8 @@ TEST(CompiledSolid, GradientMatchesFiniteDifferencesForEveryNodeType) {
         }
         ++checked;
         ASSERT_LT((gradient - central).norm(), 1e-5)
-            << NodeTypeName(tree.params) << " at " << p.transpose() << ": " << gradient.transpose() << " vs "
-            << central.transpose();
+            << NodeTypeName(tree.params) << " at " << p.transpose() << ": " << gradient.transpose()
+            << " vs " << central.transpose();
       }
     }
     EXPECT_LT(skipped, checked / 10) << NodeTypeName(RandomParams(type, rng)) << ": too many kinks";
@@ -233,8 +256,8 @@ TEST(CompiledSolid, IntervalBoundsContainSampledValues) {
           for (int k = 0; k < 3; ++k) p[k] = Uniform(rng, box.min()[k], box.max()[k]);
         }
         const double v = EvaluateTree(tree, p);
-        ASSERT_TRUE(bounds.Contains(v)) << "tree " << t << " value " << v << " outside [" << bounds.lo << ", "
-                                        << bounds.hi << "]";
+        ASSERT_TRUE(bounds.Contains(v)) << "tree " << t << " value " << v << " outside ["
+                                        << bounds.lo << ", " << bounds.hi << "]";
         if (cls == BoxClass::kInside) {
           ASSERT_LT(v, 0.0);
         }
@@ -258,7 +281,8 @@ TEST(CompiledSolid, ClassifiesBoxesAroundASphere) {
   const Eigen::Vector3d on(0.1, 0.0, 0.0);
   EXPECT_EQ(solid.Classify(Eigen::AlignedBox3d(on - small, on + small)), BoxClass::kAmbiguous);
   // Interval arithmetic alone is tight for a sphere: the bound over a box touching the sphere.
-  const Interval b = solid.Bounds(Eigen::AlignedBox3d(Eigen::Vector3d(0.15, -0.01, -0.01), Eigen::Vector3d(0.17, 0.01, 0.01)));
+  const Interval b = solid.Bounds(
+      Eigen::AlignedBox3d(Eigen::Vector3d(0.15, -0.01, -0.01), Eigen::Vector3d(0.17, 0.01, 0.01)));
   EXPECT_NEAR(b.lo, 0.05, 1e-12);
   EXPECT_NEAR(b.hi, std::sqrt(0.17 * 0.17 + 2e-4) - 0.1, 1e-12);
 }
@@ -271,7 +295,8 @@ TEST(CompiledSolid, RandomTreesAreLipschitzOne) {
     const CompiledSolid solid = CompiledSolid::Compile(tree);
     for (int i = 0; i < 50; ++i) {
       const Eigen::Vector3d p = RandomVector(rng, 0.12), q = RandomVector(rng, 0.12);
-      ASSERT_LE(std::abs(solid.Value(p) - solid.Value(q)), (p - q).norm() * (1 + 1e-9) + 1e-15) << "tree " << t;
+      ASSERT_LE(std::abs(solid.Value(p) - solid.Value(q)), (p - q).norm() * (1 + 1e-9) + 1e-15)
+          << "tree " << t;
       Eigen::Vector3d g;
       solid.ValueAndGradient(p, &g);
       ASSERT_LE(g.norm(), 1 + 1e-9) << "tree " << t;
@@ -302,7 +327,8 @@ TEST(CompiledSolid, RigidTransformsOfPrimitivesAreExactDistances) {
         if (g.norm() == 0) continue;  // a point on the medial axis
         ++checked;
         EXPECT_NEAR(g.norm(), 1.0, 1e-9) << NodeTypeName(RandomParams(type, rng));
-        EXPECT_NEAR(solid.Value(p - f * g), 0.0, 1e-9) << NodeTypeName(RandomParams(type, rng)) << " f " << f;
+        EXPECT_NEAR(solid.Value(p - f * g), 0.0, 1e-9)
+            << NodeTypeName(RandomParams(type, rng)) << " f " << f;
       }
       EXPECT_GT(checked, 10);
     }
@@ -343,7 +369,8 @@ TEST(CompiledSolid, RejectsTreeDeeperThanTheStack) {
 
 TEST(CompiledSolid, CompileValidates) {
   try {
-    CompiledSolid::Compile(ImplicitNode(UnionParams{}, {ImplicitNode(SphereParams{-1}, {}, "bad")}), "/solids/3/root");
+    CompiledSolid::Compile(ImplicitNode(UnionParams{}, {ImplicitNode(SphereParams{-1}, {}, "bad")}),
+                           "/solids/3/root");
     FAIL() << "no ModelError";
   } catch (const ModelError& e) {
     EXPECT_EQ(e.path(), "/solids/3/root/children/0");
@@ -357,7 +384,8 @@ TEST(CompiledSolid, EmptySolidIsOutsideEverywhere) {
   EXPECT_EQ(empty.Value(Eigen::Vector3d::Zero()), INFINITY);
   EXPECT_EQ(empty.ValueAndGradient(Eigen::Vector3d::Zero(), &g), INFINITY);
   EXPECT_EQ(g, Eigen::Vector3d::Zero());
-  EXPECT_EQ(empty.Classify(Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones())), BoxClass::kOutside);
+  EXPECT_EQ(empty.Classify(Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones())),
+            BoxClass::kOutside);
 }
 
 TEST(CompiledSolid, BatchMatchesSinglePoints) {

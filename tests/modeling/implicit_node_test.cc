@@ -65,7 +65,8 @@ TEST(ImplicitNodePrimitive, RoundedBoxIsInnerBoxDilated) {
   std::mt19937 rng(3);
   for (int i = 0; i < 500; ++i) {
     const Eigen::Vector3d p = RandomPoint(rng, 0.1);
-    EXPECT_NEAR(EvaluateTree(rounded, p), BoxDistance(p, size / 2 - Eigen::Vector3d::Constant(r)) - r, 1e-15);
+    EXPECT_NEAR(EvaluateTree(rounded, p),
+                BoxDistance(p, size / 2 - Eigen::Vector3d::Constant(r)) - r, 1e-15);
   }
 }
 
@@ -135,15 +136,16 @@ TEST(ImplicitNodePrimitive, HalfSpaceIsSignedPlaneDistance) {
 // Profile of a solid of revolution sampled in the (ρ, z) half-plane; the sign comes from an
 // independent inside test.
 TEST(ImplicitNodePrimitive, ConeMatchesSampledProfile) {
-  for (const auto& [rb, rt] : {std::pair{0.05, 0.0}, std::pair{0.02, 0.045}, std::pair{0.03, 0.03}}) {
+  for (const auto& [rb, rt] :
+       {std::pair{0.05, 0.0}, std::pair{0.02, 0.045}, std::pair{0.03, 0.03}}) {
     const double h = 0.08;
     const ImplicitNode cone(ConeParams{rb, rt, h});
     std::vector<Eigen::Vector3d> profile;  // (ρ, z, 0)
     const int n = 20000;
     for (int i = 0; i <= n; ++i) {
       const double t = double(i) / n;
-      profile.emplace_back(rb * t, -h / 2, 0);               // bottom disk
-      profile.emplace_back(rt * t, h / 2, 0);                // top disk
+      profile.emplace_back(rb * t, -h / 2, 0);                      // bottom disk
+      profile.emplace_back(rt * t, h / 2, 0);                       // top disk
       profile.emplace_back(rb + (rt - rb) * t, -h / 2 + h * t, 0);  // slanted side
     }
     const double spacing = std::hypot(h, rt - rb) / n + 0.05 / n;
@@ -178,7 +180,8 @@ TEST(ImplicitNodePrimitive, ExtrusionMatchesSampledProfileAndCaps) {
   std::vector<Eigen::Vector3d> boundary;
   const int n = 5000;
   for (size_t e = 0; e < params.profile.size(); ++e) {
-    const Eigen::Vector2d a = params.profile[e], b = params.profile[(e + 1) % params.profile.size()];
+    const Eigen::Vector2d a = params.profile[e],
+                          b = params.profile[(e + 1) % params.profile.size()];
     for (int i = 0; i < n; ++i) {
       const Eigen::Vector2d q = a + (b - a) * (double(i) / n);
       boundary.emplace_back(q.x(), q.y(), 0);
@@ -191,7 +194,8 @@ TEST(ImplicitNodePrimitive, ExtrusionMatchesSampledProfileAndCaps) {
   for (int i = 0; i < 300; ++i) {
     const Eigen::Vector3d p(u(rng), u(rng), uz(rng));
     const bool inside_2d = InsideByWinding(params.profile, p.head<2>());
-    const double d2 = (inside_2d ? -1 : 1) * NearestDistance(Eigen::Vector3d(p.x(), p.y(), 0), boundary);
+    const double d2 =
+        (inside_2d ? -1 : 1) * NearestDistance(Eigen::Vector3d(p.x(), p.y(), 0), boundary);
     const double dz = std::abs(p.z()) - params.height / 2;
     double expected;
     if (d2 < 0 && dz < 0) {
@@ -214,15 +218,17 @@ TEST(ImplicitNodeTree, TransformsMoveThePrimitive) {
   ImplicitNode moved(TranslateParams{Eigen::Vector3d(1, 2, 3)}, {rotated});
   std::mt19937 rng(10);
   for (int i = 0; i < 100; ++i) {
-    const Eigen::Vector3d q = RandomPoint(rng, 0.3);  // in the scaled box frame (size 0.2, 0.08, 0.04)
+    const Eigen::Vector3d q =
+        RandomPoint(rng, 0.3);  // in the scaled box frame (size 0.2, 0.08, 0.04)
     const Eigen::Vector3d p = Eigen::Vector3d(1, 2, 3) + Eigen::Vector3d(-q.y(), q.x(), q.z());
     EXPECT_NEAR(EvaluateTree(moved, p), BoxDistance(q, Eigen::Vector3d(0.1, 0.04, 0.02)), 1e-14);
   }
 }
 
 TEST(ImplicitNodeTree, CountsNodes) {
-  ImplicitNode tree(UnionParams{}, {ImplicitNode(SphereParams{0.1}),
-                                    ImplicitNode(TranslateParams{}, {ImplicitNode(SphereParams{0.1})})});
+  ImplicitNode tree(UnionParams{},
+                    {ImplicitNode(SphereParams{0.1}),
+                     ImplicitNode(TranslateParams{}, {ImplicitNode(SphereParams{0.1})})});
   EXPECT_EQ(CountNodes(tree), 4);
   EXPECT_STREQ(NodeTypeName(tree.params), "union");
   EXPECT_TRUE(IsPrimitive(tree.children[0].params));
@@ -243,7 +249,8 @@ ModelError ValidationError(const ImplicitNode& root, const std::string& root_pat
 TEST(ImplicitNodeValidation, NegativeRadiusNamesNodeAndField) {
   ImplicitNode bad(SphereParams{-0.1}, {}, "ball");
   bad.name = "Ball joint";
-  ImplicitNode root(UnionParams{}, {ImplicitNode(BoxParams{}), ImplicitNode(TranslateParams{}, {bad})}, "root");
+  ImplicitNode root(UnionParams{},
+                    {ImplicitNode(BoxParams{}), ImplicitNode(TranslateParams{}, {bad})}, "root");
   const ModelError e = ValidationError(root, "/solids/0/root");
   EXPECT_EQ(e.path(), "/solids/0/root/children/1/children/0");
   EXPECT_EQ(e.field(), "radius");
@@ -310,7 +317,8 @@ TEST(ImplicitNodeValidation, RejectsEachBadField) {
 }
 
 TEST(ImplicitNodeValidation, RejectsRepeatedId) {
-  const ImplicitNode root(UnionParams{}, {ImplicitNode(SphereParams{0.1}, {}, "x"), ImplicitNode(BoxParams{}, {}, "x")});
+  const ImplicitNode root(UnionParams{}, {ImplicitNode(SphereParams{0.1}, {}, "x"),
+                                          ImplicitNode(BoxParams{}, {}, "x")});
   const ModelError e = ValidationError(root);
   EXPECT_EQ(e.field(), "id");
   EXPECT_EQ(e.path(), "/children/1");
@@ -366,7 +374,8 @@ TEST(ImplicitNodeValidation, TreeOverTheNodeLimitIsRefusedNamingTheFirstNodePast
 TEST(ImplicitNodeValidation, AcceptsValidTree) {
   ExtrusionParams triangle;
   triangle.profile = {{0, 0}, {0.1, 0}, {0, 0.1}};
-  const ImplicitNode root(DifferenceParams{}, {ImplicitNode(triangle), ImplicitNode(SphereParams{0.01})});
+  const ImplicitNode root(DifferenceParams{},
+                          {ImplicitNode(triangle), ImplicitNode(SphereParams{0.01})});
   EXPECT_NO_THROW(ValidateTree(root));
 }
 

@@ -3,12 +3,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/scene_io.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
 #include <random>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
 
@@ -63,7 +63,8 @@ TEST(SceneIo, PlatformLoadsWithTheFig7Parts) {
   EXPECT_GT(platform.Value(Eigen::Vector3d(0.05, 0.02, -0.03)), 0.0);
   // Four bolt holes through the bracket, mirrored in y, and two load holes in the plate.
   for (double y : {-0.065, 0.065}) {
-    for (double z : {-0.035, -0.115}) EXPECT_GT(platform.Value(Eigen::Vector3d(0.005, y, z)), 0.0) << y << " " << z;
+    for (double z : {-0.035, -0.115})
+      EXPECT_GT(platform.Value(Eigen::Vector3d(0.005, y, z)), 0.0) << y << " " << z;
     EXPECT_GT(platform.Value(Eigen::Vector3d(0.27, y > 0 ? 0.06 : -0.06, 0.005)), 0.0);
   }
   EXPECT_LT(platform.Value(Eigen::Vector3d(0.005, 0.0, -0.035)), 0.0);
@@ -121,17 +122,28 @@ TEST(SceneIo, EveryNodeTypeRoundTrips) {
   ring.step_angle = 0.3;
   const ImplicitNode s(SphereParams{0.1 / 3});
   std::vector<ImplicitNode> all = {
-      s, ImplicitNode(BoxParams{Eigen::Vector3d(0.1, 0.2, 0.3)}),
-      ImplicitNode(RoundedBoxParams{Eigen::Vector3d(0.1, 0.2, 0.3), 0.01}), ImplicitNode(CylinderParams{0.01, 0.02}),
+      s,
+      ImplicitNode(BoxParams{Eigen::Vector3d(0.1, 0.2, 0.3)}),
+      ImplicitNode(RoundedBoxParams{Eigen::Vector3d(0.1, 0.2, 0.3), 0.01}),
+      ImplicitNode(CylinderParams{0.01, 0.02}),
       ImplicitNode(CapsuleParams{Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(4, 5, 6), 0.5}),
-      ImplicitNode(ConeParams{0.1, 0.2, 0.3}), ImplicitNode(TorusParams{0.2, 0.1}),
-      ImplicitNode(HalfSpaceParams{Eigen::Vector3d(0, 1, 1), 0.2}), ImplicitNode(extrusion),
-      ImplicitNode(UnionParams{}, {s}), ImplicitNode(IntersectionParams{}, {s}), ImplicitNode(DifferenceParams{}, {s, s}),
-      ImplicitNode(SmoothUnionParams{0.01}, {s}), ImplicitNode(SmoothIntersectionParams{0.02}, {s}),
-      ImplicitNode(SmoothDifferenceParams{0.03}, {s, s}), ImplicitNode(OffsetParams{-0.01}, {s}),
-      ImplicitNode(ShellParams{0.002}, {s}), ImplicitNode(TranslateParams{Eigen::Vector3d(1, 2, 3)}, {s}),
+      ImplicitNode(ConeParams{0.1, 0.2, 0.3}),
+      ImplicitNode(TorusParams{0.2, 0.1}),
+      ImplicitNode(HalfSpaceParams{Eigen::Vector3d(0, 1, 1), 0.2}),
+      ImplicitNode(extrusion),
+      ImplicitNode(UnionParams{}, {s}),
+      ImplicitNode(IntersectionParams{}, {s}),
+      ImplicitNode(DifferenceParams{}, {s, s}),
+      ImplicitNode(SmoothUnionParams{0.01}, {s}),
+      ImplicitNode(SmoothIntersectionParams{0.02}, {s}),
+      ImplicitNode(SmoothDifferenceParams{0.03}, {s, s}),
+      ImplicitNode(OffsetParams{-0.01}, {s}),
+      ImplicitNode(ShellParams{0.002}, {s}),
+      ImplicitNode(TranslateParams{Eigen::Vector3d(1, 2, 3)}, {s}),
       ImplicitNode(RotateParams{Eigen::Vector3d(0, 1, 0), 0.7}, {s}),
-      ImplicitNode(ScaleParams{Eigen::Vector3d(1, 2, 3)}, {s}), ImplicitNode(mirror, {s}), ImplicitNode(line, {s}),
+      ImplicitNode(ScaleParams{Eigen::Vector3d(1, 2, 3)}, {s}),
+      ImplicitNode(mirror, {s}),
+      ImplicitNode(line, {s}),
       ImplicitNode(ring, {s})};
   ASSERT_EQ(all.size(), std::variant_size_v<NodeParams>);
   ImplicitNode root(UnionParams{}, all, "root");
@@ -148,14 +160,17 @@ TEST(SceneIo, EveryNodeTypeRoundTrips) {
 }
 
 TEST(SceneIo, OptionalFieldsTakeTheirDefaults) {
-  const Scene scene = ParseScene(R"({"format": "spidarcad-scene", "version": 1, "solids": [{"name": "a", "root":
+  const Scene scene =
+      ParseScene(R"({"format": "spidarcad-scene", "version": 1, "solids": [{"name": "a", "root":
       {"type": "polar_array", "count": 8, "children": [{"type": "scale", "factors": 2,
         "children": [{"type": "half_space", "normal": [0, 0, 1]}]}]}}]})");
   const auto& ring = std::get<PolarArrayParams>(scene.solids[0].root.params);
   EXPECT_EQ(ring.axis, Eigen::Vector3d(0, 0, 1));
   EXPECT_DOUBLE_EQ(ring.step_angle, 2 * M_PI / 8);
-  EXPECT_EQ(std::get<ScaleParams>(scene.solids[0].root.children[0].params).factors, Eigen::Vector3d::Constant(2));
-  EXPECT_EQ(std::get<HalfSpaceParams>(scene.solids[0].root.children[0].children[0].params).offset, 0.0);
+  EXPECT_EQ(std::get<ScaleParams>(scene.solids[0].root.children[0].params).factors,
+            Eigen::Vector3d::Constant(2));
+  EXPECT_EQ(std::get<HalfSpaceParams>(scene.solids[0].root.children[0].children[0].params).offset,
+            0.0);
 }
 
 TEST(SceneIo, SyntaxErrorNamesFileLineAndColumn) {
@@ -175,7 +190,8 @@ TEST(SceneIo, SyntaxErrorNamesFileLineAndColumn) {
 }
 
 TEST(SceneIo, TruncatedFileNamesTheLastLine) {
-  const std::string path = WriteFile("truncated.json", "{\n  \"format\": \"spidarcad-scene\",\n  \"solids\": [\n");
+  const std::string path =
+      WriteFile("truncated.json", "{\n  \"format\": \"spidarcad-scene\",\n  \"solids\": [\n");
   const SceneError e = LoadError(path);
   EXPECT_EQ(e.line(), 4);
 }
@@ -183,12 +199,13 @@ TEST(SceneIo, TruncatedFileNamesTheLastLine) {
 const char* kHeader = "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n  \"solids\": [\n";
 
 TEST(SceneIo, NegativeRadiusNamesLineAndField) {
-  const std::string path = WriteFile("negative.json", std::string(kHeader) +
-                                                          "    {\"name\": \"s\", \"root\": {\"type\": \"union\", \"children\": [\n"
-                                                          "      {\"type\": \"box\", \"size\": [0.1, 0.1, 0.1]},\n"
-                                                          "      {\"type\": \"sphere\", \"id\": \"knob\",\n"
-                                                          "       \"radius\": -0.02}\n"
-                                                          "    ]}}\n  ]\n}\n");
+  const std::string path = WriteFile(
+      "negative.json", std::string(kHeader) +
+                           "    {\"name\": \"s\", \"root\": {\"type\": \"union\", \"children\": [\n"
+                           "      {\"type\": \"box\", \"size\": [0.1, 0.1, 0.1]},\n"
+                           "      {\"type\": \"sphere\", \"id\": \"knob\",\n"
+                           "       \"radius\": -0.02}\n"
+                           "    ]}}\n  ]\n}\n");
   const SceneError e = LoadError(path);
   EXPECT_EQ(e.pointer(), "/solids/0/root/children/1/radius");
   EXPECT_EQ(e.line(), 8);
@@ -200,9 +217,10 @@ TEST(SceneIo, NegativeRadiusNamesLineAndField) {
 }
 
 TEST(SceneIo, UnknownFieldIsRejectedWithItsPosition) {
-  const std::string path = WriteFile("typo.json", std::string(kHeader) +
-                                                      "    {\"name\": \"s\", \"root\":\n"
-                                                      "      {\"type\": \"sphere\", \"raduis\": 0.1}}\n  ]\n}\n");
+  const std::string path =
+      WriteFile("typo.json", std::string(kHeader) +
+                                 "    {\"name\": \"s\", \"root\":\n"
+                                 "      {\"type\": \"sphere\", \"raduis\": 0.1}}\n  ]\n}\n");
   const SceneError e = LoadError(path);
   EXPECT_EQ(e.pointer(), "/solids/0/root/raduis");
   EXPECT_EQ(e.line(), 6);
@@ -212,18 +230,20 @@ TEST(SceneIo, UnknownFieldIsRejectedWithItsPosition) {
 
 TEST(SceneIo, WrongTypeAndMissingFieldAreNamed) {
   {
-    const std::string path = WriteFile("wrong_type.json", std::string(kHeader) +
-                                                              "    {\"name\": \"s\", \"root\": {\"type\": \"cylinder\", "
-                                                              "\"radius\": \"big\", \"height\": 0.1}}\n  ]\n}\n");
+    const std::string path =
+        WriteFile("wrong_type.json", std::string(kHeader) +
+                                         "    {\"name\": \"s\", \"root\": {\"type\": \"cylinder\", "
+                                         "\"radius\": \"big\", \"height\": 0.1}}\n  ]\n}\n");
     const SceneError e = LoadError(path);
     EXPECT_EQ(e.pointer(), "/solids/0/root/radius");
     EXPECT_EQ(e.line(), 5);
     EXPECT_THAT(e.what(), HasSubstr("must be a number"));
   }
   {
-    const std::string path = WriteFile("missing.json", std::string(kHeader) +
-                                                           "    {\"name\": \"s\",\n     \"root\": {\"type\": \"cylinder\", "
-                                                           "\"radius\": 0.1}}\n  ]\n}\n");
+    const std::string path = WriteFile(
+        "missing.json", std::string(kHeader) +
+                            "    {\"name\": \"s\",\n     \"root\": {\"type\": \"cylinder\", "
+                            "\"radius\": 0.1}}\n  ]\n}\n");
     const SceneError e = LoadError(path);
     EXPECT_EQ(e.pointer(), "/solids/0/root");
     EXPECT_EQ(e.line(), 6);
@@ -231,8 +251,9 @@ TEST(SceneIo, WrongTypeAndMissingFieldAreNamed) {
     EXPECT_THAT(e.what(), HasSubstr("missing field 'height'"));
   }
   {
-    const std::string path = WriteFile("bad_type.json", std::string(kHeader) +
-                                                            "    {\"name\": \"s\", \"root\": {\"type\": \"blob\"}}\n  ]\n}\n");
+    const std::string path = WriteFile(
+        "bad_type.json",
+        std::string(kHeader) + "    {\"name\": \"s\", \"root\": {\"type\": \"blob\"}}\n  ]\n}\n");
     const SceneError e = LoadError(path);
     EXPECT_EQ(e.pointer(), "/solids/0/root/type");
     EXPECT_THAT(e.what(), HasSubstr("unknown node type 'blob'"));
@@ -240,12 +261,15 @@ TEST(SceneIo, WrongTypeAndMissingFieldAreNamed) {
 }
 
 TEST(SceneIo, WrongHeaderIsRejected) {
-  const SceneError format = LoadError(WriteFile("format.json", R"({"format": "other", "version": 1, "solids": []})"));
+  const SceneError format =
+      LoadError(WriteFile("format.json", R"({"format": "other", "version": 1, "solids": []})"));
   EXPECT_EQ(format.pointer(), "/format");
-  const SceneError version = LoadError(WriteFile("version.json", R"({"format": "spidarcad-scene", "version": 2, "solids": []})"));
+  const SceneError version = LoadError(
+      WriteFile("version.json", R"({"format": "spidarcad-scene", "version": 2, "solids": []})"));
   EXPECT_EQ(version.pointer(), "/version");
   EXPECT_THAT(version.what(), HasSubstr("unsupported scene version 2"));
-  const SceneError units = LoadError(WriteFile("units.json", R"({"format": "spidarcad-scene", "version": 1, "units": "mm", "solids": []})"));
+  const SceneError units = LoadError(WriteFile(
+      "units.json", R"({"format": "spidarcad-scene", "version": 1, "units": "mm", "solids": []})"));
   EXPECT_EQ(units.pointer(), "/units");
   const SceneError array = LoadError(WriteFile("array.json", "[1, 2]"));
   EXPECT_THAT(array.what(), HasSubstr("must be a JSON object"));
@@ -256,7 +280,6 @@ TEST(SceneIo, MissingFileIsNamed) {
   EXPECT_EQ(e.file(), kOut + "does_not_exist.json");
   EXPECT_THAT(e.what(), HasSubstr("cannot open"));
 }
-
 
 // Assembly parts (the optional "parts" array).
 
@@ -405,7 +428,8 @@ TEST(SceneIo, PartsRoundTripThroughSaveAndLoad) {
                           "position_tolerance": 0.001, "angle_tolerance": 0.05}]}]})");
   ASSERT_EQ(scene.parts.size(), 2u);
   EXPECT_TRUE(scene.parts[0].fixed);
-  EXPECT_EQ(scene.parts[0].rotation.coeffs(), Eigen::Quaterniond::Identity().coeffs());  // normalised
+  EXPECT_EQ(scene.parts[0].rotation.coeffs(),
+            Eigen::Quaterniond::Identity().coeffs());  // normalised
   const ScenePart& ball = scene.parts[1];
   EXPECT_FALSE(ball.fixed);
   const Eigen::Quaterniond expected(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 1, 0).normalized()));
@@ -416,7 +440,8 @@ TEST(SceneIo, PartsRoundTripThroughSaveAndLoad) {
   EXPECT_EQ(ball.seats[0].position_tolerance, 0.001);
   EXPECT_EQ(ball.seats[0].angle_tolerance, 0.05);
   // Rotation about (1,1,1) by 2π/3 maps x to y.
-  EXPECT_LT((ball.seats[0].rotation * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-15);
+  EXPECT_LT((ball.seats[0].rotation * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(),
+            1e-15);
 
   for (const Scene& original : {scene, LoadScene(kScenes + "assembly.json")}) {
     const std::string path = kOut + "round_trip_parts.json";
@@ -456,26 +481,29 @@ TEST(SceneIo, BadPartsAreNamedWithLineAndField) {
     const char* text;
   };
   const Case cases[] = {
-      {"    {\"name\": \"p\", \"solid\": \"a\"},\n    {\"name\": \"q\", \"solid\": \"nope\"}\n", "/parts/1/solid", 6,
-       "no solid named 'nope'"},
-      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"bdy\"}]}\n", "/parts/0/seats/0/on", 5,
-       "no part named 'bdy'"},
-      {"    {\"name\": \"p\", \"solid\": \"a\", \"kind\": \"glued\"}\n", "/parts/0/kind", 5, "\"fixed\" or \"graspable\""},
-      {"    {\"name\": \"p\", \"solid\": \"a\"},\n    {\"name\": \"p\", \"solid\": \"a\"}\n", "/parts/1/name", 6,
-       "duplicate part name 'p'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\"},\n    {\"name\": \"q\", \"solid\": \"nope\"}\n",
+       "/parts/1/solid", 6, "no solid named 'nope'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"bdy\"}]}\n",
+       "/parts/0/seats/0/on", 5, "no part named 'bdy'"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"kind\": \"glued\"}\n", "/parts/0/kind", 5,
+       "\"fixed\" or \"graspable\""},
+      {"    {\"name\": \"p\", \"solid\": \"a\"},\n    {\"name\": \"p\", \"solid\": \"a\"}\n",
+       "/parts/1/name", 6, "duplicate part name 'p'"},
       {"    {\"name\": \"p\", \"solid\": \"a\", \"positon\": [0, 0, 0]}\n", "/parts/0/positon", 5,
        "unknown field 'positon'"},
-      {"    {\"name\": \"p\", \"solid\": \"a\", \"quaternion\": [0, 0, 0, 0]}\n", "/parts/0/quaternion", 5,
-       "non-zero"},
-      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"p\"}]}\n", "/parts/0/seats/0/on", 5,
-       "cannot sit on itself"},
-      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"q\", \"angle_tolerance\": -1}]},\n"
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"quaternion\": [0, 0, 0, 0]}\n",
+       "/parts/0/quaternion", 5, "non-zero"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"p\"}]}\n",
+       "/parts/0/seats/0/on", 5, "cannot sit on itself"},
+      {"    {\"name\": \"p\", \"solid\": \"a\", \"seats\": [{\"on\": \"q\", \"angle_tolerance\": "
+       "-1}]},\n"
        "    {\"name\": \"q\", \"solid\": \"a\"}\n",
        "/parts/0/seats/0/angle_tolerance", 5, ">= 0"},
   };
   int index = 0;
   for (const Case& c : cases) {
-    const std::string path = WriteFile("bad_parts_" + std::to_string(index++) + ".json", head + c.parts + "  ]\n}\n");
+    const std::string path =
+        WriteFile("bad_parts_" + std::to_string(index++) + ".json", head + c.parts + "  ]\n}\n");
     const SceneError e = LoadError(path);
     EXPECT_EQ(e.pointer(), c.pointer) << c.parts;
     EXPECT_EQ(e.line(), c.line) << c.parts;
@@ -486,9 +514,11 @@ TEST(SceneIo, BadPartsAreNamedWithLineAndField) {
 
 TEST(SceneIo, SnapIsOptionalTakesDefaultsAndRoundTrips) {
   const std::string solids =
-      "\"solids\": [{\"name\": \"a\", \"root\": {\"type\": \"box\", \"size\": [0.02, 0.02, 0.02]}}]";
+      "\"solids\": [{\"name\": \"a\", \"root\": {\"type\": \"box\", \"size\": [0.02, 0.02, "
+      "0.02]}}]";
   // Absent: no snap (old files load as before).
-  const Scene plain = ParseScene("{\"format\": \"spidarcad-scene\", \"version\": 1, " + solids + "}");
+  const Scene plain =
+      ParseScene("{\"format\": \"spidarcad-scene\", \"version\": 1, " + solids + "}");
   EXPECT_FALSE(plain.snap.has_value());
   EXPECT_EQ(SceneToJson(plain).count("snap"), 0u);
   EXPECT_FALSE(LoadScene(kScenes + "platform.json").snap.has_value());
@@ -501,9 +531,11 @@ TEST(SceneIo, SnapIsOptionalTakesDefaultsAndRoundTrips) {
   EXPECT_EQ(defaults.snap->edge_radius, 0.005);
   EXPECT_EQ(defaults.snap->face_radius, 0.003);
   // Given values survive save and load bit for bit.
-  const Scene given = ParseScene("{\"format\": \"spidarcad-scene\", \"version\": 1, \"snap\": "
-                                 "{\"max_force\": 0.7, \"vertex_radius\": 0.011, \"edge_radius\": 0.0061, "
-                                 "\"face_radius\": 0.0023}, " + solids + "}");
+  const Scene given = ParseScene(
+      "{\"format\": \"spidarcad-scene\", \"version\": 1, \"snap\": "
+      "{\"max_force\": 0.7, \"vertex_radius\": 0.011, \"edge_radius\": 0.0061, "
+      "\"face_radius\": 0.0023}, " +
+      solids + "}");
   const std::string path = kOut + "snap_round_trip.json";
   SaveScene(given, path);
   const Scene back = LoadScene(path);
@@ -524,7 +556,8 @@ TEST(SceneIo, BadSnapIsNamedWithLineAndField) {
     const char* text;
   };
   const Case cases[] = {
-      {"  \"snap\": {\"vertex_radius\": -0.01}\n", "/snap/vertex_radius", "must be finite and > 0, got -0.01"},
+      {"  \"snap\": {\"vertex_radius\": -0.01}\n", "/snap/vertex_radius",
+       "must be finite and > 0, got -0.01"},
       {"  \"snap\": {\"max_force\": 0}\n", "/snap/max_force", "must be finite and > 0, got 0"},
       {"  \"snap\": {\"radius\": 0.01}\n", "/snap/radius", "unknown field 'radius'"},
       {"  \"snap\": {\"edge_radius\": \"big\"}\n", "/snap/edge_radius", "must be a number"},
@@ -532,7 +565,8 @@ TEST(SceneIo, BadSnapIsNamedWithLineAndField) {
   };
   int index = 0;
   for (const Case& c : cases) {
-    const std::string path = WriteFile("bad_snap_" + std::to_string(index++) + ".json", head + c.snap + "}\n");
+    const std::string path =
+        WriteFile("bad_snap_" + std::to_string(index++) + ".json", head + c.snap + "}\n");
     const SceneError e = LoadError(path);
     EXPECT_EQ(e.pointer(), c.pointer) << c.snap;
     EXPECT_EQ(e.line(), 4) << c.snap;

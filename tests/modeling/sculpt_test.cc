@@ -4,13 +4,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/sculpt.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <random>
 #include <set>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -49,12 +49,14 @@ long CheckClosedManifold(const TriangleMesh& mesh) {
   std::set<std::pair<int, int>> directed;
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
     for (int k = 0; k < 3; ++k) {
-      const int v = mesh.triangles(k, t), a = mesh.triangles((k + 1) % 3, t), b = mesh.triangles((k + 2) % 3, t);
+      const int v = mesh.triangles(k, t), a = mesh.triangles((k + 1) % 3, t),
+                b = mesh.triangles((k + 2) % 3, t);
       EXPECT_TRUE(directed.insert({v, a}).second) << "directed edge " << v << "->" << a << " twice";
       next_in_fan[{v, a}] = b;
     }
   }
-  for (const auto& [a, b] : directed) EXPECT_TRUE(directed.count({b, a})) << "open edge " << a << "-" << b;
+  for (const auto& [a, b] : directed)
+    EXPECT_TRUE(directed.count({b, a})) << "open edge " << a << "-" << b;
   std::map<int, int> fan_size;
   for (const auto& [key, b] : next_in_fan) ++fan_size[key.first];
   for (const auto& [v, size] : fan_size) {
@@ -66,14 +68,17 @@ long CheckClosedManifold(const TriangleMesh& mesh) {
     } while (at != start && steps <= size);
     EXPECT_EQ(steps, size) << "vertex " << v << " is not manifold";
   }
-  return static_cast<long>(mesh.vertices.cols()) - static_cast<long>(directed.size()) / 2 + mesh.triangles.cols();
+  return static_cast<long>(mesh.vertices.cols()) - static_cast<long>(directed.size()) / 2 +
+         mesh.triangles.cols();
 }
 
 double LongestEdge(const TriangleMesh& mesh) {
   double longest = 0.0;
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
     for (int k = 0; k < 3; ++k) {
-      longest = std::max(longest, (mesh.vertices.col(mesh.triangles(k, t)) - mesh.vertices.col(mesh.triangles((k + 1) % 3, t))).norm());
+      longest = std::max(longest, (mesh.vertices.col(mesh.triangles(k, t)) -
+                                   mesh.vertices.col(mesh.triangles((k + 1) % 3, t)))
+                                      .norm());
     }
   }
   return longest;
@@ -83,7 +88,8 @@ TEST(SculptMesh, IcosphereIsClosedOutwardAndOnTheSphere) {
   const TriangleMesh mesh = IcosphereMesh(0.05, 3);
   EXPECT_EQ(mesh.vertices.cols(), 10 * 64 + 2);
   EXPECT_EQ(CheckClosedManifold(mesh), 2);
-  for (Eigen::Index v = 0; v < mesh.vertices.cols(); ++v) EXPECT_NEAR(mesh.vertices.col(v).norm(), 0.05, 1e-15);
+  for (Eigen::Index v = 0; v < mesh.vertices.cols(); ++v)
+    EXPECT_NEAR(mesh.vertices.col(v).norm(), 0.05, 1e-15);
   // Inscribed polyhedron: a little below the ball's volume, converging to it.
   const double ball = 4.0 / 3.0 * kPi * std::pow(0.05, 3);
   EXPECT_LT(MeshVolume(mesh), ball);
@@ -91,7 +97,8 @@ TEST(SculptMesh, IcosphereIsClosedOutwardAndOnTheSphere) {
   const SculptMesh sculpt(mesh);
   EXPECT_NEAR(sculpt.volume(), MeshVolume(mesh), 1e-15);
   // Normals of a sphere point along the position.
-  for (int v = 0; v < sculpt.vertex_count(); ++v) EXPECT_GT(sculpt.normals()[v].dot(sculpt.positions()[v].normalized()), 0.999);
+  for (int v = 0; v < sculpt.vertex_count(); ++v)
+    EXPECT_GT(sculpt.normals()[v].dot(sculpt.positions()[v].normalized()), 0.999);
 }
 
 TEST(SculptMesh, RejectsOpenAndBadMeshes) {
@@ -109,10 +116,12 @@ TEST(SculptMesh, RejectsOpenAndBadMeshes) {
   SculptMesh sculpt(mesh);
   EXPECT_THROW(sculpt.UpdateStroke(Eigen::Isometry3d::Identity(), kPi / 4), std::logic_error);
   SculptToolSettings bad = Tool(SculptTool::kGrab, -0.01);
-  EXPECT_THROW(sculpt.BeginStroke(bad, Eigen::Isometry3d::Identity(), kPi / 2), std::invalid_argument);
+  EXPECT_THROW(sculpt.BeginStroke(bad, Eigen::Isometry3d::Identity(), kPi / 2),
+               std::invalid_argument);
   bad = Tool(SculptTool::kGrab, 0.01);
   bad.grasp_closed_angle = 2.0;
-  EXPECT_THROW(sculpt.BeginStroke(bad, Eigen::Isometry3d::Identity(), kPi / 2), std::invalid_argument);
+  EXPECT_THROW(sculpt.BeginStroke(bad, Eigen::Isometry3d::Identity(), kPi / 2),
+               std::invalid_argument);
 }
 
 TEST(SculptMesh, QueryBallMatchesBruteForce) {
@@ -167,7 +176,8 @@ TEST(SculptGrab, StrengthFollowsGraspAndStiffnessSharpensFalloff) {
   EXPECT_EQ(SculptGrabStrength(0.1, kPi / 4), 1.0);
   EXPECT_DOUBLE_EQ(SculptFalloffExponent(kReferenceSculptStiffness), 3.0);
   EXPECT_GT(SculptFalloffExponent(8 * kReferenceSculptStiffness), 5.9);
-  EXPECT_LT(SculptFalloffWeight(0.01, 0.02, SculptFalloffExponent(2000.0)), SculptFalloffWeight(0.01, 0.02, 3.0));
+  EXPECT_LT(SculptFalloffWeight(0.01, 0.02, SculptFalloffExponent(2000.0)),
+            SculptFalloffWeight(0.01, 0.02, 3.0));
   EXPECT_EQ(SculptFalloffWeight(0.02, 0.02, 3.0), 0.0);
 
   const TriangleMesh start = IcosphereMesh(0.05, 3);
@@ -177,7 +187,8 @@ TEST(SculptGrab, StrengthFollowsGraspAndStiffnessSharpensFalloff) {
   settings.grasp_controls_strength = true;
   SculptMesh sculpt(start);
   sculpt.BeginStroke(settings, Pose(Eigen::Matrix3d::Identity(), c), kPi / 2);
-  sculpt.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), c + dp), kPi / 2);  // open grip: holds nothing
+  sculpt.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), c + dp),
+                      kPi / 2);  // open grip: holds nothing
   EXPECT_EQ(sculpt.positions()[5], c);
   sculpt.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), c + dp), 3 * kPi / 8);  // half closed
   EXPECT_NEAR((sculpt.positions()[5] - (c + 0.5 * dp)).norm(), 0.0, 1e-15);
@@ -197,7 +208,8 @@ TEST(SculptTwist, RotatesAboutGripAxisByAngleTimesWeight) {
   const double alpha = 0.7, R = 0.03;
   sculpt.BeginStroke(Tool(SculptTool::kTwist, R), Pose(R0, c), kPi / 2);
   // Twist about z, plus a translation the twist tool ignores.
-  sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(alpha, z) * R0, c + Eigen::Vector3d(0.003, 0, 0)), kPi / 2);
+  sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(alpha, z) * R0, c + Eigen::Vector3d(0.003, 0, 0)),
+                      kPi / 2);
   int checked = 0;
   for (int v = 0; v < sculpt.vertex_count(); ++v) {
     const Eigen::Vector3d r0 = start.vertices.col(v) - c;
@@ -253,11 +265,13 @@ TEST(SculptStroke, ResultIndependentOfStepCount) {
   const TriangleMesh start = IcosphereMesh(0.05, 4);
   const Eigen::Vector3d c = start.vertices.col(100);
   const Eigen::Matrix3d R0 = FrameWithZ(c.normalized());
-  const Eigen::Isometry3d X_final = Pose(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 3).normalized()) * R0,
-                                         c + Eigen::Vector3d(0.012, -0.004, 0.009) + 0.01 * c.normalized());
+  const Eigen::Isometry3d X_final =
+      Pose(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 3).normalized()) * R0,
+           c + Eigen::Vector3d(0.012, -0.004, 0.009) + 0.01 * c.normalized());
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (SculptTool tool : {SculptTool::kGrab, SculptTool::kTwist, SculptTool::kBend, SculptTool::kPushPull, SculptTool::kSmooth}) {
+  for (SculptTool tool : {SculptTool::kGrab, SculptTool::kTwist, SculptTool::kBend,
+                          SculptTool::kPushPull, SculptTool::kSmooth}) {
     for (bool conserve : {false, true}) {
       SculptToolSettings settings = Tool(tool, 0.025);
       settings.conserve_volume = conserve;
@@ -266,8 +280,10 @@ TEST(SculptStroke, ResultIndependentOfStepCount) {
       one.UpdateStroke(X_final, 0.3);
       many.BeginStroke(settings, Pose(R0, c), 0.3);
       for (int step = 0; step < 40; ++step) {  // a wandering path
-        const Eigen::Isometry3d X = Pose(Eigen::AngleAxisd(0.8 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()) * R0,
-                                         c + 0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
+        const Eigen::Isometry3d X = Pose(
+            Eigen::AngleAxisd(0.8 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()) *
+                R0,
+            c + 0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
         many.UpdateStroke(X, 0.3);
       }
       many.UpdateStroke(X_final, 0.3);
@@ -332,7 +348,8 @@ TEST(SculptRefine, SplitsStretchedEdgesKeepingTheMeshClosedAndUndoRestoresIt) {
   sculpt.BeginStroke(settings, Pose(Eigen::Matrix3d::Identity(), c), kPi / 2);
   sculpt.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), c + 0.04 * c.normalized()), kPi / 2);
   const TriangleMesh stretched = sculpt.ToTriangleMesh();
-  ASSERT_GT(LongestEdge(stretched), 1.5 * max_edge);  // the stroke stretched edges well beyond the limit
+  ASSERT_GT(LongestEdge(stretched),
+            1.5 * max_edge);  // the stroke stretched edges well beyond the limit
   const double volume_before_refine = MeshVolume(stretched);
   const SculptEdit edit = sculpt.EndStroke();
   const TriangleMesh refined = sculpt.ToTriangleMesh();
@@ -382,7 +399,8 @@ TEST(SculptMesh, UndoesAndRedoesSeveralStrokesInOrder) {
   const double max_edge = 1.2 * LongestEdge(start);
   std::vector<SculptEdit> edits;
   std::vector<TriangleMesh> states = {start};
-  const SculptTool tools[] = {SculptTool::kGrab, SculptTool::kTwist, SculptTool::kPushPull, SculptTool::kGrab};
+  const SculptTool tools[] = {SculptTool::kGrab, SculptTool::kTwist, SculptTool::kPushPull,
+                              SculptTool::kGrab};
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d c = sculpt.positions()[10 + 50 * i];
     const Eigen::Matrix3d R0 = FrameWithZ(sculpt.normals()[10 + 50 * i]);
@@ -390,7 +408,8 @@ TEST(SculptMesh, UndoesAndRedoesSeveralStrokesInOrder) {
     settings.max_edge_length = max_edge;
     settings.conserve_volume = i % 2 == 1;
     sculpt.BeginStroke(settings, Pose(R0, c), kPi / 2);
-    sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(0.6, R0.col(2)) * R0, c + 0.03 * R0.col(2)), kPi / 2);
+    sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(0.6, R0.col(2)) * R0, c + 0.03 * R0.col(2)),
+                        kPi / 2);
     edits.push_back(sculpt.EndStroke());
     states.push_back(sculpt.ToTriangleMesh());
     EXPECT_NEAR(sculpt.volume(), MeshVolume(states.back()), 1e-15) << "stroke " << i;
@@ -424,16 +443,17 @@ TEST(SculptSmooth, ReducesNoisySphereDeviation) {
   SculptMesh sculpt(noisy);
   const Eigen::Vector3d c = noisy.vertices.col(321);
   const double R = 0.025;
-  auto Deviation = [&](const std::vector<Eigen::Vector3d>& points) {  // RMS of |p| - 0.05 within R/3
-    double sum = 0.0;
-    int n = 0;
-    for (int v = 0; v < noisy.vertices.cols(); ++v) {
-      if ((noisy.vertices.col(v) - c).norm() > R / 3) continue;
-      sum += std::pow(points[v].norm() - 0.05, 2);
-      ++n;
-    }
-    return std::sqrt(sum / n);
-  };
+  auto Deviation =
+      [&](const std::vector<Eigen::Vector3d>& points) {  // RMS of |p| - 0.05 within R/3
+        double sum = 0.0;
+        int n = 0;
+        for (int v = 0; v < noisy.vertices.cols(); ++v) {
+          if ((noisy.vertices.col(v) - c).norm() > R / 3) continue;
+          sum += std::pow(points[v].norm() - 0.05, 2);
+          ++n;
+        }
+        return std::sqrt(sum / n);
+      };
   const double before = Deviation(sculpt.positions());
   sculpt.BeginStroke(Tool(SculptTool::kSmooth, R), Pose(Eigen::Matrix3d::Identity(), c), kPi / 2);
   sculpt.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), c + Eigen::Vector3d(R, 0, 0)), kPi / 2);
@@ -446,7 +466,8 @@ TEST(SculptMesh, SculptedBlobPassesCheckSurfaceAndTetrahedralizes) {
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/clay.json");
   const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(0).root);
   SurfaceMeshSettings mesh_settings;
-  mesh_settings.bounds = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.15), Eigen::Vector3d::Constant(0.15));
+  mesh_settings.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.15), Eigen::Vector3d::Constant(0.15));
   mesh_settings.cell_size = 0.008;
   SculptMesh sculpt(MeshSurface(solid, mesh_settings));
   const double v0 = sculpt.volume();
@@ -466,11 +487,13 @@ TEST(SculptMesh, SculptedBlobPassesCheckSurfaceAndTetrahedralizes) {
   settings.tool = SculptTool::kTwist;
   settings.conserve_volume = true;
   sculpt.BeginStroke(settings, Pose(I, c2), kPi / 2);
-  sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ()).toRotationMatrix(), c2), kPi / 2);
+  sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ()).toRotationMatrix(), c2),
+                      kPi / 2);
   sculpt.EndStroke();
   settings.tool = SculptTool::kBend;
   sculpt.BeginStroke(settings, Pose(I, c2), kPi / 2);
-  sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix(), c2), kPi / 2);
+  sculpt.UpdateStroke(Pose(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix(), c2),
+                      kPi / 2);
   sculpt.EndStroke();
   const TriangleMesh sculpted = sculpt.ToTriangleMesh();
   EXPECT_GT(sculpted.vertices.cols(), 0);
@@ -494,7 +517,9 @@ TEST(StrokeWrench, ZeroAtStartLinearInDisplacementAndAllocationFree) {
   settings.radius = 0.02;
   settings.stiffness = 500.0;
   const double theta = 3 * kPi / 8;  // strength 0.5
-  EXPECT_FALSE(ComputeStrokeWrench(sculpt.force_model(), Pose(R0, c + Eigen::Vector3d(0.1, 0, 0)), 0.0).f_T_W.any());
+  EXPECT_FALSE(
+      ComputeStrokeWrench(sculpt.force_model(), Pose(R0, c + Eigen::Vector3d(0.1, 0, 0)), 0.0)
+          .f_T_W.any());
   sculpt.BeginStroke(settings, Pose(R0, c), theta);
   const StrokeForceModel model = sculpt.force_model();
   ASSERT_TRUE(model.active);
@@ -510,7 +535,9 @@ TEST(StrokeWrench, ZeroAtStartLinearInDisplacementAndAllocationFree) {
   // E = k s |Δp|²/2 (finite differences).
   const double h = 1e-7;
   for (int i = 0; i < 3; ++i) {
-    auto Energy = [&](const Eigen::Vector3d& p) { return 0.5 * 500.0 * 0.5 * (p - c).squaredNorm(); };
+    auto Energy = [&](const Eigen::Vector3d& p) {
+      return 0.5 * 500.0 * 0.5 * (p - c).squaredNorm();
+    };
     const Eigen::Vector3d e = h * Eigen::Vector3d::Unit(i);
     const double dE = (Energy(c + dp + e) - Energy(c + dp - e)) / (2 * h);
     EXPECT_NEAR(one.f_T_W[i], -dE, 1e-6);
@@ -522,8 +549,10 @@ TEST(StrokeWrench, ZeroAtStartLinearInDisplacementAndAllocationFree) {
   sculpt.BeginStroke(settings, Pose(R0, c), 0.0);
   const StrokeForceModel twist = sculpt.force_model();
   const Eigen::Vector3d z = R0.col(2);
-  const SculptWrench small = ComputeStrokeWrench(twist, Pose(Eigen::AngleAxisd(0.01, z) * R0, c), 0.0);
-  const SculptWrench twice = ComputeStrokeWrench(twist, Pose(Eigen::AngleAxisd(0.02, z) * R0, c), 0.0);
+  const SculptWrench small =
+      ComputeStrokeWrench(twist, Pose(Eigen::AngleAxisd(0.01, z) * R0, c), 0.0);
+  const SculptWrench twice =
+      ComputeStrokeWrench(twist, Pose(Eigen::AngleAxisd(0.02, z) * R0, c), 0.0);
   EXPECT_NEAR((small.m_T_W + 500.0 * 0.02 * 0.02 * 0.01 * z).norm(), 0.0, 1e-12);
   EXPECT_NEAR((twice.m_T_W - 2 * small.m_T_W).norm(), 0.0, 1e-12);
   EXPECT_EQ(small.f_T_W, Eigen::Vector3d::Zero());
@@ -535,7 +564,8 @@ TEST(StrokeWrench, ZeroAtStartLinearInDisplacementAndAllocationFree) {
     test_support::MallocCounter counter;
     for (int i = 0; i < 1000; ++i) {
       const Eigen::Isometry3d X = Pose(Eigen::AngleAxisd(1e-4 * i, z) * R0, c + 1e-6 * i * dp);
-      sum += ComputeStrokeWrench(twist, X, 0.1).m_T_W.norm() + ComputeStrokeWrench(model, X, 0.1).f_T_W.norm();
+      sum += ComputeStrokeWrench(twist, X, 0.1).m_T_W.norm() +
+             ComputeStrokeWrench(model, X, 0.1).f_T_W.norm();
       sculpt.UpdateStroke(X, 0.1);
     }
     EXPECT_EQ(counter.count(), 0);

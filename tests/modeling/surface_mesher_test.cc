@@ -4,14 +4,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/surface_mesher.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <set>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -24,13 +24,16 @@ namespace {
 // triangle is repeated. Returns the Euler characteristic V - E + F.
 long CheckClosedManifold(const TriangleMesh& mesh) {
   std::map<std::pair<int, int>, int> directed;
-  std::vector<std::map<int, int>> link(mesh.vertices.cols());  // per vertex: a -> b for triangles (v, a, b)
+  std::vector<std::map<int, int>> link(
+      mesh.vertices.cols());  // per vertex: a -> b for triangles (v, a, b)
   for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
     for (int k = 0; k < 3; ++k) {
-      const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t), c = mesh.triangles((k + 2) % 3, t);
+      const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t),
+                c = mesh.triangles((k + 2) % 3, t);
       EXPECT_NE(a, b);
       ++directed[{a, b}];
-      EXPECT_TRUE(link[a].emplace(b, c).second) << "vertex " << a << " has two triangles starting at " << b;
+      EXPECT_TRUE(link[a].emplace(b, c).second)
+          << "vertex " << a << " has two triangles starting at " << b;
     }
   }
   for (const auto& [edge, count] : directed) {
@@ -68,15 +71,19 @@ TEST(SurfaceMesher, SphereIsClosedGenusZeroWithTheRightVolume) {
   const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{r}));
   const double h = r / 20;
   SurfaceMeshStats stats;
-  const TriangleMesh mesh = MeshSurface(sphere, Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), h), &stats);
+  const TriangleMesh mesh = MeshSurface(
+      sphere, Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), h),
+      &stats);
   ASSERT_GT(mesh.triangles.cols(), 1000);
   EXPECT_EQ(CheckClosedManifold(mesh), 2);
   const double exact = 4.0 / 3.0 * M_PI * r * r * r;
   EXPECT_NEAR(MeshVolume(mesh), exact, 0.01 * exact);  // positive: outward orientation
   EXPECT_LT(MeshVolume(mesh), exact);                  // inscribed polyhedron of a convex solid
-  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) EXPECT_NEAR(mesh.vertices.col(i).norm(), r, 1e-9);
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i)
+    EXPECT_NEAR(mesh.vertices.col(i).norm(), r, 1e-9);
   const SurfaceError e = MeasureSurfaceError(sphere, mesh);
-  EXPECT_LT(e.max, 3 * h * h / (8 * r) + 1e-12);  // sagitta of an edge no longer than the cell diagonal
+  EXPECT_LT(e.max,
+            3 * h * h / (8 * r) + 1e-12);  // sagitta of an edge no longer than the cell diagonal
   // The interval bounds rule out most of the grid.
   EXPECT_LT(stats.evaluated_cells, stats.grid_cells / 4);
   EXPECT_EQ(stats.grid_cells, 48L * 48 * 48);
@@ -84,7 +91,8 @@ TEST(SurfaceMesher, SphereIsClosedGenusZeroWithTheRightVolume) {
 
 TEST(SurfaceMesher, TorusHasEulerCharacteristicZero) {
   const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.04, 0.012}));
-  const TriangleMesh mesh = MeshSurface(torus, Settings(Eigen::Vector3d(-0.06, -0.06, -0.02), Eigen::Vector3d(0.06, 0.06, 0.02), 0.002));
+  const TriangleMesh mesh = MeshSurface(torus, Settings(Eigen::Vector3d(-0.06, -0.06, -0.02),
+                                                        Eigen::Vector3d(0.06, 0.06, 0.02), 0.002));
   EXPECT_EQ(CheckClosedManifold(mesh), 0);
   const double exact = 2 * M_PI * M_PI * 0.04 * 0.012 * 0.012;
   EXPECT_NEAR(MeshVolume(mesh), exact, 0.02 * exact);
@@ -92,8 +100,10 @@ TEST(SurfaceMesher, TorusHasEulerCharacteristicZero) {
 
 TEST(SurfaceMesher, BoxCrossingTheBoundsIsClosedAlongThem) {
   // A 0.1 m cube cut by bounds at x = 0: the mesh is the closed half, volume 0.05 * 0.1 * 0.1.
-  const CompiledSolid box = CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d::Constant(0.1)}));
-  const TriangleMesh mesh = MeshSurface(box, Settings(Eigen::Vector3d(0.0, -0.06, -0.06), Eigen::Vector3d(0.06, 0.06, 0.06), 0.004));
+  const CompiledSolid box =
+      CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d::Constant(0.1)}));
+  const TriangleMesh mesh = MeshSurface(
+      box, Settings(Eigen::Vector3d(0.0, -0.06, -0.06), Eigen::Vector3d(0.06, 0.06, 0.06), 0.004));
   EXPECT_EQ(CheckClosedManifold(mesh), 2);
   EXPECT_NEAR(MeshVolume(mesh), 0.05 * 0.1 * 0.1, 0.05 * 0.05 * 0.1 * 0.1);
 }
@@ -101,12 +111,14 @@ TEST(SurfaceMesher, BoxCrossingTheBoundsIsClosedAlongThem) {
 TEST(SurfaceMesher, PlatformIsClosedWithSixHoles) {
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
-  const TriangleMesh mesh =
-      MeshSurface(platform, Settings(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02), 0.0015));
+  const TriangleMesh mesh = MeshSurface(
+      platform,
+      Settings(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02), 0.0015));
   // Genus 6 (four bolt holes, two load holes): χ = 2 - 2·6.
   EXPECT_EQ(CheckClosedManifold(mesh), -10);
   // Volume: plate + bracket + gusset minus holes, to a few percent (fillets, rounded edges).
-  const double plate = 0.3 * 0.2 * 0.01, bracket = 0.01 * 0.2 * 0.16, gusset = 0.5 * 0.195 * 0.142 * 0.01;
+  const double plate = 0.3 * 0.2 * 0.01, bracket = 0.01 * 0.2 * 0.16,
+               gusset = 0.5 * 0.195 * 0.142 * 0.01;
   const double holes = 4 * M_PI * 0.0055 * 0.0055 * 0.01 + 2 * M_PI * 0.004 * 0.004 * 0.01;
   const double approx = plate + bracket + gusset - holes;
   EXPECT_NEAR(MeshVolume(mesh), approx, 0.05 * approx);
@@ -120,7 +132,9 @@ double MinAngleDeg(const TriangleMesh& mesh, Eigen::Index t) {
   const double ab = (b - a).norm(), bc = (c - b).norm(), ca = (a - c).norm();
   if (ab == 0 || bc == 0 || ca == 0) return 0.0;
   auto angle = [](double opposite, double s1, double s2) {
-    return std::acos(std::clamp((s1 * s1 + s2 * s2 - opposite * opposite) / (2 * s1 * s2), -1.0, 1.0)) * 180 / M_PI;
+    return std::acos(
+               std::clamp((s1 * s1 + s2 * s2 - opposite * opposite) / (2 * s1 * s2), -1.0, 1.0)) *
+           180 / M_PI;
   };
   return std::min({angle(bc, ab, ca), angle(ca, ab, bc), angle(ab, bc, ca)});
 }
@@ -151,7 +165,9 @@ Defects FindDefects(const TriangleMesh& mesh, double cell) {
   const double tol = 1e-6 * cell;
   for (size_t i = 0; i < points.size(); ++i) {
     for (size_t j = i + 1; j < points.size() && points[j][0] - points[i][0] <= tol; ++j) {
-      if (std::abs(points[j][1] - points[i][1]) <= tol && std::abs(points[j][2] - points[i][2]) <= tol) ++d.duplicate_vertices;
+      if (std::abs(points[j][1] - points[i][1]) <= tol &&
+          std::abs(points[j][2] - points[i][2]) <= tol)
+        ++d.duplicate_vertices;
     }
   }
   return d;
@@ -160,8 +176,10 @@ Defects FindDefects(const TriangleMesh& mesh, double cell) {
 TEST(SurfaceMesher, GridAlignedBoxHasNoZeroAreaTrianglesOrDuplicateVertices) {
   // Faces at ±0.05 on a 5 mm grid centred on the bounds: the zero set runs through grid
   // vertices, where raw marching tetrahedra puts several vertices at one point.
-  const CompiledSolid box = CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d::Constant(0.1)}));
-  SurfaceMeshSettings s = Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), 0.005);
+  const CompiledSolid box =
+      CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d::Constant(0.1)}));
+  SurfaceMeshSettings s =
+      Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), 0.005);
   s.clean = false;
   const Defects raw = FindDefects(MeshSurface(box, s), s.cell_size);
   EXPECT_GT(raw.zero_area + raw.duplicate_vertices, 0);  // the case is a real one
@@ -183,7 +201,8 @@ TEST(SurfaceMesher, PlatformCleanMeshHasNoDegenerateTrianglesAndKeepsItsShape) {
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
   for (double cell : {0.004, 0.003}) {
-    SurfaceMeshSettings s = Settings(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02), cell);
+    SurfaceMeshSettings s =
+        Settings(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02), cell);
     s.clean = false;
     const TriangleMesh raw = MeshSurface(platform, s);
     const Defects raw_defects = FindDefects(raw, cell);
@@ -197,9 +216,10 @@ TEST(SurfaceMesher, PlatformCleanMeshHasNoDegenerateTrianglesAndKeepsItsShape) {
     EXPECT_GT(d.min_angle_deg, raw_defects.min_angle_deg) << "cell " << cell;
     // The kept vertices stay on the surface: the error stays near the raw mesh's, and the
     // volume moves by less than 1 % from the raw mesh's.
-    const double raw_error = MeasureSurfaceError(platform, raw).max, error = MeasureSurfaceError(platform, mesh).max;
-    std::printf("cell %g: raw error %g, clean %g; raw min angle %g, clean %g\n", cell, raw_error, error,
-                raw_defects.min_angle_deg, d.min_angle_deg);
+    const double raw_error = MeasureSurfaceError(platform, raw).max,
+                 error = MeasureSurfaceError(platform, mesh).max;
+    std::printf("cell %g: raw error %g, clean %g; raw min angle %g, clean %g\n", cell, raw_error,
+                error, raw_defects.min_angle_deg, d.min_angle_deg);
     EXPECT_LE(error, 1.15 * raw_error) << "cell " << cell;
     EXPECT_NEAR(MeshVolume(mesh), MeshVolume(raw), 0.01 * MeshVolume(raw)) << "cell " << cell;
   }
@@ -208,7 +228,8 @@ TEST(SurfaceMesher, PlatformCleanMeshHasNoDegenerateTrianglesAndKeepsItsShape) {
 // Pairs of vertices closer than tol (brute force over a list sorted by x).
 long CloseVertexPairs(const TriangleMesh& mesh, double tol) {
   std::vector<std::array<double, 3>> points;
-  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) points.push_back({mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i)});
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i)
+    points.push_back({mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i)});
   std::sort(points.begin(), points.end());
   long pairs = 0;
   for (size_t i = 0; i < points.size(); ++i) {
@@ -226,7 +247,8 @@ long CloseVertexPairs(const TriangleMesh& mesh, double tol) {
 // non-manifold: the defect of issue 3) and must pass CheckSurface as it is.
 void ExpectReadyForTetgen(const TriangleMesh& mesh, const std::string& what) {
   long welded = -1, dropped = -1;
-  const TriangleMesh repaired = RepairSurface(mesh, TetMeshSettings{}.weld_tolerance, &welded, &dropped);
+  const TriangleMesh repaired =
+      RepairSurface(mesh, TetMeshSettings{}.weld_tolerance, &welded, &dropped);
   EXPECT_EQ(welded, 0) << what;
   EXPECT_EQ(dropped, 0) << what;
   try {
@@ -242,7 +264,8 @@ std::vector<std::array<double, 3>> SortedVertices(const TriangleMesh& mesh) {
   for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i) {
     const Eigen::Vector3d p = mesh.vertices.col(i);
     // Rounded to 1e-12 m: refined vertices of the two meshes may differ in the last bits.
-    points.push_back({std::round(p.x() * 1e12), std::round(p.y() * 1e12), std::round(p.z() * 1e12)});
+    points.push_back(
+        {std::round(p.x() * 1e12), std::round(p.y() * 1e12), std::round(p.z() * 1e12)});
   }
   std::sort(points.begin(), points.end());
   return points;
@@ -257,26 +280,34 @@ TEST(SurfaceMesher, FacesThroughGridVerticesGiveTheSameMeshWithRoundingNoise) {
   // within any weld tolerance of another.
   const Eigen::Vector3d size(0.06, 0.04, 0.03);
   const double h = 0.005;
-  const Eigen::AlignedBox3d bounds(Eigen::Vector3d::Constant(-0.05), Eigen::Vector3d::Constant(0.05));
+  const Eigen::AlignedBox3d bounds(Eigen::Vector3d::Constant(-0.05),
+                                   Eigen::Vector3d::Constant(0.05));
   const struct {
     Eigen::Vector3d axis;
     double angle;
-  } rotations[] = {{Eigen::Vector3d::UnitZ(), M_PI / 2}, {Eigen::Vector3d::UnitZ(), M_PI}, {Eigen::Vector3d::UnitZ(), 1.5 * M_PI},
-                   {Eigen::Vector3d(1, 1, 1).normalized(), 2 * M_PI / 3}, {Eigen::Vector3d::UnitX(), M_PI / 2}};
+  } rotations[] = {{Eigen::Vector3d::UnitZ(), M_PI / 2},
+                   {Eigen::Vector3d::UnitZ(), M_PI},
+                   {Eigen::Vector3d::UnitZ(), 1.5 * M_PI},
+                   {Eigen::Vector3d(1, 1, 1).normalized(), 2 * M_PI / 3},
+                   {Eigen::Vector3d::UnitX(), M_PI / 2}};
   for (const auto& rotation : rotations) {
     const Eigen::Matrix3d R = Eigen::AngleAxisd(rotation.angle, rotation.axis).toRotationMatrix();
     // The unrotated box that occupies the same region: sizes permuted by R (|R| is a permutation).
     const Eigen::Matrix3d permutation = R.cwiseAbs().array().round().matrix();
     const Eigen::Vector3d placed_size = permutation * size;
-    const CompiledSolid rotated = CompiledSolid::Compile(ImplicitNode(RotateParams{rotation.axis, rotation.angle}, {ImplicitNode(BoxParams{size})}));
+    const CompiledSolid rotated = CompiledSolid::Compile(
+        ImplicitNode(RotateParams{rotation.axis, rotation.angle}, {ImplicitNode(BoxParams{size})}));
     const CompiledSolid placed = CompiledSolid::Compile(ImplicitNode(BoxParams{placed_size}));
     SurfaceMeshSettings s = Settings(bounds.min(), bounds.max(), h);
     const TriangleMesh mesh = MeshSurface(rotated, s), reference = MeshSurface(placed, s);
-    const std::string what = "rotation " + std::to_string(rotation.angle) + " about (" + std::to_string(rotation.axis.x()) + ", " +
-                             std::to_string(rotation.axis.y()) + ", " + std::to_string(rotation.axis.z()) + ")";
+    const std::string what = "rotation " + std::to_string(rotation.angle) + " about (" +
+                             std::to_string(rotation.axis.x()) + ", " +
+                             std::to_string(rotation.axis.y()) + ", " +
+                             std::to_string(rotation.axis.z()) + ")";
     EXPECT_EQ(CheckClosedManifold(mesh), 2) << what;
     EXPECT_EQ(mesh.triangles.cols(), reference.triangles.cols()) << what;
-    EXPECT_TRUE(SortedVertices(mesh) == SortedVertices(reference)) << what << ": the vertices differ";
+    EXPECT_TRUE(SortedVertices(mesh) == SortedVertices(reference))
+        << what << ": the vertices differ";
     EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * h), 0) << what;
     ExpectReadyForTetgen(mesh, what);
   }
@@ -315,7 +346,8 @@ TEST(SurfaceMesher, PlatformAtEightAndTenMillimetresNeedsNoWelding) {
   // vertices welded) before grid values near zero were made exactly zero.
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
-  const Eigen::AlignedBox3d fixed(Eigen::Vector3d(-0.03, -0.13, -0.18), Eigen::Vector3d(0.33, 0.13, 0.04));
+  const Eigen::AlignedBox3d fixed(Eigen::Vector3d(-0.03, -0.13, -0.18),
+                                  Eigen::Vector3d(0.33, 0.13, 0.04));
   const struct {
     const char* name;
     Eigen::AlignedBox3d bounds;
@@ -325,7 +357,8 @@ TEST(SurfaceMesher, PlatformAtEightAndTenMillimetresNeedsNoWelding) {
                {"fixed 10 mm", fixed, 0.01},
                {"grid-aligned 10 mm", GridAlignedBounds(platform, 0.01), 0.01}};
   for (const auto& c : cases) {
-    const TriangleMesh mesh = MeshSurface(platform, Settings(c.bounds.min(), c.bounds.max(), c.cell));
+    const TriangleMesh mesh =
+        MeshSurface(platform, Settings(c.bounds.min(), c.bounds.max(), c.cell));
     CheckClosedManifold(mesh);
     EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * c.cell), 0) << c.name;
     ExpectReadyForTetgen(mesh, c.name);
@@ -341,10 +374,13 @@ TEST(SurfaceMesher, PinchedZeroSetKeepsItsVerticesApart) {
   // embedded.
   const double h = 0.008;
   ImplicitNode slab(BoxParams{Eigen::Vector3d(0.08, 0.08, 0.024)});
-  ImplicitNode hole(TranslateParams{Eigen::Vector3d(0.5 * h, 0.0, 0.0)}, {ImplicitNode(CylinderParams{0.5 * h, 0.1})});
-  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(DifferenceParams{}, {slab, hole}));
+  ImplicitNode hole(TranslateParams{Eigen::Vector3d(0.5 * h, 0.0, 0.0)},
+                    {ImplicitNode(CylinderParams{0.5 * h, 0.1})});
+  const CompiledSolid solid =
+      CompiledSolid::Compile(ImplicitNode(DifferenceParams{}, {slab, hole}));
   // Grid vertices at multiples of h: the hole's rim meets the x axis at grid vertices 0 and h.
-  const TriangleMesh mesh = MeshSurface(solid, Settings(Eigen::Vector3d::Constant(-0.048), Eigen::Vector3d::Constant(0.048), h));
+  const TriangleMesh mesh = MeshSurface(
+      solid, Settings(Eigen::Vector3d::Constant(-0.048), Eigen::Vector3d::Constant(0.048), h));
   CheckClosedManifold(mesh);
   EXPECT_EQ(CloseVertexPairs(mesh, 1e-7 * h), 0);
   ExpectReadyForTetgen(mesh, "pinched hole");
@@ -372,10 +408,11 @@ TEST(SurfaceMesher, SceneSolidsAcrossResolutionsAreReadyForTetgen) {
     const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(c.solid).root);
     for (double cell : c.cells) {
       for (bool aligned : {false, true}) {
-        const Eigen::AlignedBox3d bounds = aligned ? GridAlignedBounds(solid, cell) : CliBounds(solid, cell);
+        const Eigen::AlignedBox3d bounds =
+            aligned ? GridAlignedBounds(solid, cell) : CliBounds(solid, cell);
         const TriangleMesh mesh = MeshSurface(solid, Settings(bounds.min(), bounds.max(), cell));
-        const std::string what = std::string(c.scene) + " solid " + std::to_string(c.solid) + " cell " + std::to_string(cell) +
-                                 (aligned ? " grid-aligned" : "");
+        const std::string what = std::string(c.scene) + " solid " + std::to_string(c.solid) +
+                                 " cell " + std::to_string(cell) + (aligned ? " grid-aligned" : "");
         ASSERT_GT(mesh.triangles.cols(), 0) << what;
         CheckClosedManifold(mesh);
         EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
@@ -388,23 +425,31 @@ TEST(SurfaceMesher, SceneSolidsAcrossResolutionsAreReadyForTetgen) {
 TEST(SurfaceMesher, TestSolidsOnAndOffTheGridAreReadyForTetgen) {
   // Faces through grid vertices (box, half-cell offsets), a sphere through grid vertices
   // (radius a whole number of cells), a torus, and a union of boxes at an angle.
-  const CompiledSolid box = CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.03)}));
+  const CompiledSolid box =
+      CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.03)}));
   const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.03}));
   const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.03, 0.01}));
   ImplicitNode tilted(TranslateParams{Eigen::Vector3d(0.02, 0.01, 0.005)},
-                      {ImplicitNode(RotateParams{Eigen::Vector3d(0.2, 0.1, 1).normalized(), 0.5}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.04, 0.03, 0.03)})})});
-  const CompiledSolid boxes = CompiledSolid::Compile(ImplicitNode(UnionParams{}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.04)}), tilted}));
+                      {ImplicitNode(RotateParams{Eigen::Vector3d(0.2, 0.1, 1).normalized(), 0.5},
+                                    {ImplicitNode(BoxParams{Eigen::Vector3d(0.04, 0.03, 0.03)})})});
+  const CompiledSolid boxes = CompiledSolid::Compile(ImplicitNode(
+      UnionParams{}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.04)}), tilted}));
   const struct {
     const char* name;
     const CompiledSolid* solid;
     long euler;
-  } solids[] = {{"box", &box, 2}, {"sphere", &sphere, 2}, {"torus", &torus, 0}, {"union of boxes", &boxes, 2}};
+  } solids[] = {{"box", &box, 2},
+                {"sphere", &sphere, 2},
+                {"torus", &torus, 0},
+                {"union of boxes", &boxes, 2}};
   for (const auto& c : solids) {
     for (double cell : {0.002, 0.0025, 0.003, 0.004, 0.005, 0.006}) {
       for (double shift : {0.0, 0.5, 0.37}) {
         const Eigen::Vector3d lo = Eigen::Vector3d::Constant(-0.06 + shift * cell);
-        const TriangleMesh mesh = MeshSurface(*c.solid, Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell));
-        const std::string what = std::string(c.name) + " cell " + std::to_string(cell) + " shift " + std::to_string(shift);
+        const TriangleMesh mesh =
+            MeshSurface(*c.solid, Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell));
+        const std::string what = std::string(c.name) + " cell " + std::to_string(cell) + " shift " +
+                                 std::to_string(shift);
         EXPECT_EQ(CheckClosedManifold(mesh), c.euler) << what;
         EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
         ExpectReadyForTetgen(mesh, what);
@@ -415,7 +460,8 @@ TEST(SurfaceMesher, TestSolidsOnAndOffTheGridAreReadyForTetgen) {
 
 TEST(SurfaceMesher, CancelStopsAndProgressReachesOne) {
   const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
-  SurfaceMeshSettings s = Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), 0.001);
+  SurfaceMeshSettings s =
+      Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), 0.001);
   std::atomic<bool> cancel{true};
   s.cancel = &cancel;
   EXPECT_THROW(MeshSurface(sphere, s), MeshingCancelled);
@@ -441,15 +487,22 @@ TEST(SurfaceMesher, FindBoundsEnclosesTheSolidTightly) {
   capsule.radius = 0.02;
   const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(capsule));
   const double resolution = 0.002;
-  const Eigen::AlignedBox3d box = FindBounds(solid, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1)), resolution);
-  const Eigen::AlignedBox3d tight(Eigen::Vector3d(0.08, 0.18, -0.32), Eigen::Vector3d(0.17, 0.22, -0.28));
+  const Eigen::AlignedBox3d box = FindBounds(
+      solid, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1)),
+      resolution);
+  const Eigen::AlignedBox3d tight(Eigen::Vector3d(0.08, 0.18, -0.32),
+                                  Eigen::Vector3d(0.17, 0.22, -0.28));
   EXPECT_TRUE(box.contains(tight));
   for (int a = 0; a < 3; ++a) {
     EXPECT_LE(tight.min()[a] - box.min()[a], 2 * resolution);
     EXPECT_LE(box.max()[a] - tight.max()[a], 2 * resolution);
   }
   // Far from the solid: empty.
-  EXPECT_TRUE(FindBounds(solid, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(2), Eigen::Vector3d::Constant(3)), resolution).isEmpty());
+  EXPECT_TRUE(
+      FindBounds(solid,
+                 Eigen::AlignedBox3d(Eigen::Vector3d::Constant(2), Eigen::Vector3d::Constant(3)),
+                 resolution)
+          .isEmpty());
 }
 
 // The octree descent FindBounds stands for, written out in full (no pruning, recursive): the box
@@ -545,9 +598,14 @@ TEST(SurfaceMesher, EstimateOfAnAbsurdCellIsInfiniteNotACrash) {
 
 TEST(SurfaceMesher, RejectsBadSettings) {
   const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
-  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 0.0)), std::invalid_argument);
-  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Ones(), Eigen::Vector3d::Zero(), 0.01)), std::invalid_argument);
-  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 1e-4)), std::invalid_argument);
+  EXPECT_THROW(MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 0.0)),
+               std::invalid_argument);
+  EXPECT_THROW(
+      MeshSurface(sphere, Settings(Eigen::Vector3d::Ones(), Eigen::Vector3d::Zero(), 0.01)),
+      std::invalid_argument);
+  EXPECT_THROW(
+      MeshSurface(sphere, Settings(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones(), 1e-4)),
+      std::invalid_argument);
 }
 
 }  // namespace

@@ -1,12 +1,12 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/tetgen_mesher.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <set>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "spidarcad/modeling/scene_io.h"
 
@@ -18,7 +18,8 @@ TriangleMesh BoxSurface(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
   TriangleMesh m;
   m.vertices.resize(3, 8);
   for (int i = 0; i < 8; ++i) {
-    m.vertices.col(i) << ((i & 1) ? hi.x() : lo.x()), ((i & 2) ? hi.y() : lo.y()), ((i & 4) ? hi.z() : lo.z());
+    m.vertices.col(i) << ((i & 1) ? hi.x() : lo.x()), ((i & 2) ? hi.y() : lo.y()),
+        ((i & 4) ? hi.z() : lo.z());
   }
   m.triangles.resize(3, 12);
   m.triangles << 0, 1, 4, 5, 0, 1, 2, 3, 0, 2, 1, 3,  //
@@ -38,7 +39,8 @@ TriangleMesh Join(const TriangleMesh& a, const TriangleMesh& b) {
 }
 
 TriangleMesh SphereSurface(const Eigen::Vector3d& centre, double r, double cell) {
-  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(TranslateParams{centre}, {ImplicitNode(SphereParams{r})}));
+  const CompiledSolid sphere = CompiledSolid::Compile(
+      ImplicitNode(TranslateParams{centre}, {ImplicitNode(SphereParams{r})}));
   SurfaceMeshSettings s;
   s.bounds = Eigen::AlignedBox3d(centre.array() - 1.2 * r, centre.array() + 1.2 * r);
   s.cell_size = cell;
@@ -64,7 +66,8 @@ TEST(TetQuality, MatchesClosedFormsForRegularAndCornerTets) {
   EXPECT_NEAR(RadiusEdgeRatio(a, b, c, d), std::sqrt(6.0) / 4.0, 1e-12);
   // Corner tetrahedron (0, e1, e2, e3): right angles at the edges through the origin,
   // acos(1/sqrt(3)) at the others; circumradius sqrt(3)/2 over edge 1.
-  const Eigen::Vector3d o = Eigen::Vector3d::Zero(), x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(), z = Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d o = Eigen::Vector3d::Zero(), x = Eigen::Vector3d::UnitX(),
+                        y = Eigen::Vector3d::UnitY(), z = Eigen::Vector3d::UnitZ();
   const auto corner = DihedralAngles(o, x, y, z);
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(corner[i], M_PI / 2, 1e-12);
   for (int i = 3; i < 6; ++i) EXPECT_NEAR(corner[i], std::acos(1.0 / std::sqrt(3.0)), 1e-12);
@@ -142,12 +145,14 @@ TEST(TetgenMesher, PlatformSurfacesAtEightAndTenMillimetresTetrahedralize) {
   // hold the platform's faces (0.01 m multiples) at 10 mm, which failed the same way.
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
-  const Eigen::AlignedBox3d rough =
-      FindBounds(platform, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-10), Eigen::Vector3d::Constant(10)), 0.008);
+  const Eigen::AlignedBox3d rough = FindBounds(
+      platform, Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-10), Eigen::Vector3d::Constant(10)),
+      0.008);
   Eigen::AlignedBox3d cli = FindBounds(platform, rough, 0.008);
   cli.min().array() -= 0.016;
   cli.max().array() += 0.016;
-  const Eigen::AlignedBox3d aligned(Eigen::Vector3d(-0.03, -0.13, -0.18), Eigen::Vector3d(0.33, 0.13, 0.04));
+  const Eigen::AlignedBox3d aligned(Eigen::Vector3d(-0.03, -0.13, -0.18),
+                                    Eigen::Vector3d(0.33, 0.13, 0.04));
   for (const auto& [bounds, cell] : {std::pair{cli, 0.008}, std::pair{aligned, 0.01}}) {
     SurfaceMeshSettings s;
     s.bounds = bounds;
@@ -196,9 +201,11 @@ TEST(TetgenMesher, TwoDisjointSpheresAreTwoRegions) {
 }
 
 TEST(TetgenMesher, SelfIntersectingSurfaceIsAnExceptionAndTheProcessLives) {
-  const TriangleMesh overlapping = Join(BoxSurface(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1)),
-                                        BoxSurface(Eigen::Vector3d(0.5, 0.3, 0.2), Eigen::Vector3d(1.5, 1.2, 1.3)));
-  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(overlapping); }, "intersects itself");
+  const TriangleMesh overlapping =
+      Join(BoxSurface(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1)),
+           BoxSurface(Eigen::Vector3d(0.5, 0.3, 0.2), Eigen::Vector3d(1.5, 1.2, 1.3)));
+  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(overlapping); },
+                                      "intersects itself");
   // Straight to TetGen, unchecked: the library's error reaches our terminatetetgen, which throws
   // (TetGen's own would crash the process). Twice, to show the library state survives.
   TetMeshSettings unchecked;
@@ -212,7 +219,9 @@ TEST(TetgenMesher, SelfIntersectingSurfaceIsAnExceptionAndTheProcessLives) {
     }
   }
   // And a good surface still meshes afterwards.
-  EXPECT_EQ(TetrahedralizeSurface(BoxSurface(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1))).tets.cols() > 0, true);
+  EXPECT_EQ(TetrahedralizeSurface(BoxSurface(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1)))
+                    .tets.cols() > 0,
+            true);
 }
 
 TEST(TetgenMesher, GridIntersectionCheckAgreesWithBruteForceOnNearbySpheres) {
@@ -236,13 +245,16 @@ TEST(TetgenMesher, OpenSurfaceBadIndexAndInvertedSurfaceAreExceptions) {
   ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(bad_index); }, "outside [0, 8)");
   TetMeshSettings unchecked;
   unchecked.check_surface = false;
-  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(bad_index, unchecked); }, "outside [0, 8)");
+  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(bad_index, unchecked); },
+                                      "outside [0, 8)");
   TriangleMesh inverted = box;
   inverted.triangles.row(1).swap(inverted.triangles.row(2));
-  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(inverted); }, "counter-clockwise");
+  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(inverted); },
+                                      "counter-clockwise");
   TriangleMesh flipped_one = box;
   std::swap(flipped_one.triangles(1, 3), flipped_one.triangles(2, 3));
-  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(flipped_one); }, "inconsistently oriented");
+  ExpectThrowWith<SurfaceDefectError>([&] { TetrahedralizeSurface(flipped_one); },
+                                      "inconsistently oriented");
   TetMeshSettings bad;
   bad.max_radius_edge = 0.9;
   EXPECT_THROW(TetrahedralizeSurface(box, bad), std::invalid_argument);

@@ -1,22 +1,24 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <limits>
 #include <set>
+#include <string>
 #include <tuple>
 #include <vector>
-#include <string>
-
-#include <gtest/gtest.h>
 
 namespace spidarcad::modeling {
 namespace {
 
-std::string OutPath(const std::string& name) { return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/" + name; }
+std::string OutPath(const std::string& name) {
+  return std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/" + name;
+}
 
 void WriteText(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
@@ -27,14 +29,16 @@ void WriteText(const std::string& path, const std::string& text) {
 TriangleMesh Torus() {
   const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.04, 0.012}));
   SurfaceMeshSettings s;
-  s.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.06, -0.06, -0.02), Eigen::Vector3d(0.06, 0.06, 0.02));
+  s.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.06, -0.06, -0.02), Eigen::Vector3d(0.06, 0.06, 0.02));
   s.cell_size = 0.004;
   return MeshSurface(torus, s);
 }
 
 // Expects the error to carry file and location and a message containing `what`.
 template <typename F>
-void ExpectFileError(F f, const std::string& file, long line, long byte_offset, const std::string& what) {
+void ExpectFileError(F f, const std::string& file, long line, long byte_offset,
+                     const std::string& what) {
   try {
     f();
     ADD_FAILURE() << "no MeshFileError for " << file;
@@ -50,7 +54,8 @@ void ExpectFileError(F f, const std::string& file, long line, long byte_offset, 
 TEST(TriangleMeshIo, ObjAndPlyRoundTripExactly) {
   const TriangleMesh mesh = Torus();
   ASSERT_GT(mesh.triangles.cols(), 1000);
-  for (const auto& [name, format] : {std::pair{"t.obj", MeshFileFormat::kObj}, std::pair{"t_ascii.ply", MeshFileFormat::kPlyAscii},
+  for (const auto& [name, format] : {std::pair{"t.obj", MeshFileFormat::kObj},
+                                     std::pair{"t_ascii.ply", MeshFileFormat::kPlyAscii},
                                      std::pair{"t_binary.ply", MeshFileFormat::kPlyBinary}}) {
     WriteTriangleMesh(mesh, OutPath(name), format);
     const TriangleMesh back = ReadTriangleMesh(OutPath(name));
@@ -61,20 +66,24 @@ TEST(TriangleMeshIo, ObjAndPlyRoundTripExactly) {
 
 TEST(TriangleMeshIo, StlRoundTripsToFloatPrecisionAndWeldsVertices) {
   const TriangleMesh mesh = Torus();
-  for (const auto& [name, format, as_float] : {std::tuple{"t_ascii.stl", MeshFileFormat::kStlAscii, false},
-                                               std::tuple{"t_binary.stl", MeshFileFormat::kStlBinary, true}}) {
+  for (const auto& [name, format, as_float] :
+       {std::tuple{"t_ascii.stl", MeshFileFormat::kStlAscii, false},
+        std::tuple{"t_binary.stl", MeshFileFormat::kStlBinary, true}}) {
     // What the file can hold: corner positions (floats for binary). Corners at one position are
     // one vertex, and triangles with coinciding corners cannot be represented.
     const bool single = as_float;
     auto stored = [&mesh, single](int v) {
       std::array<double, 3> p;
-      for (int i = 0; i < 3; ++i) p[i] = single ? static_cast<double>(static_cast<float>(mesh.vertices(i, v))) : mesh.vertices(i, v);
+      for (int i = 0; i < 3; ++i)
+        p[i] = single ? static_cast<double>(static_cast<float>(mesh.vertices(i, v)))
+                      : mesh.vertices(i, v);
       return p;
     };
     std::set<std::array<double, 3>> distinct;
     std::vector<Eigen::Index> kept;
     for (Eigen::Index f = 0; f < mesh.triangles.cols(); ++f) {
-      const auto a = stored(mesh.triangles(0, f)), b = stored(mesh.triangles(1, f)), c = stored(mesh.triangles(2, f));
+      const auto a = stored(mesh.triangles(0, f)), b = stored(mesh.triangles(1, f)),
+                 c = stored(mesh.triangles(2, f));
       if (a == b || b == c || a == c) continue;
       kept.push_back(f);
       distinct.insert({a, b, c});
@@ -86,7 +95,8 @@ TEST(TriangleMeshIo, StlRoundTripsToFloatPrecisionAndWeldsVertices) {
     for (size_t f = 0; f < kept.size(); ++f) {
       for (int k = 0; k < 3; ++k) {
         const auto expected = stored(mesh.triangles(k, kept[f]));
-        ASSERT_EQ(Eigen::Vector3d(back.vertices.col(back.triangles(k, f))), Eigen::Vector3d(expected[0], expected[1], expected[2]))
+        ASSERT_EQ(Eigen::Vector3d(back.vertices.col(back.triangles(k, f))),
+                  Eigen::Vector3d(expected[0], expected[1], expected[2]))
             << name << " triangle " << f;
       }
     }
@@ -97,7 +107,8 @@ TEST(TriangleMeshIo, StlRoundTripsToFloatPrecisionAndWeldsVertices) {
 TEST(TriangleMeshIo, ReadsHandWrittenObjWithQuadsNegativeAndSlashedIndices) {
   const std::string path = OutPath("quad.obj");
   WriteText(path,
-            "# a unit square as a quad and one more triangle\nmtllib x.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+            "# a unit square as a quad and one more triangle\nmtllib x.mtl\nv 0 0 0\nv 1 0 0\nv 1 "
+            "1 0\nv 0 1 0\n"
             "vt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1 4/1/1\nv 0.5 0.5 1\nf -5 -4 -1\n");
   const TriangleMesh m = ReadTriangleMesh(path);
   ASSERT_EQ(m.vertices.cols(), 5);
@@ -111,9 +122,12 @@ TEST(TriangleMeshIo, ReadsHandWrittenObjWithQuadsNegativeAndSlashedIndices) {
 TEST(TriangleMeshIo, ReadsPlyWithExtraPropertiesAndElements) {
   const std::string path = OutPath("extra.ply");
   WriteText(path,
-            "ply\nformat ascii 1.0\ncomment colours and an edge element\nelement vertex 4\nproperty float x\n"
-            "property uchar red\nproperty float y\nproperty float z\nelement face 1\nproperty uchar flags\n"
-            "property list uchar int vertex_indices\nelement edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n"
+            "ply\nformat ascii 1.0\ncomment colours and an edge element\nelement vertex "
+            "4\nproperty float x\n"
+            "property uchar red\nproperty float y\nproperty float z\nelement face 1\nproperty "
+            "uchar flags\n"
+            "property list uchar int vertex_indices\nelement edge 1\nproperty int "
+            "vertex1\nproperty int vertex2\nend_header\n"
             "0 255 0 0\n2 0 0 0\n2 7 2 0\n0 9 2 0.5\n3 4 0 1 2 3\n0 1\n");
   const TriangleMesh m = ReadTriangleMesh(path);
   ASSERT_EQ(m.vertices.cols(), 4);
@@ -124,10 +138,14 @@ TEST(TriangleMeshIo, ReadsPlyWithExtraPropertiesAndElements) {
 
 TEST(TriangleMeshIo, BadStlNamesLineOrByteOffset) {
   const std::string ascii = OutPath("bad_ascii.stl");
-  WriteText(ascii, "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 zero\nvertex 0 1 0\nendloop\nendfacet\nendsolid\n");
+  WriteText(ascii,
+            "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 zero\nvertex 0 1 "
+            "0\nendloop\nendfacet\nendsolid\n");
   ExpectFileError([&] { ReadTriangleMesh(ascii); }, ascii, 5, -1, "'zero'");
   const std::string missing = OutPath("bad_missing.stl");
-  WriteText(missing, "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n");
+  WriteText(missing,
+            "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 "
+            "0\nendloop\nendfacet\nendsolid\n");
   ExpectFileError([&] { ReadTriangleMesh(missing); }, missing, 6, -1, "expected 'vertex'");
   // Binary: a header announcing 2 triangles followed by only one.
   std::string data(84 + 50, '\0');
@@ -146,24 +164,31 @@ TEST(TriangleMeshIo, BadObjAndPlyNameLineOrByteOffset) {
   WriteText(obj2, "v 0 0\n");
   ExpectFileError([&] { ReadTriangleMesh(obj2); }, obj2, 1, -1, "3 coordinates");
   const std::string ply = OutPath("bad_index.ply");
-  WriteText(ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                 "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  WriteText(ply,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty "
+            "float z\n"
+            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 "
+            "0\n3 0 1 7\n");
   ExpectFileError([&] { ReadTriangleMesh(ply); }, ply, 13, -1, "vertex index 7");
   const std::string big = OutPath("bad_format.ply");
   WriteText(big, "ply\nformat binary_big_endian 1.0\nend_header\n");
   ExpectFileError([&] { ReadTriangleMesh(big); }, big, 2, -1, "binary_big_endian");
   // Binary PLY cut short inside the second vertex: header of 175 bytes, then 12 + 4 bytes.
-  const std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                             "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string header =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
   std::string body(16, '\0');
   const std::string cut = OutPath("bad_cut.ply");
   WriteText(cut, header + body);
-  ExpectFileError([&] { ReadTriangleMesh(cut); }, cut, 0, static_cast<long>(header.size() + 16), "vertex 1 property y");
+  ExpectFileError([&] { ReadTriangleMesh(cut); }, cut, 0, static_cast<long>(header.size() + 16),
+                  "vertex 1 property y");
 }
 
 TEST(TriangleMeshIo, UnknownExtensionAndMissingFileAreErrors) {
-  ExpectFileError([] { ReadTriangleMesh("/nonexistent/x.stl"); }, "/nonexistent/x.stl", 0, -1, "cannot open");
-  ExpectFileError([] { ReadTriangleMesh("mesh.3ds"); }, "mesh.3ds", 0, -1, "unknown mesh file extension");
+  ExpectFileError([] { ReadTriangleMesh("/nonexistent/x.stl"); }, "/nonexistent/x.stl", 0, -1,
+                  "cannot open");
+  ExpectFileError([] { ReadTriangleMesh("mesh.3ds"); }, "mesh.3ds", 0, -1,
+                  "unknown mesh file extension");
   TriangleMesh bad;
   bad.vertices.setZero(3, 3);
   bad.triangles.resize(3, 1);
@@ -221,14 +246,14 @@ TEST(TriangleMeshIo, SubnormalCoordinatesRoundTripThroughTheTextFormats) {
   TriangleMesh mesh;
   mesh.vertices.resize(3, 3);
   const double tiny = std::numeric_limits<double>::denorm_min();
-  mesh.vertices << tiny, 1, 0,
-      3.3527533497251303e-312, 0, 1, -2.1219957909652723e-314, 0, 0;
+  mesh.vertices << tiny, 1, 0, 3.3527533497251303e-312, 0, 1, -2.1219957909652723e-314, 0, 0;
   mesh.triangles.resize(3, 1);
   mesh.triangles << 0, 1, 2;
   ASSERT_LT(std::abs(mesh.vertices(1, 0)), std::numeric_limits<double>::min());  // subnormal
-  for (const auto& [name, format] : {std::pair{"subnormal.obj", MeshFileFormat::kObj},
-                                     std::pair{"subnormal_ascii.ply", MeshFileFormat::kPlyAscii},
-                                     std::pair{"subnormal_binary.ply", MeshFileFormat::kPlyBinary}}) {
+  for (const auto& [name, format] :
+       {std::pair{"subnormal.obj", MeshFileFormat::kObj},
+        std::pair{"subnormal_ascii.ply", MeshFileFormat::kPlyAscii},
+        std::pair{"subnormal_binary.ply", MeshFileFormat::kPlyBinary}}) {
     WriteTriangleMesh(mesh, OutPath(name), format);
     const TriangleMesh back = ReadTriangleMesh(OutPath(name));
     EXPECT_EQ(back.vertices, mesh.vertices) << name;

@@ -22,8 +22,8 @@ CommandRun RunCommand(const std::string& command, const std::string& input,
   const std::string out_path = scratch_prefix + ".out";
   const std::string err_path = scratch_prefix + ".err";
   std::ofstream(in_path, std::ios::binary) << input;
-  const std::string shell = command + " < '" + in_path + "' > '" + out_path + "' 2> '" +
-                            err_path + "'";
+  const std::string shell =
+      command + " < '" + in_path + "' > '" + out_path + "' 2> '" + err_path + "'";
   const int raw = std::system(shell.c_str());
   CommandRun run;
   run.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;

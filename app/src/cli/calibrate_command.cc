@@ -195,7 +195,8 @@ void CheckCounts(const CalibrateOptions& options) {
   constexpr int kMaxPoses = 100000;
   if (options.poses != -1 && (options.poses < 1 || options.poses > kMaxPoses)) {
     throw InputError("--poses: must be in [1, " + std::to_string(kMaxPoses) + "], got " +
-                     std::to_string(options.poses) + " (100 to 300 poses reach the floor; see --help)");
+                     std::to_string(options.poses) +
+                     " (100 to 300 poses reach the floor; see --help)");
   }
   if (options.eval_poses < 1 || options.eval_poses > kMaxPoses) {
     throw InputError("--eval-poses: must be in [1, " + std::to_string(kMaxPoses) + "], got " +

@@ -3,12 +3,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <istream>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "doc/input_error.h"
 #include "doc/number_format.h"

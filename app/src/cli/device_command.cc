@@ -55,8 +55,7 @@ void RunList() {
     std::snprintf(board_id, sizeof(board_id), "%04x:%04x", board.vendor_id, board.product_id);
     const std::string serial =
         board.serial.empty() ? (board.accessible ? "(none)" : "(unreadable)") : board.serial;
-    const std::string access =
-        board.accessible ? "ok" : "DENIED (" + board.access_error + ")";
+    const std::string access = board.accessible ? "ok" : "DENIED (" + board.access_error + ")";
     std::printf("  %03d       %03d      %-9s %-20s %s\n", board.bus, board.address, board_id,
                 serial.c_str(), access.c_str());
     denied |= !board.accessible;
@@ -134,25 +133,25 @@ void RunSelftest(const SelftestOptions& o) {
   std::printf("  ticks ok %d (%.1f %%), comm_error %llu, final status %s\n", ok,
               100.0 * ok / o.ticks, static_cast<unsigned long long>(s.comm_error_ticks),
               haptics::DeviceStatusName(driver.status()));
-  std::printf("  states %llu, lost %llu, corrupt %llu, stale %llu, timeouts %llu, "
-              "disconnects %llu, connects %llu\n",
-              static_cast<unsigned long long>(s.states), static_cast<unsigned long long>(s.lost),
-              static_cast<unsigned long long>(s.corrupt), static_cast<unsigned long long>(s.stale),
-              static_cast<unsigned long long>(s.timeouts),
-              static_cast<unsigned long long>(s.disconnects),
-              static_cast<unsigned long long>(s.connects));
+  std::printf(
+      "  states %llu, lost %llu, corrupt %llu, stale %llu, timeouts %llu, "
+      "disconnects %llu, connects %llu\n",
+      static_cast<unsigned long long>(s.states), static_cast<unsigned long long>(s.lost),
+      static_cast<unsigned long long>(s.corrupt), static_cast<unsigned long long>(s.stale),
+      static_cast<unsigned long long>(s.timeouts), static_cast<unsigned long long>(s.disconnects),
+      static_cast<unsigned long long>(s.connects));
   const usb::LinkCounters& c = link->counters();
   std::printf("  link injected: lost %llu, corrupted %llu, reordered %llu, stalled ticks %llu\n",
-              static_cast<unsigned long long>(c.lost),
-              static_cast<unsigned long long>(c.corrupted),
+              static_cast<unsigned long long>(c.lost), static_cast<unsigned long long>(c.corrupted),
               static_cast<unsigned long long>(c.reordered),
               static_cast<unsigned long long>(c.stalled_ticks));
   std::printf("  board: rejected %llu, watchdog trips %llu\n",
               static_cast<unsigned long long>(board.rejected_packets()),
               static_cast<unsigned long long>(board.watchdog_trips()));
-  std::printf("  round trip (Read + WriteTensions incl. board firmware and physics), us: "
-              "p50 %.2f  p99 %.2f  p99.9 %.2f  max %.2f\n",
-              pct(0.5), pct(0.99), pct(0.999), tick_us.back());
+  std::printf(
+      "  round trip (Read + WriteTensions incl. board firmware and physics), us: "
+      "p50 %.2f  p99 %.2f  p99.9 %.2f  max %.2f\n",
+      pct(0.5), pct(0.99), pct(0.999), tick_us.back());
 }
 
 }  // namespace
@@ -162,9 +161,10 @@ void RegisterDeviceCommand(CLI::App& app) {
       "device", "USB SPIDAR-G controller boards: list them, or self-test the driver");
   device->require_subcommand(1);
 
-  device->add_subcommand("list",
-                         "List SPIDAR-G controllers on the USB bus (id, bus/address, serial, "
-                         "access); says so when none is attached or permission is missing")
+  device
+      ->add_subcommand("list",
+                       "List SPIDAR-G controllers on the USB bus (id, bus/address, serial, "
+                       "access); says so when none is attached or permission is missing")
       ->callback([]() { RunList(); });
 
   auto options = std::make_shared<SelftestOptions>();

@@ -236,7 +236,8 @@ constexpr const char* kMeshHelp =
     "0.004\n";
 
 std::string Lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
 }
 
@@ -297,18 +298,21 @@ void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string
   const TetQuality& q = stats.quality;
   std::cout << "scene " << o.scene << ", solid '" << grid.solid_name << "'\n";
   std::cout << "cgal mesh_3: facet size " << Fmt(settings.facet_size) << " m, facet distance "
-            << Fmt(settings.facet_distance) << " m, cell size " << Fmt(settings.cell_size) << " m, radius-edge "
-            << Fmt(settings.cell_radius_edge_ratio) << ", box " << Fmt(grid.bounds.sizes().x()) << " x "
-            << Fmt(grid.bounds.sizes().y()) << " x " << Fmt(grid.bounds.sizes().z()) << " m\n";
-  std::cout << "cgal: " << tets.nodes.cols() << " nodes, " << tets.tets.cols() << " tets, " << stats.seed_points
-            << " seeds, refine " << Fmt(stats.refine_seconds, 3) << " s, optimize " << Fmt(stats.optimize_seconds, 3)
-            << " s, total " << Fmt(stats.seconds, 3) << " s\n";
-  std::cout << "boundary: " << boundary.vertices.cols() << " vertices, " << boundary.triangles.cols()
-            << " triangles, min triangle angle " << Fmt(angles.min_angle_deg, 3) << " deg; error max "
-            << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3) << " m\n";
-  std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. " << Fmt(q.max_dihedral_deg, 4)
-            << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3) << ", volume " << Fmt(q.total_volume * 1e6, 6)
-            << " cm^3\n";
+            << Fmt(settings.facet_distance) << " m, cell size " << Fmt(settings.cell_size)
+            << " m, radius-edge " << Fmt(settings.cell_radius_edge_ratio) << ", box "
+            << Fmt(grid.bounds.sizes().x()) << " x " << Fmt(grid.bounds.sizes().y()) << " x "
+            << Fmt(grid.bounds.sizes().z()) << " m\n";
+  std::cout << "cgal: " << tets.nodes.cols() << " nodes, " << tets.tets.cols() << " tets, "
+            << stats.seed_points << " seeds, refine " << Fmt(stats.refine_seconds, 3)
+            << " s, optimize " << Fmt(stats.optimize_seconds, 3) << " s, total "
+            << Fmt(stats.seconds, 3) << " s\n";
+  std::cout << "boundary: " << boundary.vertices.cols() << " vertices, "
+            << boundary.triangles.cols() << " triangles, min triangle angle "
+            << Fmt(angles.min_angle_deg, 3) << " deg; error max " << Fmt(error.max, 3) << " m, rms "
+            << Fmt(error.rms, 3) << " m\n";
+  std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. "
+            << Fmt(q.max_dihedral_deg, 4) << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3)
+            << ", volume " << Fmt(q.total_volume * 1e6, 6) << " cm^3\n";
   WriteTets(tets, o.out, ext);
 }
 
@@ -317,14 +321,16 @@ void RunMesh(const MeshOptions& o) {
   const bool surface_ext = ext == ".stl" || ext == ".obj" || ext == ".ply";
   const bool volume_ext = ext == ".vtu" || ext == ".node";
   if (!surface_ext && !volume_ext) {
-    throw InputError("--out '" + o.out + "': unknown extension '" + ext +
-                     "' (use .stl, .obj, .ply for a surface; .vtu or .node with --tets tetgen|cgal)");
+    throw InputError(
+        "--out '" + o.out + "': unknown extension '" + ext +
+        "' (use .stl, .obj, .ply for a surface; .vtu or .node with --tets tetgen|cgal)");
   }
   if (!o.tets.empty() && o.tets != "tetgen" && o.tets != "cgal") {
     throw InputError("--tets '" + o.tets + "': expected tetgen or cgal");
   }
   if (volume_ext && o.tets.empty()) {
-    throw InputError("--out '" + o.out + "': " + ext + " holds tetrahedra; add --tets tetgen or --tets cgal");
+    throw InputError("--out '" + o.out + "': " + ext +
+                     " holds tetrahedra; add --tets tetgen or --tets cgal");
   }
   if (surface_ext && !o.tets.empty()) {
     throw InputError("--out '" + o.out + "': with --tets the output is .vtu or .node, not " + ext);
@@ -333,7 +339,8 @@ void RunMesh(const MeshOptions& o) {
     throw InputError("--resolution: must be > 0 m, got " + Fmt(o.resolution));
   }
   if (!(o.quality == 0.0 || o.quality > 1.0) || !std::isfinite(o.quality)) {
-    throw InputError("--quality: radius-edge bound must be > 1 (or 0 for no refinement), got " + Fmt(o.quality));
+    throw InputError("--quality: radius-edge bound must be > 1 (or 0 for no refinement), got " +
+                     Fmt(o.quality));
   }
   if (!(o.max_volume >= 0.0) || !std::isfinite(o.max_volume)) {
     throw InputError("--max-volume: must be >= 0 m^3, got " + Fmt(o.max_volume));
@@ -372,9 +379,11 @@ void RunMesh(const MeshOptions& o) {
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;
 
-  if (o.sharp && o.raw_surface) throw InputError("--sharp needs the clean-up pass: drop --raw-surface");
+  if (o.sharp && o.raw_surface)
+    throw InputError("--sharp needs the clean-up pass: drop --raw-surface");
   if (o.sharp && o.tets == "cgal") {
-    throw InputError("--sharp sharpens the marching-tetrahedra surface; --tets cgal does not use one");
+    throw InputError(
+        "--sharp sharpens the marching-tetrahedra surface; --tets cgal does not use one");
   }
   if (o.tets == "cgal") {
     RunCgal(o, grid, ext, &progress);
@@ -401,7 +410,9 @@ void RunMesh(const MeshOptions& o) {
   }
   progress.Finish();
   CheckInterrupted();
-  if (surface.triangles.cols() == 0) throw InputError("solid '" + grid.solid_name + "': the surface mesh is empty at cell " + Fmt(cell) + " m");
+  if (surface.triangles.cols() == 0)
+    throw InputError("solid '" + grid.solid_name + "': the surface mesh is empty at cell " +
+                     Fmt(cell) + " m");
   FeatureStats feature_stats;
   if (o.sharp) {
     FeatureSettings features;
@@ -413,22 +424,25 @@ void RunMesh(const MeshOptions& o) {
   const TriangleAngleStats angles = MeasureTriangleAngles(surface, 5.0);
   const SurfaceError error = MeasureSurfaceError(compiled, surface);
   std::cout << "scene " << o.scene << ", solid '" << grid.solid_name << "'\n";
-  std::cout << "surface: cell " << Fmt(cell) << " m, box " << Fmt(bounds.sizes().x()) << " x " << Fmt(bounds.sizes().y())
-            << " x " << Fmt(bounds.sizes().z()) << " m, " << surface.vertices.cols() << " vertices, "
-            << surface.triangles.cols() << " triangles, " << Fmt(stats.seconds, 3) << " s"
+  std::cout << "surface: cell " << Fmt(cell) << " m, box " << Fmt(bounds.sizes().x()) << " x "
+            << Fmt(bounds.sizes().y()) << " x " << Fmt(bounds.sizes().z()) << " m, "
+            << surface.vertices.cols() << " vertices, " << surface.triangles.cols()
+            << " triangles, " << Fmt(stats.seconds, 3) << " s"
             << (o.raw_surface ? " (raw, no clean-up)" : "") << "\n";
   if (!o.raw_surface) {
-    std::cout << "clean-up: " << stats.collapsed_edges << " edge collapses, " << stats.flipped_edges << " flips\n";
+    std::cout << "clean-up: " << stats.collapsed_edges << " edge collapses, " << stats.flipped_edges
+              << " flips\n";
   }
   if (o.sharp) {
-    std::cout << "sharpen: " << feature_stats.feature_vertices << " feature vertices (" << feature_stats.corner_vertices
-              << " corners), " << feature_stats.vertices_moved << " moved, " << feature_stats.edges_flipped
-              << " flips, " << Fmt(feature_stats.seconds, 3) << " s\n";
+    std::cout << "sharpen: " << feature_stats.feature_vertices << " feature vertices ("
+              << feature_stats.corner_vertices << " corners), " << feature_stats.vertices_moved
+              << " moved, " << feature_stats.edges_flipped << " flips, "
+              << Fmt(feature_stats.seconds, 3) << " s\n";
   }
   std::cout << "surface quality: min triangle angle " << Fmt(angles.min_angle_deg, 3) << " deg, "
-            << angles.small_angle << " triangles under 5 deg, " << angles.zero_area << " zero-area; error max "
-            << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3) << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6)
-            << " cm^3\n";
+            << angles.small_angle << " triangles under 5 deg, " << angles.zero_area
+            << " zero-area; error max " << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3)
+            << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3\n";
 
   if (o.tets.empty()) {
     const auto start = std::chrono::steady_clock::now();
@@ -448,17 +462,17 @@ void RunMesh(const MeshOptions& o) {
   progress.Finish();
   CheckInterrupted();
   const TetQuality& q = tet_stats.quality;
-  std::cout << "tetgen -" << tet_stats.switches << ": " << tets.nodes.cols() << " nodes, " << tets.tets.cols()
-            << " tets, check " << Fmt(tet_stats.check_seconds, 3) << " s, tetgen " << Fmt(tet_stats.tetgen_seconds, 3)
-            << " s";
+  std::cout << "tetgen -" << tet_stats.switches << ": " << tets.nodes.cols() << " nodes, "
+            << tets.tets.cols() << " tets, check " << Fmt(tet_stats.check_seconds, 3)
+            << " s, tetgen " << Fmt(tet_stats.tetgen_seconds, 3) << " s";
   if (tet_stats.welded_vertices > 0 || tet_stats.dropped_triangles > 0) {
-    std::cout << " (repair welded " << tet_stats.welded_vertices << " vertices, dropped " << tet_stats.dropped_triangles
-              << " triangles)";
+    std::cout << " (repair welded " << tet_stats.welded_vertices << " vertices, dropped "
+              << tet_stats.dropped_triangles << " triangles)";
   }
   std::cout << "\n";
-  std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. " << Fmt(q.max_dihedral_deg, 4)
-            << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3) << ", volume " << Fmt(q.total_volume * 1e6, 6)
-            << " cm^3\n";
+  std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. "
+            << Fmt(q.max_dihedral_deg, 4) << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3)
+            << ", volume " << Fmt(q.total_volume * 1e6, 6) << " cm^3\n";
   WriteTets(tets, o.out, ext);
 }
 
@@ -476,19 +490,26 @@ void RegisterMeshCommand(CLI::App& app) {
   options->max_cells = kDefaultMeshMaxCells;
   options->max_memory = kDefaultMeshMaxMemory;
   options->max_work = kDefaultMeshMaxWork;
-  CLI::App* cmd = app.add_subcommand("mesh", "Mesh an implicit solid of a scene: surface (STL/OBJ/PLY) or tets (VTU, .node)");
+  CLI::App* cmd = app.add_subcommand(
+      "mesh", "Mesh an implicit solid of a scene: surface (STL/OBJ/PLY) or tets (VTU, .node)");
   cmd->footer(kMeshHelp);
   cmd->add_option("scene", options->scene, "Scene file (JSON, docs/scene-format.md)")->required();
-  cmd->add_option("--out", options->out, "Output file: .stl .obj .ply (surface) or .vtu .node (with --tets)")->required();
+  cmd->add_option("--out", options->out,
+                  "Output file: .stl .obj .ply (surface) or .vtu .node (with --tets)")
+      ->required();
   cmd->add_option("--solid", options->solid, "Name of the solid to mesh (default: the first)");
   cmd->add_option("--resolution", options->resolution,
                   "Grid cell edge [m] (default: the solid's largest side / 80; platform: 3.9 mm)");
-  cmd->add_option("--tets", options->tets, "Tetrahedralize: tetgen (of the surface mesh) or cgal (Mesh_3 from the function)");
+  cmd->add_option(
+      "--tets", options->tets,
+      "Tetrahedralize: tetgen (of the surface mesh) or cgal (Mesh_3 from the function)");
   cmd->add_option("--quality", options->quality,
                   "Radius-edge bound for --tets (default 2; > 1; 0: none for tetgen, 3 for cgal)");
-  cmd->add_option("--max-volume", options->max_volume, "Largest tet volume [m^3] for --tets (default 0: unbounded)");
+  cmd->add_option("--max-volume", options->max_volume,
+                  "Largest tet volume [m^3] for --tets (default 0: unbounded)");
   cmd->add_flag("--sharp", options->sharp,
-                "Sharpen features: move vertices onto the solid's creases and corners and flip edges along them");
+                "Sharpen features: move vertices onto the solid's creases and corners and flip "
+                "edges along them");
   cmd->add_flag("--raw-surface", options->raw_surface,
                 "Skip the surface clean-up pass (raw marching tetrahedra, for comparison)");
   cmd->add_option("--max-cells", options->max_cells,
@@ -520,10 +541,12 @@ void RegisterMeshCommand(CLI::App& app) {
                        " (try another --resolution)");
     } catch (const TetgenError& e) {
       std::cout.flush();
-      throw InputError(std::string("TetGen failed: ") + e.what() + " (try another --resolution or --quality)");
+      throw InputError(std::string("TetGen failed: ") + e.what() +
+                       " (try another --resolution or --quality)");
     } catch (const CgalMeshError& e) {
       std::cout.flush();
-      throw InputError(std::string("CGAL meshing failed: ") + e.what() + " (try another --resolution or --quality)");
+      throw InputError(std::string("CGAL meshing failed: ") + e.what() +
+                       " (try another --resolution or --quality)");
     } catch (const MeshFileError& e) {
       std::cout.flush();
       throw InputError(e.what());

@@ -1,12 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "cli/plot.h"
 
-#include <cmath>
-#include <cstdlib>
-#include <fstream>
-#include <stdexcept>
 #include <sys/stat.h>
-
 #include <vtkAxis.h>
 #include <vtkChart.h>
 #include <vtkChartLegend.h>
@@ -25,13 +20,18 @@
 #include <vtkVector.h>
 #include <vtkWindowToImageFilter.h>
 
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <stdexcept>
+
 namespace spidarcad::app {
 
 namespace {
 // Colour-blind-friendly palette (Okabe-Ito), RGB.
-constexpr unsigned char kPalette[8][3] = {{0, 114, 178},  {213, 94, 0},   {0, 158, 115},
+constexpr unsigned char kPalette[8][3] = {{0, 114, 178},   {213, 94, 0},  {0, 158, 115},
                                           {204, 121, 167}, {230, 159, 0}, {86, 180, 233},
-                                          {0, 0, 0},      {240, 228, 66}};
+                                          {0, 0, 0},       {240, 228, 66}};
 }  // namespace
 
 const unsigned char* PlotPaletteColor(int index) { return kPalette[((index % 8) + 8) % 8]; }
@@ -41,8 +41,8 @@ bool PlotDisplayAvailable() {
   if (display == nullptr || display[0] == '\0') return false;
   const std::string d(display);
   if (d[0] != ':') return true;  // remote or forwarded display: trust it
-  const std::string number = d.substr(1, d.find('.') == std::string::npos ? std::string::npos
-                                                                           : d.find('.') - 1);
+  const std::string number =
+      d.substr(1, d.find('.') == std::string::npos ? std::string::npos : d.find('.') - 1);
   struct stat info;
   return stat(("/tmp/.X11-unix/X" + number).c_str(), &info) == 0;
 }
@@ -50,7 +50,8 @@ bool PlotDisplayAvailable() {
 void WriteLinePlotPng(const std::vector<PlotPanel>& panels, const std::string& path, int width,
                       int height) {
   if (!PlotDisplayAvailable()) {
-    throw std::runtime_error("cannot render " + path + ": no X display (run under xvfb-run -a -s "
+    throw std::runtime_error("cannot render " + path +
+                             ": no X display (run under xvfb-run -a -s "
                              "\"-screen 0 1280x1024x24\")");
   }
   {

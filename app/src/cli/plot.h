@@ -12,10 +12,10 @@ namespace spidarcad::app {
 
 // One line of a plot: points (x[k], y[k]); non-finite points are left out.
 struct PlotSeries {
-  std::string label;             // legend entry
-  std::vector<double> x;         // same length as y
+  std::string label;      // legend entry
+  std::vector<double> x;  // same length as y
   std::vector<double> y;
-  int color = 0;                 // index into a fixed palette of 8 distinct colours
+  int color = 0;  // index into a fixed palette of 8 distinct colours
   bool dashed = false;
 };
 

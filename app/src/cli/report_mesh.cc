@@ -12,8 +12,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "doc/assets.h"
 #include "cli/report_sections.h"
+#include "doc/assets.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
@@ -343,8 +343,7 @@ void ReportTetMeshing(ReportContext& ctx) {
                      ctx.Pick(std::vector<double>{0.008, 0.005}, {0.008, 0.005, 0.0035})});
   }
   {
-    const Scene scene =
-        LoadScene(AssetPath("scenes/platform.json"));
+    const Scene scene = LoadScene(AssetPath("scenes/platform.json"));
     cases.push_back({"platform", CompiledSolid::Compile(scene.solids[0].root),
                      Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02)), 0.0,
                      ctx.Pick(std::vector<double>{0.008}, {0.008, 0.006, 0.004})});

@@ -137,11 +137,11 @@ struct RunOptions {
   std::vector<double> friction;
   double world_scale = 0.0;  // 0: fitted
   std::vector<double> world_origin;
-  bool calibrate = false;  // line-fit calibration of the simulated device before the run
+  bool calibrate = false;            // line-fit calibration of the simulated device before the run
   std::string calibration;           // calibration file to read the encoders through
   haptics::SpidarGeometry geometry;  // the device's frame and pole (--frame, --pole)
-  double max_duration = 3600.0;  // s: longest run accepted (docs/limits.md)
-  bool progress = false;         // progress on stderr even when it is not a terminal
+  double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
+  bool progress = false;             // progress on stderr even when it is not a terminal
 };
 
 // Ceiling of --max-duration, s: 1e7 s is 1e10 ticks, far inside a long tick counter.
@@ -279,7 +279,8 @@ void RunRun(const RunOptions& options) {
   std::string scene_name = "empty";
   std::string fields_line;  // per-field names for the summary
   std::string map_line = "X_WD: identity (device coordinates)";
-  haptics::AssemblyField* assembly_field = nullptr;  // an assembly scene's field (owned by the loop)
+  haptics::AssemblyField* assembly_field =
+      nullptr;  // an assembly scene's field (owned by the loop)
   haptics::LoopSettings settings;
   settings.fk.max_residual = kNominalFkMaxResidual;  // nominal encoder model: mm-level errors
   if (options.scene.empty() || options.scene == "none") {
@@ -322,66 +323,66 @@ void RunRun(const RunOptions& options) {
                  FormatNumber(settings.p_WDo.x()) + ", " + FormatNumber(settings.p_WDo.y()) + ", " +
                  FormatNumber(settings.p_WDo.z()) + ") m";
     } else {
-    SceneHapticsOptions haptic_options;
-    if (options.tool == "proxy") {
-      haptic_options.tool = ToolModel::kProxy;
-    } else if (options.tool == "shell") {
-      haptic_options.tool = ToolModel::kShell;
-    } else {
-      throw InputError("--tool: '" + options.tool + "' is not a tool model; use proxy or shell");
-    }
-    haptic_options.stiffness = options.stiffness;
-    haptic_options.damping = options.damping;
-    haptic_options.coupling_stiffness = std::min(options.stiffness, 1000.0);
-    if (!options.friction.empty()) {
-      if (options.friction.size() != 2) {
-        throw InputError("--friction: expected static,dynamic, got " +
-                         std::to_string(options.friction.size()) + " numbers");
+      SceneHapticsOptions haptic_options;
+      if (options.tool == "proxy") {
+        haptic_options.tool = ToolModel::kProxy;
+      } else if (options.tool == "shell") {
+        haptic_options.tool = ToolModel::kShell;
+      } else {
+        throw InputError("--tool: '" + options.tool + "' is not a tool model; use proxy or shell");
       }
-      haptic_options.static_friction = options.friction[0];
-      haptic_options.dynamic_friction = options.friction[1];
-    }
-    if (options.world_scale != 0.0) haptic_options.world_scale = options.world_scale;
-    if (!options.world_origin.empty()) {
-      if (options.world_origin.size() != 3) {
-        throw InputError("--world-origin: expected x,y,z (m), got " +
-                         std::to_string(options.world_origin.size()) + " numbers");
+      haptic_options.stiffness = options.stiffness;
+      haptic_options.damping = options.damping;
+      haptic_options.coupling_stiffness = std::min(options.stiffness, 1000.0);
+      if (!options.friction.empty()) {
+        if (options.friction.size() != 2) {
+          throw InputError("--friction: expected static,dynamic, got " +
+                           std::to_string(options.friction.size()) + " numbers");
+        }
+        haptic_options.static_friction = options.friction[0];
+        haptic_options.dynamic_friction = options.friction[1];
       }
-      haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
-                                             options.world_origin[2]);
-    }
-    haptic_options.grip_d = options.geometry.d;
-    SceneHaptics built;
-    try {
-      haptic_options.Validate();
-      built = BuildHapticScene(loaded, haptic_options);
-    } catch (const std::invalid_argument& e) {
-      const std::string what = e.what();
-      // Option problems name the option; solid problems name the file.
-      if (what.rfind("scene haptics option", 0) == 0) {
-        throw InputError("--stiffness/--damping/--friction/--world-scale: " + what);
+      if (options.world_scale != 0.0) haptic_options.world_scale = options.world_scale;
+      if (!options.world_origin.empty()) {
+        if (options.world_origin.size() != 3) {
+          throw InputError("--world-origin: expected x,y,z (m), got " +
+                           std::to_string(options.world_origin.size()) + " numbers");
+        }
+        haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
+                                               options.world_origin[2]);
       }
-      throw InputError(options.scene + ": " + what);
-    }
-    built.ApplyTo(&settings);
-    scene = std::move(built.scene);
-    scene_name = options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
-    fields_line = "fields:";
-    for (std::size_t i = 0; i < built.fields.size(); ++i) {
-      fields_line += std::string(i ? "," : "") + " " + built.fields[i].kind + " '" +
-                     built.fields[i].solid + "'";
-    }
-    const Eigen::Vector3d& o = built.map.p_WDo;
-    map_line = "X_WD: p_W = " + FormatNumber(built.map.world_scale) + " p_D + (" +
-               FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
-               ") m; scale " + (built.map.scale_fitted ? "fitted" : "given") + ", origin " +
-               (built.map.origin_fitted ? "fitted" : "given");
-    if (!built.map.bounds_W.isEmpty()) {
-      const Eigen::AlignedBox3d& b = built.map.bounds_W;
-      map_line += "; scene box (" + FormatNumber(b.min().x()) + ", " + FormatNumber(b.min().y()) +
-                  ", " + FormatNumber(b.min().z()) + ") .. (" + FormatNumber(b.max().x()) + ", " +
-                  FormatNumber(b.max().y()) + ", " + FormatNumber(b.max().z()) + ") m";
-    }
+      haptic_options.grip_d = options.geometry.d;
+      SceneHaptics built;
+      try {
+        haptic_options.Validate();
+        built = BuildHapticScene(loaded, haptic_options);
+      } catch (const std::invalid_argument& e) {
+        const std::string what = e.what();
+        // Option problems name the option; solid problems name the file.
+        if (what.rfind("scene haptics option", 0) == 0) {
+          throw InputError("--stiffness/--damping/--friction/--world-scale: " + what);
+        }
+        throw InputError(options.scene + ": " + what);
+      }
+      built.ApplyTo(&settings);
+      scene = std::move(built.scene);
+      scene_name = options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
+      fields_line = "fields:";
+      for (std::size_t i = 0; i < built.fields.size(); ++i) {
+        fields_line += std::string(i ? "," : "") + " " + built.fields[i].kind + " '" +
+                       built.fields[i].solid + "'";
+      }
+      const Eigen::Vector3d& o = built.map.p_WDo;
+      map_line = "X_WD: p_W = " + FormatNumber(built.map.world_scale) + " p_D + (" +
+                 FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
+                 ") m; scale " + (built.map.scale_fitted ? "fitted" : "given") + ", origin " +
+                 (built.map.origin_fitted ? "fitted" : "given");
+      if (!built.map.bounds_W.isEmpty()) {
+        const Eigen::AlignedBox3d& b = built.map.bounds_W;
+        map_line += "; scene box (" + FormatNumber(b.min().x()) + ", " + FormatNumber(b.min().y()) +
+                    ", " + FormatNumber(b.min().z()) + ") .. (" + FormatNumber(b.max().x()) + ", " +
+                    FormatNumber(b.max().y()) + ", " + FormatNumber(b.max().z()) + ") m";
+      }
     }  // not an assembly
   }
   const int num_fields = scene->size();
@@ -483,7 +484,8 @@ void RunRun(const RunOptions& options) {
       // A real board: tick k starts at its absolute time (no drift); lateness is reported.
       const auto due = wall_start + std::chrono::microseconds(k * 1000);
       std::this_thread::sleep_until(due);
-      inputs.lateness = std::chrono::duration<double>(std::chrono::steady_clock::now() - due).count();
+      inputs.lateness =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - due).count();
     }
     rig->Read(dt, &inputs.reading);
     const auto start = std::chrono::steady_clock::now();
@@ -524,9 +526,10 @@ void RunRun(const RunOptions& options) {
   out.close();
   if (!out) throw InputError("--out: failed writing '" + options.out + "'");
 
-  std::cout << "run: " << ticks << " ticks (" << Fixed((ticks - 1) * dt, 3)
-            << " s at 1000 Hz, " << (physical ? "virtual clock" : "real time") << "), scene " << scene_name << " (" << num_fields
-            << " field" << (num_fields == 1 ? "" : "s") << "), device " << rig->Describe();
+  std::cout << "run: " << ticks << " ticks (" << Fixed((ticks - 1) * dt, 3) << " s at 1000 Hz, "
+            << (physical ? "virtual clock" : "real time") << "), scene " << scene_name << " ("
+            << num_fields << " field" << (num_fields == 1 ? "" : "s") << "), device "
+            << rig->Describe();
   if (physical) {
     std::cout << ", hand " << FormatNumber(hand_settings.stiffness) << " N/m, "
               << FormatNumber(hand_settings.damping) << " N·s/m";
@@ -563,7 +566,8 @@ void RegisterRunCommand(CLI::App& app) {
   auto options = std::make_shared<RunOptions>();
   CLI::App* cmd = app.add_subcommand("run", "Headless haptic session on a scripted trajectory");
   cmd->footer(kRunHelp);
-  cmd->add_option("scene", options->scene, "Scene: omitted (empty), 'demo' or a scene file (.json)");
+  cmd->add_option("scene", options->scene,
+                  "Scene: omitted (empty), 'demo' or a scene file (.json)");
   cmd->add_option("--trajectory", options->trajectory, "Trajectory CSV (t,x,y,z,qw,qx,qy,qz,grasp)")
       ->required();
   cmd->add_option("--out", options->out, "Result CSV, one row per tick")->required();

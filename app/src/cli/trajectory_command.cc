@@ -2,6 +2,7 @@
 // (and the window's --trajectory) from the generators of haptics/trajectory.h. The defaults of
 // each kind reproduce the file of the same name in assets/trajectories/.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include <Eigen/Core>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -10,8 +11,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
@@ -29,7 +28,8 @@ constexpr const char* kTrajectoryHelp =
     "           -normal, hold, back to --start (40/20/10/30 % of --duration, cosine blends)\n"
     "  circle   --turns turns of radius --radius about --center in the plane normal to --axis\n"
     "  twist    rotates the grip about --axis through --center, --amplitude rad, --cycles times\n"
-    "  squeeze  closes the grasp from pi/2 to --grasp-min rad and back, --cycles times, at --center\n"
+    "  squeeze  closes the grasp from pi/2 to --grasp-min rad and back, --cycles times, at "
+    "--center\n"
     "The grip keeps its rest orientation and grasp pi/2 where the kind does not vary them.\n"
     "Defaults reproduce assets/trajectories/KIND.csv (made for the demo scene: floor at\n"
     "z = -0.03 m). Device coordinates are what the hand holds; `run` maps them into the scene\n"
@@ -150,8 +150,9 @@ void RunTrajectory(TrajectoryOptions o) {
     } else if (o.kind == "circle") {
       RequirePositive(o.radius, "--radius");
       RequirePositive(o.turns, "--turns");
-      trajectory = haptics::Circle(center, o.radius, CheckedVector(o.axis, "--axis", true).normalized(),
-                                   o.turns, o.duration, o.rate);
+      trajectory =
+          haptics::Circle(center, o.radius, CheckedVector(o.axis, "--axis", true).normalized(),
+                          o.turns, o.duration, o.rate);
     } else if (o.kind == "twist") {
       if (!std::isfinite(o.amplitude) || std::abs(o.amplitude) > std::numbers::pi) {
         throw InputError("--amplitude: must be within [-pi, pi] rad");
@@ -191,8 +192,8 @@ void RunTrajectory(TrajectoryOptions o) {
 
 void RegisterTrajectoryCommand(CLI::App& app) {
   auto o = std::make_shared<TrajectoryOptions>();
-  CLI::App* cmd =
-      app.add_subcommand("trajectory", "Write a scripted grip trajectory (press, circle, twist, squeeze)");
+  CLI::App* cmd = app.add_subcommand(
+      "trajectory", "Write a scripted grip trajectory (press, circle, twist, squeeze)");
   cmd->footer(kTrajectoryHelp);
   cmd->add_option("kind", o->kind, "press, circle, twist or squeeze")
       ->required()
@@ -201,10 +202,13 @@ void RegisterTrajectoryCommand(CLI::App& app) {
   auto vector_option = [&](const char* name, std::vector<double>* v, const char* what) {
     cmd->add_option(name, *v, what)->delimiter(',')->expected(3)->type_name("X,Y,Z");
   };
-  vector_option("--start", &o->start, "press: where the grip starts and returns, m (default 0.05,0,0)");
-  vector_option("--surface", &o->surface, "press: the surface point it moves to, m (default 0.05,0,-0.03)");
+  vector_option("--start", &o->start,
+                "press: where the grip starts and returns, m (default 0.05,0,0)");
+  vector_option("--surface", &o->surface,
+                "press: the surface point it moves to, m (default 0.05,0,-0.03)");
   vector_option("--normal", &o->normal, "press: outward surface normal (default 0,0,1)");
-  cmd->add_option("--depth", o->depth, "press: how far past the surface the hand aims, m (default 0.01)");
+  cmd->add_option("--depth", o->depth,
+                  "press: how far past the surface the hand aims, m (default 0.01)");
   vector_option("--center", &o->center,
                 "circle, twist, squeeze: centre, m (default 0,0,-0.035 for circle, else 0,0,0)");
   vector_option("--axis", &o->axis, "circle: plane normal; twist: rotation axis (default 0,0,1)");

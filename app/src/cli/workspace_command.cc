@@ -95,11 +95,17 @@ void WriteCsv(const std::vector<haptics::WorkspaceSample>& samples, const std::s
 
 std::vector<PlotPanel> MakePanels(const std::vector<haptics::WorkspaceSample>& samples) {
   PlotPanel force{"Force toward the face (direction of expected deterioration)",
-                  "grip distance from centre [cm]", "deliverable force [N]", {}};
+                  "grip distance from centre [cm]",
+                  "deliverable force [N]",
+                  {}};
   PlotPanel moment{"Moment at the centre vs rotation (min of both senses)",
-                   "rotation angle [deg]", "deliverable moment [N*m]", {}};
+                   "rotation angle [deg]",
+                   "deliverable moment [N*m]",
+                   {}};
   PlotPanel grasp{"Grasp torque along the translation sweeps (min over close/open)",
-                  "grip distance from centre [cm]", "deliverable grasp torque [N*m]", {}};
+                  "grip distance from centre [cm]",
+                  "deliverable grasp torque [N*m]",
+                  {}};
   int color = 0;
   for (char axis : {'x', 'y', 'z'}) {
     for (int sign : {+1, -1}) {
@@ -128,13 +134,11 @@ std::vector<PlotPanel> MakePanels(const std::vector<haptics::WorkspaceSample>& s
   return {force, moment, grasp};
 }
 
-void PrintSummary(const std::vector<haptics::WorkspaceSample>& samples,
-                  const WorkspaceOptions& o) {
+void PrintSummary(const std::vector<haptics::WorkspaceSample>& samples, const WorkspaceOptions& o) {
   std::ostringstream s;
-  s << "Deliverable wrench, tensions in [" << Num(o.sweep.tau_min) << ", "
-    << Num(o.sweep.tau_max) << "] N, frame half-sides " << Num(o.geometry.a) << ", "
-    << Num(o.geometry.b) << ", " << Num(o.geometry.c) << " m, pole " << Num(o.geometry.d)
-    << " m.\n";
+  s << "Deliverable wrench, tensions in [" << Num(o.sweep.tau_min) << ", " << Num(o.sweep.tau_max)
+    << "] N, frame half-sides " << Num(o.geometry.a) << ", " << Num(o.geometry.b) << ", "
+    << Num(o.geometry.c) << " m, pole " << Num(o.geometry.d) << " m.\n";
   s << "Force toward a face (\"full\" = "
     << (o.rated_force > 0 ? "min(value at the centre, --rated-force " + Num(o.rated_force) + " N)"
                           : std::string("value at the centre"))
@@ -188,8 +192,8 @@ void PrintSummary(const std::vector<haptics::WorkspaceSample>& samples,
     << "  z:       paper full to 23 cm, zero at 25 cm;           model full to "
     << Centimetres(z_full) << ", zero from " << Centimetres(z_zero)
     << (std::isnan(z_zero) ? " (within the sweep)" : "") << "\n"
-    << "  rotation at the centre: paper full to 45°;             model full to "
-    << Degrees(r_full) << ", zero from " << Degrees(r_zero) << "\n";
+    << "  rotation at the centre: paper full to 45°;             model full to " << Degrees(r_full)
+    << ", zero from " << Degrees(r_zero) << "\n";
   std::cout << s.str();
 }
 

@@ -18,7 +18,8 @@ std::string AssetPath(const std::string& relative) {
   if (fs::exists(local, ec)) return local.string();
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const fs::path installed = exe.parent_path() / ".." / "share" / "spidarcad" / "assets" / relative;
+    const fs::path installed =
+        exe.parent_path() / ".." / "share" / "spidarcad" / "assets" / relative;
     if (fs::exists(installed, ec)) return installed.lexically_normal().string();
   }
   return local.string();

@@ -13,9 +13,11 @@ nlohmann::json Wrap(const char* key, nlohmann::json value) {
   return {{"format", kClipboardFormat}, {"version", kClipboardVersion}, {key, std::move(value)}};
 }
 
-const nlohmann::json& Field(const nlohmann::json& object, const std::string& key, const std::string& pointer) {
+const nlohmann::json& Field(const nlohmann::json& object, const std::string& key,
+                            const std::string& pointer) {
   auto it = object.find(key);
-  if (it == object.end()) throw ClipboardError("clipboard: " + pointer + " lacks the field '" + key + "'");
+  if (it == object.end())
+    throw ClipboardError("clipboard: " + pointer + " lacks the field '" + key + "'");
   return *it;
 }
 
@@ -33,15 +35,18 @@ modeling::ImplicitNode ReadNode(const nlohmann::json& json, const std::string& p
 }
 
 ClipboardContent ReadSolid(const nlohmann::json& solid, const std::string& pointer) {
-  if (!solid.is_object()) throw ClipboardError("clipboard: " + pointer + " must be an object {\"name\", \"root\"}");
+  if (!solid.is_object())
+    throw ClipboardError("clipboard: " + pointer + " must be an object {\"name\", \"root\"}");
   for (auto it = solid.begin(); it != solid.end(); ++it) {
     if (it.key() != "name" && it.key() != "root") {
-      throw ClipboardError("clipboard: unknown field '" + it.key() + "' in the solid at " + pointer + " (fields: name, root)");
+      throw ClipboardError("clipboard: unknown field '" + it.key() + "' in the solid at " +
+                           pointer + " (fields: name, root)");
     }
   }
   const nlohmann::json& name = Field(solid, "name", pointer);
   if (!name.is_string() || name.get<std::string>().empty()) {
-    throw ClipboardError("clipboard: field " + pointer + "/name must be a non-empty string, got " + name.dump());
+    throw ClipboardError("clipboard: field " + pointer + "/name must be a non-empty string, got " +
+                         name.dump());
   }
   ClipboardContent content;
   content.is_solid = true;
@@ -68,26 +73,32 @@ ClipboardContent ParseClipboard(const std::string& text) {
         ++column;
       }
     }
-    throw ClipboardError("clipboard: not JSON: line " + std::to_string(line) + ", column " + std::to_string(column) + ": " +
-                         e.what());
+    throw ClipboardError("clipboard: not JSON: line " + std::to_string(line) + ", column " +
+                         std::to_string(column) + ": " + e.what());
   }
-  if (!json.is_object()) throw ClipboardError("clipboard: expected a JSON object, got " + std::string(json.type_name()));
+  if (!json.is_object())
+    throw ClipboardError("clipboard: expected a JSON object, got " + std::string(json.type_name()));
   if (json.contains("format")) {
     if (json["format"] != kClipboardFormat) {
-      throw ClipboardError("clipboard: field /format must be \"" + std::string(kClipboardFormat) + "\", got " + json["format"].dump());
+      throw ClipboardError("clipboard: field /format must be \"" + std::string(kClipboardFormat) +
+                           "\", got " + json["format"].dump());
     }
     const nlohmann::json& version = Field(json, "version", "the clipboard document");
     if (version != kClipboardVersion) {
-      throw ClipboardError("clipboard: field /version: version " + version.dump() + " is not supported (this build reads " +
+      throw ClipboardError("clipboard: field /version: version " + version.dump() +
+                           " is not supported (this build reads " +
                            std::to_string(kClipboardVersion) + ")");
     }
     for (auto it = json.begin(); it != json.end(); ++it) {
-      if (it.key() != "format" && it.key() != "version" && it.key() != "solid" && it.key() != "node") {
-        throw ClipboardError("clipboard: unknown field '" + it.key() + "' (fields: format, version, solid or node)");
+      if (it.key() != "format" && it.key() != "version" && it.key() != "solid" &&
+          it.key() != "node") {
+        throw ClipboardError("clipboard: unknown field '" + it.key() +
+                             "' (fields: format, version, solid or node)");
       }
     }
     const bool has_solid = json.contains("solid"), has_node = json.contains("node");
-    if (has_solid == has_node) throw ClipboardError("clipboard: needs exactly one of the fields 'solid' and 'node'");
+    if (has_solid == has_node)
+      throw ClipboardError("clipboard: needs exactly one of the fields 'solid' and 'node'");
     if (has_solid) return ReadSolid(json["solid"], "/solid");
     ClipboardContent content;
     content.root = ReadNode(json["node"], "/node");
@@ -99,13 +110,16 @@ ClipboardContent ParseClipboard(const std::string& text) {
     content.root = ReadNode(json, "");
     return content;
   }
-  throw ClipboardError("clipboard: not a spidarcad solid or node (no 'format', 'root' or 'type' field)");
+  throw ClipboardError(
+      "clipboard: not a spidarcad solid or node (no 'format', 'root' or 'type' field)");
 }
 
 void Clipboard::CopySolid(const Document& doc, ObjectId id) {
   const DocObject& object = doc.Get(id);
   const modeling::ImplicitNode* root = TreeOf(object);
-  if (root == nullptr) throw DocumentError(std::string(ObjectKindName(object.data)) + " '" + object.name + "' has no node tree to copy");
+  if (root == nullptr)
+    throw DocumentError(std::string(ObjectKindName(object.data)) + " '" + object.name +
+                        "' has no node tree to copy");
   text_ = Wrap("solid", {{"name", object.name}, {"root", modeling::NodeToJson(*root)}}).dump(2);
 }
 
@@ -115,8 +129,10 @@ void Clipboard::CopyNode(const Document& doc, ObjectId id, const NodePath& path)
 
 std::unique_ptr<Command> PasteAsSolid(const std::string& text) {
   ClipboardContent content = ParseClipboard(text);
-  std::string name = content.is_solid ? content.name
-                                      : (content.root.name.empty() ? modeling::NodeTypeName(content.root.params) : content.root.name);
+  std::string name = content.is_solid
+                         ? content.name
+                         : (content.root.name.empty() ? modeling::NodeTypeName(content.root.params)
+                                                      : content.root.name);
   auto shared = std::make_shared<ClipboardContent>(std::move(content));
   // InsertObjectCommand is internal to command.cc: build the object through DuplicateObject's
   // sibling, a constant insert made unique at Do time.
@@ -144,7 +160,8 @@ std::unique_ptr<Command> PasteAsSolid(const std::string& text) {
   return command;
 }
 
-std::unique_ptr<Command> PasteAsChild(const std::string& text, ObjectId id, NodePath parent, int index) {
+std::unique_ptr<Command> PasteAsChild(const std::string& text, ObjectId id, NodePath parent,
+                                      int index) {
   ClipboardContent content = ParseClipboard(text);
   struct PasteChild : Command {
     modeling::ImplicitNode node;

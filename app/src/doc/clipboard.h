@@ -60,6 +60,7 @@ std::unique_ptr<Command> PasteAsSolid(const std::string& text);
 // Command pasting clipboard text (solid or subtree) as child `index` (-1: last) of the node at
 // parent in object id. Throws ClipboardError at once when the text is malformed; the command
 // throws like edit::AddNode when the place is wrong.
-std::unique_ptr<Command> PasteAsChild(const std::string& text, ObjectId id, NodePath parent, int index = -1);
+std::unique_ptr<Command> PasteAsChild(const std::string& text, ObjectId id, NodePath parent,
+                                      int index = -1);
 
 }  // namespace spidarcad::app

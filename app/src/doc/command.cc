@@ -12,7 +12,8 @@ namespace spidarcad::app {
 namespace {
 
 std::string Describe(const DocObject& object) {
-  return std::string(ObjectKindName(object.data)) + " '" + object.name + "' (id " + std::to_string(object.id) + ")";
+  return std::string(ObjectKindName(object.data)) + " '" + object.name + "' (id " +
+         std::to_string(object.id) + ")";
 }
 
 // ---- generic commands ----
@@ -22,8 +23,12 @@ std::string Describe(const DocObject& object) {
 class ReplaceObjectsCommand : public Command {
  public:
   using EditFn = std::function<void(const Document&, std::vector<DocObject>&)>;
-  ReplaceObjectsCommand(std::vector<ObjectId> ids, std::string description, EditFn edit, std::string merge_key)
-      : ids_(std::move(ids)), description_(std::move(description)), edit_(std::move(edit)), merge_key_(std::move(merge_key)) {}
+  ReplaceObjectsCommand(std::vector<ObjectId> ids, std::string description, EditFn edit,
+                        std::string merge_key)
+      : ids_(std::move(ids)),
+        description_(std::move(description)),
+        edit_(std::move(edit)),
+        merge_key_(std::move(merge_key)) {}
 
   void Do(Document& doc) override {
     if (!done_) {
@@ -49,7 +54,9 @@ class ReplaceObjectsCommand : public Command {
   std::string Description() const override { return description_; }
   bool MergeWith(Command& next) override {
     auto* n = dynamic_cast<ReplaceObjectsCommand*>(&next);
-    if (n == nullptr || merge_key_.empty() || n->merge_key_ != merge_key_ || n->ids_ != ids_ || !n->done_) return false;
+    if (n == nullptr || merge_key_.empty() || n->merge_key_ != merge_key_ || n->ids_ != ids_ ||
+        !n->done_)
+      return false;
     after_ = std::move(n->after_);
     return true;
   }
@@ -68,7 +75,8 @@ class InsertObjectCommand : public Command {
  public:
   // Returns the object (id and revision are filled in afterwards) and its index (-1: end).
   using MakeFn = std::function<std::pair<int, DocObject>(const Document&)>;
-  InsertObjectCommand(std::string description, MakeFn make) : description_(std::move(description)), make_(std::move(make)) {}
+  InsertObjectCommand(std::string description, MakeFn make)
+      : description_(std::move(description)), make_(std::move(make)) {}
 
   void Do(Document& doc) override {
     if (!done_) {
@@ -103,7 +111,8 @@ class EraseObjectCommand : public Command {
   void Do(Document& doc) override {
     if (!done_) {
       index_ = doc.IndexOf(id_);
-      if (index_ < 0) throw DocumentError("no object with id " + std::to_string(id_) + " in the document");
+      if (index_ < 0)
+        throw DocumentError("no object with id " + std::to_string(id_) + " in the document");
       description_ = "Delete " + doc.Get(id_).name;
       done_ = true;
     }
@@ -130,7 +139,8 @@ class DeleteObjectCommand : public Command {
       std::vector<std::unique_ptr<Command>> steps;
       for (const DocObject& o : doc.objects()) {
         const auto* fe = std::get_if<FeModelData>(&o.data);
-        if (fe != nullptr && fe->tet_mesh == id_) steps.push_back(std::make_unique<EraseObjectCommand>(o.id));
+        if (fe != nullptr && fe->tet_mesh == id_)
+          steps.push_back(std::make_unique<EraseObjectCommand>(o.id));
       }
       steps.push_back(std::make_unique<EraseObjectCommand>(id_));
       auto macro = std::make_unique<MacroCommand>("Delete " + object.name, std::move(steps));
@@ -155,7 +165,8 @@ class MoveObjectCommand : public Command {
   void Do(Document& doc) override {
     if (old_index_ < 0) {
       old_index_ = doc.IndexOf(id_);
-      if (old_index_ < 0) throw DocumentError("no object with id " + std::to_string(id_) + " in the document");
+      if (old_index_ < 0)
+        throw DocumentError("no object with id " + std::to_string(id_) + " in the document");
       description_ = "Move " + doc.Get(id_).name;
     }
     doc.RawMove(id_, index_);
@@ -200,7 +211,9 @@ class SnapCommand : public Command {
         const modeling::SceneSnap& s = *new_;
         for (double v : {s.max_force, s.vertex_radius, s.edge_radius, s.face_radius}) {
           if (!(v > 0) || !std::isfinite(v)) {
-            throw DocumentError("snap: every field (max_force, vertex_radius, edge_radius, face_radius) must be > 0 and finite");
+            throw DocumentError(
+                "snap: every field (max_force, vertex_radius, edge_radius, face_radius) must be > "
+                "0 and finite");
           }
         }
       }
@@ -211,7 +224,9 @@ class SnapCommand : public Command {
     doc.RawSetSnap(new_, new_revision_);
   }
   void Undo(Document& doc) override { doc.RawSetSnap(old_, old_revision_); }
-  std::string Description() const override { return new_ ? "Set snap forces" : "Remove snap forces"; }
+  std::string Description() const override {
+    return new_ ? "Set snap forces" : "Remove snap forces";
+  }
 
  private:
   std::optional<modeling::SceneSnap> new_, old_;
@@ -227,22 +242,28 @@ class SculptStrokeCommand : public Command {
     if (new_revision_ == 0) {
       const DocObject& object = doc.Get(id_);
       const auto* data = std::get_if<SculptData>(&object.data);
-      if (data == nullptr || !data->mesh) throw DocumentError(Describe(object) + " is not a sculpt mesh");
+      if (data == nullptr || !data->mesh)
+        throw DocumentError(Describe(object) + " is not a sculpt mesh");
       if (static_cast<Eigen::Index>(vertices_.size()) != new_.cols()) {
-        throw DocumentError(Describe(object) + ": a stroke of " + std::to_string(vertices_.size()) + " vertices got " +
-                            std::to_string(new_.cols()) + " positions");
+        throw DocumentError(Describe(object) + ": a stroke of " + std::to_string(vertices_.size()) +
+                            " vertices got " + std::to_string(new_.cols()) + " positions");
       }
-      if (!new_.allFinite()) throw DocumentError(Describe(object) + ": stroke positions must be finite");
+      if (!new_.allFinite())
+        throw DocumentError(Describe(object) + ": stroke positions must be finite");
       const int n = SculptVertexCount(*data->mesh);
       std::set<int> seen;
       for (int v : vertices_) {
         if (v < 0 || v >= n) {
-          throw DocumentError(Describe(object) + ": stroke vertex " + std::to_string(v) + " is outside [0, " + std::to_string(n) + ")");
+          throw DocumentError(Describe(object) + ": stroke vertex " + std::to_string(v) +
+                              " is outside [0, " + std::to_string(n) + ")");
         }
-        if (!seen.insert(v).second) throw DocumentError(Describe(object) + ": stroke lists vertex " + std::to_string(v) + " twice");
+        if (!seen.insert(v).second)
+          throw DocumentError(Describe(object) + ": stroke lists vertex " + std::to_string(v) +
+                              " twice");
       }
       old_.resize(3, new_.cols());
-      for (size_t k = 0; k < vertices_.size(); ++k) old_.col(k) = SculptVertex(*data->mesh, vertices_[k]);
+      for (size_t k = 0; k < vertices_.size(); ++k)
+        old_.col(k) = SculptVertex(*data->mesh, vertices_[k]);
       old_revision_ = object.revision;
       new_revision_ = doc.NewRevision();
     }
@@ -257,7 +278,8 @@ class SculptStrokeCommand : public Command {
     auto& mesh = std::get<SculptData>(object.data).mesh;
     // Copy on write: undo snapshots or duplicates may share the mesh.
     if (mesh.use_count() > 1) mesh = std::make_shared<SculptMesh>(*mesh);
-    for (size_t k = 0; k < vertices_.size(); ++k) SetSculptVertex(mesh.get(), vertices_[k], positions.col(k));
+    for (size_t k = 0; k < vertices_.size(); ++k)
+      SetSculptVertex(mesh.get(), vertices_[k], positions.col(k));
     object.revision = revision;
   }
 
@@ -282,14 +304,19 @@ modeling::ImplicitNode& NodeAt(const Document& doc, DocObject& object, const Nod
   return *node;
 }
 
-std::string PathKey(ObjectId id, const NodePath& path) { return std::to_string(id) + ":" + PathPointer(path); }
+std::string PathKey(ObjectId id, const NodePath& path) {
+  return std::to_string(id) + ":" + PathPointer(path);
+}
 
 using TreeFn = std::function<void(const Document&, DocObject&)>;
 
-std::unique_ptr<Command> EditObject(ObjectId id, std::string description, TreeFn f, std::string merge_key = {}) {
+std::unique_ptr<Command> EditObject(ObjectId id, std::string description, TreeFn f,
+                                    std::string merge_key = {}) {
   return std::make_unique<ReplaceObjectsCommand>(
       std::vector<ObjectId>{id}, std::move(description),
-      [f = std::move(f)](const Document& doc, std::vector<DocObject>& objects) { f(doc, objects[0]); },
+      [f = std::move(f)](const Document& doc, std::vector<DocObject>& objects) {
+        f(doc, objects[0]);
+      },
       std::move(merge_key));
 }
 
@@ -302,10 +329,14 @@ T& DataAs(DocObject& object, const char* what) {
 
 std::unique_ptr<Command> InsertConstant(std::string description, DocObject object, int index) {
   return std::make_unique<InsertObjectCommand>(
-      std::move(description), [object = std::move(object), index](const Document&) { return std::make_pair(index, object); });
+      std::move(description), [object = std::move(object), index](const Document&) {
+        return std::make_pair(index, object);
+      });
 }
 
-std::string FieldDescription(const std::string& field) { return field.empty() ? "Edit node" : "Set " + field; }
+std::string FieldDescription(const std::string& field) {
+  return field.empty() ? "Edit node" : "Set " + field;
+}
 
 }  // namespace
 
@@ -369,8 +400,12 @@ void History::Clear() {
   merge_open_ = false;
 }
 
-std::string History::UndoDescription() const { return undo_.empty() ? "" : undo_.back()->Description(); }
-std::string History::RedoDescription() const { return redo_.empty() ? "" : redo_.back()->Description(); }
+std::string History::UndoDescription() const {
+  return undo_.empty() ? "" : undo_.back()->Description();
+}
+std::string History::RedoDescription() const {
+  return redo_.empty() ? "" : redo_.back()->Description();
+}
 
 void History::set_max_depth(std::size_t depth) {
   max_depth_ = std::max<std::size_t>(1, depth);
@@ -382,11 +417,12 @@ void History::set_max_depth(std::size_t depth) {
 void MakePastedTreeUnique(const Document& doc, modeling::ImplicitNode* root) {
   // Ids and names in use, gathered once (the document may hold thousands of nodes).
   std::set<std::string> ids, names;
-  std::function<void(const modeling::ImplicitNode&)> gather = [&](const modeling::ImplicitNode& node) {
-    if (!node.id.empty()) ids.insert(node.id);
-    if (!node.name.empty()) names.insert(node.name);
-    for (const modeling::ImplicitNode& c : node.children) gather(c);
-  };
+  std::function<void(const modeling::ImplicitNode&)> gather =
+      [&](const modeling::ImplicitNode& node) {
+        if (!node.id.empty()) ids.insert(node.id);
+        if (!node.name.empty()) names.insert(node.name);
+        for (const modeling::ImplicitNode& c : node.children) gather(c);
+      };
   for (const DocObject& o : doc.objects()) {
     if (const modeling::ImplicitNode* tree = TreeOf(o)) gather(*tree);
   }
@@ -411,7 +447,8 @@ void MakePastedTreeUnique(const Document& doc, modeling::ImplicitNode* root) {
 std::string UniqueObjectName(const Document& doc, const std::string& name) {
   if (doc.FindByName(name) == nullptr) return name;
   std::string candidate = name + " copy";
-  for (int k = 2; doc.FindByName(candidate) != nullptr; ++k) candidate = name + " copy " + std::to_string(k);
+  for (int k = 2; doc.FindByName(candidate) != nullptr; ++k)
+    candidate = name + " copy " + std::to_string(k);
   return candidate;
 }
 
@@ -426,7 +463,8 @@ std::unique_ptr<Command> AddSolid(std::string name, modeling::ImplicitNode root,
   return InsertConstant("Add solid " + name, std::move(o), index);
 }
 
-std::unique_ptr<Command> AddRigidPart(std::string name, modeling::ImplicitNode root, const Eigen::Isometry3d& X_WP) {
+std::unique_ptr<Command> AddRigidPart(std::string name, modeling::ImplicitNode root,
+                                      const Eigen::Isometry3d& X_WP) {
   DocObject o;
   o.name = name;
   o.data = RigidPartData{std::move(root), X_WP};
@@ -442,7 +480,8 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
   return InsertConstant("Add mesh " + name, std::move(o), -1);
 }
 
-std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh, const fem::Material& material,
+std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
+                                    const fem::Material& material,
                                     std::vector<Eigen::AlignedBox3d> fixed_boxes) {
   DocObject o;
   o.name = name;
@@ -457,13 +496,18 @@ std::unique_ptr<Command> AddSculpt(std::string name, SculptMesh mesh) {
   return InsertConstant("Add sculpt " + name, std::move(o), -1);
 }
 
-std::unique_ptr<Command> DeleteObject(ObjectId id) { return std::make_unique<DeleteObjectCommand>(id); }
-
-std::unique_ptr<Command> RenameObject(ObjectId id, std::string name) {
-  return EditObject(id, "Rename to " + name, [name](const Document&, DocObject& o) { o.name = name; });
+std::unique_ptr<Command> DeleteObject(ObjectId id) {
+  return std::make_unique<DeleteObjectCommand>(id);
 }
 
-std::unique_ptr<Command> MoveObject(ObjectId id, int index) { return std::make_unique<MoveObjectCommand>(id, index); }
+std::unique_ptr<Command> RenameObject(ObjectId id, std::string name) {
+  return EditObject(id, "Rename to " + name,
+                    [name](const Document&, DocObject& o) { o.name = name; });
+}
+
+std::unique_ptr<Command> MoveObject(ObjectId id, int index) {
+  return std::make_unique<MoveObjectCommand>(id, index);
+}
 
 std::unique_ptr<Command> DuplicateObject(ObjectId id) {
   return std::make_unique<InsertObjectCommand>("Duplicate", [id](const Document& doc) {
@@ -474,7 +518,9 @@ std::unique_ptr<Command> DuplicateObject(ObjectId id) {
   });
 }
 
-std::unique_ptr<Command> SetDescription(std::string text) { return std::make_unique<DescriptionCommand>(std::move(text)); }
+std::unique_ptr<Command> SetDescription(std::string text) {
+  return std::make_unique<DescriptionCommand>(std::move(text));
+}
 
 std::unique_ptr<Command> AddObject(std::string name, ObjectData data, int index) {
   DocObject o;
@@ -491,7 +537,8 @@ std::unique_ptr<Command> AddObject(std::string name, ObjectData data, int index)
 std::unique_ptr<Command> SetObjectData(ObjectId id, ObjectData data) {
   return EditObject(id, "Edit object", [data = std::move(data)](const Document&, DocObject& o) {
     if (data.index() != o.data.index()) {
-      throw DocumentError(Describe(o) + ": new data of kind " + ObjectKindName(data) + " does not match its kind");
+      throw DocumentError(Describe(o) + ": new data of kind " + ObjectKindName(data) +
+                          " does not match its kind");
     }
     o.data = data;
     if (auto* s = std::get_if<SculptData>(&o.data)) {
@@ -500,26 +547,34 @@ std::unique_ptr<Command> SetObjectData(ObjectId id, ObjectData data) {
   });
 }
 
-std::unique_ptr<Command> SetSnap(std::optional<modeling::SceneSnap> snap) { return std::make_unique<SnapCommand>(snap); }
-
-std::unique_ptr<Command> AddNode(ObjectId id, NodePath parent, int index, modeling::ImplicitNode node) {
-  const std::string type = modeling::NodeTypeName(node.params);
-  return EditObject(id, "Add " + type, [parent = std::move(parent), index, node = std::move(node)](const Document& doc, DocObject& o) {
-    modeling::ImplicitNode& p = NodeAt(doc, o, parent);
-    const int n = static_cast<int>(p.children.size());
-    if (index > n || index < -1) {
-      throw DocumentError(Describe(o) + ": cannot insert a child at index " + std::to_string(index) + " of the node at '" +
-                          PathPointer(parent) + "', which has " + std::to_string(n) + " children");
-    }
-    p.children.insert(p.children.begin() + (index < 0 ? n : index), node);
-  });
+std::unique_ptr<Command> SetSnap(std::optional<modeling::SceneSnap> snap) {
+  return std::make_unique<SnapCommand>(snap);
 }
 
-std::unique_ptr<Command> WrapNode(ObjectId id, NodePath path, modeling::NodeParams params, std::string node_id,
-                                  std::string name) {
+std::unique_ptr<Command> AddNode(ObjectId id, NodePath parent, int index,
+                                 modeling::ImplicitNode node) {
+  const std::string type = modeling::NodeTypeName(node.params);
+  return EditObject(id, "Add " + type,
+                    [parent = std::move(parent), index, node = std::move(node)](const Document& doc,
+                                                                                DocObject& o) {
+                      modeling::ImplicitNode& p = NodeAt(doc, o, parent);
+                      const int n = static_cast<int>(p.children.size());
+                      if (index > n || index < -1) {
+                        throw DocumentError(Describe(o) + ": cannot insert a child at index " +
+                                            std::to_string(index) + " of the node at '" +
+                                            PathPointer(parent) + "', which has " +
+                                            std::to_string(n) + " children");
+                      }
+                      p.children.insert(p.children.begin() + (index < 0 ? n : index), node);
+                    });
+}
+
+std::unique_ptr<Command> WrapNode(ObjectId id, NodePath path, modeling::NodeParams params,
+                                  std::string node_id, std::string name) {
   const std::string type = modeling::NodeTypeName(params);
   return EditObject(id, "Wrap in " + type,
-                    [path = std::move(path), params = std::move(params), node_id, name](const Document& doc, DocObject& o) {
+                    [path = std::move(path), params = std::move(params), node_id, name](
+                        const Document& doc, DocObject& o) {
                       modeling::ImplicitNode& target = NodeAt(doc, o, path);
                       modeling::ImplicitNode wrapper(params, {std::move(target)}, node_id);
                       wrapper.name = name;
@@ -529,7 +584,9 @@ std::unique_ptr<Command> WrapNode(ObjectId id, NodePath path, modeling::NodePara
 
 std::unique_ptr<Command> DeleteNode(ObjectId id, NodePath path) {
   return EditObject(id, "Delete node", [path = std::move(path)](const Document& doc, DocObject& o) {
-    if (path.empty()) throw DocumentError(Describe(o) + ": cannot delete the root node (delete the object instead)");
+    if (path.empty())
+      throw DocumentError(Describe(o) +
+                          ": cannot delete the root node (delete the object instead)");
     NodeAt(doc, o, path);
     NodePath parent(path.begin(), path.end() - 1);
     modeling::ImplicitNode& p = NodeAt(doc, o, parent);
@@ -537,38 +594,46 @@ std::unique_ptr<Command> DeleteNode(ObjectId id, NodePath path) {
   });
 }
 
-std::unique_ptr<Command> SetNodeParams(ObjectId id, NodePath path, modeling::NodeParams params, std::string field,
-                                       bool dragging) {
+std::unique_ptr<Command> SetNodeParams(ObjectId id, NodePath path, modeling::NodeParams params,
+                                       std::string field, bool dragging) {
   std::string key = dragging ? "params:" + PathKey(id, path) + ":" + field : "";
   return EditObject(
       id, FieldDescription(field),
-      [path = std::move(path), params = std::move(params)](const Document& doc, DocObject& o) { NodeAt(doc, o, path).params = params; },
+      [path = std::move(path), params = std::move(params)](const Document& doc, DocObject& o) {
+        NodeAt(doc, o, path).params = params;
+      },
       std::move(key));
 }
 
-std::unique_ptr<Command> SetNodeField(ObjectId id, NodePath path, std::string field, nlohmann::json value, bool dragging) {
+std::unique_ptr<Command> SetNodeField(ObjectId id, NodePath path, std::string field,
+                                      nlohmann::json value, bool dragging) {
   std::string key = dragging ? "params:" + PathKey(id, path) + ":" + field : "";
   return EditObject(
       id, FieldDescription(field),
       [path = std::move(path), field, value = std::move(value)](const Document& doc, DocObject& o) {
         if (field == "children" || field == "type") {
-          throw DocumentError(Describe(o) + ": field '" + field + "' of the node at '" + PathPointer(path) +
+          throw DocumentError(Describe(o) + ": field '" + field + "' of the node at '" +
+                              PathPointer(path) +
                               "' cannot be set as a value (use the node commands)");
         }
         modeling::ImplicitNode& node = NodeAt(doc, o, path);
         nlohmann::json j = modeling::NodeToJson(node);
         j[field] = value;
-        node = modeling::NodeFromJson(j, "/objects/" + std::to_string(o.id) + "/root" + PathPointer(path));
+        node = modeling::NodeFromJson(
+            j, "/objects/" + std::to_string(o.id) + "/root" + PathPointer(path));
       },
       std::move(key));
 }
 
 std::unique_ptr<Command> SetNodeName(ObjectId id, NodePath path, std::string name) {
   return EditObject(id, "Rename node to " + name,
-                    [path = std::move(path), name](const Document& doc, DocObject& o) { NodeAt(doc, o, path).name = name; });
+                    [path = std::move(path), name](const Document& doc, DocObject& o) {
+                      NodeAt(doc, o, path).name = name;
+                    });
 }
 
-std::unique_ptr<Command> MoveNode(ObjectId id, NodePath path, ObjectId dst_id, NodePath dst_parent, int index) {
+std::unique_ptr<Command> MoveNode(ObjectId id, NodePath path, ObjectId dst_id, NodePath dst_parent,
+                                  int index) {
   std::vector<ObjectId> ids{id};
   if (dst_id != id) ids.push_back(dst_id);
   return std::make_unique<ReplaceObjectsCommand>(
@@ -581,20 +646,24 @@ std::unique_ptr<Command> MoveNode(ObjectId id, NodePath path, ObjectId dst_id, N
         modeling::ImplicitNode& dst_parent_node = NodeAt(doc, dst, dst_parent);  // checks the path
         const int dst_n = static_cast<int>(dst_parent_node.children.size());
         if (index > dst_n || index < -1) {
-          throw DocumentError(Describe(dst) + ": cannot insert a child at index " + std::to_string(index) + " of the node at '" +
-                              PathPointer(dst_parent) + "', which has " + std::to_string(dst_n) + " children");
+          throw DocumentError(Describe(dst) + ": cannot insert a child at index " +
+                              std::to_string(index) + " of the node at '" +
+                              PathPointer(dst_parent) + "', which has " + std::to_string(dst_n) +
+                              " children");
         }
         const NodePath parent(path.begin(), path.end() - 1);
         const int i = path.back();
         NodePath target = dst_parent;
         int at = index < 0 ? dst_n : index;
         if (dst_id == id) {
-          if (target.size() >= path.size() && std::equal(path.begin(), path.end(), target.begin())) {
-            throw DocumentError(Describe(src) + ": cannot move the node at '" + PathPointer(path) + "' into its own subtree at '" +
-                                PathPointer(dst_parent) + "'");
+          if (target.size() >= path.size() &&
+              std::equal(path.begin(), path.end(), target.begin())) {
+            throw DocumentError(Describe(src) + ": cannot move the node at '" + PathPointer(path) +
+                                "' into its own subtree at '" + PathPointer(dst_parent) + "'");
           }
           // Removing the node shifts its later siblings (and everything below them) down by one.
-          if (target.size() > parent.size() && std::equal(parent.begin(), parent.end(), target.begin()) &&
+          if (target.size() > parent.size() &&
+              std::equal(parent.begin(), parent.end(), target.begin()) &&
               target[parent.size()] > i) {
             --target[parent.size()];
           }
@@ -611,32 +680,39 @@ std::unique_ptr<Command> MoveNode(ObjectId id, NodePath path, ObjectId dst_id, N
 }
 
 std::unique_ptr<Command> ReorderNode(ObjectId id, NodePath path, int index) {
-  return EditObject(id, "Reorder node", [path = std::move(path), index](const Document& doc, DocObject& o) {
-    if (path.empty()) throw DocumentError(Describe(o) + ": the root node has no siblings to reorder");
-    NodeAt(doc, o, path);
-    modeling::ImplicitNode& p = NodeAt(doc, o, NodePath(path.begin(), path.end() - 1));
-    modeling::ImplicitNode moved = std::move(p.children[path.back()]);
-    p.children.erase(p.children.begin() + path.back());
-    const int at = std::clamp(index, 0, static_cast<int>(p.children.size()));
-    p.children.insert(p.children.begin() + at, std::move(moved));
-  });
+  return EditObject(
+      id, "Reorder node", [path = std::move(path), index](const Document& doc, DocObject& o) {
+        if (path.empty())
+          throw DocumentError(Describe(o) + ": the root node has no siblings to reorder");
+        NodeAt(doc, o, path);
+        modeling::ImplicitNode& p = NodeAt(doc, o, NodePath(path.begin(), path.end() - 1));
+        modeling::ImplicitNode moved = std::move(p.children[path.back()]);
+        p.children.erase(p.children.begin() + path.back());
+        const int at = std::clamp(index, 0, static_cast<int>(p.children.size()));
+        p.children.insert(p.children.begin() + at, std::move(moved));
+      });
 }
 
 std::unique_ptr<Command> ReplaceTree(ObjectId id, modeling::ImplicitNode root) {
-  return EditObject(id, "Replace tree", [root = std::move(root)](const Document&, DocObject& o) { TreeRoot(o) = root; });
+  return EditObject(id, "Replace tree", [root = std::move(root)](const Document&, DocObject& o) {
+    TreeRoot(o) = root;
+  });
 }
 
 std::unique_ptr<Command> SetFeMaterial(ObjectId id, const fem::Material& material, bool dragging) {
   return EditObject(
       id, "Set material",
-      [material](const Document&, DocObject& o) { DataAs<FeModelData>(o, "an FE model").material = material; },
+      [material](const Document&, DocObject& o) {
+        DataAs<FeModelData>(o, "an FE model").material = material;
+      },
       dragging ? "material:" + std::to_string(id) : "");
 }
 
 std::unique_ptr<Command> SetFixedBoxes(ObjectId id, std::vector<Eigen::AlignedBox3d> boxes) {
-  return EditObject(id, "Set fixed region", [boxes = std::move(boxes)](const Document&, DocObject& o) {
-    DataAs<FeModelData>(o, "an FE model").fixed_boxes = boxes;
-  });
+  return EditObject(id, "Set fixed region",
+                    [boxes = std::move(boxes)](const Document&, DocObject& o) {
+                      DataAs<FeModelData>(o, "an FE model").fixed_boxes = boxes;
+                    });
 }
 
 std::unique_ptr<Command> SetFeLoads(ObjectId id, std::vector<FeLoad> loads) {
@@ -646,19 +722,22 @@ std::unique_ptr<Command> SetFeLoads(ObjectId id, std::vector<FeLoad> loads) {
 }
 
 std::unique_ptr<Command> SetRegionMaterials(ObjectId id, std::vector<RegionMaterial> materials) {
-  return EditObject(id, "Set region materials", [materials = std::move(materials)](const Document&, DocObject& o) {
-    DataAs<FeModelData>(o, "an FE model").region_materials = materials;
-  });
+  return EditObject(id, "Set region materials",
+                    [materials = std::move(materials)](const Document&, DocObject& o) {
+                      DataAs<FeModelData>(o, "an FE model").region_materials = materials;
+                    });
 }
 
 std::unique_ptr<Command> SetElementOrder(ObjectId id, int order) {
-  return EditObject(id, "Set element order",
-                    [order](const Document&, DocObject& o) { DataAs<FeModelData>(o, "an FE model").element_order = order; });
+  return EditObject(id, "Set element order", [order](const Document&, DocObject& o) {
+    DataAs<FeModelData>(o, "an FE model").element_order = order;
+  });
 }
 
 std::unique_ptr<Command> SetPrecomputeKey(ObjectId id, std::uint64_t key) {
-  return EditObject(id, "Record precomputation",
-                    [key](const Document&, DocObject& o) { DataAs<FeModelData>(o, "an FE model").precompute_key = key; });
+  return EditObject(id, "Record precomputation", [key](const Document&, DocObject& o) {
+    DataAs<FeModelData>(o, "an FE model").precompute_key = key;
+  });
 }
 
 std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh) {
@@ -669,19 +748,24 @@ std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh) {
   });
 }
 
-std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices, Eigen::Matrix3Xd new_positions) {
+std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices,
+                                      Eigen::Matrix3Xd new_positions) {
   return std::make_unique<SculptStrokeCommand>(id, std::move(vertices), std::move(new_positions));
 }
 
 std::unique_ptr<Command> SetRigidPose(ObjectId id, const Eigen::Isometry3d& X_WP, bool dragging) {
   return EditObject(
-      id, "Move part", [X_WP](const Document&, DocObject& o) { DataAs<RigidPartData>(o, "a rigid part").X_WP = X_WP; },
+      id, "Move part",
+      [X_WP](const Document&, DocObject& o) {
+        DataAs<RigidPartData>(o, "a rigid part").X_WP = X_WP;
+      },
       dragging ? "pose:" + std::to_string(id) : "");
 }
 
 std::unique_ptr<Command> SetRigidFixed(ObjectId id, bool fixed) {
-  return EditObject(id, fixed ? "Fix part" : "Free part",
-                    [fixed](const Document&, DocObject& o) { DataAs<RigidPartData>(o, "a rigid part").fixed = fixed; });
+  return EditObject(id, fixed ? "Fix part" : "Free part", [fixed](const Document&, DocObject& o) {
+    DataAs<RigidPartData>(o, "a rigid part").fixed = fixed;
+  });
 }
 
 std::unique_ptr<Command> SetRigidSeats(ObjectId id, std::vector<modeling::SceneSeat> seats) {

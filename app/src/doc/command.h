@@ -14,15 +14,14 @@
 // or other command in between. Call Document::EndDrag() when the slider is released.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cstddef>
 #include <deque>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <nlohmann/json.hpp>
 
 #include "doc/document.h"
 
@@ -115,7 +114,8 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
                                  std::shared_ptr<const modeling::TriangleMesh> surface,
                                  std::shared_ptr<const modeling::TetMesh> volume);
 // Adds an FE model of the volume mesh held by mesh object tet_mesh.
-std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh, const fem::Material& material,
+std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
+                                    const fem::Material& material,
                                     std::vector<Eigen::AlignedBox3d> fixed_boxes);
 // Adds a sculpt object holding a copy of mesh.
 std::unique_ptr<Command> AddSculpt(std::string name, SculptMesh mesh);
@@ -140,7 +140,8 @@ std::unique_ptr<Command> SetSnap(std::optional<modeling::SceneSnap> snap);
 // ---- nodes of a solid's or rigid part's tree ----
 // Inserts `node` (a subtree) as child `index` of the node at parent (-1: last child). Its ids
 // must not be used elsewhere in the document (paste renames them, this does not).
-std::unique_ptr<Command> AddNode(ObjectId id, NodePath parent, int index, modeling::ImplicitNode node);
+std::unique_ptr<Command> AddNode(ObjectId id, NodePath parent, int index,
+                                 modeling::ImplicitNode node);
 // Replaces the node at path by a new node with `params` (an operation or transform) whose only
 // child is the old node: e.g. wrap a sphere in a translate. The new node gets `node_id`/`name`.
 std::unique_ptr<Command> WrapNode(ObjectId id, NodePath path, modeling::NodeParams params,
@@ -154,14 +155,15 @@ std::unique_ptr<Command> SetNodeParams(ObjectId id, NodePath path, modeling::Nod
 // Sets one field of the node at path from a JSON value, as the scene format spells it
 // (docs/scene-format.md): e.g. ("radius", 0.02), ("size", [0.1, 0.2, 0.3]), ("id", "knob").
 // "children" and "type" cannot be set this way.
-std::unique_ptr<Command> SetNodeField(ObjectId id, NodePath path, std::string field, nlohmann::json value,
-                                      bool dragging = false);
+std::unique_ptr<Command> SetNodeField(ObjectId id, NodePath path, std::string field,
+                                      nlohmann::json value, bool dragging = false);
 // Sets the human-readable name of the node at path.
 std::unique_ptr<Command> SetNodeName(ObjectId id, NodePath path, std::string name);
 // Moves the subtree at `path` of object `id` to become child `index` (-1: last) of the node at
 // dst_parent of object dst_id. dst_parent and index are read in the trees as they are BEFORE
 // the move (what the user pointed at); moving a node into its own subtree is an error.
-std::unique_ptr<Command> MoveNode(ObjectId id, NodePath path, ObjectId dst_id, NodePath dst_parent, int index);
+std::unique_ptr<Command> MoveNode(ObjectId id, NodePath path, ObjectId dst_id, NodePath dst_parent,
+                                  int index);
 // Moves the node at path to position index among its siblings (index counts in the list
 // without the node; clamped).
 std::unique_ptr<Command> ReorderNode(ObjectId id, NodePath path, int index);
@@ -170,7 +172,8 @@ std::unique_ptr<Command> ReplaceTree(ObjectId id, modeling::ImplicitNode root);
 
 // ---- FE models ----
 // Sets the material (validated by fem::Material::Validate).
-std::unique_ptr<Command> SetFeMaterial(ObjectId id, const fem::Material& material, bool dragging = false);
+std::unique_ptr<Command> SetFeMaterial(ObjectId id, const fem::Material& material,
+                                       bool dragging = false);
 // Sets the boxes of clamped nodes (each finite, min <= max).
 std::unique_ptr<Command> SetFixedBoxes(ObjectId id, std::vector<Eigen::AlignedBox3d> boxes);
 // Sets the loads (boxes with a total force each).
@@ -187,11 +190,13 @@ std::unique_ptr<Command> SetPrecomputeKey(ObjectId id, std::uint64_t key);
 std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh);
 // One stroke: moves the listed vertices to new_positions (3 by #indices, m). Stores only the old
 // and new positions of those vertices.
-std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices, Eigen::Matrix3Xd new_positions);
+std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices,
+                                      Eigen::Matrix3Xd new_positions);
 
 // ---- rigid parts ----
 // Sets the pose X_WP (rotation must be orthonormal).
-std::unique_ptr<Command> SetRigidPose(ObjectId id, const Eigen::Isometry3d& X_WP, bool dragging = false);
+std::unique_ptr<Command> SetRigidPose(ObjectId id, const Eigen::Isometry3d& X_WP,
+                                      bool dragging = false);
 // Sets whether the part is fixed (never grasped).
 std::unique_ptr<Command> SetRigidFixed(ObjectId id, bool fixed);
 // Sets the seats of a part (each names another rigid part).

@@ -21,7 +21,8 @@ template <class... Ts>
 Overloaded(Ts...) -> Overloaded<Ts...>;
 
 std::string Describe(const DocObject& object) {
-  return std::string(ObjectKindName(object.data)) + " '" + object.name + "' (id " + std::to_string(object.id) + ")";
+  return std::string(ObjectKindName(object.data)) + " '" + object.name + "' (id " +
+         std::to_string(object.id) + ")";
 }
 
 std::string FormatNumber(double v) {
@@ -65,14 +66,17 @@ nlohmann::json IntMatrixJson(const Eigen::Ref<const Eigen::MatrixXi>& m) {
 }
 
 nlohmann::json BoxJson(const Eigen::AlignedBox3d& b) {
-  return {{"min", {b.min().x(), b.min().y(), b.min().z()}}, {"max", {b.max().x(), b.max().y(), b.max().z()}}};
+  return {{"min", {b.min().x(), b.min().y(), b.min().z()}},
+          {"max", {b.max().x(), b.max().y(), b.max().z()}}};
 }
 
 }  // namespace
 
 int SculptVertexCount(const SculptMesh& mesh) { return static_cast<int>(mesh.vertices.cols()); }
 Eigen::Vector3d SculptVertex(const SculptMesh& mesh, int v) { return mesh.vertices.col(v); }
-void SetSculptVertex(SculptMesh* mesh, int v, const Eigen::Vector3d& position) { mesh->vertices.col(v) = position; }
+void SetSculptVertex(SculptMesh* mesh, int v, const Eigen::Vector3d& position) {
+  mesh->vertices.col(v) = position;
+}
 
 const char* ObjectKindName(const ObjectData& data) {
   static constexpr const char* kNames[] = {"solid", "mesh", "fe_model", "sculpt", "rigid_part"};
@@ -109,7 +113,8 @@ const DocObject* Document::Find(ObjectId id) const {
 
 const DocObject& Document::Get(ObjectId id) const {
   const DocObject* o = Find(id);
-  if (o == nullptr) throw DocumentError("no object with id " + std::to_string(id) + " in the document");
+  if (o == nullptr)
+    throw DocumentError("no object with id " + std::to_string(id) + " in the document");
   return *o;
 }
 
@@ -135,7 +140,8 @@ const modeling::ImplicitNode& Document::Node(ObjectId id, const NodePath& path) 
     const int i = path[depth];
     if (i < 0 || i >= static_cast<int>(node->children.size())) {
       throw DocumentError(Describe(object) + ": no node at " +
-                          PathPointer(NodePath(path.begin(), path.begin() + depth + 1)) + " (the node at '" +
+                          PathPointer(NodePath(path.begin(), path.begin() + depth + 1)) +
+                          " (the node at '" +
                           PathPointer(NodePath(path.begin(), path.begin() + depth)) + "' has " +
                           std::to_string(node->children.size()) + " children)");
     }
@@ -144,7 +150,8 @@ const modeling::ImplicitNode& Document::Node(ObjectId id, const NodePath& path) 
   return *node;
 }
 
-std::optional<std::pair<ObjectId, NodePath>> Document::FindNodeById(const std::string& node_id) const {
+std::optional<std::pair<ObjectId, NodePath>> Document::FindNodeById(
+    const std::string& node_id) const {
   if (node_id.empty()) return std::nullopt;
   for (const DocObject& o : objects_) {
     const modeling::ImplicitNode* root = TreeOf(o);
@@ -159,7 +166,9 @@ std::optional<std::pair<ObjectId, NodePath>> Document::FindNodeById(const std::s
   return std::nullopt;
 }
 
-bool Document::NodeIdUsed(const std::string& node_id) const { return FindNodeById(node_id).has_value(); }
+bool Document::NodeIdUsed(const std::string& node_id) const {
+  return FindNodeById(node_id).has_value();
+}
 
 bool Document::NodeNameUsed(const std::string& name) const {
   if (name.empty()) return false;
@@ -168,7 +177,9 @@ bool Document::NodeNameUsed(const std::string& name) const {
     if (root == nullptr) continue;
     bool used = false;
     NodePath path;
-    ForEachNode(*root, &path, [&](const modeling::ImplicitNode& n, const NodePath&) { used = used || n.name == name; });
+    ForEachNode(*root, &path, [&](const modeling::ImplicitNode& n, const NodePath&) {
+      used = used || n.name == name;
+    });
     if (used) return true;
   }
   return false;
@@ -210,65 +221,69 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
   for (const DocObject& o : objects_) {
     nlohmann::json j = {{"id", o.id}, {"name", o.name}, {"kind", ObjectKindName(o.data)}};
     if (with_revisions) j["revision"] = o.revision;
-    std::visit(Overloaded{
-                   [&](const SolidData& s) { j["root"] = modeling::NodeToJson(s.root); },
-                   [&](const MeshData& m) {
-                     j["source"] = m.source;
-                     j["source_revision"] = m.source_revision;
-                     j["settings"] = {m.settings.cell_size, m.settings.max_tet_volume, m.settings.max_radius_edge};
-                     j["import_source"] = m.import_source;
-                     if (m.surface) {
-                       j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},
-                                       {"triangles", IntMatrixJson(m.surface->triangles)}};
-                     }
-                     if (m.volume) {
-                       j["volume"] = {{"nodes", MatrixJson(m.volume->nodes)},
-                                      {"tets", IntMatrixJson(m.volume->tets)},
-                                      {"regions", IntMatrixJson(m.volume->regions)}};
-                     }
-                   },
-                   [&](const FeModelData& f) {
-                     j["tet_mesh"] = f.tet_mesh;
-                     j["youngs_modulus"] = f.material.youngs_modulus;
-                     j["poisson_ratio"] = f.material.poisson_ratio;
-                     nlohmann::json boxes = nlohmann::json::array();
-                     for (const auto& b : f.fixed_boxes) boxes.push_back(BoxJson(b));
-                     j["fixed_boxes"] = boxes;
-                     nlohmann::json loads = nlohmann::json::array();
-                     for (const auto& l : f.loads) {
-                       nlohmann::json e = BoxJson(l.box);
-                       e["force"] = {l.force.x(), l.force.y(), l.force.z()};
-                       loads.push_back(e);
-                     }
-                     j["loads"] = loads;
-                     nlohmann::json regions = nlohmann::json::array();
-                     for (const auto& r : f.region_materials) {
-                       regions.push_back({r.region, r.material.youngs_modulus, r.material.poisson_ratio});
-                     }
-                     j["region_materials"] = regions;
-                     j["element_order"] = f.element_order;
-                     j["precompute_key"] = f.precompute_key;
-                   },
-                   [&](const SculptData& s) {
-                     j["vertices"] = MatrixJson(s.mesh->vertices);
-                     j["triangles"] = IntMatrixJson(s.mesh->triangles);
-                   },
-                   [&](const RigidPartData& r) {
-                     j["root"] = modeling::NodeToJson(r.root);
-                     j["X_WP"] = MatrixJson(r.X_WP.matrix());
-                     j["fixed"] = r.fixed;
-                     nlohmann::json seats = nlohmann::json::array();
-                     for (const auto& seat : r.seats) {
-                       seats.push_back({{"on", seat.on},
-                                        {"position", {seat.position.x(), seat.position.y(), seat.position.z()}},
-                                        {"quaternion", {seat.rotation.w(), seat.rotation.x(), seat.rotation.y(), seat.rotation.z()}},
-                                        {"position_tolerance", seat.position_tolerance},
-                                        {"angle_tolerance", seat.angle_tolerance}});
-                     }
-                     j["seats"] = seats;
-                   },
-               },
-               o.data);
+    std::visit(
+        Overloaded{
+            [&](const SolidData& s) { j["root"] = modeling::NodeToJson(s.root); },
+            [&](const MeshData& m) {
+              j["source"] = m.source;
+              j["source_revision"] = m.source_revision;
+              j["settings"] = {m.settings.cell_size, m.settings.max_tet_volume,
+                               m.settings.max_radius_edge};
+              j["import_source"] = m.import_source;
+              if (m.surface) {
+                j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},
+                                {"triangles", IntMatrixJson(m.surface->triangles)}};
+              }
+              if (m.volume) {
+                j["volume"] = {{"nodes", MatrixJson(m.volume->nodes)},
+                               {"tets", IntMatrixJson(m.volume->tets)},
+                               {"regions", IntMatrixJson(m.volume->regions)}};
+              }
+            },
+            [&](const FeModelData& f) {
+              j["tet_mesh"] = f.tet_mesh;
+              j["youngs_modulus"] = f.material.youngs_modulus;
+              j["poisson_ratio"] = f.material.poisson_ratio;
+              nlohmann::json boxes = nlohmann::json::array();
+              for (const auto& b : f.fixed_boxes) boxes.push_back(BoxJson(b));
+              j["fixed_boxes"] = boxes;
+              nlohmann::json loads = nlohmann::json::array();
+              for (const auto& l : f.loads) {
+                nlohmann::json e = BoxJson(l.box);
+                e["force"] = {l.force.x(), l.force.y(), l.force.z()};
+                loads.push_back(e);
+              }
+              j["loads"] = loads;
+              nlohmann::json regions = nlohmann::json::array();
+              for (const auto& r : f.region_materials) {
+                regions.push_back({r.region, r.material.youngs_modulus, r.material.poisson_ratio});
+              }
+              j["region_materials"] = regions;
+              j["element_order"] = f.element_order;
+              j["precompute_key"] = f.precompute_key;
+            },
+            [&](const SculptData& s) {
+              j["vertices"] = MatrixJson(s.mesh->vertices);
+              j["triangles"] = IntMatrixJson(s.mesh->triangles);
+            },
+            [&](const RigidPartData& r) {
+              j["root"] = modeling::NodeToJson(r.root);
+              j["X_WP"] = MatrixJson(r.X_WP.matrix());
+              j["fixed"] = r.fixed;
+              nlohmann::json seats = nlohmann::json::array();
+              for (const auto& seat : r.seats) {
+                seats.push_back(
+                    {{"on", seat.on},
+                     {"position", {seat.position.x(), seat.position.y(), seat.position.z()}},
+                     {"quaternion",
+                      {seat.rotation.w(), seat.rotation.x(), seat.rotation.y(), seat.rotation.z()}},
+                     {"position_tolerance", seat.position_tolerance},
+                     {"angle_tolerance", seat.angle_tolerance}});
+              }
+              j["seats"] = seats;
+            },
+        },
+        o.data);
     objects.push_back(std::move(j));
   }
   nlohmann::json doc = {{"description", description_}, {"objects", objects}};
@@ -276,9 +291,10 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
     doc["snap"] = {snap_->max_force, snap_->vertex_radius, snap_->edge_radius, snap_->face_radius};
   }
   if (view_) {
-    doc["view"] = {view_->position.x(), view_->position.y(), view_->position.z(), view_->focal_point.x(),
-                   view_->focal_point.y(), view_->focal_point.z(), view_->view_up.x(), view_->view_up.y(),
-                   view_->view_up.z(), view_->view_angle};
+    doc["view"] = {view_->position.x(),    view_->position.y(),    view_->position.z(),
+                   view_->focal_point.x(), view_->focal_point.y(), view_->focal_point.z(),
+                   view_->view_up.x(),     view_->view_up.y(),     view_->view_up.z(),
+                   view_->view_angle};
   }
   if (with_revisions) {
     doc["description_revision"] = description_revision_;
@@ -293,8 +309,9 @@ void Document::Load(const std::string& path) {
 }
 
 void Document::AdoptContent(std::vector<DocObject> objects, std::string description,
-                            std::optional<modeling::SceneSnap> snap, std::vector<modeling::ScenePart> parts,
-                            std::optional<DocView> view, const std::string& source) {
+                            std::optional<modeling::SceneSnap> snap,
+                            std::vector<modeling::ScenePart> parts, std::optional<DocView> view,
+                            const std::string& source) {
   // Ids and revisions in order; references arrive as index + 1 (document.h).
   const ObjectId first_id = next_id_;
   const std::uint64_t first_revision = next_revision_;
@@ -331,9 +348,10 @@ void Document::AdoptContent(std::vector<DocObject> objects, std::string descript
     } catch (const modeling::ModelError& e) {
       const std::string path = e.path();
       const std::size_t root = path.find("/root");
-      throw modeling::SceneError(source, 0, 0,
-                                 pointer(i) + (root == std::string::npos ? "" : path.substr(root)) + "/" + e.field(),
-                                 e.what());
+      throw modeling::SceneError(
+          source, 0, 0,
+          pointer(i) + (root == std::string::npos ? "" : path.substr(root)) + "/" + e.field(),
+          e.what());
     } catch (const DocumentError& e) {
       throw modeling::SceneError(source, 0, 0, pointer(i), e.what());
     }
@@ -362,16 +380,18 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
   for (int s = 0; s < static_cast<int>(scene.solids.size()); ++s) {
     std::set<std::string> mine;
     NodePath path;
-    ForEachNode(scene.solids[s].root, &path, [&](const modeling::ImplicitNode& n, const NodePath& p) {
-      if (n.id.empty()) return;
-      auto it = owner.find(n.id);
-      if (it != owner.end() && it->second != s) {
-        throw modeling::SceneError(source, 0, 0, "/solids/" + std::to_string(s) + "/root" + PathPointer(p) + "/id",
-                                   "node id '" + n.id + "' is already used in solid " + std::to_string(it->second) +
-                                       " ('" + scene.solids[it->second].name + "'); ids must be unique in a scene");
-      }
-      owner.emplace(n.id, s);
-    });
+    ForEachNode(
+        scene.solids[s].root, &path, [&](const modeling::ImplicitNode& n, const NodePath& p) {
+          if (n.id.empty()) return;
+          auto it = owner.find(n.id);
+          if (it != owner.end() && it->second != s) {
+            throw modeling::SceneError(
+                source, 0, 0, "/solids/" + std::to_string(s) + "/root" + PathPointer(p) + "/id",
+                "node id '" + n.id + "' is already used in solid " + std::to_string(it->second) +
+                    " ('" + scene.solids[it->second].name + "'); ids must be unique in a scene");
+          }
+          owner.emplace(n.id, s);
+        });
   }
   std::vector<DocObject> objects;
   for (const modeling::Solid& s : scene.solids) {
@@ -453,9 +473,11 @@ void Document::EndDrag() { history_->EndDrag(); }
 
 void Document::SetFePrecomputation(ObjectId fe_model, std::any value) {
   const DocObject& o = Get(fe_model);
-  if (!std::holds_alternative<FeModelData>(o.data)) throw DocumentError(Describe(o) + " is not an FE model");
+  if (!std::holds_alternative<FeModelData>(o.data))
+    throw DocumentError(Describe(o) + " is not an FE model");
   // Keep one entry per object (the newest); entries of older revisions are dropped.
-  std::erase_if(fe_cache_, [&](const CacheEntry& e) { return e.id == fe_model || Find(e.id) == nullptr; });
+  std::erase_if(fe_cache_,
+                [&](const CacheEntry& e) { return e.id == fe_model || Find(e.id) == nullptr; });
   fe_cache_.push_back({fe_model, o.revision, std::move(value)});
 }
 
@@ -498,97 +520,115 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
 
   for (const DocObject& c : changed) {
     if (c.name.empty()) throw DocumentError(Describe(c) + ": the name must not be empty");
-    std::visit(Overloaded{
-                   [&](const SolidData&) {},
-                   [&](const MeshData& m) {
-                     if (!m.surface && !m.volume) throw DocumentError(Describe(c) + " holds neither a surface nor a volume mesh");
-                     if (m.surface && !AllFinite(m.surface->vertices)) throw DocumentError(Describe(c) + ": surface vertices must be finite");
-                     if (m.volume && !AllFinite(m.volume->nodes)) throw DocumentError(Describe(c) + ": volume nodes must be finite");
-                     if (m.volume && m.volume->regions.size() != m.volume->tets.cols()) {
-                       throw DocumentError(Describe(c) + ": field 'volume/regions': " + std::to_string(m.volume->regions.size()) +
-                                           " labels for " + std::to_string(m.volume->tets.cols()) + " tets");
-                     }
-                     const MeshSettings& s = m.settings;
-                     if (!(s.cell_size >= 0) || !(s.max_tet_volume >= 0) || !(s.max_radius_edge >= 0) ||
-                         !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
-                       throw DocumentError(Describe(c) + ": field 'settings': every setting must be finite and >= 0");
-                     }
-                   },
-                   [&](const FeModelData& f) {
-                     const DocObject* mesh = find(f.tet_mesh);
-                     const MeshData* md = mesh ? std::get_if<MeshData>(&mesh->data) : nullptr;
-                     if (md == nullptr || !md->volume) {
-                       throw DocumentError(Describe(c) + ": field 'tet_mesh': object " + std::to_string(f.tet_mesh) +
-                                           " is not a mesh object with a volume mesh");
-                     }
-                     try {
-                       f.material.Validate();
-                     } catch (const std::invalid_argument& e) {
-                       throw DocumentError(Describe(c) + ": field 'material': " + e.what());
-                     }
-                     if (f.element_order != 1 && f.element_order != 2) {
-                       throw DocumentError(Describe(c) + ": field 'element_order' must be 1 or 2, got " +
-                                           std::to_string(f.element_order));
-                     }
-                     std::set<int> regions;
-                     for (size_t k = 0; k < f.region_materials.size(); ++k) {
-                       const RegionMaterial& r = f.region_materials[k];
-                       if (!regions.insert(r.region).second) {
-                         throw DocumentError(Describe(c) + ": field 'region_materials/" + std::to_string(k) + "': region " +
-                                             std::to_string(r.region) + " is listed twice");
-                       }
-                       try {
-                         r.material.Validate();
-                       } catch (const std::invalid_argument& e) {
-                         throw DocumentError(Describe(c) + ": field 'region_materials/" + std::to_string(k) + "': " + e.what());
-                       }
-                     }
-                     for (size_t k = 0; k < f.loads.size(); ++k) {
-                       const FeLoad& l = f.loads[k];
-                       if (!l.force.allFinite() || !l.box.min().allFinite() || !l.box.max().allFinite() ||
-                           (l.box.min().array() > l.box.max().array()).any()) {
-                         throw DocumentError(Describe(c) + ": field 'loads/" + std::to_string(k) +
-                                             "': needs a finite force and finite corners with min <= max");
-                       }
-                     }
-                     for (size_t b = 0; b < f.fixed_boxes.size(); ++b) {
-                       const auto& box = f.fixed_boxes[b];
-                       if (!box.min().allFinite() || !box.max().allFinite() || (box.min().array() > box.max().array()).any()) {
-                         throw DocumentError(Describe(c) + ": field 'fixed_boxes/" + std::to_string(b) +
-                                             "': needs finite corners with min <= max, got min (" + FormatNumber(box.min().x()) +
-                                             ", " + FormatNumber(box.min().y()) + ", " + FormatNumber(box.min().z()) + ") max (" +
-                                             FormatNumber(box.max().x()) + ", " + FormatNumber(box.max().y()) + ", " +
-                                             FormatNumber(box.max().z()) + ")");
-                       }
-                     }
-                   },
-                   [&](const SculptData& s) {
-                     if (!s.mesh) throw DocumentError(Describe(c) + " has no mesh");
-                     if (!AllFinite(s.mesh->vertices)) throw DocumentError(Describe(c) + ": vertices must be finite");
-                     const int n = SculptVertexCount(*s.mesh);
-                     if (s.mesh->triangles.size() > 0 &&
-                         (s.mesh->triangles.minCoeff() < 0 || s.mesh->triangles.maxCoeff() >= n)) {
-                       throw DocumentError(Describe(c) + ": a triangle refers to a vertex outside [0, " + std::to_string(n) + ")");
-                     }
-                   },
-                   [&](const RigidPartData& r) {
-                     if (!r.X_WP.matrix().allFinite()) throw DocumentError(Describe(c) + ": field 'X_WP' must be finite");
-                     const Eigen::Matrix3d R = r.X_WP.linear();
-                     if (!(R.transpose() * R).isIdentity(1e-9) || R.determinant() < 0) {
-                       throw DocumentError(Describe(c) + ": field 'X_WP' must have a proper rotation (orthonormal, det +1)");
-                     }
-                     for (size_t k = 0; k < r.seats.size(); ++k) {
-                       const modeling::SceneSeat& seat = r.seats[k];
-                       if (seat.on.empty() || !seat.position.allFinite() || !seat.rotation.coeffs().allFinite() ||
-                           std::abs(seat.rotation.norm() - 1.0) > 1e-6 || !(seat.position_tolerance >= 0) ||
-                           !(seat.angle_tolerance >= 0)) {
-                         throw DocumentError(Describe(c) + ": field 'seats/" + std::to_string(k) +
-                                             "': needs a part name, a finite position, a unit quaternion and tolerances >= 0");
-                       }
-                     }
-                   },
-               },
-               c.data);
+    std::visit(
+        Overloaded{
+            [&](const SolidData&) {},
+            [&](const MeshData& m) {
+              if (!m.surface && !m.volume)
+                throw DocumentError(Describe(c) + " holds neither a surface nor a volume mesh");
+              if (m.surface && !AllFinite(m.surface->vertices))
+                throw DocumentError(Describe(c) + ": surface vertices must be finite");
+              if (m.volume && !AllFinite(m.volume->nodes))
+                throw DocumentError(Describe(c) + ": volume nodes must be finite");
+              if (m.volume && m.volume->regions.size() != m.volume->tets.cols()) {
+                throw DocumentError(Describe(c) + ": field 'volume/regions': " +
+                                    std::to_string(m.volume->regions.size()) + " labels for " +
+                                    std::to_string(m.volume->tets.cols()) + " tets");
+              }
+              const MeshSettings& s = m.settings;
+              if (!(s.cell_size >= 0) || !(s.max_tet_volume >= 0) || !(s.max_radius_edge >= 0) ||
+                  !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
+                throw DocumentError(Describe(c) +
+                                    ": field 'settings': every setting must be finite and >= 0");
+              }
+            },
+            [&](const FeModelData& f) {
+              const DocObject* mesh = find(f.tet_mesh);
+              const MeshData* md = mesh ? std::get_if<MeshData>(&mesh->data) : nullptr;
+              if (md == nullptr || !md->volume) {
+                throw DocumentError(Describe(c) + ": field 'tet_mesh': object " +
+                                    std::to_string(f.tet_mesh) +
+                                    " is not a mesh object with a volume mesh");
+              }
+              try {
+                f.material.Validate();
+              } catch (const std::invalid_argument& e) {
+                throw DocumentError(Describe(c) + ": field 'material': " + e.what());
+              }
+              if (f.element_order != 1 && f.element_order != 2) {
+                throw DocumentError(Describe(c) + ": field 'element_order' must be 1 or 2, got " +
+                                    std::to_string(f.element_order));
+              }
+              std::set<int> regions;
+              for (size_t k = 0; k < f.region_materials.size(); ++k) {
+                const RegionMaterial& r = f.region_materials[k];
+                if (!regions.insert(r.region).second) {
+                  throw DocumentError(Describe(c) + ": field 'region_materials/" +
+                                      std::to_string(k) + "': region " + std::to_string(r.region) +
+                                      " is listed twice");
+                }
+                try {
+                  r.material.Validate();
+                } catch (const std::invalid_argument& e) {
+                  throw DocumentError(Describe(c) + ": field 'region_materials/" +
+                                      std::to_string(k) + "': " + e.what());
+                }
+              }
+              for (size_t k = 0; k < f.loads.size(); ++k) {
+                const FeLoad& l = f.loads[k];
+                if (!l.force.allFinite() || !l.box.min().allFinite() || !l.box.max().allFinite() ||
+                    (l.box.min().array() > l.box.max().array()).any()) {
+                  throw DocumentError(Describe(c) + ": field 'loads/" + std::to_string(k) +
+                                      "': needs a finite force and finite corners with min <= max");
+                }
+              }
+              for (size_t b = 0; b < f.fixed_boxes.size(); ++b) {
+                const auto& box = f.fixed_boxes[b];
+                if (!box.min().allFinite() || !box.max().allFinite() ||
+                    (box.min().array() > box.max().array()).any()) {
+                  throw DocumentError(
+                      Describe(c) + ": field 'fixed_boxes/" + std::to_string(b) +
+                      "': needs finite corners with min <= max, got min (" +
+                      FormatNumber(box.min().x()) + ", " + FormatNumber(box.min().y()) + ", " +
+                      FormatNumber(box.min().z()) + ") max (" + FormatNumber(box.max().x()) + ", " +
+                      FormatNumber(box.max().y()) + ", " + FormatNumber(box.max().z()) + ")");
+                }
+              }
+            },
+            [&](const SculptData& s) {
+              if (!s.mesh) throw DocumentError(Describe(c) + " has no mesh");
+              if (!AllFinite(s.mesh->vertices))
+                throw DocumentError(Describe(c) + ": vertices must be finite");
+              const int n = SculptVertexCount(*s.mesh);
+              if (s.mesh->triangles.size() > 0 &&
+                  (s.mesh->triangles.minCoeff() < 0 || s.mesh->triangles.maxCoeff() >= n)) {
+                throw DocumentError(Describe(c) + ": a triangle refers to a vertex outside [0, " +
+                                    std::to_string(n) + ")");
+              }
+            },
+            [&](const RigidPartData& r) {
+              if (!r.X_WP.matrix().allFinite())
+                throw DocumentError(Describe(c) + ": field 'X_WP' must be finite");
+              const Eigen::Matrix3d R = r.X_WP.linear();
+              if (!(R.transpose() * R).isIdentity(1e-9) || R.determinant() < 0) {
+                throw DocumentError(
+                    Describe(c) +
+                    ": field 'X_WP' must have a proper rotation (orthonormal, det +1)");
+              }
+              for (size_t k = 0; k < r.seats.size(); ++k) {
+                const modeling::SceneSeat& seat = r.seats[k];
+                if (seat.on.empty() || !seat.position.allFinite() ||
+                    !seat.rotation.coeffs().allFinite() ||
+                    std::abs(seat.rotation.norm() - 1.0) > 1e-6 ||
+                    !(seat.position_tolerance >= 0) || !(seat.angle_tolerance >= 0)) {
+                  throw DocumentError(Describe(c) + ": field 'seats/" + std::to_string(k) +
+                                      "': needs a part name, a finite position, a unit quaternion "
+                                      "and tolerances >= 0");
+                }
+              }
+            },
+        },
+        c.data);
     if (const modeling::ImplicitNode* root = TreeOf(c)) {
       // Pointer as in a scene file for solids.
       std::string prefix;
@@ -609,9 +649,9 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
         auto [it, inserted] = ids.emplace(n.id, &c);
         if (!inserted) {
           throw modeling::ModelError(prefix + PathPointer(p), "id",
-                                     "node id '" + n.id + "' at " + prefix + PathPointer(p) + " of " + Describe(c) +
-                                         " is already used by a node of " + Describe(*it->second) +
-                                         "; ids must be unique in a scene");
+                                     "node id '" + n.id + "' at " + prefix + PathPointer(p) +
+                                         " of " + Describe(c) + " is already used by a node of " +
+                                         Describe(*it->second) + "; ids must be unique in a scene");
         }
       });
     }
@@ -619,7 +659,8 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
 }
 
 void Document::RawInsert(int index, DocObject object) {
-  if (index < 0 || index > static_cast<int>(objects_.size())) index = static_cast<int>(objects_.size());
+  if (index < 0 || index > static_cast<int>(objects_.size()))
+    index = static_cast<int>(objects_.size());
   objects_.insert(objects_.begin() + index, std::move(object));
   Touch();
 }
@@ -635,7 +676,8 @@ DocObject Document::RawErase(ObjectId id) {
 
 void Document::RawReplace(DocObject object) {
   const int i = IndexOf(object.id);
-  if (i < 0) throw DocumentError("no object with id " + std::to_string(object.id) + " in the document");
+  if (i < 0)
+    throw DocumentError("no object with id " + std::to_string(object.id) + " in the document");
   objects_[i] = std::move(object);
   Touch();
 }

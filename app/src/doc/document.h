@@ -18,18 +18,17 @@
 //   free. Everything here belongs to the main thread.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <any>
 #include <cstdint>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <variant>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <nlohmann/json.hpp>
 
 #include "spidarcad/fem/material.h"
 #include "spidarcad/modeling/implicit_node.h"
@@ -64,25 +63,25 @@ struct SolidData {
 // How a mesh object was made from its source, kept so that it can be made again (0: the
 // mesher's default).
 struct MeshSettings {
-  double cell_size = 0.0;          // surface grid cell edge, m (>= 0)
-  double max_tet_volume = 0.0;     // largest tet volume, m³ (>= 0)
-  double max_radius_edge = 0.0;    // TetGen radius-edge bound, -, (0 or >= 1)
+  double cell_size = 0.0;        // surface grid cell edge, m (>= 0)
+  double max_tet_volume = 0.0;   // largest tet volume, m³ (>= 0)
+  double max_radius_edge = 0.0;  // TetGen radius-edge bound, -, (0 or >= 1)
 };
 // Meshes made from another object (usually a solid) by a Job, or imported from a file. Either
 // mesh may be absent. The data are immutable and shared between copies (undo snapshots,
 // duplicates).
 struct MeshData {
-  ObjectId source = 0;                  // object meshed (0: none)
-  std::uint64_t source_revision = 0;    // revision of the source that was meshed
+  ObjectId source = 0;                                    // object meshed (0: none)
+  std::uint64_t source_revision = 0;                      // revision of the source that was meshed
   std::shared_ptr<const modeling::TriangleMesh> surface;  // boundary surface, or null
   std::shared_ptr<const modeling::TetMesh> volume;        // tetrahedra, or null
-  MeshSettings settings;                // how it was meshed from source
-  std::string import_source;            // file it was imported from (STL/OBJ/PLY/VTU), or ""
+  MeshSettings settings;                                  // how it was meshed from source
+  std::string import_source;  // file it was imported from (STL/OBJ/PLY/VTU), or ""
 };
 // A load of an FE model: the force spread evenly over the nodes inside a box.
 struct FeLoad {
-  Eigen::AlignedBox3d box;                           // m, closed
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // total force, N (W)
+  Eigen::AlignedBox3d box;                          // m, closed
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // total force, N (W)
 };
 // A material for one region label of the tet mesh (overrides FeModelData::material there).
 struct RegionMaterial {
@@ -92,13 +91,13 @@ struct RegionMaterial {
 // A linear elastic FE model of a tet mesh. Its precomputation is cached outside the undo state
 // (Document::SetFePrecomputation) and on disk under precompute_key (fem::PrecomputeCache).
 struct FeModelData {
-  ObjectId tet_mesh = 0;                          // a mesh object holding a volume mesh
-  fem::Material material;                         // E [Pa], ν [-] (every region not listed below)
-  std::vector<Eigen::AlignedBox3d> fixed_boxes;   // nodes inside any box (m, closed) are clamped
-  std::vector<FeLoad> loads;                      // applied loads
-  std::vector<RegionMaterial> region_materials;   // per-region materials (regions unique)
-  int element_order = 1;                          // 1 (4-node) or 2 (10-node tets)
-  std::uint64_t precompute_key = 0;               // fem::PrecomputeKey of its columns (0: none yet)
+  ObjectId tet_mesh = 0;                         // a mesh object holding a volume mesh
+  fem::Material material;                        // E [Pa], ν [-] (every region not listed below)
+  std::vector<Eigen::AlignedBox3d> fixed_boxes;  // nodes inside any box (m, closed) are clamped
+  std::vector<FeLoad> loads;                     // applied loads
+  std::vector<RegionMaterial> region_materials;  // per-region materials (regions unique)
+  int element_order = 1;                         // 1 (4-node) or 2 (10-node tets)
+  std::uint64_t precompute_key = 0;              // fem::PrecomputeKey of its columns (0: none yet)
 };
 // A freeform sculpt mesh. Copy on write: strokes change it in place only when no undo snapshot
 // shares it.
@@ -110,8 +109,8 @@ struct SculptData {
 struct RigidPartData {
   modeling::ImplicitNode root;
   Eigen::Isometry3d X_WP = Eigen::Isometry3d::Identity();
-  bool fixed = false;                       // true: never grasped (the base)
-  std::vector<modeling::SceneSeat> seats;   // seats on other parts
+  bool fixed = false;                      // true: never grasped (the base)
+  std::vector<modeling::SceneSeat> seats;  // seats on other parts
 };
 // The camera of the window, saved with the document (not part of the undo state).
 struct DocView {

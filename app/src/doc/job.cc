@@ -94,8 +94,9 @@ void JobQueue::Prune() {
 }
 
 bool JobQueue::busy() const {
-  return std::any_of(jobs_.begin(), jobs_.end(),
-                     [](const std::unique_ptr<Job>& job) { return job->state() == Job::State::kRunning; });
+  return std::any_of(jobs_.begin(), jobs_.end(), [](const std::unique_ptr<Job>& job) {
+    return job->state() == Job::State::kRunning;
+  });
 }
 
 void JobQueue::CancelAll() {

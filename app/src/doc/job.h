@@ -82,8 +82,8 @@ class Job {
   std::string title_;
   JobContext context_;
   std::atomic<State> state_{State::kRunning};
-  std::string error_;    // written by the worker before state_ is released
-  Finisher finisher_;    // likewise
+  std::string error_;      // written by the worker before state_ is released
+  Finisher finisher_;      // likewise
   bool finished_ = false;  // main thread: finisher run / outcome reported
   std::thread thread_;
 };

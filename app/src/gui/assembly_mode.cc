@@ -1,17 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/assembly_mode.h"
 
-#include "gui/scene_view.h"
-
-#include <algorithm>
-#include <cmath>
-#include <filesystem>
-#include <iomanip>
-#include <map>
-#include <sstream>
-#include <stdexcept>
-#include <utility>
-
 #include <imgui.h>
 #include <vtkActor.h>
 #include <vtkCellArray.h>
@@ -25,6 +14,16 @@
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
 
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "gui/scene_view.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
@@ -32,7 +31,8 @@ namespace spidarcad::app {
 
 namespace {
 
-// Half side of the cube searched for a part's solid about its frame origin, m (as BuildAssemblyField).
+// Half side of the cube searched for a part's solid about its frame origin, m (as
+// BuildAssemblyField).
 constexpr double kSearchHalfSide = 0.5;
 
 // The surface of `solid` in its own frame: a cell of 1/40 of its box's largest side, at most
@@ -41,7 +41,8 @@ modeling::TriangleMesh MeshPartSolid(const modeling::CompiledSolid& solid, doubl
   const Eigen::Vector3d h = Eigen::Vector3d::Constant(kSearchHalfSide);
   const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, Eigen::AlignedBox3d(-h, h), 0.005);
   if (rough.isEmpty()) throw std::invalid_argument("the solid is empty within 0.5 m of its origin");
-  const Eigen::AlignedBox3d box = modeling::FindBounds(solid, rough, rough.sizes().maxCoeff() / 64.0);
+  const Eigen::AlignedBox3d box =
+      modeling::FindBounds(solid, rough, rough.sizes().maxCoeff() / 64.0);
   if (box.isEmpty()) throw std::invalid_argument("the solid is empty within 0.5 m of its origin");
   const double cell = std::min(max_cell, box.sizes().maxCoeff() / 40.0);
   modeling::SurfaceMeshSettings settings;
@@ -53,20 +54,28 @@ modeling::TriangleMesh MeshPartSolid(const modeling::CompiledSolid& solid, doubl
 
 std::string StateName(AssemblyPartState s) {
   switch (s) {
-    case AssemblyPartState::kFixed: return "fixed";
-    case AssemblyPartState::kFree: return "free";
-    case AssemblyPartState::kCarried: return "carried";
-    case AssemblyPartState::kSeated: return "seated";
+    case AssemblyPartState::kFixed:
+      return "fixed";
+    case AssemblyPartState::kFree:
+      return "free";
+    case AssemblyPartState::kCarried:
+      return "carried";
+    case AssemblyPartState::kSeated:
+      return "seated";
   }
   return "";
 }
 
 const std::array<double, 3>& StateColour(AssemblyPartState s) {
   switch (s) {
-    case AssemblyPartState::kFixed: return kAssemblyFixedColour;
-    case AssemblyPartState::kCarried: return kAssemblyCarriedColour;
-    case AssemblyPartState::kSeated: return kAssemblySeatedColour;
-    case AssemblyPartState::kFree: break;
+    case AssemblyPartState::kFixed:
+      return kAssemblyFixedColour;
+    case AssemblyPartState::kCarried:
+      return kAssemblyCarriedColour;
+    case AssemblyPartState::kSeated:
+      return kAssemblySeatedColour;
+    case AssemblyPartState::kFree:
+      break;
   }
   return kAssemblyFreeColour;
 }
@@ -96,11 +105,13 @@ struct AssemblyMode::Vtk {
   int ghost_mesh = -1;
 };
 
-AssemblyMode::AssemblyMode(vtkRenderer* renderer) : renderer_(renderer), vtk_(std::make_unique<Vtk>()) {
+AssemblyMode::AssemblyMode(vtkRenderer* renderer)
+    : renderer_(renderer), vtk_(std::make_unique<Vtk>()) {
   vtkActor* g = vtk_->ghost.actor;
   g->SetMapper(vtk_->ghost.mapper);
   vtk_->ghost.mapper->ScalarVisibilityOff();
-  g->GetProperty()->SetColor(kAssemblySeatedColour[0], kAssemblySeatedColour[1], kAssemblySeatedColour[2]);
+  g->GetProperty()->SetColor(kAssemblySeatedColour[0], kAssemblySeatedColour[1],
+                             kAssemblySeatedColour[2]);
   g->GetProperty()->SetOpacity(0.3);
   g->PickableOff();
   g->VisibilityOff();
@@ -132,7 +143,8 @@ void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSetting
     return;
   }
   if (!(display_cell > 0.0) || !std::isfinite(display_cell)) {
-    throw std::invalid_argument("AssemblyMode: display cell " + std::to_string(display_cell) + " must be > 0");
+    throw std::invalid_argument("AssemblyMode: display cell " + std::to_string(display_cell) +
+                                " must be > 0");
   }
   // Everything that can fail first, so that a failure leaves the mode as it was.
   std::shared_ptr<haptics::AssemblyField> field = BuildAssemblyField(scene, settings);
@@ -155,7 +167,8 @@ void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSetting
       const std::string where = "AssemblyMode: part '" + sp.name + "' (solid '" + sp.solid + "')";
       if (solid == nullptr) throw std::invalid_argument(where + ": no such solid");
       try {
-        meshes.push_back(MeshPartSolid(modeling::CompiledSolid::Compile(solid->root), display_cell));
+        meshes.push_back(
+            MeshPartSolid(modeling::CompiledSolid::Compile(solid->root), display_cell));
       } catch (const std::exception& e) {
         throw std::invalid_argument(where + ": " + e.what());
       }
@@ -302,7 +315,8 @@ AssemblyPartState AssemblyMode::part_state(int i) const {
 }
 
 int AssemblyMode::graspable_count() const {
-  return static_cast<int>(std::count_if(parts_.begin(), parts_.end(), [](const Part& p) { return !p.fixed; }));
+  return static_cast<int>(
+      std::count_if(parts_.begin(), parts_.end(), [](const Part& p) { return !p.fixed; }));
 }
 
 int AssemblyMode::seated_count() const {
@@ -319,9 +333,13 @@ std::vector<std::string> AssemblyMode::part_solids() const {
   return names;
 }
 
-vtkActor* AssemblyMode::actor(int i) const { return renderer_ ? vtk_->actors[i]->actor.GetPointer() : nullptr; }
+vtkActor* AssemblyMode::actor(int i) const {
+  return renderer_ ? vtk_->actors[i]->actor.GetPointer() : nullptr;
+}
 
-vtkActor* AssemblyMode::ghost() const { return renderer_ ? vtk_->ghost.actor.GetPointer() : nullptr; }
+vtkActor* AssemblyMode::ghost() const {
+  return renderer_ ? vtk_->ghost.actor.GetPointer() : nullptr;
+}
 
 void AssemblyMode::DrawPanel() {
   if (!has_parts()) {
@@ -333,10 +351,12 @@ void AssemblyMode::DrawPanel() {
   if (c >= 0 && c < size()) {
     ImGui::Text("Carried: %s (open the grasp at its seat to fit it)", parts_[c].name.c_str());
   } else {
-    ImGui::TextWrapped("Carried: none. Close the grasp (wheel or [ ]) with a part between the poles "
-                       "to pick it up; open it near the part's seat to fit it.");
+    ImGui::TextWrapped(
+        "Carried: none. Close the grasp (wheel or [ ]) with a part between the poles "
+        "to pick it up; open it near the part's seat to fit it.");
   }
-  if (ImGui::BeginTable("assembly_parts", 2, ImGuiTableFlags_SizingStretchProp | ImGuiTableFlags_RowBg)) {
+  if (ImGui::BeginTable("assembly_parts", 2,
+                        ImGuiTableFlags_SizingStretchProp | ImGuiTableFlags_RowBg)) {
     for (int i = 0; i < size(); ++i) {
       const AssemblyPartState s = part_state(i);
       const auto& colour = StateColour(s);
@@ -345,7 +365,8 @@ void AssemblyMode::DrawPanel() {
       ImGui::ColorButton(("##c" + std::to_string(i)).c_str(),
                          ImVec4(static_cast<float>(colour[0]), static_cast<float>(colour[1]),
                                 static_cast<float>(colour[2]), 1.0f),
-                         ImGuiColorEditFlags_NoTooltip | ImGuiColorEditFlags_NoBorder, ImVec2(10, 10));
+                         ImGuiColorEditFlags_NoTooltip | ImGuiColorEditFlags_NoBorder,
+                         ImVec2(10, 10));
       ImGui::SameLine();
       ImGui::TextUnformatted(parts_[i].name.c_str());
       ImGui::TableNextColumn();

@@ -15,13 +15,12 @@
 // so that one trajectory file works in both.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "scene/assembly_scene.h"
 #include "spidarcad/haptics/assembly_field.h"

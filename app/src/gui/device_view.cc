@@ -1,12 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/device_view.h"
 
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <string>
-
-#include <Eigen/Geometry>
 #include <vtkActor.h>
 #include <vtkArrowSource.h>
 #include <vtkAxesActor.h>
@@ -33,6 +27,12 @@
 #include <vtkTransform.h>
 #include <vtkTubeFilter.h>
 #include <vtkUnsignedCharArray.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
 
 #include "gui/colour_map.h"
 
@@ -77,8 +77,8 @@ vtkSmartPointer<vtkActor> MakeActor(vtkAlgorithmOutput* port, const double rgb[3
 void SetAxisMatrix(vtkActor* actor, const Eigen::Vector3d& origin, const Eigen::Vector3d& axis,
                    double scale_along) {
   const Eigen::Vector3d y = axis.normalized();
-  Eigen::Vector3d helper = std::abs(y.z()) < 0.9 ? Eigen::Vector3d::UnitZ()
-                                                 : Eigen::Vector3d::UnitX();
+  Eigen::Vector3d helper =
+      std::abs(y.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
   const Eigen::Vector3d x = y.cross(helper).normalized();
   const Eigen::Vector3d z = x.cross(y);
   vtkNew<vtkMatrix4x4> m;
@@ -119,8 +119,8 @@ DeviceView::DeviceView(const haptics::SpidarGeometry& geometry, double tau_min, 
       for (int j = i + 1; j < 8; ++j) {
         // Corners differing in exactly one coordinate sign share an edge.
         const Eigen::Vector3d diff = geometry.Corner(i) - geometry.Corner(j);
-        const int differing = (std::abs(diff.x()) > 0) + (std::abs(diff.y()) > 0) +
-                              (std::abs(diff.z()) > 0);
+        const int differing =
+            (std::abs(diff.x()) > 0) + (std::abs(diff.y()) > 0) + (std::abs(diff.z()) > 0);
         if (differing == 1) {
           const vtkIdType ids[2] = {i, j};
           lines->InsertNextCell(2, ids);
@@ -395,8 +395,8 @@ void DeviceView::Update(const DeviceFrame& frame) {
     const Eigen::Vector3d u = f / fn;
     const double length = 0.01 * fn;
     // vtkArrowSource spans x in [0, 1]; map x to the force direction.
-    Eigen::Vector3d helper = std::abs(u.z()) < 0.9 ? Eigen::Vector3d::UnitZ()
-                                                   : Eigen::Vector3d::UnitX();
+    Eigen::Vector3d helper =
+        std::abs(u.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
     const Eigen::Vector3d y = u.cross(helper).normalized();
     const Eigen::Vector3d z = u.cross(y);
     const Eigen::Vector3d origin = pose.p0 + u * (geometry_.d + 0.004);
@@ -481,7 +481,9 @@ Eigen::Vector3d DeviceView::ViewUp() const {
   return Eigen::Vector3d(v[0], v[1], v[2]).normalized();
 }
 
-Eigen::Vector3d DeviceView::ViewRight() const { return ViewDirection().cross(ViewUp()).normalized(); }
+Eigen::Vector3d DeviceView::ViewRight() const {
+  return ViewDirection().cross(ViewUp()).normalized();
+}
 
 void DeviceView::FitBox(const Eigen::AlignedBox3d& box_D) {
   if (box_D.isEmpty() || !box_D.min().allFinite() || !box_D.max().allFinite()) return;
@@ -514,13 +516,19 @@ void DeviceView::SetStandardView(StandardView view, const Eigen::AlignedBox3d& b
   Eigen::Vector3d dir;  // from the camera toward the subject
   Eigen::Vector3d up(0, 0, 1);
   switch (view) {
-    case StandardView::kFront: dir = Eigen::Vector3d(0, 1, 0); break;
-    case StandardView::kRight: dir = Eigen::Vector3d(-1, 0, 0); break;
+    case StandardView::kFront:
+      dir = Eigen::Vector3d(0, 1, 0);
+      break;
+    case StandardView::kRight:
+      dir = Eigen::Vector3d(-1, 0, 0);
+      break;
     case StandardView::kTop:
       dir = Eigen::Vector3d(0, 0, -1);
       up = Eigen::Vector3d(0, 1, 0);
       break;
-    case StandardView::kIso: dir = -Eigen::Vector3d(0.62, -1.0, 0.52).normalized(); break;
+    case StandardView::kIso:
+      dir = -Eigen::Vector3d(0.62, -1.0, 0.52).normalized();
+      break;
   }
   double focal[3];
   cam->GetFocalPoint(focal);

@@ -4,10 +4,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include <memory>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <memory>
 
 #include "scene/device_session.h"
 #include "scene/grip_control.h"

@@ -1,11 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/fe_mode.h"
 
-#include <algorithm>
-#include <cmath>
-#include <cstdio>
-#include <utility>
-
 #include <imgui.h>
 #include <vtkActor.h>
 #include <vtkCellArray.h>
@@ -20,6 +15,11 @@
 #include <vtkScalarBarActor.h>
 #include <vtkSphereSource.h>
 #include <vtkTextProperty.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
 
 namespace spidarcad::app {
 
@@ -131,8 +131,8 @@ void FeMode::MeshPlatform(double resolution) {
   awaiting_title_ = "Mesh platform (FE)";
   jobs_->Start(awaiting_title_, [this, resolution, alive](JobContext& ctx) -> Job::Finisher {
     ctx.SetPhase("surface and TetGen");
-    auto mesh = std::make_shared<fem::TetMesh>(
-        MeshSceneSolidForFe(PlatformScenePath(), "platform", resolution, ctx.cancel_flag(), ctx.ProgressRange(0, 1)));
+    auto mesh = std::make_shared<fem::TetMesh>(MeshSceneSolidForFe(
+        PlatformScenePath(), "platform", resolution, ctx.cancel_flag(), ctx.ProgressRange(0, 1)));
     return [this, mesh, alive] {
       if (!alive.lock()) return;
       awaiting_title_.clear();
@@ -166,9 +166,10 @@ void FeMode::Precompute() {
       if (mesh != mesh_) return;  // part changed: drop the result
       model_ = model;
       char line[160];
-      std::snprintf(line, sizeof line, "ready: %d nodes clamped, %zu surface nodes, %d columns from disk, %.1f s",
-                    model_->num_fixed_nodes(), model_->surface().nodes.size(), model_->imported_nodes(),
-                    model_->build_seconds());
+      std::snprintf(line, sizeof line,
+                    "ready: %d nodes clamped, %zu surface nodes, %d columns from disk, %.1f s",
+                    model_->num_fixed_nodes(), model_->surface().nodes.size(),
+                    model_->imported_nodes(), model_->build_seconds());
       status_ = line;
       BuildSurfaceActor();
       const bool show = active_;
@@ -214,7 +215,8 @@ bool FeMode::Settled() const {
     return true;
   }
   if (pending_field_ || !field_taken_ || field_start_time_ < 0.0) return false;
-  return last_state_.time - field_start_time_ >= kSettleSeconds && model_->cache().WaitUntilIdle(0.0);
+  return last_state_.time - field_start_time_ >= kSettleSeconds &&
+         model_->cache().WaitUntilIdle(0.0);
 }
 
 void FeMode::BuildSurfaceActor() {
@@ -222,7 +224,8 @@ void FeMode::BuildSurfaceActor() {
   auto points = vtkSmartPointer<vtkPoints>::New();
   points->SetDataTypeToDouble();
   points->SetNumberOfPoints(mesh.num_nodes());
-  for (int v = 0; v < mesh.num_nodes(); ++v) points->SetPoint(v, mesh.nodes(v, 0), mesh.nodes(v, 1), mesh.nodes(v, 2));
+  for (int v = 0; v < mesh.num_nodes(); ++v)
+    points->SetPoint(v, mesh.nodes(v, 0), mesh.nodes(v, 1), mesh.nodes(v, 2));
   auto tris = vtkSmartPointer<vtkCellArray>::New();
   const fem::MatrixXiR& faces = model_->surface().faces;
   for (Eigen::Index f = 0; f < faces.rows(); ++f) {
@@ -263,7 +266,8 @@ void FeMode::UpdateSurface(const FeContactState* state) {
   }
   points->Modified();
   scalars_->Modified();
-  const double top = auto_range_ ? std::max(1e-3, 1e-6 * max_vm) : std::max(1e-6, static_cast<double>(range_mpa_));
+  const double top =
+      auto_range_ ? std::max(1e-3, 1e-6 * max_vm) : std::max(1e-6, static_cast<double>(range_mpa_));
   lut_->SetTableRange(0.0, top);
   figures_.f_tool_W = last_state_.f_tool_W;
   figures_.contacts = last_state_.num_contacts;
@@ -281,8 +285,10 @@ void FeMode::OnFrame(const haptics::ToolState& tool) {
   sphere_source_->SetCenter(p.x(), p.y(), p.z());
   if (!active_) return;
   const bool fresh = channel_->buffer.Update();
-  if (fresh || magnify_shown_ != magnify_) UpdateSurface(fresh ? &channel_->buffer.Read() : nullptr);
-  sphere_actor_->GetProperty()->SetColor(figures_.contacts > 0 ? 0.95 : 0.2, figures_.contacts > 0 ? 0.5 : 0.8, 0.2);
+  if (fresh || magnify_shown_ != magnify_)
+    UpdateSurface(fresh ? &channel_->buffer.Read() : nullptr);
+  sphere_actor_->GetProperty()->SetColor(figures_.contacts > 0 ? 0.95 : 0.2,
+                                         figures_.contacts > 0 ? 0.5 : 0.8, 0.2);
 }
 
 void FeMode::DrawPanel() {
@@ -328,7 +334,8 @@ void FeMode::DrawPanel() {
 
   Job* running = RunningJob();
   if (running != nullptr) {
-    ImGui::ProgressBar(static_cast<float>(running->progress()), ImVec2(-90, 0), running->phase().c_str());
+    ImGui::ProgressBar(static_cast<float>(running->progress()), ImVec2(-90, 0),
+                       running->phase().c_str());
     ImGui::SameLine();
     if (ImGui::Button("Cancel")) running->Cancel();
   } else {
@@ -383,7 +390,8 @@ void FeMode::DrawPanel() {
     ImGui::Text("contacts: %d (%d on borrowed columns)", figures_.contacts, figures_.substituted);
     ImGui::Text("max displacement: %.4f mm", 1e3 * figures_.max_displacement);
     ImGui::Text("max von Mises: %.3f MPa", 1e-6 * figures_.max_von_mises);
-    ImGui::Text("columns ready: %d of %d", figures_.ready_columns, model_->cache().num_candidates());
+    ImGui::Text("columns ready: %d of %d", figures_.ready_columns,
+                model_->cache().num_candidates());
   }
 }
 

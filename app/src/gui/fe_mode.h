@@ -10,14 +10,13 @@
 // only. The haptic thread is the single producer of the column focus (FeTouchField::Evaluate).
 #pragma once
 
-#include <cmath>
-
-#include <memory>
-#include <string>
+#include <vtkSmartPointer.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <vtkSmartPointer.h>
+#include <cmath>
+#include <memory>
+#include <string>
 
 #include "doc/job.h"
 #include "scene/fe_model.h"

@@ -4,25 +4,24 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <array>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 namespace spidarcad::app {
 
 struct GuiOptions {
-  int width = 1280;              // window size in pixels
+  int width = 1280;  // window size in pixels
   int height = 800;
-  std::string screenshot;        // when set: render, write this PNG and exit
-  int frames = 0;                // when > 0: exit after this many frames
+  std::string screenshot;  // when set: render, write this PNG and exit
+  int frames = 0;          // when > 0: exit after this many frames
   // --device: simulated, ideal, board-sim or usb (RuntimeDevice, gui/haptic_runtime.h).
   std::string device = "simulated";
   // Scene file, "demo" (built-in) or "none"; empty: the mode's part (platform.json for 'fe',
   // clay.json for 'sculpt') or, without a mode, the demo.
   std::string scene;
-  std::string mode;              // 'fe' or 'sculpt': start in that mode (demo, screenshots)
-  int estop_frame = 0;           // when > 0: press the emergency stop at this frame
+  std::string mode;     // 'fe' or 'sculpt': start in that mode (demo, screenshots)
+  int estop_frame = 0;  // when > 0: press the emergency stop at this frame
   // When set: a trajectory CSV (haptics/trajectory.h) the hand's target follows instead of the
   // mouse, in wall-clock time from the first frame (the grip starts at its first sample).
   std::string trajectory;

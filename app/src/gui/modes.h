@@ -41,7 +41,7 @@ class SqueezeDetector {
   static constexpr double kWindow = 0.4;                                 // s
   static constexpr double kDepth = 10.0 * 3.14159265358979323846 / 180;  // rad (10°)
   static constexpr double kNoise = 0.5 * 3.14159265358979323846 / 180;   // rad of jitter ignored
-  static constexpr double kHistory = 2.0;                                 // s of samples kept
+  static constexpr double kHistory = 2.0;                                // s of samples kept
   // Adds the grasp angle θ (rad) at time t (s, increasing); true when this sample completes a
   // squeeze (once per squeeze: the history restarts after one).
   bool Update(double t, double grasp);

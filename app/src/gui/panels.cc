@@ -1,10 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/panels.h"
 
+#include <imgui.h>
+
 #include <algorithm>
 #include <cmath>
-
-#include <imgui.h>
 
 #include "gui/colour_map.h"
 #include "gui/device_view.h"
@@ -19,17 +19,20 @@ namespace {
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 ImU32 ToImColour(const Rgb& rgb, float alpha = 1.0f) {
-  return ImGui::ColorConvertFloat4ToU32(ImVec4(static_cast<float>(rgb[0]),
-                                               static_cast<float>(rgb[1]),
-                                               static_cast<float>(rgb[2]), alpha));
+  return ImGui::ColorConvertFloat4ToU32(ImVec4(
+      static_cast<float>(rgb[0]), static_cast<float>(rgb[1]), static_cast<float>(rgb[2]), alpha));
 }
 
 const char* TensionStatusText(haptics::TensionStatus status) {
   switch (status) {
-    case haptics::TensionStatus::kOk: return "ok";
-    case haptics::TensionStatus::kSaturated: return "saturated";
-    case haptics::TensionStatus::kInvalidInput: return "invalid input";
-    case haptics::TensionStatus::kNotConverged: return "not converged";
+    case haptics::TensionStatus::kOk:
+      return "ok";
+    case haptics::TensionStatus::kSaturated:
+      return "saturated";
+    case haptics::TensionStatus::kInvalidInput:
+      return "invalid input";
+    case haptics::TensionStatus::kNotConverged:
+      return "not converged";
   }
   return "?";
 }
@@ -68,7 +71,10 @@ void Legend(double tau_min, double tau_max, float width) {
     const double v = tau_min + (tau_max - tau_min) * k / (ticks - 1);
     std::snprintf(text, sizeof(text), "%.1f", v);
     const float tw = ImGui::CalcTextSize(text).x;
-    const float x = p.x + width * k / (ticks - 1) - (k == 0 ? 0.0f : k == ticks - 1 ? tw : 0.5f * tw);
+    const float x = p.x + width * k / (ticks - 1) -
+                    (k == 0           ? 0.0f
+                     : k == ticks - 1 ? tw
+                                      : 0.5f * tw);
     draw->AddLine(ImVec2(p.x + width * k / (ticks - 1), p.y + h),
                   ImVec2(p.x + width * k / (ticks - 1), p.y + h + 3.0f),
                   IM_COL32(90, 95, 105, 255));
@@ -147,8 +153,7 @@ PanelActions DrawDeviceFigures(const DeviceFrame& frame, const PanelContext& con
     const ImVec4 colour = ok     ? ImVec4(0.1f, 0.5f, 0.2f, 1.0f)
                           : down ? ImVec4(0.8f, 0.1f, 0.1f, 1.0f)
                                  : ImVec4(0.75f, 0.35f, 0.0f, 1.0f);
-    ImGui::TextColored(colour, "link %s%s", DescribeLink(link).c_str(),
-                       ok ? "" : "; zero force");
+    ImGui::TextColored(colour, "link %s%s", DescribeLink(link).c_str(), ok ? "" : "; zero force");
     if (context.board_sim) {
       bool plugged = link.plugged;
       if (ImGui::Checkbox("board plugged in (simulated unplug)", &plugged)) {

@@ -1,11 +1,11 @@
 // ImGui side of the window: the device panel (string lengths, pose, tensions with bars and the
-// colour legend, wrench, centring-spring settings, controls help). Reads a DeviceFrame; returns what
-// the user asked for. No VTK and no device computation here.
-// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// colour legend, wrench, centring-spring settings, controls help). Reads a DeviceFrame; returns
+// what the user asked for. No VTK and no device computation here. Copyright the spidarcad authors.
+// SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include "scene/device_session.h"
 #include "scene/device_rig.h"
+#include "scene/device_session.h"
 #include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
@@ -18,7 +18,7 @@ struct PanelContext {
   const haptics::SpidarGeometry* geometry = nullptr;
   double tau_min = 0.0;  // N, ends of the colour legend
   double tau_max = 1.0;
-  double fps = 0.0;      // frames per second of the window
+  double fps = 0.0;            // frames per second of the window
   const char* drag_mode = "";  // current mouse action ("", "moving grip", "orbit", ...)
   float top = 0.0f;            // y of the panel's top edge (below the menu bar), pixels
   // The device link (board-sim, usb): status, counters, "not connected — retrying ..."; null

@@ -1,10 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // WritePng (gl_capture.h) lives here: it uses VTK, which must not meet <GL/gl.h>.
-#include <cstring>
-
 #include <vtkImageData.h>
 #include <vtkNew.h>
 #include <vtkPNGWriter.h>
+
+#include <cstring>
 
 #include "gui/gl_capture.h"
 
@@ -27,7 +27,8 @@ std::string WritePng(const std::string& path, const std::vector<unsigned char>& 
   writer->SetInputData(image);
   writer->Write();
   if (writer->GetErrorCode() != 0) {
-    return "screenshot: cannot write PNG file '" + path + "' (check that the folder exists "
+    return "screenshot: cannot write PNG file '" + path +
+           "' (check that the folder exists "
            "and is writable)";
   }
   return {};

@@ -1,11 +1,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/scene_view.h"
 
-#include <algorithm>
-
 #include <vtkActor.h>
-#include <vtkCellPicker.h>
 #include <vtkCellArray.h>
+#include <vtkCellPicker.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
@@ -15,6 +13,8 @@
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
 #include <vtkSphereSource.h>
+
+#include <algorithm>
 
 namespace spidarcad::app {
 
@@ -92,7 +92,8 @@ void FillPolyData(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
 void SceneView::Sync(const SceneModel& model, int highlight) {
   const auto& objects = model.objects();
   bool same_ids = entries_.size() == objects.size();
-  for (size_t i = 0; same_ids && i < objects.size(); ++i) same_ids = entries_[i]->id == objects[i].id;
+  for (size_t i = 0; same_ids && i < objects.size(); ++i)
+    same_ids = entries_[i]->id == objects[i].id;
   if (model.generation() != generation_ || !same_ids) {
     for (auto& e : entries_) renderer_->RemoveActor(e->actor);
     entries_.clear();

@@ -44,10 +44,11 @@ class SceneView {
   // a scene no longer felt) and lies more than kMarkerMinOffset (in D) from the tool point, in
   // the view's frame D through the inverse of `x_wd`; every other marker hidden. Returns the
   // number shown.
-  int ShowContacts(const std::vector<ContactMarker>& markers, double now, const DeviceToWorld& x_wd);
-  static constexpr double kMarkerRadius = 0.005;     // m in D
-  static constexpr double kMarkerMaxAge = 0.1;       // s
-  static constexpr double kMarkerMinOffset = 3e-4;   // m in D
+  int ShowContacts(const std::vector<ContactMarker>& markers, double now,
+                   const DeviceToWorld& x_wd);
+  static constexpr double kMarkerRadius = 0.005;    // m in D
+  static constexpr double kMarkerMaxAge = 0.1;      // s
+  static constexpr double kMarkerMinOffset = 3e-4;  // m in D
   // Solids (by name) whose actors stay hidden: an assembly's part solids, which AssemblyMode
   // draws where the parts are (the solids themselves sit at their own frame origins).
   void SetHidden(std::vector<std::string> names) { hidden_ = std::move(names); }

@@ -1,16 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/sculpt_mode.h"
 
-#include "doc/assets.h"
-
-#include <algorithm>
-#include <chrono>
-#include <cstdio>
-#include <cmath>
-#include <filesystem>
-#include <numbers>
-#include <utility>
-
 #include <GLFW/glfw3.h>
 #include <imgui.h>
 #include <vtkActor.h>
@@ -26,6 +16,15 @@
 #include <vtkRenderer.h>
 #include <vtkSphereSource.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+#include <utility>
+
+#include "doc/assets.h"
 #include "doc/job.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
@@ -166,7 +165,8 @@ void SculptMode::UpdateMarker(const Eigen::Vector3d& p_W, SculptFrameEvent event
   Vtk& v = *vtk_;
   const double inv = 1.0 / world_scale_;
   const double r = session_.settings().tool.radius * inv;
-  const Eigen::Vector3d p_marker = session_.stroke_active() ? Eigen::Vector3d(p_W + session_.snap_offset()) : p_W;
+  const Eigen::Vector3d p_marker =
+      session_.stroke_active() ? Eigen::Vector3d(p_W + session_.snap_offset()) : p_W;
   const Eigen::Vector3d c = (p_marker - p_WDo_) * inv;
   vtkNew<vtkMatrix4x4> m;
   m->Identity();
@@ -202,13 +202,15 @@ void SculptMode::OnFrame(const haptics::ToolState& tool) {
   } else if (session_.stroke_active() && session_.mesh()) {
     Vtk& v = *vtk_;
     CopyVerticesToFloat(*session_.mesh(), session_.display_vertices(),
-                        static_cast<float*>(v.points->GetData()->GetVoidPointer(0)), v.normals->GetPointer(0));
+                        static_cast<float*>(v.points->GetData()->GetVoidPointer(0)),
+                        v.normals->GetPointer(0));
     v.points->Modified();
     v.normals->Modified();
     v.poly->Modified();
   }
   UpdateMarker(tool.tool_W.p_WT, last_event_);
-  last_frame_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  last_frame_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 void SculptMode::DrawPanel() {
@@ -217,15 +219,15 @@ void SculptMode::DrawPanel() {
   SculptModeSettings& s = session_.settings();
   const modeling::SculptMesh* mesh = session_.mesh();
   if (mesh) {
-    ImGui::Text("Clay: %d vertices, %d triangles, volume %.1f cm^3", mesh->vertex_count(), mesh->triangle_count(),
-                mesh->volume() * 1e6);
+    ImGui::Text("Clay: %d vertices, %d triangles, volume %.1f cm^3", mesh->vertex_count(),
+                mesh->triangle_count(), mesh->volume() * 1e6);
   } else {
     ImGui::TextUnformatted(mesh_requested_ ? "Clay: meshing..." : "Clay: none");
   }
   if (session_.stroke_active() && mesh) {
     const modeling::StrokeStats& st = mesh->stroke_stats();
-    ImGui::Text("Stroke: %d vertices, strength %.2f, %.2f ms/frame", st.affected_vertices, st.strength,
-                last_frame_ms_);
+    ImGui::Text("Stroke: %d vertices, strength %.2f, %.2f ms/frame", st.affected_vertices,
+                st.strength, last_frame_ms_);
   } else if (last_event_ == SculptFrameEvent::kNoClayInReach) {
     ImGui::TextColored(ImVec4(1.0f, 0.4f, 0.3f, 1.0f), "No clay within reach of the grip");
   } else {
@@ -236,14 +238,17 @@ void SculptMode::DrawPanel() {
   int tool = static_cast<int>(s.tool.tool);
   if (ImGui::Combo("tool", &tool, kTools, 5)) s.tool.tool = static_cast<modeling::SculptTool>(tool);
   float radius_mm = static_cast<float>(s.tool.radius * 1e3);
-  if (ImGui::SliderFloat("radius [mm]", &radius_mm, 2.0f, 60.0f, "%.1f")) s.tool.radius = radius_mm * 1e-3;
+  if (ImGui::SliderFloat("radius [mm]", &radius_mm, 2.0f, 60.0f, "%.1f"))
+    s.tool.radius = radius_mm * 1e-3;
   float stiffness = static_cast<float>(s.tool.stiffness);
-  if (ImGui::SliderFloat("stiffness [N/m]", &stiffness, 20.0f, 3000.0f, "%.0f", ImGuiSliderFlags_Logarithmic)) {
+  if (ImGui::SliderFloat("stiffness [N/m]", &stiffness, 20.0f, 3000.0f, "%.0f",
+                         ImGuiSliderFlags_Logarithmic)) {
     s.tool.stiffness = stiffness;
   }
   ImGui::Checkbox("conserve volume", &s.tool.conserve_volume);
   float edge_mm = static_cast<float>(s.tool.max_edge_length * 1e3);
-  if (ImGui::SliderFloat("refine edges over [mm]", &edge_mm, 0.0f, 10.0f, edge_mm <= 0.0f ? "off" : "%.1f")) {
+  if (ImGui::SliderFloat("refine edges over [mm]", &edge_mm, 0.0f, 10.0f,
+                         edge_mm <= 0.0f ? "off" : "%.1f")) {
     s.tool.max_edge_length = edge_mm * 1e-3;
   }
   float begin_deg = static_cast<float>(s.stroke_begin_angle / kDeg);
@@ -268,7 +273,8 @@ void SculptMode::DrawPanel() {
   std::snprintf(path, sizeof(path), "%s", scene_path_.c_str());
   if (ImGui::InputText("clay scene", path, sizeof(path))) scene_path_ = path;
   float cell_mm = static_cast<float>(mesh_cell_ * 1e3);
-  if (ImGui::SliderFloat("mesh cell [mm]", &cell_mm, 0.5f, 5.0f, "%.2f")) mesh_cell_ = cell_mm * 1e-3;
+  if (ImGui::SliderFloat("mesh cell [mm]", &cell_mm, 0.5f, 5.0f, "%.2f"))
+    mesh_cell_ = cell_mm * 1e-3;
   const bool busy = jobs_ && jobs_->busy();
   ImGui::BeginDisabled(busy || session_.stroke_active() || !jobs_);
   if (ImGui::Button("Mesh clay from scene")) {
@@ -294,11 +300,13 @@ void SculptMode::DrawPanel() {
   ImGui::EndDisabled();
   ImGui::EndDisabled();
   if (session_.tet_mesh()) {
-    ImGui::Text("Tet mesh: %ld nodes, %ld tetrahedra", static_cast<long>(session_.tet_mesh()->nodes.cols()),
+    ImGui::Text("Tet mesh: %ld nodes, %ld tetrahedra",
+                static_cast<long>(session_.tet_mesh()->nodes.cols()),
                 static_cast<long>(session_.tet_mesh()->tets.cols()));
     ImGui::SameLine();
     if (ImGui::Button("Export VTU")) {
-      const std::string vtu = std::filesystem::path(export_path_).replace_extension(".vtu").string();
+      const std::string vtu =
+          std::filesystem::path(export_path_).replace_extension(".vtu").string();
       try {
         modeling::WriteVtu(*session_.tet_mesh(), vtu);
         message_ = "wrote " + vtu;

@@ -13,10 +13,9 @@
 // X_WD (p_D = (p_W − p_WDo) / s), set with SetWorldToView.
 #pragma once
 
+#include <Eigen/Core>
 #include <memory>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "scene/sculpt_field.h"
 #include "spidarcad/haptics/haptic_loop.h"

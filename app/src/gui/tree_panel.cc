@@ -28,8 +28,8 @@ std::vector<modeling::NodeParams> AllDefaultParams(std::index_sequence<I...>) {
 }
 
 const std::vector<modeling::NodeParams>& DefaultParamsOfEveryType() {
-  static const std::vector<modeling::NodeParams> all = AllDefaultParams(
-      std::make_index_sequence<std::variant_size_v<modeling::NodeParams>>());
+  static const std::vector<modeling::NodeParams> all =
+      AllDefaultParams(std::make_index_sequence<std::variant_size_v<modeling::NodeParams>>());
   return all;
 }
 
@@ -65,17 +65,23 @@ FieldUnit UnitOfField(const std::string& field) {
 
 double DisplayScale(FieldUnit unit) {
   switch (unit) {
-    case FieldUnit::kLength: return 1e3;
-    case FieldUnit::kAngle: return 180.0 / std::numbers::pi;
-    default: return 1.0;
+    case FieldUnit::kLength:
+      return 1e3;
+    case FieldUnit::kAngle:
+      return 180.0 / std::numbers::pi;
+    default:
+      return 1.0;
   }
 }
 
 const char* DisplayUnitText(FieldUnit unit) {
   switch (unit) {
-    case FieldUnit::kLength: return "mm";
-    case FieldUnit::kAngle: return "deg";
-    default: return "";
+    case FieldUnit::kLength:
+      return "mm";
+    case FieldUnit::kAngle:
+      return "deg";
+    default:
+      return "";
   }
 }
 
@@ -257,8 +263,9 @@ bool TreeController::Wrap(const std::string& type) {
       throw DocumentError("cannot wrap a node in a " + type + ": a primitive takes no children");
     }
     Document& doc = document();
-    const bool difference = std::holds_alternative<modeling::DifferenceParams>(wrapper.params) ||
-                            std::holds_alternative<modeling::SmoothDifferenceParams>(wrapper.params);
+    const bool difference =
+        std::holds_alternative<modeling::DifferenceParams>(wrapper.params) ||
+        std::holds_alternative<modeling::SmoothDifferenceParams>(wrapper.params);
     if (!difference) {
       doc.Execute(edit::WrapNode(at.object, at.path, wrapper.params));
     } else {
@@ -440,7 +447,8 @@ void DrawNodeMenu(TreePanelState* state) {
   Action& pending = state->pending;
   if (ImGui::BeginMenu("Add child")) {
     for (const std::string& t : PrimitiveTypeNames()) {
-      if (ImGui::MenuItem(t.c_str())) pending = [t](TreeController* c) { c->AddPrimitive(t, false); };
+      if (ImGui::MenuItem(t.c_str()))
+        pending = [t](TreeController* c) { c->AddPrimitive(t, false); };
     }
     ImGui::Separator();
     for (const std::string& t : OperationTypeNames()) {
@@ -466,7 +474,8 @@ void DrawNodeMenu(TreePanelState* state) {
     };
   }
   if (ImGui::MenuItem("Paste", "Ctrl+V")) pending = [](TreeController* c) { c->Paste(); };
-  if (ImGui::MenuItem("Duplicate object")) pending = [](TreeController* c) { c->DuplicateSelected(); };
+  if (ImGui::MenuItem("Duplicate object"))
+    pending = [](TreeController* c) { c->DuplicateSelected(); };
   if (ImGui::MenuItem("Delete", "Del")) pending = [](TreeController* c) { c->DeleteSelected(); };
 }
 
@@ -525,7 +534,9 @@ void DrawParameters(TreeController* tree, const modeling::ImplicitNode& node) {
     const nlohmann::json& v = it.value();
     const FieldUnit unit = UnitOfField(field);
     const double scale = DisplayScale(unit);
-    const float speed = unit == FieldUnit::kLength ? 0.1f : unit == FieldUnit::kAngle ? 0.5f : 0.01f;
+    const float speed = unit == FieldUnit::kLength  ? 0.1f
+                        : unit == FieldUnit::kAngle ? 0.5f
+                                                    : 0.01f;
     const std::string label = field + (unit == FieldUnit::kLength || unit == FieldUnit::kAngle
                                            ? std::string(" [") + DisplayUnitText(unit) + "]"
                                            : std::string());

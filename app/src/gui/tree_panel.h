@@ -14,11 +14,10 @@
 #pragma once
 
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "doc/clipboard.h"
 #include "doc/document.h"
@@ -149,12 +148,12 @@ class TreeController {
 
 // UI state of the tree panel across frames.
 struct TreePanelState {
-  char rename[128] = "";        // text of the rename field
-  std::optional<NodeRef> rename_for;  // selection the rename field was filled for
-  bool open_save_as = false;    // request to open the Save As dialog this frame
-  char save_path[512] = "";     // path field of the Save As dialog
+  char rename[128] = "";                   // text of the rename field
+  std::optional<NodeRef> rename_for;       // selection the rename field was filled for
+  bool open_save_as = false;               // request to open the Save As dialog this frame
+  char save_path[512] = "";                // path field of the Save As dialog
   std::optional<NodeRef> drawn_selection;  // selection when the tree was last drawn
-  bool clicked = false;         // the selection changed by a click in the tree (no scrolling)
+  bool clicked = false;  // the selection changed by a click in the tree (no scrolling)
   // An edit asked for from a node's context menu while the tree was being drawn; run after the
   // tree is drawn (an edit then would change the nodes being iterated).
   std::function<void(TreeController*)> pending;

@@ -1,11 +1,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "gui/workbench_panels.h"
 
+#include <imgui.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
-
-#include <imgui.h>
 
 #include "gui/panels.h"
 
@@ -14,8 +14,8 @@ namespace spidarcad::app {
 namespace {
 
 constexpr ImGuiWindowFlags kDockedFlags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
-                                         ImGuiWindowFlags_NoCollapse |
-                                         ImGuiWindowFlags_NoSavedSettings;
+                                          ImGuiWindowFlags_NoCollapse |
+                                          ImGuiWindowFlags_NoSavedSettings;
 const ImVec4 kRed(0.80f, 0.10f, 0.10f, 1.0f);
 const ImVec4 kGreen(0.10f, 0.50f, 0.20f, 1.0f);
 
@@ -146,18 +146,19 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
     if (o != nullptr) {
       const long tris = o->shown().triangles.cols();
       ImGui::TextDisabled("mesh of '%s': %ld tri%s", o->name.c_str(), tris,
-                          o->tets.tets.cols() > 0   ? ", tets"
-                          : o->surface_cell > 0.0   ? " (Mesh action)"
-                          : tris > 0                ? " (preview)"
-                                                    : " (meshing preview...)");
+                          o->tets.tets.cols() > 0 ? ", tets"
+                          : o->surface_cell > 0.0 ? " (Mesh action)"
+                          : tris > 0              ? " (preview)"
+                                                  : " (meshing preview...)");
     }
   }
   if (model->objects().empty()) {
     // An empty document: how to start, and the controls (also in the Help menu).
     ImGui::Separator();
     ImGui::PushTextWrapPos(width - 10.0f);
-    ImGui::TextUnformatted("No solids in this scene: add one with Add..., or open a scene file "
-                           "(spidarcad SCENE.json).");
+    ImGui::TextUnformatted(
+        "No solids in this scene: add one with Add..., or open a scene file "
+        "(spidarcad SCENE.json).");
     ImGui::PopTextWrapPos();
     ImGui::Separator();
     DrawControlsHelp();
@@ -217,8 +218,9 @@ void DrawContactControls(WorkbenchState* state) {
     state->contact_changed = true;
   }
   if (ImGui::IsItemHovered()) {
-    ImGui::SetTooltip("The cross grip as a rigid six-DOF tool (point shell with virtual coupling):\n"
-                      "its poles touch, torques are felt.");
+    ImGui::SetTooltip(
+        "The cross grip as a rigid six-DOF tool (point shell with virtual coupling):\n"
+        "its poles touch, torques are felt.");
   }
   ImGui::PushItemWidth(150.0f);
   float k = static_cast<float>(c.stiffness);
@@ -292,8 +294,8 @@ void DrawLoopFigures(const LoopStats& s, WorkbenchActions* actions) {
     row("period jitter", s.jitter);
     ImGui::EndTable();
   }
-  ImGui::TextDisabled("overruns %llu   force ramp %.2f", static_cast<unsigned long long>(s.overruns),
-                      s.ramp);
+  ImGui::TextDisabled("overruns %llu   force ramp %.2f",
+                      static_cast<unsigned long long>(s.overruns), s.ramp);
   // Safety events in two columns, non-zero counts highlighted.
   if (ImGui::BeginTable("events", 4, ImGuiTableFlags_SizingFixedFit)) {
     for (int i = 0; i < haptics::kNumSafetyEvents; ++i) {
@@ -338,15 +340,16 @@ void DrawExportDialog(const SceneModel& model, WorkbenchState* state) {
   } else {
     const bool final_mesh = o->surface.triangles.cols() > 0;
     ImGui::Text("Surface of '%s' (%s, %ld triangles)", o->name.c_str(),
-                final_mesh ? "Mesh action result" : "preview", static_cast<long>(o->shown().triangles.cols()));
+                final_mesh ? "Mesh action result" : "preview",
+                static_cast<long>(o->shown().triangles.cols()));
     ImGui::TextDisabled("path ending in .stl, .obj or .ply; coordinates in metres (W)");
   }
   ImGui::SetNextItemWidth(500.0f);
   ImGui::InputText("##path", state->export_path, sizeof(state->export_path));
   if (ImGui::Button("Export") && o != nullptr) {
     const std::string path = state->export_path;
-    const std::string error = state->export_tets ? ExportTetrahedra(o->tets, path)
-                                                 : ExportSurface(o->shown(), path);
+    const std::string error =
+        state->export_tets ? ExportTetrahedra(o->tets, path) : ExportSurface(o->shown(), path);
     state->export_failed = !error.empty();
     state->export_message = error.empty() ? "wrote " + path : error;
   }

@@ -9,24 +9,24 @@
 #include <string>
 
 #include "doc/job.h"
+#include "gui/tree_panel.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
-#include "gui/tree_panel.h"
 
 namespace spidarcad::app {
 
 // UI state of the workbench that lives across frames.
 struct WorkbenchState {
-  int selected = 0;               // scene object the Mesh action and Export work on
-  float resolution_mm = 4.0f;     // grid cell of the Mesh action, mm (in W)
-  bool show_edges = false;        // draw the selected object's mesh edges
-  bool show_figures = true;       // the device and loop figures strip is open (else collapsed)
-  char export_path[512] = "";     // path field of the export dialog
-  bool export_tets = false;       // the dialog exports tetrahedra (else the surface)
-  bool open_export = false;       // request to open the export dialog this frame
-  std::string export_message;     // result of the last export (error or "wrote ...")
+  int selected = 0;            // scene object the Mesh action and Export work on
+  float resolution_mm = 4.0f;  // grid cell of the Mesh action, mm (in W)
+  bool show_edges = false;     // draw the selected object's mesh edges
+  bool show_figures = true;    // the device and loop figures strip is open (else collapsed)
+  char export_path[512] = "";  // path field of the export dialog
+  bool export_tets = false;    // the dialog exports tetrahedra (else the surface)
+  bool open_export = false;    // request to open the export dialog this frame
+  std::string export_message;  // result of the last export (error or "wrote ...")
   bool export_failed = false;
-  std::string status;             // status line (last job outcome)
+  std::string status;  // status line (last job outcome)
   bool status_error = false;
   // How the grip touches the solids (Haptics menu, Touch): the options of
   // SceneModel::BuildHapticScene, `spidarcad run`'s defaults; set when the user changed them
@@ -41,8 +41,8 @@ struct WorkbenchActions {
   bool rearm = false;
   bool reset_grip = false;
   bool reset_camera = false;
-  bool fit_view = false;          // View → Fit (F)
-  int standard_view = -1;         // View → Front, Right, Top, Iso (0..3; StandardView), −1: none
+  bool fit_view = false;   // View → Fit (F)
+  int standard_view = -1;  // View → Front, Right, Top, Iso (0..3; StandardView), −1: none
   bool quit = false;
 };
 

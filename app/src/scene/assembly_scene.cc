@@ -17,10 +17,12 @@ namespace spidarcad::app {
 haptics::PointShell SampleSurfaceShell(const modeling::CompiledSolid& solid, double spacing,
                                        double search_half_extent) {
   if (!(spacing > 0) || !std::isfinite(spacing)) {
-    throw std::invalid_argument("SampleSurfaceShell: spacing = " + std::to_string(spacing) + " must be > 0");
+    throw std::invalid_argument("SampleSurfaceShell: spacing = " + std::to_string(spacing) +
+                                " must be > 0");
   }
   const Eigen::Vector3d h = Eigen::Vector3d::Constant(search_half_extent);
-  const Eigen::AlignedBox3d bounds = modeling::FindBounds(solid, Eigen::AlignedBox3d(-h, h), spacing);
+  const Eigen::AlignedBox3d bounds =
+      modeling::FindBounds(solid, Eigen::AlignedBox3d(-h, h), spacing);
   if (bounds.isEmpty()) throw std::invalid_argument("SampleSurfaceShell: the solid is empty");
   modeling::SurfaceMeshSettings mesh_settings;
   mesh_settings.bounds = Eigen::AlignedBox3d(bounds.min() - Eigen::Vector3d::Constant(spacing),
@@ -70,7 +72,8 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
   std::vector<haptics::AssemblyPart> parts;
   for (int i = 0; i < n; ++i) {
     const modeling::ScenePart& sp = scene.parts[i];
-    const std::string where = "BuildAssemblyField: part '" + sp.name + "' (solid '" + sp.solid + "')";
+    const std::string where =
+        "BuildAssemblyField: part '" + sp.name + "' (solid '" + sp.solid + "')";
     Compiled& c = compiled[sp.solid];
     if (c.field == nullptr) {
       const modeling::Solid* solid = nullptr;
@@ -79,18 +82,21 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
       }
       if (solid == nullptr) throw std::invalid_argument(where + ": no such solid");
       try {
-        auto cs = std::make_shared<const modeling::CompiledSolid>(modeling::CompiledSolid::Compile(solid->root));
+        auto cs = std::make_shared<const modeling::CompiledSolid>(
+            modeling::CompiledSolid::Compile(solid->root));
         if (settings.specialization_cell > 0) {
           // Pruned tapes over the part's bounds plus a margin where other parts' shells come near.
           const Eigen::Vector3d h = Eigen::Vector3d::Constant(settings.search_half_extent);
-          const Eigen::AlignedBox3d b = modeling::FindBounds(*cs, Eigen::AlignedBox3d(-h, h), settings.specialization_cell);
+          const Eigen::AlignedBox3d b =
+              modeling::FindBounds(*cs, Eigen::AlignedBox3d(-h, h), settings.specialization_cell);
           const Eigen::Vector3d margin = Eigen::Vector3d::Constant(0.02);
           modeling::CellSpecializationSettings cell;
           cell.cell_size = settings.specialization_cell;
           c.field = std::make_shared<const SolidDistanceField>(
-              cs, b.isEmpty() ? nullptr
-                              : std::make_shared<const modeling::CellSpecializedSolid>(
-                                    cs, Eigen::AlignedBox3d(b.min() - margin, b.max() + margin), cell));
+              cs, b.isEmpty()
+                      ? nullptr
+                      : std::make_shared<const modeling::CellSpecializedSolid>(
+                            cs, Eigen::AlignedBox3d(b.min() - margin, b.max() + margin), cell));
         } else {
           c.field = std::make_shared<const SolidDistanceField>(cs);
         }
@@ -100,7 +106,8 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
     }
     if (!sp.fixed && !c.sampled) {
       try {
-        c.shell = SampleSurfaceShell(c.field->solid(), settings.shell_spacing, settings.search_half_extent);
+        c.shell = SampleSurfaceShell(c.field->solid(), settings.shell_spacing,
+                                     settings.search_half_extent);
       } catch (const std::exception& e) {
         throw std::invalid_argument(where + ": " + e.what());
       }
@@ -114,7 +121,8 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
     part.fixed = sp.fixed;
     for (const modeling::SceneSeat& ss : sp.seats) {
       const auto it = index.find(ss.on);
-      if (it == index.end()) throw std::invalid_argument(where + ": seat on unknown part '" + ss.on + "'");
+      if (it == index.end())
+        throw std::invalid_argument(where + ": seat on unknown part '" + ss.on + "'");
       haptics::AssemblySeat seat;
       seat.other = it->second;
       seat.X_OS = PartPose(ss.position, ss.rotation);
@@ -125,8 +133,10 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
     parts.push_back(std::move(part));
   }
   haptics::PointShell tool;
-  if (settings.tool_radius > 0) tool = haptics::PointShell::Sphere(settings.tool_radius, settings.tool_points);
-  return std::make_unique<haptics::AssemblyField>(std::move(parts), std::move(tool), settings.field);
+  if (settings.tool_radius > 0)
+    tool = haptics::PointShell::Sphere(settings.tool_radius, settings.tool_points);
+  return std::make_unique<haptics::AssemblyField>(std::move(parts), std::move(tool),
+                                                  settings.field);
 }
 
 std::string FormatAssemblySummary(const std::vector<std::string>& names,

@@ -20,14 +20,16 @@ namespace spidarcad::app {
 
 // How an assembly scene becomes a field. SI units.
 struct AssemblySceneSettings {
-  double shell_spacing = 0.0035;    // surface sampling cell, m (about the spacing of shell points;
-                                    // 3.5 mm: the leg has ~330 points, carrying ticks stay near 100 µs)
-  double tool_radius = 0.003;       // the bare tool's sphere shell radius, m (0: no tool shell)
-  int tool_points = 40;             // points on that sphere
-  double search_half_extent = 0.5;  // parts are looked for in a cube of this half side about P's origin, m
+  double shell_spacing =
+      0.0035;                  // surface sampling cell, m (about the spacing of shell points;
+                               // 3.5 mm: the leg has ~330 points, carrying ticks stay near 100 µs)
+  double tool_radius = 0.003;  // the bare tool's sphere shell radius, m (0: no tool shell)
+  int tool_points = 40;        // points on that sphere
+  double search_half_extent =
+      0.5;  // parts are looked for in a cube of this half side about P's origin, m
   double specialization_cell = 0.005;  // cell of the per-cell pruned tapes of each part's field
                                        // (modeling::CellSpecializedSolid), m; 0: the full tape only
-  haptics::AssemblySettings field;  // the field's parameters
+  haptics::AssemblySettings field;     // the field's parameters
 };
 
 // A point shell sampled on the surface of `solid` (in the solid's frame): the vertices of a
@@ -42,8 +44,8 @@ Eigen::Isometry3d PartPose(const Eigen::Vector3d& position, const Eigen::Quatern
 // An AssemblyField for the scene's parts. Throws std::invalid_argument when the scene has no
 // parts, more than haptics::kMaxAssemblyParts, or a part's solid cannot be compiled or sampled
 // (the message names the part).
-std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene& scene,
-                                                           const AssemblySceneSettings& settings = {});
+std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(
+    const modeling::Scene& scene, const AssemblySceneSettings& settings = {});
 
 // One line for stdout, shared by the window (AssemblyMode) and `spidarcad run`:
 // "assembly: 1 of 5 parts seated (right_leg), carried: none\n". Part i is named names[i] and is

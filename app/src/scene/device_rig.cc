@@ -5,10 +5,10 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
-#include <stdexcept>
-#include <vector>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/calibration.h"
@@ -75,9 +75,7 @@ class SimulatedRig final : public DeviceRig {
     device_.Read(reading);
   }
   void Write(const haptics::Vector8d& tau) noexcept override { device_.WriteTensions(tau); }
-  std::string Describe() const override {
-    return "simulated (seed " + std::to_string(seed_) + ")";
-  }
+  std::string Describe() const override { return "simulated (seed " + std::to_string(seed_) + ")"; }
 
  private:
   std::uint64_t seed_;
@@ -101,8 +99,10 @@ class BoardSimRig final : public DeviceRig {
     return driver_.Open() == DeviceStatus::kOk;
   }
   std::string StartFailure() const override {
-    return std::string("--device board-sim: the driver's handshake with the board simulator "
-                       "failed: ") + driver_.last_error();
+    return std::string(
+               "--device board-sim: the driver's handshake with the board simulator "
+               "failed: ") +
+           driver_.last_error();
   }
   void Read(double dt, haptics::EncoderReading* reading) noexcept override {
     const int plug = plug_request_.exchange(kNoRequest, std::memory_order_acq_rel);
@@ -149,7 +149,7 @@ class BoardSimRig final : public DeviceRig {
     return link;
   }
   std::uint64_t seed_;
-  haptics::usb::BoardSimulator board_;                  // outlives the driver
+  haptics::usb::BoardSimulator board_;                   // outlives the driver
   haptics::usb::LoopbackTransport* loopback_ = nullptr;  // owned by the driver; set before it
   haptics::usb::UsbSpidarG driver_;
   std::atomic<int> plug_request_{kNoRequest};
@@ -269,8 +269,8 @@ std::string DescribeLink(const RigLink& link) {
   std::snprintf(line, sizeof(line),
                 "%s: states %llu, lost %llu, timeouts %llu, comm errors %llu, disconnects %llu, "
                 "reconnects %llu",
-                haptics::DeviceStatusName(link.status),
-                static_cast<unsigned long long>(s.states), static_cast<unsigned long long>(s.lost),
+                haptics::DeviceStatusName(link.status), static_cast<unsigned long long>(s.states),
+                static_cast<unsigned long long>(s.lost),
                 static_cast<unsigned long long>(s.timeouts),
                 static_cast<unsigned long long>(s.comm_error_ticks),
                 static_cast<unsigned long long>(s.disconnects),
@@ -284,9 +284,12 @@ std::string DescribeLink(const RigLink& link) {
 
 std::unique_ptr<DeviceRig> MakeDeviceRig(RigKind kind, const RigOptions& options) {
   switch (kind) {
-    case RigKind::kBoardSim: return std::make_unique<BoardSimRig>(options);
-    case RigKind::kUsb: return std::make_unique<UsbRig>(options);
-    case RigKind::kSimulated: break;
+    case RigKind::kBoardSim:
+      return std::make_unique<BoardSimRig>(options);
+    case RigKind::kUsb:
+      return std::make_unique<UsbRig>(options);
+    case RigKind::kSimulated:
+      break;
   }
   return std::make_unique<SimulatedRig>(options.device);
 }

@@ -9,8 +9,7 @@ namespace {
 constexpr double kHalfPi = 0.5 * 3.14159265358979323846;
 }  // namespace
 
-haptics::Vector7d DemoSpringWrench(const DemoFieldSettings& field,
-                                   const haptics::GripPose& pose) {
+haptics::Vector7d DemoSpringWrench(const DemoFieldSettings& field, const haptics::GripPose& pose) {
   haptics::Vector7d q = haptics::Vector7d::Zero();
   if (!field.enabled) return q;
   q.head<3>() = -field.k_translation * pose.p0;

@@ -31,14 +31,14 @@ struct DeviceFrame {
   haptics::GripPose true_pose;      // pose of the simulated hand (set by the mouse), D
   haptics::GripPose measured_pose;  // pose from forward kinematics: what the app uses, D
   haptics::FkStatus fk_status = haptics::FkStatus::kInvalidInput;
-  double fk_residual = 0.0;         // RMS string residual of the FK solve, m
+  double fk_residual = 0.0;  // RMS string residual of the FK solve, m
   int fk_iterations = 0;
   haptics::Vector8d lengths = haptics::Vector8d::Zero();   // measured string lengths, m
   haptics::Vector8d tensions = haptics::Vector8d::Zero();  // commanded tensions, N
   haptics::Vector7d wrench = haptics::Vector7d::Zero();    // requested q = (f, m, g)
   haptics::Vector7d achieved = haptics::Vector7d::Zero();  // displayed A τ
   haptics::TensionStatus tension_status = haptics::TensionStatus::kInvalidInput;
-  std::string source;               // where the lengths come from (shown in the panel)
+  std::string source;  // where the lengths come from (shown in the panel)
 };
 
 }  // namespace spidarcad::app

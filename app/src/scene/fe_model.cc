@@ -1,14 +1,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/fe_model.h"
 
-#include "doc/assets.h"
-
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 
+#include "doc/assets.h"
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/stiffness.h"
@@ -45,7 +44,8 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
 
   std::unique_ptr<FeModel> m(new FeModel());
   m->material_ = settings.material;
-  m->mesh_ = (settings.order == 2 && mesh.Order() == 1) ? fem::MakeQuadratic(mesh) : std::move(mesh);
+  m->mesh_ =
+      (settings.order == 2 && mesh.Order() == 1) ? fem::MakeQuadratic(mesh) : std::move(mesh);
   m->mesh_.regions.setZero(m->mesh_.num_elements());
   m->materials_ = std::make_unique<fem::MaterialTable>(settings.material);
   m->surface_ = fem::ExtractSurface(m->mesh_);
@@ -67,10 +67,12 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   Progress(settings, 0.05, "constraints");
   m->bcs_ = std::make_unique<fem::BoundaryConditions>(nv);
   if (settings.fixed_boxes.empty()) {
-    const double tol = settings.min_x_tolerance >= 0.0 ? settings.min_x_tolerance : 0.25 * m->mean_edge_;
+    const double tol =
+        settings.min_x_tolerance >= 0.0 ? settings.min_x_tolerance : 0.25 * m->mean_edge_;
     const double min_x = tm.nodes.col(0).minCoeff();
-    m->num_fixed_nodes_ = fem::FixNodesInBox(
-        tm, Eigen::Vector3d(min_x - 1.0, -1e30, -1e30), Eigen::Vector3d(min_x + tol, 1e30, 1e30), m->bcs_.get());
+    m->num_fixed_nodes_ =
+        fem::FixNodesInBox(tm, Eigen::Vector3d(min_x - 1.0, -1e30, -1e30),
+                           Eigen::Vector3d(min_x + tol, 1e30, 1e30), m->bcs_.get());
   } else {
     std::vector<char> fixed(nv, 0);
     for (std::size_t i = 0; i < settings.fixed_boxes.size(); ++i) {
@@ -96,7 +98,8 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   Progress(settings, 0.1, "assemble and factor");
   m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_);
   if (!m->solver_->factor_status().converged)
-    throw std::runtime_error("FE model: factorisation failed: " + m->solver_->factor_status().message);
+    throw std::runtime_error("FE model: factorisation failed: " +
+                             m->solver_->factor_status().message);
   CheckCancel(settings);
 
   // Surface elements, output nodes (every node of a surface element), stress operators.
@@ -120,7 +123,8 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   m->element_volume_.reserve(m->surface_elements_.size());
   for (std::size_t i = 0; i < m->surface_elements_.size(); ++i) {
     const int e = m->surface_elements_[i];
-    const Eigen::MatrixXd b = fem::StrainDisplacement(fem::GetElementNodes(tm, e), Eigen::Vector4d::Constant(0.25));
+    const Eigen::MatrixXd b =
+        fem::StrainDisplacement(fem::GetElementNodes(tm, e), Eigen::Vector4d::Constant(0.25));
     m->stress_ops_.push_back(d * b);
     m->element_volume_.push_back(std::abs(tm.CornerVolume(e)));
     if ((i & 1023) == 0) CheckCancel(settings);
@@ -132,7 +136,8 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   for (std::size_t b = 0; b < candidates.size(); ++b) cand_of[candidates[b]] = static_cast<int>(b);
   m->normals_.setZero(static_cast<Eigen::Index>(candidates.size()), 3);
   for (int f = 0; f < nf; ++f) {
-    const Eigen::Vector3d p0 = tm.nodes.row(m->surface_.faces(f, 0)), p1 = tm.nodes.row(m->surface_.faces(f, 1)),
+    const Eigen::Vector3d p0 = tm.nodes.row(m->surface_.faces(f, 0)),
+                          p1 = tm.nodes.row(m->surface_.faces(f, 1)),
                           p2 = tm.nodes.row(m->surface_.faces(f, 2));
     const Eigen::RowVector3d n = (p1 - p0).cross(p2 - p0).transpose();  // 2·area·normal
     for (int i = 0; i < 3; ++i) m->normals_.row(cand_of[m->surface_.faces(f, i)]) += n;
@@ -149,14 +154,17 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   Progress(settings, 0.8, "columns");
   fem::ColumnCacheSettings cs = settings.cache;
   cs.start_worker = false;
-  auto cache = std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes, m->output_nodes_, candidates, cs);
+  auto cache =
+      std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes, m->output_nodes_, candidates, cs);
   m->use_disk_cache_ = settings.use_disk_cache;
-  m->cache_directory_ = settings.cache_directory.empty() ? fem::DefaultCacheDirectory() : settings.cache_directory;
+  m->cache_directory_ =
+      settings.cache_directory.empty() ? fem::DefaultCacheDirectory() : settings.cache_directory;
   m->key_ = fem::PrecomputeKey(tm, *m->materials_, *m->bcs_, m->output_nodes_, cs.precision);
   if (m->use_disk_cache_) {
     Progress(settings, 0.9, "disk cache");
     const fem::PrecomputeCache disk(m->cache_directory_);
-    if (std::optional<fem::ColumnSet> set = disk.Load(m->key_)) m->imported_nodes_ = cache->Import(*set);
+    if (std::optional<fem::ColumnSet> set = disk.Load(m->key_))
+      m->imported_nodes_ = cache->Import(*set);
   }
   CheckCancel(settings);
   m->cache_ = std::move(cache);
@@ -176,7 +184,8 @@ Eigen::VectorXd FeModel::SurfaceElementVonMises(const Eigen::VectorXd& u_out) co
   Eigen::VectorXd ue(3 * npe);
   for (std::size_t i = 0; i < surface_elements_.size(); ++i) {
     const int e = surface_elements_[i];
-    for (int j = 0; j < npe; ++j) ue.segment<3>(3 * j) = u_out.segment<3>(3 * output_index_[mesh_.elements(e, j)]);
+    for (int j = 0; j < npe; ++j)
+      ue.segment<3>(3 * j) = u_out.segment<3>(3 * output_index_[mesh_.elements(e, j)]);
     const Eigen::Matrix<double, 6, 1> s = stress_ops_[i] * ue;
     vm(static_cast<Eigen::Index>(i)) = fem::VonMises(s);
   }

@@ -12,6 +12,8 @@
 // Only the ColumnCache's worker uses the StaticSolver while it runs (CHOLMOD is not re-entrant).
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <atomic>
 #include <filesystem>
 #include <functional>
@@ -19,9 +21,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/column_cache.h"
@@ -58,7 +57,8 @@ struct FeModelSettings {
   // Element order: 1 (4-node) or 2 (10-node, midside nodes added with fem::MakeQuadratic).
   int order = 1;
   // Clamped regions: every node inside one of these boxes (W, m) is fixed. Empty: the nodes on
-  // the minimum-x face (x <= min x + min_x_tolerance), e.g. the wall of assets/scenes/platform.json.
+  // the minimum-x face (x <= min x + min_x_tolerance), e.g. the wall of
+  // assets/scenes/platform.json.
   std::vector<Eigen::AlignedBox3d> fixed_boxes;
   // Thickness of the minimum-x face layer, m; < 0: a quarter of the mean boundary edge length.
   double min_x_tolerance = -1.0;
@@ -170,8 +170,9 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
                                  double resolution, const std::atomic<bool>* cancel = nullptr,
                                  const std::function<void(double)>& progress = {});
 
-// assets/scenes/platform.json of the source tree (the demo part of FE mode): $SPIDARCAD_PLATFORM_SCENE
-// when set, else found from this source file's location, else relative to the working directory.
+// assets/scenes/platform.json of the source tree (the demo part of FE mode):
+// $SPIDARCAD_PLATFORM_SCENE when set, else found from this source file's location, else relative to
+// the working directory.
 std::string PlatformScenePath();
 
 }  // namespace spidarcad::app

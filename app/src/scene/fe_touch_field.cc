@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <sstream>
 #include <stdexcept>
 
@@ -61,7 +60,11 @@ FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings
   cell_start_.assign(cells + 1, 0);
   std::vector<long> cell_of(n);
   for (int b = 0; b < n; ++b) {
-    const Eigen::Vector3i ijk = ((positions_[b] - grid_min_) / cell_).array().floor().cast<int>().cwiseMin(dims_.array() - 1);
+    const Eigen::Vector3i ijk = ((positions_[b] - grid_min_) / cell_)
+                                    .array()
+                                    .floor()
+                                    .cast<int>()
+                                    .cwiseMin(dims_.array() - 1);
     cell_of[b] = (static_cast<long>(ijk(2)) * dims_(1) + ijk(1)) * dims_(0) + ijk(0);
     ++cell_start_[cell_of[b] + 1];
   }
@@ -82,10 +85,12 @@ Eigen::Vector3d FeTouchField::PoleTip(const haptics::ToolKinematics& tool, int i
 }
 
 template <typename Visit>
-bool FeTouchField::ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p, Visit visit) const {
+bool FeTouchField::ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p,
+                                        Visit visit) const {
   Eigen::Vector3i lo, hi;
   for (int i = 0; i < 3; ++i) {
-    const double a = std::floor((lo_p(i) - grid_min_(i)) / cell_), z = std::floor((hi_p(i) - grid_min_(i)) / cell_);
+    const double a = std::floor((lo_p(i) - grid_min_(i)) / cell_),
+                 z = std::floor((hi_p(i) - grid_min_(i)) / cell_);
     if (z < 0.0 || a > dims_(i) - 1) return false;
     lo(i) = static_cast<int>(std::max(0.0, a));
     hi(i) = static_cast<int>(std::min<double>(dims_(i) - 1, z));
@@ -200,7 +205,8 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
     Eigen::Vector3d u = cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(a));
     for (int s = 0; s < k_prev; ++s) {
       const int b = st.candidate[s], sub = st.substitute[s];
-      if (solver_->contact(s) != b || solver_->substitute(s) != sub) continue;  // not pinned as read
+      if (solver_->contact(s) != b || solver_->substitute(s) != sub)
+        continue;  // not pinned as read
       const int row_node = sub == b ? a : cache_->ShiftedCandidate(a, b, sub);
       u += cache_->Block(cache_->OutputIndexOfCandidate(row_node), sub) *
            Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
@@ -221,7 +227,8 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
     for (int j = 0; j < num_found_; ++j) {
       if (!admit_[j]) continue;
       bool have = false;
-      for (int s = 0; s < solver_->num_contacts(); ++s) have = have || solver_->contact(s) == found_[j];
+      for (int s = 0; s < solver_->num_contacts(); ++s)
+        have = have || solver_->contact(s) == found_[j];
       if (have) continue;
       const fem::CachedContactStatus status = solver_->Add(found_[j]);
       if (status == fem::CachedContactStatus::kNoColumnReady) st.waiting_for_columns = true;
@@ -256,8 +263,8 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
     }
     // Frictionless: normal forces only, the tangential displacements follow (the targets become
     // the resulting displacements); sticking, or if that fails: the full displacement prescribed.
-    solved = settings_.frictionless &&
-             solver_->SolveNormal(normal_flat_.data(), st.target.data(), st.force.data(), st.target.data());
+    solved = settings_.frictionless && solver_->SolveNormal(normal_flat_.data(), st.target.data(),
+                                                            st.force.data(), st.target.data());
     if (!solved) solved = solver_->Solve(st.target.data(), st.force.data());
     if (!solved || pass + 1 == kActiveSetPasses) break;
     int pulling = 0;
@@ -282,8 +289,9 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
     for (int s = 0; s < k; ++s) {
       const Eigen::Vector3d f_body(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
       f_sphere[sphere_of_slot_[s]] -= f_body;
-      const Eigen::Vector3d x = positions_[st.candidate[s]] +
-                                Eigen::Vector3d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]);
+      const Eigen::Vector3d x =
+          positions_[st.candidate[s]] +
+          Eigen::Vector3d(st.target[3 * s], st.target[3 * s + 1], st.target[3 * s + 2]);
       m += (x - tool.p_WT).cross(-f_body);
     }
     st.f_tool_W = f_sphere[0] + f_sphere[1];
@@ -296,7 +304,8 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
       const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
       double g = 0.0;
       for (int i = 0; i < 2; ++i) {
-        const Eigen::Vector3d dp_T = 0.5 * (-std::sin(h) * b_T + (i == 0 ? -1.0 : 1.0) * std::cos(h) * a_T);
+        const Eigen::Vector3d dp_T =
+            0.5 * (-std::sin(h) * b_T + (i == 0 ? -1.0 : 1.0) * std::cos(h) * a_T);
         g -= f_sphere[i].dot(settings_.pole_length * (tool.R_WT * dp_T));
       }
       w.g = g;
@@ -336,12 +345,16 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
       for (int s = 0; s < k; ++s) {
         const Eigen::Vector3d d = -n.dot(normal_[s]) * normal_[s];
         for (int i = 0; i < 3; ++i)
-          probe_target_[3 * s + i] = cache_->baseline()(3 * cache_->OutputIndexOfCandidate(state_.candidate[s]) + i) + d(i);
+          probe_target_[3 * s + i] =
+              cache_->baseline()(3 * cache_->OutputIndexOfCandidate(state_.candidate[s]) + i) +
+              d(i);
       }
       double stiffness = 0.0;
       if (solver_->Solve(probe_target_.data(), probe_force_.data())) {
         Eigen::Vector3d f_tool = Eigen::Vector3d::Zero();
-        for (int s = 0; s < k; ++s) f_tool -= Eigen::Vector3d(probe_force_[3 * s], probe_force_[3 * s + 1], probe_force_[3 * s + 2]);
+        for (int s = 0; s < k; ++s)
+          f_tool -= Eigen::Vector3d(probe_force_[3 * s], probe_force_[3 * s + 1],
+                                    probe_force_[3 * s + 2]);
         stiffness = std::max(0.0, n.dot(f_tool));
       }
       const double sk = sigma * stiffness;
@@ -366,24 +379,27 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
   if (felt > settings_.max_force) w->f_T_W *= settings_.max_force / felt;
 }
 
-double FeTouchField::FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d& d, double length) const {
+double FeTouchField::FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d& d,
+                                double length) const {
   const double r = settings_.tool_radius;
   double first = length;
-  ForEachFreeCandidate(c.cwiseMin(c + length * d).array() - r, c.cwiseMax(c + length * d).array() + r, [&](int b) {
-    // |X − c − λ d| = r: λ = q·d − sqrt((q·d)² − |q|² + r²), q = X − c; nodes already inside
-    // (not admitted as contacts) do not stop the sphere.
-    const Eigen::Vector3d q = positions_[b] - c;
-    const double qd = q.dot(d), cc = q.squaredNorm() - r * r;
-    if (cc <= 0.0) return;
-    const double disc = qd * qd - cc;
-    if (disc < 0.0) return;
-    const double lambda = qd - std::sqrt(disc);
-    if (lambda >= 0.0 && lambda < first) first = lambda;
-  });
+  ForEachFreeCandidate(c.cwiseMin(c + length * d).array() - r,
+                       c.cwiseMax(c + length * d).array() + r, [&](int b) {
+                         // |X − c − λ d| = r: λ = q·d − sqrt((q·d)² − |q|² + r²), q = X − c; nodes
+                         // already inside (not admitted as contacts) do not stop the sphere.
+                         const Eigen::Vector3d q = positions_[b] - c;
+                         const double qd = q.dot(d), cc = q.squaredNorm() - r * r;
+                         if (cc <= 0.0) return;
+                         const double disc = qd * qd - cc;
+                         if (disc < 0.0) return;
+                         const double lambda = qd - std::sqrt(disc);
+                         if (lambda >= 0.0 && lambda < first) first = lambda;
+                       });
   return first;
 }
 
-int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state, Eigen::VectorXd* u_out) {
+int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state,
+                        Eigen::VectorXd* u_out) {
   *u_out = cache->baseline();
   double* u = u_out->data();
   int skipped = 0;

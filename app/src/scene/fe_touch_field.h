@@ -45,11 +45,10 @@
 // ContactDisplacement.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "scene/fe_model.h"
 #include "spidarcad/fem/column_cache.h"
@@ -158,7 +157,8 @@ class FeTouchField final : public haptics::ForceField {
   // Calls visit(b) for every unclamped candidate b in the grid cells that overlap the box
   // [lo_p, hi_p] (W, m); false when the box misses the grid. Real-time safe.
   template <typename Visit>
-  bool ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p, Visit visit) const;
+  bool ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p,
+                            Visit visit) const;
   // The virtual coupling's update of the tick (k contacts solved at the coupled centre, 0: none):
   // moves coupled_ and sets w's force.
   void CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::ToolWrench* w);
@@ -203,6 +203,7 @@ class FeTouchField final : public haptics::ForceField {
 // u = u0 + Σ_s Ĝ(:, s) f_s, reading each contact's substitute column shifted to the contact node
 // as CachedContactSolver::OutputDisplacement does. Columns that were evicted meanwhile are
 // skipped (returns how many contacts were skipped). Main thread; u_out is resized.
-int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state, Eigen::VectorXd* u_out);
+int ContactDisplacement(fem::ColumnCache* cache, const FeContactState& state,
+                        Eigen::VectorXd* u_out);
 
 }  // namespace spidarcad::app

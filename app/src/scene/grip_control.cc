@@ -1,16 +1,15 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/grip_control.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/Geometry>
-#include <Eigen/SVD>
-
 namespace spidarcad::app {
 
-bool IntersectRayPlane(const Ray& ray, const Eigen::Vector3d& point,
-                       const Eigen::Vector3d& normal, Eigen::Vector3d* hit) {
+bool IntersectRayPlane(const Ray& ray, const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
+                       Eigen::Vector3d* hit) {
   const double denom = normal.dot(ray.direction);
   if (std::abs(denom) < 1e-12 * ray.direction.norm() * normal.norm()) return false;
   const double s = normal.dot(point - ray.origin) / denom;
@@ -58,8 +57,7 @@ void GripControl::Reset() {
   dragging_ = false;
 }
 
-void GripControl::SetPose(const Eigen::Vector3d& p0_DT, const Eigen::Matrix3d& R_DT,
-                          double grasp) {
+void GripControl::SetPose(const Eigen::Vector3d& p0_DT, const Eigen::Matrix3d& R_DT, double grasp) {
   p0_ = p0_DT;
   // Nearest rotation (polar decomposition) keeps R orthonormal after repeated products.
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(R_DT, Eigen::ComputeFullU | Eigen::ComputeFullV);

@@ -18,8 +18,8 @@ struct Ray {
 
 // Point where `ray` meets the plane through `point` with normal `normal`, or false when the ray
 // is parallel to the plane or the plane lies behind the origin.
-bool IntersectRayPlane(const Ray& ray, const Eigen::Vector3d& point,
-                       const Eigen::Vector3d& normal, Eigen::Vector3d* hit);
+bool IntersectRayPlane(const Ray& ray, const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
+                       Eigen::Vector3d* hit);
 
 // Distance along the unit-normalised ray to the first point of the sphere (centre, radius), or
 // false when the ray misses it. Origin inside the sphere counts as a hit at distance 0.

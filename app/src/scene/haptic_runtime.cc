@@ -1,6 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/haptic_runtime.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,8 +10,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
@@ -22,8 +21,9 @@ namespace {
 // The device rig of `settings.device`.
 std::unique_ptr<DeviceRig> MakeRig(const RuntimeSettings& settings) {
   RigOptions options;
-  options.device = settings.device == RuntimeDevice::kIdeal ? haptics::SimulatedDeviceConfig::Ideal()
-                                                            : haptics::SimulatedDeviceConfig{};
+  options.device = settings.device == RuntimeDevice::kIdeal
+                       ? haptics::SimulatedDeviceConfig::Ideal()
+                       : haptics::SimulatedDeviceConfig{};
   options.device.seed = settings.seed;
   options.device.home_pose = haptics::GripPose::Rest(options.device.geometry.d);
   options.device.Validate();
@@ -32,10 +32,13 @@ std::unique_ptr<DeviceRig> MakeRig(const RuntimeSettings& settings) {
   options.reconnect_off_tick = true;
   options.make_transport = settings.usb_transport;
   switch (settings.device) {
-    case RuntimeDevice::kBoardSim: return MakeDeviceRig(RigKind::kBoardSim, options);
-    case RuntimeDevice::kUsb: return MakeDeviceRig(RigKind::kUsb, options);
+    case RuntimeDevice::kBoardSim:
+      return MakeDeviceRig(RigKind::kBoardSim, options);
+    case RuntimeDevice::kUsb:
+      return MakeDeviceRig(RigKind::kUsb, options);
     case RuntimeDevice::kSimulated:
-    case RuntimeDevice::kIdeal: break;
+    case RuntimeDevice::kIdeal:
+      break;
   }
   return MakeDeviceRig(RigKind::kSimulated, options);
 }
@@ -67,10 +70,14 @@ bool ParseRuntimeDevice(const std::string& name, RuntimeDevice* device) {
 
 const char* RuntimeDeviceName(RuntimeDevice device) {
   switch (device) {
-    case RuntimeDevice::kSimulated: return "simulated";
-    case RuntimeDevice::kIdeal: return "ideal";
-    case RuntimeDevice::kBoardSim: return "board-sim";
-    case RuntimeDevice::kUsb: return "usb";
+    case RuntimeDevice::kSimulated:
+      return "simulated";
+    case RuntimeDevice::kIdeal:
+      return "ideal";
+    case RuntimeDevice::kBoardSim:
+      return "board-sim";
+    case RuntimeDevice::kUsb:
+      return "usb";
   }
   return "unknown";
 }
@@ -99,10 +106,12 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
   char text[240];
   if (settings.device == RuntimeDevice::kIdeal) {
     description_ = "ideal simulated SPIDAR-G (no encoder errors), rigid hand";
-  } else if (settings.device == RuntimeDevice::kBoardSim || settings.device == RuntimeDevice::kUsb) {
+  } else if (settings.device == RuntimeDevice::kBoardSim ||
+             settings.device == RuntimeDevice::kUsb) {
     // What `spidarcad run` uses on these paths: the nominal calibration, so FK accepts
     // millimetre residuals.
-    settings_.loop.fk.max_residual = std::max(settings_.loop.fk.max_residual, kNominalFkMaxResidual);
+    settings_.loop.fk.max_residual =
+        std::max(settings_.loop.fk.max_residual, kNominalFkMaxResidual);
     if (settings.device == RuntimeDevice::kBoardSim) {
       std::snprintf(text, sizeof(text),
                     "board-sim: USB driver over the board simulator (simulated SPIDAR-G, seed "
@@ -119,13 +128,15 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
     const SimulatedCalibration fit = CalibrateSimulated(device_);
     calibration_ = fit.calibration;
     if (fit.ok) {
-      std::snprintf(text, sizeof(text), "simulated SPIDAR-G (seed %llu), %s, simulated hand %.0f N/m",
+      std::snprintf(text, sizeof(text),
+                    "simulated SPIDAR-G (seed %llu), %s, simulated hand %.0f N/m",
                     static_cast<unsigned long long>(settings.seed), fit.description.c_str(),
                     settings.hand.stiffness);
     } else {
       std::snprintf(text, sizeof(text), "simulated SPIDAR-G (seed %llu), %s",
                     static_cast<unsigned long long>(settings.seed), fit.description.c_str());
-      settings_.loop.fk.max_residual = std::max(settings_.loop.fk.max_residual, kNominalFkMaxResidual);
+      settings_.loop.fk.max_residual =
+          std::max(settings_.loop.fk.max_residual, kNominalFkMaxResidual);
     }
     description_ = text;
   }
@@ -234,9 +245,9 @@ std::string FormatLoopSummary(const LoopStats& s) {
                 "period jitter [us]: p50 %.1f  p99 %.1f  p99.9 %.1f  max %.1f\n",
                 static_cast<unsigned long long>(s.ticks), haptics::RealtimeStatusName(s.realtime),
                 static_cast<unsigned long long>(s.overruns), s.step[0] * 1e6, s.step[1] * 1e6,
-                s.step[2] * 1e6, s.step[3] * 1e6, s.tick[0] * 1e6, s.tick[1] * 1e6,
-                s.tick[2] * 1e6, s.tick[3] * 1e6, s.jitter[0] * 1e6, s.jitter[1] * 1e6,
-                s.jitter[2] * 1e6, s.jitter[3] * 1e6);
+                s.step[2] * 1e6, s.step[3] * 1e6, s.tick[0] * 1e6, s.tick[1] * 1e6, s.tick[2] * 1e6,
+                s.tick[3] * 1e6, s.jitter[0] * 1e6, s.jitter[1] * 1e6, s.jitter[2] * 1e6,
+                s.jitter[3] * 1e6);
   std::string out = line;
   out += "safety events [ticks]:";
   for (int i = 0; i < haptics::kNumSafetyEvents; ++i) {

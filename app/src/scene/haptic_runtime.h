@@ -19,8 +19,8 @@
 #include <string>
 #include <thread>
 
-#include "scene/device_session.h"
 #include "scene/device_rig.h"
+#include "scene/device_session.h"
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/geometry.h"
@@ -64,10 +64,10 @@ const char* RuntimeDeviceName(RuntimeDevice device);
 // Settings of HapticRuntime.
 struct RuntimeSettings {
   RuntimeDevice device = RuntimeDevice::kSimulated;
-  std::uint64_t seed = 1;          // seed of the simulated device's errors and noise
-  haptics::HandSettings hand;      // the simulated hand (kSimulated, kBoardSim)
-  haptics::LoopSettings loop;      // X_WD, damping, limits, ramp; tension set from the grip size
-  haptics::RunnerSettings runner;  // 1 kHz, SCHED_FIFO when permitted
+  std::uint64_t seed = 1;             // seed of the simulated device's errors and noise
+  haptics::HandSettings hand;         // the simulated hand (kSimulated, kBoardSim)
+  haptics::LoopSettings loop;         // X_WD, damping, limits, ramp; tension set from the grip size
+  haptics::RunnerSettings runner;     // 1 kHz, SCHED_FIFO when permitted
   haptics::usb::UsbDeviceConfig usb;  // kBoardSim, kUsb: the driver's timeouts and recovery
   // kUsb: makes the transport (tests: a LoopbackTransport to a BoardSimulator); empty: libusb.
   std::function<std::unique_ptr<haptics::usb::Transport>()> usb_transport;
@@ -75,12 +75,12 @@ struct RuntimeSettings {
 
 // What the haptic thread publishes each tick for the window.
 struct RuntimeFrame {
-  haptics::ToolState tool;                              // the loop's output of the tick
-  haptics::GripPose hand_pose;                          // true grip pose (the hand's), D;
-                                                        // kUsb: the measured pose (last good)
+  haptics::ToolState tool;                                // the loop's output of the tick
+  haptics::GripPose hand_pose;                            // true grip pose (the hand's), D;
+                                                          // kUsb: the measured pose (last good)
   haptics::Vector8d lengths = haptics::Vector8d::Zero();  // calibrated string lengths, m
-  double step_seconds = 0.0;                            // compute time of HapticLoop::Step, s
-  RigLink link;                                         // the driver's link (kBoardSim, kUsb)
+  double step_seconds = 0.0;                              // compute time of HapticLoop::Step, s
+  RigLink link;                                           // the driver's link (kBoardSim, kUsb)
 };
 
 // Device + calibration + hand + loop + runner. Construct, Publish a scene, Start.
@@ -161,7 +161,7 @@ class HapticRuntime {
   std::atomic<std::uint64_t> ticks_{0};
   std::string description_;
   std::string link_at_start_;
-  haptics::GripPose last_measured_;  // kUsb: the last pose FK accepted (haptic thread)
+  haptics::GripPose last_measured_;            // kUsb: the last pose FK accepted (haptic thread)
   std::unique_ptr<RigServiceThread> service_;  // re-opens a lost board (kUsb) while started
 };
 
@@ -169,8 +169,8 @@ class HapticRuntime {
 // the haptic thread runs: counts may be one tick apart).
 struct LoopStats {
   haptics::RealtimeStatus realtime = haptics::RealtimeStatus::kNotStarted;
-  std::uint64_t ticks = 0;       // ticks run
-  std::uint64_t overruns = 0;    // runner wake-ups so late that slots were skipped
+  std::uint64_t ticks = 0;     // ticks run
+  std::uint64_t overruns = 0;  // runner wake-ups so late that slots were skipped
   // Percentiles p50, p99, p99.9 and the maximum, s, of: HapticLoop::Step's compute time; the
   // whole tick (hand and device simulation included, LoopRunner::compute()); the period jitter
   // |actual − nominal period| (LoopRunner::jitter()).
@@ -178,9 +178,9 @@ struct LoopStats {
   std::array<double, 4> tick{};
   std::array<double, 4> jitter{};
   std::array<std::uint64_t, haptics::kNumSafetyEvents> events{};  // ticks with each event
-  bool emergency_stop = false;   // latched stop
-  double ramp = 0.0;             // force ramp of the latest tick
-  RigLink link;                  // the device link of the latest tick (has_driver: board paths)
+  bool emergency_stop = false;                                    // latched stop
+  double ramp = 0.0;                                              // force ramp of the latest tick
+  RigLink link;  // the device link of the latest tick (has_driver: board paths)
 };
 
 // Gathers LoopStats from `runtime` and its latest frame.

@@ -56,11 +56,10 @@ void ContinuitySettings::Validate() const {
 
 // ---- proxy ----
 
-ContinuousProxyField::ContinuousProxyField(std::shared_ptr<haptics::ProxyField> reuse,
-                                           std::shared_ptr<haptics::ProxyField> fresh,
-                                           std::shared_ptr<const haptics::DistanceField> environment,
-                                           std::shared_ptr<ContactChannel> channel,
-                                           const ContinuitySettings& settings)
+ContinuousProxyField::ContinuousProxyField(
+    std::shared_ptr<haptics::ProxyField> reuse, std::shared_ptr<haptics::ProxyField> fresh,
+    std::shared_ptr<const haptics::DistanceField> environment,
+    std::shared_ptr<ContactChannel> channel, const ContinuitySettings& settings)
     : ContinuousField("ContinuousProxyField", std::move(reuse), std::move(fresh),
                       std::move(environment), std::move(channel), settings) {}
 
@@ -121,11 +120,11 @@ haptics::ToolWrench ContinuousProxyField::Evaluate(const haptics::ToolKinematics
 
 // ---- point shell ----
 
-ContinuousShellField::ContinuousShellField(std::shared_ptr<haptics::PointShellField> reuse,
-                                           std::shared_ptr<haptics::PointShellField> fresh,
-                                           std::shared_ptr<const haptics::DistanceField> environment,
-                                           std::shared_ptr<ContactChannel> channel,
-                                           const ContinuitySettings& settings)
+ContinuousShellField::ContinuousShellField(
+    std::shared_ptr<haptics::PointShellField> reuse,
+    std::shared_ptr<haptics::PointShellField> fresh,
+    std::shared_ptr<const haptics::DistanceField> environment,
+    std::shared_ptr<ContactChannel> channel, const ContinuitySettings& settings)
     : ContinuousField("ContinuousShellField", std::move(reuse), std::move(fresh),
                       std::move(environment), std::move(channel), settings) {}
 
@@ -142,7 +141,8 @@ bool ContinuousShellField::WarmStart(const ContactChannel::Handoff& h,
   // which balanced the contact in the old field) brings back to the handed-over one.
   const haptics::PointShellSettings& ps = fresh_->settings();
   const double dt = 1e-3;
-  const Eigen::Matrix3d inv_inertia_W = R_WV * ps.inertia.cwiseInverse().asDiagonal() * R_WV.transpose();
+  const Eigen::Matrix3d inv_inertia_W =
+      R_WV * ps.inertia.cwiseInverse().asDiagonal() * R_WV.transpose();
   haptics::ToolKinematics at_v = tool;
   at_v.time = tool.time - dt;
   at_v.p_WT = h.p_W;
@@ -172,7 +172,8 @@ haptics::ToolWrench ContinuousShellField::Evaluate(const haptics::ToolKinematics
     Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
     X_WT.linear() = tool.R_WT;
     X_WT.translation() = tool.p_WT;
-    started_ = tool.p_WT.allFinite() && tool.R_WT.allFinite() && active_->ContactAt(X_WT).contacts == 0;
+    started_ =
+        tool.p_WT.allFinite() && tool.R_WT.allFinite() && active_->ContactAt(X_WT).contacts == 0;
   }
   haptics::ToolWrench w;
   if (started_) w = active_->Evaluate(tool);

@@ -25,13 +25,12 @@
 // the main thread through a lock-free TripleBuffer.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "scene/device_session.h"
 #include "spidarcad/haptics/distance_field.h"
@@ -62,11 +61,11 @@ class CentringSpringField final : public haptics::ForceField {
 // What a contact field shows in the view: the god-object (proxy) or the virtual tool's centre
 // (shell) and the tool point, in W.
 struct ContactMarker {
-  double time = -1.0;                                 // loop time of the tick, s (−1: never ran)
-  Eigen::Vector3d p_W = Eigen::Vector3d::Zero();      // proxy / virtual tool centre, m
-  Eigen::Vector3d tool_W = Eigen::Vector3d::Zero();   // tool point (grip centre), m
-  bool contact = false;                               // held on a surface / shell touching
-  const void* field = nullptr;                        // the field that wrote it (identity only)
+  double time = -1.0;                                // loop time of the tick, s (−1: never ran)
+  Eigen::Vector3d p_W = Eigen::Vector3d::Zero();     // proxy / virtual tool centre, m
+  Eigen::Vector3d tool_W = Eigen::Vector3d::Zero();  // tool point (grip centre), m
+  bool contact = false;                              // held on a surface / shell touching
+  const void* field = nullptr;                       // the field that wrote it (identity only)
 };
 
 // State handed from a contact field to the one that replaces it (haptic thread only), and the
@@ -76,26 +75,26 @@ struct ContactChannel {
   struct Handoff {
     const void* writer = nullptr;  // the field that ran the latest tick (identity only)
     double time = 0.0;             // its loop time, s
-    Eigen::Vector3d tool_W = Eigen::Vector3d::Zero();   // tool point at that tick, m
-    Eigen::Vector3d p_W = Eigen::Vector3d::Zero();      // proxy / virtual tool position, m
+    Eigen::Vector3d tool_W = Eigen::Vector3d::Zero();         // tool point at that tick, m
+    Eigen::Vector3d p_W = Eigen::Vector3d::Zero();            // proxy / virtual tool position, m
     Eigen::Quaterniond q_W = Eigen::Quaterniond::Identity();  // virtual tool rotation (shell)
-    Eigen::Vector3d v_W = Eigen::Vector3d::Zero();      // virtual tool velocity (shell), m/s
-    Eigen::Vector3d w_W = Eigen::Vector3d::Zero();      // virtual tool angular velocity, rad/s
-    Eigen::Vector3d f_W = Eigen::Vector3d::Zero();      // wrench the field gave that tick, N
-    Eigen::Vector3d m_W = Eigen::Vector3d::Zero();      // and its moment about p_WT, N·m
+    Eigen::Vector3d v_W = Eigen::Vector3d::Zero();            // virtual tool velocity (shell), m/s
+    Eigen::Vector3d w_W = Eigen::Vector3d::Zero();  // virtual tool angular velocity, rad/s
+    Eigen::Vector3d f_W = Eigen::Vector3d::Zero();  // wrench the field gave that tick, N
+    Eigen::Vector3d m_W = Eigen::Vector3d::Zero();  // and its moment about p_WT, N·m
     bool contact = false;
     bool seedable = false;  // p_W (and q_W) hold a state a successor may start from
   };
-  Handoff handoff;                               // haptic thread only
-  haptics::TripleBuffer<ContactMarker> marker;   // one writer (haptic), one reader (main)
+  Handoff handoff;                              // haptic thread only
+  haptics::TripleBuffer<ContactMarker> marker;  // one writer (haptic), one reader (main)
 };
 
 // When a hand-off counts as recent, and how far a warm start may move it. Lengths in W.
 struct ContinuitySettings {
-  double max_gap = 0.02;          // s between the hand-off's tick and the first tick, > 0
-  double max_move = 0.01;         // m the tool point may have moved since, > 0
-  double max_seed_move = 2e-3;    // m a handed-over proxy may be projected onto a changed surface
-  double seed_clearance = 1e-6;   // m the warm-start seed is put outside the surface
+  double max_gap = 0.02;         // s between the hand-off's tick and the first tick, > 0
+  double max_move = 0.01;        // m the tool point may have moved since, > 0
+  double max_seed_move = 2e-3;   // m a handed-over proxy may be projected onto a changed surface
+  double seed_clearance = 1e-6;  // m the warm-start seed is put outside the surface
   // Throws std::invalid_argument naming the field when one is not finite and > 0.
   void Validate() const;
 };
@@ -175,8 +174,9 @@ class ContinuousProxyField final : public ContinuousField<haptics::ProxyField> {
 // in the (changed) environment. That call integrates one tick with the coupling at rest, the
 // contact acting alone; V therefore starts with the handed-over velocity less the impulse the
 // contact gives it in that tick (≈ the handed-over felt wrench, which balanced the contact:
-// Δv = f dt / m, Δω = I_W⁻¹ m dt), and ends it close to the handed-over state. Not warm-started, the shell is held back (zero force, no Evaluate) while any
-// shell point at the grip's pose touches the environment.
+// Δv = f dt / m, Δω = I_W⁻¹ m dt), and ends it close to the handed-over state. Not warm-started,
+// the shell is held back (zero force, no Evaluate) while any shell point at the grip's pose touches
+// the environment.
 class ContinuousShellField final : public ContinuousField<haptics::PointShellField> {
  public:
   // `fresh`, `environment` (the union of the solids, W) and `channel` not null; `reuse` may be

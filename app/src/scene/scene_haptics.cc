@@ -54,10 +54,12 @@ const char* ToolModelName(ToolModel model) {
 
 void SceneHapticsOptions::Validate() const {
   Require(PositiveFinite(stiffness), "stiffness", stiffness, "must be finite and > 0 N/m");
-  Require(std::isfinite(damping) && damping >= 0, "damping", damping, "must be finite and >= 0 N·s/m");
-  Require(std::isfinite(static_friction) && static_friction >= 0, "static_friction", static_friction,
-          "must be finite and >= 0");
-  Require(std::isfinite(dynamic_friction) && dynamic_friction >= 0 && dynamic_friction <= static_friction,
+  Require(std::isfinite(damping) && damping >= 0, "damping", damping,
+          "must be finite and >= 0 N·s/m");
+  Require(std::isfinite(static_friction) && static_friction >= 0, "static_friction",
+          static_friction, "must be finite and >= 0");
+  Require(std::isfinite(dynamic_friction) && dynamic_friction >= 0 &&
+              dynamic_friction <= static_friction,
           "dynamic_friction", dynamic_friction, "must be in [0, static_friction]");
   Require(PositiveFinite(shell_radius), "shell_radius", shell_radius, "must be finite and > 0 m");
   Require(shell_rings >= 2, "shell_rings", shell_rings, "must be >= 2");
@@ -66,19 +68,23 @@ void SceneHapticsOptions::Validate() const {
           "must be finite and > 0 N/m");
   Require(std::isfinite(coupling_damping) && coupling_damping >= 0, "coupling_damping",
           coupling_damping, "must be finite and >= 0 N·s/m");
-  if (world_scale) Require(PositiveFinite(*world_scale), "world_scale", *world_scale, "must be finite and > 0");
+  if (world_scale)
+    Require(PositiveFinite(*world_scale), "world_scale", *world_scale, "must be finite and > 0");
   if (p_WDo) Require(p_WDo->allFinite(), "p_WDo", p_WDo->norm(), "must be finite");
-  Require(PositiveFinite(device_half_side), "device_half_side", device_half_side, "must be finite and > 0 m");
+  Require(PositiveFinite(device_half_side), "device_half_side", device_half_side,
+          "must be finite and > 0 m");
   Require(PositiveFinite(fit_fraction) && fit_fraction <= 1.0, "fit_fraction", fit_fraction,
           "must be in (0, 1]");
   Require(PositiveFinite(grip_d), "grip_d", grip_d, "must be finite and > 0 m");
-  Require(PositiveFinite(snap_tolerance), "snap_tolerance", snap_tolerance, "must be finite and > 0 m");
+  Require(PositiveFinite(snap_tolerance), "snap_tolerance", snap_tolerance,
+          "must be finite and > 0 m");
 }
 
 WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side, double fraction) {
   if (bounds_W.isEmpty()) throw std::invalid_argument("FitWorkspace: the scene's box is empty");
   Require(PositiveFinite(half_side), "device_half_side", half_side, "must be finite and > 0 m");
-  Require(PositiveFinite(fraction) && fraction <= 1.0, "fit_fraction", fraction, "must be in (0, 1]");
+  Require(PositiveFinite(fraction) && fraction <= 1.0, "fit_fraction", fraction,
+          "must be in (0, 1]");
   WorkspaceMap map;
   map.bounds_W = bounds_W;
   const double side = std::max(bounds_W.sizes().maxCoeff(), 1e-6);
@@ -126,8 +132,9 @@ SolidFields BuildSolidFields(const std::vector<CompiledSceneSolid>& solids,
     }
   } else if (!out.distance.empty()) {
     std::shared_ptr<const haptics::DistanceField> environment =
-        out.distance.size() == 1 ? out.distance.front()
-                                 : std::make_shared<const haptics::UnionDistanceField>(out.distance);
+        out.distance.size() == 1
+            ? out.distance.front()
+            : std::make_shared<const haptics::UnionDistanceField>(out.distance);
     haptics::PointShell shell = haptics::PointShell::CrossGrip(
         options.grip_d * s, options.shell_radius * s, options.shell_rings, options.shell_around);
     haptics::PointShellSettings settings;
@@ -146,9 +153,10 @@ SolidFields BuildSolidFields(const std::vector<CompiledSceneSolid>& solids,
     settings.mass = settings.mass / s;
     out.shell = std::make_unique<haptics::PointShellField>(environment, std::move(shell), settings);
     out.shell_environment = environment;
-    out.fields.push_back({"point_shell", out.distance.size() == 1
-                                             ? solids.front().name
-                                             : "union of " + std::to_string(out.distance.size()) + " solids"});
+    out.fields.push_back(
+        {"point_shell", out.distance.size() == 1
+                            ? solids.front().name
+                            : "union of " + std::to_string(out.distance.size()) + " solids"});
   }
   if (snap != nullptr) {
     // Snap forces: the solids' features in W, radii in W, the force as felt (force_scale 1).

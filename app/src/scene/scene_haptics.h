@@ -31,13 +31,12 @@
 // directly, so `run` and the window feel the same fields.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "scene/snap_features.h"
 #include "spidarcad/haptics/distance_field.h"
@@ -96,9 +95,9 @@ struct SceneHapticsOptions {
 struct WorkspaceMap {
   double world_scale = 1.0;                         // s: world metres per grip metre
   Eigen::Vector3d p_WDo = Eigen::Vector3d::Zero();  // world position of the device origin, m
-  Eigen::AlignedBox3d bounds_W;                     // union box of the bounded solids (may be empty)
-  bool scale_fitted = false;                        // s came from the fit
-  bool origin_fitted = false;                       // p_WDo came from the fit
+  Eigen::AlignedBox3d bounds_W;  // union box of the bounded solids (may be empty)
+  bool scale_fitted = false;     // s came from the fit
+  bool origin_fitted = false;    // p_WDo came from the fit
 };
 
 // The map that puts `bounds_W` (non-empty) at the centre of the cube ±half_side, filling

@@ -58,7 +58,8 @@ DeviceToWorld ChooseDeviceToWorld(const Eigen::AlignedBox3d& bounds_W,
   x.world_scale = std::max({1.0, size.x() / reach_x, size.y() / reach_y, size.z() / reach_z});
   const Eigen::Vector3d centre = bounds_W.center();
   // Device centre above the middle of the top face: p_W(p_D = 0) = p_WDo.
-  x.p_WDo = Eigen::Vector3d(centre.x(), centre.y(), bounds_W.max().z() + x.world_scale * kClearance);
+  x.p_WDo =
+      Eigen::Vector3d(centre.x(), centre.y(), bounds_W.max().z() + x.world_scale * kClearance);
   return x;
 }
 
@@ -121,9 +122,9 @@ void SceneModel::Load(const std::string& source, const Eigen::Vector3d& travel,
     } catch (const std::exception& e) {
       const std::string text = e.what();
       // SolidBox's messages already name the solid.
-      throw std::runtime_error(source + ": " +
-                               (text.rfind("solid '", 0) == 0 ? text
-                                                              : "solid '" + d.name + "': " + text));
+      throw std::runtime_error(
+          source + ": " +
+          (text.rfind("solid '", 0) == 0 ? text : "solid '" + d.name + "': " + text));
     }
     object.colour = kColours[i % kColours.size()];
     all.extend(object.bounds_W);
@@ -195,8 +196,8 @@ bool SceneModel::Refresh() {
   }
   // Objects that went away change the haptic scene too.
   for (const SceneObject& o : objects_) {
-    const bool kept = std::any_of(next.begin(), next.end(),
-                                  [&](const SceneObject& n) { return n.id == o.id; });
+    const bool kept =
+        std::any_of(next.begin(), next.end(), [&](const SceneObject& n) { return n.id == o.id; });
     if (!kept && o.solid != nullptr) changed = true;
   }
   for (size_t i = 0; i < next.size(); ++i) next[i].colour = kColours[i % kColours.size()];
@@ -219,56 +220,58 @@ void SceneModel::StartPreview(JobQueue* jobs, SceneObject* object, double cells_
   const ObjectId id = object->id;
   const std::uint64_t revision = object->source_revision;
   const std::string name = object->name;
-  Job& job = jobs->Start(
-      "Preview " + name, [this, id, solid, generation, sequence, revision, cells_across,
-                          name](JobContext& context) -> Job::Finisher {
-        auto result = std::make_shared<PreviewResult>();
-        try {
-          context.SetPhase("bounds");
-          result->bounds_W = SolidBox(*solid, "solid '" + name + "'");
-          const double cell = result->bounds_W.sizes().maxCoeff() / cells_across;
-          modeling::SurfaceMeshSettings s;
-          s.bounds = result->bounds_W;
-          s.bounds.min().array() -= 2.0 * cell;
-          s.bounds.max().array() += 2.0 * cell;
-          s.cell_size = cell;
-          s.cancel = context.cancel_flag();
-          s.progress = context.ProgressRange(0.0, 1.0);
-          context.SetPhase("surface");
-          result->mesh = modeling::MeshSurface(*solid, s);
-          result->cell = cell;
-        } catch (const std::exception& e) {
-          if (context.cancelled()) throw;  // superseded or cancelled: nothing lands
-          // A solid that cannot be previewed (empty, unbounded, too fine a grid): the error lands
-          // on the object, which keeps its last preview; no retry for this revision.
-          result->error = e.what();
-        }
-        return [this, id, generation, sequence, revision, cells_across, result]() {
-          if (generation != generation_) return;  // scene reloaded
-          const int i = IndexOf(id);
-          if (i < 0) return;  // object deleted
-          SceneObject& o = objects_[i];
-          if (sequence <= o.preview_sequence) return;  // a newer preview already landed
-          o.preview_sequence = sequence;
-          o.preview_revision = revision;
-          o.preview_cells_across = cells_across;
-          if (!result->error.empty()) {
-            if (revision == o.source_revision) {
-              o.error = result->error;
-              o.error_revision = revision;
-            }
-            return;
-          }
-          if (revision == o.source_revision && o.error_revision == revision) {
-            o.error.clear();
-            o.error_revision = 0;
-          }
-          o.bounds_W = result->bounds_W;
-          o.preview = std::move(result->mesh);
-          o.preview_cell = result->cell;
-          ++o.revision;
-        };
-      });
+  Job& job =
+      jobs->Start("Preview " + name,
+                  [this, id, solid, generation, sequence, revision, cells_across,
+                   name](JobContext& context) -> Job::Finisher {
+                    auto result = std::make_shared<PreviewResult>();
+                    try {
+                      context.SetPhase("bounds");
+                      result->bounds_W = SolidBox(*solid, "solid '" + name + "'");
+                      const double cell = result->bounds_W.sizes().maxCoeff() / cells_across;
+                      modeling::SurfaceMeshSettings s;
+                      s.bounds = result->bounds_W;
+                      s.bounds.min().array() -= 2.0 * cell;
+                      s.bounds.max().array() += 2.0 * cell;
+                      s.cell_size = cell;
+                      s.cancel = context.cancel_flag();
+                      s.progress = context.ProgressRange(0.0, 1.0);
+                      context.SetPhase("surface");
+                      result->mesh = modeling::MeshSurface(*solid, s);
+                      result->cell = cell;
+                    } catch (const std::exception& e) {
+                      if (context.cancelled()) throw;  // superseded or cancelled: nothing lands
+                      // A solid that cannot be previewed (empty, unbounded, too fine a grid): the
+                      // error lands on the object, which keeps its last preview; no retry for this
+                      // revision.
+                      result->error = e.what();
+                    }
+                    return [this, id, generation, sequence, revision, cells_across, result]() {
+                      if (generation != generation_) return;  // scene reloaded
+                      const int i = IndexOf(id);
+                      if (i < 0) return;  // object deleted
+                      SceneObject& o = objects_[i];
+                      if (sequence <= o.preview_sequence) return;  // a newer preview already landed
+                      o.preview_sequence = sequence;
+                      o.preview_revision = revision;
+                      o.preview_cells_across = cells_across;
+                      if (!result->error.empty()) {
+                        if (revision == o.source_revision) {
+                          o.error = result->error;
+                          o.error_revision = revision;
+                        }
+                        return;
+                      }
+                      if (revision == o.source_revision && o.error_revision == revision) {
+                        o.error.clear();
+                        o.error_revision = 0;
+                      }
+                      o.bounds_W = result->bounds_W;
+                      o.preview = std::move(result->mesh);
+                      o.preview_cell = result->cell;
+                      ++o.revision;
+                    };
+                  });
   object->preview_job = &job;
   object->preview_job_revision = revision;
   object->preview_job_cells_across = cells_across;
@@ -326,37 +329,39 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double c
   const int generation = generation_;
   const ObjectId id = o.id;
   const std::uint64_t revision = o.source_revision;
-  const std::string title = std::string(kind == MeshKind::kSurface ? "Surface" : "Tetrahedra") +
-                            " of " + o.name;
-  return jobs->Start(title, [this, id, revision, solid, settings, generation, kind,
-                             cell](JobContext& context) -> Job::Finisher {
-    const bool tets = kind == MeshKind::kTetrahedra;
-    modeling::SurfaceMeshSettings s = settings;
-    s.cancel = context.cancel_flag();
-    s.progress = context.ProgressRange(0.0, tets ? 0.4 : 1.0);
-    context.SetPhase("surface");
-    auto surface = std::make_shared<modeling::TriangleMesh>(modeling::MeshSurface(*solid, s));
-    auto tet = std::make_shared<modeling::TetMesh>();
-    if (tets) {
-      context.SetPhase("tetrahedra (TetGen)");
-      modeling::TetMeshSettings t;
-      t.cancel = context.cancel_flag();
-      t.progress = context.ProgressRange(0.4, 1.0);
-      *tet = modeling::TetrahedralizeSurface(*surface, t);
-    }
-    if (context.cancelled()) throw std::runtime_error("cancelled");
-    return [this, id, revision, surface, tet, generation, tets, cell]() {
-      if (generation != generation_) return;
-      const int index = IndexOf(id);
-      // Dropped when the object is gone or its shape changed while meshing.
-      if (index < 0 || objects_[index].source_revision != revision) return;
-      SceneObject& object = objects_[index];
-      object.surface = std::move(*surface);
-      object.surface_cell = cell;
-      if (tets) object.tets = std::move(*tet);
-      ++object.revision;
-    };
-  });
+  const std::string title =
+      std::string(kind == MeshKind::kSurface ? "Surface" : "Tetrahedra") + " of " + o.name;
+  return jobs->Start(
+      title,
+      [this, id, revision, solid, settings, generation, kind,
+       cell](JobContext& context) -> Job::Finisher {
+        const bool tets = kind == MeshKind::kTetrahedra;
+        modeling::SurfaceMeshSettings s = settings;
+        s.cancel = context.cancel_flag();
+        s.progress = context.ProgressRange(0.0, tets ? 0.4 : 1.0);
+        context.SetPhase("surface");
+        auto surface = std::make_shared<modeling::TriangleMesh>(modeling::MeshSurface(*solid, s));
+        auto tet = std::make_shared<modeling::TetMesh>();
+        if (tets) {
+          context.SetPhase("tetrahedra (TetGen)");
+          modeling::TetMeshSettings t;
+          t.cancel = context.cancel_flag();
+          t.progress = context.ProgressRange(0.4, 1.0);
+          *tet = modeling::TetrahedralizeSurface(*surface, t);
+        }
+        if (context.cancelled()) throw std::runtime_error("cancelled");
+        return [this, id, revision, surface, tet, generation, tets, cell]() {
+          if (generation != generation_) return;
+          const int index = IndexOf(id);
+          // Dropped when the object is gone or its shape changed while meshing.
+          if (index < 0 || objects_[index].source_revision != revision) return;
+          SceneObject& object = objects_[index];
+          object.surface = std::move(*surface);
+          object.surface_cell = cell;
+          if (tets) object.tets = std::move(*tet);
+          ++object.revision;
+        };
+      });
 }
 
 namespace {
@@ -400,8 +405,8 @@ SceneModel::ContactEntry SceneModel::TakeContactEntry(
   return e;
 }
 
-std::unique_ptr<haptics::HapticScene> SceneModel::BuildHapticScene(const DemoFieldSettings& field,
-                                                                   const SceneHapticsOptions& options) {
+std::unique_ptr<haptics::HapticScene> SceneModel::BuildHapticScene(
+    const DemoFieldSettings& field, const SceneHapticsOptions& options) {
   const double s = x_wd_.world_scale;
   std::vector<CompiledSceneSolid> solids;
   std::vector<ObjectId> ids;
@@ -421,7 +426,8 @@ std::unique_ptr<haptics::HapticScene> SceneModel::BuildHapticScene(const DemoFie
       snap_revision_ = doc_->revision();
       snap_tolerance_ = options.snap_tolerance;
       try {
-        snap_input_ = SnapInput{*doc_->snap(), ExtractSnapFeatures(doc_->ToScene(), options.snap_tolerance)};
+        snap_input_ =
+            SnapInput{*doc_->snap(), ExtractSnapFeatures(doc_->ToScene(), options.snap_tolerance)};
       } catch (const std::exception&) {
         snap_input_.reset();  // a tree that does not evaluate (its error shows on the object)
       }

@@ -15,6 +15,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -22,8 +23,6 @@
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "doc/document.h"
 #include "doc/job.h"
@@ -64,7 +63,7 @@ enum class MeshKind { kSurface, kTetrahedra };
 
 // One solid of the scene (a solid object of the Document) and its meshes.
 struct SceneObject {
-  ObjectId id = 0;                   // the Document object
+  ObjectId id = 0;  // the Document object
   std::string name;
   // Last good compiled solid (null only when the object never compiled) and the Document object
   // revision it was compiled from.
@@ -74,23 +73,25 @@ struct SceneObject {
   // that revision.
   std::string error;
   std::uint64_t error_revision = 0;
-  Eigen::AlignedBox3d bounds_W;      // box of the solid, m (updated when a preview lands)
-  std::array<double, 3> colour{};    // RGB in [0, 1] in the view
-  modeling::TriangleMesh preview;    // background preview surface (empty until meshed)
-  double preview_cell = 0.0;         // its grid cell, m
-  double preview_cells_across = 0.0; // its resolution (cells across the largest side)
-  std::uint64_t preview_revision = 0;  // object revision it was meshed from (0: none)
-  int preview_sequence = 0;          // start number of the landed preview job (newer wins)
-  const Job* preview_job = nullptr;  // preview job in flight (compared with the queue's jobs,
-                                     // never dereferenced on its own)
+  Eigen::AlignedBox3d bounds_W;            // box of the solid, m (updated when a preview lands)
+  std::array<double, 3> colour{};          // RGB in [0, 1] in the view
+  modeling::TriangleMesh preview;          // background preview surface (empty until meshed)
+  double preview_cell = 0.0;               // its grid cell, m
+  double preview_cells_across = 0.0;       // its resolution (cells across the largest side)
+  std::uint64_t preview_revision = 0;      // object revision it was meshed from (0: none)
+  int preview_sequence = 0;                // start number of the landed preview job (newer wins)
+  const Job* preview_job = nullptr;        // preview job in flight (compared with the queue's jobs,
+                                           // never dereferenced on its own)
   std::uint64_t preview_job_revision = 0;  // object revision that job meshes
   double preview_job_cells_across = 0.0;   // and its resolution
-  modeling::TriangleMesh surface;    // the Mesh action's surface (empty until made)
+  modeling::TriangleMesh surface;          // the Mesh action's surface (empty until made)
   double surface_cell = 0.0;
-  modeling::TetMesh tets;            // the Mesh action's tetrahedra (empty until made)
-  int revision = 0;                  // bumped whenever the displayed mesh changes
+  modeling::TetMesh tets;  // the Mesh action's tetrahedra (empty until made)
+  int revision = 0;        // bumped whenever the displayed mesh changes
   // The mesh to show: the Mesh action's surface when there is one, else the preview.
-  const modeling::TriangleMesh& shown() const { return surface.triangles.cols() > 0 ? surface : preview; }
+  const modeling::TriangleMesh& shown() const {
+    return surface.triangles.cols() > 0 ? surface : preview;
+  }
 };
 
 // The scene of the window.

@@ -61,9 +61,10 @@ SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::strin
   }
   for (int a = 0; a < 3; ++a) {
     if (rough.min()[a] <= -kSearchHalfSide + coarse || rough.max()[a] >= kSearchHalfSide - coarse) {
-      throw InputError(scene_path + ": solid '" + solid->name + "' reaches the " +
-                       FormatNumber(2 * kSearchHalfSide) +
-                       " m search box (unbounded, e.g. a bare half-space): intersect it with a box");
+      throw InputError(
+          scene_path + ": solid '" + solid->name + "' reaches the " +
+          FormatNumber(2 * kSearchHalfSide) +
+          " m search box (unbounded, e.g. a bare half-space): intersect it with a box");
     }
   }
   grid.cell = resolution > 0.0 ? resolution : rough.sizes().maxCoeff() / cells_across;

@@ -3,9 +3,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include <string>
-
 #include <Eigen/Geometry>
+#include <string>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
 
@@ -13,10 +12,10 @@ namespace spidarcad::app {
 
 // A compiled solid with the grid it will be meshed on.
 struct SceneSolidGrid {
-  std::string solid_name;              // the solid's name in the scene
-  modeling::CompiledSolid compiled;    // its evaluator
-  Eigen::AlignedBox3d bounds;          // grid box in m, the solid's box padded by two cells
-  double cell = 0.0;                   // grid cell size, m
+  std::string solid_name;            // the solid's name in the scene
+  modeling::CompiledSolid compiled;  // its evaluator
+  Eigen::AlignedBox3d bounds;        // grid box in m, the solid's box padded by two cells
+  double cell = 0.0;                 // grid cell size, m
 };
 
 // Grid cells PrepareSceneSolid allows by default: MeshSurface's own ceiling, 2^30.

@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include "scene/scene_solid.h"
 #include "doc/job.h"
+#include "scene/scene_solid.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
 namespace spidarcad::app {
@@ -18,7 +18,8 @@ using modeling::SculptEdit;
 using modeling::SculptMesh;
 using modeling::StrokeForceModel;
 
-SculptToolField::SculptToolField(std::shared_ptr<SculptForceChannel> channel) : channel_(std::move(channel)) {
+SculptToolField::SculptToolField(std::shared_ptr<SculptForceChannel> channel)
+    : channel_(std::move(channel)) {
   if (!channel_) throw std::invalid_argument("SculptToolField: null force channel");
 }
 
@@ -42,9 +43,12 @@ void SculptModeSettings::Validate() const {
     s << "sculpt mode setting " << field << " = " << value << ": " << rule;
     throw std::invalid_argument(s.str());
   };
-  if (!(tool.radius > 0.0) || !std::isfinite(tool.radius)) fail("radius", tool.radius, "must be > 0 m");
-  if (!(tool.stiffness > 0.0) || !std::isfinite(tool.stiffness)) fail("stiffness", tool.stiffness, "must be > 0 N/m");
-  if (!(tool.max_edge_length >= 0.0)) fail("max_edge_length", tool.max_edge_length, "must be >= 0 m");
+  if (!(tool.radius > 0.0) || !std::isfinite(tool.radius))
+    fail("radius", tool.radius, "must be > 0 m");
+  if (!(tool.stiffness > 0.0) || !std::isfinite(tool.stiffness))
+    fail("stiffness", tool.stiffness, "must be > 0 N/m");
+  if (!(tool.max_edge_length >= 0.0))
+    fail("max_edge_length", tool.max_edge_length, "must be >= 0 m");
   if (!(stroke_begin_angle > 0.0 && stroke_begin_angle < std::numbers::pi / 2)) {
     fail("stroke_begin_angle", stroke_begin_angle, "must be in (0, pi/2) rad");
   }
@@ -55,7 +59,8 @@ void SculptModeSettings::Validate() const {
 }
 
 SculptSession::SculptSession()
-    : channel_(std::make_shared<SculptForceChannel>(StrokeForceModel{})), alive_(std::make_shared<bool>(true)) {}
+    : channel_(std::make_shared<SculptForceChannel>(StrokeForceModel{})),
+      alive_(std::make_shared<bool>(true)) {}
 
 SculptSession::~SculptSession() = default;
 
@@ -88,13 +93,15 @@ Eigen::Isometry3d SculptSession::StrokePose(const haptics::ToolKinematics& tool)
   return X;
 }
 
-void SculptSession::BeginStroke(const haptics::ToolKinematics& tool, bool key_held, SculptFrameEvent* event) {
+void SculptSession::BeginStroke(const haptics::ToolKinematics& tool, bool key_held,
+                                SculptFrameEvent* event) {
   settings_.Validate();
   if (!tool.p_WT.allFinite() || !tool.R_WT.allFinite() || !std::isfinite(tool.grasp)) {
     *event = SculptFrameEvent::kIdle;
     return;
   }
-  const double snap = settings_.snap_distance > 0.0 ? settings_.snap_distance : settings_.tool.radius;
+  const double snap =
+      settings_.snap_distance > 0.0 ? settings_.snap_distance : settings_.tool.radius;
   mesh_->QueryBall(tool.p_WT, snap, &query_);
   if (query_.empty()) {
     *event = SculptFrameEvent::kNoClayInReach;
@@ -200,70 +207,78 @@ bool SculptSession::StartTetrahedralize(JobQueue* jobs, const modeling::TetMeshS
   if (!mesh_ || stroke_active()) return false;
   auto surface = std::make_shared<const modeling::TriangleMesh>(ExportMesh());
   std::weak_ptr<bool> alive = alive_;
-  jobs->Start("Tetrahedralize clay", [this, alive, surface, settings](JobContext& context) -> Job::Finisher {
-    try {
-      const auto start = std::chrono::steady_clock::now();
-      context.SetPhase("checking surface");
-      modeling::CheckSurface(*surface);
-      context.SetProgress(0.2);
-      context.SetPhase("tetrahedra");
-      modeling::TetMeshSettings s = settings;
-      s.cancel = context.cancel_flag();
-      s.progress = context.ProgressRange(0.2, 1.0);
-      auto tets = std::make_shared<const modeling::TetMesh>(modeling::TetrahedralizeSurface(*surface, s));
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      std::ostringstream message;
-      message << tets->nodes.cols() << " nodes, " << tets->tets.cols() << " tetrahedra in " << seconds << " s";
-      return [this, alive, tets, text = message.str()] {
-        if (alive.expired()) return;
-        tet_mesh_ = tets;
-        job_message_ = text;
-      };
-    } catch (const std::exception& e) {
-      if (context.cancelled()) throw;
-      // Report on the main thread: the finisher records the message, then fails the job.
-      return [this, alive, text = std::string("Tetrahedralize failed: ") + e.what()] {
-        if (!alive.expired()) job_message_ = text;
-        throw std::runtime_error(text);
-      };
-    }
-  });
+  jobs->Start(
+      "Tetrahedralize clay",
+      [this, alive, surface, settings](JobContext& context) -> Job::Finisher {
+        try {
+          const auto start = std::chrono::steady_clock::now();
+          context.SetPhase("checking surface");
+          modeling::CheckSurface(*surface);
+          context.SetProgress(0.2);
+          context.SetPhase("tetrahedra");
+          modeling::TetMeshSettings s = settings;
+          s.cancel = context.cancel_flag();
+          s.progress = context.ProgressRange(0.2, 1.0);
+          auto tets = std::make_shared<const modeling::TetMesh>(
+              modeling::TetrahedralizeSurface(*surface, s));
+          const double seconds =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+          std::ostringstream message;
+          message << tets->nodes.cols() << " nodes, " << tets->tets.cols() << " tetrahedra in "
+                  << seconds << " s";
+          return [this, alive, tets, text = message.str()] {
+            if (alive.expired()) return;
+            tet_mesh_ = tets;
+            job_message_ = text;
+          };
+        } catch (const std::exception& e) {
+          if (context.cancelled()) throw;
+          // Report on the main thread: the finisher records the message, then fails the job.
+          return [this, alive, text = std::string("Tetrahedralize failed: ") + e.what()] {
+            if (!alive.expired()) job_message_ = text;
+            throw std::runtime_error(text);
+          };
+        }
+      });
   return true;
 }
 
 void SculptSession::StartMeshScene(JobQueue* jobs, const std::string& scene_path, double cell) {
   std::weak_ptr<bool> alive = alive_;
   const double grid_cell = settings_.tool.radius / 3.0;
-  jobs->Start("Mesh clay", [this, alive, scene_path, cell, grid_cell](JobContext& context) -> Job::Finisher {
-    try {
-      context.SetPhase("surface");
-      SceneSolidGrid grid = PrepareSceneSolid(scene_path, "", cell);
-      modeling::SurfaceMeshSettings s;
-      s.bounds = grid.bounds;
-      s.cell_size = grid.cell;
-      s.cancel = context.cancel_flag();
-      s.progress = context.ProgressRange(0.0, 0.9);
-      const modeling::TriangleMesh surface = modeling::MeshSurface(grid.compiled, s);
-      context.SetPhase("sculpt grid");
-      auto mesh = std::make_shared<SculptMesh>(surface, grid_cell);
-      return [this, alive, mesh] {
-        if (alive.expired()) return;
-        SetMesh(std::make_unique<SculptMesh>(std::move(*mesh)));
-        std::ostringstream text;
-        text << "clay: " << mesh_->vertex_count() << " vertices, " << mesh_->triangle_count() << " triangles";
-        job_message_ = text.str();
-      };
-    } catch (const std::exception& e) {
-      if (context.cancelled()) throw;
-      return [this, alive, text = std::string("Meshing the clay failed: ") + e.what()] {
-        if (!alive.expired()) job_message_ = text;
-        throw std::runtime_error(text);
-      };
-    }
-  });
+  jobs->Start("Mesh clay",
+              [this, alive, scene_path, cell, grid_cell](JobContext& context) -> Job::Finisher {
+                try {
+                  context.SetPhase("surface");
+                  SceneSolidGrid grid = PrepareSceneSolid(scene_path, "", cell);
+                  modeling::SurfaceMeshSettings s;
+                  s.bounds = grid.bounds;
+                  s.cell_size = grid.cell;
+                  s.cancel = context.cancel_flag();
+                  s.progress = context.ProgressRange(0.0, 0.9);
+                  const modeling::TriangleMesh surface = modeling::MeshSurface(grid.compiled, s);
+                  context.SetPhase("sculpt grid");
+                  auto mesh = std::make_shared<SculptMesh>(surface, grid_cell);
+                  return [this, alive, mesh] {
+                    if (alive.expired()) return;
+                    SetMesh(std::make_unique<SculptMesh>(std::move(*mesh)));
+                    std::ostringstream text;
+                    text << "clay: " << mesh_->vertex_count() << " vertices, "
+                         << mesh_->triangle_count() << " triangles";
+                    job_message_ = text.str();
+                  };
+                } catch (const std::exception& e) {
+                  if (context.cancelled()) throw;
+                  return [this, alive, text = std::string("Meshing the clay failed: ") + e.what()] {
+                    if (!alive.expired()) job_message_ = text;
+                    throw std::runtime_error(text);
+                  };
+                }
+              });
 }
 
-void CopyVerticesToFloat(const SculptMesh& mesh, const std::vector<int>& vertices, float* xyz, float* nxyz) {
+void CopyVerticesToFloat(const SculptMesh& mesh, const std::vector<int>& vertices, float* xyz,
+                         float* nxyz) {
   const auto& p = mesh.positions();
   const auto& n = mesh.normals();
   for (int v : vertices) {

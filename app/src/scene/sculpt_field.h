@@ -24,15 +24,14 @@
 // Frames and units: W (the scene), m, N, N·m, rad. Stiffness is N per m of world displacement.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <atomic>
 #include <functional>
 #include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/triple_buffer.h"
@@ -193,7 +192,7 @@ class SculptSession {
 
 // Copies positions and normals of `vertices` of mesh into interleaved float arrays xyz and nxyz
 // (each 3 by vertex_count, vertex v at [3v, 3v+2]); nxyz may be null. For in-place display updates.
-void CopyVerticesToFloat(const modeling::SculptMesh& mesh, const std::vector<int>& vertices, float* xyz,
-                         float* nxyz);
+void CopyVerticesToFloat(const modeling::SculptMesh& mesh, const std::vector<int>& vertices,
+                         float* xyz, float* nxyz);
 
 }  // namespace spidarcad::app

@@ -1,6 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/snap_features.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -11,8 +12,6 @@
 #include <utility>
 #include <variant>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "spidarcad/modeling/implicit_node.h"
 
@@ -60,12 +59,14 @@ Affine3d Mirror(const Vector3d& n, double offset) {
 
 // Corners, edges and faces of the box [-h, h] (local), mapped by X. Faces only when
 // `faces_only` (a rounded box: `face_shrink` m of rounding trimmed off each face's rim).
-void AddBox(const Vector3d& h, const Affine3d& X, bool faces_only, double face_shrink, Candidates* out) {
+void AddBox(const Vector3d& h, const Affine3d& X, bool faces_only, double face_shrink,
+            Candidates* out) {
   haptics::SnapFeatures& f = out->features;
   if (!faces_only) {
     out->Count(8 + 12);
     for (int i = 0; i < 8; ++i) {
-      f.vertices_W.push_back(X * Vector3d((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z()));
+      f.vertices_W.push_back(X * Vector3d((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(),
+                                          (i & 4 ? 1 : -1) * h.z()));
     }
     for (int a = 0; a < 3; ++a) {
       const int b = (a + 1) % 3, c = (a + 2) % 3;
@@ -102,7 +103,8 @@ void AddBox(const Vector3d& h, const Affine3d& X, bool faces_only, double face_s
 }
 
 // Prism of `profile` (local xy) over z in [-height/2, height/2], mapped by X.
-void AddExtrusion(const std::vector<Eigen::Vector2d>& profile, double height, const Affine3d& X, Candidates* out) {
+void AddExtrusion(const std::vector<Eigen::Vector2d>& profile, double height, const Affine3d& X,
+                  Candidates* out) {
   const int n = static_cast<int>(profile.size());
   out->Count(5 * static_cast<std::size_t>(n) + 2 + static_cast<std::size_t>(n));
   haptics::SnapFeatures& f = out->features;
@@ -138,8 +140,10 @@ void AddCylinder(double radius, double height, const Affine3d& X, Candidates* ou
     for (int i = 0; i < kCylinderSegments; ++i) {
       const double a0 = 2.0 * std::numbers::pi * i / kCylinderSegments;
       const double a1 = 2.0 * std::numbers::pi * (i + 1) / kCylinderSegments;
-      const Vector3d p0 = X * Vector3d(radius * std::cos(a0), radius * std::sin(a0), s * 0.5 * height);
-      const Vector3d p1 = X * Vector3d(radius * std::cos(a1), radius * std::sin(a1), s * 0.5 * height);
+      const Vector3d p0 =
+          X * Vector3d(radius * std::cos(a0), radius * std::sin(a0), s * 0.5 * height);
+      const Vector3d p1 =
+          X * Vector3d(radius * std::cos(a1), radius * std::sin(a1), s * 0.5 * height);
       out->AddEdge(p0, p1, sagitta);
       cap.polygon_W.push_back(p0);
     }
@@ -181,7 +185,8 @@ void Walk(const modeling::ImplicitNode& node, const Affine3d& X, Candidates* out
         } else if constexpr (std::is_same_v<P, modeling::LinearArrayParams>) {
           for (int i = 0; i < p.count; ++i) children(X * Eigen::Translation3d(i * p.step));
         } else if constexpr (std::is_same_v<P, modeling::PolarArrayParams>) {
-          for (int i = 0; i < p.count; ++i) children(X * Eigen::AngleAxisd(i * p.step_angle, p.axis.normalized()));
+          for (int i = 0; i < p.count; ++i)
+            children(X * Eigen::AngleAxisd(i * p.step_angle, p.axis.normalized()));
         } else {
           children(X);  // booleans, blends, offset, shell; primitives without features have none
         }
@@ -228,16 +233,21 @@ haptics::SnapFeatures ExtractSnapFeatures(const modeling::Scene& scene, double t
                                 std::to_string(tolerance));
   }
   Candidates candidates;
-  for (const modeling::Solid& solid : scene.solids) Walk(solid.root, Affine3d::Identity(), &candidates);
+  for (const modeling::Solid& solid : scene.solids)
+    Walk(solid.root, Affine3d::Identity(), &candidates);
   const haptics::SnapFeatures& in = candidates.features;
-  const auto on_surface = [&](const Vector3d& x) { return std::abs(SceneValue(scene, x)) <= tolerance; };
+  const auto on_surface = [&](const Vector3d& x) {
+    return std::abs(SceneValue(scene, x)) <= tolerance;
+  };
   // Duplicates: positions equal within the tolerance.
   const double same = tolerance;
 
   haptics::SnapFeatures out;
   for (const Vector3d& v : in.vertices_W) {
     if (!on_surface(v)) continue;
-    if (std::any_of(out.vertices_W.begin(), out.vertices_W.end(), [&](const Vector3d& w) { return Near(v, w, same); })) continue;
+    if (std::any_of(out.vertices_W.begin(), out.vertices_W.end(),
+                    [&](const Vector3d& w) { return Near(v, w, same); }))
+      continue;
     out.vertices_W.push_back(v);
   }
   for (std::size_t i = 0; i < in.edges_W.size(); ++i) {
@@ -246,11 +256,13 @@ haptics::SnapFeatures ExtractSnapFeatures(const modeling::Scene& scene, double t
     if ((b - a).norm() <= same) continue;
     bool ok = on_surface(a) && on_surface(b);
     for (double t : {0.25, 0.5, 0.75}) {
-      ok = ok && std::abs(SceneValue(scene, a + t * (b - a))) <= tolerance + candidates.edge_slack[i];
+      ok = ok &&
+           std::abs(SceneValue(scene, a + t * (b - a))) <= tolerance + candidates.edge_slack[i];
     }
     if (!ok) continue;
     const bool dup = std::any_of(out.edges_W.begin(), out.edges_W.end(), [&](const auto& e) {
-      return (Near(a, e.first, same) && Near(b, e.second, same)) || (Near(a, e.second, same) && Near(b, e.first, same));
+      return (Near(a, e.first, same) && Near(b, e.second, same)) ||
+             (Near(a, e.second, same) && Near(b, e.first, same));
     });
     if (!dup) out.edges_W.emplace_back(a, b);
   }
@@ -259,23 +271,29 @@ haptics::SnapFeatures ExtractSnapFeatures(const modeling::Scene& scene, double t
       const Vector3d n = face.normal_W.normalized();
       const Vector3d p0 = n * n.dot(face.point_W);
       if (!on_surface(p0)) continue;
-      const bool dup = std::any_of(out.faces_W.begin(), out.faces_W.end(), [&](const haptics::SnapFace& g) {
-        return g.polygon_W.empty() && std::abs(std::abs(g.normal_W.normalized().dot(n)) - 1.0) < 1e-12 &&
-               std::abs(n.dot(g.point_W - face.point_W)) <= same;
-      });
+      const bool dup =
+          std::any_of(out.faces_W.begin(), out.faces_W.end(), [&](const haptics::SnapFace& g) {
+            return g.polygon_W.empty() &&
+                   std::abs(std::abs(g.normal_W.normalized().dot(n)) - 1.0) < 1e-12 &&
+                   std::abs(n.dot(g.point_W - face.point_W)) <= same;
+          });
       if (!dup) out.faces_W.push_back(face);
       continue;
     }
     const Vector3d c = Centroid(face.polygon_W);
     bool ok = on_surface(c);
-    for (const Vector3d& p : face.polygon_W) ok = ok && on_surface(0.5 * (c + p)) && on_surface(c + 0.9 * (p - c));
+    for (const Vector3d& p : face.polygon_W)
+      ok = ok && on_surface(0.5 * (c + p)) && on_surface(c + 0.9 * (p - c));
     if (!ok) continue;
-    const bool dup = std::any_of(out.faces_W.begin(), out.faces_W.end(), [&](const haptics::SnapFace& g) {
-      if (g.polygon_W.size() != face.polygon_W.size() || !Near(Centroid(g.polygon_W), c, same)) return false;
-      return std::all_of(face.polygon_W.begin(), face.polygon_W.end(), [&](const Vector3d& p) {
-        return std::any_of(g.polygon_W.begin(), g.polygon_W.end(), [&](const Vector3d& q) { return Near(p, q, same); });
-      });
-    });
+    const bool dup =
+        std::any_of(out.faces_W.begin(), out.faces_W.end(), [&](const haptics::SnapFace& g) {
+          if (g.polygon_W.size() != face.polygon_W.size() || !Near(Centroid(g.polygon_W), c, same))
+            return false;
+          return std::all_of(face.polygon_W.begin(), face.polygon_W.end(), [&](const Vector3d& p) {
+            return std::any_of(g.polygon_W.begin(), g.polygon_W.end(),
+                               [&](const Vector3d& q) { return Near(p, q, same); });
+          });
+        });
     if (!dup) out.faces_W.push_back(face);
   }
   const std::size_t kept = out.vertices_W.size() + out.edges_W.size() + out.faces_W.size();

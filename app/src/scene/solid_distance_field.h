@@ -10,9 +10,8 @@
 // (haptics::LoopSettings::world_scale, p_WDo), which hands the fields positions already in W.
 #pragma once
 
-#include <memory>
-
 #include <Eigen/Core>
+#include <memory>
 
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/modeling/cell_specialized_solid.h"

@@ -8,7 +8,8 @@ namespace spidarcad::app {
 
 TrajectoryPlayer::TrajectoryPlayer(haptics::Trajectory trajectory, Sink sink)
     : trajectory_(std::move(trajectory)), sink_(std::move(sink)) {
-  if (trajectory_.empty()) throw std::invalid_argument("TrajectoryPlayer: the trajectory has no samples");
+  if (trajectory_.empty())
+    throw std::invalid_argument("TrajectoryPlayer: the trajectory has no samples");
   if (!sink_) throw std::invalid_argument("TrajectoryPlayer: no sink");
 }
 
@@ -41,7 +42,8 @@ void TrajectoryPlayer::Run() {
   while (!stop_.load(std::memory_order_acquire)) {
     // The next whole millisecond after now (a late wake-up skips the missed ones).
     const auto now = std::chrono::steady_clock::now();
-    const long next_ms = std::chrono::duration_cast<std::chrono::milliseconds>(now - start_).count() + 1;
+    const long next_ms =
+        std::chrono::duration_cast<std::chrono::milliseconds>(now - start_).count() + 1;
     std::this_thread::sleep_until(start_ + std::chrono::milliseconds(next_ms));
     const double tau = elapsed();
     sink_(trajectory_.Sample(t0 + tau));

@@ -23,12 +23,12 @@ namespace spidarcad::base::internal {
 
 // Aborts with the condition's text, file and line when `condition` is false. Evaluated in every
 // build type (unlike assert).
-#define SPIDARCAD_CHECK(condition)                                                         \
-  ((condition) ? static_cast<void>(0)                                                      \
+#define SPIDARCAD_CHECK(condition)    \
+  ((condition) ? static_cast<void>(0) \
                : ::spidarcad::base::internal::CheckFailed(__FILE__, __LINE__, #condition, ""))
 
 // As SPIDARCAD_CHECK, with a message (a string literal or const char*) saying what broke.
-#define SPIDARCAD_CHECK_MSG(condition, message)                                            \
-  ((condition) ? static_cast<void>(0)                                                      \
-               : ::spidarcad::base::internal::CheckFailed(__FILE__, __LINE__, #condition, \
-                                                          (message)))
+#define SPIDARCAD_CHECK_MSG(condition, message) \
+  ((condition)                                  \
+       ? static_cast<void>(0)                   \
+       : ::spidarcad::base::internal::CheckFailed(__FILE__, __LINE__, #condition, (message)))

@@ -4,10 +4,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <map>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "spidarcad/fem/mesh.h"
 

@@ -41,6 +41,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -48,8 +49,6 @@
 #include <mutex>
 #include <thread>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/static_solver.h"
@@ -229,7 +228,7 @@ class ColumnCache {
   std::uint64_t order_seq_ = ~0ull;
   Eigen::Vector3d order_p_ = Eigen::Vector3d::Zero();  // focus the order was made for
   double order_radius_ = 0.0;
-  std::unique_ptr<std::atomic<int>[]> slot_of_;      // per candidate: slot or −1
+  std::unique_ptr<std::atomic<int>[]> slot_of_;       // per candidate: slot or −1
   std::unique_ptr<std::atomic<long>[]> ready_block_;  // per candidate
   std::atomic<int> ready_count_{0};
   std::atomic<int> allocated_slots_{0};
@@ -306,10 +305,10 @@ class CachedContactSolver {
   // each contact node's displacement along its normal reaches the target's:
   // n_s·u_s = n_s·target_s with u_c = u0_c + Ĝ_cc f (tangential displacements free).
   // normals, target: 3k (slot order; unit normals, m). Writes forces (3k, N) and displacement,
-  // the contact nodes' resulting total displacement u_c (3k, m; may be the target's buffer). With Ĝ_cc = L Lᵀ (the factor)
-  // and B = Lᵀ N (3k by k), β solves (BᵀB) β = Nᵀ(target − u0_c) and u_c = u0_c + L B β:
-  // O(k³) work instead of the 2k solves that freeing the tangents with K_c = Ĝ_cc⁻¹ takes.
-  // Returns false (outputs untouched) when k = 0 or BᵀB is not positive definite (parallel
+  // the contact nodes' resulting total displacement u_c (3k, m; may be the target's buffer). With
+  // Ĝ_cc = L Lᵀ (the factor) and B = Lᵀ N (3k by k), β solves (BᵀB) β = Nᵀ(target − u0_c) and u_c =
+  // u0_c + L B β: O(k³) work instead of the 2k solves that freeing the tangents with K_c = Ĝ_cc⁻¹
+  // takes. Returns false (outputs untouched) when k = 0 or BᵀB is not positive definite (parallel
   // normals cannot make it so; a non-finite normal can). Allocation-free.
   bool SolveNormal(const double* normals, const double* target, double* forces,
                    double* displacement);

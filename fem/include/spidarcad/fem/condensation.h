@@ -13,11 +13,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <atomic>
 #include <functional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "spidarcad/fem/static_solver.h"
 
@@ -61,9 +60,7 @@ class Compliance {
   // True if condensed node b has a prescribed dof (its column is not usable for contact).
   bool IsFixed(int b) const { return fixed_[b] != 0; }
   // 3 by 3 block G_ab between condensed nodes a (row) and b (column).
-  Eigen::Matrix3d Block(int a, int b) const {
-    return g_.block<3, 3>(3 * condensed_row_[a], 3 * b);
-  }
+  Eigen::Matrix3d Block(int a, int b) const { return g_.block<3, 3>(3 * condensed_row_[a], 3 * b); }
   // Bytes held by G and the baseline.
   double MemoryBytes() const { return 8.0 * (g_.size() + u0_.size()); }
   // Wall time of the column solves, in s.

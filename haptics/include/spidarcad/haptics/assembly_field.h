@@ -31,28 +31,27 @@
 //    centre is farther than its offset from the centre plus the reach: φ is 1-Lipschitz), where
 //    φ_j and ∇φ_j are evaluated once; the substeps use the first-order expansion
 //    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick), so a
-//    tick costs one φ per shell point near another part plus one gradient per candidate. The user feels the
-//    coupling's reaction at the target point: f_T_W = −f_c, m_T_W = (p_target − p_WT) × (−f_c)
-//    − τ_c, plus the grasp torque of the poles on the part at its target pose (the fingers keep
-//    squeezing while it is held). The part is released as soon as the two poles no longer both
+//    tick costs one φ per shell point near another part plus one gradient per candidate. The user
+//    feels the coupling's reaction at the target point: f_T_W = −f_c, m_T_W = (p_target − p_WT) ×
+//    (−f_c) − τ_c, plus the grasp torque of the poles on the part at its target pose (the fingers
+//    keep squeezing while it is held). The part is released as soon as the two poles no longer both
 //    push into it (the grip opened): it stays at X_WV. If it then lies within a seat's
 //    tolerance (|p_WP − p_WS| <= position_tolerance and the angle of R_WSᵀ R_WP <=
 //    angle_tolerance, X_WS = X_WO·X_OS) its pose snaps to X_WS exactly and `seated` is set.
 //    A released part cannot be picked up again until the poles have stopped squeezing it (so
-//    a snap into the seat does not grab it back). There is no gravity: a part released in the air stays where it was let go. Parts not
-//    carried never move (the tool does not push them around).
+//    a snap into the seat does not grab it back). There is no gravity: a part released in the air
+//    stays where it was let go. Parts not carried never move (the tool does not push them around).
 //
 // Publishing: every tick the poses and seated flags go to the app through a TripleBuffer of a
 // fixed-size AssemblyState. Evaluate is real-time safe: every buffer is sized at construction.
 #pragma once
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
@@ -75,9 +74,9 @@ struct AssemblySeat {
 
 // One rigid part.
 struct AssemblyPart {
-  std::string name;                                        // for logs and the app
-  std::shared_ptr<const DistanceField> field_P;            // φ in the part's frame P
-  PointShell shell_P;                                      // surface samples in P (may be empty if fixed)
+  std::string name;                              // for logs and the app
+  std::shared_ptr<const DistanceField> field_P;  // φ in the part's frame P
+  PointShell shell_P;                            // surface samples in P (may be empty if fixed)
   Eigen::Isometry3d X_WP = Eigen::Isometry3d::Identity();  // initial pose
   bool fixed = false;                                      // true: never moves, cannot be grasped
   std::vector<AssemblySeat> seats;                         // where it fits
@@ -99,7 +98,8 @@ struct AssemblySettings {
   double contact_margin = 2e-3;                               // candidate margin, m
   int max_points = 4096;                                      // largest shell per part
   double max_dt = 0.01;                                       // longer ticks are clamped, s
-  bool cull_shell_search = true;  // false: test every shell point each tick (same result, slower; for tests)
+  bool cull_shell_search =
+      true;  // false: test every shell point each tick (same result, slower; for tests)
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -154,8 +154,8 @@ class AssemblyField final : public ForceField {
   double Phi(int j, const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept;
   // Grasp generalised force Q (>= 0) of the poles on part j at pose X_WP_j (for the carried part,
   // its target pose); *both_pushing tells whether both poles push into it; depths to *depths.
-  double PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool, bool* both_pushing,
-                   double depths[2]) const noexcept;
+  double PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool,
+                   bool* both_pushing, double depths[2]) const noexcept;
   // Tool shell penalty against all parts at the grip pose.
   ToolWrench ToolContact(const ToolKinematics& tool) noexcept;
   // One tick of the carried part's virtual coupling; returns the coupling wrench on the user.
@@ -176,26 +176,27 @@ class AssemblyField final : public ForceField {
   struct ShellCluster {
     Eigen::Vector3d centre_P = Eigen::Vector3d::Zero();  // m, in P
     double radius = 0.0;                                 // largest |r_i − centre|, m
-    int begin = 0, end = 0;                              // its points: cluster_points_[part][begin, end)
+    int begin = 0, end = 0;  // its points: cluster_points_[part][begin, end)
   };
-  static constexpr double kClusterCell = 0.01;  // m
+  static constexpr double kClusterCell = 0.01;       // m
   std::vector<std::vector<ShellCluster>> clusters_;  // per part
   std::vector<std::vector<int>> cluster_points_;     // per part: shell indices in cluster order
-  std::vector<std::vector<double>> cluster_point_offset_;  // per part, cluster order: |r_i − centre|, m
-  std::vector<char> near_;                           // per shell point: in a cluster near part j
+  std::vector<std::vector<double>>
+      cluster_point_offset_;          // per part, cluster order: |r_i − centre|, m
+  std::vector<char> near_;            // per shell point: in a cluster near part j
   std::vector<int> candidate_point_;  // capacity max shell × parts
   std::vector<int> candidate_part_;
-  std::vector<double> candidate_phi_;              // φ at the tick's start, m
-  std::vector<Eigen::Vector3d> candidate_grad_;    // ∇φ there (W)
-  std::vector<Eigen::Vector3d> candidate_x0_;      // the point there (W), m
+  std::vector<double> candidate_phi_;            // φ at the tick's start, m
+  std::vector<Eigen::Vector3d> candidate_grad_;  // ∇φ there (W)
+  std::vector<Eigen::Vector3d> candidate_x0_;    // the point there (W), m
   int num_candidates_ = 0;
   int carried_ = -1;
   int released_ = -1;  // just released: not grasped again until the poles stop squeezing it
   int contacts_ = 0;
   Eigen::Isometry3d X_TP_ = Eigen::Isometry3d::Identity();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();  // carried part's rotation R_WV
-  Eigen::Vector3d v_ = Eigen::Vector3d::Zero();  // carried part's velocity (origin), W
-  Eigen::Vector3d w_ = Eigen::Vector3d::Zero();  // its angular velocity, W
+  Eigen::Vector3d v_ = Eigen::Vector3d::Zero();            // carried part's velocity (origin), W
+  Eigen::Vector3d w_ = Eigen::Vector3d::Zero();            // its angular velocity, W
   bool initialized_ = false;
   double last_time_ = 0.0;
   TripleBuffer<AssemblyState> published_;

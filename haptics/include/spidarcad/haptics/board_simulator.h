@@ -21,11 +21,11 @@ namespace spidarcad::haptics::usb {
 
 // Settings of the simulated board.
 struct BoardConfig {
-  SimulatedDeviceConfig device;         // the physical device behind the board
-  double sample_period = 1e-3;          // s between State packets (1 kHz)
-  std::uint16_t firmware_version = 1;   // reported in HelloReply
+  SimulatedDeviceConfig device;                      // the physical device behind the board
+  double sample_period = 1e-3;                       // s between State packets (1 kHz)
+  std::uint16_t firmware_version = 1;                // reported in HelloReply
   std::uint8_t protocol_version = kProtocolVersion;  // another value simulates old firmware
-  std::uint16_t default_watchdog_ms = 20;  // used until a Hello asks for another
+  std::uint16_t default_watchdog_ms = 20;            // used until a Hello asks for another
   std::array<char, 16> serial{'S', 'I', 'M', '-', '0', '0', '0', '1'};  // NUL-padded
 };
 

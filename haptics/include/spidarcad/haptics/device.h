@@ -14,32 +14,37 @@ namespace spidarcad::haptics {
 
 // State of a device. Anything but kOk means the loop must command zero force.
 enum class DeviceStatus : std::uint8_t {
-  kOk = 0,         // reading and writing normally
-  kNotConnected,   // no device (unplugged, never opened)
-  kCommError,      // a transfer failed or timed out; the reading is stale
-  kFault,          // the device reported a fault (motor driver, over-current, encoder)
-  kStopped,        // emergency stop pressed on the device; motors disabled
+  kOk = 0,        // reading and writing normally
+  kNotConnected,  // no device (unplugged, never opened)
+  kCommError,     // a transfer failed or timed out; the reading is stale
+  kFault,         // the device reported a fault (motor driver, over-current, encoder)
+  kStopped,       // emergency stop pressed on the device; motors disabled
 };
 
 // One word for a status ("ok", "not_connected", ...).
 constexpr const char* DeviceStatusName(DeviceStatus status) {
   switch (status) {
-    case DeviceStatus::kOk: return "ok";
-    case DeviceStatus::kNotConnected: return "not_connected";
-    case DeviceStatus::kCommError: return "comm_error";
-    case DeviceStatus::kFault: return "fault";
-    case DeviceStatus::kStopped: return "stopped";
+    case DeviceStatus::kOk:
+      return "ok";
+    case DeviceStatus::kNotConnected:
+      return "not_connected";
+    case DeviceStatus::kCommError:
+      return "comm_error";
+    case DeviceStatus::kFault:
+      return "fault";
+    case DeviceStatus::kStopped:
+      return "stopped";
   }
   return "unknown";
 }
 
 // One sample of the encoders.
 struct EncoderReading {
-  EncoderCounts counts{};        // counters since homing, counts (see encoder.h for the model)
-  std::uint32_t sequence = 0;    // increases by one per device sample; a repeat means stale data
-  double time = 0.0;             // device time of the sample, s
-  std::uint8_t slack_mask = 0;   // bit i set: string i's commanded tension is below the slack
-                                 // threshold, so its length may not be taut (not trustworthy)
+  EncoderCounts counts{};       // counters since homing, counts (see encoder.h for the model)
+  std::uint32_t sequence = 0;   // increases by one per device sample; a repeat means stale data
+  double time = 0.0;            // device time of the sample, s
+  std::uint8_t slack_mask = 0;  // bit i set: string i's commanded tension is below the slack
+                                // threshold, so its length may not be taut (not trustworthy)
   DeviceStatus status = DeviceStatus::kNotConnected;
 };
 

@@ -11,11 +11,10 @@
 // points out of the solid.
 #pragma once
 
-#include <memory>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <memory>
+#include <vector>
 
 namespace spidarcad::haptics {
 
@@ -27,7 +26,8 @@ class DistanceField {
   virtual ~DistanceField() = default;
   // φ(p_W) [m]; writes dφ/dp (W, outward, possibly unnormalised) to *gradient_W when it is not
   // null.
-  virtual double Evaluate(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept = 0;
+  virtual double Evaluate(const Eigen::Vector3d& p_W,
+                          Eigen::Vector3d* gradient_W) const noexcept = 0;
 };
 
 // A solid ball: φ = |p − c| − r (exact). At the centre the gradient is +z (any unit vector).
@@ -88,7 +88,8 @@ class TransformedDistanceField final : public DistanceField {
  public:
   // `body` (not null) evaluated in B; X_WB a rigid transform (rotation part orthonormal).
   // Throws std::invalid_argument on a null body or a non-rigid X_WB.
-  TransformedDistanceField(std::shared_ptr<const DistanceField> body, const Eigen::Isometry3d& X_WB);
+  TransformedDistanceField(std::shared_ptr<const DistanceField> body,
+                           const Eigen::Isometry3d& X_WB);
   double Evaluate(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept override;
   const Eigen::Isometry3d& X_WB() const noexcept { return X_WB_; }
 

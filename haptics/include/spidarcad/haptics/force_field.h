@@ -14,13 +14,13 @@ namespace spidarcad::haptics {
 
 // State of the tool handed to the force fields, in W.
 struct ToolKinematics {
-  double time = 0.0;                                       // loop time, s
-  Eigen::Vector3d p_WT = Eigen::Vector3d::Zero();          // tool origin (grip centre), m
-  Eigen::Matrix3d R_WT = Eigen::Matrix3d::Identity();      // tool rotation (grip frame)
-  double grasp = 1.5707963267948966;                       // grasp angle θ, rad
-  Eigen::Vector3d v_WT = Eigen::Vector3d::Zero();          // velocity of p_WT, m/s (filtered)
-  Eigen::Vector3d w_WT = Eigen::Vector3d::Zero();          // angular velocity, rad/s (filtered)
-  double grasp_rate = 0.0;                                 // dθ/dt, rad/s (filtered)
+  double time = 0.0;                                   // loop time, s
+  Eigen::Vector3d p_WT = Eigen::Vector3d::Zero();      // tool origin (grip centre), m
+  Eigen::Matrix3d R_WT = Eigen::Matrix3d::Identity();  // tool rotation (grip frame)
+  double grasp = 1.5707963267948966;                   // grasp angle θ, rad
+  Eigen::Vector3d v_WT = Eigen::Vector3d::Zero();      // velocity of p_WT, m/s (filtered)
+  Eigen::Vector3d w_WT = Eigen::Vector3d::Zero();      // angular velocity, rad/s (filtered)
+  double grasp_rate = 0.0;                             // dθ/dt, rad/s (filtered)
 };
 
 // Wrench on the tool, in W: force, moment about p_WT, grasp torque.

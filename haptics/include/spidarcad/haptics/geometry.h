@@ -7,10 +7,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <string>
-
-#include <Eigen/Core>
 
 namespace spidarcad::haptics {
 
@@ -58,8 +57,8 @@ struct GripPose {
   // Pose from centre p0_DT, grip rotation R_DT, grasp angle θ (rad, angle between p1 and p2)
   // and pole half-length d. In T, p1 = d(cos θ/2 b − sin θ/2 a), p2 = d(cos θ/2 b + sin θ/2 a)
   // with b = (x + y)/√2, a = (x − y)/√2, so that θ = π/2, R = I gives the rest pose.
-  static GripPose FromFrame(const Eigen::Vector3d& p0_DT, const Eigen::Matrix3d& R_DT,
-                            double grasp, double d);
+  static GripPose FromFrame(const Eigen::Vector3d& p0_DT, const Eigen::Matrix3d& R_DT, double grasp,
+                            double d);
 
   // Attachment point P_(i) of string i in D.
   Eigen::Vector3d Attachment(int i) const;

@@ -28,18 +28,16 @@
 // at 1 kHz, stable with a hand's grasp damping above k_θ·T/2 ≈ 1.7e-3 N·m·s/rad.
 #pragma once
 
-#include <atomic>
-#include <memory>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <atomic>
+#include <memory>
 
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/triple_buffer.h"
 
 namespace spidarcad::haptics {
-
 
 // The deepest point of a field along a pole, t ∈ [−d, d] (m along the pole's unit vector from the
 // grip centre): `samples` (>= 2) evenly spaced values of phi(t), then `refine_iterations` steps of
@@ -84,12 +82,12 @@ PoleMinimum FindPoleMinimum(const Phi& phi, double d, int samples, int refine_it
 
 // Parameters of a GraspField. SI units, lengths in W.
 struct GraspSettings {
-  double pole_length = 0.04;     // d in W (world_scale × the device's d), m
-  int samples = 17;              // samples per pole over [−d, d], >= 3
-  int refine_iterations = 20;    // golden-section steps around the deepest sample
-  double stiffness = 1e4;        // k_n, finger contact stiffness, N/m
-  double damping = 2e-3;         // b_n, on θ while closing in contact, N·m·s/rad
-  double grab_depth = 1e-4;      // both poles this deep: grasped, m
+  double pole_length = 0.04;   // d in W (world_scale × the device's d), m
+  int samples = 17;            // samples per pole over [−d, d], >= 3
+  int refine_iterations = 20;  // golden-section steps around the deepest sample
+  double stiffness = 1e4;      // k_n, finger contact stiffness, N/m
+  double damping = 2e-3;       // b_n, on θ while closing in contact, N·m·s/rad
+  double grab_depth = 1e-4;    // both poles this deep: grasped, m
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };

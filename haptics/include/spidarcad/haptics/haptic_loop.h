@@ -57,17 +57,17 @@ std::unique_ptr<HapticScene> MakeDemoScene();
 // Safety events, as bits of TickOutputs::events. Ticks with each event are counted in
 // HapticLoop::event_counts().
 enum SafetyEvent : std::uint32_t {
-  kEventNan = 1u << 0,             // NaN/inf in the lengths, pose or field wrench: zero force
-  kEventFkRefused = 1u << 1,       // forward kinematics refused the reading: zero force
-  kEventDeviceError = 1u << 2,     // device status not ok: zero force
-  kEventDeadlineMissed = 1u << 3,  // tick later than LoopSettings::max_lateness: zero force
-  kEventEmergencyStop = 1u << 4,   // the stop flag is set (latched): zero force
-  kEventBadDt = 1u << 5,           // dt not finite or outside (0, max_dt]: zero force
-  kEventWrenchLimited = 1u << 6,   // the requested wrench was scaled down to the limits
+  kEventNan = 1u << 0,               // NaN/inf in the lengths, pose or field wrench: zero force
+  kEventFkRefused = 1u << 1,         // forward kinematics refused the reading: zero force
+  kEventDeviceError = 1u << 2,       // device status not ok: zero force
+  kEventDeadlineMissed = 1u << 3,    // tick later than LoopSettings::max_lateness: zero force
+  kEventEmergencyStop = 1u << 4,     // the stop flag is set (latched): zero force
+  kEventBadDt = 1u << 5,             // dt not finite or outside (0, max_dt]: zero force
+  kEventWrenchLimited = 1u << 6,     // the requested wrench was scaled down to the limits
   kEventTensionSaturated = 1u << 7,  // the tension solve could not display all of q
-  kEventRamping = 1u << 8,         // the force ramp is below 1
-  kEventEnergyLimited = 1u << 9,   // the passivity observer added damping
-  kEventSlack = 1u << 10,          // the device flagged a slack string
+  kEventRamping = 1u << 8,           // the force ramp is below 1
+  kEventEnergyLimited = 1u << 9,     // the passivity observer added damping
+  kEventSlack = 1u << 10,            // the device flagged a slack string
 };
 // Number of SafetyEvent kinds.
 inline constexpr int kNumSafetyEvents = 11;
@@ -118,25 +118,25 @@ struct LoopSettings {
 
 // What the loop publishes for the app each tick (triple buffer) and returns from Step.
 struct ToolState {
-  std::uint64_t tick = 0;                               // ticks since start
-  double time = 0.0;                                    // loop time, s (sum of dt)
-  GripPose pose_D;                                      // measured grip pose in D (FK)
-  ToolKinematics tool_W;                                // tool state in W as fed to the fields
-  Vector7d wrench_D = Vector7d::Zero();                 // q commanded (after safety), D
-  Vector7d displayed_D = Vector7d::Zero();              // A τ, what the strings display
-  Vector8d tau = Vector8d::Zero();                      // tensions sent to the device, N
-  std::uint32_t events = 0;                             // SafetyEvent bits of this tick
-  double ramp = 0.0;                                    // force ramp factor in [0, 1]
-  double energy = 0.0;                                  // passivity observer energy, J
+  std::uint64_t tick = 0;                   // ticks since start
+  double time = 0.0;                        // loop time, s (sum of dt)
+  GripPose pose_D;                          // measured grip pose in D (FK)
+  ToolKinematics tool_W;                    // tool state in W as fed to the fields
+  Vector7d wrench_D = Vector7d::Zero();     // q commanded (after safety), D
+  Vector7d displayed_D = Vector7d::Zero();  // A τ, what the strings display
+  Vector8d tau = Vector8d::Zero();          // tensions sent to the device, N
+  std::uint32_t events = 0;                 // SafetyEvent bits of this tick
+  double ramp = 0.0;                        // force ramp factor in [0, 1]
+  double energy = 0.0;                      // passivity observer energy, J
   FkStatus fk_status = FkStatus::kInvalidInput;
   TensionStatus tension_status = TensionStatus::kInvalidInput;
 };
 
 // Inputs of one tick.
 struct TickInputs {
-  EncoderReading reading;          // the device sample of this tick (status included)
-  double lateness = 0.0;           // how late the tick started against its schedule, s
-  bool emergency_stop = false;     // a stop request from the caller (ORed with the loop flag)
+  EncoderReading reading;       // the device sample of this tick (status included)
+  double lateness = 0.0;        // how late the tick started against its schedule, s
+  bool emergency_stop = false;  // a stop request from the caller (ORed with the loop flag)
 };
 
 // Outputs of one tick (τ goes to Device::WriteTensions).

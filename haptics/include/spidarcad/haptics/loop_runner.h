@@ -51,28 +51,28 @@ class LatencyHistogram {
 
 // Timing of one tick as the runner hands it to the tick function.
 struct TickTiming {
-  std::uint64_t tick = 0;   // index since Start
-  double period = 1e-3;     // nominal period, s (use it as dt for deterministic behaviour)
-  double elapsed = 0.0;     // actual time since the previous wake-up, s
-  double lateness = 0.0;    // wake-up time minus scheduled time, s (>= 0 normally)
+  std::uint64_t tick = 0;  // index since Start
+  double period = 1e-3;    // nominal period, s (use it as dt for deterministic behaviour)
+  double elapsed = 0.0;    // actual time since the previous wake-up, s
+  double lateness = 0.0;   // wake-up time minus scheduled time, s (>= 0 normally)
 };
 
 // How the runner thread is scheduled.
 enum class RealtimeStatus : std::uint8_t {
   kNotStarted = 0,
-  kFifo,              // SCHED_FIFO granted
-  kNoPermission,      // SCHED_FIFO refused with EPERM: running with normal scheduling
-  kNotRequested,      // RunnerSettings::try_realtime was false
-  kFailed,            // SCHED_FIFO refused for another reason: normal scheduling
+  kFifo,          // SCHED_FIFO granted
+  kNoPermission,  // SCHED_FIFO refused with EPERM: running with normal scheduling
+  kNotRequested,  // RunnerSettings::try_realtime was false
+  kFailed,        // SCHED_FIFO refused for another reason: normal scheduling
 };
 // One word for a status ("not_started", "fifo", "no_permission", "not_requested", "failed").
 const char* RealtimeStatusName(RealtimeStatus status);
 
 // Settings of the runner.
 struct RunnerSettings {
-  double period = 1e-3;    // s (1 kHz)
+  double period = 1e-3;  // s (1 kHz)
   bool try_realtime = true;
-  int priority = 80;       // SCHED_FIFO priority, 1..99
+  int priority = 80;  // SCHED_FIFO priority, 1..99
   // When a wake-up is later than this many periods the missed slots are skipped (not caught
   // up in a burst) and counted in overruns().
   int skip_after_periods = 2;

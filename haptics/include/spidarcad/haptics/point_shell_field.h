@@ -64,11 +64,10 @@
 // min_step) are in W: scale them with the world scale.
 #pragma once
 
-#include <memory>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <memory>
+#include <vector>
 
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
@@ -116,11 +115,11 @@ struct PointShellSettings {
   double contact_margin = 2e-3;                               // candidate margin, m
   int max_points = 4096;                                      // shell size bound
   double max_dt = 0.01;                                       // longer ticks are clamped, s
-  double coupling_soft_zone = 5e-5;       // δ: radius of the soft zone (2 encoder quanta), m; 0: off
-  double rot_coupling_soft_zone = 2e-3;   // rotational soft zone, rad; 0: off
-  double soft_zone_ratio = 0.1;           // ε in [0, 1]: coupling strength inside the zone
-  double max_penetration = 6e-4;          // d_max: deepest a shell point may go, m
-  double min_step = 2e-4;                 // longest substep move judged by the local plane, m
+  double coupling_soft_zone = 5e-5;  // δ: radius of the soft zone (2 encoder quanta), m; 0: off
+  double rot_coupling_soft_zone = 2e-3;  // rotational soft zone, rad; 0: off
+  double soft_zone_ratio = 0.1;          // ε in [0, 1]: coupling strength inside the zone
+  double max_penetration = 6e-4;         // d_max: deepest a shell point may go, m
+  double min_step = 2e-4;                // longest substep move judged by the local plane, m
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -182,11 +181,11 @@ class PointShellField final : public ForceField {
   PointShell shell_;
   PointShellSettings settings_;
   double shell_radius_;
-  std::vector<int> candidates_;  // capacity #P, sized at construction
-  std::vector<double> candidate_phi_;             // φ of candidate k at the substep's start, m
-  std::vector<Eigen::Vector3d> candidate_g_;      // ∇φ of candidate k (normalised where used)
-  std::vector<Eigen::Vector3d> candidate_r_;      // lever R_WV r_T of candidate k, m
-  std::vector<double> point_radius_;              // |r_T| of each shell point, m
+  std::vector<int> candidates_;               // capacity #P, sized at construction
+  std::vector<double> candidate_phi_;         // φ of candidate k at the substep's start, m
+  std::vector<Eigen::Vector3d> candidate_g_;  // ∇φ of candidate k (normalised where used)
+  std::vector<Eigen::Vector3d> candidate_r_;  // lever R_WV r_T of candidate k, m
+  std::vector<double> point_radius_;          // |r_T| of each shell point, m
   int num_candidates_ = 0;
   int contacts_ = 0;
   bool initialized_ = false;

@@ -28,25 +28,25 @@ namespace spidarcad::haptics {
 // error of "length per pulse times counter"; string thickness makes the effective pulley
 // radius larger than nominal).
 struct SimulatedDeviceConfig {
-  SpidarGeometry geometry;   // frame and grip size, m
-  EncoderSpec encoder;       // nominal encoder (what the software assumes)
+  SpidarGeometry geometry;                    // frame and grip size, m
+  EncoderSpec encoder;                        // nominal encoder (what the software assumes)
   GripPose home_pose = GripPose::Rest(0.04);  // nominal homing pose (the jig's), in D
 
   // Encoder imperfections, drawn once per string from `seed` at construction.
-  double gain_error_mean = 0.0624;  // mean of (gain − 1): effective radius error
-  double gain_error_sd = 0.0154;    // standard deviation of (gain − 1)
-  double quadratic_sd = 0.05;       // winding nonlinearity sd, 1/m (3 mm at 0.25 m paid out)
-  double stretch = 4e-4;            // string compliance, strain per N (0.32 % at 8 N)
-  double stretch_sd = 1e-4;         // spread of the compliance between strings, 1/N
-  double homing_position_sd = 3e-4; // jig error of the true homing position, per axis, m
+  double gain_error_mean = 0.0624;    // mean of (gain − 1): effective radius error
+  double gain_error_sd = 0.0154;      // standard deviation of (gain − 1)
+  double quadratic_sd = 0.05;         // winding nonlinearity sd, 1/m (3 mm at 0.25 m paid out)
+  double stretch = 4e-4;              // string compliance, strain per N (0.32 % at 8 N)
+  double stretch_sd = 1e-4;           // spread of the compliance between strings, 1/N
+  double homing_position_sd = 3e-4;   // jig error of the true homing position, per axis, m
   double homing_rotation_sd = 0.003;  // jig error of the true homing rotation, per axis, rad
-  double length_noise_sd = 1e-5;    // per-sample length noise before quantisation, m
+  double length_noise_sd = 1e-5;      // per-sample length noise before quantisation, m
 
   // Motors.
-  double tension_max = 8.0;               // N; current / torque saturation at the pulley
-  double tension_time_constant = 0.002;   // s; first-order lag of the motor (0: none)
-  double homing_tension = 0.5;            // N; pretension while the counters are zeroed
-  double slack_threshold = 0.05;          // N; commanded tension below this flags slack
+  double tension_max = 8.0;              // N; current / torque saturation at the pulley
+  double tension_time_constant = 0.002;  // s; first-order lag of the motor (0: none)
+  double homing_tension = 0.5;           // N; pretension while the counters are zeroed
+  double slack_threshold = 0.05;         // N; commanded tension below this flags slack
 
   std::uint64_t seed = 1;  // seeds every random draw (parameters and noise)
 

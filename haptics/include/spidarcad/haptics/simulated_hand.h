@@ -21,16 +21,16 @@ namespace spidarcad::haptics {
 
 // Parameters of the simulated hand.
 struct HandSettings {
-  double mass = 0.3;               // kg, grip plus the fingers moving with it
-  double stiffness = 300.0;        // N/m, hand spring toward the intended position
-  double damping = 20.0;           // N·s/m
-  double inertia = 2e-4;           // kg·m², about every axis
-  double rot_stiffness = 1.0;      // N·m/rad
-  double rot_damping = 0.02;       // N·m·s/rad
-  double grasp_inertia = 1e-5;     // kg·m² for the grasp angle
-  double grasp_stiffness = 0.5;    // N·m/rad
-  double grasp_damping = 0.01;     // N·m·s/rad
-  int substeps = 4;                // integration substeps per Step
+  double mass = 0.3;             // kg, grip plus the fingers moving with it
+  double stiffness = 300.0;      // N/m, hand spring toward the intended position
+  double damping = 20.0;         // N·s/m
+  double inertia = 2e-4;         // kg·m², about every axis
+  double rot_stiffness = 1.0;    // N·m/rad
+  double rot_damping = 0.02;     // N·m·s/rad
+  double grasp_inertia = 1e-5;   // kg·m² for the grasp angle
+  double grasp_stiffness = 0.5;  // N·m/rad
+  double grasp_damping = 0.01;   // N·m·s/rad
+  int substeps = 4;              // integration substeps per Step
   // Throws std::invalid_argument naming the field when a value is not finite and positive.
   void Validate() const;
 };

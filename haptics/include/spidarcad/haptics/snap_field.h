@@ -17,12 +17,11 @@
 // published as an atomic SnapTarget the app can read from any thread.
 #pragma once
 
+#include <Eigen/Core>
 #include <atomic>
 #include <cstdint>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "spidarcad/haptics/force_field.h"
 
@@ -41,23 +40,23 @@ struct SnapTarget {
 // `point_W` with normal `normal_W`.
 struct SnapFace {
   std::vector<Eigen::Vector3d> polygon_W;  // #V ≥ 3 vertices in order, coplanar, m (or empty)
-  Eigen::Vector3d point_W = Eigen::Vector3d::Zero();   // unbounded plane: a point on it, m
-  Eigen::Vector3d normal_W = Eigen::Vector3d::UnitZ(); // unbounded plane: its normal
+  Eigen::Vector3d point_W = Eigen::Vector3d::Zero();    // unbounded plane: a point on it, m
+  Eigen::Vector3d normal_W = Eigen::Vector3d::UnitZ();  // unbounded plane: its normal
 };
 
 // The features to snap to, in W (m).
 struct SnapFeatures {
-  std::vector<Eigen::Vector3d> vertices_W;                              // #V points
-  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> edges_W;     // #E segments (a, b)
-  std::vector<SnapFace> faces_W;                                        // #F faces
+  std::vector<Eigen::Vector3d> vertices_W;                           // #V points
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> edges_W;  // #E segments (a, b)
+  std::vector<SnapFace> faces_W;                                     // #F faces
 };
 
 // Parameters of a SnapField.
 struct SnapSettings {
-  double max_force = 1.0;        // F_max, N
-  double vertex_radius = 8e-3;   // capture radius of vertices, m
-  double edge_radius = 5e-3;     // capture radius of edges, m
-  double face_radius = 3e-3;     // capture radius of faces, m
+  double max_force = 1.0;                           // F_max, N
+  double vertex_radius = 8e-3;                      // capture radius of vertices, m
+  double edge_radius = 5e-3;                        // capture radius of edges, m
+  double face_radius = 3e-3;                        // capture radius of faces, m
   Eigen::Vector3d tip_T = Eigen::Vector3d::Zero();  // tool point offset in T, m
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
@@ -85,7 +84,7 @@ class SnapField final : public ForceField {
 
  private:
   struct Face {
-    int first = 0, count = 0;           // polygon vertices in 2D (u, v) in poly2d_, 0 if unbounded
+    int first = 0, count = 0;  // polygon vertices in 2D (u, v) in poly2d_, 0 if unbounded
     Eigen::Vector3d origin, normal, u, v;  // plane frame
   };
   SnapSettings settings_;

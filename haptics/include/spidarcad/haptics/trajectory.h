@@ -11,21 +11,20 @@
 // file, the line and the field.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <iosfwd>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 namespace spidarcad::haptics {
 
 // One sample of a trajectory (device frame D).
 struct TrajectorySample {
-  double t = 0.0;                                                    // s
-  Eigen::Vector3d p_DT = Eigen::Vector3d::Zero();                    // grip centre, m
-  Eigen::Quaterniond q_DT = Eigen::Quaterniond::Identity();          // grip rotation
-  double grasp = 1.5707963267948966;                                 // rad
+  double t = 0.0;                                            // s
+  Eigen::Vector3d p_DT = Eigen::Vector3d::Zero();            // grip centre, m
+  Eigen::Quaterniond q_DT = Eigen::Quaterniond::Identity();  // grip rotation
+  double grasp = 1.5707963267948966;                         // rad
 };
 
 // A time-ordered list of samples with interpolation.
@@ -65,11 +64,12 @@ Trajectory ApproachPressRelease(const Eigen::Vector3d& start, const Eigen::Vecto
 // starting at center + radius·u (u ⟂ axis), eased in and out.
 Trajectory Circle(const Eigen::Vector3d& center, double radius, const Eigen::Vector3d& axis,
                   double turns, double duration, double rate);
-// Rotates the grip about `axis` (through its centre `center`) as amplitude·sin(2π t/duration·cycles).
+// Rotates the grip about `axis` (through its centre `center`) as amplitude·sin(2π
+// t/duration·cycles).
 Trajectory Twist(const Eigen::Vector3d& center, const Eigen::Vector3d& axis, double amplitude,
                  double cycles, double duration, double rate);
 // Closes the grasp from π/2 to `grasp_min` and opens it again, `cycles` times.
-Trajectory Squeeze(const Eigen::Vector3d& center, double grasp_min, double cycles,
-                   double duration, double rate);
+Trajectory Squeeze(const Eigen::Vector3d& center, double grasp_min, double cycles, double duration,
+                   double rate);
 
 }  // namespace spidarcad::haptics

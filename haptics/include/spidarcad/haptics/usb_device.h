@@ -35,17 +35,17 @@ struct UsbDeviceConfig {
 
 // What the driver saw on the link since construction.
 struct UsbLinkStats {
-  std::uint64_t states = 0;          // fresh valid State packets accepted
-  std::uint64_t timeouts = 0;        // Reads where nothing arrived
-  std::uint64_t corrupt = 0;         // bad length, magic or CRC
-  std::uint64_t wrong_version = 0;   // valid packets of another protocol version
-  std::uint64_t wrong_type = 0;      // valid packets of an unexpected type
-  std::uint64_t stale = 0;           // State not newer than the last accepted (reordered/repeat)
-  std::uint64_t lost = 0;            // State sequence numbers skipped
-  std::uint64_t send_failures = 0;   // Commands that could not be sent
+  std::uint64_t states = 0;            // fresh valid State packets accepted
+  std::uint64_t timeouts = 0;          // Reads where nothing arrived
+  std::uint64_t corrupt = 0;           // bad length, magic or CRC
+  std::uint64_t wrong_version = 0;     // valid packets of another protocol version
+  std::uint64_t wrong_type = 0;        // valid packets of an unexpected type
+  std::uint64_t stale = 0;             // State not newer than the last accepted (reordered/repeat)
+  std::uint64_t lost = 0;              // State sequence numbers skipped
+  std::uint64_t send_failures = 0;     // Commands that could not be sent
   std::uint64_t comm_error_ticks = 0;  // Reads that returned kCommError
-  std::uint64_t disconnects = 0;     // transport closed by the driver or unplugged
-  std::uint64_t connects = 0;        // successful handshakes
+  std::uint64_t disconnects = 0;       // transport closed by the driver or unplugged
+  std::uint64_t connects = 0;          // successful handshakes
 };
 
 // The driver. Read/WriteTensions/status are noexcept, allocation-free and lock-free on a
@@ -74,7 +74,10 @@ class UsbSpidarG final : public Device {
   DeviceStatus status() const noexcept override { return status_; }
 
   // Latches a software emergency stop on the board (true) or clears it (false).
-  void SetEmergencyStop(bool stop) noexcept { emergency_stop_ = stop; clear_stop_ = !stop; }
+  void SetEmergencyStop(bool stop) noexcept {
+    emergency_stop_ = stop;
+    clear_stop_ = !stop;
+  }
   // Link statistics.
   const UsbLinkStats& stats() const noexcept { return stats_; }
   // The board's HelloReply from the last successful handshake.

@@ -50,20 +50,20 @@ enum class PacketType : std::uint8_t {
 };
 
 // Command flags (Command offset 24).
-inline constexpr std::uint8_t kCommandEnable = 0x01;   // drive the motors (else all off)
-inline constexpr std::uint8_t kCommandStop = 0x02;     // software emergency stop (latched)
+inline constexpr std::uint8_t kCommandEnable = 0x01;      // drive the motors (else all off)
+inline constexpr std::uint8_t kCommandStop = 0x02;        // software emergency stop (latched)
 inline constexpr std::uint8_t kCommandClearFault = 0x04;  // clear a latched fault / stop
 
 // State flags (State offset 53).
-inline constexpr std::uint8_t kStateMotorsEnabled = 0x01;  // motor drivers on
+inline constexpr std::uint8_t kStateMotorsEnabled = 0x01;    // motor drivers on
 inline constexpr std::uint8_t kStateWatchdogTripped = 0x02;  // commands stopped; motors off
-inline constexpr std::uint8_t kStateEmergencyStop = 0x04;  // e-stop (button or kCommandStop)
-inline constexpr std::uint8_t kStateFault = 0x08;          // driver / encoder fault
+inline constexpr std::uint8_t kStateEmergencyStop = 0x04;    // e-stop (button or kCommandStop)
+inline constexpr std::uint8_t kStateFault = 0x08;            // driver / encoder fault
 
 // Host -> board: open a session. Motors stay off until a Command with kCommandEnable.
 struct HelloPacket {
-  std::uint32_t sequence = 0;       // host sequence number
-  std::uint16_t watchdog_ms = 20;   // requested watchdog period, ms (board clamps to 5..1000)
+  std::uint32_t sequence = 0;      // host sequence number
+  std::uint16_t watchdog_ms = 20;  // requested watchdog period, ms (board clamps to 5..1000)
 };
 
 // Board -> host: answer to Hello.
@@ -79,19 +79,19 @@ struct HelloReplyPacket {
 
 // Host -> board: motor command.
 struct CommandPacket {
-  std::uint32_t sequence = 0;                    // host sequence, +1 per command
+  std::uint32_t sequence = 0;                           // host sequence, +1 per command
   std::array<std::uint16_t, kNumStrings> tension_mn{};  // string tensions, mN (0..65535)
-  std::uint8_t flags = 0;                        // kCommand* bits
+  std::uint8_t flags = 0;                               // kCommand* bits
 };
 
 // Board -> host: one encoder sample.
 struct StatePacket {
-  std::uint32_t sequence = 0;          // board sample counter, +1 per sample
-  std::uint64_t time_us = 0;           // board time of the sample, µs since power-up
+  std::uint32_t sequence = 0;                      // board sample counter, +1 per sample
+  std::uint64_t time_us = 0;                       // board time of the sample, µs since power-up
   std::array<std::int32_t, kNumStrings> counts{};  // encoder counters since homing
-  std::uint32_t command_sequence = 0;  // sequence of the last Command the board applied
-  std::uint8_t slack_mask = 0;         // bit i: string i commanded below the slack threshold
-  std::uint8_t flags = 0;              // kState* bits
+  std::uint32_t command_sequence = 0;              // sequence of the last Command the board applied
+  std::uint8_t slack_mask = 0;  // bit i: string i commanded below the slack threshold
+  std::uint8_t flags = 0;       // kState* bits
 };
 
 // Why a buffer was not accepted.

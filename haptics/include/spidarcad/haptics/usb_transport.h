@@ -54,8 +54,8 @@ class Transport {
                                int timeout_ms) noexcept = 0;
   // Receives one transfer of at most `capacity` bytes into `data`; `*received` is its length.
   // timeout_ms <= 0: only what is already buffered (usbfs: the shortest wait, 1 ms).
-  virtual TransportResult Receive(std::uint8_t* data, std::size_t capacity,
-                                  std::size_t* received, int timeout_ms) noexcept = 0;
+  virtual TransportResult Receive(std::uint8_t* data, std::size_t capacity, std::size_t* received,
+                                  int timeout_ms) noexcept = 0;
   // Human-readable detail of the last failure (empty if none). Points to a fixed buffer.
   virtual const char* last_error() const noexcept = 0;
 };
@@ -92,8 +92,7 @@ class LibusbTransport final : public Transport {
   TransportResult TransferFailed(const char* what, TransportResult result,
                                  int error_number) noexcept;
   // Opens the device node of bus/address, wraps it in a libusb handle. Sets error_ on failure.
-  TransportResult OpenNode(int bus, int address, libusb_device_handle** handle,
-                           int* fd) noexcept;
+  TransportResult OpenNode(int bus, int address, libusb_device_handle** handle, int* fd) noexcept;
 
   std::uint16_t vendor_id_;
   std::uint16_t product_id_;
@@ -101,8 +100,8 @@ class LibusbTransport final : public Transport {
   libusb_context* context_ = nullptr;
   libusb_device_handle* handle_ = nullptr;
   bool kernel_driver_detached_ = false;
-  int fd_ = -1;        // the usbfs device node under handle_ (libusb_close does not close it)
-  bool lost_ = false;  // a transfer found the device gone; handle_ awaits release off the tick
+  int fd_ = -1;             // the usbfs device node under handle_ (libusb_close does not close it)
+  bool lost_ = false;       // a transfer found the device gone; handle_ awaits release off the tick
   bool abandoned_ = false;  // Abandon() was called; handle_ awaits release off the tick
   char error_[200] = {};
 };
@@ -111,18 +110,18 @@ class LibusbTransport final : public Transport {
 struct UsbBoardInfo {
   std::uint16_t vendor_id = 0;
   std::uint16_t product_id = 0;
-  int bus = 0;                 // bus number
-  int address = 0;             // device address on the bus
-  std::string serial;          // serial number string; empty if it could not be read
-  bool accessible = false;     // the current user could open it
-  std::string access_error;    // why it could not be opened (when !accessible)
+  int bus = 0;               // bus number
+  int address = 0;           // device address on the bus
+  std::string serial;        // serial number string; empty if it could not be read
+  bool accessible = false;   // the current user could open it
+  std::string access_error;  // why it could not be opened (when !accessible)
 };
 
 // Result of scanning the bus for boards.
 struct UsbEnumeration {
-  bool usb_available = false;      // libusb initialised
-  std::string error;               // why not (when !usb_available)
-  int devices_seen = 0;            // USB devices of any kind on the system
+  bool usb_available = false;        // libusb initialised
+  std::string error;                 // why not (when !usb_available)
+  int devices_seen = 0;              // USB devices of any kind on the system
   std::vector<UsbBoardInfo> boards;  // matching vendor/product id
 };
 

@@ -14,9 +14,9 @@ namespace spidarcad::haptics {
 
 // Why MaxWrenchAlong gave the answer it gave.
 enum class DeliverableStatus : std::uint8_t {
-  kOk = 0,        // s_max is exact; may be negative when e itself cannot be displayed at all
-  kInfeasible,    // no tensions in [τ_min, τ_max] give A τ on the line s·e (not even s = 0)
-  kSingular,      // rank(A) < 7 or non-finite input: the pose is degenerate
+  kOk = 0,      // s_max is exact; may be negative when e itself cannot be displayed at all
+  kInfeasible,  // no tensions in [τ_min, τ_max] give A τ on the line s·e (not even s = 0)
+  kSingular,    // rank(A) < 7 or non-finite input: the pose is degenerate
 };
 
 // Result of MaxWrenchAlong.
@@ -54,11 +54,11 @@ struct WorkspaceSweepSettings {
 // +axis / −axis, `grasp_close`/`grasp_open` the deliverable grasp torque g > 0 / g < 0 (as a
 // positive magnitude). Units N and N·m; a value is 0 when the direction cannot be displayed.
 struct WorkspaceSample {
-  std::string sweep;       // "translate" or "rotate"
-  char axis = 'x';         // 'x', 'y' or 'z'
-  int sign = +1;           // +1 or -1
-  double distance = 0;     // m from the centre (translate), 0 for rotate
-  double angle_deg = 0;    // rotation angle (rotate), 0 for translate
+  std::string sweep;     // "translate" or "rotate"
+  char axis = 'x';       // 'x', 'y' or 'z'
+  int sign = +1;         // +1 or -1
+  double distance = 0;   // m from the centre (translate), 0 for rotate
+  double angle_deg = 0;  // rotation angle (rotate), 0 for translate
   double force = 0;
   double force_min = 0;
   double moment_pos = 0;
@@ -77,10 +77,10 @@ std::vector<WorkspaceSample> SweepWorkspace(const SpidarGeometry& geometry,
 struct SweepFalloff {
   char axis = 'x';
   int sign = +1;
-  double centre = 0;          // value at the centre (N for translate, N·m for rotate)
-  double full = 0;            // min(centre, rated) when rated > 0, else centre
-  double last_full = 0;       // largest distance (m) / angle (deg) with value >= 95 % of full
-  double first_zero = 0;      // smallest distance / angle with value <= 1 % of full (NaN: never)
+  double centre = 0;      // value at the centre (N for translate, N·m for rotate)
+  double full = 0;        // min(centre, rated) when rated > 0, else centre
+  double last_full = 0;   // largest distance (m) / angle (deg) with value >= 95 % of full
+  double first_zero = 0;  // smallest distance / angle with value <= 1 % of full (NaN: never)
 };
 
 // Fall-off of each translation sweep (force) and rotation sweep (min of moment_pos, moment_neg).

@@ -9,12 +9,11 @@
 // specializes every cell): build it off the haptic thread.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
 
@@ -22,19 +21,20 @@ namespace spidarcad::modeling {
 
 // Grid of a CellSpecializedSolid. SI units.
 struct CellSpecializationSettings {
-  double cell_size = 0.005;  // edge of a cubic cell, m (> 0); grown if the grid would exceed max_cells
-  int max_cells = 1 << 18;   // cap on the number of cells (> 0)
+  double cell_size =
+      0.005;  // edge of a cubic cell, m (> 0); grown if the grid would exceed max_cells
+  int max_cells = 1 << 18;  // cap on the number of cells (> 0)
 };
 
 // Build figures of a CellSpecializedSolid.
 struct CellSpecializationStats {
-  int cells = 0;                  // cells in the grid
-  int specialized_cells = 0;      // cells whose tape is shorter than the full one
-  int distinct_tapes = 0;         // distinct pruned tapes stored (identical ones are shared)
-  double mean_instructions = 0;   // instructions per cell, averaged over all cells
-  int full_instructions = 0;      // instructions of the full tape
-  double cell_size = 0;           // the cell edge used, m
-  double build_seconds = 0;       // wall time of the construction, s
+  int cells = 0;                 // cells in the grid
+  int specialized_cells = 0;     // cells whose tape is shorter than the full one
+  int distinct_tapes = 0;        // distinct pruned tapes stored (identical ones are shared)
+  double mean_instructions = 0;  // instructions per cell, averaged over all cells
+  int full_instructions = 0;     // instructions of the full tape
+  double cell_size = 0;          // the cell edge used, m
+  double build_seconds = 0;      // wall time of the construction, s
 };
 
 // A CompiledSolid (frame W) with a grid of specialized tapes over a region of W. Points
@@ -43,7 +43,8 @@ class CellSpecializedSolid {
  public:
   // Specializes `solid` on every cell of a grid covering region_W (m, frame W). Throws
   // std::invalid_argument for a null solid, an empty or non-finite region or bad settings.
-  CellSpecializedSolid(std::shared_ptr<const CompiledSolid> solid, const Eigen::AlignedBox3d& region_W,
+  CellSpecializedSolid(std::shared_ptr<const CompiledSolid> solid,
+                       const Eigen::AlignedBox3d& region_W,
                        const CellSpecializationSettings& settings = {});
 
   // Value at p_W (m), bit-identical to solid().Value(p_W).
@@ -63,10 +64,10 @@ class CellSpecializedSolid {
 
  private:
   std::shared_ptr<const CompiledSolid> solid_;
-  std::vector<CompiledSolid> tapes_;    // distinct pruned tapes; tape index k > 0 is tapes_[k - 1]
+  std::vector<CompiledSolid> tapes_;  // distinct pruned tapes; tape index k > 0 is tapes_[k - 1]
   std::vector<std::uint32_t> cell_tape_;  // per cell (x fastest): 0 the full tape, else k
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // min corner of the grid, m
-  double inverse_cell_ = 0.0;                          // 1 / cell size, 1/m
+  double inverse_cell_ = 0.0;                         // 1 / cell size, 1/m
   int nx_ = 0, ny_ = 0, nz_ = 0;
   CellSpecializationStats stats_;
 };

@@ -15,14 +15,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <atomic>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/surface_mesher.h"

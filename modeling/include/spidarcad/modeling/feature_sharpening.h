@@ -74,7 +74,7 @@ struct FeatureStats {
 // (see the top of this file). Returns the sharpened mesh, same vertex and triangle counts.
 // Throws std::invalid_argument for bad settings or a mesh that is not a closed edge-manifold
 // (index out of range, an edge not shared by exactly two triangles), MeshingCancelled on cancel.
-TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh, const FeatureSettings& settings,
-                             FeatureStats* stats = nullptr);
+TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh,
+                             const FeatureSettings& settings, FeatureStats* stats = nullptr);
 
 }  // namespace spidarcad::modeling

@@ -13,11 +13,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
-#include <cstdint>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
 
 #include "spidarcad/modeling/implicit_node.h"
 #include "spidarcad/modeling/interval.h"
@@ -49,10 +48,12 @@ class CompiledSolid {
   // Value at p_W; writes the gradient d value / d p_W (3, world frame) to *gradient_W.
   double ValueAndGradient(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept;
   // Values at the columns of points_W (3 by N) into values (N, preallocated by the caller).
-  void Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points_W, Eigen::Ref<Eigen::VectorXd> values) const noexcept;
+  void Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points_W,
+              Eigen::Ref<Eigen::VectorXd> values) const noexcept;
   // Values and gradients at the columns of points_W (3 by N) into values (N) and
   // gradients_W (3 by N), both preallocated by the caller.
-  void ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points_W, Eigen::Ref<Eigen::VectorXd> values,
+  void ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points_W,
+                          Eigen::Ref<Eigen::VectorXd> values,
                           Eigen::Ref<Eigen::Matrix3Xd> gradients_W) const noexcept;
   // An interval containing the value at every point of box_W (interval arithmetic, tightened
   // per primitive by its Lipschitz bound value(centre) ± L·half-diagonal).
@@ -83,8 +84,23 @@ class CompiledSolid {
 
   // Tape opcodes (public for tools that print the tape).
   enum class Op : std::uint8_t {
-    kSphere, kBox, kRoundedBox, kCylinder, kCapsule, kCone, kTorus, kHalfSpace, kExtrusion,
-    kMin, kMax, kMaxNeg, kSmoothMin, kSmoothMax, kSmoothMaxNeg, kOffset, kShell,
+    kSphere,
+    kBox,
+    kRoundedBox,
+    kCylinder,
+    kCapsule,
+    kCone,
+    kTorus,
+    kHalfSpace,
+    kExtrusion,
+    kMin,
+    kMax,
+    kMaxNeg,
+    kSmoothMin,
+    kSmoothMax,
+    kSmoothMaxNeg,
+    kOffset,
+    kShell,
     kNeg,  // negates the top of the stack (emitted only by Specialize)
   };
   // One tape instruction: opcode and the offset of its constants in the constant pool.

@@ -12,12 +12,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
 #include <stdexcept>
 #include <string>
 #include <variant>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace spidarcad::modeling {
 
@@ -133,10 +132,9 @@ struct PolarArrayParams {
 using NodeParams =
     std::variant<SphereParams, BoxParams, RoundedBoxParams, CylinderParams, CapsuleParams,
                  ConeParams, TorusParams, HalfSpaceParams, ExtrusionParams, UnionParams,
-                 IntersectionParams, DifferenceParams, SmoothUnionParams,
-                 SmoothIntersectionParams, SmoothDifferenceParams, OffsetParams, ShellParams,
-                 TranslateParams, RotateParams, ScaleParams, MirrorParams, LinearArrayParams,
-                 PolarArrayParams>;
+                 IntersectionParams, DifferenceParams, SmoothUnionParams, SmoothIntersectionParams,
+                 SmoothDifferenceParams, OffsetParams, ShellParams, TranslateParams, RotateParams,
+                 ScaleParams, MirrorParams, LinearArrayParams, PolarArrayParams>;
 
 // One node of an implicit solid. Primitives have no children; every other node has at least
 // one (difference at least two). A non-boolean node with several children acts on their union.

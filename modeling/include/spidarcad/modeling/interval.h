@@ -36,7 +36,8 @@ inline Interval operator*(Interval a, double s) noexcept {
 inline Interval operator*(double s, Interval a) noexcept { return a * s; }
 inline Interval operator*(Interval a, Interval b) noexcept {
   const double p1 = a.lo * b.lo, p2 = a.lo * b.hi, p3 = a.hi * b.lo, p4 = a.hi * b.hi;
-  return {std::min(std::min(p1, p2), std::min(p3, p4)), std::max(std::max(p1, p2), std::max(p3, p4))};
+  return {std::min(std::min(p1, p2), std::min(p3, p4)),
+          std::max(std::max(p1, p2), std::max(p3, p4))};
 }
 
 // Interval of |x| over a.
@@ -60,8 +61,12 @@ inline Interval Min(Interval a, Interval b) noexcept {
 inline Interval Max(Interval a, Interval b) noexcept {
   return {std::max(a.lo, b.lo), std::max(a.hi, b.hi)};
 }
-inline Interval Min(Interval a, double b) noexcept { return {std::min(a.lo, b), std::min(a.hi, b)}; }
-inline Interval Max(Interval a, double b) noexcept { return {std::max(a.lo, b), std::max(a.hi, b)}; }
+inline Interval Min(Interval a, double b) noexcept {
+  return {std::min(a.lo, b), std::min(a.hi, b)};
+}
+inline Interval Max(Interval a, double b) noexcept {
+  return {std::max(a.lo, b), std::max(a.hi, b)};
+}
 // Interval of clamp(x, lo, hi) over a (requires lo <= hi).
 inline Interval Clamp(Interval a, double lo, double hi) noexcept { return Min(Max(a, lo), hi); }
 // Intersection of two intervals known to share the true range (used to combine two valid bounds).

@@ -5,14 +5,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
-#include <nlohmann/json.hpp>
 
 #include "spidarcad/modeling/implicit_node.h"
 
@@ -38,22 +37,22 @@ struct Solid {
 // Where an assembly part fits on another part: its pose in the other part's frame O when
 // seated, X_OS = (position, rotation), and how close a release must come to snap to it.
 struct SceneSeat {
-  std::string on;                                                  // the other part's name
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();              // p_OS, m
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();    // R_OS (unit)
-  double position_tolerance = 2e-3;                                // m, >= 0
-  double angle_tolerance = 0.1;                                    // rad, >= 0
+  std::string on;                                                // the other part's name
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();            // p_OS, m
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // R_OS (unit)
+  double position_tolerance = 2e-3;                              // m, >= 0
+  double angle_tolerance = 0.1;                                  // rad, >= 0
 };
 
 // A rigid part of an assembly scene (docs/scene-format.md, "parts"): a solid of the scene is its
 // geometry in the part's own frame P, placed in the world at X_WP = (position, rotation).
 struct ScenePart {
-  std::string name;                                                // unique, not empty
-  std::string solid;                                               // name of a solid of the scene
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();              // p_WP, m
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();    // R_WP (unit)
-  bool fixed = false;                                              // true: "kind": "fixed"; false: "graspable"
-  std::vector<SceneSeat> seats;                                    // where it fits
+  std::string name;                                              // unique, not empty
+  std::string solid;                                             // name of a solid of the scene
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();            // p_WP, m
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // R_WP (unit)
+  bool fixed = false;            // true: "kind": "fixed"; false: "graspable"
+  std::vector<SceneSeat> seats;  // where it fits
 };
 
 // Snap forces of a scene (docs/scene-format.md, "snap"): a gentle pull of the grip toward the
@@ -78,7 +77,8 @@ struct Scene {
 class SceneError : public std::runtime_error {
  public:
   // line and column are 1-based, 0 when unknown; pointer is a JSON pointer ("" for the file).
-  SceneError(const std::string& file, int line, int column, const std::string& pointer, const std::string& what);
+  SceneError(const std::string& file, int line, int column, const std::string& pointer,
+             const std::string& what);
   const std::string& file() const { return file_; }
   int line() const { return line_; }
   int column() const { return column_; }

@@ -46,14 +46,13 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <numbers>
 #include <unordered_map>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "spidarcad/modeling/surface_mesher.h"
 
@@ -131,7 +130,8 @@ struct SculptWrench {
 //   grab f = -k s Δp; push/pull f = -k s (Δp·n) n; smooth f = -0.1 k s Δp;
 //   twist m = -k R² s α z; bend m = -k R² s φ u.
 // Real-time safe: no allocation, no exceptions; zero wrench when !model.active.
-SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Isometry3d& X_WT, double theta) noexcept;
+SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Isometry3d& X_WT,
+                                 double theta) noexcept;
 
 // A change of a SculptMesh made by one stroke (positions and refinement), enough to undo and
 // redo it. Triangles are 3-vectors of vertex indices (CCW from outside).
@@ -159,13 +159,13 @@ struct SculptEdit {
 
 // Figures of the last UpdateStroke.
 struct StrokeStats {
-  int affected_vertices = 0;    // vertices within the radius (the ones the field moves)
-  int affected_triangles = 0;   // triangles with an affected corner
-  int normal_updates = 0;       // vertices whose normal was recomputed
-  int volume_iterations = 0;    // Newton iterations of the volume correction
-  double start_volume = 0.0;    // enclosed volume at BeginStroke (m³)
-  double volume = 0.0;          // enclosed volume now (m³), incremental
-  double strength = 0.0;        // grab strength s used
+  int affected_vertices = 0;   // vertices within the radius (the ones the field moves)
+  int affected_triangles = 0;  // triangles with an affected corner
+  int normal_updates = 0;      // vertices whose normal was recomputed
+  int volume_iterations = 0;   // Newton iterations of the volume correction
+  double start_volume = 0.0;   // enclosed volume at BeginStroke (m³)
+  double volume = 0.0;         // enclosed volume now (m³), incremental
+  double strength = 0.0;       // grab strength s used
 };
 
 // A closed, edge-manifold, consistently oriented triangle mesh being sculpted: positions,
@@ -228,7 +228,8 @@ class SculptMesh {
   // Splits every edge of the given triangles (and of the triangles the splits create) longer
   // than max_edge_length (m) at its midpoint, keeping the mesh closed and consistently oriented.
   // Records the changes into *edit when given. Returns the number of splits (at most max_splits).
-  long Refine(const std::vector<int>& triangles, double max_edge_length, int max_splits, SculptEdit* edit = nullptr);
+  long Refine(const std::vector<int>& triangles, double max_edge_length, int max_splits,
+              SculptEdit* edit = nullptr);
 
  private:
   using CellKey = std::uint64_t;
@@ -253,7 +254,8 @@ class SculptMesh {
   std::unordered_map<CellKey, std::vector<int>> grid_;
   std::vector<CellKey> vertex_cell_;
   double volume_ = 0.0;
-  // Scratch marks (one per vertex / triangle) with a stamp, so that sets are built without clearing.
+  // Scratch marks (one per vertex / triangle) with a stamp, so that sets are built without
+  // clearing.
   mutable std::vector<std::uint32_t> vertex_mark_;
   mutable std::vector<std::uint32_t> triangle_mark_;
   mutable std::uint32_t stamp_ = 0;

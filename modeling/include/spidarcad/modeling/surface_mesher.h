@@ -17,8 +17,9 @@
 // cell across) the few that cannot be merged are moved up to a twentieth of their grid edge
 // into the solid, as far as their triangles allow without folding.
 // So no two vertices of the clean mesh are within TetrahedralizeSurface's weld tolerance (1e-10
-// of the box diagonal): welding, which can make a closed manifold non-manifold, finds nothing. A wall exactly one cell thick with both faces on grid planes has
-// no grid vertex inside and is lost: use cells under half the thinnest wall.
+// of the box diagonal): welding, which can make a closed manifold non-manifold, finds nothing. A
+// wall exactly one cell thick with both faces on grid planes has no grid vertex inside and is lost:
+// use cells under half the thinnest wall.
 //
 // Limits: sharp edges of boxes and booleans are cut off by up to about one cell here;
 // SharpenFeatures (feature_sharpening.h) restores them as a post-pass.
@@ -89,7 +90,8 @@ class MeshingCancelled : public std::runtime_error {
 // surface. A resolution finer than kMinFindBoundsFraction of the search box's largest side is
 // raised to it, which bounds that cost (and the depth) whatever the resolution (even 5e-324).
 // Throws std::invalid_argument for a non-finite or empty search box or a resolution not > 0.
-Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search, double resolution);
+Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
+                               double resolution);
 // Finest resolution FindBounds descends to, as a fraction of the search box's largest side.
 inline constexpr double kMinFindBoundsFraction = 1.0 / (1 << 16);
 

@@ -75,7 +75,8 @@ struct TetMeshSettings {
   // Polled between stages; when true TetrahedralizeSurface throws TetMeshingCancelled.
   // (TetGen itself cannot be interrupted.)
   const std::atomic<bool>* cancel = nullptr;
-  // Called with the fraction done at stage boundaries (0; 0.2 after the check; 0.9 after TetGen; 1).
+  // Called with the fraction done at stage boundaries (0; 0.2 after the check; 0.9 after TetGen;
+  // 1).
   std::function<void(double)> progress;
 };
 
@@ -100,12 +101,14 @@ void CheckSurface(const TriangleMesh& surface);
 // keeping its position), drops unused vertices and the triangles that lose a corner to the
 // welding. Indices must be in range (SurfaceDefectError otherwise). Returns the number of
 // vertices welded and triangles dropped in *welded and *dropped when given.
-TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* welded = nullptr, long* dropped = nullptr);
+TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* welded = nullptr,
+                           long* dropped = nullptr);
 
 // Tetrahedralizes the solid surface bounds: TetGen with `p` (keep the surface), `z`, `A`
-// (regions), and `q`, `a`, `Y`, `M` as set. The first nodes of the output are the vertices of the (repaired) surface,
-// in order; TetGen's Steiner points follow. Output tets are positively oriented (see TetMesh). Throws
-// std::invalid_argument for bad settings, SurfaceDefectError, TetgenError, TetMeshingCancelled.
+// (regions), and `q`, `a`, `Y`, `M` as set. The first nodes of the output are the vertices of the
+// (repaired) surface, in order; TetGen's Steiner points follow. Output tets are positively oriented
+// (see TetMesh). Throws std::invalid_argument for bad settings, SurfaceDefectError, TetgenError,
+// TetMeshingCancelled.
 TetMesh TetrahedralizeSurface(const TriangleMesh& surface, const TetMeshSettings& settings = {},
                               TetMeshStats* stats = nullptr);
 
