@@ -775,5 +775,35 @@ TEST(SpidarcadWindow, RefusesABadSceneFileWithStatusTwo) {
   EXPECT_NE(output.find("/nonexistent/scene.json"), std::string::npos) << output;
 }
 
+TEST(SpidarcadWindow, ReadsTheDeviceThroughACalibrationFileAndRefusesAForeignOne) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
+  const std::string exe = std::string("'") + SPIDARCAD_EXE + "'";
+  const std::string cal = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_calibration_seed2.json";
+  std::string output;
+  ASSERT_EQ(RunCommand(exe + " calibrate --simulated --seed 2 --out '" + cal + "' 2>&1", &output),
+            0)
+      << output;
+  // Seed 2's own calibration: the window runs, and FK accepts every tick at rest.
+  EXPECT_EQ(
+      RunCommand(exe + " none --seed 2 --calibration '" + cal + "' --frames 20 2>&1", &output), 0)
+      << output;
+  EXPECT_NE(output.find("fk_refused=0 "), std::string::npos) << output;
+  // The default device is seed 1: another device's file is refused, naming both seeds.
+  EXPECT_EQ(RunCommand(exe + " none --calibration '" + cal + "' --frames 1 2>&1", &output), 2)
+      << output;
+  EXPECT_NE(output.find("does not fit"), std::string::npos) << output;
+  EXPECT_NE(output.find("seed 2"), std::string::npos) << output;
+  // So is a frame it was not made on, and a nonsensical frame.
+  EXPECT_EQ(RunCommand(exe + " none --seed 2 --frame 0.3,0.24,0.24 --calibration '" + cal +
+                           "' --frames 1 2>&1",
+                       &output),
+            2)
+      << output;
+  EXPECT_NE(output.find("--frame 0.3,0.24,0.24"), std::string::npos) << output;
+  EXPECT_EQ(RunCommand(exe + " none --pole -1 --frames 1 2>&1", &output), 2) << output;
+  EXPECT_NE(output.find("--frame/--pole"), std::string::npos) << output;
+}
+
 }  // namespace
 }  // namespace spidarcad::app

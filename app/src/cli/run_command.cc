@@ -25,10 +25,10 @@
 #include <thread>
 #include <vector>
 
-#include "cli/calibration_file.h"
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "scene/assembly_scene.h"
+#include "scene/calibration_file.h"
 #include "scene/device_rig.h"
 #include "scene/scene_haptics.h"
 #include "spidarcad/haptics/haptic_loop.h"

@@ -27,6 +27,7 @@
 #include <Eigen/Geometry>
 
 #include "doc/assets.h"
+#include "doc/input_error.h"
 #include "doc/job.h"
 #include "gui/device_view.h"
 #include "gui/gl_capture.h"
@@ -265,6 +266,14 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     throw WindowStartError(2, "spidarcad: error: --device: '" + options.device +
                                   "' is not a device; use simulated, ideal, board-sim or usb");
   }
+  s.runtime_settings.seed = options.seed;
+  s.runtime_settings.geometry = options.geometry;
+  s.runtime_settings.calibration_file = options.calibration;
+  try {
+    options.geometry.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw WindowStartError(2, std::string("spidarcad: error: --frame/--pole: ") + e.what());
+  }
 
   // The window.
   glfwSetErrorCallback(GlfwError);
@@ -292,10 +301,17 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   // The haptic runtime (its own 1 kHz thread, started once the modes have published) and jobs.
   s.runtime_settings.loop.world_scale = s.model.device_to_world().world_scale;
   s.runtime_settings.loop.p_WDo = s.model.device_to_world().p_WDo;
-  s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  try {
+    s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  } catch (const InputError& e) {
+    throw WindowStartError(2, std::string("spidarcad: error: ") + e.what());
+  }
   if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
     std::cerr << "spidarcad: " << s.runtime->link_at_start()
               << "\nspidarcad: the window runs at zero force and retries the board.\n";
+  }
+  if (!s.runtime->calibration_note().empty()) {
+    std::cerr << "spidarcad: " << s.runtime->calibration_note() << "\n";
   }
   s.geometry = &s.runtime->info().geometry;
   const haptics::TensionSettings& tension = s.runtime->loop().settings().tension;
