@@ -92,25 +92,27 @@ Eigen::Isometry3d TargetPose(SculptTool tool, const Eigen::Isometry3d& X0, doubl
   return X;
 }
 
-SculptToolSettings Settings(SculptTool tool, double radius, bool conserve) {
+SculptToolSettings Settings(SculptTool tool, double radius, bool conserve, bool check = true) {
   SculptToolSettings s;
   s.tool = tool;
   s.radius = radius;
   s.grasp_controls_strength = false;
   s.conserve_volume = conserve;
+  s.prevent_self_intersection = check;
   return s;
 }
 
-// One UpdateStroke; args: tool, radius (mm), conserve (0/1).
+// One UpdateStroke; args: tool, radius (mm), conserve (0/1), self-intersection check (0/1).
 void BM_StrokeStep(benchmark::State& state) {
   const auto tool = static_cast<SculptTool>(state.range(0));
   const double radius = state.range(1) * 1e-3;
   const bool conserve = state.range(2) != 0;
+  const bool check = state.range(3) != 0;
   SculptMesh& sculpt = Sculpt();
   const Eigen::Isometry3d X0 = StartPose(sculpt);
   const Eigen::Isometry3d full = TargetPose(tool, X0, radius, 1.0),
                           half = TargetPose(tool, X0, radius, 0.5);
-  sculpt.BeginStroke(Settings(tool, radius, conserve), X0, 0.0);
+  sculpt.BeginStroke(Settings(tool, radius, conserve, check), X0, 0.0);
   long i = 0;
   for (auto _ : state) {
     sculpt.UpdateStroke((i++ & 1) ? half : full, 0.0);
@@ -123,14 +125,19 @@ void BM_StrokeStep(benchmark::State& state) {
   state.counters["vol_err_pct"] =
       100.0 * std::abs(sculpt.ComputeVolume() / stats.start_volume - 1.0);
   state.counters["newton"] = stats.volume_iterations;
-  state.SetLabel(std::string(SculptToolName(tool)) + (conserve ? " conserve" : ""));
+  state.counters["limit"] = stats.limit;
+  state.counters["checks"] = stats.intersection_checks;
+  state.SetLabel(std::string(SculptToolName(tool)) + (conserve ? " conserve" : "") +
+                 (check ? " checked" : ""));
   sculpt.CancelStroke();
 }
 
 void StepArgs(benchmark::internal::Benchmark* b) {
   for (int tool = 0; tool < 5; ++tool) {
     for (int radius : {10, 30}) {
-      for (int conserve : {0, 1}) b->Args({tool, radius, conserve});
+      for (int conserve : {0, 1}) {
+        for (int check : {0, 1}) b->Args({tool, radius, conserve, check});
+      }
     }
   }
 }

@@ -206,6 +206,15 @@ SculptMesh::SculptMesh(const TriangleMesh& mesh, double grid_cell) : grid_cell_(
   vertex_cell_.resize(V);
   for (Eigen::Index v = 0; v < V; ++v) GridInsert(static_cast<int>(v));
   volume_ = ComputeVolume();
+  for (Eigen::Index t = 0; t < F; ++t) BoundEdges(static_cast<int>(t));
+}
+
+void SculptMesh::BoundEdges(int t) {
+  const Eigen::Vector3i& tri = triangles_[t];
+  for (int k = 0; k < 3; ++k) {
+    longest_edge_ =
+        std::max(longest_edge_, (positions_[tri[(k + 1) % 3]] - positions_[tri[k]]).norm());
+  }
 }
 
 TriangleMesh SculptMesh::ToTriangleMesh() const {
@@ -445,6 +454,10 @@ void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Is
   force_model_.normal_W = mean_norm > 0.0 ? Eigen::Vector3d(mean_normal / mean_norm)
                                           : Eigen::Vector3d(X_WT.linear().col(2));
 
+  // A region that already intersects itself (an imported mesh, say) would stop every stroke at
+  // once: it is not checked.
+  check_intersections_ = settings.prevent_self_intersection && !MovedRegionIntersects();
+
   stats_ = StrokeStats{};
   stats_.affected_vertices = static_cast<int>(n);
   stats_.affected_triangles = static_cast<int>(affected_triangles_.size());
@@ -539,12 +552,34 @@ void SculptMesh::ConserveVolume() {
   }
 }
 
+void SculptMesh::Deform(const Eigen::Isometry3d& X_WT, double s) {
+  ApplyField(X_WT, s);
+  if (settings_.conserve_volume) ConserveVolume();
+}
+
 void SculptMesh::UpdateStroke(const Eigen::Isometry3d& X_WT, double theta) {
   if (!stroke_active_) throw std::logic_error("SculptMesh::UpdateStroke: no active stroke");
   if (!X_WT.matrix().allFinite()) return;  // ignore a bad sample rather than corrupt the mesh
   const double s = Strength(settings_.grasp_controls_strength, theta, settings_.grasp_closed_angle);
-  ApplyField(X_WT, s);
-  if (settings_.conserve_volume) ConserveVolume();
+  Deform(X_WT, s);
+  stats_.limit = 1.0;
+  stats_.intersection_checks = 0;
+  if (check_intersections_ && s > 0.0) {
+    ++stats_.intersection_checks;
+    if (MovedRegionIntersects()) {
+      // Bisection on the share of the strength: the start (share 0) does not intersect.
+      constexpr int kBisections = 8;  // to 1/256 of the stroke
+      double free = 0.0, crossing = 1.0;
+      for (int k = 0; k < kBisections; ++k) {
+        const double share = 0.5 * (free + crossing);
+        Deform(X_WT, share * s);
+        ++stats_.intersection_checks;
+        (MovedRegionIntersects() ? crossing : free) = share;
+      }
+      Deform(X_WT, free * s);
+      stats_.limit = free;
+    }
+  }
   for (int v : normal_vertices_) RecomputeNormal(v);
   stats_.normal_updates = static_cast<int>(normal_vertices_.size());
   stats_.strength = s;
@@ -575,6 +610,9 @@ SculptEdit SculptMesh::EndStroke() {
         Refine(affected_triangles_, settings_.max_edge_length, settings_.max_splits, &edit);
   }
   edit.new_volume = volume_;
+  // Moved and refined triangles may have longer edges now.
+  for (int t : affected_triangles_) BoundEdges(t);
+  for (int t = edit.old_triangle_count; t < triangle_count(); ++t) BoundEdges(t);
   stroke_active_ = false;
   force_model_.active = false;
   return edit;

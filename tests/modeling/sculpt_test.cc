@@ -575,5 +575,114 @@ TEST(StrokeWrench, ZeroAtStartLinearInDisplacementAndAllocationFree) {
   EXPECT_FALSE(sculpt.force_model().active);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Hard cases: strokes that would fold the surface through itself.
+
+// A lens 10 cm across and 16 mm thick at its centre (an icosphere squashed along z).
+TriangleMesh ThinLens() {
+  TriangleMesh mesh = IcosphereMesh(0.05, 4);
+  mesh.vertices.row(2) *= 0.16;
+  return mesh;
+}
+
+// The independent check: CheckSurface's own grid and exact-sign triangle tests over the whole mesh.
+std::string SurfaceDefect(const TriangleMesh& mesh) {
+  try {
+    CheckSurface(mesh);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Runs one stroke on the lens from its top pole to `X_end` in `steps` updates; returns the mesh.
+TriangleMesh StrokeOnLens(SculptToolSettings tool, const Eigen::Vector3d& drag, int steps,
+                          bool prevent, StrokeStats* stats = nullptr) {
+  SculptMesh mesh(ThinLens(), 0.005);
+  tool.prevent_self_intersection = prevent;
+  const Eigen::Vector3d top(0, 0, 0.008);
+  mesh.BeginStroke(tool, Pose(Eigen::Matrix3d::Identity(), top), 0.0);
+  for (int k = 1; k <= steps; ++k) {
+    mesh.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), top + drag * k / steps), 0.0);
+  }
+  if (stats != nullptr) *stats = mesh.stroke_stats();
+  mesh.EndStroke();
+  return mesh.ToTriangleMesh();
+}
+
+TEST(HardSculpt, GrabbingTheTopThroughTheBottomStopsBeforeTheSurfacesCross) {
+  const SculptToolSettings grab = Tool(SculptTool::kGrab, 0.03);
+  const Eigen::Vector3d drag(0, 0, -0.03);  // the top pole 3 cm down, through the 16 mm lens
+  ASSERT_EQ(SurfaceDefect(ThinLens()), "");
+  // Unchecked, the stroke folds the top through the bottom: the oracle sees it.
+  const std::string folded = SurfaceDefect(StrokeOnLens(grab, drag, 1, false));
+  EXPECT_NE(folded, "") << "the unchecked stroke should cross the bottom";
+  // Checked: no crossing, and the stroke stops just short of where the poles meet. Closed form:
+  // the top pole moves down by t·3 cm, the bottom pole (16 mm from the grab centre) by t·w·3 cm
+  // with w = (1 − (16/30)²)³; they meet at t* = 16 mm / (30 mm (1 − w)) ≈ 0.842. The bisection
+  // keeps the largest multiple of 1/256 below the first crossing.
+  StrokeStats stats;
+  const TriangleMesh kept = StrokeOnLens(grab, drag, 1, true, &stats);
+  EXPECT_EQ(SurfaceDefect(kept), "");
+  const double w = SculptFalloffWeight(0.016, 0.03, SculptFalloffExponent(grab.stiffness));
+  const double t_meet = 0.016 / (0.03 * (1.0 - w));
+  EXPECT_LT(stats.limit, t_meet);
+  EXPECT_GE(stats.limit, t_meet - 1.0 / 256 - 0.01);  // 0.01: the meshes meet slightly earlier
+  EXPECT_EQ(stats.intersection_checks, 9);
+  // The result depends on the final pose only, not on the path (as every stroke).
+  const TriangleMesh stepped = StrokeOnLens(grab, drag, 7, true);
+  EXPECT_EQ((kept.vertices - stepped.vertices).cwiseAbs().maxCoeff(), 0.0);
+  RecordProperty("figure", "share of the stroke applied " + std::to_string(stats.limit) +
+                               "; unchecked: " + folded.substr(0, 80));
+  RecordProperty("bar", "no self-intersection (CheckSurface); share within 1/256 + 0.01 below " +
+                            std::to_string(t_meet) + " (the poles meet)");
+}
+
+TEST(HardSculpt, PushingBothFacesOfTheLensTogetherWithVolumeConservationStopsShort) {
+  SculptToolSettings push = Tool(SculptTool::kPushPull, 0.035);
+  push.conserve_volume = true;
+  const Eigen::Vector3d drag(0, 0, -0.04);
+  EXPECT_NE(SurfaceDefect(StrokeOnLens(push, drag, 1, false)), "");
+  StrokeStats stats;
+  const TriangleMesh kept = StrokeOnLens(push, drag, 3, true, &stats);
+  EXPECT_EQ(SurfaceDefect(kept), "");
+  EXPECT_GT(stats.limit, 0.0);
+  EXPECT_LT(stats.limit, 1.0);
+  // The volume is still conserved at the share applied.
+  EXPECT_NEAR(stats.volume, stats.start_volume, 1e-9 * stats.start_volume);
+  RecordProperty("figure", "share of the stroke applied " + std::to_string(stats.limit));
+  RecordProperty("bar", "no self-intersection (CheckSurface); volume within 1e-9");
+}
+
+TEST(HardSculpt, AStrokeThatDoesNotFoldIsUnchangedByTheCheck) {
+  const SculptToolSettings grab = Tool(SculptTool::kGrab, 0.03);
+  const Eigen::Vector3d lift(0.01, 0, 0.02);  // pulling the top up and aside folds nothing
+  StrokeStats stats;
+  const TriangleMesh checked = StrokeOnLens(grab, lift, 1, true, &stats);
+  const TriangleMesh unchecked = StrokeOnLens(grab, lift, 1, false);
+  EXPECT_EQ(stats.limit, 1.0);
+  EXPECT_EQ(stats.intersection_checks, 1);
+  EXPECT_EQ((checked.vertices - unchecked.vertices).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(SurfaceDefect(checked), "");
+  RecordProperty("figure", "identical to the unchecked stroke");
+  RecordProperty("bar", "bit-identical positions, one check");
+}
+
+TEST(HardSculpt, ARegionThatAlreadyIntersectsItselfIsNotFrozen) {
+  // The folded lens from above, sculpted again near the fold: the check is skipped for this
+  // stroke (it would stop every motion), so the stroke moves the material as asked.
+  const TriangleMesh folded =
+      StrokeOnLens(Tool(SculptTool::kGrab, 0.03), Eigen::Vector3d(0, 0, -0.03), 1, false);
+  ASSERT_NE(SurfaceDefect(folded), "");
+  SculptMesh mesh(folded, 0.005);
+  const Eigen::Vector3d at(0, 0, -0.022);
+  mesh.BeginStroke(Tool(SculptTool::kGrab, 0.01), Pose(Eigen::Matrix3d::Identity(), at), 0.0);
+  mesh.UpdateStroke(Pose(Eigen::Matrix3d::Identity(), at + Eigen::Vector3d(0, 0, -0.002)), 0.0);
+  EXPECT_EQ(mesh.stroke_stats().limit, 1.0);
+  EXPECT_EQ(mesh.stroke_stats().intersection_checks, 0);
+  RecordProperty("figure", "stroke applied in full, no check");
+  RecordProperty("bar", "limit 1");
+}
+
 }  // namespace
 }  // namespace spidarcad::modeling

@@ -36,8 +36,12 @@
 // Haptics: StrokeForceModel is a small copyable value the app can hand to the haptic thread;
 // ComputeStrokeWrench evaluates the resisting wrench without allocating.
 //
-// Limits: nothing stops a large stroke from folding the surface through itself (CheckSurface
-// before TetGen finds that); short edges are not collapsed; refinement splits at straight
+// Self-intersection: with SculptToolSettings::prevent_self_intersection (the default), each update
+// checks the moved triangles against each other and against every triangle near them; when the
+// full stroke would make the surface cross itself, the strength is scaled down by bisection to
+// the largest share (to 1/256) that does not, so the clay stops where it would fold (the share is
+// StrokeStats::limit). A region that already intersects itself at the start is not checked.
+// Limits: short edges are not collapsed; refinement splits at straight
 // midpoints (it does not add curvature); the grab centre is the grip position, so the app should
 // put the grip on the surface (or snap it) before BeginStroke.
 //
@@ -52,6 +56,7 @@
 #include <cstdint>
 #include <numbers>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "spidarcad/modeling/surface_mesher.h"
@@ -99,6 +104,8 @@ struct SculptToolSettings {
   double max_edge_length = 0.0;
   // Refinement stops after this many splits (a guard against a huge stretch).
   int max_splits = 2000000;
+  // Stop the stroke short of making the surface intersect itself (see the file comment).
+  bool prevent_self_intersection = true;
 };
 
 // What the haptic thread needs to compute the resisting wrench of the active stroke: a plain,
@@ -166,6 +173,10 @@ struct StrokeStats {
   double start_volume = 0.0;   // enclosed volume at BeginStroke (m³)
   double volume = 0.0;         // enclosed volume now (m³), incremental
   double strength = 0.0;       // grab strength s used
+  // Share of the strength applied, in [0, 1]: below 1 when the full stroke would have made the
+  // surface intersect itself (prevent_self_intersection).
+  double limit = 1.0;
+  int intersection_checks = 0;  // self-intersection checks run by the update (0 when off)
 };
 
 // A closed, edge-manifold, consistently oriented triangle mesh being sculpted: positions,
@@ -203,8 +214,8 @@ class SculptMesh {
   // std::invalid_argument for bad settings and std::logic_error if a stroke is active.
   void BeginStroke(const SculptToolSettings& settings, const Eigen::Isometry3d& X_WT, double theta);
   // Deforms the affected region for the current grip pose and grasp (relative to the start).
-  // Allocates nothing; a non-finite pose is ignored. Throws std::logic_error without an active
-  // stroke.
+  // Allocates nothing once the self-intersection check's scratch buffers have grown to the
+  // region's size; a non-finite pose is ignored. Throws std::logic_error without an active stroke.
   void UpdateStroke(const Eigen::Isometry3d& X_WT, double theta);
   // Ends the stroke: refines stretched edges of the touched region (if max_edge_length > 0),
   // re-bins the moved vertices in the grid and returns the edit for undo.
@@ -245,6 +256,13 @@ class SculptMesh {
   double AffectedVolume() const;
   void ApplyField(const Eigen::Isometry3d& X_WT, double strength);
   void ConserveVolume();
+  // Field (and volume correction) at strength s.
+  void Deform(const Eigen::Isometry3d& X_WT, double s);
+  // True when a moved triangle (one of affected_triangles_) intersects another triangle of the
+  // mesh in the current positions (sculpt_intersection.cc).
+  bool MovedRegionIntersects();
+  // Raises longest_edge_ to the longest edge of triangle t.
+  void BoundEdges(int t);
 
   double grid_cell_;
   std::vector<Eigen::Vector3d> positions_;
@@ -276,6 +294,14 @@ class SculptMesh {
   std::vector<int> affected_triangles_;
   std::vector<int> normal_vertices_;  // corners of affected triangles
   double affected_start_volume_ = 0.0;
+  bool check_intersections_ = false;  // this stroke: prevent self-intersection
+  // Self-intersection check scratch (kept between updates so that they allocate once).
+  double longest_edge_ = 0.0;                           // bound on every edge's length, m
+  std::vector<int> check_vertices_;                     // vertices near the moved region
+  std::vector<int> check_triangles_;                    // moved triangles first, then nearby ones
+  std::vector<std::pair<CellKey, int>> check_entries_;  // (cell, index into check_triangles_)
+  std::vector<Eigen::AlignedBox3d> check_boxes_;        // per check triangle
+  std::vector<std::array<std::int64_t, 3>> check_low_cells_;  // cell of each box's lowest corner
 };
 
 // A sphere of radius (m) centred at the origin: the icosahedron with each triangle split into
