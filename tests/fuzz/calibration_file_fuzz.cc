@@ -6,9 +6,9 @@
 #include <cstdint>
 #include <string>
 
-#include "cli/calibration_file.h"
 #include "doc/input_error.h"
 #include "fuzz_support.h"
+#include "scene/calibration_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace spidarcad::app;
