@@ -130,6 +130,61 @@ std::string SwitchNumber(double x) {
   return s;
 }
 
+// Winding number of the closed, outward-oriented surface at p: 1 inside, 0 outside (the sum of
+// the triangles' signed solid angles over 4 pi; Van Oosterom and Strackee).
+double WindingNumber(const TriangleMesh& m, const Eigen::Vector3d& p) {
+  double sum = 0.0;
+  for (Eigen::Index f = 0; f < m.triangles.cols(); ++f) {
+    const Eigen::Vector3d a = m.vertices.col(m.triangles(0, f)) - p;
+    const Eigen::Vector3d b = m.vertices.col(m.triangles(1, f)) - p;
+    const Eigen::Vector3d c = m.vertices.col(m.triangles(2, f)) - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    sum += 2.0 * std::atan2(a.dot(b.cross(c)),
+                            la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb);
+  }
+  return sum / (4.0 * 3.14159265358979323846);
+}
+
+// TetGen (given no hole points) fills every region the facets enclose, the cavities of a
+// hollow solid included. Drops the tets of each region whose winding number (at one of its
+// tets' centroid) says it lies outside the solid, and the Steiner nodes only they used; the
+// surface's vertices (the first surface_vertices nodes) stay, in order.
+void DropCavities(const TriangleMesh& surface, TetMesh* mesh) {
+  const Eigen::Index nt = mesh->tets.cols();
+  std::unordered_map<int, bool> inside;
+  for (Eigen::Index t = 0; t < nt; ++t) {
+    const int region = mesh->regions[t];
+    if (inside.count(region)) continue;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) centroid += mesh->nodes.col(mesh->tets(k, t)) / 4.0;
+    inside[region] = WindingNumber(surface, centroid) > 0.5;
+  }
+  if (inside.size() < 2) return;  // one region: the solid itself
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index t = 0; t < nt; ++t)
+    if (inside.at(mesh->regions[t])) kept.push_back(t);
+  if (static_cast<Eigen::Index>(kept.size()) == nt) return;
+  const Eigen::Index nv = mesh->nodes.cols(), ns = surface.vertices.cols();
+  std::vector<int> index(nv, -1);
+  for (Eigen::Index i = 0; i < std::min(ns, nv); ++i) index[i] = 0;
+  for (Eigen::Index t : kept)
+    for (int k = 0; k < 4; ++k) index[mesh->tets(k, t)] = 0;
+  int count = 0;
+  for (Eigen::Index i = 0; i < nv; ++i)
+    if (index[i] == 0) index[i] = count++;
+  TetMesh out;
+  out.nodes.resize(3, count);
+  for (Eigen::Index i = 0; i < nv; ++i)
+    if (index[i] >= 0) out.nodes.col(index[i]) = mesh->nodes.col(i);
+  out.tets.resize(4, static_cast<Eigen::Index>(kept.size()));
+  out.regions.resize(static_cast<Eigen::Index>(kept.size()));
+  for (size_t j = 0; j < kept.size(); ++j) {
+    for (int k = 0; k < 4; ++k) out.tets(k, j) = index[mesh->tets(k, kept[j])];
+    out.regions[j] = mesh->regions[kept[j]];
+  }
+  *mesh = std::move(out);
+}
+
 }  // namespace
 
 TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* welded,
@@ -390,6 +445,7 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
     }
     if (TetVolume(mesh, t) < 0) std::swap(mesh.tets(2, t), mesh.tets(3, t));
   }
+  DropCavities(surface, &mesh);
   st.quality = MeasureTetQuality(mesh);
   if (!(st.quality.min_volume > 0)) {
     throw TetgenError(0, "TetGen returned a tetrahedron of volume " +

@@ -26,6 +26,7 @@
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/modeling/tet_mesh.h"
+#include "spidarcad/modeling/triangle_mesh_io.h"
 #include "spidarcad_runner.h"
 
 namespace spidarcad::app {
@@ -241,6 +242,42 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
   EXPECT_LT(push["reaction_force"][2].get<double>(), 0.0);
   const fem::TetMesh back = ReadTetVtu(out);
   EXPECT_EQ(back.num_nodes(), report["nodes"].get<int>());
+}
+
+TEST(FemCommand, StlIsRepairedMeshedAndSolvedOrRefusedNamingTheDefect) {
+  // A 0.2 x 0.05 x 0.05 m bar written as an STL with every triangle's corners turned over (inside
+  // out): the repair turns them back, TetGen meshes it, and the push solves.
+  spidarcad::modeling::TriangleMesh bar;
+  bar.vertices.resize(3, 8);
+  for (int i = 0; i < 8; ++i)
+    bar.vertices.col(i) << 0.2 * (i & 1), 0.05 * ((i & 2) / 2), 0.05 * ((i & 4) / 4);
+  bar.triangles.resize(3, 12);
+  bar.triangles << 0, 1, 4, 5, 0, 1, 2, 3, 0, 2, 1, 3,  //
+      1, 3, 6, 6, 4, 4, 3, 7, 2, 6, 5, 5,               // rows 2 and 3 swapped: inside out
+      2, 2, 5, 7, 1, 5, 6, 6, 4, 4, 3, 7;
+  const std::string stl = OutputPath("fem_bar_inverted.stl");
+  spidarcad::modeling::WriteTriangleMesh(bar, stl);
+  const CommandRun run = RunSpidarcad(stl +
+                                          " --fix=-1,-1,-1,1e-9,1,1 --push 0.2,0.05,0.05"
+                                          " --disp 0,0,-0.0001 --out " +
+                                          OutputPath("fem_bar.vtu"),
+                                      "stl_bar");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const nlohmann::json report = nlohmann::json::parse(run.out);
+  EXPECT_EQ(report["meshing"]["input_triangles"].get<int>(), 12);
+  ASSERT_EQ(report["meshing"]["repair"].size(), 1u);
+  EXPECT_EQ(report["meshing"]["repair"][0].get<std::string>(),
+            "12 triangles turned over (consistent, outward orientation)");
+  EXPECT_LT(report["pushes"][0]["reaction_force"][2].get<double>(), 0.0);
+
+  // The same bar with a triangle missing: refused, naming the file and the defect.
+  bar.triangles.conservativeResize(3, 11);
+  const std::string open = OutputPath("fem_bar_open.stl");
+  spidarcad::modeling::WriteTriangleMesh(bar, open);
+  const CommandRun refused = RunSpidarcad(
+      open + " --fix=-1,-1,-1,1e-9,1,1 --out " + OutputPath("fem_bar_open.vtu"), "stl_open");
+  EXPECT_EQ(refused.status, 2);
+  EXPECT_NE(refused.err.find(open + ": the surface is open"), std::string::npos) << refused.err;
 }
 
 TEST(FemCommand, BadInputExitsWithStatusTwoNamingTheProblem) {

@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -489,6 +490,62 @@ TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
                                           "", OutputPath("ctrl_c_ls"))
           .out;
   EXPECT_EQ(listing.find(".ctrl_c.partial-"), std::string::npos) << listing;
+}
+
+// An axis-aligned box [0, 1]^3 as 12 outward triangles over 8 vertices.
+TriangleMesh UnitBox() {
+  TriangleMesh m;
+  m.vertices.resize(3, 8);
+  for (int i = 0; i < 8; ++i) m.vertices.col(i) << (i & 1), (i & 2) / 2, (i & 4) / 4;
+  m.triangles.resize(3, 12);
+  m.triangles << 0, 1, 4, 5, 0, 1, 2, 3, 0, 2, 1, 3,  //
+      2, 2, 5, 7, 1, 5, 6, 6, 4, 4, 3, 7,             //
+      1, 3, 6, 6, 4, 4, 3, 7, 2, 6, 5, 5;
+  return m;
+}
+
+TEST(MeshCommand, RepairsAMeshFileReportingEachChangeAndTetrahedralizesIt) {
+  // The box inside out, with one triangle repeated: OBJ keeps both (STL readers weld only).
+  TriangleMesh box = UnitBox();
+  box.triangles.row(1).swap(box.triangles.row(2));
+  box.triangles.conservativeResize(3, 13);
+  box.triangles.col(12) = box.triangles.col(4);
+  const std::string in = OutputPath("repair_in.obj"), out = OutputPath("repair_out.stl");
+  spidarcad::modeling::WriteTriangleMesh(box, in);
+  const CommandRun run = RunMesh("'" + in + "' --out '" + out + "'", "repair");
+  ASSERT_EQ(run.status, 0) << run.all();
+  EXPECT_NE(run.out.find("mesh file " + in + ": 8 vertices, 13 triangles"), std::string::npos)
+      << run.out;
+  EXPECT_NE(run.out.find("repair: 1 repeated triangles dropped"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("repair: 12 triangles turned over"), std::string::npos) << run.out;
+  const TriangleMesh fixed = ReadTriangleMesh(out);
+  EXPECT_EQ(fixed.triangles.cols(), 12);
+  EXPECT_NEAR(Volume(fixed), 1.0, 1e-6);  // outward again (this file's own volume formula)
+
+  const std::string vtu = OutputPath("repair_out.vtu");
+  const CommandRun tets = RunMesh("'" + in + "' --out '" + vtu + "' --tets tetgen", "repair_tets");
+  ASSERT_EQ(tets.status, 0) << tets.all();
+  EXPECT_GT(PrintedCount(tets.out, "tets"), 0) << tets.out;
+  // Options of scene meshing make no sense for a mesh file.
+  const CommandRun cgal = RunMesh("'" + in + "' --out '" + vtu + "' --tets cgal", "repair_cgal");
+  EXPECT_EQ(cgal.status, 2);
+  EXPECT_NE(cgal.err.find("--tets tetgen"), std::string::npos) << cgal.err;
+}
+
+TEST(MeshCommand, RefusesAnOpenMeshFileNamingTheFileTheEdgeAndTheTriangle) {
+  TriangleMesh box = UnitBox();
+  box.triangles.conservativeResize(3, 11);  // the last triangle gone: a hole
+  const std::string in = OutputPath("open_in.stl"), out = OutputPath("open_out.vtu");
+  spidarcad::modeling::WriteTriangleMesh(box, in);
+  std::remove(out.c_str());
+  const CommandRun run = RunMesh("'" + in + "' --out '" + out + "' --tets tetgen", "open");
+  EXPECT_EQ(run.status, 2) << run.all();
+  EXPECT_NE(run.err.find(in + ": the surface is open: 3 edges have one triangle only"),
+            std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find("of triangle "), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("Close the holes"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::ifstream(out).good());
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -144,11 +145,61 @@ TEST(ReportCommand, UnknownOnlyNameExitsTwoListingTheValidNamesAndWritesNothing)
       RunSpidarcad("report --out '" + dir + "' --quick --only fk,bogus", "", "bad_only");
   EXPECT_EQ(run.status, 2);
   EXPECT_NE(run.err.find("'bogus'"), std::string::npos) << run.err;
-  for (const char* name : {"fk", "tensions", "calibration", "workspace", "implicit", "surface",
-                           "tets", "fe", "tick", "sculpt"}) {
+  for (const char* name : {"fk", "singular", "tensions", "calibration", "workspace", "implicit",
+                           "surface", "tets", "fe", "tick", "sculpt"}) {
     EXPECT_NE(run.err.find(name), std::string::npos) << name;
   }
   EXPECT_FALSE(std::filesystem::exists(dir));
+}
+
+TEST(ReportCommand, SingularSectionFindsTheNamedSingularFamilyAndSummaryHasOneRowPerPart) {
+  const std::string dir = FreshDir("report_singular");
+  const CommandRun run = RunSpidarcad(
+      "report --out '" + dir + "' --quick --only fk,singular --no-plots", "", "singular");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::string md = ReadWholeFile(dir + "/report.md");
+  EXPECT_NE(md.find("## FK conditioning and singular set"), std::string::npos);
+  EXPECT_EQ(md.find("failed"), std::string::npos);
+  // docs/kinematics.md: the centre on the z axis with the grip turned 90 degrees about z at a
+  // 90-degree grasp is singular (each pole's cubic has a double root), and the rest pose at the
+  // centre is well conditioned. The maps' grids hold those poses.
+  std::vector<std::string> header;
+  std::ifstream in(dir + "/fk_conditioning.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  header = Split(line);
+  const int u = Column(header, "u"), v = Column(header, "v"),
+            gain = Column(header, "error_gain_m_per_m"), status = Column(header, "fk_status");
+  ASSERT_GE(u, 0);
+  ASSERT_GE(v, 0);
+  ASSERT_GE(gain, 0);
+  ASSERT_GE(status, 0);
+  int family = 0, rest = 0;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> f = Split(line);
+    const double fu = std::stod(f[u]), fv = std::stod(f[v]);
+    // "inf" parses as infinity; points outside the frame ("n/a") are not read.
+    if (f[0] == "fk_gain_z_yaw" && std::abs(std::abs(fv) - M_PI / 2) < 1e-5 && std::abs(fu) < 0.1) {
+      const double g = std::stod(f[gain]);
+      EXPECT_TRUE(!(g < 1e3)) << "z " << fu << " yaw " << fv << ": gain " << g;
+      EXPECT_NE(f[status], "0") << "FK returned ok on the singular family at z " << fu;
+      ++family;
+    }
+    if (f[0] == "fk_gain_xy" && std::abs(fu) < 1e-12 && std::abs(fv) < 1e-12) {
+      EXPECT_LT(std::stod(f[gain]), 10.0);
+      EXPECT_EQ(f[status], "0");
+      ++rest;
+    }
+  }
+  EXPECT_GT(family, 4);
+  EXPECT_EQ(rest, 1);
+  // summary.md: the stamp line and one row per part run, each with a speed and an error cell.
+  const std::string summary = ReadWholeFile(dir + "/summary.md");
+  EXPECT_NE(summary.find("| part | speed | error |"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("| Forward kinematics | warm "), std::string::npos) << summary;
+  EXPECT_NE(summary.find("| FK conditioning and singular set | "), std::string::npos) << summary;
+  EXPECT_NE(summary.find("--only fk,singular"), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("| — |"), std::string::npos) << summary;
 }
 
 }  // namespace

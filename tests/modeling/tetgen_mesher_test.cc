@@ -3,10 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "spidarcad/modeling/scene_io.h"
 
@@ -276,6 +278,28 @@ TEST(TetgenMesher, CancelStopsAndProgressReachesOne) {
   TetrahedralizeSurface(box, settings);
   EXPECT_TRUE(monotone);
   EXPECT_EQ(last, 1.0);
+}
+
+TEST(TetrahedralizeSurface, DropsTheCavityOfAHollowBox) {
+  // Outer box [0, 3]^3 outward, inner box [1, 2]^3 inward (its triangles turned over): the solid
+  // is 27 - 1 m^3, and no tet may lie in the cavity.
+  TriangleMesh inner = BoxSurface(Eigen::Vector3d::Ones(), Eigen::Vector3d::Constant(2));
+  inner.triangles.row(1).swap(inner.triangles.row(2));
+  const TriangleMesh hollow =
+      Join(BoxSurface(Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(3)), inner);
+  TetMeshStats stats;
+  const TetMesh mesh = TetrahedralizeSurface(hollow, {}, &stats);
+  EXPECT_NEAR(stats.quality.total_volume, 26.0, 1e-9);
+  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) c += mesh.nodes.col(mesh.tets(k, t)) / 4.0;
+    EXPECT_FALSE((c.array() > 1.0).all() && (c.array() < 2.0).all()) << "tet " << t;
+  }
+  // Every node is used by a tet (no node left over from the cavity).
+  std::vector<char> used(mesh.nodes.cols(), 0);
+  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t)
+    for (int k = 0; k < 4; ++k) used[mesh.tets(k, t)] = 1;
+  EXPECT_EQ(std::count(used.begin(), used.end(), 0), 0);
 }
 
 }  // namespace

@@ -24,9 +24,11 @@
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/mesh_repair.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "spidarcad/modeling/triangle_mesh_io.h"
 
 namespace spidarcad::app {
 namespace {
@@ -127,6 +129,45 @@ fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report
   return ToFemMesh(tets);
 }
 
+// Whether path names a triangle mesh file (.stl, .obj, .ply, any case).
+bool IsTriangleMeshFile(const std::string& path) {
+  std::string lower = path;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return EndsWith(lower, ".stl") || EndsWith(lower, ".obj") || EndsWith(lower, ".ply");
+}
+
+// A closed triangle mesh file -> repaired surface (modeling::ImportSolidMesh) -> TetGen tets.
+// The repair report goes into the JSON report; a mesh that cannot be repaired is an InputError
+// naming the file, the defect and the first offending triangle.
+fem::TetMesh MeshTriangleFile(const FemOptions& options, nlohmann::ordered_json* report) {
+  modeling::MeshRepairReport repair;
+  modeling::TriangleMesh surface;
+  try {
+    surface = modeling::ImportSolidMesh(options.input, {}, &repair);
+  } catch (const modeling::MeshFileError& e) {
+    throw InputError(e.what());
+  } catch (const modeling::MeshDefectError& e) {
+    throw InputError(std::string(e.what()) + " (the mesh cannot be tetrahedralized as it is)");
+  }
+  modeling::TetMeshSettings tet_settings;
+  tet_settings.max_radius_edge = options.max_radius_edge;
+  modeling::TetMeshStats tet_stats;
+  modeling::TetMesh tets;
+  try {
+    tets = modeling::TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  } catch (const std::exception& e) {
+    throw InputError(options.input + ": TetGen cannot tetrahedralize the repaired surface: " +
+                     e.what() + " (try another --quality)");
+  }
+  (*report)["meshing"] = {{"input_triangles", repair.input_triangles},
+                          {"repair", repair.Lines()},
+                          {"surface_triangles", surface.triangles.cols()},
+                          {"tetgen_seconds", tet_stats.tetgen_seconds},
+                          {"tetgen_switches", tet_stats.switches},
+                          {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg}};
+  return ToFemMesh(tets);
+}
+
 nlohmann::ordered_json JsonVector(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 // Index (into mesh nodes) of the surface node nearest p.
@@ -209,9 +250,12 @@ void RunFem(const FemOptions& options) {
     if (info.flipped_elements > 0) report["flipped_elements"] = info.flipped_elements;
   } else if (EndsWith(options.input, ".json")) {
     mesh = MeshScene(options, &report);
+  } else if (IsTriangleMeshFile(options.input)) {
+    mesh = MeshTriangleFile(options, &report);
   } else {
     throw InputError(options.input +
-                     ": unknown input kind (expected a .vtu mesh or a .json scene)");
+                     ": unknown input kind (expected a .vtu mesh, a closed .stl/.obj/.ply "
+                     "surface or a .json scene)");
   }
   const int input_order = mesh.Order();
   const int input_nodes = mesh.num_nodes();
@@ -406,7 +450,11 @@ void RegisterFemCommand(CLI::App& app) {
       "fem", "Static linear-elastic FE solve of a tetrahedral mesh or a scene solid (VTU out)");
   cmd->footer(
       "Input: a .vtu with VTK_TETRA or VTK_QUADRATIC_TETRA cells, or a .json scene whose solid\n"
-      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen).\n"
+      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen),\n"
+      "or a closed triangle surface (.stl, .obj, .ply): repaired where that is safe (vertices\n"
+      "welded, zero-area, repeated and back-to-back triangles dropped, orientation fixed; the\n"
+      "JSON's meshing.repair lists the changes) or refused naming the defect and the first\n"
+      "offending triangle (open, non-manifold, self-intersecting), then meshed by TetGen.\n"
       "Nodes inside a --fix box are clamped; --push prescribes the displacement (all three\n"
       "components) of the surface node nearest the point; --load applies a point force at the\n"
       "surface node nearest the point. Material defaults to steel (E = 200 GPa, nu = 0.3).\n"
@@ -423,7 +471,9 @@ void RegisterFemCommand(CLI::App& app) {
       "  spidarcad fem beam.vtu --fix=-1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
       "    --order 2 --out result.vtu\n"
       "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)");
-  cmd->add_option("input", options->input, "Mesh (.vtu) or scene (.json)")->required();
+  cmd->add_option("input", options->input,
+                  "Mesh (.vtu), closed surface (.stl, .obj, .ply) or scene (.json)")
+      ->required();
   cmd->add_option("--out", options->out, "Result .vtu to write")->required();
   cmd->add_option("--E", options->youngs_modulus, "Young's modulus [Pa] (default 200e9, steel)");
   cmd->add_option("--nu", options->poisson_ratio, "Poisson's ratio (default 0.3, steel)");

@@ -24,6 +24,7 @@
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/mesh_repair.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tet_mesh.h"
@@ -51,6 +52,7 @@ struct MeshOptions {
   double max_memory = 0.0;  // estimated peak bytes allowed
   double max_work = 0.0;    // estimated tape instructions allowed
   bool progress = false;    // progress on stderr even when it is not a terminal
+  double weld = 1e-9;       // mesh-file input: weld tolerance, fraction of the box diagonal
 };
 
 // Default budget of `spidarcad mesh` (docs/limits.md): 2^27 grid cells (512^3), 2 GiB of
@@ -224,6 +226,13 @@ constexpr const char* kMeshHelp =
     "Ctrl+C stops cleanly: exit status 130 and no output file (outputs are written to a hidden\n"
     "file beside --out and renamed when complete); a second Ctrl+C kills at once.\n"
     "\n"
+    "Mesh-file input (.stl, .obj, .ply instead of a scene): the surface is repaired where that\n"
+    "is safe (vertices within --weld welded, zero-area, repeated and back-to-back triangles\n"
+    "dropped, the orientation made consistent and outward), each change reported, or refused\n"
+    "with status 2 naming the file, the defect (open, non-manifold edge, self-intersection) and\n"
+    "the first offending triangle. Then --out .stl/.obj/.ply writes the repaired surface and\n"
+    "--tets tetgen tetrahedralizes it (--quality, --max-volume as above).\n"
+    "\n"
     "Examples:\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.stl\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.obj --resolution 0.002\n"
@@ -233,7 +242,9 @@ constexpr const char* kMeshHelp =
     "  spidarcad mesh assets/scenes/platform.json --out platform.node --tets tetgen\n"
     "      (writes platform.node and platform.ele)\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.vtu --tets cgal --resolution "
-    "0.004\n";
+    "0.004\n"
+    "  spidarcad mesh part.stl --out part_fixed.stl      (repair report, repaired copy)\n"
+    "  spidarcad mesh part.stl --out part.vtu --tets tetgen\n";
 
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(),
@@ -316,6 +327,72 @@ void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string
   WriteTets(tets, o.out, ext);
 }
 
+// Whether path names a triangle mesh file (.stl, .obj, .ply, any case).
+bool IsTriangleMeshFile(const std::string& path) {
+  const std::string ext = Extension(path);
+  return ext == ".stl" || ext == ".obj" || ext == ".ply";
+}
+
+// A triangle mesh file as input: repaired (or refused) by modeling::ImportSolidMesh, with the
+// repair report on stdout, then written as a surface (a repaired copy) or tetrahedralized by
+// TetGen.
+void RunMeshFile(const MeshOptions& o, const std::string& ext, Progress* progress) {
+  if (o.tets == "cgal") {
+    throw InputError("--tets cgal meshes an implicit solid from its function; the mesh file '" +
+                     o.scene + "' can be tetrahedralized with --tets tetgen");
+  }
+  if (o.resolution != 0.0 || o.sharp || o.raw_surface || !o.solid.empty()) {
+    throw InputError(
+        "--resolution, --sharp, --raw-surface and --solid apply to scene files; the mesh file '" +
+        o.scene + "' is used as it is (drop them)");
+  }
+  if (!(o.weld >= 0.0 && o.weld < 0.1)) {
+    throw InputError("--weld: a fraction of the bounding-box diagonal in [0, 0.1), got " +
+                     Fmt(o.weld));
+  }
+  MeshRepairSettings settings;
+  settings.weld_tolerance = o.weld;
+  MeshRepairReport report;
+  TriangleMesh surface;
+  try {
+    surface = ImportSolidMesh(o.scene, settings, &report);
+  } catch (const MeshDefectError& e) {
+    throw InputError(e.what());
+  }
+  std::cout << "mesh file " << o.scene << ": " << report.input_vertices << " vertices, "
+            << report.input_triangles << " triangles\n";
+  for (const std::string& line : report.Lines()) std::cout << "repair: " << line << "\n";
+  const Eigen::AlignedBox3d box(surface.vertices.rowwise().minCoeff(),
+                                surface.vertices.rowwise().maxCoeff());
+  std::cout << "surface: " << surface.vertices.cols() << " vertices, " << surface.triangles.cols()
+            << " triangles, box " << Fmt(box.sizes().x()) << " x " << Fmt(box.sizes().y()) << " x "
+            << Fmt(box.sizes().z()) << ", volume " << Fmt(MeshVolume(surface), 6)
+            << " (file units cubed); closed, manifold, no self-intersection (checked in "
+            << Fmt(report.seconds, 3) << " s)\n";
+  if (o.tets.empty()) {
+    const std::string temporary = TemporaryPath(o.out, ext);
+    WriteThrough({temporary}, {o.out}, [&]() { WriteTriangleMesh(surface, temporary); });
+    std::cout << "wrote " << o.out << "\n";
+    return;
+  }
+  TetMeshSettings tet_settings;
+  tet_settings.max_radius_edge = o.quality;
+  tet_settings.max_volume = o.max_volume;
+  tet_settings.cancel = &g_interrupted;
+  tet_settings.progress = progress->Stage("tetgen");
+  TetMeshStats tet_stats;
+  const TetMesh tets = TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  progress->Finish();
+  CheckInterrupted();
+  const TetQuality& q = tet_stats.quality;
+  std::cout << "tetgen -" << tet_stats.switches << ": " << tets.nodes.cols() << " nodes, "
+            << tets.tets.cols() << " tets, tetgen " << Fmt(tet_stats.tetgen_seconds, 3) << " s\n";
+  std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. "
+            << Fmt(q.max_dihedral_deg, 4) << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3)
+            << ", volume " << Fmt(q.total_volume, 6) << "\n";
+  WriteTets(tets, o.out, ext);
+}
+
 void RunMesh(const MeshOptions& o) {
   const std::string ext = Extension(o.out);
   const bool surface_ext = ext == ".stl" || ext == ".obj" || ext == ".ply";
@@ -373,6 +450,10 @@ void RunMesh(const MeshOptions& o) {
 
   const InterruptScope interrupt_scope;
   Progress progress(o.progress || isatty(STDERR_FILENO) == 1);
+  if (IsTriangleMeshFile(o.scene)) {
+    RunMeshFile(o, ext, &progress);
+    return;
+  }
   const SceneSolidGrid grid = PrepareSceneSolid(o.scene, o.solid, o.resolution, kDefaultCellsAcross,
                                                 o.max_cells, "--max-cells");
   const CompiledSolid& compiled = grid.compiled;
@@ -493,7 +574,13 @@ void RegisterMeshCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "mesh", "Mesh an implicit solid of a scene: surface (STL/OBJ/PLY) or tets (VTU, .node)");
   cmd->footer(kMeshHelp);
-  cmd->add_option("scene", options->scene, "Scene file (JSON, docs/scene-format.md)")->required();
+  cmd->add_option("scene", options->scene,
+                  "Scene file (JSON, docs/scene-format.md), or a closed triangle mesh (.stl, .obj, "
+                  ".ply) to repair or tetrahedralize")
+      ->required();
+  cmd->add_option("--weld", options->weld,
+                  "Mesh-file input: weld vertices closer than this fraction of the bounding-box "
+                  "diagonal (default 1e-9)");
   cmd->add_option("--out", options->out,
                   "Output file: .stl .obj .ply (surface) or .vtu .node (with --tets)")
       ->required();

@@ -195,6 +195,12 @@ void ReportCalibration(ReportContext& ctx) {
                " mm line fit (" + std::to_string(line_counts.back()) + " jig poses), " +
                Sig(1e3 * median_at("self-calibration (unknown poses)", self_counts.back()), 2) +
                " mm self-calibration (" + std::to_string(self_counts.back()) + " unknown poses)");
+  ctx.Summary(std::to_string(line_counts.back()) + " jig poses or " +
+                  std::to_string(self_counts.back()) + " unknown poses",
+              Sig(1e3 * median_at("line fit (known poses)", line_counts.back()), 2) +
+                  " mm (line fit), " +
+                  Sig(1e3 * median_at("self-calibration (unknown poses)", self_counts.back()), 2) +
+                  " mm (self-calibration) mean position error");
 }
 
 }  // namespace spidarcad::app

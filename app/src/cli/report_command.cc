@@ -37,6 +37,7 @@ namespace spidarcad::app {
 const std::vector<ReportSection>& ReportSections() {
   static const std::vector<ReportSection> sections = {
       {"fk", "Forward kinematics", ReportForwardKinematics},
+      {"singular", "FK conditioning and singular set", ReportSingularSet},
       {"tensions", "Tension distribution", ReportTensions},
       {"calibration", "Calibration", ReportCalibration},
       {"workspace", "Workspace", ReportWorkspace},
@@ -59,8 +60,11 @@ constexpr const char* kReportHelp =
     "README), then each section's tables and PNG charts (speed against error, log axes), and\n"
     "its data as CSV files beside it.\n"
     "\n"
-    "Sections (names for --only): fk, tensions, calibration, workspace, implicit, surface,\n"
-    "tets, fe, tick, sculpt.\n"
+    "Sections (names for --only): fk, singular, tensions, calibration, workspace, implicit,\n"
+    "surface, tets, fe, tick, sculpt.\n"
+    "\n"
+    "DIR/summary.md is the short table of headline figures (one row per part: speed and\n"
+    "error, with units) that scripts/update-readme-figures.sh DIR copies into README.md.\n"
     "\n"
     "Progress goes to stderr, one line per section. --quick runs smaller sweeps (a few\n"
     "minutes on a 2-core machine); the full report takes what it needs (tens of minutes).\n"
@@ -242,6 +246,50 @@ std::vector<const ReportSection*> SelectSections(const std::string& only) {
   return chosen;
 }
 
+// One row of DIR/summary.md.
+struct SummaryRow {
+  std::string part, speed, error;
+};
+
+// Writes DIR/summary.md: a stamp line and the table of headline figures (the README's block
+// between the report-summary markers; scripts/update-readme-figures.sh copies it there). No
+// links: the file is read from DIR and from the README's directory alike.
+void WriteSummary(const ReportOptions& options,
+                  const std::vector<std::pair<std::string, std::string>>& stamp,
+                  const std::vector<SummaryRow>& rows) {
+  auto field = [&](const std::string& key) {
+    for (const auto& [k, v] : stamp)
+      if (k == key) return v;
+    return std::string();
+  };
+  std::string commit = field("commit");
+  commit = commit.substr(0, commit.find(' '));
+  std::ostringstream md;
+  md << "Measured by `spidarcad report --out " << options.out_dir
+     << (options.quick ? " --quick" : "")
+     << (Trim(options.only).empty() ? "" : " --only " + options.only) << "` on " << field("date")
+     << ", commit " << commit << ", " << field("build type") << ", " << field("CPU") << " ("
+     << field("cores") << " cores, load " << field("load average at the start (1, 5, 15 min)")
+     << ").\n\n";
+  md << "| part | speed | error |\n|---|---|---|\n";
+  for (const SummaryRow& r : rows) {
+    auto cell = [](std::string text) {
+      for (char& c : text)
+        if (c == '|' || c == '\n') c = ' ';
+      return text.empty() ? std::string("—") : text;
+    };
+    md << "| " << cell(r.part) << " | " << cell(r.speed) << " | " << cell(r.error) << " |\n";
+  }
+  const std::string path = options.out_dir + "/summary.md";
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << md.str();
+    if (!out) throw std::runtime_error("cannot write " + tmp);
+  }
+  std::filesystem::rename(tmp, path);
+}
+
 void RunReport(const ReportOptions& options) {
   const std::vector<const ReportSection*> sections = SelectSections(options.only);
   if (options.out_dir.empty()) throw InputError("--out: give the directory to write");
@@ -265,7 +313,7 @@ void RunReport(const ReportOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   struct Done {
     const ReportSection* section;
-    std::string headline, body;
+    std::string headline, body, speed, error;
     double seconds;
     bool failed;
   };
@@ -285,7 +333,8 @@ void RunReport(const ReportOptions& options) {
     }
     const double seconds = SecondsSince(section_start);
     bar.Done(failed ? "FAILED" : "done");
-    done.push_back({section, ctx.headline(), ctx.body(), seconds, failed});
+    done.push_back({section, ctx.headline(), ctx.body(), ctx.summary_speed(), ctx.summary_error(),
+                    seconds, failed});
   }
   const double total = SecondsSince(start);
 
@@ -325,6 +374,14 @@ void RunReport(const ReportOptions& options) {
   std::cout << "wrote " << path << " (" << done.size() << " sections, " << Fixed(total, 0)
             << " s)\n"
             << std::flush;
+  WriteSummary(options, stamp, [&] {
+    std::vector<SummaryRow> rows;
+    for (const Done& d : done) {
+      rows.push_back(
+          {d.section->title, d.failed ? "failed" : d.speed, d.failed ? d.headline : d.error});
+    }
+    return rows;
+  }());
   const bool any_failed =
       std::any_of(done.begin(), done.end(), [](const Done& d) { return d.failed; });
   throw CommandExit{any_failed ? 1 : 0};
@@ -342,8 +399,8 @@ void RegisterReportCommand(CLI::App& app) {
       ->type_name("DIR");
   cmd->add_flag("--quick", options->quick, "Smaller sweeps: a few minutes on a 2-core machine");
   cmd->add_option("--only", options->only,
-                  "Comma-separated sections to run (fk, tensions, calibration, workspace, "
-                  "implicit, surface, tets, fe, tick, sculpt); default all")
+                  "Comma-separated sections to run (fk, singular, tensions, calibration, "
+                  "workspace, implicit, surface, tets, fe, tick, sculpt); default all")
       ->type_name("LIST");
   cmd->add_flag("--no-plots", options->no_plots,
                 "Tables and CSVs only: draw no chart (no X display needed)");

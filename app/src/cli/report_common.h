@@ -53,12 +53,20 @@ class ReportContext {
              const std::vector<std::vector<std::string>>& rows);
   // The section's row of the summary table at the top of report.md (one sentence of figures).
   void Headline(const std::string& text) { headline_ = text; }
+  // The section's row of DIR/summary.md (the README's table): its headline speed and error
+  // figures, each a few words with units ("1.2 µs per pose", "0.3 mm mean position error").
+  void Summary(const std::string& speed, const std::string& error) {
+    summary_speed_ = speed;
+    summary_error_ = error;
+  }
   // Reports the fraction of the section done, in [0, 1].
   void Progress(double fraction) const {
     if (progress_) progress_(std::clamp(fraction, 0.0, 1.0));
   }
 
   const std::string& headline() const { return headline_; }
+  const std::string& summary_speed() const { return summary_speed_; }
+  const std::string& summary_error() const { return summary_error_; }
   std::string body() const { return markdown_.str(); }
   // Files the section wrote (names relative to the report directory).
   const std::vector<std::string>& files() const { return files_; }
@@ -69,6 +77,7 @@ class ReportContext {
   std::function<void(double)> progress_;
   std::ostringstream markdown_;
   std::string headline_;
+  std::string summary_speed_, summary_error_;
   std::vector<std::string> files_;
 };
 

@@ -399,6 +399,9 @@ void ReportFe(ReportContext& ctx) {
                " s precompute; condensed " +
                Sig(1e3 * headline_full.full_ms / headline_full.condensed_us, 2) +
                "× faster than a full solve");
+  ctx.Summary(Sig(p1_4->tick_us, 2) + " µs per tick (P1, k = 16)",
+              Sig(100 * best_p2->tip_error, 2) +
+                  " % tip error (P2, r = " + std::to_string(best_p2->r) + ")");
 }
 
 }  // namespace spidarcad::app

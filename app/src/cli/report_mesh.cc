@@ -321,6 +321,9 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
                Sig(1e3 * box_plain.error.two_sided(), 2) + " mm plain, " +
                Sig(1e3 * box_sharp.error.two_sided(), 2) + " mm sharpened (" +
                Sig(box_plain.seconds, 2) + " s, " + Sig(box_sharp.seconds, 2) + " s)");
+  ctx.Summary(Sig(box_sharp.seconds, 2) + " s (box, h = " + Fixed(1e3 * cells.back(), 1) +
+                  " mm, sharpened)",
+              Sig(1e3 * box_sharp.error.two_sided(), 2) + " mm two-sided Hausdorff");
 }
 
 void ReportTetMeshing(ReportContext& ctx) {
@@ -473,6 +476,12 @@ void ReportTetMeshing(ReportContext& ctx) {
                Fixed(100 * tg.volume_error, 2) + " %; CGAL " + Sig(cg.seconds, 2) + " s, " +
                std::to_string(cg.tets) + " tets, " + Fixed(cg.quality.min_dihedral_deg, 1) + "°, " +
                Fixed(100 * cg.volume_error, 2) + " %");
+  ctx.Summary("TetGen " + Sig(tg.seconds, 2) + " s, CGAL " + Sig(cg.seconds, 2) + " s (" +
+                  std::to_string(tg.tets) + " and " + std::to_string(cg.tets) + " tets)",
+              "volume " + Fixed(100 * tg.volume_error, 2) + " % / " +
+                  Fixed(100 * cg.volume_error, 2) + " %, min dihedral " +
+                  Fixed(tg.quality.min_dihedral_deg, 1) + "° / " +
+                  Fixed(cg.quality.min_dihedral_deg, 1) + "°");
 }
 
 }  // namespace spidarcad::app

@@ -170,6 +170,10 @@ void ReportSculpt(ReportContext& ctx) {
                " vertices): " + Sig(off.update_us, 2) + " µs per update, volume error " +
                Sig(100 * off.volume_error, 2) + " %; with conservation " + Sig(on.update_us, 2) +
                " µs, " + Sig(100 * on.volume_error, 2) + " %");
+  ctx.Summary(Sig(on.update_us, 2) + " µs per update (" + std::to_string(off.touched) +
+                  " vertices, conserving)",
+              Sig(100 * on.volume_error, 2) + " % volume error (" + Sig(100 * off.volume_error, 2) +
+                  " % without conservation)");
 }
 
 }  // namespace spidarcad::app

@@ -14,6 +14,9 @@ void ReportForwardKinematics(ReportContext& ctx);
 // Tension distribution: cold/warm × saturated/feasible, time against the gap to the optimum
 // and the share of the commanded wrench displayed (report_tension.cc).
 void ReportTensions(ReportContext& ctx);
+// FK conditioning: maps of the error gain and of FK's refusals on slices of the workspace,
+// the interior singular set (report_singular.cc).
+void ReportSingularSet(ReportContext& ctx);
 // Calibration: pose error against the number of calibration poses (report_calibration.cc).
 void ReportCalibration(ReportContext& ctx);
 // Workspace: deliverable force and moment maps on slices through the frame

@@ -477,6 +477,8 @@ void ReportTick(ReportContext& ctx) {
                          : 0.0,
                      1) +
                " µs; worst p99 " + Fixed(worst_p99, 1) + " µs (" + worst + ") of the 1000 µs tick");
+  ctx.Summary("worst p99 " + Fixed(worst_p99, 1) + " µs per tick (" + worst + ")",
+              "— (budget 1000 µs)");
 }
 
 }  // namespace spidarcad::app

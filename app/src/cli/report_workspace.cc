@@ -183,6 +183,8 @@ void ReportWorkspace(ReportContext& ctx) {
                                      : "zero from " + Cm(z.second)) +
                " (paper: 25 cm); moment zero from " + Deg(r.second) +
                " of rotation (paper: full to 45°); " + Sig(lp_us, 2) + " µs per LP");
+  ctx.Summary(Sig(lp_us, 2) + " µs per deliverable-wrench LP",
+              "side-face force zero from " + Cm(xy.second) + " (paper: about 23 cm)");
 }
 
 }  // namespace spidarcad::app

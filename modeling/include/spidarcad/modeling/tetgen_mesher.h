@@ -106,9 +106,11 @@ TriangleMesh RepairSurface(const TriangleMesh& surface, double tolerance, long* 
 
 // Tetrahedralizes the solid surface bounds: TetGen with `p` (keep the surface), `z`, `A`
 // (regions), and `q`, `a`, `Y`, `M` as set. The first nodes of the output are the vertices of the
-// (repaired) surface, in order; TetGen's Steiner points follow. Output tets are positively oriented
-// (see TetMesh). Throws std::invalid_argument for bad settings, SurfaceDefectError, TetgenError,
-// TetMeshingCancelled.
+// (repaired) surface, in order; TetGen's Steiner points follow. TetGen fills every region the
+// surface encloses: the regions outside the solid (the cavities of a hollow solid, whose inner
+// shell faces inward) are dropped, by the winding number of the surface at one tet of each. Output
+// tets are positively oriented (see TetMesh). Throws std::invalid_argument for bad settings,
+// SurfaceDefectError, TetgenError, TetMeshingCancelled.
 TetMesh TetrahedralizeSurface(const TriangleMesh& surface, const TetMeshSettings& settings = {},
                               TetMeshStats* stats = nullptr);
 
