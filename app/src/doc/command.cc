@@ -3,10 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <set>
 #include <stdexcept>
 #include <utility>
+
+#include "doc/mesh_import.h"
 
 namespace spidarcad::app {
 namespace {
@@ -478,6 +481,16 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
   o.name = name;
   o.data = MeshData{source, source_revision, std::move(surface), std::move(volume)};
   return InsertConstant("Add mesh " + name, std::move(o), -1);
+}
+
+std::unique_ptr<Command> ImportMesh(const std::string& path, std::string name) {
+  MeshData data = ReadMeshFile(path);  // InputError names the file; nothing made then
+  if (name.empty()) name = std::filesystem::path(path).stem().string();
+  if (name.empty()) name = "mesh";
+  DocObject o;
+  o.name = name;
+  o.data = std::move(data);
+  return InsertConstant("Import mesh " + name, std::move(o), -1);
 }
 
 std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
