@@ -99,6 +99,8 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "NODE:FIELD=VALUE with NODE as for --select and VALUE in SI units as the scene "
                  "format has it, e.g. --set knob:radius=0.04. A bad edit: exit status 2")
       ->type_name("NODE:FIELD=VALUE")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
       ->each([](const std::string& text) { ParseSetField(text); });
   app.add_option("--show", options->show,
                  "Start with the File menu ('file-menu'), the Open dialog ('open') or the Import "
