@@ -43,6 +43,7 @@
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
+#include "support/scoped_env.h"
 
 namespace spidarcad::app {
 namespace {
@@ -295,28 +296,7 @@ TEST_F(AppWindowTest, SwitchingModesEntersLeavesAndPublishesTheActiveModesField)
 
 namespace fs = std::filesystem;
 
-// Sets an environment variable for the scope of a test, restoring it afterwards.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const std::string& value) : name_(name) {
-    const char* old = std::getenv(name);
-    had_ = old != nullptr;
-    if (had_) old_ = old;
-    ::setenv(name, value.c_str(), 1);
-  }
-  ~ScopedEnv() {
-    if (had_) {
-      ::setenv(name_, old_.c_str(), 1);
-    } else {
-      ::unsetenv(name_);
-    }
-  }
-
- private:
-  const char* name_;
-  bool had_ = false;
-  std::string old_;
-};
+using test_support::ScopedEnv;
 
 // A fresh directory under the test output directory.
 fs::path Scratch(const std::string& tag) {
@@ -374,8 +354,8 @@ std::vector<fs::path> RecoveryFiles(const fs::path& dir) {
 TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("roundtrip");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string());
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string shipped = AssetPath("scenes/workbench.json");
   const std::string saved = (dir / "workbench_edited.json").string();
   nlohmann::json window_json;
@@ -432,8 +412,8 @@ TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) 
 TEST(AppWindowDocument, OpenRefusesABadFileNamingItAndKeepsTheDocument) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("bad_open");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string());
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string bad = (dir / "bad.json").string();
   std::ofstream(bad) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n"
                         "  \"solids\": [{\"name\": \"s\", \"root\": {\"type\": \"sphere\", "
@@ -457,8 +437,8 @@ TEST(AppWindowDocument, OpenRefusesABadFileNamingItAndKeepsTheDocument) {
 TEST(AppWindowDocument, UnsavedChangesAskSaveDiscardOrCancelFirst) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("ask");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string());
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string mine = (dir / "mine.json").string();
   fs::copy_file(AssetPath("scenes/platform.json"), mine);
   AppWindow window(DocumentWindowOptions(mine));
@@ -516,8 +496,8 @@ TEST(AppWindowDocument, UnsavedChangesAskSaveDiscardOrCancelFirst) {
 TEST(AppWindowDocument, DroppedFilesImportMeshesAndOpenDocuments) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("drop");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string());
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string stl = (dir / "wedge.stl").string();
   std::ofstream(stl)
       << "solid w\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n"
@@ -552,8 +532,8 @@ TEST(AppWindowDocument, DroppedFilesImportMeshesAndOpenDocuments) {
 TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("offer");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string());
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string mine = (dir / "mine.json").string();
   fs::copy_file(AssetPath("scenes/platform.json"), mine);
   GuiOptions options = DocumentWindowOptions(mine);
@@ -606,8 +586,8 @@ TEST(AppWindowRecovery, RecoversTheEditOfAKilledSession) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("kill");
   const fs::path recovery_dir = dir / "recovery";
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", recovery_dir.string());
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", recovery_dir.string().c_str());
   const std::string copy = (dir / "workbench.json").string();
   fs::copy_file(AssetPath("scenes/workbench.json"), copy);
   const std::string command = std::string("exec '") + SPIDARCAD_EXE + "' '" + copy +
