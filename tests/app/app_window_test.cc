@@ -3,15 +3,26 @@
 // xvfb-run). One window on the built-in demo scene with the ideal device serves the suite: the
 // docked layout at two window sizes (panels drawn where the layout puts them, the VTK viewport
 // exactly the rest), selection by a click in the viewport (VTK cell picker) and by touching a
-// solid with the grip and pressing Enter, and mode switching through the Mode interface.
+// solid with the grip and pressing Enter, and mode switching through the Mode interface. Then
+// windows of their own for documents: open, every mode, edit, save and reopen; a bad file; the
+// unsaved-changes question; dropped files; autosave and recovery, including a spawned
+// spidarcad killed with SIGKILL and recovered with --recover.
 #include "gui/app_window.h"
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -20,6 +31,10 @@
 #include <vtkActor.h>
 #include <vtkRenderer.h>
 
+#include "doc/assets.h"
+#include "doc/autosave.h"
+#include "doc/command.h"
+#include "doc/recent_files.h"
 #include "gui/device_view.h"
 #include "gui/mode.h"
 #include "gui/modes.h"
@@ -28,6 +43,7 @@
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
+#include "support/scoped_env.h"
 
 namespace spidarcad::app {
 namespace {
@@ -274,6 +290,357 @@ TEST_F(AppWindowTest, SwitchingModesEntersLeavesAndPublishesTheActiveModesField)
   EXPECT_FALSE(sculpt->active());
   window_->SwitchMode(window_->FindMode("assembly"));
   EXPECT_EQ(window_->active_mode(), window_->FindMode("model"));
+}
+
+// ---- documents: File menu, autosave and recovery (a window of their own per test) ----
+
+namespace fs = std::filesystem;
+
+using test_support::ScopedEnv;
+
+// A fresh directory under the test output directory.
+fs::path Scratch(const std::string& tag) {
+  const fs::path dir = fs::path(SPIDARCAD_TEST_OUTPUT_DIR) / ("window_doc_" + tag);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Options of a scripted window on `scene` with the ideal device.
+GuiOptions DocumentWindowOptions(const std::string& scene) {
+  GuiOptions options;
+  options.scene = scene;
+  options.device = "ideal";
+  options.width = 1000;
+  options.height = 700;
+  options.frames = 1 << 30;
+  return options;
+}
+
+// The value of `field` of the node with scene id `id`, as the scene format writes it.
+nlohmann::json NodeField(const Document& doc, const std::string& id, const std::string& field) {
+  const auto where = doc.FindNodeById(id);
+  if (!where) return nullptr;
+  const nlohmann::json j = modeling::NodeToJson(doc.Node(where->first, where->second));
+  return j.contains(field) ? j.at(field) : nlohmann::json();
+}
+
+// The document's content as JSON with each mesh's source revision (a counter of this session,
+// not file content) replaced by whether the mesh is out of date with its source.
+nlohmann::json Content(const Document& doc) {
+  nlohmann::json j = doc.ToJson();
+  for (size_t i = 0; i < doc.objects().size(); ++i) {
+    if (!std::holds_alternative<MeshData>(doc.objects()[i].data)) continue;
+    j["objects"][i].erase("source_revision");
+    j["objects"][i]["out_of_date"] = doc.IsMeshOutOfDate(doc.objects()[i].id);
+  }
+  return j;
+}
+
+// The recovery files in a directory.
+std::vector<fs::path> RecoveryFiles(const fs::path& dir) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().extension() == ".spidarcad") out.push_back(it->path());
+  }
+  return out;
+}
+
+// Opens the workbench document through OpenDocument, enters every mode it offers, edits a node,
+// saves under a new name, and compares: the saved file read into a fresh Document equals the
+// window's document, equals the shipped file with the same edit made by a command, and a fresh
+// window on the saved file holds the same objects.
+TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("roundtrip");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string shipped = AssetPath("scenes/workbench.json");
+  const std::string saved = (dir / "workbench_edited.json").string();
+  nlohmann::json window_json;
+  {
+    AppWindow window(DocumentWindowOptions(kNoSceneName));
+    window.Frame();
+    ASSERT_TRUE(window.OpenDocument(shipped)) << window.file_error();
+    EXPECT_EQ(window.model().document().file_path(), shipped);
+    ASSERT_FALSE(window.recent().paths().empty());
+    EXPECT_EQ(window.recent().paths()[0], NormalisedPath(shipped));
+    for (int k = 0; k < 5; ++k) window.Frame();
+    int entered = 0;
+    for (Mode* mode : window.modes()) {
+      if (!mode->available()) continue;
+      window.SwitchMode(mode);
+      for (int k = 0; k < 10; ++k) window.Frame();
+      EXPECT_EQ(window.active_mode(), mode) << mode->key();
+      EXPECT_TRUE(mode->active()) << mode->key();
+      ++entered;
+    }
+    EXPECT_GE(entered, 3) << "model, FE and sculpt at least";
+    window.SwitchMode(window.FindMode("model"));
+    // One edit: the plate's corner radius, 3 -> 4.5 mm.
+    ASSERT_EQ(NodeField(window.model().document(), "plate", "radius"), 0.003);
+    ASSERT_TRUE(window.tree().SelectByName("plate"));
+    ASSERT_TRUE(window.tree().SetField("radius", 0.0045)) << window.tree().error();
+    window.Frame();
+    EXPECT_TRUE(window.model().document().dirty());
+    ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+    window.Frame();
+    EXPECT_FALSE(window.model().document().dirty());
+    EXPECT_EQ(window.recent().paths()[0], NormalisedPath(saved)) << "Save As goes first";
+    window_json = Content(window.model().document());
+  }
+  Document reread;
+  reread.Load(saved);
+  EXPECT_EQ(Content(reread), window_json);
+  EXPECT_EQ(NodeField(reread, "plate", "radius"), 0.0045);
+  // Independently: the shipped file with the same edit made by a command.
+  Document expected;
+  expected.Load(shipped);
+  const auto plate = expected.FindNodeById("plate");
+  ASSERT_TRUE(plate.has_value());
+  expected.Execute(edit::SetNodeField(plate->first, plate->second, "radius", 0.0045));
+  EXPECT_EQ(Content(reread), Content(expected));
+  // A fresh window on the saved file.
+  AppWindow again(DocumentWindowOptions(saved));
+  again.Frame();
+  EXPECT_EQ(Content(again.model().document()), window_json);
+  EXPECT_FALSE(again.model().document().dirty());
+}
+
+// A file that fails to open names the file and line and leaves the document as it was.
+TEST(AppWindowDocument, OpenRefusesABadFileNamingItAndKeepsTheDocument) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("bad_open");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string bad = (dir / "bad.json").string();
+  std::ofstream(bad) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n"
+                        "  \"solids\": [{\"name\": \"s\", \"root\": {\"type\": \"sphere\", "
+                        "\"radius\": -1}}]\n}\n";
+  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  window.Frame();
+  const nlohmann::json before = window.model().document().ToJson();
+  EXPECT_FALSE(window.OpenDocument(bad));
+  EXPECT_NE(window.file_error().find(bad), std::string::npos) << window.file_error();
+  EXPECT_NE(window.file_error().find("radius"), std::string::npos) << window.file_error();
+  EXPECT_EQ(window.model().document().ToJson(), before);
+  EXPECT_EQ(window.model().source(), kDemoSceneName);
+  EXPECT_TRUE(window.recent().paths().empty());
+  for (int k = 0; k < 3; ++k) window.Frame();  // the error is drawn; the window goes on
+  EXPECT_FALSE(window.OpenDocument((dir / "missing.json").string()));
+  EXPECT_EQ(window.model().document().ToJson(), before);
+}
+
+// New, Open and Quit ask first when there are unsaved changes: Cancel keeps everything, Save
+// writes the file before the action, Discard drops the changes.
+TEST(AppWindowDocument, UnsavedChangesAskSaveDiscardOrCancelFirst) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("ask");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string mine = (dir / "mine.json").string();
+  fs::copy_file(AssetPath("scenes/platform.json"), mine);
+  AppWindow window(DocumentWindowOptions(mine));
+  window.Frame();
+  // An edit, then New: the question; Cancel keeps the document and its edit.
+  ASSERT_TRUE(window.tree().SelectByName("plate"));
+  ASSERT_TRUE(window.tree().SetField("radius", 0.0041));
+  window.RequestNew();
+  EXPECT_TRUE(window.discard_prompt_open());
+  for (int k = 0; k < 2; ++k) window.Frame();
+  window.AnswerDiscardPrompt(2);  // Cancel
+  for (int k = 0; k < 2; ++k) window.Frame();
+  EXPECT_FALSE(window.discard_prompt_open());
+  EXPECT_EQ(window.model().document().file_path(), mine);
+  EXPECT_TRUE(window.model().document().dirty());
+  // Open another document, answering Save: the edit is in the file, the other one is open.
+  const std::string other = (dir / "other.json").string();
+  fs::copy_file(AssetPath("scenes/clay.json"), other);
+  window.RequestOpen(other);
+  ASSERT_TRUE(window.discard_prompt_open());
+  window.Frame();
+  window.AnswerDiscardPrompt(0);  // Save
+  for (int k = 0; k < 2; ++k) window.Frame();
+  EXPECT_EQ(window.model().document().file_path(), other);
+  Document written;
+  written.Load(mine);
+  EXPECT_EQ(NodeField(written, "plate", "radius"), 0.0041);
+  // Discard: an edit, New, Discard: an empty untitled document; the file keeps its content.
+  const std::string other_before = [&] {
+    Document d;
+    d.Load(other);
+    return d.ToJson().dump();
+  }();
+  ASSERT_FALSE(window.model().document().objects().empty());
+  window.tree().Select(window.model().document().objects().front().id);
+  ASSERT_TRUE(window.tree().RenameSelected("renamed"));
+  window.RequestNew();
+  ASSERT_TRUE(window.discard_prompt_open());
+  window.AnswerDiscardPrompt(1);  // Discard
+  for (int k = 0; k < 2; ++k) window.Frame();
+  EXPECT_TRUE(window.model().document().objects().empty());
+  EXPECT_EQ(window.model().document().file_path(), "");
+  EXPECT_EQ(window.tree().Title(), "spidarcad — untitled");
+  Document unchanged;
+  unchanged.Load(other);
+  EXPECT_EQ(unchanged.ToJson().dump(), other_before);
+  // Quit with nothing unsaved: the next frame ends the run.
+  window.RequestQuit();
+  EXPECT_FALSE(window.discard_prompt_open());
+  EXPECT_FALSE(window.Frame());
+}
+
+// Dropped files: a mesh is imported as a mesh object (one undo step), a document opens, anything
+// else is refused with a message.
+TEST(AppWindowDocument, DroppedFilesImportMeshesAndOpenDocuments) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("drop");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string stl = (dir / "wedge.stl").string();
+  std::ofstream(stl)
+      << "solid w\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n"
+         "   vertex 0.05 0 0\n   vertex 0 0.05 0\n  endloop\n endfacet\nendsolid w\n";
+  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  window.Frame();
+  const size_t objects = window.model().document().objects().size();
+  window.DropFiles({stl});
+  ASSERT_EQ(window.model().document().objects().size(), objects + 1) << window.file_error();
+  const DocObject& mesh = window.model().document().objects().back();
+  EXPECT_EQ(mesh.name, "wedge");
+  ASSERT_NE(std::get_if<MeshData>(&mesh.data), nullptr);
+  EXPECT_EQ(std::get<MeshData>(mesh.data).surface->triangles.cols(), 1);
+  EXPECT_EQ(window.model().document().history().UndoDescription(), "Import mesh wedge");
+  window.Frame();
+  window.DropFiles({(dir / "notes.txt").string()});
+  EXPECT_NE(window.file_error().find("notes.txt"), std::string::npos) << window.file_error();
+  window.Frame();
+  // A document: asks first (the import is unsaved), then opens.
+  const std::string doc = (dir / "dropped.json").string();
+  fs::copy_file(AssetPath("scenes/platform.json"), doc);
+  window.DropFiles({doc});
+  ASSERT_TRUE(window.discard_prompt_open());
+  window.AnswerDiscardPrompt(1);
+  for (int k = 0; k < 2; ++k) window.Frame();
+  EXPECT_EQ(window.model().document().file_path(), doc);
+}
+
+// Autosave writes the recovery file while there are unsaved changes and a save removes it; at
+// the next start the window offers an autosave newer than its file (Recover brings the edit
+// back, unsaved), and --no-recover deletes it without asking.
+TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("offer");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string mine = (dir / "mine.json").string();
+  fs::copy_file(AssetPath("scenes/platform.json"), mine);
+  GuiOptions options = DocumentWindowOptions(mine);
+  options.autosave_interval = 0.05;
+  options.set_fields = {"plate:radius=0.0047"};
+  {
+    AppWindow window(options);
+    EXPECT_TRUE(window.model().document().dirty()) << "--set is an edit";
+    for (int k = 0; k < 400 && RecoveryFiles(dir / "recovery").empty(); ++k) window.Frame();
+    ASSERT_EQ(RecoveryFiles(dir / "recovery").size(), 1u);
+    ASSERT_TRUE(window.tree().Save());
+    window.Frame();
+    EXPECT_TRUE(RecoveryFiles(dir / "recovery").empty()) << "a clean save removes it";
+    // Another edit, autosaved; then the window goes away without Run's clean end, as a crash.
+    ASSERT_TRUE(window.tree().SelectByName("plate"));
+    ASSERT_TRUE(window.tree().SetField("radius", 0.0049));
+    for (int k = 0; k < 400 && RecoveryFiles(dir / "recovery").empty(); ++k) window.Frame();
+    ASSERT_EQ(RecoveryFiles(dir / "recovery").size(), 1u);
+  }
+  const fs::path left = RecoveryFiles(dir / "recovery").at(0);
+  {
+    GuiOptions ask = DocumentWindowOptions(mine);
+    AppWindow window(ask);
+    EXPECT_TRUE(window.recovery_prompt_open());
+    EXPECT_EQ(NodeField(window.model().document(), "plate", "radius"), 0.0047);
+    for (int k = 0; k < 3; ++k) window.Frame();
+    window.AnswerRecovery(true);
+    window.Frame();
+    EXPECT_FALSE(window.recovery_prompt_open());
+    EXPECT_EQ(NodeField(window.model().document(), "plate", "radius"), 0.0049);
+    EXPECT_TRUE(window.model().document().dirty()) << "recovered work is unsaved";
+    EXPECT_EQ(window.model().document().file_path(), NormalisedPath(mine));
+    EXPECT_TRUE(fs::exists(left)) << "kept until saved";
+  }
+  {
+    GuiOptions no = DocumentWindowOptions(mine);
+    no.recover = 0;
+    AppWindow window(no);
+    EXPECT_FALSE(window.recovery_prompt_open());
+    EXPECT_FALSE(fs::exists(left));
+    EXPECT_EQ(NodeField(window.model().document(), "plate", "radius"), 0.0047);
+    EXPECT_FALSE(window.model().document().dirty());
+  }
+}
+
+// The kill test: a spawned spidarcad edits a copy of a document (--set), autosaves, and is
+// killed with SIGKILL; the next start with --recover holds the edit, unsaved, under the
+// original's name, and saving it writes the edit and removes the recovery file.
+TEST(AppWindowRecovery, RecoversTheEditOfAKilledSession) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("kill");
+  const fs::path recovery_dir = dir / "recovery";
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", recovery_dir.string().c_str());
+  const std::string copy = (dir / "workbench.json").string();
+  fs::copy_file(AssetPath("scenes/workbench.json"), copy);
+  const std::string command = std::string("exec '") + SPIDARCAD_EXE + "' '" + copy +
+                              "' --device ideal --size 800x600 --autosave-interval 0.2 "
+                              "--set plate:radius=0.0048 > '" +
+                              (dir / "run.log").string() + "' 2>&1";
+  pid_t pid = 0;
+  const char* argv[] = {"/bin/sh", "-c", command.c_str(), nullptr};
+  ASSERT_EQ(::posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char**>(argv), environ), 0);
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(240);
+  while (RecoveryFiles(recovery_dir).empty() && std::chrono::steady_clock::now() < give_up) {
+    int status = 0;
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      pid = 0;
+      break;  // it ended by itself: the assertion below fails with its log
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  if (pid != 0) {
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+  }
+  std::ifstream log(dir / "run.log");
+  const std::string log_text((std::istreambuf_iterator<char>(log)),
+                             std::istreambuf_iterator<char>());
+  ASSERT_EQ(RecoveryFiles(recovery_dir).size(), 1u) << log_text;
+  Document on_disk;
+  on_disk.Load(copy);
+  ASSERT_EQ(NodeField(on_disk, "plate", "radius"), 0.003) << "the killed run never saved";
+
+  GuiOptions options = DocumentWindowOptions(copy);
+  options.recover = 1;
+  AppWindow window(options);
+  EXPECT_FALSE(window.recovery_prompt_open());
+  const Document& doc = window.model().document();
+  EXPECT_EQ(NodeField(doc, "plate", "radius"), 0.0048);
+  EXPECT_TRUE(doc.dirty());
+  EXPECT_EQ(doc.file_path(), NormalisedPath(copy));
+  // Every object of the file is there besides the edit: the same list of names and kinds.
+  ASSERT_EQ(doc.objects().size(), on_disk.objects().size());
+  for (size_t i = 0; i < doc.objects().size(); ++i) {
+    EXPECT_EQ(doc.objects()[i].name, on_disk.objects()[i].name);
+    EXPECT_EQ(doc.objects()[i].data.index(), on_disk.objects()[i].data.index());
+  }
+  window.Frame();
+  ASSERT_TRUE(window.tree().Save()) << window.tree().error();
+  window.Frame();
+  EXPECT_TRUE(RecoveryFiles(recovery_dir).empty());
+  Document saved;
+  saved.Load(copy);
+  EXPECT_EQ(NodeField(saved, "plate", "radius"), 0.0048);
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 
 #include "doc/clipboard.h"
 #include "doc/command.h"
+#include "doc/input_error.h"
 
 namespace spidarcad::app {
 namespace {
@@ -770,6 +771,103 @@ TEST(Document, LoadRejectsIdsRepeatedAcrossSolidsAndKeepsContent) {
   const std::string missing = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/no_such_scene.json";
   EXPECT_THROW(f.doc.Load(missing), modeling::SceneError);
   EXPECT_EQ(FullText(f.doc), before);
+}
+
+}  // namespace
+}  // namespace spidarcad::app
+
+namespace spidarcad::app {
+namespace {
+
+// ImportMesh: a file written here as text (an ASCII STL of two triangles, a TetGen pair with one
+// negatively numbered tet) lands as one mesh object holding exactly the file's geometry, undo
+// removes it, redo brings it back; a bad file throws naming it and makes no command.
+TEST(Document, ImportMeshAddsTheFileAsAMeshObjectAndUndoRemovesIt) {
+  const std::filesystem::path dir = std::filesystem::path(SPIDARCAD_TEST_OUTPUT_DIR) / "import";
+  std::filesystem::create_directories(dir);
+  const std::string stl = (dir / "quad.stl").string();
+  {
+    std::FILE* f = std::fopen(stl.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs(
+        "solid quad\n"
+        " facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.1 0 0\n"
+        "   vertex 0.1 0.2 0\n  endloop\n endfacet\n"
+        " facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.1 0.2 0\n"
+        "   vertex 0 0.2 0\n  endloop\n endfacet\nendsolid quad\n",
+        f);
+    std::fclose(f);
+  }
+  Document doc;
+  doc.Execute(edit::AddSolid("ball", Sphere(0.01)));
+  const std::string before = FullText(doc);
+  doc.Execute(edit::ImportMesh(stl));
+  ASSERT_EQ(doc.objects().size(), 2u);
+  const DocObject& o = doc.objects().back();
+  EXPECT_EQ(o.name, "quad");
+  const auto* mesh = std::get_if<MeshData>(&o.data);
+  ASSERT_NE(mesh, nullptr);
+  EXPECT_EQ(mesh->import_source, stl);
+  EXPECT_EQ(mesh->source, 0u);
+  ASSERT_TRUE(mesh->surface);
+  EXPECT_FALSE(mesh->volume);
+  EXPECT_EQ(mesh->surface->triangles.cols(), 2);
+  // The surface's area is the rectangle's, 0.1 × 0.2 m², whatever the vertex order.
+  double area = 0.0;
+  for (int t = 0; t < 2; ++t) {
+    const Eigen::Vector3d a = mesh->surface->vertices.col(mesh->surface->triangles(0, t));
+    const Eigen::Vector3d b = mesh->surface->vertices.col(mesh->surface->triangles(1, t));
+    const Eigen::Vector3d c = mesh->surface->vertices.col(mesh->surface->triangles(2, t));
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  EXPECT_NEAR(area, 0.02, 1e-12);
+  EXPECT_EQ(doc.history().UndoDescription(), "Import mesh quad");
+  ASSERT_TRUE(doc.Undo());
+  EXPECT_EQ(FullText(doc), before);
+  ASSERT_TRUE(doc.Redo());
+  EXPECT_EQ(doc.objects().size(), 2u);
+
+  // TetGen files, numbered from 1, the tet given with negative orientation: flipped, the unit
+  // corner tet's volume 1/6 m³; the region attribute kept.
+  std::FILE* node = std::fopen((dir / "tet.node").c_str(), "w");
+  ASSERT_NE(node, nullptr);
+  std::fputs("# corner tet\n4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n", node);
+  std::fclose(node);
+  std::FILE* ele = std::fopen((dir / "tet.ele").c_str(), "w");
+  ASSERT_NE(ele, nullptr);
+  std::fputs("1 4 1\n1 1 3 2 4 7\n", ele);
+  std::fclose(ele);
+  doc.Execute(edit::ImportMesh((dir / "tet.node").string(), "corner"));
+  const auto* tets = std::get_if<MeshData>(&doc.objects().back().data);
+  ASSERT_NE(tets, nullptr);
+  ASSERT_TRUE(tets->volume);
+  EXPECT_EQ(doc.objects().back().name, "corner");
+  EXPECT_EQ(tets->volume->tets.cols(), 1);
+  EXPECT_NEAR(modeling::TetVolume(*tets->volume, 0), 1.0 / 6.0, 1e-15);
+  EXPECT_EQ(tets->volume->regions(0), 7);
+
+  // A bad file: InputError naming the file and line; no command, the document as it was.
+  const std::string bad = (dir / "bad.node").string();
+  std::FILE* b = std::fopen(bad.c_str(), "w");
+  ASSERT_NE(b, nullptr);
+  std::fputs("2 3 0 0\n0 0 0 0\n1 0 zero 0\n", b);
+  std::fclose(b);
+  std::FILE* be = std::fopen((dir / "bad.ele").c_str(), "w");
+  ASSERT_NE(be, nullptr);
+  std::fputs("0 4 0\n", be);
+  std::fclose(be);
+  const std::string kept = FullText(doc);
+  try {
+    doc.Execute(edit::ImportMesh(bad));
+    FAIL() << "imported a bad file";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(bad + ":3: y is not a finite number: 'zero'"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(FullText(doc), kept);
+  EXPECT_THROW(edit::ImportMesh((dir / "missing.stl").string()), InputError);
+  EXPECT_THROW(edit::ImportMesh((dir / "quad.txt").string()), InputError);
 }
 
 }  // namespace

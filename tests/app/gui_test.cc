@@ -25,6 +25,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "doc/job.h"
 #include "gui/colour_map.h"
@@ -549,6 +550,47 @@ TEST(GuiOptions, ParsesSizeAndGripAndRejectsBadValues) {
     EXPECT_NE(std::string(e.what()).find("z [mm]"), std::string::npos) << e.what();
   }
   EXPECT_THROW(ParseGripPose("1,2,3,4", &grip), CLI::ValidationError);
+}
+
+// --set, --recover / --no-recover, --autosave-interval and --show as the command line gives them.
+TEST(GuiOptions, ParsesDocumentOptionsAndRejectsBadOnes) {
+  const SetFieldEdit e = ParseSetField("base/0/1:size=[0.1, 0.2, 0.3]");
+  EXPECT_EQ(e.node, "base/0/1");
+  EXPECT_EQ(e.field, "size");
+  EXPECT_EQ(e.value, "[0.1, 0.2, 0.3]");
+  const SetFieldEdit colon = ParseSetField("a:b:radius=0.5");  // the last ':' before '='
+  EXPECT_EQ(colon.node, "a:b");
+  EXPECT_EQ(colon.field, "radius");
+  for (const char* bad : {"knob", "knob=1", ":radius=1", "knob:=1", "knob:radius="}) {
+    EXPECT_THROW(ParseSetField(bad), CLI::ValidationError) << bad;
+  }
+  auto parse = [](std::vector<std::string> args, GuiOptions* options) {
+    CLI::App app;
+    AddGuiOptions(app, options);
+    std::reverse(args.begin(), args.end());
+    app.parse(args);
+  };
+  GuiOptions o;
+  parse({"scene.json", "--set", "knob:radius=0.04", "--set", "lid:height=0.01", "--recover",
+         "--autosave-interval", "0.5", "--show", "open"},
+        &o);
+  EXPECT_EQ(o.scene, "scene.json");
+  EXPECT_EQ(o.set_fields, (std::vector<std::string>{"knob:radius=0.04", "lid:height=0.01"}));
+  EXPECT_EQ(o.recover, 1);
+  EXPECT_EQ(o.autosave_interval, 0.5);
+  EXPECT_EQ(o.show, "open");
+  GuiOptions n;
+  parse({"--no-recover"}, &n);
+  EXPECT_EQ(n.recover, 0);
+  GuiOptions d;
+  parse({}, &d);
+  EXPECT_EQ(d.recover, -1);
+  EXPECT_EQ(d.autosave_interval, 60.0);
+  GuiOptions x;
+  EXPECT_THROW(parse({"--recover", "--no-recover"}, &x), CLI::ParseError);
+  EXPECT_THROW(parse({"--autosave-interval", "0"}, &x), CLI::ParseError);
+  EXPECT_THROW(parse({"--set", "nofield"}, &x), CLI::ParseError);
+  EXPECT_THROW(parse({"--show", "everything"}, &x), CLI::ParseError);
 }
 
 // Runs a shell command; returns its exit status (−1 when it did not exit normally).

@@ -3,10 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <set>
 #include <stdexcept>
 #include <utility>
+
+#include "doc/mesh_import.h"
 
 namespace spidarcad::app {
 namespace {
@@ -486,6 +489,16 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
   mesh.volume = std::move(volume);
   o.data = std::move(mesh);
   return InsertConstant("Add mesh " + name, std::move(o), -1);
+}
+
+std::unique_ptr<Command> ImportMesh(const std::string& path, std::string name) {
+  MeshData data = ReadMeshFile(path);  // InputError names the file; nothing made then
+  if (name.empty()) name = std::filesystem::path(path).stem().string();
+  if (name.empty()) name = "mesh";
+  DocObject o;
+  o.name = name;
+  o.data = std::move(data);
+  return InsertConstant("Import mesh " + name, std::move(o), -1);
 }
 
 std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,

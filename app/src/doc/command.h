@@ -113,6 +113,11 @@ std::unique_ptr<Command> AddRigidPart(std::string name, modeling::ImplicitNode r
 std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_t source_revision,
                                  std::shared_ptr<const modeling::TriangleMesh> surface,
                                  std::shared_ptr<const modeling::TetMesh> volume);
+// Imports a mesh file as a new mesh object named `name` ("" -> the file's stem): a surface from
+// STL, OBJ or PLY, tetrahedra from VTU or TetGen .node (+ .ele), import_source = path
+// (doc/mesh_import.h). The file is read here, before the document is touched: a bad file throws
+// InputError naming the file, line or byte and field, and no command is made.
+std::unique_ptr<Command> ImportMesh(const std::string& path, std::string name = {});
 // Adds an FE model of the volume mesh held by mesh object tet_mesh.
 std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
                                     const fem::Material& material,

@@ -417,6 +417,11 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
   saved_signature_ = Signature();
 }
 
+void Document::MarkRecovered(const std::string& original) {
+  file_path_ = original;
+  saved_signature_.clear();  // no content has an empty signature: dirty until saved
+}
+
 void Document::Save(const std::string& path) {
   const modeling::Scene scene = ToScene();
   // Parts name their solid: one renamed or deleted since the load would make a file that does

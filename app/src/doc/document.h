@@ -225,6 +225,9 @@ class Document {
                     std::optional<DocView> view, const std::string& source);
   // Empties the document and its history; clean.
   void Clear();
+  // After loading a recovery file (doc/autosave.h): the document takes its original's path
+  // (`original`, "" for an untitled document) and counts as unsaved until the next Save.
+  void MarkRecovered(const std::string& original);
 
   // ---- editing ----
   // Runs a command and records it for undo. A command that throws leaves the document exactly

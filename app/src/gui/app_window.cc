@@ -4,12 +4,18 @@
 // scene meshing in background Jobs.
 #include "gui/app_window.h"
 
+#include <signal.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -27,10 +33,15 @@
 #include <Eigen/Geometry>
 
 #include "doc/assets.h"
+#include "doc/autosave.h"
+#include "doc/command.h"
 #include "doc/input_error.h"
 #include "doc/job.h"
+#include "doc/mesh_import.h"
 #include "doc/number_format.h"
+#include "doc/recent_files.h"
 #include "gui/device_view.h"
+#include "gui/file_browser.h"
 #include "gui/gl_capture.h"
 #include "gui/mode.h"
 #include "gui/modes.h"
@@ -63,6 +74,43 @@ constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 constexpr char kDocumentPanel[] = "Document";
 constexpr char kModePanel[] = "Mode";
 constexpr char kFiguresPanel[] = "Device and haptic loop";
+constexpr char kDiscardPopup[] = "Unsaved changes";
+constexpr char kRecoveryPopup[] = "Recover unsaved work";
+constexpr char kFileErrorPopup[] = "Cannot open";
+constexpr int kBuiltInModes = 4;  // model, FE, sculpt, assembly: remade for every document
+
+// What waits for the unsaved-changes question (AppWindow::RequestAction).
+enum PendingKind { kPendingNone = 0, kPendingNew, kPendingOpen, kPendingQuit };
+
+// Local time of a file time, "2026-12-02 04:10:33".
+std::string FileTimeText(std::filesystem::file_time_type t) {
+  const auto sys = std::chrono::time_point_cast<std::chrono::system_clock::duration>(
+      std::chrono::file_clock::to_sys(t));
+  const std::time_t tt = std::chrono::system_clock::to_time_t(sys);
+  std::tm tm{};
+  localtime_r(&tt, &tm);
+  char text[64];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M:%S", &tm);
+  return text;
+}
+
+// The pid in "untitled-<pid>.spidarcad", 0 when the name is not one.
+long UntitledPid(const std::filesystem::path& path) {
+  const std::string stem = path.stem().string();
+  if (stem.rfind("untitled-", 0) != 0) return 0;
+  const std::string digits = stem.substr(9);
+  if (digits.empty() || digits.size() > 9 ||
+      digits.find_first_not_of("0123456789") != std::string::npos)
+    return 0;
+  return std::stol(digits);
+}
+
+// GLFW's drop callback: the files go to the window (its user pointer).
+void OnDrop(GLFWwindow* glfw_window, int count, const char** paths) {
+  auto* window = static_cast<AppWindow*>(glfwGetWindowUserPointer(glfw_window));
+  if (window == nullptr || count <= 0) return;
+  window->DropFiles(std::vector<std::string>(paths, paths + count));
+}
 
 void GlfwError(int code, const char* text) {
   std::cerr << "spidarcad: GLFW error " << code << ": " << text << "\n";
@@ -221,6 +269,27 @@ struct AppWindow::State {
   LoopStats stats;
   PanelActions panel_actions;
   WorkbenchActions actions;
+  // Documents: the File menu's requests, the recent list, autosave and recovery.
+  std::unique_ptr<RecentFiles> recent;
+  std::unique_ptr<Autosaver> autosaver;
+  bool autosave_wrote = false;  // the autosaver wrote this document's recovery file
+  std::string autosave_error;   // the last autosave failure shown
+  std::string recovered_file;   // the recovery file this document was recovered from, if any
+  std::optional<RecoveryFile> recovery_offer;  // the start-up question while unanswered
+  bool recovery_popup_requested = false;
+  int recovery_answer = -1;                 // the buttons' answer, run at the next frame
+  std::vector<RecentEntry> recent_entries;  // Open Recent, refreshed every kReloadCheckFrames
+  std::string recorded_path;                // document path last put in the recent list
+  int pending_kind = kPendingNone;
+  std::string pending_path;
+  bool pending_ready = false;  // run the pending action at the next frame
+  bool ask_discard = false;    // the Save / Discard / Cancel question is up
+  bool discard_popup_requested = false;
+  bool pending_after_save_as = false;  // the action waits for Save As
+  std::string file_error;
+  bool file_error_popup = false;
+  FileBrowserState open_browser;
+  FileBrowserState import_browser;
 };
 
 AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) {
@@ -256,15 +325,40 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     const haptics::TrajectorySample first = s.trajectory.Sample(s.trajectory.start_time());
     s.grip->SetPose(first.p_DT, first.q_DT.toRotationMatrix(), first.grasp);
   }
+  // The recent list and the autosaver; a recovery file newer than the document is recovered
+  // (--recover), deleted (--no-recover) or offered in the window (not in --screenshot runs).
+  s.recent = std::make_unique<RecentFiles>();
+  s.recent->Load();
+  ResetAutosaver();
+  const std::string source = DefaultSceneFor(options);
+  FindRecoveryOffer(source);
+  std::string load_from = source;
+  std::optional<std::string> recovered_original;
+  if (s.recovery_offer && options.recover == 1) {
+    load_from = s.recovery_offer->path.string();
+    recovered_original = s.recovery_offer->original;
+    s.recovery_offer.reset();
+  } else if (s.recovery_offer && options.recover == 0) {
+    std::error_code ec;
+    std::filesystem::remove(s.recovery_offer->path, ec);
+    s.recovery_offer.reset();
+  } else if (s.recovery_offer && !options.screenshot.empty()) {
+    s.recovery_offer.reset();  // a screenshot never asks; the file stays for the next start
+  }
+  s.recovery_popup_requested = s.recovery_offer.has_value();
   // An assembly scene (one with `parts`) keeps X_WD = identity, as `spidarcad run` does, so that
   // one trajectory file works in both.
-  const std::string source = DefaultSceneFor(options);
-  s.assembly = LoadAssemblyScene(source, &s.assembly_scene);
+  s.assembly = LoadAssemblyScene(load_from, &s.assembly_scene);
   try {
     const DeviceToWorld identity;
-    s.model.Load(source, s.grip->limits(), s.assembly ? &identity : nullptr);
+    s.model.Load(load_from, s.grip->limits(), s.assembly ? &identity : nullptr);
   } catch (const std::exception& e) {
     throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
+  }
+  if (recovered_original) {
+    s.model.document().MarkRecovered(*recovered_original);
+    s.recovered_file = load_from;
+    std::cerr << "spidarcad: recovered unsaved work from " << load_from << "\n";
   }
   // The tree panel's controller on the model's Document; the first solid selected, or --select.
   s.tree = std::make_unique<TreeController>(&s.model);
@@ -275,6 +369,11 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     }
   } else if (!s.model.objects().empty()) {
     s.tree->Select(s.model.objects().front().id);
+  }
+  ApplySetEdits();
+  // Scripted runs leave the start-up document out of the recent list.
+  if (options.frames > 0 || !options.screenshot.empty()) {
+    s.recorded_path = s.model.document().file_path();
   }
   if (!ParseRuntimeDevice(options.device, &s.runtime_settings.device)) {
     throw WindowStartError(2, "spidarcad: error: --device: '" + options.device +
@@ -309,28 +408,18 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
                                   std::to_string(options.height) + " OpenGL 3.2 window");
   }
   glfwMakeContextCurrent(s.window);
+  glfwSetWindowUserPointer(s.window, this);
+  glfwSetDropCallback(s.window, OnDrop);
   s.capture = !options.screenshot.empty();
   glfwSwapInterval(s.capture || options.frames > 0 ? 0 : 1);
 
   // The haptic runtime (its own 1 kHz thread, started once the modes have published) and jobs.
-  s.runtime_settings.loop.world_scale = s.model.device_to_world().world_scale;
-  s.runtime_settings.loop.p_WDo = s.model.device_to_world().p_WDo;
   try {
-    s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
-  } catch (const InputError& e) {
+    MakeRuntime();
+  } catch (const InputError& e) {  // a bad --calibration file
     throw WindowStartError(2, std::string("spidarcad: error: ") + e.what());
   }
-  if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
-    std::cerr << "spidarcad: " << s.runtime->link_at_start()
-              << "\nspidarcad: the window runs at zero force and retries the board.\n";
-  }
-  if (!s.runtime->calibration_note().empty()) {
-    std::cerr << "spidarcad: " << s.runtime->calibration_note() << "\n";
-  }
-  s.geometry = &s.runtime->info().geometry;
   const haptics::TensionSettings& tension = s.runtime->loop().settings().tension;
-  // With solids to touch, the springs would fight the contact: off unless the scene is empty.
-  s.springs.enabled = s.model.objects().empty();
   s.jobs = std::make_unique<JobQueue>();
   s.model.StartPreviewJobs(s.jobs.get());
 
@@ -354,41 +443,10 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   s.render_window->AddRenderer(s.view->renderer());
   s.scene_view = std::make_unique<SceneView>(s.view->renderer());
 
-  // The modes. Each may contribute force fields, kept across scene rebuilds through SharedField
-  // so their state between ticks survives a republish.
-  vtkRenderer* renderer = s.view->renderer();
-  const double scale = s.runtime_settings.loop.world_scale;
-  const Eigen::Vector3d p_WDo = s.runtime_settings.loop.p_WDo;
-  auto model_mode = std::make_unique<ModelMode>(renderer, &s.springs, s.geometry->d);
-  model_mode->SetWorldToView(scale, p_WDo);
-  s.model_mode = model_mode.get();
-  auto fe = std::make_unique<FeWindowMode>(renderer, s.jobs.get());
-  fe->fe().SetWorldToView(scale, p_WDo);
-  auto sculpt = std::make_unique<SculptWindowMode>(renderer, s.jobs.get());
-  sculpt->sculpt().SetWorldToView(scale, p_WDo);
-  // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
-  // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
-  auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
-  if (s.assembly) {
-    try {
-      assembly->assembly().Load(s.assembly_scene);
-    } catch (const std::exception& e) {
-      throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
-    }
-  }
-  assembly->assembly().SetWorldToView(scale, p_WDo);
-  s.assembly_mode = assembly.get();
-  s.modes.push_back(std::move(model_mode));
-  s.modes.push_back(std::move(fe));
-  s.modes.push_back(std::move(sculpt));
-  s.modes.push_back(std::move(assembly));
-  s.model_mode->SetFelt(!s.assembly_mode->available());
-  ApplyHidden();
-  if (s.assembly_mode->available()) {
-    s.view->Zoom(1.4);  // the robot is small (C: whole frame)
-  } else {
-    // A scene with solids opens fitted to them and the grip (C: the whole device).
-    s.fit_pending = !s.model.objects().empty();
+  try {
+    MakeModes();
+  } catch (const std::exception& e) {
+    throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
   }
 
   // The figures strip starts open in windows at least kFiguresOpenHeight tall (the default
@@ -414,17 +472,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
 
   // The starting mode: --mode, else the base mode (assembly for a scene with parts, else
   // modelling). Then the first scene, and the loop starts.
-  Mode* start = FindMode(options.mode);
-  if (start != nullptr && start != s.model_mode) {
-    s.active = start;
-    start->Launch();
-  } else {
-    s.active = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
-    s.active->Enter();
-  }
-  for (auto& m : s.modes) m->TakeSceneChanged();
-  PublishScene();
-  s.runtime->Start();
+  StartScene(options.mode);
 
   // --trajectory: played into the hand's target from here on (its own thread, 1 kHz); the main
   // thread takes the target back (the mouse's grip, set to the last sample) once it has ended.
@@ -439,6 +487,13 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     s.player->Start();
   }
   s.player_live = s.player != nullptr;
+  // --show open / import: the file browser is up from the first frame.
+  const std::string& current = s.model.document().file_path();
+  if (options.show == "open") {
+    OpenFileBrowser(&s.open_browser, BrowseFilter::kDocuments, "Open", current);
+  } else if (options.show == "import") {
+    OpenFileBrowser(&s.import_browser, BrowseFilter::kMeshes, "Import", current);
+  }
   s.start_time = glfwGetTime();
   s.last_frame = s.capture ? std::max(kScreenshotFrames, options.frames) : options.frames;
 }
@@ -464,6 +519,8 @@ int AppWindow::Run() {
   while (Frame()) {
   }
   s.runtime->Stop();
+  // A normal end (Quit answered, or a scripted run's last frame): this session's autosave goes.
+  DiscardRecovery();
   if ((s.capture || s.options.frames > 0) && s.print_summary) {
     const haptics::ToolState tool = s.runtime->Latest().tool;
     std::cout << FormatLoopSummary(CollectLoopStats(*s.runtime, s.runtime->Latest()));
@@ -476,8 +533,13 @@ int AppWindow::Run() {
 bool AppWindow::Frame() {
   State& s = *s_;
   if (s.done || s.quit) return false;
-  glfwPollEvents();
-  if (glfwWindowShouldClose(s.window)) return false;
+  glfwPollEvents();                       // files dropped on the window arrive here (OnDrop)
+  if (glfwWindowShouldClose(s.window)) {  // the close button: as Quit (asks when unsaved)
+    glfwSetWindowShouldClose(s.window, GLFW_FALSE);
+    RequestQuit();
+  }
+  RunPendingAction();  // New, Open, Quit once answered (or with nothing unsaved)
+  if (s.quit) return false;
   ++s.frame_index;
   glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
   glfwGetWindowSize(s.window, &s.win_w, &s.win_h);
@@ -506,6 +568,12 @@ bool AppWindow::Frame() {
 
   ImGui_ImplOpenGL3_NewFrame();
   ImGui_ImplGlfw_NewFrame();
+  if (s.options.show == "file-menu" && s.frame_index >= 2) {
+    // --show file-menu: a click on "File" at the second frame; the pointer stays over the menu.
+    ImGuiIO& io = ImGui::GetIO();
+    io.MousePos = ImVec2(ImGui::GetStyle().FramePadding.x + 12.0f, 0.5f * s.menu_height);
+    io.MouseDown[0] = s.frame_index == 2;
+  }
   ImGui::NewFrame();
   s.frame_height = ImGui::GetFrameHeight();
 
@@ -523,14 +591,29 @@ bool AppWindow::Frame() {
   s.scene_view->ShowContacts(s.model.ContactMarkers(), s.latest.tool.time,
                              s.model.device_to_world());
 
-  s.menu_height =
-      DrawMenuBar(&s.model, s.jobs.get(), &s.workbench, &s.actions, s.tree.get(), &s.tree_state);
+  if (s.frame_index % kReloadCheckFrames == 1 ||
+      s.recent_entries.size() != s.recent->paths().size() ||
+      (!s.recent_entries.empty() && s.recent_entries[0].path != s.recent->paths()[0])) {
+    s.recent_entries = s.recent->Entries();  // a few stat calls: not every frame
+  }
+  s.menu_height = DrawMenuBar(&s.model, s.jobs.get(), &s.workbench, &s.actions, s.tree.get(),
+                              &s.tree_state, &s.recent_entries);
   UpdateModes();
   DrawPanels();
   // Tree edits, undo and redo: recompile what changed, republish the haptic scene (X_WD stays),
   // re-mesh the previews (coarse first).
   HandleTreeShortcuts(s.tree.get(), &s.tree_state);
+  DrawFileDialogs();
   DrawSaveAsDialog(s.tree.get(), &s.tree_state);
+  if (s.pending_after_save_as) {  // Save As asked for by the unsaved-changes question
+    if (!s.model.document().dirty()) {
+      s.pending_after_save_as = false;
+      s.pending_ready = true;
+    } else if (!s.tree_state.open_save_as && !ImGui::IsPopupOpen("Save As")) {
+      s.pending_after_save_as = false;  // cancelled: so is the action
+      s.pending_kind = kPendingNone;
+    }
+  }
   if (s.model.Refresh()) s.republish = true;
   if (s.workbench.contact_changed) {  // the Touch controls (Haptics menu)
     s.workbench.contact_changed = false;
@@ -538,6 +621,18 @@ bool AppWindow::Frame() {
   }
   if (s.republish) PublishScene();
   s.model.UpdatePreviews(s.jobs.get());
+  UpdateAutosave();
+  // A document saved under a new name (Save As) goes first in the recent list.
+  if (const std::string& path = s.model.document().file_path();
+      path != s.recorded_path && !s.model.document().dirty()) {
+    s.recorded_path = path;
+    if (!path.empty()) {
+      s.recent->Add(path);
+      if (const std::string error = s.recent->Save(); !error.empty()) {
+        std::cerr << "spidarcad: " << error << "\n";
+      }
+    }
+  }
   if (const std::string title = s.tree->Title(); title != s.window_title) {
     glfwSetWindowTitle(s.window, title.c_str());
     s.window_title = title;
@@ -634,7 +729,13 @@ void AppWindow::HandleInput() {
   if (over_grip || s.drag == DragMode::kMoveGrip) ImGui::SetMouseCursor(ImGuiMouseCursor_Hand);
   s.select_key = false;
   if (!io.WantCaptureKeyboard) {
-    if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE)) s.quit = true;
+    if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE, false) &&
+        !ImGui::IsPopupOpen("", ImGuiPopupFlags_AnyPopupId)) {
+      RequestQuit();
+    }
+    if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_N, false)) s.actions.file_new = true;
+    if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_O, false)) s.actions.file_open = true;
+    if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_I, false)) s.actions.file_import = true;
     if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) s.runtime->EmergencyStop();
     if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
     if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
@@ -841,7 +942,24 @@ void AppWindow::ApplyActions() {
     s.view->SetStandardView(static_cast<StandardView>(w.standard_view),
                             SubjectBox(s.model, s.workbench.selected, false, *s.view));
   }
-  if (p.quit || w.quit) s.quit = true;
+  if (p.quit || w.quit) RequestQuit();
+  if (w.file_new) RequestNew();
+  const std::string& current = s.model.document().file_path();
+  if (w.file_open) {
+    OpenFileBrowser(&s.open_browser, BrowseFilter::kDocuments, "Open",
+                    current.empty() ? std::filesystem::path() : std::filesystem::path(current));
+  }
+  if (w.file_import) {
+    OpenFileBrowser(&s.import_browser, BrowseFilter::kMeshes, "Import",
+                    current.empty() ? std::filesystem::path() : std::filesystem::path(current));
+  }
+  if (!w.open_recent.empty()) RequestOpen(w.open_recent);
+  if (w.clear_recent) {
+    for (const std::string& path : std::vector<std::string>(s.recent->paths())) {
+      s.recent->Remove(path);
+    }
+    s.recent->Save();
+  }
   if (w.emergency_stop) s.runtime->EmergencyStop();
   if (w.rearm) s.runtime->Rearm();
   if (s.republish) PublishScene();
@@ -915,6 +1033,472 @@ bool AppWindow::CaptureScreenshot() {
   std::cout << "spidarcad: wrote " << s.options.screenshot << " (" << s.fb_w << "x" << s.fb_h << ")"
             << (settled ? "" : " before the loop settled") << "\n";
   return true;
+}
+
+// ---- the document's lifecycle ----
+
+void AppWindow::MakeRuntime() {
+  State& s = *s_;
+  s.runtime_settings.loop.world_scale = s.model.device_to_world().world_scale;
+  s.runtime_settings.loop.p_WDo = s.model.device_to_world().p_WDo;
+  s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
+    std::cerr << "spidarcad: " << s.runtime->link_at_start()
+              << "\nspidarcad: the window runs at zero force and retries the board.\n";
+  }
+  if (!s.runtime->calibration_note().empty()) {
+    std::cerr << "spidarcad: " << s.runtime->calibration_note() << "\n";
+  }
+  s.geometry = &s.runtime->info().geometry;
+  // With solids to touch, the springs would fight the contact: off unless the scene is empty.
+  s.springs.enabled = s.model.objects().empty();
+}
+
+void AppWindow::MakeModes() {
+  State& s = *s_;
+  // The modes. Each may contribute force fields, kept across scene rebuilds through SharedField
+  // so their state between ticks survives a republish. Modes added with AddMode stay after them.
+  std::vector<std::unique_ptr<Mode>> added;
+  for (size_t i = std::min<size_t>(kBuiltInModes, s.modes.size()); i < s.modes.size(); ++i) {
+    added.push_back(std::move(s.modes[i]));
+  }
+  s.modes.clear();
+  s.model_mode = nullptr;
+  s.assembly_mode = nullptr;
+  vtkRenderer* renderer = s.view->renderer();
+  const double scale = s.runtime_settings.loop.world_scale;
+  const Eigen::Vector3d p_WDo = s.runtime_settings.loop.p_WDo;
+  auto model_mode = std::make_unique<ModelMode>(renderer, &s.springs, s.geometry->d);
+  model_mode->SetWorldToView(scale, p_WDo);
+  auto fe = std::make_unique<FeWindowMode>(renderer, s.jobs.get());
+  fe->fe().SetWorldToView(scale, p_WDo);
+  auto sculpt = std::make_unique<SculptWindowMode>(renderer, s.jobs.get());
+  sculpt->sculpt().SetWorldToView(scale, p_WDo);
+  // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
+  // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
+  auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
+  std::string assembly_error;
+  if (s.assembly) {
+    try {
+      assembly->assembly().Load(s.assembly_scene);
+    } catch (const std::exception& e) {
+      assembly_error = e.what();
+    }
+  }
+  assembly->assembly().SetWorldToView(scale, p_WDo);
+  s.model_mode = model_mode.get();
+  s.assembly_mode = assembly.get();
+  s.modes.push_back(std::move(model_mode));
+  s.modes.push_back(std::move(fe));
+  s.modes.push_back(std::move(sculpt));
+  s.modes.push_back(std::move(assembly));
+  for (auto& m : added) s.modes.push_back(std::move(m));
+  s.model_mode->SetFelt(!s.assembly_mode->available());
+  ApplyHidden();
+  if (s.assembly_mode->available()) {
+    s.view->Zoom(1.4);  // the robot is small (C: whole frame)
+  } else {
+    // A scene with solids opens fitted to them and the grip (C: the whole device).
+    s.fit_pending = !s.model.objects().empty();
+  }
+  if (!assembly_error.empty()) throw std::runtime_error(assembly_error);
+}
+
+void AppWindow::StartScene(const std::string& mode_key) {
+  State& s = *s_;
+  Mode* start = FindMode(mode_key);
+  if (start != nullptr && start != s.model_mode) {
+    s.active = start;
+    start->Launch();
+  } else {
+    s.active = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
+    s.active->Enter();
+  }
+  for (auto& m : s.modes) m->TakeSceneChanged();
+  PublishScene();
+  s.runtime->Start();
+}
+
+bool AppWindow::ReplaceDocument(const std::string& source, const std::string* recovered_original) {
+  State& s = *s_;
+  // Load first: a file that fails leaves the document, the loop and the modes as they were.
+  modeling::Scene assembly_scene;
+  const bool assembly = LoadAssemblyScene(source, &assembly_scene);
+  try {
+    const DeviceToWorld identity;
+    s.model.Load(source, s.grip->limits(), assembly ? &identity : nullptr);
+  } catch (const std::exception& e) {
+    s.file_error = e.what();
+    s.file_error_popup = true;
+    s.workbench.status = "could not open " + source + " (the document is unchanged)";
+    s.workbench.status_error = true;
+    return false;
+  }
+  if (recovered_original != nullptr) {
+    s.model.document().MarkRecovered(*recovered_original);
+    s.recovered_file = source;
+  }
+  s.assembly = assembly;
+  s.assembly_scene = std::move(assembly_scene);
+  // Tear down what belonged to the old document: the trajectory (it drives the old loop), the
+  // loop, the jobs (joined: no finisher runs), the modes and the scene's actors.
+  if (s.player) s.player->Stop();
+  s.player.reset();
+  s.player_live = false;
+  s.runtime->Stop();
+  if (s.active != nullptr) s.active->Leave();  // FE mode may start a job as it leaves
+  s.active = nullptr;
+  s.jobs.reset();
+  s.scene_view.reset();
+  // Then the new document's: X_WD, loop, jobs, actors, modes (a fresh camera).
+  s.runtime.reset();
+  MakeRuntime();
+  s.jobs = std::make_unique<JobQueue>();
+  s.context.jobs = s.jobs.get();
+  s.scene_view = std::make_unique<SceneView>(s.view->renderer());
+  s.view->ResetCamera();
+  std::string assembly_error;
+  try {
+    MakeModes();
+  } catch (const std::exception& e) {
+    assembly_error = e.what();
+  }
+  s.tree->ClearSelection();
+  if (!s.model.objects().empty()) s.tree->Select(s.model.objects().front().id);
+  s.tree_state = TreePanelState{};
+  s.workbench.selected = 0;
+  s.model.StartPreviewJobs(s.jobs.get());
+  StartScene("");
+  s.file_error.clear();
+  s.workbench.status = (recovered_original != nullptr ? "recovered " : "opened ") +
+                       (source == kNoSceneName ? std::string("a new document") : source);
+  s.workbench.status_error = false;
+  if (!assembly_error.empty()) {
+    s.workbench.status += " (assembly not available: " + assembly_error + ")";
+    s.workbench.status_error = true;
+  }
+  return true;
+}
+
+void AppWindow::ApplySetEdits() {
+  State& s = *s_;
+  for (const std::string& text : s.options.set_fields) {
+    std::string why;
+    try {
+      const SetFieldEdit edit = ParseSetField(text);
+      const nlohmann::json value = nlohmann::json::parse(edit.value, nullptr, false);
+      if (value.is_discarded()) {
+        why = "the value '" + edit.value + "' is not JSON (a number, [x, y, z], true, \"text\")";
+      } else if (!s.tree->SelectByName(edit.node)) {
+        why = "no solid or node named '" + edit.node + "' in the scene";
+      } else if (!s.tree->SetField(edit.field, value)) {
+        why = s.tree->error();
+      }
+    } catch (const std::exception& e) {
+      why = e.what();
+    }
+    if (!why.empty()) throw WindowStartError(2, "spidarcad: error: --set '" + text + "': " + why);
+  }
+}
+
+void AppWindow::RequestAction(int kind, const std::string& path) {
+  State& s = *s_;
+  if (s.ask_discard || s.pending_after_save_as) return;  // a question is already up
+  s.pending_kind = kind;
+  s.pending_path = path;
+  if (s.model.document().dirty()) {
+    s.ask_discard = true;
+    s.discard_popup_requested = true;
+    s.pending_ready = false;
+  } else {
+    s.pending_ready = true;
+  }
+}
+
+void AppWindow::RunPendingAction() {
+  State& s = *s_;
+  if (s.recovery_answer >= 0) {
+    const bool recover = s.recovery_answer == 1;
+    s.recovery_answer = -1;
+    AnswerRecovery(recover);
+  }
+  if (!s.pending_ready) return;
+  const int kind = s.pending_kind;
+  const std::string path = s.pending_path;
+  s.pending_ready = false;
+  s.pending_kind = kPendingNone;
+  s.pending_path.clear();
+  switch (kind) {
+    case kPendingNew:
+      NewDocument();  // the old autosave goes: its changes were saved or discarded
+      break;
+    case kPendingOpen:
+      OpenDocument(path);  // a failure leaves the document and says why
+      break;
+    case kPendingQuit:
+      DiscardRecovery();
+      s.quit = true;
+      break;
+    default:
+      break;
+  }
+}
+
+void AppWindow::RequestNew() { RequestAction(kPendingNew, ""); }
+void AppWindow::RequestOpen(const std::string& path) { RequestAction(kPendingOpen, path); }
+void AppWindow::RequestQuit() { RequestAction(kPendingQuit, ""); }
+bool AppWindow::discard_prompt_open() const { return s_->ask_discard; }
+
+void AppWindow::AnswerDiscardPrompt(int answer) {
+  State& s = *s_;
+  if (!s.ask_discard) return;
+  s.ask_discard = false;
+  s.discard_popup_requested = false;
+  if (answer == 1) {  // Discard
+    s.pending_ready = true;
+    return;
+  }
+  if (answer == 0 && s.model.document().file_path().empty()) {  // Save As first, then the action
+    s.tree_state.open_save_as = true;
+    s.pending_after_save_as = true;
+    return;
+  }
+  if (answer == 0 && s.tree->Save()) {
+    s.pending_ready = true;
+    return;
+  }
+  if (answer == 0) {
+    s.file_error = s.tree->error() + " (nothing was closed)";
+    s.file_error_popup = true;
+  }
+  s.pending_kind = kPendingNone;  // Cancel, or the save failed
+  s.pending_path.clear();
+}
+
+bool AppWindow::OpenDocument(const std::string& path) {
+  State& s = *s_;
+  const std::filesystem::path old_recovery = s.autosaver->RecoveryPathFor(s.model.document());
+  const bool wrote = s.autosave_wrote;
+  const std::string recovered = s.recovered_file;
+  if (!ReplaceDocument(path, nullptr)) return false;
+  // The old document's autosave goes with it (its changes were saved or discarded).
+  std::error_code ec;
+  if (wrote) std::filesystem::remove(old_recovery, ec);
+  if (!recovered.empty()) std::filesystem::remove(recovered, ec);
+  ResetAutosaver();
+  s.recent->Add(path);
+  const std::string error = s.recent->Save();
+  if (!error.empty()) std::cerr << "spidarcad: " << error << "\n";
+  s.recorded_path = s.model.document().file_path();
+  // A crash may have left an autosave of this file newer than it: offer it.
+  FindRecoveryOffer(path);
+  s.recovery_popup_requested = s.recovery_offer.has_value();
+  return true;
+}
+
+void AppWindow::NewDocument() {
+  State& s = *s_;
+  DiscardRecovery();
+  ReplaceDocument(kNoSceneName, nullptr);
+  ResetAutosaver();
+  s.recorded_path.clear();
+}
+
+void AppWindow::ResetAutosaver() {
+  State& s = *s_;
+  s.autosaver = std::make_unique<Autosaver>(
+      DefaultRecoveryDirectory(), std::chrono::duration_cast<Autosaver::Clock::duration>(
+                                      std::chrono::duration<double>(s.options.autosave_interval)));
+  s.autosave_wrote = false;
+  s.recovered_file.clear();
+}
+
+bool AppWindow::ImportMesh(const std::string& path) {
+  State& s = *s_;
+  try {
+    Document& doc = s.model.document();
+    const std::string stem = std::filesystem::path(path).stem().string();
+    doc.Execute(edit::ImportMesh(path, UniqueObjectName(doc, stem.empty() ? "mesh" : stem)));
+    const DocObject& o = doc.Get(doc.last_created().at(0));
+    const MeshData& m = std::get<MeshData>(o.data);
+    s.workbench.status = "imported '" + o.name + "' (" +
+                         (m.volume ? std::to_string(m.volume->tets.cols()) + " tetrahedra"
+                                   : std::to_string(m.surface->triangles.cols()) + " triangles") +
+                         ") from " + path;
+    s.workbench.status_error = false;
+    s.file_error.clear();
+    return true;
+  } catch (const std::exception& e) {
+    s.file_error = e.what();
+    s.file_error_popup = true;
+    s.workbench.status = std::string("import failed (nothing changed): ") + e.what();
+    s.workbench.status_error = true;
+    return false;
+  }
+}
+
+void AppWindow::DropFiles(const std::vector<std::string>& paths) {
+  State& s = *s_;
+  bool opened = false;
+  for (const std::string& path : paths) {
+    if (IsMeshFile(path)) {
+      ImportMesh(path);
+    } else if (MatchesFilter(path, BrowseFilter::kDocuments) && !opened) {
+      RequestOpen(path);
+      opened = true;  // one document at a time
+    } else {
+      s.file_error = path + ": dropped file not used: drop a document (.json) to open it or a " +
+                     "mesh (.stl .obj .ply .vtu .node) to import it";
+      s.file_error_popup = true;
+    }
+  }
+}
+
+const std::string& AppWindow::file_error() const { return s_->file_error; }
+RecentFiles& AppWindow::recent() { return *s_->recent; }
+Autosaver& AppWindow::autosaver() { return *s_->autosaver; }
+bool AppWindow::recovery_prompt_open() const { return s_->recovery_offer.has_value(); }
+
+void AppWindow::AnswerRecovery(bool recover) {
+  State& s = *s_;
+  if (!s.recovery_offer) return;
+  const RecoveryFile offer = *s.recovery_offer;
+  s.recovery_offer.reset();
+  s.recovery_popup_requested = false;
+  if (recover) {
+    ReplaceDocument(offer.path.string(), &offer.original);
+    return;
+  }
+  std::error_code ec;
+  std::filesystem::remove(offer.path, ec);
+}
+
+void AppWindow::FindRecoveryOffer(const std::string& source) {
+  State& s = *s_;
+  std::string original;  // what a recovery file of this start names ("" untitled)
+  if (source != kDemoSceneName && source != kNoSceneName) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(source, ec)) return;  // the load names the problem
+    original = NormalisedPath(source);
+  }
+  for (RecoveryFile& f : ListRecoveryFiles(s.autosaver->directory())) {
+    if (f.original != original) continue;
+    std::error_code ec;
+    if (original.empty()) {
+      // An untitled document's autosave: not one of a session still running.
+      const long pid = UntitledPid(f.path);
+      if (pid > 0 && pid != ::getpid() && ::kill(static_cast<pid_t>(pid), 0) == 0) continue;
+    } else {
+      const auto saved = std::filesystem::last_write_time(original, ec);
+      if (!ec && f.written <= saved) continue;  // older than the file: nothing to recover
+    }
+    s.recovery_offer = std::move(f);
+    return;
+  }
+}
+
+void AppWindow::DiscardRecovery() {
+  State& s = *s_;
+  if (s.autosave_wrote) s.autosaver->Discard(s.model.document());
+  if (!s.recovered_file.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(s.recovered_file, ec);
+  }
+  s.autosave_wrote = false;
+  s.recovered_file.clear();
+}
+
+void AppWindow::UpdateAutosave() {
+  State& s = *s_;
+  if (s.recovery_offer) return;  // the question about an older autosave comes first
+  const Document& doc = s.model.document();
+  if (!doc.dirty()) {
+    // Saved (or undone back to the file): the recovery file has nothing the file lacks.
+    if (s.autosave_wrote || !s.recovered_file.empty()) DiscardRecovery();
+    return;
+  }
+  if (s.autosaver->Tick(doc)) {
+    s.autosave_wrote = true;
+    const std::string written = s.autosaver->RecoveryPathFor(doc).string();
+    if (!s.recovered_file.empty() && s.recovered_file != written) {
+      std::error_code ec;  // superseded by this session's own autosave
+      std::filesystem::remove(s.recovered_file, ec);
+      s.recovered_file.clear();
+    }
+    s.autosave_error.clear();
+  } else if (!s.autosaver->last_error().empty() && s.autosaver->last_error() != s.autosave_error) {
+    s.autosave_error = s.autosaver->last_error();
+    s.workbench.status = "autosave failed (retrying): " + s.autosave_error;
+    s.workbench.status_error = true;
+  }
+}
+
+void AppWindow::DrawFileDialogs() {
+  State& s = *s_;
+  const ImGuiWindowFlags flags = ImGuiWindowFlags_AlwaysAutoResize;
+  const float wrap = 520.0f;
+  // Save / Discard / Cancel before an action that would drop unsaved changes.
+  if (s.discard_popup_requested && s.ask_discard) ImGui::OpenPopup(kDiscardPopup);
+  s.discard_popup_requested = false;
+  if (ImGui::BeginPopupModal(kDiscardPopup, nullptr, flags)) {
+    const Document& doc = s.model.document();
+    const std::string name =
+        doc.file_path().empty()
+            ? std::string("The untitled document")
+            : "'" + std::filesystem::path(doc.file_path()).filename().string() + "'";
+    std::string before = "quitting";
+    if (s.pending_kind == kPendingNew) before = "starting a new document";
+    if (s.pending_kind == kPendingOpen) {
+      before = "opening " + std::filesystem::path(s.pending_path).filename().string();
+    }
+    ImGui::PushTextWrapPos(wrap);
+    ImGui::Text("%s has unsaved changes.", name.c_str());
+    ImGui::Text("Save them before %s?", before.c_str());
+    ImGui::PopTextWrapPos();
+    int answer = -1;
+    if (ImGui::Button(doc.file_path().empty() ? "Save As..." : "Save")) answer = 0;
+    ImGui::SameLine();
+    if (ImGui::Button("Discard")) answer = 1;
+    ImGui::SameLine();
+    if (ImGui::Button("Cancel") || ImGui::IsKeyPressed(GLFW_KEY_ESCAPE, false)) answer = 2;
+    if (answer >= 0) AnswerDiscardPrompt(answer);
+    if (!s.ask_discard) ImGui::CloseCurrentPopup();
+    ImGui::EndPopup();
+  }
+  // The start-up question about an autosave newer than the document.
+  if (s.recovery_popup_requested && s.recovery_offer) ImGui::OpenPopup(kRecoveryPopup);
+  s.recovery_popup_requested = false;
+  if (ImGui::BeginPopupModal(kRecoveryPopup, nullptr, flags)) {
+    if (s.recovery_offer) {
+      const RecoveryFile& f = *s.recovery_offer;
+      ImGui::PushTextWrapPos(wrap);
+      ImGui::Text("Recover unsaved work from %s?", FileTimeText(f.written).c_str());
+      ImGui::TextDisabled(
+          "%s", f.original.empty() ? "an untitled document" : ("of " + f.original).c_str());
+      ImGui::TextDisabled("autosave: %s", f.path.string().c_str());
+      ImGui::PopTextWrapPos();
+      if (ImGui::Button("Recover")) s.recovery_answer = 1;
+      ImGui::SameLine();
+      if (ImGui::Button("Discard")) s.recovery_answer = 0;
+    }
+    if (!s.recovery_offer) ImGui::CloseCurrentPopup();
+    ImGui::EndPopup();
+  }
+  // The browsers.
+  if (auto path = DrawFileBrowser(&s.open_browser)) RequestOpen(*path);
+  if (auto path = DrawFileBrowser(&s.import_browser)) ImportMesh(*path);
+  // A file that could not be opened or imported: what and where.
+  if (s.file_error_popup) ImGui::OpenPopup(kFileErrorPopup);
+  s.file_error_popup = false;
+  if (ImGui::BeginPopupModal(kFileErrorPopup, nullptr, flags)) {
+    ImGui::PushTextWrapPos(wrap);
+    ImGui::TextColored(ImVec4(0.80f, 0.10f, 0.10f, 1.0f), "%s", s.file_error.c_str());
+    ImGui::TextDisabled("The document is as it was.");
+    ImGui::PopTextWrapPos();
+    if (ImGui::Button("OK") || ImGui::IsKeyPressed(GLFW_KEY_ENTER, false))
+      ImGui::CloseCurrentPopup();
+    ImGui::EndPopup();
+  }
 }
 
 // ---- for scripted use and tests ----

@@ -20,7 +20,9 @@ class vtkRenderer;
 
 namespace spidarcad::app {
 
+class Autosaver;
 class DeviceView;
+class RecentFiles;
 class GripControl;
 class HapticRuntime;
 class Mode;
@@ -82,6 +84,43 @@ class AppWindow {
   Mode* AddMode(std::unique_ptr<Mode> mode);
   // How many haptic scenes were published since construction.
   int publish_count() const;
+
+  // ---- documents (the File menu; all on the main thread, between frames) ----
+  // What File → New, Open, Open Recent, Quit, Esc and the window's close button ask for. With
+  // unsaved changes the window first asks Save / Discard / Cancel (a modal); the action runs at
+  // the start of the next frame.
+  void RequestNew();
+  void RequestOpen(const std::string& path);
+  void RequestQuit();
+  // True while the Save / Discard / Cancel question is up.
+  bool discard_prompt_open() const;
+  // Answers it as the buttons do: 0 Save (then the action; Save As first for an untitled
+  // document), 1 Discard (the action without saving), 2 Cancel (nothing).
+  void AnswerDiscardPrompt(int answer);
+  // Replaces the document by the file at `path` now, without asking: new X_WD, haptic runtime,
+  // modes and view for it; the file goes first in the recent list. A file that fails to open
+  // leaves the current document as it was and returns false; file_error() then names the file,
+  // line and field (also shown in the window).
+  bool OpenDocument(const std::string& path);
+  // Replaces the document by an empty, untitled one now, without asking.
+  void NewDocument();
+  // Imports a mesh file (STL, OBJ, PLY, VTU, .node) as a mesh object of the document (one
+  // undoable step, edit::ImportMesh). False, with file_error(), when it cannot be read.
+  bool ImportMesh(const std::string& path);
+  // What files dropped on the window do: a document (.json, .spidarcad) opens (asking first
+  // when there are unsaved changes), a mesh file is imported; anything else is refused with
+  // file_error().
+  void DropFiles(const std::vector<std::string>& paths);
+  // Why the last open, import or drop failed ("" after a success).
+  const std::string& file_error() const;
+  // The recent-files list (File → Open Recent).
+  RecentFiles& recent();
+  // The autosaver of the document (recovery files, doc/autosave.h).
+  Autosaver& autosaver();
+  // True while the start-up question "Recover unsaved work from <time>?" is up.
+  bool recovery_prompt_open() const;
+  // Answers it: true recovers the autosave, false deletes it.
+  void AnswerRecovery(bool recover);
   ModelMode& model_mode();
   SceneModel& model();
   TreeController& tree();
@@ -106,6 +145,20 @@ class AppWindow {
   void FitView();
   bool CaptureScreenshot();
   void RenderFrame();
+  // Document lifecycle.
+  void MakeRuntime();
+  void MakeModes();
+  void StartScene(const std::string& mode_key);
+  bool ReplaceDocument(const std::string& source, const std::string* recovered_original);
+  void ApplySetEdits();
+  void RunPendingAction();
+  void RequestAction(int kind, const std::string& path);
+  void DrawFileMenuItems();
+  void DrawFileDialogs();
+  void UpdateAutosave();
+  void ResetAutosaver();
+  void DiscardRecovery();
+  void FindRecoveryOffer(const std::string& source);
 
   std::unique_ptr<State> s_;
 };

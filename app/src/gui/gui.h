@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "spidarcad/haptics/geometry.h"
 
@@ -40,7 +41,29 @@ struct GuiOptions {
   // --select: the solid or node selected in the tree panel at start (a solid's name, a node's
   // name or id, or SOLID/i/j); empty: the first solid.
   std::string select;
+  // --recover / --no-recover: the answer to the start-up question about a recovery file newer
+  // than the document (doc/autosave.h): 1 recover it, 0 discard it, -1 ask in the window.
+  int recover = -1;
+  // --autosave-interval: seconds between autosaves of a document with unsaved changes (> 0).
+  double autosave_interval = 60.0;
+  // --set NODE:FIELD=VALUE: edits made (as undoable commands) once the document is open.
+  std::vector<std::string> set_fields;
+  // --show file-menu|open|import: the window starts with that menu or dialog open (screenshots
+  // of the documentation); "" for none.
+  std::string show;
 };
+
+// One --set edit: the node (as --select names it), the field (scene-format name) and the value
+// (JSON, SI units as the scene format has them).
+struct SetFieldEdit {
+  std::string node;
+  std::string field;
+  std::string value;
+};
+
+// Parses "NODE:FIELD=VALUE" (the last ':' before the first '=' separates node and field);
+// throws CLI::ValidationError naming --set and the text when a part is missing.
+SetFieldEdit ParseSetField(const std::string& text);
 
 // True when an X display is available (DISPLAY set and reachable): VTK aborts without one.
 // On success GLFW stays initialised (RunGui terminates it), see app_window.cc.
@@ -50,7 +73,7 @@ bool DisplayAvailable();
 int RunGui(const GuiOptions& options);
 
 // Adds the window options (SCENE, --screenshot, --frames, --size, --grip, --device,
-// --estop-frame) to the top-level app.
+// --estop-frame, --recover, --no-recover, --autosave-interval, --set) to the top-level app.
 void AddGuiOptions(CLI::App& app, GuiOptions* options);
 
 // Parses "WxH" (e.g. "1280x800") into width and height; throws CLI::ValidationError naming the

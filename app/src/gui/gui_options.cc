@@ -67,7 +67,45 @@ void ParseGripPose(const std::string& text, std::array<double, 7>* grip) {
   *grip = out;
 }
 
+SetFieldEdit ParseSetField(const std::string& text) {
+  const size_t equals = text.find('=');
+  const size_t colon = equals == std::string::npos ? std::string::npos : text.rfind(':', equals);
+  if (equals == std::string::npos || colon == std::string::npos || colon == 0 ||
+      colon + 1 == equals || equals + 1 == text.size()) {
+    throw CLI::ValidationError(
+        "--set", "expected NODE:FIELD=VALUE (e.g. knob:radius=0.04), got '" + text + "'");
+  }
+  return {text.substr(0, colon), text.substr(colon + 1, equals - colon - 1),
+          text.substr(equals + 1)};
+}
+
 void AddGuiOptions(CLI::App& app, GuiOptions* options) {
+  auto* recover = app.add_flag_callback(
+      "--recover", [options] { options->recover = 1; },
+      "At start, when an autosave of the document is newer than its file (the last session "
+      "ended without saving), recover it without asking (the document opens with the unsaved "
+      "work, still unsaved)");
+  auto* no_recover = app.add_flag_callback(
+      "--no-recover", [options] { options->recover = 0; },
+      "At start, discard (delete) such an autosave without asking and open the file as saved");
+  recover->excludes(no_recover);
+  app.add_option("--autosave-interval", options->autosave_interval,
+                 "Seconds between autosaves of a document with unsaved changes into the recovery "
+                 "directory (default 60; $SPIDARCAD_RECOVERY_DIR overrides the directory)")
+      ->check(CLI::PositiveNumber)
+      ->type_name("SECONDS");
+  app.add_option("--set", options->set_fields,
+                 "Edit a node once the document is open, as one undoable step (repeatable): "
+                 "NODE:FIELD=VALUE with NODE as for --select and VALUE in SI units as the scene "
+                 "format has it, e.g. --set knob:radius=0.04. A bad edit: exit status 2")
+      ->type_name("NODE:FIELD=VALUE")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+      ->each([](const std::string& text) { ParseSetField(text); });
+  app.add_option("--show", options->show,
+                 "Start with the File menu ('file-menu'), the Open dialog ('open') or the Import "
+                 "mesh dialog ('import') open, e.g. for a --screenshot of it")
+      ->check(CLI::IsMember({"file-menu", "open", "import"}));
   app.add_option("--select", options->select,
                  "Select this solid or node in the tree panel at start, showing its parameters: a "
                  "solid's name, a node's name or id, or SOLID/i/j for child j of child i of the "

@@ -423,9 +423,10 @@ bool TreeController::Save(const std::string& path) {
 
 std::string TreeController::Title() const {
   const Document& doc = model_->document();
-  std::string name = doc.file_path().empty()
-                         ? model_->source()
-                         : std::filesystem::path(doc.file_path()).filename().string();
+  std::string name = !doc.file_path().empty()
+                         ? std::filesystem::path(doc.file_path()).filename().string()
+                     : model_->source() == kNoSceneName ? std::string("untitled")
+                                                        : model_->source();
   return std::string(doc.dirty() ? "*" : "") + "spidarcad — " + name;
 }
 
@@ -605,7 +606,9 @@ void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_heigh
   state->clicked = false;
   state->drawn_selection = tree->selection();
   ImGui::BeginChild("tree", ImVec2(0.0f, tree_height), true);
-  if (doc.objects().empty()) ImGui::TextDisabled("no solids: Add > new solid, or paste one");
+  if (doc.objects().empty()) {
+    ImGui::TextDisabled("no solids: Add > new solid, paste one, or File > Open / Import mesh");
+  }
   for (const DocObject& o : doc.objects()) {
     const modeling::ImplicitNode* root = TreeOf(o);
     if (root == nullptr) continue;
@@ -614,6 +617,20 @@ void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_heigh
     NodePath path;
     DrawNode(tree, state, o, index >= 0 ? &model.objects()[index] : nullptr, *root, &path, scroll);
     ImGui::PopID();
+  }
+  // The other objects (meshes, FE models, sculpts, rigid parts): listed, not drawn or edited here.
+  for (const DocObject& o : doc.objects()) {
+    if (TreeOf(o) != nullptr) continue;
+    std::string counts;
+    if (const auto* m = std::get_if<MeshData>(&o.data)) {
+      if (m->surface) counts += std::to_string(m->surface->triangles.cols()) + " triangles";
+      if (m->volume) {
+        counts += (counts.empty() ? "" : ", ") + std::to_string(m->volume->tets.cols()) + " tets";
+      }
+      if (!m->import_source.empty()) counts += ", imported";
+    }
+    ImGui::TextDisabled("%s  [%s%s%s]", o.name.c_str(), ObjectKindName(o.data),
+                        counts.empty() ? "" : ": ", counts.c_str());
   }
   ImGui::EndChild();
   if (state->pending) {

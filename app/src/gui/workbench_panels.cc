@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "gui/panels.h"
 
@@ -53,14 +54,40 @@ void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, M
 }
 
 float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
-                  WorkbenchActions* actions, TreeController* tree, TreePanelState* tree_state) {
+                  WorkbenchActions* actions, TreeController* tree, TreePanelState* tree_state,
+                  const std::vector<RecentEntry>* recent) {
   float height = 0.0f;
   if (!ImGui::BeginMainMenuBar()) return height;
   height = ImGui::GetWindowSize().y;
   if (ImGui::BeginMenu("File")) {
+    if (ImGui::MenuItem("New", "Ctrl+N")) actions->file_new = true;
+    if (ImGui::MenuItem("Open...", "Ctrl+O")) actions->file_open = true;
+    if (ImGui::BeginMenu("Open Recent", recent != nullptr)) {
+      if (recent->empty()) ImGui::MenuItem("(no recent documents)", nullptr, false, false);
+      for (size_t i = 0; i < recent->size(); ++i) {
+        const RecentEntry& e = (*recent)[i];
+        ImGui::PushID(static_cast<int>(i));
+        const std::string label =
+            std::filesystem::path(e.path).filename().string() + (e.exists ? "" : "  (missing)");
+        if (ImGui::MenuItem(label.c_str(), nullptr, false, e.exists)) actions->open_recent = e.path;
+        if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled)) {
+          ImGui::SetTooltip("%s", e.path.c_str());
+        }
+        ImGui::PopID();
+      }
+      ImGui::Separator();
+      if (ImGui::MenuItem("Clear the list", nullptr, false, !recent->empty())) {
+        actions->clear_recent = true;
+      }
+      ImGui::EndMenu();
+    }
+    ImGui::Separator();
     if (tree != nullptr && tree_state != nullptr) {
       DrawSaveMenuItems(tree, tree_state);
       ImGui::Separator();
+    }
+    if (ImGui::MenuItem("Import mesh (STL/OBJ/PLY/VTU/.node)...", "Ctrl+I")) {
+      actions->file_import = true;
     }
     const SceneObject* o = Selected(*model, *state);
     if (ImGui::MenuItem("Export surface (STL/OBJ/PLY)...", nullptr, false, o != nullptr)) {

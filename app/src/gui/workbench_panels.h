@@ -1,14 +1,16 @@
-// ImGui side of the workbench: the menu bar (File → Save / Export, Edit, Mesh, Haptics, View,
-// Help), the document panel (the tree panel of gui/tree_panel.h: objects, nodes, parameters;
-// jobs with progress bars and Cancel, status line), the Mesh action's controls, the loop
-// figures (tick time and period jitter percentiles, safety events, scheduling, emergency stop)
+// ImGui side of the workbench: the menu bar (File → New, Open, Save, Import, Export, Edit, Mesh,
+// Haptics, View, Help), the document panel (the tree panel of gui/tree_panel.h: objects, nodes,
+// parameters; jobs with progress bars and Cancel, status line), the Mesh action's controls, the
+// loop figures (tick time and period jitter percentiles, safety events, scheduling, emergency stop)
 // and the export dialog. They act on SceneModel and JobQueue directly and return the rest.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "doc/job.h"
+#include "doc/recent_files.h"
 #include "gui/tree_panel.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
@@ -44,13 +46,20 @@ struct WorkbenchActions {
   bool fit_view = false;   // View → Fit (F)
   int standard_view = -1;  // View → Front, Right, Top, Iso (0..3; StandardView), −1: none
   bool quit = false;
+  bool file_new = false;      // File → New (Ctrl+N)
+  bool file_open = false;     // File → Open... (Ctrl+O): the file browser
+  bool file_import = false;   // File → Import mesh... (Ctrl+I): the file browser
+  std::string open_recent;    // File → Open Recent → this path
+  bool clear_recent = false;  // File → Open Recent → Clear the list
 };
 
-// Draws the main menu bar (File → Save / Save As when `tree` is given, Edit menu from `tree`);
-// returns its height in pixels.
+// Draws the main menu bar: File (New, Open..., Open Recent from `recent` (missing files
+// disabled), Save / Save As when `tree` is given, Import mesh..., Export, Quit), Edit from
+// `tree`, Mesh, Haptics, View, Help; returns its height in pixels.
 float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
                   WorkbenchActions* actions, TreeController* tree = nullptr,
-                  TreePanelState* tree_state = nullptr);
+                  TreePanelState* tree_state = nullptr,
+                  const std::vector<RecentEntry>* recent = nullptr);
 
 // Draws the document panel docked at (x, y), `width` × `height` pixels: source, the tree panel
 // (gui/tree_panel.h: objects and their node trees, the selected node's parameters; it also
