@@ -43,12 +43,18 @@ ProxyField::ProxyField(std::shared_ptr<const DistanceField> environment,
 }
 
 bool ProxyField::Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
-                       Eigen::Vector3d* stop, Eigen::Vector3d* blocked) const noexcept {
+                       Eigen::Vector3d* stop, Eigen::Vector3d* blocked,
+                       double* phi_to) const noexcept {
+  // A sample is passable when φ >= −tol: in free space or on the surface, whose points the
+  // projection only places within tol (a proxy a rounding error inside must slide on).
+  const double passable = -settings_.surface_tolerance;
   const Eigen::Vector3d d = to - from;
   const double length = d.norm();
   if (!(length > 0)) {
     *stop = to;
-    return env_->Evaluate(to, nullptr) >= -settings_.surface_tolerance;
+    const double phi = env_->Evaluate(to, nullptr);
+    if (phi_to != nullptr) *phi_to = phi;
+    return phi >= passable;
   }
   const Eigen::Vector3d u = d / length;
   double t = 0.0;
@@ -56,12 +62,12 @@ bool ProxyField::Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
   for (int step = 0; step < settings_.max_sweep_steps; ++step) {
     const double t_next = std::min(length, t + std::max(phi, settings_.min_step));
     const double phi_next = env_->Evaluate(from + t_next * u, nullptr);
-    if (phi_next < 0) {
-      // The surface lies in (t, t_next]: bisect, keeping the free end.
+    if (phi_next < passable) {
+      // The path goes deeper than the surface in (t, t_next]: bisect, keeping the passable end.
       double lo = t, hi = t_next;
       for (int i = 0; i < kBisections; ++i) {
         const double mid = 0.5 * (lo + hi);
-        if (env_->Evaluate(from + mid * u, nullptr) < 0) {
+        if (env_->Evaluate(from + mid * u, nullptr) < passable) {
           hi = mid;
         } else {
           lo = mid;
@@ -75,6 +81,7 @@ bool ProxyField::Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
     phi = phi_next;
     if (t >= length) {
       *stop = to;
+      if (phi_to != nullptr) *phi_to = phi;
       return true;
     }
   }
@@ -201,7 +208,9 @@ ToolWrench ProxyField::Evaluate(const ToolKinematics& tool) noexcept {
   oldest_plane_ = 0;
   if (!contact_) {
     Eigen::Vector3d stop;
-    if (Sweep(x, x_t, &stop)) {
+    double phi_t = 0.0;
+    const bool reached = Sweep(x, x_t, &stop, nullptr, &phi_t);
+    if (reached && phi_t >= 0) {
       proxy_ = x_t;
       return Publish(x_t, ToolWrench{});
     }
@@ -209,6 +218,8 @@ ToolWrench ProxyField::Evaluate(const ToolKinematics& tool) noexcept {
       proxy_ = stop;
       return Publish(x_t, ToolWrench{});
     }
+    // Blocked, or the tool itself is inside by no more than the surface tolerance (then
+    // stop = x_t): contact, with the proxy projected onto the surface.
     x = stop;
     Project(&x);
     contact_ = true;
@@ -226,9 +237,10 @@ ToolWrench ProxyField::Evaluate(const ToolKinematics& tool) noexcept {
   AddPlane(x, x);
   Eigen::Vector3d goal = FrictionGoal(x, ConstrainedGoal(x_t, x), x_t);
   bool free_goal = (goal - x_t).squaredNorm() == 0.0;
+  double phi_goal = -1.0;  // φ at the goal when a sweep reached it
   for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
     Eigen::Vector3d stop, blocked = goal;
-    if (Sweep(x, goal, &stop, &blocked)) {
+    if (Sweep(x, goal, &stop, &blocked, &phi_goal)) {
       x = goal;
       break;
     }
@@ -247,7 +259,9 @@ ToolWrench ProxyField::Evaluate(const ToolKinematics& tool) noexcept {
     goal = ConstrainedGoal(x_t, x);  // later rounds without friction (see the header)
     free_goal = false;
   }
-  if (free_goal && (x - x_t).squaredNorm() == 0.0) {
+  // The proxy reached the tool itself: free only when the tool is outside the solid (the
+  // sweep also passes a tool inside by no more than the surface tolerance).
+  if (free_goal && (x - x_t).squaredNorm() == 0.0 && phi_goal >= 0) {
     proxy_ = x_t;
     contact_ = false;
     return Publish(x_t, ToolWrench{});

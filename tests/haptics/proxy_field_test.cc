@@ -144,6 +144,31 @@ TEST(ProxyField, HoldsTheProxyInAConcaveCornerOfAUnion) {
   EXPECT_LT((w.f_T_W - s.stiffness * Eigen::Vector3d(0.003, 0.0, 0.004)).norm(), 1e-6);
 }
 
+TEST(ProxyField, FollowsTheToolsProjectionWhileSlidingOnATiltedPlane) {
+  // A tilted plane (its normal not along an axis, so projected points sit on it only to a
+  // rounding error, either side); the tool slides 1-3 mm inside it at about 0.5 m/s. Every
+  // tick the frictionless proxy is the tool's projection onto the plane (closed form).
+  const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
+  const Eigen::Vector3d origin(0.01, 0.02, -0.03);
+  ProxySettings s;
+  s.damping = 0.0;
+  ProxyField field(std::make_shared<HalfSpaceDistanceField>(origin, n), s);
+  const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+  double worst = 0.0;
+  field.Evaluate(At(origin + 0.002 * n, 0.0));
+  for (int k = 1; k <= 400; ++k) {
+    const double t = 1e-3 * k;
+    const double depth = 0.002 + 0.001 * std::sin(11 * t);
+    const Eigen::Vector3d tool =
+        origin + 0.03 * std::sin(17 * t) * e1 + 0.02 * std::cos(13 * t) * e2 - depth * n;
+    field.Evaluate(At(tool, t));
+    ASSERT_TRUE(field.in_contact()) << k;
+    const Eigen::Vector3d expected = tool - n.dot(tool - origin) * n;
+    worst = std::max(worst, (field.proxy_W() - expected).norm());
+  }
+  EXPECT_LT(worst, 1e-9);
+}
+
 TEST(ProxyField, DoesNotTunnelThroughATwoMillimetrePlateAtTwoMetresPerSecond) {
   // A 2 mm plate (z in [−1, 1] mm), the tool crossing it at 2 m/s (2 mm per 1 ms tick), at
   // several phases and slants; the proxy must stay on top and the force keep pushing up.
@@ -362,13 +387,16 @@ double ConeDistance(const Eigen::Vector3d& f, const std::vector<Eigen::Vector3d>
   return f.norm() > 0 ? best / f.norm() : 0.0;
 }
 
-// DISABLED: fails today. No tunnelling (lowest proxy 0 m above the top face), but in 1 of 120
-// crossings (phase 25, 30° slant) the proxy lags the tool by one tick's motion and the force is
-// 3.4 N off the normal: a sweep along the surface from a proxy projected a rounding error
-// inside it meets the surface at once and stalls. Counting points within surface_tolerance as
-// free fixes it (and the corners below) but broke ProxyField.DoesNotTunnelThroughATwo...;
-// left for a follow-up.
-TEST(HardProxy, DISABLED_DoesNotTunnelThroughAHalfMillimetreWallAtFiveMetresPerSecond) {
+// Once failed (1 of 120 crossings, phase 25 at 30°, lagged a tick: force 3.4 N off the normal;
+// phase 12 at 60° stalled 4e-12 m from the tool, the tiny force all tangential): the proxy,
+// projected onto the top face, sits on it only to a rounding error, and the sweep along the
+// face toward the goal (itself on the face to a rounding error) counted φ < 0 as the solid, met
+// it at once and stalled. Now the sweep passes points with φ >= −surface_tolerance (the surface)
+// and whether the tool is inside is decided by the sign of φ at the tool alone: the earlier
+// attempt that only counted the tolerance band as free also let the proxy settle on a tool
+// 8.5e-19 m inside the 2 mm plate as if free (ProxyField.DoesNotTunnelThroughATwo... lost
+// contact there).
+TEST(HardProxy, DoesNotTunnelThroughAHalfMillimetreWallAtFiveMetresPerSecond) {
   // A 0.5 mm wall (z in [−0.25, 0.25] mm), the tool crossing it at 5 m/s: 5 mm per 1 ms tick,
   // ten times the wall's thickness, so most ticks jump from above it to below it. 40 phases of
   // the crossing (every 0.125 mm) and slants from straight down to 60° off the normal.
@@ -434,11 +462,12 @@ Corner MakeCorner(const std::vector<Eigen::Vector3d>& normals) {
   return corner;
 }
 
-// DISABLED: fails today. The proxy never enters a face (2e-19 m), but on concave edges it stalls
-// up to 3.1 mm short of the closest free point, the spring then pulling along the edge (force
-// 0.81 off the normals' cone): the same stalled sweep as above. With the tolerance fix and the
-// met face's plane added (proxy_field.cc) it passes: 5.7e-10 m, 3.5e-16.
-TEST(HardProxy, DISABLED_HoldsTheProxyInConcaveCornersAtFiveMetresPerSecond) {
+// Once failed: on concave edges the proxy stalled up to 3.1 mm short of the closest free point,
+// the spring then pulling along the edge (force 0.81 off the normals' cone): the same stalled
+// sweep as above (a proxy on a slanted face a rounding error inside it could not slide). Fixed
+// with the wall case above (the sweep passes the surface's tolerance band); the met face's plane
+// (proxy_field.cc) holds the proxy in the edge.
+TEST(HardProxy, HoldsTheProxyInConcaveCornersAtFiveMetresPerSecond) {
   // Concave corners of unions of half-spaces: a three-face box corner, a 60° V-groove and a
   // 45°-sloped corner of three faces. The tool rushes in at 5 m/s from several directions
   // and stops 3–8 mm inside. Every tick: the proxy stays in free space (n_i·x ≥ 0), and the

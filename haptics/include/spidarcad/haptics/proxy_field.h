@@ -5,10 +5,13 @@
 // surfaces; Ruspini et al. 1997 for the constraint planes).
 //
 // One tick (ProxyField::Evaluate), with x the proxy and x_t = p_WT + R_WT·tip_T the tool point:
-//  1. Free: sweep x → x_t. If the segment is free, x = x_t and the force is zero. The sweep
-//     steps by max(φ, min_step) (φ is a distance lower bound, so steps of φ never cross the
-//     surface) and bisects a sign change, so it cannot tunnel through a wall thicker than
-//     min_step whatever the tool speed.
+//  1. Free: sweep x → x_t. If the segment is free and x_t is outside (φ(x_t) >= 0), x = x_t and
+//     the force is zero. The sweep steps by max(φ, min_step) (φ is a distance lower bound, so
+//     steps of φ never cross the surface) and bisects where φ drops below −surface_tolerance,
+//     so it cannot tunnel through a wall thicker than min_step whatever the tool speed. Points
+//     with −tol <= φ < 0 are the surface itself (projection lands only within tol), so a proxy
+//     a rounding error inside slides on; whether the tool is inside is decided by the sign of
+//     φ(x_t) alone.
 //  2. Contact: the proxy's tangent plane (point, unit gradient) becomes a constraint. The goal
 //     is the point closest to x_t on the free side of the constraint planes (an exact QP over
 //     at most 3 planes: every subset's equality projection, keep the closest feasible one).
@@ -90,11 +93,12 @@ class ProxyField final : public ForceField {
     Eigen::Vector3d point;
     Eigen::Vector3d normal;  // unit, pointing to the free side
   };
-  // Moves from `from` toward `to`; returns true when `to` is reached through free space,
-  // else false with *stop on the free side just before the surface (or short of `to`) and,
-  // when a surface blocked the way, *blocked (if not null) at the first sample past it.
+  // Moves from `from` toward `to` through passable points (φ >= −surface_tolerance: free
+  // space and the surface); returns true when `to` is reached, with *phi_to (if not null) =
+  // φ(to), m; else false with *stop passable just before the solid (or short of `to`) and,
+  // when the solid blocked the way, *blocked (if not null) at the first sample deeper in it.
   bool Sweep(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Eigen::Vector3d* stop,
-             Eigen::Vector3d* blocked = nullptr) const noexcept;
+             Eigen::Vector3d* blocked = nullptr, double* phi_to = nullptr) const noexcept;
   // Newton steps along the gradient onto φ = 0.
   void Project(Eigen::Vector3d* x) const noexcept;
   // Adds the plane through x with the unit gradient at `probe` as its normal (the tangent
