@@ -12,10 +12,14 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "doc/document.h"
+#include "scene/document_file.h"
+#include "scene/fe_model.h"
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
@@ -50,6 +54,9 @@ struct FemOptions {
   double resolution = 0.004;
   double max_radius_edge = 2.0;
   std::string solid;
+  std::string object;  // --object: any object of a document (solid, mesh, sculpt, fe_model)
+  // Which options were given (a document's FE model supplies the others).
+  bool given_e = false, given_nu = false;
 };
 
 // Parses "a,b,c,..." into exactly n finite numbers; errors name the option, its occurrence and
@@ -97,8 +104,10 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 }
 
 // Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen.
-fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report) {
-  const SceneSolidGrid grid = PrepareSceneSolid(options.input, options.solid, options.resolution);
+fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
+                       const std::string& name, const std::string& option,
+                       nlohmann::ordered_json* report) {
+  const SceneSolidGrid grid = PrepareDocumentSolid(opened, name, option, options.resolution);
   const double cell = grid.cell;
   modeling::SurfaceMeshSettings surface_settings;
   surface_settings.bounds = grid.bounds;
@@ -127,7 +136,64 @@ fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report
   return ToFemMesh(tets);
 }
 
+// Tetrahedralizes a closed surface of a document object (a mesh without a volume, a sculpt).
+fem::TetMesh MeshSurfaceObject(const FemOptions& options, const std::string& name,
+                               const modeling::TriangleMesh& surface,
+                               nlohmann::ordered_json* report) {
+  modeling::TetMeshSettings tet_settings;
+  tet_settings.max_radius_edge = options.max_radius_edge;
+  modeling::TetMeshStats tet_stats;
+  modeling::TetMesh tets;
+  try {
+    tets = modeling::TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  } catch (const std::exception& e) {
+    throw InputError(options.input + ": object '" + name +
+                     "': its surface cannot be tetrahedralized: " + e.what() +
+                     " (it must be closed and free of self-intersections)");
+  }
+  (*report)["meshing"] = {{"object", name},
+                          {"surface_triangles", surface.triangles.cols()},
+                          {"tetgen_seconds", tet_stats.tetgen_seconds},
+                          {"tetgen_switches", tet_stats.switches},
+                          {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg}};
+  return ToFemMesh(tets);
+}
+
+// The object `fem` solves in a document: the one named (any kind but a rigid part), else the
+// first FE model, else the first solid, mesh or sculpt. A version 1 scene: its solids only, with
+// the messages `fem` always gave.
+const DocObject& PickFemObject(const OpenedDocument& opened, const std::string& name,
+                               const std::string& option) {
+  const Document& doc = *opened.doc;
+  if (opened.version == 1) return PickSolid(opened, name, option);
+  std::string all;
+  for (const DocObject& o : doc.objects())
+    all += (all.empty() ? "" : ", ") + std::string(ObjectKindName(o.data)) + " '" + o.name + "'";
+  if (all.empty()) all = "no object";
+  if (!name.empty()) {
+    const DocObject* o = doc.FindByName(name);
+    if (o == nullptr) {
+      throw InputError(option + " '" + name + "': no such object in " + opened.path + " (it has " +
+                       all + ")");
+    }
+    if (std::holds_alternative<RigidPartData>(o->data)) {
+      throw InputError(option + " '" + name + "': a rigid part; fem solves an fe_model, solid, " +
+                       "mesh or sculpt object (" + opened.path + " has " + all + ")");
+    }
+    return *o;
+  }
+  for (const char* kind : {"fe_model", "solid", "mesh", "sculpt"})
+    for (const DocObject& o : doc.objects())
+      if (std::string(ObjectKindName(o.data)) == kind) return o;
+  throw InputError(opened.path + ": nothing to solve: the document has " + all +
+                   "; fem needs an fe_model, solid, mesh or sculpt object");
+}
+
 nlohmann::ordered_json JsonVector(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+nlohmann::ordered_json JsonBox(const Eigen::AlignedBox3d& box) {
+  return {{"min", JsonVector(box.min())}, {"max", JsonVector(box.max())}};
+}
 
 // Index (into mesh nodes) of the surface node nearest p.
 int NearestNode(const fem::TetMesh& mesh, const std::vector<int>& candidates,
@@ -203,21 +269,96 @@ void RunFem(const FemOptions& options) {
   // The mesh.
   Clock::time_point t = Clock::now();
   fem::TetMesh mesh;
+  OpenedDocument opened;
+  const FeModelData* fe = nullptr;  // a document's FE model, when that is what is solved
+  std::string fe_name;              // its name
+  if (!options.solid.empty() && !options.object.empty())
+    throw InputError("--solid and --object name the same thing: give one");
+  const std::string option = options.object.empty() ? "--solid" : "--object";
+  const std::string name = options.object.empty() ? options.solid : options.object;
   if (EndsWith(options.input, ".vtu")) {
     VtuReadInfo info;
     mesh = ReadTetVtu(options.input, &info);
     if (info.flipped_elements > 0) report["flipped_elements"] = info.flipped_elements;
   } else if (EndsWith(options.input, ".json")) {
-    mesh = MeshScene(options, &report);
+    opened = OpenDocumentFile(options.input);
+    const DocObject& object = PickFemObject(opened, name, option);
+    if (opened.version == 2)
+      report["object"] = {{"name", object.name}, {"kind", ObjectKindName(object.data)}};
+    if (std::holds_alternative<SolidData>(object.data)) {
+      mesh = MeshScene(options, opened, object.name, option, &report);
+    } else if (const auto* f = std::get_if<FeModelData>(&object.data)) {
+      fe = f;
+      fe_name = object.name;
+      mesh = FeMeshOf(*opened.doc, *f);
+    } else if (const auto* m = std::get_if<MeshData>(&object.data)) {
+      if (m->volume) {
+        mesh = ToFemMesh(*m->volume);
+      } else {
+        mesh = MeshSurfaceObject(options, object.name, *m->surface, &report);
+      }
+    } else {
+      mesh =
+          MeshSurfaceObject(options, object.name, *std::get<SculptData>(object.data).mesh, &report);
+    }
   } else {
     throw InputError(options.input +
                      ": unknown input kind (expected a .vtu mesh or a .json scene)");
   }
+  // A document's FE model: its material, region materials, clamps, loads and order, unless an
+  // option says otherwise (listed under "overridden").
+  std::vector<RegionMaterial> region_materials;
+  nlohmann::ordered_json fe_report;
+  nlohmann::ordered_json from_document = nlohmann::ordered_json::array();
+  nlohmann::ordered_json overridden = nlohmann::ordered_json::array();
+  int order = options.order;
+  if (fe != nullptr) {
+    const std::string where = options.input + ": fe_model '" + fe_name + "': ";
+    if (options.given_e || options.given_nu) {
+      if (!options.given_e) material.youngs_modulus = fe->material.youngs_modulus;
+      if (!options.given_nu) material.poisson_ratio = fe->material.poisson_ratio;
+      overridden.push_back("material (--E/--nu; region materials not used)");
+    } else {
+      material.youngs_modulus = fe->material.youngs_modulus;
+      material.poisson_ratio = fe->material.poisson_ratio;
+      region_materials = fe->region_materials;
+      from_document.push_back("material");
+      if (!region_materials.empty()) from_document.push_back("region_materials");
+    }
+    for (RegionMaterial& r : region_materials) r.material.formulation = material.formulation;
+    try {
+      material.Validate();
+      for (const RegionMaterial& r : region_materials) r.material.Validate();
+    } catch (const std::invalid_argument& e) {
+      throw InputError(where + "material: " + e.what());
+    }
+    if (options.order != 0) {
+      overridden.push_back("element_order (--order)");
+    } else if (options.incompressible && fe->element_order == 1) {
+      overridden.push_back("element_order (--incompressible needs quadratic elements)");
+    } else {
+      order = fe->element_order;
+      from_document.push_back("element_order");
+    }
+    if (options.fix.empty()) {
+      for (std::size_t i = 0; i < fe->fixed_boxes.size(); ++i) {
+        fix_boxes.emplace_back(fe->fixed_boxes[i].min(), fe->fixed_boxes[i].max());
+      }
+      from_document.push_back("fixed_boxes");
+    } else {
+      overridden.push_back("fixed_boxes (--fix)");
+    }
+    if (options.load.empty()) {
+      from_document.push_back("loads");
+    } else {
+      overridden.push_back("loads (--load/--force)");
+    }
+  }
   const int input_order = mesh.Order();
   const int input_nodes = mesh.num_nodes();
-  if ((options.order == 2 || options.incompressible) && input_order == 1) {
+  if ((order == 2 || options.incompressible) && input_order == 1) {
     mesh = fem::MakeQuadratic(mesh);
-  } else if (options.order == 1 && input_order == 2) {
+  } else if (order == 1 && input_order == 2) {
     throw InputError("--order 1: the mesh " + options.input +
                      " has quadratic (10-node) tetrahedra; use --order 2 or a linear mesh");
   }
@@ -229,6 +370,11 @@ void RunFem(const FemOptions& options) {
   int num_fixed = 0;
   for (size_t i = 0; i < fix_boxes.size(); ++i) {
     const std::vector<int> nodes = fem::NodesInBox(mesh, fix_boxes[i].first, fix_boxes[i].second);
+    if (nodes.empty() && i >= options.fix.size()) {
+      throw InputError(options.input + ": fe_model '" + fe_name + "': fixed box " +
+                       std::to_string(i) +
+                       " contains no node of the mesh; correct it in the document or give --fix");
+    }
     if (nodes.empty()) {
       throw InputError("--fix #" + std::to_string(i + 1) + " '" + options.fix[i] +
                        "': the box contains no node of the mesh");
@@ -272,9 +418,22 @@ void RunFem(const FemOptions& options) {
     bcs.AddPointLoad(v, load_forces[i]);
     load_nodes.push_back(v);
   }
+  std::vector<std::vector<int>> box_load_nodes;
+  if (fe != nullptr && options.load.empty()) {
+    try {
+      box_load_nodes = AddBoxLoads(mesh, fe->loads, &bcs);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(options.input + ": fe_model '" + fe_name + "': " + e.what());
+    }
+  }
 
   // Solve.
-  const fem::MaterialTable materials(material);
+  fem::MaterialTable materials(material);
+  try {
+    materials = MakeMaterialTable(material, region_materials);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(options.input + ": fe_model '" + fe_name + "': " + e.what());
+  }
   std::unique_ptr<fem::StaticSolver> solver;
   try {
     solver = std::make_unique<fem::StaticSolver>(mesh, materials, bcs);
@@ -366,6 +525,33 @@ void RunFem(const FemOptions& options) {
                      {"displacement", JsonVector(solution.displacement.segment<3>(3 * v))}});
   }
   report["loads"] = loads;
+  if (fe != nullptr) {
+    nlohmann::ordered_json box_loads = nlohmann::ordered_json::array();
+    for (std::size_t i = 0; i < box_load_nodes.size(); ++i) {
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int v : box_load_nodes[i]) mean += solution.displacement.segment<3>(3 * v);
+      mean /= static_cast<double>(box_load_nodes[i].size());
+      nlohmann::ordered_json entry = JsonBox(fe->loads[i].box);
+      entry["force"] = JsonVector(fe->loads[i].force);
+      entry["nodes"] = box_load_nodes[i].size();
+      entry["mean_displacement"] = JsonVector(mean);
+      box_loads.push_back(entry);
+    }
+    report["box_loads"] = box_loads;
+    nlohmann::ordered_json regions = nlohmann::ordered_json::array();
+    for (const RegionMaterial& r : region_materials) {
+      regions.push_back({{"region", r.region},
+                         {"youngs_modulus_pa", r.material.youngs_modulus},
+                         {"poisson_ratio", r.material.poisson_ratio}});
+    }
+    const DocObject* tet_mesh = opened.doc->Find(fe->tet_mesh);
+    fe_report["name"] = fe_name;
+    fe_report["tet_mesh"] = tet_mesh != nullptr ? tet_mesh->name : std::string();
+    fe_report["region_materials"] = regions;
+    fe_report["from_document"] = from_document;
+    fe_report["overridden"] = overridden;
+    report["fe_model"] = fe_report;
+  }
   Eigen::Vector3d support = Eigen::Vector3d::Zero();
   for (int v = 0; v < mesh.num_nodes(); ++v) {
     if (clamped[v]) support += solution.reaction.segment<3>(3 * v);
@@ -406,7 +592,13 @@ void RegisterFemCommand(CLI::App& app) {
       "fem", "Static linear-elastic FE solve of a tetrahedral mesh or a scene solid (VTU out)");
   cmd->footer(
       "Input: a .vtu with VTK_TETRA or VTK_QUADRATIC_TETRA cells, or a .json scene whose solid\n"
-      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen).\n"
+      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen),\n"
+      "or a .json document (version 2) and its object --object NAME (default: the first\n"
+      "fe_model, else the first solid, mesh or sculpt). An fe_model brings its tet mesh,\n"
+      "material, region materials, fixed boxes, loads (each box's force spread evenly over its\n"
+      "nodes) and element order; --E/--nu, --fix, --load/--force and --order replace the\n"
+      "document's value, and the JSON lists which under fe_model.overridden. A mesh object is\n"
+      "used as it is (its tets) or tetrahedralized (a surface), as is a sculpt's surface.\n"
       "Nodes inside a --fix box are clamped; --push prescribes the displacement (all three\n"
       "components) of the surface node nearest the point; --load applies a point force at the\n"
       "surface node nearest the point. Material defaults to steel (E = 200 GPa, nu = 0.3).\n"
@@ -423,7 +615,7 @@ void RegisterFemCommand(CLI::App& app) {
       "  spidarcad fem beam.vtu --fix=-1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
       "    --order 2 --out result.vtu\n"
       "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)");
-  cmd->add_option("input", options->input, "Mesh (.vtu) or scene (.json)")->required();
+  cmd->add_option("input", options->input, "Mesh (.vtu), scene or document (.json)")->required();
   cmd->add_option("--out", options->out, "Result .vtu to write")->required();
   cmd->add_option("--E", options->youngs_modulus, "Young's modulus [Pa] (default 200e9, steel)");
   cmd->add_option("--nu", options->poisson_ratio, "Poisson's ratio (default 0.3, steel)");
@@ -449,7 +641,14 @@ void RegisterFemCommand(CLI::App& app) {
   cmd->add_option("--quality", options->max_radius_edge,
                   "Scene input: TetGen radius-edge bound (default 2; 0 = no refinement)");
   cmd->add_option("--solid", options->solid, "Scene input: name of the solid (default: the first)");
-  cmd->callback([options]() { RunFem(*options); });
+  cmd->add_option("--object", options->object,
+                  "Document input: the object to solve (default: the first fe_model, else the "
+                  "first solid, mesh or sculpt)");
+  cmd->callback([options, cmd]() {
+    options->given_e = cmd->count("--E") > 0;
+    options->given_nu = cmd->count("--nu") > 0;
+    RunFem(*options);
+  });
 }
 
 }  // namespace spidarcad::app
