@@ -340,6 +340,37 @@ std::string FieldDescription(const std::string& field) {
 
 }  // namespace
 
+// ---- ImportMeshCommand ----
+
+ImportMeshCommand::ImportMeshCommand(std::string name, std::string file,
+                                     std::shared_ptr<const modeling::TriangleMesh> surface,
+                                     std::shared_ptr<const modeling::TetMesh> volume)
+    : name_(std::move(name)),
+      file_(std::move(file)),
+      surface_(std::move(surface)),
+      volume_(std::move(volume)) {}
+
+void ImportMeshCommand::Do(Document& doc) {
+  if (insert_) {  // redo
+    insert_->Do(doc);
+    return;
+  }
+  DocObject o;
+  o.name = UniqueObjectName(doc, name_);
+  MeshData data;
+  data.surface = surface_;
+  data.volume = volume_;
+  data.import_source = file_;
+  o.data = std::move(data);
+  std::string name = o.name;
+  std::unique_ptr<Command> insert = InsertConstant("Import " + name, std::move(o), -1);
+  insert->Do(doc);  // validates; throws with the document unchanged
+  insert_ = std::move(insert);
+  name_ = std::move(name);
+}
+
+void ImportMeshCommand::Undo(Document& doc) { insert_->Undo(doc); }
+
 // ---- MacroCommand ----
 
 MacroCommand::MacroCommand(std::string description, std::vector<std::unique_ptr<Command>> commands)
