@@ -50,6 +50,7 @@ int main(int argc, char** argv) {
   RegisterDeviceCommand(app);
   RegisterReportCommand(app);
   RegisterInfoCommand(app);
+  RegisterImportCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -280,6 +280,75 @@ TEST(FemCommand, StlIsRepairedMeshedAndSolvedOrRefusedNamingTheDefect) {
   EXPECT_NE(refused.err.find(open + ": the surface is open"), std::string::npos) << refused.err;
 }
 
+std::string PlatformFe() {
+  return std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform_fe.json";
+}
+
+Eigen::Vector3d JsonVec(const nlohmann::json& j) {
+  return Eigen::Vector3d(j[0].get<double>(), j[1].get<double>(), j[2].get<double>());
+}
+
+TEST(FemCommand, DocumentFeModelBringsItsClampLoadAndMaterial) {
+  const CommandRun run =
+      RunSpidarcad("'" + PlatformFe() + "' --out '" + OutputPath("fem_doc.vtu") + "'", "doc");
+  ASSERT_EQ(run.status, 0) << run.all();
+  const nlohmann::json report = nlohmann::json::parse(run.out);
+  EXPECT_EQ(report["object"]["name"], "platform FE");
+  EXPECT_EQ(report["object"]["kind"], "fe_model");
+  EXPECT_EQ(report["fe_model"]["tet_mesh"], "platform tets");
+  EXPECT_EQ(report["fe_model"]["from_document"],
+            nlohmann::json({"material", "element_order", "fixed_boxes", "loads"}));
+  EXPECT_TRUE(report["fe_model"]["overridden"].empty());
+  EXPECT_EQ(report["material"]["youngs_modulus_pa"].get<double>(), 200e9);
+  EXPECT_EQ(report["order"], 1);
+  ASSERT_EQ(report["box_loads"].size(), 1u);
+  const nlohmann::json& load = report["box_loads"][0];
+  EXPECT_GT(load["nodes"].get<int>(), 3);
+  EXPECT_LT(load["mean_displacement"][2].get<double>(), 0.0);  // pressed down
+  EXPECT_GT(report["fixed_nodes"].get<int>(), 10);
+  // Equilibrium: the wall holds the 50 N.
+  const Eigen::Vector3d reaction = JsonVec(report["fixed_reaction_force"]);
+  EXPECT_LT((reaction - Eigen::Vector3d(0, 0, 50)).norm(), 1e-6 * 50) << reaction.transpose();
+  EXPECT_EQ(ReadTetVtu(OutputPath("fem_doc.vtu")).num_nodes(), report["nodes"].get<int>());
+
+  // Halving E doubles every displacement (linear elasticity, same mesh and loads).
+  const CommandRun soft = RunSpidarcad(
+      "'" + PlatformFe() + "' --E 100e9 --out '" + OutputPath("fem_doc_soft.vtu") + "'", "soft");
+  ASSERT_EQ(soft.status, 0) << soft.all();
+  const nlohmann::json soft_report = nlohmann::json::parse(soft.out);
+  EXPECT_EQ(soft_report["fe_model"]["overridden"],
+            nlohmann::json({"material (--E/--nu; region materials not used)"}));
+  EXPECT_NEAR(soft_report["max_displacement_m"].get<double>(),
+              2.0 * report["max_displacement_m"].get<double>(),
+              1e-6 * report["max_displacement_m"].get<double>());
+}
+
+TEST(FemCommand, OptionsOverrideTheDocumentFeModelAndTheReportSaysWhich) {
+  const CommandRun run =
+      RunSpidarcad("'" + PlatformFe() + "' --order 2 --load 0.3,0,0.01 --force 0,0,-10 --out '" +
+                       OutputPath("fem_doc_override.vtu") + "'",
+                   "override");
+  ASSERT_EQ(run.status, 0) << run.all();
+  const nlohmann::json report = nlohmann::json::parse(run.out);
+  EXPECT_EQ(report["fe_model"]["overridden"],
+            nlohmann::json({"element_order (--order)", "loads (--load/--force)"}));
+  EXPECT_EQ(report["fe_model"]["from_document"], nlohmann::json({"material", "fixed_boxes"}));
+  EXPECT_EQ(report["order"], 2);
+  EXPECT_TRUE(report["box_loads"].empty());
+  ASSERT_EQ(report["loads"].size(), 1u);
+  const Eigen::Vector3d reaction = JsonVec(report["fixed_reaction_force"]);
+  EXPECT_LT((reaction - Eigen::Vector3d(0, 0, 10)).norm(), 1e-6 * 10) << reaction.transpose();
+
+  const CommandRun unknown =
+      RunSpidarcad("'" + PlatformFe() + "' --object nope --out x.vtu", "unknown_object");
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_NE(unknown.err.find("--object 'nope': no such object in " + PlatformFe() +
+                             " (it has solid 'platform', mesh 'platform tets', fe_model "
+                             "'platform FE')"),
+            std::string::npos)
+      << unknown.err;
+}
+
 TEST(FemCommand, BadInputExitsWithStatusTwoNamingTheProblem) {
   const std::string beam = BeamPath();
   const std::string out = " --out " + OutputPath("fem_bad.vtu");

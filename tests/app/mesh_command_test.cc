@@ -275,6 +275,29 @@ TEST(MeshCommand, UnknownExtensionAndBadOptionsExitTwo) {
   EXPECT_NE(unwritable.err.find("/nonexistent-dir/p.stl"), std::string::npos) << unwritable.err;
 }
 
+TEST(MeshCommand, DocumentSolidIsMeshedByObjectNameAndOtherNamesAreRefused) {
+  const std::string doc = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform_fe.json";
+  const std::string out = OutputPath("platform_fe.stl");
+  const CommandRun run =
+      RunMesh("'" + doc + "' --object platform --resolution 0.004 --out '" + out + "'", "doc");
+  ASSERT_EQ(run.status, 0) << run.all();
+  EXPECT_NE(run.out.find("solid 'platform'"), std::string::npos) << run.out;
+  const TriangleMesh mesh = ReadTriangleMesh(out);
+  // The same solid as platform.json: its volume from the drawing's dimensions within 5 %.
+  EXPECT_NEAR(Volume(mesh), PlatformVolume(), 0.05 * PlatformVolume());
+
+  const CommandRun unknown = RunMesh("'" + doc + "' --object nope --out x.stl", "doc_unknown");
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_NE(unknown.err.find("--object 'nope': no such solid in " + doc + " (it has 'platform')"),
+            std::string::npos)
+      << unknown.err;
+  const CommandRun other = RunMesh("'" + doc + "' --object 'platform FE' --out x.stl", "doc_other");
+  EXPECT_EQ(other.status, 2);
+  EXPECT_NE(other.err.find("that is a fe_model object, not a solid (its solids: 'platform')"),
+            std::string::npos)
+      << other.err;
+}
+
 TEST(MeshCommand, HelpTeachesWithPlatformExamples) {
   const CommandRun run = RunMesh("--help", "help");
   EXPECT_EQ(run.status, 0);

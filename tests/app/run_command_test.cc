@@ -186,6 +186,37 @@ TEST(RunCommand, TrajectoryThatIsNotARegularFileIsRefusedBeforeReading) {
   EXPECT_NE(r.err.find("--trajectory '/dev/zero': not a regular file"), std::string::npos) << r.err;
 }
 
+TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
+  const std::string trajectory = WritePressTrajectory();
+  const std::string scenes = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/";
+  const CommandRun run = RunSpidarcad("'" + scenes + "workbench.json' --trajectory '" + trajectory +
+                                          "' --out '" + OutputPath("wb.csv") + "'",
+                                      "workbench");
+  ASSERT_EQ(run.status, 0) << run.all();
+  EXPECT_NE(run.out.find("fields: proxy 'platform'"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("skipped (run renders solids, assembly parts and snap; not yet meshes, "
+                         "FE models, sculpts or rigid parts): mesh 'platform tets', fe_model "
+                         "'platform FE', sculpt 'clay', rigid_part 'base', rigid_part 'cap'\n"),
+            std::string::npos)
+      << run.out;
+  EXPECT_EQ(ReadCsv(OutputPath("wb.csv")).size(), 1502u);  // header + 1.5 s at 1 kHz
+
+  // Nothing it can render: a free grip, and the summary says why.
+  const CommandRun clay = RunSpidarcad("'" + scenes + "clay_sculpt.json' --trajectory '" +
+                                           trajectory + "' --out '" + OutputPath("clay.csv") + "'",
+                                       "clay");
+  ASSERT_EQ(clay.status, 0) << clay.all();
+  EXPECT_NE(clay.out.find("clay_sculpt.json (no solid) (0 fields)"), std::string::npos) << clay.out;
+  EXPECT_NE(clay.out.find("not yet meshes, FE models, sculpts or rigid parts): sculpt 'clay'\n"),
+            std::string::npos)
+      << clay.out;
+  const std::vector<std::vector<std::string>> rows = ReadCsv(OutputPath("clay.csv"));
+  double max_force = 0.0;
+  for (std::size_t r = 1; r < rows.size(); ++r)
+    for (int c = 9; c < 12; ++c) max_force = std::max(max_force, std::abs(std::stod(rows[r][c])));
+  EXPECT_EQ(max_force, 0.0);
+}
+
 TEST(RunCommand, EmptySceneCommandsNoForce) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("empty_result.csv");

@@ -33,5 +33,7 @@ void RegisterReportCommand(CLI::App& app);
 
 // `spidarcad info FILE`: the objects of a document, one line each (cli/info_command.cc).
 void RegisterInfoCommand(CLI::App& app);
+// `spidarcad import FILE --into DOC`: a mesh file into a document (cli/import_command.cc).
+void RegisterImportCommand(CLI::App& app);
 
 }  // namespace spidarcad::app

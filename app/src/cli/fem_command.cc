@@ -12,10 +12,14 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "doc/document.h"
+#include "scene/document_file.h"
+#include "scene/fe_model.h"
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
@@ -52,6 +56,9 @@ struct FemOptions {
   double resolution = 0.004;
   double max_radius_edge = 2.0;
   std::string solid;
+  std::string object;  // --object: any object of a document (solid, mesh, sculpt, fe_model)
+  // Which options were given (a document's FE model supplies the others).
+  bool given_e = false, given_nu = false;
 };
 
 // Parses "a,b,c,..." into exactly n finite numbers; errors name the option, its occurrence and
@@ -99,8 +106,10 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 }
 
 // Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen.
-fem::TetMesh MeshScene(const FemOptions& options, nlohmann::ordered_json* report) {
-  const SceneSolidGrid grid = PrepareSceneSolid(options.input, options.solid, options.resolution);
+fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
+                       const std::string& name, const std::string& option,
+                       nlohmann::ordered_json* report) {
+  const SceneSolidGrid grid = PrepareDocumentSolid(opened, name, option, options.resolution);
   const double cell = grid.cell;
   modeling::SurfaceMeshSettings surface_settings;
   surface_settings.bounds = grid.bounds;
@@ -136,6 +145,30 @@ bool IsTriangleMeshFile(const std::string& path) {
   return EndsWith(lower, ".stl") || EndsWith(lower, ".obj") || EndsWith(lower, ".ply");
 }
 
+// TetGen tets of a closed surface, with its figures under report["meshing"] (plus `extra`).
+// `what` names the surface in an error ("the repaired surface", "object 'clay'"), `hint` says
+// what to try.
+fem::TetMesh TetrahedralizeForFem(const FemOptions& options, const modeling::TriangleMesh& surface,
+                                  const std::string& what, const std::string& hint,
+                                  nlohmann::ordered_json extra, nlohmann::ordered_json* report) {
+  modeling::TetMeshSettings tet_settings;
+  tet_settings.max_radius_edge = options.max_radius_edge;
+  modeling::TetMeshStats tet_stats;
+  modeling::TetMesh tets;
+  try {
+    tets = modeling::TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  } catch (const std::exception& e) {
+    throw InputError(options.input + ": " + what + " cannot be tetrahedralized: " + e.what() +
+                     " (" + hint + ")");
+  }
+  extra["surface_triangles"] = surface.triangles.cols();
+  extra["tetgen_seconds"] = tet_stats.tetgen_seconds;
+  extra["tetgen_switches"] = tet_stats.switches;
+  extra["min_dihedral_deg"] = tet_stats.quality.min_dihedral_deg;
+  (*report)["meshing"] = std::move(extra);
+  return ToFemMesh(tets);
+}
+
 // A closed triangle mesh file -> repaired surface (modeling::ImportSolidMesh) -> TetGen tets.
 // The repair report goes into the JSON report; a mesh that cannot be repaired is an InputError
 // naming the file, the defect and the first offending triangle.
@@ -149,26 +182,56 @@ fem::TetMesh MeshTriangleFile(const FemOptions& options, nlohmann::ordered_json*
   } catch (const modeling::MeshDefectError& e) {
     throw InputError(std::string(e.what()) + " (the mesh cannot be tetrahedralized as it is)");
   }
-  modeling::TetMeshSettings tet_settings;
-  tet_settings.max_radius_edge = options.max_radius_edge;
-  modeling::TetMeshStats tet_stats;
-  modeling::TetMesh tets;
-  try {
-    tets = modeling::TetrahedralizeSurface(surface, tet_settings, &tet_stats);
-  } catch (const std::exception& e) {
-    throw InputError(options.input + ": TetGen cannot tetrahedralize the repaired surface: " +
-                     e.what() + " (try another --quality)");
+  nlohmann::ordered_json extra = {{"input_triangles", repair.input_triangles},
+                                  {"repair", repair.Lines()}};
+  return TetrahedralizeForFem(options, surface, "the repaired surface", "try another --quality",
+                              std::move(extra), report);
+}
+
+// Tetrahedralizes a closed surface of a document object (a mesh without a volume, a sculpt).
+fem::TetMesh MeshSurfaceObject(const FemOptions& options, const std::string& name,
+                               const modeling::TriangleMesh& surface,
+                               nlohmann::ordered_json* report) {
+  return TetrahedralizeForFem(options, surface, "object '" + name + "': its surface",
+                              "it must be closed and free of self-intersections",
+                              {{"object", name}}, report);
+}
+
+// The object `fem` solves in a document: the one named (any kind but a rigid part), else the
+// first FE model, else the first solid, mesh or sculpt. A version 1 scene: its solids only, with
+// the messages `fem` always gave.
+const DocObject& PickFemObject(const OpenedDocument& opened, const std::string& name,
+                               const std::string& option) {
+  const Document& doc = *opened.doc;
+  if (opened.version == 1) return PickSolid(opened, name, option);
+  std::string all;
+  for (const DocObject& o : doc.objects())
+    all += (all.empty() ? "" : ", ") + std::string(ObjectKindName(o.data)) + " '" + o.name + "'";
+  if (all.empty()) all = "no object";
+  if (!name.empty()) {
+    const DocObject* o = doc.FindByName(name);
+    if (o == nullptr) {
+      throw InputError(option + " '" + name + "': no such object in " + opened.path + " (it has " +
+                       all + ")");
+    }
+    if (std::holds_alternative<RigidPartData>(o->data)) {
+      throw InputError(option + " '" + name + "': a rigid part; fem solves an fe_model, solid, " +
+                       "mesh or sculpt object (" + opened.path + " has " + all + ")");
+    }
+    return *o;
   }
-  (*report)["meshing"] = {{"input_triangles", repair.input_triangles},
-                          {"repair", repair.Lines()},
-                          {"surface_triangles", surface.triangles.cols()},
-                          {"tetgen_seconds", tet_stats.tetgen_seconds},
-                          {"tetgen_switches", tet_stats.switches},
-                          {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg}};
-  return ToFemMesh(tets);
+  for (const char* kind : {"fe_model", "solid", "mesh", "sculpt"})
+    for (const DocObject& o : doc.objects())
+      if (std::string(ObjectKindName(o.data)) == kind) return o;
+  throw InputError(opened.path + ": nothing to solve: the document has " + all +
+                   "; fem needs an fe_model, solid, mesh or sculpt object");
 }
 
 nlohmann::ordered_json JsonVector(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+nlohmann::ordered_json JsonBox(const Eigen::AlignedBox3d& box) {
+  return {{"min", JsonVector(box.min())}, {"max", JsonVector(box.max())}};
+}
 
 // Index (into mesh nodes) of the surface node nearest p.
 int NearestNode(const fem::TetMesh& mesh, const std::vector<int>& candidates,
@@ -244,12 +307,38 @@ void RunFem(const FemOptions& options) {
   // The mesh.
   Clock::time_point t = Clock::now();
   fem::TetMesh mesh;
+  OpenedDocument opened;
+  const FeModelData* fe = nullptr;  // a document's FE model, when that is what is solved
+  std::string fe_name;              // its name
+  if (!options.solid.empty() && !options.object.empty())
+    throw InputError("--solid and --object name the same thing: give one");
+  const std::string option = options.object.empty() ? "--solid" : "--object";
+  const std::string name = options.object.empty() ? options.solid : options.object;
   if (EndsWith(options.input, ".vtu")) {
     VtuReadInfo info;
     mesh = ReadTetVtu(options.input, &info);
     if (info.flipped_elements > 0) report["flipped_elements"] = info.flipped_elements;
   } else if (EndsWith(options.input, ".json")) {
-    mesh = MeshScene(options, &report);
+    opened = OpenDocumentFile(options.input);
+    const DocObject& object = PickFemObject(opened, name, option);
+    if (opened.version == 2)
+      report["object"] = {{"name", object.name}, {"kind", ObjectKindName(object.data)}};
+    if (std::holds_alternative<SolidData>(object.data)) {
+      mesh = MeshScene(options, opened, object.name, option, &report);
+    } else if (const auto* f = std::get_if<FeModelData>(&object.data)) {
+      fe = f;
+      fe_name = object.name;
+      mesh = FeMeshOf(*opened.doc, *f);
+    } else if (const auto* m = std::get_if<MeshData>(&object.data)) {
+      if (m->volume) {
+        mesh = ToFemMesh(*m->volume);
+      } else {
+        mesh = MeshSurfaceObject(options, object.name, *m->surface, &report);
+      }
+    } else {
+      mesh =
+          MeshSurfaceObject(options, object.name, *std::get<SculptData>(object.data).mesh, &report);
+    }
   } else if (IsTriangleMeshFile(options.input)) {
     mesh = MeshTriangleFile(options, &report);
   } else {
@@ -257,11 +346,60 @@ void RunFem(const FemOptions& options) {
                      ": unknown input kind (expected a .vtu mesh, a closed .stl/.obj/.ply "
                      "surface or a .json scene)");
   }
+  // A document's FE model: its material, region materials, clamps, loads and order, unless an
+  // option says otherwise (listed under "overridden").
+  std::vector<RegionMaterial> region_materials;
+  nlohmann::ordered_json fe_report;
+  nlohmann::ordered_json from_document = nlohmann::ordered_json::array();
+  nlohmann::ordered_json overridden = nlohmann::ordered_json::array();
+  int order = options.order;
+  if (fe != nullptr) {
+    const std::string where = options.input + ": fe_model '" + fe_name + "': ";
+    if (options.given_e || options.given_nu) {
+      if (!options.given_e) material.youngs_modulus = fe->material.youngs_modulus;
+      if (!options.given_nu) material.poisson_ratio = fe->material.poisson_ratio;
+      overridden.push_back("material (--E/--nu; region materials not used)");
+    } else {
+      material.youngs_modulus = fe->material.youngs_modulus;
+      material.poisson_ratio = fe->material.poisson_ratio;
+      region_materials = fe->region_materials;
+      from_document.push_back("material");
+      if (!region_materials.empty()) from_document.push_back("region_materials");
+    }
+    for (RegionMaterial& r : region_materials) r.material.formulation = material.formulation;
+    try {
+      material.Validate();
+      for (const RegionMaterial& r : region_materials) r.material.Validate();
+    } catch (const std::invalid_argument& e) {
+      throw InputError(where + "material: " + e.what());
+    }
+    if (options.order != 0) {
+      overridden.push_back("element_order (--order)");
+    } else if (options.incompressible && fe->element_order == 1) {
+      overridden.push_back("element_order (--incompressible needs quadratic elements)");
+    } else {
+      order = fe->element_order;
+      from_document.push_back("element_order");
+    }
+    if (options.fix.empty()) {
+      for (std::size_t i = 0; i < fe->fixed_boxes.size(); ++i) {
+        fix_boxes.emplace_back(fe->fixed_boxes[i].min(), fe->fixed_boxes[i].max());
+      }
+      from_document.push_back("fixed_boxes");
+    } else {
+      overridden.push_back("fixed_boxes (--fix)");
+    }
+    if (options.load.empty()) {
+      from_document.push_back("loads");
+    } else {
+      overridden.push_back("loads (--load/--force)");
+    }
+  }
   const int input_order = mesh.Order();
   const int input_nodes = mesh.num_nodes();
-  if ((options.order == 2 || options.incompressible) && input_order == 1) {
+  if ((order == 2 || options.incompressible) && input_order == 1) {
     mesh = fem::MakeQuadratic(mesh);
-  } else if (options.order == 1 && input_order == 2) {
+  } else if (order == 1 && input_order == 2) {
     throw InputError("--order 1: the mesh " + options.input +
                      " has quadratic (10-node) tetrahedra; use --order 2 or a linear mesh");
   }
@@ -273,6 +411,11 @@ void RunFem(const FemOptions& options) {
   int num_fixed = 0;
   for (size_t i = 0; i < fix_boxes.size(); ++i) {
     const std::vector<int> nodes = fem::NodesInBox(mesh, fix_boxes[i].first, fix_boxes[i].second);
+    if (nodes.empty() && i >= options.fix.size()) {
+      throw InputError(options.input + ": fe_model '" + fe_name + "': fixed box " +
+                       std::to_string(i) +
+                       " contains no node of the mesh; correct it in the document or give --fix");
+    }
     if (nodes.empty()) {
       throw InputError("--fix #" + std::to_string(i + 1) + " '" + options.fix[i] +
                        "': the box contains no node of the mesh");
@@ -316,9 +459,22 @@ void RunFem(const FemOptions& options) {
     bcs.AddPointLoad(v, load_forces[i]);
     load_nodes.push_back(v);
   }
+  std::vector<std::vector<int>> box_load_nodes;
+  if (fe != nullptr && options.load.empty()) {
+    try {
+      box_load_nodes = AddBoxLoads(mesh, fe->loads, &bcs);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(options.input + ": fe_model '" + fe_name + "': " + e.what());
+    }
+  }
 
   // Solve.
-  const fem::MaterialTable materials(material);
+  fem::MaterialTable materials(material);
+  try {
+    materials = MakeMaterialTable(material, region_materials);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(options.input + ": fe_model '" + fe_name + "': " + e.what());
+  }
   std::unique_ptr<fem::StaticSolver> solver;
   try {
     solver = std::make_unique<fem::StaticSolver>(mesh, materials, bcs);
@@ -410,6 +566,33 @@ void RunFem(const FemOptions& options) {
                      {"displacement", JsonVector(solution.displacement.segment<3>(3 * v))}});
   }
   report["loads"] = loads;
+  if (fe != nullptr) {
+    nlohmann::ordered_json box_loads = nlohmann::ordered_json::array();
+    for (std::size_t i = 0; i < box_load_nodes.size(); ++i) {
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int v : box_load_nodes[i]) mean += solution.displacement.segment<3>(3 * v);
+      mean /= static_cast<double>(box_load_nodes[i].size());
+      nlohmann::ordered_json entry = JsonBox(fe->loads[i].box);
+      entry["force"] = JsonVector(fe->loads[i].force);
+      entry["nodes"] = box_load_nodes[i].size();
+      entry["mean_displacement"] = JsonVector(mean);
+      box_loads.push_back(entry);
+    }
+    report["box_loads"] = box_loads;
+    nlohmann::ordered_json regions = nlohmann::ordered_json::array();
+    for (const RegionMaterial& r : region_materials) {
+      regions.push_back({{"region", r.region},
+                         {"youngs_modulus_pa", r.material.youngs_modulus},
+                         {"poisson_ratio", r.material.poisson_ratio}});
+    }
+    const DocObject* tet_mesh = opened.doc->Find(fe->tet_mesh);
+    fe_report["name"] = fe_name;
+    fe_report["tet_mesh"] = tet_mesh != nullptr ? tet_mesh->name : std::string();
+    fe_report["region_materials"] = regions;
+    fe_report["from_document"] = from_document;
+    fe_report["overridden"] = overridden;
+    report["fe_model"] = fe_report;
+  }
   Eigen::Vector3d support = Eigen::Vector3d::Zero();
   for (int v = 0; v < mesh.num_nodes(); ++v) {
     if (clamped[v]) support += solution.reaction.segment<3>(3 * v);
@@ -451,7 +634,13 @@ void RegisterFemCommand(CLI::App& app) {
   cmd->footer(
       "Input: a .vtu with VTK_TETRA or VTK_QUADRATIC_TETRA cells, or a .json scene whose solid\n"
       "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen),\n"
-      "or a closed triangle surface (.stl, .obj, .ply): repaired where that is safe (vertices\n"
+      "or a .json document (version 2) and its object --object NAME (default: the first\n"
+      "fe_model, else the first solid, mesh or sculpt). An fe_model brings its tet mesh,\n"
+      "material, region materials, fixed boxes, loads (each box's force spread evenly over its\n"
+      "nodes) and element order; --E/--nu, --fix, --load/--force and --order replace the\n"
+      "document's value, and the JSON lists which under fe_model.overridden. A mesh object is\n"
+      "used as it is (its tets) or tetrahedralized (a surface), as is a sculpt's surface;\n"
+      "or a closed triangle surface (.stl, .obj, .ply), repaired where that is safe (vertices\n"
       "welded, zero-area, repeated and back-to-back triangles dropped, orientation fixed; the\n"
       "JSON's meshing.repair lists the changes) or refused naming the defect and the first\n"
       "offending triangle (open, non-manifold, self-intersecting), then meshed by TetGen.\n"
@@ -472,7 +661,7 @@ void RegisterFemCommand(CLI::App& app) {
       "    --order 2 --out result.vtu\n"
       "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)");
   cmd->add_option("input", options->input,
-                  "Mesh (.vtu), closed surface (.stl, .obj, .ply) or scene (.json)")
+                  "Mesh (.vtu), closed surface (.stl, .obj, .ply), scene or document (.json)")
       ->required();
   cmd->add_option("--out", options->out, "Result .vtu to write")->required();
   cmd->add_option("--E", options->youngs_modulus, "Young's modulus [Pa] (default 200e9, steel)");
@@ -499,7 +688,14 @@ void RegisterFemCommand(CLI::App& app) {
   cmd->add_option("--quality", options->max_radius_edge,
                   "Scene input: TetGen radius-edge bound (default 2; 0 = no refinement)");
   cmd->add_option("--solid", options->solid, "Scene input: name of the solid (default: the first)");
-  cmd->callback([options]() { RunFem(*options); });
+  cmd->add_option("--object", options->object,
+                  "Document input: the object to solve (default: the first fe_model, else the "
+                  "first solid, mesh or sculpt)");
+  cmd->callback([options, cmd]() {
+    options->given_e = cmd->count("--E") > 0;
+    options->given_nu = cmd->count("--nu") > 0;
+    RunFem(*options);
+  });
 }
 
 }  // namespace spidarcad::app

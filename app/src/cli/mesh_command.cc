@@ -20,6 +20,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "scene/document_file.h"
 #include "scene/scene_solid.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/feature_sharpening.h"
@@ -42,6 +43,7 @@ struct MeshOptions {
   std::string scene;
   std::string out;
   std::string solid;
+  std::string object;       // --object, the same as --solid under the name documents use
   double resolution = 0.0;  // m; 0: from the solid's size
   std::string tets;         // "", "tetgen" or "cgal"
   double quality = 2.0;     // radius-edge bound, 0: no refinement
@@ -201,7 +203,9 @@ void CheckBudget(double value, double limit, const char* what, const char* optio
 constexpr double kDefaultCellsAcross = 80.0;
 
 constexpr const char* kMeshHelp =
-    "Meshes an implicit solid of a scene file (docs/scene-format.md).\n"
+    "Meshes an implicit solid of a scene file or document (docs/scene-format.md): the solid\n"
+    "--object NAME (or --solid NAME), else the first solid; a document's other objects (meshes,\n"
+    "FE models, sculpts, parts) are not meshed, and naming one is an error that lists the solids.\n"
     "Surface: marching tetrahedra on a grid of cell R metres, then a clean-up pass (edge\n"
     "collapses and flips) that removes zero-area and sliver triangles; closed and manifold.\n"
     "Volume (--tets tetgen): TetGen 1.5 tetrahedralizes that surface; --quality Q bounds the\n"
@@ -448,14 +452,20 @@ void RunMesh(const MeshOptions& o) {
     }
   }
 
+  if (!o.solid.empty() && !o.object.empty())
+    throw InputError("--solid and --object name the same thing: give one");
+  const std::string option = o.object.empty() ? "--solid" : "--object";
+  const std::string name = o.object.empty() ? o.solid : o.object;
+
   const InterruptScope interrupt_scope;
   Progress progress(o.progress || isatty(STDERR_FILENO) == 1);
   if (IsTriangleMeshFile(o.scene)) {
     RunMeshFile(o, ext, &progress);
     return;
   }
-  const SceneSolidGrid grid = PrepareSceneSolid(o.scene, o.solid, o.resolution, kDefaultCellsAcross,
-                                                o.max_cells, "--max-cells");
+  const OpenedDocument opened = OpenDocumentFile(o.scene);
+  const SceneSolidGrid grid = PrepareDocumentSolid(opened, name, option, o.resolution,
+                                                   kDefaultCellsAcross, o.max_cells, "--max-cells");
   const CompiledSolid& compiled = grid.compiled;
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;
@@ -575,8 +585,8 @@ void RegisterMeshCommand(CLI::App& app) {
       "mesh", "Mesh an implicit solid of a scene: surface (STL/OBJ/PLY) or tets (VTU, .node)");
   cmd->footer(kMeshHelp);
   cmd->add_option("scene", options->scene,
-                  "Scene file (JSON, docs/scene-format.md), or a closed triangle mesh (.stl, .obj, "
-                  ".ply) to repair or tetrahedralize")
+                  "Scene file or document (JSON, version 1 or 2, docs/scene-format.md), or a "
+                  "closed triangle mesh (.stl, .obj, .ply) to repair or tetrahedralize")
       ->required();
   cmd->add_option("--weld", options->weld,
                   "Mesh-file input: weld vertices closer than this fraction of the bounding-box "
@@ -585,6 +595,8 @@ void RegisterMeshCommand(CLI::App& app) {
                   "Output file: .stl .obj .ply (surface) or .vtu .node (with --tets)")
       ->required();
   cmd->add_option("--solid", options->solid, "Name of the solid to mesh (default: the first)");
+  cmd->add_option("--object", options->object,
+                  "Name of the solid object to mesh (as --solid; default: the first solid)");
   cmd->add_option("--resolution", options->resolution,
                   "Grid cell edge [m] (default: the solid's largest side / 80; platform: 3.9 mm)");
   cmd->add_option(

@@ -23,6 +23,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <variant>
 #include <vector>
 
 #include "cli/cli_common.h"
@@ -30,6 +31,7 @@
 #include "scene/assembly_scene.h"
 #include "scene/calibration_file.h"
 #include "scene/device_rig.h"
+#include "scene/document_file.h"
 #include "scene/scene_haptics.h"
 #include "scene/trajectory_player.h"
 #include "spidarcad/haptics/haptic_loop.h"
@@ -85,7 +87,9 @@ constexpr const char* kRunHelp =
     "\n"
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
-    "coordinates), or a scene file (docs/scene-format.md) of implicit solids:\n"
+    "coordinates), or a scene file or document (docs/scene-format.md, version 1 or 2) of implicit\n"
+    "solids; a document's meshes, FE models, sculpts and rigid parts are not rendered yet (the\n"
+    "summary lists them as skipped):\n"
     "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
     "  --tool shell   the cross grip (poles +-d, radius 6 mm) is a six-DOF point shell with\n"
     "                 virtual coupling against the union of the solids: torques are felt\n"
@@ -254,7 +258,8 @@ void RunRun(const RunOptions& options) {
 
   std::unique_ptr<haptics::HapticScene> scene;
   std::string scene_name = "empty";
-  std::string fields_line;  // per-field names for the summary
+  std::string fields_line;   // per-field names for the summary
+  std::string skipped_line;  // a document's objects that run does not render yet
   std::string map_line = "X_WD: identity (device coordinates)";
   haptics::AssemblyField* assembly_field =
       nullptr;  // an assembly scene's field (owned by the loop)
@@ -267,13 +272,31 @@ void RunRun(const RunOptions& options) {
     scene_name = "demo";
     fields_line = "fields: plane_wall (floor z = -0.03 m), spring (toward (0.05, 0, 0) m)";
   } else {
-    modeling::Scene loaded;
+    OpenedDocument opened;
     try {
-      loaded = modeling::LoadScene(options.scene);
-    } catch (const modeling::SceneError& e) {
+      opened = OpenDocumentFile(options.scene);
+    } catch (const InputError& e) {
       throw InputError(std::string("SCENE: ") + e.what());
     }
-    if (!loaded.parts.empty()) {
+    // What `run` renders of a document today: its solids (one field each, or an assembly of
+    // "parts") and snap. The other kinds are listed in the summary as skipped.
+    const modeling::Scene loaded = opened.doc->ToScene();
+    for (const DocObject& o : opened.doc->objects()) {
+      if (std::holds_alternative<SolidData>(o.data)) continue;
+      skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
+                      " '" + o.name + "'";
+    }
+    if (!skipped_line.empty()) {
+      skipped_line =
+          "skipped (run renders solids, assembly parts and snap; not yet meshes, "
+          "FE models, sculpts or rigid parts): " +
+          skipped_line;
+    }
+    if (opened.version == 2 && loaded.solids.empty()) {
+      // Nothing to render: the grip moves freely.
+      scene = std::make_unique<haptics::HapticScene>();
+      scene_name = options.scene + " (no solid)";
+    } else if (!loaded.parts.empty()) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
       std::unique_ptr<haptics::AssemblyField> assembly;
       try {
@@ -516,6 +539,7 @@ void RunRun(const RunOptions& options) {
   if (!link.empty()) std::cout << link << "\n";
   if (!calibration_line.empty()) std::cout << calibration_line << "\n";
   if (!fields_line.empty()) std::cout << fields_line << "\n";
+  if (!skipped_line.empty()) std::cout << skipped_line << "\n";
   std::cout << map_line << "\n";
   std::cout << "tick time [us]: p50 " << Fixed(tick_time.Percentile(0.5) * 1e6, 1) << "  p99 "
             << Fixed(tick_time.Percentile(0.99) * 1e6, 1) << "  p99.9 "

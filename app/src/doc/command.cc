@@ -343,6 +343,37 @@ std::string FieldDescription(const std::string& field) {
 
 }  // namespace
 
+// ---- ImportMeshCommand ----
+
+ImportMeshCommand::ImportMeshCommand(std::string name, std::string file,
+                                     std::shared_ptr<const modeling::TriangleMesh> surface,
+                                     std::shared_ptr<const modeling::TetMesh> volume)
+    : name_(std::move(name)),
+      file_(std::move(file)),
+      surface_(std::move(surface)),
+      volume_(std::move(volume)) {}
+
+void ImportMeshCommand::Do(Document& doc) {
+  if (insert_) {  // redo
+    insert_->Do(doc);
+    return;
+  }
+  DocObject o;
+  o.name = UniqueObjectName(doc, name_);
+  MeshData data;
+  data.surface = surface_;
+  data.volume = volume_;
+  data.import_source = file_;
+  o.data = std::move(data);
+  std::string name = o.name;
+  std::unique_ptr<Command> insert = InsertConstant("Import mesh " + name, std::move(o), -1);
+  insert->Do(doc);  // validates; throws with the document unchanged
+  insert_ = std::move(insert);
+  name_ = std::move(name);
+}
+
+void ImportMeshCommand::Undo(Document& doc) { insert_->Undo(doc); }
+
 // ---- MacroCommand ----
 
 MacroCommand::MacroCommand(std::string description, std::vector<std::unique_ptr<Command>> commands)
@@ -492,13 +523,10 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
 }
 
 std::unique_ptr<Command> ImportMesh(const std::string& path, std::string name) {
-  MeshData data = ReadMeshFile(path);  // InputError names the file; nothing made then
+  const MeshData data = ReadMeshFile(path);  // InputError names the file; nothing made then
   if (name.empty()) name = std::filesystem::path(path).stem().string();
   if (name.empty()) name = "mesh";
-  DocObject o;
-  o.name = name;
-  o.data = std::move(data);
-  return InsertConstant("Import mesh " + name, std::move(o), -1);
+  return std::make_unique<ImportMeshCommand>(std::move(name), path, data.surface, data.volume);
 }
 
 std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,

@@ -99,6 +99,26 @@ class History {
   bool merge_open_ = false;
 };
 
+// Adds a mesh read from a file (an STL/OBJ/PLY surface, VTU or TetGen tetrahedra) as a mesh
+// object with no source and import_source = `file`. At least one of surface and volume must be
+// non-null (else Do throws DocumentError). The object gets `name`, made unique in the document
+// at the first Do (UniqueObjectName: "part", "part copy", ...). Its id is in doc.last_created().
+class ImportMeshCommand : public Command {
+ public:
+  ImportMeshCommand(std::string name, std::string file,
+                    std::shared_ptr<const modeling::TriangleMesh> surface,
+                    std::shared_ptr<const modeling::TetMesh> volume);
+  void Do(Document& doc) override;
+  void Undo(Document& doc) override;
+  std::string Description() const override { return "Import mesh " + name_; }
+
+ private:
+  std::string name_, file_;
+  std::shared_ptr<const modeling::TriangleMesh> surface_;
+  std::shared_ptr<const modeling::TetMesh> volume_;
+  std::unique_ptr<Command> insert_;  // the insertion, fixed at the first Do
+};
+
 // Factories for every edit. None touches the document until the command is executed.
 namespace edit {
 

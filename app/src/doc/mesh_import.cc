@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "doc/input_error.h"
+#include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/tet_mesh.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
@@ -89,16 +90,22 @@ double SignedVolume(const modeling::TetMesh& m, Eigen::Index t) {
 
 // Flips negatively oriented tets; throws naming the first degenerate one (`where(t)` says
 // where tet t came from).
+// Returns the number flipped.
 template <typename Where>
-void OrientTets(modeling::TetMesh* m, Where&& where) {
+int OrientTets(modeling::TetMesh* m, Where&& where) {
+  int flipped = 0;
   for (Eigen::Index t = 0; t < m->tets.cols(); ++t) {
     const double v = SignedVolume(*m, t);
     if (v == 0.0 || !std::isfinite(v)) throw InputError(where(t) + " has zero volume");
-    if (v < 0.0) std::swap(m->tets(1, t), m->tets(2, t));
+    if (v < 0.0) {
+      std::swap(m->tets(1, t), m->tets(2, t));
+      ++flipped;
+    }
   }
+  return flipped;
 }
 
-modeling::TetMesh FromVtu(const std::string& path) {
+modeling::TetMesh FromVtu(const std::string& path, int* flipped) {
   modeling::VtuGrid grid;
   try {
     grid = modeling::ReadVtuGrid(path);
@@ -111,7 +118,7 @@ modeling::TetMesh FromVtu(const std::string& path) {
   m.tets = grid.cells.topRows(4);
   m.regions = grid.regions.size() == grid.cells.cols() ? grid.regions
                                                        : Eigen::VectorXi::Zero(grid.cells.cols());
-  OrientTets(&m, [&](Eigen::Index t) { return path + ": cell " + std::to_string(t); });
+  *flipped = OrientTets(&m, [&](Eigen::Index t) { return path + ": cell " + std::to_string(t); });
   return m;
 }
 
@@ -123,7 +130,8 @@ bool IsMeshFile(const std::string& path) {
 }
 
 modeling::TetMesh ParseTetgenFiles(const std::string& node_text, const std::string& ele_text,
-                                   const std::string& node_file, const std::string& ele_file) {
+                                   const std::string& node_file, const std::string& ele_file,
+                                   int* flipped) {
   const std::vector<Line> nodes = SplitLines(node_text);
   if (nodes.empty()) throw InputError(node_file + ": empty .node file (no header line)");
   const Line& nh = nodes[0];
@@ -187,17 +195,20 @@ modeling::TetMesh ParseTetgenFiles(const std::string& node_text, const std::stri
     }
     if (region > 0) m.regions(t) = static_cast<int>(Integer(ele_file, line, 1 + per, "the region"));
   }
-  OrientTets(&m, [&](Eigen::Index t) {
+  const int flips = OrientTets(&m, [&](Eigen::Index t) {
     return ele_file + ":" + std::to_string(eles[t + 1].number) + ": tetrahedron " +
            eles[t + 1].words[0];
   });
+  if (flipped != nullptr) *flipped = flips;
   return m;
 }
 
-MeshData ReadMeshFile(const std::string& path) {
+MeshData ReadMeshFile(const std::string& path, MeshFileInfo* info) {
   const std::string ext = LowerExtension(path);
   MeshData data;
   data.import_source = path;
+  MeshFileInfo found;
+  found.format = ext.empty() ? ext : ext.substr(1);
   if (ext == ".stl" || ext == ".obj" || ext == ".ply") {
     modeling::TriangleMesh mesh;
     try {
@@ -207,18 +218,29 @@ MeshData ReadMeshFile(const std::string& path) {
     }
     if (mesh.triangles.cols() == 0) throw InputError(path + ": the file holds no triangles");
     data.surface = std::make_shared<const modeling::TriangleMesh>(std::move(mesh));
-  } else if (ext == ".vtu") {
-    data.volume = std::make_shared<const modeling::TetMesh>(FromVtu(path));
-  } else if (ext == ".node") {
-    const std::string ele = fs::path(path).replace_extension(".ele").string();
-    if (!fs::exists(ele)) {
-      throw InputError(path + ": no " + ele + " beside it (TetGen writes the tetrahedra there)");
+  } else if (ext == ".vtu" || ext == ".node") {
+    modeling::TetMesh volume;
+    if (ext == ".vtu") {
+      volume = FromVtu(path, &found.flipped_tets);
+    } else {
+      const std::string ele = fs::path(path).replace_extension(".ele").string();
+      if (!fs::exists(ele)) {
+        throw InputError(path + ": no " + ele + " beside it (TetGen writes the tetrahedra there)");
+      }
+      volume = ParseTetgenFiles(ReadText(path), ReadText(ele), path, ele, &found.flipped_tets);
     }
-    data.volume = std::make_shared<const modeling::TetMesh>(
-        ParseTetgenFiles(ReadText(path), ReadText(ele), path, ele));
+    try {
+      modeling::ValidateTetMesh(volume);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(path + ": " + e.what());
+    }
+    data.surface =
+        std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(volume));
+    data.volume = std::make_shared<const modeling::TetMesh>(std::move(volume));
   } else {
     throw InputError(path + ": not a mesh file (import .stl, .obj, .ply, .vtu or .node)");
   }
+  if (info != nullptr) *info = found;
   return data;
 }
 

@@ -4,7 +4,9 @@
 // tetrahedra from VTU (modeling/tet_mesh.h) or TetGen's .node with the .ele beside it. Metres,
 // as the files hold them; quadratic (10-node) tetrahedra keep their corners; tetrahedra with a
 // negative orientation are flipped (corners 1 and 2 swapped); a VTU "region" cell array or a
-// TetGen region attribute becomes the regions.
+// TetGen region attribute becomes the regions; tetrahedra come with their boundary surface.
+// This is the one mesh file reader of the app: the window's Import, dropped files and
+// `spidarcad import` all read through it.
 #pragma once
 
 #include <string>
@@ -16,15 +18,24 @@ namespace spidarcad::app {
 // True for the extensions ReadMeshFile reads (.stl .obj .ply .vtu .node, any case).
 bool IsMeshFile(const std::string& path);
 
-// The mesh object data of the file at `path` (import_source = path; no source object). Throws
-// InputError naming the file and the line (text formats) or byte offset, the field and the
-// value when the file cannot be read or holds no usable mesh (no triangles, no tetrahedra, an
-// index out of range, a degenerate tetrahedron).
-MeshData ReadMeshFile(const std::string& path);
+// What ReadMeshFile found besides the mesh.
+struct MeshFileInfo {
+  std::string format;    // "stl", "obj", "ply", "vtu" or "node"
+  int flipped_tets = 0;  // tetrahedra written with negative orientation (corners 1, 2 swapped)
+};
 
-// TetGen's .node text (and the .ele text beside it) as tetrahedra; `node_file` and `ele_file`
-// name them in errors. Exposed for tests.
+// The mesh object data of the file at `path` (import_source = path; no source object): a
+// surface, or tetrahedra with their boundary surface. Throws InputError naming the file and the
+// line (text formats) or byte offset, the field and the value when the file cannot be read or
+// holds no usable mesh (no triangles, no tetrahedra, an index out of range, a degenerate
+// tetrahedron). Fills *info when given.
+MeshData ReadMeshFile(const std::string& path, MeshFileInfo* info = nullptr);
+
+// TetGen's .node text (and the .ele text beside it) as positively oriented tetrahedra;
+// `node_file` and `ele_file` name them in errors; *flipped (when given) counts the tetrahedra
+// that were reoriented. Exposed for tests.
 modeling::TetMesh ParseTetgenFiles(const std::string& node_text, const std::string& ele_text,
-                                   const std::string& node_file, const std::string& ele_file);
+                                   const std::string& node_file, const std::string& ele_file,
+                                   int* flipped = nullptr);
 
 }  // namespace spidarcad::app

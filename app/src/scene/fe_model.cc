@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
+#include <variant>
 
 #include "doc/assets.h"
 #include "scene/scene_solid.h"
@@ -46,8 +47,9 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   m->material_ = settings.material;
   m->mesh_ =
       (settings.order == 2 && mesh.Order() == 1) ? fem::MakeQuadratic(mesh) : std::move(mesh);
-  m->mesh_.regions.setZero(m->mesh_.num_elements());
-  m->materials_ = std::make_unique<fem::MaterialTable>(settings.material);
+  if (settings.region_materials.empty()) m->mesh_.regions.setZero(m->mesh_.num_elements());
+  m->materials_ = std::make_unique<fem::MaterialTable>(
+      MakeMaterialTable(settings.material, settings.region_materials));
   m->surface_ = fem::ExtractSurface(m->mesh_);
   const fem::TetMesh& tm = m->mesh_;
   const int nv = tm.num_nodes();
@@ -92,6 +94,7 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   }
   if (m->num_fixed_nodes_ == 0)
     throw std::invalid_argument("FE model: no node lies in the fixed region: the part would float");
+  m->load_nodes_ = AddBoxLoads(tm, settings.loads, m->bcs_.get());
   CheckCancel(settings);
 
   // Assembly and factorisation (the expensive, uninterruptible part).
@@ -118,14 +121,13 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
       m->output_index_[v] = static_cast<int>(m->output_nodes_.size());
       m->output_nodes_.push_back(v);
     }
-  const fem::Matrix6d d = settings.material.ElasticityMatrix();
   m->stress_ops_.reserve(m->surface_elements_.size());
   m->element_volume_.reserve(m->surface_elements_.size());
   for (std::size_t i = 0; i < m->surface_elements_.size(); ++i) {
     const int e = m->surface_elements_[i];
     const Eigen::MatrixXd b =
         fem::StrainDisplacement(fem::GetElementNodes(tm, e), Eigen::Vector4d::Constant(0.25));
-    m->stress_ops_.push_back(d * b);
+    m->stress_ops_.push_back(m->materials_->Get(tm.regions(e)).ElasticityMatrix() * b);
     m->element_volume_.push_back(std::abs(tm.CornerVolume(e)));
     if ((i & 1023) == 0) CheckCancel(settings);
   }
@@ -227,6 +229,69 @@ bool FeModel::SaveColumns(std::string* error) {
     return false;
   }
   return fem::PrecomputeCache(cache_directory_).Save(set, error);
+}
+
+FeModelSettings ApplyFeModelData(const FeModelData& data, FeModelSettings base) {
+  base.material = data.material;
+  base.region_materials = data.region_materials;
+  base.fixed_boxes = data.fixed_boxes;
+  base.loads = data.loads;
+  base.order = data.element_order;
+  return base;
+}
+
+fem::TetMesh FeMeshOf(const Document& doc, const FeModelData& data) {
+  const DocObject* object = doc.Find(data.tet_mesh);
+  const auto* mesh = object != nullptr ? std::get_if<MeshData>(&object->data) : nullptr;
+  if (mesh == nullptr || !mesh->volume) {
+    throw DocumentError("FE model: its mesh object " + std::to_string(data.tet_mesh) +
+                        " is missing or holds no tetrahedral mesh");
+  }
+  return ToFemMesh(*mesh->volume);
+}
+
+fem::MaterialTable MakeMaterialTable(const fem::Material& material,
+                                     const std::vector<RegionMaterial>& regions) {
+  fem::MaterialTable table(material);
+  std::vector<int> seen;
+  for (const RegionMaterial& r : regions) {
+    if (std::find(seen.begin(), seen.end(), r.region) != seen.end()) {
+      throw std::invalid_argument("FE model: region " + std::to_string(r.region) +
+                                  " has two materials");
+    }
+    seen.push_back(r.region);
+    table.Set(r.region, r.material);
+  }
+  return table;
+}
+
+std::vector<std::vector<int>> AddBoxLoads(const fem::TetMesh& mesh,
+                                          const std::vector<FeLoad>& loads,
+                                          fem::BoundaryConditions* bcs) {
+  std::vector<std::vector<int>> nodes;
+  for (std::size_t i = 0; i < loads.size(); ++i) {
+    const FeLoad& load = loads[i];
+    const auto where = [&] {
+      const Eigen::Vector3d& a = load.box.min();
+      const Eigen::Vector3d& b = load.box.max();
+      std::ostringstream msg;
+      msg << "FE model: load " << i << " (box " << a.x() << "," << a.y() << "," << a.z() << " .. "
+          << b.x() << "," << b.y() << "," << b.z() << " m): ";
+      return msg.str();
+    };
+    if (load.box.isEmpty()) throw std::invalid_argument(where() + "min must not exceed max");
+    if (!load.force.allFinite()) throw std::invalid_argument(where() + "the force is not finite");
+    std::vector<int> in = fem::NodesInBox(mesh, load.box.min(), load.box.max());
+    if (in.empty()) {
+      throw std::invalid_argument(where() +
+                                  "the box holds no node of the mesh; enlarge it or move it "
+                                  "onto the part");
+    }
+    const Eigen::Vector3d share = load.force / static_cast<double>(in.size());
+    for (int v : in) bcs->AddPointLoad(v, share);
+    nodes.push_back(std::move(in));
+  }
+  return nodes;
 }
 
 fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "doc/document.h"
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/material.h"
@@ -52,8 +53,11 @@ inline constexpr MaterialPreset kMaterialPresets[] = {
 
 // Settings of FeModel::Build (libfive style: documented fields, progress, cancel).
 struct FeModelSettings {
-  // One material for the whole part.
+  // The material of the part (of every region not listed in region_materials).
   fem::Material material = kMaterialPresets[0].material;
+  // Materials of single regions (fem::TetMesh::regions labels, each listed once). Empty: one
+  // material, and the mesh's region labels are ignored (set to 0).
+  std::vector<RegionMaterial> region_materials;
   // Element order: 1 (4-node) or 2 (10-node, midside nodes added with fem::MakeQuadratic).
   int order = 1;
   // Clamped regions: every node inside one of these boxes (W, m) is fixed. Empty: the nodes on
@@ -62,6 +66,11 @@ struct FeModelSettings {
   std::vector<Eigen::AlignedBox3d> fixed_boxes;
   // Thickness of the minimum-x face layer, m; < 0: a quarter of the mean boundary edge length.
   double min_x_tolerance = -1.0;
+  // Loads: each box's total force (N, W) spread evenly over the mesh nodes inside its box (W, m,
+  // closed; counted after the order upgrade, so midside nodes take their share). They give the
+  // model's baseline displacement (fem::ColumnCache::baseline()); the reaction of the clamps
+  // balances them.
+  std::vector<FeLoad> loads;
   // Lazy compliance columns (precision, memory bound, worker). start_worker is honoured after
   // the disk cache was imported.
   fem::ColumnCacheSettings cache;
@@ -98,8 +107,12 @@ class FeModel {
   const fem::Surface& surface() const { return surface_; }
   // The material used.
   const fem::Material& material() const { return material_; }
-  // Constraints (clamps only; no loads).
+  // Constraints and loads (clamps and the settings' box loads).
   const fem::BoundaryConditions& bcs() const { return *bcs_; }
+  // Materials by region.
+  const fem::MaterialTable& materials() const { return *materials_; }
+  // Mesh nodes of each load of the settings (in order), each sharing its force evenly.
+  const std::vector<std::vector<int>>& load_nodes() const { return load_nodes_; }
   // The factored model (use only while the cache worker is stopped).
   const fem::StaticSolver& solver() const { return *solver_; }
   // The lazy compliance columns: candidates = surface nodes, outputs = nodes of the surface
@@ -153,6 +166,7 @@ class FeModel {
   std::vector<Eigen::MatrixXd> stress_ops_;  // per surface element: D·B at the centroid, 6 by 3·npe
   std::vector<double> element_volume_;
   Eigen::MatrixX3d normals_;
+  std::vector<std::vector<int>> load_nodes_;
   int num_fixed_nodes_ = 0;
   double mean_edge_ = 0.0;
   int imported_nodes_ = 0;
@@ -161,6 +175,27 @@ class FeModel {
   std::filesystem::path cache_directory_;
   double build_seconds_ = 0.0;
 };
+
+// The FE setup of a document's FE model in `base` (which keeps everything else: disk cache,
+// column settings, progress, cancel): material, region materials, fixed boxes, loads and element
+// order. Empty fixed_boxes keep Build's default clamp (the minimum-x face).
+FeModelSettings ApplyFeModelData(const FeModelData& data, FeModelSettings base = {});
+
+// The linear tetrahedral mesh of a document FE model (W, m; regions as stored). Throws
+// DocumentError when the model's mesh object is missing or holds no volume mesh.
+fem::TetMesh FeMeshOf(const Document& doc, const FeModelData& data);
+
+// A material table: `material` for every region but those of `regions`. Throws
+// std::invalid_argument naming the region when one is listed twice or its material is invalid.
+fem::MaterialTable MakeMaterialTable(const fem::Material& material,
+                                     const std::vector<RegionMaterial>& regions);
+
+// Adds every load to bcs: its force split evenly over the mesh nodes inside its box (closed).
+// Returns the nodes of each load. Throws std::invalid_argument naming the load (its index and
+// box) when its box is empty or holds no node, or its force is not finite.
+std::vector<std::vector<int>> AddBoxLoads(const fem::TetMesh& mesh,
+                                          const std::vector<FeLoad>& loads,
+                                          fem::BoundaryConditions* bcs);
 
 // Meshes solid `solid_name` (empty: the first) of a scene file for FE: surface on a grid of
 // `resolution` m (modeling::MeshSurface), then TetGen (quality bound 2), linear tetrahedra in W.

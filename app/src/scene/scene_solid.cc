@@ -5,9 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <variant>
 
+#include "doc/document.h"
 #include "doc/input_error.h"
 #include "doc/number_format.h"
+#include "scene/document_file.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
@@ -18,36 +21,58 @@ namespace {
 constexpr double kSearchHalfSide = 10.0;
 }  // namespace
 
+const DocObject& PickSolid(const OpenedDocument& opened, const std::string& solid_name,
+                           const std::string& option) {
+  const Document& doc = *opened.doc;
+  const std::string& path = opened.path;
+  const DocObject* first = nullptr;
+  for (const DocObject& o : doc.objects()) {
+    if (std::holds_alternative<SolidData>(o.data)) {
+      first = &o;
+      break;
+    }
+  }
+  if (first == nullptr) {
+    if (opened.version == 1) throw InputError(path + ": the scene has no solids");
+    throw InputError(path + ": the document has no solid (its objects: " + ObjectNames(doc, {}) +
+                     ")");
+  }
+  if (solid_name.empty()) return *first;
+  const std::string solids = ObjectNames(doc, {"solid"});
+  for (const DocObject& o : doc.objects()) {
+    if (o.name != solid_name) continue;
+    if (std::holds_alternative<SolidData>(o.data)) return o;
+    throw InputError(option + " '" + solid_name + "': in " + path + " that is a " +
+                     ObjectKindName(o.data) + " object, not a solid (its solids: " + solids + ")");
+  }
+  throw InputError(option + " '" + solid_name + "': no such solid in " + path + " (it has " +
+                   solids + ")");
+}
+
 SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::string& solid_name,
                                  double resolution, double cells_across, double max_grid_cells,
                                  const std::string& cells_option) {
-  modeling::Scene scene;
-  try {
-    scene = modeling::LoadScene(scene_path);
-  } catch (const modeling::SceneError& e) {
-    throw InputError(e.what());
-  }
-  if (scene.solids.empty()) throw InputError(scene_path + ": the scene has no solids");
-  const modeling::Solid* solid = &scene.solids.front();
-  if (!solid_name.empty()) {
-    solid = nullptr;
-    std::string names;
-    for (const modeling::Solid& s : scene.solids) {
-      if (s.name == solid_name) solid = &s;
-      names += (names.empty() ? "" : ", ") + ("'" + s.name + "'");
-    }
-    if (solid == nullptr) {
-      throw InputError("--solid '" + solid_name + "': no such solid in " + scene_path +
-                       " (it has " + names + ")");
-    }
-  }
+  const OpenedDocument opened = OpenDocumentFile(scene_path);
+  return PrepareDocumentSolid(opened, solid_name, "--solid", resolution, cells_across,
+                              max_grid_cells, cells_option);
+}
+
+SceneSolidGrid PrepareDocumentSolid(const OpenedDocument& opened, const std::string& solid_name,
+                                    const std::string& option, double resolution,
+                                    double cells_across, double max_grid_cells,
+                                    const std::string& cells_option) {
+  const std::string& scene_path = opened.path;
+  const DocObject& object = PickSolid(opened, solid_name, option);
+  const std::string& name = object.name;
+  const modeling::ImplicitNode& root = std::get<SolidData>(object.data).root;
   SceneSolidGrid grid;
-  grid.solid_name = solid->name;
+  grid.solid_name = name;
+  grid.object = object.id;
   try {
-    grid.compiled = modeling::CompiledSolid::Compile(
-        solid->root, "/solids/" + std::to_string(solid - scene.solids.data()) + "/root");
+    grid.compiled =
+        modeling::CompiledSolid::Compile(root, ObjectPointer(opened, object.id) + "/root");
   } catch (const std::exception& e) {
-    throw InputError(scene_path + ": solid '" + solid->name + "': " + e.what());
+    throw InputError(scene_path + ": solid '" + name + "': " + e.what());
   }
 
   // Where the solid is: a coarse search, then the box on the meshing grid.
@@ -56,14 +81,13 @@ SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::strin
   const double coarse = resolution > 0.0 ? std::max(resolution, 0.005) : 0.01;
   const Eigen::AlignedBox3d rough = modeling::FindBounds(grid.compiled, search, coarse);
   if (rough.isEmpty()) {
-    throw InputError(scene_path + ": solid '" + solid->name +
+    throw InputError(scene_path + ": solid '" + name +
                      "' is empty (nothing inside the search box)");
   }
   for (int a = 0; a < 3; ++a) {
     if (rough.min()[a] <= -kSearchHalfSide + coarse || rough.max()[a] >= kSearchHalfSide - coarse) {
       throw InputError(
-          scene_path + ": solid '" + solid->name + "' reaches the " +
-          FormatNumber(2 * kSearchHalfSide) +
+          scene_path + ": solid '" + name + "' reaches the " + FormatNumber(2 * kSearchHalfSide) +
           " m search box (unbounded, e.g. a bare half-space): intersect it with a box");
     }
   }
@@ -83,8 +107,8 @@ SceneSolidGrid PrepareSceneSolid(const std::string& scene_path, const std::strin
     char coarser[32];
     std::snprintf(coarser, sizeof coarser, "%.3g", suggested);
     throw InputError(
-        "--resolution " + FormatNumber(grid.cell) + ": solid '" + solid->name + "' of " +
-        scene_path + ": the " + figures + ", more than the limit of " + limit +
+        "--resolution " + FormatNumber(grid.cell) + ": solid '" + name + "' of " + scene_path +
+        ": the " + figures + ", more than the limit of " + limit +
         " (docs/limits.md); use a coarser --resolution (about " + coarser + " m fits)" +
         (cells_option.empty() ? std::string("") : " or raise the limit with " + cells_option));
   }
