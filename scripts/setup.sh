@@ -24,5 +24,7 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 build_type="${SPIDARCAD_BUILD_TYPE:-RelWithDebInfo}"
-cmake -S "$here" -B "$here/build" -G Ninja -DCMAKE_BUILD_TYPE="$build_type" >/dev/null
+# SPIDARCAD_WERROR=ON (CI) makes compiler warnings errors.
+cmake -S "$here" -B "$here/build" -G Ninja -DCMAKE_BUILD_TYPE="$build_type" \
+  -DSPIDARCAD_WERROR="${SPIDARCAD_WERROR:-OFF}" >/dev/null
 cmake --build "$here/build" -j "$(nproc)"

@@ -1,12 +1,13 @@
 // Calibration files: round trip, every field validated with the file and field named, atomic
 // writes, and which device a file fits.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "cli/calibration_file.h"
+#include "scene/calibration_file.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -14,6 +15,7 @@
 #include <string>
 
 #include "cli/cli_common.h"
+#include "support/scoped_env.h"
 
 namespace spidarcad::app {
 namespace {
@@ -236,6 +238,87 @@ TEST(CalibrationFile, MismatchNamesTheDeviceOrFrameThatDiffers) {
   other_board.serial = "SPG-0007";
   EXPECT_THAT(CalibrationMismatch(usb_file, other_board), HasSubstr("serial SPG-0007"));
   EXPECT_EQ(CalibrationMismatch(usb_file, usb), "");
+}
+
+// Points XDG_CONFIG_HOME at a fresh directory for the test's life (the memory lives there).
+class ScopedConfigHome {
+ public:
+  explicit ScopedConfigHome(const std::string& name)
+      : dir_(Fresh(OutputPath("xdg_" + name))), env_("XDG_CONFIG_HOME", dir_.c_str()) {}
+  const std::string& dir() const { return dir_; }
+
+ private:
+  static std::string Fresh(const std::string& dir) {
+    std::filesystem::remove_all(dir);
+    return dir;
+  }
+  std::string dir_;
+  test_support::ScopedEnv env_;
+};
+
+CalibrationDevice Board(const std::string& serial) {
+  CalibrationDevice board;
+  board.kind = "usb";
+  board.serial = serial;
+  return board;
+}
+
+TEST(DeviceMemory, RemembersOneFilePerBoardSerialUnderXdgConfigHome) {
+  const ScopedConfigHome home("per_board");
+  EXPECT_EQ(DeviceMemoryPath(), home.dir() + "/spidarcad/devices.json");
+  EXPECT_EQ(RememberedCalibration(Board("SPG-0042")), "");  // nothing yet, no file
+  std::string why;
+  ASSERT_TRUE(RememberCalibration(Board("SPG-0042"), "/lab/a.json", &why)) << why;
+  ASSERT_TRUE(RememberCalibration(Board("SPG-0007"), "/lab/b.json", &why)) << why;
+  EXPECT_EQ(RememberedCalibration(Board("SPG-0042")), "/lab/a.json");
+  EXPECT_EQ(RememberedCalibration(Board("SPG-0007")), "/lab/b.json");
+  // A newer calibration of the same board replaces the older one; the other board keeps its own.
+  ASSERT_TRUE(RememberCalibration(Board("SPG-0042"), "/lab/c.json", &why)) << why;
+  EXPECT_EQ(RememberedCalibration(Board("SPG-0042")), "/lab/c.json");
+  EXPECT_EQ(RememberedCalibration(Board("SPG-0007")), "/lab/b.json");
+  EXPECT_EQ(RememberedCalibration(Board("SPG-0099")), "");
+  // The file is what the header documents.
+  std::ifstream in(DeviceMemoryPath());
+  const nlohmann::json doc = nlohmann::json::parse(in);
+  EXPECT_EQ(doc["format"], "spidarcad-devices");
+  EXPECT_EQ(doc["version"], 1);
+  EXPECT_EQ(doc["calibrations"]["usb:SPG-0007"], "/lab/b.json");
+  EXPECT_FALSE(std::filesystem::exists(DeviceMemoryPath() + ".tmp"));
+}
+
+TEST(DeviceMemory, KeepsRelativePathsAbsoluteAndIgnoresSimulatedDevicesAndBadFiles) {
+  const ScopedConfigHome home("relative");
+  std::string why;
+  ASSERT_TRUE(RememberCalibration(Board("SPG-1"), "cal/board.json", &why)) << why;
+  EXPECT_EQ(RememberedCalibration(Board("SPG-1")),
+            (std::filesystem::current_path() / "cal/board.json").string());
+  // Simulated devices are recalibrated at every start: never remembered, never looked up.
+  CalibrationDevice simulated;
+  simulated.kind = "simulated";
+  EXPECT_TRUE(RememberCalibration(simulated, "/lab/sim.json", &why));
+  EXPECT_EQ(RememberedCalibration(simulated), "");
+  // A board without a serial number cannot be told from another: not remembered.
+  EXPECT_TRUE(RememberCalibration(Board(""), "/lab/none.json", &why));
+  EXPECT_EQ(RememberedCalibration(Board("")), "");
+  // A memory file that is not one counts as empty, and the next remember rewrites it.
+  std::ofstream(DeviceMemoryPath()) << "{ not json";
+  EXPECT_EQ(RememberedCalibration(Board("SPG-1")), "");
+  ASSERT_TRUE(RememberCalibration(Board("SPG-1"), "/lab/again.json", &why)) << why;
+  EXPECT_EQ(RememberedCalibration(Board("SPG-1")), "/lab/again.json");
+}
+
+TEST(DeviceMemory, FallsBackToHomeAndSaysWhyWhenNeitherIsSet) {
+  const test_support::ScopedEnv no_xdg("XDG_CONFIG_HOME", nullptr);
+  {
+    const test_support::ScopedEnv home("HOME", "/nonexistent-home");
+    EXPECT_EQ(DeviceMemoryPath(), "/nonexistent-home/.config/spidarcad/devices.json");
+  }
+  const test_support::ScopedEnv no_home("HOME", nullptr);
+  EXPECT_EQ(DeviceMemoryPath(), "");
+  std::string why;
+  EXPECT_FALSE(RememberCalibration(Board("SPG-1"), "/lab/a.json", &why));
+  EXPECT_THAT(why, HasSubstr("XDG_CONFIG_HOME"));
+  EXPECT_EQ(RememberedCalibration(Board("SPG-1")), "");
 }
 
 }  // namespace

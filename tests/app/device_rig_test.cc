@@ -14,11 +14,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <numbers>
 #include <string>
 #include <thread>
 
+#include "doc/input_error.h"
+#include "scene/calibration_file.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_fields.h"
 #include "spidarcad/haptics/board_simulator.h"
@@ -26,6 +29,7 @@
 #include "spidarcad/haptics/simulated_device.h"
 #include "spidarcad_runner.h"
 #include "support/malloc_counter.h"
+#include "support/scoped_env.h"
 #include "window_test_support.h"
 
 namespace spidarcad::app {
@@ -449,6 +453,129 @@ TEST(SpidarcadWindowDevice, RejectsAnUnknownDeviceNamingIt) {
   EXPECT_NE(r.all().find("'bogus' is not a device; use simulated, ideal, board-sim or usb"),
             std::string::npos)
       << r.all();
+}
+
+// A calibration file for the device `runtime` drives: its nominal calibration with every
+// string's offset moved by `shift` m, so that lengths read through it differ by exactly `shift`.
+std::string ShiftedCalibrationFile(const HapticRuntime& runtime, const std::string& kind,
+                                   const std::string& serial, double shift,
+                                   const std::string& name) {
+  CalibrationFile file;
+  file.device.kind = kind;
+  file.device.seed = runtime.settings().seed;
+  file.device.serial = serial;
+  file.device.geometry = runtime.info().geometry;
+  file.device.encoder = runtime.info().encoder;
+  file.date = "2026-12-02T04:00:00Z";
+  file.method = "self";
+  file.calibration = NominalCalibration(runtime.info());
+  for (auto& string : file.calibration.strings) string.offset += shift;
+  file.fit.samples = 50;
+  const std::string path = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/runtime_cal_" + name;
+  SaveCalibrationFile(file, path);
+  return path;
+}
+
+std::string StartError(const RuntimeSettings& settings) {
+  try {
+    HapticRuntime runtime(settings, GripPose::Rest(0.04));
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(HapticRuntimeCalibration, TheEncodersAreReadThroughTheCalibrationFile) {
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kBoardSim;  // nominal calibration without a file
+  HapticRuntime nominal(settings, GripPose::Rest(0.04));
+  const double shift = 0.005;
+  settings.calibration_file = ShiftedCalibrationFile(nominal, "board-sim", "", shift, "shift.json");
+  HapticRuntime calibrated(settings, GripPose::Rest(0.04));
+  EXPECT_NE(calibrated.description().find(settings.calibration_file), std::string::npos)
+      << calibrated.description();
+  // Same seed, same virtual ticks: the same counts, read 5 mm longer on every string.
+  RunTicks(&nominal, 1);
+  RunTicks(&calibrated, 1);
+  const haptics::Vector8d difference = calibrated.Latest().lengths - nominal.Latest().lengths;
+  for (int i = 0; i < haptics::kNumStrings; ++i) EXPECT_NEAR(difference(i), shift, 1e-12) << i;
+}
+
+TEST(HapticRuntimeCalibration, AForeignOrUnreadableFileIsRefusedWithTheReason) {
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kSimulated;
+  settings.seed = 1;
+  RuntimeSettings probe = settings;
+  probe.device = RuntimeDevice::kBoardSim;
+  const HapticRuntime reference(probe, GripPose::Rest(0.04));
+  const std::string path = ShiftedCalibrationFile(reference, "simulated", "", 0.0, "seed1.json");
+  settings.seed = 3;  // the file was made on seed 1
+  settings.calibration_file = path;
+  const std::string foreign = StartError(settings);
+  EXPECT_NE(foreign.find("--calibration: " + path + " does not fit"), std::string::npos) << foreign;
+  EXPECT_NE(foreign.find("seed 1"), std::string::npos) << foreign;
+  settings.seed = 1;
+  settings.geometry.a = 0.30;  // another frame
+  EXPECT_NE(StartError(settings).find("--frame 0.3,0.24,0.24"), std::string::npos);
+  settings.geometry = SpidarGeometry{};
+  settings.calibration_file = path + ".missing";
+  EXPECT_NE(StartError(settings).find("--calibration: "), std::string::npos);
+  settings.calibration_file = path;
+  settings.device = RuntimeDevice::kIdeal;
+  EXPECT_NE(StartError(settings).find("not with --device ideal"), std::string::npos);
+}
+
+// kUsb over the loopback to a board simulator (serial SIM-0001), with a private device memory.
+std::unique_ptr<HapticRuntime> UsbRuntime(haptics::usb::BoardSimulator* board,
+                                          const std::string& calibration_file = "") {
+  RuntimeSettings settings;
+  settings.device = RuntimeDevice::kUsb;
+  settings.calibration_file = calibration_file;
+  settings.usb_transport = [board] {
+    return std::make_unique<haptics::usb::LoopbackTransport>(board);
+  };
+  return std::make_unique<HapticRuntime>(settings, GripPose::Rest(0.04));
+}
+
+TEST(HapticRuntimeCalibration, AUsbBoardIsReadThroughTheCalibrationRememberedForItsSerial) {
+  const std::string config = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/runtime_cal_xdg";
+  std::filesystem::remove_all(config);
+  const test_support::ScopedEnv xdg("XDG_CONFIG_HOME", config.c_str());
+  haptics::usb::BoardSimulator board;
+  const auto plain = UsbRuntime(&board);
+  ASSERT_EQ(plain->link_at_start(), "");
+  EXPECT_EQ(plain->calibration_note(), "");  // nothing remembered
+  const std::string mine = ShiftedCalibrationFile(*plain, "usb", "SIM-0001", 0.002, "mine.json");
+  const std::string other = ShiftedCalibrationFile(*plain, "usb", "SPG-0042", 0.002, "other.json");
+
+  CalibrationDevice this_board;
+  this_board.kind = "usb";
+  this_board.serial = "SIM-0001";
+  std::string why;
+  ASSERT_TRUE(RememberCalibration(this_board, mine, &why)) << why;
+  haptics::usb::BoardSimulator board2;
+  const auto remembered = UsbRuntime(&board2);
+  EXPECT_NE(remembered->description().find(mine + " (remembered for this board)"),
+            std::string::npos)
+      << remembered->description();
+  EXPECT_EQ(remembered->calibration_note(), "");
+
+  // Another board's file remembered under this serial (edited by hand): not used, and said why.
+  ASSERT_TRUE(RememberCalibration(this_board, other, &why)) << why;
+  haptics::usb::BoardSimulator board3;
+  const auto stale = UsbRuntime(&board3);
+  EXPECT_EQ(stale->description().find("remembered"), std::string::npos) << stale->description();
+  EXPECT_NE(stale->calibration_note().find("serial SPG-0042"), std::string::npos)
+      << stale->calibration_note();
+
+  // An explicit file of another board is refused (not silently replaced by the memory).
+  haptics::usb::BoardSimulator board4;
+  try {
+    UsbRuntime(&board4, other);
+    ADD_FAILURE() << "another board's file was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("does not fit"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <set>
 #include <sstream>
@@ -773,6 +774,54 @@ TEST(SpidarcadWindow, RefusesABadSceneFileWithStatusTwo) {
       std::string("'") + SPIDARCAD_EXE + "' /nonexistent/scene.json --frames 1 2>&1", &output);
   EXPECT_EQ(status, 2) << output;
   EXPECT_NE(output.find("/nonexistent/scene.json"), std::string::npos) << output;
+}
+
+TEST(SpidarcadWindow, RefusesATrajectoryItCouldNotPlayWithStatusTwo) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
+  const std::string exe = std::string("'") + SPIDARCAD_EXE + "'";
+  std::string output;
+  // A device would be read without end.
+  EXPECT_EQ(RunCommand(exe + " none --trajectory /dev/zero --frames 1 2>&1", &output), 2) << output;
+  EXPECT_NE(output.find("'/dev/zero': not a regular file"), std::string::npos) << output;
+  // Played in real time, a trajectory to t = 1e300 s would never end (--screenshot waits for it).
+  const std::string long_csv = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_long_trajectory.csv";
+  std::ofstream(long_csv) << "# t,x,y,z,qw,qx,qy,qz,grasp\n0,0,0,0,1,0,0,0,1.57\n"
+                             "1e300,0,0,0,1,0,0,0,1.57\n";
+  EXPECT_EQ(RunCommand(exe + " none --trajectory '" + long_csv + "' --frames 1 2>&1", &output), 2)
+      << output;
+  EXPECT_NE(output.find("t = 1e+300 s"), std::string::npos) << output;
+  EXPECT_NE(output.find("spidarcad run"), std::string::npos) << output;
+}
+
+TEST(SpidarcadWindow, ReadsTheDeviceThroughACalibrationFileAndRefusesAForeignOne) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || display[0] == '\0') GTEST_SKIP() << "no X display";
+  const std::string exe = std::string("'") + SPIDARCAD_EXE + "'";
+  const std::string cal = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_calibration_seed2.json";
+  std::string output;
+  ASSERT_EQ(RunCommand(exe + " calibrate --simulated --seed 2 --out '" + cal + "' 2>&1", &output),
+            0)
+      << output;
+  // Seed 2's own calibration: the window runs, and FK accepts every tick at rest.
+  EXPECT_EQ(
+      RunCommand(exe + " none --seed 2 --calibration '" + cal + "' --frames 20 2>&1", &output), 0)
+      << output;
+  EXPECT_NE(output.find("fk_refused=0 "), std::string::npos) << output;
+  // The default device is seed 1: another device's file is refused, naming both seeds.
+  EXPECT_EQ(RunCommand(exe + " none --calibration '" + cal + "' --frames 1 2>&1", &output), 2)
+      << output;
+  EXPECT_NE(output.find("does not fit"), std::string::npos) << output;
+  EXPECT_NE(output.find("seed 2"), std::string::npos) << output;
+  // So is a frame it was not made on, and a nonsensical frame.
+  EXPECT_EQ(RunCommand(exe + " none --seed 2 --frame 0.3,0.24,0.24 --calibration '" + cal +
+                           "' --frames 1 2>&1",
+                       &output),
+            2)
+      << output;
+  EXPECT_NE(output.find("--frame 0.3,0.24,0.24"), std::string::npos) << output;
+  EXPECT_EQ(RunCommand(exe + " none --pole -1 --frames 1 2>&1", &output), 2) << output;
+  EXPECT_NE(output.find("--frame/--pole"), std::string::npos) << output;
 }
 
 }  // namespace

@@ -433,8 +433,9 @@ TEST(MeshCommand, BudgetRefusesWithTheEstimateAndTheOptionThatRaisesIt) {
   EXPECT_NE(memory.err.find(" triangles"), std::string::npos) << memory.err;
   EXPECT_NE(memory.err.find(" MiB"), std::string::npos) << memory.err;
   // Out of range limits name the option.
-  for (const std::string& bad :
-       {"--max-cells 0", "--max-cells 2e9", "--max-memory -1", "--max-work nan"}) {
+  const std::vector<std::string> bad_limits = {"--max-cells 0", "--max-cells 2e9",
+                                               "--max-memory -1", "--max-work nan"};
+  for (const std::string& bad : bad_limits) {
     const CommandRun run = RunMesh(
         "'" + Platform() + "' --out '" + OutputPath("budget.stl") + "' " + bad, "bad_budget");
     EXPECT_EQ(run.status, 2) << bad << "\n" << run.all();

@@ -91,7 +91,11 @@ put("ply", "extra_element.ply",
 # ---------------------------------------------------------------- scenes
 for name in sorted(os.listdir(os.path.join(ROOT, "assets", "scenes"))):
     with open(os.path.join(ROOT, "assets", "scenes", name), "rb") as f:
-        put("scene", name, f.read())
+        content = f.read()
+    # Version 2 documents are the document harness's; version 1 scenes seed both.
+    if b'"version": 2' not in content:
+        put("scene", name, content)
+    put("document", name, content)
 nodes = [
     {"type": "sphere", "radius": 0.05},
     {"type": "box", "size": [0.1, 0.2, 0.3]},
@@ -236,3 +240,25 @@ put("vtu", "two_tets_flipped.vtu", vtu(TET_V + [(1, 1, 1)], [(0, 1, 2, 3), (1, 2
 mid = lambda a, b: tuple((TET_V[a][k] + TET_V[b][k]) / 2 for k in range(3))
 quad = TET_V + [mid(0, 1), mid(1, 2), mid(0, 2), mid(0, 3), mid(1, 3), mid(2, 3)]
 put("vtu", "quadratic_tet.vtu", vtu(quad, [tuple(range(10))], 24, [3]))
+
+# ---------------------------------------------------------------- calibration files
+CALIBRATION = {
+    "format": "spidarcad-calibration", "version": 1,
+    "device": {"kind": "simulated", "seed": 3, "frame": {"a": 0.24, "b": 0.24, "c": 0.24},
+               "pole": 0.04},
+    "date": "2026-12-02T01:45:03Z", "method": "self",
+    "encoder": {"counts_per_rev": 2000, "pulley_radius": 0.008},
+    "strings": [{"offset": 0.38 + 0.001 * i, "gain": 1.0 + 0.01 * i, "quadratic": -0.03,
+                 "stretch": 0.0004} for i in range(8)],
+    "fit": {"samples": 101, "iterations": 9, "condition": 640.5, "rms_residual": 1.3e-05,
+            "string_rms_residual": [1.3e-05] * 8},
+}
+put("calibration_file", "self.json", json.dumps(CALIBRATION, indent=2))
+usb = json.loads(json.dumps(CALIBRATION))
+usb["device"] = {"kind": "usb", "serial": "SPG-0042", "frame": {"a": 0.3, "b": 0.25, "c": 0.2},
+                 "pole": 0.05}
+usb["method"] = "line"
+put("calibration_file", "usb_line.json", json.dumps(usb))
+short = json.loads(json.dumps(CALIBRATION))
+short["strings"] = short["strings"][:7]
+put("calibration_file", "seven_strings.json", json.dumps(short))

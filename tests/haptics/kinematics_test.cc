@@ -526,7 +526,9 @@ TEST(ForwardKinematics, RefusesLengthsNoPoseCanProduce) {
   for (std::size_t k = 0; k < cases.size(); ++k) {
     for (int pass = 0; pass < 2; ++pass) {  // cold, then warm from the rest pose
       fk.Reset();
-      if (pass == 1) ASSERT_EQ(fk.Solve(Eq7Lengths(g, GripPose::Rest(g.d))).status, FkStatus::kOk);
+      if (pass == 1) {
+        ASSERT_EQ(fk.Solve(Eq7Lengths(g, GripPose::Rest(g.d))).status, FkStatus::kOk);
+      }
       const FkResult r = fk.Solve(cases[k]);
       EXPECT_NE(r.status, FkStatus::kOk) << "case " << k << " pass " << pass;
       EXPECT_NE(r.status, FkStatus::kInvalidInput) << "case " << k;
@@ -566,7 +568,9 @@ TEST(ForwardKinematics, RefusesPolesParallelWithinTheLimit) {
     const GripPose truth = GripPose::FromFrame(Eigen::Vector3d(0.02, 0, 0), R, grasp, g.d);
     for (int pass = 0; pass < 2; ++pass) {
       fk.Reset();
-      if (pass == 1) ASSERT_EQ(fk.Solve(Eq7Lengths(g, GripPose::Rest(g.d))).status, FkStatus::kOk);
+      if (pass == 1) {
+        ASSERT_EQ(fk.Solve(Eq7Lengths(g, GripPose::Rest(g.d))).status, FkStatus::kOk);
+      }
       const FkResult r = fk.Solve(Eq7Lengths(g, truth));
       EXPECT_EQ(r.status, FkStatus::kSingular) << grasp << " pass " << pass;
       ExpectAllNaN(r);

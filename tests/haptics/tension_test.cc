@@ -581,7 +581,9 @@ TEST(HardTension, ReportsTheLostWrenchWhereForceClosureIsLostAndBeyondTheBounds)
         worst_cone = std::max(worst_cone, excess / std::abs(y.dot(q)));
         EXPECT_EQ(result.status, TensionStatus::kSaturated);
       }
-      if (r == 1) EXPECT_EQ(result.status, TensionStatus::kSaturated);
+      if (r == 1) {
+        EXPECT_EQ(result.status, TensionStatus::kSaturated);
+      }
       saturated += result.status == TensionStatus::kSaturated;
     }
   }

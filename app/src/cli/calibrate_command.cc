@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "cli/calibrate_session.h"
-#include "cli/calibration_file.h"
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "scene/calibration_file.h"
 #include "spidarcad/haptics/calibration.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/simulated_device.h"

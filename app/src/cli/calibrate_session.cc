@@ -13,8 +13,8 @@
 #include <thread>
 #include <vector>
 
-#include "cli/calibration_file.h"
 #include "cli/cli_common.h"
+#include "scene/calibration_file.h"
 #include "scene/device_rig.h"
 #include "spidarcad/haptics/calibration.h"
 #include "spidarcad/haptics/calibration_session.h"
@@ -286,6 +286,17 @@ void RunCalibrationSession(const CalibrationSessionOptions& options) {
     SaveCalibrationFile(file, options.out);
     std::fprintf(notes, "wrote %s (self-calibration of the %s)\n", options.out.c_str(),
                  identity.Describe().c_str());
+    // A real board's calibration is remembered: the window reads the board through it next
+    // time (DeviceMemoryPath()).
+    if (identity.kind == "usb") {
+      std::string why;
+      if (RememberCalibration(identity, options.out, &why)) {
+        std::fprintf(notes, "remembered it for the %s in %s\n", identity.Describe().c_str(),
+                     DeviceMemoryPath().c_str());
+      } else {
+        std::fprintf(notes, "could not remember it for the window (%s)\n", why.c_str());
+      }
+    }
   }
   std::fflush(stdout);
 }

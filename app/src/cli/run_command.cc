@@ -25,12 +25,13 @@
 #include <thread>
 #include <vector>
 
-#include "cli/calibration_file.h"
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "scene/assembly_scene.h"
+#include "scene/calibration_file.h"
 #include "scene/device_rig.h"
 #include "scene/scene_haptics.h"
+#include "scene/trajectory_player.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/loop_runner.h"
@@ -146,30 +147,6 @@ struct RunOptions {
 
 // Ceiling of --max-duration, s: 1e7 s is 1e10 ticks, far inside a long tick counter.
 constexpr double kMaxRunDurationCeiling = 1e7;
-// Largest trajectory file `run` reads, bytes (docs/limits.md); refused before reading.
-constexpr long long kMaxTrajectoryFileBytes = 256LL << 20;
-
-// Checks --trajectory is a regular file of at most kMaxTrajectoryFileBytes (not a directory,
-// device or pipe, which would be read without end).
-void CheckTrajectoryFile(const std::string& path) {
-  std::error_code ec;
-  const std::filesystem::file_status status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) return;  // Trajectory::Load names it
-  if (!std::filesystem::is_regular_file(status)) {
-    throw InputError("--trajectory '" + path +
-                     "': not a regular file (a directory, device or pipe); give a CSV file "
-                     "(t,x,y,z,qw,qx,qy,qz,grasp)");
-  }
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (!ec && size > static_cast<std::uintmax_t>(kMaxTrajectoryFileBytes)) {
-    throw InputError(
-        "--trajectory '" + path + "': " + std::to_string(size) + " bytes, more than the " +
-        std::to_string(kMaxTrajectoryFileBytes) +
-        " bytes (256 MiB) a trajectory may have (docs/limits.md); sample it more coarsely (run "
-        "interpolates between samples)");
-  }
-}
-
 // Line (1-based) of the first sample of the trajectory file whose time is past `limit`, 0 if
 // none is found.
 int LineOfTimePast(const std::string& path, double limit) {

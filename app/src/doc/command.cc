@@ -467,7 +467,10 @@ std::unique_ptr<Command> AddRigidPart(std::string name, modeling::ImplicitNode r
                                       const Eigen::Isometry3d& X_WP) {
   DocObject o;
   o.name = name;
-  o.data = RigidPartData{std::move(root), X_WP};
+  RigidPartData part;
+  part.root = std::move(root);
+  part.X_WP = X_WP;
+  o.data = std::move(part);
   return InsertConstant("Add rigid part " + name, std::move(o), -1);
 }
 
@@ -476,7 +479,12 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
                                  std::shared_ptr<const modeling::TetMesh> volume) {
   DocObject o;
   o.name = name;
-  o.data = MeshData{source, source_revision, std::move(surface), std::move(volume)};
+  MeshData mesh;
+  mesh.source = source;
+  mesh.source_revision = source_revision;
+  mesh.surface = std::move(surface);
+  mesh.volume = std::move(volume);
+  o.data = std::move(mesh);
   return InsertConstant("Add mesh " + name, std::move(o), -1);
 }
 
@@ -485,7 +493,11 @@ std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
                                     std::vector<Eigen::AlignedBox3d> fixed_boxes) {
   DocObject o;
   o.name = name;
-  o.data = FeModelData{tet_mesh, material, std::move(fixed_boxes)};
+  FeModelData model;
+  model.tet_mesh = tet_mesh;
+  model.material = material;
+  model.fixed_boxes = std::move(fixed_boxes);
+  o.data = std::move(model);
   return InsertConstant("Add FE model " + name, std::move(o), -1);
 }
 

@@ -27,7 +27,9 @@
 #include <Eigen/Geometry>
 
 #include "doc/assets.h"
+#include "doc/input_error.h"
 #include "doc/job.h"
+#include "doc/number_format.h"
 #include "gui/device_view.h"
 #include "gui/gl_capture.h"
 #include "gui/mode.h"
@@ -48,14 +50,15 @@ namespace spidarcad::app {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-constexpr double kGraspStep = 5.0 * kDegToRad;  // per wheel notch or key press
-constexpr double kRotateGain = 0.008;           // rad per pixel of right-drag
-constexpr double kOrbitGain = 0.3;              // deg per pixel
-constexpr double kClickSlop = 3.0;              // pixels a click may move and stay a click
-constexpr int kScreenshotFrames = 6;            // frames rendered before the capture
-constexpr double kSettleTimeout = 90.0;         // s a screenshot waits for ramp and jobs
-constexpr int kReloadCheckFrames = 30;          // frames between scene-file mtime checks
-constexpr int kFiguresOpenHeight = 800;         // window height from which the strip starts open
+constexpr double kGraspStep = 5.0 * kDegToRad;           // per wheel notch or key press
+constexpr double kRotateGain = 0.008;                    // rad per pixel of right-drag
+constexpr double kOrbitGain = 0.3;                       // deg per pixel
+constexpr double kClickSlop = 3.0;                       // pixels a click may move and stay a click
+constexpr double kMaxWindowTrajectorySeconds = 86400.0;  // longest --trajectory the window plays, s
+constexpr int kScreenshotFrames = 6;                     // frames rendered before the capture
+constexpr double kSettleTimeout = 90.0;                  // s a screenshot waits for ramp and jobs
+constexpr int kReloadCheckFrames = 30;                   // frames between scene-file mtime checks
+constexpr int kFiguresOpenHeight = 800;  // window height from which the strip starts open
 constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 constexpr char kDocumentPanel[] = "Document";
 constexpr char kModePanel[] = "Mode";
@@ -227,9 +230,21 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   // --trajectory: read before any window opens; the grip starts at its first sample.
   if (!options.trajectory.empty()) {
     try {
+      CheckTrajectoryFile(options.trajectory);
       s.trajectory = haptics::Trajectory::Load(options.trajectory);
+    } catch (const InputError& e) {
+      throw WindowStartError(2, std::string("spidarcad: error: ") + e.what());
     } catch (const std::exception& e) {
       throw WindowStartError(2, std::string("spidarcad: error: --trajectory: ") + e.what());
+    }
+    // Played in wall-clock time (and waited for by --screenshot): at most one day.
+    if (!(s.trajectory.end_time() - s.trajectory.start_time() <= kMaxWindowTrajectorySeconds)) {
+      throw WindowStartError(
+          2, "spidarcad: error: --trajectory " + options.trajectory +
+                 ": it runs from t = " + FormatNumber(s.trajectory.start_time()) +
+                 " s to t = " + FormatNumber(s.trajectory.end_time()) +
+                 " s; the window plays trajectories in real time, up to 1 day (86400 s): "
+                 "shorten it, or run it headless with `spidarcad run`");
     }
     const haptics::TrajectorySample first = s.trajectory.Sample(s.trajectory.start_time());
     s.grip->SetPose(first.p_DT, first.q_DT.toRotationMatrix(), first.grasp);
@@ -258,6 +273,14 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     throw WindowStartError(2, "spidarcad: error: --device: '" + options.device +
                                   "' is not a device; use simulated, ideal, board-sim or usb");
   }
+  s.runtime_settings.seed = options.seed;
+  s.runtime_settings.geometry = options.geometry;
+  s.runtime_settings.calibration_file = options.calibration;
+  try {
+    options.geometry.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw WindowStartError(2, std::string("spidarcad: error: --frame/--pole: ") + e.what());
+  }
 
   // The window.
   glfwSetErrorCallback(GlfwError);
@@ -284,10 +307,17 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
 
   // The haptic runtime (its own 1 kHz thread, started once the modes have published) and jobs.
   s.runtime_settings.loop.X_WD = s.model.device_to_world();
-  s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  try {
+    s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  } catch (const InputError& e) {
+    throw WindowStartError(2, std::string("spidarcad: error: ") + e.what());
+  }
   if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
     std::cerr << "spidarcad: " << s.runtime->link_at_start()
               << "\nspidarcad: the window runs at zero force and retries the board.\n";
+  }
+  if (!s.runtime->calibration_note().empty()) {
+    std::cerr << "spidarcad: " << s.runtime->calibration_note() << "\n";
   }
   s.geometry = &s.runtime->info().geometry;
   const haptics::TensionSettings& tension = s.runtime->loop().settings().tension;

@@ -513,7 +513,8 @@ void DeviceView::FitBox(const Eigen::AlignedBox3d& box_D) {
 
 void DeviceView::SetStandardView(StandardView view, const Eigen::AlignedBox3d& box_D) {
   vtkCamera* cam = actors_->renderer->GetActiveCamera();
-  Eigen::Vector3d dir;  // from the camera toward the subject
+  // From the camera toward the subject (front until the switch picks the view).
+  Eigen::Vector3d dir(0, 1, 0);
   Eigen::Vector3d up(0, 0, 1);
   switch (view) {
     case StandardView::kFront:

@@ -6,7 +6,10 @@
 
 #include <CLI/CLI.hpp>
 #include <array>
+#include <cstdint>
 #include <string>
+
+#include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
 
@@ -17,6 +20,13 @@ struct GuiOptions {
   int frames = 0;          // when > 0: exit after this many frames
   // --device: simulated, ideal, board-sim or usb (RuntimeDevice, gui/haptic_runtime.h).
   std::string device = "simulated";
+  // --seed: the simulated device's errors and noise (simulated, board-sim).
+  std::uint64_t seed = 1;
+  // --frame, --pole: the device's frame half-sides a, b, c and pole half-length d, m.
+  haptics::SpidarGeometry geometry;
+  // --calibration: a calibration file (`spidarcad calibrate --out`) to read the encoders
+  // through; "" for the default (start-up fit, nominal, or usb: the board's remembered file).
+  std::string calibration;
   // Scene file, "demo" (built-in) or "none"; empty: the mode's part (platform.json for 'fe',
   // clay.json for 'sculpt') or, without a mode, the demo.
   std::string scene;

@@ -116,6 +116,32 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
             return "'" + name + "' is not a device; use simulated, ideal, board-sim or usb";
           },
           "DEVICE"));
+  app.add_option("--seed", options->seed,
+                 "Seed of the simulated device's encoder errors and noise (simulated, board-sim; "
+                 "default 1)");
+  app.add_option_function<std::vector<double>>(
+         "--frame",
+         [options](const std::vector<double>& v) {
+           options->geometry.a = v[0];
+           options->geometry.b = v[1];
+           options->geometry.c = v[2];
+         },
+         "The device's frame half-sides A,B,C in metres (default 0.24,0.24,0.24: the paper's "
+         "48 cm frame); as `spidarcad run --frame`")
+      ->delimiter(',')
+      ->expected(3)
+      ->type_name("A,B,C");
+  app.add_option("--pole", options->geometry.d,
+                 "The grip's pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
+  app.add_option("--calibration", options->calibration,
+                 "Read the encoders through this calibration file (written by `spidarcad "
+                 "calibrate --out`, docs/calibration-format.md) instead of the start-up fit "
+                 "(simulated) or the nominal model (board-sim, usb). It must have been made on "
+                 "this device (kind, --seed or board serial, --frame/--pole): otherwise exit "
+                 "status 2 with the reason. With --device usb and no --calibration, the window "
+                 "uses the file `spidarcad calibrate --device usb --out` last wrote for the "
+                 "connected board (remembered per serial number)")
+      ->type_name("FILE");
   app.add_option_function<std::string>(
          "--size",
          [options](const std::string& s) { ParseWindowSize(s, &options->width, &options->height); },

@@ -11,6 +11,8 @@
 #include <thread>
 #include <vector>
 
+#include "doc/input_error.h"
+#include "scene/calibration_file.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
 
@@ -25,6 +27,7 @@ std::unique_ptr<DeviceRig> MakeRig(const RuntimeSettings& settings) {
                        ? haptics::SimulatedDeviceConfig::Ideal()
                        : haptics::SimulatedDeviceConfig{};
   options.device.seed = settings.seed;
+  options.device.geometry = settings.geometry;
   options.device.home_pose = haptics::GripPose::Rest(options.device.geometry.d);
   options.device.Validate();
   options.usb = settings.usb;
@@ -103,8 +106,20 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
       last_measured_(initial_target) {
   const haptics::DeviceInfo& info = rig_->info();
   calibration_ = NominalCalibration(info);
+  if (settings.device == RuntimeDevice::kIdeal && !settings.calibration_file.empty()) {
+    throw InputError(
+        "--calibration: not with --device ideal (the ideal device has no encoder "
+        "errors to calibrate); use --device simulated, board-sim or usb");
+  }
+  // A calibration file replaces the start-up fit (kSimulated) and the nominal model (kBoardSim);
+  // kUsb applies it after the handshake, which reports the board's serial number.
+  const bool file_applied = settings.device != RuntimeDevice::kUsb &&
+                            settings.device != RuntimeDevice::kIdeal &&
+                            ApplyCalibrationFile(info, "");
   char text[240];
-  if (settings.device == RuntimeDevice::kIdeal) {
+  if (file_applied) {
+    // description_ was set by ApplyCalibrationFile.
+  } else if (settings.device == RuntimeDevice::kIdeal) {
     description_ = "ideal simulated SPIDAR-G (no encoder errors), rigid hand";
   } else if (settings.device == RuntimeDevice::kBoardSim ||
              settings.device == RuntimeDevice::kUsb) {
@@ -150,6 +165,15 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
   } else if (!rig_->Start(initial_target)) {
     // No board (yet): the window runs at zero force and the link is retried.
     link_at_start_ = rig_->StartFailure();
+    if (settings.device == RuntimeDevice::kUsb && !settings.calibration_file.empty()) {
+      throw InputError("--calibration: " + settings.calibration_file +
+                       ": the board must answer at start to check that the file is its own (" +
+                       link_at_start_ + ")");
+    }
+  } else if (settings.device == RuntimeDevice::kUsb && ApplyCalibrationFile(info, rig_->Serial())) {
+    // The loop has not run yet: rebuild it to read the board through the file.
+    loop_ = std::make_unique<haptics::HapticLoop>(info, calibration_,
+                                                  LoopSettingsFor(settings_, info.geometry.d));
   }
   RuntimeFrame initial;
   initial.hand_pose = initial_target;
@@ -160,6 +184,49 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
 }
 
 HapticRuntime::~HapticRuntime() { Stop(); }
+
+bool HapticRuntime::ApplyCalibrationFile(const haptics::DeviceInfo& info,
+                                         const std::string& serial) {
+  CalibrationDevice device;
+  device.kind = RuntimeDeviceName(settings_.device);
+  device.seed = settings_.seed;
+  device.serial = serial;
+  device.geometry = info.geometry;
+  device.encoder = info.encoder;
+  std::string path = settings_.calibration_file;
+  const bool remembered = path.empty();
+  if (remembered) {
+    if (settings_.device != RuntimeDevice::kUsb || !settings_.use_remembered_calibration) {
+      return false;
+    }
+    path = RememberedCalibration(device);
+    if (path.empty()) return false;
+  }
+  CalibrationFile file;
+  std::string why;
+  try {
+    file = LoadCalibrationFile(path);
+  } catch (const InputError& e) {
+    // A remembered file that went missing or bad is not an error: the nominal model is used.
+    if (!remembered) throw InputError(std::string("--calibration: ") + e.what());
+    calibration_note_ = "remembered calibration not used: " + std::string(e.what());
+    return false;
+  }
+  why = CalibrationMismatch(file, device);
+  if (!why.empty()) {
+    if (!remembered) throw InputError("--calibration: " + path + " does not fit: " + why);
+    calibration_note_ = "remembered calibration " + path + " not used: " + why;
+    return false;
+  }
+  calibration_ = file.calibration;
+  // Calibrated: FK's default acceptance, as after the start-up fit.
+  settings_.loop.fk.max_residual = haptics::FkSettings().max_residual;
+  description_ = std::string(RuntimeDeviceName(settings_.device)) + ": " + device.Describe() +
+                 ", " + (file.method == "self" ? "self-calibration" : "line-fit calibration") +
+                 " " + path + (remembered ? " (remembered for this board)" : "") + " of " +
+                 file.date;
+  return true;
+}
 
 void HapticRuntime::Start() {
   runner_.Start([this](const haptics::TickTiming& timing) { Tick(timing); });

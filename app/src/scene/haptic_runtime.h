@@ -64,7 +64,19 @@ const char* RuntimeDeviceName(RuntimeDevice device);
 // Settings of HapticRuntime.
 struct RuntimeSettings {
   RuntimeDevice device = RuntimeDevice::kSimulated;
-  std::uint64_t seed = 1;             // seed of the simulated device's errors and noise
+  std::uint64_t seed = 1;  // seed of the simulated device's errors and noise
+  // The device's frame half-sides a, b, c and pole half-length d, m (window --frame, --pole):
+  // the simulated device's size; for kUsb the size the board is assumed to have.
+  haptics::SpidarGeometry geometry;
+  // A calibration file (`spidarcad calibrate --out`, docs/calibration-format.md) to read the
+  // encoders through instead of the start-up line fit (kSimulated) or the nominal calibration
+  // (kBoardSim, kUsb); "" for none. It must belong to this device (kind, seed or board serial,
+  // frame, encoder): the constructor throws InputError naming the file and the mismatch. Not
+  // with kIdeal. kUsb checks the serial after the handshake and needs the board at start.
+  std::string calibration_file;
+  // kUsb without calibration_file: read the board through the calibration remembered for its
+  // serial number (RememberedCalibration, scene/calibration_file.h) when there is one that fits.
+  bool use_remembered_calibration = true;
   haptics::HandSettings hand;         // the simulated hand (kSimulated, kBoardSim)
   haptics::LoopSettings loop;         // X_WD, damping, limits, ramp; tension set from the grip size
   haptics::RunnerSettings runner;     // 1 kHz, SCHED_FIFO when permitted
@@ -143,11 +155,18 @@ class HapticRuntime {
   // kBoardSim, kUsb: empty when the link opened at construction, else what to check (the
   // window keeps running, at zero force, and retries).
   const std::string& link_at_start() const { return link_at_start_; }
+  // kUsb: why a remembered calibration was not used (gone, unreadable, another board's); "".
+  const std::string& calibration_note() const { return calibration_note_; }
   // The device rig's link summary ("usb link: states ..."; empty for the simulated devices).
   // Not while Start()ed.
   std::string LinkSummary() const { return rig_->LinkSummary(); }
 
  private:
+  // Reads settings_.calibration_file (or, for kUsb, the remembered one) into calibration_ for
+  // the board `serial` ("" for the simulated devices). True when a file was applied; throws
+  // InputError for an explicit file that cannot be read or does not fit.
+  bool ApplyCalibrationFile(const haptics::DeviceInfo& info, const std::string& serial);
+
   RuntimeSettings settings_;
   std::unique_ptr<DeviceRig> rig_;
   haptics::SimulatedSpidarG* device_ = nullptr;  // the rig's physical device; null for kUsb
@@ -161,6 +180,7 @@ class HapticRuntime {
   std::atomic<std::uint64_t> ticks_{0};
   std::string description_;
   std::string link_at_start_;
+  std::string calibration_note_;
   haptics::GripPose last_measured_;            // kUsb: the last pose FK accepted (haptic thread)
   std::unique_ptr<RigServiceThread> service_;  // re-opens a lost board (kUsb) while started
 };

@@ -1,10 +1,33 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/trajectory_player.h"
 
+#include <cstdint>
+#include <filesystem>
 #include <stdexcept>
 #include <utility>
 
+#include "doc/input_error.h"
+
 namespace spidarcad::app {
+
+void CheckTrajectoryFile(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) return;  // Trajectory::Load names it
+  if (!std::filesystem::is_regular_file(status)) {
+    throw InputError("--trajectory '" + path +
+                     "': not a regular file (a directory, device or pipe); give a CSV file "
+                     "(t,x,y,z,qw,qx,qy,qz,grasp)");
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (!ec && size > static_cast<std::uintmax_t>(kMaxTrajectoryFileBytes)) {
+    throw InputError(
+        "--trajectory '" + path + "': " + std::to_string(size) + " bytes, more than the " +
+        std::to_string(kMaxTrajectoryFileBytes) +
+        " bytes (256 MiB) a trajectory may have (docs/limits.md); sample it more coarsely (the "
+        "player interpolates between samples)");
+  }
+}
 
 TrajectoryPlayer::TrajectoryPlayer(haptics::Trajectory trajectory, Sink sink)
     : trajectory_(std::move(trajectory)), sink_(std::move(sink)) {

@@ -13,11 +13,21 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <string>
 #include <thread>
 
 #include "spidarcad/haptics/trajectory.h"
 
 namespace spidarcad::app {
+
+// Largest trajectory file `run` and the window read, bytes (docs/limits.md).
+constexpr long long kMaxTrajectoryFileBytes = 256LL << 20;
+
+// Checks that `path` (given as --trajectory) is a regular file of at most
+// kMaxTrajectoryFileBytes before it is read: not a directory, device or pipe, which would be read
+// without end. Throws InputError naming the file and the limit. A missing file passes (the
+// reader names it).
+void CheckTrajectoryFile(const std::string& path);
 
 // A trajectory played on its own thread.
 class TrajectoryPlayer {

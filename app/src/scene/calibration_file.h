@@ -1,6 +1,6 @@
 // Calibration files: the string-length calibration of one SPIDAR-G, with the device it belongs
 // to, as JSON (format "spidarcad-calibration", version 1; docs/calibration-format.md). Written
-// by `spidarcad calibrate --out`, read by `calibrate --load` and `run --calibration`.
+// by `spidarcad calibrate --out`, read by `calibrate --load`, `run --calibration` and the window.
 // Units: SI (m, N); the frame geometry is in the device frame D.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
@@ -69,5 +69,23 @@ CalibrationFile LoadCalibrationFile(const std::string& path);
 // (another kind of device, another seed or serial, another frame or pole, another encoder).
 // simulated and board-sim are the same simulated SPIDAR-G: their files are interchangeable.
 std::string CalibrationMismatch(const CalibrationFile& file, const CalibrationDevice& device);
+
+// ---- per-device memory: the calibration a lab made for its board, found again next time ----
+// The file that remembers which calibration file belongs to which USB board:
+// $XDG_CONFIG_HOME/spidarcad/devices.json, else $HOME/.config/spidarcad/devices.json ("" when
+// neither variable is set). JSON: {"format": "spidarcad-devices", "version": 1,
+// "calibrations": {"usb:SERIAL": "/absolute/path.json", ...}}.
+std::string DeviceMemoryPath();
+
+// The calibration file remembered for `device` (an absolute path), or "" when none is (only USB
+// boards are remembered: a simulated device is recalibrated at every start, and reproducible
+// runs name their file). An unreadable memory file counts as empty.
+std::string RememberedCalibration(const CalibrationDevice& device);
+
+// Remembers `path` (made absolute) as the calibration of `device` (kind "usb" only; others are
+// ignored and give true). Written atomically; returns false with the reason in *why when the
+// memory file cannot be written (the calibration file itself is unaffected).
+bool RememberCalibration(const CalibrationDevice& device, const std::string& path,
+                         std::string* why);
 
 }  // namespace spidarcad::app

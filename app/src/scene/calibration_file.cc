@@ -1,5 +1,5 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "cli/calibration_file.h"
+#include "scene/calibration_file.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -16,7 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "cli/cli_common.h"
+#include "doc/input_error.h"
 
 namespace spidarcad::app {
 
@@ -352,6 +353,89 @@ std::string CalibrationMismatch(const CalibrationFile& file, const CalibrationDe
            " counts/rev, " + Metres(device.encoder.pulley_radius) + " m)";
   }
   return {};
+}
+
+namespace {
+
+// "usb:SERIAL" for a board with a serial number; "" for anything the memory does not keep.
+std::string MemoryKey(const CalibrationDevice& device) {
+  if (device.kind != "usb" || device.serial.empty()) return {};
+  return "usb:" + device.serial;
+}
+
+// The memory's calibrations object; empty when the file is missing or not a memory file.
+json ReadMemory(const std::string& path) {
+  json empty = json::object();
+  std::ifstream in(path);
+  if (!in) return empty;
+  try {
+    const json doc = json::parse(in);
+    if (doc.is_object() && doc.value("format", "") == "spidarcad-devices" &&
+        doc.contains("calibrations") && doc["calibrations"].is_object()) {
+      return doc["calibrations"];
+    }
+  } catch (const json::exception&) {
+  }
+  return empty;
+}
+
+}  // namespace
+
+std::string DeviceMemoryPath() {
+  const char* xdg = std::getenv("XDG_CONFIG_HOME");
+  if (xdg != nullptr && *xdg == '/') return std::string(xdg) + "/spidarcad/devices.json";
+  const char* home = std::getenv("HOME");
+  if (home != nullptr && *home == '/') return std::string(home) + "/.config/spidarcad/devices.json";
+  return {};
+}
+
+std::string RememberedCalibration(const CalibrationDevice& device) {
+  const std::string key = MemoryKey(device);
+  const std::string path = DeviceMemoryPath();
+  if (key.empty() || path.empty()) return {};
+  const json calibrations = ReadMemory(path);
+  const auto it = calibrations.find(key);
+  if (it == calibrations.end() || !it->is_string()) return {};
+  return it->get<std::string>();
+}
+
+bool RememberCalibration(const CalibrationDevice& device, const std::string& path,
+                         std::string* why) {
+  const std::string key = MemoryKey(device);
+  if (key.empty()) return true;
+  const std::string memory = DeviceMemoryPath();
+  if (memory.empty()) {
+    if (why != nullptr) *why = "neither XDG_CONFIG_HOME nor HOME is set";
+    return false;
+  }
+  std::error_code ec;
+  const std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+  if (ec) {
+    if (why != nullptr) *why = path + ": " + ec.message();
+    return false;
+  }
+  json calibrations = ReadMemory(memory);
+  calibrations[key] = absolute.lexically_normal().string();
+  json doc = {{"format", "spidarcad-devices"}, {"version", 1}, {"calibrations", calibrations}};
+  const std::filesystem::path target(memory);
+  std::filesystem::create_directories(target.parent_path(), ec);
+  const std::string temporary = memory + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::trunc);
+    out << doc.dump(2) << "\n";
+    if (!out.flush()) {
+      if (why != nullptr) *why = "cannot write " + temporary;
+      std::filesystem::remove(temporary, ec);
+      return false;
+    }
+  }
+  std::filesystem::rename(temporary, target, ec);
+  if (ec) {
+    if (why != nullptr) *why = "cannot write " + memory + ": " + ec.message();
+    std::filesystem::remove(temporary, ec);
+    return false;
+  }
+  return true;
 }
 
 }  // namespace spidarcad::app
