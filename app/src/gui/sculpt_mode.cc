@@ -77,7 +77,7 @@ SculptMode::SculptMode(vtkRenderer* renderer, JobQueue* jobs)
     renderer_->AddActor(v.actor);
     renderer_->AddActor(v.marker);
   }
-  SetWorldToView(1.0, Eigen::Vector3d::Zero());
+  SetWorldToView(haptics::DeviceToWorld{});
 }
 
 SculptMode::~SculptMode() {
