@@ -547,12 +547,11 @@ int ColumnCache::Import(const ColumnSet& set) {
 // CachedContactSolver
 
 CachedContactSolver::CachedContactSolver(ColumnCache* cache, int max_contacts)
-    : cache_(cache), max_contacts_(max_contacts) {
+    : cache_(cache), max_contacts_(max_contacts), chol_(std::max(1, max_contacts)) {
   if (max_contacts < 1) {
     throw std::invalid_argument("CachedContactSolver: max_contacts must be >= 1, got " +
                                 std::to_string(max_contacts));
   }
-  l_ = FactorMatrix::Zero(3 * max_contacts, 3 * max_contacts);
   work_ = Eigen::VectorXd::Zero(3 * max_contacts);
   normal_b_ = Eigen::MatrixXd::Zero(3 * max_contacts, max_contacts);
   normal_a_ = Eigen::MatrixXd::Zero(max_contacts, max_contacts);
@@ -597,41 +596,19 @@ Eigen::Matrix3d CachedContactSolver::PairBlock(int i, int j) const {
 }
 
 bool CachedContactSolver::FactorFrom(int first, int* bad) {
+  chol_.Truncate(first);
   for (int t = first; t < k_; ++t) {
-    const int n3 = 3 * t;
-    // Border: L(3t + j, c) for the columns c of earlier slots, in increasing c.
+    // Border: the blocks Ĝ(slot t, slot i) of the earlier slots.
     for (int i = 0; i < t; ++i) {
       const Eigen::Matrix3d b = PairBlock(t, i);
-      for (int l = 0; l < 3; ++l) {
-        const int c = 3 * i + l;
-        const double* row_c = &l_(c, 0);
-        for (int j = 0; j < 3; ++j) {
-          double* row = &l_(n3 + j, 0);
-          double sum = b(j, l);
-          for (int m = 0; m < c; ++m) sum -= row[m] * row_c[m];
-          row[c] = sum / row_c[c];
-        }
+      for (int j = 0; j < 3; ++j) {
+        double* row = chol_.BorderRow(j);
+        for (int l = 0; l < 3; ++l) row[3 * i + l] = b(j, l);
       }
     }
-    // Diagonal block: Cholesky of D − Y Yᵀ (3 by 3).
-    const Eigen::Matrix3d d = PairBlock(t, t);
-    const double scale = d.diagonal().cwiseAbs().maxCoeff();
-    for (int a = 0; a < 3; ++a) {
-      for (int j = 0; j <= a; ++j) {
-        double s = d(a, j);
-        const double* ra = &l_(n3 + a, 0);
-        const double* rj = &l_(n3 + j, 0);
-        for (int m = 0; m < n3 + j; ++m) s -= ra[m] * rj[m];
-        if (a == j) {
-          if (!(s > 1e-12 * scale)) {
-            *bad = t;
-            return false;
-          }
-          l_(n3 + a, n3 + a) = std::sqrt(s);
-        } else {
-          l_(n3 + a, n3 + j) = s / l_(n3 + j, n3 + j);
-        }
-      }
+    if (!chol_.AppendBlock(PairBlock(t, t))) {
+      *bad = t;
+      return false;
     }
   }
   return true;
@@ -700,6 +677,7 @@ void CachedContactSolver::Clear() {
     slots_[t] = subs_[t] = -1;
   }
   k_ = 0;
+  chol_.Truncate(0);
 }
 
 int CachedContactSolver::Refresh() {
@@ -732,18 +710,7 @@ bool CachedContactSolver::Solve(const double* target, double* forces) {
     const int row = 3 * cache_->OutputIndexOfCandidate(slots_[i / 3]) + i % 3;
     work_(i) = target[i] - u0(row);
   }
-  for (int i = 0; i < n3; ++i) {  // L y = rhs
-    const double* row = &l_(i, 0);
-    double sum = work_(i);
-    for (int m = 0; m < i; ++m) sum -= row[m] * work_(m);
-    work_(i) = sum / row[i];
-  }
-  for (int i = n3 - 1; i >= 0; --i) {  // Lᵀ f = y, reading rows of L
-    const double fi = work_(i) / l_(i, i);
-    work_(i) = fi;
-    const double* row = &l_(i, 0);
-    for (int m = 0; m < i; ++m) work_(m) -= row[m] * fi;
-  }
+  chol_.Solve(work_.data());
   for (int i = 0; i < n3; ++i) forces[i] = work_(i);
   return true;
 }
@@ -753,13 +720,14 @@ bool CachedContactSolver::SolveNormal(const double* normals, const double* targe
   if (k_ == 0) return false;
   const int n3 = 3 * k_;
   const Eigen::VectorXd& u0 = cache_->baseline();
+  const BorderedCholesky::FactorMatrix& l = chol_.factor();
   // B(:, s) = Lᵀ(:, 3s..3s+2) n_s: rows 3s..3s+2 of L, nonzero in columns m <= 3s + 2.
   for (int s = 0; s < k_; ++s) {
     double* b = &normal_b_(0, s);
     for (int m = 0; m < n3; ++m) b[m] = 0.0;
     for (int i = 0; i < 3; ++i) {
       const double n = normals[3 * s + i];
-      const double* row = &l_(3 * s + i, 0);
+      const double* row = &l(3 * s + i, 0);
       for (int m = 0; m <= 3 * s + i; ++m) b[m] += n * row[m];
     }
   }
@@ -810,7 +778,7 @@ bool CachedContactSolver::SolveNormal(const double* normals, const double* targe
     for (int m = 0; m < 3 * s + 3; ++m) work_(m) += bs[m] * beta;
   }
   for (int i = 0; i < n3; ++i) {
-    const double* row = &l_(i, 0);
+    const double* row = &l(i, 0);
     double sum = 0.0;
     for (int m = 0; m <= i; ++m) sum += row[m] * work_(m);
     const int out = 3 * cache_->OutputIndexOfCandidate(slots_[i / 3]) + i % 3;

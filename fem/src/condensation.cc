@@ -78,12 +78,11 @@ int Compliance::CondensedIndexOfNode(int v) const {
 }
 
 ContactSolver::ContactSolver(const Compliance& compliance, int max_contacts)
-    : c_(compliance), max_contacts_(max_contacts) {
+    : c_(compliance), max_contacts_(max_contacts), chol_(std::max(1, max_contacts)) {
   if (max_contacts < 1) {
     throw std::invalid_argument("ContactSolver: max_contacts must be >= 1, got " +
                                 std::to_string(max_contacts));
   }
-  l_ = FactorMatrix::Zero(3 * max_contacts, 3 * max_contacts);
   work_ = Eigen::VectorXd::Zero(3 * max_contacts);
   slots_.assign(max_contacts, -1);
   slot_of_.assign(compliance.condensed_nodes().size(), -1);
@@ -96,33 +95,18 @@ ContactStatus ContactSolver::Add(int b) {
   if (k_ >= max_contacts_) return ContactStatus::kFull;
   const int n3 = 3 * k_;
   const Eigen::MatrixXd& g = c_.matrix();
-  // Off-diagonal border: solve L y_j = G(contacts, b_j) for the three columns of node b and
-  // store y_jᵀ as row n3 + j of L.
+  // Border: G(b, contacts) = G(contacts, b)ᵀ, read from the three columns of node b.
   for (int j = 0; j < 3; ++j) {
+    double* border = chol_.BorderRow(j);
     const int col = 3 * b + j;
-    for (int i = 0; i < n3; ++i) {
-      const int row = 3 * c_.OutputIndexOfCondensed(slots_[i / 3]) + i % 3;
-      double sum = g(row, col);
-      for (int m = 0; m < i; ++m) sum -= l_(i, m) * l_(n3 + j, m);
-      l_(n3 + j, i) = sum / l_(i, i);
-    }
+    for (int i = 0; i < n3; ++i)
+      border[i] = g(3 * c_.OutputIndexOfCondensed(slots_[i / 3]) + i % 3, col);
   }
-  // Diagonal block: Cholesky of S = G_bb − Yᵀ Y (3 by 3).
+  // Diagonal block G_bb, symmetrised.
   const int rb = 3 * c_.OutputIndexOfCondensed(b);
-  double scale = 0.0;
-  for (int j = 0; j < 3; ++j) scale = std::max(scale, std::abs(g(rb + j, 3 * b + j)));
-  for (int a = 0; a < 3; ++a) {
-    for (int j = 0; j <= a; ++j) {
-      double s = 0.5 * (g(rb + a, 3 * b + j) + g(rb + j, 3 * b + a));
-      for (int m = 0; m < n3; ++m) s -= l_(n3 + a, m) * l_(n3 + j, m);
-      for (int m = 0; m < j; ++m) s -= l_(n3 + a, n3 + m) * l_(n3 + j, n3 + m);
-      if (a == j) {
-        if (!(s > 1e-12 * scale)) return ContactStatus::kNotPositiveDefinite;
-        l_(n3 + a, n3 + a) = std::sqrt(s);
-      } else {
-        l_(n3 + a, n3 + j) = s / l_(n3 + j, n3 + j);
-      }
-    }
+  const Eigen::Matrix3d g_bb = g.block<3, 3>(rb, 3 * b);
+  if (!chol_.AppendBlock(0.5 * (g_bb + g_bb.transpose()))) {
+    return ContactStatus::kNotPositiveDefinite;
   }
   slots_[k_] = b;
   slot_of_[b] = k_;
@@ -134,32 +118,7 @@ ContactStatus ContactSolver::Remove(int b) {
   if (b < 0 || b >= static_cast<int>(slot_of_.size())) return ContactStatus::kBadIndex;
   const int s = slot_of_[b];
   if (s < 0) return ContactStatus::kNotInContact;
-  const int n3 = 3 * k_;
-  const int p = 3 * s;
-  // Trailing block L33 (rows/cols p+3 .. n3−1) absorbs L32 L32ᵀ by three successive rank-one
-  // (Givens-type) updates, applied together column by column. The update vectors are columns
-  // p, p+1, p+2 of L itself (rows p+3 .. n3−1), which are discarded when the gap is closed.
-  // Each column's inner loop has no carried dependency (unlike a row-by-row sweep).
-  for (int m = p + 3; m < n3; ++m) {
-    for (int j = 0; j < 3; ++j) {
-      const double xm = l_(m, p + j);
-      const double lmm = l_(m, m);
-      const double r = std::sqrt(lmm * lmm + xm * xm);
-      const double c_inv = lmm / r, sn = xm / lmm, c = r / lmm;
-      l_(m, m) = r;
-      for (int i = m + 1; i < n3; ++i) {
-        double* row = &l_(i, 0);
-        const double lim = (row[m] + sn * row[p + j]) * c_inv;
-        row[m] = lim;
-        row[p + j] = c * row[p + j] - sn * lim;
-      }
-    }
-  }
-  // Close the gap: rows and columns after the removed block move up and left by three.
-  for (int r = p + 3; r < n3; ++r) {
-    for (int col = 0; col < p; ++col) l_(r - 3, col) = l_(r, col);
-    for (int col = p + 3; col <= r; ++col) l_(r - 3, col - 3) = l_(r, col);
-  }
+  chol_.RemoveBlock(s);
   for (int t = s; t + 1 < k_; ++t) {
     slots_[t] = slots_[t + 1];
     slot_of_[slots_[t]] = t;
@@ -176,6 +135,7 @@ void ContactSolver::Clear() {
     slots_[t] = -1;
   }
   k_ = 0;
+  chol_.Truncate(0);
 }
 
 bool ContactSolver::Solve(const double* target, double* forces) {
@@ -186,20 +146,7 @@ bool ContactSolver::Solve(const double* target, double* forces) {
     const int row = 3 * c_.OutputIndexOfCondensed(slots_[i / 3]) + i % 3;
     work_(i) = target[i] - u0(row);
   }
-  // L y = rhs.
-  for (int i = 0; i < n3; ++i) {
-    const double* row = &l_(i, 0);
-    double sum = work_(i);
-    for (int m = 0; m < i; ++m) sum -= row[m] * work_(m);
-    work_(i) = sum / row[i];
-  }
-  // Lᵀ f = y, column-oriented so that it reads rows of L.
-  for (int i = n3 - 1; i >= 0; --i) {
-    const double fi = work_(i) / l_(i, i);
-    work_(i) = fi;
-    const double* row = &l_(i, 0);
-    for (int m = 0; m < i; ++m) work_(m) -= row[m] * fi;
-  }
+  chol_.Solve(work_.data());
   for (int i = 0; i < n3; ++i) forces[i] = work_(i);
   return true;
 }

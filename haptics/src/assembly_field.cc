@@ -7,6 +7,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "spidarcad/haptics/geometry.h"
+#include "spidarcad/haptics/rotation.h"
+
 namespace spidarcad::haptics {
 
 namespace {
@@ -23,14 +26,6 @@ bool IsRigid(const Eigen::Isometry3d& X) {
   const Eigen::Matrix3d R = X.linear();
   return X.matrix().allFinite() &&
          (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-9 && R.determinant() > 0;
-}
-
-// Rotation vector of the rotation q (angle·axis, angle in [0, π]).
-Eigen::Vector3d RotationVector(Eigen::Quaterniond q) {
-  if (q.w() < 0) q.coeffs() *= -1;
-  const double s = q.vec().norm();
-  if (s < 1e-12) return 2.0 * q.vec();
-  return (2.0 * std::atan2(s, q.w()) / s) * q.vec();
 }
 
 Eigen::Isometry3d Pose(const Eigen::Vector3d& p, const Eigen::Matrix3d& R) {
@@ -189,12 +184,10 @@ double AssemblyField::PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const Too
   const GraspSettings& s = settings_.grasp;
   const Eigen::Isometry3d X_PW = X_WPj.inverse(Eigen::Isometry);
   const DistanceField& field = *parts_[j].field_P;
-  const double c = std::cos(0.5 * tool.grasp), sn = std::sin(0.5 * tool.grasp);
-  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
-  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
   // Pole directions and their velocity per unit of closing (−dθ), in T (grasp_field.h).
-  const Eigen::Vector3d u_T[2] = {c * b_T - sn * a_T, c * b_T + sn * a_T};
-  const Eigen::Vector3d du_T[2] = {0.5 * (sn * b_T + c * a_T), 0.5 * (sn * b_T - c * a_T)};
+  const PoleDirections poles = GripPoleDirections(tool.grasp);
+  const std::array<Eigen::Vector3d, 2>& u_T = poles.u_T;
+  const Eigen::Vector3d du_T[2] = {-poles.du_T[0], -poles.du_T[1]};
   const double d = s.pole_length;
   double q = 0.0;
   int pushing = 0;
@@ -329,9 +322,7 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
     v_ += (h / s.mass) * (f_c + scale * f_contact);
     w_ += h * (R * inv_inertia.asDiagonal() * (R.transpose() * (tau_c + scale * t_contact)));
     p += h * v_;
-    const double angle = w_.norm() * h;
-    if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_ / w_.norm())) * q_;
-    q_.normalize();
+    q_ = IntegrateRotation(q_, w_, h);
   }
   const Eigen::Vector3d f_c =
       s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);

@@ -9,7 +9,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/kinematics.h"
+#include "spidarcad/haptics/rotation.h"
 #include "spidarcad/haptics/simulated_device.h"
 
 namespace spidarcad::haptics {
@@ -62,9 +64,7 @@ GripPose PoseFromState(const PoseState& s, double d) {
 PoseState Retract(const PoseState& s, const Vector7d& delta) {
   PoseState out = s;
   out.p0 += delta.head<3>();
-  const Eigen::Vector3d w = delta.segment<3>(3);
-  const double angle = w.norm();
-  if (angle > 0.0) out.R = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * s.R;
+  out.R = IntegrateRotation(s.R, delta.segment<3>(3), 1.0);
   out.grasp += delta[6];
   return out;
 }
@@ -72,16 +72,13 @@ PoseState Retract(const PoseState& s, const Vector7d& delta) {
 // d(p0, p1, p2)/d(δp0, ω, δθ), 9 by 7, for the left rotation update R <- exp(ω) R.
 Matrix97d PoseTangent(const PoseState& s, double d) {
   const GripPose pose = PoseFromState(s, d);
-  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
-  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
-  const double sn = std::sin(0.5 * s.grasp);
-  const double cs = std::cos(0.5 * s.grasp);
+  const PoleDirections poles = GripPoleDirections(s.grasp);
   Matrix97d T = Matrix97d::Zero();
   T.block<3, 3>(0, 0).setIdentity();
   T.block<3, 3>(3, 3) = -Skew(pose.p1);
   T.block<3, 3>(6, 3) = -Skew(pose.p2);
-  T.block<3, 1>(3, 6) = d * (s.R * (-0.5 * sn * b_T - 0.5 * cs * a_T));
-  T.block<3, 1>(6, 6) = d * (s.R * (-0.5 * sn * b_T + 0.5 * cs * a_T));
+  T.block<3, 1>(3, 6) = d * (s.R * poles.du_T[0]);
+  T.block<3, 1>(6, 6) = d * (s.R * poles.du_T[1]);
   return T;
 }
 

@@ -57,16 +57,26 @@ GripPose GripPose::Rest(double d) {
   return pose;
 }
 
-GripPose GripPose::FromFrame(const Eigen::Vector3d& p0_DT, const Eigen::Matrix3d& R_DT,
-                             double grasp, double d) {
+PoleDirections GripPoleDirections(double grasp) {
   const double s = std::sin(0.5 * grasp);
   const double c = std::cos(0.5 * grasp);
   const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
   const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
+  PoleDirections poles;
+  poles.u_T[0] = c * b_T - s * a_T;
+  poles.u_T[1] = c * b_T + s * a_T;
+  poles.du_T[0] = 0.5 * (-s * b_T - c * a_T);
+  poles.du_T[1] = 0.5 * (-s * b_T + c * a_T);
+  return poles;
+}
+
+GripPose GripPose::FromFrame(const Eigen::Vector3d& p0_DT, const Eigen::Matrix3d& R_DT,
+                             double grasp, double d) {
+  const PoleDirections poles = GripPoleDirections(grasp);
   GripPose pose;
   pose.p0 = p0_DT;
-  pose.p1 = d * (R_DT * (c * b_T - s * a_T));
-  pose.p2 = d * (R_DT * (c * b_T + s * a_T));
+  pose.p1 = d * (R_DT * poles.u_T[0]);
+  pose.p2 = d * (R_DT * poles.u_T[1]);
   return pose;
 }
 

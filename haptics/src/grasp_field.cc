@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "spidarcad/haptics/geometry.h"
+
 namespace spidarcad::haptics {
 
 namespace {
@@ -64,12 +66,10 @@ ToolWrench GraspField::Evaluate(const ToolKinematics& tool) noexcept {
     X_WO_ = X_WT * X_TO_;
     X_OW_ = X_WO_.inverse(Eigen::Isometry);
   }
-  const double c = std::cos(0.5 * tool.grasp), sn = std::sin(0.5 * tool.grasp);
-  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
-  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
   // Pole directions and their velocity per unit of closing (−dθ), in T.
-  const Eigen::Vector3d u_T[2] = {c * b_T - sn * a_T, c * b_T + sn * a_T};
-  const Eigen::Vector3d du_T[2] = {0.5 * (sn * b_T + c * a_T), 0.5 * (sn * b_T - c * a_T)};
+  const PoleDirections poles = GripPoleDirections(tool.grasp);
+  const std::array<Eigen::Vector3d, 2>& u_T = poles.u_T;
+  const Eigen::Vector3d du_T[2] = {-poles.du_T[0], -poles.du_T[1]};
   const double d = s.pole_length;
   double q = 0.0;
   bool pushing[2] = {false, false};

@@ -100,9 +100,9 @@ const char* SafetyEventName(int index) {
 }
 
 void LoopSettings::Validate() const {
-  Require(world_scale > 0 && std::isfinite(world_scale), "world_scale", world_scale,
+  Require(X_WD.world_scale > 0 && std::isfinite(X_WD.world_scale), "world_scale", X_WD.world_scale,
           "must be finite and > 0");
-  Require(p_WDo.allFinite(), "p_WDo", p_WDo.norm(), "must be finite");
+  Require(X_WD.p_WDo.allFinite(), "p_WDo", X_WD.p_WDo.norm(), "must be finite");
   Require(std::isfinite(force_scale) && force_scale >= 0, "force_scale", force_scale,
           "must be finite and >= 0");
   Require(velocity_cutoff > 0 && std::isfinite(velocity_cutoff), "velocity_cutoff", velocity_cutoff,
@@ -243,10 +243,10 @@ TickOutputs HapticLoop::Step(const TickInputs& inputs, double dt) noexcept {
 
     ToolKinematics& tool = out.tool_W;
     tool.time = time_;
-    tool.p_WT = settings_.world_scale * pose.p0 + settings_.p_WDo;
+    tool.p_WT = settings_.X_WD.PointToWorld(pose.p0);
     tool.R_WT = R_DT;
     tool.grasp = grasp;
-    tool.v_WT = settings_.world_scale * v_D_;
+    tool.v_WT = settings_.X_WD.VectorToWorld(v_D_);
     tool.w_WT = w_D_;
     tool.grasp_rate = grasp_rate_;
 

@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "spidarcad/haptics/rotation.h"
+
 namespace spidarcad::haptics {
 
 namespace {
@@ -75,9 +77,7 @@ PoseParams ParamsFromPose(const GripPose& pose) {
 PoseParams Apply(const PoseParams& q, const Vector7d& delta) {
   PoseParams out = q;
   out.p0 += delta.head<3>();
-  const Eigen::Vector3d w = delta.segment<3>(3);
-  const double angle = w.norm();
-  if (angle > 0) out.R = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * q.R;
+  out.R = IntegrateRotation(q.R, delta.segment<3>(3), 1.0);
   out.grasp += delta(6);
   return out;
 }

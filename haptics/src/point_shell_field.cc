@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "spidarcad/haptics/rotation.h"
+
 namespace spidarcad::haptics {
 
 namespace {
@@ -41,13 +43,6 @@ Eigen::Vector3d SoftCoupling(const Eigen::Vector3d& x, const Eigen::Vector3d& dx
   return (spring / r) * x + (b * (eps + (1.0 - eps) * ramp)) * dx;
 }
 
-// Rotation vector of the rotation q (angle·axis, angle in [0, π]).
-Eigen::Vector3d RotationVector(Eigen::Quaterniond q) {
-  if (q.w() < 0) q.coeffs() *= -1;
-  const double s = q.vec().norm();
-  if (s < 1e-12) return 2.0 * q.vec();
-  return (2.0 * std::atan2(s, q.w()) / s) * q.vec();
-}
 }  // namespace
 
 PointShell PointShell::FromPoints(const std::vector<Eigen::Vector3d>& points_T,
@@ -375,8 +370,7 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
     p_ += h * v_;
     const double angle = w_.norm() * h;
     travelled += h * v_.norm() + angle * shell_radius_;
-    if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_ / w_.norm())) * q_;
-    q_.normalize();
+    q_ = IntegrateRotation(q_, w_, h);
   }
   // The coupling's reaction at the end of the tick is what the user feels.
   Coupling(tool, q_T, &f_c, &tau_c);

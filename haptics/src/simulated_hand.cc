@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "spidarcad/haptics/rotation.h"
+
 namespace spidarcad::haptics {
 
 namespace {
@@ -57,9 +59,7 @@ void SimulatedHand::Step(const TrajectorySample& target,
     const Eigen::Vector3d moment =
         s.rot_stiffness * aa.angle() * aa.axis() - s.rot_damping * w_ + m;
     w_ += h * moment / s.inertia;
-    const double angle = w_.norm() * h;
-    if (angle > 0) q_ = Eigen::Quaterniond(Eigen::AngleAxisd(angle, w_.normalized())) * q_;
-    q_.normalize();
+    q_ = IntegrateRotation(q_, w_, h);
 
     const double torque =
         s.grasp_stiffness * (target.grasp - grasp_) - s.grasp_damping * grasp_rate_ - 0.5 * g;

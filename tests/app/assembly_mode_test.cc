@@ -142,7 +142,7 @@ TEST(AssemblyMode, PlacesEveryPartAtItsPublishedPoseInTheViewFrame) {
   mode.Load(modeling::LoadScene(kScene));
   const double s = 2.5;
   const Eigen::Vector3d p_WDo(0.1, -0.2, 0.3);
-  mode.SetWorldToView(s, p_WDo);
+  mode.SetWorldToView({s, p_WDo});
   haptics::AssemblyState state;
   state.count = mode.size();
   for (int i = 0; i < mode.size(); ++i) {

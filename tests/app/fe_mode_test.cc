@@ -654,7 +654,7 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
   for (const double s : {1.0, 4.6}) {
     SCOPED_TRACE("world scale " + std::to_string(s));
     const Eigen::Vector3d p_WDo = top_W - s * Eigen::Vector3d(0, 0, -0.03);  // top_W at z_D = −3 cm
-    mode.SetWorldToView(s, p_WDo);
+    mode.SetWorldToView({s, p_WDo});
     std::shared_ptr<haptics::ForceField> field(mode.TakeField());
     ASSERT_TRUE(field);
     auto* fe = dynamic_cast<FeTouchField*>(field.get());
@@ -669,8 +669,8 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
 
     RuntimeSettings settings;
     settings.device = RuntimeDevice::kSimulated;
-    settings.loop.world_scale = s;
-    settings.loop.p_WDo = p_WDo;
+    settings.loop.X_WD.world_scale = s;
+    settings.loop.X_WD.p_WDo = p_WDo;
     HapticRuntime runtime(settings,
                           haptics::GripPose::FromFrame(touch_D + Eigen::Vector3d(0, 0, 0.005),
                                                        Eigen::Matrix3d::Identity(), M_PI / 2, g.d));

@@ -274,8 +274,8 @@ TEST(HapticRuntime, TicksAllocateNothingWithSolidsAndSprings) {
   SceneModel model;
   model.Load(kDemoSceneName, GripControl(SpidarGeometry{}).limits());
   RuntimeSettings settings;
-  settings.loop.world_scale = model.device_to_world().world_scale;
-  settings.loop.p_WDo = model.device_to_world().p_WDo;
+  settings.loop.X_WD.world_scale = model.device_to_world().world_scale;
+  settings.loop.X_WD.p_WDo = model.device_to_world().p_WDo;
   const SpidarGeometry g;
   HapticRuntime runtime(settings, GripPose::Rest(g.d));
   DemoFieldSettings field;
@@ -305,8 +305,8 @@ TEST(HapticRuntime, TicksAllocateNothingInContactAndAcrossARepublishForEitherToo
     SceneModel model;
     model.Load(kDemoSceneName, GripControl(SpidarGeometry{}).limits());
     RuntimeSettings settings;
-    settings.loop.world_scale = model.device_to_world().world_scale;
-    settings.loop.p_WDo = model.device_to_world().p_WDo;
+    settings.loop.X_WD.world_scale = model.device_to_world().world_scale;
+    settings.loop.X_WD.p_WDo = model.device_to_world().p_WDo;
     const SpidarGeometry g;
     HapticRuntime runtime(settings, GripPose::Rest(g.d));
     DemoFieldSettings field;
@@ -396,7 +396,7 @@ TEST(CentringSpringField, FeelsLikeTheDeviceFrameSpringsThroughXwd) {
   DemoFieldSettings demo;
   const double s = 2.5;
   const Eigen::Vector3d o(0.3, -0.2, 1.0);
-  CentringSpringField field(demo, s, o);
+  CentringSpringField field(demo, {s, o});
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0, 1, 1).normalized()).matrix();
   const Eigen::Vector3d p_D(0.05, -0.02, 0.03);
   haptics::ToolKinematics tool;

@@ -120,20 +120,20 @@ TEST(BuildHapticScene, StiffnessIsWhatTheGripFeelsWhateverTheWorldScale) {
 TEST(FitWorkspace, MapsTheScenesBoxIntoTheDeviceCubeCentredAndFillingTheFraction) {
   const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.05, -0.3, -0.3), Eigen::Vector3d(0.3, 0.3, 0.2));
   const auto map = FitWorkspace(box, 0.1, 0.8);
-  EXPECT_NEAR(map.world_scale, 0.6 / 0.16, 1e-12);
-  EXPECT_TRUE(map.p_WDo.isApprox(Eigen::Vector3d(0.125, 0.0, -0.05)));
+  EXPECT_NEAR(map.X_WD.world_scale, 0.6 / 0.16, 1e-12);
+  EXPECT_TRUE(map.X_WD.p_WDo.isApprox(Eigen::Vector3d(0.125, 0.0, -0.05)));
   // Every corner maps into the cube, and the largest side spans exactly 0.16 m of grip motion.
   for (int i = 0; i < 8; ++i) {
     const Eigen::Vector3d corner = box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(i));
-    const Eigen::Vector3d p_D = (corner - map.p_WDo) / map.world_scale;
+    const Eigen::Vector3d p_D = (corner - map.X_WD.p_WDo) / map.X_WD.world_scale;
     EXPECT_LE(p_D.cwiseAbs().maxCoeff(), 0.08 + 1e-12);
   }
-  EXPECT_NEAR((box.max().y() - box.min().y()) / map.world_scale, 0.16, 1e-12);
+  EXPECT_NEAR((box.max().y() - box.min().y()) / map.X_WD.world_scale, 0.16, 1e-12);
   // A 4 cm part is magnified: s < 1.
   const auto small = FitWorkspace(
       Eigen::AlignedBox3d(Eigen::Vector3d::Constant(0.0), Eigen::Vector3d::Constant(0.04)), 0.1,
       0.8);
-  EXPECT_NEAR(small.world_scale, 0.25, 1e-12);
+  EXPECT_NEAR(small.X_WD.world_scale, 0.25, 1e-12);
   EXPECT_THROW(FitWorkspace(Eigen::AlignedBox3d(), 0.1, 0.8), std::invalid_argument);
 }
 
@@ -147,19 +147,19 @@ TEST(BuildHapticScene, FitsThePlatformsKnownBoxUnlessTheOptionsGiveTheMap) {
   EXPECT_TRUE((b.min().array() <= lo.array() + 1e-9).all() && (b.min() - lo).norm() < 0.02);
   EXPECT_TRUE((b.max().array() >= hi.array() - 1e-9).all() && (b.max() - hi).norm() < 0.02);
   EXPECT_TRUE(fitted.map.scale_fitted && fitted.map.origin_fitted);
-  EXPECT_NEAR(fitted.map.world_scale, b.sizes().maxCoeff() / 0.16, 1e-12);
+  EXPECT_NEAR(fitted.map.X_WD.world_scale, b.sizes().maxCoeff() / 0.16, 1e-12);
   haptics::LoopSettings settings;
   fitted.ApplyTo(&settings);
-  EXPECT_EQ(settings.world_scale, fitted.map.world_scale);
-  EXPECT_EQ(settings.p_WDo, fitted.map.p_WDo);
+  EXPECT_EQ(settings.X_WD.world_scale, fitted.map.X_WD.world_scale);
+  EXPECT_EQ(settings.X_WD.p_WDo, fitted.map.X_WD.p_WDo);
 
   SceneHapticsOptions given;
   given.world_scale = 1.5;
   SceneHaptics half = BuildHapticScene(scene, given);
-  EXPECT_EQ(half.map.world_scale, 1.5);
+  EXPECT_EQ(half.map.X_WD.world_scale, 1.5);
   EXPECT_FALSE(half.map.scale_fitted);
   EXPECT_TRUE(half.map.origin_fitted);
-  EXPECT_EQ(half.map.p_WDo, fitted.map.p_WDo);
+  EXPECT_EQ(half.map.X_WD.p_WDo, fitted.map.X_WD.p_WDo);
 
   SceneHapticsOptions bad;
   bad.stiffness = -1;

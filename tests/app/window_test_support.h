@@ -33,7 +33,8 @@ inline void RunTicks(HapticRuntime* runtime, int ticks) {
 // A scene of the centring springs only, in device coordinates (X_WD = identity).
 inline std::unique_ptr<haptics::HapticScene> SpringScene(const DemoFieldSettings& field) {
   auto scene = std::make_unique<haptics::HapticScene>();
-  scene->Add(std::make_unique<CentringSpringField>(field, 1.0, Eigen::Vector3d::Zero()));
+  scene->Add(std::make_unique<CentringSpringField>(
+      field, haptics::DeviceToWorld{1.0, Eigen::Vector3d::Zero()}));
   return scene;
 }
 

@@ -5,54 +5,11 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <atomic>
 #include <cstddef>
 #include <cstdio>
 #include <random>
 
-// Counting allocator for the whole test program: every malloc (hence every operator new and
-// every Eigen heap allocation) is counted while g_count_allocations is set.
-namespace {
-std::atomic<bool> g_count_allocations{false};
-std::atomic<long> g_allocations{0};
-void Count() {
-  if (g_count_allocations.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-}
-}  // namespace
-
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void __libc_free(void*);
-void* malloc(std::size_t n) {
-  Count();
-  return __libc_malloc(n);
-}
-void* calloc(std::size_t n, std::size_t s) {
-  Count();
-  return __libc_calloc(n, s);
-}
-void* realloc(void* p, std::size_t n) {
-  Count();
-  return __libc_realloc(p, n);
-}
-void* memalign(std::size_t a, std::size_t n) {
-  Count();
-  return __libc_memalign(a, n);
-}
-void* aligned_alloc(std::size_t a, std::size_t n) {
-  Count();
-  return __libc_memalign(a, n);
-}
-int posix_memalign(void** p, std::size_t a, std::size_t n) {
-  Count();
-  *p = __libc_memalign(a, n);
-  return *p ? 0 : 12;  // ENOMEM
-}
-void free(void* p) { __libc_free(p); }
-}
+#include "support/malloc_counter.h"
 
 namespace spidarcad::fem {
 namespace {
@@ -281,17 +238,17 @@ TEST(ContactSolver, AllocatesNothingWhenContactsChangeAndSolve) {
   std::vector<double> target(48, -1e-4), forces(48, 0.0);
   Eigen::VectorXd u(3 * scene.compliance->output_nodes().size());
   // Sanity: the counter sees allocations.
-  g_allocations = 0;
-  g_count_allocations = true;
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  long allocations = 0;
   {
+    test_support::MallocCounter counter;
     std::vector<int> probe(100, 1);
     EXPECT_EQ(probe[99], 1);
+    allocations = counter.count();
   }
-  g_count_allocations = false;
-  ASSERT_GT(g_allocations.load(), 0);
+  ASSERT_GT(allocations, 0);
 
-  g_allocations = 0;
-  g_count_allocations = true;
+  test_support::MallocCounter counter;
   int ok = 0;
   for (int round = 0; round < 20; ++round) {
     for (int i = 0; i < 8; ++i)
@@ -302,8 +259,8 @@ TEST(ContactSolver, AllocatesNothingWhenContactsChangeAndSolve) {
     ok += solver.Solve(target.data(), forces.data());
     solver.Clear();
   }
-  g_count_allocations = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  allocations = counter.count();
+  EXPECT_EQ(allocations, 0);
   EXPECT_GT(ok, 100);
 }
 

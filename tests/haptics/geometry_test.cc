@@ -94,6 +94,45 @@ TEST(GripPose, FromFrameRoundTripsThroughRotationAndGrasp) {
   }
 }
 
+// Closed form: p̂1 = (cos θ/2 − sin θ/2, cos θ/2 + sin θ/2, 0)/√2 and p̂2 = (cos θ/2 + sin θ/2,
+// cos θ/2 − sin θ/2, 0)/√2, the poles ±θ/2 about the bisector (1, 1, 0)/√2 in the x-y plane.
+TEST(GripPoleDirections, MatchesTheClosedFormAndItsDerivative) {
+  for (int i = 0; i <= 20; ++i) {
+    const double theta = 0.1 + (kPi - 0.2) * i / 20;
+    const double c = std::cos(theta / 2), s = std::sin(theta / 2), r = 1 / std::sqrt(2.0);
+    const PoleDirections poles = GripPoleDirections(theta);
+    EXPECT_LT((poles.u_T[0] - r * Eigen::Vector3d(c - s, c + s, 0)).norm(), 1e-15) << theta;
+    EXPECT_LT((poles.u_T[1] - r * Eigen::Vector3d(c + s, c - s, 0)).norm(), 1e-15) << theta;
+    EXPECT_NEAR(poles.u_T[0].norm(), 1.0, 1e-15);
+    EXPECT_NEAR(std::acos(poles.u_T[0].dot(poles.u_T[1])), theta, 1e-12);
+    // Derivatives against central differences of the closed form.
+    const double h = 1e-6;
+    auto u = [&](double t, int k) {
+      const double ct = std::cos(t / 2), st = std::sin(t / 2);
+      return k == 0 ? Eigen::Vector3d(r * (ct - st), r * (ct + st), 0)
+                    : Eigen::Vector3d(r * (ct + st), r * (ct - st), 0);
+    };
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Vector3d fd = (u(theta + h, k) - u(theta - h, k)) / (2 * h);
+      EXPECT_LT((poles.du_T[k] - fd).norm(), 1e-9) << theta << " pole " << k;
+    }
+  }
+  // Rest: p̂1 = y, p̂2 = x.
+  const PoleDirections rest = GripPoleDirections(kPi / 2);
+  EXPECT_LT((rest.u_T[0] - Eigen::Vector3d::UnitY()).norm(), 1e-15);
+  EXPECT_LT((rest.u_T[1] - Eigen::Vector3d::UnitX()).norm(), 1e-15);
+}
+
+TEST(GripPoleDirections, GiveThePoleVectorsOfFromFrame) {
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, 2, -1).normalized()).matrix();
+  const double d = 0.04, theta = 1.2;
+  const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(0.01, 0, 0), R, theta, d);
+  const PoleDirections poles = GripPoleDirections(theta);
+  EXPECT_LT((pose.p1 - d * R * poles.u_T[0]).norm(), 1e-16);
+  EXPECT_LT((pose.p2 - d * R * poles.u_T[1]).norm(), 1e-16);
+  EXPECT_NEAR(pose.Grasp(), theta, 1e-14);
+}
+
 TEST(GripPose, PackedRoundTrips) {
   GripPose pose;
   pose.p0 = Eigen::Vector3d(1, 2, 3);

@@ -393,8 +393,8 @@ TEST(HapticLoop, PublishesTheLatestToolState) {
 
 TEST(HapticLoop, MapsTheToolIntoTheWorldWithScaleAndOffset) {
   LoopSettings settings = TestSettings();
-  settings.world_scale = 10.0;
-  settings.p_WDo = Eigen::Vector3d(1.0, 2.0, 3.0);
+  settings.X_WD.world_scale = 10.0;
+  settings.X_WD.p_WDo = Eigen::Vector3d(1.0, 2.0, 3.0);
   settings.force_scale = 0.5;
   settings.ramp_time = 0.0;
   Rig rig{SimulatedDeviceConfig::Ideal(), settings};

@@ -201,7 +201,7 @@ std::vector<Row> MeasureFe(long ticks) {
   auto scene = std::make_unique<haptics::HapticScene>();
   scene->Add(std::move(field));
   haptics::LoopSettings settings = BaseSettings();
-  settings.p_WDo = p_WDo;
+  settings.X_WD.p_WDo = p_WDo;
   const Eigen::Vector3d press_D = press_W - p_WDo;
   std::vector<int> k_of_tick;
   k_of_tick.reserve(ticks);

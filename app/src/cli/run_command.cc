@@ -305,23 +305,24 @@ void RunRun(const RunOptions& options) {
         throw InputError(options.scene + ": " + e.what());
       }
       if (options.world_scale < 0.0) throw InputError("--world-scale: must be > 0 (0: default)");
-      if (options.world_scale > 0.0) settings.world_scale = options.world_scale;
+      if (options.world_scale > 0.0) settings.X_WD.world_scale = options.world_scale;
       if (!options.world_origin.empty()) {
         if (options.world_origin.size() != 3) {
           throw InputError("--world-origin: expected x,y,z (m), got " +
                            std::to_string(options.world_origin.size()) + " numbers");
         }
-        settings.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
-                                         options.world_origin[2]);
+        settings.X_WD.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
+                                              options.world_origin[2]);
       }
       scene = std::make_unique<haptics::HapticScene>();
       assembly_field = assembly.get();
       scene->Add(std::move(assembly));
       scene_name = options.scene + " (assembly, " + std::to_string(loaded.parts.size()) + " parts)";
       fields_line = "fields: assembly (" + std::to_string(loaded.parts.size()) + " parts)";
-      map_line = "X_WD: p_W = " + FormatNumber(settings.world_scale) + " p_D + (" +
-                 FormatNumber(settings.p_WDo.x()) + ", " + FormatNumber(settings.p_WDo.y()) + ", " +
-                 FormatNumber(settings.p_WDo.z()) + ") m";
+      const Eigen::Vector3d& o = settings.X_WD.p_WDo;
+      map_line = "X_WD: p_W = " + FormatNumber(settings.X_WD.world_scale) + " p_D + (" +
+                 FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
+                 ") m";
     } else {
       SceneHapticsOptions haptic_options;
       if (options.tool == "proxy") {
@@ -372,8 +373,8 @@ void RunRun(const RunOptions& options) {
         fields_line += std::string(i ? "," : "") + " " + built.fields[i].kind + " '" +
                        built.fields[i].solid + "'";
       }
-      const Eigen::Vector3d& o = built.map.p_WDo;
-      map_line = "X_WD: p_W = " + FormatNumber(built.map.world_scale) + " p_D + (" +
+      const Eigen::Vector3d& o = built.map.X_WD.p_WDo;
+      map_line = "X_WD: p_W = " + FormatNumber(built.map.X_WD.world_scale) + " p_D + (" +
                  FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
                  ") m; scale " + (built.map.scale_fitted ? "fitted" : "given") + ", origin " +
                  (built.map.origin_fitted ? "fitted" : "given");

@@ -181,13 +181,6 @@ std::string DefaultSceneFor(const GuiOptions& options) {
   return kDemoSceneName;
 }
 
-// Box of `box_W` in the view frame D: p_D = (p_W − p_WDo) / s.
-Eigen::AlignedBox3d ToView(const Eigen::AlignedBox3d& box_W, const DeviceToWorld& x) {
-  if (box_W.isEmpty()) return box_W;
-  return Eigen::AlignedBox3d((box_W.min() - x.p_WDo) / x.world_scale,
-                             (box_W.max() - x.p_WDo) / x.world_scale);
-}
-
 // The box (in D) the camera fits: the selected solid's (selection) or every solid's, else the
 // device frame.
 Eigen::AlignedBox3d SubjectBox(const SceneModel& model, int selected, bool selection,
@@ -200,7 +193,7 @@ Eigen::AlignedBox3d SubjectBox(const SceneModel& model, int selected, bool selec
   }
   if (box.isEmpty() && selection) return SubjectBox(model, selected, false, view);
   if (box.isEmpty()) return view.FrameBox();
-  return ToView(box, model.device_to_world());
+  return model.device_to_world().BoxToDevice(box);
 }
 
 }  // namespace
@@ -1039,8 +1032,7 @@ bool AppWindow::CaptureScreenshot() {
 
 void AppWindow::MakeRuntime() {
   State& s = *s_;
-  s.runtime_settings.loop.world_scale = s.model.device_to_world().world_scale;
-  s.runtime_settings.loop.p_WDo = s.model.device_to_world().p_WDo;
+  s.runtime_settings.loop.X_WD = s.model.device_to_world();
   s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
   if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
     std::cerr << "spidarcad: " << s.runtime->link_at_start()
@@ -1066,14 +1058,13 @@ void AppWindow::MakeModes() {
   s.model_mode = nullptr;
   s.assembly_mode = nullptr;
   vtkRenderer* renderer = s.view->renderer();
-  const double scale = s.runtime_settings.loop.world_scale;
-  const Eigen::Vector3d p_WDo = s.runtime_settings.loop.p_WDo;
+  const DeviceToWorld& X_WD = s.runtime_settings.loop.X_WD;
   auto model_mode = std::make_unique<ModelMode>(renderer, &s.springs, s.geometry->d);
-  model_mode->SetWorldToView(scale, p_WDo);
+  model_mode->SetWorldToView(X_WD);
   auto fe = std::make_unique<FeWindowMode>(renderer, s.jobs.get());
-  fe->fe().SetWorldToView(scale, p_WDo);
+  fe->fe().SetWorldToView(X_WD);
   auto sculpt = std::make_unique<SculptWindowMode>(renderer, s.jobs.get());
-  sculpt->sculpt().SetWorldToView(scale, p_WDo);
+  sculpt->sculpt().SetWorldToView(X_WD);
   // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
   // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
   auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
@@ -1085,7 +1076,7 @@ void AppWindow::MakeModes() {
       assembly_error = e.what();
     }
   }
-  assembly->assembly().SetWorldToView(scale, p_WDo);
+  assembly->assembly().SetWorldToView(X_WD);
   s.model_mode = model_mode.get();
   s.assembly_mode = assembly.get();
   s.modes.push_back(std::move(model_mode));

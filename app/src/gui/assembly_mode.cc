@@ -251,8 +251,8 @@ void AssemblyMode::OnFrame() {
 Eigen::Matrix4d AssemblyMode::ViewMatrix(const Eigen::Isometry3d& X_WP) const {
   // X_DW: p_D = (p_W − p_WDo) / s.
   Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
-  M.topLeftCorner<3, 3>() = X_WP.linear() / world_scale_;
-  M.topRightCorner<3, 1>() = (X_WP.translation() - p_WDo_) / world_scale_;
+  M.topLeftCorner<3, 3>() = X_WP.linear() / X_WD_.world_scale;
+  M.topRightCorner<3, 1>() = X_WD_.PointToDevice(X_WP.translation());
   return M;
 }
 
@@ -300,10 +300,9 @@ void AssemblyMode::UpdateGhost() {
   g->VisibilityOn();
 }
 
-void AssemblyMode::SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo) {
-  if (!(world_scale > 0.0) || !std::isfinite(world_scale)) return;
-  world_scale_ = world_scale;
-  p_WDo_ = p_WDo;
+void AssemblyMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
+  if (!(X_WD.world_scale > 0.0) || !std::isfinite(X_WD.world_scale)) return;
+  X_WD_ = X_WD;
   if (state_.count == size() && size() > 0) Show(state_);
 }
 

@@ -24,6 +24,7 @@
 
 #include "scene/assembly_scene.h"
 #include "spidarcad/haptics/assembly_field.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/modeling/scene_io.h"
 
 class vtkRenderer;
@@ -74,8 +75,8 @@ class AssemblyMode {
   // of the carried part at its nearest seat. `state.count` must be size() (else ignored).
   void Show(const haptics::AssemblyState& state);
 
-  // Places the actors in the view frame: p_D = (p_W − p_WDo) / world_scale (world_scale > 0).
-  void SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo);
+  // Places the actors in the view frame: p_D = (p_W − p_WDo) / s (s > 0).
+  void SetWorldToView(const haptics::DeviceToWorld& X_WD);
   // ImGui widgets of the panel section (no Begin/End): the parts and their states, how many are
   // seated, what is carried, and "Reset parts" (which calls Reset).
   void DrawPanel();
@@ -117,8 +118,7 @@ class AssemblyMode {
   std::vector<Part> parts_;
   haptics::AssemblyState state_;
   bool field_changed_ = false;
-  double world_scale_ = 1.0;
-  Eigen::Vector3d p_WDo_ = Eigen::Vector3d::Zero();
+  haptics::DeviceToWorld X_WD_;
   std::string message_;
 };
 

@@ -78,15 +78,15 @@ FeMode::~FeMode() {
   }
 }
 
-void FeMode::SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo) {
-  if (!(world_scale > 0.0)) return;
-  const bool rescaled = world_scale != world_scale_;
-  world_scale_ = world_scale;
-  p_WDo_ = p_WDo;
+void FeMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
+  const double s = X_WD.world_scale;
+  if (!(s > 0.0)) return;
+  const bool rescaled = s != X_WD_.world_scale;
+  X_WD_ = X_WD;
   if (rescaled && active_ && model_) QueueField();  // the felt force scale depends on it
   for (vtkActor* a : {actor_.Get(), sphere_actor_.Get()}) {
-    a->SetScale(1.0 / world_scale);
-    a->SetPosition(-p_WDo.x() / world_scale, -p_WDo.y() / world_scale, -p_WDo.z() / world_scale);
+    a->SetScale(1.0 / s);
+    a->SetPosition(-X_WD.p_WDo.x() / s, -X_WD.p_WDo.y() / s, -X_WD.p_WDo.z() / s);
   }
 }
 
@@ -190,7 +190,7 @@ Job* FeMode::RunningJob() const {
 
 void FeMode::QueueField() {
   if (!model_) return;
-  FeTouchSettings ts = FieldTouchSettings(touch_settings_, world_scale_);
+  FeTouchSettings ts = FieldTouchSettings(touch_settings_, X_WD_.world_scale);
   if (!(ts.tool_radius > 0.0)) ts.tool_radius = model_->mean_edge_length();
   sphere_source_->SetRadius(ts.tool_radius);
   pending_field_ = std::make_unique<FeTouchField>(model_, ts, channel_);
@@ -383,7 +383,7 @@ void FeMode::DrawPanel() {
   if (model_) {
     const Eigen::Vector3d& f = figures_.f_tool_W;
     ImGui::Text("reaction on tool: %.3f N  (%.3f, %.3f, %.3f)", f.norm(), f.x(), f.y(), f.z());
-    const double felt_scale = FieldTouchSettings(touch_settings_, world_scale_).force_scale;
+    const double felt_scale = FieldTouchSettings(touch_settings_, X_WD_.world_scale).force_scale;
     ImGui::Text("felt: %.3f N (scale %.1e, max %.1f N)",
                 std::min(touch_settings_.max_force, felt_scale * f.norm()), felt_scale,
                 touch_settings_.max_force);

@@ -22,6 +22,7 @@
 #include "scene/fe_model.h"
 #include "scene/fe_touch_field.h"
 #include "spidarcad/fem/mesh.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 
@@ -74,9 +75,8 @@ class FeMode {
   // settings, activation), else nullptr. Inactive: nullptr.
   std::unique_ptr<haptics::ForceField> TakeField();
 
-  // Places the actors in the view frame: p_D = (p_W − p_WDo) / world_scale (world_scale > 0),
-  // as SculptMode does.
-  void SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo);
+  // Places the actors in the view frame: p_D = (p_W − p_WDo) / s (s > 0), as SculptMode does.
+  void SetWorldToView(const haptics::DeviceToWorld& X_WD);
   // The part to work on (tetrahedra in W, m); drops the current model (precompute again).
   void SetMesh(fem::TetMesh mesh, std::string name);
   // Meshes assets/scenes/platform.json at `resolution` m (TetGen) in a Job; its finisher calls
@@ -134,8 +134,7 @@ class FeMode {
   bool auto_range_ = true;
   float range_mpa_ = 100.0f;
   double magnify_shown_ = -1.0;
-  double world_scale_ = 1.0;
-  Eigen::Vector3d p_WDo_ = Eigen::Vector3d::Zero();
+  haptics::DeviceToWorld X_WD_;
   // VTK.
   vtkSmartPointer<vtkPolyData> poly_;
   vtkSmartPointer<vtkDoubleArray> scalars_;

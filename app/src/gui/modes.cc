@@ -134,13 +134,13 @@ void ModelMode::Leave() {
   ShowFeature({});
 }
 
-void ModelMode::SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo) {
-  if (!(world_scale > 0.0)) return;
-  world_scale_ = world_scale;
-  p_WDo_ = p_WDo;
-  const double inv = 1.0 / world_scale;
+void ModelMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
+  if (!(X_WD.world_scale > 0.0)) return;
+  X_WD_ = X_WD;
+  const double inv = 1.0 / X_WD.world_scale;
+  const Eigen::Vector3d& o = X_WD.p_WDo;
   highlight_actor_->SetScale(inv, inv, inv);
-  highlight_actor_->SetPosition(-inv * p_WDo.x(), -inv * p_WDo.y(), -inv * p_WDo.z());
+  highlight_actor_->SetPosition(-inv * o.x(), -inv * o.y(), -inv * o.z());
 }
 
 void ModelMode::UpdateSnapProbe(SceneModel& model) {
@@ -237,7 +237,7 @@ bool ModelMode::SelectTouched(const haptics::ToolState& tool, ModeContext& conte
   // The six-DOF tool touches with its poles, up to d from the grip centre.
   const bool shell =
       context.workbench != nullptr && context.workbench->contact.tool == ToolModel::kShell;
-  const double margin = (kTouchMargin + (shell ? pole_length_ : 0.0)) * world_scale_;
+  const double margin = (kTouchMargin + (shell ? pole_length_ : 0.0)) * X_WD_.world_scale;
   const int index = TouchedObject(model, points, margin);
   if (index < 0) {
     touch_message_ = std::string(how) + ": the grip touches no solid";

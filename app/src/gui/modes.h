@@ -82,8 +82,8 @@ class ModelMode final : public Mode {
 
   // False in an assembly scene, whose solids are the parts (felt through the assembly).
   void SetFelt(bool felt) { felt_ = felt; }
-  // Places the highlight in the view frame: p_D = (p_W − p_WDo) / world_scale.
-  void SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo);
+  // Places the highlight in the view frame: p_D = (p_W − p_WDo) / s.
+  void SetWorldToView(const haptics::DeviceToWorld& X_WD);
   // Selects in the tree the solid the tool touches (TouchedObject at the tool point and the
   // latest contact markers); `how` names the trigger for the status line. True when one was.
   bool SelectTouched(const haptics::ToolState& tool, ModeContext& context, const char* how);
@@ -117,8 +117,7 @@ class ModelMode final : public Mode {
   haptics::SnapTarget shown_;
   haptics::SnapTarget selected_feature_;
   std::string touch_message_;
-  double world_scale_ = 1.0;
-  Eigen::Vector3d p_WDo_ = Eigen::Vector3d::Zero();
+  haptics::DeviceToWorld X_WD_;
   vtkSmartPointer<vtkPolyData> highlight_poly_;
   vtkSmartPointer<vtkActor> highlight_actor_;
 };

@@ -46,7 +46,7 @@ int SceneView::ShowContacts(const std::vector<ContactMarker>& markers, double no
   const double inv = 1.0 / x_wd.world_scale;
   int shown = 0;
   for (const ContactMarker& m : markers) {
-    const Eigen::Vector3d p_D = inv * (m.p_W - x_wd.p_WDo);
+    const Eigen::Vector3d p_D = x_wd.PointToDevice(m.p_W);
     const bool visible = m.contact && m.time >= 0.0 && now - m.time <= kMarkerMaxAge &&
                          p_D.allFinite() && inv * (m.p_W - m.tool_W).norm() > kMarkerMinOffset;
     if (!visible) continue;

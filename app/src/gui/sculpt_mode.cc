@@ -77,7 +77,7 @@ SculptMode::SculptMode(vtkRenderer* renderer, JobQueue* jobs)
     renderer_->AddActor(v.actor);
     renderer_->AddActor(v.marker);
   }
-  SetWorldToView(1.0, Eigen::Vector3d::Zero());
+  SetWorldToView(haptics::DeviceToWorld{});
 }
 
 SculptMode::~SculptMode() {
@@ -110,13 +110,13 @@ std::unique_ptr<haptics::ForceField> SculptMode::TakeField() {
   return session_.MakeField();
 }
 
-void SculptMode::SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo) {
-  if (!(world_scale > 0.0)) return;
-  world_scale_ = world_scale;
-  p_WDo_ = p_WDo;
-  const double inv = 1.0 / world_scale_;
+void SculptMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
+  if (!(X_WD.world_scale > 0.0)) return;
+  X_WD_ = X_WD;
+  const double inv = 1.0 / X_WD_.world_scale;
+  const Eigen::Vector3d& o = X_WD.p_WDo;
   vtk_->actor->SetScale(inv, inv, inv);
-  vtk_->actor->SetPosition(-inv * p_WDo.x(), -inv * p_WDo.y(), -inv * p_WDo.z());
+  vtk_->actor->SetPosition(-inv * o.x(), -inv * o.y(), -inv * o.z());
 }
 
 void SculptMode::SetScenePath(const std::string& path) {
@@ -163,11 +163,11 @@ void SculptMode::Rebuild() {
 
 void SculptMode::UpdateMarker(const Eigen::Vector3d& p_W, SculptFrameEvent event) {
   Vtk& v = *vtk_;
-  const double inv = 1.0 / world_scale_;
+  const double inv = 1.0 / X_WD_.world_scale;
   const double r = session_.settings().tool.radius * inv;
   const Eigen::Vector3d p_marker =
       session_.stroke_active() ? Eigen::Vector3d(p_W + session_.snap_offset()) : p_W;
-  const Eigen::Vector3d c = (p_marker - p_WDo_) * inv;
+  const Eigen::Vector3d c = (p_marker - X_WD_.p_WDo) * inv;
   vtkNew<vtkMatrix4x4> m;
   m->Identity();
   for (int k = 0; k < 3; ++k) {

@@ -18,6 +18,7 @@
 #include <string>
 
 #include "scene/sculpt_field.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/haptic_loop.h"
 
 class vtkRenderer;
@@ -47,8 +48,8 @@ class SculptMode {
   // The sculpt tool field, once after each activation; else nullptr.
   std::unique_ptr<haptics::ForceField> TakeField();
 
-  // Places the actors in the view frame: p_D = (p_W − p_WDo) / world_scale (world_scale > 0).
-  void SetWorldToView(double world_scale, const Eigen::Vector3d& p_WDo);
+  // Places the actors in the view frame: p_D = (p_W − p_WDo) / s (s > 0).
+  void SetWorldToView(const haptics::DeviceToWorld& X_WD);
   // Scene file whose first solid becomes the clay (default assets/scenes/clay.json).
   void SetScenePath(const std::string& path);
   // Uses a given mesh as the clay instead (throws std::invalid_argument when it is not closed).
@@ -70,8 +71,7 @@ class SculptMode {
   bool active_ = false;
   bool field_pending_ = false;
   std::uint64_t shown_revision_ = ~std::uint64_t{0};
-  double world_scale_ = 1.0;
-  Eigen::Vector3d p_WDo_ = Eigen::Vector3d::Zero();
+  haptics::DeviceToWorld X_WD_;
   std::string scene_path_;
   std::string export_path_ = "sculpt.stl";
   std::string message_;

@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "spidarcad/haptics/geometry.h"
+
 namespace spidarcad::app {
 namespace {
 
@@ -77,10 +79,7 @@ FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings
 FeTouchField::~FeTouchField() = default;
 
 Eigen::Vector3d FeTouchField::PoleTip(const haptics::ToolKinematics& tool, int i) const {
-  const double h = 0.5 * tool.grasp;
-  const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
-  const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
-  const Eigen::Vector3d p_hat = std::cos(h) * b_T + (i == 0 ? -1.0 : 1.0) * std::sin(h) * a_T;
+  const Eigen::Vector3d& p_hat = haptics::GripPoleDirections(tool.grasp).u_T[i == 0 ? 0 : 1];
   return tool.p_WT + settings_.pole_length * (tool.R_WT * p_hat);
 }
 
@@ -299,15 +298,10 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
     if (settings_.grasp) {
       w.m_T_W = m;
       // g = −Σ F_i · ∂tip_i/∂θ, ∂p̂_i/∂θ = (−sin(θ/2) b ∓ cos(θ/2) a)/2.
-      const double h = 0.5 * tool.grasp;
-      const Eigen::Vector3d b_T = Eigen::Vector3d(1, 1, 0) / std::sqrt(2.0);
-      const Eigen::Vector3d a_T = Eigen::Vector3d(1, -1, 0) / std::sqrt(2.0);
+      const haptics::PoleDirections poles = haptics::GripPoleDirections(tool.grasp);
       double g = 0.0;
-      for (int i = 0; i < 2; ++i) {
-        const Eigen::Vector3d dp_T =
-            0.5 * (-std::sin(h) * b_T + (i == 0 ? -1.0 : 1.0) * std::cos(h) * a_T);
-        g -= f_sphere[i].dot(settings_.pole_length * (tool.R_WT * dp_T));
-      }
+      for (int i = 0; i < 2; ++i)
+        g -= f_sphere[i].dot(settings_.pole_length * (tool.R_WT * poles.du_T[i]));
       w.g = g;
     }
   }

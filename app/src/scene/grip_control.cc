@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "spidarcad/haptics/rotation.h"
+
 namespace spidarcad::app {
 
 bool IntersectRayPlane(const Ray& ray, const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
@@ -93,7 +95,7 @@ void GripControl::Translate(const Ray& ray) {
 void GripControl::Rotate(const Eigen::Vector3d& axis_D, double angle) {
   const double n = axis_D.norm();
   if (!(n > 0.0) || !std::isfinite(angle)) return;
-  SetPose(p0_, Eigen::AngleAxisd(angle, axis_D / n).toRotationMatrix() * R_, grasp_);
+  SetPose(p0_, haptics::IntegrateRotation(R_, axis_D / n, angle), grasp_);
 }
 
 void GripControl::AdjustGrasp(double delta) {

@@ -28,19 +28,19 @@ void RequirePositive(double value, const char* name) {
 }
 }  // namespace
 
-CentringSpringField::CentringSpringField(const DemoFieldSettings& field, double world_scale,
-                                         const Eigen::Vector3d& p_WDo)
-    : field_(field), world_scale_(world_scale), p_WDo_(p_WDo) {
-  if (!(world_scale > 0.0) || !std::isfinite(world_scale)) {
+CentringSpringField::CentringSpringField(const DemoFieldSettings& field,
+                                         const haptics::DeviceToWorld& X_WD)
+    : field_(field), X_WD_(X_WD) {
+  if (!(X_WD.world_scale > 0.0) || !std::isfinite(X_WD.world_scale)) {
     throw std::invalid_argument("CentringSpringField: world_scale must be > 0, got " +
-                                std::to_string(world_scale));
+                                std::to_string(X_WD.world_scale));
   }
 }
 
 haptics::ToolWrench CentringSpringField::Evaluate(const haptics::ToolKinematics& tool) noexcept {
   haptics::ToolWrench w;
   if (!field_.enabled) return w;
-  w.f_T_W = -field_.k_translation * (tool.p_WT - p_WDo_) / world_scale_;
+  w.f_T_W = -field_.k_translation * (tool.p_WT - X_WD_.p_WDo) / X_WD_.world_scale;
   const Eigen::AngleAxisd aa(tool.R_WT);
   w.m_T_W = -field_.k_rotation * aa.angle() * aa.axis();
   w.g = 2.0 * field_.k_grasp * (tool.grasp - kHalfPi);

@@ -33,6 +33,7 @@
 #include <utility>
 
 #include "scene/device_session.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/point_shell_field.h"
@@ -46,16 +47,14 @@ namespace spidarcad::app {
 // m_W = −k_r φ u, g = 2 k_g (θ − π/2), so that the force felt in D is −k p_D.
 class CentringSpringField final : public haptics::ForceField {
  public:
-  // world_scale s > 0 and p_WDo of the loop's X_WD. Throws std::invalid_argument for s <= 0.
-  CentringSpringField(const DemoFieldSettings& field, double world_scale,
-                      const Eigen::Vector3d& p_WDo);
+  // For the loop's X_WD (scale s > 0). Throws std::invalid_argument for s <= 0 or not finite.
+  CentringSpringField(const DemoFieldSettings& field, const haptics::DeviceToWorld& X_WD);
   haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override;
   const char* name() const noexcept override { return "centring_springs"; }
 
  private:
   DemoFieldSettings field_;
-  double world_scale_;
-  Eigen::Vector3d p_WDo_;
+  haptics::DeviceToWorld X_WD_;
 };
 
 // What a contact field shows in the view: the god-object (proxy) or the virtual tool's centre

@@ -88,16 +88,13 @@ WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side,
   WorkspaceMap map;
   map.bounds_W = bounds_W;
   const double side = std::max(bounds_W.sizes().maxCoeff(), 1e-6);
-  map.world_scale = side / (2.0 * half_side * fraction);
-  map.p_WDo = bounds_W.center();
+  map.X_WD.world_scale = side / (2.0 * half_side * fraction);
+  map.X_WD.p_WDo = bounds_W.center();
   map.scale_fitted = map.origin_fitted = true;
   return map;
 }
 
-void SceneHaptics::ApplyTo(haptics::LoopSettings* settings) const {
-  settings->world_scale = map.world_scale;
-  settings->p_WDo = map.p_WDo;
-}
+void SceneHaptics::ApplyTo(haptics::LoopSettings* settings) const { settings->X_WD = map.X_WD; }
 
 void SolidFields::MoveInto(haptics::HapticScene* scene) {
   for (auto& proxy : proxies) scene->Add(std::move(proxy));
@@ -205,18 +202,18 @@ SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOp
     out.map.scale_fitted = out.map.origin_fitted = true;  // nothing bounded: identity
   }
   if (options.world_scale) {
-    out.map.world_scale = *options.world_scale;
+    out.map.X_WD.world_scale = *options.world_scale;
     out.map.scale_fitted = false;
   }
   if (options.p_WDo) {
-    out.map.p_WDo = *options.p_WDo;
+    out.map.X_WD.p_WDo = *options.p_WDo;
     out.map.origin_fitted = false;
   }
 
   std::optional<SnapInput> snap;
   if (scene.snap) snap = SnapInput{*scene.snap, ExtractSnapFeatures(scene, options.snap_tolerance)};
   SolidFields fields =
-      BuildSolidFields(solids, options, out.map.world_scale, snap ? &*snap : nullptr);
+      BuildSolidFields(solids, options, out.map.X_WD.world_scale, snap ? &*snap : nullptr);
   out.scene = std::make_unique<haptics::HapticScene>();
   out.fields = fields.fields;
   out.snap = fields.snap_counts;

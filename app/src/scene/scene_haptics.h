@@ -13,7 +13,7 @@
 // scene's surface (runtime/snap_features.h), pulls the grip centre toward the feature nearest
 // it; radii in W, the force as felt. No field is added when no feature survives.
 //
-// Device workspace to scene, X_WD (haptics::LoopSettings): p_W = s·p_D + p_WDo, no rotation.
+// Device workspace to scene, X_WD (haptics::DeviceToWorld): p_W = s·p_D + p_WDo, no rotation.
 // Fit (when the options give no scale or origin): every solid's box is found with
 // modeling::FindBounds (interval bounds, search box ±10 m; solids that reach it, such as a bare
 // half-space, are unbounded and left out of the fit); the union box B of the bounded solids is
@@ -39,6 +39,7 @@
 #include <vector>
 
 #include "scene/snap_features.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/point_shell_field.h"
@@ -91,10 +92,9 @@ struct SceneHapticsOptions {
   void Validate() const;
 };
 
-// The device-to-scene map chosen for a scene.
+// The device-to-scene map chosen for a scene, and where it came from.
 struct WorkspaceMap {
-  double world_scale = 1.0;                         // s: world metres per grip metre
-  Eigen::Vector3d p_WDo = Eigen::Vector3d::Zero();  // world position of the device origin, m
+  haptics::DeviceToWorld X_WD;   // s (world metres per grip metre) and p_WDo (m)
   Eigen::AlignedBox3d bounds_W;  // union box of the bounded solids (may be empty)
   bool scale_fitted = false;     // s came from the fit
   bool origin_fitted = false;    // p_WDo came from the fit
@@ -123,7 +123,7 @@ struct SceneHaptics {
   std::vector<FieldInfo> fields;
   // The snap features found (all zero when the scene has no "snap" or none survived).
   SnapFeatureCounts snap;
-  // Copies map.world_scale and map.p_WDo into `settings` (the loop that renders the scene).
+  // Copies map.X_WD into `settings` (the loop that renders the scene).
   void ApplyTo(haptics::LoopSettings* settings) const;
 };
 

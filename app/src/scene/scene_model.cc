@@ -472,7 +472,7 @@ std::unique_ptr<haptics::HapticScene> SceneModel::BuildHapticScene(
   contacts_ = std::move(next);
   if (built.snap) scene->Add(std::move(built.snap));
   if (field.enabled) {
-    scene->Add(std::make_unique<CentringSpringField>(field, s, x_wd_.p_WDo));
+    scene->Add(std::make_unique<CentringSpringField>(field, x_wd_));
   }
   return scene;
 }

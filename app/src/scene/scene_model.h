@@ -29,6 +29,7 @@
 #include "scene/device_session.h"
 #include "scene/scene_fields.h"
 #include "scene/scene_haptics.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
@@ -44,11 +45,8 @@ inline constexpr const char* kNoSceneName = "none";
 // Text of the built-in demo scene (spidarcad-scene JSON, version 1).
 const char* DemoSceneJson();
 
-// X_WD of the loop: p_W = world_scale · p_D + p_WDo.
-struct DeviceToWorld {
-  double world_scale = 1.0;
-  Eigen::Vector3d p_WDo = Eigen::Vector3d::Zero();
-};
+// X_WD of the loop: p_W = world_scale · p_D + p_WDo (haptics/device_to_world.h).
+using haptics::DeviceToWorld;
 
 // Places `bounds_W` (the scene's solids, m) in reach of the grip: the scale is the smallest
 // s >= 1 for which the box fits 80 % of the grip's travel across x and y and the lower part of

@@ -50,6 +50,7 @@
 #include <thread>
 #include <vector>
 
+#include "spidarcad/fem/bordered_cholesky.h"
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/static_solver.h"
 
@@ -266,9 +267,10 @@ enum class CachedContactStatus {
 // max_contacts; Add, Remove, Refresh, Solve and OutputDisplacement never allocate, lock or
 // throw. Each contact pins the column it reads, so the worker never evicts it.
 //
-// The Cholesky factor L (lower, 3k by 3k, slot order) of the contact block is bordered by one
-// 3-row block on Add (O(k²)); Remove and Refresh re-border the slots from the first changed one
-// (O((k − s)·k²) for slot s). The system solved is Ĝ_cc f = d − u0_c (f: forces ON the body).
+// The Cholesky factor L (lower, 3k by 3k, slot order; a BorderedCholesky) of the contact block
+// is bordered by one 3-row block on Add (O(k²)); Remove and Refresh re-border the slots from
+// the first changed one (O((k − s)·k²) for slot s). The system solved is Ĝ_cc f = d − u0_c (f:
+// forces ON the body).
 class CachedContactSolver {
  public:
   // Solver for up to max_contacts (>= 1) nodes on `cache` (which must outlive it).
@@ -330,8 +332,7 @@ class CachedContactSolver {
   ColumnCache* cache_;
   int max_contacts_;
   int k_ = 0;
-  using FactorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  FactorMatrix l_;
+  BorderedCholesky chol_;  // factor of Ĝ_cc, 3·max square
   Eigen::VectorXd work_;
   // SolveNormal scratch: B = Lᵀ N (3k by k, column s contiguous) and the Cholesky factor of BᵀB.
   Eigen::MatrixXd normal_b_, normal_a_;

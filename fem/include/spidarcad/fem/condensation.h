@@ -18,6 +18,7 @@
 #include <functional>
 #include <vector>
 
+#include "spidarcad/fem/bordered_cholesky.h"
 #include "spidarcad/fem/static_solver.h"
 
 namespace spidarcad::fem {
@@ -90,9 +91,9 @@ enum class ContactStatus {
 // Real-time contact solve on a Compliance. All buffers are sized at construction for
 // max_contacts; Add, Remove, Solve and the accessors never allocate, lock or throw.
 //
-// The Cholesky factor L of G_cc (lower, 3k by 3k, contacts in slot order) is updated
-// incrementally: Add borders it with one 3-column block (O(k²)); Remove deletes a block and
-// restores the trailing part with three rank-one updates (O(k²)).
+// The Cholesky factor L of G_cc (lower, 3k by 3k, contacts in slot order; a BorderedCholesky)
+// is updated incrementally: Add borders it with one 3-row block (O(k²)); Remove deletes a block
+// and restores the trailing part with three rank-one updates (O(k²)).
 class ContactSolver {
  public:
   // Solver for up to max_contacts simultaneous contact nodes (>= 1). The compliance must
@@ -121,9 +122,9 @@ class ContactSolver {
   void OutputDisplacement(const double* forces, Eigen::VectorXd* u_out) const;
 
   // Row-major dense matrix of the factor (rows are contiguous for both triangular sweeps).
-  using FactorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using FactorMatrix = BorderedCholesky::FactorMatrix;
   // Current factor: the lower triangle of the top-left 3k by 3k block.
-  const FactorMatrix& factor() const { return l_; }
+  const FactorMatrix& factor() const { return chol_.factor(); }
   // The dense block G_cc (3k by 3k) of the current contacts, slot order (allocates; not RT).
   Eigen::MatrixXd ContactBlock() const;
 
@@ -131,7 +132,7 @@ class ContactSolver {
   const Compliance& c_;
   int max_contacts_;
   int k_ = 0;
-  FactorMatrix l_;  // 3·max by 3·max, lower triangle used
+  BorderedCholesky chol_;  // factor of G_cc, 3·max square
   Eigen::VectorXd work_;
   std::vector<int> slots_;
   std::vector<int> slot_of_;

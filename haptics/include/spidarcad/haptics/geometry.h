@@ -46,6 +46,21 @@ int StringEnd(int i);
 // δ_i of the paper's Eq. 13: +1 for the strings of pole 1, -1 for those of pole 2.
 int StringDelta(int i);
 
+// The grip's pole frame at grasp angle θ (rad, π/2 at rest): the unit directions in T of the
+// poles and their rates, written once for FromFrame, the grasp and assembly fields, the FE
+// two-point grasp and calibration:
+//   p̂1(θ) = cos(θ/2)·b − sin(θ/2)·a,   p̂2(θ) = cos(θ/2)·b + sin(θ/2)·a,
+//   dp̂1/dθ = −(sin(θ/2)·b + cos(θ/2)·a)/2,   dp̂2/dθ = (−sin(θ/2)·b + cos(θ/2)·a)/2,
+// with b = (x + y)/√2 (the bisector) and a = (x − y)/√2 in T, so p̂1 = y and p̂2 = x at θ = π/2.
+// The pole vectors are p_i = d·R_DT·p̂_i in D (GripPose::FromFrame); a pole tip in W is
+// p_WT + d·R_WT·p̂_i.
+struct PoleDirections {
+  std::array<Eigen::Vector3d, 2> u_T;   // p̂1, p̂2: unit, in T
+  std::array<Eigen::Vector3d, 2> du_T;  // dp̂1/dθ, dp̂2/dθ: in T, per rad
+};
+// The pole frame at grasp angle θ (rad); see PoleDirections.
+PoleDirections GripPoleDirections(double grasp);
+
 // Pose of the cross grip in D: centre p0 and pole vectors p1, p2 with |p1| = |p2| = d.
 struct GripPose {
   Eigen::Vector3d p0 = Eigen::Vector3d::Zero();

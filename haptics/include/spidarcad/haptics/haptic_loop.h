@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "spidarcad/haptics/device.h"
+#include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -81,10 +82,11 @@ constexpr bool IsZeroForceEvent(std::uint32_t events) {
 
 // Settings of the loop. Units SI.
 struct LoopSettings {
-  // X_WD: p_W = world_scale · p_D + p_WDo (no rotation). A world force f_W is displayed as
-  // force_scale · f_W in D, moments likewise; the grasp torque as is.
-  double world_scale = 1.0;
-  Eigen::Vector3d p_WDo = Eigen::Vector3d::Zero();  // world position of the device origin, m
+  // X_WD (device_to_world.h): the grip's pose and velocity in D reach the fields in W as
+  // p_WT = s·p0 + p_WDo, v_WT = s·v_D, R_WT = R_DT, ω_WT = ω_D.
+  DeviceToWorld X_WD;
+  // A world force f_W is displayed as force_scale · f_W in D, moments likewise; the grasp torque
+  // as is.
   double force_scale = 1.0;
   // Cut-off of the first-order low-pass on finite-difference velocities, Hz.
   double velocity_cutoff = 100.0;
