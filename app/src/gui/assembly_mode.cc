@@ -388,7 +388,7 @@ void AssemblyMode::DrawPanel() {
 }
 
 std::string FormatAssemblySummary(const AssemblyMode& mode) {
-  // The text is runtime/assembly_scene.h's (shared with `spidarcad run`).
+  // The text is scene/assembly_scene.h's (shared with `spidarcad run`).
   std::vector<std::string> names;
   std::vector<bool> fixed;
   for (int i = 0; i < mode.size(); ++i) {

@@ -1,7 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // Assembly mode (issue 5): the window's view of an assembly scene (a scene file with `parts`,
 // e.g. assets/scenes/assembly.json). The logic is haptics::AssemblyField (built once by
-// BuildAssemblyField, runtime/assembly_scene.h, on the main thread, never on the 1 kHz one); the
+// BuildAssemblyField, scene/assembly_scene.h, on the main thread, never on the 1 kHz one); the
 // window keeps it in a shared_ptr and puts a SharedField to it into every HapticScene it
 // publishes. This class only draws: one actor per part, its surface meshed once per solid in the
 // part's own frame P (MeshSurface), placed each frame at the pose X_WP the field published last
@@ -123,7 +123,7 @@ class AssemblyMode {
 };
 
 // One line for stdout, e.g. "assembly: 1 of 5 parts seated (right_arm), carried: none\n", of the
-// last shown state (the text of FormatAssemblySummary in runtime/assembly_scene.h, as `run`).
+// last shown state (the text of FormatAssemblySummary in scene/assembly_scene.h, as `run`).
 std::string FormatAssemblySummary(const AssemblyMode& mode);
 
 // Reads the scene file `source` (not "demo" or "none") and returns true when it has parts,

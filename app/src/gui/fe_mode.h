@@ -5,7 +5,7 @@
 // surface is drawn coloured by von Mises stress with a legend (MPa), the displacement
 // magnified by a slider.
 //
-// The logic lives in runtime/fe_model.h and runtime/fe_touch_field.h (no VTK, no ImGui, tested
+// The logic lives in scene/fe_model.h and scene/fe_touch_field.h (no VTK, no ImGui, tested
 // headless in tests/app/fe_mode_test.cc); this class is the thin VTK/ImGui layer. Main thread
 // only. The haptic thread is the single producer of the column focus (FeTouchField::Evaluate).
 #pragma once

@@ -19,7 +19,7 @@ struct GuiOptions {
   int height = 800;
   std::string screenshot;  // when set: render, write this PNG and exit
   int frames = 0;          // when > 0: exit after this many frames
-  // --device: simulated, ideal, board-sim or usb (RuntimeDevice, gui/haptic_runtime.h).
+  // --device: simulated, ideal, board-sim or usb (RuntimeDevice, scene/haptic_runtime.h).
   std::string device = "simulated";
   // --seed: the simulated device's errors and noise (simulated, board-sim).
   std::uint64_t seed = 1;

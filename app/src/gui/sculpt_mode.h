@@ -1,6 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // Sculpt mode (modes.md contract): the grip sculpts a lump of clay. The logic (strokes, undo, the
-// force field) is SculptSession (runtime/sculpt_field.h); this class only draws: the clay actor,
+// force field) is SculptSession (scene/sculpt_field.h); this class only draws: the clay actor,
 // updated in place during a stroke (the touched vertices' positions and normals copied into the
 // VTK arrays, then Modified()), rebuilt whole when the session's revision changes (new clay,
 // stroke end with refinement, undo, redo), and a translucent sphere at the grip showing the tool

@@ -1,5 +1,5 @@
 // What the window shows of the device for one frame (DeviceFrame, filled from the haptic
-// runtime's latest tick: gui/haptic_runtime.h) and the demo field's centring springs. No
+// runtime's latest tick: scene/haptic_runtime.h) and the demo field's centring springs. No
 // rendering or ImGui here. Frame D, SI units.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once

@@ -37,7 +37,7 @@ namespace spidarcad::app {
 enum class RuntimeDevice {
   // haptics::SimulatedSpidarG with the paper's encoder errors, noise, stretch and motor lag,
   // read through a line-fit encoder calibration made at start-up on 24 simulated jig poses
-  // (CalibrateSimulated, runtime/device_rig.h, as `spidarcad run --calibrate`);
+  // (CalibrateSimulated, scene/device_rig.h, as `spidarcad run --calibrate`);
   // the grip is held by a haptics::SimulatedHand (mass-spring-damper) that follows the target.
   kSimulated = 0,
   // SimulatedDeviceConfig::Ideal() (no encoder error, noise or stretch; quantisation and motor

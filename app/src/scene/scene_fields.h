@@ -1,6 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // Force fields the window adds to its HapticScene besides those of the shared builder
-// (runtime/scene_haptics.h BuildSolidFields): the centring springs of the demo panel, and the
+// (scene/scene_haptics.h BuildSolidFields): the centring springs of the demo panel, and the
 // wrappers that keep a contact (god-object proxy or six-DOF point shell) continuous when the
 // window republishes its scene. All evaluate in W and are real-time safe.
 //

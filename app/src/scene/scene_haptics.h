@@ -10,7 +10,7 @@
 //    every solid (min of the values); torques are felt.
 // Snap (either tool model): when the scene has a "snap" object (modeling::SceneSnap), one more
 // field, a haptics::SnapField on the vertices, edges and faces of the solids that lie on the
-// scene's surface (runtime/snap_features.h), pulls the grip centre toward the feature nearest
+// scene's surface (scene/snap_features.h), pulls the grip centre toward the feature nearest
 // it; radii in W, the force as felt. No field is added when no feature survives.
 //
 // Device workspace to scene, X_WD (haptics::DeviceToWorld): p_W = s·p_D + p_WDo, no rotation.
@@ -26,7 +26,7 @@
 // displays world forces unscaled (LoopSettings::force_scale = 1) while a grip displacement δ is
 // a world displacement s·δ. Moments are displayed as computed in W (no length rescaling).
 //
-// BuildHapticScene = compile + fit X_WD + BuildSolidFields. The window (gui/scene_model.h) has
+// BuildHapticScene = compile + fit X_WD + BuildSolidFields. The window (scene/scene_model.h) has
 // its solids compiled already and its own X_WD (ChooseDeviceToWorld), and calls BuildSolidFields
 // directly, so `run` and the window feel the same fields.
 #pragma once
@@ -141,7 +141,7 @@ struct SnapInput {
 };
 
 // The force fields of a list of compiled solids, typed so that a caller may keep them (the window
-// keeps them across republishes, gui/scene_model.h). Every pointer is owned here until moved out.
+// keeps them across republishes, scene/scene_model.h). Every pointer is owned here until moved out.
 struct SolidFields {
   // Per input solid, in order: its SolidDistanceField (W).
   std::vector<std::shared_ptr<const haptics::DistanceField>> distance;

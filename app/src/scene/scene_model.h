@@ -148,12 +148,12 @@ class SceneModel {
   int IndexOf(ObjectId id) const;
 
   // The haptic scene of the solids as `spidarcad run` renders them: the compiled solids go
-  // through the same builder (runtime/scene_haptics.h BuildSolidFields) with `options` (tool
+  // through the same builder (scene/scene_haptics.h BuildSolidFields) with `options` (tool
   // model, stiffness, damping, friction, shell: as felt at the grip; the defaults are run's) at
   // this model's X_WD (options.world_scale and p_WDo are not read); a snap field when the
   // Document's scene has "snap" (features found again when the Document changed); the centring
   // springs when field.enabled. Each contact field is wrapped so that its state carries over
-  // from the scene built by the previous call (gui/scene_fields.h: the same field when its
+  // from the scene built by the previous call (scene/scene_fields.h: the same field when its
   // solid and the options are unchanged, else a warm start): call this for every scene the
   // window publishes. Throws std::invalid_argument for bad options.
   std::unique_ptr<haptics::HapticScene> BuildHapticScene(const DemoFieldSettings& field,
