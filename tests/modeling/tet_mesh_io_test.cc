@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "spidarcad/modeling/tet_mesh.h"
-
+#include "support/byte_mutator.h"
 namespace spidarcad::modeling {
 namespace {
 
@@ -248,32 +248,7 @@ TEST(HardVtuMutation, ParseVtuGridReadsOrRefusesEveryMutatedFile) {
   int read = 0, refused = 0, other = 0;
   for (const std::string& seed : seeds) {
     for (int m = 0; m < 200; ++m) {
-      std::string bytes = seed;
-      const int edits = 1 + static_cast<int>(rng() % 4);
-      for (int k = 0; k < edits && !bytes.empty(); ++k) {
-        const size_t at = rng() % bytes.size();
-        const size_t span = std::min<size_t>(1 + rng() % 32, bytes.size() - at);
-        switch (rng() % 6) {
-          case 0:
-            bytes[at] = static_cast<char>(bytes[at] ^ (1 << (rng() % 8)));
-            break;
-          case 1:
-            bytes[at] = static_cast<char>(rng() % 256);
-            break;
-          case 2:
-            bytes.resize(at);
-            break;
-          case 3:
-            bytes.insert(at, bytes.substr(at, span));
-            break;
-          case 4:
-            bytes.erase(at, span);
-            break;
-          default:
-            bytes.insert(at, std::string(1, "-9+0e."[rng() % 6]));
-            break;
-        }
-      }
+      const std::string bytes = test_support::MutateBytes(seed, rng, 4, 32);
       try {
         ParseVtuGrid(bytes, "mutant");
         ++read;
