@@ -9,13 +9,12 @@
 #include <string>
 #include <unordered_map>
 
+#include "sculpt_grid.h"
+
 namespace spidarcad::modeling {
 namespace {
 
 constexpr double kHalfPi = std::numbers::pi / 2;
-// Grid cell coordinates are packed in 21 bits each, offset so that negative cells fit.
-constexpr std::int64_t kCellOffset = std::int64_t{1} << 20;
-constexpr std::int64_t kCellMask = (std::int64_t{1} << 21) - 1;
 // Fraction of the grab force the smooth tool feels (a light drag).
 constexpr double kSmoothForceFraction = 0.1;
 // Taubin smoothing factors (shrink, then inflate).
@@ -243,12 +242,9 @@ std::uint32_t SculptMesh::NextStamp() const {
 }
 
 SculptMesh::CellKey SculptMesh::KeyOf(const Eigen::Vector3d& p) const {
-  CellKey key = 0;
-  for (int i = 0; i < 3; ++i) {
-    const std::int64_t c = static_cast<std::int64_t>(std::floor(p[i] / grid_cell_)) + kCellOffset;
-    key = key << 21 | static_cast<CellKey>(std::clamp<std::int64_t>(c, 0, kCellMask));
-  }
-  return key;
+  return sculpt_grid::Pack(sculpt_grid::CellOf(p.x(), grid_cell_),
+                           sculpt_grid::CellOf(p.y(), grid_cell_),
+                           sculpt_grid::CellOf(p.z(), grid_cell_));
 }
 
 void SculptMesh::GridInsert(int v) {
@@ -269,32 +265,44 @@ void SculptMesh::GridRemove(int v) {
   if (cell.empty()) grid_.erase(it);
 }
 
-void SculptMesh::QueryBall(const Eigen::Vector3d& centre_W, double radius,
-                           std::vector<int>* out) const {
-  out->clear();
+void SculptMesh::VerticesInCellBox(const Eigen::AlignedBox3d& box, std::vector<int>* out) const {
   std::array<std::int64_t, 3> lo, hi;
+  double cells = 1.0;
   for (int i = 0; i < 3; ++i) {
-    lo[i] = std::clamp<std::int64_t>(
-        static_cast<std::int64_t>(std::floor((centre_W[i] - radius) / grid_cell_)) + kCellOffset, 0,
-        kCellMask);
-    hi[i] = std::clamp<std::int64_t>(
-        static_cast<std::int64_t>(std::floor((centre_W[i] + radius) / grid_cell_)) + kCellOffset, 0,
-        kCellMask);
+    lo[i] = sculpt_grid::CellOf(box.min()[i], grid_cell_);
+    hi[i] = sculpt_grid::CellOf(box.max()[i], grid_cell_);
+    cells *= static_cast<double>(hi[i] - lo[i] + 1);
   }
-  const double r2 = radius * radius;
+  if (cells > static_cast<double>(grid_.size())) {
+    // Fewer occupied cells than cells in the box: visit those.
+    for (const auto& [key, vertices] : grid_) {
+      const auto x = static_cast<std::int64_t>(key >> 42 & sculpt_grid::kCellMask);
+      const auto y = static_cast<std::int64_t>(key >> 21 & sculpt_grid::kCellMask);
+      const auto z = static_cast<std::int64_t>(key & sculpt_grid::kCellMask);
+      if (x < lo[0] || x > hi[0] || y < lo[1] || y > hi[1] || z < lo[2] || z > hi[2]) continue;
+      out->insert(out->end(), vertices.begin(), vertices.end());
+    }
+    return;
+  }
   for (std::int64_t x = lo[0]; x <= hi[0]; ++x) {
     for (std::int64_t y = lo[1]; y <= hi[1]; ++y) {
       for (std::int64_t z = lo[2]; z <= hi[2]; ++z) {
-        const CellKey key =
-            static_cast<CellKey>(x) << 42 | static_cast<CellKey>(y) << 21 | static_cast<CellKey>(z);
-        const auto it = grid_.find(key);
-        if (it == grid_.end()) continue;
-        for (int v : it->second) {
-          if ((positions_[v] - centre_W).squaredNorm() < r2) out->push_back(v);
-        }
+        const auto it = grid_.find(sculpt_grid::Pack(x, y, z));
+        if (it != grid_.end()) out->insert(out->end(), it->second.begin(), it->second.end());
       }
     }
   }
+}
+
+void SculptMesh::QueryBall(const Eigen::Vector3d& centre_W, double radius,
+                           std::vector<int>* out) const {
+  out->clear();
+  VerticesInCellBox(Eigen::AlignedBox3d(centre_W.array() - radius, centre_W.array() + radius), out);
+  const double r2 = radius * radius;
+  out->erase(
+      std::remove_if(out->begin(), out->end(),
+                     [&](int v) { return !((positions_[v] - centre_W).squaredNorm() < r2); }),
+      out->end());
   std::sort(out->begin(), out->end());
 }
 

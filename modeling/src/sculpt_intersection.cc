@@ -19,25 +19,17 @@
 #include <array>
 #include <cmath>
 
+#include "sculpt_grid.h"
 #include "spidarcad/modeling/sculpt.h"
 
 namespace spidarcad::modeling {
 namespace {
 
-// Cell coordinates packed in 21 bits each (as the vertex grid), offset so that negatives fit.
-constexpr std::int64_t kOffset = std::int64_t{1} << 20;
-constexpr std::int64_t kMask = (std::int64_t{1} << 21) - 1;
 // Edge neighbours whose normals' dot product is below this are folded onto each other.
 constexpr double kFoldedDot = -0.999;
 
-std::int64_t CellOf(double x, double h) {
-  return std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor(x / h)) + kOffset, 0, kMask);
-}
-
-std::uint64_t Pack(std::int64_t x, std::int64_t y, std::int64_t z) {
-  return static_cast<std::uint64_t>(x) << 42 | static_cast<std::uint64_t>(y) << 21 |
-         static_cast<std::uint64_t>(z);
-}
+using sculpt_grid::CellOf;
+using sculpt_grid::Pack;
 
 // True when segment pq crosses triangle abc (Möller–Trumbore, closed in the segment parameter
 // and the barycentric coordinates); a segment parallel to the triangle's plane never does.
@@ -98,32 +90,9 @@ bool SculptMesh::MovedRegionIntersects() {
       check_triangles_.push_back(t);
     }
   };
-  std::array<std::int64_t, 3> lo, hi;
-  double cells = 1.0;
-  for (int i = 0; i < 3; ++i) {
-    lo[i] = CellOf(reach.min()[i], grid_cell_);
-    hi[i] = CellOf(reach.max()[i], grid_cell_);
-    cells *= static_cast<double>(hi[i] - lo[i] + 1);
-  }
-  if (cells > static_cast<double>(grid_.size())) {
-    for (const auto& [key, vertices] : grid_) {
-      const std::int64_t x = static_cast<std::int64_t>(key >> 42 & kMask);
-      const std::int64_t y = static_cast<std::int64_t>(key >> 21 & kMask);
-      const std::int64_t z = static_cast<std::int64_t>(key & kMask);
-      if (x < lo[0] || x > hi[0] || y < lo[1] || y > hi[1] || z < lo[2] || z > hi[2]) continue;
-      for (int v : vertices) add_vertex_triangles(v);
-    }
-  } else {
-    for (std::int64_t x = lo[0]; x <= hi[0]; ++x) {
-      for (std::int64_t y = lo[1]; y <= hi[1]; ++y) {
-        for (std::int64_t z = lo[2]; z <= hi[2]; ++z) {
-          const auto it = grid_.find(Pack(x, y, z));
-          if (it == grid_.end()) continue;
-          for (int v : it->second) add_vertex_triangles(v);
-        }
-      }
-    }
-  }
+  check_vertices_.clear();
+  VerticesInCellBox(reach, &check_vertices_);
+  for (int v : check_vertices_) add_vertex_triangles(v);
 
   // Broad phase: (cell, index) entries of every examined triangle's box, sorted by cell. Cells
   // of twice the mean box size hold a few triangles each.

@@ -245,6 +245,9 @@ class SculptMesh {
  private:
   using CellKey = std::uint64_t;
   CellKey KeyOf(const Eigen::Vector3d& p) const;
+  // Appends every vertex binned in a grid cell that overlaps box (m, W): a superset of those
+  // inside it (vertices are binned where they were at the last EndStroke).
+  void VerticesInCellBox(const Eigen::AlignedBox3d& box, std::vector<int>* out) const;
   void GridInsert(int v);
   void GridRemove(int v);
   void SetTriangle(int t, const Eigen::Vector3i& tri);
