@@ -468,6 +468,12 @@ void LineColumn(const std::string& text, size_t offset, int* line, int* column) 
 
 }  // namespace
 
+void LocateJsonPointer(const std::string& text, const std::string& pointer, int* line,
+                       int* column) {
+  PointerLocator locator(text);
+  LineColumn(text, locator.Locate(pointer), line, column);
+}
+
 SceneError::SceneError(const std::string& file, int line, int column, const std::string& pointer,
                        const std::string& what)
     : std::runtime_error(Location(file, line, column, pointer) + what),

@@ -40,140 +40,6 @@ std::string Hex16(std::uint64_t v) {
   return buf;
 }
 
-// ---- locating a JSON pointer in the text (for line numbers) ----
-
-class Locator {
- public:
-  explicit Locator(const std::string& s) : s_(s) {}
-  // Byte offset of the value at pointer (or of the deepest prefix found).
-  std::size_t Locate(const std::string& pointer) {
-    std::vector<std::string> tokens;
-    std::size_t start = 1;
-    while (start <= pointer.size() && !pointer.empty()) {
-      const std::size_t slash = pointer.find('/', start);
-      tokens.push_back(
-          pointer.substr(start, slash == std::string::npos ? std::string::npos : slash - start));
-      if (slash == std::string::npos) break;
-      start = slash + 1;
-    }
-    i_ = 0;
-    Ws();
-    std::size_t found = i_;
-    for (const std::string& t : tokens) {
-      if (i_ >= s_.size()) break;
-      if (s_[i_] == '{') {
-        ++i_;
-        bool hit = false;
-        while (true) {
-          Ws();
-          if (i_ >= s_.size() || s_[i_] != '"') break;
-          const std::size_t key_at = i_;
-          const std::string key = String();
-          Ws();
-          if (i_ < s_.size() && s_[i_] == ':') ++i_;
-          Ws();
-          if (key == t) {
-            found = key_at;
-            hit = true;
-            break;
-          }
-          Skip();
-          Ws();
-          if (i_ < s_.size() && s_[i_] == ',') ++i_;
-        }
-        if (!hit) return found;
-      } else if (s_[i_] == '[') {
-        ++i_;
-        int want = -1;
-        try {
-          want = std::stoi(t);
-        } catch (...) {
-          return found;
-        }
-        bool hit = false;
-        for (int k = 0;; ++k) {
-          Ws();
-          if (i_ >= s_.size() || s_[i_] == ']') break;
-          if (k == want) {
-            found = i_;
-            hit = true;
-            break;
-          }
-          Skip();
-          Ws();
-          if (i_ < s_.size() && s_[i_] == ',') ++i_;
-        }
-        if (!hit) return found;
-      } else {
-        return found;
-      }
-    }
-    return found;
-  }
-
- private:
-  void Ws() {
-    while (i_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[i_]))) ++i_;
-  }
-  std::string String() {
-    std::string out;
-    ++i_;
-    while (i_ < s_.size() && s_[i_] != '"') {
-      if (s_[i_] == '\\' && i_ + 1 < s_.size()) {
-        out += s_[i_ + 1];
-        i_ += 2;
-      } else {
-        out += s_[i_++];
-      }
-    }
-    ++i_;
-    return out;
-  }
-  void Skip() {
-    Ws();
-    if (i_ >= s_.size()) return;
-    const char c = s_[i_];
-    if (c == '"') {
-      String();
-    } else if (c == '{' || c == '[') {
-      int depth = 0;
-      while (i_ < s_.size()) {
-        const char d = s_[i_];
-        if (d == '"') {
-          String();
-          continue;
-        }
-        if (d == '{' || d == '[') ++depth;
-        if (d == '}' || d == ']') {
-          --depth;
-          if (depth == 0) {
-            ++i_;
-            return;
-          }
-        }
-        ++i_;
-      }
-    } else {
-      while (i_ < s_.size() && s_[i_] != ',' && s_[i_] != '}' && s_[i_] != ']') ++i_;
-    }
-  }
-  const std::string& s_;
-  std::size_t i_ = 0;
-};
-
-void LineColumn(const std::string& text, std::size_t offset, int* line, int* column) {
-  *line = 1;
-  *column = 1;
-  for (std::size_t i = 0; i < offset && i < text.size(); ++i) {
-    if (text[i] == '\n') {
-      ++*line;
-      *column = 1;
-    } else {
-      ++*column;
-    }
-  }
-}
-
 // ---- field readers ----
 
 std::string Join(const std::string& p, const std::string& key) { return p + "/" + key; }
@@ -955,7 +821,7 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
   if (j.is_object() && j.contains("version") && j.at("version").is_number_integer() &&
       j.at("version").get<int>() > kDocumentVersion) {
     int line = 0, column = 0;
-    LineColumn(text, Locator(text).Locate("/version"), &line, &column);
+    modeling::LocateJsonPointer(text, "/version", &line, &column);
     throw SceneError(source, line, column, "/version",
                      "version " + std::to_string(j.at("version").get<int>()) +
                          " was written by a newer spidarcad; this one reads versions 1 and 2");
@@ -975,7 +841,7 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
   } catch (const SceneError& e) {
     if (e.line() > 0 || e.pointer().empty()) throw;
     int line = 0, column = 0;
-    LineColumn(text, Locator(text).Locate(e.pointer()), &line, &column);
+    modeling::LocateJsonPointer(text, e.pointer(), &line, &column);
     throw SceneError(source, line, column, e.pointer(), e.message());
   }
 }

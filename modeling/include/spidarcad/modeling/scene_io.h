@@ -73,6 +73,10 @@ struct Scene {
   std::optional<SceneSnap> snap;  // absent: no snap forces
 };
 
+// 1-based line and column, in valid JSON text, of the value a JSON pointer (RFC 6901) names, or
+// of the deepest value along it that exists: where an error about that field points.
+void LocateJsonPointer(const std::string& text, const std::string& pointer, int* line, int* column);
+
 // A bad scene file or document: where (file, line, column, JSON pointer) and what.
 class SceneError : public std::runtime_error {
  public:
