@@ -155,6 +155,12 @@ struct Fixture {
     view.position = Eigen::Vector3d(0.3, -0.7, 0.25);
     view.view_angle = 41.5;
     doc.set_view(view);
+    haptics::SpidarGeometry frame;  // a scaled frame (the paper's Sec. 8)
+    frame.a = 0.3;
+    frame.b = 0.25;
+    frame.c = 0.2;
+    frame.d = 0.05;
+    doc.set_device(frame);
   }
 };
 
@@ -198,6 +204,11 @@ TEST(DocumentIo, EveryObjectKindSurvivesSaveAndOpen) {
   ASSERT_TRUE(other.view().has_value());
   EXPECT_EQ(other.view()->view_angle, 41.5);
   EXPECT_EQ(other.view()->position, Eigen::Vector3d(0.3, -0.7, 0.25));
+  ASSERT_TRUE(other.device().has_value());
+  EXPECT_EQ(other.device()->a, 0.3);
+  EXPECT_EQ(other.device()->b, 0.25);
+  EXPECT_EQ(other.device()->c, 0.2);
+  EXPECT_EQ(other.device()->d, 0.05);
   // The pose comes back bit for bit.
   EXPECT_EQ(std::get<RigidPartData>(other.objects()[6].data).X_WP.matrix(),
             std::get<RigidPartData>(f.doc.Get(f.lid).data).X_WP.matrix());
@@ -457,6 +468,26 @@ TEST(DocumentIo, BadFileNamesLineAndFieldAndLeavesDocumentUnchanged) {
     EXPECT_EQ(f.doc.revision(), revision);
     EXPECT_TRUE(f.doc.history().CanUndo());
   }
+}
+
+TEST(DocumentIo, DeviceFrameTheGripCannotFitInIsRefusedNamingTheLineAndField) {
+  // A pole half-length of 0.3 m does not fit a frame of half-side 0.2 m (d < min(a, b, c)).
+  const std::string path = OutDir("bad_device") + "/bad.json";
+  WriteText(path,
+            "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"device\": {\"frame\": "
+            "[0.3, 0.3, 0.2],\n  \"pole\": 0.3},\n\"objects\": []\n}\n");
+  Fixture f;
+  const json before = f.doc.ToJson(true);
+  try {
+    f.doc.Load(path);
+    ADD_FAILURE() << "no error";
+  } catch (const modeling::SceneError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_EQ(e.pointer(), "/device") << e.what();
+    EXPECT_EQ(e.line(), 4) << e.what();
+    EXPECT_NE(std::string(e.what()).find("pole"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(f.doc.ToJson(true), before);
 }
 
 TEST(DocumentIo, NewerVersionAndSyntaxErrorsNameTheLine) {

@@ -217,6 +217,37 @@ TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
   EXPECT_EQ(max_force, 0.0);
 }
 
+TEST(RunCommand, DocumentFrameIsUsedUnlessFrameOrPoleIsGiven) {
+  const std::string trajectory = WritePressTrajectory();
+  const std::string doc = OutputPath("frame_doc.json");
+  {
+    std::ofstream out(doc);
+    out << "{\"format\": \"spidarcad-scene\", \"version\": 2,\n"
+           " \"device\": {\"frame\": [0.3, 0.28, 0.26], \"pole\": 0.05},\n"
+           " \"objects\": [{\"kind\": \"solid\", \"name\": \"ball\", \"root\": "
+           "{\"type\": \"sphere\", \"radius\": 0.02}}]}\n";
+  }
+  const std::string out = OutputPath("frame.csv");
+  const CommandRun own =
+      RunSpidarcad("'" + doc + "' --trajectory '" + trajectory + "' --out '" + out + "'", "frame");
+  ASSERT_EQ(own.status, 0) << own.all();
+  EXPECT_NE(own.out.find("frame: half-sides 0.3, 0.28, 0.26 m, pole 0.05 m (the document's)\n"),
+            std::string::npos)
+      << own.out;
+  const CommandRun given = RunSpidarcad(
+      "'" + doc + "' --trajectory '" + trajectory + "' --out '" + out + "' --pole 0.04",
+      "frame_given");
+  ASSERT_EQ(given.status, 0) << given.all();
+  EXPECT_NE(given.out.find("frame: half-sides 0.24, 0.24, 0.24 m, pole 0.04 m (--frame/--pole)\n"),
+            std::string::npos)
+      << given.out;
+  // A scene without a frame of its own runs on the default and prints no frame line.
+  const CommandRun plain =
+      RunSpidarcad("demo --trajectory '" + trajectory + "' --out '" + out + "'", "frame_default");
+  ASSERT_EQ(plain.status, 0) << plain.all();
+  EXPECT_EQ(plain.out.find("frame:"), std::string::npos) << plain.out;
+}
+
 TEST(RunCommand, EmptySceneCommandsNoForce) {
   const std::string traj = WritePressTrajectory();
   const std::string out = OutputPath("empty_result.csv");

@@ -145,6 +145,7 @@ struct RunOptions {
   bool calibrate = false;            // line-fit calibration of the simulated device before the run
   std::string calibration;           // calibration file to read the encoders through
   haptics::SpidarGeometry geometry;  // the device's frame and pole (--frame, --pole)
+  bool geometry_given = false;       // --frame or --pole given: it overrides the document's
   double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
   bool progress = false;             // progress on stderr even when it is not a terminal
 };
@@ -256,6 +257,9 @@ void RunRun(const RunOptions& options) {
         "raise --max-duration");
   }
 
+  // The frame: --frame/--pole, else the document's own (its "device"), else the paper's.
+  haptics::SpidarGeometry geometry = options.geometry;
+  std::string frame_source = options.geometry_given ? "--frame/--pole" : "default";
   std::unique_ptr<haptics::HapticScene> scene;
   std::string scene_name = "empty";
   std::string fields_line;   // per-field names for the summary
@@ -277,6 +281,10 @@ void RunRun(const RunOptions& options) {
       opened = OpenDocumentFile(options.scene);
     } catch (const InputError& e) {
       throw InputError(std::string("SCENE: ") + e.what());
+    }
+    if (opened.doc->device() && !options.geometry_given) {
+      geometry = *opened.doc->device();
+      frame_source = "the document's";
     }
     // What `run` renders of a document today: its solids (one field each, or an assembly of
     // "parts") and snap. The other kinds are listed in the summary as skipped.
@@ -352,7 +360,7 @@ void RunRun(const RunOptions& options) {
         haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
                                                options.world_origin[2]);
       }
-      haptic_options.grip_d = options.geometry.d;
+      haptic_options.grip_d = geometry.d;
       SceneHaptics built;
       try {
         haptic_options.Validate();
@@ -407,8 +415,8 @@ void RunRun(const RunOptions& options) {
   ParseRigKind(options.device, &kind);  // checked above
   RigOptions rig_options;
   rig_options.device.seed = options.seed;
-  rig_options.device.geometry = options.geometry;
-  rig_options.device.home_pose = haptics::GripPose::Rest(options.geometry.d);
+  rig_options.device.geometry = geometry;
+  rig_options.device.home_pose = haptics::GripPose::Rest(geometry.d);
   // A real board lost mid-run is re-opened by a service thread, not inside the tick (re-opening
   // goes through libusb, which allocates and locks); board-sim keeps its deterministic re-open
   // on the virtual clock.
@@ -541,6 +549,11 @@ void RunRun(const RunOptions& options) {
   if (!calibration_line.empty()) std::cout << calibration_line << "\n";
   if (!fields_line.empty()) std::cout << fields_line << "\n";
   if (!skipped_line.empty()) std::cout << skipped_line << "\n";
+  if (frame_source != "default") {
+    std::cout << "frame: half-sides " << FormatNumber(geometry.a) << ", "
+              << FormatNumber(geometry.b) << ", " << FormatNumber(geometry.c) << " m, pole "
+              << FormatNumber(geometry.d) << " m (" << frame_source << ")\n";
+  }
   std::cout << map_line << "\n";
   std::cout << "tick time [us]: p50 " << Fixed(tick_time.Percentile(0.5) * 1e6, 1) << "  p99 "
             << Fixed(tick_time.Percentile(0.99) * 1e6, 1) << "  p99.9 "
@@ -587,7 +600,7 @@ void RegisterRunCommand(CLI::App& app) {
   cmd->add_option("--calibration", options->calibration,
                   "Read the encoders through this calibration file (`spidarcad calibrate --out`; "
                   "it must be this device's and frame's)");
-  AddGeometryOptions(*cmd, &options->geometry);
+  AddGeometryOptions(*cmd, &options->geometry, &options->geometry_given);
   cmd->add_option("--tool", options->tool, "Scene files: tool model proxy (default) or shell");
   cmd->add_option("--stiffness", options->stiffness,
                   "Scene files: contact stiffness at the grip, N/m (default 1500; shell coupling "

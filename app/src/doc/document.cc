@@ -296,6 +296,7 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
                    view_->view_up.x(),     view_->view_up.y(),     view_->view_up.z(),
                    view_->view_angle};
   }
+  if (device_) doc["device"] = {device_->a, device_->b, device_->c, device_->d};
   if (with_revisions) {
     doc["description_revision"] = description_revision_;
     doc["snap_revision"] = snap_revision_;
@@ -365,6 +366,7 @@ void Document::AdoptContent(std::vector<DocObject> objects, std::string descript
   snap_ = snap;
   snap_revision_ = NewRevision();
   view_ = std::move(view);
+  device_.reset();
   parts_ = std::move(parts);
   history_->Clear();
   fe_cache_.clear();
@@ -408,6 +410,7 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
   snap_ = scene.snap;
   snap_revision_ = NewRevision();
   view_.reset();
+  device_.reset();
   parts_ = scene.parts;
   history_->Clear();
   fe_cache_.clear();
@@ -450,6 +453,7 @@ void Document::Clear() {
   snap_.reset();
   snap_revision_ = NewRevision();
   view_.reset();
+  device_.reset();
   parts_.clear();
   history_->Clear();
   fe_cache_.clear();

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "spidarcad/fem/material.h"
+#include "spidarcad/haptics/geometry.h"
 #include "spidarcad/modeling/implicit_node.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -186,6 +187,12 @@ class Document {
   const std::optional<DocView>& view() const { return view_; }
   // Sets the camera saved with the document (not undoable; does not make the document dirty).
   void set_view(std::optional<DocView> view) { view_ = std::move(view); }
+  // The SPIDAR-G frame the document was made for: frame half-sides a, b, c and pole
+  // half-length d, m (the paper's Sec. 8 scales the frame to the task). Saved with the document;
+  // none: the device's own. Not part of the undo state; loading or clearing resets it.
+  const std::optional<haptics::SpidarGeometry>& device() const { return device_; }
+  // Sets the device frame (validated by the caller: SpidarGeometry::Validate).
+  void set_device(std::optional<haptics::SpidarGeometry> device) { device_ = device; }
   // The scene's assembly parts as loaded ("parts"; kept as they are, not editable here). Save
   // writes them back and refuses, naming the part, when one names a solid no longer in the scene.
   const std::vector<modeling::ScenePart>& parts() const { return parts_; }
@@ -292,6 +299,7 @@ class Document {
   std::optional<modeling::SceneSnap> snap_;
   std::uint64_t snap_revision_ = 0;
   std::optional<DocView> view_;
+  std::optional<haptics::SpidarGeometry> device_;
   std::vector<modeling::ScenePart> parts_;
   ObjectId next_id_ = 1;
   std::uint64_t next_revision_ = 1;

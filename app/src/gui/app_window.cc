@@ -196,6 +196,18 @@ Eigen::AlignedBox3d SubjectBox(const SceneModel& model, int selected, bool selec
   return model.device_to_world().BoxToDevice(box);
 }
 
+// True when two frames have the same half-sides and pole (exactly: both come from files or
+// options).
+bool SameFrame(const haptics::SpidarGeometry& x, const haptics::SpidarGeometry& y) {
+  return x.a == y.a && x.b == y.b && x.c == y.c && x.d == y.d;
+}
+
+// "0.3, 0.3, 0.2 m / pole 0.04 m".
+std::string FrameText(const haptics::SpidarGeometry& g) {
+  return FormatNumber(g.a) + ", " + FormatNumber(g.b) + ", " + FormatNumber(g.c) + " m / pole " +
+         FormatNumber(g.d) + " m";
+}
+
 }  // namespace
 
 struct AppWindow::State {
@@ -373,10 +385,17 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
                                   "' is not a device; use simulated, ideal, board-sim or usb");
   }
   s.runtime_settings.seed = options.seed;
+  // The frame: --frame/--pole (recorded in the document, so that saving keeps it), else the
+  // start-up document's own ("device"), else the paper's.
   s.runtime_settings.geometry = options.geometry;
+  if (options.geometry_given) {
+    s.model.document().set_device(options.geometry);
+  } else if (s.model.document().device()) {
+    s.runtime_settings.geometry = *s.model.document().device();
+  }
   s.runtime_settings.calibration_file = options.calibration;
   try {
-    options.geometry.Validate();
+    s.runtime_settings.geometry.Validate();
   } catch (const std::invalid_argument& e) {
     throw WindowStartError(2, std::string("spidarcad: error: --frame/--pole: ") + e.what());
   }
@@ -1167,6 +1186,11 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
   if (!assembly_error.empty()) {
     s.workbench.status += " (assembly not available: " + assembly_error + ")";
     s.workbench.status_error = true;
+  }
+  // The device keeps the frame it started with; a document made for another one says so.
+  if (const auto& g = s.model.document().device(); g && !SameFrame(*g, *s.geometry)) {
+    s.workbench.status += " (made for a " + FrameText(*g) + " frame; the device runs a " +
+                          FrameText(*s.geometry) + " one: restart with --frame/--pole to use it)";
   }
   return true;
 }

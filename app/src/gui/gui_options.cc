@@ -163,14 +163,20 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
            options->geometry.a = v[0];
            options->geometry.b = v[1];
            options->geometry.c = v[2];
+           options->geometry_given = true;
          },
          "The device's frame half-sides A,B,C in metres (default 0.24,0.24,0.24: the paper's "
          "48 cm frame); as `spidarcad run --frame`")
       ->delimiter(',')
       ->expected(3)
       ->type_name("A,B,C");
-  app.add_option("--pole", options->geometry.d,
-                 "The grip's pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
+  app.add_option_function<double>(
+      "--pole",
+      [options](double d) {
+        options->geometry.d = d;
+        options->geometry_given = true;
+      },
+      "The grip's pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
   app.add_option("--calibration", options->calibration,
                  "Read the encoders through this calibration file (written by `spidarcad "
                  "calibrate --out`, docs/calibration-format.md) instead of the start-up fit "
