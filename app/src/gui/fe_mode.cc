@@ -364,6 +364,16 @@ void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
 
 // ---- the document ----
 
+FeSourceKind FeMode::KindOf(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return FeSourceKind::kNone;
+  auto it = kinds_.find(id);
+  if (it != kinds_.end() && it->second.first == o->revision) return it->second.second;
+  const FeSourceKind kind = ClassifyFeSource(doc, id);
+  kinds_[id] = {o->revision, kind};
+  return kind;
+}
+
 FeMode::BoundKey FeMode::KeyOf(const Document& doc, ObjectId fe) {
   BoundKey key;
   const DocObject* o = doc.Find(fe);
@@ -376,6 +386,19 @@ FeMode::BoundKey FeMode::KeyOf(const Document& doc, ObjectId fe) {
   return key;
 }
 
+namespace {
+
+// Whether FE mode can choose the object, judged by its kind alone (cheap, every frame; whether a
+// surface is closed is checked when it is set up).
+bool MayBecomeFeModel(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return false;
+  if (const auto* m = std::get_if<MeshData>(&o->data)) return m->volume || m->surface;
+  return !std::holds_alternative<RigidPartData>(o->data);
+}
+
+}  // namespace
+
 void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
   if (model == nullptr) return;
   const Document& doc = model->document();
@@ -385,6 +408,7 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
     chosen_ = 0;
     last_selected_ = 0;
     kept_.clear();
+    kinds_.clear();
     pending_text_.clear();
     want_model_ = false;
     rebuild_pending_ = false;
@@ -409,9 +433,9 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
   }
   if (selected != last_selected_) {
     last_selected_ = selected;
-    if (selected != 0 && ClassifyFeSource(doc, selected) != FeSourceKind::kNone) chosen_ = selected;
+    if (selected != 0 && MayBecomeFeModel(doc, selected)) chosen_ = selected;
   }
-  if (chosen_ != 0 && ClassifyFeSource(doc, chosen_) == FeSourceKind::kNone) chosen_ = 0;
+  if (chosen_ != 0 && !MayBecomeFeModel(doc, chosen_)) chosen_ = 0;
   ObjectId fe = 0;
   if (chosen_ != 0) {
     fe = FeModelFor(doc, chosen_);
@@ -521,7 +545,7 @@ bool FeMode::Execute(SceneModel* model, std::unique_ptr<Command> command) {
 bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, bool precompute) {
   if (model == nullptr) return false;
   Document& doc = model->document();
-  const FeSourceKind kind = ClassifyFeSource(doc, source);
+  const FeSourceKind kind = KindOf(doc, source);
   const DocObject* o = doc.Find(source);
   if (kind == FeSourceKind::kNone || o == nullptr) {
     status_ = "set up FE: choose a solid, sculpt or mesh (that one cannot become an FE model)";
@@ -529,7 +553,6 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
   }
   chosen_ = source;
   if (const ObjectId fe = FeModelFor(doc, source); fe != 0) {
-    precompute_on_bind_ = precompute;
     SyncDocument(model, last_selected_);
     if (precompute && bound_ == fe) RequestModel();
     return true;
@@ -656,7 +679,7 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
   if (const DocObject* c = doc.Find(chosen_)) preview = c->name;
   if (ImGui::BeginCombo("object", preview.c_str())) {
     for (const DocObject& o : doc.objects()) {
-      const FeSourceKind kind = ClassifyFeSource(doc, o.id);
+      const FeSourceKind kind = KindOf(doc, o.id);
       if (kind == FeSourceKind::kNone) continue;
       const std::string label =
           o.name + "  (" + FeSourceKindText(kind) + ")##" + std::to_string(o.id);
@@ -664,7 +687,7 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
     }
     ImGui::EndCombo();
   }
-  const FeSourceKind kind = ClassifyFeSource(doc, chosen_);
+  const FeSourceKind kind = KindOf(doc, chosen_);
   const bool busy = RunningJob() != nullptr;
   if (bound_ == 0 && kind != FeSourceKind::kNone) {
     const DocObject& source = doc.Get(chosen_);
@@ -697,6 +720,8 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
       mesh_settings_ = saved;
     }
     if (busy) ImGui::EndDisabled();
+  } else if (bound_ == 0 && chosen_ != 0) {
+    ImGui::TextDisabled("(its surface is not closed: TetGen cannot fill it)");
   } else if (bound_ != 0) {
     const DocObject& fe = doc.Get(bound_);
     const DocObject* mesh = doc.Find(bound_key_.mesh);

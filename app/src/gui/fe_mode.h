@@ -20,6 +20,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 #include <utility>
@@ -178,6 +180,9 @@ class FeMode {
     bool operator==(const BoundKey&) const = default;
   };
   static BoundKey KeyOf(const Document& doc, ObjectId fe);
+  // ClassifyFeSource, remembered per object revision (a closed-surface check walks every edge).
+  FeSourceKind KindOf(const Document& doc, ObjectId id);
+  std::map<ObjectId, std::pair<std::uint64_t, FeSourceKind>> kinds_;
 
   vtkRenderer* renderer_;
   JobQueue* jobs_;

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <stdexcept>
 #include <utility>
 #include <variant>
@@ -143,17 +142,21 @@ bool IsClosedSurface(const modeling::TriangleMesh& mesh) {
   const Eigen::Index nt = mesh.triangles.cols();
   const Eigen::Index nv = mesh.vertices.cols();
   if (nt == 0) return false;
-  // Directed edges: each must appear once, and its reverse once.
-  std::map<std::pair<int, int>, int> directed;
+  // Directed edges as (a << 32 | b): each must appear once, and its reverse once.
+  std::vector<std::uint64_t> directed;
+  directed.reserve(3 * nt);
   for (Eigen::Index t = 0; t < nt; ++t) {
     for (int k = 0; k < 3; ++k) {
       const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t);
       if (a < 0 || b < 0 || a >= nv || b >= nv || a == b) return false;
-      if (++directed[{a, b}] > 1) return false;
+      directed.push_back(static_cast<std::uint64_t>(a) << 32 | static_cast<std::uint32_t>(b));
     }
   }
-  for (const auto& [edge, count] : directed) {
-    if (directed.find({edge.second, edge.first}) == directed.end()) return false;
+  std::sort(directed.begin(), directed.end());
+  if (std::adjacent_find(directed.begin(), directed.end()) != directed.end()) return false;
+  for (const std::uint64_t e : directed) {
+    const std::uint64_t reverse = (e & 0xffffffffu) << 32 | e >> 32;
+    if (!std::binary_search(directed.begin(), directed.end(), reverse)) return false;
   }
   return true;
 }
