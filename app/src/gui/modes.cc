@@ -350,6 +350,9 @@ void FeWindowMode::Update(const haptics::ToolState& tool, ModeContext& context) 
   if (auto f = fe_.TakeField()) {
     field_ = std::shared_ptr<haptics::ForceField>(std::move(f));
     changed_ = true;
+  } else if (field_ != nullptr && fe_.model() == nullptr) {
+    field_.reset();  // the model was dropped (the document changed): nothing of it is felt
+    changed_ = true;
   }
 }
 
