@@ -28,6 +28,7 @@ namespace spidarcad::app {
 
 FeMode::FeMode(vtkRenderer* renderer, JobQueue* jobs)
     : renderer_(renderer), jobs_(jobs), channel_(std::make_shared<FeContactChannel>()) {
+  mesh_settings_.mesher = "tetgen";
   touch_settings_.tool_radius = 0.0;  // auto: the mesh's mean edge length
   touch_settings_.force_scale = std::pow(10.0, log_force_scale_);
   touch_settings_.max_force = 8.0;

@@ -81,8 +81,9 @@ struct FeMeshResult {
   MeshSettings settings;  // the settings used, cell_size resolved (0 for a surface source)
 };
 
-// Compiles a solid's tree and finds the box it is meshed on at `cell` m (<= 0: its largest side
-// / kFeCellsAcross, returned in *cell): the solid's box padded by two cells. Throws
+// Compiles a solid's tree and finds the box it is meshed on at `cell` m (<= 0: the largest side
+// of its box found at 1 cm (which overestimates by up to about 1 cm per side) / kFeCellsAcross,
+// returned in *cell): the solid's box padded by two cells. Throws
 // std::invalid_argument naming `name` when the tree does not compile, the solid is empty or
 // unbounded (reaches 10 m from the origin).
 Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std::string& name,
