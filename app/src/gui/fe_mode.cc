@@ -416,9 +416,10 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
     precompute_on_bind_ = false;
     Rebind(doc, 0);
   }
-  // A set-up or refresh Job that failed: say so.
+  // A Job of ours that failed or was cancelled: say so (the newest of that title is ours).
   if (!awaiting_title_.empty() && jobs_ != nullptr) {
-    for (const auto& job : jobs_->jobs()) {
+    for (auto it = jobs_->jobs().rbegin(); it != jobs_->jobs().rend(); ++it) {
+      const Job* job = it->get();
       if (job->title() != awaiting_title_) continue;
       if (job->state() == Job::State::kFailed) {
         status_ = job->title() + " failed: " + job->error();
