@@ -34,6 +34,8 @@
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/simulated_hand.h"
+#include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/modeling/tet_mesh.h"
 #include "support/malloc_counter.h"
 #include "support/scoped_env.h"
 
@@ -939,6 +941,42 @@ TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
   ASSERT_TRUE(window.tree().Undo());  // the radius edit
   window.Frame();
   EXPECT_FALSE(fe.stale()) << "the solid is as it was meshed again";
+}
+
+// A sculpt object selected in the tree (as sculpt mode's Send to FE does) is chosen in FE mode and
+// set up in one call: its closed mesh filled by TetGen, the mesh object made from it.
+TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("sculpt");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  AppWindow window(FeWindowOptions(AssetPath("scenes/workbench.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  const ObjectId clay = doc.FindByName("clay")->id;
+  window.tree().Select(clay);
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < 3; ++k) window.Frame();
+  EXPECT_EQ(fe.chosen_object(), clay);
+  EXPECT_EQ(fe.bound_object(), 0u) << "the clay has no FE model yet";
+  ASSERT_TRUE(fe.StartSetUp(&model, fe.chosen_object())) << fe.status();
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.bound_object() != 0; })) << fe.status();
+  EXPECT_EQ(doc.history().UndoDescription(), "Set up FE for clay");
+  const auto& fe_data = FeDataOf(doc, fe.bound_object());
+  const auto& mesh = std::get<MeshData>(doc.Get(fe_data.tet_mesh).data);
+  EXPECT_EQ(mesh.source, clay);
+  EXPECT_FALSE(doc.IsMeshOutOfDate(fe_data.tet_mesh));
+  ASSERT_TRUE(mesh.volume);
+  // The tets fill the clay's surface (its divergence-theorem volume).
+  const auto& sculpt = *std::get<SculptData>(doc.Get(clay).data).mesh;
+  const double volume = modeling::MeshVolume(sculpt);
+  double tets = 0.0;
+  for (Eigen::Index t = 0; t < mesh.volume->tets.cols(); ++t)
+    tets += std::abs(modeling::TetVolume(*mesh.volume, t));
+  EXPECT_NEAR(tets, volume, 1e-6 * volume);
 }
 
 // A solid whose surface mesh would be past `spidarcad mesh`'s budget is not meshed until the
