@@ -979,6 +979,34 @@ TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
   EXPECT_NEAR(tets, volume, 1e-6 * volume);
 }
 
+// A set-up whose source is edited while the Job meshes it lands nothing: the document keeps the
+// edit and gets no mesh of the old shape.
+TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("dropped");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  AppWindow window(FeWindowOptions(AssetPath("scenes/platform.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  window.SwitchMode(fe_mode);
+  window.Frame();
+  const std::size_t objects = doc.objects().size();
+  fe.mesh_settings().cell_size = 0.012;
+  ASSERT_TRUE(fe.StartSetUp(&model, doc.FindByName("platform")->id)) << fe.status();
+  ASSERT_TRUE(window.tree().SelectByName("plate"));
+  ASSERT_TRUE(window.tree().SetField("radius", 0.0045)) << window.tree().error();
+  ASSERT_TRUE(FramesUntil(window, [&] {
+    return fe.status().find("changed while it was meshed") != std::string::npos;
+  })) << fe.status();
+  EXPECT_EQ(doc.objects().size(), objects);
+  EXPECT_EQ(doc.history().undo_size(), 1u) << "the radius edit only";
+  EXPECT_EQ(fe.bound_object(), 0u);
+}
+
 // A solid whose surface mesh would be past `spidarcad mesh`'s budget is not meshed until the
 // question is answered; Cancel leaves the document as it was.
 TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
