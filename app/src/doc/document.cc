@@ -229,6 +229,8 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
               j["source_revision"] = m.source_revision;
               j["settings"] = {m.settings.cell_size, m.settings.max_tet_volume,
                                m.settings.max_radius_edge};
+              if (!m.settings.mesher.empty()) j["settings"].push_back(m.settings.mesher);
+              if (m.settings.sharp_edges) j["settings"].push_back("sharp_edges");
               j["import_source"] = m.import_source;
               if (m.surface) {
                 j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},
@@ -549,6 +551,10 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
                   !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
                 throw DocumentError(Describe(c) +
                                     ": field 'settings': every setting must be finite and >= 0");
+              }
+              if (!s.mesher.empty() && s.mesher != "tetgen" && s.mesher != "cgal") {
+                throw DocumentError(Describe(c) + ": field 'settings/mesher': \"" + s.mesher +
+                                    "\" is not a mesher (expected tetgen or cgal)");
               }
             },
             [&](const FeModelData& f) {

@@ -67,6 +67,10 @@ struct MeshSettings {
   double cell_size = 0.0;        // surface grid cell edge, m (>= 0)
   double max_tet_volume = 0.0;   // largest tet volume, m³ (>= 0)
   double max_radius_edge = 0.0;  // TetGen radius-edge bound, -, (0 or >= 1)
+  // Tetrahedral mesher: "" or "tetgen" (TetGen on the grid surface), "cgal" (CGAL Mesh_3 from
+  // the solid's function; solids only).
+  std::string mesher = {};
+  bool sharp_edges = false;  // the grid surface was sharpened onto the solid's creases (TetGen)
 };
 // Meshes made from another object (usually a solid) by a Job, or imported from a file. Either
 // mesh may be absent. The data are immutable and shared between copies (undo snapshots,

@@ -422,13 +422,21 @@ Content ContentFromJson(const json& j) {
         const json& s = o.at("settings");
         const std::string sp = p + "/settings";
         RequireObject(s, sp);
-        RejectUnknown(s, sp, {"cell_size", "max_tet_volume", "max_radius_edge"});
+        RejectUnknown(s, sp,
+                      {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges"});
         m.settings.cell_size = NonNegative(s, sp, "cell_size", 0.0);
         m.settings.max_tet_volume = NonNegative(s, sp, "max_tet_volume", 0.0);
         m.settings.max_radius_edge = NonNegative(s, sp, "max_radius_edge", 0.0);
         if (m.settings.max_radius_edge != 0.0 && m.settings.max_radius_edge < 1.0) {
           Fail(sp + "/max_radius_edge", "must be 0 (default) or >= 1");
         }
+        if (s.contains("mesher")) {
+          m.settings.mesher = Text(s.at("mesher"), sp + "/mesher");
+          if (m.settings.mesher != "tetgen" && m.settings.mesher != "cgal")
+            Fail(sp + "/mesher", "expected \"tetgen\" or \"cgal\"");
+        }
+        if (s.contains("sharp_edges"))
+          m.settings.sharp_edges = Bool(s.at("sharp_edges"), sp + "/sharp_edges");
       }
       if (o.contains("surface"))
         m.surface =
@@ -445,6 +453,10 @@ Content ContentFromJson(const json& j) {
           Fail(p + "/source", "a generated mesh needs the index of its source solid");
         if (!(m.settings.cell_size > 0))
           Fail(p + "/settings/cell_size", "a generated mesh needs a cell size > 0");
+        if (m.settings.mesher == "cgal" || m.settings.sharp_edges)
+          Fail(p + "/generate",
+               "\"generate\" meshes with TetGen on the plain grid surface: drop settings/mesher "
+               "\"cgal\" and settings/sharp_edges, or store the mesh (surface, volume)");
         up_to_date[i] = true;
       } else if (!m.surface && !m.volume) {
         Fail(p, "a mesh object needs \"surface\", \"volume\" or \"generate\"");
@@ -647,6 +659,8 @@ json ObjectJson(const Document& doc, const DocObject& o) {
     j["settings"] = {{"cell_size", m->settings.cell_size},
                      {"max_tet_volume", m->settings.max_tet_volume},
                      {"max_radius_edge", m->settings.max_radius_edge}};
+    if (!m->settings.mesher.empty()) j["settings"]["mesher"] = m->settings.mesher;
+    if (m->settings.sharp_edges) j["settings"]["sharp_edges"] = true;
     if (!m->import_source.empty()) j["import_source"] = m->import_source;
     if (m->surface) j["surface"] = SurfaceJson(*m->surface);
     if (m->volume) j["volume"] = VolumeJson(*m->volume);

@@ -45,7 +45,7 @@ class Mode {
   // Stops being the active mode (hides its actors; its field is no longer published).
   virtual void Leave() = 0;
   // Entered as the mode the window starts in (--mode): Enter, plus the mode's demo set-up
-  // (FE: meshes and precomputes the platform). Default: Enter.
+  // (FE: sets up and precomputes the document's FE model). Default: Enter.
   virtual void Launch() { Enter(); }
   // True between Enter and Leave.
   virtual bool active() const = 0;

@@ -130,7 +130,8 @@ class FeWindowMode final : public Mode {
   const char* key() const override { return "fe"; }
   void Enter() override;
   void Leave() override;
-  // Enter, then mesh assets/scenes/platform.json and precompute it once the mesh has landed.
+  // Enter, then (at the next Update) precompute the document's first FE model, or set up FE for
+  // the selected (else the first) solid and precompute it once it has landed.
   void Launch() override;
   bool active() const override { return fe_.active(); }
   void Update(const haptics::ToolState& tool, ModeContext& context) override;
@@ -147,7 +148,7 @@ class FeWindowMode final : public Mode {
   FeMode fe_;
   std::shared_ptr<haptics::ForceField> field_;  // the latest field FeMode handed out
   bool launched_ = false;
-  bool precompute_started_ = false;
+  bool launch_done_ = false;
   bool changed_ = false;
 };
 
