@@ -3,7 +3,7 @@
 // and recorded on a sculpt object leaves the Document's mesh equal to the sculpted one, vertex
 // for vertex; undo gives the original back exactly, redo the sculpted one; a stroke whose
 // refinement split edges is recorded whole. Closed surfaces are told from open, unoriented and
-// broken ones.
+// non-manifold ones.
 #include "scene/sculpt_document.h"
 
 #include <gtest/gtest.h>
@@ -56,22 +56,35 @@ modeling::SculptEdit PullTop(modeling::SculptMesh* mesh, double lift, double max
   return mesh->EndStroke();
 }
 
-TEST(IsClosedSurface, AcceptsAnIcosphereAndRejectsHolesFlipsAndBadIndices) {
+// A document with a mesh object holding `mesh` as its surface; returns its id.
+ObjectId AddSurface(Document* doc, const modeling::TriangleMesh& mesh) {
+  doc->Execute(
+      edit::AddMesh("m", 0, 0, std::make_shared<const modeling::TriangleMesh>(mesh), nullptr));
+  return doc->last_created().at(0);
+}
+
+TEST(SculptableSurface, AcceptsAClosedMeshAndRejectsHolesFlipsAndDoubledTriangles) {
   const modeling::TriangleMesh sphere = modeling::IcosphereMesh(0.05, 2);
-  EXPECT_TRUE(IsClosedSurface(sphere));
+  Document doc;
+  EXPECT_NE(SculptableSurface(doc.Get(AddSurface(&doc, sphere))), nullptr);
   modeling::TriangleMesh hole = sphere;
   hole.triangles.conservativeResize(3, hole.triangles.cols() - 1);  // one triangle gone
-  EXPECT_FALSE(IsClosedSurface(hole));
+  EXPECT_EQ(SculptableSurface(doc.Get(AddSurface(&doc, hole))), nullptr);
   modeling::TriangleMesh flipped = sphere;
   std::swap(flipped.triangles(1, 7), flipped.triangles(2, 7));  // one triangle turned over
-  EXPECT_FALSE(IsClosedSurface(flipped));
-  modeling::TriangleMesh bad = sphere;
-  bad.triangles(0, 3) = static_cast<int>(bad.vertices.cols());  // index out of range
-  EXPECT_FALSE(IsClosedSurface(bad));
-  modeling::TriangleMesh repeated = sphere;
-  repeated.triangles(1, 0) = repeated.triangles(0, 0);  // a corner twice
-  EXPECT_FALSE(IsClosedSurface(repeated));
-  EXPECT_FALSE(IsClosedSurface(modeling::TriangleMesh{}));
+  EXPECT_EQ(SculptableSurface(doc.Get(AddSurface(&doc, flipped))), nullptr);
+  modeling::TriangleMesh doubled = sphere;  // every triangle twice: each edge in 4 triangles
+  doubled.triangles.conservativeResize(3, 2 * sphere.triangles.cols());
+  doubled.triangles.rightCols(sphere.triangles.cols()) = sphere.triangles;
+  EXPECT_EQ(SculptableSurface(doc.Get(AddSurface(&doc, doubled))), nullptr);
+  // A mesh object without a surface (tetrahedra only) has none either.
+  auto tets = std::make_shared<modeling::TetMesh>();
+  tets->nodes = sphere.vertices.leftCols(4);
+  tets->tets.resize(4, 1);
+  tets->tets << 0, 1, 2, 3;
+  tets->regions = Eigen::VectorXi::Zero(1);
+  doc.Execute(edit::AddMesh("t", 0, 0, nullptr, tets));
+  EXPECT_EQ(SculptableSurface(doc.Get(doc.last_created().at(0))), nullptr);
 }
 
 TEST(CanSculptCopyOf, SolidsAndClosedMeshesOnly) {

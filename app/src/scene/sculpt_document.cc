@@ -8,7 +8,9 @@
 #include <vector>
 
 namespace spidarcad::app {
+namespace {
 
+// See SculptableSurface.
 bool IsClosedSurface(const modeling::TriangleMesh& mesh) {
   const Eigen::Index vertex_count = mesh.vertices.cols();
   const Eigen::Index triangle_count = mesh.triangles.cols();
@@ -31,6 +33,8 @@ bool IsClosedSurface(const modeling::TriangleMesh& mesh) {
   }
   return true;
 }
+
+}  // namespace
 
 std::shared_ptr<const modeling::TriangleMesh> SculptableSurface(const DocObject& object) {
   const auto* mesh = std::get_if<MeshData>(&object.data);

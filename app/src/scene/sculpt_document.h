@@ -21,13 +21,11 @@
 
 namespace spidarcad::app {
 
-// True when every triangle's indices are in range and distinct and every directed edge occurs
-// exactly once with its reverse exactly once (closed, edge-manifold, consistently oriented: what
-// modeling::SculptMesh accepts), with at least 4 vertices and 4 triangles.
-bool IsClosedSurface(const modeling::TriangleMesh& mesh);
-
 // The closed surface a sculpt copy of `object` starts from: a mesh object's surface when it is
-// closed (IsClosedSurface), else null (solids are meshed by a Job; other kinds have none).
+// closed (at least 4 vertices and 4 triangles, indices in range and distinct per triangle, every
+// directed edge exactly once and its reverse exactly once: closed, edge-manifold, consistently
+// oriented, what modeling::SculptMesh accepts), else null (solids are meshed by a Job; other
+// kinds have none).
 std::shared_ptr<const modeling::TriangleMesh> SculptableSurface(const DocObject& object);
 
 // True for the objects a sculpt copy can be made of: implicit solids and mesh objects with a
