@@ -407,28 +407,77 @@ TEST(SculptModeDocument, StrokeIsOneCommandAndUndoRedoReloadTheSessionExactly) {
   const modeling::TriangleMesh sculpted = DocMesh(rig.model, clay);
   EXPECT_FALSE(SameMesh(sculpted, start));
   EXPECT_TRUE(SessionHolds(rig.mode, sculpted));
+  EXPECT_EQ(rig.mode.session().undo_count(), 1) << "the session keeps the stroke's edit";
   // The grabbed vertex went up by the grip's motion (grab tool, strength 1).
   EXPECT_NEAR(sculpted.vertices.col(TopVertex(*rig.mode.session().mesh())).z(), p0.z() + 0.01,
               1e-12);
-  EXPECT_EQ(rig.mode.session().undo_count(), 0) << "the Document holds the history";
 
-  // Undo in the Document: the next Update reloads the original exactly and republishes.
+  // Undo in the Document: the next Update brings the session to the original exactly (the
+  // session's own inverse edit) and republishes; redo likewise.
   ASSERT_TRUE(rig.model.document().Undo());
   rig.Frame(ToolAt(away, 90.0));
   EXPECT_TRUE(SameMesh(DocMesh(rig.model, clay), start));
   EXPECT_TRUE(SessionHolds(rig.mode, start));
-  EXPECT_NE(rig.mode.TakeField(), nullptr) << "a reload republishes the field";
+  EXPECT_EQ(rig.mode.session().redo_count(), 1) << "undone in place, not reloaded";
+  EXPECT_NE(rig.mode.TakeField(), nullptr) << "an undo republishes the field";
   ASSERT_TRUE(rig.model.document().Redo());
   rig.Frame(ToolAt(away, 90.0));
   EXPECT_TRUE(SessionHolds(rig.mode, sculpted));
-  // Undo of the object's addition: nothing to sculpt; redo brings it back.
+  // An edit made elsewhere (a whole new mesh) is reloaded; undoing it reloads the sculpted one.
+  const modeling::TriangleMesh other = modeling::IcosphereMesh(0.03, 2);
+  rig.model.document().Execute(edit::ReplaceSculptMesh(clay, other));
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, other));
+  EXPECT_EQ(rig.mode.session().undo_count(), 0) << "reloaded";
   ASSERT_TRUE(rig.model.document().Undo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, sculpted));
+  // Undo of the stroke after that reload, then of the object's addition: nothing to sculpt;
+  // redo brings it back.
+  ASSERT_TRUE(rig.model.document().Undo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, start));
   ASSERT_TRUE(rig.model.document().Undo());
   rig.Frame(ToolAt(away, 90.0));
   EXPECT_FALSE(rig.mode.session().has_mesh());
   ASSERT_TRUE(rig.model.document().Redo());
   rig.Frame(ToolAt(away, 90.0));
   EXPECT_TRUE(SessionHolds(rig.mode, start));
+}
+
+// Two strokes, one with refinement (new vertices and triangles): undoing both and redoing both
+// in the Document leaves the session equal to the Document at every step.
+TEST(SculptModeDocument, UndoAndRedoOfRefinedStrokesKeepTheSessionEqualToTheDocument) {
+  DocumentRig rig;
+  const modeling::TriangleMesh start = modeling::IcosphereMesh(kRadius, 3);
+  rig.model.document().Execute(edit::AddSculpt("clay", start));
+  const ObjectId clay = rig.model.document().last_created().at(0);
+  rig.mode.SetActive(true);
+  const Eigen::Vector3d away(0.0, 0.0, 1.0);
+  rig.Frame(ToolAt(away, 90.0));
+  std::vector<modeling::TriangleMesh> states = {start};
+  for (double max_edge : {0.0, 0.003}) {
+    rig.mode.session().settings().tool.max_edge_length = max_edge;
+    const modeling::SculptMesh& mesh = *rig.mode.session().mesh();
+    const Eigen::Vector3d p0 = mesh.positions()[TopVertex(mesh)];
+    rig.Frame(ToolAt(p0, 30.0));
+    rig.Frame(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.01), 30.0));
+    rig.Frame(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.01), 90.0));
+    states.push_back(DocMesh(rig.model, clay));
+    ASSERT_TRUE(SessionHolds(rig.mode, states.back()));
+  }
+  ASSERT_GT(states[2].vertices.cols(), states[1].vertices.cols()) << "the second stroke refined";
+  for (int k = 1; k >= 0; --k) {
+    ASSERT_TRUE(rig.model.document().Undo());
+    rig.Frame(ToolAt(away, 90.0));
+    EXPECT_TRUE(SameMesh(DocMesh(rig.model, clay), states[k]));
+    EXPECT_TRUE(SessionHolds(rig.mode, states[k])) << "after undo to state " << k;
+  }
+  for (int k = 1; k <= 2; ++k) {
+    ASSERT_TRUE(rig.model.document().Redo());
+    rig.Frame(ToolAt(away, 90.0));
+    EXPECT_TRUE(SessionHolds(rig.mode, states[k])) << "after redo to state " << k;
+  }
 }
 
 TEST(SculptModeDocument, CopyOfASolidIsMeshedByAJobAndAddedAsOneStep) {

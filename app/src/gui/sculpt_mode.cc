@@ -126,6 +126,8 @@ void SculptMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
 
 void SculptMode::LoadMesh(const modeling::TriangleMesh& mesh) {
   session_.SetMesh(mesh);
+  recorded_.clear();
+  undone_.clear();
   target_ = 0;
   target_name_.clear();
   synced_revision_ = 0;
@@ -350,14 +352,37 @@ void SculptMode::SyncDocument(ModeContext& context) {
   }
   target_name_ = object->name;
   if (object->revision == synced_revision_) return;
-  // Changed in the Document (undo, redo, another edit) or not loaded yet: reload it.
   if (session_.stroke_active()) session_.CancelStroke();
+  // Undo or redo of one of the session's own strokes: equal revisions mean equal content, so the
+  // session's inverse (or re-applied) edit gives exactly the Document's mesh, without a reload.
+  const bool aligned = static_cast<std::size_t>(session_.undo_count()) == recorded_.size() &&
+                       static_cast<std::size_t>(session_.redo_count()) == undone_.size();
+  if (aligned && !recorded_.empty() && recorded_.back().second == synced_revision_ &&
+      recorded_.back().first == object->revision && session_.Undo()) {
+    undone_.push_back(recorded_.back());
+    recorded_.pop_back();
+    synced_revision_ = object->revision;
+    field_pending_ = true;  // republished, as after a reload
+    return;
+  }
+  if (aligned && !undone_.empty() && undone_.back().first == synced_revision_ &&
+      undone_.back().second == object->revision && session_.Redo()) {
+    recorded_.push_back(undone_.back());
+    undone_.pop_back();
+    synced_revision_ = object->revision;
+    field_pending_ = true;
+    return;
+  }
+  // Changed otherwise in the Document (another edit, an undo further back) or not loaded yet:
+  // reload it.
   try {
     session_.SetMesh(*data->mesh);
   } catch (const std::exception& e) {
     session_.ClearMesh();
     message_ = "'" + object->name + "' cannot be sculpted: " + e.what();
   }
+  recorded_.clear();
+  undone_.clear();
   synced_revision_ = object->revision;
   field_pending_ = true;  // a new field on the reloaded session: the window republishes
 }
@@ -371,17 +396,30 @@ void SculptMode::RecordStroke(ModeContext& context) {
     // The object changed under the stroke: the Document wins, the stroke is dropped.
     message_ = "The sculpt object changed during the stroke: the stroke was dropped";
     session_.ForgetHistory();
+    recorded_.clear();
+    undone_.clear();
     synced_revision_ = 0;
     return;
   }
   std::unique_ptr<Command> command =
       MakeStrokeCommand(target_, object->name, stroke_tool_, *edit, *session_.mesh());
-  session_.ForgetHistory();
+  // The session keeps its strokes' edits (for undo and redo without a reload) as long as the
+  // Document's history could reach them, each with the object's revisions before and after.
+  const bool keep = command != nullptr &&
+                    recorded_.size() + 1 == static_cast<std::size_t>(session_.undo_count()) &&
+                    recorded_.size() < doc.history().max_depth();
+  if (!keep) {
+    session_.ForgetHistory();
+    recorded_.clear();
+  }
+  undone_.clear();  // the stroke cleared the session's redo list, as Execute clears the Document's
   if (command == nullptr) return;  // nothing moved
+  const std::uint64_t before = synced_revision_;
   try {
     doc.Execute(std::move(command));
     // The session already holds what the Document now holds: no reload.
     synced_revision_ = doc.Get(target_).revision;
+    if (keep) recorded_.emplace_back(before, synced_revision_);
   } catch (const std::exception& e) {
     message_ = std::string("The stroke could not be recorded, so it was undone: ") + e.what();
     synced_revision_ = 0;  // reload the Document's mesh
@@ -496,6 +534,8 @@ bool SculptMode::StartCopy(ModeContext& context, ObjectId source) {
             target_ = id;
             target_name_ = name;
             session_.SetMesh(std::make_unique<modeling::SculptMesh>(std::move(*clay)));
+            recorded_.clear();
+            undone_.clear();
             synced_revision_ = doc.Get(id).revision;
             field_pending_ = true;
             message_ = "Added '" + name + "', a copy of '" + source_name + "'";

@@ -31,6 +31,7 @@
 #include <string>
 #include <unordered_map>
 #include <utility>
+#include <vector>
 
 #include "doc/document.h"
 #include "scene/sculpt_field.h"
@@ -136,16 +137,21 @@ class SculptMode {
   ObjectId target_ = 0;                // sculpt object sculpted (0: none)
   std::string target_name_;            // its name when last seen
   std::uint64_t synced_revision_ = 0;  // its revision the session holds (0: not loaded)
-  int generation_ = -1;                // SceneModel::generation() the ids belong to
-  bool choose_target_ = false;         // choose the target at the next Update
-  bool launch_pending_ = false;        // Launch asked for its set-up
-  bool have_selection_ = false;        // the tree had a selection when last looked at
-  ObjectId seen_selection_ = 0;        // the object selected in the tree then
-  ObjectId copy_source_ = 0;           // object the "Sculpt a copy of" list shows
-  ObjectId copy_request_ = 0;          // RequestCopy for the next Update
-  bool send_to_fe_ = false;            // RequestSendToFe for the next Update
-  const Job* copy_job_ = nullptr;      // copy meshing in flight (compared, never dereferenced)
-  std::string copy_job_title_;         // its title
+  // The target's revisions (before, after) of each stroke on the session's undo list, and of
+  // each on its redo list: an undo or redo in the Document that moves between them is applied
+  // to the session by SculptSession::Undo/Redo instead of a reload.
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> recorded_;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> undone_;
+  int generation_ = -1;            // SceneModel::generation() the ids belong to
+  bool choose_target_ = false;     // choose the target at the next Update
+  bool launch_pending_ = false;    // Launch asked for its set-up
+  bool have_selection_ = false;    // the tree had a selection when last looked at
+  ObjectId seen_selection_ = 0;    // the object selected in the tree then
+  ObjectId copy_source_ = 0;       // object the "Sculpt a copy of" list shows
+  ObjectId copy_request_ = 0;      // RequestCopy for the next Update
+  bool send_to_fe_ = false;        // RequestSendToFe for the next Update
+  const Job* copy_job_ = nullptr;  // copy meshing in flight (compared, never dereferenced)
+  std::string copy_job_title_;     // its title
   std::unordered_map<ObjectId, std::pair<std::uint64_t, bool>> copyable_;  // revision, result
   // Alive flag shared with job finishers, so a finisher of a destroyed mode does nothing.
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
