@@ -290,6 +290,8 @@ void SculptMode::SyncDocument(ModeContext& context) {
       synced_revision_ = 0;
       copy_source_ = 0;
       copyable_.clear();
+      recorded_.clear();
+      undone_.clear();
       if (session_.has_mesh()) session_.ClearMesh();
     }
     generation_ = model.generation();
