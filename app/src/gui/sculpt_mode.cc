@@ -529,7 +529,12 @@ bool SculptMode::StartCopy(ModeContext& context, ObjectId source) {
               return;
             }
             const std::string name = UniqueObjectName(doc, source_name + " sculpt");
-            doc.Execute(edit::AddSculpt(name, *surface));
+            try {
+              doc.Execute(edit::AddSculpt(name, *surface));
+            } catch (const std::exception& e) {
+              message_ = "Sculpt a copy of '" + source_name + "': " + e.what();
+              throw;  // the job fails with the reason; the document is as it was
+            }
             const ObjectId id = doc.last_created().at(0);
             if (tree != nullptr) tree->Select(id);
             if (session_.stroke_active()) session_.CancelStroke();

@@ -83,8 +83,9 @@ class SculptMode {
   // ---- the Document ----
   // Sculpts sculpt object `id` (loaded from the Document at the next Update).
   void SetTarget(ObjectId id);
-  // The sculpt object sculpted (0: none) and its name when last seen.
+  // The sculpt object sculpted (0: none).
   ObjectId target() const { return target_; }
+  // Its name when last seen in the Document.
   const std::string& target_name() const { return target_name_; }
   // Makes a sculpt copy of object `source` (a solid: meshed by a Job at the panel's cell size,
   // the copy added and sculpted when it lands; a mesh object with a closed surface: added at
@@ -97,8 +98,9 @@ class SculptMode {
   void RequestSendToFe() { send_to_fe_ = true; }
   // True while a copy's meshing Job runs (a screenshot waits for it).
   bool copy_pending() const { return copy_job_ != nullptr; }
-  // Grid cell (m) of the surface mesh of a solid's copy.
+  // Grid cell (m) of the surface mesh of a solid's copy (default 2 mm).
   double mesh_cell() const { return mesh_cell_; }
+  // Sets that grid cell (m, > 0).
   void set_mesh_cell(double cell) { mesh_cell_ = cell; }
   // The last message of the panel (errors, outcomes).
   const std::string& message() const { return message_; }
@@ -117,6 +119,7 @@ class SculptMode {
   void RecordStroke(ModeContext& context);
   // Whether a sculpt copy can be made of `object` (cached per object revision).
   bool CopyableCached(const DocObject& object);
+  // The panel's top: the sculpt object chosen, the "Sculpt a copy of" controls.
   void DrawDocumentPanel(ModeContext& context);
 
   vtkRenderer* renderer_;
