@@ -6,7 +6,9 @@
 // solid with the grip and pressing Enter, and mode switching through the Mode interface. Then
 // windows of their own for documents: open, every mode, edit, save and reopen; a bad file; the
 // unsaved-changes question; dropped files; autosave and recovery, including a spawned
-// spidarcad killed with SIGKILL and recovered with --recover.
+// spidarcad killed with SIGKILL and recovered with --recover. Sculpt mode on the Document: a
+// copy of a solid sculpted with the grip, each stroke one undo step (Ctrl+Z, Ctrl+Y), saved and
+// reopened; --mode sculpt making its clay as a sculpt object; "Send to FE".
 #include "gui/app_window.h"
 
 #include <signal.h>
@@ -43,6 +45,7 @@
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
+#include "scene/sculpt_field.h"
 #include "support/scoped_env.h"
 
 namespace spidarcad::app {
@@ -641,6 +644,186 @@ TEST(AppWindowRecovery, RecoversTheEditOfAKilledSession) {
   Document saved;
   saved.Load(copy);
   EXPECT_EQ(NodeField(saved, "plate", "radius"), 0.0048);
+}
+
+// ---- sculpt mode on the Document ----
+
+// The sculpt mesh of object id.
+const SculptMesh& SculptMeshOf(const Document& doc, ObjectId id) {
+  return *std::get<SculptData>(doc.Get(id).data).mesh;
+}
+
+// True when a and b have the same vertices (bitwise) and triangles.
+bool SameSurface(const modeling::TriangleMesh& a, const modeling::TriangleMesh& b) {
+  return a.vertices.cols() == b.vertices.cols() && a.triangles.cols() == b.triangles.cols() &&
+         a.vertices == b.vertices && a.triangles == b.triangles;
+}
+
+// Ctrl + key (with Shift when asked) for one frame, then released, as HandleTreeShortcuts reads
+// them.
+void PressCtrl(AppWindow& window, int key, bool shift = false) {
+  ImGuiIO& io = ImGui::GetIO();
+  io.KeysDown[GLFW_KEY_LEFT_CONTROL] = true;
+  io.KeyCtrl = true;
+  io.KeyShift = shift;
+  io.KeysDown[key] = true;
+  window.Frame();
+  io.KeysDown[key] = false;
+  io.KeysDown[GLFW_KEY_LEFT_CONTROL] = false;
+  io.KeyCtrl = false;
+  io.KeyShift = false;
+  window.Frame();
+}
+
+// Sets the simulated hand's target to p_W (W) with grasp angle `grasp_deg`, then runs frames
+// until the measured grip is within 0.5 mm of it and `done` holds (at most `frames` frames).
+template <typename Done>
+void MoveGrip(AppWindow& window, const Eigen::Vector3d& p_W, double grasp_deg, Done done,
+              int frames = 3000) {
+  const DeviceToWorld& x = window.model().device_to_world();
+  const Eigen::Vector3d p_D = (p_W - x.p_WDo) / x.world_scale;
+  window.grip().SetPose(p_D, Eigen::Matrix3d::Identity(), grasp_deg * 3.14159265358979323846 / 180);
+  for (int k = 0; k < frames; ++k) {
+    window.Frame();
+    if ((window.runtime().Latest().tool.pose_D.p0 - p_D).norm() < 5e-4 && done()) return;
+  }
+}
+
+// The demo's knob copied for sculpting (a Job), pulled up by a grasp stroke of the grip: one undo
+// step titled with the tool and the object; Ctrl+Z gives back the exact vertex positions in the
+// Document and in the session, Ctrl+Y the sculpted ones; saved, undone and redone across the
+// save (clean again), reopened: the same surface, sculpted again in a fresh sculpt mode. Then
+// "Send to FE" selects it and switches to FE mode.
+TEST(AppWindowSculpt, StrokeIsOneUndoStepThatSurvivesSaveAndReopen) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("sculpt");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string saved = (dir / "sculpted.json").string();
+  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  window.Frame();
+  auto* sculpt = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
+  ASSERT_NE(sculpt, nullptr);
+  SculptMode& mode = sculpt->sculpt();
+  window.SwitchMode(sculpt);
+  const Document& doc = window.model().document();
+  const DocObject* knob = doc.FindByName("knob");
+  ASSERT_NE(knob, nullptr);
+  const std::size_t objects = doc.objects().size();
+  mode.RequestCopy(knob->id);
+  window.Frame();
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while ((mode.copy_pending() || mode.target() == 0) && std::chrono::steady_clock::now() < give_up)
+    window.Frame();
+  ASSERT_EQ(doc.objects().size(), objects + 1) << mode.message();
+  const ObjectId clay = mode.target();
+  ASSERT_NE(clay, 0u) << mode.message();
+  EXPECT_EQ(doc.Get(clay).name, "knob sculpt");
+  EXPECT_EQ(doc.history().UndoDescription(), "Add sculpt knob sculpt");
+  ASSERT_EQ(window.tree().selection()->object, clay) << "the copy is selected in the tree";
+  EXPECT_EQ(sculpt->Targets(window.model()), std::vector<std::string>{"knob sculpt"});
+  window.Frame();
+  ASSERT_TRUE(mode.session().has_mesh());
+  const modeling::TriangleMesh start = SculptMeshOf(doc, clay);
+  const std::size_t steps = doc.history().undo_size();
+
+  // The stroke: the grip at the copy's top vertex, the grasp closed, lifted 1 cm, opened.
+  Eigen::Index top = 0;
+  for (Eigen::Index v = 0; v < start.vertices.cols(); ++v) {
+    if (start.vertices(2, v) > start.vertices(2, top)) top = v;
+  }
+  const Eigen::Vector3d p_top = start.vertices.col(top);
+  MoveGrip(window, p_top, 90.0, [] { return true; });
+  MoveGrip(window, p_top, 30.0, [&] { return mode.session().stroke_active(); });
+  ASSERT_TRUE(mode.session().stroke_active()) << mode.message();
+  MoveGrip(
+      window, p_top + Eigen::Vector3d(0, 0, 0.01), 30.0, [] { return true; }, 600);
+  MoveGrip(window, p_top + Eigen::Vector3d(0, 0, 0.01), 90.0,
+           [&] { return !mode.session().stroke_active(); });
+  ASSERT_FALSE(mode.session().stroke_active());
+  ASSERT_EQ(doc.history().undo_size(), steps + 1);
+  EXPECT_EQ(doc.history().UndoDescription(), "Sculpt stroke (grab) on knob sculpt");
+  const modeling::TriangleMesh sculpted = SculptMeshOf(doc, clay);
+  ASSERT_FALSE(SameSurface(sculpted, start));
+  EXPECT_GT(sculpted.vertices(2, top), p_top.z() + 0.001) << "the top went up";
+  EXPECT_TRUE(SameSurface(mode.session().ExportMesh(), sculpted));
+
+  // Ctrl+Z: the exact positions back, in the Document and (reloaded) in the session.
+  MoveGrip(
+      window, p_top + Eigen::Vector3d(0, 0, 0.05), 90.0, [] { return true; }, 200);
+  PressCtrl(window, GLFW_KEY_Z);
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), start));
+  EXPECT_TRUE(SameSurface(mode.session().ExportMesh(), start));
+  PressCtrl(window, GLFW_KEY_Y);
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), sculpted));
+  EXPECT_TRUE(SameSurface(mode.session().ExportMesh(), sculpted));
+
+  // Save; undo across the save makes it dirty, redo clean again.
+  ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+  window.Frame();
+  EXPECT_FALSE(doc.dirty());
+  PressCtrl(window, GLFW_KEY_Z);
+  EXPECT_TRUE(doc.dirty());
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), start));
+  PressCtrl(window, GLFW_KEY_Z, true);  // Ctrl+Shift+Z: redo
+  EXPECT_FALSE(doc.dirty());
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), sculpted));
+
+  // Read back: the same surface, bit for bit.
+  Document reread;
+  reread.Load(saved);
+  const DocObject* copy = reread.FindByName("knob sculpt");
+  ASSERT_NE(copy, nullptr);
+  EXPECT_TRUE(SameSurface(SculptMeshOf(reread, copy->id), sculpted));
+
+  // "Send to FE": the sculpt object selected in the tree, FE mode active.
+  window.tree().Select(doc.objects().front().id);
+  sculpt->sculpt().RequestSendToFe();
+  window.Frame();
+  EXPECT_EQ(window.active_mode(), window.FindMode("fe"));
+  ASSERT_TRUE(window.tree().selection().has_value());
+  EXPECT_EQ(window.tree().selection()->object, clay);
+
+  // Reopened in the same window: a fresh sculpt mode takes the file's sculpt object as saved.
+  ASSERT_TRUE(window.OpenDocument(saved)) << window.file_error();
+  window.Frame();
+  auto* again = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
+  ASSERT_NE(again, nullptr);
+  window.SwitchMode(again);
+  for (int k = 0; k < 5; ++k) window.Frame();
+  ASSERT_NE(again->sculpt().target(), 0u);
+  EXPECT_EQ(window.model().document().Get(again->sculpt().target()).name, "knob sculpt");
+  EXPECT_TRUE(SameSurface(again->sculpt().session().ExportMesh(), sculpted));
+}
+
+// --mode sculpt on a scene without sculpt objects (clay.json) keeps its clay: a sculpt copy of the
+// first solid, made by a Job at start-up and added as one undo step, is what the mode sculpts.
+TEST(AppWindowSculpt, ModeSculptMakesTheClayASculptObjectOfTheFirstSolid) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("sculpt_launch");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  GuiOptions options = DocumentWindowOptions("");
+  options.mode = "sculpt";
+  AppWindow window(options);
+  auto* sculpt = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
+  ASSERT_NE(sculpt, nullptr);
+  EXPECT_EQ(window.active_mode(), sculpt);
+  window.Frame();
+  EXPECT_FALSE(sculpt->Settled()) << "a screenshot waits for the clay";
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(180);
+  while (!sculpt->Settled() && std::chrono::steady_clock::now() < give_up) window.Frame();
+  window.Frame();
+  const Document& doc = window.model().document();
+  EXPECT_EQ(fs::path(doc.file_path()).filename(), "clay.json");
+  const DocObject* clay = doc.FindByName("clay sculpt");
+  ASSERT_NE(clay, nullptr) << sculpt->sculpt().message();
+  EXPECT_EQ(sculpt->sculpt().target(), clay->id);
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Add sculpt clay sculpt");
+  ASSERT_TRUE(sculpt->sculpt().session().has_mesh());
+  EXPECT_TRUE(SameSurface(sculpt->sculpt().session().ExportMesh(), SculptMeshOf(doc, clay->id)));
+  EXPECT_TRUE(sculpt->live());
 }
 
 }  // namespace

@@ -896,6 +896,12 @@ void AppWindow::DrawModePanel() {
   s.active->DrawPanel(s.context);
   ImGui::PopItemWidth();
   ImGui::End();
+  // A mode asked for another (e.g. sculpt's "Send to FE").
+  if (!s.context.switch_to.empty()) {
+    Mode* next = FindMode(s.context.switch_to);
+    s.context.switch_to.clear();
+    if (next != nullptr && next->available() && next != s.active) SwitchMode(next);
+  }
 }
 
 void AppWindow::DrawFiguresStrip() {

@@ -387,15 +387,20 @@ void SculptWindowMode::Leave() {
   changed_ = true;
 }
 
-void SculptWindowMode::Update(const haptics::ToolState& tool, ModeContext&) {
-  sculpt_.OnFrame(tool);
+void SculptWindowMode::Launch() {
+  Enter();
+  sculpt_.Launch();
+}
+
+void SculptWindowMode::Update(const haptics::ToolState& tool, ModeContext& context) {
+  sculpt_.Update(tool, context);
   if (auto f = sculpt_.TakeField()) {
     field_ = std::shared_ptr<haptics::ForceField>(std::move(f));
     changed_ = true;
   }
 }
 
-void SculptWindowMode::DrawPanel(ModeContext&) { sculpt_.DrawPanel(); }
+void SculptWindowMode::DrawPanel(ModeContext& context) { sculpt_.DrawPanel(&context); }
 
 std::unique_ptr<haptics::HapticScene> SculptWindowMode::BuildScene(ModeContext&) {
   auto scene = std::make_unique<haptics::HapticScene>();
@@ -403,7 +408,11 @@ std::unique_ptr<haptics::HapticScene> SculptWindowMode::BuildScene(ModeContext&)
   return scene;
 }
 
-std::vector<std::string> SculptWindowMode::Targets(const SceneModel&) const { return {}; }
+std::vector<std::string> SculptWindowMode::Targets(const SceneModel& model) const {
+  const ObjectId id = sculpt_.target();
+  if (id == 0 || model.document().Find(id) == nullptr) return {};
+  return {model.document().Get(id).name};
+}
 
 // ---- AssemblyWindowMode ----
 

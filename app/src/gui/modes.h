@@ -152,7 +152,7 @@ class FeWindowMode final : public Mode {
   bool changed_ = false;
 };
 
-// Sculpt (SculptMode) as a Mode.
+// Sculpt (SculptMode) as a Mode: sculpts a sculpt object of the Document (see gui/sculpt_mode.h).
 class SculptWindowMode final : public Mode {
  public:
   SculptWindowMode(vtkRenderer* renderer, JobQueue* jobs) : sculpt_(renderer, jobs) {}
@@ -160,13 +160,18 @@ class SculptWindowMode final : public Mode {
   const char* key() const override { return "sculpt"; }
   void Enter() override;
   void Leave() override;
+  // Enter, then the Document's first sculpt object, else a sculpt copy of its first solid.
+  void Launch() override;
   bool active() const override { return sculpt_.active(); }
   void Update(const haptics::ToolState& tool, ModeContext& context) override;
   void DrawPanel(ModeContext& context) override;
   bool live() const override { return field_ != nullptr && sculpt_.active(); }
   std::unique_ptr<haptics::HapticScene> BuildScene(ModeContext& context) override;
   bool TakeSceneChanged() override { return std::exchange(changed_, false); }
+  // The sculpt object sculpted, if any.
   std::vector<std::string> Targets(const SceneModel& model) const override;
+  // False while a sculpt copy is being meshed.
+  bool Settled() const override { return !sculpt_.copy_pending(); }
   SculptMode& sculpt() { return sculpt_; }
 
  private:
