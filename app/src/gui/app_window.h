@@ -141,6 +141,9 @@ class AppWindow {
   void DrawFiguresStrip();
   void ApplyActions();
   void PublishScene();
+  // The mode whose field is felt when the active one is not live: assembly for a document of
+  // rigid parts without solids, else modelling.
+  Mode* BaseMode() const;
   void ApplyHidden();
   void FitView();
   bool CaptureScreenshot();
