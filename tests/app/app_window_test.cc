@@ -814,12 +814,13 @@ TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
   actor->GetBounds(b);
   const double expected[6] = {-0.03, 0.03, -0.03, 0.03, -0.06, 0.0};
   for (int k = 0; k < 6; ++k) EXPECT_NEAR(b[k], expected[k], 1e-8) << "bound " << k;  // floats
-  // A click on the middle of its slanted face (seen from the default camera above).
-  const Eigen::Vector3d centre_W(0.01, -0.01, -0.02);
+  // A click on its centroid: every ray through an inner point meets it.
+  const Eigen::Vector3d centre_W(-0.015, -0.015, -0.045);
   const Eigen::Vector3d d = window.view().WorldToDisplay(centre_W);
   int fb_w = 0, fb_h = 0;
   glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
   window.tree().ClearSelection();
+  ASSERT_TRUE(window.layout().viewport.Contains(d.x(), fb_h - d.y())) << d.transpose();
   ASSERT_TRUE(window.ClickAt(d.x(), fb_h - d.y()));
   ASSERT_TRUE(window.tree().selection().has_value());
   EXPECT_EQ(window.tree().selection()->object, id);
