@@ -175,9 +175,9 @@ class SculptWindowMode final : public Mode {
 };
 
 // Assembly (AssemblyMode) as a Mode on the document's rigid parts: available when it has some;
-// its field is felt whenever no other mode's part is live in a document whose only objects are
-// parts (it is then the base mode), else while it is the active mode. Update commits the parts
-// let go as commands and follows undo, redo and tree edits of the parts (AssemblyMode).
+// its field is felt whenever no other mode's part is live in a document without solids (it is
+// then the base mode, AppWindow::BaseMode), else while it is the active mode. Update commits the
+// parts let go as commands and follows undo, redo and tree edits of the parts (AssemblyMode).
 class AssemblyWindowMode final : public Mode {
  public:
   explicit AssemblyWindowMode(vtkRenderer* renderer) : assembly_(renderer) {}
