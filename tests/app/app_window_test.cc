@@ -680,8 +680,8 @@ bool FramesUntil(AppWindow* window, double seconds, const Done& done) {
 // parts): exactly one command, "Seat part right_leg on body", with the leg at its seat. Ctrl+Z
 // (the tree's Undo) puts the leg back where the file has it, in the document, in the field the
 // loop ticks and in the view; redo seats it again; saved and reopened in a fresh window it is
-// seated. Then an edit of the head's peg radius through a command republishes a field whose
-// distance beside the peg is the edited solid's own.
+// seated, and a click on the torso selects the body part. Then an edit of the head's peg radius
+// through a command republishes a field whose distance beside the peg is the edited solid's own.
 TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const fs::path dir = Scratch("assembly");
@@ -756,8 +756,19 @@ TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
   EXPECT_EQ(mode->assembly().part_state(kLeg), AssemblyPartState::kSeated);
   EXPECT_EQ(FormatAssemblySummary(mode->assembly()),
             "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
-  // A part's solid edited through a command: the head's peg radius 4 -> 3.5 mm.
+  // A click on the torso's top selects the body part in the tree (X_WD identity: D = W).
   Document& doc = again.model().document();
+  const DeviceToWorld& x = again.model().device_to_world();
+  ASSERT_EQ(x.world_scale, 1.0);
+  ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d top = again.view().WorldToDisplay(Eigen::Vector3d(0.0, 0.0, 0.114));
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
+  again.tree().ClearSelection();
+  ASSERT_TRUE(again.ClickAt(top.x(), fb_h - top.y()));
+  ASSERT_TRUE(again.tree().selection().has_value());
+  EXPECT_EQ(again.tree().selection()->object, doc.FindByName("body")->id);
+  // A part's solid edited through a command: the head's peg radius 4 -> 3.5 mm.
   const ObjectId head = doc.FindByName("head")->id;
   const Eigen::Vector3d p_P(0.006, 0.0, -0.004);  // 2 mm beside the peg, mid-height
   const std::shared_ptr<haptics::AssemblyField> old_field = mode->assembly().field();

@@ -1519,7 +1519,8 @@ bool AppWindow::ClickAt(double x, double y) {
   if (!s.layout.viewport.Contains(static_cast<float>(x), static_cast<float>(y))) return false;
   const double sx = static_cast<double>(s.fb_w) / s.win_w;
   const double sy = static_cast<double>(s.fb_h) / s.win_h;
-  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy);
+  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy,
+                                               s.assembly_mode->assembly().PickableParts());
   if (id == 0) return false;
   s.tree->Select(id);
   const int index = s.model.IndexOf(id);

@@ -535,6 +535,15 @@ vtkActor* AssemblyMode::actor(int i) const {
   return renderer_ ? vtk_->actors[i]->actor.GetPointer() : nullptr;
 }
 
+std::vector<std::pair<vtkActor*, ObjectId>> AssemblyMode::PickableParts() const {
+  std::vector<std::pair<vtkActor*, ObjectId>> out;
+  if (!renderer_) return out;
+  for (int i = 0; i < size(); ++i) {
+    if (parts_[i].id != 0) out.emplace_back(vtk_->actors[i]->actor.GetPointer(), parts_[i].id);
+  }
+  return out;
+}
+
 vtkActor* AssemblyMode::ghost() const {
   return renderer_ ? vtk_->ghost.actor.GetPointer() : nullptr;
 }

@@ -128,6 +128,9 @@ class AssemblyMode {
   // Names of the scene solids the parts are made of: the window hides their static actors (the
   // solids sit at their own frame origins; the parts draw them where they are).
   std::vector<std::string> part_solids() const;
+  // The part actors with their document object ids, for picking in the view (parts loaded from
+  // a scene, id 0, are left out; empty without a renderer).
+  std::vector<std::pair<vtkActor*, ObjectId>> PickableParts() const;
   // Part i's actor and the ghost actor (tests); null without a renderer.
   vtkActor* actor(int i) const;
   vtkActor* ghost() const;

@@ -203,7 +203,8 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
   SyncMeshes(model.document(), x);
 }
 
-ObjectId SceneView::PickObject(double x, double y) const {
+ObjectId SceneView::PickObject(double x, double y,
+                               const std::vector<std::pair<vtkActor*, ObjectId>>& extra) const {
   vtkNew<vtkCellPicker> picker;
   picker->SetTolerance(0.0005);
   picker->PickFromListOn();
@@ -212,8 +213,14 @@ ObjectId SceneView::PickObject(double x, double y) const {
       if (e->actor->GetVisibility()) picker->AddPickList(e->actor);
     }
   }
+  for (const auto& [actor, id] : extra) {
+    if (actor != nullptr && actor->GetVisibility()) picker->AddPickList(actor);
+  }
   if (picker->Pick(x, y, 0.0, renderer_) == 0) return 0;
   vtkActor* hit = picker->GetActor();
+  for (const auto& [actor, id] : extra) {
+    if (actor == hit) return id;
+  }
   for (const auto* list : {&entries_, &mesh_entries_}) {
     for (const auto& e : *list) {
       if (e->actor.GetPointer() == hit) return e->id;

@@ -66,8 +66,10 @@ class SceneView {
   // The Document object whose actor is nearest the eye under display pixel (x, y) of the
   // renderer's window (origin bottom left): a VTK cell picker on the visible scene actors and
   // imported-mesh actors only (the device, the grip and the markers are not picked). 0 when
-  // none is there.
-  ObjectId PickObject(double x, double y) const;
+  // none is there. `extra` adds actors of other objects to pick from (an assembly's parts, drawn
+  // by AssemblyMode); the nearest hit wins either way.
+  ObjectId PickObject(double x, double y,
+                      const std::vector<std::pair<vtkActor*, ObjectId>>& extra = {}) const;
   // The actor of Document object `id`, a solid or an imported mesh (null when it has none yet).
   vtkActor* ActorOf(ObjectId id) const;
 
