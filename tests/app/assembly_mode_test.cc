@@ -360,6 +360,32 @@ TEST(AssemblyModeDocument, LetGoPartIsOneCommandThatUndoAndRedoMoveInTheField) {
   EXPECT_LT((reopened_mode.field()->part(kRightArm).X_WP.matrix() - moved.matrix()).norm(), 1e-15);
 }
 
+// Reset parts on a document: the field goes back to the poses it was built with and the parts
+// that had been moved since come back as one undoable command.
+TEST(AssemblyModeDocument, ResetPutsMovedPartsBackAsOneCommand) {
+  Document doc;
+  LoadRobot(&doc);
+  AssemblyMode mode(nullptr);
+  mode.LoadDocument(doc);
+  const ObjectId arm = mode.part_id(kRightArm);
+  const Eigen::Isometry3d start = DocPose(doc, arm);
+  Grip grip(mode.field().get(), kRightArm);
+  grip.Lift(0.02);
+  grip.Open();
+  mode.OnFrame();
+  ASSERT_TRUE(mode.SyncDocument(&doc));
+  const Eigen::Isometry3d moved = DocPose(doc, arm);
+  ASSERT_GT((moved.translation() - start.translation()).norm(), 0.01);
+  mode.Reset();
+  EXPECT_TRUE(mode.SyncDocument(&doc));
+  EXPECT_EQ(doc.history().undo_size(), 2u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Move part right_arm");
+  EXPECT_EQ(DocPose(doc, arm).matrix(), start.matrix());
+  ASSERT_TRUE(doc.Undo());
+  mode.SyncDocument(&doc);
+  EXPECT_EQ(mode.field()->part(kRightArm).X_WP.matrix(), moved.matrix());
+}
+
 // An edit of a part's solid through a command (the head's peg radius 4 -> 3.5 mm) rebuilds the
 // field at the next sync: beside the peg the field's distance is the edited solid's own, 0.5 mm
 // more than before; only that tree is compiled again. Undo brings the old shape back.
