@@ -18,7 +18,6 @@
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
-#include <map>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -156,19 +155,7 @@ void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSetting
     synced_.clear();
     return;
   }
-  std::vector<AssemblyPartInput> inputs;
-  for (const modeling::ScenePart& sp : scene.parts) {
-    AssemblyPartInput in;
-    in.name = sp.name;
-    in.solid = sp.solid;
-    for (const modeling::Solid& s : scene.solids) {
-      if (s.name == sp.solid) in.root = &s.root;
-    }
-    in.X_WP = PartPose(sp.position, sp.rotation);
-    in.fixed = sp.fixed;
-    in.seats = sp.seats;
-    inputs.push_back(std::move(in));
-  }
+  const std::vector<AssemblyPartInput> inputs = ScenePartInputs(scene);
   const AssemblySceneSettings old = settings_;
   settings_ = settings;
   try {

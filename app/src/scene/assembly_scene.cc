@@ -158,8 +158,7 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(
   return field;
 }
 
-std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene& scene,
-                                                           const AssemblySceneSettings& settings) {
+std::vector<AssemblyPartInput> ScenePartInputs(const modeling::Scene& scene) {
   std::vector<AssemblyPartInput> inputs;
   for (const modeling::ScenePart& sp : scene.parts) {
     AssemblyPartInput in;
@@ -173,7 +172,12 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene
     in.seats = sp.seats;
     inputs.push_back(std::move(in));
   }
-  return BuildAssemblyField(inputs, settings, nullptr);
+  return inputs;
+}
+
+std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(const modeling::Scene& scene,
+                                                           const AssemblySceneSettings& settings) {
+  return BuildAssemblyField(ScenePartInputs(scene), settings, nullptr);
 }
 
 std::vector<AssemblyPartInput> RigidPartInputs(const Document& doc, std::vector<ObjectId>* ids) {

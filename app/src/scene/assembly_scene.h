@@ -89,6 +89,11 @@ std::unique_ptr<haptics::AssemblyField> BuildAssemblyField(
     const std::vector<AssemblyPartInput>& parts, const AssemblySceneSettings& settings,
     AssemblyGeometryCache* cache);
 
+// The parts of a version 1 scene as field input (root: the named solid's tree, pointing into
+// `scene`; null when the scene has no such solid, which BuildAssemblyField reports; X_WP =
+// PartPose(position, rotation)).
+std::vector<AssemblyPartInput> ScenePartInputs(const modeling::Scene& scene);
+
 // The rigid_part objects of `doc` as field input, in document order (name: the object's name,
 // root: its tree, pointing into doc, valid until doc changes). `ids` (may be null) receives each
 // part's object id.
