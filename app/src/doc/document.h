@@ -206,6 +206,8 @@ class Document {
   bool dirty() const;
   // File of the last successful Load or Save ("" before).
   const std::string& file_path() const { return file_path_; }
+  // Sets file_path() without reading or writing (content converted after a Load keeps its file).
+  void set_file_path(std::string path) { file_path_ = std::move(path); }
   // Ids of the objects created by the last Execute or Redo (e.g. the new solid of an AddSolid).
   const std::vector<ObjectId>& last_created() const { return last_created_; }
 

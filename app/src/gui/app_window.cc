@@ -49,6 +49,7 @@
 #include "gui/scene_view.h"
 #include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
+#include "scene/assembly_scene.h"
 #include "scene/device_session.h"
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
@@ -208,6 +209,12 @@ std::string FrameText(const haptics::SpidarGeometry& g) {
          FormatNumber(g.d) + " m";
 }
 
+// A version 1 assembly's parts become rigid parts of the document (scene/assembly_scene.h), so
+// that the assembly mode's moves are undoable document content.
+void AdoptParts(SceneModel* model) {
+  if (AdoptScenePartsAsRigidParts(&model->document())) model->Refresh();
+}
+
 }  // namespace
 
 struct AppWindow::State {
@@ -357,6 +364,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   try {
     const DeviceToWorld identity;
     s.model.Load(load_from, s.grip->limits(), s.assembly ? &identity : nullptr);
+    AdoptParts(&s.model);
   } catch (const std::exception& e) {
     throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
   }
@@ -818,12 +826,9 @@ void AppWindow::PollJobs() {
     try {
       s.jobs->CancelAll();
       s.model.Load(s.model.source(), s.grip->limits(), &s.model.device_to_world());
-      modeling::Scene reloaded;  // no parts (any more): the assembly empties
-      AssemblyMode& assembly = s.assembly_mode->assembly();
-      if (LoadAssemblyScene(s.model.source(), &reloaded) || assembly.has_parts()) {
-        assembly.Load(reloaded);
-      }
-      s.model_mode->SetFelt(!s.assembly_mode->available());
+      AdoptParts(&s.model);
+      s.assembly_mode->assembly().LoadDocument(s.model.document());  // none: it empties
+      s.model_mode->SetFelt(BaseMode() != s.assembly_mode);
       if (!s.active->available()) SwitchMode(s.model_mode);
       ApplyHidden();
       s.republish = true;
@@ -988,11 +993,17 @@ void AppWindow::PublishScene() {
   s.republish = false;
   // The active mode's part, when live, stands in for the scene's solids; else the base mode's
   // (the assembly of a scene with parts, else the solids of the modelling mode).
-  Mode* base = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
-  Mode* source = s.active->live() ? s.active : base;
+  Mode* source = s.active->live() ? s.active : BaseMode();
   s.runtime->Publish(source->live() ? source->BuildScene(s.context)
                                     : std::make_unique<haptics::HapticScene>());
   ++s.publishes;
+}
+
+Mode* AppWindow::BaseMode() const {
+  const State& s = *s_;
+  // The assembly stands in for the scene's solids when the document has parts and no solids.
+  const bool assembly = s.assembly_mode->available() && s.model.objects().empty();
+  return assembly ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
 }
 
 void AppWindow::ApplyHidden() {
@@ -1094,12 +1105,10 @@ void AppWindow::MakeModes() {
   // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
   auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
   std::string assembly_error;
-  if (s.assembly) {
-    try {
-      assembly->assembly().Load(s.assembly_scene);
-    } catch (const std::exception& e) {
-      assembly_error = e.what();
-    }
+  try {
+    assembly->assembly().LoadDocument(s.model.document());
+  } catch (const std::exception& e) {
+    assembly_error = e.what();
   }
   assembly->assembly().SetWorldToView(X_WD);
   s.model_mode = model_mode.get();
@@ -1109,9 +1118,9 @@ void AppWindow::MakeModes() {
   s.modes.push_back(std::move(sculpt));
   s.modes.push_back(std::move(assembly));
   for (auto& m : added) s.modes.push_back(std::move(m));
-  s.model_mode->SetFelt(!s.assembly_mode->available());
+  s.model_mode->SetFelt(BaseMode() != s.assembly_mode);
   ApplyHidden();
-  if (s.assembly_mode->available()) {
+  if (BaseMode() == s.assembly_mode) {
     s.view->Zoom(1.4);  // the robot is small (C: whole frame)
   } else {
     // A scene with solids opens fitted to them and the grip (C: the whole device).
@@ -1127,7 +1136,7 @@ void AppWindow::StartScene(const std::string& mode_key) {
     s.active = start;
     start->Launch();
   } else {
-    s.active = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
+    s.active = BaseMode();
     s.active->Enter();
   }
   for (auto& m : s.modes) m->TakeSceneChanged();
@@ -1143,6 +1152,7 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
   try {
     const DeviceToWorld identity;
     s.model.Load(source, s.grip->limits(), assembly ? &identity : nullptr);
+    AdoptParts(&s.model);
   } catch (const std::exception& e) {
     s.file_error = e.what();
     s.file_error_popup = true;
@@ -1539,7 +1549,8 @@ bool AppWindow::ClickAt(double x, double y) {
   if (!s.layout.viewport.Contains(static_cast<float>(x), static_cast<float>(y))) return false;
   const double sx = static_cast<double>(s.fb_w) / s.win_w;
   const double sy = static_cast<double>(s.fb_h) / s.win_h;
-  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy);
+  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy,
+                                               s.assembly_mode->assembly().PickableParts());
   if (id == 0) return false;
   s.tree->Select(id);
   const int index = s.model.IndexOf(id);

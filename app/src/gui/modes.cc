@@ -416,13 +416,18 @@ std::vector<std::string> SculptWindowMode::Targets(const SceneModel& model) cons
 
 // ---- AssemblyWindowMode ----
 
-void AssemblyWindowMode::Update(const haptics::ToolState&, ModeContext&) { assembly_.OnFrame(); }
+void AssemblyWindowMode::Update(const haptics::ToolState&, ModeContext& context) {
+  assembly_.OnFrame();
+  // Parts let go become commands; undo, redo and tree edits of the parts rebuild the field.
+  if (context.model != nullptr) assembly_.SyncDocument(&context.model->document());
+}
 
 void AssemblyWindowMode::DrawPanel(ModeContext&) {
   if (!assembly_.has_parts()) {
     ImGui::TextDisabled(
-        "This scene has no parts (a scene file with \"parts\", e.g. "
-        "assets/scenes/assembly.json).");
+        "This document has no rigid parts (rigid_part objects, or a scene file's \"parts\" "
+        "such as assets/scenes/assembly.json).");
+    if (!assembly_.message().empty()) ImGui::TextWrapped("%s", assembly_.message().c_str());
     return;
   }
   assembly_.DrawPanel();

@@ -180,8 +180,10 @@ class SculptWindowMode final : public Mode {
   bool changed_ = false;
 };
 
-// Assembly (AssemblyMode) as a Mode: available when the scene has parts; its field is felt
-// whenever no other mode's part is live (it is the base mode of an assembly scene).
+// Assembly (AssemblyMode) as a Mode on the document's rigid parts: available when it has some;
+// its field is felt whenever no other mode's part is live in a document without solids (it is
+// then the base mode, AppWindow::BaseMode), else while it is the active mode. Update commits the
+// parts let go as commands and follows undo, redo and tree edits of the parts (AssemblyMode).
 class AssemblyWindowMode final : public Mode {
  public:
   explicit AssemblyWindowMode(vtkRenderer* renderer) : assembly_(renderer) {}
