@@ -118,10 +118,12 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "file is re-read when it changes on disk.");
   app.add_option(
          "--mode", options->mode,
-         "Start in a mode: 'fe' meshes assets/scenes/platform.json (TetGen, 12 mm), "
-         "precomputes it (steel, clamped at the wall face) and lets the grip push it; "
-         "'sculpt' meshes assets/scenes/clay.json and lets the grip sculpt it (close the "
-         "grasp or hold G). Both are also in the mode switcher (right panel). While a mode's part "
+         "Start in a mode: 'fe' precomputes the document's first FE model, else sets up the "
+         "selected (or first) solid (TetGen, steel, clamped at the minimum-x face; the default "
+         "scene is assets/scenes/platform.json) and lets the grip push it; 'sculpt' sculpts the "
+         "document's first sculpt object, else a sculpt copy of its first solid (the default "
+         "scene is assets/scenes/clay.json; close the grasp or hold G). Both are also in the mode "
+         "switcher (right panel). While a mode's part "
          "is live, it alone is felt: the scene's solids are shown but not touched.")
       ->check(CLI::IsMember({"fe", "sculpt"}));
   app.add_option("--estop-frame", options->estop_frame,

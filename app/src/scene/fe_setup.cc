@@ -141,7 +141,7 @@ const char* FeSourceKindText(FeSourceKind kind) {
 bool IsClosedSurface(const modeling::TriangleMesh& mesh) {
   const Eigen::Index nt = mesh.triangles.cols();
   const Eigen::Index nv = mesh.vertices.cols();
-  if (nt == 0) return false;
+  if (nt < 4 || nv < 4) return false;  // the fewest a closed solid needs (a tetrahedron)
   // Directed edges as (a << 32 | b): each must appear once, and its reverse once.
   std::vector<std::uint64_t> directed;
   directed.reserve(3 * nt);

@@ -42,7 +42,8 @@ FeSourceKind ClassifyFeSource(const Document& doc, ObjectId id);
 // Short text of a kind ("solid", "sculpt", "surface mesh", "volume mesh", "FE model", "").
 const char* FeSourceKindText(FeSourceKind kind);
 // True when every edge of the mesh is shared by exactly two triangles in opposite directions
-// (closed, edge-manifold, consistently oriented) and it has at least one triangle.
+// (closed, edge-manifold, consistently oriented) and it has at least four triangles and four
+// vertices (a tetrahedron: the fewest that bound a solid).
 bool IsClosedSurface(const modeling::TriangleMesh& mesh);
 
 // The FE model FE mode works on for object `id`: the object itself for an FE model; for a mesh

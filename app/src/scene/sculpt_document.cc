@@ -7,34 +7,9 @@
 #include <variant>
 #include <vector>
 
+#include "scene/fe_setup.h"
+
 namespace spidarcad::app {
-namespace {
-
-// See SculptableSurface.
-bool IsClosedSurface(const modeling::TriangleMesh& mesh) {
-  const Eigen::Index vertex_count = mesh.vertices.cols();
-  const Eigen::Index triangle_count = mesh.triangles.cols();
-  if (vertex_count < 4 || triangle_count < 4) return false;
-  std::vector<std::uint64_t> edges;
-  edges.reserve(3 * static_cast<std::size_t>(triangle_count));
-  for (Eigen::Index t = 0; t < triangle_count; ++t) {
-    for (int k = 0; k < 3; ++k) {
-      const int a = mesh.triangles(k, t);
-      const int b = mesh.triangles((k + 1) % 3, t);
-      if (a < 0 || a >= vertex_count || b < 0 || b >= vertex_count || a == b) return false;
-      edges.push_back(static_cast<std::uint64_t>(a) << 32 | static_cast<std::uint32_t>(b));
-    }
-  }
-  std::sort(edges.begin(), edges.end());
-  if (std::adjacent_find(edges.begin(), edges.end()) != edges.end()) return false;
-  for (const std::uint64_t e : edges) {
-    const std::uint64_t reverse = (e & 0xffffffffu) << 32 | e >> 32;
-    if (!std::binary_search(edges.begin(), edges.end(), reverse)) return false;
-  }
-  return true;
-}
-
-}  // namespace
 
 std::shared_ptr<const modeling::TriangleMesh> SculptableSurface(const DocObject& object) {
   const auto* mesh = std::get_if<MeshData>(&object.data);
