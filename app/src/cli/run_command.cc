@@ -88,8 +88,9 @@ constexpr const char* kRunHelp =
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
     "coordinates), or a scene file or document (docs/scene-format.md, version 1 or 2) of implicit\n"
-    "solids; a document's meshes, FE models, sculpts and rigid parts are not rendered yet (the\n"
-    "summary lists them as skipped):\n"
+    "solids; a document's meshes, FE models and sculpts are not rendered yet, nor rigid parts\n"
+    "beside solids (the summary lists them as skipped); a document of rigid parts and no solid\n"
+    "(an assembly saved from the window) is one assembly field, as a scene's \"parts\" are:\n"
     "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
     "  --tool shell   the cross grip (poles +-d, radius 6 mm) is a six-DOF point shell with\n"
     "                 virtual coupling against the union of the solids: torques are felt\n"
@@ -287,10 +288,16 @@ void RunRun(const RunOptions& options) {
       frame_source = "the document's";
     }
     // What `run` renders of a document today: its solids (one field each, or an assembly of
-    // "parts") and snap. The other kinds are listed in the summary as skipped.
+    // "parts"), or, in a document of rigid parts and no solid (an assembly saved from the
+    // window), the assembly of its rigid parts as the window feels it; and snap. The other kinds
+    // are listed in the summary as skipped.
     const modeling::Scene loaded = opened.doc->ToScene();
+    const std::vector<AssemblyPartInput> rigid_parts = loaded.solids.empty()
+                                                           ? RigidPartInputs(*opened.doc, nullptr)
+                                                           : std::vector<AssemblyPartInput>{};
     for (const DocObject& o : opened.doc->objects()) {
       if (std::holds_alternative<SolidData>(o.data)) continue;
+      if (!rigid_parts.empty() && std::holds_alternative<RigidPartData>(o.data)) continue;
       skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
                       " '" + o.name + "'";
     }
@@ -300,15 +307,18 @@ void RunRun(const RunOptions& options) {
           "FE models, sculpts or rigid parts): " +
           skipped_line;
     }
-    if (opened.version == 2 && loaded.solids.empty()) {
+    const std::size_t part_count = rigid_parts.empty() ? loaded.parts.size() : rigid_parts.size();
+    if (opened.version == 2 && loaded.solids.empty() && rigid_parts.empty()) {
       // Nothing to render: the grip moves freely.
       scene = std::make_unique<haptics::HapticScene>();
       scene_name = options.scene + " (no solid)";
-    } else if (!loaded.parts.empty()) {
+    } else if (part_count > 0) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
       std::unique_ptr<haptics::AssemblyField> assembly;
       try {
-        assembly = BuildAssemblyField(loaded);
+        assembly = rigid_parts.empty()
+                       ? BuildAssemblyField(loaded)
+                       : BuildAssemblyField(rigid_parts, AssemblySceneSettings{}, nullptr);
       } catch (const std::invalid_argument& e) {
         throw InputError(options.scene + ": " + e.what());
       }
@@ -325,8 +335,8 @@ void RunRun(const RunOptions& options) {
       scene = std::make_unique<haptics::HapticScene>();
       assembly_field = assembly.get();
       scene->Add(std::move(assembly));
-      scene_name = options.scene + " (assembly, " + std::to_string(loaded.parts.size()) + " parts)";
-      fields_line = "fields: assembly (" + std::to_string(loaded.parts.size()) + " parts)";
+      scene_name = options.scene + " (assembly, " + std::to_string(part_count) + " parts)";
+      fields_line = "fields: assembly (" + std::to_string(part_count) + " parts)";
       const Eigen::Vector3d& o = settings.X_WD.p_WDo;
       map_line = "X_WD: p_W = " + FormatNumber(settings.X_WD.world_scale) + " p_D + (" +
                  FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
