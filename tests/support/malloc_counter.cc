@@ -15,7 +15,11 @@
 #endif
 
 #ifdef SPIDARCAD_ASAN
-#include <sanitizer/allocator_interface.h>
+// Declared here rather than through <sanitizer/allocator_interface.h>, which clang ships and
+// GCC 12 does not; both runtimes (libasan, libclang_rt.asan) define the function.
+extern "C" int __sanitizer_install_malloc_and_free_hooks(
+    void (*malloc_hook)(const volatile void* ptr, std::size_t size),
+    void (*free_hook)(const volatile void* ptr));
 #else
 extern "C" void* __libc_malloc(std::size_t size);
 #endif
