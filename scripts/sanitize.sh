@@ -123,11 +123,12 @@ export ASAN_OPTIONS="${ASAN_OPTIONS:-halt_on_error=1:abort_on_error=1:detect_lea
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$supp/lsan.supp:print_suppressions=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:abort_on_error=1:print_stacktrace=1:suppressions=$supp/ubsan.supp}"
 
-# Run only the tests of the built targets: pick them by the executable of their command.
+# Run only the tests of the built targets: pick them by the executable of their command. ctest
+# numbers the tests -I selects after its other filters (-R, -E, -L), so list them with the same.
 cd "$build"
 selection="$build/sanitize-tests.txt"
 want=$(printf '%s\n' "${targets[@]}" | jq -R . | jq -s .)
-indices=$(ctest --show-only=json-v1 | jq -r --argjson want "$want" '
+indices=$(ctest --show-only=json-v1 "${ctest_args[@]}" | jq -r --argjson want "$want" '
   [.tests | to_entries[] | select((.value.command // [])[0] // "" | split("/") | last |
    IN($want[])) | .key + 1] | map(tostring) | join(",")')
 if [ -z "$indices" ]; then
