@@ -830,196 +830,198 @@ TEST(AppWindowSculpt, ModeSculptMakesTheClayASculptObjectOfTheFirstSolid) {
   ASSERT_TRUE(sculpt->sculpt().session().has_mesh());
   EXPECT_TRUE(SameSurface(sculpt->sculpt().session().ExportMesh(), SculptMeshOf(doc, clay->id)));
   EXPECT_TRUE(sculpt->live());
-  // ---- assembly on the document's rigid parts ----
+}
 
-  // The 4×4 matrix of a vtkActor (position, orientation, scale and user matrix combined).
-  Eigen::Matrix4d ActorMatrixOf(vtkActor * actor) {
-    Eigen::Matrix4d M;
-    vtkMatrix4x4* m = actor->GetMatrix();
-    for (int r = 0; r < 4; ++r) {
-      for (int c = 0; c < 4; ++c) M(r, c) = m->GetElement(r, c);
-    }
-    return M;
+// ---- assembly on the document's rigid parts ----
+
+// The 4×4 matrix of a vtkActor (position, orientation, scale and user matrix combined).
+Eigen::Matrix4d ActorMatrixOf(vtkActor* actor) {
+  Eigen::Matrix4d M;
+  vtkMatrix4x4* m = actor->GetMatrix();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) M(r, c) = m->GetElement(r, c);
   }
+  return M;
+}
 
-  Eigen::Isometry3d RigidPose(const Document& doc, const std::string& name) {
-    return std::get<RigidPartData>(doc.FindByName(name)->data).X_WP;
+Eigen::Isometry3d RigidPose(const Document& doc, const std::string& name) {
+  return std::get<RigidPartData>(doc.FindByName(name)->data).X_WP;
+}
+
+// Frames until `done` or `seconds` of wall time have passed; true when done.
+template <typename Done>
+bool FramesUntil(AppWindow* window, double seconds, const Done& done) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < give_up) {
+    window->Frame();
+    if (done()) return true;
   }
+  return false;
+}
 
-  // Frames until `done` or `seconds` of wall time have passed; true when done.
-  template <typename Done>
-  bool FramesUntil(AppWindow * window, double seconds, const Done& done) {
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    while (std::chrono::steady_clock::now() < give_up) {
-      window->Frame();
-      if (done()) return true;
-    }
-    return false;
-  }
-
-  // assets/scenes/assembly.json with the seating trajectory in the window (its parts become rigid
-  // parts): exactly one command, "Seat part right_leg on body", with the leg at its seat. Ctrl+Z
-  // (the tree's Undo) puts the leg back where the file has it, in the document, in the field the
-  // loop ticks and in the view; redo seats it again; saved and reopened in a fresh window it is
-  // seated, and a click on the torso selects the body part. Then an edit of the head's peg radius
-  // through a command republishes a field whose distance beside the peg is the edited solid's own.
-  TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
-    if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-    const fs::path dir = Scratch("assembly");
-    ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-    ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-    const std::string scene = AssetPath("scenes/assembly.json");
-    const std::string trajectory = AssetPath("trajectories/seat_right_leg.csv");
-    const std::string saved = (dir / "robot_seated.json").string();
-    constexpr int kLeg = 4;  // right_leg in assembly.json's parts
-    Document file;
-    file.Load(scene);
-    ASSERT_TRUE(AdoptScenePartsAsRigidParts(&file));
-    const Eigen::Isometry3d start = RigidPose(file, "right_leg");
-    {
-      GuiOptions options = DocumentWindowOptions(scene);
-      options.device = "simulated";  // as the window's default and the trajectory's golden
-      options.trajectory = trajectory;
-      AppWindow window(options);
-      auto* mode = dynamic_cast<AssemblyWindowMode*>(window.FindMode("assembly"));
-      ASSERT_NE(mode, nullptr);
-      AssemblyMode& assembly = mode->assembly();
-      EXPECT_EQ(window.active_mode(), mode) << "a document of parts starts in assembly";
-      Document& doc = window.model().document();
-      EXPECT_FALSE(doc.dirty());
-      EXPECT_EQ(doc.file_path(), scene);
-      // The trajectory's length in wall time, plus a second for the release to land.
-      const haptics::Trajectory t = haptics::Trajectory::Load(trajectory);
-      FramesUntil(&window, t.end_time() - t.start_time() + 1.0, [] { return false; });
-      ASSERT_EQ(doc.history().undo_size(), 1u) << doc.history().UndoDescription();
-      EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
-      const RigidPartData& leg = std::get<RigidPartData>(doc.FindByName("right_leg")->data);
-      const Eigen::Isometry3d seated =
-          RigidPose(doc, "body") * PartPose(leg.seats[0].position, leg.seats[0].rotation);
-      EXPECT_LT((RigidPose(doc, "right_leg").matrix() - seated.matrix()).norm(), 1e-12);
-      EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kSeated);
-      // Ctrl+Z: the leg back in the document, in a new field once the loop has ticked it, and in
-      // the view.
-      const std::shared_ptr<haptics::AssemblyField> before = assembly.field();
-      const int publishes = window.publish_count();
-      ASSERT_TRUE(window.tree().Undo());
-      EXPECT_EQ(RigidPose(doc, "right_leg").matrix(), start.matrix());
-      ASSERT_TRUE(FramesUntil(&window, 10.0, [&] {
-        return assembly.field() != before && assembly.field()->LatestState().count == 6;
-      }));
-      EXPECT_GT(window.publish_count(), publishes);
-      EXPECT_EQ(assembly.field()->LatestState().X_WP[kLeg].matrix(), start.matrix());
-      window.Frame();
-      EXPECT_EQ(assembly.state().X_WP[kLeg].matrix(), start.matrix());
-      EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kFree);
-      EXPECT_LT((assembly.ViewMatrix(start) - ActorMatrixOf(assembly.actor(kLeg))).norm(), 1e-12);
-      EXPECT_EQ(doc.history().undo_size(), 0u) << "the rebuilt field made no command";
-      // Redo: seated again.
-      ASSERT_TRUE(window.tree().Redo());
-      FramesUntil(&window, 2.0, [&] { return assembly.field()->LatestState().count == 6; });
-      EXPECT_LT((RigidPose(doc, "right_leg").matrix() - seated.matrix()).norm(), 1e-12);
-      EXPECT_LT((assembly.field()->part(kLeg).X_WP.matrix() - seated.matrix()).norm(), 1e-12);
-      window.Frame();
-      EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kSeated);
-      EXPECT_EQ(doc.history().undo_size(), 1u);
-      ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
-      window.Frame();
-      EXPECT_FALSE(doc.dirty());
-    }
-    AppWindow again(DocumentWindowOptions(saved));
-    again.Frame();
-    Document reread;
-    reread.Load(saved);
-    EXPECT_EQ(Content(again.model().document()), Content(reread));
-    auto* mode = dynamic_cast<AssemblyWindowMode*>(again.FindMode("assembly"));
+// assets/scenes/assembly.json with the seating trajectory in the window (its parts become rigid
+// parts): exactly one command, "Seat part right_leg on body", with the leg at its seat. Ctrl+Z
+// (the tree's Undo) puts the leg back where the file has it, in the document, in the field the
+// loop ticks and in the view; redo seats it again; saved and reopened in a fresh window it is
+// seated, and a click on the torso selects the body part. Then an edit of the head's peg radius
+// through a command republishes a field whose distance beside the peg is the edited solid's own.
+TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("assembly");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string scene = AssetPath("scenes/assembly.json");
+  const std::string trajectory = AssetPath("trajectories/seat_right_leg.csv");
+  const std::string saved = (dir / "robot_seated.json").string();
+  constexpr int kLeg = 4;  // right_leg in assembly.json's parts
+  Document file;
+  file.Load(scene);
+  ASSERT_TRUE(AdoptScenePartsAsRigidParts(&file));
+  const Eigen::Isometry3d start = RigidPose(file, "right_leg");
+  {
+    GuiOptions options = DocumentWindowOptions(scene);
+    options.device = "simulated";  // as the window's default and the trajectory's golden
+    options.trajectory = trajectory;
+    AppWindow window(options);
+    auto* mode = dynamic_cast<AssemblyWindowMode*>(window.FindMode("assembly"));
     ASSERT_NE(mode, nullptr);
-    EXPECT_EQ(again.active_mode(), mode);
-    EXPECT_EQ(mode->assembly().part_state(kLeg), AssemblyPartState::kSeated);
-    EXPECT_EQ(FormatAssemblySummary(mode->assembly()),
-              "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
-    // A click on the torso's top selects the body part in the tree (X_WD identity: D = W).
-    Document& doc = again.model().document();
-    const DeviceToWorld& x = again.model().device_to_world();
-    ASSERT_EQ(x.world_scale, 1.0);
-    ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
-    const Eigen::Vector3d top = again.view().WorldToDisplay(Eigen::Vector3d(0.0, 0.0, 0.114));
-    int fb_w = 0, fb_h = 0;
-    glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
-    again.tree().ClearSelection();
-    ASSERT_TRUE(again.ClickAt(top.x(), fb_h - top.y()));
-    ASSERT_TRUE(again.tree().selection().has_value());
-    EXPECT_EQ(again.tree().selection()->object, doc.FindByName("body")->id);
-    // A part's solid edited through a command: the head's peg radius 4 -> 3.5 mm.
-    const ObjectId head = doc.FindByName("head")->id;
-    const Eigen::Vector3d p_P(0.006, 0.0, -0.004);  // 2 mm beside the peg, mid-height
-    const std::shared_ptr<haptics::AssemblyField> old_field = mode->assembly().field();
-    const double before = old_field->part(1).field_P->Evaluate(p_P, nullptr);
-    const int publishes = again.publish_count();
-    doc.Execute(edit::SetNodeField(head, {1, 0}, "radius", 0.0035));
-    again.Frame();
-    ASSERT_NE(mode->assembly().field(), old_field);
-    EXPECT_GT(again.publish_count(), publishes);
-    const double after = mode->assembly().field()->part(1).field_P->Evaluate(p_P, nullptr);
-    const auto own =
-        modeling::CompiledSolid::Compile(std::get<RigidPartData>(doc.Get(head).data).root);
-    EXPECT_NEAR(after, own.Value(p_P), 1e-12);
-    EXPECT_NEAR(after - before, 0.0005, 1e-12);
-  }
-
-  // An imported mesh is drawn: the view has an actor for it, placed like the solids (X_WD of the
-  // empty document: identity), with the mesh's bounds; a click on it selects it in the tree;
-  // undoing the import removes the actor.
-  TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
-    if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-    const fs::path dir = Scratch("import_draw");
-    ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-    ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-    // A closed tetrahedron, 6 cm on its legs, corner at (-0.03, -0.03, -0.06).
-    const std::string stl = (dir / "corner.stl").string();
-    {
-      const double c[4][3] = {
-          {-0.03, -0.03, -0.06}, {0.03, -0.03, -0.06}, {-0.03, 0.03, -0.06}, {-0.03, -0.03, 0.0}};
-      const int f[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-      std::ofstream out(stl);
-      out << "solid corner\n";
-      for (const auto& t : f) {
-        out << " facet normal 0 0 0\n  outer loop\n";
-        for (int k = 0; k < 3; ++k) {
-          out << "   vertex " << c[t[k]][0] << " " << c[t[k]][1] << " " << c[t[k]][2] << "\n";
-        }
-        out << "  endloop\n endfacet\n";
-      }
-      out << "endsolid corner\n";
-    }
-    AppWindow window(DocumentWindowOptions(kNoSceneName));
-    window.Frame();
-    const DeviceToWorld& x = window.model().device_to_world();
-    ASSERT_EQ(x.world_scale, 1.0);
-    ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
-    ASSERT_TRUE(window.ImportMesh(stl)) << window.file_error();
-    const ObjectId id = window.model().document().last_created().at(0);
-    window.Frame();
-    vtkActor* actor = window.scene_view().ActorOf(id);
-    ASSERT_NE(actor, nullptr);
-    EXPECT_TRUE(actor->GetVisibility());
-    double b[6];
-    actor->GetBounds(b);
-    const double expected[6] = {-0.03, 0.03, -0.03, 0.03, -0.06, 0.0};
-    for (int k = 0; k < 6; ++k) EXPECT_NEAR(b[k], expected[k], 1e-8) << "bound " << k;  // floats
-    // A click on its centroid: every ray through an inner point meets it.
-    const Eigen::Vector3d centre_W(-0.015, -0.015, -0.045);
-    const Eigen::Vector3d d = window.view().WorldToDisplay(centre_W);
-    int fb_w = 0, fb_h = 0;
-    glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
-    window.tree().ClearSelection();
-    ASSERT_TRUE(window.layout().viewport.Contains(d.x(), fb_h - d.y())) << d.transpose();
-    ASSERT_TRUE(window.ClickAt(d.x(), fb_h - d.y()));
-    ASSERT_TRUE(window.tree().selection().has_value());
-    EXPECT_EQ(window.tree().selection()->object, id);
+    AssemblyMode& assembly = mode->assembly();
+    EXPECT_EQ(window.active_mode(), mode) << "a document of parts starts in assembly";
+    Document& doc = window.model().document();
+    EXPECT_FALSE(doc.dirty());
+    EXPECT_EQ(doc.file_path(), scene);
+    // The trajectory's length in wall time, plus a second for the release to land.
+    const haptics::Trajectory t = haptics::Trajectory::Load(trajectory);
+    FramesUntil(&window, t.end_time() - t.start_time() + 1.0, [] { return false; });
+    ASSERT_EQ(doc.history().undo_size(), 1u) << doc.history().UndoDescription();
+    EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
+    const RigidPartData& leg = std::get<RigidPartData>(doc.FindByName("right_leg")->data);
+    const Eigen::Isometry3d seated =
+        RigidPose(doc, "body") * PartPose(leg.seats[0].position, leg.seats[0].rotation);
+    EXPECT_LT((RigidPose(doc, "right_leg").matrix() - seated.matrix()).norm(), 1e-12);
+    EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kSeated);
+    // Ctrl+Z: the leg back in the document, in a new field once the loop has ticked it, and in
+    // the view.
+    const std::shared_ptr<haptics::AssemblyField> before = assembly.field();
+    const int publishes = window.publish_count();
     ASSERT_TRUE(window.tree().Undo());
+    EXPECT_EQ(RigidPose(doc, "right_leg").matrix(), start.matrix());
+    ASSERT_TRUE(FramesUntil(&window, 10.0, [&] {
+      return assembly.field() != before && assembly.field()->LatestState().count == 6;
+    }));
+    EXPECT_GT(window.publish_count(), publishes);
+    EXPECT_EQ(assembly.field()->LatestState().X_WP[kLeg].matrix(), start.matrix());
     window.Frame();
-    EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
+    EXPECT_EQ(assembly.state().X_WP[kLeg].matrix(), start.matrix());
+    EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kFree);
+    EXPECT_LT((assembly.ViewMatrix(start) - ActorMatrixOf(assembly.actor(kLeg))).norm(), 1e-12);
+    EXPECT_EQ(doc.history().undo_size(), 0u) << "the rebuilt field made no command";
+    // Redo: seated again.
+    ASSERT_TRUE(window.tree().Redo());
+    FramesUntil(&window, 2.0, [&] { return assembly.field()->LatestState().count == 6; });
+    EXPECT_LT((RigidPose(doc, "right_leg").matrix() - seated.matrix()).norm(), 1e-12);
+    EXPECT_LT((assembly.field()->part(kLeg).X_WP.matrix() - seated.matrix()).norm(), 1e-12);
+    window.Frame();
+    EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kSeated);
+    EXPECT_EQ(doc.history().undo_size(), 1u);
+    ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+    window.Frame();
+    EXPECT_FALSE(doc.dirty());
   }
+  AppWindow again(DocumentWindowOptions(saved));
+  again.Frame();
+  Document reread;
+  reread.Load(saved);
+  EXPECT_EQ(Content(again.model().document()), Content(reread));
+  auto* mode = dynamic_cast<AssemblyWindowMode*>(again.FindMode("assembly"));
+  ASSERT_NE(mode, nullptr);
+  EXPECT_EQ(again.active_mode(), mode);
+  EXPECT_EQ(mode->assembly().part_state(kLeg), AssemblyPartState::kSeated);
+  EXPECT_EQ(FormatAssemblySummary(mode->assembly()),
+            "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
+  // A click on the torso's top selects the body part in the tree (X_WD identity: D = W).
+  Document& doc = again.model().document();
+  const DeviceToWorld& x = again.model().device_to_world();
+  ASSERT_EQ(x.world_scale, 1.0);
+  ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d top = again.view().WorldToDisplay(Eigen::Vector3d(0.0, 0.0, 0.114));
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
+  again.tree().ClearSelection();
+  ASSERT_TRUE(again.ClickAt(top.x(), fb_h - top.y()));
+  ASSERT_TRUE(again.tree().selection().has_value());
+  EXPECT_EQ(again.tree().selection()->object, doc.FindByName("body")->id);
+  // A part's solid edited through a command: the head's peg radius 4 -> 3.5 mm.
+  const ObjectId head = doc.FindByName("head")->id;
+  const Eigen::Vector3d p_P(0.006, 0.0, -0.004);  // 2 mm beside the peg, mid-height
+  const std::shared_ptr<haptics::AssemblyField> old_field = mode->assembly().field();
+  const double before = old_field->part(1).field_P->Evaluate(p_P, nullptr);
+  const int publishes = again.publish_count();
+  doc.Execute(edit::SetNodeField(head, {1, 0}, "radius", 0.0035));
+  again.Frame();
+  ASSERT_NE(mode->assembly().field(), old_field);
+  EXPECT_GT(again.publish_count(), publishes);
+  const double after = mode->assembly().field()->part(1).field_P->Evaluate(p_P, nullptr);
+  const auto own =
+      modeling::CompiledSolid::Compile(std::get<RigidPartData>(doc.Get(head).data).root);
+  EXPECT_NEAR(after, own.Value(p_P), 1e-12);
+  EXPECT_NEAR(after - before, 0.0005, 1e-12);
+}
+
+// An imported mesh is drawn: the view has an actor for it, placed like the solids (X_WD of the
+// empty document: identity), with the mesh's bounds; a click on it selects it in the tree;
+// undoing the import removes the actor.
+TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("import_draw");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  // A closed tetrahedron, 6 cm on its legs, corner at (-0.03, -0.03, -0.06).
+  const std::string stl = (dir / "corner.stl").string();
+  {
+    const double c[4][3] = {
+        {-0.03, -0.03, -0.06}, {0.03, -0.03, -0.06}, {-0.03, 0.03, -0.06}, {-0.03, -0.03, 0.0}};
+    const int f[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    std::ofstream out(stl);
+    out << "solid corner\n";
+    for (const auto& t : f) {
+      out << " facet normal 0 0 0\n  outer loop\n";
+      for (int k = 0; k < 3; ++k) {
+        out << "   vertex " << c[t[k]][0] << " " << c[t[k]][1] << " " << c[t[k]][2] << "\n";
+      }
+      out << "  endloop\n endfacet\n";
+    }
+    out << "endsolid corner\n";
+  }
+  AppWindow window(DocumentWindowOptions(kNoSceneName));
+  window.Frame();
+  const DeviceToWorld& x = window.model().device_to_world();
+  ASSERT_EQ(x.world_scale, 1.0);
+  ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
+  ASSERT_TRUE(window.ImportMesh(stl)) << window.file_error();
+  const ObjectId id = window.model().document().last_created().at(0);
+  window.Frame();
+  vtkActor* actor = window.scene_view().ActorOf(id);
+  ASSERT_NE(actor, nullptr);
+  EXPECT_TRUE(actor->GetVisibility());
+  double b[6];
+  actor->GetBounds(b);
+  const double expected[6] = {-0.03, 0.03, -0.03, 0.03, -0.06, 0.0};
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(b[k], expected[k], 1e-8) << "bound " << k;  // floats
+  // A click on its centroid: every ray through an inner point meets it.
+  const Eigen::Vector3d centre_W(-0.015, -0.015, -0.045);
+  const Eigen::Vector3d d = window.view().WorldToDisplay(centre_W);
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
+  window.tree().ClearSelection();
+  ASSERT_TRUE(window.layout().viewport.Contains(d.x(), fb_h - d.y())) << d.transpose();
+  ASSERT_TRUE(window.ClickAt(d.x(), fb_h - d.y()));
+  ASSERT_TRUE(window.tree().selection().has_value());
+  EXPECT_EQ(window.tree().selection()->object, id);
+  ASSERT_TRUE(window.tree().Undo());
+  window.Frame();
+  EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
+}
 
 }  // namespace
 }  // namespace spidarcad::app
