@@ -164,6 +164,42 @@ TEST(ReportCommand, MarkdownElsewhereLinksEveryChartAndCsvInOutDirRelativeToIt) 
   EXPECT_GT(csv, 0);
 }
 
+// The hard-case section runs every Hard<Thing> case of the build's test executables: each one
+// passes and records its measured figure and its pass line (the convention of
+// tests/CMakeLists.txt), and the table lists each of the four executables' cases.
+TEST(ReportCommand, HardSectionListsEveryHardCaseWithItsFigureAndPassLine) {
+  const std::string dir = FreshDir("report_hard");
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only hard --no-plots", "", "hard");
+  ASSERT_EQ(run.status, 0) << run.all();
+  std::ifstream in(dir + "/hard_cases.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_EQ(line, "case,figure,bar,verdict,seconds");
+  int rows = 0;
+  std::map<std::string, int> suites;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> f = Split(line);
+    ASSERT_EQ(f.size(), 5u) << line;
+    EXPECT_EQ(f[0].rfind("Hard", 0), 0u) << line;
+    EXPECT_FALSE(f[1].empty()) << f[0] << " records no figure";
+    EXPECT_FALSE(f[2].empty()) << f[0] << " records no pass line";
+    EXPECT_EQ(f[3], "pass") << line;
+    ++suites[f[0].substr(0, f[0].find('.'))];
+    ++rows;
+  }
+  EXPECT_GE(rows, 30);
+  EXPECT_GT(suites.count("HardFk"), 0u);              // haptics_tests
+  EXPECT_GT(suites.count("HardSculpt"), 0u);          // modeling_tests
+  EXPECT_GT(suites.count("HardIncompressible"), 0u);  // fem_tests
+  EXPECT_GT(suites.count("HardVtu"), 0u);             // app_tests
+  const std::string summary = ReadWholeFile(dir + "/summary.md");
+  EXPECT_NE(summary.find("| Hard cases | " + std::to_string(rows) + " cases in "),
+            std::string::npos)
+      << summary;
+  EXPECT_NE(summary.find("every case within its pass line"), std::string::npos) << summary;
+}
+
 TEST(ReportCommand, UnknownOnlyNameExitsTwoListingTheValidNamesAndWritesNothing) {
   const std::string dir = FreshDir("report_bad_only");
   const CommandRun run =

@@ -47,6 +47,7 @@ const std::vector<ReportSection>& ReportSections() {
       {"fe", "Finite elements", ReportFe},
       {"tick", "Haptic tick per scene", ReportTick},
       {"sculpt", "Sculpting", ReportSculpt},
+      {"hard", "Hard cases", ReportHardCases},
   };
   return sections;
 }
@@ -61,7 +62,9 @@ constexpr const char* kReportHelp =
     "its data as CSV files beside it.\n"
     "\n"
     "Sections (names for --only): fk, singular, tensions, calibration, workspace, implicit,\n"
-    "surface, tets, fe, tick, sculpt.\n"
+    "surface, tets, fe, tick, sculpt, hard. `hard` runs every Hard<Thing> test case of the\n"
+    "build tree's test executables (build/tests/*_tests) and tabulates each measured figure\n"
+    "against its pass line; it is skipped, saying so, where they are not built.\n"
     "\n"
     "DIR/summary.md is the short table of headline figures (one row per part: speed and\n"
     "error, with units) that scripts/update-readme-figures.sh DIR copies into README.md.\n"
@@ -425,7 +428,7 @@ void RegisterReportCommand(CLI::App& app) {
   cmd->add_flag("--quick", options->quick, "Smaller sweeps: a few minutes on a 2-core machine");
   cmd->add_option("--only", options->only,
                   "Comma-separated sections to run (fk, singular, tensions, calibration, "
-                  "workspace, implicit, surface, tets, fe, tick, sculpt); default all")
+                  "workspace, implicit, surface, tets, fe, tick, sculpt, hard); default all")
       ->type_name("LIST");
   cmd->add_flag("--no-plots", options->no_plots,
                 "Tables and CSVs only: draw no chart (no X display needed)");

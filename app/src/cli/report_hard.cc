@@ -55,15 +55,16 @@ struct HardCase {
 std::vector<HardCase> RunHardCases(const fs::path& exe, const fs::path& json) {
   std::error_code error;
   fs::remove(json, error);
-  const std::string command = Quote(exe.string()) + " --gtest_filter='Hard*' --gtest_output=json:" +
-                              Quote(json.string()) + " > /dev/null 2>&1";
+  const std::string command =
+      Quote(exe.string()) + " --gtest_filter='Hard*' --gtest_output=json:" + Quote(json.string()) +
+      " > /dev/null 2>&1";
   const int status = std::system(command.c_str());
   (void)status;  // a failing case still writes the report; a crash leaves none (below)
   std::ifstream in(json);
   std::vector<HardCase> cases;
   if (!in) {
-    cases.push_back({exe.filename().string() + " (no report: the executable crashed)", "", "",
-                     false, 0.0});
+    cases.push_back(
+        {exe.filename().string() + " (no report: the executable crashed)", "", "", false, 0.0});
     return cases;
   }
   const nlohmann::json report = nlohmann::json::parse(in, nullptr, false);
@@ -99,7 +100,8 @@ void ReportHardCases(ReportContext& ctx) {
   }
   std::vector<HardCase> cases;
   for (size_t i = 0; i < executables.size(); ++i) {
-    const fs::path json = fs::path(ctx.settings().out_dir) / ("hard_" + std::to_string(i) + ".json");
+    const fs::path json =
+        fs::path(ctx.settings().out_dir) / ("hard_" + std::to_string(i) + ".json");
     const std::vector<HardCase> found = RunHardCases(executables[i], json);
     cases.insert(cases.end(), found.begin(), found.end());
     ctx.Progress(static_cast<double>(i + 1) / executables.size());
@@ -118,8 +120,8 @@ void ReportHardCases(ReportContext& ctx) {
         if (ch == ',' || ch == '\n') ch = ';';
       return s;
     };
-    csv.push_back({c.name, field(c.figure), field(c.bar), c.passed ? "pass" : "fail",
-                   Sig(c.seconds, 4)});
+    csv.push_back(
+        {c.name, field(c.figure), field(c.bar), c.passed ? "pass" : "fail", Sig(c.seconds, 4)});
   }
   const int failed = static_cast<int>(cases.size()) - passed;
   ctx.md() << "Every test suite named `Hard<Thing>` is a hard numerical case: near-singular poses, "
