@@ -74,9 +74,7 @@ bool OneSide(double dp, double dq, double margin) {
 // The narrow phase for triangles x and y whose boxes overlap (see the file comment).
 class PairTest {
  public:
-  PairTest(const std::vector<Eigen::Vector3d>& positions, const SculptCheckTriangle& x,
-           const SculptCheckTriangle& y)
-      : positions_(positions), x_(x), y_(y) {}
+  PairTest(const SculptCheckTriangle& x, const SculptCheckTriangle& y) : x_(x), y_(y) {}
 
   bool Crosses() const {
     int shared = 0, shared_at_x = -1, shared_at_y = -1;
@@ -105,12 +103,12 @@ class PairTest {
     // Every edge of one triangle against the other, each skipped when it stays on one side.
     std::array<double, 3> side{};
     const double x_margin = kSideMargin * y_.edge_product * reach;
-    for (int k = 0; k < 3; ++k) side[k] = Side(positions_[x_.corners[k]], y_);
+    for (int k = 0; k < 3; ++k) side[k] = Side(x_.p[k], y_);
     for (int k = 0; k < 3; ++k) {
       if (!OneSide(side[k], side[(k + 1) % 3], x_margin) && Segment(x_, k, y_)) return true;
     }
     const double y_margin = kSideMargin * x_.edge_product * reach;
-    for (int k = 0; k < 3; ++k) side[k] = Side(positions_[y_.corners[k]], x_);
+    for (int k = 0; k < 3; ++k) side[k] = Side(y_.p[k], x_);
     for (int k = 0; k < 3; ++k) {
       if (!OneSide(side[k], side[(k + 1) % 3], y_margin) && Segment(y_, k, x_)) return true;
     }
@@ -120,36 +118,32 @@ class PairTest {
  private:
   // n·(p - a) for triangle t = (a, b, c) with n = (b - a) × (c - a): the side of t's plane p is on.
   double Side(const Eigen::Vector3d& p, const SculptCheckTriangle& t) const {
-    return t.normal.dot(p - positions_[t.corners[0]]);
+    return t.normal.dot(p - t.p[0]);
   }
   // Edge k (corner k to corner k + 1) of triangle e against triangle t.
   bool Segment(const SculptCheckTriangle& e, int k, const SculptCheckTriangle& t) const {
-    return SegmentCrossesTriangle(positions_[e.corners[k]], positions_[e.corners[(k + 1) % 3]],
-                                  positions_[t.corners[0]], positions_[t.corners[1]],
-                                  positions_[t.corners[2]]);
+    return SegmentCrossesTriangle(e.p[k], e.p[(k + 1) % 3], t.p[0], t.p[1], t.p[2]);
   }
   // Edge k of triangle e against triangle t, skipping the test when the edge stays on one side.
   bool EdgeCrosses(const SculptCheckTriangle& e, int k, const SculptCheckTriangle& t,
                    double reach) const {
     const double margin = kSideMargin * t.edge_product * reach;
-    if (OneSide(Side(positions_[e.corners[k]], t), Side(positions_[e.corners[(k + 1) % 3]], t),
-                margin)) {
+    if (OneSide(Side(e.p[k], t), Side(e.p[(k + 1) % 3], t), margin)) {
       return false;
     }
     return Segment(e, k, t);
   }
 
-  const std::vector<Eigen::Vector3d>& positions_;
   const SculptCheckTriangle& x_;
   const SculptCheckTriangle& y_;
 };
 
-// Cell of coordinate x (m) in a grid starting at lo (m) with cells of edge h (m), clamped to
-// [0, cells - 1] (NaN gives 0). Monotonic in x.
-int CellOf(double x, double lo, double h, int cells) {
-  const double q = std::floor((x - lo) / h);
+// Cell of coordinate x (m) in a grid starting at lo (m) with cells of edge 1 / inv_h (m), clamped
+// to [0, cells - 1] (NaN gives 0). Monotonic in x.
+int CellOf(double x, double lo, double inv_h, int cells) {
+  const double q = (x - lo) * inv_h;
   if (!(q > 0.0)) return 0;
-  return q < cells - 1 ? static_cast<int>(q) : cells - 1;
+  return q < cells - 1 ? static_cast<int>(q) : cells - 1;  // the cast floors q > 0
 }
 
 }  // namespace
@@ -193,9 +187,9 @@ bool SculptMesh::CheckMovedRegion() {
   for (int i = 0; i < n; ++i) {
     SculptCheckTriangle& c = check_data_[i];
     c.corners = triangles_[check_triangles_[i]];
-    const Eigen::Vector3d& p0 = positions_[c.corners[0]];
-    const Eigen::Vector3d& p1 = positions_[c.corners[1]];
-    const Eigen::Vector3d& p2 = positions_[c.corners[2]];
+    const Eigen::Vector3d& p0 = c.p[0] = positions_[c.corners[0]];
+    const Eigen::Vector3d& p1 = c.p[1] = positions_[c.corners[1]];
+    const Eigen::Vector3d& p2 = c.p[2] = positions_[c.corners[2]];
     c.lo = p0.cwiseMin(p1).cwiseMin(p2);
     c.hi = p0.cwiseMax(p1).cwiseMax(p2);
     const Eigen::Vector3d e1 = p1 - p0, e2 = p2 - p0;
@@ -224,6 +218,7 @@ bool SculptMesh::CheckMovedRegion() {
   }
   for (int a = 0; a < 3; ++a) dims[a] = static_cast<int>(std::floor(all_size[a] / h)) + 1;
   const int cells = dims[0] * dims[1] * dims[2];
+  const double inv_h = 1.0 / h;
 
   // Counting sort of the (cell, triangle) entries by cell; within a cell the triangles keep
   // their order, moved ones first.
@@ -231,8 +226,8 @@ bool SculptMesh::CheckMovedRegion() {
   for (int i = 0; i < n; ++i) {
     SculptCheckTriangle& c = check_data_[i];
     for (int a = 0; a < 3; ++a) {
-      c.cell_lo[a] = CellOf(c.lo[a], all.min()[a], h, dims[a]);
-      c.cell_hi[a] = CellOf(c.hi[a], all.min()[a], h, dims[a]);
+      c.cell_lo[a] = CellOf(c.lo[a], all.min()[a], inv_h, dims[a]);
+      c.cell_hi[a] = CellOf(c.hi[a], all.min()[a], inv_h, dims[a]);
     }
     for (int x = c.cell_lo[0]; x <= c.cell_hi[0]; ++x) {
       for (int y = c.cell_lo[1]; y <= c.cell_hi[1]; ++y) {
@@ -279,10 +274,11 @@ bool SculptMesh::CheckMovedRegion() {
             // each axis, it is the lowest cell of one of the boxes.
             if (((entry_i | entry_j) & 7) != 7) continue;  // examined in another cell
             const SculptCheckTriangle& cj = check_data_[entry_j >> 3];
-            if ((ci.lo.array() > cj.hi.array()).any() || (cj.lo.array() > ci.hi.array()).any()) {
-              continue;
+            if (ci.lo.x() > cj.hi.x() || cj.lo.x() > ci.hi.x() || ci.lo.y() > cj.hi.y() ||
+                cj.lo.y() > ci.hi.y() || ci.lo.z() > cj.hi.z() || cj.lo.z() > ci.hi.z()) {
+              continue;  // the boxes do not overlap
             }
-            if (PairTest(positions_, ci, cj).Crosses()) return true;
+            if (PairTest(ci, cj).Crosses()) return true;
           }
         }
       }

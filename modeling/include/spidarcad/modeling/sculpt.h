@@ -67,13 +67,14 @@ namespace internal {
 // One triangle of SculptMesh's self-intersection check (sculpt_intersection.cc): scratch data
 // computed once per check from the current positions (m, W).
 struct SculptCheckTriangle {
-  Eigen::Vector3d lo, hi;        // bounding box corners, m
-  Eigen::Vector3d normal;        // (p1 - p0) × (p2 - p0), m²
-  double normal_norm = 0.0;      // |normal|, m²
-  double edge_product = 0.0;     // |p1 - p0| |p2 - p0|, m²
-  double diagonal = 0.0;         // |hi - lo|, m
-  Eigen::Vector3i corners;       // vertex indices p0, p1, p2
-  std::array<int, 3> cell_lo{};  // broad-phase cells spanned by the box, per axis
+  Eigen::Vector3d lo, hi;            // bounding box corners, m
+  Eigen::Vector3d normal;            // (p1 - p0) × (p2 - p0), m²
+  double normal_norm = 0.0;          // |normal|, m²
+  double edge_product = 0.0;         // |p1 - p0| |p2 - p0|, m²
+  double diagonal = 0.0;             // |hi - lo|, m
+  Eigen::Vector3i corners;           // vertex indices p0, p1, p2
+  std::array<Eigen::Vector3d, 3> p;  // their positions, m
+  std::array<int, 3> cell_lo{};      // broad-phase cells spanned by the box, per axis
   std::array<int, 3> cell_hi{};
 };
 }  // namespace internal
