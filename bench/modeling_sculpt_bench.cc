@@ -22,6 +22,7 @@
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/workloads/sculpt.h"
 
 namespace spidarcad::modeling {
 namespace {
@@ -69,31 +70,6 @@ Eigen::Isometry3d StartPose(const SculptMesh& sculpt) {
   return X;
 }
 
-// The pose a stroke of `tool` reaches (amount 1) from X0.
-Eigen::Isometry3d TargetPose(SculptTool tool, const Eigen::Isometry3d& X0, double radius,
-                             double amount) {
-  Eigen::Isometry3d X = X0;
-  const Eigen::Vector3d z = X0.linear().col(2), y = X0.linear().col(1);
-  switch (tool) {
-    case SculptTool::kGrab:
-      X.translation() += amount * radius * (0.8 * z + 0.3 * y);
-      break;
-    case SculptTool::kTwist:
-      X.linear() = Eigen::AngleAxisd(amount * 0.6, z) * X0.linear();
-      break;
-    case SculptTool::kBend:
-      X.linear() = Eigen::AngleAxisd(amount * 0.4, y) * X0.linear();
-      break;
-    case SculptTool::kPushPull:
-      X.translation() += amount * 0.5 * radius * z;
-      break;
-    case SculptTool::kSmooth:
-      X.translation() += amount * radius * y;
-      break;
-  }
-  return X;
-}
-
 SculptToolSettings Settings(SculptTool tool, double radius, bool conserve, bool check = true) {
   SculptToolSettings s;
   s.tool = tool;
@@ -112,8 +88,8 @@ void BM_StrokeStep(benchmark::State& state) {
   const bool check = state.range(3) != 0;
   SculptMesh& sculpt = Sculpt();
   const Eigen::Isometry3d X0 = StartPose(sculpt);
-  const Eigen::Isometry3d full = TargetPose(tool, X0, radius, 1.0),
-                          half = TargetPose(tool, X0, radius, 0.5);
+  const Eigen::Isometry3d full = workloads::SculptTargetPose(tool, X0, radius, 1.0),
+                          half = workloads::SculptTargetPose(tool, X0, radius, 0.5);
   sculpt.BeginStroke(Settings(tool, radius, conserve, check), X0, 0.0);
   long i = 0;
   for (auto _ : state) {
@@ -153,8 +129,8 @@ void BM_SphereGrab(benchmark::State& state) {
   const double radius = state.range(0) * 1e-3;
   const bool check = state.range(1) != 0;
   const Eigen::Isometry3d X0 = StartPose(sculpt);
-  const Eigen::Isometry3d full = TargetPose(SculptTool::kGrab, X0, radius, 1.0),
-                          half = TargetPose(SculptTool::kGrab, X0, radius, 0.5);
+  const Eigen::Isometry3d full = workloads::SculptTargetPose(SculptTool::kGrab, X0, radius, 1.0),
+                          half = workloads::SculptTargetPose(SculptTool::kGrab, X0, radius, 0.5);
   sculpt.BeginStroke(Settings(SculptTool::kGrab, radius, false, check), X0, 0.0);
   long i = 0;
   for (auto _ : state) {
@@ -182,7 +158,7 @@ void BM_Stroke60(benchmark::State& state) {
   for (auto _ : state) {
     sculpt.BeginStroke(settings, X0, 0.0);
     for (int step = 1; step <= 60; ++step)
-      sculpt.UpdateStroke(TargetPose(tool, X0, radius, step / 60.0), 0.0);
+      sculpt.UpdateStroke(workloads::SculptTargetPose(tool, X0, radius, step / 60.0), 0.0);
     const SculptEdit edit = sculpt.EndStroke();
     state.PauseTiming();
     splits = edit.splits;

@@ -721,7 +721,8 @@ void WriteTriangleMesh(const TriangleMesh& mesh, const std::string& path, MeshFi
           "property list uchar int vertex_indices\nend_header\n",
           binary ? "binary_little_endian" : "ascii", static_cast<long>(nv), static_cast<long>(nf));
       if (binary) {
-        std::fwrite(mesh.vertices.data(), sizeof(double), 3 * nv, f);
+        // An empty matrix has no data pointer, and fwrite may not be given a null one.
+        if (nv > 0) std::fwrite(mesh.vertices.data(), sizeof(double), 3 * nv, f);
         for (Eigen::Index t = 0; t < nf; ++t) {
           const uint8_t three = 3;
           const int32_t idx[3] = {mesh.triangles(0, t), mesh.triangles(1, t), mesh.triangles(2, t)};

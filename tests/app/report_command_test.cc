@@ -139,6 +139,31 @@ TEST(ReportCommand, WithoutDisplayOrXvfbWritesTablesOnlyAndSaysSo) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/fk_time_vs_error.png"));
 }
 
+TEST(ReportCommand, MarkdownElsewhereLinksEveryChartAndCsvInOutDirRelativeToIt) {
+  const std::string root = FreshDir("report_markdown");
+  const std::string data = root + "/docs/report", markdown = root + "/docs/performance.md";
+  const CommandRun run = RunSpidarcad(
+      "report --out '" + data + "' --markdown '" + markdown + "' --quick --only fk", "", "md");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(data + "/report.md"));
+  const std::string md = ReadWholeFile(markdown);
+  EXPECT_NE(md.find("--markdown " + markdown), std::string::npos) << md.substr(0, 400);
+  // Every link that is not an anchor names a file that exists, relative to the markdown's folder.
+  int png = 0, csv = 0;
+  for (size_t at = md.find("]("); at != std::string::npos; at = md.find("](", at + 2)) {
+    const size_t end = md.find(')', at);
+    ASSERT_NE(end, std::string::npos);
+    const std::string target = md.substr(at + 2, end - at - 2);
+    if (target.empty() || target[0] == '#') continue;
+    EXPECT_EQ(target.rfind("report/", 0), 0u) << target;
+    EXPECT_TRUE(std::filesystem::exists(root + "/docs/" + target)) << target;
+    png += target.ends_with(".png");
+    csv += target.ends_with(".csv");
+  }
+  EXPECT_GT(png, 0);
+  EXPECT_GT(csv, 0);
+}
+
 TEST(ReportCommand, UnknownOnlyNameExitsTwoListingTheValidNamesAndWritesNothing) {
   const std::string dir = FreshDir("report_bad_only");
   const CommandRun run =

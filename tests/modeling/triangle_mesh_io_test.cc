@@ -64,6 +64,21 @@ TEST(TriangleMeshIo, ObjAndPlyRoundTripExactly) {
   }
 }
 
+// Found by the sanitizer pass (docs/sanitizers.md): binary PLY handed the empty vertex matrix's
+// null data pointer to fwrite, undefined behaviour that UBSan reports (nonnull argument).
+TEST(TriangleMeshIo, EmptyMeshRoundTripsThroughObjAndPly) {
+  const TriangleMesh empty;
+  ASSERT_EQ(empty.vertices.data(), nullptr);
+  for (const auto& [name, format] : {std::pair{"empty.obj", MeshFileFormat::kObj},
+                                     std::pair{"empty_ascii.ply", MeshFileFormat::kPlyAscii},
+                                     std::pair{"empty_binary.ply", MeshFileFormat::kPlyBinary}}) {
+    WriteTriangleMesh(empty, OutPath(name), format);
+    const TriangleMesh back = ReadTriangleMesh(OutPath(name));
+    EXPECT_EQ(back.vertices.cols(), 0) << name;
+    EXPECT_EQ(back.triangles.cols(), 0) << name;
+  }
+}
+
 TEST(TriangleMeshIo, StlRoundTripsToFloatPrecisionAndWeldsVertices) {
   const TriangleMesh mesh = Torus();
   for (const auto& [name, format, as_float] :

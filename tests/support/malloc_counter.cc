@@ -15,7 +15,11 @@
 #endif
 
 #ifdef SPIDARCAD_ASAN
-#include <sanitizer/allocator_interface.h>
+// Declared here rather than through <sanitizer/allocator_interface.h>, which clang ships and
+// GCC 12 does not; both runtimes (libasan, libclang_rt.asan) define the function.
+extern "C" int __sanitizer_install_malloc_and_free_hooks(
+    void (*malloc_hook)(const volatile void* ptr, std::size_t size),
+    void (*free_hook)(const volatile void* ptr));
 #else
 extern "C" void* __libc_malloc(std::size_t size);
 #endif
@@ -28,13 +32,16 @@ std::atomic<bool> g_counting{false};
 #ifdef SPIDARCAD_ASAN
 // Under AddressSanitizer (scripts/sanitize.sh) the sanitizer owns malloc: an interposer would
 // hand it blocks it did not allocate. Its allocation hook counts instead (malloc and new alike).
+// The runtime installs a pair only when both hooks are given (a null free hook installs
+// nothing), hence the empty one.
 namespace {
 void CountAllocation(const volatile void* /*ptr*/, std::size_t /*size*/) {
   if (g_counting.load(std::memory_order_relaxed)) {
     g_malloc_count.fetch_add(1, std::memory_order_relaxed);
   }
 }
-const int g_hook_installed = __sanitizer_install_malloc_and_free_hooks(CountAllocation, nullptr);
+void IgnoreFree(const volatile void* /*ptr*/) {}
+const int g_hook_installed = __sanitizer_install_malloc_and_free_hooks(CountAllocation, IgnoreFree);
 }  // namespace
 #else
 // Weak, so that a test executable with its own interposer still links; MallocCounterActive
