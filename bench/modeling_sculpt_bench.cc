@@ -2,7 +2,9 @@
 // fine cell): one stroke step (UpdateStroke) per tool at radius 1 cm and 3 cm with volume
 // conservation off and on (time, vertices touched, volume error), a 60-step stroke end to end
 // (begin, 60 updates, end with refinement; undone outside the timing), and building the
-// SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything.
+// SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything. BM_SphereGrab: the
+// report's workload, a grab on a 163842-vertex icosphere, with and without the self-intersection
+// check (args: radius mm, check 0/1).
 // Run: build/bench/modeling_sculpt_bench  (SPIDARCAD_SCULPT_CELL=0.00104 sets the cell, m)
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <benchmark/benchmark.h>
@@ -119,6 +121,30 @@ void StepArgs(benchmark::internal::Benchmark* b) {
 }
 BENCHMARK(BM_StrokeStep)->Apply(StepArgs)->Unit(benchmark::kMicrosecond);
 
+// The report's sculpting workload (app/src/cli/report_sculpt.cc): a grab at the top of an
+// icosphere of radius 10 cm with 7 subdivisions (163842 vertices), one UpdateStroke alternating
+// between half and full stroke. args: radius (mm), self-intersection check (0/1).
+void BM_SphereGrab(benchmark::State& state) {
+  static SculptMesh sculpt(IcosphereMesh(0.1, 7), 0.005);
+  const double radius = state.range(0) * 1e-3;
+  const bool check = state.range(1) != 0;
+  const Eigen::Isometry3d X0 = StartPose(sculpt);
+  const Eigen::Isometry3d full = workloads::SculptTargetPose(SculptTool::kGrab, X0, radius, 1.0),
+                          half = workloads::SculptTargetPose(SculptTool::kGrab, X0, radius, 0.5);
+  sculpt.BeginStroke(Settings(SculptTool::kGrab, radius, false, check), X0, 0.0);
+  long i = 0;
+  for (auto _ : state) {
+    sculpt.UpdateStroke((i++ & 1) ? half : full, 0.0);
+    benchmark::ClobberMemory();
+  }
+  const StrokeStats stats = sculpt.stroke_stats();
+  state.counters["touched"] = stats.affected_vertices;
+  state.counters["limit"] = stats.limit;
+  state.SetLabel(check ? "grab checked" : "grab");
+  sculpt.CancelStroke();
+}
+BENCHMARK(BM_SphereGrab)->ArgsProduct({{5, 10, 20, 60}, {0, 1}})->Unit(benchmark::kMicrosecond);
+
 // A 60-step stroke end to end: BeginStroke, 60 UpdateStroke along the path, EndStroke with
 // refinement (edges above 2 mm split). Undo runs outside the timing. args: tool, radius (mm).
 void BM_Stroke60(benchmark::State& state) {
@@ -171,6 +197,8 @@ constexpr const char* kBenchDescription =
     "conservation off and on (time, vertices touched, volume error), a 60-step stroke end to end\n"
     "(begin, 60 updates, end with refinement; undone outside the timing), and building the\n"
     "SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything.\n"
+    "BM_SphereGrab: the report's workload, a grab on a 163842-vertex icosphere, with and without\n"
+    "the self-intersection check (args: radius mm, check 0/1).\n"
     "Run: build/bench/modeling_sculpt_bench  (SPIDARCAD_SCULPT_CELL=0.00104 sets the cell, m)";
 
 int main(int argc, char** argv) {
