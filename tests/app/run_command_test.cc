@@ -263,11 +263,12 @@ TEST(RunCommand, AssemblyOfRigidPartsRunsLikeTheVersion1SceneItCameFrom) {
   }
   const std::string traj = source + "trajectories/seat_right_leg.csv";
   const std::string a = OutputPath("asm_v1.csv"), b = OutputPath("asm_v2.csv");
-  const CommandRun one = RunSpidarcad(
-      "'" + source + "scenes/assembly.json' --trajectory '" + traj + "' --out '" + a + "'", "asm1");
+  const CommandRun one = RunSpidarcad("'" + source + "scenes/assembly.json' --trajectory '" + traj +
+                                          "' --out '" + a + "' --calibrate",
+                                      "asm1");
   ASSERT_EQ(one.status, 0) << one.all();
-  const CommandRun two =
-      RunSpidarcad("'" + v2 + "' --trajectory '" + traj + "' --out '" + b + "'", "asm2");
+  const CommandRun two = RunSpidarcad(
+      "'" + v2 + "' --trajectory '" + traj + "' --out '" + b + "' --calibrate", "asm2");
   ASSERT_EQ(two.status, 0) << two.all();
   EXPECT_NE(two.out.find("fields: assembly (6 parts)"), std::string::npos) << two.out;
   EXPECT_EQ(two.out.find("skipped"), std::string::npos) << two.out;
