@@ -40,23 +40,16 @@
 #include "bench_cli.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
+#include "spidarcad/workloads/fe.h"
 
 namespace spidarcad::fem {
 namespace {
 
-constexpr double kLength = 1.0, kSide = 0.1, kForce = 1000.0;
+// The cantilever of workloads/fe.h (1 m steel beam, 0.1 m square section, 1 kN tip shear).
+constexpr double kLength = workloads::kCantileverLength, kSide = workloads::kCantileverSide,
+                 kForce = workloads::kCantileverForce;
 constexpr int kMaxContacts = 64;
-const Material kSteel{2.0e11, 0.3};
-
-struct Model {
-  TetMesh mesh;
-  MaterialTable materials{kSteel};
-  std::unique_ptr<BoundaryConditions> bcs;
-  std::unique_ptr<StaticSolver> solver;
-  std::unique_ptr<Compliance> compliance;
-  double tip_ratio = 0.0;  // FE tip deflection / Timoshenko
-  double build_seconds = 0.0;
-};
+using Model = workloads::CantileverModel;
 
 // Figures gathered for the tables printed after the run, by (order, r).
 struct Row {
@@ -109,54 +102,14 @@ double CpuSeconds() {
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-double Timoshenko() {
-  const double i = kSide * std::pow(kSide, 3) / 12.0;
-  const double nu = kSteel.poisson_ratio;
-  const double kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
-  return kForce * std::pow(kLength, 3) / (3.0 * kSteel.youngs_modulus * i) +
-         kForce * kLength / (kappa * kSteel.Mu() * kSide * kSide);
-}
-
 Model& GetModel(int order, int r) {
   static std::map<std::pair<int, int>, std::unique_ptr<Model>> cache;
   auto& slot = cache[{order, r}];
   if (slot) return *slot;
-  const auto t0 = std::chrono::steady_clock::now();
-  slot = std::make_unique<Model>();
-  Model& m = *slot;
-  BoxMeshSettings s;
-  s.upper = Eigen::Vector3d(kLength, kSide, kSide);
-  s.nx = 10 * r;
-  s.ny = s.nz = r;
-  s.order = order;
-  m.mesh = MakeBoxMesh(s);
-  m.bcs = std::make_unique<BoundaryConditions>(m.mesh.num_nodes());
-  FixNodesInBox(m.mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), m.bcs.get());
-  const Surface surf = ExtractSurface(m.mesh);
-  AddTractionInBox(m.mesh, surf, Eigen::Vector3d(kLength - 1e-9, -1, -1), Eigen::Vector3d(2, 2, 2),
-                   Eigen::Vector3d(0, 0, -kForce / (kSide * kSide)), m.bcs.get());
-  m.solver = std::make_unique<StaticSolver>(m.mesh, m.materials, *m.bcs);
-  // Condensed: the kMaxContacts top-face nodes nearest the middle of the top of the tip.
-  std::vector<int> top =
-      NodesInBox(m.mesh, Eigen::Vector3d(0.5, -1, kSide), Eigen::Vector3d(2, 2, 2));
-  const Eigen::Vector3d centre(kLength, kSide / 2, kSide);
-  std::sort(top.begin(), top.end(), [&](int a, int b) {
-    return (m.mesh.nodes.row(a).transpose() - centre).norm() <
-           (m.mesh.nodes.row(b).transpose() - centre).norm();
-  });
-  top.resize(std::min<size_t>(top.size(), kMaxContacts));
   CondensationSettings cs;
   cs.block_nodes = 32;
-  m.compliance = std::make_unique<Compliance>(*m.solver, surf.nodes, top, cs);
-  // Tip deflection: mean z-displacement of the end-face nodes (the baseline).
-  const auto tip =
-      NodesInBox(m.mesh, Eigen::Vector3d(kLength - 1e-9, -1, -1), Eigen::Vector3d(2, 2, 2));
-  const StaticSolution sol = m.solver->Solve();
-  double sum = 0.0;
-  for (int v : tip) sum += sol.displacement(3 * v + 2);
-  m.tip_ratio = -sum / tip.size() / Timoshenko();
-  m.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return m;
+  slot = workloads::BuildCantilever(order, r, kMaxContacts, cs);
+  return *slot;
 }
 
 void BM_Precompute(benchmark::State& state) {
@@ -312,9 +265,7 @@ void BM_FullSparseSolve(benchmark::State& state) {
 
 // Top-face nodes of a model (the cache's candidates), and the radius around p that holds the
 // n nearest of them.
-std::vector<int> TopFace(const Model& m) {
-  return NodesInBox(m.mesh, Eigen::Vector3d(-1, -1, kSide), Eigen::Vector3d(2, 2, 2));
-}
+std::vector<int> TopFace(const Model& m) { return workloads::CantileverTopFace(m.mesh); }
 double RadiusForCount(const Model& m, const std::vector<int>& nodes, const Eigen::Vector3d& p,
                       int n) {
   std::vector<double> d;
@@ -404,43 +355,11 @@ void BM_CachedContactTick(benchmark::State& state) {
 void BM_FallbackError(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0)), r = static_cast<int>(state.range(1));
   const Model& m = GetModel(order, r);
-  const auto top = TopFace(m);
-  const double cell = kSide / r;
-  auto node_at = [&](double x) {
-    const Eigen::Vector3d p(x, kSide / 2, kSide), tol = Eigen::Vector3d::Constant(1e-9);
-    return NodesInBox(m.mesh, p - tol, p + tol).at(0);
-  };
   FallbackRow row;
   row.order = order;
   row.r = r;
-  row.cell_mm = 1e3 * cell;
-  for (auto _ : state) {
-    ColumnCacheSettings settings;
-    settings.start_worker = false;
-    ColumnCache cache(*m.solver, m.mesh.nodes, m.compliance->output_nodes(), top, settings);
-    const int b = cache.CandidateOfNode(node_at(kLength / 2));
-    cache.ComputeNodes({b});
-    const Eigen::Vector3d d = cache.baseline().segment<3>(3 * cache.OutputIndexOfCandidate(b)) -
-                              Eigen::Vector3d(0, 0, 1e-4);
-    double f_exact[3];
-    {
-      CachedContactSolver exact(&cache, 1);
-      exact.Add(b);
-      exact.Solve(d.data(), f_exact);
-    }
-    const Eigen::Vector3d fe(f_exact[0], f_exact[1], f_exact[2]);
-    row.error.clear();
-    for (int cells = 1; cells <= 4; ++cells) {
-      cache.EvictAll();
-      const int sub = cache.CandidateOfNode(node_at(kLength / 2 + cells * cell));
-      cache.ComputeNodes({sub});
-      CachedContactSolver approx(&cache, 1);
-      approx.Add(b);
-      double f[3];
-      approx.Solve(d.data(), f);
-      row.error.push_back((Eigen::Vector3d(f[0], f[1], f[2]) - fe).norm() / fe.norm());
-    }
-  }
+  row.cell_mm = 1e3 * kSide / r;
+  for (auto _ : state) row.error = workloads::BorrowedColumnErrors(m);
   for (int c = 0; c < 4; ++c)
     state.counters["err_" + std::to_string(c + 1) + "_cells"] = row.error[c];
   state.counters["cell_mm"] = row.cell_mm;

@@ -2,7 +2,9 @@
 // fine cell): one stroke step (UpdateStroke) per tool at radius 1 cm and 3 cm with volume
 // conservation off and on (time, vertices touched, volume error), a 60-step stroke end to end
 // (begin, 60 updates, end with refinement; undone outside the timing), and building the
-// SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything.
+// SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything. BM_SphereGrab: the
+// report's workload, a grab on a 163842-vertex icosphere, with and without the self-intersection
+// check (args: radius mm, check 0/1).
 // Run: build/bench/modeling_sculpt_bench  (SPIDARCAD_SCULPT_CELL=0.00104 sets the cell, m)
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <benchmark/benchmark.h>
@@ -20,6 +22,7 @@
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/workloads/sculpt.h"
 
 namespace spidarcad::modeling {
 namespace {
@@ -67,31 +70,6 @@ Eigen::Isometry3d StartPose(const SculptMesh& sculpt) {
   return X;
 }
 
-// The pose a stroke of `tool` reaches (amount 1) from X0.
-Eigen::Isometry3d TargetPose(SculptTool tool, const Eigen::Isometry3d& X0, double radius,
-                             double amount) {
-  Eigen::Isometry3d X = X0;
-  const Eigen::Vector3d z = X0.linear().col(2), y = X0.linear().col(1);
-  switch (tool) {
-    case SculptTool::kGrab:
-      X.translation() += amount * radius * (0.8 * z + 0.3 * y);
-      break;
-    case SculptTool::kTwist:
-      X.linear() = Eigen::AngleAxisd(amount * 0.6, z) * X0.linear();
-      break;
-    case SculptTool::kBend:
-      X.linear() = Eigen::AngleAxisd(amount * 0.4, y) * X0.linear();
-      break;
-    case SculptTool::kPushPull:
-      X.translation() += amount * 0.5 * radius * z;
-      break;
-    case SculptTool::kSmooth:
-      X.translation() += amount * radius * y;
-      break;
-  }
-  return X;
-}
-
 SculptToolSettings Settings(SculptTool tool, double radius, bool conserve, bool check = true) {
   SculptToolSettings s;
   s.tool = tool;
@@ -110,8 +88,8 @@ void BM_StrokeStep(benchmark::State& state) {
   const bool check = state.range(3) != 0;
   SculptMesh& sculpt = Sculpt();
   const Eigen::Isometry3d X0 = StartPose(sculpt);
-  const Eigen::Isometry3d full = TargetPose(tool, X0, radius, 1.0),
-                          half = TargetPose(tool, X0, radius, 0.5);
+  const Eigen::Isometry3d full = workloads::SculptTargetPose(tool, X0, radius, 1.0),
+                          half = workloads::SculptTargetPose(tool, X0, radius, 0.5);
   sculpt.BeginStroke(Settings(tool, radius, conserve, check), X0, 0.0);
   long i = 0;
   for (auto _ : state) {
@@ -143,6 +121,30 @@ void StepArgs(benchmark::internal::Benchmark* b) {
 }
 BENCHMARK(BM_StrokeStep)->Apply(StepArgs)->Unit(benchmark::kMicrosecond);
 
+// The report's sculpting workload (app/src/cli/report_sculpt.cc): a grab at the top of an
+// icosphere of radius 10 cm with 7 subdivisions (163842 vertices), one UpdateStroke alternating
+// between half and full stroke. args: radius (mm), self-intersection check (0/1).
+void BM_SphereGrab(benchmark::State& state) {
+  static SculptMesh sculpt(IcosphereMesh(0.1, 7), 0.005);
+  const double radius = state.range(0) * 1e-3;
+  const bool check = state.range(1) != 0;
+  const Eigen::Isometry3d X0 = StartPose(sculpt);
+  const Eigen::Isometry3d full = workloads::SculptTargetPose(SculptTool::kGrab, X0, radius, 1.0),
+                          half = workloads::SculptTargetPose(SculptTool::kGrab, X0, radius, 0.5);
+  sculpt.BeginStroke(Settings(SculptTool::kGrab, radius, false, check), X0, 0.0);
+  long i = 0;
+  for (auto _ : state) {
+    sculpt.UpdateStroke((i++ & 1) ? half : full, 0.0);
+    benchmark::ClobberMemory();
+  }
+  const StrokeStats stats = sculpt.stroke_stats();
+  state.counters["touched"] = stats.affected_vertices;
+  state.counters["limit"] = stats.limit;
+  state.SetLabel(check ? "grab checked" : "grab");
+  sculpt.CancelStroke();
+}
+BENCHMARK(BM_SphereGrab)->ArgsProduct({{5, 10, 20, 60}, {0, 1}})->Unit(benchmark::kMicrosecond);
+
 // A 60-step stroke end to end: BeginStroke, 60 UpdateStroke along the path, EndStroke with
 // refinement (edges above 2 mm split). Undo runs outside the timing. args: tool, radius (mm).
 void BM_Stroke60(benchmark::State& state) {
@@ -156,7 +158,7 @@ void BM_Stroke60(benchmark::State& state) {
   for (auto _ : state) {
     sculpt.BeginStroke(settings, X0, 0.0);
     for (int step = 1; step <= 60; ++step)
-      sculpt.UpdateStroke(TargetPose(tool, X0, radius, step / 60.0), 0.0);
+      sculpt.UpdateStroke(workloads::SculptTargetPose(tool, X0, radius, step / 60.0), 0.0);
     const SculptEdit edit = sculpt.EndStroke();
     state.PauseTiming();
     splits = edit.splits;
@@ -195,6 +197,8 @@ constexpr const char* kBenchDescription =
     "conservation off and on (time, vertices touched, volume error), a 60-step stroke end to end\n"
     "(begin, 60 updates, end with refinement; undone outside the timing), and building the\n"
     "SculptMesh. A display at 60 Hz leaves 16.7 ms per frame for everything.\n"
+    "BM_SphereGrab: the report's workload, a grab on a 163842-vertex icosphere, with and without\n"
+    "the self-intersection check (args: radius mm, check 0/1).\n"
     "Run: build/bench/modeling_sculpt_bench  (SPIDARCAD_SCULPT_CELL=0.00104 sets the cell, m)";
 
 int main(int argc, char** argv) {

@@ -14,59 +14,23 @@
 #include "bench_cli.h"
 #include "spidarcad/haptics/tension.h"
 #include "spidarcad/haptics/workspace.h"
+#include "spidarcad/workloads/tension.h"
 
 namespace spidarcad::haptics {
 namespace {
 
-struct Request {
-  Matrix78d A;
-  Vector7d q;
-};
+using Request = workloads::TensionRequest;
 
 const SpidarGeometry kGeometry;
 
-Eigen::Matrix3d RandomRotation(std::mt19937* rng, double max_angle) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::uniform_real_distribution<double> angle(-max_angle, max_angle);
-  const Eigen::Vector3d axis(normal(*rng), normal(*rng), normal(*rng));
-  return Eigen::AngleAxisd(angle(*rng), axis.normalized()).toRotationMatrix();
-}
-
-// Independent random poses (cold-start workload). `scale` multiplies the wrench: 1 gives
-// displayable requests, 50 saturating ones.
+// Independent random poses (cold-start workload); `scale` 1: displayable, 50: saturating.
 std::vector<Request> RandomRequests(int count, double scale, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> pos(-0.08, 0.08), grasp(1.0, 2.1), u(-1, 1);
-  std::vector<Request> out;
-  for (int k = 0; k < count; ++k) {
-    const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(pos(rng), pos(rng), pos(rng)),
-                                              RandomRotation(&rng, 0.5), grasp(rng), kGeometry.d);
-    Vector7d q;
-    q << 2 * u(rng), 2 * u(rng), 2 * u(rng), 0.03 * u(rng), 0.03 * u(rng), 0.03 * u(rng),
-        0.03 * u(rng);
-    out.push_back({WrenchMatrix(kGeometry, pose), scale * q});
-  }
-  return out;
+  return workloads::RandomTensionRequests(kGeometry, count, scale, seed);
 }
 
-// A smooth 1 kHz trajectory (warm-start workload): consecutive requests differ by ~1 ms of
-// hand motion.
+// A smooth 1 kHz trajectory (warm-start workload).
 std::vector<Request> Trajectory(int count, double scale) {
-  std::vector<Request> out;
-  for (int k = 0; k < count; ++k) {
-    const double t = 1e-3 * k;
-    const Eigen::Matrix3d R =
-        Eigen::AngleAxisd(0.4 * std::sin(t), Eigen::Vector3d(1, 2, 3).normalized())
-            .toRotationMatrix();
-    const GripPose pose = GripPose::FromFrame(
-        Eigen::Vector3d(0.08 * std::sin(t), 0.05 * std::cos(2 * t), 0.06 * std::sin(3 * t)), R,
-        1.5 + 0.3 * std::sin(t), kGeometry.d);
-    Vector7d q;
-    q << 3 * std::sin(5 * t), 2 * std::cos(7 * t), -2 + 2 * std::sin(3 * t), 0.03 * std::sin(4 * t),
-        0.02, -0.03 * std::cos(6 * t), 0.03 * std::sin(8 * t);
-    out.push_back({WrenchMatrix(kGeometry, pose), scale * q});
-  }
-  return out;
+  return workloads::TrajectoryTensionRequests(kGeometry, count, scale);
 }
 
 void RunSolves(benchmark::State& state, const std::vector<Request>& requests, bool warm) {

@@ -464,7 +464,7 @@ void SculptMesh::BeginStroke(const SculptToolSettings& settings, const Eigen::Is
 
   // A region that already intersects itself (an imported mesh, say) would stop every stroke at
   // once: it is not checked.
-  check_intersections_ = settings.prevent_self_intersection && !MovedRegionIntersects();
+  check_intersections_ = settings.prevent_self_intersection && !CheckMovedRegion();
 
   stats_ = StrokeStats{};
   stats_.affected_vertices = static_cast<int>(n);
@@ -574,7 +574,7 @@ void SculptMesh::UpdateStroke(const Eigen::Isometry3d& X_WT, double theta) {
   stats_.intersection_checks = 0;
   if (check_intersections_ && s > 0.0) {
     ++stats_.intersection_checks;
-    if (MovedRegionIntersects()) {
+    if (CheckMovedRegion()) {
       // Bisection on the share of the strength: the start (share 0) does not intersect.
       constexpr int kBisections = 8;  // to 1/256 of the stroke
       double free = 0.0, crossing = 1.0;
@@ -582,7 +582,7 @@ void SculptMesh::UpdateStroke(const Eigen::Isometry3d& X_WT, double theta) {
         const double share = 0.5 * (free + crossing);
         Deform(X_WT, share * s);
         ++stats_.intersection_checks;
-        (MovedRegionIntersects() ? crossing : free) = share;
+        (CheckMovedRegion() ? crossing : free) = share;
       }
       Deform(X_WT, free * s);
       stats_.limit = free;

@@ -1,6 +1,6 @@
-// Cell coordinates of SculptMesh's uniform grids (the vertex grid of sculpt.cc and the
-// triangle broad phase of sculpt_intersection.cc): 21 bits per axis, offset so that negative
-// cells fit, packed into one 63-bit key.
+// Cell coordinates of SculptMesh's uniform vertex grid (sculpt.cc; the self-intersection check
+// of sculpt_intersection.cc queries it): 21 bits per axis, offset so that negative cells fit,
+// packed into one 63-bit key.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 

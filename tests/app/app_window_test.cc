@@ -6,7 +6,11 @@
 // solid with the grip and pressing Enter, and mode switching through the Mode interface. Then
 // windows of their own for documents: open, every mode, edit, save and reopen; a bad file; the
 // unsaved-changes question; dropped files; autosave and recovery, including a spawned
-// spidarcad killed with SIGKILL and recovered with --recover.
+// spidarcad killed with SIGKILL and recovered with --recover. Sculpt mode on the Document: a
+// copy of a solid sculpted with the grip, each stroke one undo step (Ctrl+Z, Ctrl+Y), saved and
+// reopened; --mode sculpt making its clay as a sculpt object; "Send to FE". Assembly on the
+// document: the seating trajectory leaves one command that undo, redo, save and reopen keep, and
+// an edit of a part's solid changes the field that is felt; an imported mesh is drawn and picked.
 #include "gui/app_window.h"
 
 #include <signal.h>
@@ -29,6 +33,7 @@
 #include <gtest/gtest.h>
 #include <imgui.h>
 #include <vtkActor.h>
+#include <vtkMatrix4x4.h>
 #include <vtkRenderer.h>
 
 #include "doc/assets.h"
@@ -40,9 +45,13 @@
 #include "gui/modes.h"
 #include "gui/scene_view.h"
 #include "gui/tree_panel.h"
+#include "scene/assembly_scene.h"
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
+#include "scene/sculpt_field.h"
+#include "spidarcad/haptics/trajectory.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
 #include "support/scoped_env.h"
 
 namespace spidarcad::app {
@@ -641,6 +650,377 @@ TEST(AppWindowRecovery, RecoversTheEditOfAKilledSession) {
   Document saved;
   saved.Load(copy);
   EXPECT_EQ(NodeField(saved, "plate", "radius"), 0.0048);
+}
+
+// ---- sculpt mode on the Document ----
+
+// The sculpt mesh of object id.
+const SculptMesh& SculptMeshOf(const Document& doc, ObjectId id) {
+  return *std::get<SculptData>(doc.Get(id).data).mesh;
+}
+
+// True when a and b have the same vertices (bitwise) and triangles.
+bool SameSurface(const modeling::TriangleMesh& a, const modeling::TriangleMesh& b) {
+  return a.vertices.cols() == b.vertices.cols() && a.triangles.cols() == b.triangles.cols() &&
+         a.vertices == b.vertices && a.triangles == b.triangles;
+}
+
+// Ctrl + key (with Shift when asked) for one frame, then released, as HandleTreeShortcuts reads
+// them.
+void PressCtrl(AppWindow& window, int key, bool shift = false) {
+  ImGuiIO& io = ImGui::GetIO();
+  io.KeysDown[GLFW_KEY_LEFT_CONTROL] = true;
+  io.KeyCtrl = true;
+  io.KeyShift = shift;
+  io.KeysDown[key] = true;
+  window.Frame();
+  io.KeysDown[key] = false;
+  io.KeysDown[GLFW_KEY_LEFT_CONTROL] = false;
+  io.KeyCtrl = false;
+  io.KeyShift = false;
+  window.Frame();
+}
+
+// Sets the simulated hand's target to p_W (W) with grasp angle `grasp_deg`, then runs frames
+// until the measured grip is within 0.5 mm of it and `done` holds (at most `frames` frames).
+template <typename Done>
+void MoveGrip(AppWindow& window, const Eigen::Vector3d& p_W, double grasp_deg, Done done,
+              int frames = 3000) {
+  const DeviceToWorld& x = window.model().device_to_world();
+  const Eigen::Vector3d p_D = (p_W - x.p_WDo) / x.world_scale;
+  window.grip().SetPose(p_D, Eigen::Matrix3d::Identity(), grasp_deg * 3.14159265358979323846 / 180);
+  for (int k = 0; k < frames; ++k) {
+    window.Frame();
+    if ((window.runtime().Latest().tool.pose_D.p0 - p_D).norm() < 5e-4 && done()) return;
+  }
+}
+
+// The demo's knob copied for sculpting (a Job), pulled up by a grasp stroke of the grip: one undo
+// step titled with the tool and the object; Ctrl+Z gives back the exact vertex positions in the
+// Document and in the session, Ctrl+Y the sculpted ones; saved, undone and redone across the
+// save (clean again), reopened: the same surface, sculpted again in a fresh sculpt mode. Then
+// "Send to FE" selects it and switches to FE mode.
+TEST(AppWindowSculpt, StrokeIsOneUndoStepThatSurvivesSaveAndReopen) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("sculpt");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string saved = (dir / "sculpted.json").string();
+  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  window.Frame();
+  auto* sculpt = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
+  ASSERT_NE(sculpt, nullptr);
+  SculptMode& mode = sculpt->sculpt();
+  window.SwitchMode(sculpt);
+  const Document& doc = window.model().document();
+  const DocObject* knob = doc.FindByName("knob");
+  ASSERT_NE(knob, nullptr);
+  const std::size_t objects = doc.objects().size();
+  mode.RequestCopy(knob->id);
+  window.Frame();
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while ((mode.copy_pending() || mode.target() == 0) && std::chrono::steady_clock::now() < give_up)
+    window.Frame();
+  ASSERT_EQ(doc.objects().size(), objects + 1) << mode.message();
+  const ObjectId clay = mode.target();
+  ASSERT_NE(clay, 0u) << mode.message();
+  EXPECT_EQ(doc.Get(clay).name, "knob sculpt");
+  EXPECT_EQ(doc.history().UndoDescription(), "Add sculpt knob sculpt");
+  ASSERT_EQ(window.tree().selection()->object, clay) << "the copy is selected in the tree";
+  EXPECT_EQ(sculpt->Targets(window.model()), std::vector<std::string>{"knob sculpt"});
+  window.Frame();
+  ASSERT_TRUE(mode.session().has_mesh());
+  const modeling::TriangleMesh start = SculptMeshOf(doc, clay);
+  const std::size_t steps = doc.history().undo_size();
+
+  // The stroke: the grip at the copy's top vertex, the grasp closed, lifted 1 cm, opened.
+  Eigen::Index top = 0;
+  for (Eigen::Index v = 0; v < start.vertices.cols(); ++v) {
+    if (start.vertices(2, v) > start.vertices(2, top)) top = v;
+  }
+  const Eigen::Vector3d p_top = start.vertices.col(top);
+  MoveGrip(window, p_top, 90.0, [] { return true; });
+  MoveGrip(window, p_top, 30.0, [&] { return mode.session().stroke_active(); });
+  ASSERT_TRUE(mode.session().stroke_active()) << mode.message();
+  MoveGrip(
+      window, p_top + Eigen::Vector3d(0, 0, 0.01), 30.0, [] { return true; }, 600);
+  MoveGrip(window, p_top + Eigen::Vector3d(0, 0, 0.01), 90.0,
+           [&] { return !mode.session().stroke_active(); });
+  ASSERT_FALSE(mode.session().stroke_active());
+  ASSERT_EQ(doc.history().undo_size(), steps + 1);
+  EXPECT_EQ(doc.history().UndoDescription(), "Sculpt stroke (grab) on knob sculpt");
+  const modeling::TriangleMesh sculpted = SculptMeshOf(doc, clay);
+  ASSERT_FALSE(SameSurface(sculpted, start));
+  EXPECT_GT(sculpted.vertices(2, top), p_top.z() + 0.001) << "the top went up";
+  EXPECT_TRUE(SameSurface(mode.session().ExportMesh(), sculpted));
+
+  // Ctrl+Z: the exact positions back, in the Document and (reloaded) in the session.
+  MoveGrip(
+      window, p_top + Eigen::Vector3d(0, 0, 0.05), 90.0, [] { return true; }, 200);
+  PressCtrl(window, GLFW_KEY_Z);
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), start));
+  EXPECT_TRUE(SameSurface(mode.session().ExportMesh(), start));
+  PressCtrl(window, GLFW_KEY_Y);
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), sculpted));
+  EXPECT_TRUE(SameSurface(mode.session().ExportMesh(), sculpted));
+
+  // Save; undo across the save makes it dirty, redo clean again.
+  ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+  window.Frame();
+  EXPECT_FALSE(doc.dirty());
+  PressCtrl(window, GLFW_KEY_Z);
+  EXPECT_TRUE(doc.dirty());
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), start));
+  PressCtrl(window, GLFW_KEY_Z, true);  // Ctrl+Shift+Z: redo
+  EXPECT_FALSE(doc.dirty());
+  EXPECT_TRUE(SameSurface(SculptMeshOf(doc, clay), sculpted));
+
+  // Read back: the same surface, bit for bit.
+  Document reread;
+  reread.Load(saved);
+  const DocObject* copy = reread.FindByName("knob sculpt");
+  ASSERT_NE(copy, nullptr);
+  EXPECT_TRUE(SameSurface(SculptMeshOf(reread, copy->id), sculpted));
+
+  // "Send to FE": the sculpt object selected in the tree, FE mode active.
+  window.tree().Select(doc.objects().front().id);
+  sculpt->sculpt().RequestSendToFe();
+  window.Frame();
+  EXPECT_EQ(window.active_mode(), window.FindMode("fe"));
+  ASSERT_TRUE(window.tree().selection().has_value());
+  EXPECT_EQ(window.tree().selection()->object, clay);
+
+  // Reopened in the same window: a fresh sculpt mode takes the file's sculpt object as saved.
+  ASSERT_TRUE(window.OpenDocument(saved)) << window.file_error();
+  window.Frame();
+  auto* again = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
+  ASSERT_NE(again, nullptr);
+  window.SwitchMode(again);
+  for (int k = 0; k < 5; ++k) window.Frame();
+  ASSERT_NE(again->sculpt().target(), 0u);
+  EXPECT_EQ(window.model().document().Get(again->sculpt().target()).name, "knob sculpt");
+  EXPECT_TRUE(SameSurface(again->sculpt().session().ExportMesh(), sculpted));
+}
+
+// --mode sculpt on a scene without sculpt objects (clay.json) keeps its clay: a sculpt copy of the
+// first solid, made by a Job at start-up and added as one undo step, is what the mode sculpts.
+TEST(AppWindowSculpt, ModeSculptMakesTheClayASculptObjectOfTheFirstSolid) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("sculpt_launch");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  GuiOptions options = DocumentWindowOptions("");
+  options.mode = "sculpt";
+  AppWindow window(options);
+  auto* sculpt = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
+  ASSERT_NE(sculpt, nullptr);
+  EXPECT_EQ(window.active_mode(), sculpt);
+  window.Frame();
+  EXPECT_FALSE(sculpt->Settled()) << "a screenshot waits for the clay";
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(180);
+  while (!sculpt->Settled() && std::chrono::steady_clock::now() < give_up) window.Frame();
+  window.Frame();
+  const Document& doc = window.model().document();
+  EXPECT_EQ(fs::path(doc.file_path()).filename(), "clay.json");
+  const DocObject* clay = doc.FindByName("clay sculpt");
+  ASSERT_NE(clay, nullptr) << sculpt->sculpt().message();
+  EXPECT_EQ(sculpt->sculpt().target(), clay->id);
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Add sculpt clay sculpt");
+  ASSERT_TRUE(sculpt->sculpt().session().has_mesh());
+  EXPECT_TRUE(SameSurface(sculpt->sculpt().session().ExportMesh(), SculptMeshOf(doc, clay->id)));
+  EXPECT_TRUE(sculpt->live());
+}
+
+// ---- assembly on the document's rigid parts ----
+
+// The 4×4 matrix of a vtkActor (position, orientation, scale and user matrix combined).
+Eigen::Matrix4d ActorMatrixOf(vtkActor* actor) {
+  Eigen::Matrix4d M;
+  vtkMatrix4x4* m = actor->GetMatrix();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) M(r, c) = m->GetElement(r, c);
+  }
+  return M;
+}
+
+Eigen::Isometry3d RigidPose(const Document& doc, const std::string& name) {
+  return std::get<RigidPartData>(doc.FindByName(name)->data).X_WP;
+}
+
+// Frames until `done` or `seconds` of wall time have passed; true when done.
+template <typename Done>
+bool FramesUntil(AppWindow* window, double seconds, const Done& done) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < give_up) {
+    window->Frame();
+    if (done()) return true;
+  }
+  return false;
+}
+
+// assets/scenes/assembly.json with the seating trajectory in the window (its parts become rigid
+// parts): exactly one command, "Seat part right_leg on body", with the leg at its seat. Ctrl+Z
+// (the tree's Undo) puts the leg back where the file has it, in the document, in the field the
+// loop ticks and in the view; redo seats it again; saved and reopened in a fresh window it is
+// seated, and a click on the torso selects the body part. Then an edit of the head's peg radius
+// through a command republishes a field whose distance beside the peg is the edited solid's own.
+TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("assembly");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const std::string scene = AssetPath("scenes/assembly.json");
+  const std::string trajectory = AssetPath("trajectories/seat_right_leg.csv");
+  const std::string saved = (dir / "robot_seated.json").string();
+  constexpr int kLeg = 4;  // right_leg in assembly.json's parts
+  Document file;
+  file.Load(scene);
+  ASSERT_TRUE(AdoptScenePartsAsRigidParts(&file));
+  const Eigen::Isometry3d start = RigidPose(file, "right_leg");
+  {
+    GuiOptions options = DocumentWindowOptions(scene);
+    options.device = "simulated";  // as the window's default and the trajectory's golden
+    options.trajectory = trajectory;
+    AppWindow window(options);
+    auto* mode = dynamic_cast<AssemblyWindowMode*>(window.FindMode("assembly"));
+    ASSERT_NE(mode, nullptr);
+    AssemblyMode& assembly = mode->assembly();
+    EXPECT_EQ(window.active_mode(), mode) << "a document of parts starts in assembly";
+    Document& doc = window.model().document();
+    EXPECT_FALSE(doc.dirty());
+    EXPECT_EQ(doc.file_path(), scene);
+    // The trajectory's length in wall time, plus a second for the release to land.
+    const haptics::Trajectory t = haptics::Trajectory::Load(trajectory);
+    FramesUntil(&window, t.end_time() - t.start_time() + 1.0, [] { return false; });
+    ASSERT_EQ(doc.history().undo_size(), 1u) << doc.history().UndoDescription();
+    EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
+    const RigidPartData& leg = std::get<RigidPartData>(doc.FindByName("right_leg")->data);
+    const Eigen::Isometry3d seated =
+        RigidPose(doc, "body") * PartPose(leg.seats[0].position, leg.seats[0].rotation);
+    EXPECT_LT((RigidPose(doc, "right_leg").matrix() - seated.matrix()).norm(), 1e-12);
+    EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kSeated);
+    // Ctrl+Z: the leg back in the document, in a new field once the loop has ticked it, and in
+    // the view.
+    const std::shared_ptr<haptics::AssemblyField> before = assembly.field();
+    const int publishes = window.publish_count();
+    ASSERT_TRUE(window.tree().Undo());
+    EXPECT_EQ(RigidPose(doc, "right_leg").matrix(), start.matrix());
+    ASSERT_TRUE(FramesUntil(&window, 10.0, [&] {
+      return assembly.field() != before && assembly.field()->LatestState().count == 6;
+    }));
+    EXPECT_GT(window.publish_count(), publishes);
+    EXPECT_EQ(assembly.field()->LatestState().X_WP[kLeg].matrix(), start.matrix());
+    window.Frame();
+    EXPECT_EQ(assembly.state().X_WP[kLeg].matrix(), start.matrix());
+    EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kFree);
+    EXPECT_LT((assembly.ViewMatrix(start) - ActorMatrixOf(assembly.actor(kLeg))).norm(), 1e-12);
+    EXPECT_EQ(doc.history().undo_size(), 0u) << "the rebuilt field made no command";
+    // Redo: seated again.
+    ASSERT_TRUE(window.tree().Redo());
+    FramesUntil(&window, 2.0, [&] { return assembly.field()->LatestState().count == 6; });
+    EXPECT_LT((RigidPose(doc, "right_leg").matrix() - seated.matrix()).norm(), 1e-12);
+    EXPECT_LT((assembly.field()->part(kLeg).X_WP.matrix() - seated.matrix()).norm(), 1e-12);
+    window.Frame();
+    EXPECT_EQ(assembly.part_state(kLeg), AssemblyPartState::kSeated);
+    EXPECT_EQ(doc.history().undo_size(), 1u);
+    ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+    window.Frame();
+    EXPECT_FALSE(doc.dirty());
+  }
+  AppWindow again(DocumentWindowOptions(saved));
+  again.Frame();
+  Document reread;
+  reread.Load(saved);
+  EXPECT_EQ(Content(again.model().document()), Content(reread));
+  auto* mode = dynamic_cast<AssemblyWindowMode*>(again.FindMode("assembly"));
+  ASSERT_NE(mode, nullptr);
+  EXPECT_EQ(again.active_mode(), mode);
+  EXPECT_EQ(mode->assembly().part_state(kLeg), AssemblyPartState::kSeated);
+  EXPECT_EQ(FormatAssemblySummary(mode->assembly()),
+            "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
+  // A click on the torso's top selects the body part in the tree (X_WD identity: D = W).
+  Document& doc = again.model().document();
+  const DeviceToWorld& x = again.model().device_to_world();
+  ASSERT_EQ(x.world_scale, 1.0);
+  ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d top = again.view().WorldToDisplay(Eigen::Vector3d(0.0, 0.0, 0.114));
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
+  again.tree().ClearSelection();
+  ASSERT_TRUE(again.ClickAt(top.x(), fb_h - top.y()));
+  ASSERT_TRUE(again.tree().selection().has_value());
+  EXPECT_EQ(again.tree().selection()->object, doc.FindByName("body")->id);
+  // A part's solid edited through a command: the head's peg radius 4 -> 3.5 mm.
+  const ObjectId head = doc.FindByName("head")->id;
+  const Eigen::Vector3d p_P(0.006, 0.0, -0.004);  // 2 mm beside the peg, mid-height
+  const std::shared_ptr<haptics::AssemblyField> old_field = mode->assembly().field();
+  const double before = old_field->part(1).field_P->Evaluate(p_P, nullptr);
+  const int publishes = again.publish_count();
+  doc.Execute(edit::SetNodeField(head, {1, 0}, "radius", 0.0035));
+  again.Frame();
+  ASSERT_NE(mode->assembly().field(), old_field);
+  EXPECT_GT(again.publish_count(), publishes);
+  const double after = mode->assembly().field()->part(1).field_P->Evaluate(p_P, nullptr);
+  const auto own =
+      modeling::CompiledSolid::Compile(std::get<RigidPartData>(doc.Get(head).data).root);
+  EXPECT_NEAR(after, own.Value(p_P), 1e-12);
+  EXPECT_NEAR(after - before, 0.0005, 1e-12);
+}
+
+// An imported mesh is drawn: the view has an actor for it, placed like the solids (X_WD of the
+// empty document: identity), with the mesh's bounds; a click on it selects it in the tree;
+// undoing the import removes the actor.
+TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = Scratch("import_draw");
+  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  // A closed tetrahedron, 6 cm on its legs, corner at (-0.03, -0.03, -0.06).
+  const std::string stl = (dir / "corner.stl").string();
+  {
+    const double c[4][3] = {
+        {-0.03, -0.03, -0.06}, {0.03, -0.03, -0.06}, {-0.03, 0.03, -0.06}, {-0.03, -0.03, 0.0}};
+    const int f[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    std::ofstream out(stl);
+    out << "solid corner\n";
+    for (const auto& t : f) {
+      out << " facet normal 0 0 0\n  outer loop\n";
+      for (int k = 0; k < 3; ++k) {
+        out << "   vertex " << c[t[k]][0] << " " << c[t[k]][1] << " " << c[t[k]][2] << "\n";
+      }
+      out << "  endloop\n endfacet\n";
+    }
+    out << "endsolid corner\n";
+  }
+  AppWindow window(DocumentWindowOptions(kNoSceneName));
+  window.Frame();
+  const DeviceToWorld& x = window.model().device_to_world();
+  ASSERT_EQ(x.world_scale, 1.0);
+  ASSERT_EQ(x.p_WDo, Eigen::Vector3d::Zero());
+  ASSERT_TRUE(window.ImportMesh(stl)) << window.file_error();
+  const ObjectId id = window.model().document().last_created().at(0);
+  window.Frame();
+  vtkActor* actor = window.scene_view().ActorOf(id);
+  ASSERT_NE(actor, nullptr);
+  EXPECT_TRUE(actor->GetVisibility());
+  double b[6];
+  actor->GetBounds(b);
+  const double expected[6] = {-0.03, 0.03, -0.03, 0.03, -0.06, 0.0};
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(b[k], expected[k], 1e-8) << "bound " << k;  // floats
+  // A click on its centroid: every ray through an inner point meets it.
+  const Eigen::Vector3d centre_W(-0.015, -0.015, -0.045);
+  const Eigen::Vector3d d = window.view().WorldToDisplay(centre_W);
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfwGetCurrentContext(), &fb_w, &fb_h);
+  window.tree().ClearSelection();
+  ASSERT_TRUE(window.layout().viewport.Contains(d.x(), fb_h - d.y())) << d.transpose();
+  ASSERT_TRUE(window.ClickAt(d.x(), fb_h - d.y()));
+  ASSERT_TRUE(window.tree().selection().has_value());
+  EXPECT_EQ(window.tree().selection()->object, id);
+  ASSERT_TRUE(window.tree().Undo());
+  window.Frame();
+  EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
 }
 
 }  // namespace

@@ -5,7 +5,10 @@
 // part solids (which sit at their frame origins) so that nothing is drawn at the origin; the
 // trajectory assets/trajectories/seat_right_leg.csv seats the right leg through the window's
 // haptic runtime (virtual clock); and the window itself (xvfb) plays it, with --screenshot and
-// with --frames, and prints "assembly: 1 of 5 parts seated (right_leg), carried: none".
+// with --frames, and prints "assembly: 1 of 5 parts seated (right_leg), carried: none". On a
+// Document's rigid parts: a part let go is one command ("Move part", "Seat part ... on ..."),
+// undo and redo move the field's part, an edit of a part's solid rebuilds the field with the new
+// shape, and the seating trajectory leaves exactly one command.
 #include "gui/assembly_mode.h"
 
 #include <gtest/gtest.h>
@@ -31,6 +34,8 @@
 #include <string>
 #include <vector>
 
+#include "doc/command.h"
+#include "doc/document.h"
 #include "doc/job.h"
 #include "gui/scene_view.h"
 #include "scene/grip_control.h"
@@ -219,6 +224,218 @@ TEST(AssemblyMode, ColoursPartsByStateAndShowsTheCarriedPartsSeat) {
   EXPECT_TRUE(HasColour(mode.actor(kRightArm), kAssemblyFreeColour));
 }
 
+// Scripted grip on a field (the geometry of assembly_scene_test's scripted run): closes on part
+// `part` from beside it, then each call of Lift moves the carried part up, Open opens the grasp
+// until the part is let go.
+class Grip {
+ public:
+  Grip(haptics::AssemblyField* field, int part) : field_(field) {
+    tool_.R_WT << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+    const Eigen::Vector3d b_W = tool_.R_WT * Eigen::Vector3d(1, 1, 0).normalized();
+    tool_.p_WT = field->X_WP(part) * Eigen::Vector3d(0, 0, 0.0175) - 0.02 * b_W;
+    Tick();
+    while (field->carried() < 0 && tool_.grasp > 0.3) {
+      tool_.grasp -= 1e-3;
+      tool_.grasp_rate = -1.0;
+      Tick();
+    }
+    tool_.grasp_rate = 0.0;
+  }
+  void Lift(double dz) {
+    for (int k = 1; k <= 400; ++k) {
+      const Eigen::Vector3d next = tool_.p_WT + Eigen::Vector3d(0, 0, dz / 400);
+      tool_.v_WT = (next - tool_.p_WT) / 1e-3;
+      tool_.p_WT = next;
+      Tick();
+    }
+    tool_.v_WT.setZero();
+    for (int k = 0; k < 300; ++k) Tick();
+  }
+  void Open() {
+    while (field_->carried() >= 0 && tool_.grasp < kPi / 2) {
+      tool_.grasp += 1e-3;
+      tool_.grasp_rate = 1.0;
+      Tick();
+    }
+    tool_.grasp_rate = 0.0;
+    for (int k = 0; k < 50; ++k) Tick();
+  }
+
+ private:
+  void Tick() {
+    tool_.time += 1e-3;
+    field_->Evaluate(tool_);
+  }
+  haptics::AssemblyField* field_;
+  haptics::ToolKinematics tool_;
+};
+
+// assets/scenes/assembly.json as the window opens it: its parts as rigid parts.
+void LoadRobot(Document* doc) {
+  doc->Load(kScene);
+  ASSERT_TRUE(AdoptScenePartsAsRigidParts(doc));
+}
+
+Eigen::Isometry3d DocPose(const Document& doc, ObjectId id) {
+  return std::get<RigidPartData>(doc.Get(id).data).X_WP;
+}
+
+// The right arm picked up, lifted 2 cm and let go: one command "Move part right_arm" with the
+// field's pose; nothing while it is carried, nothing more afterwards, no rebuild for the mode's
+// own command. Undo puts the document's arm and a new field's arm (and its actor) back at the
+// start, with every tree from the cache; redo moves them again; a saved and reopened document
+// has the moved pose.
+TEST(AssemblyModeDocument, LetGoPartIsOneCommandThatUndoAndRedoMoveInTheField) {
+  Document doc;
+  LoadRobot(&doc);
+  vtkNew<vtkRenderer> renderer;
+  AssemblyMode mode(renderer);
+  mode.LoadDocument(doc);
+  ASSERT_EQ(mode.size(), 6);
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  const ObjectId arm = mode.part_id(kRightArm);
+  ASSERT_EQ(doc.Get(arm).name, "right_arm");
+  const Eigen::Isometry3d start = DocPose(doc, arm);
+  mode.OnFrame();
+  EXPECT_FALSE(mode.SyncDocument(&doc));
+  const int rebuilds = mode.rebuilds();
+  std::shared_ptr<haptics::AssemblyField> field = mode.field();
+  Grip grip(field.get(), kRightArm);
+  ASSERT_EQ(field->carried(), kRightArm);
+  grip.Lift(0.02);
+  mode.OnFrame();
+  EXPECT_FALSE(mode.SyncDocument(&doc)) << "carried: nothing to commit yet";
+  EXPECT_EQ(doc.history().undo_size(), 0u);
+  grip.Open();
+  ASSERT_EQ(field->carried(), -1);
+  mode.OnFrame();
+  EXPECT_TRUE(mode.SyncDocument(&doc));
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Move part right_arm");
+  const Eigen::Isometry3d moved = DocPose(doc, arm);
+  EXPECT_LT((moved.matrix() - field->X_WP(kRightArm).matrix()).norm(), 1e-12);
+  EXPECT_NEAR(moved.translation().z() - start.translation().z(), 0.02, 2e-3);
+  for (int i = 0; i < mode.size(); ++i) {
+    if (i == kRightArm) continue;
+    EXPECT_EQ(DocPose(doc, mode.part_id(i)).matrix(), field->part(i).X_WP.matrix());
+  }
+  mode.OnFrame();
+  EXPECT_FALSE(mode.SyncDocument(&doc));
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  EXPECT_EQ(mode.rebuilds(), rebuilds);
+  EXPECT_EQ(mode.field(), field);
+  EXPECT_EQ(mode.commits(), 1);
+  // Undo: the arm back in the document and in a new field (no tick yet: its initial poses).
+  mode.TakeFieldChanged();
+  ASSERT_TRUE(doc.Undo());
+  EXPECT_EQ(DocPose(doc, arm).matrix(), start.matrix());
+  EXPECT_FALSE(mode.SyncDocument(&doc));
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  EXPECT_NE(mode.field(), field);
+  EXPECT_EQ(mode.compiled_last(), 0);
+  EXPECT_EQ(mode.field()->part(kRightArm).X_WP.matrix(), start.matrix());
+  mode.OnFrame();
+  EXPECT_LT((ActorMatrix(mode.actor(kRightArm)) - start.matrix()).norm(), 1e-12);
+  EXPECT_EQ(mode.part_state(kRightArm), AssemblyPartState::kFree);
+  EXPECT_FALSE(mode.SyncDocument(&doc)) << "the rebuilt field agrees with the document";
+  EXPECT_EQ(doc.history().redo_size(), 1u);
+  // Redo.
+  ASSERT_TRUE(doc.Redo());
+  mode.SyncDocument(&doc);
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  EXPECT_EQ(mode.field()->part(kRightArm).X_WP.matrix(), moved.matrix());
+  mode.OnFrame();
+  EXPECT_LT((ActorMatrix(mode.actor(kRightArm)) - moved.matrix()).norm(), 1e-12);
+  // Saved and reopened.
+  const std::string saved = test_support::TestOutputPath("assembly_moved_arm.json");
+  doc.Save(saved);
+  Document again;
+  again.Load(saved);
+  EXPECT_FALSE(AdoptScenePartsAsRigidParts(&again)) << "saved as rigid parts";
+  const DocObject* reopened = again.FindByName("right_arm");
+  ASSERT_NE(reopened, nullptr);
+  EXPECT_LT((DocPose(again, reopened->id).matrix() - moved.matrix()).norm(), 1e-15);
+  AssemblyMode reopened_mode(nullptr);
+  reopened_mode.LoadDocument(again);
+  EXPECT_LT((reopened_mode.field()->part(kRightArm).X_WP.matrix() - moved.matrix()).norm(), 1e-15);
+}
+
+// Reset parts on a document: the field goes back to the poses it was built with and the parts
+// that had been moved since come back as one undoable command.
+TEST(AssemblyModeDocument, ResetPutsMovedPartsBackAsOneCommand) {
+  Document doc;
+  LoadRobot(&doc);
+  AssemblyMode mode(nullptr);
+  mode.LoadDocument(doc);
+  const ObjectId arm = mode.part_id(kRightArm);
+  const Eigen::Isometry3d start = DocPose(doc, arm);
+  Grip grip(mode.field().get(), kRightArm);
+  grip.Lift(0.02);
+  grip.Open();
+  mode.OnFrame();
+  ASSERT_TRUE(mode.SyncDocument(&doc));
+  const Eigen::Isometry3d moved = DocPose(doc, arm);
+  ASSERT_GT((moved.translation() - start.translation()).norm(), 0.01);
+  mode.Reset();
+  EXPECT_TRUE(mode.SyncDocument(&doc));
+  EXPECT_EQ(doc.history().undo_size(), 2u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Move part right_arm");
+  EXPECT_EQ(DocPose(doc, arm).matrix(), start.matrix());
+  ASSERT_TRUE(doc.Undo());
+  mode.SyncDocument(&doc);
+  EXPECT_EQ(mode.field()->part(kRightArm).X_WP.matrix(), moved.matrix());
+}
+
+// An edit of a part's solid through a command (the head's peg radius 4 -> 3.5 mm) rebuilds the
+// field at the next sync: beside the peg the field's distance is the edited solid's own, 0.5 mm
+// more than before; only that tree is compiled again. Undo brings the old shape back.
+TEST(AssemblyModeDocument, EditOfAPartsSolidRebuildsTheFieldWithTheNewShape) {
+  Document doc;
+  LoadRobot(&doc);
+  AssemblyMode mode(nullptr);
+  mode.LoadDocument(doc);
+  mode.TakeFieldChanged();
+  constexpr int kHead = 1;
+  const ObjectId head = mode.part_id(kHead);
+  const Eigen::Vector3d p_P(0.006, 0.0, -0.004);  // 2 mm beside the peg, mid-height
+  const double before = mode.field()->part(kHead).field_P->Evaluate(p_P, nullptr);
+  EXPECT_NEAR(before, 0.002, 1e-12);
+  doc.Execute(edit::SetNodeField(head, {1, 0}, "radius", 0.0035));
+  EXPECT_FALSE(mode.SyncDocument(&doc));
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  EXPECT_EQ(mode.compiled_last(), 1);
+  const double after = mode.field()->part(kHead).field_P->Evaluate(p_P, nullptr);
+  const auto own =
+      modeling::CompiledSolid::Compile(std::get<RigidPartData>(doc.Get(head).data).root);
+  EXPECT_NEAR(after, own.Value(p_P), 1e-12);
+  EXPECT_NEAR(after - before, 0.0005, 1e-12);
+  ASSERT_TRUE(doc.Undo());
+  mode.SyncDocument(&doc);
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  EXPECT_NEAR(mode.field()->part(kHead).field_P->Evaluate(p_P, nullptr), before, 1e-15);
+}
+
+// A tree edit that breaks a part (a radius the field cannot sample: no surface) keeps the last
+// good field and says why, without retrying every frame.
+TEST(AssemblyModeDocument, FailedRebuildKeepsTheLastGoodField) {
+  Document doc;
+  LoadRobot(&doc);
+  AssemblyMode mode(nullptr);
+  mode.LoadDocument(doc);
+  mode.TakeFieldChanged();
+  const std::shared_ptr<haptics::AssemblyField> field = mode.field();
+  // The head moved 2 m away: outside the 0.5 m search cube about its frame origin.
+  const ObjectId head = mode.part_id(1);
+  doc.Execute(edit::WrapNode(head, {}, modeling::TranslateParams{Eigen::Vector3d(2.0, 0, 0)}));
+  mode.SyncDocument(&doc);
+  EXPECT_FALSE(mode.TakeFieldChanged());
+  EXPECT_EQ(mode.field(), field);
+  EXPECT_NE(mode.message().find("head"), std::string::npos) << mode.message();
+  const int rebuilds = mode.rebuilds();
+  mode.SyncDocument(&doc);
+  EXPECT_EQ(mode.rebuilds(), rebuilds);
+}
+
 // The field's own state reaches the actors through OnFrame: the grip closes on the right arm
 // (the geometry of assembly_scene_test's scripted run), lifts it 2 cm; Reset puts it back.
 TEST(AssemblyMode, OnFrameShowsTheFieldsStateAndResetRestoresTheStart) {
@@ -321,12 +538,18 @@ TEST(AssemblyMode, PartSolidsAreNotDrawnAtTheOrigin) {
 // trajectory, as the window's player thread does in wall-clock time. Returns the summary line.
 // `update_ms`: the target changes every that many ticks (60: a slow window's frame rate);
 // `late_tick` (>= 0): that tick starts 10 ms late, a missed deadline (zero force, then the
-// 0.5 s force ramp again).
-std::string PlaySeatTrajectory(std::uint64_t seed, int update_ms, long late_tick, bool* carried) {
+// 0.5 s force ramp again). With `doc` (the robot as rigid parts) the mode works on it and syncs
+// at every target update, as the window does once per frame.
+std::string PlaySeatTrajectory(std::uint64_t seed, int update_ms, long late_tick, bool* carried,
+                               Document* doc = nullptr) {
   const haptics::Trajectory trajectory = haptics::Trajectory::Load(kSeatTrajectory);
   const haptics::SpidarGeometry g;
   AssemblyMode mode(nullptr);
-  mode.Load(modeling::LoadScene(kScene));
+  if (doc != nullptr) {
+    mode.LoadDocument(*doc);
+  } else {
+    mode.Load(modeling::LoadScene(kScene));
+  }
   RuntimeSettings settings;  // world scale 1, origin 0
   settings.seed = seed;
   auto target = [&](double t) {
@@ -342,7 +565,13 @@ std::string PlaySeatTrajectory(std::uint64_t seed, int update_ms, long late_tick
       static_cast<long>((trajectory.end_time() - trajectory.start_time()) / 1e-3) + 500;
   *carried = false;
   for (long k = 0; k < ticks; ++k) {
-    if (k % update_ms == 0) runtime.SetTarget(target(trajectory.start_time() + k * 1e-3));
+    if (k % update_ms == 0) {
+      runtime.SetTarget(target(trajectory.start_time() + k * 1e-3));
+      if (doc != nullptr) {
+        mode.OnFrame();
+        mode.SyncDocument(doc);
+      }
+    }
     timing.lateness = k == late_tick ? 0.01 : 0.0;
     runtime.Tick(timing);
     ++timing.tick;
@@ -365,6 +594,30 @@ TEST(SeatRightLegTrajectory, SeatsTheLegThroughTheWindowsRuntime) {
   EXPECT_EQ(PlaySeatTrajectory(1, 1, -1, &carried),
             "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
   EXPECT_TRUE(carried);
+}
+
+// On the document: the seated leg is one command named after the seat, the document's leg sits
+// exactly at its seat X_W,body · X_OS, and the mode still shows it seated.
+TEST(SeatRightLegTrajectory, LeavesOneSeatCommandInTheDocument) {
+  Document doc;
+  LoadRobot(&doc);
+  bool carried = false;
+  EXPECT_EQ(PlaySeatTrajectory(1, 16, -1, &carried, &doc),
+            "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
+  EXPECT_TRUE(carried);
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
+  const RigidPartData& leg = std::get<RigidPartData>(doc.FindByName("right_leg")->data);
+  const RigidPartData& body = std::get<RigidPartData>(doc.FindByName("body")->data);
+  ASSERT_EQ(leg.seats.size(), 1u);
+  const Eigen::Isometry3d X_WS = body.X_WP * PartPose(leg.seats[0].position, leg.seats[0].rotation);
+  EXPECT_LT((leg.X_WP.matrix() - X_WS.matrix()).norm(), 1e-12);
+  // A mode built from the document shows the leg seated (it lies in its seat).
+  AssemblyMode reopened(nullptr);
+  reopened.LoadDocument(doc);
+  EXPECT_EQ(reopened.part_state(kRightLeg), AssemblyPartState::kSeated);
+  EXPECT_EQ(FormatAssemblySummary(reopened),
+            "assembly: 1 of 5 parts seated (right_leg), carried: none\n");
 }
 
 // Robust to what a loaded machine does to the window: another device (seed 3: other encoder

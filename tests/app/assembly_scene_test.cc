@@ -1,15 +1,23 @@
 // Tests of the assembly scene: assets/scenes/assembly.json loads into an AssemblyField, each
 // peg fits its hole with clearance (measured on the compiled solids by bisection, and no shell
 // point of a seated part inside the body), and a scripted grip (approach the right arm, close,
-// carry it to the body, insert, open) ends with the arm seated.
+// carry it to the body, insert, open) ends with the arm seated. The same parts as a Document's
+// rigid parts (AdoptScenePartsAsRigidParts) build the same field; the geometry cache compiles
+// only the trees that changed.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/assembly_scene.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <variant>
+#include <vector>
 
+#include "doc/command.h"
+#include "doc/document.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 
@@ -181,6 +189,119 @@ TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
       EXPECT_EQ(field->X_WP(i).matrix(), field->part(i).X_WP.matrix()) << field->part(i).name;
     }
   }
+}
+
+// The version 1 robot as rigid parts: one rigid_part per part with its solid's tree, its pose
+// and seats; no solid left (every solid is a part's); clean, no history, same file. The field of
+// the rigid parts is the field of the scene: names, fixed flags, poses and seats bit for bit, and
+// the same distance at probe points.
+TEST(AssemblyScene, SceneModelPartsBecomeRigidPartsThatBuildTheSameField) {
+  const modeling::Scene scene = modeling::LoadScene(kScene);
+  Document doc;
+  doc.Load(kScene);
+  ASSERT_EQ(doc.parts().size(), 6u);
+  ASSERT_TRUE(AdoptScenePartsAsRigidParts(&doc));
+  EXPECT_TRUE(doc.parts().empty());
+  EXPECT_EQ(doc.file_path(), kScene);
+  EXPECT_FALSE(doc.dirty());
+  EXPECT_FALSE(doc.history().CanUndo());
+  EXPECT_FALSE(AdoptScenePartsAsRigidParts(&doc)) << "a second call has nothing to do";
+  ASSERT_EQ(doc.objects().size(), 6u);
+  for (size_t i = 0; i < doc.objects().size(); ++i) {
+    const DocObject& o = doc.objects()[i];
+    const modeling::ScenePart& sp = scene.parts[i];
+    EXPECT_EQ(o.name, sp.name);
+    const auto* r = std::get_if<RigidPartData>(&o.data);
+    ASSERT_NE(r, nullptr) << o.name;
+    EXPECT_EQ(modeling::NodeToJson(r->root), modeling::NodeToJson(FindSolid(scene, sp.solid).root));
+    EXPECT_EQ(r->fixed, sp.fixed);
+    ASSERT_EQ(r->seats.size(), sp.seats.size());
+  }
+  std::vector<ObjectId> ids;
+  const std::vector<AssemblyPartInput> inputs = RigidPartInputs(doc, &ids);
+  ASSERT_EQ(ids.size(), 6u);
+  EXPECT_EQ(ids[2], doc.objects()[2].id);
+  const auto from_scene = BuildAssemblyField(scene);
+  const auto from_doc = BuildAssemblyField(inputs, AssemblySceneSettings{}, nullptr);
+  ASSERT_EQ(from_doc->size(), from_scene->size());
+  for (int i = 0; i < from_doc->size(); ++i) {
+    const haptics::AssemblyPart& a = from_doc->part(i);
+    const haptics::AssemblyPart& b = from_scene->part(i);
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.fixed, b.fixed);
+    EXPECT_EQ(a.X_WP.matrix(), b.X_WP.matrix()) << a.name;
+    EXPECT_EQ(a.shell_P.size(), b.shell_P.size()) << a.name;
+    ASSERT_EQ(a.seats.size(), b.seats.size());
+    for (size_t k = 0; k < a.seats.size(); ++k) {
+      EXPECT_EQ(a.seats[k].other, b.seats[k].other);
+      EXPECT_EQ(a.seats[k].X_OS.matrix(), b.seats[k].X_OS.matrix());
+    }
+    for (const Eigen::Vector3d& p :
+         {Eigen::Vector3d(0.006, 0.0, -0.004), Eigen::Vector3d(0.0, 0.01, 0.02),
+          Eigen::Vector3d(-0.02, 0.003, 0.001)}) {
+      EXPECT_EQ(a.field_P->Evaluate(p, nullptr), b.field_P->Evaluate(p, nullptr)) << a.name;
+    }
+  }
+}
+
+// Two parts of one solid get separate trees; the copy's node ids get the part's name so that
+// ids stay unique in the document. Other solids stay, in order, ahead of the parts.
+TEST(AssemblyScene, SharedSolidsCopyTheirTreeWithUniqueNodeIds) {
+  const std::filesystem::path path =
+      std::filesystem::path(SPIDARCAD_TEST_OUTPUT_DIR) / "adopt_shared_solid.json";
+  {
+    std::ofstream out(path);
+    out << R"({"format": "spidarcad-scene", "version": 1, "units": "m", "solids": [
+      {"name": "peg", "root": {"type": "sphere", "id": "ball", "radius": 0.01}},
+      {"name": "table", "root": {"type": "box", "size": [0.1, 0.1, 0.01]}}],
+      "parts": [{"name": "a", "solid": "peg", "position": [0.05, 0, 0]},
+                {"name": "b", "solid": "peg", "position": [-0.05, 0, 0]}]})";
+  }
+  Document doc;
+  doc.Load(path.string());
+  ASSERT_TRUE(AdoptScenePartsAsRigidParts(&doc));
+  ASSERT_EQ(doc.objects().size(), 3u);
+  EXPECT_EQ(doc.objects()[0].name, "table");
+  EXPECT_TRUE(std::holds_alternative<SolidData>(doc.objects()[0].data));
+  EXPECT_EQ(std::get<RigidPartData>(doc.objects()[1].data).root.id, "ball");
+  EXPECT_EQ(std::get<RigidPartData>(doc.objects()[2].data).root.id, "ball_b");
+  EXPECT_EQ(std::get<RigidPartData>(doc.objects()[2].data).X_WP.translation(),
+            Eigen::Vector3d(-0.05, 0, 0));
+  EXPECT_FALSE(doc.dirty());
+}
+
+// A rebuild after a pose change finds every tree in the cache; after an edit of one tree (the
+// head's peg radius) only that tree is compiled again, and the field holds the new shape: its
+// distance beside the peg is the edited solid's own and moved by the edit (0.5 mm).
+TEST(AssemblyScene, GeometryCacheCompilesOnlyChangedTrees) {
+  Document doc;
+  doc.Load(kScene);
+  ASSERT_TRUE(AdoptScenePartsAsRigidParts(&doc));
+  AssemblyGeometryCache cache;
+  BuildAssemblyField(RigidPartInputs(doc, nullptr), AssemblySceneSettings{}, &cache);
+  EXPECT_EQ(cache.compiled_last(), 4) << "body, head, arm, leg";
+  EXPECT_EQ(cache.size(), 4);
+  const ObjectId head = doc.objects()[1].id;
+  Eigen::Isometry3d X = std::get<RigidPartData>(doc.Get(head).data).X_WP;
+  X.translation() += Eigen::Vector3d(0.01, 0, 0);
+  doc.Execute(edit::SetRigidPose(head, X));
+  auto moved = BuildAssemblyField(RigidPartInputs(doc, nullptr), AssemblySceneSettings{}, &cache);
+  EXPECT_EQ(cache.compiled_last(), 0);
+  EXPECT_EQ(moved->part(1).X_WP.matrix(), X.matrix());
+  const Eigen::Vector3d p_P(0.006, 0.0, -0.004);  // 2 mm beside the 4 mm peg, mid-height
+  const double before = moved->part(1).field_P->Evaluate(p_P, nullptr);
+  EXPECT_NEAR(before, 0.002, 1e-12);
+  doc.Execute(edit::SetNodeField(head, {1, 0}, "radius", 0.0035));
+  auto edited = BuildAssemblyField(RigidPartInputs(doc, nullptr), AssemblySceneSettings{}, &cache);
+  EXPECT_EQ(cache.compiled_last(), 1);
+  EXPECT_EQ(cache.size(), 4);
+  const double after = edited->part(1).field_P->Evaluate(p_P, nullptr);
+  const auto own =
+      modeling::CompiledSolid::Compile(std::get<RigidPartData>(doc.Get(head).data).root);
+  EXPECT_NEAR(after, own.Value(p_P), 1e-12);
+  EXPECT_NEAR(after - before, 0.0005, 1e-12);
+  // The other parts' geometry is shared with the earlier build.
+  EXPECT_EQ(edited->part(2).field_P, moved->part(2).field_P);
 }
 
 TEST(AssemblyScene, SceneWithoutPartsIsRejected) {

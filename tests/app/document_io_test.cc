@@ -13,10 +13,12 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <numbers>
 #include <random>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "doc/command.h"
@@ -155,6 +157,12 @@ struct Fixture {
     view.position = Eigen::Vector3d(0.3, -0.7, 0.25);
     view.view_angle = 41.5;
     doc.set_view(view);
+    haptics::SpidarGeometry frame;  // a scaled frame (the paper's Sec. 8)
+    frame.a = 0.3;
+    frame.b = 0.25;
+    frame.c = 0.2;
+    frame.d = 0.05;
+    doc.set_device(frame);
   }
 };
 
@@ -198,6 +206,11 @@ TEST(DocumentIo, EveryObjectKindSurvivesSaveAndOpen) {
   ASSERT_TRUE(other.view().has_value());
   EXPECT_EQ(other.view()->view_angle, 41.5);
   EXPECT_EQ(other.view()->position, Eigen::Vector3d(0.3, -0.7, 0.25));
+  ASSERT_TRUE(other.device().has_value());
+  EXPECT_EQ(other.device()->a, 0.3);
+  EXPECT_EQ(other.device()->b, 0.25);
+  EXPECT_EQ(other.device()->c, 0.2);
+  EXPECT_EQ(other.device()->d, 0.05);
   // The pose comes back bit for bit.
   EXPECT_EQ(std::get<RigidPartData>(other.objects()[6].data).X_WP.matrix(),
             std::get<RigidPartData>(f.doc.Get(f.lid).data).X_WP.matrix());
@@ -459,6 +472,26 @@ TEST(DocumentIo, BadFileNamesLineAndFieldAndLeavesDocumentUnchanged) {
   }
 }
 
+TEST(DocumentIo, DeviceFrameTheGripCannotFitInIsRefusedNamingTheLineAndField) {
+  // A pole half-length of 0.3 m does not fit a frame of half-side 0.2 m (d < min(a, b, c)).
+  const std::string path = OutDir("bad_device") + "/bad.json";
+  WriteText(path,
+            "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"device\": {\"frame\": "
+            "[0.3, 0.3, 0.2],\n  \"pole\": 0.3},\n\"objects\": []\n}\n");
+  Fixture f;
+  const json before = f.doc.ToJson(true);
+  try {
+    f.doc.Load(path);
+    ADD_FAILURE() << "no error";
+  } catch (const modeling::SceneError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_EQ(e.pointer(), "/device") << e.what();
+    EXPECT_EQ(e.line(), 4) << e.what();
+    EXPECT_NE(std::string(e.what()).find("pole"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(f.doc.ToJson(true), before);
+}
+
 TEST(DocumentIo, NewerVersionAndSyntaxErrorsNameTheLine) {
   const std::string path = OutDir("version") + "/doc.json";
   WriteText(path,
@@ -501,6 +534,70 @@ TEST(DocumentIo, SaveIsAtomic) {
   fs::permissions(dir, fs::perms::owner_all);
   EXPECT_EQ(ReadText(path), first);
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+}
+
+TEST(DocumentIo, MeshSettingsKeepTheMesherAndSharpEdges) {
+  const std::string dir = OutDir("mesher");
+  Document doc;
+  doc.Execute(edit::AddSolid("ball", ImplicitNode(modeling::SphereParams{0.05}, {}, "ball")));
+  const ObjectId ball = doc.last_created().front();
+  const auto tets = std::make_shared<modeling::TetMesh>();
+  tets->nodes.resize(3, 4);
+  tets->nodes << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+  tets->tets.resize(4, 1);
+  tets->tets << 0, 1, 2, 3;
+  tets->regions = Eigen::VectorXi::Zero(1);
+  for (const auto& [mesher, sharp] :
+       std::vector<std::pair<std::string, bool>>{{"cgal", false}, {"tetgen", true}, {"", false}}) {
+    MeshData m;
+    m.source = ball;
+    m.source_revision = doc.Get(ball).revision;
+    m.volume = tets;
+    m.settings.cell_size = 0.01;
+    m.settings.mesher = mesher;
+    m.settings.sharp_edges = sharp;
+    doc.Execute(edit::AddObject("tets " + mesher, m));
+  }
+  const std::string path = dir + "/doc.json";
+  doc.Save(path);
+  Document other;
+  other.Load(path);
+  ASSERT_EQ(other.objects().size(), 4u);
+  const std::string expected_mesher[] = {"cgal", "tetgen", ""};
+  const bool expected_sharp[] = {false, true, false};
+  for (int i = 0; i < 3; ++i) {
+    const auto& m = std::get<MeshData>(other.objects()[i + 1].data);
+    EXPECT_EQ(m.settings.mesher, expected_mesher[i]) << i;
+    EXPECT_EQ(m.settings.sharp_edges, expected_sharp[i]) << i;
+    EXPECT_EQ(m.settings.cell_size, 0.01);
+  }
+  // Refused: an unknown mesher, and "generate" with what only the window's meshing does.
+  const std::string solid =
+      "{\"kind\": \"solid\", \"name\": \"s\", \"root\": {\"type\": \"sphere\", "
+      "\"radius\": 0.05}}";
+  const struct {
+    std::string mesh;
+    const char* pointer;
+    const char* message;
+  } bad[] = {
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"mesher\": \"gmsh\"}}",
+       "/objects/1/settings/mesher", "tetgen"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"mesher\": \"cgal\"}}",
+       "/objects/1/generate", "store the mesh"},
+  };
+  for (const auto& c : bad) {
+    WriteText(path, "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"objects\": [\n" +
+                        solid + ",\n" + c.mesh + "\n]\n}\n");
+    try {
+      other.Load(path);
+      ADD_FAILURE() << "no error for " << c.mesh;
+    } catch (const modeling::SceneError& e) {
+      EXPECT_EQ(e.pointer(), c.pointer) << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace

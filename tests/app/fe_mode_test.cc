@@ -18,16 +18,26 @@
 #include <thread>
 #include <vector>
 
+#include "doc/assets.h"
+#include "doc/command.h"
 #include "doc/job.h"
+#include "gui/app_window.h"
+#include "gui/modes.h"
+#include "gui/tree_panel.h"
 #include "scene/fe_model.h"
+#include "scene/fe_setup.h"
 #include "scene/fe_touch_field.h"
 #include "scene/haptic_runtime.h"
+#include "scene/scene_model.h"
 #include "scene/shared_field.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/simulated_hand.h"
+#include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/modeling/tet_mesh.h"
 #include "support/malloc_counter.h"
+#include "support/scoped_env.h"
 
 namespace spidarcad::app {
 namespace {
@@ -704,6 +714,325 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
   mode.SetActive(false);
   jobs.CancelAll();
   while (jobs.busy()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+}
+
+}  // namespace
+}  // namespace spidarcad::app
+
+// ---- FE mode on the window's document (a window of their own per test; need an X display) ----
+
+namespace spidarcad::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool HaveDisplay() {
+  const char* display = std::getenv("DISPLAY");
+  return display != nullptr && display[0] != '\0';
+}
+
+// A fresh directory under the test output directory.
+fs::path FeScratch(const std::string& tag) {
+  const fs::path dir = fs::path(SPIDARCAD_TEST_OUTPUT_DIR) / ("fe_window_" + tag);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Options of a scripted window on `scene` with the ideal device.
+GuiOptions FeWindowOptions(const std::string& scene) {
+  GuiOptions options;
+  options.scene = scene;
+  options.device = "ideal";
+  options.width = 1000;
+  options.height = 700;
+  options.frames = 1 << 30;
+  return options;
+}
+
+// The first differences between two JSON documents (a short message instead of both in full).
+std::string Differences(const nlohmann::json& a, const nlohmann::json& b) {
+  return nlohmann::json::diff(a, b).dump().substr(0, 1500);
+}
+
+// Frames until `done` holds (true) or `seconds` of wall time have passed (false).
+template <class Pred>
+bool FramesUntil(AppWindow& window, Pred done, double seconds = 180.0) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > give_up) return false;
+    window.Frame();
+  }
+  return true;
+}
+
+// The document as JSON with each mesh's source revision (a counter of the session) replaced by
+// whether the mesh is out of date.
+nlohmann::json Comparable(const Document& doc) {
+  nlohmann::json j = doc.ToJson();
+  for (size_t i = 0; i < doc.objects().size(); ++i) {
+    if (!std::holds_alternative<MeshData>(doc.objects()[i].data)) continue;
+    j["objects"][i].erase("source_revision");
+    j["objects"][i]["out_of_date"] = doc.IsMeshOutOfDate(doc.objects()[i].id);
+  }
+  return j;
+}
+
+const FeModelData& FeDataOf(const Document& doc, ObjectId id) {
+  return std::get<FeModelData>(doc.Get(id).data);
+}
+
+// Opens the shipped platform scene, chooses its solid in FE mode, sets it up (one undo step),
+// precomputes, changes the material (the model is made again), undoes and redoes (the kept
+// models come back), saves, and compares the saved file with the same edits made by commands
+// directly, and with what a fresh window's FE mode binds to.
+TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("setup");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  test_support::ScopedEnv cache("SPIDARCAD_CACHE_DIR", (dir / "cache").string().c_str());
+  const std::string shipped = AssetPath("scenes/platform.json");
+  const std::string saved = (dir / "platform_fe.json").string();
+  const fem::Material steel = kMaterialPresets[0].material;
+  const fem::Material aluminium = kMaterialPresets[1].material;
+  nlohmann::json window_json;
+  {
+    AppWindow window(FeWindowOptions(kNoSceneName));
+    window.Frame();
+    ASSERT_TRUE(window.OpenDocument(shipped)) << window.file_error();
+    SceneModel& model = window.model();
+    const Document& doc = model.document();
+    const ObjectId platform = doc.FindByName("platform")->id;
+    ASSERT_TRUE(window.tree().SelectByName("platform"));
+    auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+    ASSERT_NE(fe_mode, nullptr);
+    FeMode& fe = fe_mode->fe();
+    window.SwitchMode(fe_mode);
+    for (int k = 0; k < 3; ++k) window.Frame();
+    EXPECT_EQ(fe.chosen_object(), platform) << "the tree's selection is preselected";
+    EXPECT_EQ(fe.bound_object(), 0u) << "no FE model yet";
+    EXPECT_EQ(doc.history().undo_size(), 0u) << "entering the mode changes nothing";
+    const std::size_t solids = doc.objects().size();  // the platform and the wall
+
+    fe.mesh_settings().cell_size = 0.012;
+    ASSERT_TRUE(fe.StartSetUp(&model, platform)) << fe.status();
+    ASSERT_TRUE(FramesUntil(window, [&] { return fe.bound_object() != 0; })) << fe.status();
+    ASSERT_EQ(doc.objects().size(), solids + 2);
+    EXPECT_EQ(doc.history().undo_size(), 1u);
+    EXPECT_EQ(doc.history().UndoDescription(), "Set up FE for platform");
+    const ObjectId fe_id = fe.bound_object();
+    EXPECT_EQ(doc.Get(fe_id).name, "platform FE");
+
+    fe.RequestModel();
+    ASSERT_TRUE(FramesUntil(window, [&] { return fe.model() != nullptr; })) << fe.status();
+    EXPECT_EQ(fe.model()->material().youngs_modulus, steel.youngs_modulus);
+    const FeModel* steel_model = fe.model().get();
+
+    ASSERT_TRUE(fe.EditMaterial(&model, aluminium)) << fe.status();
+    EXPECT_EQ(doc.history().UndoDescription(), "Set material");
+    window.Frame();
+    EXPECT_EQ(fe.model_settings().material.youngs_modulus, aluminium.youngs_modulus);
+    ASSERT_TRUE(FramesUntil(
+        window,
+        [&] { return fe.model() != nullptr && fe.model()->material().youngs_modulus == 70e9; }))
+        << "the mode precomputes the changed model again: " << fe.status();
+    const FeModel* aluminium_model = fe.model().get();
+
+    // Ctrl+Z: the document's material goes back and the mode shows the steel model again.
+    ASSERT_TRUE(window.tree().Undo());
+    window.Frame();
+    EXPECT_EQ(FeDataOf(doc, fe_id).material.youngs_modulus, steel.youngs_modulus);
+    EXPECT_EQ(fe.model().get(), steel_model) << "the model made before comes back at once";
+    ASSERT_TRUE(window.tree().Redo());
+    window.Frame();
+    EXPECT_EQ(FeDataOf(doc, fe_id).material.youngs_modulus, aluminium.youngs_modulus);
+    EXPECT_EQ(fe.model().get(), aluminium_model);
+
+    // Undo the set-up itself: the FE model and its mesh are gone, and so is the mode's model.
+    ASSERT_TRUE(window.tree().Undo());
+    ASSERT_TRUE(window.tree().Undo());
+    window.Frame();
+    EXPECT_EQ(doc.objects().size(), solids);
+    EXPECT_EQ(fe.bound_object(), 0u);
+    EXPECT_EQ(fe.model(), nullptr);
+    ASSERT_TRUE(window.tree().Redo());
+    ASSERT_TRUE(window.tree().Redo());
+    window.Frame();
+    EXPECT_EQ(fe.bound_object(), fe_id) << "redo brings the same object back";
+    EXPECT_EQ(fe.model().get(), aluminium_model);
+
+    ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+    window.Frame();
+    window_json = Comparable(doc);
+  }
+  Document reread;
+  reread.Load(saved);
+  EXPECT_TRUE(Comparable(reread) == window_json) << Differences(Comparable(reread), window_json);
+  // Independently: the shipped scene with the same edits made by commands.
+  Document expected;
+  expected.Load(shipped);
+  MeshSettings settings;
+  settings.cell_size = 0.012;
+  settings.mesher = "tetgen";
+  const FeMeshInput input = PrepareFeMesh(expected, expected.FindByName("platform")->id, settings);
+  expected.Execute(SetUpFe(input, MeshFeSource(input)));
+  expected.Execute(edit::SetFeMaterial(expected.last_created()[1], aluminium));
+  EXPECT_TRUE(Comparable(reread) == Comparable(expected))
+      << Differences(Comparable(reread), Comparable(expected));
+  // A fresh window on the saved file: FE mode binds to the saved FE model with its material.
+  AppWindow again(FeWindowOptions(saved));
+  auto* again_fe = dynamic_cast<FeWindowMode*>(again.FindMode("fe"));
+  ASSERT_NE(again_fe, nullptr);
+  again.SwitchMode(again_fe);
+  for (int k = 0; k < 3; ++k) again.Frame();
+  ASSERT_NE(again_fe->fe().bound_object(), 0u);
+  EXPECT_EQ(again.model().document().Get(again_fe->fe().bound_object()).name, "platform FE");
+  EXPECT_EQ(again_fe->fe().model_settings().material.youngs_modulus, aluminium.youngs_modulus);
+  EXPECT_FALSE(again.model().document().dirty());
+}
+
+// The workbench's FE model is made from the platform solid: editing the solid makes it stale in
+// FE mode; Refresh meshes it again with the stored settings in one undo step that keeps the FE
+// model's settings; undo makes it stale again.
+TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("stale");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  AppWindow window(FeWindowOptions(AssetPath("scenes/workbench.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < 3; ++k) window.Frame();
+  const ObjectId fe_id = doc.FindByName("platform FE")->id;
+  const ObjectId mesh_id = doc.FindByName("platform tets")->id;
+  const ObjectId platform = doc.FindByName("platform")->id;
+  ASSERT_EQ(fe.bound_object(), fe_id);
+  EXPECT_FALSE(fe.stale());
+  const nlohmann::json fe_before = doc.ToJson()["objects"][doc.IndexOf(fe_id)];
+  const auto old_volume = std::get<MeshData>(doc.Get(mesh_id).data).volume;
+
+  ASSERT_TRUE(window.tree().SelectByName("plate"));
+  ASSERT_TRUE(window.tree().SetField("radius", 0.0045)) << window.tree().error();
+  window.Frame();
+  EXPECT_EQ(fe.bound_object(), fe_id) << "the platform's FE model stays chosen";
+  EXPECT_TRUE(fe.stale());
+  const std::size_t steps = doc.history().undo_size();
+  ASSERT_TRUE(fe.StartRefresh(&model)) << fe.status();
+  ASSERT_TRUE(FramesUntil(window, [&] { return !fe.stale(); })) << fe.status();
+  EXPECT_EQ(doc.history().undo_size(), steps + 1);
+  EXPECT_EQ(doc.history().UndoDescription(), "Refresh platform mesh");
+  const auto& mesh = std::get<MeshData>(doc.Get(mesh_id).data);
+  EXPECT_NE(mesh.volume, old_volume);
+  EXPECT_EQ(mesh.source_revision, doc.Get(platform).revision);
+  EXPECT_EQ(mesh.settings.cell_size, 0.01) << "the stored settings";
+  EXPECT_EQ(mesh.settings.max_radius_edge, 2.0);
+  EXPECT_EQ(doc.ToJson()["objects"][doc.IndexOf(fe_id)], fe_before)
+      << "the FE model keeps its material, clamp and loads";
+
+  ASSERT_TRUE(window.tree().Undo());
+  window.Frame();
+  EXPECT_TRUE(fe.stale());
+  EXPECT_EQ(std::get<MeshData>(doc.Get(mesh_id).data).volume, old_volume);
+  ASSERT_TRUE(window.tree().Undo());  // the radius edit
+  window.Frame();
+  EXPECT_FALSE(fe.stale()) << "the solid is as it was meshed again";
+}
+
+// A sculpt object selected in the tree (as sculpt mode's Send to FE does) is chosen in FE mode and
+// set up in one call: its closed mesh filled by TetGen, the mesh object made from it.
+TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("sculpt");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  AppWindow window(FeWindowOptions(AssetPath("scenes/workbench.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  const ObjectId clay = doc.FindByName("clay")->id;
+  window.tree().Select(clay);
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < 3; ++k) window.Frame();
+  EXPECT_EQ(fe.chosen_object(), clay);
+  EXPECT_EQ(fe.bound_object(), 0u) << "the clay has no FE model yet";
+  ASSERT_TRUE(fe.StartSetUp(&model, fe.chosen_object())) << fe.status();
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.bound_object() != 0; })) << fe.status();
+  EXPECT_EQ(doc.history().UndoDescription(), "Set up FE for clay");
+  const auto& fe_data = FeDataOf(doc, fe.bound_object());
+  const auto& mesh = std::get<MeshData>(doc.Get(fe_data.tet_mesh).data);
+  EXPECT_EQ(mesh.source, clay);
+  EXPECT_FALSE(doc.IsMeshOutOfDate(fe_data.tet_mesh));
+  ASSERT_TRUE(mesh.volume);
+  // The tets fill the clay's surface (its divergence-theorem volume).
+  const auto& sculpt = *std::get<SculptData>(doc.Get(clay).data).mesh;
+  const double volume = modeling::MeshVolume(sculpt);
+  double tets = 0.0;
+  for (Eigen::Index t = 0; t < mesh.volume->tets.cols(); ++t)
+    tets += std::abs(modeling::TetVolume(*mesh.volume, t));
+  EXPECT_NEAR(tets, volume, 1e-6 * volume);
+}
+
+// A set-up whose source is edited while the Job meshes it lands nothing: the document keeps the
+// edit and gets no mesh of the old shape.
+TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("dropped");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  AppWindow window(FeWindowOptions(AssetPath("scenes/platform.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  window.SwitchMode(fe_mode);
+  window.Frame();
+  const std::size_t objects = doc.objects().size();
+  fe.mesh_settings().cell_size = 0.012;
+  ASSERT_TRUE(fe.StartSetUp(&model, doc.FindByName("platform")->id)) << fe.status();
+  ASSERT_TRUE(window.tree().SelectByName("plate"));
+  ASSERT_TRUE(window.tree().SetField("radius", 0.0045)) << window.tree().error();
+  ASSERT_TRUE(FramesUntil(window, [&] {
+    return fe.status().find("changed while it was meshed") != std::string::npos;
+  })) << fe.status();
+  EXPECT_EQ(doc.objects().size(), objects);
+  EXPECT_EQ(doc.history().undo_size(), 1u) << "the radius edit only";
+  EXPECT_EQ(fe.bound_object(), 0u);
+}
+
+// A solid whose surface mesh would be past `spidarcad mesh`'s budget is not meshed until the
+// question is answered; Cancel leaves the document as it was.
+TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const fs::path dir = FeScratch("budget");
+  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
+  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  AppWindow window(FeWindowOptions(AssetPath("scenes/platform.json")));
+  SceneModel& model = window.model();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  window.SwitchMode(fe_mode);
+  window.Frame();
+  const std::string before = model.document().ToJson().dump();
+  fe.mesh_settings().cell_size = 1e-4;  // the platform's box over 0.1 mm cells: far past 2^27
+  EXPECT_FALSE(fe.StartSetUp(&model, model.document().FindByName("platform")->id));
+  EXPECT_NE(fe.pending_setup().find("grid cells"), std::string::npos) << fe.pending_setup();
+  for (int k = 0; k < 3; ++k) window.Frame();  // the question is drawn
+  EXPECT_EQ(model.document().ToJson().dump(), before) << "nothing is meshed while it asks";
+  fe.ConfirmSetUp(&model, false);
+  EXPECT_TRUE(fe.pending_setup().empty());
+  for (int k = 0; k < 3; ++k) window.Frame();
+  EXPECT_EQ(model.document().ToJson().dump(), before);
+  EXPECT_EQ(model.document().history().undo_size(), 0u);
+  EXPECT_EQ(fe.bound_object(), 0u);
 }
 
 }  // namespace

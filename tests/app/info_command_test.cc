@@ -110,5 +110,23 @@ TEST(InfoCommand, BrokenFileExitsTwoNamingFileLineAndField) {
   EXPECT_NE(missing.err.find(path + ".missing"), std::string::npos) << missing.err;
 }
 
+// A document made for a scaled frame says so on a last "device" line.
+TEST(InfoCommand, DocumentFramePrintsALastDeviceLine) {
+  const std::string path = test_support::TestOutputPath("info_device.json");
+  {
+    std::ofstream out(path);
+    out << "{\"format\": \"spidarcad-scene\", \"version\": 2,\n"
+           " \"device\": {\"frame\": [0.3, 0.28, 0.26], \"pole\": 0.05},\n"
+           " \"objects\": [{\"kind\": \"solid\", \"name\": \"ball\", \"root\": "
+           "{\"type\": \"sphere\", \"radius\": 0.02}}]}\n";
+  }
+  const auto run = RunSpidarcad("info " + path);
+  ASSERT_EQ(run.status, 0) << run.all();
+  const std::vector<std::string> lines = Lines(run.out);
+  ASSERT_EQ(lines.size(), 2u) << run.out;
+  EXPECT_EQ(lines[0].rfind("solid", 0), 0u) << lines[0];
+  EXPECT_EQ(lines[1], "device    frame=0.3,0.28,0.26 pole=0.05 (m)");
+}
+
 }  // namespace
 }  // namespace spidarcad::app

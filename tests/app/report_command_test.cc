@@ -139,6 +139,67 @@ TEST(ReportCommand, WithoutDisplayOrXvfbWritesTablesOnlyAndSaysSo) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/fk_time_vs_error.png"));
 }
 
+TEST(ReportCommand, MarkdownElsewhereLinksEveryChartAndCsvInOutDirRelativeToIt) {
+  const std::string root = FreshDir("report_markdown");
+  const std::string data = root + "/docs/report", markdown = root + "/docs/performance.md";
+  const CommandRun run = RunSpidarcad(
+      "report --out '" + data + "' --markdown '" + markdown + "' --quick --only fk", "", "md");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(data + "/report.md"));
+  const std::string md = ReadWholeFile(markdown);
+  EXPECT_NE(md.find("--markdown " + markdown), std::string::npos) << md.substr(0, 400);
+  // Every link that is not an anchor names a file that exists, relative to the markdown's folder.
+  int png = 0, csv = 0;
+  for (size_t at = md.find("]("); at != std::string::npos; at = md.find("](", at + 2)) {
+    const size_t end = md.find(')', at);
+    ASSERT_NE(end, std::string::npos);
+    const std::string target = md.substr(at + 2, end - at - 2);
+    if (target.empty() || target[0] == '#') continue;
+    EXPECT_EQ(target.rfind("report/", 0), 0u) << target;
+    EXPECT_TRUE(std::filesystem::exists(root + "/docs/" + target)) << target;
+    png += target.ends_with(".png");
+    csv += target.ends_with(".csv");
+  }
+  EXPECT_GT(png, 0);
+  EXPECT_GT(csv, 0);
+}
+
+// The hard-case section runs every Hard<Thing> case of the build's test executables: each one
+// passes and records its measured figure and its pass line (the convention of
+// tests/CMakeLists.txt), and the table lists each of the four executables' cases.
+TEST(ReportCommand, HardSectionListsEveryHardCaseWithItsFigureAndPassLine) {
+  const std::string dir = FreshDir("report_hard");
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only hard --no-plots", "", "hard");
+  ASSERT_EQ(run.status, 0) << run.all();
+  std::ifstream in(dir + "/hard_cases.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_EQ(line, "case,figure,bar,verdict,seconds");
+  int rows = 0;
+  std::map<std::string, int> suites;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> f = Split(line);
+    ASSERT_EQ(f.size(), 5u) << line;
+    EXPECT_EQ(f[0].rfind("Hard", 0), 0u) << line;
+    EXPECT_FALSE(f[1].empty()) << f[0] << " records no figure";
+    EXPECT_FALSE(f[2].empty()) << f[0] << " records no pass line";
+    EXPECT_EQ(f[3], "pass") << line;
+    ++suites[f[0].substr(0, f[0].find('.'))];
+    ++rows;
+  }
+  EXPECT_GE(rows, 30);
+  EXPECT_GT(suites.count("HardFk"), 0u);              // haptics_tests
+  EXPECT_GT(suites.count("HardSculpt"), 0u);          // modeling_tests
+  EXPECT_GT(suites.count("HardIncompressible"), 0u);  // fem_tests
+  EXPECT_GT(suites.count("HardVtu"), 0u);             // app_tests
+  const std::string summary = ReadWholeFile(dir + "/summary.md");
+  EXPECT_NE(summary.find("| Hard cases | " + std::to_string(rows) + " cases in "),
+            std::string::npos)
+      << summary;
+  EXPECT_NE(summary.find("every case within its pass line"), std::string::npos) << summary;
+}
+
 TEST(ReportCommand, UnknownOnlyNameExitsTwoListingTheValidNamesAndWritesNothing) {
   const std::string dir = FreshDir("report_bad_only");
   const CommandRun run =

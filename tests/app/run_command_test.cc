@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "doc/document.h"
+#include "scene/assembly_scene.h"
 #include "spidarcad_runner.h"
 
 namespace {
@@ -215,6 +217,73 @@ TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
   for (std::size_t r = 1; r < rows.size(); ++r)
     for (int c = 9; c < 12; ++c) max_force = std::max(max_force, std::abs(std::stod(rows[r][c])));
   EXPECT_EQ(max_force, 0.0);
+}
+
+TEST(RunCommand, DocumentFrameIsUsedUnlessFrameOrPoleIsGiven) {
+  const std::string trajectory = WritePressTrajectory();
+  const std::string doc = OutputPath("frame_doc.json");
+  {
+    std::ofstream out(doc);
+    out << "{\"format\": \"spidarcad-scene\", \"version\": 2,\n"
+           " \"device\": {\"frame\": [0.3, 0.28, 0.26], \"pole\": 0.05},\n"
+           " \"objects\": [{\"kind\": \"solid\", \"name\": \"ball\", \"root\": "
+           "{\"type\": \"sphere\", \"radius\": 0.02}}]}\n";
+  }
+  const std::string out = OutputPath("frame.csv");
+  const CommandRun own =
+      RunSpidarcad("'" + doc + "' --trajectory '" + trajectory + "' --out '" + out + "'", "frame");
+  ASSERT_EQ(own.status, 0) << own.all();
+  EXPECT_NE(own.out.find("frame: half-sides 0.3, 0.28, 0.26 m, pole 0.05 m (the document's)\n"),
+            std::string::npos)
+      << own.out;
+  const CommandRun given = RunSpidarcad(
+      "'" + doc + "' --trajectory '" + trajectory + "' --out '" + out + "' --pole 0.04",
+      "frame_given");
+  ASSERT_EQ(given.status, 0) << given.all();
+  EXPECT_NE(given.out.find("frame: half-sides 0.24, 0.24, 0.24 m, pole 0.04 m (--frame/--pole)\n"),
+            std::string::npos)
+      << given.out;
+  // A scene without a frame of its own runs on the default and prints no frame line.
+  const CommandRun plain =
+      RunSpidarcad("demo --trajectory '" + trajectory + "' --out '" + out + "'", "frame_default");
+  ASSERT_EQ(plain.status, 0) << plain.all();
+  EXPECT_EQ(plain.out.find("frame:"), std::string::npos) << plain.out;
+}
+
+// An assembly saved from the window is a version 2 document of rigid parts and no solid; run
+// feels it as it felt the version 1 scene it came from: the same rows, tick for tick.
+TEST(RunCommand, AssemblyOfRigidPartsRunsLikeTheVersion1SceneItCameFrom) {
+  const std::string source = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/";
+  const std::string v2 = OutputPath("assembly_v2.json");
+  {
+    spidarcad::app::Document doc;
+    doc.Load(source + "scenes/assembly.json");
+    ASSERT_TRUE(spidarcad::app::AdoptScenePartsAsRigidParts(&doc));
+    doc.Save(v2);
+  }
+  const std::string traj = source + "trajectories/seat_right_leg.csv";
+  const std::string a = OutputPath("asm_v1.csv"), b = OutputPath("asm_v2.csv");
+  const CommandRun one = RunSpidarcad(
+      "'" + source + "scenes/assembly.json' --trajectory '" + traj + "' --out '" + a + "'", "asm1");
+  ASSERT_EQ(one.status, 0) << one.all();
+  const CommandRun two =
+      RunSpidarcad("'" + v2 + "' --trajectory '" + traj + "' --out '" + b + "'", "asm2");
+  ASSERT_EQ(two.status, 0) << two.all();
+  EXPECT_NE(two.out.find("fields: assembly (6 parts)"), std::string::npos) << two.out;
+  EXPECT_EQ(two.out.find("skipped"), std::string::npos) << two.out;
+  const size_t at = one.out.find("assembly: ");
+  ASSERT_NE(at, std::string::npos) << one.out;
+  const std::string seated = one.out.substr(at, one.out.find('\n', at) - at);
+  EXPECT_NE(seated.find("right_leg"), std::string::npos) << seated;
+  EXPECT_NE(two.out.find(seated), std::string::npos) << two.out;
+  const auto ra = ReadCsv(a), rb = ReadCsv(b);
+  ASSERT_EQ(ra.size(), rb.size());
+  for (std::size_t i = 0; i < ra.size(); ++i) {
+    for (std::size_t j = 0; j < ra[i].size(); ++j) {
+      if (j == 24) continue;  // tick_us
+      ASSERT_EQ(ra[i][j], rb[i][j]) << "row " << i << " column " << ra[0][j];
+    }
+  }
 }
 
 TEST(RunCommand, EmptySceneCommandsNoForce) {

@@ -1,7 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // Sculpt mode without a window: scripted tool states drive strokes on a sphere of clay; undo and
 // redo restore positions exactly; the sculpt tool field renders −k·s·Δp inside a stroke and zero
-// outside, without allocating; the TetGen job changes nothing when it fails.
+// outside, without allocating; the TetGen job changes nothing when it fails. With a Document (a
+// SceneModel and a ModeContext, no window): a stroke is one command, undo and redo in the
+// Document reload the session exactly; sculpt copies of a solid (a Job) and of a closed mesh are
+// one AddSculpt each, and a copy whose solid changed while it was meshed is dropped.
 #include "gui/sculpt_mode.h"
 
 #include <gtest/gtest.h>
@@ -17,7 +20,10 @@
 #include <numbers>
 #include <vector>
 
+#include "doc/command.h"
 #include "doc/job.h"
+#include "gui/mode.h"
+#include "scene/scene_model.h"
 #include "scene/sculpt_field.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "support/malloc_counter.h"
@@ -320,6 +326,247 @@ TEST(SculptMode, StrokeFrameUpdatesActorPointsInPlaceAndUndoRebuilds) {
   EXPECT_NEAR(xyz[2], p0.z(), 1e-6);
   mode.SetActive(false);
   EXPECT_FALSE(mode.session().published_model().active);
+}
+
+// ---- with a Document ----
+
+// The sculpt mesh of object id in the model's Document.
+const SculptMesh& DocMesh(const SceneModel& model, ObjectId id) {
+  return *std::get<SculptData>(model.document().Get(id).data).mesh;
+}
+
+// True when the session's clay has exactly the vertices and triangles of `mesh`.
+bool SessionHolds(SculptMode& mode, const modeling::TriangleMesh& mesh) {
+  const modeling::SculptMesh* clay = mode.session().mesh();
+  if (clay == nullptr || clay->vertex_count() != mesh.vertices.cols() ||
+      clay->triangle_count() != mesh.triangles.cols())
+    return false;
+  for (int v = 0; v < clay->vertex_count(); ++v) {
+    if (clay->positions()[v] != Eigen::Vector3d(mesh.vertices.col(v))) return false;
+  }
+  for (int t = 0; t < clay->triangle_count(); ++t) {
+    if (clay->triangles()[t] != Eigen::Vector3i(mesh.triangles.col(t))) return false;
+  }
+  return true;
+}
+
+bool SameMesh(const modeling::TriangleMesh& a, const modeling::TriangleMesh& b) {
+  return a.vertices.cols() == b.vertices.cols() && a.triangles.cols() == b.triangles.cols() &&
+         a.vertices == b.vertices && a.triangles == b.triangles;
+}
+
+// A sculpt mode on an empty SceneModel's Document, without a window.
+struct DocumentRig {
+  vtkNew<vtkRenderer> renderer;
+  JobQueue jobs;
+  SceneModel model;
+  SculptMode mode{renderer, &jobs};
+  ModeContext context;
+  DocumentRig() {
+    model.Load(kNoSceneName, Eigen::Vector3d::Constant(0.1));
+    context.model = &model;
+    context.jobs = &jobs;
+    mode.session().settings().tool.radius = 0.02;
+  }
+  void Frame(const haptics::ToolKinematics& tool) {
+    haptics::ToolState state;
+    state.tool_W = tool;
+    mode.Update(state, context);
+  }
+  void FinishJobs() {
+    for (const auto& job : jobs.jobs()) job->Wait();
+    jobs.Poll();
+    model.Refresh();
+  }
+};
+
+TEST(SculptModeDocument, StrokeIsOneCommandAndUndoRedoReloadTheSessionExactly) {
+  DocumentRig rig;
+  const modeling::TriangleMesh start = modeling::IcosphereMesh(kRadius, 4);
+  rig.model.document().Execute(edit::AddSculpt("clay", start));
+  const ObjectId clay = rig.model.document().last_created().at(0);
+  const std::size_t steps = rig.model.document().history().undo_size();
+  rig.mode.SetActive(true);
+  ASSERT_NE(rig.mode.TakeField(), nullptr);
+  const Eigen::Vector3d away(0.0, 0.0, 1.0);
+  rig.Frame(ToolAt(away, 90.0));  // the first Update takes the Document's only sculpt object
+  EXPECT_EQ(rig.mode.target(), clay);
+  ASSERT_TRUE(SessionHolds(rig.mode, start));
+
+  // A grasp stroke at the top: pulled up 1 cm over five frames, then released.
+  const Eigen::Vector3d p0 =
+      rig.mode.session().mesh()->positions()[TopVertex(*rig.mode.session().mesh())];
+  rig.Frame(ToolAt(p0, 30.0));
+  ASSERT_TRUE(rig.mode.session().stroke_active());
+  for (int i = 1; i <= 5; ++i) rig.Frame(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.002 * i), 30.0));
+  EXPECT_EQ(rig.model.document().history().undo_size(), steps) << "nothing before the stroke ends";
+  rig.Frame(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.01), 90.0));
+  ASSERT_FALSE(rig.mode.session().stroke_active());
+  ASSERT_EQ(rig.model.document().history().undo_size(), steps + 1);
+  EXPECT_EQ(rig.model.document().history().UndoDescription(), "Sculpt stroke (grab) on clay");
+  const modeling::TriangleMesh sculpted = DocMesh(rig.model, clay);
+  EXPECT_FALSE(SameMesh(sculpted, start));
+  EXPECT_TRUE(SessionHolds(rig.mode, sculpted));
+  EXPECT_EQ(rig.mode.session().undo_count(), 1) << "the session keeps the stroke's edit";
+  // The grabbed vertex went up by the grip's motion (grab tool, strength 1).
+  EXPECT_NEAR(sculpted.vertices.col(TopVertex(*rig.mode.session().mesh())).z(), p0.z() + 0.01,
+              1e-12);
+
+  // Undo in the Document: the next Update brings the session to the original exactly (the
+  // session's own inverse edit) and republishes; redo likewise.
+  ASSERT_TRUE(rig.model.document().Undo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SameMesh(DocMesh(rig.model, clay), start));
+  EXPECT_TRUE(SessionHolds(rig.mode, start));
+  EXPECT_EQ(rig.mode.session().redo_count(), 1) << "undone in place, not reloaded";
+  EXPECT_NE(rig.mode.TakeField(), nullptr) << "an undo republishes the field";
+  ASSERT_TRUE(rig.model.document().Redo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, sculpted));
+  // An edit made elsewhere (a whole new mesh) is reloaded; undoing it reloads the sculpted one.
+  const modeling::TriangleMesh other = modeling::IcosphereMesh(0.03, 2);
+  rig.model.document().Execute(edit::ReplaceSculptMesh(clay, other));
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, other));
+  EXPECT_EQ(rig.mode.session().undo_count(), 0) << "reloaded";
+  ASSERT_TRUE(rig.model.document().Undo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, sculpted));
+  // Undo of the stroke after that reload, then of the object's addition: nothing to sculpt;
+  // redo brings it back.
+  ASSERT_TRUE(rig.model.document().Undo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, start));
+  ASSERT_TRUE(rig.model.document().Undo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_FALSE(rig.mode.session().has_mesh());
+  ASSERT_TRUE(rig.model.document().Redo());
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(SessionHolds(rig.mode, start));
+}
+
+// Two strokes, one with refinement (new vertices and triangles): undoing both and redoing both
+// in the Document leaves the session equal to the Document at every step.
+TEST(SculptModeDocument, UndoAndRedoOfRefinedStrokesKeepTheSessionEqualToTheDocument) {
+  DocumentRig rig;
+  const modeling::TriangleMesh start = modeling::IcosphereMesh(kRadius, 3);
+  rig.model.document().Execute(edit::AddSculpt("clay", start));
+  const ObjectId clay = rig.model.document().last_created().at(0);
+  rig.mode.SetActive(true);
+  const Eigen::Vector3d away(0.0, 0.0, 1.0);
+  rig.Frame(ToolAt(away, 90.0));
+  std::vector<modeling::TriangleMesh> states = {start};
+  for (double max_edge : {0.0, 0.003}) {
+    rig.mode.session().settings().tool.max_edge_length = max_edge;
+    const modeling::SculptMesh& mesh = *rig.mode.session().mesh();
+    const Eigen::Vector3d p0 = mesh.positions()[TopVertex(mesh)];
+    rig.Frame(ToolAt(p0, 30.0));
+    rig.Frame(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.01), 30.0));
+    rig.Frame(ToolAt(p0 + Eigen::Vector3d(0, 0, 0.01), 90.0));
+    states.push_back(DocMesh(rig.model, clay));
+    ASSERT_TRUE(SessionHolds(rig.mode, states.back()));
+  }
+  ASSERT_GT(states[2].vertices.cols(), states[1].vertices.cols()) << "the second stroke refined";
+  for (int k = 1; k >= 0; --k) {
+    ASSERT_TRUE(rig.model.document().Undo());
+    rig.Frame(ToolAt(away, 90.0));
+    EXPECT_TRUE(SameMesh(DocMesh(rig.model, clay), states[k]));
+    EXPECT_TRUE(SessionHolds(rig.mode, states[k])) << "after undo to state " << k;
+  }
+  for (int k = 1; k <= 2; ++k) {
+    ASSERT_TRUE(rig.model.document().Redo());
+    rig.Frame(ToolAt(away, 90.0));
+    EXPECT_TRUE(SessionHolds(rig.mode, states[k])) << "after redo to state " << k;
+  }
+}
+
+TEST(SculptModeDocument, CopyOfASolidIsMeshedByAJobAndAddedAsOneStep) {
+  DocumentRig rig;
+  const double r = 0.03;
+  rig.model.document().Execute(
+      edit::AddSolid("ball", modeling::ImplicitNode(modeling::SphereParams{r})));
+  const ObjectId ball = rig.model.document().last_created().at(0);
+  rig.model.Refresh();
+  rig.mode.set_mesh_cell(0.003);
+  rig.mode.SetActive(true);
+  const Eigen::Vector3d away(0.0, 0.0, 1.0);
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_EQ(rig.mode.target(), 0u) << "no sculpt object yet";
+  const std::size_t steps = rig.model.document().history().undo_size();
+  const std::size_t objects = rig.model.document().objects().size();
+  rig.mode.RequestCopy(ball);
+  rig.Frame(ToolAt(away, 90.0));
+  EXPECT_TRUE(rig.mode.copy_pending());
+  EXPECT_EQ(rig.model.document().objects().size(), objects) << "nothing until the job lands";
+  rig.FinishJobs();
+  EXPECT_FALSE(rig.mode.copy_pending());
+  ASSERT_EQ(rig.model.document().objects().size(), objects + 1) << rig.mode.message();
+  EXPECT_EQ(rig.model.document().history().undo_size(), steps + 1);
+  EXPECT_EQ(rig.model.document().history().UndoDescription(), "Add sculpt ball sculpt");
+  const DocObject& copy = rig.model.document().objects().back();
+  EXPECT_EQ(copy.name, "ball sculpt");
+  EXPECT_EQ(rig.mode.target(), copy.id);
+  const modeling::TriangleMesh surface = DocMesh(rig.model, copy.id);
+  EXPECT_TRUE(SessionHolds(rig.mode, surface));
+  // The surface lies on the sphere (within a fraction of the 3 mm cell) and encloses about its
+  // volume 4/3 π r³.
+  for (Eigen::Index v = 0; v < surface.vertices.cols(); ++v)
+    ASSERT_NEAR(surface.vertices.col(v).norm(), r, 0.3 * 0.003) << "vertex " << v;
+  const double volume = modeling::MeshVolume(surface);
+  EXPECT_NEAR(volume, 4.0 / 3.0 * std::numbers::pi * r * r * r, 0.03 * volume);
+  // Undo removes the copy (one step).
+  ASSERT_TRUE(rig.model.document().Undo());
+  EXPECT_EQ(rig.model.document().objects().size(), objects);
+}
+
+TEST(SculptModeDocument, CopyIsDroppedWhenTheSolidChangedWhileMeshing) {
+  DocumentRig rig;
+  rig.model.document().Execute(
+      edit::AddSolid("ball", modeling::ImplicitNode(modeling::SphereParams{0.03})));
+  const ObjectId ball = rig.model.document().last_created().at(0);
+  rig.model.Refresh();
+  rig.mode.set_mesh_cell(0.004);
+  rig.mode.SetActive(true);
+  rig.Frame(ToolAt(Eigen::Vector3d(0, 0, 1), 90.0));
+  rig.mode.RequestCopy(ball);
+  rig.Frame(ToolAt(Eigen::Vector3d(0, 0, 1), 90.0));
+  ASSERT_TRUE(rig.mode.copy_pending());
+  rig.model.document().Execute(edit::SetNodeField(ball, {}, "radius", 0.035));
+  const std::string before = rig.model.document().ToJson().dump();
+  rig.FinishJobs();
+  EXPECT_EQ(rig.model.document().ToJson().dump(), before) << "the result was dropped";
+  EXPECT_NE(rig.mode.message().find("changed while it was meshed"), std::string::npos)
+      << rig.mode.message();
+  EXPECT_EQ(rig.mode.target(), 0u);
+}
+
+TEST(SculptModeDocument, CopyOfAClosedMeshIsAddedAtOnceAndAnOpenOneIsRefused) {
+  DocumentRig rig;
+  Document& doc = rig.model.document();
+  const modeling::TriangleMesh sphere = modeling::IcosphereMesh(0.04, 3);
+  doc.Execute(edit::AddMesh("shell", 0, 0, std::make_shared<const modeling::TriangleMesh>(sphere),
+                            nullptr));
+  const ObjectId shell = doc.last_created().at(0);
+  modeling::TriangleMesh open_mesh = sphere;
+  open_mesh.triangles.conservativeResize(3, open_mesh.triangles.cols() - 1);
+  doc.Execute(edit::AddMesh("cup", 0, 0, std::make_shared<const modeling::TriangleMesh>(open_mesh),
+                            nullptr));
+  const ObjectId cup = doc.last_created().at(0);
+  rig.mode.SetActive(true);
+  rig.Frame(ToolAt(Eigen::Vector3d(0, 0, 1), 90.0));
+  const std::string before = doc.ToJson().dump();
+  EXPECT_FALSE(rig.mode.StartCopy(rig.context, cup));
+  EXPECT_NE(rig.mode.message().find("'cup'"), std::string::npos) << rig.mode.message();
+  EXPECT_EQ(doc.ToJson().dump(), before);
+  const std::size_t steps = doc.history().undo_size();
+  ASSERT_TRUE(rig.mode.StartCopy(rig.context, shell)) << rig.mode.message();
+  EXPECT_EQ(doc.history().undo_size(), steps + 1);
+  const ObjectId copy = doc.last_created().at(0);
+  EXPECT_EQ(doc.Get(copy).name, "shell sculpt");
+  EXPECT_TRUE(SameMesh(DocMesh(rig.model, copy), sphere));
+  rig.Frame(ToolAt(Eigen::Vector3d(0, 0, 1), 90.0));
+  EXPECT_EQ(rig.mode.target(), copy);
+  EXPECT_TRUE(SessionHolds(rig.mode, sphere));
 }
 
 }  // namespace

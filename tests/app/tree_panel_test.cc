@@ -30,6 +30,7 @@
 #include "scene/scene_fields.h"
 #include "scene/scene_model.h"
 #include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "window_test_support.h"
 
@@ -393,6 +394,27 @@ TEST(TreeController, SaveWritesTheEditedSceneAndTheTitleShowsUnsavedEdits) {
   SceneModel again;
   again.Load(path, Eigen::Vector3d::Constant(0.19));
   EXPECT_NEAR(again.objects()[1].solid->Value(kKnobCentre), -0.02, 1e-12);
+}
+
+// An object without a node tree (here a sculpt) stays selected as a whole across Revalidate, so
+// that the modes can act on it; node edits refuse it, and its deletion clears the selection.
+TEST(TreeController, AnObjectWithoutATreeStaysSelectedAsAWholeUntilItIsGone) {
+  Demo d;
+  Document& doc = d.model.document();
+  doc.Execute(edit::AddSculpt("clay", modeling::IcosphereMesh(0.02, 1)));
+  const ObjectId clay = doc.last_created().at(0);
+  d.tree.Select(clay, {0, 1});  // a path it cannot have
+  d.tree.Revalidate();
+  ASSERT_TRUE(d.tree.selection().has_value());
+  EXPECT_EQ(d.tree.selection()->object, clay);
+  EXPECT_TRUE(d.tree.selection()->path.empty());
+  EXPECT_EQ(d.tree.SelectedNode(), nullptr);
+  const std::string before = doc.ToJson().dump();
+  EXPECT_FALSE(d.tree.SetField("radius", 0.01));
+  EXPECT_EQ(doc.ToJson().dump(), before);
+  doc.Execute(edit::DeleteObject(clay));
+  d.tree.Revalidate();
+  EXPECT_FALSE(d.tree.selection().has_value());
 }
 
 TEST(TreeController, NamesUnitsAndDefaultNodesCoverEveryType) {

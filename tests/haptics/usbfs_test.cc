@@ -1,5 +1,5 @@
 // Tests of the per-tick USB path of LibusbTransport: the USBDEVFS_BULK wrapper and its errno
-// mapping (haptics/src/usbfs_bulk.h), and LibusbTransport with no board attached.
+// mapping (haptics/device/src/usbfs_bulk.h), and LibusbTransport with no board attached.
 // The success path (a real bulk transfer on a claimed usbfs node) needs a board on a USB bus:
 // this container has none, and no fake kernel is built here, so it is not exercised. What is
 // tested: the errno table, that the ioctl on real non-usbfs fds (a pipe, /dev/null, a closed

@@ -38,7 +38,7 @@ constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
 constexpr const char* kCalibrateHelp =
     "Calibrates the string-length sensing (per-string encoder offset, gain, winding\n"
-    "nonlinearity and string stretch; see haptics/include/spidarcad/haptics/encoder.h) and\n"
+    "nonlinearity and string stretch; see haptics/device/include/spidarcad/haptics/encoder.h) and\n"
     "shows how much it improves the measured string lengths and the grip pose.\n"
     "\n"
     "Two uses:\n"

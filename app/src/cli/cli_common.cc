@@ -55,20 +55,26 @@ void ForEachCsvRecord(std::istream& in, const std::string& source, int expected_
   }
 }
 
-void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry) {
+void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry, bool* given) {
   command
       .add_option_function<std::vector<double>>(
           "--frame",
-          [geometry](const std::vector<double>& v) {
+          [geometry, given](const std::vector<double>& v) {
             geometry->a = v[0];
             geometry->b = v[1];
             geometry->c = v[2];
+            if (given != nullptr) *given = true;
           },
           "Frame half-sides A,B,C in metres (default 0.24,0.24,0.24: the paper's 48 cm frame)")
       ->delimiter(',')
       ->expected(3);
-  command.add_option("--pole", geometry->d,
-                     "Pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
+  command.add_option_function<double>(
+      "--pole",
+      [geometry, given](double d) {
+        geometry->d = d;
+        if (given != nullptr) *given = true;
+      },
+      "Pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
 }
 
 void ValidateGeometry(const haptics::SpidarGeometry& geometry) {

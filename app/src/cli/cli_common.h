@@ -30,8 +30,10 @@ struct CommandExit {
 void ForEachCsvRecord(std::istream& in, const std::string& source, int expected_fields,
                       const std::function<void(const std::vector<double>&, int)>& row);
 
-// Adds --frame A,B,C and --pole D options that fill `geometry` (metres).
-void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry);
+// Adds --frame A,B,C and --pole D options that fill `geometry` (metres); `given` (optional) is set
+// true when either is on the command line (a document's own frame then gives way to it).
+void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry,
+                        bool* given = nullptr);
 // Validates geometry options, turning errors into InputError.
 void ValidateGeometry(const haptics::SpidarGeometry& geometry);
 

@@ -135,6 +135,11 @@ void RunInfo(const std::string& path) {
     std::printf("%-9s '%s' solid='%s' %s\n", "part", p.name.c_str(), p.solid.c_str(),
                 SeatText(p.fixed, !p.seats.empty(), on).c_str());
   }
+  // The frame the document was made for (its "device"), last: one line, not an object.
+  if (const auto& g = doc.device()) {
+    std::printf("%-9s frame=%s,%s,%s pole=%s (m)\n", "device", Num(g->a).c_str(), Num(g->b).c_str(),
+                Num(g->c).c_str(), Num(g->d).c_str());
+  }
 }
 
 }  // namespace
@@ -144,7 +149,8 @@ void RegisterInfoCommand(CLI::App& app) {
   CLI::App* cmd =
       app.add_subcommand("info", "List the objects of a document or scene file, one line each");
   cmd->footer(
-      "\nEach line: kind (solid, mesh, tet_mesh, sculpt, fe_model, part), 'name', key counts.\n"
+      "\nEach line: kind (solid, mesh, tet_mesh, sculpt, fe_model, part), 'name', key counts;\n"
+      "a last line 'device' gives the frame the document was made for, if it names one.\n"
       "A file that does not load exits with status 2 and names the file, line and field.\n"
       "Example:\n  spidarcad info assets/scenes/workbench.json\n");
   cmd->add_option("file", *path, "Document or scene file (JSON, docs/scene-format.md)")->required();

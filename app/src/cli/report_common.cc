@@ -21,7 +21,8 @@ void ReportContext::Figure(const std::string& name, const std::vector<Chart>& ch
   try {
     WriteChartsPng(charts, settings_.out_dir + "/" + file, width, height);
     files_.push_back(file);
-    markdown_ << "\n![" << name << "](" << file << ")\n\n*" << caption << "*\n\n";
+    markdown_ << "\n![" << name << "](" << settings_.link_prefix << file << ")\n\n*" << caption
+              << "*\n\n";
   } catch (const std::exception& e) {
     markdown_ << "\n*Figure " << file << " failed: " << e.what() << "* " << caption << "\n\n";
   }
@@ -34,7 +35,7 @@ std::string ReportContext::MapFigure(const std::string& name, const ColourMap& m
   try {
     WriteColourMapPng(map, settings_.out_dir + "/" + file, width, height);
     files_.push_back(file);
-    return "![" + name + "](" + file + ")";
+    return "![" + name + "](" + settings_.link_prefix + file + ")";
   } catch (const std::exception& e) {
     return std::string("*(") + file + " failed: " + e.what() + ")*";
   }
@@ -53,7 +54,7 @@ void ReportContext::Csv(const std::string& name, const std::vector<std::string>&
   for (const auto& row : rows) line(row);
   if (!out) throw std::runtime_error("error while writing " + settings_.out_dir + "/" + file);
   files_.push_back(file);
-  markdown_ << "Data: [" << file << "](" << file << ").\n\n";
+  markdown_ << "Data: [" << file << "](" << settings_.link_prefix << file << ").\n\n";
 }
 
 void ReportContext::Table(const std::vector<std::string>& header,

@@ -18,9 +18,10 @@ namespace spidarcad::app {
 
 // What one report run was asked for.
 struct ReportSettings {
-  std::string out_dir;  // where report.md, the PNGs and the CSVs go
-  bool quick = false;   // smaller sweeps (the whole report in minutes on 2 cores)
-  bool plots = true;    // false: no X display, tables only
+  std::string out_dir;      // where report.md, the PNGs and the CSVs go
+  std::string link_prefix;  // prepended to the report's links to those files ("" or "DIR/")
+  bool quick = false;       // smaller sweeps (the whole report in minutes on 2 cores)
+  bool plots = true;        // false: no X display, tables only
 };
 
 // The section's view of the report: its markdown body, its files, its progress and headline.

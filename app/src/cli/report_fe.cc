@@ -14,6 +14,7 @@
 #include "cli/report_sections.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
+#include "spidarcad/workloads/fe.h"
 
 namespace spidarcad::app {
 
@@ -21,69 +22,17 @@ namespace {
 
 using namespace spidarcad::fem;
 
-// Cantilever: L = 1 m, 0.1 m × 0.1 m section, clamped at x = 0, 1 kN tip shear, steel.
-constexpr double kLength = 1.0, kSide = 0.1, kForce = 1000.0;
+// The cantilever of workloads/fe.h (1 m steel beam, 0.1 m square section, 1 kN tip shear).
+using Model = workloads::CantileverModel;
 constexpr int kCondensed = 64;  // compliance nodes: top-face nodes nearest the tip
 constexpr int kContacts = 16;   // contact nodes of a tick
-const Material kSteel{2.0e11, 0.3};
-
-// Timoshenko beam tip deflection (bending + shear, shear coefficient for a square section).
-double Timoshenko() {
-  const double i = kSide * std::pow(kSide, 3) / 12.0;
-  const double nu = kSteel.poisson_ratio;
-  const double kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
-  return kForce * std::pow(kLength, 3) / (3.0 * kSteel.youngs_modulus * i) +
-         kForce * kLength / (kappa * kSteel.Mu() * kSide * kSide);
-}
-
-struct Model {
-  int order = 1, r = 1;
-  TetMesh mesh;
-  MaterialTable materials{kSteel};
-  std::unique_ptr<BoundaryConditions> bcs;
-  std::unique_ptr<StaticSolver> solver;
-  std::unique_ptr<Compliance> compliance;
-  double tip_error = NAN;     // |FE tip deflection / Timoshenko − 1|
-  double precompute_s = NAN;  // assembly + factorisation + 64 compliance nodes, s
-};
 
 std::unique_ptr<Model> BuildModel(int order, int r) {
-  auto m = std::make_unique<Model>();
-  m->order = order;
-  m->r = r;
-  const auto start = std::chrono::steady_clock::now();
-  BoxMeshSettings s;
-  s.upper = Eigen::Vector3d(kLength, kSide, kSide);
-  s.nx = 10 * r;
-  s.ny = s.nz = r;
-  s.order = order;
-  m->mesh = MakeBoxMesh(s);
-  m->bcs = std::make_unique<BoundaryConditions>(m->mesh.num_nodes());
-  FixNodesInBox(m->mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), m->bcs.get());
-  const Surface surface = ExtractSurface(m->mesh);
-  AddTractionInBox(m->mesh, surface, Eigen::Vector3d(kLength - 1e-9, -1, -1),
-                   Eigen::Vector3d(2, 2, 2), Eigen::Vector3d(0, 0, -kForce / (kSide * kSide)),
-                   m->bcs.get());
-  m->solver = std::make_unique<StaticSolver>(m->mesh, m->materials, *m->bcs);
-  std::vector<int> top =
-      NodesInBox(m->mesh, Eigen::Vector3d(0.5, -1, kSide), Eigen::Vector3d(2, 2, 2));
-  const Eigen::Vector3d tip(kLength, kSide / 2, kSide);
-  std::sort(top.begin(), top.end(), [&](int a, int b) {
-    return (m->mesh.nodes.row(a).transpose() - tip).norm() <
-           (m->mesh.nodes.row(b).transpose() - tip).norm();
-  });
-  top.resize(std::min<size_t>(top.size(), kCondensed));
-  m->compliance = std::make_unique<Compliance>(*m->solver, surface.nodes, top);
-  m->precompute_s = SecondsSince(start);
-  // Tip deflection: mean z displacement of the end-face nodes.
-  const auto end_face =
-      NodesInBox(m->mesh, Eigen::Vector3d(kLength - 1e-9, -1, -1), Eigen::Vector3d(2, 2, 2));
-  const StaticSolution solution = m->solver->Solve();
-  double sum = 0.0;
-  for (int v : end_face) sum += solution.displacement(3 * v + 2);
-  m->tip_error = std::abs(-sum / end_face.size() / Timoshenko() - 1.0);
-  return m;
+  return workloads::BuildCantilever(order, r, kCondensed);
 }
+
+// |FE tip deflection / Timoshenko − 1|.
+double TipError(const Model& m) { return std::abs(m.tip_ratio - 1.0); }
 
 // Targets 0.1 mm below the baseline position of each contact node.
 std::vector<double> PushTargets(const Compliance& c, const ContactSolver& solver) {
@@ -162,42 +111,6 @@ std::vector<double> CachedForces(const Model& m, ColumnPrecision precision, doub
   return f;
 }
 
-// Relative force error of a single 0.1 mm push at mid-span when the column of the node
-// `cells` cells further along x stands in for the pushed node's (cells = 1..4).
-std::vector<double> BorrowedColumnError(const Model& m) {
-  const auto top = NodesInBox(m.mesh, Eigen::Vector3d(-1, -1, kSide), Eigen::Vector3d(2, 2, 2));
-  const double cell = kSide / m.r;
-  auto node_at = [&](double x) {
-    const Eigen::Vector3d p(x, kSide / 2, kSide), tol = Eigen::Vector3d::Constant(1e-9);
-    return NodesInBox(m.mesh, p - tol, p + tol).at(0);
-  };
-  ColumnCacheSettings settings;
-  settings.start_worker = false;
-  ColumnCache cache(*m.solver, m.mesh.nodes, m.compliance->output_nodes(), top, settings);
-  const int b = cache.CandidateOfNode(node_at(kLength / 2));
-  cache.ComputeNodes({b});
-  const Eigen::Vector3d d = cache.baseline().segment<3>(3 * cache.OutputIndexOfCandidate(b)) -
-                            Eigen::Vector3d(0, 0, 1e-4);
-  double exact[3];
-  {
-    CachedContactSolver solver(&cache, 1);
-    solver.Add(b);
-    solver.Solve(d.data(), exact);
-  }
-  const Eigen::Vector3d fe(exact[0], exact[1], exact[2]);
-  std::vector<double> errors;
-  for (int cells = 1; cells <= 4; ++cells) {
-    cache.EvictAll();
-    cache.ComputeNodes({cache.CandidateOfNode(node_at(kLength / 2 + cells * cell))});
-    CachedContactSolver approx(&cache, 1);
-    approx.Add(b);
-    double f[3];
-    approx.Solve(d.data(), f);
-    errors.push_back((Eigen::Vector3d(f[0], f[1], f[2]) - fe).norm() / fe.norm());
-  }
-  return errors;
-}
-
 struct FullRow {
   double full_ms = NAN, condensed_us = NAN, force_diff = NAN, force_norm = NAN;
 };
@@ -260,8 +173,8 @@ void ReportFe(ReportContext& ctx) {
   for (int order : {1, 2}) {
     for (int r : order == 1 ? p1 : p2) {
       auto m = BuildModel(order, r);
-      rows.push_back({order, r, m->mesh.num_elements(), m->solver->num_free(), m->precompute_s,
-                      TickMicros(*m, kContacts, 2000), m->tip_error});
+      rows.push_back({order, r, m->mesh.num_elements(), m->solver->num_free(),
+                      m->precompute_seconds, TickMicros(*m, kContacts, 2000), TipError(*m)});
       models[{order, r}] = std::move(m);
       ctx.Progress(++done / steps);
     }
@@ -269,7 +182,7 @@ void ReportFe(ReportContext& ctx) {
   ctx.md() << "A cantilever (L = 1 m, 0.1 × 0.1 m section, steel, clamped at x = 0, 1 kN tip "
               "shear) meshed with 10r × r × r cells of six tetrahedra, linear (P1) or quadratic "
               "(P2). Tip error: mean end-face deflection against the Timoshenko closed form ("
-           << Sig(Timoshenko() * 1e3, 4)
+           << Sig(workloads::CantileverTimoshenkoTip() * 1e3, 4)
            << " mm). Precompute: mesh, assembly, CHOLMOD factorisation and the compliance "
               "columns of the 64 top-face nodes nearest the tip (wall clock). Tick: one "
               "ContactSolver::Solve with 16 contact nodes pushed 0.1 mm (median).\n";
@@ -345,9 +258,9 @@ void ReportFe(ReportContext& ctx) {
   ctx.Table({"model", "columns", "force error", "tick µs", "kB per node"}, precision_rows);
 
   // Borrowed columns.
-  const std::vector<double> e1 = BorrowedColumnError(mid);
+  const std::vector<double> e1 = workloads::BorrowedColumnErrors(mid);
   const Model& quad_even = *models.at({2, 2});
-  const std::vector<double> e2 = BorrowedColumnError(quad_even);
+  const std::vector<double> e2 = workloads::BorrowedColumnErrors(quad_even);
   ctx.Progress(++done / steps);
   Chart borrowed{"FE: borrowed-column force error against distance",
                  "distance of the borrowed node [cells]",

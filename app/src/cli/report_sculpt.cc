@@ -10,37 +10,13 @@
 
 #include "cli/report_sections.h"
 #include "spidarcad/modeling/sculpt.h"
+#include "spidarcad/workloads/sculpt.h"
 
 namespace spidarcad::app {
 
 namespace {
 
 using namespace spidarcad::modeling;
-
-// The pose a stroke of `tool` reaches from X0 (grab and push/pull move the grip, twist turns it).
-Eigen::Isometry3d TargetPose(SculptTool tool, const Eigen::Isometry3d& X0, double radius,
-                             double amount) {
-  Eigen::Isometry3d X = X0;
-  const Eigen::Vector3d z = X0.linear().col(2), y = X0.linear().col(1);
-  switch (tool) {
-    case SculptTool::kGrab:
-      X.translation() += amount * radius * (0.8 * z + 0.3 * y);
-      break;
-    case SculptTool::kTwist:
-      X.linear() = Eigen::AngleAxisd(amount * 0.6, z) * X0.linear();
-      break;
-    case SculptTool::kBend:
-      X.linear() = Eigen::AngleAxisd(amount * 0.4, y) * X0.linear();
-      break;
-    case SculptTool::kPushPull:
-      X.translation() += amount * 0.5 * radius * z;
-      break;
-    case SculptTool::kSmooth:
-      X.translation() += amount * radius * y;
-      break;
-  }
-  return X;
-}
 
 }  // namespace
 
@@ -79,8 +55,8 @@ void ReportSculpt(ReportContext& ctx) {
         settings.radius = radius;
         settings.grasp_controls_strength = false;
         settings.conserve_volume = conserve;
-        const Eigen::Isometry3d full = TargetPose(tool, X0, radius, 1.0),
-                                half = TargetPose(tool, X0, radius, 0.5);
+        const Eigen::Isometry3d full = workloads::SculptTargetPose(tool, X0, radius, 1.0),
+                                half = workloads::SculptTargetPose(tool, X0, radius, 0.5);
         sculpt.BeginStroke(settings, X0, 0.0);
         std::vector<double> times;
         for (int i = 0; i < updates; ++i) {

@@ -36,5 +36,8 @@ void ReportFe(ReportContext& ctx);
 void ReportTick(ReportContext& ctx);
 // Sculpting: update time against touched vertices, volume error (report_sculpt.cc).
 void ReportSculpt(ReportContext& ctx);
+// Hard cases: every Hard<Thing> test of the build tree's test executables, its measured figure
+// and pass line (report_hard.cc).
+void ReportHardCases(ReportContext& ctx);
 
 }  // namespace spidarcad::app

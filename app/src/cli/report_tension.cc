@@ -12,22 +12,19 @@
 
 #include "cli/report_sections.h"
 #include "spidarcad/haptics/tension.h"
+#include "spidarcad/workloads/tension.h"
 
 namespace spidarcad::app {
 
 namespace {
 
 using haptics::GripPose;
-using haptics::Matrix78d;
 using haptics::SpidarGeometry;
 using haptics::TensionSettings;
 using haptics::Vector7d;
 using haptics::Vector8d;
 
-struct Request {
-  Matrix78d A;
-  Vector7d q;
-};
+using Request = workloads::TensionRequest;
 
 Eigen::Matrix<double, 7, 1> Weights(const TensionSettings& s) {
   Eigen::Matrix<double, 7, 1> w;
@@ -85,50 +82,6 @@ double BruteForceOptimum(const Request& r, const TensionSettings& s) {
   return best;
 }
 
-Eigen::Matrix3d RandomRotation(std::mt19937* rng, double max_angle) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::uniform_real_distribution<double> angle(-max_angle, max_angle);
-  const Eigen::Vector3d axis(normal(*rng), normal(*rng), normal(*rng));
-  return Eigen::AngleAxisd(angle(*rng), axis.normalized()).toRotationMatrix();
-}
-
-// Independent random poses within 8 cm of the centre; `scale` 1: displayable requests (force
-// up to 2 N per axis, moments up to 0.03 N·m), larger: saturating.
-std::vector<Request> RandomRequests(const SpidarGeometry& g, int count, double scale,
-                                    unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> pos(-0.08, 0.08), grasp(1.0, 2.1), u(-1, 1);
-  std::vector<Request> out;
-  for (int k = 0; k < count; ++k) {
-    const GripPose pose = GripPose::FromFrame(Eigen::Vector3d(pos(rng), pos(rng), pos(rng)),
-                                              RandomRotation(&rng, 0.5), grasp(rng), g.d);
-    Vector7d q;
-    q << 2 * u(rng), 2 * u(rng), 2 * u(rng), 0.03 * u(rng), 0.03 * u(rng), 0.03 * u(rng),
-        0.03 * u(rng);
-    out.push_back({haptics::WrenchMatrix(g, pose), scale * q});
-  }
-  return out;
-}
-
-// A smooth 1 kHz hand motion with a varying wrench (consecutive requests ~1 ms apart).
-std::vector<Request> TrajectoryRequests(const SpidarGeometry& g, int count, double scale) {
-  std::vector<Request> out;
-  for (int k = 0; k < count; ++k) {
-    const double t = 1e-3 * k;
-    const Eigen::Matrix3d R =
-        Eigen::AngleAxisd(0.4 * std::sin(t), Eigen::Vector3d(1, 2, 3).normalized())
-            .toRotationMatrix();
-    const GripPose pose = GripPose::FromFrame(
-        Eigen::Vector3d(0.08 * std::sin(t), 0.05 * std::cos(2 * t), 0.06 * std::sin(3 * t)), R,
-        1.5 + 0.3 * std::sin(t), g.d);
-    Vector7d q;
-    q << 3 * std::sin(5 * t), 2 * std::cos(7 * t), -2 + 2 * std::sin(3 * t), 0.03 * std::sin(4 * t),
-        0.02, -0.03 * std::cos(6 * t), 0.03 * std::sin(8 * t);
-    out.push_back({haptics::WrenchMatrix(g, pose), scale * q});
-  }
-  return out;
-}
-
 struct Row {
   std::string name;
   bool warm = false, saturated = false;
@@ -154,12 +107,12 @@ void ReportTensions(ReportContext& ctx) {
     bool warm, saturated;
   };
   std::vector<Workload> workloads;
-  workloads.push_back(
-      {"random poses, feasible, cold", RandomRequests(g, n_random, 1.0, 1), false, false});
-  workloads.push_back(
-      {"random poses, saturated (×50), cold", RandomRequests(g, n_random, 50.0, 2), false, true});
+  workloads.push_back({"random poses, feasible, cold",
+                       workloads::RandomTensionRequests(g, n_random, 1.0, 1), false, false});
+  workloads.push_back({"random poses, saturated (×50), cold",
+                       workloads::RandomTensionRequests(g, n_random, 50.0, 2), false, true});
   for (bool saturated : {false, true}) {
-    const auto path = TrajectoryRequests(g, n_path, saturated ? 20.0 : 1.0);
+    const auto path = workloads::TrajectoryTensionRequests(g, n_path, saturated ? 20.0 : 1.0);
     for (bool warm : {false, true}) {
       workloads.push_back({std::string("1 kHz path, ") +
                                (saturated ? "saturated (×20), " : "feasible, ") +

@@ -88,8 +88,9 @@ constexpr const char* kRunHelp =
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
     "coordinates), or a scene file or document (docs/scene-format.md, version 1 or 2) of implicit\n"
-    "solids; a document's meshes, FE models, sculpts and rigid parts are not rendered yet (the\n"
-    "summary lists them as skipped):\n"
+    "solids; a document's meshes, FE models and sculpts are not rendered yet, nor rigid parts\n"
+    "beside solids (the summary lists them as skipped); a document of rigid parts and no solid\n"
+    "(an assembly saved from the window) is one assembly field, as a scene's \"parts\" are:\n"
     "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
     "  --tool shell   the cross grip (poles +-d, radius 6 mm) is a six-DOF point shell with\n"
     "                 virtual coupling against the union of the solids: torques are felt\n"
@@ -145,6 +146,7 @@ struct RunOptions {
   bool calibrate = false;            // line-fit calibration of the simulated device before the run
   std::string calibration;           // calibration file to read the encoders through
   haptics::SpidarGeometry geometry;  // the device's frame and pole (--frame, --pole)
+  bool geometry_given = false;       // --frame or --pole given: it overrides the document's
   double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
   bool progress = false;             // progress on stderr even when it is not a terminal
 };
@@ -256,6 +258,9 @@ void RunRun(const RunOptions& options) {
         "raise --max-duration");
   }
 
+  // The frame: --frame/--pole, else the document's own (its "device"), else the paper's.
+  haptics::SpidarGeometry geometry = options.geometry;
+  std::string frame_source = options.geometry_given ? "--frame/--pole" : "default";
   std::unique_ptr<haptics::HapticScene> scene;
   std::string scene_name = "empty";
   std::string fields_line;   // per-field names for the summary
@@ -278,11 +283,21 @@ void RunRun(const RunOptions& options) {
     } catch (const InputError& e) {
       throw InputError(std::string("SCENE: ") + e.what());
     }
+    if (opened.doc->device() && !options.geometry_given) {
+      geometry = *opened.doc->device();
+      frame_source = "the document's";
+    }
     // What `run` renders of a document today: its solids (one field each, or an assembly of
-    // "parts") and snap. The other kinds are listed in the summary as skipped.
+    // "parts"), or, in a document of rigid parts and no solid (an assembly saved from the
+    // window), the assembly of its rigid parts as the window feels it; and snap. The other kinds
+    // are listed in the summary as skipped.
     const modeling::Scene loaded = opened.doc->ToScene();
+    const std::vector<AssemblyPartInput> rigid_parts = loaded.solids.empty()
+                                                           ? RigidPartInputs(*opened.doc, nullptr)
+                                                           : std::vector<AssemblyPartInput>{};
     for (const DocObject& o : opened.doc->objects()) {
       if (std::holds_alternative<SolidData>(o.data)) continue;
+      if (!rigid_parts.empty() && std::holds_alternative<RigidPartData>(o.data)) continue;
       skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
                       " '" + o.name + "'";
     }
@@ -292,15 +307,18 @@ void RunRun(const RunOptions& options) {
           "FE models, sculpts or rigid parts): " +
           skipped_line;
     }
-    if (opened.version == 2 && loaded.solids.empty()) {
+    const std::size_t part_count = rigid_parts.empty() ? loaded.parts.size() : rigid_parts.size();
+    if (opened.version == 2 && loaded.solids.empty() && rigid_parts.empty()) {
       // Nothing to render: the grip moves freely.
       scene = std::make_unique<haptics::HapticScene>();
       scene_name = options.scene + " (no solid)";
-    } else if (!loaded.parts.empty()) {
+    } else if (part_count > 0) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
       std::unique_ptr<haptics::AssemblyField> assembly;
       try {
-        assembly = BuildAssemblyField(loaded);
+        assembly = rigid_parts.empty()
+                       ? BuildAssemblyField(loaded)
+                       : BuildAssemblyField(rigid_parts, AssemblySceneSettings{}, nullptr);
       } catch (const std::invalid_argument& e) {
         throw InputError(options.scene + ": " + e.what());
       }
@@ -317,8 +335,8 @@ void RunRun(const RunOptions& options) {
       scene = std::make_unique<haptics::HapticScene>();
       assembly_field = assembly.get();
       scene->Add(std::move(assembly));
-      scene_name = options.scene + " (assembly, " + std::to_string(loaded.parts.size()) + " parts)";
-      fields_line = "fields: assembly (" + std::to_string(loaded.parts.size()) + " parts)";
+      scene_name = options.scene + " (assembly, " + std::to_string(part_count) + " parts)";
+      fields_line = "fields: assembly (" + std::to_string(part_count) + " parts)";
       const Eigen::Vector3d& o = settings.X_WD.p_WDo;
       map_line = "X_WD: p_W = " + FormatNumber(settings.X_WD.world_scale) + " p_D + (" +
                  FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
@@ -352,7 +370,7 @@ void RunRun(const RunOptions& options) {
         haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
                                                options.world_origin[2]);
       }
-      haptic_options.grip_d = options.geometry.d;
+      haptic_options.grip_d = geometry.d;
       SceneHaptics built;
       try {
         haptic_options.Validate();
@@ -407,8 +425,8 @@ void RunRun(const RunOptions& options) {
   ParseRigKind(options.device, &kind);  // checked above
   RigOptions rig_options;
   rig_options.device.seed = options.seed;
-  rig_options.device.geometry = options.geometry;
-  rig_options.device.home_pose = haptics::GripPose::Rest(options.geometry.d);
+  rig_options.device.geometry = geometry;
+  rig_options.device.home_pose = haptics::GripPose::Rest(geometry.d);
   // A real board lost mid-run is re-opened by a service thread, not inside the tick (re-opening
   // goes through libusb, which allocates and locks); board-sim keeps its deterministic re-open
   // on the virtual clock.
@@ -541,6 +559,11 @@ void RunRun(const RunOptions& options) {
   if (!calibration_line.empty()) std::cout << calibration_line << "\n";
   if (!fields_line.empty()) std::cout << fields_line << "\n";
   if (!skipped_line.empty()) std::cout << skipped_line << "\n";
+  if (frame_source != "default") {
+    std::cout << "frame: half-sides " << FormatNumber(geometry.a) << ", "
+              << FormatNumber(geometry.b) << ", " << FormatNumber(geometry.c) << " m, pole "
+              << FormatNumber(geometry.d) << " m (" << frame_source << ")\n";
+  }
   std::cout << map_line << "\n";
   std::cout << "tick time [us]: p50 " << Fixed(tick_time.Percentile(0.5) * 1e6, 1) << "  p99 "
             << Fixed(tick_time.Percentile(0.99) * 1e6, 1) << "  p99.9 "
@@ -587,7 +610,7 @@ void RegisterRunCommand(CLI::App& app) {
   cmd->add_option("--calibration", options->calibration,
                   "Read the encoders through this calibration file (`spidarcad calibrate --out`; "
                   "it must be this device's and frame's)");
-  AddGeometryOptions(*cmd, &options->geometry);
+  AddGeometryOptions(*cmd, &options->geometry, &options->geometry_given);
   cmd->add_option("--tool", options->tool, "Scene files: tool model proxy (default) or shell");
   cmd->add_option("--stiffness", options->stiffness,
                   "Scene files: contact stiffness at the grip, N/m (default 1500; shell coupling "

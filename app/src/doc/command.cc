@@ -239,8 +239,12 @@ class SnapCommand : public Command {
 // A sculpt stroke: old and new positions of the moved vertices only.
 class SculptStrokeCommand : public Command {
  public:
-  SculptStrokeCommand(ObjectId id, std::vector<int> vertices, Eigen::Matrix3Xd new_positions)
-      : id_(id), vertices_(std::move(vertices)), new_(std::move(new_positions)) {}
+  SculptStrokeCommand(ObjectId id, std::vector<int> vertices, Eigen::Matrix3Xd new_positions,
+                      std::string description)
+      : id_(id),
+        vertices_(std::move(vertices)),
+        new_(std::move(new_positions)),
+        description_(description.empty() ? "Sculpt stroke" : std::move(description)) {}
   void Do(Document& doc) override {
     if (new_revision_ == 0) {
       const DocObject& object = doc.Get(id_);
@@ -273,7 +277,7 @@ class SculptStrokeCommand : public Command {
     Apply(doc, new_, new_revision_);
   }
   void Undo(Document& doc) override { Apply(doc, old_, old_revision_); }
-  std::string Description() const override { return "Sculpt stroke"; }
+  std::string Description() const override { return description_; }
 
  private:
   void Apply(Document& doc, const Eigen::Matrix3Xd& positions, std::uint64_t revision) {
@@ -289,6 +293,7 @@ class SculptStrokeCommand : public Command {
   ObjectId id_;
   std::vector<int> vertices_;
   Eigen::Matrix3Xd new_, old_;
+  std::string description_;
   std::uint64_t old_revision_ = 0, new_revision_ = 0;
 };
 
@@ -793,17 +798,19 @@ std::unique_ptr<Command> SetPrecomputeKey(ObjectId id, std::uint64_t key) {
   });
 }
 
-std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh) {
+std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh, std::string description) {
   auto shared = std::make_shared<SculptMesh>(std::move(mesh));
-  return EditObject(id, "Replace sculpt mesh", [shared](const Document&, DocObject& o) {
+  if (description.empty()) description = "Replace sculpt mesh";
+  return EditObject(id, description, [shared](const Document&, DocObject& o) {
     // A private copy, so that a later in-place stroke cannot reach the command's snapshot.
     DataAs<SculptData>(o, "a sculpt mesh").mesh = std::make_shared<SculptMesh>(*shared);
   });
 }
 
 std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices,
-                                      Eigen::Matrix3Xd new_positions) {
-  return std::make_unique<SculptStrokeCommand>(id, std::move(vertices), std::move(new_positions));
+                                      Eigen::Matrix3Xd new_positions, std::string description) {
+  return std::make_unique<SculptStrokeCommand>(id, std::move(vertices), std::move(new_positions),
+                                               std::move(description));
 }
 
 std::unique_ptr<Command> SetRigidPose(ObjectId id, const Eigen::Isometry3d& X_WP, bool dragging) {

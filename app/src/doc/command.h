@@ -211,12 +211,15 @@ std::unique_ptr<Command> SetElementOrder(ObjectId id, int order);
 std::unique_ptr<Command> SetPrecomputeKey(ObjectId id, std::uint64_t key);
 
 // ---- sculpt meshes ----
-// Replaces the whole mesh (after a topology change or a remesh).
-std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh);
+// Replaces the whole mesh (after a topology change or a remesh). `description` is the Edit-menu
+// text ("" -> "Replace sculpt mesh").
+std::unique_ptr<Command> ReplaceSculptMesh(ObjectId id, SculptMesh mesh,
+                                           std::string description = {});
 // One stroke: moves the listed vertices to new_positions (3 by #indices, m). Stores only the old
-// and new positions of those vertices.
+// and new positions of those vertices. `description` is the Edit-menu text ("" -> "Sculpt
+// stroke").
 std::unique_ptr<Command> SculptStroke(ObjectId id, std::vector<int> vertices,
-                                      Eigen::Matrix3Xd new_positions);
+                                      Eigen::Matrix3Xd new_positions, std::string description = {});
 
 // ---- rigid parts ----
 // Sets the pose X_WP (rotation must be orthonormal).

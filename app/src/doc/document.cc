@@ -229,6 +229,8 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
               j["source_revision"] = m.source_revision;
               j["settings"] = {m.settings.cell_size, m.settings.max_tet_volume,
                                m.settings.max_radius_edge};
+              if (!m.settings.mesher.empty()) j["settings"].push_back(m.settings.mesher);
+              if (m.settings.sharp_edges) j["settings"].push_back("sharp_edges");
               j["import_source"] = m.import_source;
               if (m.surface) {
                 j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},
@@ -296,6 +298,7 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
                    view_->view_up.x(),     view_->view_up.y(),     view_->view_up.z(),
                    view_->view_angle};
   }
+  if (device_) doc["device"] = {device_->a, device_->b, device_->c, device_->d};
   if (with_revisions) {
     doc["description_revision"] = description_revision_;
     doc["snap_revision"] = snap_revision_;
@@ -365,6 +368,7 @@ void Document::AdoptContent(std::vector<DocObject> objects, std::string descript
   snap_ = snap;
   snap_revision_ = NewRevision();
   view_ = std::move(view);
+  device_.reset();
   parts_ = std::move(parts);
   history_->Clear();
   fe_cache_.clear();
@@ -408,6 +412,7 @@ void Document::LoadScene(const modeling::Scene& scene, const std::string& source
   snap_ = scene.snap;
   snap_revision_ = NewRevision();
   view_.reset();
+  device_.reset();
   parts_ = scene.parts;
   history_->Clear();
   fe_cache_.clear();
@@ -450,6 +455,7 @@ void Document::Clear() {
   snap_.reset();
   snap_revision_ = NewRevision();
   view_.reset();
+  device_.reset();
   parts_.clear();
   history_->Clear();
   fe_cache_.clear();
@@ -545,6 +551,10 @@ void Document::ValidateChange(const std::vector<DocObject>& changed) const {
                   !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
                 throw DocumentError(Describe(c) +
                                     ": field 'settings': every setting must be finite and >= 0");
+              }
+              if (!s.mesher.empty() && s.mesher != "tetgen" && s.mesher != "cgal") {
+                throw DocumentError(Describe(c) + ": field 'settings/mesher': \"" + s.mesher +
+                                    "\" is not a mesher (expected tetgen or cgal)");
               }
             },
             [&](const FeModelData& f) {

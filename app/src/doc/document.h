@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "spidarcad/fem/material.h"
+#include "spidarcad/haptics/geometry.h"
 #include "spidarcad/modeling/implicit_node.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -66,6 +67,10 @@ struct MeshSettings {
   double cell_size = 0.0;        // surface grid cell edge, m (>= 0)
   double max_tet_volume = 0.0;   // largest tet volume, m³ (>= 0)
   double max_radius_edge = 0.0;  // TetGen radius-edge bound, -, (0 or >= 1)
+  // Tetrahedral mesher: "" or "tetgen" (TetGen on the grid surface), "cgal" (CGAL Mesh_3 from
+  // the solid's function; solids only).
+  std::string mesher = {};
+  bool sharp_edges = false;  // the grid surface was sharpened onto the solid's creases (TetGen)
 };
 // Meshes made from another object (usually a solid) by a Job, or imported from a file. Either
 // mesh may be absent. The data are immutable and shared between copies (undo snapshots,
@@ -186,6 +191,12 @@ class Document {
   const std::optional<DocView>& view() const { return view_; }
   // Sets the camera saved with the document (not undoable; does not make the document dirty).
   void set_view(std::optional<DocView> view) { view_ = std::move(view); }
+  // The SPIDAR-G frame the document was made for: frame half-sides a, b, c and pole
+  // half-length d, m (the paper's Sec. 8 scales the frame to the task). Saved with the document;
+  // none: the device's own. Not part of the undo state; loading or clearing resets it.
+  const std::optional<haptics::SpidarGeometry>& device() const { return device_; }
+  // Sets the device frame (validated by the caller: SpidarGeometry::Validate).
+  void set_device(std::optional<haptics::SpidarGeometry> device) { device_ = device; }
   // The scene's assembly parts as loaded ("parts"; kept as they are, not editable here). Save
   // writes them back and refuses, naming the part, when one names a solid no longer in the scene.
   const std::vector<modeling::ScenePart>& parts() const { return parts_; }
@@ -195,6 +206,8 @@ class Document {
   bool dirty() const;
   // File of the last successful Load or Save ("" before).
   const std::string& file_path() const { return file_path_; }
+  // Sets file_path() without reading or writing (content converted after a Load keeps its file).
+  void set_file_path(std::string path) { file_path_ = std::move(path); }
   // Ids of the objects created by the last Execute or Redo (e.g. the new solid of an AddSolid).
   const std::vector<ObjectId>& last_created() const { return last_created_; }
 
@@ -292,6 +305,7 @@ class Document {
   std::optional<modeling::SceneSnap> snap_;
   std::uint64_t snap_revision_ = 0;
   std::optional<DocView> view_;
+  std::optional<haptics::SpidarGeometry> device_;
   std::vector<modeling::ScenePart> parts_;
   ObjectId next_id_ = 1;
   std::uint64_t next_revision_ = 1;

@@ -318,7 +318,26 @@ struct Content {
   std::optional<modeling::SceneSnap> snap;
   std::vector<modeling::ScenePart> parts;
   std::optional<DocView> view;
+  std::optional<haptics::SpidarGeometry> device;
 };
+
+// "device": {"frame": [a, b, c], "pole": d} (m), checked as SpidarGeometry::Validate does.
+haptics::SpidarGeometry DeviceFrom(const json& j, const std::string& p) {
+  RequireObject(j, p);
+  RejectUnknown(j, p, {"frame", "pole"});
+  haptics::SpidarGeometry g;
+  const Eigen::Vector3d frame = Vec3(Need(j, p, "frame"), Join(p, "frame"));
+  g.a = frame.x();
+  g.b = frame.y();
+  g.c = frame.z();
+  g.d = Number(Need(j, p, "pole"), Join(p, "pole"));
+  try {
+    g.Validate();
+  } catch (const std::invalid_argument& e) {
+    Fail(p, std::string(e.what()) + " (frame: half-sides a, b, c in m; pole: half-length d in m)");
+  }
+  return g;
+}
 
 DocView ViewFrom(const json& j, const std::string& p) {
   RequireObject(j, p);
@@ -351,11 +370,12 @@ Content ContentFromJson(const json& j) {
   RequireObject(j, "");
   RejectUnknown(j, "",
                 {"format", "version", "units", "description", "objects", "parts", "snap", "view",
-                 "recovered_from"});
+                 "device", "recovered_from"});
   if (j.contains("units") && Text(j.at("units"), "/units") != "m")
     Fail("/units", "only \"m\" is supported");
   if (j.contains("description")) c.description = Text(j.at("description"), "/description");
   if (j.contains("view")) c.view = ViewFrom(j.at("view"), "/view");
+  if (j.contains("device")) c.device = DeviceFrom(j.at("device"), "/device");
   if (j.contains("recovered_from")) Text(j.at("recovered_from"), "/recovered_from");
   const json& objects = Need(j, "", "objects");
   if (!objects.is_array()) Fail("/objects", "expected an array of objects");
@@ -402,13 +422,21 @@ Content ContentFromJson(const json& j) {
         const json& s = o.at("settings");
         const std::string sp = p + "/settings";
         RequireObject(s, sp);
-        RejectUnknown(s, sp, {"cell_size", "max_tet_volume", "max_radius_edge"});
+        RejectUnknown(s, sp,
+                      {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges"});
         m.settings.cell_size = NonNegative(s, sp, "cell_size", 0.0);
         m.settings.max_tet_volume = NonNegative(s, sp, "max_tet_volume", 0.0);
         m.settings.max_radius_edge = NonNegative(s, sp, "max_radius_edge", 0.0);
         if (m.settings.max_radius_edge != 0.0 && m.settings.max_radius_edge < 1.0) {
           Fail(sp + "/max_radius_edge", "must be 0 (default) or >= 1");
         }
+        if (s.contains("mesher")) {
+          m.settings.mesher = Text(s.at("mesher"), sp + "/mesher");
+          if (m.settings.mesher != "tetgen" && m.settings.mesher != "cgal")
+            Fail(sp + "/mesher", "expected \"tetgen\" or \"cgal\"");
+        }
+        if (s.contains("sharp_edges"))
+          m.settings.sharp_edges = Bool(s.at("sharp_edges"), sp + "/sharp_edges");
       }
       if (o.contains("surface"))
         m.surface =
@@ -425,6 +453,10 @@ Content ContentFromJson(const json& j) {
           Fail(p + "/source", "a generated mesh needs the index of its source solid");
         if (!(m.settings.cell_size > 0))
           Fail(p + "/settings/cell_size", "a generated mesh needs a cell size > 0");
+        if (m.settings.mesher == "cgal" || m.settings.sharp_edges)
+          Fail(p + "/generate",
+               "\"generate\" meshes with TetGen on the plain grid surface: drop settings/mesher "
+               "\"cgal\" and settings/sharp_edges, or store the mesh (surface, volume)");
         up_to_date[i] = true;
       } else if (!m.surface && !m.volume) {
         Fail(p, "a mesh object needs \"surface\", \"volume\" or \"generate\"");
@@ -627,6 +659,8 @@ json ObjectJson(const Document& doc, const DocObject& o) {
     j["settings"] = {{"cell_size", m->settings.cell_size},
                      {"max_tet_volume", m->settings.max_tet_volume},
                      {"max_radius_edge", m->settings.max_radius_edge}};
+    if (!m->settings.mesher.empty()) j["settings"]["mesher"] = m->settings.mesher;
+    if (m->settings.sharp_edges) j["settings"]["sharp_edges"] = true;
     if (!m->import_source.empty()) j["import_source"] = m->import_source;
     if (m->surface) j["surface"] = SurfaceJson(*m->surface);
     if (m->volume) j["volume"] = VolumeJson(*m->volume);
@@ -737,7 +771,7 @@ std::vector<std::uint8_t> Base64Decode(const std::string& text) {
 }
 
 bool FitsSceneVersion1(const Document& doc) {
-  if (doc.view()) return false;
+  if (doc.view() || doc.device()) return false;
   return std::all_of(doc.objects().begin(), doc.objects().end(),
                      [](const DocObject& o) { return std::holds_alternative<SolidData>(o.data); });
 }
@@ -758,6 +792,7 @@ json DocumentToFileJson(const Document& doc, const DocumentWriteOptions& options
                  {"view_up", VecJson(v->view_up)},
                  {"view_angle", v->view_angle}};
   }
+  if (const auto& g = doc.device()) j["device"] = {{"frame", {g->a, g->b, g->c}}, {"pole", g->d}};
   json objects = json::array();
   for (const DocObject& o : doc.objects()) objects.push_back(ObjectJson(doc, o));
   j["objects"] = objects;
@@ -838,6 +873,7 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
     Content c = ContentFromJson(j);
     doc->AdoptContent(std::move(c.objects), std::move(c.description), c.snap, std::move(c.parts),
                       c.view, source);
+    doc->set_device(c.device);
   } catch (const SceneError& e) {
     if (e.line() > 0 || e.pointer().empty()) throw;
     int line = 0, column = 0;

@@ -49,6 +49,7 @@
 #include "gui/scene_view.h"
 #include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
+#include "scene/assembly_scene.h"
 #include "scene/device_session.h"
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
@@ -194,6 +195,24 @@ Eigen::AlignedBox3d SubjectBox(const SceneModel& model, int selected, bool selec
   if (box.isEmpty() && selection) return SubjectBox(model, selected, false, view);
   if (box.isEmpty()) return view.FrameBox();
   return model.device_to_world().BoxToDevice(box);
+}
+
+// True when two frames have the same half-sides and pole (exactly: both come from files or
+// options).
+bool SameFrame(const haptics::SpidarGeometry& x, const haptics::SpidarGeometry& y) {
+  return x.a == y.a && x.b == y.b && x.c == y.c && x.d == y.d;
+}
+
+// "0.3, 0.3, 0.2 m / pole 0.04 m".
+std::string FrameText(const haptics::SpidarGeometry& g) {
+  return FormatNumber(g.a) + ", " + FormatNumber(g.b) + ", " + FormatNumber(g.c) + " m / pole " +
+         FormatNumber(g.d) + " m";
+}
+
+// A version 1 assembly's parts become rigid parts of the document (scene/assembly_scene.h), so
+// that the assembly mode's moves are undoable document content.
+void AdoptParts(SceneModel* model) {
+  if (AdoptScenePartsAsRigidParts(&model->document())) model->Refresh();
 }
 
 }  // namespace
@@ -345,6 +364,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   try {
     const DeviceToWorld identity;
     s.model.Load(load_from, s.grip->limits(), s.assembly ? &identity : nullptr);
+    AdoptParts(&s.model);
   } catch (const std::exception& e) {
     throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
   }
@@ -373,10 +393,17 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
                                   "' is not a device; use simulated, ideal, board-sim or usb");
   }
   s.runtime_settings.seed = options.seed;
+  // The frame: --frame/--pole (recorded in the document, so that saving keeps it), else the
+  // start-up document's own ("device"), else the paper's.
   s.runtime_settings.geometry = options.geometry;
+  if (options.geometry_given) {
+    s.model.document().set_device(options.geometry);
+  } else if (s.model.document().device()) {
+    s.runtime_settings.geometry = *s.model.document().device();
+  }
   s.runtime_settings.calibration_file = options.calibration;
   try {
-    options.geometry.Validate();
+    s.runtime_settings.geometry.Validate();
   } catch (const std::invalid_argument& e) {
     throw WindowStartError(2, std::string("spidarcad: error: --frame/--pole: ") + e.what());
   }
@@ -799,12 +826,9 @@ void AppWindow::PollJobs() {
     try {
       s.jobs->CancelAll();
       s.model.Load(s.model.source(), s.grip->limits(), &s.model.device_to_world());
-      modeling::Scene reloaded;  // no parts (any more): the assembly empties
-      AssemblyMode& assembly = s.assembly_mode->assembly();
-      if (LoadAssemblyScene(s.model.source(), &reloaded) || assembly.has_parts()) {
-        assembly.Load(reloaded);
-      }
-      s.model_mode->SetFelt(!s.assembly_mode->available());
+      AdoptParts(&s.model);
+      s.assembly_mode->assembly().LoadDocument(s.model.document());  // none: it empties
+      s.model_mode->SetFelt(BaseMode() != s.assembly_mode);
       if (!s.active->available()) SwitchMode(s.model_mode);
       ApplyHidden();
       s.republish = true;
@@ -877,6 +901,12 @@ void AppWindow::DrawModePanel() {
   s.active->DrawPanel(s.context);
   ImGui::PopItemWidth();
   ImGui::End();
+  // A mode asked for another (e.g. sculpt's "Send to FE").
+  if (!s.context.switch_to.empty()) {
+    Mode* next = FindMode(s.context.switch_to);
+    s.context.switch_to.clear();
+    if (next != nullptr && next->available() && next != s.active) SwitchMode(next);
+  }
 }
 
 void AppWindow::DrawFiguresStrip() {
@@ -963,11 +993,17 @@ void AppWindow::PublishScene() {
   s.republish = false;
   // The active mode's part, when live, stands in for the scene's solids; else the base mode's
   // (the assembly of a scene with parts, else the solids of the modelling mode).
-  Mode* base = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
-  Mode* source = s.active->live() ? s.active : base;
+  Mode* source = s.active->live() ? s.active : BaseMode();
   s.runtime->Publish(source->live() ? source->BuildScene(s.context)
                                     : std::make_unique<haptics::HapticScene>());
   ++s.publishes;
+}
+
+Mode* AppWindow::BaseMode() const {
+  const State& s = *s_;
+  // The assembly stands in for the scene's solids when the document has parts and no solids.
+  const bool assembly = s.assembly_mode->available() && s.model.objects().empty();
+  return assembly ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
 }
 
 void AppWindow::ApplyHidden() {
@@ -1069,12 +1105,10 @@ void AppWindow::MakeModes() {
   // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
   auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
   std::string assembly_error;
-  if (s.assembly) {
-    try {
-      assembly->assembly().Load(s.assembly_scene);
-    } catch (const std::exception& e) {
-      assembly_error = e.what();
-    }
+  try {
+    assembly->assembly().LoadDocument(s.model.document());
+  } catch (const std::exception& e) {
+    assembly_error = e.what();
   }
   assembly->assembly().SetWorldToView(X_WD);
   s.model_mode = model_mode.get();
@@ -1084,9 +1118,9 @@ void AppWindow::MakeModes() {
   s.modes.push_back(std::move(sculpt));
   s.modes.push_back(std::move(assembly));
   for (auto& m : added) s.modes.push_back(std::move(m));
-  s.model_mode->SetFelt(!s.assembly_mode->available());
+  s.model_mode->SetFelt(BaseMode() != s.assembly_mode);
   ApplyHidden();
-  if (s.assembly_mode->available()) {
+  if (BaseMode() == s.assembly_mode) {
     s.view->Zoom(1.4);  // the robot is small (C: whole frame)
   } else {
     // A scene with solids opens fitted to them and the grip (C: the whole device).
@@ -1102,7 +1136,7 @@ void AppWindow::StartScene(const std::string& mode_key) {
     s.active = start;
     start->Launch();
   } else {
-    s.active = s.assembly_mode->available() ? static_cast<Mode*>(s.assembly_mode) : s.model_mode;
+    s.active = BaseMode();
     s.active->Enter();
   }
   for (auto& m : s.modes) m->TakeSceneChanged();
@@ -1118,6 +1152,7 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
   try {
     const DeviceToWorld identity;
     s.model.Load(source, s.grip->limits(), assembly ? &identity : nullptr);
+    AdoptParts(&s.model);
   } catch (const std::exception& e) {
     s.file_error = e.what();
     s.file_error_popup = true;
@@ -1167,6 +1202,11 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
   if (!assembly_error.empty()) {
     s.workbench.status += " (assembly not available: " + assembly_error + ")";
     s.workbench.status_error = true;
+  }
+  // The device keeps the frame it started with; a document made for another one says so.
+  if (const auto& g = s.model.document().device(); g && !SameFrame(*g, *s.geometry)) {
+    s.workbench.status += " (made for a " + FrameText(*g) + " frame; the device runs a " +
+                          FrameText(*s.geometry) + " one: restart with --frame/--pole to use it)";
   }
   return true;
 }
@@ -1509,7 +1549,8 @@ bool AppWindow::ClickAt(double x, double y) {
   if (!s.layout.viewport.Contains(static_cast<float>(x), static_cast<float>(y))) return false;
   const double sx = static_cast<double>(s.fb_w) / s.win_w;
   const double sy = static_cast<double>(s.fb_h) / s.win_h;
-  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy);
+  const ObjectId id = s.scene_view->PickObject(x * sx, s.fb_h - y * sy,
+                                               s.assembly_mode->assembly().PickableParts());
   if (id == 0) return false;
   s.tree->Select(id);
   const int index = s.model.IndexOf(id);

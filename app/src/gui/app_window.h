@@ -68,7 +68,8 @@ class AppWindow {
   // Resizes the window (screen pixels); the next frame lays the panels out again.
   void Resize(int width, int height);
   // A click at window pixel (x, y) (origin top left, y down) in the viewport: selects in the tree
-  // the solid under it (a VTK cell picker on the scene's actors). True when one was selected.
+  // the solid, imported mesh or assembly part under it (a VTK cell picker on their actors). True
+  // when one was selected.
   bool ClickAt(double x, double y);
   // What Enter does in the view: selects the solid the grip touches (modelling mode). True when
   // one was selected.
@@ -141,6 +142,9 @@ class AppWindow {
   void DrawFiguresStrip();
   void ApplyActions();
   void PublishScene();
+  // The mode whose field is felt when the active one is not live: assembly for a document of
+  // rigid parts without solids, else modelling.
+  Mode* BaseMode() const;
   void ApplyHidden();
   void FitView();
   bool CaptureScreenshot();

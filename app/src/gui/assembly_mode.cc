@@ -18,11 +18,12 @@
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
-#include <map>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+#include <variant>
 
+#include "doc/command.h"
 #include "gui/scene_view.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -100,6 +101,7 @@ struct AssemblyMode::Vtk {
     vtkNew<vtkActor> actor;
   };
   std::vector<std::unique_ptr<Mesh>> meshes;
+  std::vector<std::string> mesh_keys;          // per mesh: its tree's JSON and the cell
   std::vector<std::unique_ptr<Actor>> actors;  // one per part
   Actor ghost;
   int ghost_mesh = -1;
@@ -125,55 +127,131 @@ AssemblyMode::~AssemblyMode() {
   }
 }
 
+void AssemblyMode::Clear() {
+  if (renderer_) {
+    for (auto& a : vtk_->actors) renderer_->RemoveActor(a->actor);
+  }
+  vtk_->actors.clear();
+  vtk_->meshes.clear();
+  vtk_->mesh_keys.clear();
+  vtk_->ghost_mesh = -1;
+  vtk_->ghost.actor->VisibilityOff();
+  parts_.clear();
+  inputs_.clear();
+  roots_.clear();
+  input_ids_.clear();
+  input_revisions_.clear();
+  if (field_) field_changed_ = true;
+  field_.reset();
+  state_ = haptics::AssemblyState{};
+}
+
 void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSettings& settings,
                         double display_cell) {
   if (scene.parts.empty()) {
-    if (renderer_) {
-      for (auto& a : vtk_->actors) renderer_->RemoveActor(a->actor);
-    }
-    vtk_->actors.clear();
-    vtk_->meshes.clear();
-    vtk_->ghost_mesh = -1;
-    vtk_->ghost.actor->VisibilityOff();
-    parts_.clear();
-    field_.reset();
+    Clear();
     field_changed_ = true;
-    scene_ = scene;
-    state_ = haptics::AssemblyState{};
+    from_document_ = false;
+    synced_.clear();
     return;
   }
+  const std::vector<AssemblyPartInput> inputs = ScenePartInputs(scene);
+  const AssemblySceneSettings old = settings_;
+  settings_ = settings;
+  try {
+    Build(inputs, {}, {}, display_cell);
+  } catch (...) {
+    settings_ = old;
+    throw;
+  }
+  from_document_ = false;
+  synced_.clear();
+}
+
+void AssemblyMode::LoadDocument(const Document& doc, const AssemblySceneSettings& settings,
+                                double display_cell) {
+  std::vector<ObjectId> ids;
+  const std::vector<AssemblyPartInput> inputs = RigidPartInputs(doc, &ids);
+  std::vector<std::pair<ObjectId, std::uint64_t>> signature;
+  std::vector<std::uint64_t> revisions;
+  for (ObjectId id : ids) {
+    revisions.push_back(doc.Get(id).revision);
+    signature.emplace_back(id, revisions.back());
+  }
+  if (inputs.empty()) {
+    Clear();
+    field_changed_ = true;
+  } else {
+    const AssemblySceneSettings old = settings_;
+    settings_ = settings;
+    try {
+      Build(inputs, ids, revisions, display_cell);
+    } catch (...) {
+      settings_ = old;
+      throw;
+    }
+  }
+  from_document_ = true;
+  synced_ = std::move(signature);
+  ++rebuilds_;
+}
+
+void AssemblyMode::Build(const std::vector<AssemblyPartInput>& inputs,
+                         const std::vector<ObjectId>& ids,
+                         const std::vector<std::uint64_t>& revisions, double display_cell) {
   if (!(display_cell > 0.0) || !std::isfinite(display_cell)) {
     throw std::invalid_argument("AssemblyMode: display cell " + std::to_string(display_cell) +
                                 " must be > 0");
   }
-  // Everything that can fail first, so that a failure leaves the mode as it was.
-  std::shared_ptr<haptics::AssemblyField> field = BuildAssemblyField(scene, settings);
-  std::map<std::string, int> mesh_of;  // solid name -> mesh index
-  std::vector<modeling::TriangleMesh> meshes;
+  // Everything that can fail first, so that a failure leaves the mode as it was. The trees are
+  // copied so that Reset can rebuild after the scene or document has gone.
+  std::vector<std::unique_ptr<modeling::ImplicitNode>> roots;
+  std::vector<AssemblyPartInput> owned = inputs;
+  for (AssemblyPartInput& in : owned) {
+    if (in.root == nullptr) continue;  // BuildAssemblyField names the part
+    roots.push_back(std::make_unique<modeling::ImplicitNode>(*in.root));
+    in.root = roots.back().get();
+  }
+  AssemblyGeometryCache cache = cache_;
+  std::shared_ptr<haptics::AssemblyField> field = BuildAssemblyField(owned, settings_, &cache);
+  // One display mesh per distinct tree: those meshed before at this cell are kept.
+  std::ostringstream cell_text;
+  cell_text.precision(17);
+  cell_text << "|" << display_cell;
+  std::vector<std::string> keys;             // per new mesh
+  std::vector<int> reuse;                    // per new mesh: index of the kept mesh, or −1
+  std::vector<modeling::TriangleMesh> made;  // per new mesh with reuse −1 (in order)
   std::vector<Part> parts;
-  for (const modeling::ScenePart& sp : scene.parts) {
+  for (size_t i = 0; i < owned.size(); ++i) {
+    const AssemblyPartInput& in = owned[i];
     Part part;
-    part.name = sp.name;
-    part.solid = sp.solid;
-    part.fixed = sp.fixed;
-    const auto it = mesh_of.find(sp.solid);
-    if (it != mesh_of.end()) {
-      part.mesh = it->second;
+    part.name = in.name;
+    part.solid = in.solid;
+    part.fixed = in.fixed;
+    part.id = i < ids.size() ? ids[i] : 0;
+    part.revision = i < revisions.size() ? revisions[i] : 0;
+    part.X_WP = in.X_WP;
+    Eigen::Isometry3d X_WS;
+    part.seated_at_build = !in.fixed && field->FindSeat(static_cast<int>(i), in.X_WP, &X_WS);
+    const std::string key = modeling::NodeToJson(*in.root).dump() + cell_text.str();
+    const auto found = std::find(keys.begin(), keys.end(), key);
+    if (found != keys.end()) {
+      part.mesh = static_cast<int>(found - keys.begin());
     } else {
-      const modeling::Solid* solid = nullptr;
-      for (const modeling::Solid& s : scene.solids) {
-        if (s.name == sp.solid) solid = &s;
+      const auto old = std::find(vtk_->mesh_keys.begin(), vtk_->mesh_keys.end(), key);
+      if (old != vtk_->mesh_keys.end()) {
+        reuse.push_back(static_cast<int>(old - vtk_->mesh_keys.begin()));
+      } else {
+        reuse.push_back(-1);
+        const std::string where = "AssemblyMode: part '" + in.name + "' (solid '" + in.solid + "')";
+        try {
+          made.push_back(MeshPartSolid(modeling::CompiledSolid::Compile(*in.root), display_cell));
+        } catch (const std::exception& e) {
+          throw std::invalid_argument(where + ": " + e.what());
+        }
       }
-      const std::string where = "AssemblyMode: part '" + sp.name + "' (solid '" + sp.solid + "')";
-      if (solid == nullptr) throw std::invalid_argument(where + ": no such solid");
-      try {
-        meshes.push_back(
-            MeshPartSolid(modeling::CompiledSolid::Compile(solid->root), display_cell));
-      } catch (const std::exception& e) {
-        throw std::invalid_argument(where + ": " + e.what());
-      }
-      part.mesh = static_cast<int>(meshes.size()) - 1;
-      mesh_of[sp.solid] = part.mesh;
+      keys.push_back(key);
+      part.mesh = static_cast<int>(keys.size()) - 1;
     }
     parts.push_back(std::move(part));
   }
@@ -183,16 +261,23 @@ void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSetting
     for (auto& a : vtk_->actors) renderer_->RemoveActor(a->actor);
   }
   vtk_->actors.clear();
-  vtk_->meshes.clear();
-  for (const modeling::TriangleMesh& m : meshes) {
+  std::vector<std::unique_ptr<Vtk::Mesh>> meshes;
+  size_t next_made = 0;
+  for (size_t k = 0; k < keys.size(); ++k) {
+    if (reuse[k] >= 0) {
+      meshes.push_back(std::move(vtk_->meshes[reuse[k]]));
+      continue;
+    }
     auto mesh = std::make_unique<Vtk::Mesh>();
-    FillPolyData(m, mesh->poly);
+    FillPolyData(made[next_made++], mesh->poly);
     mesh->normals->SetInputData(mesh->poly);
     mesh->normals->SetFeatureAngle(35.0);
     mesh->normals->SplittingOn();
     mesh->normals->ConsistencyOff();
-    vtk_->meshes.push_back(std::move(mesh));
+    meshes.push_back(std::move(mesh));
   }
+  vtk_->meshes = std::move(meshes);
+  vtk_->mesh_keys = std::move(keys);
   for (const Part& part : parts) {
     auto a = std::make_unique<Vtk::Actor>();
     a->mapper->SetInputConnection(vtk_->meshes[part.mesh]->normals->GetOutputPort());
@@ -206,13 +291,21 @@ void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSetting
   }
   vtk_->ghost_mesh = -1;
   vtk_->ghost.actor->VisibilityOff();
-  scene_ = scene;
-  settings_ = settings;
+  inputs_ = std::move(owned);
+  roots_ = std::move(roots);
+  input_ids_ = ids;
+  input_revisions_ = revisions;
+  display_cell_ = display_cell;
+  cache_ = std::move(cache);
   parts_ = std::move(parts);
   field_ = std::move(field);
   field_changed_ = true;
   message_.clear();
-  // The initial poses until the field's first tick.
+  state_ = haptics::AssemblyState{};
+  ShowInitial();  // the initial poses until the field's first tick
+}
+
+void AssemblyMode::ShowInitial() {
   haptics::AssemblyState initial;
   initial.count = field_->size();
   for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
@@ -226,13 +319,104 @@ bool AssemblyMode::TakeFieldChanged() {
 }
 
 void AssemblyMode::Reset() {
-  if (scene_.parts.empty()) return;
-  field_ = BuildAssemblyField(scene_, settings_);
-  field_changed_ = true;
-  haptics::AssemblyState initial;
-  initial.count = field_->size();
-  for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
-  Show(initial);
+  if (inputs_.empty()) return;
+  // Build replaces inputs_ and roots_: hand it copies.
+  const std::vector<AssemblyPartInput> inputs = inputs_;
+  std::vector<std::unique_ptr<modeling::ImplicitNode>> keep = std::move(roots_);
+  const std::vector<ObjectId> ids = input_ids_;
+  const std::vector<std::uint64_t> revisions = input_revisions_;
+  try {
+    Build(inputs, ids, revisions, display_cell_);
+  } catch (...) {
+    roots_ = std::move(keep);
+    throw;
+  }
+}
+
+namespace {
+
+// True when two poses are equal to round-off (the field copies the poses it is built with).
+bool SamePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff() <= 1e-12;
+}
+
+}  // namespace
+
+bool AssemblyMode::SyncDocument(Document* doc) {
+  // The document's rigid parts now.
+  std::vector<std::pair<ObjectId, std::uint64_t>> now;
+  for (const DocObject& o : doc->objects()) {
+    if (std::holds_alternative<RigidPartData>(o.data)) now.emplace_back(o.id, o.revision);
+  }
+  if (!from_document_ || now != synced_) {
+    // Changed by something else than this mode (undo, redo, a tree edit, an open): rebuild.
+    if (!from_document_ && now.empty()) return false;  // a scene's parts, no document parts
+    try {
+      LoadDocument(*doc, settings_, display_cell_);
+    } catch (const std::exception& e) {
+      synced_ = std::move(now);  // not retried until the parts change again
+      from_document_ = true;
+      message_ =
+          std::string("the parts could not be rebuilt (the last good ones are felt): ") + e.what();
+    }
+    return false;
+  }
+  if (!field_ || state_.count != size()) return false;
+  // Parts let go since the last call: not carried, published pose no longer the document's.
+  std::vector<int> moved;
+  for (int i = 0; i < size(); ++i) {
+    if (parts_[i].fixed || i == state_.carried || parts_[i].id == 0) continue;
+    const DocObject* o = doc->Find(parts_[i].id);
+    if (o == nullptr) continue;
+    if (!SamePose(std::get<RigidPartData>(o->data).X_WP, state_.X_WP[i])) moved.push_back(i);
+  }
+  if (moved.empty()) return false;
+  std::vector<std::unique_ptr<Command>> commands;
+  std::string title;
+  for (int i : moved) {
+    // Re-orthonormalise the carried part's rotation (integrated in the field) for the document.
+    Eigen::Isometry3d X = state_.X_WP[i];
+    const Eigen::Matrix3d R = X.linear();
+    if (!(R.transpose() * R).isIdentity(1e-12)) {
+      X.linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
+    }
+    commands.push_back(edit::SetRigidPose(parts_[i].id, X));
+    std::string other;
+    if (state_.seated[i]) {
+      // The seat it sits in: the nearest of its seats.
+      double best = INFINITY;
+      for (const haptics::AssemblySeat& seat : field_->part(i).seats) {
+        const double d =
+            ((state_.X_WP[seat.other] * seat.X_OS).translation() - X.translation()).norm();
+        if (d < best) {
+          best = d;
+          other = parts_[seat.other].name;
+        }
+      }
+    }
+    if (moved.size() == 1) {
+      title = other.empty() ? "Move part " + parts_[i].name
+                            : "Seat part " + parts_[i].name + " on " + other;
+    } else {
+      title += (title.empty() ? "Move parts " : ", ") + parts_[i].name;
+    }
+  }
+  try {
+    doc->Execute(std::make_unique<MacroCommand>(title, std::move(commands)));
+  } catch (const std::exception& e) {
+    message_ = std::string("could not record the move: ") + e.what();
+    return false;
+  }
+  ++commits_;
+  // The field already holds these poses: remember the revisions this mode made.
+  synced_.clear();
+  for (const DocObject& o : doc->objects()) {
+    if (std::holds_alternative<RigidPartData>(o.data)) synced_.emplace_back(o.id, o.revision);
+  }
+  for (int i = 0; i < size(); ++i) {
+    if (const DocObject* o = doc->Find(parts_[i].id)) parts_[i].revision = o->revision;
+  }
+  return true;
 }
 
 void AssemblyMode::OnFrame() {
@@ -241,10 +425,7 @@ void AssemblyMode::OnFrame() {
   if (latest.count == field_->size()) {
     Show(latest);
   } else if (state_.count != field_->size()) {  // not ticked yet: the initial poses
-    haptics::AssemblyState initial;
-    initial.count = field_->size();
-    for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
-    Show(initial);
+    ShowInitial();
   }
 }
 
@@ -310,6 +491,11 @@ AssemblyPartState AssemblyMode::part_state(int i) const {
   if (parts_[i].fixed) return AssemblyPartState::kFixed;
   if (state_.count == size() && state_.carried == i) return AssemblyPartState::kCarried;
   if (state_.count == size() && state_.seated[i]) return AssemblyPartState::kSeated;
+  // Built in its seat (a document saved with the part seated, an undo back to it) and not
+  // moved since.
+  if (state_.count == size() && parts_[i].seated_at_build &&
+      SamePose(state_.X_WP[i], parts_[i].X_WP))
+    return AssemblyPartState::kSeated;
   return AssemblyPartState::kFree;
 }
 
@@ -334,6 +520,15 @@ std::vector<std::string> AssemblyMode::part_solids() const {
 
 vtkActor* AssemblyMode::actor(int i) const {
   return renderer_ ? vtk_->actors[i]->actor.GetPointer() : nullptr;
+}
+
+std::vector<std::pair<vtkActor*, ObjectId>> AssemblyMode::PickableParts() const {
+  std::vector<std::pair<vtkActor*, ObjectId>> out;
+  if (!renderer_) return out;
+  for (int i = 0; i < size(); ++i) {
+    if (parts_[i].id != 0) out.emplace_back(vtk_->actors[i]->actor.GetPointer(), parts_[i].id);
+  }
+  return out;
 }
 
 vtkActor* AssemblyMode::ghost() const {
@@ -391,11 +586,14 @@ std::string FormatAssemblySummary(const AssemblyMode& mode) {
   // The text is scene/assembly_scene.h's (shared with `spidarcad run`).
   std::vector<std::string> names;
   std::vector<bool> fixed;
+  haptics::AssemblyState state = mode.state();
   for (int i = 0; i < mode.size(); ++i) {
     names.push_back(mode.part_name(i));
     fixed.push_back(mode.part_fixed(i));
+    if (state.count == mode.size())
+      state.seated[i] = mode.part_state(i) == AssemblyPartState::kSeated;
   }
-  return FormatAssemblySummary(names, fixed, mode.state());
+  return FormatAssemblySummary(names, fixed, state);
 }
 
 bool LoadAssemblyScene(const std::string& source, modeling::Scene* scene) {

@@ -1,10 +1,22 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// Assembly mode (issue 5): the window's view of an assembly scene (a scene file with `parts`,
-// e.g. assets/scenes/assembly.json). The logic is haptics::AssemblyField (built once by
+// Assembly mode (issue 5): the window's view of the document's rigid parts (rigid_part objects;
+// a version 1 scene's `parts`, e.g. assets/scenes/assembly.json, become rigid parts when the
+// window opens it, AdoptScenePartsAsRigidParts). The logic is haptics::AssemblyField (built by
 // BuildAssemblyField, scene/assembly_scene.h, on the main thread, never on the 1 kHz one); the
 // window keeps it in a shared_ptr and puts a SharedField to it into every HapticScene it
-// publishes. This class only draws: one actor per part, its surface meshed once per solid in the
-// part's own frame P (MeshSurface), placed each frame at the pose X_WP the field published last
+// publishes.
+//
+// The Document is the one source of truth (issue 12): LoadDocument builds the field from the
+// rigid parts' trees, poses X_WP, fixed flags and seats and remembers each part's object id and
+// revision. SyncDocument, once per frame: when a part the field moved has been let go (not
+// carried, its published pose no longer the document's), it puts one command into the
+// document's history, "Move part NAME" or "Seat part NAME on OTHER" (edit::SetRigidPose);
+// when a rigid part's revision moved for any other reason (undo, redo, a tree edit of its
+// solid, a part added or deleted) it rebuilds the field from the document (trees whose geometry
+// was built before come from an AssemblyGeometryCache; only changed trees are compiled, sampled
+// and meshed again) and the window republishes it. A rebuild drops a carry in progress. This class
+// only draws: one actor per part, its surface meshed once per solid in the part's own frame P
+// (MeshSurface), placed each frame at the pose X_WP the field published last
 // (AssemblyField::LatestState, read here: the main thread is its one reader), coloured by state
 // (fixed, free, carried, seated), plus a translucent ghost of the carried part at the seat it is
 // nearest to. A panel section lists the parts and resets them.
@@ -18,10 +30,13 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "doc/document.h"
 #include "scene/assembly_scene.h"
 #include "spidarcad/haptics/assembly_field.h"
 #include "spidarcad/haptics/device_to_world.h"
@@ -58,14 +73,33 @@ class AssemblyMode {
   // made; the mode is then unchanged.
   void Load(const modeling::Scene& scene, const AssemblySceneSettings& settings = {},
             double display_cell = 0.001);
+  // Takes the rigid_part objects of `doc` (in document order) as the parts, as Load does, and
+  // remembers their ids and revisions for SyncDocument. A document without rigid parts empties
+  // the mode. Throws like Load; the mode is then unchanged.
+  void LoadDocument(const Document& doc, const AssemblySceneSettings& settings = {},
+                    double display_cell = 0.001);
+  // Once per frame after OnFrame (main thread): commits the poses of parts let go since the last
+  // call as one command in `doc`'s history (returns true then), or rebuilds from `doc` when its
+  // rigid parts changed otherwise (TakeFieldChanged is then true). A rebuild that fails keeps
+  // the field and sets message(); it is not retried until the parts change again.
+  bool SyncDocument(Document* doc);
+  // Object id of part i (0 for a mode loaded from a scene).
+  ObjectId part_id(int i) const { return parts_[i].id; }
+  // The latest note of the panel: a failed rebuild or commit ("" when none).
+  const std::string& message() const { return message_; }
+  // Rebuilds so far (LoadDocument and SyncDocument) and commands put into the history.
+  int rebuilds() const { return rebuilds_; }
+  int commits() const { return commits_; }
+  // Trees compiled by the latest build (the others came from the geometry cache).
+  int compiled_last() const { return cache_.compiled_last(); }
   // True when the loaded scene has parts.
   bool has_parts() const { return field_ != nullptr; }
   // The field (null without parts). The window puts a SharedField to it into its HapticScenes.
   const std::shared_ptr<haptics::AssemblyField>& field() const { return field_; }
   // True once after Load or Reset made a new field (the HapticScene must then be republished).
   bool TakeFieldChanged();
-  // Rebuilds the field from the loaded scene: every part back at its initial pose, none
-  // carried or seated. Throws like Load (it cannot fail when Load succeeded).
+  // Rebuilds the field from the loaded scene or document: every part back at the pose it was
+  // loaded with, none carried. Throws like Load (it cannot fail when Load succeeded).
   void Reset();
 
   // Main thread, once per frame: reads the field's latest published state (the initial poses
@@ -94,6 +128,9 @@ class AssemblyMode {
   // Names of the scene solids the parts are made of: the window hides their static actors (the
   // solids sit at their own frame origins; the parts draw them where they are).
   std::vector<std::string> part_solids() const;
+  // The part actors with their document object ids, for picking in the view (parts loaded from
+  // a scene, id 0, are left out; empty without a renderer).
+  std::vector<std::pair<vtkActor*, ObjectId>> PickableParts() const;
   // Part i's actor and the ghost actor (tests); null without a renderer.
   vtkActor* actor(int i) const;
   vtkActor* ghost() const;
@@ -106,14 +143,35 @@ class AssemblyMode {
     std::string name;
     std::string solid;
     bool fixed = false;
-    int mesh = -1;  // index of the part's solid's mesh in vtk_
+    int mesh = -1;                                           // index of its mesh in vtk_
+    ObjectId id = 0;                                         // document object (0: a scene's)
+    std::uint64_t revision = 0;                              // its revision the field holds
+    Eigen::Isometry3d X_WP = Eigen::Isometry3d::Identity();  // pose it was built at
+    bool seated_at_build = false;  // that pose lies in one of its seats (FindSeat)
   };
+  // Builds field, meshes and actors from `inputs` (roots owned by roots_ or the caller);
+  // `ids`/`revisions` empty for a scene. Strong guarantee.
+  void Build(const std::vector<AssemblyPartInput>& inputs, const std::vector<ObjectId>& ids,
+             const std::vector<std::uint64_t>& revisions, double display_cell);
+  void Clear();
+  void ShowInitial();
   void UpdateGhost();
 
   vtkRenderer* renderer_;
   std::unique_ptr<Vtk> vtk_;
-  modeling::Scene scene_;  // the loaded scene (for Reset)
+  // What Reset rebuilds from: the inputs of the latest build with their trees owned here.
+  std::vector<AssemblyPartInput> inputs_;
+  std::vector<std::unique_ptr<modeling::ImplicitNode>> roots_;
+  std::vector<ObjectId> input_ids_;
+  std::vector<std::uint64_t> input_revisions_;
+  double display_cell_ = 0.001;
   AssemblySceneSettings settings_;
+  AssemblyGeometryCache cache_;
+  // (id, revision) of the document's rigid parts at the latest sync or failed rebuild.
+  std::vector<std::pair<ObjectId, std::uint64_t>> synced_;
+  bool from_document_ = false;
+  int rebuilds_ = 0;
+  int commits_ = 0;
   std::shared_ptr<haptics::AssemblyField> field_;
   std::vector<Part> parts_;
   haptics::AssemblyState state_;

@@ -21,10 +21,14 @@
 #include <cstdio>
 #include <utility>
 
+#include "doc/command.h"
+#include "scene/scene_model.h"
+
 namespace spidarcad::app {
 
 FeMode::FeMode(vtkRenderer* renderer, JobQueue* jobs)
     : renderer_(renderer), jobs_(jobs), channel_(std::make_shared<FeContactChannel>()) {
+  mesh_settings_.mesher = "tetgen";
   touch_settings_.tool_radius = 0.0;  // auto: the mesh's mean edge length
   touch_settings_.force_scale = std::pow(10.0, log_force_scale_);
   touch_settings_.max_force = 8.0;
@@ -124,61 +128,50 @@ void FeMode::SetMesh(fem::TetMesh mesh, std::string name) {
             std::to_string(mesh_->num_nodes()) + " nodes; press Precompute";
 }
 
-void FeMode::MeshPlatform(double resolution) {
-  if (jobs_ == nullptr) return;
-  status_ = "meshing the platform...";
-  std::weak_ptr<int> alive = alive_;
-  awaiting_title_ = "Mesh platform (FE)";
-  jobs_->Start(awaiting_title_, [this, resolution, alive](JobContext& ctx) -> Job::Finisher {
-    ctx.SetPhase("surface and TetGen");
-    auto mesh = std::make_shared<fem::TetMesh>(MeshSceneSolidForFe(
-        PlatformScenePath(), "platform", resolution, ctx.cancel_flag(), ctx.ProgressRange(0, 1)));
-    return [this, mesh, alive] {
-      if (!alive.lock()) return;
-      awaiting_title_.clear();
-      SetMesh(std::move(*mesh), "platform");
-    };
-  });
-}
-
 void FeMode::Precompute() {
   if (jobs_ == nullptr || !mesh_ || RunningJob() != nullptr) return;
   FeModelSettings settings = model_settings_;
-  settings.fixed_boxes.clear();
-  if (box_fixed_)
-    settings.fixed_boxes.emplace_back(Eigen::Vector3d(box_[0], box_[1], box_[2]),
-                                      Eigen::Vector3d(box_[3], box_[4], box_[5]));
   std::shared_ptr<const fem::TetMesh> mesh = mesh_;
+  job_key_ = bound_key_;
+  const BoundKey key = bound_key_;
   job_title_ = "FE precompute " + mesh_name_;
   awaiting_title_ = job_title_;
   status_ = "precomputing...";
   std::weak_ptr<int> alive = alive_;
-  jobs_->Start(job_title_, [this, settings, mesh, alive](JobContext& ctx) mutable -> Job::Finisher {
-    settings.cancel = ctx.cancel_flag();
-    settings.progress = ctx.ProgressRange(0.0, 1.0);
-    settings.phase = [&ctx](const std::string& p) { ctx.SetPhase(p); };
-    std::shared_ptr<FeModel> model = FeModel::Build(*mesh, settings);
-    settings.progress = nullptr;
-    settings.phase = nullptr;
-    return [this, model, mesh, alive] {
-      if (!alive.lock()) return;
-      awaiting_title_.clear();
-      if (mesh != mesh_) return;  // part changed: drop the result
-      model_ = model;
-      char line[160];
-      std::snprintf(line, sizeof line,
-                    "ready: %d nodes clamped, %zu surface nodes, %d columns from disk, %.1f s",
-                    model_->num_fixed_nodes(), model_->surface().nodes.size(),
-                    model_->imported_nodes(), model_->build_seconds());
-      status_ = line;
-      BuildSurfaceActor();
-      const bool show = active_;
-      actor_->SetVisibility(show);
-      legend_->SetVisibility(show);
-      sphere_actor_->SetVisibility(show);
-      if (active_) QueueField();
-    };
-  });
+  jobs_->Start(
+      job_title_, [this, settings, mesh, key, alive](JobContext& ctx) mutable -> Job::Finisher {
+        settings.cancel = ctx.cancel_flag();
+        settings.progress = ctx.ProgressRange(0.0, 1.0);
+        settings.phase = [&ctx](const std::string& p) { ctx.SetPhase(p); };
+        std::shared_ptr<FeModel> model = FeModel::Build(*mesh, settings);
+        settings.progress = nullptr;
+        settings.phase = nullptr;
+        return [this, model, mesh, key, alive] {
+          if (!alive.lock()) return;
+          awaiting_title_.clear();
+          if (mesh != mesh_ || !(key == bound_key_)) return;  // part changed: drop the result
+          model_ = model;
+          if (key.fe != 0) {
+            kept_.emplace_back(key, model);
+            if (kept_.size() > kKeptModels) kept_.erase(kept_.begin());
+          }
+          char line[160];
+          std::snprintf(line, sizeof line,
+                        "ready: %d nodes clamped, %zu surface nodes, %d columns from disk, %.1f s",
+                        model_->num_fixed_nodes(), model_->surface().nodes.size(),
+                        model_->imported_nodes(), model_->build_seconds());
+          status_ = line;
+          BuildSurfaceActor();
+          ShowModel(active_);
+          if (active_) QueueField();
+        };
+      });
+}
+
+void FeMode::ShowModel(bool show) {
+  actor_->SetVisibility(show);
+  legend_->SetVisibility(show);
+  sphere_actor_->SetVisibility(show);
 }
 
 Job* FeMode::RunningJob() const {
@@ -206,6 +199,8 @@ std::unique_ptr<haptics::ForceField> FeMode::TakeField() {
 bool FeMode::Settled() const {
   if (!active_) return true;
   if (!model_) {
+    // A model is about to be asked for (a set-up landed, the document changed).
+    if (rebuild_pending_ || precompute_on_bind_) return false;
     // Waiting while a job of ours runs or has succeeded with its finisher still to run.
     if (awaiting_title_.empty() || jobs_ == nullptr) return true;
     for (const auto& job : jobs_->jobs())
@@ -278,6 +273,12 @@ void FeMode::UpdateSurface(const FeContactState* state) {
 }
 
 void FeMode::OnFrame(const haptics::ToolState& tool) {
+  // Not while a panel value is being dragged: each step of the drag changes the model again.
+  const bool dragging = ImGui::GetCurrentContext() != nullptr && ImGui::IsAnyItemActive();
+  if (rebuild_pending_ && mesh_ && RunningJob() == nullptr && !dragging) {
+    rebuild_pending_ = false;
+    Precompute();
+  }
   if (!model_) return;
   figures_.ready_columns = model_->cache().ready_nodes();
   const Eigen::Vector3d& p = tool.tool_W.p_WT;
@@ -291,46 +292,13 @@ void FeMode::OnFrame(const haptics::ToolState& tool) {
                                          figures_.contacts > 0 ? 0.5 : 0.8, 0.2);
 }
 
-void FeMode::DrawPanel() {
-  ImGui::TextWrapped("%s", status_.c_str());
-  if (ImGui::Button("Mesh the platform")) MeshPlatform(1e-3 * resolution_mm_);
-  ImGui::SameLine();
-  ImGui::SetNextItemWidth(90);
-  ImGui::DragFloat("cell [mm]", &resolution_mm_, 0.2f, 3.0f, 30.0f, "%.1f");
-
-  ImGui::Separator();
-  ImGui::TextUnformatted("Material");
-  for (int i = 0; i < static_cast<int>(std::size(kMaterialPresets)); ++i) {
-    if (i > 0) ImGui::SameLine();
-    if (ImGui::RadioButton(kMaterialPresets[i].name, preset_ == i)) {
-      preset_ = i;
-      model_settings_.material = kMaterialPresets[i].material;
-    }
-  }
-  float e_gpa = static_cast<float>(model_settings_.material.youngs_modulus * 1e-9);
-  if (ImGui::DragFloat("E [GPa]", &e_gpa, 0.5f, 0.001f, 1000.0f, "%.3f")) {
-    model_settings_.material.youngs_modulus = std::max(1e-3f, e_gpa) * 1e9;
-    preset_ = -1;
-  }
-  float nu = static_cast<float>(model_settings_.material.poisson_ratio);
-  if (ImGui::DragFloat("nu", &nu, 0.005f, 0.0f, 0.49f, "%.3f")) {
-    model_settings_.material.poisson_ratio = std::clamp(nu, 0.0f, 0.49f);
-    preset_ = -1;
-  }
-  ImGui::TextUnformatted("Fixed region");
-  if (ImGui::RadioButton("minimum-x face (wall)", !box_fixed_)) box_fixed_ = false;
-  ImGui::SameLine();
-  if (ImGui::RadioButton("box", box_fixed_)) box_fixed_ = true;
-  if (box_fixed_) {
-    ImGui::InputFloat3("min [m]", box_);
-    ImGui::InputFloat3("max [m]", box_ + 3);
-  }
-  int order = model_settings_.order;
-  ImGui::TextUnformatted("Elements");
-  ImGui::SameLine();
-  if (ImGui::RadioButton("linear", order == 1)) model_settings_.order = 1;
-  ImGui::SameLine();
-  if (ImGui::RadioButton("quadratic", order == 2)) model_settings_.order = 2;
+void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
+  if (model != nullptr) SyncDocument(model, selected);
+  ImGui::PushTextWrapPos(0.0f);
+  ImGui::TextUnformatted(status_.c_str());
+  ImGui::PopTextWrapPos();
+  if (model != nullptr) DrawDocumentPanel(model);
+  DrawSettingsPanel(model);
 
   Job* running = RunningJob();
   if (running != nullptr) {
@@ -340,7 +308,7 @@ void FeMode::DrawPanel() {
     if (ImGui::Button("Cancel")) running->Cancel();
   } else {
     if (!mesh_) ImGui::BeginDisabled();
-    if (ImGui::Button("Precompute")) Precompute();
+    if (ImGui::Button("Precompute")) RequestModel();
     if (!mesh_) ImGui::EndDisabled();
   }
 
@@ -393,6 +361,487 @@ void FeMode::DrawPanel() {
     ImGui::Text("columns ready: %d of %d", figures_.ready_columns,
                 model_->cache().num_candidates());
   }
+}
+
+// ---- the document ----
+
+FeSourceKind FeMode::KindOf(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return FeSourceKind::kNone;
+  auto it = kinds_.find(id);
+  if (it != kinds_.end() && it->second.first == o->revision) return it->second.second;
+  const FeSourceKind kind = ClassifyFeSource(doc, id);
+  kinds_[id] = {o->revision, kind};
+  return kind;
+}
+
+FeMode::BoundKey FeMode::KeyOf(const Document& doc, ObjectId fe) {
+  BoundKey key;
+  const DocObject* o = doc.Find(fe);
+  const auto* data = o != nullptr ? std::get_if<FeModelData>(&o->data) : nullptr;
+  if (data == nullptr) return key;
+  key.fe = fe;
+  key.fe_revision = o->revision;
+  key.mesh = data->tet_mesh;
+  if (const DocObject* mesh = doc.Find(data->tet_mesh)) key.mesh_revision = mesh->revision;
+  return key;
+}
+
+namespace {
+
+// Whether FE mode can choose the object, judged by its kind alone (cheap, every frame; whether a
+// surface is closed is checked when it is set up).
+bool MayBecomeFeModel(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return false;
+  if (const auto* m = std::get_if<MeshData>(&o->data)) return m->volume || m->surface;
+  return !std::holds_alternative<RigidPartData>(o->data);
+}
+
+}  // namespace
+
+void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
+  if (model == nullptr) return;
+  const Document& doc = model->document();
+  if (model->generation() != generation_) {
+    // Another document (open, new, reload): ids start again, nothing of the old one applies.
+    generation_ = model->generation();
+    chosen_ = 0;
+    last_selected_ = 0;
+    kept_.clear();
+    kinds_.clear();
+    pending_text_.clear();
+    want_model_ = false;
+    rebuild_pending_ = false;
+    precompute_on_bind_ = false;
+    Rebind(doc, 0);
+  }
+  // A Job of ours that failed or was cancelled: say so (the newest of that title is ours).
+  if (!awaiting_title_.empty() && jobs_ != nullptr) {
+    for (auto it = jobs_->jobs().rbegin(); it != jobs_->jobs().rend(); ++it) {
+      const Job* job = it->get();
+      if (job->title() != awaiting_title_) continue;
+      if (job->state() == Job::State::kFailed) {
+        status_ = job->title() + " failed: " + job->error();
+        awaiting_title_.clear();
+        precompute_on_bind_ = false;
+      } else if (job->state() == Job::State::kCancelled) {
+        status_ = job->title() + ": cancelled, nothing changed";
+        awaiting_title_.clear();
+        precompute_on_bind_ = false;
+      }
+      break;
+    }
+  }
+  if (selected != last_selected_) {
+    last_selected_ = selected;
+    if (selected != 0 && MayBecomeFeModel(doc, selected)) chosen_ = selected;
+  }
+  if (chosen_ != 0 && !MayBecomeFeModel(doc, chosen_)) chosen_ = 0;
+  ObjectId fe = 0;
+  if (chosen_ != 0) {
+    fe = FeModelFor(doc, chosen_);
+  } else {
+    for (const DocObject& o : doc.objects()) {
+      if (std::holds_alternative<FeModelData>(o.data)) {
+        fe = o.id;
+        break;
+      }
+    }
+  }
+  if (fe != bound_ || KeyOf(doc, fe) != bound_key_) Rebind(doc, fe);
+  if (doc.revision() != doc_revision_) {
+    doc_revision_ = doc.revision();
+    stale_ = bound_key_.mesh != 0 && doc.Find(bound_key_.mesh) != nullptr &&
+             doc.IsMeshOutOfDate(bound_key_.mesh);
+  }
+}
+
+void FeMode::Rebind(const Document& doc, ObjectId fe) {
+  const bool same_object = fe == bound_ && fe != 0;
+  const BoundKey key = KeyOf(doc, fe);
+  const BoundKey old_key = bound_key_;
+  bound_ = fe;
+  bound_key_ = key;
+  doc_revision_ = 0;  // recompute staleness
+  // A precompute of what is no longer shown is of no use.
+  if (Job* running = RunningJob(); running != nullptr && awaiting_title_ == job_title_ &&
+                                   job_key_ != key && job_title_.rfind("FE precompute", 0) == 0) {
+    running->Cancel();
+  }
+  if (!same_object) want_model_ = false;
+  if (fe == 0) {
+    mesh_.reset();
+    model_.reset();
+    pending_field_.reset();
+    ShowModel(false);
+    mesh_name_.clear();
+    if (awaiting_title_.empty()) status_ = "no FE model: choose an object and set up FE";
+    return;
+  }
+  const DocObject& o = doc.Get(fe);
+  const auto& data = std::get<FeModelData>(o.data);
+  model_settings_ = ApplyFeModelData(data, model_settings_);
+  preset_ = -1;
+  for (int i = 0; i < static_cast<int>(std::size(kMaterialPresets)); ++i) {
+    if (kMaterialPresets[i].material.youngs_modulus == data.material.youngs_modulus &&
+        kMaterialPresets[i].material.poisson_ratio == data.material.poisson_ratio)
+      preset_ = i;
+  }
+  box_fixed_ = !data.fixed_boxes.empty();
+  if (box_fixed_) {
+    for (int k = 0; k < 3; ++k) {
+      box_[k] = static_cast<float>(data.fixed_boxes[0].min()[k]);
+      box_[3 + k] = static_cast<float>(data.fixed_boxes[0].max()[k]);
+    }
+  }
+  if (old_key.fe == key.fe && old_key.mesh == key.mesh &&
+      old_key.mesh_revision == key.mesh_revision && mesh_) {
+    // Only the FE settings changed: same mesh, new model.
+    model_.reset();
+    pending_field_.reset();
+    ShowModel(false);
+    mesh_name_ = o.name;
+    status_ = o.name + ": settings changed; press Precompute";
+  } else {
+    try {
+      SetMesh(FeMeshOf(doc, data), o.name);
+    } catch (const std::exception& e) {
+      mesh_.reset();
+      status_ = o.name + ": " + e.what();
+      return;
+    }
+  }
+  if (precompute_on_bind_) {
+    precompute_on_bind_ = false;
+    want_model_ = true;
+  }
+  for (const auto& [kept_key, kept_model] : kept_) {
+    if (kept_key != key) continue;
+    model_ = kept_model;
+    status_ = o.name + ": ready (kept from before: " + std::to_string(model_->num_fixed_nodes()) +
+              " nodes clamped)";
+    BuildSurfaceActor();
+    ShowModel(active_);
+    if (active_) QueueField();
+    return;
+  }
+  if (want_model_) rebuild_pending_ = true;
+}
+
+void FeMode::RequestModel() {
+  want_model_ = true;
+  Precompute();
+}
+
+bool FeMode::Execute(SceneModel* model, std::unique_ptr<Command> command) {
+  try {
+    model->document().Execute(std::move(command));
+    return true;
+  } catch (const std::exception& e) {
+    status_ = std::string("not changed: ") + e.what();
+    return false;
+  }
+}
+
+bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, bool precompute) {
+  if (model == nullptr) return false;
+  Document& doc = model->document();
+  const FeSourceKind kind = KindOf(doc, source);
+  const DocObject* o = doc.Find(source);
+  if (kind == FeSourceKind::kNone || o == nullptr) {
+    status_ = "set up FE: choose a solid, sculpt or mesh (that one cannot become an FE model)";
+    return false;
+  }
+  chosen_ = source;
+  if (const ObjectId fe = FeModelFor(doc, source); fe != 0) {
+    SyncDocument(model, last_selected_);
+    if (precompute && bound_ == fe) RequestModel();
+    return true;
+  }
+  if (kind == FeSourceKind::kVolumeMesh) {
+    precompute_on_bind_ = precompute;
+    if (!Execute(model, SetUpFeOnMesh(doc, source))) return false;
+    SyncDocument(model, last_selected_);
+    return true;
+  }
+  if (jobs_ == nullptr || RunningJob() != nullptr) {
+    status_ = "set up FE: wait for the running job";
+    return false;
+  }
+  FeMeshInput input;
+  try {
+    input = PrepareFeMesh(doc, source, mesh_settings_);
+    if (check_budget) {
+      if (const auto estimate = EstimateFeMesh(input)) {
+        const std::string over = FeMeshOverBudget(*estimate);
+        if (!over.empty()) {
+          pending_input_ = std::move(input);
+          pending_precompute_ = precompute;
+          pending_text_ = "Meshing '" + o->name + "' is large: " + over + " (" +
+                          estimate->Describe() + "; the limits of spidarcad mesh, docs/limits.md).";
+          status_ = "set up FE: waiting for an answer (the mesh is large)";
+          return false;
+        }
+      }
+    }
+  } catch (const std::exception& e) {
+    status_ = std::string("set up FE: ") + e.what();
+    return false;
+  }
+  precompute_on_bind_ = precompute;
+  StartMeshJob(model, input, false, 0);
+  return true;
+}
+
+void FeMode::ConfirmSetUp(SceneModel* model, bool proceed) {
+  if (pending_text_.empty()) return;
+  pending_text_.clear();
+  if (!proceed || model == nullptr) {
+    status_ = "set up FE: cancelled, nothing changed";
+    return;
+  }
+  precompute_on_bind_ = pending_precompute_;
+  StartMeshJob(model, pending_input_, false, 0);
+}
+
+bool FeMode::StartRefresh(SceneModel* model) {
+  if (model == nullptr || bound_key_.mesh == 0 || jobs_ == nullptr || RunningJob() != nullptr)
+    return false;
+  try {
+    const FeMeshInput input = PrepareFeRemesh(model->document(), bound_key_.mesh);
+    want_model_ = want_model_ || model_ != nullptr;
+    StartMeshJob(model, input, true, bound_key_.mesh);
+  } catch (const std::exception& e) {
+    status_ = std::string("refresh: ") + e.what();
+    return false;
+  }
+  return true;
+}
+
+void FeMode::StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refresh_mesh,
+                          ObjectId mesh) {
+  job_title_ = (refresh_mesh ? "Refresh mesh of " : "Set up FE for ") + input.source_name;
+  awaiting_title_ = job_title_;
+  status_ = (refresh_mesh ? "meshing '" : "meshing '") + input.source_name + "' (" +
+            (input.settings.mesher == "cgal" ? "CGAL" : "TetGen") + ")...";
+  std::weak_ptr<int> alive = alive_;
+  const int generation = model->generation();
+  jobs_->Start(job_title_,
+               [this, model, input, refresh_mesh, mesh, generation,
+                alive](JobContext& ctx) -> Job::Finisher {
+                 ctx.SetPhase(input.kind == FeSourceKind::kSolid && input.settings.mesher == "cgal"
+                                  ? "CGAL Mesh_3"
+                                  : "surface and TetGen");
+                 auto result = std::make_shared<FeMeshResult>(
+                     MeshFeSource(input, ctx.cancel_flag(), ctx.ProgressRange(0.0, 1.0)));
+                 return [this, model, input, refresh_mesh, mesh, generation, result, alive] {
+                   if (!alive.lock()) return;
+                   awaiting_title_.clear();
+                   if (model->generation() != generation) {  // another document: drop it
+                     precompute_on_bind_ = false;
+                     return;
+                   }
+                   std::unique_ptr<Command> command =
+                       refresh_mesh ? RefreshFeMesh(mesh, input, *result) : SetUpFe(input, *result);
+                   if (!Execute(model, std::move(command))) {
+                     precompute_on_bind_ = false;
+                     return;  // the source changed meanwhile: status_ says so
+                   }
+                   char line[200];
+                   std::snprintf(line, sizeof line, "%s: %ld tets, %ld nodes",
+                                 refresh_mesh ? "refreshed" : "set up",
+                                 static_cast<long>(result->volume->tets.cols()),
+                                 static_cast<long>(result->volume->nodes.cols()));
+                   status_ = line;
+                   if (!refresh_mesh) chosen_ = input.source;
+                 };
+               });
+}
+
+bool FeMode::EditMaterial(SceneModel* model, const fem::Material& material, bool dragging) {
+  if (model == nullptr || bound_ == 0) return false;
+  return Execute(model, edit::SetFeMaterial(bound_, material, dragging));
+}
+
+bool FeMode::EditFixedBoxes(SceneModel* model, std::vector<Eigen::AlignedBox3d> boxes) {
+  if (model == nullptr || bound_ == 0) return false;
+  return Execute(model, edit::SetFixedBoxes(bound_, std::move(boxes)));
+}
+
+bool FeMode::EditElementOrder(SceneModel* model, int order) {
+  if (model == nullptr || bound_ == 0) return false;
+  return Execute(model, edit::SetElementOrder(bound_, order));
+}
+
+void FeMode::DrawDocumentPanel(SceneModel* model) {
+  const Document& doc = model->document();
+  // The objects FE mode can use.
+  std::string preview = "(choose)";
+  if (const DocObject* c = doc.Find(chosen_)) preview = c->name;
+  if (ImGui::BeginCombo("object", preview.c_str())) {
+    for (const DocObject& o : doc.objects()) {
+      const FeSourceKind kind = KindOf(doc, o.id);
+      if (kind == FeSourceKind::kNone) continue;
+      const std::string label =
+          o.name + "  (" + FeSourceKindText(kind) + ")##" + std::to_string(o.id);
+      if (ImGui::Selectable(label.c_str(), o.id == chosen_)) chosen_ = o.id;
+    }
+    ImGui::EndCombo();
+  }
+  const FeSourceKind kind = KindOf(doc, chosen_);
+  const bool busy = RunningJob() != nullptr;
+  if (bound_ == 0 && kind != FeSourceKind::kNone) {
+    const DocObject& source = doc.Get(chosen_);
+    if (kind == FeSourceKind::kSolid) {
+      ImGui::TextUnformatted("Mesher");
+      ImGui::SameLine();
+      const bool cgal = mesh_settings_.mesher == "cgal";
+      if (ImGui::RadioButton("TetGen", !cgal)) mesh_settings_.mesher = "tetgen";
+      ImGui::SameLine();
+      if (ImGui::RadioButton("CGAL", cgal)) {
+        mesh_settings_.mesher = "cgal";
+        mesh_settings_.sharp_edges = false;
+      }
+      if (!cgal) ImGui::Checkbox("sharp edges", &mesh_settings_.sharp_edges);
+      float cell_mm = static_cast<float>(1e3 * mesh_settings_.cell_size);
+      if (ImGui::DragFloat("cell [mm] (0: auto)", &cell_mm, 0.2f, 0.0f, 100.0f, "%.1f"))
+        mesh_settings_.cell_size = 1e-3 * std::max(0.0f, cell_mm);
+    } else if (kind != FeSourceKind::kVolumeMesh) {
+      ImGui::TextDisabled("TetGen meshes its closed surface.");
+    }
+    if (busy) ImGui::BeginDisabled();
+    const std::string label = "Set up FE for " + source.name;
+    if (ImGui::Button(label.c_str())) {
+      MeshSettings saved = mesh_settings_;
+      if (kind != FeSourceKind::kSolid) {  // only solids have a mesher choice
+        mesh_settings_.mesher.clear();
+        mesh_settings_.sharp_edges = false;
+      }
+      StartSetUp(model, chosen_);
+      mesh_settings_ = saved;
+    }
+    if (busy) ImGui::EndDisabled();
+  } else if (bound_ == 0 && chosen_ != 0) {
+    ImGui::TextDisabled("(its surface is not closed: TetGen cannot fill it)");
+  } else if (bound_ != 0) {
+    const DocObject& fe = doc.Get(bound_);
+    const DocObject* mesh = doc.Find(bound_key_.mesh);
+    ImGui::TextDisabled("FE model '%s' on mesh '%s'", fe.name.c_str(),
+                        mesh != nullptr ? mesh->name.c_str() : "?");
+    if (stale_) {
+      const auto& md = std::get<MeshData>(mesh->data);
+      const DocObject* src = doc.Find(md.source);
+      ImGui::TextColored(ImVec4(0.9f, 0.55f, 0.1f, 1.0f), "stale: %s changed since it was meshed",
+                         src != nullptr ? src->name.c_str() : "its source");
+      if (busy || src == nullptr) ImGui::BeginDisabled();
+      if (ImGui::Button("Refresh")) StartRefresh(model);
+      if (busy || src == nullptr) ImGui::EndDisabled();
+    }
+  }
+  // The over-budget question.
+  if (!pending_text_.empty() && !ImGui::IsPopupOpen("Large mesh")) ImGui::OpenPopup("Large mesh");
+  if (ImGui::BeginPopupModal("Large mesh", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) {
+    ImGui::PushTextWrapPos(ImGui::GetFontSize() * 30.0f);
+    ImGui::TextUnformatted(pending_text_.c_str());
+    ImGui::PopTextWrapPos();
+    if (ImGui::Button("Proceed")) {
+      ConfirmSetUp(model, true);
+      ImGui::CloseCurrentPopup();
+    }
+    ImGui::SameLine();
+    if (ImGui::Button("Cancel") || pending_text_.empty()) {
+      ConfirmSetUp(model, false);
+      ImGui::CloseCurrentPopup();
+    }
+    ImGui::EndPopup();
+  }
+  ImGui::Separator();
+}
+
+void FeMode::DrawSettingsPanel(SceneModel* model) {
+  // Bound to a document FE model: every change is a command on it (the mode follows at the
+  // next SyncDocument). Otherwise (a mesh given by SetMesh) the settings are the mode's own.
+  const bool bound = model != nullptr && bound_ != 0;
+  if (model != nullptr && !bound) ImGui::BeginDisabled();
+  ImGui::TextUnformatted("Material");
+  fem::Material material = model_settings_.material;
+  bool material_changed = false, dragging = false;
+  for (int i = 0; i < static_cast<int>(std::size(kMaterialPresets)); ++i) {
+    if (i > 0) ImGui::SameLine();
+    if (ImGui::RadioButton(kMaterialPresets[i].name, preset_ == i)) {
+      material = kMaterialPresets[i].material;
+      material_changed = true;
+    }
+  }
+  float e_gpa = static_cast<float>(material.youngs_modulus * 1e-9);
+  if (ImGui::DragFloat("E [GPa]", &e_gpa, 0.5f, 0.001f, 1000.0f, "%.3f")) {
+    material.youngs_modulus = std::max(1e-3f, e_gpa) * 1e9;
+    material_changed = dragging = true;
+  }
+  const bool e_released = ImGui::IsItemDeactivatedAfterEdit();
+  float nu = static_cast<float>(material.poisson_ratio);
+  if (ImGui::DragFloat("nu", &nu, 0.005f, 0.0f, 0.49f, "%.3f")) {
+    material.poisson_ratio = std::clamp(nu, 0.0f, 0.49f);
+    material_changed = dragging = true;
+  }
+  const bool nu_released = ImGui::IsItemDeactivatedAfterEdit();
+  if (material_changed) {
+    if (bound) {
+      EditMaterial(model, material, dragging);
+    } else {
+      model_settings_.material = material;
+      preset_ = -1;
+      for (int i = 0; i < static_cast<int>(std::size(kMaterialPresets)); ++i)
+        if (kMaterialPresets[i].material.youngs_modulus == material.youngs_modulus &&
+            kMaterialPresets[i].material.poisson_ratio == material.poisson_ratio)
+          preset_ = i;
+    }
+  }
+  if (bound && (e_released || nu_released)) model->document().EndDrag();
+
+  ImGui::TextUnformatted("Fixed region");
+  bool boxes_changed = false;
+  if (ImGui::RadioButton("minimum-x face (wall)", !box_fixed_) && box_fixed_) {
+    box_fixed_ = false;
+    boxes_changed = true;
+  }
+  ImGui::SameLine();
+  if (ImGui::RadioButton("box", box_fixed_) && !box_fixed_) {
+    box_fixed_ = true;
+    boxes_changed = true;
+  }
+  if (box_fixed_) {
+    ImGui::InputFloat3("min [m]", box_);
+    boxes_changed |= ImGui::IsItemDeactivatedAfterEdit();
+    ImGui::InputFloat3("max [m]", box_ + 3);
+    boxes_changed |= ImGui::IsItemDeactivatedAfterEdit();
+  }
+  if (boxes_changed) {
+    std::vector<Eigen::AlignedBox3d> boxes;
+    if (box_fixed_)
+      boxes.emplace_back(Eigen::Vector3d(box_[0], box_[1], box_[2]),
+                         Eigen::Vector3d(box_[3], box_[4], box_[5]));
+    if (bound) {
+      EditFixedBoxes(model, std::move(boxes));
+    } else {
+      model_settings_.fixed_boxes = std::move(boxes);
+    }
+  }
+  int order = model_settings_.order;
+  ImGui::TextUnformatted("Elements");
+  ImGui::SameLine();
+  if (ImGui::RadioButton("linear", order == 1)) order = 1;
+  ImGui::SameLine();
+  if (ImGui::RadioButton("quadratic", order == 2)) order = 2;
+  if (order != model_settings_.order) {
+    if (bound) {
+      EditElementOrder(model, order);
+    } else {
+      model_settings_.order = order;
+    }
+  }
+  if (model != nullptr && !bound) ImGui::EndDisabled();
 }
 
 FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale) {

@@ -1,9 +1,14 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// FE mode of the window (modes.md contract): pick a meshed part, set its material, clamped
-// region and element order, precompute (a Job with progress and cancel), then push it with the
-// grip: the reaction force is felt (FeTouchField) and shown as numbers, and the deformed
-// surface is drawn coloured by von Mises stress with a legend (MPa), the displacement
-// magnified by a slider.
+// FE mode of the window (modes.md contract): pick a document object (an FE model, or a solid,
+// sculpt or mesh that can become one: "Set up FE" meshes it in a Job and lands a mesh object and
+// an FE model as one undo step), set its material, clamped region and element order (commands
+// on the FE model object, undoable with the rest of the document), precompute (a Job with
+// progress and cancel), then push it with the grip: the reaction force is felt (FeTouchField)
+// and shown as numbers, and the deformed surface is drawn coloured by von Mises stress with a
+// legend (MPa), the displacement magnified by a slider. The mode follows the document: when the
+// FE model or its mesh changes (an edit, undo, redo, an open) the model shown is dropped and, if
+// one was asked for, precomputed again (the last few models are kept, so undo brings one back at
+// once). A mesh whose source changed since it was meshed shows as stale, with Refresh.
 //
 // The logic lives in scene/fe_model.h and scene/fe_touch_field.h (no VTK, no ImGui, tested
 // headless in tests/app/fe_mode_test.cc); this class is the thin VTK/ImGui layer. Main thread
@@ -15,11 +20,17 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include "doc/document.h"
 #include "doc/job.h"
 #include "scene/fe_model.h"
+#include "scene/fe_setup.h"
 #include "scene/fe_touch_field.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/haptics/device_to_world.h"
@@ -35,6 +46,8 @@ class vtkSphereSource;
 class vtkDoubleArray;
 
 namespace spidarcad::app {
+
+class SceneModel;
 
 // Figures of the live FE state shown in the panel (and read by tests/demos).
 struct FeLiveFigures {
@@ -67,8 +80,16 @@ class FeMode {
   void SetActive(bool active);
   // True while active.
   bool active() const { return active_; }
-  // ImGui widgets of the panel (no Begin/End).
-  void DrawPanel();
+  // ImGui widgets of the panel (no Begin/End). `model` (may be null: no document) is the scene
+  // whose document the panel edits; `selected` the object selected in the tree (0: none).
+  void DrawPanel(SceneModel* model = nullptr, ObjectId selected = 0);
+  // Follows the document of `model` (call every frame before OnFrame and DrawPanel): takes the
+  // tree's selection `selected` as the chosen object when FE mode can use it, binds to the FE
+  // model of the chosen object (FeModelFor; else the document's first FE model while nothing is
+  // chosen) and, when that FE model or its mesh changed since the last call, drops the model
+  // shown and rebuilds it from the document (from the kept models, or by precomputing again
+  // when a model had been asked for). Also picks up failed set-up and refresh Jobs.
+  void SyncDocument(SceneModel* model, ObjectId selected);
   // Per frame: reads the latest contact state and updates the deformed surface and figures.
   void OnFrame(const haptics::ToolState& tool);
   // The force field to publish when it changed since the last call (new model, new tool
@@ -79,11 +100,44 @@ class FeMode {
   void SetWorldToView(const haptics::DeviceToWorld& X_WD);
   // The part to work on (tetrahedra in W, m); drops the current model (precompute again).
   void SetMesh(fem::TetMesh mesh, std::string name);
-  // Meshes assets/scenes/platform.json at `resolution` m (TetGen) in a Job; its finisher calls
-  // SetMesh(mesh, "platform").
-  void MeshPlatform(double resolution = 0.012);
-  // Starts the precomputation Job with the panel's settings (material, clamps, order).
+  // Starts the precomputation Job with model_settings() (synced from the bound FE model).
   void Precompute();
+  // Precomputes the bound model now and again whenever it changes (what the Precompute button
+  // does).
+  void RequestModel();
+
+  // ---- the document (main thread; `model` is the window's scene) ----
+  // Chooses object `id` (as picking it in the panel's list does); binds at the next SyncDocument.
+  void Choose(ObjectId id) { chosen_ = id; }
+  // Sets up FE for object `source` (FeSourceKind): an FE model is chosen as it is; a volume mesh
+  // gets an FE model at once (one command); a solid, sculpt or closed surface mesh is meshed with
+  // mesh_settings() in a Job whose finisher executes SetUpFe (a source changed meanwhile drops
+  // the result). With `check_budget`, a solid meshed by TetGen whose estimated cost is past
+  // `spidarcad mesh`'s default budget is not started: pending_setup() then says why and
+  // ConfirmSetUp decides. `precompute` precomputes the FE model once it is bound. Returns
+  // false (status() says why) when nothing was started.
+  bool StartSetUp(SceneModel* model, ObjectId source, bool check_budget = true,
+                  bool precompute = false);
+  // The over-budget question of the last StartSetUp ("" when none is pending).
+  const std::string& pending_setup() const { return pending_text_; }
+  // Answers it: Proceed starts the Job, Cancel drops it.
+  void ConfirmSetUp(SceneModel* model, bool proceed);
+  // Meshes the bound FE model's mesh again from its source with its stored settings (a Job whose
+  // finisher executes RefreshFeMesh). False when there is nothing to refresh.
+  bool StartRefresh(SceneModel* model);
+  // Sets the bound FE model's material (a command; `dragging` merges with the previous drag
+  // step), its clamp (empty: the minimum-x face) or its element order. False (status() says why)
+  // when there is no bound model or the document refused the edit.
+  bool EditMaterial(SceneModel* model, const fem::Material& material, bool dragging = false);
+  bool EditFixedBoxes(SceneModel* model, std::vector<Eigen::AlignedBox3d> boxes);
+  bool EditElementOrder(SceneModel* model, int order);
+  // The FE model object the mode works on (0: none), and the chosen object.
+  ObjectId bound_object() const { return bound_; }
+  ObjectId chosen_object() const { return chosen_; }
+  // True when the bound FE model's mesh was made from a source that has changed since.
+  bool stale() const { return stale_; }
+  // How "Set up FE" meshes a solid (mesher, sharp edges, cell size; 0: from its size).
+  MeshSettings& mesh_settings() { return mesh_settings_; }
 
   // Model settings the next Precompute uses (editable by code as by the panel).
   FeModelSettings& model_settings() { return model_settings_; }
@@ -110,6 +164,25 @@ class FeMode {
   void UpdateSurface(const FeContactState* state);
   void QueueField();
   Job* RunningJob() const;
+  void ShowModel(bool show);
+  void Rebind(const Document& doc, ObjectId fe);
+  void StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refresh_mesh, ObjectId mesh);
+  bool Execute(SceneModel* model, std::unique_ptr<Command> command);
+  void DrawDocumentPanel(SceneModel* model);
+  void DrawSettingsPanel(SceneModel* model);
+
+  // Revisions the shown model was made from: the FE model's and its mesh's.
+  struct BoundKey {
+    ObjectId fe = 0;
+    std::uint64_t fe_revision = 0;
+    ObjectId mesh = 0;
+    std::uint64_t mesh_revision = 0;
+    bool operator==(const BoundKey&) const = default;
+  };
+  static BoundKey KeyOf(const Document& doc, ObjectId fe);
+  // ClassifyFeSource, remembered per object revision (a closed-surface check walks every edge).
+  FeSourceKind KindOf(const Document& doc, ObjectId id);
+  std::map<ObjectId, std::pair<std::uint64_t, FeSourceKind>> kinds_;
 
   vtkRenderer* renderer_;
   JobQueue* jobs_;
@@ -122,7 +195,7 @@ class FeMode {
   FeModelSettings model_settings_;
   FeTouchSettings touch_settings_;
   FeLiveFigures figures_;
-  std::string status_ = "no part: mesh the platform or pick a meshed object";
+  std::string status_ = "no part: choose an object and set up FE";
   std::string job_title_;
   // Panel state.
   int preset_ = 0;
@@ -130,7 +203,6 @@ class FeMode {
   float box_[6] = {-1.0f, -1.0f, -1.0f, 0.001f, 1.0f, 1.0f};
   float magnify_ = 100.0f;
   float log_force_scale_ = static_cast<float>(std::log10(kDefaultFeForceScale));
-  float resolution_mm_ = 12.0f;
   bool auto_range_ = true;
   float range_mpa_ = 100.0f;
   double magnify_shown_ = -1.0;
@@ -149,6 +221,25 @@ class FeMode {
   // Title of the mesh or precompute Job whose finisher has not run yet (empty: none).
   std::string awaiting_title_;
   double field_start_time_ = -1.0;
+  // The document side.
+  int generation_ = -1;         // SceneModel::generation() of the document followed
+  ObjectId last_selected_ = 0;  // tree selection at the last SyncDocument
+  ObjectId chosen_ = 0;         // the object chosen (tree or panel list)
+  ObjectId bound_ = 0;          // FE model object shown
+  BoundKey bound_key_;
+  BoundKey job_key_;  // what the running precompute was started from
+  bool stale_ = false;
+  bool want_model_ = false;          // a model was asked for: rebuild it when the document changes
+  bool rebuild_pending_ = false;     // precompute when the running job is done
+  bool precompute_on_bind_ = false;  // set-up asked to precompute the FE model it lands
+  std::uint64_t doc_revision_ = 0;   // Document::revision() at the last SyncDocument
+  MeshSettings mesh_settings_;
+  FeMeshInput pending_input_;  // a set-up waiting for the over-budget answer
+  bool pending_precompute_ = false;
+  std::string pending_text_;
+  // Models made lately (newest last), by the revisions they were made from.
+  std::vector<std::pair<BoundKey, std::shared_ptr<FeModel>>> kept_;
+  static constexpr std::size_t kKeptModels = 3;
   // Finishers of this mode's Jobs run only while the mode lives (they hold a weak_ptr to this).
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };

@@ -25,6 +25,8 @@ struct GuiOptions {
   std::uint64_t seed = 1;
   // --frame, --pole: the device's frame half-sides a, b, c and pole half-length d, m.
   haptics::SpidarGeometry geometry;
+  // True when --frame or --pole was given: it overrides the start-up document's own frame.
+  bool geometry_given = false;
   // --calibration: a calibration file (`spidarcad calibrate --out`) to read the encoders
   // through; "" for the default (start-up fit, nominal, or usb: the board's remembered file).
   std::string calibration;

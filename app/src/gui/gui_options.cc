@@ -118,10 +118,12 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "file is re-read when it changes on disk.");
   app.add_option(
          "--mode", options->mode,
-         "Start in a mode: 'fe' meshes assets/scenes/platform.json (TetGen, 12 mm), "
-         "precomputes it (steel, clamped at the wall face) and lets the grip push it; "
-         "'sculpt' meshes assets/scenes/clay.json and lets the grip sculpt it (close the "
-         "grasp or hold G). Both are also in the mode switcher (right panel). While a mode's part "
+         "Start in a mode: 'fe' precomputes the document's first FE model, else sets up the "
+         "selected (or first) solid (TetGen, steel, clamped at the minimum-x face; the default "
+         "scene is assets/scenes/platform.json) and lets the grip push it; 'sculpt' sculpts the "
+         "document's first sculpt object, else a sculpt copy of its first solid (the default "
+         "scene is assets/scenes/clay.json; close the grasp or hold G). Both are also in the mode "
+         "switcher (right panel). While a mode's part "
          "is live, it alone is felt: the scene's solids are shown but not touched.")
       ->check(CLI::IsMember({"fe", "sculpt"}));
   app.add_option("--estop-frame", options->estop_frame,
@@ -163,14 +165,20 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
            options->geometry.a = v[0];
            options->geometry.b = v[1];
            options->geometry.c = v[2];
+           options->geometry_given = true;
          },
          "The device's frame half-sides A,B,C in metres (default 0.24,0.24,0.24: the paper's "
          "48 cm frame); as `spidarcad run --frame`")
       ->delimiter(',')
       ->expected(3)
       ->type_name("A,B,C");
-  app.add_option("--pole", options->geometry.d,
-                 "The grip's pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
+  app.add_option_function<double>(
+      "--pole",
+      [options](double d) {
+        options->geometry.d = d;
+        options->geometry_given = true;
+      },
+      "The grip's pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
   app.add_option("--calibration", options->calibration,
                  "Read the encoders through this calibration file (written by `spidarcad "
                  "calibrate --out`, docs/calibration-format.md) instead of the start-up fit "

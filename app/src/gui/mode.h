@@ -27,6 +27,9 @@ struct ModeContext {
   TreeController* tree = nullptr;       // the document tree's selection and edits
   WorkbenchState* workbench = nullptr;  // Mesh action state, touch options, status line
   bool select_key = false;              // Enter was pressed in the view this frame
+  // A mode asks the window to switch to the mode with this key() ("fe", ...); the window does it
+  // after the mode panel of this frame and clears it.
+  std::string switch_to;
 };
 
 // One mode of the window.
@@ -45,7 +48,7 @@ class Mode {
   // Stops being the active mode (hides its actors; its field is no longer published).
   virtual void Leave() = 0;
   // Entered as the mode the window starts in (--mode): Enter, plus the mode's demo set-up
-  // (FE: meshes and precomputes the platform). Default: Enter.
+  // (FE: sets up and precomputes the document's FE model). Default: Enter.
   virtual void Launch() { Enter(); }
   // True between Enter and Leave.
   virtual bool active() const = 0;

@@ -20,7 +20,6 @@
 #include "gui/workbench_panels.h"
 #include "scene/shared_field.h"
 #include "scene/snap_features.h"
-#include "scene/vtu_io.h"
 
 namespace spidarcad::app {
 
@@ -314,39 +313,51 @@ void FeWindowMode::Leave() {
 
 void FeWindowMode::Launch() {
   Enter();
-  fe_.MeshPlatform();
   launched_ = true;
 }
 
+namespace {
+
+// The Document object selected in the tree (0: none).
+ObjectId SelectedObject(const ModeContext& context) {
+  if (context.tree == nullptr || !context.tree->selection()) return 0;
+  return context.tree->selection()->object;
+}
+
+}  // namespace
+
 void FeWindowMode::Update(const haptics::ToolState& tool, ModeContext& context) {
-  if (launched_ && !precompute_started_ && context.jobs != nullptr && !context.jobs->busy()) {
-    fe_.Precompute();  // the platform mesh has landed (or failed: the panel says so)
-    precompute_started_ = true;
+  fe_.SyncDocument(context.model, SelectedObject(context));
+  if (launched_ && !launch_done_ && context.model != nullptr) {
+    // --mode fe: the document's first FE model, else the selected (or first) solid, set up.
+    launch_done_ = true;
+    const Document& doc = context.model->document();
+    if (fe_.bound_object() != 0) {
+      fe_.RequestModel();
+    } else {
+      ObjectId solid = 0;
+      const ObjectId selected = SelectedObject(context);
+      if (selected != 0 && ClassifyFeSource(doc, selected) == FeSourceKind::kSolid)
+        solid = selected;
+      for (const DocObject& o : doc.objects()) {
+        if (solid == 0 && std::holds_alternative<SolidData>(o.data)) solid = o.id;
+      }
+      if (solid != 0)
+        fe_.StartSetUp(context.model, solid, /*check_budget=*/true, /*precompute=*/true);
+    }
   }
   fe_.OnFrame(tool);
   if (auto f = fe_.TakeField()) {
     field_ = std::shared_ptr<haptics::ForceField>(std::move(f));
     changed_ = true;
+  } else if (field_ != nullptr && fe_.model() == nullptr) {
+    field_.reset();  // the model was dropped (the document changed): nothing of it is felt
+    changed_ = true;
   }
 }
 
 void FeWindowMode::DrawPanel(ModeContext& context) {
-  // "Pick a meshed object": the selected scene object's tetrahedra (Mesh → Tetrahedra).
-  const SceneModel* model = context.model;
-  const int selected = context.workbench != nullptr ? context.workbench->selected : -1;
-  const bool has_tets = model != nullptr && selected >= 0 &&
-                        selected < static_cast<int>(model->objects().size()) &&
-                        model->objects()[selected].tets.tets.cols() > 0;
-  if (!has_tets) ImGui::BeginDisabled();
-  if (ImGui::Button("Use the selected object's tetrahedra")) {
-    const SceneObject& object = model->objects()[selected];
-    fe_.SetMesh(ToFemMesh(object.tets), object.name);
-  }
-  if (!has_tets) {
-    ImGui::EndDisabled();
-    ImGui::TextDisabled("(select an object, Mesh > Tetrahedra first)");
-  }
-  fe_.DrawPanel();
+  fe_.DrawPanel(context.model, SelectedObject(context));
 }
 
 std::unique_ptr<haptics::HapticScene> FeWindowMode::BuildScene(ModeContext&) {
@@ -376,15 +387,20 @@ void SculptWindowMode::Leave() {
   changed_ = true;
 }
 
-void SculptWindowMode::Update(const haptics::ToolState& tool, ModeContext&) {
-  sculpt_.OnFrame(tool);
+void SculptWindowMode::Launch() {
+  Enter();
+  sculpt_.Launch();
+}
+
+void SculptWindowMode::Update(const haptics::ToolState& tool, ModeContext& context) {
+  sculpt_.Update(tool, context);
   if (auto f = sculpt_.TakeField()) {
     field_ = std::shared_ptr<haptics::ForceField>(std::move(f));
     changed_ = true;
   }
 }
 
-void SculptWindowMode::DrawPanel(ModeContext&) { sculpt_.DrawPanel(); }
+void SculptWindowMode::DrawPanel(ModeContext& context) { sculpt_.DrawPanel(&context); }
 
 std::unique_ptr<haptics::HapticScene> SculptWindowMode::BuildScene(ModeContext&) {
   auto scene = std::make_unique<haptics::HapticScene>();
@@ -392,17 +408,26 @@ std::unique_ptr<haptics::HapticScene> SculptWindowMode::BuildScene(ModeContext&)
   return scene;
 }
 
-std::vector<std::string> SculptWindowMode::Targets(const SceneModel&) const { return {}; }
+std::vector<std::string> SculptWindowMode::Targets(const SceneModel& model) const {
+  const ObjectId id = sculpt_.target();
+  if (id == 0 || model.document().Find(id) == nullptr) return {};
+  return {model.document().Get(id).name};
+}
 
 // ---- AssemblyWindowMode ----
 
-void AssemblyWindowMode::Update(const haptics::ToolState&, ModeContext&) { assembly_.OnFrame(); }
+void AssemblyWindowMode::Update(const haptics::ToolState&, ModeContext& context) {
+  assembly_.OnFrame();
+  // Parts let go become commands; undo, redo and tree edits of the parts rebuild the field.
+  if (context.model != nullptr) assembly_.SyncDocument(&context.model->document());
+}
 
 void AssemblyWindowMode::DrawPanel(ModeContext&) {
   if (!assembly_.has_parts()) {
     ImGui::TextDisabled(
-        "This scene has no parts (a scene file with \"parts\", e.g. "
-        "assets/scenes/assembly.json).");
+        "This document has no rigid parts (rigid_part objects, or a scene file's \"parts\" "
+        "such as assets/scenes/assembly.json).");
+    if (!assembly_.message().empty()) ImGui::TextWrapped("%s", assembly_.message().c_str());
     return;
   }
   assembly_.DrawPanel();

@@ -130,7 +130,8 @@ class FeWindowMode final : public Mode {
   const char* key() const override { return "fe"; }
   void Enter() override;
   void Leave() override;
-  // Enter, then mesh assets/scenes/platform.json and precompute it once the mesh has landed.
+  // Enter, then (at the next Update) precompute the document's first FE model, or set up FE for
+  // the selected (else the first) solid and precompute it once it has landed.
   void Launch() override;
   bool active() const override { return fe_.active(); }
   void Update(const haptics::ToolState& tool, ModeContext& context) override;
@@ -147,11 +148,11 @@ class FeWindowMode final : public Mode {
   FeMode fe_;
   std::shared_ptr<haptics::ForceField> field_;  // the latest field FeMode handed out
   bool launched_ = false;
-  bool precompute_started_ = false;
+  bool launch_done_ = false;
   bool changed_ = false;
 };
 
-// Sculpt (SculptMode) as a Mode.
+// Sculpt (SculptMode) as a Mode: sculpts a sculpt object of the Document (see gui/sculpt_mode.h).
 class SculptWindowMode final : public Mode {
  public:
   SculptWindowMode(vtkRenderer* renderer, JobQueue* jobs) : sculpt_(renderer, jobs) {}
@@ -159,13 +160,18 @@ class SculptWindowMode final : public Mode {
   const char* key() const override { return "sculpt"; }
   void Enter() override;
   void Leave() override;
+  // Enter, then the Document's first sculpt object, else a sculpt copy of its first solid.
+  void Launch() override;
   bool active() const override { return sculpt_.active(); }
   void Update(const haptics::ToolState& tool, ModeContext& context) override;
   void DrawPanel(ModeContext& context) override;
   bool live() const override { return field_ != nullptr && sculpt_.active(); }
   std::unique_ptr<haptics::HapticScene> BuildScene(ModeContext& context) override;
   bool TakeSceneChanged() override { return std::exchange(changed_, false); }
+  // The sculpt object sculpted, if any.
   std::vector<std::string> Targets(const SceneModel& model) const override;
+  // False while a sculpt copy is being meshed.
+  bool Settled() const override { return !sculpt_.copy_pending(); }
   SculptMode& sculpt() { return sculpt_; }
 
  private:
@@ -174,8 +180,10 @@ class SculptWindowMode final : public Mode {
   bool changed_ = false;
 };
 
-// Assembly (AssemblyMode) as a Mode: available when the scene has parts; its field is felt
-// whenever no other mode's part is live (it is the base mode of an assembly scene).
+// Assembly (AssemblyMode) as a Mode on the document's rigid parts: available when it has some;
+// its field is felt whenever no other mode's part is live in a document without solids (it is
+// then the base mode, AppWindow::BaseMode), else while it is the active mode. Update commits the
+// parts let go as commands and follows undo, redo and tree edits of the parts (AssemblyMode).
 class AssemblyWindowMode final : public Mode {
  public:
   explicit AssemblyWindowMode(vtkRenderer* renderer) : assembly_(renderer) {}

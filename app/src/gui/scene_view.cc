@@ -15,6 +15,10 @@
 #include <vtkSphereSource.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <variant>
+
+#include "spidarcad/modeling/cgal_mesher.h"
 
 namespace spidarcad::app {
 
@@ -25,6 +29,7 @@ struct SceneView::Entry {
   vtkNew<vtkActor> actor;
   int revision = -1;
   ObjectId id = 0;
+  std::uint64_t doc_revision = 0;  // imported meshes: the object revision drawn
 };
 
 // A contact marker's sphere.
@@ -38,6 +43,7 @@ SceneView::SceneView(vtkRenderer* renderer) : renderer_(renderer) {}
 
 SceneView::~SceneView() {
   for (auto& e : entries_) renderer_->RemoveActor(e->actor);
+  for (auto& e : mesh_entries_) renderer_->RemoveActor(e->actor);
   for (auto& m : markers_) renderer_->RemoveActor(m->actor);
 }
 
@@ -89,6 +95,71 @@ void FillPolyData(const modeling::TriangleMesh& mesh, vtkPolyData* poly) {
   poly->Modified();
 }
 
+modeling::TriangleMesh DrawnSurface(const MeshData& mesh) {
+  if (mesh.surface != nullptr) return *mesh.surface;
+  if (mesh.volume != nullptr && mesh.volume->tets.cols() > 0) {
+    return modeling::BoundarySurface(*mesh.volume);
+  }
+  return {};
+}
+
+namespace {
+
+// A new entry's VTK pipeline: polydata → normals → mapper → actor (hidden until filled).
+template <typename Entry>
+void SetUpEntry(Entry* e) {
+  e->normals->SetInputData(e->poly);
+  e->normals->SetFeatureAngle(35.0);
+  e->normals->SplittingOn();
+  e->normals->ConsistencyOff();
+  e->mapper->SetInputConnection(e->normals->GetOutputPort());
+  e->mapper->ScalarVisibilityOff();
+  e->actor->SetMapper(e->mapper);
+  e->actor->GetProperty()->SetAmbient(0.25);
+  e->actor->GetProperty()->SetDiffuse(0.75);
+  e->actor->GetProperty()->SetSpecular(0.1);
+  e->actor->VisibilityOff();
+}
+
+}  // namespace
+
+void SceneView::SyncMeshes(const Document& doc, const DeviceToWorld& x) {
+  std::vector<const DocObject*> imported;
+  for (const DocObject& o : doc.objects()) {
+    const auto* m = std::get_if<MeshData>(&o.data);
+    if (m != nullptr && m->source == 0) imported.push_back(&o);
+  }
+  std::vector<std::unique_ptr<Entry>> next;
+  for (const DocObject* o : imported) {
+    std::unique_ptr<Entry> e;
+    for (auto& old : mesh_entries_) {
+      if (old != nullptr && old->id == o->id) e = std::move(old);
+    }
+    if (e == nullptr) {
+      e = std::make_unique<Entry>();
+      e->id = o->id;
+      SetUpEntry(e.get());
+      e->actor->GetProperty()->SetColor(kImportedMeshColour[0], kImportedMeshColour[1],
+                                        kImportedMeshColour[2]);
+      renderer_->AddActor(e->actor);
+    }
+    if (e->doc_revision != o->revision) {
+      const modeling::TriangleMesh surface = DrawnSurface(std::get<MeshData>(o->data));
+      FillPolyData(surface, e->poly);
+      e->doc_revision = o->revision;
+      e->actor->SetVisibility(surface.triangles.cols() > 0);
+    }
+    const double inv = 1.0 / x.world_scale;
+    e->actor->SetScale(inv, inv, inv);
+    e->actor->SetPosition(-inv * x.p_WDo.x(), -inv * x.p_WDo.y(), -inv * x.p_WDo.z());
+    next.push_back(std::move(e));
+  }
+  for (auto& old : mesh_entries_) {
+    if (old != nullptr) renderer_->RemoveActor(old->actor);  // deleted (or undone) imports
+  }
+  mesh_entries_ = std::move(next);
+}
+
 void SceneView::Sync(const SceneModel& model, int highlight) {
   const auto& objects = model.objects();
   bool same_ids = entries_.size() == objects.size();
@@ -100,17 +171,7 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
     for (size_t i = 0; i < objects.size(); ++i) {
       auto e = std::make_unique<Entry>();
       e->id = objects[i].id;
-      e->normals->SetInputData(e->poly);
-      e->normals->SetFeatureAngle(35.0);
-      e->normals->SplittingOn();
-      e->normals->ConsistencyOff();
-      e->mapper->SetInputConnection(e->normals->GetOutputPort());
-      e->mapper->ScalarVisibilityOff();
-      e->actor->SetMapper(e->mapper);
-      e->actor->GetProperty()->SetAmbient(0.25);
-      e->actor->GetProperty()->SetDiffuse(0.75);
-      e->actor->GetProperty()->SetSpecular(0.1);
-      e->actor->VisibilityOff();
+      SetUpEntry(e.get());
       renderer_->AddActor(e->actor);
       entries_.push_back(std::move(e));
     }
@@ -139,26 +200,40 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
     e.actor->GetProperty()->SetEdgeVisibility(static_cast<int>(i) == highlight);
     e.actor->GetProperty()->SetEdgeColor(0.35, 0.3, 0.25);
   }
+  SyncMeshes(model.document(), x);
 }
 
-ObjectId SceneView::PickObject(double x, double y) const {
+ObjectId SceneView::PickObject(double x, double y,
+                               const std::vector<std::pair<vtkActor*, ObjectId>>& extra) const {
   vtkNew<vtkCellPicker> picker;
   picker->SetTolerance(0.0005);
   picker->PickFromListOn();
-  for (const auto& e : entries_) {
-    if (e->actor->GetVisibility()) picker->AddPickList(e->actor);
+  for (const auto* list : {&entries_, &mesh_entries_}) {
+    for (const auto& e : *list) {
+      if (e->actor->GetVisibility()) picker->AddPickList(e->actor);
+    }
+  }
+  for (const auto& [actor, id] : extra) {
+    if (actor != nullptr && actor->GetVisibility()) picker->AddPickList(actor);
   }
   if (picker->Pick(x, y, 0.0, renderer_) == 0) return 0;
   vtkActor* hit = picker->GetActor();
-  for (const auto& e : entries_) {
-    if (e->actor.GetPointer() == hit) return e->id;
+  for (const auto& [actor, id] : extra) {
+    if (actor == hit) return id;
+  }
+  for (const auto* list : {&entries_, &mesh_entries_}) {
+    for (const auto& e : *list) {
+      if (e->actor.GetPointer() == hit) return e->id;
+    }
   }
   return 0;
 }
 
 vtkActor* SceneView::ActorOf(ObjectId id) const {
-  for (const auto& e : entries_) {
-    if (e->id == id) return e->actor;
+  for (const auto* list : {&entries_, &mesh_entries_}) {
+    for (const auto& e : *list) {
+      if (e->id == id) return e->actor;
+    }
   }
   return nullptr;
 }

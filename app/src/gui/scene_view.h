@@ -1,9 +1,13 @@
 // Rendering side of the scene: one VTK actor per scene object showing its current mesh (the
-// preview surface, then the Mesh action's result), placed in the device frame D of the view by
-// the inverse of X_WD (p_D = (p_W − p_WDo) / s). No meshing here: it copies what SceneModel has.
+// preview surface, then the Mesh action's result), and one per imported mesh object of the
+// Document (a MeshData without a source: its surface, or the boundary of its tetrahedra), placed
+// in the device frame D of the view by the inverse of X_WD (p_D = (p_W − p_WDo) / s). Meshes made
+// from a solid are not drawn again: the solid's actor shows that shape. No meshing here: it
+// copies what SceneModel and the Document have.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
+#include <array>
 #include <memory>
 #include <string>
 #include <utility>
@@ -20,6 +24,13 @@ namespace spidarcad::app {
 // Replaces `poly`'s points and polygons with `mesh`'s vertices and triangles (coordinates as
 // they are) and marks it modified.
 void FillPolyData(const modeling::TriangleMesh& mesh, vtkPolyData* poly);
+
+// Colour of imported meshes (RGB in [0, 1]): a steel grey-blue, unlike the solids' colours.
+inline constexpr std::array<double, 3> kImportedMeshColour = {0.58, 0.66, 0.78};
+
+// The surface SceneView draws for a mesh object: its surface, else the boundary of its
+// tetrahedra (modeling::BoundarySurface); empty when it has neither.
+modeling::TriangleMesh DrawnSurface(const MeshData& mesh);
 
 // The scene objects' actors in a renderer.
 class SceneView {
@@ -53,16 +64,22 @@ class SceneView {
   // draws where the parts are (the solids themselves sit at their own frame origins).
   void SetHidden(std::vector<std::string> names) { hidden_ = std::move(names); }
   // The Document object whose actor is nearest the eye under display pixel (x, y) of the
-  // renderer's window (origin bottom left): a VTK cell picker on the visible scene actors only
-  // (the device, the grip and the markers are not picked). 0 when none is there.
-  ObjectId PickObject(double x, double y) const;
-  // The actor of Document object `id` (null when it has none yet).
+  // renderer's window (origin bottom left): a VTK cell picker on the visible scene actors and
+  // imported-mesh actors only (the device, the grip and the markers are not picked). 0 when
+  // none is there. `extra` adds actors of other objects to pick from (an assembly's parts, drawn
+  // by AssemblyMode); the nearest hit wins either way.
+  ObjectId PickObject(double x, double y,
+                      const std::vector<std::pair<vtkActor*, ObjectId>>& extra = {}) const;
+  // The actor of Document object `id`, a solid or an imported mesh (null when it has none yet).
   vtkActor* ActorOf(ObjectId id) const;
 
  private:
   struct Entry;
+  // Brings the imported meshes' actors in line with the Document (by id and revision).
+  void SyncMeshes(const Document& doc, const DeviceToWorld& x);
   vtkRenderer* renderer_;
   std::vector<std::unique_ptr<Entry>> entries_;
+  std::vector<std::unique_ptr<Entry>> mesh_entries_;  // imported mesh objects, document order
   int generation_ = -1;
   struct Marker;
   std::vector<std::unique_ptr<Marker>> markers_;  // sphere actors, grown on demand

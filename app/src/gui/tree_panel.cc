@@ -195,11 +195,15 @@ const modeling::ImplicitNode* TreeController::SelectedNode() const {
 void TreeController::Revalidate() {
   if (!selected_) return;
   const DocObject* o = document().Find(selected_->object);
-  if (o == nullptr || TreeOf(*o) == nullptr) {
+  if (o == nullptr) {
     selected_.reset();
     return;
   }
-  while (Walk(*TreeOf(*o), selected_->path) == nullptr) selected_->path.pop_back();
+  if (TreeOf(*o) == nullptr) {
+    selected_->path.clear();  // a mesh, FE model or sculpt: selected as a whole (for the modes)
+  } else {
+    while (Walk(*TreeOf(*o), selected_->path) == nullptr) selected_->path.pop_back();
+  }
   if (error_at_) {
     const DocObject* e = document().Find(error_at_->object);
     if (e == nullptr || TreeOf(*e) == nullptr || Walk(*TreeOf(*e), error_at_->path) == nullptr) {
@@ -618,7 +622,8 @@ void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_heigh
     DrawNode(tree, state, o, index >= 0 ? &model.objects()[index] : nullptr, *root, &path, scroll);
     ImGui::PopID();
   }
-  // The other objects (meshes, FE models, sculpts, rigid parts): listed, not drawn or edited here.
+  // The other objects (meshes, FE models, sculpts, rigid parts): listed and selectable (the modes
+  // act on the selected one), not drawn or edited here.
   for (const DocObject& o : doc.objects()) {
     if (TreeOf(o) != nullptr) continue;
     std::string counts;
@@ -629,8 +634,14 @@ void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_heigh
       }
       if (!m->import_source.empty()) counts += ", imported";
     }
-    ImGui::TextDisabled("%s  [%s%s%s]", o.name.c_str(), ObjectKindName(o.data),
-                        counts.empty() ? "" : ": ", counts.c_str());
+    const std::string label =
+        o.name + "  [" + ObjectKindName(o.data) + (counts.empty() ? "" : ": ") + counts + "]";
+    ImGui::PushID(static_cast<int>(o.id));
+    if (ImGui::Selectable(label.c_str(), tree->selection() && tree->selection()->object == o.id)) {
+      tree->Select(o.id);
+      state->clicked = true;
+    }
+    ImGui::PopID();
   }
   ImGui::EndChild();
   if (state->pending) {

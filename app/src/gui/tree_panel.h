@@ -80,7 +80,8 @@ class TreeController {
   // The selected node of the Document, or null when nothing (valid) is selected.
   const modeling::ImplicitNode* SelectedNode() const;
   // After undo, redo, delete or reload: a selection whose path leads nowhere moves up to the
-  // nearest existing ancestor; one whose object is gone is cleared.
+  // nearest existing ancestor; one whose object is gone is cleared; an object without a tree
+  // (mesh, FE model, sculpt) stays selected as a whole (path {}).
   void Revalidate();
 
   // ---- edits (true on success; false: nothing changed, error() says why) ----

@@ -81,6 +81,22 @@ void SculptSession::SetMesh(std::unique_ptr<SculptMesh> mesh) {
   ++revision_;
 }
 
+void SculptSession::ClearMesh() {
+  if (mesh_ && mesh_->stroke_active()) mesh_->CancelStroke();
+  mesh_.reset();
+  undo_.clear();
+  redo_.clear();
+  display_vertices_.clear();
+  tet_mesh_.reset();
+  Publish(StrokeForceModel{});
+  ++revision_;
+}
+
+void SculptSession::ForgetHistory() {
+  undo_.clear();
+  redo_.clear();
+}
+
 void SculptSession::Publish(const StrokeForceModel& model) {
   published_ = model;
   channel_->Write(model);

@@ -97,6 +97,8 @@ class SculptSession {
   void SetMesh(const modeling::TriangleMesh& mesh, double grid_cell = 0.0);
   // Takes an already built clay (from a Job).
   void SetMesh(std::unique_ptr<modeling::SculptMesh> mesh);
+  // Drops the clay (cancelling any stroke), the undo/redo lists and the tetrahedral mesh: no clay.
+  void ClearMesh();
   // True once a clay is loaded.
   bool has_mesh() const { return mesh_ != nullptr; }
   // The clay (null before SetMesh).
@@ -124,7 +126,8 @@ class SculptSession {
   // Offset added to the grip centre while the stroke is active (m, W).
   const Eigen::Vector3d& snap_offset() const { return snap_offset_; }
 
-  // Undo/redo of strokes (own list of SculptEdits; the Document does not hold the clay yet).
+  // Undo/redo of strokes (own list of SculptEdits, for a session without a Document; the window
+  // records each stroke in the Document instead and calls ForgetHistory).
   bool CanUndo() const { return !undo_.empty() && !stroke_active(); }
   bool CanRedo() const { return !redo_.empty() && !stroke_active(); }
   // Reverts the last stroke; false when there is none or a stroke is active.
@@ -136,6 +139,8 @@ class SculptSession {
   int redo_count() const { return static_cast<int>(redo_.size()); }
   // The last recorded stroke's edit (null when none).
   const modeling::SculptEdit* last_edit() const { return undo_.empty() ? nullptr : &undo_.back(); }
+  // Empties the undo and redo lists (the strokes are kept elsewhere, e.g. in a Document).
+  void ForgetHistory();
 
   // The channel the session writes its force model to (for SculptToolField).
   const std::shared_ptr<SculptForceChannel>& channel() const { return channel_; }

@@ -63,6 +63,22 @@
 
 namespace spidarcad::modeling {
 
+namespace internal {
+// One triangle of SculptMesh's self-intersection check (sculpt_intersection.cc): scratch data
+// computed once per check from the current positions (m, W).
+struct SculptCheckTriangle {
+  Eigen::Vector3d lo, hi;            // bounding box corners, m
+  Eigen::Vector3d normal;            // (p1 - p0) × (p2 - p0), m²
+  double normal_norm = 0.0;          // |normal|, m²
+  double edge_product = 0.0;         // |p1 - p0| |p2 - p0|, m²
+  double diagonal = 0.0;             // |hi - lo|, m
+  Eigen::Vector3i corners;           // vertex indices p0, p1, p2
+  std::array<Eigen::Vector3d, 3> p;  // their positions, m
+  std::array<int, 3> cell_lo{};      // broad-phase cells spanned by the box, per axis
+  std::array<int, 3> cell_hi{};
+};
+}  // namespace internal
+
 // The sculpting tools.
 enum class SculptTool { kGrab, kTwist, kBend, kPushPull, kSmooth };
 
@@ -224,6 +240,12 @@ class SculptMesh {
   void CancelStroke();
   bool stroke_active() const { return stroke_active_; }
 
+  // True when a triangle the active stroke moves (one with an affected corner) crosses another
+  // triangle of the mesh at the current positions: the check UpdateStroke runs when
+  // prevent_self_intersection is set (see the file comment). False without an active stroke.
+  // Allocates nothing once its scratch buffers have grown to the region's size.
+  bool MovedRegionIntersects();
+
   // Vertices the last UpdateStroke moved (for partial redraws).
   const std::vector<int>& stroke_vertices() const { return affected_; }
   // Figures of the last UpdateStroke.
@@ -261,9 +283,9 @@ class SculptMesh {
   void ConserveVolume();
   // Field (and volume correction) at strength s.
   void Deform(const Eigen::Isometry3d& X_WT, double s);
-  // True when a moved triangle (one of affected_triangles_) intersects another triangle of the
-  // mesh in the current positions (sculpt_intersection.cc).
-  bool MovedRegionIntersects();
+  // The check of MovedRegionIntersects, also run by BeginStroke before the stroke is active
+  // (sculpt_intersection.cc).
+  bool CheckMovedRegion();
   // Raises longest_edge_ to the longest edge of triangle t.
   void BoundEdges(int t);
 
@@ -299,12 +321,14 @@ class SculptMesh {
   double affected_start_volume_ = 0.0;
   bool check_intersections_ = false;  // this stroke: prevent self-intersection
   // Self-intersection check scratch (kept between updates so that they allocate once).
-  double longest_edge_ = 0.0;                           // bound on every edge's length, m
-  std::vector<int> check_vertices_;                     // vertices near the moved region
-  std::vector<int> check_triangles_;                    // moved triangles first, then nearby ones
-  std::vector<std::pair<CellKey, int>> check_entries_;  // (cell, index into check_triangles_)
-  std::vector<Eigen::AlignedBox3d> check_boxes_;        // per check triangle
-  std::vector<std::array<std::int64_t, 3>> check_low_cells_;  // cell of each box's lowest corner
+  double longest_edge_ = 0.0;         // bound on every edge's length, m
+  std::vector<int> check_vertices_;   // vertices near the moved region
+  std::vector<int> check_triangles_;  // moved triangles first, then nearby ones
+  std::vector<internal::SculptCheckTriangle> check_data_;  // per check triangle
+  std::vector<int> check_cell_start_;  // per broad-phase cell, its first entry (and one past)
+  // Per broad-phase entry, grouped by cell: 8 × (index into check_triangles_) + 3 bits that
+  // say along which axes the cell is the lowest of the triangle's box.
+  std::vector<int> check_entries_;
 };
 
 // A sphere of radius (m) centred at the origin: the icosahedron with each triangle split into

@@ -1,0 +1,438 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "scene/fe_setup.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "spidarcad/modeling/cgal_mesher.h"
+#include "spidarcad/modeling/feature_sharpening.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/tetgen_mesher.h"
+
+namespace spidarcad::app {
+namespace {
+
+// Half-side of the box searched for a solid, m (as `spidarcad mesh`): reaching it = unbounded.
+constexpr double kSearchHalfSide = 10.0;
+// `spidarcad mesh`'s default budget (app/src/cli/mesh_command.cc, docs/limits.md).
+constexpr double kBudgetCells = 134217728.0;
+constexpr double kBudgetBytes = 2147483648.0;
+constexpr double kBudgetWork = 2e11;
+// TetGen's radius-edge bound when the settings leave it at 0 (as MeshSceneSolidForFe).
+constexpr double kDefaultRadiusEdge = 2.0;
+
+std::string Quoted(const DocObject& o) {
+  return std::string(ObjectKindName(o.data)) + " '" + o.name + "'";
+}
+
+void CheckSettings(const DocObject& o, const MeshSettings& s, FeSourceKind kind) {
+  if (!(s.cell_size >= 0.0) || !(s.max_tet_volume >= 0.0) || !(s.max_radius_edge >= 0.0) ||
+      !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
+    throw DocumentError("set up FE for " + Quoted(o) +
+                        ": cell size, tet volume and radius-edge bound must be finite and >= 0");
+  }
+  if (s.max_radius_edge != 0.0 && s.max_radius_edge < 1.0) {
+    throw DocumentError("set up FE for " + Quoted(o) + ": radius-edge bound " +
+                        std::to_string(s.max_radius_edge) + " must be 0 (default) or >= 1");
+  }
+  if (!s.mesher.empty() && s.mesher != "tetgen" && s.mesher != "cgal") {
+    throw DocumentError("set up FE for " + Quoted(o) + ": mesher '" + s.mesher +
+                        "' (expected tetgen or cgal)");
+  }
+  if (kind != FeSourceKind::kSolid && (s.mesher == "cgal" || s.sharp_edges)) {
+    throw DocumentError("set up FE for " + Quoted(o) +
+                        ": CGAL and sharp edges mesh an implicit solid; a surface is meshed by "
+                        "TetGen as it is (choose tetgen, no sharp edges)");
+  }
+  if (s.mesher == "cgal" && s.sharp_edges) {
+    throw DocumentError(
+        "set up FE for " + Quoted(o) +
+        ": sharp edges sharpen the grid surface TetGen uses; CGAL does not use one");
+  }
+}
+
+// The copy-on-main-thread part shared by PrepareFeMesh and PrepareFeRemesh.
+FeMeshInput Prepare(const DocObject& o, const MeshSettings& settings) {
+  FeMeshInput in;
+  in.source = o.id;
+  in.source_revision = o.revision;
+  in.source_name = o.name;
+  in.settings = settings;
+  if (const auto* s = std::get_if<SolidData>(&o.data)) {
+    in.kind = FeSourceKind::kSolid;
+    in.root = s->root;
+  } else if (const auto* s = std::get_if<SculptData>(&o.data)) {
+    in.kind = FeSourceKind::kSculpt;
+    if (!s->mesh || !IsClosedSurface(*s->mesh))
+      throw DocumentError("set up FE for " + Quoted(o) +
+                          ": its mesh is not a closed surface (TetGen needs one)");
+    // A copy: strokes may change a sculpt mesh in place.
+    in.surface = std::make_shared<const modeling::TriangleMesh>(*s->mesh);
+  } else if (const auto* m = std::get_if<MeshData>(&o.data)) {
+    if (m->volume) throw DocumentError("set up FE for " + Quoted(o) + ": it already holds tets");
+    if (!m->surface || !IsClosedSurface(*m->surface))
+      throw DocumentError("set up FE for " + Quoted(o) +
+                          ": its surface is not closed (TetGen needs a closed surface)");
+    in.kind = FeSourceKind::kSurfaceMesh;
+    in.surface = m->surface;  // immutable
+  } else {
+    throw DocumentError("set up FE for " + Quoted(o) +
+                        ": only a solid, a sculpt or a closed surface mesh can be meshed");
+  }
+  CheckSettings(o, settings, in.kind);
+  return in;
+}
+
+void Report(const std::function<void(double)>& progress, double f) {
+  if (progress) progress(f);
+}
+
+modeling::TetMesh Tetgen(const modeling::TriangleMesh& surface, const MeshSettings& s,
+                         const std::atomic<bool>* cancel,
+                         const std::function<void(double)>& progress, double from) {
+  modeling::TetMeshSettings ts;
+  ts.max_radius_edge = s.max_radius_edge > 0.0 ? s.max_radius_edge : kDefaultRadiusEdge;
+  ts.max_volume = s.max_tet_volume;
+  ts.cancel = cancel;
+  if (progress) ts.progress = [&progress, from](double f) { progress(from + (1.0 - from) * f); };
+  return modeling::TetrahedralizeSurface(surface, ts);
+}
+
+}  // namespace
+
+FeSourceKind ClassifyFeSource(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return FeSourceKind::kNone;
+  if (std::holds_alternative<FeModelData>(o->data)) return FeSourceKind::kFeModel;
+  if (std::holds_alternative<SolidData>(o->data)) return FeSourceKind::kSolid;
+  if (const auto* s = std::get_if<SculptData>(&o->data)) {
+    return s->mesh && IsClosedSurface(*s->mesh) ? FeSourceKind::kSculpt : FeSourceKind::kNone;
+  }
+  if (const auto* m = std::get_if<MeshData>(&o->data)) {
+    if (m->volume && m->volume->tets.cols() > 0) return FeSourceKind::kVolumeMesh;
+    if (m->surface && IsClosedSurface(*m->surface)) return FeSourceKind::kSurfaceMesh;
+  }
+  return FeSourceKind::kNone;
+}
+
+const char* FeSourceKindText(FeSourceKind kind) {
+  switch (kind) {
+    case FeSourceKind::kFeModel:
+      return "FE model";
+    case FeSourceKind::kVolumeMesh:
+      return "volume mesh";
+    case FeSourceKind::kSurfaceMesh:
+      return "surface mesh";
+    case FeSourceKind::kSolid:
+      return "solid";
+    case FeSourceKind::kSculpt:
+      return "sculpt";
+    case FeSourceKind::kNone:
+      break;
+  }
+  return "";
+}
+
+bool IsClosedSurface(const modeling::TriangleMesh& mesh) {
+  const Eigen::Index nt = mesh.triangles.cols();
+  const Eigen::Index nv = mesh.vertices.cols();
+  if (nt < 4 || nv < 4) return false;  // the fewest a closed solid needs (a tetrahedron)
+  // Directed edges as (a << 32 | b): each must appear once, and its reverse once.
+  std::vector<std::uint64_t> directed;
+  directed.reserve(3 * nt);
+  for (Eigen::Index t = 0; t < nt; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = mesh.triangles(k, t), b = mesh.triangles((k + 1) % 3, t);
+      if (a < 0 || b < 0 || a >= nv || b >= nv || a == b) return false;
+      directed.push_back(static_cast<std::uint64_t>(a) << 32 | static_cast<std::uint32_t>(b));
+    }
+  }
+  std::sort(directed.begin(), directed.end());
+  if (std::adjacent_find(directed.begin(), directed.end()) != directed.end()) return false;
+  for (const std::uint64_t e : directed) {
+    const std::uint64_t reverse = (e & 0xffffffffu) << 32 | e >> 32;
+    if (!std::binary_search(directed.begin(), directed.end(), reverse)) return false;
+  }
+  return true;
+}
+
+ObjectId FeModelFor(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return 0;
+  if (std::holds_alternative<FeModelData>(o->data)) return id;
+  const bool is_mesh = std::holds_alternative<MeshData>(o->data);
+  for (const DocObject& f : doc.objects()) {
+    const auto* fe = std::get_if<FeModelData>(&f.data);
+    if (fe == nullptr) continue;
+    if (is_mesh && fe->tet_mesh == id) return f.id;
+    const DocObject* mesh = doc.Find(fe->tet_mesh);
+    const auto* md = mesh != nullptr ? std::get_if<MeshData>(&mesh->data) : nullptr;
+    if (md != nullptr && md->source == id && md->source != 0) return f.id;
+  }
+  return 0;
+}
+
+FeMeshInput PrepareFeMesh(const Document& doc, ObjectId source, const MeshSettings& settings) {
+  const DocObject* o = doc.Find(source);
+  if (o == nullptr)
+    throw DocumentError("set up FE: no object with id " + std::to_string(source) +
+                        " in the document");
+  return Prepare(*o, settings);
+}
+
+FeMeshInput PrepareFeRemesh(const Document& doc, ObjectId mesh) {
+  const DocObject& o = doc.Get(mesh);
+  const auto* m = std::get_if<MeshData>(&o.data);
+  if (m == nullptr) throw DocumentError("refresh " + Quoted(o) + ": not a mesh object");
+  if (m->source == 0)
+    throw DocumentError("refresh " + Quoted(o) + ": it was not made from another object");
+  const DocObject* src = doc.Find(m->source);
+  if (src == nullptr)
+    throw DocumentError("refresh " + Quoted(o) + ": its source (object " +
+                        std::to_string(m->source) + ") was deleted");
+  return Prepare(*src, m->settings);
+}
+
+namespace {
+
+// FeSolidBounds; `fine` = false stops at the coarse search (a box that holds the solid, found at
+// a cost that does not grow with the cell count: what an estimate may spend).
+Eigen::AlignedBox3d SolidBox(const modeling::ImplicitNode& root, const std::string& name,
+                             double* cell, modeling::CompiledSolid* compiled, bool fine) {
+  try {
+    *compiled = modeling::CompiledSolid::Compile(root);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("solid '" + name + "': " + e.what());
+  }
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
+                                   Eigen::Vector3d::Constant(kSearchHalfSide));
+  const double coarse = *cell > 0.0 ? std::max(*cell, 0.005) : 0.01;
+  const Eigen::AlignedBox3d rough = modeling::FindBounds(*compiled, search, coarse);
+  if (rough.isEmpty()) throw std::invalid_argument("solid '" + name + "' is empty");
+  for (int a = 0; a < 3; ++a) {
+    if (rough.min()[a] <= -kSearchHalfSide + coarse || rough.max()[a] >= kSearchHalfSide - coarse)
+      throw std::invalid_argument("solid '" + name +
+                                  "' reaches 10 m from the origin (unbounded, e.g. a bare "
+                                  "half-space): intersect it with a box");
+  }
+  if (!(*cell > 0.0)) *cell = rough.sizes().maxCoeff() / kFeCellsAcross;
+  Eigen::AlignedBox3d box = fine ? modeling::FindBounds(*compiled, rough, *cell) : rough;
+  box.min().array() -= 2.0 * *cell;
+  box.max().array() += 2.0 * *cell;
+  return box;
+}
+
+}  // namespace
+
+Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std::string& name,
+                                  double* cell, modeling::CompiledSolid* compiled) {
+  return SolidBox(root, name, cell, compiled, true);
+}
+
+std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& input) {
+  if (input.kind != FeSourceKind::kSolid || input.settings.mesher == "cgal") return std::nullopt;
+  double cell = input.settings.cell_size;
+  modeling::CompiledSolid compiled;
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = SolidBox(input.root, input.source_name, &cell, &compiled, false);
+  ss.cell_size = cell;
+  return modeling::EstimateSurfaceMesh(compiled, ss);
+}
+
+std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate) {
+  const struct {
+    double value, limit;
+    const char* what;
+  } figures[] = {{estimate.grid_cells, kBudgetCells, "grid cells"},
+                 {estimate.bytes, kBudgetBytes, "memory (bytes)"},
+                 {estimate.work, kBudgetWork, "work (tape instructions)"}};
+  std::string text;
+  for (const auto& f : figures) {
+    if (f.value <= f.limit) continue;
+    char line[160];
+    std::snprintf(line, sizeof line, "%sestimated %s %.3g is over %.3g", text.empty() ? "" : "; ",
+                  f.what, f.value, f.limit);
+    text += line;
+  }
+  return text;
+}
+
+FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* cancel,
+                          const std::function<void(double)>& progress) {
+  FeMeshResult result;
+  result.settings = input.settings;
+  Report(progress, 0.0);
+  if (input.kind == FeSourceKind::kSculpt || input.kind == FeSourceKind::kSurfaceMesh) {
+    if (!input.surface) throw std::invalid_argument("set up FE: no surface to mesh");
+    result.settings.cell_size = 0.0;
+    result.surface = input.surface;
+    result.volume = std::make_shared<const modeling::TetMesh>(
+        Tetgen(*input.surface, input.settings, cancel, progress, 0.0));
+    Report(progress, 1.0);
+    return result;
+  }
+  if (input.kind != FeSourceKind::kSolid)
+    throw std::invalid_argument("set up FE: '" + input.source_name + "' cannot be meshed");
+  double cell = input.settings.cell_size;
+  modeling::CompiledSolid compiled;
+  const Eigen::AlignedBox3d bounds = FeSolidBounds(input.root, input.source_name, &cell, &compiled);
+  result.settings.cell_size = cell;
+  if (input.settings.mesher == "cgal") {
+    modeling::CgalMeshSettings cs = modeling::CgalMeshSettings::ForSize(cell);
+    cs.cancel = cancel;
+    cs.progress = progress;
+    if (input.settings.max_radius_edge > 0.0)
+      cs.cell_radius_edge_ratio = input.settings.max_radius_edge;
+    auto volume = std::make_shared<const modeling::TetMesh>(
+        modeling::MeshImplicitWithCgal(compiled, bounds, cs));
+    result.surface =
+        std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*volume));
+    result.volume = std::move(volume);
+    Report(progress, 1.0);
+    return result;
+  }
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = bounds;
+  ss.cell_size = cell;
+  ss.cancel = cancel;
+  if (progress) ss.progress = [&progress](double f) { progress(0.3 * f); };
+  modeling::TriangleMesh surface = modeling::MeshSurface(compiled, ss);
+  if (surface.triangles.cols() == 0)
+    throw std::invalid_argument("solid '" + input.source_name + "': the surface mesh is empty at " +
+                                std::to_string(cell) + " m cells");
+  if (input.settings.sharp_edges) {
+    modeling::FeatureSettings fs;
+    fs.cell_size = cell;
+    fs.cancel = cancel;
+    surface = modeling::SharpenFeatures(compiled, std::move(surface), fs);
+  }
+  Report(progress, 0.35);
+  result.volume = std::make_shared<const modeling::TetMesh>(
+      Tetgen(surface, input.settings, cancel, progress, 0.35));
+  result.surface = std::make_shared<const modeling::TriangleMesh>(std::move(surface));
+  Report(progress, 1.0);
+  return result;
+}
+
+namespace {
+
+// Throws when the source is gone or no longer at the revision that was meshed.
+void CheckSourceUnchanged(const Document& doc, const FeMeshInput& in, const std::string& what) {
+  const DocObject* src = doc.Find(in.source);
+  if (src == nullptr)
+    throw DocumentError(what + ": '" + in.source_name + "' was deleted while it was meshed");
+  if (src->revision != in.source_revision)
+    throw DocumentError(what + ": '" + in.source_name +
+                        "' changed while it was meshed; the mesh is of the old shape");
+}
+
+// Builds its commands at the first Do (they need the ids the first ones get) and then replays
+// them: one undo step.
+class LazyMacroCommand : public Command {
+ public:
+  using Step = std::function<std::unique_ptr<Command>(const Document&)>;
+  LazyMacroCommand(std::string description, std::vector<Step> steps)
+      : description_(std::move(description)), steps_(std::move(steps)) {}
+
+  void Do(Document& doc) override {
+    if (!done_) {
+      try {
+        for (Step& step : steps_) {
+          commands_.push_back(step(doc));
+          commands_.back()->Do(doc);
+        }
+      } catch (...) {
+        // The last command threw before committing anything; undo the ones done before it.
+        if (!commands_.empty()) commands_.pop_back();
+        for (std::size_t i = commands_.size(); i > 0; --i) commands_[i - 1]->Undo(doc);
+        commands_.clear();
+        throw;
+      }
+      done_ = true;
+      steps_.clear();
+      return;
+    }
+    for (auto& c : commands_) c->Do(doc);
+  }
+  void Undo(Document& doc) override {
+    for (std::size_t i = commands_.size(); i > 0; --i) commands_[i - 1]->Undo(doc);
+  }
+  std::string Description() const override { return description_; }
+
+ private:
+  std::string description_;
+  std::vector<Step> steps_;
+  std::vector<std::unique_ptr<Command>> commands_;
+  bool done_ = false;
+};
+
+const fem::Material kSteel = {200.0e9, 0.30};
+
+}  // namespace
+
+std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh) {
+  if (!mesh.volume) throw std::invalid_argument("set up FE: the mesh has no tetrahedra");
+  auto mesh_id = std::make_shared<ObjectId>(0);
+  std::vector<LazyMacroCommand::Step> steps;
+  steps.push_back([input, mesh, mesh_id](const Document& doc) {
+    CheckSourceUnchanged(doc, input, "set up FE");
+    MeshData data;
+    data.source = input.source;
+    data.source_revision = input.source_revision;
+    data.surface = mesh.surface;
+    data.volume = mesh.volume;
+    data.settings = mesh.settings;
+    return edit::AddObject(UniqueObjectName(doc, input.source_name + " tets"), std::move(data));
+  });
+  steps.push_back([input](const Document& doc) {
+    const ObjectId tets = doc.last_created().back();
+    return edit::AddFeModel(UniqueObjectName(doc, input.source_name + " FE"), tets, kSteel, {});
+  });
+  return std::make_unique<LazyMacroCommand>("Set up FE for " + input.source_name, std::move(steps));
+}
+
+std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh) {
+  const DocObject& o = doc.Get(mesh);
+  const auto* m = std::get_if<MeshData>(&o.data);
+  if (m == nullptr || !m->volume)
+    throw DocumentError("set up FE on " + Quoted(o) + ": it holds no tetrahedra");
+  std::vector<std::unique_ptr<Command>> commands;
+  commands.push_back(edit::AddFeModel(UniqueObjectName(doc, o.name + " FE"), mesh, kSteel, {}));
+  return std::make_unique<MacroCommand>("Set up FE for " + o.name, std::move(commands));
+}
+
+std::unique_ptr<Command> RefreshFeMesh(ObjectId mesh, const FeMeshInput& input,
+                                       FeMeshResult result) {
+  if (!result.volume) throw std::invalid_argument("refresh: the mesh has no tetrahedra");
+  std::vector<LazyMacroCommand::Step> steps;
+  steps.push_back([mesh, input, result](const Document& doc) {
+    CheckSourceUnchanged(doc, input, "refresh");
+    const DocObject& o = doc.Get(mesh);
+    const auto* old = std::get_if<MeshData>(&o.data);
+    if (old == nullptr || old->source != input.source)
+      throw DocumentError("refresh: object '" + o.name + "' is no longer a mesh of '" +
+                          input.source_name + "'");
+    MeshData data = *old;
+    data.source_revision = input.source_revision;
+    data.surface = result.surface;
+    data.volume = result.volume;
+    data.settings = result.settings;
+    std::vector<std::unique_ptr<Command>> commands;
+    commands.push_back(edit::SetObjectData(mesh, std::move(data)));
+    for (const DocObject& f : doc.objects()) {
+      const auto* fe = std::get_if<FeModelData>(&f.data);
+      if (fe != nullptr && fe->tet_mesh == mesh && fe->precompute_key != 0)
+        commands.push_back(edit::SetPrecomputeKey(f.id, 0));
+    }
+    return std::make_unique<MacroCommand>("", std::move(commands));
+  });
+  return std::make_unique<LazyMacroCommand>("Refresh " + input.source_name + " mesh",
+                                            std::move(steps));
+}
+
+}  // namespace spidarcad::app

@@ -1,0 +1,127 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Setting up an FE model from a document object (FE mode's "Set up FE" and "Refresh"), without a
+// window: which objects can become an FE model, the meshing a Job runs on a copy of the source,
+// and the commands that land its result as one undo step.
+//
+// Sources: an implicit solid (grid surface, optionally sharpened, then TetGen; or CGAL Mesh_3
+// from the function), a sculpt object or a mesh object holding a closed surface (TetGen on that
+// surface), a mesh object holding tetrahedra (used as it is). Units: m, SI; the meshes are in
+// the world frame W. The Prepare*/command functions run on the main thread; MeshFeSource runs on a
+// Job's worker and reads only its input.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "doc/command.h"
+#include "doc/document.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/implicit_node.h"
+#include "spidarcad/modeling/surface_mesher.h"
+#include "spidarcad/modeling/tet_mesh.h"
+
+namespace spidarcad::app {
+
+// What FE mode can do with an object.
+enum class FeSourceKind {
+  kNone,         // nothing (a rigid part, an open surface, a missing object)
+  kFeModel,      // an FE model: used as it is
+  kVolumeMesh,   // a mesh object with tetrahedra: an FE model is added on it
+  kSurfaceMesh,  // a mesh object with a closed surface only: TetGen on it
+  kSolid,        // an implicit solid: meshed (TetGen or CGAL)
+  kSculpt,       // a sculpt object: TetGen on its (closed) mesh
+};
+
+// The kind of object `id` for FE mode (kNone when it has none or is not in the document).
+FeSourceKind ClassifyFeSource(const Document& doc, ObjectId id);
+// Short text of a kind ("solid", "sculpt", "surface mesh", "volume mesh", "FE model", "").
+const char* FeSourceKindText(FeSourceKind kind);
+// True when every edge of the mesh is shared by exactly two triangles in opposite directions
+// (closed, edge-manifold, consistently oriented) and it has at least four triangles and four
+// vertices (a tetrahedron: the fewest that bound a solid).
+bool IsClosedSurface(const modeling::TriangleMesh& mesh);
+
+// The FE model FE mode works on for object `id`: the object itself for an FE model; for a mesh
+// the first FE model on it; for a solid, sculpt or surface mesh the first FE model on a mesh made
+// from it (MeshData::source == id). 0 when there is none.
+ObjectId FeModelFor(const Document& doc, ObjectId id);
+
+// Cells across the largest side of a solid's box when no cell size is given.
+inline constexpr double kFeCellsAcross = 25.0;
+
+// Everything a meshing Job needs, copied from the document on the main thread.
+struct FeMeshInput {
+  ObjectId source = 0;                // the object meshed
+  std::uint64_t source_revision = 0;  // its revision when copied
+  std::string source_name;            // its name
+  FeSourceKind kind = FeSourceKind::kNone;
+  modeling::ImplicitNode root;  // the solid's tree (kSolid)
+  std::shared_ptr<const modeling::TriangleMesh>
+      surface;            // the closed surface (kSculpt, kSurfaceMesh)
+  MeshSettings settings;  // how to mesh (cell_size 0: from the solid's size)
+};
+
+// The input to mesh `source` (a solid, sculpt or surface mesh) with `settings`. Throws
+// DocumentError naming the object and what is wrong: not such a source, an open surface,
+// mesher "cgal" or sharp_edges for anything but a solid, a negative or non-finite setting.
+FeMeshInput PrepareFeMesh(const Document& doc, ObjectId source, const MeshSettings& settings);
+
+// The input to mesh mesh object `mesh` again from its source with its stored settings. Throws
+// DocumentError when it is not a mesh made from a source, or the source is gone.
+FeMeshInput PrepareFeRemesh(const Document& doc, ObjectId mesh);
+
+// What a meshing Job made.
+struct FeMeshResult {
+  std::shared_ptr<const modeling::TriangleMesh> surface;  // boundary surface (m, W)
+  std::shared_ptr<const modeling::TetMesh> volume;        // linear tetrahedra (m, W)
+  MeshSettings settings;  // the settings used, cell_size resolved (0 for a surface source)
+};
+
+// Compiles a solid's tree and finds the box it is meshed on at `cell` m (<= 0: the largest side
+// of its box found at 1 cm (which overestimates by up to about 1 cm per side) / kFeCellsAcross,
+// returned in *cell): the solid's box padded by two cells. Throws
+// std::invalid_argument naming `name` when the tree does not compile, the solid is empty or
+// unbounded (reaches 10 m from the origin).
+Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std::string& name,
+                                  double* cell, modeling::CompiledSolid* compiled);
+
+// The cost of meshing a solid input's surface (as `spidarcad mesh` estimates it before running);
+// nullopt for the other kinds and for CGAL. Throws as FeSolidBounds.
+std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& input);
+// The estimate's figure past `spidarcad mesh`'s default budget (docs/limits.md: 2^27 grid cells,
+// 2 GiB, 2e11 tape instructions) as text ("estimated grid cells 3e8 is over 1.34e8"), or "" when
+// it is within it.
+std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate);
+
+// Meshes the input (worker thread): a solid on the grid (MeshSurface, SharpenFeatures when
+// sharp_edges) then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Polls `cancel` (throws
+// the meshers' cancellation exceptions) and reports progress in [0, 1]. Throws
+// std::invalid_argument or std::runtime_error saying what failed (empty surface, TetGen or CGAL
+// errors).
+FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* cancel = nullptr,
+                          const std::function<void(double)>& progress = {});
+
+// One undo step "Set up FE for NAME": adds the mesh object "NAME tets" (source, source revision,
+// settings, surface and volume of `mesh`) and the FE model "NAME FE" on it: steel, clamped at the
+// minimum-x face (no fixed boxes), linear elements. Afterwards doc.last_created() is {mesh, FE
+// model}. Do throws DocumentError (and changes nothing) when the source is gone or has changed
+// since `input` was copied.
+std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh);
+
+// One undo step "Set up FE for NAME" on a mesh object that holds tetrahedra: the FE model
+// "NAME FE" (steel, minimum-x face clamp). The new id is in doc.last_created().
+std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh);
+
+// One undo step "Refresh NAME": the mesh object `mesh` gets the new surface and volume, made from
+// its source at input.source_revision with its stored settings; its FE models keep their
+// settings (their precompute keys are cleared: the columns were of the old mesh). Do throws
+// DocumentError when the source has changed since `input` was copied.
+std::unique_ptr<Command> RefreshFeMesh(ObjectId mesh, const FeMeshInput& input,
+                                       FeMeshResult result);
+
+}  // namespace spidarcad::app

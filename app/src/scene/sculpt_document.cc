@@ -1,0 +1,56 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "scene/sculpt_document.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "scene/fe_setup.h"
+
+namespace spidarcad::app {
+
+std::shared_ptr<const modeling::TriangleMesh> SculptableSurface(const DocObject& object) {
+  const auto* mesh = std::get_if<MeshData>(&object.data);
+  if (mesh == nullptr || !mesh->surface || !IsClosedSurface(*mesh->surface)) return nullptr;
+  return mesh->surface;
+}
+
+bool CanSculptCopyOf(const DocObject& object) {
+  if (std::holds_alternative<SolidData>(object.data)) return true;
+  return SculptableSurface(object) != nullptr;
+}
+
+std::string SculptStrokeTitle(modeling::SculptTool tool, const std::string& object_name) {
+  std::string tool_name = modeling::SculptToolName(tool);
+  std::replace(tool_name.begin(), tool_name.end(), '_', '/');  // "push_pull" -> "push/pull"
+  return "Sculpt stroke (" + tool_name + ") on " + object_name;
+}
+
+std::unique_ptr<Command> MakeStrokeCommand(ObjectId id, const std::string& name,
+                                           modeling::SculptTool tool,
+                                           const modeling::SculptEdit& edit,
+                                           const modeling::SculptMesh& mesh) {
+  const std::string title = SculptStrokeTitle(tool, name);
+  const bool topology_changed =
+      !edit.added_positions.empty() || !edit.rewritten.empty() || !edit.added_triangles.empty();
+  if (topology_changed) return edit::ReplaceSculptMesh(id, mesh.ToTriangleMesh(), title);
+  std::vector<int> vertices;
+  std::vector<Eigen::Vector3d> positions;
+  const std::size_t n = std::min(edit.moved.size(), edit.new_positions.size());
+  for (std::size_t k = 0; k < n; ++k) {
+    const bool changed =
+        k >= edit.old_positions.size() || edit.old_positions[k] != edit.new_positions[k];
+    if (!changed) continue;
+    vertices.push_back(edit.moved[k]);
+    positions.push_back(edit.new_positions[k]);
+  }
+  if (vertices.empty()) return nullptr;
+  Eigen::Matrix3Xd matrix(3, static_cast<Eigen::Index>(positions.size()));
+  for (std::size_t k = 0; k < positions.size(); ++k)
+    matrix.col(static_cast<Eigen::Index>(k)) = positions[k];
+  return edit::SculptStroke(id, std::move(vertices), std::move(matrix), title);
+}
+
+}  // namespace spidarcad::app

@@ -1,0 +1,297 @@
+// Tests of FE set-up from document objects (scene/fe_setup.cc): which objects can become an FE
+// model, meshing a solid (TetGen, CGAL), a sculpt or a closed surface, the one-step set-up and
+// refresh commands, and the cost estimate. Volumes are checked against closed forms (the sphere)
+// or the divergence-theorem volume of the surface that was tetrahedralized.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "scene/fe_setup.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <utility>
+#include <variant>
+
+#include "doc/assets.h"
+#include "doc/command.h"
+#include "doc/document.h"
+#include "scene/fe_model.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/surface_mesher.h"
+
+namespace spidarcad::app {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+modeling::ImplicitNode Sphere(double r) {
+  return modeling::ImplicitNode(modeling::SphereParams{r}, {}, "ball");
+}
+
+// Total volume of a tet mesh, m³ (each tet |det| / 6).
+double TetVolume(const modeling::TetMesh& mesh) {
+  double v = 0.0;
+  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) {
+    const Eigen::Vector3d a = mesh.nodes.col(mesh.tets(0, t));
+    Eigen::Matrix3d m;
+    for (int k = 0; k < 3; ++k) m.col(k) = mesh.nodes.col(mesh.tets(k + 1, t)) - a;
+    v += std::abs(m.determinant()) / 6.0;
+  }
+  return v;
+}
+
+// A document holding the solid "ball" (a sphere of radius r at the origin).
+struct BallDoc {
+  Document doc;
+  ObjectId ball = 0;
+  explicit BallDoc(double r = 0.05) {
+    doc.Execute(edit::AddSolid("ball", Sphere(r)));
+    ball = doc.last_created().front();
+    doc.history().Clear();
+  }
+};
+
+MeshSettings Cell(double h, std::string mesher = "tetgen") {
+  MeshSettings s;
+  s.cell_size = h;
+  s.mesher = std::move(mesher);
+  return s;
+}
+
+// A closed surface of a sphere (the grid mesher), for sculpt and surface-mesh sources.
+modeling::TriangleMesh SphereSurface(double r, double h) {
+  const modeling::CompiledSolid solid = modeling::CompiledSolid::Compile(Sphere(r));
+  modeling::SurfaceMeshSettings s;
+  s.bounds = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-r - 2 * h),
+                                 Eigen::Vector3d::Constant(r + 2 * h));
+  s.cell_size = h;
+  return modeling::MeshSurface(solid, s);
+}
+
+TEST(FeSetUp, SolidBecomesMeshAndFeModelInOneUndoStep) {
+  constexpr double kR = 0.05;
+  BallDoc f(kR);
+  const std::string before = f.doc.ToJson(true).dump();
+  const FeMeshInput input = PrepareFeMesh(f.doc, f.ball, Cell(0.005));
+  EXPECT_EQ(input.kind, FeSourceKind::kSolid);
+  const FeMeshResult mesh = MeshFeSource(input);
+  ASSERT_TRUE(mesh.volume);
+  // The sphere's volume (closed form) within 3 % at 20 cells across.
+  const double exact = 4.0 / 3.0 * kPi * kR * kR * kR;
+  EXPECT_NEAR(TetVolume(*mesh.volume), exact, 0.03 * exact);
+  f.doc.Execute(SetUpFe(input, mesh));
+  ASSERT_EQ(f.doc.objects().size(), 3u);
+  ASSERT_EQ(f.doc.last_created().size(), 2u);
+  const ObjectId mesh_id = f.doc.last_created()[0], fe_id = f.doc.last_created()[1];
+  const auto& md = std::get<MeshData>(f.doc.Get(mesh_id).data);
+  EXPECT_EQ(f.doc.Get(mesh_id).name, "ball tets");
+  EXPECT_EQ(md.source, f.ball);
+  EXPECT_EQ(md.source_revision, f.doc.Get(f.ball).revision);
+  EXPECT_EQ(md.settings.cell_size, 0.005);
+  EXPECT_EQ(md.settings.mesher, "tetgen");
+  EXPECT_EQ(md.volume, mesh.volume);
+  EXPECT_FALSE(f.doc.IsMeshOutOfDate(mesh_id));
+  const auto& fe = std::get<FeModelData>(f.doc.Get(fe_id).data);
+  EXPECT_EQ(f.doc.Get(fe_id).name, "ball FE");
+  EXPECT_EQ(fe.tet_mesh, mesh_id);
+  EXPECT_EQ(fe.material.youngs_modulus, 200e9);
+  EXPECT_EQ(fe.material.poisson_ratio, 0.3);
+  EXPECT_TRUE(fe.fixed_boxes.empty()) << "the minimum-x face clamp";
+  EXPECT_EQ(fe.element_order, 1);
+  EXPECT_EQ(FeModelFor(f.doc, f.ball), fe_id);
+  EXPECT_EQ(FeModelFor(f.doc, mesh_id), fe_id);
+  ASSERT_EQ(f.doc.history().undo_size(), 1u);
+  EXPECT_EQ(f.doc.history().UndoDescription(), "Set up FE for ball");
+  const std::string after = f.doc.ToJson(true).dump();
+  ASSERT_TRUE(f.doc.Undo());
+  EXPECT_EQ(f.doc.ToJson(true).dump(), before);
+  ASSERT_TRUE(f.doc.Redo());
+  EXPECT_EQ(f.doc.ToJson(true).dump(), after) << "redo brings back the same ids and content";
+}
+
+TEST(FeSetUp, CgalMeshesTheSolidFromItsFunction) {
+  constexpr double kR = 0.05;
+  BallDoc f(kR);
+  const FeMeshInput input = PrepareFeMesh(f.doc, f.ball, Cell(0.01, "cgal"));
+  const FeMeshResult mesh = MeshFeSource(input);
+  ASSERT_TRUE(mesh.volume && mesh.surface);
+  const double exact = 4.0 / 3.0 * kPi * kR * kR * kR;
+  EXPECT_NEAR(TetVolume(*mesh.volume), exact, 0.05 * exact);
+  EXPECT_TRUE(IsClosedSurface(*mesh.surface));
+  f.doc.Execute(SetUpFe(input, mesh));
+  const auto& md = std::get<MeshData>(f.doc.Get(f.doc.last_created()[0]).data);
+  EXPECT_EQ(md.settings.mesher, "cgal");
+}
+
+TEST(FeSetUp, AutomaticCellIsTheSolidsSizeOverCellsAcross) {
+  BallDoc f(0.05);
+  const FeMeshResult mesh = MeshFeSource(PrepareFeMesh(f.doc, f.ball, Cell(0.0)));
+  // The largest side of the box found by the 1 cm coarse search: the diameter, 0.1 m, plus at
+  // most about one search cell per side.
+  EXPECT_GE(mesh.settings.cell_size, 0.1 / kFeCellsAcross);
+  EXPECT_LE(mesh.settings.cell_size, (0.1 + 2 * 0.01) / kFeCellsAcross);
+}
+
+TEST(FeSetUp, ResultIsRefusedWhenTheSourceChangedWhileMeshing) {
+  BallDoc f;
+  const FeMeshInput input = PrepareFeMesh(f.doc, f.ball, Cell(0.01));
+  const FeMeshResult mesh = MeshFeSource(input);
+  f.doc.Execute(edit::SetNodeField(f.ball, {}, "radius", 0.06));
+  const std::string before = f.doc.ToJson(true).dump();
+  const std::size_t steps = f.doc.history().undo_size();
+  try {
+    f.doc.Execute(SetUpFe(input, mesh));
+    FAIL() << "a mesh of the old shape was added";
+  } catch (const DocumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("'ball' changed while it was meshed"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(f.doc.ToJson(true).dump(), before);
+  EXPECT_EQ(f.doc.history().undo_size(), steps);
+}
+
+TEST(FeSetUp, RefreshRemeshesWithTheStoredSettingsAndKeepsTheFeSettings) {
+  BallDoc f(0.05);
+  const FeMeshInput input = PrepareFeMesh(f.doc, f.ball, Cell(0.01));
+  f.doc.Execute(SetUpFe(input, MeshFeSource(input)));
+  const ObjectId mesh_id = f.doc.last_created()[0], fe_id = f.doc.last_created()[1];
+  const auto old_volume = std::get<MeshData>(f.doc.Get(mesh_id).data).volume;
+  f.doc.Execute(edit::SetFeMaterial(fe_id, kMaterialPresets[1].material));
+  f.doc.Execute(edit::SetPrecomputeKey(fe_id, 42));
+  f.doc.Execute(edit::SetNodeField(f.ball, {}, "radius", 0.06));
+  ASSERT_TRUE(f.doc.IsMeshOutOfDate(mesh_id));
+  const FeMeshInput again = PrepareFeRemesh(f.doc, mesh_id);
+  EXPECT_EQ(again.source, f.ball);
+  EXPECT_EQ(again.settings.cell_size, 0.01);
+  EXPECT_EQ(again.settings.mesher, "tetgen");
+  const std::size_t steps = f.doc.history().undo_size();
+  f.doc.Execute(RefreshFeMesh(mesh_id, again, MeshFeSource(again)));
+  EXPECT_EQ(f.doc.history().undo_size(), steps + 1);
+  EXPECT_EQ(f.doc.history().UndoDescription(), "Refresh ball mesh");
+  EXPECT_FALSE(f.doc.IsMeshOutOfDate(mesh_id));
+  const auto& md = std::get<MeshData>(f.doc.Get(mesh_id).data);
+  const double exact = 4.0 / 3.0 * kPi * 0.06 * 0.06 * 0.06;
+  EXPECT_NEAR(TetVolume(*md.volume), exact, 0.05 * exact);
+  const auto& fe = std::get<FeModelData>(f.doc.Get(fe_id).data);
+  EXPECT_EQ(fe.material.youngs_modulus, kMaterialPresets[1].material.youngs_modulus);
+  EXPECT_EQ(fe.tet_mesh, mesh_id);
+  EXPECT_EQ(fe.precompute_key, 0u) << "the columns were of the old mesh";
+  ASSERT_TRUE(f.doc.Undo());
+  EXPECT_TRUE(f.doc.IsMeshOutOfDate(mesh_id));
+  EXPECT_EQ(std::get<MeshData>(f.doc.Get(mesh_id).data).volume, old_volume);
+  EXPECT_EQ(std::get<FeModelData>(f.doc.Get(fe_id).data).precompute_key, 42u);
+}
+
+TEST(FeSetUp, SculptAndClosedSurfaceMeshAreTetrahedralizedAsTheyAre) {
+  Document doc;
+  const modeling::TriangleMesh surface = SphereSurface(0.04, 0.008);
+  ASSERT_TRUE(IsClosedSurface(surface));
+  doc.Execute(edit::AddSculpt("clay", surface));
+  const ObjectId clay = doc.last_created().front();
+  doc.Execute(
+      edit::AddMesh("shell", 0, 0, std::make_shared<modeling::TriangleMesh>(surface), nullptr));
+  const ObjectId shell = doc.last_created().front();
+  EXPECT_EQ(ClassifyFeSource(doc, clay), FeSourceKind::kSculpt);
+  EXPECT_EQ(ClassifyFeSource(doc, shell), FeSourceKind::kSurfaceMesh);
+  for (ObjectId id : {clay, shell}) {
+    const FeMeshInput input = PrepareFeMesh(doc, id, MeshSettings{});
+    const FeMeshResult mesh = MeshFeSource(input);
+    ASSERT_TRUE(mesh.volume);
+    // The tets fill the surface they were made from (its divergence-theorem volume).
+    EXPECT_NEAR(TetVolume(*mesh.volume), modeling::MeshVolume(surface),
+                1e-6 * modeling::MeshVolume(surface));
+    doc.Execute(SetUpFe(input, mesh));
+    EXPECT_EQ(FeModelFor(doc, id), doc.last_created()[1]);
+  }
+  // CGAL and sharp edges need a solid's function.
+  MeshSettings cgal;
+  cgal.mesher = "cgal";
+  EXPECT_THROW(PrepareFeMesh(doc, clay, cgal), DocumentError);
+}
+
+TEST(FeSetUp, OpenSurfacesAndOtherKindsAreRefusedNamingTheObject) {
+  Document doc;
+  modeling::TriangleMesh open = SphereSurface(0.04, 0.01);
+  open.triangles.conservativeResize(3, open.triangles.cols() - 1);
+  EXPECT_FALSE(IsClosedSurface(open));
+  doc.Execute(edit::AddSculpt("torn", open));
+  const ObjectId torn = doc.last_created().front();
+  EXPECT_EQ(ClassifyFeSource(doc, torn), FeSourceKind::kNone);
+  try {
+    PrepareFeMesh(doc, torn, MeshSettings{});
+    FAIL();
+  } catch (const DocumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("sculpt 'torn'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not a closed surface"), std::string::npos) << e.what();
+  }
+  doc.Execute(edit::AddRigidPart("base", Sphere(0.01), Eigen::Isometry3d::Identity()));
+  EXPECT_EQ(ClassifyFeSource(doc, doc.last_created().front()), FeSourceKind::kNone);
+  EXPECT_EQ(ClassifyFeSource(doc, 999), FeSourceKind::kNone);
+  EXPECT_THROW(PrepareFeMesh(doc, 999, MeshSettings{}), DocumentError);
+}
+
+TEST(FeSetUp, IsClosedSurfaceNeedsEveryEdgeTwiceInOppositeDirections) {
+  modeling::TriangleMesh tet;  // a tetrahedron's four faces, outward
+  tet.vertices.resize(3, 4);
+  tet.vertices << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+  tet.triangles.resize(3, 4);
+  tet.triangles << 0, 0, 0, 1, 2, 1, 3, 2, 1, 3, 2, 3;
+  EXPECT_TRUE(IsClosedSurface(tet));
+  modeling::TriangleMesh flipped = tet;
+  std::swap(flipped.triangles(1, 0), flipped.triangles(2, 0));
+  EXPECT_FALSE(IsClosedSurface(flipped));
+  modeling::TriangleMesh missing = tet;
+  missing.triangles.conservativeResize(3, 3);
+  EXPECT_FALSE(IsClosedSurface(missing));
+  EXPECT_FALSE(IsClosedSurface(modeling::TriangleMesh{}));
+}
+
+TEST(FeSetUp, VolumeMeshGetsAnFeModelWithoutMeshing) {
+  Document doc;
+  modeling::TetMesh tets;
+  tets.nodes.resize(3, 4);
+  tets.nodes << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+  tets.tets.resize(4, 1);
+  tets.tets << 0, 1, 2, 3;
+  tets.regions = Eigen::VectorXi::Zero(1);
+  doc.Execute(edit::AddMesh("block", 0, 0, nullptr, std::make_shared<modeling::TetMesh>(tets)));
+  const ObjectId block = doc.last_created().front();
+  EXPECT_EQ(ClassifyFeSource(doc, block), FeSourceKind::kVolumeMesh);
+  EXPECT_EQ(FeModelFor(doc, block), 0u);
+  doc.Execute(SetUpFeOnMesh(doc, block));
+  EXPECT_EQ(doc.history().UndoDescription(), "Set up FE for block");
+  const ObjectId fe = doc.last_created().front();
+  EXPECT_EQ(std::get<FeModelData>(doc.Get(fe).data).tet_mesh, block);
+  EXPECT_EQ(FeModelFor(doc, block), fe);
+  EXPECT_EQ(ClassifyFeSource(doc, fe), FeSourceKind::kFeModel);
+}
+
+TEST(FeSetUp, FindsTheFeModelOfTheShippedWorkbench) {
+  Document doc;
+  doc.Load(AssetPath("scenes/workbench.json"));
+  const ObjectId platform = doc.FindByName("platform")->id;
+  const ObjectId tets = doc.FindByName("platform tets")->id;
+  const ObjectId fe = doc.FindByName("platform FE")->id;
+  EXPECT_EQ(FeModelFor(doc, platform), fe);
+  EXPECT_EQ(FeModelFor(doc, tets), fe);
+  EXPECT_EQ(FeModelFor(doc, fe), fe);
+  EXPECT_EQ(FeModelFor(doc, doc.FindByName("clay")->id), 0u);
+  EXPECT_EQ(ClassifyFeSource(doc, doc.FindByName("base")->id), FeSourceKind::kNone);
+}
+
+TEST(FeSetUp, EstimateFlagsAMeshPastTheCliBudget) {
+  BallDoc f(0.05);
+  // 1e-4 m cells over a ~0.1 m box: about (0.1 / 1e-4)^3 = 1e9 grid cells, past 2^27.
+  const auto fine = EstimateFeMesh(PrepareFeMesh(f.doc, f.ball, Cell(1e-4)));
+  ASSERT_TRUE(fine.has_value());
+  EXPECT_GT(fine->grid_cells, 0.9e9);
+  EXPECT_NE(FeMeshOverBudget(*fine).find("grid cells"), std::string::npos);
+  const auto coarse = EstimateFeMesh(PrepareFeMesh(f.doc, f.ball, Cell(0.005)));
+  ASSERT_TRUE(coarse.has_value());
+  EXPECT_EQ(FeMeshOverBudget(*coarse), "");
+  EXPECT_FALSE(EstimateFeMesh(PrepareFeMesh(f.doc, f.ball, Cell(0.005, "cgal"))).has_value());
+}
+
+}  // namespace
+}  // namespace spidarcad::app
