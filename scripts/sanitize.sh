@@ -80,7 +80,7 @@ fi
 
 # Expand the target list against what the build defines.
 mapfile -t known < <(cmake --build "$build" -- -t targets all 2>/dev/null |
-  sed -n 's/^\([A-Za-z0-9_]*\(_tests\|_fuzz_replay\)\): .*/\1/p' | sort -u)
+  sed -n 's/^\([A-Za-z0-9_]*\(_tests\|_fuzz_replay\)\): .*/\1/p' | grep -v '^cmake_' | sort -u)
 targets=()
 IFS=',' read -r -a requested <<<"$targets_arg"
 for t in "${requested[@]}"; do
