@@ -53,6 +53,7 @@
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "support/scoped_env.h"
+#include "support/scripted_window.h"
 
 namespace spidarcad::app {
 namespace {
@@ -104,10 +105,7 @@ class RecordingMode final : public Mode {
   bool active_ = false;
 };
 
-bool HaveDisplay() {
-  const char* display = std::getenv("DISPLAY");
-  return display != nullptr && display[0] != '\0';
-}
+using test_support::HaveDisplay;
 
 class AppWindowTest : public ::testing::Test {
  protected:
@@ -309,21 +307,7 @@ using test_support::ScopedEnv;
 
 // A fresh directory under the test output directory.
 fs::path Scratch(const std::string& tag) {
-  const fs::path dir = fs::path(SPIDARCAD_TEST_OUTPUT_DIR) / ("window_doc_" + tag);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-// Options of a scripted window on `scene` with the ideal device.
-GuiOptions DocumentWindowOptions(const std::string& scene) {
-  GuiOptions options;
-  options.scene = scene;
-  options.device = "ideal";
-  options.width = 1000;
-  options.height = 700;
-  options.frames = 1 << 30;
-  return options;
+  return test_support::FreshScratchDir("window_doc_" + tag);
 }
 
 // The value of `field` of the node with scene id `id`, as the scene format writes it.
@@ -369,7 +353,7 @@ TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) 
   const std::string saved = (dir / "workbench_edited.json").string();
   nlohmann::json window_json;
   {
-    AppWindow window(DocumentWindowOptions(kNoSceneName));
+    AppWindow window(test_support::ScriptedWindowOptions(kNoSceneName));
     window.Frame();
     ASSERT_TRUE(window.OpenDocument(shipped)) << window.file_error();
     EXPECT_EQ(window.model().document().file_path(), shipped);
@@ -411,7 +395,7 @@ TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) 
   expected.Execute(edit::SetNodeField(plate->first, plate->second, "radius", 0.0045));
   EXPECT_EQ(Content(reread), Content(expected));
   // A fresh window on the saved file.
-  AppWindow again(DocumentWindowOptions(saved));
+  AppWindow again(test_support::ScriptedWindowOptions(saved));
   again.Frame();
   EXPECT_EQ(Content(again.model().document()), window_json);
   EXPECT_FALSE(again.model().document().dirty());
@@ -427,7 +411,7 @@ TEST(AppWindowDocument, OpenRefusesABadFileNamingItAndKeepsTheDocument) {
   std::ofstream(bad) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n"
                         "  \"solids\": [{\"name\": \"s\", \"root\": {\"type\": \"sphere\", "
                         "\"radius\": -1}}]\n}\n";
-  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
   window.Frame();
   const nlohmann::json before = window.model().document().ToJson();
   EXPECT_FALSE(window.OpenDocument(bad));
@@ -450,7 +434,7 @@ TEST(AppWindowDocument, UnsavedChangesAskSaveDiscardOrCancelFirst) {
   ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string mine = (dir / "mine.json").string();
   fs::copy_file(AssetPath("scenes/platform.json"), mine);
-  AppWindow window(DocumentWindowOptions(mine));
+  AppWindow window(test_support::ScriptedWindowOptions(mine));
   window.Frame();
   // An edit, then New: the question; Cancel keeps the document and its edit.
   ASSERT_TRUE(window.tree().SelectByName("plate"));
@@ -511,7 +495,7 @@ TEST(AppWindowDocument, DroppedFilesImportMeshesAndOpenDocuments) {
   std::ofstream(stl)
       << "solid w\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n"
          "   vertex 0.05 0 0\n   vertex 0 0.05 0\n  endloop\n endfacet\nendsolid w\n";
-  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
   window.Frame();
   const size_t objects = window.model().document().objects().size();
   window.DropFiles({stl});
@@ -545,7 +529,7 @@ TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
   ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string mine = (dir / "mine.json").string();
   fs::copy_file(AssetPath("scenes/platform.json"), mine);
-  GuiOptions options = DocumentWindowOptions(mine);
+  GuiOptions options = test_support::ScriptedWindowOptions(mine);
   options.autosave_interval = 0.05;
   options.set_fields = {"plate:radius=0.0047"};
   {
@@ -564,7 +548,7 @@ TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
   }
   const fs::path left = RecoveryFiles(dir / "recovery").at(0);
   {
-    GuiOptions ask = DocumentWindowOptions(mine);
+    GuiOptions ask = test_support::ScriptedWindowOptions(mine);
     AppWindow window(ask);
     EXPECT_TRUE(window.recovery_prompt_open());
     EXPECT_EQ(NodeField(window.model().document(), "plate", "radius"), 0.0047);
@@ -578,7 +562,7 @@ TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
     EXPECT_TRUE(fs::exists(left)) << "kept until saved";
   }
   {
-    GuiOptions no = DocumentWindowOptions(mine);
+    GuiOptions no = test_support::ScriptedWindowOptions(mine);
     no.recover = 0;
     AppWindow window(no);
     EXPECT_FALSE(window.recovery_prompt_open());
@@ -629,7 +613,7 @@ TEST(AppWindowRecovery, RecoversTheEditOfAKilledSession) {
   on_disk.Load(copy);
   ASSERT_EQ(NodeField(on_disk, "plate", "radius"), 0.003) << "the killed run never saved";
 
-  GuiOptions options = DocumentWindowOptions(copy);
+  GuiOptions options = test_support::ScriptedWindowOptions(copy);
   options.recover = 1;
   AppWindow window(options);
   EXPECT_FALSE(window.recovery_prompt_open());
@@ -706,7 +690,7 @@ TEST(AppWindowSculpt, StrokeIsOneUndoStepThatSurvivesSaveAndReopen) {
   ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
   ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
   const std::string saved = (dir / "sculpted.json").string();
-  AppWindow window(DocumentWindowOptions(kDemoSceneName));
+  AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
   window.Frame();
   auto* sculpt = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
   ASSERT_NE(sculpt, nullptr);
@@ -809,7 +793,7 @@ TEST(AppWindowSculpt, ModeSculptMakesTheClayASculptObjectOfTheFirstSolid) {
   const fs::path dir = Scratch("sculpt_launch");
   ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
   ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-  GuiOptions options = DocumentWindowOptions("");
+  GuiOptions options = test_support::ScriptedWindowOptions("");
   options.mode = "sculpt";
   AppWindow window(options);
   auto* sculpt = dynamic_cast<SculptWindowMode*>(window.FindMode("sculpt"));
@@ -879,7 +863,7 @@ TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
   ASSERT_TRUE(AdoptScenePartsAsRigidParts(&file));
   const Eigen::Isometry3d start = RigidPose(file, "right_leg");
   {
-    GuiOptions options = DocumentWindowOptions(scene);
+    GuiOptions options = test_support::ScriptedWindowOptions(scene);
     options.device = "simulated";  // as the window's default and the trajectory's golden
     options.trajectory = trajectory;
     AppWindow window(options);
@@ -928,7 +912,7 @@ TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
     window.Frame();
     EXPECT_FALSE(doc.dirty());
   }
-  AppWindow again(DocumentWindowOptions(saved));
+  AppWindow again(test_support::ScriptedWindowOptions(saved));
   again.Frame();
   Document reread;
   reread.Load(saved);
@@ -993,7 +977,7 @@ TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
     }
     out << "endsolid corner\n";
   }
-  AppWindow window(DocumentWindowOptions(kNoSceneName));
+  AppWindow window(test_support::ScriptedWindowOptions(kNoSceneName));
   window.Frame();
   const DeviceToWorld& x = window.model().device_to_world();
   ASSERT_EQ(x.world_scale, 1.0);

@@ -38,6 +38,7 @@
 #include "spidarcad/modeling/tet_mesh.h"
 #include "support/malloc_counter.h"
 #include "support/scoped_env.h"
+#include "support/scripted_window.h"
 
 namespace spidarcad::app {
 namespace {
@@ -726,28 +727,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-bool HaveDisplay() {
-  const char* display = std::getenv("DISPLAY");
-  return display != nullptr && display[0] != '\0';
-}
+using test_support::HaveDisplay;
 
 // A fresh directory under the test output directory.
 fs::path FeScratch(const std::string& tag) {
-  const fs::path dir = fs::path(SPIDARCAD_TEST_OUTPUT_DIR) / ("fe_window_" + tag);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-// Options of a scripted window on `scene` with the ideal device.
-GuiOptions FeWindowOptions(const std::string& scene) {
-  GuiOptions options;
-  options.scene = scene;
-  options.device = "ideal";
-  options.width = 1000;
-  options.height = 700;
-  options.frames = 1 << 30;
-  return options;
+  return test_support::FreshScratchDir("fe_window_" + tag);
 }
 
 // The first differences between two JSON documents (a short message instead of both in full).
@@ -798,7 +782,7 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   const fem::Material aluminium = kMaterialPresets[1].material;
   nlohmann::json window_json;
   {
-    AppWindow window(FeWindowOptions(kNoSceneName));
+    AppWindow window(test_support::ScriptedWindowOptions(kNoSceneName));
     window.Frame();
     ASSERT_TRUE(window.OpenDocument(shipped)) << window.file_error();
     SceneModel& model = window.model();
@@ -881,7 +865,7 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   EXPECT_TRUE(Comparable(reread) == Comparable(expected))
       << Differences(Comparable(reread), Comparable(expected));
   // A fresh window on the saved file: FE mode binds to the saved FE model with its material.
-  AppWindow again(FeWindowOptions(saved));
+  AppWindow again(test_support::ScriptedWindowOptions(saved));
   auto* again_fe = dynamic_cast<FeWindowMode*>(again.FindMode("fe"));
   ASSERT_NE(again_fe, nullptr);
   again.SwitchMode(again_fe);
@@ -900,7 +884,7 @@ TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
   const fs::path dir = FeScratch("stale");
   test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
   test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-  AppWindow window(FeWindowOptions(AssetPath("scenes/workbench.json")));
+  AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
   auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
@@ -950,7 +934,7 @@ TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
   const fs::path dir = FeScratch("sculpt");
   test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
   test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-  AppWindow window(FeWindowOptions(AssetPath("scenes/workbench.json")));
+  AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
   auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
@@ -986,7 +970,7 @@ TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
   const fs::path dir = FeScratch("dropped");
   test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
   test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-  AppWindow window(FeWindowOptions(AssetPath("scenes/platform.json")));
+  AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
   auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
@@ -1014,7 +998,7 @@ TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   const fs::path dir = FeScratch("budget");
   test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
   test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
-  AppWindow window(FeWindowOptions(AssetPath("scenes/platform.json")));
+  AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
   ASSERT_NE(fe_mode, nullptr);
