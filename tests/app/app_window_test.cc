@@ -303,13 +303,6 @@ TEST_F(AppWindowTest, SwitchingModesEntersLeavesAndPublishesTheActiveModesField)
 
 namespace fs = std::filesystem;
 
-using test_support::ScopedEnv;
-
-// A fresh directory under the test output directory.
-fs::path Scratch(const std::string& tag) {
-  return test_support::FreshScratchDir("window_doc_" + tag);
-}
-
 // The value of `field` of the node with scene id `id`, as the scene format writes it.
 nlohmann::json NodeField(const Document& doc, const std::string& id, const std::string& field) {
   const auto where = doc.FindNodeById(id);
@@ -346,9 +339,8 @@ std::vector<fs::path> RecoveryFiles(const fs::path& dir) {
 // window on the saved file holds the same objects.
 TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("roundtrip");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_roundtrip");
+  const fs::path& dir = scratch.dir;
   const std::string shipped = AssetPath("scenes/workbench.json");
   const std::string saved = (dir / "workbench_edited.json").string();
   nlohmann::json window_json;
@@ -404,9 +396,8 @@ TEST(AppWindowDocument, OpensEntersEveryModeEditsSavesAndReopensTheSameObjects) 
 // A file that fails to open names the file and line and leaves the document as it was.
 TEST(AppWindowDocument, OpenRefusesABadFileNamingItAndKeepsTheDocument) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("bad_open");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_bad_open");
+  const fs::path& dir = scratch.dir;
   const std::string bad = (dir / "bad.json").string();
   std::ofstream(bad) << "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n"
                         "  \"solids\": [{\"name\": \"s\", \"root\": {\"type\": \"sphere\", "
@@ -429,9 +420,8 @@ TEST(AppWindowDocument, OpenRefusesABadFileNamingItAndKeepsTheDocument) {
 // writes the file before the action, Discard drops the changes.
 TEST(AppWindowDocument, UnsavedChangesAskSaveDiscardOrCancelFirst) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("ask");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_ask");
+  const fs::path& dir = scratch.dir;
   const std::string mine = (dir / "mine.json").string();
   fs::copy_file(AssetPath("scenes/platform.json"), mine);
   AppWindow window(test_support::ScriptedWindowOptions(mine));
@@ -488,9 +478,8 @@ TEST(AppWindowDocument, UnsavedChangesAskSaveDiscardOrCancelFirst) {
 // else is refused with a message.
 TEST(AppWindowDocument, DroppedFilesImportMeshesAndOpenDocuments) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("drop");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_drop");
+  const fs::path& dir = scratch.dir;
   const std::string stl = (dir / "wedge.stl").string();
   std::ofstream(stl)
       << "solid w\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n"
@@ -524,9 +513,8 @@ TEST(AppWindowDocument, DroppedFilesImportMeshesAndOpenDocuments) {
 // back, unsaved), and --no-recover deletes it without asking.
 TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("offer");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_offer");
+  const fs::path& dir = scratch.dir;
   const std::string mine = (dir / "mine.json").string();
   fs::copy_file(AssetPath("scenes/platform.json"), mine);
   GuiOptions options = test_support::ScriptedWindowOptions(mine);
@@ -577,10 +565,9 @@ TEST(AppWindowRecovery, OffersANewerAutosaveAndRecoversOrDiscardsIt) {
 // original's name, and saving it writes the edit and removes the recovery file.
 TEST(AppWindowRecovery, RecoversTheEditOfAKilledSession) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("kill");
+  const test_support::WindowScratch scratch("window_doc_kill");
+  const fs::path& dir = scratch.dir;
   const fs::path recovery_dir = dir / "recovery";
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", recovery_dir.string().c_str());
   const std::string copy = (dir / "workbench.json").string();
   fs::copy_file(AssetPath("scenes/workbench.json"), copy);
   const std::string command = std::string("exec '") + SPIDARCAD_EXE + "' '" + copy +
@@ -686,9 +673,8 @@ void MoveGrip(AppWindow& window, const Eigen::Vector3d& p_W, double grasp_deg, D
 // "Send to FE" selects it and switches to FE mode.
 TEST(AppWindowSculpt, StrokeIsOneUndoStepThatSurvivesSaveAndReopen) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("sculpt");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_sculpt");
+  const fs::path& dir = scratch.dir;
   const std::string saved = (dir / "sculpted.json").string();
   AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
   window.Frame();
@@ -790,9 +776,7 @@ TEST(AppWindowSculpt, StrokeIsOneUndoStepThatSurvivesSaveAndReopen) {
 // first solid, made by a Job at start-up and added as one undo step, is what the mode sculpts.
 TEST(AppWindowSculpt, ModeSculptMakesTheClayASculptObjectOfTheFirstSolid) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("sculpt_launch");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_sculpt_launch");
   GuiOptions options = test_support::ScriptedWindowOptions("");
   options.mode = "sculpt";
   AppWindow window(options);
@@ -851,9 +835,8 @@ bool FramesUntil(AppWindow* window, double seconds, const Done& done) {
 // through a command republishes a field whose distance beside the peg is the edited solid's own.
 TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("assembly");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_assembly");
+  const fs::path& dir = scratch.dir;
   const std::string scene = AssetPath("scenes/assembly.json");
   const std::string trajectory = AssetPath("trajectories/seat_right_leg.csv");
   const std::string saved = (dir / "robot_seated.json").string();
@@ -957,9 +940,8 @@ TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
 // undoing the import removes the actor.
 TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = Scratch("import_draw");
-  ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("window_doc_import_draw");
+  const fs::path& dir = scratch.dir;
   // A closed tetrahedron, 6 cm on its legs, corner at (-0.03, -0.03, -0.06).
   const std::string stl = (dir / "corner.stl").string();
   {

@@ -729,11 +729,6 @@ namespace fs = std::filesystem;
 
 using test_support::HaveDisplay;
 
-// A fresh directory under the test output directory.
-fs::path FeScratch(const std::string& tag) {
-  return test_support::FreshScratchDir("fe_window_" + tag);
-}
-
 // The first differences between two JSON documents (a short message instead of both in full).
 std::string Differences(const nlohmann::json& a, const nlohmann::json& b) {
   return nlohmann::json::diff(a, b).dump().substr(0, 1500);
@@ -772,9 +767,8 @@ const FeModelData& FeDataOf(const Document& doc, ObjectId id) {
 // directly, and with what a fresh window's FE mode binds to.
 TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = FeScratch("setup");
-  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("fe_window_setup");
+  const fs::path& dir = scratch.dir;
   test_support::ScopedEnv cache("SPIDARCAD_CACHE_DIR", (dir / "cache").string().c_str());
   const std::string shipped = AssetPath("scenes/platform.json");
   const std::string saved = (dir / "platform_fe.json").string();
@@ -881,9 +875,7 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
 // model's settings; undo makes it stale again.
 TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = FeScratch("stale");
-  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("fe_window_stale");
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
@@ -931,9 +923,7 @@ TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
 // set up in one call: its closed mesh filled by TetGen, the mesh object made from it.
 TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = FeScratch("sculpt");
-  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("fe_window_sculpt");
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
@@ -967,9 +957,7 @@ TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
 // edit and gets no mesh of the old shape.
 TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = FeScratch("dropped");
-  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("fe_window_dropped");
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
@@ -995,9 +983,7 @@ TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
 // question is answered; Cancel leaves the document as it was.
 TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
-  const fs::path dir = FeScratch("budget");
-  test_support::ScopedEnv config("XDG_CONFIG_HOME", (dir / "config").string().c_str());
-  test_support::ScopedEnv recovery("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").string().c_str());
+  const test_support::WindowScratch scratch("fe_window_budget");
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));

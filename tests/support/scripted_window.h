@@ -10,6 +10,7 @@
 
 #include "gui/gui.h"
 #include "support/paths.h"
+#include "support/scoped_env.h"
 
 namespace spidarcad::test_support {
 
@@ -26,6 +27,20 @@ inline std::filesystem::path FreshScratchDir(const std::string& name) {
   std::filesystem::create_directories(dir);
   return dir;
 }
+
+// A fresh scratch folder for one window test (FreshScratchDir), with the window's settings
+// ($XDG_CONFIG_HOME) and recovery files ($SPIDARCAD_RECOVERY_DIR) pointed into it while it lives.
+class WindowScratch {
+ public:
+  explicit WindowScratch(const std::string& name)
+      : dir(FreshScratchDir(name)),
+        config_("XDG_CONFIG_HOME", (dir / "config").c_str()),
+        recovery_("SPIDARCAD_RECOVERY_DIR", (dir / "recovery").c_str()) {}
+  const std::filesystem::path dir;  // the folder
+
+ private:
+  ScopedEnv config_, recovery_;
+};
 
 // Options of a scripted 1000×700 window on `scene` with the ideal device; the test calls Frame.
 inline app::GuiOptions ScriptedWindowOptions(const std::string& scene) {
