@@ -845,9 +845,15 @@ void AppWindow::PollJobs() {
 void AppWindow::UpdateModes() {
   State& s = *s_;
   s.context.select_key = s.select_key;
+  bool changed = false;
   for (auto& m : s.modes) {
     m->Update(s.latest.tool, s.context);
-    if (m->TakeSceneChanged()) s.republish = true;
+    changed |= m->TakeSceneChanged();
+  }
+  // A mode's new field may come with its own drawing of the objects it acts on (FE's surface).
+  if (changed) {
+    s.republish = true;
+    ApplyHidden();
   }
   s.select_key = false;
   s.context.select_key = false;
@@ -888,7 +894,7 @@ void AppWindow::DrawModePanel() {
   const std::vector<std::string> targets = s.active->Targets(s.model);
   if (!targets.empty()) {
     std::string text = "acts on:";
-    for (const std::string& t : targets) text += " " + t;
+    for (size_t i = 0; i < targets.size(); ++i) text += (i ? ", '" : " '") + targets[i] + "'";
     ImGui::PushTextWrapPos(0.0f);
     ImGui::TextDisabled("%s", text.c_str());
     ImGui::PopTextWrapPos();

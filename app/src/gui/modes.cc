@@ -366,9 +366,20 @@ std::unique_ptr<haptics::HapticScene> FeWindowMode::BuildScene(ModeContext&) {
   return scene;
 }
 
-std::vector<std::string> FeWindowMode::Targets(const SceneModel&) const {
+std::vector<std::string> FeWindowMode::Targets(const SceneModel& model) const {
   if (fe_.mesh_name().empty()) return {};
-  return {fe_.mesh_name()};
+  std::vector<std::string> names = {fe_.mesh_name()};
+  // The object the FE model's mesh was made from (solid, sculpt or imported mesh), if any.
+  const Document& doc = model.document();
+  const DocObject* fe = doc.Find(fe_.bound_object());
+  const auto* data = fe != nullptr ? std::get_if<FeModelData>(&fe->data) : nullptr;
+  const DocObject* mesh = data != nullptr ? doc.Find(data->tet_mesh) : nullptr;
+  const auto* mesh_data = mesh != nullptr ? std::get_if<MeshData>(&mesh->data) : nullptr;
+  if (mesh_data != nullptr) {
+    names.push_back(mesh->name);
+    if (const DocObject* source = doc.Find(mesh_data->source)) names.push_back(source->name);
+  }
+  return names;
 }
 
 std::string FeWindowMode::Summary(const haptics::ToolState& tool) {

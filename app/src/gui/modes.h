@@ -140,6 +140,9 @@ class FeWindowMode final : public Mode {
   std::unique_ptr<haptics::HapticScene> BuildScene(ModeContext& context) override;
   bool TakeSceneChanged() override { return std::exchange(changed_, false); }
   std::vector<std::string> Targets(const SceneModel& model) const override;
+  // While active with a model, the FE surface stands where its source is drawn (it would
+  // z-fight with the source's own actor), so the source is hidden.
+  bool draws_targets() const override { return fe_.active() && fe_.model() != nullptr; }
   bool Settled() const override { return fe_.Settled(); }
   std::string Summary(const haptics::ToolState& tool) override;
   FeMode& fe() { return fe_; }
