@@ -935,6 +935,49 @@ TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
   EXPECT_NEAR(after - before, 0.0005, 1e-12);
 }
 
+// Ctrl+Z while the seating trajectory carries the leg changes nothing and says to let go first
+// (an undo under the hand would rebuild the field and drop the part); the carry goes on, the
+// seat lands as its own step after the earlier edit, and then Ctrl+Z undoes it.
+TEST(AppWindowAssembly, UndoWaitsWhileAPartIsCarried) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("window_doc_carry_undo");
+  const std::string scene = AssetPath("scenes/assembly.json");
+  const std::string trajectory = AssetPath("trajectories/seat_right_leg.csv");
+  constexpr int kLeg = 4;  // right_leg in assembly.json's parts
+  GuiOptions options = test_support::ScriptedWindowOptions(scene);
+  options.device = "simulated";
+  options.trajectory = trajectory;
+  AppWindow window(options);
+  auto* mode = dynamic_cast<AssemblyWindowMode*>(window.FindMode("assembly"));
+  ASSERT_NE(mode, nullptr);
+  AssemblyMode& assembly = mode->assembly();
+  Document& doc = window.model().document();
+  doc.Execute(edit::SetDescription("robot, leg to be seated"));
+  ASSERT_EQ(doc.history().undo_size(), 1u);
+  const haptics::Trajectory t = haptics::Trajectory::Load(trajectory);
+  const double length = t.end_time() - t.start_time();
+  ASSERT_TRUE(FramesUntil(&window, length, [&] { return assembly.state().carried == kLeg; }))
+      << "the trajectory never carried the leg";
+  const std::shared_ptr<haptics::AssemblyField> field = assembly.field();
+  EXPECT_FALSE(window.tree().Undo());
+  EXPECT_EQ(window.tree().error(),
+            "Undo: let go of part 'right_leg' first (undo and redo wait while a part is carried: "
+            "its move becomes an undo step when it is put down)");
+  EXPECT_EQ(doc.description(), "robot, leg to be seated");
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  window.Frame();
+  EXPECT_EQ(assembly.field(), field) << "the field was rebuilt under the hand";
+  EXPECT_EQ(assembly.state().carried, kLeg);
+  // The rest of the trajectory: the leg is put down in its seat, one step after the edit.
+  FramesUntil(&window, length + 1.0, [&] {
+    return assembly.state().carried < 0 && doc.history().undo_size() == 2u;
+  });
+  ASSERT_EQ(doc.history().undo_size(), 2u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
+  ASSERT_TRUE(window.tree().Undo()) << window.tree().error();
+  EXPECT_EQ(doc.history().UndoDescription(), "Set description");
+}
+
 // An imported mesh is drawn: the view has an actor for it, placed like the solids (X_WD of the
 // empty document: identity), with the mesh's bounds; a click on it selects it in the tree;
 // undoing the import removes the actor.

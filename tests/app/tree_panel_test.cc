@@ -194,6 +194,38 @@ TEST(TreeController, ADragIsOneUndoStepAndUndoRestoresTheValueBeforeIt) {
   EXPECT_NEAR(d.Object("knob").solid->Value(kKnobCentre), -0.035, 1e-15);
 }
 
+// While the history hold names a reason (the window's active mode holds a gesture: a carried
+// part, a sculpt stroke), undo and redo change nothing and say why; once it is released they run.
+TEST(TreeController, UndoAndRedoWaitWhileTheHistoryIsHeld) {
+  Demo d;
+  ASSERT_TRUE(d.tree.SelectByName("knob/0"));
+  ASSERT_TRUE(d.tree.SetField("radius", 0.030));
+  Document& doc = d.model.document();
+  const std::size_t steps = doc.history().undo_size();
+  std::string hold = "let go of part 'peg' first";
+  d.tree.set_history_hold([&hold] { return hold; });
+  const nlohmann::json before = doc.ToJson(true);
+  const std::uint64_t revision = doc.revision();
+  EXPECT_FALSE(d.tree.Undo());
+  EXPECT_EQ(d.tree.error(), "Undo: let go of part 'peg' first");
+  EXPECT_EQ(doc.ToJson(true), before);
+  EXPECT_EQ(doc.revision(), revision);
+  EXPECT_EQ(doc.history().undo_size(), steps);
+  EXPECT_EQ(d.SphereRadius(), 0.030);
+  // Released: the undo runs; held again: the redo waits.
+  hold.clear();
+  ASSERT_TRUE(d.tree.Undo()) << d.tree.error();
+  EXPECT_EQ(d.SphereRadius(), 0.035);
+  hold = "finish the sculpt stroke first";
+  EXPECT_FALSE(d.tree.Redo());
+  EXPECT_EQ(d.tree.error(), "Redo: finish the sculpt stroke first");
+  EXPECT_EQ(d.SphereRadius(), 0.035);
+  EXPECT_EQ(doc.history().redo_size(), 1u);
+  hold.clear();
+  ASSERT_TRUE(d.tree.Redo()) << d.tree.error();
+  EXPECT_EQ(d.SphereRadius(), 0.030);
+}
+
 TEST(TreeController, ARefusedEditLeavesTheDocumentAndTheSolidUnchanged) {
   Demo d;
   ASSERT_TRUE(d.tree.SelectByName("knob/0"));

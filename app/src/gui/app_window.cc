@@ -375,6 +375,9 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   }
   // The tree panel's controller on the model's Document; the first solid selected, or --select.
   s.tree = std::make_unique<TreeController>(&s.model);
+  // Undo and redo wait while the active mode holds a gesture (a carried part, a sculpt stroke).
+  s.tree->set_history_hold(
+      [this] { return s_->active != nullptr ? s_->active->HistoryHold() : std::string(); });
   if (!options.select.empty()) {
     if (!s.tree->SelectByName(options.select)) {
       throw WindowStartError(2, "spidarcad: error: --select: no solid or node named '" +

@@ -382,7 +382,16 @@ bool TreeController::Paste() {
   });
 }
 
+bool TreeController::HistoryHeld(const char* what) {
+  const std::string why = history_hold_ ? history_hold_() : std::string();
+  if (why.empty()) return false;
+  error_ = std::string(what) + ": " + why;
+  error_at_.reset();
+  return true;
+}
+
 bool TreeController::Undo() {
+  if (HistoryHeld("Undo")) return false;
   Document& doc = document();
   const std::string what = doc.history().UndoDescription();
   if (!doc.Undo()) {
@@ -398,6 +407,7 @@ bool TreeController::Undo() {
 }
 
 bool TreeController::Redo() {
+  if (HistoryHeld("Redo")) return false;
   Document& doc = document();
   const std::string what = doc.history().RedoDescription();
   if (!doc.Redo()) {

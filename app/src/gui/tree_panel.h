@@ -110,9 +110,13 @@ class TreeController {
   // (or of its parent when the selected node is a primitive), or as a new object when nothing
   // is selected. Selects what was pasted.
   bool Paste();
-  // Undo / redo the last step; false when there was nothing to undo / redo.
+  // Undo / redo the last step; false when there was nothing to undo / redo, or when the history
+  // hold says to wait (error() then says why and nothing changes).
   bool Undo();
   bool Redo();
+  // Asked before every undo and redo: why they must wait ("let go of part 'x' first"), or ""
+  // when they may run. The window passes its active mode's Mode::HistoryHold.
+  void set_history_hold(std::function<std::string()> hold) { history_hold_ = std::move(hold); }
   // Saves to `path` ("" -> the Document's file). False with error() when there is no file yet
   // or writing failed.
   bool Save(const std::string& path = "");
@@ -138,6 +142,8 @@ class TreeController {
   bool Try(const std::optional<NodeRef>& where, Edit&& edit);
   // True when a valid node is selected; else sets the error.
   bool NeedSelection(const char* what);
+  // True (with the error set) when the history hold says undo and redo must wait.
+  bool HistoryHeld(const char* what);
 
   SceneModel* model_;
   Clipboard clipboard_;
@@ -145,6 +151,7 @@ class TreeController {
   std::string error_;
   std::optional<NodeRef> error_at_;
   std::string message_;
+  std::function<std::string()> history_hold_;
 };
 
 // UI state of the tree panel across frames.
