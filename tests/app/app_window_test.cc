@@ -969,9 +969,8 @@ TEST(AppWindowAssembly, UndoWaitsWhileAPartIsCarried) {
   EXPECT_EQ(assembly.field(), field) << "the field was rebuilt under the hand";
   EXPECT_EQ(assembly.state().carried, kLeg);
   // The rest of the trajectory: the leg is put down in its seat, one step after the edit.
-  FramesUntil(&window, length + 1.0, [&] {
-    return assembly.state().carried < 0 && doc.history().undo_size() == 2u;
-  });
+  FramesUntil(&window, length + 1.0,
+              [&] { return assembly.state().carried < 0 && doc.history().undo_size() == 2u; });
   ASSERT_EQ(doc.history().undo_size(), 2u);
   EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
   ASSERT_TRUE(window.tree().Undo()) << window.tree().error();
