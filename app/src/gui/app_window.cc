@@ -16,6 +16,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <variant>
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -610,6 +611,14 @@ bool AppWindow::Frame() {
   s.device_frame = MakeDeviceFrame(s.latest, *s.geometry, s.runtime->description());
   s.view->Update(s.device_frame);
   PollJobs();
+  // In model mode a mesh made from a solid, selected in the tree, is drawn in its solid's place.
+  ObjectId shown_mesh = 0;
+  if (s.active == s.model_mode && s.tree->selection()) {
+    const DocObject* o = s.model.document().Find(s.tree->selection()->object);
+    const auto* m = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr;
+    if (m != nullptr && m->source != 0) shown_mesh = o->id;
+  }
+  s.scene_view->SetShownMesh(shown_mesh);
   s.scene_view->Sync(s.model, s.workbench.show_edges ? s.workbench.selected : -1);
   s.scene_view->ShowContacts(s.model.ContactMarkers(), s.latest.tool.time,
                              s.model.device_to_world());
@@ -1611,6 +1620,8 @@ HapticRuntime& AppWindow::runtime() { return *s_->runtime; }
 GripControl& AppWindow::grip() { return *s_->grip; }
 DeviceView& AppWindow::view() { return *s_->view; }
 SceneView& AppWindow::scene_view() { return *s_->scene_view; }
+WorkbenchState& AppWindow::workbench() { return s_->workbench; }
+JobQueue& AppWindow::jobs() { return *s_->jobs; }
 vtkRenderer* AppWindow::renderer() { return s_->view->renderer(); }
 
 int RunGui(const GuiOptions& options) {
