@@ -23,6 +23,7 @@
 
 #include "doc/command.h"
 #include "gui/scene_view.h"
+#include "gui/workbench_panels.h"
 #include "scene/grip_control.h"
 #include "scene/scene_haptics.h"
 #include "scene/scene_model.h"
@@ -422,6 +423,51 @@ TEST(WindowHaptics, SnapOfTheSceneFileIsKeptAndFeltLikeRun) {
   const haptics::ToolWrench b = run.scene->Evaluate(tool);
   EXPECT_GT(a.f_T_W.norm(), 0.05);
   EXPECT_LE((a.f_T_W - b.f_T_W).norm(), 1e-12);
+}
+
+// Haptics → Snap forces: off and on again are one undo step each; on again brings back the
+// document's own settings (not the defaults); the scene the window publishes follows, and a
+// document without snap gets modeling::SceneSnap's defaults.
+TEST(WindowHaptics, SnapForcesToggleIsOneUndoStepAndTheSceneFollows) {
+  const std::string text = R"({"format": "spidarcad-scene", "version": 1, "units": "m",
+    "snap": {"max_force": 0.8, "vertex_radius": 0.008, "edge_radius": 0.005, "face_radius": 0.003},
+    "solids": [{"name": "cube", "root": {"type": "box", "size": [0.06, 0.06, 0.06]}}]})";
+  SceneModel model;
+  model.Load(WriteScene("snap_toggle.json", text), Travel());
+  Document& doc = model.document();
+  WorkbenchState state;
+  haptics::ToolKinematics near_corner;
+  near_corner.p_WT = Eigen::Vector3d(0.034, 0.033, 0.035);  // outside, near the corner
+  const double pull = model.BuildHapticScene(NoSprings())->Evaluate(near_corner).f_T_W.norm();
+  EXPECT_GT(pull, 0.05);
+  EXPECT_FALSE(ToggleSnapForces(&doc, &state));
+  EXPECT_FALSE(doc.snap().has_value());
+  EXPECT_EQ(doc.history().UndoDescription(), "Remove snap forces");
+  EXPECT_EQ(model.BuildHapticScene(NoSprings())->size(), 1);  // the proxy only
+  EXPECT_EQ(model.BuildHapticScene(NoSprings())->Evaluate(near_corner).f_T_W.norm(), 0.0);
+  EXPECT_TRUE(ToggleSnapForces(&doc, &state));
+  ASSERT_TRUE(doc.snap().has_value());
+  EXPECT_EQ(doc.snap()->max_force, 0.8);
+  EXPECT_EQ(doc.snap()->vertex_radius, 0.008);
+  EXPECT_EQ(doc.history().UndoDescription(), "Set snap forces");
+  std::unique_ptr<haptics::HapticScene> on = model.BuildHapticScene(NoSprings());
+  EXPECT_EQ(on->size(), 2);
+  EXPECT_NEAR(on->Evaluate(near_corner).f_T_W.norm(), pull, 1e-12);
+  // Undo twice: off, then on with the file's settings.
+  ASSERT_TRUE(doc.Undo());
+  EXPECT_FALSE(doc.snap().has_value());
+  ASSERT_TRUE(doc.Undo());
+  ASSERT_TRUE(doc.snap().has_value());
+  EXPECT_EQ(doc.snap()->max_force, 0.8);
+  // A document without snap: on with the defaults.
+  SceneModel plain;
+  plain.Load(Source("assets/scenes/platform.json"), Travel());
+  ASSERT_FALSE(plain.document().snap().has_value());
+  WorkbenchState fresh;
+  EXPECT_TRUE(ToggleSnapForces(&plain.document(), &fresh));
+  ASSERT_TRUE(plain.document().snap().has_value());
+  EXPECT_EQ(plain.document().snap()->max_force, modeling::SceneSnap{}.max_force);
+  EXPECT_EQ(plain.BuildHapticScene(NoSprings())->size(), 3);  // two proxies and the snap
 }
 
 TEST(WindowHaptics, MarkerShowsTheProxyOnTheSurfaceWhileTheGripIsBelowIt) {

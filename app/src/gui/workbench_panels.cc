@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <variant>
 
+#include "doc/command.h"
 #include "gui/panels.h"
 #include "gui/scene_view.h"
 
@@ -154,6 +155,23 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
     if (ImGui::MenuItem("Re-arm (force ramp)")) actions->rearm = true;
     ImGui::Separator();
     DrawContactControls(state);
+    if (tree != nullptr) {
+      ImGui::Separator();
+      const bool snapping = tree->document().snap().has_value();
+      if (ImGui::MenuItem("Snap forces", nullptr, snapping)) {
+        try {
+          ToggleSnapForces(&tree->document(), state);
+        } catch (const std::exception& e) {
+          state->status = std::string("Snap forces: ") + e.what();
+          state->status_error = true;
+        }
+      }
+      if (ImGui::IsItemHovered()) {
+        ImGui::SetTooltip(
+            "Pull the grip toward the solids' vertices, edges and faces as it comes near them\n"
+            "(saved with the document; one undo step). Model mode names the snapped feature.");
+      }
+    }
     ImGui::EndMenu();
   }
   if (ImGui::BeginMenu("View")) {
@@ -284,6 +302,17 @@ void DrawJobs(JobQueue* jobs, WorkbenchState* state, float width) {
     ImGui::TextColored(state->status_error ? kRed : kGreen, "%s", state->status.c_str());
     ImGui::PopTextWrapPos();
   }
+}
+
+bool ToggleSnapForces(Document* doc, WorkbenchState* state) {
+  if (doc->snap()) {
+    const modeling::SceneSnap was = *doc->snap();
+    doc->Execute(edit::SetSnap(std::nullopt));
+    state->snap_settings = was;
+    return false;
+  }
+  doc->Execute(edit::SetSnap(state->snap_settings));
+  return true;
 }
 
 void DrawContactControls(WorkbenchState* state) {

@@ -39,6 +39,9 @@ struct WorkbenchState {
   // this frame (publish a new scene).
   SceneHapticsOptions contact;
   bool contact_changed = false;
+  // The snap settings Haptics → Snap forces turns back on with (the document's last ones when
+  // it was turned off; modeling::SceneSnap's defaults at first).
+  modeling::SceneSnap snap_settings;
 };
 
 // What the menu bar and panels asked for this frame.
@@ -88,6 +91,12 @@ void DrawJobs(JobQueue* jobs, WorkbenchState* state, float width);
 // state->contact_changed when the user changed one. The shell's coupling stiffness follows the
 // stiffness as in `spidarcad run` (min(k, 1000 N/m)).
 void DrawContactControls(WorkbenchState* state);
+
+// Haptics → Snap forces: turns the document's snap forces off (it had them) or on (with
+// state->snap_settings) as one undoable command ("Remove snap forces" / "Set snap forces"); the
+// scene is republished when the document changes. Returns the new state (true: on). Throws what
+// Document::Execute throws (nothing changes then).
+bool ToggleSnapForces(Document* doc, WorkbenchState* state);
 
 // Draws the loop statistics and the emergency stop / re-arm buttons (no Begin/End).
 void DrawLoopFigures(const LoopStats& stats, WorkbenchActions* actions);
