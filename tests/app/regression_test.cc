@@ -10,6 +10,9 @@
 // Tolerances per signal (absolute):
 //   t 1e-9 s; x, y, z 1e-6 m; qw..qz 1e-6; grasp 1e-6 rad; fx, fy, fz 1e-4 N;
 //   mx, my, mz 1e-5 N·m; g 1e-5 N·m; tau1..tau8 1e-4 N; events exact (bit set).
+// FE runs (documents with an FE model) also compare fe_contacts exactly and fe_fx, fe_fy, fe_fz
+// (the unscaled FE reaction) to 1 N: the felt force is 1e-4 of it (FE mode's default force
+// scale at world scale 1), so that is the felt forces' 1e-4 N.
 //
 // Regenerating the goldens (after a deliberate change of the physics; check the new runs'
 // physics first, see scene_haptics_test.cc and the README):
@@ -51,9 +54,17 @@ std::vector<SignalTolerance> Tolerances() {
   return t;
 }
 
-std::vector<std::string> ComparedColumns() {
+// The tolerances of an FE run: today's and the FE columns'.
+std::vector<SignalTolerance> FeTolerances() {
+  std::vector<SignalTolerance> t = Tolerances();
+  t.push_back({"fe_contacts", 0.0, "nodes"});
+  for (const char* c : {"fe_fx", "fe_fy", "fe_fz"}) t.push_back({c, 1.0, "N"});
+  return t;
+}
+
+std::vector<std::string> ComparedColumns(const std::vector<SignalTolerance>& tolerances) {
   std::vector<std::string> columns;
-  for (const SignalTolerance& s : Tolerances()) columns.push_back(s.column);
+  for (const SignalTolerance& s : tolerances) columns.push_back(s.column);
   return columns;
 }
 
@@ -67,16 +78,20 @@ bool UpdateGolden() {
 }
 
 // Runs `spidarcad run ARGS --out ...` and compares (or, when updating, writes) the golden
-// tests/golden/<name>.csv. The run's stdout goes to *stdout_text when given.
+// tests/golden/<name>.csv on the signals of `tolerances`. The run's stdout goes to *stdout_text
+// when given. The run's FE columns go to a disk cache of the test's own (SPIDARCAD_CACHE_DIR).
 void RunAndCompare(const std::string& name, const std::string& args,
-                   std::string* stdout_text = nullptr) {
+                   std::string* stdout_text = nullptr,
+                   const std::vector<SignalTolerance>& tolerances = Tolerances()) {
   const std::string out = spidarcad::test_support::TestOutputPath("regression_" + name + ".csv");
+  const std::string cache = spidarcad::test_support::TestOutputPath("regression_fe_cache");
   const auto run = spidarcad::test_support::RunSpidarcad("run " + args + " --out '" + out + "'", "",
-                                                         "regression_" + name);
+                                                         "regression_" + name,
+                                                         "env SPIDARCAD_CACHE_DIR='" + cache + "'");
   ASSERT_EQ(run.status, 0) << run.err;
   if (stdout_text != nullptr) *stdout_text = run.out;
-  const CsvTable actual =
-      Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation, ComparedColumns());
+  const CsvTable actual = Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation,
+                                   ComparedColumns(tolerances));
   const std::string golden_path = Source("tests/golden/" + name + ".csv");
   if (UpdateGolden()) {
     std::string shown = args;  // paths relative to the source tree in the comment
@@ -92,7 +107,7 @@ void RunAndCompare(const std::string& name, const std::string& args,
     return;
   }
   const CsvTable golden = spidarcad::test_support::ReadCsvTable(golden_path);
-  const GoldenComparison result = CompareToGolden(golden, actual, Tolerances());
+  const GoldenComparison result = CompareToGolden(golden, actual, tolerances);
   EXPECT_TRUE(result.ok()) << name << " (" << golden_path << " vs " << out << "):\n"
                            << result.Report();
 }
@@ -145,6 +160,28 @@ TEST(Regression, AssemblySeatRightLegMatchesGolden) {
       << out;
   EXPECT_NE(out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"), std::string::npos)
       << out;
+}
+
+// The steel platform's FE model (assets/scenes/platform_fe.json: linear tetrahedra of 10 mm
+// cells, clamped at the wall face x = 0, 50 N on the tip) pushed by the tool sphere along
+// press.csv at world scale 1, the aim 1 cm into the plate's top face (z = 0.01 m), as
+// platform_press presses the rigid solid. Frozen after checking the run (and
+// RunCommand.FeModelIsPushedExactlyAndTheRunIsDeterministic, which checks its contact forces
+// against a full sparse solve to 1e-9 and its determinism): no force until the sphere (radius
+// 8.6 mm, the mesh's mean surface edge) reaches the plate at t = 0.925 s; then one contact node
+// (10 mm cells), the felt fz rising to 3.351 N at t = 1.966 s, which is 0.99e-4 of the 33.86 kN
+// FE reaction (the coupling's equilibrium, force scale 1e-4) and the hand's 300 N/m × 11.2 mm (its
+// grip at z = −28.8 mm aiming at −40 mm); |fx|, |fy| ≤ 0.011 N (frictionless, pressed straight
+// down); contact lost at t = 2.505 s on the way up; events only the start ramp; no tick read a
+// substitute column.
+TEST(Regression, PlatformFePushP1WithPressMatchesGolden) {
+  std::string out;
+  RunAndCompare("platform_fe_press",
+                Asset("scenes/platform_fe.json") + " --trajectory " +
+                    Asset("trajectories/press.csv") + " --world-scale 1 --world-origin 0.1,0,0.04",
+                &out, FeTolerances());
+  EXPECT_NE(out.find("fields: fe_touch 'platform FE'\n"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
 }
 
 CsvTable SmallTable() {
