@@ -526,7 +526,10 @@ void RunRun(const RunOptions& options) {
       }
       built.ApplyTo(&settings);
       scene = std::move(built.scene);
-      scene_name = options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
+      // The tool model applies to rigid solids; an FE part is pushed by its sphere either way.
+      scene_name = rigid.solids.empty()
+                       ? options.scene
+                       : options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
       fields_line = "fields:";
       for (std::size_t i = 0; i < built.fields.size(); ++i) {
         fields_line += std::string(i ? "," : "") + " " + built.fields[i].kind + " '" +
