@@ -22,7 +22,6 @@
 #include <utility>
 
 #include "doc/command.h"
-#include "scene/fe_part.h"
 #include "scene/scene_model.h"
 
 namespace spidarcad::app {
