@@ -184,6 +184,27 @@ TEST(Regression, PlatformFePushP1WithPressMatchesGolden) {
   EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
 }
 
+// FE squeeze (two-point grasp contact, --fe-grasp): an ABS block
+// (assets/scenes/squeeze_block_fe.json, 20 mm thick along a = (x − y)/√2, 3 mm cells, clamped at
+// its far end) between the pole tips, the grasp closing from π/2 to 0.9 rad twice (squeeze.csv) at
+// world scale 1, origin 0. Frozen after checking the run: a tip sphere (radius 1.8 mm, 0.02 m from
+// the grip centre) first reaches the block at t = 0.45 s (grasp 1.16 rad), both tips from t = 0.49
+// s (up to 3 contact nodes); the grasp torque g is never > 0 and reaches −0.042 N·m at t = 2.273 s
+// (grasp 0.944 rad): the block pushes the poles apart, 1e-4 of about 21 kN per tip through the
+// tips' 10 mm lever (L/2); the net FE force on the tool stays below 3.6 kN, largest while one tip
+// alone touches (14 N net at the deepest squeeze); felt forces ≤ 0.26 N and moments ≤ 0.0063 N·m;
+// the energy limiter acts on 89 ticks (bit 9); no tick read a substitute column.
+TEST(Regression, BlockFeSqueezeWithSqueezeMatchesGolden) {
+  std::string out;
+  RunAndCompare("block_fe_squeeze",
+                Asset("scenes/squeeze_block_fe.json") + " --trajectory " +
+                    Asset("trajectories/squeeze.csv") +
+                    " --world-scale 1 --world-origin 0,0,0 --fe-grasp",
+                &out, FeTolerances());
+  EXPECT_NE(out.find("fields: fe_touch 'block FE'\n"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
+}
+
 CsvTable SmallTable() {
   CsvTable t;
   t.columns = {"t", "x", "fx", "events"};

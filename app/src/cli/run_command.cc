@@ -109,6 +109,9 @@ constexpr const char* kRunHelp =
     "there); none is computed during the run, so its forces depend on the trajectory alone and\n"
     "two runs give the same CSV. A contact node off that path reads the nearest ready column (the\n"
     "summary counts such ticks). The summary gives the build and column times.\n"
+    "--fe-grasp: instead, a sphere of that radius at each pole tip, 0.02 m (W) from the grip\n"
+    "centre (FE mode's two-point grasp, no coupling): closing the grasp squeezes the part between\n"
+    "the tips, and the grasp torque g pushes back.\n"
     "A scene with a \"snap\" object adds snap forces toward its solids' vertices, edges and\n"
     "faces (docs/scene-format.md, \"Snap forces\"); the summary gives the feature counts.\n"
     "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
@@ -167,6 +170,7 @@ struct RunOptions {
   bool geometry_given = false;       // --frame or --pole given: it overrides the document's
   double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
   bool progress = false;             // progress on stderr even when it is not a terminal
+  bool fe_grasp = false;             // FE parts: two-point grasp contact instead of the push sphere
   std::vector<std::string> save;     // --save OUT: the document at the end of the run
   std::vector<std::string> exports;  // --export NAME=FILE: one object's final state
 };
@@ -541,6 +545,7 @@ void RunRun(const RunOptions& options) {
         FePartOptions fe_options;
         fe_options.world_scale = built.map.X_WD.world_scale;
         fe_options.model.cache.start_worker = false;  // PrepareColumns below, nothing after
+        fe_options.touch.grasp = options.fe_grasp;
         FePart part;
         FeColumnPlan plan;
         try {
@@ -866,6 +871,9 @@ void RegisterRunCommand(CLI::App& app) {
                   "at most 1e7)");
   cmd->add_flag("--progress", options->progress,
                 "Show progress on stderr even when it is not a terminal");
+  cmd->add_flag("--fe-grasp", options->fe_grasp,
+                "Documents: FE models are squeezed between the pole tips (two-point grasp contact, "
+                "as FE mode's checkbox) instead of pushed by the sphere on the grip centre");
   cmd->add_option("--save", options->save,
                   "Documents: write the document as it stands at the end of the run to OUT "
                   "(repeatable)")
