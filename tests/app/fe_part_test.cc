@@ -110,7 +110,7 @@ TEST(FePart, CandidatesNearPathAreTheSurfaceNodesWithinReachOfThePolyline) {
     for (std::size_t i = 1; i < path.size(); ++i)
       for (int k = 0; k <= 20000; ++k)
         d = std::min(d, (x - (path[i - 1] + (path[i] - path[i - 1]) * (k / 20000.0))).norm());
-    const bool listed = std::binary_search(near.begin(), near.end(), b);
+    const bool listed = std::find(near.begin(), near.end(), b) != near.end();
     if (cache.IsFixed(b)) {
       EXPECT_FALSE(listed) << "clamped candidate " << b;
     } else if (d < radius - 1e-5) {
@@ -121,7 +121,18 @@ TEST(FePart, CandidatesNearPathAreTheSurfaceNodesWithinReachOfThePolyline) {
     }
   }
   EXPECT_GT(inside, 5);
-  EXPECT_TRUE(std::is_sorted(near.begin(), near.end()));
+  // Nearest the path first: the brute-force distances of the list do not decrease.
+  std::vector<double> distances;
+  for (int b : near) {
+    const Eigen::Vector3d x = model->mesh().nodes.row(cache.candidate_node(b)).transpose();
+    double d = 1e30;
+    for (std::size_t i = 1; i < path.size(); ++i)
+      for (int k = 0; k <= 20000; ++k)
+        d = std::min(d, (x - (path[i - 1] + (path[i] - path[i - 1]) * (k / 20000.0))).norm());
+    distances.push_back(d);
+  }
+  for (std::size_t i = 1; i < distances.size(); ++i)
+    EXPECT_LE(distances[i - 1], distances[i] + 1e-5) << "position " << i;
   // One point: a ball.
   const std::vector<int> ball = CandidatesNearPath(*model, {Eigen::Vector3d(0.3, 0, 0)}, 0.001);
   ASSERT_EQ(ball.size(), 1u);
@@ -183,6 +194,16 @@ TEST(FePart, PreparedColumnsAreExactlyThoseAskedForWhateverTheDiskCacheHeld) {
   std::sort(both.begin(), both.end());
   both.erase(std::unique(both.begin(), both.end()), both.end());
   EXPECT_EQ(third->imported_nodes(), static_cast<int>(both.size()));
+
+  // A memory bound of one node's columns: the first candidate asked for is the one kept.
+  FeModelSettings small = Quiet();
+  small.cache.memory_budget_bytes = 1.0;
+  const std::unique_ptr<FeModel> tight = FeModel::Build(Beam(), small);
+  ASSERT_EQ(tight->cache().capacity_nodes(), 1);
+  const FeColumnPlan bounded = PrepareColumns(tight.get(), {b[2], b[0], b[1]}, false);
+  EXPECT_EQ(bounded.requested, 3);
+  EXPECT_EQ(bounded.ready, 1);
+  EXPECT_TRUE(tight->cache().IsReady(b[2]));
 
   // The worker must be stopped.
   FeModelSettings running = Quiet();

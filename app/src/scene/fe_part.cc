@@ -85,19 +85,22 @@ std::vector<int> CandidatesNearPath(const FeModel& model,
   box.min().array() -= radius;
   box.max().array() += radius;
   const double r2 = radius * radius;
+  std::vector<std::pair<double, int>> found;  // (squared distance to the path, candidate)
   for (int b = 0; b < cache.num_candidates(); ++b) {
     if (cache.IsFixed(b)) continue;
     const Eigen::Vector3d x = mesh.nodes.row(cache.candidate_node(b)).transpose();
     if (!box.contains(x)) continue;
-    bool near = (x - path_W[0]).squaredNorm() <= r2;
-    for (std::size_t i = 1; i < path_W.size() && !near; ++i) {
+    double best = (x - path_W[0]).squaredNorm();
+    for (std::size_t i = 1; i < path_W.size(); ++i) {
       const Eigen::Vector3d a = path_W[i - 1], d = path_W[i] - a;
       const double len2 = d.squaredNorm();
       const double t = len2 > 0.0 ? std::clamp((x - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-      near = (x - a - t * d).squaredNorm() <= r2;
+      best = std::min(best, (x - a - t * d).squaredNorm());
     }
-    if (near) out.push_back(b);
+    if (best <= r2) found.emplace_back(best, b);
   }
+  std::sort(found.begin(), found.end());
+  for (const auto& [d2, b] : found) out.push_back(b);
   return out;
 }
 
@@ -109,11 +112,15 @@ FeColumnPlan PrepareColumns(FeModel* model, const std::vector<int>& candidates, 
   }
   const auto t0 = std::chrono::steady_clock::now();
   FeColumnPlan plan;
-  std::vector<int> wanted;
-  for (int b : candidates)
-    if (b >= 0 && b < cache.num_candidates() && !cache.IsFixed(b)) wanted.push_back(b);
-  std::sort(wanted.begin(), wanted.end());
-  wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+  // The candidates in the order given, once each; `sorted` for look-ups.
+  std::vector<int> wanted, sorted;
+  for (int b : candidates) {
+    if (b < 0 || b >= cache.num_candidates() || cache.IsFixed(b)) continue;
+    const auto at = std::lower_bound(sorted.begin(), sorted.end(), b);
+    if (at != sorted.end() && *at == b) continue;
+    sorted.insert(at, b);
+    wanted.push_back(b);
+  }
   plan.requested = static_cast<int>(wanted.size());
 
   // What the disk cache gave (everything ready now), then only the wanted part of it back.
@@ -127,7 +134,7 @@ FeColumnPlan PrepareColumns(FeModel* model, const std::vector<int>& candidates, 
   std::vector<Eigen::Index> kept_blocks;
   for (std::size_t k = 0; k < held.nodes.size(); ++k) {
     const int b = cache.CandidateOfNode(held.nodes[k]);
-    if (b >= 0 && std::binary_search(wanted.begin(), wanted.end(), b)) {
+    if (b >= 0 && std::binary_search(sorted.begin(), sorted.end(), b)) {
       keep.nodes.push_back(held.nodes[k]);
       kept_blocks.push_back(static_cast<Eigen::Index>(k));
     }

@@ -89,7 +89,7 @@ struct FePart {
 FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& options);
 
 // Candidate indices (FeModel::cache()) of the unclamped surface nodes within `radius` (m) of the
-// polyline `path_W` (W, m; one point: a ball), ascending.
+// polyline `path_W` (W, m; one point: a ball), nearest the path first (ties by index).
 std::vector<int> CandidatesNearPath(const FeModel& model,
                                     const std::vector<Eigen::Vector3d>& path_W, double radius);
 
@@ -105,7 +105,9 @@ struct FeColumnPlan {
 
 // Makes exactly the columns of `candidates` ready (see the file comment): the worker must be
 // stopped (FeModelSettings::cache.start_worker = false). Columns the disk cache gave that are not
-// asked for are dropped; missing ones are computed (blocks of the settings' block_nodes). When
+// asked for are dropped; missing ones are computed in the order given (blocks of the settings'
+// block_nodes) until the cache's memory bound is reached: the candidates listed last are the ones
+// left out when not all fit (FeColumnPlan::ready says how many did). When
 // columns were computed and `save` is set, the disk file of the model's key is rewritten with
 // what it held plus them (`cache_directory`, empty: fem::DefaultCacheDirectory()); a failed
 // write is not an error (saved stays false). Throws std::logic_error when the worker runs.
