@@ -184,6 +184,24 @@ TEST(Regression, PlatformFePushP1WithPressMatchesGolden) {
   EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
 }
 
+// The same push on the platform's FE model with quadratic tetrahedra
+// (assets/scenes/platform_fe_p2.json: 18563 nodes). Frozen after checking the run: the course of
+// the P1 run (one contact node, from t = 0.887 s as a midside node of the top face is met first,
+// to 2.532 s), softer as
+// P2 should be where linear tetrahedra lock in bending and indentation: the FE reaction peaks at
+// 29.5 kN (P1 33.9 kN) and the felt force at 2.95 N (P1 3.37 N), again 1e-4 of the reaction and
+// the hand's spring; 198 of the 453 surface nodes near the path fit the 256 MB column budget,
+// nearest first, and no tick read a substitute column.
+TEST(Regression, PlatformFePushP2WithPressMatchesGolden) {
+  std::string out;
+  RunAndCompare("platform_fe_p2_press",
+                Asset("scenes/platform_fe_p2.json") + " --trajectory " +
+                    Asset("trajectories/press.csv") + " --world-scale 1 --world-origin 0.1,0,0.04",
+                &out, FeTolerances());
+  EXPECT_NE(out.find("(order 2)"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
+}
+
 // FE squeeze (two-point grasp contact, --fe-grasp): an ABS block
 // (assets/scenes/squeeze_block_fe.json, 20 mm thick along a = (x − y)/√2, 3 mm cells, clamped at
 // its far end) between the pole tips, the grasp closing from π/2 to 0.9 rad twice (squeeze.csv) at
