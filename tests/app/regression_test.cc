@@ -10,6 +10,9 @@
 // Tolerances per signal (absolute):
 //   t 1e-9 s; x, y, z 1e-6 m; qw..qz 1e-6; grasp 1e-6 rad; fx, fy, fz 1e-4 N;
 //   mx, my, mz 1e-5 N·m; g 1e-5 N·m; tau1..tau8 1e-4 N; events exact (bit set).
+// FE runs (documents with an FE model) also compare fe_contacts exactly and fe_fx, fe_fy, fe_fz
+// (the unscaled FE reaction) to 1 N: the felt force is 1e-4 of it (FE mode's default force
+// scale at world scale 1), so that is the felt forces' 1e-4 N.
 //
 // Regenerating the goldens (after a deliberate change of the physics; check the new runs'
 // physics first, see scene_haptics_test.cc and the README):
@@ -51,9 +54,17 @@ std::vector<SignalTolerance> Tolerances() {
   return t;
 }
 
-std::vector<std::string> ComparedColumns() {
+// The tolerances of an FE run: today's and the FE columns'.
+std::vector<SignalTolerance> FeTolerances() {
+  std::vector<SignalTolerance> t = Tolerances();
+  t.push_back({"fe_contacts", 0.0, "nodes"});
+  for (const char* c : {"fe_fx", "fe_fy", "fe_fz"}) t.push_back({c, 1.0, "N"});
+  return t;
+}
+
+std::vector<std::string> ComparedColumns(const std::vector<SignalTolerance>& tolerances) {
   std::vector<std::string> columns;
-  for (const SignalTolerance& s : Tolerances()) columns.push_back(s.column);
+  for (const SignalTolerance& s : tolerances) columns.push_back(s.column);
   return columns;
 }
 
@@ -67,16 +78,20 @@ bool UpdateGolden() {
 }
 
 // Runs `spidarcad run ARGS --out ...` and compares (or, when updating, writes) the golden
-// tests/golden/<name>.csv. The run's stdout goes to *stdout_text when given.
+// tests/golden/<name>.csv on the signals of `tolerances`. The run's stdout goes to *stdout_text
+// when given. The run's FE columns go to a disk cache of the test's own (SPIDARCAD_CACHE_DIR).
 void RunAndCompare(const std::string& name, const std::string& args,
-                   std::string* stdout_text = nullptr) {
+                   std::string* stdout_text = nullptr,
+                   const std::vector<SignalTolerance>& tolerances = Tolerances()) {
   const std::string out = spidarcad::test_support::TestOutputPath("regression_" + name + ".csv");
+  const std::string cache = spidarcad::test_support::TestOutputPath("regression_fe_cache");
   const auto run = spidarcad::test_support::RunSpidarcad("run " + args + " --out '" + out + "'", "",
-                                                         "regression_" + name);
+                                                         "regression_" + name,
+                                                         "env SPIDARCAD_CACHE_DIR='" + cache + "'");
   ASSERT_EQ(run.status, 0) << run.err;
   if (stdout_text != nullptr) *stdout_text = run.out;
-  const CsvTable actual =
-      Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation, ComparedColumns());
+  const CsvTable actual = Decimate(spidarcad::test_support::ReadCsvTable(out), kDecimation,
+                                   ComparedColumns(tolerances));
   const std::string golden_path = Source("tests/golden/" + name + ".csv");
   if (UpdateGolden()) {
     std::string shown = args;  // paths relative to the source tree in the comment
@@ -92,7 +107,7 @@ void RunAndCompare(const std::string& name, const std::string& args,
     return;
   }
   const CsvTable golden = spidarcad::test_support::ReadCsvTable(golden_path);
-  const GoldenComparison result = CompareToGolden(golden, actual, Tolerances());
+  const GoldenComparison result = CompareToGolden(golden, actual, tolerances);
   EXPECT_TRUE(result.ok()) << name << " (" << golden_path << " vs " << out << "):\n"
                            << result.Report();
 }
@@ -145,6 +160,67 @@ TEST(Regression, AssemblySeatRightLegMatchesGolden) {
       << out;
   EXPECT_NE(out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"), std::string::npos)
       << out;
+}
+
+// The steel platform's FE model (assets/scenes/platform_fe.json: linear tetrahedra of 10 mm
+// cells, clamped at the wall face x = 0, 50 N on the tip) pushed by the tool sphere along
+// press.csv at world scale 1, the aim 1 cm into the plate's top face (z = 0.01 m), as
+// platform_press presses the rigid solid. Frozen after checking the run (and
+// RunCommand.FeModelIsPushedExactlyAndTheRunIsDeterministic, which checks its contact forces
+// against a full sparse solve to 1e-9 and its determinism): no force until the sphere (radius
+// 8.6 mm, the mesh's mean surface edge) reaches the plate at t = 0.925 s; then one contact node
+// (10 mm cells), the felt fz rising to 3.351 N at t = 1.966 s, which is 0.99e-4 of the 33.86 kN
+// FE reaction (the coupling's equilibrium, force scale 1e-4) and the hand's 300 N/m × 11.2 mm (its
+// grip at z = −28.8 mm aiming at −40 mm); |fx|, |fy| ≤ 0.011 N (frictionless, pressed straight
+// down); contact lost at t = 2.505 s on the way up; events only the start ramp; no tick read a
+// substitute column.
+TEST(Regression, PlatformFePushP1WithPressMatchesGolden) {
+  std::string out;
+  RunAndCompare("platform_fe_press",
+                Asset("scenes/platform_fe.json") + " --trajectory " +
+                    Asset("trajectories/press.csv") + " --world-scale 1 --world-origin 0.1,0,0.04",
+                &out, FeTolerances());
+  EXPECT_NE(out.find("fields: fe_touch 'platform FE'\n"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
+}
+
+// The same push on the platform's FE model with quadratic tetrahedra
+// (assets/scenes/platform_fe_p2.json: 18563 nodes). Frozen after checking the run: the course of
+// the P1 run (one contact node, from t = 0.887 s as a midside node of the top face is met first,
+// to 2.532 s), softer as
+// P2 should be where linear tetrahedra lock in bending and indentation: the FE reaction peaks at
+// 29.5 kN (P1 33.9 kN) and the felt force at 2.95 N (P1 3.37 N), again 1e-4 of the reaction and
+// the hand's spring; 198 of the 453 surface nodes near the path fit the 256 MB column budget,
+// nearest first, and no tick read a substitute column.
+TEST(Regression, PlatformFePushP2WithPressMatchesGolden) {
+  std::string out;
+  RunAndCompare("platform_fe_p2_press",
+                Asset("scenes/platform_fe_p2.json") + " --trajectory " +
+                    Asset("trajectories/press.csv") + " --world-scale 1 --world-origin 0.1,0,0.04",
+                &out, FeTolerances());
+  EXPECT_NE(out.find("(order 2)"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
+}
+
+// FE squeeze (two-point grasp contact, --fe-grasp): an ABS block
+// (assets/scenes/squeeze_block_fe.json, 20 mm thick along a = (x − y)/√2, 3 mm cells, clamped at
+// its far end) between the pole tips, the grasp closing from π/2 to 0.9 rad twice (squeeze.csv) at
+// world scale 1, origin 0. Frozen after checking the run: a tip sphere (radius 1.8 mm, 0.02 m from
+// the grip centre) first reaches the block at t = 0.45 s (grasp 1.16 rad), both tips from t = 0.49
+// s (up to 3 contact nodes); the grasp torque g is never > 0 and reaches −0.042 N·m at t = 2.273 s
+// (grasp 0.944 rad): the block pushes the poles apart, 1e-4 of about 21 kN per tip through the
+// tips' 10 mm lever (L/2); the net FE force on the tool stays below 3.6 kN, largest while one tip
+// alone touches (14 N net at the deepest squeeze); felt forces ≤ 0.26 N and moments ≤ 0.0063 N·m;
+// the energy limiter acts on 89 ticks (bit 9); no tick read a substitute column.
+TEST(Regression, BlockFeSqueezeWithSqueezeMatchesGolden) {
+  std::string out;
+  RunAndCompare("block_fe_squeeze",
+                Asset("scenes/squeeze_block_fe.json") + " --trajectory " +
+                    Asset("trajectories/squeeze.csv") +
+                    " --world-scale 1 --world-origin 0,0,0 --fe-grasp",
+                &out, FeTolerances());
+  EXPECT_NE(out.find("fields: fe_touch 'block FE'\n"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
 }
 
 CsvTable SmallTable() {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -16,6 +17,11 @@
 
 #include "doc/document.h"
 #include "scene/assembly_scene.h"
+#include "scene/document_file.h"
+#include "scene/fe_part.h"
+#include "spidarcad/fem/static_solver.h"
+#include "spidarcad/haptics/trajectory.h"
+#include "spidarcad/modeling/tet_mesh.h"
 #include "spidarcad_runner.h"
 
 namespace {
@@ -191,14 +197,17 @@ TEST(RunCommand, TrajectoryThatIsNotARegularFileIsRefusedBeforeReading) {
 TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
   const std::string trajectory = WritePressTrajectory();
   const std::string scenes = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/";
-  const CommandRun run = RunSpidarcad("'" + scenes + "workbench.json' --trajectory '" + trajectory +
-                                          "' --out '" + OutputPath("wb.csv") + "'",
-                                      "workbench");
+  // The platform is the source of the FE model: it is felt as the FE part, not as a rigid solid.
+  const CommandRun run = spidarcad::test_support::RunSpidarcad(
+      "run '" + scenes + "workbench.json' --trajectory '" + trajectory + "' --out '" +
+          OutputPath("wb.csv") + "'",
+      "", "run_workbench",
+      "env SPIDARCAD_CACHE_DIR='" + std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/run_wb_cache'");
   ASSERT_EQ(run.status, 0) << run.all();
-  EXPECT_NE(run.out.find("fields: proxy 'platform'"), std::string::npos) << run.out;
-  EXPECT_NE(run.out.find("skipped (run renders solids, assembly parts and snap; not yet meshes, "
-                         "FE models, sculpts or rigid parts): mesh 'platform tets', fe_model "
-                         "'platform FE', sculpt 'clay', rigid_part 'base', rigid_part 'cap'\n"),
+  EXPECT_NE(run.out.find("fields: fe_touch 'platform FE'\n"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("skipped (run renders solids, FE models, assembly parts and snap; not yet "
+                         "other meshes, sculpts or rigid parts): sculpt 'clay', rigid_part 'base', "
+                         "rigid_part 'cap'\n"),
             std::string::npos)
       << run.out;
   EXPECT_EQ(ReadCsv(OutputPath("wb.csv")).size(), 1502u);  // header + 1.5 s at 1 kHz
@@ -209,7 +218,7 @@ TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
                                        "clay");
   ASSERT_EQ(clay.status, 0) << clay.all();
   EXPECT_NE(clay.out.find("clay_sculpt.json (no solid) (0 fields)"), std::string::npos) << clay.out;
-  EXPECT_NE(clay.out.find("not yet meshes, FE models, sculpts or rigid parts): sculpt 'clay'\n"),
+  EXPECT_NE(clay.out.find("not yet other meshes, sculpts or rigid parts): sculpt 'clay'\n"),
             std::string::npos)
       << clay.out;
   const std::vector<std::vector<std::string>> rows = ReadCsv(OutputPath("clay.csv"));
@@ -696,6 +705,213 @@ TEST(RunCommand, FrameAndPoleSizeTheDevice) {
       "frame_bad");
   EXPECT_EQ(bad.status, 2) << bad.all();
   EXPECT_NE(bad.err.find("--frame/--pole"), std::string::npos) << bad.err;
+}
+
+}  // namespace
+
+namespace {
+
+// Index of column `name` in a CSV's header row (−1 when absent).
+int ColumnIndex(const std::vector<std::vector<std::string>>& rows, const std::string& name) {
+  const auto& h = rows.at(0);
+  const auto it = std::find(h.begin(), h.end(), name);
+  return it == h.end() ? -1 : static_cast<int>(it - h.begin());
+}
+
+// The steel platform of assets/scenes/platform_fe.json (clamped wall, 50 N on the tip) pressed
+// with assets/trajectories/press.csv: X_WD puts the press's 1 cm-deep aim at the plate's top
+// face (z = 0.01 m), as the platform_press golden does for the rigid solid.
+const char* const kFePressMap = " --world-scale 1 --world-origin 0.1,0,0.04";
+
+// `run` renders the document's FE model (not its source solid as a rigid one), feels it push
+// back, and writes the same CSV twice: once computing the columns near the path (cold disk
+// cache) and once reading them from the disk cache. Then, independently: a replay of the run's
+// measured tool path through a field built in this process gives the CSV's FE columns tick for
+// tick, and at the tick of the largest reaction the contact forces equal a full sparse solve of
+// the model with the contact nodes' displacements prescribed (fem::StaticSolver, no
+// condensation) to 1e-9 relative.
+TEST(RunCommand, FeModelIsPushedExactlyAndTheRunIsDeterministic) {
+  const std::string source = std::string(SPIDARCAD_SOURCE_DIR);
+  const std::string scene = source + "/assets/scenes/platform_fe.json";
+  const std::string traj = source + "/assets/trajectories/press.csv";
+  const std::filesystem::path cache = OutputPath("fe_cache");
+  std::filesystem::remove_all(cache);
+  const std::string env = "env SPIDARCAD_CACHE_DIR='" + cache.string() + "'";
+  const std::string args = "run '" + scene + "' --trajectory '" + traj + "'" + kFePressMap;
+  const std::string cold_csv = OutputPath("fe_cold.csv"), warm_csv = OutputPath("fe_warm.csv");
+  const CommandRun cold = spidarcad::test_support::RunSpidarcad(args + " --out '" + cold_csv + "'",
+                                                                "", "run_fe_cold", env);
+  ASSERT_EQ(cold.status, 0) << cold.all();
+  EXPECT_NE(cold.out.find("fields: fe_touch 'platform FE'\n"), std::string::npos) << cold.out;
+  EXPECT_EQ(cold.out.find("skipped"), std::string::npos) << cold.out;
+  EXPECT_NE(cold.out.find("fe 'platform FE': "), std::string::npos) << cold.out;
+  EXPECT_NE(cold.out.find("(0 from the disk cache, "), std::string::npos) << cold.out;
+  EXPECT_NE(cold.out.find("0 ticks read a substitute column"), std::string::npos) << cold.out;
+  // Again, from the disk cache, writing the final state of the FE model and the document.
+  const std::string vtu = OutputPath("fe_final.vtu"), saved = OutputPath("fe_saved.json");
+  const CommandRun warm = spidarcad::test_support::RunSpidarcad(
+      args + " --out '" + warm_csv + "' --export 'platform FE=" + vtu + "' --save '" + saved + "'",
+      "", "run_fe_warm", env);
+  ASSERT_EQ(warm.status, 0) << warm.all();
+  EXPECT_NE(warm.out.find(" 0 computed, "), std::string::npos) << warm.out;
+  EXPECT_NE(warm.out.find("wrote " + vtu + " ('platform FE' at the last tick: "), std::string::npos)
+      << warm.out;
+
+  const auto rows = ReadCsv(cold_csv);
+  const auto again = ReadCsv(warm_csv);
+  ASSERT_EQ(rows.size(), again.size());
+  ASSERT_GT(rows.size(), 2u);
+  const int tick_us = ColumnIndex(rows, "tick_us");
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    std::vector<std::string> a = rows[r], b = again[r];
+    ASSERT_EQ(a.size(), b.size()) << "row " << r;
+    a[tick_us] = b[tick_us] = "";  // wall-clock time
+    ASSERT_EQ(a, b) << "row " << r;
+  }
+  // Today's columns, then the FE ones.
+  const std::vector<std::string> fe_names = {"fe_contacts", "fe_fx", "fe_fy", "fe_fz"};
+  ASSERT_EQ(rows[0].size(), 33u);
+  EXPECT_EQ(std::vector<std::string>(rows[0].end() - 4, rows[0].end()), fe_names);
+  const int c_contacts = ColumnIndex(rows, "fe_contacts"), c_fx = ColumnIndex(rows, "fe_fx");
+  const int c_fz = ColumnIndex(rows, "fz"), c_fk = ColumnIndex(rows, "fk_x");
+
+  // The force felt rises as the tool presses the plate: nothing before the first contact, up
+  // (+z) once the plate pushes back, most where the reaction is largest.
+  std::size_t first = 0, deepest = 0;
+  double largest = 0.0;
+  for (std::size_t r = 1; r < rows.size(); ++r) {
+    const Eigen::Vector3d f(std::stod(rows[r][c_fx]), std::stod(rows[r][c_fx + 1]),
+                            std::stod(rows[r][c_fx + 2]));
+    if (first == 0 && std::stoi(rows[r][c_contacts]) > 0) first = r;
+    if (f.norm() > largest) {
+      largest = f.norm();
+      deepest = r;
+    }
+  }
+  ASSERT_GT(first, 1u);
+  ASSERT_GT(deepest, first);
+  // Before the first contact only the coupling's stop at the surface (conservative advancement,
+  // the tick before contact) may be felt, and little of it.
+  for (std::size_t r = 1; r < first; ++r)
+    EXPECT_LT(std::abs(std::stod(rows[r][c_fz])), 0.05) << "row " << r;
+  const double fz_deep = std::stod(rows[deepest][c_fz]);
+  EXPECT_GT(fz_deep, 0.2);                             // N, felt at the grip
+  EXPECT_GT(std::stod(rows[deepest][c_fx + 2]), 0.0);  // the plate pushes the tool up
+  EXPECT_GT(fz_deep, std::stod(rows[first][c_fz]));
+
+  // The replay: the same builder, the same columns (from the same disk cache).
+  const spidarcad::app::OpenedDocument opened = spidarcad::app::OpenDocumentFile(scene);
+  const std::vector<spidarcad::app::ObjectId> fe = spidarcad::app::FeModelsOf(*opened.doc);
+  ASSERT_EQ(fe.size(), 1u);
+  spidarcad::app::FePartOptions options;
+  options.world_scale = 1.0;
+  options.model.cache.start_worker = false;
+  options.model.cache_directory = cache;
+  spidarcad::app::FePart part = spidarcad::app::BuildFePart(*opened.doc, fe[0], options);
+  const spidarcad::haptics::DeviceToWorld X_WD{1.0, Eigen::Vector3d(0.1, 0, 0.04)};
+  const spidarcad::app::FeColumnPlan plan = spidarcad::app::PrepareTrajectoryColumns(
+      &part, spidarcad::haptics::Trajectory::Load(traj), X_WD, false, cache);
+  EXPECT_EQ(plan.computed, 0);
+  EXPECT_EQ(plan.ready, plan.requested);
+  spidarcad::app::FeContactState deep;
+  for (std::size_t r = 1; r < rows.size(); ++r) {
+    if (rows[r][c_fk] == "nan") continue;  // no pose: the loop did not evaluate the field
+    spidarcad::haptics::ToolKinematics tool;
+    tool.time = std::stod(rows[r][0]);
+    tool.p_WT = X_WD.PointToWorld(Eigen::Vector3d(
+        std::stod(rows[r][c_fk]), std::stod(rows[r][c_fk + 1]), std::stod(rows[r][c_fk + 2])));
+    part.field->Evaluate(tool);
+    const spidarcad::app::FeContactState& st = part.field->last_state();
+    ASSERT_EQ(st.num_contacts, std::stoi(rows[r][c_contacts])) << "row " << r;
+    for (int i = 0; i < 3; ++i)
+      ASSERT_EQ(st.f_tool_W(i), std::stod(rows[r][c_fx + i])) << "row " << r << " axis " << i;
+    if (r == deepest) deep = st;
+  }
+  ASSERT_GT(deep.num_contacts, 0);
+  EXPECT_EQ(deep.num_substituted, 0);
+
+  // The full solve: clamps and loads of the model, the contact nodes moved to their targets.
+  const spidarcad::app::FeModel& model = *part.model;
+  spidarcad::fem::BoundaryConditions bcs = model.bcs();
+  std::vector<int> nodes;
+  for (int s = 0; s < deep.num_contacts; ++s) {
+    nodes.push_back(model.cache().candidate_node(deep.candidate[s]));
+    bcs.PrescribeNode(nodes.back(), Eigen::Vector3d(deep.target[3 * s], deep.target[3 * s + 1],
+                                                    deep.target[3 * s + 2]));
+  }
+  const spidarcad::fem::StaticSolver full(model.mesh(), model.materials(), bcs);
+  ASSERT_TRUE(full.factor_status().converged) << full.factor_status().message;
+  const spidarcad::fem::StaticSolution solution = full.Solve();
+  ASSERT_TRUE(solution.status.converged) << solution.status.message;
+  Eigen::Vector3d f_full = Eigen::Vector3d::Zero();
+  for (int s = 0; s < deep.num_contacts; ++s) {
+    const Eigen::Vector3d f_s = solution.reaction.segment<3>(3 * nodes[s]);
+    const Eigen::Vector3d f_fe(deep.force[3 * s], deep.force[3 * s + 1], deep.force[3 * s + 2]);
+    EXPECT_LE((f_s - f_fe).norm(), 1e-9 * deep.f_tool_W.norm()) << "contact " << s;
+    f_full -= f_s;
+  }
+  EXPECT_LE((f_full - deep.f_tool_W).norm(), 1e-9 * deep.f_tool_W.norm())
+      << "full " << f_full.transpose() << " FE " << deep.f_tool_W.transpose();
+
+  // --export: the last tick's state, read back with the project's VTU reader, is the full solve
+  // of the replay's last contact state.
+  const spidarcad::app::FeContactState last = part.field->last_state();
+  spidarcad::fem::BoundaryConditions last_bcs = model.bcs();
+  for (int s = 0; s < last.num_contacts; ++s)
+    last_bcs.PrescribeNode(
+        model.cache().candidate_node(last.candidate[s]),
+        Eigen::Vector3d(last.target[3 * s], last.target[3 * s + 1], last.target[3 * s + 2]));
+  const spidarcad::fem::StaticSolution last_solution =
+      spidarcad::fem::StaticSolver(model.mesh(), model.materials(), last_bcs).Solve();
+  const spidarcad::modeling::VtuGrid grid = spidarcad::modeling::ReadVtuGrid(vtu);
+  ASSERT_EQ(grid.points.cols(), model.mesh().num_nodes());
+  ASSERT_EQ(grid.point_data.count("displacement"), 1u);
+  ASSERT_EQ(grid.point_data.count("von_mises"), 1u);
+  const Eigen::MatrixXd& u = grid.point_data.at("displacement");
+  ASSERT_EQ(u.rows(), 3);
+  const double u_max = last_solution.displacement.cwiseAbs().maxCoeff();
+  ASSERT_GT(u_max, 0.0);
+  for (int v = 0; v < model.mesh().num_nodes(); ++v)
+    for (int i = 0; i < 3; ++i)
+      ASSERT_NEAR(u(i, v), last_solution.displacement(3 * v + i), 1e-9 * u_max) << v;
+  EXPECT_GT(grid.point_data.at("von_mises").maxCoeff(), 0.0);
+  EXPECT_GE(grid.point_data.at("von_mises").minCoeff(), 0.0);
+  // --save: the document as it stands at the end (a run does not change it).
+  const spidarcad::app::OpenedDocument reopened = spidarcad::app::OpenDocumentFile(saved);
+  ASSERT_EQ(reopened.doc->objects().size(), opened.doc->objects().size());
+  for (std::size_t i = 0; i < opened.doc->objects().size(); ++i)
+    EXPECT_EQ(reopened.doc->objects()[i].name, opened.doc->objects()[i].name);
+}
+
+// --export and --save are checked before any work: a name that is no FE model, a file that is
+// not .vtu, a missing '=', and either of them without a document exit 2 saying so.
+TEST(RunCommand, ExportAndSaveRefuseBadInputBeforeTheRun) {
+  const std::string source = std::string(SPIDARCAD_SOURCE_DIR);
+  const std::string scene = "'" + source + "/assets/scenes/platform_fe.json'";
+  const std::string run = scene + " --trajectory '" + source +
+                          "/assets/trajectories/press.csv' --out '" + OutputPath("bad_fe.csv") +
+                          "'";
+  const struct {
+    std::string args, message;
+  } cases[] = {
+      {run + " --export 'nothing=a.vtu'",
+       "--export nothing=a.vtu: the document has no object named 'nothing'; its FE models: "
+       "'platform FE'"},
+      {run + " --export 'platform=a.vtu'",
+       "--export platform=a.vtu: 'platform' is a solid, not an FE model run renders"},
+      {run + " --export 'platform FE=a.stl'",
+       "--export platform FE=a.stl: an FE model is written as .vtu"},
+      {run + " --export 'platform FE'", "--export 'platform FE': expected NAME=FILE"},
+      {"demo --trajectory '" + source + "/assets/trajectories/press.csv' --out '" +
+           OutputPath("bad_fe.csv") + "' --save x.json",
+       "--save: needs a scene file or document (SCENE is 'demo')"},
+  };
+  for (const auto& c : cases) {
+    const CommandRun r = RunSpidarcad(c.args, "export_bad");
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.all();
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << r.err;
+    EXPECT_EQ(r.out.find("fe 'platform FE'"), std::string::npos) << "built before refusing";
+  }
 }
 
 }  // namespace

@@ -32,6 +32,7 @@
 #include "scene/calibration_file.h"
 #include "scene/device_rig.h"
 #include "scene/document_file.h"
+#include "scene/fe_part.h"
 #include "scene/scene_haptics.h"
 #include "scene/trajectory_player.h"
 #include "spidarcad/haptics/haptic_loop.h"
@@ -88,14 +89,29 @@ constexpr const char* kRunHelp =
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
     "coordinates), or a scene file or document (docs/scene-format.md, version 1 or 2) of implicit\n"
-    "solids; a document's meshes, FE models and sculpts are not rendered yet, nor rigid parts\n"
-    "beside solids (the summary lists them as skipped); a document of rigid parts and no solid\n"
-    "(an assembly saved from the window) is one assembly field, as a scene's \"parts\" are:\n"
+    "solids and FE models (below); a document's other meshes and sculpts are not rendered yet,\n"
+    "nor rigid parts beside solids (the summary lists them as skipped); a document of rigid parts\n"
+    "and no solid (an assembly saved from the window) is one assembly field, as a scene's\n"
+    "\"parts\" are. Solids:\n"
     "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
     "  --tool shell   the cross grip (poles +-d, radius 6 mm) is a six-DOF point shell with\n"
     "                 virtual coupling against the union of the solids: torques are felt\n"
     "--stiffness and --damping are what the hand feels at the grip (N/m and N·s/m of grip motion;\n"
-    "the fields get them divided by the world scale s). FE parts are not rendered by `run` yet.\n"
+    "the fields get them divided by the world scale s).\n"
+    "FE models: each is an FE part pushed by a sphere on the grip centre, as in the window's FE\n"
+    "mode and with its default touch settings (scene/fe_part.h: radius the mesh's mean surface\n"
+    "edge; felt force 1e-4/s of the FE reaction, at most 8 N; virtual coupling 1500/s N/m, s\n"
+    "the world scale; frictionless); the solid its mesh was made from is not felt as a rigid\n"
+    "solid too. The model is assembled and factored before the first tick (FeModel::Build, with\n"
+    "the disk cache of FE columns, $SPIDARCAD_CACHE_DIR or ~/.cache/spidarcad), and the\n"
+    "compliance columns of its surface nodes within 3 cm of grip motion (plus the sphere) of the\n"
+    "trajectory's path are made ready then (read from the disk cache, else computed and saved\n"
+    "there); none is computed during the run, so its forces depend on the trajectory alone and\n"
+    "two runs give the same CSV. A contact node off that path reads the nearest ready column (the\n"
+    "summary counts such ticks). The summary gives the build and column times.\n"
+    "--fe-grasp: instead, a sphere of that radius at each pole tip, 0.02 m (W) from the grip\n"
+    "centre (FE mode's two-point grasp, no coupling): closing the grasp squeezes the part between\n"
+    "the tips, and the grasp torque g pushes back.\n"
     "A scene with a \"snap\" object adds snap forces toward its solids' vertices, edges and\n"
     "faces (docs/scene-format.md, \"Snap forces\"); the summary gives the feature counts.\n"
     "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
@@ -124,11 +140,16 @@ constexpr const char* kRunHelp =
     "  tick_us           wall-clock compute time of HapticLoop::Step, µs\n"
     "  events            safety event bits of the tick (see summary for names)\n"
     "  fk_x,fk_y,fk_z    grip centre measured by forward kinematics, m\n"
+    "  fe_contacts       (documents with FE models only) FE contact nodes of the tick, all parts\n"
+    "  fe_fx,fe_fy,fe_fz (the same) FE reaction on the tool, W, N: the unscaled FE force, summed\n"
+    "                    over the parts (the felt force is in fx..fz)\n"
     "\n"
     "Example:\n"
     "  spidarcad run demo --trajectory assets/trajectories/press.csv --out press_result.csv\n"
     "  spidarcad run assets/scenes/platform.json --trajectory assets/trajectories/press.csv \\\n"
-    "      --out platform_press.csv --world-scale 1 --world-origin 0.1,0,0.04";
+    "      --out platform_press.csv --world-scale 1 --world-origin 0.1,0,0.04\n"
+    "  spidarcad run assets/scenes/platform_fe.json --trajectory assets/trajectories/press.csv \\\n"
+    "      --out platform_fe_press.csv --world-scale 1 --world-origin 0.1,0,0.04";
 
 struct RunOptions {
   std::string scene;
@@ -149,6 +170,9 @@ struct RunOptions {
   bool geometry_given = false;       // --frame or --pole given: it overrides the document's
   double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
   bool progress = false;             // progress on stderr even when it is not a terminal
+  bool fe_grasp = false;             // FE parts: two-point grasp contact instead of the push sphere
+  std::vector<std::string> save;     // --save OUT: the document at the end of the run
+  std::vector<std::string> exports;  // --export NAME=FILE: one object's final state
 };
 
 // Ceiling of --max-duration, s: 1e7 s is 1e10 ticks, far inside a long tick counter.
@@ -199,6 +223,48 @@ class RunProgress {
   bool shown_ = false;
   std::chrono::steady_clock::time_point last_;
 };
+
+// The rigid solids' fields of a document that also has FE parts: BuildHapticScene's, but with
+// X_WD fitted (where the options do not set it) to the solids' boxes together with the FE meshes'
+// box `fe_box_W` (W, m; not empty), since the FE parts are felt too. `rigid` may have no solid.
+// Throws as BuildHapticScene.
+SceneHaptics BuildBesideFeParts(const modeling::Scene& rigid, SceneHapticsOptions options,
+                                const Eigen::AlignedBox3d& fe_box_W) {
+  options.Validate();
+  Eigen::AlignedBox3d bounds = fe_box_W;
+  for (std::size_t i = 0; i < rigid.solids.size(); ++i) {
+    const std::string pointer = "/solids/" + std::to_string(i) + "/root";
+    modeling::CompiledSolid compiled;
+    try {
+      compiled = modeling::CompiledSolid::Compile(rigid.solids[i].root, pointer);
+    } catch (const std::exception& e) {
+      throw std::invalid_argument("solid '" + rigid.solids[i].name + "' (" + pointer +
+                                  "): " + e.what());
+    }
+    bool unbounded = false;
+    const Eigen::AlignedBox3d box = SolidBounds(compiled, &unbounded);
+    if (!box.isEmpty()) bounds.extend(box);
+  }
+  WorkspaceMap map = FitWorkspace(bounds, options.device_half_side, options.fit_fraction);
+  if (options.world_scale) {
+    map.X_WD.world_scale = *options.world_scale;
+    map.scale_fitted = false;
+  }
+  if (options.p_WDo) {
+    map.X_WD.p_WDo = *options.p_WDo;
+    map.origin_fitted = false;
+  }
+  SceneHaptics built;
+  if (rigid.solids.empty()) {
+    built.scene = std::make_unique<haptics::HapticScene>();
+  } else {
+    options.world_scale = map.X_WD.world_scale;
+    options.p_WDo = map.X_WD.p_WDo;
+    built = BuildHapticScene(rigid, options);
+  }
+  built.map = map;
+  return built;
+}
 
 std::string Fixed(double v, int digits) {
   std::ostringstream os;
@@ -267,9 +333,32 @@ void RunRun(const RunOptions& options) {
   std::string skipped_line;  // a document's objects that run does not render yet
   std::string map_line = "X_WD: identity (device coordinates)";
   haptics::AssemblyField* assembly_field =
-      nullptr;  // an assembly scene's field (owned by the loop)
+      nullptr;                           // an assembly scene's field (owned by the loop)
+  std::vector<FeTouchField*> fe_fields;  // the document's FE parts' fields (owned by the loop)
+  std::vector<std::shared_ptr<FeModel>> fe_parts;  // their models, in the same order
+  std::vector<std::string> fe_names;               // and their names
+  std::unique_ptr<Document> document;              // the document run (null: demo or empty)
+  std::string fe_lines;                            // what the FE parts' set-up did, for the summary
   haptics::LoopSettings settings;
   settings.fk.max_residual = kNominalFkMaxResidual;  // nominal encoder model: mm-level errors
+  // --export NAME=FILE: split (at the first '='), checked once the document is open.
+  std::vector<std::pair<std::string, std::string>> exports;
+  for (const std::string& e : options.exports) {
+    const auto eq = e.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == e.size()) {
+      throw InputError("--export '" + e +
+                       "': expected NAME=FILE (an object's name, then the file)");
+    }
+    exports.emplace_back(e.substr(0, eq), e.substr(eq + 1));
+  }
+  const bool scene_is_file =
+      !(options.scene.empty() || options.scene == "none" || options.scene == "demo");
+  if (!scene_is_file && (!options.save.empty() || !exports.empty())) {
+    throw InputError(std::string(options.save.empty() ? "--export" : "--save") +
+                     ": needs a scene file or document (SCENE is " +
+                     (options.scene.empty() ? std::string("empty") : "'" + options.scene + "'") +
+                     ")");
+  }
   if (options.scene.empty() || options.scene == "none") {
     scene = std::make_unique<haptics::HapticScene>();
   } else if (options.scene == "demo") {
@@ -289,26 +378,61 @@ void RunRun(const RunOptions& options) {
     }
     // What `run` renders of a document today: its solids (one field each, or an assembly of
     // "parts"), or, in a document of rigid parts and no solid (an assembly saved from the
-    // window), the assembly of its rigid parts as the window feels it; and snap. The other kinds
-    // are listed in the summary as skipped.
+    // window), the assembly of its rigid parts as the window feels it; its FE models beside its
+    // solids (each one FE part, scene/fe_part.h; the solid an FE model's mesh was made from is
+    // not a rigid solid too, as FE mode hides it); and snap. The other kinds are listed in the
+    // summary as skipped.
     const modeling::Scene loaded = opened.doc->ToScene();
     const std::vector<AssemblyPartInput> rigid_parts = loaded.solids.empty()
                                                            ? RigidPartInputs(*opened.doc, nullptr)
                                                            : std::vector<AssemblyPartInput>{};
+    const std::size_t part_count = rigid_parts.empty() ? loaded.parts.size() : rigid_parts.size();
+    // FE models are rendered beside solids, not in an assembly.
+    const std::vector<ObjectId> fe_models =
+        part_count == 0 ? FeModelsOf(*opened.doc) : std::vector<ObjectId>{};
+    std::vector<ObjectId> fe_meshes, fe_sources;
+    for (ObjectId fe : fe_models) {
+      fe_meshes.push_back(std::get<FeModelData>(opened.doc->Get(fe).data).tet_mesh);
+      if (const ObjectId source = FeModelSource(*opened.doc, fe); source != 0)
+        fe_sources.push_back(source);
+    }
+    const auto listed = [](const std::vector<ObjectId>& ids, ObjectId id) {
+      return std::find(ids.begin(), ids.end(), id) != ids.end();
+    };
     for (const DocObject& o : opened.doc->objects()) {
       if (std::holds_alternative<SolidData>(o.data)) continue;
       if (!rigid_parts.empty() && std::holds_alternative<RigidPartData>(o.data)) continue;
+      if (listed(fe_models, o.id) || listed(fe_meshes, o.id)) continue;
       skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
                       " '" + o.name + "'";
     }
     if (!skipped_line.empty()) {
       skipped_line =
-          "skipped (run renders solids, assembly parts and snap; not yet meshes, "
-          "FE models, sculpts or rigid parts): " +
+          "skipped (run renders solids, FE models, assembly parts and snap; not yet other "
+          "meshes, sculpts or rigid parts): " +
           skipped_line;
     }
-    const std::size_t part_count = rigid_parts.empty() ? loaded.parts.size() : rigid_parts.size();
-    if (opened.version == 2 && loaded.solids.empty() && rigid_parts.empty()) {
+    // --export: objects whose final state run can write (FE parts, as .vtu), checked before
+    // any work.
+    for (const auto& [name, file] : exports) {
+      const std::string what = "--export " + name + "=" + file + ": ";
+      const DocObject* object = nullptr;
+      for (const DocObject& o : opened.doc->objects())
+        if (o.name == name && object == nullptr) object = &o;
+      if (object == nullptr) {
+        throw InputError(what + "the document has no object named '" + name +
+                         "'; its FE models: " + ObjectNames(*opened.doc, {"fe_model"}));
+      }
+      if (!listed(fe_models, object->id)) {
+        throw InputError(what + "'" + name + "' is a " + ObjectKindName(object->data) +
+                         ", not an FE model run renders; run exports FE models only (" +
+                         ObjectNames(*opened.doc, {"fe_model"}) + ")");
+      }
+      if (file.size() < 4 || file.compare(file.size() - 4, 4, ".vtu") != 0) {
+        throw InputError(what + "an FE model is written as .vtu: name the file FILE.vtu");
+      }
+    }
+    if (opened.version == 2 && loaded.solids.empty() && rigid_parts.empty() && fe_models.empty()) {
       // Nothing to render: the grip moves freely.
       scene = std::make_unique<haptics::HapticScene>();
       scene_name = options.scene + " (no solid)";
@@ -371,10 +495,31 @@ void RunRun(const RunOptions& options) {
                                                options.world_origin[2]);
       }
       haptic_options.grip_d = geometry.d;
+      // The solids rendered as rigid solids: all but the FE models' sources.
+      modeling::Scene rigid = loaded;
+      rigid.solids.clear();
+      for (const DocObject& o : opened.doc->objects()) {
+        if (const auto* solid = std::get_if<SolidData>(&o.data); solid && !listed(fe_sources, o.id))
+          rigid.solids.push_back({o.name, solid->root});
+      }
+      // The FE meshes take part in the fit of X_WD as the solids do.
+      Eigen::AlignedBox3d fe_box_W;
+      for (ObjectId fe : fe_models) {
+        fem::TetMesh mesh;
+        try {
+          mesh = FeMeshOf(*opened.doc, std::get<FeModelData>(opened.doc->Get(fe).data));
+        } catch (const std::exception& e) {
+          throw InputError(options.scene + ": FE model '" + opened.doc->Get(fe).name +
+                           "': " + e.what());
+        }
+        for (Eigen::Index v = 0; v < mesh.nodes.rows(); ++v)
+          fe_box_W.extend(mesh.nodes.row(v).transpose().eval());
+      }
       SceneHaptics built;
       try {
         haptic_options.Validate();
-        built = BuildHapticScene(loaded, haptic_options);
+        built = fe_models.empty() ? BuildHapticScene(rigid, haptic_options)
+                                  : BuildBesideFeParts(rigid, haptic_options, fe_box_W);
       } catch (const std::invalid_argument& e) {
         const std::string what = e.what();
         // Option problems name the option; solid problems name the file.
@@ -385,11 +530,54 @@ void RunRun(const RunOptions& options) {
       }
       built.ApplyTo(&settings);
       scene = std::move(built.scene);
-      scene_name = options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
+      // The tool model applies to rigid solids; an FE part is pushed by its sphere either way.
+      scene_name = rigid.solids.empty()
+                       ? options.scene
+                       : options.scene + " (tool " + ToolModelName(haptic_options.tool) + ")";
       fields_line = "fields:";
       for (std::size_t i = 0; i < built.fields.size(); ++i) {
         fields_line += std::string(i ? "," : "") + " " + built.fields[i].kind + " '" +
                        built.fields[i].solid + "'";
+      }
+      // The FE parts: built now (the window does it in a Job), their columns along the path.
+      for (ObjectId fe : fe_models) {
+        const std::string name = opened.doc->Get(fe).name;
+        FePartOptions fe_options;
+        fe_options.world_scale = built.map.X_WD.world_scale;
+        fe_options.model.cache.start_worker = false;  // PrepareColumns below, nothing after
+        fe_options.touch.grasp = options.fe_grasp;
+        FePart part;
+        FeColumnPlan plan;
+        try {
+          part = BuildFePart(*opened.doc, fe, fe_options);
+          plan = PrepareTrajectoryColumns(&part, trajectory, built.map.X_WD,
+                                          fe_options.model.use_disk_cache);
+        } catch (const std::exception& e) {
+          throw InputError(options.scene + ": FE model '" + name + "': " + e.what());
+        }
+        fields_line +=
+            std::string(fields_line == "fields:" ? "" : ",") + " fe_touch '" + name + "'";
+        const FeModel& model = *part.model;
+        const FeTouchSettings& ts = part.field->settings();
+        fe_lines += "fe '" + name + "': " + std::to_string(model.mesh().num_nodes()) + " nodes, " +
+                    std::to_string(model.mesh().num_elements()) + " tets (order " +
+                    std::to_string(model.mesh().Order()) + "), " +
+                    std::to_string(model.num_fixed_nodes()) + " clamped; built in " +
+                    Fixed(model.build_seconds(), 2) + " s (" +
+                    std::to_string(model.imported_nodes()) + " columns in the disk cache)\n";
+        fe_lines += "fe '" + name + "' columns: " + std::to_string(plan.ready) + " ready of " +
+                    std::to_string(plan.requested) + " surface nodes near the trajectory (" +
+                    std::to_string(plan.from_disk) + " from the disk cache, " +
+                    std::to_string(plan.computed) + " computed" + (plan.saved ? " and saved" : "") +
+                    ", " + Fixed(plan.seconds, 2) + " s); none computed during the run\n";
+        fe_lines += "fe '" + name + "' touch: sphere radius " + FormatNumber(ts.tool_radius) +
+                    " m, force scale " + FormatNumber(ts.force_scale) + ", coupling " +
+                    FormatNumber(ts.coupling_stiffness) + " N/m, max felt " +
+                    FormatNumber(ts.max_force) + " N (W)\n";
+        fe_fields.push_back(part.field.get());
+        fe_parts.push_back(part.model);
+        fe_names.push_back(name);
+        scene->Add(std::move(part.field));
       }
       const Eigen::Vector3d& o = built.map.X_WD.p_WDo;
       map_line = "X_WD: p_W = " + FormatNumber(built.map.X_WD.world_scale) + " p_D + (" +
@@ -403,6 +591,7 @@ void RunRun(const RunOptions& options) {
                     FormatNumber(b.max().y()) + ", " + FormatNumber(b.max().z()) + ") m";
       }
     }  // not an assembly
+    document = std::move(opened.doc);
   }
   const int num_fields = scene->size();
 
@@ -486,8 +675,14 @@ void RunRun(const RunOptions& options) {
 
   std::ofstream out(options.out);
   if (!out) throw InputError("--out: cannot write '" + options.out + "'");
+  // Columns after today's only when the document has an FE part (older outputs stay as they were).
+  const bool fe_columns = !fe_fields.empty();
   out << "t,x,y,z,qw,qx,qy,qz,grasp,fx,fy,fz,mx,my,mz,g,tau1,tau2,tau3,tau4,tau5,tau6,tau7,tau8,"
-         "tick_us,events,fk_x,fk_y,fk_z\n";
+         "tick_us,events,fk_x,fk_y,fk_z"
+      << (fe_columns ? ",fe_contacts,fe_fx,fe_fy,fe_fz" : "") << "\n";
+  long fe_substituted_ticks = 0;  // ticks with a contact on a substitute column
+  int fe_max_contacts = 0;
+  double fe_max_reaction = 0.0;
   std::string buffer;
   double max_force = 0.0;
   const auto wall_start = std::chrono::steady_clock::now();
@@ -534,7 +729,23 @@ void RunRun(const RunOptions& options) {
     const bool has_pose = result.fk_status == haptics::FkStatus::kOk;
     for (int i = 0; i < 3; ++i) {
       buffer += has_pose ? FormatNumber(result.pose_D.p0(i)) : std::string("nan");
-      buffer += i < 2 ? ',' : '\n';
+      buffer += i < 2 || fe_columns ? ',' : '\n';
+    }
+    if (fe_columns) {
+      // The FE parts' contact state of this tick (this thread ran it: it is the one reader).
+      int contacts = 0, substituted = 0;
+      Eigen::Vector3d f = Eigen::Vector3d::Zero();
+      for (const FeTouchField* field : fe_fields) {
+        const FeContactState& st = field->last_state();
+        contacts += st.num_contacts;
+        substituted += st.num_substituted;
+        f += st.f_tool_W;
+      }
+      if (substituted > 0) ++fe_substituted_ticks;
+      fe_max_contacts = std::max(fe_max_contacts, contacts);
+      fe_max_reaction = std::max(fe_max_reaction, f.norm());
+      buffer += std::to_string(contacts) + ',' + FormatNumber(f.x()) + ',' + FormatNumber(f.y()) +
+                ',' + FormatNumber(f.z()) + '\n';
     }
     if (buffer.size() > (1 << 16)) {
       out << buffer;
@@ -559,6 +770,12 @@ void RunRun(const RunOptions& options) {
   if (!calibration_line.empty()) std::cout << calibration_line << "\n";
   if (!fields_line.empty()) std::cout << fields_line << "\n";
   if (!skipped_line.empty()) std::cout << skipped_line << "\n";
+  std::cout << fe_lines;
+  if (fe_columns) {
+    std::cout << "fe contact: at most " << fe_max_contacts << " nodes, largest FE reaction "
+              << Fixed(fe_max_reaction, 3) << " N (unscaled, W); " << fe_substituted_ticks
+              << " ticks read a substitute column (a node off the prepared path)\n";
+  }
   if (frame_source != "default") {
     std::cout << "frame: half-sides " << FormatNumber(geometry.a) << ", "
               << FormatNumber(geometry.b) << ", " << FormatNumber(geometry.c) << " m, pole "
@@ -581,7 +798,29 @@ void RunRun(const RunOptions& options) {
     // The field's state after the last tick (this thread ran every tick: it is the one reader).
     std::cout << FormatAssemblySummary(*assembly_field, assembly_field->LatestState());
   }
-  std::cout << "wrote " << options.out << " (" << ticks << " rows)\n" << std::flush;
+  std::cout << "wrote " << options.out << " (" << ticks << " rows)\n";
+  // The final state of each exported FE part: its last tick's contacts, solved in full.
+  for (const auto& [name, file] : exports) {
+    const std::size_t i = std::find(fe_names.begin(), fe_names.end(), name) - fe_names.begin();
+    const FeContactState& state = fe_fields[i]->last_state();
+    try {
+      WriteFeStateVtu(*fe_parts[i], SolveFeState(*fe_parts[i], state), file);
+    } catch (const std::exception& e) {
+      throw InputError("--export " + name + "=" + file + ": " + e.what());
+    }
+    std::cout << "wrote " << file << " ('" << name << "' at the last tick: " << state.num_contacts
+              << " contact nodes, FE reaction on the tool " << Fixed(state.f_tool_W.norm(), 3)
+              << " N; displacement and von_mises by a full solve)\n";
+  }
+  for (const std::string& path : options.save) {
+    try {
+      document->Save(path);
+    } catch (const std::exception& e) {
+      throw InputError(std::string("--save ") + path + ": " + e.what());
+    }
+    std::cout << "wrote " << path << " (the document at the end of the run)\n";
+  }
+  std::cout << std::flush;
   throw CommandExit{0};
 }
 
@@ -632,6 +871,19 @@ void RegisterRunCommand(CLI::App& app) {
                   "at most 1e7)");
   cmd->add_flag("--progress", options->progress,
                 "Show progress on stderr even when it is not a terminal");
+  cmd->add_flag("--fe-grasp", options->fe_grasp,
+                "Documents: FE models are squeezed between the pole tips (two-point grasp contact, "
+                "as FE mode's checkbox) instead of pushed by the sphere on the grip centre");
+  cmd->add_option("--save", options->save,
+                  "Documents: write the document as it stands at the end of the run to OUT "
+                  "(repeatable)")
+      ->type_name("OUT")
+      ->allow_extra_args(false);
+  cmd->add_option("--export", options->exports,
+                  "Documents: write one object's final state, NAME=FILE (repeatable); an FE model "
+                  "as .vtu with point data displacement and von_mises")
+      ->type_name("NAME=FILE")
+      ->allow_extra_args(false);
   cmd->callback([options]() { RunRun(*options); });
 }
 

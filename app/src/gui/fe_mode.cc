@@ -29,10 +29,8 @@ namespace spidarcad::app {
 FeMode::FeMode(vtkRenderer* renderer, JobQueue* jobs)
     : renderer_(renderer), jobs_(jobs), channel_(std::make_shared<FeContactChannel>()) {
   mesh_settings_.mesher = "tetgen";
-  touch_settings_.tool_radius = 0.0;  // auto: the mesh's mean edge length
-  touch_settings_.force_scale = std::pow(10.0, log_force_scale_);
-  touch_settings_.max_force = 8.0;
-  touch_settings_.coupling_stiffness = kDefaultFeCoupling;
+  touch_settings_ = DefaultFeTouchSettings();  // as `spidarcad run` (scene/fe_part.h)
+  touch_settings_.force_scale = std::pow(10.0, log_force_scale_);  // the slider's value
   poly_ = vtkSmartPointer<vtkPolyData>::New();
   scalars_ = vtkSmartPointer<vtkDoubleArray>::New();
   scalars_->SetName("von_mises_MPa");
@@ -183,8 +181,7 @@ Job* FeMode::RunningJob() const {
 
 void FeMode::QueueField() {
   if (!model_) return;
-  FeTouchSettings ts = FieldTouchSettings(touch_settings_, X_WD_.world_scale);
-  if (!(ts.tool_radius > 0.0)) ts.tool_radius = model_->mean_edge_length();
+  const FeTouchSettings ts = ResolvedFieldSettings(*model_, touch_settings_, X_WD_.world_scale);
   sphere_source_->SetRadius(ts.tool_radius);
   pending_field_ = std::make_unique<FeTouchField>(model_, ts, channel_);
 }
@@ -842,15 +839,6 @@ void FeMode::DrawSettingsPanel(SceneModel* model) {
     }
   }
   if (model != nullptr && !bound) ImGui::EndDisabled();
-}
-
-FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale) {
-  FeTouchSettings ts = panel;
-  if (world_scale > 0.0) {
-    ts.force_scale = panel.force_scale / world_scale;
-    ts.coupling_stiffness = panel.coupling_stiffness / world_scale;
-  }
-  return ts;
 }
 
 std::string FormatFeSummary(const FeMode& mode, const haptics::ToolState& tool) {

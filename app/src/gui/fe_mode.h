@@ -30,6 +30,7 @@
 #include "doc/document.h"
 #include "doc/job.h"
 #include "scene/fe_model.h"
+#include "scene/fe_part.h"  // FieldTouchSettings: the settings of the field FeMode publishes
 #include "scene/fe_setup.h"
 #include "scene/fe_touch_field.h"
 #include "spidarcad/fem/mesh.h"
@@ -243,13 +244,6 @@ class FeMode {
   // Finishers of this mode's Jobs run only while the mode lives (they hold a weak_ptr to this).
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };
-
-// The settings of the field FeMode publishes from the panel's: the felt force scale and the
-// coupling stiffness are divided by the world scale of X_WD (p_W = s·p_D + p_WDo, forces
-// displayed as they are), so that a grip displacement δ in D, which moves the tool s·δ in W, is
-// felt as force_scale · K · δ (and at most coupling · δ) whatever s is: the stiffness felt in
-// the hand does not depend on how big the scene is drawn.
-FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale);
 
 // Two lines for the end of a scripted run (--frames, --screenshot): the FE part's state (columns
 // ready, contacts, FE force on the tool) and the tool's position and the wrench the loop

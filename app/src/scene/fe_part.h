@@ -1,0 +1,153 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// A document's FE model as a part to touch: the one builder shared by FE mode (the window) and
+// `spidarcad run`. It turns an FE model object (FeModelData on a mesh object holding tetrahedra)
+// into a ready FeModel (assembled, factored, compliance columns from the disk cache) and the
+// FeTouchField that pushes it, with the touch settings FE mode uses.
+//
+// Felt force and world scale. The touch settings are given as FE mode's panel holds them, as felt
+// at the grip; FieldTouchSettings divides the force scale and the coupling stiffness by the world
+// scale s of X_WD (p_W = s·p_D + p_WDo), so a grip displacement δ in D (a tool displacement s·δ
+// in W) is felt as force_scale · K · δ, and at most coupling · δ, whatever s is.
+//
+// Deterministic columns (headless runs). The window lets the column worker compute columns
+// ahead of the tool while the contact solve reads the nearest ready column meanwhile: its forces
+// depend on thread timing. A scripted run knows its path in advance instead: the model is built
+// with the worker stopped, PrepareColumns makes exactly the columns of the candidates near the
+// path ready before the first tick (from the disk cache where it has them, computed otherwise),
+// and nothing changes the ready set afterwards. Each tick's forces are then a function of the
+// tool's path alone; a contact node outside the prepared set reads the nearest prepared column
+// (counted in FeContactState::num_substituted), which is deterministic too.
+//
+// Units: SI (m, N, Pa); meshes and paths in the world frame W. Main thread (or a Job's worker for
+// BuildFePart); the field is then handed to the haptic loop.
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "doc/document.h"
+#include "scene/fe_model.h"
+#include "scene/fe_touch_field.h"
+#include "spidarcad/haptics/device_to_world.h"
+#include "spidarcad/haptics/trajectory.h"
+
+namespace spidarcad::app {
+
+// The touch settings FE mode's panel starts with, as felt at the grip: tool radius 0 (auto: the
+// mesh's mean boundary edge length), force scale kDefaultFeForceScale, felt force at most 8 N,
+// coupling kDefaultFeCoupling N/m, frictionless, push (no grasp contact; pole length 0.02 m).
+FeTouchSettings DefaultFeTouchSettings();
+
+// The settings of the field for panel settings `panel` (felt at the grip) and world scale s
+// (> 0; otherwise `panel` is returned as it is): force_scale / s and coupling_stiffness / s (see
+// the file comment).
+FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale);
+
+// The field settings for `model`: FieldTouchSettings with an auto tool radius (<= 0) resolved to
+// the model's mean boundary edge length.
+FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSettings& panel,
+                                      double world_scale);
+
+// The FE model objects of a document, in document order.
+std::vector<ObjectId> FeModelsOf(const Document& doc);
+
+// The object the mesh of FE model `fe` was made from (MeshData::source), 0 when there is none
+// (an imported mesh) or `fe` is not an FE model.
+ObjectId FeModelSource(const Document& doc, ObjectId fe);
+
+// How BuildFePart builds a part.
+struct FePartOptions {
+  // Touch settings as felt at the grip (FE mode's panel).
+  FeTouchSettings touch = DefaultFeTouchSettings();
+  // World scale s of X_WD (world metres per grip metre, > 0).
+  double world_scale = 1.0;
+  // Everything of FeModel::Build the document does not set (disk cache, column settings,
+  // progress, cancel); the FE model's material, regions, clamps, loads and order override it.
+  FeModelSettings model;
+};
+
+// A built FE part.
+struct FePart {
+  ObjectId fe = 0;      // the FE model object
+  ObjectId mesh = 0;    // its mesh object
+  ObjectId source = 0;  // what that mesh was made from (0: none)
+  std::string name;     // the FE model object's name
+  std::shared_ptr<FeModel> model;
+  // The channel the field publishes each tick's contact state to.
+  std::shared_ptr<FeContactChannel> channel;
+  // The field (moved out by the caller into a HapticScene).
+  std::unique_ptr<FeTouchField> field;
+};
+
+// Builds FE model `fe` of `doc` now (on the calling thread): FeMeshOf, then FeModel::Build with
+// ApplyFeModelData(data, options.model), then the field with ResolvedFieldSettings. Throws
+// DocumentError when `fe` is not an FE model or its mesh is missing, and what FeModel::Build and
+// FeTouchField throw (std::invalid_argument naming the setting, std::runtime_error).
+FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& options);
+
+// Candidate indices (FeModel::cache()) of the unclamped surface nodes within `radius` (m) of the
+// polyline `path_W` (W, m; one point: a ball), nearest the path first (ties by index).
+std::vector<int> CandidatesNearPath(const FeModel& model,
+                                    const std::vector<Eigen::Vector3d>& path_W, double radius);
+
+// What PrepareColumns did.
+struct FeColumnPlan {
+  int requested = 0;     // candidates asked for (clamped ones are never condensed)
+  int from_disk = 0;     // of those, read from the disk cache
+  int computed = 0;      // computed now
+  int ready = 0;         // ready afterwards (requested minus those the memory bound left out)
+  double seconds = 0.0;  // wall time
+  bool saved = false;    // the disk cache was updated with the computed columns
+};
+
+// Makes exactly the columns of `candidates` ready (see the file comment): the worker must be
+// stopped (FeModelSettings::cache.start_worker = false). Columns the disk cache gave that are not
+// asked for are dropped; missing ones are computed in the order given (blocks of the settings'
+// block_nodes) until the cache's memory bound is reached: the candidates listed last are the ones
+// left out when not all fit (FeColumnPlan::ready says how many did). When
+// columns were computed and `save` is set, the disk file of the model's key is rewritten with
+// what it held plus them (`cache_directory`, empty: fem::DefaultCacheDirectory()); a failed
+// write is not an error (saved stays false). Throws std::logic_error when the worker runs.
+FeColumnPlan PrepareColumns(FeModel* model, const std::vector<int>& candidates, bool save,
+                            const std::filesystem::path& cache_directory = {});
+
+// How far the grip may leave a scripted trajectory (m of grip motion, D) and still find its FE
+// columns ready: the simulated hand's spring (300 N/m) yields 2.7 cm under the 8 N an FE part is
+// felt with at most; the nominal calibration's errors add millimetres.
+inline constexpr double kFeTrajectoryMargin = 0.03;
+
+// The grip centre's path of a trajectory in W: its samples through X_WD (positions are
+// interpolated linearly between samples, so the polyline is the path), leaving out samples within
+// `spacing` (m, W) of the last one kept (the first and last are always kept).
+std::vector<Eigen::Vector3d> TrajectoryPathW(const haptics::Trajectory& trajectory,
+                                             const haptics::DeviceToWorld& X_WD, double spacing);
+
+// The columns a scripted run of `trajectory` on `part` needs, made ready before it starts:
+// PrepareColumns on the candidates within reach of TrajectoryPathW(trajectory, X_WD, r/4), reach
+// = r + s·kFeTrajectoryMargin (+ the pole length with grasp contact), r and the pole length those
+// of the part's field (W), s the world scale of X_WD. `save` and `cache_directory` as
+// PrepareColumns.
+FeColumnPlan PrepareTrajectoryColumns(FePart* part, const haptics::Trajectory& trajectory,
+                                      const haptics::DeviceToWorld& X_WD, bool save,
+                                      const std::filesystem::path& cache_directory = {});
+
+// A contact state of an FE part solved in full (no condensation, no columns).
+struct FeSolvedState {
+  Eigen::VectorXd displacement;       // 3·#V (node-major), m
+  Eigen::VectorXd element_von_mises;  // #T, Pa, at each element's centroid
+  Eigen::VectorXd von_mises;          // #V, Pa: the elements' values averaged by volume
+};
+
+// Solves `model` (its mesh after the order upgrade, materials, clamps and loads) with the contact
+// nodes of `state` moved to their targets (fem::StaticSolver: a full sparse solve); no contact:
+// the loads alone. Throws std::runtime_error saying why when the factorisation or solve fails.
+FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state);
+
+// Writes `solved` on the model's mesh as .vtu (WriteTetVtu): point data "displacement" (3, m)
+// and "von_mises" (Pa), cell data "von_mises" (Pa). Throws what WriteTetVtu throws.
+void WriteFeStateVtu(const FeModel& model, const FeSolvedState& solved, const std::string& path);
+
+}  // namespace spidarcad::app
