@@ -76,6 +76,14 @@ class Waver {
     }
     return frames;
   }
+  // Holds the grip at `pose` for `frames` frames (of 200 ticks).
+  void Hold(const GripPose& pose, int frames) {
+    for (int f = 0; f < frames; ++f) {
+      move_(pose);
+      for (int k = 0; k < kTicksPerFrame; ++k, ++timing_.tick) window_->runtime().Tick(timing_);
+      window_->Frame();
+    }
+  }
   double seconds() const { return t_; }
 
  private:
@@ -110,7 +118,6 @@ TEST(CalibrationWizard, BoardSimSessionIsFittedShownSavedAndUsedWithoutARestart)
     window.runtime().SetTarget(window.grip().Pose());
   });
   waver.Frame();
-  const double nominal_error = LengthError(window.runtime());
   const std::string nominal_description = window.runtime().description();
 
   wizard.Open();
@@ -170,14 +177,20 @@ TEST(CalibrationWizard, BoardSimSessionIsFittedShownSavedAndUsedWithoutARestart)
     EXPECT_NEAR(file.calibration.strings[i].gain, twin.true_encoder().strings[i].gain, 3e-3);
   }
 
-  // Use now: the running session reads through it at once.
+  // Use now: the running session reads through it at once. The lengths at one held pose, off
+  // centre, before and after.
+  const GripPose held = GripPose::FromFrame(Eigen::Vector3d(0.07, -0.06, 0.05),
+                                            Eigen::Matrix3d::Identity(), 1.6, 0.04);
+  waver.Hold(held, 5);
+  const double nominal_error = LengthError(window.runtime());
+  EXPECT_GT(nominal_error, 1e-3);
   const int publishes = window.publish_count();
   ASSERT_TRUE(wizard.UseNow()) << wizard.message();
   waver.Frame();
   EXPECT_GT(window.publish_count(), publishes);  // the rebuilt loop got its scene again
   EXPECT_NE(window.runtime().description(), nominal_description);
   EXPECT_THAT(window.runtime().description(), HasSubstr("calibration wizard (saved as " + path));
-  for (int k = 0; k < 5; ++k) waver.Frame();
+  waver.Hold(held, 5);
   EXPECT_LT(LengthError(window.runtime()), 0.2 * nominal_error);
   wizard.Discard();
   waver.Frame();
