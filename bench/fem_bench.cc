@@ -5,6 +5,8 @@
 //   BM_Precompute/order/r      assembly + CHOLMOD factorisation time and memory, compliance
 //                              column time, tip deflection against Timoshenko.
 //   BM_ContactTick/order/r/k   one haptic tick: contact forces for k pushed nodes.
+//   BM_GrabTick/order/r/k      one haptic tick of a rigid grab of k nodes (CondensedGrab::Solve:
+//                              targets from (t, r), forces, wrench; grab.h).
 //   BM_ContactTickUpdate/...   one node leaves and re-enters contact (incremental factor
 //                              update) plus the solve.
 //   BM_SurfaceDisplacement/... displacement of every surface node by superposition (display).
@@ -40,6 +42,7 @@
 #include "bench_cli.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
+#include "spidarcad/fem/grab.h"
 #include "spidarcad/workloads/fe.h"
 
 namespace spidarcad::fem {
@@ -176,6 +179,27 @@ void BM_ContactTick(benchmark::State& state) {
   state.counters["tets"] = m.mesh.num_elements();
   Rows()[{static_cast<int>(state.range(0)), static_cast<int>(state.range(1))}].tick_us[k] =
       1e6 * per_tick;
+}
+
+void BM_GrabTick(benchmark::State& state) {
+  const Model& m = GetModel(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  const int k = static_cast<int>(state.range(2));
+  std::vector<int> nodes;
+  for (int b = 0; b < static_cast<int>(m.compliance->condensed_nodes().size()) &&
+                  static_cast<int>(nodes.size()) < k;
+       ++b)
+    if (!m.compliance->IsFixed(b)) nodes.push_back(m.compliance->condensed_nodes()[b]);
+  CondensedGrab grab(*m.compliance, GrabPatch(m.mesh.nodes, nodes));
+  const Eigen::Vector3d t(0.0, 0.0, -1e-4), r(1e-3, -2e-3, 5e-4);
+  const double t0 = CpuSeconds();
+  for (auto _ : state) {
+    const GrabWrench w = grab.Solve(t, r);
+    benchmark::DoNotOptimize(w.force.data());
+  }
+  const double per_tick =
+      (CpuSeconds() - t0) / std::max<double>(1.0, static_cast<double>(state.iterations()));
+  state.counters["k"] = static_cast<double>(nodes.size());
+  state.counters["cpu_us_per_tick"] = 1e6 * per_tick;
 }
 
 void BM_ContactTickUpdate(benchmark::State& state) {
@@ -577,6 +601,7 @@ void TickArgs(benchmark::internal::Benchmark* b) {
 
 BENCHMARK(BM_Precompute)->Apply(PrecomputeArgs)->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK(BM_ContactTick)->Apply(TickArgs)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_GrabTick)->Apply(TickArgs)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ContactTickUpdate)->Apply(TickArgs)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_SurfaceDisplacement)->Apply(TickArgs)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FullSparseSolve)
@@ -621,6 +646,9 @@ constexpr const char* kBenchDescription =
     "  BM_Precompute/order/r      assembly + CHOLMOD factorisation time and memory, compliance\n"
     "                             column time, tip deflection against Timoshenko.\n"
     "  BM_ContactTick/order/r/k   one haptic tick: contact forces for k pushed nodes.\n"
+    "  BM_GrabTick/order/r/k      one haptic tick of a rigid grab of k nodes "
+    "(CondensedGrab::Solve:\n"
+    "                             targets from (t, r), forces, wrench; grab.h).\n"
     "  BM_ContactTickUpdate/...   one node leaves and re-enters contact (incremental factor\n"
     "                             update) plus the solve.\n"
     "  BM_SurfaceDisplacement/... displacement of every surface node by superposition (display).\n"

@@ -45,6 +45,7 @@
 #include "gui/modes.h"
 #include "gui/scene_view.h"
 #include "gui/tree_panel.h"
+#include "gui/workbench_panels.h"
 #include "scene/assembly_scene.h"
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
@@ -52,6 +53,7 @@
 #include "scene/sculpt_field.h"
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/surface_mesher.h"
 #include "support/scoped_env.h"
 #include "support/scripted_window.h"
 
@@ -935,6 +937,48 @@ TEST(AppWindowAssembly, SeatingIsOneCommandThatUndoRedoAndReopenKeep) {
   EXPECT_NEAR(after - before, 0.0005, 1e-12);
 }
 
+// Ctrl+Z while the seating trajectory carries the leg changes nothing and says to let go first
+// (an undo under the hand would rebuild the field and drop the part); the carry goes on, the
+// seat lands as its own step after the earlier edit, and then Ctrl+Z undoes it.
+TEST(AppWindowAssembly, UndoWaitsWhileAPartIsCarried) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("window_doc_carry_undo");
+  const std::string scene = AssetPath("scenes/assembly.json");
+  const std::string trajectory = AssetPath("trajectories/seat_right_leg.csv");
+  constexpr int kLeg = 4;  // right_leg in assembly.json's parts
+  GuiOptions options = test_support::ScriptedWindowOptions(scene);
+  options.device = "simulated";
+  options.trajectory = trajectory;
+  AppWindow window(options);
+  auto* mode = dynamic_cast<AssemblyWindowMode*>(window.FindMode("assembly"));
+  ASSERT_NE(mode, nullptr);
+  AssemblyMode& assembly = mode->assembly();
+  Document& doc = window.model().document();
+  doc.Execute(edit::SetDescription("robot, leg to be seated"));
+  ASSERT_EQ(doc.history().undo_size(), 1u);
+  const haptics::Trajectory t = haptics::Trajectory::Load(trajectory);
+  const double length = t.end_time() - t.start_time();
+  ASSERT_TRUE(FramesUntil(&window, length, [&] { return assembly.state().carried == kLeg; }))
+      << "the trajectory never carried the leg";
+  const std::shared_ptr<haptics::AssemblyField> field = assembly.field();
+  EXPECT_FALSE(window.tree().Undo());
+  EXPECT_EQ(window.tree().error(),
+            "Undo: let go of part 'right_leg' first (undo and redo wait while a part is carried: "
+            "its move becomes an undo step when it is put down)");
+  EXPECT_EQ(doc.description(), "robot, leg to be seated");
+  EXPECT_EQ(doc.history().undo_size(), 1u);
+  window.Frame();
+  EXPECT_EQ(assembly.field(), field) << "the field was rebuilt under the hand";
+  EXPECT_EQ(assembly.state().carried, kLeg);
+  // The rest of the trajectory: the leg is put down in its seat, one step after the edit.
+  FramesUntil(&window, length + 1.0,
+              [&] { return assembly.state().carried < 0 && doc.history().undo_size() == 2u; });
+  ASSERT_EQ(doc.history().undo_size(), 2u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Seat part right_leg on body");
+  ASSERT_TRUE(window.tree().Undo()) << window.tree().error();
+  EXPECT_EQ(doc.history().UndoDescription(), "Set description");
+}
+
 // An imported mesh is drawn: the view has an actor for it, placed like the solids (X_WD of the
 // empty document: identity), with the mesh's bounds; a click on it selects it in the tree;
 // undoing the import removes the actor.
@@ -987,6 +1031,85 @@ TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
   ASSERT_TRUE(window.tree().Undo());
   window.Frame();
   EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
+}
+
+// Model mode's Mesh action in the window: the selected solid's surface lands as a mesh object,
+// selected in the tree and drawn in the solid's place; Ctrl+Z removes it, Ctrl+Y brings it back;
+// an edit of the solid makes it stale (the tree's marker), Refresh from the tree meshes it again
+// as one undo step; saved and reopened in a fresh window, the mesh is there and up to date.
+TEST(AppWindowDocument, ModelModeMeshLandsInTheTreeUndoesGoesStaleAndRefreshes) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("window_doc_model_mesh");
+  const std::string saved = (scratch.dir / "meshed.json").string();
+  modeling::TriangleMesh refreshed;
+  {
+    AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
+    window.Frame();
+    ASSERT_EQ(window.active_mode(), window.FindMode("model"));
+    Document& doc = window.model().document();
+    const ObjectId knob = doc.FindByName("knob")->id;
+    ASSERT_TRUE(window.tree().SelectByName("knob"));
+    window.Frame();
+    ASSERT_EQ(window.workbench().selected, window.model().IndexOf(knob));
+    window.workbench().resolution_mm = 5.0f;
+    StartMeshAction(&window.model(), &window.jobs(), &window.workbench(), MeshKind::kSurface);
+    ASSERT_FALSE(window.workbench().status_error) << window.workbench().status;
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (doc.FindByName("knob surface") == nullptr && std::chrono::steady_clock::now() < give_up)
+      window.Frame();
+    const DocObject* mesh = doc.FindByName("knob surface");
+    ASSERT_NE(mesh, nullptr) << window.workbench().status;
+    const ObjectId id = mesh->id;
+    EXPECT_EQ(window.workbench().status, "Surface of knob: done");
+    EXPECT_EQ(doc.history().UndoDescription(), "Mesh knob (surface)");
+    window.Frame();
+    ASSERT_TRUE(window.tree().selection().has_value());
+    EXPECT_EQ(window.tree().selection()->object, id) << "the new mesh is selected in the tree";
+    EXPECT_EQ(window.workbench().selected_object, id);
+    window.Frame();
+    vtkActor* actor = window.scene_view().ActorOf(id);
+    ASSERT_NE(actor, nullptr) << "the selected mesh is drawn";
+    EXPECT_TRUE(actor->GetVisibility());
+    EXPECT_FALSE(window.scene_view().ActorOf(knob)->GetVisibility()) << "in the knob's place";
+
+    // Ctrl+Z removes the mesh object (and its actor), Ctrl+Y brings it back.
+    PressCtrl(window, GLFW_KEY_Z);
+    EXPECT_EQ(doc.Find(id), nullptr);
+    EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
+    EXPECT_TRUE(window.scene_view().ActorOf(knob)->GetVisibility());
+    PressCtrl(window, GLFW_KEY_Y);
+    ASSERT_NE(doc.Find(id), nullptr);
+    EXPECT_FALSE(doc.IsMeshOutOfDate(id));
+
+    // An edit of the knob: the mesh is stale.
+    ASSERT_TRUE(window.tree().SelectByName("knob/0"));
+    ASSERT_TRUE(window.tree().SetField("radius", 0.04)) << window.tree().error();
+    window.Frame();
+    EXPECT_TRUE(doc.IsMeshOutOfDate(id));
+    EXPECT_EQ(StaleReason(doc, id), "'knob' changed since this mesh was made");
+
+    // Refresh from the tree: one undo step, up to date again, the new radius.
+    window.tree().Select(id);
+    const std::size_t steps = doc.history().undo_size();
+    ASSERT_TRUE(window.tree().RequestRefresh()) << window.tree().error();
+    while (doc.IsMeshOutOfDate(id) && std::chrono::steady_clock::now() < give_up) window.Frame();
+    EXPECT_FALSE(doc.IsMeshOutOfDate(id)) << window.workbench().status;
+    EXPECT_EQ(doc.history().undo_size(), steps + 1);
+    EXPECT_EQ(doc.history().UndoDescription(), "Refresh knob mesh");
+    refreshed = *std::get<MeshData>(doc.Get(id).data).surface;
+    const double r = 0.04, exact = 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
+    EXPECT_NEAR(modeling::MeshVolume(refreshed), exact, 0.03 * exact);
+
+    ASSERT_TRUE(window.tree().Save(saved)) << window.tree().error();
+    window.Frame();
+  }
+  AppWindow again(test_support::ScriptedWindowOptions(saved));
+  again.Frame();
+  const Document& doc = again.model().document();
+  const DocObject* back = doc.FindByName("knob surface");
+  ASSERT_NE(back, nullptr);
+  EXPECT_FALSE(doc.IsMeshOutOfDate(back->id));
+  EXPECT_TRUE(SameSurface(*std::get<MeshData>(back->data).surface, refreshed));
 }
 
 }  // namespace

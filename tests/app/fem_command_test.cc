@@ -11,6 +11,7 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -483,6 +484,125 @@ TEST(HardFemInput, HostileInputExitsWithStatusTwoAndNothingWritten) {
   RecordProperty("figure", std::to_string(cases.size()) + " of " + std::to_string(cases.size()) +
                                " hostile inputs: exit 2, named, nothing written");
   RecordProperty("bar", "exit status 2 with file/field/value named; no output file");
+}
+
+// --grab: the free end face of the clamped beam moved by t and turned by r. The reported
+// wrench equals the reactions of a direct StaticSolver call made here with the grabbed
+// displacements computed from Eigen's AngleAxis (not the library's Rodrigues), summed over the
+// end-face nodes; P1 and P2, and P2 with a point load next to it. Equilibrium with the clamp.
+TEST(FemCommand, GrabReportsTheWrenchOfTheDirectSolveForBothOrders) {
+  const std::string beam = BeamPath();
+  const Eigen::Vector3d t(1e-5, -2e-5, -4e-4), r(3e-3, 0.0, -2e-3);
+  const Eigen::Vector3d load_at(0.5, 0.05, 0.1), load(40.0, 0.0, -900.0);
+  struct Case {
+    int order;
+    bool loaded;
+  };
+  for (const Case& c : {Case{1, false}, Case{2, false}, Case{2, true}}) {
+    const std::string tag =
+        "grab" + std::to_string(c.order) + (c.loaded ? "_loaded" : std::string());
+    const std::string out = OutputPath("fem_" + tag + ".vtu");
+    const CommandRun run = RunSpidarcad(
+        beam + " " + kClampX0 + " --grab=0.999,-1,-1,2,1,1 --move=1e-5,-2e-5,-4e-4" +
+            " --rotate=3e-3,0,-2e-3 --order " + std::to_string(c.order) +
+            (c.loaded ? " --load 0.5,0.05,0.1 --force 40,0,-900" : "") + " --out " + out,
+        tag);
+    ASSERT_EQ(run.status, 0) << run.err;
+    const nlohmann::json report = nlohmann::json::parse(run.out);
+    ASSERT_TRUE(report.contains("grab")) << run.out;
+    const auto& grab = report["grab"];
+
+    fem::TetMesh mesh = Beam();
+    if (c.order == 2) mesh = fem::MakeQuadratic(mesh);
+    fem::BoundaryConditions bcs(mesh.num_nodes());
+    fem::FixNodesInBox(mesh, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1e-9, 1, 1), &bcs);
+    std::vector<int> end;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (int v = 0; v < mesh.num_nodes(); ++v) {
+      if (mesh.nodes(v, 0) < kLength - 1e-9) continue;
+      end.push_back(v);
+      centroid += mesh.nodes.row(v).transpose();
+    }
+    centroid /= static_cast<double>(end.size());
+    const Eigen::Matrix3d rot = Eigen::AngleAxisd(r.norm(), r.normalized()).toRotationMatrix();
+    for (int v : end) {
+      const Eigen::Vector3d x = mesh.nodes.row(v).transpose();
+      bcs.PrescribeNode(v, (rot - Eigen::Matrix3d::Identity()) * (x - centroid) + t);
+    }
+    if (c.loaded) bcs.AddPointLoad(NodeNearest(mesh, load_at), load);
+    fem::Material steel;
+    steel.youngs_modulus = 200e9;
+    steel.poisson_ratio = 0.3;
+    const fem::StaticSolution direct =
+        fem::StaticSolver(mesh, fem::MaterialTable(steel), bcs).Solve();
+    ASSERT_TRUE(direct.status.converged);
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();
+    double scale = 0.0;
+    for (int v : end) {
+      const Eigen::Vector3d f = direct.reaction.segment<3>(3 * v);
+      force += f;
+      moment += (mesh.nodes.row(v).transpose() - centroid).cross(f);
+      scale += f.norm();
+    }
+    EXPECT_EQ(grab["nodes"].get<int>(), static_cast<int>(end.size()));
+    for (int i = 0; i < 3; ++i) {
+      SCOPED_TRACE(tag + " axis " + std::to_string(i));
+      EXPECT_NEAR(grab["centroid"][i].get<double>(), centroid[i], 1e-12);
+      EXPECT_NEAR(grab["force"][i].get<double>(), force[i], 1e-9 * scale);
+      EXPECT_NEAR(grab["moment"][i].get<double>(), moment[i], 1e-9 * scale * kSide);
+      // Equilibrium: the clamp holds the grab's force and the load.
+      EXPECT_NEAR(
+          report["fixed_reaction_force"][i].get<double>() + force[i] + (c.loaded ? load[i] : 0.0),
+          0.0, 1e-6 * scale);
+    }
+    // Pulling the end down with its face kept upright takes a downward force.
+    EXPECT_LT(grab["force"][2].get<double>(), 0.0);
+    // The result carries the grabbed displacement.
+    auto reader = vtkSmartPointer<vtkXMLUnstructuredGridReader>::New();
+    reader->SetFileName(out.c_str());
+    reader->Update();
+    vtkDataArray* u = reader->GetOutput()->GetPointData()->GetArray("displacement");
+    ASSERT_NE(u, nullptr);
+    ASSERT_NE(reader->GetOutput()->GetPointData()->GetArray("von_mises"), nullptr);
+    for (int v : end)
+      for (int i = 0; i < 3; ++i)
+        EXPECT_NEAR(u->GetComponent(v, i), direct.displacement(3 * v + i), 1e-12);
+  }
+}
+
+TEST(FemCommand, GrabErrorsExitWithStatusTwoNamingTheProblem) {
+  const std::string beam = BeamPath();
+  const std::string out_path = OutputPath("fem_grab_bad.vtu");
+  std::remove(out_path.c_str());
+  const std::string out = " --out " + out_path;
+  const std::string grab_end = " --grab=0.999,-1,-1,2,1,1";
+  struct Case {
+    std::string args;
+    std::string expected;
+  };
+  const Case cases[] = {
+      {beam + " " + kClampX0 + " --grab 5,5,5,6,6,6" + out, "contains no node"},
+      {beam + " " + kClampX0 + " --grab=-1,-1,-1,0.3,1,1" + out, "also clamped"},
+      {beam + " " + kClampX0 + " --move 0,0,1e-3" + out, "--move moves the grabbed nodes"},
+      {beam + " " + kClampX0 + " --rotate 0,0,1e-3" + out, "--rotate moves the grabbed nodes"},
+      {beam + " " + kClampX0 + grab_end + " --move 0,nan,0" + out,
+       "--move '0,nan,0': 'nan' is not a finite"},
+      {beam + " " + kClampX0 + grab_end + " --rotate inf,0,0" + out, "'inf' is not a finite"},
+      {beam + " " + kClampX0 + " --grab 1,2,3" + out, "--grab '1,2,3'"},
+      {beam + " " + kClampX0 + " --grab 2,1,1,1,0,0" + out, "must not exceed"},
+      {beam + " " + kClampX0 + grab_end + " --push 1,0.05,0.05 --disp 0,0,1e-3" + out,
+       "grabbed by --grab"},
+      {beam + " " + kClampX0 + grab_end + " --load 1,0.05,0.05 --force 0,0,1" + out, "--grab"},
+      {beam + " " + kClampX0 + grab_end + " --move 0,0,-1e300" + out, "--move '0,0,-1e300'"},
+  };
+  int index = 0;
+  for (const Case& c : cases) {
+    const CommandRun run = RunSpidarcad(c.args, "grab_bad" + std::to_string(index++));
+    EXPECT_EQ(run.status, 2) << c.args << "\n" << run.err;
+    EXPECT_NE(run.err.find(c.expected), std::string::npos)
+        << c.args << ": expected '" << c.expected << "' in: " << run.err;
+    EXPECT_FALSE(std::ifstream(out_path).good()) << c.args << ": an output was written";
+  }
 }
 
 }  // namespace

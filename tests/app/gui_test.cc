@@ -27,11 +27,13 @@
 #include <thread>
 #include <vector>
 
+#include "doc/command.h"
 #include "doc/job.h"
 #include "gui/colour_map.h"
 #include "gui/panels.h"
 #include "gui/window_layout.h"
 #include "scene/device_session.h"
+#include "scene/fe_setup.h"
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_fields.h"
@@ -441,7 +443,7 @@ TEST(SceneModel, LoadsTheDemoAndMeshesPreviewsThatMatchTheKnobSphere) {
   model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
   ASSERT_EQ(model.objects().size(), 2u);
   EXPECT_EQ(model.objects()[1].name, "knob");
-  EXPECT_EQ(model.objects()[0].shown().triangles.cols(), 0);
+  EXPECT_EQ(model.objects()[0].preview.triangles.cols(), 0);
   JobQueue jobs;
   model.StartPreviewJobs(&jobs, 24.0);
   Drain(&jobs);
@@ -464,68 +466,243 @@ TEST(SceneModel, LoadsTheDemoAndMeshesPreviewsThatMatchTheKnobSphere) {
   EXPECT_EQ(model.BuildHapticScene(DemoFieldSettings{})->size(), 1);  // the springs only
 }
 
+// Model mode's Mesh action with a cell size (and otherwise default settings).
+MeshSettings MeshCell(double cell) {
+  MeshSettings s;
+  s.cell_size = cell;
+  return s;
+}
+
+// The mesh data of Document object `id`.
+const MeshData& MeshOf(const Document& doc, ObjectId id) {
+  return std::get<MeshData>(doc.Get(id).data);
+}
+
+// The Mesh action lands its result in the Document as one mesh object (one undo step); a failed
+// or cancelled job changes nothing, neither the Document nor its history.
 TEST(SceneModel, MeshJobsLandOnSuccessAndChangeNothingOnFailureOrCancel) {
   SceneModel model;
   model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  const Document& doc = model.document();
+  const std::string loaded = doc.ToJson(true).dump();
   JobQueue jobs;
   // Failure: a grid far beyond 2^30 cells is refused by the mesher.
-  Job& bad = model.StartMeshJob(&jobs, 1, MeshKind::kSurface, 1e-6);
+  Job& bad = model.StartMeshJob(&jobs, 1, MeshKind::kSurface, MeshCell(1e-6));
   Drain(&jobs);
   EXPECT_EQ(bad.state(), Job::State::kFailed);
   EXPECT_FALSE(bad.error().empty());
-  EXPECT_EQ(model.objects()[1].revision, 0);
-  EXPECT_EQ(model.objects()[1].surface.triangles.cols(), 0);
+  EXPECT_EQ(doc.ToJson(true).dump(), loaded);
+  EXPECT_EQ(doc.history().undo_size(), 0u);
+  EXPECT_EQ(model.TakeLandedMesh(), 0u);
   jobs.Prune();
   // Cancel before the worker gets far: no result lands.
-  Job& cancelled = model.StartMeshJob(&jobs, 0, MeshKind::kSurface, 0.0005);
+  Job& cancelled = model.StartMeshJob(&jobs, 0, MeshKind::kSurface, MeshCell(0.0005));
   cancelled.Cancel();
   Drain(&jobs);
   EXPECT_EQ(cancelled.state(), Job::State::kCancelled);
-  EXPECT_EQ(model.objects()[0].revision, 0);
+  EXPECT_EQ(doc.ToJson(true).dump(), loaded);
+  EXPECT_EQ(doc.history().undo_size(), 0u);
   jobs.Prune();
   // Success: tetrahedra of the knob whose volume matches the sphere's.
-  Job& good = model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, 0.005);
+  MeshSettings settings = MeshCell(0.005);
+  settings.mesher = "tetgen";
+  Job& good = model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, settings);
+  EXPECT_EQ(good.title(), "Tetrahedra of knob");
   Drain(&jobs);
   ASSERT_EQ(good.state(), Job::State::kSucceeded) << good.error();
-  const SceneObject& knob = model.objects()[1];
-  EXPECT_EQ(knob.revision, 1);
-  ASSERT_GT(knob.tets.tets.cols(), 50);
+  const ObjectId id = model.TakeLandedMesh();
+  ASSERT_NE(id, 0u);
+  EXPECT_EQ(model.TakeLandedMesh(), 0u) << "taken once";
+  const DocObject& knob = *doc.FindByName("knob");
+  EXPECT_EQ(doc.Get(id).name, "knob tets");
+  const MeshData& m = MeshOf(doc, id);
+  EXPECT_EQ(m.source, knob.id);
+  EXPECT_EQ(m.source_revision, knob.revision);
+  EXPECT_EQ(m.settings.cell_size, 0.005);
+  EXPECT_EQ(m.settings.mesher, "tetgen");
+  EXPECT_FALSE(doc.IsMeshOutOfDate(id));
+  ASSERT_TRUE(m.volume && m.surface);
+  ASSERT_GT(m.volume->tets.cols(), 50);
   const double r = 0.035, exact = 4.0 / 3.0 * kPi * r * r * r;
-  EXPECT_NEAR(modeling::TotalVolume(knob.tets), exact, 0.05 * exact);
-  EXPECT_NEAR(modeling::TotalVolume(knob.tets), modeling::MeshVolume(knob.surface), 1e-6 * exact);
-  EXPECT_THROW(model.StartMeshJob(&jobs, 7, MeshKind::kSurface, 0.01), std::out_of_range);
+  EXPECT_NEAR(modeling::TotalVolume(*m.volume), exact, 0.05 * exact);
+  EXPECT_NEAR(modeling::TotalVolume(*m.volume), modeling::MeshVolume(*m.surface), 1e-6 * exact);
+  ASSERT_EQ(doc.history().undo_size(), 1u);
+  EXPECT_EQ(doc.history().UndoDescription(), "Mesh knob (tetrahedra)");
+  EXPECT_THROW(model.StartMeshJob(&jobs, 7, MeshKind::kSurface, MeshCell(0.01)), std::out_of_range);
+  EXPECT_THROW(model.StartMeshJob(&jobs, 1, MeshKind::kSurface, MeshCell(0.0)),
+               std::invalid_argument);
+  MeshSettings bad_settings = MeshCell(0.005);
+  bad_settings.mesher = "cgal";
+  bad_settings.sharp_edges = true;
+  EXPECT_THROW(model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, bad_settings), DocumentError);
 }
 
+// Undo removes the mesh object, redo brings it back with the same id and content, and the saved
+// document reopens with the same mesh (binary storage), up to date with its solid.
+TEST(SceneModel, LandedMeshUndoesRedoesAndSurvivesSaveAndReopen) {
+  SceneModel model;
+  model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  Document& doc = model.document();
+  const std::string loaded = doc.ToJson(true).dump();
+  JobQueue jobs;
+  MeshSettings settings = MeshCell(0.004);
+  settings.sharp_edges = true;
+  settings.mesher = "cgal";  // ignored by a surface: the grid surface has no tetrahedral mesher
+  model.StartMeshJob(&jobs, 0, MeshKind::kSurface, settings);
+  Drain(&jobs);
+  const ObjectId id = model.TakeLandedMesh();
+  ASSERT_NE(id, 0u);
+  EXPECT_EQ(doc.Get(id).name, "bracket surface");
+  EXPECT_EQ(doc.history().UndoDescription(), "Mesh bracket (surface)");
+  const MeshData landed = MeshOf(doc, id);
+  ASSERT_TRUE(landed.surface);
+  EXPECT_FALSE(landed.volume) << "a surface only";
+  EXPECT_TRUE(landed.settings.sharp_edges);
+  EXPECT_EQ(landed.settings.mesher, "");
+  EXPECT_TRUE(IsClosedSurface(*landed.surface));
+  // The bracket: a 140 x 100 x 50 mm box with 6 mm rounded edges and corners (Steiner's formula:
+  // the inner box grown by a ball of radius r) minus a 22 mm bore through its 50 mm height,
+  // within 3 %.
+  const double r = 0.006, x = 0.14 - 2 * r, y = 0.10 - 2 * r, z = 0.05 - 2 * r;
+  const double box = x * y * z + 2 * (x * y + y * z + z * x) * r + kPi * (x + y + z) * r * r +
+                     4.0 / 3.0 * kPi * r * r * r;
+  const double exact = box - kPi * 0.022 * 0.022 * 0.05;
+  EXPECT_NEAR(modeling::MeshVolume(*landed.surface), exact, 0.03 * exact);
+  const std::string after = doc.ToJson(true).dump();
+  ASSERT_TRUE(doc.Undo());
+  EXPECT_EQ(doc.ToJson(true).dump(), loaded);
+  EXPECT_EQ(doc.Find(id), nullptr);
+  ASSERT_TRUE(doc.Redo());
+  EXPECT_EQ(doc.ToJson(true).dump(), after) << "redo brings back the same id and content";
+  // Save and reopen: the same surface bit for bit, settings and source, not stale.
+  const std::string dir = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/scene_model_mesh";
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/meshed.json";
+  model.Save(path);
+  Document reread;
+  reread.Load(path);
+  const DocObject* mesh = reread.FindByName("bracket surface");
+  ASSERT_NE(mesh, nullptr);
+  const MeshData& back = std::get<MeshData>(mesh->data);
+  ASSERT_TRUE(back.surface);
+  EXPECT_FALSE(back.volume);
+  EXPECT_EQ(back.surface->vertices, landed.surface->vertices);
+  EXPECT_EQ(back.surface->triangles, landed.surface->triangles);
+  EXPECT_EQ(back.source, reread.FindByName("bracket")->id);
+  EXPECT_EQ(back.settings.cell_size, 0.004);
+  EXPECT_TRUE(back.settings.sharp_edges);
+  EXPECT_FALSE(reread.IsMeshOutOfDate(mesh->id));
+}
+
+// A solid edited or deleted while its mesh job runs: the job fails saying so and nothing lands.
+TEST(SceneModel, MeshOfASolidThatChangedOrWentAwayWhileMeshingLandsNothing) {
+  SceneModel model;
+  model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  Document& doc = model.document();
+  JobQueue jobs;
+  const ObjectId knob = doc.FindByName("knob")->id;
+  Job& job = model.StartMeshJob(&jobs, 1, MeshKind::kSurface, MeshCell(0.005));
+  // The edit lands on the main thread before the job's finisher (Poll) runs.
+  doc.Execute(edit::SetNodeField(knob, {0}, "radius", 0.04));
+  const std::string edited = doc.ToJson(true).dump();
+  Drain(&jobs);
+  EXPECT_EQ(job.state(), Job::State::kFailed);
+  EXPECT_NE(job.error().find("'knob' changed while it was meshed"), std::string::npos)
+      << job.error();
+  EXPECT_EQ(doc.ToJson(true).dump(), edited);
+  EXPECT_EQ(doc.history().undo_size(), 1u) << "the edit only";
+  EXPECT_EQ(model.TakeLandedMesh(), 0u);
+  jobs.Prune();
+  Job& gone = model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, MeshCell(0.006));
+  doc.Execute(edit::DeleteObject(knob));
+  const std::string deleted = doc.ToJson(true).dump();
+  Drain(&jobs);
+  EXPECT_EQ(gone.state(), Job::State::kFailed);
+  EXPECT_NE(gone.error().find("'knob' was deleted"), std::string::npos) << gone.error();
+  EXPECT_EQ(doc.ToJson(true).dump(), deleted);
+}
+
+// Refresh meshes a stale mesh object again from its edited solid with the stored settings, as
+// one undo step; undo makes it stale again; a cancelled refresh changes nothing.
+TEST(SceneModel, RefreshRemeshesAStaleMeshFromItsSourceInOneUndoStep) {
+  SceneModel model;
+  model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
+  Document& doc = model.document();
+  JobQueue jobs;
+  model.StartMeshJob(&jobs, 1, MeshKind::kSurface, MeshCell(0.004));
+  Drain(&jobs);
+  jobs.Prune();
+  const ObjectId id = model.TakeLandedMesh();
+  ASSERT_NE(id, 0u);
+  const auto old_surface = MeshOf(doc, id).surface;
+  const ObjectId knob = doc.FindByName("knob")->id;
+  EXPECT_THROW(model.StartRefreshJob(&jobs, knob), DocumentError) << "a solid has no source";
+  doc.Execute(edit::SetNodeField(knob, {0}, "radius", 0.045));
+  model.Refresh();
+  ASSERT_TRUE(doc.IsMeshOutOfDate(id));
+  const std::string stale = doc.ToJson(true).dump();
+  const std::size_t steps = doc.history().undo_size();
+  Job& cancelled = model.StartRefreshJob(&jobs, id);
+  cancelled.Cancel();
+  Drain(&jobs);
+  EXPECT_EQ(cancelled.state(), Job::State::kCancelled);
+  EXPECT_EQ(doc.ToJson(true).dump(), stale);
+  jobs.Prune();
+  Job& job = model.StartRefreshJob(&jobs, id);
+  EXPECT_EQ(job.title(), "Refresh knob surface");
+  Drain(&jobs);
+  ASSERT_EQ(job.state(), Job::State::kSucceeded) << job.error();
+  EXPECT_EQ(doc.history().undo_size(), steps + 1);
+  EXPECT_FALSE(doc.IsMeshOutOfDate(id));
+  const MeshData& m = MeshOf(doc, id);
+  EXPECT_EQ(m.settings.cell_size, 0.004);
+  EXPECT_FALSE(m.volume) << "still a surface only";
+  const double r = 0.045, exact = 4.0 / 3.0 * kPi * r * r * r;
+  EXPECT_NEAR(modeling::MeshVolume(*m.surface), exact, 0.03 * exact);
+  EXPECT_EQ(model.TakeLandedMesh(), 0u) << "a refresh adds no object";
+  ASSERT_TRUE(doc.Undo());
+  EXPECT_TRUE(doc.IsMeshOutOfDate(id));
+  EXPECT_EQ(MeshOf(doc, id).surface, old_surface);
+  ASSERT_TRUE(doc.Undo());  // the edit: the old mesh is up to date again
+  EXPECT_FALSE(doc.IsMeshOutOfDate(id));
+}
+
+// Export writes a mesh object's surface and tetrahedra in every format and explains bad paths.
 TEST(Export, WritesFilesThatReadBackAndExplainsBadPaths) {
   SceneModel model;
   model.Load(kDemoSceneName, Eigen::Vector3d::Constant(0.19));
   JobQueue jobs;
-  model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, 0.006);
+  model.StartMeshJob(&jobs, 1, MeshKind::kTetrahedra, MeshCell(0.006));
   Drain(&jobs);
-  const SceneObject& knob = model.objects()[1];
-  ASSERT_GT(knob.tets.tets.cols(), 0);
+  const ObjectId id = model.TakeLandedMesh();
+  ASSERT_NE(id, 0u);
+  const MeshData& knob = MeshOf(model.document(), id);
+  ASSERT_TRUE(knob.surface && knob.volume);
+  ASSERT_GT(knob.volume->tets.cols(), 0);
+  const modeling::TriangleMesh& surface = *knob.surface;
+  const modeling::TetMesh& tets = *knob.volume;
   const std::string dir = std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/gui_export";
   std::filesystem::create_directories(dir);
   for (const char* ext : {".stl", ".obj", ".ply"}) {
     const std::string path = dir + "/knob" + ext;
-    ASSERT_EQ(ExportSurface(knob.shown(), path), "") << path;
+    ASSERT_EQ(ExportSurface(surface, path), "") << path;
     const modeling::TriangleMesh back = modeling::ReadTriangleMesh(path);
-    EXPECT_EQ(back.triangles.cols(), knob.surface.triangles.cols()) << ext;
-    EXPECT_NEAR(modeling::MeshVolume(back), modeling::MeshVolume(knob.surface),
-                1e-5 * modeling::MeshVolume(knob.surface))
+    EXPECT_EQ(back.triangles.cols(), surface.triangles.cols()) << ext;
+    EXPECT_NEAR(modeling::MeshVolume(back), modeling::MeshVolume(surface),
+                1e-5 * modeling::MeshVolume(surface))
         << ext;
   }
-  EXPECT_NE(ExportSurface(knob.surface, dir + "/knob.xyz").find(".stl"), std::string::npos);
-  EXPECT_FALSE(ExportSurface(knob.surface, "/nonexistent/dir/knob.stl").empty());
+  EXPECT_NE(ExportSurface(surface, dir + "/knob.xyz").find(".stl"), std::string::npos);
+  EXPECT_FALSE(ExportSurface(surface, "/nonexistent/dir/knob.stl").empty());
   EXPECT_NE(ExportSurface(modeling::TriangleMesh{}, dir + "/x.stl").find("nothing"),
             std::string::npos);
-  ASSERT_EQ(ExportTetrahedra(knob.tets, dir + "/knob.vtu"), "");
+  ASSERT_EQ(ExportTetrahedra(tets, dir + "/knob.vtu"), "");
   const std::string vtu = test_support::ReadWholeFile(dir + "/knob.vtu");
-  EXPECT_NE(vtu.find("NumberOfCells=\"" + std::to_string(knob.tets.tets.cols()) + "\""),
+  EXPECT_NE(vtu.find("NumberOfCells=\"" + std::to_string(tets.tets.cols()) + "\""),
             std::string::npos);
-  ASSERT_EQ(ExportTetrahedra(knob.tets, dir + "/knob.node"), "");
+  ASSERT_EQ(ExportTetrahedra(tets, dir + "/knob.node"), "");
   EXPECT_TRUE(std::filesystem::exists(dir + "/knob.ele"));
-  EXPECT_NE(ExportTetrahedra(knob.tets, dir + "/knob.stl").find(".vtu"), std::string::npos);
+  EXPECT_NE(ExportTetrahedra(tets, dir + "/knob.stl").find(".vtu"), std::string::npos);
   EXPECT_NE(ExportTetrahedra(modeling::TetMesh{}, dir + "/x.vtu").find("nothing"),
             std::string::npos);
 }

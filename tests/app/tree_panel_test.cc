@@ -194,6 +194,38 @@ TEST(TreeController, ADragIsOneUndoStepAndUndoRestoresTheValueBeforeIt) {
   EXPECT_NEAR(d.Object("knob").solid->Value(kKnobCentre), -0.035, 1e-15);
 }
 
+// While the history hold names a reason (the window's active mode holds a gesture: a carried
+// part, a sculpt stroke), undo and redo change nothing and say why; once it is released they run.
+TEST(TreeController, UndoAndRedoWaitWhileTheHistoryIsHeld) {
+  Demo d;
+  ASSERT_TRUE(d.tree.SelectByName("knob/0"));
+  ASSERT_TRUE(d.tree.SetField("radius", 0.030));
+  Document& doc = d.model.document();
+  const std::size_t steps = doc.history().undo_size();
+  std::string hold = "let go of part 'peg' first";
+  d.tree.set_history_hold([&hold] { return hold; });
+  const nlohmann::json before = doc.ToJson(true);
+  const std::uint64_t revision = doc.revision();
+  EXPECT_FALSE(d.tree.Undo());
+  EXPECT_EQ(d.tree.error(), "Undo: let go of part 'peg' first");
+  EXPECT_EQ(doc.ToJson(true), before);
+  EXPECT_EQ(doc.revision(), revision);
+  EXPECT_EQ(doc.history().undo_size(), steps);
+  EXPECT_EQ(d.SphereRadius(), 0.030);
+  // Released: the undo runs; held again: the redo waits.
+  hold.clear();
+  ASSERT_TRUE(d.tree.Undo()) << d.tree.error();
+  EXPECT_EQ(d.SphereRadius(), 0.035);
+  hold = "finish the sculpt stroke first";
+  EXPECT_FALSE(d.tree.Redo());
+  EXPECT_EQ(d.tree.error(), "Redo: finish the sculpt stroke first");
+  EXPECT_EQ(d.SphereRadius(), 0.035);
+  EXPECT_EQ(doc.history().redo_size(), 1u);
+  hold.clear();
+  ASSERT_TRUE(d.tree.Redo()) << d.tree.error();
+  EXPECT_EQ(d.SphereRadius(), 0.030);
+}
+
 TEST(TreeController, ARefusedEditLeavesTheDocumentAndTheSolidUnchanged) {
   Demo d;
   ASSERT_TRUE(d.tree.SelectByName("knob/0"));
@@ -415,6 +447,85 @@ TEST(TreeController, AnObjectWithoutATreeStaysSelectedAsAWholeUntilItIsGone) {
   doc.Execute(edit::DeleteObject(clay));
   d.tree.Revalidate();
   EXPECT_FALSE(d.tree.selection().has_value());
+}
+
+// A mesh made from a solid, and an FE model on it, are stale once the solid is edited (and again
+// up to date after undo); Refresh is asked for on either and names the mesh; a sculpt copy, an
+// imported mesh and the solid itself are never stale; a mesh whose solid was deleted is stale
+// but cannot be refreshed; Delete removes a mesh object (with its FE model) as one step.
+TEST(TreeController, MeshesOfAnEditedSolidAreStaleAndRefreshIsAskedForOnThem) {
+  Demo d;
+  Document& doc = d.model.document();
+  const ObjectId knob = d.Id("knob");
+  const std::uint64_t knob_revision = doc.Get(knob).revision;
+  auto surface = std::make_shared<const modeling::TriangleMesh>(modeling::IcosphereMesh(0.035, 1));
+  doc.Execute(edit::AddMesh("knob surface", knob, knob_revision, surface, nullptr));
+  const ObjectId mesh = doc.last_created().at(0);
+  doc.Execute(edit::AddMesh("wedge", 0, 0, surface, nullptr));
+  const ObjectId imported = doc.last_created().at(0);
+  doc.Execute(edit::AddSculpt("knob sculpt", modeling::IcosphereMesh(0.035, 1)));
+  const ObjectId clay = doc.last_created().at(0);
+  for (ObjectId id : {knob, mesh, imported, clay}) EXPECT_EQ(StaleReason(doc, id), "") << id;
+  EXPECT_EQ(RefreshableMesh(doc, mesh), mesh);
+  EXPECT_EQ(RefreshableMesh(doc, imported), 0u);
+  EXPECT_EQ(RefreshableMesh(doc, clay), 0u);
+  EXPECT_EQ(RefreshableMesh(doc, knob), 0u);
+
+  ASSERT_TRUE(d.tree.SelectByName("knob/0"));
+  ASSERT_TRUE(d.tree.SetField("radius", 0.04));
+  EXPECT_EQ(StaleReason(doc, mesh), "'knob' changed since this mesh was made");
+  EXPECT_EQ(StaleReason(doc, clay), "") << "a sculpt is an edited copy";
+  EXPECT_EQ(StaleReason(doc, imported), "");
+  ASSERT_TRUE(d.tree.SelectByName("knob surface")) << "an object without a tree, by name";
+  EXPECT_EQ(d.tree.selection()->object, mesh);
+  ASSERT_TRUE(d.tree.RequestRefresh()) << d.tree.error();
+  EXPECT_EQ(d.tree.TakeRefreshRequest(), mesh);
+  EXPECT_EQ(d.tree.TakeRefreshRequest(), 0u) << "taken once";
+  d.tree.Select(imported);
+  EXPECT_FALSE(d.tree.RequestRefresh());
+  EXPECT_NE(d.tree.error().find("was not meshed from another object"), std::string::npos)
+      << d.tree.error();
+  EXPECT_EQ(d.tree.TakeRefreshRequest(), 0u);
+  ASSERT_TRUE(d.tree.Undo());
+  EXPECT_EQ(StaleReason(doc, mesh), "") << "the solid is back at the revision that was meshed";
+  ASSERT_TRUE(d.tree.Redo());
+
+  // An FE model can only sit on tetrahedra: a tet mesh of the knob with an FE model on it.
+  modeling::TetMesh tet;
+  tet.nodes = Eigen::Matrix3Xd::Zero(3, 4);
+  tet.nodes.col(1) << 0.01, 0, 0;
+  tet.nodes.col(2) << 0, 0.01, 0;
+  tet.nodes.col(3) << 0, 0, 0.01;
+  tet.tets.resize(4, 1);
+  tet.tets << 0, 1, 2, 3;
+  tet.regions = Eigen::VectorXi::Zero(1);
+  doc.Execute(edit::AddMesh("knob tets", knob, knob_revision, nullptr,
+                            std::make_shared<const modeling::TetMesh>(tet)));
+  const ObjectId tets = doc.last_created().at(0);
+  doc.Execute(edit::AddFeModel("knob FE", tets, fem::Material{200e9, 0.3}, {}));
+  const ObjectId fe = doc.last_created().at(0);
+  EXPECT_EQ(StaleReason(doc, fe),
+            "its mesh 'knob tets' is stale: 'knob' changed since this mesh was made");
+  EXPECT_EQ(RefreshableMesh(doc, fe), tets);
+  d.tree.Select(fe);
+  ASSERT_TRUE(d.tree.RequestRefresh()) << d.tree.error();
+  EXPECT_EQ(d.tree.TakeRefreshRequest(), fe);
+
+  // The solid deleted: stale, nothing to refresh from.
+  doc.Execute(edit::DeleteObject(knob));
+  EXPECT_EQ(StaleReason(doc, mesh), "its source (object " + std::to_string(knob) + ") was deleted");
+  EXPECT_EQ(RefreshableMesh(doc, mesh), 0u);
+  d.tree.Select(mesh);
+  EXPECT_FALSE(d.tree.RequestRefresh());
+  EXPECT_NE(d.tree.error().find("was deleted"), std::string::npos) << d.tree.error();
+
+  // Delete on a selected object without a tree: the mesh and the FE model on it, one step.
+  const std::size_t steps = doc.history().undo_size();
+  d.tree.Select(tets);
+  ASSERT_TRUE(d.tree.DeleteSelected()) << d.tree.error();
+  EXPECT_EQ(doc.Find(tets), nullptr);
+  EXPECT_EQ(doc.Find(fe), nullptr);
+  EXPECT_EQ(doc.history().undo_size(), steps + 1);
 }
 
 TEST(TreeController, NamesUnitsAndDefaultNodesCoverEveryType) {

@@ -120,6 +120,9 @@ struct Cantilever {
   bool work_conjugate = false;
   // Expect the support reactions to balance the load to 1e-6 (thin plates measure it instead).
   bool check_equilibrium = true;
+  // Accept a refusal of the factorisation (the caller checks its message) instead of expecting
+  // a converged solve: for a stiffness matrix at the edge of double precision.
+  bool may_refuse = false;
   // |Σ reactions − P| / P of the last solve.
   mutable double equilibrium_error = 0.0;
   double EulerBernoulli() const {
@@ -148,6 +151,7 @@ struct Cantilever {
     StaticSolver solver(mesh, MaterialTable(material), bcs);
     const StaticSolution sol = solver.Solve();
     if (status) *status = sol.status;
+    if (may_refuse && !sol.status.converged) return 0.0;
     EXPECT_TRUE(sol.status.converged) << sol.status.message;
     // Support reactions balance the load.
     Eigen::Vector3d total = Eigen::Vector3d::Zero();
@@ -480,16 +484,33 @@ TEST(HardContrast, SoftStressRecoveredNextToAMillionTimesStifferStrip) {
 // δ = P L³ / (3 E I). The backward error stays at rounding level throughout; the forward
 // error grows with cond(K) ~ (L/t)² × element aspect: fine to L/t = 1000, not at 10^4
 // (measured and recorded, not hidden: the support reactions there miss the load).
+// At L/t = 10^4 the matrix is at the edge of double precision, and whether CHOLMOD's supernodal
+// factorisation meets a zero pivot depends on the BLAS kernel (measured 2026-12-02 with OpenBLAS
+// 0.3.21: its Haswell kernel factors it, tip 1.16 x; its SkylakeX (AVX-512) kernel stops at a
+// zero pivot). Both are accepted there: a solve at rounding-level backward error, or a refusal
+// that says the matrix is not positive definite and names the pivot. Thinner than that is not
+// a use the solver supports.
 TEST(HardThinPlate, TipDeflectionAndBackwardErrorWhenPlatesAreThin) {
   double worst_backward = 0.0, worst_ratio_error = 0.0, thinnest_ratio = 0.0, thinnest_eq = 0.0;
+  bool thinnest_refused = false;
   for (double t : {1e-2, 1e-3, 1e-4}) {
     Cantilever plate;
     plate.height = t;
     plate.material = Material{2.0e11, 0.0};
     plate.force = 1e-3 * std::pow(t / 1e-3, 3);  // keeps δ around 10 mm
     plate.check_equilibrium = false;
+    plate.may_refuse = t < 1e-3;
     SolveStatus status;
     const double ratio = plate.Solve(2, 20, 2, &status) / plate.EulerBernoulli();
+    if (!status.converged) {
+      ASSERT_TRUE(plate.may_refuse) << status.message;
+      EXPECT_NE(status.message.find("not positive definite"), std::string::npos) << status.message;
+      EXPECT_NE(status.message.find("first zero pivot is the"), std::string::npos)
+          << status.message;
+      std::printf("thin plate L/t = %.0f: refused: %s\n", 1.0 / t, status.message.c_str());
+      thinnest_refused = true;
+      continue;
+    }
     std::printf(
         "thin plate L/t = %.0f: tip / Euler-Bernoulli %.4f, backward error %.1e, "
         "support reactions off the load by %.1e\n",
@@ -504,13 +525,22 @@ TEST(HardThinPlate, TipDeflectionAndBackwardErrorWhenPlatesAreThin) {
   }
   EXPECT_LT(worst_backward, 1e-14);
   EXPECT_LT(worst_ratio_error, 0.01);
-  char figure[200];
-  std::snprintf(figure, sizeof(figure),
-                "L/t <= 1000: tip within %.2f %% of Euler-Bernoulli; backward error <= %.1e up "
-                "to L/t = 1e4, where the tip is %.2f x and reactions miss the load by %.0f %%",
-                100.0 * worst_ratio_error, worst_backward, thinnest_ratio, 100.0 * thinnest_eq);
+  char figure[240];
+  if (thinnest_refused) {
+    std::snprintf(figure, sizeof(figure),
+                  "L/t <= 1000: tip within %.2f %% of Euler-Bernoulli, backward error <= %.1e; "
+                  "L/t = 1e4 refused as not positive definite (zero pivot)",
+                  100.0 * worst_ratio_error, worst_backward);
+  } else {
+    std::snprintf(figure, sizeof(figure),
+                  "L/t <= 1000: tip within %.2f %% of Euler-Bernoulli; backward error <= %.1e up "
+                  "to L/t = 1e4, where the tip is %.2f x and reactions miss the load by %.0f %%",
+                  100.0 * worst_ratio_error, worst_backward, thinnest_ratio, 100.0 * thinnest_eq);
+  }
   RecordProperty("figure", figure);
-  RecordProperty("bar", "L/t <= 1000 within 1 % of Euler-Bernoulli; backward error < 1e-14");
+  RecordProperty("bar",
+                 "L/t <= 1000 within 1 % of Euler-Bernoulli; backward error < 1e-14; L/t = 1e4 "
+                 "solved at that backward error or refused naming the zero pivot");
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/grab.h"
 #include "spidarcad/fem/material.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/static_solver.h"
@@ -51,7 +52,8 @@ struct FemOptions {
   std::vector<std::string> fix;
   std::vector<std::string> push, disp;
   std::vector<std::string> load, force;
-  int order = 0;  // 0: keep the input's order
+  std::string grab, move, rotate;  // --grab BOX, --move DX,DY,DZ, --rotate RX,RY,RZ
+  int order = 0;                   // 0: keep the input's order
   bool incompressible = false;
   double resolution = 0.004;
   double max_radius_edge = 2.0;
@@ -68,7 +70,9 @@ std::vector<double> ParseList(const std::string& text, int n, const std::string&
   std::vector<double> values;
   std::stringstream fields(text);
   std::string field;
-  const std::string where = option + " #" + std::to_string(occurrence + 1) + " '" + text + "': ";
+  // occurrence < 0: an option given at most once, named without a number.
+  const std::string where =
+      option + (occurrence >= 0 ? " #" + std::to_string(occurrence + 1) : "") + " '" + text + "': ";
   while (std::getline(fields, field, ',')) {
     size_t used = 0;
     double value = 0.0;
@@ -229,6 +233,11 @@ const DocObject& PickFemObject(const OpenedDocument& opened, const std::string& 
 
 nlohmann::ordered_json JsonVector(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
+// "(x, y, z)" for a message.
+std::string FormatPoint(const Eigen::Vector3d& p) {
+  return "(" + FormatNumber(p.x()) + ", " + FormatNumber(p.y()) + ", " + FormatNumber(p.z()) + ")";
+}
+
 nlohmann::ordered_json JsonBox(const Eigen::AlignedBox3d& box) {
   return {{"min", JsonVector(box.min())}, {"max", JsonVector(box.max())}};
 }
@@ -289,6 +298,23 @@ void RunFem(const FemOptions& options) {
                        "': XMIN,YMIN,ZMIN must not exceed XMAX,YMAX,ZMAX");
     }
     fix_boxes.emplace_back(lower, upper);
+  }
+  if (options.grab.empty() && (!options.move.empty() || !options.rotate.empty())) {
+    throw InputError(std::string(options.move.empty() ? "--rotate" : "--move") +
+                     " moves the grabbed nodes: give --grab XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX too");
+  }
+  Eigen::Vector3d grab_lower = Eigen::Vector3d::Zero(), grab_upper = Eigen::Vector3d::Zero();
+  Eigen::Vector3d grab_move = Eigen::Vector3d::Zero(), grab_rotate = Eigen::Vector3d::Zero();
+  if (!options.grab.empty()) {
+    const std::vector<double> b = ParseList(options.grab, 6, "--grab", -1);
+    grab_lower = Eigen::Vector3d(b[0], b[1], b[2]);
+    grab_upper = Eigen::Vector3d(b[3], b[4], b[5]);
+    if ((grab_lower.array() > grab_upper.array()).any()) {
+      throw InputError("--grab '" + options.grab +
+                       "': XMIN,YMIN,ZMIN must not exceed XMAX,YMAX,ZMAX");
+    }
+    if (!options.move.empty()) grab_move = ParseVector(options.move, "--move", -1);
+    if (!options.rotate.empty()) grab_rotate = ParseVector(options.rotate, "--rotate", -1);
   }
   std::vector<Eigen::Vector3d> push_points, push_disps, load_points, load_forces;
   for (size_t i = 0; i < options.push.size(); ++i) {
@@ -431,6 +457,35 @@ void RunFem(const FemOptions& options) {
                      " nodes of the mesh, so nothing is left to solve; make the --fix box cover "
                      "only the supported part (e.g. the nodes at one end)");
   }
+  // The grabbed nodes: every node in the --grab box, none of them clamped.
+  std::vector<char> grabbed(mesh.num_nodes(), 0);
+  std::unique_ptr<fem::GrabPatch> grab;
+  if (!options.grab.empty()) {
+    const std::string where = "--grab '" + options.grab + "': ";
+    const std::vector<int> nodes = fem::NodesInBox(mesh, grab_lower, grab_upper);
+    if (nodes.empty()) {
+      throw InputError(where + "the box contains no node of the mesh (the mesh spans " +
+                       FormatPoint(mesh.nodes.colwise().minCoeff().transpose()) + " to " +
+                       FormatPoint(mesh.nodes.colwise().maxCoeff().transpose()) + ")");
+    }
+    int overlap = 0, first = -1;
+    for (int v : nodes) {
+      if (!clamped[v]) continue;
+      if (first < 0) first = v;
+      ++overlap;
+    }
+    if (overlap > 0) {
+      throw InputError(
+          where + std::to_string(overlap) + " of its " + std::to_string(nodes.size()) +
+          " nodes are also clamped (" +
+          (options.fix.empty() && fe != nullptr ? "the fe_model's fixed boxes" : "--fix") +
+          "), e.g. node " + std::to_string(first) + " at " +
+          FormatPoint(mesh.nodes.row(first).transpose()) +
+          "; a node cannot be both clamped and grabbed: make the boxes disjoint");
+    }
+    for (int v : nodes) grabbed[v] = 1;
+    grab = std::make_unique<fem::GrabPatch>(mesh.nodes, nodes);
+  }
   std::vector<char> used(mesh.num_nodes(), 0);
   std::vector<int> push_nodes, load_nodes;
   for (size_t i = 0; i < push_points.size(); ++i) {
@@ -444,17 +499,21 @@ void RunFem(const FemOptions& options) {
       throw InputError(where + "the nearest surface node " + std::to_string(v) +
                        " is already pushed by an earlier --push");
     }
+    if (grabbed[v]) {
+      throw InputError(where + "the nearest surface node " + std::to_string(v) +
+                       " is grabbed by --grab");
+    }
     used[v] = 1;
     bcs.PrescribeNode(v, push_disps[i]);
     push_nodes.push_back(v);
   }
   for (size_t i = 0; i < load_points.size(); ++i) {
     const int v = NearestNode(mesh, surface.nodes, load_points[i]);
-    if (clamped[v] || used[v]) {
+    if (clamped[v] || used[v] || grabbed[v]) {
       throw InputError("--load #" + std::to_string(i + 1) + " '" + options.load[i] +
                        "': the nearest surface node " + std::to_string(v) +
-                       " has a prescribed displacement (--fix or --push), a force there does "
-                       "nothing");
+                       " has a prescribed displacement (--fix, --push or --grab), a force there "
+                       "does nothing");
     }
     bcs.AddPointLoad(v, load_forces[i]);
     load_nodes.push_back(v);
@@ -465,6 +524,15 @@ void RunFem(const FemOptions& options) {
       box_load_nodes = AddBoxLoads(mesh, fe->loads, &bcs);
     } catch (const std::invalid_argument& e) {
       throw InputError(options.input + ": fe_model '" + fe_name + "': " + e.what());
+    }
+  }
+
+  if (grab) {
+    try {
+      grab->Prescribe(grab_move, grab_rotate, &bcs);
+    } catch (const std::invalid_argument& e) {
+      throw InputError("--grab '" + options.grab + "': " + e.what() +
+                       " (check --move and --rotate)");
     }
   }
 
@@ -496,14 +564,17 @@ void RunFem(const FemOptions& options) {
   // A result that overflowed is refused before anything is written: name the largest input.
   if (!solution.displacement.allFinite() || !solution.reaction.allFinite() ||
       !element_vm.allFinite() || !std::isfinite(solution.status.residual)) {
-    std::string culprit = "--E " + FormatNumber(options.youngs_modulus);
+    // The largest prescribed displacement, the largest force and the grab's motion.
+    std::vector<std::string> culprits;
     double largest = -1.0;
+    std::string disp_culprit;
     for (size_t i = 0; i < push_disps.size(); ++i) {
       if (push_disps[i].norm() > largest) {
         largest = push_disps[i].norm();
-        culprit = "--disp #" + std::to_string(i + 1) + " '" + options.disp[i] + "'";
+        disp_culprit = "--disp #" + std::to_string(i + 1) + " '" + options.disp[i] + "'";
       }
     }
+    if (!disp_culprit.empty()) culprits.push_back(disp_culprit);
     double largest_force = -1.0;
     std::string force_culprit;
     for (size_t i = 0; i < load_forces.size(); ++i) {
@@ -512,8 +583,12 @@ void RunFem(const FemOptions& options) {
         force_culprit = "--force #" + std::to_string(i + 1) + " '" + options.force[i] + "'";
       }
     }
-    if (!force_culprit.empty()) culprit += (largest >= 0.0 ? " or " : "") + force_culprit;
-    if (largest < 0.0 && force_culprit.empty()) culprit = "--E/--nu";
+    if (!force_culprit.empty()) culprits.push_back(force_culprit);
+    if (grab && !options.move.empty()) culprits.push_back("--move '" + options.move + "'");
+    if (grab && !options.rotate.empty()) culprits.push_back("--rotate '" + options.rotate + "'");
+    std::string culprit;
+    for (const std::string& c : culprits) culprit += (culprit.empty() ? "" : " or ") + c;
+    if (culprit.empty()) culprit = "--E/--nu";
     throw InputError(options.input +
                      ": the solution is not finite (it overflows double "
                      "precision): an input is out of range: " +
@@ -566,6 +641,15 @@ void RunFem(const FemOptions& options) {
                      {"displacement", JsonVector(solution.displacement.segment<3>(3 * v))}});
   }
   report["loads"] = loads;
+  if (grab) {
+    // The wrench applied ON the part at the grabbed nodes to hold them there: force (N) and
+    // moment about the centroid of their rest positions (N·m).
+    const fem::GrabWrench wrench = grab->WrenchOfReaction(solution.reaction);
+    report["grab"] = {{"nodes", grab->size()},
+                      {"centroid", JsonVector(grab->centroid())},
+                      {"force", JsonVector(wrench.force)},
+                      {"moment", JsonVector(wrench.moment)}};
+  }
   if (fe != nullptr) {
     nlohmann::ordered_json box_loads = nlohmann::ordered_json::array();
     for (std::size_t i = 0; i < box_load_nodes.size(); ++i) {
@@ -652,6 +736,12 @@ void RegisterFemCommand(CLI::App& app) {
       "for each pushed node its index, position and reaction_force (N, the force the push\n"
       "applies ON the body), for each load its node and force, counts, status (converged,\n"
       "backward_error ||K u - f|| / (||K|| ||u|| + ||f||)) and timings.\n"
+      "--grab BOX holds every node inside the box (as --fix: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX) and\n"
+      "moves it rigidly: u = (R - I)(x - c) + t, with t = --move DX,DY,DZ [m], R = exp([r]x) for\n"
+      "the rotation vector r = --rotate RX,RY,RZ [rad] and c the centroid of the grabbed nodes'\n"
+      "rest positions. The JSON's grab object gives nodes, centroid and the wrench applied ON\n"
+      "the part to hold them there (sum over the grabbed nodes): force [N] and moment about c\n"
+      "[N m]. A grab box that holds no node, or one of whose nodes is clamped, is an error.\n"
       "--incompressible (for nu near 0.5, e.g. rubber or soft tissue): quadratic elements with\n"
       "the volumetric term on the element-mean dilatation (P2-P0, locking-free); a linear mesh\n"
       "is upgraded to 10-node elements, and --order 1 with it is an error.\n"
@@ -677,6 +767,14 @@ void RegisterFemCommand(CLI::App& app) {
       ->allow_extra_args(false);
   cmd->add_option("--force", options->force, "FX,FY,FZ [N]: force of the matching --load")
       ->allow_extra_args(false);
+  cmd->add_option("--grab", options->grab,
+                  "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [m]: grab the nodes in box, move them rigidly "
+                  "(--move, --rotate); JSON grab: their wrench");
+  cmd->add_option("--move", options->move,
+                  "DX,DY,DZ [m]: translation of the grabbed nodes (with --grab; default 0)");
+  cmd->add_option("--rotate", options->rotate,
+                  "RX,RY,RZ [rad]: rotation vector of the grabbed nodes about their centroid "
+                  "(with --grab; default 0)");
   cmd->add_option("--order", options->order,
                   "Element order: 1 (4-node) or 2 (10-node; a linear mesh gets midside nodes). "
                   "Default: the input's")

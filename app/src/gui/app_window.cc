@@ -16,6 +16,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <variant>
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -379,6 +380,9 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   }
   // The tree panel's controller on the model's Document; the first solid selected, or --select.
   s.tree = std::make_unique<TreeController>(&s.model);
+  // Undo and redo wait while the active mode holds a gesture (a carried part, a sculpt stroke).
+  s.tree->set_history_hold(
+      [this] { return s_->active != nullptr ? s_->active->HistoryHold() : std::string(); });
   if (!options.select.empty()) {
     if (!s.tree->SelectByName(options.select)) {
       throw WindowStartError(2, "spidarcad: error: --select: no solid or node named '" +
@@ -620,6 +624,14 @@ bool AppWindow::Frame() {
   s.device_frame = MakeDeviceFrame(s.latest, *s.geometry, s.runtime->description());
   s.view->Update(s.device_frame);
   PollJobs();
+  // In model mode a mesh made from a solid, selected in the tree, is drawn in its solid's place.
+  ObjectId shown_mesh = 0;
+  if (s.active == s.model_mode && s.tree->selection()) {
+    const DocObject* o = s.model.document().Find(s.tree->selection()->object);
+    const auto* m = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr;
+    if (m != nullptr && m->source != 0) shown_mesh = o->id;
+  }
+  s.scene_view->SetShownMesh(shown_mesh);
   s.scene_view->Sync(s.model, s.workbench.show_edges ? s.workbench.selected : -1);
   s.scene_view->ShowContacts(s.model.ContactMarkers(), s.latest.tool.time,
                              s.model.device_to_world());
@@ -1638,6 +1650,8 @@ CalibrationWizard& AppWindow::calibration_wizard() { return s_->calibration; }
 GripControl& AppWindow::grip() { return *s_->grip; }
 DeviceView& AppWindow::view() { return *s_->view; }
 SceneView& AppWindow::scene_view() { return *s_->scene_view; }
+WorkbenchState& AppWindow::workbench() { return s_->workbench; }
+JobQueue& AppWindow::jobs() { return *s_->jobs; }
 vtkRenderer* AppWindow::renderer() { return s_->view->renderer(); }
 
 int RunGui(const GuiOptions& options) {

@@ -26,11 +26,13 @@ class DeviceView;
 class RecentFiles;
 class GripControl;
 class HapticRuntime;
+class JobQueue;
 class Mode;
 class ModelMode;
 class SceneModel;
 class SceneView;
 class TreeController;
+struct WorkbenchState;
 
 // Why the window could not start: the text for stderr and the process exit status (2: bad input
 // such as a scene, --select or --trajectory; 1: no display, no OpenGL 3.2).
@@ -132,6 +134,9 @@ class AppWindow {
   GripControl& grip();
   DeviceView& view();
   SceneView& scene_view();
+  // The workbench panels' state (the Mesh action's settings, the status line) and the jobs.
+  WorkbenchState& workbench();
+  JobQueue& jobs();
   vtkRenderer* renderer();
 
  private:

@@ -108,9 +108,10 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "waves the simulated grip itself ('calibrate'), e.g. for a --screenshot of it")
       ->check(CLI::IsMember({"file-menu", "open", "import", "calibrate"}));
   app.add_option("--select", options->select,
-                 "Select this solid or node in the tree panel at start, showing its parameters: a "
-                 "solid's name, a node's name or id, or SOLID/i/j for child j of child i of the "
-                 "solid's root (default: the first solid). Not in the scene: exit status 2")
+                 "Select this solid, node or object in the tree panel at start, showing its "
+                 "parameters: a solid's name, a node's name or id, SOLID/i/j for child j of child "
+                 "i of the solid's root, or the name of a mesh, FE model or sculpt object "
+                 "(default: the first solid). Not in the scene: exit status 2")
       ->type_name("NAME");
   app.add_option("scene", options->scene,
                  "Scene to open: a scene file (JSON, e.g. assets/scenes/platform.json), 'demo' "

@@ -76,6 +76,10 @@ class Mode {
 
   // True when a screenshot may be taken (the mode's part is live and has settled).
   virtual bool Settled() const { return true; }
+  // Why undo and redo must wait now, or "" when they may run: a gesture is under way whose result
+  // becomes a command only when it ends (a carried part, a sculpt stroke), and an undo under the
+  // hand would pull the part or the clay away from the grip.
+  virtual std::string HistoryHold() const { return ""; }
   // Lines for the end of a scripted run (--frames, --screenshot); "" for none.
   virtual std::string Summary(const haptics::ToolState& tool) {
     (void)tool;

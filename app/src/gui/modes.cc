@@ -413,6 +413,12 @@ void SculptWindowMode::Update(const haptics::ToolState& tool, ModeContext& conte
 
 void SculptWindowMode::DrawPanel(ModeContext& context) { sculpt_.DrawPanel(&context); }
 
+std::string SculptWindowMode::HistoryHold() const {
+  if (!sculpt_.active() || !sculpt_.stroke_active()) return "";
+  return "finish the sculpt stroke first (open the grasp: the stroke becomes an undo step when "
+         "it ends)";
+}
+
 std::unique_ptr<haptics::HapticScene> SculptWindowMode::BuildScene(ModeContext&) {
   auto scene = std::make_unique<haptics::HapticScene>();
   if (field_) scene->Add(std::make_unique<SharedField>(field_));
@@ -452,6 +458,14 @@ std::unique_ptr<haptics::HapticScene> AssemblyWindowMode::BuildScene(ModeContext
 
 std::vector<std::string> AssemblyWindowMode::Targets(const SceneModel&) const {
   return assembly_.part_solids();
+}
+
+std::string AssemblyWindowMode::HistoryHold() const {
+  const int carried = assembly_.state().carried;
+  if (!active_ || carried < 0 || carried >= assembly_.size()) return "";
+  return "let go of part '" + assembly_.part_name(carried) +
+         "' first (undo and redo wait while a part is carried: its move becomes an undo step "
+         "when it is put down)";
 }
 
 std::string AssemblyWindowMode::Summary(const haptics::ToolState&) {

@@ -175,6 +175,8 @@ class SculptWindowMode final : public Mode {
   std::vector<std::string> Targets(const SceneModel& model) const override;
   // False while a sculpt copy is being meshed.
   bool Settled() const override { return !sculpt_.copy_pending(); }
+  // While a stroke is under way: "finish the sculpt stroke first ...".
+  std::string HistoryHold() const override;
   SculptMode& sculpt() { return sculpt_; }
 
  private:
@@ -204,6 +206,8 @@ class AssemblyWindowMode final : public Mode {
   std::vector<std::string> Targets(const SceneModel& model) const override;
   bool draws_targets() const override { return true; }
   std::string Summary(const haptics::ToolState& tool) override;
+  // While a part is carried: "let go of part 'NAME' first ...".
+  std::string HistoryHold() const override;
   AssemblyMode& assembly() { return assembly_; }
 
  private:

@@ -127,7 +127,7 @@ void SceneView::SyncMeshes(const Document& doc, const DeviceToWorld& x) {
   std::vector<const DocObject*> imported;
   for (const DocObject& o : doc.objects()) {
     const auto* m = std::get_if<MeshData>(&o.data);
-    if (m != nullptr && m->source == 0) imported.push_back(&o);
+    if (m != nullptr && (m->source == 0 || o.id == shown_mesh_)) imported.push_back(&o);
   }
   std::vector<std::unique_ptr<Entry>> next;
   for (const DocObject* o : imported) {
@@ -152,6 +152,10 @@ void SceneView::SyncMeshes(const Document& doc, const DeviceToWorld& x) {
     const double inv = 1.0 / x.world_scale;
     e->actor->SetScale(inv, inv, inv);
     e->actor->SetPosition(-inv * x.p_WDo.x(), -inv * x.p_WDo.y(), -inv * x.p_WDo.z());
+    // A mesh made from a solid shows its cells: it stands where its solid would be drawn.
+    e->actor->GetProperty()->SetEdgeVisibility(o->id == shown_mesh_ &&
+                                               std::get<MeshData>(o->data).source != 0);
+    e->actor->GetProperty()->SetEdgeColor(0.2, 0.25, 0.35);
     next.push_back(std::move(e));
   }
   for (auto& old : mesh_entries_) {
@@ -179,15 +183,21 @@ void SceneView::Sync(const SceneModel& model, int highlight) {
   }
   const DeviceToWorld& x = model.device_to_world();
   const double inv = 1.0 / x.world_scale;
+  // The solid the shown mesh was made from: the mesh is drawn in its place.
+  ObjectId replaced = 0;
+  if (const DocObject* shown = model.document().Find(shown_mesh_)) {
+    if (const auto* m = std::get_if<MeshData>(&shown->data)) replaced = m->source;
+  }
   for (size_t i = 0; i < objects.size(); ++i) {
     Entry& e = *entries_[i];
     const SceneObject& o = objects[i];
     if (o.revision != e.revision) {
-      FillPolyData(o.shown(), e.poly);
+      FillPolyData(o.preview, e.poly);
       e.revision = o.revision;
     }
-    const bool hidden = std::find(hidden_.begin(), hidden_.end(), o.name) != hidden_.end();
-    e.actor->SetVisibility(o.shown().triangles.cols() > 0 && !hidden);
+    const bool hidden =
+        std::find(hidden_.begin(), hidden_.end(), o.name) != hidden_.end() || o.id == replaced;
+    e.actor->SetVisibility(o.preview.triangles.cols() > 0 && !hidden);
     const auto& c = o.colour;
     if (o.error.empty()) {
       e.actor->GetProperty()->SetColor(c[0], c[1], c[2]);

@@ -1,9 +1,10 @@
-// Rendering side of the scene: one VTK actor per scene object showing its current mesh (the
-// preview surface, then the Mesh action's result), and one per imported mesh object of the
-// Document (a MeshData without a source: its surface, or the boundary of its tetrahedra), placed
-// in the device frame D of the view by the inverse of X_WD (p_D = (p_W − p_WDo) / s). Meshes made
-// from a solid are not drawn again: the solid's actor shows that shape. No meshing here: it
-// copies what SceneModel and the Document have.
+// Rendering side of the scene: one VTK actor per scene object showing its preview surface, and
+// one per imported mesh object of the Document (a MeshData without a source: its surface, or the
+// boundary of its tetrahedra), placed in the device frame D of the view by the inverse of X_WD
+// (p_D = (p_W − p_WDo) / s). A mesh made from a solid stands where the solid is, so it is drawn
+// only when asked for (SetShownMesh: the tree's selection in model mode), with its edges and in
+// place of its source (whose actor is hidden meanwhile: the two would z-fight). No meshing here:
+// it copies what SceneModel and the Document have.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -60,6 +61,10 @@ class SceneView {
   static constexpr double kMarkerRadius = 0.005;    // m in D
   static constexpr double kMarkerMaxAge = 0.1;      // s
   static constexpr double kMarkerMinOffset = 3e-4;  // m in D
+  // The mesh object made from a source to draw (with its edges, its source's actor hidden), or 0
+  // for none. Imported meshes are drawn whatever this is.
+  void SetShownMesh(ObjectId mesh) { shown_mesh_ = mesh; }
+  ObjectId shown_mesh() const { return shown_mesh_; }
   // Solids (by name) whose actors stay hidden: an assembly's part solids, which AssemblyMode
   // draws where the parts are (the solids themselves sit at their own frame origins).
   void SetHidden(std::vector<std::string> names) { hidden_ = std::move(names); }
@@ -70,20 +75,23 @@ class SceneView {
   // by AssemblyMode); the nearest hit wins either way.
   ObjectId PickObject(double x, double y,
                       const std::vector<std::pair<vtkActor*, ObjectId>>& extra = {}) const;
-  // The actor of Document object `id`, a solid or an imported mesh (null when it has none yet).
+  // The actor of Document object `id`, a solid, an imported mesh or the shown mesh (null when it
+  // has none).
   vtkActor* ActorOf(ObjectId id) const;
 
  private:
   struct Entry;
-  // Brings the imported meshes' actors in line with the Document (by id and revision).
+  // Brings the imported meshes' and the shown mesh's actors in line with the Document (by id and
+  // revision).
   void SyncMeshes(const Document& doc, const DeviceToWorld& x);
   vtkRenderer* renderer_;
   std::vector<std::unique_ptr<Entry>> entries_;
-  std::vector<std::unique_ptr<Entry>> mesh_entries_;  // imported mesh objects, document order
+  std::vector<std::unique_ptr<Entry>> mesh_entries_;  // drawn mesh objects, document order
   int generation_ = -1;
   struct Marker;
   std::vector<std::unique_ptr<Marker>> markers_;  // sphere actors, grown on demand
   std::vector<std::string> hidden_;
+  ObjectId shown_mesh_ = 0;
 };
 
 }  // namespace spidarcad::app

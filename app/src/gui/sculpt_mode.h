@@ -106,6 +106,8 @@ class SculptMode {
   const std::string& message() const { return message_; }
   // The logic, for the window and tests.
   SculptSession& session() { return session_; }
+  // True while a stroke is under way (the grasp is closed on the clay).
+  bool stroke_active() const { return session_.stroke_active(); }
   // Wall time of the last OnFrame's display update (stroke step + VTK arrays), ms.
   double last_frame_ms() const { return last_frame_ms_; }
 

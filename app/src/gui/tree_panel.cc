@@ -115,6 +115,31 @@ std::string NodeLabel(const modeling::ImplicitNode& node) {
   return type;
 }
 
+std::string StaleReason(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return "";
+  if (const auto* fe = std::get_if<FeModelData>(&o->data)) {
+    const std::string mesh = StaleReason(doc, fe->tet_mesh);
+    const DocObject* m = doc.Find(fe->tet_mesh);
+    return mesh.empty() || m == nullptr ? "" : "its mesh '" + m->name + "' is stale: " + mesh;
+  }
+  const auto* m = std::get_if<MeshData>(&o->data);
+  if (m == nullptr || m->source == 0 || !doc.IsMeshOutOfDate(id)) return "";
+  const DocObject* source = doc.Find(m->source);
+  if (source == nullptr) return "its source (object " + std::to_string(m->source) + ") was deleted";
+  return "'" + source->name + "' changed since this mesh was made";
+}
+
+ObjectId RefreshableMesh(const Document& doc, ObjectId id) {
+  const DocObject* o = doc.Find(id);
+  if (o == nullptr) return 0;
+  if (const auto* fe = std::get_if<FeModelData>(&o->data))
+    return RefreshableMesh(doc, fe->tet_mesh);
+  const auto* m = std::get_if<MeshData>(&o->data);
+  if (m == nullptr || m->source == 0 || doc.Find(m->source) == nullptr) return 0;
+  return id;
+}
+
 // ---- TreeController ----
 
 TreeController::TreeController(SceneModel* model) : model_(model) {}
@@ -181,6 +206,11 @@ bool TreeController::SelectByName(const std::string& name) {
         stack.emplace_back(&node->children[i], std::move(child));
       }
     }
+  }
+  // Objects without a tree (meshes, FE models, sculpts), selected as a whole.
+  if (const DocObject* o = doc.FindByName(name)) {
+    Select(o->id);
+    return true;
   }
   return false;
 }
@@ -291,7 +321,8 @@ bool TreeController::Wrap(const std::string& type) {
 }
 
 bool TreeController::DeleteSelected() {
-  if (!NeedSelection("Delete")) return false;
+  const DocObject* whole = selected_ ? document().Find(selected_->object) : nullptr;
+  if ((whole == nullptr || TreeOf(*whole) != nullptr) && !NeedSelection("Delete")) return false;
   const NodeRef at = *selected_;
   return Try(at, [&] {
     Document& doc = document();
@@ -307,6 +338,28 @@ bool TreeController::DeleteSelected() {
       message_ = "Deleted node";
     }
   });
+}
+
+bool TreeController::RequestRefresh() {
+  const ObjectId id = selected_ ? selected_->object : 0;
+  const DocObject* o = document().Find(id);
+  if (o == nullptr) {
+    error_ = "Refresh: select a mesh or an FE model first";
+  } else if (RefreshableMesh(document(), id) == 0) {
+    const std::string why = StaleReason(document(), id);
+    error_ =
+        "Refresh: '" + o->name + "' " +
+        (why.empty() ? std::string("was not meshed from another object") : "cannot be: " + why);
+  } else {
+    refresh_request_ = id;
+    error_.clear();
+    error_at_.reset();
+    message_ = "Refreshing '" + o->name + "'";
+    return true;
+  }
+  error_at_.reset();
+  message_.clear();
+  return false;
 }
 
 bool TreeController::RenameSelected(const std::string& name) {
@@ -382,7 +435,16 @@ bool TreeController::Paste() {
   });
 }
 
+bool TreeController::HistoryHeld(const char* what) {
+  const std::string why = history_hold_ ? history_hold_() : std::string();
+  if (why.empty()) return false;
+  error_ = std::string(what) + ": " + why;
+  error_at_.reset();
+  return true;
+}
+
 bool TreeController::Undo() {
+  if (HistoryHeld("Undo")) return false;
   Document& doc = document();
   const std::string what = doc.history().UndoDescription();
   if (!doc.Undo()) {
@@ -398,6 +460,7 @@ bool TreeController::Undo() {
 }
 
 bool TreeController::Redo() {
+  if (HistoryHeld("Redo")) return false;
   Document& doc = document();
   const std::string what = doc.history().RedoDescription();
   if (!doc.Redo()) {
@@ -439,6 +502,7 @@ std::string TreeController::Title() const {
 namespace {
 
 const ImVec4 kErrorRed(0.80f, 0.10f, 0.10f, 1.0f);
+const ImVec4 kStaleOrange(0.90f, 0.55f, 0.10f, 1.0f);
 
 void ShowErrorHere(const TreeController& tree, const NodeRef& here) {
   if (tree.error().empty() || !tree.error_at() || !(*tree.error_at() == here)) return;
@@ -600,6 +664,44 @@ void DrawParameters(TreeController* tree, const modeling::ImplicitNode& node) {
   }
 }
 
+// What an object without a tree was made from, whether it is stale, and Refresh.
+void DrawObjectProperties(TreeController* tree, const DocObject& object) {
+  const Document& doc = tree->document();
+  ImGui::Text("%s '%s'", ObjectKindName(object.data), object.name.c_str());
+  const MeshData* m = std::get_if<MeshData>(&object.data);
+  if (const auto* fe = std::get_if<FeModelData>(&object.data)) {
+    const DocObject* mesh = doc.Find(fe->tet_mesh);
+    if (mesh != nullptr) {
+      ImGui::TextDisabled("on mesh '%s'", mesh->name.c_str());
+      m = std::get_if<MeshData>(&mesh->data);
+    }
+  }
+  if (m != nullptr && m->source != 0) {
+    const DocObject* source = doc.Find(m->source);
+    const MeshSettings& s = m->settings;
+    char line[240];
+    std::snprintf(line, sizeof line, "made from '%s': %s, cell %.1f mm%s%s",
+                  source != nullptr ? source->name.c_str() : "(deleted)",
+                  m->volume ? "tetrahedra" : "surface", 1e3 * s.cell_size,
+                  m->volume ? (s.mesher == "cgal" ? ", CGAL" : ", TetGen") : "",
+                  s.sharp_edges ? ", sharp edges" : "");
+    ImGui::PushTextWrapPos(ImGui::GetContentRegionMax().x);
+    ImGui::TextDisabled("%s", line);
+    ImGui::PopTextWrapPos();
+  } else if (m != nullptr && !m->import_source.empty()) {
+    ImGui::TextDisabled("imported from %s", m->import_source.c_str());
+  } else if (std::holds_alternative<SculptData>(object.data)) {
+    ImGui::TextDisabled("an edited copy: never stale");
+  }
+  const std::string stale = StaleReason(doc, object.id);
+  if (!stale.empty()) {
+    ImGui::PushTextWrapPos(ImGui::GetContentRegionMax().x);
+    ImGui::TextColored(kStaleOrange, "stale: %s", stale.c_str());
+    ImGui::PopTextWrapPos();
+    if (RefreshableMesh(doc, object.id) != 0 && ImGui::Button("Refresh")) tree->RequestRefresh();
+  }
+}
+
 }  // namespace
 
 void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_height) {
@@ -634,12 +736,37 @@ void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_heigh
       }
       if (!m->import_source.empty()) counts += ", imported";
     }
-    const std::string label =
-        o.name + "  [" + ObjectKindName(o.data) + (counts.empty() ? "" : ": ") + counts + "]";
+    const std::string stale = StaleReason(doc, o.id);
+    const std::string label = o.name + "  [" + ObjectKindName(o.data) +
+                              (counts.empty() ? "" : ": ") + counts + "]" +
+                              (stale.empty() ? "" : "  (stale)");
     ImGui::PushID(static_cast<int>(o.id));
-    if (ImGui::Selectable(label.c_str(), tree->selection() && tree->selection()->object == o.id)) {
+    if (!stale.empty()) ImGui::PushStyleColor(ImGuiCol_Text, kStaleOrange);
+    const bool selected = tree->selection() && tree->selection()->object == o.id;
+    if (ImGui::Selectable(label.c_str(), selected)) {
       tree->Select(o.id);
       state->clicked = true;
+    }
+    if (!stale.empty()) {
+      ImGui::PopStyleColor();
+      if (ImGui::IsItemHovered()) {
+        ImGui::SetTooltip("Stale: %s.%s", stale.c_str(),
+                          RefreshableMesh(doc, o.id) != 0
+                              ? "\nRefresh (right-click, or below) meshes it again."
+                              : "");
+      }
+    }
+    if (selected && scroll) ImGui::SetScrollHereY(0.5f);  // selected from elsewhere: show it
+    if (ImGui::BeginPopupContextItem("menu")) {
+      tree->Select(o.id);
+      const bool refreshable = RefreshableMesh(doc, o.id) != 0;
+      if (ImGui::MenuItem("Refresh", nullptr, false, refreshable && !stale.empty())) {
+        state->pending = [](TreeController* c) { c->RequestRefresh(); };
+      }
+      if (ImGui::MenuItem("Delete", "Del")) {
+        state->pending = [](TreeController* c) { c->DeleteSelected(); };
+      }
+      ImGui::EndPopup();
     }
     ImGui::PopID();
   }
@@ -699,7 +826,10 @@ void DrawTreePanel(TreeController* tree, TreePanelState* state, float tree_heigh
 
   // The selected node: name and parameters.
   const modeling::ImplicitNode* node = tree->SelectedNode();
-  if (node == nullptr) {
+  const DocObject* whole = tree->selection() ? doc.Find(tree->selection()->object) : nullptr;
+  if (node == nullptr && whole != nullptr && TreeOf(*whole) == nullptr) {
+    DrawObjectProperties(tree, *whole);
+  } else if (node == nullptr) {
     ImGui::TextDisabled("select a node to edit its parameters");
   } else {
     const NodeRef& sel = *tree->selection();

@@ -1,5 +1,7 @@
-// The tree panel of the workbench window: the scene's solids and their node trees, the selected
-// node's parameters, the editing buttons and the Edit menu (undo, redo, copy, paste, delete).
+// The tree panel of the workbench window: the scene's solids and their node trees, the other
+// objects (meshes, FE models, sculpts, rigid parts; a mesh or FE model whose source changed since
+// it was meshed is marked stale, with Refresh), the selected node's parameters, the editing
+// buttons and the Edit menu (undo, redo, copy, paste, delete).
 //
 // TreeController holds the logic without any ImGui: it maps the panel's intents (select, edit a
 // parameter, add, wrap, delete, rename, duplicate, copy, paste, undo, redo, save) to Document
@@ -17,6 +19,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "doc/clipboard.h"
@@ -60,6 +63,16 @@ modeling::ImplicitNode DefaultNode(const std::string& type);
 // when a name or id is shown ("lid (rounded_box)").
 std::string NodeLabel(const modeling::ImplicitNode& node);
 
+// Why object `id` is stale, or "" when it is not: a mesh object made from a source whose source
+// changed since it was meshed ("'knob' changed since this mesh was made") or was deleted ("its
+// source (object 3) was deleted"); an FE model whose mesh is stale ("its mesh 'knob tets' is
+// stale: ..."). Solids, imported meshes, sculpts (edited copies: they keep no link to what they
+// were copied from) and rigid parts are never stale.
+std::string StaleReason(const Document& doc, ObjectId id);
+// The mesh object Refresh meshes again for object `id`: the object itself when it is a mesh made
+// from a source that still exists, the mesh of an FE model likewise; 0 otherwise.
+ObjectId RefreshableMesh(const Document& doc, ObjectId id);
+
 // The panel's logic on a SceneModel's Document (see the file comment).
 class TreeController {
  public:
@@ -69,8 +82,9 @@ class TreeController {
   // ---- selection ----
   // Selects a node (not checked until used; Revalidate fixes stale selections).
   void Select(ObjectId object, NodePath path = {});
-  // Selects the first object whose name is `name`, else the first node (of any solid) whose
-  // name or id is `name`; "OBJECT/i/j" selects child j of child i of that object's root.
+  // Selects the first solid (or rigid part) whose name is `name`, else the first node (of any
+  // solid) whose name or id is `name`, else the first other object (a mesh, FE model, sculpt)
+  // of that name; "OBJECT/i/j" selects child j of child i of that object's root.
   // Returns false (selection unchanged) when there is none.
   bool SelectByName(const std::string& name);
   // Clears the selection.
@@ -97,8 +111,15 @@ class TreeController {
   // Wraps the selected node in a new operation or transform node of `type` (a difference gets a
   // default sphere as the part subtracted, in the same undo step). Selects the new node.
   bool Wrap(const std::string& type);
-  // Deletes the selected node with its subtree, or the whole object when the root is selected.
+  // Deletes the selected node with its subtree, or the whole object when the root (or an object
+  // without a tree: a mesh, FE model, sculpt) is selected.
   bool DeleteSelected();
+  // Asks for the selected object to be meshed again from its source (RefreshableMesh); the window
+  // starts the Job (SceneModel::StartRefreshJob), which lands as one undo step. False, with
+  // error(), when the selection has nothing to refresh.
+  bool RequestRefresh();
+  // The object whose Refresh was asked for (0: none); cleared.
+  ObjectId TakeRefreshRequest() { return std::exchange(refresh_request_, 0); }
   // Renames the selected object (root selected) or node.
   bool RenameSelected(const std::string& name);
   // Duplicates the selected object (DuplicateObject) and selects the copy.
@@ -110,9 +131,13 @@ class TreeController {
   // (or of its parent when the selected node is a primitive), or as a new object when nothing
   // is selected. Selects what was pasted.
   bool Paste();
-  // Undo / redo the last step; false when there was nothing to undo / redo.
+  // Undo / redo the last step; false when there was nothing to undo / redo, or when the history
+  // hold says to wait (error() then says why and nothing changes).
   bool Undo();
   bool Redo();
+  // Asked before every undo and redo: why they must wait ("let go of part 'x' first"), or ""
+  // when they may run. The window passes its active mode's Mode::HistoryHold.
+  void set_history_hold(std::function<std::string()> hold) { history_hold_ = std::move(hold); }
   // Saves to `path` ("" -> the Document's file). False with error() when there is no file yet
   // or writing failed.
   bool Save(const std::string& path = "");
@@ -138,6 +163,8 @@ class TreeController {
   bool Try(const std::optional<NodeRef>& where, Edit&& edit);
   // True when a valid node is selected; else sets the error.
   bool NeedSelection(const char* what);
+  // True (with the error set) when the history hold says undo and redo must wait.
+  bool HistoryHeld(const char* what);
 
   SceneModel* model_;
   Clipboard clipboard_;
@@ -145,6 +172,8 @@ class TreeController {
   std::string error_;
   std::optional<NodeRef> error_at_;
   std::string message_;
+  std::function<std::string()> history_hold_;
+  ObjectId refresh_request_ = 0;
 };
 
 // UI state of the tree panel across frames.

@@ -7,8 +7,10 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <variant>
 
 #include "gui/panels.h"
+#include "gui/scene_view.h"
 
 namespace spidarcad::app {
 
@@ -26,12 +28,22 @@ const SceneObject* Selected(const SceneModel& model, const WorkbenchState& state
   return &objects[state.selected];
 }
 
+// The selected Document object when it is a mesh object (its name in *name), else null.
+const MeshData* SelectedMesh(const SceneModel& model, const WorkbenchState& state,
+                             std::string* name = nullptr) {
+  const DocObject* o = model.document().Find(state.selected_object);
+  const auto* m = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr;
+  if (m != nullptr && name != nullptr) *name = o->name;
+  return m;
+}
+
 void OpenExport(WorkbenchState* state, const SceneModel& model, bool tets) {
   state->open_export = true;
   state->export_tets = tets;
   state->export_message.clear();
   const SceneObject* o = Selected(model, *state);
-  const std::string name = o != nullptr ? o->name : "mesh";
+  std::string name = o != nullptr ? o->name : "mesh";
+  SelectedMesh(model, *state, &name);
   const std::string path = name + (tets ? ".vtu" : ".stl");
   std::snprintf(state->export_path, sizeof(state->export_path), "%s", path.c_str());
 }
@@ -44,12 +56,33 @@ void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, M
     state->status_error = true;
     return;
   }
+  MeshSettings settings;
+  settings.cell_size = state->resolution_mm * 1e-3;
+  settings.sharp_edges = state->sharp_edges && !(kind == MeshKind::kTetrahedra && state->cgal);
+  if (kind == MeshKind::kTetrahedra) settings.mesher = state->cgal ? "cgal" : "tetgen";
   try {
-    model->StartMeshJob(jobs, state->selected, kind, state->resolution_mm * 1e-3);
+    model->StartMeshJob(jobs, state->selected, kind, settings);
     state->status.clear();
   } catch (const std::exception& e) {
     state->status = std::string("Mesh: ") + e.what();
     state->status_error = true;
+  }
+}
+
+bool StartRefreshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, ObjectId id) {
+  const Document& doc = model->document();
+  ObjectId mesh = id;
+  if (const DocObject* o = doc.Find(id)) {
+    if (const auto* fe = std::get_if<FeModelData>(&o->data)) mesh = fe->tet_mesh;
+  }
+  try {
+    model->StartRefreshJob(jobs, mesh);
+    state->status.clear();
+    return true;
+  } catch (const std::exception& e) {
+    state->status = std::string("Refresh: ") + e.what();
+    state->status_error = true;
+    return false;
   }
 }
 
@@ -90,11 +123,13 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
       actions->file_import = true;
     }
     const SceneObject* o = Selected(*model, *state);
-    if (ImGui::MenuItem("Export surface (STL/OBJ/PLY)...", nullptr, false, o != nullptr)) {
+    const MeshData* m = SelectedMesh(*model, *state);
+    if (ImGui::MenuItem("Export surface (STL/OBJ/PLY)...", nullptr, false,
+                        o != nullptr || m != nullptr)) {
       OpenExport(state, *model, false);
     }
     if (ImGui::MenuItem("Export tetrahedra (VTU, .node/.ele)...", nullptr, false,
-                        o != nullptr && o->tets.tets.cols() > 0)) {
+                        m != nullptr && m->volume != nullptr)) {
       OpenExport(state, *model, true);
     }
     ImGui::Separator();
@@ -165,19 +200,29 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
     // The tree takes about 40 % of the panel; the properties below it scroll with the panel.
     const float line = ImGui::GetFrameHeightWithSpacing();
     const float tree_height = std::clamp(0.4f * height, 4.0f * line, 16.0f * line);
+    // A mesh the Mesh action just landed becomes the selection; a Refresh asked for in the tree
+    // starts its job.
+    if (const ObjectId landed = model->TakeLandedMesh(); landed != 0) tree->Select(landed);
     DrawTreePanel(tree, tree_state, tree_height);
+    if (const ObjectId refresh = tree->TakeRefreshRequest(); refresh != 0) {
+      StartRefreshAction(model, jobs, state, refresh);
+    }
+    state->selected_object = tree->selection() ? tree->selection()->object : 0;
     if (tree->selection()) {
-      const int index = model->IndexOf(tree->selection()->object);
+      // A solid, or the solid a selected mesh was made from, is what the Mesh action meshes.
+      ObjectId solid = tree->selection()->object;
+      const DocObject* o = model->document().Find(solid);
+      if (const auto* m = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr) {
+        solid = m->source;
+      }
+      const int index = model->IndexOf(solid);
       if (index >= 0) state->selected = index;
     }
     const SceneObject* o = Selected(*model, *state);
     if (o != nullptr) {
-      const long tris = o->shown().triangles.cols();
-      ImGui::TextDisabled("mesh of '%s': %ld tri%s", o->name.c_str(), tris,
-                          o->tets.tets.cols() > 0 ? ", tets"
-                          : o->surface_cell > 0.0 ? " (Mesh action)"
-                          : tris > 0              ? " (preview)"
-                                                  : " (meshing preview...)");
+      const long tris = o->preview.triangles.cols();
+      ImGui::TextDisabled("preview of '%s': %ld tri%s", o->name.c_str(), tris,
+                          tris > 0 ? "" : " (meshing...)");
     }
   }
   if (model->objects().empty()) {
@@ -196,10 +241,23 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
 }
 
 void DrawMeshControls(SceneModel* model, JobQueue* jobs, WorkbenchState* state) {
+  const SceneObject* o = Selected(*model, *state);
+  if (o != nullptr) {
+    ImGui::TextDisabled("solid '%s' -> a mesh object in the tree", o->name.c_str());
+  }
   ImGui::PushItemWidth(90.0f);
   ImGui::InputFloat("cell [mm]", &state->resolution_mm, 0.5f, 2.0f, "%.1f");
   state->resolution_mm = std::clamp(state->resolution_mm, 0.5f, 50.0f);
   ImGui::PopItemWidth();
+  if (!state->cgal) {
+    ImGui::Checkbox("sharp edges", &state->sharp_edges);
+    ImGui::SameLine();
+  }
+  ImGui::TextUnformatted("tets:");
+  ImGui::SameLine();
+  if (ImGui::RadioButton("TetGen", !state->cgal)) state->cgal = false;
+  ImGui::SameLine();
+  if (ImGui::RadioButton("CGAL", state->cgal)) state->cgal = true;
   if (ImGui::Button("Surface")) StartMeshAction(model, jobs, state, MeshKind::kSurface);
   ImGui::SameLine();
   if (ImGui::Button("Tetrahedra")) StartMeshAction(model, jobs, state, MeshKind::kTetrahedra);
@@ -359,25 +417,37 @@ void DrawExportDialog(const SceneModel& model, WorkbenchState* state) {
   ImGui::SetNextWindowSize(ImVec2(520.0f, 0.0f));
   if (!ImGui::BeginPopupModal("Export", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) return;
   const SceneObject* o = Selected(model, *state);
-  if (o == nullptr) {
+  std::string mesh_name;
+  const MeshData* m = SelectedMesh(model, *state, &mesh_name);
+  if (o == nullptr && m == nullptr) {
     ImGui::TextUnformatted("No object selected.");
   } else if (state->export_tets) {
-    ImGui::Text("Tetrahedra of '%s' (%ld nodes, %ld tets)", o->name.c_str(),
-                static_cast<long>(o->tets.nodes.cols()), static_cast<long>(o->tets.tets.cols()));
+    const long nodes = m != nullptr && m->volume ? static_cast<long>(m->volume->nodes.cols()) : 0;
+    const long tets = m != nullptr && m->volume ? static_cast<long>(m->volume->tets.cols()) : 0;
+    ImGui::Text("Tetrahedra of '%s' (%ld nodes, %ld tets)", mesh_name.c_str(), nodes, tets);
     ImGui::TextDisabled("path ending in .vtu (ParaView) or .node/.ele (TetGen files)");
-  } else {
-    const bool final_mesh = o->surface.triangles.cols() > 0;
-    ImGui::Text("Surface of '%s' (%s, %ld triangles)", o->name.c_str(),
-                final_mesh ? "Mesh action result" : "preview",
-                static_cast<long>(o->shown().triangles.cols()));
+  } else if (m != nullptr) {
+    ImGui::Text("Surface of mesh object '%s' (%s)", mesh_name.c_str(),
+                m->surface ? (std::to_string(m->surface->triangles.cols()) + " triangles").c_str()
+                           : "the boundary of its tetrahedra");
     ImGui::TextDisabled("path ending in .stl, .obj or .ply; coordinates in metres (W)");
+  } else {
+    ImGui::Text("Surface of '%s' (preview, %ld triangles)", o->name.c_str(),
+                static_cast<long>(o->preview.triangles.cols()));
+    ImGui::TextDisabled("the preview; mesh the solid for a mesh object to export");
   }
   ImGui::SetNextItemWidth(500.0f);
   ImGui::InputText("##path", state->export_path, sizeof(state->export_path));
-  if (ImGui::Button("Export") && o != nullptr) {
+  if (ImGui::Button("Export") && (o != nullptr || m != nullptr)) {
     const std::string path = state->export_path;
-    const std::string error =
-        state->export_tets ? ExportTetrahedra(o->tets, path) : ExportSurface(o->shown(), path);
+    std::string error;
+    if (state->export_tets) {
+      error = m != nullptr && m->volume ? ExportTetrahedra(*m->volume, path)
+                                        : ExportTetrahedra(modeling::TetMesh{}, path);
+    } else {
+      error =
+          m != nullptr ? ExportSurface(DrawnSurface(*m), path) : ExportSurface(o->preview, path);
+    }
     state->export_failed = !error.empty();
     state->export_message = error.empty() ? "wrote " + path : error;
   }

@@ -1,6 +1,7 @@
 // ImGui side of the workbench: the menu bar (File → New, Open, Save, Import, Export, Edit, Mesh,
 // Haptics, View, Help), the document panel (the tree panel of gui/tree_panel.h: objects, nodes,
-// parameters; jobs with progress bars and Cancel, status line), the Mesh action's controls, the
+// parameters, stale meshes and their Refresh; jobs with progress bars and Cancel, status line),
+// the Mesh action's controls (its result lands in the Document as a mesh object), the
 // loop figures (tick time and period jitter percentiles, safety events, scheduling, emergency stop)
 // and the export dialog. They act on SceneModel and JobQueue directly and return the rest.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
@@ -19,14 +20,17 @@ namespace spidarcad::app {
 
 // UI state of the workbench that lives across frames.
 struct WorkbenchState {
-  int selected = 0;            // scene object the Mesh action and Export work on
-  float resolution_mm = 4.0f;  // grid cell of the Mesh action, mm (in W)
-  bool show_edges = false;     // draw the selected object's mesh edges
-  bool show_figures = true;    // the device and loop figures strip is open (else collapsed)
-  char export_path[512] = "";  // path field of the export dialog
-  bool export_tets = false;    // the dialog exports tetrahedra (else the surface)
-  bool open_export = false;    // request to open the export dialog this frame
-  std::string export_message;  // result of the last export (error or "wrote ...")
+  int selected = 0;              // scene object (solid) the Mesh action works on
+  ObjectId selected_object = 0;  // the tree's selected Document object (Export: a mesh object)
+  float resolution_mm = 4.0f;    // grid cell of the Mesh action, mm (in W)
+  bool sharp_edges = false;      // the Mesh action sharpens the grid surface onto the creases
+  bool cgal = false;             // Tetrahedra by CGAL Mesh_3 (else TetGen on the grid surface)
+  bool show_edges = false;       // draw the selected object's mesh edges
+  bool show_figures = true;      // the device and loop figures strip is open (else collapsed)
+  char export_path[512] = "";    // path field of the export dialog
+  bool export_tets = false;      // the dialog exports tetrahedra (else the surface)
+  bool open_export = false;      // request to open the export dialog this frame
+  std::string export_message;    // result of the last export (error or "wrote ...")
   bool export_failed = false;
   std::string status;  // status line (last job outcome)
   bool status_error = false;
@@ -64,13 +68,16 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
 
 // Draws the document panel docked at (x, y), `width` × `height` pixels: source, the tree panel
 // (gui/tree_panel.h: objects and their node trees, the selected node's parameters; it also
-// selects the object of the Mesh action) or, without `tree`, "no solids"; the mesh of the
-// selected object, running jobs with progress bar and Cancel, the status line.
+// selects the object of the Mesh action and of Export) or, without `tree`, "no solids"; the
+// preview of the selected solid, running jobs with progress bar and Cancel, the status line.
+// A mesh the Mesh action landed (SceneModel::TakeLandedMesh) is selected in the tree; a Refresh
+// asked for in the tree (TreeController::TakeRefreshRequest) starts its job (StartRefreshAction).
 void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, float x, float y,
                     float width, float height, TreeController* tree = nullptr,
                     TreePanelState* tree_state = nullptr);
 
-// Draws the Mesh action's controls (cell size, Surface and Tetrahedra buttons; no Begin/End).
+// Draws the Mesh action's controls (the solid it meshes, cell size, sharp edges, TetGen or CGAL,
+// Surface and Tetrahedra buttons; no Begin/End).
 void DrawMeshControls(SceneModel* model, JobQueue* jobs, WorkbenchState* state);
 
 // Draws the running jobs (progress bar, Cancel) and the status line (no Begin/End).
@@ -89,11 +96,17 @@ void DrawLoopFigures(const LoopStats& stats, WorkbenchActions* actions);
 // Draws a red "EMERGENCY STOP" banner centred at the top of the view (x0..x1 at y).
 void DrawStopBanner(float x0, float x1, float y);
 
-// Opens (when requested) and draws the export dialog.
+// Opens (when requested) and draws the export dialog: the selected mesh object's surface (or the
+// boundary of its tetrahedra) or tetrahedra, else the selected solid's preview surface.
 void DrawExportDialog(const SceneModel& model, WorkbenchState* state);
 
-// Starts the Mesh action of `kind` on the selected object at the state's resolution; errors
-// (no object) go to the status line.
+// Starts the Mesh action of `kind` on the selected solid with the state's cell size, sharp edges
+// and mesher (SceneModel::StartMeshJob); errors (no solid, bad settings) go to the status line.
 void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, MeshKind kind);
+
+// Starts meshing object `id` again from its source with its stored settings: a mesh object made
+// from a source, or an FE model (its mesh) (SceneModel::StartRefreshJob). Errors (nothing to
+// refresh, source deleted) go to the status line. True when a job started.
+bool StartRefreshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, ObjectId id);
 
 }  // namespace spidarcad::app

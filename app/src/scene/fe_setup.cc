@@ -30,34 +30,37 @@ std::string Quoted(const DocObject& o) {
   return std::string(ObjectKindName(o.data)) + " '" + o.name + "'";
 }
 
-void CheckSettings(const DocObject& o, const MeshSettings& s, FeSourceKind kind) {
+// `what` starts the error messages ("set up FE for", "mesh").
+void CheckSettings(const DocObject& o, const MeshSettings& s, FeSourceKind kind,
+                   const std::string& what) {
   if (!(s.cell_size >= 0.0) || !(s.max_tet_volume >= 0.0) || !(s.max_radius_edge >= 0.0) ||
       !std::isfinite(s.cell_size + s.max_tet_volume + s.max_radius_edge)) {
-    throw DocumentError("set up FE for " + Quoted(o) +
+    throw DocumentError(what + " " + Quoted(o) +
                         ": cell size, tet volume and radius-edge bound must be finite and >= 0");
   }
   if (s.max_radius_edge != 0.0 && s.max_radius_edge < 1.0) {
-    throw DocumentError("set up FE for " + Quoted(o) + ": radius-edge bound " +
+    throw DocumentError(what + " " + Quoted(o) + ": radius-edge bound " +
                         std::to_string(s.max_radius_edge) + " must be 0 (default) or >= 1");
   }
   if (!s.mesher.empty() && s.mesher != "tetgen" && s.mesher != "cgal") {
-    throw DocumentError("set up FE for " + Quoted(o) + ": mesher '" + s.mesher +
+    throw DocumentError(what + " " + Quoted(o) + ": mesher '" + s.mesher +
                         "' (expected tetgen or cgal)");
   }
   if (kind != FeSourceKind::kSolid && (s.mesher == "cgal" || s.sharp_edges)) {
-    throw DocumentError("set up FE for " + Quoted(o) +
+    throw DocumentError(what + " " + Quoted(o) +
                         ": CGAL and sharp edges mesh an implicit solid; a surface is meshed by "
                         "TetGen as it is (choose tetgen, no sharp edges)");
   }
   if (s.mesher == "cgal" && s.sharp_edges) {
     throw DocumentError(
-        "set up FE for " + Quoted(o) +
+        what + " " + Quoted(o) +
         ": sharp edges sharpen the grid surface TetGen uses; CGAL does not use one");
   }
 }
 
 // The copy-on-main-thread part shared by PrepareFeMesh and PrepareFeRemesh.
-FeMeshInput Prepare(const DocObject& o, const MeshSettings& settings) {
+FeMeshInput Prepare(const DocObject& o, const MeshSettings& settings,
+                    const std::string& what = "set up FE for") {
   FeMeshInput in;
   in.source = o.id;
   in.source_revision = o.revision;
@@ -69,22 +72,22 @@ FeMeshInput Prepare(const DocObject& o, const MeshSettings& settings) {
   } else if (const auto* s = std::get_if<SculptData>(&o.data)) {
     in.kind = FeSourceKind::kSculpt;
     if (!s->mesh || !IsClosedSurface(*s->mesh))
-      throw DocumentError("set up FE for " + Quoted(o) +
+      throw DocumentError(what + " " + Quoted(o) +
                           ": its mesh is not a closed surface (TetGen needs one)");
     // A copy: strokes may change a sculpt mesh in place.
     in.surface = std::make_shared<const modeling::TriangleMesh>(*s->mesh);
   } else if (const auto* m = std::get_if<MeshData>(&o.data)) {
-    if (m->volume) throw DocumentError("set up FE for " + Quoted(o) + ": it already holds tets");
+    if (m->volume) throw DocumentError(what + " " + Quoted(o) + ": it already holds tets");
     if (!m->surface || !IsClosedSurface(*m->surface))
-      throw DocumentError("set up FE for " + Quoted(o) +
+      throw DocumentError(what + " " + Quoted(o) +
                           ": its surface is not closed (TetGen needs a closed surface)");
     in.kind = FeSourceKind::kSurfaceMesh;
     in.surface = m->surface;  // immutable
   } else {
-    throw DocumentError("set up FE for " + Quoted(o) +
+    throw DocumentError(what + " " + Quoted(o) +
                         ": only a solid, a sculpt or a closed surface mesh can be meshed");
   }
-  CheckSettings(o, settings, in.kind);
+  CheckSettings(o, settings, in.kind, what);
   return in;
 }
 
@@ -195,7 +198,24 @@ FeMeshInput PrepareFeRemesh(const Document& doc, ObjectId mesh) {
   if (src == nullptr)
     throw DocumentError("refresh " + Quoted(o) + ": its source (object " +
                         std::to_string(m->source) + ") was deleted");
-  return Prepare(*src, m->settings);
+  FeMeshInput in = Prepare(*src, m->settings, "refresh");
+  in.volume = m->volume != nullptr;
+  return in;
+}
+
+FeMeshInput PrepareSolidMesh(const Document& doc, ObjectId source, const MeshSettings& settings,
+                             bool volume) {
+  const DocObject* o = doc.Find(source);
+  if (o == nullptr)
+    throw DocumentError("mesh: no object with id " + std::to_string(source) + " in the document");
+  if (!std::holds_alternative<SolidData>(o->data))
+    throw DocumentError("mesh " + Quoted(*o) + ": only an implicit solid is meshed here");
+  FeMeshInput in = Prepare(*o, settings, "mesh");
+  if (!volume && settings.mesher == "cgal")
+    throw DocumentError("mesh " + Quoted(*o) +
+                        ": CGAL makes tetrahedra; a surface is meshed on the grid (no mesher)");
+  in.volume = volume;
+  return in;
 }
 
 namespace {
@@ -271,8 +291,10 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     if (!input.surface) throw std::invalid_argument("set up FE: no surface to mesh");
     result.settings.cell_size = 0.0;
     result.surface = input.surface;
-    result.volume = std::make_shared<const modeling::TetMesh>(
-        Tetgen(*input.surface, input.settings, cancel, progress, 0.0));
+    if (input.volume) {
+      result.volume = std::make_shared<const modeling::TetMesh>(
+          Tetgen(*input.surface, input.settings, cancel, progress, 0.0));
+    }
     Report(progress, 1.0);
     return result;
   }
@@ -283,6 +305,9 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   const Eigen::AlignedBox3d bounds = FeSolidBounds(input.root, input.source_name, &cell, &compiled);
   result.settings.cell_size = cell;
   if (input.settings.mesher == "cgal") {
+    if (!input.volume)
+      throw std::invalid_argument("solid '" + input.source_name +
+                                  "': CGAL makes tetrahedra, not a surface alone");
     modeling::CgalMeshSettings cs = modeling::CgalMeshSettings::ForSize(cell);
     cs.cancel = cancel;
     cs.progress = progress;
@@ -300,7 +325,8 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   ss.bounds = bounds;
   ss.cell_size = cell;
   ss.cancel = cancel;
-  if (progress) ss.progress = [&progress](double f) { progress(0.3 * f); };
+  const double surface_share = input.volume ? 0.3 : 0.9;
+  if (progress) ss.progress = [&progress, surface_share](double f) { progress(surface_share * f); };
   modeling::TriangleMesh surface = modeling::MeshSurface(compiled, ss);
   if (surface.triangles.cols() == 0)
     throw std::invalid_argument("solid '" + input.source_name + "': the surface mesh is empty at " +
@@ -311,9 +337,11 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     fs.cancel = cancel;
     surface = modeling::SharpenFeatures(compiled, std::move(surface), fs);
   }
-  Report(progress, 0.35);
-  result.volume = std::make_shared<const modeling::TetMesh>(
-      Tetgen(surface, input.settings, cancel, progress, 0.35));
+  Report(progress, input.volume ? 0.35 : 1.0);
+  if (input.volume) {
+    result.volume = std::make_shared<const modeling::TetMesh>(
+        Tetgen(surface, input.settings, cancel, progress, 0.35));
+  }
   result.surface = std::make_shared<const modeling::TriangleMesh>(std::move(surface));
   Report(progress, 1.0);
   return result;
@@ -373,22 +401,40 @@ class LazyMacroCommand : public Command {
 
 const fem::Material kSteel = {200.0e9, 0.30};
 
-}  // namespace
-
-std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh) {
-  if (!mesh.volume) throw std::invalid_argument("set up FE: the mesh has no tetrahedra");
-  auto mesh_id = std::make_shared<ObjectId>(0);
-  std::vector<LazyMacroCommand::Step> steps;
-  steps.push_back([input, mesh, mesh_id](const Document& doc) {
-    CheckSourceUnchanged(doc, input, "set up FE");
+// The step that adds the mesh object of `mesh` made from input's source ("NAME tets" or "NAME
+// surface"), checking first that the source is unchanged (`what` starts the error).
+LazyMacroCommand::Step AddMeshStep(const FeMeshInput& input, const FeMeshResult& mesh,
+                                   const std::string& what) {
+  return [input, mesh, what](const Document& doc) {
+    CheckSourceUnchanged(doc, input, what);
     MeshData data;
     data.source = input.source;
     data.source_revision = input.source_revision;
     data.surface = mesh.surface;
     data.volume = mesh.volume;
     data.settings = mesh.settings;
-    return edit::AddObject(UniqueObjectName(doc, input.source_name + " tets"), std::move(data));
-  });
+    const std::string suffix = mesh.volume ? " tets" : " surface";
+    return edit::AddObject(UniqueObjectName(doc, input.source_name + suffix), std::move(data));
+  };
+}
+
+}  // namespace
+
+std::unique_ptr<Command> AddMeshOf(const FeMeshInput& input, FeMeshResult mesh) {
+  if (input.volume && !mesh.volume) throw std::invalid_argument("mesh: the mesh has no tetrahedra");
+  if (!input.volume) mesh.volume = nullptr;  // what was asked for: the surface alone
+  if (!mesh.surface && !mesh.volume) throw std::invalid_argument("mesh: the mesh is empty");
+  std::vector<LazyMacroCommand::Step> steps;
+  steps.push_back(AddMeshStep(input, mesh, "mesh"));
+  return std::make_unique<LazyMacroCommand>(
+      "Mesh " + input.source_name + (input.volume ? " (tetrahedra)" : " (surface)"),
+      std::move(steps));
+}
+
+std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh) {
+  if (!mesh.volume) throw std::invalid_argument("set up FE: the mesh has no tetrahedra");
+  std::vector<LazyMacroCommand::Step> steps;
+  steps.push_back(AddMeshStep(input, mesh, "set up FE"));
   steps.push_back([input](const Document& doc) {
     const ObjectId tets = doc.last_created().back();
     return edit::AddFeModel(UniqueObjectName(doc, input.source_name + " FE"), tets, kSteel, {});
@@ -408,7 +454,9 @@ std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh) {
 
 std::unique_ptr<Command> RefreshFeMesh(ObjectId mesh, const FeMeshInput& input,
                                        FeMeshResult result) {
-  if (!result.volume) throw std::invalid_argument("refresh: the mesh has no tetrahedra");
+  if (input.volume && !result.volume)
+    throw std::invalid_argument("refresh: the mesh has no tetrahedra");
+  if (!input.volume) result.volume = nullptr;
   std::vector<LazyMacroCommand::Step> steps;
   steps.push_back([mesh, input, result](const Document& doc) {
     CheckSourceUnchanged(doc, input, "refresh");

@@ -1,7 +1,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// Setting up an FE model from a document object (FE mode's "Set up FE" and "Refresh"), without a
-// window: which objects can become an FE model, the meshing a Job runs on a copy of the source,
-// and the commands that land its result as one undo step.
+// Setting up an FE model from a document object (FE mode's "Set up FE" and "Refresh"), and meshing
+// a solid into a mesh object (model mode's Surface and Tetrahedra), without a window: which
+// objects can become an FE model, the meshing a Job runs on a copy of the source, and the
+// commands that land its result as one undo step (add a mesh object, set up FE, refresh a mesh
+// object whose source changed).
 //
 // Sources: an implicit solid (grid surface, optionally sharpened, then TetGen; or CGAL Mesh_3
 // from the function), a sculpt object or a mesh object holding a closed surface (TetGen on that
@@ -64,6 +66,9 @@ struct FeMeshInput {
   std::shared_ptr<const modeling::TriangleMesh>
       surface;            // the closed surface (kSculpt, kSurfaceMesh)
   MeshSettings settings;  // how to mesh (cell_size 0: from the solid's size)
+  // Make tetrahedra (true), or the boundary surface only (false: a solid's grid surface,
+  // sharpened when settings.sharp_edges; a surface source's surface as it is).
+  bool volume = true;
 };
 
 // The input to mesh `source` (a solid, sculpt or surface mesh) with `settings`. Throws
@@ -71,9 +76,16 @@ struct FeMeshInput {
 // mesher "cgal" or sharp_edges for anything but a solid, a negative or non-finite setting.
 FeMeshInput PrepareFeMesh(const Document& doc, ObjectId source, const MeshSettings& settings);
 
-// The input to mesh mesh object `mesh` again from its source with its stored settings. Throws
-// DocumentError when it is not a mesh made from a source, or the source is gone.
+// The input to mesh mesh object `mesh` again from its source with its stored settings, making
+// what it holds (tetrahedra, or a surface only). Throws DocumentError when it is not a mesh made
+// from a source, or the source is gone.
 FeMeshInput PrepareFeRemesh(const Document& doc, ObjectId mesh);
+
+// The input to mesh solid `source` into a mesh object (model mode's Mesh action): tetrahedra
+// when `volume`, else its surface only. Throws DocumentError naming the object and what is wrong
+// (as PrepareFeMesh, with messages starting "mesh"; mesher "cgal" needs `volume`).
+FeMeshInput PrepareSolidMesh(const Document& doc, ObjectId source, const MeshSettings& settings,
+                             bool volume);
 
 // What a meshing Job made.
 struct FeMeshResult {
@@ -99,12 +111,20 @@ std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& i
 std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate);
 
 // Meshes the input (worker thread): a solid on the grid (MeshSurface, SharpenFeatures when
-// sharp_edges) then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Polls `cancel` (throws
+// sharp_edges) then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Without input.volume
+// the result holds the surface only (no TetGen; volume null). Polls `cancel` (throws
 // the meshers' cancellation exceptions) and reports progress in [0, 1]. Throws
 // std::invalid_argument or std::runtime_error saying what failed (empty surface, TetGen or CGAL
 // errors).
 FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* cancel = nullptr,
                           const std::function<void(double)>& progress = {});
+
+// One undo step "Mesh NAME (surface)" or "Mesh NAME (tetrahedra)" (as input.volume): adds the
+// mesh object "NAME surface" or "NAME tets" (names made unique) with source, source revision,
+// settings and the meshes of `mesh`. Afterwards doc.last_created() is {mesh}. Do throws
+// DocumentError (and changes nothing) when the source is gone or has changed since `input` was
+// copied; the constructor throws std::invalid_argument when `mesh` lacks what input asked for.
+std::unique_ptr<Command> AddMeshOf(const FeMeshInput& input, FeMeshResult mesh);
 
 // One undo step "Set up FE for NAME": adds the mesh object "NAME tets" (source, source revision,
 // settings, surface and volume of `mesh`) and the FE model "NAME FE" on it: steel, clamped at the
@@ -117,8 +137,9 @@ std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh);
 // "NAME FE" (steel, minimum-x face clamp). The new id is in doc.last_created().
 std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh);
 
-// One undo step "Refresh NAME": the mesh object `mesh` gets the new surface and volume, made from
-// its source at input.source_revision with its stored settings; its FE models keep their
+// One undo step "Refresh NAME mesh": the mesh object `mesh` gets the new surface and volume (or
+// surface only, when input.volume is false), made from its source at input.source_revision with
+// its stored settings; its FE models keep their
 // settings (their precompute keys are cleared: the columns were of the old mesh). Do throws
 // DocumentError when the source has changed since `input` was copied.
 std::unique_ptr<Command> RefreshFeMesh(ObjectId mesh, const FeMeshInput& input,

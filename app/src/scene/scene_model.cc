@@ -180,12 +180,6 @@ bool SceneModel::Refresh() {
         o.source_revision = d.revision;
         o.error.clear();
         o.error_revision = 0;
-        // The Mesh action's results are of the old shape.
-        const bool had_mesh = o.surface.triangles.cols() > 0;
-        o.surface = modeling::TriangleMesh{};
-        o.surface_cell = 0.0;
-        o.tets = modeling::TetMesh{};
-        if (had_mesh) ++o.revision;
         changed = true;
       } catch (const std::exception& e) {
         o.error = e.what();  // keep the last good solid, preview and haptics
@@ -311,55 +305,48 @@ void SceneModel::UpdatePreviews(JobQueue* jobs, double coarse_cells_across,
   }
 }
 
-Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double cell) {
+Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind,
+                              const MeshSettings& settings) {
   if (index < 0 || index >= static_cast<int>(objects_.size())) {
     throw std::out_of_range("no scene object " + std::to_string(index));
   }
-  if (!(cell > 0.0)) throw std::invalid_argument("mesh resolution must be > 0");
+  if (!(settings.cell_size > 0.0)) throw std::invalid_argument("mesh resolution must be > 0");
   const SceneObject& o = objects_[index];
   if (o.solid == nullptr) {
     throw std::invalid_argument("solid '" + o.name + "' does not compile: " + o.error);
   }
-  modeling::SurfaceMeshSettings settings;
-  settings.bounds = o.bounds_W;
-  settings.bounds.min().array() -= 2.0 * cell;
-  settings.bounds.max().array() += 2.0 * cell;
-  settings.cell_size = cell;
-  const std::shared_ptr<const modeling::CompiledSolid> solid = o.solid;
+  const bool tets = kind == MeshKind::kTetrahedra;
+  MeshSettings s = settings;
+  if (!tets) s.mesher.clear();  // the grid surface: no tetrahedral mesher
+  FeMeshInput input = PrepareSolidMesh(*doc_, o.id, s, tets);
+  const std::string title = std::string(tets ? "Tetrahedra" : "Surface") + " of " + o.name;
+  return StartDocumentMeshJob(jobs, title, std::move(input), 0);
+}
+
+Job& SceneModel::StartRefreshJob(JobQueue* jobs, ObjectId mesh) {
+  FeMeshInput input = PrepareFeRemesh(*doc_, mesh);
+  const std::string title = "Refresh " + doc_->Get(mesh).name;
+  return StartDocumentMeshJob(jobs, title, std::move(input), mesh);
+}
+
+Job& SceneModel::StartDocumentMeshJob(JobQueue* jobs, std::string title, FeMeshInput input,
+                                      ObjectId mesh) {
   const int generation = generation_;
-  const ObjectId id = o.id;
-  const std::uint64_t revision = o.source_revision;
-  const std::string title =
-      std::string(kind == MeshKind::kSurface ? "Surface" : "Tetrahedra") + " of " + o.name;
   return jobs->Start(
-      title,
-      [this, id, revision, solid, settings, generation, kind,
-       cell](JobContext& context) -> Job::Finisher {
-        const bool tets = kind == MeshKind::kTetrahedra;
-        modeling::SurfaceMeshSettings s = settings;
-        s.cancel = context.cancel_flag();
-        s.progress = context.ProgressRange(0.0, tets ? 0.4 : 1.0);
-        context.SetPhase("surface");
-        auto surface = std::make_shared<modeling::TriangleMesh>(modeling::MeshSurface(*solid, s));
-        auto tet = std::make_shared<modeling::TetMesh>();
-        if (tets) {
-          context.SetPhase("tetrahedra (TetGen)");
-          modeling::TetMeshSettings t;
-          t.cancel = context.cancel_flag();
-          t.progress = context.ProgressRange(0.4, 1.0);
-          *tet = modeling::TetrahedralizeSurface(*surface, t);
-        }
+      std::move(title), [this, input, mesh, generation](JobContext& context) -> Job::Finisher {
+        const bool cgal = input.kind == FeSourceKind::kSolid && input.settings.mesher == "cgal";
+        context.SetPhase(!input.volume ? "surface"
+                         : cgal        ? "tetrahedra (CGAL Mesh_3)"
+                                       : "surface and tetrahedra (TetGen)");
+        auto result = std::make_shared<FeMeshResult>(
+            MeshFeSource(input, context.cancel_flag(), context.ProgressRange(0.0, 1.0)));
         if (context.cancelled()) throw std::runtime_error("cancelled");
-        return [this, id, revision, surface, tet, generation, tets, cell]() {
-          if (generation != generation_) return;
-          const int index = IndexOf(id);
-          // Dropped when the object is gone or its shape changed while meshing.
-          if (index < 0 || objects_[index].source_revision != revision) return;
-          SceneObject& object = objects_[index];
-          object.surface = std::move(*surface);
-          object.surface_cell = cell;
-          if (tets) object.tets = std::move(*tet);
-          ++object.revision;
+        return [this, input, mesh, generation, result]() {
+          if (generation != generation_) return;  // another document: nothing to land on
+          // Throws (the job fails, nothing changes) when the source changed or went away.
+          doc_->Execute(mesh == 0 ? AddMeshOf(input, *result)
+                                  : RefreshFeMesh(mesh, input, *result));
+          if (mesh == 0) landed_mesh_ = doc_->last_created().front();
         };
       });
 }

@@ -1,8 +1,9 @@
 // The window's scene: an app::Document (doc/document.h) holding the implicit solids of a scene
 // file (or the built-in demo) with their undo history, where they sit in the device workspace
-// (X_WD, chosen at Load and never changed by edits), the compiled solids and their meshes (a
-// preview surface meshed in the background, and the surface / tetrahedra of the Mesh action,
-// kept for export), the HapticScene built from them, and export.
+// (X_WD, chosen at Load and never changed by edits), the compiled solids and their preview
+// surfaces (meshed in the background: a view cache, not part of the Document), the HapticScene
+// built from them, the Mesh action (a Job whose result lands in the Document as a mesh object:
+// one undo step), refreshing a stale mesh object, and export.
 //
 // Edits go through document() (commands); Refresh() then recompiles the solids whose object
 // revision moved and UpdatePreviews() re-meshes their previews: a coarse pass first (live
@@ -11,8 +12,9 @@
 // Meshing runs as Jobs (doc/job.h); a job's result lands on the main thread through its
 // finisher, a failed or cancelled job changes nothing, and a result made from an object
 // revision that is no longer current is dropped (previews: an older pass never replaces a newer
-// one). Main thread only (except what the jobs' work functions capture: immutable copies).
-// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// one; the Mesh action and Refresh: the job fails saying that the source changed). Main thread only
+// (except what the jobs' work functions capture: immutable copies). Copyright the spidarcad
+// authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
 #include <Eigen/Geometry>
@@ -22,11 +24,13 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "doc/document.h"
 #include "doc/job.h"
 #include "scene/device_session.h"
+#include "scene/fe_setup.h"
 #include "scene/scene_fields.h"
 #include "scene/scene_haptics.h"
 #include "spidarcad/haptics/device_to_world.h"
@@ -59,7 +63,7 @@ DeviceToWorld ChooseDeviceToWorld(const Eigen::AlignedBox3d& bounds_W,
 // Which mesh the Mesh action makes.
 enum class MeshKind { kSurface, kTetrahedra };
 
-// One solid of the scene (a solid object of the Document) and its meshes.
+// One solid of the scene (a solid object of the Document), compiled, and its preview surface.
 struct SceneObject {
   ObjectId id = 0;  // the Document object
   std::string name;
@@ -82,14 +86,7 @@ struct SceneObject {
                                            // never dereferenced on its own)
   std::uint64_t preview_job_revision = 0;  // object revision that job meshes
   double preview_job_cells_across = 0.0;   // and its resolution
-  modeling::TriangleMesh surface;          // the Mesh action's surface (empty until made)
-  double surface_cell = 0.0;
-  modeling::TetMesh tets;  // the Mesh action's tetrahedra (empty until made)
-  int revision = 0;        // bumped whenever the displayed mesh changes
-  // The mesh to show: the Mesh action's surface when there is one, else the preview.
-  const modeling::TriangleMesh& shown() const {
-    return surface.triangles.cols() > 0 ? surface : preview;
-  }
+  int revision = 0;                        // bumped whenever the preview changes
 };
 
 // The scene of the window.
@@ -120,7 +117,7 @@ class SceneModel {
   void Save(const std::string& path);
   // Brings the compiled solids in line with the Document after edits, undo or redo: recompiles
   // every solid object whose revision moved (a failure keeps the last good solid and sets
-  // `error`), adds and drops objects, drops Mesh-action results of changed solids. Returns true
+  // `error`), adds and drops objects. Returns true
   // when the set of compiled solids changed (the haptic scene must be rebuilt). Cheap when the
   // Document's revision has not moved.
   bool Refresh();
@@ -132,10 +129,23 @@ class SceneModel {
                       double fine_cells_across = kFineCellsAcross);
   // Starts a preview-surface job per compiled solid (cell = largest side / cells_across).
   void StartPreviewJobs(JobQueue* jobs, double cells_across = kFineCellsAcross);
-  // Starts the Mesh action on object `index`: surface at `cell` m and, for kTetrahedra, TetGen
-  // (radius-edge bound 2) on it. Returns the job. Throws std::out_of_range for a bad index,
-  // std::invalid_argument when the object has no compiled solid.
-  Job& StartMeshJob(JobQueue* jobs, int index, MeshKind kind, double cell);
+  // Starts the Mesh action on solid `index` of objects() (scene/fe_setup.h): kSurface, its grid
+  // surface at settings.cell_size m (sharpened when settings.sharp_edges); kTetrahedra, TetGen
+  // (radius-edge bound 2 unless set) on that surface, or CGAL Mesh_3 (settings.mesher "cgal").
+  // The job ("Surface of NAME" / "Tetrahedra of NAME") lands as one undo step, AddMeshOf: the
+  // mesh object "NAME surface" / "NAME tets" (source, source revision, settings), whose id
+  // TakeLandedMesh then returns. It fails, changing nothing, when the solid changed or was
+  // deleted while it ran (the error says so); a cancelled job changes nothing. Returns the job.
+  // Throws std::out_of_range for a bad index, std::invalid_argument when the solid does not
+  // compile or the cell size is not > 0, DocumentError for bad settings.
+  Job& StartMeshJob(JobQueue* jobs, int index, MeshKind kind, const MeshSettings& settings);
+  // Starts meshing mesh object `mesh` again from its source with its stored settings
+  // (PrepareFeRemesh): the job "Refresh NAME" lands as one undo step, RefreshFeMesh (FE models
+  // on it keep their settings); fails, changing nothing, when the source changed meanwhile.
+  // Throws DocumentError when `mesh` is not a mesh made from a source or the source is gone.
+  Job& StartRefreshJob(JobQueue* jobs, ObjectId mesh);
+  // The mesh object the latest Mesh action landed (0: none since the last call); cleared.
+  ObjectId TakeLandedMesh() { return std::exchange(landed_mesh_, 0); }
   // True once the scene file changed on disk since it was loaded or saved (checked by mtime),
   // unless the Document has unsaved edits (a reload would lose them).
   bool SourceChanged() const;
@@ -173,6 +183,10 @@ class SceneModel {
  private:
   // Starts one preview job for `object` (an element of objects_) at this resolution.
   void StartPreview(JobQueue* jobs, SceneObject* object, double cells_across);
+  // Starts a job meshing `input` whose finisher (unless the scene was reloaded meanwhile)
+  // executes on the Document AddMeshOf (mesh 0: a new mesh object, recorded for TakeLandedMesh)
+  // or RefreshFeMesh of mesh object `mesh`.
+  Job& StartDocumentMeshJob(JobQueue* jobs, std::string title, FeMeshInput input, ObjectId mesh);
 
   // The contact fields of the latest BuildHapticScene: per solid object (proxy) or one for the
   // scene (shell, id 0), what they were built from, the field that runs (`current`), the fresh
@@ -201,6 +215,7 @@ class SceneModel {
   std::unique_ptr<Document> doc_;
   std::uint64_t synced_revision_ = 0;  // Document revision objects_ were brought in line with
   int preview_counter_ = 0;
+  ObjectId landed_mesh_ = 0;
   std::vector<SceneObject> objects_;
   DeviceToWorld x_wd_;
   std::string source_;
