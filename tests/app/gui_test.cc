@@ -757,8 +757,9 @@ TEST(GuiOptions, ParsesDocumentOptionsAndRejectsBadOnes) {
   EXPECT_EQ(o.autosave_interval, 0.5);
   EXPECT_EQ(o.show, "open");
   GuiOptions n;
-  parse({"--no-recover"}, &n);
+  parse({"--no-recover", "--show", "calibrate"}, &n);
   EXPECT_EQ(n.recover, 0);
+  EXPECT_EQ(n.show, "calibrate");  // the calibration wizard, collecting
   GuiOptions d;
   parse({}, &d);
   EXPECT_EQ(d.recover, -1);

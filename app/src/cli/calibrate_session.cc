@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cli/cli_common.h"
+#include "scene/calibration_collector.h"
 #include "scene/calibration_file.h"
 #include "scene/device_rig.h"
 #include "spidarcad/haptics/calibration.h"
@@ -27,55 +28,10 @@ namespace spidarcad::app {
 
 namespace {
 
-using haptics::AccuracyReport;
-using haptics::EncoderCalibration;
 using haptics::Vector8d;
 
-constexpr double kDt = 1e-3;         // s, one device sample
-constexpr double kHoldPeriod = 0.1;  // s, each tension vector is held this long
-constexpr double kTensionLo = 0.3;   // N, tensions while waving
-constexpr double kTensionHi = 3.0;   // N
+constexpr double kDt = 1e-3;  // s, one device sample
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-
-// How well a calibration explains the collected readings by itself: RMS over strings of the
-// forward-kinematics residual (the redundant string's disagreement), per sample, m.
-struct FkResidual {
-  double rms = 0.0;  // over samples
-  double max = 0.0;
-  int failures = 0;  // samples FK could not place
-};
-
-FkResidual ResidualOn(const haptics::SpidarGeometry& geometry, const EncoderCalibration& cal,
-                      const std::vector<haptics::UnknownPoseSample>& samples) {
-  haptics::FkSettings settings;
-  settings.max_iterations = 50;
-  settings.max_residual = 0.05;  // accept a poor calibration: its residual is what we measure
-  settings.warm_start = false;
-  haptics::ForwardKinematics fk(geometry, settings);
-  FkResidual out;
-  double sum_sq = 0.0;
-  int n = 0;
-  for (const auto& s : samples) {
-    const haptics::FkResult r = fk.Solve(cal.Lengths(s.counts, s.tension));
-    if (r.status != haptics::FkStatus::kOk) {
-      ++out.failures;
-      continue;
-    }
-    sum_sq += r.residual * r.residual;
-    out.max = std::max(out.max, r.residual);
-    ++n;
-  }
-  out.rms = n > 0 ? std::sqrt(sum_sq / n) : 0.0;
-  return out;
-}
-
-struct SessionRow {
-  std::string key;
-  std::string name;
-  FkResidual residual;
-  bool has_residual = true;
-  std::optional<AccuracyReport> accuracy;  // board-sim: against the simulator's hidden truth
-};
 
 std::string Pair(double a, double b, int digits) {
   char text[64];
@@ -83,12 +39,11 @@ std::string Pair(double a, double b, int digits) {
   return text;
 }
 
-void PrintSessionTable(const std::vector<SessionRow>& rows) {
+void PrintSessionTable(const std::vector<CalibrationTableRow>& rows) {
   std::printf("%-26s %20s %18s %18s\n", "method", "fk residual mm", "pos mm", "rot deg");
   std::printf("%-26s %20s %18s %18s\n", "", "(rms / max)", "(mean / max)", "(mean / max)");
-  for (const SessionRow& row : rows) {
-    const std::string residual =
-        row.has_residual ? Pair(1e3 * row.residual.rms, 1e3 * row.residual.max, 3) : "-";
+  for (const CalibrationTableRow& row : rows) {
+    const std::string residual = Pair(1e3 * row.residual.rms, 1e3 * row.residual.max, 3);
     const std::string pos = row.accuracy ? Pair(1e3 * row.accuracy->position_error_mean,
                                                 1e3 * row.accuracy->position_error_max, 3)
                                          : "-";
@@ -100,14 +55,12 @@ void PrintSessionTable(const std::vector<SessionRow>& rows) {
   }
 }
 
-nlohmann::json SessionJson(const std::vector<SessionRow>& rows) {
+nlohmann::json SessionJson(const std::vector<CalibrationTableRow>& rows) {
   nlohmann::json j = nlohmann::json::object();
-  for (const SessionRow& row : rows) {
+  for (const CalibrationTableRow& row : rows) {
     nlohmann::json entry;
     entry["status"] = "ok";
-    if (row.has_residual) {
-      entry["fk_residual_mm"] = {{"rms", 1e3 * row.residual.rms}, {"max", 1e3 * row.residual.max}};
-    }
+    entry["fk_residual_mm"] = {{"rms", 1e3 * row.residual.rms}, {"max", 1e3 * row.residual.max}};
     if (row.accuracy) {
       entry["position_mm"] = {{"mean", 1e3 * row.accuracy->position_error_mean},
                               {"max", 1e3 * row.accuracy->position_error_max}};
@@ -147,7 +100,6 @@ void RunCalibrationSession(const CalibrationSessionOptions& options) {
   }
   const haptics::DeviceInfo& info = rig->info();
   haptics::SimulatedSpidarG* physical = rig->physical();  // board-sim; null for a real board
-  const EncoderCalibration nominal = NominalCalibration(info);
   const double max_seconds =
       options.max_seconds > 0.0 ? options.max_seconds : (physical ? 180.0 : 300.0);
 
@@ -168,14 +120,10 @@ void RunCalibrationSession(const CalibrationSessionOptions& options) {
   identity.geometry = info.geometry;
   identity.encoder = info.encoder;
 
-  haptics::PoseCollectorSettings collector_settings;
-  collector_settings.target = options.poses;
-  collector_settings.fk_max_residual = kNominalFkMaxResidual;
-  haptics::CalibrationPoseCollector collector(info.geometry, nominal, collector_settings);
-  const int holds = static_cast<int>(std::ceil(max_seconds / kHoldPeriod)) + 1;
-  const std::vector<Vector8d> schedule = haptics::CalibrationTensions(
-      holds, kTensionLo, std::min(kTensionHi, info.tension_max), options.seed);
-  const int ticks_per_hold = static_cast<int>(std::lround(kHoldPeriod / kDt));
+  CalibrationCollector collector(identity, info, options.poses);
+  const int holds = static_cast<int>(std::ceil(max_seconds / kCalibrationHoldSeconds)) + 1;
+  const std::vector<Vector8d> schedule = CalibrationTensionSchedule(info, holds, options.seed);
+  const int ticks_per_hold = static_cast<int>(std::lround(kCalibrationHoldSeconds / kDt));
 
   std::fprintf(stderr,
                "calibrate: %s; wave the grip through the whole frame (every octant), turning "
@@ -225,39 +173,18 @@ void RunCalibrationSession(const CalibrationSessionOptions& options) {
   }
 
   // The homing pretension of the simulated board; a real board is assumed to home as it.
-  const double homing_tension = physical != nullptr
-                                    ? physical->config().homing_tension
-                                    : haptics::SimulatedDeviceConfig().homing_tension;
-  const std::vector<haptics::KnownPoseSample> home = {haptics::HomingSample(info, homing_tension)};
-  const haptics::CalibrationResult self =
-      haptics::SelfCalibrate(info.geometry, nominal, home, collector.samples());
-  if (self.status != haptics::CalibrationStatus::kOk) {
+  CalibrationFitOptions fit;
+  if (physical != nullptr) fit.homing_tension = physical->config().homing_tension;
+  // board-sim: also against the simulator's hidden truth, on poses the session never saw.
+  fit.truth = physical;
+  fit.eval_seed = options.seed * 7919 + 1;
+  const CalibrationOutcome outcome = collector.Fit(fit);
+  if (!outcome.ok) {
     std::fflush(stdout);
-    std::cerr << "spidarcad calibrate: self-calibration: "
-              << haptics::CalibrationStatusName(self.status) << ": " << self.message << "\n";
+    std::cerr << "spidarcad calibrate: " << outcome.error << "\n";
     throw CommandExit{1};
   }
-
-  std::vector<SessionRow> rows;
-  rows.push_back({"uncalibrated", "uncalibrated (nominal)",
-                  ResidualOn(info.geometry, nominal, collector.samples()), true, std::nullopt});
-  rows.push_back({"self", "self-calibration",
-                  ResidualOn(info.geometry, self.calibration, collector.samples()), true,
-                  std::nullopt});
-  if (physical != nullptr) {
-    // board-sim: also against the simulator's hidden truth, on poses the session never saw.
-    const haptics::SpidarGeometry& g = info.geometry;
-    const auto eval = haptics::RandomGripPoses(g, 200, std::min({g.a, g.b, g.c}) * (0.2 / 0.24),
-                                               30.0 / kRadToDeg, 0.3, options.seed * 7919 + 1);
-    const auto evaluate = [&](const EncoderCalibration& cal) {
-      return haptics::EvaluateAccuracy(physical, cal, eval, 0.2, 3.0, 1);
-    };
-    rows[0].accuracy = evaluate(nominal);
-    rows[1].accuracy = evaluate(self.calibration);
-    rows.push_back({"true_parameters", "true parameters (floor)",
-                    ResidualOn(info.geometry, physical->true_encoder(), collector.samples()), true,
-                    evaluate(physical->true_encoder())});
-  }
+  const std::vector<CalibrationTableRow>& rows = outcome.rows;
   std::FILE* notes = options.json ? stderr : stdout;
   if (options.json) {
     std::printf("%s\n", SessionJson(rows).dump(2).c_str());
@@ -275,15 +202,9 @@ void RunCalibrationSession(const CalibrationSessionOptions& options) {
           "other poses (0.2-3 N).\n");
     }
   }
-  std::fprintf(notes, "self: %s\n", self.message.c_str());
+  std::fprintf(notes, "self: %s\n", outcome.message.c_str());
   if (!options.out.empty()) {
-    CalibrationFile file;
-    file.device = identity;
-    file.date = NowIso8601Utc();
-    file.method = "self";
-    file.calibration = self.calibration;
-    file.fit = FitOf(self, static_cast<int>(collector.samples().size() + home.size()));
-    SaveCalibrationFile(file, options.out);
+    SaveCalibrationFile(outcome.file, options.out);
     std::fprintf(notes, "wrote %s (self-calibration of the %s)\n", options.out.c_str(),
                  identity.Describe().c_str());
     // A real board's calibration is remembered: the window reads the board through it next

@@ -41,6 +41,7 @@
 #include "doc/mesh_import.h"
 #include "doc/number_format.h"
 #include "doc/recent_files.h"
+#include "gui/calibration_wizard.h"
 #include "gui/device_view.h"
 #include "gui/file_browser.h"
 #include "gui/gl_capture.h"
@@ -70,6 +71,7 @@ constexpr double kClickSlop = 3.0;                       // pixels a click may m
 constexpr double kMaxWindowTrajectorySeconds = 86400.0;  // longest --trajectory the window plays, s
 constexpr int kScreenshotFrames = 6;                     // frames rendered before the capture
 constexpr double kSettleTimeout = 90.0;                  // s a screenshot waits for ramp and jobs
+constexpr double kCalibrationTimeout = 600.0;            // ... and for a calibration session
 constexpr int kReloadCheckFrames = 30;                   // frames between scene-file mtime checks
 constexpr int kFiguresOpenHeight = 800;  // window height from which the strip starts open
 constexpr char kFontPath[] = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
@@ -235,6 +237,8 @@ struct AppWindow::State {
   std::unique_ptr<HapticRuntime> runtime;
   DemoFieldSettings springs;
   std::unique_ptr<JobQueue> jobs;  // destroyed before model: joins the workers first
+  CalibrationWizard calibration;   // Haptics → Calibrate device...
+  int calibration_idle = 0;        // frames since the wizard was last busy (a page settles)
   WorkbenchState workbench;
   // VTK.
   std::unique_ptr<DeviceView> view;
@@ -406,6 +410,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     s.runtime_settings.geometry = *s.model.document().device();
   }
   s.runtime_settings.calibration_file = options.calibration;
+  s.runtime_settings.usb_transport = options.usb_transport;
   try {
     s.runtime_settings.geometry.Validate();
   } catch (const std::invalid_argument& e) {
@@ -518,6 +523,12 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   } else if (options.show == "import") {
     OpenFileBrowser(&s.import_browser, BrowseFilter::kMeshes, "Import", current);
   }
+  // --show calibrate: the wizard collects at once, waving the simulated grip itself.
+  if (options.show == "calibrate") {
+    s.calibration.Open();
+    s.calibration.set_auto_wave(true);
+    s.calibration.Start();
+  }
   s.start_time = glfwGetTime();
   s.last_frame = s.capture ? std::max(kScreenshotFrames, options.frames) : options.frames;
 }
@@ -526,6 +537,7 @@ AppWindow::~AppWindow() {
   State& s = *s_;
   if (s.player) s.player->Stop();
   s.player.reset();
+  s.calibration.Attach(nullptr);
   if (s.runtime) s.runtime->Stop();
   s.imgui.reset();
   s.modes.clear();
@@ -608,6 +620,7 @@ bool AppWindow::Frame() {
   }
   FollowTarget();
   s.latest = s.runtime->Latest();
+  s.calibration.Update();
   s.device_frame = MakeDeviceFrame(s.latest, *s.geometry, s.runtime->description());
   s.view->Update(s.device_frame);
   PollJobs();
@@ -632,6 +645,13 @@ bool AppWindow::Frame() {
                               &s.tree_state, &s.recent_entries);
   UpdateModes();
   DrawPanels();
+  {  // The calibration wizard over the view's top left (and the panels right of it if need be).
+    const float width = std::min(600.0f, static_cast<float>(s.win_w) - 16.0f);
+    const float x = std::max(8.0f, std::min(s.layout.viewport.x + 8.0f, s.win_w - width - 8.0f));
+    s.calibration.Draw(x, s.layout.viewport.y + 8.0f, width);
+  }
+  s.calibration_idle = s.calibration.busy() ? 0 : s.calibration_idle + 1;
+  if (s.calibration.TakeRepublish()) s.republish = true;  // Use now rebuilt the loop
   // Tree edits, undo and redo: recompile what changed, republish the haptic scene (X_WD stays),
   // re-mesh the previews (coarse first).
   HandleTreeShortcuts(s.tree.get(), &s.tree_state);
@@ -799,7 +819,11 @@ void AppWindow::FollowTarget() {
   State& s = *s_;
   // The hand follows the mouse's grip (or the trajectory); the haptic thread's latest tick is
   // what we show.
-  if (s.player_live) {
+  const auto wave = s.player_live ? std::nullopt : s.calibration.WaveTarget(s.latest.tool.time);
+  if (wave) {  // the calibration wizard waves the simulated grip
+    s.grip->SetPose(wave->p_DT, wave->q_DT.toRotationMatrix(), wave->grasp);
+    s.runtime->SetTarget(s.grip->Pose());
+  } else if (s.player_live) {
     const haptics::TrajectorySample sample = s.player->Current();
     s.grip->SetPose(sample.p_DT, sample.q_DT.toRotationMatrix(), sample.grasp);  // picking, panel
     if (s.player->done()) {
@@ -1001,6 +1025,7 @@ void AppWindow::ApplyActions() {
     }
     s.recent->Save();
   }
+  if (w.calibrate) s.calibration.Open();
   if (w.emergency_stop) s.runtime->EmergencyStop();
   if (w.rearm) s.runtime->Rearm();
   if (s.republish) PublishScene();
@@ -1059,12 +1084,14 @@ bool AppWindow::CaptureScreenshot() {
   for (auto& m : s.modes) modes_settled = modes_settled && m->Settled();
   const haptics::ToolState& tool = s.latest.tool;
   const bool settled =
-      !s.jobs->busy() && modes_settled &&
+      !s.jobs->busy() && modes_settled && s.calibration_idle >= 3 &&
       (s.stats.emergency_stop ? (tool.events & haptics::kEventEmergencyStop) != 0
                               : tool.ramp >= 1.0 ||
                                     // no board: zero force is the settled state
                                     s.latest.link.status == haptics::DeviceStatus::kNotConnected);
-  const bool waited_enough = settled || glfwGetTime() - s.start_time > kSettleTimeout;
+  // A calibration session (--show calibrate) may take minutes: it is waited for longer.
+  const double timeout = s.calibration.busy() ? kCalibrationTimeout : kSettleTimeout;
+  const bool waited_enough = settled || glfwGetTime() - s.start_time > timeout;
   // A trajectory's outcome: the capture waits until it has ended (+0.5 s).
   const bool trajectory_over = s.player == nullptr || s.player->finished(0.5);
   if (!waited_enough || !trajectory_over) return false;
@@ -1088,6 +1115,7 @@ void AppWindow::MakeRuntime() {
   State& s = *s_;
   s.runtime_settings.loop.X_WD = s.model.device_to_world();
   s.runtime = std::make_unique<HapticRuntime>(s.runtime_settings, s.grip->Pose());
+  s.calibration.Attach(s.runtime.get());
   if (!s.runtime->link_at_start().empty()) {  // no board: the window runs at zero force, retrying
     std::cerr << "spidarcad: " << s.runtime->link_at_start()
               << "\nspidarcad: the window runs at zero force and retries the board.\n";
@@ -1195,6 +1223,7 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
   s.jobs.reset();
   s.scene_view.reset();
   // Then the new document's: X_WD, loop, jobs, actors, modes (a fresh camera).
+  s.calibration.Attach(nullptr);  // a calibration session on the old loop ends
   s.runtime.reset();
   MakeRuntime();
   s.jobs = std::make_unique<JobQueue>();
@@ -1617,6 +1646,7 @@ ModelMode& AppWindow::model_mode() { return *s_->model_mode; }
 SceneModel& AppWindow::model() { return s_->model; }
 TreeController& AppWindow::tree() { return *s_->tree; }
 HapticRuntime& AppWindow::runtime() { return *s_->runtime; }
+CalibrationWizard& AppWindow::calibration_wizard() { return s_->calibration; }
 GripControl& AppWindow::grip() { return *s_->grip; }
 DeviceView& AppWindow::view() { return *s_->view; }
 SceneView& AppWindow::scene_view() { return *s_->scene_view; }

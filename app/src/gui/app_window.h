@@ -21,6 +21,7 @@ class vtkRenderer;
 namespace spidarcad::app {
 
 class Autosaver;
+class CalibrationWizard;
 class DeviceView;
 class RecentFiles;
 class GripControl;
@@ -128,6 +129,8 @@ class AppWindow {
   SceneModel& model();
   TreeController& tree();
   HapticRuntime& runtime();
+  // The calibration wizard (Haptics → Calibrate device...).
+  CalibrationWizard& calibration_wizard();
   GripControl& grip();
   DeviceView& view();
   SceneView& scene_view();

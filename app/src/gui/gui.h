@@ -7,10 +7,13 @@
 #include <CLI/CLI.hpp>
 #include <array>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "spidarcad/haptics/geometry.h"
+#include "spidarcad/haptics/usb_transport.h"
 
 namespace spidarcad::app {
 
@@ -50,9 +53,13 @@ struct GuiOptions {
   double autosave_interval = 60.0;
   // --set NODE:FIELD=VALUE: edits made (as undoable commands) once the document is open.
   std::vector<std::string> set_fields;
-  // --show file-menu|open|import: the window starts with that menu or dialog open (screenshots
-  // of the documentation); "" for none.
+  // --show file-menu|open|import|calibrate: the window starts with that menu or dialog open, or
+  // with the calibration wizard collecting while it waves the simulated grip itself
+  // (screenshots of the documentation); "" for none.
   std::string show;
+  // Not an option: what --device usb opens (tests: a LoopbackTransport to a BoardSimulator);
+  // empty: libusb (RuntimeSettings::usb_transport).
+  std::function<std::unique_ptr<haptics::usb::Transport>()> usb_transport;
 };
 
 // One --set edit: the node (as --select names it), the field (scene-format name) and the value

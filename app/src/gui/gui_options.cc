@@ -104,8 +104,9 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
       ->each([](const std::string& text) { ParseSetField(text); });
   app.add_option("--show", options->show,
                  "Start with the File menu ('file-menu'), the Open dialog ('open') or the Import "
-                 "mesh dialog ('import') open, e.g. for a --screenshot of it")
-      ->check(CLI::IsMember({"file-menu", "open", "import"}));
+                 "mesh dialog ('import') open, or the calibration wizard collecting while it "
+                 "waves the simulated grip itself ('calibrate'), e.g. for a --screenshot of it")
+      ->check(CLI::IsMember({"file-menu", "open", "import", "calibrate"}));
   app.add_option("--select", options->select,
                  "Select this solid, node or object in the tree panel at start, showing its "
                  "parameters: a solid's name, a node's name or id, SOLID/i/j for child j of child "
@@ -186,8 +187,9 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "(simulated) or the nominal model (board-sim, usb). It must have been made on "
                  "this device (kind, --seed or board serial, --frame/--pole): otherwise exit "
                  "status 2 with the reason. With --device usb and no --calibration, the window "
-                 "uses the file `spidarcad calibrate --device usb --out` last wrote for the "
-                 "connected board (remembered per serial number)")
+                 "uses the file `spidarcad calibrate --device usb --out` (or the calibration "
+                 "wizard's Save) last wrote for the connected board (remembered per serial "
+                 "number)")
       ->type_name("FILE");
   app.add_option_function<std::string>(
          "--size",

@@ -153,6 +153,7 @@ float DrawMenuBar(SceneModel* model, JobQueue* jobs, WorkbenchState* state,
   if (ImGui::BeginMenu("Haptics")) {
     if (ImGui::MenuItem("Emergency stop", "Space")) actions->emergency_stop = true;
     if (ImGui::MenuItem("Re-arm (force ramp)")) actions->rearm = true;
+    if (ImGui::MenuItem("Calibrate device...")) actions->calibrate = true;
     ImGui::Separator();
     DrawContactControls(state);
     if (tree != nullptr) {

@@ -58,6 +58,7 @@ struct WorkbenchActions {
   bool file_import = false;   // File → Import mesh... (Ctrl+I): the file browser
   std::string open_recent;    // File → Open Recent → this path
   bool clear_recent = false;  // File → Open Recent → Clear the list
+  bool calibrate = false;     // Haptics → Calibrate device...: the calibration wizard
 };
 
 // Draws the main menu bar: File (New, Open..., Open Recent from `recent` (missing files

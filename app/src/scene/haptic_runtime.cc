@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "doc/input_error.h"
+#include "scene/calibration_collector.h"
 #include "scene/calibration_file.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
@@ -170,11 +171,19 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
                        ": the board must answer at start to check that the file is its own (" +
                        link_at_start_ + ")");
     }
-  } else if (settings.device == RuntimeDevice::kUsb && ApplyCalibrationFile(info, rig_->Serial())) {
-    // The loop has not run yet: rebuild it to read the board through the file.
-    loop_ = std::make_unique<haptics::HapticLoop>(info, calibration_,
-                                                  LoopSettingsFor(settings_, info.geometry.d));
+  } else {
+    serial_ = rig_->Serial();
+    if (settings.device == RuntimeDevice::kUsb && ApplyCalibrationFile(info, serial_)) {
+      // The loop has not run yet: rebuild it to read the board through the file.
+      loop_ = std::make_unique<haptics::HapticLoop>(info, calibration_,
+                                                    LoopSettingsFor(settings_, info.geometry.d));
+    }
   }
+  // Self-calibration sessions: the schedule and the ring, allocated here, off the tick.
+  calibration_schedule_ = CalibrationTensionSchedule(info, kCalibrationHolds, settings.seed);
+  calibration_ticks_per_hold_ =
+      std::max(1, static_cast<int>(std::lround(kCalibrationHoldSeconds / settings_.runner.period)));
+  calibration_ring_ = std::make_unique<CalibrationReading[]>(kCalibrationRingSize);
   RuntimeFrame initial;
   initial.hand_pose = initial_target;
   initial.tool.pose_D = initial_target;
@@ -267,6 +276,30 @@ void HapticRuntime::Tick(const haptics::TickTiming& timing) noexcept {
   const auto start = std::chrono::steady_clock::now();
   frame.tool = loop_->Step(inputs, dt);
   const auto stop = std::chrono::steady_clock::now();
+  if (calibration_on_.load(std::memory_order_acquire) &&
+      inputs.reading.status == haptics::DeviceStatus::kOk &&
+      !haptics::IsZeroForceEvent(frame.tool.events) && frame.tool.ramp >= 1.0) {
+    // A self-calibration session: the schedule's tensions instead of the loop's.
+    if (calibration_hold_ticks_ >= calibration_ticks_per_hold_) {
+      calibration_hold_ = (calibration_hold_ + 1) % kCalibrationHolds;
+      calibration_hold_ticks_ = 0;
+    }
+    frame.tool.tau = calibration_schedule_[static_cast<std::size_t>(calibration_hold_)];
+    const std::uint64_t written = ring_written_.load(std::memory_order_relaxed);
+    if (written - ring_read_.load(std::memory_order_acquire) <
+        static_cast<std::uint64_t>(kCalibrationRingSize)) {
+      CalibrationReading& slot = calibration_ring_[written % kCalibrationRingSize];
+      slot.reading = inputs.reading;
+      slot.tension = frame.tool.tau;
+      slot.held = calibration_hold_ticks_ * dt;
+      ring_written_.store(written + 1, std::memory_order_release);
+    } else {
+      ring_dropped_.fetch_add(1, std::memory_order_relaxed);
+    }
+    ++calibration_hold_ticks_;
+  } else {
+    calibration_hold_ticks_ = 0;  // the next session tick starts its hold again
+  }
   rig_->Write(frame.tool.tau);
   if (device_ == nullptr) {
     // A real board: the user's hand is where the encoders say (the last pose FK accepted).
@@ -282,6 +315,40 @@ void HapticRuntime::Tick(const haptics::TickTiming& timing) noexcept {
   frame.lengths = calibration_.Lengths(inputs.reading.counts, frame.tool.tau);
   frames_.Publish();
   ticks_.fetch_add(1, std::memory_order_relaxed);
+}
+
+long HapticRuntime::TakeCalibrationReadings(std::vector<CalibrationReading>* out) {
+  const std::uint64_t written = ring_written_.load(std::memory_order_acquire);
+  std::uint64_t read = ring_read_.load(std::memory_order_relaxed);
+  for (; read < written; ++read) out->push_back(calibration_ring_[read % kCalibrationRingSize]);
+  ring_read_.store(read, std::memory_order_release);
+  const std::uint64_t dropped = ring_dropped_.load(std::memory_order_relaxed);
+  const long lost = static_cast<long>(dropped - ring_dropped_reported_);
+  ring_dropped_reported_ = dropped;
+  return lost;
+}
+
+void HapticRuntime::UseCalibration(const haptics::EncoderCalibration& calibration,
+                                   const std::string& description) {
+  calibration.Validate();  // throws before anything changes
+  const haptics::DeviceInfo& info = rig_->info();
+  haptics::LoopSettings loop_settings;
+  {
+    RuntimeSettings calibrated = settings_;
+    // Calibrated: FK's default acceptance, as after the start-up fit or a calibration file.
+    calibrated.loop.fk.max_residual = haptics::FkSettings().max_residual;
+    loop_settings = LoopSettingsFor(calibrated, info.geometry.d);
+  }
+  auto loop = std::make_unique<haptics::HapticLoop>(info, calibration, loop_settings);
+  const bool running = runner_.running();
+  runner_.Stop();  // between two ticks
+  if (loop_->emergency_stop()) loop->RequestEmergencyStop();
+  loop_ = std::move(loop);
+  calibration_ = calibration;
+  settings_.loop.fk.max_residual = haptics::FkSettings().max_residual;
+  description_ = description;
+  calibration_note_.clear();
+  if (running) runner_.Start([this](const haptics::TickTiming& timing) { Tick(timing); });
 }
 
 LoopStats CollectLoopStats(const HapticRuntime& runtime, const RuntimeFrame& latest) {

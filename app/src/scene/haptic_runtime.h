@@ -18,6 +18,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "scene/device_rig.h"
 #include "scene/device_session.h"
@@ -95,6 +96,14 @@ struct RuntimeFrame {
   RigLink link;                                           // the driver's link (kBoardSim, kUsb)
 };
 
+// One reading of a self-calibration session (HapticRuntime::SetCalibrationTensions), for
+// CalibrationCollector::Offer (scene/calibration_collector.h).
+struct CalibrationReading {
+  haptics::EncoderReading reading;                        // the device sample of the tick
+  haptics::Vector8d tension = haptics::Vector8d::Zero();  // tensions the motors held, N
+  double held = 0.0;                                      // for this long when it was read, s
+};
+
 // Device + calibration + hand + loop + runner. Construct, Publish a scene, Start.
 class HapticRuntime {
  public:
@@ -157,6 +166,41 @@ class HapticRuntime {
   const std::string& link_at_start() const { return link_at_start_; }
   // kUsb: why a remembered calibration was not used (gone, unreadable, another board's); "".
   const std::string& calibration_note() const { return calibration_note_; }
+  // kBoardSim, kUsb: the board's serial number from the handshake at construction ("" when the
+  // board did not answer then, and for the simulated devices).
+  const std::string& serial() const { return serial_; }
+
+  // ---- self-calibration sessions (the window's calibration wizard) ----
+  // Holds per tension schedule: CalibrationTensionSchedule(info(), kCalibrationHolds, seed),
+  // used in turn and from the start again (300 s at kCalibrationHoldSeconds each).
+  static constexpr int kCalibrationHolds = 3000;
+  // Readings kept between two TakeCalibrationReadings calls (4 s of ticks at 1 kHz).
+  static constexpr int kCalibrationRingSize = 4096;
+  // Any thread: while on, each tick that reads the device (status ok) and would not command
+  // zero force (no zero-force safety event, force ramp complete) commands the session's
+  // tensions instead of the loop's (the force fields are not felt meanwhile; the emergency stop
+  // still zeroes them): the schedule's vectors in turn, each held kCalibrationHoldSeconds
+  // (scene/calibration_collector.h), restarting the hold after any tick that did not; and
+  // hands the tick's reading with the tensions held and for how long to
+  // TakeCalibrationReadings. Off: the loop's tensions from the next tick.
+  void SetCalibrationTensions(bool on) noexcept {
+    calibration_on_.store(on, std::memory_order_release);
+  }
+  bool calibration_tensions() const noexcept {
+    return calibration_on_.load(std::memory_order_acquire);
+  }
+  // Main thread: appends the session readings published since the last call to *out, oldest
+  // first. Returns how many were dropped since the last call because more than
+  // kCalibrationRingSize piled up (lock-free; the haptic thread never waits).
+  long TakeCalibrationReadings(std::vector<CalibrationReading>* out);
+  // Main thread: reads the encoders through `calibration` (of this device; FK with its default
+  // acceptance) from the next tick, without a restart: the loop is rebuilt between two ticks
+  // (the haptic thread, when running, is stopped for that moment and started again). The loop's
+  // event counts start again, a latched emergency stop stays latched, forces ramp in again, and
+  // the haptic scene must be published again. `description` replaces description(). Throws
+  // std::invalid_argument for a calibration that is not valid (nothing changes then).
+  void UseCalibration(const haptics::EncoderCalibration& calibration,
+                      const std::string& description);
   // The device rig's link summary ("usb link: states ..."; empty for the simulated devices).
   // Not while Start()ed.
   std::string LinkSummary() const { return rig_->LinkSummary(); }
@@ -181,8 +225,21 @@ class HapticRuntime {
   std::string description_;
   std::string link_at_start_;
   std::string calibration_note_;
-  haptics::GripPose last_measured_;            // kUsb: the last pose FK accepted (haptic thread)
-  std::unique_ptr<RigServiceThread> service_;  // re-opens a lost board (kUsb) while started
+  std::string serial_;
+  haptics::GripPose last_measured_;  // kUsb: the last pose FK accepted (haptic thread)
+  // Self-calibration sessions: the schedule (made at construction), the haptic thread's place
+  // in it, and the single-producer single-consumer ring of readings (haptic -> main).
+  std::atomic<bool> calibration_on_{false};
+  std::vector<haptics::Vector8d> calibration_schedule_;
+  int calibration_ticks_per_hold_ = 100;
+  int calibration_hold_ = 0;        // haptic thread
+  int calibration_hold_ticks_ = 0;  // haptic thread: ticks the current vector was commanded
+  std::unique_ptr<CalibrationReading[]> calibration_ring_;
+  std::atomic<std::uint64_t> ring_written_{0};  // readings pushed (haptic thread)
+  std::atomic<std::uint64_t> ring_read_{0};     // readings taken (main thread)
+  std::atomic<std::uint64_t> ring_dropped_{0};  // readings not pushed: the ring was full
+  std::uint64_t ring_dropped_reported_ = 0;     // main thread
+  std::unique_ptr<RigServiceThread> service_;   // re-opens a lost board (kUsb) while started
 };
 
 // Loop statistics for the window's panel and the exit summary (read on the main thread while
