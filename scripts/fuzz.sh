@@ -18,8 +18,8 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 minutes="${1:-10}"
 shift || true
-all=(usb_board usb_host trajectory scene stl obj ply clipboard document calibration_file vtu fk_batch
-     ik_batch tension_batch)
+all=(usb_board usb_host trajectory scene stl obj ply clipboard document calibration_file vtu node_ele
+     fk_batch ik_batch tension_batch)
 if (($#)); then harnesses=("$@"); else harnesses=("${all[@]}"); fi
 if ! [[ "$minutes" =~ ^[0-9]+([.][0-9]+)?$ ]]; then
   echo "fuzz.sh: MINUTES must be a number, got '$minutes'" >&2

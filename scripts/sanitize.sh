@@ -137,7 +137,7 @@ if [ -z "$indices" ]; then
 fi
 echo "0,0,0,$indices" >"$selection"
 runner=()
-command -v xvfb-run >/dev/null 2>&1 && runner=(xvfb-run -a -s "-screen 0 1280x1024x24")
+command -v xvfb-run >/dev/null 2>&1 && runner=(xvfb-run -a -s "-screen 0 1280x1024x24 -noreset")  # run-tests.sh says why
 t0=$(date +%s)
 l0=$(load)
 "${timer[@]}" "${runner[@]}" ctest --output-on-failure -j "$jobs" -I "$selection" "${ctest_args[@]}" ||

@@ -83,6 +83,99 @@ TEST(MeshImport, NamesFileLineAndFieldOfBadTetgenFiles) {
             "f.ele:2: tetrahedron 0 has zero volume");
 }
 
+// Found while writing the .node/.ele fuzz harness (tests/fuzz/node_ele_fuzz.cc, seeds in
+// tests/fuzz/corpus/node_ele): inputs the parser accepted silently or refused with a wrong reason.
+constexpr char kOneTetNodes[] = "4 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n";
+
+TEST(MeshImport, TetgenLinesBeyondTheHeaderCountsAreRefusedNotDropped) {
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles(std::string(kOneTetNodes) + "4 1 1 1\n", "1 4 0\n0 0 1 2 3\n",
+                               "x.node", "x.ele");
+            }),
+            "x.node:6: the header announces 4 points, the file has 5 (fix the count in the "
+            "header or remove the extra lines)");
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles(kOneTetNodes, "1 4 0\n0 0 1 2 3\n# more\n1 0 1 2 3\n", "x.node",
+                               "x.ele");
+            }),
+            "x.ele:4: the header announces 1 tetrahedra, the file has 2 (fix the count in the "
+            "header or remove the extra lines)");
+}
+
+TEST(MeshImport, TetgenTetrahedronNumbersAreCheckedLikePointNumbers) {
+  const std::string two = std::string(kTwoTetNodes);
+  EXPECT_EQ(
+      ErrorOf([&] { ParseTetgenFiles(two, "2 4 0\n0 0 1 2 3\nx 0 1 2 4\n", "a.node", "a.ele"); }),
+      "a.ele:3: tetrahedron number is not a finite number: 'x'");
+  EXPECT_EQ(
+      ErrorOf([&] { ParseTetgenFiles(two, "2 4 0\n0 0 1 2 3\n5 0 1 2 4\n", "a.node", "a.ele"); }),
+      "a.ele:3: tetrahedron number 5, expected 1");
+  EXPECT_EQ(ErrorOf([&] { ParseTetgenFiles(two, "1 4 0\n7 0 1 2 3\n", "a.node", "a.ele"); }),
+            "a.ele:2: tetrahedron number 7: numbering starts from 0 or 1");
+  // The numbering of the tetrahedra is their own: 1-based tets over 0-based points.
+  EXPECT_EQ(ParseTetgenFiles(two, "1 4 0\n1 0 1 2 3\n", "a.node", "a.ele").tets.cols(), 1);
+}
+
+TEST(MeshImport, TetgenQuadraticTetsHaveTheirEdgeNodesChecked) {
+  const std::string nodes =
+      "10 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 .5 0 0\n6 .5 .5 0\n7 0 .5 0\n"
+      "8 0 0 .5\n9 .5 0 .5\n10 0 .5 .5\n";
+  EXPECT_EQ(ErrorOf([&] { ParseTetgenFiles(nodes, "1 10 0\n1 1 2 3 4\n", "q.node", "q.ele"); }),
+            "q.ele:2: a node number is missing");
+  EXPECT_EQ(ErrorOf([&] {
+              ParseTetgenFiles(nodes, "1 10 0\n1 1 2 3 4 5 6 7 8 9 11\n", "q.node", "q.ele");
+            }),
+            "q.ele:2: node 11 is not a point of q.node");
+}
+
+TEST(MeshImport, TetgenAttributesThatArePresentAreNumbers) {
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles("4 3 1 1\n0 0 0 0 2.5 1\n1 1 0 0 2.5 one\n2 0 1 0\n3 0 0 1\n",
+                               "1 4 0\n0 0 1 2 3\n", "m.node", "m.ele");
+            }),
+            "m.node:3: the boundary marker is not a finite number: 'one'");
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles("4 3 1 0\n0 0 0 0 nan\n1 1 0 0\n2 0 1 0\n3 0 0 1\n",
+                               "1 4 0\n0 0 1 2 3\n", "m.node", "m.ele");
+            }),
+            "m.node:2: an attribute is not a finite number: 'nan'");
+  // Left out, they read as TetGen reads them (0): accepted.
+  EXPECT_EQ(ParseTetgenFiles("4 3 2 1\n0 0 0 0\n1 1 0 0 3\n2 0 1 0\n3 0 0 1 1 2 1\n",
+                             "1 4 0\n0 0 1 2 3\n", "m.node", "m.ele")
+                .nodes.cols(),
+            4);
+}
+
+TEST(MeshImport, TetgenSubnormalCoordinatesAreReadAndOverflowIsRefused) {
+  // strtod flags a subnormal result with ERANGE; std::stod threw for it, refusing a coordinate
+  // that spidarcad's own writer prints (%.17g) for a subnormal value.
+  const modeling::TetMesh m = ParseTetgenFiles("4 3 0 0\n0 0 0 1e-310\n1 1 0 0\n2 0 1 0\n3 0 0 1\n",
+                                               "1 4 0\n0 0 1 2 3\n", "s.node", "s.ele");
+  EXPECT_EQ(m.nodes(2, 0), 1e-310);
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles("4 3 0 0\n0 0 0 0\n1 1e400 0 0\n2 0 1 0\n3 0 0 1\n",
+                               "1 4 0\n0 0 1 2 3\n", "s.node", "s.ele");
+            }),
+            "s.node:3: x is not a finite number: '1e400'");
+  // Finite coordinates whose volume is beyond the largest double: not "zero volume".
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles("4 3 0 0\n0 0 0 0\n1 1e200 0 0\n2 0 1e200 0\n3 0 0 1e200\n",
+                               "1 4 0\n0 0 1 2 3\n", "h.node", "h.ele");
+            }),
+            "h.ele:2: tetrahedron 0 has a volume beyond the largest double (its coordinates are "
+            "too large)");
+}
+
+TEST(MeshImport, TetgenErrorsQuoteBadWordsPrintablyAndShortened) {
+  EXPECT_EQ(ErrorOf([] { ParseTetgenFiles("1 3 0 0\n0 0 0 \x01z\x7f\n", "", "b.node", "b.ele"); }),
+            "b.node:2: z is not a finite number: '\\x01z\\x7f'");
+  EXPECT_EQ(ErrorOf([] {
+              ParseTetgenFiles("1 3 0 0\n0 0 0 " + std::string(100, '7') + "x\n", "", "b.node",
+                               "b.ele");
+            }),
+            "b.node:2: z is not a finite number: '" + std::string(40, '7') + "...'");
+}
+
 TEST(MeshImport, RecognisesMeshExtensionsInAnyCase) {
   for (const char* yes : {"a.stl", "b.OBJ", "c.Ply", "d.vtu", "e.node"})
     EXPECT_TRUE(IsMeshFile(yes));

@@ -262,3 +262,56 @@ put("calibration_file", "usb_line.json", json.dumps(usb))
 short = json.loads(json.dumps(CALIBRATION))
 short["strings"] = short["strings"][:7]
 put("calibration_file", "seven_strings.json", json.dumps(short))
+
+# ---------------------------------------------------------------- TetGen .node/.ele pairs
+# One input holds both files: the .node text, a NUL byte, the .ele text (node_ele_fuzz.cc). The
+# seed platform.node_ele is the pair `spidarcad mesh assets/scenes/platform.json --resolution 0.03
+# --tets tetgen --out platform.node` wrote (joined by hand; it is not rewritten here).
+
+
+def node_ele(nodes, eles):
+    return nodes.encode() + b"\0" + eles.encode()
+
+
+def node_text(points, first=0, attributes=0, markers=0):
+    s = "%d 3 %d %d\n" % (len(points), attributes, markers)
+    for i, p in enumerate(points):
+        extra = " 7.5" * attributes + (" 1" if markers else "")
+        s += "%d %r %r %r%s\n" % ((i + first,) + tuple(float(x) for x in p) + (extra,))
+    return s
+
+
+def ele_text(tets, first=0, per=4, region=None):
+    s = "%d %d %d\n" % (len(tets), per, 0 if region is None else 1)
+    for i, t in enumerate(tets):
+        s += "%d %s%s\n" % (i + first, " ".join(str(n + first) for n in t),
+                            "" if region is None else " %d" % region)
+    return s
+
+
+put("node_ele", "tet_0based.node_ele", node_ele(node_text(TET_V), ele_text([(0, 1, 2, 3)])))
+put("node_ele", "tet_1based_attributes_region.node_ele",
+    node_ele(node_text(TET_V, 1, 2, 1), ele_text([(0, 1, 2, 3)], 1, region=7)))
+put("node_ele", "two_tets_one_flipped.node_ele",
+    node_ele(node_text(TET_V + [(0, 0, -1)]), ele_text([(0, 1, 2, 3), (0, 1, 2, 4)])))
+put("node_ele", "quadratic_tet.node_ele",
+    node_ele(node_text(quad, 1), ele_text([tuple(range(10))], 1, per=10)))
+put("node_ele", "comments_blank_lines_crlf.node_ele",
+    node_ele("# points\r\n\r\n" + node_text(TET_V).replace("\n", "  # c\r\n"),
+             "\r\n# tets\r\n" + ele_text([(0, 1, 2, 3)]).replace("\n", "\r\n")))
+put("node_ele", "short_headers.node_ele",
+    node_ele("4\n" + "".join("%d %g %g %g\n" % ((i,) + p) for i, p in enumerate(TET_V)),
+             "1\n0 0 1 2 3\n"))
+# Nearly valid: each refused for one reason.
+put("node_ele", "no_ele.node_ele", node_text(TET_V).encode())
+put("node_ele", "flat_tet.node_ele",
+    node_ele(node_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)]), ele_text([(0, 1, 2, 3)])))
+put("node_ele", "node_out_of_range.node_ele", node_ele(node_text(TET_V), "1 4 0\n0 0 1 2 4\n"))
+put("node_ele", "extra_point_line.node_ele",
+    node_ele(node_text(TET_V) + "4 1 1 1\n", ele_text([(0, 1, 2, 3)])))
+put("node_ele", "huge_coordinates.node_ele",
+    node_ele(node_text([(0, 0, 0), (1e200, 0, 0), (0, 1e200, 0), (0, 0, 1e200)]),
+             ele_text([(0, 1, 2, 3)])))
+put("node_ele", "subnormal_coordinate.node_ele",
+    node_ele(node_text(TET_V).replace("0.0 0.0 0.0\n", "0.0 0.0 1e-310\n", 1),
+             ele_text([(0, 1, 2, 3)])))

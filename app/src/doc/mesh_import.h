@@ -12,6 +12,7 @@
 #include <string>
 
 #include "doc/document.h"
+#include "doc/tetgen_import.h"  // ParseTetgenFiles
 
 namespace spidarcad::app {
 
@@ -30,12 +31,5 @@ struct MeshFileInfo {
 // holds no usable mesh (no triangles, no tetrahedra, an index out of range, a degenerate
 // tetrahedron). Fills *info when given.
 MeshData ReadMeshFile(const std::string& path, MeshFileInfo* info = nullptr);
-
-// TetGen's .node text (and the .ele text beside it) as positively oriented tetrahedra;
-// `node_file` and `ele_file` name them in errors; *flipped (when given) counts the tetrahedra
-// that were reoriented. Exposed for tests.
-modeling::TetMesh ParseTetgenFiles(const std::string& node_text, const std::string& ele_text,
-                                   const std::string& node_file, const std::string& ele_file,
-                                   int* flipped = nullptr);
 
 }  // namespace spidarcad::app
