@@ -17,21 +17,16 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <memory>
 #include <numeric>
-#include <optional>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
 #include <utility>
 #include <vector>
-
-#include "spidarcad/base/abandonable.h"
 
 namespace spidarcad::modeling {
 
@@ -444,44 +439,7 @@ TetMesh MeshImplicitWithCgal(const CompiledSolid& solid, const Eigen::AlignedBox
   CgalMeshStats& out = stats != nullptr ? *stats : local;
   out = CgalMeshStats{};
   try {
-    if (settings.cancel == nullptr) return Run(solid, bounds, settings, out);
-    // Mesh_3's initialisation and its optimisers (perturbation up to optimizer_time_limit,
-    // exudation up to exude_time_limit) poll nothing: the run goes on a thread of its own that a
-    // cancel abandons (base/abandonable.h). It owns a copy of the solid and its own cancel flag,
-    // raised on abandon so that it stops at its next poll; its progress goes through an atomic
-    // that this thread passes on.
-    struct Shared {
-      explicit Shared(const CompiledSolid& s) : solid(s) {}
-      const CompiledSolid solid;
-      std::atomic<bool> stop{false};
-      std::atomic<double> progress{-1.0};
-    };
-    auto shared = std::make_shared<Shared>(solid);
-    CgalMeshSettings inner = settings;
-    inner.cancel = &shared->stop;
-    inner.progress = [shared](double f) { shared->progress.store(f); };
-    double reported = -1.0;
-    auto forward = [&] {
-      const double f = shared->progress.load();
-      if (f != reported && settings.progress) settings.progress(f);
-      reported = f;
-    };
-    std::optional<std::pair<TetMesh, CgalMeshStats>> done = RunAbandonable(
-        [shared, bounds, inner] {
-          CgalMeshStats st;
-          TetMesh mesh = Run(shared->solid, bounds, inner, st);
-          return std::make_pair(std::move(mesh), st);
-        },
-        settings.cancel, std::chrono::milliseconds(5), forward);
-    if (!done) {
-      shared->stop = true;
-      throw CgalMeshCancelled();
-    }
-    forward();
-    out = done->second;
-    return std::move(done->first);
-  } catch (const CgalMeshCancelled&) {
-    throw;
+    return Run(solid, bounds, settings, out);
   } catch (const CgalMeshError&) {
     throw;
   } catch (const std::bad_alloc&) {

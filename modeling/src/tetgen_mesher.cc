@@ -8,14 +8,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <limits>
-#include <memory>
 #include <new>
-#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
-#include "spidarcad/base/abandonable.h"
 #include "spidarcad/base/check.h"
 #include "triangle_predicates.h"
 
@@ -388,11 +385,7 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
   switches += settings.quiet ? "Q" : "V";
   st.switches = switches;
 
-  // TetGen cannot be interrupted: with a cancel flag it runs on a thread of its own, abandoned
-  // (left to finish and drop its result) when the flag is raised, so that a cancelled job ends
-  // within milliseconds (base/abandonable.h). Its input and output are shared with that thread.
-  auto in_ptr = std::make_shared<tetgenio>();
-  tetgenio& in = *in_ptr;
+  tetgenio in, out;
   in.firstnumber = 0;
   in.numberofpoints = static_cast<int>(surface.vertices.cols());
   in.pointlist = new REAL[3 * in.numberofpoints];
@@ -410,24 +403,17 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
     for (int k = 0; k < 3; ++k) facet.polygonlist[0].vertexlist[k] = surface.triangles(k, f);
   }
   t0 = Clock::now();
-  auto run = [in_ptr, switches]() -> std::shared_ptr<tetgenio> {
-    auto result = std::make_shared<tetgenio>();
-    try {
-      std::vector<char> command(switches.begin(), switches.end());
-      command.push_back('\0');
-      tetrahedralize(command.data(), in_ptr.get(), result.get());
-    } catch (const TetgenError&) {
-      throw;
-    } catch (int code) {
-      throw TetgenError(code, "TetGen failed with code " + std::to_string(code));
-    } catch (const std::bad_alloc&) {
-      throw TetgenError(1, "TetGen failed: out of memory");
-    }
-    return result;
-  };
-  const std::optional<std::shared_ptr<tetgenio>> done = RunAbandonable(run, settings.cancel);
-  if (!done) throw TetMeshingCancelled();
-  const tetgenio& out = **done;
+  try {
+    std::vector<char> command(switches.begin(), switches.end());
+    command.push_back('\0');
+    tetrahedralize(command.data(), &in, &out);
+  } catch (const TetgenError&) {
+    throw;
+  } catch (int code) {
+    throw TetgenError(code, "TetGen failed with code " + std::to_string(code));
+  } catch (const std::bad_alloc&) {
+    throw TetgenError(1, "TetGen failed: out of memory");
+  }
   st.tetgen_seconds = Seconds(t0);
   progress(0.9);
 

@@ -23,7 +23,6 @@
 #include <filesystem>
 #include <memory>
 #include <numbers>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -36,7 +35,6 @@
 #include "scene/scene_haptics.h"
 #include "scene/scene_model.h"
 #include "scene/sculpt_document.h"
-#include "spidarcad/base/abandonable.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
 namespace spidarcad::app {
@@ -516,15 +514,7 @@ bool SculptMode::StartCopy(ModeContext& context, ObjectId source) {
               modeling::MeshSurface(*solid, settings));
           if (job_context.cancelled()) throw std::runtime_error("cancelled");
           job_context.SetPhase("sculpt grid");
-          // SculptMesh's construction does not poll a cancel flag: run it where a cancel can
-          // abandon it (base/abandonable.h).
-          std::optional<std::shared_ptr<modeling::SculptMesh>> built = RunAbandonable(
-              [surface, grid_cell] {
-                return std::make_shared<modeling::SculptMesh>(*surface, grid_cell);
-              },
-              job_context.cancel_flag());
-          if (!built) throw std::runtime_error("cancelled");
-          std::shared_ptr<modeling::SculptMesh> clay = std::move(*built);
+          auto clay = std::make_shared<modeling::SculptMesh>(*surface, grid_cell);
           return [this, alive, model_ptr, tree, surface, clay, source, source_name, revision,
                   generation] {
             if (alive.expired()) return;

@@ -5,14 +5,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
-#include <optional>
 #include <sstream>
 #include <variant>
 
 #include "doc/assets.h"
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
-#include "spidarcad/base/abandonable.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -99,22 +97,9 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   m->load_nodes_ = AddBoxLoads(tm, settings.loads, m->bcs_.get());
   CheckCancel(settings);
 
-  // Assembly and factorisation (the expensive part, which CHOLMOD cannot interrupt): with a
-  // cancel flag it runs on a thread of its own on copies of its input, abandoned on cancel (it
-  // finishes in the background and its solver is dropped; base/abandonable.h).
+  // Assembly and factorisation (the expensive, uninterruptible part).
   Progress(settings, 0.1, "assemble and factor");
-  {
-    auto mesh = std::make_shared<const fem::TetMesh>(tm);
-    auto materials = std::make_shared<const fem::MaterialTable>(*m->materials_);
-    auto bcs = std::make_shared<const fem::BoundaryConditions>(*m->bcs_);
-    std::optional<std::unique_ptr<fem::StaticSolver>> solver = RunAbandonable(
-        [mesh, materials, bcs] {
-          return std::make_unique<fem::StaticSolver>(*mesh, *materials, *bcs);
-        },
-        settings.cancel);
-    if (!solver) throw FeModelCancelled();
-    m->solver_ = std::move(*solver);
-  }
+  m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_);
   if (!m->solver_->factor_status().converged)
     throw std::runtime_error("FE model: factorisation failed: " +
                              m->solver_->factor_status().message);

@@ -72,11 +72,8 @@ struct TetMeshSettings {
   double weld_tolerance = 1e-10;
   // Run CheckSurface first (leave on unless the surface is known good: TetGen can crash).
   bool check_surface = true;
-  // Polled between stages and every 5 ms while TetGen runs; when true TetrahedralizeSurface
-  // throws TetMeshingCancelled. TetGen itself cannot be interrupted: with a flag given it runs on
-  // a thread of its own that a cancel abandons (it finishes in the background and its result is
-  // dropped; base/abandonable.h), so the call returns within milliseconds but the abandoned
-  // TetGen run keeps a core and its memory until it ends.
+  // Polled between stages; when true TetrahedralizeSurface throws TetMeshingCancelled.
+  // (TetGen itself cannot be interrupted.)
   const std::atomic<bool>* cancel = nullptr;
   // Called with the fraction done at stage boundaries (0; 0.2 after the check; 0.9 after TetGen;
   // 1).
