@@ -1,0 +1,188 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Issue 15: every long job the window starts can be cancelled within 0.5 s and leaves the
+// document as it was. One test per job kind starts a long instance (several seconds) the way the
+// window does, waits until the worker is in the phase under test, calls Job::Cancel and measures
+// the wall time until the job has ended as kCancelled; the document's JSON (with revisions), its
+// revision and its undo history are compared before and after. The measured latencies are
+// printed ("cancel latency: ...") and tabulated in docs/limits.md.
+//
+// This is a bound on responsiveness, the one timed assertion the issue asks for. The bound is the
+// issue's 0.5 s itself; the typical latencies are tens of milliseconds (the grid surface mesher
+// polls its flag every few ms), so a loaded machine still has a wide margin. Not covered: jobs
+// inside TetGen, CGAL Mesh_3 or the CHOLMOD factorisation, which cannot be interrupted and end
+// only when the library call returns (docs/limits.md).
+#include <gtest/gtest.h>
+#include <vtkNew.h>
+#include <vtkRenderer.h>
+
+#include <chrono>
+#include <cstdio>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "doc/command.h"
+#include "doc/document.h"
+#include "doc/job.h"
+#include "gui/mode.h"
+#include "gui/sculpt_mode.h"
+#include "scene/fe_model.h"
+#include "scene/fe_setup.h"
+#include "scene/scene_model.h"
+#include "spidarcad/fem/mesh.h"
+#include "spidarcad/modeling/implicit_node.h"
+
+namespace spidarcad::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kBound = 0.5;  // s, issue 15
+
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// What must not change when a job is cancelled.
+struct DocState {
+  std::string json;
+  std::uint64_t revision = 0;
+  std::size_t undo = 0, redo = 0;
+  explicit DocState(const Document& doc)
+      : json(doc.ToJson(true).dump()),
+        revision(doc.revision()),
+        undo(doc.history().undo_size()),
+        redo(doc.history().redo_size()) {}
+  bool operator==(const DocState& o) const {
+    return json == o.json && revision == o.revision && undo == o.undo && redo == o.redo;
+  }
+};
+
+// Waits until `working()` holds (the job is in the phase under test), cancels the job and
+// returns the seconds from Cancel() until the job has ended; then polls the queue (no finisher
+// runs for a cancelled job). Fails the test when the job ended before it could be cancelled or
+// did not end as kCancelled.
+double CancelWhen(JobQueue* jobs, Job& job, const std::function<bool()>& working,
+                  const char* kind) {
+  const Clock::time_point limit = Clock::now() + std::chrono::seconds(300);
+  while (job.state() == Job::State::kRunning && !working() && Clock::now() < limit)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  EXPECT_EQ(job.state(), Job::State::kRunning)
+      << kind << ": the job ended (" << job.error() << ") before it could be cancelled";
+  EXPECT_TRUE(working()) << kind << ": the job did not reach the phase under test";
+  const Clock::time_point t0 = Clock::now();
+  job.Cancel();
+  while (job.state() == Job::State::kRunning && Since(t0) < 300.0)
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  const double seconds = Since(t0);
+  jobs->Poll();
+  EXPECT_EQ(job.state(), Job::State::kCancelled) << kind << ": " << job.error();
+  std::printf("cancel latency: %-40s %.4f s (phase '%s', progress %.2f)\n", kind, seconds,
+              job.phase().c_str(), job.progress());
+  ::testing::Test::RecordProperty("cancel_latency_s", std::to_string(seconds));
+  return seconds;
+}
+
+std::function<bool()> PhaseIs(const Job& job, const std::string& phase, double min_progress = 0.0) {
+  return [&job, phase, min_progress] {
+    return job.phase() == phase && job.progress() >= min_progress;
+  };
+}
+
+// Model mode's mesh settings of a cell size (m).
+MeshSettings CellOf(double cell) {
+  MeshSettings settings;
+  settings.cell_size = cell;
+  return settings;
+}
+
+// A SceneModel on an empty document with one solid, compiled and previewed (the preview gives
+// the object's box, which the mesh jobs mesh).
+struct SolidRig {
+  SceneModel model;
+  JobQueue jobs;
+  ObjectId solid = 0;
+  explicit SolidRig(const modeling::ImplicitNode& root) {
+    model.Load(kNoSceneName, Eigen::Vector3d::Constant(0.2));
+    model.document().Execute(edit::AddSolid("part", root));
+    solid = model.document().last_created().at(0);
+    model.Refresh();
+    model.StartPreviewJobs(&jobs, 16.0);
+    for (const auto& job : jobs.jobs()) job->Wait();
+    jobs.Poll();
+    jobs.Prune();
+    EXPECT_FALSE(model.objects()[index()].bounds_W.isEmpty()) << model.objects()[index()].error;
+  }
+  int index() const { return model.IndexOf(solid); }
+};
+
+modeling::ImplicitNode Ball(double r) { return modeling::ImplicitNode(modeling::SphereParams{r}); }
+
+// ---- model mode ----
+
+TEST(JobCancel, PreviewEndsWithinHalfASecond) {
+  SolidRig rig(Ball(0.05));
+  const DocState before(rig.model.document());
+  rig.model.StartPreviewJobs(&rig.jobs, 300.0);
+  Job& job = *rig.jobs.jobs().back();
+  EXPECT_LT(CancelWhen(&rig.jobs, job, PhaseIs(job, "surface", 0.05), "preview (surface)"), kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+}
+
+TEST(JobCancel, SurfaceMeshEndsWithinHalfASecond) {
+  SolidRig rig(Ball(0.05));
+  const DocState before(rig.model.document());
+  const std::uint64_t revision = rig.model.objects()[rig.index()].revision;
+  Job& job = rig.model.StartMeshJob(&rig.jobs, rig.index(), MeshKind::kSurface, CellOf(0.0004));
+  EXPECT_LT(CancelWhen(&rig.jobs, job, PhaseIs(job, "surface", 0.05), "mesh surface"), kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+  EXPECT_EQ(rig.model.objects()[rig.index()].revision, revision);
+}
+
+// ---- sculpt mode: a sculpt copy of a solid (SculptMode::RequestCopy) ----
+
+struct SculptRig {
+  vtkNew<vtkRenderer> renderer;
+  JobQueue jobs;
+  SceneModel model;
+  SculptMode mode{renderer, &jobs};
+  ModeContext context;
+  ObjectId solid = 0;
+  SculptRig() {
+    model.Load(kNoSceneName, Eigen::Vector3d::Constant(0.2));
+    context.model = &model;
+    context.jobs = &jobs;
+    mode.session().settings().tool.radius = 0.002;
+    model.document().Execute(edit::AddSolid("ball", Ball(0.05)));
+    solid = model.document().last_created().at(0);
+    model.Refresh();
+    mode.SetActive(true);
+    Frame();
+  }
+  void Frame() {
+    haptics::ToolState state;
+    state.tool_W.p_WT = Eigen::Vector3d(0, 0, 1);  // away from the clay, grasp open
+    mode.Update(state, context);
+  }
+  Job& StartCopy(double cell) {
+    mode.set_mesh_cell(cell);
+    mode.RequestCopy(solid);
+    Frame();
+    EXPECT_TRUE(mode.copy_pending()) << mode.message();
+    return *jobs.jobs().back();
+  }
+};
+
+TEST(JobCancel, SculptCopyEndsWithinHalfASecondWhileMeshing) {
+  SculptRig rig;
+  const DocState before(rig.model.document());
+  Job& job = rig.StartCopy(0.0004);
+  EXPECT_LT(CancelWhen(&rig.jobs, job, PhaseIs(job, "surface", 0.05), "sculpt copy (surface)"),
+            kBound);
+  rig.Frame();
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+  EXPECT_EQ(rig.mode.target(), 0u);
+}
+
+}  // namespace
+}  // namespace spidarcad::app
