@@ -224,48 +224,6 @@ class RunProgress {
   std::chrono::steady_clock::time_point last_;
 };
 
-// The rigid solids' fields of a document that also has FE parts: BuildHapticScene's, but with
-// X_WD fitted (where the options do not set it) to the solids' boxes together with the FE meshes'
-// box `fe_box_W` (W, m; not empty), since the FE parts are felt too. `rigid` may have no solid.
-// Throws as BuildHapticScene.
-SceneHaptics BuildBesideFeParts(const modeling::Scene& rigid, SceneHapticsOptions options,
-                                const Eigen::AlignedBox3d& fe_box_W) {
-  options.Validate();
-  Eigen::AlignedBox3d bounds = fe_box_W;
-  for (std::size_t i = 0; i < rigid.solids.size(); ++i) {
-    const std::string pointer = "/solids/" + std::to_string(i) + "/root";
-    modeling::CompiledSolid compiled;
-    try {
-      compiled = modeling::CompiledSolid::Compile(rigid.solids[i].root, pointer);
-    } catch (const std::exception& e) {
-      throw std::invalid_argument("solid '" + rigid.solids[i].name + "' (" + pointer +
-                                  "): " + e.what());
-    }
-    bool unbounded = false;
-    const Eigen::AlignedBox3d box = SolidBounds(compiled, &unbounded);
-    if (!box.isEmpty()) bounds.extend(box);
-  }
-  WorkspaceMap map = FitWorkspace(bounds, options.device_half_side, options.fit_fraction);
-  if (options.world_scale) {
-    map.X_WD.world_scale = *options.world_scale;
-    map.scale_fitted = false;
-  }
-  if (options.p_WDo) {
-    map.X_WD.p_WDo = *options.p_WDo;
-    map.origin_fitted = false;
-  }
-  SceneHaptics built;
-  if (rigid.solids.empty()) {
-    built.scene = std::make_unique<haptics::HapticScene>();
-  } else {
-    options.world_scale = map.X_WD.world_scale;
-    options.p_WDo = map.X_WD.p_WDo;
-    built = BuildHapticScene(rigid, options);
-  }
-  built.map = map;
-  return built;
-}
-
 std::string Fixed(double v, int digits) {
   std::ostringstream os;
   os << std::fixed << std::setprecision(digits) << v;
@@ -518,8 +476,8 @@ void RunRun(const RunOptions& options) {
       SceneHaptics built;
       try {
         haptic_options.Validate();
-        built = fe_models.empty() ? BuildHapticScene(rigid, haptic_options)
-                                  : BuildBesideFeParts(rigid, haptic_options, fe_box_W);
+        haptic_options.extra_bounds_W = fe_box_W;  // the FE parts are fitted with the solids
+        built = BuildHapticScene(rigid, haptic_options);
       } catch (const std::invalid_argument& e) {
         const std::string what = e.what();
         // Option problems name the option; solid problems name the file.

@@ -174,11 +174,13 @@ SolidFields BuildSolidFields(const std::vector<CompiledSceneSolid>& solids,
 
 SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOptions& options) {
   options.Validate();
-  if (scene.solids.empty()) throw std::invalid_argument("the scene has no solids");
+  if (scene.solids.empty() && options.extra_bounds_W.isEmpty()) {
+    throw std::invalid_argument("the scene has no solids");
+  }
 
-  // Compile every solid and find its box.
+  // Compile every solid and find its box (with the parts other fields render).
   std::vector<CompiledSceneSolid> solids;
-  Eigen::AlignedBox3d bounds;  // empty
+  Eigen::AlignedBox3d bounds = options.extra_bounds_W;
   for (std::size_t i = 0; i < scene.solids.size(); ++i) {
     const modeling::Solid& solid = scene.solids[i];
     const std::string pointer = "/solids/" + std::to_string(i) + "/root";
@@ -210,6 +212,10 @@ SceneHaptics BuildHapticScene(const modeling::Scene& scene, const SceneHapticsOp
     out.map.origin_fitted = false;
   }
 
+  if (solids.empty()) {  // only parts of other fields: nothing to touch here
+    out.scene = std::make_unique<haptics::HapticScene>();
+    return out;
+  }
   std::optional<SnapInput> snap;
   if (scene.snap) snap = SnapInput{*scene.snap, ExtractSnapFeatures(scene, options.snap_tolerance)};
   SolidFields fields =

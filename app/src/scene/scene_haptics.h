@@ -83,6 +83,10 @@ struct SceneHapticsOptions {
   // The device's reachable cube, half side [m], and the fraction of it the scene fills.
   double device_half_side = 0.1;
   double fit_fraction = 0.8;
+  // Box (W, m) of parts that other fields render (a document's FE parts) and that the fitted
+  // map must hold beside the solids; empty (the default): none. With it, a scene of no solids is
+  // allowed: its haptic scene is empty and its map is this box's.
+  Eigen::AlignedBox3d extra_bounds_W;
   // Pole half-length d of the grip [m] (the device's geometry.d), for the shell.
   double grip_d = 0.04;
   // Snap features: how far off the scene's surface (m, W) a primitive's feature may lie and
