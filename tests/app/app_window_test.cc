@@ -1112,5 +1112,56 @@ TEST(AppWindowDocument, ModelModeMeshLandsInTheTreeUndoesGoesStaleAndRefreshes) 
   EXPECT_TRUE(SameSurface(*std::get<MeshData>(back->data).surface, refreshed));
 }
 
+// Model mode estimates before meshing, as FE mode and `spidarcad mesh` do: a cell far too small
+// asks first, Cancel changes nothing, Proceed starts the job it asked about.
+TEST(AppWindowDocument, ModelModeAsksBeforeALargeMesh) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
+  window.Frame();
+  Document& doc = window.model().document();
+  ASSERT_TRUE(window.tree().SelectByName("knob"));
+  window.Frame();
+  const std::size_t steps = doc.history().undo_size();
+  const auto running = [&window] {
+    int n = 0;
+    for (const auto& job : window.jobs().jobs()) n += job->state() == Job::State::kRunning;
+    return n;
+  };
+  const int before = running();
+  WorkbenchState& state = window.workbench();
+  state.resolution_mm = 0.01f;  // 10 µm cells on a 6 cm knob: ~10^14 grid cells
+  StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
+  EXPECT_FALSE(state.status_error) << state.status;
+  EXPECT_NE(state.pending_mesh_text.find("Meshing 'knob' is large"), std::string::npos)
+      << state.pending_mesh_text;
+  EXPECT_NE(state.pending_mesh_text.find("docs/limits.md"), std::string::npos);
+  EXPECT_EQ(running(), before) << "nothing starts before the answer";
+  window.Frame();  // the question is drawn
+  AnswerMeshQuestion(&window.model(), &window.jobs(), &state, false);
+  EXPECT_TRUE(state.pending_mesh_text.empty());
+  EXPECT_EQ(state.status, "Mesh: cancelled, nothing changed");
+  EXPECT_EQ(running(), before);
+  EXPECT_EQ(doc.history().undo_size(), steps);
+
+  // Proceed starts what was asked about (here made small again, so that the job is quick). The
+  // panel's field clamps the cell to 0.5 mm when it is drawn: set it again.
+  state.resolution_mm = 0.01f;
+  StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
+  ASSERT_FALSE(state.pending_mesh_text.empty());
+  state.pending_mesh_settings.cell_size = 0.005;
+  AnswerMeshQuestion(&window.model(), &window.jobs(), &state, true);
+  EXPECT_FALSE(state.status_error) << state.status;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (doc.FindByName("knob surface") == nullptr && std::chrono::steady_clock::now() < give_up)
+    window.Frame();
+  EXPECT_NE(doc.FindByName("knob surface"), nullptr) << state.status;
+  EXPECT_EQ(doc.history().undo_size(), steps + 1);
+
+  // A cell within the budget does not ask.
+  state.resolution_mm = 5.0f;
+  StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
+  EXPECT_TRUE(state.pending_mesh_text.empty()) << state.pending_mesh_text;
+}
+
 }  // namespace
 }  // namespace spidarcad::app

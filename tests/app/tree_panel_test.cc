@@ -726,7 +726,9 @@ TEST(TreeControllerWindow, ScreenshotShowsTheTreeWithTheSelectedNodeHighlighted)
                        &output),
             2)
       << output;
-  EXPECT_NE(output.find("teapot"), std::string::npos) << output;
+  EXPECT_NE(output.find("nothing named 'teapot' in the document: give a solid's name"),
+            std::string::npos)
+      << output;
 }
 
 }  // namespace

@@ -63,6 +63,13 @@ namespace spidarcad::app {
 
 namespace {
 
+// Why --select or --set found nothing called `name`, and what it accepts.
+std::string NoSuchNodeText(const std::string& name) {
+  return "nothing named '" + name +
+         "' in the document: give a solid's name, a node's name or id, SOLID/i/j for child j of "
+         "child i of the solid's root, or the name of a mesh, FE model or sculpt object";
+}
+
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 constexpr double kGraspStep = 5.0 * kDegToRad;           // per wheel notch or key press
 constexpr double kRotateGain = 0.008;                    // rad per pixel of right-drag
@@ -385,8 +392,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
       [this] { return s_->active != nullptr ? s_->active->HistoryHold() : std::string(); });
   if (!options.select.empty()) {
     if (!s.tree->SelectByName(options.select)) {
-      throw WindowStartError(2, "spidarcad: error: --select: no solid or node named '" +
-                                    options.select + "' in the scene");
+      throw WindowStartError(2, "spidarcad: error: --select: " + NoSuchNodeText(options.select));
     }
   } else if (!s.model.objects().empty()) {
     s.tree->Select(s.model.objects().front().id);
@@ -1268,7 +1274,7 @@ void AppWindow::ApplySetEdits() {
       if (value.is_discarded()) {
         why = "the value '" + edit.value + "' is not JSON (a number, [x, y, z], true, \"text\")";
       } else if (!s.tree->SelectByName(edit.node)) {
-        why = "no solid or node named '" + edit.node + "' in the scene";
+        why = NoSuchNodeText(edit.node);
       } else if (!s.tree->SetField(edit.field, value)) {
         why = s.tree->error();
       }

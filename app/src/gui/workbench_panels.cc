@@ -62,7 +62,35 @@ void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, M
   settings.sharp_edges = state->sharp_edges && !(kind == MeshKind::kTetrahedra && state->cgal);
   if (kind == MeshKind::kTetrahedra) settings.mesher = state->cgal ? "cgal" : "tetgen";
   try {
+    std::string question = model->MeshJobOverBudget(state->selected, kind, settings);
+    if (!question.empty()) {
+      state->pending_mesh_text = std::move(question);
+      state->pending_mesh_kind = kind;
+      state->pending_mesh_index = state->selected;
+      state->pending_mesh_settings = settings;
+      state->status = "Mesh: waiting for an answer (the mesh is large)";
+      state->status_error = false;
+      return;
+    }
     model->StartMeshJob(jobs, state->selected, kind, settings);
+    state->status.clear();
+  } catch (const std::exception& e) {
+    state->status = std::string("Mesh: ") + e.what();
+    state->status_error = true;
+  }
+}
+
+void AnswerMeshQuestion(SceneModel* model, JobQueue* jobs, WorkbenchState* state, bool proceed) {
+  if (state->pending_mesh_text.empty()) return;
+  state->pending_mesh_text.clear();
+  if (!proceed) {
+    state->status = "Mesh: cancelled, nothing changed";
+    state->status_error = false;
+    return;
+  }
+  try {
+    model->StartMeshJob(jobs, state->pending_mesh_index, state->pending_mesh_kind,
+                        state->pending_mesh_settings);
     state->status.clear();
   } catch (const std::exception& e) {
     state->status = std::string("Mesh: ") + e.what();
@@ -255,6 +283,25 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
     DrawControlsHelp();
   }
   DrawJobs(jobs, state, width);
+  // The Mesh action's over-budget question.
+  if (!state->pending_mesh_text.empty() && !ImGui::IsPopupOpen("Large mesh")) {
+    ImGui::OpenPopup("Large mesh");
+  }
+  if (ImGui::BeginPopupModal("Large mesh", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) {
+    ImGui::PushTextWrapPos(ImGui::GetFontSize() * 30.0f);
+    ImGui::TextUnformatted(state->pending_mesh_text.c_str());
+    ImGui::PopTextWrapPos();
+    if (ImGui::Button("Proceed")) {
+      AnswerMeshQuestion(model, jobs, state, true);
+      ImGui::CloseCurrentPopup();
+    }
+    ImGui::SameLine();
+    if (ImGui::Button("Cancel") || state->pending_mesh_text.empty()) {
+      AnswerMeshQuestion(model, jobs, state, false);
+      ImGui::CloseCurrentPopup();
+    }
+    ImGui::EndPopup();
+  }
   ImGui::End();
 }
 

@@ -42,6 +42,12 @@ struct WorkbenchState {
   // The snap settings Haptics → Snap forces turns back on with (the document's last ones when
   // it was turned off; modeling::SceneSnap's defaults at first).
   modeling::SceneSnap snap_settings;
+  // A Mesh action past the budget waits for an answer (the "Large mesh" question of the
+  // document panel): the question ("" none), and what Proceed starts.
+  std::string pending_mesh_text;
+  MeshKind pending_mesh_kind = MeshKind::kSurface;
+  int pending_mesh_index = -1;
+  MeshSettings pending_mesh_settings;
 };
 
 // What the menu bar and panels asked for this frame.
@@ -111,7 +117,13 @@ void DrawExportDialog(const SceneModel& model, WorkbenchState* state);
 
 // Starts the Mesh action of `kind` on the selected solid with the state's cell size, sharp edges
 // and mesher (SceneModel::StartMeshJob); errors (no solid, bad settings) go to the status line.
+// A mesh estimated past `spidarcad mesh`'s budget (SceneModel::MeshJobOverBudget) is not
+// started: state->pending_mesh_text asks first (the document panel shows the question), and
+// AnswerMeshQuestion starts it or drops it.
 void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, MeshKind kind);
+// The answer to the pending "Large mesh" question: Proceed starts the job as asked, Cancel
+// changes nothing (the status line says so). No effect without a pending question.
+void AnswerMeshQuestion(SceneModel* model, JobQueue* jobs, WorkbenchState* state, bool proceed);
 
 // Starts meshing object `id` again from its source with its stored settings: a mesh object made
 // from a source, or an FE model (its mesh) (SceneModel::StartRefreshJob). Errors (nothing to

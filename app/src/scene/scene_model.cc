@@ -305,8 +305,7 @@ void SceneModel::UpdatePreviews(JobQueue* jobs, double coarse_cells_across,
   }
 }
 
-Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind,
-                              const MeshSettings& settings) {
+FeMeshInput SceneModel::MeshJobInput(int index, MeshKind kind, const MeshSettings& settings) const {
   if (index < 0 || index >= static_cast<int>(objects_.size())) {
     throw std::out_of_range("no scene object " + std::to_string(index));
   }
@@ -318,9 +317,25 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind,
   const bool tets = kind == MeshKind::kTetrahedra;
   MeshSettings s = settings;
   if (!tets) s.mesher.clear();  // the grid surface: no tetrahedral mesher
-  FeMeshInput input = PrepareSolidMesh(*doc_, o.id, s, tets);
-  const std::string title = std::string(tets ? "Tetrahedra" : "Surface") + " of " + o.name;
+  return PrepareSolidMesh(*doc_, o.id, s, tets);
+}
+
+Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind,
+                              const MeshSettings& settings) {
+  FeMeshInput input = MeshJobInput(index, kind, settings);
+  const std::string title = std::string(kind == MeshKind::kTetrahedra ? "Tetrahedra" : "Surface") +
+                            " of " + objects_[index].name;
   return StartDocumentMeshJob(jobs, title, std::move(input), 0);
+}
+
+std::string SceneModel::MeshJobOverBudget(int index, MeshKind kind,
+                                          const MeshSettings& settings) const {
+  const auto estimate = EstimateFeMesh(MeshJobInput(index, kind, settings));
+  if (!estimate) return "";
+  const std::string over = FeMeshOverBudget(*estimate);
+  if (over.empty()) return "";
+  return "Meshing '" + objects_[index].name + "' is large: " + over + " (" + estimate->Describe() +
+         "; the limits of spidarcad mesh, docs/limits.md).";
 }
 
 Job& SceneModel::StartRefreshJob(JobQueue* jobs, ObjectId mesh) {

@@ -139,6 +139,11 @@ class SceneModel {
   // Throws std::out_of_range for a bad index, std::invalid_argument when the solid does not
   // compile or the cell size is not > 0, DocumentError for bad settings.
   Job& StartMeshJob(JobQueue* jobs, int index, MeshKind kind, const MeshSettings& settings);
+  // What StartMeshJob with these arguments would cost when that is past `spidarcad mesh`'s
+  // default budget (docs/limits.md), as a sentence for the user naming the figure and the
+  // estimate; "" when it is within the budget or cannot be estimated before meshing (CGAL).
+  // Throws as StartMeshJob.
+  std::string MeshJobOverBudget(int index, MeshKind kind, const MeshSettings& settings) const;
   // Starts meshing mesh object `mesh` again from its source with its stored settings
   // (PrepareFeRemesh): the job "Refresh NAME" lands as one undo step, RefreshFeMesh (FE models
   // on it keep their settings); fails, changing nothing, when the source changed meanwhile.
@@ -187,6 +192,8 @@ class SceneModel {
   // executes on the Document AddMeshOf (mesh 0: a new mesh object, recorded for TakeLandedMesh)
   // or RefreshFeMesh of mesh object `mesh`.
   Job& StartDocumentMeshJob(JobQueue* jobs, std::string title, FeMeshInput input, ObjectId mesh);
+  // The meshing input of StartMeshJob (checked as it says).
+  FeMeshInput MeshJobInput(int index, MeshKind kind, const MeshSettings& settings) const;
 
   // The contact fields of the latest BuildHapticScene: per solid object (proxy) or one for the
   // scene (shell, id 0), what they were built from, the field that runs (`current`), the fresh
