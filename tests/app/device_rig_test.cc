@@ -119,6 +119,40 @@ TEST(DeviceRig, ServiceThreadServicesTheRigUntilItIsDestroyed) {
   EXPECT_EQ(idle.calls.load(), 0);
 }
 
+// A lab's board that was not plugged in when the window started: once the link is re-opened off
+// the tick, the rig (and so the calibration wizard, through HapticRuntime::serial) knows which
+// board it is, without a restart.
+TEST(DeviceRig, UsbBoardPluggedInAfterStartUpGivesItsSerialNumber) {
+  haptics::usb::BoardConfig config;
+  config.serial = {'L', 'A', 'B', '-', '4', '2'};
+  haptics::usb::BoardSimulator board(config);
+  haptics::usb::LoopbackTransport* cable = nullptr;
+  RigOptions options;
+  options.reconnect_off_tick = true;
+  options.make_transport = [&board, &cable] {
+    auto transport = std::make_unique<haptics::usb::LoopbackTransport>(&board);
+    transport->SetPlugged(false);
+    cable = transport.get();
+    return transport;
+  };
+  std::unique_ptr<DeviceRig> rig = MakeDeviceRig(RigKind::kUsb, options);
+  ASSERT_NE(cable, nullptr);
+  EXPECT_FALSE(rig->Start(At(Eigen::Vector3d::Zero())));
+  EXPECT_EQ(rig->Serial(), "");
+  haptics::EncoderReading reading;
+  rig->Read(1e-3, &reading);    // the tick hands the closed link to Service
+  EXPECT_TRUE(rig->Service());  // which tries: still unplugged
+  EXPECT_EQ(rig->Serial(), "");
+  cable->SetPlugged(true);
+  rig->Read(1e-3, &reading);
+  EXPECT_TRUE(rig->Service());
+  EXPECT_EQ(rig->Serial(), "LAB-42");
+  rig->Read(1e-3, &reading);  // the tick has the link back
+  RigLink link;
+  rig->Link(&link);
+  EXPECT_NE(link.status, DeviceStatus::kNotConnected);
+}
+
 TEST(DeviceRig, SimulatedRigReadsExactlyWhatTheDeviceItWrapsReads) {
   // Independent reference: a SimulatedSpidarG of the same configuration, stepped by hand.
   RigOptions options;

@@ -108,8 +108,9 @@ void CalibrationWizard::Start() {
     device_.serial = runtime_->serial();
     if (device_.serial.empty()) {
       return Fail(
-          "the board did not answer when the window started, so its serial number (which the "
-          "calibration file records) is unknown: restart the window with the board plugged in");
+          "the board has not reported a serial number (which the calibration file records): "
+          "wait until its link is up (the device figures say ok), then Start again; a board "
+          "that never reports one needs its firmware to set a USB serial number");
     }
   }
   try {

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -172,6 +173,7 @@ class UsbRig final : public DeviceRig {
   bool Start(const haptics::GripPose&) override {
     const bool ok = driver_.Open() == DeviceStatus::kOk;
     CopyDriverState(driver_, &link_);
+    if (ok) SetSerial(BoardSerial(driver_));
     return ok;
   }
   std::string StartFailure() const override {
@@ -209,7 +211,9 @@ class UsbRig final : public DeviceRig {
   void Link(RigLink* link) const noexcept override { *link = link_; }
   bool Service() override {
     if (!off_tick_ || !service_owns_.load(std::memory_order_acquire)) return false;
-    driver_.Open();  // may allocate and wait for the handshake: this is not the tick
+    // May allocate and wait for the handshake: this is not the tick. A board that answers gives
+    // its serial number (it may have been absent at start, or replaced).
+    if (driver_.Open() == DeviceStatus::kOk) SetSerial(BoardSerial(driver_));
     service_owns_.store(false, std::memory_order_release);
     return true;
   }
@@ -218,9 +222,16 @@ class UsbRig final : public DeviceRig {
     return libusb_ ? "usb (libusb)" : "usb (test transport)";
   }
   std::string LinkSummary() const override { return DriverLinkSummary(driver_); }
-  std::string Serial() const override { return BoardSerial(driver_); }
+  std::string Serial() const override {
+    const std::lock_guard<std::mutex> lock(serial_mutex_);
+    return serial_;
+  }
 
  private:
+  void SetSerial(std::string serial) {
+    const std::lock_guard<std::mutex> lock(serial_mutex_);
+    serial_ = std::move(serial);
+  }
   static haptics::usb::UsbDeviceConfig DriverConfig(const RigOptions& options) {
     haptics::usb::UsbDeviceConfig config = options.usb;
     if (options.reconnect_off_tick) config.reconnect_every = 0;
@@ -234,6 +245,10 @@ class UsbRig final : public DeviceRig {
   std::atomic<bool> service_owns_{false};
   haptics::EncoderReading last_reading_;  // tick-owned
   RigLink link_;                          // tick-owned snapshot
+  // The serial number of the last successful handshake (Start or Service), for the main thread
+  // while Service may be re-opening (the tick never takes this lock).
+  mutable std::mutex serial_mutex_;
+  std::string serial_;
 };
 
 }  // namespace

@@ -97,7 +97,9 @@ class DeviceRig {
   // Seconds between Service calls; 0: the rig needs none.
   virtual double service_interval() const { return 0.0; }
   // The board's serial number from its handshake (board-sim: the simulator's "SIM-0001");
-  // empty for the simulated rig or before Start succeeded. Not for the tick.
+  // empty for the simulated rig or before a handshake succeeded. usb: the latest handshake's,
+  // at Start or when Service re-opened the link (a board plugged in after start-up); any thread
+  // but the tick.
   virtual std::string Serial() const { return {}; }
   // For summaries: "simulated (seed 1)", "board-sim (...)", "usb (libusb)".
   virtual std::string Describe() const = 0;

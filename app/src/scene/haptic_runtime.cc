@@ -194,6 +194,8 @@ HapticRuntime::HapticRuntime(const RuntimeSettings& settings,
 
 HapticRuntime::~HapticRuntime() { Stop(); }
 
+std::string HapticRuntime::serial() const { return rig_ != nullptr ? rig_->Serial() : serial_; }
+
 bool HapticRuntime::ApplyCalibrationFile(const haptics::DeviceInfo& info,
                                          const std::string& serial) {
   CalibrationDevice device;

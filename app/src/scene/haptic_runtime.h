@@ -166,9 +166,10 @@ class HapticRuntime {
   const std::string& link_at_start() const { return link_at_start_; }
   // kUsb: why a remembered calibration was not used (gone, unreadable, another board's); "".
   const std::string& calibration_note() const { return calibration_note_; }
-  // kBoardSim, kUsb: the board's serial number from the handshake at construction ("" when the
-  // board did not answer then, and for the simulated devices).
-  const std::string& serial() const { return serial_; }
+  // kBoardSim, kUsb: the board's serial number from its latest handshake: at construction or,
+  // for a board that was absent then (or replugged), when the link was re-opened ("" while no
+  // board has answered, and for the simulated devices). Main thread.
+  std::string serial() const;
 
   // ---- self-calibration sessions (the window's calibration wizard) ----
   // Holds per tension schedule: CalibrationTensionSchedule(info(), kCalibrationHolds, seed),
