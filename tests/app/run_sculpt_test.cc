@@ -299,6 +299,62 @@ TEST(RunSculpt, ReopenedSaveGivesTheExportedVertices) {
   EXPECT_NEAR(Volume(stl), Volume(r.saved), 1e-6 * Volume(r.saved));  // float32 corners
 }
 
+// The grab trajectory followed by opening the grasp (3.0-3.3 s) and a hold: the stroke ends when
+// the measured grasp passes 80 deg, is recorded in the document (the saved clay is the exported
+// one) and the clay keeps what the grab strength left of the bump (it falls with the opening
+// grasp); a second run writes the same numbers but for tick_us.
+TEST(RunSculpt, OpeningTheGraspEndsTheStrokeAndTheRunIsDeterministic) {
+  const std::string trajectory = spidarcad::test_support::TestOutputPath("sculpt_release.csv");
+  {
+    std::ifstream in(Source("assets/trajectories/sculpt_grab.csv"));
+    std::ofstream out(trajectory);
+    std::string line, last;
+    while (std::getline(in, line)) {
+      out << line << "\n";
+      if (!line.empty() && line[0] != '#') last = line;
+    }
+    // The last sample's pose, the grasp opening to pi/2 in 0.3 s, then held for 0.3 s.
+    const std::string pose = last.substr(last.find(',') + 1, last.rfind(',') - last.find(',') - 1);
+    for (int k = 1; k <= 30; ++k) {
+      const double u = std::min(1.0, k / 15.0);
+      out << 3.0 + 0.02 * k << "," << pose << "," << 0.5 + u * (std::numbers::pi / 2 - 0.5) << "\n";
+    }
+  }
+  std::vector<std::vector<double>> runs[2];
+  TriangleMesh saved, exported;
+  for (int i = 0; i < 2; ++i) {
+    const std::string base =
+        spidarcad::test_support::TestOutputPath("sculpt_release_" + std::to_string(i));
+    const auto run = spidarcad::test_support::RunSpidarcad(
+        "run '" + Source("assets/scenes/clay_sculpt.json") + "' --trajectory '" + trajectory +
+            "' --world-origin 0,-0.038,0.0739 --sculpt-radius 0.03 --out '" + base +
+            ".csv' --save '" + base + ".json' --export 'clay=" + base + ".obj'",
+        "", "sculpt_release");
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_NE(run.out.find("sculpt 'clay': 1 stroke (grab"), std::string::npos) << run.out;
+    const CsvTable csv = spidarcad::test_support::ReadCsvTable(base + ".csv");
+    const int stroke = csv.Column("sculpt_stroke"), tick_us = csv.Column("tick_us");
+    // 0, then 1 (the stroke), then 0 again to the end.
+    int changes = 0;
+    for (std::size_t k = 1; k < csv.rows.size(); ++k)
+      changes += csv.rows[k][stroke] != csv.rows[k - 1][stroke];
+    EXPECT_EQ(changes, 2);
+    EXPECT_EQ(csv.rows.back()[stroke], 0.0);
+    for (auto row : csv.rows) {
+      row[tick_us] = 0.0;
+      runs[i].push_back(row);
+    }
+    saved = ClayOf(base + ".json");
+    exported = spidarcad::modeling::ReadTriangleMesh(base + ".obj");
+  }
+  EXPECT_EQ(runs[0], runs[1]);
+  EXPECT_EQ(saved.vertices, exported.vertices);
+  const TriangleMesh before = ClayOf(Source("assets/scenes/clay_sculpt.json"));
+  const double v0 = Volume(before), v1 = Volume(exported);
+  EXPECT_GT(v1, v0);  // some of the bump stays
+  EXPECT_NEAR(runs[0].back().back(), v1, 1e-12 * v1);
+}
+
 TEST(RunSculpt, BadSculptOptionsAndExportsExitTwoBeforeTheRun) {
   const std::string run = "run '" + Source("assets/scenes/clay_sculpt.json") + "' --trajectory '" +
                           Source("assets/trajectories/sculpt_grab.csv") + "' --out '" +
