@@ -223,6 +223,49 @@ TEST(Regression, BlockFeSqueezeWithSqueezeMatchesGolden) {
   EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
 }
 
+// The tolerances of a sculpt run: today's, the stroke flag exactly and the clay's volume to
+// 1e-12 m³ (about 6e-10 of it).
+std::vector<SignalTolerance> SculptTolerances() {
+  std::vector<SignalTolerance> t = Tolerances();
+  t.push_back({"sculpt_stroke", 0.0, ""});
+  t.push_back({"sculpt_volume", 1e-12, "m³"});
+  return t;
+}
+
+// Sculpt strokes on assets/scenes/clay_sculpt.json (scripts/make-sculpt-trajectories.py: the
+// grip comes down on the clay's top, placed at the device origin by --world-origin, closes the
+// grasp at t = 1.0-1.3 s and grabs (30 mm up), twists (0.8 rad about z) or bends (0.5 rad about
+// y) at 1.4-2.4 s, the stroke under way to the end), radius 0.03 m, with and without volume
+// conservation. Frozen after tests/app/run_sculpt_test.cc's checks of the same runs passed: the
+// grab moves every vertex to p0 + w Δp of sculpt.h's formula within 1e-12 m and adds the bump's
+// volume (+0.565 %, 3 % under Δz π R²/4 on a flat face); the felt force is −300 N/m × the grip's
+// measured motion (fz −4.288 N at the end); the twist and bend keep every vertex's distance to
+// the grab centre and turn it by w·α or w·t·φ within 2e-4 and 0.011 rad, and the felt moment is
+// k R² = 0.27 N·m/rad times the measured turn (0.159 N·m at 0.587 rad of twist, 0.088 N·m
+// at 0.327 rad of bend); with conservation the divergence-theorem volume of the exported clay is
+// the start's within 1e-9; no tension saturation (the clay's top at the device centre), events
+// only the start ramp.
+void RunSculpt(const std::string& tool, bool conserve) {
+  std::string out;
+  RunAndCompare("clay_sculpt_" + tool + (conserve ? "_conserved" : ""),
+                Asset("scenes/clay_sculpt.json") + " --trajectory " +
+                    Asset("trajectories/sculpt_" + tool + ".csv") +
+                    " --world-origin 0,-0.038,0.0739 --sculpt-radius 0.03 --sculpt-tool " + tool +
+                    (conserve ? " --conserve-volume" : ""),
+                &out, SculptTolerances());
+  EXPECT_NE(out.find("sculpt 'clay': 1 stroke (" + tool + ", radius 0.03 m, volume " +
+                     (conserve ? "conserved" : "not conserved") + ")"),
+            std::string::npos)
+      << out;
+}
+
+TEST(Regression, ClaySculptGrabMatchesGolden) { RunSculpt("grab", false); }
+TEST(Regression, ClaySculptGrabConservedMatchesGolden) { RunSculpt("grab", true); }
+TEST(Regression, ClaySculptTwistMatchesGolden) { RunSculpt("twist", false); }
+TEST(Regression, ClaySculptTwistConservedMatchesGolden) { RunSculpt("twist", true); }
+TEST(Regression, ClaySculptBendMatchesGolden) { RunSculpt("bend", false); }
+TEST(Regression, ClaySculptBendConservedMatchesGolden) { RunSculpt("bend", true); }
+
 CsvTable SmallTable() {
   CsvTable t;
   t.columns = {"t", "x", "fx", "events"};

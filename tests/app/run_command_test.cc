@@ -204,23 +204,29 @@ TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
       "", "run_workbench",
       "env SPIDARCAD_CACHE_DIR='" + std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/run_wb_cache'");
   ASSERT_EQ(run.status, 0) << run.all();
-  EXPECT_NE(run.out.find("fields: fe_touch 'platform FE'\n"), std::string::npos) << run.out;
-  EXPECT_NE(run.out.find("skipped (run renders solids, FE models, assembly parts and snap; not yet "
-                         "other meshes, sculpts or rigid parts): sculpt 'clay', rigid_part 'base', "
-                         "rigid_part 'cap'\n"),
+  // Its sculpt object is sculpted by the grip (a free grip here: the press never closes the
+  // grasp), its rigid parts beside solids are skipped.
+  EXPECT_NE(run.out.find("fields: fe_touch 'platform FE', sculpt_tool 'clay'\n"), std::string::npos)
+      << run.out;
+  EXPECT_NE(run.out.find("skipped (run renders solids, FE models, assembly parts, the first sculpt "
+                         "object and snap; not yet other meshes, other sculpts or rigid parts): "
+                         "rigid_part 'base', rigid_part 'cap'\n"),
+            std::string::npos)
+      << run.out;
+  EXPECT_NE(run.out.find("sculpt 'clay': 0 strokes (grab, radius 0.02 m, volume not conserved)"),
             std::string::npos)
       << run.out;
   EXPECT_EQ(ReadCsv(OutputPath("wb.csv")).size(), 1502u);  // header + 1.5 s at 1 kHz
 
-  // Nothing it can render: a free grip, and the summary says why.
+  // Only a sculpt object: its sculpt tool field alone, which is zero without a stroke (the press
+  // never closes the grasp), so the grip moves freely; nothing is skipped.
   const CommandRun clay = RunSpidarcad("'" + scenes + "clay_sculpt.json' --trajectory '" +
                                            trajectory + "' --out '" + OutputPath("clay.csv") + "'",
                                        "clay");
   ASSERT_EQ(clay.status, 0) << clay.all();
-  EXPECT_NE(clay.out.find("clay_sculpt.json (no solid) (0 fields)"), std::string::npos) << clay.out;
-  EXPECT_NE(clay.out.find("not yet other meshes, sculpts or rigid parts): sculpt 'clay'\n"),
-            std::string::npos)
-      << clay.out;
+  EXPECT_NE(clay.out.find("clay_sculpt.json (no solid) (1 field)"), std::string::npos) << clay.out;
+  EXPECT_NE(clay.out.find("fields: sculpt_tool 'clay'\n"), std::string::npos) << clay.out;
+  EXPECT_EQ(clay.out.find("skipped"), std::string::npos) << clay.out;
   const std::vector<std::vector<std::string>> rows = ReadCsv(OutputPath("clay.csv"));
   double max_force = 0.0;
   for (std::size_t r = 1; r < rows.size(); ++r)

@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -34,6 +35,7 @@
 #include "scene/document_file.h"
 #include "scene/fe_part.h"
 #include "scene/scene_haptics.h"
+#include "scene/sculpt_document.h"
 #include "scene/trajectory_player.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -42,6 +44,7 @@
 #include "spidarcad/haptics/simulated_hand.h"
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/triangle_mesh_io.h"
 
 namespace spidarcad::app {
 
@@ -89,8 +92,9 @@ constexpr const char* kRunHelp =
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
     "coordinates), or a scene file or document (docs/scene-format.md, version 1 or 2) of implicit\n"
-    "solids and FE models (below); a document's other meshes and sculpts are not rendered yet,\n"
-    "nor rigid parts beside solids (the summary lists them as skipped); a document of rigid parts\n"
+    "solids, FE models and sculpt objects (below); a document's other meshes are not rendered\n"
+    "yet, nor rigid parts beside solids (the summary lists them as skipped); a document of rigid "
+    "parts\n"
     "and no solid (an assembly saved from the window) is one assembly field, as a scene's\n"
     "\"parts\" are. Solids:\n"
     "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
@@ -112,6 +116,17 @@ constexpr const char* kRunHelp =
     "--fe-grasp: instead, a sphere of that radius at each pole tip, 0.02 m (W) from the grip\n"
     "centre (FE mode's two-point grasp, no coupling): closing the grasp squeezes the part between\n"
     "the tips, and the grasp torque g pushes back.\n"
+    "Sculpt objects: the document's first sculpt object is sculpted by the grip, as in the\n"
+    "window's sculpt mode (scene/sculpt_field.h; any other sculpt object is skipped). Every 16\n"
+    "ticks of the virtual clock (62.5 Hz, the window's frame) the sculpt session steps on the\n"
+    "tool state: a stroke begins when the grasp closes below 70 deg with the grip centre within\n"
+    "the tool radius of the clay, follows the grip, and ends when the grasp opens above 80 deg\n"
+    "(a stroke still under way at the last tick ends there); each stroke is recorded in the\n"
+    "document. The stroke's resisting wrench is felt through the sculpt tool field (300 N/m).\n"
+    "--sculpt-tool (grab, twist, bend, push_pull, smooth; default grab), --sculpt-radius (m,\n"
+    "default 0.02) and --conserve-volume set the tool (a sculpt object stores none). With only\n"
+    "sculpt objects X_WD is the identity, as in the window, unless --world-scale/--world-origin\n"
+    "say otherwise; beside solids the sculpt does not take part in the fit.\n"
     "A scene with a \"snap\" object adds snap forces toward its solids' vertices, edges and\n"
     "faces (docs/scene-format.md, \"Snap forces\"); the summary gives the feature counts.\n"
     "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
@@ -143,6 +158,8 @@ constexpr const char* kRunHelp =
     "  fe_contacts       (documents with FE models only) FE contact nodes of the tick, all parts\n"
     "  fe_fx,fe_fy,fe_fz (the same) FE reaction on the tool, W, N: the unscaled FE force, summed\n"
     "                    over the parts (the felt force is in fx..fz)\n"
+    "  sculpt_stroke     (documents with a sculpt object only) 1 while a stroke is under way\n"
+    "  sculpt_volume     (the same) enclosed volume of the sculpted clay, m^3\n"
     "\n"
     "Example:\n"
     "  spidarcad run demo --trajectory assets/trajectories/press.csv --out press_result.csv\n"
@@ -173,7 +190,33 @@ struct RunOptions {
   bool fe_grasp = false;             // FE parts: two-point grasp contact instead of the push sphere
   std::vector<std::string> save;     // --save OUT: the document at the end of the run
   std::vector<std::string> exports;  // --export NAME=FILE: one object's final state
+  std::string sculpt_tool = "grab";  // sculpt objects: the tool of every stroke
+  double sculpt_radius = 0.02;       // sculpt objects: falloff radius R, m (W)
+  bool conserve_volume = false;      // sculpt objects: keep each stroke's enclosed volume
 };
+
+// The sculpt session is stepped every this many ticks of the virtual clock (62.5 Hz), as the
+// window steps it once a frame: the same ticks every run, so the CSV is reproducible.
+constexpr long kSculptFrameTicks = 16;
+
+// True when path ends in .stl, .obj or .ply (any case): the files WriteTriangleMesh writes.
+bool IsSurfaceMeshFile(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  std::string lower;
+  for (char c : ext) lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return lower == ".stl" || lower == ".obj" || lower == ".ply";
+}
+
+// The sculpt tool named `name` (SculptToolName's spelling); InputError naming the option else.
+modeling::SculptTool ParseSculptTool(const std::string& name) {
+  for (modeling::SculptTool tool :
+       {modeling::SculptTool::kGrab, modeling::SculptTool::kTwist, modeling::SculptTool::kBend,
+        modeling::SculptTool::kPushPull, modeling::SculptTool::kSmooth}) {
+    if (name == modeling::SculptToolName(tool)) return tool;
+  }
+  throw InputError("--sculpt-tool: '" + name +
+                   "' is not a sculpt tool; use grab, twist, bend, push_pull or smooth");
+}
 
 // Ceiling of --max-duration, s: 1e7 s is 1e10 ticks, far inside a long tick counter.
 constexpr double kMaxRunDurationCeiling = 1e7;
@@ -259,6 +302,10 @@ void RunRun(const RunOptions& options) {
     throw InputError("--max-duration: must be in (0, 1e7] s, got " +
                      FormatNumber(options.max_duration));
   }
+  ParseSculptTool(options.sculpt_tool);  // a bad name fails before any work
+  if (!(options.sculpt_radius > 0.0 && std::isfinite(options.sculpt_radius))) {
+    throw InputError("--sculpt-radius: must be > 0 m, got " + FormatNumber(options.sculpt_radius));
+  }
   haptics::Trajectory trajectory;
   CheckTrajectoryFile(options.trajectory);
   try {
@@ -296,6 +343,7 @@ void RunRun(const RunOptions& options) {
   std::vector<std::shared_ptr<FeModel>> fe_parts;  // their models, in the same order
   std::vector<std::string> fe_names;               // and their names
   std::unique_ptr<Document> document;              // the document run (null: demo or empty)
+  std::unique_ptr<DocumentSculpt> sculpt;          // its sculpt object sculpted (null: none)
   std::string fe_lines;                            // what the FE parts' set-up did, for the summary
   haptics::LoopSettings settings;
   settings.fk.max_residual = kNominalFkMaxResidual;  // nominal encoder model: mm-level errors
@@ -348,6 +396,12 @@ void RunRun(const RunOptions& options) {
     // FE models are rendered beside solids, not in an assembly.
     const std::vector<ObjectId> fe_models =
         part_count == 0 ? FeModelsOf(*opened.doc) : std::vector<ObjectId>{};
+    // The sculpt object sculpted: the document's first (not beside an assembly's parts).
+    ObjectId sculpt_id = 0;
+    for (const DocObject& o : opened.doc->objects()) {
+      if (part_count == 0 && sculpt_id == 0 && std::holds_alternative<SculptData>(o.data))
+        sculpt_id = o.id;
+    }
     std::vector<ObjectId> fe_meshes, fe_sources;
     for (ObjectId fe : fe_models) {
       fe_meshes.push_back(std::get<FeModelData>(opened.doc->Get(fe).data).tet_mesh);
@@ -360,18 +414,18 @@ void RunRun(const RunOptions& options) {
     for (const DocObject& o : opened.doc->objects()) {
       if (std::holds_alternative<SolidData>(o.data)) continue;
       if (!rigid_parts.empty() && std::holds_alternative<RigidPartData>(o.data)) continue;
-      if (listed(fe_models, o.id) || listed(fe_meshes, o.id)) continue;
+      if (listed(fe_models, o.id) || listed(fe_meshes, o.id) || o.id == sculpt_id) continue;
       skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
                       " '" + o.name + "'";
     }
     if (!skipped_line.empty()) {
       skipped_line =
-          "skipped (run renders solids, FE models, assembly parts and snap; not yet other "
-          "meshes, sculpts or rigid parts): " +
+          "skipped (run renders solids, FE models, assembly parts, the first sculpt object and "
+          "snap; not yet other meshes, other sculpts or rigid parts): " +
           skipped_line;
     }
-    // --export: objects whose final state run can write (FE parts, as .vtu), checked before
-    // any work.
+    // --export: objects whose final state run can write (FE parts, as .vtu; sculpt objects, as
+    // .stl, .obj or .ply), checked before any work.
     for (const auto& [name, file] : exports) {
       const std::string what = "--export " + name + "=" + file + ": ";
       const DocObject* object = nullptr;
@@ -379,21 +433,50 @@ void RunRun(const RunOptions& options) {
         if (o.name == name && object == nullptr) object = &o;
       if (object == nullptr) {
         throw InputError(what + "the document has no object named '" + name +
-                         "'; its FE models: " + ObjectNames(*opened.doc, {"fe_model"}));
+                         "'; its FE models: " + ObjectNames(*opened.doc, {"fe_model"}) +
+                         "; its sculpt objects: " + ObjectNames(*opened.doc, {"sculpt"}));
+      }
+      if (std::holds_alternative<SculptData>(object->data)) {
+        if (!IsSurfaceMeshFile(file)) {
+          throw InputError(what +
+                           "a sculpt object is written as a surface mesh: name the file "
+                           "FILE.stl, FILE.obj or FILE.ply");
+        }
+        continue;
       }
       if (!listed(fe_models, object->id)) {
-        throw InputError(what + "'" + name + "' is a " + ObjectKindName(object->data) +
-                         ", not an FE model run renders; run exports FE models only (" +
-                         ObjectNames(*opened.doc, {"fe_model"}) + ")");
+        throw InputError(
+            what + "'" + name + "' is a " + ObjectKindName(object->data) +
+            ", not an FE model run renders nor a sculpt object; run exports those only (" +
+            ObjectNames(*opened.doc, {"fe_model", "sculpt"}) + ")");
       }
       if (file.size() < 4 || file.compare(file.size() - 4, 4, ".vtu") != 0) {
         throw InputError(what + "an FE model is written as .vtu: name the file FILE.vtu");
       }
     }
     if (opened.version == 2 && loaded.solids.empty() && rigid_parts.empty() && fe_models.empty()) {
-      // Nothing to render: the grip moves freely.
+      // Nothing to render (but a sculpt object, added below): the grip moves freely.
       scene = std::make_unique<haptics::HapticScene>();
       scene_name = options.scene + " (no solid)";
+      if (sculpt_id != 0) {
+        // X_WD: the identity, as the window's for a document without solids, unless given.
+        if (options.world_scale < 0.0) throw InputError("--world-scale: must be > 0 (0: default)");
+        if (options.world_scale > 0.0) settings.X_WD.world_scale = options.world_scale;
+        if (!options.world_origin.empty()) {
+          if (options.world_origin.size() != 3) {
+            throw InputError("--world-origin: expected x,y,z (m), got " +
+                             std::to_string(options.world_origin.size()) + " numbers");
+          }
+          settings.X_WD.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
+                                                options.world_origin[2]);
+        }
+        if (options.world_scale > 0.0 || !options.world_origin.empty()) {
+          const Eigen::Vector3d& o = settings.X_WD.p_WDo;
+          map_line = "X_WD: p_W = " + FormatNumber(settings.X_WD.world_scale) + " p_D + (" +
+                     FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
+                     ") m";
+        }
+      }
     } else if (part_count > 0) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
       std::unique_ptr<haptics::AssemblyField> assembly;
@@ -549,6 +632,22 @@ void RunRun(const RunOptions& options) {
                     FormatNumber(b.max().y()) + ", " + FormatNumber(b.max().z()) + ") m";
       }
     }  // not an assembly
+    if (sculpt_id != 0) {
+      // The sculpt object: a session on its mesh, felt through the sculpt tool field.
+      SculptModeSettings sculpt_settings;
+      sculpt_settings.tool.tool = ParseSculptTool(options.sculpt_tool);
+      sculpt_settings.tool.radius = options.sculpt_radius;
+      sculpt_settings.tool.conserve_volume = options.conserve_volume;
+      try {
+        sculpt = std::make_unique<DocumentSculpt>(opened.doc.get(), sculpt_id, sculpt_settings);
+      } catch (const std::invalid_argument& e) {
+        throw InputError(options.scene + ": " + e.what());
+      }
+      scene->Add(sculpt->session().MakeField());
+      if (fields_line.empty()) fields_line = "fields:";
+      fields_line += std::string(fields_line == "fields:" ? "" : ",") + " sculpt_tool '" +
+                     sculpt->name() + "'";
+    }
     document = std::move(opened.doc);
   }
   const int num_fields = scene->size();
@@ -637,8 +736,12 @@ void RunRun(const RunOptions& options) {
   const bool fe_columns = !fe_fields.empty();
   out << "t,x,y,z,qw,qx,qy,qz,grasp,fx,fy,fz,mx,my,mz,g,tau1,tau2,tau3,tau4,tau5,tau6,tau7,tau8,"
          "tick_us,events,fk_x,fk_y,fk_z"
-      << (fe_columns ? ",fe_contacts,fe_fx,fe_fy,fe_fz" : "") << "\n";
-  long fe_substituted_ticks = 0;  // ticks with a contact on a substitute column
+      << (fe_columns ? ",fe_contacts,fe_fx,fe_fy,fe_fz" : "")
+      << (sculpt ? ",sculpt_stroke,sculpt_volume" : "") << "\n";
+  const bool sculpt_columns = sculpt != nullptr;
+  haptics::ToolKinematics last_tool_W;    // the tool state of the last tick
+  double sculpt_max_volume_change = 0.0;  // largest |V - V0| / V0 over the run
+  long fe_substituted_ticks = 0;          // ticks with a contact on a substitute column
   int fe_max_contacts = 0;
   double fe_max_reaction = 0.0;
   std::string buffer;
@@ -662,6 +765,7 @@ void RunRun(const RunOptions& options) {
     rig->Read(dt, &inputs.reading);
     const auto start = std::chrono::steady_clock::now();
     const haptics::TickOutputs result = loop.Step(inputs, dt);
+    last_tool_W = result.tool_W;
     const auto stop = std::chrono::steady_clock::now();
     rig->Write(result.tau);
     const double seconds = std::chrono::duration<double>(stop - start).count();
@@ -687,7 +791,7 @@ void RunRun(const RunOptions& options) {
     const bool has_pose = result.fk_status == haptics::FkStatus::kOk;
     for (int i = 0; i < 3; ++i) {
       buffer += has_pose ? FormatNumber(result.pose_D.p0(i)) : std::string("nan");
-      buffer += i < 2 || fe_columns ? ',' : '\n';
+      buffer += i < 2 || fe_columns || sculpt_columns ? ',' : '\n';
     }
     if (fe_columns) {
       // The FE parts' contact state of this tick (this thread ran it: it is the one reader).
@@ -703,7 +807,25 @@ void RunRun(const RunOptions& options) {
       fe_max_contacts = std::max(fe_max_contacts, contacts);
       fe_max_reaction = std::max(fe_max_reaction, f.norm());
       buffer += std::to_string(contacts) + ',' + FormatNumber(f.x()) + ',' + FormatNumber(f.y()) +
-                ',' + FormatNumber(f.z()) + '\n';
+                ',' + FormatNumber(f.z()) + (sculpt_columns ? ',' : '\n');
+    }
+    if (sculpt_columns) {
+      // The sculpt session's frame (every kSculptFrameTicks ticks): the stroke follows this
+      // tick's tool state; the field reads the published force model from the next tick on.
+      if ((k + 1) % kSculptFrameTicks == 0) {
+        try {
+          sculpt->Step(result.tool_W);
+        } catch (const std::exception& e) {
+          throw InputError("sculpt '" + sculpt->name() + "' at t = " + FormatNumber(t) +
+                           " s: " + e.what());
+        }
+      }
+      const double volume = sculpt->session().volume();
+      sculpt_max_volume_change =
+          std::max(sculpt_max_volume_change,
+                   std::abs(volume - sculpt->start_volume()) / sculpt->start_volume());
+      buffer += std::string(sculpt->session().stroke_active() ? "1" : "0") + ',' +
+                FormatNumber(volume) + '\n';
     }
     if (buffer.size() > (1 << 16)) {
       out << buffer;
@@ -713,6 +835,8 @@ void RunRun(const RunOptions& options) {
   out << buffer;
   out.close();
   if (!out) throw InputError("--out: failed writing '" + options.out + "'");
+  // A stroke still under way ends at the last tick, as if the grasp opened there.
+  if (sculpt) sculpt->Finish(last_tool_W);
 
   std::cout << "run: " << ticks << " ticks (" << Fixed((ticks - 1) * dt, 3) << " s at 1000 Hz, "
             << (physical ? "virtual clock" : "real time") << "), scene " << scene_name << " ("
@@ -733,6 +857,18 @@ void RunRun(const RunOptions& options) {
     std::cout << "fe contact: at most " << fe_max_contacts << " nodes, largest FE reaction "
               << Fixed(fe_max_reaction, 3) << " N (unscaled, W); " << fe_substituted_ticks
               << " ticks read a substitute column (a node off the prepared path)\n";
+  }
+  if (sculpt) {
+    const modeling::SculptToolSettings& st = sculpt->session().settings().tool;
+    const double v0 = sculpt->start_volume(), v1 = sculpt->session().volume();
+    std::cout << "sculpt '" << sculpt->name() << "': " << sculpt->strokes() << " stroke"
+              << (sculpt->strokes() == 1 ? "" : "s") << " (" << modeling::SculptToolName(st.tool)
+              << ", radius " << FormatNumber(st.radius) << " m, volume "
+              << (st.conserve_volume ? "conserved" : "not conserved") << "); volume "
+              << FormatNumber(v0) << " -> " << FormatNumber(v1) << " m^3 (" << (v1 >= v0 ? "+" : "")
+              << Fixed(100.0 * (v1 - v0) / v0, 3) << " %), at most "
+              << Fixed(100.0 * sculpt_max_volume_change, 3) << " % off the start during the run; "
+              << sculpt->session().mesh()->vertex_count() << " vertices\n";
   }
   if (frame_source != "default") {
     std::cout << "frame: half-sides " << FormatNumber(geometry.a) << ", "
@@ -759,6 +895,21 @@ void RunRun(const RunOptions& options) {
   std::cout << "wrote " << options.out << " (" << ticks << " rows)\n";
   // The final state of each exported FE part: its last tick's contacts, solved in full.
   for (const auto& [name, file] : exports) {
+    const DocObject* object = nullptr;  // the first object of that name, as checked above
+    for (const DocObject& o : document->objects())
+      if (o.name == name && object == nullptr) object = &o;
+    if (const auto* clay = object ? std::get_if<SculptData>(&object->data) : nullptr) {
+      // A sculpt object's surface as it stands at the end of the run (its strokes recorded).
+      try {
+        modeling::WriteTriangleMesh(*clay->mesh, file);
+      } catch (const std::exception& e) {
+        throw InputError("--export " + name + "=" + file + ": " + e.what());
+      }
+      std::cout << "wrote " << file << " ('" << name
+                << "' at the end of the run: " << clay->mesh->vertices.cols() << " vertices, "
+                << clay->mesh->triangles.cols() << " triangles)\n";
+      continue;
+    }
     const std::size_t i = std::find(fe_names.begin(), fe_names.end(), name) - fe_names.begin();
     const FeContactState& state = fe_fields[i]->last_state();
     try {
@@ -839,9 +990,17 @@ void RegisterRunCommand(CLI::App& app) {
       ->allow_extra_args(false);
   cmd->add_option("--export", options->exports,
                   "Documents: write one object's final state, NAME=FILE (repeatable); an FE model "
-                  "as .vtu with point data displacement and von_mises")
+                  "as .vtu with point data displacement and von_mises, a sculpt object's surface "
+                  "as .stl, .obj or .ply")
       ->type_name("NAME=FILE")
       ->allow_extra_args(false);
+  cmd->add_option("--sculpt-tool", options->sculpt_tool,
+                  "Documents: the tool of the sculpt object's strokes: grab (default), twist, "
+                  "bend, push_pull or smooth");
+  cmd->add_option("--sculpt-radius", options->sculpt_radius,
+                  "Documents: the sculpt tool's falloff radius, m (W; default 0.02)");
+  cmd->add_flag("--conserve-volume", options->conserve_volume,
+                "Documents: each sculpt stroke keeps the clay's enclosed volume");
   cmd->callback([options]() { RunRun(*options); });
 }
 

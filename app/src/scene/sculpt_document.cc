@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <numbers>
+#include <stdexcept>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -51,6 +53,48 @@ std::unique_ptr<Command> MakeStrokeCommand(ObjectId id, const std::string& name,
   for (std::size_t k = 0; k < positions.size(); ++k)
     matrix.col(static_cast<Eigen::Index>(k)) = positions[k];
   return edit::SculptStroke(id, std::move(vertices), std::move(matrix), title);
+}
+
+DocumentSculpt::DocumentSculpt(Document* doc, ObjectId id, const SculptModeSettings& settings)
+    : doc_(doc), id_(id) {
+  const DocObject* object = doc_ != nullptr ? doc_->Find(id) : nullptr;
+  const auto* data = object != nullptr ? std::get_if<SculptData>(&object->data) : nullptr;
+  if (data == nullptr || !data->mesh) {
+    throw std::invalid_argument("object " + std::to_string(id) + " is not a sculpt object");
+  }
+  name_ = object->name;
+  settings.Validate();
+  session_.settings() = settings;
+  try {
+    session_.SetMesh(*data->mesh);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("sculpt object '" + name_ + "' cannot be sculpted: " + e.what());
+  }
+  start_volume_ = session_.mesh()->volume();
+}
+
+SculptFrameEvent DocumentSculpt::Step(const haptics::ToolKinematics& tool) {
+  const SculptFrameEvent event = session_.Step(tool, false);
+  if (event == SculptFrameEvent::kEnded) Record();
+  return event;
+}
+
+void DocumentSculpt::Finish(const haptics::ToolKinematics& tool) {
+  if (!session_.stroke_active()) return;
+  haptics::ToolKinematics open = tool;
+  // Open: at rest (pi/2) or at the end angle, whichever is larger.
+  open.grasp = std::max(std::numbers::pi / 2, session_.settings().stroke_end_angle);
+  Step(open);
+}
+
+void DocumentSculpt::Record() {
+  ++strokes_;
+  const modeling::SculptEdit* edit = session_.last_edit();
+  if (edit == nullptr || !session_.mesh()) return;
+  std::unique_ptr<Command> command =
+      MakeStrokeCommand(id_, name_, session_.settings().tool.tool, *edit, *session_.mesh());
+  session_.ForgetHistory();  // the Document holds the strokes
+  if (command != nullptr) doc_->Execute(std::move(command));
 }
 
 }  // namespace spidarcad::app

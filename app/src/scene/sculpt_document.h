@@ -16,6 +16,7 @@
 
 #include "doc/command.h"
 #include "doc/document.h"
+#include "scene/sculpt_field.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
@@ -43,5 +44,41 @@ std::unique_ptr<Command> MakeStrokeCommand(ObjectId id, const std::string& name,
                                            modeling::SculptTool tool,
                                            const modeling::SculptEdit& edit,
                                            const modeling::SculptMesh& mesh);
+
+// A sculpt object of a Document sculpted without a window (`spidarcad run`): a SculptSession
+// loaded from the object's mesh, stepped once a frame from the tool state, each stroke that ends
+// recorded in the Document as one MakeStrokeCommand (as the window's sculpt mode records it), so
+// that the Document holds the sculpted clay. The Document must outlive this binding and change
+// only through it meanwhile. Main thread only.
+class DocumentSculpt {
+ public:
+  // Loads sculpt object `id` of *doc with `settings` (validated; the spatial grid's cell is a
+  // third of the tool radius). Throws std::invalid_argument naming the object when it is not a
+  // sculpt object, its mesh is not closed, or a setting is out of range.
+  DocumentSculpt(Document* doc, ObjectId id, const SculptModeSettings& settings);
+  // One frame: SculptSession::Step (no key: the grasp alone triggers strokes); a stroke that
+  // ended is recorded in the Document.
+  SculptFrameEvent Step(const haptics::ToolKinematics& tool);
+  // Ends a stroke still under way (as if the grasp opened at `tool`) and records it; no-op
+  // without one.
+  void Finish(const haptics::ToolKinematics& tool);
+  SculptSession& session() { return session_; }
+  const SculptSession& session() const { return session_; }
+  ObjectId id() const { return id_; }
+  const std::string& name() const { return name_; }
+  // Strokes ended so far (each a command in the Document, unless it moved nothing).
+  int strokes() const { return strokes_; }
+  // Enclosed volume of the clay when loaded (m³).
+  double start_volume() const { return start_volume_; }
+
+ private:
+  void Record();
+  Document* doc_;
+  ObjectId id_;
+  std::string name_;
+  SculptSession session_;
+  int strokes_ = 0;
+  double start_volume_ = 0.0;
+};
 
 }  // namespace spidarcad::app

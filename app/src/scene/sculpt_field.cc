@@ -184,6 +184,11 @@ SculptFrameEvent SculptSession::Step(const haptics::ToolKinematics& tool, bool k
   return SculptFrameEvent::kUpdated;
 }
 
+double SculptSession::volume() const {
+  if (!mesh_) return 0.0;
+  return mesh_->stroke_active() ? mesh_->stroke_stats().volume : mesh_->volume();
+}
+
 void SculptSession::CancelStroke() {
   if (!stroke_active()) return;
   Publish(StrokeForceModel{});

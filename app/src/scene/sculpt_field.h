@@ -149,6 +149,10 @@ class SculptSession {
   // The model last published (active = false outside a stroke).
   const modeling::StrokeForceModel& published_model() const { return published_; }
 
+  // Enclosed volume of the clay now (m³), the active stroke's deformation included (the mesh's
+  // own volume() changes only when a stroke ends); 0 without clay.
+  double volume() const;
+
   // The current clay as a triangle mesh (for export or tetrahedralization).
   modeling::TriangleMesh ExportMesh() const;
 
