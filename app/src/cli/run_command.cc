@@ -28,6 +28,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "cli/interrupt_output.h"
 #include "scene/assembly_scene.h"
 #include "scene/calibration_file.h"
 #include "scene/device_rig.h"
@@ -631,7 +632,11 @@ void RunRun(const RunOptions& options) {
   if (calibration_file && physical == nullptr) check_file(rig->Serial());
   const RigServiceThread service(rig.get());  // a thread only when the rig needs one (usb)
 
-  std::ofstream out(options.out);
+  // Ctrl+C stops the loop at the next tick (the rig is stopped as on any exit) with status 130;
+  // the CSV goes to a hidden temporary renamed over --out when complete, so no half-written
+  // file is left (a second Ctrl+C ends at once, removing the temporary).
+  InterruptibleOutput output(options.out, "run", InterruptibleOutput::Mode::kFlag);
+  std::ofstream out(output.temporary());
   if (!out) throw InputError("--out: cannot write '" + options.out + "'");
   // Columns after today's only when the document has an FE part (older outputs stay as they were).
   const bool fe_columns = !fe_fields.empty();
@@ -646,6 +651,7 @@ void RunRun(const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   RunProgress progress(options.progress || isatty(STDERR_FILENO) == 1, ticks);
   for (long k = 0; k < ticks; ++k) {
+    if (output.interrupted()) output.Stop();
     progress.Tick(k);
     const double t = t0 + k * dt;
     haptics::TickInputs inputs;
@@ -713,6 +719,7 @@ void RunRun(const RunOptions& options) {
   out << buffer;
   out.close();
   if (!out) throw InputError("--out: failed writing '" + options.out + "'");
+  output.Commit();
 
   std::cout << "run: " << ticks << " ticks (" << Fixed((ticks - 1) * dt, 3) << " s at 1000 Hz, "
             << (physical ? "virtual clock" : "real time") << "), scene " << scene_name << " ("
