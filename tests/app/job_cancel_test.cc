@@ -12,8 +12,8 @@
 // child process that Cancel kills (scene/tetgen_worker.h; the tests set the worker program to the
 // built spidarcad, as main() sets /proc/self/exe); after such a cancel a second TetGen job and
 // an FE factorisation must work in the same process (an earlier abandoned-thread attempt crashed
-// there). Not covered: CGAL Mesh_3's start-up and optimisers and the CHOLMOD factorisation, which
-// cannot be interrupted and end only when the library call returns (docs/limits.md).
+// there). CGAL Mesh_3 runs in such a child too. Not covered: the CHOLMOD factorisation, which
+// cannot be interrupted and ends only when the library call returns (docs/limits.md).
 #include <gtest/gtest.h>
 #include <vtkNew.h>
 #include <vtkRenderer.h>
@@ -103,10 +103,10 @@ MeshSettings CellOf(double cell) {
 
 // True once the job's progress has been at least `min_progress` for `dwell` seconds (TetGen
 // reports no progress while it runs).
-std::function<bool()> ProgressFor(const Job& job, double min_progress, double dwell) {
+std::function<bool(const Job&)> ProgressFor(double min_progress, double dwell) {
   auto entered = std::make_shared<Clock::time_point>();
   auto seen = std::make_shared<bool>(false);
-  return [&job, min_progress, dwell, entered, seen] {
+  return [min_progress, dwell, entered, seen](const Job& job) {
     if (job.progress() < min_progress) return false;
     if (!*seen) {
       *seen = true;
@@ -114,6 +114,11 @@ std::function<bool()> ProgressFor(const Job& job, double min_progress, double dw
     }
     return Since(*entered) >= dwell;
   };
+}
+
+std::function<bool()> ProgressFor(const Job& job, double min_progress, double dwell) {
+  auto when = ProgressFor(min_progress, dwell);
+  return [&job, when] { return when(job); };
 }
 
 // TetGen runs in a child process of the built spidarcad for the scope.
@@ -220,6 +225,41 @@ TEST(JobCancel, FeSetUpEndsWithinHalfASecondInsideTetgen) {
   EXPECT_LT(CancelWhen(&rig.jobs, job, ProgressFor(job, 0.479, 0.3), "FE set-up (TetGen)"), kBound);
   EXPECT_TRUE(DocState(rig.model.document()) == before);
   ExpectMeshingStillWorks(&rig);
+}
+
+// FE mode's Set up FE with CGAL Mesh_3 on the ball at `cell`, cancelled when `when` holds.
+void CancelCgalSetUp(double cell, const std::function<bool(const Job&)>& when, const char* kind) {
+  TetgenWorkerScope worker;
+  SolidRig rig(Ball(0.05));
+  const DocState before(rig.model.document());
+  MeshSettings settings = CellOf(cell);
+  settings.mesher = "cgal";
+  const FeMeshInput input = PrepareFeMesh(rig.model.document(), rig.solid, settings);
+  Job& job = rig.jobs.Start("Set up FE for part", [input](JobContext& ctx) -> Job::Finisher {
+    ctx.SetPhase("CGAL Mesh_3");
+    const FeMeshResult result = MeshFeSource(input, ctx.cancel_flag(), ctx.ProgressRange(0.0, 1.0));
+    (void)result;
+    return [] { ADD_FAILURE() << "a cancelled job ran its finisher"; };
+  });
+  EXPECT_LT(CancelWhen(
+                &rig.jobs, job, [&job, when] { return when(job); }, kind),
+            kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+  ExpectMeshingStillWorks(&rig);
+}
+
+TEST(JobCancel, FeSetUpEndsWithinHalfASecondInCgalsStartUp) {
+  // 0.3 s into the job (or at CGAL's first refinement report, 0.05, if that comes first): the
+  // child starts up or seeds, which polls nothing (the printed progress says where it was).
+  auto when = ProgressFor(0.0, 0.3);
+  CancelCgalSetUp(
+      0.0008, [when](const Job& job) { return when(job) || job.progress() >= 0.05; },
+      "FE set-up (CGAL Mesh_3 start-up)");
+}
+
+TEST(JobCancel, FeSetUpEndsWithinHalfASecondInCgalsOptimisers) {
+  // 0.2 s after refinement ended (0.7): perturbation and exudation, which poll nothing.
+  CancelCgalSetUp(0.002, ProgressFor(0.7, 0.2), "FE set-up (CGAL Mesh_3 optimisers)");
 }
 
 // ---- sculpt mode: a sculpt copy of a solid (SculptMode::RequestCopy) ----

@@ -218,6 +218,89 @@ TEST(TetgenWorker, CancelKillsAndReapsTheChildWithinMilliseconds) {
   EXPECT_TRUE(WorkerChildren().empty()) << "the worker was not reaped";
 }
 
+modeling::ImplicitNode TwoBalls() {
+  using modeling::ImplicitNode;
+  return ImplicitNode(modeling::UnionParams{},
+                      {ImplicitNode(modeling::TranslateParams{Eigen::Vector3d(-0.03, 0, 0)},
+                                    {ImplicitNode(modeling::SphereParams{0.02})}),
+                       ImplicitNode(modeling::TranslateParams{Eigen::Vector3d(0.03, 0.001, 0)},
+                                    {ImplicitNode(modeling::SphereParams{0.0213})})});
+}
+
+TEST(TetgenWorker, CgalChildGivesTheInProcessMeshBitForBit) {
+  const modeling::ImplicitNode root = TwoBalls();
+  const modeling::CompiledSolid compiled = modeling::CompiledSolid::Compile(root);
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.06, -0.03, -0.03),
+                                Eigen::Vector3d(0.06, 0.03, 0.03));
+  modeling::CgalMeshSettings settings = modeling::CgalMeshSettings::ForSize(0.006);
+  modeling::CgalMeshStats local_stats, child_stats;
+  const modeling::TetMesh local =
+      modeling::MeshImplicitWithCgal(compiled, box, settings, &local_stats);
+  std::atomic<bool> cancel{false};
+  settings.cancel = &cancel;
+  int reports = 0;
+  settings.progress = [&reports](double) { ++reports; };
+  WorkerScope worker;
+  const modeling::TetMesh child =
+      MeshWithCgalCancellable(root, compiled, box, settings, &child_stats);
+  EXPECT_GT(child.tets.cols(), 500);
+  ExpectSameMesh(local, child);
+  EXPECT_EQ(child_stats.refine_steps, local_stats.refine_steps);
+  EXPECT_EQ(child_stats.quality.min_dihedral_deg, local_stats.quality.min_dihedral_deg);
+  EXPECT_GT(reports, 0);
+  EXPECT_TRUE(WorkerChildren().empty()) << "the worker was not reaped";
+}
+
+TEST(TetgenWorker, CgalErrorsAndAKilledCgalChild) {
+  const modeling::ImplicitNode root = TwoBalls();
+  const modeling::CompiledSolid compiled = modeling::CompiledSolid::Compile(root);
+  std::atomic<bool> cancel{false};
+  modeling::CgalMeshSettings settings = modeling::CgalMeshSettings::ForSize(0.006);
+  settings.cancel = &cancel;
+  WorkerScope worker;
+  // A box that does not hold the solid: the in-process CgalMeshError and message.
+  const Eigen::AlignedBox3d small(Eigen::Vector3d(-0.01, -0.01, -0.01),
+                                  Eigen::Vector3d(0.01, 0.01, 0.01));
+  std::string local_what, child_what;
+  modeling::CgalMeshSettings plain = modeling::CgalMeshSettings::ForSize(0.006);
+  try {
+    modeling::MeshImplicitWithCgal(compiled, small, plain);
+  } catch (const modeling::CgalMeshError& e) {
+    local_what = e.what();
+  }
+  try {
+    MeshWithCgalCancellable(root, compiled, small, settings);
+  } catch (const modeling::CgalMeshError& e) {
+    child_what = e.what();
+  }
+  EXPECT_FALSE(local_what.empty());
+  EXPECT_EQ(child_what, local_what);
+  // A long run killed from outside: a CgalMeshError naming the signal.
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.06, -0.03, -0.03),
+                                Eigen::Vector3d(0.06, 0.03, 0.03));
+  modeling::CgalMeshSettings fine = modeling::CgalMeshSettings::ForSize(0.0008);
+  fine.cancel = &cancel;
+  std::atomic<bool> meshing{false};
+  fine.progress = [&meshing](double) { meshing = true; };
+  auto run = std::async(std::launch::async, [&] {
+    try {
+      MeshWithCgalCancellable(root, compiled, box, fine);
+    } catch (const modeling::CgalMeshCancelled&) {
+      return std::string("cancelled");
+    } catch (const modeling::CgalMeshError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  });
+  const Clock::time_point t0 = Clock::now();
+  while (!meshing && Since(t0) < 60.0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::vector<pid_t> children = WorkerChildren();
+  ASSERT_EQ(children.size(), 1u);
+  kill(children[0], SIGTERM);
+  EXPECT_EQ(run.get(), "CGAL worker process was killed by signal 15 (SIGTERM)");
+  EXPECT_TRUE(WorkerChildren().empty());
+}
+
 TEST(TetgenWorker, AProgramThatCannotStartIsAnErrorNamingIt) {
   std::atomic<bool> cancel{false};
   modeling::TetMeshSettings settings;

@@ -315,8 +315,9 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     cs.progress = progress;
     if (input.settings.max_radius_edge > 0.0)
       cs.cell_radius_edge_ratio = input.settings.max_radius_edge;
+    // With a cancel flag, in a child process that Cancel kills (scene/tetgen_worker.h).
     auto volume = std::make_shared<const modeling::TetMesh>(
-        modeling::MeshImplicitWithCgal(compiled, bounds, cs));
+        MeshWithCgalCancellable(input.root, compiled, bounds, cs));
     result.surface =
         std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*volume));
     result.volume = std::move(volume);

@@ -17,10 +17,13 @@
 #include <functional>
 #include <limits>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "spidarcad/modeling/scene_io.h"
 
 extern char** environ;
 
@@ -30,10 +33,13 @@ namespace {
 // The request starts with these (version 1 of the format below).
 constexpr std::uint32_t kMagic = 0x57545053;  // "SPTW"
 constexpr std::uint32_t kVersion = 1;
+// What the request asks for (after the version).
+enum RequestKind : std::uint8_t { kTetgenRequest = 1, kCgalRequest = 2 };
 // Largest vertex / triangle / node / tet count either side accepts (indices are int32).
 constexpr std::uint64_t kMaxCount = std::numeric_limits<std::int32_t>::max() / 4;
-// Longest string field (switches, error messages).
-constexpr std::uint64_t kMaxString = 1 << 20;
+// Longest string field (switches, error messages; a scene's node tree as JSON: the scene file
+// limit, 64 MiB, with room for the re-encoding).
+constexpr std::uint64_t kMaxString = std::uint64_t{256} << 20;
 // The parent polls its cancel flag this often while waiting for the child (ms).
 constexpr int kPollMs = 5;
 
@@ -48,6 +54,8 @@ enum ErrorKind : std::uint8_t {
   kInvalidArgument = 3,
   kRuntime = 4,
   kCancelled = 5,
+  kCgal = 6,
+  kCgalCancelled = 7,
 };
 
 std::mutex g_program_mutex;
@@ -173,6 +181,7 @@ std::vector<char> EncodeRequest(const modeling::TriangleMesh& surface,
   Writer w;
   w.Put(kMagic);
   w.Put(kVersion);
+  w.Put<std::uint8_t>(kTetgenRequest);
   w.Put(s.max_radius_edge);
   w.Put(s.min_dihedral_deg);
   w.Put(s.max_volume);
@@ -190,6 +199,70 @@ std::vector<char> EncodeRequest(const modeling::TriangleMesh& surface,
   return w.bytes();
 }
 
+// Thrown by Child: the cancel flag was raised (the caller throws its mesher's cancellation).
+struct ChildCancelled {};
+// Thrown by Child: the child ended without an answer; `message` says how, naming `what`.
+struct ChildDied {
+  std::string message;
+};
+
+std::vector<char> EncodeCgalRequest(const modeling::ImplicitNode& root,
+                                    const Eigen::AlignedBox3d& bounds,
+                                    const modeling::CgalMeshSettings& s) {
+  Writer w;
+  w.Put(kMagic);
+  w.Put(kVersion);
+  w.Put<std::uint8_t>(kCgalRequest);
+  w.PutString(modeling::NodeToJson(root).dump());
+  w.PutRaw(bounds.min().data(), 3 * sizeof(double));
+  w.PutRaw(bounds.max().data(), 3 * sizeof(double));
+  w.Put(s.facet_angle_deg);
+  w.Put(s.facet_size);
+  w.Put(s.facet_distance);
+  w.Put(s.cell_radius_edge_ratio);
+  w.Put(s.cell_size);
+  w.Put<std::uint8_t>(s.lloyd);
+  w.Put<std::uint8_t>(s.odt);
+  w.Put<std::uint8_t>(s.perturb);
+  w.Put<std::uint8_t>(s.exude);
+  w.Put(s.sliver_bound_deg);
+  w.Put(s.optimizer_time_limit);
+  w.Put(s.exude_time_limit);
+  w.Put<std::int32_t>(s.smoothing_iterations);
+  w.Put<std::int64_t>(s.max_vertices);
+  w.Put<std::uint32_t>(s.seed);
+  w.Put(s.relative_error_bound);
+  w.Put<std::uint8_t>(static_cast<bool>(s.progress));
+  return w.bytes();
+}
+
+void PutCgalStats(Writer& w, const modeling::CgalMeshStats& s) {
+  for (double v : {s.seconds, s.seed_seconds, s.refine_seconds, s.optimize_seconds}) w.Put(v);
+  for (long v : {s.seed_points, s.refine_steps, s.vertices, s.tets, s.boundary_facets})
+    w.Put<std::int64_t>(v);
+  w.Put(s.min_dihedral_deg);
+  w.Put(s.quality.min_dihedral_deg);
+  w.Put(s.quality.max_dihedral_deg);
+  w.Put(s.quality.max_radius_edge);
+  w.Put(s.quality.min_volume);
+  w.Put(s.quality.total_volume);
+}
+
+modeling::CgalMeshStats GetCgalStats(Reader& r) {
+  modeling::CgalMeshStats s;
+  for (double* v : {&s.seconds, &s.seed_seconds, &s.refine_seconds, &s.optimize_seconds})
+    *v = r.Get<double>();
+  for (long* v : {&s.seed_points, &s.refine_steps, &s.vertices, &s.tets, &s.boundary_facets})
+    *v = static_cast<long>(r.Get<std::int64_t>());
+  s.min_dihedral_deg = r.Get<double>();
+  s.quality.min_dihedral_deg = r.Get<double>();
+  s.quality.max_dihedral_deg = r.Get<double>();
+  s.quality.max_radius_edge = r.Get<double>();
+  s.quality.min_volume = r.Get<double>();
+  s.quality.total_volume = r.Get<double>();
+  return s;
+}
+
 std::string SignalText(int sig) {
   const char* name = sigabbrev_np(sig);
   return "signal " + std::to_string(sig) +
@@ -199,10 +272,12 @@ std::string SignalText(int sig) {
 // The parent's end of one worker run: kills and reaps the child on every way out.
 class Child {
  public:
-  Child(const std::string& program, const std::atomic<bool>* cancel) : cancel_(cancel) {
+  // `what` names the library in errors ("TetGen", "CGAL").
+  Child(const std::string& program, const std::atomic<bool>* cancel, const char* what)
+      : cancel_(cancel), what_(what) {
     int fds[2];
     if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0)
-      throw std::runtime_error(std::string("TetGen worker: socketpair: ") + std::strerror(errno));
+      throw std::runtime_error(what_ + " worker: socketpair: " + std::strerror(errno));
     fd_ = fds[0];
     posix_spawn_file_actions_t actions;
     posix_spawnattr_t attr;
@@ -234,7 +309,7 @@ class Child {
       close(fd_);
       fd_ = -1;
       pid_ = -1;
-      throw std::runtime_error("TetGen worker: cannot start '" + program +
+      throw std::runtime_error(what_ + " worker: cannot start '" + program +
                                "': " + std::strerror(rc));
     }
   }
@@ -250,7 +325,7 @@ class Child {
 
   bool cancelled() const { return cancel_ != nullptr && cancel_->load(std::memory_order_relaxed); }
 
-  // Sends all bytes, polling the cancel flag (throws TetMeshingCancelled).
+  // Sends all bytes, polling the cancel flag (throws ChildCancelled, ChildDied).
   void Send(const std::vector<char>& bytes) {
     std::size_t done = 0;
     while (done < bytes.size()) {
@@ -258,7 +333,7 @@ class Child {
       const ssize_t n = send(fd_, bytes.data() + done, bytes.size() - done, MSG_NOSIGNAL);
       if (n < 0) {
         if (errno == EINTR || errno == EAGAIN) continue;
-        throw Died();  // the child went away (EPIPE): say how
+        Died();  // the child went away (EPIPE): say how
       }
       done += static_cast<std::size_t>(n);
     }
@@ -271,40 +346,41 @@ class Child {
       const ssize_t got = recv(fd_, data, n, 0);
       if (got < 0) {
         if (errno == EINTR || errno == EAGAIN) continue;
-        throw std::runtime_error(std::string("TetGen worker: recv: ") + std::strerror(errno));
+        // Reset: the child went away before reading all of the request.
+        if (errno == ECONNRESET) Died();
+        throw std::runtime_error(what_ + " worker: recv: " + std::strerror(errno));
       }
       return static_cast<std::size_t>(got);
     }
   }
 
-  // The error for a child that ended without an answer (reaps it).
-  modeling::TetgenError Died() {
-    if (cancelled()) throw modeling::TetMeshingCancelled();
+  // For a child that ended without an answer: reaps it and throws ChildDied saying how (or
+  // ChildCancelled when the flag was raised meanwhile).
+  [[noreturn]] void Died() {
+    if (cancelled()) throw ChildCancelled{};
     const int status = Reap();
     if (WIFSIGNALED(status))
-      return modeling::TetgenError(
-          0, "TetGen worker process was killed by " + SignalText(WTERMSIG(status)));
+      throw ChildDied{what_ + " worker process was killed by " + SignalText(WTERMSIG(status))};
     if (WIFEXITED(status))
-      return modeling::TetgenError(0, "TetGen worker process exited with status " +
-                                          std::to_string(WEXITSTATUS(status)) +
-                                          " without an answer");
-    return modeling::TetgenError(0, "TetGen worker process ended without an answer");
+      throw ChildDied{what_ + " worker process exited with status " +
+                      std::to_string(WEXITSTATUS(status)) + " without an answer"};
+    throw ChildDied{what_ + " worker process ended without an answer"};
   }
 
   // Waits for the child's exit after its answer (it exits at once).
   void Finish() { Reap(); }
 
  private:
-  // Waits until the socket is ready for `events`; throws TetMeshingCancelled when the flag
-  // is raised (the destructor kills the child).
+  // Waits until the socket is ready for `events`; throws ChildCancelled when the flag is
+  // raised (the destructor kills the child).
   void Wait(short events) {
     for (;;) {
-      if (cancelled()) throw modeling::TetMeshingCancelled();
+      if (cancelled()) throw ChildCancelled{};
       pollfd p{fd_, events, 0};
       const int rc = poll(&p, 1, kPollMs);
       if (rc > 0) return;  // ready, or hung up / error: the send or recv says which
       if (rc < 0 && errno != EINTR)
-        throw std::runtime_error(std::string("TetGen worker: poll: ") + std::strerror(errno));
+        throw std::runtime_error(what_ + " worker: poll: " + std::strerror(errno));
     }
   }
 
@@ -323,6 +399,7 @@ class Child {
   }
 
   const std::atomic<bool>* cancel_;
+  std::string what_;
   int fd_ = -1;
   pid_t pid_ = -1;
   int status_ = 0;
@@ -338,20 +415,22 @@ class Child {
       throw std::invalid_argument(message);
     case kCancelled:
       throw modeling::TetMeshingCancelled();
+    case kCgal:
+      throw modeling::CgalMeshError(message);
+    case kCgalCancelled:
+      throw modeling::CgalMeshCancelled();
     default:
       throw std::runtime_error(message);
   }
 }
 
-modeling::TetMesh RunInChild(const std::string& program, const modeling::TriangleMesh& surface,
-                             const modeling::TetMeshSettings& settings,
-                             modeling::TetMeshStats* stats) {
-  if (settings.cancel->load()) throw modeling::TetMeshingCancelled();
-  if (surface.vertices.cols() > static_cast<Eigen::Index>(kMaxCount) ||
-      surface.triangles.cols() > static_cast<Eigen::Index>(kMaxCount))
-    throw std::invalid_argument("TetGen: the surface has too many vertices or triangles");
-  const std::vector<char> request = EncodeRequest(surface, settings);
-  Child child(program, settings.cancel);
+// Sends `request` to a new child and reads its answer: progress records go to `progress`, an
+// error record is rethrown as its type, a result record is read by `read_result`. Throws
+// ChildCancelled and ChildDied (the callers turn them into their mesher's exceptions).
+void RunInChild(const std::string& program, const std::atomic<bool>* cancel, const char* what,
+                const std::vector<char>& request, const std::function<void(double)>& progress,
+                const std::function<void(Reader&)>& read_result) {
+  Child child(program, cancel, what);
   child.Send(request);
   Reader reader([&child](char* p, std::size_t n) { return child.Receive(p, n); });
   for (;;) {
@@ -360,7 +439,7 @@ modeling::TetMesh RunInChild(const std::string& program, const modeling::Triangl
       tag = reader.Get<char>();
       if (tag == kProgress) {
         const double f = reader.Get<double>();
-        if (settings.progress) settings.progress(f);
+        if (progress) progress(f);
         continue;
       }
       if (tag == kError) {
@@ -371,20 +450,16 @@ modeling::TetMesh RunInChild(const std::string& program, const modeling::Triangl
         Rethrow(kind, code, message);
       }
       if (tag == kResult) {
-        modeling::TetMeshStats st = GetStats(reader);
-        modeling::TetMesh mesh = GetMesh(reader);
+        read_result(reader);
         child.Finish();
-        ValidateTetMesh(mesh);
-        if (stats != nullptr) *stats = std::move(st);
-        return mesh;
+        return;
       }
     } catch (const StreamEnded&) {
-      // No answer, or a cut-off one: the child died (Died throws TetMeshingCancelled when the
-      // flag was raised meanwhile).
-      throw child.Died();
+      // No answer, or a cut-off one: the child died.
+      child.Died();
     }
-    throw modeling::TetgenError(0, "TetGen worker process sent a malformed answer (record tag " +
-                                       std::to_string(static_cast<int>(tag)) + ")");
+    throw ChildDied{std::string(what) + " worker process sent a malformed answer (record tag " +
+                    std::to_string(static_cast<int>(tag)) + ")"};
   }
 }
 
@@ -428,33 +503,109 @@ modeling::TetMesh TetrahedralizeCancellable(const modeling::TriangleMesh& surfac
   const std::string program = TetgenWorkerProgram();
   if (settings.cancel == nullptr || program.empty())
     return modeling::TetrahedralizeSurface(surface, settings, stats);
-  return RunInChild(program, surface, settings, stats);
+  if (settings.cancel->load()) throw modeling::TetMeshingCancelled();
+  if (surface.vertices.cols() > static_cast<Eigen::Index>(kMaxCount) ||
+      surface.triangles.cols() > static_cast<Eigen::Index>(kMaxCount))
+    throw std::invalid_argument("TetGen: the surface has too many vertices or triangles");
+  modeling::TetMesh mesh;
+  modeling::TetMeshStats st;
+  try {
+    RunInChild(program, settings.cancel, "TetGen", EncodeRequest(surface, settings),
+               settings.progress, [&](Reader& r) {
+                 st = GetStats(r);
+                 mesh = GetMesh(r);
+               });
+  } catch (const ChildCancelled&) {
+    throw modeling::TetMeshingCancelled();
+  } catch (const ChildDied& e) {
+    throw modeling::TetgenError(0, e.message);
+  }
+  modeling::ValidateTetMesh(mesh);
+  if (stats != nullptr) *stats = std::move(st);
+  return mesh;
+}
+
+modeling::TetMesh MeshWithCgalCancellable(const modeling::ImplicitNode& root,
+                                          const modeling::CompiledSolid& compiled,
+                                          const Eigen::AlignedBox3d& bounds,
+                                          const modeling::CgalMeshSettings& settings,
+                                          modeling::CgalMeshStats* stats) {
+  const std::string program = TetgenWorkerProgram();
+  if (settings.cancel == nullptr || program.empty())
+    return modeling::MeshImplicitWithCgal(compiled, bounds, settings, stats);
+  if (settings.cancel->load()) throw modeling::CgalMeshCancelled();
+  modeling::TetMesh mesh;
+  modeling::CgalMeshStats st;
+  try {
+    RunInChild(program, settings.cancel, "CGAL", EncodeCgalRequest(root, bounds, settings),
+               settings.progress, [&](Reader& r) {
+                 st = GetCgalStats(r);
+                 mesh = GetMesh(r);
+               });
+  } catch (const ChildCancelled&) {
+    throw modeling::CgalMeshCancelled();
+  } catch (const ChildDied& e) {
+    throw modeling::CgalMeshError(e.message);
+  }
+  modeling::ValidateTetMesh(mesh);
+  if (stats != nullptr) *stats = st;
+  return mesh;
 }
 
 int RunTetgenWorker(int in, int out) {
+  std::uint8_t kind = 0;
   modeling::TriangleMesh surface;
   modeling::TetMeshSettings settings;
+  modeling::ImplicitNode root;
+  Eigen::AlignedBox3d bounds;
+  modeling::CgalMeshSettings cgal;
   bool progress = false;
   try {
     Reader r([in](char* p, std::size_t n) { return ReadSome(in, p, n); });
     if (r.Get<std::uint32_t>() != kMagic || r.Get<std::uint32_t>() != kVersion)
-      throw std::runtime_error("not a TetGen worker request of version 1");
-    settings.max_radius_edge = r.Get<double>();
-    settings.min_dihedral_deg = r.Get<double>();
-    settings.max_volume = r.Get<double>();
-    settings.weld_tolerance = r.Get<double>();
-    settings.preserve_surface = r.Get<std::uint8_t>() != 0;
-    settings.keep_facets = r.Get<std::uint8_t>() != 0;
-    settings.quiet = r.Get<std::uint8_t>() != 0;
-    settings.check_surface = r.Get<std::uint8_t>() != 0;
-    progress = r.Get<std::uint8_t>() != 0;
-    settings.extra_switches = r.GetString();
-    const auto nv = r.GetCount("vertex");
-    surface.vertices.resize(3, static_cast<Eigen::Index>(nv));
-    r.GetRaw(surface.vertices.data(), sizeof(double) * surface.vertices.size());
-    const auto nt = r.GetCount("triangle");
-    surface.triangles.resize(3, static_cast<Eigen::Index>(nt));
-    r.GetRaw(surface.triangles.data(), sizeof(int) * surface.triangles.size());
+      throw std::runtime_error("not a mesh worker request of version 1");
+    kind = r.Get<std::uint8_t>();
+    if (kind == kTetgenRequest) {
+      settings.max_radius_edge = r.Get<double>();
+      settings.min_dihedral_deg = r.Get<double>();
+      settings.max_volume = r.Get<double>();
+      settings.weld_tolerance = r.Get<double>();
+      settings.preserve_surface = r.Get<std::uint8_t>() != 0;
+      settings.keep_facets = r.Get<std::uint8_t>() != 0;
+      settings.quiet = r.Get<std::uint8_t>() != 0;
+      settings.check_surface = r.Get<std::uint8_t>() != 0;
+      progress = r.Get<std::uint8_t>() != 0;
+      settings.extra_switches = r.GetString();
+      const auto nv = r.GetCount("vertex");
+      surface.vertices.resize(3, static_cast<Eigen::Index>(nv));
+      r.GetRaw(surface.vertices.data(), sizeof(double) * surface.vertices.size());
+      const auto nt = r.GetCount("triangle");
+      surface.triangles.resize(3, static_cast<Eigen::Index>(nt));
+      r.GetRaw(surface.triangles.data(), sizeof(int) * surface.triangles.size());
+    } else if (kind == kCgalRequest) {
+      root = modeling::NodeFromJson(nlohmann::json::parse(r.GetString()));
+      r.GetRaw(bounds.min().data(), 3 * sizeof(double));
+      r.GetRaw(bounds.max().data(), 3 * sizeof(double));
+      cgal.facet_angle_deg = r.Get<double>();
+      cgal.facet_size = r.Get<double>();
+      cgal.facet_distance = r.Get<double>();
+      cgal.cell_radius_edge_ratio = r.Get<double>();
+      cgal.cell_size = r.Get<double>();
+      cgal.lloyd = r.Get<std::uint8_t>() != 0;
+      cgal.odt = r.Get<std::uint8_t>() != 0;
+      cgal.perturb = r.Get<std::uint8_t>() != 0;
+      cgal.exude = r.Get<std::uint8_t>() != 0;
+      cgal.sliver_bound_deg = r.Get<double>();
+      cgal.optimizer_time_limit = r.Get<double>();
+      cgal.exude_time_limit = r.Get<double>();
+      cgal.smoothing_iterations = r.Get<std::int32_t>();
+      cgal.max_vertices = static_cast<long>(r.Get<std::int64_t>());
+      cgal.seed = r.Get<std::uint32_t>();
+      cgal.relative_error_bound = r.Get<double>();
+      progress = r.Get<std::uint8_t>() != 0;
+    } else {
+      throw std::runtime_error("unknown request kind " + std::to_string(kind));
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "spidarcad %s: bad request: %s\n", kTetgenWorkerCommand, e.what());
     return 2;
@@ -462,39 +613,62 @@ int RunTetgenWorker(int in, int out) {
     std::fprintf(stderr, "spidarcad %s: bad request: it ends early\n", kTetgenWorkerCommand);
     return 2;
   }
+  std::function<void(double)> report;
   if (progress) {
-    settings.progress = [out](double f) {
+    // CGAL may report from several threads: one record at a time.
+    auto mutex = std::make_shared<std::mutex>();
+    report = [out, mutex](double f) {
       Writer w;
       w.Put(kProgress);
       w.Put(f);
+      std::lock_guard<std::mutex> lock(*mutex);
       WriteAll(out, w.bytes());
     };
   }
+  settings.progress = report;
+  cgal.progress = report;
   Writer answer;
-  const auto error = [&answer](ErrorKind kind, int code, const char* what) {
+  const auto error = [&answer](ErrorKind error_kind, int code, const char* what) {
     answer.Put(kError);
-    answer.Put<std::uint8_t>(kind);
+    answer.Put<std::uint8_t>(error_kind);
     answer.Put<std::int32_t>(code);
     std::string message(what);
     if (message.size() > kMaxString) message.resize(kMaxString);
     answer.PutString(message);
   };
   try {
-    modeling::TetMeshStats stats;
-    const modeling::TetMesh mesh = modeling::TetrahedralizeSurface(surface, settings, &stats);
-    answer.Put(kResult);
-    PutStats(answer, stats);
-    PutMesh(answer, mesh);
+    if (kind == kTetgenRequest) {
+      modeling::TetMeshStats stats;
+      const modeling::TetMesh mesh = modeling::TetrahedralizeSurface(surface, settings, &stats);
+      answer.Put(kResult);
+      PutStats(answer, stats);
+      PutMesh(answer, mesh);
+    } else {
+      // Compiled as FeSolidBounds compiles the window's copy (CompiledSolid::Compile).
+      const modeling::CompiledSolid compiled = modeling::CompiledSolid::Compile(root);
+      modeling::CgalMeshStats stats;
+      const modeling::TetMesh mesh = modeling::MeshImplicitWithCgal(compiled, bounds, cgal, &stats);
+      answer.Put(kResult);
+      PutCgalStats(answer, stats);
+      PutMesh(answer, mesh);
+    }
   } catch (const modeling::SurfaceDefectError& e) {
     error(kSurfaceDefect, 0, e.what());
   } catch (const modeling::TetgenError& e) {
     error(kTetgen, e.code(), e.what());
   } catch (const modeling::TetMeshingCancelled& e) {
     error(kCancelled, 0, e.what());
+  } catch (const modeling::CgalMeshCancelled& e) {
+    error(kCgalCancelled, 0, e.what());
+  } catch (const modeling::CgalMeshError& e) {
+    error(kCgal, 0, e.what());
   } catch (const std::invalid_argument& e) {
     error(kInvalidArgument, 0, e.what());
   } catch (const std::bad_alloc&) {
-    error(kTetgen, 1, "TetGen failed: out of memory");
+    if (kind == kTetgenRequest)
+      error(kTetgen, 1, "TetGen failed: out of memory");
+    else
+      error(kCgal, 0, "CGAL meshing failed: out of memory");
   } catch (const std::exception& e) {
     error(kRuntime, 0, e.what());
   }
