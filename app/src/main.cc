@@ -3,13 +3,20 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
+#include <string>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "gui/gui.h"
+#include "scene/tetgen_worker.h"
 
 int main(int argc, char** argv) {
   using namespace spidarcad::app;
+  // The hidden TetGen worker (a child of a window job; scene/tetgen_worker.h).
+  if (argc >= 2 && std::string(argv[1]) == kTetgenWorkerCommand)
+    return RunTetgenWorkerCommand(argc, argv);
+  // Window jobs run TetGen in a child process of this executable, which Cancel can kill.
+  SetTetgenWorkerProgram("/proc/self/exe");
   CLI::App app{
       "spidarcad: engineering design by touch with a SPIDAR-G (7-DOF string haptic device).\n"
       "\n"

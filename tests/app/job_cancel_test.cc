@@ -8,9 +8,12 @@
 //
 // This is a bound on responsiveness, the one timed assertion the issue asks for. The bound is the
 // issue's 0.5 s itself; the typical latencies are tens of milliseconds (the grid surface mesher
-// polls its flag every few ms), so a loaded machine still has a wide margin. Not covered: jobs
-// inside TetGen, CGAL Mesh_3 or the CHOLMOD factorisation, which cannot be interrupted and end
-// only when the library call returns (docs/limits.md).
+// polls its flag every few ms), so a loaded machine still has a wide margin. TetGen runs in a
+// child process that Cancel kills (scene/tetgen_worker.h; the tests set the worker program to the
+// built spidarcad, as main() sets /proc/self/exe); after such a cancel a second TetGen job and
+// an FE factorisation must work in the same process (an earlier abandoned-thread attempt crashed
+// there). CGAL Mesh_3 runs in such a child too. Not covered: the CHOLMOD factorisation, which
+// cannot be interrupted and ends only when the library call returns (docs/limits.md).
 #include <gtest/gtest.h>
 #include <vtkNew.h>
 #include <vtkRenderer.h>
@@ -30,6 +33,8 @@
 #include "scene/fe_model.h"
 #include "scene/fe_setup.h"
 #include "scene/scene_model.h"
+#include "scene/tetgen_worker.h"
+#include "scene/vtu_io.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/modeling/implicit_node.h"
 
@@ -96,6 +101,32 @@ MeshSettings CellOf(double cell) {
   return settings;
 }
 
+// True once the job's progress has been at least `min_progress` for `dwell` seconds (TetGen
+// reports no progress while it runs).
+std::function<bool(const Job&)> ProgressFor(double min_progress, double dwell) {
+  auto entered = std::make_shared<Clock::time_point>();
+  auto seen = std::make_shared<bool>(false);
+  return [min_progress, dwell, entered, seen](const Job& job) {
+    if (job.progress() < min_progress) return false;
+    if (!*seen) {
+      *seen = true;
+      *entered = Clock::now();
+    }
+    return Since(*entered) >= dwell;
+  };
+}
+
+std::function<bool()> ProgressFor(const Job& job, double min_progress, double dwell) {
+  auto when = ProgressFor(min_progress, dwell);
+  return [&job, when] { return when(job); };
+}
+
+// TetGen runs in a child process of the built spidarcad for the scope.
+struct TetgenWorkerScope {
+  TetgenWorkerScope() { SetTetgenWorkerProgram(SPIDARCAD_EXE); }
+  ~TetgenWorkerScope() { SetTetgenWorkerProgram(""); }
+};
+
 // A SceneModel on an empty document with one solid, compiled and previewed (the preview gives
 // the object's box, which the mesh jobs mesh).
 struct SolidRig {
@@ -137,6 +168,98 @@ TEST(JobCancel, SurfaceMeshEndsWithinHalfASecond) {
   EXPECT_LT(CancelWhen(&rig.jobs, job, PhaseIs(job, "surface", 0.05), "mesh surface"), kBound);
   EXPECT_TRUE(DocState(rig.model.document()) == before);
   EXPECT_EQ(rig.model.objects()[rig.index()].revision, revision);
+}
+
+// After a cancel inside TetGen: another TetGen job in this process lands its mesh, and an FE
+// model factorises on it (an abandoned TetGen/CHOLMOD thread made this crash before).
+void ExpectMeshingStillWorks(SolidRig* rig) {
+  const std::size_t objects = rig->model.document().objects().size();
+  Job& again =
+      rig->model.StartMeshJob(&rig->jobs, rig->index(), MeshKind::kTetrahedra, CellOf(0.01));
+  again.Wait();
+  rig->jobs.Poll();
+  ASSERT_EQ(again.state(), Job::State::kSucceeded) << again.error();
+  ASSERT_EQ(rig->model.document().objects().size(), objects + 1);
+  const DocObject& mesh = rig->model.document().Get(rig->model.document().last_created().at(0));
+  const auto& data = std::get<MeshData>(mesh.data);
+  ASSERT_TRUE(data.volume);
+  EXPECT_GT(data.volume->tets.cols(), 100);
+  FeModelSettings fe;
+  fe.use_disk_cache = false;
+  fe.cache.start_worker = false;
+  fe.fixed_boxes = {Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(-0.03, 1, 1))};
+  const std::unique_ptr<FeModel> model = FeModel::Build(ToFemMesh(*data.volume), fe);
+  EXPECT_TRUE(model != nullptr);
+}
+
+TEST(JobCancel, TetrahedraEndWithinHalfASecondInsideTetgen) {
+  TetgenWorkerScope worker;
+  SolidRig rig(Ball(0.05));
+  const DocState before(rig.model.document());
+  const std::uint64_t revision = rig.model.objects()[rig.index()].revision;
+  Job& job = rig.model.StartMeshJob(&rig.jobs, rig.index(), MeshKind::kTetrahedra, CellOf(0.002));
+  // 0.35 + 0.65 × 0.2 for 0.3 s: the surface is meshed and checked, TetGen runs (38 s).
+  EXPECT_LT(CancelWhen(&rig.jobs, job, ProgressFor(job, 0.479, 0.3), "mesh tetrahedra (TetGen)"),
+            kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+  EXPECT_EQ(rig.model.objects()[rig.index()].revision, revision);
+  ExpectMeshingStillWorks(&rig);
+}
+
+// The job body of FeMode::StartMeshJob (FE mode's Set up FE).
+Job& StartFeSetUp(JobQueue* jobs, const Document& doc, ObjectId solid, double cell) {
+  const FeMeshInput input = PrepareFeMesh(doc, solid, CellOf(cell));
+  return jobs->Start("Set up FE for part", [input](JobContext& ctx) -> Job::Finisher {
+    ctx.SetPhase("surface and TetGen");
+    const FeMeshResult result = MeshFeSource(input, ctx.cancel_flag(), ctx.ProgressRange(0.0, 1.0));
+    (void)result;
+    return [] { ADD_FAILURE() << "a cancelled job ran its finisher"; };
+  });
+}
+
+TEST(JobCancel, FeSetUpEndsWithinHalfASecondInsideTetgen) {
+  TetgenWorkerScope worker;
+  SolidRig rig(Ball(0.05));
+  const DocState before(rig.model.document());
+  Job& job = StartFeSetUp(&rig.jobs, rig.model.document(), rig.solid, 0.002);
+  EXPECT_LT(CancelWhen(&rig.jobs, job, ProgressFor(job, 0.479, 0.3), "FE set-up (TetGen)"), kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+  ExpectMeshingStillWorks(&rig);
+}
+
+// FE mode's Set up FE with CGAL Mesh_3 on the ball at `cell`, cancelled when `when` holds.
+void CancelCgalSetUp(double cell, const std::function<bool(const Job&)>& when, const char* kind) {
+  TetgenWorkerScope worker;
+  SolidRig rig(Ball(0.05));
+  const DocState before(rig.model.document());
+  MeshSettings settings = CellOf(cell);
+  settings.mesher = "cgal";
+  const FeMeshInput input = PrepareFeMesh(rig.model.document(), rig.solid, settings);
+  Job& job = rig.jobs.Start("Set up FE for part", [input](JobContext& ctx) -> Job::Finisher {
+    ctx.SetPhase("CGAL Mesh_3");
+    const FeMeshResult result = MeshFeSource(input, ctx.cancel_flag(), ctx.ProgressRange(0.0, 1.0));
+    (void)result;
+    return [] { ADD_FAILURE() << "a cancelled job ran its finisher"; };
+  });
+  EXPECT_LT(CancelWhen(
+                &rig.jobs, job, [&job, when] { return when(job); }, kind),
+            kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+  ExpectMeshingStillWorks(&rig);
+}
+
+TEST(JobCancel, FeSetUpEndsWithinHalfASecondInCgalsStartUp) {
+  // 0.3 s into the job (or at CGAL's first refinement report, 0.05, if that comes first): the
+  // child starts up or seeds, which polls nothing (the printed progress says where it was).
+  auto when = ProgressFor(0.0, 0.3);
+  CancelCgalSetUp(
+      0.0008, [when](const Job& job) { return when(job) || job.progress() >= 0.05; },
+      "FE set-up (CGAL Mesh_3 start-up)");
+}
+
+TEST(JobCancel, FeSetUpEndsWithinHalfASecondInCgalsOptimisers) {
+  // 0.2 s after refinement ended (0.7): perturbation and exudation, which poll nothing.
+  CancelCgalSetUp(0.002, ProgressFor(0.7, 0.2), "FE set-up (CGAL Mesh_3 optimisers)");
 }
 
 // ---- sculpt mode: a sculpt copy of a solid (SculptMode::RequestCopy) ----

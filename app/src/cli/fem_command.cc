@@ -17,6 +17,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "cli/interrupt_output.h"
 #include "doc/document.h"
 #include "scene/document_file.h"
 #include "scene/fe_model.h"
@@ -259,6 +260,9 @@ int NearestNode(const fem::TetMesh& mesh, const std::vector<int>& candidates,
 
 void RunFem(const FemOptions& options) {
   const Clock::time_point start = Clock::now();
+  // Ctrl+C ends at once with status 130 (TetGen and CHOLMOD poll nothing); the result goes to a
+  // hidden temporary renamed over --out when complete, so no half-written file is left.
+  InterruptibleOutput output(options.out, "fem", InterruptibleOutput::Mode::kExitAtOnce);
   nlohmann::ordered_json report;
   report["input"] = options.input;
 
@@ -605,10 +609,14 @@ void RunFem(const FemOptions& options) {
   point_data["von_mises"] = node_vm.transpose();
   cell_data["von_mises"] = element_vm.transpose();
   try {
-    WriteTetVtu(mesh, options.out, point_data, cell_data);
+    WriteTetVtu(mesh, output.temporary(), point_data, cell_data);
   } catch (const std::exception& e) {
-    throw InputError(std::string("--out: ") + e.what());
+    std::string what = e.what();
+    for (std::size_t at; (at = what.find(output.temporary())) != std::string::npos;)
+      what.replace(at, output.temporary().size(), options.out);
+    throw InputError("--out: " + what);
   }
+  output.Commit();
   const double write_seconds = SecondsSince(t);
 
   // Report.

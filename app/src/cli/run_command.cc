@@ -29,6 +29,7 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "cli/interrupt_output.h"
 #include "scene/assembly_scene.h"
 #include "scene/calibration_file.h"
 #include "scene/device_rig.h"
@@ -730,7 +731,11 @@ void RunRun(const RunOptions& options) {
   if (calibration_file && physical == nullptr) check_file(rig->Serial());
   const RigServiceThread service(rig.get());  // a thread only when the rig needs one (usb)
 
-  std::ofstream out(options.out);
+  // Ctrl+C stops the loop at the next tick (the rig is stopped as on any exit) with status 130;
+  // the CSV goes to a hidden temporary renamed over --out when complete, so no half-written
+  // file is left (a second Ctrl+C ends at once, removing the temporary).
+  InterruptibleOutput output(options.out, "run", InterruptibleOutput::Mode::kFlag);
+  std::ofstream out(output.temporary());
   if (!out) throw InputError("--out: cannot write '" + options.out + "'");
   // Columns after today's only when the document has an FE part (older outputs stay as they were).
   const bool fe_columns = !fe_fields.empty();
@@ -749,6 +754,7 @@ void RunRun(const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   RunProgress progress(options.progress || isatty(STDERR_FILENO) == 1, ticks);
   for (long k = 0; k < ticks; ++k) {
+    if (output.interrupted()) output.Stop();
     progress.Tick(k);
     const double t = t0 + k * dt;
     haptics::TickInputs inputs;
@@ -835,6 +841,7 @@ void RunRun(const RunOptions& options) {
   out << buffer;
   out.close();
   if (!out) throw InputError("--out: failed writing '" + options.out + "'");
+  output.Commit();
   // A stroke still under way ends at the last tick, as if the grasp opened there.
   if (sculpt) sculpt->Finish(last_tool_W);
 

@@ -10,6 +10,7 @@
 
 #include "doc/assets.h"
 #include "scene/scene_solid.h"
+#include "scene/tetgen_worker.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -315,7 +316,7 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
   if (progress) ts.progress = [&](double f) { progress(0.3 + 0.7 * f); };
   modeling::TetMesh tets;
   try {
-    tets = modeling::TetrahedralizeSurface(surface, ts);
+    tets = TetrahedralizeCancellable(surface, ts);  // a child process Cancel kills
   } catch (const modeling::TetMeshingCancelled&) {
     throw FeModelCancelled();
   }

@@ -9,6 +9,7 @@
 #include <variant>
 #include <vector>
 
+#include "scene/tetgen_worker.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
@@ -103,7 +104,8 @@ modeling::TetMesh Tetgen(const modeling::TriangleMesh& surface, const MeshSettin
   ts.max_volume = s.max_tet_volume;
   ts.cancel = cancel;
   if (progress) ts.progress = [&progress, from](double f) { progress(from + (1.0 - from) * f); };
-  return modeling::TetrahedralizeSurface(surface, ts);
+  // With a cancel flag, in a child process that Cancel kills (scene/tetgen_worker.h).
+  return TetrahedralizeCancellable(surface, ts);
 }
 
 }  // namespace
@@ -313,8 +315,9 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     cs.progress = progress;
     if (input.settings.max_radius_edge > 0.0)
       cs.cell_radius_edge_ratio = input.settings.max_radius_edge;
+    // With a cancel flag, in a child process that Cancel kills (scene/tetgen_worker.h).
     auto volume = std::make_shared<const modeling::TetMesh>(
-        modeling::MeshImplicitWithCgal(compiled, bounds, cs));
+        MeshWithCgalCancellable(input.root, compiled, bounds, cs));
     result.surface =
         std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*volume));
     result.volume = std::move(volume);

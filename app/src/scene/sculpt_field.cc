@@ -10,6 +10,7 @@
 
 #include "doc/job.h"
 #include "scene/scene_solid.h"
+#include "scene/tetgen_worker.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
 namespace spidarcad::app {
@@ -241,7 +242,7 @@ bool SculptSession::StartTetrahedralize(JobQueue* jobs, const modeling::TetMeshS
           s.cancel = context.cancel_flag();
           s.progress = context.ProgressRange(0.2, 1.0);
           auto tets = std::make_shared<const modeling::TetMesh>(
-              modeling::TetrahedralizeSurface(*surface, s));
+              TetrahedralizeCancellable(*surface, s));  // a child process Cancel kills
           const double seconds =
               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
           std::ostringstream message;
