@@ -398,9 +398,13 @@ void RunRun(const RunOptions& options) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
       std::unique_ptr<haptics::AssemblyField> assembly;
       try {
+        // Alignment snap (a carried part drawn toward its seat's axis) where the document
+        // enables snap.
+        AssemblySceneSettings assembly_settings;
+        assembly_settings.field.align.enabled = opened.doc->snap().has_value();
         assembly = rigid_parts.empty()
-                       ? BuildAssemblyField(loaded)
-                       : BuildAssemblyField(rigid_parts, AssemblySceneSettings{}, nullptr);
+                       ? BuildAssemblyField(loaded, assembly_settings)
+                       : BuildAssemblyField(rigid_parts, assembly_settings, nullptr);
       } catch (const std::invalid_argument& e) {
         throw InputError(options.scene + ": " + e.what());
       }
