@@ -162,6 +162,30 @@ TEST(Regression, AssemblySeatRightLegMatchesGolden) {
       << out;
 }
 
+// The whole robot (assets/trajectories/whole_robot.csv from scripts/make-seat-trajectory.py
+// --whole-robot): one trajectory picks up, carries and seats the head, the right leg, the left leg,
+// the right arm and the left arm in turn. Not a golden yet: the arms are held with the grip
+// pitched 90 degrees (the poles' plane vertical), where the simulated SPIDAR-G's tension solve
+// saturates for most of both arm phases and the loop's FK errs by up to 4.6 mm; the right arm is
+// carried to its shoulder but jams short of its seat (it is not seated). The four others are.
+TEST(Regression, WholeRobotTrajectorySeatsTheHeadTheLegsAndTheLeftArm) {
+  const std::string out = spidarcad::test_support::TestOutputPath("regression_whole_robot.csv");
+  const auto run = spidarcad::test_support::RunSpidarcad(
+      "run " + Asset("scenes/assembly.json") + " --trajectory " +
+          Asset("trajectories/whole_robot.csv") + " --calibrate --out '" + out + "'",
+      "", "regression_whole_robot");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::size_t at = run.out.find("assembly: ");
+  ASSERT_NE(at, std::string::npos) << run.out;
+  const std::string line = run.out.substr(at, run.out.find('\n', at) - at);
+  for (const char* part : {"head", "right_leg", "left_leg", "left_arm"})
+    EXPECT_NE(line.find(part), std::string::npos) << part << ": " << line;
+  EXPECT_NE(line.find("carried: none"), std::string::npos) << line;
+  EXPECT_NE(run.out.find("nan=0 (bit 0), fk_refused=0 (bit 1), device_error=0 (bit 2)"),
+            std::string::npos)
+      << run.out;
+}
+
 // The steel platform's FE model (assets/scenes/platform_fe.json: linear tetrahedra of 10 mm
 // cells, clamped at the wall face x = 0, 50 N on the tip) pushed by the tool sphere along
 // press.csv at world scale 1, the aim 1 cm into the plate's top face (z = 0.01 m), as
