@@ -17,7 +17,7 @@ positions are device coordinates. Smooth (cosine) blends between key poses, 50 s
 
 With --whole-robot it writes assets/trajectories/whole_robot.csv instead: one trajectory that
 picks up, carries and seats all five parts in turn (head, right leg, left leg, right arm, left
-arm; see WHOLE_ROBOT below), each key pose a grip pose (centre and orientation) and grasp.
+arm; see whole_robot_keys below), each key pose a grip pose (centre and orientation) and grasp.
 
 Usage: scripts/make-seat-trajectory.py [OUT.csv]
        scripts/make-seat-trajectory.py --whole-robot [OUT.csv]
@@ -92,8 +92,8 @@ def slerp(a, b, s):
 
 # The whole robot. Each part is held by a grip offset from a point of the part (its "hold"
 # point, in W while the part is at a given pose: the part only translates here, so the offset
-# stays); the grip orientation is the rest one except for the arms, which lie along x: for them
-# the grip is pitched 90 deg about y (T's xy plane becomes W's yz plane, the arm's 12 mm square
+# stays); the grip orientation is the rest one except for the left arm, which lies along x: for
+# it the grip is pitched 90 deg about y (T's xy plane becomes W's yz plane, the arm's 12 mm square
 # section between the poles; the poles' bisector b_W = (0, 1, -1)/sqrt2), as in
 # tests/app/assembly_scene_test.cc's ScriptedRunSeatsTheRightArm. The body's frame is at
 # (0, 0, 0.085); seats are body + X_OS (assets/scenes/assembly.json).
@@ -136,7 +136,8 @@ def part_keys(start, seat, hold, b, l_hold, q, closed, approach, insert, clear, 
 
 
 PART = ""
-ARM_CLOSED = 0.45
+ARM_CLOSED = 0.65
+LEFT_ARM_CLOSED = 0.45
 ARM_L = 0.02
 ARM_PUSH = 0.0005
 
@@ -147,7 +148,7 @@ def whole_robot_keys():
     keys = [
         (0.0, ORIGIN, Q_REST, HALF_PI, "start: the window's default grip, held through the force ramp"),
         (0.6, ORIGIN, Q_REST, HALF_PI, None),
-        (0.8, (0.0, 0.0, 0.06), Q_REST, HALF_PI, "up, clear of the parts"),
+        (0.8, (0.0, 0.0, 0.03), Q_REST, HALF_PI, "up, below the torso (its bottom at z = 0.055 m)"),
     ]
     # Head: a 24 mm cube on a peg, upright; held at mid-height, 32 mm from its axis along -b.
     PART = "head"
@@ -167,18 +168,30 @@ def whole_robot_keys():
                                     ((0.0, 0.03, -0.01), 1.2, "down, the peg below the torso"),
                                     ((0.0, 0.0, -0.01), 1.5, "under its hip hole")],
                           insert=(0.0, 0.0, 0.0005), clear=(-0.03, -0.03, -0.02))
-    # Arms: lying along +x (right) or -x (left), the peg toward the torso; held 20 mm from the
-    # middle of the bulk (17.5 mm along P's z) with the grip pitched.
+    # Arms: lying along +x (right) or -x (left), the peg toward the torso (-x for the right arm).
+    # The right arm with the grip at rest: the poles (horizontal) close on the corner of its -y
+    # face and its peg end (the peg steadies the pole on the end), the grip centre ARM_L from
+    # that corner along -b. The left arm's end facing -x has no peg (a pole on it slips past the
+    # corner), so it is held across its bulk with the grip pitched 90 deg about y (the poles'
+    # plane vertical, around its 12 mm square section), 20 mm from the middle of the bulk (17.5 mm
+    # along P's z), as in tests/app/assembly_scene_test.cc's ScriptedRunSeatsTheRightArm.
+    PART = "right arm"
+    keys += part_keys(via=[(0.03, -0.047, 0.03)], start=(0.04, 0.06, 0.0065),
+                      seat=add(body, (0.0255, 0.0, 0.018)), hold=(0.0, -0.006, 0.0), b=B_REST,
+                      l_hold=ARM_L, q=Q_REST, closed=ARM_CLOSED,
+                      approach=[((0.03, 0.06, 0.0), 2.0, "beside the torso, level with the shoulder"),
+                                ((0.03, 0.0, 0.0), 1.5, "level with the shoulder hole"),
+                                ((0.01, 0.0, 0.0), 1.0, "in line with it")],
+                      insert=(-ARM_PUSH, 0.0, 0.0), clear=(-0.02, -0.02, 0.0))
+    keys.append((1.0, add(keys[-1][1], (0.0, 0.0, 0.05)), Q_REST, HALF_PI, "up"))
     keys.append((1.5, keys[-1][1], Q_PITCH, HALF_PI, "turn the grip: the poles' plane vertical"))
-    for name, x, sign, via in (("right arm", 0.04, 1.0, [(0.0575, -0.047, 0.03)]),
-                               ("left arm", -0.04, -1.0, [(-0.0575, -0.044, 0.16)])):
-        PART = name
-        keys += part_keys(via=via, start=(x, 0.06, 0.0065), seat=add(body, (sign * 0.0255, 0.0, 0.018)),
-                          hold=(sign * 0.0175, 0.0, 0.0), b=B_PITCH, l_hold=ARM_L, q=Q_PITCH,
-                          closed=ARM_CLOSED,
-                          approach=[((sign * 0.03, 0.06, 0.0), 2.0, "beside the torso, level with the shoulder"),
-                                    ((sign * 0.01, 0.0, 0.0), 1.5, "in line with the shoulder hole")],
-                          insert=(-sign * ARM_PUSH, 0.0, 0.0), clear=(0.0, -0.03, 0.03))
+    PART = "left arm"
+    keys += part_keys(via=[(-0.0575, -0.044, 0.16)], start=(-0.04, 0.06, 0.0065),
+                      seat=add(body, (-0.0255, 0.0, 0.018)), hold=(-0.0175, 0.0, 0.0), b=B_PITCH,
+                      l_hold=0.02, q=Q_PITCH, closed=LEFT_ARM_CLOSED,
+                      approach=[((-0.03, 0.06, 0.0), 2.0, "beside the torso, level with the shoulder"),
+                                ((-0.01, 0.0, 0.0), 1.5, "in line with the shoulder hole")],
+                      insert=(ARM_PUSH, 0.0, 0.0), clear=(0.0, -0.03, 0.03))
     keys.append((1.5, keys[-1][1], Q_REST, HALF_PI, "the grip back to rest"))
     keys.append((0.5, keys[-1][1], Q_REST, HALF_PI, None))
     return keys
