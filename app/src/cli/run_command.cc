@@ -341,9 +341,11 @@ void RunRun(const RunOptions& options) {
     // not a rigid solid too, as FE mode hides it); and snap. The other kinds are listed in the
     // summary as skipped.
     const modeling::Scene loaded = opened.doc->ToScene();
-    const std::vector<AssemblyPartInput> rigid_parts = loaded.solids.empty()
-                                                           ? RigidPartInputs(*opened.doc, nullptr)
-                                                           : std::vector<AssemblyPartInput>{};
+    // Rigid parts beside solids (and FE models) are one assembly field in the solids' scene.
+    std::vector<AssemblyPartInput> parts_beside = RigidPartInputs(*opened.doc, nullptr);
+    const std::vector<AssemblyPartInput> rigid_parts =
+        loaded.solids.empty() ? parts_beside : std::vector<AssemblyPartInput>{};
+    if (loaded.solids.empty()) parts_beside.clear();
     const std::size_t part_count = rigid_parts.empty() ? loaded.parts.size() : rigid_parts.size();
     // FE models are rendered beside solids, not in an assembly.
     const std::vector<ObjectId> fe_models =
@@ -359,7 +361,9 @@ void RunRun(const RunOptions& options) {
     };
     for (const DocObject& o : opened.doc->objects()) {
       if (std::holds_alternative<SolidData>(o.data)) continue;
-      if (!rigid_parts.empty() && std::holds_alternative<RigidPartData>(o.data)) continue;
+      if ((!rigid_parts.empty() || !parts_beside.empty()) &&
+          std::holds_alternative<RigidPartData>(o.data))
+        continue;
       if (listed(fe_models, o.id) || listed(fe_meshes, o.id)) continue;
       skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
                       " '" + o.name + "'";
@@ -477,6 +481,17 @@ void RunRun(const RunOptions& options) {
         for (Eigen::Index v = 0; v < mesh.nodes.rows(); ++v)
           fe_box_W.extend(mesh.nodes.row(v).transpose().eval());
       }
+      // The rigid parts beside take part in the fit too (each part's solid box at its pose).
+      for (const AssemblyPartInput& part : parts_beside) {
+        if (part.root == nullptr) continue;  // BuildAssemblyField names it below
+        bool unbounded = false;
+        const Eigen::AlignedBox3d box_P =
+            SolidBounds(modeling::CompiledSolid::Compile(*part.root), &unbounded);
+        if (box_P.isEmpty()) continue;
+        for (int k = 0; k < 8; ++k)
+          fe_box_W.extend(part.X_WP *
+                          box_P.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
+      }
       SceneHaptics built;
       try {
         haptic_options.Validate();
@@ -540,6 +555,22 @@ void RunRun(const RunOptions& options) {
         fe_parts.push_back(part.model);
         fe_names.push_back(name);
         scene->Add(std::move(part.field));
+      }
+      if (!parts_beside.empty()) {
+        // The rigid parts beside: one assembly field (grasp, carry, seats; alignment snap where
+        // the document has snap), in the solids' W (their boxes were fitted with the solids).
+        AssemblySceneSettings assembly_settings;
+        assembly_settings.field.align.enabled = opened.doc->snap().has_value();
+        std::unique_ptr<haptics::AssemblyField> assembly;
+        try {
+          assembly = BuildAssemblyField(parts_beside, assembly_settings, nullptr);
+        } catch (const std::invalid_argument& e) {
+          throw InputError(options.scene + ": " + e.what());
+        }
+        assembly_field = assembly.get();
+        scene->Add(std::move(assembly));
+        fields_line += std::string(fields_line == "fields:" ? "" : ",") + " assembly (" +
+                       std::to_string(parts_beside.size()) + " parts)";
       }
       const Eigen::Vector3d& o = built.map.X_WD.p_WDo;
       map_line = "X_WD: p_W = " + FormatNumber(built.map.X_WD.world_scale) + " p_D + (" +
