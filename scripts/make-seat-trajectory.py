@@ -15,7 +15,12 @@ pushed up into it (0.5 mm past the seated pose: the torso stops it), and let go:
 seat. X_WD is the identity (what `spidarcad run` and the window use for assembly scenes), so the
 positions are device coordinates. Smooth (cosine) blends between key poses, 50 samples/s.
 
+With --whole-robot it writes assets/trajectories/whole_robot.csv instead: one trajectory that
+picks up, carries and seats all five parts in turn (head, right leg, left leg, right arm, left
+arm; see whole_robot_keys below), each key pose a grip pose (centre and orientation) and grasp.
+
 Usage: scripts/make-seat-trajectory.py [OUT.csv]
+       scripts/make-seat-trajectory.py --whole-robot [OUT.csv]
 """
 import math
 import sys
@@ -85,7 +90,152 @@ def slerp(a, b, s):
     return tuple(c / n for c in r)
 
 
+# The whole robot. Each part is held by a grip offset from a point of the part (its "hold"
+# point, in W while the part is at a given pose: the part only translates here, so the offset
+# stays); the grip orientation is the rest one except for the left arm, which lies along x: for
+# it the grip is pitched 90 deg about y (T's xy plane becomes W's yz plane, the arm's 12 mm square
+# section between the poles; the poles' bisector b_W = (0, 1, -1)/sqrt2), as in
+# tests/app/assembly_scene_test.cc's ScriptedRunSeatsTheRightArm. The body's frame is at
+# (0, 0, 0.085); seats are body + X_OS (assets/scenes/assembly.json).
+Q_PITCH = (math.cos(math.pi / 4), 0.0, math.sin(math.pi / 4), 0.0)  # 90 deg about y
+B_REST = (1.0 / math.sqrt(2.0), 1.0 / math.sqrt(2.0), 0.0)
+B_PITCH = (0.0, 1.0 / math.sqrt(2.0), -1.0 / math.sqrt(2.0))
+
+
+def scale(a, k):
+    return tuple(k * p for p in a)
+
+
+def part_keys(start, seat, hold, b, l_hold, q, closed, approach, insert, clear, via=()):
+    """Key poses that pick a part up at `start` (its frame origin), carry it through `approach`
+    (part origins, relative to the seat, the last one in line with the seat along the insertion
+    direction), push it `insert` past the seat (a vector), open and back the grip off along
+    `clear`. `hold` is the hold point relative to the part origin, `b` the bisector in W, l_hold
+    its distance from the grip centre, q the grip orientation, closed the grasp it closes to."""
+    off = add(hold, scale(b, -l_hold))
+
+    def g(origin):
+        return add(origin, off)
+
+    keys = [(1.5, v, q, HALF_PI, "around the parts" if i == 0 else None) for i, v in enumerate(via)]
+    keys.append((1.5, add(g(start), (0.0, 0.0, 0.03)), q, HALF_PI, "over the %s" % PART))
+    keys.append((1.0, g(start), q, HALF_PI, "down: its section between the poles"))
+    keys.append((0.4, g(start), q, HALF_PI, None))
+    keys.append((1.5, g(start), q, closed, "close: the poles squeeze it, it is picked up"))
+    keys.append((0.5, g(start), q, closed, None))
+    keys.append((1.0, g(add(start, (0.0, 0.0, 0.03))), q, closed, "lift it"))
+    for rel, duration, comment in approach:
+        keys.append((duration, g(add(seat, rel)), q, closed, comment))
+    keys.append((0.5, keys[-1][1], q, closed, None))
+    keys.append((1.5, g(add(seat, insert)), q, closed, "the peg into its hole, just past the seat"))
+    keys.append((0.5, g(add(seat, insert)), q, closed, None))
+    keys.append((1.0, g(add(seat, insert)), q, HALF_PI, "open: released, it snaps to its seat"))
+    keys.append((0.5, g(add(seat, insert)), q, HALF_PI, None))
+    keys.append((1.0, add(g(add(seat, insert)), clear), q, HALF_PI, "back away"))
+    return keys
+
+
+PART = ""
+ARM_CLOSED = 0.65
+LEFT_ARM_CLOSED = 0.45
+ARM_L = 0.02
+ARM_PUSH = 0.0005
+
+
+def whole_robot_keys():
+    global PART
+    body = (0.0, 0.0, 0.085)
+    keys = [
+        (0.0, ORIGIN, Q_REST, HALF_PI, "start: the window's default grip, held through the force ramp"),
+        (0.6, ORIGIN, Q_REST, HALF_PI, None),
+        (0.8, (0.0, 0.0, 0.03), Q_REST, HALF_PI, "up, below the torso (its bottom at z = 0.055 m)"),
+    ]
+    # Head: a 24 mm cube on a peg, upright; held at mid-height, 32 mm from its axis along -b.
+    PART = "head"
+    keys += part_keys(start=(0.0, 0.07, 0.0085), seat=add(body, (0.0, 0.0, 0.0305)),
+                      hold=(0.0, 0.0, 0.012), b=B_REST, l_hold=0.032, q=Q_REST, closed=0.55,
+                      approach=[((0.0, 0.07, 0.03), 1.5, "over the torso's side"),
+                                ((0.0, 0.0, 0.02), 2.0, "above the neck hole")],
+                      insert=(0.0, 0.0, -0.0005), clear=(-0.03, -0.03, 0.01))
+    # Legs: as seat_right_leg.csv (16 mm bar, 24 mm from its axis, 8.5 mm below its top).
+    for name, x, xs, via in (("right leg", 0.02, 0.012, [(-0.0526, 0.083, 0.1375)]),
+                             ("left leg", -0.02, -0.012, [])):
+        PART = name
+        keys += part_keys(via=via, start=(x, 0.1, 0.0505), seat=add(body, (xs, 0.0, -0.0305)),
+                          hold=(0.0, 0.0, -0.0085), b=B_REST, l_hold=0.024, q=Q_REST,
+                          closed=GRASP_CLOSED,
+                          approach=[((x - xs, 0.03, 0.02), 2.0, "toward the torso, in front of it"),
+                                    ((0.0, 0.03, -0.01), 1.2, "down, the peg below the torso"),
+                                    ((0.0, 0.0, -0.01), 1.5, "under its hip hole")],
+                          insert=(0.0, 0.0, 0.0005), clear=(-0.03, -0.03, -0.02))
+    # Arms: lying along +x (right) or -x (left), the peg toward the torso (-x for the right arm).
+    # The right arm with the grip at rest: the poles (horizontal) close on the corner of its -y
+    # face and its peg end (the peg steadies the pole on the end), the grip centre ARM_L from
+    # that corner along -b. The left arm's end facing -x has no peg (a pole on it slips past the
+    # corner), so it is held across its bulk with the grip pitched 90 deg about y (the poles'
+    # plane vertical, around its 12 mm square section), 20 mm from the middle of the bulk (17.5 mm
+    # along P's z), as in tests/app/assembly_scene_test.cc's ScriptedRunSeatsTheRightArm.
+    PART = "right arm"
+    keys += part_keys(via=[(0.03, -0.047, 0.03)], start=(0.04, 0.06, 0.0065),
+                      seat=add(body, (0.0255, 0.0, 0.018)), hold=(0.0, -0.006, 0.0), b=B_REST,
+                      l_hold=ARM_L, q=Q_REST, closed=ARM_CLOSED,
+                      approach=[((0.03, 0.06, 0.0), 2.0, "beside the torso, level with the shoulder"),
+                                ((0.03, 0.0, 0.0), 1.5, "level with the shoulder hole"),
+                                ((0.01, 0.0, 0.0), 1.0, "in line with it")],
+                      insert=(-ARM_PUSH, 0.0, 0.0), clear=(-0.02, -0.02, 0.0))
+    keys.append((1.0, add(keys[-1][1], (0.0, 0.0, 0.05)), Q_REST, HALF_PI, "up"))
+    keys.append((1.5, keys[-1][1], Q_PITCH, HALF_PI, "turn the grip: the poles' plane vertical"))
+    PART = "left arm"
+    keys += part_keys(via=[(-0.0575, -0.044, 0.16)], start=(-0.04, 0.06, 0.0065),
+                      seat=add(body, (-0.0255, 0.0, 0.018)), hold=(-0.0175, 0.0, 0.0), b=B_PITCH,
+                      l_hold=0.02, q=Q_PITCH, closed=LEFT_ARM_CLOSED,
+                      approach=[((-0.03, 0.06, 0.0), 2.0, "beside the torso, level with the shoulder"),
+                                ((-0.01, 0.0, 0.0), 1.5, "in line with the shoulder hole")],
+                      insert=(ARM_PUSH, 0.0, 0.0), clear=(0.0, -0.03, 0.03))
+    keys.append((1.5, keys[-1][1], Q_REST, HALF_PI, "the grip back to rest"))
+    keys.append((0.5, keys[-1][1], Q_REST, HALF_PI, None))
+    return keys
+
+
+def write_whole_robot(out):
+    keys = whole_robot_keys()
+    lines = [
+        "# whole_robot: pick up, carry and seat all five parts of assets/scenes/assembly.json in turn",
+        "# (head, right leg, left leg, right arm, left arm) from the window's default grip;",
+        "# X_WD identity (as `spidarcad run`). generated by scripts/make-seat-trajectory.py --whole-robot;",
+        "# key poses:",
+    ]
+    t = 0.0
+    for duration, _, _, _, comment in keys:
+        t += duration
+        if comment:
+            lines.append("#   t=%.1f s: %s" % (t, comment))
+    lines.append("# t,x,y,z,qw,qx,qy,qz,grasp (s, m in the device frame D, unit quaternion R_DT, rad)")
+    samples = [(0.0, keys[0][1], keys[0][2], keys[0][3])]
+    t = 0.0
+    prev = keys[0]
+    for key in keys[1:]:
+        duration = key[0]
+        n = max(1, int(round(duration * RATE)))
+        for k in range(1, n + 1):
+            s = 0.5 - 0.5 * math.cos(math.pi * k / n)
+            p = tuple(a + s * (b - a) for a, b in zip(prev[1], key[1]))
+            q = slerp(prev[2], key[2], s)
+            g = prev[3] + s * (key[3] - prev[3])
+            samples.append((t + duration * k / n, p, q, g))
+        t += duration
+        prev = key
+    for ts, p, q, g in samples:
+        vals = [round(ts, 4)] + list(p) + list(q) + [g]
+        lines.append(",".join("%.10g" % v for v in vals))
+    with open(out, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--whole-robot":
+        write_whole_robot(sys.argv[2] if len(sys.argv) > 2 else "assets/trajectories/whole_robot.csv")
+        return
     out = sys.argv[1] if len(sys.argv) > 1 else "assets/trajectories/seat_right_leg.csv"
     lines = [
         "# seat_right_leg: pick up the right leg of assets/scenes/assembly.json and seat it under the torso",

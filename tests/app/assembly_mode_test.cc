@@ -8,7 +8,8 @@
 // with --frames, and prints "assembly: 1 of 5 parts seated (right_leg), carried: none". On a
 // Document's rigid parts: a part let go is one command ("Move part", "Seat part ... on ..."),
 // undo and redo move the field's part, an edit of a part's solid rebuilds the field with the new
-// shape, and the seating trajectory leaves exactly one command.
+// shape, the seating trajectory leaves exactly one command, and turning snap on or off rebuilds
+// the field with its alignment snap on or off.
 #include "gui/assembly_mode.h"
 
 #include <gtest/gtest.h>
@@ -434,6 +435,28 @@ TEST(AssemblyModeDocument, FailedRebuildKeepsTheLastGoodField) {
   const int rebuilds = mode.rebuilds();
   mode.SyncDocument(&doc);
   EXPECT_EQ(mode.rebuilds(), rebuilds);
+}
+
+// Snap under Haptics turns the alignment snap of a carried part on and off: the field is rebuilt
+// with it (assembly_field.h), and undo brings the document's setting back.
+TEST(AssemblyModeDocument, SnapToggleRebuildsTheFieldWithAlignmentSnap) {
+  Document doc;
+  LoadRobot(&doc);
+  ASSERT_FALSE(doc.snap().has_value());
+  AssemblyMode mode(nullptr);
+  mode.LoadDocument(doc);
+  mode.TakeFieldChanged();
+  EXPECT_FALSE(mode.field()->settings().align.enabled);
+  doc.Execute(edit::SetSnap(modeling::SceneSnap{}));
+  mode.SyncDocument(&doc);
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  EXPECT_TRUE(mode.field()->settings().align.enabled);
+  mode.SyncDocument(&doc);
+  EXPECT_FALSE(mode.TakeFieldChanged());  // nothing changed since
+  doc.Undo();
+  mode.SyncDocument(&doc);
+  EXPECT_TRUE(mode.TakeFieldChanged());
+  EXPECT_FALSE(mode.field()->settings().align.enabled);
 }
 
 // The field's own state reaches the actors through OnFrame: the grip closes on the right arm

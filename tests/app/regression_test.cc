@@ -162,6 +162,55 @@ TEST(Regression, AssemblySeatRightLegMatchesGolden) {
       << out;
 }
 
+// The whole robot (assets/trajectories/whole_robot.csv from scripts/make-seat-trajectory.py
+// --whole-robot, 85.8 s): one trajectory picks up, carries and seats the head, the right leg, the
+// left leg, the right arm (the grip at rest, the poles on the corner of its -y face and peg end)
+// and the left arm (the grip pitched 90 deg about y, the poles around its section) in turn; all
+// five end seated. Frozen after checking the run (spidarcad run assets/scenes/assembly.json
+// --trajectory assets/trajectories/whole_robot.csv --calibrate): no nan, fk_refused or
+// device_error event; every force <= 1.54 N (the right arm's peg pushed against its hole's rim
+// at t 62.4 s); g in [-0.3, 0] N·m, clamped at -0.3 while a part is squeezed; tensions in
+// [0.2, 8] N; FK within 1.5 mm of the true grip. The pitched grip of the left arm costs force
+// closure: the tension solve saturates on every tick from t 67.9 s (the turn) to the end, as
+// it does on 26% of the ticks before; the energy limiter acts on 1069 ticks while the head is
+// grasped and lifted (t 5.4-8.7 s).
+TEST(Regression, AssemblyWholeRobotMatchesGolden) {
+  std::string out;
+  RunAndCompare("assembly_whole_robot",
+                Asset("scenes/assembly.json") + " --trajectory " +
+                    Asset("trajectories/whole_robot.csv") + " --calibrate",
+                &out);
+  EXPECT_NE(out.find("assembly: 5 of 5 parts seated (head, right_arm, left_arm, right_leg, "
+                     "left_leg), carried: none"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("nan=0 (bit 0), fk_refused=0 (bit 1), device_error=0 (bit 2)"),
+            std::string::npos)
+      << out;
+}
+
+// Snap forces (assets/scenes/snap_box.json: a 40 mm cube with snap, vertex/edge/face radii 8, 5
+// and 3 mm, 1 N) toured by assets/trajectories/snap_tour.csv (scripts/make-snap-trajectory.py):
+// past the top right vertex, along the edge from it, onto the top face, and away. Frozen after
+// checking the run against the cube's geometry, with the grip where the loop sees it (FK): no
+// force at all farther than 8.5 mm from the cube; along the edge and over the face the force
+// points toward the cube's nearest point (cosine of the angle: mean 0.96 on 2533 and 2983
+// ticks, least 0.58 and 0.44 where the edge's and the face's pulls meet); within half the vertex
+// radius of the vertex mean 0.75, least 0.32, on 116 ticks that all have the energy limiter
+// acting (the grip passes the vertex fast); every force <= 0.97 N; no nan, fk_refused or
+// device_error event.
+TEST(Regression, SnapTourMatchesGolden) {
+  std::string out;
+  RunAndCompare("snap_tour",
+                Asset("scenes/snap_box.json") + " --trajectory " +
+                    Asset("trajectories/snap_tour.csv") +
+                    " --world-scale 1 --world-origin 0,0,0 --calibrate",
+                &out);
+  EXPECT_NE(out.find("fields: proxy 'cube', snap '8 vertices, 12 edges, 6 faces'"),
+            std::string::npos)
+      << out;
+}
+
 // The steel platform's FE model (assets/scenes/platform_fe.json: linear tetrahedra of 10 mm
 // cells, clamped at the wall face x = 0, 50 N on the tip) pushed by the tool sphere along
 // press.csv at world scale 1, the aim 1 cm into the plate's top face (z = 0.01 m), as

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "doc/command.h"
 #include "doc/document.h"
 #include "scene/assembly_scene.h"
 #include "scene/document_file.h"
@@ -204,15 +205,16 @@ TEST(RunCommand, DocumentRendersItsSolidsAndListsTheKindsItSkips) {
       "", "run_workbench",
       "env SPIDARCAD_CACHE_DIR='" + std::string(SPIDARCAD_TEST_OUTPUT_DIR) + "/run_wb_cache'");
   ASSERT_EQ(run.status, 0) << run.all();
-  // Its sculpt object is sculpted by the grip (a free grip here: the press never closes the
-  // grasp), its rigid parts beside solids are skipped.
-  EXPECT_NE(run.out.find("fields: fe_touch 'platform FE', sculpt_tool 'clay'\n"), std::string::npos)
+  // Every object is rendered: the FE part, its rigid parts (a cap on a fixed base) as one
+  // assembly field, and its sculpt object sculpted by the grip (a free grip here: the press never
+  // closes the grasp). Nothing is skipped.
+  EXPECT_NE(
+      run.out.find("fields: fe_touch 'platform FE', assembly (2 parts), sculpt_tool 'clay'\n"),
+      std::string::npos)
       << run.out;
-  EXPECT_NE(run.out.find("skipped (run renders solids, FE models, assembly parts, the first sculpt "
-                         "object and snap; not yet other meshes, other sculpts or rigid parts): "
-                         "rigid_part 'base', rigid_part 'cap'\n"),
-            std::string::npos)
+  EXPECT_NE(run.out.find("assembly: 0 of 1 parts seated, carried: none\n"), std::string::npos)
       << run.out;
+  EXPECT_EQ(run.out.find("skipped"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("sculpt 'clay': 0 strokes (grab, radius 0.02 m, volume not conserved)"),
             std::string::npos)
       << run.out;
@@ -292,6 +294,51 @@ TEST(RunCommand, AssemblyOfRigidPartsRunsLikeTheVersion1SceneItCameFrom) {
   const std::string seated = one.out.substr(at, one.out.find('\n', at) - at);
   EXPECT_NE(seated.find("right_leg"), std::string::npos) << seated;
   EXPECT_NE(two.out.find(seated), std::string::npos) << two.out;
+  const auto ra = ReadCsv(a), rb = ReadCsv(b);
+  ASSERT_EQ(ra.size(), rb.size());
+  for (std::size_t i = 0; i < ra.size(); ++i) {
+    for (std::size_t j = 0; j < ra[i].size(); ++j) {
+      if (j == 24) continue;  // tick_us
+      ASSERT_EQ(ra[i][j], rb[i][j]) << "row " << i << " column " << ra[0][j];
+    }
+  }
+}
+
+// Rigid parts beside a solid are felt as one assembly field in the solids' scene: the robot's
+// rigid parts with a small ball 1 m away (X_WD fixed to the identity by --world-scale and
+// --world-origin) run the seating trajectory as the parts alone do, row for row (the ball's
+// proxy field adds nothing so far from the grip), and the right leg ends seated.
+TEST(RunCommand, RigidPartsBesideASolidRunAsTheAssemblyAlone) {
+  const std::string source = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/";
+  const std::string parts = OutputPath("parts_only.json"), beside = OutputPath("parts_beside.json");
+  {
+    spidarcad::app::Document doc;
+    doc.Load(source + "scenes/assembly.json");
+    ASSERT_TRUE(spidarcad::app::AdoptScenePartsAsRigidParts(&doc));
+    doc.Save(parts);
+    std::vector<spidarcad::modeling::ImplicitNode> ball;
+    ball.emplace_back(spidarcad::modeling::SphereParams{0.01},
+                      std::vector<spidarcad::modeling::ImplicitNode>{}, "ball");
+    doc.Execute(spidarcad::app::edit::AddSolid(
+        "far", spidarcad::modeling::ImplicitNode(
+                   spidarcad::modeling::TranslateParams{Eigen::Vector3d(1.0, 0.0, 0.0)},
+                   std::move(ball), "far")));
+    doc.Save(beside);
+  }
+  const std::string traj = source + "trajectories/seat_right_leg.csv";
+  const std::string a = OutputPath("parts_only.csv"), b = OutputPath("parts_beside.csv");
+  const std::string fixed = " --world-scale 1 --world-origin 0,0,0 --calibrate";
+  const CommandRun one = RunSpidarcad(
+      "'" + parts + "' --trajectory '" + traj + "' --out '" + a + "'" + fixed, "beside1");
+  ASSERT_EQ(one.status, 0) << one.all();
+  const CommandRun two = RunSpidarcad(
+      "'" + beside + "' --trajectory '" + traj + "' --out '" + b + "'" + fixed, "beside2");
+  ASSERT_EQ(two.status, 0) << two.all();
+  EXPECT_NE(two.out.find("fields: proxy 'far', assembly (6 parts)"), std::string::npos) << two.out;
+  EXPECT_EQ(two.out.find("skipped"), std::string::npos) << two.out;
+  EXPECT_NE(two.out.find("assembly: 1 of 5 parts seated (right_leg), carried: none"),
+            std::string::npos)
+      << two.out;
   const auto ra = ReadCsv(a), rb = ReadCsv(b);
   ASSERT_EQ(ra.size(), rb.size());
   for (std::size_t i = 0; i < ra.size(); ++i) {

@@ -2,7 +2,9 @@
 // torque as GraspField on that part), the part follows the grip, carrying it into the body gives
 // a contact force opposing the penetration, releasing it aligned over its hole seats it exactly
 // and it stays, releasing it elsewhere leaves it there, the tool's own shell touches the parts,
-// and Evaluate allocates nothing.
+// and Evaluate allocates nothing. Alignment snap: near its seat a carried part is drawn toward the
+// seat's axis (force perpendicular to the axis, toward it; torque turning the part's axis onto
+// it), continuous at the capture boundary, zero beyond it and zero with snap off.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/assembly_field.h"
 
@@ -11,6 +13,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 
 #include "spidarcad/haptics/grasp_field.h"
@@ -437,6 +441,201 @@ TEST(AssemblyField, EvaluateAllocatesNothing) {
     d.CloseUntilGrasped(-1.0, 0.2);
     Eigen::Isometry3d target(Eigen::Translation3d(0.015, -0.012, kTopZ + 0.012 - 0.003));
     d.MoveTo(GripFor(target), 300);
+    d.Hold(50);
+    d.Open();
+    (void)field.LatestState();
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(field.carried(), -1);
+}
+
+// Alignment snap: the settings used below (capture 15 mm / 20°).
+AssemblySettings AlignOn() {
+  AssemblySettings s;
+  s.align.enabled = true;
+  return s;
+}
+
+// The seat of the peg in W (body at the origin) and its axis.
+const Eigen::Vector3d kSeatOrigin = kSeat_BP.translation();
+const Eigen::Vector3d kAxis = Eigen::Vector3d::UnitZ();
+
+Eigen::Isometry3d PoseAt(const Eigen::Vector3d& p, const Eigen::AngleAxisd& r) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = r.toRotationMatrix();
+  X.translation() = p;
+  return X;
+}
+
+// Independent reference: the force toward the axis is −k_a w e_⊥ before the cap (the file
+// comment's formula evaluated here with the angle from acos and the ramp as a polynomial).
+double Ramp(double x) { return x <= 0 ? 0.0 : x >= 1 ? 1.0 : 3 * x * x - 2 * x * x * x; }
+
+TEST(AssemblyField, AlignmentSnapPullsTowardTheSeatAxis) {
+  AssemblyField field(Parts(), PointShell{}, AlignOn());
+  const AlignmentSnapSettings& a = field.settings().align;
+  std::srand(7);
+  const auto uniform = [] { return 2.0 * std::rand() / RAND_MAX - 1.0; };
+  int pulled = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const Eigen::Vector3d e = 0.017 * Eigen::Vector3d(uniform(), uniform(), uniform());
+    const Eigen::Vector3d tilt_axis = Eigen::Vector3d(uniform(), uniform(), 0).normalized();
+    const double tilt = 0.4 * std::abs(uniform());
+    const Eigen::Isometry3d X = PoseAt(kSeatOrigin + e, Eigen::AngleAxisd(tilt, tilt_axis));
+    Eigen::Vector3d f, tau;
+    const bool captured = field.AlignmentWrench(1, X, &f, &tau);
+    const Eigen::Vector3d z = X.linear().col(2);
+    const double angle = std::acos(std::clamp(z.dot(kAxis), -1.0, 1.0));
+    const double w = Ramp(1 - e.norm() / a.capture_distance) * Ramp(1 - angle / a.capture_angle);
+    if (e.norm() >= a.capture_distance || angle >= a.capture_angle) {
+      // Beyond capture: nothing at all.
+      EXPECT_FALSE(captured);
+      EXPECT_EQ(f, Eigen::Vector3d::Zero());
+      EXPECT_EQ(tau, Eigen::Vector3d::Zero());
+      continue;
+    }
+    const Eigen::Vector3d e_perp(e.x(), e.y(), 0);
+    const Eigen::Vector3d f_expected = -a.stiffness * w * e_perp;
+    const double cap = std::min(1.0, a.max_force / f_expected.norm());
+    EXPECT_LT((f - cap * f_expected).norm(), 1e-9 + 1e-9 * f_expected.norm()) << k;
+    // No pull along the axis; toward it, never more than the cap.
+    EXPECT_NEAR(f.dot(kAxis), 0.0, 1e-12);
+    EXPECT_LE(f.norm(), a.max_force + 1e-12);
+    if (w > 1e-6 && e_perp.norm() > 1e-4) {
+      EXPECT_LT(f.dot(e_perp), 0.0);
+      EXPECT_LT(f.normalized().cross(-e_perp.normalized()).norm(), 1e-9);
+      ++pulled;
+    }
+    // The torque turns the part's axis toward the seat's: about z × a, of size min(k_α w α, cap).
+    if (angle > 1e-3 && w > 1e-6) {
+      EXPECT_GT(tau.dot(z.cross(kAxis)), 0.0);
+      EXPECT_NEAR(tau.norm(), std::min(a.rot_stiffness * w * angle, a.max_torque), 1e-12);
+    }
+  }
+  EXPECT_GT(pulled, 100);
+}
+
+TEST(AssemblyField, AlignmentSnapIsContinuousAtTheCaptureBoundary) {
+  AssemblyField field(Parts(), PointShell{}, AlignOn());
+  const AlignmentSnapSettings& a = field.settings().align;
+  // Walk outward along rays through the distance boundary, and across the angle boundary, in
+  // steps of 1 µm / 1 µrad: neighbouring samples never differ by more than a Lipschitz step
+  // (a jump at the boundary would be k_a·e_⊥ there, up to the 1 N cap).
+  double max_step_f = 0, max_step_t = 0, near_boundary = 0;
+  for (int ray = 0; ray < 12; ++ray) {
+    const double phi = 2 * kPi * ray / 12, theta = 0.3 + 0.1 * ray;
+    const Eigen::Vector3d dir(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                              std::cos(theta));
+    const Eigen::AngleAxisd tilt(0.1, Eigen::Vector3d(-std::sin(phi), std::cos(phi), 0));
+    Eigen::Vector3d f_prev, t_prev;
+    for (int k = 0; k <= 4000; ++k) {
+      const double r = a.capture_distance - 2e-3 + 1e-6 * k;
+      Eigen::Vector3d f, t;
+      field.AlignmentWrench(1, PoseAt(kSeatOrigin + r * dir, tilt), &f, &t);
+      if (k > 0) {
+        max_step_f = std::max(max_step_f, (f - f_prev).norm());
+        max_step_t = std::max(max_step_t, (t - t_prev).norm());
+      }
+      if (std::abs(r - a.capture_distance) < 2e-6)
+        near_boundary = std::max(near_boundary, f.norm());
+      if (r > a.capture_distance + 1e-12) {
+        EXPECT_EQ(f.norm() + t.norm(), 0.0) << r;
+      }
+      f_prev = f;
+      t_prev = t;
+    }
+    // Across the angle boundary, 8 mm off the axis.
+    for (int k = 0; k <= 4000; ++k) {
+      const double angle = a.capture_angle - 2e-3 + 1e-6 * k;
+      Eigen::Vector3d f, t;
+      field.AlignmentWrench(
+          1,
+          PoseAt(kSeatOrigin + 0.008 * Eigen::Vector3d(std::cos(phi), std::sin(phi), 0),
+                 Eigen::AngleAxisd(angle, Eigen::Vector3d(-std::sin(phi), std::cos(phi), 0))),
+          &f, &t);
+      if (k > 0) {
+        max_step_f = std::max(max_step_f, (f - f_prev).norm());
+        max_step_t = std::max(max_step_t, (t - t_prev).norm());
+      }
+      if (angle > a.capture_angle + 1e-12) {
+        EXPECT_EQ(f.norm() + t.norm(), 0.0) << angle;
+      }
+      f_prev = f;
+      t_prev = t;
+    }
+  }
+  std::printf("largest change per 1 µm / 1 µrad step: %.3g N, %.3g N·m\n", max_step_f, max_step_t);
+  EXPECT_LT(max_step_f, 1e-3);
+  EXPECT_LT(max_step_t, 1e-5);
+  EXPECT_LT(near_boundary, 1e-6);
+}
+
+TEST(AssemblyField, AlignmentSnapOffPullsNothing) {
+  AssemblyField field(Parts());  // default settings: snap off
+  EXPECT_FALSE(field.settings().align.enabled);
+  Eigen::Vector3d f, t;
+  EXPECT_FALSE(field.AlignmentWrench(1,
+                                     PoseAt(kSeatOrigin + Eigen::Vector3d(0.004, 0.002, 0.005),
+                                            Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX())),
+                                     &f, &t));
+  EXPECT_EQ(f, Eigen::Vector3d::Zero());
+  EXPECT_EQ(t, Eigen::Vector3d::Zero());
+  AssemblySettings bad = AlignOn();
+  bad.align.capture_angle = 0;
+  EXPECT_THROW(AssemblyField(Parts(), PointShell{}, bad), std::invalid_argument);
+  bad = AlignOn();
+  bad.align.max_force = -1;
+  EXPECT_THROW(AssemblyField(Parts(), PointShell{}, bad), std::invalid_argument);
+}
+
+// Carrying the peg to rest 3.6 mm off the hole's axis, its bottom 1 mm above the top face (no
+// contact; capture widened to 30 mm so the pull is well above the test's tolerances):
+// with snap on the user feels the pull toward the axis (at rest the coupling passes f_a on), and
+// the part sits nearer the axis than the grip's target; with snap off nothing.
+TEST(AssemblyField, CarriedPartNearItsSeatIsFeltPulledTowardTheAxis) {
+  for (const bool on : {true, false}) {
+    AssemblySettings settings = on ? AlignOn() : AssemblySettings{};
+    settings.align.capture_distance = 0.03;
+    AssemblyField field(Parts(), PointShell{}, settings);
+    Driver d = PickUp(field);
+    ASSERT_EQ(field.carried(), 1);
+    Eigen::Isometry3d hover = kSeat_BP;
+    hover.translation() += Eigen::Vector3d(0.003, -0.002, 0.012);  // peg bottom 1 mm above
+    d.MoveTo(GripFor(hover), 500);
+    d.Hold(800);
+    ASSERT_EQ(field.carried(), 1);
+    EXPECT_EQ(field.contacts(), 0);
+    const Eigen::Vector3d e_perp(0.003, -0.002, 0);
+    if (!on) {
+      EXPECT_LT(d.last.f_T_W.norm(), 1e-3);
+      continue;
+    }
+    Eigen::Vector3d f, t;
+    ASSERT_TRUE(field.AlignmentWrench(1, field.X_WP(1), &f, &t));
+    EXPECT_GT(f.norm(), 0.1);
+    EXPECT_LT((d.last.f_T_W - f).norm(), 1e-3 * f.norm() + 1e-4);
+    EXPECT_GT(d.last.f_T_W.normalized().dot(-e_perp.normalized()), 0.999);
+    // The part is drawn off its target toward the axis: f_a = k_c (p_V − p_target) at rest.
+    const Eigen::Vector3d off = field.X_WP(1).translation() - hover.translation();
+    EXPECT_LT(off.dot(e_perp), 0.0);
+    EXPECT_LT((off * field.settings().coupling_stiffness - f).norm(), 1e-3 + 1e-3 * f.norm());
+  }
+}
+
+TEST(AssemblyField, EvaluateAllocatesNothingWithAlignmentSnap) {
+  ASSERT_TRUE(test_support::MallocCounterActive());
+  AssemblyField field(Parts(), PointShell::Sphere(0.003, 30), AlignOn());
+  Driver d{field, ToolKinematics{}, ToolWrench{}};
+  d.tool.p_WT = GripFor(kStart_WP);
+  d.Hold(2);
+  long allocations = 0;
+  {
+    test_support::MallocCounter counter;
+    d.CloseUntilGrasped(-1.0, 0.2);
+    Eigen::Isometry3d near = kSeat_BP;
+    near.translation() += Eigen::Vector3d(0.003, 0.001, 0.004);
+    d.MoveTo(GripFor(near), 300);
     d.Hold(50);
     d.Open();
     (void)field.LatestState();

@@ -93,9 +93,8 @@ constexpr const char* kRunHelp =
     "SCENE: omit it for an empty scene, 'demo' for the built-in demo (a floor wall at\n"
     "z = -0.03 m, normal +z, 2000 N/m, 5 N·s/m, and a 20 N/m spring toward (0.05, 0, 0) m; device\n"
     "coordinates), or a scene file or document (docs/scene-format.md, version 1 or 2) of implicit\n"
-    "solids, FE models and sculpt objects (below); a document's other meshes are not rendered\n"
-    "yet, nor rigid parts beside solids (the summary lists them as skipped); a document of rigid "
-    "parts\n"
+    "solids, FE models, rigid parts and sculpt objects (below); a document's other meshes are\n"
+    "not rendered yet (the summary lists them as skipped); a document of rigid parts\n"
     "and no solid (an assembly saved from the window) is one assembly field, as a scene's\n"
     "\"parts\" are. Solids:\n"
     "  --tool proxy   each solid is a god-object proxy on the grip centre, with friction\n"
@@ -385,14 +384,16 @@ void RunRun(const RunOptions& options) {
     }
     // What `run` renders of a document today: its solids (one field each, or an assembly of
     // "parts"), or, in a document of rigid parts and no solid (an assembly saved from the
-    // window), the assembly of its rigid parts as the window feels it; its FE models beside its
-    // solids (each one FE part, scene/fe_part.h; the solid an FE model's mesh was made from is
-    // not a rigid solid too, as FE mode hides it); and snap. The other kinds are listed in the
-    // summary as skipped.
+    // window), the assembly of its rigid parts as the window feels it; beside its solids, its FE
+    // models (each one FE part, scene/fe_part.h; the solid an FE model's mesh was made from is
+    // not a rigid solid too, as FE mode hides it), its rigid parts (one assembly field) and its
+    // first sculpt object; and snap. The other kinds are listed in the summary as skipped.
     const modeling::Scene loaded = opened.doc->ToScene();
-    const std::vector<AssemblyPartInput> rigid_parts = loaded.solids.empty()
-                                                           ? RigidPartInputs(*opened.doc, nullptr)
-                                                           : std::vector<AssemblyPartInput>{};
+    // Rigid parts beside solids (and FE models) are one assembly field in the solids' scene.
+    std::vector<AssemblyPartInput> parts_beside = RigidPartInputs(*opened.doc, nullptr);
+    const std::vector<AssemblyPartInput> rigid_parts =
+        loaded.solids.empty() ? parts_beside : std::vector<AssemblyPartInput>{};
+    if (loaded.solids.empty()) parts_beside.clear();
     const std::size_t part_count = rigid_parts.empty() ? loaded.parts.size() : rigid_parts.size();
     // FE models are rendered beside solids, not in an assembly.
     const std::vector<ObjectId> fe_models =
@@ -414,15 +415,17 @@ void RunRun(const RunOptions& options) {
     };
     for (const DocObject& o : opened.doc->objects()) {
       if (std::holds_alternative<SolidData>(o.data)) continue;
-      if (!rigid_parts.empty() && std::holds_alternative<RigidPartData>(o.data)) continue;
+      if ((!rigid_parts.empty() || !parts_beside.empty()) &&
+          std::holds_alternative<RigidPartData>(o.data))
+        continue;
       if (listed(fe_models, o.id) || listed(fe_meshes, o.id) || o.id == sculpt_id) continue;
       skipped_line += std::string(skipped_line.empty() ? "" : ", ") + ObjectKindName(o.data) +
                       " '" + o.name + "'";
     }
     if (!skipped_line.empty()) {
       skipped_line =
-          "skipped (run renders solids, FE models, assembly parts, the first sculpt object and "
-          "snap; not yet other meshes, other sculpts or rigid parts): " +
+          "skipped (run renders solids, FE models, rigid parts, the first sculpt object and "
+          "snap; not yet other meshes or other sculpts): " +
           skipped_line;
     }
     // --export: objects whose final state run can write (FE parts, as .vtu; sculpt objects, as
@@ -482,9 +485,13 @@ void RunRun(const RunOptions& options) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
       std::unique_ptr<haptics::AssemblyField> assembly;
       try {
+        // Alignment snap (a carried part drawn toward its seat's axis) where the document
+        // enables snap.
+        AssemblySceneSettings assembly_settings;
+        assembly_settings.field.align.enabled = opened.doc->snap().has_value();
         assembly = rigid_parts.empty()
-                       ? BuildAssemblyField(loaded)
-                       : BuildAssemblyField(rigid_parts, AssemblySceneSettings{}, nullptr);
+                       ? BuildAssemblyField(loaded, assembly_settings)
+                       : BuildAssemblyField(rigid_parts, assembly_settings, nullptr);
       } catch (const std::invalid_argument& e) {
         throw InputError(options.scene + ": " + e.what());
       }
@@ -557,6 +564,17 @@ void RunRun(const RunOptions& options) {
         for (Eigen::Index v = 0; v < mesh.nodes.rows(); ++v)
           fe_box_W.extend(mesh.nodes.row(v).transpose().eval());
       }
+      // The rigid parts beside take part in the fit too (each part's solid box at its pose).
+      for (const AssemblyPartInput& part : parts_beside) {
+        if (part.root == nullptr) continue;  // BuildAssemblyField names it below
+        bool unbounded = false;
+        const Eigen::AlignedBox3d box_P =
+            SolidBounds(modeling::CompiledSolid::Compile(*part.root), &unbounded);
+        if (box_P.isEmpty()) continue;
+        for (int k = 0; k < 8; ++k)
+          fe_box_W.extend(part.X_WP *
+                          box_P.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
+      }
       SceneHaptics built;
       try {
         haptic_options.Validate();
@@ -620,6 +638,22 @@ void RunRun(const RunOptions& options) {
         fe_parts.push_back(part.model);
         fe_names.push_back(name);
         scene->Add(std::move(part.field));
+      }
+      if (!parts_beside.empty()) {
+        // The rigid parts beside: one assembly field (grasp, carry, seats; alignment snap where
+        // the document has snap), in the solids' W (their boxes were fitted with the solids).
+        AssemblySceneSettings assembly_settings;
+        assembly_settings.field.align.enabled = opened.doc->snap().has_value();
+        std::unique_ptr<haptics::AssemblyField> assembly;
+        try {
+          assembly = BuildAssemblyField(parts_beside, assembly_settings, nullptr);
+        } catch (const std::invalid_argument& e) {
+          throw InputError(options.scene + ": " + e.what());
+        }
+        assembly_field = assembly.get();
+        scene->Add(std::move(assembly));
+        fields_line += std::string(fields_line == "fields:" ? "" : ",") + " assembly (" +
+                       std::to_string(parts_beside.size()) + " parts)";
       }
       const Eigen::Vector3d& o = built.map.X_WD.p_WDo;
       map_line = "X_WD: p_W = " + FormatNumber(built.map.X_WD.world_scale) + " p_D + (" +

@@ -158,6 +158,7 @@ void AssemblyMode::Load(const modeling::Scene& scene, const AssemblySceneSetting
   const std::vector<AssemblyPartInput> inputs = ScenePartInputs(scene);
   const AssemblySceneSettings old = settings_;
   settings_ = settings;
+  settings_.field.align.enabled = scene.snap.has_value();  // alignment snap where snap is on
   try {
     Build(inputs, {}, {}, display_cell);
   } catch (...) {
@@ -184,6 +185,7 @@ void AssemblyMode::LoadDocument(const Document& doc, const AssemblySceneSettings
   } else {
     const AssemblySceneSettings old = settings_;
     settings_ = settings;
+    settings_.field.align.enabled = doc.snap().has_value();  // alignment snap where snap is on
     try {
       Build(inputs, ids, revisions, display_cell);
     } catch (...) {
@@ -193,6 +195,7 @@ void AssemblyMode::LoadDocument(const Document& doc, const AssemblySceneSettings
   }
   from_document_ = true;
   synced_ = std::move(signature);
+  synced_snap_ = doc.snap().has_value();
   ++rebuilds_;
 }
 
@@ -348,7 +351,8 @@ bool AssemblyMode::SyncDocument(Document* doc) {
   for (const DocObject& o : doc->objects()) {
     if (std::holds_alternative<RigidPartData>(o.data)) now.emplace_back(o.id, o.revision);
   }
-  if (!from_document_ || now != synced_) {
+  if (!from_document_ || now != synced_ || doc->snap().has_value() != synced_snap_) {
+    // (Snap turned on or off: the field is rebuilt with its alignment snap on or off.)
     // Changed by something else than this mode (undo, redo, a tree edit, an open): rebuild.
     if (!from_document_ && now.empty()) return false;  // a scene's parts, no document parts
     try {

@@ -70,17 +70,20 @@ class AssemblyMode {
   // each solid the parts use once, in P, at a cell of 1/40 of its box's largest side (at most
   // `display_cell` m). A scene without parts empties the mode (has_parts() false, no field).
   // Throws std::invalid_argument naming the part or solid when the field or a mesh cannot be
-  // made; the mode is then unchanged.
+  // made; the mode is then unchanged. settings.field.align.enabled is replaced by whether the
+  // scene has snap (the alignment snap of a carried part toward its seat: assembly_field.h).
   void Load(const modeling::Scene& scene, const AssemblySceneSettings& settings = {},
             double display_cell = 0.001);
   // Takes the rigid_part objects of `doc` (in document order) as the parts, as Load does, and
   // remembers their ids and revisions for SyncDocument. A document without rigid parts empties
-  // the mode. Throws like Load; the mode is then unchanged.
+  // the mode. The alignment snap is on when `doc` has snap. Throws like Load; the mode is then
+  // unchanged.
   void LoadDocument(const Document& doc, const AssemblySceneSettings& settings = {},
                     double display_cell = 0.001);
   // Once per frame after OnFrame (main thread): commits the poses of parts let go since the last
   // call as one command in `doc`'s history (returns true then), or rebuilds from `doc` when its
-  // rigid parts changed otherwise (TakeFieldChanged is then true). A rebuild that fails keeps
+  // rigid parts changed otherwise or its snap was turned on or off (TakeFieldChanged is then
+  // true). A rebuild that fails keeps
   // the field and sets message(); it is not retried until the parts change again.
   bool SyncDocument(Document* doc);
   // Object id of part i (0 for a mode loaded from a scene).
@@ -166,6 +169,7 @@ class AssemblyMode {
   std::vector<std::uint64_t> input_revisions_;
   double display_cell_ = 0.001;
   AssemblySceneSettings settings_;
+  bool synced_snap_ = false;  // whether the document had snap on at the last LoadDocument
   AssemblyGeometryCache cache_;
   // (id, revision) of the document's rigid parts at the latest sync or failed rebuild.
   std::vector<std::pair<ObjectId, std::uint64_t>> synced_;

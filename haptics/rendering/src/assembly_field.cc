@@ -59,6 +59,18 @@ void AssemblySettings::Validate() const {
           "must be finite and >= 0");
   Require(max_points >= 1, "max_points", max_points, "must be >= 1");
   Require(PositiveFinite(max_dt), "max_dt", max_dt, "must be finite and > 0");
+  Require(PositiveFinite(align.capture_distance), "align.capture_distance", align.capture_distance,
+          "must be finite and > 0");
+  Require(align.capture_angle > 0 && align.capture_angle < 3.0, "align.capture_angle",
+          align.capture_angle, "must be in (0, 3) rad");
+  Require(NonNegativeFinite(align.stiffness), "align.stiffness", align.stiffness,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(align.rot_stiffness), "align.rot_stiffness", align.rot_stiffness,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(align.max_force), "align.max_force", align.max_force,
+          "must be finite and >= 0");
+  Require(NonNegativeFinite(align.max_torque), "align.max_torque", align.max_torque,
+          "must be finite and >= 0");
 }
 
 AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_shell,
@@ -177,6 +189,39 @@ bool AssemblyField::FindSeat(int i, const Eigen::Isometry3d& X_WP,
     }
   }
   return false;
+}
+
+bool AssemblyField::AlignmentWrench(int i, const Eigen::Isometry3d& X_WP, Eigen::Vector3d* f_W,
+                                    Eigen::Vector3d* tau_W) const noexcept {
+  const AlignmentSnapSettings& s = settings_.align;
+  Eigen::Vector3d f = Eigen::Vector3d::Zero(), tau = Eigen::Vector3d::Zero();
+  bool captured = false;
+  // S(x) = x²(3 − 2x) on [0, 1]: 0 with zero slope at the capture boundary.
+  const auto smooth = [](double x) { return x <= 0 ? 0.0 : x >= 1 ? 1.0 : x * x * (3 - 2 * x); };
+  if (s.enabled) {
+    const Eigen::Vector3d z = X_WP.linear().col(2);
+    for (const AssemblySeat& seat : parts_[i].seats) {
+      const Eigen::Isometry3d X_WS = poses_[seat.other] * seat.X_OS;
+      const Eigen::Vector3d a = X_WS.linear().col(2);
+      const Eigen::Vector3d e = X_WP.translation() - X_WS.translation();
+      const Eigen::Vector3d c = z.cross(a);
+      const double sin_angle = c.norm();
+      const double angle = std::atan2(sin_angle, z.dot(a));
+      const double w =
+          smooth(1.0 - e.norm() / s.capture_distance) * smooth(1.0 - angle / s.capture_angle);
+      if (!(w > 0)) continue;
+      captured = true;
+      f -= s.stiffness * w * (e - e.dot(a) * a);
+      // ρ = α c/|c| (≈ c for tiny angles, where α/sin α → 1).
+      tau += s.rot_stiffness * w * (sin_angle > 1e-12 ? (angle / sin_angle) * c : c);
+    }
+    const double fn = f.norm(), tn = tau.norm();
+    if (fn > s.max_force) f *= s.max_force / fn;
+    if (tn > s.max_torque) tau *= s.max_torque / tn;
+  }
+  *f_W = f;
+  *tau_W = tau;
+  return captured;
 }
 
 double AssemblyField::PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool,
@@ -314,13 +359,16 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
     }
     const double scale = std::min(1.0, s.reference_contacts / std::max(1.0, double(contacts)));
     contacts_ = contacts;
+    Eigen::Vector3d f_align = Eigen::Vector3d::Zero(), t_align = Eigen::Vector3d::Zero();
+    if (s.align.enabled) AlignmentWrench(c, Pose(p, R), &f_align, &t_align);
     const Eigen::Vector3d f_c =
         s.coupling_stiffness * (p_target - p) + s.coupling_damping * (v_target - v_);
     const Eigen::Vector3d tau_c =
         s.rot_coupling_stiffness * RotationVector(q_target * q_.conjugate()) +
         s.rot_coupling_damping * (tool.w_WT - w_);
-    v_ += (h / s.mass) * (f_c + scale * f_contact);
-    w_ += h * (R * inv_inertia.asDiagonal() * (R.transpose() * (tau_c + scale * t_contact)));
+    v_ += (h / s.mass) * (f_c + scale * f_contact + f_align);
+    w_ += h *
+          (R * inv_inertia.asDiagonal() * (R.transpose() * (tau_c + scale * t_contact + t_align)));
     p += h * v_;
     q_ = IntegrateRotation(q_, w_, h);
   }

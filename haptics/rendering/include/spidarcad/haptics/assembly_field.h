@@ -38,6 +38,20 @@
 //    push into it (the grip opened): it stays at X_WV. If it then lies within a seat's
 //    tolerance (|p_WP − p_WS| <= position_tolerance and the angle of R_WSᵀ R_WP <=
 //    angle_tolerance, X_WS = X_WO·X_OS) its pose snaps to X_WS exactly and `seated` is set.
+//    While a part is carried and the document's snap is on (AlignmentSnapSettings.enabled), each
+//    of its seats within capture (|p_WV − p_WS| < capture_distance and the angle between the
+//    part's axis R_WV e_z and the seat's axis a = R_WS e_z below capture_angle) draws the part
+//    toward the seat (alignment snap): the seat's axis is the line through p_WS along a, the z
+//    axis of the seat frame S (the peg toward the hole's axis); the part's axis is the z axis of
+//    P, which lies on it when seated (X_WP = X_WS). With e = p_WV − p_WS, e_⊥ = e − (e·a) a and
+//    the misalignment ρ = α (z_V × a)/|z_V × a| (α the angle between z_V = R_WV e_z and a),
+//      f_a = −k_a w e_⊥,  τ_a = k_α w ρ,
+//      w = S(1 − |e|/capture_distance) · S(1 − α/capture_angle),  S(x) = x²(3 − 2x) on [0, 1],
+//    summed over the seats in capture, then capped at max_force and max_torque (scaled along
+//    their direction). w is zero at the capture boundary with its slope, so the pull grows from
+//    nothing (no jump). Nothing pulls along the axis: the user pushes the peg home. f_a and τ_a
+//    act on V in every substep beside the contact forces, so the user feels them through the
+//    coupling, that is through the grip (at rest in free space −f_c = f_a).
 //    A released part cannot be picked up again until the poles have stopped squeezing it (so
 //    a snap into the seat does not grab it back). There is no gravity: a part released in the air
 //    stays where it was let go. Parts not carried never move (the tool does not push them around).
@@ -82,6 +96,17 @@ struct AssemblyPart {
   std::vector<AssemblySeat> seats;                         // where it fits
 };
 
+// Alignment snap of a carried part toward its seats (see the file comment). SI units.
+struct AlignmentSnapSettings {
+  bool enabled = false;             // on where the document enables snap
+  double capture_distance = 0.015;  // |p_WV − p_WS| below which a seat pulls, m
+  double capture_angle = 0.35;      // axis angle below which a seat pulls, rad (20°)
+  double stiffness = 200.0;         // k_a, N/m (toward the axis)
+  double rot_stiffness = 0.05;      // k_α, N·m/rad (axis alignment)
+  double max_force = 1.0;           // cap of |f_a|, N
+  double max_torque = 0.01;         // cap of |τ_a|, N·m
+};
+
 // Parameters of an AssemblyField. SI units, lengths in W.
 struct AssemblySettings {
   GraspSettings grasp;                                        // poles, finger stiffness, grab depth
@@ -100,6 +125,7 @@ struct AssemblySettings {
   double max_dt = 0.01;                                       // longer ticks are clamped, s
   bool cull_shell_search =
       true;  // false: test every shell point each tick (same result, slower; for tests)
+  AlignmentSnapSettings align;  // alignment snap while carrying (off by default)
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -145,6 +171,11 @@ class AssemblyField final : public ForceField {
   // Whether pose X_WP of part i is within the tolerance of one of its seats (with the other
   // parts at their current poses); writes the seated pose to *X_WS when it is. Real-time safe.
   bool FindSeat(int i, const Eigen::Isometry3d& X_WP, Eigen::Isometry3d* X_WS) const noexcept;
+  // The alignment snap wrench (f_a at the part's origin, τ_a; W, N and N·m) on part i at pose
+  // X_WP, with the other parts at their current poses: zero when align.enabled is false or no
+  // seat is within capture. Returns whether a seat is within capture. Real-time safe.
+  bool AlignmentWrench(int i, const Eigen::Isometry3d& X_WP, Eigen::Vector3d* f_W,
+                       Eigen::Vector3d* tau_W) const noexcept;
   // App side (one reader thread): the state published by the latest Evaluate.
   const AssemblyState& LatestState() noexcept { return published_.Latest(); }
   const AssemblySettings& settings() const noexcept { return settings_; }
