@@ -4,7 +4,10 @@
 // as in `spidarcad run`, over N ticks (default 20 000; the trajectory repeats). Prints p50,
 // p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in
 // app/src/cli/report_tick.cc (shared with `spidarcad report`, section "tick").
-//   build/bench/app_scene_tick_bench [--ticks N]     (--help: what it measures)
+//   build/bench/app_scene_tick_bench [--ticks N] [--slowest N] [--warm-up N] [--normal]
+//                                    [--no-lock]     (--help: what it measures)
+// As the window's haptic runtime: the memory locked (mlockall when permitted) and the ticks on a
+// SCHED_FIFO thread (when permitted); the CPU table adds page faults and context switches.
 // Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two
 // ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point shell
 // against the union of both solids, twist against the wall); FE contact (platform.json meshed
@@ -25,6 +28,7 @@
 #include <vector>
 
 #include "cli/report_tick.h"
+#include "spidarcad/haptics/realtime_memory.h"
 
 namespace {
 
@@ -36,7 +40,11 @@ constexpr const char* kDescription =
     "as in `spidarcad run`, over N ticks (default 20 000; the trajectory repeats). Prints p50,\n"
     "p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in\n"
     "app/src/cli/report_tick.cc (shared with `spidarcad report`, section \"tick\").\n"
-    "  build/bench/app_scene_tick_bench [--ticks N]     (--help: what it measures)\n"
+    "  build/bench/app_scene_tick_bench [--ticks N] [--slowest N] [--warm-up N] [--normal]\n"
+    "                                   [--no-lock]     (--help: what it measures)\n"
+    "As the window's haptic runtime: the memory locked (mlockall when permitted) and the ticks\n"
+    "on a SCHED_FIFO thread (when permitted); the CPU table adds page faults and context\n"
+    "switches.\n"
     "Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two\n"
     "ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point "
     "shell\n"
@@ -56,6 +64,10 @@ constexpr const char* kDescription =
     "  --ticks N   ticks per scene, N >= 1000 (default 20000; the assembly trajectory is 18400\n"
     "              ticks long: with fewer the part is never carried to its seat)\n"
     "  --warm-up N untimed ticks run first on the same loop (default 0)\n"
+    "  --normal    measure on the main thread with normal scheduling (default: a thread of its\n"
+    "              own at SCHED_FIFO 80 when permitted, as the window's haptic thread)\n"
+    "  --no-lock   do not lock the process's memory (default: mlockall when permitted, as the\n"
+    "              window's haptic runtime)\n"
     "  --slowest N also list the N slowest ticks of each scene (N <= 8) with their page faults\n"
     "              and context switches\n"
     "  --help      this text\n"
@@ -75,6 +87,8 @@ bool ParseCount(const char* text, long least, long* count) {
 
 int main(int argc, char** argv) {
   spidarcad::app::SceneTickOptions options;
+  options.realtime = true;
+  bool lock_memory = true;
   long slowest = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -89,6 +103,14 @@ int main(int argc, char** argv) {
       if (arg.rfind(prefix, 0) == 0) return argv[i] + prefix.size();
       return nullptr;
     };
+    if (arg == "--normal") {
+      options.realtime = false;
+      continue;
+    }
+    if (arg == "--no-lock") {
+      lock_memory = false;
+      continue;
+    }
     if (const char* value = value_of("--ticks")) {
       if (!ParseCount(value, 1000, &options.ticks)) {
         std::fprintf(stderr, "%s: --ticks: '%s' is not an integer >= 1000\n", argv[0], value);
@@ -108,14 +130,20 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "%s: unknown argument '%s' (this program takes --ticks N, --warm-up N, "
-                   "--slowest N and --help)\n",
+                   "--slowest N, --normal, --no-lock and --help)\n",
                    argv[0], argv[i]);
       return 2;
     }
   }
+  // As the window's haptic runtime: the process's memory locked before the first tick.
+  const spidarcad::haptics::MemoryLockResult lock = lock_memory
+                                                        ? spidarcad::haptics::LockProcessMemory()
+                                                        : spidarcad::haptics::MemoryLockResult{};
   const std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(options);
-  std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n\n",
+  std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n",
               options.ticks);
+  std::printf("measuring thread: %s; %s\n\n", rows.empty() ? "-" : rows.front().scheduling.c_str(),
+              lock_memory ? lock.message.c_str() : "memory lock: not requested (--no-lock)");
   std::printf(
       "| scene | p50 µs | p99 µs | p99.9 µs | max µs | mean µs |\n|---|---|---|---|---|---|\n");
   for (const auto& r : rows) {

@@ -17,6 +17,8 @@
 // tick, one over the ticks while a part is carried).
 #include "cli/report_tick.h"
 
+#include <pthread.h>
+#include <sched.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -25,11 +27,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <functional>
 #include <memory>
 #include <numbers>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cli/report_common.h"
@@ -44,6 +48,7 @@
 #include "scene/sculpt_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
+#include "spidarcad/haptics/realtime_memory.h"
 #include "spidarcad/haptics/simulated_device.h"
 #include "spidarcad/haptics/simulated_hand.h"
 #include "spidarcad/haptics/trajectory.h"
@@ -115,33 +120,56 @@ Row Measure(const std::string& name, std::unique_ptr<haptics::HapticScene> scene
   // Sized (and so touched) here: no first touch of the sample arrays between two readings.
   std::vector<double> us(ticks), cpu(ticks);
   std::vector<TickCounters> counters(ticks);
-  // Ticks j < warm_up are the untimed warm-up; tick j >= warm_up is timed tick k = j − warm_up.
-  for (long j = 0; j < warm_up + ticks; ++j) {
-    const long k = j - warm_up;
-    const double t = t0 + std::fmod(j * dt, duration);
-    hand.Step(trajectory.Sample(t), device.TrueWrench(), dt);
-    device.SetTruePose(hand.pose());
-    device.Step(dt);
-    haptics::TickInputs inputs;
-    device.Read(&inputs.reading);
-    if (k < 0) {
-      device.WriteTensions(loop.Step(inputs, dt).tau);
-      continue;
+  // The ticks, on the measuring thread (see SceneTickOptions::realtime).
+  auto run_ticks = [&] {
+    haptics::PrefaultStack();
+    // Ticks j < warm_up are the untimed warm-up; tick j >= warm_up is timed tick k = j − warm_up.
+    for (long j = 0; j < warm_up + ticks; ++j) {
+      const long k = j - warm_up;
+      const double t = t0 + std::fmod(j * dt, duration);
+      hand.Step(trajectory.Sample(t), device.TrueWrench(), dt);
+      device.SetTruePose(hand.pose());
+      device.Step(dt);
+      haptics::TickInputs inputs;
+      device.Read(&inputs.reading);
+      if (k < 0) {
+        device.WriteTensions(loop.Step(inputs, dt).tau);
+        continue;
+      }
+      const TickCounters before = ThreadCounters();
+      const double cpu_start = ThreadCpuMicros();
+      const auto start = std::chrono::steady_clock::now();
+      const haptics::TickOutputs out = loop.Step(inputs, dt);
+      const auto stop = std::chrono::steady_clock::now();
+      const double cpu_stop = ThreadCpuMicros();
+      const TickCounters after = ThreadCounters();
+      cpu[k] = cpu_stop - cpu_start;
+      counters[k] = Difference(after, before);
+      device.WriteTensions(out.tau);
+      if (after_tick) after_tick(k, out);
+      us[k] = std::chrono::duration<double, std::micro>(stop - start).count();
     }
-    const TickCounters before = ThreadCounters();
-    const double cpu_start = ThreadCpuMicros();
-    const auto start = std::chrono::steady_clock::now();
-    const haptics::TickOutputs out = loop.Step(inputs, dt);
-    const auto stop = std::chrono::steady_clock::now();
-    const double cpu_stop = ThreadCpuMicros();
-    const TickCounters after = ThreadCounters();
-    cpu[k] = cpu_stop - cpu_start;
-    counters[k] = Difference(after, before);
-    device.WriteTensions(out.tau);
-    if (after_tick) after_tick(k, out);
-    us[k] = std::chrono::duration<double, std::micro>(stop - start).count();
+  };
+  std::string scheduling = "normal scheduling";
+  if (options.realtime) {
+    // A thread of its own, made from this (normal) thread, that raises its own priority: the
+    // threads the scene made before (the FE column worker) stay normal, as in the window.
+    std::thread thread([&] {
+      sched_param param{};
+      param.sched_priority = 80;
+      const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+      scheduling = err == 0 ? "SCHED_FIFO 80"
+                            : std::string("normal scheduling (SCHED_FIFO refused: ") +
+                                  std::strerror(err) + ")";
+      run_ticks();
+    });
+    thread.join();
+  } else {
+    run_ticks();
   }
-  return SummarizeTicks(name, us, cpu, counters);
+  Row row = SummarizeTicks(name, us, cpu, counters);
+  row.scheduling = scheduling;
+  return row;
 }
 
 haptics::LoopSettings BaseSettings() {
@@ -482,18 +510,25 @@ std::vector<SceneTickRow> MeasureSceneTicks(const SceneTickOptions& given,
 
 void ReportTick(ReportContext& ctx) {
   const long ticks = ctx.Pick(20000L, 60000L);
+  SceneTickOptions options;
+  options.ticks = ticks;
+  options.realtime = true;  // as the window's haptic thread
+  // As the window's haptic runtime: memory locked for the measurement (released after it).
+  const haptics::MemoryLockResult lock = haptics::LockProcessMemory();
   const std::vector<SceneTickRow> rows =
-      MeasureSceneTicks(ticks, [&](double f) { ctx.Progress(f); });
-  ctx.md()
-      << "HapticLoop::Step compute time (calibration, FK, the scene's force fields, safety, "
-         "tension solve) on the simulated SPIDAR-G gripped by the simulated hand, as in "
-         "`spidarcad run`, "
-      << ticks
-      << " ticks per scene kind (the trajectory repeats). Wall clock (steady clock) per "
-         "tick; thread CPU time excludes preemption by other processes. The worst tick is the CPU "
-         "max column. A page fault is one the kernel counted on the measuring thread during "
-         "the tick (getrusage(RUSAGE_THREAD)); the CSV adds the fault and involuntary "
-         "context-switch totals.\n";
+      MeasureSceneTicks(options, [&](double f) { ctx.Progress(f); });
+  if (lock.status == haptics::MemoryLockStatus::kLocked) haptics::UnlockProcessMemory();
+  ctx.md() << "HapticLoop::Step compute time (calibration, FK, the scene's force fields, safety, "
+              "tension solve) on the simulated SPIDAR-G gripped by the simulated hand, as in "
+              "`spidarcad run`, "
+           << ticks
+           << " ticks per scene kind (the trajectory repeats). Wall clock (steady clock) per "
+              "tick; thread CPU time excludes preemption by other processes. Measuring thread: "
+           << (rows.empty() ? std::string("-") : rows.front().scheduling) << "; " << lock.message
+           << ". The worst tick is the CPU "
+              "max column. A page fault is one the kernel counted on the measuring thread during "
+              "the tick (getrusage(RUSAGE_THREAD)); the CSV adds the fault and involuntary "
+              "context-switch totals.\n";
   std::vector<std::vector<std::string>> table, csv;
   for (const SceneTickRow& r : rows) {
     table.push_back({r.name, Fixed(r.p50, 1), Fixed(r.p99, 1), Fixed(r.p999, 1), Fixed(r.max, 1),

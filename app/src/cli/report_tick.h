@@ -37,6 +37,7 @@ struct SceneTickRow {
   long minor_faults = 0, major_faults = 0, involuntary_switches = 0, ticks_with_faults = 0;
   std::vector<SlowTick> slowest;  // the kSlowestTicks slowest ticks by thread CPU, slowest first
   std::string note;               // scene-specific figures (FE: contact nodes reached, ...)
+  std::string scheduling;         // of the measuring thread: "SCHED_FIFO 80", "normal ..."
   std::vector<double> us, cpu;    // the samples, per tick (wall clock, thread CPU), µs
   std::vector<TickCounters> counters;  // per tick
 };
@@ -51,6 +52,11 @@ struct SceneTickOptions {
   // buffer the tick touches has been touched once (first-touch page faults, lazily grown
   // caches). 0 for none.
   long warm_up_ticks = 0;
+  // Measure on a thread of its own at SCHED_FIFO priority 80, as LoopRunner runs the window's
+  // haptic thread (normal scheduling when the OS refuses; SceneTickRow::scheduling says which).
+  // The ticks run back to back, so the thread holds one core for the run. Both ways the
+  // measuring thread touches its stack first (PrefaultStack).
+  bool realtime = false;
 };
 
 // Runs every scene kind for `ticks` ticks (>= 1; the trajectories repeat) and returns one row
