@@ -4,7 +4,10 @@
 // as in `spidarcad run`, over N ticks (default 20 000; the trajectory repeats). Prints p50,
 // p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in
 // app/src/cli/report_tick.cc (shared with `spidarcad report`, section "tick").
-//   build/bench/app_scene_tick_bench [--ticks N]     (--help: what it measures)
+//   build/bench/app_scene_tick_bench [--ticks N] [--slowest N] [--warm-up N] [--normal]
+//                                    [--no-lock]     (--help: what it measures)
+// As the window's haptic runtime: the memory locked (mlockall when permitted) and the ticks on a
+// SCHED_FIFO thread (when permitted); the CPU table adds page faults and context switches.
 // Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two
 // ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point shell
 // against the union of both solids, twist against the wall); FE contact (platform.json meshed
@@ -25,6 +28,7 @@
 #include <vector>
 
 #include "cli/report_tick.h"
+#include "spidarcad/haptics/realtime_memory.h"
 
 namespace {
 
@@ -36,7 +40,11 @@ constexpr const char* kDescription =
     "as in `spidarcad run`, over N ticks (default 20 000; the trajectory repeats). Prints p50,\n"
     "p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in\n"
     "app/src/cli/report_tick.cc (shared with `spidarcad report`, section \"tick\").\n"
-    "  build/bench/app_scene_tick_bench [--ticks N]     (--help: what it measures)\n"
+    "  build/bench/app_scene_tick_bench [--ticks N] [--slowest N] [--warm-up N] [--normal]\n"
+    "                                   [--no-lock]     (--help: what it measures)\n"
+    "As the window's haptic runtime: the memory locked (mlockall when permitted) and the ticks\n"
+    "on a SCHED_FIFO thread (when permitted); the CPU table adds page faults and context\n"
+    "switches.\n"
     "Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two\n"
     "ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point "
     "shell\n"
@@ -55,49 +63,87 @@ constexpr const char* kDescription =
     "Options:\n"
     "  --ticks N   ticks per scene, N >= 1000 (default 20000; the assembly trajectory is 18400\n"
     "              ticks long: with fewer the part is never carried to its seat)\n"
+    "  --warm-up N untimed ticks run first on the same loop (default 0)\n"
+    "  --normal    measure on the main thread with normal scheduling (default: a thread of its\n"
+    "              own at SCHED_FIFO 80 when permitted, as the window's haptic thread)\n"
+    "  --no-lock   do not lock the process's memory (default: mlockall when permitted, as the\n"
+    "              window's haptic runtime)\n"
+    "  --slowest N also list the N slowest ticks of each scene (N <= 8) with their page faults\n"
+    "              and context switches\n"
     "  --help      this text\n"
     "This program is not a Google Benchmark: --benchmark_* flags are not taken.";
 
-// Parses a tick count (an integer >= 1000); false when `text` is not one.
-bool ParseTicks(const char* text, long* ticks) {
+// Parses an integer >= `least`; false when `text` is not one.
+bool ParseCount(const char* text, long least, long* count) {
   errno = 0;
   char* end = nullptr;
   const long value = std::strtol(text, &end, 10);
-  if (errno != 0 || end == text || *end != '\0' || value < 1000) return false;
-  *ticks = value;
+  if (errno != 0 || end == text || *end != '\0' || value < least) return false;
+  *count = value;
   return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  long ticks = 20000;
+  spidarcad::app::SceneTickOptions options;
+  options.realtime = true;
+  bool lock_memory = true;
+  long slowest = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
       std::printf("%s\n", kDescription);
       return 0;
     }
-    const char* value = nullptr;
-    if (arg == "--ticks" && i + 1 < argc) {
-      value = argv[++i];
-    } else if (arg.rfind("--ticks=", 0) == 0) {
-      value = argv[i] + 8;
+    // --name N or --name=N.
+    auto value_of = [&](const char* name) -> const char* {
+      const std::string prefix = std::string(name) + "=";
+      if (arg == name && i + 1 < argc) return argv[++i];
+      if (arg.rfind(prefix, 0) == 0) return argv[i] + prefix.size();
+      return nullptr;
+    };
+    if (arg == "--normal") {
+      options.realtime = false;
+      continue;
     }
-    if (value != nullptr) {
-      if (!ParseTicks(value, &ticks)) {
+    if (arg == "--no-lock") {
+      lock_memory = false;
+      continue;
+    }
+    if (const char* value = value_of("--ticks")) {
+      if (!ParseCount(value, 1000, &options.ticks)) {
         std::fprintf(stderr, "%s: --ticks: '%s' is not an integer >= 1000\n", argv[0], value);
         return 2;
       }
-      continue;
+    } else if (const char* value = value_of("--warm-up")) {
+      if (!ParseCount(value, 0, &options.warm_up_ticks)) {
+        std::fprintf(stderr, "%s: --warm-up: '%s' is not an integer >= 0\n", argv[0], value);
+        return 2;
+      }
+    } else if (const char* value = value_of("--slowest")) {
+      if (!ParseCount(value, 0, &slowest) || slowest > spidarcad::app::kSlowestTicks) {
+        std::fprintf(stderr, "%s: --slowest: '%s' is not an integer in 0..%d\n", argv[0], value,
+                     spidarcad::app::kSlowestTicks);
+        return 2;
+      }
+    } else {
+      std::fprintf(stderr,
+                   "%s: unknown argument '%s' (this program takes --ticks N, --warm-up N, "
+                   "--slowest N, --normal, --no-lock and --help)\n",
+                   argv[0], argv[i]);
+      return 2;
     }
-    std::fprintf(stderr, "%s: unknown argument '%s' (this program takes --ticks N and --help)\n",
-                 argv[0], argv[i]);
-    return 2;
   }
-  const std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(ticks);
-  std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n\n",
-              ticks);
+  // As the window's haptic runtime: the process's memory locked before the first tick.
+  const spidarcad::haptics::MemoryLockResult lock = lock_memory
+                                                        ? spidarcad::haptics::LockProcessMemory()
+                                                        : spidarcad::haptics::MemoryLockResult{};
+  const std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(options);
+  std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n",
+              options.ticks);
+  std::printf("measuring thread: %s; %s\n\n", rows.empty() ? "-" : rows.front().scheduling.c_str(),
+              lock_memory ? lock.message.c_str() : "memory lock: not requested (--no-lock)");
   std::printf(
       "| scene | p50 µs | p99 µs | p99.9 µs | max µs | mean µs |\n|---|---|---|---|---|---|\n");
   for (const auto& r : rows) {
@@ -106,15 +152,55 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "\nThe same ticks in thread CPU time (CLOCK_THREAD_CPUTIME_ID: preemption by other "
-      "processes excluded)\n\n| scene | p50 µs | p99 µs | p99.9 µs | max µs "
-      "|\n|---|---|---|---|---|\n");
+      "processes excluded), with the page faults (minor/major) and involuntary context switches "
+      "the kernel counted on the thread during the timed ticks (getrusage(RUSAGE_THREAD))\n\n"
+      "| scene | p50 µs | p99 µs | p99.9 µs | max µs | ticks > 200 µs | faults | ticks with a "
+      "fault | involuntary switches |\n|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& r : rows) {
-    std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", r.name.c_str(), r.cpu_p50, r.cpu_p99,
-                r.cpu_p999, r.cpu_max);
+    long over = 0, over_switched = 0, over_faulted = 0;
+    for (std::size_t i = 0; i < r.cpu.size(); ++i) {
+      if (r.cpu[i] <= 200.0) continue;
+      ++over;
+      if (i < r.counters.size()) {
+        over_switched += r.counters[i].involuntary_switches > 0;
+        over_faulted += r.counters[i].minor_faults + r.counters[i].major_faults > 0;
+      }
+    }
+    std::printf(
+        "| %s | %.1f | %.1f | %.1f | %.1f | %ld (%ld switched, %ld faulted) | %ld/%ld | "
+        "%ld | %ld |\n",
+        r.name.c_str(), r.cpu_p50, r.cpu_p99, r.cpu_p999, r.cpu_max, over, over_switched,
+        over_faulted, r.minor_faults, r.major_faults, r.ticks_with_faults, r.involuntary_switches);
   }
   std::printf("\n");
   for (const auto& r : rows) {
     if (!r.note.empty()) std::printf("%s\n", r.note.c_str());
+  }
+  if (slowest > 0) {
+    std::printf("\nThe %ld slowest ticks of each scene by thread CPU time\n\n", slowest);
+    std::printf(
+        "| scene | tick | CPU µs | wall µs | minor faults | major faults | voluntary switches | "
+        "involuntary switches |\n|---|---|---|---|---|---|---|---|\n");
+    for (const auto& r : rows) {
+      for (long i = 0; i < slowest && i < static_cast<long>(r.slowest.size()); ++i) {
+        const spidarcad::app::SlowTick& t = r.slowest[i];
+        std::printf("| %s | %ld | %.1f | %.1f | %u | %u | %u | %u |\n", r.name.c_str(), t.index,
+                    t.cpu, t.us, t.counters.minor_faults, t.counters.major_faults,
+                    t.counters.voluntary_switches, t.counters.involuntary_switches);
+      }
+    }
+    std::printf("\nThe first ticks with a page fault (index: minor/major faults, CPU µs)\n\n");
+    for (const auto& r : rows) {
+      std::printf("- %s:", r.name.c_str());
+      int shown = 0;
+      for (std::size_t i = 0; i < r.counters.size() && shown < 12; ++i) {
+        const spidarcad::app::TickCounters& c = r.counters[i];
+        if (c.minor_faults + c.major_faults == 0) continue;
+        std::printf(" %zu: %u/%u, %.1f;", i, c.minor_faults, c.major_faults, r.cpu[i]);
+        ++shown;
+      }
+      std::printf("%s\n", shown == 0 ? " none" : "");
+    }
   }
   return 0;
 }

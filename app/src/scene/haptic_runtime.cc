@@ -15,6 +15,7 @@
 #include "scene/calibration_collector.h"
 #include "scene/calibration_file.h"
 #include "spidarcad/haptics/kinematics.h"
+#include "spidarcad/haptics/realtime_memory.h"
 #include "spidarcad/haptics/tension.h"
 
 namespace spidarcad::app {
@@ -240,6 +241,17 @@ bool HapticRuntime::ApplyCalibrationFile(const haptics::DeviceInfo& info,
 }
 
 void HapticRuntime::Start() {
+  // Before the first tick, once per process: the pages the tick touches stay in RAM, and the
+  // allocations made later (scenes published while running) are faulted in by whoever makes
+  // them, not by the haptic thread (realtime_memory.h). One line on stderr when that is not
+  // possible; the runner then touches its stack (RunnerSettings::prefault_stack_bytes).
+  static const haptics::MemoryLockResult lock = [] {
+    haptics::MemoryLockResult r = haptics::LockProcessMemory();
+    if (r.status != haptics::MemoryLockStatus::kLocked)
+      std::fprintf(stderr, "%s\n", r.message.c_str());
+    return r;
+  }();
+  (void)lock;
   runner_.Start([this](const haptics::TickTiming& timing) { Tick(timing); });
   // Created here, on the main thread: threads inherit SCHED_FIFO from a real-time creator.
   if (!service_) service_ = std::make_unique<RigServiceThread>(rig_.get());

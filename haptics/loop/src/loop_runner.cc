@@ -128,6 +128,7 @@ void LoopRunner::Start(TickFunction tick) {
   compute_.Clear();
   ticks_.store(0);
   overruns_.store(0);
+  prefaulted_pages_.store(0);
   stop_.store(false);
   realtime_status_.store(RealtimeStatus::kNotStarted);
   running_.store(true, std::memory_order_release);
@@ -154,6 +155,8 @@ void LoopRunner::Run() {
     status = err == 0 ? RealtimeStatus::kFifo
                       : (err == EPERM ? RealtimeStatus::kNoPermission : RealtimeStatus::kFailed);
   }
+  // Before the first tick: the stack pages the tick's call chain will use are present.
+  prefaulted_pages_.store(PrefaultStack(settings_.prefault_stack_bytes), std::memory_order_release);
   realtime_status_.store(status, std::memory_order_release);
 
   const auto period_ns = static_cast<std::int64_t>(std::llround(settings_.period * 1e9));

@@ -3,18 +3,23 @@
 // default) with absolute-time sleeps (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)), so
 // sleep errors do not accumulate. It asks for SCHED_FIFO from inside the new thread and falls
 // back to normal scheduling when the OS refuses (EPERM without CAP_SYS_NICE or an rtprio
-// limit); realtime_status() says which. Period jitter, wake-up lateness and tick compute time
-// go into preallocated histograms (no allocation while running).
+// limit); realtime_status() says which. Before the first tick it touches its stack
+// (RunnerSettings::prefault_stack_bytes); locking the process's memory is the owner's call
+// (LockProcessMemory, realtime_memory.h), made before Start. Period jitter, wake-up lateness and
+// tick compute time go into preallocated histograms (no allocation while running).
 //
 // STACK-NOTES: threads created by a SCHED_FIFO thread inherit SCHED_FIFO. The tick function
 // must therefore never create threads (nor allocate, lock, do I/O or throw).
 #pragma once
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <thread>
+
+#include "spidarcad/haptics/realtime_memory.h"
 
 namespace spidarcad::haptics {
 
@@ -76,6 +81,9 @@ struct RunnerSettings {
   // When a wake-up is later than this many periods the missed slots are skipped (not caught
   // up in a burst) and counted in overruns().
   int skip_after_periods = 2;
+  // Bytes of the runner thread's stack touched before its first tick (PrefaultStack,
+  // realtime_memory.h), so that no tick first-touches a stack page; 0: none.
+  std::size_t prefault_stack_bytes = kPrefaultStackBytes;
 };
 
 // Runs a tick function periodically on its own thread.
@@ -111,6 +119,10 @@ class LoopRunner {
   // Time spent in the tick function, s.
   const LatencyHistogram& compute() const noexcept { return compute_; }
   const RunnerSettings& settings() const noexcept { return settings_; }
+  // Stack pages the thread touched before its first tick (PrefaultStack; 0 before Start).
+  std::size_t prefaulted_stack_pages() const noexcept {
+    return prefaulted_pages_.load(std::memory_order_acquire);
+  }
 
  private:
   void Run();
@@ -123,6 +135,7 @@ class LoopRunner {
   std::atomic<RealtimeStatus> realtime_status_{RealtimeStatus::kNotStarted};
   std::atomic<std::uint64_t> ticks_{0};
   std::atomic<std::uint64_t> overruns_{0};
+  std::atomic<std::size_t> prefaulted_pages_{0};
   LatencyHistogram lateness_;
   LatencyHistogram jitter_;
   LatencyHistogram compute_;

@@ -1,0 +1,133 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// The tick table (cli/report_tick.h): a row's percentiles, maxima, fault totals and slowest ticks
+// against a brute-force reading of the samples, and `spidarcad report --only tick` carrying the
+// thread-CPU p99.9 and max columns into its table, CSV and summary. No timed assertion: only the
+// columns' presence and their order relations are checked on the measured run.
+#include "cli/report_tick.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "spidarcad_runner.h"
+
+namespace spidarcad::app {
+namespace {
+
+using test_support::CommandRun;
+using test_support::ReadWholeFile;
+using test_support::RunSpidarcad;
+using test_support::TestOutputPath;
+
+TEST(ReportTick, RowCarriesCpuP999MaxFaultsAndTheSlowestTicksOfItsSamples) {
+  // CPU samples 1..1000 µs in a shuffled order, wall clock = 2 × CPU; a fault on every 100th
+  // tick, a switch on every 250th.
+  const int n = 1000;
+  std::vector<double> cpu(n), us(n);
+  std::iota(cpu.begin(), cpu.end(), 1.0);
+  std::mt19937 rng(7);
+  std::shuffle(cpu.begin(), cpu.end(), rng);
+  std::vector<TickCounters> counters(n);
+  for (int i = 0; i < n; ++i) {
+    us[i] = 2.0 * cpu[i];
+    if (i % 100 == 0) counters[i].minor_faults = 3;
+    if (i % 500 == 0) counters[i].major_faults = 1;
+    if (i % 250 == 0) counters[i].involuntary_switches = 1;
+  }
+  const SceneTickRow row = SummarizeTicks("synthetic", us, cpu, counters);
+  // Nearest rank: the 999th smallest of 1..1000 is 999; the 990th is 990.
+  EXPECT_EQ(row.cpu_p999, 999.0);
+  EXPECT_EQ(row.cpu_p99, 990.0);
+  EXPECT_EQ(row.cpu_max, 1000.0);
+  EXPECT_EQ(row.max, 2000.0);
+  EXPECT_EQ(row.minor_faults, 30);
+  EXPECT_EQ(row.major_faults, 2);
+  EXPECT_EQ(row.ticks_with_faults, 10);
+  EXPECT_EQ(row.involuntary_switches, 4);
+  ASSERT_EQ(row.slowest.size(), static_cast<std::size_t>(kSlowestTicks));
+  for (int j = 0; j < kSlowestTicks; ++j) {
+    const SlowTick& t = row.slowest[j];
+    EXPECT_EQ(t.cpu, 1000.0 - j);  // slowest first
+    ASSERT_GE(t.index, 0);
+    ASSERT_LT(t.index, n);
+    EXPECT_EQ(cpu[t.index], t.cpu);
+    EXPECT_EQ(t.us, us[t.index]);
+    EXPECT_EQ(t.counters.minor_faults, counters[t.index].minor_faults);
+  }
+
+  // A subset row names the run's tick indices, not the subset's.
+  std::vector<double> sub_cpu{5.0, 9.0, 7.0}, sub_us{6.0, 10.0, 8.0};
+  std::vector<TickCounters> sub_counters(3);
+  sub_counters[1].minor_faults = 2;
+  const SceneTickRow sub =
+      SummarizeTicks("subset", sub_us, sub_cpu, sub_counters, std::vector<long>{40, 41, 77});
+  ASSERT_EQ(sub.slowest.size(), 3u);
+  EXPECT_EQ(sub.slowest[0].index, 41);
+  EXPECT_EQ(sub.slowest[0].counters.minor_faults, 2u);
+  EXPECT_EQ(sub.slowest[1].index, 77);
+  EXPECT_EQ(sub.slowest[2].index, 40);
+  EXPECT_EQ(sub.ticks_with_faults, 1);
+}
+
+// Fields of a CSV line; a field in double quotes may hold commas.
+std::vector<std::string> SplitQuoted(const std::string& line) {
+  std::vector<std::string> fields(1);
+  bool quoted = false;
+  for (char c : line) {
+    if (c == '"') {
+      quoted = !quoted;
+    } else if (c == ',' && !quoted) {
+      fields.emplace_back();
+    } else {
+      fields.back() += c;
+    }
+  }
+  return fields;
+}
+
+TEST(ReportTick, TickSectionReportsThreadCpuP999AndMaxPerScene) {
+  const std::string dir = TestOutputPath("report_tick");
+  std::filesystem::remove_all(dir);
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only tick --no-plots", "", "tick");
+  ASSERT_EQ(run.status, 0) << run.all();
+  const std::string md = ReadWholeFile(dir + "/report.md");
+  EXPECT_NE(md.find("| CPU p50 µs | CPU p99 µs | CPU p99.9 µs | CPU max µs |"), std::string::npos)
+      << md;
+  std::ifstream in(dir + "/tick.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  const std::vector<std::string> header = SplitQuoted(line);
+  auto column = [&](const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    return it == header.end() ? -1 : static_cast<int>(it - header.begin());
+  };
+  const int p99 = column("cpu_p99_us"), p999 = column("cpu_p999_us"), max = column("cpu_max_us");
+  const int faults = column("ticks_with_faults");
+  ASSERT_GE(p99, 0) << line;
+  ASSERT_GE(p999, 0) << line;
+  ASSERT_GE(max, 0) << line;
+  ASSERT_GE(faults, 0) << line;
+  int rows = 0;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> f = SplitQuoted(line);
+    ASSERT_EQ(f.size(), header.size()) << line;
+    EXPECT_LE(std::stod(f[p99]), std::stod(f[p999])) << line;
+    EXPECT_LE(std::stod(f[p999]), std::stod(f[max])) << line;
+    EXPECT_GE(std::stol(f[faults]), 0) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 9);  // 7 scenes, plus the FE k = 16 and the assembly carrying rows
+  const std::string summary = ReadWholeFile(dir + "/summary.md");
+  EXPECT_NE(summary.find("worst p99.9"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("worst max"), std::string::npos) << summary;
+}
+
+}  // namespace
+}  // namespace spidarcad::app
