@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -160,7 +161,11 @@ void RunFelt(const FeltOptions& o) {
   };
   std::vector<FeltSample> samples;
   if (o.from_csv.empty()) {
-    samples = MeasureFeltStiffness(s, print);
+    try {
+      samples = MeasureFeltStiffness(s, print);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(e.what());  // a probe that misses the part, a bad mesh or setting
+    }
   } else {
     samples = ReadSamples(o.from_csv);
     s.cells.clear();
@@ -270,7 +275,8 @@ void RegisterFeltCommand(CLI::App& app) {
       "then TetGen), builds a steel FE model of each --orders element order clamped at its\n"
       "minimum-x face (as FE mode), and at each probe measures the part stiffness K (N/m): the\n"
       "force per metre that moves the tool's patch (every free surface node within --tool-radius\n"
-      "of the probe point) rigidly along the push direction, from a full sparse solve\n"
+      "of the probe point whose normal faces the tool) rigidly along the push direction, from a\n"
+      "full sparse solve\n"
       "(as fem --grab). The felt stiffness is K through FE mode's virtual coupling:\n"
       "1/(1/k_c + 1/(sigma K)). Prints a table, the converged value (finest cell of the highest\n"
       "order, with the Richardson extrapolation of its two finest cells as a check), writes\n"
