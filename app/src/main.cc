@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
   RegisterCalibrateCommand(app);
   RegisterMeshCommand(app);
   RegisterFemCommand(app);
+  RegisterFeltCommand(app);
   RegisterRunCommand(app);
   RegisterTrajectoryCommand(app);
   RegisterDeviceCommand(app);

@@ -22,6 +22,8 @@ void RegisterCalibrateCommand(CLI::App& app);
 void RegisterMeshCommand(CLI::App& app);
 // `spidarcad fem`: static FE solve of a meshed scene or mesh file (cli/fem_command.cc).
 void RegisterFemCommand(CLI::App& app);
+// `spidarcad felt`: felt stiffness of an FE part against the cell size (cli/felt_command.cc).
+void RegisterFeltCommand(CLI::App& app);
 // `spidarcad run`: headless haptic session on a scripted trajectory (cli/run_command.cc).
 void RegisterRunCommand(CLI::App& app);
 // `spidarcad trajectory KIND --out T.csv`: scripted grip trajectories (cli/trajectory_command.cc).

@@ -30,7 +30,7 @@ FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings
   if (!(settings_.tool_radius > 0.0) || !std::isfinite(settings_.tool_radius))
     BadSetting("tool_radius", settings_.tool_radius, "must be > 0 m");
   if (settings_.max_contacts < 1 || settings_.max_contacts > kMaxFeContacts)
-    BadSetting("max_contacts", settings_.max_contacts, "must be in 1..16");
+    BadSetting("max_contacts", settings_.max_contacts, "must be in 1..kMaxFeContacts (64)");
   if (!(settings_.force_scale >= 0.0) || !std::isfinite(settings_.force_scale))
     BadSetting("force_scale", settings_.force_scale, "must be >= 0");
   if (!(settings_.max_force > 0.0)) BadSetting("max_force", settings_.max_force, "must be > 0 N");
@@ -149,6 +149,8 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
   st.p_WT = tool.p_WT;
   st.f_tool_W.setZero();
   st.refused = 0;
+  st.stiffness = 0.0;
+  st.stiffness_normal.setZero();
   st.waiting_for_columns = false;
   if (!tool.p_WT.allFinite() || !tool.R_WT.allFinite() || !std::isfinite(tool.grasp)) {
     coupled_valid_ = false;
@@ -334,10 +336,10 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
     }
     if (n.norm() > 0.0) {
       n.normalize();
-      // Normal stiffness of the contact set: forces for the sphere pushed 1 m further along −n
-      // (each node's target moved by −(n·n_s) n_s on top of the baseline), sticking.
+      // Stiffness of the contact set along n: forces for the contact nodes moved rigidly by 1 m
+      // along −n on top of the baseline, sticking (the patch stiffness of felt_stiffness.h).
+      const Eigen::Vector3d d = -n;
       for (int s = 0; s < k; ++s) {
-        const Eigen::Vector3d d = -n.dot(normal_[s]) * normal_[s];
         for (int i = 0; i < 3; ++i)
           probe_target_[3 * s + i] =
               cache_->baseline()(3 * cache_->OutputIndexOfCandidate(state_.candidate[s]) + i) +
@@ -351,6 +353,8 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
                                     probe_force_[3 * s + 2]);
         stiffness = std::max(0.0, n.dot(f_tool));
       }
+      state_.stiffness = stiffness;
+      state_.stiffness_normal = n;
       const double sk = sigma * stiffness;
       step -= (sk / (kc + sk)) * n.dot(step) * n;
     }

@@ -29,8 +29,9 @@
 // and the encoders' 25 µm quantum times that made the force jump by newtons every tick), and
 // close to σK where the part is soft (a cantilever's tip), which is what the engineer should
 // feel. While in contact, each tick takes one Newton step on r from the previous x_c with the
-// contact set's normal stiffness K along n̄ = F/|F| (one extra solve: the sphere pushed along
-// −n̄ with the contact nodes sticking, an upper bound of the frictionless stiffness, so the step
+// contact set's stiffness K along n̄ = F/|F| (one extra solve: the contact nodes moved rigidly
+// along −n̄, sticking: the patch stiffness of scene/felt_stiffness.h, published as
+// FeContactState::stiffness; an upper bound of the frictionless stiffness, so the step
 // undershoots rather than overshoots and contact is not lost and regained every tick). Out of
 // contact, x_c moves to x_t in one step (no drag in free space) unless a node would enter the
 // sphere on the way: it then stops just past that point (conservative advancement), so contact
@@ -57,8 +58,13 @@
 
 namespace spidarcad::app {
 
-// Largest number of contact nodes a touch field handles (per field, both poles together).
-inline constexpr int kMaxFeContacts = 16;
+// Largest number of contact nodes a touch field handles (per field, both poles together). 64
+// holds the whole footprint of the default 10 mm tool on the platform at FE mode's default cell
+// (P1 and P2) and down to about 5 mm cells with P1 (`spidarcad felt` prints the patch sizes;
+// docs/fem.md, "Felt stiffness"); a 64-node contact solve takes about 22 µs
+// (fem_bench BM_ContactTick/.../64), a few % of the 1 ms tick. Beyond it the nearest nodes are
+// kept and FeContactState::refused counts the rest.
+inline constexpr int kMaxFeContacts = 64;
 // Felt force per FE newton that FE mode starts with (σ, per metre of grip motion in D: FE mode
 // divides it by the world scale). With the coupling below, σ sets how much of the part's
 // structural compliance is felt: the felt stiffness is k_c and σK in series. On the 12 mm steel
@@ -92,6 +98,13 @@ struct FeContactState {
   Eigen::Vector3d p_WC = Eigen::Vector3d::Zero();
   // Nodes inside the sphere(s) that could not be taken this tick (full, refused, no column).
   int refused = 0;
+  // With a virtual coupling: the part stiffness K of the contact set (N/m, unscaled FE), the
+  // force per metre that moves the contact nodes rigidly along −stiffness_normal (sticking; what
+  // fem::SolveGrab gives for the same nodes, scene/felt_stiffness.h), and that unit normal n̄
+  // (W; the direction of the FE force on the tool). The tool feels k_c and σK in series. 0 and
+  // zero when not computed this tick.
+  double stiffness = 0.0;
+  Eigen::Vector3d stiffness_normal = Eigen::Vector3d::Zero();
   // True when no column at all is ready yet (no force could be computed).
   bool waiting_for_columns = false;
 };
@@ -107,7 +120,8 @@ struct FeTouchSettings {
   // Radius of the tool sphere, m (> 0). A radius near the mesh's surface edge length makes
   // contact smooth; smaller spheres slip between nodes.
   double tool_radius = 0.01;
-  // Contact nodes at most (1..kMaxFeContacts).
+  // Contact nodes at most (1..kMaxFeContacts). The tool's footprint is covered while the nodes
+  // inside the sphere are no more than this (FeContactState::refused counts the others).
   int max_contacts = kMaxFeContacts;
   // Felt force = force_scale · FE force (>= 0).
   double force_scale = 1.0;
