@@ -168,6 +168,55 @@ TEST(FeGrabField, TwistIsResistedAndTheGripHysteresisHolds) {
   EXPECT_FALSE(field.last_state().held);
 }
 
+TEST(FeGrabField, CouplingHoldsThePatchAtTheSeriesEquilibrium) {
+  const auto model = PlatformModel();
+  FeGrabSettings s = SyncSettings();
+  s.force_scale = 1e-4;
+  s.coupling_stiffness = 1500.0;
+  s.coupling_rot_stiffness = 2.0;
+  s.max_force = 1e6;
+  s.max_torque = 1e6;
+  FeGrabField field(model, s, nullptr);
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  field.Evaluate(Tool(0.0, kGrabPoint, I, kOpen));
+  field.Evaluate(Tool(0.001, kGrabPoint, I, kClosed));
+  // A pure pull first (the coupled motion still turns a little: K₆ couples them), then a twist.
+  haptics::ToolWrench w = field.Evaluate(Tool(0.002, kGrabPoint + kMove, I, kClosed));
+  const FeGrabState& st = field.last_state();
+  ASSERT_TRUE(st.ready);
+  // Never stiffer than the coupling: |felt| <= k_c |t_grip|.
+  EXPECT_LE(w.f_T_W.norm(), 1500.0 * st.t_grip.norm());
+  EXPECT_GT(w.f_T_W.norm(), 0.1 * 1500.0 * st.t_grip.norm());
+  // Equilibrium of the springs with the FE reaction at the coupled motion, exact for the
+  // linearised kinematics u = t + r × (x − c): σ F = −k_c (t_grip − t), σ M = −k_r (r_grip − r).
+  // The field moves the patch by R(r) (Rodrigues): the second order of the coupled rotation
+  // (½|r|²|x − c| ~ 4e-7 m at |r| ~ 0.009 rad) against the patch's ~1e9 N/m, felt at 1e-4, is
+  // what separates them (a few hundredths of a newton of 2 N).
+  const auto check = [&](double tol) {
+    const Eigen::Vector3d f_spring = -1500.0 * (st.t_grip - st.t);
+    const Eigen::Vector3d m_spring = -2.0 * (st.r_grip - st.r);
+    EXPECT_LT((1e-4 * st.f_tool_W - f_spring).norm(), tol * f_spring.norm())
+        << (1e-4 * st.f_tool_W).transpose() << " vs " << f_spring.transpose();
+    EXPECT_LT((-1e-4 * st.moment_body - m_spring).norm(), tol * m_spring.norm())
+        << (-1e-4 * st.moment_body).transpose() << " vs " << m_spring.transpose();
+  };
+  check(0.03);
+  // Twisted by 0.05 rad.
+  w = field.Evaluate(Tool(0.003, kGrabPoint + kMove, Twist(0.05), kClosed));
+  EXPECT_LE(w.f_T_W.norm(), 1500.0 * st.t_grip.norm());
+  EXPECT_LE(w.m_T_W.norm(), 2.0 * st.r_grip.norm() + 1500.0 * st.t_grip.norm() * 0.03);
+  check(0.03);
+  // The FE state is the grab of (t, r): fem::SolveGrab agrees.
+  std::vector<int> nodes;
+  for (int i = 0; i < st.num_nodes; ++i)
+    nodes.push_back(model->cache().candidate_node(st.candidate[i]));
+  const fem::GrabPatch patch(model->mesh().nodes, nodes);
+  const fem::GrabSolution ref =
+      fem::SolveGrab(model->mesh(), model->materials(), model->bcs(), patch, st.t, st.r);
+  EXPECT_LT((st.force_body - ref.wrench.force).norm(), 1e-9 * ref.wrench.force.norm());
+  EXPECT_LT((st.moment_body - ref.wrench.moment).norm(), 1e-9 * ref.wrench.moment.norm());
+}
+
 TEST(FeGrabField, WorkerFactorsOffTheTickAndTheForceRampsIn) {
   const auto model = PlatformModel();
   FeGrabSettings s = SyncSettings();

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "spidarcad/fem/grab.h"
 #include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
@@ -43,6 +44,12 @@ FeGrabField::FeGrabField(std::shared_ptr<FeModel> model, const FeGrabSettings& s
   if (!(settings_.max_force > 0.0)) BadSetting("max_force", settings_.max_force, "must be > 0 N");
   if (!(settings_.max_torque > 0.0))
     BadSetting("max_torque", settings_.max_torque, "must be > 0 N·m");
+  if (!(settings_.coupling_stiffness >= 0.0) || !std::isfinite(settings_.coupling_stiffness))
+    BadSetting("coupling_stiffness", settings_.coupling_stiffness, "must be >= 0 N/m");
+  if (settings_.coupling_stiffness > 0.0 && (!(settings_.coupling_rot_stiffness > 0.0) ||
+                                             !std::isfinite(settings_.coupling_rot_stiffness)))
+    BadSetting("coupling_rot_stiffness", settings_.coupling_rot_stiffness,
+               "must be > 0 N·m/rad with a coupling");
   if (!(settings_.close_angle > 0.0))
     BadSetting("close_angle", settings_.close_angle, "must be > 0 rad");
   if (!(settings_.open_angle >= settings_.close_angle) || !std::isfinite(settings_.open_angle))
@@ -107,6 +114,42 @@ int FeGrabField::CollectPatch(const haptics::ToolKinematics& tool) {
 void FeGrabField::BuildSolver() {
   solver_->Clear();
   for (int i = 0; i < request_count_; ++i) solver_->Add(request_[i]);  // refused nodes are left out
+  couple_.setIdentity();
+  const int n = solver_->num_contacts();
+  if (!(settings_.coupling_stiffness > 0.0) || n == 0) return;
+  // K₆: the wrench (F; M about c) of the unit motions u_v = t + r × (x_v − c), from u0.
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int s = 0; s < n; ++s) c += positions_[solver_->contact(s)];
+  c /= n;
+  Eigen::Matrix<double, 6, 6> k6;
+  for (int j = 0; j < 6; ++j) {
+    for (int s = 0; s < n; ++s) {
+      const int b = solver_->contact(s);
+      Eigen::Vector3d u = Eigen::Vector3d::Zero();
+      if (j < 3) {
+        u(j) = 1.0;
+      } else {
+        u = Eigen::Vector3d::Unit(j - 3).cross(positions_[b] - c);
+      }
+      u += cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(b));
+      for (int i = 0; i < 3; ++i) probe_target_[3 * s + i] = u(i);
+    }
+    if (!solver_->Solve(probe_target_.data(), probe_force_.data())) return;
+    Eigen::Vector3d f_sum = Eigen::Vector3d::Zero(), m_sum = Eigen::Vector3d::Zero();
+    for (int s = 0; s < n; ++s) {
+      const Eigen::Vector3d f(probe_force_[3 * s], probe_force_[3 * s + 1],
+                              probe_force_[3 * s + 2]);
+      f_sum += f;
+      m_sum += (positions_[solver_->contact(s)] - c).cross(f);
+    }
+    k6.col(j) << f_sum, m_sum;
+  }
+  Eigen::Matrix<double, 6, 6> kc = Eigen::Matrix<double, 6, 6>::Zero();
+  kc.diagonal() << Eigen::Vector3d::Constant(settings_.coupling_stiffness),
+      Eigen::Vector3d::Constant(settings_.coupling_rot_stiffness);
+  // ξ_c = (K_c + σK₆)⁻¹ K_c ξ; K₆ is symmetrised (it is symmetric up to round-off).
+  const Eigen::Matrix<double, 6, 6> a = kc + settings_.force_scale * 0.5 * (k6 + k6.transpose());
+  couple_ = a.partialPivLu().solve(kc);
 }
 
 void FeGrabField::WorkerLoop() {
@@ -216,25 +259,32 @@ haptics::ToolWrench FeGrabField::Evaluate(const haptics::ToolKinematics& tool) n
   const Eigen::Matrix3d A = R_rel - Eigen::Matrix3d::Identity();
   const Eigen::Vector3d dp = tool.p_WT - p0_;
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int s = 0; s < n; ++s) c += positions_[solver_->contact(s)];
+  if (n > 0) c /= n;
+  st.centroid = c;
+  // The grip's motion as a motion about c, then the FE state's (coupled) motion.
+  const Eigen::AngleAxisd aa(R_rel);
+  st.r_grip = aa.angle() * aa.axis();
+  st.t_grip = dp + A * (c - p0_);
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << st.t_grip, st.r_grip;
+  const Eigen::Matrix<double, 6, 1> xi_c = couple_ * xi;
+  st.t = xi_c.head<3>();
+  st.r = xi_c.tail<3>();
+  const Eigen::Matrix3d A_c = fem::RotationFromVector(st.r) - Eigen::Matrix3d::Identity();
   for (int s = 0; s < n; ++s) {
     const int b = solver_->contact(s);
     st.candidate[s] = b;
     st.substitute[s] = solver_->substitute(s);
-    c += positions_[b];
     const Eigen::Vector3d u = cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(b)) +
-                              A * (positions_[b] - p0_) + dp;
+                              A_c * (positions_[b] - c) + st.t;
     for (int i = 0; i < 3; ++i) st.target[3 * s + i] = u(i);
   }
   if (n == 0 || !solver_->Solve(st.target.data(), st.force.data())) {
     if (channel_) channel_->buffer.Write(st);
     return w;
   }
-  c /= n;
   st.ready = true;
-  st.centroid = c;
-  const Eigen::AngleAxisd aa(R_rel);
-  st.r = aa.angle() * aa.axis();
-  st.t = dp + A * (c - p0_);
   for (int s = 0; s < n; ++s) {
     const Eigen::Vector3d f(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
     const Eigen::Vector3d x = positions_[st.candidate[s]];

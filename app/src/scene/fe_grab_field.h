@@ -30,6 +30,17 @@
 // reaction −F, and the moment −Σ (x_v + u_v − p) × f_v about p_WT, each scaled by force_scale and
 // clamped to max_force and max_torque (magnitudes; direction kept). No grasp torque.
 //
+// Virtual coupling (coupling_stiffness k_c > 0, as FeTouchField's, in six DOF). Held rigidly, a
+// steel part is far too stiff to render (σ·EA/L of the platform is ~1e5 N/m: the grip chatters
+// at the force limit). With a coupling, the patch is held at a coupled motion ξ_c = (t_c, r_c)
+// of its own, joined to the grip's motion ξ = (t, r) by springs K_c = diag(k_c I, k_r I) (N/m,
+// N·m/rad) in quasi-static equilibrium K_c (ξ − ξ_c) = σ K₆ ξ_c, K₆ the patch's 6 by 6 grab
+// stiffness (wrench about c per unit (t, r), linear kinematics u = t + r × (x − c)), computed with
+// the factor (six solves). So ξ_c = (K_c + σK₆)⁻¹ K_c ξ (a 6 by 6 matrix made with the factor):
+// the felt stiffness is that of K_c and σK₆ in series, never above K_c. The FE state (targets,
+// forces, t and r published) is that of ξ_c; the felt wrench is σ times its reaction, as without
+// coupling.
+//
 // Threads. Factoring Ĝ_gg (up to 192 by 192, about a millisecond) is not done on the tick: the
 // field owns a worker thread that does it into the one preallocated CachedContactSolver and hands
 // it over with a generation counter (atomics, acquire/release; the haptic thread issues a patch
@@ -85,10 +96,13 @@ struct FeGrabState {
   std::array<double, 3 * kMaxFeGrabNodes> target{};
   std::array<double, 3 * kMaxFeGrabNodes> force{};
   // Patch centroid c (rest, W, m) and the grab as fem::GrabPatch terms: translation t (m) and
-  // rotation vector r (rad) about c.
+  // rotation vector r (rad) about c, of the FE state (the coupled motion with a coupling), and
+  // the grip's own motion in the same terms.
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   Eigen::Vector3d r = Eigen::Vector3d::Zero();
+  Eigen::Vector3d t_grip = Eigen::Vector3d::Zero();
+  Eigen::Vector3d r_grip = Eigen::Vector3d::Zero();
   // FE wrench ON the body (unscaled): force F (N) and moment about c (N·m).
   Eigen::Vector3d force_body = Eigen::Vector3d::Zero();
   Eigen::Vector3d moment_body = Eigen::Vector3d::Zero();
@@ -115,6 +129,10 @@ struct FeGrabSettings {
   // Magnitude bounds of the felt force (N, > 0) and moment (N·m, > 0).
   double max_force = 10.0;
   double max_torque = 0.5;
+  // Virtual coupling: translational k_c (felt N/m, >= 0; 0: the patch is held rigidly at the
+  // grip) and rotational k_r (felt N·m/rad, > 0 when k_c > 0).
+  double coupling_stiffness = 0.0;
+  double coupling_rot_stiffness = 0.0;
   // Grip closes below close_angle and opens above open_angle (rad, 0 < close <= open).
   double close_angle = 70.0 * 3.14159265358979323846 / 180.0;
   double open_angle = 80.0 * 3.14159265358979323846 / 180.0;
@@ -162,6 +180,9 @@ class FeGrabField final : public haptics::ForceField {
   FeGrabSettings settings_;
   std::shared_ptr<FeGrabChannel> channel_;
   std::unique_ptr<fem::CachedContactSolver> solver_;
+  // Made with the factor (worker or grab tick): ξ_c = couple_ ξ (identity without coupling).
+  Eigen::Matrix<double, 6, 6> couple_ = Eigen::Matrix<double, 6, 6>::Identity();
+  std::array<double, 3 * kMaxFeGrabNodes> probe_target_{}, probe_force_{};
 
   // Patch request (written by the haptic thread only while the worker is idle).
   std::array<int, kMaxFeGrabNodes> request_{};

@@ -37,6 +37,28 @@ FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSetting
   return ts;
 }
 
+FeGrabSettings DefaultFeGrabSettings() {
+  FeGrabSettings s;
+  s.tool_radius = 0.0;  // auto: twice the mesh's mean edge length
+  s.force_scale = kDefaultFeForceScale;
+  s.max_force = 8.0;
+  s.max_torque = 0.5;
+  s.coupling_stiffness = kDefaultFeCoupling;
+  s.coupling_rot_stiffness = kDefaultFeGrabRotCoupling;
+  return s;
+}
+
+FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& panel,
+                                    double world_scale) {
+  FeGrabSettings gs = panel;
+  if (world_scale > 0.0) {
+    gs.force_scale = panel.force_scale / world_scale;
+    gs.coupling_stiffness = panel.coupling_stiffness / world_scale;
+  }
+  if (!(gs.tool_radius > 0.0)) gs.tool_radius = 2.0 * model.mean_edge_length();
+  return gs;
+}
+
 std::vector<ObjectId> FeModelsOf(const Document& doc) {
   std::vector<ObjectId> ids;
   for (const DocObject& o : doc.objects())
@@ -70,6 +92,12 @@ FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& option
   part.field = std::make_unique<FeTouchField>(
       part.model, ResolvedFieldSettings(*part.model, options.touch, options.world_scale),
       part.channel);
+  if (options.grab) {
+    part.grab_channel = std::make_shared<FeGrabChannel>();
+    part.grab_field = std::make_unique<FeGrabField>(
+        part.model, ResolvedGrabSettings(*part.model, options.grab_settings, options.world_scale),
+        part.grab_channel);
+  }
   return part;
 }
 
@@ -188,8 +216,13 @@ FeColumnPlan PrepareTrajectoryColumns(FePart* part, const haptics::Trajectory& t
                                       const haptics::DeviceToWorld& X_WD, bool save,
                                       const std::filesystem::path& cache_directory) {
   const FeTouchSettings& ts = part->field->settings();
-  const double reach =
-      ts.tool_radius + X_WD.world_scale * kFeTrajectoryMargin + (ts.grasp ? ts.pole_length : 0.0);
+  double radius = ts.tool_radius, pole = ts.grasp ? ts.pole_length : 0.0;
+  if (part->grab_field) {
+    const FeGrabSettings& gs = part->grab_field->settings();
+    radius = std::max(radius, gs.tool_radius);
+    if (gs.grasp) pole = std::max(pole, gs.pole_length);
+  }
+  const double reach = radius + X_WD.world_scale * kFeTrajectoryMargin + pole;
   const std::vector<Eigen::Vector3d> path =
       TrajectoryPathW(trajectory, X_WD, 0.25 * ts.tool_radius);
   return PrepareColumns(part->model.get(), CandidatesNearPath(*part->model, path, reach), save,
