@@ -14,6 +14,8 @@
 #include <thread>
 #include <vector>
 
+#include "doc/job.h"
+#include "gui/fe_mode.h"
 #include "scene/fe_model.h"
 #include "scene/fe_part.h"
 #include "spidarcad/fem/grab.h"
@@ -26,13 +28,18 @@ constexpr double kCoarse = 0.012;  // m: platform grid cell
 constexpr double kOpen = 1.5707963267948966;
 constexpr double kClosed = 1.0;  // rad, below the default close angle (70°)
 
+const fem::TetMesh& PlatformMesh() {
+  static const fem::TetMesh mesh = MeshSceneSolidForFe(PlatformScenePath(), "platform", kCoarse);
+  return mesh;
+}
+
 // The coarse platform, clamped at the wall, columns prepared around its free end (x = 0.3).
 std::shared_ptr<FeModel> PlatformModel() {
   static std::shared_ptr<FeModel> model = [] {
     FeModelSettings s;
     s.use_disk_cache = false;
     s.cache.start_worker = false;
-    auto m = FeModel::Build(MeshSceneSolidForFe(PlatformScenePath(), "platform", kCoarse), s);
+    auto m = FeModel::Build(PlatformMesh(), s);
     PrepareColumns(m.get(), CandidatesNearPath(*m, {Eigen::Vector3d(0.29, 0.0, 0.005)}, 0.05),
                    false);
     return m;
@@ -304,6 +311,63 @@ TEST(FeGrabField, EvaluateAllocatesNothing) {
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(max_n, 4);
   EXPECT_TRUE(worker_ready);
+}
+
+// FE mode with "grasp grabs": the field it publishes pushes while open and grabs when the grip
+// closes on the part (patch factored on the grab field's worker, columns from the mode's column
+// worker); a frame then draws the held, twisted part and shows the moment.
+TEST(FeMode, GraspGrabsTwistsAndDrawsThePartThenLetsGo) {
+  JobQueue jobs;
+  FeMode mode(nullptr, &jobs);  // no renderer: VTK data only
+  mode.model_settings().use_disk_cache = false;
+  mode.grab() = true;
+  mode.SetMesh(PlatformMesh(), "platform");
+  mode.SetActive(true);
+  mode.Precompute();
+  for (int i = 0; i < 6000 && jobs.busy(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  jobs.Poll();
+  ASSERT_NE(mode.model(), nullptr) << mode.status();
+  std::unique_ptr<haptics::ForceField> field = mode.TakeField();
+  ASSERT_NE(field, nullptr);
+  auto* push_grab = dynamic_cast<FePushGrabField*>(field.get());
+  ASSERT_NE(push_grab, nullptr);
+  haptics::ToolState tool;
+  tool.tool_W = Tool(0.0, kGrabPoint, Eigen::Matrix3d::Identity(), kOpen);
+  field->Evaluate(tool.tool_W);
+  tool.tool_W = Tool(0.001, kGrabPoint, Eigen::Matrix3d::Identity(), kClosed);
+  field->Evaluate(tool.tool_W);
+  EXPECT_TRUE(push_grab->grab().last_state().held);
+  // Twist by 0.1 rad about +x and hold until the patch is handed over and ramped in.
+  haptics::ToolWrench w;
+  double t = 0.002;
+  for (int i = 0; i < 20000 && push_grab->grab().last_state().ramp < 1.0; ++i, t += 0.001) {
+    tool.tool_W =
+        Tool(t, kGrabPoint, Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()).toRotationMatrix(),
+             kClosed);
+    w = field->Evaluate(tool.tool_W);
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+  ASSERT_EQ(push_grab->grab().last_state().ramp, 1.0);
+  EXPECT_EQ(push_grab->grab().last_state().num_substituted, 0);
+  EXPECT_LT(w.m_T_W.x(), -0.05);  // felt: resists the twist (coupling 2 N·m/rad in series)
+  EXPECT_LE(w.m_T_W.norm(), 0.1 * kDefaultFeGrabRotCoupling + 1e-9);
+  mode.OnFrame(tool);
+  EXPECT_GT(mode.figures().grabbed, 4);
+  EXPECT_LT(mode.figures().m_tool_W.x(), 0.0);
+  EXPECT_GT(mode.figures().max_displacement, 1e-6);
+  EXPECT_GT(mode.figures().max_von_mises, 1e5);
+  // Open: let go; the frame shows the push again (nothing touched at the grab point's sphere).
+  tool.tool_W.grasp = kOpen;
+  tool.tool_W.time = t;
+  w = field->Evaluate(tool.tool_W);
+  EXPECT_FALSE(push_grab->grab().last_state().held);
+  mode.OnFrame(tool);
+  EXPECT_EQ(mode.figures().grabbed, 0);
+  mode.SetActive(false);
+  for (int i = 0; i < 3000 && jobs.busy(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  jobs.Poll();
 }
 
 TEST(FeGrabField, BadSettingsAreNamed) {

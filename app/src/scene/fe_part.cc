@@ -59,6 +59,18 @@ FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& 
   return gs;
 }
 
+FePushGrabField::FePushGrabField(std::unique_ptr<FeTouchField> touch,
+                                 std::unique_ptr<FeGrabField> grab)
+    : touch_(std::move(touch)), grab_(std::move(grab)) {
+  if (!touch_ || !grab_) throw std::invalid_argument("FE push-grab field: a field is missing");
+}
+
+haptics::ToolWrench FePushGrabField::Evaluate(const haptics::ToolKinematics& tool) noexcept {
+  const haptics::ToolWrench w = grab_->Evaluate(tool);
+  if (grab_->last_state().held) return w;
+  return touch_->Evaluate(tool);
+}
+
 std::vector<ObjectId> FeModelsOf(const Document& doc) {
   std::vector<ObjectId> ids;
   for (const DocObject& o : doc.objects())

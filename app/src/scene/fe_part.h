@@ -70,6 +70,24 @@ FeGrabSettings DefaultFeGrabSettings();
 FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& panel,
                                     double world_scale);
 
+// FE mode's grab: the touch field pushes while the grab holds nothing; while the grab holds a
+// patch (FeGrabState::held: from the tick the grip closes on the part to the tick it opens),
+// only the grab is felt and the touch field is not evaluated (its sphere would push the held
+// nodes). Real-time safe as its two fields are.
+class FePushGrabField final : public haptics::ForceField {
+ public:
+  // Both fields on the same model. Throws std::invalid_argument when either is null.
+  FePushGrabField(std::unique_ptr<FeTouchField> touch, std::unique_ptr<FeGrabField> grab);
+  haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override;
+  const char* name() const noexcept override { return "fe_push_grab"; }
+  FeTouchField& touch() { return *touch_; }
+  FeGrabField& grab() { return *grab_; }
+
+ private:
+  std::unique_ptr<FeTouchField> touch_;
+  std::unique_ptr<FeGrabField> grab_;
+};
+
 // The FE model objects of a document, in document order.
 std::vector<ObjectId> FeModelsOf(const Document& doc);
 
