@@ -134,6 +134,10 @@ TEST(FeGrabField, HeldWrenchEqualsTheFullSparseGrabSolve) {
   // Unit force scale, clamps far away: felt = FE reaction (clamped magnitudes only).
   EXPECT_LT((w.f_T_W - SyncSettings().max_force * st.f_tool_W.normalized()).norm(), 1e-9);
 
+  // The held state solved in full (run --export): the same displacement field as SolveGrab.
+  const FeSolvedState solved = SolveFeGrabState(*model, st);
+  EXPECT_LT((solved.displacement - ref.displacement).norm(), 1e-9 * ref.displacement.norm());
+
   // Opening the grip lets go.
   w = field.Evaluate(Tool(0.003, p, R, kOpen));
   EXPECT_EQ(w.f_T_W.norm(), 0.0);

@@ -806,14 +806,19 @@ void RunRun(const RunOptions& options) {
   for (const auto& [name, file] : exports) {
     const std::size_t i = std::find(fe_names.begin(), fe_names.end(), name) - fe_names.begin();
     const FeContactState& state = fe_fields[i]->last_state();
+    const FeGrabState* grab = fe_grabs.empty() ? nullptr : &fe_grabs[i]->last_state();
     try {
-      WriteFeStateVtu(*fe_parts[i], SolveFeState(*fe_parts[i], state), file);
+      WriteFeStateVtu(
+          *fe_parts[i],
+          grab ? SolveFeGrabState(*fe_parts[i], *grab) : SolveFeState(*fe_parts[i], state), file);
     } catch (const std::exception& e) {
       throw InputError("--export " + name + "=" + file + ": " + e.what());
     }
-    std::cout << "wrote " << file << " ('" << name << "' at the last tick: " << state.num_contacts
-              << " contact nodes, FE reaction on the tool " << Fixed(state.f_tool_W.norm(), 3)
-              << " N; displacement and von_mises by a full solve)\n";
+    const int nodes = grab ? (grab->ready ? grab->num_nodes : 0) : state.num_contacts;
+    const double reaction = grab ? grab->f_tool_W.norm() : state.f_tool_W.norm();
+    std::cout << "wrote " << file << " ('" << name << "' at the last tick: " << nodes
+              << (grab ? " grabbed" : " contact") << " nodes, FE reaction on the tool "
+              << Fixed(reaction, 3) << " N; displacement and von_mises by a full solve)\n";
   }
   for (const std::string& path : options.save) {
     try {

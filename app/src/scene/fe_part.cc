@@ -241,12 +241,15 @@ FeColumnPlan PrepareTrajectoryColumns(FePart* part, const haptics::Trajectory& t
                         cache_directory);
 }
 
-FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state) {
+namespace {
+
+// The model solved in full with nodes candidate[i] (i < n) prescribed to target[3i..3i+2].
+FeSolvedState SolvePrescribed(const FeModel& model, int n, const int* candidate,
+                              const double* target) {
   fem::BoundaryConditions bcs = model.bcs();
-  for (int s = 0; s < state.num_contacts; ++s) {
-    bcs.PrescribeNode(
-        model.cache().candidate_node(state.candidate[s]),
-        Eigen::Vector3d(state.target[3 * s], state.target[3 * s + 1], state.target[3 * s + 2]));
+  for (int s = 0; s < n; ++s) {
+    bcs.PrescribeNode(model.cache().candidate_node(candidate[s]),
+                      Eigen::Vector3d(target[3 * s], target[3 * s + 1], target[3 * s + 2]));
   }
   const fem::StaticSolver solver(model.mesh(), model.materials(), bcs);
   if (!solver.factor_status().converged) {
@@ -262,6 +265,17 @@ FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state) {
   out.element_von_mises = fem::ElementVonMises(model.mesh(), model.materials(), out.displacement);
   out.von_mises = fem::AverageToNodes(model.mesh(), out.element_von_mises);
   return out;
+}
+
+}  // namespace
+
+FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state) {
+  return SolvePrescribed(model, state.num_contacts, state.candidate.data(), state.target.data());
+}
+
+FeSolvedState SolveFeGrabState(const FeModel& model, const FeGrabState& state) {
+  return SolvePrescribed(model, state.ready ? state.num_nodes : 0, state.candidate.data(),
+                         state.target.data());
 }
 
 void WriteFeStateVtu(const FeModel& model, const FeSolvedState& solved, const std::string& path) {

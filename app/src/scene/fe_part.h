@@ -190,6 +190,9 @@ struct FeSolvedState {
 // the loads alone. Throws std::runtime_error saying why when the factorisation or solve fails.
 FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state);
 
+// The same for a grab state: the grabbed nodes held at their targets (none unless ready).
+FeSolvedState SolveFeGrabState(const FeModel& model, const FeGrabState& state);
+
 // Writes `solved` on the model's mesh as .vtu (WriteTetVtu): point data "displacement" (3, m)
 // and "von_mises" (Pa), cell data "von_mises" (Pa). Throws what WriteTetVtu throws.
 void WriteFeStateVtu(const FeModel& model, const FeSolvedState& solved, const std::string& path);
