@@ -27,6 +27,7 @@
 #include "scene/fe_model.h"
 #include "scene/fe_setup.h"
 #include "scene/fe_touch_field.h"
+#include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
 #include "scene/shared_field.h"
@@ -1003,6 +1004,64 @@ TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   EXPECT_EQ(model.document().ToJson().dump(), before);
   EXPECT_EQ(model.document().history().undo_size(), 0u);
   EXPECT_EQ(fe.bound_object(), 0u);
+}
+
+// FE mode's "grasp grabs" in the window, with the scripted grip: the grip comes down onto the
+// free end of the platform's FE model (assets/scenes/platform_fe.json), closes (grab), twists by
+// 0.3 rad about +x and sees the FE moment and the felt moment resist the twist; opening lets go.
+TEST(FeModeWindow, GraspGrabsTheFreeEndAndTheTwistIsResisted) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("fe_window_grab");
+  test_support::ScopedEnv cache("SPIDARCAD_CACHE_DIR", (scratch.dir / "cache").string().c_str());
+  AppWindow window(test_support::ScriptedWindowOptions(kNoSceneName));
+  window.Frame();
+  ASSERT_TRUE(window.OpenDocument(AssetPath("scenes/platform_fe.json"))) << window.file_error();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  fe.grab() = true;
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < 3; ++k) window.Frame();
+  if (fe.model() == nullptr) fe.RequestModel();
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.model() != nullptr; })) << fe.status();
+  const DeviceToWorld& x = window.model().device_to_world();
+  const auto to_D = [&](const Eigen::Vector3d& p_W) -> Eigen::Vector3d {
+    return (p_W - x.p_WDo) / x.world_scale;
+  };
+  // Onto the plate top near the free end (pushed: the grip rests on it), then close the grasp.
+  const Eigen::Vector3d on_top_D = to_D(Eigen::Vector3d(0.28, 0.0, 0.012));
+  const double open = M_PI / 2, closed = 57.0 * M_PI / 180.0;
+  window.grip().SetPose(on_top_D, Eigen::Matrix3d::Identity(), open);
+  FramesUntil(
+      window,
+      [&] {
+        const Eigen::Vector3d d = window.runtime().Latest().tool.pose_D.p0 - on_top_D;
+        return d.head<2>().norm() < 5e-4 && fe.figures().contacts > 0;
+      },
+      60.0);
+  window.grip().SetPose(on_top_D, Eigen::Matrix3d::Identity(), closed);
+  ASSERT_TRUE(FramesUntil(
+      window, [&] { return fe.figures().grabbed > 0; }, 120.0))
+      << "not grabbed: " << fe.status();
+  // Twist about +x: the part resists (FE moment and felt moment about x negative).
+  const Eigen::Matrix3d twist = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  window.grip().SetPose(on_top_D, twist, closed);
+  FramesUntil(
+      window,
+      [&] {
+        return fe.figures().m_tool_W.x() < 0.0 &&
+               window.runtime().Latest().tool.wrench_D(3) < -0.05;
+      },
+      60.0);
+  EXPECT_GT(fe.figures().grabbed, 0);
+  EXPECT_LT(fe.figures().m_tool_W.x(), 0.0) << fe.figures().m_tool_W.transpose();
+  EXPECT_LT(window.runtime().Latest().tool.wrench_D(3), -0.01)
+      << window.runtime().Latest().tool.wrench_D.transpose();
+  EXPECT_GT(fe.figures().max_displacement, 0.0);
+  // Open: let go.
+  window.grip().SetPose(on_top_D, twist, open);
+  EXPECT_TRUE(FramesUntil(
+      window, [&] { return fe.figures().grabbed == 0; }, 60.0));
 }
 
 }  // namespace

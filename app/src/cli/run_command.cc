@@ -127,6 +127,13 @@ constexpr const char* kRunHelp =
     "default 0.02) and --conserve-volume set the tool (a sculpt object stores none). With only\n"
     "sculpt objects X_WD is the identity, as in the window, unless --world-scale/--world-origin\n"
     "say otherwise; beside solids the sculpt does not take part in the fit.\n"
+    "--fe-grab: instead, the FE parts are grabbed, not pushed (FE mode's grab,\n"
+    "scene/fe_grab_field.h): closing the grasp (below 70 deg) while the grip centre is within\n"
+    "twice the mesh's mean surface edge of the surface grabs those surface nodes (at most 64),\n"
+    "which then follow the grip rigidly in six DOF; the felt force and moment are 1e-4/s of the\n"
+    "FE reaction (at most 8 N and 0.5 N·m); opening the grasp (above 80 deg) lets go. With\n"
+    "--fe-grasp too, the nodes near the pole tips are grabbed. The patch is factored on the grab\n"
+    "tick (the window factors it on a worker).\n"
     "A scene with a \"snap\" object adds snap forces toward its solids' vertices, edges and\n"
     "faces (docs/scene-format.md, \"Snap forces\"); the summary gives the feature counts.\n"
     "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
@@ -157,7 +164,9 @@ constexpr const char* kRunHelp =
     "  fk_x,fk_y,fk_z    grip centre measured by forward kinematics, m\n"
     "  fe_contacts       (documents with FE models only) FE contact nodes of the tick, all parts\n"
     "  fe_fx,fe_fy,fe_fz (the same) FE reaction on the tool, W, N: the unscaled FE force, summed\n"
-    "                    over the parts (the felt force is in fx..fz)\n"
+    "                    over the parts (the felt force is in fx..fz); with --fe-grab: grabbed\n"
+    "                    nodes and the FE reaction of the grab\n"
+    "  fe_mx,fe_my,fe_mz (--fe-grab only) FE moment on the tool about the grip centre, W, N·m\n"
     "  sculpt_stroke     (documents with a sculpt object only) 1 while a stroke is under way\n"
     "  sculpt_volume     (the same) enclosed volume of the sculpted clay, m^3\n"
     "\n"
@@ -187,6 +196,7 @@ struct RunOptions {
   bool geometry_given = false;       // --frame or --pole given: it overrides the document's
   double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
   bool progress = false;             // progress on stderr even when it is not a terminal
+  bool fe_grab = false;              // FE parts: grabbed by the closing grasp instead of pushed
   bool fe_grasp = false;             // FE parts: two-point grasp contact instead of the push sphere
   std::vector<std::string> save;     // --save OUT: the document at the end of the run
   std::vector<std::string> exports;  // --export NAME=FILE: one object's final state
@@ -345,6 +355,10 @@ void RunRun(const RunOptions& options) {
   std::unique_ptr<Document> document;              // the document run (null: demo or empty)
   std::unique_ptr<DocumentSculpt> sculpt;          // its sculpt object sculpted (null: none)
   std::string fe_lines;                            // what the FE parts' set-up did, for the summary
+  // With --fe-grab: the FE parts' grab fields (owned by the loop) and their touch fields (kept
+  // for --export, not felt).
+  std::vector<const FeGrabField*> fe_grabs;
+  std::vector<std::unique_ptr<FeTouchField>> fe_touch_fields;
   haptics::LoopSettings settings;
   settings.fk.max_residual = kNominalFkMaxResidual;  // nominal encoder model: mm-level errors
   // --export NAME=FILE: split (at the first '='), checked once the document is open.
@@ -605,7 +619,10 @@ void RunRun(const RunOptions& options) {
         FePartOptions fe_options;
         fe_options.world_scale = built.map.X_WD.world_scale;
         fe_options.model.cache.start_worker = false;  // PrepareColumns below, nothing after
-        fe_options.touch.grasp = options.fe_grasp;
+        fe_options.touch.grasp = options.fe_grasp && !options.fe_grab;
+        fe_options.grab = options.fe_grab;
+        fe_options.grab_settings.grasp = options.fe_grasp;
+        fe_options.grab_settings.worker = false;  // factored on the grab tick: deterministic
         FePart part;
         FeColumnPlan plan;
         try {
@@ -615,8 +632,8 @@ void RunRun(const RunOptions& options) {
         } catch (const std::exception& e) {
           throw InputError(options.scene + ": FE model '" + name + "': " + e.what());
         }
-        fields_line +=
-            std::string(fields_line == "fields:" ? "" : ",") + " fe_touch '" + name + "'";
+        fields_line += std::string(fields_line == "fields:" ? "" : ",") +
+                       (options.fe_grab ? " fe_grab '" : " fe_touch '") + name + "'";
         const FeModel& model = *part.model;
         const FeTouchSettings& ts = part.field->settings();
         fe_lines += "fe '" + name + "': " + std::to_string(model.mesh().num_nodes()) + " nodes, " +
@@ -634,10 +651,24 @@ void RunRun(const RunOptions& options) {
                     " m, force scale " + FormatNumber(ts.force_scale) + ", coupling " +
                     FormatNumber(ts.coupling_stiffness) + " N/m, max felt " +
                     FormatNumber(ts.max_force) + " N (W)\n";
+        if (part.grab_field) {
+          const FeGrabSettings& gs = part.grab_field->settings();
+          fe_lines += "fe '" + name + "' grab: sphere radius " + FormatNumber(gs.tool_radius) +
+                      " m" + (gs.grasp ? " at each pole tip" : "") + ", at most " +
+                      std::to_string(gs.max_patch) + " nodes, force scale " +
+                      FormatNumber(gs.force_scale) + ", max felt " + FormatNumber(gs.max_force) +
+                      " N, " + FormatNumber(gs.max_torque) + " N·m (W)\n";
+          fe_grabs.push_back(part.grab_field.get());
+        }
         fe_fields.push_back(part.field.get());
         fe_parts.push_back(part.model);
         fe_names.push_back(name);
-        scene->Add(std::move(part.field));
+        if (part.grab_field) {
+          scene->Add(std::move(part.grab_field));
+          fe_touch_fields.push_back(std::move(part.field));  // kept for --export, not felt
+        } else {
+          scene->Add(std::move(part.field));
+        }
       }
       if (!parts_beside.empty()) {
         // The rigid parts beside: one assembly field (grasp, carry, seats; alignment snap where
@@ -776,6 +807,7 @@ void RunRun(const RunOptions& options) {
   out << "t,x,y,z,qw,qx,qy,qz,grasp,fx,fy,fz,mx,my,mz,g,tau1,tau2,tau3,tau4,tau5,tau6,tau7,tau8,"
          "tick_us,events,fk_x,fk_y,fk_z"
       << (fe_columns ? ",fe_contacts,fe_fx,fe_fy,fe_fz" : "")
+      << (fe_grabs.empty() ? "" : ",fe_mx,fe_my,fe_mz")
       << (sculpt ? ",sculpt_stroke,sculpt_volume" : "") << "\n";
   const bool sculpt_columns = sculpt != nullptr;
   haptics::ToolKinematics last_tool_W;    // the tool state of the last tick
@@ -837,17 +869,30 @@ void RunRun(const RunOptions& options) {
       // The FE parts' contact state of this tick (this thread ran it: it is the one reader).
       int contacts = 0, substituted = 0;
       Eigen::Vector3d f = Eigen::Vector3d::Zero();
+      Eigen::Vector3d m = Eigen::Vector3d::Zero();
       for (const FeTouchField* field : fe_fields) {
+        if (!fe_grabs.empty()) break;  // grabbed, not pushed
         const FeContactState& st = field->last_state();
         contacts += st.num_contacts;
         substituted += st.num_substituted;
         f += st.f_tool_W;
       }
+      for (const FeGrabField* grab : fe_grabs) {
+        const FeGrabState& st = grab->last_state();
+        if (!st.ready) continue;
+        contacts += st.num_nodes;
+        substituted += st.num_substituted;
+        f += st.f_tool_W;
+        m += st.m_tool_W;
+      }
       if (substituted > 0) ++fe_substituted_ticks;
       fe_max_contacts = std::max(fe_max_contacts, contacts);
       fe_max_reaction = std::max(fe_max_reaction, f.norm());
       buffer += std::to_string(contacts) + ',' + FormatNumber(f.x()) + ',' + FormatNumber(f.y()) +
-                ',' + FormatNumber(f.z()) + (sculpt_columns ? ',' : '\n');
+                ',' + FormatNumber(f.z());
+      if (!fe_grabs.empty())
+        buffer += ',' + FormatNumber(m.x()) + ',' + FormatNumber(m.y()) + ',' + FormatNumber(m.z());
+      buffer += sculpt_columns ? ',' : '\n';
     }
     if (sculpt_columns) {
       // The sculpt session's frame (every kSculptFrameTicks ticks): the stroke follows this
@@ -953,14 +998,19 @@ void RunRun(const RunOptions& options) {
     }
     const std::size_t i = std::find(fe_names.begin(), fe_names.end(), name) - fe_names.begin();
     const FeContactState& state = fe_fields[i]->last_state();
+    const FeGrabState* grab = fe_grabs.empty() ? nullptr : &fe_grabs[i]->last_state();
     try {
-      WriteFeStateVtu(*fe_parts[i], SolveFeState(*fe_parts[i], state), file);
+      WriteFeStateVtu(
+          *fe_parts[i],
+          grab ? SolveFeGrabState(*fe_parts[i], *grab) : SolveFeState(*fe_parts[i], state), file);
     } catch (const std::exception& e) {
       throw InputError("--export " + name + "=" + file + ": " + e.what());
     }
-    std::cout << "wrote " << file << " ('" << name << "' at the last tick: " << state.num_contacts
-              << " contact nodes, FE reaction on the tool " << Fixed(state.f_tool_W.norm(), 3)
-              << " N; displacement and von_mises by a full solve)\n";
+    const int nodes = grab ? (grab->ready ? grab->num_nodes : 0) : state.num_contacts;
+    const double reaction = grab ? grab->f_tool_W.norm() : state.f_tool_W.norm();
+    std::cout << "wrote " << file << " ('" << name << "' at the last tick: " << nodes
+              << (grab ? " grabbed" : " contact") << " nodes, FE reaction on the tool "
+              << Fixed(reaction, 3) << " N; displacement and von_mises by a full solve)\n";
   }
   for (const std::string& path : options.save) {
     try {
@@ -1021,6 +1071,9 @@ void RegisterRunCommand(CLI::App& app) {
                   "at most 1e7)");
   cmd->add_flag("--progress", options->progress,
                 "Show progress on stderr even when it is not a terminal");
+  cmd->add_flag("--fe-grab", options->fe_grab,
+                "Documents: FE models are grabbed by closing the grasp on them and follow the grip "
+                "rigidly (FE mode's grab) instead of being pushed");
   cmd->add_flag("--fe-grasp", options->fe_grasp,
                 "Documents: FE models are squeezed between the pole tips (two-point grasp contact, "
                 "as FE mode's checkbox) instead of pushed by the sphere on the grip centre");

@@ -183,7 +183,15 @@ void FeMode::QueueField() {
   if (!model_) return;
   const FeTouchSettings ts = ResolvedFieldSettings(*model_, touch_settings_, X_WD_.world_scale);
   sphere_source_->SetRadius(ts.tool_radius);
-  pending_field_ = std::make_unique<FeTouchField>(model_, ts, channel_);
+  if (grab_) {
+    pending_field_ = std::make_unique<FePushGrabField>(
+        std::make_unique<FeTouchField>(model_, ts, channel_),
+        std::make_unique<FeGrabField>(
+            model_, ResolvedGrabSettings(*model_, grab_settings_, X_WD_.world_scale),
+            grab_channel_));
+  } else {
+    pending_field_ = std::make_unique<FeTouchField>(model_, ts, channel_);
+  }
 }
 
 std::unique_ptr<haptics::ForceField> FeMode::TakeField() {
@@ -241,7 +249,11 @@ void FeMode::UpdateSurface(const FeContactState* state) {
     if (field_taken_ && field_start_time_ < 0.0) field_start_time_ = state->time;
   }
   Eigen::VectorXd u_out;
-  ContactDisplacement(&model_->cache(), last_state_, &u_out);
+  if (last_grab_.ready) {
+    GrabDisplacement(&model_->cache(), last_grab_, &u_out);
+  } else {
+    ContactDisplacement(&model_->cache(), last_state_, &u_out);
+  }
   const Eigen::MatrixX3d u = model_->FullDisplacement(u_out);
   const Eigen::VectorXd vm = model_->NodalVonMises(u_out);
   const fem::TetMesh& mesh = model_->mesh();
@@ -261,9 +273,12 @@ void FeMode::UpdateSurface(const FeContactState* state) {
   const double top =
       auto_range_ ? std::max(1e-3, 1e-6 * max_vm) : std::max(1e-6, static_cast<double>(range_mpa_));
   lut_->SetTableRange(0.0, top);
-  figures_.f_tool_W = last_state_.f_tool_W;
-  figures_.contacts = last_state_.num_contacts;
-  figures_.substituted = last_state_.num_substituted;
+  figures_.f_tool_W = last_grab_.ready ? last_grab_.f_tool_W : last_state_.f_tool_W;
+  figures_.contacts = last_grab_.ready ? 0 : last_state_.num_contacts;
+  figures_.substituted =
+      last_grab_.ready ? last_grab_.num_substituted : last_state_.num_substituted;
+  figures_.grabbed = last_grab_.ready ? last_grab_.num_nodes : 0;
+  figures_.m_tool_W = last_grab_.ready ? last_grab_.m_tool_W : Eigen::Vector3d::Zero();
   figures_.max_displacement = max_u;
   figures_.max_von_mises = max_vm;
   magnify_shown_ = magnify_;
@@ -282,11 +297,16 @@ void FeMode::OnFrame(const haptics::ToolState& tool) {
   sphere_actor_->SetVisibility(active_);
   sphere_source_->SetCenter(p.x(), p.y(), p.z());
   if (!active_) return;
-  const bool fresh = channel_->buffer.Update();
+  bool fresh = channel_->buffer.Update();
+  if (grab_channel_->buffer.Update()) {  // the grab's state (drawn instead while it holds)
+    const bool was = last_grab_.ready;
+    last_grab_ = grab_channel_->buffer.Read();
+    if (last_grab_.ready || was) fresh = true;
+  }
   if (fresh || magnify_shown_ != magnify_)
     UpdateSurface(fresh ? &channel_->buffer.Read() : nullptr);
-  sphere_actor_->GetProperty()->SetColor(figures_.contacts > 0 ? 0.95 : 0.2,
-                                         figures_.contacts > 0 ? 0.5 : 0.8, 0.2);
+  const bool touching = figures_.contacts > 0 || figures_.grabbed > 0;
+  sphere_actor_->GetProperty()->SetColor(touching ? 0.95 : 0.2, touching ? 0.5 : 0.8, 0.2);
 }
 
 void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
@@ -339,6 +359,16 @@ void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
       changed = true;
     }
   }
+  changed |= ImGui::Checkbox("grasp grabs (6 DOF; push when open)", &grab_);
+  if (grab_) {
+    float rot = static_cast<float>(grab_settings_.coupling_rot_stiffness);
+    if (ImGui::SliderFloat("grab twist coupling [N·m/rad]", &rot, 0.1f, 10.0f, "%.1f")) {
+      grab_settings_.coupling_rot_stiffness = std::max(0.1f, rot);
+      changed = true;
+    }
+    grab_settings_.force_scale = touch_settings_.force_scale;
+    grab_settings_.coupling_stiffness = touch_settings_.coupling_stiffness;
+  }
   if (changed && active_ && model_) QueueField();
 
   ImGui::Separator();
@@ -353,6 +383,11 @@ void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
                 std::min(touch_settings_.max_force, felt_scale * f.norm()), felt_scale,
                 touch_settings_.max_force);
     ImGui::Text("contacts: %d (%d on borrowed columns)", figures_.contacts, figures_.substituted);
+    if (grab_) {
+      const Eigen::Vector3d& m = figures_.m_tool_W;
+      ImGui::Text("grabbed: %d nodes, FE moment on tool %.3f N·m (%.3f, %.3f, %.3f)",
+                  figures_.grabbed, m.norm(), m.x(), m.y(), m.z());
+    }
     ImGui::Text("max displacement: %.4f mm", 1e3 * figures_.max_displacement);
     ImGui::Text("max von Mises: %.3f MPa", 1e-6 * figures_.max_von_mises);
     ImGui::Text("columns ready: %d of %d", figures_.ready_columns,

@@ -63,6 +63,10 @@ struct FeLiveFigures {
   double max_von_mises = 0.0;
   // Columns ready in the cache.
   int ready_columns = 0;
+  // Grab (FeMode::grab()): nodes held (0: none; the figures above are then the push's), and the
+  // FE moment on the tool about the grip centre, N·m, W (unscaled).
+  int grabbed = 0;
+  Eigen::Vector3d m_tool_W = Eigen::Vector3d::Zero();
 };
 
 // The FE mode.
@@ -144,6 +148,11 @@ class FeMode {
   FeModelSettings& model_settings() { return model_settings_; }
   // Touch settings of the next field (tool_radius <= 0: the mesh's mean edge length).
   FeTouchSettings& touch_settings() { return touch_settings_; }
+  // Grasp grabs (the next field is an FePushGrabField: push, and closing the grip on the part
+  // grabs it in six DOF) instead of squeezing or nothing; off by default. The grab settings as
+  // felt at the grip (DefaultFeGrabSettings; tool_radius <= 0: twice the mean edge length).
+  bool& grab() { return grab_; }
+  FeGrabSettings& grab_settings() { return grab_settings_; }
   // The ready model (null before the first precomputation finished).
   const std::shared_ptr<FeModel>& model() const { return model_; }
   // Live figures of the last OnFrame.
@@ -195,6 +204,10 @@ class FeMode {
   std::unique_ptr<haptics::ForceField> pending_field_;
   FeModelSettings model_settings_;
   FeTouchSettings touch_settings_;
+  bool grab_ = false;
+  FeGrabSettings grab_settings_ = DefaultFeGrabSettings();
+  std::shared_ptr<FeGrabChannel> grab_channel_ = std::make_shared<FeGrabChannel>();
+  FeGrabState last_grab_;
   FeLiveFigures figures_;
   std::string status_ = "no part: choose an object and set up FE";
   std::string job_title_;

@@ -37,6 +37,40 @@ FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSetting
   return ts;
 }
 
+FeGrabSettings DefaultFeGrabSettings() {
+  FeGrabSettings s;
+  s.tool_radius = 0.0;  // auto: twice the mesh's mean edge length
+  s.force_scale = kDefaultFeForceScale;
+  s.max_force = 8.0;
+  s.max_torque = 0.5;
+  s.coupling_stiffness = kDefaultFeCoupling;
+  s.coupling_rot_stiffness = kDefaultFeGrabRotCoupling;
+  return s;
+}
+
+FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& panel,
+                                    double world_scale) {
+  FeGrabSettings gs = panel;
+  if (world_scale > 0.0) {
+    gs.force_scale = panel.force_scale / world_scale;
+    gs.coupling_stiffness = panel.coupling_stiffness / world_scale;
+  }
+  if (!(gs.tool_radius > 0.0)) gs.tool_radius = 2.0 * model.mean_edge_length();
+  return gs;
+}
+
+FePushGrabField::FePushGrabField(std::unique_ptr<FeTouchField> touch,
+                                 std::unique_ptr<FeGrabField> grab)
+    : touch_(std::move(touch)), grab_(std::move(grab)) {
+  if (!touch_ || !grab_) throw std::invalid_argument("FE push-grab field: a field is missing");
+}
+
+haptics::ToolWrench FePushGrabField::Evaluate(const haptics::ToolKinematics& tool) noexcept {
+  const haptics::ToolWrench w = grab_->Evaluate(tool);
+  if (grab_->last_state().held) return w;
+  return touch_->Evaluate(tool);
+}
+
 std::vector<ObjectId> FeModelsOf(const Document& doc) {
   std::vector<ObjectId> ids;
   for (const DocObject& o : doc.objects())
@@ -70,6 +104,12 @@ FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& option
   part.field = std::make_unique<FeTouchField>(
       part.model, ResolvedFieldSettings(*part.model, options.touch, options.world_scale),
       part.channel);
+  if (options.grab) {
+    part.grab_channel = std::make_shared<FeGrabChannel>();
+    part.grab_field = std::make_unique<FeGrabField>(
+        part.model, ResolvedGrabSettings(*part.model, options.grab_settings, options.world_scale),
+        part.grab_channel);
+  }
   return part;
 }
 
@@ -188,20 +228,28 @@ FeColumnPlan PrepareTrajectoryColumns(FePart* part, const haptics::Trajectory& t
                                       const haptics::DeviceToWorld& X_WD, bool save,
                                       const std::filesystem::path& cache_directory) {
   const FeTouchSettings& ts = part->field->settings();
-  const double reach =
-      ts.tool_radius + X_WD.world_scale * kFeTrajectoryMargin + (ts.grasp ? ts.pole_length : 0.0);
+  double radius = ts.tool_radius, pole = ts.grasp ? ts.pole_length : 0.0;
+  if (part->grab_field) {
+    const FeGrabSettings& gs = part->grab_field->settings();
+    radius = std::max(radius, gs.tool_radius);
+    if (gs.grasp) pole = std::max(pole, gs.pole_length);
+  }
+  const double reach = radius + X_WD.world_scale * kFeTrajectoryMargin + pole;
   const std::vector<Eigen::Vector3d> path =
       TrajectoryPathW(trajectory, X_WD, 0.25 * ts.tool_radius);
   return PrepareColumns(part->model.get(), CandidatesNearPath(*part->model, path, reach), save,
                         cache_directory);
 }
 
-FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state) {
+namespace {
+
+// The model solved in full with nodes candidate[i] (i < n) prescribed to target[3i..3i+2].
+FeSolvedState SolvePrescribed(const FeModel& model, int n, const int* candidate,
+                              const double* target) {
   fem::BoundaryConditions bcs = model.bcs();
-  for (int s = 0; s < state.num_contacts; ++s) {
-    bcs.PrescribeNode(
-        model.cache().candidate_node(state.candidate[s]),
-        Eigen::Vector3d(state.target[3 * s], state.target[3 * s + 1], state.target[3 * s + 2]));
+  for (int s = 0; s < n; ++s) {
+    bcs.PrescribeNode(model.cache().candidate_node(candidate[s]),
+                      Eigen::Vector3d(target[3 * s], target[3 * s + 1], target[3 * s + 2]));
   }
   const fem::StaticSolver solver(model.mesh(), model.materials(), bcs);
   if (!solver.factor_status().converged) {
@@ -217,6 +265,17 @@ FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state) {
   out.element_von_mises = fem::ElementVonMises(model.mesh(), model.materials(), out.displacement);
   out.von_mises = fem::AverageToNodes(model.mesh(), out.element_von_mises);
   return out;
+}
+
+}  // namespace
+
+FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state) {
+  return SolvePrescribed(model, state.num_contacts, state.candidate.data(), state.target.data());
+}
+
+FeSolvedState SolveFeGrabState(const FeModel& model, const FeGrabState& state) {
+  return SolvePrescribed(model, state.ready ? state.num_nodes : 0, state.candidate.data(),
+                         state.target.data());
 }
 
 void WriteFeStateVtu(const FeModel& model, const FeSolvedState& solved, const std::string& path) {

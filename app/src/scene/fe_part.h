@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "doc/document.h"
+#include "scene/fe_grab_field.h"
 #include "scene/fe_model.h"
 #include "scene/fe_touch_field.h"
 #include "spidarcad/haptics/device_to_world.h"
@@ -51,6 +52,42 @@ FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_sc
 FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSettings& panel,
                                       double world_scale);
 
+// Rotational virtual coupling of an FE grab FE mode starts with, felt N·m/rad: the stiffest a
+// held twist is ever felt (the simulated hand's wrist is 1 N·m/rad).
+inline constexpr double kDefaultFeGrabRotCoupling = 2.0;
+
+// The grab settings FE mode and `run --fe-grab` start with, as felt at the grip: grab radius 0
+// (auto: twice the mesh's mean boundary edge length), force scale kDefaultFeForceScale (force and
+// moment), virtual coupling kDefaultFeCoupling N/m and kDefaultFeGrabRotCoupling N·m/rad, felt
+// force at most 8 N and moment at most 0.5 N·m, the grip closing below 70° and opening above
+// 80°, the patch factored on the field's worker and ramped in over 5 ms.
+FeGrabSettings DefaultFeGrabSettings();
+
+// The grab field's settings for `model`: force_scale / s and coupling_stiffness / s (s the world
+// scale, as FieldTouchSettings; the moment is scaled alike, the rotational coupling is not: a
+// rotation is the same in W and at the grip), an auto radius (<= 0) resolved to twice the
+// model's mean boundary edge length.
+FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& panel,
+                                    double world_scale);
+
+// FE mode's grab: the touch field pushes while the grab holds nothing; while the grab holds a
+// patch (FeGrabState::held: from the tick the grip closes on the part to the tick it opens),
+// only the grab is felt and the touch field is not evaluated (its sphere would push the held
+// nodes). Real-time safe as its two fields are.
+class FePushGrabField final : public haptics::ForceField {
+ public:
+  // Both fields on the same model. Throws std::invalid_argument when either is null.
+  FePushGrabField(std::unique_ptr<FeTouchField> touch, std::unique_ptr<FeGrabField> grab);
+  haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override;
+  const char* name() const noexcept override { return "fe_push_grab"; }
+  FeTouchField& touch() { return *touch_; }
+  FeGrabField& grab() { return *grab_; }
+
+ private:
+  std::unique_ptr<FeTouchField> touch_;
+  std::unique_ptr<FeGrabField> grab_;
+};
+
 // The FE model objects of a document, in document order.
 std::vector<ObjectId> FeModelsOf(const Document& doc);
 
@@ -64,6 +101,9 @@ struct FePartOptions {
   FeTouchSettings touch = DefaultFeTouchSettings();
   // World scale s of X_WD (world metres per grip metre, > 0).
   double world_scale = 1.0;
+  // Also build the grab field (FePart::grab_field) with these settings, as felt at the grip.
+  bool grab = false;
+  FeGrabSettings grab_settings = DefaultFeGrabSettings();
   // Everything of FeModel::Build the document does not set (disk cache, column settings,
   // progress, cancel); the FE model's material, regions, clamps, loads and order override it.
   FeModelSettings model;
@@ -80,6 +120,9 @@ struct FePart {
   std::shared_ptr<FeContactChannel> channel;
   // The field (moved out by the caller into a HapticScene).
   std::unique_ptr<FeTouchField> field;
+  // With FePartOptions::grab: the grab field on the same model and its channel (else null).
+  std::shared_ptr<FeGrabChannel> grab_channel;
+  std::unique_ptr<FeGrabField> grab_field;
 };
 
 // Builds FE model `fe` of `doc` now (on the calling thread): FeMeshOf, then FeModel::Build with
@@ -128,7 +171,8 @@ std::vector<Eigen::Vector3d> TrajectoryPathW(const haptics::Trajectory& trajecto
 // The columns a scripted run of `trajectory` on `part` needs, made ready before it starts:
 // PrepareColumns on the candidates within reach of TrajectoryPathW(trajectory, X_WD, r/4), reach
 // = r + s·kFeTrajectoryMargin (+ the pole length with grasp contact), r and the pole length those
-// of the part's field (W), s the world scale of X_WD. `save` and `cache_directory` as
+// of the part's field (W), s the world scale of X_WD; with a grab field, r is the larger of the
+// touch and grab radii. `save` and `cache_directory` as
 // PrepareColumns.
 FeColumnPlan PrepareTrajectoryColumns(FePart* part, const haptics::Trajectory& trajectory,
                                       const haptics::DeviceToWorld& X_WD, bool save,
@@ -145,6 +189,9 @@ struct FeSolvedState {
 // nodes of `state` moved to their targets (fem::StaticSolver: a full sparse solve); no contact:
 // the loads alone. Throws std::runtime_error saying why when the factorisation or solve fails.
 FeSolvedState SolveFeState(const FeModel& model, const FeContactState& state);
+
+// The same for a grab state: the grabbed nodes held at their targets (none unless ready).
+FeSolvedState SolveFeGrabState(const FeModel& model, const FeGrabState& state);
 
 // Writes `solved` on the model's mesh as .vtu (WriteTetVtu): point data "displacement" (3, m)
 // and "von_mises" (Pa), cell data "von_mises" (Pa). Throws what WriteTetVtu throws.
