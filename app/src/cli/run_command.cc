@@ -283,6 +283,30 @@ std::string Fixed(double v, int digits) {
   return os.str();
 }
 
+// --world-origin as a point (m); exit 2 unless it has three numbers.
+Eigen::Vector3d WorldOrigin(const RunOptions& options) {
+  if (options.world_origin.size() != 3) {
+    throw InputError("--world-origin: expected x,y,z (m), got " +
+                     std::to_string(options.world_origin.size()) + " numbers");
+  }
+  return Eigen::Vector3d(options.world_origin[0], options.world_origin[1], options.world_origin[2]);
+}
+
+// Applies the --world-scale and --world-origin that were given to X_WD; true when either was.
+bool GivenWorldMap(const RunOptions& options, haptics::DeviceToWorld* X_WD) {
+  if (options.world_scale < 0.0) throw InputError("--world-scale: must be > 0 (0: default)");
+  if (options.world_scale > 0.0) X_WD->world_scale = options.world_scale;
+  if (!options.world_origin.empty()) X_WD->p_WDo = WorldOrigin(options);
+  return options.world_scale > 0.0 || !options.world_origin.empty();
+}
+
+// The summary's line for a map: "X_WD: p_W = s p_D + (x, y, z) m".
+std::string MapLine(const haptics::DeviceToWorld& X_WD) {
+  const Eigen::Vector3d& o = X_WD.p_WDo;
+  return "X_WD: p_W = " + FormatNumber(X_WD.world_scale) + " p_D + (" + FormatNumber(o.x()) + ", " +
+         FormatNumber(o.y()) + ", " + FormatNumber(o.z()) + ") m";
+}
+
 void RunRun(const RunOptions& options) {
   if (options.device != "simulated" && options.device != "board-sim" && options.device != "usb") {
     throw InputError("--device: '" + options.device +
@@ -478,22 +502,7 @@ void RunRun(const RunOptions& options) {
       scene_name = options.scene + " (no solid)";
       if (sculpt_id != 0) {
         // X_WD: the identity, as the window's for a document without solids, unless given.
-        if (options.world_scale < 0.0) throw InputError("--world-scale: must be > 0 (0: default)");
-        if (options.world_scale > 0.0) settings.X_WD.world_scale = options.world_scale;
-        if (!options.world_origin.empty()) {
-          if (options.world_origin.size() != 3) {
-            throw InputError("--world-origin: expected x,y,z (m), got " +
-                             std::to_string(options.world_origin.size()) + " numbers");
-          }
-          settings.X_WD.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
-                                                options.world_origin[2]);
-        }
-        if (options.world_scale > 0.0 || !options.world_origin.empty()) {
-          const Eigen::Vector3d& o = settings.X_WD.p_WDo;
-          map_line = "X_WD: p_W = " + FormatNumber(settings.X_WD.world_scale) + " p_D + (" +
-                     FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
-                     ") m";
-        }
+        if (GivenWorldMap(options, &settings.X_WD)) map_line = MapLine(settings.X_WD);
       }
     } else if (part_count > 0) {
       // An assembly: one field owns every part (grasp, carry, contact, seats).
@@ -509,25 +518,13 @@ void RunRun(const RunOptions& options) {
       } catch (const std::invalid_argument& e) {
         throw InputError(options.scene + ": " + e.what());
       }
-      if (options.world_scale < 0.0) throw InputError("--world-scale: must be > 0 (0: default)");
-      if (options.world_scale > 0.0) settings.X_WD.world_scale = options.world_scale;
-      if (!options.world_origin.empty()) {
-        if (options.world_origin.size() != 3) {
-          throw InputError("--world-origin: expected x,y,z (m), got " +
-                           std::to_string(options.world_origin.size()) + " numbers");
-        }
-        settings.X_WD.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
-                                              options.world_origin[2]);
-      }
+      GivenWorldMap(options, &settings.X_WD);
       scene = std::make_unique<haptics::HapticScene>();
       assembly_field = assembly.get();
       scene->Add(std::move(assembly));
       scene_name = options.scene + " (assembly, " + std::to_string(part_count) + " parts)";
       fields_line = "fields: assembly (" + std::to_string(part_count) + " parts)";
-      const Eigen::Vector3d& o = settings.X_WD.p_WDo;
-      map_line = "X_WD: p_W = " + FormatNumber(settings.X_WD.world_scale) + " p_D + (" +
-                 FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
-                 ") m";
+      map_line = MapLine(settings.X_WD);
     } else {
       SceneHapticsOptions haptic_options;
       if (options.tool == "proxy") {
@@ -549,14 +546,7 @@ void RunRun(const RunOptions& options) {
         haptic_options.dynamic_friction = options.friction[1];
       }
       if (options.world_scale != 0.0) haptic_options.world_scale = options.world_scale;
-      if (!options.world_origin.empty()) {
-        if (options.world_origin.size() != 3) {
-          throw InputError("--world-origin: expected x,y,z (m), got " +
-                           std::to_string(options.world_origin.size()) + " numbers");
-        }
-        haptic_options.p_WDo = Eigen::Vector3d(options.world_origin[0], options.world_origin[1],
-                                               options.world_origin[2]);
-      }
+      if (!options.world_origin.empty()) haptic_options.p_WDo = WorldOrigin(options);
       haptic_options.grip_d = geometry.d;
       // The solids rendered as rigid solids: all but the FE models' sources.
       modeling::Scene rigid = loaded;
@@ -686,10 +676,8 @@ void RunRun(const RunOptions& options) {
         fields_line += std::string(fields_line == "fields:" ? "" : ",") + " assembly (" +
                        std::to_string(parts_beside.size()) + " parts)";
       }
-      const Eigen::Vector3d& o = built.map.X_WD.p_WDo;
-      map_line = "X_WD: p_W = " + FormatNumber(built.map.X_WD.world_scale) + " p_D + (" +
-                 FormatNumber(o.x()) + ", " + FormatNumber(o.y()) + ", " + FormatNumber(o.z()) +
-                 ") m; scale " + (built.map.scale_fitted ? "fitted" : "given") + ", origin " +
+      map_line = MapLine(built.map.X_WD) + "; scale " +
+                 (built.map.scale_fitted ? "fitted" : "given") + ", origin " +
                  (built.map.origin_fitted ? "fitted" : "given");
       if (!built.map.bounds_W.isEmpty()) {
         const Eigen::AlignedBox3d& b = built.map.bounds_W;

@@ -307,28 +307,8 @@ haptics::ToolWrench FeGrabField::Evaluate(const haptics::ToolKinematics& tool) n
 int GrabDisplacement(fem::ColumnCache* cache, const FeGrabState& state, Eigen::VectorXd* u_out) {
   *u_out = cache->baseline();
   if (!state.ready) return 0;
-  double* u = u_out->data();
-  int skipped = 0;
-  for (int s = 0; s < state.num_nodes; ++s) {
-    const int b = state.candidate[s], r = state.substitute[s];
-    if (r < 0 || !cache->Pin(r)) {
-      ++skipped;
-      continue;
-    }
-    const int rb = 3 * cache->OutputIndexOfCandidate(b), rr = 3 * cache->OutputIndexOfCandidate(r);
-    for (int j = 0; j < 3; ++j) {
-      const double f = state.force[3 * s + j];
-      cache->AddColumn(r, j, f, u);
-      if (r == b) continue;
-      for (int i = 0; i < 3; ++i) {  // shift: swap the row blocks of b and r in r's column
-        const double g_rr = cache->Value(rr + i, r, j), g_br = cache->Value(rb + i, r, j);
-        u[rb + i] += f * (g_rr - g_br);
-        u[rr + i] += f * (g_br - g_rr);
-      }
-    }
-    cache->Unpin(r);
-  }
-  return skipped;
+  return AddSlotForcesDisplacement(cache, state.num_nodes, state.candidate.data(),
+                                   state.substitute.data(), state.force.data(), u_out->data());
 }
 
 }  // namespace spidarcad::app

@@ -330,4 +330,29 @@ std::string PlatformScenePath() {
   return AssetPath("scenes/platform.json");
 }
 
+int AddSlotForcesDisplacement(fem::ColumnCache* cache, int n, const int* candidate,
+                              const int* substitute, const double* force, double* u) {
+  int skipped = 0;
+  for (int s = 0; s < n; ++s) {
+    const int b = candidate[s], r = substitute[s];
+    if (r < 0 || !cache->Pin(r)) {
+      ++skipped;
+      continue;
+    }
+    const int rb = 3 * cache->OutputIndexOfCandidate(b), rr = 3 * cache->OutputIndexOfCandidate(r);
+    for (int j = 0; j < 3; ++j) {
+      const double f = force[3 * s + j];
+      cache->AddColumn(r, j, f, u);
+      if (r == b) continue;
+      for (int i = 0; i < 3; ++i) {  // shift: swap the row blocks of b and r in r's column
+        const double g_rr = cache->Value(rr + i, r, j), g_br = cache->Value(rb + i, r, j);
+        u[rb + i] += f * (g_rr - g_br);
+        u[rr + i] += f * (g_br - g_rr);
+      }
+    }
+    cache->Unpin(r);
+  }
+  return skipped;
+}
+
 }  // namespace spidarcad::app

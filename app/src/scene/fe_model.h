@@ -210,4 +210,13 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
 // the working directory.
 std::string PlatformScenePath();
 
+// Adds to u (3·#outputs of `cache`, m) the displacement under nodal forces ON the body at n
+// slots: slot s acts at candidate node candidate[s] with force force[3s..3s+2] (N), read from
+// the column of candidate substitute[s] shifted to candidate[s] (as
+// CachedContactSolver::OutputDisplacement does; substitute −1: no column). Each column is pinned
+// while it is read; a column evicted meanwhile is skipped. Returns the slots skipped. Main
+// thread (the drawing of a pushed or grabbed FE part).
+int AddSlotForcesDisplacement(fem::ColumnCache* cache, int n, const int* candidate,
+                              const int* substitute, const double* force, double* u);
+
 }  // namespace spidarcad::app
