@@ -142,6 +142,28 @@ TEST(FeltStiffness, TouchFieldPublishesTheReferenceStiffnessOfItsContactSet) {
   }
 }
 
+// The symptom of the clamp defect (FeModel.DefaultClampHoldsThePlatformWallFaceAtEveryCellSize):
+// from 6 to 5 mm cells P1's K fell to 0.70 (corner) and 0.22 (gusset) of its value as the default
+// clamp let go of the wall face. With the wall held, the step changes K by about 6 % (0.94 and
+// 1.06).
+TEST(FeltStiffness, P1DoesNotDropFromSixToFiveMillimetreCells) {
+  FeltSweepSettings settings;
+  settings.cells = {0.006, 0.005};
+  settings.orders = {1};
+  const std::vector<FeltSample> samples = MeasureFeltStiffness(settings);
+  ASSERT_EQ(samples.size(), 4u);
+  for (int p = 0; p < 2; ++p) {
+    const FeltSample& coarse = samples[p];
+    const FeltSample& fine = samples[2 + p];
+    ASSERT_EQ(coarse.probe, fine.probe);
+    const double ratio = fine.stiffness / coarse.stiffness;
+    std::printf("%s: K %.4g N/m at 6 mm, %.4g N/m at 5 mm (x %.3f)\n", coarse.probe.c_str(),
+                coarse.stiffness, fine.stiffness, ratio);
+    EXPECT_GT(ratio, 0.85) << coarse.probe;
+    EXPECT_LT(ratio, 1.15) << coarse.probe;
+  }
+}
+
 // The acceptance figure: with P2 at FE mode's default resolution (12.5 mm) the felt
 // stiffness (FE mode's k_c and σ) of both probes is within 5 % of the converged value, and so is
 // the part stiffness K itself (the gusset's felt value is held near k_c by the coupling, so K is
