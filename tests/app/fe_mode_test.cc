@@ -110,10 +110,13 @@ FeContactState PushPlate(FeModel* model, FeTouchField* field, double depth_fract
 TEST(FeModel, ClampsTheWallFaceAndFindsTheSurface) {
   const auto model = PlatformModel();
   EXPECT_GT(model->num_fixed_nodes(), 10);
-  const double min_x = model->mesh().nodes.col(0).minCoeff();
+  // The minimum-x face layer, 1 % of the part's largest side thick (kMinXFaceLayer).
+  const Eigen::MatrixX3d& nodes = model->mesh().nodes;
+  const double min_x = nodes.col(0).minCoeff();
+  const double side = (nodes.colwise().maxCoeff() - nodes.colwise().minCoeff()).maxCoeff();
   for (int v = 0; v < model->mesh().num_nodes(); ++v) {
     const bool fixed = model->bcs().prescribed().count(3 * v) > 0;
-    const bool on_wall = model->mesh().nodes(v, 0) <= min_x + 0.25 * model->mean_edge_length();
+    const bool on_wall = nodes(v, 0) <= min_x + 0.01 * side;
     ASSERT_EQ(fixed, on_wall) << "node " << v;
   }
   EXPECT_GT(model->mean_edge_length(), 0.3 * kCoarse);

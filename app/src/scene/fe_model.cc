@@ -70,12 +70,9 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   Progress(settings, 0.05, "constraints");
   m->bcs_ = std::make_unique<fem::BoundaryConditions>(nv);
   if (settings.fixed_boxes.empty()) {
-    const double tol =
-        settings.min_x_tolerance >= 0.0 ? settings.min_x_tolerance : 0.25 * m->mean_edge_;
-    const double min_x = tm.nodes.col(0).minCoeff();
-    m->num_fixed_nodes_ =
-        fem::FixNodesInBox(tm, Eigen::Vector3d(min_x - 1.0, -1e30, -1e30),
-                           Eigen::Vector3d(min_x + tol, 1e30, 1e30), m->bcs_.get());
+    const std::vector<int> face = MinXFaceNodes(tm, settings.min_x_tolerance);
+    m->bcs_->FixNodes(face);
+    m->num_fixed_nodes_ = static_cast<int>(face.size());
   } else {
     std::vector<char> fixed(nv, 0);
     for (std::size_t i = 0; i < settings.fixed_boxes.size(); ++i) {
@@ -293,6 +290,19 @@ std::vector<std::vector<int>> AddBoxLoads(const fem::TetMesh& mesh,
     nodes.push_back(std::move(in));
   }
   return nodes;
+}
+
+std::vector<int> MinXFaceNodes(const fem::TetMesh& mesh, double tolerance) {
+  if (mesh.num_nodes() == 0) return {};
+  const Eigen::RowVector3d lo = mesh.nodes.colwise().minCoeff();
+  const Eigen::RowVector3d hi = mesh.nodes.colwise().maxCoeff();
+  // The layer's default thickness is a fraction of the part's size, not of its mesh: a tolerance
+  // tied to the element size (it was a quarter of the mean boundary edge) shrinks as the mesh is
+  // refined, so on a face that is not exactly flat (the platform's weld lip, 1 mm proud of its
+  // wall face) a fine mesh clamped only the lip's crest (docs/fem.md, section 5).
+  const double tol = tolerance >= 0.0 ? tolerance : kMinXFaceLayer * (hi - lo).maxCoeff();
+  return fem::NodesInBox(mesh, Eigen::Vector3d(lo.x() - 1.0, -1e30, -1e30),
+                         Eigen::Vector3d(lo.x() + tol, 1e30, 1e30));
 }
 
 fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,

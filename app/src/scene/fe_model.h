@@ -52,6 +52,11 @@ inline constexpr MaterialPreset kMaterialPresets[] = {
 };
 
 // Settings of FeModel::Build (libfive style: documented fields, progress, cancel).
+// Default thickness of the clamped minimum-x face layer as a fraction of the part's largest
+// bounding-box side (FeModelSettings::min_x_tolerance < 0): 3 mm on the 0.3 m platform, which
+// holds its wall face x = 0 and the weld lip 1 mm proud of it at every cell size.
+inline constexpr double kMinXFaceLayer = 0.01;
+
 struct FeModelSettings {
   // The material of the part (of every region not listed in region_materials).
   fem::Material material = kMaterialPresets[0].material;
@@ -64,7 +69,8 @@ struct FeModelSettings {
   // the minimum-x face (x <= min x + min_x_tolerance), e.g. the wall of
   // assets/scenes/platform.json.
   std::vector<Eigen::AlignedBox3d> fixed_boxes;
-  // Thickness of the minimum-x face layer, m; < 0: a quarter of the mean boundary edge length.
+  // Thickness of the minimum-x face layer, m; < 0: kMinXFaceLayer times the largest side of the
+  // mesh's bounding box (the same layer at every cell size).
   double min_x_tolerance = -1.0;
   // Loads: each box's total force (N, W) spread evenly over the mesh nodes inside its box (W, m,
   // closed; counted after the order upgrade, so midside nodes take their share). They give the
@@ -196,6 +202,11 @@ fem::MaterialTable MakeMaterialTable(const fem::Material& material,
 std::vector<std::vector<int>> AddBoxLoads(const fem::TetMesh& mesh,
                                           const std::vector<FeLoad>& loads,
                                           fem::BoundaryConditions* bcs);
+
+// The nodes FeModel::Build clamps when no fixed box is given: the minimum-x face layer, every node
+// with x <= min x + tolerance (m; < 0: kMinXFaceLayer times the largest side of the nodes'
+// bounding box). Mesh node indices, ascending.
+std::vector<int> MinXFaceNodes(const fem::TetMesh& mesh, double tolerance = -1.0);
 
 // Meshes solid `solid_name` (empty: the first) of a scene file for FE: surface on a grid of
 // `resolution` m (modeling::MeshSurface), then TetGen (quality bound 2), linear tetrahedra in W.
