@@ -605,16 +605,12 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
   try {
     input = PrepareFeMesh(doc, source, mesh_settings_);
     if (check_budget) {
-      if (const auto estimate = EstimateFeMesh(input)) {
-        const std::string over = FeMeshOverBudget(*estimate);
-        if (!over.empty()) {
-          pending_input_ = std::move(input);
-          pending_precompute_ = precompute;
-          pending_text_ = "Meshing '" + o->name + "' is large: " + over + " (" +
-                          estimate->Describe() + "; the limits of spidarcad mesh, docs/limits.md).";
-          status_ = "set up FE: waiting for an answer (the mesh is large)";
-          return false;
-        }
+      if (std::string question = LargeMeshQuestion(o->name, input); !question.empty()) {
+        pending_input_ = std::move(input);
+        pending_precompute_ = precompute;
+        pending_text_ = std::move(question);
+        status_ = "set up FE: waiting for an answer (the mesh is large)";
+        return false;
       }
     }
   } catch (const std::exception& e) {

@@ -116,11 +116,12 @@ void FeGrabField::BuildSolver() {
   for (int i = 0; i < request_count_; ++i) solver_->Add(request_[i]);  // refused nodes are left out
   couple_.setIdentity();
   const int n = solver_->num_contacts();
+  centroid_.setZero();
+  for (int s = 0; s < n; ++s) centroid_ += positions_[solver_->contact(s)];
+  if (n > 0) centroid_ /= n;
   if (!(settings_.coupling_stiffness > 0.0) || n == 0) return;
   // K₆: the wrench (F; M about c) of the unit motions u_v = t + r × (x_v − c), from u0.
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (int s = 0; s < n; ++s) c += positions_[solver_->contact(s)];
-  c /= n;
+  const Eigen::Vector3d c = centroid_;
   Eigen::Matrix<double, 6, 6> k6;
   for (int j = 0; j < 6; ++j) {
     for (int s = 0; s < n; ++s) {
@@ -258,9 +259,7 @@ haptics::ToolWrench FeGrabField::Evaluate(const haptics::ToolKinematics& tool) n
   const Eigen::Matrix3d R_rel = tool.R_WT * R0_.transpose();
   const Eigen::Matrix3d A = R_rel - Eigen::Matrix3d::Identity();
   const Eigen::Vector3d dp = tool.p_WT - p0_;
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (int s = 0; s < n; ++s) c += positions_[solver_->contact(s)];
-  if (n > 0) c /= n;
+  const Eigen::Vector3d c = centroid_;
   st.centroid = c;
   // The grip's motion as a motion about c, then the FE state's (coupled) motion.
   const Eigen::AngleAxisd aa(R_rel);

@@ -182,6 +182,8 @@ class FeGrabField final : public haptics::ForceField {
   std::unique_ptr<fem::CachedContactSolver> solver_;
   // Made with the factor (worker or grab tick): ξ_c = couple_ ξ (identity without coupling).
   Eigen::Matrix<double, 6, 6> couple_ = Eigen::Matrix<double, 6, 6>::Identity();
+  // Made with it too: the centroid c of the held patch's rest positions (W, m).
+  Eigen::Vector3d centroid_ = Eigen::Vector3d::Zero();
   std::array<double, 3 * kMaxFeGrabNodes> probe_target_{}, probe_force_{};
 
   // Patch request (written by the haptic thread only while the worker is idle).

@@ -284,6 +284,15 @@ std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate) {
   return text;
 }
 
+std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input) {
+  const auto estimate = EstimateFeMesh(input);
+  if (!estimate) return "";
+  const std::string over = FeMeshOverBudget(*estimate);
+  if (over.empty()) return "";
+  return "Meshing '" + name + "' is large: " + over + " (" + estimate->Describe() +
+         "; the limits of spidarcad mesh, docs/limits.md).";
+}
+
 FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* cancel,
                           const std::function<void(double)>& progress) {
   FeMeshResult result;

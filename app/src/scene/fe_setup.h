@@ -109,6 +109,10 @@ std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& i
 // 2 GiB, 2e11 tape instructions) as text ("estimated grid cells 3e8 is over 1.34e8"), or "" when
 // it is within it.
 std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate);
+// The question to ask before meshing `input` of the object called `name` when its estimate is
+// past that budget ("Meshing 'NAME' is large: ... (estimate; the limits ...)."); "" when it is
+// within it or cannot be estimated (CGAL). Throws as EstimateFeMesh.
+std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input);
 
 // Meshes the input (worker thread): a solid on the grid (MeshSurface, SharpenFeatures when
 // sharp_edges) then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Without input.volume

@@ -330,12 +330,8 @@ Job& SceneModel::StartMeshJob(JobQueue* jobs, int index, MeshKind kind,
 
 std::string SceneModel::MeshJobOverBudget(int index, MeshKind kind,
                                           const MeshSettings& settings) const {
-  const auto estimate = EstimateFeMesh(MeshJobInput(index, kind, settings));
-  if (!estimate) return "";
-  const std::string over = FeMeshOverBudget(*estimate);
-  if (over.empty()) return "";
-  return "Meshing '" + objects_[index].name + "' is large: " + over + " (" + estimate->Describe() +
-         "; the limits of spidarcad mesh, docs/limits.md).";
+  const FeMeshInput input = MeshJobInput(index, kind, settings);  // checks the index first
+  return LargeMeshQuestion(objects_[index].name, input);
 }
 
 Job& SceneModel::StartRefreshJob(JobQueue* jobs, ObjectId mesh) {

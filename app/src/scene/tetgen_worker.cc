@@ -148,17 +148,28 @@ modeling::TetMesh GetMesh(Reader& r) {
   return m;
 }
 
+// The quality figures of a tetrahedral mesh (TetGen's and CGAL's stats share them).
+void PutQuality(Writer& w, const modeling::TetQuality& q) {
+  for (double v :
+       {q.min_dihedral_deg, q.max_dihedral_deg, q.max_radius_edge, q.min_volume, q.total_volume})
+    w.Put(v);
+}
+
+modeling::TetQuality GetQuality(Reader& r) {
+  modeling::TetQuality q;
+  for (double* v : {&q.min_dihedral_deg, &q.max_dihedral_deg, &q.max_radius_edge, &q.min_volume,
+                    &q.total_volume})
+    *v = r.Get<double>();
+  return q;
+}
+
 void PutStats(Writer& w, const modeling::TetMeshStats& s) {
   w.Put(s.check_seconds);
   w.Put(s.tetgen_seconds);
   w.PutString(s.switches);
   w.Put<std::int64_t>(s.welded_vertices);
   w.Put<std::int64_t>(s.dropped_triangles);
-  w.Put(s.quality.min_dihedral_deg);
-  w.Put(s.quality.max_dihedral_deg);
-  w.Put(s.quality.max_radius_edge);
-  w.Put(s.quality.min_volume);
-  w.Put(s.quality.total_volume);
+  PutQuality(w, s.quality);
 }
 
 modeling::TetMeshStats GetStats(Reader& r) {
@@ -168,11 +179,7 @@ modeling::TetMeshStats GetStats(Reader& r) {
   s.switches = r.GetString();
   s.welded_vertices = static_cast<long>(r.Get<std::int64_t>());
   s.dropped_triangles = static_cast<long>(r.Get<std::int64_t>());
-  s.quality.min_dihedral_deg = r.Get<double>();
-  s.quality.max_dihedral_deg = r.Get<double>();
-  s.quality.max_radius_edge = r.Get<double>();
-  s.quality.min_volume = r.Get<double>();
-  s.quality.total_volume = r.Get<double>();
+  s.quality = GetQuality(r);
   return s;
 }
 
@@ -241,11 +248,7 @@ void PutCgalStats(Writer& w, const modeling::CgalMeshStats& s) {
   for (long v : {s.seed_points, s.refine_steps, s.vertices, s.tets, s.boundary_facets})
     w.Put<std::int64_t>(v);
   w.Put(s.min_dihedral_deg);
-  w.Put(s.quality.min_dihedral_deg);
-  w.Put(s.quality.max_dihedral_deg);
-  w.Put(s.quality.max_radius_edge);
-  w.Put(s.quality.min_volume);
-  w.Put(s.quality.total_volume);
+  PutQuality(w, s.quality);
 }
 
 modeling::CgalMeshStats GetCgalStats(Reader& r) {
@@ -255,11 +258,7 @@ modeling::CgalMeshStats GetCgalStats(Reader& r) {
   for (long* v : {&s.seed_points, &s.refine_steps, &s.vertices, &s.tets, &s.boundary_facets})
     *v = static_cast<long>(r.Get<std::int64_t>());
   s.min_dihedral_deg = r.Get<double>();
-  s.quality.min_dihedral_deg = r.Get<double>();
-  s.quality.max_dihedral_deg = r.Get<double>();
-  s.quality.max_radius_edge = r.Get<double>();
-  s.quality.min_volume = r.Get<double>();
-  s.quality.total_volume = r.Get<double>();
+  s.quality = GetQuality(r);
   return s;
 }
 
