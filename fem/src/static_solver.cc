@@ -1,7 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/static_solver.h"
 
-#include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/QR>
@@ -15,23 +14,6 @@
 #include <vector>
 
 namespace spidarcad::fem {
-
-// CHOLMOD's factor object is protected in Eigen's wrapper; the failing column is read from it.
-class FactorLlt : public Eigen::CholmodSupernodalLLT<SparseMatrixd, Eigen::Lower> {
- public:
-  // Column (of K_ff, original order) at which the factorisation found a non-positive pivot,
-  // or −1.
-  int FailedColumn() const {
-    const cholmod_factor* f = m_cholmodFactor;
-    if (f == nullptr || f->minor >= f->n) return -1;
-    const auto* perm = static_cast<const int*>(f->Perm);
-    return perm ? perm[f->minor] : static_cast<int>(f->minor);
-  }
-};
-
-struct StaticSolver::Factor {
-  FactorLlt llt;
-};
 
 namespace {
 
@@ -238,8 +220,8 @@ void CheckModelConstrained(const TetMesh& mesh, const BoundaryConditions& bcs) {
 }
 
 StaticSolver::StaticSolver(const TetMesh& mesh, const MaterialTable& materials,
-                           const BoundaryConditions& bcs)
-    : bcs_(bcs), factor_(std::make_unique<Factor>()) {
+                           const BoundaryConditions& bcs, const Factorizer& factorize)
+    : bcs_(bcs) {
   using Clock = std::chrono::steady_clock;
   mesh.Validate();
   if (bcs.num_nodes() != mesh.num_nodes()) {
@@ -284,21 +266,28 @@ StaticSolver::StaticSolver(const TetMesh& mesh, const MaterialTable& materials,
   const auto t1 = Clock::now();
 
   k_norm_ = k_ff_.norm();
-  factor_->llt.compute(k_ff_);
+  if (factorize) {
+    factor_ = factorize(k_ff_);
+    if (factor_ == nullptr || factor_->size() != num_free())
+      throw std::runtime_error("StaticSolver: the factorizer gave no factor of K_ff's size");
+  } else {
+    factor_ = std::make_unique<CholeskyFactor>();
+    factor_->Compute(k_ff_);
+  }
   const auto t2 = Clock::now();
   stats_.num_free = num_free();
   stats_.stiffness_nonzeros = k_ff_.nonZeros();
-  stats_.factor_nonzeros = factor_->llt.cholmod().lnz;
-  stats_.factor_peak_bytes = static_cast<double>(factor_->llt.cholmod().memory_usage);
+  stats_.factor_nonzeros = factor_->nonzeros();
+  stats_.factor_peak_bytes = factor_->peak_bytes();
   stats_.assembly_seconds = std::chrono::duration<double>(t1 - t0).count();
   stats_.factor_seconds = std::chrono::duration<double>(t2 - t1).count();
-  if (factor_->llt.info() != Eigen::Success) {
+  if (!factor_->ok()) {
     factor_status_.converged = false;
     std::ostringstream m;
     m << "Cholesky factorisation of the constrained stiffness failed: it is not positive "
          "definite (a mechanism: parts joined only at an edge or a node, or a material that "
          "makes it singular)";
-    const int column = factor_->llt.FailedColumn();
+    const int column = factor_->failed_column();
     if (column >= 0 && column < num_free()) {
       const int dof = free_dofs_[column];
       m << "; the first zero pivot is the " << kAxisNames[dof % 3] << " displacement of node "
@@ -344,7 +333,7 @@ SolveStatus StaticSolver::SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd*
                      " rows, expected " + std::to_string(num_free());
     return status;
   }
-  *x = factor_->llt.solve(rhs);
+  *x = factor_->Solve(rhs);
   const Eigen::MatrixXd r = ExtendedResidual(k_ff_, rhs, *x);
   // Normwise backward error ||b − K x|| / (||K|| ||x|| + ||b||): meaningful also when
   // regions differ in stiffness by many orders of magnitude.

@@ -8,11 +8,13 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/cholesky_factor.h"
 #include "spidarcad/fem/material.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/stiffness.h"
@@ -52,7 +54,8 @@ struct FactorStats {
   double factor_nonzeros = 0.0;
   // Peak memory of CHOLMOD during factorisation, in bytes.
   double factor_peak_bytes = 0.0;
-  // Wall time of assembly, and of symbolic plus numeric factorisation, in s.
+  // Wall time of assembly, and of symbolic plus numeric factorisation (with a Factorizer: the
+  // whole call, e.g. a child process's start-up and the factor's transfer), in s.
   double assembly_seconds = 0.0;
   double factor_seconds = 0.0;
 };
@@ -60,14 +63,22 @@ struct FactorStats {
 // Assembles and factors a model once; then solves for its loads or any free-dof right-hand side.
 class StaticSolver {
  public:
+  // Factorises K_ff (#free by #free, both triangles stored) somewhere else, e.g. in a child
+  // process (app/scene/worker_process.h), and returns its factor; it may throw (the constructor
+  // passes the exception on). For the solves to be the in-process ones bit for bit, the factor
+  // must be CholeskyFactor::Compute(k_ff)'s (carried over by WriteFlat and ReadFlat).
+  using Factorizer = std::function<std::unique_ptr<CholeskyFactor>(const SparseMatrixd& k_ff)>;
+
   // Validates mesh, materials and constraints, assembles K and factors K_ff. Throws
   // std::invalid_argument when the input is bad, when nothing is constrained ("no constraint:
   // the stiffness is singular"), when nothing is free, or when the constraints leave a
   // rigid-body mode of the model or of one of its parts free (CheckModelConstrained, the mode
   // named). A factorisation failure (a mechanism the rigid-mode check cannot see, such as
   // parts hinged at an edge) is reported through factor_status(), naming the node of the first
-  // zero pivot, not thrown.
-  StaticSolver(const TetMesh& mesh, const MaterialTable& materials, const BoundaryConditions& bcs);
+  // zero pivot, not thrown. K_ff is factorised by `factorize` when given (std::runtime_error
+  // when it returns no factor or one of another size), else on this thread.
+  StaticSolver(const TetMesh& mesh, const MaterialTable& materials, const BoundaryConditions& bcs,
+               const Factorizer& factorize = {});
   ~StaticSolver();
   StaticSolver(const StaticSolver&) = delete;
   StaticSolver& operator=(const StaticSolver&) = delete;
@@ -102,11 +113,10 @@ class StaticSolver {
   const BoundaryConditions& bcs() const { return bcs_; }
 
  private:
-  struct Factor;
   BoundaryConditions bcs_;
   SparseMatrixd k_, k_ff_, k_fc_;
   std::vector<int> free_index_, free_dofs_, prescribed_dofs_;
-  std::unique_ptr<Factor> factor_;
+  std::unique_ptr<CholeskyFactor> factor_;
   SolveStatus factor_status_;
   FactorStats stats_;
   double k_norm_ = 0.0;
