@@ -78,22 +78,11 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
   }
   failed_.assign(num_cand, 0);
 
-  // Nearest free (not fixed) candidates of each candidate, by brute force (O(#candidates²)).
+  // Nearest free (not fixed) candidates of each candidate (a grid search; the brute force's lists).
   num_neighbours_ = std::min(settings.neighbours, std::max(0, num_cand - 1));
-  neighbours_.assign(static_cast<size_t>(num_cand) * num_neighbours_, -1);
-  if (num_neighbours_ > 0) {
-    std::vector<std::pair<double, int>> d;
-    d.reserve(num_cand);
-    for (int b = 0; b < num_cand; ++b) {
-      d.clear();
-      for (int c = 0; c < num_cand; ++c)
-        if (c != b && !fixed_[c]) d.emplace_back((positions_[c] - positions_[b]).squaredNorm(), c);
-      const int m = std::min<int>(num_neighbours_, static_cast<int>(d.size()));
-      std::partial_sort(d.begin(), d.begin() + m, d.end());
-      for (int i = 0; i < m; ++i)
-        neighbours_[static_cast<size_t>(b) * num_neighbours_ + i] = d[i].second;
-    }
-  }
+  std::vector<char> free(num_cand);
+  for (int b = 0; b < num_cand; ++b) free[b] = fixed_[b] ? 0 : 1;
+  neighbours_ = detail::NearestAllowed(positions_, free, num_neighbours_);
   if (settings.start_worker) Start();
 }
 

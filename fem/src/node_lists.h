@@ -4,6 +4,7 @@
 // their output nodes.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
 
@@ -21,5 +22,12 @@ struct NodeListIndex {
 // list (`subset_name`: "condensed", "candidate") and the node.
 NodeListIndex IndexNodeLists(const std::string& who, const std::string& subset_name, int num_nodes,
                              const std::vector<int>& outputs, const std::vector<int>& subset);
+
+// For each point b, the k nearest points c != b with allowed[c] != 0, nearest first, as
+// #points by k indices (−1 pad when fewer exist): exactly the list of a brute-force search
+// ordering (squared distance, index) lexicographically, found through a uniform grid
+// (O(#points · k) for points spread over a surface or a volume instead of O(#points²)).
+std::vector<int> NearestAllowed(const std::vector<Eigen::Vector3d>& points,
+                                const std::vector<char>& allowed, int k);
 
 }  // namespace spidarcad::fem::detail
