@@ -8,15 +8,15 @@
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "gui/gui.h"
-#include "scene/tetgen_worker.h"
+#include "scene/worker_process.h"
 
 int main(int argc, char** argv) {
   using namespace spidarcad::app;
-  // The hidden TetGen worker (a child of a window job; scene/tetgen_worker.h).
-  if (argc >= 2 && std::string(argv[1]) == kTetgenWorkerCommand)
-    return RunTetgenWorkerCommand(argc, argv);
-  // Window jobs run TetGen in a child process of this executable, which Cancel can kill.
-  SetTetgenWorkerProgram("/proc/self/exe");
+  // The hidden worker (a child of a window job; scene/worker_process.h).
+  if (argc >= 2 && std::string(argv[1]) == kWorkerCommand) return RunWorkerCommand(argc, argv);
+  // Window jobs run TetGen, CGAL and CHOLMOD in a child process of this executable, which Cancel
+  // can kill.
+  SetWorkerProgram("/proc/self/exe");
   CLI::App app{
       "spidarcad: engineering design by touch with a SPIDAR-G (7-DOF string haptic device).\n"
       "\n"

@@ -9,7 +9,7 @@
 // This is a bound on responsiveness, the one timed assertion the issue asks for. The bound is the
 // issue's 0.5 s itself; the typical latencies are tens of milliseconds (the grid surface mesher
 // polls its flag every few ms), so a loaded machine still has a wide margin. TetGen runs in a
-// child process that Cancel kills (scene/tetgen_worker.h; the tests set the worker program to the
+// child process that Cancel kills (scene/worker_process.h; the tests set the worker program to the
 // built spidarcad, as main() sets /proc/self/exe); after such a cancel a second TetGen job and
 // an FE factorisation must work in the same process (an earlier abandoned-thread attempt crashed
 // there). CGAL Mesh_3 runs in such a child too. Not covered: the CHOLMOD factorisation, which
@@ -28,15 +28,17 @@
 #include "doc/command.h"
 #include "doc/document.h"
 #include "doc/job.h"
+#include "gui/fe_mode.h"
 #include "gui/mode.h"
 #include "gui/sculpt_mode.h"
 #include "scene/fe_model.h"
 #include "scene/fe_setup.h"
 #include "scene/scene_model.h"
-#include "scene/tetgen_worker.h"
 #include "scene/vtu_io.h"
+#include "scene/worker_process.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/modeling/implicit_node.h"
+#include "spidarcad/modeling/sculpt.h"
 
 namespace spidarcad::app {
 namespace {
@@ -121,10 +123,10 @@ std::function<bool()> ProgressFor(const Job& job, double min_progress, double dw
   return [&job, when] { return when(job); };
 }
 
-// TetGen runs in a child process of the built spidarcad for the scope.
-struct TetgenWorkerScope {
-  TetgenWorkerScope() { SetTetgenWorkerProgram(SPIDARCAD_EXE); }
-  ~TetgenWorkerScope() { SetTetgenWorkerProgram(""); }
+// TetGen, CGAL and CHOLMOD run in a child process of the built spidarcad for the scope.
+struct WorkerScope {
+  WorkerScope() { SetWorkerProgram(SPIDARCAD_EXE); }
+  ~WorkerScope() { SetWorkerProgram(""); }
 };
 
 // A SceneModel on an empty document with one solid, compiled and previewed (the preview gives
@@ -193,7 +195,7 @@ void ExpectMeshingStillWorks(SolidRig* rig) {
 }
 
 TEST(JobCancel, TetrahedraEndWithinHalfASecondInsideTetgen) {
-  TetgenWorkerScope worker;
+  WorkerScope worker;
   SolidRig rig(Ball(0.05));
   const DocState before(rig.model.document());
   const std::uint64_t revision = rig.model.objects()[rig.index()].revision;
@@ -218,7 +220,7 @@ Job& StartFeSetUp(JobQueue* jobs, const Document& doc, ObjectId solid, double ce
 }
 
 TEST(JobCancel, FeSetUpEndsWithinHalfASecondInsideTetgen) {
-  TetgenWorkerScope worker;
+  WorkerScope worker;
   SolidRig rig(Ball(0.05));
   const DocState before(rig.model.document());
   Job& job = StartFeSetUp(&rig.jobs, rig.model.document(), rig.solid, 0.002);
@@ -229,7 +231,7 @@ TEST(JobCancel, FeSetUpEndsWithinHalfASecondInsideTetgen) {
 
 // FE mode's Set up FE with CGAL Mesh_3 on the ball at `cell`, cancelled when `when` holds.
 void CancelCgalSetUp(double cell, const std::function<bool(const Job&)>& when, const char* kind) {
-  TetgenWorkerScope worker;
+  WorkerScope worker;
   SolidRig rig(Ball(0.05));
   const DocState before(rig.model.document());
   MeshSettings settings = CellOf(cell);
@@ -260,6 +262,70 @@ TEST(JobCancel, FeSetUpEndsWithinHalfASecondInCgalsStartUp) {
 TEST(JobCancel, FeSetUpEndsWithinHalfASecondInCgalsOptimisers) {
   // 0.2 s after refinement ended (0.7): perturbation and exudation, which poll nothing.
   CancelCgalSetUp(0.002, ProgressFor(0.7, 0.2), "FE set-up (CGAL Mesh_3 optimisers)");
+}
+
+// Model mode's Refresh of a tetrahedral mesh (SceneModel::StartRefreshJob): the mesh object of
+// the ball was made at 1 cm but records 2 mm, so that the refresh's TetGen run takes tens of
+// seconds.
+TEST(JobCancel, RefreshEndsWithinHalfASecondInsideTetgen) {
+  WorkerScope worker;
+  SolidRig rig(Ball(0.05));
+  const FeMeshInput coarse = PrepareSolidMesh(rig.model.document(), rig.solid, CellOf(0.01), true);
+  FeMeshResult result = MeshFeSource(coarse, nullptr, {});
+  result.settings.cell_size = 0.002;
+  rig.model.document().Execute(AddMeshOf(coarse, result));
+  const ObjectId mesh = rig.model.document().last_created().at(0);
+  rig.model.Refresh();
+  const DocState before(rig.model.document());
+  Job& job = rig.model.StartRefreshJob(&rig.jobs, mesh);
+  EXPECT_LT(CancelWhen(&rig.jobs, job, ProgressFor(job, 0.479, 0.3), "refresh tetrahedra (TetGen)"),
+            kBound);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
+}
+
+// ---- FE mode: the precompute (FeMode::Precompute: assembly, then CHOLMOD) ----
+
+// True once the job has been in `phase` for `dwell` seconds.
+std::function<bool()> PhaseFor(const Job& job, const std::string& phase, double dwell) {
+  auto entered = std::make_shared<Clock::time_point>();
+  auto seen = std::make_shared<bool>(false);
+  return [&job, phase, dwell, entered, seen] {
+    if (job.phase() != phase) return false;
+    if (!*seen) {
+      *seen = true;
+      *entered = Clock::now();
+    }
+    return Since(*entered) >= dwell;
+  };
+}
+
+TEST(JobCancel, FePrecomputeEndsWithinHalfASecondInsideCholmod) {
+  WorkerScope worker;
+  SceneModel scene;
+  scene.Load(PlatformScenePath(), Eigen::Vector3d::Constant(0.2));
+  // The precompute reads only the mode's mesh; the document is checked all the same.
+  const DocState before(scene.document());
+  JobQueue jobs;
+  FeMode mode(nullptr, &jobs);  // no renderer: VTK data only
+  // P2 on the platform at 8 mm: CHOLMOD factorises for seconds (docs/limits.md).
+  mode.SetMesh(MeshSceneSolidForFe(PlatformScenePath(), "platform", 0.008), "platform");
+  mode.model_settings().order = 2;
+  mode.model_settings().use_disk_cache = false;
+  mode.Precompute();
+  ASSERT_FALSE(jobs.jobs().empty());
+  Job& job = *jobs.jobs().back();
+  EXPECT_LT(CancelWhen(&jobs, job, PhaseFor(job, "factor", 0.3), "FE precompute (CHOLMOD)"),
+            kBound);
+  EXPECT_EQ(mode.model(), nullptr);
+  EXPECT_TRUE(DocState(scene.document()) == before);
+  // Afterwards a precompute in this process lands its model (the child path again).
+  jobs.Prune();
+  mode.SetMesh(MeshSceneSolidForFe(PlatformScenePath(), "platform", 0.012), "platform");
+  mode.Precompute();
+  jobs.jobs().back()->Wait();
+  jobs.Poll();
+  ASSERT_NE(mode.model(), nullptr) << mode.status();
+  EXPECT_TRUE(mode.model()->solver().factor_status().converged);
 }
 
 // ---- sculpt mode: a sculpt copy of a solid (SculptMode::RequestCopy) ----
@@ -305,6 +371,21 @@ TEST(JobCancel, SculptCopyEndsWithinHalfASecondWhileMeshing) {
   rig.Frame();
   EXPECT_TRUE(DocState(rig.model.document()) == before);
   EXPECT_EQ(rig.mode.target(), 0u);
+}
+
+// Sculpt mode's Tetrahedralize for FE (SculptSession::StartTetrahedralize) on a fine clay.
+TEST(JobCancel, TetrahedralizeClayEndsWithinHalfASecondInsideTetgen) {
+  WorkerScope worker;
+  SculptRig rig;
+  const DocState before(rig.model.document());
+  rig.mode.session().SetMesh(modeling::IcosphereMesh(0.05, 6), 0.002);  // 81,920 triangles
+  ASSERT_TRUE(rig.mode.session().StartTetrahedralize(&rig.jobs));
+  Job& job = *rig.jobs.jobs().back();
+  // 0.2 + 0.8 × 0.2: checked, inside TetGen.
+  EXPECT_LT(CancelWhen(&rig.jobs, job, ProgressFor(job, 0.36, 0.3), "tetrahedralize clay (TetGen)"),
+            kBound);
+  EXPECT_EQ(rig.mode.session().tet_mesh(), nullptr);
+  EXPECT_TRUE(DocState(rig.model.document()) == before);
 }
 
 }  // namespace

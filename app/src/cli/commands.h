@@ -38,9 +38,9 @@ void RegisterInfoCommand(CLI::App& app);
 // `spidarcad import FILE --into DOC`: a mesh file into a document (cli/import_command.cc).
 void RegisterImportCommand(CLI::App& app);
 
-// `spidarcad __tetgen-worker --parent PID` (hidden, not a CLI11 subcommand): TetGen in a child
-// process for a cancellable window job (scene/tetgen_worker.h, cli/tetgen_worker_command.cc).
+// `spidarcad __worker --parent PID` (hidden, not a CLI11 subcommand): TetGen, CGAL or CHOLMOD
+// in a child process for a cancellable window job (scene/worker_process.h, cli/worker_command.cc).
 // main() calls it when argv[1] is the command; returns the exit status.
-int RunTetgenWorkerCommand(int argc, char** argv);
+int RunWorkerCommand(int argc, char** argv);
 
 }  // namespace spidarcad::app

@@ -10,8 +10,8 @@
 
 #include "doc/assets.h"
 #include "scene/scene_solid.h"
-#include "scene/tetgen_worker.h"
 #include "scene/vtu_io.h"
+#include "scene/worker_process.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -95,9 +95,19 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   m->load_nodes_ = AddBoxLoads(tm, settings.loads, m->bcs_.get());
   CheckCancel(settings);
 
-  // Assembly and factorisation (the expensive, uninterruptible part).
-  Progress(settings, 0.1, "assemble and factor");
-  m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_);
+  // Assembly and factorisation. With a cancel flag and a worker program (the window), CHOLMOD
+  // runs in a child process that Cancel kills (scene/worker_process.h).
+  Progress(settings, 0.1, "assemble");
+  const fem::StaticSolver::Factorizer factorize = [&settings](const fem::SparseMatrixd& k_ff) {
+    CheckCancel(settings);
+    Progress(settings, 0.15, "factor");
+    return FactorizeCancellable(k_ff, settings.cancel);
+  };
+  try {
+    m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_, factorize);
+  } catch (const FactorizationCancelled&) {
+    throw FeModelCancelled();
+  }
   if (!m->solver_->factor_status().converged)
     throw std::runtime_error("FE model: factorisation failed: " +
                              m->solver_->factor_status().message);

@@ -88,7 +88,9 @@ struct FeModelSettings {
   std::function<void(double)> progress;
   // Phase text ("factor", "columns", ...); may be empty.
   std::function<void(const std::string&)> phase;
-  // When not null and set, Build throws FeModelCancelled at the next phase boundary.
+  // When not null and set, Build throws FeModelCancelled at the next phase boundary, or within
+  // milliseconds while CHOLMOD factorises when a worker program is set (the window: the
+  // factorisation then runs in a child process that the flag kills, scene/worker_process.h).
   const std::atomic<bool>* cancel = nullptr;
 };
 

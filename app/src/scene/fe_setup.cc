@@ -9,7 +9,7 @@
 #include <variant>
 #include <vector>
 
-#include "scene/tetgen_worker.h"
+#include "scene/worker_process.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
@@ -104,7 +104,7 @@ modeling::TetMesh Tetgen(const modeling::TriangleMesh& surface, const MeshSettin
   ts.max_volume = s.max_tet_volume;
   ts.cancel = cancel;
   if (progress) ts.progress = [&progress, from](double f) { progress(from + (1.0 - from) * f); };
-  // With a cancel flag, in a child process that Cancel kills (scene/tetgen_worker.h).
+  // With a cancel flag, in a child process that Cancel kills (scene/worker_process.h).
   return TetrahedralizeCancellable(surface, ts);
 }
 
@@ -324,7 +324,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     cs.progress = progress;
     if (input.settings.max_radius_edge > 0.0)
       cs.cell_radius_edge_ratio = input.settings.max_radius_edge;
-    // With a cancel flag, in a child process that Cancel kills (scene/tetgen_worker.h).
+    // With a cancel flag, in a child process that Cancel kills (scene/worker_process.h).
     auto volume = std::make_shared<const modeling::TetMesh>(
         MeshWithCgalCancellable(input.root, compiled, bounds, cs));
     result.surface =

@@ -10,7 +10,7 @@
 
 #include "doc/job.h"
 #include "scene/scene_solid.h"
-#include "scene/tetgen_worker.h"
+#include "scene/worker_process.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
 namespace spidarcad::app {

@@ -1,15 +1,19 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include "scene/tetgen_worker.h"
+#include "scene/worker_process.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/mman.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <cstdio>
@@ -20,6 +24,8 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -34,7 +40,7 @@ namespace {
 constexpr std::uint32_t kMagic = 0x57545053;  // "SPTW"
 constexpr std::uint32_t kVersion = 1;
 // What the request asks for (after the version).
-enum RequestKind : std::uint8_t { kTetgenRequest = 1, kCgalRequest = 2 };
+enum RequestKind : std::uint8_t { kTetgenRequest = 1, kCgalRequest = 2, kFactorRequest = 3 };
 // Largest vertex / triangle / node / tet count either side accepts (indices are int32).
 constexpr std::uint64_t kMaxCount = std::numeric_limits<std::int32_t>::max() / 4;
 // Longest string field (switches, error messages; a scene's node tree as JSON: the scene file
@@ -42,6 +48,9 @@ constexpr std::uint64_t kMaxCount = std::numeric_limits<std::int32_t>::max() / 4
 constexpr std::uint64_t kMaxString = std::uint64_t{256} << 20;
 // The parent polls its cancel flag this often while waiting for the child (ms).
 constexpr int kPollMs = 5;
+// The parent copies K_ff into the shared memory in chunks of this many bytes, polling its
+// cancel flag between them.
+constexpr std::size_t kCopyChunk = std::size_t{16} << 20;
 
 // Answer record tags.
 constexpr char kProgress = 'P';
@@ -271,8 +280,10 @@ std::string SignalText(int sig) {
 // The parent's end of one worker run: kills and reaps the child on every way out.
 class Child {
  public:
-  // `what` names the library in errors ("TetGen", "CGAL").
-  Child(const std::string& program, const std::atomic<bool>* cancel, const char* what)
+  // `what` names the library in errors ("TetGen", "CGAL", "CHOLMOD"); `shared`, when not −1,
+  // is given to the child as its fd kSharedFd.
+  Child(const std::string& program, const std::atomic<bool>* cancel, const char* what,
+        int shared = -1)
       : cancel_(cancel), what_(what) {
     int fds[2];
     if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0)
@@ -285,6 +296,7 @@ class Child {
     // Its socket on stdin; TetGen's console output (settings.quiet false) to our stderr.
     posix_spawn_file_actions_adddup2(&actions, fds[1], 0);
     posix_spawn_file_actions_adddup2(&actions, 2, 1);
+    if (shared >= 0) posix_spawn_file_actions_adddup2(&actions, shared, kSharedFd);
     // Default signal dispositions and no blocked signals, whatever this thread has; its own
     // process group, so that a Ctrl+C at a terminal reaches only this process (the child dies
     // with its parent: the worker sets PR_SET_PDEATHSIG).
@@ -297,9 +309,9 @@ class Child {
     posix_spawnattr_setflags(
         &attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
     const std::string parent = std::to_string(getpid());
-    std::vector<char*> argv = {
-        const_cast<char*>(program.c_str()), const_cast<char*>(kTetgenWorkerCommand),
-        const_cast<char*>("--parent"), const_cast<char*>(parent.c_str()), nullptr};
+    std::vector<char*> argv = {const_cast<char*>(program.c_str()),
+                               const_cast<char*>(kWorkerCommand), const_cast<char*>("--parent"),
+                               const_cast<char*>(parent.c_str()), nullptr};
     const int rc = posix_spawn(&pid_, program.c_str(), &actions, &attr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&actions);
     posix_spawnattr_destroy(&attr);
@@ -314,8 +326,21 @@ class Child {
   }
   ~Child() {
     if (pid_ > 0) {
+      // Killed (cancelled, or a failure on this side). A child that dies with hundreds of MB
+      // takes a while to free them: a thread of its own reaps it, so that the caller (a
+      // cancelled job) does not wait for that.
       kill(pid_, SIGKILL);
-      Reap();
+      const pid_t pid = pid_;
+      try {
+        std::thread([pid] {
+          int status = 0;
+          while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+          }
+        }).detach();
+        pid_ = -1;
+      } catch (const std::system_error&) {
+        Reap();
+      }
     }
     if (fd_ >= 0) close(fd_);
   }
@@ -428,8 +453,8 @@ class Child {
 // ChildCancelled and ChildDied (the callers turn them into their mesher's exceptions).
 void RunInChild(const std::string& program, const std::atomic<bool>* cancel, const char* what,
                 const std::vector<char>& request, const std::function<void(double)>& progress,
-                const std::function<void(Reader&)>& read_result) {
-  Child child(program, cancel, what);
+                const std::function<void(Reader&)>& read_result, int shared = -1) {
+  Child child(program, cancel, what, shared);
   child.Send(request);
   Reader reader([&child](char* p, std::size_t n) { return child.Receive(p, n); });
   for (;;) {
@@ -484,14 +509,127 @@ bool WriteAll(int fd, const std::vector<char>& bytes) {
   return true;
 }
 
+// A file descriptor closed with its scope.
+class Fd {
+ public:
+  explicit Fd(int fd) : fd_(fd) {}
+  ~Fd() {
+    if (fd_ >= 0) close(fd_);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  int get() const { return fd_; }
+
+ private:
+  int fd_;
+};
+
+// A shared mapping of `bytes` bytes of fd, unmapped with its scope.
+class Mapping {
+ public:
+  Mapping(int fd, std::size_t bytes, bool writable) : bytes_(bytes) {
+    if (bytes_ == 0) return;
+    void* p =
+        mmap(nullptr, bytes_, writable ? PROT_READ | PROT_WRITE : PROT_READ, MAP_SHARED, fd, 0);
+    if (p == MAP_FAILED) throw std::runtime_error(std::string("mmap: ") + std::strerror(errno));
+    data_ = static_cast<char*>(p);
+  }
+  ~Mapping() {
+    if (data_ != nullptr) munmap(data_, bytes_);
+  }
+  Mapping(const Mapping&) = delete;
+  Mapping& operator=(const Mapping&) = delete;
+  char* data() const { return data_; }
+
+ private:
+  char* data_ = nullptr;
+  std::size_t bytes_;
+};
+
+// Size of the file behind fd, bytes.
+std::size_t FileBytes(int fd) {
+  struct stat st = {};
+  if (fstat(fd, &st) != 0) throw std::runtime_error(std::string("fstat: ") + std::strerror(errno));
+  return static_cast<std::size_t>(st.st_size);
+}
+
+// Sets the size of the file behind fd (a memfd: memory, not disk); std::bad_alloc when the
+// memory is not there.
+void Resize(int fd, std::size_t bytes) {
+  while (ftruncate(fd, static_cast<off_t>(bytes)) != 0) {
+    if (errno == EINTR) continue;
+    if (errno == ENOMEM || errno == ENOSPC || errno == EFBIG) throw std::bad_alloc();
+    throw std::runtime_error(std::string("ftruncate: ") + std::strerror(errno));
+  }
+}
+
+// The factor request's arrays in the shared memory: K_ff's column pointers (n + 1 int32), row
+// indices and values (nnz int32 and doubles), each starting on an 8-byte boundary.
+struct MatrixLayout {
+  std::size_t outer = 0, inner = 0, values = 0, end = 0;
+  MatrixLayout(std::uint64_t n, std::uint64_t nnz) {
+    const auto padded = [](std::uint64_t b) { return (b + 7) & ~std::uint64_t{7}; };
+    inner = padded(4 * (n + 1));
+    values = inner + padded(4 * nnz);
+    end = values + 8 * nnz;
+  }
+};
+
+// Copies n bytes in chunks, polling the cancel flag between them; false when it was raised.
+bool CopyPolling(char* to, const void* from, std::size_t n, const std::atomic<bool>* cancel) {
+  const auto* src = static_cast<const char*>(from);
+  for (std::size_t done = 0; done < n;) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) return false;
+    const std::size_t chunk = std::min(kCopyChunk, n - done);
+    std::memcpy(to + done, src + done, chunk);
+    done += chunk;
+  }
+  return true;
+}
+
+// The child's side of a factor request: K_ff from the shared memory, checked (CHOLMOD reads it
+// unchecked), factorised, its flat form written back over it. Returns the flat form's bytes.
+std::uint64_t FactorizeShared(int shared, std::uint64_t n, std::uint64_t nnz) {
+  const MatrixLayout layout(n, nnz);
+  if (FileBytes(shared) < layout.end)
+    throw std::runtime_error("the shared memory is smaller than the request says");
+  fem::SparseMatrixd a(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  {
+    const Mapping request(shared, layout.end, false);
+    a.resizeNonZeros(static_cast<Eigen::Index>(nnz));
+    std::memcpy(a.outerIndexPtr(), request.data(), 4 * (n + 1));
+    std::memcpy(a.innerIndexPtr(), request.data() + layout.inner, 4 * nnz);
+    std::memcpy(a.valuePtr(), request.data() + layout.values, 8 * nnz);
+  }
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  if (outer[0] != 0 || static_cast<std::uint64_t>(outer[n]) != nnz)
+    throw std::runtime_error("bad column pointers");
+  for (std::uint64_t c = 0; c < n; ++c) {
+    if (outer[c + 1] < outer[c]) throw std::runtime_error("bad column pointers");
+    for (int k = outer[c]; k < outer[c + 1]; ++k)
+      if (inner[k] < 0 || static_cast<std::uint64_t>(inner[k]) >= n ||
+          (k > outer[c] && inner[k] <= inner[k - 1]))
+        throw std::runtime_error("bad row indices");
+  }
+  fem::CholeskyFactor factor;
+  factor.Compute(a);
+  a = fem::SparseMatrixd();
+  const std::size_t flat = factor.FlatBytes();
+  Resize(shared, flat);
+  const Mapping answer(shared, flat, true);
+  factor.WriteFlat(answer.data());
+  return flat;
+}
+
 }  // namespace
 
-void SetTetgenWorkerProgram(const std::string& path) {
+void SetWorkerProgram(const std::string& path) {
   std::lock_guard<std::mutex> lock(g_program_mutex);
   g_program = path;
 }
 
-std::string TetgenWorkerProgram() {
+std::string WorkerProgram() {
   std::lock_guard<std::mutex> lock(g_program_mutex);
   return g_program;
 }
@@ -499,7 +637,7 @@ std::string TetgenWorkerProgram() {
 modeling::TetMesh TetrahedralizeCancellable(const modeling::TriangleMesh& surface,
                                             const modeling::TetMeshSettings& settings,
                                             modeling::TetMeshStats* stats) {
-  const std::string program = TetgenWorkerProgram();
+  const std::string program = WorkerProgram();
   if (settings.cancel == nullptr || program.empty())
     return modeling::TetrahedralizeSurface(surface, settings, stats);
   if (settings.cancel->load()) throw modeling::TetMeshingCancelled();
@@ -529,7 +667,7 @@ modeling::TetMesh MeshWithCgalCancellable(const modeling::ImplicitNode& root,
                                           const Eigen::AlignedBox3d& bounds,
                                           const modeling::CgalMeshSettings& settings,
                                           modeling::CgalMeshStats* stats) {
-  const std::string program = TetgenWorkerProgram();
+  const std::string program = WorkerProgram();
   if (settings.cancel == nullptr || program.empty())
     return modeling::MeshImplicitWithCgal(compiled, bounds, settings, stats);
   if (settings.cancel->load()) throw modeling::CgalMeshCancelled();
@@ -551,18 +689,83 @@ modeling::TetMesh MeshWithCgalCancellable(const modeling::ImplicitNode& root,
   return mesh;
 }
 
-int RunTetgenWorker(int in, int out) {
+std::unique_ptr<fem::CholeskyFactor> FactorizeCancellable(const fem::SparseMatrixd& k_ff,
+                                                          const std::atomic<bool>* cancel) {
+  const std::string program = WorkerProgram();
+  if (cancel == nullptr || program.empty()) {
+    auto factor = std::make_unique<fem::CholeskyFactor>();
+    factor->Compute(k_ff);
+    return factor;
+  }
+  if (cancel->load()) throw FactorizationCancelled();
+  if (k_ff.rows() != k_ff.cols() || k_ff.rows() < 1 || !k_ff.isCompressed())
+    throw std::invalid_argument("CHOLMOD worker: K_ff must be square, not empty, and compressed");
+  const auto n = static_cast<std::uint64_t>(k_ff.rows());
+  const auto nnz = static_cast<std::uint64_t>(k_ff.nonZeros());
+  // K_ff into a memory file (memfd: no disk) that the child gets as its fd kSharedFd and
+  // overwrites with the factor's flat form. Kept off fd kSharedFd here, so that the spawn's
+  // dup2 onto it clears close-on-exec.
+  const Fd created(memfd_create("spidarcad-factor", MFD_CLOEXEC));
+  if (created.get() < 0)
+    throw std::runtime_error(std::string("CHOLMOD worker: memfd_create: ") + std::strerror(errno));
+  const Fd shared(fcntl(created.get(), F_DUPFD_CLOEXEC, kSharedFd + 1));
+  if (shared.get() < 0)
+    throw std::runtime_error(std::string("CHOLMOD worker: fcntl: ") + std::strerror(errno));
+  const MatrixLayout layout(n, nnz);
+  Resize(shared.get(), layout.end);
+  {
+    const Mapping request(shared.get(), layout.end, true);
+    if (!CopyPolling(request.data(), k_ff.outerIndexPtr(), 4 * (n + 1), cancel) ||
+        !CopyPolling(request.data() + layout.inner, k_ff.innerIndexPtr(), 4 * nnz, cancel) ||
+        !CopyPolling(request.data() + layout.values, k_ff.valuePtr(), 8 * nnz, cancel))
+      throw FactorizationCancelled();
+  }
+  Writer w;
+  w.Put(kMagic);
+  w.Put(kVersion);
+  w.Put<std::uint8_t>(kFactorRequest);
+  w.Put<std::uint64_t>(n);
+  w.Put<std::uint64_t>(nnz);
+  std::unique_ptr<fem::CholeskyFactor> factor;
+  try {
+    RunInChild(
+        program, cancel, "CHOLMOD", w.bytes(), {},
+        [&](Reader& r) {
+          const auto flat = r.Get<std::uint64_t>();
+          if (flat > FileBytes(shared.get()))
+            throw ChildDied{"CHOLMOD worker process sent a factor larger than its shared memory"};
+          const Mapping answer(shared.get(), flat, false);
+          try {
+            factor =
+                fem::CholeskyFactor::ReadFlat(answer.data(), flat, static_cast<int>(n), cancel);
+          } catch (const std::invalid_argument& e) {
+            throw ChildDied{std::string("CHOLMOD worker process sent a malformed factor: ") +
+                            e.what()};
+          }
+        },
+        shared.get());
+  } catch (const ChildCancelled&) {
+    throw FactorizationCancelled();
+  } catch (const ChildDied& e) {
+    throw std::runtime_error(e.message);
+  }
+  if (factor == nullptr) throw FactorizationCancelled();  // raised during the copy
+  return factor;
+}
+
+int RunWorker(int in, int out, int shared) {
   std::uint8_t kind = 0;
   modeling::TriangleMesh surface;
   modeling::TetMeshSettings settings;
   modeling::ImplicitNode root;
   Eigen::AlignedBox3d bounds;
   modeling::CgalMeshSettings cgal;
+  std::uint64_t factor_n = 0, factor_nnz = 0;
   bool progress = false;
   try {
     Reader r([in](char* p, std::size_t n) { return ReadSome(in, p, n); });
     if (r.Get<std::uint32_t>() != kMagic || r.Get<std::uint32_t>() != kVersion)
-      throw std::runtime_error("not a mesh worker request of version 1");
+      throw std::runtime_error("not a worker request of version 1");
     kind = r.Get<std::uint8_t>();
     if (kind == kTetgenRequest) {
       settings.max_radius_edge = r.Get<double>();
@@ -602,14 +805,22 @@ int RunTetgenWorker(int in, int out) {
       cgal.seed = r.Get<std::uint32_t>();
       cgal.relative_error_bound = r.Get<double>();
       progress = r.Get<std::uint8_t>() != 0;
+    } else if (kind == kFactorRequest) {
+      factor_n = r.Get<std::uint64_t>();
+      factor_nnz = r.Get<std::uint64_t>();
+      if (factor_n < 1 || factor_n > kMaxCount ||
+          factor_nnz > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max()) ||
+          factor_nnz < factor_n)
+        throw std::runtime_error("bad matrix size");
+      if (shared < 0) throw std::runtime_error("a factor request needs the shared memory");
     } else {
       throw std::runtime_error("unknown request kind " + std::to_string(kind));
     }
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "spidarcad %s: bad request: %s\n", kTetgenWorkerCommand, e.what());
+    std::fprintf(stderr, "spidarcad %s: bad request: %s\n", kWorkerCommand, e.what());
     return 2;
   } catch (const StreamEnded&) {
-    std::fprintf(stderr, "spidarcad %s: bad request: it ends early\n", kTetgenWorkerCommand);
+    std::fprintf(stderr, "spidarcad %s: bad request: it ends early\n", kWorkerCommand);
     return 2;
   }
   std::function<void(double)> report;
@@ -642,6 +853,10 @@ int RunTetgenWorker(int in, int out) {
       answer.Put(kResult);
       PutStats(answer, stats);
       PutMesh(answer, mesh);
+    } else if (kind == kFactorRequest) {
+      const std::uint64_t flat = FactorizeShared(shared, factor_n, factor_nnz);
+      answer.Put(kResult);
+      answer.Put<std::uint64_t>(flat);
     } else {
       // Compiled as FeSolidBounds compiles the window's copy (CompiledSolid::Compile).
       const modeling::CompiledSolid compiled = modeling::CompiledSolid::Compile(root);
@@ -666,6 +881,8 @@ int RunTetgenWorker(int in, int out) {
   } catch (const std::bad_alloc&) {
     if (kind == kTetgenRequest)
       error(kTetgen, 1, "TetGen failed: out of memory");
+    else if (kind == kFactorRequest)
+      error(kRuntime, 0, "CHOLMOD factorisation failed: out of memory");
     else
       error(kCgal, 0, "CGAL meshing failed: out of memory");
   } catch (const std::exception& e) {

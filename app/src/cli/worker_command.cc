@@ -1,7 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// `spidarcad __tetgen-worker --parent PID`: the hidden subcommand that runs TetGen for a window
-// job in a child process (scene/tetgen_worker.h). Not listed in --help: spidarcad starts it with
-// a socket on stdin; run by hand (a terminal on stdin, or without its arguments) it refuses.
+// `spidarcad __worker --parent PID`: the hidden subcommand that runs TetGen, CGAL or CHOLMOD for a
+// window job in a child process (scene/worker_process.h). Not listed in --help: spidarcad starts
+// it with a socket on stdin (and a factor request's shared memory as fd kSharedFd); run by hand (a
+// terminal on stdin, or without its arguments) it refuses.
 #include <sys/prctl.h>
 #include <unistd.h>
 
@@ -12,16 +13,16 @@
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "scene/tetgen_worker.h"
+#include "scene/worker_process.h"
 
 namespace spidarcad::app {
 
-int RunTetgenWorkerCommand(int argc, char** argv) {
+int RunWorkerCommand(int argc, char** argv) {
   const auto refuse = [](const char* why) {
     std::fprintf(stderr,
-                 "spidarcad: %s is internal (spidarcad starts it for a cancellable TetGen run); "
+                 "spidarcad: %s is internal (spidarcad starts it for a cancellable library call); "
                  "%s\n",
-                 kTetgenWorkerCommand, why);
+                 kWorkerCommand, why);
     return kExitBadInput;
   };
   if (argc != 4 || std::string(argv[2]) != "--parent")
@@ -35,7 +36,7 @@ int RunTetgenWorkerCommand(int argc, char** argv) {
   prctl(PR_SET_PDEATHSIG, SIGKILL);
   if (getppid() != static_cast<pid_t>(parent)) return refuse("its parent is gone");
   std::fflush(stdout);
-  return RunTetgenWorker(0, 0);
+  return RunWorker(0, 0, kSharedFd);
 }
 
 }  // namespace spidarcad::app
