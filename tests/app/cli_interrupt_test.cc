@@ -1,8 +1,9 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// Issue 15: the CLI stops cleanly on Ctrl+C without half-written output files. `spidarcad fem`
-// and `spidarcad run` are started as child processes, sent SIGINT while they work, and must end
-// with status 130, leave a previous --out file as it was and leave no temporary beside it
-// (cli/interrupt_output.h).
+// Issue 15: the CLI stops cleanly on Ctrl+C without half-written output files. `spidarcad fem`,
+// `spidarcad run` and `spidarcad mesh` (inside TetGen and inside CGAL Mesh_3, which poll
+// nothing) are started as child processes, sent SIGINT while they work, and must end with status
+// 130, leave a previous --out file as it was and leave no temporary beside it
+// (cli/interrupt_output.h, cli/mesh_command.cc).
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -12,8 +13,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -164,6 +167,53 @@ TEST(CliInterrupt, RunStopsWithoutAHalfWrittenOutput) {
   ASSERT_TRUE(working);
   ExpectInterruptedCleanly(status, dir, out,
                            {"press.csv", "result.csv", "stderr.txt", "stdout.txt"});
+}
+
+// `spidarcad mesh` of a 5 cm ball at `resolution` with --tets `tets`, sent SIGINT `after` s
+// into the library call (`ready` says when it has been entered). The first Ctrl+C must end it
+// at once: the line the command prints when the call returns (`result`) never comes (TetGen at
+// 2 mm runs for about 40 s, CGAL's start-up at 0.8 mm for minutes).
+void ExpectMeshStopsInsideTheLibrary(const std::string& tets, double resolution, double after,
+                                     const std::string& result,
+                                     const std::function<bool(pid_t, const fs::path&)>& ready) {
+  const fs::path dir = FreshDir("mesh_" + tets);
+  const fs::path scene = dir / "ball.json";
+  std::ofstream(scene) << R"({"format": "spidarcad-scene", "version": 1, "units": "m",
+      "solids": [{"name": "ball", "root": {"type": "sphere", "radius": 0.05}}]})";
+  const fs::path out = dir / "ball.vtu";
+  std::ofstream(out) << "old\n";
+  char res[32];
+  std::snprintf(res, sizeof res, "%g", resolution);
+  const pid_t pid = Start({"mesh", scene.string(), "--tets", tets, "--resolution", res,
+                           "--progress", "--out", out.string()},
+                          dir);
+  ASSERT_GT(pid, 0);
+  const bool working = WaitUntil(pid, [&] { return ready(pid, dir); });
+  std::this_thread::sleep_for(std::chrono::duration<double>(after));
+  const Clock::time_point t0 = Clock::now();
+  if (working) kill(pid, SIGINT);
+  const int status = Wait(pid);
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  ASSERT_TRUE(working);
+  std::printf("mesh --tets %s: ended %.3f s after Ctrl+C\n", tets.c_str(), seconds);
+  ExpectInterruptedCleanly(status, dir, out, {"ball.json", "ball.vtu", "stderr.txt", "stdout.txt"});
+  EXPECT_EQ(Read(dir / "stdout.txt").find(result), std::string::npos)
+      << "the library call returned before the command stopped:\n"
+      << Read(dir / "stdout.txt");
+}
+
+TEST(CliInterrupt, MeshStopsAtOnceInsideTetgen) {
+  // Inside TetGen: its progress line is up (the surface is meshed and checked first).
+  ExpectMeshStopsInsideTheLibrary("tetgen", 0.002, 1.0, "tetgen -", [](pid_t, const fs::path& dir) {
+    return Read(dir / "stderr.txt").find("tetgen") != std::string::npos;
+  });
+}
+
+TEST(CliInterrupt, MeshStopsAtOnceInsideCgal) {
+  // Inside CGAL's start-up: the handler is installed before the (quick) scene compilation, and
+  // seeding at 0.8 mm alone takes far longer than the second waited.
+  ExpectMeshStopsInsideTheLibrary(
+      "cgal", 0.0008, 1.0, "cgal: ", [](pid_t pid, const fs::path&) { return CatchesSigint(pid); });
 }
 
 }  // namespace

@@ -68,8 +68,23 @@ constexpr double kMeshMaxCellsCeiling = 1073741824.0;
 // Raised by SIGINT (Ctrl+C) while `mesh` runs; the meshers poll it.
 std::atomic<bool> g_interrupted{false};
 static_assert(std::atomic<bool>::is_always_lock_free, "the SIGINT handler stores to g_interrupted");
+// Set while the main thread is inside TetGen or CGAL Mesh_3 (UninterruptibleScope), which look
+// at the flag only between their stages or not at all.
+std::atomic<bool> g_at_once{false};
+
+// What a Ctrl+C prints (as Interrupted() below).
+constexpr char kInterruptedMessage[] =
+    "\nspidarcad mesh: interrupted (Ctrl+C): stopped, nothing written\n";
 
 void OnMeshInterrupt(int) {
+  if (g_at_once.load()) {
+    // Inside TetGen or CGAL: end now (async-signal-safe calls only). No output exists yet: the
+    // outputs are written after these calls, through temporaries (WriteThrough).
+    const ssize_t ignored =
+        write(STDERR_FILENO, kInterruptedMessage, sizeof kInterruptedMessage - 1);
+    (void)ignored;
+    _exit(130);
+  }
   if (g_interrupted.load()) {
     // A second Ctrl+C: stop now, the default way.
     signal(SIGINT, SIG_DFL);
@@ -100,6 +115,30 @@ class InterruptScope {
 
 // Thrown between stages when Ctrl+C was pressed.
 struct MeshInterrupted {};
+
+// For its lifetime the first Ctrl+C ends the process at once with status 130 (OnMeshInterrupt):
+// around TetGen and CGAL calls, which would otherwise finish first (seconds to minutes). What
+// was printed so far is flushed first (_exit drops stdio buffers). Not nested.
+class UninterruptibleScope {
+ public:
+  UninterruptibleScope() {
+    std::cout.flush();
+    std::fflush(stdout);
+    g_at_once.store(true);
+    // A Ctrl+C that came just before: end now as well.
+    if (g_interrupted.load()) raise(SIGINT);
+  }
+  ~UninterruptibleScope() { g_at_once.store(false); }
+  UninterruptibleScope(const UninterruptibleScope&) = delete;
+  UninterruptibleScope& operator=(const UninterruptibleScope&) = delete;
+};
+
+// fn() inside an UninterruptibleScope.
+template <typename F>
+auto AtOnceOnCtrlC(F&& fn) {
+  const UninterruptibleScope scope;
+  return fn();
+}
 
 void CheckInterrupted() {
   if (g_interrupted.load()) throw MeshInterrupted{};
@@ -228,7 +267,7 @@ constexpr const char* kMeshHelp =
     "at most 2^30), --max-memory (bytes, default 2 GiB), --max-work (tape instructions, default\n"
     "2e11, about a minute). Progress goes to stderr when it is a terminal or with --progress.\n"
     "Ctrl+C stops cleanly: exit status 130 and no output file (outputs are written to a hidden\n"
-    "file beside --out and renamed when complete); a second Ctrl+C kills at once.\n"
+    "file beside --out and renamed when complete), at once also inside TetGen and CGAL.\n"
     "\n"
     "Mesh-file input (.stl, .obj, .ply instead of a scene): the surface is repaired where that\n"
     "is safe (vertices within --weld welded, zero-area, repeated and back-to-back triangles\n"
@@ -304,7 +343,8 @@ void RunCgal(const MeshOptions& o, const SceneSolidGrid& grid, const std::string
     settings.cell_size = std::min(settings.cell_size, std::sqrt(6.0) / 4.0 * edge);
   }
   CgalMeshStats stats;
-  const TetMesh tets = MeshImplicitWithCgal(grid.compiled, grid.bounds, settings, &stats);
+  const TetMesh tets = AtOnceOnCtrlC(
+      [&] { return MeshImplicitWithCgal(grid.compiled, grid.bounds, settings, &stats); });
   progress->Finish();
   CheckInterrupted();
   const TriangleMesh boundary = BoundarySurface(tets);
@@ -385,7 +425,8 @@ void RunMeshFile(const MeshOptions& o, const std::string& ext, Progress* progres
   tet_settings.cancel = &g_interrupted;
   tet_settings.progress = progress->Stage("tetgen");
   TetMeshStats tet_stats;
-  const TetMesh tets = TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  const TetMesh tets =
+      AtOnceOnCtrlC([&] { return TetrahedralizeSurface(surface, tet_settings, &tet_stats); });
   progress->Finish();
   CheckInterrupted();
   const TetQuality& q = tet_stats.quality;
@@ -549,7 +590,8 @@ void RunMesh(const MeshOptions& o) {
   tet_settings.cancel = &g_interrupted;
   tet_settings.progress = progress.Stage("tetgen");
   TetMeshStats tet_stats;
-  const TetMesh tets = TetrahedralizeSurface(surface, tet_settings, &tet_stats);
+  const TetMesh tets =
+      AtOnceOnCtrlC([&] { return TetrahedralizeSurface(surface, tet_settings, &tet_stats); });
   progress.Finish();
   CheckInterrupted();
   const TetQuality& q = tet_stats.quality;
@@ -570,7 +612,7 @@ void RunMesh(const MeshOptions& o) {
 // Ctrl+C: say so and end with status 130 (128 + SIGINT), as a shell does for a killed job.
 [[noreturn]] void Interrupted() {
   std::cout.flush();
-  std::cerr << "\nspidarcad mesh: interrupted (Ctrl+C): stopped, nothing written\n" << std::flush;
+  std::cerr << kInterruptedMessage << std::flush;
   throw CommandExit{130};
 }
 
