@@ -56,7 +56,8 @@ struct OwnedFactor {
 };
 
 // CHOLMOD view of a compressed sparse matrix whose lower triangle is used (stype −1).
-cholmod_sparse ViewLower(const SparseMatrixd& a) {
+template <class Sparse>  // SparseMatrixd or a Map of one
+cholmod_sparse ViewLower(const Sparse& a) {
   cholmod_sparse s;
   std::memset(&s, 0, sizeof(s));
   s.nrow = static_cast<size_t>(a.rows());
@@ -491,22 +492,39 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
   stats_.num_free = num_free();
   stats_.num_interface_dofs = ng;
   if (factor_status_.message.empty() && ng > 0) {
-    std::vector<Eigen::Triplet<double, int>> ts;
-    std::size_t count = 0;
-    for (const Block& b : blocks_) count += b.interface_pos.size() * b.interface_pos.size();
-    ts.reserve(count / 2 + static_cast<std::size_t>(ng));
-    for (const Block& b : blocks_) {
-      const Eigen::MatrixXd& s = b.factor->schur;
-      const int nbg = static_cast<int>(b.interface_pos.size());
-      for (int j = 0; j < nbg; ++j)
-        for (int i = 0; i < nbg; ++i) {
-          const int r = b.interface_pos[i], c = b.interface_pos[j];
-          if (r >= c) ts.emplace_back(r, c, s(i, j));
+    // Lower triangle of S column by column: the rows of column c are the interface dofs of
+    // the blocks that hold c (no triplet sort over Σ_b #Γ_b² entries).
+    std::vector<std::vector<std::pair<int, int>>> owners(ng);  // (block, local index)
+    for (std::size_t b = 0; b < blocks_.size(); ++b)
+      for (std::size_t j = 0; j < blocks_[b].interface_pos.size(); ++j)
+        owners[blocks_[b].interface_pos[j]].emplace_back(static_cast<int>(b), static_cast<int>(j));
+    std::vector<int> outer(ng + 1, 0), inner, mark(ng, -1), rows;
+    std::vector<double> values, sum(ng, 0.0);
+    for (int c = 0; c < ng; ++c) {
+      rows.clear();
+      for (const auto& [b, j] : owners[c]) {
+        const std::vector<int>& pos = blocks_[b].interface_pos;
+        const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
+        for (std::size_t i = 0; i < pos.size(); ++i) {
+          const int r = pos[i];
+          if (r < c) continue;
+          if (mark[r] != c) {
+            mark[r] = c;
+            sum[r] = 0.0;
+            rows.push_back(r);
+          }
+          sum[r] += sb(static_cast<Eigen::Index>(i), j);
         }
+      }
+      std::sort(rows.begin(), rows.end());
+      for (int r : rows) {
+        inner.push_back(r);
+        values.push_back(sum[r]);
+      }
+      outer[c + 1] = static_cast<int>(inner.size());
     }
-    SparseMatrixd s(ng, ng);
-    s.setFromTriplets(ts.begin(), ts.end());
-    s.makeCompressed();
+    const Eigen::Map<const SparseMatrixd> s(ng, ng, static_cast<Eigen::Index>(values.size()),
+                                            outer.data(), inner.data(), values.data());
     stats_.interface_nonzeros = 2 * s.nonZeros() - ng;
     Common common;
     common.c.supernodal = CHOLMOD_SUPERNODAL;

@@ -227,6 +227,12 @@ SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut
       if (cdt.number_of_vertices() != points.size())
         throw SurfaceDefectError("slab cut: the cut curves on the plane at " +
                                  std::to_string(cut.planes[k]) + " m cross each other");
+      if (cdt.dimension() < 2)
+        throw SurfaceDefectError("slab cut: the cross-section on the plane at " +
+                                 std::to_string(cut.planes[k]) + " m has " +
+                                 std::to_string(points.size()) +
+                                 " cut points, not enough for an area (the plane misses the "
+                                 "solid, or only touches it)");
       MarkNesting(&cdt);
       for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
         if (f->info().nesting % 2 != 1) continue;
