@@ -19,7 +19,9 @@
 // L Lᵀ, so that S_b = L_ΓΓ L_ΓΓᵀ − σ_b I (σ_b = 1e-6 · max diag K^b_ΓΓ: S_b alone is singular for
 // a block that floats but for its interface; the shift keeps the factorisation going and
 // Cholesky's backward error, ~ε·max A_ii, does not depend on it). S is assembled from the dense
-// S_b and factored by CHOLMOD. A solve is
+// S_b and factored by CHOLMOD, its dofs ordered by the lowest, then the highest block sharing
+// them (plane by plane for slabs: S is then block tridiagonal and fills nothing beyond its
+// blocks). A solve is
 //     y_b = K_II⁻¹ f_I,  u_Γ = S⁻¹ (f_Γ − Σ_b K_ΓI y_b),  u_I = K_II⁻¹ (f_I − K_IΓ u_Γ),
 // where blocks without load skip the first step, and a solve asked only for some blocks'
 // displacements skips the last step of the others (SolveFreeInBlocks: the compliance of nodes in
