@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
 #include "spidarcad/fem/static_solver.h"
 
@@ -176,6 +177,45 @@ TEST(SubstructuredSolver, ComplianceColumnsEqualTheMonolithicCondensation) {
       }
     EXPECT_LT(RelativeDifference(g, compliance.matrix()), kTolerance);
   }
+}
+
+TEST(SubstructuredSolver, ColumnCacheOnItEqualsTheCacheOnStaticSolverWhileSolvedConcurrently) {
+  const TetMesh mesh = Bar(2);
+  const BoundaryConditions bcs = BarConditions(mesh);
+  const MaterialTable steel(kSteel);
+  const StaticSolver reference(mesh, steel, bcs);
+  const SubstructuredSolver solver(mesh, steel, bcs, SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4)));
+  const Surface surface = ExtractSurface(mesh);
+  ColumnCacheSettings settings;
+  settings.start_worker = false;
+  ColumnCache expected(reference, mesh.nodes, surface.nodes, surface.nodes, settings);
+  settings.start_worker = true;
+  ColumnCache cache(solver, mesh.nodes, surface.nodes, surface.nodes, settings);
+  // The worker solves near the free end while this thread solves with the same factors.
+  cache.RequestNear(Eigen::Vector3d(0.4, 0.05, 0.08), 0.12);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Ones(solver.num_free(), 2), x;
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(solver.SolveFree(rhs, &x).converged);
+  ASSERT_TRUE(cache.WaitUntilIdle(120.0));
+  cache.Stop();
+  EXPECT_LT(RelativeDifference(cache.baseline(), expected.baseline()), kTolerance);
+  std::vector<int> ready;
+  for (int b = 0; b < cache.num_candidates(); ++b)
+    if (cache.IsReady(b)) ready.push_back(b);
+  ASSERT_GT(ready.size(), 10u);
+  ASSERT_EQ(expected.ComputeNodes(ready), static_cast<int>(ready.size()));
+  double max_diff = 0.0, max_value = 0.0;
+  for (int b : ready) {
+    ASSERT_TRUE(cache.Pin(b));
+    ASSERT_TRUE(expected.Pin(b));
+    for (int row = 0; row < 3 * cache.num_outputs(); ++row)
+      for (int j = 0; j < 3; ++j) {
+        max_diff = std::max(max_diff, std::abs(cache.Value(row, b, j) - expected.Value(row, b, j)));
+        max_value = std::max(max_value, std::abs(expected.Value(row, b, j)));
+      }
+    cache.Unpin(b);
+    expected.Unpin(b);
+  }
+  EXPECT_LT(max_diff, kTolerance * max_value);
 }
 
 TEST(SubstructuredSolver, SolveInBlocksGivesTheFullSolveOnTheBlocksAskedFor) {

@@ -46,6 +46,7 @@
 #include <vector>
 
 #include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/free_dof_solver.h"
 #include "spidarcad/fem/material.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/static_solver.h"
@@ -97,7 +98,7 @@ struct SubstructureStats {
 
 // Factors a model by blocks of elements and the interface Schur complement; solves like
 // StaticSolver.
-class SubstructuredSolver {
+class SubstructuredSolver final : public FreeDofSolver {
  public:
   // Validates mesh, materials, constraints (CheckModelConstrained, as StaticSolver) and
   // `element_block` (#T labels, each >= 0; #blocks = max + 1), then factors every block whose
@@ -108,24 +109,24 @@ class SubstructuredSolver {
   SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
                       const BoundaryConditions& bcs, const Eigen::VectorXi& element_block,
                       const SubstructuredSolver* reuse = nullptr);
-  ~SubstructuredSolver();
+  ~SubstructuredSolver() override;
   SubstructuredSolver(const SubstructuredSolver&) = delete;
   SubstructuredSolver& operator=(const SubstructuredSolver&) = delete;
 
   // Status of the factorisation (blocks and S).
-  const SolveStatus& factor_status() const { return factor_status_; }
+  const SolveStatus& factor_status() const override { return factor_status_; }
   // Figures of the factorisation, and of block b.
   const SubstructureStats& stats() const { return stats_; }
   const BlockStats& block_stats(int b) const;
 
   // Displacement and reactions under the loads and prescribed displacements of the
   // BoundaryConditions given at construction (as StaticSolver::Solve).
-  StaticSolution Solve() const;
+  StaticSolution Solve() const override;
   // Solves K_ff X = B for free-dof right-hand sides B (#free by m); X is resized. The status
   // holds the normwise backward error ||B − K_ff X|| / (||K_ff|| ||X|| + ||B||) (Frobenius;
   // ||K_ff|| is bounded below by (Σ_b ||K^b_ff||²)^½, so the figure is an upper bound), converged
   // below StaticSolver::kResidualTolerance.
-  SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const;
+  SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const override;
   // As SolveFree, but X is computed only at the free dofs of the nodes of `blocks` (interior
   // and interface) and of every interface node; the other rows of X are zero. Blocks of B with
   // no load are skipped too, so a right-hand side on the nodes of block t asked for block t costs
@@ -136,18 +137,18 @@ class SubstructuredSolver {
                                 Eigen::MatrixXd* x) const;
 
   // Index of global dof d (3v + axis) among the free dofs, or −1 if it is prescribed.
-  int FreeIndex(int dof) const { return free_index_[dof]; }
+  int FreeIndex(int dof) const override { return free_index_[dof]; }
   // Global dof of free index i.
   int FreeDof(int i) const { return free_dofs_[i]; }
   // Number of free dofs.
-  int num_free() const { return static_cast<int>(free_dofs_.size()); }
+  int num_free() const override { return static_cast<int>(free_dofs_.size()); }
   // Number of blocks.
   int num_blocks() const { return stats_.num_blocks; }
   // Block of node v when it is interior to one block; −1 for an interface node or a node in no
   // element.
   int BlockOfNode(int v) const { return node_block_[v] < 0 ? -1 : node_block_[v]; }
   // The model's boundary conditions.
-  const BoundaryConditions& bcs() const { return bcs_; }
+  const BoundaryConditions& bcs() const override { return bcs_; }
   // K u for a full displacement u (3·#V), the stiffness applied block by block (no global K is
   // ever assembled), 3·#V, N.
   Eigen::VectorXd MultiplyStiffness(const Eigen::VectorXd& u) const;
