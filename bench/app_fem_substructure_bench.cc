@@ -10,7 +10,10 @@
 //           gusset shortened 0.2 -> 0.17 m (the slabs it spans), plate 10 -> 11 mm (every slab)
 // For each edit: slabs re-meshed and refactored, times of every stage (wall, and process CPU of
 // the whole update: CHOLMOD's BLAS may use both cores), and the relative difference of the
-// patch's compliance block from a monolithic StaticSolver solve of the same new mesh. Also the
+// patch's compliance block from a monolithic StaticSolver solve of the same new mesh; meanwhile
+// a 1 kHz contact tick runs on the old model (16 contacts on its ColumnCache, as FE mode keeps
+// the old model until the new one is ready): its thread CPU p99.9 and maximum and the p99.9 of
+// its wake-up lateness. Also the
 // quality of the slab mesh against the one-piece mesh (min dihedral, max radius-edge, volume,
 // sampled surface Hausdorff distance). Markdown tables are printed after the run, with the load
 // average.
@@ -20,6 +23,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -31,6 +35,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bench_cli.h"
@@ -40,6 +45,7 @@
 #include "scene/slab_fe_mesh.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/substructure.h"
 #include "spidarcad/modeling/cgal_mesher.h"
@@ -143,6 +149,64 @@ Eigen::MatrixXd PatchBlock(const Solver& solver, const std::vector<int>& patch,
   return g;
 }
 
+// A 1 kHz contact tick on the old model while the update runs: 16 contacts of the patch on a
+// ColumnCache of the old substructured solver (the columns made before the edit), one
+// CachedContactSolver::Solve per tick. Records each tick's thread CPU time and how late each
+// tick woke (absolute sleeps), in µs.
+class TickProbe {
+ public:
+  TickProbe(fem::ColumnCache* cache, const std::vector<int>& candidates) : solver_(cache, 16) {
+    for (int b : candidates)
+      if (solver_.num_contacts() < 16) solver_.Add(b);
+    target_.assign(3 * solver_.num_contacts(), 0.0);
+    for (int s = 0; s < solver_.num_contacts(); ++s)
+      target_[3 * s + 2] =
+          cache->baseline()(3 * cache->OutputIndexOfCandidate(solver_.contact(s)) + 2) - 1e-5;
+    force_.assign(target_.size(), 0.0);
+    cpu_us_.reserve(200000);
+    late_us_.reserve(200000);
+  }
+  void Start() {
+    stop_ = false;
+    thread_ = std::thread([this] { Loop(); });
+  }
+  void Stop() {
+    stop_ = true;
+    thread_.join();
+  }
+  // p-quantile (0..1) of the recorded values.
+  static double Quantile(std::vector<double> v, double p) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(p * v.size()))];
+  }
+  const std::vector<double>& cpu_us() const { return cpu_us_; }
+  const std::vector<double>& late_us() const { return late_us_; }
+
+ private:
+  static double ThreadCpu() {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+  }
+  void Loop() {
+    auto next = std::chrono::steady_clock::now();
+    while (!stop_ && cpu_us_.size() < cpu_us_.capacity()) {
+      next += std::chrono::milliseconds(1);
+      std::this_thread::sleep_until(next);
+      late_us_.push_back(
+          1e6 * std::chrono::duration<double>(std::chrono::steady_clock::now() - next).count());
+      const double t0 = ThreadCpu();
+      solver_.Solve(target_.data(), force_.data());
+      cpu_us_.push_back(1e6 * (ThreadCpu() - t0));
+    }
+  }
+  fem::CachedContactSolver solver_;
+  std::vector<double> target_, force_, cpu_us_, late_us_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
 struct Quality {
   int tets = 0;
   modeling::TetQuality q;
@@ -227,8 +291,18 @@ void BM_EditToForce(benchmark::State& state) {
       joined = modeling::JoinSlabs(slab_mesh.slab_tets).mesh;
       row.slabs = Measure(base.compiled, joined);
     }
+    // The old model as FE mode holds it: lazy columns of its surface, the patch's made ready.
+    const fem::Surface surface0 = fem::ExtractSurface(mesh0);
+    fem::ColumnCacheSettings cs;
+    cs.start_worker = false;
+    fem::ColumnCache cache0(fresh, mesh0.nodes, surface0.nodes, surface0.nodes, cs);
+    std::vector<int> patch0;
+    for (int v : Patch(mesh0, Conditions(mesh0))) patch0.push_back(cache0.CandidateOfNode(v));
+    cache0.ComputeNodes(patch0);
     for (const Edit& edit : Edits()) {
       EditRow e;
+      TickProbe probe(&cache0, patch0);
+      probe.Start();
       e.edit = edit.name;
       e.slabs = static_cast<int>(planes.size()) + 1;
       Timer t;
@@ -250,6 +324,11 @@ void BM_EditToForce(benchmark::State& state) {
       e.patch = tp.Wall();
       e.total_wall = t.Wall();
       e.total_cpu = t.Cpu();
+      probe.Stop();
+      e.ticks = static_cast<int>(probe.cpu_us().size());
+      e.tick_cpu_p999 = TickProbe::Quantile(probe.cpu_us(), 0.999);
+      e.tick_cpu_max = TickProbe::Quantile(probe.cpu_us(), 1.0);
+      e.tick_late_p999 = TickProbe::Quantile(probe.late_us(), 0.999);
       e.surface = m.surface_seconds;
       e.cut = m.cut_seconds;
       e.tetgen = m.tetgen_seconds;
@@ -301,6 +380,14 @@ void PrintTables() {
           r.name.c_str(), e.edit.c_str(), e.remeshed, e.refactored, e.slabs, e.surface, e.cut,
           e.tetgen, e.join, e.assemble_factor, e.interface, e.patch, e.total_wall, e.total_cpu,
           e.error);
+  std::printf(
+      "\n1 kHz contact tick (16 contacts, old model) during each update: thread CPU per tick and "
+      "lateness of its wake-up, µs\n\n| case | edit | ticks | tick CPU p99.9 | max | wake-up "
+      "lateness p99.9 |\n|---|---|---|---|---|---|\n");
+  for (const CaseRow& r : Cases())
+    for (const EditRow& e : r.edits)
+      std::printf("| %s | %s | %d | %.1f | %.1f | %.0f |\n", r.name.c_str(), e.edit.c_str(),
+                  e.ticks, e.tick_cpu_p999, e.tick_cpu_max, e.tick_late_p999);
   std::printf(
       "\n| case | mesh | tets | min dihedral deg | max radius-edge | volume cm^3 | surface "
       "Hausdorff mm |\n|---|---|---|---|---|---|---|\n");
