@@ -23,12 +23,26 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
                          const std::vector<int>& output_nodes,
                          const std::vector<int>& candidate_nodes,
                          const ColumnCacheSettings& settings)
-    : solver_(solver),
+    : ColumnCache(std::make_unique<StaticSolverView>(solver), nullptr, nodes, output_nodes,
+                  candidate_nodes, settings) {}
+
+ColumnCache::ColumnCache(const FreeDofSolver& solver, const Eigen::MatrixX3d& nodes,
+                         const std::vector<int>& output_nodes,
+                         const std::vector<int>& candidate_nodes,
+                         const ColumnCacheSettings& settings)
+    : ColumnCache(nullptr, &solver, nodes, output_nodes, candidate_nodes, settings) {}
+
+ColumnCache::ColumnCache(std::unique_ptr<const FreeDofSolver> view, const FreeDofSolver* borrowed,
+                         const Eigen::MatrixX3d& nodes, const std::vector<int>& output_nodes,
+                         const std::vector<int>& candidate_nodes,
+                         const ColumnCacheSettings& settings)
+    : view_(std::move(view)),
+      solver_(borrowed != nullptr ? *borrowed : *view_),
       precision_(settings.precision),
       settings_(settings),
       output_nodes_(output_nodes),
       candidate_nodes_(candidate_nodes) {
-  const int n = solver.bcs().num_nodes();
+  const int n = solver_.bcs().num_nodes();
   if (nodes.rows() != n) {
     throw std::invalid_argument("ColumnCache: " + std::to_string(nodes.rows()) +
                                 " node positions for a model of " + std::to_string(n) + " nodes");
@@ -43,9 +57,9 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
                                 std::to_string(settings.neighbours) +
                                 ") and idle_poll_seconds > 0");
   }
-  if (!solver.factor_status().converged) {
+  if (!solver_.factor_status().converged) {
     throw std::runtime_error("ColumnCache: the model's factorisation failed: " +
-                             solver.factor_status().message);
+                             solver_.factor_status().message);
   }
   const detail::NodeListIndex index =
       detail::IndexNodeLists("ColumnCache", "candidate", n, output_nodes, candidate_nodes);
@@ -54,13 +68,13 @@ ColumnCache::ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nod
   for (const int v : candidate_nodes) {
     positions_.push_back(nodes.row(v).transpose());
     bool fixed = false;
-    for (int i = 0; i < 3; ++i) fixed = fixed || solver.FreeIndex(3 * v + i) < 0;
+    for (int i = 0; i < 3; ++i) fixed = fixed || solver_.FreeIndex(3 * v + i) < 0;
     fixed_.push_back(fixed ? 1 : 0);
   }
   const int num_out = num_outputs(), num_cand = num_candidates();
 
   // Baseline: the model's own loads.
-  const StaticSolution base = solver.Solve();
+  const StaticSolution base = solver_.Solve();
   u0_.resize(3 * num_out);
   for (int a = 0; a < num_out; ++a)
     u0_.segment<3>(3 * a) = base.displacement.segment<3>(3 * output_nodes[a]);

@@ -9,8 +9,9 @@
 // column to readers with a release store once it is fully written. Nodes outside the requested
 // radius are never condensed.
 //
-// Threads. The worker is the only user of the StaticSolver while it runs (CHOLMOD's solve is
-// not re-entrant: do not call the solver from elsewhere meanwhile, or Stop() first). The focus
+// Threads. The worker is the only user of a StaticSolver while it runs (its CHOLMOD solve is
+// not re-entrant: do not call the solver from elsewhere meanwhile, or Stop() first; a
+// SubstructuredSolver's solves are re-entrant). The focus
 // (RequestNear) is a seqlock written by ONE producer (the app or the haptic thread, not both),
 // read by the worker. Readers (the haptic thread) use atomics only: IsReady, ReadyNodeNearest,
 // Pin/Unpin and the reads of a pinned column never lock, allocate or throw.
@@ -51,6 +52,7 @@
 #include <vector>
 
 #include "spidarcad/fem/bordered_cholesky.h"
+#include "spidarcad/fem/free_dof_solver.h"
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/static_solver.h"
 
@@ -98,6 +100,10 @@ class ColumnCache {
   // Throws std::invalid_argument on bad node lists or settings, std::runtime_error when the
   // solver's factorisation failed.
   ColumnCache(const StaticSolver& solver, const Eigen::MatrixX3d& nodes,
+              const std::vector<int>& output_nodes, const std::vector<int>& candidate_nodes,
+              const ColumnCacheSettings& settings = {});
+  // The same for any factored model (e.g. a SubstructuredSolver, whose solves are re-entrant).
+  ColumnCache(const FreeDofSolver& solver, const Eigen::MatrixX3d& nodes,
               const std::vector<int>& output_nodes, const std::vector<int>& candidate_nodes,
               const ColumnCacheSettings& settings = {});
   // Stops and joins the worker.
@@ -210,7 +216,12 @@ class ColumnCache {
   const double* DoubleData(int s) const;
   const float* FloatData(int s) const;
 
-  const StaticSolver& solver_;
+  ColumnCache(std::unique_ptr<const FreeDofSolver> view, const FreeDofSolver* solver,
+              const Eigen::MatrixX3d& nodes, const std::vector<int>& output_nodes,
+              const std::vector<int>& candidate_nodes, const ColumnCacheSettings& settings);
+
+  std::unique_ptr<const FreeDofSolver> view_;  // owned view of a StaticSolver, or null
+  const FreeDofSolver& solver_;
   ColumnPrecision precision_;
   ColumnCacheSettings settings_;
   std::vector<int> output_nodes_, candidate_nodes_, candidate_row_;

@@ -1,0 +1,61 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// The FE mesh of a solid in slabs across x (modeling/slab_mesher.h), made so that a local edit
+// re-meshes only the slabs it reached: the surface on a grid that is kept from the first mesh on
+// (MeshSurface is local on a fixed grid: an edit changes triangles within about a cell of it),
+// cut by planes placed from the grid box alone (half-way between grid planes, so they stay put
+// when the solid changes inside the box), each slab tetrahedralized only when its input differs
+// from the slab of an earlier mesh (SurfaceHash, then compared in full), and the slabs joined.
+// An unchanged slab keeps its nodes and tets bit for bit, in the same local order, so that
+// fem::SubstructuredSolver reuses its factor.
+//
+// Units: m, world frame W. Main thread or a Job's worker.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "spidarcad/fem/mesh.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/slab_mesher.h"
+#include "spidarcad/modeling/tet_mesh.h"
+
+namespace spidarcad::app {
+
+// A solid's FE mesh in slabs, with what is needed to re-mesh it after an edit.
+struct SlabFeMesh {
+  // Linear tetrahedra of every slab joined (W, m); regions 0.
+  fem::TetMesh mesh;
+  // Slab of each element (fem::SubstructuredSolver's element_block).
+  Eigen::VectorXi slab;
+  // The cutting planes x = planes[k] (m), and the grid they were placed on.
+  std::vector<double> planes;
+  Eigen::AlignedBox3d grid_bounds;
+  double cell = 0.0;
+  // Each slab's closed surface (TetGen's input, canonical order) and its tets.
+  std::vector<modeling::TriangleMesh> slab_surfaces;
+  std::vector<modeling::TetMesh> slab_tets;
+  // Per slab: 1 when TetGen ran for it, 0 when it came from the earlier mesh.
+  std::vector<char> remeshed;
+  // Wall time (s) of the surface, the cut, TetGen (summed over re-meshed slabs) and the join.
+  double surface_seconds = 0.0, cut_seconds = 0.0, tetgen_seconds = 0.0, join_seconds = 0.0;
+  // Number of slabs TetGen ran for.
+  int num_remeshed() const;
+};
+
+// `slabs` − 1 planes across x cutting `grid_bounds` into slabs of nearly equal width, each moved
+// to the nearest half-way point between two grid planes.
+std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs);
+
+// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes` (TetGen radius-edge
+// bound `max_radius_edge`), reusing the slabs of `previous` (may be null; it must have been made
+// on the same grid and planes, else it is ignored) whose input is unchanged. Throws what
+// MeshSurface, CutSurfaceIntoSlabs and TetrahedralizeSurface throw.
+SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
+                            const Eigen::AlignedBox3d& grid_bounds, double cell,
+                            const std::vector<double>& planes, double max_radius_edge = 2.0,
+                            const SlabFeMesh* previous = nullptr);
+
+}  // namespace spidarcad::app

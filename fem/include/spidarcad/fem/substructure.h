@@ -1,0 +1,184 @@
+// Substructured static solve: the elements of a mesh are partitioned into blocks (e.g. slabs cut
+// by planes); each block's interior is factored on its own and condensed onto its interface, and
+// only the small interface system is factored globally. A block whose content is unchanged since
+// an earlier solver keeps that solver's factor (shared, not recomputed), so a local edit of the
+// mesh re-does one block and the interface system instead of the whole factorisation.
+//
+// Dofs and signs as StaticSolver (static_solver.h): node v has dofs 3v + axis; free (f) and
+// prescribed (c) dofs; K_ff u_f = f_f − K_fc u_c; reactions are forces ON the body (N). The free
+// dofs are numbered as StaticSolver numbers them (increasing global dof), so FreeIndex, SolveFree
+// and Solve are interchangeable with StaticSolver's and give the same numbers to rounding.
+//
+// Blocks. Each element has a block label in [0, #blocks). A node is an interface node when
+// elements of two or more blocks share it, else it is interior to its one block. With I_b the
+// free dofs of block b's interior nodes and Γ the free dofs of the interface nodes, K_ff is
+// [K_II (block diagonal) K_IΓ; K_ΓI K_ΓΓ] and
+//     S = Σ_b S_b,   S_b = K^b_ΓΓ − K^b_ΓI (K^b_II)⁻¹ K^b_IΓ
+// (K^b the stiffness of block b's elements alone). Block b is factored by CHOLMOD with its
+// interface dofs ordered last and a shift σ_b I on them, A_b = [K_II K_IΓ; K_ΓI K_ΓΓ + σ_b I] =
+// L Lᵀ, so that S_b = L_ΓΓ L_ΓΓᵀ − σ_b I (σ_b = 1e-6 · max diag K^b_ΓΓ: S_b alone is singular for
+// a block that floats but for its interface; the shift keeps the factorisation going and
+// Cholesky's backward error, ~ε·max A_ii, does not depend on it). S is assembled from the dense
+// S_b and factored by CHOLMOD, its dofs ordered by the lowest, then the highest block sharing
+// them (plane by plane for slabs: S is then block tridiagonal and fills nothing beyond its
+// blocks). A solve is
+//     y_b = K_II⁻¹ f_I,  u_Γ = S⁻¹ (f_Γ − Σ_b K_ΓI y_b),  u_I = K_II⁻¹ (f_I − K_IΓ u_Γ),
+// where blocks without load skip the first step, and a solve asked only for some blocks'
+// displacements skips the last step of the others (SolveFreeInBlocks: the compliance of nodes in
+// one block needs that block's factor and S alone).
+//
+// Reuse. A block's content is its elements in mesh order, with local node numbers in order of
+// first appearance: connectivity, node positions, each element's material, and for each node its
+// prescribed axes and whether it is an interface node. Blocks of a `reuse` solver with the same
+// content (compared in full, not only by hash) share their factor with the new solver; the rest
+// are factored anew. Global node numbers do not enter, so a mesh whose untouched blocks kept their
+// elements and nodes bit for bit (in any global numbering) reuses them. Prescribed values and
+// loads do not enter (they only change right-hand sides).
+//
+// Threads. A solver is immutable after construction; solves allocate their own CHOLMOD workspace,
+// so one solver, or two solvers sharing blocks, may be solved from several threads at once.
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/free_dof_solver.h"
+#include "spidarcad/fem/material.h"
+#include "spidarcad/fem/mesh.h"
+#include "spidarcad/fem/static_solver.h"
+#include "spidarcad/fem/stiffness.h"
+
+namespace spidarcad::fem {
+
+// Figures of one block.
+struct BlockStats {
+  // Elements and nodes (interior and interface) of the block.
+  int num_elements = 0;
+  int num_nodes = 0;
+  // Free interior dofs (size of K_II) and free interface dofs of the block (size of S_b).
+  int num_interior_dofs = 0;
+  int num_interface_dofs = 0;
+  // Nonzeros of the block's Cholesky factor (CHOLMOD's count; 0 without interior dofs).
+  double factor_nonzeros = 0.0;
+  // Content hash (FNV-1a 64) of the block (see the file comment).
+  std::uint64_t key = 0;
+  // True when the factor came from the `reuse` solver (then the times below are that solver's).
+  bool reused = false;
+  // Wall time of the element stiffnesses and local assembly, of the ordering and
+  // factorisation, and of forming S_b from the factor, in s.
+  double assembly_seconds = 0.0;
+  double factor_seconds = 0.0;
+  double schur_seconds = 0.0;
+};
+
+// Figures of a substructured factorisation.
+struct SubstructureStats {
+  int num_blocks = 0;
+  // Free dofs, and free interface dofs (size of S).
+  int num_free = 0;
+  int num_interface_dofs = 0;
+  // Blocks factored by this solver, and blocks whose factor came from the reuse solver.
+  int factored_blocks = 0;
+  int reused_blocks = 0;
+  // Nonzeros of S (both triangles) and of its Cholesky factor.
+  long long interface_nonzeros = 0;
+  double interface_factor_nonzeros = 0.0;
+  // Wall time (s) of the blocks factored here (assembly, factorisation and forming S_b, each
+  // summed over them), of assembling and factoring S, and of the whole construction.
+  double block_assembly_seconds = 0.0;
+  double block_factor_seconds = 0.0;
+  double block_schur_seconds = 0.0;
+  double interface_seconds = 0.0;
+  double wall_seconds = 0.0;
+};
+
+// Factors a model by blocks of elements and the interface Schur complement; solves like
+// StaticSolver.
+class SubstructuredSolver final : public FreeDofSolver {
+ public:
+  // Validates mesh, materials, constraints (CheckModelConstrained, as StaticSolver) and
+  // `element_block` (#T labels, each >= 0; #blocks = max + 1), then factors every block whose
+  // content differs from all blocks of `reuse` (may be null; must outlive nothing: shared
+  // factors are reference counted) and the interface system. Throws std::invalid_argument on bad
+  // input (naming the element or the label). A factorisation failure (a block interior or S not
+  // positive definite) is reported through factor_status(), naming the block, not thrown.
+  SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
+                      const BoundaryConditions& bcs, const Eigen::VectorXi& element_block,
+                      const SubstructuredSolver* reuse = nullptr);
+  ~SubstructuredSolver() override;
+  SubstructuredSolver(const SubstructuredSolver&) = delete;
+  SubstructuredSolver& operator=(const SubstructuredSolver&) = delete;
+
+  // Status of the factorisation (blocks and S).
+  const SolveStatus& factor_status() const override { return factor_status_; }
+  // Figures of the factorisation, and of block b.
+  const SubstructureStats& stats() const { return stats_; }
+  const BlockStats& block_stats(int b) const;
+
+  // Displacement and reactions under the loads and prescribed displacements of the
+  // BoundaryConditions given at construction (as StaticSolver::Solve).
+  StaticSolution Solve() const override;
+  // Solves K_ff X = B for free-dof right-hand sides B (#free by m); X is resized. The status
+  // holds the normwise backward error ||B − K_ff X|| / (||K_ff|| ||X|| + ||B||) (Frobenius;
+  // ||K_ff|| is bounded below by (Σ_b ||K^b_ff||²)^½, so the figure is an upper bound), converged
+  // below StaticSolver::kResidualTolerance.
+  SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const override;
+  // As SolveFree, but X is computed only at the free dofs of the nodes of `blocks` (interior
+  // and interface) and of every interface node; the other rows of X are zero. Blocks of B with
+  // no load are skipped too, so a right-hand side on the nodes of block t asked for block t costs
+  // two solves with block t's factor and one with S, whatever the number of blocks. The status
+  // carries no residual (residual = 0; converged when the factorisation was). Throws
+  // std::invalid_argument for a block index out of range.
+  SolveStatus SolveFreeInBlocks(const Eigen::MatrixXd& rhs, const std::vector<int>& blocks,
+                                Eigen::MatrixXd* x) const;
+
+  // Index of global dof d (3v + axis) among the free dofs, or −1 if it is prescribed.
+  int FreeIndex(int dof) const override { return free_index_[dof]; }
+  // Global dof of free index i.
+  int FreeDof(int i) const { return free_dofs_[i]; }
+  // Number of free dofs.
+  int num_free() const override { return static_cast<int>(free_dofs_.size()); }
+  // Number of blocks.
+  int num_blocks() const { return stats_.num_blocks; }
+  // Block of node v when it is interior to one block; −1 for an interface node or a node in no
+  // element.
+  int BlockOfNode(int v) const { return node_block_[v] < 0 ? -1 : node_block_[v]; }
+  // The model's boundary conditions.
+  const BoundaryConditions& bcs() const override { return bcs_; }
+  // K u for a full displacement u (3·#V), the stiffness applied block by block (no global K is
+  // ever assembled), 3·#V, N.
+  Eigen::VectorXd MultiplyStiffness(const Eigen::VectorXd& u) const;
+
+ private:
+  struct BlockFactor;
+  struct Block;
+  struct Interface;
+  // K_ff X for free-dof vectors (#free by m).
+  Eigen::MatrixXd MultiplyFree(const Eigen::MatrixXd& x) const;
+  SolveStatus SolveImpl(const Eigen::MatrixXd& rhs, const std::vector<char>* wanted,
+                        Eigen::MatrixXd* x) const;
+
+  BoundaryConditions bcs_;
+  std::vector<Block> blocks_;
+  std::unique_ptr<Interface> interface_;
+  std::vector<int> free_index_, free_dofs_, node_block_;
+  std::vector<int> interface_index_;  // per free index: position in Γ, or −1
+  std::vector<int> interface_free_;   // per Γ position: free index
+  SolveStatus factor_status_;
+  SubstructureStats stats_;
+  double k_norm_ = 0.0;  // lower bound of ||K_ff||_F
+};
+
+// Element blocks of slabs along `axis` (0, 1, 2 = x, y, z): element e goes to the number of
+// planes at or below its corner centroid's coordinate, so `planes` (sorted, m) cut the mesh into
+// planes.size() + 1 slabs. Throws std::invalid_argument for a bad axis or unsorted planes.
+Eigen::VectorXi SlabBlocks(const TetMesh& mesh, int axis, const std::vector<double>& planes);
+
+// `count` − 1 planes that cut the nodes' extent along `axis` into `count` slabs of equal width.
+std::vector<double> EvenPlanes(const TetMesh& mesh, int axis, int count);
+
+}  // namespace spidarcad::fem

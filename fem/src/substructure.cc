@@ -1,0 +1,756 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "spidarcad/fem/substructure.h"
+
+#include <cholmod.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "spidarcad/fem/precompute_cache.h"
+
+// LAPACK (in OpenBLAS, linked by this library for CHOLMOD): A := U Uᵀ for the upper triangle U
+// of A (n³/3 flops, a third of a general product).
+extern "C" void dlauum_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+
+namespace spidarcad::fem {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// A cholmod_common for one call (CHOLMOD's workspace is per common: a common per call makes
+// solves re-entrant, so factors can be shared between solvers and threads).
+struct Common {
+  cholmod_common c;
+  Common() {
+    cholmod_start(&c);
+    c.print = 0;  // a library writes nothing to stdout/stderr; failures come back as status
+  }
+  ~Common() { cholmod_finish(&c); }
+  Common(const Common&) = delete;
+  Common& operator=(const Common&) = delete;
+};
+
+// An owned CHOLMOD factor.
+struct OwnedFactor {
+  cholmod_factor* l = nullptr;
+  OwnedFactor() = default;
+  ~OwnedFactor() {
+    if (l != nullptr) {
+      Common common;
+      cholmod_free_factor(&l, &common.c);
+    }
+  }
+  OwnedFactor(const OwnedFactor&) = delete;
+  OwnedFactor& operator=(const OwnedFactor&) = delete;
+};
+
+// CHOLMOD view of a compressed sparse matrix whose lower triangle is used (stype −1).
+template <class Sparse>  // SparseMatrixd or a Map of one
+cholmod_sparse ViewLower(const Sparse& a) {
+  cholmod_sparse s;
+  std::memset(&s, 0, sizeof(s));
+  s.nrow = static_cast<size_t>(a.rows());
+  s.ncol = static_cast<size_t>(a.cols());
+  s.nzmax = static_cast<size_t>(a.nonZeros());
+  s.p = const_cast<int*>(a.outerIndexPtr());
+  s.i = const_cast<int*>(a.innerIndexPtr());
+  s.x = const_cast<double*>(a.valuePtr());
+  s.stype = -1;
+  s.itype = CHOLMOD_INT;
+  s.xtype = CHOLMOD_REAL;
+  s.dtype = CHOLMOD_DOUBLE;
+  s.sorted = 1;
+  s.packed = 1;
+  return s;
+}
+
+// CHOLMOD view of a dense column-major matrix.
+cholmod_dense ViewDense(Eigen::MatrixXd* m) {
+  cholmod_dense d;
+  std::memset(&d, 0, sizeof(d));
+  d.nrow = static_cast<size_t>(m->rows());
+  d.ncol = static_cast<size_t>(m->cols());
+  d.nzmax = static_cast<size_t>(m->size());
+  d.d = static_cast<size_t>(m->rows());
+  d.x = m->data();
+  d.xtype = CHOLMOD_REAL;
+  d.dtype = CHOLMOD_DOUBLE;
+  return d;
+}
+
+// Solves sys (CHOLMOD_A, CHOLMOD_L, CHOLMOD_Lt) with factor l for b in place.
+bool CholmodSolve(int sys, cholmod_factor* l, Eigen::MatrixXd* b) {
+  if (b->size() == 0) return true;
+  Common common;
+  cholmod_dense bv = ViewDense(b);
+  cholmod_dense* x = cholmod_solve(sys, l, &bv, &common.c);
+  if (x == nullptr) return false;
+  std::memcpy(b->data(), x->x, sizeof(double) * static_cast<size_t>(b->size()));
+  cholmod_free_dense(&x, &common.c);
+  return true;
+}
+
+// Values below this fraction of max diag K_ΓΓ are the interface shift σ (see the header).
+constexpr double kInterfaceShift = 1e-6;
+
+const char* const kAxis[3] = {"x", "y", "z"};
+
+std::string Point(const Eigen::Vector3d& p) {
+  std::ostringstream s;
+  s.precision(4);
+  s << "(" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+  return s.str();
+}
+
+// Node flags of a block's content: prescribed axes (bits 0..2), interface node (bit 3).
+constexpr unsigned char kInterfaceFlag = 8;
+
+}  // namespace
+
+// The content of a block (see the header) and everything factored from it; immutable once
+// made, shared between solvers whose blocks have the same content.
+struct SubstructuredSolver::BlockFactor {
+  // Content.
+  int npe = 0;
+  std::vector<int> connectivity;     // #elements × npe, local node numbers
+  std::vector<double> positions;     // 3 per local node
+  std::vector<double> materials;     // E, ν, formulation per element
+  std::vector<unsigned char> flags;  // per local node
+  std::uint64_t key = 0;
+
+  // Local dofs (3·local node + axis): free interior dofs, free interface dofs, each ascending.
+  std::vector<int> interior, interface;
+  SparseMatrixd k;        // K^b over every local dof (3·#local nodes square, both triangles)
+  SparseMatrixd k_ig;     // K^b_IΓ, #interior by #interface
+  double ff_norm2 = 0.0;  // ||K^b_ff||_F²
+  OwnedFactor factor;     // of A_b = [K_II K_IΓ; K_ΓI K_ΓΓ + σI], interface last (if #I > 0)
+  std::vector<int> perm;  // factor's permutation: A index of factor position
+  Eigen::MatrixXd schur;  // S_b, #interface square
+  // Failure: A index of the first non-positive pivot (−1: factored).
+  int failed = -1;
+  double factor_nonzeros = 0.0;
+  double assembly_seconds = 0.0, factor_seconds = 0.0, schur_seconds = 0.0;
+
+  int num_nodes() const { return static_cast<int>(flags.size()); }
+  int ni() const { return static_cast<int>(interior.size()); }
+  int ng() const { return static_cast<int>(interface.size()); }
+
+  bool SameContent(const BlockFactor& o) const {
+    return key == o.key && npe == o.npe && connectivity == o.connectivity &&
+           positions == o.positions && materials == o.materials && flags == o.flags;
+  }
+
+  void HashContent() {
+    std::uint64_t h = kFnvOffsetBasis;
+    h = Fnv1a64(&npe, sizeof(npe), h);
+    const std::uint64_t sizes[4] = {connectivity.size(), positions.size(), materials.size(),
+                                    flags.size()};
+    h = Fnv1a64(sizes, sizeof(sizes), h);
+    h = Fnv1a64(connectivity.data(), sizeof(int) * connectivity.size(), h);
+    h = Fnv1a64(positions.data(), sizeof(double) * positions.size(), h);
+    h = Fnv1a64(materials.data(), sizeof(double) * materials.size(), h);
+    key = Fnv1a64(flags.data(), flags.size(), h);
+  }
+
+  // Assembles and factors (content already set).
+  void Factor() {
+    const auto t0 = Clock::now();
+    const int n_loc = num_nodes();
+    const int ne = npe > 0 ? static_cast<int>(connectivity.size()) / npe : 0;
+    TetMesh local;
+    local.nodes.resize(n_loc, 3);
+    for (int v = 0; v < n_loc; ++v)
+      for (int i = 0; i < 3; ++i) local.nodes(v, i) = positions[3 * v + i];
+    local.elements.resize(ne, npe);
+    for (int e = 0; e < ne; ++e)
+      for (int j = 0; j < npe; ++j) local.elements(e, j) = connectivity[e * npe + j];
+    // One region per element, its material from the content (so the table is local too).
+    local.regions.resize(ne);
+    MaterialTable table;
+    for (int e = 0; e < ne; ++e) {
+      local.regions(e) = e;
+      Material m;
+      m.youngs_modulus = materials[3 * e];
+      m.poisson_ratio = materials[3 * e + 1];
+      m.formulation = static_cast<Formulation>(static_cast<int>(materials[3 * e + 2]));
+      table.Set(e, m);
+    }
+    k = AssembleStiffness(local, table);
+    k.makeCompressed();
+
+    // Local dof classes and the A numbering: interior first, then interface.
+    const int nd = 3 * n_loc;
+    std::vector<int> a_index(nd, -1);
+    for (int d = 0; d < nd; ++d) {
+      const unsigned char f = flags[d / 3];
+      if (f & (1u << (d % 3))) continue;
+      (f & kInterfaceFlag ? interface : interior).push_back(d);
+    }
+    const int ni_ = ni(), ng_ = ng();
+    for (int i = 0; i < ni_; ++i) a_index[interior[i]] = i;
+    for (int g = 0; g < ng_; ++g) a_index[interface[g]] = ni_ + g;
+
+    double max_gg = 0.0;
+    for (int g = 0; g < ng_; ++g)
+      max_gg = std::max(max_gg, std::abs(k.coeff(interface[g], interface[g])));
+    const double sigma = kInterfaceShift * max_gg;
+
+    std::vector<Eigen::Triplet<double, int>> ta, tig;
+    ta.reserve(static_cast<size_t>(k.nonZeros() / 2 + nd));
+    ff_norm2 = 0.0;
+    Eigen::MatrixXd kgg = Eigen::MatrixXd::Zero(ni_ == 0 ? ng_ : 0, ni_ == 0 ? ng_ : 0);
+    for (int c = 0; c < k.outerSize(); ++c) {
+      const int ac = a_index[c];
+      if (ac < 0) continue;
+      for (SparseMatrixd::InnerIterator it(k, c); it; ++it) {
+        const int ar = a_index[it.row()];
+        if (ar < 0) continue;
+        ff_norm2 += it.value() * it.value();
+        if (ar >= ac) ta.emplace_back(ar, ac, it.value());
+        if (ar < ni_ && ac >= ni_) tig.emplace_back(ar, ac - ni_, it.value());
+        if (ni_ == 0) kgg(ar, ac) = it.value();
+      }
+    }
+    k_ig.resize(ni_, ng_);
+    k_ig.setFromTriplets(tig.begin(), tig.end());
+    k_ig.makeCompressed();
+    assembly_seconds = Seconds(t0);
+
+    const auto t1 = Clock::now();
+    if (ni_ == 0) {
+      schur = kgg;  // nothing to condense
+      factor_seconds = Seconds(t1);
+      return;
+    }
+    for (int g = 0; g < ng_; ++g) ta.emplace_back(ni_ + g, ni_ + g, sigma);
+    SparseMatrixd a(ni_ + ng_, ni_ + ng_);
+    a.setFromTriplets(ta.begin(), ta.end());
+    a.makeCompressed();
+
+    // Fill-reducing order of K_II (CHOLMOD's default choice), then the interface in order.
+    perm.resize(ni_ + ng_);
+    {
+      const SparseMatrixd kii = a.topLeftCorner(ni_, ni_);
+      cholmod_sparse view = ViewLower(kii);
+      Common common;
+      cholmod_factor* symbolic = cholmod_analyze(&view, &common.c);
+      if (symbolic == nullptr) throw std::runtime_error("substructure: CHOLMOD analysis failed");
+      std::memcpy(perm.data(), symbolic->Perm, sizeof(int) * ni_);
+      cholmod_free_factor(&symbolic, &common.c);
+    }
+    for (int g = 0; g < ng_; ++g) perm[ni_ + g] = ni_ + g;
+
+    Common common;
+    common.c.nmethods = 1;
+    common.c.method[0].ordering = CHOLMOD_GIVEN;
+    common.c.postorder = 0;  // keep the interface last
+    common.c.supernodal = CHOLMOD_SUPERNODAL;
+    cholmod_sparse view = ViewLower(a);
+    factor.l = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &common.c);
+    if (factor.l == nullptr) throw std::runtime_error("substructure: CHOLMOD analysis failed");
+    const int* lp = static_cast<const int*>(factor.l->Perm);
+    for (int p = 0; p < ni_ + ng_; ++p) {
+      if (lp[p] != perm[p]) throw std::logic_error("substructure: CHOLMOD changed the order");
+    }
+    cholmod_factorize(&view, factor.l, &common.c);
+    factor_nonzeros = common.c.lnz;
+    if (factor.l->minor < factor.l->n) {
+      failed = perm[factor.l->minor];
+      factor_seconds = Seconds(t1);
+      return;
+    }
+    if (!factor.l->is_super) throw std::logic_error("substructure: factor is not supernodal");
+
+    factor_seconds = Seconds(t1);
+
+    // L_ΓΓ: the trailing interface columns of the supernodes; S_b = L_ΓΓ L_ΓΓᵀ − σ I. The product
+    // is LAPACK's U Uᵀ of the reversed factor U = J L_ΓΓ J (J the reversal: U is upper
+    // triangular and J U Uᵀ J = L_ΓΓ L_ΓΓᵀ).
+    const auto t2 = Clock::now();
+    Eigen::MatrixXd u = Eigen::MatrixXd::Zero(ng_, ng_);
+    const int* super = static_cast<const int*>(factor.l->super);
+    const int* pi = static_cast<const int*>(factor.l->pi);
+    const int* px = static_cast<const int*>(factor.l->px);
+    const int* ls = static_cast<const int*>(factor.l->s);
+    const double* lx = static_cast<const double*>(factor.l->x);
+    const int last = ni_ + ng_ - 1;
+    for (size_t s = 0; s < factor.l->nsuper; ++s) {
+      const int k1 = super[s], k2 = super[s + 1];
+      if (k2 <= ni_) continue;
+      const int nrow = pi[s + 1] - pi[s];
+      for (int j = std::max(k1, ni_); j < k2; ++j) {
+        const double* col = lx + px[s] + static_cast<size_t>(j - k1) * nrow;
+        for (int r = 0; r < nrow; ++r) {
+          const int row = ls[pi[s] + r];
+          if (row >= j) u(last - row, last - j) = col[r];
+        }
+      }
+    }
+    schur.resize(ng_, ng_);
+    if (ng_ > 0) {
+      const char uplo = 'U';
+      int info = 0;
+      dlauum_(&uplo, &ng_, u.data(), &ng_, &info);
+      if (info != 0) throw std::runtime_error("substructure: LAPACK dlauum failed");
+      for (int j = 0; j < ng_; ++j)
+        for (int i = 0; i <= j; ++i)
+          schur(ng_ - 1 - i, ng_ - 1 - j) = schur(ng_ - 1 - j, ng_ - 1 - i) = u(i, j);
+      schur.diagonal().array() -= sigma;
+    }
+    schur_seconds = Seconds(t2);
+  }
+
+  // Y = K_II⁻¹ F (#interior by m) through the factor of A_b: forward sweep on [F; 0], interface
+  // rows zeroed, backward sweep (the interior rows of both sweeps see L_II alone).
+  bool SolveInterior(const Eigen::MatrixXd& f, Eigen::MatrixXd* y) const {
+    const int ni_ = ni(), n = ni_ + ng();
+    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, f.cols());
+    for (int p = 0; p < ni_; ++p) b.row(p) = f.row(perm[p]);
+    if (!CholmodSolve(CHOLMOD_L, factor.l, &b)) return false;
+    b.bottomRows(n - ni_).setZero();
+    if (!CholmodSolve(CHOLMOD_Lt, factor.l, &b)) return false;
+    y->resize(ni_, f.cols());
+    for (int p = 0; p < ni_; ++p) y->row(perm[p]) = b.row(p);
+    return true;
+  }
+};
+
+// A block of this solver: its shared factor and where its local dofs sit globally.
+struct SubstructuredSolver::Block {
+  std::shared_ptr<const BlockFactor> factor;
+  std::vector<int> nodes;          // global node of each local node
+  std::vector<int> interior_free;  // free index of each interior dof
+  std::vector<int> interface_pos;  // Γ position of each interface dof
+  BlockStats stats;
+};
+
+// The interface system S = Σ_b S_b and its factor.
+struct SubstructuredSolver::Interface {
+  OwnedFactor factor;
+};
+
+SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
+                                         const BoundaryConditions& bcs,
+                                         const Eigen::VectorXi& element_block,
+                                         const SubstructuredSolver* reuse)
+    : bcs_(bcs), interface_(std::make_unique<Interface>()) {
+  const auto t_start = Clock::now();
+  mesh.Validate();
+  if (bcs.num_nodes() != mesh.num_nodes()) {
+    throw std::invalid_argument("SubstructuredSolver: boundary conditions are for " +
+                                std::to_string(bcs.num_nodes()) + " nodes, mesh has " +
+                                std::to_string(mesh.num_nodes()));
+  }
+  if (element_block.size() != mesh.num_elements()) {
+    throw std::invalid_argument("SubstructuredSolver: element_block has " +
+                                std::to_string(element_block.size()) + " labels, mesh has " +
+                                std::to_string(mesh.num_elements()) + " elements");
+  }
+  int nb = 0;
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    if (element_block(e) < 0) {
+      throw std::invalid_argument("SubstructuredSolver: element " + std::to_string(e) +
+                                  " has block label " + std::to_string(element_block(e)) +
+                                  "; labels must be >= 0");
+    }
+    nb = std::max(nb, element_block(e) + 1);
+    materials.Get(mesh.regions(e));
+  }
+  CheckModelConstrained(mesh, bcs);
+
+  // Free dofs as StaticSolver numbers them.
+  const int nv = mesh.num_nodes(), ndof = 3 * nv, npe = mesh.NodesPerElement();
+  free_index_.assign(ndof, -1);
+  for (int d = 0; d < ndof; ++d) {
+    if (bcs.prescribed().count(d)) continue;
+    free_index_[d] = static_cast<int>(free_dofs_.size());
+    free_dofs_.push_back(d);
+  }
+
+  // Interior (block) or interface (−2) node; −1: in no element.
+  node_block_.assign(nv, -1);
+  std::vector<std::vector<int>> block_elements(nb);
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const int b = element_block(e);
+    block_elements[b].push_back(e);
+    for (int j = 0; j < npe; ++j) {
+      int& nbk = node_block_[mesh.elements(e, j)];
+      if (nbk == -1) {
+        nbk = b;
+      } else if (nbk != b) {
+        nbk = -2;
+      }
+    }
+  }
+  interface_index_.assign(free_dofs_.size(), -1);
+  for (int i = 0; i < num_free(); ++i) {
+    if (node_block_[free_dofs_[i] / 3] != -2) continue;
+    interface_index_[i] = static_cast<int>(interface_free_.size());
+    interface_free_.push_back(i);
+  }
+
+  // Blocks of the reuse solver by key.
+  std::multimap<std::uint64_t, std::shared_ptr<const BlockFactor>> old;
+  if (reuse != nullptr) {
+    for (const Block& b : reuse->blocks_)
+      if (b.factor && b.factor->failed < 0) old.emplace(b.factor->key, b.factor);
+  }
+
+  blocks_.resize(nb);
+  stats_.num_blocks = nb;
+  std::vector<int> local_of(nv, -1);
+  for (int b = 0; b < nb; ++b) {
+    auto content = std::make_shared<BlockFactor>();
+    Block& block = blocks_[b];
+    content->npe = npe;
+    for (int e : block_elements[b]) {
+      for (int j = 0; j < npe; ++j) {
+        const int v = mesh.elements(e, j);
+        if (local_of[v] < 0) {
+          local_of[v] = static_cast<int>(block.nodes.size());
+          block.nodes.push_back(v);
+        }
+        content->connectivity.push_back(local_of[v]);
+      }
+      const Material& m = materials.Get(mesh.regions(e));
+      content->materials.push_back(m.youngs_modulus);
+      content->materials.push_back(m.poisson_ratio);
+      content->materials.push_back(static_cast<double>(static_cast<int>(m.formulation)));
+    }
+    for (int v : block.nodes) {
+      for (int i = 0; i < 3; ++i) content->positions.push_back(mesh.nodes(v, i));
+      unsigned char f = node_block_[v] == -2 ? kInterfaceFlag : 0;
+      for (int i = 0; i < 3; ++i)
+        if (free_index_[3 * v + i] < 0) f |= static_cast<unsigned char>(1u << i);
+      content->flags.push_back(f);
+      local_of[v] = -1;
+    }
+    content->HashContent();
+
+    std::shared_ptr<const BlockFactor> found;
+    for (auto [it, end] = old.equal_range(content->key); it != end; ++it) {
+      if (it->second->SameContent(*content)) {
+        found = it->second;
+        break;
+      }
+    }
+    block.stats.reused = found != nullptr;
+    if (found) {
+      block.factor = found;
+      ++stats_.reused_blocks;
+    } else {
+      content->Factor();
+      block.factor = content;
+      ++stats_.factored_blocks;
+      stats_.block_assembly_seconds += content->assembly_seconds;
+      stats_.block_factor_seconds += content->factor_seconds;
+      stats_.block_schur_seconds += content->schur_seconds;
+    }
+    const BlockFactor& bf = *block.factor;
+    for (int d : bf.interior)
+      block.interior_free.push_back(free_index_[3 * block.nodes[d / 3] + d % 3]);
+    for (int d : bf.interface)
+      block.interface_pos.push_back(interface_index_[free_index_[3 * block.nodes[d / 3] + d % 3]]);
+    k_norm_ += bf.ff_norm2;
+    block.stats.num_elements = static_cast<int>(block_elements[b].size());
+    block.stats.num_nodes = bf.num_nodes();
+    block.stats.num_interior_dofs = bf.ni();
+    block.stats.num_interface_dofs = bf.ng();
+    block.stats.factor_nonzeros = bf.factor_nonzeros;
+    block.stats.key = bf.key;
+    block.stats.assembly_seconds = bf.assembly_seconds;
+    block.stats.factor_seconds = bf.factor_seconds;
+    block.stats.schur_seconds = bf.schur_seconds;
+    if (bf.failed >= 0 && factor_status_.message.empty()) {
+      const int d = bf.interior[bf.failed];
+      const int v = block.nodes[d / 3];
+      factor_status_.message =
+          "Cholesky factorisation of block " + std::to_string(b) +
+          " failed: the stiffness of its interior is not positive definite (a mechanism inside "
+          "the block, or parts of it held only through one or two interface nodes); the first "
+          "zero pivot is the " +
+          std::string(kAxis[d % 3]) + " displacement of node " + std::to_string(v) + " at " +
+          Point(mesh.nodes.row(v).transpose());
+    }
+  }
+  k_norm_ = std::sqrt(k_norm_);
+
+  // S = Σ_b S_b, factored.
+  const auto t_s = Clock::now();
+  const int ng = static_cast<int>(interface_free_.size());
+  stats_.num_free = num_free();
+  stats_.num_interface_dofs = ng;
+  if (factor_status_.message.empty() && ng > 0) {
+    // Lower triangle of S column by column: the rows of column c are the interface dofs of
+    // the blocks that hold c (no triplet sort over Σ_b #Γ_b² entries).
+    std::vector<std::vector<std::pair<int, int>>> owners(ng);  // (block, local index)
+    for (std::size_t b = 0; b < blocks_.size(); ++b)
+      for (std::size_t j = 0; j < blocks_[b].interface_pos.size(); ++j)
+        owners[blocks_[b].interface_pos[j]].emplace_back(static_cast<int>(b), static_cast<int>(j));
+    std::vector<int> outer(ng + 1, 0), inner, mark(ng, -1), rows;
+    std::vector<double> values, sum(ng, 0.0);
+    for (int c = 0; c < ng; ++c) {
+      rows.clear();
+      for (const auto& [b, j] : owners[c]) {
+        const std::vector<int>& pos = blocks_[b].interface_pos;
+        const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
+        for (std::size_t i = 0; i < pos.size(); ++i) {
+          const int r = pos[i];
+          if (r < c) continue;
+          if (mark[r] != c) {
+            mark[r] = c;
+            sum[r] = 0.0;
+            rows.push_back(r);
+          }
+          sum[r] += sb(static_cast<Eigen::Index>(i), j);
+        }
+      }
+      std::sort(rows.begin(), rows.end());
+      for (int r : rows) {
+        inner.push_back(r);
+        values.push_back(sum[r]);
+      }
+      outer[c + 1] = static_cast<int>(inner.size());
+    }
+    const Eigen::Map<const SparseMatrixd> s(ng, ng, static_cast<Eigen::Index>(values.size()),
+                                            outer.data(), inner.data(), values.data());
+    stats_.interface_nonzeros = 2 * s.nonZeros() - ng;
+    // Order S by the blocks that share each dof (lowest, then highest block): for slabs this is
+    // plane by plane, so S is block tridiagonal and its factor fills nothing beyond the blocks,
+    // without a fill-reducing ordering of a matrix of Σ_b #Γ_b² entries (AMD took most of S's
+    // time on the platform).
+    std::vector<int> order(ng);
+    std::vector<std::pair<int, int>> pair_of(ng);
+    for (int p = 0; p < ng; ++p) {
+      order[p] = p;
+      int lo = static_cast<int>(blocks_.size()), hi = -1;
+      for (const auto& [b, j] : owners[p]) {
+        lo = std::min(lo, b);
+        hi = std::max(hi, b);
+      }
+      pair_of[p] = {lo, hi};
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return pair_of[a] < pair_of[b]; });
+    Common common;
+    common.c.supernodal = CHOLMOD_SUPERNODAL;
+    common.c.nmethods = 1;
+    common.c.method[0].ordering = CHOLMOD_GIVEN;
+    cholmod_sparse view = ViewLower(s);
+    interface_->factor.l = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common.c);
+    if (interface_->factor.l == nullptr)
+      throw std::runtime_error("substructure: CHOLMOD analysis of S failed");
+    cholmod_factorize(&view, interface_->factor.l, &common.c);
+    stats_.interface_factor_nonzeros = common.c.lnz;
+    if (interface_->factor.l->minor < interface_->factor.l->n) {
+      const int p =
+          static_cast<const int*>(interface_->factor.l->Perm)[interface_->factor.l->minor];
+      const int d = free_dofs_[interface_free_[p]];
+      factor_status_.message =
+          "Cholesky factorisation of the interface system failed: it is not positive definite "
+          "(a mechanism across blocks); the first zero pivot is the " +
+          std::string(kAxis[d % 3]) + " displacement of interface node " + std::to_string(d / 3) +
+          " at " + Point(mesh.nodes.row(d / 3).transpose());
+    }
+  }
+  stats_.interface_seconds = Seconds(t_s);
+  factor_status_.converged = factor_status_.message.empty();
+  stats_.wall_seconds = Seconds(t_start);
+}
+
+SubstructuredSolver::~SubstructuredSolver() = default;
+
+const BlockStats& SubstructuredSolver::block_stats(int b) const {
+  if (b < 0 || b >= num_blocks())
+    throw std::invalid_argument("SubstructuredSolver: no block " + std::to_string(b));
+  return blocks_[b].stats;
+}
+
+SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
+                                           const std::vector<char>* wanted,
+                                           Eigen::MatrixXd* x) const {
+  SolveStatus status;
+  if (!factor_status_.converged) {
+    status.message = factor_status_.message;
+    return status;
+  }
+  if (rhs.rows() != num_free()) {
+    status.message = "SolveFree: right-hand side has " + std::to_string(rhs.rows()) +
+                     " rows, expected " + std::to_string(num_free());
+    return status;
+  }
+  const Eigen::Index m = rhs.cols();
+  const int ng = static_cast<int>(interface_free_.size());
+  Eigen::MatrixXd g(ng, m);
+  for (int p = 0; p < ng; ++p) g.row(p) = rhs.row(interface_free_[p]);
+  std::vector<Eigen::MatrixXd> f(blocks_.size());
+  std::vector<char> loaded(blocks_.size(), 0);
+  // y_b = K_II⁻¹ f_I; g −= K_ΓI y_b.
+  for (std::size_t b = 0; b < blocks_.size(); ++b) {
+    const Block& block = blocks_[b];
+    const BlockFactor& bf = *block.factor;
+    if (bf.ni() == 0) continue;
+    f[b].resize(bf.ni(), m);
+    for (int i = 0; i < bf.ni(); ++i) f[b].row(i) = rhs.row(block.interior_free[i]);
+    loaded[b] = !f[b].isZero(0.0);
+    if (!loaded[b] || bf.ng() == 0) continue;
+    Eigen::MatrixXd y;
+    if (!bf.SolveInterior(f[b], &y)) {
+      status.message = "CHOLMOD solve failed in block " + std::to_string(b);
+      return status;
+    }
+    const Eigen::MatrixXd gy = bf.k_ig.transpose() * y;
+    for (int j = 0; j < bf.ng(); ++j) g.row(block.interface_pos[j]) -= gy.row(j);
+  }
+  // u_Γ = S⁻¹ g.
+  if (ng > 0 && !CholmodSolve(CHOLMOD_A, interface_->factor.l, &g)) {
+    status.message = "CHOLMOD solve of the interface system failed";
+    return status;
+  }
+  x->setZero(num_free(), m);
+  for (int p = 0; p < ng; ++p) x->row(interface_free_[p]) = g.row(p);
+  // u_I = K_II⁻¹ (f_I − K_IΓ u_Γ).
+  for (std::size_t b = 0; b < blocks_.size(); ++b) {
+    const Block& block = blocks_[b];
+    const BlockFactor& bf = *block.factor;
+    if (bf.ni() == 0 || (wanted != nullptr && !(*wanted)[b])) continue;
+    Eigen::MatrixXd r = f[b];
+    if (bf.ng() > 0) {
+      Eigen::MatrixXd ug(bf.ng(), m);
+      for (int j = 0; j < bf.ng(); ++j) ug.row(j) = g.row(block.interface_pos[j]);
+      r.noalias() -= bf.k_ig * ug;
+    }
+    if (r.isZero(0.0)) continue;
+    Eigen::MatrixXd u;
+    if (!bf.SolveInterior(r, &u)) {
+      status.message = "CHOLMOD solve failed in block " + std::to_string(b);
+      return status;
+    }
+    for (int i = 0; i < bf.ni(); ++i) x->row(block.interior_free[i]) = u.row(i);
+  }
+  status.converged = true;
+  return status;
+}
+
+Eigen::MatrixXd SubstructuredSolver::MultiplyFree(const Eigen::MatrixXd& x) const {
+  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(x.rows(), x.cols());
+  for (const Block& block : blocks_) {
+    const BlockFactor& bf = *block.factor;
+    const int nd = 3 * bf.num_nodes();
+    Eigen::MatrixXd xl = Eigen::MatrixXd::Zero(nd, x.cols());
+    std::vector<int> free_of(nd, -1);
+    for (int d = 0; d < nd; ++d) {
+      const int i = free_index_[3 * block.nodes[d / 3] + d % 3];
+      if (i < 0) continue;
+      free_of[d] = i;
+      xl.row(d) = x.row(i);
+    }
+    const Eigen::MatrixXd yl = bf.k * xl;
+    for (int d = 0; d < nd; ++d)
+      if (free_of[d] >= 0) y.row(free_of[d]) += yl.row(d);
+  }
+  return y;
+}
+
+Eigen::VectorXd SubstructuredSolver::MultiplyStiffness(const Eigen::VectorXd& u) const {
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(u.size());
+  for (const Block& block : blocks_) {
+    const BlockFactor& bf = *block.factor;
+    const int nd = 3 * bf.num_nodes();
+    Eigen::VectorXd ul(nd);
+    for (int d = 0; d < nd; ++d) ul(d) = u(3 * block.nodes[d / 3] + d % 3);
+    const Eigen::VectorXd yl = bf.k * ul;
+    for (int d = 0; d < nd; ++d) y(3 * block.nodes[d / 3] + d % 3) += yl(d);
+  }
+  return y;
+}
+
+SolveStatus SubstructuredSolver::SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const {
+  SolveStatus status = SolveImpl(rhs, nullptr, x);
+  if (!status.converged) return status;
+  const Eigen::MatrixXd r = rhs - MultiplyFree(*x);
+  const double denom = k_norm_ * x->norm() + rhs.norm();
+  status.residual = denom > 0.0 ? r.norm() / denom : 0.0;
+  status.converged =
+      std::isfinite(status.residual) && status.residual < StaticSolver::kResidualTolerance;
+  if (!status.converged) {
+    std::ostringstream s;
+    s << "backward error " << status.residual << " above " << StaticSolver::kResidualTolerance;
+    status.message = s.str();
+  }
+  return status;
+}
+
+SolveStatus SubstructuredSolver::SolveFreeInBlocks(const Eigen::MatrixXd& rhs,
+                                                   const std::vector<int>& blocks,
+                                                   Eigen::MatrixXd* x) const {
+  std::vector<char> wanted(blocks_.size(), 0);
+  for (int b : blocks) {
+    if (b < 0 || b >= num_blocks())
+      throw std::invalid_argument("SolveFreeInBlocks: no block " + std::to_string(b) + " (0.." +
+                                  std::to_string(num_blocks() - 1) + ")");
+    wanted[b] = 1;
+  }
+  return SolveImpl(rhs, &wanted, x);
+}
+
+StaticSolution SubstructuredSolver::Solve() const {
+  StaticSolution sol;
+  const int ndof = static_cast<int>(free_index_.size());
+  Eigen::VectorXd u_c = Eigen::VectorXd::Zero(ndof);
+  for (const auto& [d, value] : bcs_.prescribed()) u_c(d) = value;
+  const Eigen::VectorXd k_uc = MultiplyStiffness(u_c);
+  Eigen::VectorXd rhs(num_free());
+  for (int i = 0; i < num_free(); ++i) rhs(i) = bcs_.loads()(free_dofs_[i]) - k_uc(free_dofs_[i]);
+  sol.displacement = u_c;
+  if (rhs.norm() == 0.0) {
+    sol.status.converged = factor_status_.converged;
+    sol.status.message = factor_status_.message;
+  } else {
+    Eigen::MatrixXd x;
+    sol.status = SolveFree(rhs, &x);
+    if (x.size() == num_free())
+      for (int i = 0; i < num_free(); ++i) sol.displacement(free_dofs_[i]) = x(i, 0);
+  }
+  sol.reaction = MultiplyStiffness(sol.displacement) - bcs_.loads();
+  for (int d : free_dofs_) sol.reaction(d) = 0.0;
+  return sol;
+}
+
+Eigen::VectorXi SlabBlocks(const TetMesh& mesh, int axis, const std::vector<double>& planes) {
+  if (axis < 0 || axis > 2)
+    throw std::invalid_argument("SlabBlocks: axis must be 0, 1 or 2, got " + std::to_string(axis));
+  if (!std::is_sorted(planes.begin(), planes.end()))
+    throw std::invalid_argument("SlabBlocks: the planes must be sorted");
+  Eigen::VectorXi blocks(mesh.num_elements());
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    double c = 0.0;
+    for (int j = 0; j < 4; ++j) c += 0.25 * mesh.nodes(mesh.elements(e, j), axis);
+    blocks(e) =
+        static_cast<int>(std::upper_bound(planes.begin(), planes.end(), c) - planes.begin());
+  }
+  return blocks;
+}
+
+std::vector<double> EvenPlanes(const TetMesh& mesh, int axis, int count) {
+  if (axis < 0 || axis > 2)
+    throw std::invalid_argument("EvenPlanes: axis must be 0, 1 or 2, got " + std::to_string(axis));
+  std::vector<double> planes;
+  if (mesh.num_nodes() == 0 || count < 2) return planes;
+  const double lo = mesh.nodes.col(axis).minCoeff(), hi = mesh.nodes.col(axis).maxCoeff();
+  for (int i = 1; i < count; ++i) planes.push_back(lo + (hi - lo) * i / count);
+  return planes;
+}
+
+}  // namespace spidarcad::fem

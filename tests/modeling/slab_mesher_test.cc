@@ -1,0 +1,163 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// Slab-conforming meshing: the cut slabs are closed and add up to the solid, the slab meshes
+// join conformingly on the planes (every face inside the joined mesh is shared by exactly two
+// tets), and an edit inside one slab leaves the other slabs' inputs and tetrahedra bit for bit.
+#include "spidarcad/modeling/slab_mesher.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <stdexcept>
+#include <vector>
+
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/implicit_node.h"
+
+namespace spidarcad::modeling {
+namespace {
+
+constexpr double kCell = 0.01;
+
+// A 0.3 × 0.1 × 0.02 m plate with a vertical hole of radius 8 mm at x = hole_x.
+CompiledSolid PlateWithHole(double hole_x) {
+  ImplicitNode plate(BoxParams{Eigen::Vector3d(0.3, 0.1, 0.02)});
+  ImplicitNode hole(TranslateParams{Eigen::Vector3d(hole_x, 0.01, 0.0)},
+                    {ImplicitNode(CylinderParams{0.008, 0.1})});
+  return CompiledSolid::Compile(ImplicitNode(DifferenceParams{}, {plate, hole}));
+}
+
+TriangleMesh Surface(const CompiledSolid& solid) {
+  SurfaceMeshSettings s;
+  // A fixed grid (whole cells from the origin): an edit does not move it.
+  s.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.17, -0.07, -0.03), Eigen::Vector3d(0.17, 0.07, 0.03));
+  s.cell_size = kCell;
+  return MeshSurface(solid, s);
+}
+
+SlabCut Cut() {
+  SlabCut cut;
+  cut.axis = 0;
+  cut.planes = {-0.0755, 0.0245};  // off the grid planes and off the plate's faces
+  cut.snap = 0.1 * kCell;
+  return cut;
+}
+
+// Boundary faces of a tet mesh (faces of exactly one tet) and faces shared by more than two.
+struct FaceCount {
+  long boundary = 0, shared_by_more = 0, boundary_on_planes = 0;
+};
+FaceCount CountFaces(const TetMesh& mesh, const std::vector<double>& planes) {
+  std::map<std::array<int, 3>, int> faces;
+  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<int, 3> f{};
+      int n = 0;
+      for (int j = 0; j < 4; ++j)
+        if (j != skip) f[n++] = mesh.tets(j, t);
+      std::sort(f.begin(), f.end());
+      ++faces[f];
+    }
+  FaceCount count;
+  for (const auto& [f, n] : faces) {
+    if (n > 2) ++count.shared_by_more;
+    if (n != 1) continue;
+    ++count.boundary;
+    for (double c : planes)
+      if (mesh.nodes(0, f[0]) == c && mesh.nodes(0, f[1]) == c && mesh.nodes(0, f[2]) == c)
+        ++count.boundary_on_planes;
+  }
+  return count;
+}
+
+TEST(SlabMesher, SlabsAreClosedAndJoinConformingly) {
+  const TriangleMesh surface = Surface(PlateWithHole(0.1));
+  const SlabSurfaces slabs = CutSurfaceIntoSlabs(surface, Cut());
+  ASSERT_EQ(slabs.slabs.size(), 3u);
+  ASSERT_EQ(slabs.sections.size(), 2u);
+  double volume = 0.0;
+  std::vector<TetMesh> tets;
+  for (const TriangleMesh& s : slabs.slabs) {
+    EXPECT_NO_THROW(CheckSurface(s));
+    volume += MeshVolume(s);
+    TetMeshSettings ts;
+    ts.max_radius_edge = 2.0;
+    tets.push_back(TetrahedralizeSlab(s, ts));
+    EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
+  }
+  // The slabs add up to the solid (the cut and the snap keep the volume to rounding: a snapped
+  // vertex moves along the axis by at most `snap`, which changes the volume a little).
+  EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
+  // Each section is the plate's 0.1 × 0.02 m cross-section (the hole lies in the middle slab).
+  for (const TriangleMesh& section : slabs.sections) {
+    double area = 0.0;
+    for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
+      const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
+                            b = section.vertices.col(section.triangles(1, f)),
+                            c = section.vertices.col(section.triangles(2, f));
+      area += 0.5 * (b - a).cross(c - a).x();  // counter-clockwise seen from +x: positive
+    }
+    // Marching tetrahedra chamfers the section's four edges by up to a cell.
+    EXPECT_NEAR(area, 0.1 * 0.02, 0.15 * 0.002);
+    std::printf("section area %.4e m^2 (0.1 x 0.02 = 2e-3), %ld triangles\n", area,
+                static_cast<long>(section.triangles.cols()));
+  }
+  const SlabTetMesh joined = JoinSlabs(tets);
+  EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
+  const FaceCount faces = CountFaces(joined.mesh, Cut().planes);
+  EXPECT_EQ(faces.shared_by_more, 0);
+  EXPECT_EQ(faces.boundary_on_planes, 0);  // the planes are inside the joined mesh
+  long surface_faces = 0;
+  for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
+  for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
+  EXPECT_EQ(faces.boundary, surface_faces);
+  for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
+    ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
+}
+
+TEST(SlabMesher, EditInsideOneSlabLeavesTheOtherSlabsBitForBit) {
+  // The hole moves by 6 mm inside the middle slab (x from −0.0755 to 0.0245).
+  const SlabSurfaces before = CutSurfaceIntoSlabs(Surface(PlateWithHole(-0.03)), Cut());
+  const SlabSurfaces after = CutSurfaceIntoSlabs(Surface(PlateWithHole(-0.024)), Cut());
+  ASSERT_EQ(before.slabs.size(), after.slabs.size());
+  EXPECT_NE(SurfaceHash(before.slabs[1]), SurfaceHash(after.slabs[1]));
+  for (int k : {0, 2}) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(SurfaceHash(before.slabs[k]), SurfaceHash(after.slabs[k]));
+    TetMeshSettings ts;
+    ts.max_radius_edge = 2.0;
+    const TetMesh a = TetrahedralizeSlab(before.slabs[k], ts);
+    const TetMesh b = TetrahedralizeSlab(after.slabs[k], ts);
+    ASSERT_EQ(a.nodes.cols(), b.nodes.cols());
+    ASSERT_EQ(a.tets.cols(), b.tets.cols());
+    EXPECT_TRUE((a.nodes.array() == b.nodes.array()).all());
+    EXPECT_TRUE((a.tets.array() == b.tets.array()).all());
+  }
+  for (int p : {0, 1}) EXPECT_EQ(SurfaceHash(before.sections[p]), SurfaceHash(after.sections[p]));
+}
+
+TEST(SlabMesher, RefusesBadCutsAndAPlaneOnAFace) {
+  const TriangleMesh surface = Surface(PlateWithHole(0.1));
+  SlabCut bad = Cut();
+  bad.axis = 3;
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad = Cut();
+  bad.planes = {0.0, 0.0};
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad = Cut();
+  bad.snap = -1.0;
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  // A plane on the plate's top face z = 0.01 (axis z), where triangles lie in the plane.
+  bad = Cut();
+  bad.axis = 2;
+  bad.planes = {0.01};
+  bad.snap = 1e-6;
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace spidarcad::modeling
