@@ -123,6 +123,28 @@ TEST(VirtualClockWindow, GivesRunsCsvForTheAssemblyPickUp) {
   EXPECT_NE(out.find("carried: right_leg"), std::string::npos) << out;
 }
 
+// The emergency stop (--estop-frame, as Space) acts on the run's loop: zero force and the
+// emergency_stop bit (4) from the frame it is pressed at (16 ticks a frame), none before.
+TEST(VirtualClockWindow, EmergencyStopZeroesTheRunsForceFromItsFrame) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const std::string csv = TestOutputPath("vclock_estop.csv");
+  const auto window = RunSpidarcad("demo --clock virtual --size 400x300 --estop-frame 20 --out '" +
+                                       csv + "' --trajectory " + TrajectoryPrefix("press", 0.8),
+                                   "", "estop");
+  ASSERT_EQ(window.status, 0) << window.out << window.err;
+  const spidarcad::test_support::CsvTable table = spidarcad::test_support::ReadCsvTable(csv);
+  const int events = table.Column("events"), fz = table.Column("fz");
+  // Frame 20 is pressed before its ticks run: ticks 19 * 16 = 304 on are stopped.
+  for (std::size_t k = 0; k < table.rows.size(); ++k) {
+    const bool stopped = (static_cast<unsigned>(table.rows[k][events]) & (1u << 4)) != 0;
+    EXPECT_EQ(stopped, k >= 304) << "tick " << k;
+    if (stopped) {
+      EXPECT_EQ(table.rows[k][fz], 0.0) << "tick " << k;
+    }
+  }
+  EXPECT_NE(table.rows[303][fz], 0.0) << "the spring pulled before the stop";
+}
+
 TEST(VirtualClockWindow, NeedsATrajectoryAndAnOutputAndRefusesUsb) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const auto no_out = RunSpidarcad(

@@ -364,6 +364,9 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
                            "spidarcad: error: --clock virtual: not with --device usb (a real "
                            "board runs in real time); use simulated, ideal or board-sim");
   }
+  if (!virtual_clock && !options.out.empty()) {
+    throw WindowStartError(2, "spidarcad: error: --out: only with --clock virtual (the run's CSV)");
+  }
   if (virtual_clock && !options.set_fields.empty()) {
     throw WindowStartError(2,
                            "spidarcad: error: --set: not with --clock virtual (the run is built "
@@ -685,6 +688,7 @@ bool AppWindow::Frame() {
   HandleInput();
   if (s.options.estop_frame > 0 && s.frame_index == s.options.estop_frame) {
     s.runtime->EmergencyStop();
+    if (s.scripted) s.scripted->EmergencyStop(true);
   }
   FollowTarget();
   s.latest = s.scripted ? s.scripted->run().frame() : s.runtime->Latest();
@@ -873,7 +877,10 @@ void AppWindow::HandleInput() {
     if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_N, false)) s.actions.file_new = true;
     if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_O, false)) s.actions.file_open = true;
     if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_I, false)) s.actions.file_import = true;
-    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) s.runtime->EmergencyStop();
+    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) {
+      s.runtime->EmergencyStop();
+      if (s.scripted) s.scripted->EmergencyStop(true);
+    }
     if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
     if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
     if (ImGui::IsKeyPressed(GLFW_KEY_R, false) && !io.KeyCtrl) grip.Reset();
@@ -1133,6 +1140,7 @@ void AppWindow::ApplyActions() {
   if (w.calibrate) s.calibration.Open();
   if (w.emergency_stop) s.runtime->EmergencyStop();
   if (w.rearm) s.runtime->Rearm();
+  if (s.scripted && (w.emergency_stop || w.rearm)) s.scripted->EmergencyStop(w.emergency_stop);
   if (s.republish) PublishScene();
 }
 

@@ -36,6 +36,8 @@ class VirtualClock {
   void Finish(std::ostream* summary);
   bool finished() const { return finished_; }
   const ScriptedRun& run() const { return *run_; }
+  // The window's emergency stop (Space, the panel's button) and its release, on the run's loop.
+  void EmergencyStop(bool stop) { run_->EmergencyStop(stop); }
 
  private:
   std::unique_ptr<ScriptedRun> run_;

@@ -904,6 +904,14 @@ void ScriptedRun::Finish() {
   s.stroking = -1;
 }
 
+void ScriptedRun::EmergencyStop(bool stop) {
+  if (stop) {
+    impl_->loop->RequestEmergencyStop();
+  } else {
+    impl_->loop->ClearEmergencyStop();
+  }
+}
+
 std::string ScriptedRun::Summary() const {
   const Impl& s = *impl_;
   std::ostringstream out;

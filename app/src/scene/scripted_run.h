@@ -107,6 +107,9 @@ class ScriptedRun {
   void Step(std::string* csv);
   // After the last tick: ends every stroke still under way (as if the grasp opened there).
   void Finish();
+  // Latches (true) or releases (false) the loop's emergency stop: zero force from the next tick
+  // (HapticLoop::RequestEmergencyStop), forces back through the ramp after the release.
+  void EmergencyStop(bool stop);
 
   // The summary printed by `run` after the ticks: the "run: N ticks ..." line, link,
   // calibration, fields, FE, sculpt, frame, X_WD, tick time, safety events, the largest force
