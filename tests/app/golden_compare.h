@@ -42,6 +42,34 @@ inline std::vector<std::string> SplitCsvLine(const std::string& line) {
   return fields;
 }
 
+// The lines of a CSV file (a header line first) with the columns named in `dropped` removed
+// (as the header names them), each line's fields joined by commas again: for comparing two
+// runs' outputs byte for byte but for their wall-clock columns. Empty when the file is missing.
+inline std::vector<std::string> CsvLinesWithout(const std::string& path,
+                                                const std::vector<std::string>& dropped) {
+  std::ifstream in(path);
+  std::string line;
+  std::vector<std::string> lines;
+  std::vector<bool> keep;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> fields = SplitCsvLine(line);
+    if (keep.empty()) {
+      for (const std::string& f : fields) {
+        bool drop = false;
+        for (const std::string& d : dropped) drop = drop || f == d;
+        keep.push_back(!drop);
+      }
+    }
+    std::string joined;
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      if (i < keep.size() && !keep[i]) continue;
+      joined += (joined.empty() ? "" : ",") + fields[i];
+    }
+    lines.push_back(joined);
+  }
+  return lines;
+}
+
 // Parses a table; `source` names it in errors. Throws std::runtime_error naming the source,
 // line and column of a field that is not a number or a row of the wrong length.
 inline CsvTable ParseCsvTable(std::istream& in, const std::string& source) {

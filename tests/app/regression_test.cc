@@ -345,6 +345,31 @@ TEST(Regression, PlatformFeGrabWithGrabTwistMatchesGolden) {
   EXPECT_NE(out.find(" 0 ticks read a substitute column"), std::string::npos) << out;
 }
 
+// The board-sim device through a faulty link (--link-loss 0.002 --link-corruption 0.002
+// --link-seed 3) on the demo press, its cable pulled at t = 1.7 s (the floor pushing) and put
+// back at 1.8 s. The link
+// columns link_status, plugged, link_lost and link_corrupt are compared exactly. Frozen after
+// checking the run (ScriptedRun.BoardSimUnpluggedGivesZeroForceAndRampsBackAfterTheReplug in
+// tests/app/scripted_run_test.cc checks the same run): zero force (device_error, bit 2) on
+// every tick while unplugged and until the driver has re-handshaken after the replug; from
+// then the force ramps in from zero (bit 8), never faster than the loop's 0.5 s ramp; States lost
+// and corrupt in the driver's counters (and its summary line); two runs write the same CSV but
+// for tick_us.
+TEST(Regression, BoardSimThroughLossAndAnUnplugMatchesGolden) {
+  std::vector<SignalTolerance> tolerances = Tolerances();
+  for (const char* c : {"link_status", "plugged", "link_lost", "link_corrupt"})
+    tolerances.push_back({c, 0.0, ""});
+  std::string out;
+  RunAndCompare("demo_press_board_faults",
+                "demo --trajectory " + Asset("trajectories/press.csv") +
+                    " --device board-sim --link-loss 0.002 --link-corruption 0.002 --link-seed 3 "
+                    "--unplug 1.7 --replug 1.8",
+                &out, tolerances);
+  EXPECT_NE(out.find("link faults: loss 0.002, corruption 0.002 per packet (seed 3)"),
+            std::string::npos)
+      << out;
+}
+
 CsvTable SmallTable() {
   CsvTable t;
   t.columns = {"t", "x", "fx", "events"};

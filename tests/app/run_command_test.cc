@@ -482,8 +482,9 @@ TEST(RunCommand, UsbDeviceWithNothingAttachedExitsTwoNamingWhatToCheck) {
   const CommandRun bad =
       RunSpidarcad("demo --trajectory '" + traj + "' --out '" + out + "' --device bogus", "bogus");
   EXPECT_EQ(bad.status, 2);
-  EXPECT_NE(bad.err.find("--device: 'bogus' is not a device; use simulated, board-sim or usb"),
-            std::string::npos)
+  EXPECT_NE(
+      bad.err.find("--device: 'bogus' is not a device; use simulated, ideal, board-sim or usb"),
+      std::string::npos)
       << bad.err;
 }
 

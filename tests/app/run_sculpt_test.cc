@@ -29,6 +29,7 @@
 
 #include "doc/document.h"
 #include "golden_compare.h"
+#include "sculpt_test_support.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 #include "spidarcad_runner.h"
 
@@ -56,16 +57,7 @@ TriangleMesh ClayOf(const std::string& path) {
 }
 
 // Enclosed volume by the divergence theorem, summed here (m³).
-double Volume(const TriangleMesh& m) {
-  double v = 0.0;
-  for (Eigen::Index t = 0; t < m.triangles.cols(); ++t) {
-    const Eigen::Vector3d a = m.vertices.col(m.triangles(0, t));
-    const Eigen::Vector3d b = m.vertices.col(m.triangles(1, t));
-    const Eigen::Vector3d c = m.vertices.col(m.triangles(2, t));
-    v += a.dot(b.cross(c)) / 6.0;
-  }
-  return v;
-}
+double Volume(const TriangleMesh& m) { return spidarcad::test_support::EnclosedVolume(m); }
 
 struct SculptRun {
   CsvTable csv;

@@ -50,6 +50,7 @@
 #include "gui/panels.h"
 #include "gui/scene_view.h"
 #include "gui/tree_panel.h"
+#include "gui/virtual_clock.h"
 #include "gui/workbench_panels.h"
 #include "scene/assembly_scene.h"
 #include "scene/device_session.h"
@@ -264,6 +265,9 @@ struct AppWindow::State {
   // --trajectory.
   std::unique_ptr<TrajectoryPlayer> player;
   bool player_live = false;
+  // --clock virtual: the scripted run that is felt and stepped, frame by frame (null: wall).
+  std::unique_ptr<VirtualClock> scripted;
+  int scripted_end_frame = 0;  // the frame that finished it (a screenshot is taken after it)
   // Frame state.
   const haptics::SpidarGeometry* geometry = nullptr;
   WindowLayout layout;
@@ -349,13 +353,35 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     const haptics::TrajectorySample first = s.trajectory.Sample(s.trajectory.start_time());
     s.grip->SetPose(first.p_DT, first.q_DT.toRotationMatrix(), first.grasp);
   }
+  const bool virtual_clock = options.clock == "virtual";
+  if (virtual_clock && (options.trajectory.empty() || options.out.empty())) {
+    throw WindowStartError(2,
+                           "spidarcad: error: --clock virtual: needs --trajectory T.csv and "
+                           "--out R.csv (the run's trajectory and its CSV)");
+  }
+  if (virtual_clock && options.device == "usb") {
+    throw WindowStartError(2,
+                           "spidarcad: error: --clock virtual: not with --device usb (a real "
+                           "board runs in real time); use simulated, ideal or board-sim");
+  }
+  if (!virtual_clock && !options.out.empty()) {
+    throw WindowStartError(2, "spidarcad: error: --out: only with --clock virtual (the run's CSV)");
+  }
+  if (virtual_clock && !options.set_fields.empty()) {
+    throw WindowStartError(2,
+                           "spidarcad: error: --set: not with --clock virtual (the run is built "
+                           "from the file as saved, as `spidarcad run` builds it)");
+  }
   // The recent list and the autosaver; a recovery file newer than the document is recovered
   // (--recover), deleted (--no-recover) or offered in the window (not in --screenshot runs).
   s.recent = std::make_unique<RecentFiles>();
   s.recent->Load();
   ResetAutosaver();
+  // On the virtual clock, SCENE means what it means to `spidarcad run`: 'demo' is run's demo
+  // fields (the window shows no document then), the file as saved (no recovery offered).
   const std::string source = DefaultSceneFor(options);
   FindRecoveryOffer(source);
+  if (virtual_clock) s.recovery_offer.reset();
   std::string load_from = source;
   std::optional<std::string> recovered_original;
   if (s.recovery_offer && options.recover == 1) {
@@ -375,7 +401,32 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   s.assembly = LoadAssemblyScene(load_from, &s.assembly_scene);
   try {
     const DeviceToWorld identity;
-    s.model.Load(load_from, s.grip->limits(), s.assembly ? &identity : nullptr);
+    s.model.Load(virtual_clock && load_from == kDemoSceneName ? kNoSceneName : load_from,
+                 s.grip->limits(), s.assembly ? &identity : nullptr);
+  } catch (const std::exception& e) {
+    throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
+  }
+  if (virtual_clock) {
+    // The scripted run, on the document just opened (before the window adopts a version 1
+    // assembly's parts), with `run`'s options; the view takes its X_WD.
+    ScriptedRunOptions run = options.run;
+    run.scene = load_from == kNoSceneName ? "" : load_from;
+    run.trajectory = options.trajectory;
+    run.device = options.device;
+    run.seed = options.seed;
+    run.geometry = options.geometry;
+    run.geometry_given = options.geometry_given;
+    run.calibration = options.calibration;
+    const bool file = !(run.scene.empty() || run.scene == kDemoSceneName);
+    try {
+      s.scripted =
+          std::make_unique<VirtualClock>(run, file ? &s.model.document() : nullptr, options.out);
+    } catch (const InputError& e) {
+      throw WindowStartError(2, std::string("spidarcad: error: ") + e.what());
+    }
+    s.model.set_device_to_world(s.scripted->run().X_WD());
+  }
+  try {
     AdoptParts(&s.model);
   } catch (const std::exception& e) {
     throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
@@ -417,6 +468,12 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   }
   s.runtime_settings.calibration_file = options.calibration;
   s.runtime_settings.usb_transport = options.usb_transport;
+  if (s.scripted) {
+    // The scripted run has the device; the window's runtime only lends the view its geometry
+    // and is never started.
+    s.runtime_settings.device = RuntimeDevice::kIdeal;
+    s.runtime_settings.calibration_file.clear();
+  }
   try {
     s.runtime_settings.geometry.Validate();
   } catch (const std::invalid_argument& e) {
@@ -446,7 +503,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   glfwSetWindowUserPointer(s.window, this);
   glfwSetDropCallback(s.window, OnDrop);
   s.capture = !options.screenshot.empty();
-  glfwSwapInterval(s.capture || options.frames > 0 ? 0 : 1);
+  glfwSwapInterval(s.capture || options.frames > 0 || s.scripted ? 0 : 1);
 
   // The haptic runtime (its own 1 kHz thread, started once the modes have published) and jobs.
   try {
@@ -511,7 +568,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
 
   // --trajectory: played into the hand's target from here on (its own thread, 1 kHz); the main
   // thread takes the target back (the mouse's grip, set to the last sample) once it has ended.
-  if (!s.trajectory.empty()) {
+  if (!s.trajectory.empty() && !s.scripted) {
     const double d = s.geometry->d;
     HapticRuntime* runtime = s.runtime.get();
     s.player = std::make_unique<TrajectoryPlayer>(
@@ -561,6 +618,14 @@ int AppWindow::Run() {
   while (Frame()) {
   }
   s.runtime->Stop();
+  if (s.scripted && !s.scripted->finished() && s.exit_status == 0) {
+    // Closed before the trajectory's end: no CSV (the temporary goes with the run).
+    std::cerr << "spidarcad: --clock virtual: the window closed after "
+              << s.scripted->run().ticks_done() << " of " << s.scripted->run().ticks() << " ticks; "
+              << s.options.out << " not written\n";
+    s.exit_status = 1;
+    s.print_summary = false;
+  }
   // A normal end (Quit answered, or a scripted run's last frame): this session's autosave goes.
   DiscardRecovery();
   if ((s.capture || s.options.frames > 0) && s.print_summary) {
@@ -623,11 +688,14 @@ bool AppWindow::Frame() {
   HandleInput();
   if (s.options.estop_frame > 0 && s.frame_index == s.options.estop_frame) {
     s.runtime->EmergencyStop();
+    if (s.scripted) s.scripted->EmergencyStop(true);
   }
   FollowTarget();
-  s.latest = s.runtime->Latest();
+  s.latest = s.scripted ? s.scripted->run().frame() : s.runtime->Latest();
   s.calibration.Update();
-  s.device_frame = MakeDeviceFrame(s.latest, *s.geometry, s.runtime->description());
+  s.device_frame = MakeDeviceFrame(
+      s.latest, *s.geometry,
+      s.scripted ? std::string("scripted run (virtual clock)") : s.runtime->description());
   s.view->Update(s.device_frame);
   PollJobs();
   // In model mode a mesh made from a solid, selected in the tree, is drawn in its solid's place.
@@ -702,9 +770,24 @@ bool AppWindow::Frame() {
   ApplyActions();
   ImGui::Render();
   RenderFrame();
+  if (s.scripted && s.scripted->done() && !s.scripted->finished()) {
+    // The run's last tick is drawn: its CSV and summary, then the screenshot (if any) and exit.
+    try {
+      s.scripted->Finish(&std::cout);
+      std::cout << std::flush;
+    } catch (const InputError& e) {
+      std::cerr << "spidarcad: error: " << e.what() << "\n";
+      s.exit_status = 2;
+    }
+    s.print_summary = false;
+    s.scripted_end_frame = s.frame_index;
+    if (!s.capture) s.done = true;
+  }
   if (CaptureScreenshot()) return false;
+  if (s.done) return false;
   glfwSwapBuffers(s.window);
-  const bool trajectory_over = s.player == nullptr || s.player->finished(0.5);
+  // --frames: at least until a trajectory has ended; on the virtual clock the run's end decides.
+  const bool trajectory_over = (s.player == nullptr || s.player->finished(0.5)) && !s.scripted;
   if (!s.capture && s.last_frame > 0 && s.frame_index >= s.last_frame && trajectory_over) {
     return false;
   }
@@ -794,7 +877,10 @@ void AppWindow::HandleInput() {
     if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_N, false)) s.actions.file_new = true;
     if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_O, false)) s.actions.file_open = true;
     if (io.KeyCtrl && ImGui::IsKeyPressed(GLFW_KEY_I, false)) s.actions.file_import = true;
-    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) s.runtime->EmergencyStop();
+    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) {
+      s.runtime->EmergencyStop();
+      if (s.scripted) s.scripted->EmergencyStop(true);
+    }
     if (ImGui::IsKeyPressed(GLFW_KEY_LEFT_BRACKET)) grip.AdjustGrasp(-kGraspStep);
     if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT_BRACKET)) grip.AdjustGrasp(kGraspStep);
     if (ImGui::IsKeyPressed(GLFW_KEY_R, false) && !io.KeyCtrl) grip.Reset();
@@ -823,6 +909,22 @@ void AppWindow::HandleInput() {
 
 void AppWindow::FollowTarget() {
   State& s = *s_;
+  if (s.scripted) {
+    // The virtual clock: the scripted run's next ticks; the grip is drawn where its hand is.
+    if (!s.scripted->done()) {
+      try {
+        s.scripted->StepFrame();
+      } catch (const InputError& e) {
+        std::cerr << "spidarcad: error: " << e.what() << "\n";
+        s.exit_status = 2;
+        s.print_summary = false;
+        s.done = true;
+      }
+    }
+    const haptics::GripPose& hand = s.scripted->run().frame().hand_pose;
+    s.grip->SetPose(hand.p0, hand.Rotation(), hand.Grasp());
+    return;
+  }
   // The hand follows the mouse's grip (or the trajectory); the haptic thread's latest tick is
   // what we show.
   const auto wave = s.player_live ? std::nullopt : s.calibration.WaveTarget(s.latest.tool.time);
@@ -864,7 +966,7 @@ void AppWindow::PollJobs() {
     }
   }
   s.jobs->Prune();
-  if (s.frame_index % kReloadCheckFrames == 0 && s.model.SourceChanged()) {
+  if (s.frame_index % kReloadCheckFrames == 0 && !s.scripted && s.model.SourceChanged()) {
     try {
       s.jobs->CancelAll();
       s.model.Load(s.model.source(), s.grip->limits(), &s.model.device_to_world());
@@ -971,6 +1073,10 @@ void AppWindow::DrawFiguresStrip() {
   s.workbench.show_figures = !ImGui::IsWindowCollapsed();
   s.figures_applied = s.workbench.show_figures;
   s.stats = CollectLoopStats(*s.runtime, s.latest);
+  if (s.scripted) {  // the virtual clock: the scripted run's loop, not the idle runtime's
+    s.stats.ticks = static_cast<std::uint64_t>(s.scripted->run().ticks_done());
+    s.stats.events = s.scripted->run().loop().event_counts();
+  }
   s.panel_actions = PanelActions{};
   if (open) {
     PanelContext context;
@@ -1034,6 +1140,7 @@ void AppWindow::ApplyActions() {
   if (w.calibrate) s.calibration.Open();
   if (w.emergency_stop) s.runtime->EmergencyStop();
   if (w.rearm) s.runtime->Rearm();
+  if (s.scripted && (w.emergency_stop || w.rearm)) s.scripted->EmergencyStop(w.emergency_stop);
   if (s.republish) PublishScene();
 }
 
@@ -1083,6 +1190,10 @@ void AppWindow::RenderFrame() {
 bool AppWindow::CaptureScreenshot() {
   State& s = *s_;
   if (!s.capture || s.frame_index < s.last_frame) return false;
+  // The virtual clock: the run's last frame (its jobs and modes are not what is felt).
+  // One frame more, so that the modes show what the run's last strokes left in the document.
+  if (s.scripted && (!s.scripted->finished() || s.frame_index <= s.scripted_end_frame))
+    return false;
   // A screenshot waits (within kSettleTimeout) for the preview meshes, for the modes' parts to
   // be live (Mode::Settled) and for the loop to settle: force ramp complete, or the stop's zero
   // force in effect.
@@ -1097,7 +1208,7 @@ bool AppWindow::CaptureScreenshot() {
                                     s.latest.link.status == haptics::DeviceStatus::kNotConnected);
   // A calibration session (--show calibrate) may take minutes: it is waited for longer.
   const double timeout = s.calibration.busy() ? kCalibrationTimeout : kSettleTimeout;
-  const bool waited_enough = settled || glfwGetTime() - s.start_time > timeout;
+  const bool waited_enough = settled || s.scripted || glfwGetTime() - s.start_time > timeout;
   // A trajectory's outcome: the capture waits until it has ended (+0.5 s).
   const bool trajectory_over = s.player == nullptr || s.player->finished(0.5);
   if (!waited_enough || !trajectory_over) return false;
@@ -1153,6 +1264,8 @@ void AppWindow::MakeModes() {
   fe->fe().SetWorldToView(X_WD);
   auto sculpt = std::make_unique<SculptWindowMode>(renderer, s.jobs.get());
   sculpt->sculpt().SetWorldToView(X_WD);
+  // The virtual clock: the scripted run sculpts; the mode draws the clay as the run leaves it.
+  sculpt->sculpt().set_strokes_enabled(s.scripted == nullptr);
   // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
   // them; the SceneView's static actors of the part solids (at their frame origins) are hidden.
   auto assembly = std::make_unique<AssemblyWindowMode>(renderer);
@@ -1186,18 +1299,29 @@ void AppWindow::StartScene(const std::string& mode_key) {
   Mode* start = FindMode(mode_key);
   if (start != nullptr && start != s.model_mode) {
     s.active = start;
-    start->Launch();
+    // On the virtual clock the run builds what is felt: the mode is entered without its demo
+    // set-up (no FE precompute of its own).
+    if (s.scripted) {
+      start->Enter();
+    } else {
+      start->Launch();
+    }
   } else {
     s.active = BaseMode();
     s.active->Enter();
   }
   for (auto& m : s.modes) m->TakeSceneChanged();
   PublishScene();
-  s.runtime->Start();
+  if (!s.scripted) s.runtime->Start();
 }
 
 bool AppWindow::ReplaceDocument(const std::string& source, const std::string* recovered_original) {
   State& s = *s_;
+  if (s.scripted) {  // the run acts on this document until its last tick
+    s.file_error = "a scripted run on the virtual clock uses this document until it ends";
+    s.file_error_popup = true;
+    return false;
+  }
   // Load first: a file that fails leaves the document, the loop and the modes as they were.
   modeling::Scene assembly_scene;
   const bool assembly = LoadAssemblyScene(source, &assembly_scene);

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "scene/scripted_run.h"
 #include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/usb_transport.h"
 
@@ -41,6 +42,17 @@ struct GuiOptions {
   // When set: a trajectory CSV (haptics/trajectory.h) the hand's target follows instead of the
   // mouse, in wall-clock time from the first frame (the grip starts at its first sample).
   std::string trajectory;
+  // --clock: "wall" (the default: the haptic loop runs on its 1 kHz thread, --trajectory is
+  // played in wall-clock time) or "virtual" (with --trajectory and --out: the scripted run of
+  // `spidarcad run`, scene/scripted_run.h, built from the same document and options and stepped
+  // tick by tick in the window's process, one frame per kSculptFrameTicks ticks; at the end
+  // its CSV is written, its summary printed, and the window exits).
+  std::string clock = "wall";
+  // --out (--clock virtual): the run's CSV, the columns of `spidarcad run --out`.
+  std::string out;
+  // --clock virtual: the options shared with `spidarcad run` (AddScriptedRunOptions); SCENE,
+  // --trajectory, --device, --seed, --frame/--pole and --calibration are the window's own.
+  ScriptedRunOptions run;
   // Starting pose of the hand: x, y, z (mm), roll, pitch, yaw (deg), grasp (deg), in D.
   std::array<double, 7> grip = {0, 0, 0, 0, 0, 0, 90};
   // --select: the solid or node selected in the tree panel at start (a solid's name, a node's

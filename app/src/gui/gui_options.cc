@@ -10,6 +10,7 @@
 
 #include "gui/gui.h"
 #include "scene/haptic_runtime.h"
+#include "scene/scripted_run_options.h"
 
 namespace spidarcad::app {
 
@@ -137,6 +138,22 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "time from the first frame, then holds its last sample and the mouse takes over; "
                  "the grip starts at its first sample. --screenshot waits until it has ended "
                  "(+0.5 s), --frames runs at least that long.");
+  CLI::Option* clock =
+      app.add_option("--clock", options->clock,
+                     "'wall' (default) or 'virtual': with --trajectory T.csv --out R.csv the "
+                     "window steps `spidarcad run`'s session tick by tick on its virtual clock "
+                     "(the same document, fields and options: --world-scale, --world-origin, "
+                     "--fe-grab, --fe-grasp, --sculpt-tool, --calibrate, ... as `spidarcad run`), "
+                     "renders a frame every 16 ticks, writes the same CSV as `spidarcad run` "
+                     "(tick_us aside) and exits")
+          ->check(CLI::IsMember({"wall", "virtual"}));
+  app.add_option("--out", options->out,
+                 "With --clock virtual: the run's CSV, one row per tick (as `spidarcad run --out`)")
+      ->needs(clock);
+  for (CLI::Option* option : AddScriptedRunOptions(app, &options->run)) {
+    option->needs(clock);
+    option->group("Scripted run (with --clock virtual; see `spidarcad run --help`)");
+  }
   app.add_option("--screenshot", options->screenshot,
                  "Render a few frames, write the window (scene and panel) to this PNG and exit");
   app.add_option("--frames", options->frames, "Exit after this many frames (0: run until closed)")

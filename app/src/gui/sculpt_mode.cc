@@ -199,7 +199,7 @@ void SculptMode::OnFrame(const haptics::ToolState& tool) {
     key_held = ImGui::IsKeyDown(GLFW_KEY_G);
   }
   try {
-    last_event_ = session_.Step(tool.tool_W, key_held);
+    last_event_ = strokes_enabled_ ? session_.Step(tool.tool_W, key_held) : SculptFrameEvent::kIdle;
   } catch (const std::exception& e) {
     message_ = e.what();
     last_event_ = SculptFrameEvent::kIdle;

@@ -108,6 +108,9 @@ class SculptMode {
   SculptSession& session() { return session_; }
   // True while a stroke is under way (the grasp is closed on the clay).
   bool stroke_active() const { return session_.stroke_active(); }
+  // Off: OnFrame runs no stroke of its own (the clay and the marker are still drawn): the
+  // window on the virtual clock, whose sculpt objects the scripted run sculpts. On by default.
+  void set_strokes_enabled(bool on) { strokes_enabled_ = on; }
   // Wall time of the last OnFrame's display update (stroke step + VTK arrays), ms.
   double last_frame_ms() const { return last_frame_ms_; }
 
@@ -129,6 +132,7 @@ class SculptMode {
   SculptSession session_;
   std::unique_ptr<Vtk> vtk_;
   bool active_ = false;
+  bool strokes_enabled_ = true;
   bool field_pending_ = false;
   std::uint64_t shown_revision_ = ~std::uint64_t{0};
   haptics::DeviceToWorld X_WD_;

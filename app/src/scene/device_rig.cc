@@ -91,7 +91,8 @@ class BoardSimRig final : public DeviceRig {
   explicit BoardSimRig(const RigOptions& options)
       : seed_(options.device.seed),
         board_(BoardConfigFor(options.device)),
-        driver_(MakeLoopback(&board_, &loopback_), board_.device().info(), options.usb) {}
+        driver_(MakeLoopback(&board_, options.link_faults, &loopback_), board_.device().info(),
+                options.usb) {}
   const haptics::DeviceInfo& info() const override { return driver_.info(); }
   haptics::SimulatedSpidarG* physical() override { return &board_.device(); }
   bool Start(const haptics::GripPose& initial) override {
@@ -144,8 +145,9 @@ class BoardSimRig final : public DeviceRig {
     return config;
   }
   static std::unique_ptr<haptics::usb::Transport> MakeLoopback(
-      haptics::usb::BoardSimulator* board, haptics::usb::LoopbackTransport** out) {
-    auto link = std::make_unique<haptics::usb::LoopbackTransport>(board);
+      haptics::usb::BoardSimulator* board, const haptics::usb::LinkFaults& faults,
+      haptics::usb::LoopbackTransport** out) {
+    auto link = std::make_unique<haptics::usb::LoopbackTransport>(board, faults);
     *out = link.get();
     return link;
   }

@@ -24,6 +24,7 @@
 #include <string>
 #include <thread>
 
+#include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/device.h"
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/simulated_device.h"
@@ -59,6 +60,9 @@ struct RigOptions {
   haptics::SimulatedDeviceConfig device;
   // board-sim, usb: the driver's timeouts and recovery policy.
   haptics::usb::UsbDeviceConfig usb;
+  // board-sim: the faults the loopback link injects (loss, corruption, reordering, stalls;
+  // seeded). None by default.
+  haptics::usb::LinkFaults link_faults;
   // usb: re-open the board off the tick. The driver's in-tick reconnect is then disabled
   // (re-opening libusb allocates) and a failed link is handed to Service(), which a non-real-
   // time thread calls every service_interval() s (usb.reconnect_every sample periods).

@@ -180,6 +180,8 @@ class SceneModel {
 
   const std::vector<SceneObject>& objects() const { return objects_; }
   const DeviceToWorld& device_to_world() const { return x_wd_; }
+  // Replaces X_WD (the window on the virtual clock takes the scripted run's, scripted_run.h).
+  void set_device_to_world(const DeviceToWorld& x_wd) { x_wd_ = x_wd; }
   const std::string& source() const { return source_; }
   const std::string& description() const { return doc_->description(); }
   // Incremented by every Load (jobs of an older scene are dropped when they finish).
