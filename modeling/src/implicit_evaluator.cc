@@ -484,6 +484,15 @@ int Survivor(Op op, const double* c, const Interval& a, const Interval& b0) {
 
 }  // namespace
 
+double CompiledSolid::EvaluationCost() const noexcept {
+  double cost = 0.0;
+  for (const Instruction& ins : code_) {
+    cost += 1.0;
+    if (ins.op == Op::kExtrusion) cost += constants_[ins.constants + kParams + 1];
+  }
+  return cost;
+}
+
 bool CompiledSolid::SameTape(const CompiledSolid& other) const noexcept {
   if (code_.size() != other.code_.size() || constants_.size() != other.constants_.size())
     return false;

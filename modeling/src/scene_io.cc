@@ -947,8 +947,8 @@ size_t TooDeepOffset(const std::string& text) {
   return text.size();
 }
 
-// The document of scene text; every failure a SceneError with line, column and (where known)
-// the pointer of the field.
+}  // namespace
+
 json ParseJsonText(const std::string& text, const std::string& source) {
   PrescanHandler prescan;
   int line = 0, column = 0;
@@ -958,8 +958,8 @@ json ParseJsonText(const std::string& text, const std::string& source) {
       throw SceneError(
           source, line, column, prescan.error_pointer,
           "JSON arrays and objects nest deeper than " + std::to_string(kMaxJsonDepth) +
-              " levels (the limit of docs/limits.md); a scene needs far fewer: check the file is a "
-              "spidarcad scene and flatten its node tree");
+              " levels (the limit of docs/limits.md); a scene or document needs far fewer: check "
+              "the file is a spidarcad file and flatten its node tree");
     }
     if (prescan.error_id == 406) {
       // A number beyond a double: point at its first character (the lexer stopped just after it).
@@ -988,8 +988,6 @@ json ParseJsonText(const std::string& text, const std::string& source) {
   }
 }
 
-}  // namespace
-
 Scene ParseScene(const std::string& text, const std::string& source) {
   const json j = ParseJsonText(text, source);
   try {
@@ -1002,39 +1000,46 @@ Scene ParseScene(const std::string& text, const std::string& source) {
   }
 }
 
-Scene LoadScene(const std::string& path) {
+std::string ReadBoundedFile(const std::string& path, long long max_bytes,
+                            const std::string& what) {
   std::error_code ec;
   const std::filesystem::file_status status = std::filesystem::status(path, ec);
   if (ec || !std::filesystem::exists(status)) {
     throw SceneError(path, 0, 0, "",
-                     "cannot open the scene file for reading (no such file); check the path");
+                     "cannot open the " + what + " for reading (no such file); check the path");
   }
   if (!std::filesystem::is_regular_file(status)) {
-    throw SceneError(
-        path, 0, 0, "",
-        "is not a regular file (a directory, device or pipe); give the path of a JSON scene file");
+    throw SceneError(path, 0, 0, "",
+                     "is not a regular file (a directory, device or pipe); give the path of a " +
+                         what);
   }
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) throw SceneError(path, 0, 0, "", "cannot read the size of the scene file");
-  if (size > static_cast<std::uintmax_t>(kMaxSceneFileBytes)) {
-    throw SceneError(
-        path, 0, 0, "",
-        "the file is " + std::to_string(size) + " bytes, more than the " +
-            std::to_string(kMaxSceneFileBytes) +
-            " bytes (64 MiB) a scene file may have (docs/limits.md); is it a scene file?");
+  if (ec) throw SceneError(path, 0, 0, "", "cannot read the size of the " + what);
+  const std::string limit =
+      std::to_string(max_bytes) + " bytes" +
+      (max_bytes >= (1LL << 20) ? " (" + std::to_string(max_bytes >> 20) + " MiB)" : "");
+  if (size > static_cast<std::uintmax_t>(max_bytes)) {
+    throw SceneError(path, 0, 0, "",
+                     "the file is " + std::to_string(size) + " bytes, more than the " + limit +
+                         " a " + what + " may have (docs/limits.md); is it a " + what + "?");
   }
   std::ifstream in(path, std::ios::binary);
   if (!in)
     throw SceneError(path, 0, 0, "",
-                     "cannot open the scene file for reading (check its permissions)");
+                     "cannot open the " + what + " for reading (check its permissions)");
   // Read at most the cap (plus one byte to notice a file that grew meanwhile).
   std::string text(static_cast<size_t>(size) + 1, '\0');
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   text.resize(static_cast<size_t>(in.gcount()));
-  if (text.size() > static_cast<size_t>(kMaxSceneFileBytes)) {
+  if (text.size() > static_cast<size_t>(max_bytes)) {
     throw SceneError(path, 0, 0, "",
-                     "the file grew past the 64 MiB scene file limit while being read");
+                     "the file grew past the " + limit + " " + what + " limit while being read");
   }
+  return text;
+}
+
+Scene LoadScene(const std::string& path) {
+  const std::string text = ReadBoundedFile(path, kMaxSceneFileBytes, "scene file");
   try {
     return ParseScene(text, path);
   } catch (const std::bad_alloc&) {

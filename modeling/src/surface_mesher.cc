@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <memory>
 #include <queue>
 #include <stdexcept>
 #include <string>
@@ -709,39 +710,61 @@ class Mesher {
   std::vector<std::array<int, 3>> triangles_;
 };
 
+// Tapes longer than this are pruned to every box FarthestLeaf splits (CompiledSolid::Specialize),
+// and each half is classified with its parent's pruned tape: a union of n primitives spread
+// over space then costs about n per level of the descent instead of n per box (a union of
+// 100,000 spheres: seconds instead of minutes). Shorter tapes are classified as they are: there
+// a Specialize per box costs more than it saves.
+constexpr int kFindBoundsPruneInstructions = 256;
+
 // The largest coordinate along `axis` (times `sign`, +1 or -1) of the leaves of the octree
 // descent over `search` (halving the largest side at its centre down to boxes of side <=
 // `resolution`; a box the bounds call inside is a leaf too) that the bounds do not call
 // outside. Best first, with no recursion: boxes are taken in decreasing order of their extreme
 // (ties: the smaller box first, so the search dives), so the first leaf taken holds the answer
 // and every box whose extreme cannot beat it is never split. NaN when every leaf is outside.
+// A box is classified with the tape pruned to its parent box (kFindBoundsPruneInstructions):
+// within that box the pruned tape has the same values, so its bounds are as valid (and can
+// only be tighter).
 double FarthestLeaf(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
                     double resolution, int axis, double sign) {
   struct Entry {
     double extreme;  // sign × the box's extreme along axis
     double size;     // its largest side
     Eigen::AlignedBox3d box;
+    std::shared_ptr<const CompiledSolid> tape;  // pruned to the parent box; null: `solid`
     bool operator<(const Entry& other) const {
       return extreme < other.extreme || (extreme == other.extreme && size > other.size);
     }
   };
-  auto entry = [&](const Eigen::AlignedBox3d& box) {
-    return Entry{sign > 0 ? box.max()[axis] : -box.min()[axis], box.sizes().maxCoeff(), box};
+  auto entry = [&](const Eigen::AlignedBox3d& box, std::shared_ptr<const CompiledSolid> tape) {
+    return Entry{sign > 0 ? box.max()[axis] : -box.min()[axis], box.sizes().maxCoeff(), box,
+                 std::move(tape)};
   };
   std::priority_queue<Entry> queue;
-  queue.push(entry(search));
+  queue.push(entry(search, nullptr));
   while (!queue.empty()) {
     const Entry top = queue.top();
     queue.pop();
-    const BoxClass cls = solid.Classify(top.box);
+    const CompiledSolid& tape = top.tape != nullptr ? *top.tape : solid;
+    const BoxClass cls = tape.Classify(top.box);
     if (cls == BoxClass::kOutside) continue;
     if (cls == BoxClass::kInside || top.size <= resolution) return sign * top.extreme;
+    std::shared_ptr<const CompiledSolid> halves = top.tape;
+    if (tape.instruction_count() > kFindBoundsPruneInstructions) {
+      // Kept only when it drops a quarter or more: over boxes larger than the primitives'
+      // spacing the bounds prune little, and near-copies of a long tape would pile up in the
+      // queue (gigabytes for 100,000 primitives).
+      CompiledSolid pruned = tape.Specialize(top.box);
+      if (4 * pruned.instruction_count() <= 3 * tape.instruction_count())
+        halves = std::make_shared<const CompiledSolid>(std::move(pruned));
+    }
     int split = 0;
     top.box.sizes().maxCoeff(&split);
     Eigen::AlignedBox3d a = top.box, b = top.box;
     a.max()[split] = b.min()[split] = top.box.center()[split];
-    queue.push(entry(a));
-    queue.push(entry(b));
+    queue.push(entry(a, halves));
+    queue.push(entry(b, std::move(halves)));
   }
   return std::nan("");
 }
@@ -841,7 +864,9 @@ Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedB
 std::string SurfaceMeshEstimate::Describe() const {
   return "grid " + Sci(grid_cells) + " cells, surface ~" + Sci(surface_cells) + " cells, ~" +
          Sci(triangles) + " triangles, tape " + std::to_string(tape_instructions) +
-         " instructions, ~" + Sci(evaluations) + " evaluations, work ~" + Sci(work) +
+         " instructions" +
+         (evaluation_cost > tape_instructions ? " (cost " + Sci(evaluation_cost) + " each)" : "") +
+         ", ~" + Sci(evaluations) + " evaluations, work ~" + Sci(work) +
          " instructions, memory ~" + Sci(bytes / (1 << 20)) + " MiB";
 }
 
@@ -876,7 +901,8 @@ SurfaceMeshEstimate EstimateSurfaceMesh(const CompiledSolid& solid,
           (kVertexEvaluationsPerCell + kEdgeVerticesPerCell * settings.refine_steps +
            (settings.clean ? kCleanupEvaluationsPerCell : 0.0) + kBoundsEvaluationsPerCell) +
       4.0 * classified;
-  e.work = e.evaluations * std::max(1, e.tape_instructions);
+  e.evaluation_cost = std::max(1.0, solid.EvaluationCost());
+  e.work = e.evaluations * e.evaluation_cost;
   e.bytes = kFixedBytes + kBytesPerSurfaceCell * e.surface_cells;
   return e;
 }

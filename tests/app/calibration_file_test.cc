@@ -175,14 +175,14 @@ TEST(CalibrationFile, WrongValuesAreNamedWithWhatWasExpected) {
     EXPECT_THAT(error, HasSubstr(OutputPath("wrong.json"))) << c.pointer;
     EXPECT_THAT(error, HasSubstr(c.expect)) << c.pointer;
   }
-  // Not JSON at all: the byte offset of the problem.
+  // Not JSON at all: the line and column of the problem (the end of the 11-byte text).
   const std::string broken = OutputPath("broken.json");
   std::ofstream(broken) << "{\"format\": ";
   try {
     LoadCalibrationFile(broken);
     ADD_FAILURE() << "no error";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("not valid JSON (byte"));
+    EXPECT_THAT(e.what(), HasSubstr(broken + ":1:11: JSON syntax error"));
   }
   EXPECT_THROW(LoadCalibrationFile(OutputPath("does_not_exist.json")), InputError);
 }

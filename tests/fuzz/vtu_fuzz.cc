@@ -1,11 +1,8 @@
-// Fuzz harness: tetrahedral meshes in .vtu files (app::ReadTetVtu, VTK's XML reader underneath).
-// Any file is either read or refused with an InputError; an accepted mesh has 4 or 10 nodes per
-// element, finite coordinates, node indices in range and positively oriented elements.
-// TODO(fem-hard): re-point at modeling's validated VTU reader (tet_mesh_io.cc) when it lands;
-// TetGen .node/.ele files have no reader yet, so they have no harness.
+// Fuzz harness: tetrahedral meshes in .vtu files (app::ReadTetVtu on modeling's own VTU reader,
+// tet_mesh_io.cc; no VTK). Any file is either read or refused with an InputError; an accepted
+// mesh has 4 or 10 nodes per element, finite coordinates, node indices in range and positively
+// oriented elements.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-#include <vtkObject.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
@@ -18,11 +15,6 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using spidarcad::fuzz::Violated;
   static spidarcad::fuzz::ScratchFile input("input.vtu");
-  static const bool quiet = [] {
-    vtkObject::GlobalWarningDisplayOff();
-    return true;
-  }();
-  (void)quiet;
   spidarcad::fem::TetMesh mesh;
   try {
     mesh = spidarcad::app::ReadTetVtu(input.Write(data, size));

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <new>
 #include <random>
+#include <vector>
 
 // Counts every operator new in this test executable (the evaluator must not allocate).
 // GCC cannot see that the replaced new and delete below pair malloc with free.
@@ -423,6 +424,25 @@ TEST(CompiledSolid, BatchMatchesSinglePoints) {
     solid.ValueAndGradient(points.col(i), &g);
     EXPECT_EQ(gradients.col(i), g);
   }
+}
+
+// One per instruction plus one per profile point of every extrusion; Specialize keeps it an
+// upper bound (a pruned tape costs no more).
+TEST(CompiledSolid, EvaluationCostCountsInstructionsAndProfilePoints) {
+  ExtrusionParams e;
+  e.profile = {{0, 0}, {0.1, 0}, {0.1, 0.1}, {0.05, 0.15}, {0, 0.1}};
+  std::vector<ImplicitNode> children = {ImplicitNode(e), ImplicitNode(SphereParams{0.05})};
+  children.emplace_back(TranslateParams{Eigen::Vector3d(1, 0, 0)},
+                        std::vector<ImplicitNode>{ImplicitNode(SphereParams{0.05})});
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(UnionParams{}, children));
+  ASSERT_EQ(solid.instruction_count(), 5);  // three primitives, two min
+  EXPECT_EQ(solid.EvaluationCost(), 5.0 + 5.0);
+  EXPECT_EQ(CompiledSolid::Compile(ImplicitNode(SphereParams{0.1})).EvaluationCost(), 1.0);
+  // Near the far sphere only: the extrusion is pruned away, and its cost with it.
+  const CompiledSolid far = solid.Specialize(
+      Eigen::AlignedBox3d(Eigen::Vector3d(0.99, -0.01, -0.01), Eigen::Vector3d(1.01, 0.01, 0.01)));
+  EXPECT_EQ(far.instruction_count(), 1);
+  EXPECT_EQ(far.EvaluationCost(), 1.0);
 }
 
 TEST(CompiledSolid, EvaluationAllocatesNothing) {

@@ -5,6 +5,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
@@ -572,6 +573,66 @@ TEST(SceneIo, BadSnapIsNamedWithLineAndField) {
     EXPECT_EQ(e.line(), 4) << c.snap;
     EXPECT_THAT(e.what(), HasSubstr(path + ":4:")) << c.snap;
     EXPECT_THAT(e.what(), HasSubstr(c.text)) << c.snap;
+  }
+}
+
+// The bounded reader behind LoadScene, documents and calibration files: a missing file, a
+// device, a directory, a pipe and a file over the limit are refused before reading, naming the
+// path; a file within it is read exactly.
+TEST(SceneIo, ReadBoundedFileRefusesDevicesPipesAndLargeFilesBeforeReading) {
+  const std::string dir = std::string(SPIDARCAD_TEST_OUTPUT_DIR);
+  const std::string small = dir + "/bounded_small.json";
+  std::ofstream(small, std::ios::binary) << std::string("{\"a\": 1}\n\0x", 11);
+  EXPECT_EQ(ReadBoundedFile(small, 11, "thing"), std::string("{\"a\": 1}\n\0x", 11));
+  const std::string fifo = dir + "/bounded_fifo.json";
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  struct Case {
+    std::string path;
+    long long limit;
+    std::string expected;
+  };
+  const Case cases[] = {
+      {dir + "/bounded_missing.json", 100, "cannot open the thing for reading (no such file)"},
+      {"/dev/zero", 100, "is not a regular file (a directory, device or pipe)"},
+      {dir, 100, "is not a regular file"},
+      {fifo, 100, "is not a regular file"},
+      {small, 10, "the file is 11 bytes, more than the 10 bytes a thing may have"},
+  };
+  for (const Case& c : cases) {
+    try {
+      ReadBoundedFile(c.path, c.limit, "thing");
+      ADD_FAILURE() << c.path << ": nothing thrown";
+    } catch (const SceneError& e) {
+      EXPECT_EQ(e.file(), c.path);
+      EXPECT_THAT(e.what(), HasSubstr(c.expected)) << c.path;
+    }
+  }
+  std::filesystem::remove(fifo);
+}
+
+// ParseJsonText, the one JSON entry point of every reader: no nlohmann exception escapes; each
+// failure names the line, column and (for numbers and nesting) the field.
+TEST(SceneIo, ParseJsonTextNamesLineColumnAndFieldOfEveryFailure) {
+  EXPECT_EQ(ParseJsonText("{\"a\": [1, 2.5]}", "t")["a"][1].get<double>(), 2.5);
+  struct Case {
+    std::string text, expected;
+  };
+  const Case cases[] = {
+      {"{\n  \"a\": {\"b\": [0, 1e999]}}", "t:2:18: field /a/b/1: the number 1e999 is out of range"},
+      {"{\"a\": -1e400}", "t:1:7: field /a: the number -1e400 is out of range"},
+      {"{\n\"a\": " + std::string(2000, '[') + std::string(2000, ']') + "}",
+       "t:2:1005: field /a/0/0"},
+      {"{\"a\": }", "t:1:7: JSON syntax error"},
+      {"", "t:1:1: JSON syntax error"},
+  };
+  for (const Case& c : cases) {
+    try {
+      ParseJsonText(c.text, "t");
+      ADD_FAILURE() << c.expected << ": nothing thrown";
+    } catch (const SceneError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(c.expected));
+    }
   }
 }
 

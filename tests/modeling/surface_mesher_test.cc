@@ -11,7 +11,9 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <random>
 #include <set>
+#include <vector>
 
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -533,6 +535,60 @@ TEST(SurfaceMesher, FindBoundsEqualsTheFullOctreeDescent) {
     const Eigen::AlignedBox3d found = FindBounds(platform, search, resolution);
     EXPECT_EQ(found.min(), reference.min()) << resolution;
     EXPECT_EQ(found.max(), reference.max()) << resolution;
+  }
+}
+
+// A union of 1000 spheres of 1 cm at random centres in [-0.4, 0.4]^3 (seed 15): a 1999-instruction
+// tape, which FindBounds prunes box by box. Its box still holds every sphere (the closed form:
+// the centres' box grown by the radius), lies within two cells of it, and inside the box of the
+// full descent with the unpruned tape (pruning can only tighten the bounds).
+TEST(SurfaceMesher, FindBoundsOfALongUnionPrunedBoxByBoxHoldsEverySphere) {
+  std::mt19937 rng(15);
+  std::uniform_real_distribution<double> u(-0.4, 0.4);
+  const double radius = 0.01;
+  std::vector<ImplicitNode> spheres;
+  Eigen::AlignedBox3d tight;
+  for (int i = 0; i < 1000; ++i) {
+    const Eigen::Vector3d c(u(rng), u(rng), u(rng));
+    tight.extend(c - Eigen::Vector3d::Constant(radius));
+    tight.extend(c + Eigen::Vector3d::Constant(radius));
+    spheres.emplace_back(TranslateParams{c}, std::vector<ImplicitNode>{ImplicitNode(SphereParams{radius})});
+  }
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(UnionParams{}, spheres));
+  ASSERT_EQ(solid.instruction_count(), 1999);
+  const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
+  for (double resolution : {0.05, 0.01}) {
+    const Eigen::AlignedBox3d found = FindBounds(solid, search, resolution);
+    Eigen::AlignedBox3d reference;
+    ReferenceBounds(solid, search, resolution, &reference);
+    EXPECT_TRUE(found.contains(tight)) << resolution;
+    EXPECT_TRUE(reference.contains(found)) << resolution;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LE(tight.min()[a] - found.min()[a], 2 * resolution) << resolution;
+      EXPECT_LE(found.max()[a] - tight.max()[a], 2 * resolution) << resolution;
+    }
+  }
+}
+
+// An extrusion's evaluation walks its profile: the estimate's work counts the profile's points
+// (a 10,000-point profile costs 10,001 per evaluation, not its one instruction).
+TEST(SurfaceMesher, EstimateCountsTheCostOfAnExtrusionsProfile) {
+  for (int n : {3, 100, 10000}) {
+    ExtrusionParams e;
+    for (int k = 0; k < n; ++k)
+      e.profile.emplace_back(0.05 * std::cos(2 * M_PI * k / n), 0.05 * std::sin(2 * M_PI * k / n));
+    e.height = 0.02;
+    const CompiledSolid prism = CompiledSolid::Compile(ImplicitNode(e));
+    SurfaceMeshSettings s;
+    s.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.06, -0.06, -0.02),
+                                   Eigen::Vector3d(0.06, 0.06, 0.02));
+    s.cell_size = 0.004;
+    const SurfaceMeshEstimate estimate = EstimateSurfaceMesh(prism, s);
+    EXPECT_EQ(estimate.tape_instructions, 1);
+    EXPECT_EQ(estimate.evaluation_cost, n + 1.0);
+    EXPECT_GT(estimate.evaluations, 0.0);
+    EXPECT_EQ(estimate.work, estimate.evaluations * (n + 1.0));
+    EXPECT_NE(estimate.Describe().find("(cost "), std::string::npos) << estimate.Describe();
   }
 }
 

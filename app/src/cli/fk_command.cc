@@ -137,8 +137,16 @@ void RunFk(const KinematicsOptions& options) {
       [&](int line_number, const std::vector<double>& values, const std::string& error) {
         FkResult r;
         Vector8d lengths = Vector8d::Constant(std::nan(""));
-        if (!error.empty()) {
-          std::cerr << "spidarcad fk: <stdin>:" << line_number << ": " << error
+        std::string problem = error;
+        for (int k = 0; problem.empty() && k < haptics::kNumStrings; ++k) {
+          if (!(values[k] > 0.0) || !std::isfinite(values[k])) {
+            problem = "column " + std::to_string(k + 1) + " (l" + std::to_string(k + 1) +
+                      "): " + FormatNumber(values[k]) +
+                      " is not a positive finite length; write string lengths in metres";
+          }
+        }
+        if (!problem.empty()) {
+          std::cerr << "spidarcad fk: <stdin>:" << line_number << ": " << problem
                     << " (status invalid_input)\n";
           r = fk.Solve(Vector8d::Constant(std::nan("")));
         } else {

@@ -125,9 +125,13 @@ void RunTension(const TensionOptions& options) {
   haptics::TensionSolver solver(settings);
   std::string out;
   ForEachCsvRecord(std::cin, "<stdin>", 16, [&](const std::vector<double>& v, int line) {
-    bool finite = true;
-    for (double x : v) finite = finite && std::isfinite(x);
-    if (!finite) {
+    int bad = -1;  // first field that is not finite
+    for (int k = 0; bad < 0 && k < static_cast<int>(v.size()); ++k)
+      if (!std::isfinite(v[k])) bad = k;
+    if (bad >= 0) {
+      // Refused like ik and fk refuse a bad line: nan out, the line and column on stderr.
+      std::cerr << "spidarcad tension: <stdin>:" << line << ": column " << bad + 1 << ": "
+                << FormatNumber(v[bad]) << " is not finite (tensions nan)\n";
       out += "nan,nan,nan,nan,nan,nan,nan,nan,nan";
       out += options.lost ? ",invalid_input,nan,nan,nan,nan,nan,nan,nan,nan\n" : "\n";
       return;

@@ -3,6 +3,8 @@
 
 #include <utility>
 
+#include "spidarcad/modeling/scene_io.h"
+
 namespace spidarcad::app {
 namespace {
 
@@ -61,20 +63,14 @@ ClipboardContent ParseClipboard(const std::string& text) {
   if (text.empty()) throw ClipboardError("clipboard: nothing to paste (the clipboard is empty)");
   nlohmann::json json;
   try {
-    json = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    // e.byte is the 1-based offset of the error; turn it into line and column.
-    int line = 1, column = 1;
-    for (size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        column = 1;
-      } else {
-        ++column;
-      }
-    }
-    throw ClipboardError("clipboard: not JSON: line " + std::to_string(line) + ", column " +
-                         std::to_string(column) + ": " + e.what());
+    // Syntax errors, nesting deeper than modeling::kMaxJsonDepth and numbers beyond a double,
+    // each with its line and column; no recursion, no JSON library exception.
+    json = modeling::ParseJsonText(text, "clipboard");
+  } catch (const modeling::SceneError& e) {
+    std::string where = "clipboard: not JSON: line " + std::to_string(e.line()) + ", column " +
+                        std::to_string(e.column());
+    if (!e.pointer().empty()) where += ", field " + e.pointer();
+    throw ClipboardError(where + ": " + e.message());
   }
   if (!json.is_object())
     throw ClipboardError("clipboard: expected a JSON object, got " + std::string(json.type_name()));

@@ -844,13 +844,8 @@ void WriteDocumentFile(const Document& doc, const std::string& path,
 }
 
 void ParseDocumentText(const std::string& text, const std::string& source, Document* doc) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::parse_error&) {
-    modeling::ParseScene(text, source);  // throws the syntax error with line and column
-    throw SceneError(source, 0, 0, "", "JSON syntax error");
-  }
+  // Syntax, nesting and number errors with line, column and field; no recursion.
+  const json j = modeling::ParseJsonText(text, source);
   const bool v2 = j.is_object() && j.contains("version") && j.at("version").is_number_integer() &&
                   j.at("version").get<int>() == 2;
   if (j.is_object() && j.contains("version") && j.at("version").is_number_integer() &&
@@ -883,11 +878,8 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
 }
 
 void ReadDocumentFile(const std::string& path, Document* doc) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path, 0, 0, "", "cannot open the file for reading (check the path)");
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  ParseDocumentText(buffer.str(), path, doc);
+  ParseDocumentText(modeling::ReadBoundedFile(path, kMaxDocumentFileBytes, "document file"), path,
+                    doc);
 }
 
 bool ReadRecoveredFrom(const std::string& path, std::string* original) {

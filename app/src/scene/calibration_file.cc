@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include "doc/input_error.h"
+#include "spidarcad/modeling/scene_io.h"
 
 namespace spidarcad::app {
 
@@ -225,13 +226,14 @@ void SaveCalibrationFile(const CalibrationFile& file, const std::string& path,
 }
 
 CalibrationFile LoadCalibrationFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open calibration file");
   json j;
   try {
-    j = json::parse(in);
-  } catch (const json::parse_error& e) {
-    throw InputError(path + ": not valid JSON (byte " + std::to_string(e.byte) + "): " + e.what());
+    // Refuses a missing file, /dev/zero or a pipe, and a file past the limit, before reading;
+    // then syntax, nesting and number errors with line, column and field.
+    j = modeling::ParseJsonText(
+        modeling::ReadBoundedFile(path, kMaxCalibrationFileBytes, "calibration file"), path);
+  } catch (const modeling::SceneError& e) {
+    throw InputError(e.what());
   }
   const Reader r(path);
   if (!j.is_object()) throw InputError(path + ": expected a JSON object at the top level");

@@ -60,9 +60,13 @@ std::string CalibrationFileJson(const CalibrationFile& file);
 void SaveCalibrationFile(const CalibrationFile& file, const std::string& path,
                          const std::string& option = "--out");
 
+// Largest calibration file LoadCalibrationFile reads, bytes (1 MiB; a calibration is a few kB).
+inline constexpr long long kMaxCalibrationFileBytes = 1LL << 20;
 // Reads and validates every field of a calibration file. Throws InputError naming the file
 // and the field that is missing or wrong and what was expected (e.g. "cal.json: field
-// 'strings[2].gain': expected a number, got \"x\"").
+// 'strings[2].gain': expected a number, got \"x\""); a file that is not JSON with its line
+// and column; a path that is not a regular file or a file over kMaxCalibrationFileBytes before
+// reading it.
 CalibrationFile LoadCalibrationFile(const std::string& path);
 
 // Empty when the calibration in `file` belongs to `device`; otherwise why not, naming both

@@ -72,6 +72,11 @@ class CompiledSolid {
 
   // Number of tape instructions.
   int instruction_count() const { return static_cast<int>(code_.size()); }
+  // What one field evaluation costs, in instructions: one per instruction plus one per profile
+  // vertex of every extrusion (its distance visits each edge of the polygon), so an extrusion
+  // of a 10,000-point profile costs about 10,000 while instruction_count() says 1. Cost
+  // estimates (EstimateSurfaceMesh) multiply evaluation counts by it.
+  double EvaluationCost() const noexcept;
   // True when `other` runs the same program: same instructions and bitwise the same constants.
   bool SameTape(const CompiledSolid& other) const noexcept;
   // A hash of the program (FNV-1a over opcodes, constant offsets and constant bits): equal for

@@ -112,11 +112,22 @@ Scene SceneFromJson(const nlohmann::json& json, const std::string& source = "<js
 // JSON document of a scene, with the format header.
 nlohmann::json SceneToJson(const Scene& scene);
 
+// Parses JSON text (any JSON document: scenes, documents, clipboard text, calibration files)
+// without recursion and without letting a JSON library exception escape: nesting deeper than
+// kMaxJsonDepth, a number beyond a double and a syntax error are SceneErrors naming `source`,
+// the line and column and, where known, the JSON pointer of the field.
+nlohmann::json ParseJsonText(const std::string& text, const std::string& source);
+
 // Parses and validates scene text. Errors carry `source` as the file and the line and column
 // of the offending text (syntax errors, numbers beyond a double, nesting deeper than
 // kMaxJsonDepth) or field (semantic errors), and the JSON pointer of the field where known.
 // Never lets a JSON library exception escape: every failure is a SceneError.
 Scene ParseScene(const std::string& text, const std::string& source = "<string>");
+// The whole text of the file at `path`, for a JSON reader. Before reading it refuses, with a
+// SceneError naming the path (line 0), a missing file, a path that is not a regular file (a
+// directory, a device such as /dev/zero, a pipe: each could be read forever) and a file larger
+// than max_bytes; `what` names the kind of file in the messages ("scene file").
+std::string ReadBoundedFile(const std::string& path, long long max_bytes, const std::string& what);
 // Reads a scene file. Throws SceneError (unreadable file, not a regular file, larger than
 // kMaxSceneFileBytes, syntax, bad field) naming path.
 Scene LoadScene(const std::string& path);
