@@ -1000,8 +1000,7 @@ Scene ParseScene(const std::string& text, const std::string& source) {
   }
 }
 
-std::string ReadBoundedFile(const std::string& path, long long max_bytes,
-                            const std::string& what) {
+std::string ReadBoundedFile(const std::string& path, long long max_bytes, const std::string& what) {
   std::error_code ec;
   const std::filesystem::file_status status = std::filesystem::status(path, ec);
   if (ec || !std::filesystem::exists(status)) {
@@ -1009,9 +1008,9 @@ std::string ReadBoundedFile(const std::string& path, long long max_bytes,
                      "cannot open the " + what + " for reading (no such file); check the path");
   }
   if (!std::filesystem::is_regular_file(status)) {
-    throw SceneError(path, 0, 0, "",
-                     "is not a regular file (a directory, device or pipe); give the path of a " +
-                         what);
+    throw SceneError(
+        path, 0, 0, "",
+        "is not a regular file (a directory, device or pipe); give the path of a " + what);
   }
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   if (ec) throw SceneError(path, 0, 0, "", "cannot read the size of the " + what);

@@ -866,8 +866,8 @@ std::string SurfaceMeshEstimate::Describe() const {
          Sci(triangles) + " triangles, tape " + std::to_string(tape_instructions) +
          " instructions" +
          (evaluation_cost > tape_instructions ? " (cost " + Sci(evaluation_cost) + " each)" : "") +
-         ", ~" + Sci(evaluations) + " evaluations, work ~" + Sci(work) +
-         " instructions, memory ~" + Sci(bytes / (1 << 20)) + " MiB";
+         ", ~" + Sci(evaluations) + " evaluations, work ~" + Sci(work) + " instructions, memory ~" +
+         Sci(bytes / (1 << 20)) + " MiB";
 }
 
 SurfaceMeshEstimate EstimateSurfaceMesh(const CompiledSolid& solid,

@@ -175,14 +175,16 @@ TEST(CalibrationFile, WrongValuesAreNamedWithWhatWasExpected) {
     EXPECT_THAT(error, HasSubstr(OutputPath("wrong.json"))) << c.pointer;
     EXPECT_THAT(error, HasSubstr(c.expect)) << c.pointer;
   }
-  // Not JSON at all: the line and column of the problem (the end of the 11-byte text).
+  // Not JSON at all: the line and column of the problem, the end of the 11-byte text (column 12,
+  // just after its last character, as every JSON reader reports an early end; scene_io's
+  // ParseJsonText).
   const std::string broken = OutputPath("broken.json");
   std::ofstream(broken) << "{\"format\": ";
   try {
     LoadCalibrationFile(broken);
     ADD_FAILURE() << "no error";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(broken + ":1:11: JSON syntax error"));
+    EXPECT_THAT(e.what(), HasSubstr(broken + ":1:12: JSON syntax error"));
   }
   EXPECT_THROW(LoadCalibrationFile(OutputPath("does_not_exist.json")), InputError);
 }

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "doc/document.h"
+#include "doc/recent_files.h"
 #include "gui/app_window.h"
 #include "scene/scene_model.h"
 #include "spidarcad/fem/mesh.h"
@@ -125,8 +126,8 @@ std::string PolarBoltHolesScene(int count) {
   const size_t end = s.find(close, at);
   EXPECT_NE(end, std::string::npos);
   s.insert(end + 12, "]}");
-  s.insert(at, R"({"type": "polar_array", "axis": [1, 0, 0], "count": )" +
-                   std::to_string(count) + R"(, "children": [)");
+  s.insert(at, R"({"type": "polar_array", "axis": [1, 0, 0], "count": )" + std::to_string(count) +
+                   R"(, "children": [)");
   const std::string path = OutputPath("hostile_polar_bolts_" + std::to_string(count) + ".json");
   std::ofstream(path) << s;
   return path;
@@ -137,10 +138,13 @@ std::string PolarBoltHolesScene(int count) {
 void ExpectRefused(const CommandRun& run, const std::string& what,
                    const std::vector<std::string>& parts, const std::string& out = "") {
   EXPECT_EQ(run.status, 2) << what << "\n" << run.all().substr(0, 3000);
-  for (const std::string& part : parts)
+  for (const std::string& part : parts) {
     EXPECT_NE(run.err.find(part), std::string::npos)
         << what << ": '" << part << "' not in: " << run.err.substr(0, 3000);
-  if (!out.empty()) EXPECT_FALSE(FileExists(out)) << what << ": " << out << " was written";
+  }
+  if (!out.empty()) {
+    EXPECT_FALSE(FileExists(out)) << what << ": " << out << " was written";
+  }
 }
 
 // Bullet 1: "a scene whose tree is a chain of 10,000 nested translate nodes, or whose JSON nests
@@ -174,10 +178,10 @@ TEST(HostileInput, DeepTreesAndDeepJsonExitTwoNamingFileLineAndFieldInEveryComma
     }
   }
   // A million nodes (a union of a million spheres, 32 MB): refused at the 500,001st, by name.
-  const std::string million = WriteScene(
-      "million.json", R"({"type": "union", "children": [)" +
-                          Repeat(R"({"type": "sphere", "radius": 0.01}, )", 999999) +
-                          R"({"type": "sphere", "radius": 0.01}]})");
+  const std::string million =
+      WriteScene("million.json", R"({"type": "union", "children": [)" +
+                                     Repeat(R"({"type": "sphere", "radius": 0.01}, )", 999999) +
+                                     R"({"type": "sphere", "radius": 0.01}]})");
   const std::string mesh_out = OutputPath("hostile_million.stl");
   const CommandRun run = RunSpidarcad("mesh '" + million + "' --out '" + mesh_out + "'", "", "m");
   ExpectRefused(run, "a million nodes",
@@ -240,7 +244,8 @@ TEST(HostileInput, MalformedAndMutatedVtuFilesNeverCrashFem) {
     short_array.erase(last, 2);
   }
   const std::vector<Case> cases = {
-      {"negative_cells", replaced(ascii, cells, "NumberOfCells=\"-1\""),
+      {"negative_cells",
+       replaced(ascii, cells, "NumberOfCells=\"-1\""),
        {"byte ", "NumberOfCells", "-1"}},
       {"short_cell_array", short_array, {"byte ", "Name=\"value\"", "values, expected"}},
       {"corrupt_zlib", corrupt, {"byte "}},
@@ -306,10 +311,9 @@ TEST(HostileInput, ClampingEveryNodeOrAnAbsurdResolutionExitsTwo) {
                    "use a coarser --resolution"},
                   out);
   }
-  const CommandRun all =
-      RunSpidarcad("fem '" + platform + "' --resolution 0.02 --fix=-1,-1,-1,1,1,1 --out '" + out +
-                       "'",
-                   "", "clamp_all");
+  const CommandRun all = RunSpidarcad(
+      "fem '" + platform + "' --resolution 0.02 --fix=-1,-1,-1,1,1,1 --out '" + out + "'", "",
+      "clamp_all");
   ExpectRefused(all, "--fix around everything", {"--fix", "clamp all"}, out);
 }
 
@@ -353,8 +357,8 @@ TEST(HostileInput, ValuesOnceAcceptedSilentlyAreRefusedWhereverTheyAreRead) {
   for (const char* t : {"1e999", "nan"}) {
     const std::string path = OutputPath(std::string("hostile_t_") + t + ".csv");
     std::ofstream(path) << "0,0.05,0,0,1,0,0,0,1.5\n" << t << ",0.05,0,0,1,0,0,0,1.5\n";
-    const CommandRun run = RunSpidarcad(
-        "run demo --trajectory '" + path + "' --out '" + result + "'", "", "time");
+    const CommandRun run =
+        RunSpidarcad("run demo --trajectory '" + path + "' --out '" + result + "'", "", "time");
     ExpectRefused(run, t, {path + ":2", "'t'", t}, result);
   }
 }
@@ -387,7 +391,7 @@ TEST(HostileInput, LibraryErrorsBecomeMessagesNamingFileLineAndFieldInEveryReade
   for (const File& f : files) {
     for (const std::string& command :
          {"info '" + f.path + "'", "fem '" + f.path + "' --fix=-1,-1,-1,1,1,1 --out '" + out + "'",
-          "mesh '" + f.path + "' --out '" + out + "'"}) {
+          "mesh '" + f.path + "' --tets tetgen --out '" + out + "'"}) {
       ExpectRefused(RunSpidarcad(command, "", "library"), command, {f.path + f.expected}, out);
     }
   }
@@ -426,8 +430,9 @@ TEST(HostileInput, LibraryErrorsBecomeMessagesNamingFileLineAndFieldInEveryReade
 // `fk --batch` and `tension --batch` answer it with nan and name its line and column on stderr,
 // as ik does, and go on with the next line.
 TEST(HostileInput, EveryBatchCommandRefusesAnInfiniteLineNamingItAndGoesOn) {
-  const std::string rest = "0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,"
-                           "0.3939543,0.3939543";
+  const std::string rest =
+      "0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,"
+      "0.3939543,0.3939543";
   const CommandRun fk = RunSpidarcad(
       "fk --batch --no-header",
       rest + "\ninf,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543,0.3939543\n" +
@@ -468,12 +473,12 @@ CommandRun InterruptOnceShown(const std::string& args, const std::string& marker
                               const std::string& tag, std::string* err) {
   const std::string err_path = OutputPath("hostile_" + tag + ".err");
   std::remove(err_path.c_str());
-  const std::string script =
-      "'" + std::string(SPIDARCAD_EXE) + "' " + args + " --progress 2> '" + err_path +
-      "' & pid=$!; i=0; while ! grep -q '" + marker + "' '" + err_path +
-      "' 2>/dev/null && [ $i -lt 6000 ]; do sleep 0.05; i=$((i+1)); done; "
-      "kill -INT $pid; (sleep 120; kill -KILL $pid 2>/dev/null) & guard=$!; "
-      "wait $pid; status=$?; kill $guard 2>/dev/null; echo status=$status";
+  const std::string script = "'" + std::string(SPIDARCAD_EXE) + "' " + args + " --progress 2> '" +
+                             err_path + "' & pid=$!; i=0; while ! grep -q '" + marker + "' '" +
+                             err_path +
+                             "' 2>/dev/null && [ $i -lt 6000 ]; do sleep 0.05; i=$((i+1)); done; "
+                             "kill -INT $pid; (sleep 120; kill -KILL $pid 2>/dev/null) & guard=$!; "
+                             "wait $pid; status=$?; kill $guard 2>/dev/null; echo status=$status";
   CommandRun run = test_support::RunCommand(script, "", OutputPath("hostile_" + tag + "_run"));
   *err = test_support::ReadWholeFile(err_path);
   return run;
@@ -550,9 +555,10 @@ TEST(HostileInputWindow, OpeningAHostileFileShowsTheErrorAndKeepsTheDocument) {
   for (const File& f : files) {
     EXPECT_FALSE(window.OpenDocument(f.path)) << f.path;
     EXPECT_NE(window.file_error().find(f.path), std::string::npos) << window.file_error();
-    for (const std::string& part : f.expected)
+    for (const std::string& part : f.expected) {
       EXPECT_NE(window.file_error().find(part), std::string::npos)
           << "'" << part << "' not in: " << window.file_error().substr(0, 2000);
+    }
     EXPECT_EQ(window.model().document().ToJson(), before) << f.path;
     EXPECT_EQ(window.model().source(), kDemoSceneName);
     for (int k = 0; k < 2; ++k) window.Frame();  // the error is drawn; the window goes on

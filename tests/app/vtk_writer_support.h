@@ -82,7 +82,7 @@ inline std::vector<VtkEncoding> AllVtkEncodings() {
 
 // Writes mesh to path with VTK's writer in encoding enc; returns the file's bytes.
 inline std::string WriteWithVtk(const fem::TetMesh& mesh, const VtkEncoding& enc,
-                         const std::string& path) {
+                                const std::string& path) {
   auto writer = vtkSmartPointer<vtkXMLUnstructuredGridWriter>::New();
   writer->SetFileName(path.c_str());
   writer->SetInputData(ToVtkGrid(mesh));

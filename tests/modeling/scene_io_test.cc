@@ -619,7 +619,8 @@ TEST(SceneIo, ParseJsonTextNamesLineColumnAndFieldOfEveryFailure) {
     std::string text, expected;
   };
   const Case cases[] = {
-      {"{\n  \"a\": {\"b\": [0, 1e999]}}", "t:2:18: field /a/b/1: the number 1e999 is out of range"},
+      {"{\n  \"a\": {\"b\": [0, 1e999]}}",
+       "t:2:18: field /a/b/1: the number 1e999 is out of range"},
       {"{\"a\": -1e400}", "t:1:7: field /a: the number -1e400 is out of range"},
       {"{\n\"a\": " + std::string(2000, '[') + std::string(2000, ']') + "}",
        "t:2:1005: field /a/0/0"},

@@ -552,7 +552,8 @@ TEST(SurfaceMesher, FindBoundsOfALongUnionPrunedBoxByBoxHoldsEverySphere) {
     const Eigen::Vector3d c(u(rng), u(rng), u(rng));
     tight.extend(c - Eigen::Vector3d::Constant(radius));
     tight.extend(c + Eigen::Vector3d::Constant(radius));
-    spheres.emplace_back(TranslateParams{c}, std::vector<ImplicitNode>{ImplicitNode(SphereParams{radius})});
+    spheres.emplace_back(TranslateParams{c},
+                         std::vector<ImplicitNode>{ImplicitNode(SphereParams{radius})});
   }
   const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(UnionParams{}, spheres));
   ASSERT_EQ(solid.instruction_count(), 1999);

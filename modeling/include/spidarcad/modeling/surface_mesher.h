@@ -99,14 +99,14 @@ inline constexpr double kMinFindBoundsFraction = 1.0 / (1 << 16);
 // solid (EstimateSurfaceMesh) before any fine work. Counts are doubles: they may exceed every
 // integer type, or be +inf for an absurd cell size.
 struct SurfaceMeshEstimate {
-  double grid_cells = 0.0;     // cells of the full grid: the product of ceil(extent / cell_size)
-  double surface_cells = 0.0;  // cells the surface is expected to cross (meshed cells)
-  double triangles = 0.0;      // triangles of the mesh, about four per surface cell
-  int tape_instructions = 0;   // instructions run by one field evaluation
+  double grid_cells = 0.0;       // cells of the full grid: the product of ceil(extent / cell_size)
+  double surface_cells = 0.0;    // cells the surface is expected to cross (meshed cells)
+  double triangles = 0.0;        // triangles of the mesh, about four per surface cell
+  int tape_instructions = 0;     // instructions run by one field evaluation
   double evaluation_cost = 0.0;  // instructions' worth of one evaluation (EvaluationCost())
-  double evaluations = 0.0;    // field evaluations (grid vertices, refinement, bounds, clean-up)
-  double work = 0.0;           // tape instructions executed: evaluations × evaluation_cost
-  double bytes = 0.0;          // peak memory of the run, bytes
+  double evaluations = 0.0;      // field evaluations (grid vertices, refinement, bounds, clean-up)
+  double work = 0.0;             // tape instructions executed: evaluations × evaluation_cost
+  double bytes = 0.0;            // peak memory of the run, bytes
   // The figures on one line, e.g. "grid 1.2e+07 cells, surface ~3.1e+05 cells, ...".
   std::string Describe() const;
 };
