@@ -8,12 +8,15 @@
 //    the zero set by Newton steps; points outside a convex edge or corner land exactly on it),
 //    each measured to the nearest triangle through a uniform grid of triangles.
 // Max and mean of both directions are printed as a markdown table after the benchmarks.
+// BM_FindBounds: the box search of `spidarcad mesh` on unions of 1,000 to 100,000 spheres (time,
+// and how far the box lies beyond the exact one), a second table.
 // Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -245,6 +248,57 @@ BENCHMARK(BM_Surface)
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
+// FindBounds as `spidarcad mesh` calls it (scene/scene_solid.cc): over [-10, 10]^3 at 1 cm, then
+// over that box at its largest side / 80, for unions of n spheres of 2 mm radius on a 5 mm
+// lattice (n = state.range(0)); error: how far the box lies beyond the closed-form box of the
+// spheres, the largest of the six sides.
+struct BoundsRow {
+  int spheres, tape;
+  double coarse_s, fine_s, over_mm;
+};
+std::vector<BoundsRow>& BoundsRows() {
+  static std::vector<BoundsRow> rows;
+  return rows;
+}
+
+void BM_FindBounds(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const int side = static_cast<int>(std::ceil(std::cbrt(static_cast<double>(n)) - 1e-9));
+  const double radius = 0.002, pitch = 0.005;
+  std::vector<ImplicitNode> spheres;
+  Eigen::AlignedBox3d exact;
+  for (int i = 0; i < n; ++i) {
+    const Vec c = pitch * Vec(i % side, i / side % side, i / side / side);
+    exact.extend(c - Vec::Constant(radius));
+    exact.extend(c + Vec::Constant(radius));
+    spheres.emplace_back(TranslateParams{c},
+                         std::vector<ImplicitNode>{ImplicitNode(SphereParams{radius})});
+  }
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(UnionParams{}, spheres));
+  const Eigen::AlignedBox3d search(Vec::Constant(-10), Vec::Constant(10));
+  Eigen::AlignedBox3d fine;
+  double coarse_s = 0, fine_s = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const Eigen::AlignedBox3d rough = FindBounds(solid, search, 0.01);
+    const auto t1 = std::chrono::steady_clock::now();
+    fine = FindBounds(solid, rough, rough.sizes().maxCoeff() / 80);
+    const auto t2 = std::chrono::steady_clock::now();
+    coarse_s = std::chrono::duration<double>(t1 - t0).count();
+    fine_s = std::chrono::duration<double>(t2 - t1).count();
+  }
+  const double over =
+      std::max((exact.min() - fine.min()).maxCoeff(), (fine.max() - exact.max()).maxCoeff());
+  state.counters["over_mm"] = over * 1e3;
+  BoundsRows().push_back({n, solid.instruction_count(), coarse_s, fine_s, over * 1e3});
+}
+BENCHMARK(BM_FindBounds)
+    ->Arg(1000)
+    ->Arg(10000)
+    ->Arg(100000)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
+
 }  // namespace
 
 // What this program measures (its --help).
@@ -261,6 +315,8 @@ constexpr const char* kBenchDescription =
     "   the zero set by Newton steps; points outside a convex edge or corner land exactly on it),\n"
     "   each measured to the nearest triangle through a uniform grid of triangles.\n"
     "Max and mean of both directions are printed as a markdown table after the benchmarks.\n"
+    "BM_FindBounds: the box search of `spidarcad mesh` (1 cm over [-10, 10]^3, then size/80) on\n"
+    "unions of 1,000 to 100,000 spheres, its time and how far the box lies beyond the exact one.\n"
     "Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.";
 
 // Tables printed after the benchmarks.
@@ -278,6 +334,17 @@ void PrintAfterRun() {
   }
 }
 
+void PrintAll() {
+  if (!Rows().empty()) PrintAfterRun();
+  if (BoundsRows().empty()) return;
+  std::printf(
+      "\n| spheres | tape | FindBounds 1 cm over [-10, 10]^3, s | then at size/80, s | "
+      "beyond the exact box, mm |\n|---|---|---|---|---|\n");
+  for (const BoundsRow& r : BoundsRows())
+    std::printf("| %d | %d | %.3f | %.3f | %.2f |\n", r.spheres, r.tape, r.coarse_s, r.fine_s,
+                r.over_mm);
+}
+
 int main(int argc, char** argv) {
-  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, nullptr, PrintAfterRun);
+  return spidarcad::bench::RunBenchmarkMain(argc, argv, kBenchDescription, nullptr, PrintAll);
 }

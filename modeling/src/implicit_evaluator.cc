@@ -493,6 +493,12 @@ double CompiledSolid::EvaluationCost() const noexcept {
   return cost;
 }
 
+int CompiledSolid::LipschitzOnlyCount() const noexcept {
+  int count = 0;
+  for (const Instruction& ins : code_) count += ins.op == Op::kCone || ins.op == Op::kExtrusion;
+  return count;
+}
+
 bool CompiledSolid::SameTape(const CompiledSolid& other) const noexcept {
   if (code_.size() != other.code_.size() || constants_.size() != other.constants_.size())
     return false;

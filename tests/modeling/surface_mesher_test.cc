@@ -480,6 +480,26 @@ TEST(SurfaceMesher, CancelStopsAndProgressReachesOne) {
   EXPECT_EQ(last, 1.0);
 }
 
+// The first progress report comes before any work (0.0), so a caller shows the stage at once,
+// and a cancel raised then is heard before the next report: with an expensive field (a tape of
+// thousands of instructions) the run must not go on for thousands of cells first.
+TEST(SurfaceMesher, ProgressStartsAtZeroAndACancelRaisedThereStopsAtOnce) {
+  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
+  SurfaceMeshSettings s =
+      Settings(Eigen::Vector3d::Constant(-0.06), Eigen::Vector3d::Constant(0.06), 0.001);
+  std::atomic<bool> cancel{false};
+  s.cancel = &cancel;
+  std::vector<double> reports;
+  s.progress = [&](double f) {
+    reports.push_back(f);
+    cancel = true;
+  };
+  SurfaceMeshStats stats;
+  EXPECT_THROW(MeshSurface(sphere, s, &stats), MeshingCancelled);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0], 0.0);
+}
+
 TEST(SurfaceMesher, FindBoundsEnclosesTheSolidTightly) {
   // A capsule from (0.1, 0.2, -0.3) to (0.15, 0.2, -0.3), radius 0.02: box [0.08, 0.17] x
   // [0.18, 0.22] x [-0.32, -0.28].
@@ -541,7 +561,9 @@ TEST(SurfaceMesher, FindBoundsEqualsTheFullOctreeDescent) {
 // A union of 1000 spheres of 1 cm at random centres in [-0.4, 0.4]^3 (seed 15): a 1999-instruction
 // tape, which FindBounds prunes box by box. Its box still holds every sphere (the closed form:
 // the centres' box grown by the radius), lies within two cells of it, and inside the box of the
-// full descent with the unpruned tape (pruning can only tighten the bounds).
+// full descent with the unpruned tape (pruning can only tighten the bounds). Twice: as it is
+// (FindBounds splits slabs across the searched axis) and with a small cone inside the first
+// sphere, a Lipschitz-only primitive that leaves the box as it was (FindBounds splits cubes).
 TEST(SurfaceMesher, FindBoundsOfALongUnionPrunedBoxByBoxHoldsEverySphere) {
   std::mt19937 rng(15);
   std::uniform_real_distribution<double> u(-0.4, 0.4);
@@ -555,18 +577,27 @@ TEST(SurfaceMesher, FindBoundsOfALongUnionPrunedBoxByBoxHoldsEverySphere) {
     spheres.emplace_back(TranslateParams{c},
                          std::vector<ImplicitNode>{ImplicitNode(SphereParams{radius})});
   }
-  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(UnionParams{}, spheres));
-  ASSERT_EQ(solid.instruction_count(), 1999);
+  const CompiledSolid plain = CompiledSolid::Compile(ImplicitNode(UnionParams{}, spheres));
+  ASSERT_EQ(plain.instruction_count(), 1999);
+  ASSERT_EQ(plain.LipschitzOnlyCount(), 0);
+  const Eigen::Vector3d first = std::get<TranslateParams>(spheres[0].params).translation;
+  spheres.emplace_back(TranslateParams{first},
+                       std::vector<ImplicitNode>{ImplicitNode(ConeParams{0.002, 0.0, 0.004})});
+  const CompiledSolid with_cone = CompiledSolid::Compile(ImplicitNode(UnionParams{}, spheres));
+  ASSERT_EQ(with_cone.LipschitzOnlyCount(), 1);
   const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
-  for (double resolution : {0.05, 0.01}) {
-    const Eigen::AlignedBox3d found = FindBounds(solid, search, resolution);
-    Eigen::AlignedBox3d reference;
-    ReferenceBounds(solid, search, resolution, &reference);
-    EXPECT_TRUE(found.contains(tight)) << resolution;
-    EXPECT_TRUE(reference.contains(found)) << resolution;
-    for (int a = 0; a < 3; ++a) {
-      EXPECT_LE(tight.min()[a] - found.min()[a], 2 * resolution) << resolution;
-      EXPECT_LE(found.max()[a] - tight.max()[a], 2 * resolution) << resolution;
+  for (const CompiledSolid* solid : {&plain, &with_cone}) {
+    const std::string what = solid == &plain ? "spheres" : "spheres and a cone";
+    for (double resolution : {0.05, 0.01}) {
+      const Eigen::AlignedBox3d found = FindBounds(*solid, search, resolution);
+      Eigen::AlignedBox3d reference;
+      ReferenceBounds(*solid, search, resolution, &reference);
+      EXPECT_TRUE(found.contains(tight)) << what << " " << resolution;
+      EXPECT_TRUE(reference.contains(found)) << what << " " << resolution;
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_LE(tight.min()[a] - found.min()[a], 2 * resolution) << what << " " << resolution;
+        EXPECT_LE(found.max()[a] - tight.max()[a], 2 * resolution) << what << " " << resolution;
+      }
     }
   }
 }

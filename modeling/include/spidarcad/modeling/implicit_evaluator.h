@@ -84,6 +84,10 @@ class CompiledSolid {
   std::uint64_t TapeHash() const noexcept;
   // Number of primitive instructions (after array unrolling).
   int primitive_count() const { return primitive_count_; }
+  // Number of primitive instructions bounded by their Lipschitz bound alone in Bounds() (cones,
+  // extrusions): value at the centre ± L × half-diagonal, so over a long thin box they are as
+  // wide as its diagonal. O(instructions).
+  int LipschitzOnlyCount() const noexcept;
   // Deepest value stack the tape uses.
   int stack_depth() const { return stack_depth_; }
 
