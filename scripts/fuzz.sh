@@ -40,6 +40,7 @@ build="$here/build-fuzz"
 if [ "${FUZZ_NO_BUILD:-0}" != 1 ]; then
   launcher=()
   command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$here}"  # relative paths: objects shared across checkouts
   CC=clang CXX=clang++ cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DSPIDARCAD_FUZZ=ON -DSPIDARCAD_SANITIZE=address,undefined -DSPIDARCAD_BUILD_TESTS=OFF \
     -DSPIDARCAD_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null

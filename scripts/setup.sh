@@ -4,7 +4,7 @@
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 packages=(
-  build-essential cmake ninja-build pkg-config
+  build-essential cmake ninja-build pkg-config ccache
   libeigen3-dev libsuitesparse-dev libopenblas-dev
   libvtk9-dev libcgal-dev libtet1.5-dev zlib1g-dev
   libglfw3-dev libimgui-dev libusb-1.0-0-dev
@@ -24,7 +24,11 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 build_type="${SPIDARCAD_BUILD_TYPE:-RelWithDebInfo}"
+# ccache keeps the compiled objects between builds; with its base directory at the checkout's
+# root the compile commands hold relative paths, so a second checkout (a CI clone) reuses them.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$here}"
 # SPIDARCAD_WERROR=ON (CI) makes compiler warnings errors.
 cmake -S "$here" -B "$here/build" -G Ninja -DCMAKE_BUILD_TYPE="$build_type" \
+  -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache \
   -DSPIDARCAD_WERROR="${SPIDARCAD_WERROR:-OFF}" >/dev/null
 cmake --build "$here/build" -j "$(nproc)"
