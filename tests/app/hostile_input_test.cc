@@ -467,23 +467,6 @@ TEST(HostileInput, EveryBatchCommandRefusesAnInfiniteLineNamingItAndGoesOn) {
   EXPECT_EQ(t[1], "nan,nan,nan,nan,nan,nan,nan,nan,nan");
 }
 
-// Runs `spidarcad ARGS --progress` in the background and sends one SIGINT once its stderr shows
-// `marker`; returns "status=N" in out and the stderr text in *err.
-CommandRun InterruptOnceShown(const std::string& args, const std::string& marker,
-                              const std::string& tag, std::string* err) {
-  const std::string err_path = OutputPath("hostile_" + tag + ".err");
-  std::remove(err_path.c_str());
-  const std::string script = "'" + std::string(SPIDARCAD_EXE) + "' " + args + " --progress 2> '" +
-                             err_path + "' & pid=$!; i=0; while ! grep -q '" + marker + "' '" +
-                             err_path +
-                             "' 2>/dev/null && [ $i -lt 6000 ]; do sleep 0.05; i=$((i+1)); done; "
-                             "kill -INT $pid; (sleep 120; kill -KILL $pid 2>/dev/null) & guard=$!; "
-                             "wait $pid; status=$?; kill $guard 2>/dev/null; echo status=$status";
-  CommandRun run = test_support::RunCommand(script, "", OutputPath("hostile_" + tag + "_run"));
-  *err = test_support::ReadWholeFile(err_path);
-  return run;
-}
-
 // Bullet 7: "`spidarcad mesh assets/scenes/platform.json --resolution 1e-6` runs on with no
 // estimate; unions of 10,000 to 100,000 primitives, a polar_array of 1,000 copies of the bolt
 // holes, and extrusions with 10,000-point profiles each take longer than 20 s with no estimate,
@@ -514,9 +497,10 @@ TEST(HostileInput, LargeSolidsGetAnEstimateFirstARefusalPastTheBudgetAndStopOnCt
                   {"estimated work", "is over --max-work 1000", "estimate: grid ", c.cost,
                    "raise the limit with --max-work"},
                   out);
-    std::string err;
-    const CommandRun run = InterruptOnceShown("mesh '" + c.path + "' --out '" + out + "'",
-                                              "mesh: surface", "ctrl_c", &err);
+    const CommandRun run = test_support::InterruptOnceShown(
+        "'" + std::string(SPIDARCAD_EXE) + "' mesh '" + c.path + "' --out '" + out + "' --progress",
+        OutputPath("hostile_ctrl_c.err"), "mesh: surface", OutputPath("hostile_ctrl_c_run"));
+    const std::string& err = run.err;
     EXPECT_NE(run.out.find("status=130"), std::string::npos) << c.name << "\n" << run.all() << err;
     EXPECT_NE(err.find("spidarcad mesh: estimate: grid "), std::string::npos) << c.name << err;
     EXPECT_LT(err.find("estimate: grid "), err.find("mesh: surface")) << c.name << err;

@@ -491,18 +491,11 @@ TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
   const std::string err = OutputPath("ctrl_c.err");
   std::remove(out.c_str());
   std::remove(err.c_str());
-  const std::string script =
+  const CommandRun run = spidarcad::test_support::InterruptOnceShown(
       "'" + std::string(SPIDARCAD_EXE) + "' mesh '" + scene + "' --out '" + out +
-      "' --resolution 0.0003 --max-cells 1e9 --max-memory 1e11 --max-work 1e15 --progress 2> '" +
-      err +
-      "' & pid=$!; "
-      "i=0; while ! grep -q 'surface' '" +
-      err +
-      "' 2>/dev/null && [ $i -lt 1200 ]; do sleep 0.05; i=$((i+1)); done; "
-      "kill -INT $pid; (sleep 60; kill -KILL $pid 2>/dev/null) & guard=$!; "
-      "wait $pid; status=$?; kill $guard 2>/dev/null; echo status=$status";
-  const CommandRun run = spidarcad::test_support::RunCommand(script, "", OutputPath("ctrl_c_run"));
-  const std::string stderr_text = ReadWholeFile(err);
+          "' --resolution 0.0003 --max-cells 1e9 --max-memory 1e11 --max-work 1e15 --progress",
+      err, "surface", OutputPath("ctrl_c_run"), 60, 60);
+  const std::string& stderr_text = run.err;
   EXPECT_NE(run.out.find("status=130"), std::string::npos) << run.all() << stderr_text;
   EXPECT_NE(stderr_text.find("interrupted (Ctrl+C): stopped, nothing written"), std::string::npos)
       << stderr_text;
