@@ -495,7 +495,7 @@ double CompiledSolid::EvaluationCost() const noexcept {
 
 int CompiledSolid::LipschitzOnlyCount() const noexcept {
   int count = 0;
-  for (const Instruction& ins : code_) count += ins.op == Op::kCone || ins.op == Op::kExtrusion;
+  for (const Instruction& ins : code_) count += !IsBranchFree(ins.op);
   return count;
 }
 

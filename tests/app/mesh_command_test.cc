@@ -490,7 +490,6 @@ TEST(MeshCommand, CtrlCStopsWithStatus130AndWritesNothing) {
   const std::string out = OutputPath("ctrl_c.stl");
   const std::string err = OutputPath("ctrl_c.err");
   std::remove(out.c_str());
-  std::remove(err.c_str());
   const CommandRun run = spidarcad::test_support::InterruptOnceShown(
       "'" + std::string(SPIDARCAD_EXE) + "' mesh '" + scene + "' --out '" + out +
           "' --resolution 0.0003 --max-cells 1e9 --max-memory 1e11 --max-work 1e15 --progress",
