@@ -756,7 +756,7 @@ bool SplitsSlabs(const CompiledSolid& tape) {
 // within that box the pruned tape has the same values, so its bounds are as valid (and can
 // only be tighter).
 double FarthestLeaf(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
-                    double resolution, int axis, double sign) {
+                    double resolution, int axis, double sign, const std::atomic<bool>* cancel) {
   struct Entry {
     double extreme;  // sign × the box's extreme along axis
     double size;     // its largest side
@@ -777,6 +777,7 @@ double FarthestLeaf(const CompiledSolid& solid, const Eigen::AlignedBox3d& searc
   while (!queue.empty()) {
     const Entry top = queue.top();
     queue.pop();
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw MeshingCancelled();
     const CompiledSolid& tape = top.tape != nullptr ? *top.tape : solid;
     const BoxClass cls = tape.Classify(top.box);
     if (cls == BoxClass::kOutside) continue;
@@ -876,7 +877,7 @@ std::string Sci(double v) {
 }  // namespace
 
 Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
-                               double resolution) {
+                               double resolution, const std::atomic<bool>* cancel) {
   if (search.isEmpty() || !search.min().allFinite() || !search.max().allFinite() ||
       !(resolution > 0.0)) {
     throw std::invalid_argument(
@@ -888,10 +889,10 @@ Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedB
   const double cell = std::max(resolution, finest);
   Eigen::AlignedBox3d found;  // empty
   for (int axis = 0; axis < 3; ++axis) {
-    const double lo = FarthestLeaf(solid, search, cell, axis, -1.0);
+    const double lo = FarthestLeaf(solid, search, cell, axis, -1.0, cancel);
     if (std::isnan(lo)) return Eigen::AlignedBox3d();  // no leaf anywhere: empty
     found.min()[axis] = lo;
-    found.max()[axis] = FarthestLeaf(solid, search, cell, axis, +1.0);
+    found.max()[axis] = FarthestLeaf(solid, search, cell, axis, +1.0, cancel);
   }
   return found;
 }

@@ -509,6 +509,17 @@ TEST(HostileInput, LargeSolidsGetAnEstimateFirstARefusalPastTheBudgetAndStopOnCt
         << c.name << err;
     EXPECT_FALSE(FileExists(out)) << c.name;
   }
+  // A Ctrl+C during the box search before the estimate (about 6 s for the union of 100,000
+  // spheres) ends the run there: no estimate is printed, nothing is written.
+  const CommandRun box = test_support::InterruptOnceShown(
+      "'" + std::string(SPIDARCAD_EXE) + "' mesh '" + cases[1].path + "' --out '" + out +
+          "' --progress",
+      OutputPath("hostile_ctrl_c.err"), "box: finding where", OutputPath("hostile_ctrl_c_box"));
+  EXPECT_NE(box.out.find("status=130"), std::string::npos) << box.all() << box.err;
+  EXPECT_NE(box.err.find("interrupted (Ctrl+C): stopped, nothing written"), std::string::npos)
+      << box.err;
+  EXPECT_EQ(box.err.find("estimate:"), std::string::npos) << box.err;
+  EXPECT_FALSE(FileExists(out));
 }
 
 // The window: opening each hostile file of the issue (File > Open, drop, the recent list all

@@ -472,6 +472,9 @@ TEST(MeshCommand, ProgressGoesToStderrWithTheFlag) {
   const CommandRun run =
       RunMesh("'" + Platform() + "' --out '" + out + "' --resolution 0.008 --progress", "progress");
   EXPECT_EQ(run.status, 0) << run.all();
+  EXPECT_LT(run.err.find("spidarcad mesh: box: finding where the solid lies"),
+            run.err.find("spidarcad mesh: estimate: grid "))
+      << run.err;
   EXPECT_NE(run.err.find("spidarcad mesh: estimate: grid "), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("spidarcad mesh: surface 100.0 %"), std::string::npos) << run.err;
   EXPECT_EQ(run.out.find("estimate"), std::string::npos);  // stdout keeps its figures only

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -599,6 +600,15 @@ TEST(SurfaceMesher, FindBoundsOfALongUnionPrunedBoxByBoxHoldsEverySphere) {
         EXPECT_LE(found.max()[a] - tight.max()[a], 2 * resolution) << what << " " << resolution;
       }
     }
+    // A cancel flag that stays down changes nothing; a raised one stops the search before its
+    // first classification (it is read before every one).
+    std::atomic<bool> cancel{false};
+    const Eigen::AlignedBox3d plain_box = FindBounds(*solid, search, 0.01);
+    const Eigen::AlignedBox3d with_flag = FindBounds(*solid, search, 0.01, &cancel);
+    EXPECT_EQ(with_flag.min(), plain_box.min()) << what;
+    EXPECT_EQ(with_flag.max(), plain_box.max()) << what;
+    cancel = true;
+    EXPECT_THROW(FindBounds(*solid, search, 0.01, &cancel), MeshingCancelled) << what;
   }
 }
 

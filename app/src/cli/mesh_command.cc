@@ -505,8 +505,13 @@ void RunMesh(const MeshOptions& o) {
     return;
   }
   const OpenedDocument opened = OpenDocumentFile(o.scene);
-  const SceneSolidGrid grid = PrepareDocumentSolid(opened, name, option, o.resolution,
-                                                   kDefaultCellsAcross, o.max_cells, "--max-cells");
+  // The box search (seconds for a union of 100,000 primitives) writes nothing: a Ctrl+C there
+  // ends the process at once.
+  progress.Note("box: finding where the solid lies");
+  const SceneSolidGrid grid = AtOnceOnCtrlC([&] {
+    return PrepareDocumentSolid(opened, name, option, o.resolution, kDefaultCellsAcross,
+                                o.max_cells, "--max-cells");
+  });
   const CompiledSolid& compiled = grid.compiled;
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;

@@ -497,7 +497,7 @@ bool SculptMode::StartCopy(ModeContext& context, ObjectId source) {
           // the meshing grid.
           job_context.SetPhase("bounds");
           bool unbounded = false;
-          Eigen::AlignedBox3d box = SolidBounds(*solid, &unbounded);
+          Eigen::AlignedBox3d box = SolidBounds(*solid, &unbounded, job_context.cancel_flag());
           if (unbounded)
             throw std::runtime_error("the solid is unbounded: intersect it with a box");
           if (box.isEmpty()) throw std::runtime_error("the solid is empty");

@@ -225,7 +225,8 @@ namespace {
 // FeSolidBounds; `fine` = false stops at the coarse search (a box that holds the solid, found at
 // a cost that does not grow with the cell count: what an estimate may spend).
 Eigen::AlignedBox3d SolidBox(const modeling::ImplicitNode& root, const std::string& name,
-                             double* cell, modeling::CompiledSolid* compiled, bool fine) {
+                             double* cell, modeling::CompiledSolid* compiled, bool fine,
+                             const std::atomic<bool>* cancel) {
   try {
     *compiled = modeling::CompiledSolid::Compile(root);
   } catch (const std::exception& e) {
@@ -234,7 +235,7 @@ Eigen::AlignedBox3d SolidBox(const modeling::ImplicitNode& root, const std::stri
   const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
                                    Eigen::Vector3d::Constant(kSearchHalfSide));
   const double coarse = *cell > 0.0 ? std::max(*cell, 0.005) : 0.01;
-  const Eigen::AlignedBox3d rough = modeling::FindBounds(*compiled, search, coarse);
+  const Eigen::AlignedBox3d rough = modeling::FindBounds(*compiled, search, coarse, cancel);
   if (rough.isEmpty()) throw std::invalid_argument("solid '" + name + "' is empty");
   for (int a = 0; a < 3; ++a) {
     if (rough.min()[a] <= -kSearchHalfSide + coarse || rough.max()[a] >= kSearchHalfSide - coarse)
@@ -243,7 +244,7 @@ Eigen::AlignedBox3d SolidBox(const modeling::ImplicitNode& root, const std::stri
                                   "half-space): intersect it with a box");
   }
   if (!(*cell > 0.0)) *cell = rough.sizes().maxCoeff() / kFeCellsAcross;
-  Eigen::AlignedBox3d box = fine ? modeling::FindBounds(*compiled, rough, *cell) : rough;
+  Eigen::AlignedBox3d box = fine ? modeling::FindBounds(*compiled, rough, *cell, cancel) : rough;
   box.min().array() -= 2.0 * *cell;
   box.max().array() += 2.0 * *cell;
   return box;
@@ -252,8 +253,9 @@ Eigen::AlignedBox3d SolidBox(const modeling::ImplicitNode& root, const std::stri
 }  // namespace
 
 Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std::string& name,
-                                  double* cell, modeling::CompiledSolid* compiled) {
-  return SolidBox(root, name, cell, compiled, true);
+                                  double* cell, modeling::CompiledSolid* compiled,
+                                  const std::atomic<bool>* cancel) {
+  return SolidBox(root, name, cell, compiled, true, cancel);
 }
 
 std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& input) {
@@ -261,7 +263,7 @@ std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& i
   double cell = input.settings.cell_size;
   modeling::CompiledSolid compiled;
   modeling::SurfaceMeshSettings ss;
-  ss.bounds = SolidBox(input.root, input.source_name, &cell, &compiled, false);
+  ss.bounds = SolidBox(input.root, input.source_name, &cell, &compiled, false, nullptr);
   ss.cell_size = cell;
   return modeling::EstimateSurfaceMesh(compiled, ss);
 }
@@ -313,7 +315,8 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     throw std::invalid_argument("set up FE: '" + input.source_name + "' cannot be meshed");
   double cell = input.settings.cell_size;
   modeling::CompiledSolid compiled;
-  const Eigen::AlignedBox3d bounds = FeSolidBounds(input.root, input.source_name, &cell, &compiled);
+  const Eigen::AlignedBox3d bounds =
+      FeSolidBounds(input.root, input.source_name, &cell, &compiled, cancel);
   result.settings.cell_size = cell;
   if (input.settings.mesher == "cgal") {
     if (!input.volume)

@@ -98,9 +98,11 @@ struct FeMeshResult {
 // of its box found at 1 cm (which overestimates by up to about 1 cm per side) / kFeCellsAcross,
 // returned in *cell): the solid's box padded by two cells. Throws
 // std::invalid_argument naming `name` when the tree does not compile, the solid is empty or
-// unbounded (reaches 10 m from the origin).
+// unbounded (reaches 10 m from the origin); modeling::MeshingCancelled when `cancel` (may be
+// null) is raised during the box search.
 Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std::string& name,
-                                  double* cell, modeling::CompiledSolid* compiled);
+                                  double* cell, modeling::CompiledSolid* compiled,
+                                  const std::atomic<bool>* cancel = nullptr);
 
 // The cost of meshing a solid input's surface (as `spidarcad mesh` estimates it before running);
 // nullopt for the other kinds and for CGAL. Throws as FeSolidBounds.

@@ -32,10 +32,11 @@ bool PositiveFinite(double v) { return std::isfinite(v) && v > 0.0; }
 
 }  // namespace
 
-Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded) {
+Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded,
+                                const std::atomic<bool>* cancel) {
   const Eigen::AlignedBox3d search(Eigen::Vector3d::Constant(-kSearchHalfSide),
                                    Eigen::Vector3d::Constant(kSearchHalfSide));
-  const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, search, kCoarseCell);
+  const Eigen::AlignedBox3d rough = modeling::FindBounds(solid, search, kCoarseCell, cancel);
   *unbounded = false;
   if (rough.isEmpty()) return rough;
   for (int a = 0; a < 3; ++a) {
@@ -45,7 +46,8 @@ Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbo
       return Eigen::AlignedBox3d();
     }
   }
-  return modeling::FindBounds(solid, rough, std::max(rough.sizes().maxCoeff() / 64.0, 1e-4));
+  return modeling::FindBounds(solid, rough, std::max(rough.sizes().maxCoeff() / 64.0, 1e-4),
+                              cancel);
 }
 
 const char* ToolModelName(ToolModel model) {

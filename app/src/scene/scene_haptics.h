@@ -33,6 +33,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <atomic>
 #include <memory>
 #include <optional>
 #include <string>
@@ -111,8 +112,10 @@ WorkspaceMap FitWorkspace(const Eigen::AlignedBox3d& bounds_W, double half_side,
 
 // The box of a compiled solid (W, m): found on 1 cm cells inside a ±10 m search cube, then refined
 // on cells of 1/64 of its largest side (at least 0.1 mm). Empty when the solid is empty, and
-// empty with *unbounded set when it reaches the search cube (a half-space, say).
-Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded);
+// empty with *unbounded set when it reaches the search cube (a half-space, say). Throws
+// modeling::MeshingCancelled when `cancel` (may be null) is raised (modeling::FindBounds).
+Eigen::AlignedBox3d SolidBounds(const modeling::CompiledSolid& solid, bool* unbounded,
+                                const std::atomic<bool>* cancel = nullptr);
 
 // One field of a built scene, for summaries.
 struct FieldInfo {

@@ -78,10 +78,11 @@ struct PreviewResult {
 };
 
 // Box of `solid` (FindBounds at about 1/64 of its size); throws std::runtime_error naming
-// `what` when the solid is empty or unbounded.
-Eigen::AlignedBox3d SolidBox(const modeling::CompiledSolid& solid, const std::string& what) {
+// `what` when the solid is empty or unbounded, modeling::MeshingCancelled when `cancel` is raised.
+Eigen::AlignedBox3d SolidBox(const modeling::CompiledSolid& solid, const std::string& what,
+                             const std::atomic<bool>* cancel = nullptr) {
   bool unbounded = false;
-  const Eigen::AlignedBox3d box = SolidBounds(solid, &unbounded);
+  const Eigen::AlignedBox3d box = SolidBounds(solid, &unbounded, cancel);
   if (unbounded) throw std::runtime_error(what + " is unbounded (reaches the 20 m search box)");
   if (box.isEmpty()) throw std::runtime_error(what + " is empty");
   return box;
@@ -221,14 +222,15 @@ void SceneModel::StartPreview(JobQueue* jobs, SceneObject* object, double cells_
                     auto result = std::make_shared<PreviewResult>();
                     try {
                       context.SetPhase("bounds");
-                      result->bounds_W = SolidBox(*solid, "solid '" + name + "'");
+                      const std::atomic<bool>* cancel = context.cancel_flag();
+                      result->bounds_W = SolidBox(*solid, "solid '" + name + "'", cancel);
                       const double cell = result->bounds_W.sizes().maxCoeff() / cells_across;
                       modeling::SurfaceMeshSettings s;
                       s.bounds = result->bounds_W;
                       s.bounds.min().array() -= 2.0 * cell;
                       s.bounds.max().array() += 2.0 * cell;
                       s.cell_size = cell;
-                      s.cancel = context.cancel_flag();
+                      s.cancel = cancel;
                       s.progress = context.ProgressRange(0.0, 1.0);
                       context.SetPhase("surface");
                       result->mesh = modeling::MeshSurface(*solid, s);

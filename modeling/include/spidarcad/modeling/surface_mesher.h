@@ -89,9 +89,12 @@ class MeshingCancelled : public std::runtime_error {
 // the extreme's radius of curvature / resolution near a smooth pole), not with the whole
 // surface. A resolution finer than kMinFindBoundsFraction of the search box's largest side is
 // raised to it, which bounds that cost (and the depth) whatever the resolution (even 5e-324).
-// Throws std::invalid_argument for a non-finite or empty search box or a resolution not > 0.
+// Throws std::invalid_argument for a non-finite or empty search box or a resolution not > 0,
+// and MeshingCancelled when `cancel` (may be null) is raised: it is read before every box is
+// classified, so a long tape (a union of 100,000 primitives: seconds in all) stops within one
+// classification.
 Eigen::AlignedBox3d FindBounds(const CompiledSolid& solid, const Eigen::AlignedBox3d& search,
-                               double resolution);
+                               double resolution, const std::atomic<bool>* cancel = nullptr);
 // Finest resolution FindBounds descends to, as a fraction of the search box's largest side.
 inline constexpr double kMinFindBoundsFraction = 1.0 / (1 << 16);
 
