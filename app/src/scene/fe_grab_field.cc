@@ -76,7 +76,7 @@ FeGrabField::~FeGrabField() {
 }
 
 Eigen::Vector3d FeGrabField::PoleTip(const haptics::ToolKinematics& tool, int i) const {
-  const Eigen::Vector3d& p_hat = haptics::GripPoleDirections(tool.grasp).u_T[i == 0 ? 0 : 1];
+  const Eigen::Vector3d p_hat = haptics::GripPoleDirections(tool.grasp).u_T[i == 0 ? 0 : 1];
   return tool.p_WT + settings_.pole_length * (tool.R_WT * p_hat);
 }
 
