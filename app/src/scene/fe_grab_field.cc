@@ -8,8 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "scene/grip_poles.h"
 #include "spidarcad/fem/grab.h"
-#include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
 namespace {
@@ -76,8 +76,7 @@ FeGrabField::~FeGrabField() {
 }
 
 Eigen::Vector3d FeGrabField::PoleTip(const haptics::ToolKinematics& tool, int i) const {
-  const Eigen::Vector3d p_hat = haptics::GripPoleDirections(tool.grasp).u_T[i == 0 ? 0 : 1];
-  return tool.p_WT + settings_.pole_length * (tool.R_WT * p_hat);
+  return GripPoleTip(tool, settings_.pole_length, i);
 }
 
 int FeGrabField::CollectPatch(const haptics::ToolKinematics& tool) {

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "scene/grip_poles.h"
 #include "spidarcad/haptics/geometry.h"
 
 namespace spidarcad::app {
@@ -79,8 +80,7 @@ FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings
 FeTouchField::~FeTouchField() = default;
 
 Eigen::Vector3d FeTouchField::PoleTip(const haptics::ToolKinematics& tool, int i) const {
-  const Eigen::Vector3d p_hat = haptics::GripPoleDirections(tool.grasp).u_T[i == 0 ? 0 : 1];
-  return tool.p_WT + settings_.pole_length * (tool.R_WT * p_hat);
+  return GripPoleTip(tool, settings_.pole_length, i);
 }
 
 template <typename Visit>
