@@ -27,8 +27,12 @@ build_type="${SPIDARCAD_BUILD_TYPE:-RelWithDebInfo}"
 # ccache keeps the compiled objects between builds; with its base directory at the checkout's
 # root the compile commands hold relative paths, so a second checkout (a CI clone) reuses them.
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$here}"
-# SPIDARCAD_WERROR=ON (CI) makes compiler warnings errors.
+# SPIDARCAD_WERROR=ON (CI) makes compiler warnings errors. Unset, the build keeps what it was
+# configured with (OFF in a new build), so run-app.sh after a CI-style run-tests.sh reuses that
+# build instead of compiling everything again with other flags.
+werror=()
+[ -z "${SPIDARCAD_WERROR:-}" ] || werror=(-DSPIDARCAD_WERROR="$SPIDARCAD_WERROR")
 cmake -S "$here" -B "$here/build" -G Ninja -DCMAKE_BUILD_TYPE="$build_type" \
   -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache \
-  -DSPIDARCAD_WERROR="${SPIDARCAD_WERROR:-OFF}" >/dev/null
+  "${werror[@]}" >/dev/null
 cmake --build "$here/build" -j "$(nproc)"
