@@ -13,6 +13,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "solve_checks.h"
+
 namespace spidarcad::fem {
 
 namespace {
@@ -324,15 +326,7 @@ Eigen::MatrixXd ExtendedResidual(const SparseMatrixd& k, const Eigen::MatrixXd& 
 
 SolveStatus StaticSolver::SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const {
   SolveStatus status;
-  if (!factor_status_.converged) {
-    status.message = factor_status_.message;
-    return status;
-  }
-  if (rhs.rows() != num_free()) {
-    status.message = "SolveFree: right-hand side has " + std::to_string(rhs.rows()) +
-                     " rows, expected " + std::to_string(num_free());
-    return status;
-  }
+  if (!detail::CanSolve(factor_status_, rhs.rows(), num_free(), &status)) return status;
   *x = factor_->Solve(rhs);
   const Eigen::MatrixXd r = ExtendedResidual(k_ff_, rhs, *x);
   // Normwise backward error ||b − K x|| / (||K|| ||x|| + ||b||): meaningful also when

@@ -13,6 +13,7 @@
 #include <string>
 #include <utility>
 
+#include "solve_checks.h"
 #include "spidarcad/fem/precompute_cache.h"
 
 // LAPACK (in OpenBLAS, linked by this library for CHOLMOD): A := U Uᵀ for the upper triangle U
@@ -581,15 +582,7 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
                                            const std::vector<char>* wanted,
                                            Eigen::MatrixXd* x) const {
   SolveStatus status;
-  if (!factor_status_.converged) {
-    status.message = factor_status_.message;
-    return status;
-  }
-  if (rhs.rows() != num_free()) {
-    status.message = "SolveFree: right-hand side has " + std::to_string(rhs.rows()) +
-                     " rows, expected " + std::to_string(num_free());
-    return status;
-  }
+  if (!detail::CanSolve(factor_status_, rhs.rows(), num_free(), &status)) return status;
   const Eigen::Index m = rhs.cols();
   const int ng = static_cast<int>(interface_free_.size());
   Eigen::MatrixXd g(ng, m);
