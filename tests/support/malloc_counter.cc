@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <cstddef>
+#include <cstdio>
 #include <cstdlib>
 #include <vector>
 
@@ -20,6 +21,7 @@
 extern "C" int __sanitizer_install_malloc_and_free_hooks(
     void (*malloc_hook)(const volatile void* ptr, std::size_t size),
     void (*free_hook)(const volatile void* ptr));
+extern "C" void __sanitizer_print_stack_trace();
 #else
 extern "C" void* __libc_malloc(std::size_t size);
 #endif
@@ -35,9 +37,18 @@ std::atomic<bool> g_counting{false};
 // The runtime installs a pair only when both hooks are given (a null free hook installs
 // nothing), hence the empty one.
 namespace {
-void CountAllocation(const volatile void* /*ptr*/, std::size_t /*size*/) {
-  if (g_counting.load(std::memory_order_relaxed)) {
-    g_malloc_count.fetch_add(1, std::memory_order_relaxed);
+// SPIDARCAD_MALLOC_COUNTER_TRACE=1 prints the size and the stack of every counted allocation
+// (stderr), to find where a counted one comes from; tracing itself is not counted.
+const bool g_trace = std::getenv("SPIDARCAD_MALLOC_COUNTER_TRACE") != nullptr;
+thread_local bool t_tracing = false;
+void CountAllocation(const volatile void* /*ptr*/, std::size_t size) {
+  if (!g_counting.load(std::memory_order_relaxed) || t_tracing) return;
+  g_malloc_count.fetch_add(1, std::memory_order_relaxed);
+  if (g_trace) {
+    t_tracing = true;
+    std::fprintf(stderr, "MallocCounter: counted an allocation of %zu bytes at\n", size);
+    __sanitizer_print_stack_trace();
+    t_tracing = false;
   }
 }
 void IgnoreFree(const volatile void* /*ptr*/) {}
