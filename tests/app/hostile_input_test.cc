@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,11 +20,14 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "doc/assets.h"
 #include "doc/document.h"
 #include "doc/recent_files.h"
 #include "gui/app_window.h"
+#include "gui/workbench_panels.h"
 #include "scene/scene_model.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/modeling/tet_mesh.h"
@@ -559,6 +564,53 @@ TEST(HostileInputWindow, OpeningAHostileFileShowsTheErrorAndKeepsTheDocument) {
     for (int k = 0; k < 2; ++k) window.Frame();  // the error is drawn; the window goes on
   }
   EXPECT_TRUE(window.recent().paths().empty());
+}
+
+// Opening the union of 100,000 spheres reads the 11 MB file (twice: once for its parts), compiles
+// the tree and searches for its box: 5 s or more on two cores. The window reads it on a thread
+// of its own and draws frames meanwhile; its Cancel (here CancelOpen, which the button, Esc and
+// the close button also raise, called from another thread while OpenDocument runs) returns at
+// once, and the reading thread ends on its own at its next look at the flag (joined when the
+// window goes). The open document, its source and the recent list are as they were, no error is
+// shown, the status says the open was cancelled, and the next open is not cancelled. How long
+// OpenDocument took to return after the cancel is recorded (property "cancel_seconds"); the
+// issue's 0.5 s is not asserted (timing).
+TEST(HostileInputWindow, OpeningAHugeUnionCanBeCancelledAndKeepsTheDocument) {
+  using namespace std::chrono_literals;
+  if (!test_support::HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("hostile_window_cancel");
+  const std::string path = WriteScene("w_union100k.json", UnionRoot(100000));
+  AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
+  window.Frame();
+  const nlohmann::json before = window.model().document().ToJson();
+  std::atomic<bool> stop{false};
+  std::atomic<long long> cancelled_at{0};
+  std::thread canceller([&] {
+    // Wait until the open is under way and past the file's reading (1.5 s), then cancel.
+    while (!stop.load() && !window.opening()) std::this_thread::sleep_for(1ms);
+    std::this_thread::sleep_for(1500ms);
+    cancelled_at.store(std::chrono::steady_clock::now().time_since_epoch().count());
+    window.CancelOpen();
+  });
+  const bool opened = window.OpenDocument(path);
+  const auto returned = std::chrono::steady_clock::now().time_since_epoch().count();
+  stop.store(true);
+  canceller.join();
+  const double cancel_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::duration(returned - cancelled_at))
+          .count();
+  RecordProperty("cancel_seconds", std::to_string(cancel_seconds));
+  EXPECT_FALSE(opened) << "the open ran to its end: it was not cancelled";
+  EXPECT_EQ(window.file_error(), "");
+  EXPECT_NE(window.workbench().status.find("cancelled (the document is unchanged)"),
+            std::string::npos)
+      << window.workbench().status;
+  EXPECT_EQ(window.model().document().ToJson(), before);
+  EXPECT_EQ(window.model().source(), kDemoSceneName);
+  EXPECT_TRUE(window.recent().paths().empty());
+  for (int k = 0; k < 2; ++k) EXPECT_TRUE(window.Frame());  // the window goes on
+  // The next open is not cancelled by the last one's flag.
+  EXPECT_TRUE(window.OpenDocument(AssetPath("scenes/platform.json"))) << window.file_error();
 }
 
 }  // namespace

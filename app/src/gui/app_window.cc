@@ -10,16 +10,19 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
 #include <ctime>
+#include <exception>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string_view>
+#include <thread>
 #include <variant>
 
 #define GLFW_INCLUDE_NONE
@@ -63,6 +66,7 @@
 #include "scene/scene_model.h"
 #include "scene/trajectory_player.h"
 #include "spidarcad/haptics/trajectory.h"
+#include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {
 
@@ -255,6 +259,19 @@ void AdoptParts(SceneModel* model) {
 
 }  // namespace
 
+// A document being read on a thread of its own (AppWindow::ReplaceDocument): shared by the
+// window, which may give up waiting for it (Cancel), and the thread, which then ends at its
+// next look at `cancel` and drops what it made.
+struct OpenWork {
+  std::atomic<bool> cancel{false};
+  std::atomic<bool> done{false};  // the thread has set what follows
+  PrepareProgress progress;
+  bool assembly = false;
+  modeling::Scene assembly_scene;
+  PreparedScene prepared;
+  std::exception_ptr failure;
+};
+
 struct AppWindow::State {
   GuiOptions options;
   // The scene and its tree.
@@ -343,6 +360,11 @@ struct AppWindow::State {
   bool pending_after_save_as = false;  // the action waits for Save As
   std::string file_error;
   bool file_error_popup = false;
+  std::atomic<bool> opening{false};      // WaitForOpen is running (read by any thread)
+  std::atomic<bool> cancel_open{false};  // CancelOpen (any thread)
+  // Threads of cancelled opens, left to end on their own at their next look at the flag
+  // (within one parse, one compile or one box); joined when the window goes.
+  std::vector<std::thread> cancelled_opens;
   FileBrowserState open_browser;
   FileBrowserState import_browser;
 };
@@ -626,6 +648,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
 
 AppWindow::~AppWindow() {
   State& s = *s_;
+  for (std::thread& t : s.cancelled_opens) t.join();
   if (s.player) s.player->Stop();
   s.player.reset();
   s.calibration.Attach(nullptr);
@@ -1350,12 +1373,31 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
     s.file_error_popup = true;
     return false;
   }
-  // Load first: a file that fails leaves the document, the loop and the modes as they were.
-  modeling::Scene assembly_scene;
-  const bool assembly = LoadAssemblyScene(source, &assembly_scene);
+  // Load first, off this thread (the window keeps drawing and can cancel): a file that fails
+  // or is cancelled leaves the document, the loop and the modes as they were.
+  auto work = std::make_shared<OpenWork>();
+  std::thread worker([work, source] {
+    try {
+      work->assembly = LoadAssemblyScene(source, &work->assembly_scene);
+      work->prepared = SceneModel::Prepare(source, &work->cancel, &work->progress);
+    } catch (...) {
+      work->failure = std::current_exception();
+    }
+    work->done.store(true);
+  });
+  if (!WaitForOpen(source, work.get())) {  // cancelled: its thread ends on its own
+    s.cancelled_opens.push_back(std::move(worker));
+    s.workbench.status = "opening " + source + ": cancelled (the document is unchanged)";
+    s.workbench.status_error = false;
+    return false;
+  }
+  worker.join();
+  const bool assembly = work->assembly;
+  modeling::Scene assembly_scene = std::move(work->assembly_scene);
   try {
+    if (work->failure) std::rethrow_exception(work->failure);
     const DeviceToWorld identity;
-    s.model.Load(source, s.grip->limits(), assembly ? &identity : nullptr);
+    s.model.Adopt(std::move(work->prepared), s.grip->limits(), assembly ? &identity : nullptr);
     AdoptParts(&s.model);
   } catch (const std::exception& e) {
     s.file_error = e.what();
@@ -1511,6 +1553,64 @@ void AppWindow::AnswerDiscardPrompt(int answer) {
   s.pending_path.clear();
 }
 
+bool AppWindow::WaitForOpen(const std::string& source, OpenWork* work) {
+  State& s = *s_;
+  s.cancel_open.store(false);  // a cancel of an earlier open does not carry over
+  s.opening = true;
+  // A quick open (the demo, a small file) draws nothing: no flicker of a box.
+  const auto start = std::chrono::steady_clock::now();
+  while (!work->done.load() && !s.cancel_open.load() &&
+         std::chrono::steady_clock::now() - start < std::chrono::milliseconds(150))
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  const std::string name = std::filesystem::path(source).filename().string();
+  while (!work->done.load() && !work->cancel.load()) {
+    if (s.cancel_open.load()) break;
+    glfwPollEvents();  // a file dropped now is refused (DropFiles: s.opening)
+    if (glfwWindowShouldClose(s.window)) {
+      glfwSetWindowShouldClose(s.window, GLFW_FALSE);
+      break;
+    }
+    glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
+    glfwGetWindowSize(s.window, &s.win_w, &s.win_h);
+    if (s.fb_w <= 0 || s.fb_h <= 0 || s.win_w <= 0 || s.win_h <= 0) {  // minimised
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      continue;
+    }
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+    ImGui::SetNextWindowPos(ImVec2(0.5f * s.win_w, 0.5f * s.win_h), ImGuiCond_Always,
+                            ImVec2(0.5f, 0.5f));
+    ImGui::Begin("##opening", nullptr,
+                 ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
+                     ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoMove);
+    ImGui::Text("Opening %s", name.c_str());
+    const int total = work->progress.solids_total.load();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (total == 0) {
+      ImGui::TextDisabled("reading the file (%.0f s)", seconds);
+    } else {
+      ImGui::TextDisabled("compiling and finding the box of solid %d of %d (%.0f s)",
+                          std::min(work->progress.solids_done.load() + 1, total), total, seconds);
+    }
+    const bool cancel = ImGui::Button("Cancel") || ImGui::IsKeyPressed(GLFW_KEY_ESCAPE, false);
+    ImGui::End();
+    ImGui::Render();
+    RenderFrame();
+    glfwSwapBuffers(s.window);
+    if (cancel) break;
+  }
+  s.opening = false;
+  if (work->done.load()) return true;
+  work->cancel.store(true);
+  return false;
+}
+
+void AppWindow::CancelOpen() { s_->cancel_open.store(true); }
+
+bool AppWindow::opening() const { return s_->opening.load(); }
+
 bool AppWindow::OpenDocument(const std::string& path) {
   State& s = *s_;
   const std::filesystem::path old_recovery = s.autosaver->RecoveryPathFor(s.model.document());
@@ -1575,6 +1675,11 @@ bool AppWindow::ImportMesh(const std::string& path) {
 
 void AppWindow::DropFiles(const std::vector<std::string>& paths) {
   State& s = *s_;
+  if (s.opening) {  // dropped while a document is being read (WaitForOpen polls events)
+    s.file_error = "dropped files not used: wait until the document being opened is open";
+    s.file_error_popup = true;
+    return;
+  }
   bool opened = false;
   for (const std::string& path : paths) {
     if (IsMeshFile(path)) {

@@ -28,6 +28,7 @@ class GripControl;
 class HapticRuntime;
 class JobQueue;
 class Mode;
+struct OpenWork;
 class ModelMode;
 class SceneModel;
 class SceneView;
@@ -105,7 +106,17 @@ class AppWindow {
   // modes and view for it; the file goes first in the recent list. A file that fails to open
   // leaves the current document as it was and returns false; file_error() then names the file,
   // line and field (also shown in the window).
+  // The file is read, compiled and boxed on a thread of its own while the window keeps
+  // drawing ("Opening FILE", how many solids are done, a Cancel button; Esc and the close
+  // button cancel too); cancelled, it returns false with the document as it was and no
+  // file_error().
   bool OpenDocument(const std::string& path);
+  // Cancels the open in progress, as its Cancel button does; safe from any thread. Nothing
+  // when no open is in progress.
+  void CancelOpen();
+  // True while a document is being read (OpenDocument, a recovery or New has not returned);
+  // safe from any thread.
+  bool opening() const;
   // Replaces the document by an empty, untitled one now, without asking.
   void NewDocument();
   // Imports a mesh file (STL, OBJ, PLY, VTU, .node) as a mesh object of the document (one
@@ -162,6 +173,10 @@ class AppWindow {
   void MakeModes();
   void StartScene(const std::string& mode_key);
   bool ReplaceDocument(const std::string& source, const std::string* recovered_original);
+  // Draws frames of a box "Opening `source`" (with how far *work has come) until its thread
+  // is done (true) or the user cancels: Cancel, Esc, the close button or CancelOpen (false,
+  // work->cancel raised).
+  bool WaitForOpen(const std::string& source, OpenWork* work);
   void ApplySetEdits();
   void RunPendingAction();
   void RequestAction(int kind, const std::string& path);

@@ -9,6 +9,7 @@
 #include "scene/scene_fields.h"
 #include "scene/snap_features.h"
 #include "spidarcad/modeling/scene_io.h"
+#include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
@@ -92,24 +93,37 @@ Eigen::AlignedBox3d SolidBox(const modeling::CompiledSolid& solid, const std::st
 
 void SceneModel::Load(const std::string& source, const Eigen::Vector3d& travel,
                       const DeviceToWorld* keep) {
-  auto doc = std::make_unique<Document>();
-  std::filesystem::file_time_type mtime{};
+  Adopt(Prepare(source), travel, keep);
+}
+
+PreparedScene SceneModel::Prepare(const std::string& source, const std::atomic<bool>* cancel,
+                                  PrepareProgress* progress) {
+  PreparedScene prepared;
+  prepared.source = source;
+  prepared.doc = std::make_unique<Document>();
+  Document& doc = *prepared.doc;
   if (source == kNoSceneName) {
     modeling::Scene scene;
     scene.description = "empty scene";
-    doc->LoadScene(scene, "<empty scene>");
+    doc.LoadScene(scene, "<empty scene>");
   } else if (source == kDemoSceneName) {
-    doc->LoadScene(modeling::ParseScene(DemoSceneJson(), "<built-in demo scene>"),
-                   "<built-in demo scene>");
+    doc.LoadScene(modeling::ParseScene(DemoSceneJson(), "<built-in demo scene>"),
+                  "<built-in demo scene>");
   } else {
-    doc->Load(source);  // SceneError names file, line and field
+    doc.Load(source);  // SceneError names file, line and field
     std::error_code ec;
-    mtime = std::filesystem::last_write_time(source, ec);
+    prepared.mtime = std::filesystem::last_write_time(source, ec);
   }
-  std::vector<SceneObject> objects;
-  Eigen::AlignedBox3d all;
+  // The file's reading and each solid's compilation look at the flag between them only.
+  const auto check_cancel = [cancel] {
+    if (cancel != nullptr && cancel->load()) throw modeling::MeshingCancelled();
+  };
+  check_cancel();
+  int solids = 0;
+  for (const DocObject& d : doc.objects()) solids += std::holds_alternative<SolidData>(d.data);
+  if (progress != nullptr) progress->solids_total.store(solids);
   int i = 0;
-  for (const DocObject& d : doc->objects()) {
+  for (const DocObject& d : doc.objects()) {
     const auto* data = std::get_if<SolidData>(&d.data);
     if (data == nullptr) continue;
     SceneObject object;
@@ -119,7 +133,10 @@ void SceneModel::Load(const std::string& source, const Eigen::Vector3d& travel,
     try {
       object.solid = std::make_shared<const modeling::CompiledSolid>(
           modeling::CompiledSolid::Compile(data->root, "/solids/" + std::to_string(i) + "/root"));
-      object.bounds_W = SolidBox(*object.solid, "solid '" + d.name + "'");
+      check_cancel();
+      object.bounds_W = SolidBox(*object.solid, "solid '" + d.name + "'", cancel);
+    } catch (const modeling::MeshingCancelled&) {
+      throw;
     } catch (const std::exception& e) {
       const std::string text = e.what();
       // SolidBox's messages already name the solid.
@@ -128,16 +145,22 @@ void SceneModel::Load(const std::string& source, const Eigen::Vector3d& travel,
           (text.rfind("solid '", 0) == 0 ? text : "solid '" + d.name + "': " + text));
     }
     object.colour = kColours[i % kColours.size()];
-    all.extend(object.bounds_W);
-    objects.push_back(std::move(object));
+    prepared.all.extend(object.bounds_W);
+    prepared.objects.push_back(std::move(object));
     ++i;
+    if (progress != nullptr) progress->solids_done.store(i);
   }
-  doc_ = std::move(doc);
+  return prepared;
+}
+
+void SceneModel::Adopt(PreparedScene&& prepared, const Eigen::Vector3d& travel,
+                       const DeviceToWorld* keep) {
+  doc_ = std::move(prepared.doc);
   synced_revision_ = doc_->revision();
-  objects_ = std::move(objects);
-  x_wd_ = keep != nullptr ? DeviceToWorld(*keep) : ChooseDeviceToWorld(all, travel);
-  source_ = source;
-  mtime_ = mtime;
+  objects_ = std::move(prepared.objects);
+  x_wd_ = keep != nullptr ? DeviceToWorld(*keep) : ChooseDeviceToWorld(prepared.all, travel);
+  source_ = std::move(prepared.source);
+  mtime_ = prepared.mtime;
   ++generation_;
 }
 

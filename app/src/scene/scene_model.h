@@ -19,6 +19,7 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -89,6 +90,22 @@ struct SceneObject {
   int revision = 0;                        // bumped whenever the preview changes
 };
 
+// A scene read, compiled and boxed by SceneModel::Prepare, to be taken by SceneModel::Adopt.
+// Made on any thread (it shares nothing with a SceneModel); moved to the main thread whole.
+struct PreparedScene {
+  std::string source;
+  std::unique_ptr<Document> doc;
+  std::vector<SceneObject> objects;  // one per solid object, compiled, bounds_W found
+  Eigen::AlignedBox3d all;           // union of the solids' boxes (empty: no solid)
+  std::filesystem::file_time_type mtime{};
+};
+
+// How far SceneModel::Prepare has come, for a progress display on another thread.
+struct PrepareProgress {
+  std::atomic<int> solids_done{0};   // solids compiled and boxed so far
+  std::atomic<int> solids_total{0};  // 0 while the file is read
+};
+
 // The scene of the window.
 class SceneModel {
  public:
@@ -112,6 +129,17 @@ class SceneModel {
   // solid when that fails; the model (and its Document) is then unchanged.
   void Load(const std::string& source, const Eigen::Vector3d& travel,
             const DeviceToWorld* keep = nullptr);
+  // Load in two steps, so that the slow one can run off the main thread: Prepare reads
+  // `source` into a new Document, compiles every solid and finds its box, touching no
+  // SceneModel (any thread; `cancel`, may be null, is read after the file is read, after each
+  // solid's compilation and before every box classification: modeling::MeshingCancelled when
+  // it is raised; `progress`, may be null, is updated as it
+  // goes); it throws as Load. Adopt then makes it this model's scene (main thread), placed as
+  // Load places it; it does not throw.
+  static PreparedScene Prepare(const std::string& source, const std::atomic<bool>* cancel = nullptr,
+                               PrepareProgress* progress = nullptr);
+  void Adopt(PreparedScene&& prepared, const Eigen::Vector3d& travel,
+             const DeviceToWorld* keep = nullptr);
   // Writes the Document as a scene file (temporary file renamed over `path`), which becomes the
   // source (its new mtime is not taken for an outside change). Throws modeling::SceneError.
   void Save(const std::string& path);
