@@ -1033,6 +1033,14 @@ TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
   EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
 }
 
+// Draws frames until the window's jobs (the previews of a document just opened) have ended, for
+// at most 120 s; false if they had not by then.
+bool FramesUntilJobsEnd(AppWindow& window) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (window.jobs().busy() && std::chrono::steady_clock::now() < give_up) window.Frame();
+  return !window.jobs().busy();
+}
+
 // Model mode's Mesh action in the window: the selected solid's surface lands as a mesh object,
 // selected in the tree and drawn in the solid's place; Ctrl+Z removes it, Ctrl+Y brings it back;
 // an edit of the solid makes it stale (the tree's marker), Refresh from the tree meshes it again
@@ -1048,9 +1056,8 @@ TEST(AppWindowDocument, ModelModeMeshLandsInTheTreeUndoesGoesStaleAndRefreshes) 
     ASSERT_EQ(window.active_mode(), window.FindMode("model"));
     // The solids' previews land first: the knob is drawn again after the undo below only once
     // it has one (under the sanitizers the previews outlast the mesh job).
+    ASSERT_TRUE(FramesUntilJobsEnd(window)) << "the previews did not finish";
     const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-    while (window.jobs().busy() && std::chrono::steady_clock::now() < give_up) window.Frame();
-    ASSERT_FALSE(window.jobs().busy()) << "the previews did not finish";
     Document& doc = window.model().document();
     const ObjectId knob = doc.FindByName("knob")->id;
     ASSERT_TRUE(window.tree().SelectByName("knob"));
@@ -1122,6 +1129,9 @@ TEST(AppWindowDocument, ModelModeAsksBeforeALargeMesh) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
   window.Frame();
+  // The previews land first, so that the count of running jobs below moves only with what the
+  // Mesh action starts (a preview ending between two counts failed the test once).
+  ASSERT_TRUE(FramesUntilJobsEnd(window)) << "the previews did not finish";
   Document& doc = window.model().document();
   ASSERT_TRUE(window.tree().SelectByName("knob"));
   window.Frame();

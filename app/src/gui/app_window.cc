@@ -66,7 +66,6 @@
 #include "scene/scene_model.h"
 #include "scene/trajectory_player.h"
 #include "spidarcad/haptics/trajectory.h"
-#include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {
 
@@ -699,9 +698,7 @@ bool AppWindow::Frame() {
   RunPendingAction();  // New, Open, Quit once answered (or with nothing unsaved)
   if (s.quit) return false;
   ++s.frame_index;
-  glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
-  glfwGetWindowSize(s.window, &s.win_w, &s.win_h);
-  if (s.fb_w <= 0 || s.fb_h <= 0 || s.win_w <= 0 || s.win_h <= 0) {  // minimised
+  if (!ReadWindowSize()) {  // minimised
     glfwWaitEvents();
     return true;
   }
@@ -1553,6 +1550,13 @@ void AppWindow::AnswerDiscardPrompt(int answer) {
   s.pending_path.clear();
 }
 
+bool AppWindow::ReadWindowSize() {
+  State& s = *s_;
+  glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
+  glfwGetWindowSize(s.window, &s.win_w, &s.win_h);
+  return s.fb_w > 0 && s.fb_h > 0 && s.win_w > 0 && s.win_h > 0;
+}
+
 bool AppWindow::WaitForOpen(const std::string& source, OpenWork* work) {
   State& s = *s_;
   s.cancel_open.store(false);  // a cancel of an earlier open does not carry over
@@ -1570,9 +1574,7 @@ bool AppWindow::WaitForOpen(const std::string& source, OpenWork* work) {
       glfwSetWindowShouldClose(s.window, GLFW_FALSE);
       break;
     }
-    glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
-    glfwGetWindowSize(s.window, &s.win_w, &s.win_h);
-    if (s.fb_w <= 0 || s.fb_h <= 0 || s.win_w <= 0 || s.win_h <= 0) {  // minimised
+    if (!ReadWindowSize()) {  // minimised
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
       continue;
     }

@@ -28,8 +28,8 @@ class GripControl;
 class HapticRuntime;
 class JobQueue;
 class Mode;
-struct OpenWork;
 class ModelMode;
+struct OpenWork;
 class SceneModel;
 class SceneView;
 class TreeController;
@@ -177,6 +177,8 @@ class AppWindow {
   // is done (true) or the user cancels: Cancel, Esc, the close button or CancelOpen (false,
   // work->cancel raised).
   bool WaitForOpen(const std::string& source, OpenWork* work);
+  // Reads the window's framebuffer and window sizes into the state; false when minimised.
+  bool ReadWindowSize();
   void ApplySetEdits();
   void RunPendingAction();
   void RequestAction(int kind, const std::string& path);

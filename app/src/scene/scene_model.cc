@@ -145,7 +145,6 @@ PreparedScene SceneModel::Prepare(const std::string& source, const std::atomic<b
           (text.rfind("solid '", 0) == 0 ? text : "solid '" + d.name + "': " + text));
     }
     object.colour = kColours[i % kColours.size()];
-    prepared.all.extend(object.bounds_W);
     prepared.objects.push_back(std::move(object));
     ++i;
     if (progress != nullptr) progress->solids_done.store(i);
@@ -158,7 +157,9 @@ void SceneModel::Adopt(PreparedScene&& prepared, const Eigen::Vector3d& travel,
   doc_ = std::move(prepared.doc);
   synced_revision_ = doc_->revision();
   objects_ = std::move(prepared.objects);
-  x_wd_ = keep != nullptr ? DeviceToWorld(*keep) : ChooseDeviceToWorld(prepared.all, travel);
+  Eigen::AlignedBox3d all;
+  for (const SceneObject& o : objects_) all.extend(o.bounds_W);
+  x_wd_ = keep != nullptr ? DeviceToWorld(*keep) : ChooseDeviceToWorld(all, travel);
   source_ = std::move(prepared.source);
   mtime_ = prepared.mtime;
   ++generation_;

@@ -96,7 +96,6 @@ struct PreparedScene {
   std::string source;
   std::unique_ptr<Document> doc;
   std::vector<SceneObject> objects;  // one per solid object, compiled, bounds_W found
-  Eigen::AlignedBox3d all;           // union of the solids' boxes (empty: no solid)
   std::filesystem::file_time_type mtime{};
 };
 
@@ -129,13 +128,12 @@ class SceneModel {
   // solid when that fails; the model (and its Document) is then unchanged.
   void Load(const std::string& source, const Eigen::Vector3d& travel,
             const DeviceToWorld* keep = nullptr);
-  // Load in two steps, so that the slow one can run off the main thread: Prepare reads
+  // Load in two steps, so that the slow one can run off the main thread. Prepare reads
   // `source` into a new Document, compiles every solid and finds its box, touching no
-  // SceneModel (any thread; `cancel`, may be null, is read after the file is read, after each
+  // SceneModel (any thread). `cancel` (may be null) is read after the file is read, after each
   // solid's compilation and before every box classification: modeling::MeshingCancelled when
-  // it is raised; `progress`, may be null, is updated as it
-  // goes); it throws as Load. Adopt then makes it this model's scene (main thread), placed as
-  // Load places it; it does not throw.
+  // it is raised. `progress` (may be null) is updated as it goes. It throws as Load. Adopt then
+  // makes it this model's scene (main thread), placed as Load places it; it does not throw.
   static PreparedScene Prepare(const std::string& source, const std::atomic<bool>* cancel = nullptr,
                                PrepareProgress* progress = nullptr);
   void Adopt(PreparedScene&& prepared, const Eigen::Vector3d& travel,
