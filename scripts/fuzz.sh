@@ -42,6 +42,10 @@ if [ "${FUZZ_NO_BUILD:-0}" != 1 ]; then
   launcher=()
   command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
   export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$here}"  # relative paths: objects shared across checkouts
+  # ccache hashes the working directory into every -g compile unless told not to, which made
+  # a second checkout (a CI clone, a worktree) miss every object; its debug info then names
+  # the directory of the checkout that compiled the object first.
+  export CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-1}"
   CC=clang CXX=clang++ cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DSPIDARCAD_FUZZ=ON -DSPIDARCAD_SANITIZE=address,undefined -DSPIDARCAD_BUILD_TESTS=OFF \
     -DSPIDARCAD_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null

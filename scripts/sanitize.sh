@@ -73,6 +73,10 @@ note() {
 launcher=()
 command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$here}"  # relative paths: objects shared across checkouts
+# ccache hashes the working directory into every -g compile unless told not to, which made
+# a second checkout (a CI clone, a worktree) miss every object; its debug info then names
+# the directory of the checkout that compiled the object first.
+export CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-1}"
 if [ "$no_build" = 0 ] || [ ! -f "$build/build.ninja" ]; then
   cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \

@@ -27,6 +27,10 @@ build_type="${SPIDARCAD_BUILD_TYPE:-RelWithDebInfo}"
 # ccache keeps the compiled objects between builds; with its base directory at the checkout's
 # root the compile commands hold relative paths, so a second checkout (a CI clone) reuses them.
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$here}"
+# ccache hashes the working directory into every -g compile unless told not to, which made
+# a second checkout (a CI clone, a worktree) miss every object; its debug info then names
+# the directory of the checkout that compiled the object first.
+export CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-1}"
 # SPIDARCAD_WERROR=ON (CI) makes compiler warnings errors. Unset, the build keeps what it was
 # configured with (OFF in a new build), so run-app.sh after a CI-style run-tests.sh reuses that
 # build instead of compiling everything again with other flags.
