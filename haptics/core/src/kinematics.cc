@@ -100,19 +100,104 @@ struct GnOutcome {
   double error_gain = kNaN;  // 1/σ_min of the scaled Jacobian at the last linearisation
 };
 
-// 1/σ_min of Js from H = Jsᵀ Js (smallest eigenvalue of a fixed-size 7 by 7: no allocation).
-double ErrorGain(const Matrix7d& H) {
-  const Eigen::SelfAdjointEigenSolver<Matrix7d> eigen(H, Eigen::EigenvaluesOnly);
-  const double lambda_min = eigen.eigenvalues()(0);
+// Cholesky factor H = L Lᵀ of a symmetric positive definite 7 by 7, written out for the fixed
+// size (Eigen's LDLT and eigen solver spend most of their time on block bookkeeping at n = 7).
+struct Cholesky7 {
+  double L[7][7] = {};
+  // Factors A (lower triangle read); false when a pivot is not positive and finite.
+  bool Compute(const Matrix7d& A) {
+    for (int j = 0; j < 7; ++j) {
+      double diag = A(j, j);
+      for (int k = 0; k < j; ++k) diag -= L[j][k] * L[j][k];
+      if (!(diag > 0) || !std::isfinite(diag)) return false;
+      const double ljj = std::sqrt(diag);
+      L[j][j] = ljj;
+      for (int i = j + 1; i < 7; ++i) {
+        double v = A(i, j);
+        for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+        L[i][j] = v / ljj;
+      }
+    }
+    return true;
+  }
+  // x = A⁻¹ b.
+  Vector7d Solve(const Vector7d& b) const {
+    double y[7];
+    for (int i = 0; i < 7; ++i) {
+      double v = b(i);
+      for (int k = 0; k < i; ++k) v -= L[i][k] * y[k];
+      y[i] = v / L[i][i];
+    }
+    Vector7d x;
+    for (int i = 6; i >= 0; --i) {
+      double v = y[i];
+      for (int k = i + 1; k < 7; ++k) v -= L[k][i] * x(k);
+      x(i) = v / L[i][i];
+    }
+    return x;
+  }
+};
+
+// 1/√λ for the smallest eigenvalue λ of H (∞ when λ ≤ 0).
+double GainFromEigenvalue(double lambda_min) {
   return lambda_min > 0 ? 1 / std::sqrt(lambda_min) : std::numeric_limits<double>::infinity();
+}
+
+// Relative accuracy of the smallest eigenvalue the fast path of ErrorGain accepts: the gain it
+// returns is at most half of this above the exact one (never below). The gain is a
+// sensitivity (docs/kinematics.md) compared with max_error_gain = 1e3: 0.05 % is far below
+// anything it is used for. A tighter bound needs many more steps when the two weakest
+// directions have nearly equal eigenvalues (ratio about 0.75 along the benchmark's paths).
+constexpr double kGainEigenTolerance = 1e-3;
+
+// 1/σ_min of Js from H = Jsᵀ Js, the smallest eigenvalue λ of a fixed-size 7 by 7 (no
+// allocation). Fast path: inverse iteration with `chol` (the factor of H) from *weak (the
+// weakest direction of the previous solve; updated), up to 8 steps, accepted when the
+// Rayleigh quotient ρ has residual r = |Hx − ρx| ≤ kGainEigenTolerance·ρ and H − (ρ − r)I is
+// positive definite: then no eigenvalue lies below ρ − r, and λ ≤ ρ (Rayleigh), so
+// λ ∈ (ρ − r, ρ]. Otherwise (or without a factor) Eigen's symmetric eigen solver.
+double ErrorGain(const Matrix7d& H, const Cholesky7* chol, Vector7d* weak) {
+  if (chol != nullptr && weak != nullptr) {
+    Vector7d x = *weak;
+    const double norm0 = x.norm();
+    if (!(norm0 > 0) || !std::isfinite(norm0)) {
+      x = Vector7d::Constant(1 / std::sqrt(7.0));
+    } else {
+      x /= norm0;
+    }
+    constexpr int kMaxSteps = 8;
+    for (int step = 0; step < kMaxSteps; ++step) {
+      x = chol->Solve(x);
+      const double n = x.norm();
+      if (!(n > 0) || !std::isfinite(n)) break;
+      x /= n;
+      const Vector7d Hx = H * x;
+      const double rho = x.dot(Hx);
+      const double r = (Hx - rho * x).norm();
+      if (!(rho > 0) || !(r <= kGainEigenTolerance * rho)) continue;
+      Cholesky7 shifted;
+      Matrix7d A = H;
+      A.diagonal().array() -= rho - r;
+      if (!shifted.Compute(A)) break;
+      *weak = x;
+      return GainFromEigenvalue(rho);
+    }
+  }
+  const Eigen::SelfAdjointEigenSolver<Matrix7d> eigen(H);
+  if (eigen.info() != Eigen::Success) return GainFromEigenvalue(kNaN);
+  if (weak != nullptr) *weak = eigen.eigenvectors().col(0);
+  return GainFromEigenvalue(eigen.eigenvalues()(0));
 }
 
 // Gauss-Newton on the 8 string residuals over the 7 pose coordinates, with step halving when
 // a full step would increase the cost (never needed near the solution; it only guards starts
 // far away). Columns of the rotation and grasp coordinates are scaled by 1/d so that every
 // unknown is in metres of attachment-point motion.
+// `weak` (may be null) is the start of the error gain's inverse iteration, and receives the
+// weakest direction at the solution (see ErrorGain).
 GnOutcome GaussNewton(const SpidarGeometry& geometry, const Vector8d& lengths,
-                      const PoseParams& start, const FkSettings& settings) {
+                      const PoseParams& start, const FkSettings& settings,
+                      Vector7d* weak = nullptr) {
   constexpr int kMaxHalvings = 12;
   // Sum of squared residuals above which Newton steps are used: 8 strings at 0.1 mm RMS,
   // four encoder counts. Below it Gauss-Newton converges in 2–3 steps.
@@ -124,21 +209,21 @@ GnOutcome GaussNewton(const SpidarGeometry& geometry, const Vector8d& lengths,
   Matrix87d J;
   out.cost = EvaluatePose(geometry, PoseFromParams(out.q, d), lengths, &res, &J);
   if (!std::isfinite(out.cost)) return out;
-  Eigen::LDLT<Matrix7d> ldlt;
+  Cholesky7 chol;
   double last_size = 0;  // length of the last accepted step
   for (int it = 0; it < settings.max_iterations; ++it) {
     Matrix87d Js = J;
     Js.rightCols<4>() /= d;
     const Matrix7d H = Js.transpose().lazyProduct(Js);
     const Vector7d g = Js.transpose().lazyProduct(res);
-    ldlt.compute(H);
     ++out.iterations;
-    Vector7d step = -ldlt.solve(g);
-    if (ldlt.info() != Eigen::Success || !step.allFinite()) return out;
+    if (!chol.Compute(H)) return out;
+    Vector7d step = -chol.Solve(g);
+    if (!step.allFinite()) return out;
     double size = StepSize(step);
     if (size <= settings.step_tolerance) {
       out.converged = true;
-      out.error_gain = ErrorGain(H);
+      out.error_gain = ErrorGain(H, &chol, weak);
       return out;
     }
     if (out.cost > kNewtonCost || (it > 0 && size > 0.01 * last_size)) {
@@ -193,13 +278,13 @@ GnOutcome GaussNewton(const SpidarGeometry& geometry, const Vector8d& lengths,
       // No descent along the Gauss-Newton direction: a minimum to rounding when the step is
       // tiny (far below the sensor floor), otherwise a failure.
       out.converged = size <= 100 * settings.step_tolerance;
-      out.error_gain = ErrorGain(H);
+      out.error_gain = ErrorGain(H, &chol, weak);
       return out;
     }
     last_size = lambda * size;
     if (last_size <= settings.step_tolerance) {
       out.converged = true;
-      out.error_gain = ErrorGain(H);
+      out.error_gain = ErrorGain(H, &chol, weak);
       return out;
     }
   }
@@ -497,7 +582,7 @@ FkResult ForwardKinematics::Solve(const Vector8d& lengths) {
   FkStatus status = FkStatus::kNotConverged;
   int iterations = 0;
   if (settings_.warm_start && has_last_) {
-    gn = GaussNewton(geometry_, lengths, ParamsFromPose(last_pose_), settings_);
+    gn = GaussNewton(geometry_, lengths, ParamsFromPose(last_pose_), settings_, &weak_);
     iterations += gn.iterations;
     status = judge(gn);
   }
@@ -526,7 +611,8 @@ FkResult ForwardKinematics::Solve(const Vector8d& lengths) {
         }
         continue;
       }
-      const GnOutcome trial = GaussNewton(geometry_, lengths, ParamsFromPose(starts[j]), settings_);
+      const GnOutcome trial =
+          GaussNewton(geometry_, lengths, ParamsFromPose(starts[j]), settings_, &weak_);
       iterations += trial.iterations;
       refined[j] = true;
       const FkStatus trial_status = judge(trial);

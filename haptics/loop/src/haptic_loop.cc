@@ -150,33 +150,11 @@ HapticLoop::HapticLoop(const DeviceInfo& info, const EncoderCalibration& calibra
   for (int i = 0; i < 3; ++i) tool_state_.Write(initial);
 }
 
-HapticLoop::~HapticLoop() {
-  delete pending_.exchange(nullptr);
-  delete retired_.exchange(nullptr);
-  delete active_;
-}
+HapticLoop::~HapticLoop() = default;
 
-void HapticLoop::Publish(std::unique_ptr<HapticScene> scene) {
-  CollectRetired();
-  // If the haptic thread never took the previous pending scene, it is ours to free.
-  delete pending_.exchange(scene.release(), std::memory_order_acq_rel);
-}
+void HapticLoop::Publish(std::unique_ptr<HapticScene> scene) { scenes_.Offer(std::move(scene)); }
 
-bool HapticLoop::CollectRetired() {
-  HapticScene* old = retired_.exchange(nullptr, std::memory_order_acq_rel);
-  delete old;
-  return old != nullptr;
-}
-
-void HapticLoop::TakePendingScene() noexcept {
-  // Only this thread stores a non-null retired_, so once seen empty it stays empty until we
-  // fill it: the hand-back below never overwrites a scene the app has not freed yet.
-  if (retired_.load(std::memory_order_acquire) != nullptr) return;
-  HapticScene* next = pending_.exchange(nullptr, std::memory_order_acq_rel);
-  if (next == nullptr) return;
-  retired_.store(active_, std::memory_order_release);
-  active_ = next;
-}
+bool HapticLoop::CollectRetired() { return scenes_.Collect(); }
 
 void HapticLoop::ZeroForce(ToolState* out) noexcept {
   out->wrench_D.setZero();
@@ -188,7 +166,7 @@ void HapticLoop::ZeroForce(ToolState* out) noexcept {
 TickOutputs HapticLoop::Step(const TickInputs& inputs, double dt) noexcept {
   ToolState out;
   out.tick = tick_++;
-  TakePendingScene();
+  HapticScene* const scene = scenes_.Acquire();
   std::uint32_t events = 0;
   const bool dt_ok = std::isfinite(dt) && dt > 0 && dt <= settings_.max_dt;
   if (dt_ok) {
@@ -251,7 +229,7 @@ TickOutputs HapticLoop::Step(const TickInputs& inputs, double dt) noexcept {
     tool.grasp_rate = grasp_rate_;
 
     ToolWrench w_W;
-    if (active_ != nullptr) w_W = active_->Evaluate(tool);
+    if (scene != nullptr) w_W = scene->Evaluate(tool);
     if (!w_W.f_T_W.allFinite() || !w_W.m_T_W.allFinite() || !std::isfinite(w_W.g)) {
       events |= kEventNan;
     } else {

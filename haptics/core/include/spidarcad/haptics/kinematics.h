@@ -151,6 +151,9 @@ class ForwardKinematics {
   FkSettings settings_;
   GripPose last_pose_;
   bool has_last_ = false;
+  // The weakest direction (scaled pose coordinates) of the last refinement: the start of the
+  // next error gain's inverse iteration (zero: none yet).
+  Vector7d weak_ = Vector7d::Zero();
 };
 
 // ---------------------------------------------------------------------------------------------

@@ -7,15 +7,10 @@
 // allocates nothing, takes no lock, does no I/O and throws nothing.
 //
 // Scene exchange: the app builds an immutable HapticScene and hands it over with
-// HapticLoop::Publish. The hand-off uses three atomic raw pointers, not
-// std::atomic<std::shared_ptr> (not lock-free in gcc 12's libstdc++):
-//   pending_  written by the app (Publish), taken by the haptic thread at the start of a tick;
-//   active_   owned by the haptic thread (the scene being rendered);
-//   retired_  the previous active scene, handed back by the haptic thread; the app deletes it
-//             in Publish / CollectRetired, so no destructor (free) ever runs on the haptic
-//             thread. The haptic thread takes a pending scene only while retired_ is empty, so
-//             it never has to free anything itself; a scene published twice before the haptic
-//             thread picked the first one up replaces it (the app deletes the unseen one).
+// HapticLoop::Publish, through a Handover (handover.h: three atomic raw pointers; the haptic
+// thread takes the newest scene at the start of a tick and hands the previous one back, and the
+// app frees it in Publish / CollectRetired, so no destructor ever runs on the haptic thread; a
+// scene published twice before the haptic thread picked the first one up replaces it).
 // ToolState goes the other way through a lock-free TripleBuffer.
 #pragma once
 
@@ -29,6 +24,7 @@
 #include "spidarcad/haptics/device_to_world.h"
 #include "spidarcad/haptics/encoder.h"
 #include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/handover.h"
 #include "spidarcad/haptics/kinematics.h"
 #include "spidarcad/haptics/tension.h"
 #include "spidarcad/haptics/triple_buffer.h"
@@ -181,7 +177,6 @@ class HapticLoop {
   const DeviceInfo& info() const noexcept { return info_; }
 
  private:
-  void TakePendingScene() noexcept;
   void ZeroForce(ToolState* out) noexcept;
 
   DeviceInfo info_;
@@ -190,9 +185,7 @@ class HapticLoop {
   ForwardKinematics fk_;
   TensionSolver solver_;
 
-  std::atomic<HapticScene*> pending_{nullptr};
-  std::atomic<HapticScene*> retired_{nullptr};
-  HapticScene* active_ = nullptr;  // haptic thread only
+  Handover<HapticScene> scenes_;
   std::atomic<bool> stop_{false};
 
   // Haptic-thread state.
