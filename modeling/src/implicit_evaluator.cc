@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "primitive_lanes.h"
 #include "primitives.h"
 
 namespace spidarcad::modeling {
@@ -401,20 +402,128 @@ double CompiledSolid::ValueAndGradient(const Eigen::Vector3d& p,
   return r.v;
 }
 
+namespace {
+
+// Points per pass of the tape in Values and ValuesAndGradients (SIMD across points).
+constexpr int kW = 4;
+using internal::DualLanes;
+using internal::Lanes;
+
+// Every primitive over W points: the branch-free ones through the shared templates, cones and
+// extrusions (whose formulas branch on values) lane by lane through the scalar ones.
+Lanes<kW> EvalPrimitiveLanes(Op op, const double* c, const Lanes<kW>& x, const Lanes<kW>& y,
+                             const Lanes<kW>& z) noexcept {
+  if (IsBranchFree(op)) return EvalBranchFree(op, c, x, y, z);
+  Lanes<kW> r;
+  for (int i = 0; i < kW; ++i) r.v[i] = EvalPrimitive(op, c, x.v[i], y.v[i], z.v[i]);
+  return r;
+}
+DualLanes<kW> EvalPrimitiveLanes(Op op, const double* c, const DualLanes<kW>& x,
+                                 const DualLanes<kW>& y, const DualLanes<kW>& z) noexcept {
+  if (IsBranchFree(op)) return EvalBranchFree(op, c, x, y, z);
+  DualLanes<kW> r;
+  for (int i = 0; i < kW; ++i) {
+    SetLane(&r, i,
+            EvalPrimitive(op, c, internal::LaneOf(x, i), internal::LaneOf(y, i),
+                          internal::LaneOf(z, i)));
+  }
+  return r;
+}
+
+// Structure of arrays: W points, one coordinate per array.
+struct LanePoints {
+  double x[kW], y[kW], z[kW];
+};
+
+// Columns [begin, begin + count) of points, the last one repeated in the lanes past count
+// (their results are dropped).
+void LoadLanes(const Eigen::Ref<const Eigen::Matrix3Xd>& points, Eigen::Index begin, int count,
+               LanePoints* p) noexcept {
+  for (int i = 0; i < kW; ++i) {
+    const Eigen::Index k = begin + std::min(i, count - 1);
+    p->x[i] = points(0, k);
+    p->y[i] = points(1, k);
+    p->z[i] = points(2, k);
+  }
+}
+
+// A primitive instruction over W points, as Value's: the map to the primitive's frame
+// c[0] px + c[1] py + c[2] pz + b per lane, then the primitive scaled.
+Lanes<kW> LaneValue(Op op, const double* c, const LanePoints& p) noexcept {
+  Lanes<kW> x, y, z;
+  for (int i = 0; i < kW; ++i) {
+    x.v[i] = c[0] * p.x[i] + c[1] * p.y[i] + c[2] * p.z[i] + c[kB];
+    y.v[i] = c[3] * p.x[i] + c[4] * p.y[i] + c[5] * p.z[i] + c[kB + 1];
+    z.v[i] = c[6] * p.x[i] + c[7] * p.y[i] + c[8] * p.z[i] + c[kB + 2];
+  }
+  return c[kScale] * EvalPrimitiveLanes(op, c + kParams, x, y, z);
+}
+
+// The same with gradients, as ValueAndGradient's: the map's rows are the gradients of the
+// local coordinates.
+DualLanes<kW> LaneValueAndGradient(Op op, const double* c, const LanePoints& p) noexcept {
+  DualLanes<kW> x, y, z;
+  for (int i = 0; i < kW; ++i) {
+    x.v[i] = c[0] * p.x[i] + c[1] * p.y[i] + c[2] * p.z[i] + c[kB];
+    y.v[i] = c[3] * p.x[i] + c[4] * p.y[i] + c[5] * p.z[i] + c[kB + 1];
+    z.v[i] = c[6] * p.x[i] + c[7] * p.y[i] + c[8] * p.z[i] + c[kB + 2];
+    x.gx[i] = c[0];
+    x.gy[i] = c[1];
+    x.gz[i] = c[2];
+    y.gx[i] = c[3];
+    y.gy[i] = c[4];
+    y.gz[i] = c[5];
+    z.gx[i] = c[6];
+    z.gy[i] = c[7];
+    z.gz[i] = c[8];
+  }
+  return EvalPrimitiveLanes(op, c + kParams, x, y, z) * c[kScale];
+}
+
+}  // namespace
+
+// Batches: kW points per pass of the tape, each lane bit-identical to Value / ValueAndGradient
+// of its point (primitive_lanes.h; the flags of this file in modeling/CMakeLists.txt).
 void CompiledSolid::Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points,
                            Eigen::Ref<Eigen::VectorXd> values) const noexcept {
   const Eigen::Index n = std::min<Eigen::Index>(points.cols(), values.size());
-  for (Eigen::Index i = 0; i < n; ++i) values[i] = Value(points.col(i));
+  if (code_.empty()) {
+    for (Eigen::Index i = 0; i < n; ++i) values[i] = INFINITY;
+    return;
+  }
+  LanePoints p;
+  for (Eigen::Index i = 0; i < n; i += kW) {
+    const int count = static_cast<int>(std::min<Eigen::Index>(kW, n - i));
+    LoadLanes(points, i, count, &p);
+    const Lanes<kW> r =
+        Run<Lanes<kW>>([&p](Op op, const double* c) { return LaneValue(op, c, p); });
+    for (int k = 0; k < count; ++k) values[i + k] = r.v[k];
+  }
 }
 
 void CompiledSolid::ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points,
                                        Eigen::Ref<Eigen::VectorXd> values,
                                        Eigen::Ref<Eigen::Matrix3Xd> gradients) const noexcept {
   const Eigen::Index n = std::min({points.cols(), values.size(), gradients.cols()});
-  Eigen::Vector3d g;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    values[i] = ValueAndGradient(points.col(i), &g);
-    gradients.col(i) = g;
+  if (code_.empty()) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      values[i] = INFINITY;
+      gradients.col(i).setZero();
+    }
+    return;
+  }
+  LanePoints p;
+  for (Eigen::Index i = 0; i < n; i += kW) {
+    const int count = static_cast<int>(std::min<Eigen::Index>(kW, n - i));
+    LoadLanes(points, i, count, &p);
+    const DualLanes<kW> r =
+        Run<DualLanes<kW>>([&p](Op op, const double* c) { return LaneValueAndGradient(op, c, p); });
+    for (int k = 0; k < count; ++k) {
+      values[i + k] = r.v[k];
+      gradients(0, i + k) = r.gx[k];
+      gradients(1, i + k) = r.gy[k];
+      gradients(2, i + k) = r.gz[k];
+    }
   }
 }
 

@@ -6,9 +6,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
+#include <memory>
 #include <random>
 #include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "support/malloc_counter.h"
 
@@ -148,6 +154,87 @@ TEST(DistanceFields, RejectBadParametersNamingThem) {
   }
 }
 
+std::uint64_t Bits(double v) {
+  std::uint64_t b;
+  std::memcpy(&b, &v, sizeof b);
+  return b;
+}
+
+// A field that only knows Evaluate: its EvaluateBatch is the default, point by point.
+class PointByPoint final : public DistanceField {
+ public:
+  explicit PointByPoint(std::shared_ptr<const DistanceField> f) : f_(std::move(f)) {}
+  double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
+    return f_->Evaluate(p, g);
+  }
+
+ private:
+  std::shared_ptr<const DistanceField> f_;
+};
+
+// EvaluateBatch of `field` against Evaluate point by point, bit for bit, with and without
+// gradients, over n = 0..3 points and all of `points` (more than one chunk of the unions).
+void ExpectBatchBitIdentical(const DistanceField& field, const std::vector<Eigen::Vector3d>& points,
+                             const std::string& name) {
+  const int n = static_cast<int>(points.size());
+  std::vector<double> x(n), y(n), z(n), phi(n), psi(n), gx(n), gy(n), gz(n);
+  for (int i = 0; i < n; ++i) {
+    x[i] = points[i].x();
+    y[i] = points[i].y();
+    z[i] = points[i].z();
+  }
+  for (int count : {0, 1, 3, n}) {
+    field.EvaluateBatch(x.data(), y.data(), z.data(), count, phi.data(), nullptr, nullptr, nullptr);
+    field.EvaluateBatch(x.data(), y.data(), z.data(), count, psi.data(), gx.data(), gy.data(),
+                        gz.data());
+    int failures = 0;
+    for (int i = 0; i < count && failures < 3; ++i) {
+      Eigen::Vector3d g;
+      const double value = field.Evaluate(points[i], nullptr);
+      const double with_gradient = field.Evaluate(points[i], &g);
+      const bool same = Bits(phi[i]) == Bits(value) && Bits(psi[i]) == Bits(with_gradient) &&
+                        Bits(gx[i]) == Bits(g.x()) && Bits(gy[i]) == Bits(g.y()) &&
+                        Bits(gz[i]) == Bits(g.z());
+      if (!same) {
+        ++failures;
+        ADD_FAILURE() << name << ", point " << i << " of " << count << ": Evaluate " << value
+                      << " / " << with_gradient << " (" << g.transpose() << "), batch " << phi[i]
+                      << " / " << psi[i] << " (" << gx[i] << " " << gy[i] << " " << gz[i] << ")";
+      }
+    }
+  }
+}
+
+TEST(DistanceFields, EvaluateBatchIsBitIdenticalToEvaluate) {
+  auto box = std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.03, 0.02, 0.01));
+  auto sphere = std::make_shared<SphereDistanceField>(Eigen::Vector3d(0.02, 0, 0), 0.02);
+  Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
+  X_WB.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  X_WB.translation() = Eigen::Vector3d(0.01, -0.02, 0.005);
+  auto placed = std::make_shared<TransformedDistanceField>(box, X_WB);
+  auto floor =
+      std::make_shared<HalfSpaceDistanceField>(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
+  // A union of the overriding fields, and one whose first child is point by point; ties (a
+  // sphere twice) keep the first child's gradient.
+  const UnionDistanceField all({placed, sphere, floor, sphere});
+  const UnionDistanceField mixed({std::make_shared<PointByPoint>(placed), box});
+  const TransformedDistanceField moved_union(
+      std::make_shared<UnionDistanceField>(
+          std::vector<std::shared_ptr<const DistanceField>>{sphere, placed}),
+      X_WB.inverse());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-0.06, 0.06);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 150; ++i) points.emplace_back(u(rng), u(rng), u(rng));
+  points.emplace_back(0.02, 0.0, 0.0);  // the sphere's centre
+  points.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
+  ExpectBatchBitIdentical(all, points, "union");
+  ExpectBatchBitIdentical(mixed, points, "union with a point-by-point child");
+  ExpectBatchBitIdentical(moved_union, points, "transformed union");
+  ExpectBatchBitIdentical(*placed, points, "transformed box");
+  ExpectBatchBitIdentical(*sphere, points, "sphere (default batch)");
+}
+
 TEST(DistanceFields, EvaluateAllocatesNothing) {
   ASSERT_TRUE(test_support::MallocCounterActive());
   auto box = std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.03, 0.02, 0.01));
@@ -164,6 +251,16 @@ TEST(DistanceFields, EvaluateAllocatesNothing) {
     Eigen::Vector3d g;
     for (int k = 0; k < 1000; ++k)
       sum += all.Evaluate(Eigen::Vector3d(1e-4 * k, 0.01, 0.0), &g) + g.x();
+    double x[100], y[100], z[100], phi[100], gx[100], gy[100], gz[100];
+    for (int k = 0; k < 100; ++k) {
+      x[k] = 1e-3 * k;
+      y[k] = 0.01;
+      z[k] = -1e-4 * k;
+    }
+    all.EvaluateBatch(x, y, z, 100, phi, gx, gy, gz);
+    sum += phi[99] + gx[99];
+    all.EvaluateBatch(x, y, z, 100, phi, nullptr, nullptr, nullptr);
+    sum += phi[50];
     allocations = counter.count();
   }
   EXPECT_EQ(allocations, 0);

@@ -14,9 +14,14 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -249,6 +254,76 @@ TEST(PointShellField, EvaluateAllocatesNothing) {
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(contact, 100);
+}
+
+std::uint64_t Bits(double v) {
+  std::uint64_t b;
+  std::memcpy(&b, &v, sizeof b);
+  return b;
+}
+
+// The narrow phase culled by motion bounds against every point tested each tick: the same
+// wrench, virtual tool and contact count, bit for bit, on every tick of slow presses, fast
+// twists, a grip that leaves and comes back, and a 4 cm jump; and the culled field evaluates
+// fewer points (counted through the environment).
+TEST(PointShellField, CullingByMotionBoundsGivesTheExhaustiveResultsBitForBit) {
+  // A floor with a box on it (a union: edges and corners), counting its evaluations.
+  class Counted final : public DistanceField {
+   public:
+    explicit Counted(std::shared_ptr<const DistanceField> f) : f_(std::move(f)) {}
+    double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
+      ++count;
+      return f_->Evaluate(p, g);
+    }
+    mutable long count = 0;
+
+   private:
+    std::shared_ptr<const DistanceField> f_;
+  };
+  auto scene =
+      std::make_shared<UnionDistanceField>(std::vector<std::shared_ptr<const DistanceField>>{
+          Floor(), std::make_shared<TransformedDistanceField>(
+                       std::make_shared<BoxDistanceField>(Eigen::Vector3d(0.02, 0.02, 0.01)),
+                       Eigen::Isometry3d(Eigen::Translation3d(0.03, 0, 0.01)))});
+  auto culled_env = std::make_shared<Counted>(scene);
+  auto full_env = std::make_shared<Counted>(scene);
+  PointShellSettings exhaustive;
+  exhaustive.cull_by_motion = false;
+  const PointShell shell = PointShell::CrossGrip(0.04, 0.006, 12, 8);
+  PointShellField culled(culled_env, shell), full(full_env, shell, exhaustive);
+  int mismatches = 0, touching = 0;
+  for (int k = 0; k < 4000; ++k) {
+    ToolKinematics tool;
+    tool.time = 1e-3 * k;
+    const double t = tool.time;
+    // Slow presses first, then fast twists (up to about 0.6 m/s and 10 rad/s), a lift of 10 cm
+    // and back, and a 4 cm jump of the grip at tick 3000.
+    const double fast = k < 2000 ? 1.0 : 6.0;
+    tool.p_WT = Eigen::Vector3d(0.02 * std::sin(fast * t), 0.015 * std::cos(0.7 * fast * t),
+                                0.012 - 0.006 * std::sin(2.0 * fast * t));
+    if (k >= 2500 && k < 2700) tool.p_WT.z() += 0.1;
+    if (k >= 3000) tool.p_WT.x() += 0.04;
+    tool.R_WT = (Eigen::AngleAxisd(0.8 * std::sin(fast * t), Eigen::Vector3d::UnitZ()) *
+                 Eigen::AngleAxisd(0.3 * std::sin(1.3 * fast * t), Eigen::Vector3d::UnitX()))
+                    .toRotationMatrix();
+    tool.v_WT = Eigen::Vector3d(0.02 * fast * std::cos(fast * t), 0, 0);
+    tool.w_WT = Eigen::Vector3d(0, 0, 0.8 * fast * std::cos(fast * t));
+    const ToolWrench a = culled.Evaluate(tool), b = full.Evaluate(tool);
+    touching += culled.contacts() > 0;
+    bool same = culled.contacts() == full.contacts();
+    for (int i = 0; i < 3; ++i) {
+      same = same && Bits(a.f_T_W[i]) == Bits(b.f_T_W[i]) && Bits(a.m_T_W[i]) == Bits(b.m_T_W[i]) &&
+             Bits(culled.p_WV()[i]) == Bits(full.p_WV()[i]) &&
+             Bits(culled.w_WV()[i]) == Bits(full.w_WV()[i]);
+    }
+    mismatches += !same;
+  }
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(touching, 1000);
+  EXPECT_LT(culled_env->count, full_env->count);
+  RecordProperty("evaluations_culled", std::to_string(culled_env->count));
+  RecordProperty("evaluations_exhaustive", std::to_string(full_env->count));
+  std::printf("evaluations: culled %ld, exhaustive %ld\n", culled_env->count, full_env->count);
 }
 
 TEST(PointShellField, PointPressedPastTheDepthLimitIsHeldAndTheWrenchActsThroughIt) {

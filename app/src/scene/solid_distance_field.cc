@@ -1,6 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/solid_distance_field.h"
 
+#include <algorithm>
 #include <stdexcept>
 #include <utility>
 
@@ -28,6 +29,44 @@ double SolidDistanceField::Evaluate(const Eigen::Vector3d& p_W,
   }
   if (gradient_W == nullptr) return solid_->Value(p_W);
   return solid_->ValueAndGradient(p_W, gradient_W);
+}
+
+void SolidDistanceField::EvaluateBatch(const double* x, const double* y, const double* z, int n,
+                                       double* phi, double* gx, double* gy,
+                                       double* gz) const noexcept {
+  if (cells_ != nullptr) {
+    if (gx == nullptr) {
+      cells_->ValueBatch(x, y, z, n, phi);
+    } else {
+      cells_->ValueAndGradientBatch(x, y, z, n, phi, gx, gy, gz);
+    }
+    return;
+  }
+  // The full tape's batch functions take the points as the columns of a 3 × m matrix: chunks
+  // of kChunk points through scratch on the stack.
+  constexpr int kChunk = 64;
+  double points[3 * kChunk], gradients[3 * kChunk];
+  for (int begin = 0; begin < n; begin += kChunk) {
+    const int count = std::min(kChunk, n - begin);
+    for (int i = 0; i < count; ++i) {
+      points[3 * i] = x[begin + i];
+      points[3 * i + 1] = y[begin + i];
+      points[3 * i + 2] = z[begin + i];
+    }
+    const Eigen::Map<const Eigen::Matrix3Xd> p(points, 3, count);
+    Eigen::Map<Eigen::VectorXd> values(phi + begin, count);
+    if (gx == nullptr) {
+      solid_->Values(p, values);
+      continue;
+    }
+    Eigen::Map<Eigen::Matrix3Xd> g(gradients, 3, count);
+    solid_->ValuesAndGradients(p, values, g);
+    for (int i = 0; i < count; ++i) {
+      gx[begin + i] = gradients[3 * i];
+      gy[begin + i] = gradients[3 * i + 1];
+      gz[begin + i] = gradients[3 * i + 2];
+    }
+  }
 }
 
 }  // namespace spidarcad::app

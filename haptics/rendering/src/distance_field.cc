@@ -1,6 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/distance_field.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -18,6 +19,22 @@ std::string Str(const Eigen::Vector3d& v) {
   return s.str();
 }
 }  // namespace
+
+void DistanceField::EvaluateBatch(const double* x, const double* y, const double* z, int n,
+                                  double* phi, double* gx, double* gy, double* gz) const noexcept {
+  Eigen::Vector3d g;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d p(x[i], y[i], z[i]);
+    if (gx == nullptr) {
+      phi[i] = Evaluate(p, nullptr);
+      continue;
+    }
+    phi[i] = Evaluate(p, &g);
+    gx[i] = g.x();
+    gy[i] = g.y();
+    gz[i] = g.z();
+  }
+}
 
 SphereDistanceField::SphereDistanceField(const Eigen::Vector3d& center_W, double radius)
     : center_W_(center_W), radius_(radius) {
@@ -125,6 +142,62 @@ double TransformedDistanceField::Evaluate(const Eigen::Vector3d& p_W,
   const double v = body_->Evaluate(p_B, &g_B);
   *gradient_W = X_WB_.linear() * g_B;
   return v;
+}
+
+void UnionDistanceField::EvaluateBatch(const double* x, const double* y, const double* z, int n,
+                                       double* phi, double* gx, double* gy,
+                                       double* gz) const noexcept {
+  // As Evaluate: the first child's value and gradient, replaced by a later child's where that
+  // one is strictly smaller. Chunks of kChunk points keep the scratch on the stack.
+  constexpr int kChunk = 64;
+  double v[kChunk], vx[kChunk], vy[kChunk], vz[kChunk];
+  const bool gradient = gx != nullptr;
+  for (int begin = 0; begin < n; begin += kChunk) {
+    const int count = std::min(kChunk, n - begin);
+    double* out_x = gradient ? gx + begin : nullptr;
+    double* out_y = gradient ? gy + begin : nullptr;
+    double* out_z = gradient ? gz + begin : nullptr;
+    children_[0]->EvaluateBatch(x + begin, y + begin, z + begin, count, phi + begin, out_x, out_y,
+                                out_z);
+    for (std::size_t c = 1; c < children_.size(); ++c) {
+      children_[c]->EvaluateBatch(x + begin, y + begin, z + begin, count, v,
+                                  gradient ? vx : nullptr, vy, vz);
+      for (int i = 0; i < count; ++i) {
+        if (!(v[i] < phi[begin + i])) continue;
+        phi[begin + i] = v[i];
+        if (gradient) {
+          out_x[i] = vx[i];
+          out_y[i] = vy[i];
+          out_z[i] = vz[i];
+        }
+      }
+    }
+  }
+}
+
+void TransformedDistanceField::EvaluateBatch(const double* x, const double* y, const double* z,
+                                             int n, double* phi, double* gx, double* gy,
+                                             double* gz) const noexcept {
+  constexpr int kChunk = 64;
+  double bx[kChunk], by[kChunk], bz[kChunk], hx[kChunk], hy[kChunk], hz[kChunk];
+  const bool gradient = gx != nullptr;
+  for (int begin = 0; begin < n; begin += kChunk) {
+    const int count = std::min(kChunk, n - begin);
+    for (int i = 0; i < count; ++i) {
+      const Eigen::Vector3d p_B = X_BW_ * Eigen::Vector3d(x[begin + i], y[begin + i], z[begin + i]);
+      bx[i] = p_B.x();
+      by[i] = p_B.y();
+      bz[i] = p_B.z();
+    }
+    body_->EvaluateBatch(bx, by, bz, count, phi + begin, gradient ? hx : nullptr, hy, hz);
+    if (!gradient) continue;
+    for (int i = 0; i < count; ++i) {
+      const Eigen::Vector3d g_W = X_WB_.linear() * Eigen::Vector3d(hx[i], hy[i], hz[i]);
+      gx[begin + i] = g_W.x();
+      gy[begin + i] = g_W.y();
+      gz[begin + i] = g_W.z();
+    }
+  }
 }
 
 }  // namespace spidarcad::haptics

@@ -22,6 +22,9 @@ bool PositiveFinite(double v) { return v > 0 && std::isfinite(v); }
 bool NonNegativeFinite(double v) { return v >= 0 && std::isfinite(v); }
 
 constexpr int kImpulsePasses = 4;
+// Slack of the narrow phase's motion bounds, m: far above the rounding of φ and of the point
+// positions, far below any reach.
+constexpr double kCullMargin = 1e-9;
 
 // g / |g|, or zero when |g| is zero or not finite.
 Eigen::Vector3d UnitOrZero(const Eigen::Vector3d& g) {
@@ -198,6 +201,15 @@ PointShellField::PointShellField(std::shared_ptr<const DistanceField> environmen
   candidate_phi_.assign(shell_.points_T.size(), 0.0);
   candidate_g_.assign(shell_.points_T.size(), Eigen::Vector3d::Zero());
   candidate_r_.assign(shell_.points_T.size(), Eigen::Vector3d::Zero());
+  for (std::vector<double>* buffer :
+       {&batch_x_, &batch_y_, &batch_z_, &batch_phi_, &batch_gx_, &batch_gy_, &batch_gz_}) {
+    buffer->assign(shell_.points_T.size(), 0.0);
+  }
+  batch_index_.assign(shell_.points_T.size(), 0);
+  last_phi_.assign(shell_.points_T.size(), -std::numeric_limits<double>::infinity());
+  last_travel_p_.assign(shell_.points_T.size(), 0.0);
+  last_travel_theta_.assign(shell_.points_T.size(), 0.0);
+  candidate_exact_.assign(shell_.points_T.size(), 1);
   point_radius_.resize(shell_.points_T.size());
   for (int i = 0; i < shell_.size(); ++i) point_radius_[i] = shell_.points_T[i].norm();
 }
@@ -223,17 +235,66 @@ ShellContact PointShellField::ContactAt(const Eigen::Isometry3d& X_WV) const noe
   return c;
 }
 
+double PointShellField::PhiLowerBound(int i) const noexcept {
+  const double moved =
+      (travel_p_ - last_travel_p_[i]) + (travel_theta_ - last_travel_theta_[i]) * point_radius_[i];
+  return last_phi_[i] - moved - kCullMargin;
+}
+
+void PointShellField::MakeExact(int k) noexcept {
+  if (candidate_exact_[k]) return;
+  const int i = candidates_[k];
+  Eigen::Vector3d g;
+  candidate_phi_[k] = env_->Evaluate(p_ + candidate_r_[k], &g);
+  candidate_g_[k] = g;
+  candidate_exact_[k] = 1;
+  last_phi_[i] = candidate_phi_[k];
+  last_travel_p_[i] = travel_p_;
+  last_travel_theta_[i] = travel_theta_;
+}
+
 ShellContact PointShellField::CandidateContact(const Eigen::Matrix3d& R_WV) noexcept {
   ShellContact c;
-  Eigen::Vector3d g;
+  // The candidates' φ and gradients in one batch (SIMD across points in the solids' tapes);
+  // with cull_by_motion, a candidate whose lower bound is >= 0 gets no force and keeps the
+  // bound (MakeExact evaluates it if the advancement needs it).
+  int m = 0;
   for (int k = 0; k < num_candidates_; ++k) {
     const int i = candidates_[k];
     const Eigen::Vector3d r = R_WV * shell_.points_T[i];
-    const double phi = env_->Evaluate(p_ + r, &g);
-    const double gn = g.norm();
-    candidate_phi_[k] = phi;
     candidate_r_[k] = r;
-    candidate_g_[k] = g;
+    if (settings_.cull_by_motion) {
+      const double bound = PhiLowerBound(i);
+      if (bound >= 0.0) {
+        candidate_phi_[k] = bound;
+        candidate_exact_[k] = 0;
+        continue;
+      }
+    }
+    const Eigen::Vector3d x = p_ + r;
+    candidate_exact_[k] = 1;
+    batch_index_[m] = k;
+    batch_x_[m] = x.x();
+    batch_y_[m] = x.y();
+    batch_z_[m] = x.z();
+    ++m;
+  }
+  env_->EvaluateBatch(batch_x_.data(), batch_y_.data(), batch_z_.data(), m, batch_phi_.data(),
+                      batch_gx_.data(), batch_gy_.data(), batch_gz_.data());
+  for (int j = 0; j < m; ++j) {
+    const int k = batch_index_[j], i = candidates_[k];
+    candidate_phi_[k] = batch_phi_[j];
+    candidate_g_[k] = Eigen::Vector3d(batch_gx_[j], batch_gy_[j], batch_gz_[j]);
+    last_phi_[i] = batch_phi_[j];
+    last_travel_p_[i] = travel_p_;
+    last_travel_theta_[i] = travel_theta_;
+  }
+  for (int k = 0; k < num_candidates_; ++k) {
+    if (!candidate_exact_[k]) continue;  // φ >= its bound >= 0: no force
+    const Eigen::Vector3d& r = candidate_r_[k];
+    const double phi = candidate_phi_[k];
+    const Eigen::Vector3d& g = candidate_g_[k];
+    const double gn = g.norm();
     if (!(phi < 0) || !(gn > 0)) continue;
     const Eigen::Vector3d n = g / gn;
     const double v_n = n.dot(v_ + w_.cross(r));
@@ -269,6 +330,8 @@ void PointShellField::ConstrainMotion(double h, double budget, double travelled,
     bool applied = false;
     const double reach_h = h * (v_.norm() + w_.norm() * shell_radius_);  // no point moves further
     for (int k = 0; k < num_candidates_; ++k) {
+      if (candidate_phi_[k] + d_max >= reach_h) continue;  // so is the exact φ if this is a bound
+      MakeExact(k);
       if (candidate_phi_[k] + d_max >= reach_h) continue;
       const Eigen::Vector3d n = UnitOrZero(candidate_g_[k]);
       if (n.squaredNorm() == 0.0) continue;
@@ -294,6 +357,8 @@ void PointShellField::ConstrainMotion(double h, double budget, double travelled,
   if (bound > 0 && travelled + bound > budget) t = std::max(0.0, budget - travelled) / bound;
   for (int k = 0; k < num_candidates_; ++k) {
     if (candidate_phi_[k] + d_max >= t * bound) continue;  // cannot limit t (μ_k ≤ bound)
+    MakeExact(k);
+    if (candidate_phi_[k] + d_max >= t * bound) continue;
     const double mu = move + turn * point_radius_[candidates_[k]];
     if (!(mu > 0)) continue;
     const double room = std::max(0.0, candidate_phi_[k] + d_max);  // distance to the depth limit
@@ -322,6 +387,9 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
   const Eigen::Quaterniond q_T(tool.R_WT);
   if (!initialized_) {
     initialized_ = true;
+    // V jumps to the grip: no earlier φ bounds anything now.
+    std::fill(last_phi_.begin(), last_phi_.end(), -std::numeric_limits<double>::infinity());
+    travel_p_ = travel_theta_ = 0.0;
     p_ = tool.p_WT;
     q_ = q_T.normalized();
     v_ = tool.v_WT;
@@ -347,9 +415,27 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
     budget = phi_centre - shell_radius_;
   } else {
     const Eigen::Matrix3d R = q_.toRotationMatrix();
-    for (int i = 0; i < shell_.size(); ++i) {
-      if (env_->Evaluate(p_ + R * shell_.points_T[i], nullptr) < reach)
-        candidates_[num_candidates_++] = i;
+    const int n = shell_.size();
+    int m = 0;  // points to evaluate, in increasing order
+    for (int i = 0; i < n; ++i) {
+      // φ now >= φ then − (how far the point can have moved since): out of reach, not a
+      // candidate (a margin far above rounding keeps the decision the exhaustive one's).
+      if (s.cull_by_motion && PhiLowerBound(i) >= reach) continue;
+      const Eigen::Vector3d x = p_ + R * shell_.points_T[i];
+      batch_index_[m] = i;
+      batch_x_[m] = x.x();
+      batch_y_[m] = x.y();
+      batch_z_[m] = x.z();
+      ++m;
+    }
+    env_->EvaluateBatch(batch_x_.data(), batch_y_.data(), batch_z_.data(), m, batch_phi_.data(),
+                        nullptr, nullptr, nullptr);
+    for (int k = 0; k < m; ++k) {
+      const int i = batch_index_[k];
+      last_phi_[i] = batch_phi_[k];
+      last_travel_p_[i] = travel_p_;
+      last_travel_theta_[i] = travel_theta_;
+      if (batch_phi_[k] < reach) candidates_[num_candidates_++] = i;
     }
   }
 
@@ -370,6 +456,8 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
     p_ += h * v_;
     const double angle = w_.norm() * h;
     travelled += h * v_.norm() + angle * shell_radius_;
+    travel_p_ += h * v_.norm();
+    travel_theta_ += angle;
     q_ = IntegrateRotation(q_, w_, h);
   }
   // The coupling's reaction at the end of the tick is what the user feels.

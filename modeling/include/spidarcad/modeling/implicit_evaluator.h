@@ -48,10 +48,13 @@ class CompiledSolid {
   // Value at p_W; writes the gradient d value / d p_W (3, world frame) to *gradient_W.
   double ValueAndGradient(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept;
   // Values at the columns of points_W (3 by N) into values (N, preallocated by the caller).
+  // Four points run through the tape per pass (SIMD across points); each value is bit-identical
+  // to Value() of its point.
   void Values(const Eigen::Ref<const Eigen::Matrix3Xd>& points_W,
               Eigen::Ref<Eigen::VectorXd> values) const noexcept;
   // Values and gradients at the columns of points_W (3 by N) into values (N) and
-  // gradients_W (3 by N), both preallocated by the caller.
+  // gradients_W (3 by N), both preallocated by the caller; four points per pass, each
+  // bit-identical to ValueAndGradient() of its point.
   void ValuesAndGradients(const Eigen::Ref<const Eigen::Matrix3Xd>& points_W,
                           Eigen::Ref<Eigen::VectorXd> values,
                           Eigen::Ref<Eigen::Matrix3Xd> gradients_W) const noexcept;

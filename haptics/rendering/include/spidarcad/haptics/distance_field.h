@@ -28,6 +28,14 @@ class DistanceField {
   // null.
   virtual double Evaluate(const Eigen::Vector3d& p_W,
                           Eigen::Vector3d* gradient_W) const noexcept = 0;
+  // φ at n points given as arrays (structure of arrays, m, W): phi[i] = Evaluate(p_i, g_i) with
+  // p_i = (x[i], y[i], z[i]) and, when gx is not null, g_i written to (gx[i], gy[i], gz[i]);
+  // when gx is null the gradient is not asked for (gy and gz are ignored). The results are
+  // bit-identical to n calls of Evaluate. This default makes those calls; fields that evaluate
+  // several points at once (SIMD across points) override it. Any n >= 0; no array may overlap
+  // an output. Real-time safe like Evaluate.
+  virtual void EvaluateBatch(const double* x, const double* y, const double* z, int n, double* phi,
+                             double* gx, double* gy, double* gz) const noexcept;
 };
 
 // A solid ball: φ = |p − c| − r (exact). At the centre the gradient is +z (any unit vector).
@@ -77,6 +85,9 @@ class UnionDistanceField final : public DistanceField {
   // At least one child, none null. Throws std::invalid_argument otherwise.
   explicit UnionDistanceField(std::vector<std::shared_ptr<const DistanceField>> children);
   double Evaluate(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept override;
+  // Each child's EvaluateBatch, then the same selection as Evaluate point by point.
+  void EvaluateBatch(const double* x, const double* y, const double* z, int n, double* phi,
+                     double* gx, double* gy, double* gz) const noexcept override;
 
  private:
   std::vector<std::shared_ptr<const DistanceField>> children_;
@@ -91,6 +102,10 @@ class TransformedDistanceField final : public DistanceField {
   TransformedDistanceField(std::shared_ptr<const DistanceField> body,
                            const Eigen::Isometry3d& X_WB);
   double Evaluate(const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) const noexcept override;
+  // The points mapped into B as Evaluate maps them, the body's EvaluateBatch, the gradients
+  // rotated back.
+  void EvaluateBatch(const double* x, const double* y, const double* z, int n, double* phi,
+                     double* gx, double* gy, double* gz) const noexcept override;
   const Eigen::Isometry3d& X_WB() const noexcept { return X_WB_; }
 
  private:

@@ -51,10 +51,17 @@
 // 0.6 N for a single touching point, 6 N for a face): V then rests on the limit and the user
 // feels the coupling alone (k_c, stiffer than the coupling and penalty in series).
 //
-// Cost: once per tick every shell point is tested at V's pose (a broad phase first: when
+// Cost: once per tick the shell points are tested at V's pose (a broad phase first: when
 // φ(p_WV) exceeds the shell's radius plus a margin nothing is tested); points within
 // `contact_margin` plus the distance V can travel in a tick become candidates, and only they
-// are evaluated in the substeps. Buffers are sized at construction: Evaluate allocates nothing.
+// are evaluated in the substeps. The test skips a point whose last φ, less the most V's motion
+// since can have moved it (|Δp| + |Δθ| |r_i|, summed over the substeps), is still beyond the
+// reach (`cull_by_motion`): the same candidates as testing every point, at the cost of the
+// points near the environment. Likewise, in a substep a candidate whose bound keeps it out of
+// contact is evaluated only if the conservative advancement needs its exact φ. Each of these
+// evaluations is one DistanceField::EvaluateBatch over all the points concerned (the solids' tapes
+// run several points per pass, bit-identical to one at a time). Buffers are sized at construction:
+// Evaluate allocates nothing.
 //
 // Defaults (0.05 kg, k_c = 1000 N/m, b_c = 3 N·s/m, k_r = 2 N·m/rad, b_r = 0.01 N·m·s/rad,
 // k_p = 1000 N/m per point, N_ref = 10, 10 substeps): the coupling is what the device renders
@@ -120,6 +127,11 @@ struct PointShellSettings {
   double soft_zone_ratio = 0.1;          // ε in [0, 1]: coupling strength inside the zone
   double max_penetration = 6e-4;         // d_max: deepest a shell point may go, m
   double min_step = 2e-4;                // longest substep move judged by the local plane, m
+  // Narrow phase by motion bounds: a point whose φ, when last evaluated, minus the most V can
+  // have moved it since, still exceeds the tick's reach is not evaluated again (φ is
+  // 1-Lipschitz, so it cannot be a candidate). The candidates, hence every result, are the same
+  // as with every point evaluated each tick (false), which tests compare against.
+  bool cull_by_motion = true;
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -174,6 +186,12 @@ class PointShellField final : public ForceField {
   // Conservative advancement of one substep of length h: applies impulses and scales v_, w_
   // so that moving by h v_, h w_ keeps every point above −max_penetration and the tick's
   // travel (`travelled` so far) within `budget` (m). `inv_inertia_W` is R I⁻¹ Rᵀ.
+  // Lower bound of shell point i's φ now from its last evaluation and V's travel since, with
+  // the slack kCullMargin (−∞ when it has none).
+  double PhiLowerBound(int i) const noexcept;
+  // Candidate k's exact φ and gradient at the current state, evaluated now if CandidateContact
+  // left it at a lower bound.
+  void MakeExact(int k) noexcept;
   void ConstrainMotion(double h, double budget, double travelled,
                        const Eigen::Matrix3d& inv_inertia_W) noexcept;
 
@@ -195,6 +213,19 @@ class PointShellField final : public ForceField {
   Eigen::Vector3d v_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d w_ = Eigen::Vector3d::Zero();
   TripleBuffer<PointShellState> published_;
+  // Scratch of the batch evaluations (capacity #P): points in W (m), φ, gradients, and which
+  // shell point each entry of the narrow phase's batch is.
+  std::vector<double> batch_x_, batch_y_, batch_z_, batch_phi_;
+  std::vector<double> batch_gx_, batch_gy_, batch_gz_;
+  std::vector<int> batch_index_;
+  // Narrow phase by motion bounds: per point, φ at its last evaluation (−∞: none since the
+  // last reset) and the travel accumulators then; the accumulators sum |Δp| (m) and |Δθ| (rad)
+  // of V over every substep.
+  std::vector<double> last_phi_, last_travel_p_, last_travel_theta_;
+  double travel_p_ = 0.0, travel_theta_ = 0.0;
+  // Per candidate: candidate_phi_ is exact (1) or a lower bound >= 0 (0, cull_by_motion: a
+  // candidate that cannot touch in this substep is evaluated only if ConstrainMotion needs it).
+  std::vector<char> candidate_exact_;
 };
 
 }  // namespace spidarcad::haptics
