@@ -1,5 +1,7 @@
 // Surface meshing: speed against error across resolutions, with and without feature sharpening,
-// for a box, a box minus a cylinder and the platform scene (assets/scenes/platform.json).
+// for a box, a box minus a cylinder and the platform scene (assets/scenes/platform.json), and
+// without it for a sphere of radius 50 mm at 4, 2 and 1 mm. Counters: the error figures below and
+// SurfaceMeshStats' exact counts (field evaluations, collapses, flips).
 //
 // Error is the two-sided Hausdorff distance between mesh and true surface, estimated by sampling:
 //  - mesh -> surface: 10 barycentric points on every triangle, distance |f| / |grad f| (first
@@ -30,11 +32,12 @@
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
+#include "surface_metrics.h"
 
 namespace {
 
 using namespace spidarcad::modeling;
-using Vec = Eigen::Vector3d;
+using spidarcad::bench::Vec;
 
 struct Case {
   std::string name;
@@ -60,142 +63,31 @@ const std::vector<Case>& Cases() {
     const Scene scene = LoadScene(spidarcad::bench::RepoPath("assets/scenes/platform.json"));
     c.push_back({"platform", CompiledSolid::Compile(scene.solids.at(0).root),
                  Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02))});
+    // The smooth solid where the clean-up's cost shows most (the 2-7x slowdown of the mesher's
+    // design note: 17 -> 122 ms at r/20; docs/design/2026-12-04-surface-mesher-peers.md).
+    c.push_back({"sphere",
+                 CompiledSolid::Compile(
+                     ImplicitNode(TranslateParams{offset}, {ImplicitNode(SphereParams{0.05})})),
+                 Eigen::AlignedBox3d(offset - Vec::Constant(0.06), offset + Vec::Constant(0.06))});
+    c.push_back({"torus", CompiledSolid::Compile(ImplicitNode(TorusParams{0.03, 0.01})),
+                 Eigen::AlignedBox3d(Vec::Constant(-0.05), Vec::Constant(0.05))});
     return c;
   }();
   return cases;
 }
 
-double PointTriangleDistance2(const Vec& p, const Vec& a, const Vec& b, const Vec& c) {
-  // Closest point by Voronoi regions of the triangle (vertices, edges, face).
-  const Vec ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
-  const Vec bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + ab * (d1 / (d1 - d3)))).squaredNorm();
-  const Vec cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + ac * (d2 / (d2 - d6)))).squaredNorm();
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).squaredNorm();
-  const double denom = 1.0 / (va + vb + vc);
-  return (p - (a + ab * (vb * denom) + ac * (vc * denom))).squaredNorm();
-}
-
-// Nearest-triangle queries through a uniform grid (cells of edge `cell`) of triangle bounding
-// boxes.
-class TriangleGrid {
- public:
-  TriangleGrid(const TriangleMesh& mesh, double cell) : mesh_(mesh), cell_(cell) {
-    for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-      Eigen::AlignedBox3d box;
-      for (int k = 0; k < 3; ++k) box.extend(Vec(mesh.vertices.col(mesh.triangles(k, t))));
-      const auto lo = Index(box.min()), hi = Index(box.max());
-      for (long i = lo[0]; i <= hi[0]; ++i)
-        for (long j = lo[1]; j <= hi[1]; ++j)
-          for (long k = lo[2]; k <= hi[2]; ++k) cells_[Key(i, j, k)].push_back(static_cast<int>(t));
-    }
-  }
-  // Distance from p to the mesh: cells within `rings` of p's cell, then everything if needed.
-  double Distance(const Vec& p) const {
-    const auto c = Index(p);
-    double best2 = INFINITY;
-    const int rings = 1;
-    for (long i = c[0] - rings; i <= c[0] + rings; ++i)
-      for (long j = c[1] - rings; j <= c[1] + rings; ++j)
-        for (long k = c[2] - rings; k <= c[2] + rings; ++k) {
-          const auto it = cells_.find(Key(i, j, k));
-          if (it == cells_.end()) continue;
-          for (int t : it->second) best2 = std::min(best2, Triangle2(p, t));
-        }
-    if (best2 <= cell_ * cell_) return std::sqrt(best2);  // nothing outside the block can be nearer
-    for (Eigen::Index t = 0; t < mesh_.triangles.cols(); ++t)
-      best2 = std::min(best2, Triangle2(p, static_cast<int>(t)));
-    return std::sqrt(best2);
-  }
-
- private:
-  std::array<long, 3> Index(const Vec& p) const {
-    return {static_cast<long>(std::floor(p.x() / cell_)),
-            static_cast<long>(std::floor(p.y() / cell_)),
-            static_cast<long>(std::floor(p.z() / cell_))};
-  }
-  static long long Key(long i, long j, long k) {
-    return ((static_cast<long long>(i) & 0x1fffff) << 42) |
-           ((static_cast<long long>(j) & 0x1fffff) << 21) | (static_cast<long long>(k) & 0x1fffff);
-  }
-  double Triangle2(const Vec& p, int t) const {
-    return PointTriangleDistance2(p, mesh_.vertices.col(mesh_.triangles(0, t)),
-                                  mesh_.vertices.col(mesh_.triangles(1, t)),
-                                  mesh_.vertices.col(mesh_.triangles(2, t)));
-  }
-  const TriangleMesh& mesh_;
-  double cell_;
-  std::unordered_map<long long, std::vector<int>> cells_;
-};
-
-// Points on the true surface: random points of the bounds, Newton-projected; kept when |f| <= 1e-10
-// m.
+// Points on the true surface of case c (20000, cached per case).
 const std::vector<Vec>& SurfaceSamples(const Case& c) {
   static std::unordered_map<std::string, std::vector<Vec>> cache;
   auto& points = cache[c.name];
-  if (!points.empty()) return points;
-  std::mt19937 rng(1234);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  while (points.size() < 20000) {
-    Vec p = c.bounds.min() + c.bounds.sizes().cwiseProduct(Vec(u(rng), u(rng), u(rng)));
-    for (int i = 0; i < 20; ++i) {
-      Vec g;
-      const double f = c.solid.ValueAndGradient(p, &g);
-      if (std::abs(f) <= 1e-12 || g.squaredNorm() < 1e-12) break;
-      p -= f / g.squaredNorm() * g;
-    }
-    if (std::abs(c.solid.Value(p)) <= 1e-10 && c.bounds.contains(p)) points.push_back(p);
-  }
+  if (points.empty()) points = spidarcad::bench::SurfaceSamples(c.solid, c.bounds);
   return points;
 }
 
-struct Error {
-  double out_max = 0, out_mean = 0, in_max = 0, in_mean = 0;
-};
+using Error = spidarcad::bench::HausdorffError;
 
 Error MeasureHausdorff(const Case& c, const TriangleMesh& mesh, double cell) {
-  Error e;
-  double area_sum = 0.0;
-  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-    const Vec a = mesh.vertices.col(mesh.triangles(0, t)),
-              b = mesh.vertices.col(mesh.triangles(1, t));
-    const Vec d = mesh.vertices.col(mesh.triangles(2, t));
-    const double area = 0.5 * (b - a).cross(d - a).norm();
-    double sum = 0.0;
-    int n = 0;
-    for (int i = 0; i <= 3; ++i) {
-      for (int j = 0; i + j <= 3; ++j, ++n) {
-        Vec g;
-        const double f = c.solid.ValueAndGradient((i * a + j * b + (3 - i - j) * d) / 3.0, &g);
-        const double dist = std::abs(f) / std::max(g.norm(), 1e-6);
-        e.out_max = std::max(e.out_max, dist);
-        sum += dist;
-      }
-    }
-    e.out_mean += area * sum / n;
-    area_sum += area;
-  }
-  e.out_mean /= std::max(area_sum, 1e-300);
-  const TriangleGrid grid(mesh, 2.0 * cell);
-  const auto& samples = SurfaceSamples(c);
-  for (const Vec& p : samples) {
-    const double d = grid.Distance(p);
-    e.in_max = std::max(e.in_max, d);
-    e.in_mean += d;
-  }
-  e.in_mean /= static_cast<double>(samples.size());
-  return e;
+  return spidarcad::bench::MeasureHausdorff(c.solid, SurfaceSamples(c), mesh, cell);
 }
 
 struct Row {
@@ -238,6 +130,11 @@ void BM_Surface(benchmark::State& state) {
   state.counters["out_max_mm"] = e.out_max * 1e3;
   state.counters["in_max_mm"] = e.in_max * 1e3;
   state.counters["in_mean_mm"] = e.in_mean * 1e3;
+  // Exact counts that do not drift with the machine's load: a clean-up that starts doing more
+  // work per mesh shows here even when the times are too noisy to tell.
+  state.counters["evaluations"] = static_cast<double>(mesh_stats.field_evaluations);
+  state.counters["collapses"] = static_cast<double>(mesh_stats.collapsed_edges);
+  state.counters["flips"] = static_cast<double>(mesh_stats.flipped_edges);
   Rows().push_back({c.name, cell * 1e3, sharp, static_cast<long>(mesh.triangles.cols()),
                     mesh_stats.seconds, sharp ? feature_stats.seconds : 0.0, e,
                     feature_stats.vertices_moved, feature_stats.edges_flipped});
@@ -245,6 +142,70 @@ void BM_Surface(benchmark::State& state) {
 BENCHMARK(BM_Surface)
     ->ArgsProduct({{0, 1}, {80, 40, 20, 10}, {0, 1}})
     ->ArgsProduct({{2}, {80, 40, 20}, {0, 1}})
+    ->ArgsProduct({{3}, {40, 20, 10}, {0}})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
+
+// SurfaceMeshSettings::snap_cells = state.range(2) / 100 on case state.range(0) at cell
+// state.range(1) / 10 mm: the triangle quality it buys and the surface error it costs (the
+// snapping sweep of docs/design/2026-12-04-surface-mesher-peers.md). Error: MeasureSurfaceError
+// (|value| at vertices, edge midpoints and centroids; one-sided).
+void BM_Snap(benchmark::State& state) {
+  const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
+  SurfaceMeshSettings settings;
+  settings.bounds = c.bounds;
+  settings.cell_size = state.range(1) * 1e-4;
+  settings.snap_cells = state.range(2) * 0.01;
+  TriangleMesh mesh;
+  for (auto _ : state) mesh = MeshSurface(c.solid, settings);
+  const SurfaceError e = MeasureSurfaceError(c.solid, mesh);
+  const TriangleAngleStats angles = MeasureTriangleAngles(mesh, 10.0);
+  state.SetLabel(c.name);
+  state.counters["cell_mm"] = settings.cell_size * 1e3;
+  state.counters["snap"] = settings.snap_cells;
+  state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
+  state.counters["max_error_mm"] = e.max * 1e3;
+  state.counters["rms_error_mm"] = e.rms * 1e3;
+  state.counters["min_angle_deg"] = angles.min_angle_deg;
+  state.counters["under_10_deg"] = static_cast<double>(angles.small_angle);
+}
+BENCHMARK(BM_Snap)
+    ->ArgsProduct({{3, 4}, {40, 20, 10}, {0, 5, 10, 15, 20, 25}})
+    ->ArgsProduct({{2}, {80, 40, 20}, {0, 5, 10, 15, 20, 25}})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
+
+// What keeps sharpened creases under 10°: MeshSurface (snap_cells = state.range(2) / 100) then
+// SharpenFeatures with min_angle_deg = state.range(3) and relax_angle_deg = state.range(4), on
+// case state.range(0) at cell state.range(1) / 10 mm. Counters: the two-sided Hausdorff error
+// (as BM_Surface), the smallest angle and the triangles under 5° and 10°, the sharpening's time.
+void BM_CreaseFloor(benchmark::State& state) {
+  const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
+  const double cell = state.range(1) * 1e-4;
+  SurfaceMeshSettings settings;
+  settings.bounds = c.bounds;
+  settings.cell_size = cell;
+  settings.snap_cells = state.range(2) * 0.01;
+  FeatureSettings f;
+  f.cell_size = cell;
+  f.min_angle_deg = static_cast<double>(state.range(3));
+  f.relax_angle_deg = static_cast<double>(state.range(4));
+  TriangleMesh mesh;
+  FeatureStats feature_stats;
+  for (auto _ : state)
+    mesh = SharpenFeatures(c.solid, MeshSurface(c.solid, settings), f, &feature_stats);
+  const Error e = MeasureHausdorff(c, mesh, cell);
+  state.SetLabel(c.name);
+  state.counters["hausdorff_mm"] = e.TwoSided() * 1e3;
+  state.counters["min_angle_deg"] = MeasureTriangleAngles(mesh).min_angle_deg;
+  state.counters["under_5_deg"] = static_cast<double>(MeasureTriangleAngles(mesh, 5.0).small_angle);
+  state.counters["under_10_deg"] =
+      static_cast<double>(MeasureTriangleAngles(mesh, 10.0).small_angle);
+  state.counters["sharpen_s"] = feature_stats.seconds;
+}
+BENCHMARK(BM_CreaseFloor)
+    ->ArgsProduct({{1}, {40, 20, 10}, {0, 15}, {1, 5, 10}, {0, 10}})
+    ->ArgsProduct({{2}, {80, 40}, {0, 15}, {1, 5, 10}, {0, 10}})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
@@ -315,6 +276,10 @@ constexpr const char* kBenchDescription =
     "   the zero set by Newton steps; points outside a convex edge or corner land exactly on it),\n"
     "   each measured to the nearest triangle through a uniform grid of triangles.\n"
     "Max and mean of both directions are printed as a markdown table after the benchmarks.\n"
+    "BM_Snap: snap_cells 0 to 0.25 on the sphere, a torus and the platform (angles against\n"
+    "error); BM_CreaseFloor: the sharpening's min_angle_deg and relax_angle_deg on default and\n"
+    "snapped surfaces of the box minus the cylinder and the platform (crease error against\n"
+    "angles). Select with --benchmark_filter=BM_Snap etc.\n"
     "BM_FindBounds: the box search of `spidarcad mesh` (1 cm over [-10, 10]^3, then size/80) on\n"
     "unions of 1,000 to 100,000 spheres, its time and how far the box lies beyond the exact one.\n"
     "Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.";

@@ -131,4 +131,64 @@ const CompiledSolid& CellSpecializedSolid::TapeAt(const Eigen::Vector3d& p) cons
   return k == 0 ? *solid_ : tapes_[k - 1];
 }
 
+void CellSpecializedSolid::ValueBatch(const double* x, const double* y, const double* z, int n,
+                                      double* value) const noexcept {
+  Batch(x, y, z, n, value, nullptr, nullptr, nullptr);
+}
+
+void CellSpecializedSolid::ValueAndGradientBatch(const double* x, const double* y, const double* z,
+                                                 int n, double* value, double* gx, double* gy,
+                                                 double* gz) const noexcept {
+  Batch(x, y, z, n, value, gx, gy, gz);
+}
+
+void CellSpecializedSolid::Batch(const double* x, const double* y, const double* z, int n,
+                                 double* value, double* gx, double* gy, double* gz) const noexcept {
+  // Chunks of kChunk points; in each, the points of one tape are gathered into the columns of a
+  // 3 × m matrix, evaluated together (CompiledSolid::Values / ValuesAndGradients, SIMD across
+  // points) and scattered back, tape after tape in order of first appearance.
+  constexpr int kChunk = 64;
+  const CompiledSolid* tape[kChunk];
+  bool done[kChunk];
+  int index[kChunk];
+  double gathered[3 * kChunk], values[kChunk], gradients[3 * kChunk];
+  for (int begin = 0; begin < n; begin += kChunk) {
+    const int count = std::min(kChunk, n - begin);
+    for (int i = 0; i < count; ++i) {
+      const int p = begin + i;
+      tape[i] = &TapeAt(Eigen::Vector3d(x[p], y[p], z[p]));
+      done[i] = false;
+    }
+    for (int i = 0; i < count; ++i) {
+      if (done[i]) continue;
+      const CompiledSolid* t = tape[i];
+      int m = 0;
+      for (int j = i; j < count; ++j) {
+        if (done[j] || tape[j] != t) continue;
+        done[j] = true;
+        index[m] = begin + j;
+        gathered[3 * m] = x[begin + j];
+        gathered[3 * m + 1] = y[begin + j];
+        gathered[3 * m + 2] = z[begin + j];
+        ++m;
+      }
+      const Eigen::Map<const Eigen::Matrix3Xd> points(gathered, 3, m);
+      Eigen::Map<Eigen::VectorXd> v(values, m);
+      if (gx == nullptr) {
+        t->Values(points, v);
+        for (int k = 0; k < m; ++k) value[index[k]] = values[k];
+      } else {
+        Eigen::Map<Eigen::Matrix3Xd> g(gradients, 3, m);
+        t->ValuesAndGradients(points, v, g);
+        for (int k = 0; k < m; ++k) {
+          value[index[k]] = values[k];
+          gx[index[k]] = gradients[3 * k];
+          gy[index[k]] = gradients[3 * k + 1];
+          gz[index[k]] = gradients[3 * k + 2];
+        }
+      }
+    }
+  }
+}
+
 }  // namespace spidarcad::modeling

@@ -12,11 +12,24 @@
 #include <unordered_map>
 #include <vector>
 
+#include "point_field.h"
 #include "triangle_predicates.h"
 
 namespace spidarcad::modeling {
 
 namespace {
+
+// The box of mesh's vertices grown by margin on every side (m): where the sharpening evaluates.
+Eigen::AlignedBox3d Around(const TriangleMesh& mesh, double margin) {
+  Eigen::AlignedBox3d box;
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i)
+    box.extend(Eigen::Vector3d(mesh.vertices.col(i)));
+  if (!box.isEmpty() && std::isfinite(margin)) {
+    box.min().array() -= margin;
+    box.max().array() += margin;
+  }
+  return box;
+}
 
 using internal::TrianglesMeet;
 
@@ -58,7 +71,7 @@ double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
 class Sharpener {
  public:
   Sharpener(const CompiledSolid& solid, const TriangleMesh& mesh, const FeatureSettings& s)
-      : solid_(solid), s_(s) {
+      : solid_(solid, Around(mesh, 2.0 * s.cell_size), s.cell_size), s_(s) {
     h_ = s.cell_size;
     const Eigen::Index nv = mesh.vertices.cols(), nt = mesh.triangles.cols();
     pos_.resize(nv);
@@ -168,12 +181,31 @@ class Sharpener {
       flipped_ += flipped;
       if (moved == 0 && flipped == 0) break;
     }
+    // 5. Triangles still sharper than relax_angle_deg: their corners off the features relax and
+    // their long edge flips where that raises their smallest angle (Relax, FlipForAngle).
+    const double relax_angle = s_.relax_angle_deg * M_PI / 180.0;
+    if (is_feature_.size() != pos_.size()) is_feature_.assign(pos_.size(), false);
+    for (int sweep = 0; sweep < 4 && relax_angle > 0.0; ++sweep) {
+      Poll();
+      long changed = 0;
+      for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
+        const auto tri = tris_[t];
+        if (!(MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]) < relax_angle)) continue;
+        for (int v : tri) {
+          if (!is_feature_[v] && Relax(v)) ++changed;
+        }
+        changed += FlipForAngle(t);
+      }
+      relaxed_ += changed;
+      if (changed == 0) break;
+    }
     if (stats) {
       stats->feature_vertices = feature;
       stats->corner_vertices = corners;
       stats->vertices_moved = moved_;
       stats->edges_flipped = flipped_;
       stats->rejected_moves = rejected_;
+      stats->relaxed = relaxed_;
     }
     TriangleMesh out;
     out.vertices.resize(3, static_cast<Eigen::Index>(pos_.size()));
@@ -390,6 +422,13 @@ class Sharpener {
     if (!(after.sum2 < before.sum2) || after.max > before.max + 1e-9 * h_) return false;
     // Last (the costliest): with v at x, no adjacent triangle may fold onto a neighbour or cut
     // through a nearby triangle.
+    return MoveUnlessItFolds(v, x);
+  }
+
+  // Moves v to x unless one of its triangles would then fold onto a neighbour or cut through a
+  // nearby triangle (ChangedTrianglesMeetOthers). Returns whether it moved.
+  bool MoveUnlessItFolds(int v, const Eigen::Vector3d& x) {
+    const Eigen::Vector3d old = pos_[v];
     pos_[v] = x;
     if (ChangedTrianglesMeetOthers(vertex_tris_[v])) {
       pos_[v] = old;
@@ -400,6 +439,63 @@ class Sharpener {
     pos_[v] = x;
     HashInsert(v);
     return true;
+  }
+
+  // Moves v (not a feature vertex) towards the centroid of its neighbours within its tangent
+  // plane and back onto the surface (Newton steps) if that raises the smallest angle of its
+  // triangles and passes the safety tests of TryMove but the one on deviation, which here only
+  // asks that the sampled distance of the triangles to the surface does not grow (the move is
+  // along the surface, not onto a feature).
+  bool Relax(int v) {
+    const auto& fan = vertex_tris_[v];
+    if (fan.size() < 3) return false;
+    const Eigen::Vector3d old = pos_[v];
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    double old_min = M_PI;
+    for (int t : fan) {
+      const auto& tri = tris_[t];
+      const int at = tri[0] == v ? 0 : tri[1] == v ? 1 : 2;
+      centre += pos_[tri[(at + 1) % 3]];
+      old_min = std::min(old_min, MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]));
+    }
+    centre /= static_cast<double>(fan.size());
+    const Eigen::Vector3d n = UnitGradient(old);
+    const Eigen::Vector3d x = Project(centre - n * n.dot(centre - old), 3);
+    if (!x.allFinite() || (x - old).norm() > 0.5 * h_ || TooClose(v, x)) return false;
+    Deviation before, after;
+    double new_min = M_PI;
+    for (int t : fan) {
+      const auto& tri = tris_[t];
+      std::array<Eigen::Vector3d, 3> p{pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]};
+      const Eigen::Vector3d n_old = (p[1] - p[0]).cross(p[2] - p[0]);
+      before.Add(TriangleDeviation(p[0], p[1], p[2]));
+      for (int k = 0; k < 3; ++k) {
+        if (tri[k] == v) p[k] = x;
+      }
+      const Eigen::Vector3d n_new = (p[1] - p[0]).cross(p[2] - p[0]);
+      if (!(n_new.dot(n_old) > 0.5 * n_new.norm() * n_old.norm())) return false;
+      new_min = std::min(new_min, MinAngle(p[0], p[1], p[2]));
+      if (!FacesOutward(n_new, p[0], p[1], p[2])) return false;
+      after.Add(TriangleDeviation(p[0], p[1], p[2]));
+    }
+    if (!(new_min > old_min) || after.max > before.max) return false;
+    return MoveUnlessItFolds(v, x);
+  }
+
+  // Flips the longest edge of triangle t if it joins no two feature vertices (a crease), the
+  // two triangles lie within 20° of one plane, the flip raises their smallest angle, and the
+  // flipped pair passes TryFlip's tests without its demand on deviation (which must not grow).
+  bool FlipForAngle(int t) {
+    const auto tri = tris_[t];
+    int k = 0;
+    double longest = -1.0;
+    for (int i = 0; i < 3; ++i) {
+      const double l = (pos_[tri[(i + 1) % 3]] - pos_[tri[i]]).squaredNorm();
+      if (l > longest) longest = l, k = i;
+    }
+    const int p = tri[k], q = tri[(k + 1) % 3];
+    if (is_feature_[p] && is_feature_[q]) return false;
+    return TryFlip(t, p, q, 0.0, /*for_angle=*/true);
   }
 
   // Flips edges of triangles around feature vertices that lower the sampled deviation by half.
@@ -424,7 +520,10 @@ class Sharpener {
   }
 
   // Triangle t = (p, q, c) and its neighbour (q, p, d) become (c, p, d) and (d, q, c).
-  bool TryFlip(int t, int p, int q, double min_angle) {
+  // for_angle (FlipForAngle): the pair must lie within 20° of one plane and the flip must raise
+  // its smallest angle and not raise its sampled deviation; otherwise the flip must halve the
+  // deviation and make no angle below min(min_angle, the pair's smallest before).
+  bool TryFlip(int t, int p, int q, double min_angle, bool for_angle = false) {
     int t2 = -1;
     for (int u : vertex_tris_[q]) {
       if (u == t) continue;
@@ -454,13 +553,20 @@ class Sharpener {
     const Eigen::Vector3d ref = n1 + n2;
     if (!(m1.dot(ref) > 0.0) || !(m2.dot(ref) > 0.0)) return false;
     const double old_angle = std::min(MinAngle(P, Q, C), MinAngle(Q, P, D));
-    if (std::min(MinAngle(C, P, D), MinAngle(D, Q, C)) < std::min(old_angle, min_angle))
+    const double new_angle = std::min(MinAngle(C, P, D), MinAngle(D, Q, C));
+    if (for_angle) {
+      if (!(n1.dot(n2) > std::cos(M_PI / 9) * n1.norm() * n2.norm())) return false;
+      if (!(new_angle > old_angle)) return false;
+    } else if (new_angle < std::min(old_angle, min_angle)) {
       return false;
+    }
     if (!FacesOutward(m1, C, P, D) || !FacesOutward(m2, D, Q, C)) return false;
     Deviation before = TriangleDeviation(P, Q, C), after = TriangleDeviation(C, P, D);
     before.Add(TriangleDeviation(Q, P, D));
     after.Add(TriangleDeviation(D, Q, C));
-    if (!(after.sum2 < 0.5 * before.sum2) || after.max > before.max) return false;
+    if (for_angle ? after.max > before.max
+                  : !(after.sum2 < 0.5 * before.sum2) || after.max > before.max)
+      return false;
     const std::array<int, 3> old_t = tris_[t], old_t2 = tris_[t2];
     tris_[t] = {c, p, d};
     tris_[t2] = {d, q, c};
@@ -513,7 +619,7 @@ class Sharpener {
     return false;
   }
 
-  const CompiledSolid& solid_;
+  internal::PointField solid_;  // point values (pruned tapes, bit-identical to the solid's)
   const FeatureSettings& s_;
   double h_ = 0.0;
   std::vector<Eigen::Vector3d> pos_;
@@ -528,7 +634,7 @@ class Sharpener {
   int round_stamp_ = 0;
   std::vector<bool> is_feature_;
   std::unordered_map<long long, std::vector<int>> hash_;
-  long moved_ = 0, flipped_ = 0, rejected_ = 0;
+  long moved_ = 0, flipped_ = 0, rejected_ = 0, relaxed_ = 0;
 };
 
 void Validate(const FeatureSettings& s) {
@@ -550,6 +656,8 @@ void Validate(const FeatureSettings& s) {
   }
   if (!(s.min_angle_deg >= 0.0 && s.min_angle_deg < 60.0))
     bad("min_angle_deg", s.min_angle_deg, "must be in [0, 60)");
+  if (!(s.relax_angle_deg >= 0.0 && s.relax_angle_deg < 60.0))
+    bad("relax_angle_deg", s.relax_angle_deg, "must be in [0, 60)");
 }
 
 }  // namespace

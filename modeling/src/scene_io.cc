@@ -989,9 +989,12 @@ json ParseJsonText(const std::string& text, const std::string& source) {
 }
 
 Scene ParseScene(const std::string& text, const std::string& source) {
-  const json j = ParseJsonText(text, source);
+  return ParseScene(ParseJsonText(text, source), text, source);
+}
+
+Scene ParseScene(const json& parsed, const std::string& text, const std::string& source) {
   try {
-    return SceneFromJson(j, source);
+    return SceneFromJson(parsed, source);
   } catch (const SceneError& e) {
     PointerLocator locator(text);
     int line = 0, column = 0;

@@ -111,9 +111,15 @@ double SculptGrabStrength(double theta, double closed_angle) {
 
 SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Isometry3d& X_WT,
                                  double theta) noexcept {
+  return ComputeStrokeWrenchAtStrength(
+      model, X_WT, Strength(model.grasp_controls_strength, theta, model.grasp_closed_angle));
+}
+
+SculptWrench ComputeStrokeWrenchAtStrength(const StrokeForceModel& model,
+                                           const Eigen::Isometry3d& X_WT, double s) noexcept {
   SculptWrench wrench;
-  if (!model.active) return wrench;
-  const double s = Strength(model.grasp_controls_strength, theta, model.grasp_closed_angle);
+  if (!model.active || !std::isfinite(s)) return wrench;
+  s = std::clamp(s, 0.0, 1.0);
   const double k = model.stiffness;
   const double k_rot = k * model.radius * model.radius;
   const Eigen::Vector3d dp = X_WT.translation() - model.X_WT_start.translation();
@@ -567,8 +573,14 @@ void SculptMesh::Deform(const Eigen::Isometry3d& X_WT, double s) {
 
 void SculptMesh::UpdateStroke(const Eigen::Isometry3d& X_WT, double theta) {
   if (!stroke_active_) throw std::logic_error("SculptMesh::UpdateStroke: no active stroke");
-  if (!X_WT.matrix().allFinite()) return;  // ignore a bad sample rather than corrupt the mesh
-  const double s = Strength(settings_.grasp_controls_strength, theta, settings_.grasp_closed_angle);
+  UpdateStrokeAtStrength(
+      X_WT, Strength(settings_.grasp_controls_strength, theta, settings_.grasp_closed_angle));
+}
+
+void SculptMesh::UpdateStrokeAtStrength(const Eigen::Isometry3d& X_WT, double s) {
+  if (!stroke_active_) throw std::logic_error("SculptMesh::UpdateStroke: no active stroke");
+  if (!X_WT.matrix().allFinite() || !std::isfinite(s)) return;  // ignore a bad sample
+  s = std::clamp(s, 0.0, 1.0);
   Deform(X_WT, s);
   stats_.limit = 1.0;
   stats_.intersection_checks = 0;

@@ -8,19 +8,21 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <limits>
 #include <memory>
 #include <queue>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
+#include "point_field.h"
 #include "triangle_predicates.h"
 
 namespace spidarcad::modeling {
 
 namespace {
 
+using internal::PointField;
 using internal::TrianglesMeet;
 
 // The six tetrahedra of the Kuhn (Freudenthal) subdivision of a cube, as corner codes
@@ -35,8 +37,10 @@ constexpr std::array<std::array<int, 4>, 6> kKuhnTets = {{
     {0, 4, 6, 7},
 }};
 
-// Grid vertex values within kZeroBand cells of zero count as exactly zero (see VertexValue):
-// far above rounding noise (1e-17 m), far below any error that matters.
+// Grid vertex values within kZeroBand cells of zero always count as exactly zero (see
+// VertexValue): far above rounding noise (1e-17 m) on faces that lie in a grid plane, and a
+// blend's tail (-1e-12 m), far below any error that matters. SurfaceMeshSettings::snap_cells
+// widens the band.
 constexpr double kZeroBand = 1e-6;
 // Mesh vertices at a zero grid vertex that the clean-up could not merge move the first of these
 // fractions of their grid edge towards its inside end that keeps the triangles around them
@@ -44,6 +48,58 @@ constexpr double kZeroBand = 1e-6;
 constexpr std::array<double, 3> kZeroOffsets = {0.05, 1e-3, 1e-5};
 // The clean-up merges vertices closer than kCoincident cells without geometric checks.
 constexpr double kCoincident = 1e-4;
+
+// Hash map from non-negative long keys to values of type V: open addressing with linear
+// probing in a power-of-two table that doubles at half load. The mesher's grid-value and
+// edge-vertex caches, looked up several times per meshed cell: one probe into a flat array
+// instead of std::unordered_map's allocated node per entry.
+template <class V>
+class FlatMap {
+ public:
+  FlatMap() : keys_(kInitial, kEmpty), values_(kInitial) {}
+  // The value of key, or null.
+  const V* Find(long key) const {
+    for (size_t i = Slot(key);; i = (i + 1) & (keys_.size() - 1)) {
+      if (keys_[i] == key) return &values_[i];
+      if (keys_[i] == kEmpty) return nullptr;
+    }
+  }
+  // Adds key (not present) with value.
+  void Insert(long key, V value) {
+    if (2 * (size_ + 1) > keys_.size()) Grow();
+    Place(key, value);
+    ++size_;
+  }
+
+ private:
+  static constexpr long kEmpty = -1;
+  static constexpr size_t kInitial = 1024;
+  size_t Slot(long key) const {
+    // Fibonacci hashing of the key's bits (grid ids are dense along x).
+    return static_cast<size_t>((static_cast<unsigned long long>(key) * 0x9E3779B97F4A7C15ull) >>
+                               (64 - bits_));
+  }
+  void Place(long key, V value) {
+    size_t i = Slot(key);
+    while (keys_[i] != kEmpty) i = (i + 1) & (keys_.size() - 1);
+    keys_[i] = key;
+    values_[i] = value;
+  }
+  void Grow() {
+    std::vector<long> keys(2 * keys_.size(), kEmpty);
+    std::vector<V> values(2 * keys_.size());
+    keys.swap(keys_);
+    values.swap(values_);
+    ++bits_;
+    for (size_t i = 0; i < keys.size(); ++i) {
+      if (keys[i] != kEmpty) Place(keys[i], values[i]);
+    }
+  }
+  std::vector<long> keys_;
+  std::vector<V> values_;
+  size_t size_ = 0;
+  int bits_ = 10;  // log2 of the table size
+};
 
 // Post-pass of MeshSurface: edge collapses (with the link condition, so a closed manifold
 // stays a closed manifold of the same genus) and edge flips that remove the zero-area, needle
@@ -53,7 +109,7 @@ class Cleaner {
  public:
   // solid: the field whose gradient says which way is out (FacesOut). cancel (may be null) is
   // polled before every gradient evaluation; when raised, MeshingCancelled.
-  Cleaner(const CompiledSolid& solid, std::vector<Eigen::Vector3d>* positions,
+  Cleaner(const PointField& solid, std::vector<Eigen::Vector3d>* positions,
           std::vector<std::array<int, 3>>* triangles, const std::atomic<bool>* cancel = nullptr)
       : solid_(solid),
         cancel_(cancel),
@@ -62,7 +118,13 @@ class Cleaner {
         alive_(triangles->size(), true),
         vertex_tris_(positions->size()),
         gradient_(positions->size()),
-        has_gradient_(positions->size(), false) {
+        has_gradient_(positions->size(), false),
+        separated_(positions->size(), false) {
+    std::vector<int> degree(pos_.size(), 0);
+    for (const auto& tri : tris_) {
+      for (int v : tri) ++degree[v];
+    }
+    for (size_t v = 0; v < pos_.size(); ++v) vertex_tris_[v].reserve(degree[v]);
     for (size_t t = 0; t < tris_.size(); ++t) {
       for (int k = 0; k < 3; ++k) vertex_tris_[tris_[t][k]].push_back(static_cast<int>(t));
     }
@@ -71,10 +133,16 @@ class Cleaner {
   // Runs the passes: collapse edges shorter than short_edge and the short edge of needles,
   // flip the long edge of caps (angles below small_angle_rad). Returns collapses and flips.
   // Vertices closer than `coincident` are merged without geometric checks.
+  // With angle_guard, no collapse leaves a triangle sharper than both small_angle_rad and the
+  // sharpest triangle it replaces.
   void Run(double short_edge, double small_angle_rad, double max_edge, double coincident,
-           long* collapses, long* flips) {
+           bool angle_guard, long* collapses, long* flips) {
+    angle_guard_ = angle_guard;
     max_edge2_ = max_edge * max_edge;
     coincident2_ = coincident * coincident;
+    small_angle_ = small_angle_rad;
+    sin_small_angle_ = std::sin(small_angle_rad);
+    cell_ = max_edge / 1.5;
     for (int pass = 0; pass < 4; ++pass) {
       long changed = 0;
       for (size_t t = 0; t < tris_.size(); ++t) {
@@ -84,6 +152,58 @@ class Cleaner {
       if (changed == 0) break;
     }
   }
+
+  // Moves each live vertex made at a snapped grid vertex (inward[v] non-zero) and not moved by
+  // SeparateCoincident onto the surface by Newton steps, where that turns none of its triangles
+  // over and folds none (Unfolded). Returns the number moved.
+  long ProjectSnapped(const std::vector<Eigen::Vector3d>& inward) {
+    long moved = 0;
+    for (size_t i = 0; i < pos_.size(); ++i) {
+      const int v = static_cast<int>(i);
+      if (vertex_tris_[v].empty() || inward[v].squaredNorm() == 0.0 || separated_[v]) continue;
+      const Eigen::Vector3d p = pos_[v];
+      Eigen::Vector3d x = p;
+      for (int step = 0; step < 3; ++step) {
+        Eigen::Vector3d g;
+        const double f = solid_.ValueAndGradient(x, &g);
+        const double g2 = g.squaredNorm();
+        if (std::abs(f) <= 1e-9 * cell_ || !(g2 > 1e-12)) break;
+        x -= (f / g2) * g;
+      }
+      if (x == p || !x.allFinite() || (x - p).squaredNorm() > 0.25 * cell_ * cell_) continue;
+      pos_[v] = x;
+      if (Unfolded(v, p)) {
+        has_gradient_[v] = false;
+        ++moved;
+      } else {
+        pos_[v] = p;
+      }
+    }
+    return moved;
+  }
+
+  // After Run, SeparateCoincident and ProjectSnapped: the corners of the triangles still sharper
+  // than Run's small angle relax (Relax), and what that leaves gets one more round of flips and
+  // collapses.
+  void Polish(double short_edge, long* collapses, long* flips) {
+    for (int sweep = 0; sweep < 3; ++sweep) {
+      long moved = 0;
+      for (size_t t = 0; t < tris_.size(); ++t) {
+        if (!alive_[t]) continue;
+        const auto tri = tris_[t];
+        if (!Sharp(tri, 0.0, sin_small_angle_)) continue;
+        for (int v : tri) moved += Relax(v);
+      }
+      relaxed_ += moved;
+      if (moved == 0) break;
+    }
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      if (alive_[t]) Improve(static_cast<int>(t), short_edge, small_angle_, collapses, flips);
+    }
+  }
+
+  // Vertices moved by Relax in Run.
+  long relaxed() const { return relaxed_; }
 
   // Moves apart the live vertices that still share one position after Run (the link condition
   // kept them from merging: the zero set pinches there, e.g. a hole about one cell wide whose
@@ -118,6 +238,8 @@ class Cleaner {
           for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start); ++f)
             pos_[v] = start + kZeroOffsets[f] * inward[v];
           moved += inward[v].squaredNorm() > 0.0;
+          separated_[v] = true;
+          has_gradient_[v] = false;
         }
       }
       i = j;
@@ -188,6 +310,15 @@ class Cleaner {
     return n > 0.0 ? Eigen::Vector3d(g / n) : Eigen::Vector3d::Zero();
   }
 
+  // Unit gradient at vertex v, cached until v moves.
+  const Eigen::Vector3d& VertexGradient(int v) {
+    if (!has_gradient_[v]) {
+      gradient_[v] = UnitGradient(pos_[v]);
+      has_gradient_[v] = true;
+    }
+    return gradient_[v];
+  }
+
   // Whether triangle t faces out of the solid: its normal has a positive dot product with the
   // field's gradient at one or more of its corners (cached: the clean-up moves no vertex) or
   // its centroid. Several points, because at a crease a corner's gradient is that of one face
@@ -197,11 +328,7 @@ class Cleaner {
   bool FacesOut(const std::array<int, 3>& t) {
     const Eigen::Vector3d n = Normal(t);
     for (int v : t) {
-      if (!has_gradient_[v]) {
-        gradient_[v] = UnitGradient(pos_[v]);
-        has_gradient_[v] = true;
-      }
-      if (n.dot(gradient_[v]) > 0.0) return true;
+      if (n.dot(VertexGradient(v)) > 0.0) return true;
     }
     return n.dot(UnitGradient((pos_[t[0]] + pos_[t[1]] + pos_[t[2]]) / 3.0)) > 0.0;
   }
@@ -212,42 +339,59 @@ class Cleaner {
   // local test keeps them from folding a triangle onto a neighbour or a fan over itself.
   bool WouldMeet(const std::vector<std::pair<int, std::array<int, 3>>>& changed, int dying0,
                  int dying1) {
-    auto corners = [&](const std::array<int, 3>& t) {
-      return std::array<Eigen::Vector3d, 3>{pos_[t[0]], pos_[t[1]], pos_[t[2]]};
-    };
-    auto box = [](const std::array<Eigen::Vector3d, 3>& p) {
-      Eigen::AlignedBox3d b(p[0]);
-      b.extend(p[1]);
-      b.extend(p[2]);
-      return b;
-    };
+    // Each triangle once: a stamp per triangle marks the changed and dying ones (skipped) and
+    // those already gathered, and each gathered one keeps its corners and box for every changed
+    // triangle it is tested against. The answer does not depend on the order of the tests.
+    if (tri_stamp_.size() != tris_.size()) tri_stamp_.assign(tris_.size(), 0);
+    if (++stamp_ == 0) {  // wrapped: clear the stamps
+      std::fill(tri_stamp_.begin(), tri_stamp_.end(), 0);
+      stamp_ = 1;
+    }
+    for (const auto& c : changed) tri_stamp_[c.first] = stamp_;
+    if (dying0 >= 0) tri_stamp_[dying0] = stamp_;
+    if (dying1 >= 0) tri_stamp_[dying1] = stamp_;
     nearby_.clear();
     for (const auto& [id, tri] : changed) {
-      for (int w : tri)
-        nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+      for (int w : tri) {
+        for (int u : vertex_tris_[w]) {
+          if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
+          tri_stamp_[u] = stamp_;
+          nearby_.push_back(Gathered(tris_[u]));
+        }
+      }
     }
-    std::sort(nearby_.begin(), nearby_.end());
-    nearby_.erase(std::unique(nearby_.begin(), nearby_.end()), nearby_.end());
-    for (size_t i = 0; i < changed.size(); ++i) {
-      const auto& [id, tri] = changed[i];
-      const std::array<Eigen::Vector3d, 3> p = corners(tri);
-      const Eigen::AlignedBox3d b = box(p);
+    changed_corners_.clear();
+    for (const auto& c : changed) changed_corners_.push_back(Gathered(c.second));
+    for (size_t i = 0; i < changed_corners_.size(); ++i) {
+      const GatheredTriangle& a = changed_corners_[i];
       // Against the other changed triangles (each pair once) ...
-      for (size_t j = i + 1; j < changed.size(); ++j) {
-        const std::array<Eigen::Vector3d, 3> q = corners(changed[j].second);
-        if (b.intersects(box(q)) && TrianglesMeet(tri, p, changed[j].second, q)) return true;
+      for (size_t j = i + 1; j < changed_corners_.size(); ++j) {
+        const GatheredTriangle& b = changed_corners_[j];
+        if (a.Overlaps(b) && TrianglesMeet(a.ids, a.p, b.ids, b.p)) return true;
       }
       // ... and the unchanged ones nearby.
-      for (int u : nearby_) {
-        if (!alive_[u] || u == dying0 || u == dying1) continue;
-        bool is_changed = false;
-        for (const auto& c : changed) is_changed |= c.first == u;
-        if (is_changed) continue;
-        const std::array<Eigen::Vector3d, 3> q = corners(tris_[u]);
-        if (b.intersects(box(q)) && TrianglesMeet(tri, p, tris_[u], q)) return true;
+      for (const GatheredTriangle& b : nearby_) {
+        if (a.Overlaps(b) && TrianglesMeet(a.ids, a.p, b.ids, b.p)) return true;
       }
     }
     return false;
+  }
+
+  // A triangle's corners (ids and positions) and bounding box, as WouldMeet tests it.
+  struct GatheredTriangle {
+    std::array<int, 3> ids;
+    std::array<Eigen::Vector3d, 3> p;
+    Eigen::Vector3d lo, hi;
+    // Whether the boxes meet (closed boxes, as Eigen::AlignedBox3d::intersects).
+    bool Overlaps(const GatheredTriangle& o) const {
+      return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
+    }
+  };
+  GatheredTriangle Gathered(const std::array<int, 3>& t) const {
+    GatheredTriangle g{t, {pos_[t[0]], pos_[t[1]], pos_[t[2]]}, {}, {}};
+    g.lo = g.p[0].cwiseMin(g.p[1]).cwiseMin(g.p[2]);
+    g.hi = g.p[0].cwiseMax(g.p[1]).cwiseMax(g.p[2]);
+    return g;
   }
 
   static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
@@ -258,27 +402,127 @@ class Cleaner {
     return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
   }
 
-  // Neighbour vertices of v (over its live triangles), sorted, unique.
-  std::vector<int> Neighbours(int v) const {
-    std::vector<int> n;
+  // Smallest angle of the live triangles of v (radians; pi for none).
+  double FanMinAngle(int v) const {
+    double m = M_PI;
     for (int t : vertex_tris_[v]) {
-      for (int w : tris_[t]) {
-        if (w != v) n.push_back(w);
-      }
+      const auto& tri = tris_[t];
+      m = std::min(m, MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]));
     }
-    std::sort(n.begin(), n.end());
-    n.erase(std::unique(n.begin(), n.end()), n.end());
-    return n;
+    return m;
   }
 
-  // The live triangles holding edge (u, v).
-  std::vector<int> EdgeTriangles(int u, int v) const {
-    std::vector<int> result;
+  // Largest |value| sampled on the triangles of v: their centroids and the midpoints of the
+  // edges at v (where a chord strays farthest from the surface), m.
+  double FanDeviation(int v) const {
+    double m = 0.0;
+    for (int t : vertex_tris_[v]) {
+      const auto& tri = tris_[t];
+      m = std::max(m, std::abs(solid_.Value((pos_[tri[0]] + pos_[tri[1]] + pos_[tri[2]]) / 3.0)));
+      for (int w : tri) {
+        if (w != v) m = std::max(m, std::abs(solid_.Value(0.5 * (pos_[v] + pos_[w]))));
+      }
+    }
+    return m;
+  }
+
+  // Tangential relaxation of v: towards the centroid of its neighbours within the tangent plane
+  // (the field's gradient at v), then onto the surface by Newton steps. Kept if it raises the
+  // smallest angle of v's triangles, moves v less than half a cell, turns none of them by 60° or
+  // more or against the field, leaves their sampled distance to the surface (FanDeviation) no
+  // larger, and folds none onto a triangle around it (WouldMeet). Returns whether v moved.
+  bool Relax(int v) {
+    const auto& fan = vertex_tris_[v];
+    if (fan.size() < 3) return false;
+    const Eigen::Vector3d p = pos_[v];
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int t : fan) {
+      const auto& tri = tris_[t];
+      const int at = tri[0] == v ? 0 : tri[1] == v ? 1 : 2;
+      centre += pos_[tri[(at + 1) % 3]];  // each neighbour once (it follows v in one triangle)
+    }
+    centre /= static_cast<double>(fan.size());
+    const Eigen::Vector3d n = VertexGradient(v);
+    if (n.squaredNorm() == 0.0) return false;
+    Eigen::Vector3d x = centre - n * n.dot(centre - p);
+    for (int i = 0; i < 2; ++i) {
+      Eigen::Vector3d g;
+      const double f = solid_.ValueAndGradient(x, &g);
+      const double g2 = g.squaredNorm();
+      if (std::abs(f) <= 1e-9 * cell_ || !(g2 > 1e-12)) break;
+      x -= (f / g2) * g;
+    }
+    if (!x.allFinite() || (x - p).squaredNorm() > 0.25 * cell_ * cell_) return false;
+    const double old_min = FanMinAngle(v);
+    const double old_deviation = FanDeviation(v);
+    normals_.clear();
+    for (int t : fan) normals_.push_back(Normal(tris_[t]));
+    const Eigen::Vector3d old_gradient = gradient_[v];
+    pos_[v] = x;
+    has_gradient_[v] = false;
+    bool ok = FanMinAngle(v) > old_min;
+    changed_.clear();
+    for (size_t i = 0; ok && i < fan.size(); ++i) {
+      const Eigen::Vector3d m = Normal(tris_[fan[i]]);
+      ok = m.dot(normals_[i]) > 0.5 * m.norm() * normals_[i].norm() && FacesOut(tris_[fan[i]]);
+      changed_.emplace_back(fan[i], tris_[fan[i]]);
+    }
+    ok = ok && FanDeviation(v) <= old_deviation + 1e-9 * cell_ && !WouldMeet(changed_, -1, -1);
+    if (!ok) {
+      pos_[v] = p;
+      gradient_[v] = old_gradient;
+      has_gradient_[v] = true;
+    }
+    return ok;
+  }
+
+  // Number of vertices that are neighbours (over live triangles) of both u and v: a stamp per
+  // vertex marks u's neighbours, and each is counted once among v's.
+  int CommonNeighbours(int u, int v) {
+    if (vertex_mark_.size() != pos_.size()) vertex_mark_.assign(pos_.size(), 0);
+    if (mark_ >= std::numeric_limits<unsigned>::max() - 2) {  // about to wrap: clear the marks
+      std::fill(vertex_mark_.begin(), vertex_mark_.end(), 0);
+      mark_ = 0;
+    }
+    const unsigned neighbour = ++mark_, counted = ++mark_;
+    for (int t : vertex_tris_[u]) {
+      for (int w : tris_[t]) {
+        if (w != u) vertex_mark_[w] = neighbour;
+      }
+    }
+    int common = 0;
+    for (int t : vertex_tris_[v]) {
+      for (int w : tris_[t]) {
+        if (w != v && vertex_mark_[w] == neighbour) {
+          vertex_mark_[w] = counted;
+          ++common;
+        }
+      }
+    }
+    return common;
+  }
+
+  // Whether u and v are joined by an edge (of a live triangle).
+  bool Adjacent(int u, int v) const {
     for (int t : vertex_tris_[u]) {
       const auto& tri = tris_[t];
-      if (tri[0] == v || tri[1] == v || tri[2] == v) result.push_back(t);
+      if (tri[0] == v || tri[1] == v || tri[2] == v) return true;
     }
-    return result;
+    return false;
+  }
+
+  // The live triangles holding edge (u, v): the first two in (*t)[0], (*t)[1]; returns how
+  // many there are (2 on a closed manifold).
+  int EdgeTriangles(int u, int v, std::array<int, 2>* t) const {
+    int count = 0;
+    for (int id : vertex_tris_[u]) {
+      const auto& tri = tris_[id];
+      if (tri[0] == v || tri[1] == v || tri[2] == v) {
+        if (count < 2) (*t)[count] = id;
+        ++count;
+      }
+    }
+    return count;
   }
 
   static int Third(const std::array<int, 3>& tri, int u, int v) {
@@ -291,16 +535,13 @@ class Cleaner {
   // Merges u into v (u's triangles take v; the two triangles of edge uv die) if that keeps
   // the mesh a closed manifold and turns no triangle over.
   bool Collapse(int u, int v) {
-    const std::vector<int> shared = EdgeTriangles(u, v);
-    if (shared.size() != 2) return false;
+    std::array<int, 2> shared;
+    if (EdgeTriangles(u, v, &shared) != 2) return false;
     const int a = Third(tris_[shared[0]], u, v), b = Third(tris_[shared[1]], u, v);
     if (a == b || a < 0 || b < 0) return false;
     if (vertex_tris_[a].size() <= 3 || vertex_tris_[b].size() <= 3) return false;
     // Link condition: the common neighbours of u and v are exactly a and b.
-    const std::vector<int> nu = Neighbours(u), nv = Neighbours(v);
-    std::vector<int> common;
-    std::set_intersection(nu.begin(), nu.end(), nv.begin(), nv.end(), std::back_inserter(common));
-    if (common.size() != 2) return false;
+    if (CommonNeighbours(u, v) != 2) return false;
     // Geometry (when u and v do not coincide): the triangles of u that survive keep their facing
     // (within 60° of their previous normal, and out of the solid by the field's gradient if they
     // faced out before), none shrinks to a sliver, and none folds onto or cuts through a
@@ -310,12 +551,16 @@ class Cleaner {
     // No edge longer than 1.5 cells (the raw mesh has edges up to a cube diagonal, 1.73 cells,
     // but inside one tet), so triangles stay as close to the surface as the raw ones.
     if (!coincident) {
-      for (int w : nu) {
-        const double new2 = (pos_[w] - pos_[v]).squaredNorm();
-        if (w != v && new2 > max_edge2_ && new2 > (pos_[w] - pos_[u]).squaredNorm()) return false;
+      for (int t : vertex_tris_[u]) {
+        for (int w : tris_[t]) {
+          if (w == u || w == v) continue;
+          const double new2 = (pos_[w] - pos_[v]).squaredNorm();
+          if (new2 > max_edge2_ && new2 > (pos_[w] - pos_[u]).squaredNorm()) return false;
+        }
       }
     }
     changed_.clear();
+    double fan_min = -1.0;  // FanMinAngle(u), once needed
     for (int t : vertex_tris_[u]) {
       if (t == shared[0] || t == shared[1]) continue;
       std::array<int, 3> moved = tris_[t];
@@ -323,6 +568,15 @@ class Cleaner {
         if (w == u) w = v;
       }
       if (coincident) continue;
+      // Never a worse worst triangle: the surviving triangles' smallest angle stays at or above
+      // the smaller of the fan's before (the dying pair included) and small_angle_.
+      if (angle_guard_) {
+        const double new_min = MinAngle(pos_[moved[0]], pos_[moved[1]], pos_[moved[2]]);
+        if (new_min < small_angle_) {
+          if (fan_min < 0.0) fan_min = FanMinAngle(u);
+          if (new_min < fan_min) return false;
+        }
+      }
       const Eigen::Vector3d n_old = Normal(tris_[t]), n_new = Normal(moved);
       if (n_new.norm() <= 0.5 * n_old.norm() * 1e-3 && n_old.norm() > 0.0) return false;
       if (n_old.norm() > 0.0 && n_new.dot(n_old) < 0.5 * n_new.norm() * n_old.norm()) return false;
@@ -351,8 +605,8 @@ class Cleaner {
   // legal (no existing edge, degrees stay >= 3), keeps the surface's facing and improves the
   // smaller minimum angle.
   bool Flip(int t, int p, int q) {
-    const std::vector<int> shared = EdgeTriangles(p, q);
-    if (shared.size() != 2) return false;
+    std::array<int, 2> shared;
+    if (EdgeTriangles(p, q, &shared) != 2) return false;
     const int t2 = shared[0] == t ? shared[1] : shared[0];
     // Orient so that t = (p, q, c): rotate t until p is first and q follows.
     std::array<int, 3> tri = tris_[t];
@@ -363,8 +617,7 @@ class Cleaner {
     const int c = tri[2], d = Third(tris_[t2], p, q);
     if (c == d || d < 0) return false;
     if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
-    const std::vector<int> nc = Neighbours(c);
-    if (std::binary_search(nc.begin(), nc.end(), d)) return false;
+    if (Adjacent(c, d)) return false;
     if ((pos_[c] - pos_[d]).squaredNorm() > max_edge2_) return false;
     const std::array<int, 3> n1 = {p, d, c}, n2 = {q, c, d};
     const Eigen::Vector3d ref = Normal(tris_[t]) + Normal(tris_[t2]);
@@ -395,16 +648,28 @@ class Cleaner {
     return true;
   }
 
+  // Whether triangle tri has an edge shorter than short_edge or an angle whose sine is below
+  // `sine` (an angle under 90°), without square roots or arc tangents: the smallest angle is the
+  // one across the shortest edge, and its sine is |cross| / (product of the two other edges).
+  bool Sharp(const std::array<int, 3>& tri, double short_edge, double sine) const {
+    const Eigen::Vector3d e0 = pos_[tri[1]] - pos_[tri[0]], e1 = pos_[tri[2]] - pos_[tri[1]],
+                          e2 = pos_[tri[0]] - pos_[tri[2]];
+    const double l0 = e0.squaredNorm(), l1 = e1.squaredNorm(), l2 = e2.squaredNorm();
+    const double shortest = std::min({l0, l1, l2});
+    if (shortest < short_edge * short_edge) return true;
+    const double others = shortest == l0 ? l1 * l2 : shortest == l1 ? l0 * l2 : l0 * l1;
+    return e0.cross(e1).squaredNorm() < sine * sine * others;
+  }
+
   int Improve(int t, double short_edge, double small_angle, long* collapses, long* flips) {
     const auto tri = tris_[t];
+    if (!Sharp(tri, short_edge, sin_small_angle_)) return 0;
     double len[3];
     for (int k = 0; k < 3; ++k)
       len[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).norm();  // edge k: k -> k+1
     const int shortest = static_cast<int>(std::min_element(len, len + 3) - len);
     const int longest = static_cast<int>(std::max_element(len, len + 3) - len);
-    const double min_angle = MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]);
     const bool tiny = len[shortest] < short_edge;
-    if (!tiny && !(min_angle < small_angle)) return 0;
     // A needle has a short edge (the angle across it is the small one); a cap has none.
     const bool needle = len[shortest] < 2.0 * std::sin(0.5 * small_angle) * len[longest] * 1.5;
     if (tiny || needle) {
@@ -442,7 +707,7 @@ class Cleaner {
     return 0;
   }
 
-  const CompiledSolid& solid_;
+  const PointField& solid_;
   const std::atomic<bool>* cancel_;
   std::vector<Eigen::Vector3d>& pos_;
   std::vector<std::array<int, 3>>& tris_;
@@ -452,7 +717,19 @@ class Cleaner {
   std::vector<std::vector<int>> vertex_tris_;
   std::vector<Eigen::Vector3d> gradient_;  // per vertex: unit gradient, once has_gradient_
   std::vector<bool> has_gradient_;
-  std::vector<int> nearby_;                                  // scratch of WouldMeet
+  std::vector<bool> separated_;  // per vertex: moved by SeparateCoincident
+  long relaxed_ = 0;
+  bool angle_guard_ = false;  // Run's angle_guard: Collapse keeps the fan's worst angle
+  double small_angle_ = 0.0;  // Run's small_angle_rad
+  double sin_small_angle_ = 0.0;
+  double cell_ = 0.0;                                        // grid cell (m), Run's max_edge / 1.5
+  std::vector<GatheredTriangle> nearby_;                     // scratch of WouldMeet
+  std::vector<GatheredTriangle> changed_corners_;            // scratch of WouldMeet
+  std::vector<unsigned> vertex_mark_;                        // per vertex: CommonNeighbours' marks
+  unsigned mark_ = 0;                                        // CommonNeighbours' last mark
+  std::vector<unsigned> tri_stamp_;                          // per triangle: WouldMeet's stamp
+  unsigned stamp_ = 0;                                       // WouldMeet's current stamp
+  std::vector<Eigen::Vector3d> normals_;                     // scratch of Relax
   std::vector<std::pair<int, std::array<int, 3>>> changed_;  // scratch of Collapse and Flip
 };
 
@@ -468,6 +745,9 @@ class Mesher {
     }
     if (s.refine_steps < 0)
       throw std::invalid_argument("MeshSurface: settings.refine_steps must be >= 0");
+    if (!(s.snap_cells >= 0.0 && s.snap_cells <= 0.25))
+      throw std::invalid_argument("MeshSurface: settings.snap_cells must be in [0, 0.25], got " +
+                                  std::to_string(s.snap_cells));
     h_ = s.cell_size;
     const Eigen::Vector3d extent = s.bounds.sizes();
     double cells = 1.0;
@@ -488,13 +768,23 @@ class Mesher {
   TriangleMesh Run(SurfaceMeshStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     if (settings_.progress) settings_.progress(0.0);
+    // Point values through pruned tapes (bit-identical); interval bounds on the full tape.
+    const PointField field(solid_, settings_.bounds, h_);
+    field_ = &field;
     Visit({0, 0, 0}, {n_[0], n_[1], n_[2]});
     long collapses = 0, flips = 0;
     if (settings_.clean) {
-      Cleaner cleaner(solid_, &vertices_, &triangles_, settings_.cancel);
+      Cleaner cleaner(*field_, &vertices_, &triangles_, settings_.cancel);
+      // Snapping (snap_cells > 0) comes with the angle guard, the projection of the snapped
+      // vertices and the polish; without it the clean-up is the one measured before 2026-12-04.
+      const bool snapping = settings_.snap_cells > 0.0;
       cleaner.Run(settings_.short_edge_fraction * h_, settings_.small_angle_deg * M_PI / 180.0,
-                  1.5 * h_, kCoincident * h_, &collapses, &flips);
+                  1.5 * h_, kCoincident * h_, snapping, &collapses, &flips);
       cleaner.SeparateCoincident(inward_);
+      if (snapping) {
+        cleaner.ProjectSnapped(inward_);
+        cleaner.Polish(settings_.short_edge_fraction * h_, &collapses, &flips);
+      }
       cleaner.Compact();
     }
     if (settings_.progress) settings_.progress(1.0);
@@ -541,29 +831,32 @@ class Mesher {
   // at least zero) so the mesh closes along the bounds.
   double VertexValue(const Index3& v) {
     const long id = VertexId(v);
-    const auto it = values_.find(id);
-    if (it != values_.end()) return it->second;
+    if (const double* cached = values_.Find(id)) return *cached;
     Poll();
-    double f = solid_.Value(Position(v));
+    double f = field_->Value(Position(v));
     ++evaluations_;
-    if (std::abs(f) <= kZeroBand * h_) f = 0.0;
+    if (std::abs(f) <= SnapBand()) f = 0.0;
     if (OnBoundary(v)) f = std::max(f, 0.0);
-    values_.emplace(id, f);
+    values_.Insert(id, f);
     return f;
+  }
+
+  // Grid values this close to zero (m) count as exactly zero (VertexValue).
+  double SnapBand() const {
+    return (settings_.clean ? std::max(kZeroBand, settings_.snap_cells) : kZeroBand) * h_;
   }
 
   // Descends the index box [lo, hi) of cells, skipping what the interval bounds rule out.
   void Visit(const Index3& lo, const Index3& hi) {
-    // Classified with a margin of a few kZeroBand: a box the bounds call inside (or outside)
-    // must have no grid vertex that VertexValue snaps to zero, or skipping it would leave a
-    // hole (distance-like fields change by at most the distance moved).
-    const Eigen::Vector3d margin = Eigen::Vector3d::Constant(4 * kZeroBand * h_);
-    const Eigen::AlignedBox3d box(Position(lo) - margin, Position(hi) + margin);
+    // A box is skipped when its bounds prove every grid vertex in it outside after VertexValue's
+    // snap (values at or above -SnapBand()) or inside (below it, and not on the grid's boundary,
+    // whose vertices count as outside): its cells then hold no surface.
+    const Eigen::AlignedBox3d box(Position(lo), Position(hi));
     Poll();
-    const BoxClass cls = solid_.Classify(box);
+    const Interval bounds = solid_.Bounds(box);
     bool touches_boundary = false;
     for (int a = 0; a < 3; ++a) touches_boundary |= lo[a] == 0 || hi[a] == n_[a];
-    if (cls == BoxClass::kOutside || (cls == BoxClass::kInside && !touches_boundary)) {
+    if (bounds.lo >= -SnapBand() || (bounds.hi < -SnapBand() && !touches_boundary)) {
       Done(lo, hi);
       return;
     }
@@ -610,6 +903,7 @@ class Mesher {
       (f[code] < 0.0 ? any_in : any_out) = true;
     }
     if (!any_in || !any_out) return;
+    cell_edges_.fill(-1);
     for (const auto& tet : kKuhnTets) Tetrahedron(c, tet, f, v);
   }
 
@@ -617,9 +911,12 @@ class Mesher {
   int EdgeVertex(const Index3& c, int a, int b, const std::array<double, 8>& f,
                  const std::array<Index3, 8>& v) {
     if ((a & b) != a) std::swap(a, b);  // Kuhn edges join u to v with bits(u) ⊂ bits(v)
+    // Most edges serve several of the cell's six tetrahedra: asked again, the cell's own table
+    // answers without a probe into the grid-wide one.
+    int& in_cell = cell_edges_[8 * a + b];
+    if (in_cell >= 0) return in_cell;
     const long key = VertexId(v[a]) * 8 + (a ^ b);
-    const auto it = edge_vertices_.find(key);
-    if (it != edge_vertices_.end()) return it->second;
+    if (const int* cached = edge_vertices_.Find(key)) return in_cell = *cached;
     Eigen::Vector3d pa = Position(v[a]), pb = Position(v[b]);
     double fa = f[a], fb = f[b];
     // An outside end at exactly zero (on the surface, or clamped on the boundary): the vertex is
@@ -633,7 +930,7 @@ class Mesher {
       for (int s = 0; s < settings_.refine_steps; ++s) {
         const Eigen::Vector3d p = pa + t * (pb - pa);
         Poll();
-        const double fp = solid_.Value(p);
+        const double fp = field_->Value(p);
         ++evaluations_;
         if (fp == 0.0) break;
         if ((fp < 0.0) == (fa < 0.0)) {
@@ -662,8 +959,8 @@ class Mesher {
       vertices_.push_back(pa + t * (pb - pa));
       inward_.push_back(Eigen::Vector3d::Zero());
     }
-    edge_vertices_.emplace(key, id);
-    return id;
+    edge_vertices_.Insert(key, id);
+    return in_cell = id;
   }
 
   // Appends triangle (i0, i1, i2), oriented by the triangle (m0, m1, m2) of the midpoints of
@@ -708,6 +1005,7 @@ class Mesher {
   }
 
   const CompiledSolid& solid_;
+  const PointField* field_ = nullptr;  // point values of solid_ (Run's; pruned tapes)
   const SurfaceMeshSettings& settings_;
   double h_ = 0.0;
   Index3 n_{};
@@ -717,8 +1015,9 @@ class Mesher {
   long polls_ = 0;
   long evaluated_cells_ = 0;
   long evaluations_ = 0;
-  std::unordered_map<long, double> values_;
-  std::unordered_map<long, int> edge_vertices_;
+  FlatMap<double> values_;            // grid vertex id -> value
+  FlatMap<int> edge_vertices_;        // grid vertex id * 8 + edge code -> mesh vertex
+  std::array<int, 64> cell_edges_{};  // the current cell's edge (8 a + b) -> mesh vertex, or -1
   std::vector<Eigen::Vector3d> vertices_;
   std::vector<Eigen::Vector3d>
       inward_;  // per vertex at a zero grid vertex: its edge, into the solid

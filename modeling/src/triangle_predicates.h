@@ -15,8 +15,18 @@ namespace spidarcad::modeling::internal {
 // (1e-12 of the product of the edge lengths at d): nearly coplanar counts as coplanar.
 inline int OrientSign(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
                       const Eigen::Vector3d& d) {
-  const double v = (a - d).dot((b - d).cross(c - d));
-  const double scale = (a - d).norm() * (b - d).norm() * (c - d).norm();
+  const Eigen::Vector3d ad = a - d, bd = b - d, cd = c - d;
+  const double v = ad.dot(bd.cross(cd));
+  // The test below without its three square roots: squares compared with a margin (1e-6,
+  // relative) far above their rounding (a few 1e-16), so where this decides, the test with the
+  // square roots decides the same; only within the margin is it run as it stands.
+  const double tolerance2 = 1e-24 * (ad.squaredNorm() * bd.squaredNorm() * cd.squaredNorm());
+  if (tolerance2 > 1e-280 && tolerance2 < 1e280) {  // far from underflow and overflow
+    const double v2 = v * v;
+    if (v2 > tolerance2 * (1.0 + 1e-6)) return v > 0 ? 1 : -1;
+    if (v2 < tolerance2 * (1.0 - 1e-6)) return 0;
+  }
+  const double scale = ad.norm() * bd.norm() * cd.norm();
   if (std::abs(v) <= 1e-12 * scale) return 0;
   return v > 0 ? 1 : -1;
 }
@@ -38,10 +48,10 @@ inline bool PointInTriangle(const Eigen::Vector3d& t, const Eigen::Vector3d& a,
 // Whether segment pq meets triangle abc (touching counts). A segment lying in (or within
 // rounding of) the triangle's plane is reported as not meeting it: coplanar contacts are not
 // detected here (TetGen reports them, and its error is caught).
+// sp and sq: OrientSign(a, b, c, p) and OrientSign(a, b, c, q).
 inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q,
                                  const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                                 const Eigen::Vector3d& c) {
-  const int sp = OrientSign(a, b, c, p), sq = OrientSign(a, b, c, q);
+                                 const Eigen::Vector3d& c, int sp, int sq) {
   if (sp == sq) return false;  // same side, or both in the plane
   // One endpoint in the plane: they meet iff that endpoint lies in the (closed) triangle.
   if (sp == 0) return PointInTriangle(p, a, b, c);
@@ -49,6 +59,11 @@ inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d
   const int s1 = OrientSign(p, q, a, b), s2 = OrientSign(p, q, b, c), s3 = OrientSign(p, q, c, a);
   const bool has_pos = s1 > 0 || s2 > 0 || s3 > 0, has_neg = s1 < 0 || s2 < 0 || s3 < 0;
   return !(has_pos && has_neg) && (has_pos || has_neg);
+}
+inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q,
+                                 const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                 const Eigen::Vector3d& c) {
+  return SegmentMeetsTriangle(p, q, a, b, c, OrientSign(a, b, c, p), OrientSign(a, b, c, q));
 }
 
 // Whether triangles a and b (vertex indices ia, ib; corner positions pa, pb) meet other than
@@ -83,9 +98,17 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
     return SegmentMeetsTriangle(pa[ea[0]], pa[ea[1]], pb[0], pb[1], pb[2]) ||
            SegmentMeetsTriangle(pb[eb[0]], pb[eb[1]], pa[0], pa[1], pa[2]);
   }
+  // Disjoint: every edge of each against the other triangle (SegmentMeetsTriangle, with the
+  // sides of each corner against the other's plane computed once: each is asked twice).
+  int side_a[3], side_b[3];
   for (int k = 0; k < 3; ++k) {
-    if (SegmentMeetsTriangle(pa[k], pa[(k + 1) % 3], pb[0], pb[1], pb[2])) return true;
-    if (SegmentMeetsTriangle(pb[k], pb[(k + 1) % 3], pa[0], pa[1], pa[2])) return true;
+    side_a[k] = OrientSign(pb[0], pb[1], pb[2], pa[k]);
+    side_b[k] = OrientSign(pa[0], pa[1], pa[2], pb[k]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    const int l = (k + 1) % 3;
+    if (SegmentMeetsTriangle(pa[k], pa[l], pb[0], pb[1], pb[2], side_a[k], side_a[l])) return true;
+    if (SegmentMeetsTriangle(pb[k], pb[l], pa[0], pa[1], pa[2], side_b[k], side_b[l])) return true;
   }
   return false;
 }

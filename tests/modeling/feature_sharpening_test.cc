@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <map>
@@ -21,6 +22,7 @@
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "support/mesh_fingerprint.h"
 
 namespace spidarcad::modeling {
 namespace {
@@ -512,6 +514,45 @@ TEST(SharpenFeatures, PlatformSharpenedAcrossResolutionsPassesTheSurfaceCheck) {
     } catch (const SurfaceDefectError& e) {
       ADD_FAILURE() << "h " << h << ": " << e.what();
     }
+  }
+}
+
+// SharpenFeatures after MeshSurface (`spidarcad mesh --sharp`) as main at ef0f817 (2026-12-04)
+// gave it, frozen as fingerprints (support/mesh_fingerprint.h: every vertex bit and triangle
+// index): the faster triangle predicates the two passes share must leave it unchanged. Frozen
+// with GCC 12 on x86-64; a change meant to alter the output re-freezes them and says why.
+TEST(SharpenFeatures, FasterPredicatesKeepTheOutputBitForBit) {
+  const Vec offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
+  const CompiledSolid holed = CompiledSolid::Compile(ImplicitNode(
+      TranslateParams{offset},
+      {ImplicitNode(DifferenceParams{},
+                    {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})})}));
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  struct Case {
+    const char* name;
+    const CompiledSolid* solid;
+    Eigen::AlignedBox3d bounds;
+    double cell;
+    std::uint64_t fingerprint;
+  };
+  const Case cases[] = {
+      {"box-cylinder", &holed,
+       Eigen::AlignedBox3d(offset - size / 2 - Vec(0.0107, 0.0113, 0.0109),
+                           offset + size / 2 + Vec::Constant(0.01)),
+       0.004, 0x3ff00ab99df56cf8ull},
+      {"platform", &platform, Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02)),
+       0.008, 0xeaca3a09eb0faf46ull},
+  };
+  for (const Case& c : cases) {
+    SurfaceMeshSettings settings;
+    settings.bounds = c.bounds;
+    settings.cell_size = c.cell;
+    FeatureSettings features;
+    features.cell_size = c.cell;
+    const TriangleMesh mesh = SharpenFeatures(*c.solid, MeshSurface(*c.solid, settings), features);
+    EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint)
+        << c.name << ": the sharpened mesh differs from the frozen one";
   }
 }
 

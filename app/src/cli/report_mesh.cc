@@ -21,6 +21,7 @@
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tet_mesh.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
+#include "spidarcad/modeling/triangle_closest_point.h"
 
 namespace spidarcad::app {
 
@@ -34,25 +35,7 @@ constexpr double kPi = std::numbers::pi;
 
 // Squared distance from p to triangle abc (closest point by Voronoi regions).
 double PointTriangleDistance2(const Vec& p, const Vec& a, const Vec& b, const Vec& c) {
-  const Vec ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
-  const Vec bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).squaredNorm();
-  const Vec cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).squaredNorm();
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).squaredNorm();
-  }
-  const double denom = 1.0 / (va + vb + vc);
-  return (p - (a + ab * (vb * denom) + ac * (vc * denom))).squaredNorm();
+  return (p - modeling::ClosestPointOnTriangle(p, a, b, c)).squaredNorm();
 }
 
 // Nearest-triangle queries through a uniform grid of buckets (each triangle in every bucket

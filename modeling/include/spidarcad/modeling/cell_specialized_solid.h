@@ -55,6 +55,16 @@ class CellSpecializedSolid {
   }
   // The tape used at p_W (the full one outside the grid or for NaN coordinates).
   const CompiledSolid& TapeAt(const Eigen::Vector3d& p_W) const noexcept;
+  // Batch evaluation, structure of arrays (m, frame W): the n points (x[i], y[i], z[i]) are
+  // grouped by the tape of their cell and each group runs through that tape several points at
+  // a time (CompiledSolid::Values, SIMD across points). value[i] is bit-identical to
+  // Value(p_i). Any n >= 0; no array may overlap an output. Real-time safe (fixed scratch on
+  // the stack).
+  void ValueBatch(const double* x, const double* y, const double* z, int n,
+                  double* value) const noexcept;
+  // The same with gradients (W), each bit-identical to ValueAndGradient(p_i).
+  void ValueAndGradientBatch(const double* x, const double* y, const double* z, int n,
+                             double* value, double* gx, double* gy, double* gz) const noexcept;
 
   // The full solid.
   const CompiledSolid& solid() const noexcept { return *solid_; }
@@ -63,6 +73,10 @@ class CellSpecializedSolid {
   const CellSpecializationStats& stats() const noexcept { return stats_; }
 
  private:
+  // Both batch functions (gx null: values only).
+  void Batch(const double* x, const double* y, const double* z, int n, double* value, double* gx,
+             double* gy, double* gz) const noexcept;
+
   std::shared_ptr<const CompiledSolid> solid_;
   std::vector<CompiledSolid> tapes_;  // distinct pruned tapes; tape index k > 0 is tapes_[k - 1]
   std::vector<std::uint32_t> cell_tape_;  // per cell (x fastest): 0 the full tape, else k

@@ -23,6 +23,11 @@
 //     the two triangles to the surface by half, keeps both facing outward, makes no degenerate
 //     triangle and folds neither triangle onto, or through, a triangle around it: this turns
 //     the chamfer's diagonals into edges along the crease.
+//  5. Then the triangles with an angle below relax_angle_deg: each corner that is not a feature
+//     vertex moves towards the centroid of its neighbours in its tangent plane and back onto the
+//     surface, and the longest edge flips (not a crease edge, the pair within 20° of a plane),
+//     each kept only if it raises the smallest angle of the triangles it changes, keeps them
+//     facing out and unfolded, and does not raise their sampled distance to the surface.
 // Only vertex moves and edge flips that pass the link test are used, so the mesh stays closed,
 // manifold, consistently oriented and of the same genus; vertex count and triangle count are
 // unchanged.
@@ -55,6 +60,12 @@ struct FeatureSettings {
   // Moves and flips may not make a triangle angle below this (degrees) unless the triangle
   // already had one.
   double min_angle_deg = 1.0;
+  // After the rounds, triangles with an angle below this (degrees, in [0, 60); 0, the default:
+  // off, until the sharpening tests have been rerun with it) get
+  // their corners that are not feature vertices relaxed along the surface and their longest
+  // edge flipped where that raises their smallest angle without moving the mesh away from the
+  // surface (step 5 at the top of this file).
+  double relax_angle_deg = 0.0;
   // Polled between rounds and passes; when true SharpenFeatures throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
 };
@@ -66,6 +77,7 @@ struct FeatureStats {
   long vertices_moved = 0;    // moves done, over all rounds
   long edges_flipped = 0;     // flips done, over all rounds
   long rejected_moves = 0;    // feature targets a safety test refused
+  long relaxed = 0;           // relaxation moves and angle flips (step 5)
   double seconds = 0.0;
 };
 

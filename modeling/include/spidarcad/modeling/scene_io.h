@@ -123,6 +123,9 @@ nlohmann::json ParseJsonText(const std::string& text, const std::string& source)
 // kMaxJsonDepth) or field (semantic errors), and the JSON pointer of the field where known.
 // Never lets a JSON library exception escape: every failure is a SceneError.
 Scene ParseScene(const std::string& text, const std::string& source = "<string>");
+// The same for text a caller has already parsed with ParseJsonText (`parsed`), so that the text
+// is not parsed a second time: the same checks and the same errors, located in `text`.
+Scene ParseScene(const nlohmann::json& parsed, const std::string& text, const std::string& source);
 // The whole text of the file at `path`, for a JSON reader. Before reading it refuses, with a
 // SceneError naming the path (line 0), a missing file, a path that is not a regular file (a
 // directory, a device such as /dev/zero, a pipe: each could be read forever) and a file larger

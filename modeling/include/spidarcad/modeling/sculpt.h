@@ -155,6 +155,10 @@ struct SculptWrench {
 // Real-time safe: no allocation, no exceptions; zero wrench when !model.active.
 SculptWrench ComputeStrokeWrench(const StrokeForceModel& model, const Eigen::Isometry3d& X_WT,
                                  double theta) noexcept;
+// The same wrench for a grab strength s in [0, 1] given by the caller (the app's squeeze, say)
+// instead of the grasp angle. Real-time safe; zero wrench when !model.active.
+SculptWrench ComputeStrokeWrenchAtStrength(const StrokeForceModel& model,
+                                           const Eigen::Isometry3d& X_WT, double s) noexcept;
 
 // A change of a SculptMesh made by one stroke (positions and refinement), enough to undo and
 // redo it. Triangles are 3-vectors of vertex indices (CCW from outside).
@@ -233,6 +237,8 @@ class SculptMesh {
   // Allocates nothing once the self-intersection check's scratch buffers have grown to the
   // region's size; a non-finite pose is ignored. Throws std::logic_error without an active stroke.
   void UpdateStroke(const Eigen::Isometry3d& X_WT, double theta);
+  // The same for a grab strength s in [0, 1] given by the caller instead of the grasp angle.
+  void UpdateStrokeAtStrength(const Eigen::Isometry3d& X_WT, double s);
   // Ends the stroke: refines stretched edges of the touched region (if max_edge_length > 0),
   // re-bins the moved vertices in the grid and returns the edit for undo.
   SculptEdit EndStroke();

@@ -59,6 +59,17 @@ struct SurfaceMeshSettings {
   // Clean-up: triangles with an angle below this (degrees) get their short edge collapsed
   // (needles) or their long edge flipped (caps) when that keeps the surface's shape.
   double small_angle_deg = 15.0;
+  // Clean-up: grid values within snap_cells × cell_size of zero count as zero (in [0, 0.25]; at
+  // least 1e-6 is always used), so the surface runs through those grid vertices and the mesh
+  // vertices that would crowd around them are one vertex there, then moved onto the surface.
+  // Above 0 it also turns on a clean-up that never makes the worst triangle worse (collapses
+  // keep the sharpest angle they replace or 15°) and then relaxes the corners of the triangles
+  // still under 15° along the surface. 0.15 gives a worst angle of 9.4° to 15° on a sphere at
+  // r/12 to r/50 (0.2: none under 10°), with 1 to 30 % more rms surface error; it is not the
+  // default because of that error, and because walls about a cell thick and sharpened creases
+  // have not been checked as widely with it (0.2 left a self-intersection in the platform at
+  // 10 mm). Figures: docs/design/2026-12-04-surface-mesher-peers.md.
+  double snap_cells = 0.0;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
   // Called now and then with the fraction done in [0, 1].
