@@ -24,6 +24,7 @@
 #include "gui/app_window.h"
 #include "gui/modes.h"
 #include "gui/tree_panel.h"
+#include "gui/workbench_panels.h"
 #include "scene/fe_model.h"
 #include "scene/fe_setup.h"
 #include "scene/fe_touch_field.h"
@@ -455,8 +456,9 @@ TEST(FeMode, PrecomputesInAJobThenPublishesAFieldAndShowsStress) {
   std::unique_ptr<haptics::ForceField> field = mode.TakeField();
   ASSERT_NE(field, nullptr);
   EXPECT_EQ(mode.TakeField(), nullptr);  // once
-  // Push as the haptic thread would, then a frame on the main thread.
-  const double r = mode.model()->mean_edge_length();
+  // Push as the haptic thread would, then a frame on the main thread: the tool (FE mode's
+  // patch of radius r) half its radius into the plate top.
+  const double r = mode.touch_settings().tool_radius;
   haptics::ToolState tool;
   tool.tool_W.p_WT = Eigen::Vector3d(0.1, 0.01, 0.010 + 0.5 * r);
   field->Evaluate(tool.tool_W);
@@ -650,6 +652,9 @@ TEST(FeTouchField, CouplingSettlesAtTheSeriesEquilibriumAndTheFreeCornerFeelsSof
 // aims 5 mm (in D) past the plate top. At every s the grip must come to rest on the plate and feel
 // the hand's pull (its spring times the gap), not chatter: at s = 4.6 with the force scale not
 // divided by s the felt stiffness is 4.6 times higher and the hand bounced on the plate (measured).
+// The tool's radius is a size on the part (W, kDefaultFeToolRadius at every s): its patch at rest
+// holds every node under it, none refused (until 2026-12-04 the radius was scaled with s, 46 mm
+// on the part at s = 4.6, and the patch was truncated at kMaxFeContacts).
 TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
   JobQueue jobs;
   FeMode mode(nullptr, &jobs);
@@ -663,8 +668,8 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
   }
   jobs.Poll();
   ASSERT_TRUE(mode.model()) << mode.status();
-  const double r = mode.model()->mean_edge_length();  // the tool radius FE mode uses
-  const Eigen::Vector3d top_W(0.1, 0.01, 0.01);       // a point of the plate top (z = 0.01 m)
+  const double r = kDefaultFeToolRadius;         // the tool radius FE mode uses, on the part (W)
+  const Eigen::Vector3d top_W(0.1, 0.01, 0.01);  // a point of the plate top (z = 0.01 m)
   const haptics::SpidarGeometry g;
   for (const double s : {1.0, 4.6}) {
     SCOPED_TRACE("world scale " + std::to_string(s));
@@ -676,7 +681,8 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
     ASSERT_NE(fe, nullptr);
     EXPECT_DOUBLE_EQ(fe->settings().force_scale, kDefaultFeForceScale / s);
     EXPECT_DOUBLE_EQ(fe->settings().coupling_stiffness, kDefaultFeCoupling / s);
-    // Tool centre in D when the sphere just touches the top, then where the hand aims.
+    EXPECT_DOUBLE_EQ(fe->settings().tool_radius, r);  // a size on the part: not scaled
+    // Tool centre in D when the tool just touches the top, then where the hand aims.
     const Eigen::Vector3d touch_D(0, 0, -0.03 + r / s);
     const Eigen::Vector3d aim_D = touch_D - Eigen::Vector3d(0, 0, 0.005);
     fe->Evaluate(ToolAt(s * aim_D + p_WDo));  // column focus, then wait for the columns
@@ -715,6 +721,11 @@ TEST(FeMode, HandComesToRestOnThePlateAtAnyWorldScale) {
                           << " N";
     EXPECT_LT(z_max - z_min, 1e-4) << "grip still moving: z_D " << z_min << " .. " << z_max;
     EXPECT_NEAR(0.5 * (f_min + f_max), pull, 0.1 * std::abs(pull) + 0.05);
+    const FeContactState& st = fe->last_state();
+    std::printf("s = %.1f: %d patch nodes, %d refused, depth %.3f mm\n", s, st.num_contacts,
+                st.refused, 1e3 * st.depth);
+    EXPECT_GT(st.num_contacts, 0);
+    EXPECT_EQ(st.refused, 0) << "tool patch truncated";
   }
   mode.SetActive(false);
   jobs.CancelAll();
@@ -984,7 +995,8 @@ TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
 }
 
 // A solid whose surface mesh would be past `spidarcad mesh`'s budget is not meshed until the
-// question is answered; Cancel leaves the document as it was.
+// question is answered; Cancel leaves the document as it was. The estimate (its box search)
+// runs in a Job, not on the window's thread: the question is there only once the Job has landed.
 TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const test_support::WindowScratch scratch("fe_window_budget");
@@ -997,7 +1009,13 @@ TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   window.Frame();
   const std::string before = model.document().ToJson().dump();
   fe.mesh_settings().cell_size = 1e-4;  // the platform's box over 0.1 mm cells: far past 2^27
-  EXPECT_FALSE(fe.StartSetUp(&model, model.document().FindByName("platform")->id));
+  ASSERT_TRUE(fe.StartSetUp(&model, model.document().FindByName("platform")->id)) << fe.status();
+  EXPECT_TRUE(fe.pending_setup().empty()) << "estimated on the window's thread";
+  bool estimating = false;
+  for (const auto& job : window.jobs().jobs())
+    estimating = estimating || job->title() == "Estimate the mesh of platform";
+  EXPECT_TRUE(estimating);
+  ASSERT_TRUE(FramesUntil(window, [&] { return !fe.pending_setup().empty(); })) << fe.status();
   EXPECT_NE(fe.pending_setup().find("grid cells"), std::string::npos) << fe.pending_setup();
   for (int k = 0; k < 3; ++k) window.Frame();  // the question is drawn
   EXPECT_EQ(model.document().ToJson().dump(), before) << "nothing is meshed while it asks";
@@ -1006,6 +1024,22 @@ TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   for (int k = 0; k < 3; ++k) window.Frame();
   EXPECT_EQ(model.document().ToJson().dump(), before);
   EXPECT_EQ(model.document().history().undo_size(), 0u);
+  EXPECT_EQ(fe.bound_object(), 0u);
+  // The estimate cancelled while it runs: no question, nothing meshed, the status says so.
+  ASSERT_TRUE(fe.StartSetUp(&model, model.document().FindByName("platform")->id)) << fe.status();
+  for (const auto& job : window.jobs().jobs())
+    if (job->title() == "Estimate the mesh of platform") job->Cancel();
+  ASSERT_TRUE(FramesUntil(window, [&] { return !window.jobs().busy(); })) << fe.status();
+  for (int k = 0; k < 3; ++k) window.Frame();
+  if (fe.pending_setup().empty()) {  // (it may have landed before the cancel)
+    EXPECT_NE(fe.status().find("nothing changed"), std::string::npos) << fe.status();
+    EXPECT_NE(window.workbench().status.find("Estimate the mesh of platform: cancelled"),
+              std::string::npos)
+        << window.workbench().status;
+  } else {
+    fe.ConfirmSetUp(&model, false);
+  }
+  EXPECT_EQ(model.document().ToJson().dump(), before);
   EXPECT_EQ(fe.bound_object(), 0u);
 }
 

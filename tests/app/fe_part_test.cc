@@ -84,14 +84,73 @@ TEST(FePart, IsBuiltFromTheDocumentWithFeModesTouchSettings) {
   EXPECT_EQ(part.model->num_fixed_nodes(), 9);  // the minimum-x face: 3 x 3 nodes
   // FE mode's defaults, as felt at the grip, divided by the world scale for the field (W).
   const FeTouchSettings& ts = part.field->settings();
-  EXPECT_EQ(ts.tool_radius, part.model->mean_edge_length());
+  // The tool has a physical size on the part: its radius is not scaled by the world scale.
+  EXPECT_DOUBLE_EQ(ts.tool_radius, kDefaultFeToolRadius);
+  EXPECT_TRUE(ts.patch_contact);
   EXPECT_DOUBLE_EQ(ts.force_scale, kDefaultFeForceScale / 2.0);
   EXPECT_DOUBLE_EQ(ts.coupling_stiffness, kDefaultFeCoupling / 2.0);
   EXPECT_EQ(ts.max_force, 8.0);
-  EXPECT_TRUE(ts.frictionless);
+  EXPECT_FALSE(ts.frictionless);  // sticking, as `felt` defines the patch stiffness
   EXPECT_FALSE(ts.grasp);
 
   EXPECT_THROW(BuildFePart(doc, data.tet_mesh, options), DocumentError);  // not an FE model
+}
+
+// A mesh made from a solid has that solid as its design while it is up to date with it
+// (FeDesignOf), and the part built from it takes the design's normals: the normalised gradient of
+// the solid where it agrees with the mesh's normal (kDesignNormalAgreement), the mesh's elsewhere;
+// on the beam's flat faces the face's normal. A mesh with no source, or made from a revision the
+// solid no longer has, has no design: the mesh's normals.
+TEST(FePart, DesignIsTheSourceSolidWhileTheMeshIsUpToDate) {
+  Document doc;
+  const modeling::ImplicitNode box(
+      modeling::TranslateParams{Eigen::Vector3d(0.15, 0.025, 0.025)},
+      {modeling::ImplicitNode(modeling::BoxParams{Eigen::Vector3d(0.3, 0.05, 0.05)})});
+  doc.Execute(edit::AddSolid("beam", box));
+  const ObjectId solid = doc.last_created().front();
+  doc.Execute(
+      edit::AddMesh("beam tets", solid, doc.Get(solid).revision, nullptr, BeamForDocument()));
+  const ObjectId mesh = doc.last_created().front();
+  doc.Execute(edit::AddMesh("imported tets", 0, 0, nullptr, BeamForDocument()));
+  const ObjectId imported = doc.last_created().front();
+  EXPECT_EQ(FeDesignOf(doc, imported), nullptr);
+  const std::shared_ptr<const modeling::CompiledSolid> design = FeDesignOf(doc, mesh);
+  ASSERT_NE(design, nullptr);
+  EXPECT_NEAR(design->Value(Eigen::Vector3d(0.1, 0.02, 0.06)), 0.01, 1e-12);  // 1 cm above
+
+  FeModelData data;
+  data.tet_mesh = mesh;
+  data.material = {70e9, 0.33};
+  doc.Execute(edit::AddObject("beam FE", data));
+  FePartOptions options;
+  options.model = Quiet();
+  const FePart part = BuildFePart(doc, doc.last_created().front(), options);
+  const FeModel& model = *part.model;
+  EXPECT_GT(model.num_design_normals(), 0);
+  int face_interior = 0;
+  for (int b = 0; b < model.cache().num_candidates(); ++b) {
+    const Eigen::Vector3d x = model.mesh().nodes.row(model.cache().candidate_node(b)).transpose();
+    const Eigen::Vector3d mesh_n = model.candidate_normals().row(b).transpose();
+    const Eigen::Vector3d n = model.design_normals().row(b).transpose();
+    Eigen::Vector3d gradient;
+    design->ValueAndGradient(x, &gradient);
+    const Eigen::Vector3d g = gradient.normalized();
+    if (g.dot(mesh_n) >= kDesignNormalAgreement)
+      EXPECT_NEAR((n - g).norm(), 0.0, 1e-12) << "node at " << x.transpose();
+    else
+      EXPECT_EQ(n, mesh_n) << "node at " << x.transpose();
+    // A node inside the top face (z = 0.05 m, off its edges): the face's normal.
+    if (std::abs(x.z() - 0.05) < 1e-12 && x.x() > 1e-6 && x.x() < 0.3 - 1e-6 && x.y() > 1e-6 &&
+        x.y() < 0.05 - 1e-6) {
+      ++face_interior;
+      EXPECT_NEAR((n - Eigen::Vector3d::UnitZ()).norm(), 0.0, 1e-12);
+    }
+  }
+  EXPECT_GT(face_interior, 0);
+
+  // The solid edited: the mesh is out of date, no design.
+  doc.Execute(edit::ReplaceTree(solid, modeling::ImplicitNode(modeling::BoxParams{})));
+  EXPECT_EQ(FeDesignOf(doc, mesh), nullptr);
 }
 
 TEST(FePart, CandidatesNearPathAreTheSurfaceNodesWithinReachOfThePolyline) {

@@ -277,6 +277,7 @@ void FeMode::UpdateSurface(const FeContactState* state) {
   figures_.contacts = last_grab_.ready ? 0 : last_state_.num_contacts;
   figures_.substituted =
       last_grab_.ready ? last_grab_.num_substituted : last_state_.num_substituted;
+  figures_.refused = last_grab_.ready ? 0 : last_state_.refused;
   figures_.grabbed = last_grab_.ready ? last_grab_.num_nodes : 0;
   figures_.m_tool_W = last_grab_.ready ? last_grab_.m_tool_W : Eigen::Vector3d::Zero();
   figures_.max_displacement = max_u;
@@ -333,8 +334,9 @@ void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
   ImGui::TextUnformatted("Touch");
   bool changed = false;
   float radius_mm = static_cast<float>(1e3 * touch_settings_.tool_radius);
-  if (ImGui::DragFloat("tool radius [mm] (0: auto)", &radius_mm, 0.1f, 0.0f, 100.0f, "%.1f")) {
-    touch_settings_.tool_radius = 1e-3 * std::max(0.0f, radius_mm);
+  // The tool's physical radius on the part (W): the patch every push and grab covers.
+  if (ImGui::DragFloat("tool radius on the part [mm]", &radius_mm, 0.1f, 0.5f, 50.0f, "%.1f")) {
+    touch_settings_.tool_radius = 1e-3 * std::max(0.5f, radius_mm);
     changed = true;
   }
   if (ImGui::SliderFloat("log10 force scale", &log_force_scale_, -8.0f, 0.0f, "%.1f")) {
@@ -367,6 +369,7 @@ void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
       changed = true;
     }
     grab_settings_.force_scale = touch_settings_.force_scale;
+    grab_settings_.tool_radius = touch_settings_.tool_radius;
     grab_settings_.coupling_stiffness = touch_settings_.coupling_stiffness;
   }
   if (changed && active_ && model_) QueueField();
@@ -383,6 +386,11 @@ void FeMode::DrawPanel(SceneModel* model, ObjectId selected) {
                 std::min(touch_settings_.max_force, felt_scale * f.norm()), felt_scale,
                 touch_settings_.max_force);
     ImGui::Text("contacts: %d (%d on borrowed columns)", figures_.contacts, figures_.substituted);
+    if (figures_.refused > 0)
+      ImGui::TextColored(ImVec4(1.0f, 0.6f, 0.2f, 1.0f),
+                         "tool patch truncated: %d nodes beyond %d left out (a smaller tool is "
+                         "felt; lower the tool radius or coarsen the mesh)",
+                         figures_.refused, kMaxFeContacts);
     if (grab_) {
       const Eigen::Vector3d& m = figures_.m_tool_W;
       ImGui::Text("grabbed: %d nodes, FE moment on tool %.3f N·m (%.3f, %.3f, %.3f)",
@@ -450,9 +458,11 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
   }
   // A Job of ours that failed or was cancelled: say so (the newest of that title is ours).
   if (!awaiting_title_.empty() && jobs_ != nullptr) {
+    bool listed = false;
     for (auto it = jobs_->jobs().rbegin(); it != jobs_->jobs().rend(); ++it) {
       const Job* job = it->get();
       if (job->title() != awaiting_title_) continue;
+      listed = true;
       if (job->state() == Job::State::kFailed) {
         status_ = job->title() + " failed: " + job->error();
         awaiting_title_.clear();
@@ -463,6 +473,11 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
         precompute_on_bind_ = false;
       }
       break;
+    }
+    if (!listed) {  // the window prunes ended jobs: this one ended without its finisher
+      status_ = awaiting_title_ + ": stopped (cancelled or failed), nothing changed";
+      awaiting_title_.clear();
+      precompute_on_bind_ = false;
     }
   }
   if (selected != last_selected_) {
@@ -514,6 +529,7 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
   const DocObject& o = doc.Get(fe);
   const auto& data = std::get<FeModelData>(o.data);
   model_settings_ = ApplyFeModelData(data, model_settings_);
+  model_settings_.design = FeDesignOf(doc, data.tet_mesh);  // the tool pushes along its normals
   preset_ = -1;
   for (int i = 0; i < static_cast<int>(std::size(kMaterialPresets)); ++i) {
     if (kMaterialPresets[i].material.youngs_modulus == data.material.youngs_modulus &&
@@ -604,22 +620,48 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
   FeMeshInput input;
   try {
     input = PrepareFeMesh(doc, source, mesh_settings_);
-    if (check_budget) {
-      if (std::string question = LargeMeshQuestion(o->name, input); !question.empty()) {
-        pending_input_ = std::move(input);
-        pending_precompute_ = precompute;
-        pending_text_ = std::move(question);
-        status_ = "set up FE: waiting for an answer (the mesh is large)";
-        return false;
-      }
-    }
   } catch (const std::exception& e) {
     status_ = std::string("set up FE: ") + e.what();
     return false;
   }
+  if (check_budget && input.kind == FeSourceKind::kSolid && input.settings.mesher != "cgal") {
+    StartEstimateJob(model, o->name, input, precompute);
+    return true;
+  }
   precompute_on_bind_ = precompute;
   StartMeshJob(model, input, false, 0);
   return true;
+}
+
+void FeMode::StartEstimateJob(SceneModel* model, const std::string& name, const FeMeshInput& input,
+                              bool precompute) {
+  job_title_ = "Estimate the mesh of " + input.source_name;
+  awaiting_title_ = job_title_;
+  status_ = "set up FE: estimating the mesh of '" + input.source_name + "'...";
+  std::weak_ptr<int> alive = alive_;
+  const int generation = model->generation();
+  jobs_->Start(
+      job_title_,
+      [this, model, name, input, precompute, generation, alive](JobContext& ctx) -> Job::Finisher {
+        ctx.SetPhase("box");
+        ctx.SetProgress(0.0);
+        std::string question = LargeMeshQuestion(name, input, ctx.cancel_flag());
+        ctx.SetProgress(1.0);
+        return [this, model, input, precompute, generation, alive, question = std::move(question)] {
+          if (!alive.lock()) return;
+          awaiting_title_.clear();
+          if (model->generation() != generation) return;  // another document
+          if (!question.empty()) {
+            pending_input_ = input;
+            pending_precompute_ = precompute;
+            pending_text_ = question;
+            status_ = "set up FE: waiting for an answer (the mesh is large)";
+            return;
+          }
+          precompute_on_bind_ = precompute;
+          StartMeshJob(model, input, false, 0);
+        };
+      });
 }
 
 void FeMode::ConfirmSetUp(SceneModel* model, bool proceed) {

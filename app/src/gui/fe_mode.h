@@ -57,6 +57,9 @@ struct FeLiveFigures {
   // Contact nodes, and how many still read a substitute column.
   int contacts = 0;
   int substituted = 0;
+  // Nodes of the tool's patch left out (the patch had more than kMaxFeContacts; a smaller punch
+  // is felt).
+  int refused = 0;
   // Largest displacement magnitude of a surface node, m.
   double max_displacement = 0.0;
   // Largest nodal von Mises stress on the surface, Pa.
@@ -117,9 +120,11 @@ class FeMode {
   // Sets up FE for object `source` (FeSourceKind): an FE model is chosen as it is; a volume mesh
   // gets an FE model at once (one command); a solid, sculpt or closed surface mesh is meshed with
   // mesh_settings() in a Job whose finisher executes SetUpFe (a source changed meanwhile drops
-  // the result). With `check_budget`, a solid meshed by TetGen whose estimated cost is past
-  // `spidarcad mesh`'s default budget is not started: pending_setup() then says why and
-  // ConfirmSetUp decides. `precompute` precomputes the FE model once it is bound. Returns
+  // the result). With `check_budget`, a solid meshed by TetGen is first estimated in a Job
+  // ("Estimate the mesh of NAME", phase "box": its box search takes seconds for a long tape;
+  // cancellable, nothing changes then); when it lands, a cost within `spidarcad mesh`'s default
+  // budget starts the mesh Job, a cost past it is not started: pending_setup() then says why
+  // and ConfirmSetUp decides. `precompute` precomputes the FE model once it is bound. Returns
   // false (status() says why) when nothing was started.
   bool StartSetUp(SceneModel* model, ObjectId source, bool check_budget = true,
                   bool precompute = false);
@@ -146,11 +151,12 @@ class FeMode {
 
   // Model settings the next Precompute uses (editable by code as by the panel).
   FeModelSettings& model_settings() { return model_settings_; }
-  // Touch settings of the next field (tool_radius <= 0: the mesh's mean edge length).
+  // Touch settings of the next field, as felt at the grip (DefaultFeTouchSettings; tool_radius on
+  // the part, W, not scaled).
   FeTouchSettings& touch_settings() { return touch_settings_; }
   // Grasp grabs (the next field is an FePushGrabField: push, and closing the grip on the part
   // grabs it in six DOF) instead of squeezing or nothing; off by default. The grab settings as
-  // felt at the grip (DefaultFeGrabSettings; tool_radius <= 0: twice the mean edge length).
+  // felt at the grip (DefaultFeGrabSettings; the tool radius follows the touch's).
   bool& grab() { return grab_; }
   FeGrabSettings& grab_settings() { return grab_settings_; }
   // The ready model (null before the first precomputation finished).
@@ -177,6 +183,10 @@ class FeMode {
   void ShowModel(bool show);
   void Rebind(const Document& doc, ObjectId fe);
   void StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refresh_mesh, ObjectId mesh);
+  // The over-budget estimate of set-up `input` (of the object called `name`) in a Job; its
+  // finisher asks (pending_setup) or starts the mesh Job.
+  void StartEstimateJob(SceneModel* model, const std::string& name, const FeMeshInput& input,
+                        bool precompute);
   bool Execute(SceneModel* model, std::unique_ptr<Command> command);
   void DrawDocumentPanel(SceneModel* model);
   void DrawSettingsPanel(SceneModel* model);

@@ -158,6 +158,20 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
     const double len = m->normals_.row(b).norm();
     if (len > 0.0) m->normals_.row(b) /= len;
   }
+  // The design's normals where the design is known and agrees with the mesh.
+  m->design_normals_ = m->normals_;
+  if (settings.design) {
+    for (Eigen::Index b = 0; b < m->normals_.rows(); ++b) {
+      Eigen::Vector3d gradient;
+      settings.design->ValueAndGradient(tm.nodes.row(candidates[b]).transpose(), &gradient);
+      const double len = gradient.norm();
+      if (!(len > 0.0) || !gradient.allFinite()) continue;
+      const Eigen::Vector3d n = gradient / len;
+      if (!(n.dot(m->normals_.row(b)) >= kDesignNormalAgreement)) continue;
+      m->design_normals_.row(b) = n.transpose();
+      ++m->num_design_normals_;
+    }
+  }
   CheckCancel(settings);
 
   // Column cache (baseline solve), disk cache import.

@@ -29,6 +29,7 @@
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/static_solver.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
 
 namespace spidarcad::app {
 
@@ -57,6 +58,12 @@ inline constexpr MaterialPreset kMaterialPresets[] = {
 // holds its wall face x = 0 and the weld lip 1 mm proud of it at every cell size.
 inline constexpr double kMinXFaceLayer = 0.01;
 
+// Least cosine between a surface node's design normal (the gradient of the solid it was meshed
+// from) and its mesh normal for the design normal to be taken (FeModel::design_normals): 60
+// degrees. Beyond it the node is on a crease the gradient resolves to one side only, or the design
+// is not the mesh's, and the mesh normal is kept.
+inline constexpr double kDesignNormalAgreement = 0.5;
+
 struct FeModelSettings {
   // The material of the part (of every region not listed in region_materials).
   fem::Material material = kMaterialPresets[0].material;
@@ -77,6 +84,11 @@ struct FeModelSettings {
   // model's baseline displacement (fem::ColumnCache::baseline()); the reaction of the clamps
   // balances them.
   std::vector<FeLoad> loads;
+  // The design the mesh was made from (the implicit solid, W, m), when it is known and the mesh is
+  // up to date with it; null: none. Its gradient gives the design normals of the surface nodes
+  // (FeModel::design_normals), which FE mode's tool pushes along; the model's stiffness does not
+  // depend on it.
+  std::shared_ptr<const modeling::CompiledSolid> design;
   // Lazy compliance columns (precision, memory bound, worker). start_worker is honoured after
   // the disk cache was imported.
   fem::ColumnCacheSettings cache;
@@ -134,6 +146,15 @@ class FeModel {
   // Outward unit normal of each candidate (surface node), #candidates by 3 (area-weighted
   // average of its faces' normals).
   const Eigen::MatrixX3d& candidate_normals() const { return normals_; }
+  // Outward unit normal of the design's surface at each candidate, #candidates by 3: the
+  // normalised gradient of FeModelSettings::design at the node's position where it is finite and
+  // within kDesignNormalAgreement of the mesh's normal, else the mesh's normal
+  // (candidate_normals). Without a design, candidate_normals. A coarse mesh cannot follow a
+  // rounded edge: its facets there slope by degrees where the design is flat (4.6 degrees near
+  // the platform's free corner at 12.5 mm cells), and the design normal is the surface's.
+  const Eigen::MatrixX3d& design_normals() const { return design_normals_; }
+  // Candidates whose design normal came from the design (0 without one).
+  int num_design_normals() const { return num_design_normals_; }
   // Nodes whose columns came from the disk cache.
   int imported_nodes() const { return imported_nodes_; }
   // Disk-cache key of the columns.
@@ -174,6 +195,8 @@ class FeModel {
   std::vector<Eigen::MatrixXd> stress_ops_;  // per surface element: D·B at the centroid, 6 by 3·npe
   std::vector<double> element_volume_;
   Eigen::MatrixX3d normals_;
+  Eigen::MatrixX3d design_normals_;
+  int num_design_normals_ = 0;
   std::vector<std::vector<int>> load_nodes_;
   int num_fixed_nodes_ = 0;
   double mean_edge_ = 0.0;

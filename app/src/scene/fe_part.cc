@@ -14,7 +14,9 @@ namespace spidarcad::app {
 
 FeTouchSettings DefaultFeTouchSettings() {
   FeTouchSettings s;
-  s.tool_radius = 0.0;  // auto: the mesh's mean edge length
+  s.tool_radius = kDefaultFeToolRadius;
+  s.patch_contact = true;
+  s.frictionless = false;
   s.force_scale = kDefaultFeForceScale;
   s.max_force = 8.0;
   s.coupling_stiffness = kDefaultFeCoupling;
@@ -23,6 +25,7 @@ FeTouchSettings DefaultFeTouchSettings() {
 
 FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale) {
   FeTouchSettings ts = panel;
+  if (!(ts.tool_radius > 0.0)) ts.tool_radius = kDefaultFeToolRadius;
   if (world_scale > 0.0) {
     ts.force_scale = panel.force_scale / world_scale;
     ts.coupling_stiffness = panel.coupling_stiffness / world_scale;
@@ -30,16 +33,14 @@ FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_sc
   return ts;
 }
 
-FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSettings& panel,
+FeTouchSettings ResolvedFieldSettings(const FeModel& /*model*/, const FeTouchSettings& panel,
                                       double world_scale) {
-  FeTouchSettings ts = FieldTouchSettings(panel, world_scale);
-  if (!(ts.tool_radius > 0.0)) ts.tool_radius = model.mean_edge_length();
-  return ts;
+  return FieldTouchSettings(panel, world_scale);
 }
 
 FeGrabSettings DefaultFeGrabSettings() {
   FeGrabSettings s;
-  s.tool_radius = 0.0;  // auto: twice the mesh's mean edge length
+  s.tool_radius = kDefaultFeToolRadius;
   s.force_scale = kDefaultFeForceScale;
   s.max_force = 8.0;
   s.max_torque = 0.5;
@@ -48,14 +49,14 @@ FeGrabSettings DefaultFeGrabSettings() {
   return s;
 }
 
-FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& panel,
+FeGrabSettings ResolvedGrabSettings(const FeModel& /*model*/, const FeGrabSettings& panel,
                                     double world_scale) {
   FeGrabSettings gs = panel;
+  if (!(gs.tool_radius > 0.0)) gs.tool_radius = kDefaultFeToolRadius;
   if (world_scale > 0.0) {
     gs.force_scale = panel.force_scale / world_scale;
     gs.coupling_stiffness = panel.coupling_stiffness / world_scale;
   }
-  if (!(gs.tool_radius > 0.0)) gs.tool_radius = 2.0 * model.mean_edge_length();
   return gs;
 }
 
@@ -88,6 +89,21 @@ ObjectId FeModelSource(const Document& doc, ObjectId fe) {
   return mesh_data->source;
 }
 
+std::shared_ptr<const modeling::CompiledSolid> FeDesignOf(const Document& doc, ObjectId mesh) {
+  const DocObject* o = doc.Find(mesh);
+  const auto* data = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr;
+  if (data == nullptr || data->source == 0 || doc.IsMeshOutOfDate(mesh)) return nullptr;
+  const DocObject* source = doc.Find(data->source);
+  const auto* solid = source != nullptr ? std::get_if<SolidData>(&source->data) : nullptr;
+  if (solid == nullptr) return nullptr;
+  try {
+    return std::make_shared<const modeling::CompiledSolid>(
+        modeling::CompiledSolid::Compile(solid->root));
+  } catch (const std::exception&) {
+    return nullptr;  // a tree that does not compile: the mesh's normals
+  }
+}
+
 FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& options) {
   const DocObject* o = doc.Find(fe);
   const auto* data = o != nullptr ? std::get_if<FeModelData>(&o->data) : nullptr;
@@ -99,7 +115,9 @@ FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& option
   part.mesh = data->tet_mesh;
   part.source = FeModelSource(doc, fe);
   part.name = o->name;
-  part.model = FeModel::Build(FeMeshOf(doc, *data), ApplyFeModelData(*data, options.model));
+  FeModelSettings model_settings = ApplyFeModelData(*data, options.model);
+  if (!model_settings.design) model_settings.design = FeDesignOf(doc, data->tet_mesh);
+  part.model = FeModel::Build(FeMeshOf(doc, *data), model_settings);
   part.channel = std::make_shared<FeContactChannel>();
   part.field = std::make_unique<FeTouchField>(
       part.model, ResolvedFieldSettings(*part.model, options.touch, options.world_scale),

@@ -7,7 +7,11 @@
 // Felt force and world scale. The touch settings are given as FE mode's panel holds them, as felt
 // at the grip; FieldTouchSettings divides the force scale and the coupling stiffness by the world
 // scale s of X_WD (p_W = s·p_D + p_WDo), so a grip displacement δ in D (a tool displacement s·δ
-// in W) is felt as force_scale · K · δ, and at most coupling · δ, whatever s is.
+// in W) is felt as force_scale · K · δ, and at most coupling · δ, whatever s is. The tool's
+// radius is not scaled: it is a size on the part (W), the R of `spidarcad felt`'s definition, so
+// that what is felt is the part's stiffness under a tool of that size whatever X_WD's scale (on
+// the platform the window's s ≈ 4.6 made a 10 mm radius at the grip 46 mm on the part, a patch
+// truncated at kMaxFeContacts at FE mode's default mesh).
 //
 // Deterministic columns (headless runs). The window lets the column worker compute columns
 // ahead of the tool while the contact solve reads the nearest ready column meanwhile: its forces
@@ -37,18 +41,25 @@
 
 namespace spidarcad::app {
 
-// The touch settings FE mode's panel starts with, as felt at the grip: tool radius 0 (auto: the
-// mesh's mean boundary edge length), force scale kDefaultFeForceScale, felt force at most 8 N,
-// coupling kDefaultFeCoupling N/m, frictionless, push (no grasp contact; pole length 0.02 m).
+// The physical radius of the FE tool FE mode and `run` start with, m on the part (in W, not
+// scaled by X_WD): the radius of the patch every FE push and grab covers
+// (scene/fe_touch_field.h, tool patch), the radius `spidarcad felt` measures with.
+inline constexpr double kDefaultFeToolRadius = 0.01;
+
+// The touch settings FE mode's panel starts with, as felt at the grip: the tool patch of radius
+// kDefaultFeToolRadius (on the part, W), sticking (as `felt` defines K), force scale
+// kDefaultFeForceScale, felt force at most 8 N, coupling kDefaultFeCoupling N/m, push (no grasp
+// contact; pole length 0.02 m).
 FeTouchSettings DefaultFeTouchSettings();
 
 // The settings of the field for panel settings `panel` (felt at the grip) and world scale s
-// (> 0; otherwise `panel` is returned as it is): force_scale / s and coupling_stiffness / s (see
-// the file comment).
+// (> 0; otherwise `panel` is returned as it is): force_scale / s, coupling_stiffness / s and
+// the tool radius as it is (a size on the part, W; see the file comment); a tool radius <= 0 is
+// kDefaultFeToolRadius.
 FeTouchSettings FieldTouchSettings(const FeTouchSettings& panel, double world_scale);
 
-// The field settings for `model`: FieldTouchSettings with an auto tool radius (<= 0) resolved to
-// the model's mean boundary edge length.
+// The field settings for `model` (FieldTouchSettings; the model is not needed any more since the
+// tool has a physical size, kept for the callers).
 FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSettings& panel,
                                       double world_scale);
 
@@ -56,17 +67,17 @@ FeTouchSettings ResolvedFieldSettings(const FeModel& model, const FeTouchSetting
 // held twist is ever felt (the simulated hand's wrist is 1 N·m/rad).
 inline constexpr double kDefaultFeGrabRotCoupling = 2.0;
 
-// The grab settings FE mode and `run --fe-grab` start with, as felt at the grip: grab radius 0
-// (auto: twice the mesh's mean boundary edge length), force scale kDefaultFeForceScale (force and
-// moment), virtual coupling kDefaultFeCoupling N/m and kDefaultFeGrabRotCoupling N·m/rad, felt
-// force at most 8 N and moment at most 0.5 N·m, the grip closing below 70° and opening above
-// 80°, the patch factored on the field's worker and ramped in over 5 ms.
+// The grab settings FE mode and `run --fe-grab` start with, as felt at the grip: grab radius
+// kDefaultFeToolRadius (the tool's physical size, on the part, W), force scale kDefaultFeForceScale
+// (force and moment), virtual coupling kDefaultFeCoupling N/m and kDefaultFeGrabRotCoupling
+// N·m/rad, felt force at most 8 N and moment at most 0.5 N·m, the grip closing below 70° and
+// opening above 80°, the patch factored on the field's worker and ramped in over 5 ms.
 FeGrabSettings DefaultFeGrabSettings();
 
 // The grab field's settings for `model`: force_scale / s and coupling_stiffness / s (s the world
 // scale, as FieldTouchSettings; the moment is scaled alike, the rotational coupling is not: a
-// rotation is the same in W and at the grip), an auto radius (<= 0) resolved to twice the
-// model's mean boundary edge length.
+// rotation is the same in W and at the grip), and the radius as it is (a size on the part, W;
+// <= 0: kDefaultFeToolRadius).
 FeGrabSettings ResolvedGrabSettings(const FeModel& model, const FeGrabSettings& panel,
                                     double world_scale);
 
@@ -125,8 +136,15 @@ struct FePart {
   std::unique_ptr<FeGrabField> grab_field;
 };
 
+// The design of mesh object `mesh` (FeModelSettings::design): its source solid compiled, when the
+// mesh was made from a solid and is up to date with it (Document::IsMeshOutOfDate); else null
+// (an imported mesh, a sculpt or surface source, a solid edited since, a tree that does not
+// compile).
+std::shared_ptr<const modeling::CompiledSolid> FeDesignOf(const Document& doc, ObjectId mesh);
+
 // Builds FE model `fe` of `doc` now (on the calling thread): FeMeshOf, then FeModel::Build with
-// ApplyFeModelData(data, options.model), then the field with ResolvedFieldSettings. Throws
+// ApplyFeModelData(data, options.model) and, unless options.model has one, the design
+// FeDesignOf(doc, its mesh), then the field with ResolvedFieldSettings. Throws
 // DocumentError when `fe` is not an FE model or its mesh is missing, and what FeModel::Build and
 // FeTouchField throw (std::invalid_argument naming the setting, std::runtime_error).
 FePart BuildFePart(const Document& doc, ObjectId fe, const FePartOptions& options);

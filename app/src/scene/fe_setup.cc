@@ -258,12 +258,13 @@ Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std:
   return SolidBox(root, name, cell, compiled, true, cancel);
 }
 
-std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& input) {
+std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& input,
+                                                            const std::atomic<bool>* cancel) {
   if (input.kind != FeSourceKind::kSolid || input.settings.mesher == "cgal") return std::nullopt;
   double cell = input.settings.cell_size;
   modeling::CompiledSolid compiled;
   modeling::SurfaceMeshSettings ss;
-  ss.bounds = SolidBox(input.root, input.source_name, &cell, &compiled, false, nullptr);
+  ss.bounds = SolidBox(input.root, input.source_name, &cell, &compiled, false, cancel);
   ss.cell_size = cell;
   return modeling::EstimateSurfaceMesh(compiled, ss);
 }
@@ -286,8 +287,9 @@ std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate) {
   return text;
 }
 
-std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input) {
-  const auto estimate = EstimateFeMesh(input);
+std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input,
+                              const std::atomic<bool>* cancel) {
+  const auto estimate = EstimateFeMesh(input, cancel);
   if (!estimate) return "";
   const std::string over = FeMeshOverBudget(*estimate);
   if (over.empty()) return "";

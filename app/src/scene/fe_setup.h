@@ -105,8 +105,11 @@ Eigen::AlignedBox3d FeSolidBounds(const modeling::ImplicitNode& root, const std:
                                   const std::atomic<bool>* cancel = nullptr);
 
 // The cost of meshing a solid input's surface (as `spidarcad mesh` estimates it before running);
-// nullopt for the other kinds and for CGAL. Throws as FeSolidBounds.
-std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(const FeMeshInput& input);
+// nullopt for the other kinds and for CGAL. Its box search takes seconds for a long tape (a
+// union of 100,000 spheres: about 6 s), so the window runs it in a Job: `cancel` (may be null)
+// is read before every box it classifies. Throws as FeSolidBounds.
+std::optional<modeling::SurfaceMeshEstimate> EstimateFeMesh(
+    const FeMeshInput& input, const std::atomic<bool>* cancel = nullptr);
 // The estimate's figure past `spidarcad mesh`'s default budget (docs/limits.md: 2^27 grid cells,
 // 2 GiB, 2e11 tape instructions) as text ("estimated grid cells 3e8 is over 1.34e8"), or "" when
 // it is within it.
@@ -114,7 +117,8 @@ std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate);
 // The question to ask before meshing `input` of the object called `name` when its estimate is
 // past that budget ("Meshing 'NAME' is large: ... (estimate; the limits ...)."); "" when it is
 // within it or cannot be estimated (CGAL). Throws as EstimateFeMesh.
-std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input);
+std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input,
+                              const std::atomic<bool>* cancel = nullptr);
 
 // Meshes the input (worker thread): a solid on the grid (MeshSurface, SharpenFeatures when
 // sharp_edges) then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Without input.volume

@@ -22,6 +22,15 @@ constexpr int kMaxGridCellsPerAxis = 128;
 // Active-set passes per tick (each: targets, solve, release the pulling nodes).
 constexpr int kActiveSetPasses = 4;
 
+// The contact point (sphere) through which candidate b was found (0 when it was not).
+int SphereOfFound(const std::array<int, kMaxFeContacts>& found,
+                  const std::array<int, kMaxFeContacts>& sphere, int num_found, int b) {
+  int at = 0;
+  for (int j = 0; j < num_found; ++j)
+    if (found[j] == b) at = sphere[j];
+  return at;
+}
+
 }  // namespace
 
 FeTouchField::FeTouchField(std::shared_ptr<FeModel> model, const FeTouchSettings& settings,
@@ -106,6 +115,34 @@ bool FeTouchField::ForEachFreeCandidate(const Eigen::Vector3d& lo_p, const Eigen
   return true;
 }
 
+void FeTouchField::InsertFound(int b, double dist, int sphere) {
+  // Already found through the other sphere: keep the nearer.
+  int at = -1;
+  for (int j = 0; j < num_found_; ++j)
+    if (found_[j] == b) at = j;
+  if (at >= 0) {
+    if (dist >= found_dist_[at]) return;
+    for (int j = at; j + 1 < num_found_; ++j) {
+      found_[j] = found_[j + 1];
+      found_dist_[j] = found_dist_[j + 1];
+      found_sphere_[j] = found_sphere_[j + 1];
+    }
+    --num_found_;
+  }
+  if (num_found_ == settings_.max_contacts && dist >= found_dist_[num_found_ - 1]) return;
+  int j = std::min(num_found_, settings_.max_contacts - 1);
+  while (j > 0 && found_dist_[j - 1] > dist) {
+    found_[j] = found_[j - 1];
+    found_dist_[j] = found_dist_[j - 1];
+    found_sphere_[j] = found_sphere_[j - 1];
+    --j;
+  }
+  found_[j] = b;
+  found_dist_[j] = dist;
+  found_sphere_[j] = sphere;
+  num_found_ = std::min(num_found_ + 1, settings_.max_contacts);
+}
+
 int FeTouchField::Collect(const Eigen::Vector3d& c, int sphere) {
   const double r = settings_.tool_radius;
   int inside = 0;
@@ -113,33 +150,186 @@ int FeTouchField::Collect(const Eigen::Vector3d& c, int sphere) {
     const double dist = (positions_[b] - c).norm();
     if (!(dist < r)) return;
     ++inside;
-    // Already found through the other sphere: keep the nearer.
-    int at = -1;
-    for (int j = 0; j < num_found_; ++j)
-      if (found_[j] == b) at = j;
-    if (at >= 0) {
-      if (dist >= found_dist_[at]) return;
-      for (int j = at; j + 1 < num_found_; ++j) {
-        found_[j] = found_[j + 1];
-        found_dist_[j] = found_dist_[j + 1];
-        found_sphere_[j] = found_sphere_[j + 1];
-      }
-      --num_found_;
-    }
-    if (num_found_ == settings_.max_contacts && dist >= found_dist_[num_found_ - 1]) return;
-    int j = std::min(num_found_, settings_.max_contacts - 1);
-    while (j > 0 && found_dist_[j - 1] > dist) {
-      found_[j] = found_[j - 1];
-      found_dist_[j] = found_dist_[j - 1];
-      found_sphere_[j] = found_sphere_[j - 1];
-      --j;
-    }
-    found_[j] = b;
-    found_dist_[j] = dist;
-    found_sphere_[j] = sphere;
-    num_found_ = std::min(num_found_ + 1, settings_.max_contacts);
+    InsertFound(b, dist, sphere);
   });
   return inside;
+}
+
+Eigen::Vector3d FeTouchField::Baseline(int b) const {
+  return cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(b));
+}
+
+bool FeTouchField::FitPatch(const Eigen::Vector3d& c, const PatchFit* prior, PatchFit* fit) const {
+  const double r = settings_.tool_radius;
+  Eigen::Vector3d n, p;
+  if (prior != nullptr) {
+    n = prior->normal;
+    p = c - (c - prior->point).dot(n) * n;
+  } else {
+    int nearest = -1;
+    double best = 2.0 * r;
+    ForEachFreeCandidate(c.array() - 2.0 * r, c.array() + 2.0 * r, [&](int b) {
+      const double dist = (positions_[b] - c).norm();
+      if (dist < best) {
+        best = dist;
+        nearest = b;
+      }
+    });
+    if (nearest < 0) return false;
+    n = model_->design_normals().row(nearest).transpose();
+    const Eigen::Vector3d x = positions_[nearest] + Baseline(nearest);
+    p = c - (c - x).dot(n) * n;
+  }
+  // Two passes over the facing free nodes within R of p (mesh normal n_b·n > 0; the
+  // kMaxFeContacts nearest p). The plane's normal n is the patch's dominant design normal
+  // (FeModel::design_normals: the design's where the model has it, else the mesh's): the one that
+  // the most patch nodes' design normals agree with (score Σ_i (n_i·n_j)^1024). On a flat face
+  // that is the face's normal exactly; a mean, or the normal of a coarse mesh's facets next to a
+  // rounded edge, would push the patch partly in its plane, where the part is stiffer by orders of
+  // magnitude. The height h = (c − q)·n is the mean over the nodes weighted by (n_i·n)^1024 (q the
+  // loaded positions X + u0); then p = c − h n.
+  const Eigen::MatrixX3d& facing = model_->candidate_normals();
+  const Eigen::MatrixX3d& normals = model_->design_normals();
+  auto sharp = [](double x) {  // max(0, x)^1024
+    x = std::max(0.0, x);
+    for (int i = 0; i < 10; ++i) x *= x;
+    return x;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    std::array<int, kMaxFeContacts> near{};
+    std::array<double, kMaxFeContacts> near_dist{};
+    int m = 0;
+    ForEachFreeCandidate(p.array() - r, p.array() + r, [&](int b) {
+      const double dist = (positions_[b] - p).norm();
+      if (!(dist < r) || !(facing.row(b).dot(n) > 0.0)) return;
+      if (m == kMaxFeContacts && dist >= near_dist[m - 1]) return;
+      int j = std::min(m, kMaxFeContacts - 1);
+      while (j > 0 && near_dist[j - 1] > dist) {
+        near[j] = near[j - 1];
+        near_dist[j] = near_dist[j - 1];
+        --j;
+      }
+      near[j] = b;
+      near_dist[j] = dist;
+      m = std::min(m + 1, kMaxFeContacts);
+    });
+    if (m == 0) return false;
+    int best = 0;
+    double best_score = -1.0;
+    for (int j = 0; j < m; ++j) {
+      double score = 0.0;
+      for (int i = 0; i < m; ++i) score += sharp(normals.row(near[i]).dot(normals.row(near[j])));
+      if (score > best_score) {
+        best_score = score;
+        best = j;
+      }
+    }
+    n = normals.row(near[best]).transpose();
+    double weight = 0.0, height = 0.0;
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
+    for (int i = 0; i < m; ++i) {
+      const int b = near[i];
+      const double w = sharp(normals.row(b).dot(n));
+      const Eigen::Vector3d x = positions_[b] + Baseline(b);
+      weight += w;
+      height += w * (c - x).dot(n);
+      q += w * x;
+    }
+    const double h = height / weight;
+    fit->centroid = q / weight;
+    p = c - h * n;
+    fit->depth = r - h;
+  }
+  fit->normal = n;
+  fit->point = p;
+  return fit->normal.allFinite() && std::isfinite(fit->depth);
+}
+
+int FeTouchField::PatchContacts(const Eigen::Vector3d* centre, int spheres, int* inside,
+                                bool* solved) {
+  FeContactState& st = state_;
+  const double r = settings_.tool_radius;
+  num_found_ = 0;
+  *inside = 0;
+  *solved = false;
+  bool active[2] = {false, false};
+  for (int i = 0; i < spheres; ++i) {
+    PatchFit fit;
+    active[i] =
+        FitPatch(centre[i], patch_valid_[i] ? &patch_[i] : nullptr, &fit) && fit.depth > 0.0;
+    patch_valid_[i] = active[i];
+    if (!active[i]) continue;
+    patch_[i] = fit;
+    ForEachFreeCandidate(fit.point.array() - r, fit.point.array() + r, [&](int b) {
+      const double dist = (positions_[b] - fit.point).norm();
+      if (!(dist < r) || !(model_->candidate_normals().row(b).dot(fit.normal) > 0.0)) return;
+      ++*inside;
+      InsertFound(b, dist, i);
+    });
+  }
+  if (spheres > 0 && active[0]) {
+    st.depth = patch_[0].depth;
+    st.normal = patch_[0].normal;
+  }
+  // Up to two passes: a contact point whose patch would pull the tool in is released.
+  int k = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    // Contact set: the found nodes of the active points, in found order.
+    for (int s = solver_->num_contacts() - 1; s >= 0; --s) {
+      const int b = solver_->contact(s);
+      bool keep = false;
+      for (int j = 0; j < num_found_; ++j)
+        keep = keep || (found_[j] == b && active[found_sphere_[j]]);
+      if (!keep) solver_->Remove(b);
+    }
+    for (int j = 0; j < num_found_; ++j) {
+      if (!active[found_sphere_[j]]) continue;
+      bool have = false;
+      for (int s = 0; s < solver_->num_contacts(); ++s)
+        have = have || solver_->contact(s) == found_[j];
+      if (have) continue;
+      if (solver_->Add(found_[j]) == fem::CachedContactStatus::kNoColumnReady)
+        st.waiting_for_columns = true;
+    }
+    solver_->Refresh();
+    k = solver_->num_contacts();
+    if (k == 0) break;
+    for (int s = 0; s < k; ++s) {
+      const int b = solver_->contact(s);
+      const int sphere = SphereOfFound(found_, found_sphere_, num_found_, b);
+      sphere_of_slot_[s] = sphere;
+      const Eigen::Vector3d& n = patch_[sphere].normal;
+      const Eigen::Vector3d target = Baseline(b) - patch_[sphere].depth * n;
+      st.candidate[s] = b;
+      st.substitute[s] = solver_->substitute(s);
+      normal_[s] = n;
+      for (int i = 0; i < 3; ++i) {
+        st.target[3 * s + i] = target(i);
+        normal_flat_[3 * s + i] = n(i);
+      }
+    }
+    *solved = settings_.frictionless && solver_->SolveNormal(normal_flat_.data(), st.target.data(),
+                                                             st.force.data(), st.target.data());
+    if (!*solved) *solved = solver_->Solve(st.target.data(), st.force.data());
+    if (!*solved || spheres < 2) break;
+    bool released = false;
+    for (int i = 0; i < spheres; ++i) {
+      if (!active[i]) continue;
+      double push = 0.0;  // force on the tool along n_i
+      for (int s = 0; s < k; ++s)
+        if (sphere_of_slot_[s] == i)
+          push -= patch_[i].normal.dot(
+              Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]));
+      if (push < 0.0) {
+        active[i] = false;
+        patch_valid_[i] = false;
+        released = true;
+      }
+    }
+    if (!released) break;
+    *solved = false;
+  }
+  return k;
 }
 
 haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) noexcept {
@@ -148,12 +338,14 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
   st.time = tool.time;
   st.p_WT = tool.p_WT;
   st.f_tool_W.setZero();
+  st.felt_normal_W.setZero();
   st.refused = 0;
   st.stiffness = 0.0;
   st.stiffness_normal.setZero();
   st.waiting_for_columns = false;
   if (!tool.p_WT.allFinite() || !tool.R_WT.allFinite() || !std::isfinite(tool.grasp)) {
     coupled_valid_ = false;
+    patch_valid_ = {false, false};
     solver_->Clear();
     st.num_contacts = 0;
     st.num_substituted = 0;
@@ -182,104 +374,108 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
     centre[0] = coupled ? coupled_ : tool.p_WT;
   }
   st.p_WC = centre[0];
-  num_found_ = 0;
-  int inside = 0;
-  for (int i = 0; i < spheres; ++i) inside += Collect(centre[i], i);
-
-  // Admission on the deformed surface: a found node that is not in contact is taken only if
-  // the sphere reaches it where the current contact forces have moved it, i.e. its predicted
-  // normal displacement n·u (u = u0 + Σ Ĝ(node, slot) f, last tick's forces and still pinned
-  // columns) has not gone past the sphere: n·u > −t. This keeps released (pulling) nodes out
-  // and avoids adding and releasing them every tick.
-  const double r = settings_.tool_radius;
-  const int k_prev = solver_->num_contacts() == st.num_contacts ? st.num_contacts : 0;
-  for (int j = 0; j < num_found_; ++j) {
-    admit_[j] = 1;
-    const int a = found_[j];
-    bool have = false;
-    for (int s = 0; s < solver_->num_contacts(); ++s) have = have || solver_->contact(s) == a;
-    if (have || k_prev == 0) continue;
-    const Eigen::Vector3d n = model_->candidate_normals().row(a).transpose();
-    const Eigen::Vector3d q = positions_[a] - centre[found_sphere_[j]];
-    const double qn = q.dot(n);
-    const double t = qn + std::sqrt(std::max(0.0, qn * qn - q.squaredNorm() + r * r));
-    Eigen::Vector3d u = cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(a));
-    for (int s = 0; s < k_prev; ++s) {
-      const int b = st.candidate[s], sub = st.substitute[s];
-      if (solver_->contact(s) != b || solver_->substitute(s) != sub)
-        continue;  // not pinned as read
-      const int row_node = sub == b ? a : cache_->ShiftedCandidate(a, b, sub);
-      u += cache_->Block(cache_->OutputIndexOfCandidate(row_node), sub) *
-           Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
-    }
-    if (n.dot(u) <= -t) admit_[j] = 0;
-  }
-
-  // Contact set update: remove the nodes that left, then add the new ones (nearest first).
-  if (num_found_ == 0) {
-    solver_->Clear();
-  } else {
-    for (int s = solver_->num_contacts() - 1; s >= 0; --s) {
-      const int b = solver_->contact(s);
-      bool keep = false;
-      for (int j = 0; j < num_found_; ++j) keep = keep || found_[j] == b;
-      if (!keep) solver_->Remove(b);
-    }
-    for (int j = 0; j < num_found_; ++j) {
-      if (!admit_[j]) continue;
-      bool have = false;
-      for (int s = 0; s < solver_->num_contacts(); ++s)
-        have = have || solver_->contact(s) == found_[j];
-      if (have) continue;
-      const fem::CachedContactStatus status = solver_->Add(found_[j]);
-      if (status == fem::CachedContactStatus::kNoColumnReady) st.waiting_for_columns = true;
-    }
-    solver_->Refresh();
-  }
-
-  // Targets and forces, then release the nodes that would pull the body (n·f > 0: adhesion),
-  // a few passes of the active set per tick.
+  int inside = 0, k = 0;
   bool solved = false;
-  int k = solver_->num_contacts();
-  for (int pass = 0; pass < kActiveSetPasses && k > 0; ++pass) {
-    // Each contact node pushed along its inward normal −n until it leaves the sphere:
-    // |X − t n − c| = r, t = q·n + sqrt((q·n)² − |q|² + r²) > 0 with q = X − c.
-    for (int s = 0; s < k; ++s) {
-      const int b = solver_->contact(s);
-      int sphere = 0;
-      for (int j = 0; j < num_found_; ++j)
-        if (found_[j] == b) sphere = found_sphere_[j];
-      sphere_of_slot_[s] = sphere;
-      const Eigen::Vector3d q = positions_[b] - centre[sphere];
-      const Eigen::Vector3d n = model_->candidate_normals().row(b).transpose();
+  st.depth = 0.0;
+  st.normal.setZero();
+  if (settings_.patch_contact) {
+    k = PatchContacts(centre, spheres, &inside, &solved);
+  } else {
+    num_found_ = 0;
+    for (int i = 0; i < spheres; ++i) inside += Collect(centre[i], i);
+
+    // Admission on the deformed surface: a found node that is not in contact is taken only if
+    // the sphere reaches it where the current contact forces have moved it, i.e. its predicted
+    // normal displacement n·u (u = u0 + Σ Ĝ(node, slot) f, last tick's forces and still pinned
+    // columns) has not gone past the sphere: n·u > −t. This keeps released (pulling) nodes out
+    // and avoids adding and releasing them every tick.
+    const double r = settings_.tool_radius;
+    const int k_prev = solver_->num_contacts() == st.num_contacts ? st.num_contacts : 0;
+    for (int j = 0; j < num_found_; ++j) {
+      admit_[j] = 1;
+      const int a = found_[j];
+      bool have = false;
+      for (int s = 0; s < solver_->num_contacts(); ++s) have = have || solver_->contact(s) == a;
+      if (have || k_prev == 0) continue;
+      const Eigen::Vector3d n = model_->candidate_normals().row(a).transpose();
+      const Eigen::Vector3d q = positions_[a] - centre[found_sphere_[j]];
       const double qn = q.dot(n);
       const double t = qn + std::sqrt(std::max(0.0, qn * qn - q.squaredNorm() + r * r));
-      st.candidate[s] = b;
-      st.substitute[s] = solver_->substitute(s);
-      normal_[s] = n;
-      for (int i = 0; i < 3; ++i) {
-        st.target[3 * s + i] = -t * n(i);
-        normal_flat_[3 * s + i] = n(i);
+      Eigen::Vector3d u = cache_->baseline().segment<3>(3 * cache_->OutputIndexOfCandidate(a));
+      for (int s = 0; s < k_prev; ++s) {
+        const int b = st.candidate[s], sub = st.substitute[s];
+        if (solver_->contact(s) != b || solver_->substitute(s) != sub)
+          continue;  // not pinned as read
+        const int row_node = sub == b ? a : cache_->ShiftedCandidate(a, b, sub);
+        u += cache_->Block(cache_->OutputIndexOfCandidate(row_node), sub) *
+             Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
       }
+      if (n.dot(u) <= -t) admit_[j] = 0;
     }
-    // Frictionless: normal forces only, the tangential displacements follow (the targets become
-    // the resulting displacements); sticking, or if that fails: the full displacement prescribed.
-    solved = settings_.frictionless && solver_->SolveNormal(normal_flat_.data(), st.target.data(),
-                                                            st.force.data(), st.target.data());
-    if (!solved) solved = solver_->Solve(st.target.data(), st.force.data());
-    if (!solved || pass + 1 == kActiveSetPasses) break;
-    int pulling = 0;
-    for (int s = k - 1; s >= 0; --s) {
-      const double fn = normal_[s].x() * st.force[3 * s] + normal_[s].y() * st.force[3 * s + 1] +
-                        normal_[s].z() * st.force[3 * s + 2];
-      if (fn > 0.0) {
-        solver_->Remove(solver_->contact(s));
-        ++pulling;
+
+    // Contact set update: remove the nodes that left, then add the new ones (nearest first).
+    if (num_found_ == 0) {
+      solver_->Clear();
+    } else {
+      for (int s = solver_->num_contacts() - 1; s >= 0; --s) {
+        const int b = solver_->contact(s);
+        bool keep = false;
+        for (int j = 0; j < num_found_; ++j) keep = keep || found_[j] == b;
+        if (!keep) solver_->Remove(b);
       }
+      for (int j = 0; j < num_found_; ++j) {
+        if (!admit_[j]) continue;
+        bool have = false;
+        for (int s = 0; s < solver_->num_contacts(); ++s)
+          have = have || solver_->contact(s) == found_[j];
+        if (have) continue;
+        const fem::CachedContactStatus status = solver_->Add(found_[j]);
+        if (status == fem::CachedContactStatus::kNoColumnReady) st.waiting_for_columns = true;
+      }
+      solver_->Refresh();
     }
-    if (pulling == 0) break;
+
+    // Targets and forces, then release the nodes that would pull the body (n·f > 0: adhesion),
+    // a few passes of the active set per tick.
     k = solver_->num_contacts();
-    solved = false;
+    for (int pass = 0; pass < kActiveSetPasses && k > 0; ++pass) {
+      // Each contact node pushed along its inward normal −n until it leaves the sphere:
+      // |X − t n − c| = r, t = q·n + sqrt((q·n)² − |q|² + r²) > 0 with q = X − c.
+      for (int s = 0; s < k; ++s) {
+        const int b = solver_->contact(s);
+        const int sphere = SphereOfFound(found_, found_sphere_, num_found_, b);
+        sphere_of_slot_[s] = sphere;
+        const Eigen::Vector3d q = positions_[b] - centre[sphere];
+        const Eigen::Vector3d n = model_->candidate_normals().row(b).transpose();
+        const double qn = q.dot(n);
+        const double t = qn + std::sqrt(std::max(0.0, qn * qn - q.squaredNorm() + r * r));
+        st.candidate[s] = b;
+        st.substitute[s] = solver_->substitute(s);
+        normal_[s] = n;
+        for (int i = 0; i < 3; ++i) {
+          st.target[3 * s + i] = -t * n(i);
+          normal_flat_[3 * s + i] = n(i);
+        }
+      }
+      // Frictionless: normal forces only, the tangential displacements follow (the targets become
+      // the resulting displacements); sticking, or if that fails: the full displacement prescribed.
+      solved = settings_.frictionless && solver_->SolveNormal(normal_flat_.data(), st.target.data(),
+                                                              st.force.data(), st.target.data());
+      if (!solved) solved = solver_->Solve(st.target.data(), st.force.data());
+      if (!solved || pass + 1 == kActiveSetPasses) break;
+      int pulling = 0;
+      for (int s = k - 1; s >= 0; --s) {
+        const double fn = normal_[s].x() * st.force[3 * s] + normal_[s].y() * st.force[3 * s + 1] +
+                          normal_[s].z() * st.force[3 * s + 2];
+        if (fn > 0.0) {
+          solver_->Remove(solver_->contact(s));
+          ++pulling;
+        }
+      }
+      if (pulling == 0) break;
+      k = solver_->num_contacts();
+      solved = false;
+    }
   }
   st.refused = inside - k;
   st.num_contacts = k;
@@ -296,7 +492,21 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
       m += (x - tool.p_WT).cross(-f_body);
     }
     st.f_tool_W = f_sphere[0] + f_sphere[1];
-    w.f_T_W = st.f_tool_W;
+    if (settings_.patch_contact) {
+      // The tool slides over the patch it pushes: only each patch's normal force is felt (the
+      // component that defines K), not the tangential reaction that holds the patch rigid.
+      m.setZero();
+      for (int i = 0; i < spheres; ++i) {
+        if (!patch_valid_[i]) {
+          f_sphere[i].setZero();
+          continue;
+        }
+        f_sphere[i] = patch_[i].normal * patch_[i].normal.dot(f_sphere[i]);
+        m += (patch_[i].point - tool.p_WT).cross(f_sphere[i]);
+      }
+    }
+    st.felt_normal_W = f_sphere[0] + f_sphere[1];
+    w.f_T_W = st.felt_normal_W;
     if (settings_.grasp) {
       w.m_T_W = m;
       // g = −Σ F_i · ∂tip_i/∂θ, ∂p̂_i/∂θ = (−sin(θ/2) b ∓ cos(θ/2) a)/2.
@@ -325,7 +535,7 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
   // See the header: one Newton step on r(x_c) = k_c (x_t − x_c) + σF(x_c) while in contact,
   // conservative advancement toward x_t while not.
   const double kc = settings_.coupling_stiffness, sigma = settings_.force_scale;
-  const Eigen::Vector3d force = k > 0 ? state_.f_tool_W : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d force = k > 0 ? state_.felt_normal_W : Eigen::Vector3d::Zero();
   const Eigen::Vector3d r = kc * (p_WT - coupled_) + sigma * force;
   Eigen::Vector3d step = r / kc;
   if (k > 0) {
@@ -367,7 +577,19 @@ void FeTouchField::CoupledStep(const Eigen::Vector3d& p_WT, int k, haptics::Tool
       const Eigen::Vector3d d = step / length;
       length = std::min(length, 4.0 * settings_.tool_radius);
       const double entry = FirstEntry(coupled_, d, length);
-      step = d * std::min(length, entry + 1e-3 * settings_.tool_radius);
+      length = std::min(length, entry + 1e-3 * settings_.tool_radius);
+      // Tool patch: stop where the plane of the patch ahead is reached (h = R, δ = 0), so that
+      // contact begins at a vanishing depth even between nodes.
+      PatchFit ahead;
+      if (settings_.patch_contact && FitPatch(coupled_ + d * length, nullptr, &ahead) &&
+          ahead.depth > 0.0) {
+        const double dn = d.dot(ahead.normal);
+        const double h0 = (coupled_ - ahead.centroid).dot(ahead.normal);
+        if (dn < 0.0)
+          length = std::min(length, std::max(0.0, (h0 - settings_.tool_radius) / -dn) +
+                                        1e-3 * settings_.tool_radius);
+      }
+      step = d * length;
     }
   }
   coupled_ += step;

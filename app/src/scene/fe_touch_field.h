@@ -1,7 +1,35 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // FE contact as a haptic force field: the tool pushes an FeModel and feels its reaction.
 //
-// Contact model (node-to-sphere, sticking): the tool is a sphere
+// Two contact models (FeTouchSettings::patch_contact). FE mode and `run` use the tool patch;
+// the node-to-sphere model is kept for the tests and benchmarks that study single-node contact.
+//
+// Tool patch (patch_contact; docs/design/2026-12-04-fe-tool-patch.md): the tool is a ball of a
+// physical radius R around its contact point c (the tool origin, the coupled point, or each pole
+// tip). Where it meets the part it covers a patch, the free surface nodes within R of its touch
+// point p that face it (outward normal n_b with n_b·n > 0): the patch whose stiffness `spidarcad
+// felt` reports (scene/felt_stiffness.h, ToolPatchNodes). The local surface is a plane: its normal
+// n the patch's dominant design normal (FeModel::design_normals: the gradient of the solid the
+// mesh was made from where the model has it, else the mesh's node normal; the one most patch
+// nodes' normals agree with; a flat face's normal exactly, also where a coarse mesh's facets
+// slope next to a rounded edge the design has and the mesh cannot follow), its height the mean
+// over the nodes agreeing with n of the loaded positions X_b + u0_b;
+// c is h above it, p = c − h n, and the tool is δ = R − h deep (two fixed-point passes from the
+// previous tick's n and p, or, entering, from the nearest free node within 2R). While δ > 0 the
+// whole patch is pushed rigidly along −n by δ: each patch node's displacement is prescribed to u0_b
+// − δ n (sticking, as felt's K is defined; frictionless: only its normal part n·u_b = n·u0_b − δ,
+// the tangential parts free), so the force on the tool is K δ with K the patch stiffness, whatever
+// the mesh resolves of it. A patch larger than max_contacts keeps its max_contacts nodes nearest p
+// (a smaller punch: softer, never a jolt) and FeContactState::refused counts the rest. A contact
+// point whose patch would pull (its force on the tool along n < 0, two contact points squeezing one
+// part) is released and the rest solved again. The tool slides over the patch: what it feels is
+// each patch's normal force (n·F) n (FeContactState::felt_normal_W; the sticking patch's tangential
+// reaction holds the patch rigid and is published in f_tool_W, not felt), so the felt stiffness
+// along n is K in series with the coupling. With the virtual coupling below, the coupled point out
+// of contact stops where the plane fitted ahead of it is first reached (δ = 0), so contact begins
+// at a vanishing depth.
+//
+// Node-to-sphere (sticking or frictionless): the tool is a sphere
 // of radius r around a contact point (the tool origin p_WT, or, with grasp contact, each pole
 // tip). Every undeformed surface node X inside a sphere (|X − c| < r) is a contact node (at
 // most max_contacts of them, nearest the centre first; clamped nodes excluded). It is pushed
@@ -92,6 +120,10 @@ struct FeContactState {
   std::array<double, 3 * kMaxFeContacts> force{};
   // FE force on the tool, −Σ f_s, N, in W (unscaled).
   Eigen::Vector3d f_tool_W = Eigen::Vector3d::Zero();
+  // The FE force the tool feels, N, W (unscaled): f_tool_W for node-to-sphere contact; with the
+  // tool patch, each patch's normal component (n·F) n, the tool sliding over the patch it holds
+  // rigid (the tangential reaction of the sticking patch is not felt).
+  Eigen::Vector3d felt_normal_W = Eigen::Vector3d::Zero();
   // Tool origin of the tick, W, m.
   Eigen::Vector3d p_WT = Eigen::Vector3d::Zero();
   // Centre of the contact sphere, W, m: the coupled point x_c with a virtual coupling, else p_WT.
@@ -107,6 +139,10 @@ struct FeContactState {
   Eigen::Vector3d stiffness_normal = Eigen::Vector3d::Zero();
   // True when no column at all is ready yet (no force could be computed).
   bool waiting_for_columns = false;
+  // Tool patch (FeTouchSettings::patch_contact): the first contact point's depth δ (m, > 0 in
+  // contact, else 0) and its patch's unit outward normal n (W; zero out of contact).
+  double depth = 0.0;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
 };
 
 // The hand-off of contact states from the haptic thread (single writer) to the main thread
@@ -117,9 +153,13 @@ struct FeContactChannel {
 
 // Settings of an FeTouchField.
 struct FeTouchSettings {
-  // Radius of the tool sphere, m (> 0). A radius near the mesh's surface edge length makes
-  // contact smooth; smaller spheres slip between nodes.
+  // Radius of the tool sphere, m (> 0), in W. Node-to-sphere: a radius near the mesh's surface
+  // edge length makes contact smooth; smaller spheres slip between nodes. Tool patch: the tool's
+  // physical radius R on the part (the patch's radius; FE mode and `run` do not scale it with
+  // X_WD, scene/fe_part.h).
   double tool_radius = 0.01;
+  // Contact model: the tool patch (true) or node-to-sphere (false); see the header comment.
+  bool patch_contact = false;
   // Contact nodes at most (1..kMaxFeContacts). The tool's footprint is covered while the nodes
   // inside the sphere are no more than this (FeContactState::refused counts the others).
   int max_contacts = kMaxFeContacts;
@@ -179,6 +219,28 @@ class FeTouchField final : public haptics::ForceField {
   // Distance λ in [0, length] at which the sphere moving from c along unit d first takes in a
   // free (unclamped) node not inside it already; `length` when none.
   double FirstEntry(const Eigen::Vector3d& c, const Eigen::Vector3d& d, double length) const;
+  // Inserts candidate b at distance `dist` from its contact point `sphere` into found_ (nearest
+  // first, at most max_contacts; a node found through both points keeps the nearer).
+  void InsertFound(int b, double dist, int sphere);
+
+  // Tool patch (see the header comment).
+  struct PatchFit {
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();    // n, unit, W
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();     // touch point p, W, m
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // a point of the plane, W, m
+    double depth = 0.0;                                  // δ = R − h, m
+  };
+  // Loaded displacement u0 of candidate b (3, m).
+  Eigen::Vector3d Baseline(int b) const;
+  // The plane of the patch of a ball at c: from `prior` (previous normal and touch point) when
+  // given, else from the nearest free node within 2R. False when no facing node is found.
+  bool FitPatch(const Eigen::Vector3d& c, const PatchFit* prior, PatchFit* fit) const;
+  // Contacts of the tool patch for contact points centre[0..spheres): sets found_ and solves;
+  // returns k, sets *inside (patch nodes before the cap) and *solved.
+  int PatchContacts(const Eigen::Vector3d* centre, int spheres, int* inside, bool* solved);
+  // Per contact point: the patch of the last tick (valid: in contact).
+  std::array<PatchFit, 2> patch_{};
+  std::array<bool, 2> patch_valid_{};
 
   std::shared_ptr<FeModel> model_;
   fem::ColumnCache* cache_;
