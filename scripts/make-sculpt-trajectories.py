@@ -21,6 +21,19 @@ tick with the full deformation (opening the grasp first would let the clay sprin
 grab strength falls from 1 at 45 deg to 0.22 at the 80 deg where the stroke ends).
 Smooth (cosine) blends between key poses, 50 samples/s.
 
+It also writes sculpt_pinch_hard.csv and sculpt_pinch_light.csv, the same pinch with a hard and a
+light squeeze (the clay width, app/src/scene/clay_width.h): the grip at rest orientation (its
+bisector b = (1, 1, 0)/sqrt 2 horizontal, the poles in the horizontal plane, where the SPIDAR-G
+renders forces without saturating) waits 15 mm out along -b from PINCH_AT, beside the clay's top
+lobe, comes in to it (0.6-1.0 s) and closes the grasp (1.0-1.4 s) towards PINCH_HARD or
+PINCH_LIGHT. The fingertips meet the clay near 80 deg, above the 70 deg angle trigger, so the
+squeeze begins the stroke and the clay stops the fingers; the hand's grasp spring (0.5 N m/rad)
+pushes them on by (measured angle - commanded angle), and that sets the squeeze. The grip then
+pulls 20 mm out along -b (1.6-2.4 s), holds (2.4-2.8 s), opens the grasp to pi/2 (2.8-3.2 s:
+the fingers let go of the clay, which stays as the firmest squeeze left it) and backs off 15 mm
+(3.2-3.6 s) to the end (3.8 s). PINCH_AT was found by moving the grip in along -b at 80 deg until
+the fingertips met the clay.
+
 Usage: scripts/make-sculpt-trajectories.py [OUT_DIR, default assets/trajectories]
 """
 import math
@@ -32,6 +45,12 @@ HALF_PI = math.pi / 2
 GRASP_CLOSED = 0.5  # rad
 TOP = (0.0, 0.0, 0.0)  # m (D): the clay's top with --world-origin 0,-0.038,0.0739
 ABOVE = (TOP[0], TOP[1], TOP[2] + 0.015)
+
+
+PINCH_AT = (-0.0404, -0.0474, -0.0199)  # m (D): fingertips meet the clay near 80 deg here
+PINCH_OUT = (-1 / math.sqrt(2), -1 / math.sqrt(2), 0.0)  # -b at rest orientation
+PINCH_HARD = 0.9  # rad, the grasp the hand is asked for
+PINCH_LIGHT = 1.25  # rad
 
 
 def axis_angle(axis, angle):
@@ -53,6 +72,17 @@ def keys(motion):
     return start + [(2.4, end[0], end[1], GRASP_CLOSED), (3.0, end[0], end[1], GRASP_CLOSED)]
 
 
+def pinch_keys(grasp):
+    """Key poses of a pinch with the grasp asked to close to `grasp`."""
+    def out(dist):
+        return tuple(a + dist * u for a, u in zip(PINCH_AT, PINCH_OUT))
+    q = (1.0, 0.0, 0.0, 0.0)
+    return [(0.0, out(0.015), q, HALF_PI), (0.6, out(0.015), q, HALF_PI),
+            (1.0, PINCH_AT, q, HALF_PI), (1.4, PINCH_AT, q, grasp), (1.6, PINCH_AT, q, grasp),
+            (2.4, out(0.02), q, grasp), (2.8, out(0.02), q, grasp), (3.2, out(0.02), q, HALF_PI),
+            (3.6, out(0.035), q, HALF_PI), (3.8, out(0.035), q, HALF_PI)]
+
+
 def slerp(a, b, u):
     d = sum(x * y for x, y in zip(a, b))
     if d < 0:
@@ -67,8 +97,8 @@ def slerp(a, b, u):
     return tuple(x / n for x in q)
 
 
-def write(path, motion):
-    k = keys(motion)
+def write(path, motion, k=None):
+    k = k if k is not None else keys(motion)
     lines = ["# sculpt stroke '%s' on the top of assets/scenes/clay_sculpt.json's clay (run it with"
              " --world-origin 0,-0.038,0.0739); written by scripts/make-sculpt-trajectories.py"
              % motion,
@@ -96,6 +126,8 @@ def main():
     out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(here, "..", "assets", "trajectories")
     for motion in ("grab", "twist", "bend"):
         write(os.path.join(out, "sculpt_%s.csv" % motion), motion)
+    for name, grasp in (("pinch_hard", PINCH_HARD), ("pinch_light", PINCH_LIGHT)):
+        write(os.path.join(out, "sculpt_%s.csv" % name), name, pinch_keys(grasp))
 
 
 if __name__ == "__main__":

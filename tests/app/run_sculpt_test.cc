@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iostream>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -345,6 +346,87 @@ TEST(RunSculpt, OpeningTheGraspEndsTheStrokeAndTheRunIsDeterministic) {
   const double v0 = Volume(before), v1 = Volume(exported);
   EXPECT_GT(v1, v0);  // some of the bump stays
   EXPECT_NEAR(runs[0].back().back(), v1, 1e-12 * v1);
+}
+
+// A pinch of the clay's top lobe from the side (assets/trajectories/sculpt_pinch_{hard,light}.csv,
+// scripts/make-sculpt-trajectories.py): the grip at rest orientation beside the lobe closes its
+// grasp until the fingertips meet the clay, pulls 20 mm out, opens and backs off. Checked on
+// every tick: g <= 0, and g = 0 while the fingers are open (before the grasp closes, t < 1.0 s,
+// and once it has opened again, t > 3.3 s); the stroke begins while the measured grasp is still
+// above the 70 deg angle trigger (the squeeze begins it), ends when the fingers let go (near
+// the 80 deg where they meet the clay, before the grasp is open) and not again; the clay keeps the
+// bump after the release (the volume column constant from the stroke's end). Hard against light:
+// the harder squeeze is felt harder (mean g over the held squeeze, 1.6-2.8 s) and grabs more clay
+// (a larger bump).
+struct PinchRun {
+  double mean_g = 0.0;         // N·m over 1.6-2.8 s
+  double volume_change = 0.0;  // relative, at the end
+};
+
+PinchRun RunPinch(const std::string& which) {
+  const std::string tag = "sculpt_pinch_" + which;
+  const std::string base = spidarcad::test_support::TestOutputPath(tag);
+  const auto run = spidarcad::test_support::RunSpidarcad(
+      "run '" + Source("assets/scenes/clay_sculpt.json") + "' --trajectory '" +
+          Source("assets/trajectories/sculpt_pinch_" + which + ".csv") +
+          "' --world-origin 0,-0.038,0.0739 --sculpt-radius 0.03 --out '" + base +
+          ".csv' --export 'clay=" + base + ".ply'",
+      "", tag);
+  EXPECT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.out.find("sculpt 'clay': 1 stroke (grab"), std::string::npos) << run.out;
+  const CsvTable csv = spidarcad::test_support::ReadCsvTable(base + ".csv");
+  const int t_col = csv.Column("t"), g_col = csv.Column("g"), grasp_col = csv.Column("grasp");
+  const int stroke = csv.Column("sculpt_stroke"), volume = csv.Column("sculpt_volume");
+  int begin = -1, end = -1;
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t k = 0; k < csv.rows.size(); ++k) {
+    const auto& row = csv.rows[k];
+    const double t = row[t_col], g = row[g_col];
+    EXPECT_LE(g, 0.0) << which << " t = " << t;
+    if (t < 1.0 || t > 3.3) {
+      EXPECT_EQ(g, 0.0) << which << " t = " << t;
+    }
+    if (t >= 1.6 && t <= 2.8) {
+      sum += g;
+      ++n;
+    }
+    if (row[stroke] == 1.0 && begin < 0) begin = static_cast<int>(k);
+    if (begin >= 0 && end < 0 && row[stroke] == 0.0) end = static_cast<int>(k);
+    if (end >= 0) {
+      EXPECT_EQ(row[stroke], 0.0) << which << ": a second stroke at t = " << t;
+    }
+  }
+  EXPECT_GT(begin, 0) << which;
+  EXPECT_GT(end, begin) << which << ": the stroke ends when the fingers let go";
+  PinchRun r;
+  if (begin < 0 || end < 0) return r;
+  EXPECT_GT(csv.rows[begin][grasp_col], 70.0 * std::numbers::pi / 180.0) << which;
+  EXPECT_LT(csv.rows[end][grasp_col], 85.0 * std::numbers::pi / 180.0) << which;
+  EXPECT_LT(csv.rows[end][t_col], 3.2) << which << ": before the grasp is open";
+  for (std::size_t k = end; k < csv.rows.size(); ++k)
+    EXPECT_EQ(csv.rows[k][volume], csv.rows[end][volume]) << which;
+  const TriangleMesh before = ClayOf(Source("assets/scenes/clay_sculpt.json"));
+  const TriangleMesh after = spidarcad::modeling::ReadTriangleMesh(base + ".ply");
+  EXPECT_NEAR(csv.rows.back()[volume], Volume(after), 1e-12 * Volume(after));
+  r.mean_g = sum / std::max(n, 1);
+  r.volume_change = Volume(after) / Volume(before) - 1.0;
+  return r;
+}
+
+TEST(RunSculpt, APinchGrabsAsHardAsItSqueezes) {
+  const PinchRun hard = RunPinch("hard"), light = RunPinch("light");
+  EXPECT_LT(light.mean_g, 0.0);
+  EXPECT_LT(hard.mean_g, light.mean_g);
+  EXPECT_GT(light.volume_change, 0.0);
+  EXPECT_GT(hard.volume_change, light.volume_change);
+  ::testing::Test::RecordProperty("hard_mean_g", std::to_string(hard.mean_g));
+  ::testing::Test::RecordProperty("light_mean_g", std::to_string(light.mean_g));
+  ::testing::Test::RecordProperty("hard_volume_change", std::to_string(hard.volume_change));
+  ::testing::Test::RecordProperty("light_volume_change", std::to_string(light.volume_change));
+  std::cout << "pinch: mean g " << hard.mean_g << " (hard) vs " << light.mean_g
+            << " (light) N·m; volume " << 100.0 * hard.volume_change << " % vs "
+            << 100.0 * light.volume_change << " %\n";
 }
 
 TEST(RunSculpt, BadSculptOptionsAndExportsExitTwoBeforeTheRun) {

@@ -86,6 +86,7 @@ SculptMode::SculptMode(vtkRenderer* renderer, JobQueue* jobs)
     renderer_->AddActor(v.marker);
   }
   SetWorldToView(haptics::DeviceToWorld{});
+  session_.set_async_grids(true);  // the clay's grid is rebuilt off the main thread
 }
 
 SculptMode::~SculptMode() {
@@ -118,6 +119,7 @@ std::unique_ptr<haptics::ForceField> SculptMode::TakeField() {
 void SculptMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
   if (!(X_WD.world_scale > 0.0)) return;
   X_WD_ = X_WD;
+  session_.settings().clay_width.grasp.pole_length = X_WD_.world_scale * grip_d_;
   const double inv = 1.0 / X_WD_.world_scale;
   const Eigen::Vector3d& o = X_WD.p_WDo;
   vtk_->actor->SetScale(inv, inv, inv);

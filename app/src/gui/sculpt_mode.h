@@ -74,8 +74,14 @@ class SculptMode {
   // The sculpt tool field, once after each activation; else nullptr.
   std::unique_ptr<haptics::ForceField> TakeField();
 
-  // Places the actors in the view frame: p_D = (p_W − p_WDo) / s (s > 0).
+  // Places the actors in the view frame: p_D = (p_W − p_WDo) / s (s > 0), and sets the clay
+  // width's pole length to s times the grip's pole length (SetGripPoleLength).
   void SetWorldToView(const haptics::DeviceToWorld& X_WD);
+  // The grip's pole half-length d (m in D, > 0; default 0.04), for the clay width.
+  void SetGripPoleLength(double d) {
+    if (d > 0.0) grip_d_ = d;
+    SetWorldToView(X_WD_);
+  }
   // Uses a given mesh as a clay of its own, bound to no Document object (throws
   // std::invalid_argument when it is not closed).
   void LoadMesh(const modeling::TriangleMesh& mesh);
@@ -136,6 +142,7 @@ class SculptMode {
   bool field_pending_ = false;
   std::uint64_t shown_revision_ = ~std::uint64_t{0};
   haptics::DeviceToWorld X_WD_;
+  double grip_d_ = 0.04;
   std::string export_path_ = "sculpt.stl";
   std::string message_;
   double mesh_cell_ = 0.002;

@@ -71,6 +71,7 @@ DocumentSculpt::DocumentSculpt(Document* doc, ObjectId id, const SculptModeSetti
     throw std::invalid_argument("sculpt object '" + name_ + "' cannot be sculpted: " + e.what());
   }
   start_volume_ = session_.mesh()->volume();
+  start_grid_seconds_ = session_.last_grid_seconds();
 }
 
 SculptFrameEvent DocumentSculpt::Step(const haptics::ToolKinematics& tool) {

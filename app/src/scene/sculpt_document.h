@@ -70,6 +70,8 @@ class DocumentSculpt {
   int strokes() const { return strokes_; }
   // Enclosed volume of the clay when loaded (m³).
   double start_volume() const { return start_volume_; }
+  // Thread CPU time (s) of the clay width's grid built when loaded.
+  double start_grid_seconds() const { return start_grid_seconds_; }
 
  private:
   void Record();
@@ -79,6 +81,7 @@ class DocumentSculpt {
   SculptSession session_;
   int strokes_ = 0;
   double start_volume_ = 0.0;
+  double start_grid_seconds_ = 0.0;
 };
 
 }  // namespace spidarcad::app

@@ -1,8 +1,10 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "scene/sculpt_field.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -19,22 +21,62 @@ using modeling::SculptEdit;
 using modeling::SculptMesh;
 using modeling::StrokeForceModel;
 
-SculptToolField::SculptToolField(std::shared_ptr<SculptForceChannel> channel)
-    : channel_(std::move(channel)) {
+double StrokeStrength(const SculptHapticModel& model, double grasp, double squeeze_strength) {
+  if (!model.stroke.grasp_controls_strength) return 1.0;
+  if (model.squeeze) return squeeze_strength;
+  return std::max(modeling::SculptGrabStrength(grasp, model.stroke.grasp_closed_angle),
+                  squeeze_strength);
+}
+
+Eigen::Isometry3d ClayPlacement(const modeling::StrokeForceModel& model,
+                                const Eigen::Isometry3d& X_WT) {
+  if (!model.active) return Eigen::Isometry3d::Identity();
+  return X_WT * model.X_WT_start.inverse(Eigen::Isometry);
+}
+
+namespace {
+// CPU time of the calling thread (s): the grid builds' cost, which the machine's load does not
+// inflate as it does their wall time.
+double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+Eigen::Isometry3d ToolPose(const haptics::ToolKinematics& tool) {
+  Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+  X_WT.linear() = tool.R_WT;
+  X_WT.translation() = tool.p_WT;
+  return X_WT;
+}
+}  // namespace
+
+SculptToolField::SculptToolField(std::shared_ptr<SculptForceChannel> channel,
+                                 std::shared_ptr<ClayGridChannel> clay,
+                                 const ClayWidthSettings& settings)
+    : channel_(std::move(channel)), clay_(std::move(clay)), settings_(settings) {
   if (!channel_) throw std::invalid_argument("SculptToolField: null force channel");
+  if (!clay_) throw std::invalid_argument("SculptToolField: null clay grid channel");
+  settings_.Validate();
 }
 
 haptics::ToolWrench SculptToolField::Evaluate(const haptics::ToolKinematics& tool) noexcept {
   haptics::ToolWrench out;
-  const StrokeForceModel& model = channel_->Latest();
-  if (!model.active) return out;
-  Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
-  X_WT.linear() = tool.R_WT;
-  X_WT.translation() = tool.p_WT;
-  const modeling::SculptWrench w = modeling::ComputeStrokeWrench(model, X_WT, tool.grasp);
+  const SculptHapticModel& model = channel_->Latest();
+  const ClayDistanceGrid* grid = clay_->Acquire();
+  const Eigen::Isometry3d X_WT = ToolPose(tool);
+  squeeze_ = ClaySqueeze{};
+  if (settings_.enabled && grid != nullptr) {
+    squeeze_ = ComputeClaySqueeze(*grid, ClayPlacement(model.stroke, X_WT), tool, settings_);
+    out.g = squeeze_.g;
+  }
+  if (!model.stroke.active) return out;
+  const double s = StrokeStrength(model, tool.grasp,
+                                  SqueezeStrength(squeeze_.squeeze, settings_.full_squeeze_depth));
+  const modeling::SculptWrench w = modeling::ComputeStrokeWrenchAtStrength(model.stroke, X_WT, s);
   out.f_T_W = w.f_T_W;
   out.m_T_W = w.m_T_W;
-  out.g = w.grasp_torque;
+  out.g += w.grasp_torque;
   return out;
 }
 
@@ -57,13 +99,111 @@ void SculptModeSettings::Validate() const {
     fail("stroke_end_angle", stroke_end_angle, "must be in [stroke_begin_angle, pi] rad");
   }
   if (!std::isfinite(snap_distance)) fail("snap_distance", snap_distance, "must be finite");
+  clay_width.Validate();
 }
 
 SculptSession::SculptSession()
-    : channel_(std::make_shared<SculptForceChannel>(StrokeForceModel{})),
+    : channel_(std::make_shared<SculptForceChannel>(SculptHapticModel{})),
+      clay_channel_(std::make_shared<ClayGridChannel>()),
       alive_(std::make_shared<bool>(true)) {}
 
-SculptSession::~SculptSession() = default;
+SculptSession::~SculptSession() {
+  if (build_.valid()) build_.wait();
+}
+
+Eigen::AlignedBox3d SculptSession::EditBox(const SculptEdit& edit) {
+  Eigen::AlignedBox3d box;
+  for (const Eigen::Vector3d& p : edit.old_positions) box.extend(p);
+  for (const Eigen::Vector3d& p : edit.new_positions) box.extend(p);
+  return box;
+}
+
+void SculptSession::RequestGrid(bool whole, const Eigen::AlignedBox3d& changed) {
+  if (!mesh_) return;
+  if (!whole && changed.isEmpty()) return;  // nothing moved
+  if (whole || !grid_) {
+    grid_wanted_ = true;
+    grid_whole_ = true;
+  } else {
+    grid_wanted_ = true;
+    grid_changed_.extend(changed);
+  }
+  if (async_grids_) {
+    PollGridBuild();
+    return;
+  }
+  // At once (deterministic): the same work as a build on a thread.
+  const double start = ThreadCpuSeconds();
+  try {
+    grid_ = grid_whole_ ? ClayDistanceGrid::Build(mesh_->positions(), mesh_->triangles(),
+                                                  settings_.clay_width.grid)
+                        : ClayDistanceGrid::Update(*grid_, mesh_->positions(), mesh_->triangles(),
+                                                   grid_changed_);
+  } catch (const std::invalid_argument& e) {
+    grid_.reset();
+    job_message_ = std::string("Clay width off: ") + e.what();
+  }
+  grid_seconds_ = ThreadCpuSeconds() - start;
+  grid_nodes_ = grid_ ? grid_->recomputed_nodes() : 0;
+  ++grid_builds_;
+  grid_wanted_ = false;
+  grid_whole_ = false;
+  grid_changed_.setEmpty();
+  clay_channel_->Offer(grid_);
+}
+
+void SculptSession::StartGridBuild() {
+  if (build_.valid() || !grid_wanted_ || !mesh_) return;
+  // The build works on copies: the clay changes on this thread meanwhile.
+  auto positions = std::make_shared<const std::vector<Eigen::Vector3d>>(mesh_->positions());
+  auto triangles = std::make_shared<const std::vector<Eigen::Vector3i>>(mesh_->triangles());
+  std::shared_ptr<const ClayDistanceGrid> base = grid_whole_ ? nullptr : grid_;
+  const Eigen::AlignedBox3d changed = grid_changed_;
+  const ClayGridSettings settings = settings_.clay_width.grid;
+  grid_wanted_ = false;
+  grid_whole_ = false;
+  grid_changed_.setEmpty();
+  build_generation_ = generation_;
+  double* seconds = &build_seconds_;
+  build_ =
+      std::async(std::launch::async,
+                 [positions, triangles, base, changed, settings,
+                  seconds]() -> std::shared_ptr<const ClayDistanceGrid> {
+                   const double start = ThreadCpuSeconds();
+                   std::shared_ptr<const ClayDistanceGrid> grid;
+                   try {
+                     grid = base ? ClayDistanceGrid::Update(*base, *positions, *triangles, changed)
+                                 : ClayDistanceGrid::Build(*positions, *triangles, settings);
+                   } catch (const std::exception&) {
+                     grid.reset();
+                   }
+                   *seconds = ThreadCpuSeconds() - start;
+                   return grid;
+                 });
+}
+
+void SculptSession::PollGridBuild() {
+  if (build_.valid() && build_.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+    std::shared_ptr<const ClayDistanceGrid> grid = build_.get();
+    if (build_generation_ == generation_) {  // not for a clay since replaced
+      grid_ = std::move(grid);
+      grid_seconds_ = build_seconds_;
+      grid_nodes_ = grid_ ? grid_->recomputed_nodes() : 0;
+      ++grid_builds_;
+      clay_channel_->Offer(grid_);
+    }
+  }
+  clay_channel_->Collect();
+  StartGridBuild();
+}
+
+void SculptSession::FinishGridBuild() {
+  while (build_.valid() || grid_wanted_) {
+    if (build_.valid()) build_.wait();
+    PollGridBuild();
+    if (!mesh_) break;
+  }
+}
 
 void SculptSession::SetMesh(const modeling::TriangleMesh& mesh, double grid_cell) {
   const double cell = grid_cell > 0.0 ? grid_cell : settings_.tool.radius / 3.0;
@@ -80,6 +220,11 @@ void SculptSession::SetMesh(std::unique_ptr<SculptMesh> mesh) {
   tet_mesh_.reset();
   Publish(StrokeForceModel{});
   ++revision_;
+  ++generation_;
+  grid_.reset();
+  clay_channel_->Offer(nullptr);  // no width until the new clay's grid lands
+  grid_changed_.setEmpty();
+  RequestGrid(true, grid_changed_);
 }
 
 void SculptSession::ClearMesh() {
@@ -91,6 +236,10 @@ void SculptSession::ClearMesh() {
   tet_mesh_.reset();
   Publish(StrokeForceModel{});
   ++revision_;
+  ++generation_;
+  grid_.reset();
+  grid_wanted_ = false;
+  clay_channel_->Offer(nullptr);
 }
 
 void SculptSession::ForgetHistory() {
@@ -98,9 +247,10 @@ void SculptSession::ForgetHistory() {
   redo_.clear();
 }
 
-void SculptSession::Publish(const StrokeForceModel& model) {
-  published_ = model;
-  channel_->Write(model);
+void SculptSession::Publish(const StrokeForceModel& model, bool squeeze) {
+  published_.stroke = model;
+  published_.squeeze = squeeze && model.active;
+  channel_->Write(published_);
 }
 
 Eigen::Isometry3d SculptSession::StrokePose(const haptics::ToolKinematics& tool) const {
@@ -111,29 +261,39 @@ Eigen::Isometry3d SculptSession::StrokePose(const haptics::ToolKinematics& tool)
 }
 
 void SculptSession::BeginStroke(const haptics::ToolKinematics& tool, bool key_held,
-                                SculptFrameEvent* event) {
+                                const Eigen::Vector3d* pinch, SculptFrameEvent* event) {
   settings_.Validate();
   if (!tool.p_WT.allFinite() || !tool.R_WT.allFinite() || !std::isfinite(tool.grasp)) {
     *event = SculptFrameEvent::kIdle;
     return;
   }
-  const double snap =
-      settings_.snap_distance > 0.0 ? settings_.snap_distance : settings_.tool.radius;
-  mesh_->QueryBall(tool.p_WT, snap, &query_);
-  if (query_.empty()) {
-    *event = SculptFrameEvent::kNoClayInReach;
-    return;
-  }
-  int nearest = query_.front();
-  double best = std::numeric_limits<double>::infinity();
-  for (int v : query_) {
-    const double d = (mesh_->positions()[v] - tool.p_WT).squaredNorm();
-    if (d < best) {
-      best = d;
-      nearest = v;
+  if (pinch != nullptr) {
+    // A squeeze: the clay between the fingers, if any of it is within the tool radius.
+    mesh_->QueryBall(*pinch, settings_.tool.radius, &query_);
+    if (query_.empty()) {
+      *event = SculptFrameEvent::kNoClayInReach;
+      return;
     }
+    grab_centre_ = *pinch;
+  } else {
+    const double snap =
+        settings_.snap_distance > 0.0 ? settings_.snap_distance : settings_.tool.radius;
+    mesh_->QueryBall(tool.p_WT, snap, &query_);
+    if (query_.empty()) {
+      *event = SculptFrameEvent::kNoClayInReach;
+      return;
+    }
+    int nearest = query_.front();
+    double best = std::numeric_limits<double>::infinity();
+    for (int v : query_) {
+      const double d = (mesh_->positions()[v] - tool.p_WT).squaredNorm();
+      if (d < best) {
+        best = d;
+        nearest = v;
+      }
+    }
+    grab_centre_ = mesh_->positions()[nearest];
   }
-  grab_centre_ = mesh_->positions()[nearest];
   snap_offset_ = grab_centre_ - tool.p_WT;
   modeling::SculptToolSettings tool_settings = settings_.tool;
   if (key_held) tool_settings.grasp_controls_strength = false;
@@ -158,30 +318,68 @@ void SculptSession::BeginStroke(const haptics::ToolKinematics& tool, bool key_he
 
   StrokeForceModel model = mesh_->force_model();
   model.X_WT_start.translation() -= snap_offset_;  // the haptic side sees the unshifted grip
-  Publish(model);
-  mesh_->UpdateStroke(X, tool.grasp);
+  Publish(model, pinch != nullptr);
+  held_strength_ = 0.0;
+  UpdateStroke(tool);
   *event = SculptFrameEvent::kBegan;
 }
 
+void SculptSession::UpdateStroke(const haptics::ToolKinematics& tool) {
+  const double s_now = SqueezeStrength(squeeze_.squeeze, settings_.clay_width.full_squeeze_depth);
+  double s = StrokeStrength(published_, tool.grasp, s_now);
+  if (published_.squeeze) {
+    held_strength_ = std::max(held_strength_, s);
+    s = held_strength_;
+  }
+  stroke_strength_ = s;
+  mesh_->UpdateStrokeAtStrength(StrokePose(tool), s);
+}
+
+void SculptSession::SenseClay(const haptics::ToolKinematics& tool) {
+  squeeze_ = ClaySqueeze{};
+  if (!grid_ || !settings_.clay_width.enabled) return;
+  Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+  X_WT.linear() = tool.R_WT;
+  X_WT.translation() = tool.p_WT;
+  squeeze_ = ComputeClaySqueeze(*grid_, ClayPlacement(published_.stroke, X_WT), tool,
+                                settings_.clay_width);
+}
+
 SculptFrameEvent SculptSession::Step(const haptics::ToolKinematics& tool, bool key_held) {
+  if (async_grids_) PollGridBuild();
   if (!mesh_) return SculptFrameEvent::kIdle;
+  SenseClay(tool);
   if (!mesh_->stroke_active()) {
-    if (!(tool.grasp < settings_.stroke_begin_angle || key_held)) return SculptFrameEvent::kIdle;
+    stroke_strength_ = 0.0;
     SculptFrameEvent event = SculptFrameEvent::kIdle;
-    BeginStroke(tool, key_held, &event);
+    if (!key_held && squeeze_.squeeze >= settings_.clay_width.grasp.grab_depth) {
+      const Eigen::Vector3d pinch = 0.5 * (squeeze_.contact_W[0] + squeeze_.contact_W[1]);
+      BeginStroke(tool, false, &pinch, &event);
+      return event;
+    }
+    if (!(tool.grasp < settings_.stroke_begin_angle || key_held)) return SculptFrameEvent::kIdle;
+    BeginStroke(tool, key_held, nullptr, &event);
     return event;
   }
-  const bool open = !(tool.grasp < settings_.stroke_end_angle);
-  const bool end = key_stroke_ ? !key_held : (open && !key_held);
+  bool end = false;
+  if (key_stroke_) {
+    end = !key_held;
+  } else if (published_.squeeze) {
+    end = !(squeeze_.squeeze > 0.0) && !key_held;  // the fingers let go of the clay
+  } else {
+    end = !(tool.grasp < settings_.stroke_end_angle) && !key_held;
+  }
   if (end) {
     Publish(StrokeForceModel{});
     undo_.push_back(mesh_->EndStroke());
     redo_.clear();
     display_vertices_.clear();
     ++revision_;
+    stroke_strength_ = 0.0;
+    RequestGrid(false, EditBox(undo_.back()));
     return SculptFrameEvent::kEnded;
   }
-  mesh_->UpdateStroke(StrokePose(tool), tool.grasp);
+  UpdateStroke(tool);
   return SculptFrameEvent::kUpdated;
 }
 
@@ -204,6 +402,7 @@ bool SculptSession::Undo() {
   redo_.push_back(std::move(undo_.back()));
   undo_.pop_back();
   ++revision_;
+  RequestGrid(false, EditBox(redo_.back()));
   return true;
 }
 
@@ -213,11 +412,12 @@ bool SculptSession::Redo() {
   undo_.push_back(std::move(redo_.back()));
   redo_.pop_back();
   ++revision_;
+  RequestGrid(false, EditBox(undo_.back()));
   return true;
 }
 
 std::unique_ptr<haptics::ForceField> SculptSession::MakeField() const {
-  return std::make_unique<SculptToolField>(channel_);
+  return std::make_unique<SculptToolField>(channel_, clay_channel_, settings_.clay_width);
 }
 
 modeling::TriangleMesh SculptSession::ExportMesh() const {

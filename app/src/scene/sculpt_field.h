@@ -3,19 +3,35 @@
 // state the haptic loop reports, undo/redo of strokes, and the force field that renders the
 // active stroke's resistance on the haptic thread.
 //
-// Stroke trigger (SculptSession::Step): a stroke begins when the grasp angle θ drops below
-// stroke_begin_angle (the grip closes) or when the caller says a key is held (mouse driving: the
-// window maps the G key to it), and the grip centre is within snap_distance of the clay (nearest
-// vertex). It updates every frame from the tool pose and grasp, and ends (EndStroke + refinement)
-// when θ rises above stroke_end_angle (hysteresis) and the key is up. A key-held stroke uses full
-// strength (the grasp does not scale it).
+// Stroke trigger (SculptSession::Step), three kinds:
+//  - squeeze: both poles squeeze the clay (clay_width.h) at least clay_width.grasp.grab_depth
+//    deep. The grab centre is the midpoint of the two poles' deepest points (the pinch); the
+//    stroke ends as soon as the poles no longer both push into the clay (the fingers opened).
+//    The felt stroke wrench scales with the squeeze strength S now (so it fades to zero as the
+//    fingers open: no jump when the stroke begins or ends), the clay's deformation with the
+//    largest S of the stroke so far (opening the fingers lets go of the clay where it is, rather
+//    than letting it spring back).
+//  - angle: the grasp angle θ drops below stroke_begin_angle (the grip closes) and the grip
+//    centre is within snap_distance of the clay (nearest vertex); it ends when θ rises above
+//    stroke_end_angle (hysteresis). Strength max(SculptGrabStrength(θ), S) for both the
+//    deformation and the felt wrench: the angle's as before, raised by a squeeze.
+//  - key: the caller says a key is held (mouse driving: the window maps the G key to it); full
+//    strength, ends when the key is up.
+// It updates every frame from the tool pose and grasp; ends run EndStroke + refinement.
 //
-// Snap: the grab centre is the clay vertex nearest the grip at the start; the stroke is driven by
-// the grip pose translated by the constant offset (nearest vertex − grip centre), so the grabbed
-// point follows the grip's motion exactly. The published force model is shifted back by the
-// same offset, so the haptic side evaluates it on the unshifted tool pose.
+// Clay width: the session keeps a ClayDistanceGrid of the clay (clay_grid.h), rebuilt after
+// every change (a new clay: built whole; a stroke's end, undo or redo: updated locally around
+// what moved) and offered to the field through a ClayGridChannel; with set_async_grids(true)
+// (the window) the rebuild runs on a thread of its own and lands at a later Step, else (run,
+// tests: deterministic) at once. The field renders the clay's width on the grasp (g <= 0).
 //
-// Thread hand-off: SculptForceChannel is a triple buffer of StrokeForceModel (plain fixed-size
+// Snap: the grab centre is the clay vertex nearest the grip at the start (a squeeze stroke's: the
+// pinch, above); the stroke is driven by the grip pose translated by the constant offset (grab
+// centre − grip centre), so the grabbed point follows the grip's motion exactly. The published
+// force model is shifted back by the same offset, so the haptic side evaluates it on the
+// unshifted tool pose.
+//
+// Thread hand-off: SculptForceChannel is a triple buffer of SculptHapticModel (plain fixed-size
 // values). The main thread writes it on stroke begin/end; SculptToolField (in the HapticScene)
 // reads the latest value every tick: no lock, no allocation. Only one field instance may read a
 // channel at a time (the haptic thread evaluates one scene at a time, so a republished field
@@ -28,11 +44,13 @@
 #include <Eigen/Geometry>
 #include <atomic>
 #include <functional>
+#include <future>
 #include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
 
+#include "scene/clay_width.h"
 #include "spidarcad/haptics/force_field.h"
 #include "spidarcad/haptics/triple_buffer.h"
 #include "spidarcad/modeling/sculpt.h"
@@ -45,22 +63,43 @@ namespace spidarcad::app {
 class JobQueue;
 class JobContext;
 
-// The active stroke's force model as handed to the haptic thread (copyable, no heap memory).
-using SculptForceChannel = haptics::TripleBuffer<modeling::StrokeForceModel>;
+// The active stroke as handed to the haptic thread (copyable, no heap memory).
+struct SculptHapticModel {
+  modeling::StrokeForceModel stroke;  // active = false: no stroke
+  bool squeeze = false;               // a squeeze stroke (see the file comment)
+};
+using SculptForceChannel = haptics::TripleBuffer<SculptHapticModel>;
 
-// The resisting wrench of the active stroke: ComputeStrokeWrench on the current tool pose and
-// grasp; zero when no stroke is active. Real-time safe.
+// Strength of the active stroke's felt wrench (and, for angle strokes, of its deformation): 1
+// when the grasp does not control it (key strokes), the squeeze strength S for a squeeze stroke,
+// else max(SculptGrabStrength(θ), S).
+double StrokeStrength(const SculptHapticModel& model, double grasp, double squeeze_strength);
+
+// The clay under the grip: the resisting wrench of the active stroke (ComputeStrokeWrench at
+// StrokeStrength on the current tool pose) plus the clay's width on the grasp (clay_width.h;
+// g <= 0). Zero force without a stroke, zero g without clay between the fingers. Real-time safe.
 class SculptToolField final : public haptics::ForceField {
  public:
-  // Reads models from `channel` (shared with the SculptSession that writes it; non-null).
-  explicit SculptToolField(std::shared_ptr<SculptForceChannel> channel);
-  // f_T_W, m_T_W (about p_WT) and g of the stroke wrench; finite, zero without a stroke.
+  // Reads models from `channel` and grids from `clay` (both shared with the SculptSession that
+  // writes them; non-null), with the clay width `settings` (validated).
+  SculptToolField(std::shared_ptr<SculptForceChannel> channel,
+                  std::shared_ptr<ClayGridChannel> clay, const ClayWidthSettings& settings);
   haptics::ToolWrench Evaluate(const haptics::ToolKinematics& tool) noexcept override;
   const char* name() const noexcept override { return "sculpt_tool"; }
+  // Haptic thread (or tests): the squeeze of the last Evaluate.
+  const ClaySqueeze& last_squeeze() const noexcept { return squeeze_; }
 
  private:
   std::shared_ptr<SculptForceChannel> channel_;
+  std::shared_ptr<ClayGridChannel> clay_;
+  ClayWidthSettings settings_;
+  ClaySqueeze squeeze_;
 };
+
+// Where the clay's grid lies while `model`'s stroke is under way and the grip is at X_WT: carried
+// by the grip, X_WC = X_WT · X_WT_start⁻¹; the identity without a stroke.
+Eigen::Isometry3d ClayPlacement(const modeling::StrokeForceModel& model,
+                                const Eigen::Isometry3d& X_WT);
 
 // Settings of the sculpt mode (tool settings and the stroke trigger).
 struct SculptModeSettings {
@@ -73,6 +112,9 @@ struct SculptModeSettings {
   // The grip centre must be within this distance (m) of a clay vertex to begin a stroke;
   // <= 0: the tool radius.
   double snap_distance = 0.0;
+  // The clay's width on the grasp and the squeeze strokes (clay_width.h). Set
+  // clay_width.grasp.pole_length to the device's d times the world scale.
+  ClayWidthSettings clay_width;
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
@@ -147,7 +189,28 @@ class SculptSession {
   // A new field reading this session's channel.
   std::unique_ptr<haptics::ForceField> MakeField() const;
   // The model last published (active = false outside a stroke).
-  const modeling::StrokeForceModel& published_model() const { return published_; }
+  const modeling::StrokeForceModel& published_model() const { return published_.stroke; }
+  // True while the active stroke is a squeeze stroke.
+  bool squeeze_stroke() const { return published_.squeeze; }
+  // The squeeze the last Step saw (clay_width.h), and the strength the active stroke deformed
+  // the clay with there.
+  const ClaySqueeze& squeeze() const { return squeeze_; }
+  double stroke_strength() const { return stroke_strength_; }
+
+  // ---- the clay's distance grid (clay width) ----
+  // The grid of the clay as last built (null without clay or before the first build lands).
+  const std::shared_ptr<const ClayDistanceGrid>& clay_grid() const { return grid_; }
+  // The channel the grids are offered through (for SculptToolField).
+  const std::shared_ptr<ClayGridChannel>& clay_channel() const { return clay_channel_; }
+  // Rebuild grids on a thread of their own (true: the window) or at once (false, the default).
+  void set_async_grids(bool on) { async_grids_ = on; }
+  // Waits for a rebuild under way (async) and offers it; no-op otherwise.
+  void FinishGridBuild();
+  // Thread CPU time of the last grid build or update (s) and how many nodes it recomputed.
+  double last_grid_seconds() const { return grid_seconds_; }
+  long last_grid_nodes() const { return grid_nodes_; }
+  // Grid builds and updates landed so far.
+  int grid_builds() const { return grid_builds_; }
 
   // Enclosed volume of the clay now (m³), the active stroke's deformation included (the mesh's
   // own volume() changes only when a stroke ends); 0 without clay.
@@ -171,9 +234,23 @@ class SculptSession {
   void SetJobMessage(std::string message) { job_message_ = std::move(message); }
 
  private:
-  void Publish(const modeling::StrokeForceModel& model);
-  void BeginStroke(const haptics::ToolKinematics& tool, bool key_held, SculptFrameEvent* event);
+  void Publish(const modeling::StrokeForceModel& model, bool squeeze = false);
+  // Begins a stroke; `pinch` (non-null: a squeeze stroke) is its grab centre (W, m), else the
+  // clay vertex nearest the grip.
+  void BeginStroke(const haptics::ToolKinematics& tool, bool key_held, const Eigen::Vector3d* pinch,
+                   SculptFrameEvent* event);
+  // Asks for a new grid: whole (a new clay) or updated inside `changed` (W, m).
+  void RequestGrid(bool whole, const Eigen::AlignedBox3d& changed);
+  // Async: takes a finished build (offering it) and starts the next one asked for.
+  void PollGridBuild();
+  void StartGridBuild();
+  // The box an edit's moved vertices span, before and after (W, m).
+  static Eigen::AlignedBox3d EditBox(const modeling::SculptEdit& edit);
   Eigen::Isometry3d StrokePose(const haptics::ToolKinematics& tool) const;
+  // Deforms the clay for the tool state at the active stroke's strength (file comment).
+  void UpdateStroke(const haptics::ToolKinematics& tool);
+  // squeeze_ for the tool state (the clay placed as the field places it).
+  void SenseClay(const haptics::ToolKinematics& tool);
 
   std::unique_ptr<modeling::SculptMesh> mesh_;
   SculptModeSettings settings_;
@@ -181,7 +258,23 @@ class SculptSession {
   std::vector<modeling::SculptEdit> undo_;
   std::vector<modeling::SculptEdit> redo_;
   std::shared_ptr<SculptForceChannel> channel_;
-  modeling::StrokeForceModel published_;
+  SculptHapticModel published_;
+  std::shared_ptr<ClayGridChannel> clay_channel_;
+  std::shared_ptr<const ClayDistanceGrid> grid_;
+  bool async_grids_ = false;
+  std::future<std::shared_ptr<const ClayDistanceGrid>> build_;  // async build under way
+  std::uint64_t build_generation_ = 0;  // clay generation the build under way is for
+  std::uint64_t generation_ = 0;        // grows with every new clay (SetMesh, ClearMesh)
+  bool grid_wanted_ = false;            // a build is asked for (async)
+  bool grid_whole_ = false;             // ... of the whole clay
+  Eigen::AlignedBox3d grid_changed_;    // ... else updated inside this box
+  double grid_seconds_ = 0.0;
+  double build_seconds_ = 0.0;  // of the async build under way
+  long grid_nodes_ = 0;
+  int grid_builds_ = 0;
+  ClaySqueeze squeeze_;
+  double stroke_strength_ = 0.0;
+  double held_strength_ = 0.0;  // a squeeze stroke: its largest squeeze strength so far
   std::vector<int> display_vertices_;
   std::vector<int> query_;
   std::vector<std::uint8_t> mark_;

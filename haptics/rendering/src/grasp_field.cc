@@ -66,28 +66,17 @@ ToolWrench GraspField::Evaluate(const ToolKinematics& tool) noexcept {
     X_WO_ = X_WT * X_TO_;
     X_OW_ = X_WO_.inverse(Eigen::Isometry);
   }
-  // Pole directions and their velocity per unit of closing (−dθ), in T.
   const PoleDirections poles = GripPoleDirections(tool.grasp);
-  const std::array<Eigen::Vector3d, 2>& u_T = poles.u_T;
-  const Eigen::Vector3d du_T[2] = {-poles.du_T[0], -poles.du_T[1]};
-  const double d = s.pole_length;
+  auto phi = [this](const Eigen::Vector3d& p_W, Eigen::Vector3d* g) { return Phi(p_W, g); };
   double q = 0.0;
   bool pushing[2] = {false, false};
   for (int k = 0; k < 2; ++k) {
-    const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
-    auto phi_at = [&](double t) { return Phi(tool.p_WT + t * u_W, nullptr); };
-    const PoleMinimum m = FindPoleMinimum(phi_at, d, s.samples, s.refine_iterations);
-    const double best_t = m.t, best_phi = m.phi;
-    depth_[k] = std::max(0.0, -best_phi);
-    if (depth_[k] <= 0) continue;
-    Eigen::Vector3d g;
-    Phi(tool.p_WT + best_t * u_W, &g);
-    const double gn = g.norm();
-    if (!(gn > 0)) continue;
-    const double a = (g / gn).dot(tool.R_WT * (best_t * du_T[k]));
-    if (a < 0) {
+    const PoleContact c = FindPoleContact(phi, tool.p_WT, tool.R_WT, poles, k, s.pole_length,
+                                          s.samples, s.refine_iterations);
+    depth_[k] = c.depth;
+    if (c.pushing) {
       pushing[k] = true;
-      q += s.stiffness * depth_[k] * (-a);
+      q += s.stiffness * c.depth * (-c.a);
     }
   }
 

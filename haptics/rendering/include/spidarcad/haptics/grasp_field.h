@@ -35,6 +35,7 @@
 
 #include "spidarcad/haptics/distance_field.h"
 #include "spidarcad/haptics/force_field.h"
+#include "spidarcad/haptics/geometry.h"
 #include "spidarcad/haptics/triple_buffer.h"
 
 namespace spidarcad::haptics {
@@ -78,6 +79,42 @@ PoleMinimum FindPoleMinimum(const Phi& phi, double d, int samples, int refine_it
   if (f1 < best.phi) best = {x1, f1};
   if (f2 < best.phi) best = {x2, f2};
   return best;
+}
+
+// One pole's contact with a solid, as GraspField and the clay width (app/src/scene/clay_width.h)
+// see it: the deepest point along pole k (FindPoleMinimum), its depth δ = max(0, −φ) (m), where
+// it is along the pole (t, m from p_WT), the solid's outward unit normal there n (W; zero when
+// the field's gradient vanishes) and a = n·w, w = R_WT·t·∂u_k/∂(−θ) the velocity of that point
+// per unit of closing (m/rad). `pushing`: δ > 0 and a < 0 (closing drives the pole deeper).
+struct PoleContact {
+  double t = 0.0;      // m along the pole's unit vector
+  double depth = 0.0;  // δ, m
+  double a = 0.0;      // n·w, m/rad
+  Eigen::Vector3d normal_W = Eigen::Vector3d::Zero();
+  bool pushing = false;
+};
+// The contact of pole k (0: pole 1, 1: pole 2) of the grip at p_WT, R_WT (poles = the grip's
+// GripPoleDirections at its grasp angle), pole half-length d (m), with the solid whose signed
+// distance at a point of W is phi(p_W, gradient_W or nullptr). Real-time safe (phi must be too).
+template <class Phi>
+PoleContact FindPoleContact(const Phi& phi, const Eigen::Vector3d& p_WT,
+                            const Eigen::Matrix3d& R_WT, const PoleDirections& poles, int k,
+                            double d, int samples, int refine_iterations) noexcept {
+  PoleContact c;
+  const Eigen::Vector3d u_W = R_WT * poles.u_T[k];
+  auto phi_at = [&](double t) { return phi(Eigen::Vector3d(p_WT + t * u_W), nullptr); };
+  const PoleMinimum m = FindPoleMinimum(phi_at, d, samples, refine_iterations);
+  c.t = m.t;
+  c.depth = m.phi < 0.0 ? -m.phi : 0.0;
+  if (c.depth <= 0.0) return c;
+  Eigen::Vector3d g;
+  phi(Eigen::Vector3d(p_WT + m.t * u_W), &g);
+  const double gn = g.norm();
+  if (!(gn > 0.0)) return c;
+  c.normal_W = g / gn;
+  c.a = c.normal_W.dot(R_WT * (m.t * -poles.du_T[k]));
+  c.pushing = c.a < 0.0;
+  return c;
 }
 
 // Parameters of a GraspField. SI units, lengths in W.
