@@ -15,16 +15,20 @@
 
 #include <signal.h>
 #include <spawn.h>
+#include <sys/inotify.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <thread>
 #include <vector>
@@ -51,6 +55,7 @@
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
 #include "scene/sculpt_field.h"
+#include "scene/touch_modelling.h"
 #include "spidarcad/haptics/trajectory.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -979,6 +984,79 @@ TEST(AppWindowAssembly, UndoWaitsWhileAPartIsCarried) {
   EXPECT_EQ(doc.history().UndoDescription(), "Set description");
 }
 
+// Counts the opens of one file by anyone (inotify, Linux), from construction until Opens().
+// Closes are watched too, so that two opens in a row are two events (inotify merges an event
+// into the previous one when they are the same and the first has not been read yet).
+class FileOpenCounter {
+ public:
+  explicit FileOpenCounter(const std::string& path) : fd_(inotify_init1(IN_NONBLOCK)) {
+    if (fd_ >= 0) watch_ = inotify_add_watch(fd_, path.c_str(), IN_OPEN | IN_CLOSE);
+  }
+  ~FileOpenCounter() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  FileOpenCounter(const FileOpenCounter&) = delete;
+  FileOpenCounter& operator=(const FileOpenCounter&) = delete;
+  bool ok() const { return fd_ >= 0 && watch_ >= 0; }
+  // Opens seen so far (reads the queued events).
+  int Opens() {
+    alignas(inotify_event) char buffer[4096];
+    for (;;) {
+      const ssize_t n = ::read(fd_, buffer, sizeof buffer);
+      if (n <= 0) break;
+      for (ssize_t at = 0; at < n;) {
+        const auto* e = reinterpret_cast<const inotify_event*>(buffer + at);
+        if (e->mask & IN_OPEN) ++opens_;
+        at += static_cast<ssize_t>(sizeof(inotify_event) + e->len);
+      }
+    }
+    return opens_;
+  }
+
+ private:
+  int fd_ = -1;
+  int watch_ = -1;
+  int opens_ = 0;
+};
+
+// File → Open of a version 1 assembly reads the file once: the window used to read and parse
+// it a second time, before the document, only to learn that it had parts. The document still
+// becomes the assembly (its parts rigid parts, assembly mode) with X_WD = identity, as `run`
+// has it; a scene without parts still gets a map chosen around its solids.
+TEST(AppWindowAssembly, OpeningAnAssemblyReadsItsFileOnceAndKeepsTheIdentityMap) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("window_doc_assembly_once");
+  const std::string scene = (scratch.dir / "assembly.json").string();
+  fs::copy_file(AssetPath("scenes/assembly.json"), scene);
+  AppWindow window(test_support::ScriptedWindowOptions(kDemoSceneName));
+  window.Frame();
+  {
+    FileOpenCounter counter(scene);
+    ASSERT_TRUE(counter.ok()) << "inotify: " << std::strerror(errno);
+    ASSERT_TRUE(window.OpenDocument(scene)) << window.file_error();
+    EXPECT_EQ(counter.Opens(), 1);
+    window.Frame();
+    EXPECT_EQ(counter.Opens(), 1);
+  }
+  auto* mode = dynamic_cast<AssemblyWindowMode*>(window.FindMode("assembly"));
+  ASSERT_NE(mode, nullptr);
+  EXPECT_EQ(window.active_mode(), mode) << "a document of parts starts in assembly";
+  EXPECT_EQ(mode->assembly().size(), 6);
+  const Document& doc = window.model().document();
+  EXPECT_TRUE(doc.parts().empty()) << "the parts became rigid parts";
+  EXPECT_NE(doc.FindByName("right_leg"), nullptr);
+  const DeviceToWorld& X_WD = window.model().device_to_world();
+  EXPECT_EQ(X_WD.world_scale, 1.0);
+  EXPECT_EQ(X_WD.p_WDo, Eigen::Vector3d::Zero());
+  // A scene without parts: read once too, and mapped around its solids (not the identity).
+  const std::string platform = (scratch.dir / "platform.json").string();
+  fs::copy_file(AssetPath("scenes/platform.json"), platform);
+  FileOpenCounter counter(platform);
+  ASSERT_TRUE(window.OpenDocument(platform)) << window.file_error();
+  EXPECT_EQ(counter.Opens(), 1);
+  EXPECT_NE(window.model().device_to_world().p_WDo, Eigen::Vector3d::Zero());
+}
+
 // An imported mesh is drawn: the view has an actor for it, placed like the solids (X_WD of the
 // empty document: identity), with the mesh's bounds; a click on it selects it in the tree;
 // undoing the import removes the actor.
@@ -1146,6 +1224,10 @@ TEST(AppWindowDocument, ModelModeAsksBeforeALargeMesh) {
   state.resolution_mm = 0.01f;  // 10 µm cells on a 6 cm knob: ~10^14 grid cells
   StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
   EXPECT_FALSE(state.status_error) << state.status;
+  // The estimate runs in a Job: the question comes when it lands, not on this thread.
+  EXPECT_TRUE(state.pending_mesh_text.empty()) << "estimated on the window's thread";
+  ASSERT_TRUE(FramesUntil(&window, 120.0, [&] { return !state.pending_mesh_text.empty(); }))
+      << state.status;
   EXPECT_NE(state.pending_mesh_text.find("Meshing 'knob' is large"), std::string::npos)
       << state.pending_mesh_text;
   EXPECT_NE(state.pending_mesh_text.find("docs/limits.md"), std::string::npos);
@@ -1161,7 +1243,8 @@ TEST(AppWindowDocument, ModelModeAsksBeforeALargeMesh) {
   // panel's field clamps the cell to 0.5 mm when it is drawn: set it again.
   state.resolution_mm = 0.01f;
   StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
-  ASSERT_FALSE(state.pending_mesh_text.empty());
+  ASSERT_TRUE(FramesUntil(&window, 120.0, [&] { return !state.pending_mesh_text.empty(); }))
+      << state.status;
   state.pending_mesh_settings.cell_size = 0.005;
   AnswerMeshQuestion(&window.model(), &window.jobs(), &state, true);
   EXPECT_FALSE(state.status_error) << state.status;
@@ -1174,7 +1257,88 @@ TEST(AppWindowDocument, ModelModeAsksBeforeALargeMesh) {
   // A cell within the budget does not ask.
   state.resolution_mm = 5.0f;
   StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
+  ASSERT_TRUE(FramesUntilJobsEnd(window));
   EXPECT_TRUE(state.pending_mesh_text.empty()) << state.pending_mesh_text;
+}
+
+// Modelling by touch, scripted: --place sphere on the virtual clock with a trajectory that
+// holds the grip still at rest grasp (90°) and squeezes it once. Exactly one command adds the
+// sphere; its transform is the grip's pose (X_WD of the trajectory's pose: the ideal device
+// measures where the simulated hand is, within 0.5 mm once it has held still) and its diameter
+// is s·d·θ at 90° (the grasp before the squeeze). Undo removes it; redo brings it back equal.
+TEST(AppWindowTouch, PlaceOnTheVirtualClockAddsOneSphereAtTheGripSizedByTheGrasp) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("window_touch_place");
+  const fs::path& dir = scratch.dir;
+  const std::string scene = (dir / "cube.json").string();
+  std::ofstream(scene) << R"({"format": "spidarcad-scene", "version": 1,
+    "solids": [{"name": "cube", "root": {"type": "box", "size": [0.04, 0.04, 0.04]}}]})";
+  // In D: 80 mm right, 60 mm forward, 40 mm up, not turned; squeezed by 20° at t = 1.5 s.
+  const Eigen::Vector3d p_D(0.08, 0.06, 0.04);
+  const std::string trajectory = (dir / "place.csv").string();
+  {
+    std::ofstream out(trajectory);
+    out << "# t,x,y,z,qw,qx,qy,qz,grasp\n";
+    for (int k = 0; k <= 250; ++k) {
+      const double t = 0.01 * k;
+      double g = 90.0;
+      if (t > 1.5 && t <= 1.65) g = 90.0 - 20.0 * (t - 1.5) / 0.15;
+      if (t > 1.65 && t < 1.8) g = 70.0 + 20.0 * (t - 1.65) / 0.15;
+      out << t << "," << p_D.x() << "," << p_D.y() << "," << p_D.z() << ",1,0,0,0,"
+          << g * std::numbers::pi / 180.0 << "\n";
+    }
+  }
+  GuiOptions options = test_support::ScriptedWindowOptions(scene);
+  options.clock = "virtual";
+  options.trajectory = trajectory;
+  options.out = (dir / "run.csv").string();
+  options.place = "sphere";
+  AppWindow window(options);
+  const DeviceToWorld X_WD = window.model().device_to_world();
+  Document& doc = window.model().document();
+  for (int frame = 0; frame < 2000 && window.Frame(); ++frame) {
+  }
+  ASSERT_EQ(doc.history().undo_size(), 1u) << window.model_mode().touch_message();
+  EXPECT_EQ(doc.history().UndoDescription(), "Add solid sphere");
+  const DocObject* sphere = doc.FindByName("sphere");
+  ASSERT_NE(sphere, nullptr);
+  const modeling::ImplicitNode root = std::get<SolidData>(sphere->data).root;
+  const NodePose pose = PoseOfNode(root);
+  EXPECT_LT((pose.X_AN.translation() - X_WD.PointToWorld(p_D)).norm(), 0.0005 * X_WD.world_scale);
+  EXPECT_LT(Eigen::AngleAxisd(pose.X_AN.linear()).angle(), 0.5 * std::numbers::pi / 180.0);
+  const double expected = PlaceSize(std::numbers::pi / 2, 0.04, X_WD.world_scale);
+  const double radius =
+      std::get<modeling::SphereParams>(root.children.front().children.front().params).radius;
+  EXPECT_NEAR(2.0 * radius, expected, 0.01 * expected);
+  const nlohmann::json after = doc.ToJson(true);
+  ASSERT_TRUE(doc.Undo());
+  EXPECT_EQ(doc.FindByName("sphere"), nullptr);
+  ASSERT_TRUE(doc.Redo());
+  EXPECT_EQ(doc.ToJson(true), after);
+}
+
+// Bad --place settings are refused before the window opens, with exit status 2 and what to do.
+TEST(AppWindowTouch, BadPlaceSettingsAreRefusedWithStatusTwo) {
+  GuiOptions options = test_support::ScriptedWindowOptions("demo");
+  options.place = "cone";
+  try {
+    AppWindow window(options);
+    FAIL() << "--place cone accepted";
+  } catch (const WindowStartError& e) {
+    EXPECT_EQ(e.status(), 2);
+    EXPECT_EQ(std::string(e.what()),
+              "spidarcad: error: --place: 'cone' is not a primitive the grip places: use "
+              "sphere, box or cylinder");
+  }
+  options.place = "box";
+  options.mode = "fe";
+  try {
+    AppWindow window(options);
+    FAIL() << "--place with --mode fe accepted";
+  } catch (const WindowStartError& e) {
+    EXPECT_EQ(e.status(), 2);
+    EXPECT_NE(std::string(e.what()).find("drop --mode fe"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -316,13 +316,52 @@ TEST(DocumentIo, Version1ScenesOpenUnchangedAndSaveAsVersion1) {
         std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + name + ".json";
     const modeling::Scene expected = modeling::LoadScene(source);
     Document doc;
-    doc.Load(source);
+    EXPECT_EQ(doc.Load(source), 1);
     EXPECT_EQ(modeling::SceneToJson(doc.ToScene()), modeling::SceneToJson(expected));
     const std::string path = OutDir(std::string("v1_") + name) + "/scene.json";
     doc.Save(path);
     const json written = json::parse(ReadText(path));
     EXPECT_EQ(written.at("version"), 1);
     EXPECT_EQ(modeling::SceneToJson(modeling::LoadScene(path)), modeling::SceneToJson(expected));
+  }
+}
+
+// A bad version 1 scene (the document reader parses its text once and hands that JSON to the
+// scene reader) fails with exactly the error modeling's own reader gives for the same file:
+// file, line, column, JSON pointer and message, for a semantic error deep in a part's seat, a
+// bad field of a solid, a number beyond a double and a syntax error.
+TEST(DocumentIo, BadVersion1SceneGivesTheSceneReadersOwnError) {
+  const std::string head =
+      "{\n  \"format\": \"spidarcad-scene\",\n  \"version\": 1,\n  \"solids\": [\n"
+      "    {\"name\": \"a\", \"root\": {\"type\": \"sphere\", \"radius\": 0.1}},\n"
+      "    {\"name\": \"b\", \"root\": {\"type\": \"sphere\", \"radius\": 0.05}}\n  ]";
+  const std::vector<std::string> bodies = {
+      ",\n  \"parts\": [{\"name\": \"p\", \"solid\": \"a\"},\n"
+      "    {\"name\": \"q\", \"solid\": \"b\", \"seats\": [{\"on\": \"ghost\"}]}]\n}\n",
+      ",\n  \"parts\": [{\"name\": \"p\", \"solid\": \"nothing\"}]\n}\n",
+      ",\n  \"snap\": {\"max_force\": 1e999}\n}\n",
+      ",\n  \"snap\": {\"max_force\": -1}\n}\n",
+      ",\n  \"parts\": [,]\n}\n",
+  };
+  const std::string path = OutDir("bad_v1") + "/scene.json";
+  for (const std::string& body : bodies) {
+    SCOPED_TRACE(body);
+    WriteText(path, head + body);
+    std::string expected;
+    try {
+      modeling::LoadScene(path);
+      ADD_FAILURE() << "the scene reader took it";
+    } catch (const modeling::SceneError& e) {
+      expected = e.what();
+      EXPECT_GT(e.line(), 0) << e.what();
+    }
+    Document doc;
+    try {
+      doc.Load(path);
+      ADD_FAILURE() << "no error";
+    } catch (const modeling::SceneError& e) {
+      EXPECT_EQ(std::string(e.what()), expected);
+    }
   }
 }
 

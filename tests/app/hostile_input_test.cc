@@ -613,5 +613,84 @@ TEST(HostileInputWindow, OpeningAHugeUnionCanBeCancelledAndKeepsTheDocument) {
   EXPECT_TRUE(window.OpenDocument(AssetPath("scenes/platform.json"))) << window.file_error();
 }
 
+// The start-up document is read as File → Open reads one: on a thread of its own while the
+// window draws the "Opening" box. The union of 100,000 spheres (seconds to read, compile and
+// box) is cancelled 1.5 s after the window began (GuiOptions::cancel_open, what the box's
+// Cancel, Esc and the close button raise): the window starts on an empty document, the status
+// says so, and the next open works once the flag is down. Without the off-thread read the
+// constructor would run the whole read and open the union. The time from the cancel until the
+// constructor returned is recorded (property "cancel_seconds"), not asserted.
+TEST(HostileInputWindow, AHugeStartUpDocumentCanBeCancelledForAnEmptyOne) {
+  using namespace std::chrono_literals;
+  if (!test_support::HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("hostile_window_startup_cancel");
+  const std::string path = WriteScene("w_startup100k.json", UnionRoot(100000));
+  std::atomic<bool> cancel{false};
+  std::atomic<long long> cancelled_at{0};
+  std::atomic<bool> stop{false};
+  std::thread canceller([&] {
+    for (int k = 0; k < 1500 && !stop.load(); ++k) std::this_thread::sleep_for(1ms);
+    cancelled_at.store(std::chrono::steady_clock::now().time_since_epoch().count());
+    cancel.store(true);
+  });
+  app::GuiOptions options = test_support::ScriptedWindowOptions(path);
+  options.cancel_open = &cancel;
+  AppWindow window(options);
+  const auto returned = std::chrono::steady_clock::now().time_since_epoch().count();
+  stop.store(true);
+  canceller.join();
+  ASSERT_TRUE(cancel.load());
+  RecordProperty("cancel_seconds",
+                 std::to_string(std::chrono::duration<double>(
+                                    std::chrono::steady_clock::duration(returned - cancelled_at))
+                                    .count()));
+  EXPECT_EQ(window.model().source(), kNoSceneName) << "the union was opened: not cancelled";
+  EXPECT_TRUE(window.model().objects().empty());
+  EXPECT_NE(window.workbench().status.find("cancelled (an empty document instead)"),
+            std::string::npos)
+      << window.workbench().status;
+  EXPECT_EQ(window.file_error(), "");
+  for (int k = 0; k < 2; ++k) EXPECT_TRUE(window.Frame());  // the window goes on
+  cancel.store(false);
+  EXPECT_TRUE(window.OpenDocument(AssetPath("scenes/platform.json"))) << window.file_error();
+}
+
+// A scene file changed on disk is read again as File → Open reads one (off the main thread,
+// cancellable). Here the change is a union of 10,000 spheres (about 2 s to read and box) and
+// the reload is cancelled: the window keeps the old scene and does not read the file again
+// until it changes again; the next change, with the flag down, is reloaded and adopted.
+TEST(HostileInputWindow, AReloadAfterAnOutsideChangeCanBeCancelledAndWaitsForTheNextChange) {
+  if (!test_support::HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("hostile_window_reload");
+  const std::string path = WriteScene("w_reload.json", UnionRoot(2));
+  std::atomic<bool> cancel{false};
+  app::GuiOptions options = test_support::ScriptedWindowOptions(path);
+  options.cancel_open = &cancel;
+  AppWindow window(options);
+  window.Frame();
+  const nlohmann::json before = window.model().document().ToJson();
+  // Rewrites the file with `root`, its modification time moved on by `seconds`.
+  const auto rewrite = [&path](const std::string& root, int seconds) {
+    const auto mtime = std::filesystem::last_write_time(path);
+    WriteScene("w_reload.json", root);
+    std::filesystem::last_write_time(path, mtime + std::chrono::seconds(seconds));
+  };
+  // Frames past two of the window's checks of the file (every 30 frames).
+  const auto frames = [&window] {
+    for (int k = 0; k < 61; ++k) ASSERT_TRUE(window.Frame());
+  };
+  cancel.store(true);
+  rewrite(UnionRoot(10000), 5);
+  frames();
+  EXPECT_EQ(window.model().document().ToJson(), before) << "the cancelled reload was adopted";
+  cancel.store(false);
+  frames();  // not read again: the file has not changed since
+  EXPECT_EQ(window.model().document().ToJson(), before) << "read again without a change";
+  rewrite(UnionRoot(3), 10);
+  frames();
+  EXPECT_NE(window.model().document().ToJson(), before) << window.workbench().status;
+  EXPECT_EQ(window.model().source(), path);
+}
+
 }  // namespace
 }  // namespace spidarcad::app

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/golden_runs.h"
 #include "spidarcad_runner.h"
 
 namespace spidarcad::app {
@@ -94,8 +95,9 @@ std::vector<std::string> SplitQuoted(const std::string& line) {
 TEST(ReportTick, TickSectionReportsThreadCpuP999AndMaxPerScene) {
   const std::string dir = TestOutputPath("report_tick");
   std::filesystem::remove_all(dir);
-  const CommandRun run =
-      RunSpidarcad("report --out '" + dir + "' --quick --only tick --no-plots", "", "tick");
+  const std::string cache = TestOutputPath("report_tick_fe_cache");
+  const CommandRun run = RunSpidarcad("report --out '" + dir + "' --quick --only tick --no-plots",
+                                      "", "tick", "env SPIDARCAD_CACHE_DIR='" + cache + "'");
   ASSERT_EQ(run.status, 0) << run.all();
   const std::string md = ReadWholeFile(dir + "/report.md");
   EXPECT_NE(md.find("| CPU p50 µs | CPU p99 µs | CPU p99.9 µs | CPU max µs |"), std::string::npos)
@@ -115,15 +117,25 @@ TEST(ReportTick, TickSectionReportsThreadCpuP999AndMaxPerScene) {
   ASSERT_GE(max, 0) << line;
   ASSERT_GE(faults, 0) << line;
   int rows = 0;
+  std::vector<std::string> names;
   while (std::getline(in, line)) {
     const std::vector<std::string> f = SplitQuoted(line);
+    names.push_back(f[0]);
     ASSERT_EQ(f.size(), header.size()) << line;
     EXPECT_LE(std::stod(f[p99]), std::stod(f[p999])) << line;
     EXPECT_LE(std::stod(f[p999]), std::stod(f[max])) << line;
     EXPECT_GE(std::stol(f[faults]), 0) << line;
     ++rows;
   }
-  EXPECT_EQ(rows, 9);  // 7 scenes, plus the FE k = 16 and the assembly carrying rows
+  // 8 scenes, plus the 2004-point shell, the FE k = 16 and the assembly carrying rows, then one
+  // row per golden run of the regression test (the one list of cli/golden_runs.h), in its order,
+  // named after it.
+  const std::vector<GoldenRun>& golden = GoldenRuns();
+  ASSERT_EQ(rows, 11 + static_cast<int>(golden.size()));
+  EXPECT_EQ(names[4], "six-DOF shell tool (platform.json, 2004 points, twist)");
+  for (std::size_t i = 0; i < golden.size(); ++i)
+    EXPECT_EQ(names[11 + i], "golden " + golden[i].name);
+  EXPECT_NE(md.find("| golden platform_fe_press |"), std::string::npos) << md;
   const std::string summary = ReadWholeFile(dir + "/summary.md");
   EXPECT_NE(summary.find("worst p99.9"), std::string::npos) << summary;
   EXPECT_NE(summary.find("worst max"), std::string::npos) << summary;

@@ -7,7 +7,11 @@
 //     grip's measured motion to the stroke's last update) and against volumes summed here;
 //   - board-sim with scripted link faults (loss, corruption, an unplug and a replug): zero
 //     force while the board is gone, the force ramping back from zero after the replug, the
-//     loss in the driver's counters, and two runs giving the same CSV.
+//     loss in the driver's counters, and two runs giving the same CSV;
+//   - modelling by touch (--place sphere, the golden run touch_place_sphere with --save), tick by
+//     tick against the cube's geometry: no force far from the ghost's features, the face's snap
+//     pull SnapField's closed form toward the lifted face (at most 0.8 N), exactly one place,
+//     the saved sphere resting on the face at the measured grip, sized by the grasp's formula.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -21,6 +25,7 @@
 
 #include "doc/document.h"
 #include "golden_compare.h"
+#include "scene/touch_modelling.h"
 #include "sculpt_test_support.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 #include "spidarcad_runner.h"
@@ -66,6 +71,15 @@ TriangleMesh ClayOf(const std::string& path, const std::string& name) {
 
 // Enclosed volume by the divergence theorem, summed here (m³).
 double Volume(const TriangleMesh& m) { return spidarcad::test_support::EnclosedVolume(m); }
+
+// SnapField's pull toward a feature at distance d with capture radius r, written out here from
+// its documented profile (snap_field.h): F_max·tanh(d/d_s)·w(d), d_s = r/4,
+// w = 1 − S((d − r/2)/(r/2)) clamped to [0, 1], S(u) = 3u² − 2u³; zero from d = r on.
+double FacePull(double d, double r, double max_force) {
+  if (!(d > 0.0 && d < r)) return 0.0;
+  const double u = std::clamp((d - r / 2) / (r / 2), 0.0, 1.0);
+  return max_force * std::tanh(d / (r / 4)) * (1.0 - (3 * u * u - 2 * u * u * u));
+}
 
 Eigen::Vector3d Fk(const CsvTable& csv, int row) {
   return Eigen::Vector3d(csv.rows[row][csv.Column("fk_x")], csv.rows[row][csv.Column("fk_y")],
@@ -272,6 +286,145 @@ TEST(ScriptedRun, BoardSimUnpluggedGivesZeroForceAndRampsBackAfterTheReplug) {
   ASSERT_NE(lost_at, std::string::npos) << run_a.out;
   EXPECT_EQ(run_a.out.find(", lost 0,", lost_at), std::string::npos) << run_a.out;
   EXPECT_NE(run_a.out.find("connects 2"), std::string::npos) << run_a.out;
+}
+
+// Modelling by touch, headless: the golden run touch_place_sphere (assets/scenes/touch_box.json,
+// a 40 mm cube centred at (0, 0, -0.04) m, top face z = -0.02 m; scripts/make-touch-trajectory.py:
+// the grasp closes to 50 deg far above the face, the grip comes down to 1 mm above where the
+// sphere would rest, holds, squeezes once at t = 6.0-6.3 s, goes back up) with --save, checked
+// tick by tick with the grip where the loop sees it (FK), c the ghost's size of the tick:
+//   - far from the features (more than the 6 mm capture from the face lifted by touch_lift, the
+//     felt field's lift: c/2 of the latest steady grasp): no force at all;
+//   - every force at most 0.8 N; near, on every tick without a safety event, along the face's
+//     normal toward the lifted face and SnapField's pull F(|d|)·w(|d|) at the grip's height d
+//     above it, to 1e-9 N (on the ticks with the passivity observer's damping, bit 9, the loop
+//     adds −α·v to the pull: fewer than a quarter of the near ticks);
+//   - exactly one place; the saved sphere's centre is on the lifted face (z = -0.02 + c/2) at the
+//     measured grip's x, y of the place (within 0.5 mm), its diameter c = d·θ with θ the measured
+//     grasp before the squeeze: 50 deg within 1 %.
+TEST(ScriptedRun, PlacesASphereByTouchOnTheFaceItsSnapPullLeadsTo) {
+  const std::string csv_path = TestOutputPath("touch_place.csv");
+  const std::string saved = TestOutputPath("touch_place_saved.json");
+  const auto run =
+      RunSpidarcad("run '" + Source("assets/scenes/touch_box.json") + "' --trajectory '" +
+                       Source("assets/trajectories/touch_place.csv") +
+                       "' --world-scale 1 --world-origin 0,0,0 --calibrate --place "
+                       "sphere --out '" +
+                       csv_path + "' --save '" + saved + "'",
+                   "", "touch_place");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.out.find("fields: proxy 'cube', touch_snap (place sphere)"), std::string::npos)
+      << run.out;
+  EXPECT_NE(run.out.find("touch: placing sphere (snap pull at most 0.8 N); 1 placed"),
+            std::string::npos)
+      << run.out;
+  const CsvTable csv = ReadCsvTable(csv_path);
+  const int fx = csv.Column("fx"), fy = csv.Column("fy"), fz = csv.Column("fz");
+  const int size = csv.Column("touch_size"), placed = csv.Column("placed");
+  const int lift = csv.Column("touch_lift"), events = csv.Column("events");
+  const int feature = csv.Column("touch_feature"), t = csv.Column("t");
+  ASSERT_GE(size, 0);
+  ASSERT_EQ(placed, static_cast<int>(csv.columns.size()) - 1) << "the touch columns come last";
+  const double top = -0.02, capture = 0.006, max_force = 0.8;
+  int far_ticks = 0, near_ticks = 0, closed_form_ticks = 0, limited_ticks = 0, place_row = -1;
+  double largest = 0.0, worst_closed_form = 0.0;
+  for (std::size_t k = 1; k < csv.rows.size(); ++k) {
+    const std::vector<double>& r = csv.rows[k];
+    const Eigen::Vector3d f(r[fx], r[fy], r[fz]);
+    largest = std::max(largest, f.norm());
+    if (r[placed] != csv.rows[k - 1][placed]) {
+      EXPECT_EQ(place_row, -1) << "a second place at t = " << r[t];
+      place_row = static_cast<int>(k);
+    }
+    EXPECT_LE(f.norm(), max_force + 1e-9) << "t = " << r[t];
+    // The felt field of this tick is the one the previous row's frame left: its faces lifted by
+    // that row's touch_lift (0: none yet).
+    const double lifted = csv.rows[k - 1][lift];
+    if (lifted == 0.0) {
+      EXPECT_EQ(f.norm(), 0.0) << "t = " << r[t] << ": no felt field yet";
+      continue;
+    }
+    const double d = Fk(csv, static_cast<int>(k)).z() - (top + lifted);  // above the lifted face
+    if (std::abs(d) > capture) {
+      ++far_ticks;
+      EXPECT_EQ(f.norm(), 0.0) << "t = " << r[t] << ", " << d << " m from the lifted face";
+      continue;
+    }
+    ++near_ticks;
+    if (r[events] != 0.0) {  // the passivity observer's damping, −α·v, is added to the pull
+      ++limited_ticks;
+      continue;
+    }
+    // No ramp, no limiter: the loop commands the field's force, toward the lifted face along its
+    // normal (down above it, up below it), SnapField's closed form.
+    EXPECT_LE(f.head<2>().norm(), 1e-9) << "t = " << r[t];
+    EXPECT_LE(f.z() * d, 0.0) << "t = " << r[t];
+    {
+      worst_closed_form =
+          std::max(worst_closed_form,
+                   std::abs(f.z() + std::copysign(FacePull(std::abs(d), capture, max_force), d)));
+      ++closed_form_ticks;
+    }
+  }
+  EXPECT_GT(far_ticks, 2000);
+  EXPECT_GT(near_ticks, 1000);
+  EXPECT_GT(closed_form_ticks, 2000);
+  EXPECT_LT(limited_ticks, near_ticks / 4);
+  EXPECT_LT(worst_closed_form, 1e-9);
+  EXPECT_GT(largest, 0.1) << "the pull was felt";
+  ASSERT_GT(place_row, 0) << "nothing placed";
+  EXPECT_EQ(csv.rows[place_row][feature], 1.0) << "aligned to a face when placed";
+  EXPECT_GT(csv.rows[place_row][t], 6.0);
+  EXPECT_LT(csv.rows[place_row][t], 6.4);
+  // The saved document: the cube and the sphere, resting on the top face at the grip.
+  spidarcad::app::Document doc;
+  doc.Load(saved);
+  const spidarcad::app::DocObject* sphere = doc.FindByName("sphere");
+  ASSERT_NE(sphere, nullptr) << "--save wrote no sphere";
+  const auto& root = std::get<spidarcad::app::SolidData>(sphere->data).root;
+  const spidarcad::app::NodePose pose = spidarcad::app::PoseOfNode(root);
+  const double diameter = 2.0 * std::get<spidarcad::modeling::SphereParams>(
+                                    root.children.front().children.front().params)
+                                    .radius;
+  const double theta = 50.0 * std::acos(-1.0) / 180.0;
+  EXPECT_NEAR(diameter, 0.04 * theta, 0.01 * 0.04 * theta);
+  // The ghost's size when the squeeze began (within its 0.4 s) is the one placed.
+  bool seen = false;
+  for (int k = place_row - 400; k < place_row; ++k) seen = seen || csv.rows[k][size] == diameter;
+  EXPECT_TRUE(seen) << diameter;
+  const Eigen::Vector3d centre = pose.X_AN.translation();
+  EXPECT_NEAR(centre.z(), top + diameter / 2, 1e-12);
+  const Eigen::Vector3d grip = Fk(csv, place_row);
+  EXPECT_LT((centre.head<2>() - grip.head<2>()).norm(), 0.0005);
+  // Squared to the face: its z axis exactly vertical (the yaw is the measured grip's, < 1°).
+  EXPECT_NEAR(pose.X_AN.linear()(2, 2), 1.0, 1e-12);
+  EXPECT_LT(Eigen::AngleAxisd(pose.X_AN.linear()).angle(), std::acos(-1.0) / 180.0);
+}
+
+// --place: a primitive the grip places, in a document of solids; else exit 2 saying why.
+TEST(ScriptedRun, RefusesAPlaceOfAnotherKindOrWithoutADocumentOfSolids) {
+  const std::string traj = Source("assets/trajectories/touch_place.csv");
+  const std::string out = TestOutputPath("place_refused.csv");
+  const auto cone =
+      RunSpidarcad("run '" + Source("assets/scenes/touch_box.json") +
+                       "' --place cone --trajectory '" + traj + "' --out '" + out + "'",
+                   "", "refused_cone");
+  EXPECT_EQ(cone.status, 2);
+  EXPECT_NE(cone.err.find("--place: 'cone' is not a primitive the grip places: use sphere, box or "
+                          "cylinder"),
+            std::string::npos)
+      << cone.err;
+  const auto demo = RunSpidarcad(
+      "run demo --place box --trajectory '" + traj + "' --out '" + out + "'", "", "refused_demo");
+  EXPECT_EQ(demo.status, 2);
+  EXPECT_NE(demo.err.find("--place: needs a scene file or document"), std::string::npos)
+      << demo.err;
+  const auto assembly =
+      RunSpidarcad("run '" + Source("assets/scenes/assembly.json") +
+                       "' --place box --trajectory '" + traj + "' --out '" + out + "'",
+                   "", "refused_assembly");
+  EXPECT_EQ(assembly.status, 2);
+  EXPECT_NE(assembly.err.find("is an assembly"), std::string::npos) << assembly.err;
 }
 
 TEST(ScriptedRun, RefusesLinkFaultsOffBoardSimAndAReplugWithoutAnUnplug) {

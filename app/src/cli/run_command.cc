@@ -6,6 +6,8 @@
 // directly, the USB driver over the in-process board simulator (board-sim), or the USB driver
 // over libusb to a real board (usb, real time).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+#include "cli/run_command.h"
+
 #include <unistd.h>
 
 #include <chrono>
@@ -120,6 +122,18 @@ constexpr const char* kRunHelp =
     "tick (the window factors it on a worker).\n"
     "A scene with a \"snap\" object adds snap forces toward its solids' vertices, edges and\n"
     "faces (docs/scene-format.md, \"Snap forces\"); the summary gives the feature counts.\n"
+    "--place sphere|box|cylinder (documents of solids, not assemblies): modelling by touch, as\n"
+    "the window's model mode with --place (scene/touch_session.h). Every 16 ticks (the window's\n"
+    "frame) a ghost of the primitive is put at the measured grip, sized by the grasp (c = s·d·θ,\n"
+    "θ clamped to 20..160 deg: the sphere's and cylinder's diameter, the box's edge) and aligned\n"
+    "to the document's solids: its centre onto a vertex within s·5 mm, else onto an edge or a\n"
+    "round primitive's axis whose line passes within s·4 mm of its centre, else resting on a\n"
+    "face its lowest point is within s·6 mm of. A snap field pulls the grip toward where the\n"
+    "ghost would align (at most 0.8 N; the faces lifted by c/2 of the grasp once it has held\n"
+    "within 2 % for 0.1 s, so a squeeze does not move them). A quick squeeze\n"
+    "of the grasp (closed by 10 deg and opened again by 10 deg within 0.4 s) adds the ghost as\n"
+    "it was when the squeeze began as a new solid (one command; --save writes it). The solids\n"
+    "placed are not felt during the run. The summary lists each place.\n"
     "A scene with `parts` (an assembly, e.g. assets/scenes/assembly.json) is rendered as one\n"
     "assembly field instead: parts are picked with the grasp, carried with six-DOF contact and\n"
     "seated peg in hole; X_WD is then identity unless --world-scale/--world-origin say otherwise.\n"
@@ -160,6 +174,12 @@ constexpr const char* kRunHelp =
     "  plugged           (the same) 1 while the simulated cable is in\n"
     "  link_lost,link_corrupt  (the same) the driver's counts so far of State packets lost\n"
     "                    (sequence gaps) and corrupt (bad CRC, length or magic)\n"
+    "  touch_feature     (--place only) what the ghost aligned to at the latest frame: 0 none,\n"
+    "                    1 face, 2 edge, 3 axis, 4 vertex\n"
+    "  touch_size        (the same) the ghost's size c, m (W)\n"
+    "  touch_lift        (the same) the felt faces' lift (c/2 of the latest steady grasp), m\n"
+    "                    (W); 0 with no felt field\n"
+    "  placed            (the same) solids placed so far\n"
     "\n"
     "The window gives the same CSV with `spidarcad SCENE --clock virtual --trajectory T.csv\n"
     "--out R.csv` and these options (docs/user-guide.md, scripted runs); only tick_us, the\n"
@@ -240,15 +260,10 @@ void RunRun(const RunOptions& options) {
 
 }  // namespace
 
-void RegisterRunCommand(CLI::App& app) {
-  auto options = std::make_shared<RunOptions>();
-  ScriptedRunOptions* run = &options->run;
-  CLI::App* cmd = app.add_subcommand("run", "Headless haptic session on a scripted trajectory");
-  cmd->footer(kRunHelp);
+void AddRunCommandOptions(CLI::App* cmd, ScriptedRunOptions* run) {
   cmd->add_option("scene", run->scene, "Scene: omitted (empty), 'demo' or a scene file (.json)");
   cmd->add_option("--trajectory", run->trajectory, "Trajectory CSV (t,x,y,z,qw,qx,qy,qz,grasp)")
       ->required();
-  cmd->add_option("--out", options->out, "Result CSV, one row per tick")->required();
   cmd->add_option("--device", run->device,
                   "Device: simulated (default), ideal (no encoder errors, rigid hand), board-sim "
                   "(USB driver over the board simulator) or usb (a real board)");
@@ -258,8 +273,12 @@ void RegisterRunCommand(CLI::App& app) {
                   "it must be this device's and frame's)");
   AddGeometryOptions(*cmd, &run->geometry, &run->geometry_given);
   AddScriptedRunOptions(*cmd, run);
-  cmd->add_flag("--progress", options->progress,
-                "Show progress on stderr even when it is not a terminal");
+  cmd->add_option("--place", run->place,
+                  "Documents of solids: model by touch, placing this primitive (sphere, box or "
+                  "cylinder) as the window's model mode does: the snap pull toward vertices, "
+                  "faces, edges and axes is felt and each quick squeeze of the grasp adds it as "
+                  "a solid")
+      ->type_name("KIND");
   cmd->add_option("--save", run->save,
                   "Documents: write the document as it stands at the end of the run to OUT "
                   "(repeatable)")
@@ -271,6 +290,16 @@ void RegisterRunCommand(CLI::App& app) {
                   "as .stl, .obj or .ply")
       ->type_name("NAME=FILE")
       ->allow_extra_args(false);
+}
+
+void RegisterRunCommand(CLI::App& app) {
+  auto options = std::make_shared<RunOptions>();
+  CLI::App* cmd = app.add_subcommand("run", "Headless haptic session on a scripted trajectory");
+  cmd->footer(kRunHelp);
+  AddRunCommandOptions(cmd, &options->run);
+  cmd->add_option("--out", options->out, "Result CSV, one row per tick")->required();
+  cmd->add_flag("--progress", options->progress,
+                "Show progress on stderr even when it is not a terminal");
   cmd->callback([options]() { RunRun(*options); });
 }
 

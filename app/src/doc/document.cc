@@ -306,9 +306,10 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
   return doc;
 }
 
-void Document::Load(const std::string& path) {
-  ReadDocumentFile(path, this);  // throws SceneError naming the file; nothing changed then
+int Document::Load(const std::string& path) {
+  const int version = ReadDocumentFile(path, this);  // throws SceneError naming the file
   file_path_ = path;
+  return version;
 }
 
 void Document::AdoptContent(std::vector<DocObject> objects, std::string description,

@@ -222,7 +222,9 @@ class Document {
   // Replaces the content with a document file (docs/scene-format.md: version 1 scenes and
   // version 2 documents). Throws modeling::SceneError (file, line, pointer) and leaves the
   // document as it was when the file is bad, including node ids repeated across solids.
-  void Load(const std::string& path);
+  // Returns the version read: 1 for a scene file, 2 for a document. The file is read and
+  // parsed once.
+  int Load(const std::string& path);
   // Replaces the content with the solids of a scene (source names it in errors).
   void LoadScene(const modeling::Scene& scene, const std::string& source = "<scene>");
   // Writes the document (temporary file renamed over path: version 1 when it holds only what a

@@ -843,7 +843,7 @@ void WriteDocumentFile(const Document& doc, const std::string& path,
     fail("cannot replace the file: " + std::string(std::strerror(errno)));
 }
 
-void ParseDocumentText(const std::string& text, const std::string& source, Document* doc) {
+int ParseDocumentText(const std::string& text, const std::string& source, Document* doc) {
   // Syntax, nesting and number errors with line, column and field; no recursion.
   const json j = modeling::ParseJsonText(text, source);
   const bool v2 = j.is_object() && j.contains("version") && j.at("version").is_number_integer() &&
@@ -857,8 +857,8 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
                          " was written by a newer spidarcad; this one reads versions 1 and 2");
   }
   if (!v2) {
-    doc->LoadScene(modeling::ParseScene(text, source), source);
-    return;
+    doc->LoadScene(modeling::ParseScene(j, text, source), source);  // j: not parsed again
+    return 1;
   }
   try {
     if (!j.contains("format") || !j.at("format").is_string() ||
@@ -875,11 +875,12 @@ void ParseDocumentText(const std::string& text, const std::string& source, Docum
     modeling::LocateJsonPointer(text, e.pointer(), &line, &column);
     throw SceneError(source, line, column, e.pointer(), e.message());
   }
+  return 2;
 }
 
-void ReadDocumentFile(const std::string& path, Document* doc) {
-  ParseDocumentText(modeling::ReadBoundedFile(path, kMaxDocumentFileBytes, "document file"), path,
-                    doc);
+int ReadDocumentFile(const std::string& path, Document* doc) {
+  return ParseDocumentText(modeling::ReadBoundedFile(path, kMaxDocumentFileBytes, "document file"),
+                           path, doc);
 }
 
 bool ReadRecoveredFrom(const std::string& path, std::string* original) {

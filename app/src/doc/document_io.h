@@ -38,16 +38,18 @@ nlohmann::json DocumentToFileJson(const Document& doc, const DocumentWriteOption
 // modeling::SceneError naming path when it cannot be written; path is untouched then.
 void WriteDocumentFile(const Document& doc, const std::string& path,
                        const DocumentWriteOptions& options = {});
-// Replaces doc's content with the document text (version 1 or 2). Throws modeling::SceneError
-// naming source, the line and column and the JSON pointer of the bad field; doc is unchanged then.
-void ParseDocumentText(const std::string& text, const std::string& source, Document* doc);
+// Replaces doc's content with the document text (version 1 or 2) and returns the version read.
+// The text is parsed once (a version 1 scene too). Throws modeling::SceneError naming source,
+// the line and column and the JSON pointer of the bad field; doc is unchanged then.
+int ParseDocumentText(const std::string& text, const std::string& source, Document* doc);
 // Largest document file ReadDocumentFile reads, bytes (256 MiB; docs/limits.md): documents hold
 // meshes, so they may be larger than scene files (kMaxSceneFileBytes).
 inline constexpr long long kMaxDocumentFileBytes = 256LL << 20;
-// Reads a document file into doc (ParseDocumentText of its bytes). Does not set file_path().
-// A path that is not a regular file (a directory, /dev/zero, a pipe) or a file larger than
-// kMaxDocumentFileBytes is refused before reading (modeling::ReadBoundedFile).
-void ReadDocumentFile(const std::string& path, Document* doc);
+// Reads a document file into doc (ParseDocumentText of its bytes, read once) and returns the
+// version read (1 or 2). Does not set file_path(). A path that is not a regular file (a directory,
+// /dev/zero, a pipe) or a file larger than kMaxDocumentFileBytes is refused before reading
+// (modeling::ReadBoundedFile).
+int ReadDocumentFile(const std::string& path, Document* doc);
 // "recovered_from" of a version 2 file: true when present (then *original holds it); false for
 // files without it or unreadable ones.
 bool ReadRecoveredFrom(const std::string& path, std::string* original);

@@ -258,18 +258,47 @@ void AdoptParts(SceneModel* model) {
 
 }  // namespace
 
-// A document being read on a thread of its own (AppWindow::ReplaceDocument): shared by the
+// A document being read on a thread of its own (AppWindow::ReadOffThread: the start-up
+// document, File → Open and the like, the reload after an outside change): shared by the
 // window, which may give up waiting for it (Cancel), and the thread, which then ends at its
 // next look at `cancel` and drops what it made.
 struct OpenWork {
   std::atomic<bool> cancel{false};
   std::atomic<bool> done{false};  // the thread has set what follows
   PrepareProgress progress;
-  bool assembly = false;
-  modeling::Scene assembly_scene;
   PreparedScene prepared;
   std::exception_ptr failure;
 };
+
+namespace {
+
+// The thread of an OpenWork: reads `source` (SceneModel::Prepare, which reads and parses the
+// file once and says whether it is a version 1 assembly). Destroyed while still joinable (an
+// exception left the wait), it raises the flag and joins.
+struct OpenThread {
+  std::shared_ptr<OpenWork> work = std::make_shared<OpenWork>();
+  std::thread thread;
+  explicit OpenThread(const std::string& source) {
+    thread = std::thread([work = work, source] {
+      try {
+        work->prepared = SceneModel::Prepare(source, &work->cancel, &work->progress);
+      } catch (...) {
+        work->failure = std::current_exception();
+      }
+      work->done.store(true);
+    });
+  }
+  OpenThread(const OpenThread&) = delete;
+  OpenThread& operator=(const OpenThread&) = delete;
+  ~OpenThread() {
+    if (thread.joinable()) {
+      work->cancel.store(true);
+      thread.join();
+    }
+  }
+};
+
+}  // namespace
 
 struct AppWindow::State {
   GuiOptions options;
@@ -277,8 +306,6 @@ struct AppWindow::State {
   std::unique_ptr<GripControl> grip;
   haptics::Trajectory trajectory;
   SceneModel model;
-  modeling::Scene assembly_scene;
-  bool assembly = false;
   std::unique_ptr<TreeController> tree;
   TreePanelState tree_state;
   // GLFW, the loop, the jobs.
@@ -324,6 +351,8 @@ struct AppWindow::State {
   ImVec2 press{0.0f, 0.0f};   // where the left button went down (a click if it stays)
   double press_travel = 0.0;  // pixels the mouse moved since
   bool select_key = false;    // Enter this frame
+  bool place_key = false;     // P this frame
+  bool grab_key = false;      // G this frame
   bool quit = false;
   bool capture = false;
   bool done = false;
@@ -361,11 +390,17 @@ struct AppWindow::State {
   bool file_error_popup = false;
   std::atomic<bool> opening{false};      // WaitForOpen is running (read by any thread)
   std::atomic<bool> cancel_open{false};  // CancelOpen (any thread)
+  bool window_open = false;              // GLFW, the window and ImGui are up (OpenWindow)
   // Threads of cancelled opens, left to end on their own at their next look at the flag
   // (within one parse, one compile or one box); joined when the window goes.
   std::vector<std::thread> cancelled_opens;
   FileBrowserState open_browser;
   FileBrowserState import_browser;
+  // Also when the constructor throws after a cancelled start-up read (no ~AppWindow then).
+  ~State() {
+    for (std::thread& t : cancelled_opens)
+      if (t.joinable()) t.join();
+  }
 };
 
 AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) {
@@ -379,6 +414,21 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
                               Eigen::AngleAxisd(g0[3] * kDegToRad, Eigen::Vector3d::UnitX()))
                                  .toRotationMatrix();
   s.grip->SetPose(Eigen::Vector3d(g0[0], g0[1], g0[2]) * 1e-3, R0, g0[6] * kDegToRad);
+  // --place: checked before any window opens.
+  std::optional<PlaceKind> place;
+  if (!options.place.empty()) {
+    if (!options.mode.empty()) {
+      throw WindowStartError(2,
+                             "spidarcad: error: --place: primitives are placed in model mode; "
+                             "drop --mode " +
+                                 options.mode + " (or --place)");
+    }
+    try {
+      place = ParsePlaceKind(options.place);
+    } catch (const std::invalid_argument& e) {
+      throw WindowStartError(2, std::string("spidarcad: error: --place: ") + e.what());
+    }
+  }
   // --trajectory: read before any window opens; the grip starts at its first sample.
   if (!options.trajectory.empty()) {
     try {
@@ -446,13 +496,41 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   s.recovery_popup_requested = s.recovery_offer.has_value();
   // An assembly scene (one with `parts`) keeps X_WD = identity, as `spidarcad run` does, so that
   // one trajectory file works in both.
-  s.assembly = LoadAssemblyScene(load_from, &s.assembly_scene);
-  try {
+  // The document is read on a thread of its own while the window opens and shows the
+  // "Opening FILE" box; its Cancel starts the window on an empty document instead (a scripted
+  // run on the virtual clock, which needs its document, ends). Without a display the document
+  // is read first, and the display's error comes after every check of the document and the
+  // options, as before.
+  s.capture = !options.screenshot.empty();
+  bool startup_cancelled = false;
+  {
+    OpenThread reading(virtual_clock && load_from == kDemoSceneName ? kNoSceneName : load_from);
+    OpenWindow();
+    if (s.window_open && !WaitForOpen(load_from, reading.work.get())) {
+      if (virtual_clock) {
+        throw WindowStartError(1, "spidarcad: opening " + load_from + " was cancelled");
+      }
+      s.cancelled_opens.push_back(std::move(reading.thread));  // ends on its own
+      startup_cancelled = true;
+    } else {
+      reading.thread.join();
+    }
     const DeviceToWorld identity;
-    s.model.Load(virtual_clock && load_from == kDemoSceneName ? kNoSceneName : load_from,
-                 s.grip->limits(), s.assembly ? &identity : nullptr);
-  } catch (const std::exception& e) {
-    throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
+    try {
+      if (startup_cancelled) {
+        s.model.Load(kNoSceneName, s.grip->limits());
+        load_from = kNoSceneName;
+        recovered_original.reset();
+        s.workbench.status = "opening " + source + ": cancelled (an empty document instead)";
+      } else {
+        OpenWork& work = *reading.work;
+        if (work.failure) std::rethrow_exception(work.failure);
+        const bool assembly = work.prepared.assembly;
+        s.model.Adopt(std::move(work.prepared), s.grip->limits(), assembly ? &identity : nullptr);
+      }
+    } catch (const std::exception& e) {
+      throw WindowStartError(2, std::string("spidarcad: error: scene: ") + e.what());
+    }
   }
   if (virtual_clock) {
     // The scripted run, on the document just opened (before the window adopts a version 1
@@ -465,6 +543,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     run.geometry = options.geometry;
     run.geometry_given = options.geometry_given;
     run.calibration = options.calibration;
+    run.place = options.place;  // the run models by touch; the window shows its ghost
     const bool file = !(run.scene.empty() || run.scene == kDemoSceneName);
     try {
       s.scripted =
@@ -489,14 +568,14 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   // Undo and redo wait while the active mode holds a gesture (a carried part, a sculpt stroke).
   s.tree->set_history_hold(
       [this] { return s_->active != nullptr ? s_->active->HistoryHold() : std::string(); });
-  if (!options.select.empty()) {
+  if (!options.select.empty() && !startup_cancelled) {
     if (!s.tree->SelectByName(options.select)) {
       throw WindowStartError(2, "spidarcad: error: --select: " + NoSuchNodeText(options.select));
     }
   } else if (!s.model.objects().empty()) {
     s.tree->Select(s.model.objects().front().id);
   }
-  ApplySetEdits();
+  if (!startup_cancelled) ApplySetEdits();  // --set edits the document that was asked for
   // Scripted runs leave the start-up document out of the recent list.
   if (options.frames > 0 || !options.screenshot.empty()) {
     s.recorded_path = s.model.document().file_path();
@@ -528,31 +607,12 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
     throw WindowStartError(2, std::string("spidarcad: error: --frame/--pole: ") + e.what());
   }
 
-  // The window.
-  glfwSetErrorCallback(GlfwError);
-  s.glfw = std::make_unique<GlfwSession>();
-  if (!s.glfw->ok) {
+  // The window (opened by OpenWindow while the document was read).
+  if (!s.window_open) {
     throw WindowStartError(1,
                            "spidarcad: cannot initialise GLFW (no display?). Run under "
                            "`xvfb-run -a spidarcad` or use the headless subcommands.");
   }
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 2);
-  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-  glfwWindowHint(GLFW_DEPTH_BITS, 24);
-  s.window =
-      glfwCreateWindow(options.width, options.height, "spidarcad — SPIDAR-G", nullptr, nullptr);
-  if (s.window == nullptr) {
-    throw WindowStartError(1, "spidarcad: cannot create a " + std::to_string(options.width) + "x" +
-                                  std::to_string(options.height) + " OpenGL 3.2 window");
-  }
-  glfwMakeContextCurrent(s.window);
-  PinGlDriverForLeakCheck();
-  glfwSetWindowUserPointer(s.window, this);
-  glfwSetDropCallback(s.window, OnDrop);
-  s.capture = !options.screenshot.empty();
-  glfwSwapInterval(s.capture || options.frames > 0 || s.scripted ? 0 : 1);
 
   // The haptic runtime (its own 1 kHz thread, started once the modes have published) and jobs.
   try {
@@ -599,21 +659,16 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
   s.context.tree = s.tree.get();
   s.context.workbench = &s.workbench;
 
-  // ImGui on top.
-  s.imgui = std::make_unique<ImGuiSession>();
-  ImGuiIO& io = ImGui::GetIO();
-  io.IniFilename = nullptr;  // the panels are docked; there is nothing worth saving
-  ApplyPanelStyle();
-  LoadFont();
-  s.imgui->glfw = ImGui_ImplGlfw_InitForOpenGL(s.window, true);
-  s.imgui->gl3 = ImGui_ImplOpenGL3_Init("#version 150");
-  if (!s.imgui->glfw || !s.imgui->gl3) {
-    throw WindowStartError(1, "spidarcad: cannot initialise the ImGui backends");
-  }
-
   // The starting mode: --mode, else the base mode (assembly for a scene with parts, else
   // modelling). Then the first scene, and the loop starts.
   StartScene(options.mode);
+  // --place KIND: the ghost of that primitive follows the grip from the first frame. On the
+  // virtual clock the scripted run places (ScriptedRunOptions::place); the mode shows its ghost.
+  if (s.scripted) {
+    s.model_mode->ShowScriptedTouch(s.scripted->run().touch());
+  } else if (place) {
+    s.model_mode->SetPlacing(*place);
+  }
 
   // --trajectory: played into the hand's target from here on (its own thread, 1 kHz); the main
   // thread takes the target back (the mouse's grip, set to the last sample) once it has ended.
@@ -648,6 +703,7 @@ AppWindow::AppWindow(const GuiOptions& options) : s_(std::make_unique<State>()) 
 AppWindow::~AppWindow() {
   State& s = *s_;
   for (std::thread& t : s.cancelled_opens) t.join();
+  s.cancelled_opens.clear();
   if (s.player) s.player->Stop();
   s.player.reset();
   s.calibration.Attach(nullptr);
@@ -698,20 +754,16 @@ bool AppWindow::Frame() {
   RunPendingAction();  // New, Open, Quit once answered (or with nothing unsaved)
   if (s.quit) return false;
   ++s.frame_index;
+  // The scene file changed on disk: read again off this thread (outside an ImGui frame, as
+  // the wait draws frames of its own).
+  if (s.frame_index % kReloadCheckFrames == 0 && !s.scripted && s.model.SourceChanged()) {
+    ReloadSource();
+  }
   if (!ReadWindowSize()) {  // minimised
     glfwWaitEvents();
     return true;
   }
-  s.render_window->SetSize(s.fb_w, s.fb_h);
-  LayoutSizes sizes;
-  sizes.menu_height = s.menu_height;
-  sizes.collapsed_height = s.frame_height;
-  sizes.bottom_collapsed = !s.workbench.show_figures;
-  s.layout = ComputeLayout(static_cast<float>(s.win_w), static_cast<float>(s.win_h), sizes);
-  // The renderer draws exactly in the viewport rectangle (VTK: normalised, origin bottom left).
-  const Rect& v = s.layout.viewport;
-  s.view->renderer()->SetViewport(v.x / s.win_w, 1.0 - v.bottom() / s.win_h, v.right() / s.win_w,
-                                  1.0 - v.y / s.win_h);
+  UpdateLayout();
   if (s.fit_pending) {  // the first frame: the viewport's aspect is known now
     s.fit_pending = false;
     Eigen::AlignedBox3d box = SubjectBox(s.model, -1, false, *s.view);
@@ -948,6 +1000,8 @@ void AppWindow::HandleInput() {
         ImGui::IsKeyPressed(GLFW_KEY_KP_ENTER, false)) {
       s.select_key = true;
     }
+    if (ImGui::IsKeyPressed(GLFW_KEY_P, false) && !io.KeyCtrl) s.place_key = true;
+    if (ImGui::IsKeyPressed(GLFW_KEY_G, false) && !io.KeyCtrl) s.grab_key = true;
     if (ImGui::IsKeyPressed(GLFW_KEY_EQUAL) || ImGui::IsKeyPressed(GLFW_KEY_KP_ADD)) view.Zoom(1.1);
     if (ImGui::IsKeyPressed(GLFW_KEY_MINUS) || ImGui::IsKeyPressed(GLFW_KEY_KP_SUBTRACT)) {
       view.Zoom(1.0 / 1.1);
@@ -1014,29 +1068,13 @@ void AppWindow::PollJobs() {
     }
   }
   s.jobs->Prune();
-  if (s.frame_index % kReloadCheckFrames == 0 && !s.scripted && s.model.SourceChanged()) {
-    try {
-      s.jobs->CancelAll();
-      s.model.Load(s.model.source(), s.grip->limits(), &s.model.device_to_world());
-      AdoptParts(&s.model);
-      s.assembly_mode->assembly().LoadDocument(s.model.document());  // none: it empties
-      s.model_mode->SetFelt(BaseMode() != s.assembly_mode);
-      if (!s.active->available()) SwitchMode(s.model_mode);
-      ApplyHidden();
-      s.republish = true;
-      s.model.StartPreviewJobs(s.jobs.get());
-      s.workbench.status = "reloaded " + s.model.source();
-      s.workbench.status_error = false;
-    } catch (const std::exception& e) {
-      s.workbench.status = std::string("reload failed (kept the old scene): ") + e.what();
-      s.workbench.status_error = true;
-    }
-  }
 }
 
 void AppWindow::UpdateModes() {
   State& s = *s_;
   s.context.select_key = s.select_key;
+  s.context.place_key = std::exchange(s.place_key, false);
+  s.context.grab_key = std::exchange(s.grab_key, false);
   bool changed = false;
   for (auto& m : s.modes) {
     m->Update(s.latest.tool, s.context);
@@ -1049,6 +1087,7 @@ void AppWindow::UpdateModes() {
   }
   s.select_key = false;
   s.context.select_key = false;
+  s.context.place_key = s.context.grab_key = false;
 }
 
 void AppWindow::DrawPanels() {
@@ -1312,6 +1351,7 @@ void AppWindow::MakeModes() {
   fe->fe().SetWorldToView(X_WD);
   auto sculpt = std::make_unique<SculptWindowMode>(renderer, s.jobs.get());
   sculpt->sculpt().SetWorldToView(X_WD);
+  sculpt->sculpt().SetGripPoleLength(s.geometry->d);
   // The virtual clock: the scripted run sculpts; the mode draws the clay as the run leaves it.
   sculpt->sculpt().set_strokes_enabled(s.scripted == nullptr);
   // Assembly scenes: the parts are one AssemblyField, drawn by AssemblyMode where the field has
@@ -1372,28 +1412,16 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
   }
   // Load first, off this thread (the window keeps drawing and can cancel): a file that fails
   // or is cancelled leaves the document, the loop and the modes as they were.
-  auto work = std::make_shared<OpenWork>();
-  std::thread worker([work, source] {
-    try {
-      work->assembly = LoadAssemblyScene(source, &work->assembly_scene);
-      work->prepared = SceneModel::Prepare(source, &work->cancel, &work->progress);
-    } catch (...) {
-      work->failure = std::current_exception();
-    }
-    work->done.store(true);
-  });
-  if (!WaitForOpen(source, work.get())) {  // cancelled: its thread ends on its own
-    s.cancelled_opens.push_back(std::move(worker));
+  const std::shared_ptr<OpenWork> work = ReadOffThread(source);
+  if (work == nullptr) {
     s.workbench.status = "opening " + source + ": cancelled (the document is unchanged)";
     s.workbench.status_error = false;
     return false;
   }
-  worker.join();
-  const bool assembly = work->assembly;
-  modeling::Scene assembly_scene = std::move(work->assembly_scene);
   try {
     if (work->failure) std::rethrow_exception(work->failure);
     const DeviceToWorld identity;
+    const bool assembly = work->prepared.assembly;
     s.model.Adopt(std::move(work->prepared), s.grip->limits(), assembly ? &identity : nullptr);
     AdoptParts(&s.model);
   } catch (const std::exception& e) {
@@ -1407,8 +1435,6 @@ bool AppWindow::ReplaceDocument(const std::string& source, const std::string* re
     s.model.document().MarkRecovered(*recovered_original);
     s.recovered_file = source;
   }
-  s.assembly = assembly;
-  s.assembly_scene = std::move(assembly_scene);
   // Tear down what belonged to the old document: the trajectory (it drives the old loop), the
   // loop, the jobs (joined: no finisher runs), the modes and the scene's actors.
   if (s.player) s.player->Stop();
@@ -1550,6 +1576,57 @@ void AppWindow::AnswerDiscardPrompt(int answer) {
   s.pending_path.clear();
 }
 
+void AppWindow::OpenWindow() {
+  State& s = *s_;
+  const GuiOptions& options = s.options;
+  glfwSetErrorCallback(GlfwError);
+  s.glfw = std::make_unique<GlfwSession>();
+  if (!s.glfw->ok) return;  // no display: the constructor says so after its other checks
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 2);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  glfwWindowHint(GLFW_DEPTH_BITS, 24);
+  s.window =
+      glfwCreateWindow(options.width, options.height, "spidarcad — SPIDAR-G", nullptr, nullptr);
+  if (s.window == nullptr) {
+    throw WindowStartError(1, "spidarcad: cannot create a " + std::to_string(options.width) + "x" +
+                                  std::to_string(options.height) + " OpenGL 3.2 window");
+  }
+  glfwMakeContextCurrent(s.window);
+  PinGlDriverForLeakCheck();
+  glfwSetWindowUserPointer(s.window, this);
+  glfwSetDropCallback(s.window, OnDrop);
+  glfwSwapInterval(s.capture || options.frames > 0 || options.clock == "virtual" ? 0 : 1);
+  // ImGui on top (up before VTK, so that the "Opening" box can be drawn while the start-up
+  // document is read).
+  s.imgui = std::make_unique<ImGuiSession>();
+  ImGuiIO& io = ImGui::GetIO();
+  io.IniFilename = nullptr;  // the panels are docked; there is nothing worth saving
+  ApplyPanelStyle();
+  LoadFont();
+  s.imgui->glfw = ImGui_ImplGlfw_InitForOpenGL(s.window, true);
+  s.imgui->gl3 = ImGui_ImplOpenGL3_Init("#version 150");
+  if (!s.imgui->glfw || !s.imgui->gl3) {
+    throw WindowStartError(1, "spidarcad: cannot initialise the ImGui backends");
+  }
+  s.window_open = true;
+}
+
+void AppWindow::UpdateLayout() {
+  State& s = *s_;
+  s.render_window->SetSize(s.fb_w, s.fb_h);
+  LayoutSizes sizes;
+  sizes.menu_height = s.menu_height;
+  sizes.collapsed_height = s.frame_height;
+  sizes.bottom_collapsed = !s.workbench.show_figures;
+  s.layout = ComputeLayout(static_cast<float>(s.win_w), static_cast<float>(s.win_h), sizes);
+  // The renderer draws exactly in the viewport rectangle (VTK: normalised, origin bottom left).
+  const Rect& v = s.layout.viewport;
+  s.view->renderer()->SetViewport(v.x / s.win_w, 1.0 - v.bottom() / s.win_h, v.right() / s.win_w,
+                                  1.0 - v.y / s.win_h);
+}
+
 bool AppWindow::ReadWindowSize() {
   State& s = *s_;
   glfwGetFramebufferSize(s.window, &s.fb_w, &s.fb_h);
@@ -1557,18 +1634,67 @@ bool AppWindow::ReadWindowSize() {
   return s.fb_w > 0 && s.fb_h > 0 && s.win_w > 0 && s.win_h > 0;
 }
 
+std::shared_ptr<OpenWork> AppWindow::ReadOffThread(const std::string& source) {
+  State& s = *s_;
+  OpenThread reading(source);
+  if (!WaitForOpen(source, reading.work.get())) {
+    s.cancelled_opens.push_back(std::move(reading.thread));  // ends on its own
+    return nullptr;
+  }
+  reading.thread.join();
+  return reading.work;
+}
+
+void AppWindow::ReloadSource() {
+  State& s = *s_;
+  const std::string source = s.model.source();
+  const std::shared_ptr<OpenWork> work = ReadOffThread(source);
+  if (work == nullptr) {
+    s.model.TakeSourceChange();  // not read again until the file changes again
+    s.workbench.status = "reloading " + source + ": cancelled (kept the old scene)";
+    s.workbench.status_error = false;
+    return;
+  }
+  try {
+    if (work->failure) std::rethrow_exception(work->failure);
+    s.jobs->CancelAll();
+    s.model.Adopt(std::move(work->prepared), s.grip->limits(), &s.model.device_to_world());
+    AdoptParts(&s.model);
+    s.assembly_mode->assembly().LoadDocument(s.model.document());  // none: it empties
+    s.model_mode->SetFelt(BaseMode() != s.assembly_mode);
+    if (!s.active->available()) SwitchMode(s.model_mode);
+    ApplyHidden();
+    s.republish = true;
+    s.model.StartPreviewJobs(s.jobs.get());
+    s.workbench.status = "reloaded " + s.model.source();
+    s.workbench.status_error = false;
+  } catch (const std::exception& e) {
+    s.model.TakeSourceChange();  // read again at the file's next change, not every half second
+    s.workbench.status = std::string("reload failed (kept the old scene): ") + e.what();
+    s.workbench.status_error = true;
+  }
+}
+
 bool AppWindow::WaitForOpen(const std::string& source, OpenWork* work) {
   State& s = *s_;
   s.cancel_open.store(false);  // a cancel of an earlier open does not carry over
   s.opening = true;
+  const auto cancelled = [&s] {
+    return s.cancel_open.load() ||
+           (s.options.cancel_open != nullptr && s.options.cancel_open->load());
+  };
   // A quick open (the demo, a small file) draws nothing: no flicker of a box.
   const auto start = std::chrono::steady_clock::now();
-  while (!work->done.load() && !s.cancel_open.load() &&
+  while (!work->done.load() && !cancelled() &&
          std::chrono::steady_clock::now() - start < std::chrono::milliseconds(150))
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   const std::string name = std::filesystem::path(source).filename().string();
+  // The window's panels (once it has them: not while the start-up document is read) are drawn
+  // as they were, disabled: nothing in them can be used until the document is open.
+  const bool panels =
+      s.render_window.GetPointer() != nullptr && s.active != nullptr && s.tree != nullptr;
   while (!work->done.load() && !work->cancel.load()) {
-    if (s.cancel_open.load()) break;
+    if (cancelled()) break;
     glfwPollEvents();  // a file dropped now is refused (DropFiles: s.opening)
     if (glfwWindowShouldClose(s.window)) {
       glfwSetWindowShouldClose(s.window, GLFW_FALSE);
@@ -1578,11 +1704,21 @@ bool AppWindow::WaitForOpen(const std::string& source, OpenWork* work) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
       continue;
     }
+    if (panels) UpdateLayout();
     ImGui_ImplOpenGL3_NewFrame();
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
+    if (panels) {
+      ImGui::BeginDisabled();
+      s.menu_height = DrawMenuBar(&s.model, s.jobs.get(), &s.workbench, &s.actions, s.tree.get(),
+                                  &s.tree_state, &s.recent_entries);
+      DrawPanels();
+      ImGui::EndDisabled();
+      s.actions = WorkbenchActions{};  // nothing drawn disabled acts
+    }
     ImGui::SetNextWindowPos(ImVec2(0.5f * s.win_w, 0.5f * s.win_h), ImGuiCond_Always,
                             ImVec2(0.5f, 0.5f));
+    ImGui::SetNextWindowFocus();  // over the panels
     ImGui::Begin("##opening", nullptr,
                  ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
                      ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoMove);
@@ -1599,7 +1735,13 @@ bool AppWindow::WaitForOpen(const std::string& source, OpenWork* work) {
     const bool cancel = ImGui::Button("Cancel") || ImGui::IsKeyPressed(GLFW_KEY_ESCAPE, false);
     ImGui::End();
     ImGui::Render();
-    RenderFrame();
+    if (panels) {
+      RenderFrame();
+    } else {
+      BindDefaultFramebuffer(s.fb_w, s.fb_h);
+      ClearDefaultFramebuffer(0.965f, 0.968f, 0.975f);
+      ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+    }
     glfwSwapBuffers(s.window);
     if (cancel) break;
   }

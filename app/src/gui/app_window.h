@@ -173,10 +173,26 @@ class AppWindow {
   void MakeModes();
   void StartScene(const std::string& mode_key);
   bool ReplaceDocument(const std::string& source, const std::string* recovered_original);
-  // Draws frames of a box "Opening `source`" (with how far *work has come) until its thread
-  // is done (true) or the user cancels: Cancel, Esc, the close button or CancelOpen (false,
+  // Draws frames of a box "Opening `source`" (with how far *work has come; over the panels,
+  // drawn disabled, once the window has them) until its thread is done (true) or the user
+  // cancels: Cancel, Esc, the close button, CancelOpen or GuiOptions::cancel_open (false,
   // work->cancel raised).
   bool WaitForOpen(const std::string& source, OpenWork* work);
+  // Reads (once), compiles and boxes `source` on a thread of its own while WaitForOpen draws;
+  // returns the finished work (a failure is in its `failure`), or null when the user cancelled:
+  // the thread then ends on its own at its next look at the flag, and is joined when the
+  // window goes.
+  std::shared_ptr<OpenWork> ReadOffThread(const std::string& source);
+  // The scene file changed on disk (SceneModel::SourceChanged): reads it again off the main
+  // thread (ReadOffThread) and adopts it, keeping X_WD; a failed or cancelled read keeps the
+  // old scene and waits for the file's next change.
+  void ReloadSource();
+  // Opens GLFW, the window and ImGui (state: window_open); without a display it opens nothing
+  // and returns (the constructor throws after its other checks). Throws WindowStartError(1)
+  // when the window or ImGui cannot be made.
+  void OpenWindow();
+  // The panels' rectangles and VTK's viewport for the window's current size.
+  void UpdateLayout();
   // Reads the window's framebuffer and window sizes into the state; false when minimised.
   bool ReadWindowSize();
   void ApplySetEdits();

@@ -600,16 +600,4 @@ std::string FormatAssemblySummary(const AssemblyMode& mode) {
   return FormatAssemblySummary(names, fixed, state);
 }
 
-bool LoadAssemblyScene(const std::string& source, modeling::Scene* scene) {
-  if (source.empty() || source == "demo" || source == "none") return false;
-  try {
-    modeling::Scene loaded = modeling::LoadScene(source);
-    if (loaded.parts.empty()) return false;
-    *scene = std::move(loaded);
-    return true;
-  } catch (const std::exception&) {
-    return false;  // the SceneModel names the problem
-  }
-}
-
 }  // namespace spidarcad::app

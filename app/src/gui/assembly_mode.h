@@ -188,9 +188,4 @@ class AssemblyMode {
 // last shown state (the text of FormatAssemblySummary in scene/assembly_scene.h, as `run`).
 std::string FormatAssemblySummary(const AssemblyMode& mode);
 
-// Reads the scene file `source` (not "demo" or "none") and returns true when it has parts,
-// filling *scene. False for the built-in names, a file without parts, or a file that cannot be
-// read (the SceneModel reports that one).
-bool LoadAssemblyScene(const std::string& source, modeling::Scene* scene);
-
 }  // namespace spidarcad::app

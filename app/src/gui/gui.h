@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -69,9 +70,16 @@ struct GuiOptions {
   // with the calibration wizard collecting while it waves the simulated grip itself
   // (screenshots of the documentation); "" for none.
   std::string show;
+  // --place sphere|box|cylinder: model mode starts with the ghost of that primitive following
+  // the grip (scene/touch_modelling.h); "" for none.
+  std::string place;
   // Not an option: what --device usb opens (tests: a LoopbackTransport to a BoardSimulator);
   // empty: libusb (RuntimeSettings::usb_transport).
   std::function<std::unique_ptr<haptics::usb::Transport>()> usb_transport;
+  // Not an option: when not null, while it is raised every document being opened is cancelled
+  // as by its Cancel button, the start-up document included (tests; once the window exists,
+  // AppWindow::CancelOpen cancels the one open in progress). Must outlive the window.
+  const std::atomic<bool>* cancel_open = nullptr;
 };
 
 // One --set edit: the node (as --select names it), the field (scene-format name) and the value

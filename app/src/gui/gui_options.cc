@@ -108,6 +108,13 @@ void AddGuiOptions(CLI::App& app, GuiOptions* options) {
                  "mesh dialog ('import') open, or the calibration wizard collecting while it "
                  "waves the simulated grip itself ('calibrate'), e.g. for a --screenshot of it")
       ->check(CLI::IsMember({"file-menu", "open", "import", "calibrate"}));
+  app.add_option("--place", options->place,
+                 "Model mode starts placing this primitive (sphere, box or cylinder): its ghost "
+                 "follows the grip, the grasp sets its size (s·d·θ, the arc between the pole "
+                 "tips), it aligns to faces, edges and axes it comes near, and P, the panel's "
+                 "Place button or a squeeze of the grasp adds it as a new solid (one undo step). "
+                 "Not with --mode. Another name: exit status 2")
+      ->type_name("KIND");
   app.add_option("--select", options->select,
                  "Select this solid, node or object in the tree panel at start, showing its "
                  "parameters: a solid's name, a node's name or id, SOLID/i/j for child j of child "

@@ -27,6 +27,8 @@ struct ModeContext {
   TreeController* tree = nullptr;       // the document tree's selection and edits
   WorkbenchState* workbench = nullptr;  // Mesh action state, touch options, status line
   bool select_key = false;              // Enter was pressed in the view this frame
+  bool place_key = false;               // P: place the ghost primitive (model mode)
+  bool grab_key = false;                // G: grab the selected node, or let it go (model mode)
   // A mode asks the window to switch to the mode with this key() ("fe", ...); the window does it
   // after the mode panel of this frame and clears it.
   std::string switch_to;

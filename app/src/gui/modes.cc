@@ -4,6 +4,7 @@
 #include <imgui.h>
 #include <vtkActor.h>
 #include <vtkCellArray.h>
+#include <vtkMatrix4x4.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
@@ -13,9 +14,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <variant>
 
 #include "gui/panels.h"
+#include "gui/scene_view.h"
 #include "gui/tree_panel.h"
 #include "gui/workbench_panels.h"
 #include "scene/shared_field.h"
@@ -31,38 +35,6 @@ constexpr double kMarkerMaxAge = 0.1;   // s: older contact markers belong to an
 const ImVec4 kHelpColour(0.35f, 0.38f, 0.45f, 1.0f);
 
 }  // namespace
-
-bool SqueezeDetector::Update(double t, double grasp) {
-  if (!std::isfinite(t) || !std::isfinite(grasp)) return false;
-  if (!samples_.empty() && t < samples_.back().first) samples_.clear();  // the clock restarted
-  samples_.emplace_back(t, grasp);
-  while (samples_.size() > 1 && t - samples_.front().first > kHistory) samples_.pop_front();
-  // The smallest angle of the last kWindow s.
-  std::size_t lowest = samples_.size() - 1;
-  for (std::size_t i = samples_.size(); i-- > 0 && t - samples_[i].first <= kWindow;) {
-    if (samples_[i].second < samples_[lowest].second) lowest = i;
-  }
-  // Where the closing toward it began: back from the lowest sample while the angle rises
-  // (going back in time), allowing kNoise of jitter.
-  std::size_t first = lowest;
-  while (first > 0 && samples_[first - 1].second >= samples_[first].second - kNoise) --first;
-  // The gesture starts when the angle last left its top (a steady hold before it is not part
-  // of the squeeze).
-  double top = samples_[first].second;
-  for (std::size_t i = first; i <= lowest; ++i) top = std::max(top, samples_[i].second);
-  std::size_t start = first;
-  for (std::size_t i = first; i <= lowest; ++i) {
-    if (samples_[i].second >= top - kNoise) start = i;
-  }
-  const double low = samples_[lowest].second;
-  const bool deep = samples_[start].second - low >= kDepth && grasp - low >= kDepth;
-  if (deep && t - samples_[start].first <= kWindow) {
-    samples_.clear();
-    samples_.emplace_back(t, grasp);
-    return true;
-  }
-  return false;
-}
 
 int TouchedObject(const SceneModel& model, const std::vector<Eigen::Vector3d>& points_W,
                   double margin_W) {
@@ -100,7 +72,7 @@ std::string SnapTargetText(const haptics::SnapTarget& target) {
 // ---- ModelMode ----
 
 ModelMode::ModelMode(vtkRenderer* renderer, DemoFieldSettings* springs, double pole_length)
-    : renderer_(renderer), springs_(springs), pole_length_(pole_length) {
+    : renderer_(renderer), springs_(springs), pole_length_(pole_length), touch_(pole_length) {
   highlight_poly_ = vtkSmartPointer<vtkPolyData>::New();
   vtkNew<vtkPolyDataMapper> mapper;
   mapper->SetInputData(highlight_poly_);
@@ -114,13 +86,28 @@ ModelMode::ModelMode(vtkRenderer* renderer, DemoFieldSettings* springs, double p
   highlight_actor_->PickableOff();
   highlight_actor_->VisibilityOff();
   if (renderer_ != nullptr) renderer_->AddActor(highlight_actor_);
+  ghost_poly_ = vtkSmartPointer<vtkPolyData>::New();
+  vtkNew<vtkPolyDataMapper> ghost_mapper;
+  ghost_mapper->SetInputData(ghost_poly_);
+  ghost_actor_ = vtkSmartPointer<vtkActor>::New();
+  ghost_actor_->SetMapper(ghost_mapper);
+  ghost_actor_->GetProperty()->SetColor(0.35, 0.75, 1.0);  // light blue: not in the document yet
+  ghost_actor_->GetProperty()->SetOpacity(0.55);
+  ghost_actor_->PickableOff();
+  ghost_actor_->VisibilityOff();
+  if (renderer_ != nullptr) renderer_->AddActor(ghost_actor_);
 }
 
 ModelMode::~ModelMode() {
-  if (renderer_ != nullptr) renderer_->RemoveActor(highlight_actor_);
+  if (renderer_ != nullptr) {
+    renderer_->RemoveActor(highlight_actor_);
+    renderer_->RemoveActor(ghost_actor_);
+  }
 }
 
 vtkActor* ModelMode::highlight() const { return highlight_actor_; }
+
+vtkActor* ModelMode::ghost_actor() const { return ghost_actor_; }
 
 void ModelMode::Enter() {
   active_ = true;
@@ -131,11 +118,16 @@ void ModelMode::Leave() {
   active_ = false;
   snapped_ = {};
   ShowFeature({});
+  touch_.SetPlacing(std::nullopt);
+  grab_.reset();  // a grab under way when the mode is left changes nothing
+  ghost_actor_->VisibilityOff();
+  touch_.DropFeltSnap();
 }
 
 void ModelMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
   if (!(X_WD.world_scale > 0.0)) return;
   X_WD_ = X_WD;
+  touch_.SetWorldScale(X_WD.world_scale);
   const double inv = 1.0 / X_WD.world_scale;
   const Eigen::Vector3d& o = X_WD.p_WDo;
   highlight_actor_->SetScale(inv, inv, inv);
@@ -164,49 +156,93 @@ void ModelMode::UpdateSnapProbe(SceneModel& model) {
   }
 }
 
-void ModelMode::ShowFeature(const haptics::SnapTarget& target) {
-  if (target.kind == shown_.kind && target.index == shown_.index) return;
-  shown_ = target;
+void ModelMode::ShowHighlight(const std::string& key, const std::vector<Eigen::Vector3d>& dots,
+                              const std::vector<std::vector<Eigen::Vector3d>>& lines) {
+  if (key == shown_) return;
+  shown_ = key;
   vtkNew<vtkPoints> points;
-  vtkNew<vtkCellArray> verts, lines;
+  vtkNew<vtkCellArray> verts, cells;
   auto add_point = [&](const Eigen::Vector3d& p) {
     return points->InsertNextPoint(p.x(), p.y(), p.z());
   };
+  for (const Eigen::Vector3d& p : dots) {
+    const vtkIdType id = add_point(p);
+    verts->InsertNextCell(1, &id);
+  }
+  for (const auto& line : lines) {
+    std::vector<vtkIdType> ids;
+    for (const Eigen::Vector3d& p : line) ids.push_back(add_point(p));
+    if (ids.size() >= 2) cells->InsertNextCell(static_cast<vtkIdType>(ids.size()), ids.data());
+  }
+  highlight_poly_->Initialize();
+  highlight_poly_->SetPoints(points);
+  highlight_poly_->SetVerts(verts);
+  highlight_poly_->SetLines(cells);
+  highlight_poly_->Modified();
+  highlight_actor_->SetVisibility(points->GetNumberOfPoints() > 0);
+}
+
+namespace {
+
+// A face's outline, closed.
+std::vector<Eigen::Vector3d> Outline(const haptics::SnapFace& face) {
+  std::vector<Eigen::Vector3d> line = face.polygon_W;
+  if (!line.empty()) line.push_back(line.front());
+  return line;
+}
+
+}  // namespace
+
+void ModelMode::ShowFeature(const haptics::SnapTarget& target) {
   const int i = target.index;
+  const std::string key = "snap " + SnapTargetText(target);
   switch (target.kind) {
     case haptics::SnapKind::kVertex:
       if (i >= 0 && i < static_cast<int>(snap_features_.vertices_W.size())) {
-        const vtkIdType id = add_point(snap_features_.vertices_W[i]);
-        verts->InsertNextCell(1, &id);
+        ShowHighlight(key, {snap_features_.vertices_W[i]}, {});
+        return;
       }
       break;
     case haptics::SnapKind::kEdge:
       if (i >= 0 && i < static_cast<int>(snap_features_.edges_W.size())) {
-        const vtkIdType ids[2] = {add_point(snap_features_.edges_W[i].first),
-                                  add_point(snap_features_.edges_W[i].second)};
-        lines->InsertNextCell(2, ids);
+        ShowHighlight(key, {},
+                      {{snap_features_.edges_W[i].first, snap_features_.edges_W[i].second}});
+        return;
       }
       break;
     case haptics::SnapKind::kFace:
       if (i >= 0 && i < static_cast<int>(snap_features_.faces_W.size())) {
-        const auto& polygon = snap_features_.faces_W[i].polygon_W;
-        std::vector<vtkIdType> ids;
-        for (const Eigen::Vector3d& p : polygon) ids.push_back(add_point(p));
-        if (!ids.empty()) {
-          ids.push_back(ids.front());  // closed outline
-          lines->InsertNextCell(static_cast<vtkIdType>(ids.size()), ids.data());
-        }
+        ShowHighlight(key, {}, {Outline(snap_features_.faces_W[i])});
+        return;
       }
       break;
     case haptics::SnapKind::kNone:
       break;
   }
-  highlight_poly_->Initialize();
-  highlight_poly_->SetPoints(points);
-  highlight_poly_->SetVerts(verts);
-  highlight_poly_->SetLines(lines);
-  highlight_poly_->Modified();
-  highlight_actor_->SetVisibility(points->GetNumberOfPoints() > 0);
+  ShowHighlight("", {}, {});
+}
+
+void ModelMode::ShowAlignment(const TouchSnapFeatures& features, const Alignment& alignment) {
+  const int i = alignment.index;
+  const std::string key = "touch " + alignment.Text();
+  const haptics::SnapFeatures& f = features.features;
+  switch (alignment.kind) {
+    case AlignKind::kAxis:
+      ShowHighlight(key, {}, {{features.axes[i].a_W, features.axes[i].b_W}});
+      return;
+    case AlignKind::kEdge:
+      ShowHighlight(key, {}, {{f.edges_W[i].first, f.edges_W[i].second}});
+      return;
+    case AlignKind::kFace:
+      ShowHighlight(key, {}, {Outline(f.faces_W[i])});
+      return;
+    case AlignKind::kVertex:
+      ShowHighlight(key, {f.vertices_W[i]}, {});
+      return;
+    case AlignKind::kNone:
+      break;
+  }
+  ShowHighlight("", {}, {});
 }
 
 void ModelMode::Update(const haptics::ToolState& tool, ModeContext& context) {
@@ -219,9 +255,233 @@ void ModelMode::Update(const haptics::ToolState& tool, ModeContext& context) {
   }
   ShowFeature(snapped_);
   const bool squeezed = squeeze_.Update(tool.time, tool.pose_D.Grasp());
-  if (context.select_key || squeezed) {
+  const bool touch = placing() || grab_;
+  UpdateTouch(tool, context, squeezed);
+  if (context.select_key || (squeezed && !touch && !grab_)) {
     SelectTouched(tool, context, context.select_key ? "Enter" : "squeeze");
   }
+}
+
+// ---- modelling by touch ----
+
+namespace {
+
+Eigen::Isometry3d GripPose(const haptics::ToolState& tool) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = tool.tool_W.R_WT;
+  X.translation() = tool.tool_W.p_WT;
+  return X;
+}
+
+}  // namespace
+
+void ModelMode::SetPlacing(std::optional<PlaceKind> kind) {
+  if (scripted_) return;  // the run places
+  if (kind && grab_) grab_.reset();
+  if (touch_.SetPlacing(kind)) changed_ = true;
+  if (!kind) ghost_actor_->VisibilityOff();
+}
+
+void ModelMode::ShowScriptedTouch(const TouchSession* session) {
+  SetPlacing(std::nullopt);
+  grab_.reset();
+  scripted_ = true;
+  scripted_touch_ = session;
+}
+
+void ModelMode::ShowGhost(const std::string& key, const modeling::TriangleMesh* mesh,
+                          const Eigen::Affine3d& X) {
+  if (key != ghost_key_ && mesh != nullptr) {
+    ghost_key_ = key;
+    FillPolyData(*mesh, ghost_poly_);
+  }
+  // The view draws D: p_D = (p_W − p_WDo) / s.
+  const double inv = 1.0 / X_WD_.world_scale;
+  Eigen::Affine3d view = Eigen::Affine3d::Identity();
+  view.scale(inv);
+  view.translate(-X_WD_.p_WDo);
+  view = view * X;
+  vtkNew<vtkMatrix4x4> m;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m->SetElement(r, c, view.matrix()(r, c));
+  ghost_actor_->SetUserMatrix(m);
+  ghost_actor_->SetVisibility(true);
+}
+
+void ModelMode::ShowPlacingGhost(const TouchSession& session) {
+  if (!session.placing() || !(session.ghost_size() > 0.0)) {
+    ghost_actor_->VisibilityOff();
+    return;
+  }
+  const int k = static_cast<int>(*session.placing());
+  if (unit_meshes_.empty()) {
+    for (PlaceKind kind : {PlaceKind::kSphere, PlaceKind::kBox, PlaceKind::kCylinder})
+      unit_meshes_.push_back(GhostMesh(PlacedNode(kind, Eigen::Isometry3d::Identity(), 1.0)));
+  }
+  Eigen::Affine3d X(session.ghost().X_WN.matrix());
+  X.scale(session.ghost_size());
+  ShowGhost(std::string("place ") + PlaceKindName(*session.placing()), &unit_meshes_[k], X);
+  ShowAlignment(session.features(), session.ghost());
+}
+
+void ModelMode::UpdateTouch(const haptics::ToolState& tool, ModeContext& context, bool squeezed) {
+  if (scripted_) {  // the virtual clock: the run's session acts, the mode shows its ghost
+    if (scripted_touch_ != nullptr) {
+      ShowPlacingGhost(*scripted_touch_);
+      if (!scripted_touch_->message().empty()) touch_message_ = scripted_touch_->message();
+    }
+    return;
+  }
+  SceneModel& model = *context.model;
+  const double grasp = tool.pose_D.Grasp();
+  // The grab gesture: closing on the selected node's solid grabs, opening lets go.
+  bool closed_now = false, opened_now = false;
+  if (std::isfinite(grasp)) {
+    if (!grasp_closed_ && grasp < kGrabClose) closed_now = grasp_closed_ = true;
+    if (grasp_closed_ && grasp > kGrabOpen) {
+      grasp_closed_ = false;
+      opened_now = true;
+    }
+  }
+  const bool grab_key = context.grab_key || std::exchange(pending_grab_, false);
+  if (grab_ && (grab_key || opened_now)) {
+    ReleaseGrab(context);
+  } else if (!grab_ && !touch_.placing() && (grab_key || closed_now)) {
+    bool near = grab_key;
+    if (!near && context.tree != nullptr && context.tree->selection()) {
+      const int i = model.IndexOf(context.tree->selection()->object);
+      const bool shell =
+          context.workbench != nullptr && context.workbench->contact.tool == ToolModel::kShell;
+      const double margin = (kTouchMargin + (shell ? pole_length_ : 0.0)) * X_WD_.world_scale;
+      near = i >= 0 && model.objects()[i].solid != nullptr &&
+             model.objects()[i].solid->Value(tool.tool_W.p_WT) <= margin;
+    }
+    if (near) StartGrab(tool, context);
+  }
+  if (!touch_.placing() && !grab_) {
+    ghost_actor_->VisibilityOff();
+    return;
+  }
+  const Eigen::Isometry3d X_WT = GripPose(tool);
+  if (!X_WT.matrix().allFinite()) return;
+  if (touch_.placing()) {
+    // The session's frame: the ghost, the felt pull, and a place on a squeeze or P.
+    const TouchSession::PlaceFrame frame =
+        touch_.UpdatePlacing(tool, &model.document(), model.generation(), squeezed,
+                             squeeze_.last_start(), context.place_key);
+    if (frame.felt_changed) changed_ = true;
+    ShowPlacingGhost(touch_);
+    if (frame.placed && context.tree != nullptr && frame.placed_id != 0)
+      context.tree->Select(frame.placed_id);
+    if (frame.placed || squeezed || context.place_key) touch_message_ = touch_.message();
+    return;
+  }
+  // Grabbed: the node keeps its pose relative to the grip.
+  touch_.UpdateFeatures(model.document(), model.generation(), grab_->object, grab_->path);
+  const Eigen::Isometry3d X_WN = X_WT * grab_->X_WT0.inverse() * grab_->X_WN0;
+  const Alignment& ghost = touch_.Align(X_WN, grab_->box_N);
+  ShowGhost("grab", nullptr, Eigen::Affine3d((ghost.X_WN * grab_->X_AN0.inverse()).matrix()));
+  ShowAlignment(touch_.features(), ghost);
+  const Eigen::Vector3d h = grab_->box_N.sizes();
+  if (touch_.UpdateFeltSnap(0.5 * std::min({h.x(), h.y(), h.z()}))) changed_ = true;
+}
+
+std::string ModelMode::HistoryHold() const {
+  if (!active_ || !grab_) return "";
+  return "let go of '" + grab_->name +
+         "' first (open the grasp or press G: the move becomes an undo step when it ends)";
+}
+
+bool ModelMode::PlaceGhost(ModeContext& context) {
+  if (scripted_) {
+    touch_message_ = "place: the scripted run places (virtual clock)";
+    return false;
+  }
+  if (context.model == nullptr) {
+    touch_message_ = "place: nothing to place (choose a primitive first)";
+    return false;
+  }
+  const bool placed = touch_.Place(&context.model->document());
+  touch_message_ = touch_.message();
+  if (placed && context.tree != nullptr && touch_.placed_id() != 0)
+    context.tree->Select(touch_.placed_id());
+  return placed;
+}
+
+bool ModelMode::StartGrab(const haptics::ToolState& tool, ModeContext& context) {
+  if (scripted_) return false;  // the run acts on the document
+  if (context.model == nullptr || context.tree == nullptr || !context.tree->selection()) {
+    touch_message_ = "grab: select a node of a solid first";
+    return false;
+  }
+  const NodeRef ref = *context.tree->selection();
+  const Document& doc = context.model->document();
+  const DocObject* object = doc.Find(ref.object);
+  if (object == nullptr || !std::holds_alternative<SolidData>(object->data)) {
+    touch_message_ = "grab: only nodes of solids can be grabbed";
+    return false;
+  }
+  Grab g;
+  g.object = ref.object;
+  g.path = ref.path;
+  g.name = object->name;
+  try {
+    const modeling::ImplicitNode& node = doc.Node(ref.object, ref.path);
+    g.X_WA = FrameOfNode(*TreeOf(*object), ref.path);
+    if (!IsRigid(g.X_WA)) {
+      touch_message_ =
+          "grab: the node sits under a scale or mirror node (a rigid move of it "
+          "would not be rigid): select that node instead";
+      return false;
+    }
+    g.X_AN0 = PoseOfNode(node).X_AN;
+    g.X_WN0 = Eigen::Isometry3d(g.X_WA.matrix()) * g.X_AN0;
+    g.X_WT0 = GripPose(tool);
+    if (!g.X_WT0.matrix().allFinite()) return false;
+    g.mesh_A = GhostMesh(node);
+    const Eigen::Isometry3d X_NA = g.X_AN0.inverse();
+    for (int v = 0; v < g.mesh_A.vertices.cols(); ++v)
+      g.box_N.extend(X_NA * Eigen::Vector3d(g.mesh_A.vertices.col(v)));
+  } catch (const std::exception& e) {
+    touch_message_ = std::string("grab: ") + e.what();
+    return false;
+  }
+  grab_ = std::move(g);
+  ghost_key_.clear();
+  ShowGhost("grab", &grab_->mesh_A, Eigen::Affine3d(grab_->X_WA.matrix()));
+  ghost_key_ = "grab";
+  touch_message_ = "grabbed '" + grab_->name + "'" +
+                   (grab_->path.empty() ? "" : " node " + PathPointer(grab_->path)) +
+                   ": move and turn the grip, open the grasp (or G) to let go";
+  return true;
+}
+
+bool ModelMode::ReleaseGrab(ModeContext& context) {
+  if (!grab_) return false;
+  const Grab g = std::move(*grab_);
+  grab_.reset();
+  ghost_actor_->VisibilityOff();
+  if (touch_.DropFeltSnap()) changed_ = true;
+  const Alignment& ghost = touch_.ghost();
+  const Eigen::Isometry3d X_AN =
+      Eigen::Isometry3d(g.X_WA.matrix()).inverse() * ghost.X_WN;  // X_WA is rigid
+  const double moved = (X_AN.translation() - g.X_AN0.translation()).norm() / X_WD_.world_scale;
+  const double turned = Eigen::AngleAxisd(X_AN.linear() * g.X_AN0.linear().transpose()).angle();
+  if (moved < kGrabMinMove && turned < kGrabMinTurn) {
+    touch_message_ = "let go of '" + g.name + "' where it was (nothing changed)";
+    return false;
+  }
+  try {
+    Document& doc = context.model->document();
+    doc.Execute(PoseNodeCommand(doc, g.object, g.path, X_AN));
+  } catch (const std::exception& e) {
+    touch_message_ = std::string("move failed (nothing changed): ") + e.what();
+    return false;
+  }
+  if (context.tree != nullptr) context.tree->Select(g.object, g.path);
+  touch_message_ = "moved '" + g.name + "' by touch";
+  if (ghost.kind != AlignKind::kNone) touch_message_ += ", aligned to " + ghost.Text();
+  return true;
 }
 
 bool ModelMode::SelectTouched(const haptics::ToolState& tool, ModeContext& context,
@@ -283,14 +543,74 @@ void ModelMode::DrawPanel(ModeContext& context) {
                          SnapTargetText(snapped_).c_str());
     }
   }
+  ImGui::PopTextWrapPos();
+  DrawTouchPanel(context);
+  ImGui::PushTextWrapPos(0.0f);
   if (!touch_message_.empty()) ImGui::TextUnformatted(touch_message_.c_str());
+  ImGui::PopTextWrapPos();
+}
+
+void ModelMode::DrawTouchPanel(ModeContext& context) {
+  ImGui::Separator();
+  ImGui::TextUnformatted("Model by touch");
+  ImGui::PushTextWrapPos(0.0f);
+  if (scripted_) {
+    const TouchSession* run = scripted_touch_;
+    if (run != nullptr && run->placing()) {
+      ImGui::TextColored(
+          kHelpColour, "The scripted run places %s (virtual clock): %d placed; ghost %.1f mm.",
+          PlaceKindName(*run->placing()), run->placed_count(), 1000.0 * run->ghost_size());
+      if (run->ghost().kind != AlignKind::kNone) {
+        ImGui::TextColored(ImVec4(0.85f, 0.4f, 0.0f, 1.0f), "aligned to %s",
+                           run->ghost().Text().c_str());
+      }
+    } else {
+      ImGui::TextDisabled("(the scripted run does not place: `--place KIND` to model by touch)");
+    }
+    ImGui::PopTextWrapPos();
+    return;
+  }
+  const std::optional<PlaceKind>& placing = touch_.placing();
+  int choice = placing ? 1 + static_cast<int>(*placing) : 0;
+  const char* labels[] = {"off", "sphere", "box", "cylinder"};
+  for (int i = 0; i < 4; ++i) {
+    if (i > 0) ImGui::SameLine();
+    if (ImGui::RadioButton(labels[i], choice == i)) {
+      choice = i;
+      SetPlacing(i == 0 ? std::nullopt : std::optional<PlaceKind>(static_cast<PlaceKind>(i - 1)));
+    }
+  }
+  if (placing) {
+    ImGui::TextColored(kHelpColour,
+                       "The ghost follows the grip; the grasp sets its size (%.1f mm). P, Place "
+                       "or a squeeze adds it as a new solid.",
+                       1000.0 * touch_.ghost_size());
+    if (ImGui::Button("Place")) PlaceGhost(context);
+  } else {
+    ImGui::TextColored(kHelpColour,
+                       "Choose a primitive to place it with the grip. Grab the selected node: "
+                       "G, or close the grasp (below 60°) on its solid; open it to let go.");
+  }
+  if (grab_) {
+    if (ImGui::Button("Let go (G)")) ReleaseGrab(context);
+  } else if (!placing && context.tree != nullptr && context.tree->selection()) {
+    if (ImGui::Button("Grab selected (G)")) pending_grab_ = true;
+  }
+  if ((placing || grab_) && touch_.ghost().kind != AlignKind::kNone) {
+    ImGui::TextColored(ImVec4(0.85f, 0.4f, 0.0f, 1.0f), "aligned to %s",
+                       touch_.ghost().Text().c_str());
+  }
   ImGui::PopTextWrapPos();
 }
 
 std::unique_ptr<haptics::HapticScene> ModelMode::BuildScene(ModeContext& context) {
   const SceneHapticsOptions contact =
       context.workbench != nullptr ? context.workbench->contact : SceneHapticsOptions{};
-  return context.model->BuildHapticScene(*springs_, contact);
+  auto scene = context.model->BuildHapticScene(*springs_, contact);
+  // While placing or grabbing, the pull toward where the ghost would align.
+  if (touch_.felt_snap() != nullptr && (touch_.placing() || grab_))
+    scene->Add(std::make_unique<SharedField>(touch_.felt_snap()));
+  return scene;
 }
 
 std::vector<std::string> ModelMode::Targets(const SceneModel& model) const {

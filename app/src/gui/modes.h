@@ -4,6 +4,14 @@
 //    demo scenes; the Mesh action in its panel. Selection by touch (the paper's Sec. 7): with
 //    the grip on a solid, Enter or a short squeeze of the grasp (SqueezeDetector) selects it in
 //    the tree; when the scene has snap forces the feature the grip snaps to is highlighted.
+//    Modelling by touch (scene/touch_modelling.h): with a primitive kind armed (panel, --place),
+//    a translucent ghost of it follows the grip, sized by the grasp and aligned to faces, edges
+//    and axes it comes near; P, the panel's Place button or a squeeze places it as a new solid
+//    (one command). G, or closing the grasp on the selected node's solid, grabs that node: its
+//    ghost follows the grip rigidly (snapping likewise) and letting go moves it (one command).
+//    The placing itself, the alignment and the felt pull are a TouchSession
+//    (scene/touch_session.h), which `spidarcad run --place` drives too; on the virtual clock
+//    the run's session places and the mode only shows its ghost (ShowScriptedTouch).
 //  - FeWindowMode, SculptWindowMode, AssemblyWindowMode: the window side of FeMode, SculptMode
 //    and AssemblyMode (their own classes keep the VTK and ImGui work and their tests).
 // Main thread only.
@@ -15,7 +23,9 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -26,6 +36,8 @@
 #include "gui/sculpt_mode.h"
 #include "scene/scene_fields.h"
 #include "scene/scene_model.h"
+#include "scene/touch_modelling.h"
+#include "scene/touch_session.h"
 #include "spidarcad/haptics/snap_field.h"
 
 class vtkActor;
@@ -33,22 +45,6 @@ class vtkPolyData;
 class vtkRenderer;
 
 namespace spidarcad::app {
-
-// Detects a short squeeze of the grasp: from where the closing began, the angle closes by at
-// least kDepth and opens again by at least kDepth, the whole gesture within kWindow seconds.
-class SqueezeDetector {
- public:
-  static constexpr double kWindow = 0.4;                                 // s
-  static constexpr double kDepth = 10.0 * 3.14159265358979323846 / 180;  // rad (10°)
-  static constexpr double kNoise = 0.5 * 3.14159265358979323846 / 180;   // rad of jitter ignored
-  static constexpr double kHistory = 2.0;                                // s of samples kept
-  // Adds the grasp angle θ (rad) at time t (s, increasing); true when this sample completes a
-  // squeeze (once per squeeze: the history restarts after one).
-  bool Update(double t, double grasp);
-
- private:
-  std::deque<std::pair<double, double>> samples_;  // (t, θ) within the last kHistory s
-};
 
 // The index in model.objects() of the solid the tool touches: the solid with the smallest value
 // (signed distance, m in W) at any of `points_W`, when that value is at most `margin_W`; −1 when
@@ -79,6 +75,8 @@ class ModelMode final : public Mode {
   std::unique_ptr<haptics::HapticScene> BuildScene(ModeContext& context) override;
   bool TakeSceneChanged() override { return std::exchange(changed_, false); }
   std::vector<std::string> Targets(const SceneModel& model) const override;
+  // While a node is grabbed: "let go of 'NAME' first ...".
+  std::string HistoryHold() const override;
 
   // False in an assembly scene, whose solids are the parts (felt through the assembly).
   void SetFelt(bool felt) { felt_ = felt; }
@@ -96,9 +94,61 @@ class ModelMode final : public Mode {
   // The highlight actor (tests).
   vtkActor* highlight() const;
 
+  // ---- modelling by touch (see the file comment) ----
+  // Grasp angles of the grab gesture: closing below kGrabClose on the selected node's solid
+  // grabs it, opening past kGrabOpen lets go.
+  static constexpr double kGrabClose = 60.0 * 3.14159265358979323846 / 180;  // rad
+  static constexpr double kGrabOpen = 75.0 * 3.14159265358979323846 / 180;   // rad
+  // A grab that moved the node less than this (m in D, and rad) changes nothing.
+  static constexpr double kGrabMinMove = 1e-4;
+  static constexpr double kGrabMinTurn = 0.1 * 3.14159265358979323846 / 180;
+  // Arms placing a primitive of `kind` (its ghost follows the grip); nullopt disarms.
+  void SetPlacing(std::optional<PlaceKind> kind);
+  const std::optional<PlaceKind>& placing() const { return shown_touch().placing(); }
+  // The virtual clock: the scripted run models by touch (its session, null when it does not
+  // place): the mode shows that session's ghost and alignment, and places, grabs and arms
+  // nothing itself (the run acts on the document).
+  void ShowScriptedTouch(const TouchSession* session);
+  // Places the ghost as it is now (P, the Place button): one command adding the solid
+  // "KIND" (made unique), selected. True when placed; touch_message() says what happened.
+  bool PlaceGhost(ModeContext& context);
+  // Grabs the selected node of a solid (G): true when it did (a node under a scale or mirror,
+  // or a ghost that cannot be meshed, is refused with touch_message()).
+  bool StartGrab(const haptics::ToolState& tool, ModeContext& context);
+  // Lets go: one command poses the node where its ghost is (none when it barely moved). True
+  // when a command ran.
+  bool ReleaseGrab(ModeContext& context);
+  bool grabbing() const { return grab_.has_value(); }
+  // The ghost at the latest Update: its pose in W (aligned), size (placing: PlaceSize) and what
+  // it aligned to.
+  const Alignment& ghost() const { return shown_touch().ghost(); }
+  double ghost_size() const { return shown_touch().ghost_size(); }
+  // The alignment's capture distances and pull.
+  TouchSnapSettings& touch_snap() { return touch_.snap_settings(); }
+  // The ghost actor (tests).
+  vtkActor* ghost_actor() const;
+
  private:
   void UpdateSnapProbe(SceneModel& model);
   void ShowFeature(const haptics::SnapTarget& target);
+  // Shows `dots` and polylines `lines` (W) as the highlight, unless `key` is already shown.
+  void ShowHighlight(const std::string& key, const std::vector<Eigen::Vector3d>& dots,
+                     const std::vector<std::vector<Eigen::Vector3d>>& lines);
+  // The "Model by touch" part of the panel.
+  void DrawTouchPanel(ModeContext& context);
+  // Modelling by touch, per frame.
+  void UpdateTouch(const haptics::ToolState& tool, ModeContext& context, bool squeezed);
+  // The session whose ghost the mode shows: the scripted run's on the virtual clock, else its own.
+  const TouchSession& shown_touch() const {
+    return scripted_touch_ != nullptr ? *scripted_touch_ : touch_;
+  }
+  // Shows `mesh` (once per change of `key`) as the ghost, placed by `X`.
+  void ShowGhost(const std::string& key, const modeling::TriangleMesh* mesh,
+                 const Eigen::Affine3d& X);
+  // Shows the ghost of the primitive `session` places, and its alignment.
+  void ShowPlacingGhost(const TouchSession& session);
+  // The highlight of an alignment's feature among `features` (or the snap probe's).
+  void ShowAlignment(const TouchSnapFeatures& features, const Alignment& alignment);
 
   vtkRenderer* renderer_;
   DemoFieldSettings* springs_;
@@ -114,12 +164,32 @@ class ModelMode final : public Mode {
   std::uint64_t snap_revision_ = ~std::uint64_t{0};
   int snap_generation_ = -1;
   haptics::SnapTarget snapped_;
-  haptics::SnapTarget shown_;
+  std::string shown_;  // what the highlight shows ("" nothing)
   haptics::SnapTarget selected_feature_;
   std::string touch_message_;
   haptics::DeviceToWorld X_WD_;
   vtkSmartPointer<vtkPolyData> highlight_poly_;
   vtkSmartPointer<vtkActor> highlight_actor_;
+  // Modelling by touch.
+  struct Grab {
+    ObjectId object = 0;
+    NodePath path;
+    std::string name;
+    Eigen::Isometry3d X_WT0, X_WN0, X_AN0;  // grip and node at the start; node in A
+    Eigen::Affine3d X_WA;                   // the node's frame (rigid)
+    modeling::TriangleMesh mesh_A;          // the node's surface in A
+    Eigen::AlignedBox3d box_N;              // its box in N
+  };
+  TouchSession touch_;     // placing, alignment and the felt pull (the grab's too)
+  bool scripted_ = false;  // ShowScriptedTouch was called
+  const TouchSession* scripted_touch_ = nullptr;  // the run's session (virtual clock)
+  std::optional<Grab> grab_;
+  bool grasp_closed_ = false;  // the grab gesture's state (hysteresis)
+  bool pending_grab_ = false;  // the panel's Grab button (taken at the next Update)
+  std::vector<modeling::TriangleMesh> unit_meshes_;  // per PlaceKind, size 1
+  std::string ghost_key_;
+  vtkSmartPointer<vtkPolyData> ghost_poly_;
+  vtkSmartPointer<vtkActor> ghost_actor_;
 };
 
 // FE push (FeMode) as a Mode.

@@ -7,11 +7,14 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
+#include <string>
 #include <variant>
 
 #include "doc/command.h"
 #include "gui/panels.h"
 #include "gui/scene_view.h"
+#include "scene/fe_setup.h"
 
 namespace spidarcad::app {
 
@@ -52,7 +55,8 @@ void OpenExport(WorkbenchState* state, const SceneModel& model, bool tets) {
 }  // namespace
 
 void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, MeshKind kind) {
-  if (Selected(*model, *state) == nullptr) {
+  const SceneObject* o = Selected(*model, *state);
+  if (o == nullptr) {
     state->status = "Mesh: the scene has no object to mesh";
     state->status_error = true;
     return;
@@ -61,23 +65,45 @@ void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, M
   settings.cell_size = state->resolution_mm * 1e-3;
   settings.sharp_edges = state->sharp_edges && !(kind == MeshKind::kTetrahedra && state->cgal);
   if (kind == MeshKind::kTetrahedra) settings.mesher = state->cgal ? "cgal" : "tetgen";
+  // The estimate needs the solid's box, whose search takes seconds for a long tape (a union of
+  // 100,000 spheres: about 6 s): it runs in a Job, and the question, or the mesh Job, comes
+  // when it lands (unless the document was replaced meanwhile). Bad input is refused at once.
+  FeMeshInput input;
   try {
-    std::string question = model->MeshJobOverBudget(state->selected, kind, settings);
-    if (!question.empty()) {
-      state->pending_mesh_text = std::move(question);
-      state->pending_mesh_kind = kind;
-      state->pending_mesh_index = state->selected;
-      state->pending_mesh_settings = settings;
-      state->status = "Mesh: waiting for an answer (the mesh is large)";
-      state->status_error = false;
-      return;
+    if (!(settings.cell_size > 0.0)) throw std::invalid_argument("mesh resolution must be > 0");
+    if (o->solid == nullptr) {
+      throw std::invalid_argument("solid '" + o->name + "' does not compile: " + o->error);
     }
-    model->StartMeshJob(jobs, state->selected, kind, settings);
-    state->status.clear();
+    MeshSettings estimated = settings;
+    if (kind != MeshKind::kTetrahedra) estimated.mesher.clear();  // the grid surface
+    input = PrepareSolidMesh(model->document(), o->id, estimated, kind == MeshKind::kTetrahedra);
   } catch (const std::exception& e) {
     state->status = std::string("Mesh: ") + e.what();
     state->status_error = true;
+    return;
   }
+  const std::string name = o->name;
+  const int index = state->selected;
+  const int generation = model->generation();
+  jobs->Start("Estimate the mesh of " + name, [=](JobContext& ctx) -> Job::Finisher {
+    ctx.SetPhase("box");
+    std::string question = LargeMeshQuestion(name, input, ctx.cancel_flag());
+    return [=, question = std::move(question)] {
+      if (model->generation() != generation) return;  // another document
+      if (!question.empty()) {
+        state->pending_mesh_text = question;
+        state->pending_mesh_kind = kind;
+        state->pending_mesh_index = index;
+        state->pending_mesh_settings = settings;
+        state->status = "Mesh: waiting for an answer (the mesh is large)";
+        state->status_error = false;
+        return;
+      }
+      model->StartMeshJob(jobs, index, kind, settings);  // throws: the job failed, said so
+    };
+  });
+  state->status = "Mesh: estimating the mesh of '" + name + "'";
+  state->status_error = false;
 }
 
 void AnswerMeshQuestion(SceneModel* model, JobQueue* jobs, WorkbenchState* state, bool proceed) {

@@ -117,9 +117,10 @@ void DrawExportDialog(const SceneModel& model, WorkbenchState* state);
 
 // Starts the Mesh action of `kind` on the selected solid with the state's cell size, sharp edges
 // and mesher (SceneModel::StartMeshJob); errors (no solid, bad settings) go to the status line.
-// A mesh estimated past `spidarcad mesh`'s budget (SceneModel::MeshJobOverBudget) is not
-// started: state->pending_mesh_text asks first (the document panel shows the question), and
-// AnswerMeshQuestion starts it or drops it.
+// The estimate (as SceneModel::MeshJobOverBudget) runs first in a Job "Estimate the mesh of
+// NAME" (phase box, cancellable: nothing changes); when it lands, a mesh within `spidarcad
+// mesh`'s budget starts, one past it is not started: state->pending_mesh_text asks first (the
+// document panel shows the question), and AnswerMeshQuestion starts it or drops it.
 void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, MeshKind kind);
 // The answer to the pending "Large mesh" question: Proceed starts the job as asked, Cancel
 // changes nothing (the status line says so). No effect without a pending question.

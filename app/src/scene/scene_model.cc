@@ -110,7 +110,8 @@ PreparedScene SceneModel::Prepare(const std::string& source, const std::atomic<b
     doc.LoadScene(modeling::ParseScene(DemoSceneJson(), "<built-in demo scene>"),
                   "<built-in demo scene>");
   } else {
-    doc.Load(source);  // SceneError names file, line and field
+    const int version = doc.Load(source);  // SceneError names file, line and field
+    prepared.assembly = version == 1 && !doc.parts().empty();
     std::error_code ec;
     prepared.mtime = std::filesystem::last_write_time(source, ec);
   }
@@ -230,6 +231,12 @@ bool SceneModel::SourceChanged() const {
   std::error_code ec;
   const auto now = std::filesystem::last_write_time(source_, ec);
   return !ec && now != mtime_;
+}
+
+void SceneModel::TakeSourceChange() {
+  std::error_code ec;
+  const auto now = std::filesystem::last_write_time(source_, ec);
+  if (!ec) mtime_ = now;
 }
 
 void SceneModel::StartPreview(JobQueue* jobs, SceneObject* object, double cells_across) {

@@ -97,6 +97,9 @@ struct PreparedScene {
   std::unique_ptr<Document> doc;
   std::vector<SceneObject> objects;  // one per solid object, compiled, bounds_W found
   std::filesystem::file_time_type mtime{};
+  // A version 1 scene file with assembly "parts" (docs/scene-format.md): the window keeps
+  // X_WD = identity for it, as `spidarcad run` does. Found while the file is read (once).
+  bool assembly = false;
 };
 
 // How far SceneModel::Prepare has come, for a progress display on another thread.
@@ -180,6 +183,9 @@ class SceneModel {
   // True once the scene file changed on disk since it was loaded or saved (checked by mtime),
   // unless the Document has unsaved edits (a reload would lose them).
   bool SourceChanged() const;
+  // Takes the scene file's present modification time as seen, so that SourceChanged is false
+  // until the file changes again (a reload that failed or was cancelled is not retried).
+  void TakeSourceChange();
 
   // The Document (edit it through commands, then call Refresh).
   Document& document() { return *doc_; }

@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 #include <thread>
+#include <utility>
 #include <variant>
 
 #include "doc/input_error.h"
@@ -24,6 +25,7 @@
 #include "scene/fe_part.h"
 #include "scene/scene_haptics.h"
 #include "scene/sculpt_document.h"
+#include "scene/touch_session.h"
 #include "scene/trajectory_player.h"
 #include "spidarcad/haptics/board_simulator.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -133,6 +135,7 @@ double NearestVertexDistance(const SculptSession& session, const Eigen::Vector3d
 
 struct ScriptedRun::Impl {
   ScriptedRunOptions options;
+  std::function<void()> before_step, after_step;  // SetStepHooks
   haptics::Trajectory trajectory;
   haptics::SpidarGeometry geometry;
   std::string frame_source = "default";
@@ -155,7 +158,11 @@ struct ScriptedRun::Impl {
   std::vector<std::unique_ptr<DocumentSculpt>> sculpts;  // its sculpt objects, document order
   std::vector<double> sculpt_max_volume_change;          // largest |V - V0| / V0 of each
   int stroking = -1;                                     // the sculpt under a stroke (-1: none)
-  std::vector<int> query;                                // scratch of the nearest-clay search
+  // --place: modelling by touch on the document, its squeeze detector and what it placed.
+  std::unique_ptr<TouchSession> touch;
+  SqueezeDetector squeeze;
+  std::vector<std::string> placed_lines;
+  std::vector<int> query;  // scratch of the nearest-clay search
   haptics::LoopSettings settings;
   std::optional<CalibrationFile> calibration_file;  // --calibration, read
   haptics::EncoderCalibration calibration;          // what the loop reads the encoders with
@@ -178,6 +185,7 @@ struct ScriptedRun::Impl {
   bool fe_columns = false, link_columns = false;
   std::string header;
   long fe_substituted_ticks = 0;  // ticks with a contact on a substitute column
+  long fe_truncated_ticks = 0;    // ticks whose tool patch had more than kMaxFeContacts nodes
   int fe_max_contacts = 0;
   double fe_max_reaction = 0.0;
   double max_force = 0.0;
@@ -189,6 +197,8 @@ struct ScriptedRun::Impl {
   void BuildDocumentScene(int version, std::unique_ptr<haptics::HapticScene>* scene);
   void MakeDevice(std::unique_ptr<haptics::HapticScene> scene);
   void StepSculpts(const haptics::ToolKinematics& tool_W, double t);
+  void AddTouch(haptics::HapticScene* scene);
+  void StepTouch(const haptics::ToolState& tool);
 };
 
 void ScriptedRun::Impl::CheckOptions() {
@@ -230,6 +240,17 @@ void ScriptedRun::Impl::CheckOptions() {
                      FormatNumber(options.max_duration));
   }
   ParseSculptTool(options.sculpt_tool);  // a bad name fails before any work
+  if (!options.place.empty()) {
+    try {
+      ParsePlaceKind(options.place);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--place: ") + e.what());
+    }
+  }
+  if (!(options.fe_tool_radius > 0.0 && std::isfinite(options.fe_tool_radius))) {
+    throw InputError("--fe-tool-radius: must be > 0 m, got " +
+                     FormatNumber(options.fe_tool_radius));
+  }
   if (!(options.sculpt_radius > 0.0 && std::isfinite(options.sculpt_radius))) {
     throw InputError("--sculpt-radius: must be > 0 m, got " + FormatNumber(options.sculpt_radius));
   }
@@ -257,6 +278,12 @@ void ScriptedRun::Impl::CheckOptions() {
 void ScriptedRun::Impl::BuildScene(Document* given, std::unique_ptr<haptics::HapticScene>* scene) {
   const bool scene_is_file =
       !(options.scene.empty() || options.scene == "none" || options.scene == "demo");
+  if (!scene_is_file && !options.place.empty()) {
+    throw InputError(
+        "--place: needs a scene file or document (the solids the grip places are added to it); "
+        "SCENE is " +
+        (options.scene.empty() ? std::string("empty") : "'" + options.scene + "'"));
+  }
   if (!scene_is_file && (!options.save.empty() || !exports.empty())) {
     throw InputError(std::string(options.save.empty() ? "--export" : "--save") +
                      ": needs a scene file or document (SCENE is " +
@@ -381,6 +408,11 @@ void ScriptedRun::Impl::BuildDocumentScene(int version,
     }
   } else if (part_count > 0) {
     // An assembly: one field owns every part (grasp, carry, contact, seats).
+    if (!options.place.empty()) {
+      throw InputError("--place: " + options.scene +
+                       " is an assembly (its solids are the parts, carried and seated by the "
+                       "grasp); primitives are placed in documents of solids");
+    }
     std::unique_ptr<haptics::AssemblyField> assembly;
     try {
       // Alignment snap (a carried part drawn toward its seat's axis) where the document
@@ -482,6 +514,8 @@ void ScriptedRun::Impl::BuildDocumentScene(int version,
       fe_options.world_scale = built.map.X_WD.world_scale;
       fe_options.model.cache.start_worker = false;  // PrepareColumns below, nothing after
       fe_options.touch.grasp = options.fe_grasp && !options.fe_grab;
+      fe_options.touch.tool_radius = options.fe_tool_radius;
+      fe_options.grab_settings.tool_radius = options.fe_tool_radius;
       fe_options.grab = options.fe_grab;
       fe_options.grab_settings.grasp = options.fe_grasp;
       fe_options.grab_settings.worker = false;  // factored on the grab tick: deterministic
@@ -509,8 +543,11 @@ void ScriptedRun::Impl::BuildDocumentScene(int version,
                   std::to_string(plan.from_disk) + " from the disk cache, " +
                   std::to_string(plan.computed) + " computed" + (plan.saved ? " and saved" : "") +
                   ", " + Fixed(plan.seconds, 2) + " s); none computed during the run\n";
-      fe_lines += "fe '" + name + "' touch: sphere radius " + FormatNumber(ts.tool_radius) +
-                  " m, force scale " + FormatNumber(ts.force_scale) + ", coupling " +
+      fe_lines += "fe '" + name +
+                  "' touch: " + (ts.patch_contact ? "tool patch, radius " : "sphere radius ") +
+                  FormatNumber(ts.tool_radius) + " m" + (ts.grasp ? " at each pole tip" : "") +
+                  (ts.frictionless ? ", frictionless" : ", sticking") + ", force scale " +
+                  FormatNumber(ts.force_scale) + ", coupling " +
                   FormatNumber(ts.coupling_stiffness) + " N/m, max felt " +
                   FormatNumber(ts.max_force) + " N (W)\n";
       if (part.grab_field) {
@@ -563,6 +600,8 @@ void ScriptedRun::Impl::BuildDocumentScene(int version,
   sculpt_settings.tool.tool = ParseSculptTool(options.sculpt_tool);
   sculpt_settings.tool.radius = options.sculpt_radius;
   sculpt_settings.tool.conserve_volume = options.conserve_volume;
+  // The clay width's poles: the grip's, in W.
+  sculpt_settings.clay_width.grasp.pole_length = settings.X_WD.world_scale * geometry.d;
   for (ObjectId id : sculpt_ids) {
     try {
       sculpts.push_back(std::make_unique<DocumentSculpt>(&doc, id, sculpt_settings));
@@ -713,6 +752,7 @@ ScriptedRun::ScriptedRun(const ScriptedRunOptions& options, Document* doc)
   }
   std::unique_ptr<haptics::HapticScene> scene;
   s.BuildScene(doc, &scene);
+  if (!options.place.empty()) s.AddTouch(scene.get());
   s.num_fields = scene->size();
   s.MakeDevice(std::move(scene));
   // Columns after today's only when the document has FE parts, sculpt objects or scripted link
@@ -727,6 +767,7 @@ ScriptedRun::ScriptedRun(const ScriptedRunOptions& options, Document* doc)
   for (std::size_t i = 1; i < s.sculpts.size(); ++i)
     s.header += ",sculpt_volume" + std::to_string(i + 1);
   if (s.link_columns) s.header += ",link_status,plugged,link_lost,link_corrupt";
+  if (s.touch) s.header += ",touch_feature,touch_size,touch_lift,placed";
   s.header += '\n';
 }
 
@@ -740,6 +781,8 @@ const RuntimeFrame& ScriptedRun::frame() const { return impl_->frame; }
 const haptics::DeviceToWorld& ScriptedRun::X_WD() const { return impl_->settings.X_WD; }
 const haptics::DeviceInfo& ScriptedRun::info() const { return impl_->rig->info(); }
 const haptics::HapticLoop& ScriptedRun::loop() const { return *impl_->loop; }
+
+const TouchSession* ScriptedRun::touch() const { return impl_->touch.get(); }
 
 int ScriptedRun::sculpt_strokes() const {
   int n = 0;
@@ -774,6 +817,37 @@ void ScriptedRun::Impl::StepSculpts(const haptics::ToolKinematics& tool_W, doubl
   stroking = sculpt.session().stroke_active() ? chosen : -1;
 }
 
+void ScriptedRun::Impl::AddTouch(haptics::HapticScene* scene) {
+  // Model mode's session, with the run's X_WD and grip; its felt pull is in the scene from the
+  // first tick (zero until the first frame builds it).
+  touch = std::make_unique<TouchSession>(geometry.d);
+  touch->SetWorldScale(settings.X_WD.world_scale);
+  touch->SetPlacing(ParsePlaceKind(options.place));
+  scene->Add(std::make_unique<TouchSnapSlotField>(touch.get()));
+  if (fields_line.empty()) fields_line = "fields:";
+  fields_line += std::string(fields_line == "fields:" ? "" : ",") + " touch_snap (place " +
+                 options.place + ")";
+}
+
+void ScriptedRun::Impl::StepTouch(const haptics::ToolState& tool) {
+  // As model mode's frame: the squeeze, then the ghost, the felt field and the place.
+  const bool squeezed = squeeze.Update(tool.time, tool.pose_D.Grasp());
+  const TouchSession::PlaceFrame frame =
+      touch->UpdatePlacing(tool, document, 0, squeezed, squeeze.last_start(), false);
+  if (frame.placed) {
+    const Alignment& ghost = touch->ghost();
+    const Eigen::Vector3d& p = ghost.X_WN.translation();
+    placed_lines.push_back(touch->message() + " at t = " + FormatNumber(t0 + k * dt) +
+                           " s, centre (" + FormatNumber(p.x()) + ", " + FormatNumber(p.y()) +
+                           ", " + FormatNumber(p.z()) + ") m");
+  }
+}
+
+void ScriptedRun::SetStepHooks(std::function<void()> before, std::function<void()> after) {
+  impl_->before_step = std::move(before);
+  impl_->after_step = std::move(after);
+}
+
 void ScriptedRun::Step(std::string* csv) {
   Impl& s = *impl_;
   const long k = s.k;
@@ -802,9 +876,11 @@ void ScriptedRun::Step(std::string* csv) {
     inputs.lateness = std::chrono::duration<double>(std::chrono::steady_clock::now() - due).count();
   }
   s.rig->Read(dt, &inputs.reading);
+  if (s.before_step) s.before_step();
   const auto start = std::chrono::steady_clock::now();
   const haptics::TickOutputs result = s.loop->Step(inputs, dt);
   const auto stop = std::chrono::steady_clock::now();
+  if (s.after_step) s.after_step();
   s.rig->Write(result.tau);
   const double seconds = std::chrono::duration<double>(stop - start).count();
   s.tick_time.Add(seconds);
@@ -845,7 +921,7 @@ void ScriptedRun::Step(std::string* csv) {
   }
   if (s.fe_columns) {
     // The FE parts' contact state of this tick (this thread ran it: it is the one reader).
-    int contacts = 0, substituted = 0;
+    int contacts = 0, substituted = 0, refused = 0;
     Eigen::Vector3d f = Eigen::Vector3d::Zero();
     Eigen::Vector3d m = Eigen::Vector3d::Zero();
     for (const FeTouchField* field : s.fe_fields) {
@@ -853,6 +929,7 @@ void ScriptedRun::Step(std::string* csv) {
       const FeContactState& st = field->last_state();
       contacts += st.num_contacts;
       substituted += st.num_substituted;
+      if (field->settings().patch_contact) refused += st.refused;
       f += st.f_tool_W;
     }
     for (const FeGrabField* grab : s.fe_grabs) {
@@ -864,6 +941,7 @@ void ScriptedRun::Step(std::string* csv) {
       m += st.m_tool_W;
     }
     if (substituted > 0) ++s.fe_substituted_ticks;
+    if (refused > 0) ++s.fe_truncated_ticks;
     s.fe_max_contacts = std::max(s.fe_max_contacts, contacts);
     s.fe_max_reaction = std::max(s.fe_max_reaction, f.norm());
     buffer += ',' + std::to_string(contacts) + ',' + FormatNumber(f.x()) + ',' +
@@ -892,6 +970,16 @@ void ScriptedRun::Step(std::string* csv) {
     buffer += ',' + std::to_string(static_cast<int>(link.status)) + ',' +
               (link.plugged ? "1" : "0") + ',' + std::to_string(link.stats.lost) + ',' +
               std::to_string(link.stats.corrupt);
+  }
+  if (s.touch) {
+    // Model mode's frame (every kSculptFrameTicks ticks, as the sculpt's): the felt field it
+    // builds pulls from the next tick on. Then what the ghost aligned to, its size (m, W), the
+    // felt faces' lift (m, W) and the solids placed so far.
+    if ((k + 1) % kSculptFrameTicks == 0) s.StepTouch(result);
+    buffer += ',' + std::to_string(AlignKindNumber(s.touch->ghost().kind)) + ',' +
+              FormatNumber(s.touch->ghost_size()) + ',' +
+              FormatNumber(s.touch->felt_rest_height()) + ',' +
+              std::to_string(s.touch->placed_count());
   }
   buffer += '\n';
   ++s.k;
@@ -944,7 +1032,11 @@ std::string ScriptedRun::Summary() const {
   if (s.fe_columns) {
     out << "fe contact: at most " << s.fe_max_contacts << " nodes, largest FE reaction "
         << Fixed(s.fe_max_reaction, 3) << " N (unscaled, W); " << s.fe_substituted_ticks
-        << " ticks read a substitute column (a node off the prepared path)\n";
+        << " ticks read a substitute column (a node off the prepared path)";
+    if (s.fe_truncated_ticks > 0)
+      out << "; " << s.fe_truncated_ticks << " ticks left tool-patch nodes out (more than "
+          << kMaxFeContacts << ": a smaller tool was felt)";
+    out << "\n";
   }
   for (std::size_t i = 0; i < s.sculpts.size(); ++i) {
     const DocumentSculpt& sculpt = *s.sculpts[i];
@@ -958,11 +1050,30 @@ std::string ScriptedRun::Summary() const {
         << Fixed(100.0 * (v1 - v0) / v0, 3) << " %), at most "
         << Fixed(100.0 * s.sculpt_max_volume_change[i], 3) << " % off the start during the run; "
         << sculpt.session().mesh()->vertex_count() << " vertices\n";
+    if (const auto& grid = sculpt.session().clay_grid()) {
+      const SculptSession& session = sculpt.session();
+      out << "clay width '" << sculpt.name() << "': distance grid of " << grid->node_count()
+          << " nodes (" << FormatNumber(grid->cell()) << " m), built in "
+          << Fixed(1e3 * sculpt.start_grid_seconds(), 1) << " ms of thread CPU time; "
+          << session.grid_builds() - 1 << " update" << (session.grid_builds() == 2 ? "" : "s")
+          << " after strokes";
+      if (session.grid_builds() > 1) {
+        out << ", the last in " << Fixed(1e3 * session.last_grid_seconds(), 1) << " ms ("
+            << session.last_grid_nodes() << " nodes recomputed)";
+      }
+      out << "\n";
+    }
   }
   if (s.frame_source != "default") {
     out << "frame: half-sides " << FormatNumber(s.geometry.a) << ", " << FormatNumber(s.geometry.b)
         << ", " << FormatNumber(s.geometry.c) << " m, pole " << FormatNumber(s.geometry.d) << " m ("
         << s.frame_source << ")\n";
+  }
+  if (s.touch) {
+    out << "touch: placing " << s.options.place << " (snap pull at most "
+        << FormatNumber(s.touch->snap_settings().max_force) << " N); " << s.touch->placed_count()
+        << " placed\n";
+    for (const std::string& line : s.placed_lines) out << "touch: " << line << "\n";
   }
   out << s.map_line << "\n";
   const haptics::LatencyHistogram& tt = s.tick_time;

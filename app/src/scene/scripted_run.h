@@ -10,6 +10,13 @@
 // the tick's tool state (as the window steps its sculpt mode once a frame). CSV rows: one per
 // tick, the columns of CsvHeader() (docs/cli.md, run).
 //
+// Modelling by touch (--place KIND): a TouchSession (scene/touch_session.h) on the document steps
+// every kSculptFrameTicks ticks on the tick's tool state, as model mode does once a frame: the
+// ghost follows the measured grip, a squeeze (SqueezeDetector) places it as one command, and its
+// felt snap field, in the scene from the first tick (TouchSnapSlotField), pulls from the next
+// tick on. The solids placed are not felt during the run (its fields are built before the first
+// tick); --save writes them.
+//
 // Sculpt objects (every one of the document): each is a DocumentSculpt session felt through its
 // own sculpt tool field. The rule for which clay a stroke sculpts: while a stroke is under way
 // on one clay, only that clay's session steps; otherwise only the session of the clay nearest
@@ -22,6 +29,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <ostream>
@@ -35,6 +43,8 @@
 #include "spidarcad/haptics/haptic_loop.h"
 
 namespace spidarcad::app {
+
+class TouchSession;
 
 // The sculpt sessions step every this many ticks of the virtual clock (62.5 Hz), as the window
 // steps its sculpt mode once a frame; the window on the virtual clock renders one frame per as
@@ -62,11 +72,16 @@ struct ScriptedRunOptions {
   double max_duration = 3600.0;      // s: longest run accepted (docs/limits.md)
   bool fe_grab = false;              // FE parts: grabbed by the closing grasp instead of pushed
   bool fe_grasp = false;             // FE parts: two-point grasp contact instead of the sphere
+  double fe_tool_radius = 0.01;      // FE parts: the tool's physical radius, m on the part (W)
   std::vector<std::string> save;     // --save OUT: the document at the end of the run
   std::vector<std::string> exports;  // --export NAME=FILE: one object's final state
   std::string sculpt_tool = "grab";  // sculpt objects: the tool of every stroke
   double sculpt_radius = 0.02;       // sculpt objects: falloff radius R, m (W)
   bool conserve_volume = false;      // sculpt objects: keep each stroke's enclosed volume
+  // Modelling by touch (--place sphere|box|cylinder; "" off): the grip places that primitive as
+  // model mode does (scene/touch_session.h): its ghost aligns to the document's faces, edges and
+  // axes, their snap pull is felt, and each quick squeeze of the grasp adds it as a solid.
+  std::string place;
   // board-sim link faults (haptics::usb::LinkFaults), seeded by link_seed (0: --seed):
   double link_loss = 0.0;        // probability that a packet (either direction) vanishes
   double link_corruption = 0.0;  // probability that a packet arrives with 1..3 bits flipped
@@ -107,6 +122,10 @@ class ScriptedRun {
   void Step(std::string* csv);
   // After the last tick: ends every stroke still under way (as if the grasp opened there).
   void Finish();
+  // Calls `before` right before and `after` right after each tick's HapticLoop::Step (on the
+  // thread that calls Step; either may be empty), so that a caller can time exactly the loop's
+  // ticks of the run (the tick table's golden rows, cli/report_tick.h).
+  void SetStepHooks(std::function<void()> before, std::function<void()> after);
   // Latches (true) or releases (false) the loop's emergency stop: zero force from the next tick
   // (HapticLoop::RequestEmergencyStop), forces back through the ramp after the release.
   void EmergencyStop(bool stop);
@@ -130,6 +149,8 @@ class ScriptedRun {
   const haptics::HapticLoop& loop() const;
   // Sculpt strokes ended so far, over all sculpt objects.
   int sculpt_strokes() const;
+  // With --place: the run's modelling by touch (the window shows its ghost); else null.
+  const TouchSession* touch() const;
 
  private:
   struct Impl;

@@ -42,6 +42,10 @@ std::vector<CLI::Option*> AddScriptedRunOptions(CLI::App& cmd, ScriptedRunOption
                                "Documents: FE models are squeezed between the pole tips "
                                "(two-point grasp contact, as FE mode's checkbox) instead of pushed "
                                "by the sphere on the grip centre"));
+  added.push_back(cmd.add_option("--fe-tool-radius", options->fe_tool_radius,
+                                 "Documents: the FE tool's physical radius, m on the part (W, "
+                                 "not scaled by the world scale): the patch every FE push and "
+                                 "grab covers (default 0.01)"));
   added.push_back(cmd.add_option("--sculpt-tool", options->sculpt_tool,
                                  "Documents: the tool of the sculpt objects' strokes: grab "
                                  "(default), twist, bend, push_pull or smooth"));

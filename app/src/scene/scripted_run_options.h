@@ -14,7 +14,8 @@
 namespace spidarcad::app {
 
 // Adds --hand, --calibrate, --tool, --stiffness, --damping, --friction, --world-scale,
-// --world-origin, --max-duration, --fe-grab, --fe-grasp, --sculpt-tool, --sculpt-radius,
+// --world-origin, --max-duration, --fe-grab, --fe-grasp, --fe-tool-radius, --sculpt-tool,
+// --sculpt-radius,
 // --conserve-volume, --link-loss, --link-corruption, --link-seed, --unplug and --replug to
 // `command`, writing into *options (which must outlive the parse). Returns the options added,
 // so that a caller can make them depend on another (the window: on --clock).

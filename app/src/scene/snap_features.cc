@@ -33,6 +33,8 @@ struct Candidates {
   // Per edge of features.edges_W: how far its inner points may lie off the surface beyond the
   // tolerance (a cylinder rim's chord: its sagitta), m.
   std::vector<double> edge_slack;
+  // Axes of the round primitives (segments), ExtractSnapAxes.
+  std::vector<std::pair<Vector3d, Vector3d>> axes;
   std::size_t count = 0;
   void AddEdge(const Vector3d& a, const Vector3d& b, double slack = 0.0) {
     features.edges_W.emplace_back(a, b);
@@ -130,8 +132,9 @@ void AddExtrusion(const std::vector<Eigen::Vector2d>& profile, double height, co
 
 // Rims (chords) and caps (polygons) of the cylinder of `radius` over z in ±height/2, mapped by X.
 void AddCylinder(double radius, double height, const Affine3d& X, Candidates* out) {
-  out->Count(2 * kCylinderSegments + 2);
+  out->Count(2 * kCylinderSegments + 3);
   haptics::SnapFeatures& f = out->features;
+  out->axes.emplace_back(X * Vector3d(0, 0, -0.5 * height), X * Vector3d(0, 0, 0.5 * height));
   // Sagitta of a chord, in local units; a bound of the map's largest stretch makes it W.
   const double sagitta = radius * (1.0 - std::cos(std::numbers::pi / kCylinderSegments)) *
                          X.linear().norm();  // Frobenius: >= the largest stretch
@@ -166,6 +169,17 @@ void Walk(const modeling::ImplicitNode& node, const Affine3d& X, Candidates* out
           AddExtrusion(p.profile, p.height, X, out);
         } else if constexpr (std::is_same_v<P, modeling::CylinderParams>) {
           AddCylinder(p.radius, p.height, X, out);
+        } else if constexpr (std::is_same_v<P, modeling::ConeParams>) {
+          out->Count(1);
+          out->axes.emplace_back(X * Vector3d(0, 0, -0.5 * p.height),
+                                 X * Vector3d(0, 0, 0.5 * p.height));
+        } else if constexpr (std::is_same_v<P, modeling::CapsuleParams>) {
+          out->Count(1);
+          out->axes.emplace_back(X * p.a, X * p.b);
+        } else if constexpr (std::is_same_v<P, modeling::TorusParams>) {
+          out->Count(1);
+          out->axes.emplace_back(X * Vector3d(0, 0, -p.minor_radius),
+                                 X * Vector3d(0, 0, p.minor_radius));
         } else if constexpr (std::is_same_v<P, modeling::HalfSpaceParams>) {
           out->Count(1);
           const Vector3d n = p.normal.normalized();
@@ -225,6 +239,28 @@ SnapFeatureCounts CountSnapFeatures(const haptics::SnapFeatures& features) {
   c.edges = static_cast<int>(features.edges_W.size());
   c.faces = static_cast<int>(features.faces_W.size());
   return c;
+}
+
+std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> ExtractSnapAxes(
+    const modeling::Scene& scene, double tolerance) {
+  Candidates candidates;
+  for (const modeling::Solid& solid : scene.solids)
+    Walk(solid.root, Affine3d::Identity(), &candidates);
+  std::vector<std::pair<Vector3d, Vector3d>> out;
+  for (const auto& [a, b] : candidates.axes) {
+    if ((b - a).norm() <= tolerance) continue;
+    const bool dup = std::any_of(out.begin(), out.end(), [&](const auto& e) {
+      return (Near(a, e.first, tolerance) && Near(b, e.second, tolerance)) ||
+             (Near(a, e.second, tolerance) && Near(b, e.first, tolerance));
+    });
+    if (!dup) out.emplace_back(a, b);
+  }
+  if (out.size() > kMaxFeatures) {
+    throw std::invalid_argument("snap: the scene has " + std::to_string(out.size()) +
+                                " round primitives' axes, more than " +
+                                std::to_string(kMaxFeatures));
+  }
+  return out;
 }
 
 haptics::SnapFeatures ExtractSnapFeatures(const modeling::Scene& scene, double tolerance) {

@@ -11,10 +11,11 @@
 //  - cylinder: the two rims as kCylinderSegments chords each (edges) and the two caps as
 //    kCylinderSegments-gons (faces); no vertices;
 //  - half_space: its whole plane (an unbounded face).
-// Spheres, capsules, cones and tori contribute nothing. Transforms (translate, rotate, scale —
-// also non-uniform —, mirror with or without the original, linear and polar arrays) map the
-// features; booleans, blends, offsets and shells pass their children's features up unchanged
-// (the children of a difference too: a pocket's corners are features of the result).
+// Spheres, capsules, cones and tori contribute no vertex, edge or face (their axes:
+// ExtractSnapAxes). Transforms (translate, rotate, scale — also non-uniform —, mirror with or
+// without the original, linear and polar arrays) map the features; booleans, blends, offsets and
+// shells pass their children's features up unchanged (the children of a difference too: a pocket's
+// corners are features of the result).
 //
 // Surface test: a vertex is kept when the scene value (the minimum over all solids of
 // modeling::EvaluateTree) has |value| <= tolerance there; an edge when its end points and three
@@ -27,6 +28,8 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "spidarcad/haptics/snap_field.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -48,6 +51,14 @@ struct SnapFeatureCounts {
 // The snap features (W, m) of every solid of `scene` on the scene's surface within
 // `tolerance` m (> 0). Throws std::invalid_argument for a non-positive tolerance.
 haptics::SnapFeatures ExtractSnapFeatures(const modeling::Scene& scene, double tolerance = 1e-5);
+
+// The axes of the scene's round primitives as segments (W, m), placed by the transforms above
+// them, each once (duplicates within `tolerance` dropped), buried or not: a cylinder's and a
+// cone's from −height/2 to +height/2 along its z, a capsule's from a to b, a torus's across its
+// tube (±minor_radius along its z). Throws std::invalid_argument as ExtractSnapFeatures does for
+// too many candidates.
+std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> ExtractSnapAxes(
+    const modeling::Scene& scene, double tolerance = 1e-5);
 
 // The counts of `features`.
 SnapFeatureCounts CountSnapFeatures(const haptics::SnapFeatures& features);
