@@ -10,7 +10,8 @@
 // SCHED_FIFO thread (when permitted); the CPU table adds page faults and context switches.
 // Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two
 // ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point shell
-// against the union of both solids, twist against the wall); FE contact (platform.json meshed
+// against the union of both solids, twist against the wall; 196 points, and 2004 in a second row);
+// FE contact (platform.json meshed
 // at 12 mm, FeTouchField on the steel part, the hand driving the tool sphere into the plate;
 // one row over every tick, one over the ticks where the field holds k = 16 contact nodes, and
 // the k reached is printed; see MeasureFe); sculpt (assets/scenes/clay.json meshed at 3 mm,
@@ -25,6 +26,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/report_tick.h"
@@ -48,7 +50,8 @@ constexpr const char* kDescription =
     "Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two\n"
     "ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point "
     "shell\n"
-    "against the union of both solids, twist against the wall); FE contact (platform.json meshed\n"
+    "against the union of both solids, twist against the wall; 196 points, and 2004 in a second\n"
+    "row); FE contact (platform.json meshed\n"
     "at 12 mm, FeTouchField on the steel part, the hand driving the tool sphere into the plate;\n"
     "one row over every tick, one over the ticks where the field holds k = 16 contact nodes, and\n"
     "the k reached is printed; see MeasureFe); sculpt (assets/scenes/clay.json meshed at 3 mm,\n"
@@ -70,6 +73,9 @@ constexpr const char* kDescription =
     "              window's haptic runtime)\n"
     "  --slowest N also list the N slowest ticks of each scene (N <= 8) with their page faults\n"
     "              and context switches\n"
+    "  --no-golden leave out the golden runs' rows (default: one row per golden run of\n"
+    "              tests/golden, every tick of its `spidarcad run`, app/src/cli/golden_runs.cc)\n"
+    "  --golden-ticks N  time at most N ticks of each golden run (default: all of them)\n"
     "  --help      this text\n"
     "This program is not a Google Benchmark: --benchmark_* flags are not taken.";
 
@@ -88,8 +94,8 @@ bool ParseCount(const char* text, long least, long* count) {
 int main(int argc, char** argv) {
   spidarcad::app::SceneTickOptions options;
   options.realtime = true;
-  bool lock_memory = true;
-  long slowest = 0;
+  bool lock_memory = true, golden = true;
+  long slowest = 0, golden_ticks = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -109,6 +115,17 @@ int main(int argc, char** argv) {
     }
     if (arg == "--no-lock") {
       lock_memory = false;
+      continue;
+    }
+    if (arg == "--no-golden") {
+      golden = false;
+      continue;
+    }
+    if (const char* value = value_of("--golden-ticks")) {
+      if (!ParseCount(value, 1, &golden_ticks)) {
+        std::fprintf(stderr, "%s: --golden-ticks: '%s' is not an integer >= 1\n", argv[0], value);
+        return 2;
+      }
       continue;
     }
     if (const char* value = value_of("--ticks")) {
@@ -139,7 +156,10 @@ int main(int argc, char** argv) {
   const spidarcad::haptics::MemoryLockResult lock = lock_memory
                                                         ? spidarcad::haptics::LockProcessMemory()
                                                         : spidarcad::haptics::MemoryLockResult{};
-  const std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(options);
+  std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(options);
+  if (golden)
+    for (auto& r : spidarcad::app::MeasureGoldenRunTicks(options, golden_ticks))
+      rows.push_back(std::move(r));
   std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n",
               options.ticks);
   std::printf("measuring thread: %s; %s\n\n", rows.empty() ? "-" : rows.front().scheduling.c_str(),

@@ -5,14 +5,16 @@
 // shows their distributions.
 // Scenes: empty; demo (plane wall + spring); implicit proxy (assets/scenes/platform.json, two
 // ProxyFields, press onto the plate); six-DOF shell tool (platform.json, cross-grip point shell
-// against the union of both solids, twist against the wall); FE contact (platform.json meshed
+// against the union of both solids, twist against the wall; once with the grip's 196 points and
+// once with 2004); FE contact (platform.json meshed
 // at 12 mm, FeTouchField on the steel part, the hand driving the tool sphere into the plate;
 // one row over every tick, one over the ticks where the field holds k = 16 contact nodes, and
 // the k reached is printed; see MeasureFe); sculpt (assets/scenes/clay.json meshed at 3 mm,
 // SculptToolField during a grab stroke the closed grip drags up and down; the main-thread stroke
 // update, SculptSession::Step, runs every 16th tick outside the timing, as the window does at
-// 60 Hz); assembly (assets/scenes/assembly.json, the AssemblyField of the toy robot, X_WD
-// identity, the device calibrated at start-up as the window does, the hand following
+// 60 Hz); sculpt pinch (the same clay squeezed between the fingertips: the clay width, see
+// MeasureClayPinch); assembly (assets/scenes/assembly.json, the AssemblyField of the toy robot,
+// X_WD identity, the device calibrated at start-up as the window does, the hand following
 // assets/trajectories/seat_right_leg.csv: grasp, carry, seat the right leg; one row over every
 // tick, one over the ticks while a part is carried).
 #include "cli/report_tick.h"
@@ -36,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "cli/golden_runs.h"
 #include "cli/report_common.h"
 #include "cli/report_sections.h"
 #include "doc/assets.h"
@@ -45,6 +48,7 @@
 #include "scene/fe_touch_field.h"
 #include "scene/scene_haptics.h"
 #include "scene/scene_solid.h"
+#include "scene/scripted_run.h"
 #include "scene/sculpt_field.h"
 #include "spidarcad/haptics/haptic_loop.h"
 #include "spidarcad/haptics/kinematics.h"
@@ -94,6 +98,28 @@ TickCounters Difference(const TickCounters& after, const TickCounters& before) {
   d.voluntary_switches = after.voluntary_switches - before.voluntary_switches;
   d.involuntary_switches = after.involuntary_switches - before.involuntary_switches;
   return d;
+}
+
+// Runs `body` on the measuring thread (SceneTickOptions::realtime) and returns its scheduling.
+std::string OnMeasuringThread(bool realtime, const std::function<void()>& body) {
+  std::string scheduling = "normal scheduling";
+  if (realtime) {
+    // A thread of its own, made from this (normal) thread, that raises its own priority: the
+    // threads the scene made before (the FE column worker) stay normal, as in the window.
+    std::thread thread([&] {
+      sched_param param{};
+      param.sched_priority = 80;
+      const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+      scheduling = err == 0 ? "SCHED_FIFO 80"
+                            : std::string("normal scheduling (SCHED_FIFO refused: ") +
+                                  std::strerror(err) + ")";
+      body();
+    });
+    thread.join();
+  } else {
+    body();
+  }
+  return scheduling;
 }
 
 Row Measure(const std::string& name, std::unique_ptr<haptics::HapticScene> scene,
@@ -150,23 +176,7 @@ Row Measure(const std::string& name, std::unique_ptr<haptics::HapticScene> scene
       us[k] = std::chrono::duration<double, std::micro>(stop - start).count();
     }
   };
-  std::string scheduling = "normal scheduling";
-  if (options.realtime) {
-    // A thread of its own, made from this (normal) thread, that raises its own priority: the
-    // threads the scene made before (the FE column worker) stay normal, as in the window.
-    std::thread thread([&] {
-      sched_param param{};
-      param.sched_priority = 80;
-      const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
-      scheduling = err == 0 ? "SCHED_FIFO 80"
-                            : std::string("normal scheduling (SCHED_FIFO refused: ") +
-                                  std::strerror(err) + ")";
-      run_ticks();
-    });
-    thread.join();
-  } else {
-    run_ticks();
-  }
+  const std::string scheduling = OnMeasuringThread(options.realtime, run_ticks);
   Row row = SummarizeTicks(name, us, cpu, counters);
   row.scheduling = scheduling;
   return row;
@@ -179,10 +189,13 @@ haptics::LoopSettings BaseSettings() {
 }
 
 Row MeasureScene(const std::string& name, ToolModel tool, const Eigen::Vector3d& p_WDo,
-                 const std::string& trajectory_file, const SceneTickOptions& tick_options) {
+                 const std::string& trajectory_file, const SceneTickOptions& tick_options,
+                 int shell_rings = 12, int shell_around = 8) {
   const modeling::Scene scene = modeling::LoadScene(AssetDir() + "scenes/platform.json");
   SceneHapticsOptions options;
   options.tool = tool;
+  options.shell_rings = shell_rings;
+  options.shell_around = shell_around;
   options.world_scale = 1.0;
   options.p_WDo = p_WDo;
   SceneHaptics built = BuildHapticScene(scene, options);
@@ -302,14 +315,19 @@ std::vector<Row> MeasureFe(const SceneTickOptions& options) {
 // The grip starts just above the clay's top with the grasp closed (40°, below the 70° stroke
 // trigger), so the first session step begins a grab stroke; the grip then moves up 15 mm and
 // back every 2 s, dragging the clay. The session steps every 16 ticks (outside the timing).
-Row MeasureSculpt(const SceneTickOptions& options) {
-  const long ticks = options.ticks;
+// Loads assets/scenes/clay.json, meshed at 3 mm, as the clay of *session.
+void LoadClayJson(SculptSession* session) {
   const SceneSolidGrid grid = PrepareSceneSolid(AssetDir() + "scenes/clay.json", "", 0.003);
   modeling::SurfaceMeshSettings mesh_settings;
   mesh_settings.bounds = grid.bounds;
   mesh_settings.cell_size = grid.cell;
+  session->SetMesh(modeling::MeshSurface(grid.compiled, mesh_settings));
+}
+
+Row MeasureSculpt(const SceneTickOptions& options) {
+  const long ticks = options.ticks;
   SculptSession session;
-  session.SetMesh(modeling::MeshSurface(grid.compiled, mesh_settings));
+  LoadClayJson(&session);
   const double grasp = 40.0 * std::numbers::pi / 180.0;
   const Eigen::Vector3d top(0.0, 0.0, 0.062);
   haptics::Trajectory trajectory;
@@ -335,6 +353,47 @@ Row MeasureSculpt(const SceneTickOptions& options) {
                 "sculpt: %d clay vertices; stroke active in %.1f %% of ticks (%ld stroke%s)",
                 session.mesh()->vertex_count(), 100.0 * stroke_ticks / ticks, strokes,
                 strokes == 1 ? "" : "s");
+  row.note = note;
+  return row;
+}
+
+// Sculpt with the clay width: the clay of MeasureSculpt and the pinch of
+// assets/trajectories/sculpt_pinch_hard.csv (scripts/make-sculpt-trajectories.py): the grip at
+// rest orientation beside the clay's top lobe, where its fingertips meet the clay near 80°,
+// closing its grasp towards 0.9 rad over the first 0.4 s, which begins a squeeze stroke
+// (scene/clay_width.h); then it pulls 15 mm out along −b and back every 2 s, squeezing. Every
+// tick samples both poles against the clay's distance grid. The session steps every 16 ticks
+// (outside the timing).
+Row MeasureClayPinch(const SceneTickOptions& options) {
+  const long ticks = options.ticks;
+  SculptSession session;
+  LoadClayJson(&session);
+  const Eigen::Vector3d pinch_at(-0.0404, -0.0854, 0.054);  // W = D here
+  const Eigen::Vector3d out = -Eigen::Vector3d(1.0, 1.0, 0.0).normalized();
+  haptics::Trajectory trajectory;
+  for (int i = 0; i <= 200; ++i) {
+    haptics::TrajectorySample s;
+    s.t = 0.01 * i;
+    s.p_DT = pinch_at + 0.0075 * (1.0 - std::cos(std::numbers::pi * i / 100.0)) * out;
+    s.grasp = i < 40 ? std::numbers::pi / 2 - (std::numbers::pi / 2 - 0.9) * i / 40.0 : 0.9;
+    trajectory.Add(s);
+  }
+  auto scene = std::make_unique<haptics::HapticScene>();
+  scene->Add(session.MakeField());
+  long squeeze_ticks = 0, strokes = 0;
+  Row row = Measure("sculpt pinch (clay.json, clay width)", std::move(scene), BaseSettings(),
+                    trajectory, options, [&](long k, const haptics::TickOutputs& out) {
+                      if (k % 16 == 0 && out.fk_status == haptics::FkStatus::kOk) {
+                        if (session.Step(out.tool_W, false) == SculptFrameEvent::kBegan) ++strokes;
+                      }
+                      squeeze_ticks += out.wrench_D(6) < 0.0;
+                    });
+  char note[240];
+  std::snprintf(note, sizeof(note),
+                "sculpt pinch: %d clay vertices, grid %ld nodes; the fingers squeeze the clay "
+                "(g < 0) in %.1f %% of ticks; %ld squeeze stroke%s",
+                session.mesh()->vertex_count(), session.clay_grid()->node_count(),
+                100.0 * squeeze_ticks / ticks, strokes, strokes == 1 ? "" : "s");
   row.note = note;
   return row;
 }
@@ -466,6 +525,60 @@ SceneTickRow SummarizeTicks(const std::string& name, const std::vector<double>& 
   return row;
 }
 
+std::vector<SceneTickRow> MeasureGoldenRunTicks(const SceneTickOptions& options, long max_ticks,
+                                                const std::function<void(double)>& progress) {
+  std::vector<Row> rows;
+  const std::vector<GoldenRun>& runs = GoldenRuns();
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto setup_start = std::chrono::steady_clock::now();
+    ScriptedRun run(GoldenRunOptions(runs[i], AssetDir()));
+    const double setup =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
+    const long ticks = max_ticks > 0 ? std::min(max_ticks, run.ticks()) : run.ticks();
+    // Sized (and so touched) here: no first touch of the sample arrays between two readings.
+    std::vector<double> us(ticks), cpu(ticks);
+    std::vector<TickCounters> counters(ticks);
+    long k = 0;
+    TickCounters before;
+    double cpu_start = 0.0;
+    std::chrono::steady_clock::time_point start;
+    run.SetStepHooks(
+        [&] {
+          before = ThreadCounters();
+          cpu_start = ThreadCpuMicros();
+          start = std::chrono::steady_clock::now();
+        },
+        [&] {
+          const auto stop = std::chrono::steady_clock::now();
+          const double cpu_stop = ThreadCpuMicros();
+          counters[k] = Difference(ThreadCounters(), before);
+          cpu[k] = cpu_stop - cpu_start;
+          us[k] = std::chrono::duration<double, std::micro>(stop - start).count();
+        });
+    std::string csv;
+    csv.reserve(1 << 16);
+    const std::string scheduling = OnMeasuringThread(options.realtime, [&] {
+      haptics::PrefaultStack();
+      for (k = 0; k < ticks; ++k) {
+        run.Step(&csv);
+        csv.clear();
+      }
+    });
+    run.SetStepHooks({}, {});
+    run.Finish();
+    Row row = SummarizeTicks("golden " + runs[i].name, us, cpu, counters);
+    row.scheduling = scheduling;
+    char note[300];
+    std::snprintf(note, sizeof(note),
+                  "golden %s: %ld of its %ld ticks (tests/golden/%s.csv; set-up %.1f s, not timed)",
+                  runs[i].name.c_str(), ticks, run.ticks(), runs[i].name.c_str(), setup);
+    row.note = note;
+    rows.push_back(std::move(row));
+    if (progress) progress(static_cast<double>(i + 1) / runs.size());
+  }
+  return rows;
+}
+
 std::vector<SceneTickRow> MeasureSceneTicks(long ticks,
                                             const std::function<void(double)>& progress) {
   SceneTickOptions options;
@@ -498,10 +611,15 @@ std::vector<SceneTickRow> MeasureSceneTicks(const SceneTickOptions& given,
   rows.push_back(MeasureScene("six-DOF shell tool (platform.json, 196 points, twist)",
                               ToolModel::kShell, Eigen::Vector3d(0.043, 0.2, -0.1),
                               "trajectories/twist.csv", options));
+  // The same with a dense shell: 50 rings of 20 points per pole.
+  rows.push_back(MeasureScene("six-DOF shell tool (platform.json, 2004 points, twist)",
+                              ToolModel::kShell, Eigen::Vector3d(0.043, 0.2, -0.1),
+                              "trajectories/twist.csv", options, 50, 20));
   step();
   for (Row& r : MeasureFe(options)) rows.push_back(std::move(r));
   step();
   rows.push_back(MeasureSculpt(options));
+  rows.push_back(MeasureClayPinch(options));
   step();
   for (Row& r : MeasureAssembly(options)) rows.push_back(std::move(r));
   step();
@@ -510,13 +628,19 @@ std::vector<SceneTickRow> MeasureSceneTicks(const SceneTickOptions& given,
 
 void ReportTick(ReportContext& ctx) {
   const long ticks = ctx.Pick(20000L, 60000L);
+  // The golden runs: every tick of each (--quick: its first 2000).
+  const long golden_ticks = ctx.Pick(2000L, 0L);
   SceneTickOptions options;
   options.ticks = ticks;
   options.realtime = true;  // as the window's haptic thread
   // As the window's haptic runtime: memory locked for the measurement (released after it).
   const haptics::MemoryLockResult lock = haptics::LockProcessMemory();
-  const std::vector<SceneTickRow> rows =
-      MeasureSceneTicks(options, [&](double f) { ctx.Progress(f); });
+  std::vector<SceneTickRow> rows =
+      MeasureSceneTicks(options, [&](double f) { ctx.Progress(0.5 * f); });
+  const std::size_t scene_rows = rows.size();
+  for (SceneTickRow& r :
+       MeasureGoldenRunTicks(options, golden_ticks, [&](double f) { ctx.Progress(0.5 + 0.5 * f); }))
+    rows.push_back(std::move(r));
   if (lock.status == haptics::MemoryLockStatus::kLocked) haptics::UnlockProcessMemory();
   ctx.md() << "HapticLoop::Step compute time (calibration, FK, the scene's force fields, safety, "
               "tension solve) on the simulated SPIDAR-G gripped by the simulated hand, as in "
@@ -528,7 +652,12 @@ void ReportTick(ReportContext& ctx) {
            << ". The worst tick is the CPU "
               "max column. A page fault is one the kernel counted on the measuring thread during "
               "the tick (getrusage(RUSAGE_THREAD)); the CSV adds the fault and involuntary "
-              "context-switch totals.\n";
+              "context-switch totals. The rows named golden are the golden runs of the "
+              "regression test (tests/golden, the one list in app/src/cli/golden_runs.cc): each "
+              "times "
+           << (golden_ticks > 0 ? "the first " + std::to_string(golden_ticks) + " ticks"
+                                : std::string("every tick"))
+           << " of `spidarcad run` with that golden's options, nothing else.\n";
   std::vector<std::vector<std::string>> table, csv;
   for (const SceneTickRow& r : rows) {
     table.push_back({r.name, Fixed(r.p50, 1), Fixed(r.p99, 1), Fixed(r.p999, 1), Fixed(r.max, 1),
@@ -566,7 +695,7 @@ void ReportTick(ReportContext& ctx) {
                  true,
                  true,
                  {}};
-  for (size_t k = 0; k < rows.size(); ++k) {
+  for (size_t k = 0; k < scene_rows; ++k) {  // the scene kinds (the golden rows: the table)
     for (int which = 0; which < 2; ++which) {
       std::vector<double> v = which == 0 ? rows[k].us : rows[k].cpu;
       std::sort(v.begin(), v.end());

@@ -1,7 +1,8 @@
 // Haptic tick time per scene kind: HapticLoop::Step on the simulated SPIDAR-G gripped by the
 // simulated hand, as in `spidarcad run`, for every kind of scene the window shows (empty, demo,
 // implicit proxy, six-DOF shell, FE contact, sculpt, assembly). Used by `spidarcad report`
-// (section "tick") and by bench/app_scene_tick_bench.
+// (section "tick") and by bench/app_scene_tick_bench; every golden run of the regression test
+// is a row too (MeasureGoldenRunTicks).
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -66,6 +67,17 @@ std::vector<SceneTickRow> MeasureSceneTicks(long ticks,
                                             const std::function<void(double)>& progress = {});
 std::vector<SceneTickRow> MeasureSceneTicks(const SceneTickOptions& options,
                                             const std::function<void(double)>& progress = {});
+
+// One row per golden run (cli/golden_runs.h: the list the regression test reads), named
+// "golden NAME": the run built from the golden's own options exactly as `spidarcad run` builds
+// it (ScriptedRun; assets from AssetPath), every tick it runs stepped, and each tick's
+// HapticLoop::Step timed (wall clock, thread CPU, faults and switches) on the measuring thread of
+// options.realtime; the set-up (FE models and columns, sculpt meshes, calibration) and the CSV
+// rows are not timed. `max_ticks` > 0 stops each run after that many ticks (tests); 0: all of
+// them (options.ticks and warm_up_ticks are not used). The note gives the ticks and the set-up
+// time. `progress(fraction)` after each run. Throws what ScriptedRun throws.
+std::vector<SceneTickRow> MeasureGoldenRunTicks(const SceneTickOptions& options, long max_ticks = 0,
+                                                const std::function<void(double)>& progress = {});
 
 // Summarises per-tick samples (µs; `us`, `cpu` and `counters` of the same non-zero length) into
 // a row: percentiles, maxima, fault and switch totals, the slowest ticks by thread CPU time.
