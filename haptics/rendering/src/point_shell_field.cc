@@ -25,6 +25,8 @@ constexpr int kImpulsePasses = 4;
 // Slack of the narrow phase's motion bounds, m: far above the rounding of φ and of the point
 // positions, far below any reach.
 constexpr double kCullMargin = 1e-9;
+// Points per sphere cluster of the shell (BuildClusters), about.
+constexpr int kPointsPerCluster = 24;
 
 // g / |g|, or zero when |g| is zero or not finite.
 Eigen::Vector3d UnitOrZero(const Eigen::Vector3d& g) {
@@ -212,6 +214,45 @@ PointShellField::PointShellField(std::shared_ptr<const DistanceField> environmen
   candidate_exact_.assign(shell_.points_T.size(), 1);
   point_radius_.resize(shell_.points_T.size());
   for (int i = 0; i < shell_.size(); ++i) point_radius_[i] = shell_.points_T[i].norm();
+  BuildClusters();
+}
+
+void PointShellField::BuildClusters() {
+  // Bins on a g×g×g grid over the shell's box, g chosen for about kPointsPerCluster points per
+  // occupied bin on a surface-like shell; a shell too small to gain from it has none.
+  const int n = shell_.size();
+  cluster_centre_T_.clear();
+  cluster_radius_.clear();
+  point_cluster_.assign(n, 0);
+  if (!settings_.cull_by_motion || n < 4 * kPointsPerCluster) return;
+  Eigen::AlignedBox3d box;
+  for (const Eigen::Vector3d& r : shell_.points_T) box.extend(r);
+  // A surface-like shell of n points occupies about 3g² of the g³ bins.
+  const int g =
+      std::clamp(int(std::lround(std::sqrt(double(n) / (3.0 * kPointsPerCluster)))), 2, 16);
+  const Eigen::Vector3d size = box.sizes().cwiseMax(1e-12);
+  std::vector<int> bin_cluster(g * g * g, -1);
+  std::vector<int> count;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d u = (shell_.points_T[i] - box.min()).cwiseQuotient(size) * double(g);
+    int b = 0;
+    for (int a = 2; a >= 0; --a) b = b * g + std::clamp(int(u[a]), 0, g - 1);
+    if (bin_cluster[b] < 0) {
+      bin_cluster[b] = int(cluster_centre_T_.size());
+      cluster_centre_T_.push_back(Eigen::Vector3d::Zero());
+      count.push_back(0);
+    }
+    point_cluster_[i] = bin_cluster[b];
+    cluster_centre_T_[bin_cluster[b]] += shell_.points_T[i];
+    ++count[bin_cluster[b]];
+  }
+  cluster_radius_.assign(cluster_centre_T_.size(), 0.0);
+  for (std::size_t c = 0; c < cluster_centre_T_.size(); ++c) cluster_centre_T_[c] /= count[c];
+  for (int i = 0; i < n; ++i) {
+    const int c = point_cluster_[i];
+    cluster_radius_[c] =
+        std::max(cluster_radius_[c], (shell_.points_T[i] - cluster_centre_T_[c]).norm());
+  }
 }
 
 ShellContact PointShellField::ContactAt(const Eigen::Isometry3d& X_WV) const noexcept {
@@ -421,12 +462,41 @@ ToolWrench PointShellField::Evaluate(const ToolKinematics& tool) noexcept {
       // φ now >= φ then − (how far the point can have moved since): out of reach, not a
       // candidate (a margin far above rounding keeps the decision the exhaustive one's).
       if (s.cull_by_motion && PhiLowerBound(i) >= reach) continue;
-      const Eigen::Vector3d x = p_ + R * shell_.points_T[i];
-      batch_index_[m] = i;
-      batch_x_[m] = x.x();
-      batch_y_[m] = x.y();
-      batch_z_[m] = x.z();
-      ++m;
+      batch_index_[m++] = i;
+    }
+    const int clusters = int(cluster_radius_.size());
+    if (clusters > 0 && m > 2 * clusters) {
+      // Many points without a useful bound (the first tick near a part, or after a jump):
+      // bound them by their clusters' centres, φ(x) >= φ(c) − ρ (φ is 1-Lipschitz, as the
+      // broad phase above assumes), and keep that bound as the point's last φ.
+      for (int c = 0; c < clusters; ++c) {
+        const Eigen::Vector3d x = p_ + R * cluster_centre_T_[c];
+        batch_x_[c] = x.x();
+        batch_y_[c] = x.y();
+        batch_z_[c] = x.z();
+      }
+      env_->EvaluateBatch(batch_x_.data(), batch_y_.data(), batch_z_.data(), clusters,
+                          batch_phi_.data(), nullptr, nullptr, nullptr);
+      int kept = 0;
+      for (int k = 0; k < m; ++k) {
+        const int i = batch_index_[k];
+        const int c = point_cluster_[i];
+        const double bound = batch_phi_[c] - cluster_radius_[c];
+        if (bound - kCullMargin >= reach) {
+          last_phi_[i] = bound;
+          last_travel_p_[i] = travel_p_;
+          last_travel_theta_[i] = travel_theta_;
+          continue;
+        }
+        batch_index_[kept++] = i;
+      }
+      m = kept;
+    }
+    for (int k = 0; k < m; ++k) {
+      const Eigen::Vector3d x = p_ + R * shell_.points_T[batch_index_[k]];
+      batch_x_[k] = x.x();
+      batch_y_[k] = x.y();
+      batch_z_[k] = x.z();
     }
     env_->EvaluateBatch(batch_x_.data(), batch_y_.data(), batch_z_.data(), m, batch_phi_.data(),
                         nullptr, nullptr, nullptr);

@@ -226,6 +226,15 @@ class PointShellField final : public ForceField {
   // Per candidate: candidate_phi_ is exact (1) or a lower bound >= 0 (0, cull_by_motion: a
   // candidate that cannot touch in this substep is evaluated only if ConstrainMotion needs it).
   std::vector<char> candidate_exact_;
+  // Sphere clusters of the shell (cull_by_motion): the points binned on a grid in the tool
+  // frame, each cluster's centre (T, m) and radius (m, the farthest of its points), and each
+  // point's cluster. When the motion bounds leave many points unbounded (the first tick near
+  // a part), φ at the cluster centres bounds every point of a cluster at once
+  // (φ(x) >= φ(c) − ρ), so the far side of the shell is not evaluated point by point.
+  void BuildClusters();
+  std::vector<Eigen::Vector3d> cluster_centre_T_;
+  std::vector<double> cluster_radius_;
+  std::vector<int> point_cluster_;
 };
 
 }  // namespace spidarcad::haptics
