@@ -256,6 +256,21 @@ TEST(PointShellField, EvaluateAllocatesNothing) {
   EXPECT_GT(contact, 100);
 }
 
+// A distance field that counts its point evaluations (EvaluateBatch's default goes through
+// Evaluate, so batches are counted point by point).
+class Counted final : public DistanceField {
+ public:
+  explicit Counted(std::shared_ptr<const DistanceField> f) : f_(std::move(f)) {}
+  double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
+    ++count;
+    return f_->Evaluate(p, g);
+  }
+  mutable long count = 0;
+
+ private:
+  std::shared_ptr<const DistanceField> f_;
+};
+
 std::uint64_t Bits(double v) {
   std::uint64_t b;
   std::memcpy(&b, &v, sizeof b);
@@ -268,18 +283,6 @@ std::uint64_t Bits(double v) {
 // fewer points (counted through the environment).
 TEST(PointShellField, CullingByMotionBoundsGivesTheExhaustiveResultsBitForBit) {
   // A floor with a box on it (a union: edges and corners), counting its evaluations.
-  class Counted final : public DistanceField {
-   public:
-    explicit Counted(std::shared_ptr<const DistanceField> f) : f_(std::move(f)) {}
-    double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
-      ++count;
-      return f_->Evaluate(p, g);
-    }
-    mutable long count = 0;
-
-   private:
-    std::shared_ptr<const DistanceField> f_;
-  };
   auto scene =
       std::make_shared<UnionDistanceField>(std::vector<std::shared_ptr<const DistanceField>>{
           Floor(), std::make_shared<TransformedDistanceField>(
@@ -331,18 +334,6 @@ TEST(PointShellField, CullingByMotionBoundsGivesTheExhaustiveResultsBitForBit) {
 // appears 1 mm above the floor evaluates well under half its points on that tick (clusters
 // included), and the field still matches the exhaustive one bit for bit as it presses on.
 TEST(PointShellField, FirstTickNearAPartBoundsTheFarSideByClusters) {
-  class Counted final : public DistanceField {
-   public:
-    explicit Counted(std::shared_ptr<const DistanceField> f) : f_(std::move(f)) {}
-    double Evaluate(const Eigen::Vector3d& p, Eigen::Vector3d* g) const noexcept override {
-      ++count;
-      return f_->Evaluate(p, g);
-    }
-    mutable long count = 0;
-
-   private:
-    std::shared_ptr<const DistanceField> f_;
-  };
   auto culled_env = std::make_shared<Counted>(Floor());
   auto full_env = std::make_shared<Counted>(Floor());
   PointShellSettings exhaustive;
