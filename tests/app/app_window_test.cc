@@ -1111,12 +1111,12 @@ TEST(AppWindowDocument, ImportedMeshIsDrawnAndSelectedByAClick) {
   EXPECT_EQ(window.scene_view().ActorOf(id), nullptr);
 }
 
-// Draws frames until the window's jobs (the previews of a document just opened) have ended, for
-// at most 120 s; false if they had not by then.
+// Draws frames until the window's jobs (the previews of a document just opened) have ended and
+// their results have landed, for at most 120 s; false if they had not by then.
 bool FramesUntilJobsEnd(AppWindow& window) {
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (window.jobs().busy() && std::chrono::steady_clock::now() < give_up) window.Frame();
-  return !window.jobs().busy();
+  while (window.jobs().pending() && std::chrono::steady_clock::now() < give_up) window.Frame();
+  return !window.jobs().pending();
 }
 
 // Model mode's Mesh action in the window: the selected solid's surface lands as a mesh object,

@@ -1029,7 +1029,7 @@ TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   ASSERT_TRUE(fe.StartSetUp(&model, model.document().FindByName("platform")->id)) << fe.status();
   for (const auto& job : window.jobs().jobs())
     if (job->title() == "Estimate the mesh of platform") job->Cancel();
-  ASSERT_TRUE(FramesUntil(window, [&] { return !window.jobs().busy(); })) << fe.status();
+  ASSERT_TRUE(FramesUntil(window, [&] { return !window.jobs().pending(); })) << fe.status();
   for (int k = 0; k < 3; ++k) window.Frame();
   if (fe.pending_setup().empty()) {  // (it may have landed before the cancel)
     EXPECT_NE(fe.status().find("nothing changed"), std::string::npos) << fe.status();

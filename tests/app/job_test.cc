@@ -48,6 +48,27 @@ TEST(JobQueue, RunsFinisherOnPollingThreadWhenWorkSucceeds) {
   EXPECT_TRUE(queue.jobs().empty());
 }
 
+// A job whose worker has ended is no longer busy, but its result has not landed until Poll has
+// run its finisher: pending() says so, and turns false only after that Poll.
+TEST(JobQueue, PendingUntilPollHasRunTheFinisherOfAnEndedJob) {
+  JobQueue queue;
+  int document = 0;
+  const Job& job =
+      queue.Start("land", [&](JobContext&) -> Job::Finisher { return [&] { document = 1; }; });
+  for (int i = 0; i < 20000 && job.state() == Job::State::kRunning; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_EQ(job.state(), Job::State::kSucceeded);
+  EXPECT_FALSE(queue.busy());
+  EXPECT_TRUE(queue.pending()) << "the finisher has not run";
+  EXPECT_EQ(document, 0);
+  EXPECT_EQ(queue.Poll(), 1);
+  EXPECT_EQ(document, 1);
+  EXPECT_FALSE(queue.pending());
+  queue.Prune();
+  EXPECT_FALSE(queue.pending());
+}
+
 TEST(JobQueue, LeavesDocumentAndReportsErrorWhenWorkThrows) {
   JobQueue queue;
   int document = 7;

@@ -99,6 +99,11 @@ bool JobQueue::busy() const {
   });
 }
 
+bool JobQueue::pending() const {
+  return std::any_of(jobs_.begin(), jobs_.end(),
+                     [](const std::unique_ptr<Job>& job) { return !job->finished_; });
+}
+
 void JobQueue::CancelAll() {
   for (auto& job : jobs_) job->Cancel();
 }

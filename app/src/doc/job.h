@@ -110,6 +110,11 @@ class JobQueue {
   const std::list<std::unique_ptr<Job>>& jobs() const { return jobs_; }
   // True while any job is running.
   bool busy() const;
+  // True while any job is running or has ended without Poll having taken its outcome yet (a
+  // succeeded job's finisher not run): what a caller waiting for the jobs' results to land in
+  // the document needs, since busy() turns false as soon as the worker ends, before the
+  // finisher runs on the next Poll.
+  bool pending() const;
   // Requests cancellation of every running job.
   void CancelAll();
 

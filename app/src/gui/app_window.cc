@@ -1281,14 +1281,15 @@ bool AppWindow::CaptureScreenshot() {
   // One frame more, so that the modes show what the run's last strokes left in the document.
   if (s.scripted && (!s.scripted->finished() || s.frame_index <= s.scripted_end_frame))
     return false;
-  // A screenshot waits (within kSettleTimeout) for the preview meshes, for the modes' parts to
+  // A screenshot waits (within kSettleTimeout) for the preview meshes to have landed (a job
+  // that ended after this frame's poll has not: JobQueue::pending), for the modes' parts to
   // be live (Mode::Settled) and for the loop to settle: force ramp complete, or the stop's zero
   // force in effect.
   bool modes_settled = true;
   for (auto& m : s.modes) modes_settled = modes_settled && m->Settled();
   const haptics::ToolState& tool = s.latest.tool;
   const bool settled =
-      !s.jobs->busy() && modes_settled && s.calibration_idle >= 3 &&
+      !s.jobs->pending() && modes_settled && s.calibration_idle >= 3 &&
       (s.stats.emergency_stop ? (tool.events & haptics::kEventEmergencyStop) != 0
                               : tool.ramp >= 1.0 ||
                                     // no board: zero force is the settled state
