@@ -10,8 +10,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <variant>
 #include <vector>
@@ -189,6 +191,91 @@ TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
       EXPECT_EQ(field->X_WP(i).matrix(), field->part(i).X_WP.matrix()) << field->part(i).name;
     }
   }
+}
+
+// The carried part's candidate search evaluates the parts' cell-specialised tapes several points
+// at a time (DistanceField::EvaluateBatch). Against the same search one Evaluate at a time, a
+// grasp of the right leg, a carry into its hole with the peg pressed on the hole's wall and a
+// release give the same wrench, poses, contacts and candidates every tick, bit for bit.
+TEST(AssemblyScene, BatchedShellSearchEqualsThePointByPointSearchBitForBit) {
+  const modeling::Scene scene = modeling::LoadScene(kScene);
+  std::unique_ptr<haptics::AssemblyField> fields[2];
+  for (const bool batch : {true, false}) {
+    AssemblySceneSettings settings;
+    settings.field.batch_shell_search = batch;
+    fields[batch ? 0 : 1] = BuildAssemblyField(scene, settings);
+  }
+  const int arm = 2;
+  ASSERT_EQ(fields[0]->part(arm).name, "right_arm");
+  // The grip as in ScriptedRunSeatsTheRightArm.
+  haptics::ToolKinematics tool;
+  tool.R_WT << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  const Eigen::Vector3d b_W = tool.R_WT * Eigen::Vector3d(1, 1, 0).normalized();
+  const Eigen::Vector3d centre_P(0, 0, 0.0175);
+  auto grip_for = [&](const Eigen::Isometry3d& X_WP) {
+    return Eigen::Vector3d(X_WP * centre_P - 0.02 * b_W);
+  };
+  int carried_ticks = 0, touching = 0;
+  long candidates = 0;
+  auto tick = [&] {
+    tool.time += 1e-3;
+    const haptics::ToolWrench a = fields[0]->Evaluate(tool);
+    const haptics::ToolWrench b = fields[1]->Evaluate(tool);
+    ASSERT_EQ(a.f_T_W, b.f_T_W) << "t = " << tool.time;
+    ASSERT_EQ(a.m_T_W, b.m_T_W) << "t = " << tool.time;
+    ASSERT_EQ(a.g, b.g) << "t = " << tool.time;
+    ASSERT_EQ(fields[0]->carried(), fields[1]->carried());
+    ASSERT_EQ(fields[0]->contacts(), fields[1]->contacts());
+    ASSERT_EQ(fields[0]->candidates(), fields[1]->candidates());
+    for (int i = 0; i < fields[0]->size(); ++i)
+      ASSERT_EQ(fields[0]->X_WP(i).matrix(), fields[1]->X_WP(i).matrix()) << "part " << i;
+    carried_ticks += fields[0]->carried() >= 0;
+    touching += fields[0]->carried() >= 0 && fields[0]->contacts() > 0;
+    candidates += fields[0]->candidates();
+  };
+  auto move_to = [&](const Eigen::Vector3d& p, int ticks) {
+    const Eigen::Vector3d start = tool.p_WT;
+    for (int k = 1; k <= ticks && !HasFatalFailure(); ++k) {
+      const Eigen::Vector3d next = start + (p - start) * (double(k) / ticks);
+      tool.v_WT = (next - tool.p_WT) / 1e-3;
+      tool.p_WT = next;
+      tick();
+    }
+    tool.v_WT.setZero();
+  };
+  tool.p_WT = grip_for(fields[0]->X_WP(arm));
+  tick();
+  while (fields[0]->carried() < 0 && tool.grasp > 0.3 && !HasFatalFailure()) {
+    tool.grasp -= 1e-3;
+    tool.grasp_rate = -1.0;
+    tick();
+  }
+  tool.grasp_rate = 0;
+  ASSERT_EQ(fields[0]->carried(), arm);
+  // In front of the hole, then in along −x, 2 mm off its axis: the peg presses on the wall.
+  const haptics::AssemblySeat& seat_of = fields[0]->part(arm).seats[0];
+  const Eigen::Isometry3d seat = fields[0]->X_WP(seat_of.other) * seat_of.X_OS;
+  Eigen::Isometry3d waypoint = seat;
+  waypoint.translation() += Eigen::Vector3d(0.025, 0.06, 0);
+  move_to(grip_for(waypoint), 400);
+  waypoint.translation().y() = seat.translation().y();
+  move_to(grip_for(waypoint), 400);
+  Eigen::Isometry3d pressed = seat;
+  pressed.translation() += Eigen::Vector3d(0.004, 0.002, 0.001);
+  move_to(grip_for(pressed), 600);
+  for (int k = 0; k < 300 && !HasFatalFailure(); ++k) {
+    tool.p_WT.y() += 0.0004 * std::sin(0.05 * k);
+    tick();
+  }
+  while (tool.grasp < kPi / 2 && !HasFatalFailure()) {
+    tool.grasp = std::min(kPi / 2, tool.grasp + 2e-3);
+    tick();
+  }
+  std::printf("carried %d ticks, %d with contacts, %ld candidates in all\n", carried_ticks,
+              touching, candidates);
+  EXPECT_GT(carried_ticks, 1000);
+  EXPECT_GT(touching, 50);  // the peg did press on the hole's wall
+  EXPECT_GT(candidates, 10000);
 }
 
 // The version 1 robot as rigid parts: one rigid_part per part with its solid's tree, its pose

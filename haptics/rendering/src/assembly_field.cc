@@ -164,6 +164,10 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   candidate_phi_.assign(max_shell * n, 0.0);
   candidate_grad_.assign(max_shell * n, Eigen::Vector3d::Zero());
   candidate_x0_.assign(max_shell * n, Eigen::Vector3d::Zero());
+  for (std::vector<double>* b :
+       {&batch_x_, &batch_y_, &batch_z_, &batch_phi_, &batch_gx_, &batch_gy_, &batch_gz_})
+    b->assign(max_shell, 0.0);
+  batch_point_.assign(max_shell, 0);
   Publish();
 }
 
@@ -174,6 +178,32 @@ double AssemblyField::Phi(int j, const Eigen::Vector3d& p_W,
   const double v = parts_[j].field_P->Evaluate(inverse_[j] * p_W, &g_P);
   *gradient_W = poses_[j].linear() * g_P;
   return v;
+}
+
+void AssemblyField::Gather(int j, int m, const Eigen::Vector3d& p_W) noexcept {
+  const Eigen::Vector3d p_P = inverse_[j] * p_W;  // as Phi maps it
+  batch_x_[m] = p_P.x();
+  batch_y_[m] = p_P.y();
+  batch_z_[m] = p_P.z();
+}
+
+void AssemblyField::EvaluateGathered(int j, int m, bool gradient) noexcept {
+  const DistanceField& field = *parts_[j].field_P;
+  if (settings_.batch_shell_search) {
+    field.EvaluateBatch(batch_x_.data(), batch_y_.data(), batch_z_.data(), m, batch_phi_.data(),
+                        gradient ? batch_gx_.data() : nullptr, batch_gy_.data(), batch_gz_.data());
+    return;
+  }
+  Eigen::Vector3d g;
+  for (int k = 0; k < m; ++k) {
+    const Eigen::Vector3d p(batch_x_[k], batch_y_[k], batch_z_[k]);
+    batch_phi_[k] = field.Evaluate(p, gradient ? &g : nullptr);
+    if (gradient) {
+      batch_gx_[k] = g.x();
+      batch_gy_[k] = g.y();
+      batch_gz_[k] = g.z();
+    }
+  }
 }
 
 bool AssemblyField::FindSeat(int i, const Eigen::Isometry3d& X_WP,
@@ -310,27 +340,47 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       // Clusters near part j mark their points; the points are then tested in shell order (so
       // the candidates, and every sum over them, come in the same order as without clusters).
       std::fill(near_.begin(), near_.begin() + shell.size(), 0);
+      const std::vector<ShellCluster>& clusters = clusters_[c];
+      const int num_clusters = static_cast<int>(clusters.size());
+      if (s.cull_shell_search) {
+        for (int k = 0; k < num_clusters; ++k) Gather(j, k, p + R * clusters[k].centre_P);
+        EvaluateGathered(j, num_clusters, false);
+      }
       // Within a cluster, a point at d_i from its centre has φ_j >= φ_j(centre) − d_i: it is
       // tested only when that bound is below the reach (the slack covers rounding).
-      for (const ShellCluster& cluster : clusters_[c]) {
-        const double phi_centre =
-            s.cull_shell_search ? Phi(j, p + R * cluster.centre_P, nullptr) : -1e300;
+      for (int q = 0; q < num_clusters; ++q) {
+        const ShellCluster& cluster = clusters[q];
+        const double phi_centre = s.cull_shell_search ? batch_phi_[q] : -1e300;
         if (phi_centre >= cluster.radius + reach) continue;
         for (int k = cluster.begin; k < cluster.end; ++k) {
           if (phi_centre - cluster_point_offset_[c][k] < reach + 1e-9)
             near_[cluster_points_[c][k]] = 1;
         }
       }
+      // φ_j at the marked points, then φ_j and ∇φ_j at those within reach (the candidates).
+      int m = 0;
       for (int i = 0; i < shell.size(); ++i) {
         if (!near_[i]) continue;
-        const Eigen::Vector3d x = p + R * shell.points_T[i];
-        if (Phi(j, x, nullptr) < reach) {
-          const int k = num_candidates_++;
-          candidate_point_[k] = i;
-          candidate_part_[k] = j;
-          candidate_x0_[k] = x;
-          candidate_phi_[k] = Phi(j, x, &candidate_grad_[k]);
-        }
+        batch_point_[m] = i;
+        Gather(j, m++, p + R * shell.points_T[i]);
+      }
+      EvaluateGathered(j, m, false);
+      const int first = num_candidates_;
+      for (int k = 0; k < m; ++k) {
+        if (!(batch_phi_[k] < reach)) continue;
+        const int i = batch_point_[k];
+        candidate_point_[num_candidates_] = i;
+        candidate_part_[num_candidates_] = j;
+        candidate_x0_[num_candidates_] = p + R * shell.points_T[i];
+        ++num_candidates_;
+      }
+      const int found = num_candidates_ - first;
+      for (int k = 0; k < found; ++k) Gather(j, k, candidate_x0_[first + k]);
+      EvaluateGathered(j, found, true);
+      for (int k = 0; k < found; ++k) {
+        candidate_phi_[first + k] = batch_phi_[k];
+        candidate_grad_[first + k] =  // as Phi turns it into W
+            poses_[j].linear() * Eigen::Vector3d(batch_gx_[k], batch_gy_[k], batch_gz_[k]);
       }
     }
   }
