@@ -193,16 +193,18 @@ TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
   }
 }
 
-// The carried part's candidate search evaluates the parts' cell-specialised tapes several points
-// at a time (DistanceField::EvaluateBatch). Against the same search one Evaluate at a time, a
-// grasp of the right leg, a carry into its hole with the peg pressed on the hole's wall and a
-// release give the same wrench, poses, contacts and candidates every tick, bit for bit.
-TEST(AssemblyScene, BatchedShellSearchEqualsThePointByPointSearchBitForBit) {
+// The carried part's candidate search and the tool's shell evaluate the parts' cell-specialised
+// tapes several points at a time (DistanceField::EvaluateBatch). Against the same field
+// evaluating one point at a time (AssemblySettings::batch_evaluation off), an approach, a
+// grasp of the right arm, a carry into its hole with the peg pressed on the hole's wall, a
+// release and the tool pushed into the body give the same wrench, poses, contacts and candidates
+// every tick, bit for bit.
+TEST(AssemblyScene, BatchedEvaluationEqualsThePointByPointFieldBitForBit) {
   const modeling::Scene scene = modeling::LoadScene(kScene);
   std::unique_ptr<haptics::AssemblyField> fields[2];
   for (const bool batch : {true, false}) {
     AssemblySceneSettings settings;
-    settings.field.batch_shell_search = batch;
+    settings.field.batch_evaluation = batch;
     fields[batch ? 0 : 1] = BuildAssemblyField(scene, settings);
   }
   const int arm = 2;
@@ -215,7 +217,7 @@ TEST(AssemblyScene, BatchedShellSearchEqualsThePointByPointSearchBitForBit) {
   auto grip_for = [&](const Eigen::Isometry3d& X_WP) {
     return Eigen::Vector3d(X_WP * centre_P - 0.02 * b_W);
   };
-  int carried_ticks = 0, touching = 0;
+  int carried_ticks = 0, touching = 0, tool_touching = 0;
   long candidates = 0;
   auto tick = [&] {
     tool.time += 1e-3;
@@ -231,6 +233,7 @@ TEST(AssemblyScene, BatchedShellSearchEqualsThePointByPointSearchBitForBit) {
       ASSERT_EQ(fields[0]->X_WP(i).matrix(), fields[1]->X_WP(i).matrix()) << "part " << i;
     carried_ticks += fields[0]->carried() >= 0;
     touching += fields[0]->carried() >= 0 && fields[0]->contacts() > 0;
+    tool_touching += fields[0]->carried() < 0 && fields[0]->contacts() > 0;
     candidates += fields[0]->candidates();
   };
   auto move_to = [&](const Eigen::Vector3d& p, int ticks) {
@@ -271,11 +274,16 @@ TEST(AssemblyScene, BatchedShellSearchEqualsThePointByPointSearchBitForBit) {
     tool.grasp = std::min(kPi / 2, tool.grasp + 2e-3);
     tick();
   }
-  std::printf("carried %d ticks, %d with contacts, %ld candidates in all\n", carried_ticks,
-              touching, candidates);
+  // The open grip's tool sphere pushed into the body beside the arm.
+  const Eigen::Vector3d body_W = fields[0]->X_WP(seat_of.other).translation();
+  move_to(body_W + Eigen::Vector3d(0, -0.01, 0.03), 400);
+  move_to(body_W + Eigen::Vector3d(0, -0.01, 0.0), 400);
+  std::printf("carried %d ticks, %d with contacts, %ld candidates in all; tool in contact %d\n",
+              carried_ticks, touching, candidates, tool_touching);
   EXPECT_GT(carried_ticks, 1000);
   EXPECT_GT(touching, 50);  // the peg did press on the hole's wall
   EXPECT_GT(candidates, 10000);
+  EXPECT_GT(tool_touching, 50);  // the tool's own shell pressed on the body
 }
 
 // The version 1 robot as rigid parts: one rigid_part per part with its solid's tree, its pose

@@ -160,6 +160,45 @@ TEST(GraspField, GraspedObjectFollowsTheGrip) {
   EXPECT_LT((field.X_WO().translation() - centre).norm(), 1e-12);
 }
 
+// FindPoleMinimum with a threshold skips the refinement only when a 1-Lipschitz φ cannot reach
+// below it within a sample spacing of the deepest sample: against a sphere crossed by the pole
+// at distances from 3 cm outside the sphere to inside it, with and without the threshold 0, whether
+// the minimum is below 0 is answered the same; the refined minimum equals the plain search's bit
+// for bit, and an unrefined one is the deepest sample and never more than a spacing above the
+// refined minimum. Far from the sphere the search stops after its samples.
+TEST(GraspField, PoleMinimumUnrefinedOnlyWhenItCannotReachTheThreshold) {
+  const SphereDistanceField sphere(Eigen::Vector3d::Zero(), 0.01);
+  const double d = 0.04;
+  const int samples = 17, refine = 20;
+  const double spacing = 2 * d / (samples - 1);
+  int skipped = 0, refined = 0;
+  for (int i = 0; i <= 400; ++i) {
+    const double offset = -0.012 + i * (0.052 / 400);  // the pole's distance from the centre
+    const Eigen::Vector3d p0(0.003, offset, 0.0), u = Eigen::Vector3d(1, 0, 0);
+    int calls = 0;
+    auto phi = [&](double t) {
+      ++calls;
+      return sphere.Evaluate(p0 + t * u, nullptr);
+    };
+    const PoleMinimum plain = FindPoleMinimum(phi, d, samples, refine);
+    calls = 0;
+    const PoleMinimum early = FindPoleMinimum(phi, d, samples, refine, 0.0);
+    EXPECT_EQ(plain.phi < 0.0, early.phi < 0.0) << "offset " << offset;
+    if (calls == samples) {
+      ++skipped;
+      EXPECT_GT(early.phi, 0.0);
+      EXPECT_LE(early.phi - plain.phi, spacing) << "offset " << offset;
+    } else {
+      ++refined;
+      EXPECT_EQ(calls, samples + 2 + refine);
+      EXPECT_EQ(early.t, plain.t);
+      EXPECT_EQ(early.phi, plain.phi);
+    }
+  }
+  EXPECT_GT(skipped, 100);
+  EXPECT_GT(refined, 100);
+}
+
 TEST(GraspField, RejectsBadInput) {
   EXPECT_THROW(GraspField(nullptr, Eigen::Isometry3d::Identity()), std::invalid_argument);
   GraspSettings s;

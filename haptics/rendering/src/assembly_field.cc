@@ -166,7 +166,7 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   candidate_x0_.assign(max_shell * n, Eigen::Vector3d::Zero());
   for (std::vector<double>* b :
        {&batch_x_, &batch_y_, &batch_z_, &batch_phi_, &batch_gx_, &batch_gy_, &batch_gz_})
-    b->assign(max_shell, 0.0);
+    b->assign(std::max(max_shell, tool_shell_.points_T.size()), 0.0);
   batch_point_.assign(max_shell, 0);
   Publish();
 }
@@ -189,7 +189,7 @@ void AssemblyField::Gather(int j, int m, const Eigen::Vector3d& p_W) noexcept {
 
 void AssemblyField::EvaluateGathered(int j, int m, bool gradient) noexcept {
   const DistanceField& field = *parts_[j].field_P;
-  if (settings_.batch_shell_search) {
+  if (settings_.batch_evaluation) {
     field.EvaluateBatch(batch_x_.data(), batch_y_.data(), batch_z_.data(), m, batch_phi_.data(),
                         gradient ? batch_gx_.data() : nullptr, batch_gy_.data(), batch_gz_.data());
     return;
@@ -266,23 +266,26 @@ double AssemblyField::PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const Too
   const double d = s.pole_length;
   double q = 0.0;
   int pushing = 0;
+  depths[0] = depths[1] = 0.0;
   for (int k = 0; k < 2; ++k) {
     const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
     auto phi_at = [&](double t) { return field.Evaluate(X_PW * (tool.p_WT + t * u_W), nullptr); };
-    const PoleMinimum m = FindPoleMinimum(phi_at, d, s.samples, s.refine_iterations);
+    // Unrefined when the pole cannot reach inside (its depth is 0 either way).
+    const PoleMinimum m = FindPoleMinimum(phi_at, d, s.samples, s.refine_iterations, 0.0);
     const double best_t = m.t, best_phi = m.phi;
     depths[k] = std::max(0.0, -best_phi);
-    if (depths[k] <= 0) continue;
+    // A pole that does not push into the part: no grasp whatever the other does (Q and the
+    // depths are used only when both push), so the other is not searched.
+    if (depths[k] <= 0) break;
     Eigen::Vector3d g_P;
     field.Evaluate(X_PW * (tool.p_WT + best_t * u_W), &g_P);
     const Eigen::Vector3d g = X_WPj.linear() * g_P;
     const double gn = g.norm();
-    if (!(gn > 0)) continue;
+    if (!(gn > 0)) break;
     const double a = (g / gn).dot(tool.R_WT * (best_t * du_T[k]));
-    if (a < 0) {
-      ++pushing;
-      q += s.stiffness * depths[k] * (-a);
-    }
+    if (!(a < 0)) break;
+    ++pushing;
+    q += s.stiffness * depths[k] * (-a);
   }
   *both_pushing = pushing == 2;
   if (!*both_pushing) return 0.0;
@@ -295,11 +298,18 @@ ToolWrench AssemblyField::ToolContact(const ToolKinematics& tool) noexcept {
   const double tool_radius = tool_shell_.size() > 0 ? tool_shell_.Radius() : 0.0;
   int contacts = 0;
   Eigen::Vector3d g;
+  const int m = tool_shell_.size();
   for (int j = 0; j < n; ++j) {
-    if (tool_shell_.size() == 0 || Phi(j, tool.p_WT, nullptr) > tool_radius) continue;
-    for (const Eigen::Vector3d& r_T : tool_shell_.points_T) {
-      const Eigen::Vector3d r = tool.R_WT * r_T;
-      const double phi = Phi(j, tool.p_WT + r, &g);
+    if (m == 0 || Phi(j, tool.p_WT, nullptr) > tool_radius) continue;
+    for (int i = 0; i < m; ++i) {
+      const Eigen::Vector3d r = tool.R_WT * tool_shell_.points_T[i];
+      Gather(j, i, tool.p_WT + r);  // as the scalar field saw it
+    }
+    EvaluateGathered(j, m, true);
+    for (int i = 0; i < m; ++i) {
+      const Eigen::Vector3d r = tool.R_WT * tool_shell_.points_T[i];
+      const double phi = batch_phi_[i];
+      g = poses_[j].linear() * Eigen::Vector3d(batch_gx_[i], batch_gy_[i], batch_gz_[i]);
       const double gn = g.norm();
       if (!(phi < 0) || !(gn > 0)) continue;
       const Eigen::Vector3d f = settings_.contact_stiffness * (-phi) * (g / gn);

@@ -33,7 +33,8 @@
 //    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick), so a
 //    tick costs one φ per shell point near another part plus one gradient per candidate; the
 //    cluster centres, the points and the candidates of each part j are each evaluated in one
-//    DistanceField::EvaluateBatch (several points at a time where φ_j supports it). The user
+//    DistanceField::EvaluateBatch (several points at a time where φ_j supports it), as are the
+//    tool shell's points against each part. The user
 //    feels the coupling's reaction at the target point: f_T_W = −f_c, m_T_W = (p_target − p_WT) ×
 //    (−f_c) − τ_c, plus the grasp torque of the poles on the part at its target pose (the fingers
 //    keep squeezing while it is held). The part is released as soon as the two poles no longer both
@@ -127,9 +128,10 @@ struct AssemblySettings {
   double max_dt = 0.01;                                       // longer ticks are clamped, s
   bool cull_shell_search =
       true;  // false: test every shell point each tick (same result, slower; for tests)
-  bool batch_shell_search =
-      true;  // false: evaluate the search's points one Evaluate at a time instead of through
-             // DistanceField::EvaluateBatch (same result, bit for bit; slower; for tests)
+  bool batch_evaluation =
+      true;  // false: evaluate the shell search's points and the tool shell's one Evaluate at
+             // a time instead of through DistanceField::EvaluateBatch (the same result, bit for
+             // bit; slower; for tests)
   AlignmentSnapSettings align;  // alignment snap while carrying (off by default)
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
@@ -191,10 +193,11 @@ class AssemblyField final : public ForceField {
   // Puts p_W, in part j's frame, at position m of the batch.
   void Gather(int j, int m, const Eigen::Vector3d& p_W) noexcept;
   // φ of part j at the batch's first m points (∇φ in P too when `gradient`), one EvaluateBatch
-  // or, without settings.batch_shell_search, m Evaluate calls.
+  // or, without settings.batch_evaluation, m Evaluate calls.
   void EvaluateGathered(int j, int m, bool gradient) noexcept;
   // Grasp generalised force Q (>= 0) of the poles on part j at pose X_WP_j (for the carried part,
-  // its target pose); *both_pushing tells whether both poles push into it; depths to *depths.
+  // its target pose); *both_pushing tells whether both poles push into it; depths to *depths
+  // (m; when both push: once one pole does not, the other is not searched and Q is 0).
   double PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool,
                    bool* both_pushing, double depths[2]) const noexcept;
   // Tool shell penalty against all parts at the grip pose.
@@ -230,8 +233,9 @@ class AssemblyField final : public ForceField {
   std::vector<double> candidate_phi_;            // φ at the tick's start, m
   std::vector<Eigen::Vector3d> candidate_grad_;  // ∇φ there (W)
   std::vector<Eigen::Vector3d> candidate_x0_;    // the point there (W), m
-  // The search's batches (structure of arrays, in the frame of the part evaluated), capacity
-  // max(max shell, max clusters): points, φ, ∇φ, and the shell index of each point.
+  // The batches of the searches and of the tool shell (structure of arrays, in the frame of the
+  // part evaluated), capacity the largest shell: points, φ, ∇φ, and the shell index of each
+  // point.
   std::vector<double> batch_x_, batch_y_, batch_z_, batch_phi_, batch_gx_, batch_gy_, batch_gz_;
   std::vector<int> batch_point_;
   int num_candidates_ = 0;

@@ -31,6 +31,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <atomic>
+#include <limits>
 #include <memory>
 
 #include "spidarcad/haptics/distance_field.h"
@@ -42,13 +43,20 @@ namespace spidarcad::haptics {
 
 // The deepest point of a field along a pole, t ∈ [−d, d] (m along the pole's unit vector from the
 // grip centre): `samples` (>= 2) evenly spaced values of phi(t), then `refine_iterations` steps of
-// golden-section search around the best sample. Real-time safe (phi must be too).
+// golden-section search around the best sample. The search stays within a sample spacing h of
+// the best sample, so for a 1-Lipschitz φ (a signed distance or a bound of one) it cannot end
+// below the best sample's value less h: when that is above `no_refinement_above` (m; with 1e-9 m
+// of slack), the best sample is returned unrefined (an exact answer to "is the minimum below
+// no_refinement_above?", at `samples` evaluations instead of samples + 2 + refine_iterations).
+// Real-time safe (phi must be too).
 struct PoleMinimum {
   double t = 0.0;    // where, m
   double phi = 0.0;  // the field's value there, m (< 0: inside)
 };
 template <class Phi>
-PoleMinimum FindPoleMinimum(const Phi& phi, double d, int samples, int refine_iterations) noexcept {
+PoleMinimum FindPoleMinimum(
+    const Phi& phi, double d, int samples, int refine_iterations,
+    double no_refinement_above = std::numeric_limits<double>::infinity()) noexcept {
   const double spacing = 2.0 * d / (samples - 1);
   PoleMinimum best{-d, phi(-d)};
   for (int j = 1; j < samples; ++j) {
@@ -56,6 +64,7 @@ PoleMinimum FindPoleMinimum(const Phi& phi, double d, int samples, int refine_it
     const double v = phi(t);
     if (v < best.phi) best = {t, v};
   }
+  if (best.phi - spacing > no_refinement_above + 1e-9) return best;
   double lo = best.t - spacing > -d ? best.t - spacing : -d;
   double hi = best.t + spacing < d ? best.t + spacing : d;
   constexpr double kInvPhi = 0.6180339887498949;
