@@ -19,6 +19,15 @@
 // LAPACK (in OpenBLAS, linked by this library for CHOLMOD): A := U Uᵀ for the upper triangle U
 // of A (n³/3 flops, a third of a general product).
 extern "C" void dlauum_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+// LAPACK and BLAS for the block tridiagonal interface factor: Cholesky of a dense block, a
+// triangular solve from the right, and a symmetric rank-k update (lower triangles).
+extern "C" void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+extern "C" void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag,
+                       const int* m, const int* n, const double* alpha, const double* a,
+                       const int* lda, double* b, const int* ldb);
+extern "C" void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k,
+                       const double* alpha, const double* a, const int* lda, const double* beta,
+                       double* c, const int* ldc);
 
 namespace spidarcad::fem {
 namespace {
@@ -336,9 +345,50 @@ struct SubstructuredSolver::Block {
   BlockStats stats;
 };
 
-// The interface system S = Σ_b S_b and its factor.
+// The interface system S = Σ_b S_b and its factor: CHOLMOD's in general; for a chain (each
+// block's interface dofs in at most two consecutive groups, groups being the dofs that the same
+// pair of blocks share: slabs, whose groups are the planes) the block tridiagonal Cholesky
+// factor by groups, dense, whose leading groups an edit further along the chain leaves as they
+// were and which are then shared instead of refactored.
 struct SubstructuredSolver::Interface {
-  OwnedFactor factor;
+  OwnedFactor factor;  // general case
+
+  // Chain case. Each group g holds the Γ positions order[begin[g] .. begin[g+1]) and the
+  // factor blocks L_gg (lower triangle; of S_gg − L_{g,g−1} L_{g,g−1}ᵀ) and L_{g,g−1}
+  // (= S_{g,g−1} L_{g−1,g−1}⁻ᵀ, null for g = 0). `owners` says what S_gg and S_{g,g−1} were
+  // summed from: for each dof of the group in order, the (block factor, block, local interface
+  // index) of every block holding it; two groups with equal owners (and equal owners of the
+  // group before) have S blocks equal bit for bit.
+  struct Group {
+    std::vector<std::tuple<const void*, int, int>> owners;
+    std::vector<int> owner_count;  // per dof of the group
+    std::shared_ptr<const Eigen::MatrixXd> l_diag, l_sub;
+  };
+  bool chain = false;
+  std::vector<int> order, begin;
+  std::vector<Group> groups;
+
+  int size(int g) const { return begin[g + 1] - begin[g]; }
+
+  // X = S⁻¹ B in place (B: ng by m, rows in Γ positions).
+  void SolveChain(Eigen::MatrixXd* b) const {
+    const int ng = static_cast<int>(order.size());
+    Eigen::MatrixXd y(ng, b->cols());
+    for (int q = 0; q < ng; ++q) y.row(q) = b->row(order[q]);
+    const int n = static_cast<int>(groups.size());
+    for (int g = 0; g < n; ++g) {
+      auto yg = y.middleRows(begin[g], size(g));
+      if (g > 0) yg.noalias() -= *groups[g].l_sub * y.middleRows(begin[g - 1], size(g - 1));
+      groups[g].l_diag->triangularView<Eigen::Lower>().solveInPlace(yg);
+    }
+    for (int g = n - 1; g >= 0; --g) {
+      auto yg = y.middleRows(begin[g], size(g));
+      if (g + 1 < n)
+        yg.noalias() -= groups[g + 1].l_sub->transpose() * y.middleRows(begin[g + 1], size(g + 1));
+      groups[g].l_diag->triangularView<Eigen::Lower>().transpose().solveInPlace(yg);
+    }
+    for (int q = 0; q < ng; ++q) b->row(order[q]) = y.row(q);
+  }
 };
 
 SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
@@ -493,81 +543,203 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
   stats_.num_free = num_free();
   stats_.num_interface_dofs = ng;
   if (factor_status_.message.empty() && ng > 0) {
-    // Lower triangle of S column by column: the rows of column c are the interface dofs of
-    // the blocks that hold c (no triplet sort over Σ_b #Γ_b² entries).
     std::vector<std::vector<std::pair<int, int>>> owners(ng);  // (block, local index)
     for (std::size_t b = 0; b < blocks_.size(); ++b)
       for (std::size_t j = 0; j < blocks_[b].interface_pos.size(); ++j)
         owners[blocks_[b].interface_pos[j]].emplace_back(static_cast<int>(b), static_cast<int>(j));
-    std::vector<int> outer(ng + 1, 0), inner, mark(ng, -1), rows;
-    std::vector<double> values, sum(ng, 0.0);
-    for (int c = 0; c < ng; ++c) {
-      rows.clear();
-      for (const auto& [b, j] : owners[c]) {
-        const std::vector<int>& pos = blocks_[b].interface_pos;
-        const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
-        for (std::size_t i = 0; i < pos.size(); ++i) {
-          const int r = pos[i];
-          if (r < c) continue;
-          if (mark[r] != c) {
-            mark[r] = c;
-            sum[r] = 0.0;
-            rows.push_back(r);
-          }
-          sum[r] += sb(static_cast<Eigen::Index>(i), j);
-        }
-      }
-      std::sort(rows.begin(), rows.end());
-      for (int r : rows) {
-        inner.push_back(r);
-        values.push_back(sum[r]);
-      }
-      outer[c + 1] = static_cast<int>(inner.size());
-    }
-    const Eigen::Map<const SparseMatrixd> s(ng, ng, static_cast<Eigen::Index>(values.size()),
-                                            outer.data(), inner.data(), values.data());
-    stats_.interface_nonzeros = 2 * s.nonZeros() - ng;
     // Order S by the blocks that share each dof (lowest, then highest block): for slabs this is
     // plane by plane, so S is block tridiagonal and its factor fills nothing beyond the blocks,
     // without a fill-reducing ordering of a matrix of Σ_b #Γ_b² entries (AMD took most of S's
     // time on the platform).
-    std::vector<int> order(ng);
+    // Within a pair, by the dof's place in the lowest block (its content's numbering, not the
+    // mesh's: a renumbered mesh whose blocks kept their content orders S the same way).
+    std::vector<int> order(ng), place(ng);
     std::vector<std::pair<int, int>> pair_of(ng);
     for (int p = 0; p < ng; ++p) {
       order[p] = p;
       int lo = static_cast<int>(blocks_.size()), hi = -1;
       for (const auto& [b, j] : owners[p]) {
+        if (b < lo) place[p] = j;
         lo = std::min(lo, b);
         hi = std::max(hi, b);
       }
       pair_of[p] = {lo, hi};
     }
-    std::stable_sort(order.begin(), order.end(),
-                     [&](int a, int b) { return pair_of[a] < pair_of[b]; });
-    Common common;
-    common.c.supernodal = CHOLMOD_SUPERNODAL;
-    common.c.nmethods = 1;
-    common.c.method[0].ordering = CHOLMOD_GIVEN;
-    cholmod_sparse view = ViewLower(s);
-    interface_->factor.l = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common.c);
-    if (interface_->factor.l == nullptr)
-      throw std::runtime_error("substructure: CHOLMOD analysis of S failed");
-    cholmod_factorize(&view, interface_->factor.l, &common.c);
-    stats_.interface_factor_nonzeros = common.c.lnz;
-    if (interface_->factor.l->minor < interface_->factor.l->n) {
-      const int p =
-          static_cast<const int*>(interface_->factor.l->Perm)[interface_->factor.l->minor];
-      const int d = free_dofs_[interface_free_[p]];
-      factor_status_.message =
-          "Cholesky factorisation of the interface system failed: it is not positive definite "
-          "(a mechanism across blocks); the first zero pivot is the " +
-          std::string(kAxis[d % 3]) + " displacement of interface node " + std::to_string(d / 3) +
-          " at " + Point(mesh.nodes.row(d / 3).transpose());
-    }
+    std::sort(order.begin(), order.end(), [&](int a, int b) {
+      return pair_of[a] != pair_of[b] ? pair_of[a] < pair_of[b] : place[a] < place[b];
+    });
+    if (!FactorInterfaceAsChain(mesh, owners, order, pair_of, reuse))
+      FactorInterfaceWithCholmod(mesh, owners, order);
   }
   stats_.interface_seconds = Seconds(t_s);
   factor_status_.converged = factor_status_.message.empty();
   stats_.wall_seconds = Seconds(t_start);
+}
+
+void SubstructuredSolver::FactorInterfaceWithCholmod(
+    const TetMesh& mesh, const std::vector<std::vector<std::pair<int, int>>>& owners,
+    std::vector<int>& order) {
+  const int ng = static_cast<int>(interface_free_.size());
+  // Lower triangle of S column by column: the rows of column c are the interface dofs of the
+  // blocks that hold c (no triplet sort over Σ_b #Γ_b² entries).
+  std::vector<int> outer(ng + 1, 0), inner, mark(ng, -1), rows;
+  std::vector<double> values, sum(ng, 0.0);
+  for (int c = 0; c < ng; ++c) {
+    rows.clear();
+    for (const auto& [b, j] : owners[c]) {
+      const std::vector<int>& pos = blocks_[b].interface_pos;
+      const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
+      for (std::size_t i = 0; i < pos.size(); ++i) {
+        const int r = pos[i];
+        if (r < c) continue;
+        if (mark[r] != c) {
+          mark[r] = c;
+          sum[r] = 0.0;
+          rows.push_back(r);
+        }
+        sum[r] += sb(static_cast<Eigen::Index>(i), j);
+      }
+    }
+    std::sort(rows.begin(), rows.end());
+    for (int r : rows) {
+      inner.push_back(r);
+      values.push_back(sum[r]);
+    }
+    outer[c + 1] = static_cast<int>(inner.size());
+  }
+  const Eigen::Map<const SparseMatrixd> s(ng, ng, static_cast<Eigen::Index>(values.size()),
+                                          outer.data(), inner.data(), values.data());
+  stats_.interface_nonzeros = 2 * s.nonZeros() - ng;
+  Common common;
+  common.c.supernodal = CHOLMOD_SUPERNODAL;
+  common.c.nmethods = 1;
+  common.c.method[0].ordering = CHOLMOD_GIVEN;
+  cholmod_sparse view = ViewLower(s);
+  interface_->factor.l = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common.c);
+  if (interface_->factor.l == nullptr)
+    throw std::runtime_error("substructure: CHOLMOD analysis of S failed");
+  cholmod_factorize(&view, interface_->factor.l, &common.c);
+  stats_.interface_factor_nonzeros = common.c.lnz;
+  if (interface_->factor.l->minor < interface_->factor.l->n) {
+    const int p = static_cast<const int*>(interface_->factor.l->Perm)[interface_->factor.l->minor];
+    InterfaceFailure(mesh, p);
+  }
+}
+
+void SubstructuredSolver::InterfaceFailure(const TetMesh& mesh, int p) {
+  const int d = free_dofs_[interface_free_[p]];
+  factor_status_.message =
+      "Cholesky factorisation of the interface system failed: it is not positive definite "
+      "(a mechanism across blocks); the first zero pivot is the " +
+      std::string(kAxis[d % 3]) + " displacement of interface node " + std::to_string(d / 3) +
+      " at " + Point(mesh.nodes.row(d / 3).transpose());
+}
+
+bool SubstructuredSolver::FactorInterfaceAsChain(
+    const TetMesh& mesh, const std::vector<std::vector<std::pair<int, int>>>& owners,
+    const std::vector<int>& order, const std::vector<std::pair<int, int>>& pair_of,
+    const SubstructuredSolver* reuse) {
+  const int ng = static_cast<int>(order.size());
+  Interface& in = *interface_;
+  // Groups: runs of equal block pairs in `order`.
+  in.begin.clear();
+  std::vector<int> group_of(ng), local_of(ng);
+  for (int q = 0; q < ng; ++q) {
+    if (q == 0 || pair_of[order[q]] != pair_of[order[q - 1]]) in.begin.push_back(q);
+    group_of[order[q]] = static_cast<int>(in.begin.size()) - 1;
+    local_of[order[q]] = q - in.begin.back();
+  }
+  in.begin.push_back(ng);
+  const int n = static_cast<int>(in.begin.size()) - 1;
+  // A chain: every block's interface dofs lie in one group or two consecutive ones.
+  for (const Block& block : blocks_) {
+    int lo = n, hi = -1;
+    for (int p : block.interface_pos) {
+      lo = std::min(lo, group_of[p]);
+      hi = std::max(hi, group_of[p]);
+    }
+    if (hi - lo > 1) return false;
+  }
+  in.chain = true;
+  in.order = order;
+  in.groups.assign(n, {});
+  for (int g = 0; g < n; ++g) {
+    Interface::Group& group = in.groups[g];
+    for (int q = in.begin[g]; q < in.begin[g + 1]; ++q) {
+      group.owner_count.push_back(static_cast<int>(owners[order[q]].size()));
+      for (const auto& [b, j] : owners[order[q]])
+        group.owners.emplace_back(blocks_[b].factor.get(), b, j);
+    }
+  }
+  const Interface* old = reuse != nullptr && reuse->interface_ && reuse->interface_->chain
+                             ? reuse->interface_.get()
+                             : nullptr;
+  auto same_owners = [&](int g) {
+    return old != nullptr && g < static_cast<int>(old->groups.size()) &&
+           old->groups[g].owners == in.groups[g].owners &&
+           old->groups[g].owner_count == in.groups[g].owner_count;
+  };
+  // Leading groups whose S blocks are those of the reuse solver keep its factor blocks
+  // (L_gg and L_{g,g−1} depend only on S blocks of groups up to g).
+  int shared = 0;
+  while (shared < n && same_owners(shared)) {
+    in.groups[shared].l_diag = old->groups[shared].l_diag;
+    in.groups[shared].l_sub = old->groups[shared].l_sub;
+    ++shared;
+  }
+  stats_.interface_groups = n;
+  stats_.reused_interface_groups = shared;
+  // The rest, group by group: S_gg and S_{g,g−1} from the blocks' S_b (each entry summed over
+  // the blocks holding its column in block order), then L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ
+  // (dtrsm) and L_gg = chol(S_gg − L_{g,g−1} L_{g,g−1}ᵀ) (dsyrk, dpotrf).
+  long long nonzeros = 0;
+  double factor_nonzeros = 0.0;
+  for (int g = 0; g < n; ++g) {
+    const int bg = in.size(g), bp = g > 0 ? in.size(g - 1) : 0;
+    factor_nonzeros += 0.5 * bg * (bg + 1.0) + double(bg) * bp;
+    nonzeros += static_cast<long long>(bg) * bg + 2LL * bg * bp;
+    if (g < shared) continue;
+    Eigen::MatrixXd diag = Eigen::MatrixXd::Zero(bg, bg), sub = Eigen::MatrixXd::Zero(bg, bp);
+    // Columns of group g give S_gg; columns of group g − 1 give S_{g,g−1} (its rows in g).
+    for (int cg : {g, g - 1}) {
+      if (cg < 0) continue;
+      for (int q = in.begin[cg]; q < in.begin[cg + 1]; ++q) {
+        const int c = order[q], cc = q - in.begin[cg];
+        for (const auto& [b, j] : owners[c]) {
+          const std::vector<int>& pos = blocks_[b].interface_pos;
+          const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
+          for (std::size_t i = 0; i < pos.size(); ++i) {
+            if (group_of[pos[i]] != g) continue;
+            (cg == g ? diag : sub)(local_of[pos[i]], cc) += sb(static_cast<Eigen::Index>(i), j);
+          }
+        }
+      }
+    }
+    const char lower = 'L';
+    int info = 0;
+    if (g > 0 && bg > 0 && bp > 0) {
+      const char right = 'R', trans = 'T', no_trans = 'N', non_unit = 'N';
+      const double one = 1.0, minus_one = -1.0;
+      const Eigen::MatrixXd& lp = *in.groups[g - 1].l_diag;
+      dtrsm_(&right, &lower, &trans, &non_unit, &bg, &bp, &one, lp.data(), &bp, sub.data(), &bg);
+      dsyrk_(&lower, &no_trans, &bg, &bp, &minus_one, sub.data(), &bg, &one, diag.data(), &bg);
+    }
+    if (bg > 0) dpotrf_(&lower, &bg, diag.data(), &bg, &info);
+    if (info != 0) {
+      if (info > 0) {
+        InterfaceFailure(mesh, order[in.begin[g] + info - 1]);
+      } else {
+        throw std::runtime_error("substructure: LAPACK dpotrf rejected its arguments");
+      }
+      return true;
+    }
+    diag.triangularView<Eigen::StrictlyUpper>().setZero();
+    in.groups[g].l_diag = std::make_shared<const Eigen::MatrixXd>(std::move(diag));
+    if (g > 0) in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
+  }
+  stats_.interface_nonzeros = nonzeros;
+  stats_.interface_factor_nonzeros = factor_nonzeros;
+  return true;
 }
 
 SubstructuredSolver::~SubstructuredSolver() = default;
@@ -607,7 +779,9 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
     for (int j = 0; j < bf.ng(); ++j) g.row(block.interface_pos[j]) -= gy.row(j);
   }
   // u_Γ = S⁻¹ g.
-  if (ng > 0 && !CholmodSolve(CHOLMOD_A, interface_->factor.l, &g)) {
+  if (ng > 0 && interface_->chain) {
+    interface_->SolveChain(&g);
+  } else if (ng > 0 && !CholmodSolve(CHOLMOD_A, interface_->factor.l, &g)) {
     status.message = "CHOLMOD solve of the interface system failed";
     return status;
   }

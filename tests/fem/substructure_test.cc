@@ -336,6 +336,49 @@ TEST(SubstructuredSolver, EditOfOneSlabRefactorsOnlyThatSlabAndEqualsFreshSolves
   }
 }
 
+// Slabs make the interface a chain of planes, factored plane by plane: an edit of slab t (of
+// four, three planes) keeps the reuse solver's factor blocks of the planes before plane t − 1 and
+// refactors the rest (the last slab: one plane; the first: all three), and the solves equal the
+// monolithic solve of the edited bar. Voronoi blocks are no chain: CHOLMOD factors S.
+TEST(SubstructuredSolver, EditOfSlabTRefactorsTheInterfaceFromPlaneTMinusOneOn) {
+  for (int order : {1, 2}) {
+    const TetMesh mesh = Bar(order);
+    const Eigen::VectorXi blocks = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));
+    const MaterialTable steel(kSteel);
+    const SubstructuredSolver before(mesh, steel, BarConditions(mesh), blocks);
+    ASSERT_TRUE(before.factor_status().converged);
+    EXPECT_EQ(before.stats().interface_groups, 3);
+    EXPECT_EQ(before.stats().reused_interface_groups, 0);
+    for (int slab = 0; slab < 4; ++slab) {
+      SCOPED_TRACE("order " + std::to_string(order) + ", slab " + std::to_string(slab));
+      const EditedBar edited = EditSlab(mesh, blocks, before, slab, 7 + slab);
+      const BoundaryConditions bcs = BarConditions(edited.mesh);
+      const SubstructuredSolver after(edited.mesh, edited.materials, bcs, edited.blocks, &before);
+      ASSERT_TRUE(after.factor_status().converged) << after.factor_status().message;
+      EXPECT_EQ(after.stats().factored_blocks, 1);
+      EXPECT_EQ(after.stats().interface_groups, 3);
+      EXPECT_EQ(after.stats().reused_interface_groups, std::max(0, slab - 1));
+      const StaticSolver monolithic(edited.mesh, edited.materials, bcs);
+      const StaticSolution u_after = after.Solve(), u_mono = monolithic.Solve();
+      ASSERT_TRUE(u_after.status.converged) << u_after.status.message;
+      EXPECT_LT(RelativeDifference(u_after.displacement, u_mono.displacement), kTolerance);
+      EXPECT_LT(RelativeDifference(u_after.reaction, u_mono.reaction), kTolerance);
+      EXPECT_GT(RelativeDifference(u_mono.reaction.cwiseAbs(), before.Solve().reaction.cwiseAbs()),
+                1e-4);
+      // A solver reusing `after` with nothing changed shares every plane.
+      const SubstructuredSolver same(edited.mesh, edited.materials, bcs, edited.blocks, &after);
+      EXPECT_EQ(same.stats().reused_interface_groups, 3);
+      EXPECT_EQ(same.stats().factored_blocks, 0);
+      EXPECT_EQ(same.Solve().displacement, u_after.displacement);
+    }
+  }
+  const TetMesh mesh = Bar(1);
+  const SubstructuredSolver voronoi(mesh, MaterialTable(kSteel), BarConditions(mesh),
+                                    VoronoiBlocks(mesh, 7, 2));
+  ASSERT_TRUE(voronoi.factor_status().converged);
+  EXPECT_EQ(voronoi.stats().interface_groups, 0);
+}
+
 TEST(SubstructuredSolver, ChangedClampRefactorsTheBlocksItTouches) {
   const TetMesh mesh = Bar(1);
   const Eigen::VectorXi blocks = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));

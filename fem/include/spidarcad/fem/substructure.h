@@ -19,9 +19,11 @@
 // L Lᵀ, so that S_b = L_ΓΓ L_ΓΓᵀ − σ_b I (σ_b = 1e-6 · max diag K^b_ΓΓ: S_b alone is singular for
 // a block that floats but for its interface; the shift keeps the factorisation going and
 // Cholesky's backward error, ~ε·max A_ii, does not depend on it). S is assembled from the dense
-// S_b and factored by CHOLMOD, its dofs ordered by the lowest, then the highest block sharing
-// them (plane by plane for slabs: S is then block tridiagonal and fills nothing beyond its
-// blocks). A solve is
+// S_b, its dofs ordered by the lowest, then the highest block sharing them (plane by plane for
+// slabs). When S is then a chain (every block's interface dofs in one group of dofs shared by
+// the same pair of blocks, or in two consecutive ones: slabs, whose groups are the planes) it is
+// block tridiagonal and factored by groups, dense (LAPACK): L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ,
+// L_gg L_ggᵀ = S_gg − L_{g,g−1} L_{g,g−1}ᵀ. Otherwise CHOLMOD factors it. A solve is
 //     y_b = K_II⁻¹ f_I,  u_Γ = S⁻¹ (f_Γ − Σ_b K_ΓI y_b),  u_I = K_II⁻¹ (f_I − K_IΓ u_Γ),
 // where blocks without load skip the first step, and a solve asked only for some blocks'
 // displacements skips the last step of the others (SolveFreeInBlocks: the compliance of nodes in
@@ -33,7 +35,10 @@
 // content (compared in full, not only by hash) share their factor with the new solver; the rest
 // are factored anew. Global node numbers do not enter, so a mesh whose untouched blocks kept their
 // elements and nodes bit for bit (in any global numbering) reuses them. Prescribed values and
-// loads do not enter (they only change right-hand sides).
+// loads do not enter (they only change right-hand sides). A chain interface keeps the reuse
+// solver's factor blocks of its leading groups as long as they are summed from the same blocks'
+// S_b in the same places (so are equal bit for bit): an edit of the last slab refactors only the
+// last plane's block of S, one of slab t the planes from t − 1 on.
 //
 // Threads. A solver is immutable after construction; solves allocate their own CHOLMOD workspace,
 // so one solver, or two solvers sharing blocks, may be solved from several threads at once.
@@ -43,6 +48,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "spidarcad/fem/boundary.h"
@@ -87,6 +93,10 @@ struct SubstructureStats {
   // Nonzeros of S (both triangles) and of its Cholesky factor.
   long long interface_nonzeros = 0;
   double interface_factor_nonzeros = 0.0;
+  // Groups of a chain interface (0 when S is factored by CHOLMOD), and the leading groups whose
+  // factor blocks came from the reuse solver (see the file comment).
+  int interface_groups = 0;
+  int reused_interface_groups = 0;
   // Wall time (s) of the blocks factored here (assembly, factorisation and forming S_b, each
   // summed over them), of assembling and factoring S, and of the whole construction.
   double block_assembly_seconds = 0.0;
@@ -161,6 +171,19 @@ class SubstructuredSolver final : public FreeDofSolver {
   Eigen::MatrixXd MultiplyFree(const Eigen::MatrixXd& x) const;
   SolveStatus SolveImpl(const Eigen::MatrixXd& rhs, const std::vector<char>* wanted,
                         Eigen::MatrixXd* x) const;
+  // Factors S as a chain of groups (returns false, doing nothing, when S is not one) or by
+  // CHOLMOD; owners[p]: (block, local index) of the blocks holding Γ position p; order: Γ
+  // positions by the pair of blocks sharing them.
+  bool FactorInterfaceAsChain(const TetMesh& mesh,
+                              const std::vector<std::vector<std::pair<int, int>>>& owners,
+                              const std::vector<int>& order,
+                              const std::vector<std::pair<int, int>>& pair_of,
+                              const SubstructuredSolver* reuse);
+  void FactorInterfaceWithCholmod(const TetMesh& mesh,
+                                  const std::vector<std::vector<std::pair<int, int>>>& owners,
+                                  std::vector<int>& order);
+  // Sets factor_status_ for a zero pivot of S at Γ position p.
+  void InterfaceFailure(const TetMesh& mesh, int p);
 
   BoundaryConditions bcs_;
   std::vector<Block> blocks_;
