@@ -16,8 +16,8 @@
 // its wake-up lateness (the probe runs at SCHED_FIFO 80 when permitted, as the window's haptic
 // thread does). Also the quality of the slab mesh against the one-piece mesh (min dihedral, max
 // radius-edge, volume, sampled surface Hausdorff distance). Markdown tables are printed after the
-// run, with the load average. Run: build/bench/app_fem_substructure_bench                (P2 at 10
-// mm, P1 at 6 mm)
+// run, with the load average.
+// Run: build/bench/app_fem_substructure_bench   (P2 at 10 mm, P1 at 6 mm, P1 at 5 mm: 105k tets)
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2
 #include <benchmark/benchmark.h>
 #include <pthread.h>
@@ -424,6 +424,12 @@ BENCHMARK(BM_EditToForce)
     ->Name("P1_6mm")
     ->Args({1, 6000, 4})
     ->Args({1, 6000, 6})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+// The "100k-tet part with linear elements": the platform at 5 mm cells (about 105k tets).
+BENCHMARK(BM_EditToForce)
+    ->Name("P1_5mm")
+    ->Args({1, 5000, 4})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 
