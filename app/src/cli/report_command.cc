@@ -25,9 +25,7 @@
 #include "cli/report_common.h"
 #include "cli/report_sections.h"
 
-#ifndef SPIDARCAD_GIT_COMMIT
-#define SPIDARCAD_GIT_COMMIT "unknown"
-#endif
+#include "spidarcad_git_stamp.h"  // SPIDARCAD_GIT_COMMIT, generated at build time
 #ifndef SPIDARCAD_BUILD_TYPE
 #define SPIDARCAD_BUILD_TYPE "unknown"
 #endif
@@ -130,9 +128,8 @@ std::string UtcNow() {
 
 // The stamp lines of the report (markdown table rows).
 std::vector<std::pair<std::string, std::string>> Stamp(const ReportOptions& o) {
-  // The commit at configure time (the build re-configures when CMakeLists change, not on every
-  // commit: rebuild after `cmake -S . -B build` for an exact stamp).
-  return {{"commit", std::string(SPIDARCAD_GIT_COMMIT) + " (at configure time)"},
+  // The commit of the checkout at the last build (cmake/git_stamp.cmake).
+  return {{"commit", SPIDARCAD_GIT_COMMIT},
           {"build type", SPIDARCAD_BUILD_TYPE},
           {"CPU", CpuModel()},
           {"cores", std::to_string(std::thread::hardware_concurrency())},
