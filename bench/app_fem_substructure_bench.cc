@@ -1,368 +1,42 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 //
-// Edit to felt force on the platform (assets/scenes/platform.json): a series of edits of growing
-// size, each followed through the slab route (scene/slab_fe_mesh.h re-meshes the slabs the edit
-// reached, fem::SubstructuredSolver refactors them and S, SolveFreeInBlocks gives the felt
-// patch's compliance from the patch's slab and S) against a full recompute as it is done today
-// (surface, one-piece TetGen, StaticSolver, the patch's columns). Steel, clamped at the wall face
-// (MinXFaceNodes), 8 plate-top nodes nearest the free corner as the tool's patch.
-//   edits   load holes r 4 -> 4.5 mm (last slab), bolt holes r 5.5 -> 6 mm (first slab),
-//           gusset shortened 0.2 -> 0.17 m (the slabs it spans), plate 10 -> 11 mm (every slab)
-// For each edit: slabs re-meshed and refactored, times of every stage (wall, and process CPU of
-// the whole update: CHOLMOD's BLAS may use both cores), and the relative difference of the
-// patch's compliance block from a monolithic StaticSolver solve of the same new mesh; meanwhile
-// a 1 kHz contact tick runs on the old model (16 contacts on its ColumnCache, as FE mode keeps
-// the old model until the new one is ready): its thread CPU p99.9 and maximum and the p99.9 of
-// its wake-up lateness (the probe runs at SCHED_FIFO 80 when permitted, as the window's haptic
-// thread does). Also the quality of the slab mesh against the one-piece mesh (min dihedral, max
-// radius-edge, volume, sampled surface Hausdorff distance). Markdown tables are printed after the
-// run, with the load average.
+// Edit to first correct felt force on the platform, each case a Google Benchmark run of
+// app::MeasureEditToForce (app/src/cli/edit_to_force.h, shared with `spidarcad report`, section
+// "edit": what is measured and how). Markdown tables are printed after the run, with the load
+// average.
 // Run: build/bench/app_fem_substructure_bench   (P2 at 10 mm, P1 at 6 mm, P1 at 5 mm: 105k tets)
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2
 #include <benchmark/benchmark.h>
-#include <pthread.h>
-#include <sched.h>
 
-#include <Eigen/Dense>
-#include <algorithm>
-#include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <ctime>
-#include <filesystem>
-#include <fstream>
-#include <functional>
-#include <map>
-#include <memory>
-#include <nlohmann/json.hpp>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "bench_cli.h"
 #include "bench_paths.h"
-#include "scene/fe_model.h"
-#include "scene/scene_solid.h"
-#include "scene/slab_fe_mesh.h"
-#include "scene/vtu_io.h"
-#include "spidarcad/fem/boundary.h"
-#include "spidarcad/fem/column_cache.h"
-#include "spidarcad/fem/static_solver.h"
-#include "spidarcad/fem/substructure.h"
-#include "spidarcad/modeling/cgal_mesher.h"
-#include "spidarcad/modeling/surface_mesher.h"
-#include "spidarcad/modeling/tetgen_mesher.h"
+#include "cli/edit_to_force.h"
 
 namespace spidarcad {
 namespace {
-
-const fem::Material kSteel{2.0e11, 0.3};
-constexpr int kPatch = 8;
-
-double CpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-struct Timer {
-  std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
-  double cpu = CpuSeconds();
-  double Wall() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
-  }
-  double Cpu() const { return CpuSeconds() - cpu; }
-};
 
 std::string ScenePath() {
   if (const char* p = std::getenv("SPIDARCAD_PLATFORM_SCENE"); p && *p) return p;
   return bench::RepoPath("assets/scenes/platform.json");
 }
 
-// The platform scene with `field` of node `id` set to `value`, written to a temporary file.
-std::string Edited(const std::string& id, const std::string& field, const nlohmann::json& value,
-                   const std::string& name) {
-  std::ifstream in(ScenePath());
-  nlohmann::json scene = nlohmann::json::parse(in);
-  std::function<void(nlohmann::json&)> visit = [&](nlohmann::json& node) {
-    if (node.is_object()) {
-      if (node.contains("id") && node["id"] == id) node[field] = value;
-      for (auto& [key, child] : node.items()) visit(child);
-    } else if (node.is_array()) {
-      for (auto& child : node) visit(child);
-    }
-  };
-  visit(scene);
-  const auto dir = std::filesystem::temp_directory_path() / "spidarcad-edit-bench";
-  std::filesystem::create_directories(dir);
-  const std::string path = (dir / (name + ".json")).string();
-  std::ofstream(path) << scene.dump(1);
-  return path;
-}
-
-struct Edit {
-  const char* name;
-  std::string path;
-};
-std::vector<Edit> Edits() {
-  return {
-      {"load holes r 4 -> 4.5 mm", Edited("load_hole", "radius", 0.0045, "load_hole")},
-      {"bolt holes r 5.5 -> 6 mm", Edited("bolt_hole", "radius", 0.006, "bolt_hole")},
-      {"gusset 0.2 -> 0.17 m long",
-       Edited("gusset", "profile", {{0.005, 0.002}, {0.17, 0.002}, {0.005, -0.14}}, "gusset")},
-      {"plate 10 -> 11 mm thick", Edited("plate", "size", {0.3, 0.2, 0.011}, "plate")},
-  };
-}
-
-fem::BoundaryConditions Conditions(const fem::TetMesh& mesh) {
-  fem::BoundaryConditions bcs(mesh.num_nodes());
-  bcs.FixNodes(app::MinXFaceNodes(mesh));
-  return bcs;
-}
-
-std::vector<int> Patch(const fem::TetMesh& mesh, const fem::BoundaryConditions& bcs) {
-  const Eigen::Vector3d corner(0.29, 0.09, 0.01);
-  std::vector<int> top;
-  for (int v = 0; v < mesh.num_nodes(); ++v)
-    if (mesh.nodes(v, 2) > 0.0099 && !bcs.prescribed().count(3 * v)) top.push_back(v);
-  std::sort(top.begin(), top.end(), [&](int a, int b) {
-    return (mesh.nodes.row(a).transpose() - corner).norm() <
-           (mesh.nodes.row(b).transpose() - corner).norm();
-  });
-  top.resize(std::min<std::size_t>(kPatch, top.size()));
-  return top;
-}
-
-template <class Solver>
-Eigen::MatrixXd PatchRhs(const Solver& solver, const std::vector<int>& patch) {
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(solver.num_free(), 3 * patch.size());
-  for (std::size_t c = 0; c < patch.size(); ++c)
-    for (int j = 0; j < 3; ++j) rhs(solver.FreeIndex(3 * patch[c] + j), 3 * c + j) = 1.0;
-  return rhs;
-}
-
-template <class Solver>
-Eigen::MatrixXd PatchBlock(const Solver& solver, const std::vector<int>& patch,
-                           const Eigen::MatrixXd& x) {
-  Eigen::MatrixXd g(3 * patch.size(), x.cols());
-  for (std::size_t a = 0; a < patch.size(); ++a)
-    for (int i = 0; i < 3; ++i) g.row(3 * a + i) = x.row(solver.FreeIndex(3 * patch[a] + i));
-  return g;
-}
-
-// A 1 kHz contact tick on the old model while the update runs: 16 contacts of the patch on a
-// ColumnCache of the old substructured solver (the columns made before the edit), one
-// CachedContactSolver::Solve per tick. Records each tick's thread CPU time and how late each
-// tick woke (absolute sleeps), in µs.
-class TickProbe {
- public:
-  TickProbe(fem::ColumnCache* cache, const std::vector<int>& candidates) : solver_(cache, 16) {
-    for (int b : candidates)
-      if (solver_.num_contacts() < 16) solver_.Add(b);
-    target_.assign(3 * solver_.num_contacts(), 0.0);
-    for (int s = 0; s < solver_.num_contacts(); ++s)
-      target_[3 * s + 2] =
-          cache->baseline()(3 * cache->OutputIndexOfCandidate(solver_.contact(s)) + 2) - 1e-5;
-    force_.assign(target_.size(), 0.0);
-    cpu_us_.reserve(200000);
-    late_us_.reserve(200000);
-  }
-  void Start() {
-    stop_ = false;
-    thread_ = std::thread([this] { Loop(); });
-  }
-  void Stop() {
-    stop_ = true;
-    thread_.join();
-  }
-  // p-quantile (0..1) of the recorded values.
-  static double Quantile(std::vector<double> v, double p) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    return v[std::min(v.size() - 1, static_cast<std::size_t>(p * v.size()))];
-  }
-  const std::vector<double>& cpu_us() const { return cpu_us_; }
-  const std::vector<double>& late_us() const { return late_us_; }
-  // How the probe's thread was scheduled (after Stop).
-  const char* scheduling() const { return fifo_ ? "SCHED_FIFO 80" : "normal (SCHED_FIFO refused)"; }
-
- private:
-  static double ThreadCpu() {
-    timespec ts{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-  }
-  void Loop() {
-    // As the window's haptic thread: SCHED_FIFO 80 when permitted (root or CAP_SYS_NICE), so
-    // the update's threads (normal priority) do not delay its wake-ups.
-    sched_param param{};
-    param.sched_priority = 80;
-    fifo_ = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
-    auto next = std::chrono::steady_clock::now();
-    while (!stop_ && cpu_us_.size() < cpu_us_.capacity()) {
-      next += std::chrono::milliseconds(1);
-      std::this_thread::sleep_until(next);
-      late_us_.push_back(
-          1e6 * std::chrono::duration<double>(std::chrono::steady_clock::now() - next).count());
-      const double t0 = ThreadCpu();
-      solver_.Solve(target_.data(), force_.data());
-      cpu_us_.push_back(1e6 * (ThreadCpu() - t0));
-    }
-  }
-  fem::CachedContactSolver solver_;
-  std::vector<double> target_, force_, cpu_us_, late_us_;
-  std::atomic<bool> stop_{false};
-  bool fifo_ = false;
-  std::thread thread_;
-};
-
-struct Quality {
-  int tets = 0;
-  modeling::TetQuality q;
-  double hausdorff = 0.0;
-};
-Quality Measure(const modeling::CompiledSolid& solid, const modeling::TetMesh& mesh) {
-  Quality out;
-  out.tets = static_cast<int>(mesh.tets.cols());
-  out.q = modeling::MeasureTetQuality(mesh);
-  out.hausdorff = modeling::MeasureSurfaceError(solid, modeling::BoundarySurface(mesh)).max;
-  return out;
-}
-
-struct EditRow {
-  std::string edit;
-  int remeshed = 0, refactored = 0, slabs = 0, ticks = 0;
-  int planes = 0, planes_refactored = 0;  // groups of the chain interface (S by planes)
-  std::string scheduling;                 // the probe thread's
-  // The 1 kHz probe's thread CPU per tick (p99.9, max) and wake-up lateness (p99.9), µs.
-  double tick_cpu_p999 = 0, tick_cpu_max = 0, tick_late_p999 = 0;
-  double surface = 0, cut = 0, tetgen = 0, join = 0, assemble_factor = 0, interface = 0, patch = 0,
-         total_wall = 0, total_cpu = 0, error = 0;
-};
-struct CaseRow {
-  std::string name;
-  int free = 0, interface = 0;
-  double full_mesh = 0, full_factor = 0, full_patch = 0, full_cpu = 0;
-  double slab_fresh_wall = 0, slab_fresh_cpu = 0;
-  Quality one_piece, slabs;
-  std::vector<EditRow> edits;
-};
-std::vector<CaseRow>& Cases() {
-  static std::vector<CaseRow> rows;
+std::vector<app::EditToForceCase>& Cases() {
+  static std::vector<app::EditToForceCase> rows;
   return rows;
 }
 
 void BM_EditToForce(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0)), res_um = static_cast<int>(state.range(1));
   const int num_slabs = static_cast<int>(state.range(2));
-  const double cell = res_um * 1e-6;
-  CaseRow row;
-  char name[64];
-  std::snprintf(name, sizeof(name), "P%d %g mm, %d slabs", order, res_um / 1000.0, num_slabs);
-  row.name = name;
-  for (auto _ : state) {
-    const app::SceneSolidGrid base = app::PrepareSceneSolid(ScenePath(), "platform", cell);
-    const fem::MaterialTable steel(kSteel);
-    // Today: the whole part meshed in one piece, factored, the patch's columns.
-    {
-      Timer t;
-      modeling::SurfaceMeshSettings ss;
-      ss.bounds = base.bounds;
-      ss.cell_size = cell;
-      const modeling::TriangleMesh surface = modeling::MeshSurface(base.compiled, ss);
-      modeling::TetMeshSettings ts;
-      ts.max_radius_edge = 2.0;
-      const modeling::TetMesh one_piece = modeling::TetrahedralizeSurface(surface, ts);
-      fem::TetMesh mesh = app::ToFemMesh(one_piece);
-      mesh.regions.setZero();
-      if (order == 2) mesh = fem::MakeQuadratic(mesh);
-      row.full_mesh = t.Wall();
-      Timer tf;
-      const fem::BoundaryConditions bcs = Conditions(mesh);
-      const fem::StaticSolver full(mesh, steel, bcs);
-      row.full_factor = tf.Wall();
-      Timer tp;
-      Eigen::MatrixXd x;
-      full.SolveFree(PatchRhs(full, Patch(mesh, bcs)), &x);
-      row.full_patch = tp.Wall();
-      row.full_cpu = t.Cpu();
-      row.one_piece = Measure(base.compiled, one_piece);
-    }
-    // The slab route, fresh.
-    const Eigen::AlignedBox3d grid = base.bounds;  // kept for every edit
-    const std::vector<double> planes = app::SlabPlanes(grid, cell, num_slabs);
-    Timer tf;
-    const app::SlabFeMesh slab_mesh = app::MeshSolidInSlabs(base.compiled, grid, cell, planes);
-    const fem::TetMesh mesh0 = order == 2 ? fem::MakeQuadratic(slab_mesh.mesh) : slab_mesh.mesh;
-    const fem::SubstructuredSolver fresh(mesh0, steel, Conditions(mesh0), slab_mesh.slab);
-    row.slab_fresh_wall = tf.Wall();
-    row.slab_fresh_cpu = tf.Cpu();
-    row.free = fresh.num_free();
-    row.interface = fresh.stats().num_interface_dofs;
-    {
-      modeling::TetMesh joined;
-      joined = modeling::JoinSlabs(slab_mesh.slab_tets).mesh;
-      row.slabs = Measure(base.compiled, joined);
-    }
-    // The old model as FE mode holds it: lazy columns of its surface, the patch's made ready.
-    const fem::Surface surface0 = fem::ExtractSurface(mesh0);
-    fem::ColumnCacheSettings cs;
-    cs.start_worker = false;
-    fem::ColumnCache cache0(fresh, mesh0.nodes, surface0.nodes, surface0.nodes, cs);
-    std::vector<int> patch0;
-    for (int v : Patch(mesh0, Conditions(mesh0))) patch0.push_back(cache0.CandidateOfNode(v));
-    cache0.ComputeNodes(patch0);
-    for (const Edit& edit : Edits()) {
-      EditRow e;
-      TickProbe probe(&cache0, patch0);
-      probe.Start();
-      e.edit = edit.name;
-      e.slabs = static_cast<int>(planes.size()) + 1;
-      Timer t;
-      const app::SceneSolidGrid changed = app::PrepareSceneSolid(edit.path, "platform", cell);
-      const app::SlabFeMesh m =
-          app::MeshSolidInSlabs(changed.compiled, grid, cell, planes, 2.0, &slab_mesh);
-      const fem::TetMesh mesh1 = order == 2 ? fem::MakeQuadratic(m.mesh) : m.mesh;
-      const fem::BoundaryConditions bcs1 = Conditions(mesh1);
-      Timer ts;
-      const fem::SubstructuredSolver after(mesh1, steel, bcs1, m.slab, &fresh);
-      e.assemble_factor = after.stats().block_assembly_seconds +
-                          after.stats().block_factor_seconds + after.stats().block_schur_seconds;
-      e.interface = after.stats().interface_seconds;
-      const std::vector<int> patch = Patch(mesh1, bcs1);
-      Timer tp;
-      Eigen::MatrixXd x;
-      after.SolveFreeInBlocks(PatchRhs(after, patch), {e.slabs - 1}, &x);
-      const Eigen::MatrixXd g = PatchBlock(after, patch, x);
-      e.patch = tp.Wall();
-      e.total_wall = t.Wall();
-      e.total_cpu = t.Cpu();
-      probe.Stop();
-      e.ticks = static_cast<int>(probe.cpu_us().size());
-      e.scheduling = probe.scheduling();
-      e.tick_cpu_p999 = TickProbe::Quantile(probe.cpu_us(), 0.999);
-      e.tick_cpu_max = TickProbe::Quantile(probe.cpu_us(), 1.0);
-      e.tick_late_p999 = TickProbe::Quantile(probe.late_us(), 0.999);
-      e.surface = m.surface_seconds;
-      e.cut = m.cut_seconds;
-      e.tetgen = m.tetgen_seconds;
-      e.join = m.join_seconds;
-      e.remeshed = m.num_remeshed();
-      e.refactored = after.stats().factored_blocks;
-      e.planes = after.stats().interface_groups;
-      e.planes_refactored = e.planes - after.stats().reused_interface_groups;
-      // Check against a monolithic solve of the same new mesh.
-      const fem::StaticSolver mono(mesh1, steel, bcs1);
-      Eigen::MatrixXd xm;
-      mono.SolveFree(PatchRhs(mono, patch), &xm);
-      const Eigen::MatrixXd gm = PatchBlock(mono, patch, xm);
-      e.error = (g - gm).norm() / gm.norm();
-      row.edits.push_back(e);
-    }
-  }
+  app::EditToForceCase row;
+  for (auto _ : state) row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs);
   state.counters["interface_dofs"] = row.interface;
-  state.counters["full_s"] = row.full_mesh + row.full_factor + row.full_patch;
+  state.counters["full_s"] = row.full_wall();
   state.counters["edit1_s"] = row.edits.empty() ? 0.0 : row.edits.front().total_wall;
   Cases().push_back(row);
 }
@@ -375,43 +49,7 @@ void PrintTables() {
   }
   std::printf("\nLoad average at the end %.2f %.2f %.2f. Times in s (wall unless marked cpu).\n\n",
               load[0], load[1], load[2]);
-  std::printf(
-      "| case | free dofs | interface dofs | full: mesh | factor | patch | total (cpu) | "
-      "slabs fresh (cpu) |\n|---|---|---|---|---|---|---|---|\n");
-  for (const CaseRow& r : Cases())
-    std::printf("| %s | %d | %d | %.2f | %.2f | %.3f | %.2f (%.2f) | %.2f (%.2f) |\n",
-                r.name.c_str(), r.free, r.interface, r.full_mesh, r.full_factor, r.full_patch,
-                r.full_mesh + r.full_factor + r.full_patch, r.full_cpu, r.slab_fresh_wall,
-                r.slab_fresh_cpu);
-  std::printf(
-      "\n| case | edit | slabs re-meshed / refactored | planes of S refactored | surface | cut | "
-      "TetGen | join | blocks | S | patch | edit -> force (cpu) | rel. diff "
-      "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (const CaseRow& r : Cases())
-    for (const EditRow& e : r.edits)
-      std::printf(
-          "| %s | %s | %d / %d of %d | %d of %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.3f "
-          "| %.2f (%.2f) | %.1e |\n",
-          r.name.c_str(), e.edit.c_str(), e.remeshed, e.refactored, e.slabs, e.planes_refactored,
-          e.planes, e.surface, e.cut, e.tetgen, e.join, e.assemble_factor, e.interface, e.patch,
-          e.total_wall, e.total_cpu, e.error);
-  std::printf(
-      "\n1 kHz contact tick (16 contacts, old model) during each update: thread CPU per tick and "
-      "lateness of its wake-up, µs\n\n| case | edit | probe thread | ticks | tick CPU p99.9 | max "
-      "| wake-up lateness p99.9 |\n|---|---|---|---|---|---|---|\n");
-  for (const CaseRow& r : Cases())
-    for (const EditRow& e : r.edits)
-      std::printf("| %s | %s | %s | %d | %.1f | %.1f | %.0f |\n", r.name.c_str(), e.edit.c_str(),
-                  e.scheduling.c_str(), e.ticks, e.tick_cpu_p999, e.tick_cpu_max, e.tick_late_p999);
-  std::printf(
-      "\n| case | mesh | tets | min dihedral deg | max radius-edge | volume cm^3 | surface "
-      "Hausdorff mm |\n|---|---|---|---|---|---|---|\n");
-  for (const CaseRow& r : Cases())
-    for (const auto& [label, q] :
-         {std::make_pair("one piece", r.one_piece), std::make_pair("slabs", r.slabs)})
-      std::printf("| %s | %s | %d | %.2f | %.2f | %.2f | %.3f |\n", r.name.c_str(), label, q.tets,
-                  q.q.min_dihedral_deg, q.q.max_radius_edge, 1e6 * q.q.total_volume,
-                  1e3 * q.hausdorff);
+  std::printf("%s", app::EditToForceTables(Cases()).c_str());
 }
 
 BENCHMARK(BM_EditToForce)

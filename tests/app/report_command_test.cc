@@ -4,6 +4,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -162,6 +163,37 @@ TEST(ReportCommand, MarkdownElsewhereLinksEveryChartAndCsvInOutDirRelativeToIt) 
   }
   EXPECT_GT(png, 0);
   EXPECT_GT(csv, 0);
+}
+
+// The edit section (quick: P1 at 6 mm, the two local edits) follows each edit through the slab
+// route and checks the felt patch's compliance against a monolithic solve of the new mesh: both
+// within 1e-9; the load holes (beside the patch, in the last slab) re-mesh one slab and refactor
+// one plane of S, the bolt holes (the first slab) one slab and every plane.
+TEST(ReportCommand, EditSectionFollowsEachEditThroughTheSlabsToTheMonolithicForce) {
+  const std::string dir = FreshDir("report_edit");
+  const CommandRun run =
+      RunSpidarcad("report --out '" + dir + "' --quick --only edit --no-plots", "", "edit");
+  ASSERT_EQ(run.status, 0) << run.all();
+  std::vector<std::string> header;
+  const auto rows = ReadCsv(dir + "/edit.csv", 4, &header);
+  const int remeshed = Column(header, "slabs_remeshed"),
+            planes = Column(header, "planes_refactored");
+  const int error = Column(header, "relative_difference"), time = Column(header, "edit_to_force_s");
+  ASSERT_GE(std::min({remeshed, planes, error, time}), 0);
+  ASSERT_EQ(rows.size(), 2u);
+  const auto load = rows.find("1|6|4|load holes r 4 -> 4.5 mm");
+  const auto bolt = rows.find("1|6|4|bolt holes r 5.5 -> 6 mm");
+  ASSERT_NE(load, rows.end());
+  ASSERT_NE(bolt, rows.end());
+  EXPECT_EQ(load->second[remeshed], "1");
+  EXPECT_EQ(load->second[planes], "1");
+  EXPECT_EQ(bolt->second[remeshed], "1");
+  EXPECT_EQ(bolt->second[planes], "3");
+  for (const auto& [key, f] : rows) {
+    EXPECT_LT(std::stod(f[error]), 1e-9) << key;
+    EXPECT_GT(std::stod(f[time]), 0.0) << key;
+  }
+  EXPECT_NE(ReadWholeFile(dir + "/report.md").find("Edit to felt force"), std::string::npos);
 }
 
 // The hard-case section runs every Hard<Thing> case of the build's test executables: each one

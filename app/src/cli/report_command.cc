@@ -24,7 +24,6 @@
 #include "cli/plot.h"
 #include "cli/report_common.h"
 #include "cli/report_sections.h"
-
 #include "spidarcad_git_stamp.h"  // SPIDARCAD_GIT_COMMIT, generated at build time
 #ifndef SPIDARCAD_BUILD_TYPE
 #define SPIDARCAD_BUILD_TYPE "unknown"
@@ -43,6 +42,7 @@ const std::vector<ReportSection>& ReportSections() {
       {"surface", "Surface meshing", ReportSurfaceMeshing},
       {"tets", "Tetrahedral meshing", ReportTetMeshing},
       {"fe", "Finite elements", ReportFe},
+      {"edit", "Edit to felt force", ReportEditToForce},
       {"tick", "Haptic tick per scene", ReportTick},
       {"sculpt", "Sculpting", ReportSculpt},
       {"hard", "Hard cases", ReportHardCases},
@@ -60,9 +60,11 @@ constexpr const char* kReportHelp =
     "its data as CSV files beside it.\n"
     "\n"
     "Sections (names for --only): fk, singular, tensions, calibration, workspace, implicit,\n"
-    "surface, tets, fe, tick, sculpt, hard. `hard` runs every Hard<Thing> test case of the\n"
-    "build tree's test executables (build/tests/*_tests) and tabulates each measured figure\n"
-    "against its pass line; it is skipped, saying so, where they are not built.\n"
+    "surface, tets, fe, edit, tick, sculpt, hard. `edit` times the first correct felt force after\n"
+    "an edit of the platform (slab route) against a full recompute. `hard` runs every\n"
+    "Hard<Thing> test case of the build tree's test executables (build/tests/*_tests) and\n"
+    "tabulates each measured figure against its pass line; it is skipped, saying so, where they\n"
+    "are not built.\n"
     "\n"
     "DIR/summary.md is the short table of headline figures (one row per part: speed and\n"
     "error, with units) that scripts/update-readme-figures.sh DIR copies into README.md.\n"
@@ -425,7 +427,7 @@ void RegisterReportCommand(CLI::App& app) {
   cmd->add_flag("--quick", options->quick, "Smaller sweeps: a few minutes on a 2-core machine");
   cmd->add_option("--only", options->only,
                   "Comma-separated sections to run (fk, singular, tensions, calibration, "
-                  "workspace, implicit, surface, tets, fe, tick, sculpt, hard); default all")
+                  "workspace, implicit, surface, tets, fe, edit, tick, sculpt, hard); default all")
       ->type_name("LIST");
   cmd->add_flag("--no-plots", options->no_plots,
                 "Tables and CSVs only: draw no chart (no X display needed)");

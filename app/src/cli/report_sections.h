@@ -32,6 +32,9 @@ void ReportTetMeshing(ReportContext& ctx);
 // FE: precompute and tick time against tip error, float/double columns, borrowed columns,
 // condensed against full solve (report_fe.cc).
 void ReportFe(ReportContext& ctx);
+// Edit to first correct felt force: slab re-meshing and the substructured solver against a full
+// recompute, for edits of growing size (report_edit.cc, cli/edit_to_force.h).
+void ReportEditToForce(ReportContext& ctx);
 // Haptic tick per scene kind: distributions (report_tick.cc).
 void ReportTick(ReportContext& ctx);
 // Sculpting: update time against touched vertices, volume error (report_sculpt.cc).
