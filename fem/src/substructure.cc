@@ -681,8 +681,8 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   };
   // Leading groups whose S blocks are those of the reuse solver keep its factor blocks
   // (L_gg and L_{g,g−1} depend only on S blocks of groups up to g).
-  int shared = 0;
-  while (shared < n && same_owners(shared)) {
+  int shared = 0;  // (a reuse solver whose S failed has no factor blocks from that plane on)
+  while (shared < n && same_owners(shared) && old->groups[shared].l_diag) {
     in.groups[shared].l_diag = old->groups[shared].l_diag;
     in.groups[shared].l_sub = old->groups[shared].l_sub;
     ++shared;
