@@ -234,6 +234,44 @@ SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut
                                  " cut points, not enough for an area (the plane misses the "
                                  "solid, or only touches it)");
       MarkNesting(&cdt);
+      if (cut.section_spacing > 0.0) {
+        // Interior grid points inside the section, half a spacing or more from every cut edge.
+        const double h = cut.section_spacing;
+        double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+        for (int q : points) {
+          lo[0] = std::min(lo[0], v[q][u_axis]);
+          hi[0] = std::max(hi[0], v[q][u_axis]);
+          lo[1] = std::min(lo[1], v[q][v_axis]);
+          hi[1] = std::max(hi[1], v[q][v_axis]);
+        }
+        auto far_from_curves = [&](double pu, double pv) {
+          for (const auto& [a, b] : curve[k]) {
+            const Eigen::Vector2d pa(v[a][u_axis], v[a][v_axis]), pb(v[b][u_axis], v[b][v_axis]);
+            const Eigen::Vector2d d = pb - pa, w = Eigen::Vector2d(pu, pv) - pa;
+            const double t = std::clamp(w.dot(d) / std::max(d.squaredNorm(), 1e-300), 0.0, 1.0);
+            if ((w - t * d).norm() < 0.5 * h) return false;
+          }
+          return true;
+        };
+        std::vector<Eigen::Vector2d> interior;
+        for (double gu = std::ceil(lo[0] / h) * h; gu <= hi[0]; gu += h) {
+          for (double gv = std::ceil(lo[1] / h) * h; gv <= hi[1]; gv += h) {
+            const Cdt::Face_handle f = cdt.locate(Kernel::Point_2(gu, gv));
+            if (cdt.is_infinite(f) || f->info().nesting % 2 != 1) continue;
+            if (far_from_curves(gu, gv)) interior.emplace_back(gu, gv);
+          }
+        }
+        for (const Eigen::Vector2d& q : interior) {
+          Eigen::Vector3d p3;
+          p3[axis] = cut.planes[k];
+          p3[u_axis] = q.x();
+          p3[v_axis] = q.y();
+          v.push_back(p3);
+          const Cdt::Vertex_handle h3 = cdt.insert(Kernel::Point_2(q.x(), q.y()));
+          h3->info() = static_cast<int>(v.size()) - 1;
+        }
+        if (!interior.empty()) MarkNesting(&cdt);
+      }
       for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
         if (f->info().nesting % 2 != 1) continue;
         // CGAL's faces are counter-clockwise in (u, v): normal +axis.

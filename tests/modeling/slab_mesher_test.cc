@@ -39,12 +39,22 @@ TriangleMesh Surface(const CompiledSolid& solid) {
   return MeshSurface(solid, s);
 }
 
-SlabCut Cut() {
+SlabCut Cut(double section_spacing = 0.0) {
   SlabCut cut;
   cut.axis = 0;
   cut.planes = {-0.0755, 0.0245};  // off the grid planes and off the plate's faces
   cut.snap = 0.1 * kCell;
+  cut.section_spacing = section_spacing;
   return cut;
+}
+
+// Distance in the plane x = const from (y, z) of p to the segment ab.
+double DistanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                         const Eigen::Vector3d& b) {
+  const Eigen::Vector2d q(p.y(), p.z()), qa(a.y(), a.z()), qb(b.y(), b.z());
+  const Eigen::Vector2d d = qb - qa;
+  const double t = std::clamp((q - qa).dot(d) / d.squaredNorm(), 0.0, 1.0);
+  return (q - qa - t * d).norm();
 }
 
 // Boundary faces of a tet mesh (faces of exactly one tet) and faces shared by more than two.
@@ -74,49 +84,83 @@ FaceCount CountFaces(const TetMesh& mesh, const std::vector<double>& planes) {
   return count;
 }
 
+// With and without interior points in the sections (SlabCut::section_spacing).
 TEST(SlabMesher, SlabsAreClosedAndJoinConformingly) {
-  const TriangleMesh surface = Surface(PlateWithHole(0.1));
-  const SlabSurfaces slabs = CutSurfaceIntoSlabs(surface, Cut());
-  ASSERT_EQ(slabs.slabs.size(), 3u);
-  ASSERT_EQ(slabs.sections.size(), 2u);
-  double volume = 0.0;
-  std::vector<TetMesh> tets;
-  for (const TriangleMesh& s : slabs.slabs) {
-    EXPECT_NO_THROW(CheckSurface(s));
-    volume += MeshVolume(s);
-    TetMeshSettings ts;
-    ts.max_radius_edge = 2.0;
-    tets.push_back(TetrahedralizeSlab(s, ts));
-    EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
-  }
-  // The slabs add up to the solid (the cut and the snap keep the volume to rounding: a snapped
-  // vertex moves along the axis by at most `snap`, which changes the volume a little).
-  EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
-  // Each section is the plate's 0.1 × 0.02 m cross-section (the hole lies in the middle slab).
-  for (const TriangleMesh& section : slabs.sections) {
-    double area = 0.0;
-    for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
-      const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
-                            b = section.vertices.col(section.triangles(1, f)),
-                            c = section.vertices.col(section.triangles(2, f));
-      area += 0.5 * (b - a).cross(c - a).x();  // counter-clockwise seen from +x: positive
+  for (const double spacing : {0.0, 0.5 * kCell}) {
+    SCOPED_TRACE("section spacing " + std::to_string(spacing));
+    const TriangleMesh surface = Surface(PlateWithHole(0.1));
+    const SlabSurfaces slabs = CutSurfaceIntoSlabs(surface, Cut(spacing));
+    ASSERT_EQ(slabs.slabs.size(), 3u);
+    ASSERT_EQ(slabs.sections.size(), 2u);
+    double volume = 0.0;
+    std::vector<TetMesh> tets;
+    for (const TriangleMesh& s : slabs.slabs) {
+      EXPECT_NO_THROW(CheckSurface(s));
+      volume += MeshVolume(s);
+      TetMeshSettings ts;
+      ts.max_radius_edge = 2.0;
+      tets.push_back(TetrahedralizeSlab(s, ts));
+      EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
     }
-    // Marching tetrahedra chamfers the section's four edges by up to a cell.
-    EXPECT_NEAR(area, 0.1 * 0.02, 0.15 * 0.002);
-    std::printf("section area %.4e m^2 (0.1 x 0.02 = 2e-3), %ld triangles\n", area,
-                static_cast<long>(section.triangles.cols()));
+    // The slabs add up to the solid (the cut and the snap keep the volume to rounding: a snapped
+    // vertex moves along the axis by at most `snap`, which changes the volume a little).
+    EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
+    // Each section is the plate's 0.1 × 0.02 m cross-section (the hole lies in the middle slab).
+    for (const TriangleMesh& section : slabs.sections) {
+      double area = 0.0;
+      for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
+        const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
+                              b = section.vertices.col(section.triangles(1, f)),
+                              c = section.vertices.col(section.triangles(2, f));
+        area += 0.5 * (b - a).cross(c - a).x();  // counter-clockwise seen from +x: positive
+      }
+      // Marching tetrahedra chamfers the section's four edges by up to a cell.
+      EXPECT_NEAR(area, 0.1 * 0.02, 0.15 * 0.002);
+      std::printf("section area %.4e m^2 (0.1 x 0.02 = 2e-3), %ld triangles, %ld vertices\n", area,
+                  static_cast<long>(section.triangles.cols()),
+                  static_cast<long>(section.vertices.cols()));
+      // Interior points (on no boundary edge of the section) lie half a spacing or more from the
+      // boundary; without a spacing there are none.
+      std::map<std::pair<int, int>, int> edge_use;
+      for (Eigen::Index f = 0; f < section.triangles.cols(); ++f)
+        for (int j = 0; j < 3; ++j) {
+          const int u = section.triangles(j, f), w = section.triangles((j + 1) % 3, f);
+          ++edge_use[{std::min(u, w), std::max(u, w)}];
+        }
+      std::vector<char> on_boundary(section.vertices.cols(), 0);
+      std::vector<std::pair<int, int>> boundary;
+      for (const auto& [e, uses] : edge_use)
+        if (uses == 1) {
+          boundary.push_back(e);
+          on_boundary[e.first] = on_boundary[e.second] = 1;
+        }
+      int interior = 0;
+      for (Eigen::Index i = 0; i < section.vertices.cols(); ++i) {
+        if (on_boundary[i]) continue;
+        ++interior;
+        for (const auto& [u, w] : boundary)
+          ASSERT_GE(DistanceToSegment(section.vertices.col(i), section.vertices.col(u),
+                                      section.vertices.col(w)),
+                    0.5 * spacing - 1e-12);
+      }
+      if (spacing > 0) {
+        EXPECT_GT(interior, 0);
+      } else {
+        EXPECT_EQ(interior, 0);
+      }
+    }
+    const SlabTetMesh joined = JoinSlabs(tets);
+    EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
+    const FaceCount faces = CountFaces(joined.mesh, Cut().planes);
+    EXPECT_EQ(faces.shared_by_more, 0);
+    EXPECT_EQ(faces.boundary_on_planes, 0);  // the planes are inside the joined mesh
+    long surface_faces = 0;
+    for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
+    for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
+    EXPECT_EQ(faces.boundary, surface_faces);
+    for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
+      ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
   }
-  const SlabTetMesh joined = JoinSlabs(tets);
-  EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
-  const FaceCount faces = CountFaces(joined.mesh, Cut().planes);
-  EXPECT_EQ(faces.shared_by_more, 0);
-  EXPECT_EQ(faces.boundary_on_planes, 0);  // the planes are inside the joined mesh
-  long surface_faces = 0;
-  for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
-  for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
-  EXPECT_EQ(faces.boundary, surface_faces);
-  for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
-    ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
 }
 
 TEST(SlabMesher, EditInsideOneSlabLeavesTheOtherSlabsBitForBit) {

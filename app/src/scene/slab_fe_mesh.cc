@@ -66,6 +66,7 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
   cut.axis = 0;
   cut.planes = planes;
   cut.snap = 0.1 * cell;
+  cut.section_spacing = cell;
   modeling::SlabSurfaces slabs = modeling::CutSurfaceIntoSlabs(surface, cut);
   out.cut_seconds = Seconds(t);
 

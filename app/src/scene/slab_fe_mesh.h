@@ -3,7 +3,8 @@
 // re-meshes only the slabs it reached: the surface on a grid that is kept from the first mesh on
 // (MeshSurface is local on a fixed grid: an edit changes triangles within about a cell of it),
 // cut by planes placed from the grid box alone (half-way between grid planes, so they stay put
-// when the solid changes inside the box), each slab tetrahedralized only when its input differs
+// when the solid changes inside the box; each cross-section gets interior points at the cell
+// spacing, SlabCut::section_spacing), each slab tetrahedralized only when its input differs
 // from the slab of an earlier mesh (SurfaceHash, then compared in full), and the slabs joined.
 // An unchanged slab keeps its nodes and tets bit for bit, in the same local order, so that
 // fem::SubstructuredSolver reuses its factor.

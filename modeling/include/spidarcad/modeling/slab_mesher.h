@@ -9,8 +9,9 @@
 // Cutting. A vertex within `snap` (m) of a plane is moved onto it; a triangle that crosses a plane
 // is split along it (the crossing point of an edge is shared by both triangles on the edge, so
 // the cut surface stays closed and manifold). Cross-sections are the constrained Delaunay
-// triangulation (CGAL) of the cut curves' vertices, without Steiner points, inside the curves
-// (odd nesting). Orientation: a triangle is counter-clockwise seen from outside its slab.
+// triangulation (CGAL) of the cut curves' vertices (and, with `section_spacing`, of interior grid
+// points), inside the curves (odd nesting). Orientation: a triangle is counter-clockwise seen from
+// outside its slab.
 //
 // Locality. The cut, the sections and each slab's input depend only on the surface near the
 // slab. With a surface mesher that is local too (MeshSurface on a fixed grid is: an edit changes
@@ -38,6 +39,12 @@ struct SlabCut {
   // Vertices within this distance of a plane (m) are moved onto it (>= 0): keeps slivers out of
   // the cut (a tenth of the surface's cell is a fair choice).
   double snap = 0.0;
+  // Spacing (m) of interior points added to each cross-section (0: none, the cut points only):
+  // the points of a square grid of this spacing, anchored at the origin, that lie inside the
+  // section and at least half a spacing from its cut curves. Shared by the two slabs like the
+  // section, they keep TetGen (which may add no point to a kept boundary) from spanning a wide
+  // section with slivers.
+  double section_spacing = 0.0;
 };
 
 // A surface cut into closed slab surfaces.
