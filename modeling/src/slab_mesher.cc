@@ -254,8 +254,9 @@ SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut
           return true;
         };
         std::vector<Eigen::Vector2d> interior;
-        for (double gu = std::ceil(lo[0] / h) * h; gu <= hi[0]; gu += h) {
-          for (double gv = std::ceil(lo[1] / h) * h; gv <= hi[1]; gv += h) {
+        for (double iu = std::ceil(lo[0] / h); iu * h <= hi[0]; ++iu) {
+          for (double iv = std::ceil(lo[1] / h); iv * h <= hi[1]; ++iv) {
+            const double gu = iu * h, gv = iv * h;  // multiples of h: the grid anchored at 0
             const Cdt::Face_handle f = cdt.locate(Kernel::Point_2(gu, gv));
             if (cdt.is_infinite(f) || f->info().nesting % 2 != 1) continue;
             if (far_from_curves(gu, gv)) interior.emplace_back(gu, gv);

@@ -22,6 +22,7 @@
 #include "doc/document.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/scene_io.h"
+#include "support/malloc_counter.h"
 
 namespace spidarcad::app {
 namespace {
@@ -198,7 +199,7 @@ TEST(AssemblyScene, ScriptedRunSeatsTheRightArm) {
 // evaluating one point at a time (AssemblySettings::batch_evaluation off), an approach, a
 // grasp of the right arm, a carry into its hole with the peg pressed on the hole's wall, a
 // release and the tool pushed into the body give the same wrench, poses, contacts and candidates
-// every tick, bit for bit.
+// every tick, bit for bit; the batched field's ticks allocate nothing.
 TEST(AssemblyScene, BatchedEvaluationEqualsThePointByPointFieldBitForBit) {
   const modeling::Scene scene = modeling::LoadScene(kScene);
   std::unique_ptr<haptics::AssemblyField> fields[2];
@@ -218,10 +219,16 @@ TEST(AssemblyScene, BatchedEvaluationEqualsThePointByPointFieldBitForBit) {
     return Eigen::Vector3d(X_WP * centre_P - 0.02 * b_W);
   };
   int carried_ticks = 0, touching = 0, tool_touching = 0;
-  long candidates = 0;
+  long candidates = 0, allocations = 0;
+  ASSERT_TRUE(test_support::MallocCounterActive());
   auto tick = [&] {
     tool.time += 1e-3;
-    const haptics::ToolWrench a = fields[0]->Evaluate(tool);
+    haptics::ToolWrench a;
+    {
+      test_support::MallocCounter counter;  // the batched tick allocates nothing
+      a = fields[0]->Evaluate(tool);
+      allocations += counter.count();
+    }
     const haptics::ToolWrench b = fields[1]->Evaluate(tool);
     ASSERT_EQ(a.f_T_W, b.f_T_W) << "t = " << tool.time;
     ASSERT_EQ(a.m_T_W, b.m_T_W) << "t = " << tool.time;
@@ -284,6 +291,7 @@ TEST(AssemblyScene, BatchedEvaluationEqualsThePointByPointFieldBitForBit) {
   EXPECT_GT(touching, 50);  // the peg did press on the hole's wall
   EXPECT_GT(candidates, 10000);
   EXPECT_GT(tool_touching, 50);  // the tool's own shell pressed on the body
+  EXPECT_EQ(allocations, 0);
 }
 
 // The version 1 robot as rigid parts: one rigid_part per part with its solid's tree, its pose

@@ -1,9 +1,6 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "cli/edit_to_force.h"
 
-#include <pthread.h>
-#include <sched.h>
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
@@ -27,6 +24,7 @@
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/substructure.h"
+#include "spidarcad/haptics/loop_runner.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -126,8 +124,9 @@ Eigen::MatrixXd PatchBlock(const Solver& solver, const std::vector<int>& patch,
 
 // A 1 kHz contact tick on the old model while the update runs: 16 contacts of the patch on a
 // ColumnCache of the old substructured solver (the columns made before the edit), one
-// CachedContactSolver::Solve per tick. Records each tick's thread CPU time and how late each
-// tick woke (absolute sleeps), in µs.
+// CachedContactSolver::Solve per tick, on a haptics::LoopRunner (SCHED_FIFO 80 when permitted,
+// absolute sleeps, wake-up lateness histogram) as the window's haptic thread. Records each tick's
+// thread CPU time too.
 class TickProbe {
  public:
   TickProbe(fem::ColumnCache* cache, const std::vector<int>& candidates) : solver_(cache, 16) {
@@ -138,27 +137,18 @@ class TickProbe {
       target_[3 * s + 2] =
           cache->baseline()(3 * cache->OutputIndexOfCandidate(solver_.contact(s)) + 2) - 1e-5;
     force_.assign(target_.size(), 0.0);
-    cpu_us_.reserve(200000);
-    late_us_.reserve(200000);
   }
   void Start() {
-    stop_ = false;
-    thread_ = std::thread([this] { Loop(); });
+    runner_.Start([this](const haptics::TickTiming&) {
+      const double t0 = ThreadCpu();
+      solver_.Solve(target_.data(), force_.data());
+      cpu_.Add(ThreadCpu() - t0);
+    });
   }
-  void Stop() {
-    stop_ = true;
-    thread_.join();
-  }
-  // p-quantile (0..1) of the recorded values.
-  static double Quantile(std::vector<double> v, double p) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    return v[std::min(v.size() - 1, static_cast<std::size_t>(p * v.size()))];
-  }
-  const std::vector<double>& cpu_us() const { return cpu_us_; }
-  const std::vector<double>& late_us() const { return late_us_; }
-  // How the probe's thread was scheduled (after Stop).
-  const char* scheduling() const { return fifo_ ? "SCHED_FIFO 80" : "normal (SCHED_FIFO refused)"; }
+  void Stop() { runner_.Stop(); }
+  const haptics::LoopRunner& runner() const { return runner_; }
+  // Thread CPU time per tick, s.
+  const haptics::LatencyHistogram& cpu() const { return cpu_; }
 
  private:
   static double ThreadCpu() {
@@ -166,28 +156,10 @@ class TickProbe {
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
   }
-  void Loop() {
-    // As the window's haptic thread: SCHED_FIFO 80 when permitted (root or CAP_SYS_NICE), so
-    // the update's threads (normal priority) do not delay its wake-ups.
-    sched_param param{};
-    param.sched_priority = 80;
-    fifo_ = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
-    auto next = std::chrono::steady_clock::now();
-    while (!stop_ && cpu_us_.size() < cpu_us_.capacity()) {
-      next += std::chrono::milliseconds(1);
-      std::this_thread::sleep_until(next);
-      late_us_.push_back(
-          1e6 * std::chrono::duration<double>(std::chrono::steady_clock::now() - next).count());
-      const double t0 = ThreadCpu();
-      solver_.Solve(target_.data(), force_.data());
-      cpu_us_.push_back(1e6 * (ThreadCpu() - t0));
-    }
-  }
   fem::CachedContactSolver solver_;
-  std::vector<double> target_, force_, cpu_us_, late_us_;
-  std::atomic<bool> stop_{false};
-  bool fifo_ = false;
-  std::thread thread_;
+  std::vector<double> target_, force_;
+  haptics::LatencyHistogram cpu_;
+  haptics::LoopRunner runner_;
 };
 
 EditToForceCase::Quality Measure(const modeling::CompiledSolid& solid,
@@ -294,11 +266,11 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     e.total_wall = t.Wall();
     e.total_cpu = t.Cpu();
     probe.Stop();
-    e.ticks = static_cast<int>(probe.cpu_us().size());
-    e.scheduling = probe.scheduling();
-    e.tick_cpu_p999 = TickProbe::Quantile(probe.cpu_us(), 0.999);
-    e.tick_cpu_max = TickProbe::Quantile(probe.cpu_us(), 1.0);
-    e.tick_late_p999 = TickProbe::Quantile(probe.late_us(), 0.999);
+    e.ticks = static_cast<int>(probe.runner().ticks());
+    e.scheduling = haptics::RealtimeStatusName(probe.runner().realtime_status());
+    e.tick_cpu_p999 = 1e6 * probe.cpu().Percentile(0.999);
+    e.tick_cpu_max = 1e6 * probe.cpu().max();
+    e.tick_late_p999 = 1e6 * probe.runner().lateness().Percentile(0.999);
     e.surface = m.surface_seconds;
     e.cut = m.cut_seconds;
     e.tetgen = m.tetgen_seconds;

@@ -11,7 +11,7 @@
 //           gusset shortened 0.2 -> 0.17 m (the slabs it spans), plate 10 -> 11 mm (every slab)
 // The edited scenes are written to <temp>/spidarcad-edit-bench/. During each update a 1 kHz
 // contact tick runs on the old model (16 contacts on its ColumnCache, as FE mode keeps the old
-// model until the new one is ready) on a thread of its own at SCHED_FIFO 80 when permitted.
+// model until the new one is ready) on a haptics::LoopRunner: SCHED_FIFO 80 when permitted.
 // Times: wall s (steady clock); CPU: process CPU s (CHOLMOD and OpenBLAS use every core).
 #pragma once
 
@@ -34,8 +34,9 @@ struct EditToForceRow {
   double patch = 0;      // the patch's compliance block, s
   double total_wall = 0, total_cpu = 0;  // edit -> first correct force (from reading the scene)
   double error = 0;  // relative difference of the patch block from a monolithic solve
-  // The probe tick during the update: how it was scheduled, ticks, thread CPU p99.9 and max,
-  // wake-up lateness p99.9 (µs).
+  // The probe tick during the update: how it was scheduled (RealtimeStatusName: "fifo", ...),
+  // ticks, thread CPU p99.9 and max, wake-up lateness p99.9 (µs; the runner's histogram gives
+  // its maximum above 10 ms).
   std::string scheduling;
   int ticks = 0;
   double tick_cpu_p999 = 0, tick_cpu_max = 0, tick_late_p999 = 0;

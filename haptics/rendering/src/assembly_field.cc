@@ -187,6 +187,10 @@ void AssemblyField::Gather(int j, int m, const Eigen::Vector3d& p_W) noexcept {
   batch_z_[m] = p_P.z();
 }
 
+Eigen::Vector3d AssemblyField::GatheredGradient_W(int j, int k) const noexcept {
+  return poses_[j].linear() * Eigen::Vector3d(batch_gx_[k], batch_gy_[k], batch_gz_[k]);
+}
+
 void AssemblyField::EvaluateGathered(int j, int m, bool gradient) noexcept {
   const DistanceField& field = *parts_[j].field_P;
   if (settings_.batch_evaluation) {
@@ -309,7 +313,7 @@ ToolWrench AssemblyField::ToolContact(const ToolKinematics& tool) noexcept {
     for (int i = 0; i < m; ++i) {
       const Eigen::Vector3d r = tool.R_WT * tool_shell_.points_T[i];
       const double phi = batch_phi_[i];
-      g = poses_[j].linear() * Eigen::Vector3d(batch_gx_[i], batch_gy_[i], batch_gz_[i]);
+      g = GatheredGradient_W(j, i);
       const double gn = g.norm();
       if (!(phi < 0) || !(gn > 0)) continue;
       const Eigen::Vector3d f = settings_.contact_stiffness * (-phi) * (g / gn);
@@ -389,8 +393,7 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       EvaluateGathered(j, found, true);
       for (int k = 0; k < found; ++k) {
         candidate_phi_[first + k] = batch_phi_[k];
-        candidate_grad_[first + k] =  // as Phi turns it into W
-            poses_[j].linear() * Eigen::Vector3d(batch_gx_[k], batch_gy_[k], batch_gz_[k]);
+        candidate_grad_[first + k] = GatheredGradient_W(j, k);
       }
     }
   }

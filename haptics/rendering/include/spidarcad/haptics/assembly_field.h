@@ -195,6 +195,8 @@ class AssemblyField final : public ForceField {
   // φ of part j at the batch's first m points (∇φ in P too when `gradient`), one EvaluateBatch
   // or, without settings.batch_evaluation, m Evaluate calls.
   void EvaluateGathered(int j, int m, bool gradient) noexcept;
+  // The gradient EvaluateGathered left at batch position k, turned into W as Phi turns it.
+  Eigen::Vector3d GatheredGradient_W(int j, int k) const noexcept;
   // Grasp generalised force Q (>= 0) of the poles on part j at pose X_WP_j (for the carried part,
   // its target pose); *both_pushing tells whether both poles push into it; depths to *depths
   // (m; when both push: once one pole does not, the other is not searched and Q is 0).
