@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <list>
 #include <map>
 #include <set>
@@ -107,6 +108,24 @@ SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut
     if (!(cut.planes[i] > cut.planes[i - 1]))
       throw std::invalid_argument("slab cut: the planes must be strictly increasing");
   if (!(cut.snap >= 0.0)) throw std::invalid_argument("slab cut: snap must be >= 0");
+  if (!(cut.section_spacing >= 0.0))
+    throw std::invalid_argument("slab cut: section_spacing must be >= 0 (0: no interior points)");
+  if (cut.section_spacing > 0.0 && surface.vertices.cols() > 0) {
+    // The sections lie in the surface's box: bound their grid before cutting.
+    const auto [u, w] = PlaneAxes(cut.axis);
+    const Eigen::Vector3d extent =
+        surface.vertices.rowwise().maxCoeff() - surface.vertices.rowwise().minCoeff();
+    const double points =
+        (extent[u] / cut.section_spacing + 1) * (extent[w] / cut.section_spacing + 1);
+    if (points > 1e7) {
+      char what[200];
+      std::snprintf(what, sizeof what,
+                    "slab cut: section_spacing %g m gives up to %.3g grid points per section "
+                    "(over 1e7) on a surface %g by %g m across; use a spacing near its cell",
+                    cut.section_spacing, points, extent[u], extent[w]);
+      throw std::invalid_argument(what);
+    }
+  }
   const int axis = cut.axis;
   SlabSurfaces out;
   std::vector<Eigen::Vector3d> v(surface.vertices.cols());

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <map>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "spidarcad/modeling/implicit_evaluator.h"
@@ -195,6 +196,17 @@ TEST(SlabMesher, RefusesBadCutsAndAPlaneOnAFace) {
   bad = Cut();
   bad.snap = -1.0;
   EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad = Cut(-kCell);
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad = Cut(std::nan(""));
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad = Cut(1e-7);  // 1e6 × 2e5 grid points on the 0.1 × 0.02 m section
+  try {
+    CutSurfaceIntoSlabs(surface, bad);
+    ADD_FAILURE() << "a 0.1 um section spacing was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("section_spacing"), std::string::npos) << e.what();
+  }
   // A plane on the plate's top face z = 0.01 (axis z), where triangles lie in the plane.
   bad = Cut();
   bad.axis = 2;

@@ -59,7 +59,8 @@ struct SlabSurfaces {
 };
 
 // Cuts a closed, outward-oriented surface. Throws std::invalid_argument for a bad axis, planes
-// not strictly increasing, a negative snap, or a plane that a triangle lies in (a face of the
+// not strictly increasing, a negative snap or section spacing (or one giving a section over 1e7
+// grid points), or a plane that a triangle lies in (a face of the
 // solid on the plane: move the plane), and SurfaceDefectError when a cross-section cannot be
 // triangulated (cut curves that cross).
 SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut);
