@@ -15,66 +15,17 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "spidarcad/fem/cache_file.h"
+
 namespace spidarcad::fem {
 namespace {
 
 constexpr char kMagic[8] = {'S', 'P', 'D', 'C', 'O', 'L', 'S', '1'};
 constexpr std::uint64_t kFnvPrime = 1099511628211ull;
 
-// Appends raw bytes of trivially copyable values to a byte buffer.
-class Writer {
- public:
-  template <typename T>
-  void Put(const T& v) {
-    const auto* p = reinterpret_cast<const unsigned char*>(&v);
-    bytes_.insert(bytes_.end(), p, p + sizeof(T));
-  }
-  template <typename T>
-  void PutArray(const T* v, std::size_t n) {
-    const auto* p = reinterpret_cast<const unsigned char*>(v);
-    bytes_.insert(bytes_.end(), p, p + sizeof(T) * n);
-  }
-  std::vector<unsigned char>& bytes() { return bytes_; }
-
- private:
-  std::vector<unsigned char> bytes_;
-};
-
-// Reads trivially copyable values from a byte buffer; fails (returns false) past its end.
-class Reader {
- public:
-  Reader(const unsigned char* data, std::size_t size) : data_(data), size_(size) {}
-  template <typename T>
-  bool Get(T* v) {
-    if (size_ - pos_ < sizeof(T)) return false;
-    std::memcpy(v, data_ + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return true;
-  }
-  template <typename T>
-  bool GetArray(T* v, std::size_t n) {
-    if (n > (size_ - pos_) / sizeof(T)) return false;
-    std::memcpy(v, data_ + pos_, sizeof(T) * n);
-    pos_ += sizeof(T) * n;
-    return true;
-  }
-  std::size_t remaining() const { return size_ - pos_; }
-
- private:
-  const unsigned char* data_;
-  std::size_t size_;
-  std::size_t pos_ = 0;
-};
-
 template <typename T>
 std::uint64_t HashValue(const T& v, std::uint64_t h) {
   return Fnv1a64(&v, sizeof(T), h);
-}
-
-std::string Hex(std::uint64_t key) {
-  char buf[17];
-  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(key));
-  return buf;
 }
 
 }  // namespace
@@ -144,7 +95,7 @@ PrecomputeCache::PrecomputeCache(std::filesystem::path directory)
     : directory_(std::move(directory)) {}
 
 std::filesystem::path PrecomputeCache::PathFor(std::uint64_t key) const {
-  return directory_ / (Hex(key) + ".cols");
+  return directory_ / (HexKey(key) + ".cols");
 }
 
 bool PrecomputeCache::Save(const ColumnSet& set, std::string* error) const {
@@ -156,13 +107,13 @@ bool PrecomputeCache::Save(const ColumnSet& set, std::string* error) const {
   if (set.baseline.size() != static_cast<Eigen::Index>(3 * num_out) ||
       set.columns.rows() != static_cast<Eigen::Index>(3 * num_out) ||
       set.columns.cols() != static_cast<Eigen::Index>(3 * num_nodes)) {
-    return fail("column set of key " + Hex(set.key) + " is inconsistent: baseline " +
+    return fail("column set of key " + HexKey(set.key) + " is inconsistent: baseline " +
                 std::to_string(set.baseline.size()) + ", columns " +
                 std::to_string(set.columns.rows()) + " by " + std::to_string(set.columns.cols()) +
                 " for " + std::to_string(num_out) + " output and " + std::to_string(num_nodes) +
                 " column nodes");
   }
-  Writer w;
+  ByteWriter w;
   w.PutArray(kMagic, 8);
   w.Put(kPrecomputeFormatVersion);
   w.Put(set.key);
@@ -223,7 +174,7 @@ std::optional<ColumnSet> PrecomputeCache::Load(std::uint64_t key, std::string* r
                                          std::istreambuf_iterator<char>());
   if (bytes.size() < 8 + sizeof(std::uint64_t))
     return fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
-  Reader r(bytes.data(), bytes.size() - sizeof(std::uint64_t));
+  ByteReader r(bytes.data(), bytes.size() - sizeof(std::uint64_t));
   char magic[8];
   r.GetArray(magic, 8);
   if (std::memcmp(magic, kMagic, 8) != 0) return fail("not a spidarcad column file (bad magic)");
@@ -236,7 +187,7 @@ std::optional<ColumnSet> PrecomputeCache::Load(std::uint64_t key, std::string* r
   }
   if (!r.Get(&file_key) || !r.Get(&precision) || !r.Get(&num_out) || !r.Get(&num_nodes))
     return fail("truncated header");
-  if (file_key != key) return fail("holds key " + Hex(file_key) + ", expected " + Hex(key));
+  if (file_key != key) return fail("holds key " + HexKey(file_key) + ", expected " + HexKey(key));
   if (precision > 1) return fail("unknown precision code " + std::to_string(precision));
   const std::size_t value_bytes = precision == 1 ? 4 : 8;
   // Expected size, checked before allocating anything of the sizes read.

@@ -11,9 +11,12 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <utility>
 
 #include "solve_checks.h"
+#include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/precompute_cache.h"
 
 // LAPACK (in OpenBLAS, linked by this library for CHOLMOD): A := U Uᵀ for the upper triangle U
@@ -111,6 +114,20 @@ bool CholmodSolve(int sys, cholmod_factor* l, Eigen::MatrixXd* b) {
   return true;
 }
 
+// Nonzeros of a supernodal factor's L (its lower trapezoids; CHOLMOD's own count, lnz, is not
+// set by a supernodal factorisation).
+double SupernodalNonzeros(const cholmod_factor* l) {
+  if (l == nullptr || !l->is_super) return 0.0;
+  const int* super = static_cast<const int*>(l->super);
+  const int* pi = static_cast<const int*>(l->pi);
+  double nnz = 0.0;
+  for (std::size_t s = 0; s < l->nsuper; ++s) {
+    const double ncol = super[s + 1] - super[s], nrow = pi[s + 1] - pi[s];
+    nnz += ncol * nrow - 0.5 * ncol * (ncol - 1.0);
+  }
+  return nnz;
+}
+
 // Values below this fraction of max diag K_ΓΓ are the interface shift σ (see the header).
 constexpr double kInterfaceShift = 1e-6;
 
@@ -125,6 +142,13 @@ std::string Point(const Eigen::Vector3d& p) {
 
 // Node flags of a block's content: prescribed axes (bits 0..2), interface node (bit 3).
 constexpr unsigned char kInterfaceFlag = 8;
+
+// Block files (SubstructuredSolver's cache directory): magic, format version, and the CHOLMOD
+// version that laid out the factor.
+constexpr char kBlockFileMagic[8] = {'S', 'P', 'D', 'B', 'L', 'K', '0', '1'};
+constexpr std::uint32_t kBlockFileVersion = 1;
+constexpr int kCholmodVersion[3] = {CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION,
+                                    CHOLMOD_SUBSUB_VERSION};
 
 }  // namespace
 
@@ -173,9 +197,8 @@ struct SubstructuredSolver::BlockFactor {
     key = Fnv1a64(flags.data(), flags.size(), h);
   }
 
-  // Assembles and factors (content already set).
-  void Factor() {
-    const auto t0 = Clock::now();
+  // K^b over the block's local dofs, from the content.
+  void AssembleLocalStiffness() {
     const int n_loc = num_nodes();
     const int ne = npe > 0 ? static_cast<int>(connectivity.size()) / npe : 0;
     TetMesh local;
@@ -198,9 +221,15 @@ struct SubstructuredSolver::BlockFactor {
     }
     k = AssembleStiffness(local, table);
     k.makeCompressed();
+  }
 
+  // From k and the flags: the dof classes, K^b_IΓ, ||K^b_ff||_F², σ, and A_b's lower triangle
+  // (interior first, then interface; empty without interior dofs, when *kgg gets K^b_ΓΓ).
+  SparseMatrixd Prepare(double* sigma, Eigen::MatrixXd* kgg) {
     // Local dof classes and the A numbering: interior first, then interface.
-    const int nd = 3 * n_loc;
+    const int nd = 3 * num_nodes();
+    interior.clear();
+    interface.clear();
     std::vector<int> a_index(nd, -1);
     for (int d = 0; d < nd; ++d) {
       const unsigned char f = flags[d / 3];
@@ -214,12 +243,12 @@ struct SubstructuredSolver::BlockFactor {
     double max_gg = 0.0;
     for (int g = 0; g < ng_; ++g)
       max_gg = std::max(max_gg, std::abs(k.coeff(interface[g], interface[g])));
-    const double sigma = kInterfaceShift * max_gg;
+    *sigma = kInterfaceShift * max_gg;
 
     std::vector<Eigen::Triplet<double, int>> ta, tig;
     ta.reserve(static_cast<size_t>(k.nonZeros() / 2 + nd));
     ff_norm2 = 0.0;
-    Eigen::MatrixXd kgg = Eigen::MatrixXd::Zero(ni_ == 0 ? ng_ : 0, ni_ == 0 ? ng_ : 0);
+    *kgg = Eigen::MatrixXd::Zero(ni_ == 0 ? ng_ : 0, ni_ == 0 ? ng_ : 0);
     for (int c = 0; c < k.outerSize(); ++c) {
       const int ac = a_index[c];
       if (ac < 0) continue;
@@ -229,12 +258,49 @@ struct SubstructuredSolver::BlockFactor {
         ff_norm2 += it.value() * it.value();
         if (ar >= ac) ta.emplace_back(ar, ac, it.value());
         if (ar < ni_ && ac >= ni_) tig.emplace_back(ar, ac - ni_, it.value());
-        if (ni_ == 0) kgg(ar, ac) = it.value();
+        if (ni_ == 0) (*kgg)(ar, ac) = it.value();
       }
     }
     k_ig.resize(ni_, ng_);
     k_ig.setFromTriplets(tig.begin(), tig.end());
     k_ig.makeCompressed();
+    SparseMatrixd a;
+    if (ni_ == 0) return a;
+    for (int g = 0; g < ng_; ++g) ta.emplace_back(ni_ + g, ni_ + g, *sigma);
+    a.resize(ni_ + ng_, ni_ + ng_);
+    a.setFromTriplets(ta.begin(), ta.end());
+    a.makeCompressed();
+    return a;
+  }
+
+  // CHOLMOD's supernodal symbolic factor of A with the order `perm` (interface last, kept).
+  cholmod_factor* Analyze(const SparseMatrixd& a) {
+    Common common;
+    common.c.nmethods = 1;
+    common.c.method[0].ordering = CHOLMOD_GIVEN;
+    common.c.postorder = 0;  // keep the interface last
+    common.c.supernodal = CHOLMOD_SUPERNODAL;
+    cholmod_sparse view = ViewLower(a);
+    cholmod_factor* l = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &common.c);
+    if (l == nullptr) throw std::runtime_error("substructure: CHOLMOD analysis failed");
+    const int* lp = static_cast<const int*>(l->Perm);
+    for (int p = 0; p < static_cast<int>(perm.size()); ++p) {
+      if (lp[p] != perm[p]) {
+        cholmod_free_factor(&l, &common.c);
+        throw std::logic_error("substructure: CHOLMOD changed the order");
+      }
+    }
+    return l;
+  }
+
+  // Assembles and factors (content already set).
+  void Factor() {
+    const auto t0 = Clock::now();
+    AssembleLocalStiffness();
+    double sigma = 0.0;
+    Eigen::MatrixXd kgg;
+    const SparseMatrixd a = Prepare(&sigma, &kgg);
+    const int ni_ = ni(), ng_ = ng();
     assembly_seconds = Seconds(t0);
 
     const auto t1 = Clock::now();
@@ -243,10 +309,6 @@ struct SubstructuredSolver::BlockFactor {
       factor_seconds = Seconds(t1);
       return;
     }
-    for (int g = 0; g < ng_; ++g) ta.emplace_back(ni_ + g, ni_ + g, sigma);
-    SparseMatrixd a(ni_ + ng_, ni_ + ng_);
-    a.setFromTriplets(ta.begin(), ta.end());
-    a.makeCompressed();
 
     // Fill-reducing order of K_II (CHOLMOD's default choice), then the interface in order.
     perm.resize(ni_ + ng_);
@@ -261,20 +323,11 @@ struct SubstructuredSolver::BlockFactor {
     }
     for (int g = 0; g < ng_; ++g) perm[ni_ + g] = ni_ + g;
 
+    factor.l = Analyze(a);
     Common common;
-    common.c.nmethods = 1;
-    common.c.method[0].ordering = CHOLMOD_GIVEN;
-    common.c.postorder = 0;  // keep the interface last
-    common.c.supernodal = CHOLMOD_SUPERNODAL;
     cholmod_sparse view = ViewLower(a);
-    factor.l = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &common.c);
-    if (factor.l == nullptr) throw std::runtime_error("substructure: CHOLMOD analysis failed");
-    const int* lp = static_cast<const int*>(factor.l->Perm);
-    for (int p = 0; p < ni_ + ng_; ++p) {
-      if (lp[p] != perm[p]) throw std::logic_error("substructure: CHOLMOD changed the order");
-    }
     cholmod_factorize(&view, factor.l, &common.c);
-    factor_nonzeros = common.c.lnz;
+    factor_nonzeros = SupernodalNonzeros(factor.l);
     if (factor.l->minor < factor.l->n) {
       failed = perm[factor.l->minor];
       factor_seconds = Seconds(t1);
@@ -319,6 +372,133 @@ struct SubstructuredSolver::BlockFactor {
       schur.diagonal().array() -= sigma;
     }
     schur_seconds = Seconds(t2);
+  }
+
+  // The block file body (see BlockFileMagic): content, k, the order, S_b and the supernodal
+  // factor's layout and values. Only for a block that factored.
+  std::vector<unsigned char> Serialize() const {
+    ByteWriter w;
+    w.Put(kBlockFileVersion);
+    w.Put(key);
+    w.PutArray(kCholmodVersion, 3);
+    w.Put(static_cast<std::int32_t>(npe));
+    w.PutVector(connectivity);
+    w.PutVector(positions);
+    w.PutVector(materials);
+    w.PutVector(flags);
+    w.Put(static_cast<std::int64_t>(k.rows()));
+    w.Put(static_cast<std::int64_t>(k.nonZeros()));
+    w.PutArray(k.outerIndexPtr(), static_cast<std::size_t>(k.cols()) + 1);
+    w.PutArray(k.innerIndexPtr(), static_cast<std::size_t>(k.nonZeros()));
+    w.PutArray(k.valuePtr(), static_cast<std::size_t>(k.nonZeros()));
+    w.PutVector(perm);
+    w.Put(static_cast<std::int64_t>(schur.rows()));
+    w.PutArray(schur.data(), static_cast<std::size_t>(schur.size()));
+    const cholmod_factor* l = factor.l;
+    const std::uint64_t nsuper = l ? l->nsuper : 0, xsize = l ? l->xsize : 0;
+    w.Put(nsuper);
+    w.Put(xsize);
+    if (l) {
+      w.PutArray(static_cast<const int*>(l->super), nsuper + 1);
+      w.PutArray(static_cast<const double*>(l->x), xsize);
+    }
+    w.Put(factor_nonzeros);
+    w.Put(assembly_seconds);
+    w.Put(factor_seconds);
+    w.Put(schur_seconds);
+    return std::move(w.bytes());
+  }
+
+  // A block of `content` from a file body; nothing, with the reason, when the body is not for
+  // this content (another key, content, format or CHOLMOD version) or does not fit together.
+  static std::shared_ptr<BlockFactor> Deserialize(const MappedCacheFile& body,
+                                                  const BlockFactor& content, std::string* why) {
+    ByteReader r(body.data(), body.size());
+    auto fail = [&](const std::string& reason) -> std::shared_ptr<BlockFactor> {
+      *why = reason;
+      return nullptr;
+    };
+    std::uint32_t version = 0;
+    std::uint64_t file_key = 0;
+    int cholmod_version[3] = {0, 0, 0};
+    if (!r.Get(&version) || version != kBlockFileVersion)
+      return fail("format version " + std::to_string(version) + ", expected " +
+                  std::to_string(kBlockFileVersion));
+    if (!r.Get(&file_key) || file_key != content.key)
+      return fail("holds key " + HexKey(file_key) + ", expected " + HexKey(content.key));
+    if (!r.GetArray(cholmod_version, 3) ||
+        !std::equal(cholmod_version, cholmod_version + 3, kCholmodVersion))
+      return fail("written with CHOLMOD " + std::to_string(cholmod_version[0]) + "." +
+                  std::to_string(cholmod_version[1]) + "." + std::to_string(cholmod_version[2]));
+    auto b = std::make_shared<BlockFactor>();
+    std::int32_t file_npe = 0;
+    if (!r.Get(&file_npe) || !r.GetVector(&b->connectivity) || !r.GetVector(&b->positions) ||
+        !r.GetVector(&b->materials) || !r.GetVector(&b->flags))
+      return fail("truncated content");
+    b->npe = file_npe;
+    b->key = file_key;
+    if (!b->SameContent(content)) return fail("its block differs (a hash collision)");
+    std::int64_t n = 0, nnz = 0;
+    if (!r.Get(&n) || !r.Get(&nnz) || n != 3 * b->num_nodes() || nnz < 0 ||
+        static_cast<std::uint64_t>(nnz) > r.remaining())
+      return fail("bad stiffness size");
+    b->k.resize(n, n);
+    b->k.resizeNonZeros(nnz);
+    if (!r.GetArray(b->k.outerIndexPtr(), static_cast<std::size_t>(n) + 1) ||
+        !r.GetArray(b->k.innerIndexPtr(), static_cast<std::size_t>(nnz)) ||
+        !r.GetArray(b->k.valuePtr(), static_cast<std::size_t>(nnz)))
+      return fail("truncated stiffness");
+    const int* outer = b->k.outerIndexPtr();
+    for (std::int64_t c = 0; c < n; ++c)
+      if (outer[c] < 0 || outer[c] > outer[c + 1]) return fail("bad stiffness columns");
+    if (outer[0] != 0 || outer[n] != nnz) return fail("bad stiffness columns");
+    for (std::int64_t i = 0; i < nnz; ++i)
+      if (b->k.innerIndexPtr()[i] < 0 || b->k.innerIndexPtr()[i] >= n)
+        return fail("bad stiffness rows");
+    double sigma = 0.0;
+    Eigen::MatrixXd kgg;
+    const SparseMatrixd a = b->Prepare(&sigma, &kgg);
+    const int ni_ = b->ni(), ng_ = b->ng();
+    std::int64_t schur_rows = 0;
+    if (!r.GetVector(&b->perm) || !r.Get(&schur_rows) || schur_rows != ng_)
+      return fail("bad order or Schur complement size");
+    b->schur.resize(ng_, ng_);
+    std::uint64_t nsuper = 0, xsize = 0;
+    if (!r.GetArray(b->schur.data(), static_cast<std::size_t>(b->schur.size())) ||
+        !r.Get(&nsuper) || !r.Get(&xsize))
+      return fail("truncated Schur complement");
+    if (ni_ == 0) {
+      if (nsuper != 0 || !b->perm.empty()) return fail("a factor for a block with no interior");
+    } else {
+      // The order: a permutation of A's indices with the interface last in order.
+      const int na = ni_ + ng_;
+      std::vector<char> seen(na, 0);
+      if (static_cast<int>(b->perm.size()) != na) return fail("bad order size");
+      for (int p = 0; p < na; ++p) {
+        const int q = b->perm[p];
+        if (q < 0 || q >= na || seen[q] || (p >= ni_ && q != p)) return fail("bad order");
+        seen[q] = 1;
+      }
+      // The layout CHOLMOD makes of A in this order must be the file's (same version, same
+      // pattern: always, unless the file is not for this block); then its values are the file's.
+      std::vector<int> super(nsuper + 1);
+      if (nsuper > static_cast<std::uint64_t>(na) || !r.GetArray(super.data(), nsuper + 1))
+        return fail("truncated factor");
+      b->factor.l = b->Analyze(a);
+      cholmod_factor* l = b->factor.l;
+      if (l->nsuper != nsuper || l->xsize != xsize ||
+          !std::equal(super.begin(), super.end(), static_cast<const int*>(l->super)))
+        return fail("its supernodes differ from CHOLMOD's analysis of the block");
+      Common common;
+      if (!cholmod_change_factor(CHOLMOD_REAL, 1, 1, 1, 1, l, &common.c) || l->x == nullptr)
+        return fail("out of memory for the factor");
+      if (!r.GetArray(static_cast<double*>(l->x), xsize)) return fail("truncated factor values");
+      l->minor = l->n;
+    }
+    if (!r.Get(&b->factor_nonzeros) || !r.Get(&b->assembly_seconds) || !r.Get(&b->factor_seconds) ||
+        !r.Get(&b->schur_seconds) || r.remaining() != 0)
+      return fail("bad trailer");
+    return b;
   }
 
   // Y = K_II⁻¹ F (#interior by m) through the factor of A_b: forward sweep on [F; 0], interface
@@ -394,7 +574,8 @@ struct SubstructuredSolver::Interface {
 SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
                                          const BoundaryConditions& bcs,
                                          const Eigen::VectorXi& element_block,
-                                         const SubstructuredSolver* reuse)
+                                         const SubstructuredSolver* reuse,
+                                         const std::filesystem::path& cache_directory)
     : bcs_(bcs), interface_(std::make_unique<Interface>()) {
   const auto t_start = Clock::now();
   mesh.Validate();
@@ -497,9 +678,30 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
       }
     }
     block.stats.reused = found != nullptr;
+    const std::filesystem::path file = cache_directory.empty()
+                                           ? std::filesystem::path()
+                                           : cache_directory / (HexKey(content->key) + ".block");
+    if (!found && !file.empty()) {
+      const auto t_read = Clock::now();
+      std::string why;
+      if (auto body = MapCacheFile(file, kBlockFileMagic, &why)) {
+        try {
+          found = BlockFactor::Deserialize(*body, *content, &why);
+        } catch (const std::exception& e) {
+          why = e.what();
+        }
+        if (!found) why = file.string() + ": " + why;
+      }
+      if (!found && why != "absent")
+        stats_.cache_notes.push_back("block " + std::to_string(b) + ": refused " + why);
+      block.stats.load_seconds = Seconds(t_read);
+      stats_.cache_read_seconds += block.stats.load_seconds;
+      block.stats.loaded = found != nullptr;
+      if (found) ++stats_.loaded_blocks;
+    }
     if (found) {
       block.factor = found;
-      ++stats_.reused_blocks;
+      if (block.stats.reused) ++stats_.reused_blocks;
     } else {
       content->Factor();
       block.factor = content;
@@ -507,6 +709,23 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
       stats_.block_assembly_seconds += content->assembly_seconds;
       stats_.block_factor_seconds += content->factor_seconds;
       stats_.block_schur_seconds += content->schur_seconds;
+      if (!file.empty() && content->failed < 0) {
+        // Written on a thread of its own while the next blocks are factored (a file is ~8
+        // bytes per factor nonzero: hundreds of megabytes, seconds of disk time).
+        writes_.push_back(std::make_unique<PendingWrite>());
+        PendingWrite* w = writes_.back().get();
+        w->block = b;
+        auto write = [w, file, factor = std::shared_ptr<const BlockFactor>(content)] {
+          const auto t_write = Clock::now();
+          w->saved = WriteCacheFile(file, kBlockFileMagic, factor->Serialize(), &w->error);
+          w->seconds = Seconds(t_write);
+        };
+        try {
+          w->thread = std::thread(write);
+        } catch (const std::system_error&) {
+          write();  // no thread to be had: write it now
+        }
+      }
     }
     const BlockFactor& bf = *block.factor;
     for (int d : bf.interior)
@@ -619,7 +838,7 @@ void SubstructuredSolver::FactorInterfaceWithCholmod(
   if (interface_->factor.l == nullptr)
     throw std::runtime_error("substructure: CHOLMOD analysis of S failed");
   cholmod_factorize(&view, interface_->factor.l, &common.c);
-  stats_.interface_factor_nonzeros = common.c.lnz;
+  stats_.interface_factor_nonzeros = SupernodalNonzeros(interface_->factor.l);
   if (interface_->factor.l->minor < interface_->factor.l->n) {
     const int p = static_cast<const int*>(interface_->factor.l->Perm)[interface_->factor.l->minor];
     InterfaceFailure(mesh, p);
@@ -742,7 +961,22 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   return true;
 }
 
-SubstructuredSolver::~SubstructuredSolver() = default;
+SubstructuredSolver::~SubstructuredSolver() { FinishCacheWrites(); }
+
+const SubstructureStats& SubstructuredSolver::FinishCacheWrites() {
+  for (const std::unique_ptr<PendingWrite>& w : writes_) {
+    if (w->thread.joinable()) w->thread.join();
+    stats_.cache_write_seconds += w->seconds;
+    if (w->saved) {
+      ++stats_.saved_blocks;
+    } else {
+      stats_.cache_notes.push_back("block " + std::to_string(w->block) +
+                                   ": not saved: " + w->error);
+    }
+  }
+  writes_.clear();
+  return stats_;
+}
 
 const BlockStats& SubstructuredSolver::block_stats(int b) const {
   if (b < 0 || b >= num_blocks())

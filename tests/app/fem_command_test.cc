@@ -15,7 +15,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -243,6 +245,75 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
   EXPECT_LT(push["reaction_force"][2].get<double>(), 0.0);
   const fem::TetMesh back = ReadTetVtu(out);
   EXPECT_EQ(back.num_nodes(), report["nodes"].get<int>());
+}
+
+// --cache-dir: a second run on the platform after a local edit (the load holes at the free end
+// widened) reads the slab meshes and slab factors the edit did not reach, lists what it read and
+// what it computed, and prints the same answer, bit for bit, as a run on the edited scene
+// without the cache.
+TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
+  std::ifstream in(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string hole = R"("id": "load_hole", "radius": 0.004)";
+  const std::size_t at = text.find(hole);
+  ASSERT_NE(at, std::string::npos);
+  std::string edited_text = text;
+  edited_text.replace(at, hole.size(), R"("id": "load_hole", "radius": 0.0045)");
+  const std::string original = OutputPath("fem_cache_platform.json");
+  const std::string edited = OutputPath("fem_cache_platform_edited.json");
+  std::ofstream(original) << text;
+  std::ofstream(edited) << edited_text;
+  const std::string dir = OutputPath("fem_cache_dir");
+  std::filesystem::remove_all(dir);
+  const std::string common =
+      " --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 --load 0.3,0.1,0.2 --force 0,0,-100 --out " +
+      OutputPath("fem_cache.vtu");
+  auto run = [&](const std::string& scene, const std::string& extra, const std::string& tag) {
+    const CommandRun r = RunSpidarcad(scene + common + extra, tag);
+    EXPECT_EQ(r.status, 0) << r.err;
+    return r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+  };
+  auto strings = [](const nlohmann::json& list) {
+    std::vector<std::string> out;
+    for (const auto& s : list) out.push_back(s.get<std::string>());
+    return out;
+  };
+  using Strings = std::vector<std::string>;
+  const nlohmann::json first = run(original, " --cache-dir " + dir, "cache1");
+  ASSERT_TRUE(first.contains("cache"));
+  EXPECT_EQ(first["meshing"]["slabs"], 4);  // --cache-dir alone means 4 slabs
+  EXPECT_EQ(first["substructure"]["blocks"].size(), 4u);
+  EXPECT_TRUE(first["cache"]["reused"].empty());
+  EXPECT_TRUE(first["cache"]["notes"].empty());
+
+  const nlohmann::json again = run(original, " --cache-dir " + dir, "cache2");
+  EXPECT_EQ(strings(again["cache"]["recomputed"]), (Strings{"surface", "interface factor"}));
+  EXPECT_EQ(again["cache"]["reused"].size(), 8u);
+  EXPECT_EQ(again["loads"][0]["displacement"], first["loads"][0]["displacement"]);
+
+  const nlohmann::json after = run(edited, " --cache-dir " + dir, "cache3");
+  EXPECT_EQ(strings(after["cache"]["reused"]),
+            (Strings{"slab 0 mesh", "slab 1 mesh", "slab 2 mesh", "block 0 factor",
+                     "block 1 factor", "block 2 factor"}));
+  EXPECT_EQ(strings(after["cache"]["recomputed"]),
+            (Strings{"surface", "slab 3 mesh", "block 3 factor", "interface factor"}));
+  EXPECT_EQ(after["meshing"]["per_slab"][3]["mesh"], "tetgen");
+  EXPECT_EQ(after["substructure"]["blocks"][0]["factor"], "cache");
+  // The edit changed the answer, and the cache did not: the same numbers as without it.
+  EXPECT_NE(after["max_von_mises_pa"], first["max_von_mises_pa"]);
+  const nlohmann::json plain = run(edited, " --slabs 4", "cache4");
+  EXPECT_FALSE(plain.contains("cache"));
+  EXPECT_EQ(after["loads"][0]["displacement"], plain["loads"][0]["displacement"]);
+  EXPECT_EQ(after["max_displacement_m"], plain["max_displacement_m"]);
+  EXPECT_EQ(after["elements"], plain["elements"]);
+
+  // --cache-dir with --slabs 0 is refused, saying why.
+  const CommandRun bad =
+      RunSpidarcad(original + common + " --slabs 0 --cache-dir " + dir, "cache5");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--cache-dir keeps slab meshes and slab factors"), std::string::npos)
+      << bad.err;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(FemCommand, StlIsRepairedMeshedAndSolvedOrRefusedNamingTheDefect) {

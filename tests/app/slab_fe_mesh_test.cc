@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -117,6 +118,60 @@ TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
       }
     EXPECT_LT((g_sub - g_mono).norm(), 1e-9 * g_mono.norm());
   }
+}
+
+// The cache directory keeps slab meshes between runs: a mesh made with no earlier mesh in memory
+// reads every slab from it, bit for bit; after the edit it reads the three slabs the edit left
+// alone and meshes the last; a damaged file is refused with a note naming it and re-meshed.
+TEST(SlabFeMesh, CacheDirectoryKeepsSlabMeshesBetweenRuns) {
+  const std::filesystem::path dir =
+      std::filesystem::path(SPIDARCAD_TEST_OUTPUT_DIR) / "slab_fe_mesh_cache";
+  std::filesystem::remove_all(dir);
+  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", kCell);
+  const Eigen::AlignedBox3d grid = base.bounds;
+  const std::vector<double> planes = SlabPlanes(grid, kCell, kSlabs);
+  const SlabFeMesh first = MeshSolidInSlabs(base.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+  EXPECT_EQ(first.num_remeshed(), kSlabs);
+  EXPECT_TRUE(first.cache_notes.empty());
+  const SlabFeMesh second = MeshSolidInSlabs(base.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+  EXPECT_EQ(second.num_remeshed(), 0);
+  EXPECT_EQ(std::count(second.loaded.begin(), second.loaded.end(), 1), kSlabs);
+  EXPECT_TRUE((second.mesh.nodes.array() == first.mesh.nodes.array()).all());
+  EXPECT_TRUE((second.mesh.elements.array() == first.mesh.elements.array()).all());
+  EXPECT_TRUE((second.slab.array() == first.slab.array()).all());
+  // Another TetGen bound is another key: nothing read.
+  const SlabFeMesh other = MeshSolidInSlabs(base.compiled, grid, kCell, planes, 1.8, nullptr, dir);
+  EXPECT_EQ(other.num_remeshed(), kSlabs);
+
+  const SceneSolidGrid edited = PrepareSceneSolid(
+      EditedPlatform("load_hole", "radius", 0.0045, "slab_fe_mesh_cache_hole"), "platform", kCell);
+  const SlabFeMesh after =
+      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+  EXPECT_EQ(after.num_remeshed(), 1);
+  EXPECT_TRUE(after.remeshed.back());
+  EXPECT_EQ(std::count(after.loaded.begin(), after.loaded.end(), 1), kSlabs - 1);
+
+  // Damage every file of the first mesh's slabs (a byte flipped in the middle).
+  int damaged = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".slab") continue;
+    std::fstream f(entry.path(), std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(static_cast<std::streamoff>(entry.file_size() / 2));
+    const char c = static_cast<char>(f.get());
+    f.seekp(static_cast<std::streamoff>(entry.file_size() / 2));
+    f.put(static_cast<char>(c ^ 0x40));
+    ++damaged;
+  }
+  EXPECT_GE(damaged, kSlabs + 1);
+  const SlabFeMesh refused =
+      MeshSolidInSlabs(base.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+  EXPECT_EQ(refused.num_remeshed(), kSlabs);
+  ASSERT_EQ(refused.cache_notes.size(), static_cast<std::size_t>(kSlabs));
+  EXPECT_NE(refused.cache_notes[0].find("slab 0: refused " + dir.string()), std::string::npos)
+      << refused.cache_notes[0];
+  EXPECT_NE(refused.cache_notes[0].find("checksum"), std::string::npos) << refused.cache_notes[0];
+  EXPECT_TRUE((refused.mesh.nodes.array() == first.mesh.nodes.array()).all());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

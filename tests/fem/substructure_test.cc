@@ -9,12 +9,15 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <numeric>
 #include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/condensation.h"
 #include "spidarcad/fem/static_solver.h"
@@ -334,6 +337,102 @@ TEST(SubstructuredSolver, EditOfOneSlabRefactorsOnlyThatSlabAndEqualsFreshSolves
     EXPECT_LT(RelativeDifference(third.Solve().displacement, third_mono.Solve().displacement),
               kTolerance);
   }
+}
+
+// A cache directory keeps factored blocks between solvers that share nothing in memory (two
+// runs of a program): a second solver loads every block, solves bit for bit as the first, and
+// after an edit of one slab loads the other three and factors that one. A damaged file (one
+// flipped byte, or cut short) is refused with a note naming it, and its block is factored anew.
+TEST(SubstructuredSolver, CacheDirectoryKeepsBlocksBetweenSolversAndRefusesDamagedFiles) {
+  const std::filesystem::path dir =
+      std::filesystem::path(::testing::TempDir()) / "spidarcad-substructure-cache";
+  std::filesystem::remove_all(dir);
+  for (int order : {1, 2}) {
+    SCOPED_TRACE("order " + std::to_string(order));
+    const TetMesh mesh = Bar(order);
+    const Eigen::VectorXi blocks = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));
+    const MaterialTable steel(kSteel);
+    const BoundaryConditions bcs = BarConditions(mesh);
+    SubstructuredSolver first(mesh, steel, bcs, blocks, nullptr, dir);
+    ASSERT_TRUE(first.factor_status().converged);
+    EXPECT_EQ(first.stats().saved_blocks, 0);  // written in the background until waited for
+    first.FinishCacheWrites();
+    EXPECT_EQ(first.stats().factored_blocks, 4);
+    EXPECT_EQ(first.stats().saved_blocks, 4);
+    EXPECT_TRUE(first.stats().cache_notes.empty());
+
+    const SubstructuredSolver second(mesh, steel, bcs, blocks, nullptr, dir);
+    ASSERT_TRUE(second.factor_status().converged) << second.factor_status().message;
+    EXPECT_EQ(second.stats().loaded_blocks, 4);
+    EXPECT_EQ(second.stats().factored_blocks, 0);
+    EXPECT_EQ(second.stats().reused_blocks, 0);
+    for (int b = 0; b < 4; ++b) {
+      EXPECT_TRUE(second.block_stats(b).loaded) << "block " << b;
+      // At least the diagonal of K_II and the dense Γ triangle; as the block that was saved.
+      const double ni = first.block_stats(b).num_interior_dofs;
+      const double ng = first.block_stats(b).num_interface_dofs;
+      EXPECT_GE(first.block_stats(b).factor_nonzeros, ni + 0.5 * ng * (ng + 1)) << "block " << b;
+      EXPECT_EQ(second.block_stats(b).factor_nonzeros, first.block_stats(b).factor_nonzeros);
+    }
+    const StaticSolution u1 = first.Solve(), u2 = second.Solve();
+    ASSERT_TRUE(u2.status.converged);
+    EXPECT_TRUE((u1.displacement.array() == u2.displacement.array()).all());
+    EXPECT_TRUE((u1.reaction.array() == u2.reaction.array()).all());
+
+    // An edit of slab 2: three blocks from the files, one factored (and saved).
+    const EditedBar edited = EditSlab(mesh, blocks, first, 2, 5);
+    const BoundaryConditions bcs2 = BarConditions(edited.mesh);
+    SubstructuredSolver after(edited.mesh, edited.materials, bcs2, edited.blocks, nullptr, dir);
+    ASSERT_TRUE(after.factor_status().converged);
+    EXPECT_EQ(after.FinishCacheWrites().saved_blocks, 1);
+    EXPECT_EQ(after.stats().loaded_blocks, 3);
+    EXPECT_EQ(after.stats().factored_blocks, 1);
+    EXPECT_FALSE(after.block_stats(2).loaded);
+    const StaticSolver monolithic(edited.mesh, edited.materials, bcs2);
+    EXPECT_LT(RelativeDifference(after.Solve().displacement, monolithic.Solve().displacement),
+              kTolerance);
+
+    // Damage the files of blocks 0 (a flipped byte in the factor values) and 3 (cut short).
+    const std::filesystem::path f0 = dir / (HexKey(first.block_stats(0).key) + ".block");
+    const std::filesystem::path f3 = dir / (HexKey(first.block_stats(3).key) + ".block");
+    ASSERT_TRUE(std::filesystem::exists(f0));
+    {
+      std::fstream f(f0, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(static_cast<std::streamoff>(std::filesystem::file_size(f0) / 2));
+      f.put('\x5a');
+    }
+    std::filesystem::resize_file(f3, std::filesystem::file_size(f3) - 100);
+    SubstructuredSolver damaged(mesh, steel, bcs, blocks, nullptr, dir);
+    ASSERT_TRUE(damaged.factor_status().converged);
+    damaged.FinishCacheWrites();
+    EXPECT_EQ(damaged.stats().loaded_blocks, 2);
+    EXPECT_EQ(damaged.stats().factored_blocks, 2);
+    ASSERT_EQ(damaged.stats().cache_notes.size(), 2u);
+    EXPECT_NE(damaged.stats().cache_notes[0].find("block 0: refused " + f0.string()),
+              std::string::npos)
+        << damaged.stats().cache_notes[0];
+    EXPECT_NE(damaged.stats().cache_notes[0].find("checksum"), std::string::npos);
+    EXPECT_NE(damaged.stats().cache_notes[1].find("block 3: refused " + f3.string()),
+              std::string::npos)
+        << damaged.stats().cache_notes[1];
+    EXPECT_TRUE((damaged.Solve().displacement.array() == u1.displacement.array()).all());
+    // The refused files were rewritten: a fourth solver loads all four again.
+    const SubstructuredSolver fourth(mesh, steel, bcs, blocks, nullptr, dir);
+    EXPECT_EQ(fourth.stats().loaded_blocks, 4);
+  }
+  // A directory that cannot be written (a file in its place) is noted, not thrown.
+  const std::filesystem::path blocked = dir / "not-a-directory";
+  { std::ofstream(blocked) << "x"; }
+  const TetMesh mesh = Bar(1);
+  SubstructuredSolver unsaved(mesh, MaterialTable(kSteel), BarConditions(mesh),
+                              SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 2)), nullptr, blocked);
+  EXPECT_TRUE(unsaved.factor_status().converged);
+  unsaved.FinishCacheWrites();
+  EXPECT_EQ(unsaved.stats().saved_blocks, 0);
+  ASSERT_EQ(unsaved.stats().cache_notes.size(), 2u);
+  EXPECT_NE(unsaved.stats().cache_notes[0].find("block 0: not saved"), std::string::npos)
+      << unsaved.stats().cache_notes[0];
+  std::filesystem::remove_all(dir);
 }
 
 // Slabs make the interface a chain of planes, factored plane by plane: an edit of slab t (of

@@ -22,13 +22,16 @@
 #include "scene/document_file.h"
 #include "scene/fe_model.h"
 #include "scene/scene_solid.h"
+#include "scene/slab_fe_mesh.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/free_dof_solver.h"
 #include "spidarcad/fem/grab.h"
 #include "spidarcad/fem/material.h"
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
+#include "spidarcad/fem/substructure.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/mesh_repair.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -59,7 +62,9 @@ struct FemOptions {
   double resolution = 0.004;
   double max_radius_edge = 2.0;
   std::string solid;
-  std::string object;  // --object: any object of a document (solid, mesh, sculpt, fe_model)
+  std::string object;     // --object: any object of a document (solid, mesh, sculpt, fe_model)
+  int slabs = -1;         // --slabs: 0 one piece; -1 not given (4 with --cache-dir, else 0)
+  std::string cache_dir;  // --cache-dir: slab meshes and block factors kept between runs
   // Which options were given (a document's FE model supplies the others).
   bool given_e = false, given_nu = false;
 };
@@ -110,11 +115,57 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
   return tail == suffix;
 }
 
-// Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen.
+// Meshes one solid of a scene in slabs (scene/slab_fe_mesh.h), with the slab of each element in
+// *slab; slab meshes come from and go to the cache directory when one is given.
+fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& grid,
+                              Eigen::VectorXi* slab, nlohmann::ordered_json* report) {
+  const double cell = grid.cell;
+  SlabFeMesh slabs;
+  try {
+    slabs = MeshSolidInSlabs(grid.compiled, grid.bounds, cell,
+                             SlabPlanes(grid.bounds, cell, options.slabs), options.max_radius_edge,
+                             nullptr, options.cache_dir);
+  } catch (const std::exception& e) {
+    throw InputError(options.input + ": solid '" + grid.solid_name + "' at --resolution " +
+                     FormatNumber(cell) + " m in " + std::to_string(options.slabs) +
+                     " slabs cannot be meshed: " + e.what() +
+                     " (try another --resolution or --slabs)");
+  }
+  nlohmann::ordered_json per_slab = nlohmann::ordered_json::array();
+  Eigen::VectorXi tets_per_slab = Eigen::VectorXi::Zero(static_cast<int>(slabs.slab_tets.size()));
+  for (int e = 0; e < slabs.slab.size(); ++e) ++tets_per_slab(slabs.slab(e));
+  for (std::size_t k = 0; k < slabs.slab_tets.size(); ++k) {
+    per_slab.push_back({{"slab", k},
+                        {"tets", tets_per_slab(static_cast<int>(k))},
+                        {"mesh", slabs.loaded[k] ? "cache" : "tetgen"}});
+  }
+  double min_dihedral = 180.0;  // the joined mesh's tets are the slabs' tets
+  for (const modeling::TetMesh& tets : slabs.slab_tets)
+    min_dihedral = std::min(min_dihedral, modeling::MeasureTetQuality(tets).min_dihedral_deg);
+  (*report)["meshing"] = {{"solid", grid.solid_name},
+                          {"resolution_m", cell},
+                          {"slabs", static_cast<int>(slabs.slab_tets.size())},
+                          {"planes_x_m", slabs.planes},
+                          {"surface_seconds", slabs.surface_seconds},
+                          {"cut_seconds", slabs.cut_seconds},
+                          {"tetgen_seconds", slabs.tetgen_seconds},
+                          {"join_seconds", slabs.join_seconds},
+                          {"cache_read_seconds", slabs.cache_read_seconds},
+                          {"cache_write_seconds", slabs.cache_write_seconds},
+                          {"min_dihedral_deg", min_dihedral},
+                          {"per_slab", per_slab}};
+  if (!slabs.cache_notes.empty()) (*report)["meshing"]["cache_notes"] = slabs.cache_notes;
+  *slab = slabs.slab;
+  return std::move(slabs.mesh);
+}
+
+// Meshes one solid of a scene: surface on a grid of `resolution`, then TetGen (in one piece, or
+// in slabs when options.slabs > 0, filling *slab).
 fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
-                       const std::string& name, const std::string& option,
+                       const std::string& name, const std::string& option, Eigen::VectorXi* slab,
                        nlohmann::ordered_json* report) {
   const SceneSolidGrid grid = PrepareDocumentSolid(opened, name, option, options.resolution);
+  if (options.slabs > 0) return MeshSceneInSlabs(options, grid, slab, report);
   const double cell = grid.cell;
   modeling::SurfaceMeshSettings surface_settings;
   surface_settings.bounds = grid.bounds;
@@ -258,6 +309,60 @@ int NearestNode(const fem::TetMesh& mesh, const std::vector<int>& candidates,
   return best;
 }
 
+// The JSON "substructure" object of a slab solve: blocks, interface and where each factor came
+// from.
+nlohmann::ordered_json SubstructureReport(const fem::SubstructuredSolver& solver) {
+  const fem::SubstructureStats& stats = solver.stats();
+  nlohmann::ordered_json blocks = nlohmann::ordered_json::array();
+  for (int b = 0; b < solver.num_blocks(); ++b) {
+    const fem::BlockStats& s = solver.block_stats(b);
+    blocks.push_back(
+        {{"block", b},
+         {"elements", s.num_elements},
+         {"interior_dofs", s.num_interior_dofs},
+         {"interface_dofs", s.num_interface_dofs},
+         {"factor_nonzeros", s.factor_nonzeros},
+         {"factor", s.loaded ? "cache" : "computed"},
+         {"seconds",
+          s.loaded ? s.load_seconds : s.assembly_seconds + s.factor_seconds + s.schur_seconds}});
+  }
+  nlohmann::ordered_json out = {{"blocks", blocks},
+                                {"interface_dofs", stats.num_interface_dofs},
+                                {"interface_planes", stats.interface_groups},
+                                {"interface_seconds", stats.interface_seconds},
+                                {"cache_read_seconds", stats.cache_read_seconds},
+                                {"cache_write_seconds", stats.cache_write_seconds}};
+  if (!stats.cache_notes.empty()) out["cache_notes"] = stats.cache_notes;
+  return out;
+}
+
+// The JSON "cache" object: what this run took from --cache-dir and what it computed (and left
+// there for the next run).
+nlohmann::ordered_json CacheReport(const std::string& directory,
+                                   const nlohmann::ordered_json& meshing,
+                                   const fem::SubstructuredSolver& solver) {
+  nlohmann::ordered_json reused = nlohmann::ordered_json::array();
+  nlohmann::ordered_json recomputed = nlohmann::ordered_json::array();
+  if (meshing.contains("per_slab")) {
+    recomputed.push_back("surface");
+    for (const auto& slab : meshing["per_slab"]) {
+      const std::string what = "slab " + std::to_string(slab["slab"].get<int>()) + " mesh";
+      (slab["mesh"] == "cache" ? reused : recomputed).push_back(what);
+    }
+  }
+  for (int b = 0; b < solver.num_blocks(); ++b) {
+    const std::string what = "block " + std::to_string(b) + " factor";
+    (solver.block_stats(b).loaded ? reused : recomputed).push_back(what);
+  }
+  if (solver.stats().num_interface_dofs > 0) recomputed.push_back("interface factor");
+  nlohmann::ordered_json notes = nlohmann::ordered_json::array();
+  if (meshing.contains("cache_notes"))
+    for (const auto& n : meshing["cache_notes"]) notes.push_back(n);
+  for (const std::string& n : solver.stats().cache_notes) notes.push_back(n);
+  return {
+      {"directory", directory}, {"reused", reused}, {"recomputed", recomputed}, {"notes", notes}};
+}
+
 void RunFem(const FemOptions& options) {
   const Clock::time_point start = Clock::now();
   // Ctrl+C ends at once with status 130 (TetGen and CHOLMOD poll nothing); the result goes to a
@@ -329,6 +434,11 @@ void RunFem(const FemOptions& options) {
     load_points.push_back(ParseVector(options.load[i], "--load", static_cast<int>(i)));
     load_forces.push_back(ParseVector(options.force[i], "--force", static_cast<int>(i)));
   }
+  if (!options.cache_dir.empty() && options.slabs == 0) {
+    throw InputError(
+        "--cache-dir keeps slab meshes and slab factors between runs: it needs "
+        "--slabs N (N >= 1; without --slabs it is 4), not --slabs 0");
+  }
   if (!(options.resolution > 0.0) || !std::isfinite(options.resolution)) {
     throw InputError("--resolution: must be a finite length > 0 m, got " +
                      FormatNumber(options.resolution));
@@ -337,6 +447,7 @@ void RunFem(const FemOptions& options) {
   // The mesh.
   Clock::time_point t = Clock::now();
   fem::TetMesh mesh;
+  Eigen::VectorXi element_slab;  // slab of each element (meshed in slabs; else filled below)
   OpenedDocument opened;
   const FeModelData* fe = nullptr;  // a document's FE model, when that is what is solved
   std::string fe_name;              // its name
@@ -354,7 +465,7 @@ void RunFem(const FemOptions& options) {
     if (opened.version == 2)
       report["object"] = {{"name", object.name}, {"kind", ObjectKindName(object.data)}};
     if (std::holds_alternative<SolidData>(object.data)) {
-      mesh = MeshScene(options, opened, object.name, option, &report);
+      mesh = MeshScene(options, opened, object.name, option, &element_slab, &report);
     } else if (const auto* f = std::get_if<FeModelData>(&object.data)) {
       fe = f;
       fe_name = object.name;
@@ -547,9 +658,24 @@ void RunFem(const FemOptions& options) {
   } catch (const std::invalid_argument& e) {
     throw InputError(options.input + ": fe_model '" + fe_name + "': " + e.what());
   }
-  std::unique_ptr<fem::StaticSolver> solver;
+  // One sparse Cholesky factor of the whole model, or one per slab and the interface system
+  // (--slabs; blocks from and to --cache-dir).
+  std::unique_ptr<fem::StaticSolver> static_solver;
+  std::unique_ptr<fem::StaticSolverView> static_view;
+  std::unique_ptr<fem::SubstructuredSolver> slab_solver;
+  const fem::FreeDofSolver* solver = nullptr;
   try {
-    solver = std::make_unique<fem::StaticSolver>(mesh, materials, bcs);
+    if (options.slabs > 0) {
+      if (element_slab.size() != mesh.num_elements())
+        element_slab = fem::SlabBlocks(mesh, 0, fem::EvenPlanes(mesh, 0, options.slabs));
+      slab_solver = std::make_unique<fem::SubstructuredSolver>(mesh, materials, bcs, element_slab,
+                                                               nullptr, options.cache_dir);
+      solver = slab_solver.get();
+    } else {
+      static_solver = std::make_unique<fem::StaticSolver>(mesh, materials, bcs);
+      static_view = std::make_unique<fem::StaticSolverView>(*static_solver);
+      solver = static_view.get();
+    }
   } catch (const std::invalid_argument& e) {
     throw InputError(options.input + ": " + e.what());
   }
@@ -702,12 +828,29 @@ void RunFem(const FemOptions& options) {
                       {"residual", solution.status.residual},
                       {"backward_error", solution.status.residual},
                       {"message", solution.status.message}};
-  const fem::FactorStats& stats = solver->stats();
-  report["timing_s"] = {{"mesh", mesh_seconds},           {"assembly", stats.assembly_seconds},
-                        {"factor", stats.factor_seconds}, {"solve", solve_seconds},
-                        {"stress", stress_seconds},       {"write", write_seconds},
+  double assembly_seconds = 0.0, factor_seconds = 0.0;
+  if (static_solver) {
+    const fem::FactorStats& stats = static_solver->stats();
+    assembly_seconds = stats.assembly_seconds;
+    factor_seconds = stats.factor_seconds;
+    report["factor_peak_bytes"] = stats.factor_peak_bytes;
+  } else {
+    // factor: everything but the blocks' assembly (their factors, S_b, reading the cache, S);
+    // the block files are written in the background, waited for here.
+    const Clock::time_point t_wait = Clock::now();
+    const fem::SubstructureStats& stats = slab_solver->FinishCacheWrites();
+    const double wait_seconds = SecondsSince(t_wait);
+    assembly_seconds = stats.block_assembly_seconds;
+    factor_seconds = stats.wall_seconds - stats.block_assembly_seconds;
+    report["substructure"] = SubstructureReport(*slab_solver);
+    report["substructure"]["cache_write_wait_seconds"] = wait_seconds;
+    if (!options.cache_dir.empty())
+      report["cache"] = CacheReport(options.cache_dir, report["meshing"], *slab_solver);
+  }
+  report["timing_s"] = {{"mesh", mesh_seconds},        {"assembly", assembly_seconds},
+                        {"factor", factor_seconds},    {"solve", solve_seconds},
+                        {"stress", stress_seconds},    {"write", write_seconds},
                         {"total", SecondsSince(start)}};
-  report["factor_peak_bytes"] = stats.factor_peak_bytes;
   std::cout << report.dump(2) << "\n";
   std::cout.flush();
   if (!solution.status.converged) {
@@ -753,11 +896,22 @@ void RegisterFemCommand(CLI::App& app) {
       "--incompressible (for nu near 0.5, e.g. rubber or soft tissue): quadratic elements with\n"
       "the volumetric term on the element-mean dilatation (P2-P0, locking-free); a linear mesh\n"
       "is upgraded to 10-node elements, and --order 1 with it is an error.\n"
+      "--slabs N solves in N slabs across x: each slab's stiffness is factored on its own and\n"
+      "condensed onto the planes between slabs (the same answer to rounding); a scene solid is\n"
+      "then meshed slab by slab, conforming across the planes. --cache-dir DIR (implies\n"
+      "--slabs 4) keeps every slab's mesh and factor in DIR; a later run reads the slabs whose\n"
+      "input is unchanged, so after a local edit (a hole moved) only the slabs the edit reached\n"
+      "are meshed and factored again. The JSON's cache.reused and cache.recomputed list what was\n"
+      "read and what was computed; substructure.blocks gives each slab's figures and timings.\n"
+      "A damaged or stale file is never trusted: it is recomputed, and cache.notes says why.\n"
       "\n"
       "Example (a 1 x 0.1 x 0.1 m steel beam clamped at x = 0, tip pushed 1 mm down):\n"
       "  spidarcad fem beam.vtu --fix=-1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
       "    --order 2 --out result.vtu\n"
-      "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)");
+      "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)\n"
+      "Example (the platform, quadratic, slab meshes and factors kept for the next run):\n"
+      "  spidarcad fem assets/scenes/platform.json --order 2 --resolution 0.01 \\\n"
+      "    --cache-dir /tmp/spidarcad-fem --out platform.vtu");
   cmd->add_option("input", options->input,
                   "Mesh (.vtu), closed surface (.stl, .obj, .ply), scene or document (.json)")
       ->required();
@@ -797,10 +951,21 @@ void RegisterFemCommand(CLI::App& app) {
   cmd->add_option("--object", options->object,
                   "Document input: the object to solve (default: the first fe_model, else the "
                   "first solid, mesh or sculpt)");
+  cmd->add_option("--slabs", options->slabs,
+                  "Solve in N slabs across x: each factored on its own and condensed onto the "
+                  "planes between them (a scene solid is meshed slab by slab). Default 0 (one "
+                  "piece), 4 with --cache-dir")
+      ->check(CLI::Range(0, 64));
+  cmd->add_option("--cache-dir", options->cache_dir,
+                  "Keep slab meshes and slab factors in DIR: a later run whose slab is unchanged "
+                  "(e.g. after an edit elsewhere) reads it instead of recomputing it")
+      ->type_name("DIR");
   cmd->callback([options, cmd]() {
     options->given_e = cmd->count("--E") > 0;
     options->given_nu = cmd->count("--nu") > 0;
-    RunFem(*options);
+    FemOptions resolved = *options;
+    if (resolved.slabs < 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
+    RunFem(resolved);
   });
 }
 

@@ -4,9 +4,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <optional>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "scene/vtu_io.h"
+#include "spidarcad/fem/cache_file.h"
+#include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
@@ -23,6 +29,87 @@ bool SameSurface(const modeling::TriangleMesh& a, const modeling::TriangleMesh& 
   return a.vertices.cols() == b.vertices.cols() && a.triangles.cols() == b.triangles.cols() &&
          (a.vertices.array() == b.vertices.array()).all() &&
          (a.triangles.array() == b.triangles.array()).all();
+}
+
+// Slab files: magic and format version (bump it when TetrahedralizeSlab's switches change, so
+// that files of the old meshes are not taken for the new).
+constexpr char kSlabFileMagic[8] = {'S', 'P', 'D', 'S', 'L', 'A', 'B', '1'};
+constexpr std::uint32_t kSlabFileVersion = 1;
+
+std::uint64_t SlabKey(const modeling::TriangleMesh& surface, double max_radius_edge) {
+  std::uint64_t h = modeling::SurfaceHash(surface);
+  h = fem::Fnv1a64(&kSlabFileVersion, sizeof(kSlabFileVersion), h);
+  return fem::Fnv1a64(&max_radius_edge, sizeof(max_radius_edge), h);
+}
+
+template <class Matrix>
+void PutMatrix(fem::ByteWriter* w, const Matrix& m) {
+  w->Put(static_cast<std::int64_t>(m.cols()));
+  w->PutArray(m.data(), static_cast<std::size_t>(m.size()));
+}
+
+// A matrix of fixed row count (3 or 4) written by PutMatrix.
+template <class Matrix>
+bool GetMatrix(fem::ByteReader* r, Matrix* m) {
+  std::int64_t cols = 0;
+  if (!r->Get(&cols) || cols < 0 ||
+      static_cast<std::uint64_t>(cols) > r->remaining() / (sizeof(typename Matrix::Scalar) * 3))
+    return false;
+  m->resize(Matrix::RowsAtCompileTime, cols);
+  return r->GetArray(m->data(), static_cast<std::size_t>(m->size()));
+}
+
+std::vector<unsigned char> SerializeSlab(std::uint64_t key, double max_radius_edge,
+                                         const modeling::TriangleMesh& surface,
+                                         const modeling::TetMesh& tets) {
+  fem::ByteWriter w;
+  w.Put(kSlabFileVersion);
+  w.Put(key);
+  w.Put(max_radius_edge);
+  PutMatrix(&w, surface.vertices);
+  PutMatrix(&w, surface.triangles);
+  PutMatrix(&w, tets.nodes);
+  PutMatrix(&w, tets.tets);
+  w.Put(static_cast<std::int64_t>(tets.regions.size()));
+  w.PutArray(tets.regions.data(), static_cast<std::size_t>(tets.regions.size()));
+  return std::move(w.bytes());
+}
+
+// The tets of `surface` from a slab file body, or nothing with the reason.
+std::optional<modeling::TetMesh> DeserializeSlab(const fem::MappedCacheFile& body,
+                                                 std::uint64_t key, double max_radius_edge,
+                                                 const modeling::TriangleMesh& surface,
+                                                 std::string* why) {
+  fem::ByteReader r(body.data(), body.size());
+  auto fail = [&](const std::string& reason) -> std::optional<modeling::TetMesh> {
+    *why = reason;
+    return std::nullopt;
+  };
+  std::uint32_t version = 0;
+  std::uint64_t file_key = 0;
+  double bound = 0.0;
+  if (!r.Get(&version) || version != kSlabFileVersion)
+    return fail("format version " + std::to_string(version) + ", expected " +
+                std::to_string(kSlabFileVersion));
+  if (!r.Get(&file_key) || file_key != key)
+    return fail("holds key " + fem::HexKey(file_key) + ", expected " + fem::HexKey(key));
+  modeling::TriangleMesh stored;
+  modeling::TetMesh tets;
+  std::int64_t num_regions = 0;
+  if (!r.Get(&bound) || !GetMatrix(&r, &stored.vertices) || !GetMatrix(&r, &stored.triangles) ||
+      !GetMatrix(&r, &tets.nodes) || !GetMatrix(&r, &tets.tets) || !r.Get(&num_regions) ||
+      num_regions != tets.tets.cols())
+    return fail("truncated or inconsistent");
+  tets.regions.resize(num_regions);
+  if (!r.GetArray(tets.regions.data(), static_cast<std::size_t>(num_regions)) || r.remaining() != 0)
+    return fail("truncated or inconsistent");
+  if (bound != max_radius_edge || !SameSurface(stored, surface))
+    return fail("its slab differs (a hash collision)");
+  if (tets.tets.size() > 0 &&
+      (tets.tets.minCoeff() < 0 || tets.tets.maxCoeff() >= tets.nodes.cols()))
+    return fail("a tet names a node it does not have");
+  if (!tets.nodes.allFinite()) return fail("non-finite node positions");
+  return tets;
 }
 
 }  // namespace
@@ -45,7 +132,8 @@ std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double ce
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
                             const std::vector<double>& planes, double max_radius_edge,
-                            const SlabFeMesh* previous) {
+                            const SlabFeMesh* previous,
+                            const std::filesystem::path& cache_directory) {
   SlabFeMesh out;
   out.planes = planes;
   out.grid_bounds = grid_bounds;
@@ -76,6 +164,7 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
   out.slab_surfaces = std::move(slabs.slabs);
   out.slab_tets.resize(n);
   out.remeshed.assign(n, 0);
+  out.loaded.assign(n, 0);
   for (std::size_t k = 0; k < n; ++k) {
     const modeling::TriangleMesh& s = out.slab_surfaces[k];
     if (previous != nullptr && k < previous->slab_surfaces.size() &&
@@ -84,10 +173,39 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
       out.slab_tets[k] = previous->slab_tets[k];
       continue;
     }
+    const std::uint64_t key = SlabKey(s, max_radius_edge);
+    const std::filesystem::path file = cache_directory.empty()
+                                           ? std::filesystem::path()
+                                           : cache_directory / (fem::HexKey(key) + ".slab");
+    if (!file.empty()) {
+      t = Clock::now();
+      std::string why;
+      std::optional<modeling::TetMesh> tets;
+      if (auto body = fem::MapCacheFile(file, kSlabFileMagic, &why)) {
+        tets = DeserializeSlab(*body, key, max_radius_edge, s, &why);
+        if (!tets) why = file.string() + ": " + why;
+      }
+      out.cache_read_seconds += Seconds(t);
+      if (tets) {
+        out.slab_tets[k] = std::move(*tets);
+        out.loaded[k] = 1;
+        continue;
+      }
+      if (why != "absent")
+        out.cache_notes.push_back("slab " + std::to_string(k) + ": refused " + why);
+    }
     t = Clock::now();
     out.slab_tets[k] = modeling::TetrahedralizeSlab(s, ts);
     out.tetgen_seconds += Seconds(t);
     out.remeshed[k] = 1;
+    if (!file.empty()) {
+      t = Clock::now();
+      std::string error;
+      if (!fem::WriteCacheFile(file, kSlabFileMagic,
+                               SerializeSlab(key, max_radius_edge, s, out.slab_tets[k]), &error))
+        out.cache_notes.push_back("slab " + std::to_string(k) + ": not saved: " + error);
+      out.cache_write_seconds += Seconds(t);
+    }
   }
 
   t = Clock::now();

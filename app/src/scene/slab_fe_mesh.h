@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -38,8 +39,14 @@ struct SlabFeMesh {
   // Each slab's closed surface (TetGen's input, canonical order) and its tets.
   std::vector<modeling::TriangleMesh> slab_surfaces;
   std::vector<modeling::TetMesh> slab_tets;
-  // Per slab: 1 when TetGen ran for it, 0 when it came from the earlier mesh.
+  // Per slab: 1 when TetGen ran for it, 0 when it came from the earlier mesh or the cache
+  // directory; and 1 when it came from the cache directory.
   std::vector<char> remeshed;
+  std::vector<char> loaded;
+  // Wall time (s) of looking slabs up in, and writing them to, the cache directory; and why a
+  // slab file was refused or not written (each line names the slab and the file).
+  double cache_read_seconds = 0.0, cache_write_seconds = 0.0;
+  std::vector<std::string> cache_notes;
   // Wall time (s) of the surface, the cut, TetGen (summed over re-meshed slabs) and the join.
   double surface_seconds = 0.0, cut_seconds = 0.0, tetgen_seconds = 0.0, join_seconds = 0.0;
   // Number of slabs TetGen ran for.
@@ -52,11 +59,16 @@ std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double ce
 
 // Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes` (TetGen radius-edge
 // bound `max_radius_edge`), reusing the slabs of `previous` (may be null; it must have been made
-// on the same grid and planes, else it is ignored) whose input is unchanged. Throws what
-// MeshSurface, CutSurfaceIntoSlabs and TetrahedralizeSurface throw.
+// on the same grid and planes, else it is ignored) whose input is unchanged. With a
+// `cache_directory`, a slab not in `previous` is looked for there (<16 hex digits>.slab, keyed
+// by its closed surface and the bound; the surface is compared in full, the file checked by a
+// checksum; a bad file is ignored and noted in cache_notes) and a slab TetGen meshed is written
+// there (a write failure is noted, not thrown). Throws what MeshSurface, CutSurfaceIntoSlabs and
+// TetrahedralizeSurface throw.
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
                             const std::vector<double>& planes, double max_radius_edge = 2.0,
-                            const SlabFeMesh* previous = nullptr);
+                            const SlabFeMesh* previous = nullptr,
+                            const std::filesystem::path& cache_directory = {});
 
 }  // namespace spidarcad::app

@@ -40,14 +40,18 @@
 // S_b in the same places (so are equal bit for bit): an edit of the last slab refactors only the
 // last plane's block of S, one of slab t the planes from t − 1 on.
 //
-// Threads. A solver is immutable after construction; solves allocate their own CHOLMOD workspace,
+// Threads. A solver is immutable after construction (but for the cache directory's pending
+// writes, which FinishCacheWrites waits for); solves allocate their own CHOLMOD workspace,
 // so one solver, or two solvers sharing blocks, may be solved from several threads at once.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <filesystem>
 #include <memory>
+#include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -72,8 +76,13 @@ struct BlockStats {
   double factor_nonzeros = 0.0;
   // Content hash (FNV-1a 64) of the block (see the file comment).
   std::uint64_t key = 0;
-  // True when the factor came from the `reuse` solver (then the times below are that solver's).
+  // True when the factor came from the `reuse` solver, or was loaded from the cache directory
+  // (then the times below are those of the solver that factored it).
   bool reused = false;
+  bool loaded = false;
+  // Wall time of looking the block up in the cache directory (reading, checking, laying out
+  // CHOLMOD's factor), s; 0 without a directory or when the reuse solver had it.
+  double load_seconds = 0.0;
   // Wall time of the element stiffnesses and local assembly, of the ordering and
   // factorisation, and of forming S_b from the factor, in s.
   double assembly_seconds = 0.0;
@@ -87,9 +96,18 @@ struct SubstructureStats {
   // Free dofs, and free interface dofs (size of S).
   int num_free = 0;
   int num_interface_dofs = 0;
-  // Blocks factored by this solver, and blocks whose factor came from the reuse solver.
+  // Blocks factored by this solver, blocks whose factor came from the reuse solver, blocks
+  // loaded from the cache directory, and blocks written to it (counted by FinishCacheWrites).
   int factored_blocks = 0;
   int reused_blocks = 0;
+  int loaded_blocks = 0;
+  int saved_blocks = 0;
+  // Wall time (s) of looking blocks up in the cache directory, and of writing them there
+  // (summed over the writing threads; counted by FinishCacheWrites); and why a block file was
+  // refused or not written (each line names the block and the file).
+  double cache_read_seconds = 0.0;
+  double cache_write_seconds = 0.0;
+  std::vector<std::string> cache_notes;
   // Nonzeros of S (both triangles) and of its Cholesky factor.
   long long interface_nonzeros = 0;
   double interface_factor_nonzeros = 0.0;
@@ -116,12 +134,25 @@ class SubstructuredSolver final : public FreeDofSolver {
   // factors are reference counted) and the interface system. Throws std::invalid_argument on bad
   // input (naming the element or the label). A factorisation failure (a block interior or S not
   // positive definite) is reported through factor_status(), naming the block, not thrown.
+  // With a `cache_directory`, a block the reuse solver does not have is looked for there
+  // (<16 hex digits of its content key>.block: the content, K^b, the order, S_b and CHOLMOD's
+  // factor values, checked by a checksum, the content compared in full and the factor's layout
+  // against CHOLMOD's analysis; a file that fails any check is ignored and noted in
+  // stats().cache_notes), and a block factored here is written there, each on a thread of its
+  // own started as soon as the block is factored (files are about 8 bytes per factor nonzero:
+  // hundreds of megabytes for a large block). FinishCacheWrites() waits for the writes.
   SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
                       const BoundaryConditions& bcs, const Eigen::VectorXi& element_block,
-                      const SubstructuredSolver* reuse = nullptr);
+                      const SubstructuredSolver* reuse = nullptr,
+                      const std::filesystem::path& cache_directory = {});
   ~SubstructuredSolver() override;
   SubstructuredSolver(const SubstructuredSolver&) = delete;
   SubstructuredSolver& operator=(const SubstructuredSolver&) = delete;
+
+  // Waits for the block files still being written to the cache directory and counts them in
+  // stats() (saved_blocks, cache_write_seconds, and a note for each write that failed: not
+  // thrown). The destructor waits too. Not to be called while another thread uses the solver.
+  const SubstructureStats& FinishCacheWrites();
 
   // Status of the factorisation (blocks and S).
   const SolveStatus& factor_status() const override { return factor_status_; }
@@ -185,8 +216,18 @@ class SubstructuredSolver final : public FreeDofSolver {
   // Sets factor_status_ for a zero pivot of S at Γ position p.
   void InterfaceFailure(const TetMesh& mesh, int p);
 
+  // A block file being written (FinishCacheWrites).
+  struct PendingWrite {
+    int block = 0;
+    std::thread thread;
+    bool saved = false;
+    std::string error;
+    double seconds = 0.0;
+  };
+
   BoundaryConditions bcs_;
   std::vector<Block> blocks_;
+  std::vector<std::unique_ptr<PendingWrite>> writes_;
   std::unique_ptr<Interface> interface_;
   std::vector<int> free_index_, free_dofs_, node_block_;
   std::vector<int> interface_index_;  // per free index: position in Γ, or −1
