@@ -4,10 +4,14 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <functional>
 #include <map>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -146,7 +150,10 @@ constexpr unsigned char kInterfaceFlag = 8;
 // Block files (SubstructuredSolver's cache directory): magic, format version, and the CHOLMOD
 // version that laid out the factor.
 constexpr char kBlockFileMagic[8] = {'S', 'P', 'D', 'B', 'L', 'K', '0', '1'};
-constexpr std::uint32_t kBlockFileVersion = 1;
+// Interface plane files: a chain interface's factor blocks L_gg, L_{g,g−1} of one group.
+constexpr char kPlaneFileMagic[8] = {'S', 'P', 'D', 'P', 'L', 'N', '0', '1'};
+constexpr std::uint64_t kPlaneFileVersion = 1;
+constexpr std::uint32_t kBlockFileVersion = 3;
 constexpr int kCholmodVersion[3] = {CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION,
                                     CHOLMOD_SUBSUB_VERSION};
 
@@ -393,14 +400,31 @@ struct SubstructuredSolver::BlockFactor {
     w.PutArray(k.valuePtr(), static_cast<std::size_t>(k.nonZeros()));
     w.PutVector(perm);
     w.Put(static_cast<std::int64_t>(schur.rows()));
-    w.PutArray(schur.data(), static_cast<std::size_t>(schur.size()));
+    for (Eigen::Index j = 0; j < schur.cols(); ++j)  // lower triangle (S_b is symmetric)
+      w.PutArray(schur.data() + j * schur.rows() + j, static_cast<std::size_t>(schur.rows() - j));
     const cholmod_factor* l = factor.l;
     const std::uint64_t nsuper = l ? l->nsuper : 0, xsize = l ? l->xsize : 0;
     w.Put(nsuper);
     w.Put(xsize);
     if (l) {
-      w.PutArray(static_cast<const int*>(l->super), nsuper + 1);
-      w.PutArray(static_cast<const double*>(l->x), xsize);
+      const int* super = static_cast<const int*>(l->super);
+      const int* pi = static_cast<const int*>(l->pi);
+      const int* px = static_cast<const int*>(l->px);
+      const double* x = static_cast<const double*>(l->x);
+      const int* rows = static_cast<const int*>(l->s);
+      w.PutArray(super, nsuper + 1);
+      w.PutArray(pi, nsuper + 1);
+      // L_II alone: each supernode's interior columns from the diagonal down to the last
+      // interior row. SolveInterior reads nothing else (its interface rows are zero on the way
+      // back), and S_b is kept apart; the rest is half the factor where the interface is large.
+      const int ni_ = ni();
+      for (std::size_t s = 0; s < nsuper; ++s) {
+        const int ncol = super[s + 1] - super[s], nrow = pi[s + 1] - pi[s];
+        const int nrow_i =
+            static_cast<int>(std::lower_bound(rows + pi[s], rows + pi[s + 1], ni_) - rows - pi[s]);
+        for (int j = 0; j < ncol && super[s] + j < ni_; ++j)
+          w.PutArray(x + px[s] + static_cast<std::size_t>(j) * nrow + j, nrow_i - j);
+      }
     }
     w.Put(factor_nonzeros);
     w.Put(assembly_seconds);
@@ -463,10 +487,14 @@ struct SubstructuredSolver::BlockFactor {
     if (!r.GetVector(&b->perm) || !r.Get(&schur_rows) || schur_rows != ng_)
       return fail("bad order or Schur complement size");
     b->schur.resize(ng_, ng_);
+    for (int j = 0; j < ng_; ++j) {
+      if (!r.GetArray(b->schur.data() + static_cast<std::size_t>(j) * ng_ + j,
+                      static_cast<std::size_t>(ng_ - j)))
+        return fail("truncated Schur complement");
+      for (int i = j + 1; i < ng_; ++i) b->schur(j, i) = b->schur(i, j);
+    }
     std::uint64_t nsuper = 0, xsize = 0;
-    if (!r.GetArray(b->schur.data(), static_cast<std::size_t>(b->schur.size())) ||
-        !r.Get(&nsuper) || !r.Get(&xsize))
-      return fail("truncated Schur complement");
+    if (!r.Get(&nsuper) || !r.Get(&xsize)) return fail("truncated factor");
     if (ni_ == 0) {
       if (nsuper != 0 || !b->perm.empty()) return fail("a factor for a block with no interior");
     } else {
@@ -481,18 +509,38 @@ struct SubstructuredSolver::BlockFactor {
       }
       // The layout CHOLMOD makes of A in this order must be the file's (same version, same
       // pattern: always, unless the file is not for this block); then its values are the file's.
-      std::vector<int> super(nsuper + 1);
-      if (nsuper > static_cast<std::uint64_t>(na) || !r.GetArray(super.data(), nsuper + 1))
+      std::vector<int> super(nsuper + 1), pi(nsuper + 1);
+      if (nsuper > static_cast<std::uint64_t>(na) || !r.GetArray(super.data(), nsuper + 1) ||
+          !r.GetArray(pi.data(), nsuper + 1))
         return fail("truncated factor");
       b->factor.l = b->Analyze(a);
       cholmod_factor* l = b->factor.l;
       if (l->nsuper != nsuper || l->xsize != xsize ||
-          !std::equal(super.begin(), super.end(), static_cast<const int*>(l->super)))
+          !std::equal(super.begin(), super.end(), static_cast<const int*>(l->super)) ||
+          !std::equal(pi.begin(), pi.end(), static_cast<const int*>(l->pi)))
         return fail("its supernodes differ from CHOLMOD's analysis of the block");
       Common common;
       if (!cholmod_change_factor(CHOLMOD_REAL, 1, 1, 1, 1, l, &common.c) || l->x == nullptr)
         return fail("out of memory for the factor");
-      if (!r.GetArray(static_cast<double*>(l->x), xsize)) return fail("truncated factor values");
+      // L_II (see Serialize); the interface rows zero and L_ΓΓ the identity, so that the
+      // sweeps of SolveInterior give what they give with the whole factor, bit for bit.
+      double* x = static_cast<double*>(l->x);
+      const int* px = static_cast<const int*>(l->px);
+      const int* rows = static_cast<const int*>(l->s);
+      std::memset(x, 0, sizeof(double) * xsize);
+      for (std::size_t s = 0; s < nsuper; ++s) {
+        const int ncol = super[s + 1] - super[s], nrow = pi[s + 1] - pi[s];
+        const int nrow_i =
+            static_cast<int>(std::lower_bound(rows + pi[s], rows + pi[s + 1], ni_) - rows - pi[s]);
+        for (int j = 0; j < ncol; ++j) {
+          double* column = x + px[s] + static_cast<std::size_t>(j) * nrow;
+          if (super[s] + j >= ni_) {
+            column[j] = 1.0;
+          } else if (!r.GetArray(column + j, nrow_i - j)) {
+            return fail("truncated factor values");
+          }
+        }
+      }
       l->minor = l->n;
     }
     if (!r.Get(&b->factor_nonzeros) || !r.Get(&b->assembly_seconds) || !r.Get(&b->factor_seconds) ||
@@ -513,6 +561,76 @@ struct SubstructuredSolver::BlockFactor {
     y->resize(ni_, f.cols());
     for (int p = 0; p < ni_; ++p) y->row(perm[p]) = b.row(p);
     return true;
+  }
+};
+
+// Writes cache files (blocks, interface planes) one after the other on a thread of its own
+// (one at a time: the disk is the limit, and parallel writes only take the cores from the
+// factorisations).
+struct SubstructuredSolver::CacheWriter {
+  struct Job {
+    std::string what;  // "block 3", "interface plane 1"
+    std::filesystem::path file;
+    const char* magic = nullptr;
+    std::function<std::vector<unsigned char>()> body;
+    bool saved = false;
+    std::string error;
+    double seconds = 0.0;
+  };
+  std::mutex mutex;
+  std::condition_variable wake;
+  std::vector<std::unique_ptr<Job>> jobs;  // in order of Add; the thread takes jobs[next]
+  std::size_t next = 0;
+  bool closing = false;
+  std::thread thread;
+
+  static void Write(Job* job) {
+    const auto t0 = Clock::now();
+    const char(&magic)[8] = *reinterpret_cast<const char(*)[8]>(job->magic);
+    job->saved = WriteCacheFile(job->file, magic, job->body(), &job->error);
+    job->body = nullptr;  // lets go of what it kept alive
+    job->seconds = Seconds(t0);
+  }
+  void Run() {
+    for (;;) {
+      Job* job = nullptr;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        wake.wait(lock, [&] { return next < jobs.size() || closing; });
+        if (next == jobs.size()) return;
+        job = jobs[next++].get();
+      }
+      Write(job);
+    }
+  }
+  void Add(std::string what, const std::filesystem::path& file, const char (&magic)[8],
+           std::function<std::vector<unsigned char>()> body) {
+    auto job = std::make_unique<Job>();
+    job->what = std::move(what);
+    job->file = file;
+    job->magic = magic;
+    job->body = std::move(body);
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      jobs.push_back(std::move(job));
+    }
+    wake.notify_one();
+    if (thread.joinable()) return;
+    try {
+      thread = std::thread([this] { Run(); });
+    } catch (const std::system_error&) {
+      // No thread to be had: write what is queued now.
+      std::lock_guard<std::mutex> lock(mutex);
+      for (; next < jobs.size(); ++next) Write(jobs[next].get());
+    }
+  }
+  void Finish() {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      closing = true;
+    }
+    wake.notify_one();
+    if (thread.joinable()) thread.join();
   }
 };
 
@@ -641,6 +759,9 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
 
   blocks_.resize(nb);
   stats_.num_blocks = nb;
+  // 1. Each block's content, and its factor when the reuse solver has it.
+  std::vector<std::shared_ptr<BlockFactor>> contents(nb);
+  std::vector<std::shared_ptr<const BlockFactor>> found(nb);
   std::vector<int> local_of(nv, -1);
   for (int b = 0; b < nb; ++b) {
     auto content = std::make_shared<BlockFactor>();
@@ -669,64 +790,90 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
       local_of[v] = -1;
     }
     content->HashContent();
-
-    std::shared_ptr<const BlockFactor> found;
     for (auto [it, end] = old.equal_range(content->key); it != end; ++it) {
       if (it->second->SameContent(*content)) {
-        found = it->second;
+        found[b] = it->second;
         break;
       }
     }
-    block.stats.reused = found != nullptr;
-    const std::filesystem::path file = cache_directory.empty()
-                                           ? std::filesystem::path()
-                                           : cache_directory / (HexKey(content->key) + ".block");
-    if (!found && !file.empty()) {
-      const auto t_read = Clock::now();
-      std::string why;
-      if (auto body = MapCacheFile(file, kBlockFileMagic, &why)) {
-        try {
-          found = BlockFactor::Deserialize(*body, *content, &why);
-        } catch (const std::exception& e) {
-          why = e.what();
+    block.stats.reused = found[b] != nullptr;
+    if (block.stats.reused) ++stats_.reused_blocks;
+    contents[b] = std::move(content);
+  }
+
+  // 2. The others from the cache directory, several files at once (mapping, checking and
+  // copying a file is bound by memory, not by one core).
+  auto file_of = [&](int b) { return cache_directory / (HexKey(contents[b]->key) + ".block"); };
+  if (!cache_directory.empty()) {
+    std::vector<int> wanted;
+    for (int b = 0; b < nb; ++b)
+      if (!found[b]) wanted.push_back(b);
+    std::vector<std::string> why(nb);
+    std::atomic<std::size_t> next{0};
+    auto load = [&] {
+      for (std::size_t i; (i = next.fetch_add(1)) < wanted.size();) {
+        const int b = wanted[i];
+        const auto t_read = Clock::now();
+        const std::filesystem::path file = file_of(b);
+        if (auto body = MapCacheFile(file, kBlockFileMagic, &why[b])) {
+          try {
+            found[b] = BlockFactor::Deserialize(*body, *contents[b], &why[b]);
+          } catch (const std::exception& e) {
+            why[b] = e.what();
+          }
+          if (!found[b]) why[b] = file.string() + ": " + why[b];
         }
-        if (!found) why = file.string() + ": " + why;
+        blocks_[b].stats.load_seconds = Seconds(t_read);
       }
-      if (!found && why != "absent")
-        stats_.cache_notes.push_back("block " + std::to_string(b) + ": refused " + why);
-      block.stats.load_seconds = Seconds(t_read);
+    };
+    const std::size_t helpers =
+        std::min<std::size_t>(wanted.size(), std::max(1u, std::thread::hardware_concurrency())) -
+        (wanted.empty() ? 0 : 1);
+    std::vector<std::thread> threads;
+    for (std::size_t t = 0; t < helpers; ++t) {
+      try {
+        threads.emplace_back(load);
+      } catch (const std::system_error&) {
+        break;  // fewer threads: this one does the rest
+      }
+    }
+    load();
+    for (std::thread& t : threads) t.join();
+    for (int b : wanted) {
+      Block& block = blocks_[b];
+      block.stats.loaded = found[b] != nullptr;
       stats_.cache_read_seconds += block.stats.load_seconds;
-      block.stats.loaded = found != nullptr;
-      if (found) ++stats_.loaded_blocks;
-    }
-    if (found) {
-      block.factor = found;
-      if (block.stats.reused) ++stats_.reused_blocks;
-    } else {
-      content->Factor();
-      block.factor = content;
-      ++stats_.factored_blocks;
-      stats_.block_assembly_seconds += content->assembly_seconds;
-      stats_.block_factor_seconds += content->factor_seconds;
-      stats_.block_schur_seconds += content->schur_seconds;
-      if (!file.empty() && content->failed < 0) {
-        // Written on a thread of its own while the next blocks are factored (a file is ~8
-        // bytes per factor nonzero: hundreds of megabytes, seconds of disk time).
-        writes_.push_back(std::make_unique<PendingWrite>());
-        PendingWrite* w = writes_.back().get();
-        w->block = b;
-        auto write = [w, file, factor = std::shared_ptr<const BlockFactor>(content)] {
-          const auto t_write = Clock::now();
-          w->saved = WriteCacheFile(file, kBlockFileMagic, factor->Serialize(), &w->error);
-          w->seconds = Seconds(t_write);
-        };
-        try {
-          w->thread = std::thread(write);
-        } catch (const std::system_error&) {
-          write();  // no thread to be had: write it now
-        }
+      if (found[b]) {
+        ++stats_.loaded_blocks;
+      } else if (why[b] != "absent") {
+        stats_.cache_notes.push_back("block " + std::to_string(b) + ": refused " + why[b]);
       }
     }
+  }
+
+  // 3. The rest factored here (CHOLMOD and BLAS use the cores), each written to the cache
+  // directory by the writer's thread while the next is factored.
+  for (int b = 0; b < nb; ++b) {
+    Block& block = blocks_[b];
+    if (found[b]) {
+      block.factor = found[b];
+    } else {
+      BlockFactor& content = *contents[b];
+      content.Factor();
+      block.factor = contents[b];
+      ++stats_.factored_blocks;
+      stats_.block_assembly_seconds += content.assembly_seconds;
+      stats_.block_factor_seconds += content.factor_seconds;
+      stats_.block_schur_seconds += content.schur_seconds;
+      if (!cache_directory.empty() && content.failed < 0) {
+        if (!writer_) writer_ = std::make_unique<CacheWriter>();
+        writer_->Add("block " + std::to_string(b), file_of(b), kBlockFileMagic,
+                     [factor = std::shared_ptr<const BlockFactor>(contents[b])] {
+                       return factor->Serialize();
+                     });
+      }
+    }
+    contents[b].reset();
     const BlockFactor& bf = *block.factor;
     for (int d : bf.interior)
       block.interior_free.push_back(free_index_[3 * block.nodes[d / 3] + d % 3]);
@@ -787,7 +934,7 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
     std::sort(order.begin(), order.end(), [&](int a, int b) {
       return pair_of[a] != pair_of[b] ? pair_of[a] < pair_of[b] : place[a] < place[b];
     });
-    if (!FactorInterfaceAsChain(mesh, owners, order, pair_of, reuse))
+    if (!FactorInterfaceAsChain(mesh, owners, order, pair_of, reuse, cache_directory))
       FactorInterfaceWithCholmod(mesh, owners, order);
   }
   stats_.interface_seconds = Seconds(t_s);
@@ -857,7 +1004,7 @@ void SubstructuredSolver::InterfaceFailure(const TetMesh& mesh, int p) {
 bool SubstructuredSolver::FactorInterfaceAsChain(
     const TetMesh& mesh, const std::vector<std::vector<std::pair<int, int>>>& owners,
     const std::vector<int>& order, const std::vector<std::pair<int, int>>& pair_of,
-    const SubstructuredSolver* reuse) {
+    const SubstructuredSolver* reuse, const std::filesystem::path& cache_directory) {
   const int ng = static_cast<int>(order.size());
   Interface& in = *interface_;
   // Groups: runs of equal block pairs in `order`.
@@ -908,6 +1055,60 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   }
   stats_.interface_groups = n;
   stats_.reused_interface_groups = shared;
+  stats_.interface_group_loaded.assign(n, 0);
+  // Plane files: group g's factor blocks are those of any chain whose groups 0..g have the same
+  // owners (blocks by content key, their places in the chain and local indices): the record
+  // of groups 0..g, in words, is stored in the file and compared in full; its hash names it.
+  std::vector<std::vector<std::uint64_t>> record(n);
+  std::vector<std::uint64_t> plane_key(n);
+  if (!cache_directory.empty()) {
+    std::vector<std::uint64_t> words = {kPlaneFileVersion};
+    for (int g = 0; g < n; ++g) {
+      const Interface::Group& group = in.groups[g];
+      words.push_back(static_cast<std::uint64_t>(group.owner_count.size()));
+      for (int c : group.owner_count) words.push_back(static_cast<std::uint64_t>(c));
+      for (const auto& [factor, b, j] : group.owners) {
+        words.push_back(blocks_[b].factor->key);
+        words.push_back((static_cast<std::uint64_t>(b) << 32) | static_cast<std::uint32_t>(j));
+      }
+      record[g] = words;
+      plane_key[g] = Fnv1a64(words.data(), sizeof(std::uint64_t) * words.size());
+    }
+  }
+  auto plane_file = [&](int g) { return cache_directory / (HexKey(plane_key[g]) + ".plane"); };
+  // Group g's factor blocks from its file; false (with a note for a bad file) when absent.
+  auto load_plane = [&](int g) {
+    const int bg = in.size(g), bp = g > 0 ? in.size(g - 1) : 0;
+    std::string why;
+    const auto t0 = Clock::now();
+    bool ok = false;
+    if (auto body = MapCacheFile(plane_file(g), kPlaneFileMagic, &why)) {
+      ByteReader r(body->data(), body->size());
+      std::vector<std::uint64_t> stored;
+      std::int64_t rows = 0, cols = 0;
+      auto diag = std::make_shared<Eigen::MatrixXd>(Eigen::MatrixXd::Zero(bg, bg));
+      auto sub = std::make_shared<Eigen::MatrixXd>(bg, bp);
+      ok = r.GetVector(&stored) && stored == record[g] && r.Get(&rows) && r.Get(&cols) &&
+           rows == bg && cols == bp;
+      for (int j = 0; ok && j < bg; ++j)
+        ok = r.GetArray(diag->data() + static_cast<std::size_t>(j) * bg + j,
+                        static_cast<std::size_t>(bg - j));
+      ok = ok && r.GetArray(sub->data(), static_cast<std::size_t>(sub->size())) &&
+           r.remaining() == 0;
+      if (ok) {
+        in.groups[g].l_diag = std::move(diag);
+        if (g > 0) in.groups[g].l_sub = std::move(sub);
+      } else {
+        why = plane_file(g).string() +
+              ": not the record of this chain (a hash collision) or "
+              "inconsistent";
+      }
+    }
+    if (!ok && why != "absent")
+      stats_.cache_notes.push_back("interface plane " + std::to_string(g) + ": refused " + why);
+    stats_.cache_read_seconds += Seconds(t0);
+    return ok;
+  };
   // The rest, group by group: S_gg and S_{g,g−1} from the blocks' S_b (each entry summed over
   // the blocks holding its column in block order), then L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ
   // (dtrsm) and L_gg = chol(S_gg − L_{g,g−1} L_{g,g−1}ᵀ) (dsyrk, dpotrf).
@@ -918,6 +1119,11 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     factor_nonzeros += 0.5 * bg * (bg + 1.0) + double(bg) * bp;
     nonzeros += static_cast<long long>(bg) * bg + 2LL * bg * bp;
     if (g < shared) continue;
+    if (!cache_directory.empty() && load_plane(g)) {
+      ++stats_.loaded_interface_groups;
+      stats_.interface_group_loaded[g] = 1;
+      continue;
+    }
     Eigen::MatrixXd diag = Eigen::MatrixXd::Zero(bg, bg), sub = Eigen::MatrixXd::Zero(bg, bp);
     // Columns of group g give S_gg; columns of group g − 1 give S_{g,g−1} (its rows in g).
     for (int cg : {g, g - 1}) {
@@ -955,6 +1161,21 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     diag.triangularView<Eigen::StrictlyUpper>().setZero();
     in.groups[g].l_diag = std::make_shared<const Eigen::MatrixXd>(std::move(diag));
     if (g > 0) in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
+    if (!cache_directory.empty()) {
+      if (!writer_) writer_ = std::make_unique<CacheWriter>();
+      writer_->Add("interface plane " + std::to_string(g), plane_file(g), kPlaneFileMagic,
+                   [words = record[g], l_diag = in.groups[g].l_diag, l_sub = in.groups[g].l_sub] {
+                     ByteWriter w;
+                     w.PutVector(words);
+                     const auto bg = l_diag->rows(), bp = l_sub ? l_sub->cols() : 0;
+                     w.Put(static_cast<std::int64_t>(bg));
+                     w.Put(static_cast<std::int64_t>(bp));
+                     for (Eigen::Index j = 0; j < bg; ++j)  // lower triangle
+                       w.PutArray(l_diag->data() + j * bg + j, static_cast<std::size_t>(bg - j));
+                     if (l_sub) w.PutArray(l_sub->data(), static_cast<std::size_t>(l_sub->size()));
+                     return std::move(w.bytes());
+                   });
+    }
   }
   stats_.interface_nonzeros = nonzeros;
   stats_.interface_factor_nonzeros = factor_nonzeros;
@@ -964,17 +1185,17 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
 SubstructuredSolver::~SubstructuredSolver() { FinishCacheWrites(); }
 
 const SubstructureStats& SubstructuredSolver::FinishCacheWrites() {
-  for (const std::unique_ptr<PendingWrite>& w : writes_) {
-    if (w->thread.joinable()) w->thread.join();
-    stats_.cache_write_seconds += w->seconds;
-    if (w->saved) {
-      ++stats_.saved_blocks;
+  if (!writer_) return stats_;
+  writer_->Finish();
+  for (const std::unique_ptr<CacheWriter::Job>& job : writer_->jobs) {
+    stats_.cache_write_seconds += job->seconds;
+    if (job->saved) {
+      ++(job->what.rfind("block", 0) == 0 ? stats_.saved_blocks : stats_.saved_interface_groups);
     } else {
-      stats_.cache_notes.push_back("block " + std::to_string(w->block) +
-                                   ": not saved: " + w->error);
+      stats_.cache_notes.push_back(job->what + ": not saved: " + job->error);
     }
   }
-  writes_.clear();
+  writer_.reset();
   return stats_;
 }
 

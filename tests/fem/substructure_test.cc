@@ -365,6 +365,8 @@ TEST(SubstructuredSolver, CacheDirectoryKeepsBlocksBetweenSolversAndRefusesDamag
     ASSERT_TRUE(second.factor_status().converged) << second.factor_status().message;
     EXPECT_EQ(second.stats().loaded_blocks, 4);
     EXPECT_EQ(second.stats().factored_blocks, 0);
+    EXPECT_EQ(first.stats().saved_interface_groups, 3);  // the three planes
+    EXPECT_EQ(second.stats().loaded_interface_groups, 3);
     EXPECT_EQ(second.stats().reused_blocks, 0);
     for (int b = 0; b < 4; ++b) {
       EXPECT_TRUE(second.block_stats(b).loaded) << "block " << b;
@@ -385,6 +387,9 @@ TEST(SubstructuredSolver, CacheDirectoryKeepsBlocksBetweenSolversAndRefusesDamag
     SubstructuredSolver after(edited.mesh, edited.materials, bcs2, edited.blocks, nullptr, dir);
     ASSERT_TRUE(after.factor_status().converged);
     EXPECT_EQ(after.FinishCacheWrites().saved_blocks, 1);
+    // Plane 0 lies between slabs 0 and 1, which kept their content: read; planes 1 and 2 made.
+    EXPECT_EQ(after.stats().loaded_interface_groups, 1);
+    EXPECT_EQ(after.stats().saved_interface_groups, 2);
     EXPECT_EQ(after.stats().loaded_blocks, 3);
     EXPECT_EQ(after.stats().factored_blocks, 1);
     EXPECT_FALSE(after.block_stats(2).loaded);
@@ -397,9 +402,12 @@ TEST(SubstructuredSolver, CacheDirectoryKeepsBlocksBetweenSolversAndRefusesDamag
     const std::filesystem::path f3 = dir / (HexKey(first.block_stats(3).key) + ".block");
     ASSERT_TRUE(std::filesystem::exists(f0));
     {
+      const auto middle = static_cast<std::streamoff>(std::filesystem::file_size(f0) / 2);
       std::fstream f(f0, std::ios::in | std::ios::out | std::ios::binary);
-      f.seekp(static_cast<std::streamoff>(std::filesystem::file_size(f0) / 2));
-      f.put('\x5a');
+      f.seekg(middle);
+      const char c = static_cast<char>(f.get());
+      f.seekp(middle);
+      f.put(static_cast<char>(c ^ 0x5a));
     }
     std::filesystem::resize_file(f3, std::filesystem::file_size(f3) - 100);
     SubstructuredSolver damaged(mesh, steel, bcs, blocks, nullptr, dir);
@@ -429,9 +437,11 @@ TEST(SubstructuredSolver, CacheDirectoryKeepsBlocksBetweenSolversAndRefusesDamag
   EXPECT_TRUE(unsaved.factor_status().converged);
   unsaved.FinishCacheWrites();
   EXPECT_EQ(unsaved.stats().saved_blocks, 0);
-  ASSERT_EQ(unsaved.stats().cache_notes.size(), 2u);
+  ASSERT_EQ(unsaved.stats().cache_notes.size(), 3u);  // two blocks, one plane
   EXPECT_NE(unsaved.stats().cache_notes[0].find("block 0: not saved"), std::string::npos)
       << unsaved.stats().cache_notes[0];
+  EXPECT_NE(unsaved.stats().cache_notes[2].find("interface plane 0: not saved"), std::string::npos)
+      << unsaved.stats().cache_notes[2];
   std::filesystem::remove_all(dir);
 }
 

@@ -51,7 +51,6 @@
 #include <filesystem>
 #include <memory>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -115,6 +114,11 @@ struct SubstructureStats {
   // factor blocks came from the reuse solver (see the file comment).
   int interface_groups = 0;
   int reused_interface_groups = 0;
+  // Groups whose factor blocks came from the cache directory (and, per group, 1 for those),
+  // and groups written to it.
+  int loaded_interface_groups = 0;
+  std::vector<char> interface_group_loaded;
+  int saved_interface_groups = 0;
   // Wall time (s) of the blocks factored here (assembly, factorisation and forming S_b, each
   // summed over them), of assembling and factoring S, and of the whole construction.
   double block_assembly_seconds = 0.0;
@@ -135,12 +139,16 @@ class SubstructuredSolver final : public FreeDofSolver {
   // input (naming the element or the label). A factorisation failure (a block interior or S not
   // positive definite) is reported through factor_status(), naming the block, not thrown.
   // With a `cache_directory`, a block the reuse solver does not have is looked for there
-  // (<16 hex digits of its content key>.block: the content, K^b, the order, S_b and CHOLMOD's
-  // factor values, checked by a checksum, the content compared in full and the factor's layout
-  // against CHOLMOD's analysis; a file that fails any check is ignored and noted in
-  // stats().cache_notes), and a block factored here is written there, each on a thread of its
-  // own started as soon as the block is factored (files are about 8 bytes per factor nonzero:
-  // hundreds of megabytes for a large block). FinishCacheWrites() waits for the writes.
+  // (<16 hex digits of its content key>.block: the content, K^b, the order, S_b and the values
+  // of CHOLMOD's factor of K^b_II, checked by a checksum, the content compared in full and the
+  // factor's layout against CHOLMOD's analysis; a file that fails any check is ignored and noted in
+  // stats().cache_notes), and a block factored here is written there, one file after the
+  // other on a thread of the solver's own, each as soon as its block is factored (8 bytes per
+  // nonzero of L_II and of S_b's lower triangle: hundreds of megabytes for a large block).
+  // FinishCacheWrites() waits for the writes. Blocks are read from it several at a time. A
+  // chain interface keeps its planes' factor blocks there too (<key>.plane): a plane whose
+  // owners, and those of the planes before it, are those of the file (blocks by content key)
+  // is read instead of factored.
   SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
                       const BoundaryConditions& bcs, const Eigen::VectorXi& element_block,
                       const SubstructuredSolver* reuse = nullptr,
@@ -209,25 +217,18 @@ class SubstructuredSolver final : public FreeDofSolver {
                               const std::vector<std::vector<std::pair<int, int>>>& owners,
                               const std::vector<int>& order,
                               const std::vector<std::pair<int, int>>& pair_of,
-                              const SubstructuredSolver* reuse);
+                              const SubstructuredSolver* reuse,
+                              const std::filesystem::path& cache_directory);
   void FactorInterfaceWithCholmod(const TetMesh& mesh,
                                   const std::vector<std::vector<std::pair<int, int>>>& owners,
                                   std::vector<int>& order);
   // Sets factor_status_ for a zero pivot of S at Γ position p.
   void InterfaceFailure(const TetMesh& mesh, int p);
 
-  // A block file being written (FinishCacheWrites).
-  struct PendingWrite {
-    int block = 0;
-    std::thread thread;
-    bool saved = false;
-    std::string error;
-    double seconds = 0.0;
-  };
-
   BoundaryConditions bcs_;
   std::vector<Block> blocks_;
-  std::vector<std::unique_ptr<PendingWrite>> writes_;
+  struct CacheWriter;
+  std::unique_ptr<CacheWriter> writer_;  // block files being written (FinishCacheWrites)
   std::unique_ptr<Interface> interface_;
   std::vector<int> free_index_, free_dofs_, node_block_;
   std::vector<int> interface_index_;  // per free index: position in Γ, or −1
