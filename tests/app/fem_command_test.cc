@@ -315,6 +315,14 @@ TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.err.find("--cache-dir keeps slab meshes and slab factors"), std::string::npos)
       << bad.err;
+  for (const char* slabs : {"-1", "65"}) {
+    const CommandRun out_of_range = RunSpidarcad(original + common + " --slabs=" + slabs, "cache6");
+    EXPECT_EQ(out_of_range.status, 2) << slabs;
+    EXPECT_NE(out_of_range.err.find(std::string("--slabs ") + slabs +
+                                    ": the number of slabs must be 1 to 64"),
+              std::string::npos)
+        << out_of_range.err;
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -63,7 +63,7 @@ struct FemOptions {
   double max_radius_edge = 2.0;
   std::string solid;
   std::string object;     // --object: any object of a document (solid, mesh, sculpt, fe_model)
-  int slabs = -1;         // --slabs: 0 one piece; -1 not given (4 with --cache-dir, else 0)
+  int slabs = 0;          // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
   std::string cache_dir;  // --cache-dir: slab meshes and block factors kept between runs
   // Which options were given (a document's FE model supplies the others).
   bool given_e = false, given_nu = false;
@@ -440,6 +440,10 @@ void RunFem(const FemOptions& options) {
   for (size_t i = 0; i < options.load.size(); ++i) {
     load_points.push_back(ParseVector(options.load[i], "--load", static_cast<int>(i)));
     load_forces.push_back(ParseVector(options.force[i], "--force", static_cast<int>(i)));
+  }
+  if (options.slabs < 0 || options.slabs > 64) {
+    throw InputError("--slabs " + std::to_string(options.slabs) +
+                     ": the number of slabs must be 1 to 64 (0: solve in one piece)");
   }
   if (!options.cache_dir.empty() && options.slabs == 0) {
     throw InputError(
@@ -904,11 +908,14 @@ void RegisterFemCommand(CLI::App& app) {
       "the volumetric term on the element-mean dilatation (P2-P0, locking-free); a linear mesh\n"
       "is upgraded to 10-node elements, and --order 1 with it is an error.\n"
       "--slabs N solves in N slabs across x: each slab's stiffness is factored on its own and\n"
-      "condensed onto the planes between slabs (the same answer to rounding); a scene solid is\n"
-      "then meshed slab by slab, conforming across the planes. --cache-dir DIR (implies\n"
-      "--slabs 4) keeps every slab's mesh and factor in DIR; a later run reads the slabs whose\n"
-      "input is unchanged, so after a local edit (a hole moved) only the slabs the edit reached\n"
-      "are meshed and factored again. The JSON's cache.reused and cache.recomputed list what was\n"
+      "condensed onto the planes between slabs (on a given mesh, the one-piece answer to\n"
+      "rounding); a scene solid is then meshed slab by slab, conforming across the planes. "
+      "--cache-dir DIR (implies\n"
+      "--slabs 4) keeps every slab's mesh and factor, and the factor of every plane between\n"
+      "slabs, in DIR; a later run reads those whose input is unchanged, so after a local edit\n"
+      "(a hole moved) only the slabs the edit reached, and the planes from the first of them\n"
+      "on, are meshed and factored again. The JSON's cache.reused and cache.recomputed list what "
+      "was\n"
       "read and what was computed; substructure.blocks gives each slab's figures and timings.\n"
       "A damaged or stale file is never trusted: it is recomputed, and cache.notes says why.\n"
       "\n"
@@ -962,7 +969,7 @@ void RegisterFemCommand(CLI::App& app) {
                   "Solve in N slabs across x: each factored on its own and condensed onto the "
                   "planes between them (a scene solid is meshed slab by slab). Default 0 (one "
                   "piece), 4 with --cache-dir")
-      ->check(CLI::Range(0, 64));
+      ->type_name("N");
   cmd->add_option("--cache-dir", options->cache_dir,
                   "Keep slab meshes and slab factors in DIR: a later run whose slab is unchanged "
                   "(e.g. after an edit elsewhere) reads it instead of recomputing it")
@@ -971,7 +978,7 @@ void RegisterFemCommand(CLI::App& app) {
     options->given_e = cmd->count("--E") > 0;
     options->given_nu = cmd->count("--nu") > 0;
     FemOptions resolved = *options;
-    if (resolved.slabs < 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
+    if (cmd->count("--slabs") == 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
     RunFem(resolved);
   });
 }
