@@ -20,7 +20,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 minutes="${1:-10}"
 shift || true
 all=(usb_board usb_host trajectory scene stl obj ply clipboard document calibration_file vtu node_ele
-     fk_batch ik_batch tension_batch)
+     fk_batch ik_batch tension_batch substructure_cache)
 if (($#)); then harnesses=("$@"); else harnesses=("${all[@]}"); fi
 if ! [[ "$minutes" =~ ^[0-9]+([.][0-9]+)?$ ]]; then
   echo "fuzz.sh: MINUTES must be a number, got '$minutes'" >&2

@@ -1088,20 +1088,28 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
       std::int64_t rows = 0, cols = 0;
       auto diag = std::make_shared<Eigen::MatrixXd>(Eigen::MatrixXd::Zero(bg, bg));
       auto sub = std::make_shared<Eigen::MatrixXd>(bg, bp);
-      ok = r.GetVector(&stored) && stored == record[g] && r.Get(&rows) && r.Get(&cols) &&
-           rows == bg && cols == bp;
-      for (int j = 0; ok && j < bg; ++j)
-        ok = r.GetArray(diag->data() + static_cast<std::size_t>(j) * bg + j,
-                        static_cast<std::size_t>(bg - j));
-      ok = ok && r.GetArray(sub->data(), static_cast<std::size_t>(sub->size())) &&
-           r.remaining() == 0;
+      const char* problem = nullptr;
+      if (!r.GetVector(&stored)) {
+        problem = "truncated owner record";
+      } else if (stored != record[g]) {
+        problem = "its owner record is not this chain's (a hash collision)";
+      } else if (!r.Get(&rows) || !r.Get(&cols) || rows != bg || cols != bp) {
+        problem = "bad block sizes";
+      }
+      for (int j = 0; problem == nullptr && j < bg; ++j) {
+        if (!r.GetArray(diag->data() + static_cast<std::size_t>(j) * bg + j,
+                        static_cast<std::size_t>(bg - j)))
+          problem = "truncated factor";
+      }
+      if (problem == nullptr &&
+          (!r.GetArray(sub->data(), static_cast<std::size_t>(sub->size())) || r.remaining() != 0))
+        problem = "truncated or overlong factor";
+      ok = problem == nullptr;
       if (ok) {
         in.groups[g].l_diag = std::move(diag);
         if (g > 0) in.groups[g].l_sub = std::move(sub);
       } else {
-        why = plane_file(g).string() +
-              ": not the record of this chain (a hash collision) or "
-              "inconsistent";
+        why = plane_file(g).string() + ": " + problem;
       }
     }
     if (!ok && why != "absent")

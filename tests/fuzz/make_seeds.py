@@ -315,3 +315,19 @@ put("node_ele", "huge_coordinates.node_ele",
 put("node_ele", "subnormal_coordinate.node_ele",
     node_ele(node_text(TET_V).replace("0.0 0.0 0.0\n", "0.0 0.0 1e-310\n", 1),
              ele_text([(0, 1, 2, 3)])))
+
+# ------------------------------------------------ substructure cache: edits of the cached files
+# Byte 0: which of the five files (three blocks, two planes; bit 7: cut the body short), then
+# (u32 offset, u8 xor) edits, then, when cut, a u32 length (substructure_cache_fuzz.cc).
+def edits(*pairs):
+    return b"".join(struct.pack("<IB", offset, mask) for offset, mask in pairs)
+
+
+for f in range(5):
+    put("substructure_cache", "file%d_unchanged.bin" % f, bytes([f]))
+    put("substructure_cache", "file%d_header_byte.bin" % f, bytes([f]) + edits((4, 0x01)))
+    put("substructure_cache", "file%d_middle_bytes.bin" % f,
+        bytes([f]) + edits((0x40000, 0x80), (0x7FFFF, 0x10), (123457, 0xFF)))
+    put("substructure_cache", "file%d_cut.bin" % f, bytes([f | 0x80]) + struct.pack("<I", 1000))
+put("substructure_cache", "file0_sizes_and_cut.bin",
+    bytes([0x80]) + edits((12, 0x7F), (40, 0x01)) + struct.pack("<I", 99))

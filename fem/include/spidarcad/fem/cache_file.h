@@ -26,6 +26,7 @@ class ByteWriter {
   }
   template <typename T>
   void PutArray(const T* v, std::size_t n) {
+    if (n == 0) return;
     const auto* p = reinterpret_cast<const unsigned char*>(v);
     bytes_.insert(bytes_.end(), p, p + sizeof(T) * n);
   }
@@ -55,6 +56,7 @@ class ByteReader {
   }
   template <typename T>
   bool GetArray(T* v, std::size_t n) {
+    if (n == 0) return true;  // (v may be null then: the data() of an empty vector)
     if (n > (size_ - pos_) / sizeof(T)) return false;
     std::memcpy(v, data_ + pos_, sizeof(T) * n);
     pos_ += sizeof(T) * n;
