@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -134,7 +135,44 @@ std::optional<MappedCacheFile> MapCacheFile(const std::filesystem::path& path,
   std::memcpy(&stored, bytes + length - 8, 8);
   if (WordChecksum64(file.data(), file.size()) != stored)
     return fail(path.string() + ": checksum mismatch (corrupt or truncated)");
+  ::utimensat(AT_FDCWD, path.c_str(), nullptr, 0);  // used now (a read-only directory: no matter)
   return file;
+}
+
+PruneStats PruneCacheDirectory(const std::filesystem::path& directory, std::uintmax_t max_bytes,
+                               const std::vector<std::string>& extensions,
+                               std::filesystem::file_time_type protect_since) {
+  struct Entry {
+    std::filesystem::file_time_type time;
+    std::uintmax_t bytes;
+    std::filesystem::path path;
+  };
+  std::vector<Entry> entries;
+  PruneStats stats;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(directory, ec), end; !ec && it != end;
+       it.increment(ec)) {
+    const std::string ext = it->path().extension().string();
+    if (std::find(extensions.begin(), extensions.end(), ext) == extensions.end()) continue;
+    std::error_code e1, e2;
+    const auto time = it->last_write_time(e1);
+    const auto bytes = it->file_size(e2);
+    if (e1 || e2) continue;  // gone meanwhile
+    entries.push_back({time, bytes, it->path()});
+    stats.kept_bytes += bytes;
+  }
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& a, const Entry& b) { return a.time < b.time; });
+  for (const Entry& e : entries) {
+    if (stats.kept_bytes <= max_bytes || e.time >= protect_since) break;
+    std::error_code removed;
+    if (std::filesystem::remove(e.path, removed) && !removed) {
+      ++stats.removed_files;
+      stats.removed_bytes += e.bytes;
+    }
+    stats.kept_bytes -= e.bytes;  // gone, by this run or another
+  }
+  return stats;
 }
 
 }  // namespace spidarcad::fem

@@ -309,6 +309,16 @@ TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
   EXPECT_EQ(after["max_displacement_m"], plain["max_displacement_m"]);
   EXPECT_EQ(after["elements"], plain["elements"]);
 
+  // Cut back to nothing: the files the run used stay, the original scene's last slab, its
+  // factor and its last plane (used by no run since) go; the next run still reads everything.
+  const nlohmann::json pruned = run(edited, " --cache-dir " + dir + " --cache-max-gb 0", "cache7");
+  EXPECT_EQ(pruned["cache"]["reused"].size(), 11u);
+  EXPECT_EQ(pruned["cache"]["pruned_files"], 3);
+  EXPECT_GT(pruned["cache"]["size_bytes"].get<double>(), 0.0);
+  const nlohmann::json after_prune = run(edited, " --cache-dir " + dir, "cache8");
+  EXPECT_EQ(after_prune["cache"]["reused"].size(), 11u);
+  EXPECT_EQ(after_prune["cache"]["pruned_files"], 0);
+
   // --cache-dir with --slabs 0 is refused, saying why.
   const CommandRun bad =
       RunSpidarcad(original + common + " --slabs 0 --cache-dir " + dir, "cache5");

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -107,6 +108,49 @@ TEST(CacheFile, MappedFileIsTheBodyWrittenAndEachDefectIsNamed) {
   EXPECT_FALSE(WriteCacheFile(path / "sub" / "x.bin", kMagic, body, &why));
   EXPECT_NE(why.find("cannot create cache directory"), std::string::npos) << why;
   std::filesystem::remove_all(path.parent_path());
+}
+
+// Least recently used first, down to the bound; never a file used since the run began, nor a
+// file of another kind.
+TEST(CacheFile, PruneRemovesTheLeastRecentlyUsedDownToTheBound) {
+  const std::filesystem::path dir = Scratch("prune");
+  std::filesystem::create_directories(dir);
+  const auto now = std::filesystem::file_time_type::clock::now();
+  auto make = [&](const std::string& name, int age_s) {
+    std::ofstream(dir / name) << std::string(100, 'x');
+    std::filesystem::last_write_time(dir / name, now - std::chrono::seconds(age_s));
+  };
+  make("a.block", 40);
+  make("b.slab", 30);
+  make("c.plane", 20);
+  make("d.block", 10);
+  make("notes.txt", 50);
+  const std::vector<std::string> kinds = {".block", ".plane", ".slab"};
+  const PruneStats within = PruneCacheDirectory(dir, 400, kinds, now - std::chrono::seconds(15));
+  EXPECT_EQ(within.removed_files, 0);
+  EXPECT_EQ(within.kept_bytes, 400u);
+  const PruneStats cut = PruneCacheDirectory(dir, 250, kinds, now - std::chrono::seconds(15));
+  EXPECT_EQ(cut.removed_files, 2);
+  EXPECT_EQ(cut.removed_bytes, 200u);
+  EXPECT_EQ(cut.kept_bytes, 200u);
+  EXPECT_FALSE(std::filesystem::exists(dir / "a.block"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "b.slab"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "c.plane"));
+  // Down to nothing: the file newer than the protection stays, as does the other kind.
+  const PruneStats all = PruneCacheDirectory(dir, 0, kinds, now - std::chrono::seconds(15));
+  EXPECT_EQ(all.removed_files, 1);
+  EXPECT_TRUE(std::filesystem::exists(dir / "d.block"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "notes.txt"));
+  // Reading a file marks it used: an old file read now is protected.
+  const std::vector<unsigned char> body = {1, 2, 3};
+  ASSERT_TRUE(WriteCacheFile(dir / "e.block", kMagic, body));
+  std::filesystem::last_write_time(dir / "e.block", now - std::chrono::seconds(100));
+  ASSERT_TRUE(MapCacheFile(dir / "e.block", kMagic).has_value());
+  EXPECT_GE(std::filesystem::last_write_time(dir / "e.block"), now - std::chrono::seconds(15));
+  EXPECT_EQ(PruneCacheDirectory(dir, 0, kinds, now - std::chrono::seconds(15)).removed_files, 0);
+  // A directory that is not there: nothing, no throw.
+  EXPECT_EQ(PruneCacheDirectory(dir / "none", 0, kinds, now).removed_files, 0);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -6,6 +6,8 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
 #include <iostream>
 #include <limits>
 #include <memory>
@@ -25,6 +27,7 @@
 #include "scene/slab_fe_mesh.h"
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/boundary.h"
+#include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/free_dof_solver.h"
 #include "spidarcad/fem/grab.h"
 #include "spidarcad/fem/material.h"
@@ -62,9 +65,10 @@ struct FemOptions {
   double resolution = 0.004;
   double max_radius_edge = 2.0;
   std::string solid;
-  std::string object;     // --object: any object of a document (solid, mesh, sculpt, fe_model)
-  int slabs = 0;          // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
-  std::string cache_dir;  // --cache-dir: slab meshes and block factors kept between runs
+  std::string object;         // --object: any object of a document (solid, mesh, sculpt, fe_model)
+  int slabs = 0;              // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
+  std::string cache_dir;      // --cache-dir: slab meshes and block factors kept between runs
+  double cache_max_gb = 4.0;  // --cache-max-gb: the directory's bound (least recently used out)
   // Which options were given (a document's FE model supplies the others).
   bool given_e = false, given_nu = false;
 };
@@ -372,6 +376,11 @@ nlohmann::ordered_json CacheReport(const std::string& directory,
 
 void RunFem(const FemOptions& options) {
   const Clock::time_point start = Clock::now();
+  // Cache files this run reads or writes are stamped from now on, and are never pruned by it.
+  // (File times come from the kernel's coarse clock, up to a tick of 1-10 ms behind: hence the
+  // margin.)
+  const auto cache_protect_since =
+      std::filesystem::file_time_type::clock::now() - std::chrono::milliseconds(100);
   // Ctrl+C ends at once with status 130 (TetGen and CHOLMOD poll nothing); the result goes to a
   // hidden temporary renamed over --out when complete, so no half-written file is left.
   InterruptibleOutput output(options.out, "fem", InterruptibleOutput::Mode::kExitAtOnce);
@@ -444,6 +453,10 @@ void RunFem(const FemOptions& options) {
   if (options.slabs < 0 || options.slabs > 64) {
     throw InputError("--slabs " + std::to_string(options.slabs) +
                      ": the number of slabs must be 1 to 64 (0: solve in one piece)");
+  }
+  if (!(options.cache_max_gb >= 0.0) || !std::isfinite(options.cache_max_gb)) {
+    throw InputError("--cache-max-gb: must be a size >= 0 in GiB, got " +
+                     FormatNumber(options.cache_max_gb));
   }
   if (!options.cache_dir.empty() && options.slabs == 0) {
     throw InputError(
@@ -855,8 +868,16 @@ void RunFem(const FemOptions& options) {
     factor_seconds = stats.wall_seconds - stats.block_assembly_seconds;
     report["substructure"] = SubstructureReport(*slab_solver);
     report["substructure"]["cache_write_wait_seconds"] = wait_seconds;
-    if (!options.cache_dir.empty())
+    if (!options.cache_dir.empty()) {
       report["cache"] = CacheReport(options.cache_dir, report["meshing"], *slab_solver);
+      const fem::PruneStats pruned = fem::PruneCacheDirectory(
+          options.cache_dir,
+          static_cast<std::uintmax_t>(options.cache_max_gb * 1024.0 * 1024.0 * 1024.0),
+          {".block", ".plane", ".slab"}, cache_protect_since);
+      report["cache"]["size_bytes"] = pruned.kept_bytes;
+      report["cache"]["pruned_files"] = pruned.removed_files;
+      report["cache"]["pruned_bytes"] = pruned.removed_bytes;
+    }
   }
   report["timing_s"] = {{"mesh", mesh_seconds},        {"assembly", assembly_seconds},
                         {"factor", factor_seconds},    {"solve", solve_seconds},
@@ -918,6 +939,8 @@ void RegisterFemCommand(CLI::App& app) {
       "was\n"
       "read and what was computed; substructure.blocks gives each slab's figures and timings.\n"
       "A damaged or stale file is never trusted: it is recomputed, and cache.notes says why.\n"
+      "After the run the directory is cut back to --cache-max-gb (default 4 GiB), least\n"
+      "recently used files first; the files this run used stay.\n"
       "\n"
       "Example (a 1 x 0.1 x 0.1 m steel beam clamped at x = 0, tip pushed 1 mm down):\n"
       "  spidarcad fem beam.vtu --fix=-1,-1,-1,1e-9,1,1 --push 1,0.05,0.05 --disp 0,0,-0.001 \\\n"
@@ -974,6 +997,10 @@ void RegisterFemCommand(CLI::App& app) {
                   "Keep slab meshes and slab factors in DIR: a later run whose slab is unchanged "
                   "(e.g. after an edit elsewhere) reads it instead of recomputing it")
       ->type_name("DIR");
+  cmd->add_option("--cache-max-gb", options->cache_max_gb,
+                  "Bound of --cache-dir in GiB (default 4): the least recently used files are "
+                  "removed after the run, never those the run used")
+      ->type_name("GB");
   cmd->callback([options, cmd]() {
     options->given_e = cmd->count("--E") > 0;
     options->given_nu = cmd->count("--nu") > 0;

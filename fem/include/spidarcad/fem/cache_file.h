@@ -113,10 +113,28 @@ class MappedCacheFile {
 };
 
 // The body of a file written by WriteCacheFile with the same magic, mapped (no copy: a reader
-// copies what it keeps). Nothing, with the reason in *reason (when given; "absent" when there
+// copies what it keeps). A file that passes is marked as used now (its modification time, for
+// PruneCacheDirectory). Nothing, with the reason in *reason (when given; "absent" when there
 // is no file, so callers can tell a miss from a bad file), when it is absent, unreadable, too
 // short, of another magic or fails its checksum.
 std::optional<MappedCacheFile> MapCacheFile(const std::filesystem::path& path,
                                             const char (&magic)[8], std::string* reason = nullptr);
+
+// What PruneCacheDirectory did.
+struct PruneStats {
+  int removed_files = 0;
+  std::uintmax_t removed_bytes = 0;
+  // Bytes of the cache files left (of the extensions asked for).
+  std::uintmax_t kept_bytes = 0;
+};
+
+// Keeps the cache files of `directory` whose names end in one of `extensions` (".block", ...)
+// within `max_bytes` together, removing the least recently used first: by modification time,
+// which MapCacheFile sets on every file it reads. A file modified at or after `protect_since` (a
+// file this run read or wrote) is never removed, even over the bound. Other files are not
+// touched. A file that vanishes meanwhile (another run pruned it) is skipped; nothing throws.
+PruneStats PruneCacheDirectory(const std::filesystem::path& directory, std::uintmax_t max_bytes,
+                               const std::vector<std::string>& extensions,
+                               std::filesystem::file_time_type protect_since);
 
 }  // namespace spidarcad::fem
