@@ -47,14 +47,13 @@ std::string HexKey(std::uint64_t key) {
   return buf;
 }
 
-bool WriteCacheFile(const std::filesystem::path& path, const char (&magic)[8],
-                    const std::vector<unsigned char>& body, std::string* error) {
+bool WriteFileAtomically(const std::filesystem::path& path,
+                         std::initializer_list<std::pair<const void*, std::size_t>> pieces,
+                         std::string* error) {
   auto fail = [&](const std::string& why) {
     if (error) *error = why;
     return false;
   };
-  // The checksum covers the body (the magic is checked on its own).
-  const std::uint64_t h = WordChecksum64(body.data(), body.size());
   std::error_code ec;
   const std::filesystem::path dir = path.parent_path();
   if (!dir.empty()) {
@@ -67,14 +66,13 @@ bool WriteCacheFile(const std::filesystem::path& path, const char (&magic)[8],
   {
     std::ofstream out(temp, std::ios::binary | std::ios::trunc);
     if (!out) return fail("cannot open " + temp.string() + " for writing");
-    out.write(magic, 8);
     // In pieces: one write of hundreds of megabytes runs at a tenth of the speed (measured on
     // Linux 6: 2.8 s against 0.12 s for 470 MB).
-    for (std::size_t at = 0; at < body.size() && out; at += kChunk) {
-      out.write(reinterpret_cast<const char*>(body.data() + at),
-                static_cast<std::streamsize>(std::min(kChunk, body.size() - at)));
+    for (const auto& [data, size] : pieces) {
+      const auto* bytes = static_cast<const char*>(data);
+      for (std::size_t at = 0; at < size && out; at += kChunk)
+        out.write(bytes + at, static_cast<std::streamsize>(std::min(kChunk, size - at)));
     }
-    out.write(reinterpret_cast<const char*>(&h), sizeof(h));
     out.flush();
     if (!out) {
       out.close();
@@ -89,6 +87,14 @@ bool WriteCacheFile(const std::filesystem::path& path, const char (&magic)[8],
     return fail("cannot rename " + temp.string() + " to " + path.string() + ": " + ec.message());
   }
   return true;
+}
+
+bool WriteCacheFile(const std::filesystem::path& path, const char (&magic)[8],
+                    const std::vector<unsigned char>& body, std::string* error) {
+  // The checksum covers the body (the magic is checked on its own).
+  const std::uint64_t h = WordChecksum64(body.data(), body.size());
+  return WriteFileAtomically(path, {{magic, 8}, {body.data(), body.size()}, {&h, sizeof(h)}},
+                             error);
 }
 
 MappedCacheFile::MappedCacheFile(MappedCacheFile&& other) noexcept

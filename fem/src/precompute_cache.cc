@@ -1,10 +1,7 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/fem/precompute_cache.h"
 
-#include <unistd.h>
-
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -132,34 +129,7 @@ bool PrecomputeCache::Save(const ColumnSet& set, std::string* error) const {
   const std::uint64_t checksum = Fnv1a64(w.bytes().data(), w.bytes().size());
   w.Put(checksum);
 
-  std::error_code ec;
-  std::filesystem::create_directories(directory_, ec);
-  if (ec) return fail("cannot create cache directory " + directory_.string() + ": " + ec.message());
-  static std::atomic<unsigned> counter{0};
-  const std::filesystem::path final_path = PathFor(set.key);
-  const std::filesystem::path temp_path = final_path.string() + ".tmp." +
-                                          std::to_string(::getpid()) + "." +
-                                          std::to_string(counter.fetch_add(1));
-  {
-    std::ofstream out(temp_path, std::ios::binary | std::ios::trunc);
-    if (!out) return fail("cannot open " + temp_path.string() + " for writing");
-    out.write(reinterpret_cast<const char*>(w.bytes().data()),
-              static_cast<std::streamsize>(w.bytes().size()));
-    out.flush();
-    if (!out) {
-      out.close();
-      std::filesystem::remove(temp_path, ec);
-      return fail("cannot write " + temp_path.string() + " (disk full?)");
-    }
-  }
-  std::filesystem::rename(temp_path, final_path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(temp_path, ignored);
-    return fail("cannot rename " + temp_path.string() + " to " + final_path.string() + ": " +
-                ec.message());
-  }
-  return true;
+  return WriteFileAtomically(PathFor(set.key), {{w.bytes().data(), w.bytes().size()}}, error);
 }
 
 std::optional<ColumnSet> PrecomputeCache::Load(std::uint64_t key, std::string* reason) const {

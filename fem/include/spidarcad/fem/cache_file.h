@@ -10,8 +10,10 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <initializer_list>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace spidarcad::fem {
@@ -85,6 +87,13 @@ std::uint64_t WordChecksum64(const void* data, std::size_t size);
 
 // "0123456789abcdef": 16 lower-case hex digits of a key (cache file names).
 std::string HexKey(std::uint64_t key);
+
+// Writes the pieces (pointer, bytes), one after the other, to `path` through a temporary file in
+// the same directory (created if missing) renamed over it, so that a reader never sees half a
+// file. Returns false with the reason in *error (when given) if it cannot be written.
+bool WriteFileAtomically(const std::filesystem::path& path,
+                         std::initializer_list<std::pair<const void*, std::size_t>> pieces,
+                         std::string* error = nullptr);
 
 // Writes magic (8 bytes), then `body`, then WordChecksum64 of both, to `path` through a
 // temporary file in the same directory (created if missing) renamed over it. Returns false with
