@@ -127,6 +127,24 @@ TEST(FemCommand, PushReactionEqualsDirectSolveForBothOrders) {
     EXPECT_EQ(report["order"].get<int>(), order);
     EXPECT_EQ(report["nodes"].get<int>(), mesh.num_nodes());
     EXPECT_TRUE(report["status"]["converged"].get<bool>());
+
+    // In three slabs (blocks by planes across x, factored apart and condensed onto the planes):
+    // the same mesh, so the same reaction as the direct solve to rounding.
+    const CommandRun slabs = RunSpidarcad(
+        beam + " " + kClampX0 + " --push 1,0.05,0.05 --disp 0.0002,-0.0003,-0.001 --order " +
+            std::to_string(order) + " --slabs 3 --out " + out,
+        "push_slabs" + std::to_string(order));
+    ASSERT_EQ(slabs.status, 0) << slabs.err;
+    const nlohmann::json in_slabs = nlohmann::json::parse(slabs.out);
+    EXPECT_EQ(in_slabs["substructure"]["blocks"].size(), 3u);
+    EXPECT_EQ(in_slabs["substructure"]["interface_planes"], 2);
+    EXPECT_FALSE(in_slabs.contains("cache"));
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(in_slabs["pushes"][0]["reaction_force"][i].get<double>(), expected[i],
+                  1e-9 * expected.norm())
+          << "slabs, order " << order << " axis " << i;
+    }
+    EXPECT_TRUE(in_slabs["status"]["converged"].get<bool>());
   }
 }
 
