@@ -645,15 +645,21 @@ bool SameSurface(const modeling::TriangleMesh& a, const modeling::TriangleMesh& 
 
 // Ctrl + key (with Shift when asked) for one frame, then released, as HandleTreeShortcuts reads
 // them.
+// The modifiers go into KeysDown as well as KeyCtrl/KeyShift: ImGui's GLFW backend recomputes
+// KeyCtrl and KeyShift from KeysDown on any key event the window receives, so a shift held only
+// in KeyShift was lost now and then (AppWindowSculpt.StrokeIsOneUndoStepThatSurvivesSaveAndReopen
+// saw its Ctrl+Shift+Z undo instead of redo once under ctest -j2).
 void PressCtrl(AppWindow& window, int key, bool shift = false) {
   ImGuiIO& io = ImGui::GetIO();
   io.KeysDown[GLFW_KEY_LEFT_CONTROL] = true;
+  io.KeysDown[GLFW_KEY_LEFT_SHIFT] = shift;
   io.KeyCtrl = true;
   io.KeyShift = shift;
   io.KeysDown[key] = true;
   window.Frame();
   io.KeysDown[key] = false;
   io.KeysDown[GLFW_KEY_LEFT_CONTROL] = false;
+  io.KeysDown[GLFW_KEY_LEFT_SHIFT] = false;
   io.KeyCtrl = false;
   io.KeyShift = false;
   window.Frame();

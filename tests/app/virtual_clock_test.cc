@@ -11,6 +11,7 @@
 // few hundred frames. Window tests: they need an X display (xvfb-run).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -31,9 +32,13 @@ std::string Source(const std::string& relative) {
 }
 
 // The samples of assets/trajectories/NAME.csv up to time `until` (s), into the test's output.
+// The file is named by both, because ctest -j runs these tests in parallel processes: with one
+// name per trajectory, the FE press test (1.3 s of press.csv) rewrote the demo test's 1.4 s
+// prefix between that test's CLI run and its window run, which then wrote 100 rows fewer.
 std::string TrajectoryPrefix(const std::string& name, double until) {
   std::ifstream in(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/trajectories/" + name + ".csv");
-  const std::string path = TestOutputPath("vclock_" + name + "_prefix.csv");
+  const std::string path = TestOutputPath(
+      "vclock_" + name + "_" + std::to_string(std::lround(until * 1000.0)) + "ms_prefix.csv");
   std::ofstream out(path);
   std::string line;
   while (std::getline(in, line)) {
