@@ -60,9 +60,13 @@ fem::TetMesh Beam() {
   return fem::MakeBoxMesh(s);
 }
 
-// Writes the beam once per test run and returns its path.
+// Writes the beam and returns its path: one file per test, because ctest -j runs these tests in
+// parallel processes, and a test's `spidarcad fem` must not read the beam while another test
+// rewrites it.
 std::string BeamPath() {
-  const std::string path = OutputPath("fem_beam.vtu");
+  const std::string path =
+      OutputPath(std::string("fem_beam_") +
+                 ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".vtu");
   WriteTetVtu(Beam(), path);
   return path;
 }
