@@ -571,7 +571,7 @@ struct SubstructuredSolver::CacheWriter {
   struct Job {
     std::string what;  // "block 3", "interface plane 1"
     std::filesystem::path file;
-    const char* magic = nullptr;
+    const char (*magic)[8] = nullptr;
     std::function<std::vector<unsigned char>()> body;
     bool saved = false;
     std::string error;
@@ -586,8 +586,7 @@ struct SubstructuredSolver::CacheWriter {
 
   static void Write(Job* job) {
     const auto t0 = Clock::now();
-    const char(&magic)[8] = *reinterpret_cast<const char(*)[8]>(job->magic);
-    job->saved = WriteCacheFile(job->file, magic, job->body(), &job->error);
+    job->saved = WriteCacheFile(job->file, *job->magic, job->body(), &job->error);
     job->body = nullptr;  // lets go of what it kept alive
     job->seconds = Seconds(t0);
   }
@@ -608,7 +607,7 @@ struct SubstructuredSolver::CacheWriter {
     auto job = std::make_unique<Job>();
     job->what = std::move(what);
     job->file = file;
-    job->magic = magic;
+    job->magic = &magic;
     job->body = std::move(body);
     {
       std::lock_guard<std::mutex> lock(mutex);

@@ -91,10 +91,14 @@ TEST(FemCommand, PushReactionEqualsDirectSolveForBothOrders) {
   const Eigen::Vector3d tip(kLength, 0.5 * kSide, 0.5 * kSide), d(0.0002, -0.0003, -0.001);
   for (int order : {1, 2}) {
     const std::string out = OutputPath("fem_push_" + std::to_string(order) + ".vtu");
-    const CommandRun run = RunSpidarcad(
-        beam + " " + kClampX0 + " --push 1,0.05,0.05 --disp 0.0002,-0.0003,-0.001 --order " +
-            std::to_string(order) + " --out " + out,
-        "push" + std::to_string(order));
+    // The push at the tip, in one piece or (extra " --slabs 3") in slabs.
+    const auto run_push = [&](const std::string& extra, const std::string& tag) {
+      return RunSpidarcad(beam + " " + kClampX0 +
+                              " --push 1,0.05,0.05 --disp 0.0002,-0.0003,-0.001 --order " +
+                              std::to_string(order) + extra + " --out " + out,
+                          tag + std::to_string(order));
+    };
+    const CommandRun run = run_push("", "push");
     ASSERT_EQ(run.status, 0) << run.err;
     const nlohmann::json report = nlohmann::json::parse(run.out);
     ASSERT_EQ(report["pushes"].size(), 1u);
@@ -134,10 +138,7 @@ TEST(FemCommand, PushReactionEqualsDirectSolveForBothOrders) {
 
     // In three slabs (blocks by planes across x, factored apart and condensed onto the planes):
     // the same mesh, so the same reaction as the direct solve to rounding.
-    const CommandRun slabs = RunSpidarcad(
-        beam + " " + kClampX0 + " --push 1,0.05,0.05 --disp 0.0002,-0.0003,-0.001 --order " +
-            std::to_string(order) + " --slabs 3 --out " + out,
-        "push_slabs" + std::to_string(order));
+    const CommandRun slabs = run_push(" --slabs 3", "push_slabs");
     ASSERT_EQ(slabs.status, 0) << slabs.err;
     const nlohmann::json in_slabs = nlohmann::json::parse(slabs.out);
     EXPECT_EQ(in_slabs["substructure"]["blocks"].size(), 3u);
@@ -347,6 +348,12 @@ TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.err.find("--cache-dir keeps slab meshes and slab factors"), std::string::npos)
       << bad.err;
+  const CommandRun bad_bound =
+      RunSpidarcad(original + common + " --cache-dir " + dir + " --cache-max-gb=-1", "cache9");
+  EXPECT_EQ(bad_bound.status, 2);
+  EXPECT_NE(bad_bound.err.find("--cache-max-gb: must be a size >= 0 in GiB, got -1"),
+            std::string::npos)
+      << bad_bound.err;
   for (const char* slabs : {"-1", "65"}) {
     const CommandRun out_of_range = RunSpidarcad(original + common + " --slabs=" + slabs, "cache6");
     EXPECT_EQ(out_of_range.status, 2) << slabs;
