@@ -1,13 +1,14 @@
 // Tests of the grasp field: the grasp torque against its closed form on a sphere, the
 // simulated hand closing on a sphere stops at the closed-form angle, opening is free, one
-// pole alone gives no grasp torque, a grasped object follows the grip, and Evaluate allocates
-// nothing.
+// pole alone gives no grasp torque, the squeeze is the shallower pole's and continuous as the
+// second pole touches, a grasped object follows the grip, and Evaluate allocates nothing.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/grasp_field.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -132,6 +133,66 @@ TEST(GraspField, OnePoleTouchingGivesNoGraspTorque) {
   EXPECT_EQ(field.depth(1), 0.0);
   EXPECT_EQ(w.g, 0.0);
   EXPECT_FALSE(field.grasped());
+}
+
+// A ball off the grip's bisector (turned 3° toward pole 1 about z): pole 1 reaches it first and
+// is about 0.8 mm deep when pole 2 touches. The squeeze is the shallower pole's (grasp_field.h),
+// against an independent computation per pole (depth r − distance from the centre to the pole's
+// line; a from the foot point's motion under a finite difference of θ), and the grasp torque is
+// continuous as the second pole touches: a sum over the poles would jump there by
+// 2 k_n δ_1 (−a_1), about 0.2 N·m, which a hand at that angle felt as a buzz (the whole-robot run
+// before 2026-12-05).
+TEST(GraspField, SqueezeIsTheShallowerPolesAndContinuousWhenTheSecondPoleTouches) {
+  GraspSettings s;
+  const Eigen::Vector3d centre =
+      Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) * (kDistance * kBisector);
+  GraspField field(Ball(), Eigen::Isometry3d(Eigen::Translation3d(centre)), s);
+  auto pole_unit = [&](double theta, int k) {
+    const GripPose p =
+        GripPose::FromFrame(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(), theta, 1.0);
+    return Eigen::Vector3d(k == 0 ? p.p1 : p.p2);
+  };
+  auto depth = [&](double theta, int k) {
+    const Eigen::Vector3d u = pole_unit(theta, k);
+    return kRadius - (centre - centre.dot(u) * u).norm();
+  };
+  auto rate = [&](double theta, int k) {  // a = n·w, w the foot point's velocity per −dθ
+    const Eigen::Vector3d u = pole_unit(theta, k);
+    const double t = centre.dot(u);
+    const Eigen::Vector3d foot = t * u, n = (foot - centre).normalized();
+    const double h = 1e-6;
+    const Eigen::Vector3d w = t * (pole_unit(theta - h, k) - pole_unit(theta + h, k)) / (2 * h);
+    return n.dot(w);
+  };
+  double previous = 0.0, largest_step = 0.0;
+  int squeezed = 0, pole1_alone = 0;
+  for (double theta = 1.3; theta > 0.8; theta -= 1e-4) {
+    const double g = field.Evaluate(Grip(theta)).g;
+    largest_step = std::max(largest_step, std::abs(g - previous));
+    previous = g;
+    const double d1 = depth(theta, 0), d2 = depth(theta, 1);
+    if (d1 > 0 && d2 <= 0) {
+      ++pole1_alone;
+      EXPECT_EQ(g, 0.0) << theta;
+    }
+    if (d1 > 0 && d2 > 0) {
+      ++squeezed;
+      const int j = d1 <= d2 ? 0 : 1;
+      const double m = std::min(d1, d2);
+      EXPECT_NEAR(field.depth(0), d1, 1e-9) << theta;
+      EXPECT_NEAR(field.depth(1), d2, 1e-9) << theta;
+      const double expected = -2.0 * (2.0 * s.stiffness * m * (-rate(theta, j)));
+      EXPECT_NEAR(g, expected, 1e-4 * std::abs(expected) + 1e-9) << theta;
+      // Where pole 2 touches, pole 1 is deep already.
+      if (squeezed == 1) {
+        EXPECT_GT(d1, 5e-4) << theta;
+      }
+    }
+  }
+  EXPECT_GT(pole1_alone, 100);
+  EXPECT_GT(squeezed, 100);
+  // 1e-4 rad steps on a stiffness of about 9 N·m/rad in g.
+  EXPECT_LT(largest_step, 0.01);
 }
 
 TEST(GraspField, GraspedObjectFollowsTheGrip) {

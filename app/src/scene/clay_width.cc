@@ -49,10 +49,7 @@ ClaySqueeze ComputeClaySqueeze(const haptics::DistanceField& clay, const Eigen::
     const int pole = k == 0 ? j : 1 - j;
     out.contact_W[k] = tool.p_WT + out.pole[pole].t * (tool.R_WT * poles.u_T[pole]);
   }
-  const double ramp = std::min(1.0, out.squeeze / s.grab_depth);
-  double q = 2.0 * s.stiffness * out.squeeze * (-out.pole[j].a);
-  q -= s.damping * ramp * std::min(tool.grasp_rate, 0.0);
-  out.g = std::isfinite(q) ? -2.0 * q : 0.0;
+  out.g = -2.0 * haptics::SqueezeQ(out.squeeze, out.pole[j].a, tool.grasp_rate, s);
   return out;
 }
 

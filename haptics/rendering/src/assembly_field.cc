@@ -268,32 +268,29 @@ double AssemblyField::PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const Too
   const std::array<Eigen::Vector3d, 2>& u_T = poles.u_T;
   const Eigen::Vector3d du_T[2] = {-poles.du_T[0], -poles.du_T[1]};
   const double d = s.pole_length;
-  double q = 0.0;
-  int pushing = 0;
+  double a[2] = {0.0, 0.0};
   depths[0] = depths[1] = 0.0;
+  *both_pushing = false;
   for (int k = 0; k < 2; ++k) {
     const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
     auto phi_at = [&](double t) { return field.Evaluate(X_PW * (tool.p_WT + t * u_W), nullptr); };
     // Unrefined when the pole cannot reach inside (its depth is 0 either way).
     const PoleMinimum m = FindPoleMinimum(phi_at, d, s.samples, s.refine_iterations, 0.0);
-    const double best_t = m.t, best_phi = m.phi;
-    depths[k] = std::max(0.0, -best_phi);
-    // A pole that does not push into the part: no grasp whatever the other does (Q and the
-    // depths are used only when both push), so the other is not searched.
-    if (depths[k] <= 0) break;
+    depths[k] = std::max(0.0, -m.phi);
+    // A pole that does not push into the part: no grasp whatever the other does (the squeeze
+    // and the depths are used only when both push), so the other is not searched.
+    if (depths[k] <= 0) return 0.0;
     Eigen::Vector3d g_P;
-    field.Evaluate(X_PW * (tool.p_WT + best_t * u_W), &g_P);
+    field.Evaluate(X_PW * (tool.p_WT + m.t * u_W), &g_P);
     const Eigen::Vector3d g = X_WPj.linear() * g_P;
     const double gn = g.norm();
-    if (!(gn > 0)) break;
-    const double a = (g / gn).dot(tool.R_WT * (best_t * du_T[k]));
-    if (!(a < 0)) break;
-    ++pushing;
-    q += s.stiffness * depths[k] * (-a);
+    if (!(gn > 0)) return 0.0;
+    a[k] = (g / gn).dot(tool.R_WT * (m.t * du_T[k]));
+    if (!(a[k] < 0)) return 0.0;
   }
-  *both_pushing = pushing == 2;
-  if (!*both_pushing) return 0.0;
-  return q - s.damping * std::min(tool.grasp_rate, 0.0);
+  *both_pushing = true;
+  const int shallower = depths[0] <= depths[1] ? 0 : 1;
+  return SqueezeQ(depths[shallower], a[shallower], tool.grasp_rate, s);
 }
 
 ToolWrench AssemblyField::ToolContact(const ToolKinematics& tool) noexcept {

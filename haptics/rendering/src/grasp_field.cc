@@ -68,22 +68,17 @@ ToolWrench GraspField::Evaluate(const ToolKinematics& tool) noexcept {
   }
   const PoleDirections poles = GripPoleDirections(tool.grasp);
   auto phi = [this](const Eigen::Vector3d& p_W, Eigen::Vector3d* g) { return Phi(p_W, g); };
-  double q = 0.0;
-  bool pushing[2] = {false, false};
+  PoleContact contact[2];
   for (int k = 0; k < 2; ++k) {
-    const PoleContact c = FindPoleContact(phi, tool.p_WT, tool.R_WT, poles, k, s.pole_length,
-                                          s.samples, s.refine_iterations);
-    depth_[k] = c.depth;
-    if (c.pushing) {
-      pushing[k] = true;
-      q += s.stiffness * c.depth * (-c.a);
-    }
+    contact[k] = FindPoleContact(phi, tool.p_WT, tool.R_WT, poles, k, s.pole_length, s.samples,
+                                 s.refine_iterations);
+    depth_[k] = contact[k].depth;
   }
 
   ToolWrench w;
-  if (pushing[0] && pushing[1]) {
-    q -= s.damping * std::min(tool.grasp_rate, 0.0);
-    w.g = -2.0 * q;
+  if (contact[0].pushing && contact[1].pushing) {
+    const PoleContact& shallower = contact[0].depth <= contact[1].depth ? contact[0] : contact[1];
+    w.g = -2.0 * SqueezeQ(shallower.depth, shallower.a, tool.grasp_rate, s);
     if (!grasped_ && depth_[0] >= s.grab_depth && depth_[1] >= s.grab_depth) {
       grasped_ = true;
       Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();

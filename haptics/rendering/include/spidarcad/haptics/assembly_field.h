@@ -12,7 +12,8 @@
 //  * Not carrying: the grip's two poles (grasp_field.h: pole k along u_k in T, from −d to +d
 //    about p_WT) are sampled against every graspable part near the tool. When both poles push
 //    into one part while closing, the grasp torque g = −2Q < 0 renders the part's width
-//    (Q = Σ_k k_n δ_k (−a_k) − b_n min(θ̇, 0), as in GraspField); once both depths reach
+//    (Q = 2 k_n m (−a_j) − b_n r min(θ̇, 0) of the shallower pole j, m = min(δ_1, δ_2):
+//    grasp_field.h's SqueezeQ, continuous as the second pole touches); once both depths reach
 //    `grab_depth` the part is picked up at its current relative pose X_TP = X_WT⁻¹ X_WP.
 //    The tool itself touches the parts through its own point shell (`tool_shell`, in T, may
 //    be empty): a direct penalty, each point inside part j pushed out along ∇φ_j,
@@ -197,9 +198,9 @@ class AssemblyField final : public ForceField {
   void EvaluateGathered(int j, int m, bool gradient) noexcept;
   // The gradient EvaluateGathered left at batch position k, turned into W as Phi turns it.
   Eigen::Vector3d GatheredGradient_W(int j, int k) const noexcept;
-  // Grasp generalised force Q (>= 0) of the poles on part j at pose X_WP_j (for the carried part,
-  // its target pose); *both_pushing tells whether both poles push into it; depths to *depths
-  // (m; when both push: once one pole does not, the other is not searched and Q is 0).
+  // Grasp generalised force Q (>= 0, SqueezeQ) of the poles on part j at pose X_WP_j (for the
+  // carried part, its target pose); *both_pushing tells whether both poles push into it; depths to
+  // *depths (m; when both push: once one pole does not, the other is not searched and Q is 0).
   double PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const ToolKinematics& tool,
                    bool* both_pushing, double depths[2]) const noexcept;
   // Tool shell penalty against all parts at the grip pose.

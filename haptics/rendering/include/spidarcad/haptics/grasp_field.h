@@ -8,12 +8,19 @@
 // the depth δ_k = max(0, −φ) at t_k along the pole, the object's outward unit normal n_k and
 // the velocity of that point per unit of closing (−dθ): w_k = R_WT·t_k·∂u_k/∂(−θ), |w_k| = |t_k|/2.
 // Closing pushes pole k into the object when a_k = n_k·w_k < 0. When BOTH poles touch that way
-// the fingers squeeze the object: a penalty energy ½ k_n Σ δ_k² gives the generalised force on θ
-//   Q = Σ_k k_n δ_k (−a_k) − b_n min(θ̇, 0)    (> 0, opening; damping only while closing),
-// and, since the generalised force on θ is −g/2 (tension.h), the grasp torque g = −2Q < 0: the
-// grip stops where the fingers meet the object and pushes back; opening is free (Q = 0 as soon
-// as a pole leaves the object). One pole alone touching gives no grasp torque (the object would
-// be pushed, not squeezed: six-DOF contact renders that).
+// the fingers squeeze the object. The squeeze depth is the shallower pole's, m = min(δ_1, δ_2),
+// with a penalty energy k_n m², so the generalised force on θ is
+//   Q = 2 k_n m (−a_j) − b_n r min(θ̇, 0),   j the shallower pole, r = min(1, m / grab_depth)
+// (> 0, opening; damping only while closing, ramped in over grab_depth), and, since the
+// generalised force on θ is −g/2 (tension.h), the grasp torque g = −2Q < 0: the grip stops
+// where the fingers meet the object and pushes back; opening is free. One pole alone touching
+// gives no grasp torque (the object would be pushed, not squeezed: six-DOF contact renders
+// that). Q is continuous when the second pole touches or leaves (m = 0 there), though the first
+// may be deep already: a sum over the poles, Σ_k k_n δ_k (−a_k), would jump by k_n δ_1 (−a_1)
+// there, and a hand holding the grip at that point (the scripted whole-robot run, 2026-12-05)
+// made it buzz between 0 and the torque limit from tick to tick. Where both poles sink equally
+// the two are the same. SqueezeQ below is the formula, shared with the clay width
+// (app/src/scene/clay_width.h) and the assembly (assembly_field.h).
 //
 // Grasping: when both depths reach `grab_depth`, grasped() turns true and the object's pose
 // relative to the tool X_TO is recorded; while grasped the object moves with the grip
@@ -31,6 +38,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <atomic>
+#include <cmath>
 #include <limits>
 #include <memory>
 
@@ -137,6 +145,17 @@ struct GraspSettings {
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
 };
+
+// The squeeze of two poles that both push (see the top of this file): the generalised force on
+// θ, Q = 2 k_n m (−a) − b_n min(1, m / grab_depth) min(θ̇, 0) (N·m, > 0 opening), for the
+// shallower pole's depth m >= 0 (m) and its a < 0 (m/rad), grasp_rate θ̇ (rad/s). Real-time
+// safe; 0 for a non-finite result.
+inline double SqueezeQ(double m, double a, double grasp_rate, const GraspSettings& s) noexcept {
+  const double ramp = m < s.grab_depth ? m / s.grab_depth : 1.0;
+  const double q =
+      2.0 * s.stiffness * m * (-a) - s.damping * ramp * (grasp_rate < 0.0 ? grasp_rate : 0.0);
+  return std::isfinite(q) ? q : 0.0;
+}
 
 // What the grasp field publishes for the app.
 struct GraspState {
