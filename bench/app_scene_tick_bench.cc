@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -43,7 +44,7 @@ constexpr const char* kDescription =
     "p99, p99.9 and max per scene as a markdown table for the README. The measurement lives in\n"
     "app/src/cli/report_tick.cc (shared with `spidarcad report`, section \"tick\").\n"
     "  build/bench/app_scene_tick_bench [--ticks N] [--slowest N] [--warm-up N] [--normal]\n"
-    "                                   [--no-lock]     (--help: what it measures)\n"
+    "                                   [--no-lock] [--repeat R]  (--help: what it measures)\n"
     "As the window's haptic runtime: the memory locked (mlockall when permitted) and the ticks\n"
     "on a SCHED_FIFO thread (when permitted); the CPU table adds page faults and context\n"
     "switches.\n"
@@ -76,6 +77,11 @@ constexpr const char* kDescription =
     "  --no-golden leave out the golden runs' rows (default: one row per golden run of\n"
     "              tests/golden, every tick of its `spidarcad run`, app/src/cli/golden_runs.cc)\n"
     "  --golden-ticks N  time at most N ticks of each golden run (default: all of them)\n"
+    "  --repeat R  run everything R times (R >= 1, default 1) and add a table of the repeatable\n"
+    "              tick time: per tick, the least thread CPU time over the R runs. The ticks\n"
+    "              are deterministic, so a tick slow in every run is slow by its own work, and\n"
+    "              time the machine charged to one run's tick (interrupts, the hypervisor) is\n"
+    "              not in it. The tables above it are the first run's.\n"
     "  --help      this text\n"
     "This program is not a Google Benchmark: --benchmark_* flags are not taken.";
 
@@ -89,13 +95,56 @@ bool ParseCount(const char* text, long least, long* count) {
   return true;
 }
 
+// The repeatable tick time of every row present in all runs (cli/report_tick.h RepeatableTicks).
+void PrintRepeatable(const std::vector<std::vector<spidarcad::app::SceneTickRow>>& runs) {
+  std::printf(
+      "\nRepeatable tick time: per tick, the least thread CPU time over %zu runs (ticks are "
+      "deterministic; time charged to one run's tick by the machine drops out), µs. Last "
+      "columns: each run's own maximum, and the slowest repeatable tick's time in each run.\n\n"
+      "| scene | ticks in every run | p50 | p99.9 | max | slowest tick | single-run maxima | "
+      "that tick per run |\n|---|---|---|---|---|---|---|---|\n",
+      runs.size());
+  for (const auto& row : runs.front()) {
+    std::vector<const spidarcad::app::SceneTickRow*> same;
+    for (const auto& run : runs)
+      for (const auto& r : run)
+        if (r.name == row.name) {
+          same.push_back(&r);
+          break;
+        }
+    if (same.size() != runs.size()) continue;
+    spidarcad::app::SceneTickRow rep;
+    try {
+      rep = spidarcad::app::RepeatableTicks(same);
+    } catch (const std::invalid_argument& e) {
+      std::printf("| %s | %s |\n", row.name.c_str(), e.what());
+      continue;
+    }
+    std::string maxima, at_tick;
+    const long slow = rep.slowest.empty() ? -1 : rep.slowest.front().index;
+    for (const auto* r : same) {
+      char cell[48];
+      std::snprintf(cell, sizeof cell, "%s%.1f", maxima.empty() ? "" : ", ", r->cpu_max);
+      maxima += cell;
+      double t = -1.0;
+      for (std::size_t i = 0; i < r->cpu.size(); ++i)
+        if ((i < r->index.size() ? r->index[i] : static_cast<long>(i)) == slow) t = r->cpu[i];
+      std::snprintf(cell, sizeof cell, "%s%.1f", at_tick.empty() ? "" : ", ", t);
+      at_tick += cell;
+    }
+    std::printf("| %s | %zu | %.1f | %.1f | %.1f | %ld | %s | %s |\n", rep.name.c_str(),
+                rep.cpu.size(), rep.cpu_p50, rep.cpu_p999, rep.cpu_max, slow, maxima.c_str(),
+                at_tick.c_str());
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   spidarcad::app::SceneTickOptions options;
   options.realtime = true;
   bool lock_memory = true, golden = true;
-  long slowest = 0, golden_ticks = 0;
+  long slowest = 0, golden_ticks = 0, repeat = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -128,6 +177,13 @@ int main(int argc, char** argv) {
       }
       continue;
     }
+    if (const char* value = value_of("--repeat")) {
+      if (!ParseCount(value, 1, &repeat)) {
+        std::fprintf(stderr, "%s: --repeat: '%s' is not an integer >= 1\n", argv[0], value);
+        return 2;
+      }
+      continue;
+    }
     if (const char* value = value_of("--ticks")) {
       if (!ParseCount(value, 1000, &options.ticks)) {
         std::fprintf(stderr, "%s: --ticks: '%s' is not an integer >= 1000\n", argv[0], value);
@@ -145,10 +201,12 @@ int main(int argc, char** argv) {
         return 2;
       }
     } else {
-      std::fprintf(stderr,
-                   "%s: unknown argument '%s' (this program takes --ticks N, --warm-up N, "
-                   "--slowest N, --normal, --no-lock and --help)\n",
-                   argv[0], argv[i]);
+      std::fprintf(
+          stderr,
+          "%s: unknown argument '%s' (this program takes --ticks N, --warm-up N, "
+          "--slowest N, --normal, --no-lock, --no-golden, --golden-ticks N, --repeat R and "
+          "--help)\n",
+          argv[0], argv[i]);
       return 2;
     }
   }
@@ -156,10 +214,14 @@ int main(int argc, char** argv) {
   const spidarcad::haptics::MemoryLockResult lock = lock_memory
                                                         ? spidarcad::haptics::LockProcessMemory()
                                                         : spidarcad::haptics::MemoryLockResult{};
-  std::vector<spidarcad::app::SceneTickRow> rows = spidarcad::app::MeasureSceneTicks(options);
-  if (golden)
-    for (auto& r : spidarcad::app::MeasureGoldenRunTicks(options, golden_ticks))
-      rows.push_back(std::move(r));
+  std::vector<std::vector<spidarcad::app::SceneTickRow>> runs(static_cast<std::size_t>(repeat));
+  for (auto& run : runs) {
+    run = spidarcad::app::MeasureSceneTicks(options);
+    if (golden)
+      for (auto& r : spidarcad::app::MeasureGoldenRunTicks(options, golden_ticks))
+        run.push_back(std::move(r));
+  }
+  const std::vector<spidarcad::app::SceneTickRow>& rows = runs.front();
   std::printf("HapticLoop::Step compute time, %ld ticks per scene, simulated device + hand\n",
               options.ticks);
   std::printf("measuring thread: %s; %s\n\n", rows.empty() ? "-" : rows.front().scheduling.c_str(),
@@ -222,5 +284,6 @@ int main(int argc, char** argv) {
       std::printf("%s\n", shown == 0 ? " none" : "");
     }
   }
+  if (repeat > 1) PrintRepeatable(runs);
   return 0;
 }

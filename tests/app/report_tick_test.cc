@@ -12,6 +12,7 @@
 #include <fstream>
 #include <numeric>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,59 @@ TEST(ReportTick, RowCarriesCpuP999MaxFaultsAndTheSlowestTicksOfItsSamples) {
   EXPECT_EQ(sub.slowest[1].index, 77);
   EXPECT_EQ(sub.slowest[2].index, 40);
   EXPECT_EQ(sub.ticks_with_faults, 1);
+}
+
+// Three runs of 1000 ticks at 10 µs each (wall 12 µs), with tick 300 slow in every run (the
+// code's: 150, 170, 160 µs) and one run-only outlier each (ticks 5, 600, 999: the machine's).
+// The repeatable row keeps the least time of each tick, so its maximum is tick 300's 150 µs,
+// and its slowest ticks name it; a subset row is matched by tick index, keeping the ticks in
+// every run.
+TEST(ReportTick, RepeatableTicksKeepEachTicksLeastTimeOverTheRuns) {
+  const int n = 1000;
+  std::vector<SceneTickRow> runs(3);
+  const long outlier[3] = {5, 600, 999};
+  const double slow[3] = {150.0, 170.0, 160.0};
+  for (int r = 0; r < 3; ++r) {
+    std::vector<double> cpu(n, 10.0), us(n, 12.0);
+    cpu[300] = slow[r];
+    us[300] = slow[r] + 1.0;
+    cpu[outlier[r]] = 2500.0;
+    us[outlier[r]] = 2600.0;
+    runs[r] = SummarizeTicks("scene", us, cpu, std::vector<TickCounters>(n));
+    EXPECT_EQ(runs[r].cpu_max, 2500.0);
+  }
+  const SceneTickRow rep = RepeatableTicks({&runs[0], &runs[1], &runs[2]});
+  EXPECT_EQ(rep.name, "scene");
+  ASSERT_EQ(rep.cpu.size(), static_cast<std::size_t>(n));
+  EXPECT_EQ(rep.cpu_max, 150.0);
+  EXPECT_EQ(rep.max, 151.0);
+  EXPECT_EQ(rep.cpu_p50, 10.0);
+  EXPECT_EQ(rep.cpu[5], 10.0);
+  EXPECT_EQ(rep.cpu[600], 10.0);
+  ASSERT_FALSE(rep.slowest.empty());
+  EXPECT_EQ(rep.slowest[0].index, 300);
+  EXPECT_EQ(rep.slowest[0].cpu, 150.0);
+  // One run alone is its own repeatable row.
+  EXPECT_EQ(RepeatableTicks({&runs[1]}).cpu_max, 2500.0);
+
+  // Subsets: ticks {10, 20, 30} and {20, 30, 40}; only 20 and 30 are in both.
+  const SceneTickRow a =
+      SummarizeTicks("subset", {1.0, 2.0, 3.0}, {1.0, 2.0, 3.0}, std::vector<TickCounters>(3),
+                     std::vector<long>{10, 20, 30});
+  const SceneTickRow b =
+      SummarizeTicks("subset", {5.0, 1.5, 9.0}, {5.0, 1.5, 9.0}, std::vector<TickCounters>(3),
+                     std::vector<long>{20, 30, 40});
+  const SceneTickRow ab = RepeatableTicks({&a, &b});
+  EXPECT_EQ(ab.index, (std::vector<long>{20, 30}));
+  EXPECT_EQ(ab.cpu, (std::vector<double>{2.0, 1.5}));
+  EXPECT_EQ(ab.cpu_max, 2.0);
+  EXPECT_EQ(ab.slowest[0].index, 20);
+
+  const SceneTickRow c =
+      SummarizeTicks("subset", {1.0}, {1.0}, std::vector<TickCounters>(1), std::vector<long>{99});
+  EXPECT_THROW(RepeatableTicks({&a, &c}), std::invalid_argument);
+  EXPECT_THROW(RepeatableTicks({}), std::invalid_argument);
+  EXPECT_THROW(RepeatableTicks({&a, nullptr}), std::invalid_argument);
 }
 
 // Fields of a CSV line; a field in double quotes may hold commas.

@@ -34,8 +34,10 @@
 #include <functional>
 #include <memory>
 #include <numbers>
+#include <stdexcept>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "cli/golden_runs.h"
@@ -522,7 +524,46 @@ SceneTickRow SummarizeTicks(const std::string& name, const std::vector<double>& 
   row.us = us;
   row.cpu = cpu;
   row.counters = counters;
+  row.index = tick_index;
   return row;
+}
+
+SceneTickRow RepeatableTicks(const std::vector<const SceneTickRow*>& runs) {
+  if (runs.empty()) throw std::invalid_argument("RepeatableTicks: no runs");
+  for (const SceneTickRow* r : runs)
+    if (r == nullptr) throw std::invalid_argument("RepeatableTicks: a null row");
+  // Tick index of sample i of a row.
+  auto tick_of = [](const SceneTickRow& r, std::size_t i) {
+    return i < r.index.size() ? r.index[i] : static_cast<long>(i);
+  };
+  // Per run, tick index -> sample, for the ticks of the first run.
+  const SceneTickRow& first = *runs.front();
+  std::vector<double> us, cpu;
+  std::vector<long> index;
+  std::vector<std::unordered_map<long, std::size_t>> sample_of(runs.size());
+  for (std::size_t r = 1; r < runs.size(); ++r) {
+    sample_of[r].reserve(runs[r]->cpu.size());
+    for (std::size_t i = 0; i < runs[r]->cpu.size(); ++i) sample_of[r][tick_of(*runs[r], i)] = i;
+  }
+  for (std::size_t i = 0; i < first.cpu.size() && i < first.us.size(); ++i) {
+    const long tick = tick_of(first, i);
+    double least_us = first.us[i], least_cpu = first.cpu[i];
+    bool in_all = true;
+    for (std::size_t r = 1; r < runs.size() && in_all; ++r) {
+      const auto it = sample_of[r].find(tick);
+      in_all = it != sample_of[r].end() && it->second < runs[r]->us.size();
+      if (!in_all) break;
+      least_us = std::min(least_us, runs[r]->us[it->second]);
+      least_cpu = std::min(least_cpu, runs[r]->cpu[it->second]);
+    }
+    if (!in_all) continue;
+    us.push_back(least_us);
+    cpu.push_back(least_cpu);
+    index.push_back(tick);
+  }
+  if (cpu.empty())
+    throw std::invalid_argument("RepeatableTicks: the runs of '" + first.name + "' share no tick");
+  return SummarizeTicks(first.name, us, cpu, std::vector<TickCounters>(cpu.size()), index);
 }
 
 std::vector<SceneTickRow> MeasureGoldenRunTicks(const SceneTickOptions& options, long max_ticks,

@@ -41,6 +41,9 @@ struct SceneTickRow {
   std::string scheduling;         // of the measuring thread: "SCHED_FIFO 80", "normal ..."
   std::vector<double> us, cpu;    // the samples, per tick (wall clock, thread CPU), µs
   std::vector<TickCounters> counters;  // per tick
+  // The run's tick index of each sample, for rows over a subset of the ticks; empty: sample i
+  // is tick i.
+  std::vector<long> index;
 };
 
 // Number of ticks SceneTickRow::slowest keeps.
@@ -87,5 +90,16 @@ SceneTickRow SummarizeTicks(const std::string& name, const std::vector<double>& 
                             const std::vector<double>& cpu,
                             const std::vector<TickCounters>& counters,
                             const std::vector<long>& tick_index = {});
+
+// The same scene measured in several runs, tick by tick: the simulated tick is deterministic
+// (seeded device errors, scripted hand), so tick i does the same work in every run, and time
+// that the machine charged to one run's tick (an interrupt, the hypervisor: a different tick in
+// each run) is gone from the least of its times. Returns a row named after the first run's,
+// whose per-tick wall and CPU times are the least over the runs of each tick present in all of
+// them (matched by index, SceneTickRow::index), summarised as SummarizeTicks does (its counters
+// are zero: they belong to single runs). A tick slow in every run is slow here: that is the
+// code's. Throws std::invalid_argument when `runs` is empty, holds a null row, or the runs
+// share no tick.
+SceneTickRow RepeatableTicks(const std::vector<const SceneTickRow*>& runs);
 
 }  // namespace spidarcad::app
