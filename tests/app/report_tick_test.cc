@@ -193,6 +193,36 @@ TEST(ReportTick, TickSectionReportsThreadCpuP999AndMaxPerScene) {
   const std::string summary = ReadWholeFile(dir + "/summary.md");
   EXPECT_NE(summary.find("worst p99.9"), std::string::npos) << summary;
   EXPECT_NE(summary.find("worst max"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("repeatable over 3 runs: worst p99.9"), std::string::npos) << summary;
+
+  // The repeatable table: one row per scene kind that every run has; each tick's least time
+  // cannot exceed any run's maximum, and its p99.9 cannot exceed its maximum.
+  EXPECT_NE(md.find("Repeatable tick time"), std::string::npos) << md;
+  std::ifstream rep(dir + "/tick_repeatable.csv");
+  ASSERT_TRUE(std::getline(rep, line));
+  EXPECT_EQ(line,
+            "scene,ticks,cpu_p50_us,cpu_p999_us,cpu_max_us,slowest_tick,single_run_cpu_max_us");
+  int rep_rows = 0;
+  while (std::getline(rep, line)) {
+    const std::vector<std::string> f = SplitQuoted(line);
+    ASSERT_EQ(f.size(), 7u) << line;
+    EXPECT_EQ(f[0], names[rep_rows]) << line;
+    EXPECT_GT(std::stol(f[1]), 0) << line;
+    const double rep_max = std::stod(f[4]);
+    EXPECT_LE(std::stod(f[3]), rep_max) << line;
+    int runs_listed = 0;
+    for (std::size_t at = 0; at != std::string::npos;) {
+      const std::size_t comma = f[6].find(',', at);
+      EXPECT_LE(rep_max, std::stod(f[6].substr(at, comma - at))) << line;
+      ++runs_listed;
+      at = comma == std::string::npos ? comma : comma + 1;
+    }
+    EXPECT_EQ(runs_listed, 3) << line;
+    ++rep_rows;
+  }
+  // Every scene kind's row: the FE k = 16 and carrying rows are subsets whose ticks may differ
+  // between runs, but they share most of them.
+  EXPECT_EQ(rep_rows, 11);
 }
 
 }  // namespace
