@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "point_field.h"
+#include "spidarcad/modeling/triangle_closest_point.h"
 #include "triangle_predicates.h"
 
 namespace spidarcad::modeling {
@@ -626,6 +627,7 @@ class Sharpener {
     std::vector<std::pair<int, std::array<int, 3>>> changed;
     std::vector<std::pair<int, Eigen::Vector3d>> moves;
     int removed_vertex = -1;
+    int kept_vertex = -1;  // a collapse: the vertex the removed one merges into
     int new_crease_vertex = -1;
     int kind = 0;  // 1 collapse, 2 snap, 3 flip, 4 move
   };
@@ -716,6 +718,23 @@ class Sharpener {
       const auto p = Corners(op.changed[i].second);
       if (!FacesOutward(Normal(p), p[0], p[1], p[2])) ok = false;
     }
+    // A crease vertex merged into its neighbour: the crease point it marked stays within the
+    // larger of tolerance and the old triangles' deviation of the new triangles.
+    if (ok && op.removed_vertex >= 0 && pinned_[op.removed_vertex]) {
+      const Eigen::Vector3d& x = pos_[op.removed_vertex];
+      double nearest = INFINITY;
+      auto to = [&](const std::array<int, 3>& corners) {
+        const auto p = Corners(corners);
+        nearest = std::min(nearest, (x - ClosestPointOnTriangle(x, p[0], p[1], p[2])).norm());
+      };
+      for (const auto& [t, corners] : op.changed) to(corners);
+      for (int t : vertex_tris_[op.kept_vertex]) {
+        if (!dead_tri_[t]) to(tris_[t]);
+      }
+      if (nearest > std::max(tolerance, before.max) && neighbourhood < 0.0)
+        neighbourhood = NeighbourhoodDeviation(op, saved_tris);
+      if (!(nearest <= std::max({tolerance, before.max, neighbourhood}))) ok = false;
+    }
     if (ok) {
       std::vector<int> changed;
       for (const auto& c : op.changed) changed.push_back(c.first);
@@ -797,6 +816,22 @@ class Sharpener {
     return worst;
   }
 
+  // Whether a corner of a triangle op changes (saved_tris: as it was) or removes is a feature
+  // vertex (of the last round, or pinned by the repair).
+  bool NearFeature(const Op& op, const std::vector<std::array<int, 3>>& saved_tris) const {
+    for (int t : op.removed) {
+      for (int v : tris_[t]) {
+        if (is_feature_[v] || pinned_[v]) return true;
+      }
+    }
+    for (const auto& tri : saved_tris) {
+      for (int v : tri) {
+        if (is_feature_[v] || pinned_[v]) return true;
+      }
+    }
+    return false;
+  }
+
   // The triangle (u, v, w) listed for edge u->v, or -1.
   int TriangleWithEdge(int u, int v) const {
     for (int t : vertex_tris_[u]) {
@@ -842,6 +877,7 @@ class Sharpener {
     op->kind = 1;
     op->removed = {t1, t2};
     op->removed_vertex = u;
+    op->kept_vertex = v;
     for (int t : vertex_tris_[u]) {
       if (t == t1 || t == t2) continue;
       auto tri = tris_[t];

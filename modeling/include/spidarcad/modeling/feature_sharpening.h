@@ -39,8 +39,10 @@
 //     or removes, each new triangle faces as the one it replaces (or, after a flip, as the
 //     pair did) and as the surface, their sampled distance to the surface stays within the
 //     largest of the old one, sliver_deviation_cells and that of the triangles around the
-//     corners of the changed ones (on curved faces the neighbours' chords), moved vertices keep
-//     min_separation_cells, and no changed triangle meets a triangle around it (as in step 3).
+//     corners of the changed ones (on curved faces the neighbours' chords), a crease vertex
+//     merged into its neighbour stays within that same distance of the new triangles (the
+//     crease point it marked stays covered), moved vertices keep min_separation_cells, and no
+//     changed triangle meets a triangle around it (as in step 3).
 //     The one with the largest smallest angle is done. Collapses remove a vertex and two
 //     triangles.
 //  5. Then the triangles with an angle below relax_angle_deg: each corner that is not a feature
