@@ -766,6 +766,7 @@ class Sharpener {
       const int t = op.changed[i].first;
       for (int v : saved_tris[i]) erase(v, t);
       for (int v : tris_[t]) vertex_tris_[v].push_back(t);
+      touched_.push_back(t);
     }
     if (op.removed_vertex >= 0) {
       const int u = op.removed_vertex;
@@ -1051,21 +1052,31 @@ class Sharpener {
     dead_vertex_.assign(pos_.size(), 0);
     dead_tri_.assign(tris_.size(), 0);
     std::vector<std::pair<double, int>> bad;
+    // Triangles to look at: all at first, then those of the last sweep's list and those its
+    // operations changed (every other triangle kept its angles, so this finds the same list as
+    // a scan of the whole mesh).
+    std::vector<int> look;
+    for (int t = 0; t < static_cast<int>(tris_.size()); ++t) look.push_back(t);
     for (int sweep = 0; sweep < 10; ++sweep) {
       Poll();
+      std::sort(look.begin(), look.end());
+      look.erase(std::unique(look.begin(), look.end()), look.end());
       bad.clear();
-      for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
+      for (int t : look) {
         if (dead_tri_[t]) continue;
         const double a = TriangleMinAngle(Corners(tris_[t]));
         if (a < limit) bad.push_back({a, t});
       }
       std::sort(bad.begin(), bad.end());
+      touched_.clear();
       long changed = 0;
       for (const auto& [angle, t] : bad) {
         if (dead_tri_[t] || !(TriangleMinAngle(Corners(tris_[t])) < limit)) continue;
         changed += RepairTriangle(t);
       }
       if (changed == 0) break;
+      look = touched_;
+      for (const auto& entry : bad) look.push_back(entry.second);
     }
   }
 
@@ -1145,6 +1156,7 @@ class Sharpener {
   int round_stamp_ = 0;
   std::vector<int> mark_;      // scratch of MakeCollapse (link condition)
   std::vector<int> tri_mark_;  // scratch of NeighbourhoodDeviation
+  std::vector<int> touched_;   // RepairSlivers: triangles changed in this sweep
   int tri_stamp2_ = 0;
   std::vector<Eigen::Vector3d> saved_before_;  // TryOp: positions of op's moved vertices before
   int mark_stamp_ = 0;

@@ -674,7 +674,9 @@ TEST(SharpenFeatures, SliverRepairPassesTheSurfaceCheckOnShiftedGridsAndThePlatf
     const TriangleMesh repaired = SharpenFeatures(solid, plain, f);
     EXPECT_EQ(EulerOfClosedManifold(repaired), EulerOfClosedManifold(plain)) << what;
     EXPECT_GT(MeshVolume(repaired), 0.0) << what;
-    if (sdf) EXPECT_EQ(CountTurnedOver(repaired, *sdf), 0) << what;
+    if (sdf) {
+      EXPECT_EQ(CountTurnedOver(repaired, *sdf), 0) << what;
+    }
     EXPECT_FALSE(HasFoldedNeighbours(repaired)) << what;
     try {
       CheckSurface(repaired);
