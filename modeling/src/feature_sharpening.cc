@@ -659,6 +659,7 @@ class Sharpener {
   // the smallest angle after the change (radians), or -1 when a test fails. Commits the change
   // if commit, otherwise leaves the mesh as it was.
   double TryOp(const Op& op, bool commit) {
+    if (!commit) return AngleAfter(op);
     const double tolerance = s_.sliver_deviation_cells * h_;
     double before_min = M_PI;
     Deviation before;
@@ -833,6 +834,45 @@ class Sharpener {
     return false;
   }
 
+  // The geometric part of TryOp alone (no field evaluations): the smallest angle after op if the
+  // changed triangles keep facing as TryOp asks and that angle exceeds the smallest of the
+  // triangles op changes or removes, else -1. Where TryOp passes it returns the same angle.
+  double AngleAfter(const Op& op) {
+    double before_min = M_PI;
+    Eigen::Vector3d ref = Eigen::Vector3d::Zero();
+    for (int t : op.removed) {
+      const auto p = Corners(tris_[t]);
+      before_min = std::min(before_min, TriangleMinAngle(p));
+      ref += Normal(p);
+    }
+    scratch_normals_.clear();
+    for (const auto& [t, corners] : op.changed) {
+      const auto p = Corners(tris_[t]);
+      before_min = std::min(before_min, TriangleMinAngle(p));
+      ref += Normal(p);
+      scratch_normals_.push_back(Normal(p));
+    }
+    for (const auto& [v, x] : op.moves) {
+      if (!x.allFinite()) return -1.0;
+    }
+    auto at = [&](int v) -> const Eigen::Vector3d& {
+      for (const auto& [w, x] : op.moves) {
+        if (w == v) return x;
+      }
+      return pos_[v];
+    };
+    double after_min = M_PI;
+    for (size_t i = 0; i < op.changed.size(); ++i) {
+      const auto& [t, corners] = op.changed[i];
+      const std::array<Eigen::Vector3d, 3> p{at(corners[0]), at(corners[1]), at(corners[2])};
+      const bool same_slot = op.kind == 1 || corners == tris_[t];
+      if (!(Normal(p).dot(same_slot ? scratch_normals_[i] : ref) > 0.0)) return -1.0;
+      after_min = std::min(after_min, TriangleMinAngle(p));
+      if (!(after_min > before_min)) return -1.0;
+    }
+    return after_min;
+  }
+
   // The triangle (u, v, w) listed for edge u->v, or -1.
   int TriangleWithEdge(int u, int v) const {
     for (int t : vertex_tris_[u]) {
@@ -948,17 +988,16 @@ class Sharpener {
   // edges, a snap of its widest corner onto the opposite edge (flip that edge, move the
   // corner onto it: onto the crease when the edge joins two crease vertices), flips of its
   // edges, and relaxation moves of its corners off the features. Keeps the candidate with the
-  // largest smallest angle; returns whether one was done.
+  // largest smallest angle; returns whether one was done. (The candidates are ranked by their
+  // angle alone, AngleAfter, and tried with every test in that order: the first to pass is the
+  // one with the largest angle among those that pass.)
   bool RepairTriangle(int t) {
     const auto tri = tris_[t];
-    Op best, op;
-    double best_angle = -1.0;
+    Op op;
+    std::vector<std::pair<double, Op>> ranked;
     auto consider = [&](const Op& candidate) {
-      const double a = TryOp(candidate, false);
-      if (a > best_angle) {
-        best_angle = a;
-        best = candidate;
-      }
+      const double a = AngleAfter(candidate);
+      if (a >= 0.0) ranked.push_back({a, candidate});
     };
     // Collapses.
     for (int k = 0; k < 3; ++k) {
@@ -1029,8 +1068,17 @@ class Sharpener {
       AddFan(v, &op);
       consider(op);
     }
-    if (best_angle < 0.0) return false;
-    if (TryOp(best, true) < 0.0) return false;
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    const Op* done = nullptr;
+    for (const auto& [angle, candidate] : ranked) {
+      if (TryOp(candidate, true) >= 0.0) {
+        done = &candidate;
+        break;
+      }
+    }
+    if (!done) return false;
+    const Op& best = *done;
     collapses_ += best.kind == 1;
     snaps_ += best.kind == 2;
     sliver_flips_ += best.kind == 3;
@@ -1154,9 +1202,10 @@ class Sharpener {
   std::vector<int> nearby_;  // scratch of ChangedTrianglesMeetOthers
   std::vector<char> dirty_;  // per triangle: to be tried by the next FlipPass
   int round_stamp_ = 0;
-  std::vector<int> mark_;      // scratch of MakeCollapse (link condition)
-  std::vector<int> tri_mark_;  // scratch of NeighbourhoodDeviation
-  std::vector<int> touched_;   // RepairSlivers: triangles changed in this sweep
+  std::vector<int> mark_;                         // scratch of MakeCollapse (link condition)
+  std::vector<int> tri_mark_;                     // scratch of NeighbourhoodDeviation
+  std::vector<int> touched_;                      // RepairSlivers: triangles changed in this sweep
+  std::vector<Eigen::Vector3d> scratch_normals_;  // AngleAfter
   int tri_stamp2_ = 0;
   std::vector<Eigen::Vector3d> saved_before_;  // TryOp: positions of op's moved vertices before
   int mark_stamp_ = 0;

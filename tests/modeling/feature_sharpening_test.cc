@@ -762,6 +762,47 @@ TEST(SharpenFeatures, FasterPredicatesKeepTheOutputBitForBit) {
   }
 }
 
+// The sliver repair's output frozen as fingerprints (support/mesh_fingerprint.h), as the branch
+// that added it gave it on 2026-12-05 (GCC 12, x86-64): the box minus the cylinder (snapped)
+// and the platform, as in FasterPredicatesKeepTheOutputBitForBit. A change meant to alter the
+// output re-freezes them and says why.
+TEST(SharpenFeatures, SliverRepairOutputIsFrozen) {
+  const Vec offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
+  const CompiledSolid holed = CompiledSolid::Compile(ImplicitNode(
+      TranslateParams{offset},
+      {ImplicitNode(DifferenceParams{},
+                    {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})})}));
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  struct Case {
+    const char* name;
+    const CompiledSolid* solid;
+    Eigen::AlignedBox3d bounds;
+    double cell, snap;
+    std::uint64_t fingerprint;
+  };
+  const Case cases[] = {
+      {"box-cylinder", &holed,
+       Eigen::AlignedBox3d(offset - size / 2 - Vec(0.0107, 0.0113, 0.0109),
+                           offset + size / 2 + Vec::Constant(0.01)),
+       0.004, 0.15, 0x9b7a0212ace0e25cull},
+      {"platform", &platform, Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02)),
+       0.008, 0.0, 0x5b9426a1ef19bcbaull},
+  };
+  for (const Case& c : cases) {
+    SurfaceMeshSettings settings;
+    settings.bounds = c.bounds;
+    settings.cell_size = c.cell;
+    settings.snap_cells = c.snap;
+    FeatureSettings features;
+    features.cell_size = c.cell;
+    features.sliver_angle_deg = 10.0;
+    const TriangleMesh mesh = SharpenFeatures(*c.solid, MeshSurface(*c.solid, settings), features);
+    EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint)
+        << c.name << ": the repaired mesh differs from the frozen one";
+  }
+}
+
 TEST(SharpenFeatures, SphereIsNotMadeWorse) {
   const double radius = 0.05;
   const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(SphereParams{radius}));
