@@ -818,22 +818,6 @@ class Sharpener {
     return worst;
   }
 
-  // Whether a corner of a triangle op changes (saved_tris: as it was) or removes is a feature
-  // vertex (of the last round, or pinned by the repair).
-  bool NearFeature(const Op& op, const std::vector<std::array<int, 3>>& saved_tris) const {
-    for (int t : op.removed) {
-      for (int v : tris_[t]) {
-        if (is_feature_[v] || pinned_[v]) return true;
-      }
-    }
-    for (const auto& tri : saved_tris) {
-      for (int v : tri) {
-        if (is_feature_[v] || pinned_[v]) return true;
-      }
-    }
-    return false;
-  }
-
   // The geometric part of TryOp alone (no field evaluations): the smallest angle after op if the
   // changed triangles keep facing as TryOp asks and that angle exceeds the smallest of the
   // triangles op changes or removes, else -1. Where TryOp passes it returns the same angle.
