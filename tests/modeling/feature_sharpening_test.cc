@@ -855,5 +855,26 @@ TEST(SharpenFeatures, RejectsBadSettingsAndOpenMeshes) {
   EXPECT_NO_THROW(SharpenFeatures(solid, mesh, f));
 }
 
+TEST(SharpenFeatures, RejectsBadSliverSettings) {
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
+  SurfaceMeshSettings s;
+  s.bounds = Eigen::AlignedBox3d(Vec::Constant(-0.06), Vec::Constant(0.06));
+  s.cell_size = 0.01;
+  const TriangleMesh mesh = MeshSurface(solid, s);
+  FeatureSettings f;
+  f.cell_size = 0.01;
+  f.sliver_angle_deg = 60.0;
+  EXPECT_THROW(SharpenFeatures(solid, mesh, f), std::invalid_argument);
+  f.sliver_angle_deg = -1.0;
+  EXPECT_THROW(SharpenFeatures(solid, mesh, f), std::invalid_argument);
+  f.sliver_angle_deg = 10.0;
+  f.sliver_deviation_cells = -0.01;
+  EXPECT_THROW(SharpenFeatures(solid, mesh, f), std::invalid_argument);
+  f.sliver_deviation_cells = NAN;
+  EXPECT_THROW(SharpenFeatures(solid, mesh, f), std::invalid_argument);
+  f.sliver_deviation_cells = 0.0;
+  EXPECT_NO_THROW(SharpenFeatures(solid, mesh, f));
+}
+
 }  // namespace
 }  // namespace spidarcad::modeling
