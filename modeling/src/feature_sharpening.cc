@@ -627,7 +627,8 @@ class Sharpener {
     std::vector<std::pair<int, std::array<int, 3>>> changed;
     std::vector<std::pair<int, Eigen::Vector3d>> moves;
     int removed_vertex = -1;
-    int kept_vertex = -1;  // a collapse: the vertex the removed one merges into
+    std::vector<Eigen::Vector3d> keep_covered;  // crease points the new triangles must cover
+    int cover_vertex = -1;  // whose triangles count for keep_covered (with the changed ones)
     int new_crease_vertex = -1;
     int kind = 0;  // 1 collapse, 2 snap, 3 flip, 4 move
   };
@@ -653,13 +654,15 @@ class Sharpener {
 
   // Tries op against the safety tests: every changed triangle keeps facing the way it did (or,
   // if its corners changed, the way the triangles it replaces did on the whole) and the way the
-  // surface does, their smallest angle grows past that of every triangle changed or removed,
-  // their sampled distance to the surface stays within max(the old one, tolerance), moved
-  // vertices keep their separation, and no changed triangle meets a triangle around it. Returns
-  // the smallest angle after the change (radians), or -1 when a test fails. Commits the change
-  // if commit, otherwise leaves the mesh as it was.
+  // surface does, their angles improve (AngleAfter), their sampled distance to the surface
+  // stays within the largest of the old one, tolerance and the neighbours'
+  // (NeighbourhoodDeviation), the crease points in op.keep_covered stay as close, moved vertices
+  // keep their separation, and no changed triangle meets a triangle around it. Returns the smallest
+  // angle after the change (radians), or -1 when a test fails. Commits the change if commit;
+  // otherwise only AngleAfter is asked and the mesh is left as it was.
   double TryOp(const Op& op, bool commit) {
-    if (!commit) return AngleAfter(op);
+    const double angle = AngleAfter(op);
+    if (!commit || angle < 0.0) return angle;
     const double tolerance = s_.sliver_deviation_cells * h_;
     double before_min = M_PI;
     Deviation before;
@@ -706,8 +709,6 @@ class Sharpener {
       const bool same_slot = op.kind == 1 || corners == saved_tris[i];
       const Eigen::Vector3d& against = same_slot ? old_normals[i] : ref;
       if (!(n.dot(against) > 0.0)) ok = false;
-      after_min = std::min(after_min, TriangleMinAngle(p));
-      if (ok && !(after_min > before_min)) ok = false;
       if (ok) after.Add(TriangleDeviation(p[0], p[1], p[2]));
       if (ok && after.max > std::max(before.max, tolerance) && neighbourhood < 0.0)
         neighbourhood = NeighbourhoodDeviation(op, saved_tris);
@@ -719,17 +720,18 @@ class Sharpener {
       const auto p = Corners(op.changed[i].second);
       if (!FacesOutward(Normal(p), p[0], p[1], p[2])) ok = false;
     }
-    // A crease vertex merged into its neighbour: the crease point it marked stays within the
-    // larger of tolerance and the old triangles' deviation of the new triangles.
-    if (ok && op.removed_vertex >= 0 && pinned_[op.removed_vertex]) {
-      const Eigen::Vector3d& x = pos_[op.removed_vertex];
+    // Crease points the op must keep covered (a crease vertex merged into its neighbour or slid
+    // along its crease) stay within the same distance of the new triangles (those changed and
+    // those around op.cover_vertex).
+    for (const Eigen::Vector3d& x : op.keep_covered) {
+      if (!ok) break;
       double nearest = INFINITY;
       auto to = [&](const std::array<int, 3>& corners) {
         const auto p = Corners(corners);
         nearest = std::min(nearest, (x - ClosestPointOnTriangle(x, p[0], p[1], p[2])).norm());
       };
       for (const auto& [t, corners] : op.changed) to(corners);
-      for (int t : vertex_tris_[op.kept_vertex]) {
+      for (int t : vertex_tris_[op.cover_vertex]) {
         if (!dead_tri_[t]) to(tris_[t]);
       }
       if (nearest > std::max(tolerance, before.max) && neighbourhood < 0.0)
@@ -818,21 +820,28 @@ class Sharpener {
     return worst;
   }
 
-  // The geometric part of TryOp alone (no field evaluations): the smallest angle after op if the
+  // The geometric part of TryOp (no field evaluations): the smallest angle after op if the
   // changed triangles keep facing as TryOp asks and that angle exceeds the smallest of the
-  // triangles op changes or removes, else -1. Where TryOp passes it returns the same angle.
+  // triangles op changes or removes, or equals it (within 1e-6 relative) with fewer of them
+  // under sliver_angle_deg; else -1.
   double AngleAfter(const Op& op) {
+    const double limit = s_.sliver_angle_deg * M_PI / 180.0;
     double before_min = M_PI;
+    int before_count = 0, after_count = 0;
     Eigen::Vector3d ref = Eigen::Vector3d::Zero();
     for (int t : op.removed) {
       const auto p = Corners(tris_[t]);
-      before_min = std::min(before_min, TriangleMinAngle(p));
+      const double a = TriangleMinAngle(p);
+      before_min = std::min(before_min, a);
+      before_count += a < limit;
       ref += Normal(p);
     }
     scratch_normals_.clear();
     for (const auto& [t, corners] : op.changed) {
       const auto p = Corners(tris_[t]);
-      before_min = std::min(before_min, TriangleMinAngle(p));
+      const double a = TriangleMinAngle(p);
+      before_min = std::min(before_min, a);
+      before_count += a < limit;
       ref += Normal(p);
       scratch_normals_.push_back(Normal(p));
     }
@@ -851,9 +860,14 @@ class Sharpener {
       const std::array<Eigen::Vector3d, 3> p{at(corners[0]), at(corners[1]), at(corners[2])};
       const bool same_slot = op.kind == 1 || corners == tris_[t];
       if (!(Normal(p).dot(same_slot ? scratch_normals_[i] : ref) > 0.0)) return -1.0;
-      after_min = std::min(after_min, TriangleMinAngle(p));
-      if (!(after_min > before_min)) return -1.0;
+      const double a = TriangleMinAngle(p);
+      after_min = std::min(after_min, a);
+      after_count += a < limit;
+      if (!(after_min >= before_min * (1.0 - 1e-6))) return -1.0;
     }
+    // Better: a larger smallest angle, or the same one (within rounding) on fewer triangles
+    // under the limit.
+    if (!(after_min > before_min) && !(after_count < before_count)) return -1.0;
     return after_min;
   }
 
@@ -902,7 +916,8 @@ class Sharpener {
     op->kind = 1;
     op->removed = {t1, t2};
     op->removed_vertex = u;
-    op->kept_vertex = v;
+    op->cover_vertex = v;
+    if (pinned_[u]) op->keep_covered.push_back(pos_[u]);
     for (int t : vertex_tris_[u]) {
       if (t == t1 || t == t2) continue;
       auto tri = tris_[t];
@@ -971,7 +986,8 @@ class Sharpener {
   // Candidate operations for triangle t (sharper than the repair angle): collapses of its
   // edges, a snap of its widest corner onto the opposite edge (flip that edge, move the
   // corner onto it: onto the crease when the edge joins two crease vertices), flips of its
-  // edges, and relaxation moves of its corners off the features. Keeps the candidate with the
+  // edges, slides of its crease corners along their crease, and relaxation moves of its corners
+  // off the features. Keeps the candidate with the
   // largest smallest angle; returns whether one was done. (The candidates are ranked by their
   // angle alone, AngleAfter, and tried with every test in that order: the first to pass is the
   // one with the largest angle among those that pass.)
@@ -1032,6 +1048,28 @@ class Sharpener {
       if (pinned_[p] && pinned_[q]) continue;
       if (MakeFlip(p, q, &op)) consider(op);
     }
+    // Slides of its crease corners (not corners of the solid) along the crease, half way to a
+    // crease neighbour: where two creases run less than a cell apart, vertices facing each
+    // other across the narrow face make needles that a shift by half a spacing removes.
+    for (int c : tri) {
+      if (!pinned_[c] || rank_[c] == 3) continue;
+      for (int u : vertex_tris_[c]) {
+        const auto& f = tris_[u];
+        const int at = f[0] == c ? 0 : f[1] == c ? 1 : 2;
+        const int w = f[(at + 1) % 3];  // each neighbour once
+        if (!pinned_[w]) continue;
+        const Eigen::Vector3d mid = 0.5 * (pos_[c] + pos_[w]);
+        Eigen::Vector3d x;
+        if (!CreasePoint(mid, c, w, 0.1 * (pos_[w] - pos_[c]).norm(), &x)) continue;
+        op = Op{};
+        op.kind = 5;
+        op.moves.push_back({c, x});
+        AddFan(c, &op);
+        op.keep_covered.push_back(pos_[c]);
+        op.cover_vertex = c;
+        consider(op);
+      }
+    }
     // Relaxation of the corners off the features: towards the centroid of the one-ring in the
     // tangent plane, back onto the surface.
     for (int v : tri) {
@@ -1066,7 +1104,7 @@ class Sharpener {
     collapses_ += best.kind == 1;
     snaps_ += best.kind == 2;
     sliver_flips_ += best.kind == 3;
-    sliver_moves_ += best.kind == 4;
+    sliver_moves_ += best.kind == 4 || best.kind == 5;
     return true;
   }
 
