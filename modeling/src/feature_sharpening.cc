@@ -630,7 +630,7 @@ class Sharpener {
     std::vector<Eigen::Vector3d> keep_covered;  // crease points the new triangles must cover
     int cover_vertex = -1;  // whose triangles count for keep_covered (with the changed ones)
     int new_crease_vertex = -1;
-    int kind = 0;  // 1 collapse, 2 snap, 3 flip, 4 move
+    int kind = 0;  // 1 collapse, 2 snap, 3 flip, 4 move, 5 slide along the crease
   };
 
   static double TriangleMinAngle(const std::array<Eigen::Vector3d, 3>& p) {
@@ -657,19 +657,17 @@ class Sharpener {
   // surface does, their angles improve (AngleAfter), their sampled distance to the surface
   // stays within the largest of the old one, tolerance and the neighbours'
   // (NeighbourhoodDeviation), the crease points in op.keep_covered stay as close, moved vertices
-  // keep their separation, and no changed triangle meets a triangle around it. Returns the smallest
-  // angle after the change (radians), or -1 when a test fails. Commits the change if commit;
-  // otherwise only AngleAfter is asked and the mesh is left as it was.
+  // keep their separation, and no changed triangle meets a triangle around it. Returns the
+  // smallest angle after the change (radians), or -1 when a test fails. Commits the change if
+  // commit; otherwise only AngleAfter is asked and the mesh is left as it was.
   double TryOp(const Op& op, bool commit) {
     const double angle = AngleAfter(op);
     if (!commit || angle < 0.0) return angle;
     const double tolerance = s_.sliver_deviation_cells * h_;
-    double before_min = M_PI;
     Deviation before;
     Eigen::Vector3d ref = Eigen::Vector3d::Zero();
     auto old_tri = [&](int t) {
       const auto p = Corners(tris_[t]);
-      before_min = std::min(before_min, TriangleMinAngle(p));
       before.Add(TriangleDeviation(p[0], p[1], p[2]));
       ref += Normal(p);
     };
@@ -697,7 +695,6 @@ class Sharpener {
       for (size_t i = 0; i < op.moves.size(); ++i) pos_[op.moves[i].first] = saved_pos[i];
       for (int t : op.removed) dead_tri_[t] = 0;
     };
-    double after_min = M_PI;
     Deviation after;
     double neighbourhood = -1.0;  // NeighbourhoodDeviation, when needed
     bool ok = true;
@@ -745,9 +742,9 @@ class Sharpener {
       // changed) or removed (dead).
       if (ChangedTrianglesMeetOthers(changed)) ok = false;
     }
-    if (!ok || !commit) {
+    if (!ok) {
       revert();
-      return ok ? after_min : -1.0;
+      return -1.0;
     }
     // Commit: positions and corners are in place; now the lists, the hash and the flags.
     for (size_t i = 0; i < op.moves.size(); ++i) {
@@ -782,7 +779,7 @@ class Sharpener {
       pinned_[op.new_crease_vertex] = 1;
       rank_[op.new_crease_vertex] = 2;
     }
-    return after_min;
+    return angle;
   }
 
   // Largest sampled distance to the surface (m) of the triangles around the corners of the
