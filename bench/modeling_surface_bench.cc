@@ -292,9 +292,10 @@ constexpr const char* kBenchDescription =
     "   each measured to the nearest triangle through a uniform grid of triangles.\n"
     "Max and mean of both directions are printed as a markdown table after the benchmarks.\n"
     "BM_Snap: snap_cells 0 to 0.25 on the sphere, a torus and the platform (angles against\n"
-    "error); BM_CreaseFloor: the sharpening's min_angle_deg and relax_angle_deg on default and\n"
-    "snapped surfaces of the box minus the cylinder and the platform (crease error against\n"
-    "angles). Select with --benchmark_filter=BM_Snap etc.\n"
+    "error); BM_CreaseFloor: the sharpening's min_angle_deg, relax_angle_deg and sliver_angle_deg\n"
+    "(the sliver repair; rows /.../1/0/10/) on default and snapped surfaces of the box minus the\n"
+    "cylinder and the platform (crease error against angles). Select with\n"
+    "--benchmark_filter=BM_Snap etc.\n"
     "BM_FindBounds: the box search of `spidarcad mesh` (1 cm over [-10, 10]^3, then size/80) on\n"
     "unions of 1,000 to 100,000 spheres, its time and how far the box lies beyond the exact one.\n"
     "Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.";
