@@ -5,7 +5,9 @@
 //   raw:        MeshSurface with clean = false (marching tetrahedra, octree, regula falsi);
 //   MeshSurface: the default settings (with the clean-up);
 //   + sharpen:  MeshSurface then SharpenFeatures (`spidarcad mesh --sharp`);
-//   snap 0.15:  MeshSurface with SurfaceMeshSettings::snap_cells = 0.15 (and + sharpen).
+//   snap 0.15:  MeshSurface with SurfaceMeshSettings::snap_cells = 0.15 (and + sharpen);
+//   + repair:   the sharpening with FeatureSettings::sliver_angle_deg = 10 (the sliver repair),
+//               on the default and on the snapped surface.
 // Solids: a sphere of radius 50 mm and a box 100 x 80 x 60 mm minus a cylinder of radius 20 mm
 // (exact distances of the primitives, min/max of the boolean), both off the grid planes, and the
 // platform of assets/scenes/platform.json (the 62 ms / 118 ms figure of the mesher's design
@@ -242,12 +244,19 @@ int main(int argc, char** argv) {
       SurfaceMeshSettings settings;
       settings.bounds = c.bounds;
       settings.cell_size = cell;
-      // raw, default, default + sharpen, snap 0.15, snap 0.15 + sharpen.
-      const char* names[] = {"raw", "MeshSurface", "+ sharpen", "snap 0.15", "snap 0.15 + sharpen"};
-      for (int variant = 0; variant < 5; ++variant) {
+      // raw, default, default + sharpen, snap 0.15, snap 0.15 + sharpen, and the two sharpened
+      // ones with the sliver repair.
+      const char* names[] = {"raw",
+                             "MeshSurface",
+                             "+ sharpen",
+                             "snap 0.15",
+                             "snap 0.15 + sharpen",
+                             "+ sharpen + repair",
+                             "snap 0.15 + sharpen + repair"};
+      for (int variant = 0; variant < 7; ++variant) {
         settings.clean = variant != 0;
-        settings.snap_cells = variant >= 3 ? 0.15 : 0.0;
-        const bool sharpen = variant == 2 || variant == 4;
+        settings.snap_cells = variant == 3 || variant == 4 || variant == 6 ? 0.15 : 0.0;
+        const bool sharpen = variant == 2 || variant >= 4;
         const double t0 = CpuSeconds();
         TriangleMesh mesh = MeshSurface(c.solid, settings);
         const double t1 = CpuSeconds();
@@ -255,6 +264,7 @@ int main(int argc, char** argv) {
         if (sharpen) {
           FeatureSettings f;
           f.cell_size = cell;
+          if (variant >= 5) f.sliver_angle_deg = 10.0;
           mesh = SharpenFeatures(c.solid, std::move(mesh), f);
           sharpen_s = CpuSeconds() - t1;
         }

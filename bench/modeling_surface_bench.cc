@@ -176,9 +176,12 @@ BENCHMARK(BM_Snap)
     ->Unit(benchmark::kMillisecond);
 
 // What keeps sharpened creases under 10°: MeshSurface (snap_cells = state.range(2) / 100) then
-// SharpenFeatures with min_angle_deg = state.range(3) and relax_angle_deg = state.range(4), on
-// case state.range(0) at cell state.range(1) / 10 mm. Counters: the two-sided Hausdorff error
-// (as BM_Surface), the smallest angle and the triangles under 5° and 10°, the sharpening's time.
+// SharpenFeatures with min_angle_deg = state.range(3), relax_angle_deg = state.range(4) and
+// sliver_angle_deg = state.range(5) (the sliver repair, step 4b), on case state.range(0) at cell
+// state.range(1) / 10 mm. Counters: the two-sided Hausdorff error (as BM_Surface), the smallest
+// angle and the triangles under 5° and 10°, the sharpening's time, the triangle count, and
+// closed_manifold (1 when closed, oriented and manifold with the Euler characteristic of the
+// unsharpened mesh).
 void BM_CreaseFloor(benchmark::State& state) {
   const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
   const double cell = state.range(1) * 1e-4;
@@ -190,10 +193,17 @@ void BM_CreaseFloor(benchmark::State& state) {
   f.cell_size = cell;
   f.min_angle_deg = static_cast<double>(state.range(3));
   f.relax_angle_deg = static_cast<double>(state.range(4));
-  TriangleMesh mesh;
+  f.sliver_angle_deg = static_cast<double>(state.range(5));
+  TriangleMesh mesh, plain;
   FeatureStats feature_stats;
-  for (auto _ : state)
-    mesh = SharpenFeatures(c.solid, MeshSurface(c.solid, settings), f, &feature_stats);
+  for (auto _ : state) {
+    plain = MeshSurface(c.solid, settings);
+    mesh = SharpenFeatures(c.solid, plain, f, &feature_stats);
+  }
+  long euler = 0, plain_euler = 0;
+  const bool manifold = spidarcad::bench::IsClosedManifold(mesh, &euler) &&
+                        spidarcad::bench::IsClosedManifold(plain, &plain_euler) &&
+                        euler == plain_euler;
   const Error e = MeasureHausdorff(c, mesh, cell);
   state.SetLabel(c.name);
   state.counters["hausdorff_mm"] = e.TwoSided() * 1e3;
@@ -202,10 +212,15 @@ void BM_CreaseFloor(benchmark::State& state) {
   state.counters["under_10_deg"] =
       static_cast<double>(MeasureTriangleAngles(mesh, 10.0).small_angle);
   state.counters["sharpen_s"] = feature_stats.seconds;
+  state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
+  state.counters["closed_manifold"] = manifold ? 1.0 : 0.0;
 }
 BENCHMARK(BM_CreaseFloor)
-    ->ArgsProduct({{1}, {40, 20, 10}, {0, 15}, {1, 5, 10}, {0, 10}})
-    ->ArgsProduct({{2}, {80, 40}, {0, 15}, {1, 5, 10}, {0, 10}})
+    ->ArgsProduct({{1}, {40, 20, 10}, {0, 15}, {1, 5, 10}, {0, 10}, {0}})
+    ->ArgsProduct({{2}, {80, 40}, {0, 15}, {1, 5, 10}, {0, 10}, {0}})
+    // The sliver repair (sliver_angle_deg = 10) after the default floor of 1°.
+    ->ArgsProduct({{1}, {40, 20, 10}, {0, 15}, {1}, {0}, {10}})
+    ->ArgsProduct({{2}, {80, 40}, {0, 15}, {1}, {0}, {10}})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
@@ -277,9 +292,10 @@ constexpr const char* kBenchDescription =
     "   each measured to the nearest triangle through a uniform grid of triangles.\n"
     "Max and mean of both directions are printed as a markdown table after the benchmarks.\n"
     "BM_Snap: snap_cells 0 to 0.25 on the sphere, a torus and the platform (angles against\n"
-    "error); BM_CreaseFloor: the sharpening's min_angle_deg and relax_angle_deg on default and\n"
-    "snapped surfaces of the box minus the cylinder and the platform (crease error against\n"
-    "angles). Select with --benchmark_filter=BM_Snap etc.\n"
+    "error); BM_CreaseFloor: the sharpening's min_angle_deg, relax_angle_deg and sliver_angle_deg\n"
+    "(the sliver repair; rows /.../1/0/10/) on default and snapped surfaces of the box minus the\n"
+    "cylinder and the platform (crease error against angles). Select with\n"
+    "--benchmark_filter=BM_Snap etc.\n"
     "BM_FindBounds: the box search of `spidarcad mesh` (1 cm over [-10, 10]^3, then size/80) on\n"
     "unions of 1,000 to 100,000 spheres, its time and how far the box lies beyond the exact one.\n"
     "Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.";

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "point_field.h"
+#include "spidarcad/modeling/triangle_closest_point.h"
 #include "triangle_predicates.h"
 
 namespace spidarcad::modeling {
@@ -142,6 +143,8 @@ class Sharpener {
       };
       std::vector<Candidate> candidates;
       is_feature_.assign(pos_.size(), false);
+      rank_.assign(pos_.size(), 0);
+      target_.resize(pos_.size());
       feature = corners = 0;
       std::vector<Plane> planes;
       for (int v = 0; v < static_cast<int>(pos_.size()); ++v) {
@@ -151,6 +154,8 @@ class Sharpener {
         Eigen::Vector3d target;
         if (!Solve(v, planes, cos_crease, &rank, &target)) continue;
         is_feature_[v] = true;
+        rank_[v] = rank;
+        target_[v] = target;
         ++feature;
         corners += rank == 3;
         const double d = (target - pos_[v]).norm();
@@ -185,6 +190,17 @@ class Sharpener {
     // their long edge flips where that raises their smallest angle (Relax, FlipForAngle).
     const double relax_angle = s_.relax_angle_deg * M_PI / 180.0;
     if (is_feature_.size() != pos_.size()) is_feature_.assign(pos_.size(), false);
+    // 4b. Triangles sharper than sliver_angle_deg: collapses, flips, snaps onto creases and
+    // relaxation moves (RepairSlivers); the mesh is then renumbered (Compact).
+    if (s_.sliver_angle_deg > 0.0) {
+      RepairSlivers();
+      Compact();
+      feature = corners = 0;
+      for (size_t v = 0; v < pos_.size(); ++v) {
+        feature += is_feature_[v];
+        corners += is_feature_[v] && rank_[v] == 3;
+      }
+    }
     for (int sweep = 0; sweep < 4 && relax_angle > 0.0; ++sweep) {
       Poll();
       long changed = 0;
@@ -206,6 +222,10 @@ class Sharpener {
       stats->edges_flipped = flipped_;
       stats->rejected_moves = rejected_;
       stats->relaxed = relaxed_;
+      stats->sliver_collapses = collapses_;
+      stats->sliver_snaps = snaps_;
+      stats->sliver_flips = sliver_flips_;
+      stats->sliver_moves = sliver_moves_;
     }
     TriangleMesh out;
     out.vertices.resize(3, static_cast<Eigen::Index>(pos_.size()));
@@ -314,6 +334,12 @@ class Sharpener {
   // whether v is a feature vertex with a usable target.
   bool Solve(int v, const std::vector<Plane>& planes, double cos_crease, int* rank,
              Eigen::Vector3d* target) const {
+    return SolveAt(pos_[v], planes, cos_crease, rank, target);
+  }
+
+  // Solve around the point x0 (m) instead of a vertex.
+  bool SolveAt(const Eigen::Vector3d& x0, const std::vector<Plane>& planes, double cos_crease,
+               int* rank, Eigen::Vector3d* target) const {
     if (planes.size() < 2) return false;
     double min_dot = 1.0;
     for (size_t i = 0; i < planes.size(); ++i) {
@@ -321,8 +347,7 @@ class Sharpener {
         min_dot = std::min(min_dot, planes[i].normal.dot(planes[j].normal));
     }
     if (min_dot >= cos_crease) return false;
-    // Normal equations around the vertex: M = Σ n nᵀ, r = Σ n (n·(p_i - x0)).
-    const Eigen::Vector3d x0 = pos_[v];
+    // Normal equations around x0: M = Σ n nᵀ, r = Σ n (n·(p_i - x0)).
     Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
     Eigen::Vector3d r = Eigen::Vector3d::Zero();
     for (const Plane& p : planes) {
@@ -378,6 +403,7 @@ class Sharpener {
       const Eigen::AlignedBox3d bt = Box(pt);
       for (int u : nearby_) {
         if (u == t) continue;
+        if (!dead_tri_.empty() && dead_tri_[u]) continue;  // removed by the operation tried
         // Each changed pair once.
         if (u < t && std::find(changed.begin(), changed.end(), u) != changed.end()) continue;
         const std::array<Eigen::Vector3d, 3> pu{pos_[tris_[u][0]], pos_[tris_[u][1]],
@@ -591,6 +617,569 @@ class Sharpener {
     return true;
   }
 
+  // ---- 4b. Sliver repair (RepairSlivers) ----
+
+  // One local change of the mesh: triangles removed, triangles given new corners (or only
+  // reshaped by a moved vertex: then listed with their corners unchanged), vertices moved, at
+  // most one vertex removed (a collapse) and vertices that become crease vertices (a snap).
+  struct Op {
+    std::vector<int> removed;
+    std::vector<std::pair<int, std::array<int, 3>>> changed;
+    std::vector<std::pair<int, Eigen::Vector3d>> moves;
+    int removed_vertex = -1;
+    std::vector<Eigen::Vector3d> keep_covered;  // crease points the new triangles must cover
+    int cover_vertex = -1;  // whose triangles count for keep_covered (with the changed ones)
+    int new_crease_vertex = -1;
+    int kind = 0;  // 1 collapse, 2 snap, 3 flip, 4 move, 5 slide along the crease
+  };
+
+  static double TriangleMinAngle(const std::array<Eigen::Vector3d, 3>& p) {
+    return MinAngle(p[0], p[1], p[2]);
+  }
+  std::array<Eigen::Vector3d, 3> Corners(const std::array<int, 3>& t) const {
+    return {pos_[t[0]], pos_[t[1]], pos_[t[2]]};
+  }
+  static Eigen::Vector3d Normal(const std::array<Eigen::Vector3d, 3>& p) {
+    return (p[1] - p[0]).cross(p[2] - p[0]);
+  }
+
+  // Adds every triangle around v not yet in op.changed, with its corners as they are.
+  void AddFan(int v, Op* op) const {
+    for (int t : vertex_tris_[v]) {
+      bool listed = std::find(op->removed.begin(), op->removed.end(), t) != op->removed.end();
+      for (const auto& c : op->changed) listed = listed || c.first == t;
+      if (!listed) op->changed.push_back({t, tris_[t]});
+    }
+  }
+
+  // Tries op against the safety tests: every changed triangle keeps facing the way it did (or,
+  // if its corners changed, the way the triangles it replaces did on the whole) and the way the
+  // surface does, their angles improve (AngleAfter), their sampled distance to the surface
+  // stays within the largest of the old one, tolerance and the neighbours'
+  // (NeighbourhoodDeviation), the crease points in op.keep_covered stay as close, moved vertices
+  // keep their separation, and no changed triangle meets a triangle around it. Returns the
+  // smallest angle after the change (radians), or -1 when a test fails. Commits the change if
+  // commit; otherwise only AngleAfter is asked and the mesh is left as it was.
+  double TryOp(const Op& op, bool commit) {
+    const double angle = AngleAfter(op);
+    if (!commit || angle < 0.0) return angle;
+    const double tolerance = s_.sliver_deviation_cells * h_;
+    Deviation before;
+    Eigen::Vector3d ref = Eigen::Vector3d::Zero();
+    auto old_tri = [&](int t) {
+      const auto p = Corners(tris_[t]);
+      before.Add(TriangleDeviation(p[0], p[1], p[2]));
+      ref += Normal(p);
+    };
+    for (int t : op.removed) old_tri(t);
+    std::vector<Eigen::Vector3d> old_normals;
+    old_normals.reserve(op.changed.size());
+    for (const auto& [t, corners] : op.changed) {
+      old_tri(t);
+      old_normals.push_back(Normal(Corners(tris_[t])));
+    }
+    for (const auto& [v, x] : op.moves) {
+      if (!x.allFinite() || TooClose(v, x, op.removed_vertex)) return -1.0;
+    }
+    // Apply.
+    std::vector<std::array<int, 3>> saved_tris;
+    for (const auto& [t, corners] : op.changed) saved_tris.push_back(tris_[t]);
+    std::vector<Eigen::Vector3d> saved_pos;
+    for (const auto& [v, x] : op.moves) saved_pos.push_back(pos_[v]);
+    saved_before_ = saved_pos;
+    for (const auto& [t, corners] : op.changed) tris_[t] = corners;
+    for (const auto& [v, x] : op.moves) pos_[v] = x;
+    for (int t : op.removed) dead_tri_[t] = 1;
+    auto revert = [&]() {
+      for (size_t i = 0; i < op.changed.size(); ++i) tris_[op.changed[i].first] = saved_tris[i];
+      for (size_t i = 0; i < op.moves.size(); ++i) pos_[op.moves[i].first] = saved_pos[i];
+      for (int t : op.removed) dead_tri_[t] = 0;
+    };
+    Deviation after;
+    double neighbourhood = -1.0;  // NeighbourhoodDeviation, when needed
+    bool ok = true;
+    for (size_t i = 0; ok && i < op.changed.size(); ++i) {
+      const auto& [t, corners] = op.changed[i];
+      const auto p = Corners(corners);
+      const Eigen::Vector3d n = Normal(p);
+      // A collapse rewrites a triangle in place (one corner renamed): against its own normal.
+      const bool same_slot = op.kind == 1 || corners == saved_tris[i];
+      const Eigen::Vector3d& against = same_slot ? old_normals[i] : ref;
+      if (!(n.dot(against) > 0.0)) ok = false;
+      if (ok) after.Add(TriangleDeviation(p[0], p[1], p[2]));
+      if (ok && after.max > std::max(before.max, tolerance) && neighbourhood < 0.0)
+        neighbourhood = NeighbourhoodDeviation(op, saved_tris);
+      if (ok && after.max > std::max({before.max, tolerance, neighbourhood})) {
+        ok = false;
+      }
+    }
+    for (size_t i = 0; ok && i < op.changed.size(); ++i) {
+      const auto p = Corners(op.changed[i].second);
+      if (!FacesOutward(Normal(p), p[0], p[1], p[2])) ok = false;
+    }
+    // Crease points the op must keep covered (a crease vertex merged into its neighbour or slid
+    // along its crease) stay within the same distance of the new triangles (those changed and
+    // those around op.cover_vertex).
+    for (const Eigen::Vector3d& x : op.keep_covered) {
+      if (!ok) break;
+      double nearest = INFINITY;
+      auto to = [&](const std::array<int, 3>& corners) {
+        const auto p = Corners(corners);
+        nearest = std::min(nearest, (x - ClosestPointOnTriangle(x, p[0], p[1], p[2])).norm());
+      };
+      for (const auto& [t, corners] : op.changed) to(corners);
+      for (int t : vertex_tris_[op.cover_vertex]) {
+        if (!dead_tri_[t]) to(tris_[t]);
+      }
+      if (nearest > std::max(tolerance, before.max) && neighbourhood < 0.0)
+        neighbourhood = NeighbourhoodDeviation(op, saved_tris);
+      if (!(nearest <= std::max({tolerance, before.max, neighbourhood}))) ok = false;
+    }
+    if (ok) {
+      std::vector<int> changed;
+      for (const auto& c : op.changed) changed.push_back(c.first);
+      // The removed vertex's fan is gone from the mesh: its triangles are rewritten (listed in
+      // changed) or removed (dead).
+      if (ChangedTrianglesMeetOthers(changed)) ok = false;
+    }
+    if (!ok) {
+      revert();
+      return -1.0;
+    }
+    // Commit: positions and corners are in place; now the lists, the hash and the flags.
+    for (size_t i = 0; i < op.moves.size(); ++i) {
+      const int v = op.moves[i].first;
+      const Eigen::Vector3d x = pos_[v];
+      pos_[v] = saved_pos[i];
+      HashErase(v);
+      pos_[v] = x;
+      HashInsert(v);
+    }
+    auto erase = [&](int v, int t) {
+      auto& list = vertex_tris_[v];
+      list.erase(std::remove(list.begin(), list.end(), t), list.end());
+    };
+    for (int t : op.removed) {
+      for (int v : tris_[t]) erase(v, t);
+    }
+    for (size_t i = 0; i < op.changed.size(); ++i) {
+      const int t = op.changed[i].first;
+      for (int v : saved_tris[i]) erase(v, t);
+      for (int v : tris_[t]) vertex_tris_[v].push_back(t);
+      touched_.push_back(t);
+    }
+    if (op.removed_vertex >= 0) {
+      const int u = op.removed_vertex;
+      HashErase(u);
+      dead_vertex_[u] = 1;
+      vertex_tris_[u].clear();
+    }
+    if (op.new_crease_vertex >= 0) {
+      is_feature_[op.new_crease_vertex] = true;
+      pinned_[op.new_crease_vertex] = 1;
+      rank_[op.new_crease_vertex] = 2;
+    }
+    return angle;
+  }
+
+  // Largest sampled distance to the surface (m) of the triangles around the corners of the
+  // triangles op changes or removes, as they were before op (op applied now; saved_tris: the
+  // changed triangles' corners before; saved_before_: the moved vertices' positions before).
+  double NeighbourhoodDeviation(const Op& op, const std::vector<std::array<int, 3>>& saved_tris) {
+    ++mark_stamp_;
+    if (mark_.size() < pos_.size()) mark_.resize(pos_.size(), 0);
+    if (tri_mark_.size() < tris_.size()) tri_mark_.resize(tris_.size(), 0);
+    std::vector<int> corners;
+    for (int t : op.removed) corners.insert(corners.end(), tris_[t].begin(), tris_[t].end());
+    for (const auto& tri : saved_tris) corners.insert(corners.end(), tri.begin(), tri.end());
+    double worst = 0.0;
+    ++tri_stamp2_;
+    auto corner_pos = [&](int v) -> Eigen::Vector3d {
+      for (size_t i = 0; i < op.moves.size(); ++i) {
+        if (op.moves[i].first == v) return saved_before_[i];
+      }
+      return pos_[v];
+    };
+    for (int v : corners) {
+      for (int t : vertex_tris_[v]) {
+        if (tri_mark_[t] == tri_stamp2_) continue;
+        tri_mark_[t] = tri_stamp2_;
+        // Triangles op changes: as they were (saved_tris), the rest as they are.
+        std::array<int, 3> tri = tris_[t];
+        for (size_t i = 0; i < op.changed.size(); ++i) {
+          if (op.changed[i].first == t) tri = saved_tris[i];
+        }
+        worst = std::max(
+            worst,
+            TriangleDeviation(corner_pos(tri[0]), corner_pos(tri[1]), corner_pos(tri[2])).max);
+      }
+    }
+    return worst;
+  }
+
+  // The geometric part of TryOp (no field evaluations): the smallest angle after op if the
+  // changed triangles keep facing as TryOp asks and that angle exceeds the smallest of the
+  // triangles op changes or removes, or equals it (within 1e-6 relative) with fewer of them
+  // under sliver_angle_deg; else -1.
+  double AngleAfter(const Op& op) {
+    const double limit = s_.sliver_angle_deg * M_PI / 180.0;
+    double before_min = M_PI;
+    int before_count = 0, after_count = 0;
+    Eigen::Vector3d ref = Eigen::Vector3d::Zero();
+    for (int t : op.removed) {
+      const auto p = Corners(tris_[t]);
+      const double a = TriangleMinAngle(p);
+      before_min = std::min(before_min, a);
+      before_count += a < limit;
+      ref += Normal(p);
+    }
+    scratch_normals_.clear();
+    for (const auto& [t, corners] : op.changed) {
+      const auto p = Corners(tris_[t]);
+      const double a = TriangleMinAngle(p);
+      before_min = std::min(before_min, a);
+      before_count += a < limit;
+      ref += Normal(p);
+      scratch_normals_.push_back(Normal(p));
+    }
+    for (const auto& [v, x] : op.moves) {
+      if (!x.allFinite()) return -1.0;
+    }
+    auto at = [&](int v) -> const Eigen::Vector3d& {
+      for (const auto& [w, x] : op.moves) {
+        if (w == v) return x;
+      }
+      return pos_[v];
+    };
+    double after_min = M_PI;
+    for (size_t i = 0; i < op.changed.size(); ++i) {
+      const auto& [t, corners] = op.changed[i];
+      const std::array<Eigen::Vector3d, 3> p{at(corners[0]), at(corners[1]), at(corners[2])};
+      const bool same_slot = op.kind == 1 || corners == tris_[t];
+      if (!(Normal(p).dot(same_slot ? scratch_normals_[i] : ref) > 0.0)) return -1.0;
+      const double a = TriangleMinAngle(p);
+      after_min = std::min(after_min, a);
+      after_count += a < limit;
+      if (!(after_min >= before_min * (1.0 - 1e-6))) return -1.0;
+    }
+    // Better: a larger smallest angle, or the same one (within rounding) on fewer triangles
+    // under the limit.
+    if (!(after_min > before_min) && !(after_count < before_count)) return -1.0;
+    return after_min;
+  }
+
+  // The triangle (u, v, w) listed for edge u->v, or -1.
+  int TriangleWithEdge(int u, int v) const {
+    for (int t : vertex_tris_[u]) {
+      const auto& tri = tris_[t];
+      for (int k = 0; k < 3; ++k) {
+        if (tri[k] == u && tri[(k + 1) % 3] == v) return t;
+      }
+    }
+    return -1;
+  }
+  static int Third(const std::array<int, 3>& tri, int a, int b) {
+    for (int v : tri) {
+      if (v != a && v != b) return v;
+    }
+    return -1;
+  }
+
+  // Collapse of edge u-v removing u, v moving to x (a copy of pos_[v] when it stays). False
+  // when the link condition fails: u and v must share exactly the two vertices opposite the
+  // edge, each of which keeps three or more triangles.
+  bool MakeCollapse(int u, int v, const Eigen::Vector3d& x, Op* op) {
+    const int t1 = TriangleWithEdge(u, v), t2 = TriangleWithEdge(v, u);
+    if (t1 < 0 || t2 < 0) return false;
+    const int a = Third(tris_[t1], u, v), b = Third(tris_[t2], u, v);
+    if (a == b || vertex_tris_[a].size() <= 3 || vertex_tris_[b].size() <= 3) return false;
+    if (vertex_tris_[u].size() + vertex_tris_[v].size() < 7) return false;
+    ++mark_stamp_;
+    if (mark_.size() < pos_.size()) mark_.resize(pos_.size(), 0);
+    for (int t : vertex_tris_[u]) {
+      for (int w : tris_[t]) mark_[w] = mark_stamp_;
+    }
+    int common = 0;
+    for (int t : vertex_tris_[v]) {
+      for (int w : tris_[t]) {
+        if (w != u && w != v && mark_[w] == mark_stamp_) {
+          mark_[w] = mark_stamp_ - 1;  // count once
+          ++common;
+        }
+      }
+    }
+    if (common != 2) return false;
+    *op = Op{};
+    op->kind = 1;
+    op->removed = {t1, t2};
+    op->removed_vertex = u;
+    op->cover_vertex = v;
+    if (pinned_[u]) op->keep_covered.push_back(pos_[u]);
+    for (int t : vertex_tris_[u]) {
+      if (t == t1 || t == t2) continue;
+      auto tri = tris_[t];
+      for (int& w : tri) {
+        if (w == u) w = v;
+      }
+      op->changed.push_back({t, tri});
+    }
+    if ((x - pos_[v]).squaredNorm() > 0.0) {
+      op->moves.push_back({v, x});
+      AddFan(v, op);
+    }
+    return true;
+  }
+
+  // Flip of edge p-q (triangles (p, q, c) and (q, p, d) become (c, p, d) and (d, q, c)), with
+  // optionally vertex c moved to x. False when c-d is already an edge or p or q would keep
+  // fewer than three triangles.
+  bool MakeFlip(int p, int q, Op* op, const Eigen::Vector3d* x = nullptr) {
+    const int t = TriangleWithEdge(p, q), t2 = TriangleWithEdge(q, p);
+    if (t < 0 || t2 < 0) return false;
+    const int c = Third(tris_[t], p, q), d = Third(tris_[t2], p, q);
+    if (c == d || vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
+    for (int u : vertex_tris_[c]) {
+      for (int w : tris_[u]) {
+        if (w == d) return false;
+      }
+    }
+    *op = Op{};
+    op->kind = 3;
+    op->changed.push_back({t, {c, p, d}});
+    op->changed.push_back({t2, {d, q, c}});
+    if (x) {
+      op->kind = 2;
+      op->moves.push_back({c, *x});
+      AddFan(c, op);
+    }
+    return true;
+  }
+
+  // The point of the crease through (or near) x0 (m), from the planes of the surface around
+  // vertices p and q (their one-rings and their triangles' projected centroids); false unless
+  // the planes make a crease (rank 2) whose point is within `reach` of x0.
+  bool CreasePoint(const Eigen::Vector3d& x0, int p, int q, double reach, Eigen::Vector3d* out) {
+    std::vector<Plane> planes;
+    auto add = [&](const Eigen::Vector3d& at) {
+      const Eigen::Vector3d n = UnitGradient(at);
+      if (n.squaredNorm() > 0.5) planes.push_back({at, n});
+    };
+    for (int v : {p, q}) {
+      for (int t : vertex_tris_[v]) {
+        const auto& tri = tris_[t];
+        add(Project((pos_[tri[0]] + pos_[tri[1]] + pos_[tri[2]]) / 3.0, 4));
+        for (int w : tri) add(pos_[w]);
+      }
+    }
+    const double cos_crease = std::cos(s_.crease_angle_deg * M_PI / 180.0);
+    int rank = 0;
+    Eigen::Vector3d x;
+    if (!SolveAt(x0, planes, cos_crease, &rank, &x) || rank != 2) return false;
+    if ((x - x0).norm() > reach) return false;
+    *out = x;
+    return true;
+  }
+
+  // Candidate operations for triangle t (sharper than the repair angle): collapses of its
+  // edges, a snap of its widest corner onto the opposite edge (flip that edge, move the
+  // corner onto it: onto the crease when the edge joins two crease vertices), flips of its
+  // edges, slides of its crease corners along their crease, and relaxation moves of its corners
+  // off the features. Keeps the candidate with the
+  // largest smallest angle; returns whether one was done. (The candidates are ranked by their
+  // angle alone, AngleAfter, and tried with every test in that order: the first to pass is the
+  // one with the largest angle among those that pass.)
+  bool RepairTriangle(int t) {
+    const auto tri = tris_[t];
+    Op op;
+    std::vector<std::pair<double, Op>> ranked;
+    auto consider = [&](const Op& candidate) {
+      const double a = AngleAfter(candidate);
+      if (a >= 0.0) ranked.push_back({a, candidate});
+    };
+    // Collapses.
+    for (int k = 0; k < 3; ++k) {
+      const int a = tri[k], b = tri[(k + 1) % 3];
+      for (int dir = 0; dir < 2; ++dir) {
+        const int u = dir ? b : a, v = dir ? a : b;  // u goes, v stays
+        if (pinned_[u] && !(pinned_[v] && rank_[u] != 3)) continue;
+        if (MakeCollapse(u, v, pos_[v], &op)) consider(op);
+        if (!pinned_[u] && !pinned_[v] && dir == 0) {
+          const Eigen::Vector3d mid = Project(0.5 * (pos_[u] + pos_[v]), 4);
+          if (MakeCollapse(u, v, mid, &op)) consider(op);
+        }
+      }
+    }
+    // The widest corner c onto the opposite edge p-q.
+    int kc = 0;
+    double widest = -1.0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d e1 = pos_[tri[(k + 1) % 3]] - pos_[tri[k]],
+                            e2 = pos_[tri[(k + 2) % 3]] - pos_[tri[k]];
+      const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+      if (angle > widest) widest = angle, kc = k;
+    }
+    {
+      const int c = tri[kc], p = tri[(kc + 1) % 3], q = tri[(kc + 2) % 3];
+      const Eigen::Vector3d pq = pos_[q] - pos_[p];
+      const double s = pq.dot(pos_[c] - pos_[p]) / pq.squaredNorm();
+      if (!pinned_[c] && widest > M_PI / 2 && s > 0.05 && s < 0.95) {
+        const Eigen::Vector3d foot = pos_[p] + s * pq;
+        Eigen::Vector3d x;
+        bool have = false;
+        if (pinned_[p] && pinned_[q]) {
+          have = CreasePoint(foot, p, q, 0.25 * pq.norm(), &x);
+        } else {
+          x = Project(foot, 4);
+          have = x.allFinite();
+        }
+        // t runs c -> p -> q, so it is the triangle of the directed edge p -> q.
+        if (have && MakeFlip(p, q, &op, &x)) {
+          if (pinned_[p] && pinned_[q]) op.new_crease_vertex = c;
+          consider(op);
+        }
+      }
+    }
+    // Flips of the edges (not between two crease vertices).
+    for (int k = 0; k < 3; ++k) {
+      const int p = tri[k], q = tri[(k + 1) % 3];
+      if (pinned_[p] && pinned_[q]) continue;
+      if (MakeFlip(p, q, &op)) consider(op);
+    }
+    // Slides of its crease corners (not corners of the solid) along the crease, half way to a
+    // crease neighbour: where two creases run less than a cell apart, vertices facing each
+    // other across the narrow face make needles that a shift by half a spacing removes.
+    for (int c : tri) {
+      if (!pinned_[c] || rank_[c] == 3) continue;
+      for (int u : vertex_tris_[c]) {
+        const auto& f = tris_[u];
+        const int at = f[0] == c ? 0 : f[1] == c ? 1 : 2;
+        const int w = f[(at + 1) % 3];  // each neighbour once
+        if (!pinned_[w]) continue;
+        const Eigen::Vector3d mid = 0.5 * (pos_[c] + pos_[w]);
+        Eigen::Vector3d x;
+        if (!CreasePoint(mid, c, w, 0.1 * (pos_[w] - pos_[c]).norm(), &x)) continue;
+        op = Op{};
+        op.kind = 5;
+        op.moves.push_back({c, x});
+        AddFan(c, &op);
+        op.keep_covered.push_back(pos_[c]);
+        op.cover_vertex = c;
+        consider(op);
+      }
+    }
+    // Relaxation of the corners off the features: towards the centroid of the one-ring in the
+    // tangent plane, back onto the surface.
+    for (int v : tri) {
+      if (pinned_[v]) continue;
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      for (int u : vertex_tris_[v]) {
+        const auto& f = tris_[u];
+        const int at = f[0] == v ? 0 : f[1] == v ? 1 : 2;
+        centre += pos_[f[(at + 1) % 3]];
+      }
+      centre /= static_cast<double>(vertex_tris_[v].size());
+      const Eigen::Vector3d n = UnitGradient(pos_[v]);
+      const Eigen::Vector3d x = Project(centre - n * n.dot(centre - pos_[v]), 4);
+      if ((x - pos_[v]).norm() > 0.5 * h_) continue;
+      op = Op{};
+      op.kind = 4;
+      op.moves.push_back({v, x});
+      AddFan(v, &op);
+      consider(op);
+    }
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    const Op* done = nullptr;
+    for (const auto& [angle, candidate] : ranked) {
+      if (TryOp(candidate, true) >= 0.0) {
+        done = &candidate;
+        break;
+      }
+    }
+    if (!done) return false;
+    const Op& best = *done;
+    collapses_ += best.kind == 1;
+    snaps_ += best.kind == 2;
+    sliver_flips_ += best.kind == 3;
+    sliver_moves_ += best.kind == 4 || best.kind == 5;
+    return true;
+  }
+
+  // Step 4b: sweeps over the triangles sharper than sliver_angle_deg, worst first, each
+  // repaired by RepairTriangle, until a sweep changes nothing (at most 10 sweeps).
+  void RepairSlivers() {
+    const double limit = s_.sliver_angle_deg * M_PI / 180.0;
+    pinned_.assign(pos_.size(), 0);
+    rank_.resize(pos_.size(), 0);
+    target_.resize(pos_.size());
+    for (size_t v = 0; v < pos_.size(); ++v) {
+      pinned_[v] = is_feature_[v] && (pos_[v] - target_[v]).norm() <= 1e-6 * h_;
+      if (!pinned_[v]) rank_[v] = 0;
+    }
+    dead_vertex_.assign(pos_.size(), 0);
+    dead_tri_.assign(tris_.size(), 0);
+    std::vector<std::pair<double, int>> bad;
+    // Triangles to look at: all at first, then those of the last sweep's list and those its
+    // operations changed (every other triangle kept its angles, so this finds the same list as
+    // a scan of the whole mesh).
+    std::vector<int> look;
+    for (int t = 0; t < static_cast<int>(tris_.size()); ++t) look.push_back(t);
+    for (int sweep = 0; sweep < 10; ++sweep) {
+      Poll();
+      std::sort(look.begin(), look.end());
+      look.erase(std::unique(look.begin(), look.end()), look.end());
+      bad.clear();
+      for (int t : look) {
+        if (dead_tri_[t]) continue;
+        const double a = TriangleMinAngle(Corners(tris_[t]));
+        if (a < limit) bad.push_back({a, t});
+      }
+      std::sort(bad.begin(), bad.end());
+      touched_.clear();
+      long changed = 0;
+      for (const auto& [angle, t] : bad) {
+        if (dead_tri_[t] || !(TriangleMinAngle(Corners(tris_[t])) < limit)) continue;
+        changed += RepairTriangle(t);
+      }
+      if (changed == 0) break;
+      look = touched_;
+      for (const auto& entry : bad) look.push_back(entry.second);
+    }
+  }
+
+  // Drops the vertices and triangles the repair removed and renumbers the rest.
+  void Compact() {
+    std::vector<int> index(pos_.size(), -1);
+    int n = 0;
+    for (size_t v = 0; v < pos_.size(); ++v) {
+      if (dead_vertex_[v]) continue;
+      index[v] = n;
+      pos_[n] = pos_[v];
+      is_feature_[n] = is_feature_[v];
+      rank_[n] = rank_[v];
+      ++n;
+    }
+    pos_.resize(n);
+    is_feature_.resize(n);
+    rank_.resize(n);
+    int m = 0;
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      if (dead_tri_[t]) continue;
+      for (int k = 0; k < 3; ++k) tris_[m][k] = index[tris_[t][k]];
+      ++m;
+    }
+    tris_.resize(m);
+    vertex_tris_.assign(n, {});
+    for (int t = 0; t < m; ++t) {
+      for (int v : tris_[t]) vertex_tris_[v].push_back(t);
+    }
+    hash_.clear();
+    for (int v = 0; v < n; ++v) HashInsert(v);
+    dead_vertex_.clear();
+    dead_tri_.clear();
+    pinned_.clear();
+  }
+
   // Spatial hash of vertex positions on cells of edge h, for the separation test.
   long long Key(const Eigen::Vector3d& p) const {
     const long long i = static_cast<long long>(std::floor(p.x() / h_)) & 0x1fffff;
@@ -603,7 +1192,7 @@ class Sharpener {
     auto& list = hash_[Key(pos_[v])];
     list.erase(std::remove(list.begin(), list.end(), v), list.end());
   }
-  bool TooClose(int v, const Eigen::Vector3d& x) const {
+  bool TooClose(int v, const Eigen::Vector3d& x, int ignore = -1) const {
     const double r2 = (s_.min_separation_cells * h_) * (s_.min_separation_cells * h_);
     for (int dx = -1; dx <= 1; ++dx) {
       for (int dy = -1; dy <= 1; ++dy) {
@@ -611,7 +1200,7 @@ class Sharpener {
           const auto it = hash_.find(Key(x + h_ * Eigen::Vector3d(dx, dy, dz)));
           if (it == hash_.end()) continue;
           for (int w : it->second) {
-            if (w != v && (pos_[w] - x).squaredNorm() < r2) return true;
+            if (w != v && w != ignore && (pos_[w] - x).squaredNorm() < r2) return true;
           }
         }
       }
@@ -632,7 +1221,19 @@ class Sharpener {
   std::vector<int> nearby_;  // scratch of ChangedTrianglesMeetOthers
   std::vector<char> dirty_;  // per triangle: to be tried by the next FlipPass
   int round_stamp_ = 0;
+  std::vector<int> mark_;                         // scratch of MakeCollapse (link condition)
+  std::vector<int> tri_mark_;                     // scratch of NeighbourhoodDeviation
+  std::vector<int> touched_;                      // RepairSlivers: triangles changed in this sweep
+  std::vector<Eigen::Vector3d> scratch_normals_;  // AngleAfter
+  int tri_stamp2_ = 0;
+  std::vector<Eigen::Vector3d> saved_before_;  // TryOp: positions of op's moved vertices before
+  int mark_stamp_ = 0;
   std::vector<bool> is_feature_;
+  std::vector<int> rank_;                     // per vertex: 2 crease, 3 corner (last round), else 0
+  std::vector<Eigen::Vector3d> target_;       // per feature vertex: its target (last round)
+  std::vector<char> pinned_;                  // per vertex: on its crease or corner (RepairSlivers)
+  std::vector<char> dead_vertex_, dead_tri_;  // removed by collapses, until Compact
+  long collapses_ = 0, snaps_ = 0, sliver_flips_ = 0, sliver_moves_ = 0;
   std::unordered_map<long long, std::vector<int>> hash_;
   long moved_ = 0, flipped_ = 0, rejected_ = 0, relaxed_ = 0;
 };
@@ -658,6 +1259,10 @@ void Validate(const FeatureSettings& s) {
     bad("min_angle_deg", s.min_angle_deg, "must be in [0, 60)");
   if (!(s.relax_angle_deg >= 0.0 && s.relax_angle_deg < 60.0))
     bad("relax_angle_deg", s.relax_angle_deg, "must be in [0, 60)");
+  if (!(s.sliver_angle_deg >= 0.0 && s.sliver_angle_deg < 60.0))
+    bad("sliver_angle_deg", s.sliver_angle_deg, "must be in [0, 60)");
+  if (!(s.sliver_deviation_cells >= 0.0) || !std::isfinite(s.sliver_deviation_cells))
+    bad("sliver_deviation_cells", s.sliver_deviation_cells, "must be >= 0");
 }
 
 }  // namespace

@@ -23,14 +23,38 @@
 //     the two triangles to the surface by half, keeps both facing outward, makes no degenerate
 //     triangle and folds neither triangle onto, or through, a triangle around it: this turns
 //     the chamfer's diagonals into edges along the crease.
+//  4b. Only with sliver_angle_deg > 0 (off by default), after the rounds: the triangles with an
+//     angle below sliver_angle_deg, worst first, in up to 10 sweeps. A feature vertex that sits on
+//     its target (on its crease or corner) is pinned: it neither moves nor goes, except that a
+//     crease vertex may merge into a pinned neighbour. Each triangle tries: collapsing each of its
+//     edges (into either end, or for two free ends into the midpoint put back on the surface), if
+//     that keeps the link condition (the ends share only the two opposite vertices, which keep
+//     three or more triangles); snapping its widest corner (over 90°) onto the opposite edge by
+//     flipping that edge and moving the corner onto it (onto the crease, by the truncated SVD of
+//     step 2 from the planes around the edge's ends, when both ends are pinned: the corner then is
+//     pinned too); flipping each of its edges that does not join two pinned vertices; sliding each
+//     pinned crease corner (not a corner of the solid) along its crease half way to a pinned
+//     neighbour (two creases closer than a cell make needles across the narrow face between them);
+//     moving each free corner towards the centroid of its neighbours in its tangent plane and back
+//     onto the surface. An operation counts only if the smallest angle of the triangles it makes
+//     exceeds that of every triangle it changes or removes (or equals it, within 1e-6 relative, on
+//     fewer triangles under sliver_angle_deg), each new triangle faces as the one it replaces (or,
+//     after a flip, as the pair did) and as the surface, their sampled distance to the surface
+//     stays within the largest of the old one, sliver_deviation_cells and that of the triangles
+//     around the corners of the changed ones (on curved faces the neighbours' chords), a crease
+//     vertex merged into its neighbour or slid along its crease stays within that same distance of
+//     the new triangles (the crease point it marked stays covered), moved vertices keep
+//     min_separation_cells, and no changed triangle meets a triangle around it (as in step 3). Of
+//     those that count, the one with the largest smallest angle is done. Collapses remove a vertex
+//     and two triangles.
 //  5. Then the triangles with an angle below relax_angle_deg: each corner that is not a feature
 //     vertex moves towards the centroid of its neighbours in its tangent plane and back onto the
 //     surface, and the longest edge flips (not a crease edge, the pair within 20° of a plane),
 //     each kept only if it raises the smallest angle of the triangles it changes, keeps them
 //     facing out and unfolded, and does not raise their sampled distance to the surface.
-// Only vertex moves and edge flips that pass the link test are used, so the mesh stays closed,
-// manifold, consistently oriented and of the same genus; vertex count and triangle count are
-// unchanged.
+// Only vertex moves, edge flips and (step 4b) edge collapses that pass the link test are used,
+// so the mesh stays closed, manifold, consistently oriented and of the same genus; without step
+// 4b the vertex count and triangle count are unchanged.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -66,6 +90,15 @@ struct FeatureSettings {
   // edge flipped where that raises their smallest angle without moving the mesh away from the
   // surface (step 5 at the top of this file).
   double relax_angle_deg = 0.0;
+  // After the rounds, triangles with an angle below this (degrees, in [0, 60); 0, the default:
+  // off) are repaired by edge collapses, edge flips, snaps of a corner onto the crease edge
+  // opposite it, slides of crease vertices along their crease and relaxation moves (step 4b at
+  // the top of this file); the vertex and triangle counts then change.
+  double sliver_angle_deg = 0.0;
+  // The repair may leave a triangle's sampled distance to the surface up to the largest of
+  // what the triangles it replaces had, what the triangles around them have, and this many
+  // cells (>= 0).
+  double sliver_deviation_cells = 0.01;
   // Polled between rounds and passes; when true SharpenFeatures throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
 };
@@ -78,12 +111,17 @@ struct FeatureStats {
   long edges_flipped = 0;     // flips done, over all rounds
   long rejected_moves = 0;    // feature targets a safety test refused
   long relaxed = 0;           // relaxation moves and angle flips (step 5)
+  long sliver_collapses = 0;  // step 4b: edge collapses
+  long sliver_snaps = 0;      // step 4b: corners snapped onto the opposite edge (with its flip)
+  long sliver_flips = 0;      // step 4b: edge flips
+  long sliver_moves = 0;      // step 4b: relaxation moves and slides along creases
   double seconds = 0.0;
 };
 
 // Moves vertices of mesh (from MeshSurface of solid: closed, manifold, outward-oriented,
 // vertices on the surface) onto the creases and corners of solid and flips edges along them
-// (see the top of this file). Returns the sharpened mesh, same vertex and triangle counts.
+// (see the top of this file). Returns the sharpened mesh, same vertex and triangle counts
+// unless settings.sliver_angle_deg > 0 (step 4b collapses edges).
 // Throws std::invalid_argument for bad settings or a mesh that is not a closed edge-manifold
 // (index out of range, an edge not shared by exactly two triangles), MeshingCancelled on cancel.
 TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh,
