@@ -352,6 +352,9 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     modeling::FeatureSettings fs;
     fs.cell_size = cell;
     fs.cancel = cancel;
+    // The slivers sharpening leaves along creases repaired, as `spidarcad mesh --sharp` does:
+    // TetGen's worst dihedral and tet count depend on them (feature_sharpening.h, step 4b).
+    fs.sliver_angle_deg = kSharpEdgeSliverAngle;
     surface = modeling::SharpenFeatures(compiled, std::move(surface), fs);
   }
   Report(progress, input.volume ? 0.35 : 1.0);
