@@ -165,6 +165,30 @@ ImplicitNode PlacedBox(const Vec& c, const Eigen::AngleAxisd& rotation, const Ve
   return ImplicitNode(TranslateParams{c}, {rotated});
 }
 
+// The union of two boxes, the second turned 0.5 rad about (0.2, 0.1, 1) and overlapping the
+// first: convex creases at right angles and concave ones at general angles.
+struct BoxUnionAtAnAngle {
+  Vec c1 = Vec(0.0007, -0.0009, 0.0004), size1 = Vec(0.08, 0.04, 0.04), b1 = size1 / 2;
+  Vec c2 = Vec(0.031, 0.021, 0.0053), size2 = Vec(0.05, 0.03, 0.03), b2 = size2 / 2;
+  Eigen::AngleAxisd rot2 = Eigen::AngleAxisd(0.5, Vec(0.2, 0.1, 1).normalized());
+  Eigen::Matrix3d R1 = Eigen::Matrix3d::Identity(), R2 = rot2.toRotationMatrix();
+  CompiledSolid Solid() const {
+    return CompiledSolid::Compile(ImplicitNode(
+        UnionParams{},
+        {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
+  }
+  // Exact signed distance.
+  double Distance(const Vec& p) const {
+    return std::min(BoxDistance(p, c1, R1, b1), BoxDistance(p, c2, R2, b2));
+  }
+  // The box the tests mesh it in, moved by `shift` steps of (0.31, 0.17, 0.23) mm so that the
+  // grid meets the creases differently.
+  static Eigen::AlignedBox3d ShiftedBounds(int shift) {
+    const Vec offset = shift * Vec(0.00031, 0.00017, 0.00023);
+    return Eigen::AlignedBox3d(Vec(-0.05, -0.035, -0.035) + offset, Vec(0.07, 0.06, 0.04) + offset);
+  }
+};
+
 struct Pair {
   TriangleMesh plain, sharp;
   FeatureStats stats;
@@ -359,6 +383,42 @@ TEST(SharpenFeatures, BoxMinusCylinderKeepsTheRimsAndEdges) {
   EXPECT_LT(sharp_out, plain_out / 3);
 }
 
+// Points on the creases of the union of two boxes at an angle: the convex creases (box edges
+// outside the other box, at least 0.5 h away from it) first, their number to *convex (may be
+// null), then the concave ones (where a face of one box meets a face of the other: points on
+// both surfaces).
+std::vector<Vec> UnionCreasePoints(const Vec& c1, const Eigen::Matrix3d& R1, const Vec& b1,
+                                   const Vec& c2, const Eigen::Matrix3d& R2, const Vec& b2,
+                                   double h, std::size_t* convex = nullptr) {
+  const Sdf sdf1 = [&](const Vec& p) { return BoxDistance(p, c1, R1, b1); };
+  const Sdf sdf2 = [&](const Vec& p) { return BoxDistance(p, c2, R2, b2); };
+  std::vector<Vec> creases;
+  for (const Vec& p : BoxEdgePoints(c1, R1, b1, 16)) {
+    if (sdf2(p) > 0.5 * h) creases.push_back(p);
+  }
+  for (const Vec& p : BoxEdgePoints(c2, R2, b2, 16)) {
+    if (sdf1(p) > 0.5 * h) creases.push_back(p);
+  }
+  if (convex != nullptr) *convex = creases.size();
+  for (int f1 = 0; f1 < 6; ++f1) {
+    for (int f2 = 0; f2 < 6; ++f2) {
+      const Vec n1 = R1.col(f1 / 2) * (f1 % 2 ? 1 : -1), n2 = R2.col(f2 / 2) * (f2 % 2 ? 1 : -1);
+      const double o1 = n1.dot(c1) + b1[f1 / 2], o2 = n2.dot(c2) + b2[f2 / 2];
+      const Vec u = n1.cross(n2);
+      if (u.norm() < 0.1) continue;
+      Eigen::Matrix2d A;
+      A << 1, n1.dot(n2), n1.dot(n2), 1;
+      const Eigen::Vector2d ab = A.inverse() * Eigen::Vector2d(o1, o2);
+      const Vec x0 = ab[0] * n1 + ab[1] * n2, dir = u.normalized();
+      for (double t = -0.15; t <= 0.15; t += 0.0005) {
+        const Vec p = x0 + t * dir;
+        if (std::abs(sdf1(p)) < 1e-12 && std::abs(sdf2(p)) < 1e-12) creases.push_back(p);
+      }
+    }
+  }
+  return creases;
+}
+
 TEST(SharpenFeatures, UnionOfBoxesAtAnAngleKeepsConvexAndConcaveCreases) {
   const Vec c1(0.0007, -0.0009, 0.0004), size1(0.08, 0.04, 0.04), b1 = size1 / 2;
   const Vec c2(0.031, 0.021, 0.0053), size2(0.05, 0.03, 0.03), b2 = size2 / 2;
@@ -385,31 +445,8 @@ TEST(SharpenFeatures, UnionOfBoxesAtAnAngleKeepsConvexAndConcaveCreases) {
   EXPECT_EQ(CountTurnedOver(r.sharp, sdf), 0);
   // Convex creases: box edges outside the other box. Concave creases: lines where a face of one
   // box meets a face of the other (points on both surfaces).
-  std::vector<Vec> creases;
-  for (const Vec& p : BoxEdgePoints(c1, R1, b1, 16)) {
-    if (sdf2(p) > 0.5 * h) creases.push_back(p);
-  }
-  for (const Vec& p : BoxEdgePoints(c2, R2, b2, 16)) {
-    if (sdf1(p) > 0.5 * h) creases.push_back(p);
-  }
-  const size_t convex = creases.size();
-  for (int f1 = 0; f1 < 6; ++f1) {
-    for (int f2 = 0; f2 < 6; ++f2) {
-      const Vec n1 = R1.col(f1 / 2) * (f1 % 2 ? 1 : -1), n2 = R2.col(f2 / 2) * (f2 % 2 ? 1 : -1);
-      const double o1 = n1.dot(c1) + b1[f1 / 2], o2 = n2.dot(c2) + b2[f2 / 2];  // planes n·x = o
-      const Vec u = n1.cross(n2);
-      if (u.norm() < 0.1) continue;
-      // Point on both planes nearest the origin: x = α n1 + β n2.
-      Eigen::Matrix2d A;
-      A << 1, n1.dot(n2), n1.dot(n2), 1;
-      const Eigen::Vector2d ab = A.inverse() * Eigen::Vector2d(o1, o2);
-      const Vec x0 = ab[0] * n1 + ab[1] * n2, dir = u.normalized();
-      for (double t = -0.15; t <= 0.15; t += 0.0005) {
-        const Vec p = x0 + t * dir;
-        if (std::abs(sdf1(p)) < 1e-12 && std::abs(sdf2(p)) < 1e-12) creases.push_back(p);
-      }
-    }
-  }
+  std::size_t convex = 0;
+  const std::vector<Vec> creases = UnionCreasePoints(c1, R1, b1, c2, R2, b2, h, &convex);
   ASSERT_GT(convex, 100u);
   ASSERT_GT(creases.size() - convex, 50u);
   const double plain_in = PointsToMesh(creases, r.plain), sharp_in = PointsToMesh(creases, r.sharp);
@@ -456,21 +493,12 @@ TEST(SharpenFeatures, UnionOfBoxesOnShiftedGridsHasNoTurnedOverOrFoldedTriangles
   // The union of boxes at an angle on several grids: the clean-up may not turn a triangle over
   // that marching tetrahedra made facing out, and sharpening may turn none over and fold none onto
   // its neighbour; the result passes CheckSurface (no self-intersection).
-  const Vec c1(0.0007, -0.0009, 0.0004), size1(0.08, 0.04, 0.04), b1 = size1 / 2;
-  const Vec c2(0.031, 0.021, 0.0053), size2(0.05, 0.03, 0.03), b2 = size2 / 2;
-  const Eigen::AngleAxisd rot2(0.5, Vec(0.2, 0.1, 1).normalized());
-  const Eigen::Matrix3d R1 = Eigen::Matrix3d::Identity(), R2 = rot2.toRotationMatrix();
-  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(
-      UnionParams{},
-      {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
-  const Sdf sdf = [&](const Vec& p) {
-    return std::min(BoxDistance(p, c1, R1, b1), BoxDistance(p, c2, R2, b2));
-  };
+  const BoxUnionAtAnAngle boxes;
+  const CompiledSolid solid = boxes.Solid();
+  const Sdf sdf = [&](const Vec& p) { return boxes.Distance(p); };
   for (double h : {0.003, 0.004, 0.005}) {
     for (int shift = 0; shift < 4; ++shift) {
-      const Vec offset = shift * Vec(0.00031, 0.00017, 0.00023);
-      const Eigen::AlignedBox3d bounds(Vec(-0.05, -0.035, -0.035) + offset,
-                                       Vec(0.07, 0.06, 0.04) + offset);
+      const Eigen::AlignedBox3d bounds = boxes.ShiftedBounds(shift);
       SurfaceMeshSettings s;
       s.bounds = bounds;
       s.cell_size = h;
@@ -487,6 +515,22 @@ TEST(SharpenFeatures, UnionOfBoxesOnShiftedGridsHasNoTurnedOverOrFoldedTriangles
   }
 }
 
+// The box the CLI meshes the platform in (FindBounds, padded by two cells), with its grid
+// vertices at whole (half = false) or half (half = true) multiples of h from the origin.
+Eigen::AlignedBox3d PlatformGrid(const CompiledSolid& platform, double h, bool half) {
+  Eigen::AlignedBox3d bounds = FindBounds(
+      platform,
+      FindBounds(platform, Eigen::AlignedBox3d(Vec::Constant(-10), Vec::Constant(10)), 0.01), h);
+  for (int a = 0; a < 3; ++a) {
+    double lo = std::floor((bounds.min()[a] - 2 * h) / h) * h;
+    long n = std::lround((std::ceil((bounds.max()[a] + 2 * h) / h) * h - lo) / h);
+    if (half) lo -= 0.5 * h, ++n;
+    bounds.min()[a] = lo;
+    bounds.max()[a] = lo + static_cast<double>(n) * h;
+  }
+  return bounds;
+}
+
 TEST(SharpenFeatures, PlatformSharpenedAcrossResolutionsPassesTheSurfaceCheck) {
   // The platform (boxes, a rounded box, an extrusion, holes, a smooth union) at resolutions where
   // sharpening used to fold a triangle onto its neighbour or a fan over itself next to a moved
@@ -496,16 +540,7 @@ TEST(SharpenFeatures, PlatformSharpenedAcrossResolutionsPassesTheSurfaceCheck) {
   // Grid vertices at whole (4 mm) or half (9 mm) multiples of h from the origin, around the box
   // the CLI meshes (FindBounds, padded by two cells).
   for (const auto& [h, half] : {std::pair{0.004, false}, std::pair{0.009, true}}) {
-    Eigen::AlignedBox3d bounds = FindBounds(
-        platform,
-        FindBounds(platform, Eigen::AlignedBox3d(Vec::Constant(-10), Vec::Constant(10)), 0.01), h);
-    for (int a = 0; a < 3; ++a) {
-      double lo = std::floor((bounds.min()[a] - 2 * h) / h) * h;
-      long n = std::lround((std::ceil((bounds.max()[a] + 2 * h) / h) * h - lo) / h);
-      if (half) lo -= 0.5 * h, ++n;
-      bounds.min()[a] = lo;
-      bounds.max()[a] = lo + static_cast<double>(n) * h;
-    }
+    const Eigen::AlignedBox3d bounds = PlatformGrid(platform, h, half);
     const Pair r = MeshBoth(platform, bounds, h);
     ExpectSameTopology(r);
     EXPECT_FALSE(HasFoldedNeighbours(r.sharp)) << "h " << h;
@@ -515,40 +550,6 @@ TEST(SharpenFeatures, PlatformSharpenedAcrossResolutionsPassesTheSurfaceCheck) {
       ADD_FAILURE() << "h " << h << ": " << e.what();
     }
   }
-}
-
-// Points on the creases of the union of two boxes at an angle of the tests above: the convex
-// creases (box edges outside the other box, at least 0.5 h away from it) and the concave ones
-// (where a face of one box meets a face of the other).
-std::vector<Vec> UnionCreasePoints(const Vec& c1, const Eigen::Matrix3d& R1, const Vec& b1,
-                                   const Vec& c2, const Eigen::Matrix3d& R2, const Vec& b2,
-                                   double h) {
-  const Sdf sdf1 = [&](const Vec& p) { return BoxDistance(p, c1, R1, b1); };
-  const Sdf sdf2 = [&](const Vec& p) { return BoxDistance(p, c2, R2, b2); };
-  std::vector<Vec> creases;
-  for (const Vec& p : BoxEdgePoints(c1, R1, b1, 16)) {
-    if (sdf2(p) > 0.5 * h) creases.push_back(p);
-  }
-  for (const Vec& p : BoxEdgePoints(c2, R2, b2, 16)) {
-    if (sdf1(p) > 0.5 * h) creases.push_back(p);
-  }
-  for (int f1 = 0; f1 < 6; ++f1) {
-    for (int f2 = 0; f2 < 6; ++f2) {
-      const Vec n1 = R1.col(f1 / 2) * (f1 % 2 ? 1 : -1), n2 = R2.col(f2 / 2) * (f2 % 2 ? 1 : -1);
-      const double o1 = n1.dot(c1) + b1[f1 / 2], o2 = n2.dot(c2) + b2[f2 / 2];
-      const Vec u = n1.cross(n2);
-      if (u.norm() < 0.1) continue;
-      Eigen::Matrix2d A;
-      A << 1, n1.dot(n2), n1.dot(n2), 1;
-      const Eigen::Vector2d ab = A.inverse() * Eigen::Vector2d(o1, o2);
-      const Vec x0 = ab[0] * n1 + ab[1] * n2, dir = u.normalized();
-      for (double t = -0.15; t <= 0.15; t += 0.0005) {
-        const Vec p = x0 + t * dir;
-        if (std::abs(sdf1(p)) < 1e-12 && std::abs(sdf2(p)) < 1e-12) creases.push_back(p);
-      }
-    }
-  }
-  return creases;
 }
 
 // The sliver repair (FeatureSettings::sliver_angle_deg = 10, step 4b) after the default floor of
@@ -596,18 +597,9 @@ TEST(SharpenFeatures, SliverRepairReachesTenDegreesAndKeepsTheCreases) {
                       0, 10.0});
   }
   {
-    const Vec c1(0.0007, -0.0009, 0.0004), size1(0.08, 0.04, 0.04), b1 = size1 / 2;
-    const Vec c2(0.031, 0.021, 0.0053), size2(0.05, 0.03, 0.03), b2 = size2 / 2;
-    const Eigen::AngleAxisd rot2(0.5, Vec(0.2, 0.1, 1).normalized());
-    const Eigen::Matrix3d R1 = Eigen::Matrix3d::Identity(), R2 = rot2.toRotationMatrix();
-    solids.push_back({"union at an angle",
-                      CompiledSolid::Compile(ImplicitNode(
-                          UnionParams{}, {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1),
-                                          PlacedBox(c2, rot2, size2)})),
-                      [=](const Vec& p) {
-                        return std::min(BoxDistance(p, c1, R1, b1), BoxDistance(p, c2, R2, b2));
-                      },
-                      UnionCreasePoints(c1, R1, b1, c2, R2, b2, 0.004),
+    const BoxUnionAtAnAngle u;
+    solids.push_back({"union at an angle", u.Solid(), [u](const Vec& p) { return u.Distance(p); },
+                      UnionCreasePoints(u.c1, u.R1, u.b1, u.c2, u.R2, u.b2, 0.004),
                       Eigen::AlignedBox3d(Vec(-0.05, -0.035, -0.035), Vec(0.07, 0.06, 0.04)), 2,
                       5.0});
   }
@@ -687,38 +679,19 @@ TEST(SharpenFeatures, SliverRepairPassesTheSurfaceCheckOnShiftedGridsAndThePlatf
     std::printf("%s: min angle %.2f -> %.2f deg\n", what.c_str(), angle1, angle);
     EXPECT_GE(angle, angle1) << what;
   };
-  const Vec c1(0.0007, -0.0009, 0.0004), size1(0.08, 0.04, 0.04), b1 = size1 / 2;
-  const Vec c2(0.031, 0.021, 0.0053), size2(0.05, 0.03, 0.03), b2 = size2 / 2;
-  const Eigen::AngleAxisd rot2(0.5, Vec(0.2, 0.1, 1).normalized());
-  const Eigen::Matrix3d R1 = Eigen::Matrix3d::Identity(), R2 = rot2.toRotationMatrix();
-  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(
-      UnionParams{},
-      {PlacedBox(c1, Eigen::AngleAxisd(0, Vec::UnitZ()), size1), PlacedBox(c2, rot2, size2)}));
-  const Sdf sdf = [&](const Vec& p) {
-    return std::min(BoxDistance(p, c1, R1, b1), BoxDistance(p, c2, R2, b2));
-  };
+  const BoxUnionAtAnAngle boxes;
+  const CompiledSolid solid = boxes.Solid();
+  const Sdf sdf = [&](const Vec& p) { return boxes.Distance(p); };
   for (double h : {0.003, 0.004, 0.005}) {
     for (int shift = 0; shift < 4; ++shift) {
-      const Vec offset = shift * Vec(0.00031, 0.00017, 0.00023);
-      check(
-          solid,
-          Eigen::AlignedBox3d(Vec(-0.05, -0.035, -0.035) + offset, Vec(0.07, 0.06, 0.04) + offset),
-          h, &sdf, "union h " + std::to_string(h) + " shift " + std::to_string(shift));
+      check(solid, boxes.ShiftedBounds(shift), h, &sdf,
+            "union h " + std::to_string(h) + " shift " + std::to_string(shift));
     }
   }
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
   for (const auto& [h, half] : {std::pair{0.004, false}, std::pair{0.009, true}}) {
-    Eigen::AlignedBox3d bounds = FindBounds(
-        platform,
-        FindBounds(platform, Eigen::AlignedBox3d(Vec::Constant(-10), Vec::Constant(10)), 0.01), h);
-    for (int a = 0; a < 3; ++a) {
-      double lo = std::floor((bounds.min()[a] - 2 * h) / h) * h;
-      long n = std::lround((std::ceil((bounds.max()[a] + 2 * h) / h) * h - lo) / h);
-      if (half) lo -= 0.5 * h, ++n;
-      bounds.min()[a] = lo;
-      bounds.max()[a] = lo + static_cast<double>(n) * h;
-    }
+    const Eigen::AlignedBox3d bounds = PlatformGrid(platform, h, half);
     check(platform, bounds, h, nullptr, "platform h " + std::to_string(h));
   }
 }
@@ -727,48 +700,11 @@ TEST(SharpenFeatures, SliverRepairPassesTheSurfaceCheckOnShiftedGridsAndThePlatf
 // gave it, frozen as fingerprints (support/mesh_fingerprint.h: every vertex bit and triangle
 // index): the faster triangle predicates the two passes share must leave it unchanged. Frozen
 // with GCC 12 on x86-64; a change meant to alter the output re-freezes them and says why.
-TEST(SharpenFeatures, FasterPredicatesKeepTheOutputBitForBit) {
-  const Vec offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
-  const CompiledSolid holed = CompiledSolid::Compile(ImplicitNode(
-      TranslateParams{offset},
-      {ImplicitNode(DifferenceParams{},
-                    {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})})}));
-  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
-  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
-  struct Case {
-    const char* name;
-    const CompiledSolid* solid;
-    Eigen::AlignedBox3d bounds;
-    double cell;
-    std::uint64_t fingerprint;
-  };
-  const Case cases[] = {
-      {"box-cylinder", &holed,
-       Eigen::AlignedBox3d(offset - size / 2 - Vec(0.0107, 0.0113, 0.0109),
-                           offset + size / 2 + Vec::Constant(0.01)),
-       0.004, 0x3ff00ab99df56cf8ull},
-      {"platform", &platform, Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02)),
-       0.008, 0xeaca3a09eb0faf46ull},
-  };
-  for (const Case& c : cases) {
-    SurfaceMeshSettings settings;
-    settings.bounds = c.bounds;
-    settings.cell_size = c.cell;
-    FeatureSettings features;
-    features.cell_size = c.cell;
-    const TriangleMesh mesh = SharpenFeatures(*c.solid, MeshSurface(*c.solid, settings), features);
-    EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint)
-        << c.name << ": the sharpened mesh differs from the frozen one";
-  }
-}
-
-// The sliver repair's output frozen as fingerprints (support/mesh_fingerprint.h), as the branch
-// that added it gave it on 2026-12-05 (GCC 12, x86-64): the box minus the cylinder (snapped)
-// and the platform, as in FasterPredicatesKeepTheOutputBitForBit. A change meant to alter the
-// output re-freezes them and says why. (Re-frozen once the same day: the platform's, when
-// crease vertices began to slide along their crease and an operation could also count by
-// leaving fewer triangles under the limit at the same smallest angle.)
-TEST(SharpenFeatures, SliverRepairOutputIsFrozen) {
+// Meshes the box minus the cylinder (off the grid; surface snapped by `box_snap` cells) and the
+// platform (unsnapped) at 4 and 8 mm, sharpens both with sliver_angle_deg = `sliver_angle`, and
+// checks each mesh's fingerprint against the frozen one.
+void ExpectFrozenSharpening(double box_snap, double sliver_angle, std::uint64_t box_print,
+                            std::uint64_t platform_print, const std::string& what) {
   const Vec offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
   const CompiledSolid holed = CompiledSolid::Compile(ImplicitNode(
       TranslateParams{offset},
@@ -787,9 +723,9 @@ TEST(SharpenFeatures, SliverRepairOutputIsFrozen) {
       {"box-cylinder", &holed,
        Eigen::AlignedBox3d(offset - size / 2 - Vec(0.0107, 0.0113, 0.0109),
                            offset + size / 2 + Vec::Constant(0.01)),
-       0.004, 0.15, 0x9b7a0212ace0e25cull},
+       0.004, box_snap, box_print},
       {"platform", &platform, Eigen::AlignedBox3d(Vec(-0.01, -0.11, -0.16), Vec(0.31, 0.11, 0.02)),
-       0.008, 0.0, 0x15e5f7fcb98c4b3bull},
+       0.008, 0.0, platform_print},
   };
   for (const Case& c : cases) {
     SurfaceMeshSettings settings;
@@ -798,11 +734,25 @@ TEST(SharpenFeatures, SliverRepairOutputIsFrozen) {
     settings.snap_cells = c.snap;
     FeatureSettings features;
     features.cell_size = c.cell;
-    features.sliver_angle_deg = 10.0;
+    features.sliver_angle_deg = sliver_angle;
     const TriangleMesh mesh = SharpenFeatures(*c.solid, MeshSurface(*c.solid, settings), features);
     EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint)
-        << c.name << ": the repaired mesh differs from the frozen one";
+        << c.name << ": the " << what << " mesh differs from the frozen one";
   }
+}
+
+TEST(SharpenFeatures, FasterPredicatesKeepTheOutputBitForBit) {
+  ExpectFrozenSharpening(0.0, 0.0, 0x3ff00ab99df56cf8ull, 0xeaca3a09eb0faf46ull, "sharpened");
+}
+
+// The sliver repair's output frozen as fingerprints (support/mesh_fingerprint.h), as the branch
+// that added it gave it on 2026-12-05 (GCC 12, x86-64): the box minus the cylinder (snapped)
+// and the platform, as in FasterPredicatesKeepTheOutputBitForBit. A change meant to alter the
+// output re-freezes them and says why. (Re-frozen once the same day: the platform's, when
+// crease vertices began to slide along their crease and an operation could also count by
+// leaving fewer triangles under the limit at the same smallest angle.)
+TEST(SharpenFeatures, SliverRepairOutputIsFrozen) {
+  ExpectFrozenSharpening(0.15, 10.0, 0x9b7a0212ace0e25cull, 0x15e5f7fcb98c4b3bull, "repaired");
 }
 
 TEST(SharpenFeatures, SphereIsNotMadeWorse) {
@@ -855,16 +805,7 @@ TEST(SharpenFeatures, RejectsBadSettingsAndOpenMeshes) {
   bad_index.triangles(1, 0) = static_cast<int>(mesh.vertices.cols());
   EXPECT_THROW(SharpenFeatures(solid, bad_index, f), std::invalid_argument);
   EXPECT_NO_THROW(SharpenFeatures(solid, mesh, f));
-}
-
-TEST(SharpenFeatures, RejectsBadSliverSettings) {
-  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(SphereParams{0.05}));
-  SurfaceMeshSettings s;
-  s.bounds = Eigen::AlignedBox3d(Vec::Constant(-0.06), Vec::Constant(0.06));
-  s.cell_size = 0.01;
-  const TriangleMesh mesh = MeshSurface(solid, s);
-  FeatureSettings f;
-  f.cell_size = 0.01;
+  // The sliver repair's settings (step 4b).
   f.sliver_angle_deg = 60.0;
   EXPECT_THROW(SharpenFeatures(solid, mesh, f), std::invalid_argument);
   f.sliver_angle_deg = -1.0;
