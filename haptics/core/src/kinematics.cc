@@ -199,13 +199,6 @@ GnOutcome GaussNewton(const SpidarGeometry& geometry, const Vector8d& lengths,
                       const PoseParams& start, const FkSettings& settings,
                       Vector7d* weak = nullptr) {
   constexpr int kMaxHalvings = 12;
-  // Sum of squared residuals above which Newton steps are used: 8 strings at 0.1 mm RMS,
-  // four encoder counts. Below it Gauss-Newton converges in 2–3 steps. It is compared with the
-  // cost the linear model predicts at its minimum, |res + J step|² = cost + gᵀstep, the part of
-  // the residual no pose removes (length errors): a warm start 0.2 mm off during motion has a
-  // large cost but a tiny predicted one, and Gauss-Newton converges quadratically from there
-  // (docs/design/2026-12-05-fk-warm-start.md).
-  constexpr double kNewtonCost = 8 * 1e-4 * 1e-4;
   const double d = geometry.d;
   GnOutcome out;
   out.q = start;
@@ -230,11 +223,14 @@ GnOutcome GaussNewton(const SpidarGeometry& geometry, const Vector8d& lengths,
       out.error_gain = ErrorGain(H, &chol, weak);
       return out;
     }
-    if (out.cost + g.dot(step) > kNewtonCost || (it > 0 && size > 0.01 * last_size)) {
-      // Large residual, or slow (linear) progress near singular poses: Gauss-Newton alone
-      // converges slowly there, its model lacking the residual curvature Σ res_i ∇²l_i. Take a
+    if (it > 0 && size > 0.01 * last_size) {
+      // Slow (linear) progress: a large residual (length errors) or a pose near the singular
+      // set, where Gauss-Newton's model lacks the residual curvature Σ res_i ∇²l_i. Take a
       // Newton step with the Hessian from differences of the gradient when it is positive
-      // definite.
+      // definite. Where Gauss-Newton converges quadratically (exact, quantized or noisy lengths,
+      // and a warm start 0.2 mm off during motion), no Newton step is taken: deciding on the
+      // size of the residual instead cost a Newton step on nearly every warm tick and on every
+      // tick of a calibrated device (docs/design/2026-12-05-fk-warm-start.md).
       constexpr double kH = 1e-7;  // m of attachment-point motion
       Matrix7d H_full;
       for (int k = 0; k < 7; ++k) {
