@@ -263,34 +263,29 @@ double AssemblyField::PoleGrasp(int j, const Eigen::Isometry3d& X_WPj, const Too
   const GraspSettings& s = settings_.grasp;
   const Eigen::Isometry3d X_PW = X_WPj.inverse(Eigen::Isometry);
   const DistanceField& field = *parts_[j].field_P;
-  // Pole directions and their velocity per unit of closing (−dθ), in T (grasp_field.h).
+  // φ of the part in W, its gradient turned into W.
+  auto phi_W = [&](const Eigen::Vector3d& p_W, Eigen::Vector3d* gradient_W) {
+    if (gradient_W == nullptr) return field.Evaluate(X_PW * p_W, nullptr);
+    Eigen::Vector3d g_P;
+    const double v = field.Evaluate(X_PW * p_W, &g_P);
+    *gradient_W = X_WPj.linear() * g_P;
+    return v;
+  };
   const PoleDirections poles = GripPoleDirections(tool.grasp);
-  const std::array<Eigen::Vector3d, 2>& u_T = poles.u_T;
-  const Eigen::Vector3d du_T[2] = {-poles.du_T[0], -poles.du_T[1]};
-  const double d = s.pole_length;
-  double a[2] = {0.0, 0.0};
+  PoleContact contact[2];
   depths[0] = depths[1] = 0.0;
   *both_pushing = false;
   for (int k = 0; k < 2; ++k) {
-    const Eigen::Vector3d u_W = tool.R_WT * u_T[k];
-    auto phi_at = [&](double t) { return field.Evaluate(X_PW * (tool.p_WT + t * u_W), nullptr); };
     // Unrefined when the pole cannot reach inside (its depth is 0 either way).
-    const PoleMinimum m = FindPoleMinimum(phi_at, d, s.samples, s.refine_iterations, 0.0);
-    depths[k] = std::max(0.0, -m.phi);
+    contact[k] = FindPoleContact(phi_W, tool.p_WT, tool.R_WT, poles, k, s.pole_length, s.samples,
+                                 s.refine_iterations, 0.0);
+    depths[k] = contact[k].depth;
     // A pole that does not push into the part: no grasp whatever the other does (the squeeze
     // and the depths are used only when both push), so the other is not searched.
-    if (depths[k] <= 0) return 0.0;
-    Eigen::Vector3d g_P;
-    field.Evaluate(X_PW * (tool.p_WT + m.t * u_W), &g_P);
-    const Eigen::Vector3d g = X_WPj.linear() * g_P;
-    const double gn = g.norm();
-    if (!(gn > 0)) return 0.0;
-    a[k] = (g / gn).dot(tool.R_WT * (m.t * du_T[k]));
-    if (!(a[k] < 0)) return 0.0;
+    if (!contact[k].pushing) return 0.0;
   }
   *both_pushing = true;
-  const int shallower = depths[0] <= depths[1] ? 0 : 1;
-  return SqueezeQ(depths[shallower], a[shallower], tool.grasp_rate, s);
+  return SqueezeOf(contact[0], contact[1], tool.grasp_rate, s);
 }
 
 ToolWrench AssemblyField::ToolContact(const ToolKinematics& tool) noexcept {

@@ -77,8 +77,7 @@ ToolWrench GraspField::Evaluate(const ToolKinematics& tool) noexcept {
 
   ToolWrench w;
   if (contact[0].pushing && contact[1].pushing) {
-    const PoleContact& shallower = contact[0].depth <= contact[1].depth ? contact[0] : contact[1];
-    w.g = -2.0 * SqueezeQ(shallower.depth, shallower.a, tool.grasp_rate, s);
+    w.g = -2.0 * SqueezeOf(contact[0], contact[1], tool.grasp_rate, s);
     if (!grasped_ && depth_[0] >= s.grab_depth && depth_[1] >= s.grab_depth) {
       grasped_ = true;
       Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();

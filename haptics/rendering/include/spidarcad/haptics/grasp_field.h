@@ -17,9 +17,8 @@
 // gives no grasp torque (the object would be pushed, not squeezed: six-DOF contact renders
 // that). Q is continuous when the second pole touches or leaves (m = 0 there), though the first
 // may be deep already: a sum over the poles, Σ_k k_n δ_k (−a_k), would jump by k_n δ_1 (−a_1)
-// there, and a hand holding the grip at that point (the scripted whole-robot run, 2026-12-05)
-// made it buzz between 0 and the torque limit from tick to tick. Where both poles sink equally
-// the two are the same. SqueezeQ below is the formula, shared with the clay width
+// there, which a hand holding the grip at that angle feels as a buzz. Where both poles sink
+// equally the two are the same. SqueezeQ below is the formula, shared with the clay width
 // (app/src/scene/clay_width.h) and the assembly (assembly_field.h).
 //
 // Grasping: when both depths reach `grab_depth`, grasped() turns true and the object's pose
@@ -112,15 +111,18 @@ struct PoleContact {
 };
 // The contact of pole k (0: pole 1, 1: pole 2) of the grip at p_WT, R_WT (poles = the grip's
 // GripPoleDirections at its grasp angle), pole half-length d (m), with the solid whose signed
-// distance at a point of W is phi(p_W, gradient_W or nullptr). Real-time safe (phi must be too).
+// distance at a point of W is phi(p_W, gradient_W or nullptr). `no_refinement_above` as
+// FindPoleMinimum's (0: skip the refinement when the pole cannot reach inside, where the depth
+// is 0 either way). Real-time safe (phi must be too).
 template <class Phi>
-PoleContact FindPoleContact(const Phi& phi, const Eigen::Vector3d& p_WT,
-                            const Eigen::Matrix3d& R_WT, const PoleDirections& poles, int k,
-                            double d, int samples, int refine_iterations) noexcept {
+PoleContact FindPoleContact(
+    const Phi& phi, const Eigen::Vector3d& p_WT, const Eigen::Matrix3d& R_WT,
+    const PoleDirections& poles, int k, double d, int samples, int refine_iterations,
+    double no_refinement_above = std::numeric_limits<double>::infinity()) noexcept {
   PoleContact c;
   const Eigen::Vector3d u_W = R_WT * poles.u_T[k];
   auto phi_at = [&](double t) { return phi(Eigen::Vector3d(p_WT + t * u_W), nullptr); };
-  const PoleMinimum m = FindPoleMinimum(phi_at, d, samples, refine_iterations);
+  const PoleMinimum m = FindPoleMinimum(phi_at, d, samples, refine_iterations, no_refinement_above);
   c.t = m.t;
   c.depth = m.phi < 0.0 ? -m.phi : 0.0;
   if (c.depth <= 0.0) return c;
@@ -155,6 +157,14 @@ inline double SqueezeQ(double m, double a, double grasp_rate, const GraspSetting
   const double q =
       2.0 * s.stiffness * m * (-a) - s.damping * ramp * (grasp_rate < 0.0 ? grasp_rate : 0.0);
   return std::isfinite(q) ? q : 0.0;
+}
+
+// SqueezeQ of the shallower of two poles' contacts when both push; 0 otherwise.
+inline double SqueezeOf(const PoleContact& pole1, const PoleContact& pole2, double grasp_rate,
+                        const GraspSettings& s) noexcept {
+  if (!(pole1.pushing && pole2.pushing)) return 0.0;
+  const PoleContact& shallower = pole1.depth <= pole2.depth ? pole1 : pole2;
+  return SqueezeQ(shallower.depth, shallower.a, grasp_rate, s);
 }
 
 // What the grasp field publishes for the app.
