@@ -25,7 +25,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -104,36 +103,24 @@ void PrintRepeatable(const std::vector<std::vector<spidarcad::app::SceneTickRow>
       "| scene | ticks in every run | p50 | p99.9 | max | slowest tick | single-run maxima | "
       "that tick per run |\n|---|---|---|---|---|---|---|---|\n",
       runs.size());
-  for (const auto& row : runs.front()) {
-    std::vector<const spidarcad::app::SceneTickRow*> same;
-    for (const auto& run : runs)
-      for (const auto& r : run)
-        if (r.name == row.name) {
-          same.push_back(&r);
-          break;
-        }
-    if (same.size() != runs.size()) continue;
-    spidarcad::app::SceneTickRow rep;
-    try {
-      rep = spidarcad::app::RepeatableTicks(same);
-    } catch (const std::invalid_argument& e) {
-      std::printf("| %s | %s |\n", row.name.c_str(), e.what());
-      continue;
-    }
+  std::vector<const std::vector<spidarcad::app::SceneTickRow>*> all;
+  for (const auto& run : runs) all.push_back(&run);
+  for (const spidarcad::app::RepeatableRow& rep : spidarcad::app::RepeatableRows(all)) {
+    const spidarcad::app::SceneTickRow& row = rep.row;
     std::string maxima, at_tick;
-    const long slow = rep.slowest.empty() ? -1 : rep.slowest.front().index;
-    for (const auto* r : same) {
+    const long slow = row.slowest.empty() ? -1 : row.slowest.front().index;
+    for (const auto* r : rep.runs) {
       char cell[48];
       std::snprintf(cell, sizeof cell, "%s%.1f", maxima.empty() ? "" : ", ", r->cpu_max);
       maxima += cell;
       double t = -1.0;
       for (std::size_t i = 0; i < r->cpu.size(); ++i)
-        if ((i < r->index.size() ? r->index[i] : static_cast<long>(i)) == slow) t = r->cpu[i];
+        if (r->TickOf(i) == slow) t = r->cpu[i];
       std::snprintf(cell, sizeof cell, "%s%.1f", at_tick.empty() ? "" : ", ", t);
       at_tick += cell;
     }
-    std::printf("| %s | %zu | %.1f | %.1f | %.1f | %ld | %s | %s |\n", rep.name.c_str(),
-                rep.cpu.size(), rep.cpu_p50, rep.cpu_p999, rep.cpu_max, slow, maxima.c_str(),
+    std::printf("| %s | %zu | %.1f | %.1f | %.1f | %ld | %s | %s |\n", row.name.c_str(),
+                row.cpu.size(), row.cpu_p50, row.cpu_p999, row.cpu_max, slow, maxima.c_str(),
                 at_tick.c_str());
   }
 }

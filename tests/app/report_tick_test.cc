@@ -109,6 +109,15 @@ TEST(ReportTick, RepeatableTicksKeepEachTicksLeastTimeOverTheRuns) {
   EXPECT_EQ(rep.slowest[0].cpu, 150.0);
   // One run alone is its own repeatable row.
   EXPECT_EQ(RepeatableTicks({&runs[1]}).cpu_max, 2500.0);
+  // RepeatableRows: by name over whole runs; a row missing from one run is left out.
+  std::vector<SceneTickRow> run_a{runs[0]}, run_b{runs[1]}, run_c{runs[2]};
+  run_a.push_back(SummarizeTicks("only in a", {1.0}, {1.0}, std::vector<TickCounters>(1)));
+  const std::vector<RepeatableRow> rows = RepeatableRows({&run_a, &run_b, &run_c});
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].row.cpu_max, 150.0);
+  ASSERT_EQ(rows[0].runs.size(), 3u);
+  EXPECT_EQ(rows[0].runs[2], &run_c[0]);
+  EXPECT_EQ(rows[0].runs[1]->TickOf(7), 7);
 
   // Subsets: ticks {10, 20, 30} and {20, 30, 40}; only 20 and 30 are in both.
   const SceneTickRow a =

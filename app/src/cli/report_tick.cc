@@ -532,10 +532,6 @@ SceneTickRow RepeatableTicks(const std::vector<const SceneTickRow*>& runs) {
   if (runs.empty()) throw std::invalid_argument("RepeatableTicks: no runs");
   for (const SceneTickRow* r : runs)
     if (r == nullptr) throw std::invalid_argument("RepeatableTicks: a null row");
-  // Tick index of sample i of a row.
-  auto tick_of = [](const SceneTickRow& r, std::size_t i) {
-    return i < r.index.size() ? r.index[i] : static_cast<long>(i);
-  };
   // Per run, tick index -> sample, for the ticks of the first run.
   const SceneTickRow& first = *runs.front();
   std::vector<double> us, cpu;
@@ -543,10 +539,10 @@ SceneTickRow RepeatableTicks(const std::vector<const SceneTickRow*>& runs) {
   std::vector<std::unordered_map<long, std::size_t>> sample_of(runs.size());
   for (std::size_t r = 1; r < runs.size(); ++r) {
     sample_of[r].reserve(runs[r]->cpu.size());
-    for (std::size_t i = 0; i < runs[r]->cpu.size(); ++i) sample_of[r][tick_of(*runs[r], i)] = i;
+    for (std::size_t i = 0; i < runs[r]->cpu.size(); ++i) sample_of[r][runs[r]->TickOf(i)] = i;
   }
   for (std::size_t i = 0; i < first.cpu.size() && i < first.us.size(); ++i) {
-    const long tick = tick_of(first, i);
+    const long tick = first.TickOf(i);
     double least_us = first.us[i], least_cpu = first.cpu[i];
     bool in_all = true;
     for (std::size_t r = 1; r < runs.size() && in_all; ++r) {
@@ -564,6 +560,31 @@ SceneTickRow RepeatableTicks(const std::vector<const SceneTickRow*>& runs) {
   if (cpu.empty())
     throw std::invalid_argument("RepeatableTicks: the runs of '" + first.name + "' share no tick");
   return SummarizeTicks(first.name, us, cpu, std::vector<TickCounters>(cpu.size()), index);
+}
+
+std::vector<RepeatableRow> RepeatableRows(
+    const std::vector<const std::vector<SceneTickRow>*>& runs) {
+  std::vector<RepeatableRow> out;
+  if (runs.empty()) return out;
+  for (const SceneTickRow& row : *runs.front()) {
+    RepeatableRow rep;
+    for (const std::vector<SceneTickRow>* run : runs) {
+      for (const SceneTickRow& r : *run) {
+        if (r.name == row.name) {
+          rep.runs.push_back(&r);
+          break;
+        }
+      }
+    }
+    if (rep.runs.size() != runs.size()) continue;
+    try {
+      rep.row = RepeatableTicks(rep.runs);
+    } catch (const std::invalid_argument&) {
+      continue;  // the runs share no tick (a subset row)
+    }
+    out.push_back(std::move(rep));
+  }
+  return out;
 }
 
 std::vector<SceneTickRow> MeasureGoldenRunTicks(const SceneTickOptions& options, long max_ticks,
@@ -691,30 +712,9 @@ void ReportTick(ReportContext& ctx) {
        MeasureGoldenRunTicks(options, golden_ticks, [&](double f) { ctx.Progress(0.5 + 0.5 * f); }))
     rows.push_back(std::move(r));
   if (lock.status == haptics::MemoryLockStatus::kLocked) haptics::UnlockProcessMemory();
-  std::vector<SceneTickRow> repeatable;
-  std::vector<std::string> single_maxima, single_maxima_csv;
-  for (std::size_t k = 0; k < scene_rows; ++k) {
-    std::vector<const SceneTickRow*> same{&rows[k]};
-    for (const auto& run : reruns)
-      for (const SceneTickRow& r : run)
-        if (r.name == rows[k].name) {
-          same.push_back(&r);
-          break;
-        }
-    if (same.size() != static_cast<std::size_t>(kRepeatableRuns)) continue;
-    try {
-      repeatable.push_back(RepeatableTicks(same));
-    } catch (const std::invalid_argument&) {
-      continue;  // the runs share no tick (a subset row)
-    }
-    std::string maxima, maxima_csv;
-    for (const SceneTickRow* r : same) {
-      maxima += (maxima.empty() ? "" : ", ") + Fixed(r->cpu_max, 1);
-      maxima_csv += (maxima_csv.empty() ? "" : ",") + Sig(r->cpu_max, 6);
-    }
-    single_maxima.push_back(maxima);
-    single_maxima_csv.push_back(maxima_csv);
-  }
+  std::vector<const std::vector<SceneTickRow>*> all_runs{&rows};
+  for (const auto& run : reruns) all_runs.push_back(&run);
+  const std::vector<RepeatableRow> repeatable = RepeatableRows(all_runs);
   ctx.md() << "HapticLoop::Step compute time (calibration, FK, the scene's force fields, safety, "
               "tension solve) on the simulated SPIDAR-G gripped by the simulated hand, as in "
               "`spidarcad run`, "
@@ -757,15 +757,19 @@ void ReportTick(ReportContext& ctx) {
               "(interrupts, the hypervisor: a different tick in each run). A tick slow in every "
               "run is the code's; the slowest such tick is named by its index.\n";
   std::vector<std::vector<std::string>> rep_table, rep_csv;
-  for (std::size_t k = 0; k < repeatable.size(); ++k) {
-    const SceneTickRow& r = repeatable[k];
+  for (const RepeatableRow& rep : repeatable) {
+    const SceneTickRow& r = rep.row;
     const long slow = r.slowest.empty() ? -1 : r.slowest.front().index;
+    std::string maxima, maxima_csv;
+    for (const SceneTickRow* run : rep.runs) {
+      maxima += (maxima.empty() ? "" : ", ") + Fixed(run->cpu_max, 1);
+      maxima_csv += (maxima_csv.empty() ? "" : ",") + Sig(run->cpu_max, 6);
+    }
     rep_table.push_back({r.name, std::to_string(r.cpu.size()), Fixed(r.cpu_p50, 1),
-                         Fixed(r.cpu_p999, 1), Fixed(r.cpu_max, 1), std::to_string(slow),
-                         single_maxima[k]});
+                         Fixed(r.cpu_p999, 1), Fixed(r.cpu_max, 1), std::to_string(slow), maxima});
     rep_csv.push_back({"\"" + r.name + "\"", std::to_string(r.cpu.size()), Sig(r.cpu_p50, 6),
                        Sig(r.cpu_p999, 6), Sig(r.cpu_max, 6), std::to_string(slow),
-                       "\"" + single_maxima_csv[k] + "\""});
+                       "\"" + maxima_csv + "\""});
   }
   ctx.Table({"scene", "ticks in every run", "CPU p50 µs", "CPU p99.9 µs", "CPU max µs",
              "slowest tick", "each run's CPU max µs"},
@@ -826,11 +830,11 @@ void ReportTick(ReportContext& ctx) {
                Fixed(worst_max->cpu_max, 1) + " µs (" + worst_max->name + ") of the 1000 µs tick");
   std::string repeatable_text;
   if (!repeatable.empty()) {
-    const SceneTickRow* rp = &repeatable.front();
-    const SceneTickRow* rm = &repeatable.front();
-    for (const SceneTickRow& r : repeatable) {
-      if (r.cpu_p999 > rp->cpu_p999) rp = &r;
-      if (r.cpu_max > rm->cpu_max) rm = &r;
+    const SceneTickRow* rp = &repeatable.front().row;
+    const SceneTickRow* rm = &repeatable.front().row;
+    for (const RepeatableRow& rep : repeatable) {
+      if (rep.row.cpu_p999 > rp->cpu_p999) rp = &rep.row;
+      if (rep.row.cpu_max > rm->cpu_max) rm = &rep.row;
     }
     repeatable_text = "; repeatable over " + std::to_string(kRepeatableRuns) +
                       " runs: worst p99.9 " + Fixed(rp->cpu_p999, 1) + " µs (" + rp->name +

@@ -44,6 +44,8 @@ struct SceneTickRow {
   // The run's tick index of each sample, for rows over a subset of the ticks; empty: sample i
   // is tick i.
   std::vector<long> index;
+  // The run's tick index of sample i.
+  long TickOf(std::size_t i) const { return i < index.size() ? index[i] : static_cast<long>(i); }
 };
 
 // Number of ticks SceneTickRow::slowest keeps.
@@ -101,5 +103,15 @@ SceneTickRow SummarizeTicks(const std::string& name, const std::vector<double>& 
 // code's. Throws std::invalid_argument when `runs` is empty, holds a null row, or the runs
 // share no tick.
 SceneTickRow RepeatableTicks(const std::vector<const SceneTickRow*>& runs);
+
+// One repeatable row and the rows of the single runs it was made from.
+struct RepeatableRow {
+  SceneTickRow row;
+  std::vector<const SceneTickRow*> runs;
+};
+// RepeatableTicks of every row of the first run whose name every run has and whose runs share a
+// tick, in the first run's order. The runs must outlive the result.
+std::vector<RepeatableRow> RepeatableRows(
+    const std::vector<const std::vector<SceneTickRow>*>& runs);
 
 }  // namespace spidarcad::app
