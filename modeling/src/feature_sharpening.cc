@@ -472,21 +472,31 @@ class Sharpener {
   // triangles and passes the safety tests of TryMove but the one on deviation, which here only
   // asks that the sampled distance of the triangles to the surface does not grow (the move is
   // along the surface, not onto a feature).
-  bool Relax(int v) {
+  // The centroid of v's one-ring moved into v's tangent plane, then onto the surface by `steps`
+  // Newton steps: where relaxation moves v.
+  Eigen::Vector3d RelaxTarget(int v, int steps) const {
     const auto& fan = vertex_tris_[v];
-    if (fan.size() < 3) return false;
-    const Eigen::Vector3d old = pos_[v];
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    double old_min = M_PI;
     for (int t : fan) {
       const auto& tri = tris_[t];
       const int at = tri[0] == v ? 0 : tri[1] == v ? 1 : 2;
       centre += pos_[tri[(at + 1) % 3]];
-      old_min = std::min(old_min, MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]));
     }
     centre /= static_cast<double>(fan.size());
-    const Eigen::Vector3d n = UnitGradient(old);
-    const Eigen::Vector3d x = Project(centre - n * n.dot(centre - old), 3);
+    const Eigen::Vector3d n = UnitGradient(pos_[v]);
+    return Project(centre - n * n.dot(centre - pos_[v]), steps);
+  }
+
+  bool Relax(int v) {
+    const auto& fan = vertex_tris_[v];
+    if (fan.size() < 3) return false;
+    const Eigen::Vector3d old = pos_[v];
+    double old_min = M_PI;
+    for (int t : fan) {
+      const auto& tri = tris_[t];
+      old_min = std::min(old_min, MinAngle(pos_[tri[0]], pos_[tri[1]], pos_[tri[2]]));
+    }
+    const Eigen::Vector3d x = RelaxTarget(v, 3);
     if (!x.allFinite() || (x - old).norm() > 0.5 * h_ || TooClose(v, x)) return false;
     Deviation before, after;
     double new_min = M_PI;
@@ -630,7 +640,7 @@ class Sharpener {
     std::vector<Eigen::Vector3d> keep_covered;  // crease points the new triangles must cover
     int cover_vertex = -1;  // whose triangles count for keep_covered (with the changed ones)
     int new_crease_vertex = -1;
-    int kind = 0;  // 1 collapse, 2 snap, 3 flip, 4 move, 5 slide along the crease
+    enum Kind { kNone, kCollapse, kSnap, kFlip, kMove, kSlide } kind = kNone;
   };
 
   static double TriangleMinAngle(const std::array<Eigen::Vector3d, 3>& p) {
@@ -657,12 +667,10 @@ class Sharpener {
   // surface does, their angles improve (AngleAfter), their sampled distance to the surface
   // stays within the largest of the old one, tolerance and the neighbours'
   // (NeighbourhoodDeviation), the crease points in op.keep_covered stay as close, moved vertices
-  // keep their separation, and no changed triangle meets a triangle around it. Returns the
-  // smallest angle after the change (radians), or -1 when a test fails. Commits the change if
-  // commit; otherwise only AngleAfter is asked and the mesh is left as it was.
-  double TryOp(const Op& op, bool commit) {
-    const double angle = AngleAfter(op);
-    if (!commit || angle < 0.0) return angle;
+  // keep their separation, and no changed triangle meets a triangle around it. AngleAfter(op)
+  // must have passed on the mesh as it is. Commits the change and returns true when every test
+  // passes; otherwise leaves the mesh as it was and returns false.
+  bool TryOp(const Op& op) {
     const double tolerance = s_.sliver_deviation_cells * h_;
     Deviation before;
     Eigen::Vector3d ref = Eigen::Vector3d::Zero();
@@ -679,14 +687,13 @@ class Sharpener {
       old_normals.push_back(Normal(Corners(tris_[t])));
     }
     for (const auto& [v, x] : op.moves) {
-      if (!x.allFinite() || TooClose(v, x, op.removed_vertex)) return -1.0;
+      if (!x.allFinite() || TooClose(v, x, op.removed_vertex)) return false;
     }
     // Apply.
     std::vector<std::array<int, 3>> saved_tris;
     for (const auto& [t, corners] : op.changed) saved_tris.push_back(tris_[t]);
     std::vector<Eigen::Vector3d> saved_pos;
     for (const auto& [v, x] : op.moves) saved_pos.push_back(pos_[v]);
-    saved_before_ = saved_pos;
     for (const auto& [t, corners] : op.changed) tris_[t] = corners;
     for (const auto& [v, x] : op.moves) pos_[v] = x;
     for (int t : op.removed) dead_tri_[t] = 1;
@@ -703,12 +710,12 @@ class Sharpener {
       const auto p = Corners(corners);
       const Eigen::Vector3d n = Normal(p);
       // A collapse rewrites a triangle in place (one corner renamed): against its own normal.
-      const bool same_slot = op.kind == 1 || corners == saved_tris[i];
+      const bool same_slot = op.kind == Op::kCollapse || corners == saved_tris[i];
       const Eigen::Vector3d& against = same_slot ? old_normals[i] : ref;
       if (!(n.dot(against) > 0.0)) ok = false;
       if (ok) after.Add(TriangleDeviation(p[0], p[1], p[2]));
       if (ok && after.max > std::max(before.max, tolerance) && neighbourhood < 0.0)
-        neighbourhood = NeighbourhoodDeviation(op, saved_tris);
+        neighbourhood = NeighbourhoodDeviation(op, saved_tris, saved_pos);
       if (ok && after.max > std::max({before.max, tolerance, neighbourhood})) {
         ok = false;
       }
@@ -732,7 +739,7 @@ class Sharpener {
         if (!dead_tri_[t]) to(tris_[t]);
       }
       if (nearest > std::max(tolerance, before.max) && neighbourhood < 0.0)
-        neighbourhood = NeighbourhoodDeviation(op, saved_tris);
+        neighbourhood = NeighbourhoodDeviation(op, saved_tris, saved_pos);
       if (!(nearest <= std::max({tolerance, before.max, neighbourhood}))) ok = false;
     }
     if (ok) {
@@ -744,7 +751,7 @@ class Sharpener {
     }
     if (!ok) {
       revert();
-      return -1.0;
+      return false;
     }
     // Commit: positions and corners are in place; now the lists, the hash and the flags.
     for (size_t i = 0; i < op.moves.size(); ++i) {
@@ -779,15 +786,14 @@ class Sharpener {
       pinned_[op.new_crease_vertex] = 1;
       rank_[op.new_crease_vertex] = 2;
     }
-    return angle;
+    return true;
   }
 
   // Largest sampled distance to the surface (m) of the triangles around the corners of the
   // triangles op changes or removes, as they were before op (op applied now; saved_tris: the
-  // changed triangles' corners before; saved_before_: the moved vertices' positions before).
-  double NeighbourhoodDeviation(const Op& op, const std::vector<std::array<int, 3>>& saved_tris) {
-    ++mark_stamp_;
-    if (mark_.size() < pos_.size()) mark_.resize(pos_.size(), 0);
+  // changed triangles' corners before; saved_pos: the moved vertices' positions before).
+  double NeighbourhoodDeviation(const Op& op, const std::vector<std::array<int, 3>>& saved_tris,
+                                const std::vector<Eigen::Vector3d>& saved_pos) {
     if (tri_mark_.size() < tris_.size()) tri_mark_.resize(tris_.size(), 0);
     std::vector<int> corners;
     for (int t : op.removed) corners.insert(corners.end(), tris_[t].begin(), tris_[t].end());
@@ -796,7 +802,7 @@ class Sharpener {
     ++tri_stamp2_;
     auto corner_pos = [&](int v) -> Eigen::Vector3d {
       for (size_t i = 0; i < op.moves.size(); ++i) {
-        if (op.moves[i].first == v) return saved_before_[i];
+        if (op.moves[i].first == v) return saved_pos[i];
       }
       return pos_[v];
     };
@@ -855,7 +861,7 @@ class Sharpener {
     for (size_t i = 0; i < op.changed.size(); ++i) {
       const auto& [t, corners] = op.changed[i];
       const std::array<Eigen::Vector3d, 3> p{at(corners[0]), at(corners[1]), at(corners[2])};
-      const bool same_slot = op.kind == 1 || corners == tris_[t];
+      const bool same_slot = op.kind == Op::kCollapse || corners == tris_[t];
       if (!(Normal(p).dot(same_slot ? scratch_normals_[i] : ref) > 0.0)) return -1.0;
       const double a = TriangleMinAngle(p);
       after_min = std::min(after_min, a);
@@ -910,7 +916,7 @@ class Sharpener {
     }
     if (common != 2) return false;
     *op = Op{};
-    op->kind = 1;
+    op->kind = Op::kCollapse;
     op->removed = {t1, t2};
     op->removed_vertex = u;
     op->cover_vertex = v;
@@ -944,11 +950,11 @@ class Sharpener {
       }
     }
     *op = Op{};
-    op->kind = 3;
+    op->kind = Op::kFlip;
     op->changed.push_back({t, {c, p, d}});
     op->changed.push_back({t2, {d, q, c}});
     if (x) {
-      op->kind = 2;
+      op->kind = Op::kSnap;
       op->moves.push_back({c, *x});
       AddFan(c, op);
     }
@@ -1059,7 +1065,7 @@ class Sharpener {
         Eigen::Vector3d x;
         if (!CreasePoint(mid, c, w, 0.1 * (pos_[w] - pos_[c]).norm(), &x)) continue;
         op = Op{};
-        op.kind = 5;
+        op.kind = Op::kSlide;
         op.moves.push_back({c, x});
         AddFan(c, &op);
         op.keep_covered.push_back(pos_[c]);
@@ -1071,18 +1077,10 @@ class Sharpener {
     // tangent plane, back onto the surface.
     for (int v : tri) {
       if (pinned_[v]) continue;
-      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-      for (int u : vertex_tris_[v]) {
-        const auto& f = tris_[u];
-        const int at = f[0] == v ? 0 : f[1] == v ? 1 : 2;
-        centre += pos_[f[(at + 1) % 3]];
-      }
-      centre /= static_cast<double>(vertex_tris_[v].size());
-      const Eigen::Vector3d n = UnitGradient(pos_[v]);
-      const Eigen::Vector3d x = Project(centre - n * n.dot(centre - pos_[v]), 4);
+      const Eigen::Vector3d x = RelaxTarget(v, 4);
       if ((x - pos_[v]).norm() > 0.5 * h_) continue;
       op = Op{};
-      op.kind = 4;
+      op.kind = Op::kMove;
       op.moves.push_back({v, x});
       AddFan(v, &op);
       consider(op);
@@ -1091,17 +1089,17 @@ class Sharpener {
                      [](const auto& a, const auto& b) { return a.first > b.first; });
     const Op* done = nullptr;
     for (const auto& [angle, candidate] : ranked) {
-      if (TryOp(candidate, true) >= 0.0) {
+      if (TryOp(candidate)) {
         done = &candidate;
         break;
       }
     }
     if (!done) return false;
     const Op& best = *done;
-    collapses_ += best.kind == 1;
-    snaps_ += best.kind == 2;
-    sliver_flips_ += best.kind == 3;
-    sliver_moves_ += best.kind == 4 || best.kind == 5;
+    collapses_ += best.kind == Op::kCollapse;
+    snaps_ += best.kind == Op::kSnap;
+    sliver_flips_ += best.kind == Op::kFlip;
+    sliver_moves_ += best.kind == Op::kMove || best.kind == Op::kSlide;
     return true;
   }
 
@@ -1226,7 +1224,6 @@ class Sharpener {
   std::vector<int> touched_;                      // RepairSlivers: triangles changed in this sweep
   std::vector<Eigen::Vector3d> scratch_normals_;  // AngleAfter
   int tri_stamp2_ = 0;
-  std::vector<Eigen::Vector3d> saved_before_;  // TryOp: positions of op's moved vertices before
   int mark_stamp_ = 0;
   std::vector<bool> is_feature_;
   std::vector<int> rank_;                     // per vertex: 2 crease, 3 corner (last round), else 0
