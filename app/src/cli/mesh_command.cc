@@ -39,9 +39,6 @@ namespace {
 using namespace spidarcad::modeling;
 
 // Options of `spidarcad mesh`.
-// The sliver repair's angle with --sharp unless --sliver-angle is given, degrees.
-constexpr double kDefaultSliverAngle = 10.0;
-
 struct MeshOptions {
   std::string scene;
   std::string out;
@@ -53,10 +50,8 @@ struct MeshOptions {
   double max_volume = 0.0;  // m³, 0: unbounded
   bool raw_surface = false;
   bool sharp = false;
-  // --sliver-angle (degrees; 0: off), used with --sharp. 10 by default: on the platform at 4 mm
-  // it takes TetGen from 1.09 M tets, 34 s and a worst dihedral of 0.018 deg to 289 k tets, 3.6 s
-  // and 1.41 deg (2026-12-05, docs/design/2026-12-04-surface-mesher-peers.md).
-  double sliver_angle = kDefaultSliverAngle;
+  // --sliver-angle (degrees; 0: off), used with --sharp.
+  double sliver_angle = kProductSliverAngleDeg;
   bool sliver_angle_given = false;  // on the command line
   double max_cells = 0.0;           // grid cells allowed; set from kDefaultMeshMaxCells
   double max_memory = 0.0;          // estimated peak bytes allowed
@@ -465,6 +460,11 @@ void RunMesh(const MeshOptions& o) {
   if (surface_ext && !o.tets.empty()) {
     throw InputError("--out '" + o.out + "': with --tets the output is .vtu or .node, not " + ext);
   }
+  if (o.sliver_angle_given && !o.sharp)
+    throw InputError("--sliver-angle repairs what --sharp leaves: add --sharp");
+  if (!(o.sliver_angle >= 0.0 && o.sliver_angle < 60.0))
+    throw InputError("--sliver-angle " + Fmt(o.sliver_angle) +
+                     ": give degrees in [0, 60) (default 10; 0 turns it off)");
   if (!(o.resolution >= 0.0) || !std::isfinite(o.resolution)) {
     throw InputError("--resolution: must be > 0 m, got " + Fmt(o.resolution));
   }
@@ -524,11 +524,6 @@ void RunMesh(const MeshOptions& o) {
   const Eigen::AlignedBox3d& bounds = grid.bounds;
   const double cell = grid.cell;
 
-  if (o.sliver_angle_given && !o.sharp)
-    throw InputError("--sliver-angle repairs what --sharp leaves: add --sharp");
-  if (!(o.sliver_angle >= 0.0 && o.sliver_angle < 60.0))
-    throw InputError("--sliver-angle " + Fmt(o.sliver_angle) +
-                     ": give degrees in [0, 60) (10 is a good value; 0 turns it off)");
   if (o.sharp && o.raw_surface)
     throw InputError("--sharp needs the clean-up pass: drop --raw-surface");
   if (o.sharp && o.tets == "cgal") {

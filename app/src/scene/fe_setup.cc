@@ -354,7 +354,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     fs.cancel = cancel;
     // The slivers sharpening leaves along creases repaired, as `spidarcad mesh --sharp` does:
     // TetGen's worst dihedral and tet count depend on them (feature_sharpening.h, step 4b).
-    fs.sliver_angle_deg = kSharpEdgeSliverAngle;
+    fs.sliver_angle_deg = modeling::kProductSliverAngleDeg;
     surface = modeling::SharpenFeatures(compiled, std::move(surface), fs);
   }
   Report(progress, input.volume ? 0.35 : 1.0);

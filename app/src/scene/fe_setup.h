@@ -56,11 +56,6 @@ ObjectId FeModelFor(const Document& doc, ObjectId id);
 // Cells across the largest side of a solid's box when no cell size is given.
 inline constexpr double kFeCellsAcross = 25.0;
 
-// With sharp_edges, the triangles under this angle (degrees) that the sharpening leaves along
-// creases are repaired before TetGen (modeling::FeatureSettings::sliver_angle_deg), as `spidarcad
-// mesh --sharp` does by default.
-inline constexpr double kSharpEdgeSliverAngle = 10.0;
-
 // Everything a meshing Job needs, copied from the document on the main thread.
 struct FeMeshInput {
   ObjectId source = 0;                // the object meshed
