@@ -315,6 +315,43 @@ class CountingBodyField final : public DistanceField {
   BodyField body_;
 };
 
+// Carries part 1 (picked up by both drivers) above the hole, then down and off-centre so the
+// peg presses on the hole's wall, and releases it, ticking both fields alike: every tick must
+// give the same wrench, pose, contacts and candidates, bit for bit, and the peg must touch.
+void CarryIntoTheHoleInLockstep(AssemblyField& a, Driver& da, AssemblyField& b, Driver& db) {
+  Eigen::Isometry3d above = kSeat_BP;
+  above.translation().z() += 0.03;
+  Eigen::Isometry3d in = kSeat_BP;
+  in.translation() += Eigen::Vector3d(0.0012, -0.0008, 0.004);
+  std::vector<Eigen::Vector3d> path;
+  for (int k = 1; k <= 300; ++k)
+    path.push_back(GripFor(kStart_WP) + (GripFor(above) - GripFor(kStart_WP)) * (k / 300.0));
+  for (int k = 1; k <= 400; ++k)
+    path.push_back(GripFor(above) + (GripFor(in) - GripFor(above)) * (k / 400.0));
+  for (int k = 0; k < 200; ++k)
+    path.push_back(GripFor(in) + Eigen::Vector3d(0.001 * std::sin(0.05 * k), 0, 0));
+  int touching = 0;
+  for (std::size_t t = 0; t < path.size(); ++t) {
+    for (Driver* d : {&da, &db}) {
+      d->tool.v_WT = (path[t] - d->tool.p_WT) / 1e-3;
+      d->tool.p_WT = path[t];
+      d->Tick();
+    }
+    ASSERT_EQ(da.last.f_T_W, db.last.f_T_W) << "tick " << t;
+    ASSERT_EQ(da.last.m_T_W, db.last.m_T_W) << "tick " << t;
+    ASSERT_EQ(da.last.g, db.last.g) << "tick " << t;
+    ASSERT_EQ(a.X_WP(1).matrix(), b.X_WP(1).matrix()) << "tick " << t;
+    ASSERT_EQ(a.contacts(), b.contacts()) << "tick " << t;
+    ASSERT_EQ(a.candidates(), b.candidates()) << "tick " << t;
+    touching += a.contacts() > 0;
+  }
+  EXPECT_GT(touching, 100);  // the peg did press on the body
+  da.Open();
+  db.Open();
+  EXPECT_EQ(a.seated(1), b.seated(1));
+  EXPECT_EQ(a.X_WP(1).matrix(), b.X_WP(1).matrix());
+}
+
 // The carried part's candidate search skips shell points that cannot be within reach of another
 // part (by clusters, and by each point's offset from its cluster's centre: φ is 1-Lipschitz).
 // Against the search that tests every shell point, every tick of a grab, a carry down into the
@@ -336,41 +373,27 @@ TEST(AssemblyField, CullingTheShellSearchChangesNothingButTheWork) {
   ASSERT_EQ(fields[0]->carried(), 1);
   ASSERT_EQ(fields[1]->carried(), 1);
   const long calls_before[2] = {bodies[0]->calls, bodies[1]->calls};
-  // Above the hole, then down and off-centre so the peg presses on the hole's wall.
-  Eigen::Isometry3d above = kSeat_BP;
-  above.translation().z() += 0.03;
-  Eigen::Isometry3d in = kSeat_BP;
-  in.translation() += Eigen::Vector3d(0.0012, -0.0008, 0.004);
-  std::vector<Eigen::Vector3d> path;
-  for (int k = 1; k <= 300; ++k)
-    path.push_back(GripFor(kStart_WP) + (GripFor(above) - GripFor(kStart_WP)) * (k / 300.0));
-  for (int k = 1; k <= 400; ++k)
-    path.push_back(GripFor(above) + (GripFor(in) - GripFor(above)) * (k / 400.0));
-  for (int k = 0; k < 200; ++k)
-    path.push_back(GripFor(in) + Eigen::Vector3d(0.001 * std::sin(0.05 * k), 0, 0));
-  int touching = 0;
-  for (std::size_t t = 0; t < path.size(); ++t) {
-    for (Driver* d : {&culled, &every}) {
-      d->tool.v_WT = (path[t] - d->tool.p_WT) / 1e-3;
-      d->tool.p_WT = path[t];
-      d->Tick();
-    }
-    ASSERT_EQ(culled.last.f_T_W, every.last.f_T_W) << "tick " << t;
-    ASSERT_EQ(culled.last.m_T_W, every.last.m_T_W) << "tick " << t;
-    ASSERT_EQ(culled.last.g, every.last.g) << "tick " << t;
-    ASSERT_EQ(fields[0]->X_WP(1).matrix(), fields[1]->X_WP(1).matrix()) << "tick " << t;
-    ASSERT_EQ(fields[0]->contacts(), fields[1]->contacts()) << "tick " << t;
-    ASSERT_EQ(fields[0]->candidates(), fields[1]->candidates()) << "tick " << t;
-    touching += fields[0]->contacts() > 0;
-  }
-  EXPECT_GT(touching, 100);  // the peg did press on the body
-  culled.Open();
-  every.Open();
-  EXPECT_EQ(fields[0]->seated(1), fields[1]->seated(1));
-  EXPECT_EQ(fields[0]->X_WP(1).matrix(), fields[1]->X_WP(1).matrix());
+  CarryIntoTheHoleInLockstep(*fields[0], culled, *fields[1], every);
   const long work[2] = {bodies[0]->calls - calls_before[0], bodies[1]->calls - calls_before[1]};
   std::printf("body evaluations while carrying: culled %ld, every point %ld\n", work[0], work[1]);
   EXPECT_LT(work[0], work[1] / 2);
+}
+
+// The substeps expand only the candidates whose bound φ0 − |∇φ| (|p − p0| + ‖R − R0‖ |r|) can
+// reach 0 (the others get no force). Against expanding every candidate in every substep, the
+// same carry into the hole with the peg on the wall gives the same ticks, bit for bit.
+TEST(AssemblyField, SkippingFarCandidatesInTheSubstepsChangesNothing) {
+  std::vector<std::unique_ptr<AssemblyField>> fields;
+  for (const bool skip : {true, false}) {
+    AssemblySettings settings;
+    settings.skip_far_candidates = skip;
+    fields.push_back(std::make_unique<AssemblyField>(Parts(), PointShell{}, settings));
+  }
+  Driver skipping = PickUp(*fields[0]);
+  Driver every = PickUp(*fields[1]);
+  ASSERT_EQ(fields[0]->carried(), 1);
+  ASSERT_EQ(fields[1]->carried(), 1);
+  CarryIntoTheHoleInLockstep(*fields[0], skipping, *fields[1], every);
 }
 
 TEST(AssemblyField, ReleasingElsewhereLeavesThePartWhereItWasLetGo) {

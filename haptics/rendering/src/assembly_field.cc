@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -158,12 +160,19 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
       begin = end;
     }
   }
-  near_.assign(max_shell, 0);
+  near_.assign((max_shell + 63) / 64, 0);
   candidate_point_.assign(max_shell * n, 0);
   candidate_part_.assign(max_shell * n, 0);
   candidate_phi_.assign(max_shell * n, 0.0);
   candidate_grad_.assign(max_shell * n, Eigen::Vector3d::Zero());
   candidate_x0_.assign(max_shell * n, Eigen::Vector3d::Zero());
+  candidate_grad_norm_.assign(max_shell * n, 0.0);
+  candidate_reach_.assign(max_shell * n, 0.0);
+  shell_point_norm_.resize(n);
+  for (int j = 0; j < n; ++j) {
+    for (const Eigen::Vector3d& r : parts_[j].shell_P.points_T)
+      shell_point_norm_[j].push_back(r.norm());
+  }
   for (std::vector<double>* b :
        {&batch_x_, &batch_y_, &batch_z_, &batch_phi_, &batch_gx_, &batch_gy_, &batch_gz_})
     b->assign(std::max(max_shell, tool_shell_.points_T.size()), 0.0);
@@ -345,7 +354,8 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       if (j == c || Phi(j, p, nullptr) >= radius + reach) continue;
       // Clusters near part j mark their points; the points are then tested in shell order (so
       // the candidates, and every sum over them, come in the same order as without clusters).
-      std::fill(near_.begin(), near_.begin() + shell.size(), 0);
+      const std::size_t words = (shell.size() + 63) / 64;
+      std::fill(near_.begin(), near_.begin() + words, std::uint64_t{0});
       const std::vector<ShellCluster>& clusters = clusters_[c];
       const int num_clusters = static_cast<int>(clusters.size());
       if (s.cull_shell_search) {
@@ -360,15 +370,17 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
         if (phi_centre >= cluster.radius + reach) continue;
         for (int k = cluster.begin; k < cluster.end; ++k) {
           if (phi_centre - cluster_point_offset_[c][k] < reach + 1e-9)
-            near_[cluster_points_[c][k]] = 1;
+            near_[cluster_points_[c][k] >> 6] |= std::uint64_t{1} << (cluster_points_[c][k] & 63);
         }
       }
       // φ_j at the marked points, then φ_j and ∇φ_j at those within reach (the candidates).
       int m = 0;
-      for (int i = 0; i < shell.size(); ++i) {
-        if (!near_[i]) continue;
-        batch_point_[m] = i;
-        Gather(j, m++, p + R * shell.points_T[i]);
+      for (std::size_t word = 0; word < words; ++word) {
+        for (std::uint64_t bits = near_[word]; bits != 0; bits &= bits - 1) {
+          const int i = static_cast<int>(64 * word) + std::countr_zero(bits);
+          batch_point_[m] = i;
+          Gather(j, m++, p + R * shell.points_T[i]);
+        }
       }
       EvaluateGathered(j, m, false);
       const int first = num_candidates_;
@@ -390,18 +402,33 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
     }
   }
 
+  // A candidate's expansion φ0 + ∇φ·(x − x0) is at least φ0 − |∇φ| |x − x0|, and the point
+  // has moved |x − x0| <= |p − p0| + ‖R − R0‖_F |r| since the tick's start: candidates whose
+  // bound stays above kSkipSlack (far above the rounding of the expansion, ~1e-16 m) would get
+  // φ > 0 and no force, so they are not expanded (the sums are the same, bit for bit).
+  constexpr double kSkipSlack = 1e-12;  // m
+  const Eigen::Vector3d p0 = p;
+  const Eigen::Matrix3d R0 = q_.toRotationMatrix();
+  for (int k = 0; k < num_candidates_; ++k) {
+    candidate_grad_norm_[k] = candidate_grad_[k].norm();
+    candidate_reach_[k] = candidate_grad_norm_[k] * shell_point_norm_[c][candidate_point_[k]];
+  }
   const double h = dt / s.substeps;
   const Eigen::Vector3d inv_inertia = s.inertia.cwiseInverse();
   Eigen::Vector3d g;
   for (int step = 0; step < s.substeps; ++step) {
     const Eigen::Matrix3d R = q_.toRotationMatrix();
+    const double dp = (p - p0).norm(), dR = (R - R0).norm();
     Eigen::Vector3d f_contact = Eigen::Vector3d::Zero(), t_contact = Eigen::Vector3d::Zero();
     int contacts = 0;
     for (int k = 0; k < num_candidates_; ++k) {
+      if (s.skip_far_candidates &&
+          candidate_phi_[k] - candidate_grad_norm_[k] * dp - candidate_reach_[k] * dR > kSkipSlack)
+        continue;
       const Eigen::Vector3d r = R * shell.points_T[candidate_point_[k]];
       g = candidate_grad_[k];
       const double phi = candidate_phi_[k] + g.dot(p + r - candidate_x0_[k]);
-      const double gn = g.norm();
+      const double gn = candidate_grad_norm_[k];
       if (!(phi < 0) || !(gn > 0)) continue;
       const Eigen::Vector3d nrm = g / gn;
       const double v_n = nrm.dot(v_ + w_.cross(r));

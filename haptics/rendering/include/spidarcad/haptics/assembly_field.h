@@ -67,6 +67,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <atomic>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -133,6 +134,9 @@ struct AssemblySettings {
       true;  // false: evaluate the shell search's points and the tool shell's one Evaluate at
              // a time instead of through DistanceField::EvaluateBatch (the same result, bit for
              // bit; slower; for tests)
+  bool skip_far_candidates =
+      true;  // false: expand every candidate in every substep, not only those whose bound
+             // φ0 − |∇φ| |x − x0| can reach 0 (the same result, bit for bit; slower; for tests)
   AlignmentSnapSettings align;  // alignment snap while carrying (off by default)
   // Throws std::invalid_argument naming the field and value when out of range.
   void Validate() const;
@@ -230,12 +234,15 @@ class AssemblyField final : public ForceField {
   std::vector<std::vector<int>> cluster_points_;     // per part: shell indices in cluster order
   std::vector<std::vector<double>>
       cluster_point_offset_;          // per part, cluster order: |r_i − centre|, m
-  std::vector<char> near_;            // per shell point: in a cluster near part j
+  std::vector<std::uint64_t> near_;   // bit i: shell point i is in a cluster near part j
   std::vector<int> candidate_point_;  // capacity max shell × parts
   std::vector<int> candidate_part_;
-  std::vector<double> candidate_phi_;            // φ at the tick's start, m
-  std::vector<Eigen::Vector3d> candidate_grad_;  // ∇φ there (W)
-  std::vector<Eigen::Vector3d> candidate_x0_;    // the point there (W), m
+  std::vector<double> candidate_phi_;                  // φ at the tick's start, m
+  std::vector<Eigen::Vector3d> candidate_grad_;        // ∇φ there (W)
+  std::vector<Eigen::Vector3d> candidate_x0_;          // the point there (W), m
+  std::vector<double> candidate_grad_norm_;            // |∇φ| there
+  std::vector<double> candidate_reach_;                // |∇φ| |r_i|, m
+  std::vector<std::vector<double>> shell_point_norm_;  // per part: |r_i| of its shell points, m
   // The batches of the searches and of the tool shell (structure of arrays, in the frame of the
   // part evaluated), capacity the largest shell: points, φ, ∇φ, and the shell index of each
   // point.
