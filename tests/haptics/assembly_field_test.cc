@@ -143,9 +143,23 @@ struct Driver {
   ToolKinematics tool;
   ToolWrench last;
 
+  // When not null, every tick appends the wrench, the contacts, the candidates and every part's
+  // pose.
+  std::vector<std::vector<double>>* trace = nullptr;
+
   void Tick() {
     tool.time += 1e-3;
     last = field.Evaluate(tool);
+    if (trace == nullptr) return;
+    std::vector<double> row = {
+        last.f_T_W.x(), last.f_T_W.y(),           last.f_T_W.z(),
+        last.m_T_W.x(), last.m_T_W.y(),           last.m_T_W.z(),
+        last.g,         double(field.contacts()), double(field.candidates())};
+    for (int i = 0; i < field.size(); ++i) {
+      const Eigen::Matrix4d X = field.X_WP(i).matrix();
+      row.insert(row.end(), X.data(), X.data() + 16);
+    }
+    trace->push_back(std::move(row));
   }
   // Moves the grip centre linearly to p in `ticks` ticks.
   void MoveTo(const Eigen::Vector3d& p, int ticks) {
@@ -394,6 +408,56 @@ TEST(AssemblyField, SkippingFarCandidatesInTheSubstepsChangesNothing) {
   ASSERT_EQ(fields[0]->carried(), 1);
   ASSERT_EQ(fields[1]->carried(), 1);
   CarryIntoTheHoleInLockstep(*fields[0], skipping, *fields[1], every);
+}
+
+// The candidate search keeps, per other part, the φ it last evaluated at each shell point of the
+// carried part and skips the point while that bound is beyond the reach; the bounds hold only
+// while the other parts stay put, that is within one carry. Three carries: peg A is put down
+// 3.5 mm below peg B (its points' φ to B recorded), B is carried down onto A and left there, and A
+// is picked up again and pushed up into B. Against the search that tests every shell point, every
+// tick must be the same, bit for bit, and A must touch B in the last carry (with bounds kept
+// from the first carry it would not).
+TEST(AssemblyField, TheSearchsBoundsDoNotOutliveTheCarryThatMadeThem) {
+  const Eigen::Isometry3d start_B(Eigen::Translation3d(0.07, 0, 0.05));
+  std::vector<std::vector<double>> traces[2];
+  int touching_in_last_carry[2] = {0, 0};
+  for (int run = 0; run < 2; ++run) {
+    std::vector<AssemblyPart> parts = Parts();
+    AssemblyPart b = parts[1];
+    b.name = "peg B";
+    b.X_WP = start_B;
+    b.seats.clear();
+    parts[1].seats.clear();
+    parts.push_back(b);
+    AssemblySettings settings;
+    settings.cull_shell_search = run == 0;
+    AssemblyField field(parts, PointShell{}, settings);
+    Driver d{field, ToolKinematics{}, ToolWrench{}};
+    d.trace = &traces[run];
+    auto carry = [&](int part, const Eigen::Vector3d& by, int hold) {
+      d.MoveTo(GripFor(field.X_WP(part)), 200);
+      d.Hold(5);
+      d.CloseUntilGrasped(-1.0, 0.2);
+      ASSERT_EQ(field.carried(), part);
+      d.MoveTo(d.tool.p_WT + by, 300);
+      d.Hold(hold);
+      d.Open();
+      ASSERT_EQ(field.carried(), -1);
+    };
+    carry(1, Eigen::Vector3d(0, 0, 0.0185), 50);  // A's top 3.5 mm below B's peg
+    if (HasFatalFailure()) return;
+    carry(2, Eigen::Vector3d(0, 0, -0.0075), 300);  // B's peg down onto A's top
+    if (HasFatalFailure()) return;
+    const std::size_t before = traces[run].size();
+    carry(1, Eigen::Vector3d(0, 0, 0.004), 300);  // A up into B
+    if (HasFatalFailure()) return;
+    for (std::size_t k = before; k < traces[run].size(); ++k)
+      touching_in_last_carry[run] += traces[run][k][7] > 0;
+  }
+  ASSERT_EQ(traces[0].size(), traces[1].size());
+  for (std::size_t k = 0; k < traces[0].size(); ++k)
+    ASSERT_EQ(traces[0][k], traces[1][k]) << "tick " << k;
+  EXPECT_GT(touching_in_last_carry[0], 100);
 }
 
 TEST(AssemblyField, ReleasingElsewhereLeavesThePartWhereItWasLetGo) {

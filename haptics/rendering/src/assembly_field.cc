@@ -177,6 +177,10 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
        {&batch_x_, &batch_y_, &batch_z_, &batch_phi_, &batch_gx_, &batch_gy_, &batch_gz_})
     b->assign(std::max(max_shell, tool_shell_.points_T.size()), 0.0);
   batch_point_.assign(max_shell, 0);
+  batch_x_W_.assign(max_shell, Eigen::Vector3d::Zero());
+  last_phi_.assign(near_.size() * 64 * n, 0.0);
+  last_x_.assign(near_.size() * 64 * n, Eigen::Vector3d::Zero());
+  last_epoch_.assign(near_.size() * 64 * n, 0);
   Publish();
 }
 
@@ -374,22 +378,38 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
         }
       }
       // φ_j at the marked points, then φ_j and ∇φ_j at those within reach (the candidates).
+      // A marked point whose φ_j was evaluated at x_last earlier in this carry (part j has not
+      // moved since) has φ_j(x) >= φ_j(x_last) − |x − x_last|; it is not evaluated again while
+      // that bound is beyond the reach.
       int m = 0;
+      const std::size_t last = static_cast<std::size_t>(j) * near_.size() * 64;
       for (std::size_t word = 0; word < words; ++word) {
         for (std::uint64_t bits = near_[word]; bits != 0; bits &= bits - 1) {
           const int i = static_cast<int>(64 * word) + std::countr_zero(bits);
+          const Eigen::Vector3d x = p + R * shell.points_T[i];
+          if (s.cull_shell_search && last_epoch_[last + i] == search_epoch_) {
+            const double bound = last_phi_[last + i] - reach - 1e-9;
+            if (bound >= 0 && bound * bound >= (x - last_x_[last + i]).squaredNorm()) continue;
+          }
           batch_point_[m] = i;
-          Gather(j, m++, p + R * shell.points_T[i]);
+          batch_x_W_[m] = x;
+          Gather(j, m++, x);
         }
       }
       EvaluateGathered(j, m, false);
+      for (int k = 0; k < m; ++k) {
+        const std::size_t e = last + batch_point_[k];
+        last_phi_[e] = batch_phi_[k];
+        last_x_[e] = batch_x_W_[k];
+        last_epoch_[e] = search_epoch_;
+      }
       const int first = num_candidates_;
       for (int k = 0; k < m; ++k) {
         if (!(batch_phi_[k] < reach)) continue;
         const int i = batch_point_[k];
         candidate_point_[num_candidates_] = i;
         candidate_part_[num_candidates_] = j;
-        candidate_x0_[num_candidates_] = p + R * shell.points_T[i];
+        candidate_x0_[num_candidates_] = batch_x_W_[k];
         ++num_candidates_;
       }
       const int found = num_candidates_ - first;
@@ -526,6 +546,7 @@ ToolWrench AssemblyField::Evaluate(const ToolKinematics& tool) noexcept {
       const double grab = settings_.grasp.grab_depth;
       if (j != released_ && depths[0] >= grab && depths[1] >= grab) {
         carried_ = j;
+        ++search_epoch_;  // the bounds of the last carry's search do not hold for this one
         seated_[j] = 0;
         X_TP_ = Pose(tool.p_WT, tool.R_WT).inverse(Eigen::Isometry) * poses_[j];
         q_ = Eigen::Quaterniond(Eigen::Matrix3d(poses_[j].linear())).normalized();

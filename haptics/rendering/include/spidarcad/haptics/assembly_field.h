@@ -248,6 +248,14 @@ class AssemblyField final : public ForceField {
   // point.
   std::vector<double> batch_x_, batch_y_, batch_z_, batch_phi_, batch_gx_, batch_gy_, batch_gz_;
   std::vector<int> batch_point_;
+  std::vector<Eigen::Vector3d> batch_x_W_;  // the batch's points in W, m
+  // Per (part j, shell point i of the carried part), at index j · 64 · near_.size() + i: φ_j
+  // where the search last evaluated it during carry number last_epoch_ (m), and that point (W,
+  // m). Other parts do not move while one is carried, so φ_j(x) >= last φ − |x − last x|.
+  std::vector<double> last_phi_;
+  std::vector<Eigen::Vector3d> last_x_;
+  std::vector<int> last_epoch_;
+  int search_epoch_ = 0;  // carries so far (0: none; last_epoch_ starts at 0, which never holds)
   int num_candidates_ = 0;
   int carried_ = -1;
   int released_ = -1;  // just released: not grasped again until the poles stop squeezing it
