@@ -396,28 +396,22 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
           Gather(j, m++, x);
         }
       }
-      EvaluateGathered(j, m, false);
+      EvaluateGathered(j, m, true);
       for (int k = 0; k < m; ++k) {
         const std::size_t e = last + batch_point_[k];
         last_phi_[e] = batch_phi_[k];
         last_x_[e] = batch_x_W_[k];
         last_epoch_[e] = search_epoch_;
       }
-      const int first = num_candidates_;
       for (int k = 0; k < m; ++k) {
         if (!(batch_phi_[k] < reach)) continue;
         const int i = batch_point_[k];
         candidate_point_[num_candidates_] = i;
         candidate_part_[num_candidates_] = j;
         candidate_x0_[num_candidates_] = batch_x_W_[k];
+        candidate_phi_[num_candidates_] = batch_phi_[k];
+        candidate_grad_[num_candidates_] = GatheredGradient_W(j, k);
         ++num_candidates_;
-      }
-      const int found = num_candidates_ - first;
-      for (int k = 0; k < found; ++k) Gather(j, k, candidate_x0_[first + k]);
-      EvaluateGathered(j, found, true);
-      for (int k = 0; k < found; ++k) {
-        candidate_phi_[first + k] = batch_phi_[k];
-        candidate_grad_[first + k] = GatheredGradient_W(j, k);
       }
     }
   }

@@ -29,11 +29,14 @@
 //    `contact_margin` (plus the tick's travel) of another part are found once per tick (the
 //    shell's clusters of nearby points, cells of 1 cm, are skipped whole when their centre is
 //    farther from the part than their radius plus that reach, and a point of a cluster when the
-//    centre is farther than its offset from the centre plus the reach: φ is 1-Lipschitz), where
-//    φ_j and ∇φ_j are evaluated once; the substeps use the first-order expansion
-//    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick), so a
-//    tick costs one φ per shell point near another part plus one gradient per candidate; the
-//    cluster centres, the points and the candidates of each part j are each evaluated in one
+//    centre is farther than its offset from the centre plus the reach: φ is 1-Lipschitz; and a
+//    point while φ_j at the point where this carry's search last evaluated it, less its travel
+//    since, is beyond the reach: the other parts do not move during a carry), where φ_j and ∇φ_j
+//    are evaluated once; the substeps use the first-order expansion
+//    φ_j(x) ≈ φ_j(x0) + ∇φ_j(x0)·(x − x0) (the part moves well under a millimetre per tick) and
+//    expand only the candidates whose bound φ_j(x0) − |∇φ_j| |x − x0| can reach 0. So a tick
+//    costs one φ and ∇φ per shell point that may be near another part; the cluster centres
+//    (φ alone) and the points of each part j are each evaluated in one
 //    DistanceField::EvaluateBatch (several points at a time where φ_j supports it), as are the
 //    tool shell's points against each part. The user
 //    feels the coupling's reaction at the target point: f_T_W = −f_c, m_T_W = (p_target − p_WT) ×
