@@ -67,8 +67,12 @@ struct SurfaceMeshSettings {
   // still under 15° along the surface. 0.15 gives a worst angle of 9.4° to 15° on a sphere at
   // r/12 to r/50 (0.2: none under 10°), with 1 to 30 % more rms surface error; it is not the
   // default because of that error, and because walls about a cell thick and sharpened creases
-  // have not been checked as widely with it (0.2 left a self-intersection in the platform at
-  // 10 mm). Figures: docs/design/2026-12-04-surface-mesher-peers.md.
+  // have not been checked as widely with it. Where the band makes the zero set pinch at a grid
+  // vertex (a hole narrower than the band beside it) and the clean-up cannot move the vertices
+  // there apart without a fold, that grid vertex keeps its own value and the solid is meshed
+  // again (until 2026-12-05 this left self-intersections, e.g. in the platform at 10 mm). A wall
+  // thinner than about 1 + 2 × snap_cells cells can be lost (without snapping: under a cell).
+  // Figures: docs/design/2026-12-04-surface-mesher-peers.md.
   double snap_cells = 0.0;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
