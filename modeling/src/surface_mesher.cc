@@ -865,11 +865,13 @@ class Mesher {
   double VertexValue(const Index3& v) {
     const long id = VertexId(v);
     if (const double* cached = values_.Find(id)) return *cached;
-    Poll();
-    double f = field_->Value(Position(v));
-    ++evaluations_;
+    double f = RawValue(v);
     const bool unsnapped = !unsnapped_list_.empty() && unsnapped_.Find(id) != nullptr;
-    if (std::abs(f) <= (unsnapped ? kZeroBand * h_ : SnapBand())) f = 0.0;
+    const double band = unsnapped ? kZeroBand * h_ : SnapBand();
+    // An inside value within the snap band (not within kZeroBand) is snapped only where the
+    // solid goes deeper than the band next to it: otherwise the grid vertex is the deepest of a
+    // wall under about 1 + 2 snap_cells cells thick, and snapping it would lose the wall.
+    if (std::abs(f) <= band && !(f < -kZeroBand * h_ && !DeeperNeighbour(v, band))) f = 0.0;
     if (OnBoundary(v)) f = std::max(f, 0.0);
     values_.Insert(id, f);
     return f;
@@ -908,12 +910,29 @@ class Mesher {
     done_cells_ = 0;
   }
 
-  // Whether an unsnapped grid vertex lies in the index box [lo, hi] (its cells' corners).
-  bool HoldsUnsnapped(const Index3& lo, const Index3& hi) const {
-    for (const Index3& g : unsnapped_list_) {
-      if (g[0] >= lo[0] && g[0] <= hi[0] && g[1] >= lo[1] && g[1] <= hi[1] && g[2] >= lo[2] &&
-          g[2] <= hi[2])
-        return true;
+  // Field value at a grid vertex as it is (no band, no boundary), cached.
+  double RawValue(const Index3& v) {
+    const long id = VertexId(v);
+    if (const double* cached = raw_values_.Find(id)) return *cached;
+    Poll();
+    const double f = field_->Value(Position(v));
+    ++evaluations_;
+    raw_values_.Insert(id, f);
+    return f;
+  }
+
+  // Whether one of the 26 grid neighbours of v (within the grid) has a value below -band.
+  bool DeeperNeighbour(const Index3& v, double band) {
+    for (int dz = -1; dz <= 1; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0 && dz == 0) continue;
+          const Index3 w = {v[0] + dx, v[1] + dy, v[2] + dz};
+          if (w[0] < 0 || w[1] < 0 || w[2] < 0 || w[0] > n_[0] || w[1] > n_[1] || w[2] > n_[2])
+            continue;
+          if (RawValue(w) < -band) return true;
+        }
+      }
     }
     return false;
   }
@@ -926,17 +945,15 @@ class Mesher {
   // Descends the index box [lo, hi) of cells, skipping what the interval bounds rule out.
   void Visit(const Index3& lo, const Index3& hi) {
     // A box is skipped when its bounds prove every grid vertex in it outside after VertexValue's
-    // snap (values at or above -SnapBand()) or inside (below it, and not on the grid's boundary,
+    // snap (values at or above -kZeroBand cells: a value within the wider snap band may stay
+    // inside, see VertexValue) or inside (below -SnapBand(), and not on the grid's boundary,
     // whose vertices count as outside): its cells then hold no surface.
     const Eigen::AlignedBox3d box(Position(lo), Position(hi));
     Poll();
     const Interval bounds = solid_.Bounds(box);
     bool touches_boundary = false;
     for (int a = 0; a < 3; ++a) touches_boundary |= lo[a] == 0 || hi[a] == n_[a];
-    // An unsnapped grid vertex counts as inside from -kZeroBand cells on.
-    const double band =
-        !unsnapped_list_.empty() && HoldsUnsnapped(lo, hi) ? kZeroBand * h_ : SnapBand();
-    if (bounds.lo >= -band || (bounds.hi < -SnapBand() && !touches_boundary)) {
+    if (bounds.lo >= -kZeroBand * h_ || (bounds.hi < -SnapBand() && !touches_boundary)) {
       Done(lo, hi);
       return;
     }
@@ -1102,6 +1119,7 @@ class Mesher {
   long evaluated_cells_ = 0;
   long evaluations_ = 0;
   FlatMap<double> values_;            // grid vertex id -> value
+  FlatMap<double> raw_values_;        // grid vertex id -> value as it is (kept by Restart)
   FlatMap<int> edge_vertices_;        // grid vertex id * 8 + edge code -> mesh vertex
   std::array<int, 64> cell_edges_{};  // the current cell's edge (8 a + b) -> mesh vertex, or -1
   std::vector<Eigen::Vector3d> vertices_;

@@ -70,8 +70,9 @@ struct SurfaceMeshSettings {
   // have not been checked as widely with it. Where the band makes the zero set pinch at a grid
   // vertex (a hole narrower than the band beside it) and the clean-up cannot move the vertices
   // there apart without a fold, that grid vertex keeps its own value and the solid is meshed
-  // again (until 2026-12-05 this left self-intersections, e.g. in the platform at 10 mm). A wall
-  // thinner than about 1 + 2 × snap_cells cells can be lost (without snapping: under a cell).
+  // again (until 2026-12-05 this left self-intersections, e.g. in the platform at 10 mm). An
+  // inside value within the band is snapped only where a grid neighbour lies deeper than the
+  // band, so a wall thinner than 1 + 2 × snap_cells cells is kept (it was lost before).
   // Figures: docs/design/2026-12-04-surface-mesher-peers.md.
   double snap_cells = 0.0;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
