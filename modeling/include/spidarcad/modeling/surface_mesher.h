@@ -81,6 +81,11 @@ struct SurfaceMeshSettings {
   std::function<void(double)> progress;
 };
 
+// The snap_cells the product meshes with (`spidarcad mesh`, --snap-cells): SurfaceMeshSettings
+// keeps 0 as its own default, so the library's frozen meshes stay as they are. Measured in
+// docs/design/2026-12-04-surface-mesher-peers.md (addendum 2026-12-05).
+inline constexpr double kProductSnapCells = 0.2;
+
 // Figures of one MeshSurface run.
 struct SurfaceMeshStats {
   long grid_cells = 0;       // cells of the full grid
