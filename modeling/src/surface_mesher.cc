@@ -212,11 +212,12 @@ class Cleaner {
   // inward[v] (its edge, zero end to inside end) that turns none of its triangles over and folds
   // none onto a neighbour, so the surface stays embedded, the two sides of the pinch end up a
   // tenth of a cell apart (not a crack that TetGen fills with flat tets), and no weld tolerance
-  // downstream joins them. Each is tested against the triangles of the whole group too: the
-  // group's fans are the two sides of the pinch, which share no vertex, so a move tested
-  // against its own neighbours alone could push a triangle through the other side. When some
-  // member still folds at the smallest fraction, its id goes to `stuck` (may be null): the pinch
-  // is not embedded. Returns the number moved.
+  // downstream joins them. With `stuck` (snapping), each is tested against the triangles of the
+  // whole group too: the group's fans are the two sides of the pinch, which share no vertex, so
+  // a move tested against its own neighbours alone could push a triangle through the other side;
+  // and a member that still folds at the smallest fraction goes to `stuck`: the pinch is not
+  // embedded. Without it the test is the one of before 2026-12-05 (the unsnapped mesh stays the
+  // same bit for bit). Returns the number moved.
   long SeparateCoincident(const std::vector<Eigen::Vector3d>& inward, std::vector<int>* stuck) {
     std::vector<int> live;
     for (size_t v = 0; v < pos_.size(); ++v) {
@@ -238,9 +239,10 @@ class Cleaner {
         const Eigen::Vector3d start = pos_[live[i]];
         for (size_t k = i; k < j; ++k) pos_[live[k]] = start + kZeroOffsets[0] * inward[live[k]];
         group_.assign(live.begin() + i, live.begin() + j);
+        const std::vector<int>* others = stuck != nullptr ? &group_ : nullptr;
         for (size_t k = i; k < j; ++k) {
           const int v = live[k];
-          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start, &group_); ++f)
+          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start, others); ++f)
             pos_[v] = start + kZeroOffsets[f] * inward[v];
           moved += inward[v].squaredNorm() > 0.0;
           separated_[v] = true;
@@ -865,7 +867,8 @@ class Mesher {
   double VertexValue(const Index3& v) {
     const long id = VertexId(v);
     if (const double* cached = values_.Find(id)) return *cached;
-    double f = RawValue(v);
+    // Without snapping the band is kZeroBand: no neighbour is asked, so no second cache.
+    double f = SnapBand() > kZeroBand * h_ ? RawValue(v) : FieldValue(v);
     const bool unsnapped = !unsnapped_list_.empty() && unsnapped_.Find(id) != nullptr;
     const double band = unsnapped ? kZeroBand * h_ : SnapBand();
     // An inside value within the snap band (not within kZeroBand) is snapped only where the
@@ -910,13 +913,18 @@ class Mesher {
     done_cells_ = 0;
   }
 
-  // Field value at a grid vertex as it is (no band, no boundary), cached.
+  // Field value at a grid vertex as it is (no band, no boundary).
+  double FieldValue(const Index3& v) {
+    Poll();
+    ++evaluations_;
+    return field_->Value(Position(v));
+  }
+
+  // FieldValue, cached (for snapping, which also asks the neighbours).
   double RawValue(const Index3& v) {
     const long id = VertexId(v);
     if (const double* cached = raw_values_.Find(id)) return *cached;
-    Poll();
-    const double f = field_->Value(Position(v));
-    ++evaluations_;
+    const double f = FieldValue(v);
     raw_values_.Insert(id, f);
     return f;
   }
