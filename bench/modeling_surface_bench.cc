@@ -149,7 +149,8 @@ BENCHMARK(BM_Surface)
 // SurfaceMeshSettings::snap_cells = state.range(2) / 100 on case state.range(0) at cell
 // state.range(1) / 10 mm: the triangle quality it buys and the surface error it costs (the
 // snapping sweep of docs/design/2026-12-04-surface-mesher-peers.md). Error: MeasureSurfaceError
-// (|value| at vertices, edge midpoints and centroids; one-sided).
+// (|value| at vertices, edge midpoints and centroids; one-sided), and the two-sided Hausdorff
+// distance (as BM_Surface: hausdorff_mm, the larger of its two directions).
 void BM_Snap(benchmark::State& state) {
   const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
   SurfaceMeshSettings settings;
@@ -159,10 +160,12 @@ void BM_Snap(benchmark::State& state) {
   TriangleMesh mesh;
   for (auto _ : state) mesh = MeshSurface(c.solid, settings);
   const SurfaceError e = MeasureSurfaceError(c.solid, mesh);
+  const Error hausdorff = MeasureHausdorff(c, mesh, settings.cell_size);
   const TriangleAngleStats angles = MeasureTriangleAngles(mesh, 10.0);
   state.SetLabel(c.name);
   state.counters["cell_mm"] = settings.cell_size * 1e3;
   state.counters["snap"] = settings.snap_cells;
+  state.counters["hausdorff_mm"] = std::max(hausdorff.out_max, hausdorff.in_max) * 1e3;
   state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
   state.counters["max_error_mm"] = e.max * 1e3;
   state.counters["rms_error_mm"] = e.rms * 1e3;

@@ -212,8 +212,13 @@ class Cleaner {
   // inward[v] (its edge, zero end to inside end) that turns none of its triangles over and folds
   // none onto a neighbour, so the surface stays embedded, the two sides of the pinch end up a
   // tenth of a cell apart (not a crack that TetGen fills with flat tets), and no weld tolerance
-  // downstream joins them. Returns the number moved.
-  long SeparateCoincident(const std::vector<Eigen::Vector3d>& inward) {
+  // downstream joins them. With `stuck` (snapping), each is tested against the triangles of the
+  // whole group too: the group's fans are the two sides of the pinch, which share no vertex, so
+  // a move tested against its own neighbours alone could push a triangle through the other side;
+  // and a member that still folds at the smallest fraction goes to `stuck`: the pinch is not
+  // embedded. Without it the test is the one of before 2026-12-05 (the unsnapped mesh stays the
+  // same bit for bit). Returns the number moved.
+  long SeparateCoincident(const std::vector<Eigen::Vector3d>& inward, std::vector<int>* stuck) {
     std::vector<int> live;
     for (size_t v = 0; v < pos_.size(); ++v) {
       if (!vertex_tris_[v].empty()) live.push_back(static_cast<int>(v));
@@ -233,13 +238,21 @@ class Cleaner {
         // steps back to a smaller fraction while its triangles fold.
         const Eigen::Vector3d start = pos_[live[i]];
         for (size_t k = i; k < j; ++k) pos_[live[k]] = start + kZeroOffsets[0] * inward[live[k]];
+        group_.assign(live.begin() + i, live.begin() + j);
+        const std::vector<int>* others = stuck != nullptr ? &group_ : nullptr;
         for (size_t k = i; k < j; ++k) {
           const int v = live[k];
-          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start); ++f)
+          for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start, others); ++f)
             pos_[v] = start + kZeroOffsets[f] * inward[v];
           moved += inward[v].squaredNorm() > 0.0;
           separated_[v] = true;
           has_gradient_[v] = false;
+        }
+        // Each member again, where the others ended up (a later one may have stepped back).
+        if (stuck != nullptr) {
+          for (size_t k = i; k < j; ++k) {
+            if (!Unfolded(live[k], start, &group_)) stuck->push_back(live[k]);
+          }
         }
       }
       i = j;
@@ -248,8 +261,9 @@ class Cleaner {
   }
 
   // Whether the triangles of v, with v moved from `before` to where it is now, keep facing the
-  // way they did (positive dot product of old and new normals) and meet no triangle around them.
-  bool Unfolded(int v, const Eigen::Vector3d& before) {
+  // way they did (positive dot product of old and new normals) and meet no triangle around them
+  // (nor one of the vertices `others`, may be null).
+  bool Unfolded(int v, const Eigen::Vector3d& before, const std::vector<int>* others = nullptr) {
     const Eigen::Vector3d now = pos_[v];
     changed_.clear();
     for (int t : vertex_tris_[v]) {
@@ -260,7 +274,7 @@ class Cleaner {
       if (!(n_new.dot(n_old) > 0.0)) return false;
       changed_.emplace_back(t, tris_[t]);
     }
-    return !WouldMeet(changed_, -1, -1);
+    return !WouldMeet(changed_, -1, -1, others);
   }
 
   // Removes dead triangles and unused vertices (renumbering, order kept).
@@ -335,10 +349,11 @@ class Cleaner {
 
   // Whether one of the `changed` triangles (id, new corners) would meet, other than along what
   // they share, a live triangle incident to one of its corners (with the changes applied;
-  // `dying` triangles left out). Collapses and flips only reshape triangles around them, so this
-  // local test keeps them from folding a triangle onto a neighbour or a fan over itself.
+  // `dying` triangles left out), or of one of the vertices `others` (may be null). Collapses and
+  // flips only reshape triangles around them, so this local test keeps them from folding a
+  // triangle onto a neighbour or a fan over itself.
   bool WouldMeet(const std::vector<std::pair<int, std::array<int, 3>>>& changed, int dying0,
-                 int dying1) {
+                 int dying1, const std::vector<int>* others = nullptr) {
     // Each triangle once: a stamp per triangle marks the changed and dying ones (skipped) and
     // those already gathered, and each gathered one keeps its corners and box for every changed
     // triangle it is tested against. The answer does not depend on the order of the tests.
@@ -353,6 +368,15 @@ class Cleaner {
     nearby_.clear();
     for (const auto& [id, tri] : changed) {
       for (int w : tri) {
+        for (int u : vertex_tris_[w]) {
+          if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
+          tri_stamp_[u] = stamp_;
+          nearby_.push_back(Gathered(tris_[u]));
+        }
+      }
+    }
+    if (others != nullptr) {
+      for (int w : *others) {
         for (int u : vertex_tris_[w]) {
           if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
           tri_stamp_[u] = stamp_;
@@ -730,6 +754,7 @@ class Cleaner {
   std::vector<unsigned> tri_stamp_;                          // per triangle: WouldMeet's stamp
   unsigned stamp_ = 0;                                       // WouldMeet's current stamp
   std::vector<Eigen::Vector3d> normals_;                     // scratch of Relax
+  std::vector<int> group_;                                   // scratch of SeparateCoincident
   std::vector<std::pair<int, std::array<int, 3>>> changed_;  // scratch of Collapse and Flip
 };
 
@@ -771,21 +796,31 @@ class Mesher {
     // Point values through pruned tapes (bit-identical); interval bounds on the full tape.
     const PointField field(solid_, settings_.bounds, h_);
     field_ = &field;
-    Visit({0, 0, 0}, {n_[0], n_[1], n_[2]});
     long collapses = 0, flips = 0;
-    if (settings_.clean) {
+    // Snapping (snap_cells > 0) comes with the angle guard, the projection of the snapped
+    // vertices and the polish; without it the clean-up is the one measured before 2026-12-04.
+    const bool snapping = settings_.clean && settings_.snap_cells > 0.0;
+    for (;;) {
+      Visit({0, 0, 0}, {n_[0], n_[1], n_[2]});
+      if (!settings_.clean) break;
       Cleaner cleaner(*field_, &vertices_, &triangles_, settings_.cancel);
-      // Snapping (snap_cells > 0) comes with the angle guard, the projection of the snapped
-      // vertices and the polish; without it the clean-up is the one measured before 2026-12-04.
-      const bool snapping = settings_.snap_cells > 0.0;
       cleaner.Run(settings_.short_edge_fraction * h_, settings_.small_angle_deg * M_PI / 180.0,
                   1.5 * h_, kCoincident * h_, snapping, &collapses, &flips);
-      cleaner.SeparateCoincident(inward_);
+      std::vector<int> stuck;
+      cleaner.SeparateCoincident(inward_, snapping ? &stuck : nullptr);
+      // A pinch the snapping made (a grid vertex within the band but not within kZeroBand of
+      // zero: a hole or gap narrower than the band there) that cannot be opened without a fold:
+      // that grid vertex keeps its own value, and the solid is meshed again.
+      if (Unsnap(stuck)) {
+        Restart();
+        continue;
+      }
       if (snapping) {
         cleaner.ProjectSnapped(inward_);
         cleaner.Polish(settings_.short_edge_fraction * h_, &collapses, &flips);
       }
       cleaner.Compact();
+      break;
     }
     if (settings_.progress) settings_.progress(1.0);
     TriangleMesh mesh;
@@ -832,13 +867,82 @@ class Mesher {
   double VertexValue(const Index3& v) {
     const long id = VertexId(v);
     if (const double* cached = values_.Find(id)) return *cached;
-    Poll();
-    double f = field_->Value(Position(v));
-    ++evaluations_;
-    if (std::abs(f) <= SnapBand()) f = 0.0;
+    // Without snapping the band is kZeroBand: no neighbour is asked, so no second cache.
+    double f = SnapBand() > kZeroBand * h_ ? RawValue(v) : FieldValue(v);
+    const bool unsnapped = !unsnapped_list_.empty() && unsnapped_.Find(id) != nullptr;
+    const double band = unsnapped ? kZeroBand * h_ : SnapBand();
+    // An inside value within the snap band (not within kZeroBand) is snapped only where the
+    // solid goes deeper than the band next to it: otherwise the grid vertex is the deepest of a
+    // wall under about 1 + 2 snap_cells cells thick, and snapping it would lose the wall.
+    if (std::abs(f) <= band && !(f < -kZeroBand * h_ && !DeeperNeighbour(v, band))) f = 0.0;
     if (OnBoundary(v)) f = std::max(f, 0.0);
     values_.Insert(id, f);
     return f;
+  }
+
+  // Marks the grid vertices of the mesh vertices `stuck` (SeparateCoincident's) that the snap
+  // band made zero as unsnapped (VertexValue then keeps their value). Returns whether it marked
+  // one.
+  bool Unsnap(const std::vector<int>& stuck) {
+    bool marked = false;
+    for (int v : stuck) {
+      const long id = grid_of_[v];
+      if (id < 0 || unsnapped_.Find(id) != nullptr) continue;
+      const Index3 g = grid_index_[v];
+      if (OnBoundary(g)) continue;
+      const double f = field_->Value(Position(g));
+      ++evaluations_;
+      if (std::abs(f) <= kZeroBand * h_) continue;
+      unsnapped_.Insert(id, f);
+      unsnapped_list_.push_back(g);
+      marked = true;
+    }
+    return marked;
+  }
+
+  // Forgets the raw mesh and the grid values (not the unsnapped grid vertices) before meshing
+  // again.
+  void Restart() {
+    values_ = FlatMap<double>();
+    edge_vertices_ = FlatMap<int>();
+    vertices_.clear();
+    inward_.clear();
+    grid_of_.clear();
+    grid_index_.clear();
+    triangles_.clear();
+    done_cells_ = 0;
+  }
+
+  // Field value at a grid vertex as it is (no band, no boundary).
+  double FieldValue(const Index3& v) {
+    Poll();
+    ++evaluations_;
+    return field_->Value(Position(v));
+  }
+
+  // FieldValue, cached (for snapping, which also asks the neighbours).
+  double RawValue(const Index3& v) {
+    const long id = VertexId(v);
+    if (const double* cached = raw_values_.Find(id)) return *cached;
+    const double f = FieldValue(v);
+    raw_values_.Insert(id, f);
+    return f;
+  }
+
+  // Whether one of the 26 grid neighbours of v (within the grid) has a value below -band.
+  bool DeeperNeighbour(const Index3& v, double band) {
+    for (int dz = -1; dz <= 1; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0 && dz == 0) continue;
+          const Index3 w = {v[0] + dx, v[1] + dy, v[2] + dz};
+          if (w[0] < 0 || w[1] < 0 || w[2] < 0 || w[0] > n_[0] || w[1] > n_[1] || w[2] > n_[2])
+            continue;
+          if (RawValue(w) < -band) return true;
+        }
+      }
+    }
+    return false;
   }
 
   // Grid values this close to zero (m) count as exactly zero (VertexValue).
@@ -849,14 +953,15 @@ class Mesher {
   // Descends the index box [lo, hi) of cells, skipping what the interval bounds rule out.
   void Visit(const Index3& lo, const Index3& hi) {
     // A box is skipped when its bounds prove every grid vertex in it outside after VertexValue's
-    // snap (values at or above -SnapBand()) or inside (below it, and not on the grid's boundary,
+    // snap (values at or above -kZeroBand cells: a value within the wider snap band may stay
+    // inside, see VertexValue) or inside (below -SnapBand(), and not on the grid's boundary,
     // whose vertices count as outside): its cells then hold no surface.
     const Eigen::AlignedBox3d box(Position(lo), Position(hi));
     Poll();
     const Interval bounds = solid_.Bounds(box);
     bool touches_boundary = false;
     for (int a = 0; a < 3; ++a) touches_boundary |= lo[a] == 0 || hi[a] == n_[a];
-    if (bounds.lo >= -SnapBand() || (bounds.hi < -SnapBand() && !touches_boundary)) {
+    if (bounds.lo >= -kZeroBand * h_ || (bounds.hi < -SnapBand() && !touches_boundary)) {
       Done(lo, hi);
       return;
     }
@@ -952,12 +1057,18 @@ class Mesher {
     if (f[a] == 0.0) {
       vertices_.push_back(Position(v[a]));
       inward_.push_back(edge);
+      grid_of_.push_back(VertexId(v[a]));
+      grid_index_.push_back(v[a]);
     } else if (f[b] == 0.0) {
       vertices_.push_back(Position(v[b]));
       inward_.push_back(-edge);
+      grid_of_.push_back(VertexId(v[b]));
+      grid_index_.push_back(v[b]);
     } else {
       vertices_.push_back(pa + t * (pb - pa));
       inward_.push_back(Eigen::Vector3d::Zero());
+      grid_of_.push_back(-1);
+      grid_index_.push_back({-1, -1, -1});
     }
     edge_vertices_.Insert(key, id);
     return in_cell = id;
@@ -1016,12 +1127,17 @@ class Mesher {
   long evaluated_cells_ = 0;
   long evaluations_ = 0;
   FlatMap<double> values_;            // grid vertex id -> value
+  FlatMap<double> raw_values_;        // grid vertex id -> value as it is (kept by Restart)
   FlatMap<int> edge_vertices_;        // grid vertex id * 8 + edge code -> mesh vertex
   std::array<int, 64> cell_edges_{};  // the current cell's edge (8 a + b) -> mesh vertex, or -1
   std::vector<Eigen::Vector3d> vertices_;
   std::vector<Eigen::Vector3d>
-      inward_;  // per vertex at a zero grid vertex: its edge, into the solid
+      inward_;                      // per vertex at a zero grid vertex: its edge, into the solid
+  std::vector<long> grid_of_;       // per vertex at a zero grid vertex: its id (else -1)
+  std::vector<Index3> grid_index_;  // per vertex at a zero grid vertex: its index
   std::vector<std::array<int, 3>> triangles_;
+  FlatMap<double> unsnapped_;           // grid vertex id -> value, kept out of the snap band
+  std::vector<Index3> unsnapped_list_;  // the same grid vertices
 };
 
 // Tapes longer than this are pruned to every box FarthestLeaf splits (CompiledSolid::Specialize),

@@ -528,6 +528,79 @@ TEST(SurfaceMesher, PinchedZeroSetKeepsItsVerticesApart) {
   ExpectReadyForTetgen(mesh, "pinched hole");
 }
 
+TEST(SurfaceMesher, SnappedPinchesOpenWithoutSelfIntersection) {
+  // Snapping (snap_cells 0.15 to 0.25) on the platform at 8, 10 and 12 mm cells, on the CLI's
+  // box and six shifted ones. Its load holes (radius 4 mm) go through its 10 mm plate: where a
+  // grid vertex inside the plate lies within the snap band of a hole's wall, the hole becomes a
+  // tube whose waist is three coincident vertices at that grid vertex (the zero set pinches
+  // there), and the link condition keeps them from merging. SeparateCoincident moved them apart
+  // along their own grid edges, testing each move only against the triangles around its own
+  // corners; the two sides of a pinch share no vertex, so a move could fold a triangle through the
+  // other side. Before the fix 6 of these 63 meshes failed CheckSurface ("surface intersects
+  // itself"; 0.2 at 10 mm on the CLI's box among them, as the setting's comment said), none
+  // without snapping. (One more was empty: at 12 mm, shift 1, snap 0.25 every grid vertex inside
+  // the 10 mm walls lay within the band of a face, and the solid was lost; see
+  // SnappingKeepsWallsThinnerThanTheBand.)
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  int runs = 0;
+  for (double cell : {0.008, 0.010, 0.012}) {
+    const Eigen::AlignedBox3d cli = CliBounds(platform, cell);
+    for (int shift = 0; shift <= 6; ++shift) {
+      Eigen::AlignedBox3d box = cli;
+      const Eigen::Vector3d f(std::fmod(0.137 * shift, 1.0), std::fmod(0.291 * shift + 0.05, 1.0),
+                              std::fmod(0.613 * shift + 0.11, 1.0));
+      if (shift > 0) box.min() -= f * cell;
+      for (double snap : {0.15, 0.2, 0.25}) {
+        SurfaceMeshSettings s = Settings(box.min(), box.max(), cell);
+        s.snap_cells = snap;
+        const TriangleMesh mesh = MeshSurface(platform, s);
+        const std::string what = "cell " + std::to_string(cell) + " shift " +
+                                 std::to_string(shift) + " snap " + std::to_string(snap);
+        ++runs;
+        ASSERT_GT(mesh.triangles.cols(), 0) << what;
+        CheckClosedManifold(mesh);
+        ExpectReadyForTetgen(mesh, what);
+      }
+    }
+  }
+  EXPECT_EQ(runs, 63);
+}
+
+TEST(SurfaceMesher, SnappingKeepsWallsThinnerThanTheBand) {
+  // A wall under 1 + 2 snap_cells cells thick can have every grid vertex inside it within the
+  // snap band of one of its faces: snapped to zero (outside), they took the wall with them. The
+  // platform's 10 mm walls at 8 mm cells (the CLI's box) lost 25 to 28 % of its volume so at
+  // snap 0.15 to 0.25 (1018 cm^3 unsnapped; 759, 741, 737 cm^3). An inside value within the band
+  // is now snapped only where a grid neighbour lies deeper than the band. And a slab 1.2 cells
+  // thick, on grids shifted through a cell, must keep its volume too.
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  const double cell = 0.008;
+  const Eigen::AlignedBox3d box = CliBounds(platform, cell);
+  SurfaceMeshSettings s = Settings(box.min(), box.max(), cell);
+  const double unsnapped = MeshVolume(MeshSurface(platform, s));
+  for (double snap : {0.15, 0.2, 0.25}) {
+    s.snap_cells = snap;
+    const TriangleMesh mesh = MeshSurface(platform, s);
+    CheckClosedManifold(mesh);
+    EXPECT_NEAR(MeshVolume(mesh), unsnapped, 0.01 * unsnapped) << "platform, snap " << snap;
+  }
+  const double h = 0.004, thickness = 1.2 * h;
+  const CompiledSolid slab =
+      CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.05, 0.05, thickness)}));
+  for (int shift = 0; shift < 10; ++shift) {
+    const Eigen::Vector3d lo(-0.0301, -0.0297, -0.0203 + 0.1 * shift * h);
+    SurfaceMeshSettings t = Settings(lo, lo + Eigen::Vector3d(0.06, 0.06, 0.04), h);
+    t.snap_cells = 0.25;
+    const TriangleMesh mesh = MeshSurface(slab, t);
+    ASSERT_GT(mesh.triangles.cols(), 0) << "slab, shift " << shift;
+    CheckClosedManifold(mesh);
+    EXPECT_NEAR(MeshVolume(mesh), 0.05 * 0.05 * thickness, 0.3 * 0.05 * 0.05 * thickness)
+        << "slab, shift " << shift;
+  }
+}
+
 // Meshes each solid across resolutions and grid placements (the CLI's box, and one moved to
 // whole cells so that planes k·cell, where the assets' faces lie, are grid planes) and checks
 // every surface the way TetrahedralizeSurface will.

@@ -53,11 +53,14 @@ struct MeshOptions {
   // --sliver-angle (degrees; 0: off), used with --sharp.
   double sliver_angle = kProductSliverAngleDeg;
   bool sliver_angle_given = false;  // on the command line
-  double max_cells = 0.0;           // grid cells allowed; set from kDefaultMeshMaxCells
-  double max_memory = 0.0;          // estimated peak bytes allowed
-  double max_work = 0.0;            // estimated tape instructions allowed
-  bool progress = false;            // progress on stderr even when it is not a terminal
-  double weld = 1e-9;               // mesh-file input: weld tolerance, fraction of the box diagonal
+  // --snap-cells (fraction of the cell; 0: off): the clean-up's snap band.
+  double snap_cells = kProductSnapCells;
+  bool snap_cells_given = false;  // on the command line
+  double max_cells = 0.0;         // grid cells allowed; set from kDefaultMeshMaxCells
+  double max_memory = 0.0;        // estimated peak bytes allowed
+  double max_work = 0.0;          // estimated tape instructions allowed
+  bool progress = false;          // progress on stderr even when it is not a terminal
+  double weld = 1e-9;             // mesh-file input: weld tolerance, fraction of the box diagonal
 };
 
 // Default budget of `spidarcad mesh` (docs/limits.md): 2^27 grid cells (512^3), 2 GiB of
@@ -250,6 +253,10 @@ constexpr const char* kMeshHelp =
     "FE models, sculpts, parts) are not meshed, and naming one is an error that lists the solids.\n"
     "Surface: marching tetrahedra on a grid of cell R metres, then a clean-up pass (edge\n"
     "collapses and flips) that removes zero-area and sliver triangles; closed and manifold.\n"
+    "The clean-up snaps grid values within --snap-cells S cells of zero (default 0.2) to zero\n"
+    "and relaxes what stays sharp: smooth surfaces get no triangle under about 10 deg, for a\n"
+    "few percent more rms error (features finer than a cell can still leave sharper ones).\n"
+    "--snap-cells 0 gives the mesh of before 2026-12-05.\n"
     "Volume (--tets tetgen): TetGen 1.5 tetrahedralizes that surface; --quality Q bounds the\n"
     "radius-edge ratio (TetGen's q switch, > 1; 0 turns refinement off), --max-volume V bounds\n"
     "the tet volume in m^3 (TetGen's a switch).\n"
@@ -388,9 +395,10 @@ void RunMeshFile(const MeshOptions& o, const std::string& ext, Progress* progres
     throw InputError("--tets cgal meshes an implicit solid from its function; the mesh file '" +
                      o.scene + "' can be tetrahedralized with --tets tetgen");
   }
-  if (o.resolution != 0.0 || o.sharp || o.raw_surface || !o.solid.empty()) {
+  if (o.resolution != 0.0 || o.sharp || o.raw_surface || o.snap_cells_given || !o.solid.empty()) {
     throw InputError(
-        "--resolution, --sharp, --raw-surface and --solid apply to scene files; the mesh file '" +
+        "--resolution, --sharp, --raw-surface, --snap-cells and --solid apply to scene files; the "
+        "mesh file '" +
         o.scene + "' is used as it is (drop them)");
   }
   if (!(o.weld >= 0.0 && o.weld < 0.1)) {
@@ -465,6 +473,16 @@ void RunMesh(const MeshOptions& o) {
   if (!(o.sliver_angle >= 0.0 && o.sliver_angle < 60.0))
     throw InputError("--sliver-angle " + Fmt(o.sliver_angle) +
                      ": give degrees in [0, 60) (default 10; 0 turns it off)");
+  if (!(o.snap_cells >= 0.0 && o.snap_cells <= 0.25))
+    throw InputError("--snap-cells " + Fmt(o.snap_cells) +
+                     ": give a fraction of the cell in [0, 0.25] (default " +
+                     Fmt(kProductSnapCells) + "; 0 turns snapping off)");
+  if (o.snap_cells_given && o.raw_surface)
+    throw InputError("--snap-cells is part of the clean-up pass: drop --raw-surface");
+  if (o.snap_cells_given && o.tets == "cgal")
+    throw InputError(
+        "--snap-cells applies to the marching-tetrahedra surface; --tets cgal does "
+        "not use one");
   if (!(o.resolution >= 0.0) || !std::isfinite(o.resolution)) {
     throw InputError("--resolution: must be > 0 m, got " + Fmt(o.resolution));
   }
@@ -539,6 +557,7 @@ void RunMesh(const MeshOptions& o) {
   settings.bounds = bounds;
   settings.cell_size = cell;
   settings.clean = !o.raw_surface;
+  settings.snap_cells = o.raw_surface ? 0.0 : o.snap_cells;
   settings.cancel = &g_interrupted;
   settings.progress = progress.Stage("surface");
   SurfaceMeshStats stats;
@@ -577,7 +596,7 @@ void RunMesh(const MeshOptions& o) {
             << (o.raw_surface ? " (raw, no clean-up)" : "") << "\n";
   if (!o.raw_surface) {
     std::cout << "clean-up: " << stats.collapsed_edges << " edge collapses, " << stats.flipped_edges
-              << " flips\n";
+              << " flips, snap " << Fmt(settings.snap_cells) << " cells\n";
   }
   if (o.sharp) {
     std::cout << "sharpen: " << feature_stats.feature_vertices << " feature vertices ("
@@ -674,6 +693,10 @@ void RegisterMeshCommand(CLI::App& app) {
                   "With --sharp: repair the triangles under this angle [deg] that sharpening "
                   "leaves along creases, by collapses, flips and moves that keep the creases "
                   "(default 10; 0: off)");
+  cmd->add_option("--snap-cells", options->snap_cells,
+                  "Clean-up: grid values within this fraction of a cell of zero count as zero, "
+                  "so no triangle of a smooth surface is sharper than about 10 deg (in [0, 0.25]; "
+                  "default 0.2; 0: off, the mesh of before 2026-12-05)");
   cmd->add_flag("--raw-surface", options->raw_surface,
                 "Skip the surface clean-up pass (raw marching tetrahedra, for comparison)");
   cmd->add_option("--max-cells", options->max_cells,
@@ -688,6 +711,7 @@ void RegisterMeshCommand(CLI::App& app) {
                 "Show progress on stderr even when it is not a terminal");
   cmd->callback([options, cmd]() {
     options->sliver_angle_given = cmd->count("--sliver-angle") > 0;
+    options->snap_cells_given = cmd->count("--snap-cells") > 0;
     try {
       RunMesh(*options);
     } catch (const InputError&) {

@@ -341,6 +341,8 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   modeling::SurfaceMeshSettings ss;
   ss.bounds = bounds;
   ss.cell_size = cell;
+  // Snapped as `spidarcad mesh` does (no triangle of a smooth surface under about 10°).
+  ss.snap_cells = modeling::kProductSnapCells;
   ss.cancel = cancel;
   const double surface_share = input.volume ? 0.3 : 0.9;
   if (progress) ss.progress = [&progress, surface_share](double f) { progress(surface_share * f); };

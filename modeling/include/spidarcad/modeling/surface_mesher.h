@@ -67,14 +67,24 @@ struct SurfaceMeshSettings {
   // still under 15° along the surface. 0.15 gives a worst angle of 9.4° to 15° on a sphere at
   // r/12 to r/50 (0.2: none under 10°), with 1 to 30 % more rms surface error; it is not the
   // default because of that error, and because walls about a cell thick and sharpened creases
-  // have not been checked as widely with it (0.2 left a self-intersection in the platform at
-  // 10 mm). Figures: docs/design/2026-12-04-surface-mesher-peers.md.
+  // have not been checked as widely with it. Where the band makes the zero set pinch at a grid
+  // vertex (a hole narrower than the band beside it) and the clean-up cannot move the vertices
+  // there apart without a fold, that grid vertex keeps its own value and the solid is meshed
+  // again (until 2026-12-05 this left self-intersections, e.g. in the platform at 10 mm). An
+  // inside value within the band is snapped only where a grid neighbour lies deeper than the
+  // band, so a wall thinner than 1 + 2 × snap_cells cells is kept (it was lost before).
+  // Figures: docs/design/2026-12-04-surface-mesher-peers.md.
   double snap_cells = 0.0;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
   // Called now and then with the fraction done in [0, 1].
   std::function<void(double)> progress;
 };
+
+// The snap_cells the product meshes with (`spidarcad mesh`, --snap-cells): SurfaceMeshSettings
+// keeps 0 as its own default, so the library's frozen meshes stay as they are. Measured in
+// docs/design/2026-12-04-surface-mesher-peers.md (addendum 2026-12-05).
+inline constexpr double kProductSnapCells = 0.2;
 
 // Figures of one MeshSurface run.
 struct SurfaceMeshStats {
