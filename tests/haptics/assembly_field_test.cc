@@ -417,7 +417,7 @@ TEST(AssemblyField, SkippingFarCandidatesInTheSubstepsChangesNothing) {
 // is picked up again and pushed up into B. Against the search that tests every shell point, every
 // tick must be the same, bit for bit, and A must touch B in the last carry (with bounds kept
 // from the first carry it would not).
-TEST(AssemblyField, TheSearchsBoundsDoNotOutliveTheCarryThatMadeThem) {
+TEST(AssemblyField, SearchBoundsDoNotOutliveTheCarryThatMadeThem) {
   const Eigen::Isometry3d start_B(Eigen::Translation3d(0.07, 0, 0.05));
   std::vector<std::vector<double>> traces[2];
   int touching_in_last_carry[2] = {0, 0};
