@@ -64,6 +64,8 @@ class FlatMap {
       if (keys_[i] == kEmpty) return nullptr;
     }
   }
+  // Number of keys.
+  size_t size() const { return size_; }
   // Adds key (not present) with value.
   void Insert(long key, V value) {
     if (2 * (size_ + 1) > keys_.size()) Grow();
@@ -869,7 +871,7 @@ class Mesher {
     if (const double* cached = values_.Find(id)) return *cached;
     // Without snapping the band is kZeroBand: no neighbour is asked, so no second cache.
     double f = SnapBand() > kZeroBand * h_ ? RawValue(v) : FieldValue(v);
-    const bool unsnapped = !unsnapped_list_.empty() && unsnapped_.Find(id) != nullptr;
+    const bool unsnapped = unsnapped_.size() > 0 && unsnapped_.Find(id) != nullptr;
     const double band = unsnapped ? kZeroBand * h_ : SnapBand();
     // An inside value within the snap band (not within kZeroBand) is snapped only where the
     // solid goes deeper than the band next to it: otherwise the grid vertex is the deepest of a
@@ -886,15 +888,13 @@ class Mesher {
   bool Unsnap(const std::vector<int>& stuck) {
     bool marked = false;
     for (int v : stuck) {
-      const long id = grid_of_[v];
-      if (id < 0 || unsnapped_.Find(id) != nullptr) continue;
       const Index3 g = grid_index_[v];
-      if (OnBoundary(g)) continue;
-      const double f = field_->Value(Position(g));
-      ++evaluations_;
+      if (g[0] < 0 || OnBoundary(g)) continue;
+      const long id = VertexId(g);
+      if (unsnapped_.Find(id) != nullptr) continue;
+      const double f = RawValue(g);  // cached: snapping asked for it
       if (std::abs(f) <= kZeroBand * h_) continue;
       unsnapped_.Insert(id, f);
-      unsnapped_list_.push_back(g);
       marked = true;
     }
     return marked;
@@ -907,7 +907,6 @@ class Mesher {
     edge_vertices_ = FlatMap<int>();
     vertices_.clear();
     inward_.clear();
-    grid_of_.clear();
     grid_index_.clear();
     triangles_.clear();
     done_cells_ = 0;
@@ -1057,17 +1056,14 @@ class Mesher {
     if (f[a] == 0.0) {
       vertices_.push_back(Position(v[a]));
       inward_.push_back(edge);
-      grid_of_.push_back(VertexId(v[a]));
       grid_index_.push_back(v[a]);
     } else if (f[b] == 0.0) {
       vertices_.push_back(Position(v[b]));
       inward_.push_back(-edge);
-      grid_of_.push_back(VertexId(v[b]));
       grid_index_.push_back(v[b]);
     } else {
       vertices_.push_back(pa + t * (pb - pa));
       inward_.push_back(Eigen::Vector3d::Zero());
-      grid_of_.push_back(-1);
       grid_index_.push_back({-1, -1, -1});
     }
     edge_vertices_.Insert(key, id);
@@ -1133,11 +1129,9 @@ class Mesher {
   std::vector<Eigen::Vector3d> vertices_;
   std::vector<Eigen::Vector3d>
       inward_;                      // per vertex at a zero grid vertex: its edge, into the solid
-  std::vector<long> grid_of_;       // per vertex at a zero grid vertex: its id (else -1)
-  std::vector<Index3> grid_index_;  // per vertex at a zero grid vertex: its index
+  std::vector<Index3> grid_index_;  // per vertex at a zero grid vertex: its index (else -1s)
   std::vector<std::array<int, 3>> triangles_;
-  FlatMap<double> unsnapped_;           // grid vertex id -> value, kept out of the snap band
-  std::vector<Index3> unsnapped_list_;  // the same grid vertices
+  FlatMap<double> unsnapped_;  // grid vertex id -> value, kept out of the snap band
 };
 
 // Tapes longer than this are pruned to every box FarthestLeaf splits (CompiledSolid::Specialize),

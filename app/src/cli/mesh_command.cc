@@ -557,7 +557,7 @@ void RunMesh(const MeshOptions& o) {
   settings.bounds = bounds;
   settings.cell_size = cell;
   settings.clean = !o.raw_surface;
-  settings.snap_cells = o.raw_surface ? 0.0 : o.snap_cells;
+  settings.snap_cells = o.snap_cells;  // without the clean-up (--raw-surface) nothing is snapped
   settings.cancel = &g_interrupted;
   settings.progress = progress.Stage("surface");
   SurfaceMeshStats stats;

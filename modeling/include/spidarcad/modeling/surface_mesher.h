@@ -65,15 +65,14 @@ struct SurfaceMeshSettings {
   // Above 0 it also turns on a clean-up that never makes the worst triangle worse (collapses
   // keep the sharpest angle they replace or 15°) and then relaxes the corners of the triangles
   // still under 15° along the surface. 0.15 gives a worst angle of 9.4° to 15° on a sphere at
-  // r/12 to r/50 (0.2: none under 10°), with 1 to 30 % more rms surface error; it is not the
-  // default because of that error, and because walls about a cell thick and sharpened creases
-  // have not been checked as widely with it. Where the band makes the zero set pinch at a grid
-  // vertex (a hole narrower than the band beside it) and the clean-up cannot move the vertices
-  // there apart without a fold, that grid vertex keeps its own value and the solid is meshed
-  // again (until 2026-12-05 this left self-intersections, e.g. in the platform at 10 mm). An
-  // inside value within the band is snapped only where a grid neighbour lies deeper than the
-  // band, so a wall thinner than 1 + 2 × snap_cells cells is kept (it was lost before).
-  // Figures: docs/design/2026-12-04-surface-mesher-peers.md.
+  // r/12 to r/50 (0.2: none under 10°), with 1 to 30 % more rms surface error; the library keeps 0
+  // as its default (its frozen meshes), the product meshes with kProductSnapCells. Where the band
+  // makes the zero set pinch at a grid vertex (a hole narrower than the band beside it) and the
+  // clean-up cannot move the vertices there apart without a fold, that grid vertex keeps its own
+  // value and the solid is meshed again (until 2026-12-05 this left self-intersections, e.g. in the
+  // platform at 10 mm). An inside value within the band is snapped only where a grid neighbour lies
+  // deeper than the band, so a wall thinner than 1 + 2 × snap_cells cells is kept (it was lost
+  // before). Figures: docs/design/2026-12-04-surface-mesher-peers.md.
   double snap_cells = 0.0;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
