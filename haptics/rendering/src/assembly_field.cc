@@ -162,7 +162,6 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   }
   near_.assign((max_shell + 63) / 64, 0);
   candidate_point_.assign(max_shell * n, 0);
-  candidate_part_.assign(max_shell * n, 0);
   candidate_phi_.assign(max_shell * n, 0.0);
   candidate_grad_.assign(max_shell * n, Eigen::Vector3d::Zero());
   candidate_x0_.assign(max_shell * n, Eigen::Vector3d::Zero());
@@ -178,9 +177,9 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
     b->assign(std::max(max_shell, tool_shell_.points_T.size()), 0.0);
   batch_point_.assign(max_shell, 0);
   batch_x_W_.assign(max_shell, Eigen::Vector3d::Zero());
-  last_phi_.assign(near_.size() * 64 * n, 0.0);
-  last_x_.assign(near_.size() * 64 * n, Eigen::Vector3d::Zero());
-  last_epoch_.assign(near_.size() * 64 * n, 0);
+  last_phi_.assign(max_shell * n, 0.0);
+  last_x_.assign(max_shell * n, Eigen::Vector3d::Zero());
+  last_epoch_.assign(max_shell * n, 0);
   Publish();
 }
 
@@ -382,7 +381,7 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
       // moved since) has φ_j(x) >= φ_j(x_last) − |x − x_last|; it is not evaluated again while
       // that bound is beyond the reach.
       int m = 0;
-      const std::size_t last = static_cast<std::size_t>(j) * near_.size() * 64;
+      const std::size_t last = static_cast<std::size_t>(j) * batch_point_.size();  // max shell
       for (std::size_t word = 0; word < words; ++word) {
         for (std::uint64_t bits = near_[word]; bits != 0; bits &= bits - 1) {
           const int i = static_cast<int>(64 * word) + std::countr_zero(bits);
@@ -407,7 +406,6 @@ ToolWrench AssemblyField::CarryStep(const ToolKinematics& tool, double dt) noexc
         if (!(batch_phi_[k] < reach)) continue;
         const int i = batch_point_[k];
         candidate_point_[num_candidates_] = i;
-        candidate_part_[num_candidates_] = j;
         candidate_x0_[num_candidates_] = batch_x_W_[k];
         candidate_phi_[num_candidates_] = batch_phi_[k];
         candidate_grad_[num_candidates_] = GatheredGradient_W(j, k);

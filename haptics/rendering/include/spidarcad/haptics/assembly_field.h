@@ -236,15 +236,14 @@ class AssemblyField final : public ForceField {
   std::vector<std::vector<ShellCluster>> clusters_;  // per part
   std::vector<std::vector<int>> cluster_points_;     // per part: shell indices in cluster order
   std::vector<std::vector<double>>
-      cluster_point_offset_;          // per part, cluster order: |r_i − centre|, m
-  std::vector<std::uint64_t> near_;   // bit i: shell point i is in a cluster near part j
-  std::vector<int> candidate_point_;  // capacity max shell × parts
-  std::vector<int> candidate_part_;
-  std::vector<double> candidate_phi_;                  // φ at the tick's start, m
-  std::vector<Eigen::Vector3d> candidate_grad_;        // ∇φ there (W)
-  std::vector<Eigen::Vector3d> candidate_x0_;          // the point there (W), m
-  std::vector<double> candidate_grad_norm_;            // |∇φ| there
-  std::vector<double> candidate_reach_;                // |∇φ| |r_i|, m
+      cluster_point_offset_;                     // per part, cluster order: |r_i − centre|, m
+  std::vector<std::uint64_t> near_;              // bit i: shell point i is in a cluster near part j
+  std::vector<int> candidate_point_;             // capacity max shell × parts
+  std::vector<double> candidate_phi_;            // φ at the tick's start, m
+  std::vector<Eigen::Vector3d> candidate_grad_;  // ∇φ there (W)
+  std::vector<Eigen::Vector3d> candidate_x0_;    // the point there (W), m
+  std::vector<double> candidate_grad_norm_;      // |∇φ| there
+  std::vector<double> candidate_reach_;          // |∇φ| |r_i|, m
   std::vector<std::vector<double>> shell_point_norm_;  // per part: |r_i| of its shell points, m
   // The batches of the searches and of the tool shell (structure of arrays, in the frame of the
   // part evaluated), capacity the largest shell: points, φ, ∇φ, and the shell index of each
@@ -252,7 +251,7 @@ class AssemblyField final : public ForceField {
   std::vector<double> batch_x_, batch_y_, batch_z_, batch_phi_, batch_gx_, batch_gy_, batch_gz_;
   std::vector<int> batch_point_;
   std::vector<Eigen::Vector3d> batch_x_W_;  // the batch's points in W, m
-  // Per (part j, shell point i of the carried part), at index j · 64 · near_.size() + i: φ_j
+  // Per (part j, shell point i of the carried part), at index j · (largest shell) + i: φ_j
   // where the search last evaluated it during carry number last_epoch_ (m), and that point (W,
   // m). Other parts do not move while one is carried, so φ_j(x) >= last φ − |x − last x|.
   std::vector<double> last_phi_;
