@@ -83,6 +83,18 @@ std::vector<double> DataArray(const std::string& vtu, const std::string& name) {
   return values;
 }
 
+// Closed and consistently oriented: every directed edge once, and its reverse.
+void ExpectClosedAndOriented(const TriangleMesh& mesh) {
+  std::map<std::pair<int, int>, int> directed;
+  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
+    for (int k = 0; k < 3; ++k) ++directed[{mesh.triangles(k, t), mesh.triangles((k + 1) % 3, t)}];
+  }
+  for (const auto& [edge, count] : directed) {
+    ASSERT_EQ(count, 1);
+    ASSERT_EQ(directed.count({edge.second, edge.first}), 1u) << "open edge";
+  }
+}
+
 TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
   const std::string stl = OutputPath("platform.stl");
   std::remove(stl.c_str());
@@ -92,15 +104,7 @@ TEST(MeshCommand, WritesThePlatformSurfaceAsAClosedStl) {
   const TriangleMesh mesh = ReadTriangleMesh(stl);
   EXPECT_EQ(mesh.triangles.cols(), PrintedCount(run.out, "triangles")) << run.out;
   EXPECT_EQ(mesh.vertices.cols(), PrintedCount(run.out, "vertices")) << run.out;
-  // Closed and consistently oriented: every directed edge once, and its reverse.
-  std::map<std::pair<int, int>, int> directed;
-  for (Eigen::Index t = 0; t < mesh.triangles.cols(); ++t) {
-    for (int k = 0; k < 3; ++k) ++directed[{mesh.triangles(k, t), mesh.triangles((k + 1) % 3, t)}];
-  }
-  for (const auto& [edge, count] : directed) {
-    ASSERT_EQ(count, 1);
-    ASSERT_EQ(directed.count({edge.second, edge.first}), 1u) << "open edge";
-  }
+  ExpectClosedAndOriented(mesh);
   EXPECT_NEAR(Volume(mesh), PlatformVolume(), 0.05 * PlatformVolume());
   EXPECT_NE(run.out.find("min triangle angle"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("error max"), std::string::npos) << run.out;
@@ -420,16 +424,8 @@ TEST(MeshCommand, SnapsSmoothSurfacesToTenDegreesUnlessTurnedOff) {
   EXPECT_LT(SmallestAngleDeg(off_mesh), 1.0);
   EXPECT_LT(on_mesh.triangles.cols(), off_mesh.triangles.cols());
   // Both closed and consistently oriented, enclosing the same volume within 0.1 %.
-  for (const TriangleMesh* mesh : {&on_mesh, &off_mesh}) {
-    std::map<std::pair<int, int>, int> directed;
-    for (Eigen::Index t = 0; t < mesh->triangles.cols(); ++t)
-      for (int k = 0; k < 3; ++k)
-        ++directed[{mesh->triangles(k, t), mesh->triangles((k + 1) % 3, t)}];
-    for (const auto& [edge, count] : directed) {
-      ASSERT_EQ(count, 1);
-      ASSERT_EQ(directed.count({edge.second, edge.first}), 1u) << "open edge";
-    }
-  }
+  ExpectClosedAndOriented(on_mesh);
+  ExpectClosedAndOriented(off_mesh);
   EXPECT_NEAR(Volume(on_mesh), Volume(off_mesh), 1e-3 * Volume(off_mesh));
   for (const std::string& bad : {std::string("--snap-cells 0.3"), std::string("--snap-cells -0.1"),
                                  std::string("--snap-cells nan")}) {
