@@ -584,6 +584,10 @@ struct SubstructuredSolver::CacheWriter {
   bool closing = false;
   std::thread thread;
 
+  // Writes what is queued and joins (a constructor that throws, e.g. on cancel, leaves no thread
+  // running).
+  ~CacheWriter() { Finish(); }
+
   static void Write(Job* job) {
     const auto t0 = Clock::now();
     job->saved = WriteCacheFile(job->file, *job->magic, job->body(), &job->error);
@@ -692,8 +696,12 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
                                          const BoundaryConditions& bcs,
                                          const Eigen::VectorXi& element_block,
                                          const SubstructuredSolver* reuse,
-                                         const std::filesystem::path& cache_directory)
+                                         const std::filesystem::path& cache_directory,
+                                         const std::atomic<bool>* cancel)
     : bcs_(bcs), interface_(std::make_unique<Interface>()) {
+  auto check_cancel = [cancel] {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw SubstructureCancelled();
+  };
   const auto t_start = Clock::now();
   mesh.Validate();
   if (bcs.num_nodes() != mesh.num_nodes()) {
@@ -857,6 +865,7 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
     if (found[b]) {
       block.factor = found[b];
     } else {
+      check_cancel();
       BlockFactor& content = *contents[b];
       content.Factor();
       block.factor = contents[b];
@@ -933,6 +942,7 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
     std::sort(order.begin(), order.end(), [&](int a, int b) {
       return pair_of[a] != pair_of[b] ? pair_of[a] < pair_of[b] : place[a] < place[b];
     });
+    check_cancel();
     if (!FactorInterfaceAsChain(mesh, owners, order, pair_of, reuse, cache_directory))
       FactorInterfaceWithCholmod(mesh, owners, order);
   }

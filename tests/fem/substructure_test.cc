@@ -8,6 +8,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -563,6 +564,32 @@ TEST(SubstructuredSolver, ReportsTheBlockWhoseInteriorIsAMechanism) {
       << solver.factor_status().message;
   Eigen::MatrixXd x;
   EXPECT_FALSE(solver.SolveFree(Eigen::MatrixXd::Zero(solver.num_free(), 1), &x).converged);
+}
+
+TEST(SubstructuredSolver, RaisedCancelFlagStopsTheFactorisationAndALoweredOneChangesNothing) {
+  const TetMesh mesh = Bar(1);
+  const Eigen::VectorXi blocks = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));
+  const MaterialTable steel(kSteel);
+  const BoundaryConditions bcs = BarConditions(mesh);
+  std::atomic<bool> cancel{true};
+  EXPECT_THROW(SubstructuredSolver(mesh, steel, bcs, blocks, nullptr, {}, &cancel),
+               SubstructureCancelled);
+  // With a cache directory the cancel comes before any block is factored or written.
+  const std::filesystem::path dir =
+      std::filesystem::path(::testing::TempDir()) / "spidarcad-substructure-cancel";
+  std::filesystem::remove_all(dir);
+  EXPECT_THROW(SubstructuredSolver(mesh, steel, bcs, blocks, nullptr, dir, &cancel),
+               SubstructureCancelled);
+  EXPECT_TRUE(!std::filesystem::exists(dir) || std::filesystem::is_empty(dir));
+  // Every block reused: nothing left to factor but the interface, which the flag still stops.
+  const SubstructuredSolver plain(mesh, steel, bcs, blocks);
+  EXPECT_THROW(SubstructuredSolver(mesh, steel, bcs, blocks, &plain, {}, &cancel),
+               SubstructureCancelled);
+  cancel = false;
+  const SubstructuredSolver lowered(mesh, steel, bcs, blocks, nullptr, {}, &cancel);
+  ASSERT_TRUE(lowered.factor_status().converged);
+  const StaticSolution a = plain.Solve(), b = lowered.Solve();
+  EXPECT_EQ(a.displacement, b.displacement);  // bit for bit
 }
 
 }  // namespace

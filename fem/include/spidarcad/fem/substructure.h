@@ -47,9 +47,11 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -128,6 +130,12 @@ struct SubstructureStats {
   double wall_seconds = 0.0;
 };
 
+// Thrown by SubstructuredSolver's constructor when its cancel flag was raised.
+class SubstructureCancelled : public std::runtime_error {
+ public:
+  SubstructureCancelled() : std::runtime_error("substructured factorisation cancelled") {}
+};
+
 // Factors a model by blocks of elements and the interface Schur complement; solves like
 // StaticSolver.
 class SubstructuredSolver final : public FreeDofSolver {
@@ -148,11 +156,15 @@ class SubstructuredSolver final : public FreeDofSolver {
   // FinishCacheWrites() waits for the writes. Blocks are read from it several at a time. A
   // chain interface keeps its planes' factor blocks there too (<key>.plane): a plane whose
   // owners, and those of the planes before it, are those of the file (blocks by content key)
-  // is read instead of factored.
+  // is read instead of factored. When `cancel` (may be null) is raised, the constructor throws
+  // SubstructureCancelled before the next block it would factor and before the interface: a
+  // cancel waits for at most one block's factorisation (CHOLMOD cannot be interrupted); the
+  // block files already queued for the cache directory are finished first.
   SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
                       const BoundaryConditions& bcs, const Eigen::VectorXi& element_block,
                       const SubstructuredSolver* reuse = nullptr,
-                      const std::filesystem::path& cache_directory = {});
+                      const std::filesystem::path& cache_directory = {},
+                      const std::atomic<bool>* cancel = nullptr);
   ~SubstructuredSolver() override;
   SubstructuredSolver(const SubstructuredSolver&) = delete;
   SubstructuredSolver& operator=(const SubstructuredSolver&) = delete;
