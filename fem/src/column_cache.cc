@@ -51,11 +51,13 @@ ColumnCache::ColumnCache(std::unique_ptr<const FreeDofSolver> view, const FreeDo
     throw std::invalid_argument("ColumnCache: memory_budget_bytes must be > 0, got " +
                                 std::to_string(settings.memory_budget_bytes));
   }
-  if (settings.block_nodes < 1 || settings.neighbours < 0 || !(settings.idle_poll_seconds > 0.0)) {
-    throw std::invalid_argument("ColumnCache: block_nodes must be >= 1 (got " +
-                                std::to_string(settings.block_nodes) + "), neighbours >= 0 (got " +
-                                std::to_string(settings.neighbours) +
-                                ") and idle_poll_seconds > 0");
+  if (settings.block_nodes < 1 || settings.first_block_nodes < 0 || settings.neighbours < 0 ||
+      !(settings.idle_poll_seconds > 0.0)) {
+    throw std::invalid_argument(
+        "ColumnCache: block_nodes must be >= 1 (got " + std::to_string(settings.block_nodes) +
+        "), first_block_nodes >= 0 (got " + std::to_string(settings.first_block_nodes) +
+        "), neighbours >= 0 (got " + std::to_string(settings.neighbours) +
+        ") and idle_poll_seconds > 0");
   }
   if (!solver_.factor_status().converged) {
     throw std::runtime_error("ColumnCache: the model's factorisation failed: " +
@@ -210,8 +212,11 @@ void ColumnCache::PlanBlock(const Eigen::Vector3d& p, double radius, std::uint64
     });
     order_seq_ = seq;
   }
+  const int limit = blocks_.load() == 0 && settings_.first_block_nodes > 0
+                        ? std::min(settings_.first_block_nodes, settings_.block_nodes)
+                        : settings_.block_nodes;
   for (int b : order_) {
-    if (static_cast<int>(block->size()) >= settings_.block_nodes) break;
+    if (static_cast<int>(block->size()) >= limit) break;
     if (failed_[b] || slot_of_[b].load() >= 0) continue;
     const int s = TakeSlotFor(&p, (positions_[b] - p).norm(), nullptr);
     if (s < 0) break;  // the rest is farther still

@@ -15,6 +15,7 @@
 #include <random>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "spidarcad/fem/condensation.h"
@@ -201,6 +202,40 @@ TEST(ColumnCache, ComputesTheNodesNearestTheFocusFirst) {
   EXPECT_GT(inside, 8);
   EXPECT_GT(compared, 20);
   EXPECT_GE(cache.stats().blocks, 3);
+}
+
+// A smaller first block: the nearest nodes come first in a block of their own, the rest in
+// blocks of block_nodes; a negative size is refused, naming the field.
+TEST(ColumnCache, FirstBlockHoldsTheFirstBlockNodesNearestTheFocus) {
+  const Scene scene(0.4, 8, 2);
+  ColumnCacheSettings settings;
+  settings.block_nodes = 6;
+  settings.first_block_nodes = 2;
+  settings.start_worker = false;
+  ColumnCache cache(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+  const Eigen::Vector3d focus(0.4, 0.0, 0.1);
+  cache.RequestNear(focus, 0.25);
+  cache.Start();
+  ASSERT_TRUE(cache.WaitUntilIdle(30.0));
+  std::vector<std::pair<double, int>> ready;  // (distance, candidate)
+  for (int b = 0; b < cache.num_candidates(); ++b)
+    if (cache.IsReady(b)) ready.emplace_back((scene.Position(b) - focus).norm(), b);
+  std::sort(ready.begin(), ready.end());
+  ASSERT_GT(ready.size(), 8u);
+  const long first = cache.ReadyBlock(ready[0].second);
+  EXPECT_EQ(cache.ReadyBlock(ready[1].second), first);
+  EXPECT_GT(cache.ReadyBlock(ready[2].second), first) << "the third nearest is in the next block";
+  int in_second = 0;
+  for (const auto& [d, b] : ready) in_second += cache.ReadyBlock(b) == first + 1;
+  EXPECT_EQ(in_second, 6);
+  settings.first_block_nodes = -1;
+  try {
+    ColumnCache bad(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+    ADD_FAILURE() << "a negative first block was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("first_block_nodes >= 0 (got -1)"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(ColumnCache, EvictsFarColumnsToStayWithinTheMemoryBoundButNeverPinnedOnes) {

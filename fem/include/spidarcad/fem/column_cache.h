@@ -67,6 +67,10 @@ struct ColumnCacheSettings {
   double memory_budget_bytes = 256.0e6;
   // Candidate nodes solved per multi-right-hand-side solve (3 columns each).
   int block_nodes = 16;
+  // Candidate nodes of the first block the worker solves (0: block_nodes). A solve's cost grows
+  // with its columns, so a smaller first block makes the columns nearest the focus (those a
+  // tool already in contact needs) ready sooner after the cache is made.
+  int first_block_nodes = 0;
   // Length of the precomputed nearest-candidate list of each candidate (fallback lookup);
   // beyond it ReadyNodeNearest scans the ready slots.
   int neighbours = 16;
