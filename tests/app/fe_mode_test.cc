@@ -868,7 +868,8 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   MeshSettings settings;
   settings.cell_size = 0.012;
   settings.mesher = "tetgen";
-  const FeMeshInput input = PrepareFeMesh(expected, expected.FindByName("platform")->id, settings);
+  FeMeshInput input = PrepareFeMesh(expected, expected.FindByName("platform")->id, settings);
+  input.slabs = kFeSlabs;  // as FE mode meshes a solid (FeMode::mesh_in_slabs)
   expected.Execute(SetUpFe(input, MeshFeSource(input)));
   expected.Execute(edit::SetFeMaterial(expected.last_created()[1], aluminium));
   EXPECT_TRUE(Comparable(reread) == Comparable(expected))
@@ -932,6 +933,80 @@ TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
   ASSERT_TRUE(window.tree().Undo());  // the radius edit
   window.Frame();
   EXPECT_FALSE(fe.stale()) << "the solid is as it was meshed again";
+}
+
+// A solid set up in FE mode is meshed in slabs and factored by slab. With the model felt, an edit
+// of the solid refreshes it by itself: only the slab the edit reached is re-meshed and refactored,
+// and the new model solves as a one-piece factorisation of the new mesh does. The undo of that
+// refresh is not refreshed again (the redo history stays).
+TEST(FeModeWindow, EditOfAFeltSolidRefreshesItselfInTheSlabsItReached) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("fe_window_slabs");
+  test_support::ScopedEnv cache("SPIDARCAD_CACHE_DIR", (scratch.dir / "cache").string().c_str());
+  AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  EXPECT_TRUE(fe.mesh_in_slabs()) << "the default";
+  EXPECT_TRUE(fe.refresh_on_edit()) << "the default";
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < 3; ++k) window.Frame();
+  const ObjectId platform = doc.FindByName("platform")->id;
+  fe.mesh_settings().cell_size = 0.012;
+  ASSERT_TRUE(fe.StartSetUp(&model, platform, false, true)) << fe.status();
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.model() != nullptr; })) << fe.status();
+  const ObjectId mesh_id = FeDataOf(doc, fe.bound_object()).tet_mesh;
+  const std::shared_ptr<const SlabFeMesh> first = fe.SlabsOf(doc, mesh_id);
+  ASSERT_NE(first, nullptr) << "set up in slabs";
+  EXPECT_EQ(first->num_remeshed(), kFeSlabs);
+  const std::shared_ptr<FeModel> before = fe.model();
+  ASSERT_NE(before->substructured(), nullptr);
+  EXPECT_EQ(before->substructured()->num_blocks(), kFeSlabs);
+  EXPECT_EQ(before->substructured()->stats().factored_blocks, kFeSlabs);
+  const std::size_t steps = doc.history().undo_size();
+
+  // The load holes (the last slab) from 4 to 4.5 mm radius.
+  ASSERT_TRUE(window.tree().SelectByName("load_hole")) << window.tree().error();
+  ASSERT_TRUE(window.tree().SetField("radius", 0.0045)) << window.tree().error();
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.model() != nullptr && fe.model() != before; }))
+      << fe.status();
+  EXPECT_FALSE(fe.stale());
+  EXPECT_EQ(doc.history().undo_size(), steps + 2) << "the edit and the refresh";
+  EXPECT_EQ(doc.history().UndoDescription(), "Refresh platform mesh");
+  const std::shared_ptr<const SlabFeMesh> second = fe.SlabsOf(doc, mesh_id);
+  ASSERT_NE(second, nullptr);
+  EXPECT_EQ(second->num_remeshed(), 1);
+  EXPECT_TRUE(second->remeshed.back());
+  const FeModel& after = *fe.model();
+  ASSERT_NE(after.substructured(), nullptr);
+  EXPECT_EQ(after.substructured()->stats().factored_blocks, 1) << fe.status();
+  EXPECT_EQ(after.substructured()->stats().reused_blocks, kFeSlabs - 1);
+  EXPECT_NE(fe.status().find("1 of 4 slabs factored, 3 kept"), std::string::npos) << fe.status();
+
+  // The response to unit forces at the three surface nodes nearest the free corner, against a
+  // one-piece factorisation of the same mesh.
+  const fem::StaticSolver one_piece(after.mesh(), after.materials(), after.bcs());
+  std::vector<int> near = after.surface().nodes;
+  const Eigen::Vector3d corner(0.3, 0.1, 0.01);
+  std::partial_sort(near.begin(), near.begin() + 3, near.end(), [&](int a, int b) {
+    return (after.mesh().nodes.row(a).transpose() - corner).norm() <
+           (after.mesh().nodes.row(b).transpose() - corner).norm();
+  });
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(one_piece.num_free(), 9);
+  for (int c = 0; c < 3; ++c)
+    for (int j = 0; j < 3; ++j) rhs(one_piece.FreeIndex(3 * near[c] + j), 3 * c + j) = 1.0;
+  Eigen::MatrixXd x_slabs, x_whole;
+  ASSERT_TRUE(after.substructured()->SolveFree(rhs, &x_slabs).converged);
+  ASSERT_TRUE(one_piece.SolveFree(rhs, &x_whole).converged);
+  EXPECT_LT((x_slabs - x_whole).norm(), 1e-9 * x_whole.norm());
+
+  // Undo the refresh: stale again, and left so (Refresh is the user's call now).
+  ASSERT_TRUE(window.tree().Undo());
+  for (int k = 0; k < 5; ++k) window.Frame();
+  EXPECT_TRUE(fe.stale());
+  EXPECT_EQ(doc.history().redo_size(), 1u);
 }
 
 // A sculpt object selected in the tree (as sculpt mode's Send to FE does) is chosen in FE mode and

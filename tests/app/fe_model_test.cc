@@ -85,7 +85,7 @@ TEST(FeModel, TwoRegionBarInTensionStretchesAsSeriesSprings) {
     settings.order = order;
     const std::unique_ptr<FeModel> model = FeModel::Build(FeMeshOf(doc, stored), settings);
     ASSERT_EQ(model->load_nodes().size(), 1u);
-    const fem::StaticSolution solution = model->solver().Solve();
+    const fem::StaticSolution solution = model->static_solver()->Solve();
     ASSERT_TRUE(solution.status.converged);
     // Series springs: u = F / A (L1 / E1 + L2 / E2), with ν = 0 the uniaxial field is exact.
     const double area = 0.5 * kSide * kSide;
@@ -150,7 +150,7 @@ TEST(FeModel, BoxLoadsReactionBalancesAppliedForceAndMoment) {
     EXPECT_EQ(model->load_nodes()[i], expected) << "load " << i;
     EXPECT_GT(expected.size(), 3u);
   }
-  const fem::StaticSolution solution = model->solver().Solve();
+  const fem::StaticSolution solution = model->static_solver()->Solve();
   ASSERT_TRUE(solution.status.converged);
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();
   for (int v = 0; v < mesh.num_nodes(); ++v) {
@@ -255,6 +255,73 @@ TEST(FeModel, DefaultClampHoldsThePlatformWallFaceAtEveryCellSize) {
     EXPECT_GT(wall, 500);  // the 0.2 x 0.16 m wall face
     EXPECT_EQ(missed, 0);
     EXPECT_EQ(deep, 0);
+  }
+}
+
+// A model in slabs solves as the one-piece model does, and a model of an edited mesh keeps the
+// factors of the slabs the edit did not reach.
+TEST(FeModel, SlabModelEqualsOnePieceAndKeepsTheFactorsAnEditLeft) {
+  fem::BoxMeshSettings box;
+  box.upper = Eigen::Vector3d(0.3, 0.05, 0.02);
+  box.nx = 12;
+  box.ny = 3;
+  box.nz = 2;
+  const fem::TetMesh mesh = fem::MakeBoxMesh(box);
+  const Eigen::VectorXi slabs = fem::SlabBlocks(mesh, 0, fem::EvenPlanes(mesh, 0, 4));
+  // The edit: the nodes strictly inside the last slab (x > 0.26) moved by 0.1 mm.
+  fem::TetMesh edited = mesh;
+  for (int v = 0; v < edited.num_nodes(); ++v)
+    if (edited.nodes(v, 0) > 0.26) edited.nodes(v, 1) += 1e-4;
+  for (int order : {1, 2}) {
+    SCOPED_TRACE("order " + std::to_string(order));
+    FeModelSettings settings = Quiet();
+    settings.order = order;
+    settings.loads = {
+        {Eigen::AlignedBox3d(Eigen::Vector3d(0.3 - 1e-9, -1, -1), Eigen::Vector3d(1, 1, 1)),
+         Eigen::Vector3d(0, 0, -100)}};
+    const std::unique_ptr<FeModel> whole = FeModel::Build(mesh, settings);
+    settings.element_block = slabs;
+    std::shared_ptr<const FeModel> first = FeModel::Build(mesh, settings);
+    ASSERT_NE(first->substructured(), nullptr);
+    EXPECT_EQ(first->static_solver(), nullptr);
+    EXPECT_TRUE(first->factor_status().converged);
+    EXPECT_EQ(first->substructured()->num_blocks(), 4);
+    const Eigen::VectorXd& u0 = whole->cache().baseline();
+    EXPECT_LT((first->cache().baseline() - u0).norm(), 1e-9 * u0.norm());
+    // The compliance columns of the top nodes at the free end, block by block.
+    std::vector<int> tip;
+    for (int b = 0; b < whole->cache().num_candidates(); ++b) {
+      const int v = whole->cache().candidate_node(b);
+      if (mesh.nodes(v, 0) > 0.3 - 1e-9 && mesh.nodes(v, 2) > 0.02 - 1e-9) tip.push_back(b);
+    }
+    ASSERT_GE(tip.size(), 4u);
+    whole->cache().ComputeNodes(tip);
+    std::const_pointer_cast<FeModel>(first)->cache().ComputeNodes(tip);
+    for (int a : tip)
+      for (int b : tip) {
+        const Eigen::Matrix3d g = whole->cache().Block(whole->cache().OutputIndexOfCandidate(a), b);
+        const Eigen::Matrix3d h = first->cache().Block(first->cache().OutputIndexOfCandidate(a), b);
+        EXPECT_LT((h - g).norm(), 1e-9 * g.norm()) << a << " " << b;
+      }
+
+    settings.reuse = first;
+    const std::unique_ptr<FeModel> after = FeModel::Build(edited, settings);
+    EXPECT_EQ(after->substructured()->stats().reused_blocks, 3);
+    EXPECT_EQ(after->substructured()->stats().factored_blocks, 1);
+    settings.element_block.resize(0);
+    settings.reuse = nullptr;
+    const std::unique_ptr<FeModel> fresh = FeModel::Build(edited, settings);
+    const Eigen::VectorXd& u1 = fresh->cache().baseline();
+    EXPECT_GT((u1 - u0).norm(), 1e-6 * u0.norm());  // the edit changed the answer
+    EXPECT_LT((after->cache().baseline() - u1).norm(), 1e-9 * u1.norm());
+    // Labels that do not fit the mesh are refused, naming the counts.
+    settings.element_block = Eigen::VectorXi::Zero(3);
+    try {
+      FeModel::Build(mesh, settings);
+      ADD_FAILURE() << "three labels for a whole mesh were taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("3 slab labels"), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -321,7 +321,7 @@ TEST(JobCancel, FePrecomputeEndsWithinHalfASecondInsideCholmod) {
   jobs.jobs().back()->Wait();
   jobs.Poll();
   ASSERT_NE(mode.model(), nullptr) << mode.status();
-  EXPECT_TRUE(mode.model()->solver().factor_status().converged);
+  EXPECT_TRUE(mode.model()->factor_status().converged);
 }
 
 // ---- sculpt mode: a sculpt copy of a solid (SculptMode::RequestCopy) ----

@@ -25,6 +25,16 @@
 namespace spidarcad::app {
 namespace {
 
+// MeshSolidInSlabs's options: TetGen's bound, the earlier mesh and the cache directory.
+SlabMeshOptions Options(double max_radius_edge, const SlabFeMesh* previous,
+                        const std::filesystem::path& dir = {}) {
+  SlabMeshOptions o;
+  o.max_radius_edge = max_radius_edge;
+  o.previous = previous;
+  o.cache_directory = dir;
+  return o;
+}
+
 constexpr double kCell = 0.0125;
 constexpr int kSlabs =
     4;  // planes near x = 0.056, 0.146, 0.237 m: the holes (0.27 m) are 2 cells clear
@@ -66,7 +76,8 @@ TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
   // The load holes (x = 0.27 m, last slab) from 4 to 4.5 mm radius.
   const SceneSolidGrid edited = PrepareSceneSolid(
       EditedPlatform("load_hole", "radius", 0.0045, "slab_fe_mesh_hole"), "platform", kCell);
-  const SlabFeMesh after = MeshSolidInSlabs(edited.compiled, grid, kCell, planes, 2.0, &before);
+  const SlabFeMesh after =
+      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, Options(2.0, &before));
   EXPECT_EQ(after.num_remeshed(), 1);
   EXPECT_TRUE(after.remeshed.back());
   for (int k = 0; k + 1 < kSlabs; ++k) {
@@ -130,23 +141,26 @@ TEST(SlabFeMesh, CacheDirectoryKeepsSlabMeshesBetweenRuns) {
   const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", kCell);
   const Eigen::AlignedBox3d grid = base.bounds;
   const std::vector<double> planes = SlabPlanes(grid, kCell, kSlabs);
-  const SlabFeMesh first = MeshSolidInSlabs(base.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+  const SlabFeMesh first =
+      MeshSolidInSlabs(base.compiled, grid, kCell, planes, Options(2.0, nullptr, dir));
   EXPECT_EQ(first.num_remeshed(), kSlabs);
   EXPECT_TRUE(first.cache_notes.empty());
-  const SlabFeMesh second = MeshSolidInSlabs(base.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+  const SlabFeMesh second =
+      MeshSolidInSlabs(base.compiled, grid, kCell, planes, Options(2.0, nullptr, dir));
   EXPECT_EQ(second.num_remeshed(), 0);
   EXPECT_EQ(std::count(second.loaded.begin(), second.loaded.end(), 1), kSlabs);
   EXPECT_TRUE((second.mesh.nodes.array() == first.mesh.nodes.array()).all());
   EXPECT_TRUE((second.mesh.elements.array() == first.mesh.elements.array()).all());
   EXPECT_TRUE((second.slab.array() == first.slab.array()).all());
   // Another TetGen bound is another key: nothing read.
-  const SlabFeMesh other = MeshSolidInSlabs(base.compiled, grid, kCell, planes, 1.8, nullptr, dir);
+  const SlabFeMesh other =
+      MeshSolidInSlabs(base.compiled, grid, kCell, planes, Options(1.8, nullptr, dir));
   EXPECT_EQ(other.num_remeshed(), kSlabs);
 
   const SceneSolidGrid edited = PrepareSceneSolid(
       EditedPlatform("load_hole", "radius", 0.0045, "slab_fe_mesh_cache_hole"), "platform", kCell);
   const SlabFeMesh after =
-      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, Options(2.0, nullptr, dir));
   EXPECT_EQ(after.num_remeshed(), 1);
   EXPECT_TRUE(after.remeshed.back());
   EXPECT_EQ(std::count(after.loaded.begin(), after.loaded.end(), 1), kSlabs - 1);
@@ -164,7 +178,7 @@ TEST(SlabFeMesh, CacheDirectoryKeepsSlabMeshesBetweenRuns) {
   }
   EXPECT_GE(damaged, kSlabs + 1);
   const SlabFeMesh refused =
-      MeshSolidInSlabs(base.compiled, grid, kCell, planes, 2.0, nullptr, dir);
+      MeshSolidInSlabs(base.compiled, grid, kCell, planes, Options(2.0, nullptr, dir));
   EXPECT_EQ(refused.num_remeshed(), kSlabs);
   ASSERT_EQ(refused.cache_notes.size(), static_cast<std::size_t>(kSlabs));
   EXPECT_NE(refused.cache_notes[0].find("slab 0: refused " + dir.string()), std::string::npos)

@@ -249,7 +249,9 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     e.slabs = static_cast<int>(planes.size()) + 1;
     Timer t;
     const SceneSolidGrid changed = PrepareSceneSolid(edit.path, "platform", cell);
-    const SlabFeMesh m = MeshSolidInSlabs(changed.compiled, grid, cell, planes, 2.0, &slab_mesh);
+    SlabMeshOptions reuse;
+    reuse.previous = &slab_mesh;
+    const SlabFeMesh m = MeshSolidInSlabs(changed.compiled, grid, cell, planes, reuse);
     const fem::TetMesh mesh1 = order == 2 ? fem::MakeQuadratic(m.mesh) : m.mesh;
     const fem::BoundaryConditions bcs1 = Conditions(mesh1);
     Timer ts;

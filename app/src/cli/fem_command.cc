@@ -126,9 +126,11 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
   const double cell = grid.cell;
   SlabFeMesh slabs;
   try {
+    SlabMeshOptions slab_options;
+    slab_options.max_radius_edge = options.max_radius_edge;
+    slab_options.cache_directory = options.cache_dir;
     slabs = MeshSolidInSlabs(grid.compiled, grid.bounds, cell,
-                             SlabPlanes(grid.bounds, cell, options.slabs), options.max_radius_edge,
-                             nullptr, options.cache_dir);
+                             SlabPlanes(grid.bounds, cell, options.slabs), slab_options);
   } catch (const std::exception& e) {
     throw InputError(options.input + ": solid '" + grid.solid_name + "' at --resolution " +
                      FormatNumber(cell) + " m in " + std::to_string(options.slabs) +

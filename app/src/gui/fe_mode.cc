@@ -30,6 +30,9 @@ FeMode::FeMode(vtkRenderer* renderer, JobQueue* jobs)
     : renderer_(renderer), jobs_(jobs), channel_(std::make_shared<FeContactChannel>()) {
   mesh_settings_.mesher = "tetgen";
   touch_settings_ = DefaultFeTouchSettings();  // as `spidarcad run` (scene/fe_part.h)
+  // After an edit the tool is usually on the part already: its nearest nodes' columns first, in a
+  // block of their own (half the right-hand sides of a full block).
+  model_settings_.cache.first_block_nodes = kFeModeFirstColumns;
   touch_settings_.force_scale = std::pow(10.0, log_force_scale_);  // the slider's value
   poly_ = vtkSmartPointer<vtkPolyData>::New();
   scalars_ = vtkSmartPointer<vtkDoubleArray>::New();
@@ -114,8 +117,10 @@ void FeMode::SetActive(bool active) {
   }
 }
 
-void FeMode::SetMesh(fem::TetMesh mesh, std::string name) {
+void FeMode::SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab) {
+  if (model_ && model_->substructured()) reuse_model_ = model_;
   mesh_ = std::make_shared<const fem::TetMesh>(std::move(mesh));
+  mesh_slab_ = std::move(slab);
   mesh_name_ = std::move(name);
   model_.reset();
   pending_field_.reset();
@@ -129,6 +134,8 @@ void FeMode::SetMesh(fem::TetMesh mesh, std::string name) {
 void FeMode::Precompute() {
   if (jobs_ == nullptr || !mesh_ || RunningJob() != nullptr) return;
   FeModelSettings settings = model_settings_;
+  settings.element_block = mesh_slab_;
+  if (mesh_slab_.size() > 0) settings.reuse = reuse_model_;
   std::shared_ptr<const fem::TetMesh> mesh = mesh_;
   job_key_ = bound_key_;
   const BoundKey key = bound_key_;
@@ -149,6 +156,7 @@ void FeMode::Precompute() {
           awaiting_title_.clear();
           if (mesh != mesh_ || !(key == bound_key_)) return;  // part changed: drop the result
           model_ = model;
+          reuse_model_.reset();
           if (key.fe != 0) {
             kept_.emplace_back(key, model);
             if (kept_.size() > kKeptModels) kept_.erase(kept_.begin());
@@ -159,6 +167,12 @@ void FeMode::Precompute() {
                         model_->num_fixed_nodes(), model_->surface().nodes.size(),
                         model_->imported_nodes(), model_->build_seconds());
           status_ = line;
+          if (const fem::SubstructuredSolver* slabs = model_->substructured()) {
+            std::snprintf(line, sizeof line, "; %d of %d slabs factored, %d kept",
+                          slabs->stats().factored_blocks, slabs->num_blocks(),
+                          slabs->stats().reused_blocks);
+            status_ += line;
+          }
           BuildSurfaceActor();
           ShowModel(active_);
           if (active_) QueueField();
@@ -449,7 +463,10 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
     chosen_ = 0;
     last_selected_ = 0;
     kept_.clear();
+    auto_refreshed_ = {0, 0};
     kinds_.clear();
+    slab_meshes_.clear();
+    reuse_model_.reset();
     pending_text_.clear();
     want_model_ = false;
     rebuild_pending_ = false;
@@ -502,6 +519,20 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
     stale_ = bound_key_.mesh != 0 && doc.Find(bound_key_.mesh) != nullptr &&
              doc.IsMeshOutOfDate(bound_key_.mesh);
   }
+  // Refresh on edit, while a model is felt, not while a panel value is being dragged: once per
+  // revision of the source (a refresh that fails is tried again only after the next edit, and
+  // the undo of a refresh is not refreshed again, which would end the redo history).
+  const bool dragging = ImGui::GetCurrentContext() != nullptr && ImGui::IsAnyItemActive();
+  if (refresh_on_edit_ && stale_ && active_ && model_ && !dragging && RunningJob() == nullptr) {
+    const auto& mesh = std::get<MeshData>(doc.Get(bound_key_.mesh).data);
+    const DocObject* source = doc.Find(mesh.source);
+    const std::pair<ObjectId, std::uint64_t> edit{mesh.source,
+                                                  source != nullptr ? source->revision : 0};
+    if (source != nullptr && edit != auto_refreshed_) {
+      auto_refreshed_ = edit;
+      StartRefresh(model);
+    }
+  }
 }
 
 void FeMode::Rebind(const Document& doc, ObjectId fe) {
@@ -545,7 +576,9 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
   }
   if (old_key.fe == key.fe && old_key.mesh == key.mesh &&
       old_key.mesh_revision == key.mesh_revision && mesh_) {
-    // Only the FE settings changed: same mesh, new model.
+    // Only the FE settings changed: same mesh, new model (the slabs whose content the change left,
+    // e.g. far from a moved clamp, keep their factors).
+    if (model_ && model_->substructured()) reuse_model_ = model_;
     model_.reset();
     pending_field_.reset();
     ShowModel(false);
@@ -553,7 +586,8 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
     status_ = o.name + ": settings changed; press Precompute";
   } else {
     try {
-      SetMesh(FeMeshOf(doc, data), o.name);
+      const std::shared_ptr<const SlabFeMesh> slabs = SlabsOf(doc, data.tet_mesh);
+      SetMesh(FeMeshOf(doc, data), o.name, slabs ? slabs->slab : Eigen::VectorXi());
     } catch (const std::exception& e) {
       mesh_.reset();
       status_ = o.name + ": " + e.what();
@@ -575,6 +609,15 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
     return;
   }
   if (want_model_) rebuild_pending_ = true;
+}
+
+std::shared_ptr<const SlabFeMesh> FeMode::SlabsOf(const Document& doc, ObjectId mesh) const {
+  const DocObject* o = doc.Find(mesh);
+  const auto* data = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr;
+  if (data == nullptr || !data->volume) return nullptr;
+  for (const auto& slabs : slab_meshes_)
+    if (slabs->volume == data->volume) return slabs;
+  return nullptr;
 }
 
 void FeMode::RequestModel() {
@@ -620,6 +663,7 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
   FeMeshInput input;
   try {
     input = PrepareFeMesh(doc, source, mesh_settings_);
+    if (mesh_in_slabs_ && input.kind == FeSourceKind::kSolid) input.slabs = kFeSlabs;
   } catch (const std::exception& e) {
     status_ = std::string("set up FE: ") + e.what();
     return false;
@@ -679,7 +723,11 @@ bool FeMode::StartRefresh(SceneModel* model) {
   if (model == nullptr || bound_key_.mesh == 0 || jobs_ == nullptr || RunningJob() != nullptr)
     return false;
   try {
-    const FeMeshInput input = PrepareFeRemesh(model->document(), bound_key_.mesh);
+    FeMeshInput input = PrepareFeRemesh(model->document(), bound_key_.mesh);
+    if (mesh_in_slabs_ && input.kind == FeSourceKind::kSolid) {
+      input.slabs = kFeSlabs;
+      input.previous_slabs = SlabsOf(model->document(), bound_key_.mesh);
+    }
     want_model_ = want_model_ || model_ != nullptr;
     StartMeshJob(model, input, true, bound_key_.mesh);
   } catch (const std::exception& e) {
@@ -711,6 +759,11 @@ void FeMode::StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refr
                    if (model->generation() != generation) {  // another document: drop it
                      precompute_on_bind_ = false;
                      return;
+                   }
+                   if (result->slabs) {  // for SlabsOf, before the command lands (Rebind)
+                     slab_meshes_.push_back(result->slabs);
+                     if (slab_meshes_.size() > kKeptModels + 1)
+                       slab_meshes_.erase(slab_meshes_.begin());
                    }
                    std::unique_ptr<Command> command =
                        refresh_mesh ? RefreshFeMesh(mesh, input, *result) : SetUpFe(input, *result);
@@ -774,6 +827,9 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
         mesh_settings_.sharp_edges = false;
       }
       if (!cgal) ImGui::Checkbox("sharp edges", &mesh_settings_.sharp_edges);
+      if (!cgal && !mesh_settings_.sharp_edges) {
+        ImGui::Checkbox("in slabs (local edits refactor only what they reach)", &mesh_in_slabs_);
+      }
       float cell_mm = static_cast<float>(1e3 * mesh_settings_.cell_size);
       if (ImGui::DragFloat("cell [mm] (0: auto)", &cell_mm, 0.2f, 0.0f, 100.0f, "%.1f"))
         mesh_settings_.cell_size = 1e-3 * std::max(0.0f, cell_mm);
@@ -807,6 +863,11 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
       if (busy || src == nullptr) ImGui::BeginDisabled();
       if (ImGui::Button("Refresh")) StartRefresh(model);
       if (busy || src == nullptr) ImGui::EndDisabled();
+    }
+    ImGui::Checkbox("refresh on edit", &refresh_on_edit_);
+    if (const auto slabs = SlabsOf(doc, bound_key_.mesh)) {
+      ImGui::SameLine();
+      ImGui::TextDisabled("(mesh in %zu slabs)", slabs->slab_tets.size());
     }
   }
   // The over-budget question.

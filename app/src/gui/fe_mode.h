@@ -48,6 +48,11 @@ class vtkDoubleArray;
 
 namespace spidarcad::app {
 
+// Candidates of the first block of columns a model of FE mode computes
+// (fem::ColumnCacheSettings::first_block_nodes): the nodes nearest the tool, ready in about half
+// the time of a full block of 16 (bench/app_fe_mode_edit_bench.cc measures edit to felt force).
+inline constexpr int kFeModeFirstColumns = 8;
+
 class SceneModel;
 
 // Figures of the live FE state shown in the panel (and read by tests/demos).
@@ -107,7 +112,10 @@ class FeMode {
   // Places the actors in the view frame: p_D = (p_W − p_WDo) / s (s > 0), as SculptMode does.
   void SetWorldToView(const haptics::DeviceToWorld& X_WD);
   // The part to work on (tetrahedra in W, m); drops the current model (precompute again).
-  void SetMesh(fem::TetMesh mesh, std::string name);
+  // `slab` (each element's slab, SlabFeMesh::slab; empty: one piece) makes the next model
+  // factored in slabs; the dropped model, when it was in slabs, lends the next one the factors
+  // of the slabs that are unchanged (FeModelSettings::reuse).
+  void SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab = {});
   // Starts the precomputation Job with model_settings() (synced from the bound FE model).
   void Precompute();
   // Precomputes the bound model now and again whenever it changes (what the Precompute button
@@ -148,6 +156,16 @@ class FeMode {
   bool stale() const { return stale_; }
   // How "Set up FE" meshes a solid (mesher, sharp edges, cell size; 0: from its size).
   MeshSettings& mesh_settings() { return mesh_settings_; }
+  // Set up and Refresh mesh a solid in kFeSlabs slabs (FeMeshInput::slabs), so that a refresh
+  // after a local edit re-meshes and refactors only the slabs the edit reached; on by default.
+  bool& mesh_in_slabs() { return mesh_in_slabs_; }
+  // Refresh a stale mesh by itself while the mode is on and a model is shown (the old model stays
+  // felt until the new one is ready), once per revision of its source (so not after the undo of
+  // a refresh); on by default.
+  bool& refresh_on_edit() { return refresh_on_edit_; }
+  // The slab mesh mesh object `mesh` holds now, when this mode made it in slabs (null: in one
+  // piece, made elsewhere, or forgotten: the mode remembers kKeptModels of them).
+  std::shared_ptr<const SlabFeMesh> SlabsOf(const Document& doc, ObjectId mesh) const;
 
   // Model settings the next Precompute uses (editable by code as by the panel).
   FeModelSettings& model_settings() { return model_settings_; }
@@ -209,7 +227,11 @@ class FeMode {
   bool active_ = false;
   std::string mesh_name_;
   std::shared_ptr<const fem::TetMesh> mesh_;
+  Eigen::VectorXi mesh_slab_;  // slab of each element of mesh_ (empty: one piece)
   std::shared_ptr<FeModel> model_;
+  // The last model in slabs that was dropped for a new mesh: the next precompute shares its
+  // unchanged slabs' factors (reset when that precompute lands or the document changes).
+  std::shared_ptr<const FeModel> reuse_model_;
   std::shared_ptr<FeContactChannel> channel_;
   std::unique_ptr<haptics::ForceField> pending_field_;
   FeModelSettings model_settings_;
@@ -264,6 +286,12 @@ class FeMode {
   // Models made lately (newest last), by the revisions they were made from.
   std::vector<std::pair<BoundKey, std::shared_ptr<FeModel>>> kept_;
   static constexpr std::size_t kKeptModels = 3;
+  // Slab meshes this mode made lately (newest last; SlabsOf finds them by their volume).
+  std::vector<std::shared_ptr<const SlabFeMesh>> slab_meshes_;
+  bool mesh_in_slabs_ = true;
+  bool refresh_on_edit_ = true;
+  // The source and its revision of the last refresh on edit.
+  std::pair<ObjectId, std::uint64_t> auto_refreshed_{0, 0};
   // Finishers of this mode's Jobs run only while the mode lives (they hold a weak_ptr to this).
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };

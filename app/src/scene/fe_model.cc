@@ -30,6 +30,10 @@ void Progress(const FeModelSettings& s, double fraction, const char* phase) {
 
 }  // namespace
 
+const fem::SolveStatus& FeModel::factor_status() const {
+  return solver_ ? solver_->factor_status() : substructured_->factor_status();
+}
+
 std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings& settings) {
   const auto t0 = std::chrono::steady_clock::now();
   if (settings.order != 1 && settings.order != 2) {
@@ -98,19 +102,37 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   // Assembly and factorisation. With a cancel flag and a worker program (the window), CHOLMOD
   // runs in a child process that Cancel kills (scene/worker_process.h).
   Progress(settings, 0.1, "assemble");
-  const fem::StaticSolver::Factorizer factorize = [&settings](const fem::SparseMatrixd& k_ff) {
-    CheckCancel(settings);
-    Progress(settings, 0.15, "factor");
-    return FactorizeCancellable(k_ff, settings.cancel);
-  };
-  try {
-    m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_, factorize);
-  } catch (const FactorizationCancelled&) {
-    throw FeModelCancelled();
+  if (settings.element_block.size() > 0) {
+    if (settings.element_block.size() != tm.num_elements()) {
+      std::ostringstream msg;
+      msg << "FE model: " << settings.element_block.size() << " slab labels for "
+          << tm.num_elements() << " elements";
+      throw std::invalid_argument(msg.str());
+    }
+    Progress(settings, 0.15, "factor slabs");
+    const fem::SubstructuredSolver* reuse =
+        settings.reuse ? settings.reuse->substructured() : nullptr;
+    try {
+      m->substructured_ = std::make_unique<fem::SubstructuredSolver>(
+          tm, *m->materials_, *m->bcs_, settings.element_block, reuse, std::filesystem::path(),
+          settings.cancel);
+    } catch (const fem::SubstructureCancelled&) {
+      throw FeModelCancelled();
+    }
+  } else {
+    const fem::StaticSolver::Factorizer factorize = [&settings](const fem::SparseMatrixd& k_ff) {
+      CheckCancel(settings);
+      Progress(settings, 0.15, "factor");
+      return FactorizeCancellable(k_ff, settings.cancel);
+    };
+    try {
+      m->solver_ = std::make_unique<fem::StaticSolver>(tm, *m->materials_, *m->bcs_, factorize);
+    } catch (const FactorizationCancelled&) {
+      throw FeModelCancelled();
+    }
   }
-  if (!m->solver_->factor_status().converged)
-    throw std::runtime_error("FE model: factorisation failed: " +
-                             m->solver_->factor_status().message);
+  if (!m->factor_status().converged)
+    throw std::runtime_error("FE model: factorisation failed: " + m->factor_status().message);
   CheckCancel(settings);
 
   // Surface elements, output nodes (every node of a surface element), stress operators.
@@ -178,8 +200,10 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   Progress(settings, 0.8, "columns");
   fem::ColumnCacheSettings cs = settings.cache;
   cs.start_worker = false;
-  auto cache =
-      std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes, m->output_nodes_, candidates, cs);
+  auto cache = m->solver_ ? std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes,
+                                                               m->output_nodes_, candidates, cs)
+                          : std::make_unique<fem::ColumnCache>(*m->substructured_, tm.nodes,
+                                                               m->output_nodes_, candidates, cs);
   m->use_disk_cache_ = settings.use_disk_cache;
   m->cache_directory_ =
       settings.cache_directory.empty() ? fem::DefaultCacheDirectory() : settings.cache_directory;

@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 // An FE part ready to be touched (FE mode): a tetrahedral mesh with one material and clamped
-// regions, assembled and factored once (fem::StaticSolver), with lazily computed compliance
+// regions, assembled and factored once (fem::StaticSolver; or fem::SubstructuredSolver when the
+// mesh comes in slabs, so that a model of an edited part keeps the factors of the slabs the edit
+// did not reach: FeModelSettings::element_block and reuse), with lazily computed compliance
 // columns of its surface nodes (fem::ColumnCache, reused from the disk cache when the same model
 // was seen before), and the stress recovery the display needs (von Mises on the surface).
 //
@@ -29,6 +31,7 @@
 #include "spidarcad/fem/mesh.h"
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/static_solver.h"
+#include "spidarcad/fem/substructure.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 
 namespace spidarcad::app {
@@ -64,6 +67,8 @@ inline constexpr double kMinXFaceLayer = 0.01;
 // is not the mesh's, and the mesh normal is kept.
 inline constexpr double kDesignNormalAgreement = 0.5;
 
+class FeModel;
+
 struct FeModelSettings {
   // The material of the part (of every region not listed in region_materials).
   fem::Material material = kMaterialPresets[0].material;
@@ -89,6 +94,16 @@ struct FeModelSettings {
   // (FeModel::design_normals), which FE mode's tool pushes along; the model's stiffness does not
   // depend on it.
   std::shared_ptr<const modeling::CompiledSolid> design;
+  // Slab (block) of each element of the mesh given to Build (scene/slab_fe_mesh.h's
+  // SlabFeMesh::slab), in its element order; empty: one piece. With labels the model is factored
+  // by fem::SubstructuredSolver (the same displacements as the one-piece factor to about 1e-12
+  // relative), and the factor of each slab whose content (elements, nodes, material, clamps) is
+  // unchanged from `reuse` is shared instead of recomputed.
+  Eigen::VectorXi element_block;
+  // A model of an earlier version of the part (may be null; read only, while Build runs: the
+  // factors it shares are reference counted). Used only with element_block, when it was itself
+  // built in slabs.
+  std::shared_ptr<const FeModel> reuse;
   // Lazy compliance columns (precision, memory bound, worker). start_worker is honoured after
   // the disk cache was imported.
   fem::ColumnCacheSettings cache;
@@ -103,6 +118,8 @@ struct FeModelSettings {
   // When not null and set, Build throws FeModelCancelled at the next phase boundary, or within
   // milliseconds while CHOLMOD factorises when a worker program is set (the window: the
   // factorisation then runs in a child process that the flag kills, scene/worker_process.h).
+  // In slabs it is read before each slab's factorisation and before the interface's (in this
+  // process: a cancel waits for the slab being factored).
   const std::atomic<bool>* cancel = nullptr;
 };
 
@@ -133,8 +150,13 @@ class FeModel {
   const fem::MaterialTable& materials() const { return *materials_; }
   // Mesh nodes of each load of the settings (in order), each sharing its force evenly.
   const std::vector<std::vector<int>>& load_nodes() const { return load_nodes_; }
-  // The factored model (use only while the cache worker is stopped).
-  const fem::StaticSolver& solver() const { return *solver_; }
+  // The factored model: one of the two is set. The one-piece factor (use only while the cache
+  // worker is stopped: CHOLMOD's solve is not re-entrant); null in slabs.
+  const fem::StaticSolver* static_solver() const { return solver_.get(); }
+  // The factor in slabs (its solves are re-entrant); null in one piece.
+  const fem::SubstructuredSolver* substructured() const { return substructured_.get(); }
+  // Its status (a built model's converged).
+  const fem::SolveStatus& factor_status() const;
   // The lazy compliance columns: candidates = surface nodes, outputs = nodes of the surface
   // elements (so that their stress can be recovered from the columns).
   fem::ColumnCache& cache() { return *cache_; }
@@ -189,6 +211,7 @@ class FeModel {
   std::unique_ptr<fem::MaterialTable> materials_;
   std::unique_ptr<fem::BoundaryConditions> bcs_;
   std::unique_ptr<fem::StaticSolver> solver_;
+  std::unique_ptr<fem::SubstructuredSolver> substructured_;
   std::unique_ptr<fem::ColumnCache> cache_;
   std::vector<int> output_nodes_, output_index_;
   std::vector<int> surface_elements_;

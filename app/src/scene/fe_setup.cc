@@ -338,6 +338,36 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     Report(progress, 1.0);
     return result;
   }
+  if (input.slabs > 0 && input.volume && !input.settings.sharp_edges &&
+      input.settings.max_tet_volume == 0.0) {
+    // In slabs across x, on the earlier mesh's grid and planes when it was made at this cell size
+    // in as many slabs and its grid holds the solid's box (then the slabs the edit did not reach
+    // come back as they were).
+    const SlabFeMesh* previous = input.previous_slabs.get();
+    if (previous != nullptr && !(previous->cell == cell && previous->grid_bounds.contains(bounds) &&
+                                 static_cast<int>(previous->planes.size()) + 1 == input.slabs))
+      previous = nullptr;
+    const Eigen::AlignedBox3d grid = previous != nullptr ? previous->grid_bounds : bounds;
+    SlabMeshOptions so;
+    so.max_radius_edge =
+        input.settings.max_radius_edge > 0.0 ? input.settings.max_radius_edge : kDefaultRadiusEdge;
+    so.snap_cells = modeling::kProductSnapCells;
+    so.previous = previous;
+    so.cancel = cancel;
+    so.progress = progress;
+    auto slabs = std::make_shared<const SlabFeMesh>(MeshSolidInSlabs(
+        compiled, grid, cell,
+        previous != nullptr ? previous->planes : SlabPlanes(grid, cell, input.slabs), so));
+    if (slabs->volume->tets.cols() == 0)
+      throw std::invalid_argument("solid '" + input.source_name + "': the mesh is empty at " +
+                                  std::to_string(cell) + " m cells");
+    result.volume = slabs->volume;
+    result.surface =
+        std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*result.volume));
+    result.slabs = std::move(slabs);
+    Report(progress, 1.0);
+    return result;
+  }
   modeling::SurfaceMeshSettings ss;
   ss.bounds = bounds;
   ss.cell_size = cell;

@@ -22,6 +22,7 @@
 
 #include "doc/command.h"
 #include "doc/document.h"
+#include "scene/slab_fe_mesh.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/implicit_node.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -69,7 +70,22 @@ struct FeMeshInput {
   // Make tetrahedra (true), or the boundary surface only (false: a solid's grid surface,
   // sharpened when settings.sharp_edges; a surface source's surface as it is).
   bool volume = true;
+  // Tetrahedra of a solid in this many slabs across x (scene/slab_fe_mesh.h: the grid surface
+  // snapped as in one piece, cut by planes, TetGen per slab, the slabs joined), so that an FE
+  // model of it can be factored in slabs and a later edit re-meshes and refactors only the slabs
+  // it reached. 0: in one piece. Ignored (one piece) with settings.sharp_edges, max_tet_volume or
+  // mesher "cgal", for a surface only and for the other kinds.
+  int slabs = 0;
+  // The slab mesh of an earlier version of the solid (may be null): its grid and planes are kept,
+  // and its slabs whose input is unchanged are taken as they are, when it was made at the same
+  // cell size in as many slabs and its grid holds the solid's box.
+  std::shared_ptr<const SlabFeMesh> previous_slabs;
 };
+
+// Slabs FE mode meshes a solid in (FeMeshInput::slabs): four measured best on the platform
+// (docs/design/2026-12-05-interface-by-planes.md: six made the interface two thirds larger and
+// every edit slower).
+inline constexpr int kFeSlabs = 4;
 
 // The input to mesh `source` (a solid, sculpt or surface mesh) with `settings`. Throws
 // DocumentError naming the object and what is wrong: not such a source, an open surface,
@@ -92,6 +108,8 @@ struct FeMeshResult {
   std::shared_ptr<const modeling::TriangleMesh> surface;  // boundary surface (m, W)
   std::shared_ptr<const modeling::TetMesh> volume;        // linear tetrahedra (m, W)
   MeshSettings settings;  // the settings used, cell_size resolved (0 for a surface source)
+  // The mesh in slabs (FeMeshInput::slabs), whose `volume` is `volume`; null in one piece.
+  std::shared_ptr<const SlabFeMesh> slabs;
 };
 
 // Compiles a solid's tree and finds the box it is meshed on at `cell` m (<= 0: the largest side

@@ -131,21 +131,28 @@ std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double ce
 
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
-                            const std::vector<double>& planes, double max_radius_edge,
-                            const SlabFeMesh* previous,
-                            const std::filesystem::path& cache_directory) {
+                            const std::vector<double>& planes, const SlabMeshOptions& options) {
   SlabFeMesh out;
   out.planes = planes;
   out.grid_bounds = grid_bounds;
   out.cell = cell;
+  const double max_radius_edge = options.max_radius_edge;
+  const std::filesystem::path& cache_directory = options.cache_directory;
+  const SlabFeMesh* previous = options.previous;
   if (previous != nullptr && (previous->planes != planes || previous->cell != cell ||
                               !previous->grid_bounds.isApprox(grid_bounds, 0.0)))
     previous = nullptr;
+  auto report = [&options](double f) {
+    if (options.progress) options.progress(f);
+  };
 
   auto t = Clock::now();
   modeling::SurfaceMeshSettings ss;
   ss.bounds = grid_bounds;
   ss.cell_size = cell;
+  ss.snap_cells = options.snap_cells;
+  ss.cancel = options.cancel;
+  if (options.progress) ss.progress = [&report](double f) { report(0.3 * f); };
   const modeling::TriangleMesh surface = modeling::MeshSurface(solid, ss);
   out.surface_seconds = Seconds(t);
 
@@ -160,12 +167,16 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
 
   modeling::TetMeshSettings ts;
   ts.max_radius_edge = max_radius_edge;
+  ts.cancel = options.cancel;
   const std::size_t n = slabs.slabs.size();
   out.slab_surfaces = std::move(slabs.slabs);
   out.slab_tets.resize(n);
   out.remeshed.assign(n, 0);
   out.loaded.assign(n, 0);
   for (std::size_t k = 0; k < n; ++k) {
+    report(0.35 + 0.6 * static_cast<double>(k) / static_cast<double>(n));
+    if (options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed))
+      throw modeling::TetMeshingCancelled();
     const modeling::TriangleMesh& s = out.slab_surfaces[k];
     if (previous != nullptr && k < previous->slab_surfaces.size() &&
         modeling::SurfaceHash(s) == modeling::SurfaceHash(previous->slab_surfaces[k]) &&
@@ -209,11 +220,14 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
   }
 
   t = Clock::now();
-  const modeling::SlabTetMesh joined = modeling::JoinSlabs(out.slab_tets);
+  modeling::SlabTetMesh joined = modeling::JoinSlabs(out.slab_tets);
   out.mesh = ToFemMesh(joined.mesh);
   out.mesh.regions.setZero(out.mesh.num_elements());
+  joined.mesh.regions.setZero(out.mesh.num_elements());
+  out.volume = std::make_shared<const modeling::TetMesh>(std::move(joined.mesh));
   out.slab = joined.slab;
   out.join_seconds = Seconds(t);
+  report(1.0);
   return out;
 }
 

@@ -14,8 +14,11 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -28,8 +31,10 @@ namespace spidarcad::app {
 
 // A solid's FE mesh in slabs, with what is needed to re-mesh it after an edit.
 struct SlabFeMesh {
-  // Linear tetrahedra of every slab joined (W, m); regions 0.
+  // Linear tetrahedra of every slab joined (W, m); regions 0: in fem's layout, and in modeling's
+  // (shared, e.g. with the mesh object that holds it).
   fem::TetMesh mesh;
+  std::shared_ptr<const modeling::TetMesh> volume;
   // Slab of each element (fem::SubstructuredSolver's element_block).
   Eigen::VectorXi slab;
   // The cutting planes x = planes[k] (m), and the grid they were placed on.
@@ -57,18 +62,32 @@ struct SlabFeMesh {
 // to the nearest half-way point between two grid planes.
 std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs);
 
-// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes` (TetGen radius-edge
-// bound `max_radius_edge`), reusing the slabs of `previous` (may be null; it must have been made
-// on the same grid and planes, else it is ignored) whose input is unchanged. With a
-// `cache_directory`, a slab not in `previous` is looked for there (<16 hex digits>.slab, keyed
-// by its closed surface and the bound; the surface is compared in full, the file checked by a
-// checksum; a bad file is ignored and noted in cache_notes) and a slab TetGen meshed is written
-// there (a write failure is noted, not thrown). Throws what MeshSurface, CutSurfaceIntoSlabs and
-// TetrahedralizeSurface throw.
+// How MeshSolidInSlabs meshes, and what it may reuse.
+struct SlabMeshOptions {
+  // TetGen's radius-edge bound.
+  double max_radius_edge = 2.0;
+  // modeling::SurfaceMeshSettings::snap_cells of the surface (0: not snapped; the window uses
+  // modeling::kProductSnapCells).
+  double snap_cells = 0.0;
+  // A mesh of an earlier version of the solid (may be null; ignored unless made on the same grid
+  // and planes): its slabs whose input is unchanged are taken as they are.
+  const SlabFeMesh* previous = nullptr;
+  // With a directory, a slab not in `previous` is looked for there (<16 hex digits>.slab, keyed
+  // by its closed surface and the bound; the surface is compared in full, the file checked by a
+  // checksum; a bad file is ignored and noted in cache_notes) and a slab TetGen meshed is written
+  // there (a write failure is noted, not thrown).
+  std::filesystem::path cache_directory;
+  // Polled by the surface mesher, by TetGen and between slabs (may be null): throws
+  // modeling::MeshingCancelled or modeling::TetMeshingCancelled.
+  const std::atomic<bool>* cancel = nullptr;
+  // Fraction done in [0, 1] (may be empty).
+  std::function<void(double)> progress;
+};
+
+// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`. Throws what
+// MeshSurface, CutSurfaceIntoSlabs and TetrahedralizeSlab throw.
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
-                            const std::vector<double>& planes, double max_radius_edge = 2.0,
-                            const SlabFeMesh* previous = nullptr,
-                            const std::filesystem::path& cache_directory = {});
+                            const std::vector<double>& planes, const SlabMeshOptions& options = {});
 
 }  // namespace spidarcad::app

@@ -1,0 +1,269 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+//
+// Edit to first correct felt force in FE mode, through the window's own route: FeMode (headless:
+// no renderer, no ImGui) on a SceneModel of the platform, driven as the window drives it (one
+// SyncDocument, one JobQueue::Poll and one OnFrame per 1 ms "frame"). The part is set up from the solid
+// (meshed in slabs or in one piece), precomputed, and felt near its free corner: the tool's
+// focus (ColumnCache::RequestNear) sits on the 8 plate-top nodes nearest (0.29, 0.09, 0.01) m.
+// Then the solid is edited by a document command, and the mode refreshes by itself (refresh on
+// edit): the mesh Job, the command that lands it, the precompute Job (FeModel::Build on the
+// slabs the edit left, or from scratch in one piece), and the patch's compliance columns. The
+// clock runs from the edit's command to the frame at which every patch column of the new model
+// is ready; the patch's 24 x 24 compliance block is then checked against a one-piece
+// fem::StaticSolver factorisation of the new mesh.
+//   edits   load holes r 4 -> 4.5 mm (last slab), bolt holes r 5.5 -> 6 mm (first slab)
+// Times are wall seconds (steady clock) on whatever else the machine runs; the jobs use every
+// core (CHOLMOD, OpenBLAS).
+// Run: build/bench/app_fe_mode_edit_bench
+//      build/bench/app_fe_mode_edit_bench --benchmark_filter=P2
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_cli.h"
+#include "bench_paths.h"
+#include "doc/command.h"
+#include "doc/job.h"
+#include "gui/fe_mode.h"
+#include "scene/fe_model.h"
+#include "scene/fe_setup.h"
+#include "scene/scene_model.h"
+#include "spidarcad/fem/static_solver.h"
+
+namespace spidarcad {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::string ScenePath() {
+  if (const char* p = std::getenv("SPIDARCAD_PLATFORM_SCENE"); p && *p) return p;
+  return bench::RepoPath("assets/scenes/platform.json");
+}
+
+// Path of the node whose id is `id` under `node` (false when there is none).
+bool FindNode(const modeling::ImplicitNode& node, const std::string& id, app::NodePath* path) {
+  if (node.id == id) return true;
+  for (int i = 0; i < static_cast<int>(node.children.size()); ++i) {
+    path->push_back(i);
+    if (FindNode(node.children[i], id, path)) return true;
+    path->pop_back();
+  }
+  return false;
+}
+
+struct Row {
+  std::string name, edit;
+  int tets = 0, order = 1;
+  bool slabs = false;
+  double mesh = 0, model = 0, columns = 0, total = 0;  // s, from the edit's command
+  int factored = 0, blocks = 0, remeshed = 0;
+  double error = 0;  // patch block against a one-piece factorisation of the new mesh
+};
+
+std::vector<Row>& Rows() {
+  static std::vector<Row> rows;
+  return rows;
+}
+
+// The window's frame loop: until `done` or `seconds` pass.
+void Frames(app::FeMode* mode, app::SceneModel* scene, app::JobQueue* jobs,
+            const std::function<bool()>& done, double seconds = 600.0) {
+  const auto give_up = Clock::now() + std::chrono::duration<double>(seconds);
+  while (!done()) {
+    if (Clock::now() > give_up) throw std::runtime_error("timed out: " + mode->status());
+    mode->SyncDocument(scene, 0);
+    jobs->Poll();
+    mode->OnFrame(haptics::ToolState{});  // starts the precompute a landed refresh asked for
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+}
+
+// The patch: the 8 plate-top surface nodes nearest the free corner, as candidates of `model`.
+std::vector<int> Patch(const app::FeModel& model) {
+  const Eigen::Vector3d corner(0.29, 0.09, 0.01);
+  std::vector<int> top;
+  const fem::ColumnCache& cache = model.cache();
+  for (int b = 0; b < cache.num_candidates(); ++b)
+    if (model.mesh().nodes(cache.candidate_node(b), 2) > 0.0099 && !cache.IsFixed(b))
+      top.push_back(b);
+  auto dist = [&](int b) {
+    return (model.mesh().nodes.row(cache.candidate_node(b)).transpose() - corner).norm();
+  };
+  std::sort(top.begin(), top.end(), [&](int a, int b) { return dist(a) < dist(b); });
+  top.resize(std::min<std::size_t>(8, top.size()));
+  return top;
+}
+
+void Focus(app::FeModel* model) { model->cache().RequestNear(Eigen::Vector3d(0.29, 0.09, 0.01), 0.01); }
+
+bool PatchReady(const app::FeModel& model, const std::vector<int>& patch) {
+  return std::all_of(patch.begin(), patch.end(), [&](int b) { return model.cache().IsReady(b); });
+}
+
+// Relative difference of the patch's compliance block from a one-piece factorisation.
+double PatchError(const app::FeModel& model, const std::vector<int>& patch) {
+  const fem::StaticSolver whole(model.mesh(), model.materials(), model.bcs());
+  const int n = static_cast<int>(patch.size());
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(whole.num_free(), 3 * n);
+  for (int c = 0; c < n; ++c)
+    for (int j = 0; j < 3; ++j)
+      rhs(whole.FreeIndex(3 * model.cache().candidate_node(patch[c]) + j), 3 * c + j) = 1.0;
+  Eigen::MatrixXd x;
+  whole.SolveFree(rhs, &x);
+  Eigen::MatrixXd expected(3 * n, 3 * n), got(3 * n, 3 * n);
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) {
+      got.block<3, 3>(3 * a, 3 * b) =
+          model.cache().Block(model.cache().OutputIndexOfCandidate(patch[a]), patch[b]);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          expected(3 * a + i, 3 * b + j) =
+              x(whole.FreeIndex(3 * model.cache().candidate_node(patch[a]) + i), 3 * b + j);
+    }
+  return (got - expected).norm() / expected.norm();
+}
+
+void BM_FeModeEdit(benchmark::State& state) {
+  const int order = static_cast<int>(state.range(0));
+  const double cell = state.range(1) * 1e-6;
+  const bool slabs = state.range(2) != 0;
+  for (auto _ : state) {
+    app::SceneModel scene;
+    scene.Load(ScenePath(), Eigen::Vector3d::Constant(0.2));
+    app::JobQueue jobs;
+    app::FeMode mode(nullptr, &jobs);
+    mode.mesh_in_slabs() = slabs;
+    mode.mesh_settings().mesher = "tetgen";
+    mode.mesh_settings().cell_size = cell;
+    mode.model_settings().use_disk_cache = false;
+    const app::Document& doc = scene.document();
+    const app::ObjectId platform = doc.FindByName("platform")->id;
+    mode.SyncDocument(&scene, 0);
+    if (!mode.StartSetUp(&scene, platform, false, false))
+      throw std::runtime_error(mode.status());
+    Frames(&mode, &scene, &jobs, [&] { return mode.bound_object() != 0; });
+    if (order == 2) mode.EditElementOrder(&scene, 2);
+    mode.RequestModel();
+    mode.SetActive(true);
+    Frames(&mode, &scene, &jobs, [&] { return mode.model() != nullptr; });
+    Focus(mode.model().get());
+    {
+      const std::vector<int> patch = Patch(*mode.model());
+      Frames(&mode, &scene, &jobs, [&] { return PatchReady(*mode.model(), patch); });
+    }
+    struct Edit {
+      const char* name;
+      const char* node;
+      double radius;
+    };
+    for (const Edit& e : {Edit{"load holes r 4 -> 4.5 mm", "load_hole", 0.0045},
+                          Edit{"bolt holes r 5.5 -> 6 mm", "bolt_hole", 0.006}}) {
+      Row row;
+      row.name = "P" + std::to_string(order) + " " + std::to_string(state.range(1) / 1000) + " mm";
+      row.edit = e.name;
+      row.order = order;
+      row.slabs = slabs;
+      app::NodePath path;
+      if (!FindNode(std::get<app::SolidData>(doc.Get(platform).data).root, e.node, &path))
+        throw std::runtime_error(std::string("no node ") + e.node);
+      const std::shared_ptr<app::FeModel> before = mode.model();
+      const auto t0 = Clock::now();
+      scene.document().Execute(app::edit::SetNodeField(platform, path, "radius", e.radius));
+      const std::uint64_t edited = doc.Get(platform).revision;
+      Frames(&mode, &scene, &jobs, [&] {
+        if (row.mesh == 0.0 && !mode.stale() && mode.bound_object() != 0) {
+          const app::ObjectId mesh = std::get<app::FeModelData>(doc.Get(mode.bound_object()).data)
+                                         .tet_mesh;
+          if (std::get<app::MeshData>(doc.Get(mesh).data).source_revision == edited)
+            row.mesh = Since(t0);
+        }
+        return mode.model() != nullptr && mode.model() != before;
+      });
+      row.model = Since(t0);
+      app::FeModel& model = *mode.model();
+      Focus(&model);
+      const std::vector<int> patch = Patch(model);
+      Frames(&mode, &scene, &jobs, [&] { return PatchReady(model, patch); });
+      row.total = Since(t0);
+      row.columns = row.total - row.model;
+      row.tets = model.mesh().num_elements();
+      if (const fem::SubstructuredSolver* s = model.substructured()) {
+        row.factored = s->stats().factored_blocks;
+        row.blocks = s->num_blocks();
+      }
+      const app::ObjectId mesh_id =
+          std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
+      if (const auto slab_mesh = mode.SlabsOf(doc, mesh_id)) row.remeshed = slab_mesh->num_remeshed();
+      row.error = PatchError(model, patch);
+      Rows().push_back(row);
+      state.counters[e.node] = row.total;
+    }
+    mode.SetActive(false);  // saves nothing: the disk cache is off
+    Frames(&mode, &scene, &jobs, [&] { return !jobs.pending(); });
+  }
+}
+
+void PrintTables() {
+  double load[3] = {0, 0, 0};
+  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
+    if (std::fscanf(f, "%lf %lf %lf", &load[0], &load[1], &load[2]) != 3) load[0] = -1;
+    std::fclose(f);
+  }
+  std::printf("\nLoad average at the end %.2f %.2f %.2f. Wall seconds from the edit's command.\n\n",
+              load[0], load[1], load[2]);
+  std::printf(
+      "| case | mesh | tets | edit | slabs re-meshed / factored | mesh landed | model ready | "
+      "patch columns | **edit -> force** | vs one-piece factor |\n|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const Row& r : Rows()) {
+    std::printf("| %s | %s | %d | %s | %s | %.2f | %.2f | %.2f | **%.2f** | %.1e |\n",
+                r.name.c_str(), r.slabs ? "4 slabs" : "one piece", r.tets, r.edit.c_str(),
+                r.slabs ? (std::to_string(r.remeshed) + " / " + std::to_string(r.factored) +
+                           " of " + std::to_string(r.blocks))
+                              .c_str()
+                        : "all",
+                r.mesh, r.model - r.mesh, r.columns, r.total, r.error);
+  }
+}
+
+BENCHMARK(BM_FeModeEdit)
+    ->Name("P1_6mm")
+    ->Args({1, 6000, 1})
+    ->Args({1, 6000, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+BENCHMARK(BM_FeModeEdit)
+    ->Name("P2_10mm")
+    ->Args({2, 10000, 1})
+    ->Args({2, 10000, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+BENCHMARK(BM_FeModeEdit)
+    ->Name("P1_5mm")
+    ->Args({1, 5000, 1})
+    ->Args({1, 5000, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+
+}  // namespace
+}  // namespace spidarcad
+
+int main(int argc, char** argv) {
+  return spidarcad::bench::RunBenchmarkMain(
+      argc, argv,
+      "Edit to first correct felt force in FE mode (the window's route, headless): the platform "
+      "set up in slabs or in one piece, edited, refreshed by the mode itself, the felt patch's "
+      "columns ready.",
+      nullptr, spidarcad::PrintTables);
+}
