@@ -2,8 +2,8 @@
 //
 // Edit to first correct felt force in FE mode, through the window's own route: FeMode (headless:
 // no renderer, no ImGui) on a SceneModel of the platform, driven as the window drives it (one
-// SyncDocument, one JobQueue::Poll and one OnFrame per 1 ms "frame"). The part is set up from the solid
-// (meshed in slabs or in one piece), precomputed, and felt near its free corner: the tool's
+// SyncDocument, one JobQueue::Poll and one OnFrame per 1 ms "frame"). The part is set up from the
+// solid (meshed in slabs or in one piece), precomputed, and felt near its free corner: the tool's
 // focus (ColumnCache::RequestNear) sits on the 8 plate-top nodes nearest (0.29, 0.09, 0.01) m.
 // Then the solid is edited by a document command, and the mode refreshes by itself (refresh on
 // edit): the mesh Job, the command that lands it, the precompute Job (FeModel::Build on the
@@ -106,7 +106,9 @@ std::vector<int> Patch(const app::FeModel& model) {
   return top;
 }
 
-void Focus(app::FeModel* model) { model->cache().RequestNear(Eigen::Vector3d(0.29, 0.09, 0.01), 0.01); }
+void Focus(app::FeModel* model) {
+  model->cache().RequestNear(Eigen::Vector3d(0.29, 0.09, 0.01), 0.01);
+}
 
 bool PatchReady(const app::FeModel& model, const std::vector<int>& patch) {
   return std::all_of(patch.begin(), patch.end(), [&](int b) { return model.cache().IsReady(b); });
@@ -151,8 +153,7 @@ void BM_FeModeEdit(benchmark::State& state) {
     const app::Document& doc = scene.document();
     const app::ObjectId platform = doc.FindByName("platform")->id;
     mode.SyncDocument(&scene, 0);
-    if (!mode.StartSetUp(&scene, platform, false, false))
-      throw std::runtime_error(mode.status());
+    if (!mode.StartSetUp(&scene, platform, false, false)) throw std::runtime_error(mode.status());
     Frames(&mode, &scene, &jobs, [&] { return mode.bound_object() != 0; });
     if (order == 2) mode.EditElementOrder(&scene, 2);
     mode.RequestModel();
@@ -184,8 +185,8 @@ void BM_FeModeEdit(benchmark::State& state) {
       const std::uint64_t edited = doc.Get(platform).revision;
       Frames(&mode, &scene, &jobs, [&] {
         if (row.mesh == 0.0 && !mode.stale() && mode.bound_object() != 0) {
-          const app::ObjectId mesh = std::get<app::FeModelData>(doc.Get(mode.bound_object()).data)
-                                         .tet_mesh;
+          const app::ObjectId mesh =
+              std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
           if (std::get<app::MeshData>(doc.Get(mesh).data).source_revision == edited)
             row.mesh = Since(t0);
         }
@@ -205,7 +206,8 @@ void BM_FeModeEdit(benchmark::State& state) {
       }
       const app::ObjectId mesh_id =
           std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
-      if (const auto slab_mesh = mode.SlabsOf(doc, mesh_id)) row.remeshed = slab_mesh->num_remeshed();
+      if (const auto slab_mesh = mode.SlabsOf(doc, mesh_id))
+        row.remeshed = slab_mesh->num_remeshed();
       row.error = PatchError(model, patch);
       Rows().push_back(row);
       state.counters[e.node] = row.total;
@@ -216,16 +218,12 @@ void BM_FeModeEdit(benchmark::State& state) {
 }
 
 void PrintTables() {
-  double load[3] = {0, 0, 0};
-  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
-    if (std::fscanf(f, "%lf %lf %lf", &load[0], &load[1], &load[2]) != 3) load[0] = -1;
-    std::fclose(f);
-  }
-  std::printf("\nLoad average at the end %.2f %.2f %.2f. Wall seconds from the edit's command.\n\n",
-              load[0], load[1], load[2]);
+  bench::PrintLoadAverage();
+  std::printf(" Wall seconds from the edit's command.\n\n");
   std::printf(
       "| case | mesh | tets | edit | slabs re-meshed / factored | mesh landed | model ready | "
-      "patch columns | **edit -> force** | vs one-piece factor |\n|---|---|---|---|---|---|---|---|---|---|\n");
+      "patch columns | **edit -> force** | vs one-piece factor "
+      "|\n|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : Rows()) {
     std::printf("| %s | %s | %d | %s | %s | %.2f | %.2f | %.2f | **%.2f** | %.1e |\n",
                 r.name.c_str(), r.slabs ? "4 slabs" : "one piece", r.tets, r.edit.c_str(),

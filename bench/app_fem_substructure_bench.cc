@@ -42,13 +42,8 @@ void BM_EditToForce(benchmark::State& state) {
 }
 
 void PrintTables() {
-  double load[3] = {0, 0, 0};
-  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
-    if (std::fscanf(f, "%lf %lf %lf", &load[0], &load[1], &load[2]) != 3) load[0] = -1;
-    std::fclose(f);
-  }
-  std::printf("\nLoad average at the end %.2f %.2f %.2f. Times in s (wall unless marked cpu).\n\n",
-              load[0], load[1], load[2]);
+  bench::PrintLoadAverage();
+  std::printf(" Times in s (wall unless marked cpu).\n\n");
   std::printf("%s", app::EditToForceTables(Cases()).c_str());
 }
 

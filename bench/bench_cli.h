@@ -7,6 +7,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
+#include <cstdlib>
 
 namespace spidarcad::bench {
 
@@ -38,6 +39,14 @@ inline int RunBenchmarkMain(int argc, char** argv, const char* description,
   benchmark::Shutdown();
   if (after != nullptr) after();
   return 0;
+}
+
+// Prints the machine's load average (1, 5 and 15 minutes) as a sentence, for the tables printed
+// after a run: figures on a loaded machine are not those of an idle one.
+inline void PrintLoadAverage() {
+  double load[3] = {-1, -1, -1};
+  if (getloadavg(load, 3) != 3) load[0] = load[1] = load[2] = -1;
+  std::printf("\nLoad average at the end %.2f %.2f %.2f.", load[0], load[1], load[2]);
 }
 
 }  // namespace spidarcad::bench

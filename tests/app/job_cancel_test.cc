@@ -37,6 +37,8 @@
 #include "scene/fe_model.h"
 #include "scene/fe_setup.h"
 #include "scene/scene_model.h"
+#include "scene/scene_solid.h"
+#include "scene/slab_fe_mesh.h"
 #include "scene/vtu_io.h"
 #include "scene/worker_process.h"
 #include "spidarcad/fem/mesh.h"
@@ -322,6 +324,30 @@ TEST(JobCancel, FePrecomputeEndsWithinHalfASecondInsideCholmod) {
   jobs.Poll();
   ASSERT_NE(mode.model(), nullptr) << mode.status();
   EXPECT_TRUE(mode.model()->factor_status().converged);
+}
+
+// In slabs the factorisation runs in this process, slab by slab: a cancel ends it before the
+// next slab (or the interface), and nothing is kept.
+TEST(JobCancel, FePrecomputeInSlabsEndsBeforeTheNextSlab) {
+  SceneModel scene;
+  scene.Load(PlatformScenePath(), Eigen::Vector3d::Constant(0.2));
+  const DocState before(scene.document());
+  JobQueue jobs;
+  FeMode mode(nullptr, &jobs);
+  // P2 on the platform at 8 mm in four slabs: each slab's CHOLMOD factorisation takes a second
+  // or more.
+  const SceneSolidGrid grid = PrepareSceneSolid(PlatformScenePath(), "platform", 0.008);
+  const SlabFeMesh slabs = MeshSolidInSlabs(grid.compiled, grid.bounds, grid.cell,
+                                            SlabPlanes(grid.bounds, grid.cell, kFeSlabs));
+  mode.SetMesh(slabs.mesh, "platform", slabs.slab);
+  mode.model_settings().order = 2;
+  mode.model_settings().use_disk_cache = false;
+  mode.Precompute();
+  ASSERT_FALSE(jobs.jobs().empty());
+  Job& job = *jobs.jobs().back();
+  CancelWhen(&jobs, job, PhaseFor(job, "factor slabs", 0.3), "FE precompute in slabs");
+  EXPECT_EQ(mode.model(), nullptr);
+  EXPECT_TRUE(DocState(scene.document()) == before);
 }
 
 // ---- sculpt mode: a sculpt copy of a solid (SculptMode::RequestCopy) ----
