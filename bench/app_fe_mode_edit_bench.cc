@@ -12,6 +12,10 @@
 // is ready; the patch's 24 x 24 compliance block is then checked against a one-piece
 // fem::StaticSolver factorisation of the new mesh.
 //   edits   load holes r 4 -> 4.5 mm (last slab), bolt holes r 5.5 -> 6 mm (first slab)
+// Each edit comes once the old model's column worker is idle (the columns within 10 mm of the
+// tool done): an edit made while it solves a block shares the cores with that block until it
+// ends (a full block of 16 nodes takes about a second at P2 10 mm), after which the refresh
+// pauses it (ColumnCache::SetPaused).
 // Times are wall seconds (steady clock) on whatever else the machine runs; the jobs use every
 // core (CHOLMOD, OpenBLAS).
 // Run: build/bench/app_fe_mode_edit_bench
@@ -180,6 +184,9 @@ void BM_FeModeEdit(benchmark::State& state) {
       if (!FindNode(std::get<app::SolidData>(doc.Get(platform).data).root, e.node, &path))
         throw std::runtime_error(std::string("no node ") + e.node);
       const std::shared_ptr<app::FeModel> before = mode.model();
+      // The edit comes after the tool has rested on the part: the columns around it are done
+      // (an edit while the worker is in a block waits for that block: see the file comment).
+      before->cache().WaitUntilIdle(600.0);
       const auto t0 = Clock::now();
       scene.document().Execute(app::edit::SetNodeField(platform, path, "radius", e.radius));
       const std::uint64_t edited = doc.Get(platform).revision;

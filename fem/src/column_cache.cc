@@ -181,8 +181,11 @@ bool ColumnCache::WorkStep() {
   Eigen::Vector3d p;
   double radius = 0.0;
   std::uint64_t seq = 0;
-  if (!ReadFocus(&p, &radius, &seq)) {
+  const bool focused = ReadFocus(&p, &radius, &seq);
+  if (!focused || paused_.load()) {
     idle_seq_.store(seq);
+    // Let go meanwhile (SetPaused(false) stores paused_, then idle_seq_): not idle after all.
+    if (focused && !paused_.load()) idle_seq_.store(~0ull);
     return false;
   }
   std::vector<int> block, slots;

@@ -984,6 +984,8 @@ TEST(FeModeWindow, EditOfAFeltSolidRefreshesItselfInTheSlabsItReached) {
   EXPECT_EQ(after.substructured()->stats().factored_blocks, 1) << fe.status();
   EXPECT_EQ(after.substructured()->stats().reused_blocks, kFeSlabs - 1);
   EXPECT_NE(fe.status().find("1 of 4 slabs factored, 3 kept"), std::string::npos) << fe.status();
+  EXPECT_TRUE(before->cache().paused()) << "the replaced model computes no more columns";
+  EXPECT_FALSE(after.cache().paused());
 
   // The response to unit forces at the three surface nodes nearest the free corner, against a
   // one-piece factorisation of the same mesh.

@@ -238,6 +238,23 @@ TEST(ColumnCache, FirstBlockHoldsTheFirstBlockNodesNearestTheFocus) {
   }
 }
 
+// A paused worker computes nothing more (and counts as idle); let go, it carries on.
+TEST(ColumnCache, PausedWorkerComputesNothingUntilLetGo) {
+  const Scene scene(0.4, 8, 2);
+  ColumnCacheSettings settings;
+  settings.block_nodes = 2;
+  ColumnCache cache(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+  cache.SetPaused(true);
+  EXPECT_TRUE(cache.paused());
+  cache.RequestNear(Eigen::Vector3d(0.4, 0.0, 0.1), 0.25);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_TRUE(cache.WaitUntilIdle(5.0));
+  EXPECT_EQ(cache.ready_nodes(), 0);
+  cache.SetPaused(false);
+  ASSERT_TRUE(cache.WaitUntilIdle(30.0));
+  EXPECT_GT(cache.ready_nodes(), 8);
+}
+
 TEST(ColumnCache, EvictsFarColumnsToStayWithinTheMemoryBoundButNeverPinnedOnes) {
   const Scene scene(0.4, 8, 2);
   ColumnCacheSettings settings;

@@ -118,11 +118,10 @@ void FeMode::SetActive(bool active) {
 }
 
 void FeMode::SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab) {
-  if (model_ && model_->substructured()) reuse_model_ = model_;
+  DropModel();
   mesh_ = std::make_shared<const fem::TetMesh>(std::move(mesh));
   mesh_slab_ = std::move(slab);
   mesh_name_ = std::move(name);
-  model_.reset();
   pending_field_.reset();
   actor_->VisibilityOff();
   legend_->VisibilityOff();
@@ -496,6 +495,8 @@ void FeMode::SyncDocument(SceneModel* model, ObjectId selected) {
       awaiting_title_.clear();
       precompute_on_bind_ = false;
     }
+    // A refresh that ended without its mesh leaves the model shown as it was: its columns again.
+    if (awaiting_title_.empty() && model_) model_->cache().SetPaused(false);
   }
   if (selected != last_selected_) {
     last_selected_ = selected;
@@ -550,7 +551,7 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
   if (!same_object) want_model_ = false;
   if (fe == 0) {
     mesh_.reset();
-    model_.reset();
+    DropModel();
     pending_field_.reset();
     ShowModel(false);
     mesh_name_.clear();
@@ -578,8 +579,7 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
       old_key.mesh_revision == key.mesh_revision && mesh_) {
     // Only the FE settings changed: same mesh, new model (the slabs whose content the change left,
     // e.g. far from a moved clamp, keep their factors).
-    if (model_ && model_->substructured()) reuse_model_ = model_;
-    model_.reset();
+    DropModel();
     pending_field_.reset();
     ShowModel(false);
     mesh_name_ = o.name;
@@ -601,6 +601,7 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
   for (const auto& [kept_key, kept_model] : kept_) {
     if (kept_key != key) continue;
     model_ = kept_model;
+    model_->cache().SetPaused(false);
     status_ = o.name + ": ready (kept from before: " + std::to_string(model_->num_fixed_nodes()) +
               " nodes clamped)";
     BuildSurfaceActor();
@@ -609,6 +610,15 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
     return;
   }
   if (want_model_) rebuild_pending_ = true;
+}
+
+void FeMode::DropModel() {
+  if (!model_) return;
+  // Its columns are no longer wanted, and its worker would take the cores from the next model's
+  // precomputation; the haptic thread may still read its ready columns until a new field lands.
+  model_->cache().SetPaused(true);
+  if (model_->substructured()) reuse_model_ = model_;
+  model_.reset();
 }
 
 std::shared_ptr<const SlabFeMesh> FeMode::SlabsOf(const Document& doc, ObjectId mesh) const {
@@ -730,6 +740,9 @@ bool FeMode::StartRefresh(SceneModel* model) {
     }
     want_model_ = want_model_ || model_ != nullptr;
     StartMeshJob(model, input, true, bound_key_.mesh);
+    // The model shown is about to be replaced: its worker gives the cores to the refresh (its
+    // ready columns are still felt). Let go again if the refresh fails or is cancelled.
+    if (model_) model_->cache().SetPaused(true);
   } catch (const std::exception& e) {
     status_ = std::string("refresh: ") + e.what();
     return false;
@@ -769,6 +782,7 @@ void FeMode::StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refr
                        refresh_mesh ? RefreshFeMesh(mesh, input, *result) : SetUpFe(input, *result);
                    if (!Execute(model, std::move(command))) {
                      precompute_on_bind_ = false;
+                     if (model_) model_->cache().SetPaused(false);  // still the one shown
                      return;  // the source changed meanwhile: status_ says so
                    }
                    char line[200];

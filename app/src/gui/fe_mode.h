@@ -200,6 +200,8 @@ class FeMode {
   Job* RunningJob() const;
   void ShowModel(bool show);
   void Rebind(const Document& doc, ObjectId fe);
+  // Drops model_ (pausing its column worker; kept as reuse_model_ when it is in slabs).
+  void DropModel();
   void StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refresh_mesh, ObjectId mesh);
   // The over-budget estimate of set-up `input` (of the object called `name`) in a Job; its
   // finisher asks (pending_setup) or starts the mesh Job.

@@ -122,6 +122,14 @@ class ColumnCache {
   void Stop();
   // True while the worker thread runs.
   bool running() const { return worker_.joinable(); }
+  // Pauses the worker after the block it is solving (without waiting for it), or lets it go on.
+  // A paused cache counts as idle; its ready columns stay readable. For a model about to be
+  // replaced, whose columns would take the cores its successor's precomputation needs.
+  void SetPaused(bool paused) {
+    paused_.store(paused);
+    if (!paused) idle_seq_.store(~0ull);  // not idle until the worker has looked again
+  }
+  bool paused() const { return paused_.load(); }
   // Waits until the worker has nothing left to do for the latest focus (every candidate in the
   // radius is ready, or the memory is full of nearer columns). Returns false on timeout (s).
   bool WaitUntilIdle(double timeout_seconds) const;
@@ -260,6 +268,7 @@ class ColumnCache {
   mutable std::mutex wake_mutex_;
   std::condition_variable wake_;
   std::atomic<long> computed_nodes_{0}, evictions_{0}, blocks_{0};
+  std::atomic<bool> paused_{false};
   std::atomic<double> compute_seconds_{0.0};
   Eigen::MatrixXd rhs_, x_;  // worker scratch
 };
