@@ -23,6 +23,7 @@ namespace spidarcad::modeling {
 namespace {
 
 using internal::PointField;
+using internal::TrianglesCertainlyApart;
 using internal::TrianglesMeet;
 
 // The six tetrahedra of the Kuhn (Freudenthal) subdivision of a cube, as corner codes
@@ -392,29 +393,39 @@ class Cleaner {
       const GatheredTriangle& a = changed_corners_[i];
       // Against the other changed triangles (each pair once) ...
       for (size_t j = i + 1; j < changed_corners_.size(); ++j) {
-        const GatheredTriangle& b = changed_corners_[j];
-        if (a.Overlaps(b) && TrianglesMeet(a.ids, a.p, b.ids, b.p)) return true;
+        if (a.Meets(changed_corners_[j])) return true;
       }
       // ... and the unchanged ones nearby.
       for (const GatheredTriangle& b : nearby_) {
-        if (a.Overlaps(b) && TrianglesMeet(a.ids, a.p, b.ids, b.p)) return true;
+        if (a.Meets(b)) return true;
       }
     }
     return false;
   }
 
-  // A triangle's corners (ids and positions) and bounding box, as WouldMeet tests it.
+  // A triangle's corners (ids and positions), normal and bounding box, as WouldMeet tests it.
   struct GatheredTriangle {
     std::array<int, 3> ids;
     std::array<Eigen::Vector3d, 3> p;
+    Eigen::Vector3d n;  // (p[1] - p[0]).cross(p[2] - p[0])
     Eigen::Vector3d lo, hi;
     // Whether the boxes meet (closed boxes, as Eigen::AlignedBox3d::intersects).
     bool Overlaps(const GatheredTriangle& o) const {
       return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
     }
+    // TrianglesMeet of the two where their boxes meet. Most pairs (neighbours on a smooth
+    // surface) are told apart first by their planes (TrianglesCertainlyApart), which decides only
+    // where TrianglesMeet would say false, so the answer is TrianglesMeet's.
+    bool Meets(const GatheredTriangle& o) const {
+      if (!Overlaps(o)) return false;
+      const double diagonal2 = (hi.cwiseMax(o.hi) - lo.cwiseMin(o.lo)).squaredNorm();
+      if (TrianglesCertainlyApart(ids, p, n, o.ids, o.p, o.n, diagonal2)) return false;
+      return TrianglesMeet(ids, p, o.ids, o.p);
+    }
   };
   GatheredTriangle Gathered(const std::array<int, 3>& t) const {
-    GatheredTriangle g{t, {pos_[t[0]], pos_[t[1]], pos_[t[2]]}, {}, {}};
+    GatheredTriangle g{t, {pos_[t[0]], pos_[t[1]], pos_[t[2]]}, {}, {}, {}};
+    g.n = (g.p[1] - g.p[0]).cross(g.p[2] - g.p[0]);
     g.lo = g.p[0].cwiseMin(g.p[1]).cwiseMin(g.p[2]);
     g.hi = g.p[0].cwiseMax(g.p[1]).cwiseMax(g.p[2]);
     return g;

@@ -113,4 +113,47 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
   return false;
 }
 
+// A quick test that TrianglesMeet(ia, pa, ib, pb) is false, from each triangle's corners that
+// the other lacks (by id) against its plane; false when it cannot tell (then ask TrianglesMeet).
+// na and nb: the normals (pa[1] - pa[0]).cross(pa[2] - pa[0]) and the same of pb; diagonal2: the
+// squared diagonal of a box holding all six corners (so it bounds every distance between them).
+// True when each triangle has all its unshared corners on one side of the other's plane, each
+// by a margin (n · (p - corner 0))² > 1e-22 diagonal2³ far beyond the rounding of both that
+// product and OrientSign's determinant (each within about 1e-14 diagonal³ of the exact value,
+// which is the same up to sign) and beyond OrientSign's own tolerance (at most 1e-12
+// diagonal³): OrientSign then gives each of those corners that same non-zero side, so every
+// SegmentMeetsTriangle of TrianglesMeet has its two ends on one side (false), and so has the
+// fold test of two triangles sharing an edge. Triangles sharing three ids meet (never true here).
+inline bool TrianglesCertainlyApart(const std::array<int, 3>& ia,
+                                    const std::array<Eigen::Vector3d, 3>& pa,
+                                    const Eigen::Vector3d& na, const std::array<int, 3>& ib,
+                                    const std::array<Eigen::Vector3d, 3>& pb,
+                                    const Eigen::Vector3d& nb, double diagonal2) {
+  // Far from underflow and overflow (and not NaN), where the bounds above hold.
+  if (!(diagonal2 > 1e-60 && diagonal2 < 1e60)) return false;
+  auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
+  int shared = 0;
+  for (int v : ia) shared += in(ib, v);
+  if (shared >= 3) return false;
+  const double threshold2 = 1e-22 * diagonal2 * diagonal2 * diagonal2;
+  // Whether the corners p of one triangle missing from `other` lie on one side of the plane
+  // (n, base), each by the margin.
+  auto one_side = [threshold2, &in](const std::array<int, 3>& ids,
+                                    const std::array<Eigen::Vector3d, 3>& p,
+                                    const std::array<int, 3>& other, const Eigen::Vector3d& n,
+                                    const Eigen::Vector3d& base) {
+    int side = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (in(other, ids[k])) continue;
+      const double w = n.dot(p[k] - base);
+      if (!(w * w > threshold2)) return false;
+      const int s = w > 0.0 ? 1 : -1;
+      if (side != 0 && s != side) return false;
+      side = s;
+    }
+    return true;
+  };
+  return one_side(ia, pa, ib, nb, pb[0]) && one_side(ib, pb, ia, na, pa[0]);
+}
+
 }  // namespace spidarcad::modeling::internal
