@@ -25,7 +25,6 @@ namespace spidarcad::modeling {
 namespace {
 
 using internal::PointField;
-using internal::TrianglesCertainlyApart;
 using internal::TrianglesMeet;
 
 // The six tetrahedra of the Kuhn (Freudenthal) subdivision of a cube, as corner codes
@@ -476,14 +475,12 @@ class Cleaner {
     bool Overlaps(const GatheredTriangle& o) const {
       return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
     }
-    // TrianglesMeet of the two where their boxes meet. Most pairs (neighbours on a smooth
-    // surface) are told apart first by their planes (TrianglesCertainlyApart), which decides only
-    // where TrianglesMeet would say false, so the answer is TrianglesMeet's.
+    // TrianglesMeet of the two where their boxes meet (its form with the normals, which reads
+    // most sides of corners against planes from them: the same answer).
     bool Meets(const GatheredTriangle& o) const {
       if (!Overlaps(o)) return false;
       const double diagonal2 = (hi.cwiseMax(o.hi) - lo.cwiseMin(o.lo)).squaredNorm();
-      if (TrianglesCertainlyApart(ids, p, n, o.ids, o.p, o.n, diagonal2)) return false;
-      return TrianglesMeet(ids, p, o.ids, o.p);
+      return TrianglesMeet(ids, p, n, o.ids, o.p, o.n, diagonal2);
     }
   };
   GatheredTriangle Gathered(const std::array<int, 3>& t) const {

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace spidarcad::modeling::internal {
 
@@ -113,47 +114,69 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
   return false;
 }
 
-// A quick test that TrianglesMeet(ia, pa, ib, pb) is false, from each triangle's corners that
-// the other lacks (by id) against its plane; false when it cannot tell (then ask TrianglesMeet).
-// na and nb: the normals (pa[1] - pa[0]).cross(pa[2] - pa[0]) and the same of pb; diagonal2: the
-// squared diagonal of a box holding all six corners (so it bounds every distance between them).
-// True when each triangle has all its unshared corners on one side of the other's plane, each
-// by a margin (n · (p - corner 0))² > 1e-22 diagonal2³ far beyond the rounding of both that
-// product and OrientSign's determinant (each within about 1e-14 diagonal³ of the exact value,
-// which is the same up to sign) and beyond OrientSign's own tolerance (at most 1e-12
-// diagonal³): OrientSign then gives each of those corners that same non-zero side, so every
-// SegmentMeetsTriangle of TrianglesMeet has its two ends on one side (false), and so has the
-// fold test of two triangles sharing an edge. Triangles sharing three ids meet (never true here).
-inline bool TrianglesCertainlyApart(const std::array<int, 3>& ia,
-                                    const std::array<Eigen::Vector3d, 3>& pa,
-                                    const Eigen::Vector3d& na, const std::array<int, 3>& ib,
-                                    const std::array<Eigen::Vector3d, 3>& pb,
-                                    const Eigen::Vector3d& nb, double diagonal2) {
-  // Far from underflow and overflow (and not NaN), where the bounds above hold.
-  if (!(diagonal2 > 1e-60 && diagonal2 < 1e60)) return false;
+// TrianglesMeet(ia, pa, ib, pb), the same answer with fewer determinants: the side of a corner
+// of one triangle against the other's plane (OrientSign) is read from that plane's normal where
+// it is clear by far, and only computed by OrientSign where it is not. na and nb: the normals
+// (pa[1] - pa[0]).cross(pa[2] - pa[0]) and the same of pb; diagonal2: the squared diagonal of a
+// box holding all six corners (so it bounds every distance between them). With w = n · (p -
+// corner 0), (w² > 1e-22 diagonal2³) clears by far both the rounding of w and of OrientSign's
+// determinant (each within about 1e-14 diagonal³ of the exact value, which is -w's) and
+// OrientSign's tolerance (at most 1e-12 diagonal³), so OrientSign gives -sign(w) there; and
+// for two triangles sharing an edge, the fold test (whose normal is the same exact normal)
+// says false when the unshared corner is that clear of the plane.
+inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::Vector3d, 3>& pa,
+                          const Eigen::Vector3d& na, const std::array<int, 3>& ib,
+                          const std::array<Eigen::Vector3d, 3>& pb, const Eigen::Vector3d& nb,
+                          double diagonal2) {
   auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
   int shared = 0;
   for (int v : ia) shared += in(ib, v);
-  if (shared >= 3) return false;
-  const double threshold2 = 1e-22 * diagonal2 * diagonal2 * diagonal2;
-  // Whether the corners p of one triangle missing from `other` lie on one side of the plane
-  // (n, base), each by the margin.
-  auto one_side = [threshold2, &in](const std::array<int, 3>& ids,
-                                    const std::array<Eigen::Vector3d, 3>& p,
-                                    const std::array<int, 3>& other, const Eigen::Vector3d& n,
-                                    const Eigen::Vector3d& base) {
-    int side = 0;
-    for (int k = 0; k < 3; ++k) {
-      if (in(other, ids[k])) continue;
-      const double w = n.dot(p[k] - base);
-      if (!(w * w > threshold2)) return false;
-      const int s = w > 0.0 ? 1 : -1;
-      if (side != 0 && s != side) return false;
-      side = s;
-    }
-    return true;
+  if (shared >= 3) return true;
+  // Far from underflow and overflow (and not NaN), where the bounds above hold; elsewhere no
+  // side is read from the normals.
+  const double threshold2 = diagonal2 > 1e-60 && diagonal2 < 1e60
+                                ? 1e-22 * diagonal2 * diagonal2 * diagonal2
+                                : std::numeric_limits<double>::infinity();
+  // OrientSign(t[0], t[1], t[2], p) for triangle t of normal n.
+  auto side = [threshold2](const std::array<Eigen::Vector3d, 3>& t, const Eigen::Vector3d& n,
+                           const Eigen::Vector3d& p) {
+    const double w = n.dot(p - t[0]);
+    if (w * w > threshold2) return w > 0.0 ? -1 : 1;
+    return OrientSign(t[0], t[1], t[2], p);
   };
-  return one_side(ia, pa, ib, nb, pb[0]) && one_side(ib, pb, ia, na, pa[0]);
+  if (shared == 2) {
+    int fa = 0, gb = 0;
+    while (in(ib, ia[fa])) ++fa;
+    while (in(ia, ib[gb])) ++gb;
+    const double w = na.dot(pb[gb] - pa[0]);
+    if (w * w > threshold2) return false;  // clear of a's plane: not folded
+    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
+    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
+    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
+    const Eigen::Vector3d edge = e1 - e0;
+    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+  }
+  if (shared == 1) {
+    int ea[2], eb[2], na_count = 0, nb_count = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (!in(ib, ia[k])) ea[na_count++] = k;
+      if (!in(ia, ib[k])) eb[nb_count++] = k;
+    }
+    const Eigen::Vector3d &p = pa[ea[0]], &q = pa[ea[1]], &r = pb[eb[0]], &s = pb[eb[1]];
+    return SegmentMeetsTriangle(p, q, pb[0], pb[1], pb[2], side(pb, nb, p), side(pb, nb, q)) ||
+           SegmentMeetsTriangle(r, s, pa[0], pa[1], pa[2], side(pa, na, r), side(pa, na, s));
+  }
+  int side_a[3], side_b[3];
+  for (int k = 0; k < 3; ++k) {
+    side_a[k] = side(pb, nb, pa[k]);
+    side_b[k] = side(pa, na, pb[k]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    const int l = (k + 1) % 3;
+    if (SegmentMeetsTriangle(pa[k], pa[l], pb[0], pb[1], pb[2], side_a[k], side_a[l])) return true;
+    if (SegmentMeetsTriangle(pb[k], pb[l], pa[0], pa[1], pa[2], side_b[k], side_b[l])) return true;
+  }
+  return false;
 }
 
 }  // namespace spidarcad::modeling::internal
