@@ -436,7 +436,7 @@ class Cleaner {
         for (int u : vertex_tris_[w]) {
           if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
           tri_stamp_[u] = stamp_;
-          nearby_.push_back(Gathered(tris_[u]));
+          Gather(tris_[u], &nearby_);
         }
       }
     }
@@ -445,12 +445,12 @@ class Cleaner {
         for (int u : vertex_tris_[w]) {
           if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
           tri_stamp_[u] = stamp_;
-          nearby_.push_back(Gathered(tris_[u]));
+          Gather(tris_[u], &nearby_);
         }
       }
     }
     changed_corners_.clear();
-    for (const auto& c : changed) changed_corners_.push_back(Gathered(c.second));
+    for (const auto& c : changed) Gather(c.second, &changed_corners_);
     for (size_t i = 0; i < changed_corners_.size(); ++i) {
       const GatheredTriangle& a = changed_corners_[i];
       // Against the other changed triangles (each pair once) ...
@@ -467,6 +467,7 @@ class Cleaner {
 
   // A triangle's corners (ids and positions), normal and bounding box, as WouldMeet tests it.
   struct GatheredTriangle {
+    GatheredTriangle() {}  // left unset (Gather sets every field)
     std::array<int, 3> ids;
     std::array<Eigen::Vector3d, 3> p;
     Eigen::Vector3d n;  // (p[1] - p[0]).cross(p[2] - p[0])
@@ -483,12 +484,14 @@ class Cleaner {
       return TrianglesMeet(ids, p, n, o.ids, o.p, o.n, diagonal2);
     }
   };
-  GatheredTriangle Gathered(const std::array<int, 3>& t) const {
-    GatheredTriangle g{t, {pos_[t[0]], pos_[t[1]], pos_[t[2]]}, {}, {}, {}};
+  // Appends triangle t, gathered, to *out (built in place: no copy of the record).
+  void Gather(const std::array<int, 3>& t, std::vector<GatheredTriangle>* out) const {
+    GatheredTriangle& g = out->emplace_back();
+    g.ids = t;
+    g.p = {pos_[t[0]], pos_[t[1]], pos_[t[2]]};
     g.n = (g.p[1] - g.p[0]).cross(g.p[2] - g.p[0]);
     g.lo = g.p[0].cwiseMin(g.p[1]).cwiseMin(g.p[2]);
     g.hi = g.p[0].cwiseMax(g.p[1]).cwiseMax(g.p[2]);
-    return g;
   }
 
   static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,

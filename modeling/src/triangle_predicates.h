@@ -137,12 +137,17 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
   const double threshold2 = diagonal2 > 1e-60 && diagonal2 < 1e60
                                 ? 1e-22 * diagonal2 * diagonal2 * diagonal2
                                 : std::numeric_limits<double>::infinity();
-  // OrientSign(t[0], t[1], t[2], p) for triangle t of normal n.
-  auto side = [threshold2](const std::array<Eigen::Vector3d, 3>& t, const Eigen::Vector3d& n,
-                           const Eigen::Vector3d& p) {
-    const double w = n.dot(p - t[0]);
-    if (w * w > threshold2) return w > 0.0 ? -1 : 1;
-    return OrientSign(t[0], t[1], t[2], p);
+  // OrientSign(t[0], t[1], t[2], p) for triangle t of normal n: from the normal where clear
+  // (a small function, inlined), else OrientSign.
+  auto clear_side = [threshold2](const Eigen::Vector3d& n, const Eigen::Vector3d& base,
+                                 const Eigen::Vector3d& p) {
+    const double w = n.dot(p - base);
+    return w * w > threshold2 ? (w > 0.0 ? -1 : 1) : 0;
+  };
+  auto side = [&clear_side](const std::array<Eigen::Vector3d, 3>& t, const Eigen::Vector3d& n,
+                            const Eigen::Vector3d& p) {
+    const int s = clear_side(n, t[0], p);
+    return s != 0 ? s : OrientSign(t[0], t[1], t[2], p);
   };
   if (shared == 2) {
     int fa = 0, gb = 0;
@@ -163,8 +168,14 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
       if (!in(ia, ib[k])) eb[nb_count++] = k;
     }
     const Eigen::Vector3d &p = pa[ea[0]], &q = pa[ea[1]], &r = pb[eb[0]], &s = pb[eb[1]];
-    return SegmentMeetsTriangle(p, q, pb[0], pb[1], pb[2], side(pb, nb, p), side(pb, nb, q)) ||
-           SegmentMeetsTriangle(r, s, pa[0], pa[1], pa[2], side(pa, na, r), side(pa, na, s));
+    // Most often all four are clear, each pair on one side: no segment meets.
+    const int sp = clear_side(nb, pb[0], p), sq = clear_side(nb, pb[0], q);
+    const int sr = clear_side(na, pa[0], r), ss = clear_side(na, pa[0], s);
+    if (sp != 0 && sp == sq && sr != 0 && sr == ss) return false;
+    return SegmentMeetsTriangle(p, q, pb[0], pb[1], pb[2], sp != 0 ? sp : side(pb, nb, p),
+                                sq != 0 ? sq : side(pb, nb, q)) ||
+           SegmentMeetsTriangle(r, s, pa[0], pa[1], pa[2], sr != 0 ? sr : side(pa, na, r),
+                                ss != 0 ? ss : side(pa, na, s));
   }
   int side_a[3], side_b[3];
   for (int k = 0; k < 3; ++k) {
