@@ -182,10 +182,10 @@ BENCHMARK(BM_Snap)
 
 // MeshSurface alone on case state.range(0) at cell state.range(1) / 10 mm with snap_cells =
 // state.range(2) / 100, as many meshes as Google Benchmark needs for a stable time (no error
-// measurement): the case that shows the mesher itself slowing down (the 5 cm sphere at 1 mm:
-// about 0.36 s per mesh on 2026-12-05 before the speed-ups of that day, against about 0.03 s for
-// a dense marching cubes; docs/design/2026-12-04-surface-mesher-peers.md). Counters: triangles
-// and field evaluations (exact, so a change in the work shows even when times are noisy).
+// measurement): the case that shows the mesher itself slowing down (the 5 cm sphere at 1 mm,
+// snap 0: 336 ms CPU per mesh before the speed-ups of 2026-12-05, 278 ms after, against about
+// 28 ms for a dense marching cubes; docs/design/2026-12-04-surface-mesher-peers.md). Counters:
+// triangles and field evaluations (exact, so a change in the work shows when times are noisy).
 void BM_MeshSpeed(benchmark::State& state) {
   const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
   SurfaceMeshSettings settings;
