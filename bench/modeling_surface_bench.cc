@@ -12,6 +12,8 @@
 // Max and mean of both directions are printed as a markdown table after the benchmarks.
 // BM_FindBounds: the box search of `spidarcad mesh` on unions of 1,000 to 100,000 spheres (time,
 // and how far the box lies beyond the exact one), a second table.
+// BM_MeshSpeed: MeshSurface alone, repeated (CPU time per mesh), on the smooth shapes (sphere at 1
+// and 2 mm, torus at 1 mm) and the platform at 4 mm, with snapping off and at kProductSnapCells.
 // Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <benchmark/benchmark.h>
@@ -178,6 +180,36 @@ BENCHMARK(BM_Snap)
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
+// MeshSurface alone on case state.range(0) at cell state.range(1) / 10 mm with snap_cells =
+// state.range(2) / 100, as many meshes as Google Benchmark needs for a stable time (no error
+// measurement): the case that shows the mesher itself slowing down (the 5 cm sphere at 1 mm,
+// snap 0: 336 ms CPU per mesh before the speed-ups of 2026-12-05, 278 ms after, against about
+// 28 ms for a dense marching cubes; docs/design/2026-12-04-surface-mesher-peers.md). Counters:
+// triangles and field evaluations (exact, so a change in the work shows when times are noisy).
+void BM_MeshSpeed(benchmark::State& state) {
+  const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
+  SurfaceMeshSettings settings;
+  settings.bounds = c.bounds;
+  settings.cell_size = state.range(1) * 1e-4;
+  settings.snap_cells = state.range(2) * 0.01;
+  TriangleMesh mesh;
+  SurfaceMeshStats stats;
+  for (auto _ : state) {
+    mesh = MeshSurface(c.solid, settings, &stats);
+    benchmark::DoNotOptimize(mesh.vertices.data());
+  }
+  state.SetLabel(c.name);
+  state.counters["cell_mm"] = settings.cell_size * 1e3;
+  state.counters["snap"] = settings.snap_cells;
+  state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
+  state.counters["evaluations"] = static_cast<double>(stats.field_evaluations);
+}
+BENCHMARK(BM_MeshSpeed)
+    ->ArgsProduct({{3}, {10, 20}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
+    ->ArgsProduct({{4}, {10}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
+    ->ArgsProduct({{2}, {40}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
+    ->Unit(benchmark::kMillisecond);
+
 // What keeps sharpened creases under 10°: MeshSurface (snap_cells = state.range(2) / 100) then
 // SharpenFeatures with min_angle_deg = state.range(3), relax_angle_deg = state.range(4) and
 // sliver_angle_deg = state.range(5) (the sliver repair, step 4b), on case state.range(0) at cell
@@ -299,6 +331,9 @@ constexpr const char* kBenchDescription =
     "(the sliver repair; rows /.../1/0/10/) on default and snapped surfaces of the box minus the\n"
     "cylinder and the platform (crease error against angles). Select with\n"
     "--benchmark_filter=BM_Snap etc.\n"
+    "BM_MeshSpeed: MeshSurface alone, repeated (CPU time per mesh): sphere at 1 and 2 mm, torus "
+    "at\n"
+    "1 mm, platform at 4 mm, snap_cells 0 and kProductSnapCells (0.2).\n"
     "BM_FindBounds: the box search of `spidarcad mesh` (1 cm over [-10, 10]^3, then size/80) on\n"
     "unions of 1,000 to 100,000 spheres, its time and how far the box lies beyond the exact one.\n"
     "Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.";

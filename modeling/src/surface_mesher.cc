@@ -6,7 +6,9 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <deque>
 #include <iterator>
 #include <limits>
 #include <memory>
@@ -50,9 +52,9 @@ constexpr std::array<double, 3> kZeroOffsets = {0.05, 1e-3, 1e-5};
 constexpr double kCoincident = 1e-4;
 
 // Hash map from non-negative long keys to values of type V: open addressing with linear
-// probing in a power-of-two table that doubles at half load. The mesher's grid-value and
-// edge-vertex caches, looked up several times per meshed cell: one probe into a flat array
-// instead of std::unordered_map's allocated node per entry.
+// probing in a power-of-two table that doubles at half load: one probe into a flat array
+// instead of std::unordered_map's allocated node per entry. BrickMap's index of bricks, and the
+// unsnapped grid vertices.
 template <class V>
 class FlatMap {
  public:
@@ -101,6 +103,67 @@ class FlatMap {
   std::vector<V> values_;
   size_t size_ = 0;
   int bits_ = 10;  // log2 of the table size
+};
+
+// Map from grid vertices to up to kSlots values each, in bricks of 4 x 4 x 4 vertices: one
+// probe of a small FlatMap per brick (none while the lookups stay in the last brick), then the
+// brick's own arrays. The mesher's grid-value and edge-vertex caches, read by neighbouring cells
+// in turn: a brick stays in cache across them, where a table keyed by single vertices spreads
+// neighbours over the whole table (a cache miss per lookup).
+template <class V, int kSlots>
+class BrickMap {
+ public:
+  using Index3 = std::array<long, 3>;
+  BrickMap() = default;
+  // vertices: grid vertices per axis.
+  explicit BrickMap(const Index3& vertices)
+      : bricks_x_((vertices[0] + 3) / 4), bricks_y_((vertices[1] + 3) / 4) {}
+  // Slot `slot` of grid vertex v, or null when it was not inserted.
+  const V* Find(const Index3& v, int slot) const {
+    const Brick* b = FindBrick(Key(v));
+    const int local = Local(v);
+    if (b == nullptr || !((b->set[slot] >> local) & 1u)) return nullptr;
+    return &b->values[slot * 64 + local];
+  }
+  // Sets slot `slot` of grid vertex v (not present) to value.
+  void Insert(const Index3& v, int slot, V value) {
+    const long key = Key(v);
+    Brick* b = const_cast<Brick*>(FindBrick(key));
+    if (b == nullptr) {
+      index_.Insert(key, static_cast<int>(bricks_.size()));
+      b = &bricks_.emplace_back();
+      last_key_ = key;
+      last_ = b;
+    }
+    const int local = Local(v);
+    b->set[slot] |= std::uint64_t{1} << local;
+    b->values[slot * 64 + local] = value;
+  }
+
+ private:
+  struct Brick {
+    std::array<std::uint64_t, kSlots> set{};  // bit (x & 3) + 4 (y & 3) + 16 (z & 3) per slot
+    std::array<V, 64 * kSlots> values{};
+  };
+  long Key(const Index3& v) const {
+    return (v[0] >> 2) + bricks_x_ * ((v[1] >> 2) + bricks_y_ * (v[2] >> 2));
+  }
+  static int Local(const Index3& v) {
+    return static_cast<int>((v[0] & 3) | ((v[1] & 3) << 2) | ((v[2] & 3) << 4));
+  }
+  const Brick* FindBrick(long key) const {
+    if (key == last_key_) return last_;
+    const int* at = index_.Find(key);
+    if (at == nullptr) return nullptr;
+    last_key_ = key;
+    last_ = &bricks_[static_cast<size_t>(*at)];
+    return last_;
+  }
+  long bricks_x_ = 1, bricks_y_ = 1;
+  FlatMap<int> index_;        // brick key -> its index in bricks_
+  std::deque<Brick> bricks_;  // a deque: bricks stay where they are as it grows
+  mutable long last_key_ = -1;
+  mutable const Brick* last_ = nullptr;
 };
 
 // Post-pass of MeshSurface: edge collapses (with the link condition, so a closed manifold
@@ -373,7 +436,7 @@ class Cleaner {
         for (int u : vertex_tris_[w]) {
           if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
           tri_stamp_[u] = stamp_;
-          nearby_.push_back(Gathered(tris_[u]));
+          Gather(tris_[u], &nearby_);
         }
       }
     }
@@ -382,42 +445,53 @@ class Cleaner {
         for (int u : vertex_tris_[w]) {
           if (tri_stamp_[u] == stamp_ || !alive_[u]) continue;
           tri_stamp_[u] = stamp_;
-          nearby_.push_back(Gathered(tris_[u]));
+          Gather(tris_[u], &nearby_);
         }
       }
     }
     changed_corners_.clear();
-    for (const auto& c : changed) changed_corners_.push_back(Gathered(c.second));
+    for (const auto& c : changed) Gather(c.second, &changed_corners_);
     for (size_t i = 0; i < changed_corners_.size(); ++i) {
       const GatheredTriangle& a = changed_corners_[i];
       // Against the other changed triangles (each pair once) ...
       for (size_t j = i + 1; j < changed_corners_.size(); ++j) {
-        const GatheredTriangle& b = changed_corners_[j];
-        if (a.Overlaps(b) && TrianglesMeet(a.ids, a.p, b.ids, b.p)) return true;
+        if (a.Meets(changed_corners_[j])) return true;
       }
       // ... and the unchanged ones nearby.
       for (const GatheredTriangle& b : nearby_) {
-        if (a.Overlaps(b) && TrianglesMeet(a.ids, a.p, b.ids, b.p)) return true;
+        if (a.Meets(b)) return true;
       }
     }
     return false;
   }
 
-  // A triangle's corners (ids and positions) and bounding box, as WouldMeet tests it.
+  // A triangle's corners (ids and positions), normal and bounding box, as WouldMeet tests it.
   struct GatheredTriangle {
+    GatheredTriangle() {}  // left unset (Gather sets every field)
     std::array<int, 3> ids;
     std::array<Eigen::Vector3d, 3> p;
+    Eigen::Vector3d n;  // (p[1] - p[0]).cross(p[2] - p[0])
     Eigen::Vector3d lo, hi;
     // Whether the boxes meet (closed boxes, as Eigen::AlignedBox3d::intersects).
     bool Overlaps(const GatheredTriangle& o) const {
       return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
     }
+    // TrianglesMeet of the two where their boxes meet (its form with the normals, which reads
+    // most sides of corners against planes from them: the same answer).
+    bool Meets(const GatheredTriangle& o) const {
+      if (!Overlaps(o)) return false;
+      const double diagonal2 = (hi.cwiseMax(o.hi) - lo.cwiseMin(o.lo)).squaredNorm();
+      return TrianglesMeet(ids, p, n, o.ids, o.p, o.n, diagonal2);
+    }
   };
-  GatheredTriangle Gathered(const std::array<int, 3>& t) const {
-    GatheredTriangle g{t, {pos_[t[0]], pos_[t[1]], pos_[t[2]]}, {}, {}};
+  // Appends triangle t, gathered, to *out (built in place: no copy of the record).
+  void Gather(const std::array<int, 3>& t, std::vector<GatheredTriangle>* out) const {
+    GatheredTriangle& g = out->emplace_back();
+    g.ids = t;
+    g.p = {pos_[t[0]], pos_[t[1]], pos_[t[2]]};
+    g.n = (g.p[1] - g.p[0]).cross(g.p[2] - g.p[0]);
     g.lo = g.p[0].cwiseMin(g.p[1]).cwiseMin(g.p[2]);
     g.hi = g.p[0].cwiseMax(g.p[1]).cwiseMax(g.p[2]);
-    return g;
   }
 
   static double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
@@ -790,6 +864,9 @@ class Mesher {
     origin_ =
         s.bounds.center() - 0.5 * h_ * Eigen::Vector3d(double(n_[0]), double(n_[1]), double(n_[2]));
     total_cells_ = n_[0] * n_[1] * n_[2];
+    values_ = BrickMap<double, 1>(GridVertices());
+    raw_values_ = BrickMap<double, 1>(GridVertices());
+    edge_vertices_ = BrickMap<int, 7>(GridVertices());
   }
 
   TriangleMesh Run(SurfaceMeshStats* stats) {
@@ -852,6 +929,8 @@ class Mesher {
   Eigen::Vector3d Position(const Index3& v) const {
     return origin_ + h_ * Eigen::Vector3d(double(v[0]), double(v[1]), double(v[2]));
   }
+  // Grid vertices per axis.
+  Index3 GridVertices() const { return {n_[0] + 1, n_[1] + 1, n_[2] + 1}; }
   long VertexId(const Index3& v) const { return v[0] + (n_[0] + 1) * (v[1] + (n_[1] + 1) * v[2]); }
   bool OnBoundary(const Index3& v) const {
     for (int a = 0; a < 3; ++a) {
@@ -867,8 +946,8 @@ class Mesher {
   // apart (distinct, but within any weld tolerance). Boundary vertices count as outside (value
   // at least zero) so the mesh closes along the bounds.
   double VertexValue(const Index3& v) {
+    if (const double* cached = values_.Find(v, 0)) return *cached;
     const long id = VertexId(v);
-    if (const double* cached = values_.Find(id)) return *cached;
     // Without snapping the band is kZeroBand: no neighbour is asked, so no second cache.
     double f = SnapBand() > kZeroBand * h_ ? RawValue(v) : FieldValue(v);
     const bool unsnapped = unsnapped_.size() > 0 && unsnapped_.Find(id) != nullptr;
@@ -878,7 +957,7 @@ class Mesher {
     // wall under about 1 + 2 snap_cells cells thick, and snapping it would lose the wall.
     if (std::abs(f) <= band && !(f < -kZeroBand * h_ && !DeeperNeighbour(v, band))) f = 0.0;
     if (OnBoundary(v)) f = std::max(f, 0.0);
-    values_.Insert(id, f);
+    values_.Insert(v, 0, f);
     return f;
   }
 
@@ -903,8 +982,8 @@ class Mesher {
   // Forgets the raw mesh and the grid values (not the unsnapped grid vertices) before meshing
   // again.
   void Restart() {
-    values_ = FlatMap<double>();
-    edge_vertices_ = FlatMap<int>();
+    values_ = BrickMap<double, 1>(GridVertices());
+    edge_vertices_ = BrickMap<int, 7>(GridVertices());
     vertices_.clear();
     inward_.clear();
     grid_index_.clear();
@@ -921,10 +1000,9 @@ class Mesher {
 
   // FieldValue, cached (for snapping, which also asks the neighbours).
   double RawValue(const Index3& v) {
-    const long id = VertexId(v);
-    if (const double* cached = raw_values_.Find(id)) return *cached;
+    if (const double* cached = raw_values_.Find(v, 0)) return *cached;
     const double f = FieldValue(v);
-    raw_values_.Insert(id, f);
+    raw_values_.Insert(v, 0, f);
     return f;
   }
 
@@ -1007,6 +1085,7 @@ class Mesher {
       (f[code] < 0.0 ? any_in : any_out) = true;
     }
     if (!any_in || !any_out) return;
+    for (int code = 0; code < 8; ++code) corner_[code] = Position(v[code]);
     cell_edges_.fill(-1);
     for (const auto& tet : kKuhnTets) Tetrahedron(c, tet, f, v);
   }
@@ -1019,9 +1098,10 @@ class Mesher {
     // answers without a probe into the grid-wide one.
     int& in_cell = cell_edges_[8 * a + b];
     if (in_cell >= 0) return in_cell;
-    const long key = VertexId(v[a]) * 8 + (a ^ b);
-    if (const int* cached = edge_vertices_.Find(key)) return in_cell = *cached;
-    Eigen::Vector3d pa = Position(v[a]), pb = Position(v[b]);
+    // The edge's slot at its lower end v[a]: its direction a ^ b (1 to 7) less one.
+    const int slot = (a ^ b) - 1;
+    if (const int* cached = edge_vertices_.Find(v[a], slot)) return in_cell = *cached;
+    Eigen::Vector3d pa = corner_[a], pb = corner_[b];
     double fa = f[a], fb = f[b];
     // An outside end at exactly zero (on the surface, or clamped on the boundary): the vertex is
     // that grid vertex exactly, so the vertices of all edges ending there coincide and the
@@ -1052,13 +1132,13 @@ class Mesher {
       }
     }
     const int id = static_cast<int>(vertices_.size());
-    const Eigen::Vector3d edge = Position(v[b]) - Position(v[a]);
+    const Eigen::Vector3d edge = corner_[b] - corner_[a];
     if (f[a] == 0.0) {
-      vertices_.push_back(Position(v[a]));
+      vertices_.push_back(corner_[a]);
       inward_.push_back(edge);
       grid_index_.push_back(v[a]);
     } else if (f[b] == 0.0) {
-      vertices_.push_back(Position(v[b]));
+      vertices_.push_back(corner_[b]);
       inward_.push_back(-edge);
       grid_index_.push_back(v[b]);
     } else {
@@ -1066,7 +1146,7 @@ class Mesher {
       inward_.push_back(Eigen::Vector3d::Zero());
       grid_index_.push_back({-1, -1, -1});
     }
-    edge_vertices_.Insert(key, id);
+    edge_vertices_.Insert(v[a], slot, id);
     return in_cell = id;
   }
 
@@ -1085,13 +1165,11 @@ class Mesher {
     for (int code : tet) (f[code] < 0.0 ? in[n_in++] : out[n_out++]) = code;
     if (n_in == 0 || n_out == 0) return;
     Eigen::Vector3d in_centre = Eigen::Vector3d::Zero(), out_centre = Eigen::Vector3d::Zero();
-    for (int i = 0; i < n_in; ++i) in_centre += Position(v[in[i]]) / n_in;
-    for (int i = 0; i < n_out; ++i) out_centre += Position(v[out[i]]) / n_out;
+    for (int i = 0; i < n_in; ++i) in_centre += corner_[in[i]] / n_in;
+    for (int i = 0; i < n_out; ++i) out_centre += corner_[out[i]] / n_out;
     // The plane through the edge midpoints separates the inside corners from the outside ones.
     const Eigen::Vector3d outward = out_centre - in_centre;
-    auto mid = [&](int a, int b) -> Eigen::Vector3d {
-      return 0.5 * (Position(v[a]) + Position(v[b]));
-    };
+    auto mid = [&](int a, int b) -> Eigen::Vector3d { return 0.5 * (corner_[a] + corner_[b]); };
     if (n_in == 1) {
       Emit(EdgeVertex(c, in[0], out[0], f, v), EdgeVertex(c, in[0], out[1], f, v),
            EdgeVertex(c, in[0], out[2], f, v), mid(in[0], out[0]), mid(in[0], out[1]),
@@ -1122,10 +1200,11 @@ class Mesher {
   long polls_ = 0;
   long evaluated_cells_ = 0;
   long evaluations_ = 0;
-  FlatMap<double> values_;            // grid vertex id -> value
-  FlatMap<double> raw_values_;        // grid vertex id -> value as it is (kept by Restart)
-  FlatMap<int> edge_vertices_;        // grid vertex id * 8 + edge code -> mesh vertex
+  BrickMap<double, 1> values_;        // grid vertex -> value
+  BrickMap<double, 1> raw_values_;    // grid vertex -> value as it is (kept by Restart)
+  BrickMap<int, 7> edge_vertices_;    // grid vertex, edge code - 1 -> mesh vertex
   std::array<int, 64> cell_edges_{};  // the current cell's edge (8 a + b) -> mesh vertex, or -1
+  std::array<Eigen::Vector3d, 8> corner_;  // the current cell's corners (Position), by code
   std::vector<Eigen::Vector3d> vertices_;
   std::vector<Eigen::Vector3d>
       inward_;                      // per vertex at a zero grid vertex: its edge, into the solid

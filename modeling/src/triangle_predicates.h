@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace spidarcad::modeling::internal {
 
@@ -104,6 +105,82 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
   for (int k = 0; k < 3; ++k) {
     side_a[k] = OrientSign(pb[0], pb[1], pb[2], pa[k]);
     side_b[k] = OrientSign(pa[0], pa[1], pa[2], pb[k]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    const int l = (k + 1) % 3;
+    if (SegmentMeetsTriangle(pa[k], pa[l], pb[0], pb[1], pb[2], side_a[k], side_a[l])) return true;
+    if (SegmentMeetsTriangle(pb[k], pb[l], pa[0], pa[1], pa[2], side_b[k], side_b[l])) return true;
+  }
+  return false;
+}
+
+// TrianglesMeet(ia, pa, ib, pb), the same answer with fewer determinants: the side of a corner
+// of one triangle against the other's plane (OrientSign) is read from that plane's normal where
+// it is clear by far, and only computed by OrientSign where it is not. na and nb: the normals
+// (pa[1] - pa[0]).cross(pa[2] - pa[0]) and the same of pb; diagonal2: the squared diagonal of a
+// box holding all six corners (so it bounds every distance between them). With w = n · (p -
+// corner 0), (w² > 1e-22 diagonal2³) clears by far both the rounding of w and of OrientSign's
+// determinant (each within about 1e-14 diagonal³ of the exact value, which is -w's) and
+// OrientSign's tolerance (at most 1e-12 diagonal³), so OrientSign gives -sign(w) there; and
+// for two triangles sharing an edge, the fold test (whose normal is the same exact normal)
+// says false when the unshared corner is that clear of the plane.
+inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::Vector3d, 3>& pa,
+                          const Eigen::Vector3d& na, const std::array<int, 3>& ib,
+                          const std::array<Eigen::Vector3d, 3>& pb, const Eigen::Vector3d& nb,
+                          double diagonal2) {
+  auto in = [](const std::array<int, 3>& t, int v) { return t[0] == v || t[1] == v || t[2] == v; };
+  int shared = 0;
+  for (int v : ia) shared += in(ib, v);
+  if (shared >= 3) return true;
+  // Far from underflow and overflow (and not NaN), where the bounds above hold; elsewhere no
+  // side is read from the normals.
+  const double threshold2 = diagonal2 > 1e-60 && diagonal2 < 1e60
+                                ? 1e-22 * diagonal2 * diagonal2 * diagonal2
+                                : std::numeric_limits<double>::infinity();
+  // OrientSign(t[0], t[1], t[2], p) for triangle t of normal n: from the normal where clear
+  // (a small function, inlined), else OrientSign.
+  auto clear_side = [threshold2](const Eigen::Vector3d& n, const Eigen::Vector3d& base,
+                                 const Eigen::Vector3d& p) {
+    const double w = n.dot(p - base);
+    return w * w > threshold2 ? (w > 0.0 ? -1 : 1) : 0;
+  };
+  auto side = [&clear_side](const std::array<Eigen::Vector3d, 3>& t, const Eigen::Vector3d& n,
+                            const Eigen::Vector3d& p) {
+    const int s = clear_side(n, t[0], p);
+    return s != 0 ? s : OrientSign(t[0], t[1], t[2], p);
+  };
+  if (shared == 2) {
+    int fa = 0, gb = 0;
+    while (in(ib, ia[fa])) ++fa;
+    while (in(ia, ib[gb])) ++gb;
+    const double w = na.dot(pb[gb] - pa[0]);
+    if (w * w > threshold2) return false;  // clear of a's plane: not folded
+    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
+    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
+    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
+    const Eigen::Vector3d edge = e1 - e0;
+    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+  }
+  if (shared == 1) {
+    int ea[2], eb[2], na_count = 0, nb_count = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (!in(ib, ia[k])) ea[na_count++] = k;
+      if (!in(ia, ib[k])) eb[nb_count++] = k;
+    }
+    const Eigen::Vector3d &p = pa[ea[0]], &q = pa[ea[1]], &r = pb[eb[0]], &s = pb[eb[1]];
+    // Most often all four are clear, each pair on one side: no segment meets.
+    const int sp = clear_side(nb, pb[0], p), sq = clear_side(nb, pb[0], q);
+    const int sr = clear_side(na, pa[0], r), ss = clear_side(na, pa[0], s);
+    if (sp != 0 && sp == sq && sr != 0 && sr == ss) return false;
+    return SegmentMeetsTriangle(p, q, pb[0], pb[1], pb[2], sp != 0 ? sp : side(pb, nb, p),
+                                sq != 0 ? sq : side(pb, nb, q)) ||
+           SegmentMeetsTriangle(r, s, pa[0], pa[1], pa[2], sr != 0 ? sr : side(pa, na, r),
+                                ss != 0 ? ss : side(pa, na, s));
+  }
+  int side_a[3], side_b[3];
+  for (int k = 0; k < 3; ++k) {
+    side_a[k] = side(pb, nb, pa[k]);
+    side_b[k] = side(pa, na, pb[k]);
   }
   for (int k = 0; k < 3; ++k) {
     const int l = (k + 1) % 3;
