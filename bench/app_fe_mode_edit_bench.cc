@@ -228,7 +228,7 @@ void PrintTables() {
   bench::PrintLoadAverage();
   std::printf(" Wall seconds from the edit's command.\n\n");
   std::printf(
-      "| case | mesh | tets | edit | slabs re-meshed / factored | mesh landed | model ready | "
+      "| case | mesh | tets | edit | slabs re-meshed / factored | refresh (mesh) | precompute | "
       "patch columns | **edit -> force** | vs one-piece factor "
       "|\n|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : Rows()) {
