@@ -791,6 +791,7 @@ void FeMode::StartMeshJob(SceneModel* model, const FeMeshInput& input, bool refr
                                  static_cast<long>(result->volume->tets.cols()),
                                  static_cast<long>(result->volume->nodes.cols()));
                    status_ = line;
+                   if (!result->slab_note.empty()) status_ += "; " + result->slab_note;
                    if (!refresh_mesh) chosen_ = input.source;
                  };
                });

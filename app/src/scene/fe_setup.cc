@@ -342,7 +342,8 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
       input.settings.max_tet_volume == 0.0) {
     // In slabs across x, on the earlier mesh's grid and planes when it was made at this cell size
     // in as many slabs and its grid holds the solid's box (then the slabs the edit did not reach
-    // come back as they were).
+    // come back as they were). A solid the planes cannot cut (a plane through a gap, a section
+    // too thin for the cell) is meshed in one piece instead, and the result says why.
     const SlabFeMesh* previous = input.previous_slabs.get();
     if (previous != nullptr && !(previous->cell == cell && previous->grid_bounds.contains(bounds) &&
                                  static_cast<int>(previous->planes.size()) + 1 == input.slabs))
@@ -355,18 +356,46 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     so.previous = previous;
     so.cancel = cancel;
     so.progress = progress;
-    auto slabs = std::make_shared<const SlabFeMesh>(MeshSolidInSlabs(
-        compiled, grid, cell,
-        previous != nullptr ? previous->planes : SlabPlanes(grid, cell, input.slabs), so));
-    if (slabs->volume->tets.cols() == 0)
-      throw std::invalid_argument("solid '" + input.source_name + "': the mesh is empty at " +
-                                  std::to_string(cell) + " m cells");
-    result.volume = slabs->volume;
-    result.surface =
-        std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*result.volume));
-    result.slabs = std::move(slabs);
-    Report(progress, 1.0);
-    return result;
+    // The planes tried: the earlier mesh's; else half-way between grid planes, then a quarter
+    // of a cell to either side (a plane may meet a face of the snapped surface: the cut refuses
+    // a triangle in a plane).
+    std::vector<std::pair<Eigen::AlignedBox3d, std::vector<double>>> tries;
+    if (previous != nullptr) tries.emplace_back(grid, previous->planes);
+    for (double shift : {0.0, 0.25, -0.25}) {
+      std::vector<double> planes = SlabPlanes(bounds, cell, input.slabs);
+      for (double& x : planes) x += shift * cell;
+      tries.emplace_back(bounds, std::move(planes));
+    }
+    std::shared_ptr<const SlabFeMesh> slabs;
+    std::string why;
+    for (const auto& [box, planes] : tries) {
+      so.previous = box.isApprox(grid, 0.0) ? previous : nullptr;
+      try {
+        slabs =
+            std::make_shared<const SlabFeMesh>(MeshSolidInSlabs(compiled, box, cell, planes, so));
+        if (slabs->volume->tets.cols() == 0) throw std::runtime_error("no tetrahedra");
+        break;
+      } catch (const modeling::MeshingCancelled&) {
+        throw;
+      } catch (const modeling::TetMeshingCancelled&) {
+        throw;
+      } catch (const std::exception& e) {
+        slabs.reset();
+        if (why.empty()) why = e.what();
+      }
+    }
+    if (!slabs) {
+      result.slab_note = std::string("meshed in one piece: in ") + std::to_string(input.slabs) +
+                         " slabs it failed (" + why + ")";
+    }
+    if (slabs) {
+      result.volume = slabs->volume;
+      result.surface =
+          std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*result.volume));
+      result.slabs = std::move(slabs);
+      Report(progress, 1.0);
+      return result;
+    }
   }
   modeling::SurfaceMeshSettings ss;
   ss.bounds = bounds;

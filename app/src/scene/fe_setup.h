@@ -74,7 +74,8 @@ struct FeMeshInput {
   // snapped as in one piece, cut by planes, TetGen per slab, the slabs joined), so that an FE
   // model of it can be factored in slabs and a later edit re-meshes and refactors only the slabs
   // it reached. 0: in one piece. Ignored (one piece) with settings.sharp_edges, max_tet_volume or
-  // mesher "cgal", for a surface only and for the other kinds.
+  // mesher "cgal", for a surface only and for the other kinds; a solid the slabs fail for (a
+  // plane through a gap in it) is meshed in one piece, FeMeshResult::slab_note saying why.
   int slabs = 0;
   // The slab mesh of an earlier version of the solid (may be null): its grid and planes are kept,
   // and its slabs whose input is unchanged are taken as they are, when it was made at the same
@@ -110,6 +111,9 @@ struct FeMeshResult {
   MeshSettings settings;  // the settings used, cell_size resolved (0 for a surface source)
   // The mesh in slabs (FeMeshInput::slabs), whose `volume` is `volume`; null in one piece.
   std::shared_ptr<const SlabFeMesh> slabs;
+  // Why slabs were asked for but the mesh is in one piece ("meshed in one piece: in 4 slabs it
+  // failed (...)"), else "".
+  std::string slab_note;
 };
 
 // Compiles a solid's tree and finds the box it is meshed on at `cell` m (<= 0: the largest side
