@@ -575,7 +575,7 @@ TEST(DocumentIo, SaveIsAtomic) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
 }
 
-TEST(DocumentIo, MeshSettingsKeepTheMesherAndSharpEdges) {
+TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
   const std::string dir = OutDir("mesher");
   Document doc;
   doc.Execute(edit::AddSolid("ball", ImplicitNode(modeling::SphereParams{0.05}, {}, "ball")));
@@ -595,6 +595,7 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherAndSharpEdges) {
     m.settings.cell_size = 0.01;
     m.settings.mesher = mesher;
     m.settings.sharp_edges = sharp;
+    if (mesher == "tetgen") m.settings.slab_planes = {-0.0251, 0.0003, 0.025};
     doc.Execute(edit::AddObject("tets " + mesher, m));
   }
   const std::string path = dir + "/doc.json";
@@ -609,6 +610,9 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherAndSharpEdges) {
     EXPECT_EQ(m.settings.mesher, expected_mesher[i]) << i;
     EXPECT_EQ(m.settings.sharp_edges, expected_sharp[i]) << i;
     EXPECT_EQ(m.settings.cell_size, 0.01);
+    EXPECT_EQ(m.settings.slab_planes,
+              (i == 1 ? std::vector<double>{-0.0251, 0.0003, 0.025} : std::vector<double>{}))
+        << i;  // bit for bit
   }
   // Refused: an unknown mesher, and "generate" with what only the window's meshing does.
   const std::string solid =
@@ -625,6 +629,15 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherAndSharpEdges) {
       {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
        "\"settings\": {\"cell_size\": 0.01, \"mesher\": \"cgal\"}}",
        "/objects/1/generate", "store the mesh"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [0.01, 0.01]}}",
+       "/objects/1/settings/slab_planes/1", "the planes must increase"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": 0.01}}",
+       "/objects/1/settings/slab_planes", "expected an array"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [\"x\"]}}",
+       "/objects/1/settings/slab_planes/0", "expected a number"},
   };
   for (const auto& c : bad) {
     WriteText(path, "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"objects\": [\n" +

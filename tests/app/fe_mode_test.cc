@@ -884,6 +884,12 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   EXPECT_EQ(again.model().document().Get(again_fe->fe().bound_object()).name, "platform FE");
   EXPECT_EQ(again_fe->fe().model_settings().material.youngs_modulus, aluminium.youngs_modulus);
   EXPECT_FALSE(again.model().document().dirty());
+  // The saved mesh says where its slabs are: the reopened model is factored slab by slab.
+  again_fe->fe().RequestModel();
+  ASSERT_TRUE(FramesUntil(again, [&] { return again_fe->fe().model() != nullptr; }))
+      << again_fe->fe().status();
+  ASSERT_NE(again_fe->fe().model()->substructured(), nullptr);
+  EXPECT_EQ(again_fe->fe().model()->substructured()->num_blocks(), kFeSlabs);
 }
 
 // The workbench's FE model is made from the platform solid: editing the solid makes it stale in

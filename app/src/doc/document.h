@@ -71,6 +71,9 @@ struct MeshSettings {
   // the solid's function; solids only).
   std::string mesher = {};
   bool sharp_edges = false;  // the grid surface was sharpened onto the solid's creases (TetGen)
+  // The planes x = slab_planes[k] (m, increasing) the tetrahedra were meshed in slabs between (FE
+  // mode); empty: in one piece. FE mode factors such a mesh slab by slab (fem::SlabBlocks).
+  std::vector<double> slab_planes = {};
 };
 // Meshes made from another object (usually a solid) by a Job, or imported from a file. Either
 // mesh may be absent. The data are immutable and shared between copies (undo snapshots,

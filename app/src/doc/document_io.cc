@@ -423,7 +423,8 @@ Content ContentFromJson(const json& j) {
         const std::string sp = p + "/settings";
         RequireObject(s, sp);
         RejectUnknown(s, sp,
-                      {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges"});
+                      {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges",
+                       "slab_planes"});
         m.settings.cell_size = NonNegative(s, sp, "cell_size", 0.0);
         m.settings.max_tet_volume = NonNegative(s, sp, "max_tet_volume", 0.0);
         m.settings.max_radius_edge = NonNegative(s, sp, "max_radius_edge", 0.0);
@@ -437,6 +438,17 @@ Content ContentFromJson(const json& j) {
         }
         if (s.contains("sharp_edges"))
           m.settings.sharp_edges = Bool(s.at("sharp_edges"), sp + "/sharp_edges");
+        if (s.contains("slab_planes")) {
+          const json& planes = s.at("slab_planes");
+          const std::string pp = sp + "/slab_planes";
+          if (!planes.is_array()) Fail(pp, "expected an array of plane positions x (m)");
+          for (std::size_t k = 0; k < planes.size(); ++k) {
+            const double x = Number(planes[k], pp + "/" + std::to_string(k));
+            if (k > 0 && !(x > m.settings.slab_planes.back()))
+              Fail(pp + "/" + std::to_string(k), "the planes must increase");
+            m.settings.slab_planes.push_back(x);
+          }
+        }
       }
       if (o.contains("surface"))
         m.surface =
@@ -661,6 +673,7 @@ json ObjectJson(const Document& doc, const DocObject& o) {
                      {"max_radius_edge", m->settings.max_radius_edge}};
     if (!m->settings.mesher.empty()) j["settings"]["mesher"] = m->settings.mesher;
     if (m->settings.sharp_edges) j["settings"]["sharp_edges"] = true;
+    if (!m->settings.slab_planes.empty()) j["settings"]["slab_planes"] = m->settings.slab_planes;
     if (!m->import_source.empty()) j["import_source"] = m->import_source;
     if (m->surface) j["surface"] = SurfaceJson(*m->surface);
     if (m->volume) j["volume"] = VolumeJson(*m->volume);

@@ -586,8 +586,16 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
     status_ = o.name + ": settings changed; press Precompute";
   } else {
     try {
-      const std::shared_ptr<const SlabFeMesh> slabs = SlabsOf(doc, data.tet_mesh);
-      SetMesh(FeMeshOf(doc, data), o.name, slabs ? slabs->slab : Eigen::VectorXi());
+      fem::TetMesh mesh = FeMeshOf(doc, data);
+      Eigen::VectorXi slab;
+      if (const std::shared_ptr<const SlabFeMesh> slabs = SlabsOf(doc, data.tet_mesh)) {
+        slab = slabs->slab;
+      } else if (const auto& planes =
+                     std::get<MeshData>(doc.Get(data.tet_mesh).data).settings.slab_planes;
+                 !planes.empty()) {
+        slab = fem::SlabBlocks(mesh, 0, planes);  // e.g. a document opened from a file
+      }
+      SetMesh(std::move(mesh), o.name, std::move(slab));
     } catch (const std::exception& e) {
       mesh_.reset();
       status_ = o.name + ": " + e.what();

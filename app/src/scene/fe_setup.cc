@@ -301,6 +301,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
                           const std::function<void(double)>& progress) {
   FeMeshResult result;
   result.settings = input.settings;
+  result.settings.slab_planes.clear();  // set below when the tetrahedra are made in slabs
   Report(progress, 0.0);
   if (input.kind == FeSourceKind::kSculpt || input.kind == FeSourceKind::kSurfaceMesh) {
     if (!input.surface) throw std::invalid_argument("set up FE: no surface to mesh");
@@ -389,6 +390,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
                          " slabs it failed (" + why + ")";
     }
     if (slabs) {
+      result.settings.slab_planes = slabs->planes;
       result.volume = slabs->volume;
       result.surface =
           std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*result.volume));
