@@ -67,6 +67,17 @@ inline bool SegmentMeetsTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d
   return SegmentMeetsTriangle(p, q, a, b, c, OrientSign(a, b, c, p), OrientSign(a, b, c, q));
 }
 
+// Two triangles sharing an edge, a (corners pa, fa the one off the edge) and b (q its corner off
+// the edge): folded when q lies in a's plane on the same side of the shared edge as a's corner.
+inline bool FoldedOnSharedEdge(const std::array<Eigen::Vector3d, 3>& pa, int fa,
+                               const Eigen::Vector3d& q) {
+  const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
+  const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
+  if (std::abs(n.dot(q - e0)) > 1e-12 * n.norm() * (q - e0).norm()) return false;
+  const Eigen::Vector3d edge = e1 - e0;
+  return edge.cross(pa[fa] - e0).dot(edge.cross(q - e0)) > 0;
+}
+
 // Whether triangles a and b (vertex indices ia, ib; corner positions pa, pb) meet other than
 // along what they share: a duplicated triangle, a shared edge with the two folded onto each
 // other, a shared vertex with an opposite edge through the other triangle, or disjoint
@@ -83,11 +94,7 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
     int fa = 0, gb = 0;
     while (in(ib, ia[fa])) ++fa;
     while (in(ia, ib[gb])) ++gb;
-    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
-    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
-    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
-    const Eigen::Vector3d edge = e1 - e0;
-    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+    return FoldedOnSharedEdge(pa, fa, pb[gb]);
   }
   if (shared == 1) {
     // Away from the shared vertex, only the opposite edges can cross the other triangle.
@@ -155,11 +162,7 @@ inline bool TrianglesMeet(const std::array<int, 3>& ia, const std::array<Eigen::
     while (in(ia, ib[gb])) ++gb;
     const double w = na.dot(pb[gb] - pa[0]);
     if (w * w > threshold2) return false;  // clear of a's plane: not folded
-    const Eigen::Vector3d e0 = pa[(fa + 1) % 3], e1 = pa[(fa + 2) % 3];
-    const Eigen::Vector3d n = (e1 - e0).cross(pa[fa] - e0);
-    if (std::abs(n.dot(pb[gb] - e0)) > 1e-12 * n.norm() * (pb[gb] - e0).norm()) return false;
-    const Eigen::Vector3d edge = e1 - e0;
-    return edge.cross(pa[fa] - e0).dot(edge.cross(pb[gb] - e0)) > 0;
+    return FoldedOnSharedEdge(pa, fa, pb[gb]);
   }
   if (shared == 1) {
     int ea[2], eb[2], na_count = 0, nb_count = 0;
