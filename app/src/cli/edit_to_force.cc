@@ -226,11 +226,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
   row.slab_fresh_cpu = tf.Cpu();
   row.free = fresh.num_free();
   row.interface = fresh.stats().num_interface_dofs;
-  {
-    modeling::TetMesh joined;
-    joined = modeling::JoinSlabs(slab_mesh.slab_tets).mesh;
-    row.slabs = Measure(base.compiled, joined);
-  }
+  row.slabs = Measure(base.compiled, *slab_mesh.volume);  // the joined mesh it already holds
   // The old model as FE mode holds it: lazy columns of its surface, the patch's made ready.
   const fem::Surface surface0 = fem::ExtractSurface(mesh0);
   fem::ColumnCacheSettings cs;

@@ -349,19 +349,18 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     if (previous != nullptr && !(previous->cell == cell && previous->grid_bounds.contains(bounds) &&
                                  static_cast<int>(previous->planes.size()) + 1 == input.slabs))
       previous = nullptr;
-    const Eigen::AlignedBox3d grid = previous != nullptr ? previous->grid_bounds : bounds;
     SlabMeshOptions so;
     so.max_radius_edge =
         input.settings.max_radius_edge > 0.0 ? input.settings.max_radius_edge : kDefaultRadiusEdge;
     so.snap_cells = modeling::kProductSnapCells;
-    so.previous = previous;
+    so.previous = previous;  // MeshSolidInSlabs ignores it for another grid or other planes
     so.cancel = cancel;
     so.progress = progress;
     // The planes tried: the earlier mesh's; else half-way between grid planes, then a quarter
     // of a cell to either side (a plane may meet a face of the snapped surface: the cut refuses
     // a triangle in a plane).
     std::vector<std::pair<Eigen::AlignedBox3d, std::vector<double>>> tries;
-    if (previous != nullptr) tries.emplace_back(grid, previous->planes);
+    if (previous != nullptr) tries.emplace_back(previous->grid_bounds, previous->planes);
     for (double shift : {0.0, 0.25, -0.25}) {
       std::vector<double> planes = SlabPlanes(bounds, cell, input.slabs);
       for (double& x : planes) x += shift * cell;
@@ -370,7 +369,6 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     std::shared_ptr<const SlabFeMesh> slabs;
     std::string why;
     for (const auto& [box, planes] : tries) {
-      so.previous = box.isApprox(grid, 0.0) ? previous : nullptr;
       try {
         slabs =
             std::make_shared<const SlabFeMesh>(MeshSolidInSlabs(compiled, box, cell, planes, so));
