@@ -45,6 +45,21 @@ double Seconds(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+// Row copies between column-major matrices (right-hand sides of up to ~50 columns and 10⁵ rows),
+// done a column at a time: a row at a time would touch one cache line per column.
+// dst.row(p) = src.row(rows[p]) for p < count.
+template <class Src, class Dst>
+void GatherRows(const Src& src, const int* rows, int count, Dst&& dst) {
+  for (Eigen::Index c = 0; c < src.cols(); ++c)
+    for (int p = 0; p < count; ++p) dst(p, c) = src(rows[p], c);
+}
+// dst.row(rows[p]) = src.row(p) for p < count.
+template <class Src, class Dst>
+void ScatterRows(const Src& src, const int* rows, int count, Dst&& dst) {
+  for (Eigen::Index c = 0; c < src.cols(); ++c)
+    for (int p = 0; p < count; ++p) dst(rows[p], c) = src(p, c);
+}
+
 // A cholmod_common for one call (CHOLMOD's workspace is per common: a common per call makes
 // solves re-entrant, so factors can be shared between solvers and threads).
 struct Common {
@@ -554,12 +569,12 @@ struct SubstructuredSolver::BlockFactor {
   bool SolveInterior(const Eigen::MatrixXd& f, Eigen::MatrixXd* y) const {
     const int ni_ = ni(), n = ni_ + ng();
     Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, f.cols());
-    for (int p = 0; p < ni_; ++p) b.row(p) = f.row(perm[p]);
+    GatherRows(f, perm.data(), ni_, b);
     if (!CholmodSolve(CHOLMOD_L, factor.l, &b)) return false;
     b.bottomRows(n - ni_).setZero();
     if (!CholmodSolve(CHOLMOD_Lt, factor.l, &b)) return false;
     y->resize(ni_, f.cols());
-    for (int p = 0; p < ni_; ++p) y->row(perm[p]) = b.row(p);
+    ScatterRows(b, perm.data(), ni_, *y);
     return true;
   }
 };
@@ -675,7 +690,7 @@ struct SubstructuredSolver::Interface {
   void SolveChain(Eigen::MatrixXd* b) const {
     const int ng = static_cast<int>(order.size());
     Eigen::MatrixXd y(ng, b->cols());
-    for (int q = 0; q < ng; ++q) y.row(q) = b->row(order[q]);
+    GatherRows(*b, order.data(), ng, y);
     const int n = static_cast<int>(groups.size());
     for (int g = 0; g < n; ++g) {
       auto yg = y.middleRows(begin[g], size(g));
@@ -688,7 +703,7 @@ struct SubstructuredSolver::Interface {
         yg.noalias() -= groups[g + 1].l_sub->transpose() * y.middleRows(begin[g + 1], size(g + 1));
       groups[g].l_diag->triangularView<Eigen::Lower>().transpose().solveInPlace(yg);
     }
-    for (int q = 0; q < ng; ++q) b->row(order[q]) = y.row(q);
+    ScatterRows(y, order.data(), ng, *b);
   }
 };
 
@@ -1230,7 +1245,7 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
   const Eigen::Index m = rhs.cols();
   const int ng = static_cast<int>(interface_free_.size());
   Eigen::MatrixXd g(ng, m);
-  for (int p = 0; p < ng; ++p) g.row(p) = rhs.row(interface_free_[p]);
+  GatherRows(rhs, interface_free_.data(), ng, g);
   std::vector<Eigen::MatrixXd> f(blocks_.size());
   std::vector<char> loaded(blocks_.size(), 0);
   // y_b = K_II⁻¹ f_I; g −= K_ΓI y_b.
@@ -1239,7 +1254,7 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
     const BlockFactor& bf = *block.factor;
     if (bf.ni() == 0) continue;
     f[b].resize(bf.ni(), m);
-    for (int i = 0; i < bf.ni(); ++i) f[b].row(i) = rhs.row(block.interior_free[i]);
+    GatherRows(rhs, block.interior_free.data(), bf.ni(), f[b]);
     loaded[b] = !f[b].isZero(0.0);
     if (!loaded[b] || bf.ng() == 0) continue;
     Eigen::MatrixXd y;
@@ -1248,7 +1263,8 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
       return status;
     }
     const Eigen::MatrixXd gy = bf.k_ig.transpose() * y;
-    for (int j = 0; j < bf.ng(); ++j) g.row(block.interface_pos[j]) -= gy.row(j);
+    for (Eigen::Index c = 0; c < m; ++c)
+      for (int j = 0; j < bf.ng(); ++j) g(block.interface_pos[j], c) -= gy(j, c);
   }
   // u_Γ = S⁻¹ g.
   if (ng > 0 && interface_->chain) {
@@ -1258,7 +1274,7 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
     return status;
   }
   x->setZero(num_free(), m);
-  for (int p = 0; p < ng; ++p) x->row(interface_free_[p]) = g.row(p);
+  ScatterRows(g, interface_free_.data(), ng, *x);
   // u_I = K_II⁻¹ (f_I − K_IΓ u_Γ).
   for (std::size_t b = 0; b < blocks_.size(); ++b) {
     const Block& block = blocks_[b];
@@ -1267,7 +1283,7 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
     Eigen::MatrixXd r = f[b];
     if (bf.ng() > 0) {
       Eigen::MatrixXd ug(bf.ng(), m);
-      for (int j = 0; j < bf.ng(); ++j) ug.row(j) = g.row(block.interface_pos[j]);
+      GatherRows(g, block.interface_pos.data(), bf.ng(), ug);
       r.noalias() -= bf.k_ig * ug;
     }
     if (r.isZero(0.0)) continue;
@@ -1276,26 +1292,32 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
       status.message = "CHOLMOD solve failed in block " + std::to_string(b);
       return status;
     }
-    for (int i = 0; i < bf.ni(); ++i) x->row(block.interior_free[i]) = u.row(i);
+    ScatterRows(u, block.interior_free.data(), bf.ni(), *x);
   }
   status.converged = true;
   return status;
 }
 
 Eigen::MatrixXd SubstructuredSolver::MultiplyFree(const Eigen::MatrixXd& x) const {
-  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(x.rows(), x.cols());
+  // Row-major copies: a sparse (column-major) times dense product adds whole rows of the dense
+  // factor, which are contiguous here; the sums are those of the column-major product, in the
+  // same order.
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const RowMajor xr = x;
+  RowMajor y = RowMajor::Zero(x.rows(), x.cols());
+  RowMajor xl, yl;
   for (const Block& block : blocks_) {
     const BlockFactor& bf = *block.factor;
     const int nd = 3 * bf.num_nodes();
-    Eigen::MatrixXd xl = Eigen::MatrixXd::Zero(nd, x.cols());
+    xl.setZero(nd, x.cols());
     std::vector<int> free_of(nd, -1);
     for (int d = 0; d < nd; ++d) {
       const int i = free_index_[3 * block.nodes[d / 3] + d % 3];
       if (i < 0) continue;
       free_of[d] = i;
-      xl.row(d) = x.row(i);
+      xl.row(d) = xr.row(i);
     }
-    const Eigen::MatrixXd yl = bf.k * xl;
+    yl.noalias() = bf.k * xl;
     for (int d = 0; d < nd; ++d)
       if (free_of[d] >= 0) y.row(free_of[d]) += yl.row(d);
   }
