@@ -167,7 +167,7 @@ constexpr unsigned char kInterfaceFlag = 8;
 constexpr char kBlockFileMagic[8] = {'S', 'P', 'D', 'B', 'L', 'K', '0', '1'};
 // Interface plane files: a chain interface's factor blocks L_gg, L_{g,g−1} of one group.
 constexpr char kPlaneFileMagic[8] = {'S', 'P', 'D', 'P', 'L', 'N', '0', '1'};
-constexpr std::uint64_t kPlaneFileVersion = 1;
+constexpr std::uint64_t kPlaneFileVersion = 2;  // 2: L_{g,g−1} L_{g,g−1}ᵀ formed apart
 constexpr std::uint32_t kBlockFileVersion = 3;
 constexpr int kCholmodVersion[3] = {CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION,
                                     CHOLMOD_SUBSUB_VERSION};
@@ -674,11 +674,16 @@ struct SubstructuredSolver::Interface {
   // (= S_{g,g−1} L_{g−1,g−1}⁻ᵀ, null for g = 0). `owners` says what S_gg and S_{g,g−1} were
   // summed from: for each dof of the group in order, the (block factor, block, local interface
   // index) of every block holding it; two groups with equal owners (and equal owners of the
-  // group before) have S blocks equal bit for bit.
+  // group before) have S blocks equal bit for bit. `sub_record` says what S_{g,g−1} was summed
+  // from (per column of group g − 1 its owners, per block among them where its rows land in
+  // group g): two equal records give S_{g,g−1} equal bit for bit, so with the same L_{g−1,g−1}
+  // the same L_{g,g−1} and `gram` = L_{g,g−1} L_{g,g−1}ᵀ (lower triangle; null for g = 0),
+  // which an edit of the block after plane g then keeps.
   struct Group {
     std::vector<std::tuple<const void*, int, int>> owners;
     std::vector<int> owner_count;  // per dof of the group
-    std::shared_ptr<const Eigen::MatrixXd> l_diag, l_sub;
+    std::vector<std::intptr_t> sub_record;
+    std::shared_ptr<const Eigen::MatrixXd> l_diag, l_sub, gram;
   };
   bool chain = false;
   std::vector<int> order, begin;
@@ -1075,6 +1080,8 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   while (shared < n && same_owners(shared) && old->groups[shared].l_diag) {
     in.groups[shared].l_diag = old->groups[shared].l_diag;
     in.groups[shared].l_sub = old->groups[shared].l_sub;
+    in.groups[shared].gram = old->groups[shared].gram;
+    in.groups[shared].sub_record = old->groups[shared].sub_record;
     ++shared;
   }
   stats_.interface_groups = n;
@@ -1157,9 +1164,33 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
       continue;
     }
     Eigen::MatrixXd diag = Eigen::MatrixXd::Zero(bg, bg), sub = Eigen::MatrixXd::Zero(bg, bp);
+    // What S_{g,g−1} is summed from: the owners of each column of group g − 1, then for each
+    // block among them (its factor, in order of first appearance) where its rows land in g.
+    std::vector<std::intptr_t>& sub_record = in.groups[g].sub_record;
+    if (g > 0) {
+      std::vector<int> seen;
+      for (int q = in.begin[g - 1]; q < in.begin[g]; ++q) {
+        sub_record.push_back(static_cast<std::intptr_t>(owners[order[q]].size()));
+        for (const auto& [b, j] : owners[order[q]]) {
+          sub_record.push_back(reinterpret_cast<std::intptr_t>(blocks_[b].factor.get()));
+          sub_record.push_back(j);
+          if (std::find(seen.begin(), seen.end(), b) == seen.end()) seen.push_back(b);
+        }
+      }
+      for (int b : seen) {
+        sub_record.push_back(reinterpret_cast<std::intptr_t>(blocks_[b].factor.get()));
+        for (int p : blocks_[b].interface_pos)
+          sub_record.push_back(group_of[p] == g ? local_of[p] : -1);
+      }
+    }
+    // L_{g,g−1} and its gram kept from the reuse solver: same L_{g−1,g−1}, same S_{g,g−1}.
+    const bool sub_kept = g > 0 && old != nullptr && g < static_cast<int>(old->groups.size()) &&
+                          old->groups[g].gram && old->groups[g].l_sub &&
+                          in.groups[g - 1].l_diag == old->groups[g - 1].l_diag &&
+                          old->groups[g].sub_record == sub_record;
     // Columns of group g give S_gg; columns of group g − 1 give S_{g,g−1} (its rows in g).
     for (int cg : {g, g - 1}) {
-      if (cg < 0) continue;
+      if (cg < 0 || (cg == g - 1 && sub_kept)) continue;
       for (int q = in.begin[cg]; q < in.begin[cg + 1]; ++q) {
         const int c = order[q], cc = q - in.begin[cg];
         for (const auto& [b, j] : owners[c]) {
@@ -1174,13 +1205,21 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     }
     const char lower = 'L';
     int info = 0;
-    if (g > 0 && bg > 0 && bp > 0) {
+    if (sub_kept) {
+      in.groups[g].l_sub = old->groups[g].l_sub;
+      in.groups[g].gram = old->groups[g].gram;
+      ++stats_.kept_interface_couplings;
+    } else if (g > 0 && bg > 0 && bp > 0) {
       const char right = 'R', trans = 'T', no_trans = 'N', non_unit = 'N';
-      const double one = 1.0, minus_one = -1.0;
+      const double one = 1.0, zero = 0.0;
       const Eigen::MatrixXd& lp = *in.groups[g - 1].l_diag;
       dtrsm_(&right, &lower, &trans, &non_unit, &bg, &bp, &one, lp.data(), &bp, sub.data(), &bg);
-      dsyrk_(&lower, &no_trans, &bg, &bp, &minus_one, sub.data(), &bg, &one, diag.data(), &bg);
+      auto gram = std::make_shared<Eigen::MatrixXd>(bg, bg);
+      dsyrk_(&lower, &no_trans, &bg, &bp, &one, sub.data(), &bg, &zero, gram->data(), &bg);
+      in.groups[g].gram = std::move(gram);
+      in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
     }
+    if (in.groups[g].gram) diag.triangularView<Eigen::Lower>() -= *in.groups[g].gram;
     if (bg > 0) dpotrf_(&lower, &bg, diag.data(), &bg, &info);
     if (info != 0) {
       if (info > 0) {
@@ -1192,7 +1231,8 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     }
     diag.triangularView<Eigen::StrictlyUpper>().setZero();
     in.groups[g].l_diag = std::make_shared<const Eigen::MatrixXd>(std::move(diag));
-    if (g > 0) in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
+    if (g > 0 && !in.groups[g].l_sub)  // an empty group
+      in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
     if (!cache_directory.empty()) {
       if (!writer_) writer_ = std::make_unique<CacheWriter>();
       writer_->Add("interface plane " + std::to_string(g), plane_file(g), kPlaneFileMagic,

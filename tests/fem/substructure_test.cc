@@ -468,6 +468,12 @@ TEST(SubstructuredSolver, EditOfSlabTRefactorsTheInterfaceFromPlaneTMinusOneOn) 
       EXPECT_EQ(after.stats().factored_blocks, 1);
       EXPECT_EQ(after.stats().interface_groups, 3);
       EXPECT_EQ(after.stats().reused_interface_groups, std::max(0, slab - 1));
+      // The first plane refactored keeps its coupling to the plane before when the slab between
+      // them is unchanged (slab − 1 >= 1), and the factor is then the one made from scratch.
+      EXPECT_EQ(after.stats().kept_interface_couplings, slab >= 2 ? 1 : 0);
+      const SubstructuredSolver fresh(edited.mesh, edited.materials, bcs, edited.blocks);
+      EXPECT_EQ(fresh.stats().kept_interface_couplings, 0);
+      EXPECT_EQ(fresh.Solve().displacement, after.Solve().displacement);
       const StaticSolver monolithic(edited.mesh, edited.materials, bcs);
       const StaticSolution u_after = after.Solve(), u_mono = monolithic.Solve();
       ASSERT_TRUE(u_after.status.converged) << u_after.status.message;

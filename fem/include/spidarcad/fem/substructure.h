@@ -38,7 +38,10 @@
 // loads do not enter (they only change right-hand sides). A chain interface keeps the reuse
 // solver's factor blocks of its leading groups as long as they are summed from the same blocks'
 // S_b in the same places (so are equal bit for bit): an edit of the last slab refactors only the
-// last plane's block of S, one of slab t the planes from t − 1 on.
+// last plane's block of S, one of slab t the planes from t − 1 on. Of the first plane it
+// refactors, an edit that left the coupling block S_{g,g−1} and the plane before as they were
+// (the slab after plane g edited) keeps L_{g,g−1} and its product L_{g,g−1} L_{g,g−1}ᵀ, held
+// per plane (8·#plane dofs² bytes) for that purpose: only L_gg is factored again.
 //
 // Threads. A solver is immutable after construction (but for the cache directory's pending
 // writes, which FinishCacheWrites waits for); solves allocate their own CHOLMOD workspace,
@@ -116,6 +119,10 @@ struct SubstructureStats {
   // factor blocks came from the reuse solver (see the file comment).
   int interface_groups = 0;
   int reused_interface_groups = 0;
+  // Groups refactored whose coupling to the group before (L_{g,g−1} and L_{g,g−1} L_{g,g−1}ᵀ)
+  // came from the reuse solver: S_{g,g−1} and L_{g−1,g−1} unchanged (an edit of the slab after
+  // plane g only changes S_gg).
+  int kept_interface_couplings = 0;
   // Groups whose factor blocks came from the cache directory (and, per group, 1 for those),
   // and groups written to it.
   int loaded_interface_groups = 0;
