@@ -96,10 +96,16 @@ ColumnCache::ColumnCache(std::unique_ptr<const FreeDofSolver> view, const FreeDo
 
   // Nearest free (not fixed) candidates of each candidate (a grid search; the brute force's lists).
   num_neighbours_ = std::min(settings.neighbours, std::max(0, num_cand - 1));
-  std::vector<char> free(num_cand);
-  for (int b = 0; b < num_cand; ++b) free[b] = fixed_[b] ? 0 : 1;
-  neighbours_ = detail::NearestAllowed(positions_, free, num_neighbours_);
+  if (!settings.neighbours_on_worker) MakeNeighbours();
   if (settings.start_worker) Start();
+}
+
+void ColumnCache::MakeNeighbours() {
+  if (neighbours_ready_.load()) return;
+  std::vector<char> free(positions_.size());
+  for (std::size_t b = 0; b < free.size(); ++b) free[b] = fixed_[b] ? 0 : 1;
+  neighbours_ = detail::NearestAllowed(positions_, free, num_neighbours_);
+  neighbours_ready_.store(true, std::memory_order_release);
 }
 
 ColumnCache::~ColumnCache() { Stop(); }
@@ -170,7 +176,9 @@ void ColumnCache::WorkerLoop() {
   param.sched_priority = 0;
   pthread_setschedparam(pthread_self(), SCHED_OTHER, &param);
   while (!stop_.load()) {
-    if (WorkStep()) continue;
+    const bool worked = WorkStep();
+    MakeNeighbours();  // after the first block (no-op once made)
+    if (worked) continue;
     std::unique_lock<std::mutex> lock(wake_mutex_);
     wake_.wait_for(lock, std::chrono::duration<double>(settings_.idle_poll_seconds),
                    [this] { return stop_.load(); });
@@ -335,6 +343,7 @@ int ColumnCache::ComputeNodes(const std::vector<int>& candidates) {
         std::find(todo.begin(), todo.end(), b) == todo.end())
       todo.push_back(b);
   }
+  MakeNeighbours();
   int done = 0;
   for (size_t start = 0; start < todo.size(); start += settings_.block_nodes) {
     std::vector<int> block, slots;
@@ -368,8 +377,9 @@ bool ColumnCache::IsReady(int b) const { return slot_of_[b].load(std::memory_ord
 
 int ColumnCache::ReadyNodeNearest(int b) const {
   if (slot_of_[b].load(std::memory_order_acquire) >= 0) return b;
-  const int* list = neighbours_.data() + static_cast<size_t>(b) * num_neighbours_;
-  for (int i = 0; i < num_neighbours_; ++i) {
+  const int nn = UsableNeighbours();
+  const int* list = neighbours_.data() + static_cast<size_t>(b) * nn;
+  for (int i = 0; i < nn; ++i) {
     const int c = list[i];
     if (c >= 0 && slot_of_[c].load(std::memory_order_acquire) >= 0) return c;
   }
@@ -393,8 +403,9 @@ int ColumnCache::ShiftedCandidate(int a, int b, int r, double* mismatch) const {
   const Eigen::Vector3d target = positions_[r] + positions_[a] - positions_[b];
   int best = r;
   double best_d2 = (positions_[r] - target).squaredNorm();
-  const int* list = neighbours_.data() + static_cast<size_t>(r) * num_neighbours_;
-  for (int i = 0; i < num_neighbours_; ++i) {
+  const int nn = UsableNeighbours();
+  const int* list = neighbours_.data() + static_cast<size_t>(r) * nn;
+  for (int i = 0; i < nn; ++i) {
     const int c = list[i];
     if (c < 0) continue;
     const double d2 = (positions_[c] - target).squaredNorm();
@@ -470,9 +481,10 @@ void ColumnCache::AddColumn(int b, int j, double scale, double* u) const {
 }
 
 double ColumnCache::MemoryBytes() const {
-  const double tables = 4.0 * (output_nodes_.size() + 3.0 * candidate_nodes_.size() +
-                               node_to_candidate_.size() + neighbours_.size()) +
-                        8.0 * candidate_nodes_.size() * 4 + 64.0 * num_slots_;
+  const double tables =
+      4.0 * (output_nodes_.size() + 3.0 * candidate_nodes_.size() + node_to_candidate_.size() +
+             static_cast<std::size_t>(UsableNeighbours()) * positions_.size()) +
+      8.0 * candidate_nodes_.size() * 4 + 64.0 * num_slots_;
   return allocated_slots_.load() * static_cast<double>(bytes_per_node_) + 8.0 * u0_.size() + tables;
 }
 

@@ -1410,12 +1410,18 @@ StaticSolution SubstructuredSolver::Solve() const {
   StaticSolution sol;
   const int ndof = static_cast<int>(free_index_.size());
   Eigen::VectorXd u_c = Eigen::VectorXd::Zero(ndof);
-  for (const auto& [d, value] : bcs_.prescribed()) u_c(d) = value;
-  const Eigen::VectorXd k_uc = MultiplyStiffness(u_c);
+  bool moved = false;  // a prescribed displacement is not zero
+  for (const auto& [d, value] : bcs_.prescribed()) {
+    u_c(d) = value;
+    moved = moved || value != 0.0;
+  }
+  // K·0 is 0: clamps and no loads (a model made only to be touched) need no product at all.
+  const Eigen::VectorXd k_uc = moved ? MultiplyStiffness(u_c) : Eigen::VectorXd::Zero(ndof);
   Eigen::VectorXd rhs(num_free());
   for (int i = 0; i < num_free(); ++i) rhs(i) = bcs_.loads()(free_dofs_[i]) - k_uc(free_dofs_[i]);
   sol.displacement = u_c;
-  if (rhs.norm() == 0.0) {
+  const bool loaded = rhs.norm() != 0.0;
+  if (!loaded) {
     sol.status.converged = factor_status_.converged;
     sol.status.message = factor_status_.message;
   } else {
@@ -1424,7 +1430,9 @@ StaticSolution SubstructuredSolver::Solve() const {
     if (x.size() == num_free())
       for (int i = 0; i < num_free(); ++i) sol.displacement(free_dofs_[i]) = x(i, 0);
   }
-  sol.reaction = MultiplyStiffness(sol.displacement) - bcs_.loads();
+  sol.reaction =
+      (moved || loaded ? MultiplyStiffness(sol.displacement) : Eigen::VectorXd::Zero(ndof).eval()) -
+      bcs_.loads();
   for (int d : free_dofs_) sol.reaction(d) = 0.0;
   return sol;
 }

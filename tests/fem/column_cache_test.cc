@@ -239,6 +239,41 @@ TEST(ColumnCache, FirstBlockHoldsTheFirstBlockNodesNearestTheFocus) {
 }
 
 // A paused worker computes nothing more (and counts as idle); let go, it carries on.
+// Neighbour lists made on the worker: none until it has run (a scan finds the nearest ready
+// node, a shift stays on r), then the same lists as a cache that made them at construction.
+TEST(ColumnCache, NeighbourListsMadeOnTheWorkerEqualThoseMadeAtConstruction) {
+  const Scene scene(0.4, 8, 2);
+  ColumnCacheSettings settings;
+  settings.start_worker = false;
+  const ColumnCache eager(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates,
+                          settings);
+  settings.neighbours_on_worker = true;
+  ColumnCache lazy(*scene.solver, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+  EXPECT_LT(lazy.MemoryBytes(), eager.MemoryBytes());
+  const int n = lazy.num_candidates();
+  int free_a = -1, free_b = -1;
+  for (int b = 0; b < n && free_b < 0; ++b)
+    if (!lazy.IsFixed(b)) (free_a < 0 ? free_a : free_b) = b;
+  ASSERT_GE(free_b, 0);
+  EXPECT_EQ(lazy.ShiftedCandidate(free_a, free_b, free_b), free_b);
+  EXPECT_EQ(lazy.ReadyNodeNearest(free_a), -1);
+  lazy.RequestNear(Eigen::Vector3d(0.4, 0.0, 0.1), 0.1);
+  lazy.Start();
+  ASSERT_TRUE(lazy.WaitUntilIdle(30.0));
+  lazy.Stop();
+  EXPECT_GT(lazy.ready_nodes(), 0);
+  int differ = 0, shifted = 0;
+  for (int a = 0; a < n; a += 3)
+    for (int b = 1; b < n; b += 7) {
+      const int r = (a + b) % n;
+      const int s = lazy.ShiftedCandidate(a, b, r);
+      differ += s != eager.ShiftedCandidate(a, b, r);
+      shifted += s != r;
+    }
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(shifted, 0);
+}
+
 TEST(ColumnCache, PausedWorkerComputesNothingUntilLetGo) {
   const Scene scene(0.4, 8, 2);
   ColumnCacheSettings settings;

@@ -200,6 +200,7 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   Progress(settings, 0.8, "columns");
   fem::ColumnCacheSettings cs = settings.cache;
   cs.start_worker = false;
+  cs.neighbours_on_worker = true;  // the first columns need none: the model is ready sooner
   auto cache = m->solver_ ? std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes,
                                                                m->output_nodes_, candidates, cs)
                           : std::make_unique<fem::ColumnCache>(*m->substructured_, tm.nodes,

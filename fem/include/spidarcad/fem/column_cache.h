@@ -76,6 +76,11 @@ struct ColumnCacheSettings {
   int neighbours = 16;
   // Start the worker thread at construction (false: call Start() or ComputeNodes()).
   bool start_worker = true;
+  // Make the neighbour lists on the worker thread once its first block is published (or
+  // ComputeNodes, whichever comes first), not in the constructor: a model is ready
+  // sooner (32,500 candidates: 0.07 s). Until then ReadyNodeNearest scans the ready slots and
+  // ShiftedCandidate returns r itself.
+  bool neighbours_on_worker = false;
   // How often the idle worker looks at the focus, in s.
   double idle_poll_seconds = 1.0e-3;
 };
@@ -242,6 +247,14 @@ class ColumnCache {
   std::vector<int> node_to_candidate_;
   std::vector<int> neighbours_;  // #candidates by settings.neighbours, nearest first (−1 pad)
   int num_neighbours_ = 0;
+  // Set (release) once neighbours_ is made; readers read neighbours_ only after seeing it.
+  std::atomic<bool> neighbours_ready_{false};
+  // Makes the neighbour lists unless made (the worker, or a caller while it is stopped).
+  void MakeNeighbours();
+  // Length of the lists a reader may use now (0 until they are made).
+  int UsableNeighbours() const {
+    return neighbours_ready_.load(std::memory_order_acquire) ? num_neighbours_ : 0;
+  }
   Eigen::VectorXd u0_;
   std::size_t bytes_per_node_ = 0;
 
