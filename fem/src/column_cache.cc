@@ -74,6 +74,12 @@ ColumnCache::ColumnCache(std::unique_ptr<const FreeDofSolver> view, const FreeDo
     fixed_.push_back(fixed ? 1 : 0);
   }
   const int num_out = num_outputs(), num_cand = num_candidates();
+  row_group_.assign(num_out, -1);
+  const int groups = solver_.num_row_groups();
+  if (settings.near_rows_first && groups >= 2 && groups <= 63) {
+    all_groups_ = (1ull << groups) - 1;
+    for (int a = 0; a < num_out; ++a) row_group_[a] = solver_.RowGroupOfNode(output_nodes[a]);
+  }
 
   // Baseline: the model's own loads.
   const StaticSolution base = solver_.Solve();
@@ -202,7 +208,9 @@ bool ColumnCache::WorkStep() {
     idle_seq_.store(seq);  // done for this focus
     return false;
   }
-  SolveAndPublish(block, slots);
+  // Near rows first when the focus's groups are some, not all, of the model's.
+  const bool near = order_groups_ != 0 && order_groups_ != all_groups_;
+  SolveAndPublish(block, slots, near ? order_groups_ : 0);
   return true;
 }
 
@@ -222,6 +230,11 @@ void ColumnCache::PlanBlock(const Eigen::Vector3d& p, double radius, std::uint64
       return (positions_[a] - p).squaredNorm() < (positions_[b] - p).squaredNorm();
     });
     order_seq_ = seq;
+    order_groups_ = 0;
+    for (int b : order_) {
+      const int g = row_group_[candidate_row_[b]];
+      if (g >= 0) order_groups_ |= 1ull << g;
+    }
   }
   const int limit = blocks_.load() == 0 && settings_.first_block_nodes > 0
                         ? std::min(settings_.first_block_nodes, settings_.block_nodes)
@@ -242,6 +255,7 @@ int ColumnCache::TakeSlotFor(const Eigen::Vector3d* p, double d_b, const std::ve
   for (int s = 0; s < num_slots_; ++s) {
     int expected = -1;
     if (slots_[s].owner.compare_exchange_strong(expected, -2)) {
+      slots_[s].rows.store(0);
       if (!slots_[s].data) {
         slots_[s].data = std::make_unique<unsigned char[]>(bytes_per_node_);
         allocated_slots_.fetch_add(1);
@@ -276,55 +290,99 @@ bool ColumnCache::TryEvict(int s) {
   if (o >= 0) {
     slot_of_[o].store(-1);
     ready_block_[o].store(-1);
-    ready_count_.fetch_sub(1);
+    if (slot.rows.load() & kComplete) ready_count_.fetch_sub(1);
     evictions_.fetch_add(1);
   }
+  slot.rows.store(0);
   slot.owner.store(-2);
   slot.pins.store(0);
   return true;
 }
 
-void ColumnCache::Publish(int b, int s) {
+void ColumnCache::Publish(int b, int s, std::uint64_t rows) {
+  slots_[s].rows.store(rows);
   slots_[s].owner.store(b);
-  ready_block_[b].store(blocks_.load());
+  if (rows & kComplete) ready_block_[b].store(blocks_.load());
   slot_of_[b].store(s, std::memory_order_seq_cst);  // after the data: release
+  if (rows & kComplete) ready_count_.fetch_add(1);
+}
+
+void ColumnCache::Complete(int b, int s) {
+  ready_block_[b].store(blocks_.load());
+  slots_[s].rows.fetch_or(kComplete, std::memory_order_seq_cst);  // after the data: release
   ready_count_.fetch_add(1);
 }
 
-void ColumnCache::SolveAndPublish(const std::vector<int>& block, const std::vector<int>& slots) {
+void ColumnCache::WriteRows(int c, int s, std::uint64_t groups, bool fill) {
+  unsigned char* raw = slots_[s].data.get();
+  const int num_out = num_outputs();
+  const size_t rows = 3 * static_cast<size_t>(num_out);
+  const bool free_rows = (groups & kComplete) || fill;  // group −1: with the first rows written
+  for (int j = 0; j < 3; ++j)
+    for (int a = 0; a < num_out; ++a) {
+      const int g = row_group_[a];
+      const bool want = (groups & kComplete) ? true : g < 0 ? free_rows : ((groups >> g) & 1) != 0;
+      if (!want && !fill) continue;
+      for (int i = 0; i < 3; ++i) {
+        const int fi = solver_.FreeIndex(3 * output_nodes_[a] + i);
+        const double v = !want    ? std::numeric_limits<double>::quiet_NaN()
+                         : fi < 0 ? 0.0
+                                  : x_(fi, 3 * c + j);
+        const size_t idx = j * rows + 3 * a + i;
+        if (precision_ == ColumnPrecision::kFloat) {
+          reinterpret_cast<float*>(raw)[idx] = static_cast<float>(v);
+        } else {
+          reinterpret_cast<double*>(raw)[idx] = v;
+        }
+      }
+    }
+}
+
+void ColumnCache::SolveAndPublish(const std::vector<int>& block, const std::vector<int>& slots,
+                                  std::uint64_t near) {
   const auto t0 = std::chrono::steady_clock::now();
   const int count = static_cast<int>(block.size());
-  const int num_out = num_outputs();
   rhs_.setZero(solver_.num_free(), 3 * count);
   for (int c = 0; c < count; ++c)
     for (int j = 0; j < 3; ++j) {
       const int fi = solver_.FreeIndex(3 * candidate_nodes_[block[c]] + j);
       if (fi >= 0) rhs_(fi, 3 * c + j) = 1.0;
     }
-  const SolveStatus status = solver_.SolveFree(rhs_, &x_);
-  const size_t rows = 3 * static_cast<size_t>(num_out);
-  for (int c = 0; c < count; ++c) {
-    const int s = slots[c];
-    if (!status.converged) {
-      failed_[block[c]] = 1;
-      slots_[s].owner.store(-1);
-      continue;
-    }
-    unsigned char* raw = slots_[s].data.get();
-    for (int j = 0; j < 3; ++j)
-      for (int a = 0; a < num_out; ++a)
-        for (int i = 0; i < 3; ++i) {
-          const int fi = solver_.FreeIndex(3 * output_nodes_[a] + i);
-          const double v = fi < 0 ? 0.0 : x_(fi, 3 * c + j);
-          const size_t idx = j * rows + 3 * a + i;
-          if (precision_ == ColumnPrecision::kFloat) {
-            reinterpret_cast<float*>(raw)[idx] = static_cast<float>(v);
-          } else {
-            reinterpret_cast<double*>(raw)[idx] = v;
-          }
+  SolveStatus status;
+  bool published = false;
+  if (near != 0) {
+    // The rows near the focus first (published with the rest NaN), then the rest.
+    std::vector<int> groups;
+    for (int g = 0; g < 63; ++g)
+      if ((near >> g) & 1) groups.push_back(g);
+    status = solver_.SolveFreeInGroups(rhs_, groups, &x_);
+    if (status.converged) {
+      for (int c = 0; c < count; ++c) {
+        WriteRows(c, slots[c], near, true);
+        Publish(block[c], slots[c], near);
+      }
+      published = true;
+      status = solver_.CompleteSolveFree(rhs_, groups, &x_);
+      if (status.converged)
+        for (int c = 0; c < count; ++c) {
+          WriteRows(c, slots[c], all_groups_ & ~near, false);
+          Complete(block[c], slots[c]);
         }
-    Publish(block[c], s);
+    }
+  } else {
+    status = solver_.SolveFree(rhs_, &x_);
+    if (status.converged)
+      for (int c = 0; c < count; ++c) {
+        WriteRows(c, slots[c], kComplete, false);
+        Publish(block[c], slots[c], kComplete);
+      }
   }
+  if (!status.converged)
+    for (int c = 0; c < count; ++c) {
+      failed_[block[c]] = 1;
+      // Withdrawn (a contact pinning its near rows keeps them: they stay right).
+      if (!published || TryEvict(slots[c])) slots_[slots[c]].owner.store(-1);
+    }
   if (status.converged) computed_nodes_.fetch_add(count);
   blocks_.fetch_add(1);
   compute_seconds_.fetch_add(
@@ -373,7 +431,18 @@ int ColumnCache::CandidateOfNode(int v) const {
   return node_to_candidate_[v];
 }
 
-bool ColumnCache::IsReady(int b) const { return slot_of_[b].load(std::memory_order_acquire) >= 0; }
+bool ColumnCache::IsReady(int b) const {
+  const int s = slot_of_[b].load(std::memory_order_acquire);
+  return s >= 0 && (slots_[s].rows.load(std::memory_order_acquire) & kComplete) != 0;
+}
+
+bool ColumnCache::RowReady(int a, int b) const {
+  const int s = slot_of_[b].load(std::memory_order_acquire);
+  if (s < 0) return false;
+  const std::uint64_t rows = slots_[s].rows.load(std::memory_order_acquire);
+  const int g = row_group_[a];
+  return (rows & kComplete) != 0 || g < 0 || ((rows >> g) & 1) != 0;
+}
 
 int ColumnCache::ReadyNodeNearest(int b) const {
   if (slot_of_[b].load(std::memory_order_acquire) >= 0) return b;
@@ -471,6 +540,15 @@ Eigen::Matrix3d ColumnCache::Block(int a, int b) const {
 void ColumnCache::AddColumn(int b, int j, double scale, double* u) const {
   const int s = slot_of_[b].load(std::memory_order_acquire);
   const size_t rows = 3 * static_cast<size_t>(num_outputs());
+  const std::uint64_t ready = slots_[s].rows.load(std::memory_order_acquire);
+  if (!(ready & kComplete)) {  // near rows only: row block by row block
+    for (int a = 0; a < num_outputs(); ++a) {
+      const int g = row_group_[a];
+      if (g >= 0 && !((ready >> g) & 1)) continue;
+      for (int i = 0; i < 3; ++i) u[3 * a + i] += scale * Value(3 * a + i, b, j);
+    }
+    return;
+  }
   if (precision_ == ColumnPrecision::kFloat) {
     const float* d = FloatData(s) + j * rows;
     for (size_t r = 0; r < rows; ++r) u[r] += scale * d[r];
@@ -539,7 +617,7 @@ int ColumnCache::Import(const ColumnSet& set) {
   const size_t rows = 3 * static_cast<size_t>(num_outputs());
   for (size_t k = 0; k < set.nodes.size(); ++k) {
     const int b = CandidateOfNode(set.nodes[k]);
-    if (b < 0 || fixed_[b] || IsReady(b)) continue;
+    if (b < 0 || fixed_[b] || HasColumn(b)) continue;
     int s = -1;
     for (int t = 0; t < num_slots_ && s < 0; ++t) {
       int expected = -1;
@@ -560,7 +638,7 @@ int ColumnCache::Import(const ColumnSet& set) {
           reinterpret_cast<double*>(raw)[j * rows + r] = v;
         }
       }
-    Publish(b, s);
+    Publish(b, s, kComplete);
     ++loaded;
   }
   return loaded;
@@ -592,9 +670,15 @@ int CachedContactSolver::num_substituted() const {
   return n;
 }
 
+Eigen::Matrix3d CachedContactSolver::Read(int row, int col) const {
+  const int a = cache_->OutputIndexOfCandidate(row);
+  if (!cache_->RowReady(a, col))
+    return Eigen::Matrix3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  return cache_->Block(a, col);
+}
+
 Eigen::Matrix3d CachedContactSolver::Shifted(int a, int b, int r, double* mismatch) const {
-  const int row_node = cache_->ShiftedCandidate(a, b, r, mismatch);
-  return cache_->Block(cache_->OutputIndexOfCandidate(row_node), r);
+  return Read(cache_->ShiftedCandidate(a, b, r, mismatch), r);
 }
 
 Eigen::Matrix3d CachedContactSolver::PairBlock(int i, int j) const {
@@ -604,7 +688,7 @@ Eigen::Matrix3d CachedContactSolver::PairBlock(int i, int j) const {
     return 0.5 * (m + m.transpose());
   }
   double m1 = 0.0, m2 = 0.0;
-  if (rj == cj && ri == ci) return cache_->Block(cache_->OutputIndexOfCandidate(ci), cj);
+  if (rj == cj && ri == ci) return Read(ci, cj);
   // A substituted contact reads every block of its own from its substitute's column,
   // translated (mixing exact blocks with the substitute's self block can make Ĝ_cc indefinite).
   if (ri == ci) return Shifted(ci, cj, rj, &m1);
@@ -822,7 +906,7 @@ void CachedContactSolver::OutputDisplacement(const double* forces, Eigen::Vector
     for (int j = 0; j < 3; ++j) {
       const double f = forces[3 * s + j];
       cache_->AddColumn(r, j, f, u);
-      if (r == b) continue;
+      if (r == b || !cache_->RowReady(rb / 3, r) || !cache_->RowReady(rr / 3, r)) continue;
       // Shift: swap the row blocks of b and r in r's column.
       for (int i = 0; i < 3; ++i) {
         const double g_rr = cache_->Value(rr + i, r, j), g_br = cache_->Value(rb + i, r, j);

@@ -1316,26 +1316,37 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
   x->setZero(num_free(), m);
   ScatterRows(g, interface_free_.data(), ng, *x);
   // u_I = K_II⁻¹ (f_I − K_IΓ u_Γ).
-  for (std::size_t b = 0; b < blocks_.size(); ++b) {
-    const Block& block = blocks_[b];
-    const BlockFactor& bf = *block.factor;
-    if (bf.ni() == 0 || (wanted != nullptr && !(*wanted)[b])) continue;
-    Eigen::MatrixXd r = f[b];
-    if (bf.ng() > 0) {
-      Eigen::MatrixXd ug(bf.ng(), m);
-      GatherRows(g, block.interface_pos.data(), bf.ng(), ug);
-      r.noalias() -= bf.k_ig * ug;
-    }
-    if (r.isZero(0.0)) continue;
-    Eigen::MatrixXd u;
-    if (!bf.SolveInterior(r, &u)) {
+  for (int b = 0; b < num_blocks(); ++b) {
+    if (wanted != nullptr && !(*wanted)[b]) continue;
+    if (!BackSubstitute(b, rhs, x)) {
       status.message = "CHOLMOD solve failed in block " + std::to_string(b);
       return status;
     }
-    ScatterRows(u, block.interior_free.data(), bf.ni(), *x);
   }
   status.converged = true;
   return status;
+}
+
+bool SubstructuredSolver::BackSubstitute(int b, const Eigen::MatrixXd& rhs,
+                                         Eigen::MatrixXd* x) const {
+  const Block& block = blocks_[b];
+  const BlockFactor& bf = *block.factor;
+  if (bf.ni() == 0) return true;
+  const Eigen::Index m = rhs.cols();
+  Eigen::MatrixXd r(bf.ni(), m);
+  GatherRows(rhs, block.interior_free.data(), bf.ni(), r);
+  if (bf.ng() > 0) {
+    std::vector<int> rows(bf.ng());
+    for (int j = 0; j < bf.ng(); ++j) rows[j] = interface_free_[block.interface_pos[j]];
+    Eigen::MatrixXd ug(bf.ng(), m);
+    GatherRows(*x, rows.data(), bf.ng(), ug);
+    r.noalias() -= bf.k_ig * ug;
+  }
+  if (r.isZero(0.0)) return true;
+  Eigen::MatrixXd u;
+  if (!bf.SolveInterior(r, &u)) return false;
+  ScatterRows(u, block.interior_free.data(), bf.ni(), *x);
+  return true;
 }
 
 Eigen::MatrixXd SubstructuredSolver::MultiplyFree(const Eigen::MatrixXd& x) const {
@@ -1378,10 +1389,33 @@ Eigen::VectorXd SubstructuredSolver::MultiplyStiffness(const Eigen::VectorXd& u)
 }
 
 SolveStatus SubstructuredSolver::SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const {
-  SolveStatus status = SolveImpl(rhs, nullptr, x);
-  if (!status.converged) return status;
-  const Eigen::MatrixXd r = rhs - MultiplyFree(*x);
-  const double denom = k_norm_ * x->norm() + rhs.norm();
+  const SolveStatus status = SolveImpl(rhs, nullptr, x);
+  return status.converged ? CheckResidual(rhs, *x) : status;
+}
+
+SolveStatus SubstructuredSolver::CompleteSolveFree(const Eigen::MatrixXd& rhs,
+                                                   const std::vector<int>& groups,
+                                                   Eigen::MatrixXd* x) const {
+  SolveStatus status;
+  if (!detail::CanSolve(factor_status_, rhs.rows(), num_free(), &status)) return status;
+  if (x->rows() != num_free() || x->cols() != rhs.cols())
+    throw std::invalid_argument("CompleteSolveFree: X is not the partial solve of these loads");
+  const std::vector<char> done = WantedBlocks("CompleteSolveFree", groups);
+  for (int b = 0; b < num_blocks(); ++b) {
+    if (done[b]) continue;
+    if (!BackSubstitute(b, rhs, x)) {
+      status.message = "CHOLMOD solve failed in block " + std::to_string(b);
+      return status;
+    }
+  }
+  return CheckResidual(rhs, *x);
+}
+
+SolveStatus SubstructuredSolver::CheckResidual(const Eigen::MatrixXd& rhs,
+                                               const Eigen::MatrixXd& x) const {
+  SolveStatus status;
+  const Eigen::MatrixXd r = rhs - MultiplyFree(x);
+  const double denom = k_norm_ * x.norm() + rhs.norm();
   status.residual = denom > 0.0 ? r.norm() / denom : 0.0;
   status.converged =
       std::isfinite(status.residual) && status.residual < StaticSolver::kResidualTolerance;
@@ -1393,16 +1427,22 @@ SolveStatus SubstructuredSolver::SolveFree(const Eigen::MatrixXd& rhs, Eigen::Ma
   return status;
 }
 
-SolveStatus SubstructuredSolver::SolveFreeInBlocks(const Eigen::MatrixXd& rhs,
-                                                   const std::vector<int>& blocks,
-                                                   Eigen::MatrixXd* x) const {
+std::vector<char> SubstructuredSolver::WantedBlocks(const char* who,
+                                                    const std::vector<int>& blocks) const {
   std::vector<char> wanted(blocks_.size(), 0);
   for (int b : blocks) {
     if (b < 0 || b >= num_blocks())
-      throw std::invalid_argument("SolveFreeInBlocks: no block " + std::to_string(b) + " (0.." +
+      throw std::invalid_argument(std::string(who) + ": no block " + std::to_string(b) + " (0.." +
                                   std::to_string(num_blocks() - 1) + ")");
     wanted[b] = 1;
   }
+  return wanted;
+}
+
+SolveStatus SubstructuredSolver::SolveFreeInBlocks(const Eigen::MatrixXd& rhs,
+                                                   const std::vector<int>& blocks,
+                                                   Eigen::MatrixXd* x) const {
+  const std::vector<char> wanted = WantedBlocks("SolveFreeInBlocks", blocks);
   return SolveImpl(rhs, &wanted, x);
 }
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "spidarcad/fem/condensation.h"
+#include "spidarcad/fem/substructure.h"
 
 // Allocation counter for the calling thread only (the cache's worker thread allocates freely).
 // fem_tests already replaces malloc (condensation_test.cc) with a counter private to that file,
@@ -272,6 +273,133 @@ TEST(ColumnCache, NeighbourListsMadeOnTheWorkerEqualThoseMadeAtConstruction) {
     }
   EXPECT_EQ(differ, 0);
   EXPECT_GT(shifted, 0);
+}
+
+// A SubstructuredSolver whose CompleteSolveFree waits until the test opens the gate: the state
+// between the two passes of near_rows_first can be looked at.
+class GatedSolver final : public FreeDofSolver {
+ public:
+  explicit GatedSolver(const SubstructuredSolver& s) : s_(s) {}
+  const SolveStatus& factor_status() const override { return s_.factor_status(); }
+  const BoundaryConditions& bcs() const override { return s_.bcs(); }
+  int FreeIndex(int dof) const override { return s_.FreeIndex(dof); }
+  int num_free() const override { return s_.num_free(); }
+  SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const override {
+    return s_.SolveFree(rhs, x);
+  }
+  StaticSolution Solve() const override { return s_.Solve(); }
+  int num_row_groups() const override { return s_.num_row_groups(); }
+  int RowGroupOfNode(int v) const override { return s_.RowGroupOfNode(v); }
+  SolveStatus SolveFreeInGroups(const Eigen::MatrixXd& rhs, const std::vector<int>& groups,
+                                Eigen::MatrixXd* x) const override {
+    return s_.SolveFreeInGroups(rhs, groups, x);
+  }
+  SolveStatus CompleteSolveFree(const Eigen::MatrixXd& rhs, const std::vector<int>& groups,
+                                Eigen::MatrixXd* x) const override {
+    waiting.store(true);
+    while (!open.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return s_.CompleteSolveFree(rhs, groups, x);
+  }
+  mutable std::atomic<bool> waiting{false}, open{false};
+
+ private:
+  const SubstructuredSolver& s_;
+};
+
+// Near rows first, on the block in 4 slabs felt in the last: between the passes the first block's
+// columns are published with the rows of the last slab and the interface, which a contact solve
+// uses on its own columns, while the far rows read NaN and are skipped by AddColumn; completed,
+// every column equals the one computed whole, bit for bit.
+TEST(ColumnCache, NearRowsFirstPublishesTheFocusSlabsRowsThenTheWholeColumn) {
+  const Scene scene(0.4, 8, 2);
+  const SubstructuredSolver slabs(scene.mesh, scene.materials, *scene.bcs,
+                                  SlabBlocks(scene.mesh, 0, EvenPlanes(scene.mesh, 0, 4)));
+  ASSERT_TRUE(slabs.factor_status().converged);
+  const GatedSolver gated(slabs);
+  ColumnCacheSettings settings;
+  settings.start_worker = false;
+  settings.first_block_nodes = 4;
+  settings.near_rows_first = true;
+  ColumnCache cache(gated, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+  const Eigen::Vector3d focus(0.4, 0.05, 0.1);
+  cache.RequestNear(focus, 0.06);  // top nodes at x = 0.35 and 0.4: inside the last slab
+  cache.Start();
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!gated.waiting.load() && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_TRUE(gated.waiting.load());
+  std::vector<int> near;
+  for (int b = 0; b < cache.num_candidates(); ++b)
+    if (cache.HasColumn(b)) near.push_back(b);
+  ASSERT_EQ(near.size(), 4u);
+  EXPECT_EQ(cache.ready_nodes(), 0);
+  int near_rows = 0, far_rows = 0, free_rows = 0;
+  for (int b : near) {
+    EXPECT_FALSE(cache.IsReady(b));
+    EXPECT_EQ(slabs.BlockOfNode(cache.candidate_node(b)), 3);
+    ASSERT_TRUE(cache.Pin(b));
+    for (int a = 0; a < cache.num_outputs(); ++a) {
+      const int g = slabs.BlockOfNode(scene.outputs[a]);
+      const bool ready = cache.RowReady(a, b);
+      EXPECT_EQ(ready, g == 3 || g == -1) << "output " << a << " in slab " << g;
+      (g == -1 ? free_rows : ready ? near_rows : far_rows)++;
+      for (int j = 0; j < 3; ++j)
+        EXPECT_EQ(std::isnan(cache.Value(3 * a, b, j)), !ready) << "output " << a;
+    }
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * cache.num_outputs());
+    cache.AddColumn(b, 2, 1.0, u.data());
+    EXPECT_TRUE(u.allFinite());
+    cache.Unpin(b);
+  }
+  EXPECT_GT(near_rows, 0);
+  EXPECT_GT(far_rows, 0);
+  EXPECT_GT(free_rows, 0);
+  // A contact solve on the near rows: every node on its own column.
+  Eigen::MatrixXd felt;
+  {
+    CachedContactSolver contacts(&cache, 4);
+    for (int b : near) ASSERT_EQ(contacts.Add(b), CachedContactStatus::kOk);
+    EXPECT_EQ(contacts.num_substituted(), 0);
+    felt = contacts.ContactBlock();
+    EXPECT_TRUE(felt.allFinite());
+    Eigen::VectorXd u(3 * cache.num_outputs());
+    const std::vector<double> forces(12, 0.5);
+    contacts.OutputDisplacement(forces.data(), &u);
+    EXPECT_TRUE(u.allFinite());
+  }
+  gated.open.store(true);
+  ASSERT_TRUE(cache.WaitUntilIdle(60.0));
+  cache.Stop();
+  {
+    CachedContactSolver contacts(&cache, 4);
+    for (int b : near) ASSERT_EQ(contacts.Add(b), CachedContactStatus::kOk);
+    EXPECT_EQ(contacts.ContactBlock(), felt);  // the near rows were final
+  }
+  // Whole columns, equal to those of a cache that solves them whole (in other blocks of
+  // right-hand sides: to rounding).
+  settings.near_rows_first = false;
+  ColumnCache whole(slabs, scene.mesh.nodes, scene.outputs, scene.candidates, settings);
+  std::vector<int> ready;
+  for (int b = 0; b < cache.num_candidates(); ++b)
+    if (cache.HasColumn(b)) {
+      EXPECT_TRUE(cache.IsReady(b));
+      ready.push_back(b);
+    }
+  EXPECT_EQ(cache.ready_nodes(), static_cast<int>(ready.size()));
+  ASSERT_EQ(whole.ComputeNodes(ready), static_cast<int>(ready.size()));
+  for (int b : ready) {
+    ASSERT_TRUE(cache.Pin(b));
+    ASSERT_TRUE(whole.Pin(b));
+    double scale = 0.0, diff = 0.0;
+    for (int j = 0; j < 3; ++j)
+      for (int r = 0; r < 3 * cache.num_outputs(); ++r) {
+        scale = std::max(scale, std::abs(whole.Value(r, b, j)));
+        diff = std::max(diff, std::abs(cache.Value(r, b, j) - whole.Value(r, b, j)));
+      }
+    EXPECT_LE(diff, 1e-12 * scale) << "candidate " << b;
+    cache.Unpin(b);
+    whole.Unpin(b);
+  }
 }
 
 TEST(ColumnCache, PausedWorkerComputesNothingUntilLetGo) {

@@ -253,6 +253,21 @@ TEST(SubstructuredSolver, SolveInBlocksGivesTheFullSolveOnTheBlocksAskedFor) {
     }
     EXPECT_LT(max_diff, kTolerance * full.cwiseAbs().maxCoeff());
     EXPECT_EQ(max_other, 0.0);  // the other slabs' interiors were not solved
+    EXPECT_EQ(max_diff, 0.0);   // the same operations as the full solve's, in the same order
+    // Completed: the other slabs from the interface rows the part holds, then the residual.
+    const SolveStatus done = solver.CompleteSolveFree(rhs, {2}, &part);
+    ASSERT_TRUE(done.converged) << done.message;
+    EXPECT_EQ(part, full);
+    EXPECT_GT(done.residual, 0.0);
+    EXPECT_LT(done.residual, StaticSolver::kResidualTolerance);
+    // Through the FreeDofSolver interface (as ColumnCacheSettings::near_rows_first uses it).
+    const FreeDofSolver& generic = solver;
+    EXPECT_EQ(generic.num_row_groups(), 4);
+    Eigen::MatrixXd again;
+    ASSERT_TRUE(generic.SolveFreeInGroups(rhs, {2}, &again).converged);
+    EXPECT_EQ(generic.RowGroupOfNode(in_block[0]), 2);
+    Eigen::MatrixXd wrong_shape = Eigen::MatrixXd::Zero(3, 6);
+    EXPECT_THROW(solver.CompleteSolveFree(rhs, {2}, &wrong_shape), std::invalid_argument);
     EXPECT_THROW(solver.SolveFreeInBlocks(rhs, {4}, &part), std::invalid_argument);
   }
 }

@@ -201,6 +201,7 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   fem::ColumnCacheSettings cs = settings.cache;
   cs.start_worker = false;
   cs.neighbours_on_worker = true;  // the first columns need none: the model is ready sooner
+  cs.near_rows_first = true;       // in slabs: a contact's rows before the whole column
   auto cache = m->solver_ ? std::make_unique<fem::ColumnCache>(*m->solver_, tm.nodes,
                                                                m->output_nodes_, candidates, cs)
                           : std::make_unique<fem::ColumnCache>(*m->substructured_, tm.nodes,
@@ -395,6 +396,11 @@ int AddSlotForcesDisplacement(fem::ColumnCache* cache, int n, const int* candida
   for (int s = 0; s < n; ++s) {
     const int b = candidate[s], r = substitute[s];
     if (r < 0 || !cache->Pin(r)) {
+      ++skipped;
+      continue;
+    }
+    if (!cache->IsReady(r)) {  // the near rows only, so far: the shape would tear at a slab
+      cache->Unpin(r);
       ++skipped;
       continue;
     }

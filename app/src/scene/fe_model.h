@@ -273,7 +273,8 @@ std::string PlatformScenePath();
 // slots: slot s acts at candidate node candidate[s] with force force[3s..3s+2] (N), read from
 // the column of candidate substitute[s] shifted to candidate[s] (as
 // CachedContactSolver::OutputDisplacement does; substitute −1: no column). Each column is pinned
-// while it is read; a column evicted meanwhile is skipped. Returns the slots skipped. Main
+// while it is read; a column evicted meanwhile, or holding only its near rows so far
+// (ColumnCacheSettings::near_rows_first), is skipped. Returns the slots skipped. Main
 // thread (the drawing of a pushed or grabbed FE part).
 int AddSlotForcesDisplacement(fem::ColumnCache* cache, int n, const int* candidate,
                               const int* substitute, const double* force, double* u);

@@ -407,7 +407,9 @@ haptics::ToolWrench FeTouchField::Evaluate(const haptics::ToolKinematics& tool) 
         if (solver_->contact(s) != b || solver_->substitute(s) != sub)
           continue;  // not pinned as read
         const int row_node = sub == b ? a : cache_->ShiftedCandidate(a, b, sub);
-        u += cache_->Block(cache_->OutputIndexOfCandidate(row_node), sub) *
+        const int row = cache_->OutputIndexOfCandidate(row_node);
+        if (!cache_->RowReady(row, sub)) continue;  // not computed yet: no prediction
+        u += cache_->Block(row, sub) *
              Eigen::Vector3d(st.force[3 * s], st.force[3 * s + 1], st.force[3 * s + 2]);
       }
       if (n.dot(u) <= -t) admit_[j] = 0;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/static_solver.h"
@@ -29,6 +30,27 @@ class FreeDofSolver {
   virtual SolveStatus SolveFree(const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const = 0;
   // Displacement and reactions under the model's own loads and prescribed displacements.
   virtual StaticSolution Solve() const = 0;
+
+  // Row groups: a model whose solves can give the displacements of some nodes before the rest
+  // (SubstructuredSolver: its blocks; ColumnCacheSettings::near_rows_first). Number of groups
+  // (0: none, the defaults below are then never needed).
+  virtual int num_row_groups() const { return 0; }
+  // Group of node v, or −1 when SolveFreeInGroups always gives its rows.
+  virtual int RowGroupOfNode(int /*v*/) const { return -1; }
+  // X (#free by m) at the free dofs of the nodes of `groups` and of group −1; other rows zero.
+  // No residual is checked (converged when the factorisation was).
+  virtual SolveStatus SolveFreeInGroups(const Eigen::MatrixXd& rhs,
+                                        const std::vector<int>& /*groups*/,
+                                        Eigen::MatrixXd* x) const {
+    return SolveFree(rhs, x);
+  }
+  // Completes X from SolveFreeInGroups(rhs, groups, x): the other rows, then the residual check
+  // of SolveFree; X then equals SolveFree's bit for bit.
+  virtual SolveStatus CompleteSolveFree(const Eigen::MatrixXd& rhs,
+                                        const std::vector<int>& /*groups*/,
+                                        Eigen::MatrixXd* x) const {
+    return SolveFree(rhs, x);
+  }
 };
 
 // A StaticSolver seen as a FreeDofSolver (it must outlive the view).

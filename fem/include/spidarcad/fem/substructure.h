@@ -203,6 +203,17 @@ class SubstructuredSolver final : public FreeDofSolver {
   // std::invalid_argument for a block index out of range.
   SolveStatus SolveFreeInBlocks(const Eigen::MatrixXd& rhs, const std::vector<int>& blocks,
                                 Eigen::MatrixXd* x) const;
+  // Row groups (FreeDofSolver): the blocks; an interface node is in group −1.
+  int num_row_groups() const override { return num_blocks(); }
+  int RowGroupOfNode(int v) const override { return BlockOfNode(v); }
+  SolveStatus SolveFreeInGroups(const Eigen::MatrixXd& rhs, const std::vector<int>& groups,
+                                Eigen::MatrixXd* x) const override {
+    return SolveFreeInBlocks(rhs, groups, x);
+  }
+  // The other blocks' back-substitution from the interface rows X already holds (read, not
+  // solved again), then SolveFree's residual check: X equals SolveFree's bit for bit.
+  SolveStatus CompleteSolveFree(const Eigen::MatrixXd& rhs, const std::vector<int>& groups,
+                                Eigen::MatrixXd* x) const override;
 
   // Index of global dof d (3v + axis) among the free dofs, or −1 if it is prescribed.
   int FreeIndex(int dof) const override { return free_index_[dof]; }
@@ -229,6 +240,13 @@ class SubstructuredSolver final : public FreeDofSolver {
   Eigen::MatrixXd MultiplyFree(const Eigen::MatrixXd& x) const;
   SolveStatus SolveImpl(const Eigen::MatrixXd& rhs, const std::vector<char>* wanted,
                         Eigen::MatrixXd* x) const;
+  // u_I of block b from the right-hand sides and the interface rows of X, into X; false when
+  // CHOLMOD's solve failed.
+  bool BackSubstitute(int b, const Eigen::MatrixXd& rhs, Eigen::MatrixXd* x) const;
+  // The residual check of SolveFree on a solved X.
+  SolveStatus CheckResidual(const Eigen::MatrixXd& rhs, const Eigen::MatrixXd& x) const;
+  // Blocks listed (range-checked) as a flag per block.
+  std::vector<char> WantedBlocks(const char* who, const std::vector<int>& blocks) const;
   // Factors S as a chain of groups (returns false, doing nothing, when S is not one) or by
   // CHOLMOD; owners[p]: (block, local index) of the blocks holding Γ position p; order: Γ
   // positions by the pair of blocks sharing them.
