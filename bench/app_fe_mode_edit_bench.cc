@@ -79,6 +79,8 @@ struct Row {
   double mesh = 0, model = 0, columns = 0, total = 0;  // s, from the edit's command
   double whole = 0;      // s, from the edit's command to every row of the patch's columns
   int own_contacts = 0;  // patch nodes a contact solver took on their own columns at `total`
+  // Slab mesh stages of the refresh (s): grid surface, cut, TetGen, join.
+  double surface = 0, cut = 0, tetgen = 0, join = 0;
   int factored = 0, blocks = 0, remeshed = 0;
   double error = 0;  // patch block against a one-piece factorisation of the new mesh
 };
@@ -257,8 +259,13 @@ void BM_FeModeEdit(benchmark::State& state) {
       }
       const app::ObjectId mesh_id =
           std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
-      if (const auto slab_mesh = mode.SlabsOf(doc, mesh_id))
+      if (const auto slab_mesh = mode.SlabsOf(doc, mesh_id)) {
         row.remeshed = slab_mesh->num_remeshed();
+        row.surface = slab_mesh->surface_seconds;
+        row.cut = slab_mesh->cut_seconds;
+        row.tetgen = slab_mesh->tetgen_seconds;
+        row.join = slab_mesh->join_seconds;
+      }
       row.error = PatchError(model, patch, felt);
       if ((felt - PatchBlock(model, patch)).norm() != 0.0)
         throw std::runtime_error("the patch block changed when its columns were completed");
@@ -287,6 +294,14 @@ void PrintTables() {
                 : "all",
         r.mesh, r.model - r.mesh, r.columns, r.total, r.own_contacts, r.whole, r.error);
   }
+  std::printf(
+      "\nThe refresh's slab mesh, by stage (s): the grid surface of the whole solid, the cut by "
+      "the planes, TetGen on the slabs that changed, the join.\n\n| case | edit | surface | cut | "
+      "TetGen | join |\n|---|---|---|---|---|---|\n");
+  for (const Row& r : Rows())
+    if (r.slabs)
+      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f |\n", r.name.c_str(), r.edit.c_str(),
+                  r.surface, r.cut, r.tetgen, r.join);
 }
 
 BENCHMARK(BM_FeModeEdit)
