@@ -35,6 +35,11 @@ extern "C" void dtrsm_(const char* side, const char* uplo, const char* transa, c
 extern "C" void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k,
                        const double* alpha, const double* a, const int* lda, const double* beta,
                        double* c, const int* ldc);
+// And for its solves, a general product (C := α op(A) B + β C).
+extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n,
+                       const int* k, const double* alpha, const double* a, const int* lda,
+                       const double* b, const int* ldb, const double* beta, double* c,
+                       const int* ldc);
 
 namespace spidarcad::fem {
 namespace {
@@ -691,22 +696,39 @@ struct SubstructuredSolver::Interface {
 
   int size(int g) const { return begin[g + 1] - begin[g]; }
 
-  // X = S⁻¹ B in place (B: ng by m, rows in Γ positions).
+  // X = S⁻¹ B in place (B: ng by m, rows in Γ positions): forward and backward sweeps by
+  // groups, each a dense triangular solve and product (BLAS: the groups are 10³–10⁴ dofs).
   void SolveChain(Eigen::MatrixXd* b) const {
-    const int ng = static_cast<int>(order.size());
-    Eigen::MatrixXd y(ng, b->cols());
+    const int ng = static_cast<int>(order.size()), m = static_cast<int>(b->cols());
+    if (ng == 0 || m == 0) return;
+    Eigen::MatrixXd y(ng, m);
     GatherRows(*b, order.data(), ng, y);
     const int n = static_cast<int>(groups.size());
+    const char left = 'L', lower = 'L', no_trans = 'N', trans = 'T', non_unit = 'N';
+    const double one = 1.0, minus_one = -1.0;
     for (int g = 0; g < n; ++g) {
-      auto yg = y.middleRows(begin[g], size(g));
-      if (g > 0) yg.noalias() -= *groups[g].l_sub * y.middleRows(begin[g - 1], size(g - 1));
-      groups[g].l_diag->triangularView<Eigen::Lower>().solveInPlace(yg);
+      const int bg = size(g);
+      if (bg == 0) continue;
+      double* yg = y.data() + begin[g];
+      if (g > 0 && size(g - 1) > 0) {  // y_g −= L_{g,g−1} y_{g−1}
+        const int bp = size(g - 1);
+        dgemm_(&no_trans, &no_trans, &bg, &m, &bp, &minus_one, groups[g].l_sub->data(), &bg,
+               y.data() + begin[g - 1], &ng, &one, yg, &ng);
+      }
+      dtrsm_(&left, &lower, &no_trans, &non_unit, &bg, &m, &one, groups[g].l_diag->data(), &bg, yg,
+             &ng);
     }
     for (int g = n - 1; g >= 0; --g) {
-      auto yg = y.middleRows(begin[g], size(g));
-      if (g + 1 < n)
-        yg.noalias() -= groups[g + 1].l_sub->transpose() * y.middleRows(begin[g + 1], size(g + 1));
-      groups[g].l_diag->triangularView<Eigen::Lower>().transpose().solveInPlace(yg);
+      const int bg = size(g);
+      if (bg == 0) continue;
+      double* yg = y.data() + begin[g];
+      if (g + 1 < n && size(g + 1) > 0) {  // y_g −= L_{g+1,g}ᵀ y_{g+1}
+        const int bn = size(g + 1);
+        dgemm_(&trans, &no_trans, &bg, &m, &bn, &minus_one, groups[g + 1].l_sub->data(), &bn,
+               y.data() + begin[g + 1], &ng, &one, yg, &ng);
+      }
+      dtrsm_(&left, &lower, &trans, &non_unit, &bg, &m, &one, groups[g].l_diag->data(), &bg, yg,
+             &ng);
     }
     ScatterRows(y, order.data(), ng, *b);
   }
