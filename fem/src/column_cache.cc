@@ -362,6 +362,7 @@ void ColumnCache::SolveAndPublish(const std::vector<int>& block, const std::vect
         Publish(block[c], slots[c], near);
       }
       published = true;
+      near_blocks_.fetch_add(1);
       status = solver_.CompleteSolveFree(rhs_, groups, &x_);
       if (status.converged)
         for (int c = 0; c < count; ++c) {
@@ -571,6 +572,7 @@ ColumnCacheStats ColumnCache::stats() const {
   st.computed_nodes = computed_nodes_.load();
   st.evictions = evictions_.load();
   st.blocks = blocks_.load();
+  st.near_blocks = near_blocks_.load();
   st.compute_seconds = compute_seconds_.load();
   return st;
 }

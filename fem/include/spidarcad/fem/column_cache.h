@@ -99,8 +99,9 @@ struct ColumnCacheStats {
   long computed_nodes = 0;
   // Columns evicted to make room.
   long evictions = 0;
-  // Blocks solved.
+  // Blocks solved, and of those the ones published near rows first (near_rows_first).
   long blocks = 0;
+  long near_blocks = 0;
   // Wall time spent in solves and copying, in s.
   double compute_seconds = 0.0;
 };
@@ -310,7 +311,7 @@ class ColumnCache {
   std::atomic<bool> stop_{false};
   mutable std::mutex wake_mutex_;
   std::condition_variable wake_;
-  std::atomic<long> computed_nodes_{0}, evictions_{0}, blocks_{0};
+  std::atomic<long> computed_nodes_{0}, evictions_{0}, blocks_{0}, near_blocks_{0};
   std::atomic<bool> paused_{false};
   std::atomic<double> compute_seconds_{0.0};
   Eigen::MatrixXd rhs_, x_;  // worker scratch
