@@ -11,6 +11,8 @@
 #include <string>
 #include <unordered_map>
 
+#include "spidarcad/base/faces_seen_once.h"
+
 namespace spidarcad::fem {
 namespace {
 
@@ -194,33 +196,26 @@ void LabelRegionInBox(const Eigen::Vector3d& lower, const Eigen::Vector3d& upper
 }
 
 Surface ExtractSurface(const TetMesh& mesh) {
-  // Faces by their sorted corner triple, sorted (a sort, not a map: 4·#elements faces); a triple
-  // seen once is on the boundary. Faces come out in triple order.
-  struct FaceRef {
-    std::array<int, 3> key;
-    int element;
-    int local_face;
-  };
-  std::vector<FaceRef> faces;
-  faces.reserve(4 * static_cast<std::size_t>(mesh.num_elements()));
+  // Faces by their sorted corner triple; a triple seen once is on the boundary (face i of the
+  // list: face i % 4 of element i / 4). Faces come out in triple order.
+  std::vector<std::array<int, 3>> keys;
+  keys.reserve(4 * static_cast<std::size_t>(mesh.num_elements()));
   for (int e = 0; e < mesh.num_elements(); ++e) {
     for (int f = 0; f < 4; ++f) {
       std::array<int, 3> key{mesh.elements(e, kTetFaces[f][0]), mesh.elements(e, kTetFaces[f][1]),
                              mesh.elements(e, kTetFaces[f][2])};
       std::sort(key.begin(), key.end());
-      faces.push_back(FaceRef{key, e, f});
+      keys.push_back(key);
     }
   }
-  std::sort(faces.begin(), faces.end(),
-            [](const FaceRef& a, const FaceRef& b) { return a.key < b.key; });
   const bool quadratic = mesh.NodesPerElement() == 10;
+  struct FaceRef {
+    int element;
+    int local_face;
+  };
   std::vector<FaceRef> boundary;
-  for (std::size_t i = 0; i < faces.size();) {
-    std::size_t j = i + 1;
-    while (j < faces.size() && faces[j].key == faces[i].key) ++j;
-    if (j == i + 1) boundary.push_back(faces[i]);
-    i = j;
-  }
+  for (const std::size_t i : base::FacesSeenOnce(keys))
+    boundary.push_back(FaceRef{static_cast<int>(i / 4), static_cast<int>(i % 4)});
   Surface s;
   s.faces.resize(static_cast<Eigen::Index>(boundary.size()), 3);
   if (quadratic) s.faces6.resize(static_cast<Eigen::Index>(boundary.size()), 6);

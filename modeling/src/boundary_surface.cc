@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "spidarcad/base/faces_seen_once.h"
 #include "spidarcad/modeling/cgal_mesher.h"
 
 namespace spidarcad::modeling {
@@ -15,34 +16,24 @@ TriangleMesh BoundarySurface(const TetMesh& mesh) {
   // Outward faces of a positive tet (0, 1, 2, 3): the face opposite corner c, listed so that its
   // right-hand normal points away from c.
   static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  // Every face with its sorted corners as key, sorted by key (a sort, not a map: 4·#tets faces);
-  // a key that occurs once is a boundary face. Faces come out in key order.
-  struct Face {
-    std::array<int, 3> key, oriented;
-  };
-  std::vector<Face> all;
-  all.reserve(4 * static_cast<size_t>(mesh.tets.cols()));
+  std::vector<std::array<int, 3>> keys;
+  keys.reserve(4 * static_cast<size_t>(mesh.tets.cols()));
   for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) {
     for (const auto& f : kFaces) {
-      Face face;
-      face.oriented = {mesh.tets(f[0], t), mesh.tets(f[1], t), mesh.tets(f[2], t)};
-      face.key = face.oriented;
-      std::sort(face.key.begin(), face.key.end());
-      all.push_back(face);
+      std::array<int, 3> key = {mesh.tets(f[0], t), mesh.tets(f[1], t), mesh.tets(f[2], t)};
+      std::sort(key.begin(), key.end());
+      keys.push_back(key);
     }
   }
-  std::sort(all.begin(), all.end(), [](const Face& a, const Face& b) { return a.key < b.key; });
-  std::vector<const Face*> boundary;
-  for (size_t i = 0; i < all.size();) {
-    size_t j = i + 1;
-    while (j < all.size() && all[j].key == all[i].key) ++j;
-    if (j == i + 1) boundary.push_back(&all[i]);
-    i = j;
-  }
+  const std::vector<std::size_t> boundary = base::FacesSeenOnce(keys);
+  // Face i of the list: face i % 4 of tet i / 4, oriented outward.
+  const auto corner = [&](std::size_t i, int k) {
+    return mesh.tets(kFaces[i % 4][k], static_cast<Eigen::Index>(i / 4));
+  };
   std::vector<int> new_index(static_cast<size_t>(mesh.nodes.cols()), -1);
   const long count = static_cast<long>(boundary.size());
-  for (const Face* f : boundary)
-    for (const int v : f->key) new_index[v] = 0;
+  for (const std::size_t i : boundary)
+    for (const int v : keys[i]) new_index[v] = 0;
   int vertices = 0;
   for (int& i : new_index) {
     if (i == 0) i = vertices++;
@@ -54,9 +45,9 @@ TriangleMesh BoundarySurface(const TetMesh& mesh) {
   }
   surface.triangles.resize(3, count);
   Eigen::Index c = 0;
-  for (const Face* f : boundary)
-    surface.triangles.col(c++) << new_index[f->oriented[0]], new_index[f->oriented[1]],
-        new_index[f->oriented[2]];
+  for (const std::size_t i : boundary)
+    surface.triangles.col(c++) << new_index[corner(i, 0)], new_index[corner(i, 1)],
+        new_index[corner(i, 2)];
   return surface;
 }
 
