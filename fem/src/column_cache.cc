@@ -313,16 +313,16 @@ void ColumnCache::Complete(int b, int s) {
   ready_count_.fetch_add(1);
 }
 
-void ColumnCache::WriteRows(int c, int s, std::uint64_t groups, bool fill) {
+void ColumnCache::WriteRows(int c, int s, std::uint64_t groups, bool first) {
   unsigned char* raw = slots_[s].data.get();
   const int num_out = num_outputs();
   const size_t rows = 3 * static_cast<size_t>(num_out);
-  const bool free_rows = (groups & kComplete) || fill;  // group −1: with the first rows written
+  const bool all = (groups & kComplete) != 0;
   for (int j = 0; j < 3; ++j)
     for (int a = 0; a < num_out; ++a) {
       const int g = row_group_[a];
-      const bool want = (groups & kComplete) ? true : g < 0 ? free_rows : ((groups >> g) & 1) != 0;
-      if (!want && !fill) continue;
+      const bool want = all || (g < 0 ? first : ((groups >> g) & 1) != 0);
+      if (!want && !first) continue;
       for (int i = 0; i < 3; ++i) {
         const int fi = solver_.FreeIndex(3 * output_nodes_[a] + i);
         const double v = !want    ? std::numeric_limits<double>::quiet_NaN()
@@ -374,7 +374,7 @@ void ColumnCache::SolveAndPublish(const std::vector<int>& block, const std::vect
     status = solver_.SolveFree(rhs_, &x_);
     if (status.converged)
       for (int c = 0; c < count; ++c) {
-        WriteRows(c, slots[c], kComplete, false);
+        WriteRows(c, slots[c], kComplete, true);
         Publish(block[c], slots[c], kComplete);
       }
   }

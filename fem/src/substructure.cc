@@ -1185,7 +1185,6 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
       stats_.interface_group_loaded[g] = 1;
       continue;
     }
-    Eigen::MatrixXd diag = Eigen::MatrixXd::Zero(bg, bg), sub = Eigen::MatrixXd::Zero(bg, bp);
     // What S_{g,g−1} is summed from: the owners of each column of group g − 1, then for each
     // block among them (its factor, in order of first appearance) where its rows land in g.
     std::vector<std::intptr_t>& sub_record = in.groups[g].sub_record;
@@ -1210,6 +1209,9 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
                           old->groups[g].gram && old->groups[g].l_sub &&
                           in.groups[g - 1].l_diag == old->groups[g - 1].l_diag &&
                           old->groups[g].sub_record == sub_record;
+    // S_gg, and S_{g,g−1} unless its factor block is kept.
+    Eigen::MatrixXd diag = Eigen::MatrixXd::Zero(bg, bg), sub;
+    if (!sub_kept) sub.setZero(bg, bp);
     // Columns of group g give S_gg; columns of group g − 1 give S_{g,g−1} (its rows in g).
     for (int cg : {g, g - 1}) {
       if (cg < 0 || (cg == g - 1 && sub_kept)) continue;
@@ -1308,19 +1310,17 @@ SolveStatus SubstructuredSolver::SolveImpl(const Eigen::MatrixXd& rhs,
   const int ng = static_cast<int>(interface_free_.size());
   Eigen::MatrixXd g(ng, m);
   GatherRows(rhs, interface_free_.data(), ng, g);
-  std::vector<Eigen::MatrixXd> f(blocks_.size());
-  std::vector<char> loaded(blocks_.size(), 0);
-  // y_b = K_II⁻¹ f_I; g −= K_ΓI y_b.
+  // y_b = K_II⁻¹ f_I; g −= K_ΓI y_b (blocks without load skipped).
+  Eigen::MatrixXd f;
   for (std::size_t b = 0; b < blocks_.size(); ++b) {
     const Block& block = blocks_[b];
     const BlockFactor& bf = *block.factor;
-    if (bf.ni() == 0) continue;
-    f[b].resize(bf.ni(), m);
-    GatherRows(rhs, block.interior_free.data(), bf.ni(), f[b]);
-    loaded[b] = !f[b].isZero(0.0);
-    if (!loaded[b] || bf.ng() == 0) continue;
+    if (bf.ni() == 0 || bf.ng() == 0) continue;
+    f.resize(bf.ni(), m);
+    GatherRows(rhs, block.interior_free.data(), bf.ni(), f);
+    if (f.isZero(0.0)) continue;
     Eigen::MatrixXd y;
-    if (!bf.SolveInterior(f[b], &y)) {
+    if (!bf.SolveInterior(f, &y)) {
       status.message = "CHOLMOD solve failed in block " + std::to_string(b);
       return status;
     }

@@ -252,9 +252,10 @@ class ColumnCache {
   // first (near_rows_first).
   void SolveAndPublish(const std::vector<int>& block, const std::vector<int>& slots,
                        std::uint64_t near = 0);
-  // Writes the rows of columns c of x_ into slot s whose group bit is in `groups` (kComplete: all
-  // rows; group −1 rows always), NaN into the others when `fill` is set.
-  void WriteRows(int c, int s, std::uint64_t groups, bool fill);
+  // Writes into slot s the rows of column block c of x_ whose row group is in `groups` (bits;
+  // kComplete: every row). The slot's first write (`first`) also writes the group-free rows
+  // (group −1) and NaN into every row it leaves for later.
+  void WriteRows(int c, int s, std::uint64_t groups, bool first);
   void Publish(int b, int s, std::uint64_t rows);
   void Complete(int b, int s);
   bool ReadFocus(Eigen::Vector3d* p, double* radius, std::uint64_t* seq) const;
