@@ -16,13 +16,17 @@
 // one-piece fem::StaticSolver factorisation of the new mesh. The time at which the patch's
 // columns are whole (every surface row, which the display waits for) is given too.
 //   edits   load holes r 4 -> 4.5 mm (last slab), bolt holes r 5.5 -> 6 mm (first slab)
-// Each edit comes once the old model's column worker is idle (the columns within 10 mm of the
-// tool done): an edit made while it solves a block shares the cores with that block until it
-// ends (a full block of 16 nodes takes about a second at P2 10 mm), after which the refresh
-// pauses it (ColumnCache::SetPaused).
-// Times are wall seconds (steady clock) on whatever else the machine runs; the jobs use every
-// core (CHOLMOD, OpenBLAS).
-// Run: build/bench/app_fe_mode_edit_bench
+// The sculpt cases (names ending "_sculpt") set up FE on a sculpt of the platform instead: its
+// grid surface at the cell size, snapped as the product meshes (what a sculpt made from the solid
+// holds), meshed in slabs spaced by app::SurfaceSlabSpacing (FeMeshInput::slabs). Their edits are
+// sculpt strokes, committed as the sculpt mode commits them (MakeStrokeCommand): a push/pull
+// raising a 3 mm bump of 15 mm radius on the plate near the free end (x = 0.275 m, last slab), and
+// one on the bracket's face between the bolt holes (first slab). Each edit comes once the old
+// model's column worker is idle (the columns within 10 mm of the tool done): an edit made while it
+// solves a block shares the cores with that block until it ends (a full block of 16 nodes takes
+// about a second at P2 10 mm), after which the refresh pauses it (ColumnCache::SetPaused). Times
+// are wall seconds (steady clock) on whatever else the machine runs; the jobs use every core
+// (CHOLMOD, OpenBLAS). Run: build/bench/app_fe_mode_edit_bench
 //      build/bench/app_fe_mode_edit_bench --benchmark_filter=P2
 #include <benchmark/benchmark.h>
 
@@ -44,8 +48,12 @@
 #include "scene/fe_model.h"
 #include "scene/fe_setup.h"
 #include "scene/scene_model.h"
+#include "scene/scene_solid.h"
+#include "scene/sculpt_document.h"
 #include "spidarcad/fem/column_cache.h"
 #include "spidarcad/fem/static_solver.h"
+#include "spidarcad/modeling/sculpt.h"
+#include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad {
 namespace {
@@ -82,7 +90,8 @@ struct Row {
   // Slab mesh stages of the refresh (s): grid surface, cut, TetGen, join.
   double surface = 0, cut = 0, tetgen = 0, join = 0;
   int factored = 0, blocks = 0, remeshed = 0;
-  double error = 0;  // patch block against a one-piece factorisation of the new mesh
+  int interface = 0;  // free interface dofs (the planes' sections), in slabs
+  double error = 0;   // patch block against a one-piece factorisation of the new mesh
 };
 
 std::vector<Row>& Rows() {
@@ -183,13 +192,51 @@ double PatchError(const app::FeModel& model, const std::vector<int>& patch,
   return (got - expected).norm() / expected.norm();
 }
 
+// A sculpt of the platform: its grid surface at `cell`, snapped as the product meshes.
+modeling::TriangleMesh PlatformSurface(double cell) {
+  const app::SceneSolidGrid grid = app::PrepareSceneSolid(ScenePath(), "platform", cell);
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = grid.bounds;
+  ss.cell_size = cell;
+  ss.snap_cells = modeling::kProductSnapCells;
+  return modeling::MeshSurface(grid.compiled, ss);
+}
+
+// The command of a push/pull stroke on sculpt `id` raising a bump of `height` m, radius 15 mm,
+// centred on the surface vertex nearest `at`.
+std::unique_ptr<app::Command> BumpStroke(const app::Document& doc, app::ObjectId id,
+                                         const Eigen::Vector3d& at, double height) {
+  modeling::SculptMesh clay(*std::get<app::SculptData>(doc.Get(id).data).mesh);
+  int nearest = 0;
+  for (int v = 0; v < clay.vertex_count(); ++v)
+    if ((clay.positions()[v] - at).norm() < (clay.positions()[nearest] - at).norm()) nearest = v;
+  modeling::SculptToolSettings tool;
+  tool.tool = modeling::SculptTool::kPushPull;
+  tool.radius = 0.015;
+  tool.grasp_controls_strength = false;
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.translation() = clay.positions()[nearest];
+  clay.BeginStroke(tool, X, 0.0);
+  X.translation() += height * clay.normals()[nearest];
+  clay.UpdateStroke(X, 0.0);
+  const modeling::SculptEdit edit = clay.EndStroke();
+  auto command = app::MakeStrokeCommand(id, "platform clay", tool.tool, edit, clay);
+  if (!command) throw std::runtime_error("the stroke moved nothing");
+  return command;
+}
+
 void BM_FeModeEdit(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0));
   const double cell = state.range(1) * 1e-6;
   const bool slabs = state.range(2) != 0;
+  const bool sculpt = state.range(3) != 0;
   for (auto _ : state) {
     app::SceneModel scene;
     scene.Load(ScenePath(), Eigen::Vector3d::Constant(0.2));
+    if (sculpt) {
+      scene.document().Execute(app::edit::AddSculpt("platform clay", PlatformSurface(cell)));
+      scene.document().history().Clear();
+    }
     app::JobQueue jobs;
     app::FeMode mode(nullptr, &jobs);
     mode.mesh_in_slabs() = slabs;
@@ -197,7 +244,7 @@ void BM_FeModeEdit(benchmark::State& state) {
     mode.mesh_settings().cell_size = cell;
     mode.model_settings().use_disk_cache = false;
     const app::Document& doc = scene.document();
-    const app::ObjectId platform = doc.FindByName("platform")->id;
+    const app::ObjectId platform = doc.FindByName(sculpt ? "platform clay" : "platform")->id;
     mode.SyncDocument(&scene, 0);
     if (!mode.StartSetUp(&scene, platform, false, false)) throw std::runtime_error(mode.status());
     Frames(&mode, &scene, &jobs, [&] { return mode.bound_object() != 0; });
@@ -212,25 +259,46 @@ void BM_FeModeEdit(benchmark::State& state) {
     }
     struct Edit {
       const char* name;
-      const char* node;
-      double radius;
+      const char* counter;
+      std::function<std::unique_ptr<app::Command>()> command;
     };
-    for (const Edit& e : {Edit{"load holes r 4 -> 4.5 mm", "load_hole", 0.0045},
-                          Edit{"bolt holes r 5.5 -> 6 mm", "bolt_hole", 0.006}}) {
+    // A solid's hole radius.
+    auto radius = [&](const char* node, double r) {
+      return [&doc, platform, node, r] {
+        app::NodePath path;
+        if (!FindNode(std::get<app::SolidData>(doc.Get(platform).data).root, node, &path))
+          throw std::runtime_error(std::string("no node ") + node);
+        return app::edit::SetNodeField(platform, path, "radius", r);
+      };
+    };
+    const std::vector<Edit> edits =
+        sculpt ? std::vector<Edit>{{"stroke: 3 mm bump near the free end", "free_end_bump",
+                                    [&] {
+                                      return BumpStroke(doc, platform,
+                                                        Eigen::Vector3d(0.275, 0.0, 0.01), 0.003);
+                                    }},
+                                   {"stroke: 3 mm bump on the bracket", "bracket_bump",
+                                    [&] {
+                                      return BumpStroke(doc, platform,
+                                                        Eigen::Vector3d(0.01, 0.05, -0.075), 0.003);
+                                    }}}
+               : std::vector<Edit>{
+                     {"load holes r 4 -> 4.5 mm", "load_hole", radius("load_hole", 0.0045)},
+                     {"bolt holes r 5.5 -> 6 mm", "bolt_hole", radius("bolt_hole", 0.006)}};
+    for (const Edit& e : edits) {
       Row row;
-      row.name = "P" + std::to_string(order) + " " + std::to_string(state.range(1) / 1000) + " mm";
+      row.name = "P" + std::to_string(order) + " " + std::to_string(state.range(1) / 1000) + " mm" +
+                 (sculpt ? " sculpt" : "");
       row.edit = e.name;
       row.order = order;
       row.slabs = slabs;
-      app::NodePath path;
-      if (!FindNode(std::get<app::SolidData>(doc.Get(platform).data).root, e.node, &path))
-        throw std::runtime_error(std::string("no node ") + e.node);
       const std::shared_ptr<app::FeModel> before = mode.model();
       // The edit comes after the tool has rested on the part: the columns around it are done
       // (an edit while the worker is in a block waits for that block: see the file comment).
       before->cache().WaitUntilIdle(600.0);
+      std::unique_ptr<app::Command> command = e.command();  // the stroke is made before the clock
       const auto t0 = Clock::now();
-      scene.document().Execute(app::edit::SetNodeField(platform, path, "radius", e.radius));
+      scene.document().Execute(std::move(command));
       const std::uint64_t edited = doc.Get(platform).revision;
       Frames(&mode, &scene, &jobs, [&] {
         if (row.mesh == 0.0 && !mode.stale() && mode.bound_object() != 0) {
@@ -256,6 +324,7 @@ void BM_FeModeEdit(benchmark::State& state) {
       if (const fem::SubstructuredSolver* s = model.substructured()) {
         row.factored = s->stats().factored_blocks;
         row.blocks = s->num_blocks();
+        row.interface = s->stats().num_interface_dofs;
       }
       const app::ObjectId mesh_id =
           std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
@@ -270,7 +339,7 @@ void BM_FeModeEdit(benchmark::State& state) {
       if ((felt - PatchBlock(model, patch)).norm() != 0.0)
         throw std::runtime_error("the patch block changed when its columns were completed");
       Rows().push_back(row);
-      state.counters[e.node] = row.total;
+      state.counters[e.counter] = row.total;
     }
     mode.SetActive(false);  // saves nothing: the disk cache is off
     Frames(&mode, &scene, &jobs, [&] { return !jobs.pending(); });
@@ -296,30 +365,44 @@ void PrintTables() {
   }
   std::printf(
       "\nThe refresh's slab mesh, by stage (s): the grid surface of the whole solid, the cut by "
-      "the planes, TetGen on the slabs that changed, the join.\n\n| case | edit | surface | cut | "
-      "TetGen | join |\n|---|---|---|---|---|---|\n");
+      "the planes, TetGen on the slabs that changed, the join; and the model's interface (free "
+      "dofs on the planes).\n\n| case | edit | surface | cut | TetGen | join | interface dofs "
+      "|\n|---|---|---|---|---|---|---|\n");
   for (const Row& r : Rows())
     if (r.slabs)
-      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f |\n", r.name.c_str(), r.edit.c_str(),
-                  r.surface, r.cut, r.tetgen, r.join);
+      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f | %d |\n", r.name.c_str(), r.edit.c_str(),
+                  r.surface, r.cut, r.tetgen, r.join, r.interface);
 }
 
+// Args: element order, cell (µm), in slabs (1) or one piece (0), the solid (0) or a sculpt (1).
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_6mm")
-    ->Args({1, 6000, 1})
-    ->Args({1, 6000, 0})
+    ->Args({1, 6000, 1, 0})
+    ->Args({1, 6000, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)
     ->Name("P2_10mm")
-    ->Args({2, 10000, 1})
-    ->Args({2, 10000, 0})
+    ->Args({2, 10000, 1, 0})
+    ->Args({2, 10000, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_5mm")
-    ->Args({1, 5000, 1})
-    ->Args({1, 5000, 0})
+    ->Args({1, 5000, 1, 0})
+    ->Args({1, 5000, 0, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+BENCHMARK(BM_FeModeEdit)
+    ->Name("P2_10mm_sculpt")
+    ->Args({2, 10000, 1, 1})
+    ->Args({2, 10000, 0, 1})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+BENCHMARK(BM_FeModeEdit)
+    ->Name("P1_5mm_sculpt")
+    ->Args({1, 5000, 1, 1})
+    ->Args({1, 5000, 0, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

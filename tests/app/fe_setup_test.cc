@@ -18,6 +18,7 @@
 #include "doc/document.h"
 #include "scene/fe_model.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {
@@ -252,6 +253,73 @@ TEST(FeSetUp, SculptAndClosedSurfaceMeshAreTetrahedralizedAsTheyAre) {
   MeshSettings cgal;
   cgal.mesher = "cgal";
   EXPECT_THROW(PrepareFeMesh(doc, clay, cgal), DocumentError);
+}
+
+// A stroke of the sculpt tool `tool` centred at `at`, moving the grip by `move` (m), at full
+// strength; returns the sculpted surface.
+modeling::TriangleMesh Stroked(const modeling::TriangleMesh& surface, modeling::SculptTool tool,
+                               const Eigen::Vector3d& at, const Eigen::Vector3d& move) {
+  modeling::SculptMesh clay(surface);
+  modeling::SculptToolSettings settings;
+  settings.tool = tool;
+  settings.radius = 0.015;
+  settings.grasp_controls_strength = false;
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.translation() = at;
+  clay.BeginStroke(settings, X, 0.0);
+  X.translation() += move;
+  clay.UpdateStroke(X, 0.0);
+  clay.EndStroke();
+  return clay.ToTriangleMesh();
+}
+
+// In slabs, a sculpt is cut on planes spaced by SurfaceSlabSpacing. A stroke at one end re-meshes
+// that end's slab alone, on the same planes; a stroke that takes the surface out of the first
+// mesh's box starts again on planes of the new box.
+TEST(FeSetUp, SculptInSlabsRemeshesOnlyTheSlabAStrokeReached) {
+  const modeling::CompiledSolid bar = modeling::CompiledSolid::Compile(
+      modeling::ImplicitNode(modeling::BoxParams{Eigen::Vector3d(0.24, 0.04, 0.04)}));
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.14, -0.04, -0.04), Eigen::Vector3d(0.14, 0.04, 0.04));
+  ss.cell_size = 0.008;
+  ss.snap_cells = modeling::kProductSnapCells;
+  const modeling::TriangleMesh surface = modeling::MeshSurface(bar, ss);
+  Document doc;
+  doc.Execute(edit::AddSculpt("bar", surface));
+  FeMeshInput input = PrepareFeMesh(doc, doc.last_created().front(), MeshSettings{});
+  ASSERT_EQ(input.kind, FeSourceKind::kSculpt);
+  input.slabs = kFeSlabs;
+  const FeMeshResult first = MeshFeSource(input);
+  ASSERT_NE(first.slabs, nullptr) << first.slab_note;
+  EXPECT_EQ(first.volume, first.slabs->volume);
+  EXPECT_EQ(first.settings.slab_planes.size(), kFeSlabs - 1u);
+  EXPECT_EQ(first.slabs->num_remeshed(), kFeSlabs);
+  EXPECT_TRUE(IsClosedSurface(*first.surface));
+  const double volume = modeling::MeshVolume(surface);
+  EXPECT_NEAR(TetVolume(*first.volume), volume, 1e-2 * volume);
+
+  // A bump raised on the top near the +x end (the last slab: planes near x = -0.06, 0, 0.06).
+  input.surface = std::make_shared<const modeling::TriangleMesh>(
+      Stroked(surface, modeling::SculptTool::kPushPull, Eigen::Vector3d(0.1, 0.0, 0.02),
+              Eigen::Vector3d(0.0, 0.0, 0.004)));
+  input.previous_slabs = first.slabs;
+  const FeMeshResult second = MeshFeSource(input);
+  ASSERT_NE(second.slabs, nullptr) << second.slab_note;
+  EXPECT_EQ(second.settings.slab_planes, first.settings.slab_planes);
+  EXPECT_EQ(second.slabs->num_remeshed(), 1);
+  EXPECT_TRUE(second.slabs->remeshed.back());
+  EXPECT_GT(TetVolume(*second.volume), TetVolume(*first.volume));
+
+  // The +x end pulled out by 3 cm, past the first mesh's box: new planes, every slab meshed.
+  input.surface = std::make_shared<const modeling::TriangleMesh>(
+      Stroked(surface, modeling::SculptTool::kGrab, Eigen::Vector3d(0.12, 0.0, 0.0),
+              Eigen::Vector3d(0.03, 0.0, 0.0)));
+  ASSERT_GT(input.surface->vertices.row(0).maxCoeff(), first.slabs->grid_bounds.max().x());
+  const FeMeshResult third = MeshFeSource(input);
+  ASSERT_NE(third.slabs, nullptr) << third.slab_note;
+  EXPECT_NE(third.settings.slab_planes, first.settings.slab_planes);
+  EXPECT_EQ(third.slabs->num_remeshed(), kFeSlabs);
 }
 
 TEST(FeSetUp, OpenSurfacesAndOtherKindsAreRefusedNamingTheObject) {

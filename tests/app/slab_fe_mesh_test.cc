@@ -21,6 +21,10 @@
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/substructure.h"
+#include "spidarcad/modeling/implicit_evaluator.h"
+#include "spidarcad/modeling/implicit_node.h"
+#include "spidarcad/modeling/sculpt.h"
+#include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad::app {
 namespace {
@@ -63,31 +67,11 @@ std::string EditedPlatform(const std::string& id, const std::string& field,
   return path;
 }
 
-TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
-  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", kCell);
-  // The grid of the first mesh is kept for the edit (the edit stays inside its box).
-  const Eigen::AlignedBox3d grid = base.bounds;
-  const std::vector<double> planes = SlabPlanes(grid, kCell, kSlabs);
-  ASSERT_EQ(planes.size(), kSlabs - 1u);
-  const SlabFeMesh before = MeshSolidInSlabs(base.compiled, grid, kCell, planes);
-  EXPECT_EQ(before.num_remeshed(), kSlabs);
-  ASSERT_NO_THROW(before.mesh.Validate());
-
-  // The load holes (x = 0.27 m, last slab) from 4 to 4.5 mm radius.
-  const SceneSolidGrid edited = PrepareSceneSolid(
-      EditedPlatform("load_hole", "radius", 0.0045, "slab_fe_mesh_hole"), "platform", kCell);
-  const SlabFeMesh after =
-      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, Options(2.0, &before));
-  EXPECT_EQ(after.num_remeshed(), 1);
-  EXPECT_TRUE(after.remeshed.back());
-  for (int k = 0; k + 1 < kSlabs; ++k) {
-    ASSERT_EQ(after.slab_tets[k].tets.cols(), before.slab_tets[k].tets.cols());
-    EXPECT_TRUE((after.slab_tets[k].nodes.array() == before.slab_tets[k].nodes.array()).all());
-  }
-  // The edit did change the part: the last slab lost volume.
-  EXPECT_LT(modeling::TotalVolume(after.slab_tets.back()),
-            modeling::TotalVolume(before.slab_tets.back()));
-
+// Factors `before` in slabs, then `after` (re-meshed in its last slab only) with the first as the
+// reuse solver, at orders 1 and 2, the min-x face clamped: only the last slab is factored again,
+// and the compliance of the plate-top nodes nearest the free corner equals a monolithic solve of
+// the new mesh.
+void ExpectOnlyTheLastSlabRefactoredAndExact(const SlabFeMesh& before, const SlabFeMesh& after) {
   for (int order : {1, 2}) {
     SCOPED_TRACE("order " + std::to_string(order));
     const fem::TetMesh m0 = order == 2 ? fem::MakeQuadratic(before.mesh) : before.mesh;
@@ -129,6 +113,120 @@ TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
       }
     EXPECT_LT((g_sub - g_mono).norm(), 1e-9 * g_mono.norm());
   }
+}
+
+TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
+  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", kCell);
+  // The grid of the first mesh is kept for the edit (the edit stays inside its box).
+  const Eigen::AlignedBox3d grid = base.bounds;
+  const std::vector<double> planes = SlabPlanes(grid, kCell, kSlabs);
+  ASSERT_EQ(planes.size(), kSlabs - 1u);
+  const SlabFeMesh before = MeshSolidInSlabs(base.compiled, grid, kCell, planes);
+  EXPECT_EQ(before.num_remeshed(), kSlabs);
+  ASSERT_NO_THROW(before.mesh.Validate());
+
+  // The load holes (x = 0.27 m, last slab) from 4 to 4.5 mm radius.
+  const SceneSolidGrid edited = PrepareSceneSolid(
+      EditedPlatform("load_hole", "radius", 0.0045, "slab_fe_mesh_hole"), "platform", kCell);
+  const SlabFeMesh after =
+      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, Options(2.0, &before));
+  EXPECT_EQ(after.num_remeshed(), 1);
+  EXPECT_TRUE(after.remeshed.back());
+  for (int k = 0; k + 1 < kSlabs; ++k) {
+    ASSERT_EQ(after.slab_tets[k].tets.cols(), before.slab_tets[k].tets.cols());
+    EXPECT_TRUE((after.slab_tets[k].nodes.array() == before.slab_tets[k].nodes.array()).all());
+  }
+  // The edit did change the part: the last slab lost volume.
+  EXPECT_LT(modeling::TotalVolume(after.slab_tets.back()),
+            modeling::TotalVolume(before.slab_tets.back()));
+
+  ExpectOnlyTheLastSlabRefactoredAndExact(before, after);
+}
+
+// A sculpt of the platform (its snapped grid surface, as a sculpt made from the solid holds it)
+// in slabs spaced by SurfaceSlabSpacing, on planes moved off its triangles (SurfaceSlabPlanes): a
+// push/pull stroke that raises a 6 mm bump on the plate near the free end moves vertices in the
+// last slab alone; meshed again with the first mesh as the earlier one, only that slab goes
+// through TetGen, the others keep their tets bit for bit, and the FE model refactors that slab
+// alone and solves exactly.
+TEST(SlabFeMesh, SculptStrokeInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
+  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", kCell);
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = base.bounds;
+  ss.cell_size = kCell;
+  ss.snap_cells = modeling::kProductSnapCells;
+  const modeling::TriangleMesh surface = modeling::MeshSurface(base.compiled, ss);
+  const double spacing = SurfaceSlabSpacing(surface);
+  EXPECT_GT(spacing, 0.2 * kCell);
+  EXPECT_LT(spacing, 2.0 * kCell);
+  Eigen::AlignedBox3d box(surface.vertices.rowwise().minCoeff(),
+                          surface.vertices.rowwise().maxCoeff());
+  box.min().array() -= 2.0 * spacing;
+  box.max().array() += 2.0 * spacing;
+  const std::vector<double> planes = SurfaceSlabPlanes(surface, box, spacing, kSlabs);
+  const SlabFeMesh before = MeshSurfaceInSlabs(surface, box, spacing, planes);
+  EXPECT_EQ(before.num_remeshed(), kSlabs);
+  ASSERT_NO_THROW(before.mesh.Validate());
+
+  modeling::SculptMesh clay(surface);
+  modeling::SculptToolSettings tool;
+  tool.tool = modeling::SculptTool::kPushPull;
+  tool.radius = 0.015;
+  tool.grasp_controls_strength = false;
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.translation() = Eigen::Vector3d(0.275, 0.0, 0.01);
+  clay.BeginStroke(tool, X, 0.0);
+  X.translation().z() += 0.006;
+  clay.UpdateStroke(X, 0.0);
+  clay.EndStroke();
+  const modeling::TriangleMesh stroked = clay.ToTriangleMesh();
+
+  const SlabFeMesh after = MeshSurfaceInSlabs(stroked, box, spacing, planes, Options(2.0, &before));
+  EXPECT_EQ(after.num_remeshed(), 1);
+  EXPECT_TRUE(after.remeshed.back());
+  for (int k = 0; k + 1 < kSlabs; ++k) {
+    ASSERT_EQ(after.slab_tets[k].tets.cols(), before.slab_tets[k].tets.cols());
+    EXPECT_TRUE((after.slab_tets[k].nodes.array() == before.slab_tets[k].nodes.array()).all());
+  }
+  // The bump added volume to the last slab.
+  EXPECT_GT(modeling::TotalVolume(after.slab_tets.back()),
+            modeling::TotalVolume(before.slab_tets.back()));
+  ExpectOnlyTheLastSlabRefactoredAndExact(before, after);
+}
+
+// A bar with a step at x = 0 (a face across the axis) and a plane SlabPlanes puts on that face:
+// the cut refuses it, SurfaceSlabPlanes moves it off by a tenth to four tenths of the spacing,
+// and the bar is then meshed in slabs.
+TEST(SlabFeMesh, SurfacePlanesMoveOffAFaceAcrossTheAxis) {
+  modeling::ImplicitNode bar(modeling::UnionParams{});
+  for (const auto& [x, height] : {std::pair{-0.06, 0.04}, std::pair{0.06, 0.02}}) {
+    modeling::ImplicitNode block(modeling::TranslateParams{Eigen::Vector3d(x, 0, 0)});
+    block.children.push_back(
+        modeling::ImplicitNode(modeling::BoxParams{Eigen::Vector3d(0.12, 0.04, height)}));
+    bar.children.push_back(std::move(block));
+  }
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.13, -0.03, -0.03), Eigen::Vector3d(0.13, 0.03, 0.03));
+  ss.cell_size = 0.005;
+  const modeling::TriangleMesh surface =
+      modeling::MeshSurface(modeling::CompiledSolid::Compile(bar), ss);
+  constexpr double kSpacing = 0.01;
+  // SlabPlanes on this box puts the one plane of two slabs at x = 0, on the step.
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.125, -0.03, -0.03),
+                                Eigen::Vector3d(0.125, 0.03, 0.03));
+  const std::vector<double> on_face = SlabPlanes(box, kSpacing, 2);
+  ASSERT_EQ(on_face.size(), 1u);
+  ASSERT_NEAR(on_face[0], 0.0, 1e-12);
+  EXPECT_THROW(MeshSurfaceInSlabs(surface, box, kSpacing, on_face), std::invalid_argument);
+  const std::vector<double> moved = SurfaceSlabPlanes(surface, box, kSpacing, 2);
+  ASSERT_EQ(moved.size(), 1u);
+  EXPECT_GE(std::abs(moved[0]), 0.1 * kSpacing - 1e-12);
+  EXPECT_LE(std::abs(moved[0]), 0.4 * kSpacing + 1e-12);
+  const SlabFeMesh slabs = MeshSurfaceInSlabs(surface, box, kSpacing, moved);
+  EXPECT_EQ(slabs.num_remeshed(), 2);
+  EXPECT_NEAR(modeling::TotalVolume(*slabs.volume), modeling::MeshVolume(surface),
+              1e-2 * modeling::MeshVolume(surface));
 }
 
 // The cache directory keeps slab meshes between runs: a mesh made with no earlier mesh in memory

@@ -442,6 +442,12 @@ FeMode::BoundKey FeMode::KeyOf(const Document& doc, ObjectId fe) {
 
 namespace {
 
+// The kinds FE mode meshes in slabs when asked (FeMode::mesh_in_slabs): those a local edit
+// changes in one place (a solid's feature, a sculpt stroke).
+bool SlabbedKind(FeSourceKind kind) {
+  return kind == FeSourceKind::kSolid || kind == FeSourceKind::kSculpt;
+}
+
 // Whether FE mode can choose the object, judged by its kind alone (cheap, every frame; whether a
 // surface is closed is checked when it is set up).
 bool MayBecomeFeModel(const Document& doc, ObjectId id) {
@@ -681,7 +687,9 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
   FeMeshInput input;
   try {
     input = PrepareFeMesh(doc, source, mesh_settings_);
-    if (mesh_in_slabs_ && input.kind == FeSourceKind::kSolid) input.slabs = kFeSlabs;
+    if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
+      input.slabs = kFeSlabs;
+    }
   } catch (const std::exception& e) {
     status_ = std::string("set up FE: ") + e.what();
     return false;
@@ -742,7 +750,7 @@ bool FeMode::StartRefresh(SceneModel* model) {
     return false;
   try {
     FeMeshInput input = PrepareFeRemesh(model->document(), bound_key_.mesh);
-    if (mesh_in_slabs_ && input.kind == FeSourceKind::kSolid) {
+    if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
       input.previous_slabs = SlabsOf(model->document(), bound_key_.mesh);
     }

@@ -156,8 +156,9 @@ class FeMode {
   bool stale() const { return stale_; }
   // How "Set up FE" meshes a solid (mesher, sharp edges, cell size; 0: from its size).
   MeshSettings& mesh_settings() { return mesh_settings_; }
-  // Set up and Refresh mesh a solid in kFeSlabs slabs (FeMeshInput::slabs), so that a refresh
-  // after a local edit re-meshes and refactors only the slabs the edit reached; on by default.
+  // Set up and Refresh mesh a solid or a sculpt in kFeSlabs slabs (FeMeshInput::slabs), so that
+  // a refresh after a local edit (a feature, a stroke) re-meshes and refactors only the slabs the
+  // edit reached; on by default.
   bool& mesh_in_slabs() { return mesh_in_slabs_; }
   // Refresh a stale mesh by itself while the mode is on and a model is shown (the old model stays
   // felt until the new one is ready), once per revision of its source (so not after the undo of

@@ -297,6 +297,77 @@ std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input,
          "; the limits of spidarcad mesh, docs/limits.md).";
 }
 
+namespace {
+
+// True when `input` asks for tetrahedra in slabs that can be made so (FeMeshInput::slabs).
+bool InSlabs(const FeMeshInput& input) {
+  return input.slabs > 0 && input.volume && !input.settings.sharp_edges &&
+         input.settings.max_tet_volume == 0.0 && input.settings.mesher != "cgal";
+}
+
+using SlabMesher = std::function<SlabFeMesh(const Eigen::AlignedBox3d&, double,
+                                            const std::vector<double>&, const SlabMeshOptions&)>;
+
+// Meshes in input.slabs slabs with `mesh`, trying the planes of `previous` (its box and spacing;
+// may be null) and then `fresh` planes on (box, spacing), shifted by 0 and a quarter of the
+// spacing to either side (a plane may meet a face of the surface: the cut refuses a triangle in a
+// plane).
+// On success fills `result` (tetrahedra, their boundary, the slabs and their planes) and returns
+// true; when every try failed, notes the first failure in result->slab_note and returns false
+// (the caller meshes in one piece). A cancel is rethrown.
+bool MeshInSlabs(const FeMeshInput& input, const Eigen::AlignedBox3d& box, double spacing,
+                 const SlabFeMesh* previous,
+                 const std::function<std::vector<double>(const Eigen::AlignedBox3d&)>& fresh,
+                 const SlabMesher& mesh, const std::atomic<bool>* cancel,
+                 const std::function<void(double)>& progress, FeMeshResult* result) {
+  SlabMeshOptions so;
+  so.max_radius_edge =
+      input.settings.max_radius_edge > 0.0 ? input.settings.max_radius_edge : kDefaultRadiusEdge;
+  so.cancel = cancel;
+  so.progress = progress;
+  struct Try {
+    Eigen::AlignedBox3d box;
+    double spacing;
+    std::vector<double> planes;
+  };
+  std::vector<Try> tries;
+  if (previous != nullptr && static_cast<int>(previous->planes.size()) + 1 == input.slabs) {
+    so.previous = previous;  // ignored by the mesher for another box, spacing or planes
+    tries.push_back({previous->grid_bounds, previous->cell, previous->planes});
+  }
+  for (double shift : {0.0, 0.25, -0.25}) {
+    Eigen::AlignedBox3d shifted = box;  // moves the planes by the shift
+    shifted.min().x() += shift * spacing;
+    shifted.max().x() += shift * spacing;
+    tries.push_back({box, spacing, fresh(shifted)});
+  }
+  std::string why;
+  for (const Try& t : tries) {
+    try {
+      auto slabs = std::make_shared<const SlabFeMesh>(mesh(t.box, t.spacing, t.planes, so));
+      if (slabs->volume->tets.cols() == 0) throw std::runtime_error("no tetrahedra");
+      result->settings.slab_planes = slabs->planes;
+      result->volume = slabs->volume;
+      result->surface =
+          std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*slabs->volume));
+      result->slabs = std::move(slabs);
+      Report(progress, 1.0);
+      return true;
+    } catch (const modeling::MeshingCancelled&) {
+      throw;
+    } catch (const modeling::TetMeshingCancelled&) {
+      throw;
+    } catch (const std::exception& e) {
+      if (why.empty()) why = e.what();
+    }
+  }
+  result->slab_note = std::string("meshed in one piece: in ") + std::to_string(input.slabs) +
+                      " slabs it failed (" + why + ")";
+  return false;
+}
+
+}  // namespace
+
 FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* cancel,
                           const std::function<void(double)>& progress) {
   FeMeshResult result;
@@ -306,6 +377,30 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   if (input.kind == FeSourceKind::kSculpt || input.kind == FeSourceKind::kSurfaceMesh) {
     if (!input.surface) throw std::invalid_argument("set up FE: no surface to mesh");
     result.settings.cell_size = 0.0;
+    if (input.kind == FeSourceKind::kSculpt && InSlabs(input)) {
+      // In slabs across x, spaced by SurfaceSlabSpacing, on the earlier mesh's box,
+      // spacing and planes while its box holds the surface's (a stroke moves only the vertices
+      // under the tool, so the slabs it did not reach come back as they were).
+      const modeling::TriangleMesh& surface = *input.surface;
+      const SlabFeMesh* previous = input.previous_slabs.get();
+      Eigen::AlignedBox3d box(surface.vertices.rowwise().minCoeff(),
+                              surface.vertices.rowwise().maxCoeff());
+      if (previous != nullptr && !previous->grid_bounds.contains(box)) previous = nullptr;
+      const double spacing = SurfaceSlabSpacing(surface);
+      box.min().array() -= 2.0 * spacing;
+      box.max().array() += 2.0 * spacing;
+      if (MeshInSlabs(
+              input, box, spacing, previous,
+              [&](const Eigen::AlignedBox3d& b) {
+                return SurfaceSlabPlanes(surface, b, spacing, input.slabs);
+              },
+              [&](const Eigen::AlignedBox3d& b, double h, const std::vector<double>& planes,
+                  const SlabMeshOptions& so) {
+                return MeshSurfaceInSlabs(surface, b, h, planes, so);
+              },
+              cancel, progress, &result))
+        return result;
+    }
     result.surface = input.surface;
     if (input.volume) {
       result.volume = std::make_shared<const modeling::TetMesh>(
@@ -339,63 +434,24 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     Report(progress, 1.0);
     return result;
   }
-  if (input.slabs > 0 && input.volume && !input.settings.sharp_edges &&
-      input.settings.max_tet_volume == 0.0) {
+  if (InSlabs(input)) {
     // In slabs across x, on the earlier mesh's grid and planes when it was made at this cell size
     // in as many slabs and its grid holds the solid's box (then the slabs the edit did not reach
-    // come back as they were). A solid the planes cannot cut (a plane through a gap, a section
-    // too thin for the cell) is meshed in one piece instead, and the result says why.
+    // come back as they were).
     const SlabFeMesh* previous = input.previous_slabs.get();
-    if (previous != nullptr && !(previous->cell == cell && previous->grid_bounds.contains(bounds) &&
-                                 static_cast<int>(previous->planes.size()) + 1 == input.slabs))
+    if (previous != nullptr && !(previous->cell == cell && previous->grid_bounds.contains(bounds)))
       previous = nullptr;
-    SlabMeshOptions so;
-    so.max_radius_edge =
-        input.settings.max_radius_edge > 0.0 ? input.settings.max_radius_edge : kDefaultRadiusEdge;
-    so.snap_cells = modeling::kProductSnapCells;
-    so.previous = previous;  // MeshSolidInSlabs ignores it for another grid or other planes
-    so.cancel = cancel;
-    so.progress = progress;
-    // The planes tried: the earlier mesh's; else half-way between grid planes, then a quarter
-    // of a cell to either side (a plane may meet a face of the snapped surface: the cut refuses
-    // a triangle in a plane).
-    std::vector<std::pair<Eigen::AlignedBox3d, std::vector<double>>> tries;
-    if (previous != nullptr) tries.emplace_back(previous->grid_bounds, previous->planes);
-    for (double shift : {0.0, 0.25, -0.25}) {
-      std::vector<double> planes = SlabPlanes(bounds, cell, input.slabs);
-      for (double& x : planes) x += shift * cell;
-      tries.emplace_back(bounds, std::move(planes));
-    }
-    std::shared_ptr<const SlabFeMesh> slabs;
-    std::string why;
-    for (const auto& [box, planes] : tries) {
-      try {
-        slabs =
-            std::make_shared<const SlabFeMesh>(MeshSolidInSlabs(compiled, box, cell, planes, so));
-        if (slabs->volume->tets.cols() == 0) throw std::runtime_error("no tetrahedra");
-        break;
-      } catch (const modeling::MeshingCancelled&) {
-        throw;
-      } catch (const modeling::TetMeshingCancelled&) {
-        throw;
-      } catch (const std::exception& e) {
-        slabs.reset();
-        if (why.empty()) why = e.what();
-      }
-    }
-    if (!slabs) {
-      result.slab_note = std::string("meshed in one piece: in ") + std::to_string(input.slabs) +
-                         " slabs it failed (" + why + ")";
-    }
-    if (slabs) {
-      result.settings.slab_planes = slabs->planes;
-      result.volume = slabs->volume;
-      result.surface =
-          std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*result.volume));
-      result.slabs = std::move(slabs);
-      Report(progress, 1.0);
+    if (MeshInSlabs(
+            input, bounds, cell, previous,
+            [&](const Eigen::AlignedBox3d& box) { return SlabPlanes(box, cell, input.slabs); },
+            [&](const Eigen::AlignedBox3d& box, double h, const std::vector<double>& planes,
+                const SlabMeshOptions& so) {
+              SlabMeshOptions snapped = so;
+              snapped.snap_cells = modeling::kProductSnapCells;
+              return MeshSolidInSlabs(compiled, box, h, planes, snapped);
+            },
+            cancel, progress, &result))
       return result;
-    }
   }
   modeling::SurfaceMeshSettings ss;
   ss.bounds = bounds;

@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <atomic>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -70,16 +71,18 @@ struct FeMeshInput {
   // Make tetrahedra (true), or the boundary surface only (false: a solid's grid surface,
   // sharpened when settings.sharp_edges; a surface source's surface as it is).
   bool volume = true;
-  // Tetrahedra of a solid in this many slabs across x (scene/slab_fe_mesh.h: the grid surface
-  // snapped as in one piece, cut by planes, TetGen per slab, the slabs joined), so that an FE
-  // model of it can be factored in slabs and a later edit re-meshes and refactors only the slabs
-  // it reached. 0: in one piece. Ignored (one piece) with settings.sharp_edges, max_tet_volume or
-  // mesher "cgal", for a surface only and for the other kinds; a solid the slabs fail for (a
-  // plane through a gap in it) is meshed in one piece, FeMeshResult::slab_note saying why.
+  // Tetrahedra of a solid or a sculpt in this many slabs across x (scene/slab_fe_mesh.h: a
+  // solid's grid surface snapped as in one piece, or the sculpt's surface as it is, cut by
+  // planes, TetGen per slab, the slabs joined), so that an FE model of it can be factored in
+  // slabs and a later edit re-meshes and refactors only the slabs it reached. A sculpt's planes
+  // and cross-section points are spaced by SurfaceSlabSpacing (1.4 median edges). 0: in one piece.
+  // Ignored (one piece) with settings.sharp_edges, max_tet_volume or mesher "cgal", for a surface
+  // only and for the other kinds; a source the slabs fail for (a plane through a gap in it) is
+  // meshed in one piece, FeMeshResult::slab_note saying why.
   int slabs = 0;
-  // The slab mesh of an earlier version of the solid (may be null): its grid and planes are kept,
-  // and its slabs whose input is unchanged are taken as they are, when it was made at the same
-  // cell size in as many slabs and its grid holds the solid's box.
+  // The slab mesh of an earlier version of the source (may be null): its box, spacing and planes
+  // are kept, and its slabs whose input is unchanged are taken as they are, when it was made in
+  // as many slabs and its box holds the source's (a solid: also at the same cell size).
   std::shared_ptr<const SlabFeMesh> previous_slabs;
 };
 

@@ -129,39 +129,101 @@ std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double ce
   return planes;
 }
 
+std::vector<double> SurfaceSlabPlanes(const modeling::TriangleMesh& surface,
+                                      const Eigen::AlignedBox3d& box, double spacing, int slabs) {
+  std::vector<double> planes = SlabPlanes(box, spacing, slabs);
+  const double snap = 0.1 * spacing;  // MeshSurfaceInSlabs's cut
+  // Planes c that would snap a triangle into themselves: c in [max x − snap, min x + snap] of a
+  // triangle whose corners span at most 2 snap across x.
+  std::vector<std::pair<double, double>> bad;
+  for (Eigen::Index t = 0; t < surface.triangles.cols(); ++t) {
+    double lo = surface.vertices(0, surface.triangles(0, t)), hi = lo;
+    for (int k = 1; k < 3; ++k) {
+      lo = std::min(lo, surface.vertices(0, surface.triangles(k, t)));
+      hi = std::max(hi, surface.vertices(0, surface.triangles(k, t)));
+    }
+    if (hi - lo <= 2.0 * snap) bad.emplace_back(hi - snap, lo + snap);
+  }
+  auto clear = [&bad](double c) {
+    return std::none_of(bad.begin(), bad.end(), [c](const std::pair<double, double>& r) {
+      return c >= r.first && c <= r.second;
+    });
+  };
+  for (double& c : planes) {
+    for (int k : {0, 1, -1, 2, -2, 3, -3, 4, -4}) {
+      if (clear(c + k * snap)) {
+        c += k * snap;
+        break;
+      }
+    }
+  }
+  return planes;
+}
+
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
                             const std::vector<double>& planes, const SlabMeshOptions& options) {
+  const auto t = Clock::now();
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = grid_bounds;
+  ss.cell_size = cell;
+  ss.snap_cells = options.snap_cells;
+  ss.cancel = options.cancel;
+  if (options.progress) ss.progress = [&options](double f) { options.progress(0.3 * f); };
+  const modeling::TriangleMesh surface = modeling::MeshSurface(solid, ss);
+  const double surface_seconds = Seconds(t);
+  SlabFeMesh out = MeshSurfaceInSlabs(surface, grid_bounds, cell, planes, options);
+  out.surface_seconds = surface_seconds;
+  return out;
+}
+
+// A grid surface's median edge is about 0.73 of its cell (the platform's snapped surface at
+// 12.5 mm: 9.15 mm), so a sculpt made from a solid gets about the cell the solid's slabs use:
+// sections no denser than the solid's (a plane's dense factor grows with the cube of its dofs).
+constexpr double kSpacingPerMedianEdge = 1.4;
+
+double SurfaceSlabSpacing(const modeling::TriangleMesh& surface) {
+  const long n = surface.triangles.cols();
+  if (n == 0) throw std::invalid_argument("slab spacing: the surface has no triangles");
+  std::vector<double> lengths;
+  lengths.reserve(static_cast<std::size_t>(3 * n));
+  for (long t = 0; t < n; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = surface.triangles(k, t), b = surface.triangles((k + 1) % 3, t);
+      if (a < b) lengths.push_back((surface.vertices.col(a) - surface.vertices.col(b)).norm());
+    }
+  }
+  if (lengths.empty()) throw std::invalid_argument("slab spacing: the surface has no edges");
+  auto mid = lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2);
+  std::nth_element(lengths.begin(), mid, lengths.end());
+  if (!(*mid > 0.0) || !std::isfinite(*mid))
+    throw std::invalid_argument("slab spacing: the surface's median edge length is not positive");
+  return kSpacingPerMedianEdge * *mid;
+}
+
+SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen::AlignedBox3d& box,
+                              double spacing, const std::vector<double>& planes,
+                              const SlabMeshOptions& options) {
   SlabFeMesh out;
   out.planes = planes;
-  out.grid_bounds = grid_bounds;
-  out.cell = cell;
+  out.grid_bounds = box;
+  out.cell = spacing;
   const double max_radius_edge = options.max_radius_edge;
   const std::filesystem::path& cache_directory = options.cache_directory;
   const SlabFeMesh* previous = options.previous;
-  if (previous != nullptr && (previous->planes != planes || previous->cell != cell ||
-                              !previous->grid_bounds.isApprox(grid_bounds, 0.0)))
+  if (previous != nullptr && (previous->planes != planes || previous->cell != spacing ||
+                              !previous->grid_bounds.isApprox(box, 0.0)))
     previous = nullptr;
   auto report = [&options](double f) {
     if (options.progress) options.progress(f);
   };
 
   auto t = Clock::now();
-  modeling::SurfaceMeshSettings ss;
-  ss.bounds = grid_bounds;
-  ss.cell_size = cell;
-  ss.snap_cells = options.snap_cells;
-  ss.cancel = options.cancel;
-  if (options.progress) ss.progress = [&report](double f) { report(0.3 * f); };
-  const modeling::TriangleMesh surface = modeling::MeshSurface(solid, ss);
-  out.surface_seconds = Seconds(t);
-
-  t = Clock::now();
   modeling::SlabCut cut;
   cut.axis = 0;
   cut.planes = planes;
-  cut.snap = 0.1 * cell;
-  cut.section_spacing = cell;
+  cut.snap = 0.1 * spacing;
+  cut.section_spacing = spacing;
   modeling::SlabSurfaces slabs = modeling::CutSurfaceIntoSlabs(surface, cut);
   out.cut_seconds = Seconds(t);
 

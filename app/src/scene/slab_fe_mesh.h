@@ -84,10 +84,35 @@ struct SlabMeshOptions {
   std::function<void(double)> progress;
 };
 
-// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`. Throws what
-// MeshSurface, CutSurfaceIntoSlabs and TetrahedralizeSlab throw.
+// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`: MeshSurface, then
+// MeshSurfaceInSlabs with the cell as the spacing. Throws what MeshSurface, CutSurfaceIntoSlabs
+// and TetrahedralizeSlab throw.
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
                             const std::vector<double>& planes, const SlabMeshOptions& options = {});
+
+// Tetrahedralizes a closed, outward-oriented surface (a sculpt, an imported mesh) in the slabs of
+// `planes`: the cut snaps vertices within a tenth of `spacing` (m) onto the planes and puts
+// interior points `spacing` apart in the cross-sections. `box` and `spacing` are recorded in the
+// result as grid_bounds and cell (what a later call must repeat to reuse its slabs; snap_cells is
+// not used). A surface edited in one place (a sculpt stroke moves only the vertices under the
+// tool) gives back the slabs it did not reach as they were. Throws what CutSurfaceIntoSlabs and
+// TetrahedralizeSlab throw.
+SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen::AlignedBox3d& box,
+                              double spacing, const std::vector<double>& planes,
+                              const SlabMeshOptions& options = {});
+
+// Planes for MeshSurfaceInSlabs on a surface from no grid (a sculpt): SlabPlanes(box, spacing,
+// slabs), each moved by the least multiple of a tenth of the spacing (up to four, either way)
+// that leaves no triangle with all three corners within the cut's snap (a tenth of the spacing)
+// of it: the cut would snap such a triangle into the plane, and it refuses a triangle in a plane.
+// A plane that no move clears stays where SlabPlanes put it.
+std::vector<double> SurfaceSlabPlanes(const modeling::TriangleMesh& surface,
+                                      const Eigen::AlignedBox3d& box, double spacing, int slabs);
+
+// MeshSurfaceInSlabs's spacing for a surface that came from no grid (m): 1.4 times its median
+// edge length, about the cell of a grid surface (whose median edge is about 0.73 cell). Throws
+// std::invalid_argument for a surface without edges.
+double SurfaceSlabSpacing(const modeling::TriangleMesh& surface);
 
 }  // namespace spidarcad::app
