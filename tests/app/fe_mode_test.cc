@@ -888,13 +888,17 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   EXPECT_EQ(again.model().document().Get(again_fe->fe().bound_object()).name, "platform FE");
   EXPECT_EQ(again_fe->fe().model_settings().material.youngs_modulus, aluminium.youngs_modulus);
   EXPECT_FALSE(again.model().document().dirty());
-  // The saved mesh says where its slabs are: the reopened model is factored slab by slab.
+  // The saved mesh says where its slabs are: the reopened model is factored slab by slab, and
+  // every slab's factor and interface plane is read from the disk cache the first window wrote.
   again_fe->fe().RequestModel();
   ASSERT_TRUE(FramesUntil(again, [&] { return again_fe->fe().model() != nullptr; }))
       << again_fe->fe().status();
   const fem::SubstructuredSolver* reopened = again_fe->fe().model()->substructured();
   ASSERT_NE(reopened, nullptr);
   EXPECT_EQ(reopened->num_blocks(), kFeSlabs);
+  EXPECT_EQ(reopened->stats().loaded_blocks, kFeSlabs);
+  EXPECT_EQ(reopened->stats().factored_blocks, 0);
+  EXPECT_EQ(reopened->stats().loaded_interface_groups, kFeSlabs - 1);
 }
 
 // The workbench's FE model is made from the platform solid: editing the solid makes it stale in
@@ -1017,6 +1021,12 @@ TEST(FeModeWindow, EditOfAFeltSolidRefreshesItselfInTheSlabsItReached) {
   EXPECT_NE(fe.status().find("1 of 4 slabs factored, 3 kept"), std::string::npos) << fe.status();
   EXPECT_TRUE(before->cache().paused()) << "the replaced model computes no more columns";
   EXPECT_FALSE(after.cache().paused());
+  // The disk cache (on by default) keeps the slab meshes of both: the first mesh's four and the
+  // slab the edit changed (a reopened document's refresh reads the slabs it shares from there).
+  int slab_files = 0;
+  for (const auto& entry : fs::directory_iterator(scratch.dir / "cache"))
+    slab_files += entry.path().extension() == ".slab";
+  EXPECT_EQ(slab_files, kFeSlabs + 1);
 
   ExpectFreeCornerSolvedAsOnePiece(after);
 
@@ -1098,6 +1108,7 @@ TEST(FeModeWindow, StrokeOnAFeltSculptRefreshesItselfInTheSlabItReached) {
 TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
   if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
   const test_support::WindowScratch scratch("fe_window_sculpt");
+  test_support::ScopedEnv cache("SPIDARCAD_CACHE_DIR", (scratch.dir / "cache").string().c_str());
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();

@@ -635,6 +635,12 @@ void FeMode::DropModel() {
   model_.reset();
 }
 
+std::filesystem::path FeMode::SlabCacheDirectory() const {
+  if (!model_settings_.use_disk_cache) return {};
+  return model_settings_.cache_directory.empty() ? fem::DefaultCacheDirectory()
+                                                 : model_settings_.cache_directory;
+}
+
 std::shared_ptr<const SlabFeMesh> FeMode::SlabsOf(const Document& doc, ObjectId mesh) const {
   const DocObject* o = doc.Find(mesh);
   const auto* data = o != nullptr ? std::get_if<MeshData>(&o->data) : nullptr;
@@ -689,6 +695,7 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
     input = PrepareFeMesh(doc, source, mesh_settings_);
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
+      input.cache_directory = SlabCacheDirectory();
     }
   } catch (const std::exception& e) {
     status_ = std::string("set up FE: ") + e.what();
@@ -753,6 +760,7 @@ bool FeMode::StartRefresh(SceneModel* model) {
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
       input.previous_slabs = SlabsOf(model->document(), bound_key_.mesh);
+      input.cache_directory = SlabCacheDirectory();
     }
     want_model_ = want_model_ || model_ != nullptr;
     StartMeshJob(model, input, true, bound_key_.mesh);

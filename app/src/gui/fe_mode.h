@@ -167,6 +167,9 @@ class FeMode {
   // The slab mesh mesh object `mesh` holds now, when this mode made it in slabs (null: in one
   // piece, made elsewhere, or forgotten: the mode remembers kKeptModels of them).
   std::shared_ptr<const SlabFeMesh> SlabsOf(const Document& doc, ObjectId mesh) const;
+  // Where set-up and refresh keep slab meshes (FeMeshInput::cache_directory): the model
+  // settings' disk cache directory when the disk cache is on, else none.
+  std::filesystem::path SlabCacheDirectory() const;
 
   // Model settings the next Precompute uses (editable by code as by the panel).
   FeModelSettings& model_settings() { return model_settings_; }

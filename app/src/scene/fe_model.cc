@@ -13,6 +13,7 @@
 #include "scene/scene_solid.h"
 #include "scene/vtu_io.h"
 #include "scene/worker_process.h"
+#include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
@@ -184,10 +185,17 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
     Progress(settings, 0.15, "factor slabs");
     const fem::SubstructuredSolver* reuse =
         settings.reuse ? settings.reuse->substructured() : nullptr;
+    std::filesystem::path blocks;
+    if (settings.use_disk_cache) {
+      blocks = settings.cache_directory.empty() ? fem::DefaultCacheDirectory()
+                                                : settings.cache_directory;
+      // What this model reads or writes is newer than this, so it is kept.
+      fem::PruneCacheDirectory(blocks, settings.cache_max_bytes, {".block", ".plane", ".slab"},
+                               std::filesystem::file_time_type::clock::now());
+    }
     try {
       m->substructured_ = std::make_unique<fem::SubstructuredSolver>(
-          tm, *m->materials_, *m->bcs_, settings.element_block, reuse, std::filesystem::path(),
-          settings.cancel);
+          tm, *m->materials_, *m->bcs_, settings.element_block, reuse, blocks, settings.cancel);
     } catch (const fem::SubstructureCancelled&) {
       throw FeModelCancelled();
     }

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -109,8 +110,16 @@ struct FeModelSettings {
   fem::ColumnCacheSettings cache;
   // Look up (and later save) columns in the disk cache.
   bool use_disk_cache = true;
-  // Disk cache directory; empty: fem::DefaultCacheDirectory().
+  // Disk cache directory; empty: fem::DefaultCacheDirectory(). In slabs, with use_disk_cache,
+  // each slab's factor and the interface planes are looked up there and written there (by the
+  // solver's own thread: fem::SubstructuredSolver), so that a reopened document, or a model that
+  // differs from an earlier one by a local edit, reads the slabs it shares instead of factoring
+  // them.
   std::filesystem::path cache_directory;
+  // Bound (bytes) of the slab factors, interface planes and slab meshes (FeMeshInput's) in the
+  // cache directory together: before it factors in slabs, Build removes the least recently used
+  // files above it (fem::PruneCacheDirectory). Column sets are not counted.
+  std::uintmax_t cache_max_bytes = std::uintmax_t{4} << 30;
   // Fraction done in [0, 1] at phase boundaries; may be empty.
   std::function<void(double)> progress;
   // Phase text ("factor", "columns", ...); may be empty.

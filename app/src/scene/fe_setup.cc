@@ -325,6 +325,7 @@ bool MeshInSlabs(const FeMeshInput& input, const Eigen::AlignedBox3d& box, doubl
       input.settings.max_radius_edge > 0.0 ? input.settings.max_radius_edge : kDefaultRadiusEdge;
   so.cancel = cancel;
   so.progress = progress;
+  so.cache_directory = input.cache_directory;
   struct Try {
     Eigen::AlignedBox3d box;
     double spacing;

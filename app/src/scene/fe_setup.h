@@ -84,6 +84,9 @@ struct FeMeshInput {
   // are kept, and its slabs whose input is unchanged are taken as they are, when it was made in
   // as many slabs and its box holds the source's (a solid: also at the same cell size).
   std::shared_ptr<const SlabFeMesh> previous_slabs;
+  // In slabs: a slab that is not in previous_slabs is looked up in this directory, and a slab
+  // TetGen meshed is written there (SlabMeshOptions::cache_directory); empty: neither.
+  std::filesystem::path cache_directory;
 };
 
 // Slabs FE mode meshes a solid in (FeMeshInput::slabs): four measured best on the platform
