@@ -31,9 +31,9 @@
 #include "scene/grip_control.h"
 #include "scene/haptic_runtime.h"
 #include "scene/scene_model.h"
-#include "scene/scene_solid.h"
 #include "scene/sculpt_document.h"
 #include "scene/shared_field.h"
+#include "sculpt_stroke_support.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/haptics/haptic_loop.h"
@@ -1048,14 +1048,8 @@ TEST(FeModeWindow, StrokeOnAFeltSculptRefreshesItselfInTheSlabItReached) {
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
-  const SceneSolidGrid grid =
-      PrepareSceneSolid(AssetPath("scenes/platform.json"), "platform", 0.012);
-  modeling::SurfaceMeshSettings ss;
-  ss.bounds = grid.bounds;
-  ss.cell_size = 0.012;
-  ss.snap_cells = modeling::kProductSnapCells;
   model.document().Execute(
-      edit::AddSculpt("platform clay", modeling::MeshSurface(grid.compiled, ss)));
+      edit::AddSculpt("platform clay", test_support::PlatformGridSurface(0.012)));
   const ObjectId clay = doc.last_created().front();
   auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
   ASSERT_NE(fe_mode, nullptr);
@@ -1074,18 +1068,11 @@ TEST(FeModeWindow, StrokeOnAFeltSculptRefreshesItselfInTheSlabItReached) {
 
   // A push/pull stroke raising a 3 mm bump on the plate near the free end (the last slab).
   modeling::SculptMesh stroked(*std::get<SculptData>(doc.Get(clay).data).mesh);
-  modeling::SculptToolSettings tool;
-  tool.tool = modeling::SculptTool::kPushPull;
-  tool.radius = 0.015;
-  tool.grasp_controls_strength = false;
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.translation() = Eigen::Vector3d(0.275, 0.0, 0.01);
-  stroked.BeginStroke(tool, X, 0.0);
-  X.translation().z() += 0.003;
-  stroked.UpdateStroke(X, 0.0);
-  const modeling::SculptEdit edit = stroked.EndStroke();
+  const modeling::SculptEdit edit =
+      test_support::Stroke(&stroked, modeling::SculptTool::kPushPull,
+                           Eigen::Vector3d(0.275, 0.0, 0.01), Eigen::Vector3d(0.0, 0.0, 0.003));
   std::unique_ptr<Command> stroke =
-      MakeStrokeCommand(clay, "platform clay", tool.tool, edit, stroked);
+      MakeStrokeCommand(clay, "platform clay", modeling::SculptTool::kPushPull, edit, stroked);
   ASSERT_NE(stroke, nullptr);
   model.document().Execute(std::move(stroke));
   ASSERT_TRUE(FramesUntil(window, [&] { return fe.model() != nullptr && fe.model() != before; }))

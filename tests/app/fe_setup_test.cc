@@ -17,6 +17,7 @@
 #include "doc/command.h"
 #include "doc/document.h"
 #include "scene/fe_model.h"
+#include "sculpt_stroke_support.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/sculpt.h"
 #include "spidarcad/modeling/surface_mesher.h"
@@ -255,21 +256,11 @@ TEST(FeSetUp, SculptAndClosedSurfaceMeshAreTetrahedralizedAsTheyAre) {
   EXPECT_THROW(PrepareFeMesh(doc, clay, cgal), DocumentError);
 }
 
-// A stroke of the sculpt tool `tool` centred at `at`, moving the grip by `move` (m), at full
-// strength; returns the sculpted surface.
+// `surface` after one stroke (test_support::Stroke).
 modeling::TriangleMesh Stroked(const modeling::TriangleMesh& surface, modeling::SculptTool tool,
                                const Eigen::Vector3d& at, const Eigen::Vector3d& move) {
   modeling::SculptMesh clay(surface);
-  modeling::SculptToolSettings settings;
-  settings.tool = tool;
-  settings.radius = 0.015;
-  settings.grasp_controls_strength = false;
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.translation() = at;
-  clay.BeginStroke(settings, X, 0.0);
-  X.translation() += move;
-  clay.UpdateStroke(X, 0.0);
-  clay.EndStroke();
+  test_support::Stroke(&clay, tool, at, move);
   return clay.ToTriangleMesh();
 }
 

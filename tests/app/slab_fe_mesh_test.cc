@@ -18,6 +18,7 @@
 
 #include "scene/fe_model.h"
 #include "scene/scene_solid.h"
+#include "sculpt_stroke_support.h"
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/substructure.h"
@@ -150,12 +151,7 @@ TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
 // through TetGen, the others keep their tets bit for bit, and the FE model refactors that slab
 // alone and solves exactly.
 TEST(SlabFeMesh, SculptStrokeInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
-  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", kCell);
-  modeling::SurfaceMeshSettings ss;
-  ss.bounds = base.bounds;
-  ss.cell_size = kCell;
-  ss.snap_cells = modeling::kProductSnapCells;
-  const modeling::TriangleMesh surface = modeling::MeshSurface(base.compiled, ss);
+  const modeling::TriangleMesh surface = test_support::PlatformGridSurface(kCell);
   const double spacing = SurfaceSlabSpacing(surface);
   EXPECT_GT(spacing, 0.2 * kCell);
   EXPECT_LT(spacing, 2.0 * kCell);
@@ -169,16 +165,8 @@ TEST(SlabFeMesh, SculptStrokeInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
   ASSERT_NO_THROW(before.mesh.Validate());
 
   modeling::SculptMesh clay(surface);
-  modeling::SculptToolSettings tool;
-  tool.tool = modeling::SculptTool::kPushPull;
-  tool.radius = 0.015;
-  tool.grasp_controls_strength = false;
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.translation() = Eigen::Vector3d(0.275, 0.0, 0.01);
-  clay.BeginStroke(tool, X, 0.0);
-  X.translation().z() += 0.006;
-  clay.UpdateStroke(X, 0.0);
-  clay.EndStroke();
+  test_support::Stroke(&clay, modeling::SculptTool::kPushPull, Eigen::Vector3d(0.275, 0.0, 0.01),
+                       Eigen::Vector3d(0.0, 0.0, 0.006));
   const modeling::TriangleMesh stroked = clay.ToTriangleMesh();
 
   const SlabFeMesh after = MeshSurfaceInSlabs(stroked, box, spacing, planes, Options(2.0, &before));
