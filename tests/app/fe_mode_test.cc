@@ -899,6 +899,9 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   EXPECT_EQ(reopened->stats().loaded_blocks, kFeSlabs);
   EXPECT_EQ(reopened->stats().factored_blocks, 0);
   EXPECT_EQ(reopened->stats().loaded_interface_groups, kFeSlabs - 1);
+  EXPECT_NE(again_fe->fe().status().find("0 of 4 slabs factored, 0 kept, 4 from the disk cache"),
+            std::string::npos)
+      << again_fe->fe().status();
 }
 
 // The workbench's FE model is made from the platform solid: editing the solid makes it stale in

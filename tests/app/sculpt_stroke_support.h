@@ -16,7 +16,8 @@ namespace spidarcad::test_support {
 
 // The platform's grid surface at `cell` (m), snapped as the product meshes.
 inline modeling::TriangleMesh PlatformGridSurface(double cell) {
-  const app::SceneSolidGrid grid = app::PrepareSceneSolid(app::PlatformScenePath(), "platform", cell);
+  const app::SceneSolidGrid grid =
+      app::PrepareSceneSolid(app::PlatformScenePath(), "platform", cell);
   modeling::SurfaceMeshSettings ss;
   ss.bounds = grid.bounds;
   ss.cell_size = cell;

@@ -171,6 +171,11 @@ void FeMode::Precompute() {
                           slabs->stats().factored_blocks, slabs->num_blocks(),
                           slabs->stats().reused_blocks);
             status_ += line;
+            if (slabs->stats().loaded_blocks > 0) {
+              std::snprintf(line, sizeof line, ", %d from the disk cache",
+                            slabs->stats().loaded_blocks);
+              status_ += line;
+            }
           }
           BuildSurfaceActor();
           ShowModel(active_);
