@@ -172,6 +172,10 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   m->load_nodes_ = AddBoxLoads(tm, settings.loads, m->bcs_.get());
   CheckCancel(settings);
 
+  // The disk cache's directory: slab factors (below) and columns (after the factorisation).
+  m->cache_directory_ =
+      settings.cache_directory.empty() ? fem::DefaultCacheDirectory() : settings.cache_directory;
+
   // Assembly and factorisation. With a cancel flag and a worker program (the window), CHOLMOD
   // runs in a child process that Cancel kills (scene/worker_process.h).
   Progress(settings, 0.1, "assemble");
@@ -187,8 +191,7 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
         settings.reuse ? settings.reuse->substructured() : nullptr;
     std::filesystem::path blocks;
     if (settings.use_disk_cache) {
-      blocks = settings.cache_directory.empty() ? fem::DefaultCacheDirectory()
-                                                : settings.cache_directory;
+      blocks = m->cache_directory_;
       // What this model reads or writes is newer than this, so it is kept.
       fem::PruneCacheDirectory(blocks, settings.cache_max_bytes, {".block", ".plane", ".slab"},
                                std::filesystem::file_time_type::clock::now());
@@ -230,8 +233,6 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
                           : std::make_unique<fem::ColumnCache>(*m->substructured_, tm.nodes,
                                                                m->output_nodes_, candidates, cs);
   m->use_disk_cache_ = settings.use_disk_cache;
-  m->cache_directory_ =
-      settings.cache_directory.empty() ? fem::DefaultCacheDirectory() : settings.cache_directory;
   m->key_ = fem::PrecomputeKey(tm, *m->materials_, *m->bcs_, m->output_nodes_, cs.precision);
   if (m->use_disk_cache_) {
     Progress(settings, 0.9, "disk cache");

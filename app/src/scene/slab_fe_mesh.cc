@@ -129,10 +129,14 @@ std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double ce
   return planes;
 }
 
+// The cut's snap, in spacings: a vertex this near a plane is moved onto it (MeshSurfaceInSlabs),
+// which SurfaceSlabPlanes keeps triangles out of.
+constexpr double kSnapPerSpacing = 0.1;
+
 std::vector<double> SurfaceSlabPlanes(const modeling::TriangleMesh& surface,
                                       const Eigen::AlignedBox3d& box, double spacing, int slabs) {
   std::vector<double> planes = SlabPlanes(box, spacing, slabs);
-  const double snap = 0.1 * spacing;  // MeshSurfaceInSlabs's cut
+  const double snap = kSnapPerSpacing * spacing;  // MeshSurfaceInSlabs's cut
   // Planes c that would snap a triangle into themselves: c in [max x − snap, min x + snap] of a
   // triangle whose corners span at most 2 snap across x.
   std::vector<std::pair<double, double>> bad;
@@ -222,7 +226,7 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
   modeling::SlabCut cut;
   cut.axis = 0;
   cut.planes = planes;
-  cut.snap = 0.1 * spacing;
+  cut.snap = kSnapPerSpacing * spacing;
   cut.section_spacing = spacing;
   modeling::SlabSurfaces slabs = modeling::CutSurfaceIntoSlabs(surface, cut);
   out.cut_seconds = Seconds(t);
