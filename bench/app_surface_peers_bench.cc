@@ -7,7 +7,10 @@
 //   + sharpen:  MeshSurface then SharpenFeatures (`spidarcad mesh --sharp`);
 //   snap 0.15:  MeshSurface with SurfaceMeshSettings::snap_cells = 0.15 (and + sharpen);
 //   + repair:   the sharpening with FeatureSettings::sliver_angle_deg = 10 (the sliver repair),
-//               on the default and on the snapped surface.
+//               on the default and on the snapped surface;
+//   lattice:    MeshSurface with SurfaceMeshSettings::mesher = kLattice (body-centred cubic
+//               lattice, vertices snapped onto the surface, no clean-up), also sharpened and
+//               repaired.
 // Solids: a sphere of radius 50 mm and a box 100 x 80 x 60 mm minus a cylinder of radius 20 mm
 // (exact distances of the primitives, min/max of the boolean), both off the grid planes, and the
 // platform of assets/scenes/platform.json (the 62 ms / 118 ms figure of the mesher's design
@@ -20,7 +23,9 @@
 // its default radius-edge bound q = 2, the setting `spidarcad mesh --tets tetgen` uses): tets,
 // worst (smallest and largest) dihedral angles, TetGen CPU seconds, or why the surface was refused;
 // --tetgen-dihedral DEG also asks TetGen for dihedral angles of at least DEG (its `q`/DEG).
-// Run: build/bench/app_surface_peers_bench [--quick] [--tetgen] [--tetgen-dihedral DEG]
+// --lattice-only prints dense MC and the lattice rows alone.
+// Run: build/bench/app_surface_peers_bench [--quick] [--lattice-only] [--tetgen] [--tetgen-dihedral
+// DEG]
 //        [--only sphere|box-cylinder|platform] [--cells MM,MM,...]
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <vtkCellArray.h>
@@ -194,13 +199,15 @@ void PrintRow(const Case& c, double cell, const std::string& method, double seco
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, tetgen = false;
+  bool quick = false, tetgen = false, lattice_only = false;
   double min_dihedral_deg = 0.0;
   std::string only;
   std::vector<double> cells;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--quick") == 0) {
       quick = true;
+    } else if (std::strcmp(argv[i], "--lattice-only") == 0) {
+      lattice_only = true;
     } else if (std::strcmp(argv[i], "--tetgen") == 0) {
       tetgen = true;
     } else if (std::strcmp(argv[i], "--tetgen-dihedral") == 0 && i + 1 < argc) {
@@ -214,7 +221,7 @@ int main(int argc, char** argv) {
       while (std::getline(list, item, ',')) cells.push_back(std::stod(item) * 1e-3);
     } else {
       std::fprintf(stderr,
-                   "usage: %s [--quick] [--tetgen] [--tetgen-dihedral DEG] "
+                   "usage: %s [--quick] [--lattice-only] [--tetgen] [--tetgen-dihedral DEG] "
                    "[--only sphere|box-cylinder|platform] "
                    "[--cells MM,...]\n"
                    "MeshSurface (raw, default, sharpened) against dense marching cubes (VTK "
@@ -252,11 +259,16 @@ int main(int argc, char** argv) {
                              "snap 0.15",
                              "snap 0.15 + sharpen",
                              "+ sharpen + repair",
-                             "snap 0.15 + sharpen + repair"};
-      for (int variant = 0; variant < 7; ++variant) {
+                             "snap 0.15 + sharpen + repair",
+                             "lattice",
+                             "lattice + sharpen + repair"};
+      for (int variant = 0; variant < 9; ++variant) {
+        if (lattice_only && variant < 7) continue;
         settings.clean = variant != 0;
         settings.snap_cells = variant == 3 || variant == 4 || variant == 6 ? 0.15 : 0.0;
-        const bool sharpen = variant == 2 || variant >= 4;
+        settings.mesher =
+            variant >= 7 ? SurfaceMesher::kLattice : SurfaceMesher::kMarchingTetrahedra;
+        const bool sharpen = variant == 2 || (variant >= 4 && variant != 7);
         const double t0 = CpuSeconds();
         TriangleMesh mesh = MeshSurface(c.solid, settings);
         const double t1 = CpuSeconds();
@@ -264,7 +276,7 @@ int main(int argc, char** argv) {
         if (sharpen) {
           FeatureSettings f;
           f.cell_size = cell;
-          if (variant >= 5) f.sliver_angle_deg = 10.0;
+          if (variant == 5 || variant == 6 || variant == 8) f.sliver_angle_deg = 10.0;
           mesh = SharpenFeatures(c.solid, std::move(mesh), f);
           sharpen_s = CpuSeconds() - t1;
         }

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "lattice_mesher.h"
 #include "point_field.h"
 #include "triangle_predicates.h"
 
@@ -1433,7 +1434,13 @@ SurfaceMeshEstimate EstimateSurfaceMesh(const CompiledSolid& solid,
 
 TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& settings,
                          SurfaceMeshStats* stats) {
-  Mesher mesher(solid, settings);
+  Mesher mesher(solid, settings);  // checks the settings
+  if (settings.mesher == SurfaceMesher::kLattice) {
+    if (!(settings.lattice_snap >= 0.0 && settings.lattice_snap <= 0.3))
+      throw std::invalid_argument("MeshSurface: settings.lattice_snap must be in [0, 0.3], got " +
+                                  std::to_string(settings.lattice_snap));
+    return internal::MeshSurfaceLattice(solid, settings, stats);
+  }
   return mesher.Run(stats);
 }
 

@@ -43,6 +43,22 @@ struct TriangleMesh {
   Eigen::Matrix3Xi triangles;
 };
 
+// MeshSurface's two routes.
+enum class SurfaceMesher {
+  // Marching tetrahedra on the Kuhn subdivision of the grid's cubes, octree-pruned, then the
+  // clean-up pass described above (the library's default: its frozen meshes).
+  kMarchingTetrahedra,
+  // Marching tetrahedra on the body-centred cubic lattice of the grid's corners and cell centres,
+  // with every lattice vertex whose nearest crossing lies within lattice_snap of its edge moved
+  // onto the surface first, so the crossings around it are one vertex and no clean-up is needed;
+  // blocks of 4³ cells that the interval bounds place away from the surface are not sampled.
+  // Closed and manifold (a snap that would join two fans at one vertex is undone); a lattice
+  // vertex that cannot snap (a feature thinner than about two cells) keeps its edge crossings
+  // at least 5 % of the edge away from it. Sharp edges are cut off as by the other route.
+  // Figures: docs/design/2026-12-06-lattice-mesher.md.
+  kLattice,
+};
+
 // Settings of MeshSurface.
 struct SurfaceMeshSettings {
   // Region to mesh (m). The solid is clipped to it: where the solid crosses the region's
@@ -74,6 +90,11 @@ struct SurfaceMeshSettings {
   // deeper than the band, so a wall thinner than 1 + 2 × snap_cells cells is kept (it was lost
   // before). Figures: docs/design/2026-12-04-surface-mesher-peers.md.
   double snap_cells = 0.0;
+  // Which route meshes the solid (see SurfaceMesher).
+  SurfaceMesher mesher = SurfaceMesher::kMarchingTetrahedra;
+  // kLattice: a lattice vertex moves onto the surface when its nearest crossing is within this
+  // fraction of the lattice edge (in [0, 0.3]; 0, or clean = false: no vertex moves).
+  double lattice_snap = 0.25;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
   // Called now and then with the fraction done in [0, 1].

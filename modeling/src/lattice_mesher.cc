@@ -1,0 +1,627 @@
+// Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
+// MeshSurface's lattice route (SurfaceMesher::kLattice).
+//
+// The lattice is body-centred cubic: the corners of the mesher's grid cells and their centres.
+// In doubled coordinates D (position = origin + D × cell / 2) corners have all three components
+// even and centres all odd; every lattice vertex has 14 neighbours, 6 of its own kind at ±2 along
+// an axis and 8 of the other kind at (±1, ±1, ±1). The tetrahedra are those of two neighbouring
+// centres and one edge of the face between their cells (four per face), all congruent, and the
+// tetrahedralization is conforming, so marching tetrahedra on it is watertight and manifold.
+//
+// A lattice vertex whose nearest crossing lies within settings.lattice_snap of an edge length
+// is moved onto the surface along that edge, and every crossing of its edges becomes that one
+// mesh vertex: the short edges and needles marching tetrahedra would make around it never
+// appear, so there is no clean-up. (The snapping of lattice vertices onto the zero set follows
+// Labelle and Shewchuk's isosurface stuffing, SIGGRAPH 2007, and manifold3d's level-set mesher,
+// which bound the move to a quarter of the spacing.) Collapsing the crossings of two snapped
+// vertices can make a mesh vertex whose triangles form more than one fan; such a lattice vertex
+// keeps its place and the triangles are made again.
+//
+// The field is max(value, distance to the bounds' box) (the solid clipped to the bounds). It is
+// sampled in blocks of kBlock³ cells; a block whose interval bound, over the block grown by one
+// cell, excludes zero is not sampled (its values are ±infinity: no edge from it crosses).
+#include "lattice_mesher.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <iterator>
+#include <vector>
+
+#include "point_field.h"
+
+namespace spidarcad::modeling::internal {
+
+namespace {
+
+using Vec = Eigen::Vector3d;
+using D3 = std::array<int, 3>;
+
+constexpr int kBlock = 4;  // lattice index units per block side
+// Edge crossings of lattice vertices that did not snap stay this fraction of the edge from them.
+constexpr double kMinFraction = 0.05;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The 14 neighbour offsets in doubled coordinates; k + 7 is the opposite of k (k < 7).
+constexpr int kOffsets[14][3] = {{2, 0, 0},    {0, 2, 0},   {0, 0, 2},   {1, 1, 1},  {1, 1, -1},
+                                 {1, -1, 1},   {1, -1, -1}, {-2, 0, 0},  {0, -2, 0}, {0, 0, -2},
+                                 {-1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}, {-1, 1, 1}};
+
+// A lattice vertex with at least one crossing edge.
+struct Active {
+  D3 d;
+  double value = 0.0;
+  bool snapped = false;
+  bool forbidden = false;  // kept in place: its snap made a non-manifold vertex
+  int edges[7] = {-1, -1, -1, -1, -1, -1, -1};  // crossings of its edges kOffsets[0..6]
+  Vec position = Vec::Zero();  // when snapped
+};
+
+bool Inside(double v) { return v < 0.0; }
+
+constexpr int kBlockVertices = kBlock * kBlock * kBlock;  // of each kind
+// The corners of a face, in cyclic order: signs along the two other axes (axis + 1, axis + 2).
+constexpr int kSigns[4][2] = {{1, 1}, {1, -1}, {-1, -1}, {-1, 1}};
+constexpr int kFarOutside = -1, kFarInside = -2;  // block_slot_ of unsampled blocks
+
+// A sampled block: values and indices in active_ (-1: none) of its corners, then its centres.
+struct NearBlock {
+  NearBlock() { std::fill(std::begin(active), std::end(active), -1); }
+  double values[2 * kBlockVertices];
+  int active[2 * kBlockVertices];
+};
+
+class LatticeMesher {
+ public:
+  LatticeMesher(const CompiledSolid& solid, const SurfaceMeshSettings& s)
+      : solid_(solid), settings_(s), field_(solid, s.bounds, s.cell_size) {
+    h_ = s.cell_size;
+    for (int a = 0; a < 3; ++a)
+      n_[a] = std::max(1, static_cast<int>(std::ceil(s.bounds.sizes()[a] / h_ - 1e-9)));
+    // The grid of MeshSurface's other route: centred on the bounds.
+    origin_ = s.bounds.center() - 0.5 * h_ * Vec(n_[0], n_[1], n_[2]);
+    for (int a = 0; a < 3; ++a) {
+      corners_[a] = n_[a] + 3;  // doubled coordinates -2 .. 2n + 2
+      centres_[a] = n_[a] + 2;  // -1 .. 2n + 1
+      blocks_[a] = (corners_[a] + kBlock - 1) / kBlock;
+    }
+    block_slot_.assign(static_cast<size_t>(blocks_[0]) * blocks_[1] * blocks_[2], kFarOutside);
+  }
+
+  TriangleMesh Run(SurfaceMeshStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    if (settings_.progress) settings_.progress(0.0);
+    Sample();
+    FindMixedFaces();
+    if (settings_.clean) Snap();
+    for (int round = 0;; ++round) {
+      MakeTriangles();
+      if (!settings_.clean) break;
+      const int forbidden = ForbidNonManifold(round >= kMaxRounds);
+      if (forbidden == 0) break;
+    }
+    TriangleMesh mesh = Compact();
+    if (settings_.progress) settings_.progress(1.0);
+    if (stats != nullptr) {
+      stats->grid_cells = static_cast<long>(n_[0]) * n_[1] * n_[2];
+      stats->evaluated_cells = static_cast<long>(near_.size()) * kBlockVertices;
+      stats->field_evaluations = evaluations_;
+      stats->collapsed_edges = snapped_;
+      stats->flipped_edges = 0;
+      stats->seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    return mesh;
+  }
+
+ private:
+  static constexpr int kMaxRounds = 16;
+
+  // Every offset keeps the parity of all three components, so a neighbour is a lattice vertex
+  // when it lies in the range (centres: -1 .. 2n + 1, the odd values of -2 .. 2n + 2).
+  bool Valid(const D3& d) const {
+    for (int a = 0; a < 3; ++a)
+      if (d[a] < -2 || d[a] > 2 * n_[a] + 2) return false;
+    return true;
+  }
+  // A lattice vertex's block (index into block_slot_) and its place in the block's arrays.
+  long BlockOf(const D3& d) const {
+    const unsigned i = unsigned(d[0] + 2) >> 1, j = unsigned(d[1] + 2) >> 1,
+                   k = unsigned(d[2] + 2) >> 1;
+    return long(i / kBlock) + blocks_[0] * (long(j / kBlock) + long(blocks_[1]) * (k / kBlock));
+  }
+  static int Local(const D3& d) {
+    const unsigned i = unsigned(d[0] + 2) >> 1, j = unsigned(d[1] + 2) >> 1,
+                   k = unsigned(d[2] + 2) >> 1;
+    return (d[0] & 1) * kBlockVertices +
+           int(i % kBlock + kBlock * (j % kBlock + kBlock * (k % kBlock)));
+  }
+  // Value of a lattice vertex: ±infinity in a block the bounds keep away from the surface.
+  double ValueAt(const D3& d) const {
+    const int slot = block_slot_[BlockOf(d)];
+    if (slot < 0) return slot == kFarOutside ? kInf : -kInf;
+    return near_blocks_data_[slot].values[Local(d)];
+  }
+  Vec Position(const D3& d) const { return origin_ + 0.5 * h_ * Vec(d[0], d[1], d[2]); }
+
+  double BoxDistance(const Vec& p) const {
+    const Vec below = settings_.bounds.min() - p, above = p - settings_.bounds.max();
+    return below.cwiseMax(above).maxCoeff();
+  }
+  double Field(const Vec& p) {
+    ++evaluations_;
+    return std::max(field_.Value(p), BoxDistance(p));
+  }
+  // Value of a lattice vertex, evaluated if its block was not sampled.
+  double ExactValue(const D3& d) {
+    const double v = ValueAt(d);
+    return std::isinf(v) ? Field(Position(d)) : v;
+  }
+
+  // Values of every lattice vertex: sampled in blocks near the surface, ±infinity elsewhere.
+  void Sample() {
+    const long total = static_cast<long>(blocks_[0]) * blocks_[1] * blocks_[2];
+    Eigen::Matrix3Xd points(3, 2 * kBlock * kBlock * kBlock);
+    Eigen::VectorXd values(2 * kBlock * kBlock * kBlock);
+    std::vector<D3> ds;
+    ds.reserve(2 * kBlock * kBlock * kBlock);
+    const bool specialize = solid_.instruction_count() > PointField::kMinPrunedInstructions &&
+                            solid_.instruction_count() <= PointField::kMaxPrunedInstructions;
+    long done = 0;
+    for (int bk = 0; bk < blocks_[2]; ++bk)
+      for (int bj = 0; bj < blocks_[1]; ++bj)
+        for (int bi = 0; bi < blocks_[0]; ++bi, ++done) {
+          if (settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed))
+            throw MeshingCancelled();
+          if (settings_.progress && done % 4096 == 0)
+            settings_.progress(0.5 * static_cast<double>(done) / static_cast<double>(total));
+          const std::array<int, 3> b = {bi, bj, bk};
+          // Lattice index i of either kind in [b kBlock, b kBlock + kBlock) lies at
+          // origin + cell (i - 1) (corner) or (i - 1/2) (centre); grown by one cell.
+          Vec lo, hi;
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = origin_[a] + h_ * (b[a] * kBlock - 2.0);
+            hi[a] = origin_[a] + h_ * (b[a] * kBlock + kBlock - 0.5);
+          }
+          const Eigen::AlignedBox3d box(lo, hi);
+          Interval bound = solid_.Bounds(box);
+          const Vec below_lo = settings_.bounds.min() - hi, below_hi = settings_.bounds.min() - lo;
+          const Vec above_lo = lo - settings_.bounds.max(), above_hi = hi - settings_.bounds.max();
+          const double box_lo = below_lo.cwiseMax(above_lo).maxCoeff();
+          const double box_hi = below_hi.cwiseMax(above_hi).maxCoeff();
+          bound.lo = std::max(bound.lo, box_lo);
+          bound.hi = std::max(bound.hi, box_hi);
+          const long block = bi + blocks_[0] * (static_cast<long>(bj) + blocks_[1] * bk);
+          if (bound.lo > 0.0 || bound.hi < 0.0) {
+            block_slot_[block] = bound.lo > 0.0 ? kFarOutside : kFarInside;
+            continue;
+          }
+          ds.clear();
+          for (int kind = 0; kind < 2; ++kind) {
+            const int* dims = kind == 0 ? corners_ : centres_;
+            for (int k = b[2] * kBlock; k < std::min(dims[2], b[2] * kBlock + kBlock); ++k)
+              for (int j = b[1] * kBlock; j < std::min(dims[1], b[1] * kBlock + kBlock); ++j)
+                for (int i = b[0] * kBlock; i < std::min(dims[0], b[0] * kBlock + kBlock); ++i)
+                  ds.push_back({2 * i - 2 + kind, 2 * j - 2 + kind, 2 * k - 2 + kind});
+          }
+          block_slot_[block] = static_cast<int>(near_blocks_data_.size());
+          near_blocks_data_.emplace_back();
+          near_.push_back(b);
+          NearBlock& data = near_blocks_data_.back();
+          const int count = static_cast<int>(ds.size());
+          for (int p = 0; p < count; ++p) points.col(p) = Position(ds[p]);
+          if (specialize) {
+            const CompiledSolid tape = solid_.Specialize(box);
+            tape.Values(points.leftCols(count), values.head(count));
+          } else {
+            solid_.Values(points.leftCols(count), values.head(count));
+          }
+          evaluations_ += count;
+          for (int p = 0; p < count; ++p)
+            data.values[Local(ds[p])] = std::max(values[p], BoxDistance(points.col(p)));
+        }
+  }
+
+  // The faces between neighbouring cells whose four tetrahedra have vertices on both sides
+  // (mixed_faces_), found block by block from a local copy of the values, and the lattice
+  // vertices with a crossing edge (active_): every edge lies in the tetrahedra of some face.
+  void FindMixedFaces() {
+    constexpr int L = kBlock + 1;
+    double corner[L][L][L], centre[L][L][L];  // [k][j][i], lattice index - block start
+    for (const auto& b : near_) {
+      const int base[3] = {b[0] * kBlock, b[1] * kBlock, b[2] * kBlock};
+      for (int k = 0; k < L; ++k)
+        for (int j = 0; j < L; ++j)
+          for (int i = 0; i < L; ++i) {
+            const int g[3] = {base[0] + i, base[1] + j, base[2] + k};
+            corner[k][j][i] = g[0] < corners_[0] && g[1] < corners_[1] && g[2] < corners_[2]
+                                  ? ValueAt({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2})
+                                  : kInf;
+            centre[k][j][i] = g[0] < centres_[0] && g[1] < centres_[1] && g[2] < centres_[2]
+                                  ? ValueAt({2 * g[0] - 1, 2 * g[1] - 1, 2 * g[2] - 1})
+                                  : kInf;
+          }
+      for (int k = 0; k < kBlock && base[2] + k < centres_[2]; ++k)
+        for (int j = 0; j < kBlock && base[1] + j < centres_[1]; ++j)
+          for (int i = 0; i < kBlock && base[0] + i < centres_[0]; ++i) {
+            const int m[3] = {i, j, k};
+            const double vc = centre[k][j][i];
+            for (int axis = 0; axis < 3; ++axis) {
+              if (base[axis] + m[axis] + 1 >= centres_[axis]) continue;  // no cell beyond
+              int m2[3] = {i, j, k};
+              ++m2[axis];
+              const double vc2 = centre[m2[2]][m2[1]][m2[0]];
+              const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+              double vq[4];
+              for (int r = 0; r < 4; ++r) {
+                int q[3] = {i, j, k};
+                q[axis] += 1;
+                q[u] += kSigns[r][0] > 0 ? 1 : 0;
+                q[w] += kSigns[r][1] > 0 ? 1 : 0;
+                vq[r] = corner[q[2]][q[1]][q[0]];
+              }
+              const bool in_c = Inside(vc), in_c2 = Inside(vc2);
+              bool in_q[4], mixed = in_c != in_c2;
+              for (int r = 0; r < 4; ++r) {
+                in_q[r] = Inside(vq[r]);
+                mixed = mixed || in_q[r] != in_c;
+              }
+              if (!mixed) continue;
+              const D3 c = {2 * (base[0] + i) - 1, 2 * (base[1] + j) - 1, 2 * (base[2] + k) - 1};
+              mixed_faces_.push_back({c, axis});
+              // Edges of the face's tetrahedra: c and c2 to everything, q[r] to q[r ± 1].
+              bool any_q_out = false, any_q_in = false;
+              for (int r = 0; r < 4; ++r) (in_q[r] ? any_q_in : any_q_out) = true;
+              const bool c_crosses = in_c != in_c2 || (in_c ? any_q_out : any_q_in);
+              const bool c2_crosses = in_c != in_c2 || (in_c2 ? any_q_out : any_q_in);
+              if (c_crosses) MarkActive(c, vc);
+              if (c2_crosses) {
+                D3 d2 = c;
+                d2[axis] += 2;
+                MarkActive(d2, vc2);
+              }
+              for (int r = 0; r < 4; ++r) {
+                if (in_q[r] == in_c && in_q[r] == in_c2 && in_q[(r + 1) % 4] == in_q[r] &&
+                    in_q[(r + 3) % 4] == in_q[r])
+                  continue;
+                MarkActive(FaceCorner(c, axis, r), vq[r]);
+              }
+            }
+          }
+    }
+  }
+
+  // Corner r of the face between the cell of centre c and its neighbour along axis.
+  static D3 FaceCorner(const D3& c, int axis, int r) {
+    D3 q = c;
+    q[axis] += 1;
+    q[(axis + 1) % 3] += kSigns[r][0];
+    q[(axis + 2) % 3] += kSigns[r][1];
+    return q;
+  }
+
+  void MarkActive(const D3& d, double value) {
+    const int slot = block_slot_[BlockOf(d)];
+    if (slot < 0) return;  // not reached: the bounds keep crossings out of unsampled blocks
+    int& index = near_blocks_data_[slot].active[Local(d)];
+    if (index >= 0) return;
+    index = static_cast<int>(active_.size());
+    Active a;
+    a.d = d;
+    a.value = value;
+    active_.push_back(a);
+  }
+
+  // The surface point on the lattice edge from a (value va) to b (value vb), opposite signs, as
+  // the fraction of the way to b: regula falsi (Illinois) for settings.refine_steps steps, then
+  // the secant.
+  double CrossingFraction(const Vec& a, double va, const Vec& b, double vb) {
+    if (va == 0.0) return 0.0;
+    if (vb == 0.0) return 1.0;
+    double ta = 0.0, tb = 1.0;
+    int side = 0;
+    for (int step = 0; step < settings_.refine_steps; ++step) {
+      const double t = ta + (tb - ta) * va / (va - vb);
+      const double vt = Field(a + t * (b - a));
+      if (vt == 0.0) return t;
+      if (Inside(vt) == Inside(va)) {
+        ta = t;
+        va = vt;
+        if (side == -1) vb *= 0.5;
+        side = -1;
+      } else {
+        tb = t;
+        vb = vt;
+        if (side == 1) va *= 0.5;
+        side = 1;
+      }
+    }
+    return ta + (tb - ta) * va / (va - vb);
+  }
+
+  // Moves each active lattice vertex whose nearest crossing is within lattice_snap of its edge
+  // onto the surface along that edge, unless it lies in a sheet thinner than two edges on more
+  // than three axes (its crossings on opposite sides would collapse a thin feature).
+  void Snap() {
+    const double limit = settings_.lattice_snap;
+    for (Active& a : active_) {
+      if (a.forbidden) continue;
+      const double v = a.value;
+      double best_t = kInf;
+      int best = -1;
+      bool crosses[14] = {};
+      for (int k = 0; k < 14; ++k) {
+        const D3 e = {a.d[0] + kOffsets[k][0], a.d[1] + kOffsets[k][1], a.d[2] + kOffsets[k][2]};
+        if (!Valid(e)) continue;
+        const double w = ValueAt(e);
+        if (Inside(w) == Inside(v)) continue;
+        crosses[k] = true;
+        const double t = std::isinf(w) ? 0.0 : v / (v - w);
+        if (t < best_t) {
+          best_t = t;
+          best = k;
+        }
+      }
+      int opposed = 0;
+      for (int k = 0; k < 7; ++k) opposed += crosses[k] && crosses[k + 7];
+      if (best < 0 || !(best_t < limit) || opposed > 3) continue;
+      const D3 e = {a.d[0] + kOffsets[best][0], a.d[1] + kOffsets[best][1],
+                    a.d[2] + kOffsets[best][2]};
+      const Vec p0 = Position(a.d);
+      const Vec p1 = Position(e);
+      const Vec p = p0 + CrossingFraction(p0, v, p1, ExactValue(e)) * (p1 - p0);
+      if (((p - p0).cwiseAbs().array() <= limit * h_ * (1.0 + 1e-9)).all()) {
+        a.snapped = true;
+        a.position = p;
+        ++snapped_;
+      }
+    }
+  }
+
+  // Mesh vertex ids: an edge crossing's index in crossings_ (>= 0), or -1 - the index in
+  // active_ of a snapped lattice vertex.
+  static int SnappedId(int active) { return -1 - active; }
+  static size_t ActiveOf(int id) { return static_cast<size_t>(-1 - id); }
+  Vec Point(int id) const { return id >= 0 ? crossings_[id] : active_[ActiveOf(id)].position; }
+
+  Active* FindActive(const D3& d) {
+    const int slot = block_slot_[BlockOf(d)];
+    if (slot < 0) return nullptr;
+    const int i = near_blocks_data_[slot].active[Local(d)];
+    return i >= 0 ? &active_[i] : nullptr;
+  }
+
+  // The mesh vertex of the crossing on the edge d0-d1: a snapped end's (the one nearer the
+  // surface when both are), else the edge's own, made once.
+  int EdgeVertex(const D3& d0, Active* a0, const D3& d1, Active* a1) {
+    // Both ends have a crossing edge (this one), so both are active; the interval bounds
+    // guarantee it, and a vertex missed anyway gets its exact value and no snap.
+    const bool s0 = a0 != nullptr && a0->snapped, s1 = a1 != nullptr && a1->snapped;
+    if (s0 || s1) {
+      Active* pick = a0;
+      if (!s0 || (s1 && (std::abs(a1->value) < std::abs(a0->value) ||
+                         (std::abs(a1->value) == std::abs(a0->value) && d1 < d0))))
+        pick = a1;
+      return SnappedId(static_cast<int>(pick - active_.data()));
+    }
+    // The edge belongs to the end from which it is one of the first seven offsets.
+    const int k = OffsetIndex(d0, d1);
+    Active* owner = k < 7 ? a0 : a1;
+    int* id = owner != nullptr ? &owner->edges[k % 7] : nullptr;
+    if (id != nullptr && *id >= 0) return *id;
+    const int index = static_cast<int>(crossings_.size());
+    // A crossing this near an end is one whose end could not snap (a thin feature, or a snap
+    // that was undone); kept kMinFraction of the edge away, so that the crossings around that
+    // end stay apart.
+    const Vec p0 = Position(d0), p1 = Position(d1);
+    const double t = CrossingFraction(p0, a0 != nullptr ? a0->value : ExactValue(d0), p1,
+                                      a1 != nullptr ? a1->value : ExactValue(d1));
+    crossings_.push_back(p0 + std::clamp(t, kMinFraction, 1.0 - kMinFraction) * (p1 - p0));
+    if (id != nullptr) *id = index;
+    return index;
+  }
+
+  // Index k of kOffsets with d0 + kOffsets[k] = d1.
+  static int OffsetIndex(const D3& d0, const D3& d1) {
+    static const std::array<signed char, 125> table = [] {
+      std::array<signed char, 125> t{};
+      t.fill(-1);
+      for (int k = 0; k < 14; ++k)
+        t[(kOffsets[k][0] + 2) * 25 + (kOffsets[k][1] + 2) * 5 + kOffsets[k][2] + 2] =
+            static_cast<signed char>(k);
+      return t;
+    }();
+    return table[(d1[0] - d0[0] + 2) * 25 + (d1[1] - d0[1] + 2) * 5 + d1[2] - d0[2] + 2];
+  }
+
+  void Emit(int a, int b, int c) {
+    if (a == b || b == c || c == a) return;
+    triangles_.push_back({a, b, c});
+  }
+
+  // The triangles of one tetrahedron (doubled coordinates t, values v).
+  void Tetrahedron(const D3 (&t)[4], const double (&v)[4], Active* const (&act)[4]) {
+    auto edge = [&](int i, int j) { return EdgeVertex(t[i], act[i], t[j], act[j]); };
+    int in[4] = {0, 0, 0, 0}, out[4] = {0, 0, 0, 0}, ni = 0, no = 0;
+    for (int i = 0; i < 4; ++i) (Inside(v[i]) ? in[ni++] : out[no++]) = i;
+    if (ni == 0 || no == 0) return;
+    auto mid = [&](int i, int j) -> Vec {
+      return Vec(t[i][0] + t[j][0], t[i][1] + t[j][1], t[i][2] + t[j][2]) * 0.5;
+    };
+    auto point = [&](int i) -> Vec { return Vec(t[i][0], t[i][1], t[i][2]); };
+    if (ni == 1 || no == 1) {
+      const int lone = ni == 1 ? in[0] : out[0];
+      int others[3] = {0, 0, 0}, n = 0;
+      for (int i = 0; i < 4; ++i)
+        if (i != lone) others[n++] = i;
+      const Vec ma = mid(lone, others[0]), mb = mid(lone, others[1]), mc = mid(lone, others[2]);
+      // Outward: away from a lone inside vertex, towards a lone outside one.
+      const Vec outward = (ni == 1 ? 1.0 : -1.0) * (ma - point(lone));
+      if ((mb - ma).cross(mc - ma).dot(outward) < 0.0) std::swap(others[1], others[2]);
+      Emit(edge(lone, others[0]), edge(lone, others[1]), edge(lone, others[2]));
+      return;
+    }
+    // Two inside, two outside: the quad of the four crossings, in cyclic order.
+    int ends[4][2] = {{in[0], out[0]}, {in[0], out[1]}, {in[1], out[1]}, {in[1], out[0]}};
+    const Vec outward = point(out[0]) + point(out[1]) - point(in[0]) - point(in[1]);
+    const Vec m0 = mid(ends[0][0], ends[0][1]), m1 = mid(ends[1][0], ends[1][1]),
+              m2 = mid(ends[2][0], ends[2][1]);
+    if ((m1 - m0).cross(m2 - m0).dot(outward) < 0.0) std::swap(ends[1], ends[3]);
+    int q[4];
+    for (int i = 0; i < 4; ++i) q[i] = edge(ends[i][0], ends[i][1]);
+    // Split along the diagonal whose ends coincide (both halves vanish), else the shorter.
+    bool diagonal02;
+    if (q[0] == q[2]) {
+      diagonal02 = true;
+    } else if (q[1] == q[3]) {
+      diagonal02 = false;
+    } else {
+      diagonal02 = (Point(q[0]) - Point(q[2])).squaredNorm() <=
+                   (Point(q[1]) - Point(q[3])).squaredNorm();
+    }
+    if (diagonal02) {
+      Emit(q[0], q[1], q[2]);
+      Emit(q[0], q[2], q[3]);
+    } else {
+      Emit(q[0], q[1], q[3]);
+      Emit(q[1], q[2], q[3]);
+    }
+  }
+
+  // Marching tetrahedra over the tetrahedra of the mixed faces.
+  void MakeTriangles() {
+    triangles_.clear();
+    triangles_.reserve(3 * mixed_faces_.size());
+    for (const auto& [c, axis] : mixed_faces_) {
+      D3 c2 = c;
+      c2[axis] += 2;
+      D3 q[4];
+      double vq[4];
+      for (int r = 0; r < 4; ++r) {
+        q[r] = FaceCorner(c, axis, r);
+        vq[r] = ValueAt(q[r]);
+      }
+      const double vc = ValueAt(c), vc2 = ValueAt(c2);
+      Active* ac = FindActive(c);
+      Active* ac2 = FindActive(c2);
+      Active* aq[4];
+      for (int r = 0; r < 4; ++r) aq[r] = FindActive(q[r]);
+      for (int r = 0; r < 4; ++r) {
+        const D3 t[4] = {c, c2, q[r], q[(r + 1) % 4]};
+        const double v[4] = {vc, vc2, vq[r], vq[(r + 1) % 4]};
+        Active* const act[4] = {ac, ac2, aq[r], aq[(r + 1) % 4]};
+        Tetrahedron(t, v, act);
+      }
+    }
+  }
+
+  // Snapped mesh vertices whose triangles are not one fan keep their lattice vertex in place
+  // (all of them when `all`); returns how many were forbidden.
+  int ForbidNonManifold(bool all) {
+    // Link edges (b, c) of every triangle (s, b, c) at each snapped corner s, by active index.
+    std::vector<int> start(active_.size() + 1, 0);
+    for (const auto& t : triangles_)
+      for (int c : t)
+        if (c < 0) ++start[ActiveOf(c) + 1];
+    for (size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
+    std::vector<std::array<int, 2>> links(start.back());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (const auto& t : triangles_)
+      for (int r = 0; r < 3; ++r)
+        if (t[r] < 0) links[fill[ActiveOf(t[r])]++] = {t[(r + 1) % 3], t[(r + 2) % 3]};
+    int forbidden = 0;
+    for (size_t s = 0; s < active_.size(); ++s) {
+      if (!active_[s].snapped) continue;
+      const int b = start[s], e = start[s + 1];
+      if (b == e) continue;  // in no triangle: not in the mesh
+      bool manifold = e - b >= 3;
+      // One directed cycle: every vertex once as a source and once as a target, and a walk from
+      // the first edge comes back after all of them.
+      for (int i = b; manifold && i < e; ++i)
+        for (int j = i + 1; j < e; ++j)
+          if (links[i][0] == links[j][0] || links[i][1] == links[j][1]) {
+            manifold = false;
+            break;
+          }
+      if (manifold) {
+        int steps = 0, at = links[b][1];
+        while (at != links[b][0] && steps <= e - b) {
+          int i = b;
+          while (i < e && links[i][0] != at) ++i;
+          if (i == e) break;
+          at = links[i][1];
+          ++steps;
+        }
+        manifold = at == links[b][0] && steps == e - b - 1;
+      }
+      if (!manifold || all) {
+        active_[s].snapped = false;
+        active_[s].forbidden = true;
+        --snapped_;
+        ++forbidden;
+      }
+    }
+    return forbidden;
+  }
+
+  // The mesh of the referenced vertices.
+  TriangleMesh Compact() {
+    // Vertex ids: crossings c >= 0 at remap[c], snapped vertices at remap[crossings + active].
+    const size_t base = crossings_.size();
+    std::vector<int> remap(base + active_.size(), -1);
+    std::vector<Vec> points;
+    for (const auto& t : triangles_)
+      for (int c : t) {
+        const size_t slot = c >= 0 ? static_cast<size_t>(c) : base + ActiveOf(c);
+        if (remap[slot] < 0) {
+          remap[slot] = static_cast<int>(points.size());
+          points.push_back(Point(c));
+        }
+      }
+    TriangleMesh mesh;
+    mesh.vertices.resize(3, static_cast<Eigen::Index>(points.size()));
+    for (size_t i = 0; i < points.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = points[i];
+    mesh.triangles.resize(3, static_cast<Eigen::Index>(triangles_.size()));
+    for (size_t t = 0; t < triangles_.size(); ++t)
+      for (int r = 0; r < 3; ++r) {
+        const int c = triangles_[t][r];
+        mesh.triangles(r, static_cast<Eigen::Index>(t)) =
+            remap[c >= 0 ? static_cast<size_t>(c) : base + ActiveOf(c)];
+      }
+    return mesh;
+  }
+
+  const CompiledSolid& solid_;
+  const SurfaceMeshSettings& settings_;
+  const PointField field_;
+  double h_ = 0.0;
+  int n_[3] = {};
+  int corners_[3] = {}, centres_[3] = {}, blocks_[3] = {};
+  Vec origin_;
+  // Per block: its index in near_blocks_data_ (sampled), or kFarOutside / kFarInside.
+  std::vector<int> block_slot_;
+  std::vector<NearBlock> near_blocks_data_;
+  std::vector<std::array<int, 3>> near_;  // the sampled blocks' indices, in sampling order
+  struct Face {
+    D3 c;  // centre of the cell
+    int axis;  // the face towards the cell at c + 2 e_axis
+  };
+  std::vector<Face> mixed_faces_;
+  long evaluations_ = 0;
+  long snapped_ = 0;
+  std::vector<Active> active_;
+  std::vector<Vec> crossings_;  // edge crossings, by Active::edges
+  std::vector<std::array<int, 3>> triangles_;
+};
+
+}  // namespace
+
+TriangleMesh MeshSurfaceLattice(const CompiledSolid& solid, const SurfaceMeshSettings& settings,
+                                SurfaceMeshStats* stats) {
+  LatticeMesher mesher(solid, settings);
+  return mesher.Run(stats);
+}
+
+}  // namespace spidarcad::modeling::internal
