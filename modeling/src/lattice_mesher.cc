@@ -24,10 +24,12 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <iterator>
+#include <limits>
+#include <utility>
 #include <vector>
 
 #include "point_field.h"
@@ -40,8 +42,9 @@ using Vec = Eigen::Vector3d;
 using D3 = std::array<int, 3>;
 
 constexpr int kBlock = 4;  // lattice index units per block side
-// Edge crossings of lattice vertices that did not snap stay this fraction of the edge from them.
-constexpr double kMinFraction = 0.05;
+// Edge crossings stay this fraction of the edge away from a lattice vertex that had a crossing
+// within the snap distance but could not snap.
+constexpr double kMinFraction = 0.15;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The 14 neighbour offsets in doubled coordinates; k + 7 is the opposite of k (k < 7).
@@ -55,7 +58,18 @@ struct Active {
   double value = 0.0;
   bool snapped = false;
   bool forbidden = false;  // kept in place: its snap made a non-manifold vertex
+  bool kept = false;       // a crossing lies within lattice_snap of it, yet it did not snap
   int edges[7] = {-1, -1, -1, -1, -1, -1, -1};  // crossings of its edges kOffsets[0..6]
+  unsigned crossing_dirs = 0;                   // bit k: the edge along kOffsets[k] crosses
+  int best_dir = -1;    // the crossing edge with the nearest (linear) crossing
+  double best_t = 2.0;  // its fraction from this vertex
+  void Candidate(int k, double t) {
+    crossing_dirs |= 1u << k;
+    if (t < best_t) {
+      best_t = t;
+      best_dir = k;
+    }
+  }
   Vec position = Vec::Zero();  // when snapped
 };
 
@@ -64,6 +78,11 @@ bool Inside(double v) { return v < 0.0; }
 constexpr int kBlockVertices = kBlock * kBlock * kBlock;  // of each kind
 // The corners of a face, in cyclic order: signs along the two other axes (axis + 1, axis + 2).
 constexpr int kSigns[4][2] = {{1, 1}, {1, -1}, {-1, -1}, {-1, 1}};
+// The 13 edges of a face's four tetrahedra, between its vertices 0 (the cell's centre), 1 (the
+// neighbour's centre) and 2..5 (the face's corners in cyclic order).
+constexpr std::pair<int, int> kFaceEdges[13] = {{0, 1}, {0, 2}, {0, 3}, {0, 4}, {0, 5},
+                                                {1, 2}, {1, 3}, {1, 4}, {1, 5}, {2, 3},
+                                                {3, 4}, {4, 5}, {5, 2}};
 constexpr int kFarOutside = -1, kFarInside = -2;  // block_slot_ of unsampled blocks
 
 // A sampled block: values and indices in active_ (-1: none) of its corners, then its centres.
@@ -228,21 +247,41 @@ class LatticeMesher {
   // (mixed_faces_), found block by block from a local copy of the values, and the lattice
   // vertices with a crossing edge (active_): every edge lies in the tetrahedra of some face.
   void FindMixedFaces() {
+    // Capacities from the sampled blocks (measured on spheres and the platform: about 27 active
+    // vertices, 40 mixed faces and 16 crossings per sampled block); reserving address space
+    // touches no memory, and growing these arrays by copies cost a tenth of the run.
+    active_.reserve(40 * near_.size());
+    mixed_faces_.reserve(64 * near_.size());
+    crossings_.reserve(32 * near_.size());
     constexpr int L = kBlock + 1;
     double corner[L][L][L], centre[L][L][L];  // [k][j][i], lattice index - block start
     for (const auto& b : near_) {
       const int base[3] = {b[0] * kBlock, b[1] * kBlock, b[2] * kBlock};
+      bool any_inside = false, any_outside = false;
+      const double* own = near_blocks_data_[block_slot_[BlockOf({2 * base[0] - 2, 2 * base[1] - 2,
+                                                                 2 * base[2] - 2})]]
+                              .values;
       for (int k = 0; k < L; ++k)
         for (int j = 0; j < L; ++j)
           for (int i = 0; i < L; ++i) {
             const int g[3] = {base[0] + i, base[1] + j, base[2] + k};
-            corner[k][j][i] = g[0] < corners_[0] && g[1] < corners_[1] && g[2] < corners_[2]
-                                  ? ValueAt({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2})
-                                  : kInf;
-            centre[k][j][i] = g[0] < centres_[0] && g[1] < centres_[1] && g[2] < centres_[2]
-                                  ? ValueAt({2 * g[0] - 1, 2 * g[1] - 1, 2 * g[2] - 1})
-                                  : kInf;
+            const bool inner = i < kBlock && j < kBlock && k < kBlock;
+            const int local = i + kBlock * (j + kBlock * k);
+            if (g[0] >= corners_[0] || g[1] >= corners_[1] || g[2] >= corners_[2])
+              corner[k][j][i] = kInf;
+            else
+              corner[k][j][i] =
+                  inner ? own[local] : ValueAt({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2});
+            if (g[0] >= centres_[0] || g[1] >= centres_[1] || g[2] >= centres_[2])
+              centre[k][j][i] = kInf;
+            else
+              centre[k][j][i] = inner ? own[kBlockVertices + local]
+                                      : ValueAt({2 * g[0] - 1, 2 * g[1] - 1, 2 * g[2] - 1});
+            any_inside |= Inside(corner[k][j][i]) || Inside(centre[k][j][i]);
+            any_outside |= !Inside(corner[k][j][i]) || !Inside(centre[k][j][i]);
           }
+      // The bounds are loose: most sampled blocks have no sign change at all.
+      if (!any_inside || !any_outside) continue;
       for (int k = 0; k < kBlock && base[2] + k < centres_[2]; ++k)
         for (int j = 0; j < kBlock && base[1] + j < centres_[1]; ++j)
           for (int i = 0; i < kBlock && base[0] + i < centres_[0]; ++i) {
@@ -270,27 +309,37 @@ class LatticeMesher {
               }
               if (!mixed) continue;
               const D3 c = {2 * (base[0] + i) - 1, 2 * (base[1] + j) - 1, 2 * (base[2] + k) - 1};
-              mixed_faces_.push_back({c, axis});
-              // Edges of the face's tetrahedra: c and c2 to everything, q[r] to q[r ± 1].
-              bool any_q_out = false, any_q_in = false;
-              for (int r = 0; r < 4; ++r) (in_q[r] ? any_q_in : any_q_out) = true;
-              const bool c_crosses = in_c != in_c2 || (in_c ? any_q_out : any_q_in);
-              const bool c2_crosses = in_c != in_c2 || (in_c2 ? any_q_out : any_q_in);
-              if (c_crosses) MarkActive(c, vc);
-              if (c2_crosses) {
-                D3 d2 = c;
-                d2[axis] += 2;
-                MarkActive(d2, vc2);
-              }
-              for (int r = 0; r < 4; ++r) {
-                if (in_q[r] == in_c && in_q[r] == in_c2 && in_q[(r + 1) % 4] == in_q[r] &&
-                    in_q[(r + 3) % 4] == in_q[r])
-                  continue;
-                MarkActive(FaceCorner(c, axis, r), vq[r]);
-              }
+              AddFace(c, axis, vc, vc2, vq);
             }
           }
     }
+  }
+
+  // Records a mixed face: its six vertices (c, c2, the four corners) as active where they have
+  // a crossing edge among the face's tetrahedra (c and c2 are joined to all, corner r to corners
+  // r ± 1), and each crossing edge as a snap candidate of both its ends.
+  void AddFace(const D3& c, int axis, double vc, double vc2, const double (&vq)[4]) {
+    Face face;
+    face.c = c;
+    face.axis = static_cast<unsigned char>(axis);
+    D3 d[6];
+    double v[6] = {vc, vc2, vq[0], vq[1], vq[2], vq[3]};
+    d[0] = c;
+    d[1] = c;
+    d[1][axis] += 2;
+    for (int r = 0; r < 4; ++r) d[2 + r] = FaceCorner(c, axis, r);
+    for (int x = 0; x < 6; ++x)
+      if (Inside(v[x])) face.inside |= static_cast<unsigned char>(1u << x);
+    for (const auto& [x, y] : kFaceEdges) {
+      if (Inside(v[x]) == Inside(v[y])) continue;
+      if (face.act[x] < 0) face.act[x] = MarkActive(d[x], v[x]);
+      if (face.act[y] < 0) face.act[y] = MarkActive(d[y], v[y]);
+      const int k = OffsetIndex(d[x], d[y]);
+      const double t = std::isinf(v[y]) ? 0.0 : v[x] / (v[x] - v[y]);
+      if (face.act[x] >= 0) active_[face.act[x]].Candidate(k, t);
+      if (face.act[y] >= 0) active_[face.act[y]].Candidate((k + 7) % 14, 1.0 - t);
+    }
+    mixed_faces_.push_back(face);
   }
 
   // Corner r of the face between the cell of centre c and its neighbour along axis.
@@ -302,16 +351,19 @@ class LatticeMesher {
     return q;
   }
 
-  void MarkActive(const D3& d, double value) {
+  // The index in active_ of d (made now if new), or -1 where no block was sampled (not
+  // reached: the bounds keep crossings out of unsampled blocks).
+  int MarkActive(const D3& d, double value) {
     const int slot = block_slot_[BlockOf(d)];
-    if (slot < 0) return;  // not reached: the bounds keep crossings out of unsampled blocks
+    if (slot < 0) return -1;
     int& index = near_blocks_data_[slot].active[Local(d)];
-    if (index >= 0) return;
+    if (index >= 0) return index;
     index = static_cast<int>(active_.size());
     Active a;
     a.d = d;
     a.value = value;
     active_.push_back(a);
+    return index;
   }
 
   // The surface point on the lattice edge from a (value va) to b (value vb), opposite signs, as
@@ -349,24 +401,12 @@ class LatticeMesher {
     for (Active& a : active_) {
       if (a.forbidden) continue;
       const double v = a.value;
-      double best_t = kInf;
-      int best = -1;
-      bool crosses[14] = {};
-      for (int k = 0; k < 14; ++k) {
-        const D3 e = {a.d[0] + kOffsets[k][0], a.d[1] + kOffsets[k][1], a.d[2] + kOffsets[k][2]};
-        if (!Valid(e)) continue;
-        const double w = ValueAt(e);
-        if (Inside(w) == Inside(v)) continue;
-        crosses[k] = true;
-        const double t = std::isinf(w) ? 0.0 : v / (v - w);
-        if (t < best_t) {
-          best_t = t;
-          best = k;
-        }
-      }
-      int opposed = 0;
-      for (int k = 0; k < 7; ++k) opposed += crosses[k] && crosses[k + 7];
-      if (best < 0 || !(best_t < limit) || opposed > 3) continue;
+      const int best = a.best_dir;
+      const unsigned opposed_axes = a.crossing_dirs & (a.crossing_dirs >> 7) & 0x7fu;
+      const int opposed = std::popcount(opposed_axes);
+      if (best < 0 || !(a.best_t < limit)) continue;
+      a.kept = true;  // unless it snaps below
+      if (opposed > 3) continue;
       const D3 e = {a.d[0] + kOffsets[best][0], a.d[1] + kOffsets[best][1],
                     a.d[2] + kOffsets[best][2]};
       const Vec p0 = Position(a.d);
@@ -374,6 +414,7 @@ class LatticeMesher {
       const Vec p = p0 + CrossingFraction(p0, v, p1, ExactValue(e)) * (p1 - p0);
       if (((p - p0).cwiseAbs().array() <= limit * h_ * (1.0 + 1e-9)).all()) {
         a.snapped = true;
+        a.kept = false;
         a.position = p;
         ++snapped_;
       }
@@ -412,13 +453,14 @@ class LatticeMesher {
     int* id = owner != nullptr ? &owner->edges[k % 7] : nullptr;
     if (id != nullptr && *id >= 0) return *id;
     const int index = static_cast<int>(crossings_.size());
-    // A crossing this near an end is one whose end could not snap (a thin feature, or a snap
-    // that was undone); kept kMinFraction of the edge away, so that the crossings around that
-    // end stay apart.
+    // An end that could not snap (a thin feature, or a snap that was undone) keeps the
+    // crossings on its edges kMinFraction of the edge away, so that they stay apart.
     const Vec p0 = Position(d0), p1 = Position(d1);
-    const double t = CrossingFraction(p0, a0 != nullptr ? a0->value : ExactValue(d0), p1,
-                                      a1 != nullptr ? a1->value : ExactValue(d1));
-    crossings_.push_back(p0 + std::clamp(t, kMinFraction, 1.0 - kMinFraction) * (p1 - p0));
+    double t = CrossingFraction(p0, a0 != nullptr ? a0->value : ExactValue(d0), p1,
+                                a1 != nullptr ? a1->value : ExactValue(d1));
+    if (a0 != nullptr && a0->kept) t = std::max(t, kMinFraction);
+    if (a1 != nullptr && a1->kept) t = std::min(t, 1.0 - kMinFraction);
+    crossings_.push_back(p0 + t * (p1 - p0));
     if (id != nullptr) *id = index;
     return index;
   }
@@ -442,10 +484,10 @@ class LatticeMesher {
   }
 
   // The triangles of one tetrahedron (doubled coordinates t, values v).
-  void Tetrahedron(const D3 (&t)[4], const double (&v)[4], Active* const (&act)[4]) {
+  void Tetrahedron(const D3 (&t)[4], const bool (&inside)[4], Active* const (&act)[4]) {
     auto edge = [&](int i, int j) { return EdgeVertex(t[i], act[i], t[j], act[j]); };
     int in[4] = {0, 0, 0, 0}, out[4] = {0, 0, 0, 0}, ni = 0, no = 0;
-    for (int i = 0; i < 4; ++i) (Inside(v[i]) ? in[ni++] : out[no++]) = i;
+    for (int i = 0; i < 4; ++i) (inside[i] ? in[ni++] : out[no++]) = i;
     if (ni == 0 || no == 0) return;
     auto mid = [&](int i, int j) -> Vec {
       return Vec(t[i][0] + t[j][0], t[i][1] + t[j][1], t[i][2] + t[j][2]) * 0.5;
@@ -478,8 +520,8 @@ class LatticeMesher {
     } else if (q[1] == q[3]) {
       diagonal02 = false;
     } else {
-      diagonal02 = (Point(q[0]) - Point(q[2])).squaredNorm() <=
-                   (Point(q[1]) - Point(q[3])).squaredNorm();
+      diagonal02 =
+          (Point(q[0]) - Point(q[2])).squaredNorm() <= (Point(q[1]) - Point(q[3])).squaredNorm();
     }
     if (diagonal02) {
       Emit(q[0], q[1], q[2]);
@@ -494,25 +536,21 @@ class LatticeMesher {
   void MakeTriangles() {
     triangles_.clear();
     triangles_.reserve(3 * mixed_faces_.size());
-    for (const auto& [c, axis] : mixed_faces_) {
-      D3 c2 = c;
-      c2[axis] += 2;
-      D3 q[4];
-      double vq[4];
+    for (const Face& f : mixed_faces_) {
+      D3 d[6];
+      d[0] = f.c;
+      d[1] = f.c;
+      d[1][f.axis] += 2;
+      Active* act[6];
+      for (int r = 0; r < 4; ++r) d[2 + r] = FaceCorner(f.c, f.axis, r);
+      for (int x = 0; x < 6; ++x) act[x] = f.act[x] >= 0 ? &active_[f.act[x]] : nullptr;
       for (int r = 0; r < 4; ++r) {
-        q[r] = FaceCorner(c, axis, r);
-        vq[r] = ValueAt(q[r]);
-      }
-      const double vc = ValueAt(c), vc2 = ValueAt(c2);
-      Active* ac = FindActive(c);
-      Active* ac2 = FindActive(c2);
-      Active* aq[4];
-      for (int r = 0; r < 4; ++r) aq[r] = FindActive(q[r]);
-      for (int r = 0; r < 4; ++r) {
-        const D3 t[4] = {c, c2, q[r], q[(r + 1) % 4]};
-        const double v[4] = {vc, vc2, vq[r], vq[(r + 1) % 4]};
-        Active* const act[4] = {ac, ac2, aq[r], aq[(r + 1) % 4]};
-        Tetrahedron(t, v, act);
+        const int x[4] = {0, 1, 2 + r, 2 + (r + 1) % 4};
+        const D3 t[4] = {d[x[0]], d[x[1]], d[x[2]], d[x[3]]};
+        const bool in[4] = {(f.inside >> x[0] & 1) != 0, (f.inside >> x[1] & 1) != 0,
+                            (f.inside >> x[2] & 1) != 0, (f.inside >> x[3] & 1) != 0};
+        Active* const a[4] = {act[x[0]], act[x[1]], act[x[2]], act[x[3]]};
+        Tetrahedron(t, in, a);
       }
     }
   }
@@ -531,7 +569,6 @@ class LatticeMesher {
     for (const auto& t : triangles_)
       for (int r = 0; r < 3; ++r)
         if (t[r] < 0) links[fill[ActiveOf(t[r])]++] = {t[(r + 1) % 3], t[(r + 2) % 3]};
-    int forbidden = 0;
     for (size_t s = 0; s < active_.size(); ++s) {
       if (!active_[s].snapped) continue;
       const int b = start[s], e = start[s + 1];
@@ -556,13 +593,29 @@ class LatticeMesher {
         }
         manifold = at == links[b][0] && steps == e - b - 1;
       }
-      if (!manifold || all) {
-        active_[s].snapped = false;
-        active_[s].forbidden = true;
-        --snapped_;
-        ++forbidden;
-      }
+      if (manifold && !all) continue;
+      // Undo the snap of the lattice vertex, of s and the snapped vertices around it, that
+      // moved farthest (the largest fraction of its edge): the one whose crossings, kept apart
+      // again, make the best triangles.
+      size_t undo = s;
+      if (!all)
+        for (int i = b; i < e; ++i)
+          for (int id : links[i])
+            if (id < 0 && active_[ActiveOf(id)].snapped &&
+                active_[ActiveOf(id)].best_t > active_[undo].best_t)
+              undo = ActiveOf(id);
+      undo_.push_back(undo);
     }
+    int forbidden = 0;
+    for (size_t undo : undo_) {
+      if (!active_[undo].snapped) continue;  // named twice
+      active_[undo].snapped = false;
+      active_[undo].forbidden = true;
+      active_[undo].kept = true;
+      --snapped_;
+      ++forbidden;
+    }
+    undo_.clear();
     return forbidden;
   }
 
@@ -572,6 +625,7 @@ class LatticeMesher {
     const size_t base = crossings_.size();
     std::vector<int> remap(base + active_.size(), -1);
     std::vector<Vec> points;
+    points.reserve(triangles_.size() / 2 + 8);
     for (const auto& t : triangles_)
       for (int c : t) {
         const size_t slot = c >= 0 ? static_cast<size_t>(c) : base + ActiveOf(c);
@@ -582,7 +636,8 @@ class LatticeMesher {
       }
     TriangleMesh mesh;
     mesh.vertices.resize(3, static_cast<Eigen::Index>(points.size()));
-    for (size_t i = 0; i < points.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = points[i];
+    for (size_t i = 0; i < points.size(); ++i)
+      mesh.vertices.col(static_cast<Eigen::Index>(i)) = points[i];
     mesh.triangles.resize(3, static_cast<Eigen::Index>(triangles_.size()));
     for (size_t t = 0; t < triangles_.size(); ++t)
       for (int r = 0; r < 3; ++r) {
@@ -605,14 +660,17 @@ class LatticeMesher {
   std::vector<NearBlock> near_blocks_data_;
   std::vector<std::array<int, 3>> near_;  // the sampled blocks' indices, in sampling order
   struct Face {
-    D3 c;  // centre of the cell
-    int axis;  // the face towards the cell at c + 2 e_axis
+    D3 c;                                   // centre of the cell
+    unsigned char axis = 0;                 // the face towards the cell at c + 2 e_axis
+    unsigned char inside = 0;               // bit x: vertex x (c, c2, corners 0..3) is inside
+    int act[6] = {-1, -1, -1, -1, -1, -1};  // their indices in active_, or -1
   };
   std::vector<Face> mixed_faces_;
   long evaluations_ = 0;
   long snapped_ = 0;
   std::vector<Active> active_;
   std::vector<Vec> crossings_;  // edge crossings, by Active::edges
+  std::vector<size_t> undo_;    // ForbidNonManifold's choices
   std::vector<std::array<int, 3>> triangles_;
 };
 

@@ -917,8 +917,7 @@ SurfaceMeshSettings LatticeSettings(const Eigen::AlignedBox3d& bounds, double ce
 // A sphere against closed forms: every vertex on the sphere (regula falsi and the snap's root
 // find), the volume of an inscribed polyhedron, the error within the sagitta of a lattice edge,
 // and no triangle angle under 10°, on and off the grid; without snapping (lattice_snap = 0)
-// marching tetrahedra on the same lattice leaves needles under 5° (its crossings kept 5 % of an
-// edge from the lattice vertices).
+// marching tetrahedra on the same lattice leaves needles under 5°.
 TEST(SurfaceMesher, LatticeSphereIsAccurateWithNoAngleUnderTenDegrees) {
   const double r = 0.03;
   for (const Eigen::Vector3d& centre :
@@ -1061,7 +1060,7 @@ TEST(SurfaceMesher, LatticeClipsToTheBoundsCancelsAndRejectsBadSnaps) {
   EXPECT_EQ(reports.back(), 1.0);
   EXPECT_TRUE(std::is_sorted(reports.begin(), reports.end()));
   s.progress = nullptr;
-  for (double bad : {-0.1, 0.31, std::nan("")}) {
+  for (double bad : {-0.1, 0.46, std::nan("")}) {
     s.lattice_snap = bad;
     EXPECT_THROW(MeshSurface(sphere, s), std::invalid_argument) << bad;
   }

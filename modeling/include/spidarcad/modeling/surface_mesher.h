@@ -54,7 +54,7 @@ enum class SurfaceMesher {
   // blocks of 4³ cells that the interval bounds place away from the surface are not sampled.
   // Closed and manifold (a snap that would join two fans at one vertex is undone); a lattice
   // vertex that cannot snap (a feature thinner than about two cells) keeps its edge crossings
-  // at least 5 % of the edge away from it. Sharp edges are cut off as by the other route.
+  // at least 15 % of the edge away from it. Sharp edges are cut off as by the other route.
   // Figures: docs/design/2026-12-06-lattice-mesher.md.
   kLattice,
 };
@@ -93,8 +93,8 @@ struct SurfaceMeshSettings {
   // Which route meshes the solid (see SurfaceMesher).
   SurfaceMesher mesher = SurfaceMesher::kMarchingTetrahedra;
   // kLattice: a lattice vertex moves onto the surface when its nearest crossing is within this
-  // fraction of the lattice edge (in [0, 0.3]; 0, or clean = false: no vertex moves).
-  double lattice_snap = 0.25;
+  // fraction of the lattice edge (in [0, 0.45]; 0, or clean = false: no vertex moves).
+  double lattice_snap = 0.35;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
   // Called now and then with the fraction done in [0, 1].
