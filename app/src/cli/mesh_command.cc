@@ -56,11 +56,16 @@ struct MeshOptions {
   // --snap-cells (fraction of the cell; 0: off): the clean-up's snap band.
   double snap_cells = kProductSnapCells;
   bool snap_cells_given = false;  // on the command line
-  double max_cells = 0.0;         // grid cells allowed; set from kDefaultMeshMaxCells
-  double max_memory = 0.0;        // estimated peak bytes allowed
-  double max_work = 0.0;          // estimated tape instructions allowed
-  bool progress = false;          // progress on stderr even when it is not a terminal
-  double weld = 1e-9;             // mesh-file input: weld tolerance, fraction of the box diagonal
+  // --mesher: "lattice", "tetrahedra", or "" (lattice unless an option of the other route is
+  // given: --sharp, --raw-surface, --snap-cells).
+  std::string mesher;
+  double lattice_snap = SurfaceMeshSettings{}.lattice_snap;  // --lattice-snap
+  bool lattice_snap_given = false;
+  double max_cells = 0.0;   // grid cells allowed; set from kDefaultMeshMaxCells
+  double max_memory = 0.0;  // estimated peak bytes allowed
+  double max_work = 0.0;    // estimated tape instructions allowed
+  bool progress = false;    // progress on stderr even when it is not a terminal
+  double weld = 1e-9;       // mesh-file input: weld tolerance, fraction of the box diagonal
 };
 
 // Default budget of `spidarcad mesh` (docs/limits.md): 2^27 grid cells (512^3), 2 GiB of
@@ -251,12 +256,17 @@ constexpr const char* kMeshHelp =
     "Meshes an implicit solid of a scene file or document (docs/scene-format.md): the solid\n"
     "--object NAME (or --solid NAME), else the first solid; a document's other objects (meshes,\n"
     "FE models, sculpts, parts) are not meshed, and naming one is an error that lists the solids.\n"
-    "Surface: marching tetrahedra on a grid of cell R metres, then a clean-up pass (edge\n"
-    "collapses and flips) that removes zero-area and sliver triangles; closed and manifold.\n"
-    "The clean-up snaps grid values within --snap-cells S cells of zero (default 0.2) to zero\n"
-    "and relaxes what stays sharp: smooth surfaces get no triangle under about 10 deg, for a\n"
-    "few percent more rms error (features finer than a cell can still leave sharper ones).\n"
-    "--snap-cells 0 gives the mesh of before 2026-12-05.\n"
+    "Surface (--mesher lattice, the default): marching tetrahedra on the body-centred cubic\n"
+    "lattice of the grid's corners and cell centres (cell R metres), where each lattice vertex\n"
+    "whose nearest crossing lies within --lattice-snap F of its edge (default 0.35) is first\n"
+    "moved onto the surface, so no needle is ever made and no clean-up is needed; regions the\n"
+    "interval bounds place away from the surface are not sampled. Closed and manifold; smooth\n"
+    "surfaces keep every angle above about 15 deg; sharp edges are cut off by up to about R/2.\n"
+    "Surface (--mesher tetrahedra, the default with --sharp, --raw-surface or --snap-cells):\n"
+    "marching tetrahedra on the grid's cubes, then a clean-up pass (edge collapses and flips);\n"
+    "it snaps grid values within --snap-cells S cells of zero (default 0.2) to zero, so smooth\n"
+    "surfaces get no triangle under about 10 deg; --snap-cells 0 gives the mesh of before\n"
+    "2026-12-05. --sharp then moves vertices onto creases and corners.\n"
     "Volume (--tets tetgen): TetGen 1.5 tetrahedralizes that surface; --quality Q bounds the\n"
     "radius-edge ratio (TetGen's q switch, > 1; 0 turns refinement off), --max-volume V bounds\n"
     "the tet volume in m^3 (TetGen's a switch).\n"
@@ -395,10 +405,11 @@ void RunMeshFile(const MeshOptions& o, const std::string& ext, Progress* progres
     throw InputError("--tets cgal meshes an implicit solid from its function; the mesh file '" +
                      o.scene + "' can be tetrahedralized with --tets tetgen");
   }
-  if (o.resolution != 0.0 || o.sharp || o.raw_surface || o.snap_cells_given || !o.solid.empty()) {
+  if (o.resolution != 0.0 || o.sharp || o.raw_surface || o.snap_cells_given || !o.solid.empty() ||
+      !o.mesher.empty() || o.lattice_snap_given) {
     throw InputError(
-        "--resolution, --sharp, --raw-surface, --snap-cells and --solid apply to scene files; the "
-        "mesh file '" +
+        "--resolution, --mesher, --sharp, --raw-surface, --snap-cells, --lattice-snap and --solid "
+        "apply to scene files; the mesh file '" +
         o.scene + "' is used as it is (drop them)");
   }
   if (!(o.weld >= 0.0 && o.weld < 0.1)) {
@@ -483,6 +494,21 @@ void RunMesh(const MeshOptions& o) {
     throw InputError(
         "--snap-cells applies to the marching-tetrahedra surface; --tets cgal does "
         "not use one");
+  if (!o.mesher.empty() && o.mesher != "lattice" && o.mesher != "tetrahedra")
+    throw InputError("--mesher '" + o.mesher + "': give lattice (the default) or tetrahedra");
+  if (o.mesher == "lattice" && (o.sharp || o.raw_surface || o.snap_cells_given)) {
+    throw InputError(
+        "--sharp, --raw-surface and --snap-cells belong to --mesher tetrahedra (the lattice "
+        "surface has no clean-up pass and is not sharpened): drop them or use --mesher "
+        "tetrahedra");
+  }
+  if (o.lattice_snap_given &&
+      (o.mesher == "tetrahedra" || o.sharp || o.raw_surface || o.snap_cells_given))
+    throw InputError("--lattice-snap applies to --mesher lattice");
+  if (!(o.lattice_snap >= 0.0 && o.lattice_snap <= 0.45))
+    throw InputError("--lattice-snap " + Fmt(o.lattice_snap) +
+                     ": give a fraction of the lattice edge in [0, 0.45] (default " +
+                     Fmt(SurfaceMeshSettings{}.lattice_snap) + "; 0: no vertex moves)");
   if (!(o.resolution >= 0.0) || !std::isfinite(o.resolution)) {
     throw InputError("--resolution: must be > 0 m, got " + Fmt(o.resolution));
   }
@@ -558,6 +584,12 @@ void RunMesh(const MeshOptions& o) {
   settings.cell_size = cell;
   settings.clean = !o.raw_surface;
   settings.snap_cells = o.snap_cells;  // without the clean-up (--raw-surface) nothing is snapped
+  const bool lattice = o.mesher == "lattice" ||
+                       (o.mesher.empty() && !o.sharp && !o.raw_surface && !o.snap_cells_given);
+  if (lattice) {
+    settings.mesher = SurfaceMesher::kLattice;
+    settings.lattice_snap = o.lattice_snap;
+  }
   settings.cancel = &g_interrupted;
   settings.progress = progress.Stage("surface");
   SurfaceMeshStats stats;
@@ -593,8 +625,13 @@ void RunMesh(const MeshOptions& o) {
             << Fmt(bounds.sizes().y()) << " x " << Fmt(bounds.sizes().z()) << " m, "
             << surface.vertices.cols() << " vertices, " << surface.triangles.cols()
             << " triangles, " << Fmt(stats.seconds, 3) << " s"
-            << (o.raw_surface ? " (raw, no clean-up)" : "") << "\n";
-  if (!o.raw_surface) {
+            << (o.raw_surface ? " (raw, no clean-up)" : "")
+            << (lattice ? " (lattice)" : " (marching tetrahedra)") << "\n";
+  if (lattice) {
+    std::cout << "lattice: " << stats.collapsed_edges << " lattice vertices snapped onto the "
+              << "surface (within " << Fmt(settings.lattice_snap) << " of an edge), "
+              << stats.field_evaluations << " field evaluations\n";
+  } else if (!o.raw_surface) {
     std::cout << "clean-up: " << stats.collapsed_edges << " edge collapses, " << stats.flipped_edges
               << " flips, snap " << Fmt(settings.snap_cells) << " cells\n";
   }
@@ -697,6 +734,13 @@ void RegisterMeshCommand(CLI::App& app) {
                   "Clean-up: grid values within this fraction of a cell of zero count as zero, "
                   "so no triangle of a smooth surface is sharper than about 10 deg (in [0, 0.25]; "
                   "default 0.2; 0: off, the mesh of before 2026-12-05)");
+  cmd->add_option("--mesher", options->mesher,
+                  "Surface route: lattice (default; no clean-up, fast) or tetrahedra (marching "
+                  "tetrahedra and a clean-up pass; the default with --sharp, --raw-surface or "
+                  "--snap-cells)");
+  cmd->add_option("--lattice-snap", options->lattice_snap,
+                  "Lattice: a lattice vertex whose nearest crossing lies within this fraction of "
+                  "its edge moves onto the surface (in [0, 0.45]; default 0.35; 0: none moves)");
   cmd->add_flag("--raw-surface", options->raw_surface,
                 "Skip the surface clean-up pass (raw marching tetrahedra, for comparison)");
   cmd->add_option("--max-cells", options->max_cells,
@@ -712,6 +756,7 @@ void RegisterMeshCommand(CLI::App& app) {
   cmd->callback([options, cmd]() {
     options->sliver_angle_given = cmd->count("--sliver-angle") > 0;
     options->snap_cells_given = cmd->count("--snap-cells") > 0;
+    options->lattice_snap_given = cmd->count("--lattice-snap") > 0;
     try {
       RunMesh(*options);
     } catch (const InputError&) {
