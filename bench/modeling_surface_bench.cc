@@ -13,7 +13,8 @@
 // BM_FindBounds: the box search of `spidarcad mesh` on unions of 1,000 to 100,000 spheres (time,
 // and how far the box lies beyond the exact one), a second table.
 // BM_MeshSpeed: MeshSurface alone, repeated (CPU time per mesh), on the smooth shapes (sphere at 1
-// and 2 mm, torus at 1 mm) and the platform at 4 mm, with snapping off and at kProductSnapCells.
+// and 2 mm, torus at 1 mm) and the platform at 4 mm, with snapping off and at kProductSnapCells;
+// BM_LatticeSpeed the same for the lattice route.
 // Run: build-dir/bench/modeling_surface_bench (bench_paths.h finds the scene), about 1-2 min.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <benchmark/benchmark.h>
@@ -208,6 +209,34 @@ BENCHMARK(BM_MeshSpeed)
     ->ArgsProduct({{3}, {10, 20}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
     ->ArgsProduct({{4}, {10}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
     ->ArgsProduct({{2}, {40}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
+    ->Unit(benchmark::kMillisecond);
+
+// BM_MeshSpeed for the lattice route (SurfaceMesher::kLattice, default lattice_snap): case
+// state.range(0) at cell state.range(1) / 10 mm. The 5 cm sphere at 1 mm took 55-60 ms CPU per mesh
+// on 2026-12-06 (docs/design/2026-12-06-lattice-mesher.md); counters as BM_MeshSpeed, plus the
+// lattice vertices snapped onto the surface.
+void BM_LatticeSpeed(benchmark::State& state) {
+  const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
+  SurfaceMeshSettings settings;
+  settings.bounds = c.bounds;
+  settings.cell_size = state.range(1) * 1e-4;
+  settings.mesher = SurfaceMesher::kLattice;
+  TriangleMesh mesh;
+  SurfaceMeshStats stats;
+  for (auto _ : state) {
+    mesh = MeshSurface(c.solid, settings, &stats);
+    benchmark::DoNotOptimize(mesh.vertices.data());
+  }
+  state.SetLabel(c.name);
+  state.counters["cell_mm"] = settings.cell_size * 1e3;
+  state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
+  state.counters["evaluations"] = static_cast<double>(stats.field_evaluations);
+  state.counters["snapped"] = static_cast<double>(stats.collapsed_edges);
+}
+BENCHMARK(BM_LatticeSpeed)
+    ->ArgsProduct({{3}, {10, 15, 20}})
+    ->ArgsProduct({{4}, {10}})
+    ->ArgsProduct({{2}, {20, 40}})
     ->Unit(benchmark::kMillisecond);
 
 // What keeps sharpened creases under 10°: MeshSurface (snap_cells = state.range(2) / 100) then
