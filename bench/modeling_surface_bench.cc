@@ -181,18 +181,13 @@ BENCHMARK(BM_Snap)
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
-// MeshSurface alone on case state.range(0) at cell state.range(1) / 10 mm with snap_cells =
-// state.range(2) / 100, as many meshes as Google Benchmark needs for a stable time (no error
-// measurement): the case that shows the mesher itself slowing down (the 5 cm sphere at 1 mm,
-// snap 0: 336 ms CPU per mesh before the speed-ups of 2026-12-05, 278 ms after, against about
-// 28 ms for a dense marching cubes; docs/design/2026-12-04-surface-mesher-peers.md). Counters:
-// triangles and field evaluations (exact, so a change in the work shows when times are noisy).
-void BM_MeshSpeed(benchmark::State& state) {
+// Meshes case state.range(0) at cell state.range(1) / 10 mm with `settings` (its other fields) as
+// many times as Google Benchmark asks; sets the label and the counters cell_mm, triangles and
+// evaluations, and returns the last run's stats.
+SurfaceMeshStats TimeMeshing(benchmark::State& state, SurfaceMeshSettings settings) {
   const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
-  SurfaceMeshSettings settings;
   settings.bounds = c.bounds;
   settings.cell_size = state.range(1) * 1e-4;
-  settings.snap_cells = state.range(2) * 0.01;
   TriangleMesh mesh;
   SurfaceMeshStats stats;
   for (auto _ : state) {
@@ -201,9 +196,22 @@ void BM_MeshSpeed(benchmark::State& state) {
   }
   state.SetLabel(c.name);
   state.counters["cell_mm"] = settings.cell_size * 1e3;
-  state.counters["snap"] = settings.snap_cells;
   state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
   state.counters["evaluations"] = static_cast<double>(stats.field_evaluations);
+  return stats;
+}
+
+// MeshSurface alone on case state.range(0) at cell state.range(1) / 10 mm with snap_cells =
+// state.range(2) / 100, as many meshes as Google Benchmark needs for a stable time (no error
+// measurement): the case that shows the mesher itself slowing down (the 5 cm sphere at 1 mm,
+// snap 0: 336 ms CPU per mesh before the speed-ups of 2026-12-05, 278 ms after, against about
+// 28 ms for a dense marching cubes; docs/design/2026-12-04-surface-mesher-peers.md). Counters:
+// triangles and field evaluations (exact, so a change in the work shows when times are noisy).
+void BM_MeshSpeed(benchmark::State& state) {
+  SurfaceMeshSettings settings;
+  settings.snap_cells = state.range(2) * 0.01;
+  TimeMeshing(state, settings);
+  state.counters["snap"] = settings.snap_cells;
 }
 BENCHMARK(BM_MeshSpeed)
     ->ArgsProduct({{3}, {10, 20}, {0, static_cast<long>(kProductSnapCells * 100 + 0.5)}})
@@ -216,21 +224,9 @@ BENCHMARK(BM_MeshSpeed)
 // on 2026-12-06 (docs/design/2026-12-06-lattice-mesher.md); counters as BM_MeshSpeed, plus the
 // lattice vertices snapped onto the surface.
 void BM_LatticeSpeed(benchmark::State& state) {
-  const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
   SurfaceMeshSettings settings;
-  settings.bounds = c.bounds;
-  settings.cell_size = state.range(1) * 1e-4;
   settings.mesher = SurfaceMesher::kLattice;
-  TriangleMesh mesh;
-  SurfaceMeshStats stats;
-  for (auto _ : state) {
-    mesh = MeshSurface(c.solid, settings, &stats);
-    benchmark::DoNotOptimize(mesh.vertices.data());
-  }
-  state.SetLabel(c.name);
-  state.counters["cell_mm"] = settings.cell_size * 1e3;
-  state.counters["triangles"] = static_cast<double>(mesh.triangles.cols());
-  state.counters["evaluations"] = static_cast<double>(stats.field_evaluations);
+  const SurfaceMeshStats stats = TimeMeshing(state, settings);
   state.counters["snapped"] = static_cast<double>(stats.collapsed_edges);
 }
 BENCHMARK(BM_LatticeSpeed)

@@ -601,31 +601,27 @@ TEST(SurfaceMesher, SnappingKeepsWallsThinnerThanTheBand) {
   }
 }
 
-// Meshes each solid across resolutions and grid placements (the CLI's box, and one moved to
-// whole cells so that planes k·cell, where the assets' faces lie, are grid planes) and checks
-// every surface the way TetrahedralizeSurface will.
-TEST(SurfaceMesher, SceneSolidsAcrossResolutionsAreReadyForTetgen) {
-  struct Case {
-    const char* scene;
-    size_t solid;
-    std::vector<double> cells;
-  };
-  const Case cases[] = {
-      {"platform.json", 0, {0.005, 0.006, 0.007, 0.008, 0.009, 0.01, 0.012}},
-      {"clay.json", 0, {0.004, 0.006, 0.008, 0.01}},
-      {"assembly.json", 0, {0.003, 0.004, 0.006, 0.008}},
-      {"assembly.json", 1, {0.002, 0.004, 0.006, 0.008}},
-      {"assembly.json", 2, {0.002, 0.003, 0.004, 0.005}},
-      {"assembly.json", 3, {0.002, 0.004, 0.006, 0.008}},
-  };
-  for (const Case& c : cases) {
+// A solid of a scene in assets/scenes and the cells to mesh it at.
+struct SceneCase {
+  const char* scene;
+  size_t solid;
+  std::vector<double> cells;
+};
+
+// Meshes each solid by `mesher` across resolutions and grid placements (the CLI's box, and one
+// moved to whole cells so that planes k·cell, where the assets' faces lie, are grid planes) and
+// checks every surface the way TetrahedralizeSurface will.
+void ExpectSceneSolidsReadyForTetgen(const std::vector<SceneCase>& cases, SurfaceMesher mesher) {
+  for (const SceneCase& c : cases) {
     const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + c.scene);
     const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(c.solid).root);
     for (double cell : c.cells) {
       for (bool aligned : {false, true}) {
         const Eigen::AlignedBox3d bounds =
             aligned ? GridAlignedBounds(solid, cell) : CliBounds(solid, cell);
-        const TriangleMesh mesh = MeshSurface(solid, Settings(bounds.min(), bounds.max(), cell));
+        SurfaceMeshSettings settings = Settings(bounds.min(), bounds.max(), cell);
+        settings.mesher = mesher;
+        const TriangleMesh mesh = MeshSurface(solid, settings);
         const std::string what = std::string(c.scene) + " solid " + std::to_string(c.solid) +
                                  " cell " + std::to_string(cell) + (aligned ? " grid-aligned" : "");
         ASSERT_GT(mesh.triangles.cols(), 0) << what;
@@ -637,40 +633,69 @@ TEST(SurfaceMesher, SceneSolidsAcrossResolutionsAreReadyForTetgen) {
   }
 }
 
-TEST(SurfaceMesher, TestSolidsOnAndOffTheGridAreReadyForTetgen) {
-  // Faces through grid vertices (box, half-cell offsets), a sphere through grid vertices
-  // (radius a whole number of cells), a torus, and a union of boxes at an angle.
-  const CompiledSolid box =
-      CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.03)}));
-  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.03}));
-  const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.03, 0.01}));
+TEST(SurfaceMesher, SceneSolidsAcrossResolutionsAreReadyForTetgen) {
+  ExpectSceneSolidsReadyForTetgen(
+      {{"platform.json", 0, {0.005, 0.006, 0.007, 0.008, 0.009, 0.01, 0.012}},
+       {"clay.json", 0, {0.004, 0.006, 0.008, 0.01}},
+       {"assembly.json", 0, {0.003, 0.004, 0.006, 0.008}},
+       {"assembly.json", 1, {0.002, 0.004, 0.006, 0.008}},
+       {"assembly.json", 2, {0.002, 0.003, 0.004, 0.005}},
+       {"assembly.json", 3, {0.002, 0.004, 0.006, 0.008}}},
+      SurfaceMesher::kMarchingTetrahedra);
+}
+
+// Faces through grid vertices (box, half-cell offsets), a sphere through grid vertices (radius a
+// whole number of cells), a torus, and a union of boxes at an angle.
+struct TestSolid {
+  std::string name;
+  CompiledSolid solid;
+  long euler;
+  bool smooth;
+};
+std::vector<TestSolid> TestSolids() {
   ImplicitNode tilted(TranslateParams{Eigen::Vector3d(0.02, 0.01, 0.005)},
                       {ImplicitNode(RotateParams{Eigen::Vector3d(0.2, 0.1, 1).normalized(), 0.5},
                                     {ImplicitNode(BoxParams{Eigen::Vector3d(0.04, 0.03, 0.03)})})});
-  const CompiledSolid boxes = CompiledSolid::Compile(ImplicitNode(
-      UnionParams{}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.04)}), tilted}));
-  const struct {
-    const char* name;
-    const CompiledSolid* solid;
-    long euler;
-  } solids[] = {{"box", &box, 2},
-                {"sphere", &sphere, 2},
-                {"torus", &torus, 0},
-                {"union of boxes", &boxes, 2}};
-  for (const auto& c : solids) {
+  std::vector<TestSolid> solids;
+  solids.push_back(
+      {"box", CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.03)})), 2,
+       false});
+  solids.push_back({"sphere", CompiledSolid::Compile(ImplicitNode(SphereParams{0.03})), 2, true});
+  solids.push_back(
+      {"torus", CompiledSolid::Compile(ImplicitNode(TorusParams{0.03, 0.01})), 0, true});
+  solids.push_back(
+      {"union of boxes",
+       CompiledSolid::Compile(ImplicitNode(
+           UnionParams{}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.04)}), tilted})),
+       2, false});
+  return solids;
+}
+
+// Meshes TestSolids() by `mesher` at six cells on three grid shifts and checks each the way
+// TetrahedralizeSurface will; the lattice also keeps smooth solids at 10° or more.
+void ExpectTestSolidsReadyForTetgen(SurfaceMesher mesher) {
+  for (const TestSolid& c : TestSolids()) {
     for (double cell : {0.002, 0.0025, 0.003, 0.004, 0.005, 0.006}) {
       for (double shift : {0.0, 0.5, 0.37}) {
         const Eigen::Vector3d lo = Eigen::Vector3d::Constant(-0.06 + shift * cell);
-        const TriangleMesh mesh =
-            MeshSurface(*c.solid, Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell));
-        const std::string what = std::string(c.name) + " cell " + std::to_string(cell) + " shift " +
-                                 std::to_string(shift);
+        SurfaceMeshSettings settings = Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell);
+        settings.mesher = mesher;
+        const TriangleMesh mesh = MeshSurface(c.solid, settings);
+        const std::string what =
+            c.name + " cell " + std::to_string(cell) + " shift " + std::to_string(shift);
         EXPECT_EQ(CheckClosedManifold(mesh), c.euler) << what;
         EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
         ExpectReadyForTetgen(mesh, what);
+        if (mesher == SurfaceMesher::kLattice && c.smooth) {
+          EXPECT_GE(MeasureTriangleAngles(mesh).min_angle_deg, 10.0) << what;
+        }
       }
     }
   }
+}
+
+TEST(SurfaceMesher, TestSolidsOnAndOffTheGridAreReadyForTetgen) {
+  ExpectTestSolidsReadyForTetgen(SurfaceMesher::kMarchingTetrahedra);
 }
 
 TEST(SurfaceMesher, CancelStopsAndProgressReachesOne) {
@@ -961,74 +986,16 @@ TEST(SurfaceMesher, LatticeSphereIsAccurateWithNoAngleUnderTenDegrees) {
 // TetrahedralizeSurface to weld, no self-intersection (CheckSurface). Smooth solids keep every
 // angle at 10° or more.
 TEST(SurfaceMesher, LatticeSolidsOnAndOffTheGridAreReadyForTetgen) {
-  const CompiledSolid box =
-      CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.03)}));
-  const CompiledSolid sphere = CompiledSolid::Compile(ImplicitNode(SphereParams{0.03}));
-  const CompiledSolid torus = CompiledSolid::Compile(ImplicitNode(TorusParams{0.03, 0.01}));
-  ImplicitNode tilted(TranslateParams{Eigen::Vector3d(0.02, 0.01, 0.005)},
-                      {ImplicitNode(RotateParams{Eigen::Vector3d(0.2, 0.1, 1).normalized(), 0.5},
-                                    {ImplicitNode(BoxParams{Eigen::Vector3d(0.04, 0.03, 0.03)})})});
-  const CompiledSolid boxes = CompiledSolid::Compile(ImplicitNode(
-      UnionParams{}, {ImplicitNode(BoxParams{Eigen::Vector3d(0.06, 0.04, 0.04)}), tilted}));
-  const struct {
-    const char* name;
-    const CompiledSolid* solid;
-    long euler;
-    bool smooth;
-  } solids[] = {{"box", &box, 2, false},
-                {"sphere", &sphere, 2, true},
-                {"torus", &torus, 0, true},
-                {"union of boxes", &boxes, 2, false}};
-  for (const auto& c : solids) {
-    for (double cell : {0.002, 0.0025, 0.003, 0.004, 0.005, 0.006}) {
-      for (double shift : {0.0, 0.5, 0.37}) {
-        const Eigen::Vector3d lo = Eigen::Vector3d::Constant(-0.06 + shift * cell);
-        const TriangleMesh mesh = MeshSurface(
-            *c.solid,
-            LatticeSettings(Eigen::AlignedBox3d(lo, lo + Eigen::Vector3d::Constant(0.12)), cell));
-        const std::string what = std::string(c.name) + " cell " + std::to_string(cell) + " shift " +
-                                 std::to_string(shift);
-        EXPECT_EQ(CheckClosedManifold(mesh), c.euler) << what;
-        EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
-        ExpectReadyForTetgen(mesh, what);
-        if (c.smooth) {
-          EXPECT_GE(MeasureTriangleAngles(mesh).min_angle_deg, 10.0) << what;
-        }
-      }
-    }
-  }
+  ExpectTestSolidsReadyForTetgen(SurfaceMesher::kLattice);
 }
 
 // The scenes' solids on the CLI's box and on a grid-aligned one (faces on lattice planes).
 TEST(SurfaceMesher, LatticeSceneSolidsAreReadyForTetgen) {
-  struct Case {
-    const char* scene;
-    size_t solid;
-    std::vector<double> cells;
-  };
-  const Case cases[] = {
-      {"platform.json", 0, {0.002, 0.004, 0.006, 0.01}},
-      {"clay.json", 0, {0.003, 0.006}},
-      {"assembly.json", 0, {0.003, 0.006}},
-      {"assembly.json", 2, {0.002, 0.004}},
-  };
-  for (const Case& c : cases) {
-    const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + c.scene);
-    const CompiledSolid solid = CompiledSolid::Compile(scene.solids.at(c.solid).root);
-    for (double cell : c.cells) {
-      for (bool aligned : {false, true}) {
-        const Eigen::AlignedBox3d bounds =
-            aligned ? GridAlignedBounds(solid, cell) : CliBounds(solid, cell);
-        const TriangleMesh mesh = MeshSurface(solid, LatticeSettings(bounds, cell));
-        const std::string what = std::string(c.scene) + " solid " + std::to_string(c.solid) +
-                                 " cell " + std::to_string(cell) + (aligned ? " grid-aligned" : "");
-        ASSERT_GT(mesh.triangles.cols(), 0) << what;
-        CheckClosedManifold(mesh);
-        EXPECT_EQ(CloseVertexPairs(mesh, 1e-6 * cell), 0) << what;
-        ExpectReadyForTetgen(mesh, what);
-      }
-    }
-  }
+  ExpectSceneSolidsReadyForTetgen({{"platform.json", 0, {0.002, 0.004, 0.006, 0.01}},
+                                   {"clay.json", 0, {0.003, 0.006}},
+                                   {"assembly.json", 0, {0.003, 0.006}},
+                                   {"assembly.json", 2, {0.002, 0.004}}},
+                                  SurfaceMesher::kLattice);
 }
 
 TEST(SurfaceMesher, LatticeClipsToTheBoundsCancelsAndRejectsBadSnaps) {
