@@ -254,62 +254,61 @@ class LatticeMesher {
     mixed_faces_.reserve(64 * near_.size());
     crossings_.reserve(32 * near_.size());
     constexpr int L = kBlock + 1;
-    double corner[L][L][L], centre[L][L][L];  // [k][j][i], lattice index - block start
+    // Values and inside flags of the corners and centres with lattice index in [block start,
+    // block start + kBlock] per axis, flattened as i + L j + L² k.
+    double corner[L * L * L], centre[L * L * L];
+    unsigned char corner_in[L * L * L], centre_in[L * L * L];
+    // Per face axis: the flattened offsets of the neighbour's centre and of the four corners
+    // (in kSigns order) from the cell's own index.
+    constexpr int kStride[3] = {1, L, L * L};
+    int corner_offset[3][4];
+    for (int axis = 0; axis < 3; ++axis)
+      for (int r = 0; r < 4; ++r)
+        corner_offset[axis][r] = kStride[axis] + (kSigns[r][0] > 0 ? kStride[(axis + 1) % 3] : 0) +
+                                 (kSigns[r][1] > 0 ? kStride[(axis + 2) % 3] : 0);
     for (const auto& b : near_) {
       const int base[3] = {b[0] * kBlock, b[1] * kBlock, b[2] * kBlock};
-      bool any_inside = false, any_outside = false;
+      int inside_count = 0;
       const double* own = near_blocks_data_[block_slot_[BlockOf({2 * base[0] - 2, 2 * base[1] - 2,
                                                                  2 * base[2] - 2})]]
                               .values;
-      for (int k = 0; k < L; ++k)
+      for (int k = 0, at = 0; k < L; ++k)
         for (int j = 0; j < L; ++j)
-          for (int i = 0; i < L; ++i) {
+          for (int i = 0; i < L; ++i, ++at) {
             const int g[3] = {base[0] + i, base[1] + j, base[2] + k};
             const bool inner = i < kBlock && j < kBlock && k < kBlock;
             const int local = i + kBlock * (j + kBlock * k);
             if (g[0] >= corners_[0] || g[1] >= corners_[1] || g[2] >= corners_[2])
-              corner[k][j][i] = kInf;
+              corner[at] = kInf;
             else
-              corner[k][j][i] =
-                  inner ? own[local] : ValueAt({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2});
+              corner[at] = inner ? own[local] : ValueAt({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2});
             if (g[0] >= centres_[0] || g[1] >= centres_[1] || g[2] >= centres_[2])
-              centre[k][j][i] = kInf;
+              centre[at] = kInf;
             else
-              centre[k][j][i] = inner ? own[kBlockVertices + local]
-                                      : ValueAt({2 * g[0] - 1, 2 * g[1] - 1, 2 * g[2] - 1});
-            any_inside |= Inside(corner[k][j][i]) || Inside(centre[k][j][i]);
-            any_outside |= !Inside(corner[k][j][i]) || !Inside(centre[k][j][i]);
+              centre[at] = inner ? own[kBlockVertices + local]
+                                 : ValueAt({2 * g[0] - 1, 2 * g[1] - 1, 2 * g[2] - 1});
+            corner_in[at] = Inside(corner[at]) ? 1 : 0;
+            centre_in[at] = Inside(centre[at]) ? 1 : 0;
+            inside_count += corner_in[at] + centre_in[at];
           }
       // The bounds are loose: most sampled blocks have no sign change at all.
-      if (!any_inside || !any_outside) continue;
+      if (inside_count == 0 || inside_count == 2 * L * L * L) continue;
       for (int k = 0; k < kBlock && base[2] + k < centres_[2]; ++k)
         for (int j = 0; j < kBlock && base[1] + j < centres_[1]; ++j)
           for (int i = 0; i < kBlock && base[0] + i < centres_[0]; ++i) {
             const int m[3] = {i, j, k};
-            const double vc = centre[k][j][i];
+            const int at = i + L * (j + L * k);
             for (int axis = 0; axis < 3; ++axis) {
               if (base[axis] + m[axis] + 1 >= centres_[axis]) continue;  // no cell beyond
-              int m2[3] = {i, j, k};
-              ++m2[axis];
-              const double vc2 = centre[m2[2]][m2[1]][m2[0]];
-              const int u = (axis + 1) % 3, w = (axis + 2) % 3;
-              double vq[4];
-              for (int r = 0; r < 4; ++r) {
-                int q[3] = {i, j, k};
-                q[axis] += 1;
-                q[u] += kSigns[r][0] > 0 ? 1 : 0;
-                q[w] += kSigns[r][1] > 0 ? 1 : 0;
-                vq[r] = corner[q[2]][q[1]][q[0]];
-              }
-              const bool in_c = Inside(vc), in_c2 = Inside(vc2);
-              bool in_q[4], mixed = in_c != in_c2;
-              for (int r = 0; r < 4; ++r) {
-                in_q[r] = Inside(vq[r]);
-                mixed = mixed || in_q[r] != in_c;
-              }
-              if (!mixed) continue;
+              const int* q = corner_offset[axis];
+              const int inside = centre_in[at] + centre_in[at + kStride[axis]] +
+                                 corner_in[at + q[0]] + corner_in[at + q[1]] +
+                                 corner_in[at + q[2]] + corner_in[at + q[3]];
+              if (inside == 0 || inside == 6) continue;
+              const double vq[4] = {corner[at + q[0]], corner[at + q[1]], corner[at + q[2]],
+                                    corner[at + q[3]]};
               const D3 c = {2 * (base[0] + i) - 1, 2 * (base[1] + j) - 1, 2 * (base[2] + k) - 1};
-              AddFace(c, axis, vc, vc2, vq);
+              AddFace(c, axis, centre[at], centre[at + kStride[axis]], vq);
             }
           }
     }
@@ -323,23 +322,45 @@ class LatticeMesher {
     face.c = c;
     face.axis = static_cast<unsigned char>(axis);
     D3 d[6];
+    FaceVertices(c, axis, d);
     double v[6] = {vc, vc2, vq[0], vq[1], vq[2], vq[3]};
-    d[0] = c;
-    d[1] = c;
-    d[1][axis] += 2;
-    for (int r = 0; r < 4; ++r) d[2 + r] = FaceCorner(c, axis, r);
     for (int x = 0; x < 6; ++x)
       if (Inside(v[x])) face.inside |= static_cast<unsigned char>(1u << x);
-    for (const auto& [x, y] : kFaceEdges) {
+    const auto& offsets = FaceEdgeOffsets()[axis];
+    for (int e = 0; e < 13; ++e) {
+      const auto [x, y] = kFaceEdges[e];
       if (Inside(v[x]) == Inside(v[y])) continue;
       if (face.act[x] < 0) face.act[x] = MarkActive(d[x], v[x]);
       if (face.act[y] < 0) face.act[y] = MarkActive(d[y], v[y]);
-      const int k = OffsetIndex(d[x], d[y]);
+      const int k = offsets[e];
       const double t = std::isinf(v[y]) ? 0.0 : v[x] / (v[x] - v[y]);
       if (face.act[x] >= 0) active_[face.act[x]].Candidate(k, t);
       if (face.act[y] >= 0) active_[face.act[y]].Candidate((k + 7) % 14, 1.0 - t);
     }
     mixed_faces_.push_back(face);
+  }
+
+  // The six vertices of a face: the cell's centre c, its neighbour's centre, the four corners.
+  static void FaceVertices(const D3& c, int axis, D3 (&d)[6]) {
+    d[0] = c;
+    d[1] = c;
+    d[1][axis] += 2;
+    for (int r = 0; r < 4; ++r) d[2 + r] = FaceCorner(c, axis, r);
+  }
+
+  // Per face axis, the index in kOffsets of each of kFaceEdges (from its first vertex).
+  static const std::array<std::array<int, 13>, 3>& FaceEdgeOffsets() {
+    static const std::array<std::array<int, 13>, 3> table = [] {
+      std::array<std::array<int, 13>, 3> t{};
+      for (int axis = 0; axis < 3; ++axis) {
+        D3 d[6];
+        FaceVertices({1, 1, 1}, axis, d);
+        for (int e = 0; e < 13; ++e)
+          t[axis][e] = OffsetIndex(d[kFaceEdges[e].first], d[kFaceEdges[e].second]);
+      }
+      return t;
+    }();
+    return table;
   }
 
   // Corner r of the face between the cell of centre c and its neighbour along axis.
@@ -538,11 +559,8 @@ class LatticeMesher {
     triangles_.reserve(3 * mixed_faces_.size());
     for (const Face& f : mixed_faces_) {
       D3 d[6];
-      d[0] = f.c;
-      d[1] = f.c;
-      d[1][f.axis] += 2;
+      FaceVertices(f.c, f.axis, d);
       Active* act[6];
-      for (int r = 0; r < 4; ++r) d[2 + r] = FaceCorner(f.c, f.axis, r);
       for (int x = 0; x < 6; ++x) act[x] = f.act[x] >= 0 ? &active_[f.act[x]] : nullptr;
       for (int r = 0; r < 4; ++r) {
         const int x[4] = {0, 1, 2 + r, 2 + (r + 1) % 4};
