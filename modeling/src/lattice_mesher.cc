@@ -504,12 +504,23 @@ class LatticeMesher {
     triangles_.push_back({a, b, c});
   }
 
-  // The triangles of one tetrahedron (doubled coordinates t, values v).
-  void Tetrahedron(const D3 (&t)[4], const bool (&inside)[4], Active* const (&act)[4]) {
-    auto edge = [&](int i, int j) { return EdgeVertex(t[i], act[i], t[j], act[j]); };
+  // What marching tetrahedra makes in one tetrahedron of a face for one sign pattern: nothing,
+  // a triangle or a quad, as its crossed edges (pairs of the tetrahedron's vertices) in the order
+  // that faces outward. Tetrahedra of faces along the same axis, at the same corner r, are
+  // translates of each other, so the order depends only on (axis, r, pattern).
+  struct TetCase {
+    int corners = 0;  // 0, 3 or 4
+    int edges[4][2] = {};
+  };
+
+  // The case of the tetrahedron with doubled coordinates t whose vertex i is inside when bit i of
+  // pattern is set: the crossings' order from the outward normal at the edge midpoints (the same
+  // as at any points inside those edges).
+  static TetCase MakeTetCase(const D3 (&t)[4], int pattern) {
+    TetCase tc;
     int in[4] = {0, 0, 0, 0}, out[4] = {0, 0, 0, 0}, ni = 0, no = 0;
-    for (int i = 0; i < 4; ++i) (inside[i] ? in[ni++] : out[no++]) = i;
-    if (ni == 0 || no == 0) return;
+    for (int i = 0; i < 4; ++i) ((pattern >> i & 1) != 0 ? in[ni++] : out[no++]) = i;
+    if (ni == 0 || no == 0) return tc;
     auto mid = [&](int i, int j) -> Vec {
       return Vec(t[i][0] + t[j][0], t[i][1] + t[j][1], t[i][2] + t[j][2]) * 0.5;
     };
@@ -523,8 +534,12 @@ class LatticeMesher {
       // Outward: away from a lone inside vertex, towards a lone outside one.
       const Vec outward = (ni == 1 ? 1.0 : -1.0) * (ma - point(lone));
       if ((mb - ma).cross(mc - ma).dot(outward) < 0.0) std::swap(others[1], others[2]);
-      Emit(edge(lone, others[0]), edge(lone, others[1]), edge(lone, others[2]));
-      return;
+      tc.corners = 3;
+      for (int k = 0; k < 3; ++k) {
+        tc.edges[k][0] = lone;
+        tc.edges[k][1] = others[k];
+      }
+      return tc;
     }
     // Two inside, two outside: the quad of the four crossings, in cyclic order.
     int ends[4][2] = {{in[0], out[0]}, {in[0], out[1]}, {in[1], out[1]}, {in[1], out[0]}};
@@ -532,8 +547,45 @@ class LatticeMesher {
     const Vec m0 = mid(ends[0][0], ends[0][1]), m1 = mid(ends[1][0], ends[1][1]),
               m2 = mid(ends[2][0], ends[2][1]);
     if ((m1 - m0).cross(m2 - m0).dot(outward) < 0.0) std::swap(ends[1], ends[3]);
+    tc.corners = 4;
+    for (int k = 0; k < 4; ++k) {
+      tc.edges[k][0] = ends[k][0];
+      tc.edges[k][1] = ends[k][1];
+    }
+    return tc;
+  }
+
+  // kTetCases[axis][r][pattern], built once from a face at the lattice's origin.
+  static const TetCase& TetCaseOf(int axis, int r, int pattern) {
+    static const std::vector<TetCase> table = [] {
+      std::vector<TetCase> t(3 * 4 * 16);
+      for (int axis = 0; axis < 3; ++axis) {
+        D3 d[6];
+        FaceVertices({1, 1, 1}, axis, d);
+        for (int r = 0; r < 4; ++r) {
+          const D3 tet[4] = {d[0], d[1], d[2 + r], d[2 + (r + 1) % 4]};
+          for (int pattern = 0; pattern < 16; ++pattern)
+            t[(axis * 4 + r) * 16 + pattern] = MakeTetCase(tet, pattern);
+        }
+      }
+      return t;
+    }();
+    return table[(axis * 4 + r) * 16 + pattern];
+  }
+
+  // The triangles of one tetrahedron (doubled coordinates t, active records act) for its case.
+  void Tetrahedron(const D3 (&t)[4], Active* const (&act)[4], const TetCase& tc) {
+    auto edge = [&](int k) {
+      const int i = tc.edges[k][0], j = tc.edges[k][1];
+      return EdgeVertex(t[i], act[i], t[j], act[j]);
+    };
+    if (tc.corners == 3) {
+      Emit(edge(0), edge(1), edge(2));
+      return;
+    }
+    if (tc.corners != 4) return;
     int q[4];
-    for (int i = 0; i < 4; ++i) q[i] = edge(ends[i][0], ends[i][1]);
+    for (int k = 0; k < 4; ++k) q[k] = edge(k);
     // Split along the diagonal whose ends coincide (both halves vanish), else the shorter.
     bool diagonal02;
     if (q[0] == q[2]) {
@@ -564,11 +616,13 @@ class LatticeMesher {
       for (int x = 0; x < 6; ++x) act[x] = f.act[x] >= 0 ? &active_[f.act[x]] : nullptr;
       for (int r = 0; r < 4; ++r) {
         const int x[4] = {0, 1, 2 + r, 2 + (r + 1) % 4};
+        const int pattern = (f.inside >> x[0] & 1) | (f.inside >> x[1] & 1) << 1 |
+                            (f.inside >> x[2] & 1) << 2 | (f.inside >> x[3] & 1) << 3;
+        const TetCase& tc = TetCaseOf(f.axis, r, pattern);
+        if (tc.corners == 0) continue;
         const D3 t[4] = {d[x[0]], d[x[1]], d[x[2]], d[x[3]]};
-        const bool in[4] = {(f.inside >> x[0] & 1) != 0, (f.inside >> x[1] & 1) != 0,
-                            (f.inside >> x[2] & 1) != 0, (f.inside >> x[3] & 1) != 0};
         Active* const a[4] = {act[x[0]], act[x[1]], act[x[2]], act[x[3]]};
-        Tetrahedron(t, in, a);
+        Tetrahedron(t, a, tc);
       }
     }
   }

@@ -998,6 +998,45 @@ TEST(SurfaceMesher, LatticeSceneSolidsAreReadyForTetgen) {
                                   SurfaceMesher::kLattice);
 }
 
+// The lattice route's output, frozen as it stood on 2026-12-06 (docs/design/2026-12-06-lattice-
+// mesher.md): a speed-up that claims to keep the mesh must keep these bit for bit.
+TEST(SurfaceMesher, LatticeOutputIsFrozen) {
+  const Eigen::Vector3d offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
+  const CompiledSolid sphere = CompiledSolid::Compile(
+      ImplicitNode(TranslateParams{offset}, {ImplicitNode(SphereParams{0.05})}));
+  const CompiledSolid holed = CompiledSolid::Compile(ImplicitNode(
+      TranslateParams{offset},
+      {ImplicitNode(DifferenceParams{},
+                    {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})})}));
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  const struct {
+    const char* name;
+    const CompiledSolid* solid;
+    Eigen::AlignedBox3d bounds;
+    double cell;
+    long triangles;
+    std::uint64_t fingerprint;
+  } cases[] = {
+      {"sphere", &sphere,
+       Eigen::AlignedBox3d(offset - Eigen::Vector3d::Constant(0.06),
+                           offset + Eigen::Vector3d::Constant(0.06)),
+       0.004, 8976, 0x6f402fe9422d8371ull},
+      {"box-cylinder", &holed,
+       Eigen::AlignedBox3d(offset - size / 2 - Eigen::Vector3d(0.0107, 0.0113, 0.0109),
+                           offset + size / 2 + Eigen::Vector3d::Constant(0.01)),
+       0.004, 10656, 0xa6a8b9478bbb0d1aull},
+      {"platform 8 mm", &platform,
+       Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02)),
+       0.008, 13430, 0x284db74ba31f2fbfull},
+  };
+  for (const auto& c : cases) {
+    const TriangleMesh mesh = MeshSurface(*c.solid, LatticeSettings(c.bounds, c.cell));
+    EXPECT_EQ(mesh.triangles.cols(), c.triangles) << c.name;
+    EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint) << c.name;
+  }
+}
+
 TEST(SurfaceMesher, LatticeClipsToTheBoundsCancelsAndRejectsBadSnaps) {
   const CompiledSolid box =
       CompiledSolid::Compile(ImplicitNode(BoxParams{Eigen::Vector3d::Constant(0.1)}));
