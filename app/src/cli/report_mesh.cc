@@ -211,7 +211,7 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
   struct Row {
     std::string solid;
     double cell;
-    bool sharp;
+    std::string mesh;  // "plain", "sharpened" or "lattice"
     long triangles;
     double seconds;
     Hausdorff error;
@@ -233,15 +233,23 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
       TriangleMesh sharp;
       const double sharpen_s =
           MedianSeconds(ctx.Pick(1, 3), [&] { sharp = SharpenFeatures(c.solid, plain, features); });
-      rows.push_back({c.name, cell, false, static_cast<long>(plain.triangles.cols()), mesh_s,
+      settings.mesher = SurfaceMesher::kLattice;
+      TriangleMesh lattice;
+      const double lattice_s =
+          MedianSeconds(ctx.Pick(1, 3), [&] { lattice = MeshSurface(c.solid, settings); });
+      rows.push_back({c.name, cell, "plain", static_cast<long>(plain.triangles.cols()), mesh_s,
                       MeasureHausdorff(c.solid, plain, points, cell)});
-      rows.push_back({c.name, cell, true, static_cast<long>(sharp.triangles.cols()),
+      rows.push_back({c.name, cell, "sharpened", static_cast<long>(sharp.triangles.cols()),
                       mesh_s + sharpen_s, MeasureHausdorff(c.solid, sharp, points, cell)});
+      rows.push_back({c.name, cell, "lattice", static_cast<long>(lattice.triangles.cols()),
+                      lattice_s, MeasureHausdorff(c.solid, lattice, points, cell)});
       ctx.Progress(++done / static_cast<double>(cases.size() * cells.size()));
     }
   }
   ctx.md() << "MeshSurface (marching tetrahedra on a grid of cell h, with its clean-up pass), "
-              "plain and followed by SharpenFeatures, on three solids whose surfaces are known "
+              "plain and followed by SharpenFeatures, and its lattice route (body-centred cubic "
+              "lattice, vertices snapped onto the surface, no clean-up: `spidarcad mesh`'s "
+              "default), on three solids whose surfaces are known "
               "in closed form (their implicit functions are exact distances). Two-sided "
               "Hausdorff error, sampled: mesh → surface is |f| at 10 points of every triangle, "
               "surface → mesh the distance from "
@@ -251,12 +259,11 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
            << ctx.Pick(1, 3) << ".\n";
   std::vector<std::vector<std::string>> table, csv;
   for (const Row& r : rows) {
-    table.push_back({r.solid, Fixed(1e3 * r.cell, 1), r.sharp ? "sharpened" : "plain",
-                     std::to_string(r.triangles), Sig(r.seconds, 3),
-                     Sig(1e3 * r.error.mesh_to_surface, 3), Sig(1e3 * r.error.surface_to_mesh, 3),
-                     Sig(1e3 * r.error.two_sided(), 3)});
-    csv.push_back({"\"" + r.solid + "\"", Sig(r.cell, 6), r.sharp ? "sharpened" : "plain",
-                   std::to_string(r.triangles), Sig(r.seconds, 6), Sig(r.error.mesh_to_surface, 6),
+    table.push_back({r.solid, Fixed(1e3 * r.cell, 1), r.mesh, std::to_string(r.triangles),
+                     Sig(r.seconds, 3), Sig(1e3 * r.error.mesh_to_surface, 3),
+                     Sig(1e3 * r.error.surface_to_mesh, 3), Sig(1e3 * r.error.two_sided(), 3)});
+    csv.push_back({"\"" + r.solid + "\"", Sig(r.cell, 6), r.mesh, std::to_string(r.triangles),
+                   Sig(r.seconds, 6), Sig(r.error.mesh_to_surface, 6),
                    Sig(r.error.surface_to_mesh, 6)});
   }
   ctx.Table({"solid", "h mm", "mesh", "triangles", "time s", "mesh→surface mm", "surface→mesh mm",
@@ -273,16 +280,12 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
               true,
               {}};
   for (size_t k = 0; k < cases.size(); ++k) {
-    for (bool sharp : {false, true}) {
-      ChartSeries s{cases[k].name + (sharp ? ", sharpened" : ", plain"),
-                    {},
-                    {},
-                    static_cast<int>(k),
-                    true,
-                    sharp,
-                    0};
+    for (const std::string mesh : {"plain", "sharpened", "lattice"}) {
+      // Lattice: squares without a line; sharpened: dashed.
+      ChartSeries s{cases[k].name + ", " + mesh, {}, {}, static_cast<int>(k), mesh != "lattice",
+                    mesh == "sharpened",         1};
       for (const Row& r : rows) {
-        if (r.solid != cases[k].name || r.sharp != sharp) continue;
+        if (r.solid != cases[k].name || r.mesh != mesh) continue;
         s.x.push_back(r.seconds);
         s.y.push_back(r.error.two_sided());
       }
@@ -290,20 +293,27 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
     }
   }
   ctx.Figure("surface_time_vs_hausdorff", {chart},
-             "One curve per solid and variant (dashed: sharpened), one point per cell size; "
+             "One curve per solid and variant (dashed: sharpened; squares: the lattice route), one "
+             "point per cell size; "
              "finer cells are slower and more accurate.",
              1000, 620);
-  auto find = [&](const std::string& solid, bool sharp) {
+  auto find = [&](const std::string& solid, const std::string& mesh) {
     for (const Row& r : rows) {
-      if (r.solid == solid && r.sharp == sharp && r.cell == cells.back()) return r;
+      if (r.solid == solid && r.mesh == mesh && r.cell == cells.back()) return r;
     }
     return rows.front();
   };
-  const Row box_plain = find(cases[1].name, false), box_sharp = find(cases[1].name, true);
+  const Row box_plain = find(cases[1].name, "plain"), box_sharp = find(cases[1].name, "sharpened");
+  const Row sphere_plain = find(cases[0].name, "plain"),
+            sphere_lattice = find(cases[0].name, "lattice");
   ctx.Headline("box at h = " + Fixed(1e3 * cells.back(), 1) + " mm: Hausdorff " +
                Sig(1e3 * box_plain.error.two_sided(), 2) + " mm plain, " +
                Sig(1e3 * box_sharp.error.two_sided(), 2) + " mm sharpened (" +
-               Sig(box_plain.seconds, 2) + " s, " + Sig(box_sharp.seconds, 2) + " s)");
+               Sig(box_plain.seconds, 2) + " s, " + Sig(box_sharp.seconds, 2) +
+               " s); sphere: " + Sig(1e3 * sphere_plain.error.two_sided(), 2) + " mm in " +
+               Sig(sphere_plain.seconds, 2) + " s plain, " +
+               Sig(1e3 * sphere_lattice.error.two_sided(), 2) + " mm in " +
+               Sig(sphere_lattice.seconds, 2) + " s lattice");
   ctx.Summary(Sig(box_sharp.seconds, 2) + " s (box, h = " + Fixed(1e3 * cells.back(), 1) +
                   " mm, sharpened)",
               Sig(1e3 * box_sharp.error.two_sided(), 2) + " mm two-sided Hausdorff");
