@@ -13,9 +13,11 @@
 // mesh vertex: the short edges and needles marching tetrahedra would make around it never
 // appear, so there is no clean-up. (The snapping of lattice vertices onto the zero set follows
 // Labelle and Shewchuk's isosurface stuffing, SIGGRAPH 2007, and manifold3d's level-set mesher,
-// which bound the move to a quarter of the spacing.) Collapsing the crossings of two snapped
-// vertices can make a mesh vertex whose triangles form more than one fan; such a lattice vertex
-// keeps its place and the triangles are made again.
+// which bound the move to a quarter of the spacing.) Collapsing crossings can make a mesh vertex
+// whose triangles form more than one fan; there the snap of the lattice vertex that moved
+// farthest (that vertex or a snapped neighbour) is undone and the triangles are made again. A
+// lattice vertex that had a crossing within the snap distance but did not snap keeps the
+// crossings of its edges kMinFraction of an edge away.
 //
 // The field is max(value, distance to the bounds' box) (the solid clipped to the bounds). It is
 // sampled in blocks of kBlock³ cells; a block whose interval bound, over the block grown by one
