@@ -46,7 +46,7 @@ using D3 = std::array<int, 3>;
 constexpr int kBlock = 4;  // lattice index units per block side
 // Edge crossings stay this fraction of the edge away from a lattice vertex that had a crossing
 // within the snap distance but could not snap.
-constexpr double kMinFraction = 0.15;
+constexpr double kMinFraction = 0.25;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The 14 neighbour offsets in doubled coordinates; k + 7 is the opposite of k (k < 7).

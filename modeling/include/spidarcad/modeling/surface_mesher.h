@@ -54,7 +54,7 @@ enum class SurfaceMesher {
   // blocks of 4³ cells that the interval bounds place away from the surface are not sampled.
   // Closed and manifold (a snap that would join two fans at one vertex is undone); a lattice
   // vertex that cannot snap (a feature thinner than about two cells) keeps its edge crossings
-  // at least 15 % of the edge away from it. Sharp edges are cut off as by the other route.
+  // at least 25 % of the edge away from it. Sharp edges are cut off as by the other route.
   // Figures: docs/design/2026-12-06-lattice-mesher.md.
   kLattice,
 };
