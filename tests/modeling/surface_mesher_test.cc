@@ -265,8 +265,9 @@ double SphereMeshDeviation(const TriangleMesh& mesh, const Eigen::Vector3d& cent
 // with snap_cells = 0.15 no angle is under 10° and the error grows by at most a tenth.
 // The meshes of main at ef0f817 (2026-12-04), before the clean-up was made faster, frozen as
 // fingerprints (support/mesh_fingerprint.h: every vertex bit and triangle index): the speed-ups
-// must give the same triangles, raw, cleaned and snapped. Frozen with GCC 12 on x86-64 (no FMA
-// contraction); a change that is meant to alter the output re-freezes them and says why.
+// must give the same triangles, raw, cleaned and snapped; and three lattice meshes, which its
+// speed-ups must keep too. Frozen with GCC 12 on x86-64 (no FMA contraction); a change that is
+// meant to alter the output re-freezes them and says why.
 TEST(SurfaceMesher, SpeedUpsKeepTheOutputBitForBit) {
   const Eigen::Vector3d offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
   const CompiledSolid sphere = CompiledSolid::Compile(
@@ -295,6 +296,7 @@ TEST(SurfaceMesher, SpeedUpsKeepTheOutputBitForBit) {
     double snap;
     long triangles;
     std::uint64_t fingerprint;
+    SurfaceMesher mesher = SurfaceMesher::kMarchingTetrahedra;
   };
   const Case cases[] = {
       {"sphere raw", &sphere, sphere_box, 0.004, false, 0.0, 17592, 0x2816fbe3e73dcf25ull},
@@ -308,6 +310,13 @@ TEST(SurfaceMesher, SpeedUpsKeepTheOutputBitForBit) {
       {"platform 8 mm", &platform, platform_box, 0.008, true, 0.0, 24756, 0x5d5cb15669e11215ull},
       {"platform 8 mm snap 0.15", &platform, platform_box, 0.008, true, 0.15, 25006,
        0x15ef95577f8fdb8eull},
+      // The lattice route as it stood on 2026-12-06 (docs/design/2026-12-06-lattice-mesher.md).
+      {"sphere lattice", &sphere, sphere_box, 0.004, true, 0.0, 8976, 0x6f402fe9422d8371ull,
+       SurfaceMesher::kLattice},
+      {"box-cylinder lattice", &holed, holed_box, 0.004, true, 0.0, 10656, 0xedbc380e60489fbcull,
+       SurfaceMesher::kLattice},
+      {"platform 8 mm lattice", &platform, platform_box, 0.008, true, 0.0, 13430,
+       0xcae1fb09c7035b39ull, SurfaceMesher::kLattice},
   };
   for (const Case& c : cases) {
     SurfaceMeshSettings settings;
@@ -315,6 +324,7 @@ TEST(SurfaceMesher, SpeedUpsKeepTheOutputBitForBit) {
     settings.cell_size = c.cell;
     settings.clean = c.clean;
     settings.snap_cells = c.snap;
+    settings.mesher = c.mesher;
     const TriangleMesh mesh = MeshSurface(*c.solid, settings);
     EXPECT_EQ(mesh.triangles.cols(), c.triangles) << c.name;
     EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint)
@@ -998,45 +1008,6 @@ TEST(SurfaceMesher, LatticeSceneSolidsAreReadyForTetgen) {
                                    {"assembly.json", 0, {0.003, 0.006}},
                                    {"assembly.json", 2, {0.002, 0.004}}},
                                   SurfaceMesher::kLattice);
-}
-
-// The lattice route's output, frozen as it stood on 2026-12-06 (docs/design/2026-12-06-lattice-
-// mesher.md): a speed-up that claims to keep the mesh must keep these bit for bit.
-TEST(SurfaceMesher, LatticeOutputIsFrozen) {
-  const Eigen::Vector3d offset(0.0013, -0.0021, 0.0007), size(0.1, 0.08, 0.06);
-  const CompiledSolid sphere = CompiledSolid::Compile(
-      ImplicitNode(TranslateParams{offset}, {ImplicitNode(SphereParams{0.05})}));
-  const CompiledSolid holed = CompiledSolid::Compile(ImplicitNode(
-      TranslateParams{offset},
-      {ImplicitNode(DifferenceParams{},
-                    {ImplicitNode(BoxParams{size}), ImplicitNode(CylinderParams{0.02, 0.2})})}));
-  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
-  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
-  const struct {
-    const char* name;
-    const CompiledSolid* solid;
-    Eigen::AlignedBox3d bounds;
-    double cell;
-    long triangles;
-    std::uint64_t fingerprint;
-  } cases[] = {
-      {"sphere", &sphere,
-       Eigen::AlignedBox3d(offset - Eigen::Vector3d::Constant(0.06),
-                           offset + Eigen::Vector3d::Constant(0.06)),
-       0.004, 8976, 0x6f402fe9422d8371ull},
-      {"box-cylinder", &holed,
-       Eigen::AlignedBox3d(offset - size / 2 - Eigen::Vector3d(0.0107, 0.0113, 0.0109),
-                           offset + size / 2 + Eigen::Vector3d::Constant(0.01)),
-       0.004, 10656, 0xedbc380e60489fbcull},
-      {"platform 8 mm", &platform,
-       Eigen::AlignedBox3d(Eigen::Vector3d(-0.01, -0.11, -0.16), Eigen::Vector3d(0.31, 0.11, 0.02)),
-       0.008, 13430, 0xcae1fb09c7035b39ull},
-  };
-  for (const auto& c : cases) {
-    const TriangleMesh mesh = MeshSurface(*c.solid, LatticeSettings(c.bounds, c.cell));
-    EXPECT_EQ(mesh.triangles.cols(), c.triangles) << c.name;
-    EXPECT_EQ(test_support::MeshFingerprint(mesh), c.fingerprint) << c.name;
-  }
 }
 
 TEST(SurfaceMesher, LatticeClipsToTheBoundsCancelsAndRejectsBadSnaps) {
