@@ -59,8 +59,7 @@ struct Active {
   D3 d;
   double value = 0.0;
   bool snapped = false;
-  bool forbidden = false;  // kept in place: its snap made a non-manifold vertex
-  bool kept = false;       // a crossing lies within lattice_snap of it, yet it did not snap
+  bool kept = false;  // a crossing lies within lattice_snap of it, yet it did not snap (or undone)
   int edges[7] = {-1, -1, -1, -1, -1, -1, -1};  // crossings of its edges kOffsets[0..6]
   unsigned crossing_dirs = 0;                   // bit k: the edge along kOffsets[k] crosses
   int best_dir = -1;    // the crossing edge with the nearest (linear) crossing
@@ -129,7 +128,8 @@ class LatticeMesher {
       stats->grid_cells = static_cast<long>(n_[0]) * n_[1] * n_[2];
       stats->evaluated_cells = static_cast<long>(near_.size()) * kBlockVertices;
       stats->field_evaluations = evaluations_;
-      stats->collapsed_edges = snapped_;
+      stats->collapsed_edges = 0;
+      stats->snapped_vertices = snapped_;
       stats->flipped_edges = 0;
       stats->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -140,13 +140,6 @@ class LatticeMesher {
  private:
   static constexpr int kMaxRounds = 16;
 
-  // Every offset keeps the parity of all three components, so a neighbour is a lattice vertex
-  // when it lies in the range (centres: -1 .. 2n + 1, the odd values of -2 .. 2n + 2).
-  bool Valid(const D3& d) const {
-    for (int a = 0; a < 3; ++a)
-      if (d[a] < -2 || d[a] > 2 * n_[a] + 2) return false;
-    return true;
-  }
   // A lattice vertex's block (index into block_slot_) and its place in the block's arrays.
   long BlockOf(const D3& d) const {
     const unsigned i = unsigned(d[0] + 2) >> 1, j = unsigned(d[1] + 2) >> 1,
@@ -422,7 +415,6 @@ class LatticeMesher {
   void Snap() {
     const double limit = settings_.lattice_snap;
     for (Active& a : active_) {
-      if (a.forbidden) continue;
       const double v = a.value;
       const int best = a.best_dir;
       const unsigned opposed_axes = a.crossing_dirs & (a.crossing_dirs >> 7) & 0x7fu;
@@ -449,13 +441,6 @@ class LatticeMesher {
   static int SnappedId(int active) { return -1 - active; }
   static size_t ActiveOf(int id) { return static_cast<size_t>(-1 - id); }
   Vec Point(int id) const { return id >= 0 ? crossings_[id] : active_[ActiveOf(id)].position; }
-
-  Active* FindActive(const D3& d) {
-    const int slot = block_slot_[BlockOf(d)];
-    if (slot < 0) return nullptr;
-    const int i = near_blocks_data_[slot].active[Local(d)];
-    return i >= 0 ? &active_[i] : nullptr;
-  }
 
   // The mesh vertex of the crossing on the edge d0-d1: a snapped end's (the one nearer the
   // surface when both are), else the edge's own, made once.
@@ -684,7 +669,6 @@ class LatticeMesher {
     for (size_t undo : undo_) {
       if (!active_[undo].snapped) continue;  // named twice
       active_[undo].snapped = false;
-      active_[undo].forbidden = true;
       active_[undo].kept = true;
       --snapped_;
       ++forbidden;

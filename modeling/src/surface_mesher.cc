@@ -1436,8 +1436,9 @@ TriangleMesh MeshSurface(const CompiledSolid& solid, const SurfaceMeshSettings& 
                          SurfaceMeshStats* stats) {
   Mesher mesher(solid, settings);  // checks the settings
   if (settings.mesher == SurfaceMesher::kLattice) {
-    if (!(settings.lattice_snap >= 0.0 && settings.lattice_snap <= 0.45))
-      throw std::invalid_argument("MeshSurface: settings.lattice_snap must be in [0, 0.45], got " +
+    if (!(settings.lattice_snap >= 0.0 && settings.lattice_snap <= kMaxLatticeSnap))
+      throw std::invalid_argument("MeshSurface: settings.lattice_snap must be in [0, " +
+                                  std::to_string(kMaxLatticeSnap) + "], got " +
                                   std::to_string(settings.lattice_snap));
     return internal::MeshSurfaceLattice(solid, settings, stats);
   }

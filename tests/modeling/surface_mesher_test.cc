@@ -979,7 +979,7 @@ TEST(SurfaceMesher, LatticeSphereIsAccurateWithNoAngleUnderTenDegrees) {
       // cell per axis, so a triangle's edge is under 1.5 cells: sagitta (1.5 h)^2 / (8 r).
       EXPECT_LT(SphereMeshDeviation(mesh, centre, r), 2.25 * cell * cell / (8 * r)) << what;
       EXPECT_GE(MeasureTriangleAngles(mesh).min_angle_deg, 10.0) << what;
-      EXPECT_GT(stats.collapsed_edges, 0) << what;  // snapped lattice vertices
+      EXPECT_GT(stats.snapped_vertices, 0) << what;
       if (cell < 0.002) {
         EXPECT_LT(stats.evaluated_cells, stats.grid_cells / 2) << what;
       }

@@ -68,6 +68,17 @@ struct MeshOptions {
   double weld = 1e-9;       // mesh-file input: weld tolerance, fraction of the box diagonal
 };
 
+// Whether an option of the marching-tetrahedra route is given (--sharp, --raw-surface,
+// --snap-cells): without --mesher it chooses that route.
+bool TetrahedraOptionsGiven(const MeshOptions& o) {
+  return o.sharp || o.raw_surface || o.snap_cells_given;
+}
+// Whether the surface is meshed by the lattice route: --mesher lattice, or no --mesher and no
+// option of the other route.
+bool LatticeRoute(const MeshOptions& o) {
+  return o.mesher == "lattice" || (o.mesher.empty() && !TetrahedraOptionsGiven(o));
+}
+
 // Default budget of `spidarcad mesh` (docs/limits.md): 2^27 grid cells (512^3), 2 GiB of
 // estimated memory, 2e11 estimated tape instructions (about a minute on one core).
 constexpr double kDefaultMeshMaxCells = 134217728.0;
@@ -496,19 +507,19 @@ void RunMesh(const MeshOptions& o) {
         "not use one");
   if (!o.mesher.empty() && o.mesher != "lattice" && o.mesher != "tetrahedra")
     throw InputError("--mesher '" + o.mesher + "': give lattice (the default) or tetrahedra");
-  if (o.mesher == "lattice" && (o.sharp || o.raw_surface || o.snap_cells_given)) {
+  if (o.mesher == "lattice" && TetrahedraOptionsGiven(o)) {
     throw InputError(
         "--sharp, --raw-surface and --snap-cells belong to --mesher tetrahedra (the lattice "
         "surface has no clean-up pass and is not sharpened): drop them or use --mesher "
         "tetrahedra");
   }
-  if (o.lattice_snap_given &&
-      (o.mesher == "tetrahedra" || o.sharp || o.raw_surface || o.snap_cells_given))
+  if (o.lattice_snap_given && !LatticeRoute(o))
     throw InputError("--lattice-snap applies to --mesher lattice");
-  if (!(o.lattice_snap >= 0.0 && o.lattice_snap <= 0.45))
+  if (!(o.lattice_snap >= 0.0 && o.lattice_snap <= kMaxLatticeSnap))
     throw InputError("--lattice-snap " + Fmt(o.lattice_snap) +
-                     ": give a fraction of the lattice edge in [0, 0.45] (default " +
-                     Fmt(SurfaceMeshSettings{}.lattice_snap) + "; 0: no vertex moves)");
+                     ": give a fraction of the lattice edge in [0, " + Fmt(kMaxLatticeSnap) +
+                     "] (default " + Fmt(SurfaceMeshSettings{}.lattice_snap) +
+                     "; 0: no vertex moves)");
   if (!(o.resolution >= 0.0) || !std::isfinite(o.resolution)) {
     throw InputError("--resolution: must be > 0 m, got " + Fmt(o.resolution));
   }
@@ -584,8 +595,7 @@ void RunMesh(const MeshOptions& o) {
   settings.cell_size = cell;
   settings.clean = !o.raw_surface;
   settings.snap_cells = o.snap_cells;  // without the clean-up (--raw-surface) nothing is snapped
-  const bool lattice = o.mesher == "lattice" ||
-                       (o.mesher.empty() && !o.sharp && !o.raw_surface && !o.snap_cells_given);
+  const bool lattice = LatticeRoute(o);
   if (lattice) {
     settings.mesher = SurfaceMesher::kLattice;
     settings.lattice_snap = o.lattice_snap;
@@ -628,7 +638,7 @@ void RunMesh(const MeshOptions& o) {
             << (o.raw_surface ? " (raw, no clean-up)" : "")
             << (lattice ? " (lattice)" : " (marching tetrahedra)") << "\n";
   if (lattice) {
-    std::cout << "lattice: " << stats.collapsed_edges << " lattice vertices snapped onto the "
+    std::cout << "lattice: " << stats.snapped_vertices << " lattice vertices snapped onto the "
               << "surface (within " << Fmt(settings.lattice_snap) << " of an edge), "
               << stats.field_evaluations << " field evaluations\n";
   } else if (!o.raw_surface) {

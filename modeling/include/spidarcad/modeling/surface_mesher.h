@@ -93,13 +93,16 @@ struct SurfaceMeshSettings {
   // Which route meshes the solid (see SurfaceMesher).
   SurfaceMesher mesher = SurfaceMesher::kMarchingTetrahedra;
   // kLattice: a lattice vertex moves onto the surface when its nearest crossing is within this
-  // fraction of the lattice edge (in [0, 0.45]; 0, or clean = false: no vertex moves).
+  // fraction of the lattice edge (in [0, kMaxLatticeSnap]; 0, or clean = false: no vertex moves).
   double lattice_snap = 0.35;
   // Polled during meshing; when it becomes true MeshSurface throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
   // Called now and then with the fraction done in [0, 1].
   std::function<void(double)> progress;
 };
+
+// The largest SurfaceMeshSettings::lattice_snap MeshSurface accepts.
+inline constexpr double kMaxLatticeSnap = 0.45;
 
 // The snap_cells the product meshes with (`spidarcad mesh`, --snap-cells): SurfaceMeshSettings
 // keeps 0 as its own default, so the library's frozen meshes stay as they are. Measured in
@@ -111,8 +114,9 @@ struct SurfaceMeshStats {
   long grid_cells = 0;       // cells of the full grid
   long evaluated_cells = 0;  // cells the interval bounds could not rule out
   long field_evaluations = 0;
-  long collapsed_edges = 0;  // by the clean-up pass
-  long flipped_edges = 0;    // by the clean-up pass
+  long collapsed_edges = 0;   // by the clean-up pass
+  long snapped_vertices = 0;  // kLattice: lattice vertices moved onto the surface
+  long flipped_edges = 0;     // by the clean-up pass
   double seconds = 0.0;
 };
 
