@@ -166,6 +166,18 @@ TEST(MeshImport, TetgenSubnormalCoordinatesAreReadAndOverflowIsRefused) {
             "too large)");
 }
 
+// Found by the node_ele fuzz harness in CI
+// (tests/fuzz/regressions/node_ele/repeated_corner.node_ele): a tetrahedron that names one point
+// twice has zero volume, but its computed triple product need not be exactly 0 (here u . (u x w)
+// rounds to a nonzero value), so the volume test let it in.
+TEST(MeshImport, TetgenTetrahedraThatRepeatAPointAreRefusedWhateverTheirRoundedVolume) {
+  const char* nodes = "4 3 0 0\n0 0 5 1e-310\n1 1 0 0\n2 0 1 0\n3 0 0 1\n";
+  EXPECT_EQ(ErrorOf([&] { ParseTetgenFiles(nodes, "1 4 0\n1 0 1 1 3\n", "r.node", "r.ele"); }),
+            "r.ele:2: tetrahedron 1 repeats node 1 (a tetrahedron needs four distinct corners)");
+  EXPECT_EQ(ErrorOf([&] { ParseTetgenFiles(nodes, "1 4 0\n0 3 1 2 3\n", "r.node", "r.ele"); }),
+            "r.ele:2: tetrahedron 0 repeats node 3 (a tetrahedron needs four distinct corners)");
+}
+
 TEST(MeshImport, TetgenErrorsQuoteBadWordsPrintablyAndShortened) {
   EXPECT_EQ(ErrorOf([] { ParseTetgenFiles("1 3 0 0\n0 0 0 \x01z\x7f\n", "", "b.node", "b.ele"); }),
             "b.node:2: z is not a finite number: '\\x01z\\x7f'");
@@ -269,6 +281,25 @@ TEST(MeshImport, BadFilesNameTheFileLineAndFieldThroughReadMeshFile) {
   std::ofstream(base + ".ele") << "1 4 0\n0 0 1 2 0\n";
   what = FileErrorOf(base + ".node");
   EXPECT_NE(what.find("tetrahedron 0"), std::string::npos) << what;
+
+  // A .vtu cell that names one point twice (whatever its rounded volume): refused by the reader.
+  const std::string vtu = OutputPath("repeated.vtu");
+  std::ofstream(vtu) << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" "
+                        "version=\"0.1\" byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n"
+                        "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">\n<Points>\n"
+                        "<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n"
+                        "0 5 1e-310 1 0 0 0 1 0 0 0 1\n</DataArray>\n</Points>\n<Cells>\n"
+                        "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n"
+                        "0 1 1 3\n</DataArray>\n"
+                        "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n4\n"
+                        "</DataArray>\n"
+                        "<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n10\n"
+                        "</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
+  what = FileErrorOf(vtu);
+  EXPECT_NE(
+      what.find(vtu + ": byte 294: <DataArray Name=\"connectivity\">: cell 0 names point 1 twice"),
+      std::string::npos)
+      << what;
 
   const std::string stl = OutputPath("bad.stl");
   std::ofstream(stl) << "solid x\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 zero\n";

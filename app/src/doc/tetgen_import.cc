@@ -199,7 +199,17 @@ modeling::TetMesh ParseTetgenFiles(const std::string& node_text, const std::stri
       if (n < 0 || n >= count) {
         Fail(ele_file, line.number, "node " + line.words[k] + " is not a point of " + node_file);
       }
-      if (c < 4) m.tets(static_cast<Eigen::Index>(c), t) = static_cast<int>(n);
+      if (c >= 4) continue;
+      // A repeated corner makes the volume zero, but the rounded triple product of two equal
+      // edge vectors need not be exactly 0, so it is caught here by index.
+      for (long prev = 0; prev < c; ++prev) {
+        if (m.tets(static_cast<Eigen::Index>(prev), t) == n) {
+          Fail(ele_file, line.number,
+               "tetrahedron " + std::to_string(tet_base + t) + " repeats node " + line.words[k] +
+                   " (a tetrahedron needs four distinct corners)");
+        }
+      }
+      m.tets(static_cast<Eigen::Index>(c), t) = static_cast<int>(n);
     }
     if (region > 0) {
       m.regions(t) = static_cast<int>(

@@ -22,14 +22,15 @@ namespace spidarcad::app {
 // from 0 or 1, node numbers counted like the points. '#' starts a comment; blank lines are
 // skipped. Throws InputError naming file, line and field: a missing or malformed number, a
 // number beyond the largest double, a node that is not a point, more or fewer lines than the
-// header announces, a tetrahedron of zero or non-finite volume.
+// header announces, a tetrahedron that repeats a node or has zero or non-finite volume.
 modeling::TetMesh ParseTetgenFiles(const std::string& node_text, const std::string& ele_text,
                                    const std::string& node_file, const std::string& ele_file,
                                    int* flipped = nullptr);
 
 // Swaps corners 1 and 2 of every negatively oriented tetrahedron of *mesh and returns how many
 // it swapped; throws InputError "<where(t)> has zero volume" (or a non-finite one) for the first
-// degenerate tetrahedron t, leaving *mesh partly reoriented.
+// degenerate tetrahedron t, leaving *mesh partly reoriented. The callers refuse repeated corners
+// before (a repeated corner's rounded volume need not be exactly 0).
 int OrientTetsPositively(modeling::TetMesh* mesh,
                          const std::function<std::string(Eigen::Index)>& where);
 

@@ -7,12 +7,12 @@
 namespace spidarcad::haptics::usb {
 namespace {
 
-// Byte offsets (docs/protocol.md, "Packet layouts").
+// Byte offsets of the header (docs/protocol.md, "Packet layouts"); each payload starts at byte 8,
+// and its fields are written below at their absolute offsets from the table.
 constexpr std::size_t kOffsetMagic = 0;
 constexpr std::size_t kOffsetVersion = 2;
 constexpr std::size_t kOffsetType = 3;
 constexpr std::size_t kOffsetSequence = 4;
-constexpr std::size_t kOffsetPayload = 8;
 
 void Put16(std::uint8_t* p, std::uint16_t v) noexcept {
   p[0] = static_cast<std::uint8_t>(v);
