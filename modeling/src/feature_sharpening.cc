@@ -169,6 +169,8 @@ class Sharpener {
       for (const Candidate& c : candidates) {
         if (TryMove(c.vertex, c.target)) {
           ++moved;
+        } else if (c.rank == 3 && s_.insert_corners && InsertCorner(c.vertex, c.target)) {
+          ++moved;  // 3b. a new vertex on the corner (counted as a change of this round)
         } else {
           ++rejected_;
         }
@@ -221,6 +223,7 @@ class Sharpener {
       stats->vertices_moved = moved_;
       stats->edges_flipped = flipped_;
       stats->rejected_moves = rejected_;
+      stats->corners_inserted = inserted_;
       stats->relaxed = relaxed_;
       stats->sliver_collapses = collapses_;
       stats->sliver_snaps = snaps_;
@@ -449,6 +452,149 @@ class Sharpener {
     // Last (the costliest): with v at x, no adjacent triangle may fold onto a neighbour or cut
     // through a nearby triangle.
     return MoveUnlessItFolds(v, x);
+  }
+
+  // Step 3b: puts a new vertex on the corner x (found from v's planes; no vertex could move
+  // there), splitting a triangle (a, b, c) near v into (a, b, x), (b, c, x) and (c, a, x), or an
+  // edge (p, q) between triangles (p, q, c) and (q, p, d) into (p, x, c), (x, q, c), (q, x, d) and
+  // (x, p, d). Of the splits of the triangles around v and its neighbours and of their edges, the
+  // one kept is the one whose new triangles face as the ones they replace did and as the surface
+  // does, make no angle under min_angle_deg and lower the sampled distance to the surface most
+  // (sum of squares lower, max not higher), unless they fold onto a triangle around them.
+  // Nothing happens when a vertex lies within half a cell of x. Returns whether a vertex was
+  // inserted.
+  bool InsertCorner(int v, const Eigen::Vector3d& x) {
+    if (WithinOf(x, 0.5 * h_)) return false;
+    const double min_angle = s_.min_angle_deg * M_PI / 180.0;
+    std::vector<int> near;
+    for (int t : vertex_tris_[v]) {
+      for (int w : tris_[t])
+        near.insert(near.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+    }
+    std::sort(near.begin(), near.end());
+    near.erase(std::unique(near.begin(), near.end()), near.end());
+    // A split: triangle t's edge k (corners k, k + 1) and its neighbour across it (-1: split t).
+    int best_t = -1, best_k = -1, best_t2 = -1;
+    double best_sum2 = INFINITY;
+    // The fan of triangles (a, b, x) over the boundary edges (a, b) of the replaced triangles
+    // `parts`, each (a, b) listed with the normal of the triangle it came from.
+    auto score = [&](const std::vector<int>& parts,
+                     const std::vector<std::array<int, 2>>& edges) -> double {
+      Deviation before, after;
+      for (int t : parts)
+        before.Add(TriangleDeviation(pos_[tris_[t][0]], pos_[tris_[t][1]], pos_[tris_[t][2]]));
+      for (size_t i = 0; i < edges.size(); ++i) {
+        const int t = parts[i / (parts.size() == 1 ? 3 : 2)];
+        const Eigen::Vector3d n_old =
+            (pos_[tris_[t][1]] - pos_[tris_[t][0]]).cross(pos_[tris_[t][2]] - pos_[tris_[t][0]]);
+        const Eigen::Vector3d &a = pos_[edges[i][0]], &b = pos_[edges[i][1]];
+        const Eigen::Vector3d n = (b - a).cross(x - a);
+        if (!(n.dot(n_old) > 0.0) || MinAngle(a, b, x) < min_angle || !FacesOutward(n, a, b, x))
+          return INFINITY;
+        after.Add(TriangleDeviation(a, b, x));
+      }
+      if (!(after.sum2 < before.sum2) || after.max > before.max + 1e-9 * h_) return INFINITY;
+      return after.sum2;
+    };
+    for (int t : near) {
+      const auto tri = tris_[t];
+      const double one = score({t}, {{tri[0], tri[1]}, {tri[1], tri[2]}, {tri[2], tri[0]}});
+      if (one < best_sum2) best_sum2 = one, best_t = t, best_k = -1;
+      for (int k = 0; k < 3; ++k) {
+        const int p = tri[k], q = tri[(k + 1) % 3], c = tri[(k + 2) % 3];
+        if (p > q) continue;  // each edge once, from the triangle where it runs p -> q, p < q
+        const int t2 = Across(t, p, q);
+        if (t2 < 0) continue;
+        const int d = Opposite(t2, p, q);
+        // t's parts (q, c), (c, p) and t2's (p, d), (d, q), each closed by x.
+        const double two = score({t, t2}, {{q, c}, {c, p}, {p, d}, {d, q}});
+        if (two < best_sum2) best_sum2 = two, best_t = t, best_k = k, best_t2 = t2;
+      }
+    }
+    if (best_t < 0) return false;
+    const int nv = static_cast<int>(pos_.size());
+    const int first_new = static_cast<int>(tris_.size());
+    // Replaced triangles and the fans (a, b, x) that replace them.
+    std::vector<int> parts{best_t};
+    std::vector<std::array<int, 2>> edges;
+    const auto tri = tris_[best_t];
+    if (best_k < 0) {
+      edges = {{tri[0], tri[1]}, {tri[1], tri[2]}, {tri[2], tri[0]}};
+    } else {
+      const int p = tri[best_k], q = tri[(best_k + 1) % 3], c = tri[(best_k + 2) % 3];
+      const int d = Opposite(best_t2, p, q);
+      parts.push_back(best_t2);
+      edges = {{q, c}, {c, p}, {p, d}, {d, q}};
+    }
+    const std::vector<std::array<int, 3>> saved{tris_[parts[0]],
+                                                parts.size() > 1 ? tris_[parts[1]] : tri};
+    auto detach = [&](int t) {
+      for (int w : tris_[t]) {
+        auto& fan = vertex_tris_[w];
+        fan.erase(std::remove(fan.begin(), fan.end(), t), fan.end());
+      }
+    };
+    auto attach = [&](int t) {
+      for (int w : tris_[t]) vertex_tris_[w].push_back(t);
+    };
+    for (int t : parts) detach(t);
+    pos_.push_back(x);
+    vertex_tris_.push_back({});
+    std::vector<int> changed;
+    for (size_t i = 0; i < edges.size(); ++i) {
+      const int t = i < parts.size() ? parts[i] : static_cast<int>(tris_.size());
+      const std::array<int, 3> corners{edges[i][0], edges[i][1], nv};
+      if (t == static_cast<int>(tris_.size())) {
+        tris_.push_back(corners);
+      } else {
+        tris_[t] = corners;
+      }
+      attach(t);
+      changed.push_back(t);
+    }
+    if (ChangedTrianglesMeetOthers(changed)) {
+      for (int t : changed) detach(t);
+      tris_.resize(first_new);
+      for (size_t i = 0; i < parts.size(); ++i) {
+        tris_[parts[i]] = saved[i];
+        attach(parts[i]);
+      }
+      vertex_tris_.pop_back();
+      pos_.pop_back();
+      return false;
+    }
+    HashInsert(nv);
+    vertex_normal_.push_back(UnitGradient(x));
+    is_feature_.push_back(true);
+    rank_.push_back(3);
+    target_.push_back(x);
+    tri_plane_.resize(tris_.size());
+    tri_stamp_.resize(tris_.size(), 0);
+    for (int t : changed) tri_stamp_[t] = 0;  // new corners: this round's cached plane is stale
+    ++inserted_;
+    return true;
+  }
+
+  // The triangle other than t with the directed edge q -> p (-1 if none).
+  int Across(int t, int p, int q) const {
+    for (int u : vertex_tris_[q]) {
+      if (u == t) continue;
+      const auto& tri = tris_[u];
+      for (int k = 0; k < 3; ++k) {
+        if (tri[k] == q && tri[(k + 1) % 3] == p) return u;
+      }
+    }
+    return -1;
+  }
+  // The corner of triangle t that is neither p nor q.
+  int Opposite(int t, int p, int q) const {
+    const auto& tri = tris_[t];
+    return tri[0] != p && tri[0] != q ? tri[0] : tri[1] != p && tri[1] != q ? tri[1] : tri[2];
+  }
+
+  // Whether a vertex lies closer than r (at most h) to x.
+  bool WithinOf(const Eigen::Vector3d& x, double r) const {
+    return AnyVertexWithin(x, r, [](int) { return false; });
   }
 
   // Moves v to x unless one of its triangles would then fold onto a neighbour or cut through a
@@ -1191,14 +1337,20 @@ class Sharpener {
     list.erase(std::remove(list.begin(), list.end(), v), list.end());
   }
   bool TooClose(int v, const Eigen::Vector3d& x, int ignore = -1) const {
-    const double r2 = (s_.min_separation_cells * h_) * (s_.min_separation_cells * h_);
+    return AnyVertexWithin(x, s_.min_separation_cells * h_,
+                           [&](int w) { return w == v || w == ignore; });
+  }
+  // Whether a vertex w for which skip(w) is false lies closer than r to x (searched in the hash
+  // cells around x: found for r up to h).
+  template <class Skip>
+  bool AnyVertexWithin(const Eigen::Vector3d& x, double r, const Skip& skip) const {
     for (int dx = -1; dx <= 1; ++dx) {
       for (int dy = -1; dy <= 1; ++dy) {
         for (int dz = -1; dz <= 1; ++dz) {
           const auto it = hash_.find(Key(x + h_ * Eigen::Vector3d(dx, dy, dz)));
           if (it == hash_.end()) continue;
           for (int w : it->second) {
-            if (w != v && w != ignore && (pos_[w] - x).squaredNorm() < r2) return true;
+            if (!skip(w) && (pos_[w] - x).squaredNorm() < r * r) return true;
           }
         }
       }
@@ -1232,7 +1384,7 @@ class Sharpener {
   std::vector<char> dead_vertex_, dead_tri_;  // removed by collapses, until Compact
   long collapses_ = 0, snaps_ = 0, sliver_flips_ = 0, sliver_moves_ = 0;
   std::unordered_map<long long, std::vector<int>> hash_;
-  long moved_ = 0, flipped_ = 0, rejected_ = 0, relaxed_ = 0;
+  long moved_ = 0, flipped_ = 0, rejected_ = 0, relaxed_ = 0, inserted_ = 0;
 };
 
 void Validate(const FeatureSettings& s) {

@@ -330,6 +330,8 @@ double WorstCornerGap(const TriangleMesh& mesh, const Eigen::Vector3d& h) {
   return worst;
 }
 
+double SmallestAngleDeg(const spidarcad::modeling::TriangleMesh& mesh);  // below
+
 TEST(MeshCommand, PutsBoxCornersBackWhenSharpIsGiven) {
   // A box off the grid: plain marching tetrahedra cuts its corners; --sharp restores them.
   const std::string scene = OutputPath("sharp_box.json");
@@ -347,6 +349,17 @@ TEST(MeshCommand, PutsBoxCornersBackWhenSharpIsGiven) {
   const double sharp_gap = WorstCornerGap(ReadTriangleMesh(OutputPath("sharp_box.stl")), h);
   EXPECT_GT(plain_gap, 4e-4);  // a tenth of a cell: the chamfer is there without --sharp
   EXPECT_LT(sharp_gap, 4e-6);  // a thousandth of a cell (STL stores float)
+  // The lattice's surface, sharpened: its vertices lie too far from the corners to move there,
+  // so each corner gets a new vertex.
+  const CommandRun lattice = RunMesh(
+      scene + " --resolution 0.004 --mesher lattice --sharp --out " + OutputPath("lattice_box.stl"),
+      "lattice_box");
+  ASSERT_EQ(lattice.status, 0) << lattice.all();
+  EXPECT_NE(lattice.out.find("(lattice)"), std::string::npos) << lattice.out;
+  EXPECT_NE(lattice.out.find("corners inserted"), std::string::npos) << lattice.out;
+  const TriangleMesh lattice_mesh = ReadTriangleMesh(OutputPath("lattice_box.stl"));
+  EXPECT_LT(WorstCornerGap(lattice_mesh, h), 4e-6);
+  EXPECT_GE(SmallestAngleDeg(lattice_mesh), 10.0 - 1e-3);  // STL stores float
   const CommandRun bad =
       RunMesh(scene + " --sharp --raw-surface --out " + OutputPath("bad.stl"), "sharp_raw");
   EXPECT_EQ(bad.status, 2);
@@ -445,8 +458,8 @@ TEST(MeshCommand, SnapsSmoothSurfacesToTenDegreesUnlessTurnedOff) {
   for (const std::string& bad :
        {std::string("--snap-cells 0.3"), std::string("--snap-cells -0.1"),
         std::string("--snap-cells nan"), std::string("--mesher cubes"),
-        std::string("--mesher lattice --sharp"), std::string("--mesher lattice --snap-cells 0.1"),
-        std::string("--lattice-snap 0.5"), std::string("--lattice-snap 0.2 --mesher tetrahedra"),
+        std::string("--mesher lattice --snap-cells 0.1"), std::string("--lattice-snap 0.5"),
+        std::string("--lattice-snap 0.2 --mesher tetrahedra"),
         std::string("--lattice-snap 0.2 --sharp")}) {
     const CommandRun run = RunMesh("'" + OutputPath("no_such_scene.json") + "' " + bad + " --out " +
                                        OutputPath("snap_bad.stl"),

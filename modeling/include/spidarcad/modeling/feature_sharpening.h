@@ -52,9 +52,11 @@
 //     surface, and the longest edge flips (not a crease edge, the pair within 20° of a plane),
 //     each kept only if it raises the smallest angle of the triangles it changes, keeps them
 //     facing out and unfolded, and does not raise their sampled distance to the surface.
-// Only vertex moves, edge flips and (step 4b) edge collapses that pass the link test are used,
-// so the mesh stays closed, manifold, consistently oriented and of the same genus; without step
-// 4b the vertex count and triangle count are unchanged.
+//  3b. Only with insert_corners (off by default): a corner target that no vertex could move onto
+//     (step 3) gets a new vertex, splitting one triangle near it into three (see insert_corners).
+// Only vertex moves, edge flips, (step 3b) triangle splits and (step 4b) edge collapses that pass
+// the link test are used, so the mesh stays closed, manifold, consistently oriented and of the
+// same genus; without steps 3b and 4b the vertex count and triangle count are unchanged.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -100,6 +102,13 @@ struct FeatureSettings {
   // opposite it, slides of crease vertices along their crease and relaxation moves (step 4b at
   // the top of this file); the vertex and triangle counts then change.
   double sliver_angle_deg = 0.0;
+  // Step 3b (off by default): a corner of the solid (rank 3) that no vertex could move onto gets
+  // a new vertex there, splitting the triangle nearby that it lowers the sampled distance of most
+  // (the same facing, angle, distance and fold tests as a move; none if a vertex lies within half
+  // a cell of the corner). Surfaces whose vertices are sparse near corners need it: the lattice
+  // mesher snaps the crossings around a box corner into vertices 1.5 to 3 cells away from it.
+  // The vertex and triangle counts then change (two triangles and one vertex per corner).
+  bool insert_corners = false;
   // The repair may leave a triangle's sampled distance to the surface up to the largest of
   // what the triangles it replaces had, what the triangles around them have, and this many
   // cells (>= 0).
@@ -115,6 +124,7 @@ struct FeatureStats {
   long vertices_moved = 0;    // moves done, over all rounds
   long edges_flipped = 0;     // flips done, over all rounds
   long rejected_moves = 0;    // feature targets a safety test refused
+  long corners_inserted = 0;  // step 3b: vertices inserted at corners of the solid
   long relaxed = 0;           // relaxation moves and angle flips (step 5)
   long sliver_collapses = 0;  // step 4b: edge collapses
   long sliver_snaps = 0;      // step 4b: corners snapped onto the opposite edge (with its flip)
@@ -126,7 +136,8 @@ struct FeatureStats {
 // Moves vertices of mesh (from MeshSurface of solid: closed, manifold, outward-oriented,
 // vertices on the surface) onto the creases and corners of solid and flips edges along them
 // (see the top of this file). Returns the sharpened mesh, same vertex and triangle counts
-// unless settings.sliver_angle_deg > 0 (step 4b collapses edges).
+// unless settings.insert_corners (step 3b splits triangles) or settings.sliver_angle_deg > 0
+// (step 4b collapses edges).
 // Throws std::invalid_argument for bad settings or a mesh that is not a closed edge-manifold
 // (index out of range, an edge not shared by exactly two triangles), MeshingCancelled on cancel.
 TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh,
