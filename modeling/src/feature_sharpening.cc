@@ -706,22 +706,9 @@ class Sharpener {
   // its smallest angle and not raise its sampled deviation; otherwise the flip must halve the
   // deviation and make no angle below min(min_angle, the pair's smallest before).
   bool TryFlip(int t, int p, int q, double min_angle, bool for_angle = false) {
-    int t2 = -1;
-    for (int u : vertex_tris_[q]) {
-      if (u == t) continue;
-      const auto& tri = tris_[u];
-      for (int k = 0; k < 3; ++k) {
-        if (tri[k] == q && tri[(k + 1) % 3] == p) t2 = u;
-      }
-    }
+    const int t2 = Across(t, p, q);
     if (t2 < 0) return false;
-    const auto& tri = tris_[t];
-    const int at = tri[0] == p ? 0 : tri[1] == p ? 1 : 2;
-    const int c = tri[(at + 2) % 3];
-    const auto& tri2 = tris_[t2];
-    const int d = tri2[0] != p && tri2[0] != q   ? tri2[0]
-                  : tri2[1] != p && tri2[1] != q ? tri2[1]
-                                                 : tri2[2];
+    const int c = Opposite(t, p, q), d = Opposite(t2, p, q);
     if (c == d) return false;
     if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
     for (int u : vertex_tris_[c]) {
