@@ -1260,11 +1260,18 @@ TEST(AppWindowDocument, ModelModeAsksBeforeALargeMesh) {
   EXPECT_NE(doc.FindByName("knob surface"), nullptr) << state.status;
   EXPECT_EQ(doc.history().undo_size(), steps + 1);
 
-  // A cell within the budget does not ask.
+  // A cell within the budget does not ask; with "lattice" ticked the surface is the lattice
+  // route's, and the mesh object says so.
   state.resolution_mm = 5.0f;
+  state.lattice = true;
   StartMeshAction(&window.model(), &window.jobs(), &state, MeshKind::kSurface);
   ASSERT_TRUE(FramesUntilJobsEnd(window));
+  window.Frame();
   EXPECT_TRUE(state.pending_mesh_text.empty()) << state.pending_mesh_text;
+  ASSERT_EQ(doc.history().undo_size(), steps + 2) << state.status;
+  const DocObject& latest = doc.Get(doc.last_created().front());
+  ASSERT_TRUE(std::holds_alternative<MeshData>(latest.data)) << latest.name;
+  EXPECT_EQ(std::get<MeshData>(latest.data).settings.surface_mesher, "lattice");
 }
 
 // Modelling by touch, scripted: --place sphere on the virtual clock with a trajectory that

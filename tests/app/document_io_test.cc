@@ -18,6 +18,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -586,8 +587,11 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
   tets->tets.resize(4, 1);
   tets->tets << 0, 1, 2, 3;
   tets->regions = Eigen::VectorXi::Zero(1);
-  for (const auto& [mesher, sharp] :
-       std::vector<std::pair<std::string, bool>>{{"cgal", false}, {"tetgen", true}, {"", false}}) {
+  for (const auto& [mesher, sharp, surface_mesher] :
+       std::vector<std::tuple<std::string, bool, std::string>>{{"cgal", false, ""},
+                                                               {"tetgen", true, ""},
+                                                               {"", false, ""},
+                                                               {"tetgen", true, "lattice"}}) {
     MeshData m;
     m.source = ball;
     m.source_revision = doc.Get(ball).revision;
@@ -595,20 +599,23 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
     m.settings.cell_size = 0.01;
     m.settings.mesher = mesher;
     m.settings.sharp_edges = sharp;
-    if (mesher == "tetgen") m.settings.slab_planes = {-0.0251, 0.0003, 0.025};
-    doc.Execute(edit::AddObject("tets " + mesher, m));
+    m.settings.surface_mesher = surface_mesher;
+    if (mesher == "tetgen" && surface_mesher.empty())
+      m.settings.slab_planes = {-0.0251, 0.0003, 0.025};
+    doc.Execute(edit::AddObject("tets " + mesher + surface_mesher, m));
   }
   const std::string path = dir + "/doc.json";
   doc.Save(path);
   Document other;
   other.Load(path);
-  ASSERT_EQ(other.objects().size(), 4u);
-  const std::string expected_mesher[] = {"cgal", "tetgen", ""};
-  const bool expected_sharp[] = {false, true, false};
-  for (int i = 0; i < 3; ++i) {
+  ASSERT_EQ(other.objects().size(), 5u);
+  const std::string expected_mesher[] = {"cgal", "tetgen", "", "tetgen"};
+  const bool expected_sharp[] = {false, true, false, true};
+  for (int i = 0; i < 4; ++i) {
     const auto& m = std::get<MeshData>(other.objects()[i + 1].data);
     EXPECT_EQ(m.settings.mesher, expected_mesher[i]) << i;
     EXPECT_EQ(m.settings.sharp_edges, expected_sharp[i]) << i;
+    EXPECT_EQ(m.settings.surface_mesher, i == 3 ? "lattice" : "") << i;
     EXPECT_EQ(m.settings.cell_size, 0.01);
     EXPECT_EQ(m.settings.slab_planes,
               (i == 1 ? std::vector<double>{-0.0251, 0.0003, 0.025} : std::vector<double>{}))
@@ -638,6 +645,16 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
       {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
        "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [\"x\"]}}",
        "/objects/1/settings/slab_planes/0", "expected a number"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"surface_mesher\": \"dual\"}}",
+       "/objects/1/settings/surface_mesher", "expected \"lattice\""},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"mesher\": \"cgal\", \"surface_mesher\": "
+       "\"lattice\"}}",
+       "/objects/1/settings/surface_mesher", "CGAL"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"surface_mesher\": \"lattice\"}}",
+       "/objects/1/generate", "store the mesh"},
   };
   for (const auto& c : bad) {
     WriteText(path, "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"objects\": [\n" +

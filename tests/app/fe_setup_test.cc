@@ -7,11 +7,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <variant>
+#include <vector>
 
 #include "doc/assets.h"
 #include "doc/command.h"
@@ -154,6 +158,94 @@ TEST(FeSetUp, SolidInSlabsReusesUnchangedSlabsAndFallsBackToOnePieceWhereAPlaneM
             std::string::npos)
       << one_piece.slab_note;
   EXPECT_NE(one_piece.slab_note.find("cross-section"), std::string::npos) << one_piece.slab_note;
+}
+
+// The window's "lattice" (settings.surface_mesher): the surface by the lattice route, as
+// `spidarcad mesh` makes it, then TetGen; in one piece even when slabs are asked for (the slab
+// mesher cuts the marching-tetrahedra surface); sharpened with corners inserted. Refused for
+// CGAL, for a surface source and under an unknown name.
+TEST(FeSetUp, LatticeSurfaceIsTheLatticeRoutesAndMeshesInOnePiece) {
+  constexpr double kR = 0.05;
+  BallDoc f(kR);
+  MeshSettings settings = Cell(0.008);
+  const FeMeshResult grid = MeshFeSource(PrepareFeMesh(f.doc, f.ball, settings));
+  settings.surface_mesher = "lattice";
+  FeMeshInput input = PrepareFeMesh(f.doc, f.ball, settings);
+  input.slabs = kFeSlabs;
+  const FeMeshResult mesh = MeshFeSource(input);
+  ASSERT_TRUE(mesh.volume && mesh.surface && grid.surface);
+  EXPECT_EQ(mesh.slabs, nullptr);
+  EXPECT_TRUE(IsClosedSurface(*mesh.surface));
+  const double exact = 4.0 / 3.0 * kPi * kR * kR * kR;
+  EXPECT_NEAR(TetVolume(*mesh.volume), exact, 0.03 * exact);
+  // The lattice route's surface on the FE box, bit for bit; the grid surface is another one.
+  double cell = 0.008;
+  modeling::CompiledSolid compiled;
+  modeling::SurfaceMeshSettings direct;
+  direct.bounds = FeSolidBounds(Sphere(kR), "ball", &cell, &compiled);
+  direct.cell_size = cell;
+  direct.mesher = modeling::SurfaceMesher::kLattice;
+  const modeling::TriangleMesh expected = modeling::MeshSurface(compiled, direct);
+  EXPECT_EQ(mesh.surface->vertices, expected.vertices);
+  EXPECT_EQ(mesh.surface->triangles, expected.triangles);
+  EXPECT_NE(grid.surface->triangles.cols(), expected.triangles.cols());
+  std::printf("sphere at 8 mm: lattice %ld triangles, min angle %.2f deg; grid %ld, %.2f deg\n",
+              static_cast<long>(mesh.surface->triangles.cols()),
+              modeling::MeasureTriangleAngles(*mesh.surface).min_angle_deg,
+              static_cast<long>(grid.surface->triangles.cols()),
+              modeling::MeasureTriangleAngles(*grid.surface).min_angle_deg);
+  f.doc.Execute(SetUpFe(input, mesh));
+  const auto& md = std::get<MeshData>(f.doc.Get(f.doc.last_created()[0]).data);
+  EXPECT_EQ(md.settings.surface_mesher, "lattice");
+
+  // A box off the grid, sharpened on the lattice: a vertex on each corner.
+  Document boxes;
+  modeling::ImplicitNode box(modeling::TranslateParams{Eigen::Vector3d(0.0013, -0.0021, 0.0007)});
+  box.children.push_back(
+      modeling::ImplicitNode(modeling::BoxParams{Eigen::Vector3d(0.1, 0.08, 0.06)}));
+  boxes.Execute(edit::AddSolid("block", std::move(box)));
+  MeshSettings sharp = Cell(0.006);
+  sharp.surface_mesher = "lattice";
+  sharp.sharp_edges = true;
+  FeMeshInput block = PrepareFeMesh(boxes, boxes.last_created().front(), sharp);
+  block.volume = false;
+  const FeMeshResult sharpened = MeshFeSource(block);
+  ASSERT_TRUE(sharpened.surface);
+  double worst = 0.0;
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3d corner =
+        Eigen::Vector3d(0.0013, -0.0021, 0.0007) +
+        Eigen::Vector3d(k & 1 ? 0.05 : -0.05, k & 2 ? 0.04 : -0.04, k & 4 ? 0.03 : -0.03);
+    double nearest = 1.0;
+    for (Eigen::Index v = 0; v < sharpened.surface->vertices.cols(); ++v)
+      nearest = std::min(nearest, (sharpened.surface->vertices.col(v) - corner).norm());
+    worst = std::max(worst, nearest);
+  }
+  EXPECT_LT(worst, 1e-9);
+
+  for (const auto& [mesher, surface_mesher, needle] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"cgal", "lattice", "CGAL does not use a surface"},
+           {"tetgen", "dual", "surface mesher 'dual'"}}) {
+    MeshSettings bad = Cell(0.008, mesher);
+    bad.surface_mesher = surface_mesher;
+    try {
+      PrepareFeMesh(f.doc, f.ball, bad);
+      ADD_FAILURE() << surface_mesher << " with " << mesher << " accepted";
+    } catch (const DocumentError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  }
+  f.doc.Execute(edit::AddSculpt("shell", SphereSurface(0.04, 0.01)));
+  MeshSettings on_surface = Cell(0.008);
+  on_surface.surface_mesher = "lattice";
+  try {
+    PrepareFeMesh(f.doc, f.doc.last_created().front(), on_surface);
+    ADD_FAILURE() << "the lattice accepted for a sculpt";
+  } catch (const DocumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("this source is a surface already"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(FeSetUp, CgalMeshesTheSolidFromItsFunction) {

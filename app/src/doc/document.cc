@@ -231,6 +231,8 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
                                m.settings.max_radius_edge};
               if (!m.settings.mesher.empty()) j["settings"].push_back(m.settings.mesher);
               if (m.settings.sharp_edges) j["settings"].push_back("sharp_edges");
+              if (!m.settings.surface_mesher.empty())
+                j["settings"].push_back(m.settings.surface_mesher);
               j["import_source"] = m.import_source;
               if (m.surface) {
                 j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},

@@ -71,6 +71,9 @@ struct MeshSettings {
   // the solid's function; solids only).
   std::string mesher = {};
   bool sharp_edges = false;  // the grid surface was sharpened onto the solid's creases (TetGen)
+  // Surface mesher: "" (marching tetrahedra on the grid, with its clean-up) or "lattice" (the
+  // lattice route of `spidarcad mesh`, modeling::SurfaceMesher::kLattice; solids only).
+  std::string surface_mesher = {};
   // The planes x = slab_planes[k] (m, increasing) the tetrahedra were meshed in slabs between (FE
   // mode); empty: in one piece. FE mode factors such a mesh slab by slab (fem::SlabBlocks).
   std::vector<double> slab_planes = {};

@@ -424,7 +424,7 @@ Content ContentFromJson(const json& j) {
         RequireObject(s, sp);
         RejectUnknown(s, sp,
                       {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges",
-                       "slab_planes"});
+                       "surface_mesher", "slab_planes"});
         m.settings.cell_size = NonNegative(s, sp, "cell_size", 0.0);
         m.settings.max_tet_volume = NonNegative(s, sp, "max_tet_volume", 0.0);
         m.settings.max_radius_edge = NonNegative(s, sp, "max_radius_edge", 0.0);
@@ -438,6 +438,13 @@ Content ContentFromJson(const json& j) {
         }
         if (s.contains("sharp_edges"))
           m.settings.sharp_edges = Bool(s.at("sharp_edges"), sp + "/sharp_edges");
+        if (s.contains("surface_mesher")) {
+          m.settings.surface_mesher = Text(s.at("surface_mesher"), sp + "/surface_mesher");
+          if (m.settings.surface_mesher != "lattice")
+            Fail(sp + "/surface_mesher", "expected \"lattice\" (or no key: marching tetrahedra)");
+          if (m.settings.mesher == "cgal")
+            Fail(sp + "/surface_mesher", "CGAL meshes from the solid and uses no surface");
+        }
         if (s.contains("slab_planes")) {
           const json& planes = s.at("slab_planes");
           const std::string pp = sp + "/slab_planes";
@@ -465,10 +472,12 @@ Content ContentFromJson(const json& j) {
           Fail(p + "/source", "a generated mesh needs the index of its source solid");
         if (!(m.settings.cell_size > 0))
           Fail(p + "/settings/cell_size", "a generated mesh needs a cell size > 0");
-        if (m.settings.mesher == "cgal" || m.settings.sharp_edges)
+        if (m.settings.mesher == "cgal" || m.settings.sharp_edges ||
+            !m.settings.surface_mesher.empty())
           Fail(p + "/generate",
                "\"generate\" meshes with TetGen on the plain grid surface: drop settings/mesher "
-               "\"cgal\" and settings/sharp_edges, or store the mesh (surface, volume)");
+               "\"cgal\", settings/sharp_edges and settings/surface_mesher, or store the mesh "
+               "(surface, volume)");
         up_to_date[i] = true;
       } else if (!m.surface && !m.volume) {
         Fail(p, "a mesh object needs \"surface\", \"volume\" or \"generate\"");
@@ -673,6 +682,8 @@ json ObjectJson(const Document& doc, const DocObject& o) {
                      {"max_radius_edge", m->settings.max_radius_edge}};
     if (!m->settings.mesher.empty()) j["settings"]["mesher"] = m->settings.mesher;
     if (m->settings.sharp_edges) j["settings"]["sharp_edges"] = true;
+    if (!m->settings.surface_mesher.empty())
+      j["settings"]["surface_mesher"] = m->settings.surface_mesher;
     if (!m->settings.slab_planes.empty()) j["settings"]["slab_planes"] = m->settings.slab_planes;
     if (!m->import_source.empty()) j["import_source"] = m->import_source;
     if (m->surface) j["surface"] = SurfaceJson(*m->surface);

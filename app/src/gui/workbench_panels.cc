@@ -65,6 +65,7 @@ void StartMeshAction(SceneModel* model, JobQueue* jobs, WorkbenchState* state, M
   settings.cell_size = state->resolution_mm * 1e-3;
   settings.sharp_edges = state->sharp_edges && !(kind == MeshKind::kTetrahedra && state->cgal);
   if (kind == MeshKind::kTetrahedra) settings.mesher = state->cgal ? "cgal" : "tetgen";
+  if (state->lattice && settings.mesher != "cgal") settings.surface_mesher = "lattice";
   // The estimate needs the solid's box, whose search takes seconds for a long tape (a union of
   // 100,000 spheres: about 6 s): it runs in a Job, and the question, or the mesh Job, comes
   // when it lands (unless the document was replaced meanwhile). Bad input is refused at once.
@@ -343,6 +344,11 @@ void DrawMeshControls(SceneModel* model, JobQueue* jobs, WorkbenchState* state) 
   if (!state->cgal) {
     ImGui::Checkbox("sharp edges", &state->sharp_edges);
     ImGui::SameLine();
+    ImGui::Checkbox("lattice", &state->lattice);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "Surface by the lattice route (spidarcad mesh's default): faster, no angle under "
+          "about 15 deg on smooth surfaces; else marching tetrahedra and its clean-up");
   }
   ImGui::TextUnformatted("tets:");
   ImGui::SameLine();

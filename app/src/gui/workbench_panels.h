@@ -24,6 +24,7 @@ struct WorkbenchState {
   ObjectId selected_object = 0;  // the tree's selected Document object (Export: a mesh object)
   float resolution_mm = 4.0f;    // grid cell of the Mesh action, mm (in W)
   bool sharp_edges = false;      // the Mesh action sharpens the grid surface onto the creases
+  bool lattice = false;          // the Mesh action's surface is the lattice route's (not CGAL)
   bool cgal = false;             // Tetrahedra by CGAL Mesh_3 (else TetGen on the grid surface)
   bool show_edges = false;       // draw the selected object's mesh edges
   bool show_figures = true;      // the device and loop figures strip is open (else collapsed)

@@ -52,6 +52,17 @@ void CheckSettings(const DocObject& o, const MeshSettings& s, FeSourceKind kind,
                         ": CGAL and sharp edges mesh an implicit solid; a surface is meshed by "
                         "TetGen as it is (choose tetgen, no sharp edges)");
   }
+  if (!s.surface_mesher.empty() && s.surface_mesher != "lattice") {
+    throw DocumentError(what + " " + Quoted(o) + ": surface mesher '" + s.surface_mesher +
+                        "' (expected lattice, or none for marching tetrahedra)");
+  }
+  if (!s.surface_mesher.empty() && (kind != FeSourceKind::kSolid || s.mesher == "cgal")) {
+    throw DocumentError(what + " " + Quoted(o) +
+                        ": the lattice surface is meshed from an implicit solid for TetGen; " +
+                        (kind != FeSourceKind::kSolid ? "this source is a surface already"
+                                                      : "CGAL does not use a surface") +
+                        " (drop the lattice surface)");
+  }
   if (s.mesher == "cgal" && s.sharp_edges) {
     throw DocumentError(
         what + " " + Quoted(o) +
@@ -302,7 +313,8 @@ namespace {
 // True when `input` asks for tetrahedra in slabs that can be made so (FeMeshInput::slabs).
 bool InSlabs(const FeMeshInput& input) {
   return input.slabs > 0 && input.volume && !input.settings.sharp_edges &&
-         input.settings.max_tet_volume == 0.0 && input.settings.mesher != "cgal";
+         input.settings.surface_mesher.empty() && input.settings.max_tet_volume == 0.0 &&
+         input.settings.mesher != "cgal";
 }
 
 using SlabMesher = std::function<SlabFeMesh(const Eigen::AlignedBox3d&, double,
@@ -459,6 +471,8 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   ss.cell_size = cell;
   // Snapped as `spidarcad mesh` does (no triangle of a smooth surface under about 10°).
   ss.snap_cells = modeling::kProductSnapCells;
+  const bool lattice = input.settings.surface_mesher == "lattice";
+  if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   ss.cancel = cancel;
   const double surface_share = input.volume ? 0.3 : 0.9;
   if (progress) ss.progress = [&progress, surface_share](double f) { progress(surface_share * f); };
@@ -473,6 +487,9 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     // The slivers sharpening leaves along creases repaired, as `spidarcad mesh --sharp` does:
     // TetGen's worst dihedral and tet count depend on them (feature_sharpening.h, step 4b).
     fs.sliver_angle_deg = modeling::kProductSliverAngleDeg;
+    // The lattice leaves no vertex near a box corner to move there (`spidarcad mesh --mesher
+    // lattice --sharp`).
+    fs.insert_corners = lattice;
     surface = modeling::SharpenFeatures(compiled, std::move(surface), fs);
   }
   Report(progress, input.volume ? 0.35 : 1.0);

@@ -76,9 +76,9 @@ struct FeMeshInput {
   // planes, TetGen per slab, the slabs joined), so that an FE model of it can be factored in
   // slabs and a later edit re-meshes and refactors only the slabs it reached. A sculpt's planes
   // and cross-section points are spaced by SurfaceSlabSpacing (1.4 median edges). 0: in one piece.
-  // Ignored (one piece) with settings.sharp_edges, max_tet_volume or mesher "cgal", for a surface
-  // only and for the other kinds; a source the slabs fail for (a plane through a gap in it) is
-  // meshed in one piece, FeMeshResult::slab_note saying why.
+  // Ignored (one piece) with settings.sharp_edges, surface_mesher "lattice", max_tet_volume or
+  // mesher "cgal", for a surface only and for the other kinds; a source the slabs fail for (a plane
+  // through a gap in it) is meshed in one piece, FeMeshResult::slab_note saying why.
   int slabs = 0;
   // The slab mesh of an earlier version of the source (may be null): its box, spacing and planes
   // are kept, and its slabs whose input is unchanged are taken as they are, when it was made in
@@ -96,7 +96,8 @@ inline constexpr int kFeSlabs = 4;
 
 // The input to mesh `source` (a solid, sculpt or surface mesh) with `settings`. Throws
 // DocumentError naming the object and what is wrong: not such a source, an open surface,
-// mesher "cgal" or sharp_edges for anything but a solid, a negative or non-finite setting.
+// mesher "cgal", sharp_edges or surface_mesher "lattice" for anything but a solid, the lattice
+// with "cgal", an unknown surface mesher, a negative or non-finite setting.
 FeMeshInput PrepareFeMesh(const Document& doc, ObjectId source, const MeshSettings& settings);
 
 // The input to mesh mesh object `mesh` again from its source with its stored settings, making
@@ -148,8 +149,9 @@ std::string FeMeshOverBudget(const modeling::SurfaceMeshEstimate& estimate);
 std::string LargeMeshQuestion(const std::string& name, const FeMeshInput& input,
                               const std::atomic<bool>* cancel = nullptr);
 
-// Meshes the input (worker thread): a solid on the grid (MeshSurface, SharpenFeatures when
-// sharp_edges) then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Without input.volume
+// Meshes the input (worker thread): a solid on the grid (MeshSurface, by the lattice route with
+// surface_mesher "lattice"; SharpenFeatures when sharp_edges, inserting corners on the lattice)
+// then TetGen, or CGAL Mesh_3; a closed surface by TetGen. Without input.volume
 // the result holds the surface only (no TetGen; volume null). Polls `cancel` (throws
 // the meshers' cancellation exceptions) and reports progress in [0, 1]. Throws
 // std::invalid_argument or std::runtime_error saying what failed (empty surface, TetGen or CGAL
