@@ -4,8 +4,11 @@
 // app::MeasureEditToForce (app/src/cli/edit_to_force.h, shared with `spidarcad report`, section
 // "edit": what is measured and how). Markdown tables are printed after the run, with the load
 // average.
+// Arguments: order, cell (um), slabs, lattice (1: every surface by the lattice route, the case
+// named "..., lattice").
 // Run: build/bench/app_fem_substructure_bench   (P2 at 10 mm, P1 at 6 mm, P1 at 5 mm: 105k tets)
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2
+//      build/bench/app_fem_substructure_bench --benchmark_filter=P2_10mm/2/10000/4/1
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
@@ -33,8 +36,10 @@ std::vector<app::EditToForceCase>& Cases() {
 void BM_EditToForce(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0)), res_um = static_cast<int>(state.range(1));
   const int num_slabs = static_cast<int>(state.range(2));
+  const bool lattice = state.range(3) != 0;  // the lattice route's surfaces
   app::EditToForceCase row;
-  for (auto _ : state) row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs);
+  for (auto _ : state)
+    row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs, 4, lattice);
   state.counters["interface_dofs"] = row.interface;
   state.counters["full_s"] = row.full_wall();
   state.counters["edit1_s"] = row.edits.empty() ? 0.0 : row.edits.front().total_wall;
@@ -49,20 +54,23 @@ void PrintTables() {
 
 BENCHMARK(BM_EditToForce)
     ->Name("P2_10mm")
-    ->Args({2, 10000, 4})
-    ->Args({2, 10000, 6})
+    ->Args({2, 10000, 4, 0})
+    ->Args({2, 10000, 6, 0})
+    ->Args({2, 10000, 4, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_EditToForce)
     ->Name("P1_6mm")
-    ->Args({1, 6000, 4})
-    ->Args({1, 6000, 6})
+    ->Args({1, 6000, 4, 0})
+    ->Args({1, 6000, 6, 0})
+    ->Args({1, 6000, 4, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 // The "100k-tet part with linear elements": the platform at 5 mm cells (about 105k tets).
 BENCHMARK(BM_EditToForce)
     ->Name("P1_5mm")
-    ->Args({1, 5000, 4})
+    ->Args({1, 5000, 4, 0})
+    ->Args({1, 5000, 4, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

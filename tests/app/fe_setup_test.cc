@@ -161,17 +161,16 @@ TEST(FeSetUp, SolidInSlabsReusesUnchangedSlabsAndFallsBackToOnePieceWhereAPlaneM
 }
 
 // The window's "lattice" (settings.surface_mesher): the surface by the lattice route, as
-// `spidarcad mesh` makes it, then TetGen; in one piece even when slabs are asked for (the slab
-// mesher cuts the marching-tetrahedra surface); sharpened with corners inserted. Refused for
-// CGAL, for a surface source and under an unknown name.
-TEST(FeSetUp, LatticeSurfaceIsTheLatticeRoutesAndMeshesInOnePiece) {
+// `spidarcad mesh` makes it, then TetGen, in one piece or cut into slabs on planes a quarter
+// cell past the grid planes (a slab the edit did not reach kept); sharpened with corners
+// inserted. Refused for CGAL, for a surface source and under an unknown name.
+TEST(FeSetUp, LatticeSurfaceIsTheLatticeRoutesInOnePieceOrInSlabs) {
   constexpr double kR = 0.05;
   BallDoc f(kR);
   MeshSettings settings = Cell(0.008);
   const FeMeshResult grid = MeshFeSource(PrepareFeMesh(f.doc, f.ball, settings));
   settings.surface_mesher = "lattice";
   FeMeshInput input = PrepareFeMesh(f.doc, f.ball, settings);
-  input.slabs = kFeSlabs;
   const FeMeshResult mesh = MeshFeSource(input);
   ASSERT_TRUE(mesh.volume && mesh.surface && grid.surface);
   EXPECT_EQ(mesh.slabs, nullptr);
@@ -194,9 +193,31 @@ TEST(FeSetUp, LatticeSurfaceIsTheLatticeRoutesAndMeshesInOnePiece) {
               modeling::MeasureTriangleAngles(*mesh.surface).min_angle_deg,
               static_cast<long>(grid.surface->triangles.cols()),
               modeling::MeasureTriangleAngles(*grid.surface).min_angle_deg);
-  f.doc.Execute(SetUpFe(input, mesh));
+  // In slabs: the lattice surface of the slab grid cut on planes a quarter cell past its grid
+  // planes (which hold no lattice vertex or edge); meshed again from the first, every slab is
+  // kept.
+  input.slabs = kFeSlabs;
+  const FeMeshResult slabs = MeshFeSource(input);
+  ASSERT_NE(slabs.slabs, nullptr) << slabs.slab_note;
+  EXPECT_EQ(slabs.slabs->slab_tets.size(), static_cast<std::size_t>(kFeSlabs));
+  const Eigen::AlignedBox3d& grid_box = slabs.slabs->grid_bounds;
+  const double h = slabs.slabs->cell;
+  const double origin =
+      grid_box.center().x() - 0.5 * h * std::ceil(grid_box.sizes().x() / h - 1e-9);
+  for (double x : slabs.slabs->planes) {
+    const double cells = (x - origin) / h;
+    EXPECT_NEAR(cells - std::floor(cells), 0.25, 1e-9) << x;
+  }
+  EXPECT_NEAR(TetVolume(*slabs.volume), exact, 0.03 * exact);
+  input.previous_slabs = slabs.slabs;
+  const FeMeshResult again = MeshFeSource(input);
+  ASSERT_NE(again.slabs, nullptr);
+  EXPECT_EQ(again.slabs->num_remeshed(), 0);
+  EXPECT_TRUE((again.volume->tets.array() == slabs.volume->tets.array()).all());
+  f.doc.Execute(SetUpFe(input, slabs));
   const auto& md = std::get<MeshData>(f.doc.Get(f.doc.last_created()[0]).data);
   EXPECT_EQ(md.settings.surface_mesher, "lattice");
+  EXPECT_EQ(md.settings.slab_planes, slabs.slabs->planes);
 
   // A box off the grid, sharpened on the lattice: a vertex on each corner.
   Document boxes;

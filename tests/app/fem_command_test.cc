@@ -365,6 +365,64 @@ TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
   std::filesystem::remove_all(dir);
 }
 
+// --mesher lattice: the lattice route's surface, cut on its own planes; the lattice mesher is as
+// local as the grid's, so after the same edit of the load holes only the last slab is meshed and
+// factored again, and the answer equals a run without the cache. Fewer tets than the
+// marching-tetrahedra surface gives. Bad values and inputs that are not solids are refused.
+TEST(FemCommand, LatticeMesherKeepsTheSlabsAnEditElsewhereDidNotReach) {
+  std::ifstream in(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string hole = R"("id": "load_hole", "radius": 0.004)";
+  const std::size_t at = text.find(hole);
+  ASSERT_NE(at, std::string::npos);
+  std::string edited_text = text;
+  edited_text.replace(at, hole.size(), R"("id": "load_hole", "radius": 0.0045)");
+  const std::string original = OutputPath("fem_lattice_platform.json");
+  const std::string edited = OutputPath("fem_lattice_platform_edited.json");
+  std::ofstream(original) << text;
+  std::ofstream(edited) << edited_text;
+  const std::string dir = OutputPath("fem_lattice_cache_dir");
+  std::filesystem::remove_all(dir);
+  const std::string common =
+      " --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 --load 0.3,0.1,0.2 --force 0,0,-100 --out " +
+      OutputPath("fem_lattice.vtu");
+  auto run = [&](const std::string& scene, const std::string& extra, const std::string& tag) {
+    const CommandRun r = RunSpidarcad(scene + common + extra, tag);
+    EXPECT_EQ(r.status, 0) << r.err;
+    return r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+  };
+  auto strings = [](const nlohmann::json& list) {
+    std::vector<std::string> out;
+    for (const auto& s : list) out.push_back(s.get<std::string>());
+    return out;
+  };
+  using Strings = std::vector<std::string>;
+  const nlohmann::json grid = run(original, " --slabs 4", "lattice0");
+  const nlohmann::json first = run(original, " --mesher lattice --cache-dir " + dir, "lattice1");
+  EXPECT_EQ(first["meshing"]["surface_mesher"], "lattice");
+  EXPECT_EQ(grid["meshing"]["surface_mesher"], "tetrahedra");
+  EXPECT_LT(first["elements"].get<int>(), grid["elements"].get<int>());
+  const nlohmann::json after = run(edited, " --mesher lattice --cache-dir " + dir, "lattice2");
+  EXPECT_EQ(strings(after["cache"]["recomputed"]),
+            (Strings{"surface", "slab 3 mesh", "block 3 factor", "interface plane 2 factor"}));
+  EXPECT_EQ(after["cache"]["reused"].size(), 8u);
+  const nlohmann::json plain = run(edited, " --mesher lattice --slabs 4", "lattice3");
+  EXPECT_EQ(after["loads"][0]["displacement"], plain["loads"][0]["displacement"]);
+  EXPECT_EQ(after["elements"], plain["elements"]);
+  std::filesystem::remove_all(dir);
+
+  const CommandRun cubes = RunSpidarcad(original + common + " --mesher cubes", "lattice4");
+  EXPECT_EQ(cubes.status, 2);
+  EXPECT_NE(cubes.err.find("--mesher 'cubes': give lattice or tetrahedra"), std::string::npos)
+      << cubes.err;
+  const CommandRun vtu =
+      RunSpidarcad(OutputPath("fem_lattice.vtu") + " --mesher lattice --out " +
+                       OutputPath("fem_lattice_again.vtu") + " --fix=-1,-1,-1,0.0005,1,1",
+                   "lattice5");
+  EXPECT_EQ(vtu.status, 2);
+  EXPECT_NE(vtu.err.find("holds tetrahedra already: drop --mesher"), std::string::npos) << vtu.err;
+}
+
 TEST(FemCommand, StlIsRepairedMeshedAndSolvedOrRefusedNamingTheDefect) {
   // A 0.2 x 0.05 x 0.05 m bar written as an STL with every triangle's corners turned over (inside
   // out): the repair turns them back, TetGen meshes it, and the push solves.

@@ -182,9 +182,10 @@ std::string Format(const char* format, Args... args) {
 }  // namespace
 
 EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, double cell,
-                                   int num_slabs, int num_edits) {
+                                   int num_slabs, int num_edits, bool lattice) {
   EditToForceCase row;
-  row.name = Format("P%d %g mm, %d slabs", order, cell * 1000.0, num_slabs);
+  row.name =
+      Format("P%d %g mm, %d slabs%s", order, cell * 1000.0, num_slabs, lattice ? ", lattice" : "");
   row.order = order;
   row.cell = cell;
   row.num_slabs = num_slabs;
@@ -196,6 +197,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     modeling::SurfaceMeshSettings ss;
     ss.bounds = base.bounds;
     ss.cell_size = cell;
+    if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
     const modeling::TriangleMesh surface = modeling::MeshSurface(base.compiled, ss);
     modeling::TetMeshSettings ts;
     ts.max_radius_edge = 2.0;
@@ -217,9 +219,11 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
   }
   // The slab route, fresh.
   const Eigen::AlignedBox3d grid = base.bounds;  // kept for every edit
-  const std::vector<double> planes = SlabPlanes(grid, cell, num_slabs);
+  const std::vector<double> planes = SlabPlanes(grid, cell, num_slabs, lattice);
+  SlabMeshOptions fresh_options;
+  fresh_options.lattice = lattice;
   Timer tf;
-  const SlabFeMesh slab_mesh = MeshSolidInSlabs(base.compiled, grid, cell, planes);
+  const SlabFeMesh slab_mesh = MeshSolidInSlabs(base.compiled, grid, cell, planes, fresh_options);
   const fem::TetMesh mesh0 = order == 2 ? fem::MakeQuadratic(slab_mesh.mesh) : slab_mesh.mesh;
   const fem::SubstructuredSolver fresh(mesh0, steel, Conditions(mesh0), slab_mesh.slab);
   row.slab_fresh_wall = tf.Wall();
@@ -247,6 +251,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     const SceneSolidGrid changed = PrepareSceneSolid(edit.path, "platform", cell);
     SlabMeshOptions reuse;
     reuse.previous = &slab_mesh;
+    reuse.lattice = lattice;
     const SlabFeMesh m = MeshSolidInSlabs(changed.compiled, grid, cell, planes, reuse);
     const fem::TetMesh mesh1 = order == 2 ? fem::MakeQuadratic(m.mesh) : m.mesh;
     const fem::BoundaryConditions bcs1 = Conditions(mesh1);

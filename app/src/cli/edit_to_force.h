@@ -44,7 +44,7 @@ struct EditToForceRow {
 
 // One case (element order, cell, slabs) with its full recompute and its edits.
 struct EditToForceCase {
-  std::string name;  // e.g. "P2 10 mm, 4 slabs"
+  std::string name;  // e.g. "P2 10 mm, 4 slabs" (", lattice" with the lattice surface)
   int order = 1;     // element order
   double cell = 0;   // cell size, m
   int num_slabs = 0;
@@ -61,10 +61,12 @@ struct EditToForceCase {
 };
 
 // Measures one case on the scene at `scene_path` (the platform): element order 1 or 2, cell
-// size (m), number of slabs, the first `num_edits` edits of the list above (1..4). Throws what
-// meshing and loading throw.
+// size (m), number of slabs, the first `num_edits` edits of the list above (1..4); with
+// `lattice`, every surface (the full recompute's and the slabs') by the lattice route
+// (SlabMeshOptions::lattice) instead of marching tetrahedra. Throws what meshing and loading
+// throw.
 EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, double cell, int slabs,
-                                   int num_edits = 4);
+                                   int num_edits = 4, bool lattice = false);
 
 // The markdown tables of `cases` (cases, edits, the tick during the update, mesh quality).
 std::string EditToForceTables(const std::vector<EditToForceCase>& cases);

@@ -869,8 +869,19 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
       if (ImGui::RadioButton("CGAL", cgal)) {
         mesh_settings_.mesher = "cgal";
         mesh_settings_.sharp_edges = false;
+        mesh_settings_.surface_mesher.clear();
       }
-      if (!cgal) ImGui::Checkbox("sharp edges", &mesh_settings_.sharp_edges);
+      if (!cgal) {
+        ImGui::Checkbox("sharp edges", &mesh_settings_.sharp_edges);
+        ImGui::SameLine();
+        bool lattice = mesh_settings_.surface_mesher == "lattice";
+        if (ImGui::Checkbox("lattice", &lattice))
+          mesh_settings_.surface_mesher = lattice ? "lattice" : "";
+        if (ImGui::IsItemHovered())
+          ImGui::SetTooltip(
+              "Surface by the lattice route: fewer, better-shaped triangles, so fewer tets and "
+              "faster edits in slabs; else marching tetrahedra and its clean-up");
+      }
       if (!cgal && !mesh_settings_.sharp_edges) {
         ImGui::Checkbox("in slabs (local edits refactor only what they reach)", &mesh_in_slabs_);
       }
@@ -887,6 +898,7 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
       if (kind != FeSourceKind::kSolid) {  // only solids have a mesher choice
         mesh_settings_.mesher.clear();
         mesh_settings_.sharp_edges = false;
+        mesh_settings_.surface_mesher.clear();
       }
       StartSetUp(model, chosen_);
       mesh_settings_ = saved;

@@ -313,8 +313,7 @@ namespace {
 // True when `input` asks for tetrahedra in slabs that can be made so (FeMeshInput::slabs).
 bool InSlabs(const FeMeshInput& input) {
   return input.slabs > 0 && input.volume && !input.settings.sharp_edges &&
-         input.settings.surface_mesher.empty() && input.settings.max_tet_volume == 0.0 &&
-         input.settings.mesher != "cgal";
+         input.settings.max_tet_volume == 0.0 && input.settings.mesher != "cgal";
 }
 
 using SlabMesher = std::function<SlabFeMesh(const Eigen::AlignedBox3d&, double,
@@ -429,6 +428,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   const Eigen::AlignedBox3d bounds =
       FeSolidBounds(input.root, input.source_name, &cell, &compiled, cancel);
   result.settings.cell_size = cell;
+  const bool lattice = input.settings.surface_mesher == "lattice";
   if (input.settings.mesher == "cgal") {
     if (!input.volume)
       throw std::invalid_argument("solid '" + input.source_name +
@@ -456,11 +456,14 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
       previous = nullptr;
     if (MeshInSlabs(
             input, bounds, cell, previous,
-            [&](const Eigen::AlignedBox3d& box) { return SlabPlanes(box, cell, input.slabs); },
+            [&](const Eigen::AlignedBox3d& box) {
+              return SlabPlanes(box, cell, input.slabs, lattice);
+            },
             [&](const Eigen::AlignedBox3d& box, double h, const std::vector<double>& planes,
                 const SlabMeshOptions& so) {
               SlabMeshOptions snapped = so;
               snapped.snap_cells = modeling::kProductSnapCells;
+              snapped.lattice = lattice;
               return MeshSolidInSlabs(compiled, box, h, planes, snapped);
             },
             cancel, progress, &result))
@@ -471,7 +474,6 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   ss.cell_size = cell;
   // Snapped as `spidarcad mesh` does (no triangle of a smooth surface under about 10°).
   ss.snap_cells = modeling::kProductSnapCells;
-  const bool lattice = input.settings.surface_mesher == "lattice";
   if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   ss.cancel = cancel;
   const double surface_share = input.volume ? 0.3 : 0.9;

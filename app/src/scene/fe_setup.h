@@ -76,7 +76,8 @@ struct FeMeshInput {
   // planes, TetGen per slab, the slabs joined), so that an FE model of it can be factored in
   // slabs and a later edit re-meshes and refactors only the slabs it reached. A sculpt's planes
   // and cross-section points are spaced by SurfaceSlabSpacing (1.4 median edges). 0: in one piece.
-  // Ignored (one piece) with settings.sharp_edges, surface_mesher "lattice", max_tet_volume or
+  // A solid's slabs are cut from the lattice route's surface with surface_mesher "lattice"
+  // (SlabMeshOptions::lattice). Ignored (one piece) with settings.sharp_edges, max_tet_volume or
   // mesher "cgal", for a surface only and for the other kinds; a source the slabs fail for (a plane
   // through a gap in it) is meshed in one piece, FeMeshResult::slab_note saying why.
   int slabs = 0;

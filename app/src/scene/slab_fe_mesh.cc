@@ -118,12 +118,17 @@ int SlabFeMesh::num_remeshed() const {
   return static_cast<int>(std::count(remeshed.begin(), remeshed.end(), 1));
 }
 
-std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs) {
+std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
+                               bool lattice) {
   std::vector<double> planes;
   const double lo = grid_bounds.min().x(), hi = grid_bounds.max().x();
+  // The grid planes: MeshSurface centres its grid on the bounds (at lo when they span whole
+  // cells, as the callers' grids do).
+  const double n = std::max(1.0, std::ceil((hi - lo) / cell - 1e-9));
+  const double origin = lattice ? 0.5 * (lo + hi) - 0.5 * cell * n : lo;
   for (int k = 1; k < slabs; ++k) {
     const double x = lo + (hi - lo) * k / slabs;
-    const double p = lo + cell * (std::floor((x - lo) / cell) + 0.5);
+    const double p = origin + cell * (std::floor((x - origin) / cell) + (lattice ? 0.25 : 0.5));
     if (planes.empty() || p > planes.back()) planes.push_back(p);
   }
   return planes;
@@ -172,6 +177,7 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
   ss.bounds = grid_bounds;
   ss.cell_size = cell;
   ss.snap_cells = options.snap_cells;
+  if (options.lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   ss.cancel = options.cancel;
   if (options.progress) ss.progress = [&options](double f) { options.progress(0.3 * f); };
   const modeling::TriangleMesh surface = modeling::MeshSurface(solid, ss);
