@@ -175,20 +175,23 @@ TEST(ReportCommand, EditSectionFollowsEachEditThroughTheSlabsToTheMonolithicForc
       RunSpidarcad("report --out '" + dir + "' --quick --only edit --no-plots", "", "edit");
   ASSERT_EQ(run.status, 0) << run.all();
   std::vector<std::string> header;
-  const auto rows = ReadCsv(dir + "/edit.csv", 4, &header);
+  const auto rows = ReadCsv(dir + "/edit.csv", 5, &header);
   const int remeshed = Column(header, "slabs_remeshed"),
             planes = Column(header, "planes_refactored");
   const int error = Column(header, "relative_difference"), time = Column(header, "edit_to_force_s");
   ASSERT_GE(std::min({remeshed, planes, error, time}), 0);
-  ASSERT_EQ(rows.size(), 2u);
-  const auto load = rows.find("1|6|4|load holes r 4 -> 4.5 mm");
-  const auto bolt = rows.find("1|6|4|bolt holes r 5.5 -> 6 mm");
-  ASSERT_NE(load, rows.end());
-  ASSERT_NE(bolt, rows.end());
-  EXPECT_EQ(load->second[remeshed], "1");
-  EXPECT_EQ(load->second[planes], "1");
-  EXPECT_EQ(bolt->second[remeshed], "1");
-  EXPECT_EQ(bolt->second[planes], "3");
+  // Both surfaces (marching tetrahedra, lattice), the two local edits each.
+  ASSERT_EQ(rows.size(), 4u);
+  for (const std::string surface : {"tetrahedra", "lattice"}) {
+    const auto load = rows.find("1|6|4|" + surface + "|load holes r 4 -> 4.5 mm");
+    const auto bolt = rows.find("1|6|4|" + surface + "|bolt holes r 5.5 -> 6 mm");
+    ASSERT_NE(load, rows.end()) << surface;
+    ASSERT_NE(bolt, rows.end()) << surface;
+    EXPECT_EQ(load->second[remeshed], "1") << surface;
+    EXPECT_EQ(load->second[planes], "1") << surface;
+    EXPECT_EQ(bolt->second[remeshed], "1") << surface;
+    EXPECT_EQ(bolt->second[planes], "3") << surface;
+  }
   for (const auto& [key, f] : rows) {
     EXPECT_LT(std::stod(f[error]), 1e-9) << key;
     EXPECT_GT(std::stod(f[time]), 0.0) << key;
