@@ -99,9 +99,11 @@ void ReportEditToForce(ReportContext& ctx) {
                  Sig(local.total_wall, 2) + " s after the edit" + second + " (full recompute " +
                  Sig(last.full_wall(), 2) + " s); every patch block within " + Sig(worst_error, 2) +
                  " of a monolithic solve");
-    ctx.Summary("edit to felt force " + Sig(local.total_wall, 2) + " s, full recompute " +
-                    Sig(last.full_wall(), 2) + " s (" + last.name.substr(0, last.name.find(',')) +
-                    ", local edit)",
+    const bool lattice = last.name.find("lattice") != std::string::npos;
+    ctx.Summary("edit to felt force " + Sig(local.total_wall, 2) + " s" + second +
+                    ", full recompute " + Sig(last.full_wall(), 2) + " s (" +
+                    last.name.substr(0, last.name.find(',')) +
+                    (lattice ? ", lattice surface" : "") + ")",
                 "patch compliance within " + Sig(worst_error, 2) + " of a full solve");
   }
 }
