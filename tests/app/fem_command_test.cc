@@ -270,36 +270,58 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
   EXPECT_EQ(back.num_nodes(), report["nodes"].get<int>());
 }
 
+// The platform scene and a copy with its load holes widened (r 4 -> 4.5 mm, the free end),
+// written as <prefix>_platform.json and <prefix>_platform_edited.json; ok is false when the
+// scene no longer has the hole's text.
+struct EditedPlatform {
+  std::string original, edited;
+  bool ok = false;
+  // The options of the runs on them, up to --out's path.
+  static constexpr const char* kCommon =
+      " --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 --load 0.3,0.1,0.2 --force 0,0,-100 --out ";
+  explicit EditedPlatform(const std::string& prefix)
+      : original(OutputPath(prefix + "_platform.json")),
+        edited(OutputPath(prefix + "_platform_edited.json")) {
+    std::ifstream in(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string hole = R"("id": "load_hole", "radius": 0.004)";
+    const std::size_t at = text.find(hole);
+    if (at == std::string::npos) return;
+    std::string edited_text = text;
+    edited_text.replace(at, hole.size(), R"("id": "load_hole", "radius": 0.0045)");
+    std::ofstream(original) << text;
+    std::ofstream(edited) << edited_text;
+    ok = true;
+  }
+};
+
+// A run's JSON report (a failed run is a test failure and gives null).
+nlohmann::json RunJson(const std::string& args, const std::string& tag) {
+  const CommandRun r = RunSpidarcad(args, tag);
+  EXPECT_EQ(r.status, 0) << r.err;
+  return r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+}
+
+// A JSON array of strings.
+std::vector<std::string> StringList(const nlohmann::json& list) {
+  std::vector<std::string> out;
+  for (const auto& s : list) out.push_back(s.get<std::string>());
+  return out;
+}
+
 // --cache-dir: a second run on the platform after a local edit (the load holes at the free end
 // widened) reads the slab meshes and slab factors the edit did not reach, lists what it read and
 // what it computed, and prints the same answer, bit for bit, as a run on the edited scene
 // without the cache.
 TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
-  std::ifstream in(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string hole = R"("id": "load_hole", "radius": 0.004)";
-  const std::size_t at = text.find(hole);
-  ASSERT_NE(at, std::string::npos);
-  std::string edited_text = text;
-  edited_text.replace(at, hole.size(), R"("id": "load_hole", "radius": 0.0045)");
-  const std::string original = OutputPath("fem_cache_platform.json");
-  const std::string edited = OutputPath("fem_cache_platform_edited.json");
-  std::ofstream(original) << text;
-  std::ofstream(edited) << edited_text;
+  const EditedPlatform scenes("fem_cache");
+  ASSERT_TRUE(scenes.ok);
+  const std::string &original = scenes.original, &edited = scenes.edited;
   const std::string dir = OutputPath("fem_cache_dir");
   std::filesystem::remove_all(dir);
-  const std::string common =
-      " --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 --load 0.3,0.1,0.2 --force 0,0,-100 --out " +
-      OutputPath("fem_cache.vtu");
+  const std::string common = EditedPlatform::kCommon + OutputPath("fem_cache.vtu");
   auto run = [&](const std::string& scene, const std::string& extra, const std::string& tag) {
-    const CommandRun r = RunSpidarcad(scene + common + extra, tag);
-    EXPECT_EQ(r.status, 0) << r.err;
-    return r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
-  };
-  auto strings = [](const nlohmann::json& list) {
-    std::vector<std::string> out;
-    for (const auto& s : list) out.push_back(s.get<std::string>());
-    return out;
+    return RunJson(scene + common + extra, tag);
   };
   using Strings = std::vector<std::string>;
   const nlohmann::json first = run(original, " --cache-dir " + dir, "cache1");
@@ -310,17 +332,17 @@ TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
   EXPECT_TRUE(first["cache"]["notes"].empty());
 
   const nlohmann::json again = run(original, " --cache-dir " + dir, "cache2");
-  EXPECT_EQ(strings(again["cache"]["recomputed"]), (Strings{"surface"}));
+  EXPECT_EQ(StringList(again["cache"]["recomputed"]), (Strings{"surface"}));
   EXPECT_EQ(again["cache"]["reused"].size(), 11u);  // 4 slab meshes, 4 factors, 3 planes
   EXPECT_EQ(again["loads"][0]["displacement"], first["loads"][0]["displacement"]);
 
   const nlohmann::json after = run(edited, " --cache-dir " + dir, "cache3");
   // The last slab changed: its mesh, its factor and the last plane (between slabs 2 and 3).
   EXPECT_EQ(
-      strings(after["cache"]["reused"]),
+      StringList(after["cache"]["reused"]),
       (Strings{"slab 0 mesh", "slab 1 mesh", "slab 2 mesh", "block 0 factor", "block 1 factor",
                "block 2 factor", "interface plane 0 factor", "interface plane 1 factor"}));
-  EXPECT_EQ(strings(after["cache"]["recomputed"]),
+  EXPECT_EQ(StringList(after["cache"]["recomputed"]),
             (Strings{"surface", "slab 3 mesh", "block 3 factor", "interface plane 2 factor"}));
   EXPECT_EQ(after["meshing"]["per_slab"][3]["mesh"], "tetgen");
   EXPECT_EQ(after["substructure"]["blocks"][0]["factor"], "cache");
@@ -370,31 +392,14 @@ TEST(FemCommand, CacheDirKeepsTheSlabsAnEditElsewhereDidNotReach) {
 // factored again, and the answer equals a run without the cache. Fewer tets than the
 // marching-tetrahedra surface gives. Bad values and inputs that are not solids are refused.
 TEST(FemCommand, LatticeMesherKeepsTheSlabsAnEditElsewhereDidNotReach) {
-  std::ifstream in(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string hole = R"("id": "load_hole", "radius": 0.004)";
-  const std::size_t at = text.find(hole);
-  ASSERT_NE(at, std::string::npos);
-  std::string edited_text = text;
-  edited_text.replace(at, hole.size(), R"("id": "load_hole", "radius": 0.0045)");
-  const std::string original = OutputPath("fem_lattice_platform.json");
-  const std::string edited = OutputPath("fem_lattice_platform_edited.json");
-  std::ofstream(original) << text;
-  std::ofstream(edited) << edited_text;
+  const EditedPlatform scenes("fem_lattice");
+  ASSERT_TRUE(scenes.ok);
+  const std::string &original = scenes.original, &edited = scenes.edited;
   const std::string dir = OutputPath("fem_lattice_cache_dir");
   std::filesystem::remove_all(dir);
-  const std::string common =
-      " --resolution 0.01 --fix=-1,-1,-1,0.0005,1,1 --load 0.3,0.1,0.2 --force 0,0,-100 --out " +
-      OutputPath("fem_lattice.vtu");
+  const std::string common = EditedPlatform::kCommon + OutputPath("fem_lattice.vtu");
   auto run = [&](const std::string& scene, const std::string& extra, const std::string& tag) {
-    const CommandRun r = RunSpidarcad(scene + common + extra, tag);
-    EXPECT_EQ(r.status, 0) << r.err;
-    return r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
-  };
-  auto strings = [](const nlohmann::json& list) {
-    std::vector<std::string> out;
-    for (const auto& s : list) out.push_back(s.get<std::string>());
-    return out;
+    return RunJson(scene + common + extra, tag);
   };
   using Strings = std::vector<std::string>;
   const nlohmann::json grid = run(original, " --slabs 4", "lattice0");
@@ -403,7 +408,7 @@ TEST(FemCommand, LatticeMesherKeepsTheSlabsAnEditElsewhereDidNotReach) {
   EXPECT_EQ(grid["meshing"]["surface_mesher"], "tetrahedra");
   EXPECT_LT(first["elements"].get<int>(), grid["elements"].get<int>());
   const nlohmann::json after = run(edited, " --mesher lattice --cache-dir " + dir, "lattice2");
-  EXPECT_EQ(strings(after["cache"]["recomputed"]),
+  EXPECT_EQ(StringList(after["cache"]["recomputed"]),
             (Strings{"surface", "slab 3 mesh", "block 3 factor", "interface plane 2 factor"}));
   EXPECT_EQ(after["cache"]["reused"].size(), 8u);
   const nlohmann::json plain = run(edited, " --mesher lattice --slabs 4", "lattice3");
