@@ -473,61 +473,48 @@ class Sharpener {
     }
     std::sort(near.begin(), near.end());
     near.erase(std::unique(near.begin(), near.end()), near.end());
-    // A split: triangle t's edge k (corners k, k + 1) and its neighbour across it (-1: split t).
-    int best_t = -1, best_k = -1, best_t2 = -1;
-    double best_sum2 = INFINITY;
-    // The fan of triangles (a, b, x) over the boundary edges (a, b) of the replaced triangles
-    // `parts`, each (a, b) listed with the normal of the triangle it came from.
-    auto score = [&](const std::vector<int>& parts,
-                     const std::vector<std::array<int, 2>>& edges) -> double {
+    // The sampled sum of squares of the fan's new triangles (a, b, x), or infinity when the
+    // split fails a test.
+    auto score = [&](const std::vector<FanEdge>& fan) -> double {
       Deviation before, after;
-      for (int t : parts)
-        before.Add(TriangleDeviation(pos_[tris_[t][0]], pos_[tris_[t][1]], pos_[tris_[t][2]]));
-      for (size_t i = 0; i < edges.size(); ++i) {
-        const int t = parts[i / (parts.size() == 1 ? 3 : 2)];
-        const Eigen::Vector3d n_old =
-            (pos_[tris_[t][1]] - pos_[tris_[t][0]]).cross(pos_[tris_[t][2]] - pos_[tris_[t][0]]);
-        const Eigen::Vector3d &a = pos_[edges[i][0]], &b = pos_[edges[i][1]];
+      int last = -1;
+      for (const FanEdge& e : fan) {
+        const auto p = Corners(tris_[e.from]);
+        if (e.from != last) before.Add(TriangleDeviation(p[0], p[1], p[2]));
+        last = e.from;
+        const Eigen::Vector3d &a = pos_[e.a], &b = pos_[e.b];
         const Eigen::Vector3d n = (b - a).cross(x - a);
-        if (!(n.dot(n_old) > 0.0) || MinAngle(a, b, x) < min_angle || !FacesOutward(n, a, b, x))
+        if (!(n.dot(Normal(p)) > 0.0) || MinAngle(a, b, x) < min_angle || !FacesOutward(n, a, b, x))
           return INFINITY;
         after.Add(TriangleDeviation(a, b, x));
       }
       if (!(after.sum2 < before.sum2) || after.max > before.max + 1e-9 * h_) return INFINITY;
       return after.sum2;
     };
+    std::vector<FanEdge> best;
+    double best_sum2 = INFINITY;
+    auto consider = [&](std::vector<FanEdge> fan) {
+      const double sum2 = score(fan);
+      if (sum2 < best_sum2) best_sum2 = sum2, best = std::move(fan);
+    };
     for (int t : near) {
-      const auto tri = tris_[t];
-      const double one = score({t}, {{tri[0], tri[1]}, {tri[1], tri[2]}, {tri[2], tri[0]}});
-      if (one < best_sum2) best_sum2 = one, best_t = t, best_k = -1;
+      consider(SplitFan(t, -1));
       for (int k = 0; k < 3; ++k) {
-        const int p = tri[k], q = tri[(k + 1) % 3], c = tri[(k + 2) % 3];
-        if (p > q) continue;  // each edge once, from the triangle where it runs p -> q, p < q
-        const int t2 = Across(t, p, q);
-        if (t2 < 0) continue;
-        const int d = Opposite(t2, p, q);
-        // t's parts (q, c), (c, p) and t2's (p, d), (d, q), each closed by x.
-        const double two = score({t, t2}, {{q, c}, {c, p}, {p, d}, {d, q}});
-        if (two < best_sum2) best_sum2 = two, best_t = t, best_k = k, best_t2 = t2;
+        // Each edge once, from the triangle where it runs p -> q with p < q.
+        if (tris_[t][k] < tris_[t][(k + 1) % 3] &&
+            TriangleWithEdge(tris_[t][(k + 1) % 3], tris_[t][k]) >= 0)
+          consider(SplitFan(t, k));
       }
     }
-    if (best_t < 0) return false;
+    if (best.empty()) return false;
+    // The replaced triangles' slots take the first new triangles; the others are appended.
+    std::vector<int> parts;
+    for (const FanEdge& e : best)
+      if (std::find(parts.begin(), parts.end(), e.from) == parts.end()) parts.push_back(e.from);
     const int nv = static_cast<int>(pos_.size());
     const int first_new = static_cast<int>(tris_.size());
-    // Replaced triangles and the fans (a, b, x) that replace them.
-    std::vector<int> parts{best_t};
-    std::vector<std::array<int, 2>> edges;
-    const auto tri = tris_[best_t];
-    if (best_k < 0) {
-      edges = {{tri[0], tri[1]}, {tri[1], tri[2]}, {tri[2], tri[0]}};
-    } else {
-      const int p = tri[best_k], q = tri[(best_k + 1) % 3], c = tri[(best_k + 2) % 3];
-      const int d = Opposite(best_t2, p, q);
-      parts.push_back(best_t2);
-      edges = {{q, c}, {c, p}, {p, d}, {d, q}};
-    }
-    const std::vector<std::array<int, 3>> saved{tris_[parts[0]],
-                                                parts.size() > 1 ? tris_[parts[1]] : tri};
+    std::vector<std::array<int, 3>> saved;
+    for (int t : parts) saved.push_back(tris_[t]);
     auto detach = [&](int t) {
       for (int w : tris_[t]) {
         auto& fan = vertex_tris_[w];
@@ -541,13 +528,13 @@ class Sharpener {
     pos_.push_back(x);
     vertex_tris_.push_back({});
     std::vector<int> changed;
-    for (size_t i = 0; i < edges.size(); ++i) {
+    for (size_t i = 0; i < best.size(); ++i) {
+      const std::array<int, 3> corners{best[i].a, best[i].b, nv};
       const int t = i < parts.size() ? parts[i] : static_cast<int>(tris_.size());
-      const std::array<int, 3> corners{edges[i][0], edges[i][1], nv};
-      if (t == static_cast<int>(tris_.size())) {
-        tris_.push_back(corners);
-      } else {
+      if (i < parts.size()) {
         tris_[t] = corners;
+      } else {
+        tris_.push_back(corners);
       }
       attach(t);
       changed.push_back(t);
@@ -575,21 +562,19 @@ class Sharpener {
     return true;
   }
 
-  // The triangle other than t with the directed edge q -> p (-1 if none).
-  int Across(int t, int p, int q) const {
-    for (int u : vertex_tris_[q]) {
-      if (u == t) continue;
-      const auto& tri = tris_[u];
-      for (int k = 0; k < 3; ++k) {
-        if (tri[k] == q && tri[(k + 1) % 3] == p) return u;
-      }
-    }
-    return -1;
-  }
-  // The corner of triangle t that is neither p nor q.
-  int Opposite(int t, int p, int q) const {
+  // One new triangle (a, b, x) of a split, and the triangle `from` whose part it replaces.
+  struct FanEdge {
+    int a, b, from;
+  };
+  // The new triangles of splitting triangle t (k < 0) or its edge from corner k to k + 1 with
+  // the triangle across it, grouped by the triangle they replace (InsertCorner gives the first
+  // new triangle the slot of the first replaced one, the second that of the second).
+  std::vector<FanEdge> SplitFan(int t, int k) const {
     const auto& tri = tris_[t];
-    return tri[0] != p && tri[0] != q ? tri[0] : tri[1] != p && tri[1] != q ? tri[1] : tri[2];
+    if (k < 0) return {{tri[0], tri[1], t}, {tri[1], tri[2], t}, {tri[2], tri[0], t}};
+    const int p = tri[k], q = tri[(k + 1) % 3], c = tri[(k + 2) % 3];
+    const int t2 = TriangleWithEdge(q, p), d = Third(tris_[t2], p, q);
+    return {{q, c, t}, {c, p, t}, {p, d, t2}, {d, q, t2}};
   }
 
   // Whether a vertex lies closer than r (at most h) to x.
@@ -706,9 +691,9 @@ class Sharpener {
   // its smallest angle and not raise its sampled deviation; otherwise the flip must halve the
   // deviation and make no angle below min(min_angle, the pair's smallest before).
   bool TryFlip(int t, int p, int q, double min_angle, bool for_angle = false) {
-    const int t2 = Across(t, p, q);
+    const int t2 = TriangleWithEdge(q, p);
     if (t2 < 0) return false;
-    const int c = Opposite(t, p, q), d = Opposite(t2, p, q);
+    const int c = Third(tris_[t], p, q), d = Third(tris_[t2], p, q);
     if (c == d) return false;
     if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
     for (int u : vertex_tris_[c]) {
