@@ -189,6 +189,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
   row.order = order;
   row.cell = cell;
   row.num_slabs = num_slabs;
+  row.lattice = lattice;
   const SceneSolidGrid base = PrepareSceneSolid(scene_path, "platform", cell);
   const fem::MaterialTable steel(kSteel);
   // Today: the whole part meshed in one piece, factored, the patch's columns.
@@ -219,9 +220,9 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
   }
   // The slab route, fresh.
   const Eigen::AlignedBox3d grid = base.bounds;  // kept for every edit
-  const std::vector<double> planes = SlabPlanes(grid, cell, num_slabs, lattice);
   SlabMeshOptions fresh_options;
   fresh_options.lattice = lattice;
+  const std::vector<double> planes = SlabPlanes(grid, cell, num_slabs, fresh_options);
   Timer tf;
   const SlabFeMesh slab_mesh = MeshSolidInSlabs(base.compiled, grid, cell, planes, fresh_options);
   const fem::TetMesh mesh0 = order == 2 ? fem::MakeQuadratic(slab_mesh.mesh) : slab_mesh.mesh;

@@ -48,6 +48,7 @@ struct EditToForceCase {
   int order = 1;     // element order
   double cell = 0;   // cell size, m
   int num_slabs = 0;
+  bool lattice = false;         // every surface by the lattice route
   int free = 0, interface = 0;  // free dofs, interface dofs of the fresh slab model
   double full_mesh = 0, full_factor = 0, full_patch = 0, full_cpu = 0;  // today's recompute, s
   double slab_fresh_wall = 0, slab_fresh_cpu = 0;  // every slab meshed and factored, s

@@ -131,9 +131,9 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
     slab_options.max_radius_edge = options.max_radius_edge;
     slab_options.cache_directory = options.cache_dir;
     slab_options.lattice = options.mesher == "lattice";
-    slabs = MeshSolidInSlabs(grid.compiled, grid.bounds, cell,
-                             SlabPlanes(grid.bounds, cell, options.slabs, slab_options.lattice),
-                             slab_options);
+    slabs =
+        MeshSolidInSlabs(grid.compiled, grid.bounds, cell,
+                         SlabPlanes(grid.bounds, cell, options.slabs, slab_options), slab_options);
   } catch (const std::exception& e) {
     throw InputError(options.input + ": solid '" + grid.solid_name + "' at --resolution " +
                      FormatNumber(cell) + " m in " + std::to_string(options.slabs) +

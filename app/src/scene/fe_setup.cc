@@ -457,7 +457,9 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     if (MeshInSlabs(
             input, bounds, cell, previous,
             [&](const Eigen::AlignedBox3d& box) {
-              return SlabPlanes(box, cell, input.slabs, lattice);
+              SlabMeshOptions surface;
+              surface.lattice = lattice;
+              return SlabPlanes(box, cell, input.slabs, surface);
             },
             [&](const Eigen::AlignedBox3d& box, double h, const std::vector<double>& planes,
                 const SlabMeshOptions& so) {

@@ -119,12 +119,13 @@ int SlabFeMesh::num_remeshed() const {
 }
 
 std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
-                               bool lattice) {
+                               const SlabMeshOptions& options) {
   std::vector<double> planes;
   const double lo = grid_bounds.min().x(), hi = grid_bounds.max().x();
   // The grid planes: MeshSurface centres its grid on the bounds (at lo when they span whole
   // cells, as the callers' grids do).
   const double n = std::max(1.0, std::ceil((hi - lo) / cell - 1e-9));
+  const bool lattice = options.lattice;
   const double origin = lattice ? 0.5 * (lo + hi) - 0.5 * cell * n : lo;
   for (int k = 1; k < slabs; ++k) {
     const double x = lo + (hi - lo) * k / slabs;

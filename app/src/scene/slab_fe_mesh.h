@@ -58,13 +58,6 @@ struct SlabFeMesh {
   int num_remeshed() const;
 };
 
-// `slabs` − 1 planes across x cutting `grid_bounds` into slabs of nearly equal width, each moved
-// to the nearest half-way point between two grid planes; with `lattice`, to the nearest quarter
-// of a cell past a grid plane instead (the lattice mesher's vertices lie on the grid planes and
-// half-way between them, and its edges run in those planes: a plane there would hold triangles).
-std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
-                               bool lattice = false);
-
 // How MeshSolidInSlabs meshes, and what it may reuse.
 struct SlabMeshOptions {
   // TetGen's radius-edge bound.
@@ -75,7 +68,7 @@ struct SlabMeshOptions {
   // The surface by the lattice route (modeling::SurfaceMesher::kLattice; snap_cells unused)
   // instead of marching tetrahedra: fewer, better-shaped triangles, so fewer tetrahedra (the
   // platform at 10 mm in 4 slabs: 15,669 against 24,905) and a smaller interface. Its planes
-  // must come from SlabPlanes(..., lattice = true).
+  // come from SlabPlanes with these options.
   bool lattice = false;
   // A mesh of an earlier version of the solid (may be null; ignored unless made on the same grid
   // and planes): its slabs whose input is unchanged are taken as they are.
@@ -91,6 +84,14 @@ struct SlabMeshOptions {
   // Fraction done in [0, 1] (may be empty).
   std::function<void(double)> progress;
 };
+
+// `slabs` − 1 planes across x cutting `grid_bounds` into slabs of nearly equal width, each moved
+// to the nearest half-way point between two grid planes; with options.lattice, to the nearest
+// quarter of a cell past a grid plane instead (the lattice mesher's vertices lie on the grid
+// planes and half-way between them, and its edges run in those planes: a plane there would hold
+// triangles). Give MeshSolidInSlabs the same options.
+std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
+                               const SlabMeshOptions& options = {});
 
 // Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`: MeshSurface, then
 // MeshSurfaceInSlabs with the cell as the spacing. Throws what MeshSurface, CutSurfaceIntoSlabs
