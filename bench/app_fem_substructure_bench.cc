@@ -57,6 +57,7 @@ BENCHMARK(BM_EditToForce)
     ->Args({2, 10000, 4, 0})
     ->Args({2, 10000, 6, 0})
     ->Args({2, 10000, 4, 1})
+    ->Args({2, 10000, 6, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_EditToForce)
@@ -64,6 +65,7 @@ BENCHMARK(BM_EditToForce)
     ->Args({1, 6000, 4, 0})
     ->Args({1, 6000, 6, 0})
     ->Args({1, 6000, 4, 1})
+    ->Args({1, 6000, 6, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 // The "100k-tet part with linear elements": the platform at 5 mm cells (about 105k tets).
@@ -71,6 +73,8 @@ BENCHMARK(BM_EditToForce)
     ->Name("P1_5mm")
     ->Args({1, 5000, 4, 0})
     ->Args({1, 5000, 4, 1})
+    ->Args({1, 5000, 6, 0})
+    ->Args({1, 5000, 6, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

@@ -17,6 +17,7 @@
 #include <string>
 #include <system_error>
 #include <thread>
+#include <tuple>
 #include <utility>
 
 #include "solve_checks.h"
@@ -172,7 +173,7 @@ constexpr unsigned char kInterfaceFlag = 8;
 constexpr char kBlockFileMagic[8] = {'S', 'P', 'D', 'B', 'L', 'K', '0', '1'};
 // Interface plane files: a chain interface's factor blocks L_gg, L_{g,g−1} of one group.
 constexpr char kPlaneFileMagic[8] = {'S', 'P', 'D', 'P', 'L', 'N', '0', '1'};
-constexpr std::uint64_t kPlaneFileVersion = 2;  // 2: L_{g,g−1} L_{g,g−1}ᵀ formed apart
+constexpr std::uint64_t kPlaneFileVersion = 3;  // 3: a plane's dofs ordered by position
 constexpr std::uint32_t kBlockFileVersion = 3;
 constexpr int kCholmodVersion[3] = {CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION,
                                     CHOLMOD_SUBSUB_VERSION};
@@ -668,67 +669,100 @@ struct SubstructuredSolver::Block {
 
 // The interface system S = Σ_b S_b and its factor: CHOLMOD's in general; for a chain (each
 // block's interface dofs in at most two consecutive groups, groups being the dofs that the same
-// pair of blocks share: slabs, whose groups are the planes) the block tridiagonal Cholesky
-// factor by groups, dense, whose leading groups an edit further along the chain leaves as they
-// were and which are then shared instead of refactored.
+// pair of blocks share: slabs, whose groups are the planes) a block Cholesky factor by groups,
+// dense, twisted at one group: the groups before the twist are eliminated from the first group
+// on (the forward factor), those after it from the last group back (the backward factor), and the
+// twist last. The forward factor's leading groups and the backward factor's trailing groups are
+// what an edit elsewhere in the chain leaves as they were, and are then shared instead of
+// refactored.
 struct SubstructuredSolver::Interface {
   OwnedFactor factor;  // general case
 
-  // Chain case. Each group g holds the Γ positions order[begin[g] .. begin[g+1]) and the
-  // factor blocks L_gg (lower triangle; of S_gg − L_{g,g−1} L_{g,g−1}ᵀ) and L_{g,g−1}
-  // (= S_{g,g−1} L_{g−1,g−1}⁻ᵀ, null for g = 0). `owners` says what S_gg and S_{g,g−1} were
-  // summed from: for each dof of the group in order, the (block factor, block, local interface
-  // index) of every block holding it; two groups with equal owners (and equal owners of the
-  // group before) have S blocks equal bit for bit. `sub_record` says what S_{g,g−1} was summed
-  // from (per column of group g − 1 its owners, per block among them where its rows land in
-  // group g): two equal records give S_{g,g−1} equal bit for bit, so with the same L_{g−1,g−1}
-  // the same L_{g,g−1} and `gram` = L_{g,g−1} L_{g,g−1}ᵀ (lower triangle; null for g = 0),
-  // which an edit of the block after plane g then keeps.
+  // Chain case. Each group g holds the Γ positions order[begin[g] .. begin[g+1]).
+  // Forward factor: L_gg (lower triangle; of S_gg − L_{g,g−1} L_{g,g−1}ᵀ) and L_{g,g−1}
+  // (= S_{g,g−1} L_{g−1,g−1}⁻ᵀ, null for g = 0) with `gram` = L_{g,g−1} L_{g,g−1}ᵀ (lower
+  // triangle; null for g = 0). Backward factor: B_gg (lower; of S_gg − M_{g,g+1} M_{g,g+1}ᵀ),
+  // M_{g,g+1} = S_{g,g+1} B_{g+1,g+1}⁻ᵀ (null for the last group) and its `b_gram`.
+  // `owners` says what S_gg and S_{g,g−1} were summed from: for each dof of the group in order,
+  // the (block factor, block, local interface index) of every block holding it; two groups with
+  // equal owners (and equal owners of the group before) have S blocks equal bit for bit.
+  // `sub_record` says what S_{g,g−1} was summed from (per column of group g − 1 its owners, per
+  // block among them where its rows land in group g): two equal records give S_{g,g−1} equal bit
+  // for bit, so with the same L_{g−1,g−1} the same L_{g,g−1} and gram, and with the same
+  // B_{g,g} the same M_{g−1,g} and b_gram of group g − 1.
   struct Group {
     std::vector<std::tuple<const void*, int, int>> owners;
     std::vector<int> owner_count;  // per dof of the group
     std::vector<std::intptr_t> sub_record;
     std::shared_ptr<const Eigen::MatrixXd> l_diag, l_sub, gram;
+    std::shared_ptr<const Eigen::MatrixXd> b_diag, b_sup, b_gram;
   };
   bool chain = false;
   std::vector<int> order, begin;
   std::vector<Group> groups;
+  // The twist k and its factor T (lower; of S_kk − L_{k,k−1} L_{k,k−1}ᵀ − M_{k,k+1} M_{k,k+1}ᵀ).
+  // A solve uses the forward factor's groups before k (and L_{k,k−1}), the backward factor's
+  // after k (and M_{k,k+1}) and T: PrepareReuse fills in the rest of both factors without
+  // touching those, so it may run while the solver solves.
+  int twist = 0;
+  std::shared_ptr<const Eigen::MatrixXd> t_diag;
+  // What PrepareReuse needs to sum S's blocks again: per Γ position its owners (block, local
+  // index), group and place in the group; and to write forward planes to the cache directory.
+  std::vector<std::vector<std::pair<int, int>>> owners;
+  std::vector<int> group_of, local_of;
+  std::filesystem::path cache_directory;
+  std::vector<std::vector<std::uint64_t>> record;  // per group: the owner record of groups 0..g
+  std::vector<std::uint64_t> plane_key;
+  std::once_flag prepared;
+  InterfacePreparation preparation;
 
   int size(int g) const { return begin[g + 1] - begin[g]; }
 
-  // X = S⁻¹ B in place (B: ng by m, rows in Γ positions): forward and backward sweeps by
-  // groups, each a dense triangular solve and product (BLAS: the groups are 10³–10⁴ dofs).
+  // X = S⁻¹ B in place (B: ng by m, rows in Γ positions): sweeps by groups towards the twist
+  // (forward factor before it, backward factor after it), the twist's two triangular solves,
+  // and sweeps away from it; each step a dense triangular solve and product (BLAS: the groups are
+  // 10³–10⁴ dofs). With the twist at the last group this is the forward factor's plain forward
+  // and backward substitution.
   void SolveChain(Eigen::MatrixXd* b) const {
     const int ng = static_cast<int>(order.size()), m = static_cast<int>(b->cols());
     if (ng == 0 || m == 0) return;
     Eigen::MatrixXd y(ng, m);
     GatherRows(*b, order.data(), ng, y);
-    const int n = static_cast<int>(groups.size());
+    const int n = static_cast<int>(groups.size()), k = twist;
     const char left = 'L', lower = 'L', no_trans = 'N', trans = 'T', non_unit = 'N';
     const double one = 1.0, minus_one = -1.0;
-    for (int g = 0; g < n; ++g) {
+    // y_g −= op(A) y_h, A: size(g) by size(h) (no_trans) or size(h) by size(g) (trans).
+    auto subtract = [&](int g, int h, const Eigen::MatrixXd& a, const char* op) {
+      const int bg = size(g), bh = size(h);
+      if (bg == 0 || bh == 0) return;
+      dgemm_(op, &no_trans, &bg, &m, &bh, &minus_one, a.data(), *op == 'N' ? &bg : &bh,
+             y.data() + begin[h], &ng, &one, y.data() + begin[g], &ng);
+    };
+    // y_g = op(L)⁻¹ y_g.
+    auto solve = [&](int g, const Eigen::MatrixXd& l, const char* op) {
       const int bg = size(g);
-      if (bg == 0) continue;
-      double* yg = y.data() + begin[g];
-      if (g > 0 && size(g - 1) > 0) {  // y_g −= L_{g,g−1} y_{g−1}
-        const int bp = size(g - 1);
-        dgemm_(&no_trans, &no_trans, &bg, &m, &bp, &minus_one, groups[g].l_sub->data(), &bg,
-               y.data() + begin[g - 1], &ng, &one, yg, &ng);
-      }
-      dtrsm_(&left, &lower, &no_trans, &non_unit, &bg, &m, &one, groups[g].l_diag->data(), &bg, yg,
-             &ng);
+      if (bg == 0) return;
+      dtrsm_(&left, &lower, op, &non_unit, &bg, &m, &one, l.data(), &bg, y.data() + begin[g], &ng);
+    };
+    for (int g = 0; g < k; ++g) {
+      if (g > 0) subtract(g, g - 1, *groups[g].l_sub, &no_trans);
+      solve(g, *groups[g].l_diag, &no_trans);
     }
-    for (int g = n - 1; g >= 0; --g) {
-      const int bg = size(g);
-      if (bg == 0) continue;
-      double* yg = y.data() + begin[g];
-      if (g + 1 < n && size(g + 1) > 0) {  // y_g −= L_{g+1,g}ᵀ y_{g+1}
-        const int bn = size(g + 1);
-        dgemm_(&trans, &no_trans, &bg, &m, &bn, &minus_one, groups[g + 1].l_sub->data(), &bn,
-               y.data() + begin[g + 1], &ng, &one, yg, &ng);
-      }
-      dtrsm_(&left, &lower, &trans, &non_unit, &bg, &m, &one, groups[g].l_diag->data(), &bg, yg,
-             &ng);
+    for (int g = n - 1; g > k; --g) {
+      if (g + 1 < n) subtract(g, g + 1, *groups[g].b_sup, &no_trans);
+      solve(g, *groups[g].b_diag, &no_trans);
+    }
+    if (k > 0) subtract(k, k - 1, *groups[k].l_sub, &no_trans);
+    if (k + 1 < n) subtract(k, k + 1, *groups[k].b_sup, &no_trans);
+    solve(k, *t_diag, &no_trans);
+    solve(k, *t_diag, &trans);
+    for (int g = k - 1; g >= 0; --g) {
+      subtract(g, g + 1, *groups[g + 1].l_sub, &trans);
+      solve(g, *groups[g].l_diag, &trans);
+    }
+    for (int g = k + 1; g < n; ++g) {
+      subtract(g, g - 1, *groups[g - 1].b_sup, &trans);
+      solve(g, *groups[g].b_diag, &trans);
     }
     ScatterRows(y, order.data(), ng, *b);
   }
@@ -967,26 +1001,35 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
     // plane by plane, so S is block tridiagonal and its factor fills nothing beyond the blocks,
     // without a fill-reducing ordering of a matrix of Σ_b #Γ_b² entries (AMD took most of S's
     // time on the platform).
-    // Within a pair, by the dof's place in the lowest block (its content's numbering, not the
-    // mesh's: a renumbered mesh whose blocks kept their content orders S the same way).
-    std::vector<int> order(ng), place(ng);
+    // Within a pair, by the node's position (x, then y, then z) and the axis: both blocks
+    // sharing the dofs see the same nodes at the same places, so an edit of either block that
+    // leaves their common nodes as they were orders them the same way, whatever the numbering
+    // of the mesh or of either block.
+    std::vector<int> order(ng);
     std::vector<std::pair<int, int>> pair_of(ng);
     for (int p = 0; p < ng; ++p) {
       order[p] = p;
       int lo = static_cast<int>(blocks_.size()), hi = -1;
       for (const auto& [b, j] : owners[p]) {
-        if (b < lo) place[p] = j;
         lo = std::min(lo, b);
         hi = std::max(hi, b);
       }
       pair_of[p] = {lo, hi};
     }
+    auto place = [&](int p) {
+      const int d = free_dofs_[interface_free_[p]];
+      const auto x = mesh.nodes.row(d / 3);
+      return std::make_tuple(x(0), x(1), x(2), d % 3);
+    };
     std::sort(order.begin(), order.end(), [&](int a, int b) {
-      return pair_of[a] != pair_of[b] ? pair_of[a] < pair_of[b] : place[a] < place[b];
+      return pair_of[a] != pair_of[b] ? pair_of[a] < pair_of[b] : place(a) < place(b);
     });
     check_cancel();
-    if (!FactorInterfaceAsChain(mesh, owners, order, pair_of, reuse, cache_directory))
+    if (FactorInterfaceAsChain(mesh, owners, order, pair_of, reuse, cache_directory)) {
+      stats_.interface_twist = interface_->twist;
+    } else {
       FactorInterfaceWithCholmod(mesh, owners, order);
+    }
   }
   stats_.interface_seconds = Seconds(t_s);
   factor_status_.converged = factor_status_.message.empty();
@@ -1052,6 +1095,114 @@ void SubstructuredSolver::InterfaceFailure(const TetMesh& mesh, int p) {
       " at " + Point(mesh.nodes.row(d / 3).transpose());
 }
 
+Eigen::MatrixXd SubstructuredSolver::InterfaceBlock(int g, bool coupling_to_previous) const {
+  const Interface& in = *interface_;
+  // Columns of group g give S_gg; columns of group g − 1 give S_{g,g−1} (its rows in g). Each
+  // entry is summed over the blocks holding its column, in block order.
+  const int cg = coupling_to_previous ? g - 1 : g;
+  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(in.size(g), in.size(cg));
+  for (int q = in.begin[cg]; q < in.begin[cg + 1]; ++q) {
+    const int c = in.order[q], cc = q - in.begin[cg];
+    for (const auto& [b, j] : in.owners[c]) {
+      const std::vector<int>& pos = blocks_[b].interface_pos;
+      const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
+      for (std::size_t i = 0; i < pos.size(); ++i) {
+        if (in.group_of[pos[i]] != g) continue;
+        s(in.local_of[pos[i]], cc) += sb(static_cast<Eigen::Index>(i), j);
+      }
+    }
+  }
+  return s;
+}
+
+namespace {
+
+// C = A L⁻ᵀ in place (A: rows by cols, L: cols by cols lower) and its gram C Cᵀ (lower).
+std::shared_ptr<const Eigen::MatrixXd> Gram(const Eigen::MatrixXd& l, Eigen::MatrixXd* a) {
+  const int rows = static_cast<int>(a->rows()), cols = static_cast<int>(a->cols());
+  const char right = 'R', lower = 'L', trans = 'T', no_trans = 'N', non_unit = 'N';
+  const double one = 1.0, zero = 0.0;
+  dtrsm_(&right, &lower, &trans, &non_unit, &rows, &cols, &one, l.data(), &cols, a->data(), &rows);
+  auto gram = std::make_shared<Eigen::MatrixXd>(rows, rows);
+  dsyrk_(&lower, &no_trans, &rows, &cols, &one, a->data(), &rows, &zero, gram->data(), &rows);
+  return gram;
+}
+
+}  // namespace
+
+bool SubstructuredSolver::ForwardCoupling(int g, const Interface* old) const {
+  Interface& in = *interface_;
+  Interface::Group& group = in.groups[g];
+  // Same L_{g−1,g−1} and S_{g,g−1} as the old chain: its L_{g,g−1} and gram.
+  if (old != nullptr && g < static_cast<int>(old->groups.size()) && old->groups[g].gram &&
+      old->groups[g].l_sub && in.groups[g - 1].l_diag == old->groups[g - 1].l_diag &&
+      old->groups[g].sub_record == group.sub_record) {
+    group.l_sub = old->groups[g].l_sub;
+    group.gram = old->groups[g].gram;
+    return true;
+  }
+  Eigen::MatrixXd sub = InterfaceBlock(g, true);
+  if (sub.size() > 0) group.gram = Gram(*in.groups[g - 1].l_diag, &sub);
+  group.l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
+  return false;
+}
+
+bool SubstructuredSolver::BackwardCoupling(int g, const Interface* old) const {
+  Interface& in = *interface_;
+  Interface::Group& group = in.groups[g];
+  const Interface::Group& next = in.groups[g + 1];
+  // Same B_{g+1,g+1} and S_{g+1,g} as the old chain: its M_{g,g+1} and gram.
+  if (old != nullptr && old->groups.size() == in.groups.size() && old->groups[g].b_gram &&
+      old->groups[g].b_sup && next.b_diag == old->groups[g + 1].b_diag &&
+      old->groups[g + 1].sub_record == next.sub_record) {
+    group.b_sup = old->groups[g].b_sup;
+    group.b_gram = old->groups[g].b_gram;
+    return true;
+  }
+  Eigen::MatrixXd sup = InterfaceBlock(g + 1, true).transpose();
+  if (sup.size() > 0) group.b_gram = Gram(*next.b_diag, &sup);
+  group.b_sup = std::make_shared<const Eigen::MatrixXd>(std::move(sup));
+  return false;
+}
+
+std::shared_ptr<const Eigen::MatrixXd> SubstructuredSolver::FactorGroup(
+    int g, const Eigen::MatrixXd* gram, const Eigen::MatrixXd* other_gram, int* failed) const {
+  const Interface& in = *interface_;
+  Eigen::MatrixXd diag = InterfaceBlock(g, false);
+  if (gram != nullptr) diag.triangularView<Eigen::Lower>() -= *gram;
+  if (other_gram != nullptr) diag.triangularView<Eigen::Lower>() -= *other_gram;
+  const int bg = in.size(g);
+  const char lower = 'L';
+  int info = 0;
+  if (bg > 0) dpotrf_(&lower, &bg, diag.data(), &bg, &info);
+  if (info < 0) throw std::runtime_error("substructure: LAPACK dpotrf rejected its arguments");
+  if (info > 0) {
+    *failed = in.order[in.begin[g] + info - 1];
+    return nullptr;
+  }
+  diag.triangularView<Eigen::StrictlyUpper>().setZero();
+  return std::make_shared<const Eigen::MatrixXd>(std::move(diag));
+}
+
+namespace {
+
+// The body of a plane file: the owner record, then L_gg's lower triangle and L_{g,g−1}.
+std::vector<unsigned char> PlaneFileBody(const std::vector<std::uint64_t>& words,
+                                         const Eigen::MatrixXd& l_diag,
+                                         const Eigen::MatrixXd* l_sub) {
+  ByteWriter w;
+  w.PutVector(words);
+  const auto bg = l_diag.rows(), bp = l_sub != nullptr ? l_sub->cols() : 0;
+  w.Put(static_cast<std::int64_t>(bg));
+  w.Put(static_cast<std::int64_t>(bp));
+  for (Eigen::Index j = 0; j < bg; ++j)  // lower triangle
+    w.PutArray(l_diag.data() + j * bg + j, static_cast<std::size_t>(bg - j));
+  if (l_sub != nullptr) w.PutArray(l_sub->data(), static_cast<std::size_t>(l_sub->size()));
+  return std::move(w.bytes());
+}
+
+}  // namespace
+
 bool SubstructuredSolver::FactorInterfaceAsChain(
     const TetMesh& mesh, const std::vector<std::vector<std::pair<int, int>>>& owners,
     const std::vector<int>& order, const std::vector<std::pair<int, int>>& pair_of,
@@ -1069,16 +1220,23 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   in.begin.push_back(ng);
   const int n = static_cast<int>(in.begin.size()) - 1;
   // A chain: every block's interface dofs lie in one group or two consecutive ones.
-  for (const Block& block : blocks_) {
+  std::vector<int> lowest(blocks_.size()), highest(blocks_.size());  // group of each block
+  for (std::size_t b = 0; b < blocks_.size(); ++b) {
     int lo = n, hi = -1;
-    for (int p : block.interface_pos) {
+    for (int p : blocks_[b].interface_pos) {
       lo = std::min(lo, group_of[p]);
       hi = std::max(hi, group_of[p]);
     }
     if (hi - lo > 1) return false;
+    lowest[b] = lo;
+    highest[b] = hi;
   }
   in.chain = true;
   in.order = order;
+  in.owners = owners;
+  in.group_of = std::move(group_of);
+  in.local_of = std::move(local_of);
+  in.cache_directory = cache_directory;
   in.groups.assign(n, {});
   for (int g = 0; g < n; ++g) {
     Interface::Group& group = in.groups[g];
@@ -1087,33 +1245,67 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
       for (const auto& [b, j] : owners[order[q]])
         group.owners.emplace_back(blocks_[b].factor.get(), b, j);
     }
+    // What S_{g,g−1} is summed from: the owners of each column of group g − 1 that have rows in
+    // group g too (the others add nothing to it), then for each block among them (its factor, in
+    // order of first appearance) where its rows land in g.
+    if (g == 0) continue;
+    std::vector<int> seen;
+    auto coupled = [&](int b) { return lowest[b] == g - 1 && highest[b] == g; };
+    for (int q = in.begin[g - 1]; q < in.begin[g]; ++q) {
+      const auto& column = owners[order[q]];
+      group.sub_record.push_back(std::count_if(
+          column.begin(), column.end(), [&](const auto& owner) { return coupled(owner.first); }));
+      for (const auto& [b, j] : column) {
+        if (!coupled(b)) continue;
+        group.sub_record.push_back(reinterpret_cast<std::intptr_t>(blocks_[b].factor.get()));
+        group.sub_record.push_back(j);
+        if (std::find(seen.begin(), seen.end(), b) == seen.end()) seen.push_back(b);
+      }
+    }
+    for (int b : seen) {
+      group.sub_record.push_back(reinterpret_cast<std::intptr_t>(blocks_[b].factor.get()));
+      for (int p : blocks_[b].interface_pos)
+        group.sub_record.push_back(in.group_of[p] == g ? in.local_of[p] : -1);
+    }
   }
   const Interface* old = reuse != nullptr && reuse->interface_ && reuse->interface_->chain
                              ? reuse->interface_.get()
                              : nullptr;
+  if (old != nullptr) reuse->PrepareReuse();  // both of its factors, whole
   auto same_owners = [&](int g) {
     return old != nullptr && g < static_cast<int>(old->groups.size()) &&
            old->groups[g].owners == in.groups[g].owners &&
            old->groups[g].owner_count == in.groups[g].owner_count;
   };
-  // Leading groups whose S blocks are those of the reuse solver keep its factor blocks
-  // (L_gg and L_{g,g−1} depend only on S blocks of groups up to g).
+  // Leading groups whose S blocks are those of the reuse solver keep its forward factor blocks
+  // (L_gg and L_{g,g−1} depend only on S blocks of groups up to g); trailing ones of a chain as
+  // long keep its backward factor blocks (B_gg and M_{g,g+1} depend only on groups from g on).
   int shared = 0;  // (a reuse solver whose S failed has no factor blocks from that plane on)
   while (shared < n && same_owners(shared) && old->groups[shared].l_diag) {
     in.groups[shared].l_diag = old->groups[shared].l_diag;
     in.groups[shared].l_sub = old->groups[shared].l_sub;
     in.groups[shared].gram = old->groups[shared].gram;
-    in.groups[shared].sub_record = old->groups[shared].sub_record;
     ++shared;
+  }
+  int trailing = 0;
+  while (old != nullptr && static_cast<int>(old->groups.size()) == n && trailing < n &&
+         same_owners(n - 1 - trailing) && old->groups[n - 1 - trailing].b_diag) {
+    const int g = n - 1 - trailing;
+    in.groups[g].b_diag = old->groups[g].b_diag;
+    in.groups[g].b_sup = old->groups[g].b_sup;
+    in.groups[g].b_gram = old->groups[g].b_gram;
+    ++trailing;
   }
   stats_.interface_groups = n;
   stats_.reused_interface_groups = shared;
+  stats_.reused_trailing_interface_groups = trailing;
   stats_.interface_group_loaded.assign(n, 0);
-  // Plane files: group g's factor blocks are those of any chain whose groups 0..g have the same
-  // owners (blocks by content key, their places in the chain and local indices): the record
-  // of groups 0..g, in words, is stored in the file and compared in full; its hash names it.
-  std::vector<std::vector<std::uint64_t>> record(n);
-  std::vector<std::uint64_t> plane_key(n);
+  // Plane files: group g's forward factor blocks are those of any chain whose groups 0..g have
+  // the same owners (blocks by content key, their places in the chain and local indices): the
+  // record of groups 0..g, in words, is stored in the file and compared in full; its hash names
+  // it.
+  in.record.assign(n, {});
+  in.plane_key.assign(n, 0);
   if (!cache_directory.empty()) {
     std::vector<std::uint64_t> words = {kPlaneFileVersion};
     for (int g = 0; g < n; ++g) {
@@ -1124,12 +1316,12 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
         words.push_back(blocks_[b].factor->key);
         words.push_back((static_cast<std::uint64_t>(b) << 32) | static_cast<std::uint32_t>(j));
       }
-      record[g] = words;
-      plane_key[g] = Fnv1a64(words.data(), sizeof(std::uint64_t) * words.size());
+      in.record[g] = words;
+      in.plane_key[g] = Fnv1a64(words.data(), sizeof(std::uint64_t) * words.size());
     }
   }
-  auto plane_file = [&](int g) { return cache_directory / (HexKey(plane_key[g]) + ".plane"); };
-  // Group g's factor blocks from its file; false (with a note for a bad file) when absent.
+  auto plane_file = [&](int g) { return cache_directory / (HexKey(in.plane_key[g]) + ".plane"); };
+  // Group g's forward factor blocks from its file; false (with a note for a bad file) when absent.
   auto load_plane = [&](int g) {
     const int bg = in.size(g), bp = g > 0 ? in.size(g - 1) : 0;
     std::string why;
@@ -1144,7 +1336,7 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
       const char* problem = nullptr;
       if (!r.GetVector(&stored)) {
         problem = "truncated owner record";
-      } else if (stored != record[g]) {
+      } else if (stored != in.record[g]) {
         problem = "its owner record is not this chain's (a hash collision)";
       } else if (!r.Get(&rows) || !r.Get(&cols) || rows != bg || cols != bp) {
         problem = "bad block sizes";
@@ -1168,114 +1360,128 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     if (!ok && why != "absent")
       stats_.cache_notes.push_back("interface plane " + std::to_string(g) + ": refused " + why);
     stats_.cache_read_seconds += Seconds(t0);
+    if (ok) {
+      ++stats_.loaded_interface_groups;
+      stats_.interface_group_loaded[g] = 1;
+    }
     return ok;
   };
-  // The rest, group by group: S_gg and S_{g,g−1} from the blocks' S_b (each entry summed over
-  // the blocks holding its column in block order), then L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ
-  // (dtrsm) and L_gg = chol(S_gg − L_{g,g−1} L_{g,g−1}ᵀ) (dsyrk, dpotrf).
   long long nonzeros = 0;
   double factor_nonzeros = 0.0;
   for (int g = 0; g < n; ++g) {
     const int bg = in.size(g), bp = g > 0 ? in.size(g - 1) : 0;
     factor_nonzeros += 0.5 * bg * (bg + 1.0) + double(bg) * bp;
     nonzeros += static_cast<long long>(bg) * bg + 2LL * bg * bp;
-    if (g < shared) continue;
-    if (!cache_directory.empty() && load_plane(g)) {
-      ++stats_.loaded_interface_groups;
-      stats_.interface_group_loaded[g] = 1;
-      continue;
-    }
-    // What S_{g,g−1} is summed from: the owners of each column of group g − 1, then for each
-    // block among them (its factor, in order of first appearance) where its rows land in g.
-    std::vector<std::intptr_t>& sub_record = in.groups[g].sub_record;
-    if (g > 0) {
-      std::vector<int> seen;
-      for (int q = in.begin[g - 1]; q < in.begin[g]; ++q) {
-        sub_record.push_back(static_cast<std::intptr_t>(owners[order[q]].size()));
-        for (const auto& [b, j] : owners[order[q]]) {
-          sub_record.push_back(reinterpret_cast<std::intptr_t>(blocks_[b].factor.get()));
-          sub_record.push_back(j);
-          if (std::find(seen.begin(), seen.end(), b) == seen.end()) seen.push_back(b);
-        }
-      }
-      for (int b : seen) {
-        sub_record.push_back(reinterpret_cast<std::intptr_t>(blocks_[b].factor.get()));
-        for (int p : blocks_[b].interface_pos)
-          sub_record.push_back(group_of[p] == g ? local_of[p] : -1);
-      }
-    }
-    // L_{g,g−1} and its gram kept from the reuse solver: same L_{g−1,g−1}, same S_{g,g−1}.
-    const bool sub_kept = g > 0 && old != nullptr && g < static_cast<int>(old->groups.size()) &&
-                          old->groups[g].gram && old->groups[g].l_sub &&
-                          in.groups[g - 1].l_diag == old->groups[g - 1].l_diag &&
-                          old->groups[g].sub_record == sub_record;
-    // S_gg, and S_{g,g−1} unless its factor block is kept.
-    Eigen::MatrixXd diag = Eigen::MatrixXd::Zero(bg, bg), sub;
-    if (!sub_kept) sub.setZero(bg, bp);
-    // Columns of group g give S_gg; columns of group g − 1 give S_{g,g−1} (its rows in g).
-    for (int cg : {g, g - 1}) {
-      if (cg < 0 || (cg == g - 1 && sub_kept)) continue;
-      for (int q = in.begin[cg]; q < in.begin[cg + 1]; ++q) {
-        const int c = order[q], cc = q - in.begin[cg];
-        for (const auto& [b, j] : owners[c]) {
-          const std::vector<int>& pos = blocks_[b].interface_pos;
-          const Eigen::MatrixXd& sb = blocks_[b].factor->schur;
-          for (std::size_t i = 0; i < pos.size(); ++i) {
-            if (group_of[pos[i]] != g) continue;
-            (cg == g ? diag : sub)(local_of[pos[i]], cc) += sb(static_cast<Eigen::Index>(i), j);
-          }
-        }
-      }
-    }
-    const char lower = 'L';
-    int info = 0;
-    if (sub_kept) {
-      in.groups[g].l_sub = old->groups[g].l_sub;
-      in.groups[g].gram = old->groups[g].gram;
-      ++stats_.kept_interface_couplings;
-    } else if (g > 0 && bg > 0 && bp > 0) {
-      const char right = 'R', trans = 'T', no_trans = 'N', non_unit = 'N';
-      const double one = 1.0, zero = 0.0;
-      const Eigen::MatrixXd& lp = *in.groups[g - 1].l_diag;
-      dtrsm_(&right, &lower, &trans, &non_unit, &bg, &bp, &one, lp.data(), &bp, sub.data(), &bg);
-      auto gram = std::make_shared<Eigen::MatrixXd>(bg, bg);
-      dsyrk_(&lower, &no_trans, &bg, &bp, &one, sub.data(), &bg, &zero, gram->data(), &bg);
-      in.groups[g].gram = std::move(gram);
-      in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
-    }
-    if (in.groups[g].gram) diag.triangularView<Eigen::Lower>() -= *in.groups[g].gram;
-    if (bg > 0) dpotrf_(&lower, &bg, diag.data(), &bg, &info);
-    if (info != 0) {
-      if (info > 0) {
-        InterfaceFailure(mesh, order[in.begin[g] + info - 1]);
-      } else {
-        throw std::runtime_error("substructure: LAPACK dpotrf rejected its arguments");
-      }
-      return true;
-    }
-    diag.triangularView<Eigen::StrictlyUpper>().setZero();
-    in.groups[g].l_diag = std::make_shared<const Eigen::MatrixXd>(std::move(diag));
-    if (g > 0 && !in.groups[g].l_sub)  // an empty group
-      in.groups[g].l_sub = std::make_shared<const Eigen::MatrixXd>(std::move(sub));
-    if (!cache_directory.empty()) {
-      if (!writer_) writer_ = std::make_unique<CacheWriter>();
-      writer_->Add("interface plane " + std::to_string(g), plane_file(g), kPlaneFileMagic,
-                   [words = record[g], l_diag = in.groups[g].l_diag, l_sub = in.groups[g].l_sub] {
-                     ByteWriter w;
-                     w.PutVector(words);
-                     const auto bg = l_diag->rows(), bp = l_sub ? l_sub->cols() : 0;
-                     w.Put(static_cast<std::int64_t>(bg));
-                     w.Put(static_cast<std::int64_t>(bp));
-                     for (Eigen::Index j = 0; j < bg; ++j)  // lower triangle
-                       w.PutArray(l_diag->data() + j * bg + j, static_cast<std::size_t>(bg - j));
-                     if (l_sub) w.PutArray(l_sub->data(), static_cast<std::size_t>(l_sub->size()));
-                     return std::move(w.bytes());
-                   });
-    }
   }
   stats_.interface_nonzeros = nonzeros;
   stats_.interface_factor_nonzeros = factor_nonzeros;
+  int failed = -1;
+  // Group g's forward factor blocks: L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ (dtrsm) and
+  // L_gg = chol(S_gg − L_{g,g−1} L_{g,g−1}ᵀ) (dsyrk, dpotrf), from the cache directory when a
+  // file has them; false on a zero pivot.
+  auto forward = [&](int g) {
+    if (!cache_directory.empty() && load_plane(g)) return true;
+    if (g > 0 && ForwardCoupling(g, old)) ++stats_.kept_interface_couplings;
+    in.groups[g].l_diag = FactorGroup(g, in.groups[g].gram.get(), nullptr, &failed);
+    if (!in.groups[g].l_diag) return false;
+    ++stats_.factored_interface_groups;
+    if (!cache_directory.empty()) {
+      if (!writer_) writer_ = std::make_unique<CacheWriter>();
+      writer_->Add(
+          "interface plane " + std::to_string(g), plane_file(g), kPlaneFileMagic,
+          [words = in.record[g], l_diag = in.groups[g].l_diag, l_sub = in.groups[g].l_sub] {
+            return PlaneFileBody(words, *l_diag, l_sub.get());
+          });
+    }
+    return true;
+  };
+  // Without the old chain's trailing groups: the forward factor, twisted at the last group (as
+  // an untwisted Cholesky factor), the leading groups shared or loaded. With them, the changed
+  // groups lie between the leading groups kept (or loaded) and the trailing ones: the twist is
+  // the first changed group, the groups after it up to the trailing ones get backward factor
+  // blocks. Either way each changed group is factored once.
+  auto fail = [&] {
+    InterfaceFailure(mesh, failed);
+    return true;
+  };
+  if (shared == n && trailing == n) {  // nothing changed: the old twist too
+    in.twist = old->twist;
+    in.t_diag = old->t_diag;
+    return true;
+  }
+  int k = n - 1;
+  if (trailing > 0) {
+    while (shared < n && !cache_directory.empty() && load_plane(shared)) ++shared;
+    k = std::min(shared, n - 1);
+  }
+  for (int g = shared; g < k; ++g)
+    if (!forward(g)) return fail();
+  in.twist = k;
+  if (k == n - 1) {
+    if (k >= shared && !forward(k)) return fail();
+    in.t_diag = in.groups[k].l_diag;
+    return true;
+  }
+  for (int g = n - 1 - trailing; g > k; --g) {
+    if (BackwardCoupling(g, old)) ++stats_.kept_interface_couplings;
+    in.groups[g].b_diag = FactorGroup(g, in.groups[g].b_gram.get(), nullptr, &failed);
+    if (!in.groups[g].b_diag) return fail();
+    ++stats_.factored_interface_groups;
+  }
+  if (k > 0 && ForwardCoupling(k, old)) ++stats_.kept_interface_couplings;
+  if (BackwardCoupling(k, old)) ++stats_.kept_interface_couplings;
+  in.t_diag = FactorGroup(k, in.groups[k].gram.get(), in.groups[k].b_gram.get(), &failed);
+  if (!in.t_diag) return fail();
+  ++stats_.factored_interface_groups;
   return true;
+}
+
+const InterfacePreparation& SubstructuredSolver::PrepareReuse() const {
+  Interface& in = *interface_;
+  std::call_once(in.prepared, [&] {
+    if (!in.chain || !factor_status_.converged) return;
+    const auto t0 = Clock::now();
+    InterfacePreparation& p = in.preparation;
+    const int n = static_cast<int>(in.groups.size());
+    int failed = -1;
+    auto note_failure = [&](const char* which, int g) {
+      p.notes.push_back("interface plane " + std::to_string(g) + ": the " + which +
+                        " factor failed (a zero pivot at interface position " +
+                        std::to_string(failed) + "): not kept for reuse");
+    };
+    for (int g = 0; g < n; ++g) {  // the forward factor from the twist on
+      Interface::Group& group = in.groups[g];
+      if (group.l_diag) continue;
+      if (g > 0 && !group.l_sub) ForwardCoupling(g, nullptr);
+      group.l_diag = FactorGroup(g, group.gram.get(), nullptr, &failed);
+      if (!group.l_diag) {
+        note_failure("forward", g);
+        break;
+      }
+      ++p.factored_groups;
+      if (in.cache_directory.empty()) continue;
+      std::string error;
+      if (WriteCacheFile(in.cache_directory / (HexKey(in.plane_key[g]) + ".plane"), kPlaneFileMagic,
+                         PlaneFileBody(in.record[g], *group.l_diag, group.l_sub.get()), &error)) {
+        ++p.saved_planes;
+      } else {
+        p.notes.push_back("interface plane " + std::to_string(g) + ": not saved: " + error);
+      }
+    }
+    for (int g = n - 1; g >= 0; --g) {  // the backward factor up to the twist
+      Interface::Group& group = in.groups[g];
+      if (group.b_diag) continue;
+      if (g + 1 < n && !group.b_sup) BackwardCoupling(g, nullptr);
+      group.b_diag = FactorGroup(g, group.b_gram.get(), nullptr, &failed);
+      if (!group.b_diag) {
+        note_failure("backward", g);
+        break;
+      }
+      ++p.factored_groups;
+    }
+    p.seconds = Seconds(t0);
+  });
+  return in.preparation;
 }
 
 SubstructuredSolver::~SubstructuredSolver() { FinishCacheWrites(); }

@@ -12,10 +12,13 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <numeric>
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include "spidarcad/fem/cache_file.h"
@@ -461,11 +464,14 @@ TEST(SubstructuredSolver, CacheDirectoryKeepsBlocksBetweenSolversAndRefusesDamag
   std::filesystem::remove_all(dir);
 }
 
-// Slabs make the interface a chain of planes, factored plane by plane: an edit of slab t (of
-// four, three planes) keeps the reuse solver's factor blocks of the planes before plane t − 1 and
-// refactors the rest (the last slab: one plane; the first: all three), and the solves equal the
-// monolithic solve of the edited bar. Voronoi blocks are no chain: CHOLMOD factors S.
-TEST(SubstructuredSolver, EditOfSlabTRefactorsTheInterfaceFromPlaneTMinusOneOn) {
+// Slabs make the interface a chain of planes (three for four slabs), factored plane by plane
+// from both ends. An edit keeps the reuse solver's forward factor of the planes before it and its
+// backward factor of the planes after it, refactors only the planes the edited slab touches
+// (the first or last slab: one plane; a middle one: two) and twists the factor at the first
+// plane it changed, and the solves equal the monolithic solve of the edited bar. Edits made one
+// after the other each reuse the solver of the edit before. Voronoi blocks are no chain: CHOLMOD
+// factors S.
+TEST(SubstructuredSolver, EditOfASlabRefactorsOnlyThePlanesItTouches) {
   for (int order : {1, 2}) {
     const TetMesh mesh = Bar(order);
     const Eigen::VectorXi blocks = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));
@@ -474,33 +480,71 @@ TEST(SubstructuredSolver, EditOfSlabTRefactorsTheInterfaceFromPlaneTMinusOneOn) 
     ASSERT_TRUE(before.factor_status().converged);
     EXPECT_EQ(before.stats().interface_groups, 3);
     EXPECT_EQ(before.stats().reused_interface_groups, 0);
+    EXPECT_EQ(before.stats().factored_interface_groups, 3);
+    EXPECT_EQ(before.stats().interface_twist, 2);
     for (int slab = 0; slab < 4; ++slab) {
       SCOPED_TRACE("order " + std::to_string(order) + ", slab " + std::to_string(slab));
       const EditedBar edited = EditSlab(mesh, blocks, before, slab, 7 + slab);
       const BoundaryConditions bcs = BarConditions(edited.mesh);
       const SubstructuredSolver after(edited.mesh, edited.materials, bcs, edited.blocks, &before);
       ASSERT_TRUE(after.factor_status().converged) << after.factor_status().message;
+      // The reuse solver's factor was completed from both ends for this.
+      EXPECT_EQ(before.PrepareReuse().factored_groups, 3);
       EXPECT_EQ(after.stats().factored_blocks, 1);
       EXPECT_EQ(after.stats().interface_groups, 3);
+      EXPECT_EQ(after.stats().factored_interface_groups, slab == 0 || slab == 3 ? 1 : 2);
       EXPECT_EQ(after.stats().reused_interface_groups, std::max(0, slab - 1));
-      // The first plane refactored keeps its coupling to the plane before when the slab between
-      // them is unchanged (slab − 1 >= 1), and the factor is then the one made from scratch.
-      EXPECT_EQ(after.stats().kept_interface_couplings, slab >= 2 ? 1 : 0);
+      EXPECT_EQ(after.stats().reused_trailing_interface_groups, std::max(0, 2 - slab));
+      EXPECT_EQ(after.stats().interface_twist, slab <= 1 ? 0 : 2);
+      // The first plane refactored from each side keeps its coupling to the plane beyond it
+      // when the slab between them is unchanged (every edit here has one such plane).
+      EXPECT_EQ(after.stats().kept_interface_couplings, 1);
       const SubstructuredSolver fresh(edited.mesh, edited.materials, bcs, edited.blocks);
       EXPECT_EQ(fresh.stats().kept_interface_couplings, 0);
-      EXPECT_EQ(fresh.Solve().displacement, after.Solve().displacement);
       const StaticSolver monolithic(edited.mesh, edited.materials, bcs);
       const StaticSolution u_after = after.Solve(), u_mono = monolithic.Solve();
       ASSERT_TRUE(u_after.status.converged) << u_after.status.message;
+      // Twisted at the last plane the factor is the one made from scratch, bit for bit.
+      if (slab >= 2) {
+        EXPECT_EQ(fresh.Solve().displacement, u_after.displacement);
+      }
       EXPECT_LT(RelativeDifference(u_after.displacement, u_mono.displacement), kTolerance);
       EXPECT_LT(RelativeDifference(u_after.reaction, u_mono.reaction), kTolerance);
       EXPECT_GT(RelativeDifference(u_mono.reaction.cwiseAbs(), before.Solve().reaction.cwiseAbs()),
                 1e-4);
-      // A solver reusing `after` with nothing changed shares every plane.
+      // A solver reusing `after` with nothing changed shares every plane and the twist.
       const SubstructuredSolver same(edited.mesh, edited.materials, bcs, edited.blocks, &after);
       EXPECT_EQ(same.stats().reused_interface_groups, 3);
+      EXPECT_EQ(same.stats().factored_interface_groups, 0);
       EXPECT_EQ(same.stats().factored_blocks, 0);
       EXPECT_EQ(same.Solve().displacement, u_after.displacement);
+    }
+    // Edits one after the other, each reusing the last: the clamped slab, the free end, a
+    // middle slab, the clamped slab again.
+    std::vector<std::unique_ptr<SubstructuredSolver>> chain;
+    std::vector<EditedBar> meshes;
+    meshes.reserve(4);  // the edits below point into it
+    const SubstructuredSolver* last = &before;
+    const TetMesh* last_mesh = &mesh;
+    const Eigen::VectorXi* last_blocks = &blocks;
+    for (const auto& [slab, planes] :
+         std::vector<std::pair<int, int>>{{0, 1}, {3, 1}, {1, 2}, {0, 1}}) {
+      SCOPED_TRACE("order " + std::to_string(order) + ", then slab " + std::to_string(slab));
+      meshes.push_back(EditSlab(*last_mesh, *last_blocks, *last, slab, 31 + slab));
+      const EditedBar& edited = meshes.back();
+      const BoundaryConditions bcs = BarConditions(edited.mesh);
+      chain.push_back(std::make_unique<SubstructuredSolver>(edited.mesh, edited.materials, bcs,
+                                                            edited.blocks, last));
+      ASSERT_TRUE(chain.back()->factor_status().converged);
+      EXPECT_EQ(chain.back()->stats().factored_blocks, 1);
+      EXPECT_EQ(chain.back()->stats().factored_interface_groups, planes);
+      const StaticSolution u = chain.back()->Solve();
+      const StaticSolution u_mono = StaticSolver(edited.mesh, edited.materials, bcs).Solve();
+      EXPECT_LT(RelativeDifference(u.displacement, u_mono.displacement), kTolerance);
+      EXPECT_LT(RelativeDifference(u.reaction, u_mono.reaction), kTolerance);
+      last = chain.back().get();
+      last_mesh = &edited.mesh;
+      last_blocks = &edited.blocks;
     }
   }
   const TetMesh mesh = Bar(1);
@@ -508,6 +552,40 @@ TEST(SubstructuredSolver, EditOfSlabTRefactorsTheInterfaceFromPlaneTMinusOneOn) 
                                     VoronoiBlocks(mesh, 7, 2));
   ASSERT_TRUE(voronoi.factor_status().converged);
   EXPECT_EQ(voronoi.stats().interface_groups, 0);
+}
+
+// PrepareReuse fills in what a twisted factor's solves do not read, so it may run beside them:
+// solves during it and after it equal the solve before it bit for bit, and it runs once.
+TEST(SubstructuredSolver, PrepareReuseRunsBesideSolvesAndOnce) {
+  const TetMesh mesh = Bar(1);
+  const Eigen::VectorXi blocks = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));
+  const SubstructuredSolver before(mesh, MaterialTable(kSteel), BarConditions(mesh), blocks);
+  const EditedBar edited = EditSlab(mesh, blocks, before, 1, 5);
+  const SubstructuredSolver after(edited.mesh, edited.materials, BarConditions(edited.mesh),
+                                  edited.blocks, &before);
+  ASSERT_TRUE(after.factor_status().converged);
+  ASSERT_EQ(after.stats().interface_twist, 0);  // the middle of the chain: not a plain factor
+  const StaticSolution first = after.Solve();
+  std::atomic<bool> done{false};
+  std::thread prepare([&] {
+    after.PrepareReuse();
+    done = true;
+  });
+  int solves = 0;
+  do {
+    EXPECT_EQ(after.Solve().displacement, first.displacement);
+    ++solves;
+  } while (!done);
+  prepare.join();
+  EXPECT_GE(solves, 1);
+  // Both factors whole: the three forward planes from the twist on, and the backward one at
+  // the twist (plane 1 was factored backward by the constructor, plane 2 kept).
+  const InterfacePreparation& p = after.PrepareReuse();
+  EXPECT_EQ(p.factored_groups, 4);
+  EXPECT_TRUE(p.notes.empty());
+  EXPECT_EQ(&after.PrepareReuse(), &p);
+  EXPECT_EQ(after.PrepareReuse().factored_groups, 4);
+  EXPECT_EQ(after.Solve().displacement, first.displacement);
 }
 
 TEST(SubstructuredSolver, ChangedClampRefactorsTheBlocksItTouches) {

@@ -52,6 +52,9 @@ struct EditToForceCase {
   int free = 0, interface = 0;  // free dofs, interface dofs of the fresh slab model
   double full_mesh = 0, full_factor = 0, full_patch = 0, full_cpu = 0;  // today's recompute, s
   double slab_fresh_wall = 0, slab_fresh_cpu = 0;  // every slab meshed and factored, s
+  // The fresh model's interface factor completed from both ends for the edits to reuse
+  // (SubstructuredSolver::PrepareReuse, which FE mode runs in the background), wall s.
+  double prepare_reuse = 0;
   struct Quality {
     int tets = 0;
     modeling::TetQuality q;

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <future>
 #include <sstream>
+#include <system_error>
 #include <variant>
 
 #include "doc/assets.h"
@@ -243,12 +244,20 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   CheckCancel(settings);
   m->cache_ = std::move(cache);
   if (settings.cache.start_worker) m->cache_->Start();
+  if (m->substructured_) {
+    try {
+      m->prepare_reuse_ = std::thread([s = m->substructured_.get()] { s->PrepareReuse(); });
+    } catch (const std::system_error&) {
+      // No thread to be had: the next edit's model runs it (SubstructuredSolver's constructor).
+    }
+  }
   m->build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   Progress(settings, 1.0, "ready");
   return m;
 }
 
 FeModel::~FeModel() {
+  if (prepare_reuse_.joinable()) prepare_reuse_.join();
   if (cache_) cache_->Stop();
 }
 

@@ -23,6 +23,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "doc/document.h"
@@ -222,6 +223,9 @@ class FeModel {
   std::unique_ptr<fem::StaticSolver> solver_;
   std::unique_ptr<fem::SubstructuredSolver> substructured_;
   std::unique_ptr<fem::ColumnCache> cache_;
+  // Completes substructured_'s interface factor from both ends once the model is ready
+  // (fem::SubstructuredSolver::PrepareReuse): the next edit's model keeps the planes beyond it.
+  std::thread prepare_reuse_;
   std::vector<int> output_nodes_, output_index_;
   std::vector<int> surface_elements_;
   std::vector<Eigen::MatrixXd> stress_ops_;  // per surface element: D·B at the centroid, 6 by 3·npe

@@ -20,10 +20,17 @@
 // a block that floats but for its interface; the shift keeps the factorisation going and
 // Cholesky's backward error, ~ε·max A_ii, does not depend on it). S is assembled from the dense
 // S_b, its dofs ordered by the lowest, then the highest block sharing them (plane by plane for
-// slabs). When S is then a chain (every block's interface dofs in one group of dofs shared by
-// the same pair of blocks, or in two consecutive ones: slabs, whose groups are the planes) it is
-// block tridiagonal and factored by groups, dense (LAPACK): L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ,
-// L_gg L_ggᵀ = S_gg − L_{g,g−1} L_{g,g−1}ᵀ. Otherwise CHOLMOD factors it. A solve is
+// slabs), and within those by the node's position and the axis (what both blocks see alike).
+// When S is then a chain (every block's interface dofs in one group of dofs shared by the same
+// pair of blocks, or in two consecutive ones: slabs, whose groups are the planes) it is block
+// tridiagonal and factored by groups, dense (LAPACK), twisted at one group k: the groups before
+// k by the forward factor, eliminated from the first group on,
+//     L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ,  L_gg L_ggᵀ = S_gg − L_{g,g−1} L_{g,g−1}ᵀ,
+// the groups after k by the backward factor, eliminated from the last group back,
+//     M_{g,g+1} = S_{g,g+1} B_{g+1,g+1}⁻ᵀ,  B_gg B_ggᵀ = S_gg − M_{g,g+1} M_{g,g+1}ᵀ,
+// and k last, T Tᵀ = S_kk − L_{k,k−1} L_{k,k−1}ᵀ − M_{k,k+1} M_{k,k+1}ᵀ (a Cholesky factor of S
+// with its groups in the order 0, …, k−1, n−1, …, k+1, k). A solver made without a reuse solver
+// twists at the last group (the plain forward factor). Otherwise CHOLMOD factors S. A solve is
 //     y_b = K_II⁻¹ f_I,  u_Γ = S⁻¹ (f_Γ − Σ_b K_ΓI y_b),  u_I = K_II⁻¹ (f_I − K_IΓ u_Γ),
 // where blocks without load skip the first step, and a solve asked only for some blocks'
 // displacements skips the last step of the others (SolveFreeInBlocks: the compliance of nodes in
@@ -36,16 +43,21 @@
 // are factored anew. Global node numbers do not enter, so a mesh whose untouched blocks kept their
 // elements and nodes bit for bit (in any global numbering) reuses them. Prescribed values and
 // loads do not enter (they only change right-hand sides). A chain interface keeps the reuse
-// solver's factor blocks of its leading groups as long as they are summed from the same blocks'
-// S_b in the same places (so are equal bit for bit): an edit of the last slab refactors only the
-// last plane's block of S, one of slab t the planes from t − 1 on. Of the first plane it
-// refactors, an edit that left the coupling block S_{g,g−1} and the plane before as they were
-// (the slab after plane g edited) keeps L_{g,g−1} and its product L_{g,g−1} L_{g,g−1}ᵀ, held
-// per plane (8·#plane dofs² bytes) for that purpose: only L_gg is factored again.
+// solver's forward factor blocks of its leading groups and its backward factor blocks of its
+// trailing groups as long as they are summed from the same blocks' S_b in the same places (so are
+// equal bit for bit), and twists at the first group in between: an edit of slab t refactors only
+// the planes it touches (t − 1 and t; one plane for the first or the last slab), whichever slab it
+// is. Of a plane next to a kept one, an edit that left the coupling block between them as it was
+// keeps the coupling (L_{g,g−1} or M_{g,g+1}) and its product with its transpose, held per plane
+// (8·#plane dofs² bytes each) for that purpose. The reuse solver needs both of its factors whole
+// for this: PrepareReuse completes them (about one factorisation of S; FE mode runs it in the
+// background once a model is ready), and a constructor given a reuse solver runs it first if it
+// has not run.
 //
 // Threads. A solver is immutable after construction (but for the cache directory's pending
-// writes, which FinishCacheWrites waits for); solves allocate their own CHOLMOD workspace,
-// so one solver, or two solvers sharing blocks, may be solved from several threads at once.
+// writes, which FinishCacheWrites waits for, and PrepareReuse, which writes only what solves do
+// not read); solves allocate their own CHOLMOD workspace, so one solver, or two solvers sharing
+// blocks, may be solved from several threads at once.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once
 
@@ -119,6 +131,12 @@ struct SubstructureStats {
   // factor blocks came from the reuse solver (see the file comment).
   int interface_groups = 0;
   int reused_interface_groups = 0;
+  // Trailing groups whose backward factor blocks came from the reuse solver, the group the
+  // factor is twisted at (see the file comment), and the groups whose dense blocks this solver
+  // factored (the twist counted once).
+  int reused_trailing_interface_groups = 0;
+  int interface_twist = 0;
+  int factored_interface_groups = 0;
   // Groups refactored whose coupling to the group before (L_{g,g−1} and L_{g,g−1} L_{g,g−1}ᵀ)
   // came from the reuse solver: S_{g,g−1} and L_{g−1,g−1} unchanged (an edit of the slab after
   // plane g only changes S_gg).
@@ -135,6 +153,17 @@ struct SubstructureStats {
   double block_schur_seconds = 0.0;
   double interface_seconds = 0.0;
   double wall_seconds = 0.0;
+};
+
+// What SubstructuredSolver::PrepareReuse did.
+struct InterfacePreparation {
+  // Dense groups factored (forward and backward factors together), forward planes written to the
+  // cache directory, and the wall time, s.
+  int factored_groups = 0;
+  int saved_planes = 0;
+  double seconds = 0.0;
+  // Planes that could not be written, or a group that failed to factor (each names it).
+  std::vector<std::string> notes;
 };
 
 // Thrown by SubstructuredSolver's constructor when its cancel flag was raised.
@@ -180,6 +209,15 @@ class SubstructuredSolver final : public FreeDofSolver {
   // stats() (saved_blocks, cache_write_seconds, and a note for each write that failed: not
   // thrown). The destructor waits too. Not to be called while another thread uses the solver.
   const SubstructureStats& FinishCacheWrites();
+
+  // Completes the chain interface's forward and backward factors (see the file comment), which
+  // a solver that reuses this one needs to keep the planes on both sides of its edit, and writes
+  // the forward planes it factored to the cache directory given at construction. Runs once (a
+  // second call, or a call from a solver built with this one as `reuse`, waits for the first and
+  // returns its figures); about the cost of factoring S once. Safe to run while other threads
+  // solve with this solver (the solves read none of what it writes); not while FinishCacheWrites
+  // runs. Does nothing for a non-chain interface or a failed factorisation.
+  const InterfacePreparation& PrepareReuse() const;
 
   // Status of the factorisation (blocks and S).
   const SolveStatus& factor_status() const override { return factor_status_; }
@@ -256,6 +294,18 @@ class SubstructuredSolver final : public FreeDofSolver {
                               const std::vector<std::pair<int, int>>& pair_of,
                               const SubstructuredSolver* reuse,
                               const std::filesystem::path& cache_directory);
+  // Interface S's blocks of group g summed from the blocks' S_b: S_gg, or S_{g,g−1} (rows in g).
+  Eigen::MatrixXd InterfaceBlock(int g, bool coupling_to_previous) const;
+  // L_{g,g−1} and its gram for g > 0 (from L_{g−1,g−1}); M_{g,g+1} and its gram for g below the
+  // last (from B_{g+1,g+1}); each kept from `old` (may be null) when the record says it is the
+  // same. Returns whether it was kept.
+  bool ForwardCoupling(int g, const Interface* old) const;
+  bool BackwardCoupling(int g, const Interface* old) const;
+  // Cholesky factor (lower) of S_gg minus the grams given (each may be null); null on a zero
+  // pivot, whose Γ position is then in *failed.
+  std::shared_ptr<const Eigen::MatrixXd> FactorGroup(int g, const Eigen::MatrixXd* gram,
+                                                     const Eigen::MatrixXd* other_gram,
+                                                     int* failed) const;
   void FactorInterfaceWithCholmod(const TetMesh& mesh,
                                   const std::vector<std::vector<std::pair<int, int>>>& owners,
                                   std::vector<int>& order);
