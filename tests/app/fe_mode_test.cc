@@ -1033,6 +1033,23 @@ TEST(FeModeWindow, EditOfAFeltSolidRefreshesItselfInTheSlabsItReached) {
 
   ExpectFreeCornerSolvedAsOnePiece(after);
 
+  // Once its columns are ready (or it has gone untouched for a while), the model's interface
+  // factor is completed from both ends in the background, so that an edit at the clamped end
+  // (the bolt holes, the first slab) refactors that slab and only the one plane it touches.
+  ASSERT_TRUE(FramesUntil(window, [&] { return after.reuse_preparation_started(); }));
+  const std::shared_ptr<FeModel> second_model = fe.model();
+  ASSERT_TRUE(window.tree().SelectByName("bolt_hole")) << window.tree().error();
+  ASSERT_TRUE(window.tree().SetField("radius", 0.006)) << window.tree().error();
+  ASSERT_TRUE(FramesUntil(window, [&] {
+    return fe.model() != nullptr && fe.model() != second_model;
+  })) << fe.status();
+  const fem::SubstructuredSolver& third = *fe.model()->substructured();
+  EXPECT_EQ(third.stats().factored_blocks, 1) << fe.status();
+  EXPECT_EQ(third.stats().factored_interface_groups, 1);
+  EXPECT_EQ(third.stats().reused_trailing_interface_groups, kFeSlabs - 2);
+  EXPECT_EQ(third.stats().interface_twist, 0);
+  ExpectFreeCornerSolvedAsOnePiece(*fe.model());
+
   // Undo the refresh: stale again, and left so (Refresh is the user's call now).
   ASSERT_TRUE(window.tree().Undo());
   for (int k = 0; k < 5; ++k) window.Frame();

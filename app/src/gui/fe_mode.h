@@ -192,6 +192,10 @@ class FeMode {
   bool Settled() const;
   // Loop time the live field runs before Settled(), s.
   static constexpr double kSettleSeconds = 0.5;
+  // A model in slabs completes its interface factor for the next edit
+  // (FeModel::PrepareReuseInBackground) once the column worker is idle for the tool's focus, or
+  // this long after it was built when nothing touches it, s.
+  static constexpr double kPrepareReuseAfterSeconds = 2.0;
   // Name of the part (the mesh given to SetMesh; "" before one).
   const std::string& mesh_name() const { return mesh_name_; }
   // Status line (what is happening or went wrong).

@@ -244,16 +244,27 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
   CheckCancel(settings);
   m->cache_ = std::move(cache);
   if (settings.cache.start_worker) m->cache_->Start();
-  if (m->substructured_) {
-    try {
-      m->prepare_reuse_ = std::thread([s = m->substructured_.get()] { s->PrepareReuse(); });
-    } catch (const std::system_error&) {
-      // No thread to be had: the next edit's model runs it (SubstructuredSolver's constructor).
-    }
-  }
+  m->built_at_ = std::chrono::steady_clock::now();
   m->build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   Progress(settings, 1.0, "ready");
   return m;
+}
+
+void FeModel::PrepareReuseInBackground() {
+  if (!substructured_ || prepare_reuse_.joinable()) return;
+  try {
+    prepare_reuse_ = std::thread([s = substructured_.get()] { s->PrepareReuse(); });
+  } catch (const std::system_error&) {
+    // No thread to be had: the next edit's model runs it (SubstructuredSolver's constructor).
+  }
+}
+
+void FeModel::WaitReusePrepared() {
+  if (prepare_reuse_.joinable()) substructured_->PrepareReuse();  // waits for the thread's run
+}
+
+double FeModel::age_seconds() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - built_at_).count();
 }
 
 FeModel::~FeModel() {

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -165,6 +166,19 @@ class FeModel {
   const fem::StaticSolver* static_solver() const { return solver_.get(); }
   // The factor in slabs (its solves are re-entrant); null in one piece.
   const fem::SubstructuredSolver* substructured() const { return substructured_.get(); }
+  // Completes the factor in slabs from both ends for the next edit's model
+  // (fem::SubstructuredSolver::PrepareReuse) on a thread of the model's own: started once (later
+  // calls do nothing; nothing in one piece). Its dense BLAS takes the cores, so FE mode starts it
+  // once the columns near the tool are ready. A model built with this one as its reuse model
+  // before it has finished waits for it (or runs it, when it was never started).
+  void PrepareReuseInBackground();
+  // Waits until the preparation started by PrepareReuseInBackground has finished (returns at
+  // once when it was not started).
+  void WaitReusePrepared();
+  // True once PrepareReuseInBackground has started it (call from the thread that starts it).
+  bool reuse_preparation_started() const { return prepare_reuse_.joinable(); }
+  // Seconds since Build returned this model.
+  double age_seconds() const;
   // Its status (a built model's converged).
   const fem::SolveStatus& factor_status() const;
   // The lazy compliance columns: candidates = surface nodes, outputs = nodes of the surface
@@ -226,6 +240,7 @@ class FeModel {
   // Completes substructured_'s interface factor from both ends once the model is ready
   // (fem::SubstructuredSolver::PrepareReuse): the next edit's model keeps the planes beyond it.
   std::thread prepare_reuse_;
+  std::chrono::steady_clock::time_point built_at_;
   std::vector<int> output_nodes_, output_index_;
   std::vector<int> surface_elements_;
   std::vector<Eigen::MatrixXd> stress_ops_;  // per surface element: D·B at the centroid, 6 by 3·npe

@@ -144,6 +144,8 @@ class ColumnCache {
     if (!paused) idle_seq_.store(~0ull);  // not idle until the worker has looked again
   }
   bool paused() const { return paused_.load(); }
+  // True once a focus has been requested (RequestNear).
+  bool has_focus() const { return focus_seq_.load() != 0; }
   // Waits until the worker has nothing left to do for the latest focus (every candidate in the
   // radius is ready, or the memory is full of nearer columns). Returns false on timeout (s).
   bool WaitUntilIdle(double timeout_seconds) const;
