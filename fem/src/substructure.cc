@@ -1249,6 +1249,7 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     // group g too (the others add nothing to it), then for each block among them (its factor, in
     // order of first appearance) where its rows land in g.
     if (g == 0) continue;
+    group.sub_record.push_back(in.size(g));  // S_{g,g−1}'s rows
     std::vector<int> seen;
     auto coupled = [&](int b) { return lowest[b] == g - 1 && highest[b] == g; };
     for (int q = in.begin[g - 1]; q < in.begin[g]; ++q) {
@@ -1379,8 +1380,9 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   // Group g's forward factor blocks: L_{g,g−1} = S_{g,g−1} L_{g−1,g−1}⁻ᵀ (dtrsm) and
   // L_gg = chol(S_gg − L_{g,g−1} L_{g,g−1}ᵀ) (dsyrk, dpotrf), from the cache directory when a
   // file has them; false on a zero pivot.
+  int load_failed = -1;  // a plane whose file was just looked for in vain
   auto forward = [&](int g) {
-    if (!cache_directory.empty() && load_plane(g)) return true;
+    if (!cache_directory.empty() && g != load_failed && load_plane(g)) return true;
     if (g > 0 && ForwardCoupling(g, old)) ++stats_.kept_interface_couplings;
     in.groups[g].l_diag = FactorGroup(g, in.groups[g].gram.get(), nullptr, &failed);
     if (!in.groups[g].l_diag) return false;
@@ -1411,7 +1413,13 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
   }
   int k = n - 1;
   if (trailing > 0) {
-    while (shared < n && !cache_directory.empty() && load_plane(shared)) ++shared;
+    while (shared < n && !cache_directory.empty() && load_failed < 0) {
+      if (load_plane(shared)) {
+        ++shared;
+      } else {
+        load_failed = shared;
+      }
+    }
     k = std::min(shared, n - 1);
   }
   for (int g = shared; g < k; ++g)

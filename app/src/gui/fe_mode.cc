@@ -314,8 +314,8 @@ void FeMode::OnFrame(const haptics::ToolState& tool) {
   // Both ends of the model's interface factor for the next edit, once the columns near the tool
   // are ready (or the model has gone untouched for a while): its BLAS would slow those columns.
   if (model_->substructured() != nullptr && !model_->cache().paused() &&
-      ((model_->cache().has_focus() && model_->cache().WaitUntilIdle(0.0)) ||
-       model_->age_seconds() > kPrepareReuseAfterSeconds))
+      (model_->cache().has_focus() ? model_->cache().WaitUntilIdle(0.0)
+                                   : model_->age_seconds() > kPrepareReuseAfterSeconds))
     model_->PrepareReuseInBackground();
   figures_.ready_columns = model_->cache().ready_nodes();
   const Eigen::Vector3d& p = tool.tool_W.p_WT;

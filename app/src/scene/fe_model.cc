@@ -253,7 +253,14 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
 void FeModel::PrepareReuseInBackground() {
   if (!substructured_ || prepare_reuse_.joinable()) return;
   try {
-    prepare_reuse_ = std::thread([s = substructured_.get()] { s->PrepareReuse(); });
+    prepare_reuse_ = std::thread([s = substructured_.get()] {
+      try {
+        s->PrepareReuse();
+      } catch (const std::exception&) {
+        // Out of memory, most likely: the next edit's model tries again (PrepareReuse runs again
+        // after a throw) or factors the planes it needs itself.
+      }
+    });
   } catch (const std::system_error&) {
     // No thread to be had: the next edit's model runs it (SubstructuredSolver's constructor).
   }

@@ -137,9 +137,10 @@ struct SubstructureStats {
   int reused_trailing_interface_groups = 0;
   int interface_twist = 0;
   int factored_interface_groups = 0;
-  // Groups refactored whose coupling to the group before (L_{g,g−1} and L_{g,g−1} L_{g,g−1}ᵀ)
-  // came from the reuse solver: S_{g,g−1} and L_{g−1,g−1} unchanged (an edit of the slab after
-  // plane g only changes S_gg).
+  // Couplings of refactored groups that came from the reuse solver: to the group before
+  // (L_{g,g−1} and L_{g,g−1} L_{g,g−1}ᵀ; S_{g,g−1} and L_{g−1,g−1} unchanged) or to the group
+  // after (M_{g,g+1} and its product; S_{g,g+1} and B_{g+1,g+1} unchanged). The twist may count
+  // one of each.
   int kept_interface_couplings = 0;
   // Groups whose factor blocks came from the cache directory (and, per group, 1 for those),
   // and groups written to it.
