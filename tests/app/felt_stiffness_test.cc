@@ -10,7 +10,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,6 +22,7 @@
 #include "scene/fe_setup.h"
 #include "scene/fe_touch_field.h"
 #include "scene/scene_solid.h"
+#include "spidarcad_runner.h"
 
 namespace spidarcad::app {
 namespace {
@@ -421,6 +424,39 @@ TEST(FeltStiffness, HapticPushAgreesAtTwoCellSizesWithinTheMeshError) {
     EXPECT_NEAR(b.felt, a.felt, 0.05 * a.felt) << probe.name;
     EXPECT_NEAR(b.reference, a.reference, 0.07 * a.reference) << probe.name;
   }
+}
+
+// `spidarcad felt --mesher lattice` measures on the lattice route's surface: another mesh of the
+// part (other node counts), and a stiffness of the same order; an unknown mesher is refused,
+// naming the option and the choices.
+TEST(FeltStiffness, CommandMeasuresOnEitherSurface) {
+  std::map<std::string, std::pair<long, double>> runs;  // mesher: nodes, K of the corner
+  for (const std::string mesher : {"tetrahedra", "lattice"}) {
+    const test_support::CommandRun run = test_support::RunSpidarcad(
+        "felt --orders 1 --cells 0.012 --probe corner,0.29,0.09,0.01 --mesher " + mesher, "",
+        mesher);
+    ASSERT_EQ(run.status, 0) << run.all();
+    std::istringstream lines(run.out);
+    std::string line;
+    while (std::getline(lines, line)) {
+      std::istringstream row(line);
+      std::string probe;
+      double cell_mm = 0.0, k = 0.0;
+      int order = 0, patch = 0;
+      long nodes = 0;
+      if (row >> probe >> cell_mm >> order >> nodes >> patch >> k && probe == "corner")
+        runs[mesher] = {nodes, k};
+    }
+    ASSERT_EQ(runs.count(mesher), 1u) << run.out;
+  }
+  EXPECT_NE(runs["tetrahedra"].first, runs["lattice"].first);
+  EXPECT_GT(runs["lattice"].second, 0.5 * runs["tetrahedra"].second);
+  EXPECT_LT(runs["lattice"].second, 2.0 * runs["tetrahedra"].second);
+  const test_support::CommandRun bad =
+      test_support::RunSpidarcad("felt --cells 0.012 --mesher cubes", "", "bad");
+  EXPECT_EQ(bad.status, 2) << bad.all();
+  EXPECT_NE(bad.all().find("--mesher 'cubes': expected tetrahedra or lattice"), std::string::npos)
+      << bad.all();
 }
 
 }  // namespace

@@ -36,6 +36,7 @@ struct FeltOptions {
   std::string csv;
   std::string plot;
   std::string from_csv;
+  std::string mesher = "tetrahedra";
 };
 
 // Samples from a CSV written by --csv (header line first).
@@ -138,6 +139,9 @@ void RunFelt(const FeltOptions& o) {
   s.tool_radius = o.tool_radius;
   s.coupling_stiffness = o.coupling;
   s.force_scale = o.force_scale;
+  if (o.mesher != "tetrahedra" && o.mesher != "lattice")
+    throw InputError("--mesher '" + o.mesher + "': expected tetrahedra or lattice");
+  s.lattice = o.mesher == "lattice";
   std::ofstream csv;
   if (!o.from_csv.empty()) {
     // Plot (and summarise) a finished or interrupted run: its cells and orders.
@@ -272,7 +276,8 @@ void RegisterFeltCommand(CLI::App& app) {
       "Felt stiffness of an FE part's tool patch against the mesh's cell size (table, PNG)");
   cmd->footer(
       "Meshes the scene's solid (the first, or --solid NAME) at each --cells size (surface grid,\n"
-      "then TetGen), builds a steel FE model of each --orders element order clamped at its\n"
+      "marching tetrahedra or with --mesher lattice the lattice route, then TetGen), builds a "
+      "steel FE model of each --orders element order clamped at its\n"
       "minimum-x face (as FE mode), and at each probe measures the part stiffness K (N/m): the\n"
       "force per metre that moves the tool's patch (every free surface node within --tool-radius\n"
       "of the probe point whose normal faces the tool) rigidly along the push direction, from a\n"
@@ -292,6 +297,8 @@ void RegisterFeltCommand(CLI::App& app) {
   cmd->add_option("--orders", o->orders, "Element orders (default 1,2)");
   cmd->add_option("--probe", o->probes,
                   "NAME,X,Y,Z[,DX,DY,DZ]: probe point (m) and push direction (default down)");
+  cmd->add_option("--mesher", o->mesher,
+                  "Surface of the solid: tetrahedra (default; as FE mode) or lattice");
   cmd->add_option("--tool-radius", o->tool_radius, "Tool radius, m (default 0.01)");
   cmd->add_option("--coupling", o->coupling, "Virtual coupling k_c, N/m (default 1500)");
   cmd->add_option("--force-scale", o->force_scale, "Force scale sigma (default 1e-4)");

@@ -408,7 +408,7 @@ std::vector<int> MinXFaceNodes(const fem::TetMesh& mesh, double tolerance) {
 
 fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,
                                  double resolution, const std::atomic<bool>* cancel,
-                                 const std::function<void(double)>& progress) {
+                                 const std::function<void(double)>& progress, bool lattice) {
   const auto check = [&] {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw FeModelCancelled();
   };
@@ -418,6 +418,7 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
   modeling::SurfaceMeshSettings ss;
   ss.bounds = grid.bounds;
   ss.cell_size = grid.cell;
+  if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   const modeling::TriangleMesh surface = modeling::MeshSurface(grid.compiled, ss);
   if (progress) progress(0.3);
   check();

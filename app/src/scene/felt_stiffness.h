@@ -93,6 +93,7 @@ struct FeltSweepSettings {
   double tool_radius = 0.01;           // m (> 0)
   double coupling_stiffness = 1500.0;  // k_c, N/m (kDefaultFeCoupling)
   double force_scale = 1e-4;           // σ (kDefaultFeForceScale)
+  bool lattice = false;                // surfaces by the lattice route (else marching tetrahedra)
 };
 
 // Meshes the solid at each cell size (MeshSceneSolidForFe), builds a steel FE model of each
