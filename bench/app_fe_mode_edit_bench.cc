@@ -93,8 +93,10 @@ struct Row {
   // Slab mesh stages of the refresh (s): grid surface, cut, TetGen, join.
   double surface = 0, cut = 0, tetgen = 0, join = 0;
   int factored = 0, blocks = 0, remeshed = 0;
-  int interface = 0;  // free interface dofs (the planes' sections), in slabs
-  double error = 0;   // patch block against a one-piece factorisation of the new mesh
+  int interface = 0;                    // free interface dofs (the planes' sections), in slabs
+  int planes = 0, planes_factored = 0;  // planes of the interface; their dense blocks factored
+  double interface_seconds = 0.0;       // the interface's share of the model's factorisation, s
+  double error = 0;  // patch block against a one-piece factorisation of the new mesh
 };
 
 std::vector<Row>& Rows() {
@@ -337,6 +339,9 @@ void BM_FeModeEdit(benchmark::State& state) {
         row.factored = s->stats().factored_blocks;
         row.blocks = s->num_blocks();
         row.interface = s->stats().num_interface_dofs;
+        row.planes = s->stats().interface_groups;
+        row.planes_factored = s->stats().factored_interface_groups;
+        row.interface_seconds = s->stats().interface_seconds;
       }
       const app::ObjectId mesh_id =
           std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
@@ -378,12 +383,15 @@ void PrintTables() {
   std::printf(
       "\nThe refresh's slab mesh, by stage (s): the grid surface of the whole solid, the cut by "
       "the planes, TetGen on the slabs that changed, the join; and the model's interface (free "
-      "dofs on the planes).\n\n| case | edit | surface | cut | TetGen | join | interface dofs "
-      "|\n|---|---|---|---|---|---|---|\n");
+      "dofs on the planes, the planes whose dense blocks the new model factored: the others are "
+      "kept from the old model's factor, completed from both ends, and the interface's time in "
+      "s).\n\n| case | edit | surface | cut | TetGen | join | interface dofs | planes factored | "
+      "interface |\n|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : Rows())
     if (r.slabs)
-      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f | %d |\n", r.name.c_str(), r.edit.c_str(),
-                  r.surface, r.cut, r.tetgen, r.join, r.interface);
+      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f | %d | %d of %d | %.2f |\n",
+                  r.name.c_str(), r.edit.c_str(), r.surface, r.cut, r.tetgen, r.join, r.interface,
+                  r.planes_factored, r.planes, r.interface_seconds);
 }
 
 // Args: element order, cell (µm), in slabs (1) or one piece (0), the solid (0) or a sculpt (1).
