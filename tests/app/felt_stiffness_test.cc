@@ -455,7 +455,7 @@ TEST(FeltStiffness, CommandMeasuresOnEitherSurface) {
   const test_support::CommandRun bad =
       test_support::RunSpidarcad("felt --cells 0.012 --mesher cubes", "", "bad");
   EXPECT_EQ(bad.status, 2) << bad.all();
-  EXPECT_NE(bad.all().find("--mesher 'cubes': expected tetrahedra or lattice"), std::string::npos)
+  EXPECT_NE(bad.all().find("--mesher 'cubes': give lattice or tetrahedra"), std::string::npos)
       << bad.all();
 }
 

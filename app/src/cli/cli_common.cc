@@ -77,6 +77,13 @@ void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry, bo
       "Pole half-length D in metres (default 0.04: the paper's 4 cm grip)");
 }
 
+bool LatticeMesherOption(const std::string& mesher, const char* default_route) {
+  if (!mesher.empty() && mesher != "lattice" && mesher != "tetrahedra")
+    throw InputError("--mesher '" + mesher + "': give lattice or tetrahedra (the default is " +
+                     default_route + ")");
+  return mesher == "lattice";
+}
+
 void ValidateGeometry(const haptics::SpidarGeometry& geometry) {
   try {
     geometry.Validate();

@@ -37,4 +37,9 @@ void AddGeometryOptions(CLI::App& command, haptics::SpidarGeometry* geometry,
 // Validates geometry options, turning errors into InputError.
 void ValidateGeometry(const haptics::SpidarGeometry& geometry);
 
+// True when a --mesher value asks for the lattice surface route: "lattice"; false for
+// "tetrahedra" or "" (the command's default, named in the error). Throws InputError naming the
+// value and the two choices for anything else.
+bool LatticeMesherOption(const std::string& mesher, const char* default_route);
+
 }  // namespace spidarcad::app

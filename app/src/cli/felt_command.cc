@@ -139,9 +139,7 @@ void RunFelt(const FeltOptions& o) {
   s.tool_radius = o.tool_radius;
   s.coupling_stiffness = o.coupling;
   s.force_scale = o.force_scale;
-  if (o.mesher != "tetrahedra" && o.mesher != "lattice")
-    throw InputError("--mesher '" + o.mesher + "': expected tetrahedra or lattice");
-  s.lattice = o.mesher == "lattice";
+  s.lattice = LatticeMesherOption(o.mesher, "tetrahedra");
   std::ofstream csv;
   if (!o.from_csv.empty()) {
     // Plot (and summarise) a finished or interrupted run: its cells and orders.

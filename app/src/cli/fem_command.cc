@@ -68,6 +68,7 @@ struct FemOptions {
   std::string object;         // --object: any object of a document (solid, mesh, sculpt, fe_model)
   int slabs = 0;              // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
   std::string mesher;         // --mesher: a scene solid's surface, "lattice" or "tetrahedra" ("")
+  bool lattice = false;       // --mesher lattice (checked and set before RunFem)
   std::string cache_dir;      // --cache-dir: slab meshes and block factors kept between runs
   double cache_max_gb = 4.0;  // --cache-max-gb: the directory's bound (least recently used out)
   // Which options were given (a document's FE model supplies the others).
@@ -130,7 +131,7 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
     SlabMeshOptions slab_options;
     slab_options.max_radius_edge = options.max_radius_edge;
     slab_options.cache_directory = options.cache_dir;
-    slab_options.lattice = options.mesher == "lattice";
+    slab_options.lattice = options.lattice;
     slabs =
         MeshSolidInSlabs(grid.compiled, grid.bounds, cell,
                          SlabPlanes(grid.bounds, cell, options.slabs, slab_options), slab_options);
@@ -151,20 +152,19 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
   double min_dihedral = 180.0;  // the joined mesh's tets are the slabs' tets
   for (const modeling::TetMesh& tets : slabs.slab_tets)
     min_dihedral = std::min(min_dihedral, modeling::MeasureTetQuality(tets).min_dihedral_deg);
-  (*report)["meshing"] = {
-      {"solid", grid.solid_name},
-      {"resolution_m", cell},
-      {"surface_mesher", options.mesher == "lattice" ? "lattice" : "tetrahedra"},
-      {"slabs", static_cast<int>(slabs.slab_tets.size())},
-      {"planes_x_m", slabs.planes},
-      {"surface_seconds", slabs.surface_seconds},
-      {"cut_seconds", slabs.cut_seconds},
-      {"tetgen_seconds", slabs.tetgen_seconds},
-      {"join_seconds", slabs.join_seconds},
-      {"cache_read_seconds", slabs.cache_read_seconds},
-      {"cache_write_seconds", slabs.cache_write_seconds},
-      {"min_dihedral_deg", min_dihedral},
-      {"per_slab", per_slab}};
+  (*report)["meshing"] = {{"solid", grid.solid_name},
+                          {"resolution_m", cell},
+                          {"surface_mesher", options.lattice ? "lattice" : "tetrahedra"},
+                          {"slabs", static_cast<int>(slabs.slab_tets.size())},
+                          {"planes_x_m", slabs.planes},
+                          {"surface_seconds", slabs.surface_seconds},
+                          {"cut_seconds", slabs.cut_seconds},
+                          {"tetgen_seconds", slabs.tetgen_seconds},
+                          {"join_seconds", slabs.join_seconds},
+                          {"cache_read_seconds", slabs.cache_read_seconds},
+                          {"cache_write_seconds", slabs.cache_write_seconds},
+                          {"min_dihedral_deg", min_dihedral},
+                          {"per_slab", per_slab}};
   if (!slabs.cache_notes.empty()) (*report)["meshing"]["cache_notes"] = slabs.cache_notes;
   *slab = slabs.slab;
   return std::move(slabs.mesh);
@@ -181,7 +181,7 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
   modeling::SurfaceMeshSettings surface_settings;
   surface_settings.bounds = grid.bounds;
   surface_settings.cell_size = cell;
-  if (options.mesher == "lattice") surface_settings.mesher = modeling::SurfaceMesher::kLattice;
+  if (options.lattice) surface_settings.mesher = modeling::SurfaceMesher::kLattice;
   modeling::SurfaceMeshStats surface_stats;
   const modeling::TriangleMesh surface =
       modeling::MeshSurface(grid.compiled, surface_settings, &surface_stats);
@@ -471,8 +471,6 @@ void RunFem(const FemOptions& options) {
         "--cache-dir keeps slab meshes and slab factors between runs: it needs "
         "--slabs N (N >= 1; without --slabs it is 4), not --slabs 0");
   }
-  if (!options.mesher.empty() && options.mesher != "lattice" && options.mesher != "tetrahedra")
-    throw InputError("--mesher '" + options.mesher + "': give lattice or tetrahedra (the default)");
   if (!options.mesher.empty() && EndsWith(options.input, ".vtu"))
     throw InputError("--mesher makes the surface of a scene solid; " + options.input +
                      " holds tetrahedra already: drop --mesher");
@@ -1029,6 +1027,7 @@ void RegisterFemCommand(CLI::App& app) {
     options->given_nu = cmd->count("--nu") > 0;
     FemOptions resolved = *options;
     if (cmd->count("--slabs") == 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
+    resolved.lattice = LatticeMesherOption(resolved.mesher, "tetrahedra");
     RunFem(resolved);
   });
 }

@@ -507,8 +507,7 @@ void RunMesh(const MeshOptions& o) {
     throw InputError(
         "--snap-cells applies to the marching-tetrahedra surface; --tets cgal does "
         "not use one");
-  if (!o.mesher.empty() && o.mesher != "lattice" && o.mesher != "tetrahedra")
-    throw InputError("--mesher '" + o.mesher + "': give lattice (the default) or tetrahedra");
+  LatticeMesherOption(o.mesher, "lattice");
   if (o.mesher == "lattice" && TetrahedraOptionsGiven(o)) {
     throw InputError(
         "--raw-surface and --snap-cells belong to --mesher tetrahedra (the lattice surface has "
