@@ -717,6 +717,10 @@ struct SubstructuredSolver::Interface {
   InterfacePreparation preparation;
 
   int size(int g) const { return begin[g + 1] - begin[g]; }
+  // The cache directory's file of group g's forward factor blocks.
+  std::filesystem::path PlaneFile(int g) const {
+    return cache_directory / (HexKey(plane_key[g]) + ".plane");
+  }
 
   // X = S⁻¹ B in place (B: ng by m, rows in Γ positions): sweeps by groups towards the twist
   // (forward factor before it, backward factor after it), the twist's two triangular solves,
@@ -1321,14 +1325,13 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
       in.plane_key[g] = Fnv1a64(words.data(), sizeof(std::uint64_t) * words.size());
     }
   }
-  auto plane_file = [&](int g) { return cache_directory / (HexKey(in.plane_key[g]) + ".plane"); };
   // Group g's forward factor blocks from its file; false (with a note for a bad file) when absent.
   auto load_plane = [&](int g) {
     const int bg = in.size(g), bp = g > 0 ? in.size(g - 1) : 0;
     std::string why;
     const auto t0 = Clock::now();
     bool ok = false;
-    if (auto body = MapCacheFile(plane_file(g), kPlaneFileMagic, &why)) {
+    if (auto body = MapCacheFile(in.PlaneFile(g), kPlaneFileMagic, &why)) {
       ByteReader r(body->data(), body->size());
       std::vector<std::uint64_t> stored;
       std::int64_t rows = 0, cols = 0;
@@ -1355,7 +1358,7 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
         in.groups[g].l_diag = std::move(diag);
         if (g > 0) in.groups[g].l_sub = std::move(sub);
       } else {
-        why = plane_file(g).string() + ": " + problem;
+        why = in.PlaneFile(g).string() + ": " + problem;
       }
     }
     if (!ok && why != "absent")
@@ -1390,7 +1393,7 @@ bool SubstructuredSolver::FactorInterfaceAsChain(
     if (!cache_directory.empty()) {
       if (!writer_) writer_ = std::make_unique<CacheWriter>();
       writer_->Add(
-          "interface plane " + std::to_string(g), plane_file(g), kPlaneFileMagic,
+          "interface plane " + std::to_string(g), in.PlaneFile(g), kPlaneFileMagic,
           [words = in.record[g], l_diag = in.groups[g].l_diag, l_sub = in.groups[g].l_sub] {
             return PlaneFileBody(words, *l_diag, l_sub.get());
           });
@@ -1469,7 +1472,7 @@ const InterfacePreparation& SubstructuredSolver::PrepareReuse() const {
       ++p.factored_groups;
       if (in.cache_directory.empty()) continue;
       std::string error;
-      if (WriteCacheFile(in.cache_directory / (HexKey(in.plane_key[g]) + ".plane"), kPlaneFileMagic,
+      if (WriteCacheFile(in.PlaneFile(g), kPlaneFileMagic,
                          PlaneFileBody(in.record[g], *group.l_diag, group.l_sub.get()), &error)) {
         ++p.saved_planes;
       } else {
