@@ -145,6 +145,26 @@ void SegmentOffset2(T px, T py, double ax, double ay, double bx, double by, T* d
   *dy = wy - h * ey;
 }
 
+// The signed distance to the line of the edge a -> b (positive on the side of its normal
+// (ey, -ex), the outward one when the boundary runs counter-clockwise; `ccw` false flips it),
+// when p lies within 1e-9 of the edge's length of the edge's inside (d2: the squared distance to
+// the edge): the distance to the edge to rounding, with the normal for gradient. Exact distances
+// built from the offset to the nearest point lose its direction on the edge to rounding, where
+// Newton's steps onto a flat wall put points: their gradient came out zero or pointing inwards.
+template <typename T>
+bool SignedDistanceOnEdge2(T x, T y, double ax, double ay, double bx, double by, bool ccw,
+                           double d2, T* out) noexcept {
+  const double ex = bx - ax, ey = by - ay;
+  const double len2 = ex * ex + ey * ey;
+  if (!(len2 > 0.0) || !(d2 <= 1e-18 * len2)) return false;
+  const double s = ((ValueOf(x) - ax) * ex + (ValueOf(y) - ay) * ey) / len2;
+  if (!(s > 0.0 && s < 1.0)) return false;
+  const double len = std::sqrt(len2);
+  const double nx = (ccw ? ey : -ey) / len, ny = (ccw ? -ex : ex) / len;
+  *out = (x - ax) * nx + (y - ay) * ny;
+  return true;
+}
+
 // Frustum of a cone along z: radius r_bottom at z = -hh, r_top at z = +hh. Exact distance,
 // computed in the (ρ, z) half-plane as the distance to the profile's three boundary segments.
 template <typename T>
@@ -154,7 +174,9 @@ T ConeField(T x, T y, T z, double r_bottom, double r_top, double hh) noexcept {
       {0.0, -hh, r_bottom, -hh}, {r_bottom, -hh, r_top, hh}, {r_top, hh, 0.0, hh}};
   T best_x{}, best_y{};
   double best = INFINITY;
-  for (const auto& s : seg) {
+  int best_seg = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double* s = seg[i];
     T dx, dy;
     SegmentOffset2(rho, z, s[0], s[1], s[2], s[3], &dx, &dy);
     const double d2 = ValueOf(dx) * ValueOf(dx) + ValueOf(dy) * ValueOf(dy);
@@ -162,8 +184,13 @@ T ConeField(T x, T y, T z, double r_bottom, double r_top, double hh) noexcept {
       best = d2;
       best_x = dx;
       best_y = dy;
+      best_seg = i;
     }
   }
+  // The profile runs counter-clockwise in the (ρ, z) half-plane.
+  const double* s = seg[best_seg];
+  T on_edge;
+  if (SignedDistanceOnEdge2(rho, z, s[0], s[1], s[2], s[3], true, best, &on_edge)) return on_edge;
   const double zv = ValueOf(z);
   const double t = (zv + hh) / (2.0 * hh);
   const bool inside = std::fabs(zv) <= hh && ValueOf(rho) <= r_bottom + (r_top - r_bottom) * t;
@@ -172,15 +199,19 @@ T ConeField(T x, T y, T z, double r_bottom, double r_top, double hh) noexcept {
 }
 
 // Signed distance in the plane to a simple polygon of n vertices xy[2i], xy[2i+1] (either
-// orientation); negative inside (even-odd rule). Exact distance.
+// orientation); negative inside (even-odd rule). Exact distance; on an edge, that of
+// SignedDistanceOnEdge2 (the edge's outward normal for gradient).
 template <typename T>
 T PolygonField2(T x, T y, const double* xy, int n) noexcept {
   T best_x{}, best_y{};
   double best = INFINITY;
+  int best_edge = -1;
   bool inside = false;
+  double area2 = 0.0;  // twice the signed area: > 0 counter-clockwise
   const double px = ValueOf(x), py = ValueOf(y);
   for (int i = 0, j = n - 1; i < n; j = i++) {
     const double ax = xy[2 * j], ay = xy[2 * j + 1], bx = xy[2 * i], by = xy[2 * i + 1];
+    area2 += ax * by - bx * ay;
     T dx, dy;
     SegmentOffset2(x, y, ax, ay, bx, by, &dx, &dy);
     const double d2 = ValueOf(dx) * ValueOf(dx) + ValueOf(dy) * ValueOf(dy);
@@ -188,12 +219,20 @@ T PolygonField2(T x, T y, const double* xy, int n) noexcept {
       best = d2;
       best_x = dx;
       best_y = dy;
+      best_edge = i;
     }
     // Even-odd crossing of the ray from p towards +x.
     if ((ay > py) != (by > py)) {
       const double cross_x = ax + (py - ay) * (bx - ax) / (by - ay);
       if (px < cross_x) inside = !inside;
     }
+  }
+  if (best_edge >= 0) {
+    const int i = best_edge, j = i == 0 ? n - 1 : i - 1;
+    T on_edge;
+    if (SignedDistanceOnEdge2(x, y, xy[2 * j], xy[2 * j + 1], xy[2 * i], xy[2 * i + 1], area2 > 0.0,
+                              best, &on_edge))
+      return on_edge;
   }
   const T d = Length2(best_x, best_y);
   return inside ? -d : d;

@@ -252,6 +252,107 @@ TEST(CompiledSolid, GradientMatchesFiniteDifferencesForEveryNodeType) {
   }
 }
 
+// On an extrusion's side walls the gradient is the wall's outward normal, also at points that
+// lie on the wall to rounding: those on the profile's edges and those Newton's steps put there
+// from either side (as the surface sharpening projects its samples). The distance to the profile
+// was the length of the offset to the nearest point of an edge, signed by a crossing test: on
+// the wall both lose their direction, and the gradient came out zero or pointing inwards (on the
+// platform's gusset, 2026-12-06, about a third of such points). Checked on the gusset's profile
+// (counter-clockwise) and on an L-shaped one (clockwise), 200 points per edge and side.
+TEST(CompiledSolid, ExtrusionGradientOnItsWallsIsTheOutwardNormal) {
+  const std::vector<std::vector<Eigen::Vector2d>> profiles = {
+      {{0.005, 0.002}, {0.2, 0.002}, {0.005, -0.14}},
+      {{0, 0}, {0, 0.06}, {0.02, 0.06}, {0.02, 0.02}, {0.05, 0.02}, {0.05, 0}}};
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.02, 0.98), uz(-0.004, 0.004);
+  for (const auto& profile : profiles) {
+    ExtrusionParams params;
+    params.profile = profile;
+    params.height = 0.01;
+    const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(params));
+    double area2 = 0.0;  // twice the signed area: > 0 counter-clockwise
+    for (size_t e = 0; e < profile.size(); ++e) {
+      const Eigen::Vector2d a = profile[e], b = profile[(e + 1) % profile.size()];
+      area2 += a.x() * b.y() - b.x() * a.y();
+    }
+    int bad = 0, total = 0;
+    std::string first;
+    for (size_t e = 0; e < profile.size(); ++e) {
+      const Eigen::Vector2d a = profile[e], b = profile[(e + 1) % profile.size()];
+      const Eigen::Vector2d t = (b - a).normalized();
+      const Eigen::Vector2d out2 =
+          area2 > 0 ? Eigen::Vector2d(t.y(), -t.x()) : Eigen::Vector2d(-t.y(), t.x());
+      const Eigen::Vector3d out(out2.x(), out2.y(), 0.0);
+      for (int i = 0; i < 200; ++i) {
+        const Eigen::Vector2d q = a + (b - a) * u(rng);
+        Eigen::Vector3d p(q.x(), q.y(), uz(rng));
+        if (i % 2 == 1) {
+          // From 0.1 mm off the wall (outside or inside), Newton's steps onto it.
+          p += out * (i % 4 == 1 ? 1e-4 : -1e-4);
+          for (int k = 0; k < 4; ++k) {
+            Eigen::Vector3d g;
+            const double f = solid.ValueAndGradient(p, &g);
+            if (!(g.squaredNorm() > 0.0)) break;
+            p -= g * (f / g.squaredNorm());
+          }
+        }
+        Eigen::Vector3d g;
+        solid.ValueAndGradient(p, &g);
+        ++total;
+        if (!(g.dot(out) > 0.999 * g.norm() && g.norm() > 0.5)) {
+          if (bad++ == 0)
+            first = "edge " + std::to_string(e) + " at " + std::to_string(p.x()) + " " +
+                    std::to_string(p.y()) + ": gradient " + std::to_string(g.x()) + " " +
+                    std::to_string(g.y()) + " " + std::to_string(g.z());
+        }
+      }
+    }
+    EXPECT_EQ(bad, 0) << bad << " of " << total << " points; first: " << first;
+  }
+}
+
+// The same on a cone frustum's caps and side (its distance is taken in the (ρ, z) half-plane the
+// same way): points on the caps to rounding had a zero gradient.
+TEST(CompiledSolid, ConeGradientOnItsSurfaceIsTheOutwardNormal) {
+  const double rb = 0.03, rt = 0.01, hh = 0.04;
+  ConeParams params;
+  params.radius_bottom = rb;
+  params.radius_top = rt;
+  params.height = 2 * hh;
+  const CompiledSolid solid = CompiledSolid::Compile(ImplicitNode(params));
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<double> u(0.02, 0.98), phi(0.0, 2 * M_PI);
+  const double slope = (rb - rt) / (2 * hh);
+  const Eigen::Vector2d side_normal = Eigen::Vector2d(1.0, slope).normalized();  // (ρ, z)
+  int bad = 0, total = 0;
+  std::string first;
+  for (int face = 0; face < 3; ++face) {
+    for (int i = 0; i < 200; ++i) {
+      const double a = phi(rng), t = u(rng);
+      const Eigen::Vector3d radial(std::cos(a), std::sin(a), 0.0);
+      Eigen::Vector3d p, out;
+      if (face == 0) {  // bottom cap
+        p = radial * (t * rb) + Eigen::Vector3d(0, 0, -hh);
+        out = Eigen::Vector3d(0, 0, -1);
+      } else if (face == 1) {  // top cap
+        p = radial * (t * rt) + Eigen::Vector3d(0, 0, hh);
+        out = Eigen::Vector3d(0, 0, 1);
+      } else {  // side
+        const double z = -hh + 2 * hh * t;
+        p = radial * (rb + (rt - rb) * t) + Eigen::Vector3d(0, 0, z);
+        out = radial * side_normal.x() + Eigen::Vector3d(0, 0, side_normal.y());
+      }
+      Eigen::Vector3d g;
+      solid.ValueAndGradient(p, &g);
+      ++total;
+      if (!(g.dot(out) > 0.999 * g.norm() && g.norm() > 0.5) && bad++ == 0)
+        first = "face " + std::to_string(face) + ": gradient " + std::to_string(g.x()) + " " +
+                std::to_string(g.y()) + " " + std::to_string(g.z());
+    }
+  }
+  EXPECT_EQ(bad, 0) << bad << " of " << total << " points; first: " << first;
+}
+
 // Every value sampled in a box lies in Bounds(box); Classify agrees with the samples.
 TEST(CompiledSolid, IntervalBoundsContainSampledValues) {
   std::mt19937 rng(14);
