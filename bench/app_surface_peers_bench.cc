@@ -6,8 +6,9 @@
 //   MeshSurface: the default settings (with the clean-up);
 //   + sharpen:  MeshSurface then SharpenFeatures (`spidarcad mesh --sharp`);
 //   snap 0.15:  MeshSurface with SurfaceMeshSettings::snap_cells = 0.15 (and + sharpen);
-//   + repair:   the sharpening with FeatureSettings::sliver_angle_deg = 10 (the sliver repair),
-//               on the default and on the snapped surface;
+//   + repair:   the sharpening with the product's sliver repair (FeatureSettings::sliver_angle_deg
+//               = 10 and its fallback, sliver_fallback_deviation_cells = 0.2), on the default and
+//               on the snapped surface;
 //   lattice:    MeshSurface with SurfaceMeshSettings::mesher = kLattice (body-centred cubic
 //               lattice, vertices snapped onto the surface, no clean-up), also sharpened with
 //               corner insertion and repaired (`spidarcad mesh --mesher lattice --sharp`).
@@ -276,7 +277,10 @@ int main(int argc, char** argv) {
         if (sharpen) {
           FeatureSettings f;
           f.cell_size = cell;
-          if (variant == 5 || variant == 6 || variant == 8) f.sliver_angle_deg = 10.0;
+          if (variant == 5 || variant == 6 || variant == 8) {
+            f.sliver_angle_deg = kProductSliverAngleDeg;
+            f.sliver_fallback_deviation_cells = kProductSliverFallbackCells;
+          }
           f.insert_corners = variant == 8;
           mesh = SharpenFeatures(c.solid, std::move(mesh), f);
           sharpen_s = CpuSeconds() - t1;

@@ -789,7 +789,7 @@ class Sharpener {
   // must have passed on the mesh as it is. Commits the change and returns true when every test
   // passes; otherwise leaves the mesh as it was and returns false.
   bool TryOp(const Op& op) {
-    const double tolerance = s_.sliver_deviation_cells * h_;
+    const double tolerance = tolerance_cells_ * h_;
     Deviation before;
     Eigen::Vector3d ref = Eigen::Vector3d::Zero();
     auto old_tri = [&](int t) {
@@ -1222,9 +1222,12 @@ class Sharpener {
   }
 
   // Step 4b: sweeps over the triangles sharper than sliver_angle_deg, worst first, each
-  // repaired by RepairTriangle, until a sweep changes nothing (at most 10 sweeps).
+  // repaired by RepairTriangle, until a sweep changes nothing (at most 10 sweeps), with the
+  // deviation tolerance sliver_deviation_cells. Then, for those that remain, the fallback:
+  // the same sweeps over them (and what they change) with the tolerance tripled at each stage up
+  // to sliver_fallback_deviation_cells, and a last stage at that tolerance with their corners
+  // unpinned.
   void RepairSlivers() {
-    const double limit = s_.sliver_angle_deg * M_PI / 180.0;
     pinned_.assign(pos_.size(), 0);
     rank_.resize(pos_.size(), 0);
     target_.resize(pos_.size());
@@ -1234,12 +1237,33 @@ class Sharpener {
     }
     dead_vertex_.assign(pos_.size(), 0);
     dead_tri_.assign(tris_.size(), 0);
+    std::vector<int> look(tris_.size());
+    for (int t = 0; t < static_cast<int>(tris_.size()); ++t) look[t] = t;
+    tolerance_cells_ = s_.sliver_deviation_cells;
+    look = RepairSweeps(std::move(look));
+    const double fallback = s_.sliver_fallback_deviation_cells;
+    if (look.empty() || !(fallback > s_.sliver_deviation_cells)) return;
+    while (!look.empty() && tolerance_cells_ < fallback) {
+      tolerance_cells_ = std::min(3.0 * std::max(tolerance_cells_, 1e-3), fallback);
+      look = RepairSweeps(std::move(look));
+    }
+    // A crease vertex of a triangle that no operation could mend may move or go: on the
+    // platform those are vertices pinned midway across a face narrower than two cells (whose
+    // planes come from both of its creases) or on a blend smaller than a cell.
+    for (int t : look) {
+      for (int v : tris_[t]) pinned_[v] = 0;
+    }
+    if (!look.empty()) RepairSweeps(std::move(look));
+  }
+
+  // Up to 10 sweeps of RepairTriangle over the triangles of `look` sharper than
+  // sliver_angle_deg, worst first; returns the triangles still sharper (sorted).
+  std::vector<int> RepairSweeps(std::vector<int> look) {
+    const double limit = s_.sliver_angle_deg * M_PI / 180.0;
     std::vector<std::pair<double, int>> bad;
-    // Triangles to look at: all at first, then those of the last sweep's list and those its
-    // operations changed (every other triangle kept its angles, so this finds the same list as
-    // a scan of the whole mesh).
-    std::vector<int> look;
-    for (int t = 0; t < static_cast<int>(tris_.size()); ++t) look.push_back(t);
+    // Triangles to look at: those given at first, then those of the last sweep's list and those
+    // its operations changed (every other triangle kept its angles, so this finds the same list
+    // as a scan of the whole mesh).
     for (int sweep = 0; sweep < 10; ++sweep) {
       Poll();
       std::sort(look.begin(), look.end());
@@ -1257,10 +1281,17 @@ class Sharpener {
         if (dead_tri_[t] || !(TriangleMinAngle(Corners(tris_[t])) < limit)) continue;
         changed += RepairTriangle(t);
       }
-      if (changed == 0) break;
       look = touched_;
       for (const auto& entry : bad) look.push_back(entry.second);
+      if (changed == 0) break;
     }
+    std::vector<int> left;
+    for (int t : look) {
+      if (!dead_tri_[t] && TriangleMinAngle(Corners(tris_[t])) < limit) left.push_back(t);
+    }
+    std::sort(left.begin(), left.end());
+    left.erase(std::unique(left.begin(), left.end()), left.end());
+    return left;
   }
 
   // Drops the vertices and triangles the repair removed and renumbers the rest.
@@ -1343,9 +1374,10 @@ class Sharpener {
   std::vector<int> nearby_;  // scratch of ChangedTrianglesMeetOthers
   std::vector<char> dirty_;  // per triangle: to be tried by the next FlipPass
   int round_stamp_ = 0;
-  std::vector<int> mark_;                         // scratch of MakeCollapse (link condition)
-  std::vector<int> tri_mark_;                     // scratch of NeighbourhoodDeviation
-  std::vector<int> touched_;                      // RepairSlivers: triangles changed in this sweep
+  std::vector<int> mark_;         // scratch of MakeCollapse (link condition)
+  std::vector<int> tri_mark_;     // scratch of NeighbourhoodDeviation
+  double tolerance_cells_ = 0.0;  // RepairSlivers: this stage's deviation tolerance (cells)
+  std::vector<int> touched_;      // RepairSlivers: triangles changed in this sweep
   std::vector<Eigen::Vector3d> scratch_normals_;  // AngleAfter
   int tri_stamp2_ = 0;
   int mark_stamp_ = 0;
@@ -1384,6 +1416,9 @@ void Validate(const FeatureSettings& s) {
     bad("sliver_angle_deg", s.sliver_angle_deg, "must be in [0, 60)");
   if (!(s.sliver_deviation_cells >= 0.0) || !std::isfinite(s.sliver_deviation_cells))
     bad("sliver_deviation_cells", s.sliver_deviation_cells, "must be >= 0");
+  if (!(s.sliver_fallback_deviation_cells >= 0.0) ||
+      !std::isfinite(s.sliver_fallback_deviation_cells))
+    bad("sliver_fallback_deviation_cells", s.sliver_fallback_deviation_cells, "must be >= 0");
 }
 
 }  // namespace

@@ -625,6 +625,7 @@ void RunMesh(const MeshOptions& o) {
     features.cell_size = cell;
     features.cancel = &g_interrupted;
     features.sliver_angle_deg = o.sliver_angle;
+    features.sliver_fallback_deviation_cells = kProductSliverFallbackCells;
     // The lattice leaves no vertex near a box corner to move onto it: insert one there.
     features.insert_corners = lattice;
     surface = SharpenFeatures(compiled, std::move(surface), features, &feature_stats);
@@ -742,8 +743,9 @@ void RegisterMeshCommand(CLI::App& app) {
                 "lattice, which also inserts a vertex at each corner)");
   cmd->add_option("--sliver-angle", options->sliver_angle,
                   "With --sharp: repair the triangles under this angle [deg] that sharpening "
-                  "leaves along creases, by collapses, flips and moves that keep the creases "
-                  "(default 10; 0: off)");
+                  "leaves along creases, by collapses, flips and moves that keep the creases, "
+                  "then those left by the same with up to 0.2 cells more distance to the "
+                  "surface (default 10; 0: off)");
   cmd->add_option("--snap-cells", options->snap_cells,
                   "Clean-up: grid values within this fraction of a cell of zero count as zero, "
                   "so no triangle of a smooth surface is sharper than about 10 deg (in [0, 0.25]; "

@@ -245,6 +245,7 @@ void ReportSurfaceMeshing(ReportContext& ctx) {
       FeatureSettings lattice_features = features;
       lattice_features.insert_corners = true;
       lattice_features.sliver_angle_deg = kProductSliverAngleDeg;
+      lattice_features.sliver_fallback_deviation_cells = kProductSliverFallbackCells;
       TriangleMesh lattice_sharp;
       const double lattice_sharpen_s = MedianSeconds(ctx.Pick(1, 3), [&] {
         lattice_sharp = SharpenFeatures(c.solid, lattice, lattice_features);

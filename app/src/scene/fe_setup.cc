@@ -491,6 +491,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     // The slivers sharpening leaves along creases repaired, as `spidarcad mesh --sharp` does:
     // TetGen's worst dihedral and tet count depend on them (feature_sharpening.h, step 4b).
     fs.sliver_angle_deg = modeling::kProductSliverAngleDeg;
+    fs.sliver_fallback_deviation_cells = modeling::kProductSliverFallbackCells;
     // The lattice leaves no vertex near a box corner to move there (`spidarcad mesh --mesher
     // lattice --sharp`).
     fs.insert_corners = lattice;

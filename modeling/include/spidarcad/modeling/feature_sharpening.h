@@ -46,7 +46,9 @@
 //     the new triangles (the crease point it marked stays covered), moved vertices keep
 //     min_separation_cells, and no changed triangle meets a triangle around it (as in step 3). Of
 //     those that count, the one with the largest smallest angle is done. Collapses remove a vertex
-//     and two triangles.
+//     and two triangles. With sliver_fallback_deviation_cells, the triangles left under
+//     sliver_angle_deg go through the same sweeps again with a looser distance tolerance, and
+//     last with their corners unpinned (see that setting).
 //  5. Then the triangles with an angle below relax_angle_deg: each corner that is not a feature
 //     vertex moves towards the centroid of its neighbours in its tangent plane and back onto the
 //     surface, and the longest edge flips (not a crease edge, the pair within 20° of a plane),
@@ -71,6 +73,11 @@ namespace spidarcad::modeling {
 // edges): on the platform at 4 mm it takes TetGen from 1.09 M tets, 34 s and a worst dihedral of
 // 0.018° to 289 k tets, 3.6 s and 1.41° (docs/design/2026-12-04-surface-mesher-peers.md).
 inline constexpr double kProductSliverAngleDeg = 10.0;
+// The sliver_fallback_deviation_cells the product repairs with, wherever it sets
+// kProductSliverAngleDeg: on the platform at its default cell (`spidarcad mesh --sharp`) it takes
+// the triangles under 10° from 96 to none, the largest sampled distance to the surface from
+// 0.651 to 0.659 mm (docs/design/2026-12-06-sliver-fallback.md).
+inline constexpr double kProductSliverFallbackCells = 0.2;
 
 // Settings of SharpenFeatures.
 struct FeatureSettings {
@@ -113,6 +120,13 @@ struct FeatureSettings {
   // what the triangles it replaces had, what the triangles around them have, and this many
   // cells (>= 0).
   double sliver_deviation_cells = 0.01;
+  // Triangles still sharper than sliver_angle_deg after that repair are repaired again (and
+  // what those repairs change), with sliver_deviation_cells tripled at each stage up to this
+  // many cells, then once more at this many cells with their corners unpinned (0, the default,
+  // or any value not above sliver_deviation_cells: no fallback). It trades distance to the
+  // surface for angles only where the tight repair failed; a mesh the tight repair leaves with
+  // no triangle under sliver_angle_deg comes out the same.
+  double sliver_fallback_deviation_cells = 0.0;
   // Polled between rounds and passes; when true SharpenFeatures throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
 };
