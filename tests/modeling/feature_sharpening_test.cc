@@ -648,6 +648,15 @@ TEST(SharpenFeatures, SliverRepairReachesTenDegreesAndKeepsTheCreases) {
   }
 }
 
+// MeshSurface of solid in bounds at cell h, every other setting at its default.
+TriangleMesh DefaultSurface(const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds,
+                            double h) {
+  SurfaceMeshSettings s;
+  s.bounds = bounds;
+  s.cell_size = h;
+  return MeshSurface(solid, s);
+}
+
 // The sliver repair where the sharpening used to fold or cut through triangles: the union of
 // boxes at an angle on shifted grids (3 to 5 mm) and the platform at 4 and 9 mm (grids as in the
 // two tests above). Closed, manifold, same Euler characteristic, nothing turned over or folded,
@@ -655,10 +664,7 @@ TEST(SharpenFeatures, SliverRepairReachesTenDegreesAndKeepsTheCreases) {
 TEST(SharpenFeatures, SliverRepairPassesTheSurfaceCheckOnShiftedGridsAndThePlatform) {
   auto check = [](const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, double h,
                   const Sdf* sdf, const std::string& what) {
-    SurfaceMeshSettings s;
-    s.bounds = bounds;
-    s.cell_size = h;
-    const TriangleMesh plain = MeshSurface(solid, s);
+    const TriangleMesh plain = DefaultSurface(solid, bounds, h);
     FeatureSettings f;
     f.cell_size = h;
     const double angle1 = MeasureTriangleAngles(SharpenFeatures(solid, plain, f)).min_angle_deg;
@@ -702,15 +708,11 @@ TEST(SharpenFeatures, SliverRepairPassesTheSurfaceCheckOnShiftedGridsAndThePlatf
 // the platform at most a tenth as many) and no smaller angle, the mesh stays closed, of its genus,
 // folded nowhere and free of self-intersection, and its largest sampled distance to the surface
 // stays within the larger of the tight repair's and the fallback tolerance. Where the tight repair
-// leaves none (the box minus the cylinder of the surface benchmark at 3 mm) the mesh comes out the
-// same.
+// leaves none (four of the union's meshes) the mesh comes out the same.
 TEST(SharpenFeatures, SliverFallbackMendsWhatTheTightRepairLeaves) {
   auto run = [](const CompiledSolid& solid, const Eigen::AlignedBox3d& bounds, double h,
                 const std::string& what, double* ratio) {
-    SurfaceMeshSettings s;
-    s.bounds = bounds;
-    s.cell_size = h;
-    const TriangleMesh plain = MeshSurface(solid, s);
+    const TriangleMesh plain = DefaultSurface(solid, bounds, h);
     FeatureSettings f;
     f.cell_size = h;
     f.sliver_angle_deg = kProductSliverAngleDeg;
