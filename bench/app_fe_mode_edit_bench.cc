@@ -16,6 +16,8 @@
 // one-piece fem::StaticSolver factorisation of the new mesh. The time at which the patch's
 // columns are whole (every surface row, which the display waits for) is given too.
 //   edits   load holes r 4 -> 4.5 mm (last slab), bolt holes r 5.5 -> 6 mm (first slab)
+// P2 10 mm in slabs also runs with the panel's "lattice" box ticked (the surface by the lattice
+// route, FeMeshSettings::surface_mesher = "lattice").
 // The sculpt cases (names ending "_sculpt") set up FE on a sculpt of the platform instead: its
 // grid surface at the cell size, snapped as the product meshes (what a sculpt made from the solid
 // holds), meshed in slabs spaced by app::SurfaceSlabSpacing (FeMeshInput::slabs). Their edits are
@@ -235,6 +237,7 @@ void BM_FeModeEdit(benchmark::State& state) {
   const double cell = state.range(1) * 1e-6;
   const bool slabs = state.range(2) != 0;
   const bool sculpt = state.range(3) != 0;
+  const bool lattice = state.range(4) != 0;
   for (auto _ : state) {
     app::SceneModel scene;
     scene.Load(ScenePath(), Eigen::Vector3d::Constant(0.2));
@@ -247,6 +250,7 @@ void BM_FeModeEdit(benchmark::State& state) {
     mode.mesh_in_slabs() = slabs;
     mode.mesh_settings().mesher = "tetgen";
     mode.mesh_settings().cell_size = cell;
+    if (lattice) mode.mesh_settings().surface_mesher = "lattice";  // the panel's "lattice" box
     // The disk cache is off unless SPIDARCAD_BENCH_CACHE_DIR names a directory: then the
     // window's default (slab meshes, slab factors and planes written there by the jobs' own
     // threads while the columns are solved) is measured.
@@ -298,7 +302,7 @@ void BM_FeModeEdit(benchmark::State& state) {
     for (const Edit& e : edits) {
       Row row;
       row.name = "P" + std::to_string(order) + " " + std::to_string(state.range(1) / 1000) + " mm" +
-                 (sculpt ? " sculpt" : "");
+                 (sculpt ? " sculpt" : "") + (lattice ? ", lattice" : "");
       row.edit = e.name;
       row.order = order;
       row.slabs = slabs;
@@ -394,35 +398,37 @@ void PrintTables() {
                   r.planes_factored, r.planes, r.interface_seconds);
 }
 
-// Args: element order, cell (µm), in slabs (1) or one piece (0), the solid (0) or a sculpt (1).
+// Args: element order, cell (µm), in slabs (1) or one piece (0), the solid (0) or a sculpt (1),
+// the surface by marching tetrahedra (0, FE mode's default) or by the lattice (1).
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_6mm")
-    ->Args({1, 6000, 1, 0})
-    ->Args({1, 6000, 0, 0})
+    ->Args({1, 6000, 1, 0, 0})
+    ->Args({1, 6000, 0, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)
     ->Name("P2_10mm")
-    ->Args({2, 10000, 1, 0})
-    ->Args({2, 10000, 0, 0})
+    ->Args({2, 10000, 1, 0, 0})
+    ->Args({2, 10000, 0, 0, 0})
+    ->Args({2, 10000, 1, 0, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_5mm")
-    ->Args({1, 5000, 1, 0})
-    ->Args({1, 5000, 0, 0})
+    ->Args({1, 5000, 1, 0, 0})
+    ->Args({1, 5000, 0, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)
     ->Name("P2_10mm_sculpt")
-    ->Args({2, 10000, 1, 1})
-    ->Args({2, 10000, 0, 1})
+    ->Args({2, 10000, 1, 1, 0})
+    ->Args({2, 10000, 0, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_5mm_sculpt")
-    ->Args({1, 5000, 1, 1})
-    ->Args({1, 5000, 0, 1})
+    ->Args({1, 5000, 1, 1, 0})
+    ->Args({1, 5000, 0, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

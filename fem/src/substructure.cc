@@ -223,14 +223,14 @@ std::vector<int> InteriorNodeOrder(const std::vector<int>& interior,
     const auto first = rows.begin() + colp[a], last = rows.begin() + colp[a + 1];
     std::sort(first, last);
     const int kept = static_cast<int>(std::unique(first, last) - first);
-    std::copy(first, first + kept, rows.begin() + nz);
+    if (nz != colp[a]) std::copy(first, first + kept, rows.begin() + nz);
     colp[a] = nz;
     nz += kept;
   }
   colp[m] = nz;
   cholmod_sparse graph{};
   graph.nrow = graph.ncol = static_cast<std::size_t>(m);
-  graph.nzmax = static_cast<std::size_t>(std::max(nz, 1));
+  graph.nzmax = static_cast<std::size_t>(nz);
   graph.p = colp.data();
   graph.i = rows.data();
   graph.stype = 1;

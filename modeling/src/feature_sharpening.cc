@@ -899,6 +899,15 @@ class Sharpener {
       dead_vertex_[u] = 1;
       vertex_tris_[u].clear();
     }
+    // A released crease vertex that moved is off its crease now (the point it marked stays
+    // covered by the triangles around it).
+    for (const auto& [v, x] : op.moves) {
+      if (Released(v)) {
+        released_[v] = 0;
+        is_feature_[v] = false;
+        rank_[v] = 0;
+      }
+    }
     if (op.new_crease_vertex >= 0) {
       is_feature_[op.new_crease_vertex] = true;
       pinned_[op.new_crease_vertex] = 1;
@@ -1038,7 +1047,7 @@ class Sharpener {
     op->removed = {t1, t2};
     op->removed_vertex = u;
     op->cover_vertex = v;
-    if (pinned_[u]) op->keep_covered.push_back(pos_[u]);
+    if (pinned_[u] || Released(u)) op->keep_covered.push_back(pos_[u]);
     for (int t : vertex_tris_[u]) {
       if (t == t1 || t == t2) continue;
       auto tri = tris_[t];
@@ -1048,6 +1057,7 @@ class Sharpener {
       op->changed.push_back({t, tri});
     }
     if ((x - pos_[v]).squaredNorm() > 0.0) {
+      if (Released(v)) op->keep_covered.push_back(pos_[v]);
       op->moves.push_back({v, x});
       AddFan(v, op);
     }
@@ -1159,6 +1169,10 @@ class Sharpener {
         // t runs c -> p -> q, so it is the triangle of the directed edge p -> q.
         if (have && MakeFlip(p, q, &op, &x)) {
           if (pinned_[p] && pinned_[q]) op.new_crease_vertex = c;
+          if (Released(c)) {
+            op.keep_covered.push_back(pos_[c]);
+            op.cover_vertex = c;
+          }
           consider(op);
         }
       }
@@ -1201,6 +1215,10 @@ class Sharpener {
       op.kind = Op::kMove;
       op.moves.push_back({v, x});
       AddFan(v, &op);
+      if (Released(v)) {
+        op.keep_covered.push_back(pos_[v]);
+        op.cover_vertex = v;
+      }
       consider(op);
     }
     std::stable_sort(ranked.begin(), ranked.end(),
@@ -1237,6 +1255,7 @@ class Sharpener {
     }
     dead_vertex_.assign(pos_.size(), 0);
     dead_tri_.assign(tris_.size(), 0);
+    released_.assign(pos_.size(), 0);
     std::vector<int> look(tris_.size());
     for (int t = 0; t < static_cast<int>(tris_.size()); ++t) look[t] = t;
     tolerance_cells_ = s_.sliver_deviation_cells;
@@ -1247,13 +1266,25 @@ class Sharpener {
       tolerance_cells_ = std::min(3.0 * std::max(tolerance_cells_, 1e-3), fallback);
       look = RepairSweeps(std::move(look));
     }
-    // A crease vertex of a triangle that no operation could mend may move or go: on the
-    // platform those are vertices pinned midway across a face narrower than two cells (whose
-    // planes come from both of its creases) or on a blend smaller than a cell.
+    // A feature vertex of a triangle that no operation could mend is released: it may move or
+    // go, as long as the crease or corner point it marked stays as close to the new triangles as
+    // the bound allows (keep_covered). On the platform those lie on blends smaller than a cell,
+    // whose planes make false corners, or where a crease runs a fraction of a cell from a row of
+    // vertices; keeping the corners pinned left the default cell at 5.8° and 8.2°.
     for (int t : look) {
-      for (int v : tris_[t]) pinned_[v] = 0;
+      for (int v : tris_[t]) {
+        if (pinned_[v]) {
+          pinned_[v] = 0;
+          released_[v] = 1;
+        }
+      }
     }
     if (!look.empty()) RepairSweeps(std::move(look));
+  }
+
+  // Whether the fallback released v from its crease (RepairSlivers).
+  bool Released(int v) const {
+    return static_cast<std::size_t>(v) < released_.size() && released_[v] != 0;
   }
 
   // Up to 10 sweeps of RepairTriangle over the triangles of `look` sharper than
@@ -1382,9 +1413,10 @@ class Sharpener {
   int tri_stamp2_ = 0;
   int mark_stamp_ = 0;
   std::vector<bool> is_feature_;
-  std::vector<int> rank_;                     // per vertex: 2 crease, 3 corner (last round), else 0
-  std::vector<Eigen::Vector3d> target_;       // per feature vertex: its target (last round)
-  std::vector<char> pinned_;                  // per vertex: on its crease or corner (RepairSlivers)
+  std::vector<int> rank_;                // per vertex: 2 crease, 3 corner (last round), else 0
+  std::vector<Eigen::Vector3d> target_;  // per feature vertex: its target (last round)
+  std::vector<char> released_;  // per vertex: unpinned by the fallback's last stage (RepairSlivers)
+  std::vector<char> pinned_;    // per vertex: on its crease or corner (RepairSlivers)
   std::vector<char> dead_vertex_, dead_tri_;  // removed by collapses, until Compact
   long collapses_ = 0, snaps_ = 0, sliver_flips_ = 0, sliver_moves_ = 0;
   std::unordered_map<long long, std::vector<int>> hash_;

@@ -744,7 +744,7 @@ void RegisterMeshCommand(CLI::App& app) {
   cmd->add_option("--sliver-angle", options->sliver_angle,
                   "With --sharp: repair the triangles under this angle [deg] that sharpening "
                   "leaves along creases, by collapses, flips and moves that keep the creases, "
-                  "then those left by the same with up to 0.2 cells more distance to the "
+                  "then those left by the same allowing up to 0.2 cells of distance to the "
                   "surface (default 10; 0: off)");
   cmd->add_option("--snap-cells", options->snap_cells,
                   "Clean-up: grid values within this fraction of a cell of zero count as zero, "

@@ -48,7 +48,7 @@
 //     those that count, the one with the largest smallest angle is done. Collapses remove a vertex
 //     and two triangles. With sliver_fallback_deviation_cells, the triangles left under
 //     sliver_angle_deg go through the same sweeps again with a looser distance tolerance, and
-//     last with their corners unpinned (see that setting).
+//     last with their feature vertices released (see that setting).
 //  5. Then the triangles with an angle below relax_angle_deg: each corner that is not a feature
 //     vertex moves towards the centroid of its neighbours in its tangent plane and back onto the
 //     surface, and the longest edge flips (not a crease edge, the pair within 20° of a plane),
@@ -121,11 +121,13 @@ struct FeatureSettings {
   // cells (>= 0).
   double sliver_deviation_cells = 0.01;
   // Triangles still sharper than sliver_angle_deg after that repair are repaired again (and
-  // what those repairs change), with sliver_deviation_cells tripled at each stage up to this
-  // many cells, then once more at this many cells with their corners unpinned (0, the default,
-  // or any value not above sliver_deviation_cells: no fallback). It trades distance to the
-  // surface for angles only where the tight repair failed; a mesh the tight repair leaves with
-  // no triangle under sliver_angle_deg comes out the same.
+  // what those repairs change), with sliver_deviation_cells (at least 0.001) tripled at each
+  // stage up to this many cells, then once more at this many cells with their feature vertices
+  // released: they may move or go, as long as the crease or corner point each marked stays as
+  // close to the new triangles as the distance bound allows. 0, the default, or any value not
+  // above sliver_deviation_cells: no fallback. It trades distance to
+  // the surface for angles only where the tight repair failed; a mesh the tight repair leaves
+  // with no triangle under sliver_angle_deg comes out the same.
   double sliver_fallback_deviation_cells = 0.0;
   // Polled between rounds and passes; when true SharpenFeatures throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
