@@ -332,19 +332,29 @@ struct SubstructuredSolver::BlockFactor {
     k.makeCompressed();
   }
 
+  // The free local dofs (3·node + axis, ascending) from the flags: those of interior nodes and
+  // (when `interface_dofs` is given) those of interface nodes.
+  void ClassifyDofs(std::vector<int>* interior_dofs, std::vector<int>* interface_dofs) const {
+    interior_dofs->clear();
+    if (interface_dofs) interface_dofs->clear();
+    for (int d = 0; d < 3 * num_nodes(); ++d) {
+      const unsigned char f = flags[d / 3];
+      if (f & (1u << (d % 3))) continue;
+      if (!(f & kInterfaceFlag)) {
+        interior_dofs->push_back(d);
+      } else if (interface_dofs) {
+        interface_dofs->push_back(d);
+      }
+    }
+  }
+
   // From k and the flags: the dof classes, K^b_IΓ, ||K^b_ff||_F², σ, and A_b's lower triangle
   // (interior first, then interface; empty without interior dofs, when *kgg gets K^b_ΓΓ).
   SparseMatrixd Prepare(double* sigma, Eigen::MatrixXd* kgg) {
     // Local dof classes and the A numbering: interior first, then interface.
     const int nd = 3 * num_nodes();
-    interior.clear();
-    interface.clear();
+    ClassifyDofs(&interior, &interface);
     std::vector<int> a_index(nd, -1);
-    for (int d = 0; d < nd; ++d) {
-      const unsigned char f = flags[d / 3];
-      if (f & (1u << (d % 3))) continue;
-      (f & kInterfaceFlag ? interface : interior).push_back(d);
-    }
     const int ni_ = ni(), ng_ = ng();
     for (int i = 0; i < ni_; ++i) a_index[interior[i]] = i;
     for (int g = 0; g < ng_; ++g) a_index[interface[g]] = ni_ + g;
@@ -402,24 +412,15 @@ struct SubstructuredSolver::BlockFactor {
     return l;
   }
 
-  // The free interior dofs (local 3·node + axis, ascending), from the flags.
-  std::vector<int> InteriorDofs() const {
-    std::vector<int> out;
-    for (int d = 0; d < 3 * num_nodes(); ++d) {
-      const unsigned char f = flags[d / 3];
-      if (!(f & (1u << (d % 3))) && !(f & kInterfaceFlag)) out.push_back(d);
-    }
-    return out;
-  }
-
   // Assembles and factors (content already set).
   void Factor() {
     const auto t0 = Clock::now();
     // The fill-reducing order of K_II (InteriorNodeOrder) needs only the connectivity and the
     // flags: a thread of its own computes it while this one assembles.
-    std::vector<int> node_order;
+    std::vector<int> node_order, dofs;
+    ClassifyDofs(&dofs, nullptr);  // the thread's own copy: Prepare rewrites `interior`
     std::exception_ptr order_error;
-    auto order_nodes = [this, &node_order, &order_error, dofs = InteriorDofs()] {
+    auto order_nodes = [this, &node_order, &order_error, &dofs] {
       try {
         node_order = InteriorNodeOrder(dofs, connectivity, npe, num_nodes());
       } catch (...) {

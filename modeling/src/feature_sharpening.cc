@@ -899,8 +899,8 @@ class Sharpener {
       dead_vertex_[u] = 1;
       vertex_tris_[u].clear();
     }
-    // A released crease vertex that moved is off its crease now (the point it marked stays
-    // covered by the triangles around it).
+    // A released feature vertex that moved is off its crease or corner now (the point it
+    // marked stays covered by the triangles around it).
     for (const auto& [v, x] : op.moves) {
       if (Released(v)) {
         released_[v] = 0;
@@ -1243,8 +1243,8 @@ class Sharpener {
   // repaired by RepairTriangle, until a sweep changes nothing (at most 10 sweeps), with the
   // deviation tolerance sliver_deviation_cells. Then, for those that remain, the fallback:
   // the same sweeps over them (and what they change) with the tolerance tripled at each stage up
-  // to sliver_fallback_deviation_cells, and a last stage at that tolerance with their corners
-  // unpinned.
+  // to sliver_fallback_deviation_cells, and a last stage at that tolerance with their feature
+  // vertices released.
   void RepairSlivers() {
     pinned_.assign(pos_.size(), 0);
     rank_.resize(pos_.size(), 0);
@@ -1282,7 +1282,7 @@ class Sharpener {
     if (!look.empty()) RepairSweeps(std::move(look));
   }
 
-  // Whether the fallback released v from its crease (RepairSlivers).
+  // Whether the fallback released v from its crease or corner (RepairSlivers).
   bool Released(int v) const {
     return static_cast<std::size_t>(v) < released_.size() && released_[v] != 0;
   }

@@ -59,7 +59,7 @@ T EvalPrimitive(Op op, const double* c, T x, T y, T z) noexcept {
     case Op::kCone:
       return ConeField(x, y, z, c[0], c[1], c[2]);
     case Op::kExtrusion:
-      return ExtrusionField(x, y, z, c + 2, static_cast<int>(c[1]), c[0]);
+      return ExtrusionField(x, y, z, c + 3, static_cast<int>(c[1]), c[2] > 0.0, c[0]);
     default:
       return EvalBranchFree(op, c, x, y, z);
   }
@@ -157,11 +157,17 @@ class TapeCompiler {
               return Primitive(Op::kHalfSpace, m, {n.x(), n.y(), n.z(), p.offset}, path);
             },
             [&](const ExtrusionParams& p) {
-              std::vector<double> params = {p.height / 2, static_cast<double>(p.profile.size())};
+              // Half height, vertex count, orientation (1 counter-clockwise), the vertices.
+              std::vector<double> params = {p.height / 2, static_cast<double>(p.profile.size()),
+                                            0.0};
               for (const Eigen::Vector2d& v : p.profile) {
                 params.push_back(v.x());
                 params.push_back(v.y());
               }
+              params[2] = internal::PolygonIsCounterClockwise(params.data() + 3,
+                                                              static_cast<int>(p.profile.size()))
+                              ? 1.0
+                              : 0.0;
               return Primitive(Op::kExtrusion, m, params, path);
             },
             [&](const UnionParams&) { return Fold(node, m, path, Op::kMin, -1.0); },

@@ -371,8 +371,10 @@ double EvaluateTree(const ImplicitNode& node, const Eigen::Vector3d& p) {
             return n.dot(p) - q.offset;
           },
           [&](const ExtrusionParams& q) {
-            return ExtrusionField(x, y, z, q.profile.front().data(),
-                                  static_cast<int>(q.profile.size()), q.height / 2);
+            const int n = static_cast<int>(q.profile.size());
+            return ExtrusionField(x, y, z, q.profile.front().data(), n,
+                                  PolygonIsCounterClockwise(q.profile.front().data(), n),
+                                  q.height / 2);
           },
           [&](const UnionParams&) { return EvaluateChildren(node, p); },
           [&](const IntersectionParams&) {

@@ -198,20 +198,28 @@ T ConeField(T x, T y, T z, double r_bottom, double r_top, double hh) noexcept {
   return inside ? -d : d;
 }
 
-// Signed distance in the plane to a simple polygon of n vertices xy[2i], xy[2i+1] (either
-// orientation); negative inside (even-odd rule). Exact distance; on an edge, that of
-// SignedDistanceOnEdge2 (the edge's outward normal for gradient).
+// Whether the polygon of n vertices xy[2i], xy[2i+1] runs counter-clockwise (positive signed
+// area). A constant of the profile: compiled tapes store it with the profile.
+inline bool PolygonIsCounterClockwise(const double* xy, int n) noexcept {
+  double area2 = 0.0;
+  for (int i = 0, j = n - 1; i < n; j = i++)
+    area2 += xy[2 * j] * xy[2 * i + 1] - xy[2 * i] * xy[2 * j + 1];
+  return area2 > 0.0;
+}
+
+// Signed distance in the plane to a simple polygon of n vertices xy[2i], xy[2i+1] running
+// counter-clockwise when `ccw` (PolygonIsCounterClockwise), else clockwise; negative inside
+// (even-odd rule). Exact distance; on an edge, that of SignedDistanceOnEdge2 (the edge's outward
+// normal for gradient).
 template <typename T>
-T PolygonField2(T x, T y, const double* xy, int n) noexcept {
+T PolygonField2(T x, T y, const double* xy, int n, bool ccw) noexcept {
   T best_x{}, best_y{};
   double best = INFINITY;
   int best_edge = -1;
   bool inside = false;
-  double area2 = 0.0;  // twice the signed area: > 0 counter-clockwise
   const double px = ValueOf(x), py = ValueOf(y);
   for (int i = 0, j = n - 1; i < n; j = i++) {
     const double ax = xy[2 * j], ay = xy[2 * j + 1], bx = xy[2 * i], by = xy[2 * i + 1];
-    area2 += ax * by - bx * ay;
     T dx, dy;
     SegmentOffset2(x, y, ax, ay, bx, by, &dx, &dy);
     const double d2 = ValueOf(dx) * ValueOf(dx) + ValueOf(dy) * ValueOf(dy);
@@ -230,18 +238,19 @@ T PolygonField2(T x, T y, const double* xy, int n) noexcept {
   if (best_edge >= 0) {
     const int i = best_edge, j = i == 0 ? n - 1 : i - 1;
     T on_edge;
-    if (SignedDistanceOnEdge2(x, y, xy[2 * j], xy[2 * j + 1], xy[2 * i], xy[2 * i + 1], area2 > 0.0,
-                              best, &on_edge))
+    if (SignedDistanceOnEdge2(x, y, xy[2 * j], xy[2 * j + 1], xy[2 * i], xy[2 * i + 1], ccw, best,
+                              &on_edge))
       return on_edge;
   }
   const T d = Length2(best_x, best_y);
   return inside ? -d : d;
 }
 
-// A planar profile (polygon in local xy) extruded along z over [-hh, hh]. Exact distance.
+// A planar profile (polygon in local xy, counter-clockwise when `ccw`) extruded along z over
+// [-hh, hh]. Exact distance.
 template <typename T>
-T ExtrusionField(T x, T y, T z, const double* xy, int n, double hh) noexcept {
-  const T d2 = PolygonField2(x, y, xy, n);
+T ExtrusionField(T x, T y, T z, const double* xy, int n, bool ccw, double hh) noexcept {
+  const T d2 = PolygonField2(x, y, xy, n, ccw);
   const T dz = Abs(z) - hh;
   return Min(Max(d2, dz), 0.0) + Length2(Max(d2, 0.0), Max(dz, 0.0));
 }
