@@ -5,7 +5,9 @@
 // "edit": what is measured and how). Markdown tables are printed after the run, with the load
 // average.
 // Arguments: order, cell (um), slabs, lattice (1: every surface by the lattice route, the case
-// named "..., lattice").
+// named "..., lattice"), flat fans coarsened, in hundredths of a cell (0: not; 50: the
+// marching-tetrahedra surfaces with SurfaceMeshSettings::flat_coarsen_cells = 0.5, the case
+// named "..., flat 0.5"; docs/design/2026-12-06-flat-faces.md).
 // Run: build/bench/app_fem_substructure_bench   (P2 at 10 mm, P1 at 6 mm, P1 at 5 mm: 105k tets)
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2_10mm/2/10000/4/1
@@ -37,9 +39,11 @@ void BM_EditToForce(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0)), res_um = static_cast<int>(state.range(1));
   const int num_slabs = static_cast<int>(state.range(2));
   const bool lattice = state.range(3) != 0;  // the lattice route's surfaces
+  const double flat_cells = state.range(4) * 0.01;
   app::EditToForceCase row;
   for (auto _ : state)
-    row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs, 4, lattice);
+    row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs, 4, lattice,
+                                  flat_cells);
   state.counters["interface_dofs"] = row.interface;
   state.counters["full_s"] = row.full_wall();
   state.counters["edit1_s"] = row.edits.empty() ? 0.0 : row.edits.front().total_wall;
@@ -54,27 +58,28 @@ void PrintTables() {
 
 BENCHMARK(BM_EditToForce)
     ->Name("P2_10mm")
-    ->Args({2, 10000, 4, 0})
-    ->Args({2, 10000, 6, 0})
-    ->Args({2, 10000, 4, 1})
-    ->Args({2, 10000, 6, 1})
+    ->Args({2, 10000, 4, 0, 0})
+    ->Args({2, 10000, 6, 0, 0})
+    ->Args({2, 10000, 4, 1, 0})
+    ->Args({2, 10000, 4, 0, 50})
+    ->Args({2, 10000, 6, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_EditToForce)
     ->Name("P1_6mm")
-    ->Args({1, 6000, 4, 0})
-    ->Args({1, 6000, 6, 0})
-    ->Args({1, 6000, 4, 1})
-    ->Args({1, 6000, 6, 1})
+    ->Args({1, 6000, 4, 0, 0})
+    ->Args({1, 6000, 6, 0, 0})
+    ->Args({1, 6000, 4, 1, 0})
+    ->Args({1, 6000, 6, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 // The "100k-tet part with linear elements": the platform at 5 mm cells (about 105k tets).
 BENCHMARK(BM_EditToForce)
     ->Name("P1_5mm")
-    ->Args({1, 5000, 4, 0})
-    ->Args({1, 5000, 4, 1})
-    ->Args({1, 5000, 6, 0})
-    ->Args({1, 5000, 6, 1})
+    ->Args({1, 5000, 4, 0, 0})
+    ->Args({1, 5000, 4, 1, 0})
+    ->Args({1, 5000, 6, 0, 0})
+    ->Args({1, 5000, 6, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

@@ -167,6 +167,10 @@ class BrickMap {
   mutable const Brick* last_ = nullptr;
 };
 
+// A fan whose triangles' normals lie within this angle of one another counts as flat (planar but
+// for rounding on the planar faces of CSG solids; no fan of a sphere meshed at r/50 is).
+constexpr double kFlatFanDegrees = 0.01;
+
 // Post-pass of MeshSurface: edge collapses (with the link condition, so a closed manifold
 // stays a closed manifold of the same genus) and edge flips that remove the zero-area, needle
 // and cap triangles marching tetrahedra produces where the surface passes at or near grid
@@ -266,6 +270,42 @@ class Cleaner {
     for (size_t t = 0; t < tris_.size(); ++t) {
       if (alive_[t]) Improve(static_cast<int>(t), short_edge, small_angle_, collapses, flips);
     }
+  }
+
+  // Collapses the edges shorter than `edge` (shortest first in each triangle) where the vertex
+  // that goes has a flat fan: every triangle around it within kFlatFanDegrees of one plane, so
+  // the surface keeps its shape. Collapse's other guards hold as in Run (facing, folds, the 1.5
+  // cell edge bound), with the angle guard on: no fan's worst triangle gets sharper than it was
+  // or than Run's small angle. Returns collapses.
+  long CoarsenFlat(double edge) {
+    const bool angle_guard = angle_guard_;
+    angle_guard_ = true;
+    long done = 0;
+    const double edge2 = edge * edge;
+    for (int pass = 0; pass < 4; ++pass) {
+      long changed = 0;
+      for (size_t t = 0; t < tris_.size(); ++t) {
+        if (!alive_[t]) continue;
+        const auto tri = tris_[t];
+        double len2[3];
+        for (int k = 0; k < 3; ++k) len2[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).squaredNorm();
+        std::array<int, 3> order = {0, 1, 2};
+        std::sort(order.begin(), order.end(),
+                  [&](int i, int j) { return len2[i] < len2[j] || (len2[i] == len2[j] && i < j); });
+        for (int k : order) {
+          if (!(len2[k] < edge2)) break;
+          const int u = tri[k], v = tri[(k + 1) % 3];
+          if ((FlatFan(u) && Collapse(u, v)) || (FlatFan(v) && Collapse(v, u))) {
+            ++changed;
+            break;
+          }
+        }
+      }
+      done += changed;
+      if (changed == 0) break;
+    }
+    angle_guard_ = angle_guard;
+    return done;
   }
 
   // Vertices moved by Relax in Run.
@@ -501,6 +541,23 @@ class Cleaner {
       return std::atan2(u.cross(w).norm(), u.dot(w));
     };
     return std::min({angle(b - a, c - a), angle(a - b, c - b), angle(a - c, b - c)});
+  }
+
+  // Whether every triangle around v has its unit normal within kFlatFanDegrees of the first's.
+  bool FlatFan(int v) const {
+    static const double kCos = std::cos(kFlatFanDegrees * M_PI / 180.0);
+    Eigen::Vector3d first = Eigen::Vector3d::Zero();
+    for (int t : vertex_tris_[v]) {
+      const Eigen::Vector3d n = Normal(tris_[t]);
+      const double len = n.norm();
+      if (!(len > 0.0)) return false;
+      if (first.squaredNorm() == 0.0) {
+        first = n / len;
+      } else if (first.dot(n) < kCos * len) {
+        return false;
+      }
+    }
+    return first.squaredNorm() > 0.0;
   }
 
   // Smallest angle of the live triangles of v (radians; pi for none).
@@ -850,6 +907,10 @@ class Mesher {
     if (!(s.snap_cells >= 0.0 && s.snap_cells <= 0.25))
       throw std::invalid_argument("MeshSurface: settings.snap_cells must be in [0, 0.25], got " +
                                   std::to_string(s.snap_cells));
+    if (!(s.flat_coarsen_cells >= 0.0 && s.flat_coarsen_cells <= 1.0))
+      throw std::invalid_argument(
+          "MeshSurface: settings.flat_coarsen_cells must be in [0, 1], got " +
+          std::to_string(s.flat_coarsen_cells));
     h_ = s.cell_size;
     const Eigen::Vector3d extent = s.bounds.sizes();
     double cells = 1.0;
@@ -876,7 +937,7 @@ class Mesher {
     // Point values through pruned tapes (bit-identical); interval bounds on the full tape.
     const PointField field(solid_, settings_.bounds, h_);
     field_ = &field;
-    long collapses = 0, flips = 0;
+    long collapses = 0, flips = 0, flat_collapses = 0;
     // Snapping (snap_cells > 0) comes with the angle guard, the projection of the snapped
     // vertices and the polish; without it the clean-up is the one measured before 2026-12-04.
     const bool snapping = settings_.clean && settings_.snap_cells > 0.0;
@@ -899,6 +960,12 @@ class Mesher {
         cleaner.ProjectSnapped(inward_);
         cleaner.Polish(settings_.short_edge_fraction * h_, &collapses, &flips);
       }
+      if (settings_.flat_coarsen_cells > 0.0) {
+        flat_collapses = cleaner.CoarsenFlat(settings_.flat_coarsen_cells * h_);
+        collapses += flat_collapses;
+        if (flat_collapses > 0 && snapping)
+          cleaner.Polish(settings_.short_edge_fraction * h_, &collapses, &flips);
+      }
       cleaner.Compact();
       break;
     }
@@ -917,6 +984,7 @@ class Mesher {
       stats->evaluated_cells = evaluated_cells_;
       stats->field_evaluations = evaluations_;
       stats->collapsed_edges = collapses;
+      stats->flat_collapses = flat_collapses;
       stats->flipped_edges = flips;
       stats->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -457,6 +457,15 @@ TEST(FeltStiffness, CommandMeasuresOnEitherSurface) {
   EXPECT_EQ(bad.status, 2) << bad.all();
   EXPECT_NE(bad.all().find("--mesher 'cubes': give lattice or tetrahedra"), std::string::npos)
       << bad.all();
+  // --flat-cells coarsens the marching-tetrahedra surface (2026-12-06): refused outside [0, 1]
+  // and with the lattice, naming the option.
+  for (const std::string args : {"--flat-cells 2", "--flat-cells 0.5 --mesher lattice"}) {
+    const test_support::CommandRun refused =
+        test_support::RunSpidarcad("felt --cells 0.012 " + args, "", "flat_bad");
+    EXPECT_EQ(refused.status, 2) << args << "\n" << refused.all();
+    EXPECT_NE(refused.all().find("--flat-cells"), std::string::npos) << args << "\n"
+                                                                     << refused.all();
+  }
 }
 
 }  // namespace

@@ -182,14 +182,16 @@ std::string Format(const char* format, Args... args) {
 }  // namespace
 
 EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, double cell,
-                                   int num_slabs, int num_edits, bool lattice) {
+                                   int num_slabs, int num_edits, bool lattice, double flat_cells) {
   EditToForceCase row;
   row.name =
       Format("P%d %g mm, %d slabs%s", order, cell * 1000.0, num_slabs, lattice ? ", lattice" : "");
+  if (flat_cells > 0.0) row.name += Format(", flat %g", flat_cells);
   row.order = order;
   row.cell = cell;
   row.num_slabs = num_slabs;
   row.lattice = lattice;
+  row.flat_cells = flat_cells;
   const SceneSolidGrid base = PrepareSceneSolid(scene_path, "platform", cell);
   const fem::MaterialTable steel(kSteel);
   // Today: the whole part meshed in one piece, factored, the patch's columns.
@@ -198,6 +200,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     modeling::SurfaceMeshSettings ss;
     ss.bounds = base.bounds;
     ss.cell_size = cell;
+    ss.flat_coarsen_cells = flat_cells;
     if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
     const modeling::TriangleMesh surface = modeling::MeshSurface(base.compiled, ss);
     modeling::TetMeshSettings ts;
@@ -222,6 +225,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
   const Eigen::AlignedBox3d grid = base.bounds;  // kept for every edit
   SlabMeshOptions fresh_options;
   fresh_options.lattice = lattice;
+  fresh_options.flat_coarsen_cells = flat_cells;
   const std::vector<double> planes = SlabPlanes(grid, cell, num_slabs, fresh_options);
   Timer tf;
   const SlabFeMesh slab_mesh = MeshSolidInSlabs(base.compiled, grid, cell, planes, fresh_options);
@@ -256,6 +260,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     SlabMeshOptions reuse;
     reuse.previous = &slab_mesh;
     reuse.lattice = lattice;
+    reuse.flat_coarsen_cells = flat_cells;
     const SlabFeMesh m = MeshSolidInSlabs(changed.compiled, grid, cell, planes, reuse);
     const fem::TetMesh mesh1 = order == 2 ? fem::MakeQuadratic(m.mesh) : m.mesh;
     const fem::BoundaryConditions bcs1 = Conditions(mesh1);

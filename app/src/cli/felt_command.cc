@@ -37,6 +37,7 @@ struct FeltOptions {
   std::string plot;
   std::string from_csv;
   std::string mesher = "tetrahedra";
+  double flat_cells = 0.0;  // --flat-cells
 };
 
 // Samples from a CSV written by --csv (header line first).
@@ -140,6 +141,15 @@ void RunFelt(const FeltOptions& o) {
   s.coupling_stiffness = o.coupling;
   s.force_scale = o.force_scale;
   s.lattice = LatticeMesherOption(o.mesher, "tetrahedra");
+  if (!(o.flat_cells >= 0.0 && o.flat_cells <= 1.0))
+    throw InputError(
+        "--flat-cells: give a fraction of the cell in [0, 1] (0, the default, turns "
+        "it off)");
+  if (o.flat_cells > 0.0 && s.lattice)
+    throw InputError(
+        "--flat-cells coarsens the marching-tetrahedra surface: drop one of "
+        "--flat-cells and --mesher lattice");
+  s.flat_cells = o.flat_cells;
   std::ofstream csv;
   if (!o.from_csv.empty()) {
     // Plot (and summarise) a finished or interrupted run: its cells and orders.
@@ -297,6 +307,9 @@ void RegisterFeltCommand(CLI::App& app) {
                   "NAME,X,Y,Z[,DX,DY,DZ]: probe point (m) and push direction (default down)");
   cmd->add_option("--mesher", o->mesher,
                   "Surface of the solid: tetrahedra (default; as FE mode) or lattice");
+  cmd->add_option("--flat-cells", o->flat_cells,
+                  "Tetrahedra surface: collapse edges shorter than this fraction of a cell in "
+                  "flat fans before TetGen (in [0, 1]; default 0: off, as FE mode)");
   cmd->add_option("--tool-radius", o->tool_radius, "Tool radius, m (default 0.01)");
   cmd->add_option("--coupling", o->coupling, "Virtual coupling k_c, N/m (default 1500)");
   cmd->add_option("--force-scale", o->force_scale, "Force scale sigma (default 1e-4)");

@@ -69,6 +69,7 @@ struct FemOptions {
   int slabs = 0;              // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
   std::string mesher;         // --mesher: a scene solid's surface, "lattice" or "tetrahedra" ("")
   bool lattice = false;       // --mesher lattice (checked and set before RunFem)
+  double flat_cells = 0.0;    // --flat-cells: SurfaceMeshSettings::flat_coarsen_cells
   std::string cache_dir;      // --cache-dir: slab meshes and block factors kept between runs
   double cache_max_gb = 4.0;  // --cache-max-gb: the directory's bound (least recently used out)
   // Which options were given (a document's FE model supplies the others).
@@ -132,6 +133,7 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
     slab_options.max_radius_edge = options.max_radius_edge;
     slab_options.cache_directory = options.cache_dir;
     slab_options.lattice = options.lattice;
+    slab_options.flat_coarsen_cells = options.flat_cells;
     slabs =
         MeshSolidInSlabs(grid.compiled, grid.bounds, cell,
                          SlabPlanes(grid.bounds, cell, options.slabs, slab_options), slab_options);
@@ -166,6 +168,7 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
                           {"min_dihedral_deg", min_dihedral},
                           {"per_slab", per_slab}};
   if (!slabs.cache_notes.empty()) (*report)["meshing"]["cache_notes"] = slabs.cache_notes;
+  if (options.flat_cells > 0.0) (*report)["meshing"]["flat_cells"] = options.flat_cells;
   *slab = slabs.slab;
   return std::move(slabs.mesh);
 }
@@ -181,6 +184,7 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
   modeling::SurfaceMeshSettings surface_settings;
   surface_settings.bounds = grid.bounds;
   surface_settings.cell_size = cell;
+  surface_settings.flat_coarsen_cells = options.flat_cells;
   if (options.lattice) surface_settings.mesher = modeling::SurfaceMesher::kLattice;
   modeling::SurfaceMeshStats surface_stats;
   const modeling::TriangleMesh surface =
@@ -203,6 +207,10 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
                           {"tetgen_seconds", tet_stats.tetgen_seconds},
                           {"tetgen_switches", tet_stats.switches},
                           {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg}};
+  if (options.flat_cells > 0.0) {
+    (*report)["meshing"]["flat_cells"] = options.flat_cells;
+    (*report)["meshing"]["flat_collapses"] = surface_stats.flat_collapses;
+  }
   return ToFemMesh(tets);
 }
 
@@ -471,9 +479,12 @@ void RunFem(const FemOptions& options) {
         "--cache-dir keeps slab meshes and slab factors between runs: it needs "
         "--slabs N (N >= 1; without --slabs it is 4), not --slabs 0");
   }
-  if (!options.mesher.empty() && EndsWith(options.input, ".vtu"))
-    throw InputError("--mesher makes the surface of a scene solid; " + options.input +
-                     " holds tetrahedra already: drop --mesher");
+  // --mesher and --flat-cells shape the surface of a scene solid, and nothing else.
+  const bool surface_option_given = !options.mesher.empty() || options.flat_cells > 0.0;
+  const std::string surface_option = !options.mesher.empty() ? "--mesher" : "--flat-cells";
+  if (surface_option_given && EndsWith(options.input, ".vtu"))
+    throw InputError(surface_option + " shapes the surface of a scene solid; " + options.input +
+                     " holds tetrahedra already: drop " + surface_option);
   if (!(options.resolution > 0.0) || !std::isfinite(options.resolution)) {
     throw InputError("--resolution: must be a finite length > 0 m, got " +
                      FormatNumber(options.resolution));
@@ -501,9 +512,10 @@ void RunFem(const FemOptions& options) {
       report["object"] = {{"name", object.name}, {"kind", ObjectKindName(object.data)}};
     if (std::holds_alternative<SolidData>(object.data)) {
       mesh = MeshScene(options, opened, object.name, option, &element_slab, &report);
-    } else if (!options.mesher.empty()) {
-      throw InputError("--mesher makes the surface of a solid; " + object.name + " in " +
-                       options.input + " is " + ObjectKindName(object.data) + ": drop --mesher");
+    } else if (surface_option_given) {
+      throw InputError(surface_option + " shapes the surface of a solid; " + object.name + " in " +
+                       options.input + " is " + ObjectKindName(object.data) + ": drop " +
+                       surface_option);
     } else if (const auto* f = std::get_if<FeModelData>(&object.data)) {
       fe = f;
       fe_name = object.name;
@@ -518,9 +530,9 @@ void RunFem(const FemOptions& options) {
       mesh =
           MeshSurfaceObject(options, object.name, *std::get<SculptData>(object.data).mesh, &report);
     }
-  } else if (!options.mesher.empty()) {
-    throw InputError("--mesher makes the surface of a scene solid; " + options.input +
-                     " is a mesh file: drop --mesher");
+  } else if (surface_option_given) {
+    throw InputError(surface_option + " shapes the surface of a scene solid; " + options.input +
+                     " is a mesh file: drop " + surface_option);
   } else if (IsTriangleMeshFile(options.input)) {
     mesh = MeshTriangleFile(options, &report);
   } else {
@@ -1007,8 +1019,14 @@ void RegisterFemCommand(CLI::App& app) {
                   "first solid, mesh or sculpt)");
   cmd->add_option("--mesher", options->mesher,
                   "Scene solid: surface route, tetrahedra (the default: marching tetrahedra on the "
-                  "grid) or lattice (fewer, better-shaped triangles: fewer tets, a smaller "
-                  "interface between slabs, faster edits)");
+                  "grid) or lattice (better-shaped triangles; on the platform at 10 mm fewer tets "
+                  "and faster edits, at most other cells more tets)");
+  cmd->add_option("--flat-cells", options->flat_cells,
+                  "Scene solid, marching tetrahedra: collapse the surface's edges shorter than "
+                  "this fraction of a cell in flat fans before TetGen, so flat faces get as few "
+                  "triangles wherever the grid crosses them (in [0, 1]; default 0: off; 0.5 "
+                  "halves the platform's P2 nodes at 10 mm, but P1 locks more in bending)")
+      ->type_name("F");
   cmd->add_option("--slabs", options->slabs,
                   "Solve in N slabs across x: each factored on its own and condensed onto the "
                   "planes between them (a scene solid is meshed slab by slab). Default 0 (one "
@@ -1028,6 +1046,13 @@ void RegisterFemCommand(CLI::App& app) {
     FemOptions resolved = *options;
     if (cmd->count("--slabs") == 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
     resolved.lattice = LatticeMesherOption(resolved.mesher, "tetrahedra");
+    if (!(resolved.flat_cells >= 0.0 && resolved.flat_cells <= 1.0))
+      throw InputError("--flat-cells " + FormatNumber(resolved.flat_cells) +
+                       ": give a fraction of the cell in [0, 1] (0, the default, turns it off)");
+    if (resolved.flat_cells > 0.0 && resolved.lattice)
+      throw InputError(
+          "--flat-cells coarsens the marching-tetrahedra surface; the lattice surface has no "
+          "clean-up pass: drop one of --flat-cells and --mesher lattice");
     RunFem(resolved);
   });
 }

@@ -56,6 +56,9 @@ struct MeshOptions {
   // --snap-cells (fraction of the cell; 0: off): the clean-up's snap band.
   double snap_cells = kProductSnapCells;
   bool snap_cells_given = false;  // on the command line
+  // --flat-cells (fraction of the cell; 0: off): the clean-up's flat-fan coarsening.
+  double flat_cells = 0.0;
+  bool flat_cells_given = false;  // on the command line
   // --mesher: "lattice", "tetrahedra", or "" (lattice unless an option of the other route is
   // given: --sharp, --raw-surface, --snap-cells).
   std::string mesher;
@@ -69,8 +72,10 @@ struct MeshOptions {
 };
 
 // Whether an option that only the marching-tetrahedra route has is given (--raw-surface,
-// --snap-cells).
-bool TetrahedraOptionsGiven(const MeshOptions& o) { return o.raw_surface || o.snap_cells_given; }
+// --snap-cells, --flat-cells).
+bool TetrahedraOptionsGiven(const MeshOptions& o) {
+  return o.raw_surface || o.snap_cells_given || o.flat_cells_given;
+}
 // Whether the surface is meshed by the lattice route: --mesher lattice, or no --mesher, no
 // option of the other route and no --sharp (which sharpens the marching-tetrahedra surface
 // unless --mesher lattice asks for the lattice one).
@@ -272,14 +277,17 @@ constexpr const char* kMeshHelp =
     "moved onto the surface, so no needle is ever made and no clean-up is needed; regions the\n"
     "interval bounds place away from the surface are not sampled. Closed and manifold; smooth\n"
     "surfaces keep every angle above about 15 deg; sharp edges are cut off by up to about R/2.\n"
-    "Surface (--mesher tetrahedra, the default with --sharp, --raw-surface or --snap-cells):\n"
+    "Surface (--mesher tetrahedra, the default with --sharp, --raw-surface, --snap-cells or\n"
+    "--flat-cells):\n"
     "marching tetrahedra on the grid's cubes, then a clean-up pass (edge collapses and flips);\n"
     "it snaps grid values within --snap-cells S cells of zero (default 0.2) to zero, so smooth\n"
     "surfaces get no triangle under about 10 deg; --snap-cells 0 gives the mesh of before\n"
-    "2026-12-05. --sharp then moves vertices onto creases and corners. --mesher lattice --sharp\n"
-    "sharpens the lattice surface instead, putting a new vertex on each corner no vertex could\n"
-    "reach: on boxes and holes it halves the error of the other route in less time, but it\n"
-    "leaves concave creases at general angles cut by up to R/2 (docs/cli.md).\n"
+    "2026-12-05. --flat-cells F (default 0: off) then collapses edges under F cells in flat\n"
+    "fans, so a flat face has as few triangles wherever the grid crosses it (fewer tets for\n"
+    "TetGen; `spidarcad fem` takes it too). --sharp then moves vertices onto creases and corners.\n"
+    "--mesher lattice --sharp sharpens the lattice surface instead, putting a new vertex on each\n"
+    "corner no vertex could reach: on boxes and holes it halves the error of the other route in\n"
+    "less time, but it leaves concave creases at general angles cut by up to R/2 (docs/cli.md).\n"
     "Volume (--tets tetgen): TetGen 1.5 tetrahedralizes that surface; --quality Q bounds the\n"
     "radius-edge ratio (TetGen's q switch, > 1; 0 turns refinement off), --max-volume V bounds\n"
     "the tet volume in m^3 (TetGen's a switch).\n"
@@ -418,11 +426,11 @@ void RunMeshFile(const MeshOptions& o, const std::string& ext, Progress* progres
     throw InputError("--tets cgal meshes an implicit solid from its function; the mesh file '" +
                      o.scene + "' can be tetrahedralized with --tets tetgen");
   }
-  if (o.resolution != 0.0 || o.sharp || o.raw_surface || o.snap_cells_given || !o.solid.empty() ||
+  if (o.resolution != 0.0 || o.sharp || TetrahedraOptionsGiven(o) || !o.solid.empty() ||
       !o.mesher.empty() || o.lattice_snap_given) {
     throw InputError(
-        "--resolution, --mesher, --sharp, --raw-surface, --snap-cells, --lattice-snap and --solid "
-        "apply to scene files; the mesh file '" +
+        "--resolution, --mesher, --sharp, --raw-surface, --snap-cells, --flat-cells, "
+        "--lattice-snap and --solid apply to scene files; the mesh file '" +
         o.scene + "' is used as it is (drop them)");
   }
   if (!(o.weld >= 0.0 && o.weld < 0.1)) {
@@ -503,6 +511,14 @@ void RunMesh(const MeshOptions& o) {
                      Fmt(kProductSnapCells) + "; 0 turns snapping off)");
   if (o.snap_cells_given && o.raw_surface)
     throw InputError("--snap-cells is part of the clean-up pass: drop --raw-surface");
+  if (!(o.flat_cells >= 0.0 && o.flat_cells <= 1.0))
+    throw InputError("--flat-cells " + Fmt(o.flat_cells) +
+                     ": give a fraction of the cell in [0, 1] (0, the default, turns it off)");
+  if (o.flat_cells_given && o.raw_surface)
+    throw InputError("--flat-cells is part of the clean-up pass: drop --raw-surface");
+  if (o.flat_cells_given && o.tets == "cgal")
+    throw InputError(
+        "--flat-cells applies to the marching-tetrahedra surface; --tets cgal does not use one");
   if (o.snap_cells_given && o.tets == "cgal")
     throw InputError(
         "--snap-cells applies to the marching-tetrahedra surface; --tets cgal does "
@@ -510,8 +526,8 @@ void RunMesh(const MeshOptions& o) {
   LatticeMesherOption(o.mesher, "lattice");
   if (o.mesher == "lattice" && TetrahedraOptionsGiven(o)) {
     throw InputError(
-        "--raw-surface and --snap-cells belong to --mesher tetrahedra (the lattice surface has "
-        "no clean-up pass): drop them or use --mesher tetrahedra");
+        "--raw-surface, --snap-cells and --flat-cells belong to --mesher tetrahedra (the lattice "
+        "surface has no clean-up pass): drop them or use --mesher tetrahedra");
   }
   if (o.lattice_snap_given && !LatticeRoute(o))
     throw InputError("--lattice-snap applies to --mesher lattice");
@@ -595,6 +611,7 @@ void RunMesh(const MeshOptions& o) {
   settings.cell_size = cell;
   settings.clean = !o.raw_surface;
   settings.snap_cells = o.snap_cells;  // without the clean-up (--raw-surface) nothing is snapped
+  settings.flat_coarsen_cells = o.flat_cells;
   const bool lattice = LatticeRoute(o);
   if (lattice) {
     settings.mesher = SurfaceMesher::kLattice;
@@ -646,7 +663,11 @@ void RunMesh(const MeshOptions& o) {
               << stats.field_evaluations << " field evaluations\n";
   } else if (!o.raw_surface) {
     std::cout << "clean-up: " << stats.collapsed_edges << " edge collapses, " << stats.flipped_edges
-              << " flips, snap " << Fmt(settings.snap_cells) << " cells\n";
+              << " flips, snap " << Fmt(settings.snap_cells) << " cells";
+    if (o.flat_cells > 0.0)
+      std::cout << ", " << stats.flat_collapses << " collapses in flat fans (edges under "
+                << Fmt(o.flat_cells) << " cells)";
+    std::cout << "\n";
   }
   if (o.sharp) {
     std::cout << "sharpen: " << feature_stats.feature_vertices << " feature vertices ("
@@ -750,10 +771,15 @@ void RegisterMeshCommand(CLI::App& app) {
                   "Clean-up: grid values within this fraction of a cell of zero count as zero, "
                   "so no triangle of a smooth surface is sharper than about 10 deg (in [0, 0.25]; "
                   "default 0.2; 0: off, the mesh of before 2026-12-05)");
+  cmd->add_option("--flat-cells", options->flat_cells,
+                  "Clean-up, last: collapse the edges shorter than this fraction of a cell whose "
+                  "vertex lies in a flat fan, so flat faces get as few triangles wherever the "
+                  "grid crosses them (in [0, 1]; default 0: off; 0.5 evens the platform's triangle "
+                  "counts across cells)");
   cmd->add_option("--mesher", options->mesher,
                   "Surface route: lattice (default; no clean-up, fast) or tetrahedra (marching "
-                  "tetrahedra and a clean-up pass; the default with --sharp, --raw-surface or "
-                  "--snap-cells)");
+                  "tetrahedra and a clean-up pass; the default with --sharp, --raw-surface, "
+                  "--snap-cells or --flat-cells)");
   cmd->add_option("--lattice-snap", options->lattice_snap,
                   "Lattice: a lattice vertex whose nearest crossing lies within this fraction of "
                   "its edge moves onto the surface (in [0, 0.45]; default 0.35; 0: none moves)");
@@ -772,6 +798,7 @@ void RegisterMeshCommand(CLI::App& app) {
   cmd->callback([options, cmd]() {
     options->sliver_angle_given = cmd->count("--sliver-angle") > 0;
     options->snap_cells_given = cmd->count("--snap-cells") > 0;
+    options->flat_cells_given = cmd->count("--flat-cells") > 0;
     options->lattice_snap_given = cmd->count("--lattice-snap") > 0;
     try {
       RunMesh(*options);

@@ -408,7 +408,8 @@ std::vector<int> MinXFaceNodes(const fem::TetMesh& mesh, double tolerance) {
 
 fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,
                                  double resolution, const std::atomic<bool>* cancel,
-                                 const std::function<void(double)>& progress, bool lattice) {
+                                 const std::function<void(double)>& progress, bool lattice,
+                                 double flat_cells) {
   const auto check = [&] {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw FeModelCancelled();
   };
@@ -418,6 +419,7 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
   modeling::SurfaceMeshSettings ss;
   ss.bounds = grid.bounds;
   ss.cell_size = grid.cell;
+  ss.flat_coarsen_cells = flat_cells;
   if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   const modeling::TriangleMesh surface = modeling::MeshSurface(grid.compiled, ss);
   if (progress) progress(0.3);

@@ -286,13 +286,14 @@ std::vector<int> MinXFaceNodes(const fem::TetMesh& mesh, double tolerance = -1.0
 
 // Meshes solid `solid_name` (empty: the first) of a scene file for FE: surface on a grid of
 // `resolution` m (modeling::MeshSurface; by the lattice route with `lattice`, else marching
-// tetrahedra), then TetGen (quality bound 2), linear tetrahedra in W. Polls `cancel` between
-// stages (throws FeModelCancelled) and reports progress in [0, 1]. Throws InputError naming the
-// file or solid on bad input, modeling's errors on meshing failure.
+// tetrahedra with modeling::SurfaceMeshSettings::flat_coarsen_cells = `flat_cells`), then TetGen
+// (quality bound 2), linear tetrahedra in W. Polls `cancel` between stages (throws
+// FeModelCancelled) and reports progress in [0, 1]. Throws InputError naming the file or solid on
+// bad input, modeling's errors on meshing failure.
 fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::string& solid_name,
                                  double resolution, const std::atomic<bool>* cancel = nullptr,
                                  const std::function<void(double)>& progress = {},
-                                 bool lattice = false);
+                                 bool lattice = false, double flat_cells = 0.0);
 
 // assets/scenes/platform.json of the source tree (the demo part of FE mode):
 // $SPIDARCAD_PLATFORM_SCENE when set, else found from this source file's location, else relative to

@@ -145,8 +145,8 @@ std::vector<FeltSample> MeasureFeltStiffness(
   const std::string scene = settings.scene_path.empty() ? PlatformScenePath() : settings.scene_path;
   std::vector<FeltSample> samples;
   for (double h : settings.cells) {
-    const fem::TetMesh mesh =
-        MeshSceneSolidForFe(scene, settings.solid, h, nullptr, {}, settings.lattice);
+    const fem::TetMesh mesh = MeshSceneSolidForFe(scene, settings.solid, h, nullptr, {},
+                                                  settings.lattice, settings.flat_cells);
     for (int order : settings.orders) {
       FeModelSettings ms;
       ms.order = order;

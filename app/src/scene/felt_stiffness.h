@@ -94,6 +94,7 @@ struct FeltSweepSettings {
   double coupling_stiffness = 1500.0;  // k_c, N/m (kDefaultFeCoupling)
   double force_scale = 1e-4;           // σ (kDefaultFeForceScale)
   bool lattice = false;                // surfaces by the lattice route (else marching tetrahedra)
+  double flat_cells = 0.0;             // SurfaceMeshSettings::flat_coarsen_cells (not lattice)
 };
 
 // Meshes the solid at each cell size (MeshSceneSolidForFe), builds a steel FE model of each

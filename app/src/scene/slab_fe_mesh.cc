@@ -178,6 +178,7 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
   ss.bounds = grid_bounds;
   ss.cell_size = cell;
   ss.snap_cells = options.snap_cells;
+  ss.flat_coarsen_cells = options.flat_coarsen_cells;
   if (options.lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   ss.cancel = options.cancel;
   if (options.progress) ss.progress = [&options](double f) { options.progress(0.3 * f); };

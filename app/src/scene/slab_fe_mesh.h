@@ -65,6 +65,9 @@ struct SlabMeshOptions {
   // modeling::SurfaceMeshSettings::snap_cells of the surface (0: not snapped; the window uses
   // modeling::kProductSnapCells).
   double snap_cells = 0.0;
+  // modeling::SurfaceMeshSettings::flat_coarsen_cells of the surface (0: off; `spidarcad fem
+  // --flat-cells`).
+  double flat_coarsen_cells = 0.0;
   // The surface by the lattice route (modeling::SurfaceMesher::kLattice; snap_cells unused)
   // instead of marching tetrahedra: fewer, better-shaped triangles, so fewer tetrahedra (the
   // platform at 10 mm in 4 slabs: 15,669 against 24,905) and a smaller interface. Its planes
