@@ -65,6 +65,14 @@ BENCHMARK(BM_EditToForce)
     ->Args({2, 10000, 6, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
+// The default surface at cells next to 10 mm, where the grid cuts the plate's faces with needles
+// and the clean-up coarsens them (docs/design/2026-12-06-flat-faces.md).
+BENCHMARK(BM_EditToForce)
+    ->Name("P2_near10mm")
+    ->Args({2, 9000, 4, 0, 0})
+    ->Args({2, 10200, 4, 0, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
 BENCHMARK(BM_EditToForce)
     ->Name("P1_6mm")
     ->Args({1, 6000, 4, 0, 0})
