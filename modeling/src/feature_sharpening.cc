@@ -1057,7 +1057,7 @@ class Sharpener {
       op->changed.push_back({t, tri});
     }
     if ((x - pos_[v]).squaredNorm() > 0.0) {
-      if (Released(v)) op->keep_covered.push_back(pos_[v]);
+      KeepCoveredIfReleased(v, op);
       op->moves.push_back({v, x});
       AddFan(v, op);
     }
@@ -1169,10 +1169,7 @@ class Sharpener {
         // t runs c -> p -> q, so it is the triangle of the directed edge p -> q.
         if (have && MakeFlip(p, q, &op, &x)) {
           if (pinned_[p] && pinned_[q]) op.new_crease_vertex = c;
-          if (Released(c)) {
-            op.keep_covered.push_back(pos_[c]);
-            op.cover_vertex = c;
-          }
+          KeepCoveredIfReleased(c, &op);
           consider(op);
         }
       }
@@ -1215,10 +1212,7 @@ class Sharpener {
       op.kind = Op::kMove;
       op.moves.push_back({v, x});
       AddFan(v, &op);
-      if (Released(v)) {
-        op.keep_covered.push_back(pos_[v]);
-        op.cover_vertex = v;
-      }
+      KeepCoveredIfReleased(v, &op);
       consider(op);
     }
     std::stable_sort(ranked.begin(), ranked.end(),
@@ -1285,6 +1279,14 @@ class Sharpener {
   // Whether the fallback released v from its crease or corner (RepairSlivers).
   bool Released(int v) const {
     return static_cast<std::size_t>(v) < released_.size() && released_[v] != 0;
+  }
+
+  // When v is released and `op` moves it or its triangles: the point v marks must stay covered
+  // by the triangles around v after `op`.
+  void KeepCoveredIfReleased(int v, Op* op) const {
+    if (!Released(v)) return;
+    op->keep_covered.push_back(pos_[v]);
+    op->cover_vertex = v;
   }
 
   // Up to 10 sweeps of RepairTriangle over the triangles of `look` sharper than

@@ -171,6 +171,15 @@ class BrickMap {
 // for rounding on the planar faces of CSG solids; no fan of a sphere meshed at r/50 is).
 constexpr double kFlatFanDegrees = 0.01;
 
+// A triangle's edges k = 0, 1, 2 ordered by `len` (lengths or squared lengths), shortest first,
+// ties by k.
+std::array<int, 3> EdgesShortestFirst(const double (&len)[3]) {
+  std::array<int, 3> order = {0, 1, 2};
+  std::sort(order.begin(), order.end(),
+            [&](int i, int j) { return len[i] < len[j] || (len[i] == len[j] && i < j); });
+  return order;
+}
+
 // Post-pass of MeshSurface: edge collapses (with the link condition, so a closed manifold
 // stays a closed manifold of the same genus) and edge flips that remove the zero-area, needle
 // and cap triangles marching tetrahedra produces where the surface passes at or near grid
@@ -289,10 +298,7 @@ class Cleaner {
         const auto tri = tris_[t];
         double len2[3];
         for (int k = 0; k < 3; ++k) len2[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).squaredNorm();
-        std::array<int, 3> order = {0, 1, 2};
-        std::sort(order.begin(), order.end(),
-                  [&](int i, int j) { return len2[i] < len2[j] || (len2[i] == len2[j] && i < j); });
-        for (int k : order) {
+        for (int k : EdgesShortestFirst(len2)) {
           if (!(len2[k] < edge2)) break;
           const int u = tri[k], v = tri[(k + 1) % 3];
           if ((FlatFan(u) && Collapse(u, v)) || (FlatFan(v) && Collapse(v, u))) {
@@ -834,10 +840,7 @@ class Cleaner {
       // Every short edge, shortest first: in a zero-area triangle all three edges are equally
       // short, and the first may fail the link condition where another passes (a fan of three
       // coincident triangles around a vertex of degree 3: only the spokes can go).
-      std::array<int, 3> order = {shortest, (shortest + 1) % 3, (shortest + 2) % 3};
-      std::sort(order.begin(), order.end(),
-                [&](int i, int j) { return len[i] < len[j] || (len[i] == len[j] && i < j); });
-      for (int k : order) {
+      for (int k : EdgesShortestFirst(len)) {
         if (k != shortest && !(len[k] < short_edge)) break;
         const int u = tri[k], v = tri[(k + 1) % 3];
         if (Collapse(u, v) || Collapse(v, u)) {

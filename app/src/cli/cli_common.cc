@@ -84,6 +84,16 @@ bool LatticeMesherOption(const std::string& mesher, const char* default_route) {
   return mesher == "lattice";
 }
 
+void CheckFlatCellsOption(double flat_cells, bool lattice) {
+  if (!(flat_cells >= 0.0 && flat_cells <= 1.0))
+    throw InputError("--flat-cells " + FormatNumber(flat_cells) +
+                     ": give a fraction of the cell in [0, 1] (0, the default, turns it off)");
+  if (flat_cells > 0.0 && lattice)
+    throw InputError(
+        "--flat-cells coarsens the marching-tetrahedra surface; the lattice surface has no "
+        "clean-up pass: drop one of --flat-cells and --mesher lattice");
+}
+
 void ValidateGeometry(const haptics::SpidarGeometry& geometry) {
   try {
     geometry.Validate();

@@ -42,4 +42,9 @@ void ValidateGeometry(const haptics::SpidarGeometry& geometry);
 // value and the two choices for anything else.
 bool LatticeMesherOption(const std::string& mesher, const char* default_route);
 
+// Checks a --flat-cells value (modeling::SurfaceMeshSettings::flat_coarsen_cells): in [0, 1],
+// and 0 with the lattice route (`lattice`), which has no clean-up pass. Throws InputError naming
+// the option and how to fix it.
+void CheckFlatCellsOption(double flat_cells, bool lattice);
+
 }  // namespace spidarcad::app

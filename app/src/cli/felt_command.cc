@@ -141,14 +141,7 @@ void RunFelt(const FeltOptions& o) {
   s.coupling_stiffness = o.coupling;
   s.force_scale = o.force_scale;
   s.lattice = LatticeMesherOption(o.mesher, "tetrahedra");
-  if (!(o.flat_cells >= 0.0 && o.flat_cells <= 1.0))
-    throw InputError(
-        "--flat-cells: give a fraction of the cell in [0, 1] (0, the default, turns "
-        "it off)");
-  if (o.flat_cells > 0.0 && s.lattice)
-    throw InputError(
-        "--flat-cells coarsens the marching-tetrahedra surface: drop one of "
-        "--flat-cells and --mesher lattice");
+  CheckFlatCellsOption(o.flat_cells, s.lattice);
   s.flat_cells = o.flat_cells;
   std::ofstream csv;
   if (!o.from_csv.empty()) {

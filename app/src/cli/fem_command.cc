@@ -1046,13 +1046,7 @@ void RegisterFemCommand(CLI::App& app) {
     FemOptions resolved = *options;
     if (cmd->count("--slabs") == 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
     resolved.lattice = LatticeMesherOption(resolved.mesher, "tetrahedra");
-    if (!(resolved.flat_cells >= 0.0 && resolved.flat_cells <= 1.0))
-      throw InputError("--flat-cells " + FormatNumber(resolved.flat_cells) +
-                       ": give a fraction of the cell in [0, 1] (0, the default, turns it off)");
-    if (resolved.flat_cells > 0.0 && resolved.lattice)
-      throw InputError(
-          "--flat-cells coarsens the marching-tetrahedra surface; the lattice surface has no "
-          "clean-up pass: drop one of --flat-cells and --mesher lattice");
+    CheckFlatCellsOption(resolved.flat_cells, resolved.lattice);
     RunFem(resolved);
   });
 }

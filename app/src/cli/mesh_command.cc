@@ -511,9 +511,7 @@ void RunMesh(const MeshOptions& o) {
                      Fmt(kProductSnapCells) + "; 0 turns snapping off)");
   if (o.snap_cells_given && o.raw_surface)
     throw InputError("--snap-cells is part of the clean-up pass: drop --raw-surface");
-  if (!(o.flat_cells >= 0.0 && o.flat_cells <= 1.0))
-    throw InputError("--flat-cells " + Fmt(o.flat_cells) +
-                     ": give a fraction of the cell in [0, 1] (0, the default, turns it off)");
+  CheckFlatCellsOption(o.flat_cells, o.mesher == "lattice");
   if (o.flat_cells_given && o.raw_surface)
     throw InputError("--flat-cells is part of the clean-up pass: drop --raw-surface");
   if (o.flat_cells_given && o.tets == "cgal")
