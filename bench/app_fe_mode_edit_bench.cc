@@ -16,8 +16,11 @@
 // one-piece fem::StaticSolver factorisation of the new mesh. The time at which the patch's
 // columns are whole (every surface row, which the display waits for) is given too.
 //   edits   load holes r 4 -> 4.5 mm (last slab), bolt holes r 5.5 -> 6 mm (first slab)
-// P2 10 mm in slabs also runs with the panel's "lattice" box ticked (the surface by the lattice
-// route, FeMeshSettings::surface_mesher = "lattice").
+// The element order is chosen before set-up, as the panel offers it: the P2 cases' solid is
+// meshed with its flat faces coarsened (MeshSettings::flat_cells = kQuadraticFlatCells, as FE
+// mode meshes a solid for quadratic elements). P2 10 mm in slabs also runs with the panel's
+// "lattice" box ticked (the surface by the lattice route, MeshSettings::surface_mesher =
+// "lattice"; no flat-face coarsening).
 // The sculpt cases (names ending "_sculpt") set up FE on a sculpt of the platform instead: its
 // grid surface at the cell size, snapped as the product meshes (what a sculpt made from the solid
 // holds), meshed in slabs spaced by app::SurfaceSlabSpacing (FeMeshInput::slabs). Their edits are
@@ -260,9 +263,11 @@ void BM_FeModeEdit(benchmark::State& state) {
     const app::Document& doc = scene.document();
     const app::ObjectId platform = doc.FindByName(sculpt ? "platform clay" : "platform")->id;
     mode.SyncDocument(&scene, 0);
+    // The order chosen before set-up, as the panel offers it: a solid's flat faces are meshed
+    // for it (coarser for quadratic elements, FlatCellsForOrder).
+    mode.model_settings().order = order;
     if (!mode.StartSetUp(&scene, platform, false, false)) throw std::runtime_error(mode.status());
     Frames(&mode, &scene, &jobs, [&] { return mode.bound_object() != 0; });
-    if (order == 2) mode.EditElementOrder(&scene, 2);
     mode.RequestModel();
     mode.SetActive(true);
     Frames(&mode, &scene, &jobs, [&] { return mode.model() != nullptr; });

@@ -602,6 +602,7 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
     m.settings.surface_mesher = surface_mesher;
     if (mesher == "tetgen" && surface_mesher.empty())
       m.settings.slab_planes = {-0.0251, 0.0003, 0.025};
+    if (mesher.empty()) m.settings.flat_cells = 0.37;  // FE mode's quadratic elements
     doc.Execute(edit::AddObject("tets " + mesher + surface_mesher, m));
   }
   const std::string path = dir + "/doc.json";
@@ -617,6 +618,7 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
     EXPECT_EQ(m.settings.sharp_edges, expected_sharp[i]) << i;
     EXPECT_EQ(m.settings.surface_mesher, i == 3 ? "lattice" : "") << i;
     EXPECT_EQ(m.settings.cell_size, 0.01);
+    EXPECT_EQ(m.settings.flat_cells, i == 2 ? 0.37 : 0.0) << i;
     EXPECT_EQ(m.settings.slab_planes,
               (i == 1 ? std::vector<double>{-0.0251, 0.0003, 0.025} : std::vector<double>{}))
         << i;  // bit for bit
@@ -655,6 +657,19 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
       {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
        "\"settings\": {\"cell_size\": 0.01, \"surface_mesher\": \"lattice\"}}",
        "/objects/1/generate", "store the mesh"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"flat_cells\": 2}}",
+       "/objects/1/settings/flat_cells", "in [0, 1]"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"flat_cells\": \"half\"}}",
+       "/objects/1/settings/flat_cells", "expected a number"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"surface_mesher\": \"lattice\", "
+       "\"flat_cells\": 0.5}}",
+       "/objects/1/settings/flat_cells", "marching-tetrahedra surface"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"flat_cells\": 0.5}}",
+       "/objects/1/generate", "settings/flat_cells"},
   };
   for (const auto& c : bad) {
     WriteText(path, "{\n\"format\": \"spidarcad-scene\",\n\"version\": 2,\n\"objects\": [\n" +

@@ -953,6 +953,60 @@ TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
   EXPECT_FALSE(fe.stale()) << "the solid is as it was meshed again";
 }
 
+// Quadratic elements chosen before set-up: the FE model has them and the solid's flat faces are
+// meshed coarser (kQuadraticFlatCells). Switching the model to linear elements meshes it again
+// with the flat faces fine (a second undo step, about twice the tets); undoing that refresh
+// leaves a mesh that does not fit the order, and the panel's button meshes it again.
+TEST(FeModeWindow, QuadraticSetUpCoarsensFlatFacesAndTheOrderSwitchMeshesAgain) {
+  if (!HaveDisplay()) GTEST_SKIP() << "no X display: run under xvfb-run";
+  const test_support::WindowScratch scratch("fe_window_order");
+  test_support::ScopedEnv cache("SPIDARCAD_CACHE_DIR", (scratch.dir / "cache").string().c_str());
+  AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
+  SceneModel& model = window.model();
+  const Document& doc = model.document();
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  ASSERT_NE(fe_mode, nullptr);
+  FeMode& fe = fe_mode->fe();
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < 3; ++k) window.Frame();
+  const ObjectId platform = doc.FindByName("platform")->id;
+  fe.mesh_settings().cell_size = 0.01;
+  fe.model_settings().order = 2;
+  const std::size_t steps = doc.history().undo_size();
+  ASSERT_TRUE(fe.StartSetUp(&model, platform, false, false)) << fe.status();
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.bound_object() != 0; })) << fe.status();
+  EXPECT_EQ(doc.history().undo_size(), steps + 1);
+  EXPECT_EQ(FeDataOf(doc, fe.bound_object()).element_order, 2);
+  const ObjectId mesh_id = FeDataOf(doc, fe.bound_object()).tet_mesh;
+  auto mesh = [&]() -> const MeshData& { return std::get<MeshData>(doc.Get(mesh_id).data); };
+  EXPECT_EQ(mesh().settings.flat_cells, kQuadraticFlatCells);
+  EXPECT_EQ(mesh().settings.slab_planes.size(), static_cast<std::size_t>(kFeSlabs - 1));
+  EXPECT_TRUE(fe.MeshFitsOrder(doc));
+  const long quadratic_tets = static_cast<long>(mesh().volume->tets.cols());
+
+  ASSERT_TRUE(fe.EditElementOrder(&model, 1)) << fe.status();
+  EXPECT_FALSE(fe.MeshFitsOrder(doc)) << "until the refresh lands";
+  ASSERT_TRUE(FramesUntil(window, [&] { return mesh().settings.flat_cells == 0.0; }))
+      << fe.status();
+  EXPECT_EQ(doc.history().undo_size(), steps + 3) << "the order and the refresh";
+  EXPECT_EQ(doc.history().UndoDescription(), "Refresh platform mesh");
+  EXPECT_EQ(FeDataOf(doc, fe.bound_object()).element_order, 1);
+  EXPECT_TRUE(fe.MeshFitsOrder(doc));
+  const long linear_tets = static_cast<long>(mesh().volume->tets.cols());
+  std::printf("platform at 10 mm in slabs: %ld tets for quadratic elements, %ld for linear\n",
+              quadratic_tets, linear_tets);
+  EXPECT_GT(linear_tets, 3 * quadratic_tets / 2);
+
+  ASSERT_TRUE(window.tree().Undo());  // the refresh
+  for (int k = 0; k < 5; ++k) window.Frame();
+  EXPECT_EQ(mesh().settings.flat_cells, kQuadraticFlatCells);
+  EXPECT_FALSE(fe.MeshFitsOrder(doc));
+  EXPECT_EQ(doc.history().redo_size(), 1u) << "not meshed again by itself";
+  ASSERT_TRUE(fe.StartRefresh(&model)) << fe.status();  // the panel's "Re-mesh for this order"
+  ASSERT_TRUE(FramesUntil(window, [&] { return fe.MeshFitsOrder(doc); })) << fe.status();
+  EXPECT_EQ(static_cast<long>(mesh().volume->tets.cols()), linear_tets);
+}
+
 // The response of a model in slabs to unit forces at the three surface nodes nearest the
 // platform's free corner equals that of a one-piece factorisation of the same mesh.
 void ExpectFreeCornerSolvedAsOnePiece(const FeModel& after) {

@@ -269,6 +269,105 @@ TEST(FeSetUp, LatticeSurfaceIsTheLatticeRoutesInOnePieceOrInSlabs) {
   }
 }
 
+// MeshSettings::flat_cells (FE mode's quadratic elements): the marching-tetrahedra surface with
+// its flat fans coarsened, as MeshSurface makes it with flat_coarsen_cells, in one piece or in
+// slabs; fewer triangles and tets on a box off the grid, the same volume. FlatCellsForOrder picks
+// it for quadratic elements on a solid's plain TetGen surface only; PrepareFeMesh refuses it
+// elsewhere and out of range.
+TEST(FeSetUp, FlatCellsCoarsenASolidsFlatFacesForQuadraticElements) {
+  Document doc;
+  modeling::ImplicitNode box(modeling::TranslateParams{Eigen::Vector3d(0.0013, -0.0021, 0.0007)});
+  box.children.push_back(
+      modeling::ImplicitNode(modeling::BoxParams{Eigen::Vector3d(0.1, 0.08, 0.06)}));
+  doc.Execute(edit::AddSolid("block", box));
+  const ObjectId block = doc.last_created().front();
+  const MeshSettings plain = Cell(0.007);
+  EXPECT_EQ(FlatCellsForOrder(FeSourceKind::kSolid, plain, 2), kQuadraticFlatCells);
+  EXPECT_EQ(FlatCellsForOrder(FeSourceKind::kSolid, plain, 1), 0.0);
+  EXPECT_EQ(FlatCellsForOrder(FeSourceKind::kSculpt, plain, 2), 0.0);
+  EXPECT_EQ(FlatCellsForOrder(FeSourceKind::kSurfaceMesh, plain, 2), 0.0);
+  for (const auto& [mesher, sharp, surface_mesher] :
+       std::vector<std::tuple<std::string, bool, std::string>>{
+           {"cgal", false, ""}, {"tetgen", true, ""}, {"tetgen", false, "lattice"}}) {
+    MeshSettings other = Cell(0.007, mesher);
+    other.sharp_edges = sharp;
+    other.surface_mesher = surface_mesher;
+    EXPECT_EQ(FlatCellsForOrder(FeSourceKind::kSolid, other, 2), 0.0) << mesher << surface_mesher;
+  }
+
+  MeshSettings flat = plain;
+  flat.flat_cells = kQuadraticFlatCells;
+  const FeMeshResult fine = MeshFeSource(PrepareFeMesh(doc, block, plain));
+  FeMeshInput input = PrepareFeMesh(doc, block, flat);
+  const FeMeshResult coarse = MeshFeSource(input);
+  ASSERT_TRUE(fine.volume && coarse.volume && coarse.surface);
+  EXPECT_EQ(coarse.settings.flat_cells, kQuadraticFlatCells);
+  // The surface MeshSurface makes with the coarsening, on the FE box, snapped as FE mode snaps.
+  double cell = 0.007;
+  modeling::CompiledSolid compiled;
+  modeling::SurfaceMeshSettings direct;
+  direct.bounds = FeSolidBounds(box, "block", &cell, &compiled);
+  direct.cell_size = cell;
+  direct.snap_cells = modeling::kProductSnapCells;
+  direct.flat_coarsen_cells = kQuadraticFlatCells;
+  const modeling::TriangleMesh expected = modeling::MeshSurface(compiled, direct);
+  EXPECT_EQ(coarse.surface->vertices, expected.vertices);
+  EXPECT_EQ(coarse.surface->triangles, expected.triangles);
+  EXPECT_LT(coarse.surface->triangles.cols(), 0.8 * fine.surface->triangles.cols());
+  EXPECT_LT(coarse.volume->tets.cols(), fine.volume->tets.cols());
+  const double v_fine = TetVolume(*fine.volume);
+  EXPECT_NEAR(TetVolume(*coarse.volume), v_fine, 1e-6 * v_fine);
+  std::printf("block at 7 mm: %ld -> %ld triangles, %ld -> %ld tets with flat faces coarsened\n",
+              static_cast<long>(fine.surface->triangles.cols()),
+              static_cast<long>(coarse.surface->triangles.cols()),
+              static_cast<long>(fine.volume->tets.cols()),
+              static_cast<long>(coarse.volume->tets.cols()));
+
+  // In slabs: the same coarsening; meshed again from the first, every slab is kept.
+  input.slabs = kFeSlabs;
+  const FeMeshResult slabs = MeshFeSource(input);
+  ASSERT_NE(slabs.slabs, nullptr) << slabs.slab_note;
+  EXPECT_NEAR(TetVolume(*slabs.volume), v_fine, 1e-6 * v_fine);
+  FeMeshInput fine_slabs = PrepareFeMesh(doc, block, plain);
+  fine_slabs.slabs = kFeSlabs;
+  EXPECT_LT(slabs.volume->tets.cols(), MeshFeSource(fine_slabs).volume->tets.cols());
+  input.previous_slabs = slabs.slabs;
+  EXPECT_EQ(MeshFeSource(input).slabs->num_remeshed(), 0);
+  // Set up with quadratic elements: the FE model has them, the mesh keeps the setting.
+  input.element_order = 2;
+  doc.Execute(SetUpFe(input, slabs));
+  const auto& md = std::get<MeshData>(doc.Get(doc.last_created()[0]).data);
+  EXPECT_EQ(md.settings.flat_cells, kQuadraticFlatCells);
+  EXPECT_EQ(std::get<FeModelData>(doc.Get(doc.last_created()[1]).data).element_order, 2);
+  const FeMeshInput again = PrepareFeRemesh(doc, doc.last_created()[0]);
+  EXPECT_EQ(again.settings.flat_cells, kQuadraticFlatCells);
+
+  // Refused: out of [0, 1], with the lattice or CGAL, for a surface source.
+  doc.Execute(edit::AddSculpt("clay", SphereSurface(0.04, 0.01)));
+  const ObjectId clay = doc.last_created().front();
+  struct Bad {
+    ObjectId source;
+    double flat;
+    std::string mesher, surface_mesher, needle;
+  };
+  for (const Bad& c : std::vector<Bad>{{block, 1.5, "tetgen", "", "expected [0, 1]"},
+                                       {block, -0.1, "tetgen", "", "expected [0, 1]"},
+                                       {block, 0.5, "tetgen", "lattice", "the lattice"},
+                                       {block, 0.5, "cgal", "", "CGAL"},
+                                       {clay, 0.5, "", "", "for a surface"}}) {
+    MeshSettings bad = Cell(0.007, c.mesher);
+    bad.surface_mesher = c.surface_mesher;
+    bad.flat_cells = c.flat;
+    try {
+      PrepareFeMesh(doc, c.source, bad);
+      ADD_FAILURE() << "flat cells " << c.flat << " accepted with " << c.mesher << " "
+                    << c.surface_mesher;
+    } catch (const DocumentError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.needle), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(FeSetUp, CgalMeshesTheSolidFromItsFunction) {
   constexpr double kR = 0.05;
   BallDoc f(kR);

@@ -536,11 +536,16 @@ std::unique_ptr<Command> ImportMesh(const std::string& path, std::string name) {
 
 std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
                                     const fem::Material& material,
-                                    std::vector<Eigen::AlignedBox3d> fixed_boxes) {
+                                    std::vector<Eigen::AlignedBox3d> fixed_boxes,
+                                    int element_order) {
+  if (element_order != 1 && element_order != 2)
+    throw DocumentError("add FE model " + name + ": element order " +
+                        std::to_string(element_order) + " (expected 1 or 2)");
   DocObject o;
   o.name = name;
   FeModelData model;
   model.tet_mesh = tet_mesh;
+  model.element_order = element_order;
   model.material = material;
   model.fixed_boxes = std::move(fixed_boxes);
   o.data = std::move(model);

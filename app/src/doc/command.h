@@ -138,10 +138,12 @@ std::unique_ptr<Command> AddMesh(std::string name, ObjectId source, std::uint64_
 // (doc/mesh_import.h). The file is read here, before the document is touched: a bad file throws
 // InputError naming the file, line or byte and field, and no command is made.
 std::unique_ptr<Command> ImportMesh(const std::string& path, std::string name = {});
-// Adds an FE model of the volume mesh held by mesh object tet_mesh.
+// Adds an FE model of the volume mesh held by mesh object tet_mesh, with elements of
+// `element_order` (1 linear, 2 quadratic).
 std::unique_ptr<Command> AddFeModel(std::string name, ObjectId tet_mesh,
                                     const fem::Material& material,
-                                    std::vector<Eigen::AlignedBox3d> fixed_boxes);
+                                    std::vector<Eigen::AlignedBox3d> fixed_boxes,
+                                    int element_order = 1);
 // Adds a sculpt object holding a copy of mesh.
 std::unique_ptr<Command> AddSculpt(std::string name, SculptMesh mesh);
 // Deletes an object; deleting a mesh also deletes the FE models built on it (one undo step).

@@ -233,6 +233,8 @@ nlohmann::json Document::ToJson(bool with_revisions) const {
               if (m.settings.sharp_edges) j["settings"].push_back("sharp_edges");
               if (!m.settings.surface_mesher.empty())
                 j["settings"].push_back(m.settings.surface_mesher);
+              if (m.settings.flat_cells != 0.0)
+                j["settings"].push_back({{"flat_cells", m.settings.flat_cells}});
               j["import_source"] = m.import_source;
               if (m.surface) {
                 j["surface"] = {{"vertices", MatrixJson(m.surface->vertices)},

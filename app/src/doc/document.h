@@ -74,6 +74,11 @@ struct MeshSettings {
   // Surface mesher: "" (marching tetrahedra on the grid, with its clean-up) or "lattice" (the
   // lattice route of `spidarcad mesh`, modeling::SurfaceMesher::kLattice; solids only).
   std::string surface_mesher = {};
+  // Marching tetrahedra's flat faces coarsened: edges shorter than flat_cells × cell_size
+  // collapsed where the surface is planar (modeling::SurfaceMeshSettings::flat_coarsen_cells,
+  // in [0, 1]; 0: off). FE mode sets it for quadratic elements (kQuadraticFlatCells,
+  // scene/fe_setup.h). Solids meshed by TetGen on the marching-tetrahedra surface only.
+  double flat_cells = 0.0;
   // The planes x = slab_planes[k] (m, increasing) the tetrahedra were meshed in slabs between (FE
   // mode); empty: in one piece. FE mode factors such a mesh slab by slab (fem::SlabBlocks).
   std::vector<double> slab_planes = {};

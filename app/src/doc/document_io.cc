@@ -424,7 +424,7 @@ Content ContentFromJson(const json& j) {
         RequireObject(s, sp);
         RejectUnknown(s, sp,
                       {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges",
-                       "surface_mesher", "slab_planes"});
+                       "surface_mesher", "flat_cells", "slab_planes"});
         m.settings.cell_size = NonNegative(s, sp, "cell_size", 0.0);
         m.settings.max_tet_volume = NonNegative(s, sp, "max_tet_volume", 0.0);
         m.settings.max_radius_edge = NonNegative(s, sp, "max_radius_edge", 0.0);
@@ -444,6 +444,17 @@ Content ContentFromJson(const json& j) {
             Fail(sp + "/surface_mesher", "expected \"lattice\" (or no key: marching tetrahedra)");
           if (m.settings.mesher == "cgal")
             Fail(sp + "/surface_mesher", "CGAL meshes from the solid and uses no surface");
+        }
+        if (s.contains("flat_cells")) {
+          const std::string fp = sp + "/flat_cells";
+          m.settings.flat_cells = Number(s.at("flat_cells"), fp);
+          if (!(m.settings.flat_cells >= 0.0 && m.settings.flat_cells <= 1.0))
+            Fail(fp, "expected a number of cells in [0, 1] (0: flat faces not coarsened)");
+          if (m.settings.flat_cells > 0.0 &&
+              (m.settings.mesher == "cgal" || !m.settings.surface_mesher.empty()))
+            Fail(fp,
+                 "flat faces are coarsened on the marching-tetrahedra surface TetGen uses: drop "
+                 "it, or settings/mesher \"cgal\" and settings/surface_mesher");
         }
         if (s.contains("slab_planes")) {
           const json& planes = s.at("slab_planes");
@@ -473,11 +484,11 @@ Content ContentFromJson(const json& j) {
         if (!(m.settings.cell_size > 0))
           Fail(p + "/settings/cell_size", "a generated mesh needs a cell size > 0");
         if (m.settings.mesher == "cgal" || m.settings.sharp_edges ||
-            !m.settings.surface_mesher.empty())
+            !m.settings.surface_mesher.empty() || m.settings.flat_cells != 0.0)
           Fail(p + "/generate",
                "\"generate\" meshes with TetGen on the plain grid surface: drop settings/mesher "
-               "\"cgal\", settings/sharp_edges and settings/surface_mesher, or store the mesh "
-               "(surface, volume)");
+               "\"cgal\", settings/sharp_edges, settings/surface_mesher and "
+               "settings/flat_cells, or store the mesh (surface, volume)");
         up_to_date[i] = true;
       } else if (!m.surface && !m.volume) {
         Fail(p, "a mesh object needs \"surface\", \"volume\" or \"generate\"");
@@ -684,6 +695,7 @@ json ObjectJson(const Document& doc, const DocObject& o) {
     if (m->settings.sharp_edges) j["settings"]["sharp_edges"] = true;
     if (!m->settings.surface_mesher.empty())
       j["settings"]["surface_mesher"] = m->settings.surface_mesher;
+    if (m->settings.flat_cells != 0.0) j["settings"]["flat_cells"] = m->settings.flat_cells;
     if (!m->settings.slab_planes.empty()) j["settings"]["slab_planes"] = m->settings.slab_planes;
     if (!m->import_source.empty()) j["import_source"] = m->import_source;
     if (m->surface) j["surface"] = SurfaceJson(*m->surface);

@@ -691,9 +691,10 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
     if (precompute && bound_ == fe) RequestModel();
     return true;
   }
+  const int order = model_settings_.order == 2 ? 2 : 1;
   if (kind == FeSourceKind::kVolumeMesh) {
     precompute_on_bind_ = precompute;
-    if (!Execute(model, SetUpFeOnMesh(doc, source))) return false;
+    if (!Execute(model, SetUpFeOnMesh(doc, source, order))) return false;
     SyncDocument(model, last_selected_);
     return true;
   }
@@ -704,6 +705,8 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
   FeMeshInput input;
   try {
     input = PrepareFeMesh(doc, source, mesh_settings_);
+    input.element_order = order;
+    input.settings.flat_cells = FlatCellsForOrder(input.kind, input.settings, order);
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
       input.cache_directory = SlabCacheDirectory();
@@ -768,6 +771,9 @@ bool FeMode::StartRefresh(SceneModel* model) {
     return false;
   try {
     FeMeshInput input = PrepareFeRemesh(model->document(), bound_key_.mesh);
+    // The mesh follows the FE model's element order (flat faces coarsened for quadratic).
+    input.settings.flat_cells =
+        FlatCellsForOrder(input.kind, input.settings, BoundElementOrder(model->document()));
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
       input.previous_slabs = SlabsOf(model->document(), bound_key_.mesh);
@@ -844,7 +850,26 @@ bool FeMode::EditFixedBoxes(SceneModel* model, std::vector<Eigen::AlignedBox3d> 
 
 bool FeMode::EditElementOrder(SceneModel* model, int order) {
   if (model == nullptr || bound_ == 0) return false;
-  return Execute(model, edit::SetElementOrder(bound_, order));
+  if (!Execute(model, edit::SetElementOrder(bound_, order))) return false;
+  // A solid's mesh made for the other order is meshed again for this one (flat faces coarsened
+  // for quadratic elements, kept for linear ones): a second undo step. With a job running, the
+  // panel offers the Refresh instead.
+  if (!MeshFitsOrder(model->document()) && RunningJob() == nullptr) StartRefresh(model);
+  return true;
+}
+
+int FeMode::BoundElementOrder(const Document& doc) const {
+  const DocObject* fe = doc.Find(bound_);
+  const auto* data = fe != nullptr ? std::get_if<FeModelData>(&fe->data) : nullptr;
+  return data != nullptr ? data->element_order : model_settings_.order;
+}
+
+bool FeMode::MeshFitsOrder(const Document& doc) const {
+  const DocObject* mesh = doc.Find(bound_key_.mesh);
+  const auto* m = mesh != nullptr ? std::get_if<MeshData>(&mesh->data) : nullptr;
+  if (m == nullptr || m->source == 0 || doc.Find(m->source) == nullptr) return true;
+  const FeSourceKind kind = ClassifyFeSource(doc, m->source);
+  return m->settings.flat_cells == FlatCellsForOrder(kind, m->settings, BoundElementOrder(doc));
 }
 
 void FeMode::DrawDocumentPanel(SceneModel* model) {
@@ -897,6 +922,16 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
     } else if (kind != FeSourceKind::kVolumeMesh) {
       ImGui::TextDisabled("TetGen meshes its closed surface.");
     }
+    ImGui::TextUnformatted("Elements");
+    ImGui::SameLine();
+    if (ImGui::RadioButton("linear##setup", model_settings_.order != 2)) model_settings_.order = 1;
+    ImGui::SameLine();
+    if (ImGui::RadioButton("quadratic##setup", model_settings_.order == 2))
+      model_settings_.order = 2;
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "10-node tets: no locking in bending. A solid's flat faces are meshed coarser for "
+          "them (about a cell), so edits and precomputes are faster");
     if (busy) ImGui::BeginDisabled();
     const std::string label = "Set up FE for " + source.name;
     if (ImGui::Button(label.c_str())) {
@@ -925,6 +960,15 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
       if (busy || src == nullptr) ImGui::BeginDisabled();
       if (ImGui::Button("Refresh")) StartRefresh(model);
       if (busy || src == nullptr) ImGui::EndDisabled();
+    }
+    if (!stale_ && !MeshFitsOrder(doc)) {
+      ImGui::TextColored(ImVec4(0.9f, 0.55f, 0.1f, 1.0f),
+                         BoundElementOrder(doc) == 2
+                             ? "the mesh was made for linear elements (flat faces fine)"
+                             : "the mesh was made for quadratic elements (flat faces coarse)");
+      if (busy) ImGui::BeginDisabled();
+      if (ImGui::Button("Re-mesh for this order")) StartRefresh(model);
+      if (busy) ImGui::EndDisabled();
     }
     ImGui::Checkbox("refresh on edit", &refresh_on_edit_);
     if (const auto slabs = SlabsOf(doc, bound_key_.mesh)) {

@@ -128,7 +128,9 @@ class FeMode {
   // Sets up FE for object `source` (FeSourceKind): an FE model is chosen as it is; a volume mesh
   // gets an FE model at once (one command); a solid, sculpt or closed surface mesh is meshed with
   // mesh_settings() in a Job whose finisher executes SetUpFe (a source changed meanwhile drops
-  // the result). With `check_budget`, a solid meshed by TetGen is first estimated in a Job
+  // the result). The new FE model has model_settings().order's elements; a solid's flat faces
+  // are meshed for that order (FlatCellsForOrder). With `check_budget`, a solid meshed by TetGen is
+  // first estimated in a Job
   // ("Estimate the mesh of NAME", phase "box": its box search takes seconds for a long tape;
   // cancellable, nothing changes then); when it lands, a cost within `spidarcad mesh`'s default
   // budget starts the mesh Job, a cost past it is not started: pending_setup() then says why
@@ -140,12 +142,18 @@ class FeMode {
   const std::string& pending_setup() const { return pending_text_; }
   // Answers it: Proceed starts the Job, Cancel drops it.
   void ConfirmSetUp(SceneModel* model, bool proceed);
-  // Meshes the bound FE model's mesh again from its source with its stored settings (a Job whose
-  // finisher executes RefreshFeMesh). False when there is nothing to refresh.
+  // Meshes the bound FE model's mesh again from its source with its stored settings, flat faces
+  // as its element order wants them (FlatCellsForOrder; a Job whose finisher executes
+  // RefreshFeMesh). False when there is nothing to refresh.
   bool StartRefresh(SceneModel* model);
+  // Whether the bound model's mesh was made for its element order: a solid's mesh by TetGen on
+  // the marching-tetrahedra surface has MeshSettings::flat_cells == FlatCellsForOrder (true for
+  // every other mesh, and with nothing bound).
+  bool MeshFitsOrder(const Document& doc) const;
   // Sets the bound FE model's material (a command; `dragging` merges with the previous drag
   // step), its clamp (empty: the minimum-x face) or its element order. False (status() says why)
-  // when there is no bound model or the document refused the edit.
+  // when there is no bound model or the document refused the edit. A new order whose mesh no
+  // longer fits it (MeshFitsOrder) starts a refresh when no job is running.
   bool EditMaterial(SceneModel* model, const fem::Material& material, bool dragging = false);
   bool EditFixedBoxes(SceneModel* model, std::vector<Eigen::AlignedBox3d> boxes);
   bool EditElementOrder(SceneModel* model, int order);
@@ -167,6 +175,8 @@ class FeMode {
   // The slab mesh mesh object `mesh` holds now, when this mode made it in slabs (null: in one
   // piece, made elsewhere, or forgotten: the mode remembers kKeptModels of them).
   std::shared_ptr<const SlabFeMesh> SlabsOf(const Document& doc, ObjectId mesh) const;
+  // The bound FE model's element order (model_settings().order with nothing bound).
+  int BoundElementOrder(const Document& doc) const;
   // Where set-up and refresh keep slab meshes (FeMeshInput::cache_directory): the model
   // settings' disk cache directory when the disk cache is on, else none.
   std::filesystem::path SlabCacheDirectory() const;

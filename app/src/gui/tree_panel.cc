@@ -680,12 +680,15 @@ void DrawObjectProperties(TreeController* tree, const DocObject& object) {
     const DocObject* source = doc.Find(m->source);
     const MeshSettings& s = m->settings;
     char line[240];
-    std::snprintf(line, sizeof line, "made from '%s': %s, cell %.1f mm%s%s%s",
+    char flat[48] = "";
+    if (s.flat_cells > 0.0)
+      std::snprintf(flat, sizeof flat, ", flat faces coarsened (%.2g cells)", s.flat_cells);
+    std::snprintf(line, sizeof line, "made from '%s': %s, cell %.1f mm%s%s%s%s",
                   source != nullptr ? source->name.c_str() : "(deleted)",
                   m->volume ? "tetrahedra" : "surface", 1e3 * s.cell_size,
                   s.surface_mesher == "lattice" ? ", lattice" : "",
                   m->volume ? (s.mesher == "cgal" ? ", CGAL" : ", TetGen") : "",
-                  s.sharp_edges ? ", sharp edges" : "");
+                  s.sharp_edges ? ", sharp edges" : "", flat);
     ImGui::PushTextWrapPos(ImGui::GetContentRegionMax().x);
     ImGui::TextDisabled("%s", line);
     ImGui::PopTextWrapPos();

@@ -63,6 +63,17 @@ void CheckSettings(const DocObject& o, const MeshSettings& s, FeSourceKind kind,
                                                       : "CGAL does not use a surface") +
                         " (drop the lattice surface)");
   }
+  if (!(s.flat_cells >= 0.0 && s.flat_cells <= 1.0)) {
+    throw DocumentError(what + " " + Quoted(o) + ": flat faces coarsened below " +
+                        std::to_string(s.flat_cells) + " cells; expected [0, 1] (0: off)");
+  }
+  if (s.flat_cells > 0.0 &&
+      (kind != FeSourceKind::kSolid || s.mesher == "cgal" || !s.surface_mesher.empty())) {
+    throw DocumentError(what + " " + Quoted(o) +
+                        ": flat faces are coarsened on an implicit solid's marching-tetrahedra "
+                        "surface for TetGen (set flat cells to 0 for a surface, CGAL or the "
+                        "lattice)");
+  }
   if (s.mesher == "cgal" && s.sharp_edges) {
     throw DocumentError(
         what + " " + Quoted(o) +
@@ -191,6 +202,12 @@ ObjectId FeModelFor(const Document& doc, ObjectId id) {
     if (md != nullptr && md->source == id && md->source != 0) return f.id;
   }
   return 0;
+}
+
+double FlatCellsForOrder(FeSourceKind kind, const MeshSettings& settings, int order) {
+  const bool plain_tetgen_surface = kind == FeSourceKind::kSolid && settings.mesher != "cgal" &&
+                                    settings.surface_mesher.empty() && !settings.sharp_edges;
+  return order == 2 && plain_tetgen_surface ? kQuadraticFlatCells : 0.0;
 }
 
 FeMeshInput PrepareFeMesh(const Document& doc, ObjectId source, const MeshSettings& settings) {
@@ -466,6 +483,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
               SlabMeshOptions snapped = so;
               snapped.snap_cells = modeling::kProductSnapCells;
               snapped.lattice = lattice;
+              snapped.flat_coarsen_cells = input.settings.flat_cells;
               return MeshSolidInSlabs(compiled, box, h, planes, snapped);
             },
             cancel, progress, &result))
@@ -477,6 +495,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   // Snapped as `spidarcad mesh` does (no triangle of a smooth surface under about 10°).
   ss.snap_cells = modeling::kProductSnapCells;
   if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
+  ss.flat_coarsen_cells = input.settings.flat_cells;
   ss.cancel = cancel;
   const double surface_share = input.volume ? 0.3 : 0.9;
   if (progress) ss.progress = [&progress, surface_share](double f) { progress(surface_share * f); };
@@ -597,18 +616,20 @@ std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh) {
   steps.push_back(AddMeshStep(input, mesh, "set up FE"));
   steps.push_back([input](const Document& doc) {
     const ObjectId tets = doc.last_created().back();
-    return edit::AddFeModel(UniqueObjectName(doc, input.source_name + " FE"), tets, kSteel, {});
+    return edit::AddFeModel(UniqueObjectName(doc, input.source_name + " FE"), tets, kSteel, {},
+                            input.element_order);
   });
   return std::make_unique<LazyMacroCommand>("Set up FE for " + input.source_name, std::move(steps));
 }
 
-std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh) {
+std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh, int element_order) {
   const DocObject& o = doc.Get(mesh);
   const auto* m = std::get_if<MeshData>(&o.data);
   if (m == nullptr || !m->volume)
     throw DocumentError("set up FE on " + Quoted(o) + ": it holds no tetrahedra");
   std::vector<std::unique_ptr<Command>> commands;
-  commands.push_back(edit::AddFeModel(UniqueObjectName(doc, o.name + " FE"), mesh, kSteel, {}));
+  commands.push_back(
+      edit::AddFeModel(UniqueObjectName(doc, o.name + " FE"), mesh, kSteel, {}, element_order));
   return std::make_unique<MacroCommand>("Set up FE for " + o.name, std::move(commands));
 }
 

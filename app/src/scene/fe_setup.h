@@ -88,7 +88,21 @@ struct FeMeshInput {
   // In slabs: a slab that is not in previous_slabs is looked up in this directory, and a slab
   // TetGen meshed is written there (SlabMeshOptions::cache_directory); empty: neither.
   std::filesystem::path cache_directory;
+  // The element order (1 or 2) SetUpFe gives the FE model it adds.
+  int element_order = 1;
 };
+
+// MeshSettings::flat_cells of a solid FE mode meshes for quadratic elements: marching
+// tetrahedra's flat faces coarsened to about a cell (edges under half a cell collapsed where the
+// surface is planar). Quadratic elements keep their accuracy on the coarser faces with about half
+// the nodes; linear ones lock more in bending on them, so they keep the plain surface
+// (docs/design/2026-12-06-flat-faces.md, docs/fem.md §5).
+inline constexpr double kQuadraticFlatCells = 0.5;
+
+// The MeshSettings::flat_cells FE mode meshes `kind` with for elements of `order` (1 or 2):
+// kQuadraticFlatCells for quadratic elements on a solid meshed by TetGen on the plain
+// marching-tetrahedra surface (not CGAL, the lattice or sharp edges), else 0.
+double FlatCellsForOrder(FeSourceKind kind, const MeshSettings& settings, int order);
 
 // Slabs FE mode meshes a solid in (FeMeshInput::slabs): four measured best on the platform
 // (docs/design/2026-12-05-interface-by-planes.md: six made the interface two thirds larger and
@@ -98,7 +112,8 @@ inline constexpr int kFeSlabs = 4;
 // The input to mesh `source` (a solid, sculpt or surface mesh) with `settings`. Throws
 // DocumentError naming the object and what is wrong: not such a source, an open surface,
 // mesher "cgal", sharp_edges or surface_mesher "lattice" for anything but a solid, the lattice
-// with "cgal", an unknown surface mesher, a negative or non-finite setting.
+// with "cgal", an unknown surface mesher, a negative or non-finite setting, flat_cells outside
+// [0, 1] or with anything but a solid meshed by TetGen on the marching-tetrahedra surface.
 FeMeshInput PrepareFeMesh(const Document& doc, ObjectId source, const MeshSettings& settings);
 
 // The input to mesh mesh object `mesh` again from its source with its stored settings, making
@@ -169,14 +184,15 @@ std::unique_ptr<Command> AddMeshOf(const FeMeshInput& input, FeMeshResult mesh);
 
 // One undo step "Set up FE for NAME": adds the mesh object "NAME tets" (source, source revision,
 // settings, surface and volume of `mesh`) and the FE model "NAME FE" on it: steel, clamped at the
-// minimum-x face (no fixed boxes), linear elements. Afterwards doc.last_created() is {mesh, FE
-// model}. Do throws DocumentError (and changes nothing) when the source is gone or has changed
-// since `input` was copied.
+// minimum-x face (no fixed boxes), elements of input.element_order. Afterwards doc.last_created()
+// is {mesh, FE model}. Do throws DocumentError (and changes nothing) when the source is gone or has
+// changed since `input` was copied.
 std::unique_ptr<Command> SetUpFe(const FeMeshInput& input, FeMeshResult mesh);
 
 // One undo step "Set up FE for NAME" on a mesh object that holds tetrahedra: the FE model
-// "NAME FE" (steel, minimum-x face clamp). The new id is in doc.last_created().
-std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh);
+// "NAME FE" (steel, minimum-x face clamp, elements of `element_order`). The new id is in
+// doc.last_created().
+std::unique_ptr<Command> SetUpFeOnMesh(const Document& doc, ObjectId mesh, int element_order = 1);
 
 // One undo step "Refresh NAME mesh": the mesh object `mesh` gets the new surface and volume (or
 // surface only, when input.volume is false), made from its source at input.source_revision with
