@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -780,6 +781,15 @@ const FeModelData& FeDataOf(const Document& doc, ObjectId id) {
   return std::get<FeModelData>(doc.Get(id).data);
 }
 
+// Switches `window` to FE mode and draws `frames` frames; its FeMode.
+FeMode& EnterFeMode(AppWindow& window, int frames = 3) {
+  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
+  if (fe_mode == nullptr) throw std::runtime_error("the window has no FE mode");
+  window.SwitchMode(fe_mode);
+  for (int k = 0; k < frames; ++k) window.Frame();
+  return fe_mode->fe();
+}
+
 // Opens the shipped platform scene, chooses its solid in FE mode, sets it up (one undo step),
 // precomputes, changes the material (the model is made again), undoes and redoes (the kept
 // models come back), saves, and compares the saved file with the same edits made by commands
@@ -802,11 +812,7 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
     const Document& doc = model.document();
     const ObjectId platform = doc.FindByName("platform")->id;
     ASSERT_TRUE(window.tree().SelectByName("platform"));
-    auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-    ASSERT_NE(fe_mode, nullptr);
-    FeMode& fe = fe_mode->fe();
-    window.SwitchMode(fe_mode);
-    for (int k = 0; k < 3; ++k) window.Frame();
+    FeMode& fe = EnterFeMode(window);
     EXPECT_EQ(fe.chosen_object(), platform) << "the tree's selection is preselected";
     EXPECT_EQ(fe.bound_object(), 0u) << "no FE model yet";
     EXPECT_EQ(doc.history().undo_size(), 0u) << "entering the mode changes nothing";
@@ -880,28 +886,24 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
       << Differences(Comparable(reread), Comparable(expected));
   // A fresh window on the saved file: FE mode binds to the saved FE model with its material.
   AppWindow again(test_support::ScriptedWindowOptions(saved));
-  auto* again_fe = dynamic_cast<FeWindowMode*>(again.FindMode("fe"));
-  ASSERT_NE(again_fe, nullptr);
-  again.SwitchMode(again_fe);
-  for (int k = 0; k < 3; ++k) again.Frame();
-  ASSERT_NE(again_fe->fe().bound_object(), 0u);
-  EXPECT_EQ(again.model().document().Get(again_fe->fe().bound_object()).name, "platform FE");
-  EXPECT_EQ(again_fe->fe().model_settings().material.youngs_modulus, aluminium.youngs_modulus);
+  FeMode& again_fe = EnterFeMode(again);
+  ASSERT_NE(again_fe.bound_object(), 0u);
+  EXPECT_EQ(again.model().document().Get(again_fe.bound_object()).name, "platform FE");
+  EXPECT_EQ(again_fe.model_settings().material.youngs_modulus, aluminium.youngs_modulus);
   EXPECT_FALSE(again.model().document().dirty());
   // The saved mesh says where its slabs are: the reopened model is factored slab by slab, and
   // every slab's factor and interface plane is read from the disk cache the first window wrote.
-  again_fe->fe().RequestModel();
-  ASSERT_TRUE(FramesUntil(again, [&] { return again_fe->fe().model() != nullptr; }))
-      << again_fe->fe().status();
-  const fem::SubstructuredSolver* reopened = again_fe->fe().model()->substructured();
+  again_fe.RequestModel();
+  ASSERT_TRUE(FramesUntil(again, [&] { return again_fe.model() != nullptr; })) << again_fe.status();
+  const fem::SubstructuredSolver* reopened = again_fe.model()->substructured();
   ASSERT_NE(reopened, nullptr);
   EXPECT_EQ(reopened->num_blocks(), kFeSlabs);
   EXPECT_EQ(reopened->stats().loaded_blocks, kFeSlabs);
   EXPECT_EQ(reopened->stats().factored_blocks, 0);
   EXPECT_EQ(reopened->stats().loaded_interface_groups, kFeSlabs - 1);
-  EXPECT_NE(again_fe->fe().status().find("0 of 4 slabs factored, 0 kept, 4 from the disk cache"),
+  EXPECT_NE(again_fe.status().find("0 of 4 slabs factored, 0 kept, 4 from the disk cache"),
             std::string::npos)
-      << again_fe->fe().status();
+      << again_fe.status();
 }
 
 // The workbench's FE model is made from the platform solid: editing the solid makes it stale in
@@ -913,11 +915,7 @@ TEST(FeModeWindow, EditedSourceMakesTheMeshStaleAndRefreshMeshesItAgain) {
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
-  window.SwitchMode(fe_mode);
-  for (int k = 0; k < 3; ++k) window.Frame();
+  FeMode& fe = EnterFeMode(window);
   const ObjectId fe_id = doc.FindByName("platform FE")->id;
   const ObjectId mesh_id = doc.FindByName("platform tets")->id;
   const ObjectId platform = doc.FindByName("platform")->id;
@@ -964,11 +962,7 @@ TEST(FeModeWindow, QuadraticSetUpCoarsensFlatFacesAndTheOrderSwitchMeshesAgain) 
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
-  window.SwitchMode(fe_mode);
-  for (int k = 0; k < 3; ++k) window.Frame();
+  FeMode& fe = EnterFeMode(window);
   const ObjectId platform = doc.FindByName("platform")->id;
   fe.mesh_settings().cell_size = 0.01;
   fe.model_settings().order = 2;
@@ -1038,13 +1032,9 @@ TEST(FeModeWindow, EditOfAFeltSolidRefreshesItselfInTheSlabsItReached) {
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
+  FeMode& fe = EnterFeMode(window);
   EXPECT_TRUE(fe.mesh_in_slabs()) << "the default";
   EXPECT_TRUE(fe.refresh_on_edit()) << "the default";
-  window.SwitchMode(fe_mode);
-  for (int k = 0; k < 3; ++k) window.Frame();
   const ObjectId platform = doc.FindByName("platform")->id;
   fe.mesh_settings().cell_size = 0.012;
   ASSERT_TRUE(fe.StartSetUp(&model, platform, false, true)) << fe.status();
@@ -1125,11 +1115,7 @@ TEST(FeModeWindow, StrokeOnAFeltSculptRefreshesItselfInTheSlabItReached) {
   model.document().Execute(
       edit::AddSculpt("platform clay", test_support::PlatformGridSurface(0.012)));
   const ObjectId clay = doc.last_created().front();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
-  window.SwitchMode(fe_mode);
-  for (int k = 0; k < 3; ++k) window.Frame();
+  FeMode& fe = EnterFeMode(window);
   ASSERT_TRUE(fe.StartSetUp(&model, clay, false, true)) << fe.status();
   ASSERT_TRUE(FramesUntil(window, [&] { return fe.model() != nullptr; })) << fe.status();
   const ObjectId mesh_id = FeDataOf(doc, fe.bound_object()).tet_mesh;
@@ -1173,13 +1159,9 @@ TEST(FeModeWindow, SelectedSculptIsChosenAndSetUpInOneStep) {
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/workbench.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
   const ObjectId clay = doc.FindByName("clay")->id;
   window.tree().Select(clay);
-  window.SwitchMode(fe_mode);
-  for (int k = 0; k < 3; ++k) window.Frame();
+  FeMode& fe = EnterFeMode(window);
   EXPECT_EQ(fe.chosen_object(), clay);
   EXPECT_EQ(fe.bound_object(), 0u) << "the clay has no FE model yet";
   ASSERT_TRUE(fe.StartSetUp(&model, fe.chosen_object())) << fe.status();
@@ -1215,11 +1197,7 @@ TEST(FeModeWindow, SetUpWhoseSourceChangesMeanwhileIsDropped) {
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
   const Document& doc = model.document();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
-  window.SwitchMode(fe_mode);
-  window.Frame();
+  FeMode& fe = EnterFeMode(window, 1);
   const std::size_t objects = doc.objects().size();
   fe.mesh_settings().cell_size = 0.012;
   ASSERT_TRUE(fe.StartSetUp(&model, doc.FindByName("platform")->id)) << fe.status();
@@ -1241,11 +1219,7 @@ TEST(FeModeWindow, LargeMeshAsksFirstAndCancelChangesNothing) {
   const test_support::WindowScratch scratch("fe_window_budget");
   AppWindow window(test_support::ScriptedWindowOptions(AssetPath("scenes/platform.json")));
   SceneModel& model = window.model();
-  auto* fe_mode = dynamic_cast<FeWindowMode*>(window.FindMode("fe"));
-  ASSERT_NE(fe_mode, nullptr);
-  FeMode& fe = fe_mode->fe();
-  window.SwitchMode(fe_mode);
-  window.Frame();
+  FeMode& fe = EnterFeMode(window, 1);
   const std::string before = model.document().ToJson().dump();
   fe.mesh_settings().cell_size = 1e-4;  // the platform's box over 0.1 mm cells: far past 2^27
   ASSERT_TRUE(fe.StartSetUp(&model, model.document().FindByName("platform")->id)) << fe.status();
