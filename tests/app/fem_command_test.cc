@@ -446,6 +446,28 @@ TEST(FemCommand, FlatCellsCoarsensTheMeshAndIsRefusedWithTheLattice) {
       RunJson(scenes.original + common + " --flat-cells 0.5 --slabs 4", "flat2");
   EXPECT_EQ(slabs["meshing"]["flat_cells"], 0.5);
   EXPECT_LT(slabs["elements"].get<double>(), 0.6 * plain["elements"].get<double>());
+  // Quadratic elements coarsen the flat faces unless told otherwise (as FE mode meshes for them);
+  // --flat-cells 0 keeps them, and the lattice has none to coarsen.
+  // (At 20 mm, where a P2 solve is quick.)
+  const std::string coarse =
+      " --resolution 0.02 --fix=-1,-1,-1,0.0005,1,1 --load 0.3,0.1,0.2 "
+      "--force 0,0,-100 --out " +
+      OutputPath("fem_flat_coarse.vtu");
+  const nlohmann::json p1 = RunJson(scenes.original + coarse, "flat_p1_coarse");
+  EXPECT_FALSE(p1["meshing"].contains("flat_cells"));
+  const nlohmann::json p2 = RunJson(scenes.original + coarse + " --order 2", "flat_p2");
+  EXPECT_EQ(p2["meshing"]["flat_cells"], 0.5);
+  EXPECT_EQ(p2["elements"],
+            RunJson(scenes.original + coarse + " --flat-cells 0.5", "flat_p1_given")["elements"])
+      << "the mesh of --flat-cells 0.5";
+  EXPECT_LT(p2["elements"].get<double>(), p1["elements"].get<double>());
+  const nlohmann::json p2_fine =
+      RunJson(scenes.original + coarse + " --order 2 --flat-cells 0", "flat_p2_off");
+  EXPECT_FALSE(p2_fine["meshing"].contains("flat_cells"));
+  EXPECT_EQ(p2_fine["elements"], p1["elements"]);
+  const nlohmann::json p2_lattice =
+      RunJson(scenes.original + coarse + " --order 2 --mesher lattice", "flat_p2_lattice");
+  EXPECT_FALSE(p2_lattice["meshing"].contains("flat_cells"));
   for (const std::string& bad : {std::string(" --flat-cells 2"), std::string(" --flat-cells -1"),
                                  std::string(" --flat-cells 0.5 --mesher lattice")}) {
     const CommandRun run = RunSpidarcad(scenes.original + common + bad, "flat_bad");
@@ -459,6 +481,12 @@ TEST(FemCommand, FlatCellsCoarsensTheMeshAndIsRefusedWithTheLattice) {
   EXPECT_EQ(vtu.status, 2);
   EXPECT_NE(vtu.err.find("holds tetrahedra already: drop --flat-cells"), std::string::npos)
       << vtu.err;
+  // A mesh file with --order 2 has no surface to coarsen: nothing to refuse.
+  const CommandRun vtu_p2 =
+      RunSpidarcad(OutputPath("fem_flat.vtu") + " --order 2 --out " +
+                       OutputPath("fem_flat_p2.vtu") + " --fix=-1,-1,-1,0.0005,1,1",
+                   "flat_vtu_p2");
+  EXPECT_EQ(vtu_p2.status, 0) << vtu_p2.err;
 }
 
 TEST(FemCommand, StlIsRepairedMeshedAndSolvedOrRefusedNamingTheDefect) {

@@ -23,6 +23,7 @@
 #include "doc/document.h"
 #include "scene/document_file.h"
 #include "scene/fe_model.h"
+#include "scene/fe_setup.h"
 #include "scene/scene_solid.h"
 #include "scene/slab_fe_mesh.h"
 #include "scene/vtu_io.h"
@@ -65,11 +66,14 @@ struct FemOptions {
   double resolution = 0.004;
   double max_radius_edge = 2.0;
   std::string solid;
-  std::string object;         // --object: any object of a document (solid, mesh, sculpt, fe_model)
-  int slabs = 0;              // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
-  std::string mesher;         // --mesher: a scene solid's surface, "lattice" or "tetrahedra" ("")
-  bool lattice = false;       // --mesher lattice (checked and set before RunFem)
-  double flat_cells = 0.0;    // --flat-cells: SurfaceMeshSettings::flat_coarsen_cells
+  std::string object;    // --object: any object of a document (solid, mesh, sculpt, fe_model)
+  int slabs = 0;         // --slabs: 0 one piece (not given: 4 with --cache-dir, else 0)
+  std::string mesher;    // --mesher: a scene solid's surface, "lattice" or "tetrahedra" ("")
+  bool lattice = false;  // --mesher lattice (checked and set before RunFem)
+  // --flat-cells: SurfaceMeshSettings::flat_coarsen_cells; not given: kQuadraticFlatCells for
+  // quadratic elements on a scene solid's marching-tetrahedra surface (as FE mode), else 0.
+  double flat_cells = 0.0;
+  bool flat_cells_given = false;
   std::string cache_dir;      // --cache-dir: slab meshes and block factors kept between runs
   double cache_max_gb = 4.0;  // --cache-max-gb: the directory's bound (least recently used out)
   // Which options were given (a document's FE model supplies the others).
@@ -480,7 +484,8 @@ void RunFem(const FemOptions& options) {
         "--slabs N (N >= 1; without --slabs it is 4), not --slabs 0");
   }
   // --mesher and --flat-cells shape the surface of a scene solid, and nothing else.
-  const bool surface_option_given = !options.mesher.empty() || options.flat_cells > 0.0;
+  const bool surface_option_given =
+      !options.mesher.empty() || (options.flat_cells_given && options.flat_cells > 0.0);
   const std::string surface_option = !options.mesher.empty() ? "--mesher" : "--flat-cells";
   if (surface_option_given && EndsWith(options.input, ".vtu"))
     throw InputError(surface_option + " shapes the surface of a scene solid; " + options.input +
@@ -1024,8 +1029,10 @@ void RegisterFemCommand(CLI::App& app) {
   cmd->add_option("--flat-cells", options->flat_cells,
                   "Scene solid, marching tetrahedra: collapse the surface's edges shorter than "
                   "this fraction of a cell in flat fans before TetGen, so flat faces get as few "
-                  "triangles wherever the grid crosses them (in [0, 1]; default 0: off; 0.5 "
-                  "halves the platform's P2 nodes at 10 mm, but P1 locks more in bending)")
+                  "triangles wherever the grid crosses them (in [0, 1]; default: 0.5 with "
+                  "--order 2 or --incompressible, as FE mode meshes for quadratic elements, "
+                  "which keep their accuracy on about half the nodes; else 0, since linear "
+                  "elements lock more in bending on the coarser faces)")
       ->type_name("F");
   cmd->add_option("--slabs", options->slabs,
                   "Solve in N slabs across x: each factored on its own and condensed onto the "
@@ -1046,6 +1053,11 @@ void RegisterFemCommand(CLI::App& app) {
     FemOptions resolved = *options;
     if (cmd->count("--slabs") == 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
     resolved.lattice = LatticeMesherOption(resolved.mesher, "tetrahedra");
+    resolved.flat_cells_given = cmd->count("--flat-cells") > 0;
+    if (!resolved.flat_cells_given) {
+      const bool quadratic = resolved.order == 2 || resolved.incompressible;
+      resolved.flat_cells = quadratic && !resolved.lattice ? kQuadraticFlatCells : 0.0;
+    }
     CheckFlatCellsOption(resolved.flat_cells, resolved.lattice);
     RunFem(resolved);
   });
