@@ -600,7 +600,8 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
     pending_field_.reset();
     ShowModel(false);
     mesh_name_ = o.name;
-    status_ = o.name + ": settings changed; press Precompute";
+    // (While a job of ours runs, e.g. the re-mesh an order switch started, its status stays.)
+    if (awaiting_title_.empty()) status_ = o.name + ": settings changed; press Precompute";
   } else {
     try {
       fem::TetMesh mesh = FeMeshOf(doc, data);
@@ -854,7 +855,10 @@ bool FeMode::EditElementOrder(SceneModel* model, int order) {
   // A solid's mesh made for the other order is meshed again for this one (flat faces coarsened
   // for quadratic elements, kept for linear ones): a second undo step. With a job running, the
   // panel offers the Refresh instead.
-  if (!MeshFitsOrder(model->document()) && RunningJob() == nullptr) StartRefresh(model);
+  if (!MeshFitsOrder(model->document()) && RunningJob() == nullptr && StartRefresh(model)) {
+    status_ = order == 2 ? "re-meshing for quadratic elements (flat faces coarser)..."
+                         : "re-meshing for linear elements (flat faces finer)...";
+  }
   return true;
 }
 
