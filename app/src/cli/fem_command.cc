@@ -1054,9 +1054,11 @@ void RegisterFemCommand(CLI::App& app) {
     if (cmd->count("--slabs") == 0) resolved.slabs = resolved.cache_dir.empty() ? 0 : 4;
     resolved.lattice = LatticeMesherOption(resolved.mesher, "tetrahedra");
     resolved.flat_cells_given = cmd->count("--flat-cells") > 0;
-    if (!resolved.flat_cells_given) {
-      const bool quadratic = resolved.order == 2 || resolved.incompressible;
-      resolved.flat_cells = quadratic && !resolved.lattice ? kQuadraticFlatCells : 0.0;
+    if (!resolved.flat_cells_given) {  // FE mode's rule for a solid meshed by TetGen
+      MeshSettings surface;
+      if (resolved.lattice) surface.surface_mesher = "lattice";
+      const int order = resolved.order == 2 || resolved.incompressible ? 2 : 1;
+      resolved.flat_cells = FlatCellsForOrder(FeSourceKind::kSolid, surface, order);
     }
     CheckFlatCellsOption(resolved.flat_cells, resolved.lattice);
     RunFem(resolved);

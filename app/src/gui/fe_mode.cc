@@ -459,6 +459,20 @@ bool SlabbedKind(FeSourceKind kind) {
   return kind == FeSourceKind::kSolid || kind == FeSourceKind::kSculpt;
 }
 
+// The "Elements: linear / quadratic" radio buttons (`id` tells copies apart); the order chosen.
+int ElementOrderChoice(int order, const char* id) {
+  ImGui::TextUnformatted("Elements");
+  ImGui::SameLine();
+  if (ImGui::RadioButton((std::string("linear") + id).c_str(), order != 2)) order = 1;
+  ImGui::SameLine();
+  if (ImGui::RadioButton((std::string("quadratic") + id).c_str(), order == 2)) order = 2;
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip(
+        "10-node tets: no locking in bending. A solid's flat faces are meshed coarser for them "
+        "(about a cell), so edits and precomputes are faster");
+  return order;
+}
+
 // Whether FE mode can choose the object, judged by its kind alone (cheap, every frame; whether a
 // surface is closed is checked when it is set up).
 bool MayBecomeFeModel(const Document& doc, ObjectId id) {
@@ -926,16 +940,7 @@ void FeMode::DrawDocumentPanel(SceneModel* model) {
     } else if (kind != FeSourceKind::kVolumeMesh) {
       ImGui::TextDisabled("TetGen meshes its closed surface.");
     }
-    ImGui::TextUnformatted("Elements");
-    ImGui::SameLine();
-    if (ImGui::RadioButton("linear##setup", model_settings_.order != 2)) model_settings_.order = 1;
-    ImGui::SameLine();
-    if (ImGui::RadioButton("quadratic##setup", model_settings_.order == 2))
-      model_settings_.order = 2;
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip(
-          "10-node tets: no locking in bending. A solid's flat faces are meshed coarser for "
-          "them (about a cell), so edits and precomputes are faster");
+    model_settings_.order = ElementOrderChoice(model_settings_.order, "##setup");
     if (busy) ImGui::BeginDisabled();
     const std::string label = "Set up FE for " + source.name;
     if (ImGui::Button(label.c_str())) {
@@ -1069,12 +1074,7 @@ void FeMode::DrawSettingsPanel(SceneModel* model) {
       model_settings_.fixed_boxes = std::move(boxes);
     }
   }
-  int order = model_settings_.order;
-  ImGui::TextUnformatted("Elements");
-  ImGui::SameLine();
-  if (ImGui::RadioButton("linear", order == 1)) order = 1;
-  ImGui::SameLine();
-  if (ImGui::RadioButton("quadratic", order == 2)) order = 2;
+  const int order = ElementOrderChoice(model_settings_.order, "");
   if (order != model_settings_.order) {
     if (bound) {
       EditElementOrder(model, order);
