@@ -49,6 +49,14 @@ constexpr double kZeroBand = 1e-6;
 // fractions of their grid edge towards its inside end that keeps the triangles around them
 // unfolded (see Cleaner::SeparateCoincident); the last is taken regardless.
 constexpr std::array<double, 3> kZeroOffsets = {0.05, 1e-3, 1e-5};
+// With snapping, the clean-up ends by mending the triangles still sharper than
+// SurfaceMeshSettings::mend_angle_deg (Cleaner::Mend). A pinch among their corners opens wider
+// first: its vertices move, along the same grid edges, the one of these fractions that gives
+// their triangles the largest smallest angle (Cleaner::WidenPinch).
+constexpr std::array<double, 4> kWideZeroOffsets = {0.1, 0.15, 0.2, 0.25};
+// Mend's relaxation may let a vertex's triangles stray this far from the surface (cells), where
+// the clean-up's keeps them as close as they were.
+constexpr double kMendDeviationCells = 0.1;
 // The clean-up merges vertices closer than kCoincident cells without geometric checks.
 constexpr double kCoincident = 1e-4;
 
@@ -281,7 +289,30 @@ class Cleaner {
     }
   }
 
-  // Collapses the edges shorter than `edge` (shortest first in each triangle) where the vertex
+  // After Polish (and CoarsenFlat): each triangle still sharper than `angle_rad` gets, in turn
+  // until one is done, its pinch opened wider (WidenPinch), Improve's collapses and flips with
+  // edges up to `max_edge` (Run's bound is 1.5 cells; a grid cube's diagonal is 1.73), its cap
+  // flattened into the neighbour across its long edge (FlattenCap), a flip of one of its other
+  // edges, or a relaxation of a corner (Relax) within kMendDeviationCells of the surface. A mesh
+  // with no triangle under `angle_rad` is left as it is. Returns the triangles mended.
+  long Mend(double angle_rad, double max_edge, long* collapses, long* flips) {
+    const double run_max_edge2 = max_edge2_;
+    max_edge2_ = max_edge * max_edge;
+    const double sine = std::sin(angle_rad);
+    long mended = 0;
+    for (int pass = 0; pass < 4; ++pass) {
+      long changed = 0;
+      for (size_t i = 0; i < tris_.size(); ++i) {
+        if (alive_[i] && Sharp(tris_[i], 0.0, sine)) changed += MendTriangle(static_cast<int>(i), collapses, flips);
+      }
+      mended += changed;
+      if (changed == 0) break;
+    }
+    max_edge2_ = run_max_edge2;
+    return mended;
+  }
+
+
   // that goes has a flat fan: every triangle around it within kFlatFanDegrees of one plane, so
   // the surface keeps its shape. Collapse's other guards hold as in Run (facing, folds, the 1.5
   // cell edge bound), with the angle guard on: no fan's worst triangle gets sharper than it was
@@ -329,8 +360,11 @@ class Cleaner {
   // a move tested against its own neighbours alone could push a triangle through the other side;
   // and a member that still folds at the smallest fraction goes to `stuck`: the pinch is not
   // embedded. Without it the test is the one of before 2026-12-05 (the unsnapped mesh stays the
-  // same bit for bit). Returns the number moved.
+  // same bit for bit). With it, each group is kept as a pinch (WidenPinch). Returns the number
+  // moved.
   long SeparateCoincident(const std::vector<Eigen::Vector3d>& inward, std::vector<int>* stuck) {
+    inward_ = &inward;
+    pinch_of_.assign(pos_.size(), -1);
     std::vector<int> live;
     for (size_t v = 0; v < pos_.size(); ++v) {
       if (!vertex_tris_[v].empty()) live.push_back(static_cast<int>(v));
@@ -352,8 +386,10 @@ class Cleaner {
         for (size_t k = i; k < j; ++k) pos_[live[k]] = start + kZeroOffsets[0] * inward[live[k]];
         group_.assign(live.begin() + i, live.begin() + j);
         const std::vector<int>* others = stuck != nullptr ? &group_ : nullptr;
+        if (stuck != nullptr) pinches_.push_back({start, group_, false});
         for (size_t k = i; k < j; ++k) {
           const int v = live[k];
+          if (stuck != nullptr) pinch_of_[v] = static_cast<int>(pinches_.size()) - 1;
           for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start, others); ++f)
             pos_[v] = start + kZeroOffsets[f] * inward[v];
           moved += inward[v].squaredNorm() > 0.0;
@@ -594,8 +630,9 @@ class Cleaner {
   // (the field's gradient at v), then onto the surface by Newton steps. Kept if it raises the
   // smallest angle of v's triangles, moves v less than half a cell, turns none of them by 60° or
   // more or against the field, leaves their sampled distance to the surface (FanDeviation) no
-  // larger, and folds none onto a triangle around it (WouldMeet). Returns whether v moved.
-  bool Relax(int v) {
+  // larger (or within `allowance`, m), and folds none onto a triangle around it (WouldMeet).
+  // Returns whether v moved.
+  bool Relax(int v, double allowance = 0.0) {
     const auto& fan = vertex_tris_[v];
     if (fan.size() < 3) return false;
     const Eigen::Vector3d p = pos_[v];
@@ -631,7 +668,8 @@ class Cleaner {
       ok = m.dot(normals_[i]) > 0.5 * m.norm() * normals_[i].norm() && FacesOut(tris_[fan[i]]);
       changed_.emplace_back(fan[i], tris_[fan[i]]);
     }
-    ok = ok && FanDeviation(v) <= old_deviation + 1e-9 * cell_ && !WouldMeet(changed_, -1, -1);
+    ok = ok && FanDeviation(v) <= std::max(old_deviation + 1e-9 * cell_, allowance) &&
+         !WouldMeet(changed_, -1, -1);
     if (!ok) {
       pos_[v] = p;
       gradient_[v] = old_gradient;
@@ -765,23 +803,49 @@ class Cleaner {
     return true;
   }
 
+  // The quad of edge (p, q) of triangle t, oriented so that t = (p, q, c) (p and q swapped if
+  // need be) and its neighbour across the edge is t2 = (q, p, d), if the edge can flip to cd: it
+  // has two triangles, c and d differ and are not joined already, and p and q keep three or more
+  // triangles.
+  bool FlippableQuad(int t, int* p, int* q, int* t2, int* c, int* d) const {
+    std::array<int, 2> shared;
+    if (EdgeTriangles(*p, *q, &shared) != 2) return false;
+    *t2 = shared[0] == t ? shared[1] : shared[0];
+    // Orient so that t = (p, q, c): rotate t until p is first and q follows.
+    std::array<int, 3> tri = tris_[t];
+    while (tri[0] != *p) std::rotate(tri.begin(), tri.begin() + 1, tri.end());
+    if (tri[1] != *q) std::swap(*p, *q), tri = tris_[t];
+    while (tri[0] != *p) std::rotate(tri.begin(), tri.begin() + 1, tri.end());
+    if (tri[1] != *q) return false;
+    *c = tri[2];
+    *d = Third(tris_[*t2], *p, *q);
+    if (*c == *d || *d < 0) return false;
+    if (vertex_tris_[*p].size() <= 3 || vertex_tris_[*q].size() <= 3) return false;
+    return !Adjacent(*c, *d);
+  }
+
+  // Replaces triangles t and t2 of the quad (p, q, c, d) (FlippableQuad) by (p, d, c) and
+  // (q, c, d), and updates the vertices' triangle lists.
+  void ApplyFlip(int t, int t2, int p, int q, int c, int d) {
+    tris_[t] = {p, d, c};
+    tris_[t2] = {q, c, d};
+    // t lost q, gained d; t2 lost p, gained c.
+    auto erase = [&](int v, int tt) {
+      auto& list = vertex_tris_[v];
+      list.erase(std::remove(list.begin(), list.end(), tt), list.end());
+    };
+    erase(q, t);
+    vertex_tris_[d].push_back(t);
+    erase(p, t2);
+    vertex_tris_[c].push_back(t2);
+  }
+
   // Flips edge (p, q) of triangle t to the diagonal of its two triangles' quad if that is
   // legal (no existing edge, degrees stay >= 3), keeps the surface's facing and improves the
   // smaller minimum angle.
   bool Flip(int t, int p, int q) {
-    std::array<int, 2> shared;
-    if (EdgeTriangles(p, q, &shared) != 2) return false;
-    const int t2 = shared[0] == t ? shared[1] : shared[0];
-    // Orient so that t = (p, q, c): rotate t until p is first and q follows.
-    std::array<int, 3> tri = tris_[t];
-    while (tri[0] != p) std::rotate(tri.begin(), tri.begin() + 1, tri.end());
-    if (tri[1] != q) std::swap(p, q), tri = tris_[t];
-    while (tri[0] != p) std::rotate(tri.begin(), tri.begin() + 1, tri.end());
-    if (tri[1] != q) return false;
-    const int c = tri[2], d = Third(tris_[t2], p, q);
-    if (c == d || d < 0) return false;
-    if (vertex_tris_[p].size() <= 3 || vertex_tris_[q].size() <= 3) return false;
-    if (Adjacent(c, d)) return false;
+    int t2, c, d;
+    if (!FlippableQuad(t, &p, &q, &t2, &c, &d)) return false;
     if ((pos_[c] - pos_[d]).squaredNorm() > max_edge2_) return false;
     const std::array<int, 3> n1 = {p, d, c}, n2 = {q, c, d};
     const Eigen::Vector3d ref = Normal(tris_[t]) + Normal(tris_[t2]);
@@ -798,17 +862,134 @@ class Cleaner {
     if (!(FacesOut(n1) && FacesOut(n2)) && FacesOut(tris_[t]) && FacesOut(tris_[t2])) return false;
     changed_.assign({{t, n1}, {t2, n2}});
     if (WouldMeet(changed_, -1, -1)) return false;
-    tris_[t] = n1;
-    tris_[t2] = n2;
-    // t lost q, gained d; t2 lost p, gained c.
-    auto erase = [&](int v, int tt) {
-      auto& list = vertex_tris_[v];
-      list.erase(std::remove(list.begin(), list.end(), tt), list.end());
-    };
-    erase(q, t);
-    vertex_tris_[d].push_back(t);
-    erase(p, t2);
-    vertex_tris_[c].push_back(t2);
+    ApplyFlip(t, t2, p, q, c, d);
+    return true;
+  }
+
+  // Mend's steps for triangle t, the first that succeeds (see Mend). Returns 1 if one did.
+  int MendTriangle(int t, long* collapses, long* flips) {
+    for (int v : tris_[t]) {
+      if (pinch_of_.size() > static_cast<size_t>(v) && pinch_of_[v] >= 0 && WidenPinch(pinch_of_[v]))
+        return 1;
+    }
+    if (Improve(t, 0.0, small_angle_, collapses, flips)) return 1;
+    const auto tri = tris_[t];
+    double len[3];
+    for (int k = 0; k < 3; ++k) len[k] = (pos_[tri[(k + 1) % 3]] - pos_[tri[k]]).squaredNorm();
+    const int longest = static_cast<int>(std::max_element(len, len + 3) - len);
+    if (FlattenCap(t, tri[longest], tri[(longest + 1) % 3])) {
+      ++*flips;
+      return 1;
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (k != longest && Flip(t, tri[k], tri[(k + 1) % 3])) {
+        ++*flips;
+        return 1;
+      }
+    }
+    for (int v : tri) {
+      if (Relax(v, kMendDeviationCells * cell_)) {
+        ++relaxed_;
+        return 1;
+      }
+    }
+    return 0;
+  }
+
+  // Opens pinch g wider (once): its vertices move from where they met, along their grid edges
+  // (inward), by the fraction of kWideZeroOffsets whose smallest angle over their triangles is
+  // the largest, if that is larger than now and no triangle of theirs turns over or meets another
+  // (Unfolded, tested against the whole group as SeparateCoincident does). Returns whether they
+  // moved.
+  bool WidenPinch(int g) {
+    Pinch& pinch = pinches_[g];
+    if (pinch.widened) return false;
+    pinch.widened = true;
+    double best_min = M_PI, best = 0.0;
+    saved_.clear();
+    for (int v : pinch.members) {
+      best_min = std::min(best_min, FanMinAngle(v));
+      saved_.push_back(pos_[v]);
+    }
+    for (double f : kWideZeroOffsets) {
+      for (int v : pinch.members) pos_[v] = pinch.start + f * (*inward_)[v];
+      bool unfolded = true;
+      for (int v : pinch.members) unfolded = unfolded && Unfolded(v, pinch.start, &pinch.members);
+      double new_min = M_PI;
+      for (int v : pinch.members) new_min = std::min(new_min, FanMinAngle(v));
+      if (unfolded && new_min > best_min) best_min = new_min, best = f;
+    }
+    for (size_t k = 0; k < pinch.members.size(); ++k) {
+      const int v = pinch.members[k];
+      pos_[v] = best > 0.0 ? pinch.start + best * (*inward_)[v] : saved_[k];
+      if (best > 0.0) has_gradient_[v] = false;
+    }
+    return best > 0.0;
+  }
+
+  // Largest |value| at triangle tri's centroid and edge midpoints (m).
+  double TriangleDeviation(const std::array<int, 3>& tri) const {
+    const Eigen::Vector3d &a = pos_[tri[0]], &b = pos_[tri[1]], &c = pos_[tri[2]];
+    return std::max({std::abs(solid_.Value((a + b + c) / 3.0)),
+                     std::abs(solid_.Value(0.5 * (a + b))), std::abs(solid_.Value(0.5 * (b + c))),
+                     std::abs(solid_.Value(0.5 * (c + a)))});
+  }
+
+  // Removes the cap t = (p, q, c) (long edge pq, apex c) where a flip cannot (its neighbour
+  // across pq lies across a crease or a pinch): c moves onto pq, to the foot of its perpendicular
+  // (within 0.2 cells, not within 5 % of p or q), and pq flips to cd, so the neighbour (q, p, d)
+  // becomes (p, d, c) and (q, c, d), which lie in its plane: the surface changes by the cap's
+  // height. Kept if the smallest angle of c's triangles and the neighbour rises, none of c's
+  // other triangles turns by 60° or more or against the field, the new two face as the
+  // neighbour did and out of the solid, their sampled distance to the surface stays within the
+  // old triangles' or 0.05 cells, and nothing folds (WouldMeet).
+  bool FlattenCap(int t, int p, int q) {
+    int t2, c, d;
+    if (!FlippableQuad(t, &p, &q, &t2, &c, &d)) return false;
+    const Eigen::Vector3d from = pos_[c];
+    const double s = (from - pos_[p]).dot(pos_[q] - pos_[p]) / (pos_[q] - pos_[p]).squaredNorm();
+    if (!(s > 0.05 && s < 0.95)) return false;
+    const Eigen::Vector3d foot = pos_[p] + s * (pos_[q] - pos_[p]);
+    if ((foot - from).squaredNorm() > 0.04 * cell_ * cell_) return false;
+    const double old_min = std::min(FanMinAngle(c), MinAngle(pos_[q], pos_[p], pos_[d]));
+    double old_deviation = TriangleDeviation(tris_[t2]);
+    normals_.clear();
+    for (int f : vertex_tris_[c]) {
+      old_deviation = std::max(old_deviation, TriangleDeviation(tris_[f]));
+      normals_.push_back(Normal(tris_[f]));
+    }
+    const std::array<int, 3> n1 = {p, d, c}, n2 = {q, c, d};
+    const Eigen::Vector3d ref = Normal(tris_[t2]);
+    const Eigen::Vector3d old_gradient = gradient_[c];
+    const bool had_gradient = has_gradient_[c];
+    pos_[c] = foot;
+    has_gradient_[c] = false;
+    double new_min = std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
+    double new_deviation = std::max(TriangleDeviation(n1), TriangleDeviation(n2));
+    bool ok = true;
+    changed_.assign({{t, n1}, {t2, n2}});
+    for (size_t i = 0; ok && i < vertex_tris_[c].size(); ++i) {
+      const int f = vertex_tris_[c][i];
+      if (f == t) continue;
+      const auto& ft = tris_[f];
+      const Eigen::Vector3d m = Normal(ft);
+      new_min = std::min(new_min, MinAngle(pos_[ft[0]], pos_[ft[1]], pos_[ft[2]]));
+      new_deviation = std::max(new_deviation, TriangleDeviation(ft));
+      ok = m.dot(normals_[i]) > 0.5 * m.norm() * normals_[i].norm() && FacesOut(ft);
+      changed_.emplace_back(f, ft);
+    }
+    ok = ok && new_min > old_min && new_deviation <= std::max(old_deviation, 0.05 * cell_);
+    for (const auto& n : {n1, n2}) {
+      const Eigen::Vector3d m = Normal(n);
+      ok = ok && m.dot(ref) > 0.5 * m.norm() * ref.norm() && FacesOut(n);
+    }
+    if (!ok || WouldMeet(changed_, -1, -1)) {
+      pos_[c] = from;
+      gradient_[c] = old_gradient;
+      has_gradient_[c] = had_gradient;
+      return false;
+    }
+    ApplyFlip(t, t2, p, q, c, d);
     return true;
   }
 
@@ -880,6 +1061,16 @@ class Cleaner {
   std::vector<bool> has_gradient_;
   std::vector<bool> separated_;  // per vertex: moved by SeparateCoincident
   long relaxed_ = 0;
+  // A coincident group SeparateCoincident moved apart (with snapping): where its vertices met,
+  // which they are, and whether WidenPinch has tried it.
+  struct Pinch {
+    Eigen::Vector3d start;
+    std::vector<int> members;
+    bool widened;
+  };
+  std::vector<Pinch> pinches_;
+  std::vector<int> pinch_of_;                             // per vertex: its pinch, or -1
+  const std::vector<Eigen::Vector3d>* inward_ = nullptr;  // SeparateCoincident's
   bool angle_guard_ = false;  // Run's angle_guard: Collapse keeps the fan's worst angle
   double small_angle_ = 0.0;  // Run's small_angle_rad
   double sin_small_angle_ = 0.0;
@@ -890,7 +1081,8 @@ class Cleaner {
   unsigned mark_ = 0;                                        // CommonNeighbours' last mark
   std::vector<unsigned> tri_stamp_;                          // per triangle: WouldMeet's stamp
   unsigned stamp_ = 0;                                       // WouldMeet's current stamp
-  std::vector<Eigen::Vector3d> normals_;                     // scratch of Relax
+  std::vector<Eigen::Vector3d> normals_;                     // scratch of Relax, FlattenCap
+  std::vector<Eigen::Vector3d> saved_;                       // scratch of WidenPinch
   std::vector<int> group_;                                   // scratch of SeparateCoincident
   std::vector<std::pair<int, std::array<int, 3>>> changed_;  // scratch of Collapse and Flip
 };
@@ -910,6 +1102,9 @@ class Mesher {
     if (!(s.snap_cells >= 0.0 && s.snap_cells <= 0.25))
       throw std::invalid_argument("MeshSurface: settings.snap_cells must be in [0, 0.25], got " +
                                   std::to_string(s.snap_cells));
+    if (!(s.mend_angle_deg >= 0.0 && s.mend_angle_deg <= 20.0))
+      throw std::invalid_argument("MeshSurface: settings.mend_angle_deg must be in [0, 20], got " +
+                                  std::to_string(s.mend_angle_deg));
     if (!(s.flat_coarsen_cells >= 0.0 && s.flat_coarsen_cells <= 1.0))
       throw std::invalid_argument(
           "MeshSurface: settings.flat_coarsen_cells must be in [0, 1], got " +
@@ -969,6 +1164,8 @@ class Mesher {
         if (flat_collapses > 0 && snapping)
           cleaner.Polish(settings_.short_edge_fraction * h_, &collapses, &flips);
       }
+      if (snapping && settings_.mend_angle_deg > 0.0)
+        cleaner.Mend(settings_.mend_angle_deg * M_PI / 180.0, std::sqrt(3.0) * h_, &collapses, &flips);
       cleaner.Compact();
       break;
     }

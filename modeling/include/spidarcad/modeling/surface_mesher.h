@@ -104,6 +104,16 @@ struct SurfaceMeshSettings {
   // coarsened surfaces have half the nodes at the same accuracy, but P1 ones lock more in bending.
   // Figures: docs/design/2026-12-06-flat-faces.md.
   double flat_coarsen_cells = 0.0;
+  // Clean-up, with snapping, last of all: each triangle still sharper than this (degrees, in
+  // [0, 20]; 0: off) is mended by the first of these that raises the smallest angle around it:
+  // its pinch (vertices SeparateCoincident moved apart) opened wider along the same grid edges;
+  // the clean-up's collapses and flips with edges up to a grid cube's diagonal; its cap flattened
+  // into the neighbour across the long edge; a flip of another edge; a corner relaxed along the
+  // surface within 0.1 cells of it. A mesh with no triangle under the angle is left as it is. The
+  // snapped marching-tetrahedra route left triangles under 10° (down to 1.9°) at holes about a
+  // cell across; with this, none over the scene solids, across cells and grid placements.
+  // Figures: docs/design/2026-12-06-mend-pass.md.
+  double mend_angle_deg = 10.0;
   // Which route meshes the solid (see SurfaceMesher).
   SurfaceMesher mesher = SurfaceMesher::kMarchingTetrahedra;
   // kLattice: a lattice vertex moves onto the surface when its nearest crossing is within this
