@@ -303,7 +303,8 @@ class Cleaner {
     for (int pass = 0; pass < 4; ++pass) {
       long changed = 0;
       for (size_t i = 0; i < tris_.size(); ++i) {
-        if (alive_[i] && Sharp(tris_[i], 0.0, sine)) changed += MendTriangle(static_cast<int>(i), collapses, flips);
+        if (alive_[i] && Sharp(tris_[i], 0.0, sine))
+          changed += MendTriangle(static_cast<int>(i), collapses, flips);
       }
       mended += changed;
       if (changed == 0) break;
@@ -311,7 +312,6 @@ class Cleaner {
     max_edge2_ = run_max_edge2;
     return mended;
   }
-
 
   // that goes has a flat fan: every triangle around it within kFlatFanDegrees of one plane, so
   // the surface keeps its shape. Collapse's other guards hold as in Run (facing, folds, the 1.5
@@ -869,7 +869,8 @@ class Cleaner {
   // Mend's steps for triangle t, the first that succeeds (see Mend). Returns 1 if one did.
   int MendTriangle(int t, long* collapses, long* flips) {
     for (int v : tris_[t]) {
-      if (pinch_of_.size() > static_cast<size_t>(v) && pinch_of_[v] >= 0 && WidenPinch(pinch_of_[v]))
+      if (pinch_of_.size() > static_cast<size_t>(v) && pinch_of_[v] >= 0 &&
+          WidenPinch(pinch_of_[v]))
         return 1;
     }
     if (Improve(t, 0.0, small_angle_, collapses, flips)) return 1;
@@ -964,7 +965,8 @@ class Cleaner {
     const bool had_gradient = has_gradient_[c];
     pos_[c] = foot;
     has_gradient_[c] = false;
-    double new_min = std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
+    double new_min =
+        std::min(MinAngle(pos_[p], pos_[d], pos_[c]), MinAngle(pos_[q], pos_[c], pos_[d]));
     double new_deviation = std::max(TriangleDeviation(n1), TriangleDeviation(n2));
     bool ok = true;
     changed_.assign({{t, n1}, {t2, n2}});
@@ -1165,7 +1167,8 @@ class Mesher {
           cleaner.Polish(settings_.short_edge_fraction * h_, &collapses, &flips);
       }
       if (snapping && settings_.mend_angle_deg > 0.0)
-        cleaner.Mend(settings_.mend_angle_deg * M_PI / 180.0, std::sqrt(3.0) * h_, &collapses, &flips);
+        cleaner.Mend(settings_.mend_angle_deg * M_PI / 180.0, std::sqrt(3.0) * h_, &collapses,
+                     &flips);
       cleaner.Compact();
       break;
     }

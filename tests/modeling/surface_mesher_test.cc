@@ -1158,13 +1158,12 @@ TEST(SurfaceMesher, SnappedRouteMendsEveryTriangleUnderTenDegrees) {
   };
   std::vector<Mesh> meshes;
   std::vector<std::unique_ptr<CompiledSolid>> solids;
-  std::vector<SceneCase> cases = {
-      {"platform.json", 0, {0.0039, 0.005, 0.011, 0.012}},
-      {"clay.json", 0, {0.004, 0.006, 0.008, 0.01}},
-      {"assembly.json", 0, {0.003, 0.004, 0.006, 0.008}},
-      {"assembly.json", 1, {0.002, 0.004, 0.006, 0.008}},
-      {"assembly.json", 2, {0.002, 0.003, 0.004, 0.005}},
-      {"assembly.json", 3, {0.002, 0.004, 0.006, 0.008}}};
+  std::vector<SceneCase> cases = {{"platform.json", 0, {0.0039, 0.005, 0.011, 0.012}},
+                                  {"clay.json", 0, {0.004, 0.006, 0.008, 0.01}},
+                                  {"assembly.json", 0, {0.003, 0.004, 0.006, 0.008}},
+                                  {"assembly.json", 1, {0.002, 0.004, 0.006, 0.008}},
+                                  {"assembly.json", 2, {0.002, 0.003, 0.004, 0.005}},
+                                  {"assembly.json", 3, {0.002, 0.004, 0.006, 0.008}}};
   for (int k = 0; k <= 16; ++k) cases[0].cells.push_back(0.006 + 0.00025 * k);
   for (const SceneCase& c : cases) {
     const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/" + c.scene);
@@ -1174,8 +1173,8 @@ TEST(SurfaceMesher, SnappedRouteMendsEveryTriangleUnderTenDegrees) {
       for (bool aligned : {false, true}) {
         for (double flat : {0.0, 0.5}) {
           if (flat > 0.0 && std::string(c.scene) != "platform.json") continue;
-          const Eigen::AlignedBox3d bounds = aligned ? GridAlignedBounds(*solids.back(), cell)
-                                                     : CliBounds(*solids.back(), cell);
+          const Eigen::AlignedBox3d bounds =
+              aligned ? GridAlignedBounds(*solids.back(), cell) : CliBounds(*solids.back(), cell);
           Mesh m{std::string(c.scene) + " solid " + std::to_string(c.solid) + " cell " +
                      std::to_string(cell) + (aligned ? " grid-aligned" : "") +
                      (flat > 0.0 ? " flat 0.5" : ""),
@@ -1191,9 +1190,9 @@ TEST(SurfaceMesher, SnappedRouteMendsEveryTriangleUnderTenDegrees) {
     for (double cell : {0.002, 0.0025, 0.003, 0.004, 0.005, 0.006}) {
       for (double shift : {0.0, 0.5, 0.37}) {
         const Eigen::Vector3d lo = Eigen::Vector3d::Constant(-0.06 + shift * cell);
-        meshes.push_back({c.name + " cell " + std::to_string(cell) + " shift " +
-                              std::to_string(shift),
-                          &c.solid, Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell)});
+        meshes.push_back(
+            {c.name + " cell " + std::to_string(cell) + " shift " + std::to_string(shift), &c.solid,
+             Settings(lo, lo + Eigen::Vector3d::Constant(0.12), cell)});
       }
     }
   }
