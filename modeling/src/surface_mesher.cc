@@ -54,9 +54,6 @@ constexpr std::array<double, 3> kZeroOffsets = {0.05, 1e-3, 1e-5};
 // first: its vertices move, along the same grid edges, the one of these fractions that gives
 // their triangles the largest smallest angle (Cleaner::WidenPinch).
 constexpr std::array<double, 4> kWideZeroOffsets = {0.1, 0.15, 0.2, 0.25};
-// Mend's relaxation may let a vertex's triangles stray this far from the surface (cells), where
-// the clean-up's keeps them as close as they were.
-constexpr double kMendDeviationCells = 0.1;
 // The clean-up merges vertices closer than kCoincident cells without geometric checks.
 constexpr double kCoincident = 1e-4;
 
@@ -293,18 +290,25 @@ class Cleaner {
   // until one is done, its pinch opened wider (WidenPinch), Improve's collapses and flips with
   // edges up to `max_edge` (Run's bound is 1.5 cells; a grid cube's diagonal is 1.73), its cap
   // flattened into the neighbour across its long edge (FlattenCap), a flip of one of its other
-  // edges, or a relaxation of a corner (Relax) within kMendDeviationCells of the surface. A mesh
-  // with no triangle under `angle_rad` is left as it is. Returns the triangles mended.
+  // edges, or a relaxation of a corner (Relax). The last three and the pinch may let the
+  // triangles they change stray from the surface as far as the mesh's farthest sampled point
+  // before the pass (vertices, edge midpoints, centroids: MeasureSurfaceError's samples), where
+  // the clean-up keeps them as close as they were, so the pass never raises that largest sampled
+  // distance by more than Improve's collapses and flips can (sampled once, before the first
+  // step). A mesh with no triangle under `angle_rad` is left as it is, and not sampled. Returns
+  // the triangles mended.
   long Mend(double angle_rad, double max_edge, long* collapses, long* flips) {
     const double run_max_edge2 = max_edge2_;
     max_edge2_ = max_edge * max_edge;
     const double sine = std::sin(angle_rad);
     long mended = 0;
+    mesh_deviation_ = -1.0;
     for (int pass = 0; pass < 4; ++pass) {
       long changed = 0;
       for (size_t i = 0; i < tris_.size(); ++i) {
-        if (alive_[i] && Sharp(tris_[i], 0.0, sine))
-          changed += MendTriangle(static_cast<int>(i), collapses, flips);
+        if (!alive_[i] || !Sharp(tris_[i], 0.0, sine)) continue;
+        MendDeviationBound();  // sampled before the first step changes anything
+        changed += MendTriangle(static_cast<int>(i), collapses, flips);
       }
       mended += changed;
       if (changed == 0) break;
@@ -313,6 +317,7 @@ class Cleaner {
     return mended;
   }
 
+  // Collapses the edges shorter than `edge` (shortest first in each triangle) where the vertex
   // that goes has a flat fan: every triangle around it within kFlatFanDegrees of one plane, so
   // the surface keeps its shape. Collapse's other guards hold as in Run (facing, folds, the 1.5
   // cell edge bound), with the angle guard on: no fan's worst triangle gets sharper than it was
@@ -630,9 +635,10 @@ class Cleaner {
   // (the field's gradient at v), then onto the surface by Newton steps. Kept if it raises the
   // smallest angle of v's triangles, moves v less than half a cell, turns none of them by 60° or
   // more or against the field, leaves their sampled distance to the surface (FanDeviation) no
-  // larger (or within `allowance`, m), and folds none onto a triangle around it (WouldMeet).
+  // larger (with `mend`, no larger than MendDeviationBound), and folds none onto a triangle
+  // around it (WouldMeet).
   // Returns whether v moved.
-  bool Relax(int v, double allowance = 0.0) {
+  bool Relax(int v, bool mend = false) {
     const auto& fan = vertex_tris_[v];
     if (fan.size() < 3) return false;
     const Eigen::Vector3d p = pos_[v];
@@ -668,8 +674,12 @@ class Cleaner {
       ok = m.dot(normals_[i]) > 0.5 * m.norm() * normals_[i].norm() && FacesOut(tris_[fan[i]]);
       changed_.emplace_back(fan[i], tris_[fan[i]]);
     }
-    ok = ok && FanDeviation(v) <= std::max(old_deviation + 1e-9 * cell_, allowance) &&
-         !WouldMeet(changed_, -1, -1);
+    if (ok) {
+      const double deviation = FanDeviation(v);
+      ok = (deviation <= old_deviation + 1e-9 * cell_ ||
+            (mend && deviation <= MendDeviationBound())) &&
+           !WouldMeet(changed_, -1, -1);
+    }
     if (!ok) {
       pos_[v] = p;
       gradient_[v] = old_gradient;
@@ -889,7 +899,7 @@ class Cleaner {
       }
     }
     for (int v : tri) {
-      if (Relax(v, kMendDeviationCells * cell_)) {
+      if (Relax(v, true)) {
         ++relaxed_;
         return 1;
       }
@@ -912,13 +922,18 @@ class Cleaner {
       best_min = std::min(best_min, FanMinAngle(v));
       saved_.push_back(pos_[v]);
     }
+    const double old_deviation = PinchDeviation(g);
     for (double f : kWideZeroOffsets) {
       for (int v : pinch.members) pos_[v] = pinch.start + f * (*inward_)[v];
       bool unfolded = true;
       for (int v : pinch.members) unfolded = unfolded && Unfolded(v, pinch.start, &pinch.members);
       double new_min = M_PI;
       for (int v : pinch.members) new_min = std::min(new_min, FanMinAngle(v));
-      if (unfolded && new_min > best_min) best_min = new_min, best = f;
+      if (unfolded && new_min > best_min) {
+        const double deviation = PinchDeviation(g);
+        if (deviation <= old_deviation || deviation <= MendDeviationBound())
+          best_min = new_min, best = f;
+      }
     }
     for (size_t k = 0; k < pinch.members.size(); ++k) {
       const int v = pinch.members[k];
@@ -926,6 +941,33 @@ class Cleaner {
       if (best > 0.0) has_gradient_[v] = false;
     }
     return best > 0.0;
+  }
+
+  // Mend's bound on the sampled distance to the surface of what its steps change: MeshDeviation
+  // when first asked for in a Mend (Mend asks before its first step).
+  double MendDeviationBound() {
+    if (mesh_deviation_ < 0.0) mesh_deviation_ = MeshDeviation();
+    return mesh_deviation_;
+  }
+
+  // Largest |value| over the live triangles' corners, edge midpoints and centroids (m).
+  double MeshDeviation() const {
+    double m = 0.0;
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      if (!alive_[t]) continue;
+      const auto& tri = tris_[t];
+      m = std::max(m, TriangleDeviation(tri));
+      for (int v : tri) m = std::max(m, std::abs(solid_.Value(pos_[v])));
+    }
+    return m;
+  }
+
+  // Largest |value| at the vertices of pinch g and their triangles' sampled points (FanDeviation).
+  double PinchDeviation(int g) const {
+    double m = 0.0;
+    for (int v : pinches_[g].members)
+      m = std::max({m, std::abs(solid_.Value(pos_[v])), FanDeviation(v)});
+    return m;
   }
 
   // Largest |value| at triangle tri's centroid and edge midpoints (m).
@@ -980,7 +1022,9 @@ class Cleaner {
       ok = m.dot(normals_[i]) > 0.5 * m.norm() * normals_[i].norm() && FacesOut(ft);
       changed_.emplace_back(f, ft);
     }
-    ok = ok && new_min > old_min && new_deviation <= std::max(old_deviation, 0.05 * cell_);
+    new_deviation = std::max(new_deviation, std::abs(solid_.Value(foot)));
+    ok = ok && new_min > old_min &&
+         (new_deviation <= old_deviation || new_deviation <= MendDeviationBound());
     for (const auto& n : {n1, n2}) {
       const Eigen::Vector3d m = Normal(n);
       ok = ok && m.dot(ref) > 0.5 * m.norm() * ref.norm() && FacesOut(n);
@@ -1071,7 +1115,8 @@ class Cleaner {
     bool widened;
   };
   std::vector<Pinch> pinches_;
-  std::vector<int> pinch_of_;                             // per vertex: its pinch, or -1
+  std::vector<int> pinch_of_;     // per vertex: its pinch, or -1
+  double mesh_deviation_ = -1.0;  // MendDeviationBound's (-1: not sampled in this Mend yet)
   const std::vector<Eigen::Vector3d>* inward_ = nullptr;  // SeparateCoincident's
   bool angle_guard_ = false;  // Run's angle_guard: Collapse keeps the fan's worst angle
   double small_angle_ = 0.0;  // Run's small_angle_rad
