@@ -109,8 +109,9 @@ struct SurfaceMeshSettings {
   // its pinch (vertices SeparateCoincident moved apart) opened wider along the same grid edges;
   // the clean-up's collapses and flips with edges up to a grid cube's diagonal; its cap flattened
   // into the neighbour across the long edge; a flip of another edge; a corner relaxed along the
-  // surface within 0.1 cells of it. A mesh with no triangle under the angle is left as it is. The
-  // snapped marching-tetrahedra route left triangles under 10° (down to 1.9°) at holes about a
+  // surface. The moves keep what they change within the mesh's largest sampled distance to the
+  // surface before the pass. A mesh with no triangle under the angle is left as it is. The
+  // snapped marching-tetrahedra route left triangles under 10° (down to 1.8°) at holes about a
   // cell across; with this, none over the scene solids, across cells and grid placements.
   // Figures: docs/design/2026-12-06-mend-pass.md.
   double mend_angle_deg = 10.0;
