@@ -203,7 +203,7 @@ class Cleaner {
         vertex_tris_(positions->size()),
         gradient_(positions->size()),
         has_gradient_(positions->size(), false),
-        separated_(positions->size(), false) {
+        pinch_of_(positions->size(), -1) {
     std::vector<int> degree(pos_.size(), 0);
     for (const auto& tri : tris_) {
       for (int v : tri) ++degree[v];
@@ -244,7 +244,7 @@ class Cleaner {
     long moved = 0;
     for (size_t i = 0; i < pos_.size(); ++i) {
       const int v = static_cast<int>(i);
-      if (vertex_tris_[v].empty() || inward[v].squaredNorm() == 0.0 || separated_[v]) continue;
+      if (vertex_tris_[v].empty() || inward[v].squaredNorm() == 0.0 || pinch_of_[v] >= 0) continue;
       const Eigen::Vector3d p = pos_[v];
       Eigen::Vector3d x = p;
       for (int step = 0; step < 3; ++step) {
@@ -290,18 +290,15 @@ class Cleaner {
   // until one is done, its pinch opened wider (WidenPinch), Improve's collapses and flips with
   // edges up to `max_edge` (Run's bound is 1.5 cells; a grid cube's diagonal is 1.73), its cap
   // flattened into the neighbour across its long edge (FlattenCap), a flip of one of its other
-  // edges, or a relaxation of a corner (Relax). The last three and the pinch may let the
-  // triangles they change stray from the surface as far as the mesh's farthest sampled point
-  // before the pass (vertices, edge midpoints, centroids: MeasureSurfaceError's samples), where
-  // the clean-up keeps them as close as they were, so the pass never raises that largest sampled
-  // distance by more than Improve's collapses and flips can (sampled once, before the first
-  // step). A mesh with no triangle under `angle_rad` is left as it is, and not sampled. Returns
-  // the triangles mended.
-  long Mend(double angle_rad, double max_edge, long* collapses, long* flips) {
+  // edges, or a relaxation of a corner (Relax). The steps that move vertices (the pinch, the cap,
+  // the relaxation) keep what they change within the larger of its old sampled distance to the
+  // surface and the mesh's largest one before the pass (MendDeviationBound, sampled once, before
+  // the first step), so they never raise the latter; Improve's steps keep their own guards. A
+  // mesh with no triangle under `angle_rad` is left as it is, and not sampled.
+  void Mend(double angle_rad, double max_edge, long* collapses, long* flips) {
     const double run_max_edge2 = max_edge2_;
     max_edge2_ = max_edge * max_edge;
     const double sine = std::sin(angle_rad);
-    long mended = 0;
     mesh_deviation_ = -1.0;
     for (int pass = 0; pass < 4; ++pass) {
       long changed = 0;
@@ -310,11 +307,9 @@ class Cleaner {
         MendDeviationBound();  // sampled before the first step changes anything
         changed += MendTriangle(static_cast<int>(i), collapses, flips);
       }
-      mended += changed;
       if (changed == 0) break;
     }
     max_edge2_ = run_max_edge2;
-    return mended;
   }
 
   // Collapses the edges shorter than `edge` (shortest first in each triangle) where the vertex
@@ -365,11 +360,10 @@ class Cleaner {
   // a move tested against its own neighbours alone could push a triangle through the other side;
   // and a member that still folds at the smallest fraction goes to `stuck`: the pinch is not
   // embedded. Without it the test is the one of before 2026-12-05 (the unsnapped mesh stays the
-  // same bit for bit). With it, each group is kept as a pinch (WidenPinch). Returns the number
+  // same bit for bit). Each group is kept as a pinch (pinch_of_; WidenPinch). Returns the number
   // moved.
   long SeparateCoincident(const std::vector<Eigen::Vector3d>& inward, std::vector<int>* stuck) {
     inward_ = &inward;
-    pinch_of_.assign(pos_.size(), -1);
     std::vector<int> live;
     for (size_t v = 0; v < pos_.size(); ++v) {
       if (!vertex_tris_[v].empty()) live.push_back(static_cast<int>(v));
@@ -391,14 +385,13 @@ class Cleaner {
         for (size_t k = i; k < j; ++k) pos_[live[k]] = start + kZeroOffsets[0] * inward[live[k]];
         group_.assign(live.begin() + i, live.begin() + j);
         const std::vector<int>* others = stuck != nullptr ? &group_ : nullptr;
-        if (stuck != nullptr) pinches_.push_back({start, group_, false});
+        pinches_.push_back({start, group_, false});
         for (size_t k = i; k < j; ++k) {
           const int v = live[k];
-          if (stuck != nullptr) pinch_of_[v] = static_cast<int>(pinches_.size()) - 1;
+          pinch_of_[v] = static_cast<int>(pinches_.size()) - 1;
           for (size_t f = 1; f < kZeroOffsets.size() && !Unfolded(v, start, others); ++f)
             pos_[v] = start + kZeroOffsets[f] * inward[v];
           moved += inward[v].squaredNorm() > 0.0;
-          separated_[v] = true;
           has_gradient_[v] = false;
         }
         // Each member again, where the others ended up (a later one may have stepped back).
@@ -879,9 +872,7 @@ class Cleaner {
   // Mend's steps for triangle t, the first that succeeds (see Mend). Returns 1 if one did.
   int MendTriangle(int t, long* collapses, long* flips) {
     for (int v : tris_[t]) {
-      if (pinch_of_.size() > static_cast<size_t>(v) && pinch_of_[v] >= 0 &&
-          WidenPinch(pinch_of_[v]))
-        return 1;
+      if (pinch_of_[v] >= 0 && WidenPinch(pinch_of_[v])) return 1;
     }
     if (Improve(t, 0.0, small_angle_, collapses, flips)) return 1;
     const auto tri = tris_[t];
@@ -984,8 +975,8 @@ class Cleaner {
   // becomes (p, d, c) and (q, c, d), which lie in its plane: the surface changes by the cap's
   // height. Kept if the smallest angle of c's triangles and the neighbour rises, none of c's
   // other triangles turns by 60° or more or against the field, the new two face as the
-  // neighbour did and out of the solid, their sampled distance to the surface stays within the
-  // old triangles' or 0.05 cells, and nothing folds (WouldMeet).
+  // neighbour did and out of the solid, the sampled distance to the surface of what changed stays
+  // within the old triangles' or MendDeviationBound, and nothing folds (WouldMeet).
   bool FlattenCap(int t, int p, int q) {
     int t2, c, d;
     if (!FlippableQuad(t, &p, &q, &t2, &c, &d)) return false;
@@ -1105,9 +1096,8 @@ class Cleaner {
   std::vector<std::vector<int>> vertex_tris_;
   std::vector<Eigen::Vector3d> gradient_;  // per vertex: unit gradient, once has_gradient_
   std::vector<bool> has_gradient_;
-  std::vector<bool> separated_;  // per vertex: moved by SeparateCoincident
   long relaxed_ = 0;
-  // A coincident group SeparateCoincident moved apart (with snapping): where its vertices met,
+  // A coincident group SeparateCoincident moved apart: where its vertices met,
   // which they are, and whether WidenPinch has tried it.
   struct Pinch {
     Eigen::Vector3d start;
@@ -1115,7 +1105,7 @@ class Cleaner {
     bool widened;
   };
   std::vector<Pinch> pinches_;
-  std::vector<int> pinch_of_;     // per vertex: its pinch, or -1
+  std::vector<int> pinch_of_;     // per vertex: its pinch (moved by SeparateCoincident), or -1
   double mesh_deviation_ = -1.0;  // MendDeviationBound's (-1: not sampled in this Mend yet)
   const std::vector<Eigen::Vector3d>* inward_ = nullptr;  // SeparateCoincident's
   bool angle_guard_ = false;  // Run's angle_guard: Collapse keeps the fan's worst angle
