@@ -388,18 +388,43 @@ class Sharpener {
   }
 
   // Whether one of the triangles `changed` (as they stand now) meets, other than along what they
-  // share, a triangle incident to one of its vertices (TrianglesMeet). A vertex move or an edge
-  // flip only reshapes the triangles around it, so this local test keeps it from folding a
-  // triangle onto its neighbour (a sliver turned over against its neighbours, near a concave
-  // corner) or a fan over itself.
+  // share, a triangle incident to one of its vertices or a triangle whose box its box overlaps
+  // (TrianglesMeet). The first keeps a move or a flip from folding a triangle onto its neighbour
+  // (a sliver turned over against its neighbours, near a concave corner) or a fan over itself;
+  // the second from cutting through a triangle that shares no vertex with it: where a part is
+  // about a cell thick (the platform's 10 mm bracket at 9 mm cells) a move onto a crease on one
+  // face could put a triangle through the opposite face.
   bool ChangedTrianglesMeetOthers(const std::vector<int>& changed) {
+    if (near_mark_.size() < tris_.size()) near_mark_.resize(tris_.size(), 0);
+    ++near_stamp_;
     nearby_.clear();
+    auto add = [this](int u) {
+      if (near_mark_[u] == near_stamp_) return;
+      near_mark_[u] = near_stamp_;
+      nearby_.push_back(u);
+    };
     for (int t : changed) {
-      for (int w : tris_[t])
-        nearby_.insert(nearby_.end(), vertex_tris_[w].begin(), vertex_tris_[w].end());
+      for (int w : tris_[t]) {
+        for (int u : vertex_tris_[w]) add(u);
+      }
     }
-    std::sort(nearby_.begin(), nearby_.end());
-    nearby_.erase(std::unique(nearby_.begin(), nearby_.end()), nearby_.end());
+    if (!tri_cells_built_) {
+      tri_cells_.clear();
+      for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
+        if (dead_tri_.empty() || !dead_tri_[t]) {
+          ForTriangleCells(t, [t](std::vector<int>& list) { list.push_back(t); });
+        }
+      }
+      tri_cells_built_ = true;
+    }
+    for (int t : changed) {
+      // Listed in its cells as it stands now (an entry left where it was before is only a
+      // candidate more: every candidate is tested as it stands).
+      ForTriangleCells(t, [t, &add](std::vector<int>& list) {
+        if (list.empty() || list.back() != t) list.push_back(t);
+        for (int u : list) add(u);
+      });
+    }
     for (int t : changed) {
       const std::array<Eigen::Vector3d, 3> pt{pos_[tris_[t][0]], pos_[tris_[t][1]],
                                               pos_[tris_[t][2]]};
@@ -418,6 +443,20 @@ class Sharpener {
     return false;
   }
 
+  // Calls f(list) for the list of each cell of tri_cells_ that triangle t's box overlaps (the
+  // cells of Key; made when missing). A box more than kMaxBoxCells cells across on an axis
+  // (none on a mesh from MeshSurface, whose edges are a few cells at most) is left out.
+  template <class F>
+  void ForTriangleCells(int t, const F& f) {
+    constexpr long long kMaxBoxCells = 16;
+    const Eigen::AlignedBox3d b = Box({pos_[tris_[t][0]], pos_[tris_[t][1]], pos_[tris_[t][2]]});
+    const Eigen::Vector3d lo = (b.min() / h_).array().floor(), hi = (b.max() / h_).array().floor();
+    if (!lo.allFinite() || !hi.allFinite() || ((hi - lo).array() >= kMaxBoxCells).any()) return;
+    for (long long i = static_cast<long long>(lo.x()); i <= static_cast<long long>(hi.x()); ++i)
+      for (long long j = static_cast<long long>(lo.y()); j <= static_cast<long long>(hi.y()); ++j)
+        for (long long k = static_cast<long long>(lo.z()); k <= static_cast<long long>(hi.z()); ++k)
+          f(tri_cells_[KeyOf(i, j, k)]);
+  }
   static Eigen::AlignedBox3d Box(const std::array<Eigen::Vector3d, 3>& p) {
     Eigen::AlignedBox3d b(p[0]);
     b.extend(p[1]);
@@ -1238,7 +1277,7 @@ class Sharpener {
   // deviation tolerance sliver_deviation_cells. Then, for those that remain, the fallback:
   // the same sweeps over them (and what they change) with the tolerance tripled at each stage up
   // to sliver_fallback_deviation_cells, and a last stage at that tolerance with their feature
-  // vertices released.
+  // vertices released, in up to sliver_release_rounds rounds.
   void RepairSlivers() {
     pinned_.assign(pos_.size(), 0);
     rank_.resize(pos_.size(), 0);
@@ -1264,16 +1303,23 @@ class Sharpener {
     // go, as long as the crease or corner point it marked stays as close to the new triangles as
     // the bound allows (keep_covered). On the platform those lie on blends smaller than a cell,
     // whose planes make false corners, or where a crease runs a fraction of a cell from a row of
-    // vertices; keeping the corners pinned left the default cell at 5.8° and 8.2°.
-    for (int t : look) {
-      for (int v : tris_[t]) {
-        if (pinned_[v]) {
-          pinned_[v] = 0;
-          released_[v] = 1;
+    // vertices; keeping the corners pinned left the default cell at 5.8° and 8.2°. A round's
+    // collapses and flips can make a new sharp triangle around a vertex still pinned, so the
+    // next round releases the feature vertices of what is left (sliver_release_rounds).
+    for (int round = 0; round < s_.sliver_release_rounds && !look.empty(); ++round) {
+      bool any = false;
+      for (int t : look) {
+        for (int v : tris_[t]) {
+          if (pinned_[v]) {
+            pinned_[v] = 0;
+            released_[v] = 1;
+            any = true;
+          }
         }
       }
+      if (!any && round > 0) break;
+      look = RepairSweeps(std::move(look));
     }
-    if (!look.empty()) RepairSweeps(std::move(look));
   }
 
   // Whether the fallback released v from its crease or corner (RepairSlivers).
@@ -1355,6 +1401,7 @@ class Sharpener {
     }
     hash_.clear();
     for (int v = 0; v < n; ++v) HashInsert(v);
+    tri_cells_built_ = false;  // triangles renumbered
     dead_vertex_.clear();
     dead_tri_.clear();
     pinned_.clear();
@@ -1362,10 +1409,12 @@ class Sharpener {
 
   // Spatial hash of vertex positions on cells of edge h, for the separation test.
   long long Key(const Eigen::Vector3d& p) const {
-    const long long i = static_cast<long long>(std::floor(p.x() / h_)) & 0x1fffff;
-    const long long j = static_cast<long long>(std::floor(p.y() / h_)) & 0x1fffff;
-    const long long k = static_cast<long long>(std::floor(p.z() / h_)) & 0x1fffff;
-    return (i << 42) | (j << 21) | k;
+    return KeyOf(static_cast<long long>(std::floor(p.x() / h_)),
+                 static_cast<long long>(std::floor(p.y() / h_)),
+                 static_cast<long long>(std::floor(p.z() / h_)));
+  }
+  static long long KeyOf(long long i, long long j, long long k) {
+    return ((i & 0x1fffff) << 42) | ((j & 0x1fffff) << 21) | (k & 0x1fffff);
   }
   void HashInsert(int v) { hash_[Key(pos_[v])].push_back(v); }
   void HashErase(int v) {
@@ -1405,6 +1454,12 @@ class Sharpener {
   std::vector<int> tri_stamp_;
   std::vector<int> ring_;    // scratch of VertexNormalsSpread
   std::vector<int> nearby_;  // scratch of ChangedTrianglesMeetOthers
+  // Triangles by the cells (Key) their boxes overlap, for ChangedTrianglesMeetOthers (made at
+  // its first call, again after Compact; a triangle is added wherever it is checked).
+  std::unordered_map<long long, std::vector<int>> tri_cells_;
+  bool tri_cells_built_ = false;
+  std::vector<int> near_mark_;  // per triangle: near_stamp_ when in nearby_
+  int near_stamp_ = 0;
   std::vector<char> dirty_;  // per triangle: to be tried by the next FlipPass
   int round_stamp_ = 0;
   std::vector<int> mark_;         // scratch of MakeCollapse (link condition)
@@ -1453,6 +1508,8 @@ void Validate(const FeatureSettings& s) {
   if (!(s.sliver_fallback_deviation_cells >= 0.0) ||
       !std::isfinite(s.sliver_fallback_deviation_cells))
     bad("sliver_fallback_deviation_cells", s.sliver_fallback_deviation_cells, "must be >= 0");
+  if (s.sliver_release_rounds < 1 || s.sliver_release_rounds > 10)
+    bad("sliver_release_rounds", s.sliver_release_rounds, "must be in [1, 10]");
 }
 
 }  // namespace

@@ -129,6 +129,12 @@ struct FeatureSettings {
   // the surface for angles only where the tight repair failed; a mesh the tight repair leaves
   // with no triangle under sliver_angle_deg comes out the same.
   double sliver_fallback_deviation_cells = 0.0;
+  // Rounds of that last stage (in [1, 10]): after each, the feature vertices of the triangles
+  // still sharper than sliver_angle_deg, those the round's own collapses and flips made
+  // included, are released and the sweeps run again, while a round releases any. 1 is the
+  // single release of before 2026-12-06 (the platform at 5 mm, `spidarcad mesh --sharp`: a
+  // 9.15° triangle made around a crease vertex after the release; 3 rounds leave none).
+  int sliver_release_rounds = 3;
   // Polled between rounds and passes; when true SharpenFeatures throws MeshingCancelled.
   const std::atomic<bool>* cancel = nullptr;
 };
