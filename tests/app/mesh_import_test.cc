@@ -282,6 +282,14 @@ TEST(MeshImport, BadFilesNameTheFileLineAndFieldThroughReadMeshFile) {
   what = FileErrorOf(base + ".node");
   EXPECT_NE(what.find("tetrahedron 0"), std::string::npos) << what;
 
+  // A .node that is not there is named, not its .ele; a .ele that is not there is named next.
+  const std::string missing = OutputPath("missing");
+  what = FileErrorOf(missing + ".node");
+  EXPECT_NE(what.find(missing + ".node: cannot open the file"), std::string::npos) << what;
+  std::ofstream(missing + ".node") << "4 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n";
+  what = FileErrorOf(missing + ".node");
+  EXPECT_NE(what.find("no " + missing + ".ele beside it"), std::string::npos) << what;
+
   // A .vtu cell that names one point twice (whatever its rounded volume): refused by the reader.
   const std::string vtu = OutputPath("repeated.vtu");
   std::ofstream(vtu) << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" "

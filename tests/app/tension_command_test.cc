@@ -37,7 +37,7 @@ std::vector<std::vector<double>> ParseLines(const std::string& text) {
 }
 
 // Wrench (f, m, g) of tensions τ on a grip (p0, p1, p2) in the paper's 48 cm frame, from
-// ERRATA.md written out independently of the library.
+// docs/architecture.md (Reading the paper) written out independently of the library.
 Eigen::Matrix<double, 7, 1> WrenchOf(const std::vector<double>& pose,
                                      const std::vector<double>& tau) {
   const Eigen::Vector3d p0(pose[0], pose[1], pose[2]), p1(pose[3], pose[4], pose[5]),

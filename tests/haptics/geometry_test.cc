@@ -1,5 +1,5 @@
 // Tests of the SPIDAR-G geometry conventions (geometry.h) against the paper's Eq. 3 and the
-// string attachment of ERRATA.md, written out independently here.
+// string attachment of docs/architecture.md (Reading the paper), written out independently here.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/haptics/geometry.h"
 
@@ -39,7 +39,8 @@ TEST(SpidarGeometry, CornersFollowEq3) {
 }
 
 TEST(StringAttachment, FollowsErrataTable) {
-  // ERRATA: strings 1,2 -> P+1; 3,4 -> P-1; 5,7 -> P+2; 6,8 -> P-2 (1-based).
+  // Attachment (docs/architecture.md): strings 1,2 -> P+1; 3,4 -> P-1; 5,7 -> P+2; 6,8 -> P-2
+  // (1-based).
   const int pole[8] = {0, 0, 0, 0, 1, 1, 1, 1};
   const int end[8] = {+1, +1, -1, -1, +1, -1, +1, -1};
   const int delta[8] = {1, 1, 1, 1, -1, -1, -1, -1};

@@ -35,7 +35,7 @@ Vector3d RandomVector(std::mt19937* rng, double half_range) {
   return Vector3d(u(*rng), u(*rng), u(*rng));
 }
 
-// Objective written out from ERRATA.md Eq. 17, term by term.
+// Objective written out from Eq. 17 as re-derived in docs/architecture.md, term by term.
 double Objective(const Matrix78d& A, const Vector7d& q, const TensionSettings& s,
                  const Vector8d& tau) {
   double force_error = 0, moment_error = 0;

@@ -290,8 +290,10 @@ void RegisterFeltCommand(CLI::App& app) {
       "(also one cut short). Default probes (platform.json):\n"
       "corner 0.29,0.09,0.01 and gusset 0.10,0,0.01, both pushed down (0,0,-1).\n"
       "\n"
-      "Example:\n"
-      "  xvfb-run -a spidarcad felt assets/scenes/platform.json --plot felt.png --csv felt.csv");
+      "Examples (the first, every default cell in both orders, takes several minutes on two\n"
+      "cores, most of them at 4 mm; the second about half a minute):\n"
+      "  xvfb-run -a spidarcad felt assets/scenes/platform.json --plot felt.png --csv felt.csv\n"
+      "  xvfb-run -a spidarcad felt --cells 0.012,0.008 --plot felt.png");
   cmd->add_option("scene", o->scene, "Scene (.json; default assets/scenes/platform.json)");
   cmd->add_option("--solid", o->solid, "Solid of the scene (default: the first)");
   cmd->add_option("--cells", o->cells, "Surface grid cells, m (default 0.012,...,0.004)");

@@ -982,7 +982,7 @@ void RegisterFemCommand(CLI::App& app) {
       "(write a value that starts with '-' as --fix=-1,...: otherwise it reads as an option)\n"
       "Example (the platform, quadratic, slab meshes and factors kept for the next run):\n"
       "  spidarcad fem assets/scenes/platform.json --order 2 --resolution 0.01 \\\n"
-      "    --cache-dir /tmp/spidarcad-fem --out platform.vtu");
+      "    --fix=-1,-1,-1,0.0005,1,1 --cache-dir /tmp/spidarcad-fem --out platform.vtu");
   cmd->add_option("input", options->input,
                   "Mesh (.vtu), closed surface (.stl, .obj, .ply), scene or document (.json)")
       ->required();

@@ -83,7 +83,8 @@ void RegisterImportCommand(CLI::App& app) {
       "(default: the file's name without extension; made unique with \" copy\"), and writes the\n"
       "document to OUT (default: DOC itself), atomically. A bad FILE or DOC exits with status 2\n"
       "naming the file, line or byte, and field; nothing is written then.\n"
-      "Example:\n"
+      "Example (part.stl: a surface in metres, here made by `spidarcad mesh`):\n"
+      "  spidarcad mesh assets/scenes/platform.json --out part.stl\n"
       "  spidarcad import part.stl --into assets/scenes/platform_fe.json --out design.json\n"
       "  spidarcad fem design.json --object part --fix=-1,-1,-1,0.001,1,1 --out part.vtu\n");
   cmd->add_option("file", options->file, "Mesh file: .stl .obj .ply .vtu .node")->required();

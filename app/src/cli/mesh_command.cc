@@ -327,8 +327,9 @@ constexpr const char* kMeshHelp =
     "      (writes platform.node and platform.ele)\n"
     "  spidarcad mesh assets/scenes/platform.json --out platform.vtu --tets cgal --resolution "
     "0.004\n"
-    "  spidarcad mesh part.stl --out part_fixed.stl      (repair report, repaired copy)\n"
-    "  spidarcad mesh part.stl --out part.vtu --tets tetgen\n";
+    "  spidarcad mesh platform.stl --out part_fixed.stl  (a surface file, here the first\n"
+    "      example's: repair report, repaired copy)\n"
+    "  spidarcad mesh platform.stl --out part.vtu --tets tetgen\n";
 
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(),

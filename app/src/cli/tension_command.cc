@@ -17,7 +17,8 @@ namespace spidarcad::app {
 namespace {
 
 constexpr const char* kTensionHelp =
-    "Tension distribution (paper Eq. 16-17, ERRATA.md): for each pose and requested wrench,\n"
+    "Tension distribution (the paper's Eq. 16-17 as re-derived in docs/architecture.md, Reading\n"
+    "the SPIDAR-G paper): for each pose and requested wrench,\n"
     "the string tensions that display it best within the tension bounds.\n"
     "\n"
     "Input (stdin), one line per request, 16 comma-separated numbers; '#' and blank lines\n"

@@ -81,10 +81,11 @@ MeshData ReadMeshFile(const std::string& path, MeshFileInfo* info) {
       volume = FromVtu(path, &found.flipped_tets);
     } else {
       const std::string ele = fs::path(path).replace_extension(".ele").string();
+      const std::string node_text = ReadText(path);  // a missing .node is named first
       if (!fs::exists(ele)) {
         throw InputError(path + ": no " + ele + " beside it (TetGen writes the tetrahedra there)");
       }
-      volume = ParseTetgenFiles(ReadText(path), ReadText(ele), path, ele, &found.flipped_tets);
+      volume = ParseTetgenFiles(node_text, ReadText(ele), path, ele, &found.flipped_tets);
     }
     try {
       modeling::ValidateTetMesh(volume);

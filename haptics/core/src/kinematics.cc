@@ -454,7 +454,8 @@ int ClosedFormCandidates(const SpidarGeometry& geometry, const Vector8d& lengths
                          GripPose poses[kMaxCandidates], double costs[kMaxCandidates]) {
   const double a = geometry.a, b = geometry.b, c = geometry.c, d = geometry.d;
   const Vector8d L = lengths.array().square();
-  // Pairwise differences (ERRATA): u = P+1, v = P−1, s = P+2, t = P−2.
+  // Pairwise differences (docs/architecture.md, Reading the paper): u = P+1, v = P−1, s = P+2, t =
+  // P−2.
   const double ux = (L(1) - L(0)) / (4 * a);
   const double vx = (L(3) - L(2)) / (4 * a);
   const double sy = (L(6) - L(4)) / (4 * b);
@@ -820,7 +821,8 @@ FkBound FkPositionBound(const SpidarGeometry& geometry, const GripPose& estimate
                                    std::max(1.0, lengths.cwiseAbs().maxCoeff());
   const double sqrt8 = std::sqrt(8.0);
 
-  // x and y: exact functions of the squared lengths, monotone in each (ERRATA.md).
+  // x and y: exact functions of the squared lengths, monotone in each (docs/architecture.md,
+  // Reading the paper).
   Vector8d sq_lo, sq_hi;
   for (int i = 0; i < kNumStrings; ++i) {
     const double lo = std::max(0.0, lengths(i) - q);

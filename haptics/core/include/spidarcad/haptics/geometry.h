@@ -2,7 +2,7 @@
 //
 // Frame D (device): origin at the frame centre, axes as the paper's Fig. 4. Units: metres, rad.
 // String numbering is 0-based in code (string k in code is string k+1 in the paper).
-// Attachment (ERRATA.md): strings 1,2 -> P+1; 3,4 -> P-1; 5,7 -> P+2; 6,8 -> P-2, where
+// Attachment (docs/architecture.md): strings 1,2 -> P+1; 3,4 -> P-1; 5,7 -> P+2; 6,8 -> P-2, where
 // P±1 = p0 ± p1 and P±2 = p0 ± p2. String i runs from its attachment point to corner Q_i.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #pragma once

@@ -109,8 +109,8 @@ struct FkResult {
   FkStatus status = FkStatus::kInvalidInput;
 };
 
-// Closed-form pose from 8 lengths (the paper's Index 1, re-derived in ERRATA.md), without
-// refinement. x, x1, y, y2 come from pairwise differences; each pole then gives a cubic in
+// Closed-form pose from 8 lengths (the paper's Index 1, re-derived in docs/architecture.md),
+// without refinement. x, x1, y, y2 come from pairwise differences; each pole then gives a cubic in
 // W = (z − c)² (pole 1) or V = (z + c)² (pole 2). Every real root (and every stationary point,
 // which stands in for a pair of roots lost to noise) with the grip centre inside the frame
 // (|z| < c) is a candidate; the candidate whose pose best reproduces all 8 lengths wins. The
@@ -230,7 +230,7 @@ FkConditioningMap SampleFkConditioning(const SpidarGeometry& geometry, const FkS
 // Worst-case bound on the error of a forward-kinematics pose when every measured length is
 // within ±tolerance of the true length (see docs/kinematics.md for the derivation):
 //  - x and y: exact intervals of x = (−l1² + l2² − l3² + l4²)/(8a) and
-//    y = (−l5² − l6² + l7² + l8²)/(8b) over the box of lengths (ERRATA.md);
+//    y = (−l5² − l6² + l7² + l8²)/(8b) over the box of lengths (docs/architecture.md);
 //  - every coordinate: J⁺ applied to the residual and to the error box, plus a rigorous bound
 //    on the second-order Taylor remainder of the lengths along the path from the estimate to
 //    the true pose (|∂²l_i| ≤ 2.25·(1/d + 1/l_i) per squared scaled step), solved as

@@ -1,5 +1,5 @@
 // Force display with strings: the wrench matrix A (Eq. 10-15) and the tension distribution
-// (Eq. 16-17 as corrected in ERRATA.md). Real-time safe: no allocation or exceptions in
+// (Eq. 16-17 as re-derived in docs/architecture.md). Real-time safe: no allocation or exceptions in
 // WrenchMatrix and TensionSolver::Solve.
 //
 // Wrench on the grip q = (f, m, g), a 7-vector: force f [N] in D, moment m about p0 [N·m] in D,
