@@ -438,9 +438,27 @@ class Sharpener {
                                                 pos_[tris_[u][2]]};
         if (!bt.intersects(Box(pu))) continue;
         if (TrianglesMeet(tris_[t], pt, tris_[u], pu)) return true;
+        if (FoldedAcrossEdge(tris_[t], pt, tris_[u], pu)) return true;
       }
     }
     return false;
+  }
+
+  // Whether triangles a and b share an edge and their normals are within kFoldAngleDeg of
+  // opposite: a fin of two triangles nearly folded onto each other, which no solid the
+  // sharpener meets has (TrianglesMeet finds only those folded exactly into one plane).
+  static bool FoldedAcrossEdge(const std::array<int, 3>& ia,
+                               const std::array<Eigen::Vector3d, 3>& pa,
+                               const std::array<int, 3>& ib,
+                               const std::array<Eigen::Vector3d, 3>& pb) {
+    constexpr double kFoldAngleDeg = 5.0;
+    int shared = 0;
+    for (int v : ia) shared += v == ib[0] || v == ib[1] || v == ib[2];
+    if (shared != 2) return false;
+    const Eigen::Vector3d na = Normal(pa), nb = Normal(pb);
+    const double scale = na.norm() * nb.norm();
+    if (!(scale > 0.0)) return false;  // a degenerate triangle: TrianglesMeet's to judge
+    return na.dot(nb) < -std::cos(kFoldAngleDeg * M_PI / 180.0) * scale;
   }
 
   // Calls f(list) for the list of each cell of tri_cells_ that triangle t's box overlaps (the
