@@ -1,14 +1,61 @@
 // spidarcad: engineering design by touch with a SPIDAR-G haptic device.
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "gui/gui.h"
 #include "scene/worker_process.h"
+
+namespace {
+
+// Edits (insertions, deletions, substitutions) that turn a into b.
+std::size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// The first argument `word` is taken for the window's scene when it is not a subcommand. A word
+// that is neither a subcommand, 'demo', 'none', nor a path (no '.' or '/', no such file) is
+// most likely a mistyped subcommand: the error names the subcommands and the nearest one (two
+// edits or fewer). Empty when `word` may be a scene.
+std::string UnknownWordError(const std::string& word, const std::vector<std::string>& commands) {
+  if (word.empty() || word[0] == '-' || word == "demo" || word == "none") return "";
+  if (std::find(commands.begin(), commands.end(), word) != commands.end()) return "";
+  if (word.find_first_of("./") != std::string::npos) return "";
+  std::error_code ec;
+  if (std::filesystem::exists(word, ec)) return "";
+  std::string list, nearest;
+  std::size_t best = 3;
+  for (const std::string& c : commands) {
+    list += (list.empty() ? "" : ", ") + c;
+    const std::size_t d = EditDistance(word, c);
+    if (d < best) best = d, nearest = c;
+  }
+  std::string message = "'" + word + "' is not a subcommand, and no scene file of that name exists";
+  if (!nearest.empty()) message += " (did you mean '" + nearest + "'?)";
+  return message + ". The subcommands: " + list +
+         "; `spidarcad --help` explains them. To open the window on a scene, give its file "
+         "(e.g. assets/scenes/platform.json), 'demo' or 'none'.";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace spidarcad::app;
@@ -60,6 +107,16 @@ int main(int argc, char** argv) {
   RegisterInfoCommand(app);
   RegisterImportCommand(app);
 
+  if (argc >= 2) {
+    std::vector<std::string> commands;
+    for (const CLI::App* c : app.get_subcommands([](const CLI::App*) { return true; }))
+      commands.push_back(c->get_name());
+    const std::string error = UnknownWordError(argv[1], commands);
+    if (!error.empty()) {
+      std::cerr << "spidarcad: error: " << error << "\n";
+      return kExitBadInput;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -152,6 +152,31 @@ void ExpectRefused(const CommandRun& run, const std::string& what,
   }
 }
 
+// A mistyped subcommand used to be taken for the window's scene: `spidarcad tune --help`
+// printed the main help with status 0, and without --help the window opened to say no document
+// file 'tune' exists. It exits 2 naming the word, the subcommands and the nearest one; a scene
+// file, 'demo', 'none' and the subcommands themselves are taken as before.
+TEST(HostileInput, AMistypedSubcommandExitsTwoNamingTheNearestOne) {
+  for (const std::string& args : {std::string("mesj --help"), std::string("mesj x --out y")}) {
+    const CommandRun run = RunSpidarcad(args, "", "typo");
+    EXPECT_EQ(run.status, 2) << args << "\n" << run.all();
+    EXPECT_NE(run.err.find("'mesj' is not a subcommand"), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("did you mean 'mesh'?"), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("fk, ik, tension"), std::string::npos) << run.err;
+  }
+  const CommandRun far = RunSpidarcad("xyzzyplugh", "", "far");
+  EXPECT_EQ(far.status, 2) << far.all();
+  EXPECT_EQ(far.err.find("did you mean"), std::string::npos) << far.err;
+  for (const std::string& args :
+       {std::string("--help"), std::string("demo --help"), std::string("none --help"),
+        std::string("mesh --help"),
+        "'" + std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json' --help"}) {
+    const CommandRun run = RunSpidarcad(args, "", "known");
+    EXPECT_EQ(run.status, 0) << args << "\n" << run.all();
+    EXPECT_EQ(run.err.find("is not a subcommand"), std::string::npos) << args << "\n" << run.err;
+  }
+}
+
 // Bullet 1: "a scene whose tree is a chain of 10,000 nested translate nodes, or whose JSON nests
 // an array 100,000 deep, kills `spidarcad mesh` with a segmentation fault". Both files through
 // `mesh` are MeshCommand.HostileScenesExitTwoNamingFileLineAndField (status 2, file:line, no
