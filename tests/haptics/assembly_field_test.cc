@@ -285,6 +285,29 @@ TEST(AssemblyField, CarryingThePartIntoTheBodyPushesBack) {
   EXPECT_FALSE(field.seated(1));
 }
 
+// A part built within a seat's tolerance (a document saved with it seated) starts seated, at the
+// pose it was given; one built beside it does not. The constructor's published state says so
+// before the first tick (the window and `spidarcad run` read their summaries from it).
+TEST(AssemblyField, APartBuiltInItsSeatStartsSeatedWhereItWasGiven) {
+  std::vector<AssemblyPart> parts = Parts();
+  Eigen::Isometry3d near = kSeat_BP;  // body at the origin
+  near.translation() += Eigen::Vector3d(0.0003, -0.0002, 0.001);
+  parts[1].X_WP = near;
+  AssemblyField built_seated(parts);
+  EXPECT_TRUE(built_seated.seated(1));
+  EXPECT_FALSE(built_seated.seated(0)) << "a fixed part is never seated";
+  EXPECT_EQ(built_seated.X_WP(1).matrix(), near.matrix());
+  const AssemblyState& s = built_seated.LatestState();
+  ASSERT_EQ(s.count, 2);
+  EXPECT_TRUE(s.seated[1]);
+  EXPECT_EQ(s.X_WP[1].matrix(), near.matrix());
+  parts[1].X_WP.translation().z() += 0.003;  // 3 mm above: outside the 2 mm tolerance
+  AssemblyField above(parts);
+  EXPECT_FALSE(above.seated(1));
+  AssemblyField apart(Parts());
+  EXPECT_FALSE(apart.seated(1));
+}
+
 TEST(AssemblyField, ReleasingOverTheHoleSeatsThePartExactlyAndItStays) {
   AssemblyField field(Parts());
   Driver d = PickUp(field);

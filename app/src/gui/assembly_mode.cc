@@ -233,9 +233,6 @@ void AssemblyMode::Build(const std::vector<AssemblyPartInput>& inputs,
     part.fixed = in.fixed;
     part.id = i < ids.size() ? ids[i] : 0;
     part.revision = i < revisions.size() ? revisions[i] : 0;
-    part.X_WP = in.X_WP;
-    Eigen::Isometry3d X_WS;
-    part.seated_at_build = !in.fixed && field->FindSeat(static_cast<int>(i), in.X_WP, &X_WS);
     const std::string key = modeling::NodeToJson(*in.root).dump() + cell_text.str();
     const auto found = std::find(keys.begin(), keys.end(), key);
     if (found != keys.end()) {
@@ -305,14 +302,9 @@ void AssemblyMode::Build(const std::vector<AssemblyPartInput>& inputs,
   field_changed_ = true;
   message_.clear();
   state_ = haptics::AssemblyState{};
-  ShowInitial();  // the initial poses until the field's first tick
-}
-
-void AssemblyMode::ShowInitial() {
-  haptics::AssemblyState initial;
-  initial.count = field_->size();
-  for (int i = 0; i < field_->size(); ++i) initial.X_WP[i] = field_->part(i).X_WP;
-  Show(initial);
+  // What the field published when it was built (its initial poses, the parts built in a seat
+  // seated) until its first tick.
+  Show(field_->LatestState());
 }
 
 bool AssemblyMode::TakeFieldChanged() {
@@ -425,12 +417,7 @@ bool AssemblyMode::SyncDocument(Document* doc) {
 
 void AssemblyMode::OnFrame() {
   if (!field_) return;
-  const haptics::AssemblyState& latest = field_->LatestState();
-  if (latest.count == field_->size()) {
-    Show(latest);
-  } else if (state_.count != field_->size()) {  // not ticked yet: the initial poses
-    ShowInitial();
-  }
+  Show(field_->LatestState());
 }
 
 Eigen::Matrix4d AssemblyMode::ViewMatrix(const Eigen::Isometry3d& X_WP) const {
@@ -494,12 +481,9 @@ void AssemblyMode::SetWorldToView(const haptics::DeviceToWorld& X_WD) {
 AssemblyPartState AssemblyMode::part_state(int i) const {
   if (parts_[i].fixed) return AssemblyPartState::kFixed;
   if (state_.count == size() && state_.carried == i) return AssemblyPartState::kCarried;
+  // Seated by the field: released in a seat, or built in one (a document saved with the part
+  // seated, an undo back to it) and not picked up since.
   if (state_.count == size() && state_.seated[i]) return AssemblyPartState::kSeated;
-  // Built in its seat (a document saved with the part seated, an undo back to it) and not
-  // moved since.
-  if (state_.count == size() && parts_[i].seated_at_build &&
-      SamePose(state_.X_WP[i], parts_[i].X_WP))
-    return AssemblyPartState::kSeated;
   return AssemblyPartState::kFree;
 }
 
@@ -590,14 +574,11 @@ std::string FormatAssemblySummary(const AssemblyMode& mode) {
   // The text is scene/assembly_scene.h's (shared with `spidarcad run`).
   std::vector<std::string> names;
   std::vector<bool> fixed;
-  haptics::AssemblyState state = mode.state();
   for (int i = 0; i < mode.size(); ++i) {
     names.push_back(mode.part_name(i));
     fixed.push_back(mode.part_fixed(i));
-    if (state.count == mode.size())
-      state.seated[i] = mode.part_state(i) == AssemblyPartState::kSeated;
   }
-  return FormatAssemblySummary(names, fixed, state);
+  return FormatAssemblySummary(names, fixed, mode.state());
 }
 
 }  // namespace spidarcad::app

@@ -146,18 +146,15 @@ class AssemblyMode {
     std::string name;
     std::string solid;
     bool fixed = false;
-    int mesh = -1;                                           // index of its mesh in vtk_
-    ObjectId id = 0;                                         // document object (0: a scene's)
-    std::uint64_t revision = 0;                              // its revision the field holds
-    Eigen::Isometry3d X_WP = Eigen::Isometry3d::Identity();  // pose it was built at
-    bool seated_at_build = false;  // that pose lies in one of its seats (FindSeat)
+    int mesh = -1;               // index of its mesh in vtk_
+    ObjectId id = 0;             // document object (0: a scene's)
+    std::uint64_t revision = 0;  // its revision the field holds
   };
   // Builds field, meshes and actors from `inputs` (roots owned by roots_ or the caller);
   // `ids`/`revisions` empty for a scene. Strong guarantee.
   void Build(const std::vector<AssemblyPartInput>& inputs, const std::vector<ObjectId>& ids,
              const std::vector<std::uint64_t>& revisions, double display_cell);
   void Clear();
-  void ShowInitial();
   void UpdateGhost();
 
   vtkRenderer* renderer_;

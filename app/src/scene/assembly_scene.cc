@@ -300,32 +300,15 @@ std::string FormatAssemblySummary(const std::vector<std::string>& names,
   return os.str();
 }
 
-std::vector<bool> PartsBuiltSeated(const haptics::AssemblyField& field) {
-  std::vector<bool> seated(static_cast<std::size_t>(field.size()), false);
-  for (int i = 0; i < field.size(); ++i) {
-    Eigen::Isometry3d X_WS;
-    seated[i] = !field.part(i).fixed && field.FindSeat(i, field.part(i).X_WP, &X_WS);
-  }
-  return seated;
-}
-
 std::string FormatAssemblySummary(const haptics::AssemblyField& field,
-                                  const haptics::AssemblyState& state,
-                                  const std::vector<bool>& built_seated) {
+                                  const haptics::AssemblyState& state) {
   std::vector<std::string> names;
   std::vector<bool> fixed;
-  haptics::AssemblyState shown = state;
-  const bool published = state.count == field.size();
   for (int i = 0; i < field.size(); ++i) {
     names.push_back(field.part(i).name);
     fixed.push_back(field.part(i).fixed);
-    if (published && i < haptics::kMaxAssemblyParts &&
-        static_cast<std::size_t>(i) < built_seated.size() && built_seated[i] &&
-        state.carried != i &&
-        (state.X_WP[i].matrix() - field.part(i).X_WP.matrix()).cwiseAbs().maxCoeff() <= 1e-12)
-      shown.seated[i] = true;
   }
-  return FormatAssemblySummary(names, fixed, shown);
+  return FormatAssemblySummary(names, fixed, state);
 }
 
 }  // namespace spidarcad::app

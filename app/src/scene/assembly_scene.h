@@ -118,15 +118,8 @@ bool AdoptScenePartsAsRigidParts(Document* doc);
 std::string FormatAssemblySummary(const std::vector<std::string>& names,
                                   const std::vector<bool>& fixed,
                                   const haptics::AssemblyState& state);
-// Which parts of `field` lie in one of their seats as built (AssemblyField::FindSeat at their
-// initial poses; fixed parts: false), as a document saved with a part seated has them. Call it
-// before the first tick, while every part is at its initial pose.
-std::vector<bool> PartsBuiltSeated(const haptics::AssemblyField& field);
-// The same for the parts of `field` (their names and fixed flags). A part built in its seat
-// (built_seated[i], from PartsBuiltSeated; may be empty) that is not carried and is still at the
-// pose it was built at counts as seated, as the window's assembly mode counts it.
+// The same for the parts of `field` (their names and fixed flags).
 std::string FormatAssemblySummary(const haptics::AssemblyField& field,
-                                  const haptics::AssemblyState& state,
-                                  const std::vector<bool>& built_seated = {});
+                                  const haptics::AssemblyState& state);
 
 }  // namespace spidarcad::app

@@ -146,7 +146,6 @@ struct ScriptedRun::Impl {
   std::string fe_lines;  // what the FE parts' set-up did, for the summary
   std::string calibration_line;
   haptics::AssemblyField* assembly_field = nullptr;  // an assembly's field (owned by the loop)
-  std::vector<bool> assembly_built_seated;           // its parts built in a seat (the summary)
   std::vector<FeTouchField*> fe_fields;              // the FE parts' fields (owned by the loop)
   std::vector<std::shared_ptr<FeModel>> fe_parts;    // their models, in the same order
   std::vector<std::string> fe_names;                 // and their names
@@ -428,7 +427,6 @@ void ScriptedRun::Impl::BuildDocumentScene(int version,
     GivenWorldMap(options, &settings.X_WD);
     *scene = std::make_unique<haptics::HapticScene>();
     assembly_field = assembly.get();
-    assembly_built_seated = PartsBuiltSeated(*assembly);
     (*scene)->Add(std::move(assembly));
     scene_name = options.scene + " (assembly, " + std::to_string(part_count) + " parts)";
     fields_line = "fields: assembly (" + std::to_string(part_count) + " parts)";
@@ -583,7 +581,6 @@ void ScriptedRun::Impl::BuildDocumentScene(int version,
         throw InputError(options.scene + ": " + e.what());
       }
       assembly_field = assembly.get();
-      assembly_built_seated = PartsBuiltSeated(*assembly);
       (*scene)->Add(std::move(assembly));
       fields_line += std::string(fields_line == "fields:" ? "" : ",") + " assembly (" +
                      std::to_string(parts_beside.size()) + " parts)";
@@ -1092,8 +1089,7 @@ std::string ScriptedRun::Summary() const {
   out << "\nmax commanded force: " << Fixed(s.max_force, 3) << " N\n";
   if (s.assembly_field != nullptr) {
     // The field's state after the last tick (this thread ran every tick: it is the one reader).
-    out << FormatAssemblySummary(*s.assembly_field, s.assembly_field->LatestState(),
-                                 s.assembly_built_seated);
+    out << FormatAssemblySummary(*s.assembly_field, s.assembly_field->LatestState());
   }
   return out.str();
 }

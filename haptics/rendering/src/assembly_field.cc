@@ -180,6 +180,8 @@ AssemblyField::AssemblyField(std::vector<AssemblyPart> parts, PointShell tool_sh
   last_phi_.assign(max_shell * n, 0.0);
   last_x_.assign(max_shell * n, Eigen::Vector3d::Zero());
   last_epoch_.assign(max_shell * n, 0);
+  // Parts built in a seat start seated (the other parts at their initial poses).
+  for (int i = 0; i < n; ++i) seated_[i] = !parts_[i].fixed && FindSeat(i, poses_[i], nullptr);
   Publish();
 }
 

@@ -45,6 +45,8 @@
 //    push into it (the grip opened): it stays at X_WV. If it then lies within a seat's
 //    tolerance (|p_WP − p_WS| <= position_tolerance and the angle of R_WSᵀ R_WP <=
 //    angle_tolerance, X_WS = X_WO·X_OS) its pose snaps to X_WS exactly and `seated` is set.
+//    A part built within a seat's tolerance (a document saved with the part seated) starts
+//    seated, at the pose it was given; `seated` is cleared when a part is picked up.
 //    While a part is carried and the document's snap is on (AlignmentSnapSettings.enabled), each
 //    of its seats within capture (|p_WV − p_WS| < capture_distance and the angle between the
 //    part's axis R_WV e_z and the seat's axis a = R_WS e_z below capture_angle) draws the part
