@@ -941,14 +941,15 @@ class Cleaner {
     return mesh_deviation_;
   }
 
-  // Largest |value| over the live triangles' corners, edge midpoints and centroids (m).
+  // Largest |value| over the live triangles' corners, edge midpoints and centroids (m); each
+  // corner once.
   double MeshDeviation() const {
     double m = 0.0;
     for (size_t t = 0; t < tris_.size(); ++t) {
-      if (!alive_[t]) continue;
-      const auto& tri = tris_[t];
-      m = std::max(m, TriangleDeviation(tri));
-      for (int v : tri) m = std::max(m, std::abs(solid_.Value(pos_[v])));
+      if (alive_[t]) m = std::max(m, TriangleDeviation(tris_[t]));
+    }
+    for (size_t v = 0; v < pos_.size(); ++v) {
+      if (!vertex_tris_[v].empty()) m = std::max(m, std::abs(solid_.Value(pos_[v])));
     }
     return m;
   }
