@@ -1171,6 +1171,52 @@ class Sharpener {
     return true;
   }
 
+  // Where vertex v is best placed for the smallest angle of its fan: a pattern search in the
+  // tangent plane at v (eight directions, steps from 0.2 cells halved down to 0.0125 cells,
+  // within 0.5 cells of v; no triangle of the fan may turn over), projected onto the surface.
+  // False when no step improves on v where it is.
+  bool FanAngleTarget(int v, Eigen::Vector3d* out) {
+    const auto& fan = vertex_tris_[v];
+    const Eigen::Vector3d x0 = pos_[v];
+    const Eigen::Vector3d n = UnitGradient(x0);
+    if (fan.size() < 3 || n.squaredNorm() < 0.5) return false;
+    const Eigen::Vector3d t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+    scratch_normals_.clear();
+    for (int t : fan) scratch_normals_.push_back(Normal(Corners(tris_[t])));
+    auto fan_min = [&](const Eigen::Vector3d& x) {
+      double m = M_PI;
+      for (size_t i = 0; i < fan.size(); ++i) {
+        std::array<Eigen::Vector3d, 3> p = Corners(tris_[fan[i]]);
+        for (int k = 0; k < 3; ++k) {
+          if (tris_[fan[i]][k] == v) p[k] = x;
+        }
+        if (!(Normal(p).dot(scratch_normals_[i]) > 0.0)) return -1.0;
+        m = std::min(m, TriangleMinAngle(p));
+      }
+      return m;
+    };
+    double best = fan_min(x0);
+    if (!(best > 0.0)) return false;  // a degenerate triangle in the fan
+    Eigen::Vector3d at = x0;
+    for (double step = 0.2 * h_; step >= 0.0125 * h_ * 0.999; step *= 0.5) {
+      for (int climb = 0; climb < 16; ++climb) {
+        Eigen::Vector3d next = at;
+        for (int k = 0; k < 8; ++k) {
+          const double a = k * M_PI / 4;
+          const Eigen::Vector3d x = at + step * (std::cos(a) * t1 + std::sin(a) * t2);
+          if ((x - x0).norm() > 0.5 * h_) continue;
+          const double m = fan_min(x);
+          if (m > best * (1.0 + 1e-9)) best = m, next = x;
+        }
+        if (next == at) break;
+        at = next;
+      }
+    }
+    if (at == x0) return false;
+    *out = Project(at, 4);
+    return out->allFinite() && (*out - x0).norm() <= 0.5 * h_;
+  }
+
   // Candidate operations for triangle t (sharper than the repair angle): collapses of its
   // edges, a snap of its widest corner onto the opposite edge (flip that edge, move the
   // corner onto it: onto the crease when the edge joins two crease vertices), flips of its
@@ -1261,25 +1307,39 @@ class Sharpener {
     }
     // Relaxation of the corners off the features: towards the centroid of the one-ring in the
     // tangent plane, back onto the surface.
-    for (int v : tri) {
-      if (pinned_[v]) continue;
-      const Eigen::Vector3d x = RelaxTarget(v, 4);
-      if ((x - pos_[v]).norm() > 0.5 * h_) continue;
+    auto move = [&](int v, const Eigen::Vector3d& x) {
       op = Op{};
       op.kind = Op::kMove;
       op.moves.push_back({v, x});
       AddFan(v, &op);
       KeepCoveredIfReleased(v, &op);
       consider(op);
+    };
+    for (int v : tri) {
+      if (pinned_[v]) continue;
+      const Eigen::Vector3d x = RelaxTarget(v, 4);
+      if ((x - pos_[v]).norm() <= 0.5 * h_) move(v, x);
     }
-    std::stable_sort(ranked.begin(), ranked.end(),
-                     [](const auto& a, const auto& b) { return a.first > b.first; });
-    const Op* done = nullptr;
-    for (const auto& [angle, candidate] : ranked) {
-      if (TryOp(candidate)) {
-        done = &candidate;
-        break;
+    auto try_ranked = [&]() -> const Op* {
+      std::stable_sort(ranked.begin(), ranked.end(),
+                       [](const auto& a, const auto& b) { return a.first > b.first; });
+      for (const auto& [angle, candidate] : ranked) {
+        if (TryOp(candidate)) return &candidate;
       }
+      return nullptr;
+    };
+    const Op* done = try_ranked();
+    // Where none passes, the corners off the features moved to where the smallest angle of
+    // their fan is largest (FanAngleTarget): where the centroid overshoots or falls short,
+    // every step above can leave some triangle of the fan sharper than t, and the best point of
+    // the fan often does not.
+    if (!done && s_.sliver_fan_moves) {
+      ranked.clear();
+      for (int v : tri) {
+        Eigen::Vector3d x;
+        if (!pinned_[v] && FanAngleTarget(v, &x)) move(v, x);
+      }
+      done = try_ranked();
     }
     if (!done) return false;
     const Op& best = *done;

@@ -852,7 +852,9 @@ TEST(SharpenFeatures, NoMoveOrFlipPutsATriangleThroughAThinPartOrFoldsOne) {
 // 0 at 9.5 mm, 4 -> 2 and 3 -> 2 at 10.5 mm), and marching tetrahedra at 5 and 6.5 mm, where
 // one round leaves none. Three rounds leave no more such triangles and no smaller angle, within
 // the fallback's distance bound, closed and passing the surface check; a mesh one round leaves
-// with nothing under the angle comes out the same.
+// with nothing under the angle comes out the same. All without the fan moves
+// (FeatureSettings::sliver_fan_moves), which since 2026-12-07 mend these in the first round and
+// leave the later rounds nothing to do on the platform's product surfaces.
 TEST(SharpenFeatures, LaterReleaseRoundsMendWhatTheFirstLeaves) {
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
@@ -864,6 +866,7 @@ TEST(SharpenFeatures, LaterReleaseRoundsMendWhatTheFirstLeaves) {
                                std::to_string(h) + (half ? " half" : "");
       const TriangleMesh plain = PlatformProductSurface(platform, h, half, lattice);
       FeatureSettings f = ProductSharpening(h, lattice);
+      f.sliver_fan_moves = false;
       f.sliver_release_rounds = 1;
       const TriangleMesh one = SharpenFeatures(platform, plain, f);
       f.sliver_release_rounds = 3;
@@ -887,6 +890,51 @@ TEST(SharpenFeatures, LaterReleaseRoundsMendWhatTheFirstLeaves) {
   // The cases must reach the later rounds, and the identity must be checked.
   EXPECT_GE(improved, 2);
   EXPECT_GE(identical, 1);
+}
+
+// Where a blend is smaller than a cell (the platform's 4 mm weld and 3 mm rounded edges), every
+// collapse, flip, snap, slide and centroid move of the sliver repair can leave some triangle of
+// the fan sharper than the one it mends, and the triangle stays under 10°. The fan moves
+// (FeatureSettings::sliver_fan_moves) put a free corner where its fan's smallest angle is
+// largest. On product surfaces of the platform that kept triangles under 10° without them
+// (measured 2026-12-07: 4 mm whole lattice 8.83°, 7 mm half-shifted tetrahedra 6.84°, 7.5 mm
+// half-shifted tetrahedra 8.10° on 3 triangles, 9 mm whole tetrahedra 3.04°), they leave none,
+// within the fallback's distance bound (or the distance without them, if larger), with no fold,
+// closed with the plain surface's genus and passing the surface check.
+TEST(SharpenFeatures, FanMovesMendWhatNoOtherOperationCan) {
+  const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
+  const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
+  struct Case {
+    double h;
+    bool half, lattice;
+  };
+  for (const Case& c : {Case{0.004, false, true}, Case{0.007, true, false},
+                        Case{0.0075, true, false}, Case{0.009, false, false}}) {
+    const std::string what = std::string(c.lattice ? "lattice" : "tetrahedra") + " h " +
+                             std::to_string(c.h) + (c.half ? " half" : "");
+    const TriangleMesh plain = PlatformProductSurface(platform, c.h, c.half, c.lattice);
+    FeatureSettings f = ProductSharpening(c.h, c.lattice);
+    f.sliver_fan_moves = false;
+    const TriangleMesh without = SharpenFeatures(platform, plain, f);
+    f.sliver_fan_moves = true;
+    const TriangleMesh with = SharpenFeatures(platform, plain, f);
+    const TriangleAngleStats a0 = MeasureTriangleAngles(without, kProductSliverAngleDeg),
+                             a1 = MeasureTriangleAngles(with, kProductSliverAngleDeg);
+    const double e0 = MeasureSurfaceError(platform, without).max,
+                 e1 = MeasureSurfaceError(platform, with).max;
+    std::printf(
+        "%s: under 10 deg %ld -> %ld, min angle %.2f -> %.2f deg, error max %.4f -> %.4f "
+        "cells\n",
+        what.c_str(), a0.small_angle, a1.small_angle, a0.min_angle_deg, a1.min_angle_deg, e0 / c.h,
+        e1 / c.h);
+    EXPECT_GT(a0.small_angle, 0) << what << ": the case no longer needs the fan moves";
+    EXPECT_EQ(a1.small_angle, 0) << what;
+    EXPECT_GE(a1.min_angle_deg, kProductSliverAngleDeg) << what;
+    EXPECT_LE(e1, std::max(e0, kProductSliverFallbackCells * c.h) * (1.0 + 1e-9)) << what;
+    EXPECT_FALSE(HasFoldedNeighbours(with)) << what;
+    EXPECT_EQ(EulerOfClosedManifold(with), EulerOfClosedManifold(plain)) << what;
+    ExpectPassesSurfaceCheck(with, what);
+  }
 }
 
 // Not run by default (about a minute): the platform's product surfaces sharpened as `spidarcad
@@ -1100,10 +1148,12 @@ TEST(SharpenFeatures, FasterPredicatesKeepTheOutputBitForBit) {
 // and the platform, as in FasterPredicatesKeepTheOutputBitForBit. A change meant to alter the
 // output re-freezes them and says why. (Re-frozen once the same day: the platform's, when
 // crease vertices began to slide along their crease and an operation could also count by
-// leaving fewer triangles under the limit at the same smallest angle; and on 2026-12-06, when the
-// gusset's extrusion got a gradient on its walls.)
+// leaving fewer triangles under the limit at the same smallest angle; on 2026-12-06, when the
+// gusset's extrusion got a gradient on its walls; and on 2026-12-07, the platform's, when a
+// triangle no operation mends got its free corners moved to their fan's best point: the fan
+// moves, FanMovesMendWhatNoOtherOperationCan.)
 TEST(SharpenFeatures, SliverRepairOutputIsFrozen) {
-  ExpectFrozenSharpening(0.15, 10.0, 0x9b7a0212ace0e25cull, 0xea73d46e58a7a8ebull, "repaired");
+  ExpectFrozenSharpening(0.15, 10.0, 0x9b7a0212ace0e25cull, 0x46a5332644b17969ull, "repaired");
 }
 
 TEST(SharpenFeatures, SphereIsNotMadeWorse) {
