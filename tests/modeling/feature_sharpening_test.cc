@@ -844,6 +844,33 @@ TEST(SharpenFeatures, NoMoveOrFlipPutsATriangleThroughAThinPartOrFoldsOne) {
   }
 }
 
+// One product surface of the platform sharpened with two settings: both meshes, their angle
+// figures (under kProductSliverAngleDeg) and largest sampled distance to the surface (m),
+// printed as one line.
+struct TwoSharpenings {
+  TriangleMesh first, second;
+  TriangleAngleStats first_angles, second_angles;
+  double first_error = 0.0, second_error = 0.0;
+};
+TwoSharpenings SharpenTwice(const CompiledSolid& platform, const TriangleMesh& plain,
+                            const FeatureSettings& first, const FeatureSettings& second, double h,
+                            const std::string& what) {
+  TwoSharpenings r;
+  r.first = SharpenFeatures(platform, plain, first);
+  r.second = SharpenFeatures(platform, plain, second);
+  r.first_angles = MeasureTriangleAngles(r.first, kProductSliverAngleDeg);
+  r.second_angles = MeasureTriangleAngles(r.second, kProductSliverAngleDeg);
+  r.first_error = MeasureSurfaceError(platform, r.first).max;
+  r.second_error = MeasureSurfaceError(platform, r.second).max;
+  std::printf(
+      "%s: under 10 deg %ld -> %ld, min angle %.2f -> %.2f deg, error max %.4f -> %.4f "
+      "cells\n",
+      what.c_str(), r.first_angles.small_angle, r.second_angles.small_angle,
+      r.first_angles.min_angle_deg, r.second_angles.min_angle_deg, r.first_error / h,
+      r.second_error / h);
+  return r;
+}
+
 // The fallback's last stage releases the feature vertices of the triangles still under the
 // angle. Its collapses and flips can make a new sharp triangle around a crease vertex that is
 // still pinned; the later release rounds (FeatureSettings::sliver_release_rounds) release those
@@ -865,21 +892,15 @@ TEST(SharpenFeatures, LaterReleaseRoundsMendWhatTheFirstLeaves) {
       const std::string what = std::string(lattice ? "lattice" : "tetrahedra") + " h " +
                                std::to_string(h) + (half ? " half" : "");
       const TriangleMesh plain = PlatformProductSurface(platform, h, half, lattice);
-      FeatureSettings f = ProductSharpening(h, lattice);
-      f.sliver_fan_moves = false;
-      f.sliver_release_rounds = 1;
-      const TriangleMesh one = SharpenFeatures(platform, plain, f);
-      f.sliver_release_rounds = 3;
-      const TriangleMesh three = SharpenFeatures(platform, plain, f);
-      const TriangleAngleStats a1 = MeasureTriangleAngles(one, kProductSliverAngleDeg),
-                               a3 = MeasureTriangleAngles(three, kProductSliverAngleDeg);
-      const double e1 = MeasureSurfaceError(platform, one).max,
-                   e3 = MeasureSurfaceError(platform, three).max;
-      std::printf(
-          "%s: under 10 deg %ld -> %ld, min angle %.2f -> %.2f deg, error max %.4f -> "
-          "%.4f cells\n",
-          what.c_str(), a1.small_angle, a3.small_angle, a1.min_angle_deg, a3.min_angle_deg, e1 / h,
-          e3 / h);
+      FeatureSettings one_round = ProductSharpening(h, lattice);
+      one_round.sliver_fan_moves = false;
+      one_round.sliver_release_rounds = 1;
+      FeatureSettings three_rounds = one_round;
+      three_rounds.sliver_release_rounds = 3;
+      const TwoSharpenings r = SharpenTwice(platform, plain, one_round, three_rounds, h, what);
+      const TriangleMesh &one = r.first, &three = r.second;
+      const TriangleAngleStats &a1 = r.first_angles, &a3 = r.second_angles;
+      const double e1 = r.first_error, e3 = r.second_error;
       EXPECT_LE(a3.small_angle, a1.small_angle) << what;
       EXPECT_GE(a3.min_angle_deg, a1.min_angle_deg) << what;
       EXPECT_LE(e3, std::max(e1, kProductSliverFallbackCells * h) * (1.0 + 1e-9)) << what;
@@ -913,20 +934,13 @@ TEST(SharpenFeatures, FanMovesMendWhatNoOtherOperationCan) {
     const std::string what = std::string(c.lattice ? "lattice" : "tetrahedra") + " h " +
                              std::to_string(c.h) + (c.half ? " half" : "");
     const TriangleMesh plain = PlatformProductSurface(platform, c.h, c.half, c.lattice);
-    FeatureSettings f = ProductSharpening(c.h, c.lattice);
-    f.sliver_fan_moves = false;
-    const TriangleMesh without = SharpenFeatures(platform, plain, f);
-    f.sliver_fan_moves = true;
-    const TriangleMesh with = SharpenFeatures(platform, plain, f);
-    const TriangleAngleStats a0 = MeasureTriangleAngles(without, kProductSliverAngleDeg),
-                             a1 = MeasureTriangleAngles(with, kProductSliverAngleDeg);
-    const double e0 = MeasureSurfaceError(platform, without).max,
-                 e1 = MeasureSurfaceError(platform, with).max;
-    std::printf(
-        "%s: under 10 deg %ld -> %ld, min angle %.2f -> %.2f deg, error max %.4f -> %.4f "
-        "cells\n",
-        what.c_str(), a0.small_angle, a1.small_angle, a0.min_angle_deg, a1.min_angle_deg, e0 / c.h,
-        e1 / c.h);
+    const FeatureSettings with_moves = ProductSharpening(c.h, c.lattice);
+    FeatureSettings without_moves = with_moves;
+    without_moves.sliver_fan_moves = false;
+    const TwoSharpenings r = SharpenTwice(platform, plain, without_moves, with_moves, c.h, what);
+    const TriangleMesh& with = r.second;
+    const TriangleAngleStats &a0 = r.first_angles, &a1 = r.second_angles;
+    const double e0 = r.first_error, e1 = r.second_error;
     EXPECT_GT(a0.small_angle, 0) << what << ": the case no longer needs the fan moves";
     EXPECT_EQ(a1.small_angle, 0) << what;
     EXPECT_GE(a1.min_angle_deg, kProductSliverAngleDeg) << what;
