@@ -390,12 +390,16 @@ TEST(MeshCommand, SharpRepairsSliversAlongCreasesUnlessTurnedOff) {
       "'" + cube + "' --resolution 0.004 --sharp --out " + OutputPath("sliver_on.stl"), "on");
   ASSERT_EQ(repaired.status, 0) << repaired.all();
   EXPECT_NE(repaired.out.find("slivers under 10 deg: "), std::string::npos) << repaired.out;
+  // The quality line counts what is left under 10 degrees (nothing) and under 5.
+  EXPECT_NE(repaired.out.find(", 0 triangles under 10 deg, 0 under 5 deg"), std::string::npos)
+      << repaired.out;
   const CommandRun off =
       RunMesh("'" + cube + "' --resolution 0.004 --sharp --sliver-angle 0 --out " +
                   OutputPath("sliver_off.stl"),
               "off");
   ASSERT_EQ(off.status, 0) << off.all();
   EXPECT_EQ(off.out.find("slivers under"), std::string::npos) << off.out;
+  EXPECT_EQ(off.out.find(", 0 triangles under 10 deg"), std::string::npos) << off.out;
   // The cube is centred at z = -0.04 m; WorstCornerGap takes it at the origin.
   auto centred = [](TriangleMesh mesh) {
     mesh.vertices.row(2).array() += 0.04;

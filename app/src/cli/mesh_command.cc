@@ -680,8 +680,10 @@ void RunMesh(const MeshOptions& o) {
                 << " flips, " << feature_stats.sliver_moves << " moves";
     std::cout << ", " << Fmt(feature_stats.seconds, 3) << " s\n";
   }
-  std::cout << "surface quality: min triangle angle " << Fmt(angles.min_angle_deg, 3) << " deg, "
-            << angles.small_angle << " triangles under 5 deg, " << angles.zero_area
+  // Four digits, so that an angle a hair under 10° does not print as 10.
+  std::cout << "surface quality: min triangle angle " << Fmt(angles.min_angle_deg, 4) << " deg, "
+            << MeasureTriangleAngles(surface, 10.0).small_angle << " triangles under 10 deg, "
+            << angles.small_angle << " under 5 deg, " << angles.zero_area
             << " zero-area; error max " << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3)
             << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3\n";
 
