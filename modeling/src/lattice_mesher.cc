@@ -139,6 +139,9 @@ class LatticeMesher {
 
  private:
   static constexpr int kMaxRounds = 16;
+  // MakeTriangles: no mesh vertex looked up yet (ids are >= 0 for crossings, <= -1 for snapped
+  // lattice vertices).
+  static constexpr int kNoVertex = std::numeric_limits<int>::min();
 
   // A lattice vertex's block (index into block_slot_) and its place in the block's arrays.
   long BlockOf(const D3& d) const {
@@ -560,12 +563,12 @@ class LatticeMesher {
     return table[(axis * 4 + r) * 16 + pattern];
   }
 
-  // The triangles of one tetrahedron (doubled coordinates t, active records act) for its case.
-  void Tetrahedron(const D3 (&t)[4], Active* const (&act)[4], const TetCase& tc) {
-    auto edge = [&](int k) {
-      const int i = tc.edges[k][0], j = tc.edges[k][1];
-      return EdgeVertex(t[i], act[i], t[j], act[j]);
-    };
+  // The triangles of one tetrahedron of a face for its case: x holds the face's vertex (0..5)
+  // at each corner of the tetrahedron; `edge(a, b)` gives the mesh vertex on the face's edge
+  // between face vertices a and b.
+  template <typename EdgeOf>
+  void Tetrahedron(const int (&x)[4], const TetCase& tc, EdgeOf&& edge_of) {
+    auto edge = [&](int k) { return edge_of(x[tc.edges[k][0]], x[tc.edges[k][1]]); };
     if (tc.corners == 3) {
       Emit(edge(0), edge(1), edge(2));
       return;
@@ -592,7 +595,9 @@ class LatticeMesher {
     }
   }
 
-  // Marching tetrahedra over the tetrahedra of the mixed faces.
+  // Marching tetrahedra over the tetrahedra of the mixed faces. Each crossing edge of a face is
+  // looked up once per face (the edge between the two centres is in all four of its
+  // tetrahedra, the others in one or two).
   void MakeTriangles() {
     triangles_.clear();
     triangles_.reserve(3 * mixed_faces_.size());
@@ -601,15 +606,20 @@ class LatticeMesher {
       FaceVertices(f.c, f.axis, d);
       Active* act[6];
       for (int x = 0; x < 6; ++x) act[x] = f.act[x] >= 0 ? &active_[f.act[x]] : nullptr;
+      int vertex_of[6][6];  // mesh vertex on the edge between face vertices a and b, once made
+      for (auto& row : vertex_of) std::fill(std::begin(row), std::end(row), kNoVertex);
+      auto edge_of = [&](int a, int b) {
+        int& id = vertex_of[std::min(a, b)][std::max(a, b)];
+        if (id == kNoVertex) id = EdgeVertex(d[a], act[a], d[b], act[b]);
+        return id;
+      };
       for (int r = 0; r < 4; ++r) {
         const int x[4] = {0, 1, 2 + r, 2 + (r + 1) % 4};
         const int pattern = (f.inside >> x[0] & 1) | (f.inside >> x[1] & 1) << 1 |
                             (f.inside >> x[2] & 1) << 2 | (f.inside >> x[3] & 1) << 3;
         const TetCase& tc = TetCaseOf(f.axis, r, pattern);
         if (tc.corners == 0) continue;
-        const D3 t[4] = {d[x[0]], d[x[1]], d[x[2]], d[x[3]]};
-        Active* const a[4] = {act[x[0]], act[x[1]], act[x[2]], act[x[3]]};
-        Tetrahedron(t, a, tc);
+        Tetrahedron(x, tc, edge_of);
       }
     }
   }
