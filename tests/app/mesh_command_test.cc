@@ -147,6 +147,43 @@ TEST(MeshCommand, WritesPlatformTetsAsVtuWithThePrintedCounts) {
   EXPECT_NE(run.out.find("dihedral"), std::string::npos) << run.out;
 }
 
+// The smallest dihedral angle the command prints on its tet quality line.
+double PrintedMinDihedral(const std::string& out) {
+  std::smatch m;
+  const std::regex line("tet quality: dihedral angles ([0-9.eE+-]+) \\.\\.");
+  if (!std::regex_search(out, m, line)) return -1.0;
+  return std::stod(m[1]);
+}
+
+// --smooth-tets moves TetGen's interior vertices: the same tets, a smallest dihedral angle no
+// lower and fewer tets under the angle (the platform at 8 mm, with and without); bad values and
+// a mesh without TetGen's tets exit 2 naming the option.
+TEST(MeshCommand, SmoothTetsRaisesTheSmallestDihedralAngleAndRefusesBadValues) {
+  const std::string base = "'" + Platform() + "' --resolution 0.008 --tets tetgen --out ";
+  const CommandRun plain = RunMesh(base + OutputPath("unsmoothed.vtu"), "unsmoothed");
+  ASSERT_EQ(plain.status, 0) << plain.all();
+  const CommandRun smooth =
+      RunMesh(base + OutputPath("smoothed.vtu") + " --smooth-tets 10", "smoothed");
+  ASSERT_EQ(smooth.status, 0) << smooth.all();
+  EXPECT_EQ(PrintedCount(smooth.out, "tets"), PrintedCount(plain.out, "tets")) << smooth.out;
+  std::smatch m;
+  ASSERT_TRUE(
+      std::regex_search(smooth.out, m, std::regex("tets under 10 deg ([0-9]+) -> ([0-9]+)")))
+      << smooth.out;
+  EXPECT_LT(std::stol(m[2]), std::stol(m[1])) << smooth.out;
+  EXPECT_GE(PrintedMinDihedral(smooth.out), PrintedMinDihedral(plain.out)) << smooth.out;
+  EXPECT_GT(PrintedMinDihedral(plain.out), 0.0) << plain.out;
+  for (const std::string& bad : {std::string("--tets tetgen --smooth-tets -1"),
+                                 std::string("--tets tetgen --smooth-tets 60"),
+                                 std::string("--tets cgal --smooth-tets 10")}) {
+    const CommandRun run = RunMesh(
+        "'" + Platform() + "' --resolution 0.008 --out " + OutputPath("bad.vtu") + " " + bad,
+        "bad_smooth");
+    EXPECT_EQ(run.status, 2) << bad << "\n" << run.all();
+    EXPECT_NE(run.err.find("--smooth-tets"), std::string::npos) << bad << "\n" << run.all();
+  }
+}
+
 TEST(MeshCommand, CgalWritesPositivePlatformTetsWithThePrintedCounts) {
   const std::string vtu_path = OutputPath("platform_cgal.vtu");
   std::remove(vtu_path.c_str());

@@ -29,6 +29,7 @@
 #include "spidarcad/modeling/scene_io.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tet_mesh.h"
+#include "spidarcad/modeling/tet_smoothing.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 #include "spidarcad/modeling/triangle_mesh_io.h"
 
@@ -43,11 +44,12 @@ struct MeshOptions {
   std::string scene;
   std::string out;
   std::string solid;
-  std::string object;       // --object, the same as --solid under the name documents use
-  double resolution = 0.0;  // m; 0: from the solid's size
-  std::string tets;         // "", "tetgen" or "cgal"
-  double quality = 2.0;     // radius-edge bound, 0: no refinement
-  double max_volume = 0.0;  // m³, 0: unbounded
+  std::string object;        // --object, the same as --solid under the name documents use
+  double resolution = 0.0;   // m; 0: from the solid's size
+  std::string tets;          // "", "tetgen" or "cgal"
+  double quality = 2.0;      // radius-edge bound, 0: no refinement
+  double max_volume = 0.0;   // m³, 0: unbounded
+  double smooth_tets = 0.0;  // --smooth-tets (degrees; 0: off)
   bool raw_surface = false;
   bool sharp = false;
   // --sliver-angle (degrees; 0: off), used with --sharp.
@@ -290,7 +292,10 @@ constexpr const char* kMeshHelp =
     "less time, but it leaves concave creases at general angles cut by up to R/2 (docs/cli.md).\n"
     "Volume (--tets tetgen): TetGen 1.5 tetrahedralizes that surface; --quality Q bounds the\n"
     "radius-edge ratio (TetGen's q switch, > 1; 0 turns refinement off), --max-volume V bounds\n"
-    "the tet volume in m^3 (TetGen's a switch).\n"
+    "the tet volume in m^3 (TetGen's a switch). --smooth-tets D then moves the vertices inside\n"
+    "the mesh of the tets with a dihedral angle under D degrees to where the smallest angle of\n"
+    "the tets around them is largest; the surface, the tets and the volume stay (the platform at\n"
+    "its default cell with D = 10: 723 -> 514 tets under 10 deg, the smallest 2.84 -> 4.05 deg).\n"
     "Volume (--tets cgal): CGAL Mesh_3 straight from the implicit function (no surface mesh):\n"
     "facet and cell size R (the resolution), facet distance R/10, facet angle 25 deg, then sliver\n"
     "perturbation and exudation; --quality Q is the cell radius-edge bound (> 1; 0: 3), and\n"
@@ -348,6 +353,21 @@ std::string Fmt(double v, int digits = 4) {
   char buffer[64];
   std::snprintf(buffer, sizeof buffer, "%.*g", digits, v);
   return buffer;
+}
+
+// --smooth-tets DEG: the interior vertices of the tets under DEG moved (SmoothSlivers), a line
+// saying what it did; the tets' quality measured again.
+TetQuality SmoothTets(TetMesh* tets, double target_deg, const TetQuality& quality) {
+  if (!(target_deg > 0.0)) return quality;
+  TetSmoothingSettings settings;
+  settings.target_dihedral_deg = target_deg;
+  const TetSmoothingStats s = SmoothSlivers(tets, settings);
+  std::cout << "smooth: " << s.moved << " interior vertices moved in " << s.sweeps
+            << " passes; tets under " << Fmt(target_deg) << " deg " << s.under_target_before
+            << " -> " << s.under_target_after << ", smallest dihedral angle "
+            << Fmt(s.min_dihedral_before_deg, 3) << " -> " << Fmt(s.min_dihedral_after_deg, 3)
+            << " deg, " << Fmt(s.seconds, 3) << " s\n";
+  return MeasureTetQuality(*tets);
 }
 
 double Seconds(std::chrono::steady_clock::time_point start) {
@@ -469,13 +489,13 @@ void RunMeshFile(const MeshOptions& o, const std::string& ext, Progress* progres
   tet_settings.cancel = &g_interrupted;
   tet_settings.progress = progress->Stage("tetgen");
   TetMeshStats tet_stats;
-  const TetMesh tets =
+  TetMesh tets =
       AtOnceOnCtrlC([&] { return TetrahedralizeSurface(surface, tet_settings, &tet_stats); });
   progress->Finish();
   CheckInterrupted();
-  const TetQuality& q = tet_stats.quality;
   std::cout << "tetgen -" << tet_stats.switches << ": " << tets.nodes.cols() << " nodes, "
             << tets.tets.cols() << " tets, tetgen " << Fmt(tet_stats.tetgen_seconds, 3) << " s\n";
+  const TetQuality q = SmoothTets(&tets, o.smooth_tets, tet_stats.quality);
   std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. "
             << Fmt(q.max_dihedral_deg, 4) << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3)
             << ", volume " << Fmt(q.total_volume, 6) << "\n";
@@ -544,6 +564,13 @@ void RunMesh(const MeshOptions& o) {
   }
   if (!(o.max_volume >= 0.0) || !std::isfinite(o.max_volume)) {
     throw InputError("--max-volume: must be >= 0 m^3, got " + Fmt(o.max_volume));
+  }
+  if (!(o.smooth_tets >= 0.0 && o.smooth_tets < 60.0)) {
+    throw InputError("--smooth-tets: must be a dihedral angle in [0, 60) degrees (0: off), got " +
+                     Fmt(o.smooth_tets));
+  }
+  if (o.smooth_tets > 0.0 && o.tets != "tetgen") {
+    throw InputError("--smooth-tets smooths TetGen's tets: give it with --tets tetgen");
   }
   if (!(o.max_cells >= 1.0 && o.max_cells <= kMeshMaxCellsCeiling)) {
     throw InputError(
@@ -701,11 +728,10 @@ void RunMesh(const MeshOptions& o) {
   tet_settings.cancel = &g_interrupted;
   tet_settings.progress = progress.Stage("tetgen");
   TetMeshStats tet_stats;
-  const TetMesh tets =
+  TetMesh tets =
       AtOnceOnCtrlC([&] { return TetrahedralizeSurface(surface, tet_settings, &tet_stats); });
   progress.Finish();
   CheckInterrupted();
-  const TetQuality& q = tet_stats.quality;
   std::cout << "tetgen -" << tet_stats.switches << ": " << tets.nodes.cols() << " nodes, "
             << tets.tets.cols() << " tets, check " << Fmt(tet_stats.check_seconds, 3)
             << " s, tetgen " << Fmt(tet_stats.tetgen_seconds, 3) << " s";
@@ -714,6 +740,7 @@ void RunMesh(const MeshOptions& o) {
               << tet_stats.dropped_triangles << " triangles)";
   }
   std::cout << "\n";
+  const TetQuality q = SmoothTets(&tets, o.smooth_tets, tet_stats.quality);
   std::cout << "tet quality: dihedral angles " << Fmt(q.min_dihedral_deg, 3) << " .. "
             << Fmt(q.max_dihedral_deg, 4) << " deg, max radius-edge " << Fmt(q.max_radius_edge, 3)
             << ", volume " << Fmt(q.total_volume * 1e6, 6) << " cm^3\n";
@@ -759,6 +786,10 @@ void RegisterMeshCommand(CLI::App& app) {
                   "Radius-edge bound for --tets (default 2; > 1; 0: none for tetgen, 3 for cgal)");
   cmd->add_option("--max-volume", options->max_volume,
                   "Largest tet volume [m^3] for --tets (default 0: unbounded)");
+  cmd->add_option("--smooth-tets", options->smooth_tets,
+                  "With --tets tetgen: move the interior vertices of the tets with a dihedral "
+                  "angle under this [deg] to where the smallest dihedral angle around them is "
+                  "largest; the surface and the tets' count stay (default 0: off)");
   cmd->add_flag("--sharp", options->sharp,
                 "Sharpen features: move vertices onto the solid's creases and corners and flip "
                 "edges along them (on the tetrahedra route, or on the lattice with --mesher "
