@@ -28,8 +28,8 @@ TetMesh PlatformTets() {
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
   SurfaceMeshSettings s;
-  s.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.02, -0.12, -0.17),
-                                 Eigen::Vector3d(0.32, 0.12, 0.03));
+  s.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.02, -0.12, -0.17), Eigen::Vector3d(0.32, 0.12, 0.03));
   s.cell_size = 0.008;
   s.snap_cells = kProductSnapCells;
   return TetrahedralizeSurface(MeshSurface(platform, s));
@@ -88,10 +88,11 @@ TEST(TetSmoothing, RaisesTheSmallestAnglesWithoutMovingTheBoundaryOrChangingTheT
   EXPECT_LE(q1.max_radius_edge, q0.max_radius_edge);
   const long under10_0 = CountUnder(before, 10.0), under10_1 = CountUnder(after, 10.0);
   const long under5_0 = CountUnder(before, 5.0), under5_1 = CountUnder(after, 5.0);
-  std::printf("%ld tets: under 10 deg %ld -> %ld, under 5 deg %ld -> %ld, smallest %.2f -> %.2f "
-              "deg, %ld nodes moved, %.2f s\n",
-              static_cast<long>(before.tets.cols()), under10_0, under10_1, under5_0, under5_1,
-              q0.min_dihedral_deg, q1.min_dihedral_deg, moved_nodes, stats.seconds);
+  std::printf(
+      "%ld tets: under 10 deg %ld -> %ld, under 5 deg %ld -> %ld, smallest %.2f -> %.2f "
+      "deg, %ld nodes moved, %.2f s\n",
+      static_cast<long>(before.tets.cols()), under10_0, under10_1, under5_0, under5_1,
+      q0.min_dihedral_deg, q1.min_dihedral_deg, moved_nodes, stats.seconds);
   EXPECT_GT(under10_0, 0);  // the case has slivers to mend
   EXPECT_LT(under10_1, under10_0 / 2);
   EXPECT_LE(under5_1, under5_0);
