@@ -708,8 +708,9 @@ void RunMesh(const MeshOptions& o) {
     std::cout << ", " << Fmt(feature_stats.seconds, 3) << " s\n";
   }
   // Four digits, so that an angle a hair under 10° does not print as 10.
+  const long under_10 = MeasureTriangleAngles(surface, 10.0).small_angle;
   std::cout << "surface quality: min triangle angle " << Fmt(angles.min_angle_deg, 4) << " deg, "
-            << MeasureTriangleAngles(surface, 10.0).small_angle << " triangles under 10 deg, "
+            << under_10 << (under_10 == 1 ? " triangle" : " triangles") << " under 10 deg, "
             << angles.small_angle << " under 5 deg, " << angles.zero_area
             << " zero-area; error max " << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3)
             << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3\n";
