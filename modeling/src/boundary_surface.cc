@@ -9,26 +9,16 @@
 
 #include "spidarcad/base/faces_seen_once.h"
 #include "spidarcad/modeling/cgal_mesher.h"
+#include "tet_faces.h"
 
 namespace spidarcad::modeling {
 
 TriangleMesh BoundarySurface(const TetMesh& mesh) {
-  // Outward faces of a positive tet (0, 1, 2, 3): the face opposite corner c, listed so that its
-  // right-hand normal points away from c.
-  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  std::vector<std::array<int, 3>> keys;
-  keys.reserve(4 * static_cast<size_t>(mesh.tets.cols()));
-  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) {
-    for (const auto& f : kFaces) {
-      std::array<int, 3> key = {mesh.tets(f[0], t), mesh.tets(f[1], t), mesh.tets(f[2], t)};
-      std::sort(key.begin(), key.end());
-      keys.push_back(key);
-    }
-  }
+  const std::vector<std::array<int, 3>> keys = internal::TetFaceKeys(mesh);
   const std::vector<std::size_t> boundary = base::FacesSeenOnce(keys);
   // Face i of the list: face i % 4 of tet i / 4, oriented outward.
   const auto corner = [&](std::size_t i, int k) {
-    return mesh.tets(kFaces[i % 4][k], static_cast<Eigen::Index>(i / 4));
+    return mesh.tets(internal::kTetOutwardFaces[i % 4][k], static_cast<Eigen::Index>(i / 4));
   };
   std::vector<int> new_index(static_cast<size_t>(mesh.nodes.cols()), -1);
   const long count = static_cast<long>(boundary.size());

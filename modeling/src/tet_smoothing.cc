@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "spidarcad/base/faces_seen_once.h"
+#include "tet_faces.h"
 
 namespace spidarcad::modeling {
 namespace {
@@ -62,15 +63,7 @@ TetSmoothingStats SmoothSlivers(TetMesh* mesh, const TetSmoothingSettings& setti
   for (Eigen::Index v = 0; v < nv && !fixed.empty(); ++v)
     if (fixed[static_cast<size_t>(v)]) free[static_cast<size_t>(v)] = 0;
   {
-    static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-    std::vector<std::array<int, 3>> keys;
-    keys.reserve(4 * static_cast<size_t>(nt));
-    for (Eigen::Index t = 0; t < nt; ++t)
-      for (const auto& f : kFaces) {
-        std::array<int, 3> key = {mesh->tets(f[0], t), mesh->tets(f[1], t), mesh->tets(f[2], t)};
-        std::sort(key.begin(), key.end());
-        keys.push_back(key);
-      }
+    const std::vector<std::array<int, 3>> keys = internal::TetFaceKeys(*mesh);
     for (const std::size_t i : base::FacesSeenOnce(keys))
       for (const int v : keys[i]) free[static_cast<size_t>(v)] = 0;
   }

@@ -27,7 +27,16 @@ inline std::vector<std::size_t> FacesSeenOnce(const std::vector<std::array<int, 
                           return k[0] >= 0 && k[1] >= 0 && k[2] >= 0 && k[0] < (1 << kBits) &&
                                  k[1] < (1 << kBits) && k[2] < (1 << kBits);
                         });
+  // The entries of a sorted run of n, by position, whose neighbours differ from them.
   std::vector<std::size_t> once;
+  auto singletons = [&once](std::size_t n, auto same, auto index) {
+    for (std::size_t i = 0; i < n;) {
+      std::size_t j = i + 1;
+      while (j < n && same(i, j)) ++j;
+      if (j == i + 1) once.push_back(index(i));
+      i = j;
+    }
+  };
   if (packable) {
     std::vector<std::pair<std::uint64_t, std::uint32_t>> words(keys.size());
     for (std::size_t i = 0; i < keys.size(); ++i)
@@ -45,24 +54,19 @@ inline std::vector<std::size_t> FacesSeenOnce(const std::vector<std::array<int, 
       for (const auto& w : words) spare[start[(w.first >> shift) & ((1u << kDigit) - 1)]++] = w;
       words.swap(spare);
     }
-    for (std::size_t i = 0; i < words.size();) {
-      std::size_t j = i + 1;
-      while (j < words.size() && words[j].first == words[i].first) ++j;
-      if (j == i + 1) once.push_back(words[i].second);
-      i = j;
-    }
+    singletons(
+        words.size(),
+        [&](std::size_t i, std::size_t j) { return words[i].first == words[j].first; },
+        [&](std::size_t i) { return std::size_t{words[i].second}; });
     return once;
   }
   std::vector<std::size_t> order(keys.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::sort(order.begin(), order.end(),
             [&keys](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
-  for (std::size_t i = 0; i < order.size();) {
-    std::size_t j = i + 1;
-    while (j < order.size() && keys[order[j]] == keys[order[i]]) ++j;
-    if (j == i + 1) once.push_back(order[i]);
-    i = j;
-  }
+  singletons(
+      order.size(), [&](std::size_t i, std::size_t j) { return keys[order[i]] == keys[order[j]]; },
+      [&](std::size_t i) { return order[i]; });
   return once;
 }
 
