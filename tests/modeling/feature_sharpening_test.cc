@@ -951,6 +951,37 @@ TEST(SharpenFeatures, FanMovesMendWhatNoOtherOperationCan) {
   }
 }
 
+// One product sharpening of the platform (`spidarcad mesh --sharp`): its cell (m), grid
+// placement and route, a name for failure messages, the unsharpened surface and the result.
+struct PlatformSharpening {
+  double h;
+  bool half, lattice;
+  std::string what;
+  TriangleMesh plain, sharp;
+};
+
+// Calls `visit` with the platform sharpened at each of `cells` (m), on both grid placements
+// (PlatformGrid) and both routes.
+template <typename Visit>
+void ForEachPlatformSharpening(const CompiledSolid& platform, const std::vector<double>& cells,
+                               Visit&& visit) {
+  for (double h : cells) {
+    for (bool half : {false, true}) {
+      for (bool lattice : {false, true}) {
+        PlatformSharpening r{h,
+                             half,
+                             lattice,
+                             std::string(lattice ? "lattice" : "tetrahedra") + " h " +
+                                 std::to_string(h) + (half ? " half" : ""),
+                             PlatformProductSurface(platform, h, half, lattice),
+                             {}};
+        r.sharp = SharpenFeatures(platform, r.plain, ProductSharpening(h, lattice));
+        visit(r);
+      }
+    }
+  }
+}
+
 // The platform sharpened as `spidarcad mesh --sharp` does, at cells from 4 to 9 mm (the 10 mm
 // plate and bracket are more than a cell thick), on both grid placements and both routes: its
 // creases are fillets and unions smaller than the cell at the weld and the free end, where the
@@ -964,28 +995,21 @@ TEST(HardSharpenAcrossCells, ThePlatformKeepsEveryAngleAtTenDegreesFromFourToNin
   int meshes = 0;
   long under = 0;
   double worst = 180.0, worst_rise = -1e9, largest = 0.0;
-  for (double h : {0.004, 0.005, 0.006, 0.007, 0.008, 0.009}) {
-    for (bool half : {false, true}) {
-      for (bool lattice : {false, true}) {
-        const std::string what = std::string(lattice ? "lattice" : "tetrahedra") + " h " +
-                                 std::to_string(h) + (half ? " half" : "");
-        const TriangleMesh plain = PlatformProductSurface(platform, h, half, lattice);
-        const TriangleMesh sharp = SharpenFeatures(platform, plain, ProductSharpening(h, lattice));
-        const TriangleAngleStats a = MeasureTriangleAngles(sharp, kProductSliverAngleDeg);
-        const double distance = MeasureSurfaceError(platform, sharp).max / h;
-        const double rise = distance - MeasureSurfaceError(platform, plain).max / h;
-        EXPECT_EQ(a.small_angle, 0) << what;
-        EXPECT_LE(rise, kProductSliverFallbackCells) << what;
-        EXPECT_FALSE(HasFoldedNeighbours(sharp)) << what;
-        ExpectPassesSurfaceCheck(sharp, what);
+  ForEachPlatformSharpening(
+      platform, {0.004, 0.005, 0.006, 0.007, 0.008, 0.009}, [&](const PlatformSharpening& r) {
+        const TriangleAngleStats a = MeasureTriangleAngles(r.sharp, kProductSliverAngleDeg);
+        const double distance = MeasureSurfaceError(platform, r.sharp).max / r.h;
+        const double rise = distance - MeasureSurfaceError(platform, r.plain).max / r.h;
+        EXPECT_EQ(a.small_angle, 0) << r.what;
+        EXPECT_LE(rise, kProductSliverFallbackCells) << r.what;
+        EXPECT_FALSE(HasFoldedNeighbours(r.sharp)) << r.what;
+        ExpectPassesSurfaceCheck(r.sharp, r.what);
         ++meshes;
         under += a.small_angle;
         worst = std::min(worst, a.min_angle_deg);
         worst_rise = std::max(worst_rise, rise);
         largest = std::max(largest, distance);
-      }
-    }
-  }
+      });
   char figure[300];
   std::snprintf(figure, sizeof figure,
                 "%d meshes: %ld triangles under 10 deg, the smallest angle %.2f deg; the largest "
@@ -1009,26 +1033,20 @@ TEST(SharpenFeatures, DISABLED_PlatformSweep) {
   const Scene scene = LoadScene(std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json");
   const CompiledSolid platform = CompiledSolid::Compile(scene.solids[0].root);
   int n = 0, folded = 0, under = 0, under_fine = 0;
-  for (int half_mm = 6; half_mm <= 26; ++half_mm) {
-    const double h = 0.0005 * half_mm;
-    for (bool half : {false, true}) {
-      for (bool lattice : {false, true}) {
-        const TriangleMesh plain = PlatformProductSurface(platform, h, half, lattice);
-        const TriangleMesh m = SharpenFeatures(platform, plain, ProductSharpening(h, lattice));
-        const TriangleAngleStats a = MeasureTriangleAngles(m, kProductSliverAngleDeg);
-        const bool fold = HasFoldedNeighbours(m);
-        ++n;
-        folded += fold;
-        under += a.small_angle > 0;
-        under_fine += a.small_angle > 0 && h <= 0.0085;
-        std::printf("| %.1f mm | %s | %s | %.2f | %ld | %s |\n", 1e3 * h,
-                    half ? "half-shifted" : "whole", lattice ? "lattice" : "tetrahedra",
-                    a.min_angle_deg, a.small_angle, fold ? "fold" : "");
-        ExpectPassesSurfaceCheck(m, std::to_string(h) + (half ? " half " : " whole ") +
-                                        (lattice ? "lattice" : "tetrahedra"));
-      }
-    }
-  }
+  std::vector<double> cells;
+  for (int half_mm = 6; half_mm <= 26; ++half_mm) cells.push_back(0.0005 * half_mm);
+  ForEachPlatformSharpening(platform, cells, [&](const PlatformSharpening& r) {
+    const TriangleAngleStats a = MeasureTriangleAngles(r.sharp, kProductSliverAngleDeg);
+    const bool fold = HasFoldedNeighbours(r.sharp);
+    ++n;
+    folded += fold;
+    under += a.small_angle > 0;
+    under_fine += a.small_angle > 0 && r.h <= 0.0085;
+    std::printf("| %.1f mm | %s | %s | %.2f | %ld | %s |\n", 1e3 * r.h,
+                r.half ? "half-shifted" : "whole", r.lattice ? "lattice" : "tetrahedra",
+                a.min_angle_deg, a.small_angle, fold ? "fold" : "");
+    ExpectPassesSurfaceCheck(r.sharp, r.what);
+  });
   std::printf("%d meshes: %d with triangles under 10 deg (%d at 8.5 mm or finer), %d folded\n", n,
               under, under_fine, folded);
 }
