@@ -298,8 +298,9 @@ void DrawScenePanel(SceneModel* model, JobQueue* jobs, WorkbenchState* state, fl
                           tris > 0 ? "" : " (meshing...)");
     }
   }
-  if (model->objects().empty()) {
-    // An empty document: how to start, and the controls (also in the Help menu).
+  if (model->document().objects().empty()) {
+    // An empty document (an assembly's rigid parts are objects too, though not Model mode's
+    // solids): how to start, and the controls (also in the Help menu).
     ImGui::Separator();
     ImGui::PushTextWrapPos(width - 10.0f);
     ImGui::TextUnformatted(
