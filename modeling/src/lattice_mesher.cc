@@ -29,6 +29,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <iterator>
 #include <limits>
 #include <utility>
@@ -244,6 +245,9 @@ class LatticeMesher {
   // The faces between neighbouring cells whose four tetrahedra have vertices on both sides
   // (mixed_faces_), found block by block from a local copy of the values, and the lattice
   // vertices with a crossing edge (active_): every edge lies in the tetrahedra of some face.
+  // Per block, the inside flags of the copy are bit sets over its flattened index, so that the
+  // mixed faces along an axis come from a few shifts and masks; they are then visited in the
+  // order of the cells (flattened index) and, per cell, of the axes.
   void FindMixedFaces() {
     // Capacities from the sampled blocks (measured on spheres and the platform: about 27 active
     // vertices, 40 mixed faces and 16 crossings per sampled block); reserving address space
@@ -251,89 +255,226 @@ class LatticeMesher {
     active_.reserve(40 * near_.size());
     mixed_faces_.reserve(64 * near_.size());
     crossings_.reserve(32 * near_.size());
-    constexpr int L = kBlock + 1;
     // Values and inside flags of the corners and centres with lattice index in [block start,
     // block start + kBlock] per axis, flattened as i + L j + L² k.
-    double corner[L * L * L], centre[L * L * L];
-    unsigned char corner_in[L * L * L], centre_in[L * L * L];
-    // Per face axis: the flattened offsets of the neighbour's centre and of the four corners
-    // (in kSigns order) from the cell's own index.
-    constexpr int kStride[3] = {1, L, L * L};
+    BlockCopy copy;
     int corner_offset[3][4];
     for (int axis = 0; axis < 3; ++axis)
       for (int r = 0; r < 4; ++r)
         corner_offset[axis][r] = kStride[axis] + (kSigns[r][0] > 0 ? kStride[(axis + 1) % 3] : 0) +
                                  (kSigns[r][1] > 0 ? kStride[(axis + 2) % 3] : 0);
+    // The cells of a block (flattened index with i, j, k < kBlock), and of those the ones with a
+    // neighbour along each axis, for a block away from the grid's upper ends.
+    Bits full_cells = 0, full_faces[3] = {0, 0, 0};
+    for (int k = 0; k < kBlock; ++k)
+      for (int j = 0; j < kBlock; ++j)
+        for (int i = 0; i < kBlock; ++i) full_cells |= Bits{1} << (i + kL * (j + kL * k));
+    for (int axis = 0; axis < 3; ++axis) full_faces[axis] = full_cells;
     for (const auto& b : near_) {
       const int base[3] = {b[0] * kBlock, b[1] * kBlock, b[2] * kBlock};
-      int inside_count = 0;
-      const double* own = near_blocks_data_[block_slot_[BlockOf({2 * base[0] - 2, 2 * base[1] - 2,
-                                                                 2 * base[2] - 2})]]
-                              .values;
-      for (int k = 0, at = 0; k < L; ++k)
-        for (int j = 0; j < L; ++j)
-          for (int i = 0; i < L; ++i, ++at) {
-            const int g[3] = {base[0] + i, base[1] + j, base[2] + k};
-            const bool inner = i < kBlock && j < kBlock && k < kBlock;
-            const int local = i + kBlock * (j + kBlock * k);
-            if (g[0] >= corners_[0] || g[1] >= corners_[1] || g[2] >= corners_[2])
-              corner[at] = kInf;
-            else
-              corner[at] = inner ? own[local] : ValueAt({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2});
-            if (g[0] >= centres_[0] || g[1] >= centres_[1] || g[2] >= centres_[2])
-              centre[at] = kInf;
-            else
-              centre[at] = inner ? own[kBlockVertices + local]
-                                 : ValueAt({2 * g[0] - 1, 2 * g[1] - 1, 2 * g[2] - 1});
-            corner_in[at] = Inside(corner[at]) ? 1 : 0;
-            centre_in[at] = Inside(centre[at]) ? 1 : 0;
-            inside_count += corner_in[at] + centre_in[at];
-          }
-      // The bounds are loose: most sampled blocks have no sign change at all.
-      if (inside_count == 0 || inside_count == 2 * L * L * L) continue;
-      for (int k = 0; k < kBlock && base[2] + k < centres_[2]; ++k)
-        for (int j = 0; j < kBlock && base[1] + j < centres_[1]; ++j)
-          for (int i = 0; i < kBlock && base[0] + i < centres_[0]; ++i) {
-            const int m[3] = {i, j, k};
-            const int at = i + L * (j + L * k);
-            for (int axis = 0; axis < 3; ++axis) {
-              if (base[axis] + m[axis] + 1 >= centres_[axis]) continue;  // no cell beyond
-              const int* q = corner_offset[axis];
-              const int inside = centre_in[at] + centre_in[at + kStride[axis]] +
-                                 corner_in[at + q[0]] + corner_in[at + q[1]] +
-                                 corner_in[at + q[2]] + corner_in[at + q[3]];
-              if (inside == 0 || inside == 6) continue;
-              const double vq[4] = {corner[at + q[0]], corner[at + q[1]], corner[at + q[2]],
-                                    corner[at + q[3]]};
-              const D3 c = {2 * (base[0] + i) - 1, 2 * (base[1] + j) - 1, 2 * (base[2] + k) - 1};
-              AddFace(c, axis, centre[at], centre[at + kStride[axis]], vq);
+      CopyBlock(base, &copy);
+      const Bits any = copy.corner_in | copy.centre_in;
+      // The bounds are loose: some sampled blocks have no sign change at all.
+      if (any == 0 || (copy.corner_in & copy.centre_in) == kAllBits) continue;
+      const Bits* faces = full_faces;
+      Bits edge_faces[3];
+      if (base[0] + kBlock >= centres_[0] || base[1] + kBlock >= centres_[1] ||
+          base[2] + kBlock >= centres_[2]) {
+        // Near the grid's upper ends: only cells that exist, with a neighbour along the axis.
+        for (int axis = 0; axis < 3; ++axis) edge_faces[axis] = 0;
+        for (int k = 0; k < kBlock && base[2] + k < centres_[2]; ++k)
+          for (int j = 0; j < kBlock && base[1] + j < centres_[1]; ++j)
+            for (int i = 0; i < kBlock && base[0] + i < centres_[0]; ++i) {
+              const int m[3] = {i, j, k};
+              for (int axis = 0; axis < 3; ++axis)
+                if (base[axis] + m[axis] + 1 < centres_[axis])
+                  edge_faces[axis] |= Bits{1} << (i + kL * (j + kL * k));
             }
-          }
+        faces = edge_faces;
+      }
+      Bits mixed[3];
+      for (int axis = 0; axis < 3; ++axis) {
+        const int* q = corner_offset[axis];
+        const Bits c = copy.centre_in, n = copy.corner_in;
+        const Bits some = c | c >> kStride[axis] | n >> q[0] | n >> q[1] | n >> q[2] | n >> q[3];
+        const Bits all = c & c >> kStride[axis] & n >> q[0] & n >> q[1] & n >> q[2] & n >> q[3];
+        mixed[axis] = some & ~all & faces[axis];
+      }
+      Bits cells = mixed[0] | mixed[1] | mixed[2];
+      if (cells == 0) continue;
+      while (cells != 0) {
+        const int at = LowestBit(cells);
+        cells &= cells - 1;
+        for (int axis = 0; axis < 3; ++axis)
+          if ((mixed[axis] >> at & 1) != 0) AddFace(base, at, axis, corner_offset[axis], &copy);
+      }
     }
   }
 
-  // Records a mixed face: its six vertices (c, c2, the four corners) as active where they have
-  // a crossing edge among the face's tetrahedra (c and c2 are joined to all, corner r to corners
-  // r ± 1), and each crossing edge as a snap candidate of both its ends.
-  void AddFace(const D3& c, int axis, double vc, double vc2, const double (&vq)[4]) {
+  // kBlock + 1 lattice indices per axis: a block's own and the first of the next block.
+  static constexpr int kL = kBlock + 1;
+  static constexpr int kStride[3] = {1, kL, kL* kL};
+  __extension__ typedef unsigned __int128 Bits;  // one bit per flattened index (kL³ <= 128)
+  static_assert(kL * kL * kL <= 128);
+  static constexpr Bits kAllBits = (Bits{1} << (kL * kL * kL)) - 1;
+  static int LowestBit(Bits b) {
+    const auto low = static_cast<std::uint64_t>(b);
+    return low != 0 ? std::countr_zero(low)
+                    : 64 + std::countr_zero(static_cast<std::uint64_t>(b >> 64));
+  }
+
+  // A block's values and inside flags (corners and centres, flattened as i + kL j + kL² k), and
+  // the active_ indices of the eight blocks it reads (null: an unsampled block, or beyond the
+  // grid, where no vertex is made active).
+  struct BlockCopy {
+    double corner[kL * kL * kL], centre[kL * kL * kL];
+    Bits corner_in = 0, centre_in = 0;
+    int* active[8];
+  };
+
+  // Per flattened index: which of the eight blocks holds it (bit 0: the next along x, bit 1: y,
+  // bit 2: z) and its index there (corners; centres kBlockVertices on).
+  struct CopyTables {
+    unsigned char block[kL * kL * kL];
+    unsigned char local[kL * kL * kL];
+  };
+  static const CopyTables& Tables() {
+    static const CopyTables t = [] {
+      CopyTables c{};
+      for (int k = 0, at = 0; k < kL; ++k)
+        for (int j = 0; j < kL; ++j)
+          for (int i = 0; i < kL; ++i, ++at) {
+            c.block[at] = static_cast<unsigned char>((i == kBlock ? 1 : 0) | (j == kBlock ? 2 : 0) |
+                                                     (k == kBlock ? 4 : 0));
+            c.local[at] = static_cast<unsigned char>(
+                (i % kBlock) + kBlock * ((j % kBlock) + kBlock * (k % kBlock)));
+          }
+      return c;
+    }();
+    return t;
+  }
+
+  // Fills `copy` for the block starting at lattice index `base`: its own values, and those of
+  // the next blocks along each axis; ±infinity in unsampled blocks (as ValueAt), +infinity beyond
+  // the grid.
+  void CopyBlock(const int (&base)[3], BlockCopy* copy) {
+    static const std::vector<double> outside(2 * kBlockVertices, kInf),
+        inside(2 * kBlockVertices, -kInf);
+    const double* values[8];
+    for (int nb = 0; nb < 8; ++nb) {
+      const int g[3] = {base[0] + (nb & 1) * kBlock, base[1] + (nb >> 1 & 1) * kBlock,
+                        base[2] + (nb >> 2 & 1) * kBlock};
+      values[nb] = outside.data();
+      copy->active[nb] = nullptr;
+      if (g[0] >= corners_[0] || g[1] >= corners_[1] || g[2] >= corners_[2]) continue;
+      const int slot = block_slot_[BlockOf({2 * g[0] - 2, 2 * g[1] - 2, 2 * g[2] - 2})];
+      if (slot >= 0) {
+        values[nb] = near_blocks_data_[slot].values;
+        copy->active[nb] = near_blocks_data_[slot].active;
+      } else if (slot == kFarInside) {
+        values[nb] = inside.data();
+      }
+    }
+    const CopyTables& t = Tables();
+    for (int at = 0; at < kL * kL * kL; ++at) {
+      const double* v = values[t.block[at]] + t.local[at];
+      copy->corner[at] = v[0];
+      copy->centre[at] = v[kBlockVertices];
+    }
+    if (base[0] + kBlock >= centres_[0] || base[1] + kBlock >= centres_[1] ||
+        base[2] + kBlock >= centres_[2]) {
+      // Near the grid's upper ends: +infinity beyond it (the block's own values there are not
+      // sampled).
+      for (int k = 0, at = 0; k < kL; ++k)
+        for (int j = 0; j < kL; ++j)
+          for (int i = 0; i < kL; ++i, ++at) {
+            const int g[3] = {base[0] + i, base[1] + j, base[2] + k};
+            if (g[0] >= corners_[0] || g[1] >= corners_[1] || g[2] >= corners_[2])
+              copy->corner[at] = kInf;
+            if (g[0] >= centres_[0] || g[1] >= centres_[1] || g[2] >= centres_[2])
+              copy->centre[at] = kInf;
+          }
+    }
+    std::uint64_t in[4] = {0, 0, 0, 0};  // corners' bits 0..63, 64..; centres' the same
+    for (int at = 0; at < 64; ++at) {
+      in[0] |= std::uint64_t{Inside(copy->corner[at])} << at;
+      in[2] |= std::uint64_t{Inside(copy->centre[at])} << at;
+    }
+    for (int at = 64; at < kL * kL * kL; ++at) {
+      in[1] |= std::uint64_t{Inside(copy->corner[at])} << (at - 64);
+      in[3] |= std::uint64_t{Inside(copy->centre[at])} << (at - 64);
+    }
+    copy->corner_in = Bits{in[1]} << 64 | in[0];
+    copy->centre_in = Bits{in[3]} << 64 | in[2];
+  }
+
+  // Doubled coordinates of vertex x of the face of the cell with centre c along `axis` (as
+  // FaceVertices).
+  static D3 FaceVertex(const D3& c, int axis, int x) {
+    if (x == 0) return c;
+    if (x == 1) {
+      D3 d = c;
+      d[axis] += 2;
+      return d;
+    }
+    return FaceCorner(c, axis, x - 2);
+  }
+
+  // Crossing edges (bit e of kFaceEdges) of a face whose vertex x is inside when bit x is set.
+  static const std::array<std::uint16_t, 64>& CrossingEdges() {
+    static const std::array<std::uint16_t, 64> table = [] {
+      std::array<std::uint16_t, 64> t{};
+      for (int p = 0; p < 64; ++p)
+        for (int e = 0; e < 13; ++e)
+          if ((p >> kFaceEdges[e].first & 1) != (p >> kFaceEdges[e].second & 1))
+            t[p] |= static_cast<std::uint16_t>(1u << e);
+      return t;
+    }();
+    return table;
+  }
+
+  // Records the mixed face of cell `at` (flattened in the block at `base`) along `axis`: its six
+  // vertices (c, c2, the four corners at `at` + q[r]) as active where they have a crossing edge
+  // among the face's tetrahedra (c and c2 are joined to all, corner r to corners r ± 1), and each
+  // crossing edge as a snap candidate of both its ends.
+  void AddFace(const int (&base)[3], int at, int axis, const int (&q)[4], BlockCopy* copy) {
+    const int i = at % kL, j = at / kL % kL, k = at / (kL * kL);
     Face face;
-    face.c = c;
+    face.c = {2 * (base[0] + i) - 1, 2 * (base[1] + j) - 1, 2 * (base[2] + k) - 1};
     face.axis = static_cast<unsigned char>(axis);
-    D3 d[6];
-    FaceVertices(c, axis, d);
-    double v[6] = {vc, vc2, vq[0], vq[1], vq[2], vq[3]};
+    const int at2 = at + kStride[axis];
+    const double v[6] = {copy->centre[at],        copy->centre[at2],       copy->corner[at + q[0]],
+                         copy->corner[at + q[1]], copy->corner[at + q[2]], copy->corner[at + q[3]]};
+    const int index[6] = {at, at2, at + q[0], at + q[1], at + q[2], at + q[3]};
     for (int x = 0; x < 6; ++x)
       if (Inside(v[x])) face.inside |= static_cast<unsigned char>(1u << x);
+    const CopyTables& tables = Tables();
+    // The index in active_ of face vertex x (made now if new), or -1 where no block was sampled
+    // (not reached: the bounds keep crossings out of unsampled blocks).
+    auto active = [&](int x) {
+      if (face.act[x] >= 0) return;
+      int* block = copy->active[tables.block[index[x]]];
+      if (block == nullptr) return;
+      int& id = block[(x < 2 ? kBlockVertices : 0) + tables.local[index[x]]];
+      if (id < 0) {
+        id = static_cast<int>(active_.size());
+        Active a;
+        a.d = FaceVertex(face.c, axis, x);
+        a.value = v[x];
+        active_.push_back(a);
+      }
+      face.act[x] = id;
+    };
     const auto& offsets = FaceEdgeOffsets()[axis];
-    for (int e = 0; e < 13; ++e) {
+    for (unsigned edges = CrossingEdges()[face.inside]; edges != 0; edges &= edges - 1) {
+      const int e = std::countr_zero(edges);
       const auto [x, y] = kFaceEdges[e];
-      if (Inside(v[x]) == Inside(v[y])) continue;
-      if (face.act[x] < 0) face.act[x] = MarkActive(d[x], v[x]);
-      if (face.act[y] < 0) face.act[y] = MarkActive(d[y], v[y]);
-      const int k = offsets[e];
+      active(x);
+      active(y);
+      const int kk = offsets[e];
       const double t = std::isinf(v[y]) ? 0.0 : v[x] / (v[x] - v[y]);
-      if (face.act[x] >= 0) active_[face.act[x]].Candidate(k, t);
-      if (face.act[y] >= 0) active_[face.act[y]].Candidate((k + 7) % 14, 1.0 - t);
+      if (face.act[x] >= 0) active_[face.act[x]].Candidate(kk, t);
+      if (face.act[y] >= 0) active_[face.act[y]].Candidate((kk + 7) % 14, 1.0 - t);
     }
     mixed_faces_.push_back(face);
   }
@@ -368,21 +509,6 @@ class LatticeMesher {
     q[(axis + 1) % 3] += kSigns[r][0];
     q[(axis + 2) % 3] += kSigns[r][1];
     return q;
-  }
-
-  // The index in active_ of d (made now if new), or -1 where no block was sampled (not
-  // reached: the bounds keep crossings out of unsampled blocks).
-  int MarkActive(const D3& d, double value) {
-    const int slot = block_slot_[BlockOf(d)];
-    if (slot < 0) return -1;
-    int& index = near_blocks_data_[slot].active[Local(d)];
-    if (index >= 0) return index;
-    index = static_cast<int>(active_.size());
-    Active a;
-    a.d = d;
-    a.value = value;
-    active_.push_back(a);
-    return index;
   }
 
   // The surface point on the lattice edge from a (value va) to b (value vb), opposite signs, as
