@@ -420,14 +420,29 @@ class LatticeMesher {
     return FaceCorner(c, axis, x - 2);
   }
 
-  // Crossing edges (bit e of kFaceEdges) of a face whose vertex x is inside when bit x is set.
-  static const std::array<std::uint16_t, 64>& CrossingEdges() {
-    static const std::array<std::uint16_t, 64> table = [] {
-      std::array<std::uint16_t, 64> t{};
-      for (int p = 0; p < 64; ++p)
-        for (int e = 0; e < 13; ++e)
-          if ((p >> kFaceEdges[e].first & 1) != (p >> kFaceEdges[e].second & 1))
-            t[p] |= static_cast<std::uint16_t>(1u << e);
+  // Of a face whose vertex x is inside when bit x is set: its crossing edges (bit e of
+  // kFaceEdges), and the vertices on them in the order of their first crossing edge.
+  struct FacePattern {
+    std::uint16_t edges = 0;
+    int count = 0;
+    int vertices[6] = {};
+  };
+  static const std::array<FacePattern, 64>& FacePatterns() {
+    static const std::array<FacePattern, 64> table = [] {
+      std::array<FacePattern, 64> t{};
+      for (int p = 0; p < 64; ++p) {
+        unsigned seen = 0;
+        for (int e = 0; e < 13; ++e) {
+          const auto [x, y] = kFaceEdges[e];
+          if ((p >> x & 1) == (p >> y & 1)) continue;
+          t[p].edges |= static_cast<std::uint16_t>(1u << e);
+          for (int z : {x, y})
+            if ((seen >> z & 1) == 0) {
+              seen |= 1u << z;
+              t[p].vertices[t[p].count++] = z;
+            }
+        }
+      }
       return t;
     }();
     return table;
@@ -448,13 +463,14 @@ class LatticeMesher {
     const int index[6] = {at, at2, at + q[0], at + q[1], at + q[2], at + q[3]};
     for (int x = 0; x < 6; ++x)
       if (Inside(v[x])) face.inside |= static_cast<unsigned char>(1u << x);
+    // The index in active_ of each vertex on a crossing edge (made now if new; -1 where no
+    // block was sampled, not reached: the bounds keep crossings out of unsampled blocks).
     const CopyTables& tables = Tables();
-    // The index in active_ of face vertex x (made now if new), or -1 where no block was sampled
-    // (not reached: the bounds keep crossings out of unsampled blocks).
-    auto active = [&](int x) {
-      if (face.act[x] >= 0) return;
+    const FacePattern& pattern = FacePatterns()[face.inside];
+    for (int n = 0; n < pattern.count; ++n) {
+      const int x = pattern.vertices[n];
       int* block = copy->active[tables.block[index[x]]];
-      if (block == nullptr) return;
+      if (block == nullptr) continue;
       int& id = block[(x < 2 ? kBlockVertices : 0) + tables.local[index[x]]];
       if (id < 0) {
         id = static_cast<int>(active_.size());
@@ -464,13 +480,11 @@ class LatticeMesher {
         active_.push_back(a);
       }
       face.act[x] = id;
-    };
+    }
     const auto& offsets = FaceEdgeOffsets()[axis];
-    for (unsigned edges = CrossingEdges()[face.inside]; edges != 0; edges &= edges - 1) {
+    for (unsigned edges = pattern.edges; edges != 0; edges &= edges - 1) {
       const int e = std::countr_zero(edges);
       const auto [x, y] = kFaceEdges[e];
-      active(x);
-      active(y);
       const int kk = offsets[e];
       const double t = std::isinf(v[y]) ? 0.0 : v[x] / (v[x] - v[y]);
       if (face.act[x] >= 0) active_[face.act[x]].Candidate(kk, t);
