@@ -49,6 +49,9 @@ constexpr int kBlock = 4;  // lattice index units per block side
 // within the snap distance but could not snap.
 constexpr double kMinFraction = 0.25;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Sample: a block whose interval bound stays this far (m) above its greatest distance outside
+// the bounds' box takes the solid's values as they are.
+constexpr double kBoxMargin = 1e-9;
 
 // The 14 neighbour offsets in doubled coordinates; k + 7 is the opposite of k (k < 7).
 constexpr int kOffsets[14][3] = {{2, 0, 0},    {0, 2, 0},   {0, 0, 2},   {1, 1, 1},  {1, 1, -1},
@@ -140,6 +143,13 @@ class LatticeMesher {
 
  private:
   static constexpr int kMaxRounds = 16;
+  // A mixed face (FindMixedFaces).
+  struct Face {
+    D3 c;                                   // centre of the cell
+    unsigned char axis = 0;                 // the face towards the cell at c + 2 e_axis
+    unsigned char inside = 0;               // bit x: vertex x (c, c2, corners 0..3) is inside
+    int act[6] = {-1, -1, -1, -1, -1, -1};  // their indices in active_, or -1
+  };
   // MakeTriangles: no mesh vertex looked up yet (ids are >= 0 for crossings, <= -1 for snapped
   // lattice vertices).
   static constexpr int kNoVertex = std::numeric_limits<int>::min();
@@ -205,6 +215,7 @@ class LatticeMesher {
           }
           const Eigen::AlignedBox3d box(lo, hi);
           Interval bound = solid_.Bounds(box);
+          const double solid_lo = bound.lo;
           const Vec below_lo = settings_.bounds.min() - hi, below_hi = settings_.bounds.min() - lo;
           const Vec above_lo = lo - settings_.bounds.max(), above_hi = hi - settings_.bounds.max();
           const double box_lo = below_lo.cwiseMax(above_lo).maxCoeff();
@@ -237,8 +248,17 @@ class LatticeMesher {
             solid_.Values(points.leftCols(count), values.head(count));
           }
           evaluations_ += count;
-          for (int p = 0; p < count; ++p)
-            data.values[Local(ds[p])] = std::max(values[p], BoxDistance(points.col(p)));
+          // The block's values are already in Local's order when it is whole (not cut off by the
+          // grid's upper ends); the bounds' box does not change them where it stays farther from
+          // every point than the solid (by a margin above the rounding of either).
+          const bool whole = count == 2 * kBlockVertices;
+          if (whole && box_hi < solid_lo - kBoxMargin) {
+            std::copy(values.data(), values.data() + count, data.values);
+          } else {
+            for (int p = 0; p < count; ++p)
+              data.values[whole ? p : Local(ds[p])] =
+                  std::max(values[p], BoxDistance(points.col(p)));
+          }
         }
   }
 
@@ -585,27 +605,32 @@ class LatticeMesher {
   static size_t ActiveOf(int id) { return static_cast<size_t>(-1 - id); }
   Vec Point(int id) const { return id >= 0 ? crossings_[id] : active_[ActiveOf(id)].position; }
 
-  // The mesh vertex of the crossing on the edge d0-d1: a snapped end's (the one nearer the
-  // surface when both are), else the edge's own, made once.
-  int EdgeVertex(const D3& d0, Active* a0, const D3& d1, Active* a1) {
+  // The mesh vertex of the crossing on the edge between vertices x0 and x1 of face f (as
+  // FaceVertices): a snapped end's (the one nearer the surface when both are), else the edge's
+  // own, made once.
+  int EdgeVertex(const Face& f, int x0, int x1) {
     // Both ends have a crossing edge (this one), so both are active; the interval bounds
     // guarantee it, and a vertex missed anyway gets its exact value and no snap.
+    Active* a0 = f.act[x0] >= 0 ? &active_[f.act[x0]] : nullptr;
+    Active* a1 = f.act[x1] >= 0 ? &active_[f.act[x1]] : nullptr;
     const bool s0 = a0 != nullptr && a0->snapped, s1 = a1 != nullptr && a1->snapped;
     if (s0 || s1) {
       Active* pick = a0;
       if (!s0 || (s1 && (std::abs(a1->value) < std::abs(a0->value) ||
-                         (std::abs(a1->value) == std::abs(a0->value) && d1 < d0))))
+                         (std::abs(a1->value) == std::abs(a0->value) && a1->d < a0->d))))
         pick = a1;
       return SnappedId(static_cast<int>(pick - active_.data()));
     }
     // The edge belongs to the end from which it is one of the first seven offsets.
-    const int k = OffsetIndex(d0, d1);
+    const int k = FaceOffsetIndex(f.axis, x0, x1);
     Active* owner = k < 7 ? a0 : a1;
     int* id = owner != nullptr ? &owner->edges[k % 7] : nullptr;
     if (id != nullptr && *id >= 0) return *id;
     const int index = static_cast<int>(crossings_.size());
     // An end that could not snap (a thin feature, or a snap that was undone) keeps the
     // crossings on its edges kMinFraction of the edge away, so that they stay apart.
+    const D3 d0 = a0 != nullptr ? a0->d : FaceVertex(f.c, f.axis, x0);
+    const D3 d1 = a1 != nullptr ? a1->d : FaceVertex(f.c, f.axis, x1);
     const Vec p0 = Position(d0), p1 = Position(d1);
     double t = CrossingFraction(p0, a0 != nullptr ? a0->value : ExactValue(d0), p1,
                                 a1 != nullptr ? a1->value : ExactValue(d1));
@@ -614,6 +639,23 @@ class LatticeMesher {
     crossings_.push_back(p0 + t * (p1 - p0));
     if (id != nullptr) *id = index;
     return index;
+  }
+
+  // OffsetIndex between vertices x0 and x1 of any face along `axis` (as FaceVertices).
+  static int FaceOffsetIndex(int axis, int x0, int x1) {
+    static const std::array<signed char, 3 * 6 * 6> table = [] {
+      std::array<signed char, 3 * 6 * 6> t{};
+      for (int axis = 0; axis < 3; ++axis) {
+        D3 d[6];
+        FaceVertices({1, 1, 1}, axis, d);
+        for (int i = 0; i < 6; ++i)
+          for (int j = 0; j < 6; ++j)
+            t[(axis * 6 + i) * 6 + j] =
+                static_cast<signed char>(i == j ? -1 : OffsetIndex(d[i], d[j]));
+      }
+      return t;
+    }();
+    return table[(axis * 6 + x0) * 6 + x1];
   }
 
   // Index k of kOffsets with d0 + kOffsets[k] = d1.
@@ -703,17 +745,44 @@ class LatticeMesher {
     return table[(axis * 4 + r) * 16 + pattern];
   }
 
-  // The triangles of one tetrahedron of a face for its case: x holds the face's vertex (0..5)
-  // at each corner of the tetrahedron; `edge(a, b)` gives the mesh vertex on the face's edge
-  // between face vertices a and b.
+  // The tetrahedra of a face along `axis` whose vertex x (as FaceVertices) is inside when bit x
+  // of `inside` is set, with a crossing: their cases with the crossed edges' ends as face
+  // vertices.
+  struct FaceTets {
+    int count = 0;
+    TetCase tets[4];
+  };
+  static const FaceTets& FaceTetsOf(int axis, int inside) {
+    static const std::vector<FaceTets> table = [] {
+      std::vector<FaceTets> t(3 * 64);
+      for (int axis = 0; axis < 3; ++axis)
+        for (int in = 0; in < 64; ++in) {
+          FaceTets& ft = t[axis * 64 + in];
+          for (int r = 0; r < 4; ++r) {
+            const int x[4] = {0, 1, 2 + r, 2 + (r + 1) % 4};
+            const int pattern = (in >> x[0] & 1) | (in >> x[1] & 1) << 1 | (in >> x[2] & 1) << 2 |
+                                (in >> x[3] & 1) << 3;
+            TetCase tc = TetCaseOf(axis, r, pattern);
+            if (tc.corners == 0) continue;
+            for (auto& edge : tc.edges)
+              for (int& end : edge) end = x[end];
+            ft.tets[ft.count++] = tc;
+          }
+        }
+      return t;
+    }();
+    return table[axis * 64 + inside];
+  }
+
+  // The triangles of one tetrahedron of a face for its case (edges' ends as face vertices);
+  // `edge_of(a, b)` gives the mesh vertex on the face's edge between face vertices a and b.
   template <typename EdgeOf>
-  void Tetrahedron(const int (&x)[4], const TetCase& tc, EdgeOf&& edge_of) {
-    auto edge = [&](int k) { return edge_of(x[tc.edges[k][0]], x[tc.edges[k][1]]); };
+  void Tetrahedron(const TetCase& tc, EdgeOf&& edge_of) {
+    auto edge = [&](int k) { return edge_of(tc.edges[k][0], tc.edges[k][1]); };
     if (tc.corners == 3) {
       Emit(edge(0), edge(1), edge(2));
       return;
     }
-    if (tc.corners != 4) return;
     int q[4];
     for (int k = 0; k < 4; ++k) q[k] = edge(k);
     // Split along the diagonal whose ends coincide (both halves vanish), else the shorter.
@@ -742,25 +811,15 @@ class LatticeMesher {
     triangles_.clear();
     triangles_.reserve(3 * mixed_faces_.size());
     for (const Face& f : mixed_faces_) {
-      D3 d[6];
-      FaceVertices(f.c, f.axis, d);
-      Active* act[6];
-      for (int x = 0; x < 6; ++x) act[x] = f.act[x] >= 0 ? &active_[f.act[x]] : nullptr;
       int vertex_of[6][6];  // mesh vertex on the edge between face vertices a and b, once made
       for (auto& row : vertex_of) std::fill(std::begin(row), std::end(row), kNoVertex);
       auto edge_of = [&](int a, int b) {
         int& id = vertex_of[std::min(a, b)][std::max(a, b)];
-        if (id == kNoVertex) id = EdgeVertex(d[a], act[a], d[b], act[b]);
+        if (id == kNoVertex) id = EdgeVertex(f, a, b);
         return id;
       };
-      for (int r = 0; r < 4; ++r) {
-        const int x[4] = {0, 1, 2 + r, 2 + (r + 1) % 4};
-        const int pattern = (f.inside >> x[0] & 1) | (f.inside >> x[1] & 1) << 1 |
-                            (f.inside >> x[2] & 1) << 2 | (f.inside >> x[3] & 1) << 3;
-        const TetCase& tc = TetCaseOf(f.axis, r, pattern);
-        if (tc.corners == 0) continue;
-        Tetrahedron(x, tc, edge_of);
-      }
+      const FaceTets& ft = FaceTetsOf(f.axis, f.inside);
+      for (int n = 0; n < ft.count; ++n) Tetrahedron(ft.tets[n], edge_of);
     }
   }
 
@@ -867,12 +926,6 @@ class LatticeMesher {
   std::vector<int> block_slot_;
   std::vector<NearBlock> near_blocks_data_;
   std::vector<std::array<int, 3>> near_;  // the sampled blocks' indices, in sampling order
-  struct Face {
-    D3 c;                                   // centre of the cell
-    unsigned char axis = 0;                 // the face towards the cell at c + 2 e_axis
-    unsigned char inside = 0;               // bit x: vertex x (c, c2, corners 0..3) is inside
-    int act[6] = {-1, -1, -1, -1, -1, -1};  // their indices in active_, or -1
-  };
   std::vector<Face> mixed_faces_;
   long evaluations_ = 0;
   long snapped_ = 0;
