@@ -221,7 +221,9 @@ BENCHMARK(BM_MeshSpeed)
 
 // BM_MeshSpeed for the lattice route (SurfaceMesher::kLattice, default lattice_snap): case
 // state.range(0) at cell state.range(1) / 10 mm. The 5 cm sphere at 1 mm took 55-60 ms CPU per mesh
-// on 2026-12-06 (docs/design/2026-12-06-lattice-mesher.md); counters as BM_MeshSpeed, plus the
+// on 2026-12-06; on 2026-12-07, a slower day, 68-89 ms before that day's bookkeeping changes and
+// 55-69 ms after them, alternated (docs/design/2026-12-06-lattice-mesher.md); counters as
+// BM_MeshSpeed, plus the
 // lattice vertices snapped onto the surface.
 void BM_LatticeSpeed(benchmark::State& state) {
   SurfaceMeshSettings settings;
