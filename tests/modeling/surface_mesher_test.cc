@@ -291,6 +291,10 @@ TEST(SurfaceMesher, SpeedUpsKeepTheOutputBitForBit) {
                                       Eigen::Vector3d::Constant(0.05));
   const Eigen::AlignedBox3d platform_box(Eigen::Vector3d(-0.01, -0.11, -0.16),
                                          Eigen::Vector3d(0.31, 0.11, 0.02));
+  const Eigen::AlignedBox3d clipped_box(offset - Eigen::Vector3d::Constant(0.06),
+                                        offset + Eigen::Vector3d(0.031, 0.0217, 0.0405));
+  const Eigen::AlignedBox3d clipped_torus_box(Eigen::Vector3d::Constant(-0.05),
+                                              Eigen::Vector3d(0.0213, 0.0331, 0.0047));
   struct Case {
     const char* name;
     const CompiledSolid* solid;
@@ -326,6 +330,13 @@ TEST(SurfaceMesher, SpeedUpsKeepTheOutputBitForBit) {
        SurfaceMesher::kLattice},
       {"platform 8 mm lattice", &platform, platform_box, 0.008, true, 0.0, 13430,
        0x2aa3684f5155dea0ull, SurfaceMesher::kLattice},
+      // Bounds that cut the solids on their upper sides, so the grid ends in partial blocks
+      // across the surface (frozen on 2026-12-07 with the lattice mesher of before that day's
+      // bookkeeping changes, which left them as they were).
+      {"sphere lattice, cut by the bounds", &sphere, clipped_box, 0.0037, true, 0.0, 7912,
+       0xc151393ebb375cc0ull, SurfaceMesher::kLattice},
+      {"torus lattice, cut by the bounds", &torus, clipped_torus_box, 0.0029, true, 0.0, 4544,
+       0x20fb54fd992e0313ull, SurfaceMesher::kLattice},
   };
   for (const Case& c : cases) {
     SurfaceMeshSettings settings;
