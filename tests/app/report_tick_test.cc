@@ -203,6 +203,9 @@ TEST(ReportTick, TickSectionReportsThreadCpuP999AndMaxPerScene) {
   EXPECT_NE(summary.find("worst p99.9"), std::string::npos) << summary;
   EXPECT_NE(summary.find("worst max"), std::string::npos) << summary;
   EXPECT_NE(summary.find("repeatable over 3 runs: worst p99.9"), std::string::npos) << summary;
+  // The summary table's headline carries the repeatable figures beside the single run's.
+  EXPECT_NE(md.find("of the 1000 µs tick; repeatable over 3 runs: worst p99.9"), std::string::npos)
+      << md;
 
   // The repeatable table: one row per scene kind that every run has; each tick's least time
   // cannot exceed any run's maximum, and its p99.9 cannot exceed its maximum.
