@@ -276,7 +276,7 @@ class LatticeMesher {
     mixed_faces_.reserve(64 * near_.size());
     crossings_.reserve(32 * near_.size());
     // Values and inside flags of the corners and centres with lattice index in [block start,
-    // block start + kBlock] per axis, flattened as i + L j + L² k.
+    // block start + kBlock] per axis, flattened as i + kL j + kL² k (BlockCopy).
     BlockCopy copy;
     int corner_offset[3][4];
     for (int axis = 0; axis < 3; ++axis)
@@ -320,9 +320,7 @@ class LatticeMesher {
         const Bits all = c & c >> kStride[axis] & n >> q[0] & n >> q[1] & n >> q[2] & n >> q[3];
         mixed[axis] = some & ~all & faces[axis];
       }
-      Bits cells = mixed[0] | mixed[1] | mixed[2];
-      if (cells == 0) continue;
-      while (cells != 0) {
+      for (Bits cells = mixed[0] | mixed[1] | mixed[2]; cells != 0;) {
         const int at = LowestBit(cells);
         cells &= cells - 1;
         for (int axis = 0; axis < 3; ++axis)
