@@ -49,8 +49,8 @@ constexpr int kBlock = 4;  // lattice index units per block side
 // within the snap distance but could not snap.
 constexpr double kMinFraction = 0.25;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Sample: a block whose interval bound stays this far (m) above its greatest distance outside
-// the bounds' box takes the solid's values as they are.
+// Sample: a block whose interval bound stays this far (m, relative beyond 1 m) above its
+// greatest distance outside the bounds' box takes the solid's values as they are.
 constexpr double kBoxMargin = 1e-9;
 
 // The 14 neighbour offsets in doubled coordinates; k + 7 is the opposite of k (k < 7).
@@ -91,8 +91,12 @@ constexpr std::pair<int, int> kFaceEdges[13] = {{0, 1}, {0, 2}, {0, 3}, {0, 4}, 
 constexpr int kFarOutside = -1, kFarInside = -2;  // block_slot_ of unsampled blocks
 
 // A sampled block: values and indices in active_ (-1: none) of its corners, then its centres.
+// Values not sampled (beyond the grid's upper ends) stay +infinity, as beyond the grid.
 struct NearBlock {
-  NearBlock() { std::fill(std::begin(active), std::end(active), -1); }
+  NearBlock() {
+    std::fill(std::begin(values), std::end(values), kInf);
+    std::fill(std::begin(active), std::end(active), -1);
+  }
   double values[2 * kBlockVertices];
   int active[2 * kBlockVertices];
 };
@@ -252,7 +256,7 @@ class LatticeMesher {
           // grid's upper ends); the bounds' box does not change them where it stays farther from
           // every point than the solid (by a margin above the rounding of either).
           const bool whole = count == 2 * kBlockVertices;
-          if (whole && box_hi < solid_lo - kBoxMargin) {
+          if (whole && box_hi < solid_lo - kBoxMargin * (1.0 + std::abs(solid_lo))) {
             std::copy(values.data(), values.data() + count, data.values);
           } else {
             for (int p = 0; p < count; ++p)
@@ -333,7 +337,7 @@ class LatticeMesher {
   static constexpr int kL = kBlock + 1;
   static constexpr int kStride[3] = {1, kL, kL* kL};
   __extension__ typedef unsigned __int128 Bits;  // one bit per flattened index (kL³ <= 128)
-  static_assert(kL * kL * kL <= 128);
+  static_assert(kL * kL * kL < 128);
   static constexpr Bits kAllBits = (Bits{1} << (kL * kL * kL)) - 1;
   static int LowestBit(Bits b) {
     const auto low = static_cast<std::uint64_t>(b);
@@ -374,10 +378,15 @@ class LatticeMesher {
 
   // Fills `copy` for the block starting at lattice index `base`: its own values, and those of
   // the next blocks along each axis; ±infinity in unsampled blocks (as ValueAt), +infinity beyond
-  // the grid.
+  // the grid (blocks beyond it, and a sampled block's vertices beyond it: NearBlock).
   void CopyBlock(const int (&base)[3], BlockCopy* copy) {
-    static const std::vector<double> outside(2 * kBlockVertices, kInf),
-        inside(2 * kBlockVertices, -kInf);
+    static const auto filled = [](double v) {
+      std::array<double, 2 * kBlockVertices> a;
+      a.fill(v);
+      return a;
+    };
+    static const std::array<double, 2 *kBlockVertices> outside = filled(kInf),
+                                                       inside = filled(-kInf);
     const double* values[8];
     for (int nb = 0; nb < 8; ++nb) {
       const int g[3] = {base[0] + (nb & 1) * kBlock, base[1] + (nb >> 1 & 1) * kBlock,
@@ -398,20 +407,6 @@ class LatticeMesher {
       const double* v = values[t.block[at]] + t.local[at];
       copy->corner[at] = v[0];
       copy->centre[at] = v[kBlockVertices];
-    }
-    if (base[0] + kBlock >= centres_[0] || base[1] + kBlock >= centres_[1] ||
-        base[2] + kBlock >= centres_[2]) {
-      // Near the grid's upper ends: +infinity beyond it (the block's own values there are not
-      // sampled).
-      for (int k = 0, at = 0; k < kL; ++k)
-        for (int j = 0; j < kL; ++j)
-          for (int i = 0; i < kL; ++i, ++at) {
-            const int g[3] = {base[0] + i, base[1] + j, base[2] + k};
-            if (g[0] >= corners_[0] || g[1] >= corners_[1] || g[2] >= corners_[2])
-              copy->corner[at] = kInf;
-            if (g[0] >= centres_[0] || g[1] >= centres_[1] || g[2] >= centres_[2])
-              copy->centre[at] = kInf;
-          }
     }
     std::uint64_t in[4] = {0, 0, 0, 0};  // corners' bits 0..63, 64..; centres' the same
     for (int at = 0; at < 64; ++at) {
@@ -725,7 +720,8 @@ class LatticeMesher {
     return tc;
   }
 
-  // kTetCases[axis][r][pattern], built once from a face at the lattice's origin.
+  // The case of tetrahedron r of a face along `axis` for its sign pattern, from a table built
+  // once from a face at the lattice's origin.
   static const TetCase& TetCaseOf(int axis, int r, int pattern) {
     static const std::vector<TetCase> table = [] {
       std::vector<TetCase> t(3 * 4 * 16);
@@ -781,6 +777,7 @@ class LatticeMesher {
       Emit(edge(0), edge(1), edge(2));
       return;
     }
+    if (tc.corners != 4) return;
     int q[4];
     for (int k = 0; k < 4; ++k) q[k] = edge(k);
     // Split along the diagonal whose ends coincide (both halves vanish), else the shorter.
