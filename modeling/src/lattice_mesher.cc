@@ -494,11 +494,11 @@ class LatticeMesher {
       }
       face.act[x] = id;
     }
-    const auto& offsets = FaceEdgeOffsets()[axis];
+    const auto& offsets = FaceOffsets()[axis];
     for (unsigned edges = pattern.edges; edges != 0; edges &= edges - 1) {
       const int e = std::countr_zero(edges);
       const auto [x, y] = kFaceEdges[e];
-      const int kk = offsets[e];
+      const int kk = offsets[6 * x + y];
       const double t = std::isinf(v[y]) ? 0.0 : v[x] / (v[x] - v[y]);
       if (face.act[x] >= 0) active_[face.act[x]].Candidate(kk, t);
       if (face.act[y] >= 0) active_[face.act[y]].Candidate((kk + 7) % 14, 1.0 - t);
@@ -508,25 +508,7 @@ class LatticeMesher {
 
   // The six vertices of a face: the cell's centre c, its neighbour's centre, the four corners.
   static void FaceVertices(const D3& c, int axis, D3 (&d)[6]) {
-    d[0] = c;
-    d[1] = c;
-    d[1][axis] += 2;
-    for (int r = 0; r < 4; ++r) d[2 + r] = FaceCorner(c, axis, r);
-  }
-
-  // Per face axis, the index in kOffsets of each of kFaceEdges (from its first vertex).
-  static const std::array<std::array<int, 13>, 3>& FaceEdgeOffsets() {
-    static const std::array<std::array<int, 13>, 3> table = [] {
-      std::array<std::array<int, 13>, 3> t{};
-      for (int axis = 0; axis < 3; ++axis) {
-        D3 d[6];
-        FaceVertices({1, 1, 1}, axis, d);
-        for (int e = 0; e < 13; ++e)
-          t[axis][e] = OffsetIndex(d[kFaceEdges[e].first], d[kFaceEdges[e].second]);
-      }
-      return t;
-    }();
-    return table;
+    for (int x = 0; x < 6; ++x) d[x] = FaceVertex(c, axis, x);
   }
 
   // Corner r of the face between the cell of centre c and its neighbour along axis.
@@ -615,7 +597,7 @@ class LatticeMesher {
       return SnappedId(static_cast<int>(pick - active_.data()));
     }
     // The edge belongs to the end from which it is one of the first seven offsets.
-    const int k = FaceOffsetIndex(f.axis, x0, x1);
+    const int k = FaceOffsets()[f.axis][6 * x0 + x1];
     Active* owner = k < 7 ? a0 : a1;
     int* id = owner != nullptr ? &owner->edges[k % 7] : nullptr;
     if (id != nullptr && *id >= 0) return *id;
@@ -634,21 +616,22 @@ class LatticeMesher {
     return index;
   }
 
-  // OffsetIndex between vertices x0 and x1 of any face along `axis` (as FaceVertices).
-  static int FaceOffsetIndex(int axis, int x0, int x1) {
-    static const std::array<signed char, 3 * 6 * 6> table = [] {
-      std::array<signed char, 3 * 6 * 6> t{};
+  // OffsetIndex between vertices x0 and x1 of any face along `axis` (as FaceVertices), per axis:
+  // entry 6 x0 + x1 of FaceOffsets()[axis].
+  using FaceOffsetTable = std::array<std::array<signed char, 6 * 6>, 3>;
+  static const FaceOffsetTable& FaceOffsets() {
+    static const FaceOffsetTable table = [] {
+      FaceOffsetTable t{};
       for (int axis = 0; axis < 3; ++axis) {
         D3 d[6];
         FaceVertices({1, 1, 1}, axis, d);
         for (int i = 0; i < 6; ++i)
           for (int j = 0; j < 6; ++j)
-            t[(axis * 6 + i) * 6 + j] =
-                static_cast<signed char>(i == j ? -1 : OffsetIndex(d[i], d[j]));
+            t[axis][6 * i + j] = static_cast<signed char>(i == j ? -1 : OffsetIndex(d[i], d[j]));
       }
       return t;
     }();
-    return table[(axis * 6 + x0) * 6 + x1];
+    return table;
   }
 
   // Index k of kOffsets with d0 + kOffsets[k] = d1.
