@@ -12,6 +12,7 @@
 #include "cli/commands.h"
 #include "gui/gui.h"
 #include "scene/worker_process.h"
+#include "spidarcad/fem/blas_kernels.h"
 
 namespace {
 
@@ -87,7 +88,9 @@ int main(int argc, char** argv) {
       "  spidarcad run demo --trajectory press.csv --out press_result.csv\n"
       "  spidarcad device list\n",
       "spidarcad"};
-  app.set_version_flag("--version", "spidarcad 0.1.0");
+  // The BLAS line: which OpenBLAS kernels the factorisations run on (fem/blas_kernels.h).
+  app.set_version_flag("--version",
+                       "spidarcad 0.1.0\nBLAS: " + spidarcad::fem::BlasKernelDescription());
   app.require_subcommand(0, 1);
 
   GuiOptions gui_options;

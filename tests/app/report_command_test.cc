@@ -76,8 +76,8 @@ TEST(ReportCommand, WritesStampedReportWhoseFkAndTensionFiguresMatchIndependentR
   const std::string md = ReadWholeFile(dir + "/report.md");
   ASSERT_FALSE(md.empty());
   for (const char* key :
-       {"| commit |", "| build type |", "| CPU |", "| cores |", "| date |", "| mode | --quick |",
-        "## Summary", "## Forward kinematics", "## Tension distribution"}) {
+       {"| commit |", "| build type |", "| CPU |", "| cores |", "| BLAS | OpenBLAS ", "| date |",
+        "| mode | --quick |", "## Summary", "## Forward kinematics", "## Tension distribution"}) {
     EXPECT_NE(md.find(key), std::string::npos) << key;
   }
   EXPECT_EQ(md.find("## Workspace"), std::string::npos);  // not asked for

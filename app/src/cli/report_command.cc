@@ -24,6 +24,7 @@
 #include "cli/plot.h"
 #include "cli/report_common.h"
 #include "cli/report_sections.h"
+#include "spidarcad/fem/blas_kernels.h"
 #include "spidarcad_git_stamp.h"  // SPIDARCAD_GIT_COMMIT, generated at build time
 #ifndef SPIDARCAD_BUILD_TYPE
 #define SPIDARCAD_BUILD_TYPE "unknown"
@@ -135,6 +136,7 @@ std::vector<std::pair<std::string, std::string>> Stamp(const ReportOptions& o) {
           {"build type", SPIDARCAD_BUILD_TYPE},
           {"CPU", CpuModel()},
           {"cores", std::to_string(std::thread::hardware_concurrency())},
+          {"BLAS", fem::BlasKernelDescription()},
           {"load average at the start (1, 5, 15 min)", LoadAverage()},
           {"date", UtcNow()},
           {"mode", o.quick ? "--quick" : "full"}};
