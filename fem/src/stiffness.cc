@@ -85,6 +85,67 @@ void CheckFormulation(int npe, const Material& material) {
   }
 }
 
+// Bᵀ D B over the element's quadrature points, into k (3·Npe by 3·Npe), without B: column 3b + j
+// of B holds the derivatives of node b's shape function g_b = (gx, gy, gz) at rows
+// j = 0: (0: gx, 4: gz, 5: gy), j = 1: (1: gy, 3: gz, 5: gx), j = 2: (2: gz, 3: gy, 4: gx)
+// (StrainDisplacement's Voigt order), so each entry of Bᵀ (D B) is a sum of three products.
+// The node blocks with a <= b are computed and mirrored: k is exactly symmetric. Linear
+// elements use the one-point rule (weight det J / 6), quadratic ones the 4-point rule
+// (det J / 24 each), as ElementStiffness documents.
+template <int Npe>
+void ElementStiffnessInto(const Eigen::Matrix<double, Npe, 3>& x, const Matrix6d& d,
+                          Eigen::Matrix<double, 3 * Npe, 3 * Npe>* k) {
+  static_assert(Npe == 4 || Npe == 10);
+  constexpr int kPoints = Npe == 4 ? 1 : 4;
+  k->setZero();
+  for (int q = 0; q < kPoints; ++q) {
+    // ∂N/∂ξ (Npe by 3) for ξ = (L1, L2, L3), L0 = 1 − ξ1 − ξ2 − ξ3.
+    Eigen::Matrix<double, Npe, 3> dxi = Eigen::Matrix<double, Npe, 3>::Zero();
+    if constexpr (Npe == 4) {
+      dxi.row(0).setConstant(-1.0);
+      dxi.template bottomRows<3>().setIdentity();
+    } else {
+      const Eigen::Vector4d l = QuadraturePoint(q);
+      auto dl = [&](int node, int lj) {  // ∂N_node/∂L_lj
+        if (node < 4) return node == lj ? 4.0 * l(lj) - 1.0 : 0.0;
+        const int ea = kTetEdges[node - 4][0], eb = kTetEdges[node - 4][1];
+        return lj == ea ? 4.0 * l(eb) : lj == eb ? 4.0 * l(ea) : 0.0;
+      };
+      for (int a = 0; a < Npe; ++a)
+        for (int j = 0; j < 3; ++j) dxi(a, j) = dl(a, j + 1) - dl(a, 0);
+    }
+    const Eigen::Matrix3d jac = x.transpose() * dxi;  // J_ij = ∂x_i/∂ξ_j
+    const double w = jac.determinant() / (Npe == 4 ? 6.0 : 24.0);
+    const Eigen::Matrix<double, Npe, 3> g = dxi * jac.inverse();  // ∂N_a/∂x_i
+    // D B, column by column (6 by 3·Npe).
+    Eigen::Matrix<double, 6, 3 * Npe> db;
+    for (int b = 0; b < Npe; ++b) {
+      const double gx = g(b, 0), gy = g(b, 1), gz = g(b, 2);
+      db.col(3 * b) = d.col(0) * gx + d.col(4) * gz + d.col(5) * gy;
+      db.col(3 * b + 1) = d.col(1) * gy + d.col(3) * gz + d.col(5) * gx;
+      db.col(3 * b + 2) = d.col(2) * gz + d.col(3) * gy + d.col(4) * gx;
+    }
+    for (int b = 0; b < Npe; ++b)
+      for (int a = 0; a <= b; ++a) {
+        const double gx = g(a, 0), gy = g(a, 1), gz = g(a, 2);
+        for (int j = 0; j < 3; ++j) {
+          const auto c = db.col(3 * b + j);
+          (*k)(3 * a, 3 * b + j) += w * (gx * c(0) + gz * c(4) + gy * c(5));
+          (*k)(3 * a + 1, 3 * b + j) += w * (gy * c(1) + gz * c(3) + gx * c(5));
+          (*k)(3 * a + 2, 3 * b + j) += w * (gz * c(2) + gy * c(3) + gx * c(4));
+        }
+      }
+  }
+  // Mirror: the lower node blocks, and the lower triangle of each diagonal block.
+  for (int b = 0; b < Npe; ++b)
+    for (int a = 0; a <= b; ++a)
+      for (int j = 0; j < 3; ++j)
+        for (int i = 0; i < 3; ++i) {
+          if (a == b && i >= j) continue;
+          (*k)(3 * b + j, 3 * a + i) = (*k)(3 * a + i, 3 * b + j);
+        }
+}
+
 }  // namespace
 
 Eigen::RowVectorXd MeanDilatation(const ElementNodes& x, double* volume) {
@@ -113,6 +174,16 @@ Eigen::MatrixXd ElementStiffness(const ElementNodes& x, const Material& material
   CheckFormulation(npe, material);
   const bool mean = material.formulation == Formulation::kMeanDilatation;
   const Matrix6d d = mean ? ShearElasticity(material) : material.ElasticityMatrix();
+  if (!mean) {
+    if (npe == 4) {
+      Eigen::Matrix<double, 12, 12> k;
+      ElementStiffnessInto<4>(Eigen::Matrix<double, 4, 3>(x), d, &k);
+      return k;
+    }
+    Eigen::Matrix<double, 30, 30> k;
+    ElementStiffnessInto<10>(Eigen::Matrix<double, 10, 3>(x), d, &k);
+    return k;
+  }
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(3 * npe, 3 * npe);
   if (npe == 4) {
     double det = 0.0;
@@ -143,22 +214,38 @@ ElementNodes GetElementNodes(const TetMesh& mesh, int e) {
 }
 
 SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materials) {
-  const int n = mesh.num_nodes();
-  const int npe = mesh.NodesPerElement();
-  // Node adjacency (including the node itself), sorted.
-  std::vector<std::vector<int>> adj(n);
-  for (int e = 0; e < mesh.num_elements(); ++e)
-    for (int a = 0; a < npe; ++a)
-      for (int b = 0; b < npe; ++b) adj[mesh.elements(e, a)].push_back(mesh.elements(e, b));
-  for (auto& v : adj) {
-    std::sort(v.begin(), v.end());
-    v.erase(std::unique(v.begin(), v.end()), v.end());
+  const int n = mesh.num_nodes(), npe = mesh.NodesPerElement(), ne = mesh.num_elements();
+  // Elements of each node, compressed.
+  std::vector<int> elem_start(n + 1, 0), elem_of(static_cast<std::size_t>(ne) * npe);
+  for (int e = 0; e < ne; ++e)
+    for (int a = 0; a < npe; ++a) ++elem_start[mesh.elements(e, a) + 1];
+  for (int v = 0; v < n; ++v) elem_start[v + 1] += elem_start[v];
+  {
+    std::vector<int> fill(elem_start.begin(), elem_start.end() - 1);
+    for (int e = 0; e < ne; ++e)
+      for (int a = 0; a < npe; ++a) elem_of[fill[mesh.elements(e, a)]++] = e;
+  }
+  // Neighbours of each node (itself included), sorted; `seen` marks those of the node at hand.
+  std::vector<int> adj_start(n + 1, 0), adj, seen(n, -1);
+  adj.reserve(static_cast<std::size_t>(n) * (npe == 4 ? 16 : 32));
+  for (int b = 0; b < n; ++b) {
+    const std::size_t first = adj.size();
+    for (int p = elem_start[b]; p < elem_start[b + 1]; ++p)
+      for (int a = 0; a < npe; ++a) {
+        const int v = mesh.elements(elem_of[p], a);
+        if (seen[v] != b) {
+          seen[v] = b;
+          adj.push_back(v);
+        }
+      }
+    std::sort(adj.begin() + static_cast<std::ptrdiff_t>(first), adj.end());
+    adj_start[b + 1] = static_cast<int>(adj.size());
   }
   // Compressed column pattern: column (b, j) holds rows (a, i) for a in adj(b), i = 0..2.
   SparseMatrixd k(3 * n, 3 * n);
   std::vector<int> col_start(3 * n + 1, 0);
   for (int b = 0; b < n; ++b)
-    for (int j = 0; j < 3; ++j) col_start[3 * b + j + 1] = 3 * static_cast<int>(adj[b].size());
+    for (int j = 0; j < 3; ++j) col_start[3 * b + j + 1] = 3 * (adj_start[b + 1] - adj_start[b]);
   for (int c = 0; c < 3 * n; ++c) col_start[c + 1] += col_start[c];
   k.resizeNonZeros(col_start.back());
   std::copy(col_start.begin(), col_start.end(), k.outerIndexPtr());
@@ -167,27 +254,54 @@ SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materi
   for (int b = 0; b < n; ++b)
     for (int j = 0; j < 3; ++j) {
       int p = col_start[3 * b + j];
-      for (int a : adj[b])
+      for (int q = adj_start[b]; q < adj_start[b + 1]; ++q)
         for (int i = 0; i < 3; ++i) {
-          inner[p] = 3 * a + i;
+          inner[p] = 3 * adj[q] + i;
           values[p] = 0.0;
           ++p;
         }
     }
-  for (int e = 0; e < mesh.num_elements(); ++e) {
-    const Eigen::MatrixXd ke =
-        ElementStiffness(GetElementNodes(mesh, e), materials.Get(mesh.regions(e)));
+  // Element matrices, added into their columns.
+  int e = 0;
+  auto scatter = [&](const auto& ke) {
     for (int lb = 0; lb < npe; ++lb) {
       const int b = mesh.elements(e, lb);
-      const auto& nb = adj[b];
+      const int* nb = adj.data() + adj_start[b];
+      const int* nb_end = adj.data() + adj_start[b + 1];
       for (int la = 0; la < npe; ++la) {
-        const int a = mesh.elements(e, la);
-        const int rank = static_cast<int>(std::lower_bound(nb.begin(), nb.end(), a) - nb.begin());
+        const int rank = static_cast<int>(std::lower_bound(nb, nb_end, mesh.elements(e, la)) - nb);
         for (int j = 0; j < 3; ++j) {
           double* col = values + col_start[3 * b + j] + 3 * rank;
           for (int i = 0; i < 3; ++i) col[i] += ke(3 * la + i, 3 * lb + j);
         }
       }
+    }
+  };
+  // The material of the last region seen: meshes hold few regions, usually in runs.
+  int region = 0;
+  const Material* material = nullptr;
+  Matrix6d d;
+  Eigen::Matrix<double, 4, 3> x4;
+  Eigen::Matrix<double, 10, 3> x10;
+  Eigen::Matrix<double, 12, 12> k4;
+  Eigen::Matrix<double, 30, 30> k10;
+  for (e = 0; e < ne; ++e) {
+    if (material == nullptr || mesh.regions(e) != region) {
+      region = mesh.regions(e);
+      material = &materials.Get(region);
+      CheckFormulation(npe, *material);
+      d = material->ElasticityMatrix();
+    }
+    if (material->formulation == Formulation::kMeanDilatation) {
+      scatter(ElementStiffness(GetElementNodes(mesh, e), *material));
+    } else if (npe == 4) {
+      for (int a = 0; a < 4; ++a) x4.row(a) = mesh.nodes.row(mesh.elements(e, a));
+      ElementStiffnessInto<4>(x4, d, &k4);
+      scatter(k4);
+    } else {
+      for (int a = 0; a < 10; ++a) x10.row(a) = mesh.nodes.row(mesh.elements(e, a));
+      ElementStiffnessInto<10>(x10, d, &k10);
+      scatter(k10);
     }
   }
   return k;

@@ -317,16 +317,25 @@ struct SubstructuredSolver::BlockFactor {
     local.elements.resize(ne, npe);
     for (int e = 0; e < ne; ++e)
       for (int j = 0; j < npe; ++j) local.elements(e, j) = connectivity[e * npe + j];
-    // One region per element, its material from the content (so the table is local too).
+    // The materials from the content (so the table is local too): one region per distinct
+    // (E, ν, formulation), numbered as they first appear.
     local.regions.resize(ne);
     MaterialTable table;
+    std::vector<const double*> distinct;  // each region's triple in `materials`
     for (int e = 0; e < ne; ++e) {
-      local.regions(e) = e;
-      Material m;
-      m.youngs_modulus = materials[3 * e];
-      m.poisson_ratio = materials[3 * e + 1];
-      m.formulation = static_cast<Formulation>(static_cast<int>(materials[3 * e + 2]));
-      table.Set(e, m);
+      const double* triple = &materials[3 * static_cast<std::size_t>(e)];
+      int r = static_cast<int>(distinct.size()) - 1;
+      while (r >= 0 && !std::equal(triple, triple + 3, distinct[r])) --r;
+      if (r < 0) {
+        r = static_cast<int>(distinct.size());
+        distinct.push_back(triple);
+        Material m;
+        m.youngs_modulus = triple[0];
+        m.poisson_ratio = triple[1];
+        m.formulation = static_cast<Formulation>(static_cast<int>(triple[2]));
+        table.Set(r, m);
+      }
+      local.regions(e) = r;
     }
     k = AssembleStiffness(local, table);
     k.makeCompressed();
