@@ -336,6 +336,8 @@ TetMesh TetrahedralizeSlab(const TriangleMesh& slab_surface, TetMeshSettings set
   settings.keep_facets = true;
   // No welding: the slab's vertices on its planes must stay exactly those its neighbours have.
   settings.weld_tolerance = -1.0;
+  // The cut curves and flat faces hold many degenerate point sets (TetMeshSettings).
+  settings.perturb_from_triangles = kSlabPerturbFromTriangles;
   return TetrahedralizeSurface(slab_surface, settings, stats);
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <new>
 #include <string>
@@ -183,6 +184,28 @@ void DropCavities(const TriangleMesh& surface, TetMesh* mesh) {
     out.regions[j] = mesh->regions[kept[j]];
   }
   *mesh = std::move(out);
+}
+
+// A value in [−1, 1) from the bits of a vertex's coordinate and the axis (splitmix64).
+double HashUnit(double coordinate_x, double coordinate_y, double coordinate_z, int axis) {
+  std::uint64_t h = 0x9e3779b97f4a7c15ull * static_cast<std::uint64_t>(axis + 1);
+  for (double c : {coordinate_x, coordinate_y, coordinate_z}) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &c, sizeof bits);
+    h ^= bits + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
+    h ^= h >> 30;
+    h *= 0xbf58476d1ce4e5b9ull;
+    h ^= h >> 27;
+    h *= 0x94d049bb133111ebull;
+    h ^= h >> 31;
+  }
+  return static_cast<double>(h >> 11) * 0x1.0p-52 - 1.0;
+}
+
+// Six times the signed volume of tet (a, b, c, d) of a point list (x, y, z per point).
+double Orient(const double* p, int a, int b, int c, int d) {
+  const Eigen::Vector3d pa(p + 3 * a), pb(p + 3 * b), pc(p + 3 * c), pd(p + 3 * d);
+  return (pb - pa).dot((pc - pa).cross(pd - pa));
 }
 
 }  // namespace
@@ -403,16 +426,62 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
     for (int k = 0; k < 3; ++k) facet.polygonlist[0].vertexlist[k] = surface.triangles(k, f);
   }
   t0 = Clock::now();
-  try {
-    std::vector<char> command(switches.begin(), switches.end());
-    command.push_back('\0');
-    tetrahedralize(command.data(), &in, &out);
-  } catch (const TetgenError&) {
-    throw;
-  } catch (int code) {
-    throw TetgenError(code, "TetGen failed with code " + std::to_string(code));
-  } catch (const std::bad_alloc&) {
-    throw TetgenError(1, "TetGen failed: out of memory");
+  auto run = [&switches](tetgenio* from, tetgenio* to) {
+    try {
+      std::vector<char> command(switches.begin(), switches.end());
+      command.push_back('\0');
+      tetrahedralize(command.data(), from, to);
+    } catch (const TetgenError&) {
+      throw;
+    } catch (int code) {
+      throw TetgenError(code, "TetGen failed with code " + std::to_string(code));
+    } catch (const std::bad_alloc&) {
+      throw TetgenError(1, "TetGen failed: out of memory");
+    }
+  };
+  const int n_in = in.numberofpoints;
+  const bool perturb = settings.perturb_from_triangles > 0 &&
+                       surface.triangles.cols() >= settings.perturb_from_triangles &&
+                       settings.preserve_surface && settings.keep_facets && n_in > 0;
+  if (perturb) {
+    // Each vertex moved by up to 1e-9 of the box diagonal (see TetMeshSettings::perturb).
+    const double amplitude =
+        1e-9 *
+        (surface.vertices.rowwise().maxCoeff() - surface.vertices.rowwise().minCoeff()).norm();
+    for (int v = 0; v < n_in; ++v) {
+      const double* exact = surface.vertices.col(v).data();
+      for (int k = 0; k < 3; ++k)
+        in.pointlist[3 * v + k] += amplitude * HashUnit(exact[0], exact[1], exact[2], k);
+    }
+  }
+  run(&in, &out);
+  st.perturbed = perturb;
+  if (perturb && out.pointlist != nullptr && out.tetrahedronlist != nullptr &&
+      out.numberofpoints >= n_in && out.numberofcorners == 4) {
+    // The exact positions back; every tet must keep its orientation, else TetGen runs again on
+    // the exact positions.
+    const std::vector<double> moved(out.pointlist, out.pointlist + 3 * out.numberofpoints);
+    std::copy(surface.vertices.data(), surface.vertices.data() + 3 * n_in, out.pointlist);
+    const int* tets = out.tetrahedronlist;
+    for (int t = 0; t < out.numberoftetrahedra && st.perturbed; ++t) {
+      const int a = tets[4 * t], b = tets[4 * t + 1], c = tets[4 * t + 2], d = tets[4 * t + 3];
+      if (std::min({a, b, c, d}) < 0 || std::max({a, b, c, d}) >= out.numberofpoints) break;
+      const double before = Orient(moved.data(), a, b, c, d),
+                   after = Orient(out.pointlist, a, b, c, d);
+      if (!((before > 0.0 && after > 0.0) || (before < 0.0 && after < 0.0))) st.perturbed = false;
+    }
+    if (!st.perturbed) {
+      std::copy(surface.vertices.data(), surface.vertices.data() + 3 * n_in, in.pointlist);
+      tetgenio exact_out;
+      run(&in, &exact_out);
+      std::swap(out.pointlist, exact_out.pointlist);
+      std::swap(out.numberofpoints, exact_out.numberofpoints);
+      std::swap(out.tetrahedronlist, exact_out.tetrahedronlist);
+      std::swap(out.numberoftetrahedra, exact_out.numberoftetrahedra);
+      std::swap(out.numberofcorners, exact_out.numberofcorners);
+      std::swap(out.tetrahedronattributelist, exact_out.tetrahedronattributelist);
+      std::swap(out.numberoftetrahedronattributes, exact_out.numberoftetrahedronattributes);
+    }
   }
   st.tetgen_seconds = Seconds(t0);
   progress(0.9);

@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -300,6 +302,90 @@ TEST(TetrahedralizeSurface, DropsTheCavityOfAHollowBox) {
   for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t)
     for (int k = 0; k < 4; ++k) used[mesh.tets(k, t)] = 1;
   EXPECT_EQ(std::count(used.begin(), used.end(), 0), 0);
+}
+
+}  // namespace
+}  // namespace spidarcad::modeling
+
+namespace spidarcad::modeling {
+namespace {
+
+// The boundary faces of a tet mesh as sorted corner triples (each face seen by one tet only).
+std::multiset<std::array<int, 3>> BoundaryTriples(const TetMesh& mesh) {
+  std::map<std::array<int, 3>, int> count;
+  for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<int, 3> f{};
+      int n = 0;
+      for (int k = 0; k < 4; ++k)
+        if (k != skip) f[n++] = mesh.tets(k, t);
+      std::sort(f.begin(), f.end());
+      ++count[f];
+    }
+  std::multiset<std::array<int, 3>> out;
+  for (const auto& [f, c] : count)
+    if (c == 1) out.insert(f);
+  return out;
+}
+
+TEST(TetrahedralizeSurface, PerturbedVerticesGiveTheExactSurfaceAndVolumeAndTheSameMeshTwice) {
+  // A box on a grid: its flat faces are regular grids of coplanar, cocircular vertices.
+  const CompiledSolid box = CompiledSolid::Compile(ImplicitNode(BoxParams{{0.1, 0.06, 0.04}}));
+  SurfaceMeshSettings ss;
+  ss.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.06, -0.04, -0.03), Eigen::Vector3d(0.06, 0.04, 0.03));
+  ss.cell_size = 0.002;
+  const TriangleMesh surface = MeshSurface(box, ss);
+  ASSERT_GE(surface.triangles.cols(), 8000);
+  TetMeshSettings ts;
+  ts.preserve_surface = true;
+  ts.keep_facets = true;
+  ts.weld_tolerance = -1.0;
+  TetMeshStats exact_stats, moved_stats;
+  const TetMesh exact = TetrahedralizeSurface(surface, ts, &exact_stats);
+  EXPECT_FALSE(exact_stats.perturbed);
+  ts.perturb_from_triangles = 8000;
+  const TetMesh moved = TetrahedralizeSurface(surface, ts, &moved_stats);
+  ASSERT_TRUE(moved_stats.perturbed);
+  // The moved vertices decided otherwise where the exact ones were degenerate.
+  EXPECT_TRUE(moved.tets.cols() != exact.tets.cols() || moved.tets != exact.tets);
+
+  // The surface's vertices come back at their exact positions, first and in order, and the
+  // boundary is exactly the input triangles.
+  ASSERT_GE(moved.nodes.cols(), surface.vertices.cols());
+  EXPECT_EQ(moved.nodes.leftCols(surface.vertices.cols()), surface.vertices);
+  std::multiset<std::array<int, 3>> input;
+  for (Eigen::Index f = 0; f < surface.triangles.cols(); ++f) {
+    std::array<int, 3> t = {surface.triangles(0, f), surface.triangles(1, f),
+                            surface.triangles(2, f)};
+    std::sort(t.begin(), t.end());
+    input.insert(t);
+  }
+  EXPECT_TRUE(BoundaryTriples(moved) == input);
+  EXPECT_TRUE(BoundaryTriples(exact) == input);
+
+  // Every tet positive on the exact positions; the tets fill the volume the surface encloses
+  // (divergence theorem over its triangles), as without the move.
+  double enclosed = 0.0;
+  for (Eigen::Index f = 0; f < surface.triangles.cols(); ++f) {
+    const Eigen::Vector3d a = surface.vertices.col(surface.triangles(0, f)),
+                          b = surface.vertices.col(surface.triangles(1, f)),
+                          c = surface.vertices.col(surface.triangles(2, f));
+    enclosed += a.dot(b.cross(c)) / 6.0;
+  }
+  EXPECT_GT(moved_stats.quality.min_volume, 0.0);
+  EXPECT_NEAR(moved_stats.quality.total_volume, enclosed, 1e-12 * enclosed);
+  EXPECT_NEAR(exact_stats.quality.total_volume, enclosed, 1e-12 * enclosed);
+
+  // The move is a function of the positions: the same mesh again.
+  const TetMesh again = TetrahedralizeSurface(surface, ts);
+  EXPECT_EQ(again.nodes, moved.nodes);
+  EXPECT_EQ(again.tets, moved.tets);
+  // Below the threshold nothing moves.
+  ts.perturb_from_triangles = surface.triangles.cols() + 1;
+  TetMeshStats below;
+  EXPECT_EQ(TetrahedralizeSurface(surface, ts, &below).tets, exact.tets);
+  EXPECT_FALSE(below.perturbed);
 }
 
 }  // namespace

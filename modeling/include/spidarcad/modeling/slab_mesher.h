@@ -76,8 +76,13 @@ struct SlabTetMesh {
   Eigen::VectorXi slab;
 };
 
+// Slab surfaces of at least this many triangles are meshed from perturbed vertices
+// (TetMeshSettings::perturb_from_triangles): the platform's slabs at 5 and 6 mm, not at 8 or 10.
+inline constexpr long kSlabPerturbFromTriangles = 8000;
+
 // Tetrahedralizes one slab's closed surface: TetrahedralizeSurface with preserve_surface and
-// keep_facets on (the cross-sections must stay as they are), the rest of `settings` as given.
+// keep_facets on (the cross-sections must stay as they are) and perturb_from_triangles set to
+// kSlabPerturbFromTriangles, the rest of `settings` as given.
 TetMesh TetrahedralizeSlab(const TriangleMesh& slab_surface, TetMeshSettings settings,
                            TetMeshStats* stats = nullptr);
 
