@@ -83,11 +83,11 @@ void BM_SlabTetgen(benchmark::State& state) {
   row.seconds = stats.tetgen_seconds;
   row.worst = 180.0;
   for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t) {
-    const double worst = modeling::DihedralAngles(
-                             mesh.nodes.col(mesh.tets(0, t)), mesh.nodes.col(mesh.tets(1, t)),
-                             mesh.nodes.col(mesh.tets(2, t)), mesh.nodes.col(mesh.tets(3, t)))
-                             .minCoeff() *
-                         (180.0 / 3.14159265358979323846);  // rad -> deg
+    const double worst =
+        modeling::DihedralAngles(mesh.nodes.col(mesh.tets(0, t)), mesh.nodes.col(mesh.tets(1, t)),
+                                 mesh.nodes.col(mesh.tets(2, t)), mesh.nodes.col(mesh.tets(3, t)))
+            .minCoeff() *
+        (180.0 / 3.14159265358979323846);  // rad -> deg
     row.worst = std::min(row.worst, worst);
     row.under5 += worst < 5.0;
     row.under10 += worst < 10.0;

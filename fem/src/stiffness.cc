@@ -215,6 +215,10 @@ ElementNodes GetElementNodes(const TetMesh& mesh, int e) {
 
 SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materials) {
   const int n = mesh.num_nodes(), npe = mesh.NodesPerElement(), ne = mesh.num_elements();
+  if (npe != 4 && npe != 10) {
+    throw std::invalid_argument("AssembleStiffness: elements must have 4 or 10 nodes, got " +
+                                std::to_string(npe));
+  }
   // Elements of each node, compressed.
   std::vector<int> elem_start(n + 1, 0), elem_of(static_cast<std::size_t>(ne) * npe);
   for (int e = 0; e < ne; ++e)

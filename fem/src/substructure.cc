@@ -4,6 +4,7 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -321,21 +322,23 @@ struct SubstructuredSolver::BlockFactor {
     // (E, ν, formulation), numbered as they first appear.
     local.regions.resize(ne);
     MaterialTable table;
-    std::vector<const double*> distinct;  // each region's triple in `materials`
+    std::map<std::array<double, 3>, int> region_of;  // (E, ν, formulation) -> region
     for (int e = 0; e < ne; ++e) {
-      const double* triple = &materials[3 * static_cast<std::size_t>(e)];
-      int r = static_cast<int>(distinct.size()) - 1;
-      while (r >= 0 && !std::equal(triple, triple + 3, distinct[r])) --r;
-      if (r < 0) {
-        r = static_cast<int>(distinct.size());
-        distinct.push_back(triple);
+      const std::array<double, 3> triple = {materials[3 * static_cast<std::size_t>(e)],
+                                            materials[3 * static_cast<std::size_t>(e) + 1],
+                                            materials[3 * static_cast<std::size_t>(e) + 2]};
+      if (!std::isfinite(triple[0] + triple[1] + triple[2]))  // a map cannot order NaN
+        throw std::invalid_argument("substructure: element " + std::to_string(e) +
+                                    " has a material that is not finite");
+      const auto [it, added] = region_of.emplace(triple, static_cast<int>(region_of.size()));
+      if (added) {
         Material m;
         m.youngs_modulus = triple[0];
         m.poisson_ratio = triple[1];
         m.formulation = static_cast<Formulation>(static_cast<int>(triple[2]));
-        table.Set(r, m);
+        table.Set(it->second, m);
       }
-      local.regions(e) = r;
+      local.regions(e) = it->second;
     }
     k = AssembleStiffness(local, table);
     k.makeCompressed();

@@ -190,6 +190,7 @@ void DropCavities(const TriangleMesh& surface, TetMesh* mesh) {
 double HashUnit(double coordinate_x, double coordinate_y, double coordinate_z, int axis) {
   std::uint64_t h = 0x9e3779b97f4a7c15ull * static_cast<std::uint64_t>(axis + 1);
   for (double c : {coordinate_x, coordinate_y, coordinate_z}) {
+    c += 0.0;  // −0 and +0 alike
     std::uint64_t bits = 0;
     std::memcpy(&bits, &c, sizeof bits);
     h ^= bits + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
@@ -200,12 +201,6 @@ double HashUnit(double coordinate_x, double coordinate_y, double coordinate_z, i
     h ^= h >> 31;
   }
   return static_cast<double>(h >> 11) * 0x1.0p-52 - 1.0;
-}
-
-// Six times the signed volume of tet (a, b, c, d) of a point list (x, y, z per point).
-double Orient(const double* p, int a, int b, int c, int d) {
-  const Eigen::Vector3d pa(p + 3 * a), pb(p + 3 * b), pc(p + 3 * c), pd(p + 3 * d);
-  return (pb - pa).dot((pc - pa).cross(pd - pa));
 }
 
 }  // namespace
@@ -444,9 +439,9 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
                        surface.triangles.cols() >= settings.perturb_from_triangles &&
                        settings.preserve_surface && settings.keep_facets && n_in > 0;
   if (perturb) {
-    // Each vertex moved by up to 1e-9 of the box diagonal (see TetMeshSettings::perturb).
+    // Each vertex moved by up to perturb_amplitude of the box diagonal along each axis.
     const double amplitude =
-        1e-9 *
+        settings.perturb_amplitude *
         (surface.vertices.rowwise().maxCoeff() - surface.vertices.rowwise().minCoeff()).norm();
     for (int v = 0; v < n_in; ++v) {
       const double* exact = surface.vertices.col(v).data();
@@ -454,33 +449,42 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
         in.pointlist[3 * v + k] += amplitude * HashUnit(exact[0], exact[1], exact[2], k);
     }
   }
-  run(&in, &out);
+  bool moved_failed = false;
+  try {
+    run(&in, &out);
+  } catch (const TetgenError&) {
+    if (!perturb) throw;
+    moved_failed = true;  // the moved surface may touch itself where the exact one does not
+  }
   st.perturbed = perturb;
-  if (perturb && out.pointlist != nullptr && out.tetrahedronlist != nullptr &&
-      out.numberofpoints >= n_in && out.numberofcorners == 4) {
-    // The exact positions back; every tet must keep its orientation, else TetGen runs again on
-    // the exact positions.
-    const std::vector<double> moved(out.pointlist, out.pointlist + 3 * out.numberofpoints);
-    std::copy(surface.vertices.data(), surface.vertices.data() + 3 * n_in, out.pointlist);
-    const int* tets = out.tetrahedronlist;
-    for (int t = 0; t < out.numberoftetrahedra && st.perturbed; ++t) {
-      const int a = tets[4 * t], b = tets[4 * t + 1], c = tets[4 * t + 2], d = tets[4 * t + 3];
-      if (std::min({a, b, c, d}) < 0 || std::max({a, b, c, d}) >= out.numberofpoints) break;
-      const double before = Orient(moved.data(), a, b, c, d),
-                   after = Orient(out.pointlist, a, b, c, d);
-      if (!((before > 0.0 && after > 0.0) || (before < 0.0 && after < 0.0))) st.perturbed = false;
+  if (perturb) {
+    // The exact positions back, where TetGen kept the input points first and in order (its
+    // output does without `J`); every tet must keep its orientation by the robust predicate,
+    // and none may become flat. Otherwise TetGen runs again on the exact positions.
+    st.perturbed = !moved_failed && out.pointlist != nullptr && out.tetrahedronlist != nullptr &&
+                   out.numberofcorners == 4 && out.numberofpoints >= n_in &&
+                   std::equal(in.pointlist, in.pointlist + 3 * n_in, out.pointlist);
+    if (st.perturbed) {
+      std::vector<double> moved(out.pointlist, out.pointlist + 3 * out.numberofpoints);
+      std::copy(surface.vertices.data(), surface.vertices.data() + 3 * n_in, out.pointlist);
+      const int* tets = out.tetrahedronlist;
+      for (int t = 0; t < out.numberoftetrahedra && st.perturbed; ++t) {
+        const int* q = tets + 4 * t;
+        if (*std::min_element(q, q + 4) < 0 || *std::max_element(q, q + 4) >= out.numberofpoints)
+          break;  // refused below
+        const double before =
+            orient3d(&moved[3 * q[0]], &moved[3 * q[1]], &moved[3 * q[2]], &moved[3 * q[3]]);
+        const double after = orient3d(out.pointlist + 3 * q[0], out.pointlist + 3 * q[1],
+                                      out.pointlist + 3 * q[2], out.pointlist + 3 * q[3]);
+        if (!((before > 0.0 && after > 0.0) || (before < 0.0 && after < 0.0))) st.perturbed = false;
+      }
     }
     if (!st.perturbed) {
+      if (cancelled()) throw TetMeshingCancelled();
       std::copy(surface.vertices.data(), surface.vertices.data() + 3 * n_in, in.pointlist);
-      tetgenio exact_out;
-      run(&in, &exact_out);
-      std::swap(out.pointlist, exact_out.pointlist);
-      std::swap(out.numberofpoints, exact_out.numberofpoints);
-      std::swap(out.tetrahedronlist, exact_out.tetrahedronlist);
-      std::swap(out.numberoftetrahedra, exact_out.numberoftetrahedra);
-      std::swap(out.numberofcorners, exact_out.numberofcorners);
-      std::swap(out.tetrahedronattributelist, exact_out.tetrahedronattributelist);
-      std::swap(out.numberoftetrahedronattributes, exact_out.numberoftetrahedronattributes);
+      out.deinitialize();
+      out.initialize();
+      run(&in, &out);
     }
   }
   st.tetgen_seconds = Seconds(t0);

@@ -4,6 +4,7 @@
 // the program's getenv answers every other name as the environment holds it.
 #include "spidarcad/fem/blas_kernels.h"
 
+#include <dlfcn.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -40,6 +41,8 @@ TEST(BlasKernels, OpenBlasUsesTheKernelsOfTheCpusFeatures) {
   const char* expected = ExpectedCoreType();
   if (expected == nullptr) GTEST_SKIP() << "a CPU without AVX2 and FMA: OpenBLAS chooses";
   EXPECT_STREQ(CpuBlasCoreType(), expected);
+  // The dynamic linker binds getenv, for every library, to the program's own.
+  EXPECT_EQ(dlsym(RTLD_DEFAULT, "getenv"), reinterpret_cast<void*>(&getenv));
   // What OpenBLAS took in its constructor, before main.
   EXPECT_STREQ(openblas_get_corename(), expected);
   const std::string line = BlasKernelDescription();

@@ -381,6 +381,16 @@ TEST(TetrahedralizeSurface, PerturbedVerticesGiveTheExactSurfaceAndVolumeAndTheS
   const TetMesh again = TetrahedralizeSurface(surface, ts);
   EXPECT_EQ(again.nodes, moved.nodes);
   EXPECT_EQ(again.tets, moved.tets);
+  // Moves of 1e-3 of the box (6 % of a cell) turn tets over when the exact positions come back:
+  // TetGen runs again on the exact positions, and the output is the unmoved one.
+  ts.perturb_amplitude = 1e-3;
+  TetMeshStats turned;
+  const TetMesh rerun = TetrahedralizeSurface(surface, ts, &turned);
+  EXPECT_FALSE(turned.perturbed);
+  ASSERT_EQ(rerun.tets.cols(), exact.tets.cols());
+  EXPECT_EQ(rerun.tets, exact.tets);
+  EXPECT_EQ(rerun.nodes, exact.nodes);
+  ts.perturb_amplitude = 1e-9;
   // Below the threshold nothing moves.
   ts.perturb_from_triangles = surface.triangles.cols() + 1;
   TetMeshStats below;

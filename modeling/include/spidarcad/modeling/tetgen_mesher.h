@@ -64,16 +64,20 @@ struct TetMeshSettings {
   bool keep_facets = false;
   // With preserve_surface and keep_facets (the boundary is then exactly the input triangles)
   // and a surface of at least this many triangles (0: never): TetGen meshes the vertices moved
-  // by up to 1e-9 of the bounding-box diagonal, by a hash of each vertex's position, and the
-  // output gets the exact positions back. A grid surface's flat faces and a slab's cut curves
-  // hold many coplanar and cospherical points, which send TetGen's predicates to exact
-  // arithmetic: moved, the platform's first slab at 5 mm (27,038 triangles) meshes in 0.48 s
+  // by up to perturb_amplitude of the bounding-box diagonal, by a hash of each vertex's
+  // position, and the output gets the exact positions back. A grid surface's flat faces and a
+  // slab's cut curves hold many coplanar and cospherical points, which send TetGen's predicates to
+  // exact arithmetic: moved, the platform's first slab at 5 mm (27,038 triangles) meshes in 0.48 s
   // instead of 0.84 s, with about as many tets under 5° and 10° (its worst angle 0.56° against
   // 1.33°). On small surfaces it gains little, and
   // on the platform's slabs at 10 mm (under 7,000 triangles each) it gave more tets under 5°
-  // (docs/design/2026-12-07-edit-stages.md). When a tet's orientation does not survive the move
-  // back, TetGen runs again on the exact positions (TetMeshStats::perturbed says which).
+  // (docs/design/2026-12-07-edit-stages.md). When a tet's orientation (by the robust predicate)
+  // does not survive the move back, or becomes flat, or TetGen fails on the moved surface, it
+  // runs again on the exact positions (TetMeshStats::perturbed says which).
   long perturb_from_triangles = 0;
+  // The largest move along each axis, as a fraction of the bounding-box diagonal (tests use a
+  // large one to make tets turn over when the exact positions come back).
+  double perturb_amplitude = 1e-9;
   // Appended to the switches as is (experts; e.g. "M" keeps coplanar facets apart).
   std::string extra_switches;
   // Suppress TetGen's console output (`Q`); false prints its statistics (`V`).
