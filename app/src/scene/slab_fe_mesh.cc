@@ -32,9 +32,10 @@ bool SameSurface(const modeling::TriangleMesh& a, const modeling::TriangleMesh& 
 }
 
 // Slab files: magic and format version (bump it when TetrahedralizeSlab's switches change, so
-// that files of the old meshes are not taken for the new).
+// that files of the old meshes are not taken for the new). 2: surfaces of 8,000 triangles or more
+// meshed on moved vertices (modeling::kSlabPerturbFromTriangles, 2026-12-07).
 constexpr char kSlabFileMagic[8] = {'S', 'P', 'D', 'S', 'L', 'A', 'B', '1'};
-constexpr std::uint32_t kSlabFileVersion = 1;
+constexpr std::uint32_t kSlabFileVersion = 2;
 
 std::uint64_t SlabKey(const modeling::TriangleMesh& surface, double max_radius_edge) {
   std::uint64_t h = modeling::SurfaceHash(surface);
