@@ -66,8 +66,8 @@ std::string BlasKernelDescription() {
   std::string line = config.substr(0, second_space) + ", " + openblas_get_corename() + " kernels";
   if (const char* user = EnvironmentValue(kCoreTypeName)) {
     line += std::string(" (") + kCoreTypeName + "=" + user + ")";
-  } else if (CpuBlasCoreType() != nullptr &&
-             strcasecmp(openblas_get_corename(), CpuBlasCoreType()) == 0) {
+  } else if (const char* cpu = CpuBlasCoreType();
+             cpu != nullptr && strcasecmp(openblas_get_corename(), cpu) == 0) {
     line += " (chosen by spidarcad from the CPU's features; ";
     line += kCoreTypeName;
     line += " overrides)";

@@ -146,6 +146,13 @@ void ElementStiffnessInto(const Eigen::Matrix<double, Npe, 3>& x, const Matrix6d
         }
 }
 
+// The D that ElementStiffnessInto integrates: D_μ (λ removed) for mean-dilatation elements,
+// whose λ part AddMeanDilatation adds; D otherwise.
+Matrix6d ElementElasticity(const Material& material) {
+  return material.formulation == Formulation::kMeanDilatation ? ShearElasticity(material)
+                                                              : material.ElasticityMatrix();
+}
+
 }  // namespace
 
 Eigen::RowVectorXd MeanDilatation(const ElementNodes& x, double* volume) {
@@ -165,45 +172,39 @@ Eigen::RowVectorXd MeanDilatation(const ElementNodes& x, double* volume) {
   return sum / v;
 }
 
+namespace {
+
+// With Formulation::kMeanDilatation, adds λ V θ̄ᵀ θ̄ to a 10-node element's k: the volumetric
+// energy of the element-mean dilatation (P0 pressure p = λ θ̄ eliminated element by element).
+// Entry by entry, so k stays exactly symmetric. Other formulations: nothing.
+void AddMeanDilatation(const ElementNodes& x, const Material& material,
+                       Eigen::Matrix<double, 30, 30>* k) {
+  if (material.formulation != Formulation::kMeanDilatation) return;
+  double volume = 0.0;
+  const Eigen::RowVectorXd theta = MeanDilatation(x, &volume);
+  const double s = material.Lambda() * volume;
+  for (int j = 0; j < 30; ++j)
+    for (int i = 0; i < 30; ++i) (*k)(i, j) += s * (theta(i) * theta(j));
+}
+
+}  // namespace
+
 Eigen::MatrixXd ElementStiffness(const ElementNodes& x, const Material& material) {
   const int npe = static_cast<int>(x.rows());
   if (npe != 4 && npe != 10) {
     throw std::invalid_argument("ElementStiffness: element must have 4 or 10 nodes, got " +
                                 std::to_string(npe));
   }
-  CheckFormulation(npe, material);
-  const bool mean = material.formulation == Formulation::kMeanDilatation;
-  const Matrix6d d = mean ? ShearElasticity(material) : material.ElasticityMatrix();
-  if (!mean) {
-    if (npe == 4) {
-      Eigen::Matrix<double, 12, 12> k;
-      ElementStiffnessInto<4>(Eigen::Matrix<double, 4, 3>(x), d, &k);
-      return k;
-    }
-    Eigen::Matrix<double, 30, 30> k;
-    ElementStiffnessInto<10>(Eigen::Matrix<double, 10, 3>(x), d, &k);
+  CheckFormulation(npe, material);  // mean dilatation: 10-node elements only
+  if (npe == 4) {
+    Eigen::Matrix<double, 12, 12> k;
+    ElementStiffnessInto<4>(Eigen::Matrix<double, 4, 3>(x), ElementElasticity(material), &k);
     return k;
   }
-  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(3 * npe, 3 * npe);
-  if (npe == 4) {
-    double det = 0.0;
-    const Eigen::MatrixXd b = StrainDisplacement(x, Eigen::Vector4d::Constant(0.25), &det);
-    k.noalias() = (det / 6.0) * b.transpose() * d * b;
-  } else {
-    for (int q = 0; q < 4; ++q) {
-      double det = 0.0;
-      const Eigen::MatrixXd b = StrainDisplacement(x, QuadraturePoint(q), &det);
-      k.noalias() += (det / 24.0) * b.transpose() * d * b;
-    }
-    if (mean) {
-      // λ V θ̄ᵀ θ̄: the volumetric energy of the element-mean dilatation (P0 pressure
-      // p = λ θ̄ eliminated element by element).
-      double volume = 0.0;
-      const Eigen::RowVectorXd theta = MeanDilatation(x, &volume);
-      k.noalias() += (material.Lambda() * volume) * theta.transpose() * theta;
-    }
-  }
-  return 0.5 * (k + k.transpose());
+  Eigen::Matrix<double, 30, 30> k;
+  ElementStiffnessInto<10>(Eigen::Matrix<double, 10, 3>(x), ElementElasticity(material), &k);
+  AddMeanDilatation(x, material, &k);
+  return k;
 }
 
 ElementNodes GetElementNodes(const TetMesh& mesh, int e) {
@@ -294,17 +295,16 @@ SparseMatrixd AssembleStiffness(const TetMesh& mesh, const MaterialTable& materi
       region = mesh.regions(e);
       material = &materials.Get(region);
       CheckFormulation(npe, *material);
-      d = material->ElasticityMatrix();
+      d = ElementElasticity(*material);
     }
-    if (material->formulation == Formulation::kMeanDilatation) {
-      scatter(ElementStiffness(GetElementNodes(mesh, e), *material));
-    } else if (npe == 4) {
+    if (npe == 4) {
       for (int a = 0; a < 4; ++a) x4.row(a) = mesh.nodes.row(mesh.elements(e, a));
       ElementStiffnessInto<4>(x4, d, &k4);
       scatter(k4);
     } else {
       for (int a = 0; a < 10; ++a) x10.row(a) = mesh.nodes.row(mesh.elements(e, a));
       ElementStiffnessInto<10>(x10, d, &k10);
+      AddMeanDilatation(x10, *material, &k10);
       scatter(k10);
     }
   }

@@ -456,7 +456,6 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
     if (!perturb) throw;
     moved_failed = true;  // the moved surface may touch itself where the exact one does not
   }
-  st.perturbed = perturb;
   if (perturb) {
     // The exact positions back, where TetGen kept the input points first and in order (its
     // output does without `J`); every tet must keep its orientation by the robust predicate,

@@ -252,6 +252,38 @@ TEST(ElementStiffness, MeanDilatationKeepsRigidModesAndIsExactForConstantStrain)
   EXPECT_LT((stress - expected).norm(), 1e-9 * expected.norm());
 }
 
+// Mean dilatation is the shear quadrature (Bᵀ D_μ B from StrainDisplacement, D_μ = D with λ
+// taken out of its normal block) plus λ V θ̄ᵀ θ̄ from MeanDilatation, in the element and in the
+// assembly, exactly symmetric.
+TEST(ElementStiffness, MeanDilatationIsTheShearQuadratureAndTheVolumetricTerm) {
+  const ElementNodes x = SkewTet(2);
+  Material mat{1.0e6, 0.49};
+  mat.formulation = Formulation::kMeanDilatation;
+  Matrix6d d_mu = mat.ElasticityMatrix();
+  d_mu.topLeftCorner<3, 3>().array() -= mat.Lambda();
+  Eigen::MatrixXd ref = Eigen::MatrixXd::Zero(30, 30);
+  for (int q = 0; q < 4; ++q) {
+    Eigen::Vector4d l = Eigen::Vector4d::Constant(0.1381966011250105);
+    l(q) = 0.5854101966249685;
+    double det = 0.0;
+    const Eigen::MatrixXd b = StrainDisplacement(x, l, &det);
+    ref += (det / 24.0) * b.transpose() * d_mu * b;
+  }
+  double volume = 0.0;
+  const Eigen::RowVectorXd theta = MeanDilatation(x, &volume);
+  ref += mat.Lambda() * volume * theta.transpose() * theta;
+  const Eigen::MatrixXd k = ElementStiffness(x, mat);
+  EXPECT_LT((k - ref).norm(), 1e-13 * ref.norm());
+  EXPECT_EQ((k - k.transpose()).norm(), 0.0);
+  TetMesh mesh;
+  mesh.nodes = x;
+  mesh.elements.resize(1, 10);
+  for (int n = 0; n < 10; ++n) mesh.elements(0, n) = n;
+  mesh.regions = Eigen::VectorXi::Zero(1);
+  EXPECT_LT((Eigen::MatrixXd(AssembleStiffness(mesh, MaterialTable(mat))) - ref).norm(),
+            1e-13 * ref.norm());
+}
+
 // Linear elements have a constant dilatation already: mean dilatation would still lock, so it
 // is refused with a message that says what to do.
 TEST(ElementStiffness, MeanDilatationThrowsNamingTheFixWhenElementsAreLinear) {

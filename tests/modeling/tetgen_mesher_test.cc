@@ -7,11 +7,11 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <set>
 #include <string>
 #include <vector>
 
+#include "spidarcad/base/faces_seen_once.h"
 #include "spidarcad/modeling/scene_io.h"
 
 namespace spidarcad::modeling {
@@ -304,27 +304,19 @@ TEST(TetrahedralizeSurface, DropsTheCavityOfAHollowBox) {
   EXPECT_EQ(std::count(used.begin(), used.end(), 0), 0);
 }
 
-}  // namespace
-}  // namespace spidarcad::modeling
-
-namespace spidarcad::modeling {
-namespace {
-
-// The boundary faces of a tet mesh as sorted corner triples (each face seen by one tet only).
+// The boundary faces of a tet mesh as sorted corner triples (base::FacesSeenOnce).
 std::multiset<std::array<int, 3>> BoundaryTriples(const TetMesh& mesh) {
-  std::map<std::array<int, 3>, int> count;
+  std::vector<std::array<int, 3>> keys;
   for (Eigen::Index t = 0; t < mesh.tets.cols(); ++t)
     for (int skip = 0; skip < 4; ++skip) {
       std::array<int, 3> f{};
-      int n = 0;
-      for (int k = 0; k < 4; ++k)
+      for (int k = 0, n = 0; k < 4; ++k)
         if (k != skip) f[n++] = mesh.tets(k, t);
       std::sort(f.begin(), f.end());
-      ++count[f];
+      keys.push_back(f);
     }
   std::multiset<std::array<int, 3>> out;
-  for (const auto& [f, c] : count)
-    if (c == 1) out.insert(f);
+  for (std::size_t i : base::FacesSeenOnce(keys)) out.insert(keys[i]);
   return out;
 }
 
