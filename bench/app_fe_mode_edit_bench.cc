@@ -92,6 +92,7 @@ struct Row {
   std::string name, edit;
   int tets = 0, order = 1;
   bool slabs = false;
+  int strips = 0;  // a large slab's strips (FeMode::mesh_strips), when it had them
   double mesh = 0, model = 0, columns = 0, total = 0;  // s, from the edit's command
   double whole = 0;      // s, from the edit's command to every row of the patch's columns
   int own_contacts = 0;  // patch nodes a contact solver took on their own columns at `total`
@@ -239,6 +240,9 @@ void BM_FeModeEdit(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0));
   const double cell = state.range(1) * 1e-6;
   const bool slabs = state.range(2) != 0;
+  // 1: FE mode's strips (kFeStrips); 10 + N: N strips (10: none).
+  const int strips =
+      state.range(2) >= 10 ? static_cast<int>(state.range(2)) - 10 : (slabs ? app::kFeStrips : 0);
   const bool sculpt = state.range(3) != 0;
   const bool lattice = state.range(4) != 0;
   for (auto _ : state) {
@@ -251,6 +255,7 @@ void BM_FeModeEdit(benchmark::State& state) {
     app::JobQueue jobs;
     app::FeMode mode(nullptr, &jobs);
     mode.mesh_in_slabs() = slabs;
+    mode.mesh_strips() = strips;
     mode.mesh_settings().mesher = "tetgen";
     mode.mesh_settings().cell_size = cell;
     if (lattice) mode.mesh_settings().surface_mesher = "lattice";  // the panel's "lattice" box
@@ -356,6 +361,8 @@ void BM_FeModeEdit(benchmark::State& state) {
           std::get<app::FeModelData>(doc.Get(mode.bound_object()).data).tet_mesh;
       if (const auto slab_mesh = mode.SlabsOf(doc, mesh_id)) {
         row.remeshed = slab_mesh->num_remeshed();
+        // The strips asked for, where a slab was large enough for them (kStripMinTriangles).
+        row.strips = slab_mesh->strip_planes.empty() ? 0 : strips;
         row.surface = slab_mesh->surface_seconds;
         row.cut = slab_mesh->cut_seconds;
         row.tetgen = slab_mesh->tetgen_seconds;
@@ -382,7 +389,10 @@ void PrintTables() {
   for (const Row& r : Rows()) {
     std::printf(
         "| %s | %s | %d | %s | %s | %.2f | %.2f | %.2f | **%.2f** | %d of 8 | %.2f | %.1e |\n",
-        r.name.c_str(), r.slabs ? "4 slabs" : "one piece", r.tets, r.edit.c_str(),
+        r.name.c_str(),
+        r.strips ? ("4 slabs, " + std::to_string(r.strips) + " strips").c_str()
+                 : (r.slabs ? "4 slabs" : "one piece"),
+        r.tets, r.edit.c_str(),
         r.slabs ? (std::to_string(r.remeshed) + " / " + std::to_string(r.factored) + " of " +
                    std::to_string(r.blocks))
                       .c_str()
@@ -403,8 +413,9 @@ void PrintTables() {
                   r.planes_factored, r.planes, r.interface_seconds);
 }
 
-// Args: element order, cell (µm), in slabs (1) or one piece (0), the solid (0) or a sculpt (1),
-// the surface by marching tetrahedra (0, FE mode's default) or by the lattice (1).
+// Args: element order, cell (µm), in slabs as FE mode (1: a large slab in kFeStrips strips;
+// 10 + N: in N strips, 10 none; FeMode::mesh_strips) or one piece (0), the solid (0) or a sculpt
+// (1), the surface by marching tetrahedra (0, FE mode's default) or by the lattice (1).
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_6mm")
     ->Args({1, 6000, 1, 0, 0})
@@ -422,6 +433,8 @@ BENCHMARK(BM_FeModeEdit)
     ->Name("P1_5mm")
     ->Args({1, 5000, 1, 0, 0})
     ->Args({1, 5000, 0, 0, 0})
+    ->Args({1, 5000, 10, 0, 0})
+    ->Args({1, 5000, 14, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)

@@ -900,7 +900,8 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
                                          const Eigen::VectorXi& element_block,
                                          const SubstructuredSolver* reuse,
                                          const std::filesystem::path& cache_directory,
-                                         const std::atomic<bool>* cancel)
+                                         const std::atomic<bool>* cancel,
+                                         const std::vector<int>& block_place)
     : bcs_(bcs), interface_(std::make_unique<Interface>()) {
   auto check_cancel = [cancel] {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw SubstructureCancelled();
@@ -967,6 +968,15 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
       if (b.factor && b.factor->failed < 0) old.emplace(b.factor->key, b.factor);
   }
 
+  if (!block_place.empty()) {
+    if (static_cast<int>(block_place.size()) != nb)
+      throw std::invalid_argument("SubstructuredSolver: " + std::to_string(block_place.size()) +
+                                  " block places for " + std::to_string(nb) + " blocks");
+    for (int b = 0; b < nb; ++b)
+      if (block_place[b] < 0)
+        throw std::invalid_argument("SubstructuredSolver: block " + std::to_string(b) +
+                                    " has the negative place " + std::to_string(block_place[b]));
+  }
   blocks_.resize(nb);
   stats_.num_blocks = nb;
   // 1. Each block's content, and its factor when the reuse solver has it.
@@ -1132,14 +1142,29 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
     // sharing the dofs see the same nodes at the same places, so an edit of either block that
     // leaves their common nodes as they were orders them the same way, whatever the numbering
     // of the mesh or of either block.
+    // With block places (strips of a slab share its place) the pair is of places; dofs that
+    // blocks of one place alone share (the strip planes) go with the plane after that place (the
+    // one before, for the last place), so that the strips, like their slab, have their interface
+    // in two consecutive groups.
     std::vector<int> order(ng);
     std::vector<std::pair<int, int>> pair_of(ng);
+    const int last_place = block_place.empty()
+                               ? static_cast<int>(blocks_.size()) - 1
+                               : *std::max_element(block_place.begin(), block_place.end());
     for (int p = 0; p < ng; ++p) {
       order[p] = p;
       int lo = static_cast<int>(blocks_.size()), hi = -1;
       for (const auto& [b, j] : owners[p]) {
-        lo = std::min(lo, b);
-        hi = std::max(hi, b);
+        const int at = block_place.empty() ? b : block_place[b];
+        lo = std::min(lo, at);
+        hi = std::max(hi, at);
+      }
+      if (lo == hi) {
+        if (lo < last_place) {
+          ++hi;
+        } else if (lo > 0) {
+          --lo;
+        }
       }
       pair_of[p] = {lo, hi};
     }

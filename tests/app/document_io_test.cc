@@ -600,8 +600,11 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
     m.settings.mesher = mesher;
     m.settings.sharp_edges = sharp;
     m.settings.surface_mesher = surface_mesher;
-    if (mesher == "tetgen" && surface_mesher.empty())
+    if (mesher == "tetgen" && surface_mesher.empty()) {
       m.settings.slab_planes = {-0.0251, 0.0003, 0.025};
+      m.settings.slab_strip_axis = 2;
+      m.settings.slab_strips = {{-0.0333, 0.0341}, {}, {}, {0.0001}};
+    }
     if (mesher.empty()) m.settings.flat_cells = 0.37;  // FE mode's quadratic elements
     doc.Execute(edit::AddObject("tets " + mesher + surface_mesher, m));
   }
@@ -622,6 +625,13 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
     EXPECT_EQ(m.settings.slab_planes,
               (i == 1 ? std::vector<double>{-0.0251, 0.0003, 0.025} : std::vector<double>{}))
         << i;  // bit for bit
+    EXPECT_EQ(m.settings.slab_strips,
+              (i == 1 ? std::vector<std::vector<double>>{{-0.0333, 0.0341}, {}, {}, {0.0001}}
+                      : std::vector<std::vector<double>>{}))
+        << i;
+    if (i == 1) {
+      EXPECT_EQ(m.settings.slab_strip_axis, 2);
+    }
   }
   // Refused: an unknown mesher, and "generate" with what only the window's meshing does.
   const std::string solid =
@@ -647,6 +657,18 @@ TEST(DocumentIo, MeshSettingsKeepTheMesherSharpEdgesAndSlabPlanes) {
       {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
        "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [\"x\"]}}",
        "/objects/1/settings/slab_planes/0", "expected a number"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [0.01], \"slab_strips\": "
+       "{\"axis\": \"x\", \"planes\": [[], []]}}}",
+       "/objects/1/settings/slab_strips/axis", "expected \"y\" or \"z\""},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [0.01], \"slab_strips\": "
+       "{\"axis\": \"y\", \"planes\": [[]]}}}",
+       "/objects/1/settings/slab_strips/planes", "one list per slab (2"},
+      {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
+       "\"settings\": {\"cell_size\": 0.01, \"slab_planes\": [0.01], \"slab_strips\": "
+       "{\"axis\": \"y\", \"planes\": [[0.02, 0.01], []]}}}",
+       "/objects/1/settings/slab_strips/planes/0/1", "the planes must increase"},
       {"{\"kind\": \"mesh\", \"name\": \"m\", \"source\": 0, \"generate\": \"volume\", "
        "\"settings\": {\"cell_size\": 0.01, \"surface_mesher\": \"dual\"}}",
        "/objects/1/settings/surface_mesher", "expected \"lattice\""},

@@ -879,7 +879,8 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   settings.cell_size = 0.012;
   settings.mesher = "tetgen";
   FeMeshInput input = PrepareFeMesh(expected, expected.FindByName("platform")->id, settings);
-  input.slabs = kFeSlabs;  // as FE mode meshes a solid (FeMode::mesh_in_slabs)
+  input.slabs = kFeSlabs;  // as FE mode meshes a solid (FeMode::mesh_in_slabs, mesh_strips)
+  input.strips = kFeStrips;
   expected.Execute(SetUpFe(input, MeshFeSource(input)));
   expected.Execute(edit::SetFeMaterial(expected.last_created()[1], aluminium));
   EXPECT_TRUE(Comparable(reread) == Comparable(expected))
@@ -901,7 +902,7 @@ TEST(FeModeWindow, SetsUpASolidPrecomputesEditsUndoesRedoesAndSaves) {
   EXPECT_EQ(reopened->stats().loaded_blocks, kFeSlabs);
   EXPECT_EQ(reopened->stats().factored_blocks, 0);
   EXPECT_EQ(reopened->stats().loaded_interface_groups, kFeSlabs - 1);
-  EXPECT_NE(again_fe.status().find("0 of 4 slabs factored, 0 kept, 4 from the disk cache"),
+  EXPECT_NE(again_fe.status().find("0 of 4 pieces factored, 0 kept, 4 from the disk cache"),
             std::string::npos)
       << again_fe.status();
 }
@@ -1070,7 +1071,7 @@ TEST(FeModeWindow, EditOfAFeltSolidRefreshesItselfInTheSlabsItReached) {
   ASSERT_NE(after.substructured(), nullptr);
   EXPECT_EQ(after.substructured()->stats().factored_blocks, 1) << fe.status();
   EXPECT_EQ(after.substructured()->stats().reused_blocks, kFeSlabs - 1);
-  EXPECT_NE(fe.status().find("1 of 4 slabs factored, 3 kept"), std::string::npos) << fe.status();
+  EXPECT_NE(fe.status().find("1 of 4 pieces factored, 3 kept"), std::string::npos) << fe.status();
   EXPECT_TRUE(before->cache().paused()) << "the replaced model computes no more columns";
   EXPECT_FALSE(after.cache().paused());
   // The disk cache (on by default) keeps the slab meshes of both: the first mesh's four and the

@@ -220,6 +220,91 @@ TEST(SlabFeMesh, SurfacePlanesMoveOffAFaceAcrossTheAxis) {
 // The cache directory keeps slab meshes between runs: a mesh made with no earlier mesh in memory
 // reads every slab from it, bit for bit; after the edit it reads the three slabs the edit left
 // alone and meshes the last; a damaged file is refused with a note naming it and re-meshed.
+// The bracket slab (the first, about half of the part's triangles) cut into three strips across
+// y: widening the four bolt holes (y = ±65 mm) re-meshes and refactors the two outer strips
+// only, the other pieces keep their tets bit for bit, and the solve, whose interface now has
+// nodes shared by three pieces (where a strip plane ends on the first slab plane) and is factored
+// by CHOLMOD, equals a monolithic solve of the new mesh.
+TEST(SlabFeMesh, BoltHoleEditInBracketStripsRemeshesOnlyTheOuterStrips) {
+  const double cell = 0.0075;
+  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", cell);
+  const Eigen::AlignedBox3d grid = base.bounds;
+  const std::vector<double> planes = SlabPlanes(grid, cell, kSlabs);
+  SlabMeshOptions o;
+  o.strips = 3;
+  o.strip_min_triangles = 0;  // the bracket slab at 7.5 mm is smaller than FE mode strips
+  o.snap_cells = modeling::kProductSnapCells;
+  const SlabFeMesh before = MeshSolidInSlabs(base.compiled, grid, cell, planes, o);
+  ASSERT_EQ(before.strip_axis, 1);
+  ASSERT_EQ(before.strip_planes.size(), static_cast<std::size_t>(kSlabs));
+  EXPECT_EQ(before.strip_planes[0].size(), 2u);
+  for (int k = 1; k < kSlabs; ++k) EXPECT_TRUE(before.strip_planes[k].empty()) << k;
+  ASSERT_EQ(before.slab_tets.size(), kSlabs + 2u);
+  const SceneSolidGrid edited = PrepareSceneSolid(
+      EditedPlatform("bolt_hole", "radius", 0.006, "slab_fe_mesh_bolt"), "platform", cell);
+  o.previous = &before;
+  const SlabFeMesh after = MeshSolidInSlabs(edited.compiled, grid, cell, planes, o);
+  EXPECT_EQ(after.strip_planes, before.strip_planes);
+  for (std::size_t k = 0; k < after.slab_tets.size(); ++k) {
+    SCOPED_TRACE("piece " + std::to_string(k));
+    const bool outer = k == 0 || k == 2;
+    EXPECT_EQ(after.remeshed[k], outer ? 1 : 0);
+    if (!outer) {
+      ASSERT_EQ(after.slab_tets[k].tets.cols(), before.slab_tets[k].tets.cols());
+      EXPECT_TRUE((after.slab_tets[k].nodes.array() == before.slab_tets[k].nodes.array()).all());
+    }
+  }
+  ASSERT_NO_THROW(after.mesh.Validate());
+
+  const fem::MaterialTable steel(fem::Material{2.0e11, 0.3});
+  auto conditions = [](const fem::TetMesh& mesh) {
+    fem::BoundaryConditions bcs(mesh.num_nodes());
+    bcs.FixNodes(MinXFaceNodes(mesh));
+    return bcs;
+  };
+  // The strips share their slab's place in the interface chain: the strip planes join the first
+  // slab plane's group, so S stays a chain of three groups, and the edit refactors the first one
+  // alone. Without places S is no chain and CHOLMOD factors all of it.
+  EXPECT_EQ(after.piece_slab, (std::vector<int>{0, 0, 0, 1, 2, 3}));
+  // The labels follow from the planes and strips alone (a mesh read back from a document).
+  std::vector<int> place;
+  EXPECT_EQ(SlabPieceLabels(after.mesh, planes, after.strip_axis, after.strip_planes, &place),
+            after.slab);
+  EXPECT_EQ(place, after.piece_slab);
+  // FE mode's bound leaves this slab whole.
+  o.strip_min_triangles = kStripMinTriangles;
+  o.previous = nullptr;
+  EXPECT_TRUE(MeshSolidInSlabs(edited.compiled, grid, cell, planes, o).strip_planes.empty());
+  const fem::BoundaryConditions bcs0 = conditions(before.mesh), bcs1 = conditions(after.mesh);
+  const fem::StaticSolver mono(after.mesh, steel, bcs1);
+  for (const bool places : {true, false}) {
+    SCOPED_TRACE(places ? "strips in their slab's place" : "no places");
+    const std::vector<int> p0 = places ? before.piece_slab : std::vector<int>{};
+    const std::vector<int> p1 = places ? after.piece_slab : std::vector<int>{};
+    const fem::SubstructuredSolver s0(before.mesh, steel, bcs0, before.slab, nullptr, {}, nullptr,
+                                      p0);
+    const fem::SubstructuredSolver s1(after.mesh, steel, bcs1, after.slab, &s0, {}, nullptr, p1);
+    ASSERT_TRUE(s1.factor_status().converged) << s1.factor_status().message;
+    EXPECT_EQ(s1.stats().factored_blocks, 2);
+    if (places) {
+      EXPECT_EQ(s1.stats().interface_groups, 3);
+      EXPECT_EQ(s1.stats().factored_interface_groups, 1);
+      EXPECT_EQ(s1.stats().reused_trailing_interface_groups, 2);
+    } else {
+      EXPECT_EQ(s1.stats().interface_groups, 0);  // CHOLMOD
+    }
+    // A load on the plate's free corner.
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(s1.num_free(), 1);
+    for (int v = 0; v < after.mesh.num_nodes(); ++v)
+      if (after.mesh.nodes(v, 0) > 0.28 && after.mesh.nodes(v, 2) > 0.0099)
+        rhs(s1.FreeIndex(3 * v + 2), 0) = -1.0;
+    Eigen::MatrixXd x_sub, x_mono;
+    ASSERT_TRUE(s1.SolveFree(rhs, &x_sub).converged);
+    ASSERT_TRUE(mono.SolveFree(rhs, &x_mono).converged);
+    EXPECT_LT((x_sub - x_mono).norm(), 1e-9 * x_mono.norm());
+  }
+}
+
 TEST(SlabFeMesh, CacheDirectoryKeepsSlabMeshesBetweenRuns) {
   const std::filesystem::path dir =
       std::filesystem::path(SPIDARCAD_TEST_OUTPUT_DIR) / "slab_fe_mesh_cache";

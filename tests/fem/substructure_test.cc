@@ -647,6 +647,56 @@ TEST(SubstructuredSolver, ChangedClampRefactorsTheBlocksItTouches) {
   EXPECT_FALSE(clamped.block_stats(3).reused);
 }
 
+// Strips: the first of four slabs of the bar cut across y into two blocks that share the slab's
+// place. Their common dofs (the strip plane) join the first plane's group, so S is a chain of
+// three groups (without places, no chain: CHOLMOD factors S), and both solve as the monolithic
+// solver does. An edit of one strip refactors that strip and the first group only.
+TEST(SubstructuredSolver, StripsOfASlabSharingItsPlaceKeepTheChain) {
+  for (int order : {1, 2}) {
+    SCOPED_TRACE("order " + std::to_string(order));
+    const TetMesh mesh = Bar(order);
+    const Eigen::VectorXi slabs = SlabBlocks(mesh, 0, EvenPlanes(mesh, 0, 4));
+    Eigen::VectorXi blocks = slabs;
+    for (int e = 0; e < mesh.num_elements(); ++e)
+      blocks(e) = slabs(e) == 0 ? (Centroid(mesh, e).y() < 0.05 ? 0 : 1) : slabs(e) + 1;
+    const std::vector<int> places = {0, 0, 1, 2, 3};
+    const MaterialTable steel(kSteel);
+    const BoundaryConditions bcs = BarConditions(mesh);
+    const StaticSolution u_mono = StaticSolver(mesh, steel, bcs).Solve();
+    const SubstructuredSolver chain(mesh, steel, bcs, blocks, nullptr, {}, nullptr, places);
+    const SubstructuredSolver general(mesh, steel, bcs, blocks);
+    ASSERT_TRUE(chain.factor_status().converged) << chain.factor_status().message;
+    EXPECT_EQ(chain.stats().interface_groups, 3);
+    EXPECT_EQ(general.stats().interface_groups, 0);
+    for (const SubstructuredSolver* s : {&chain, &general}) {
+      const StaticSolution u = s->Solve();
+      ASSERT_TRUE(u.status.converged) << u.status.message;
+      EXPECT_LT(RelativeDifference(u.displacement, u_mono.displacement), kTolerance);
+      EXPECT_LT(RelativeDifference(u.reaction, u_mono.reaction), kTolerance);
+    }
+    // Strip 1 (y > 0.05) made of another material: it and the first group are factored again.
+    MaterialTable edited(kSteel);
+    edited.Set(1, Material{7.0e10, 0.33});
+    TetMesh regions = mesh;
+    for (int e = 0; e < mesh.num_elements(); ++e)
+      if (blocks(e) == 1) regions.regions(e) = 1;
+    const SubstructuredSolver after(regions, edited, bcs, blocks, &chain, {}, nullptr, places);
+    ASSERT_TRUE(after.factor_status().converged) << after.factor_status().message;
+    EXPECT_EQ(after.stats().factored_blocks, 1);
+    EXPECT_EQ(after.stats().factored_interface_groups, 1);
+    EXPECT_EQ(after.stats().reused_trailing_interface_groups, 2);
+    const StaticSolution u_after = after.Solve();
+    const StaticSolution u_after_mono = StaticSolver(regions, edited, bcs).Solve();
+    EXPECT_LT(RelativeDifference(u_after.displacement, u_after_mono.displacement), kTolerance);
+    // Places: one per block, none negative.
+    EXPECT_THROW(SubstructuredSolver(mesh, steel, bcs, blocks, nullptr, {}, nullptr, {0, 0, 1}),
+                 std::invalid_argument);
+    EXPECT_THROW(
+        SubstructuredSolver(mesh, steel, bcs, blocks, nullptr, {}, nullptr, {0, -1, 1, 2, 3}),
+        std::invalid_argument);
+  }
+}
+
 TEST(SubstructuredSolver, RefusesBadBlockLabelsAndUnconstrainedModels) {
   const TetMesh mesh = Bar(1);
   const MaterialTable steel(kSteel);

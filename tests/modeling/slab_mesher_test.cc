@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -185,6 +186,89 @@ TEST(SlabMesher, EditInsideOneSlabLeavesTheOtherSlabsBitForBit) {
   for (int p : {0, 1}) EXPECT_EQ(SurfaceHash(before.sections[p]), SurfaceHash(after.sections[p]));
 }
 
+// Strips: the middle slab cut across y into three (one strip plane through the hole), the last
+// into two. The pieces are closed, add up to the solid and join conformingly; a node on a line
+// where a strip plane meets a slab plane is shared by three pieces' tets.
+TEST(SlabMesher, StripsAreClosedAndJoinConformingly) {
+  for (const double spacing : {0.0, 0.5 * kCell}) {
+    SCOPED_TRACE("section spacing " + std::to_string(spacing));
+    const TriangleMesh surface = Surface(PlateWithHole(-0.03));
+    SlabCut cut = Cut(spacing);
+    cut.strip_axis = 1;
+    cut.strip_planes = {{}, {-0.0205, 0.0105}, {0.0045}};  // 0.0105: through the hole
+    const SlabSurfaces slabs = CutSurfaceIntoSlabs(surface, cut);
+    ASSERT_EQ(slabs.slabs.size(), 6u);
+    ASSERT_EQ(slabs.sections.size(), 5u);
+    double volume = 0.0;
+    std::vector<TetMesh> tets;
+    for (std::size_t k = 0; k < slabs.slabs.size(); ++k) {
+      SCOPED_TRACE("piece " + std::to_string(k));
+      const TriangleMesh& s = slabs.slabs[k];
+      EXPECT_NO_THROW(CheckSurface(s));
+      volume += MeshVolume(s);
+      TetMeshSettings ts;
+      ts.max_radius_edge = 2.0;
+      tets.push_back(TetrahedralizeSlab(s, ts));
+      EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
+    }
+    EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
+    // The strip sections: the plate's 0.1 (slab width) × 0.02 m section across y, less the hole's
+    // chord for the plane through it (x from −0.0755 to 0.0245 or 0.15).
+    const double widths[3] = {0.1, 0.1 - 2 * std::sqrt(0.008 * 0.008 - 0.0005 * 0.0005),
+                              0.15 - 0.0245};
+    for (int j = 0; j < 3; ++j) {
+      const TriangleMesh& section = slabs.sections[2 + j];
+      double area = 0.0;
+      for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
+        const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
+                              b = section.vertices.col(section.triangles(1, f)),
+                              c = section.vertices.col(section.triangles(2, f));
+        area += 0.5 * (b - a).cross(c - a).y();  // counter-clockwise seen from +y: positive
+      }
+      // Marching tetrahedra chamfers the plate's edges and the hole by up to a cell.
+      EXPECT_NEAR(area, widths[j] * 0.02, 0.2 * widths[j] * 0.02) << "strip section " << j;
+    }
+    const SlabTetMesh joined = JoinSlabs(tets);
+    EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
+    EXPECT_NEAR(TotalVolume(joined.mesh), volume, 1e-12 * volume);
+    const FaceCount faces = CountFaces(joined.mesh, cut.planes);
+    EXPECT_EQ(faces.shared_by_more, 0);
+    EXPECT_EQ(faces.boundary_on_planes, 0);  // the slab planes are inside the joined mesh
+    long surface_faces = 0;
+    for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
+    for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
+    // Every piece face on a section is matched by its neighbour's: none is left on the boundary.
+    EXPECT_EQ(faces.boundary, surface_faces);
+    // Nodes on the lines x = plane, y = strip plane belong to three pieces.
+    std::vector<std::set<int>> pieces_of(joined.mesh.nodes.cols());
+    for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
+      for (int j = 0; j < 4; ++j) pieces_of[joined.mesh.tets(j, t)].insert(joined.slab(t));
+    long on_three = 0;
+    for (const std::set<int>& p : pieces_of) on_three += p.size() == 3;
+    EXPECT_GT(on_three, 0);
+    for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
+      ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
+  }
+}
+
+TEST(SlabMesher, EditInsideOneStripLeavesTheOtherPiecesBitForBit) {
+  // The hole (y from 0.002 to 0.018 m) moves by 6 mm along x inside the middle slab's upper
+  // strip (y > −0.0155).
+  SlabCut cut = Cut();
+  cut.strip_planes = {{}, {-0.0155}, {}};
+  const SlabSurfaces before = CutSurfaceIntoSlabs(Surface(PlateWithHole(-0.03)), cut);
+  const SlabSurfaces after = CutSurfaceIntoSlabs(Surface(PlateWithHole(-0.024)), cut);
+  ASSERT_EQ(before.slabs.size(), 4u);
+  ASSERT_EQ(after.slabs.size(), 4u);
+  EXPECT_NE(SurfaceHash(before.slabs[2]), SurfaceHash(after.slabs[2]));
+  for (int k : {0, 1, 3}) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(SurfaceHash(before.slabs[k]), SurfaceHash(after.slabs[k]));
+  }
+  for (int p : {0, 1, 2})
+    EXPECT_EQ(SurfaceHash(before.sections[p]), SurfaceHash(after.sections[p]));
+}
+
 TEST(SlabMesher, RefusesBadCutsAndAPlaneOnAFace) {
   const TriangleMesh surface = Surface(PlateWithHole(0.1));
   SlabCut bad = Cut();
@@ -211,6 +295,20 @@ TEST(SlabMesher, RefusesBadCutsAndAPlaneOnAFace) {
   bad = Cut();
   bad.axis = 2;
   bad.planes = {0.01};
+  bad.snap = 1e-6;
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  // Strips: one list per slab, increasing, across another axis.
+  bad = Cut();
+  bad.strip_planes = {{0.0}, {0.0}};
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad.strip_planes = {{0.0}, {0.01, 0.01}, {}};
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  bad.strip_planes = {{0.0}, {}, {}};
+  bad.strip_axis = 0;
+  EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
+  // A strip plane on the plate's top face (strips across z).
+  bad.strip_axis = 2;
+  bad.strip_planes = {{}, {0.01}, {}};
   bad.snap = 1e-6;
   EXPECT_THROW(CutSurfaceIntoSlabs(surface, bad), std::invalid_argument);
 }

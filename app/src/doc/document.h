@@ -82,6 +82,11 @@ struct MeshSettings {
   // The planes x = slab_planes[k] (m, increasing) the tetrahedra were meshed in slabs between (FE
   // mode); empty: in one piece. FE mode factors such a mesh slab by slab (fem::SlabBlocks).
   std::vector<double> slab_planes = {};
+  // The strips the slabs were cut into (modeling::SlabCut::strip_planes: per slab, planes across
+  // slab_strip_axis, 1 = y or 2 = z, m, increasing); empty: none. FE mode factors each strip as a
+  // block of its own in its slab's place (SlabFeMesh::piece_slab).
+  int slab_strip_axis = 1;
+  std::vector<std::vector<double>> slab_strips = {};
 };
 // Meshes made from another object (usually a solid) by a Job, or imported from a file. Either
 // mesh may be absent. The data are immutable and shared between copies (undo snapshots,

@@ -424,7 +424,7 @@ Content ContentFromJson(const json& j) {
         RequireObject(s, sp);
         RejectUnknown(s, sp,
                       {"cell_size", "max_tet_volume", "max_radius_edge", "mesher", "sharp_edges",
-                       "surface_mesher", "flat_cells", "slab_planes"});
+                       "surface_mesher", "flat_cells", "slab_planes", "slab_strips"});
         m.settings.cell_size = NonNegative(s, sp, "cell_size", 0.0);
         m.settings.max_tet_volume = NonNegative(s, sp, "max_tet_volume", 0.0);
         m.settings.max_radius_edge = NonNegative(s, sp, "max_radius_edge", 0.0);
@@ -465,6 +465,36 @@ Content ContentFromJson(const json& j) {
             if (k > 0 && !(x > m.settings.slab_planes.back()))
               Fail(pp + "/" + std::to_string(k), "the planes must increase");
             m.settings.slab_planes.push_back(x);
+          }
+        }
+        if (s.contains("slab_strips")) {
+          const json& strips = s.at("slab_strips");
+          const std::string tp = sp + "/slab_strips";
+          RequireObject(strips, tp);
+          RejectUnknown(strips, tp, {"axis", "planes"});
+          const std::string axis =
+              strips.contains("axis") ? Text(strips.at("axis"), tp + "/axis") : std::string();
+          if (axis != "y" && axis != "z") Fail(tp + "/axis", "expected \"y\" or \"z\"");
+          m.settings.slab_strip_axis = axis == "y" ? 1 : 2;
+          const std::string pp = tp + "/planes";
+          if (!strips.contains("planes") || !strips.at("planes").is_array())
+            Fail(pp, "expected an array of each slab's strip planes (m)");
+          const json& planes = strips.at("planes");
+          if (planes.size() != m.settings.slab_planes.size() + 1)
+            Fail(pp, "expected one list per slab (" +
+                         std::to_string(m.settings.slab_planes.size() + 1) +
+                         ", from slab_planes), got " + std::to_string(planes.size()));
+          for (std::size_t k = 0; k < planes.size(); ++k) {
+            const std::string kp = pp + "/" + std::to_string(k);
+            if (!planes[k].is_array()) Fail(kp, "expected an array of plane positions (m)");
+            std::vector<double> list;
+            for (std::size_t j = 0; j < planes[k].size(); ++j) {
+              const double c = Number(planes[k][j], kp + "/" + std::to_string(j));
+              if (j > 0 && !(c > list.back()))
+                Fail(kp + "/" + std::to_string(j), "the planes must increase");
+              list.push_back(c);
+            }
+            m.settings.slab_strips.push_back(std::move(list));
           }
         }
       }
@@ -697,6 +727,9 @@ json ObjectJson(const Document& doc, const DocObject& o) {
       j["settings"]["surface_mesher"] = m->settings.surface_mesher;
     if (m->settings.flat_cells != 0.0) j["settings"]["flat_cells"] = m->settings.flat_cells;
     if (!m->settings.slab_planes.empty()) j["settings"]["slab_planes"] = m->settings.slab_planes;
+    if (!m->settings.slab_strips.empty())
+      j["settings"]["slab_strips"] = {{"axis", m->settings.slab_strip_axis == 1 ? "y" : "z"},
+                                      {"planes", m->settings.slab_strips}};
     if (!m->import_source.empty()) j["import_source"] = m->import_source;
     if (m->surface) j["surface"] = SurfaceJson(*m->surface);
     if (m->volume) j["volume"] = VolumeJson(*m->volume);

@@ -117,10 +117,12 @@ void FeMode::SetActive(bool active) {
   }
 }
 
-void FeMode::SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab) {
+void FeMode::SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab,
+                     std::vector<int> place) {
   DropModel();
   mesh_ = std::make_shared<const fem::TetMesh>(std::move(mesh));
   mesh_slab_ = std::move(slab);
+  mesh_place_ = std::move(place);
   mesh_name_ = std::move(name);
   pending_field_.reset();
   actor_->VisibilityOff();
@@ -134,6 +136,7 @@ void FeMode::Precompute() {
   if (jobs_ == nullptr || !mesh_ || RunningJob() != nullptr) return;
   FeModelSettings settings = model_settings_;
   settings.element_block = mesh_slab_;
+  settings.block_place = mesh_place_;
   if (mesh_slab_.size() > 0) settings.reuse = reuse_model_;
   std::shared_ptr<const fem::TetMesh> mesh = mesh_;
   job_key_ = bound_key_;
@@ -167,7 +170,8 @@ void FeMode::Precompute() {
                         model_->imported_nodes(), model_->build_seconds());
           status_ = line;
           if (const fem::SubstructuredSolver* slabs = model_->substructured()) {
-            std::snprintf(line, sizeof line, "; %d of %d slabs factored, %d kept",
+            // Pieces: the slabs, or the strips of a slab cut into strips.
+            std::snprintf(line, sizeof line, "; %d of %d pieces factored, %d kept",
                           slabs->stats().factored_blocks, slabs->num_blocks(),
                           slabs->stats().reused_blocks);
             status_ += line;
@@ -620,14 +624,16 @@ void FeMode::Rebind(const Document& doc, ObjectId fe) {
     try {
       fem::TetMesh mesh = FeMeshOf(doc, data);
       Eigen::VectorXi slab;
+      std::vector<int> place;
       if (const std::shared_ptr<const SlabFeMesh> slabs = SlabsOf(doc, data.tet_mesh)) {
         slab = slabs->slab;
-      } else if (const auto& planes =
-                     std::get<MeshData>(doc.Get(data.tet_mesh).data).settings.slab_planes;
-                 !planes.empty()) {
-        slab = fem::SlabBlocks(mesh, 0, planes);  // e.g. a document opened from a file
+        place = slabs->piece_slab;
+      } else if (const MeshSettings& ms = std::get<MeshData>(doc.Get(data.tet_mesh).data).settings;
+                 !ms.slab_planes.empty()) {
+        // e.g. a document opened from a file
+        slab = SlabPieceLabels(mesh, ms.slab_planes, ms.slab_strip_axis, ms.slab_strips, &place);
       }
-      SetMesh(std::move(mesh), o.name, std::move(slab));
+      SetMesh(std::move(mesh), o.name, std::move(slab), std::move(place));
     } catch (const std::exception& e) {
       mesh_.reset();
       status_ = o.name + ": " + e.what();
@@ -724,6 +730,7 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
     input.settings.flat_cells = FlatCellsForOrder(input.kind, input.settings, order);
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
+      input.strips = mesh_strips_;
       input.cache_directory = SlabCacheDirectory();
     }
   } catch (const std::exception& e) {
@@ -791,6 +798,7 @@ bool FeMode::StartRefresh(SceneModel* model) {
         FlatCellsForOrder(input.kind, input.settings, BoundElementOrder(model->document()));
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
+      input.strips = mesh_strips_;
       input.previous_slabs = SlabsOf(model->document(), bound_key_.mesh);
       input.cache_directory = SlabCacheDirectory();
     }

@@ -114,8 +114,10 @@ class FeMode {
   // The part to work on (tetrahedra in W, m); drops the current model (precompute again).
   // `slab` (each element's slab, SlabFeMesh::slab; empty: one piece) makes the next model
   // factored in slabs; the dropped model, when it was in slabs, lends the next one the factors
-  // of the slabs that are unchanged (FeModelSettings::reuse).
-  void SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab = {});
+  // of the slabs that are unchanged (FeModelSettings::reuse). `place`: the slab of each block
+  // when slabs have strips (SlabFeMesh::piece_slab; FeModelSettings::block_place).
+  void SetMesh(fem::TetMesh mesh, std::string name, Eigen::VectorXi slab = {},
+               std::vector<int> place = {});
   // Starts the precomputation Job with model_settings() (synced from the bound FE model).
   void Precompute();
   // Precomputes the bound model now and again whenever it changes (what the Precompute button
@@ -168,6 +170,9 @@ class FeMode {
   // a refresh after a local edit (a feature, a stroke) re-meshes and refactors only the slabs the
   // edit reached; on by default.
   bool& mesh_in_slabs() { return mesh_in_slabs_; }
+  // In slabs, a solid's large slabs in this many strips (FeMeshInput::strips; kFeStrips by
+  // default, 0: none).
+  int& mesh_strips() { return mesh_strips_; }
   // Refresh a stale mesh by itself while the mode is on and a model is shown (the old model stays
   // felt until the new one is ready), once per revision of its source (so not after the undo of
   // a refresh); on by default.
@@ -247,7 +252,8 @@ class FeMode {
   bool active_ = false;
   std::string mesh_name_;
   std::shared_ptr<const fem::TetMesh> mesh_;
-  Eigen::VectorXi mesh_slab_;  // slab of each element of mesh_ (empty: one piece)
+  Eigen::VectorXi mesh_slab_;    // slab of each element of mesh_ (empty: one piece)
+  std::vector<int> mesh_place_;  // slab of each block when slabs have strips (else empty)
   std::shared_ptr<FeModel> model_;
   // The last model in slabs that was dropped for a new mesh: the next precompute shares its
   // unchanged slabs' factors (reset when that precompute lands or the document changes).
@@ -309,6 +315,7 @@ class FeMode {
   // Slab meshes this mode made lately (newest last; SlabsOf finds them by their volume).
   std::vector<std::shared_ptr<const SlabFeMesh>> slab_meshes_;
   bool mesh_in_slabs_ = true;
+  int mesh_strips_ = kFeStrips;
   bool refresh_on_edit_ = true;
   // The source and its revision of the last refresh on edit.
   std::pair<ObjectId, std::uint64_t> auto_refreshed_{0, 0};

@@ -199,7 +199,8 @@ std::unique_ptr<FeModel> FeModel::Build(fem::TetMesh mesh, const FeModelSettings
     }
     try {
       m->substructured_ = std::make_unique<fem::SubstructuredSolver>(
-          tm, *m->materials_, *m->bcs_, settings.element_block, reuse, blocks, settings.cancel);
+          tm, *m->materials_, *m->bcs_, settings.element_block, reuse, blocks, settings.cancel,
+          settings.block_place);
     } catch (const fem::SubstructureCancelled&) {
       throw FeModelCancelled();
     }

@@ -103,6 +103,9 @@ struct FeModelSettings {
   // relative), and the factor of each slab whose content (elements, nodes, material, clamps) is
   // unchanged from `reuse` is shared instead of recomputed.
   Eigen::VectorXi element_block;
+  // With element_block: the slab of each block when slabs have strips (SlabFeMesh::piece_slab,
+  // fem::SubstructuredSolver's block_place); empty: each block is a slab.
+  std::vector<int> block_place;
   // A model of an earlier version of the part (may be null; read only, while Build runs: the
   // factors it shares are reference counted). Used only with element_block, when it was itself
   // built in slabs.

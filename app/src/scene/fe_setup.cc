@@ -376,6 +376,8 @@ bool MeshInSlabs(const FeMeshInput& input, const Eigen::AlignedBox3d& box, doubl
       auto slabs = std::make_shared<const SlabFeMesh>(mesh(t.box, t.spacing, t.planes, so));
       if (slabs->volume->tets.cols() == 0) throw std::runtime_error("no tetrahedra");
       result->settings.slab_planes = slabs->planes;
+      result->settings.slab_strip_axis = slabs->strip_axis;
+      result->settings.slab_strips = slabs->strip_planes;
       result->volume = slabs->volume;
       result->surface =
           std::make_shared<const modeling::TriangleMesh>(modeling::BoundarySurface(*slabs->volume));
@@ -402,6 +404,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   FeMeshResult result;
   result.settings = input.settings;
   result.settings.slab_planes.clear();  // set below when the tetrahedra are made in slabs
+  result.settings.slab_strips.clear();
   Report(progress, 0.0);
   if (input.kind == FeSourceKind::kSculpt || input.kind == FeSourceKind::kSurfaceMesh) {
     if (!input.surface) throw std::invalid_argument("set up FE: no surface to mesh");
@@ -484,6 +487,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
               snapped.snap_cells = modeling::kProductSnapCells;
               snapped.lattice = lattice;
               snapped.flat_coarsen_cells = input.settings.flat_cells;
+              snapped.strips = input.strips;
               return MeshSolidInSlabs(compiled, box, h, planes, snapped);
             },
             cancel, progress, &result))

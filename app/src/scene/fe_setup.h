@@ -81,6 +81,8 @@ struct FeMeshInput {
   // mesher "cgal", for a surface only and for the other kinds; a source the slabs fail for (a plane
   // through a gap in it) is meshed in one piece, FeMeshResult::slab_note saying why.
   int slabs = 0;
+  // A solid's large slabs in this many strips (SlabMeshOptions::strips; 0: none).
+  int strips = 0;
   // The slab mesh of an earlier version of the source (may be null): its box, spacing and planes
   // are kept, and its slabs whose input is unchanged are taken as they are, when it was made in
   // as many slabs and its box holds the source's (a solid: also at the same cell size).
@@ -108,6 +110,13 @@ double FlatCellsForOrder(FeSourceKind kind, const MeshSettings& settings, int or
 // (docs/design/2026-12-05-interface-by-planes.md: six made the interface two thirds larger and
 // every edit slower).
 inline constexpr int kFeSlabs = 4;
+
+// Strips FE mode cuts a solid's large slab into (FeMeshInput::strips): the platform's bracket
+// slab, which holds about half of the part and all four bolt holes, into three across y, so that
+// widening the holes re-meshes and refactors the two outer strips, not the whole slab
+// (docs/design/2026-12-07-bracket-strips.md: four strips put a plane within a cell of the holes
+// at 10 mm, and made the interface larger).
+inline constexpr int kFeStrips = 3;
 
 // The input to mesh `source` (a solid, sculpt or surface mesh) with `settings`. Throws
 // DocumentError naming the object and what is wrong: not such a source, an open surface,

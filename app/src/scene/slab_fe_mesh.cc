@@ -13,6 +13,7 @@
 #include "scene/vtu_io.h"
 #include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/precompute_cache.h"
+#include "spidarcad/fem/substructure.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
@@ -113,24 +114,101 @@ std::optional<modeling::TetMesh> DeserializeSlab(const fem::MappedCacheFile& bod
   return tets;
 }
 
+// The plane across `axis` nearest below x that holds no grid vertex: half-way between two grid
+// planes, or with the lattice a quarter of a cell past one (its vertices lie on the grid planes
+// and half-way between them). MeshSurface centres its grid on the bounds (at their low corner
+// when they span whole cells, as the callers' grids do).
+double PlaneOffTheGrid(const Eigen::AlignedBox3d& grid_bounds, double cell, bool lattice, int axis,
+                       double x) {
+  const double lo = grid_bounds.min()[axis], hi = grid_bounds.max()[axis];
+  const double n = std::max(1.0, std::ceil((hi - lo) / cell - 1e-9));
+  const double origin = lattice ? 0.5 * (lo + hi) - 0.5 * cell * n : lo;
+  return origin + cell * (std::floor((x - origin) / cell) + (lattice ? 0.25 : 0.5));
+}
+
+// SlabMeshOptions::strips: the strips of the slabs (across x at `planes`) that hold more than
+// kStripSlabShare times the mean of the surface's triangles per slab (by centroid), and at least
+// options.strip_min_triangles of them, across the
+// longer of the box's y and z extents, the slab's part of the surface spanned evenly.
+void ChooseStrips(const modeling::TriangleMesh& surface, const Eigen::AlignedBox3d& box,
+                  double cell, const std::vector<double>& planes, const SlabMeshOptions& options,
+                  int* strip_axis, std::vector<std::vector<double>>* strip_planes) {
+  const int n = static_cast<int>(planes.size()) + 1;
+  const Eigen::Vector3d extent = box.sizes();
+  const int a = extent.y() >= extent.z() ? 1 : 2;
+  *strip_axis = a;
+  std::vector<long> count(n, 0);
+  std::vector<double> lo(n, 1e300), hi(n, -1e300);  // the slab's part across the strip axis
+  for (Eigen::Index t = 0; t < surface.triangles.cols(); ++t) {
+    double x = 0.0;
+    for (int j = 0; j < 3; ++j) x += surface.vertices(0, surface.triangles(j, t)) / 3.0;
+    const auto k = std::lower_bound(planes.begin(), planes.end(), x) - planes.begin();
+    ++count[k];
+    for (int j = 0; j < 3; ++j) {
+      lo[k] = std::min(lo[k], surface.vertices(a, surface.triangles(j, t)));
+      hi[k] = std::max(hi[k], surface.vertices(a, surface.triangles(j, t)));
+    }
+  }
+  const double mean = static_cast<double>(surface.triangles.cols()) / n;
+  strip_planes->assign(n, {});
+  bool any = false;
+  for (int k = 0; k < n; ++k) {
+    if (static_cast<double>(count[k]) <= kStripSlabShare * mean ||
+        count[k] < options.strip_min_triangles)
+      continue;
+    std::vector<double>& p = (*strip_planes)[k];
+    for (int j = 1; j < options.strips; ++j) {
+      const double c = PlaneOffTheGrid(box, cell, options.lattice, a,
+                                       lo[k] + (hi[k] - lo[k]) * j / options.strips);
+      if (c > lo[k] && c < hi[k] && (p.empty() || c > p.back())) p.push_back(c);
+    }
+    any = any || !p.empty();
+  }
+  if (!any) strip_planes->clear();
+}
+
 }  // namespace
+
+Eigen::VectorXi SlabPieceLabels(const fem::TetMesh& mesh, const std::vector<double>& planes,
+                                int strip_axis,
+                                const std::vector<std::vector<double>>& strip_planes,
+                                std::vector<int>* piece_slab) {
+  Eigen::VectorXi slab = fem::SlabBlocks(mesh, 0, planes);
+  piece_slab->clear();
+  if (strip_planes.empty()) return slab;
+  if (strip_planes.size() != planes.size() + 1 || strip_axis < 1 || strip_axis > 2)
+    throw std::invalid_argument("slab pieces: " + std::to_string(strip_planes.size()) +
+                                " strip lists for " + std::to_string(planes.size() + 1) +
+                                " slabs, or a strip axis other than y or z");
+  std::vector<int> first(strip_planes.size() + 1, 0);
+  for (std::size_t k = 0; k < strip_planes.size(); ++k) {
+    first[k + 1] = first[k] + static_cast<int>(strip_planes[k].size()) + 1;
+    piece_slab->insert(piece_slab->end(), strip_planes[k].size() + 1, static_cast<int>(k));
+  }
+  Eigen::VectorXi piece(mesh.num_elements());
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    double c = 0.0;
+    for (int j = 0; j < 4; ++j) c += 0.25 * mesh.nodes(mesh.elements(e, j), strip_axis);
+    const std::vector<double>& p = strip_planes[slab(e)];
+    piece(e) =
+        first[slab(e)] + static_cast<int>(std::upper_bound(p.begin(), p.end(), c) - p.begin());
+  }
+  return piece;
+}
 
 int SlabFeMesh::num_remeshed() const {
   return static_cast<int>(std::count(remeshed.begin(), remeshed.end(), 1));
 }
 
 std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
-                               const SlabMeshOptions& options) {
+                               const SlabMeshOptions& options, int axis) {
+  if (axis < 0 || axis > 2)
+    throw std::invalid_argument("SlabPlanes: axis must be 0, 1 or 2, got " + std::to_string(axis));
   std::vector<double> planes;
-  const double lo = grid_bounds.min().x(), hi = grid_bounds.max().x();
-  // The grid planes: MeshSurface centres its grid on the bounds (at lo when they span whole
-  // cells, as the callers' grids do).
-  const double n = std::max(1.0, std::ceil((hi - lo) / cell - 1e-9));
-  const bool lattice = options.lattice;
-  const double origin = lattice ? 0.5 * (lo + hi) - 0.5 * cell * n : lo;
+  const double lo = grid_bounds.min()[axis], hi = grid_bounds.max()[axis];
   for (int k = 1; k < slabs; ++k) {
-    const double x = lo + (hi - lo) * k / slabs;
-    const double p = origin + cell * (std::floor((x - origin) / cell) + (lattice ? 0.25 : 0.5));
+    const double p =
+        PlaneOffTheGrid(grid_bounds, cell, options.lattice, axis, lo + (hi - lo) * k / slabs);
     if (planes.empty() || p > planes.back()) planes.push_back(p);
   }
   return planes;
@@ -231,10 +309,23 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
     if (options.progress) options.progress(f);
   };
 
+  if (previous != nullptr) {
+    out.strip_axis = previous->strip_axis;
+    out.strip_planes = previous->strip_planes;
+  } else if (options.strips > 1) {
+    ChooseStrips(surface, box, spacing, planes, options, &out.strip_axis, &out.strip_planes);
+  }
+
+  for (std::size_t k = 0; k < out.strip_planes.size(); ++k)
+    out.piece_slab.insert(out.piece_slab.end(), out.strip_planes[k].size() + 1,
+                          static_cast<int>(k));
+
   auto t = Clock::now();
   modeling::SlabCut cut;
   cut.axis = 0;
   cut.planes = planes;
+  cut.strip_axis = out.strip_axis;
+  cut.strip_planes = out.strip_planes;
   cut.snap = kSnapPerSpacing * spacing;
   cut.section_spacing = spacing;
   modeling::SlabSurfaces slabs = modeling::CutSurfaceIntoSlabs(surface, cut);

@@ -39,6 +39,13 @@ struct SlabFeMesh {
   Eigen::VectorXi slab;
   // The cutting planes x = planes[k] (m), and the grid they were placed on.
   std::vector<double> planes;
+  // Strips (modeling::SlabCut::strip_planes): slab k cut further across strip_axis at
+  // strip_planes[k] (m); empty: no strips. The pieces (slabs, or strips of one) are numbered as
+  // the cut numbers them; `slab`, slab_surfaces and slab_tets are per piece.
+  int strip_axis = 1;
+  std::vector<std::vector<double>> strip_planes;
+  // With strips, the slab of each piece (fem::SubstructuredSolver's block_place); else empty.
+  std::vector<int> piece_slab;
   Eigen::AlignedBox3d grid_bounds;
   double cell = 0.0;
   // Each slab's closed surface (TetGen's input, canonical order) and its tets.
@@ -58,6 +65,16 @@ struct SlabFeMesh {
   int num_remeshed() const;
 };
 
+// SlabMeshOptions::strips: a slab with over this many times the mean of the surface's triangles
+// per slab is cut into strips (the platform's bracket slab: about twice the mean at 5 mm)...
+inline constexpr double kStripSlabShare = 1.5;
+// ...when it holds at least this many of them (SlabMeshOptions::strip_min_triangles). Strips add
+// their planes to the interface group of the slab's plane, whose dense factor an edit of a strip
+// then redoes (0.2 s at 5 mm): that pays for a large slab only (the platform at 5 mm, P1: the
+// clamped-end edit 1.5-1.7 s -> 1.25-1.35 s; at 10 mm, P2, 0.03-0.08 s slower;
+// docs/design/2026-12-07-bracket-strips.md).
+inline constexpr long kStripMinTriangles = 10000;
+
 // How MeshSolidInSlabs meshes, and what it may reuse.
 struct SlabMeshOptions {
   // TetGen's radius-edge bound.
@@ -73,8 +90,15 @@ struct SlabMeshOptions {
   // platform at 10 mm in 4 slabs: 15,669 against 24,905) and a smaller interface. Its planes
   // come from SlabPlanes with these options.
   bool lattice = false;
+  // Strips per large slab: a slab whose part of the surface holds more than
+  // kStripSlabShare times the mean number of triangles per slab is cut into this many strips of
+  // nearly equal width across the longer of the grid box's other two axes (spanning the slab's
+  // part of the surface; each plane moved off the grid as SlabPlanes moves its planes; 0 or 1: no
+  // strips). An earlier mesh's strips are kept (`previous`).
+  int strips = 0;
+  long strip_min_triangles = kStripMinTriangles;
   // A mesh of an earlier version of the solid (may be null; ignored unless made on the same grid
-  // and planes): its slabs whose input is unchanged are taken as they are.
+  // and planes): its slabs whose input is unchanged are taken as they are, and its strips.
   const SlabFeMesh* previous = nullptr;
   // With a directory, a slab not in `previous` is looked for there (<16 hex digits>.slab, keyed
   // by its closed surface and the bound; the surface is compared in full, the file checked by a
@@ -93,8 +117,9 @@ struct SlabMeshOptions {
 // quarter of a cell past a grid plane instead (the lattice mesher's vertices lie on the grid
 // planes and half-way between them, and its edges run in those planes: a plane there would hold
 // triangles). Give MeshSolidInSlabs the same options.
+// With `axis` (0, 1, 2), across that axis instead.
 std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
-                               const SlabMeshOptions& options = {});
+                               const SlabMeshOptions& options = {}, int axis = 0);
 
 // Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`: MeshSurface, then
 // MeshSurfaceInSlabs with the cell as the spacing. Throws what MeshSurface, CutSurfaceIntoSlabs
@@ -102,6 +127,15 @@ std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double ce
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
                             const std::vector<double>& planes, const SlabMeshOptions& options = {});
+
+// The piece of each element of a mesh made in slabs across x at `planes` and, with strips, in
+// strip_planes[k] across strip_axis within slab k (SlabFeMesh::slab, by each element's centroid:
+// e.g. of a mesh read back from a document), and the slab of each piece in *piece_slab
+// (SlabFeMesh::piece_slab; cleared without strips).
+Eigen::VectorXi SlabPieceLabels(const fem::TetMesh& mesh, const std::vector<double>& planes,
+                                int strip_axis,
+                                const std::vector<std::vector<double>>& strip_planes,
+                                std::vector<int>* piece_slab);
 
 // Tetrahedralizes a closed, outward-oriented surface (a sculpt, an imported mesh) in the slabs of
 // `planes`: the cut snaps vertices within a tenth of `spacing` (m) onto the planes and puts

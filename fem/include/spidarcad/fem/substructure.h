@@ -197,11 +197,18 @@ class SubstructuredSolver final : public FreeDofSolver {
   // SubstructureCancelled before the next block it would factor and before the interface: a
   // cancel waits for at most one block's factorisation (CHOLMOD cannot be interrupted); the
   // block files already queued for the cache directory are finished first.
+  // `block_place` (empty, or one entry >= 0 per block): the place of each block in the interface
+  // chain, for blocks that are strips of one slab (modeling::SlabCut::strip_planes), which share
+  // their slab's place. Empty: each block is its own place. Γ's groups are then the dofs shared
+  // by the same lowest and highest place; those shared within one place (the strip planes) join
+  // the next place's group (the previous one's, after the last place). Slabs with strips stay a
+  // chain: an edit of a strip refactors its slab's planes, not all of S.
   SubstructuredSolver(const TetMesh& mesh, const MaterialTable& materials,
                       const BoundaryConditions& bcs, const Eigen::VectorXi& element_block,
                       const SubstructuredSolver* reuse = nullptr,
                       const std::filesystem::path& cache_directory = {},
-                      const std::atomic<bool>* cancel = nullptr);
+                      const std::atomic<bool>* cancel = nullptr,
+                      const std::vector<int>& block_place = {});
   ~SubstructuredSolver() override;
   SubstructuredSolver(const SubstructuredSolver&) = delete;
   SubstructuredSolver& operator=(const SubstructuredSolver&) = delete;

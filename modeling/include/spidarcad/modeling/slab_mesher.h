@@ -45,22 +45,34 @@ struct SlabCut {
   // section, they keep TetGen (which may add no point to a kept boundary) from spanning a wide
   // section with slivers.
   double section_spacing = 0.0;
+  // Strips: slab k is cut further by the planes p[strip_axis] = strip_planes[k][j] (strictly
+  // increasing; an empty list leaves slab k whole) into strip_planes[k].size() + 1 pieces. Empty
+  // (the default): no strips. Else one list per slab. A strip plane ends on the slab's planes:
+  // the slab's cross-sections there hold its line as a constrained path (the same points seen
+  // from the strip section and from the neighbouring slab), so the pieces still join
+  // conformingly. A slab that holds most of a part (a bracket with its bolt holes) is split so
+  // that an edit re-meshes and refactors a part of it.
+  int strip_axis = 1;
+  std::vector<std::vector<double>> strip_planes;
 };
 
 // A surface cut into closed slab surfaces.
 struct SlabSurfaces {
-  // Closed surface of each slab (the solid between planes k−1 and k), in canonical order.
+  // Closed surface of each piece, in canonical order: the slabs (the solid between planes k−1
+  // and k) in order, a slab with strips as its strips in order across the strip axis.
   std::vector<TriangleMesh> slabs;
-  // Cross-section of each plane: triangles on the plane, counter-clockwise seen from +axis.
+  // Cross-section of each plane: triangles on the plane, counter-clockwise seen from +axis (or
+  // +strip_axis); the slab planes' first, then the strip planes' slab by slab.
   std::vector<TriangleMesh> sections;
   // Vertices moved onto planes, and triangles split by them.
   long snapped_vertices = 0;
   long split_triangles = 0;
 };
 
-// Cuts a closed, outward-oriented surface. Throws std::invalid_argument for a bad axis, planes
-// not strictly increasing, a negative snap or section spacing (or one giving a section over 1e7
-// grid points), or a plane that a triangle lies in (a face of the
+// Cuts a closed, outward-oriented surface. Throws std::invalid_argument for a bad axis or strip
+// axis, planes not strictly increasing, strip planes not one list per slab, a negative snap or
+// section spacing (or one giving a section over 1e7 grid points), or a plane that a triangle lies
+// in (a face of the
 // solid on the plane: move the plane), and SurfaceDefectError when a cross-section cannot be
 // triangulated (cut curves that cross).
 SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut);
