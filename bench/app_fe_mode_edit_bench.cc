@@ -240,7 +240,8 @@ void BM_FeModeEdit(benchmark::State& state) {
   const int order = static_cast<int>(state.range(0));
   const double cell = state.range(1) * 1e-6;
   const bool slabs = state.range(2) != 0;
-  // 1: FE mode's strips (kFeStrips); 10 + N: N strips (10: none).
+  // 1: FE mode's strips (kFeStrips, from kStripMinTriangles on); 10 + N: N strips, whatever the
+  // slab's size (10: none).
   const int strips =
       state.range(2) >= 10 ? static_cast<int>(state.range(2)) - 10 : (slabs ? app::kFeStrips : 0);
   const bool sculpt = state.range(3) != 0;
@@ -256,6 +257,7 @@ void BM_FeModeEdit(benchmark::State& state) {
     app::FeMode mode(nullptr, &jobs);
     mode.mesh_in_slabs() = slabs;
     mode.mesh_strips() = strips;
+    if (state.range(2) >= 10) mode.mesh_strip_min_triangles() = 0;
     mode.mesh_settings().mesher = "tetgen";
     mode.mesh_settings().cell_size = cell;
     if (lattice) mode.mesh_settings().surface_mesher = "lattice";  // the panel's "lattice" box
@@ -414,8 +416,9 @@ void PrintTables() {
 }
 
 // Args: element order, cell (µm), in slabs as FE mode (1: a large slab in kFeStrips strips;
-// 10 + N: in N strips, 10 none; FeMode::mesh_strips) or one piece (0), the solid (0) or a sculpt
-// (1), the surface by marching tetrahedra (0, FE mode's default) or by the lattice (1).
+// 10 + N: a slab with over 1.5 times the mean share of triangles in N strips, however small,
+// 10: none; FeMode::mesh_strips) or one piece (0), the solid (0) or a sculpt (1), the surface by
+// marching tetrahedra (0, FE mode's default) or by the lattice (1).
 BENCHMARK(BM_FeModeEdit)
     ->Name("P1_6mm")
     ->Args({1, 6000, 1, 0, 0})
@@ -427,6 +430,7 @@ BENCHMARK(BM_FeModeEdit)
     ->Args({2, 10000, 1, 0, 0})
     ->Args({2, 10000, 0, 0, 0})
     ->Args({2, 10000, 1, 0, 1})
+    ->Args({2, 10000, 13, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 BENCHMARK(BM_FeModeEdit)

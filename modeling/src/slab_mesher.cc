@@ -259,12 +259,15 @@ std::vector<Triangle> TriangulateSection(std::vector<Eigen::Vector3d>& v,
                                std::to_string(points.size()) +
                                " cut points, not enough for an area (the plane misses the "
                                "solid, or only touches it)");
-    // Only the curves bound the section: the lines' constraints do not change the nesting.
+    // The curves bound the section; the lines' constraints (line_pairs, each between two
+    // consecutive points of a line's path) do not change the nesting. A curve constraint that
+    // CGAL splits stays a border.
+    std::set<std::pair<int, int>> line_pairs;
     auto border = [&](const Cdt::Edge& e) {
       if (!cdt.is_constrained(e)) return false;
       const int a = e.first->vertex(Cdt::cw(e.second))->info();
       const int b = e.first->vertex(Cdt::ccw(e.second))->info();
-      return curve_pairs.count({std::min(a, b), std::max(a, b)}) > 0;
+      return line_pairs.count({std::min(a, b), std::max(a, b)}) == 0;
     };
     MarkNesting(&cdt, border);
     auto inside = [&](double pu, double pv) {
@@ -291,37 +294,59 @@ std::vector<Triangle> TriangulateSection(std::vector<Eigen::Vector3d>& v,
       h3->info() = static_cast<int>(v.size()) - 1;
       return h3;
     };
-    // The lines: the along-line in-plane axis is the one that is not line_axis.
+    // The lines' paths, all found on the curves' nesting before anything is inserted: the curve
+    // points on each line in order along it, and between two of them that bound a stretch inside
+    // the section (not a curve edge), points `spacing` apart, half a spacing or more from the
+    // curves. A path is (first curve point, the points between as (u, v), last curve point).
     const bool line_is_u = line_axis == u_axis;  // the line fixes u; it runs along v
-    std::vector<std::pair<Cdt::Vertex_handle, Cdt::Vertex_handle>> line_edges;
+    const int along = line_is_u ? v_axis : u_axis;
+    struct Path {
+      int a, b;
+      std::vector<Eigen::Vector2d> between;
+    };
+    std::vector<Path> paths;
     for (const double l : lines) {
       std::vector<int> on;
       for (int p : points)
         if (v[p][line_axis] == l) on.push_back(p);
-      const int along = line_is_u ? v_axis : u_axis;
       std::sort(on.begin(), on.end(), [&](int a, int b) { return v[a][along] < v[b][along]; });
       for (std::size_t i = 1; i < on.size(); ++i) {
         const int a = on[i - 1], b = on[i];
         if (curve_pairs.count({std::min(a, b), std::max(a, b)})) continue;  // a curve edge
         const double ta = v[a][along], tb = v[b][along], mid = 0.5 * (ta + tb);
         if (!(line_is_u ? inside(l, mid) : inside(mid, l))) continue;
-        std::vector<Cdt::Vertex_handle> path{handle[a]};
+        Path path{a, b, {}};
         if (spacing > 0.0) {
           for (double k = std::ceil(ta / spacing); k * spacing < tb; ++k) {
             const double t = k * spacing;
             if (t - ta < 0.5 * spacing || tb - t < 0.5 * spacing) continue;
-            if (!(line_is_u ? far_from_curves(l, t) : far_from_curves(t, l))) continue;
-            path.push_back(line_is_u ? add_point(l, t) : add_point(t, l));
+            const Eigen::Vector2d q = line_is_u ? Eigen::Vector2d(l, t) : Eigen::Vector2d(t, l);
+            if (far_from_curves(q.x(), q.y())) path.between.push_back(q);
           }
         }
-        path.push_back(handle[b]);
-        for (std::size_t q = 1; q < path.size(); ++q) line_edges.emplace_back(path[q - 1], path[q]);
+        paths.push_back(std::move(path));
       }
     }
+    std::vector<std::pair<Cdt::Vertex_handle, Cdt::Vertex_handle>> line_edges;
+    for (const Path& path : paths) {
+      std::vector<Cdt::Vertex_handle> chain{handle[path.a]};
+      for (const Eigen::Vector2d& q : path.between) chain.push_back(add_point(q.x(), q.y()));
+      chain.push_back(handle[path.b]);
+      for (std::size_t q = 1; q < chain.size(); ++q) {
+        const int a = chain[q - 1]->info(), b = chain[q]->info();
+        line_pairs.emplace(std::min(a, b), std::max(a, b));
+        line_edges.emplace_back(chain[q - 1], chain[q]);
+      }
+    }
+    const std::size_t with_lines = cdt.number_of_vertices();
     for (const auto& [a, b] : line_edges) cdt.insert_constraint(a, b);
+    if (cdt.number_of_vertices() != with_lines)
+      throw SurfaceDefectError(
+          "slab cut: a strip plane's line crosses the cut curves on the plane " + where);
+    MarkNesting(&cdt, border);
     if (spacing > 0.0) {
       // Interior grid points inside the section, half a spacing or more from every cut edge
-      // and line.
+      // and line, found on the nesting with the lines and inserted after.
       const double h = spacing;
       double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
       for (int q : points) {
@@ -377,12 +402,24 @@ SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut
       throw std::invalid_argument("slab cut: strip_planes must hold a list per slab (" +
                                   std::to_string(num_slabs) + "), got " +
                                   std::to_string(cut.strip_planes.size()));
-    for (const std::vector<double>& p : cut.strip_planes)
+    // Strictly increasing, and (the snap moves vertices onto each in turn) more than two snaps
+    // apart within a slab, and from a different plane of a neighbouring slab, whose lines meet
+    // on their shared section.
+    for (std::size_t k = 0; k < cut.strip_planes.size(); ++k) {
+      const std::vector<double>& p = cut.strip_planes[k];
       for (std::size_t i = 1; i < p.size(); ++i)
-        if (!(p[i] > p[i - 1]))
+        if (!(p[i] > p[i - 1] + 2.0 * cut.snap))
           throw std::invalid_argument(
-              "slab cut: each slab's strip planes must be strictly "
-              "increasing");
+              "slab cut: each slab's strip planes must be increasing, "
+              "more than two snaps apart");
+      if (k == 0) continue;
+      for (double a : p)
+        for (double b : cut.strip_planes[k - 1])
+          if (a != b && std::abs(a - b) <= 2.0 * cut.snap)
+            throw std::invalid_argument(
+                "slab cut: strip planes of neighbouring slabs must be equal or more than two "
+                "snaps apart");
+    }
   }
   if (!(cut.snap >= 0.0)) throw std::invalid_argument("slab cut: snap must be >= 0");
   if (!(cut.section_spacing >= 0.0))

@@ -86,6 +86,52 @@ FaceCount CountFaces(const TetMesh& mesh, const std::vector<double>& planes) {
   return count;
 }
 
+// Area of a planar section, signed by its triangles' orientation about +axis (m²).
+double SignedArea(const TriangleMesh& section, int axis) {
+  double area = 0.0;
+  for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
+    const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
+                          b = section.vertices.col(section.triangles(1, f)),
+                          c = section.vertices.col(section.triangles(2, f));
+    area += 0.5 * (b - a).cross(c - a)[axis];
+  }
+  return area;
+}
+
+// Each piece's surface is closed and TetGen meshes it to its own volume; returns the pieces'
+// tets, and their summed surface volume in *volume.
+std::vector<TetMesh> MeshPieces(const SlabSurfaces& slabs, double* volume) {
+  *volume = 0.0;
+  std::vector<TetMesh> tets;
+  for (std::size_t k = 0; k < slabs.slabs.size(); ++k) {
+    SCOPED_TRACE("piece " + std::to_string(k));
+    const TriangleMesh& s = slabs.slabs[k];
+    EXPECT_NO_THROW(CheckSurface(s));
+    *volume += MeshVolume(s);
+    TetMeshSettings ts;
+    ts.max_radius_edge = 2.0;
+    tets.push_back(TetrahedralizeSlab(s, ts));
+    EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
+  }
+  return tets;
+}
+
+// The joined pieces conform: no face shared by more than two tets, none left on a slab plane, the
+// boundary is the pieces' faces less both sides of every section, and no tet is inverted.
+void ExpectConformingJoin(const SlabSurfaces& slabs, const SlabTetMesh& joined,
+                          const std::vector<double>& planes) {
+  EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
+  const FaceCount faces = CountFaces(joined.mesh, planes);
+  EXPECT_EQ(faces.shared_by_more, 0);
+  EXPECT_EQ(faces.boundary_on_planes, 0);  // the planes are inside the joined mesh
+  long surface_faces = 0;
+  for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
+  for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
+  EXPECT_EQ(faces.boundary, surface_faces);
+  for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
+    ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
+}
+
 // With and without interior points in the sections (SlabCut::section_spacing).
 TEST(SlabMesher, SlabsAreClosedAndJoinConformingly) {
   for (const double spacing : {0.0, 0.5 * kCell}) {
@@ -95,27 +141,13 @@ TEST(SlabMesher, SlabsAreClosedAndJoinConformingly) {
     ASSERT_EQ(slabs.slabs.size(), 3u);
     ASSERT_EQ(slabs.sections.size(), 2u);
     double volume = 0.0;
-    std::vector<TetMesh> tets;
-    for (const TriangleMesh& s : slabs.slabs) {
-      EXPECT_NO_THROW(CheckSurface(s));
-      volume += MeshVolume(s);
-      TetMeshSettings ts;
-      ts.max_radius_edge = 2.0;
-      tets.push_back(TetrahedralizeSlab(s, ts));
-      EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
-    }
+    const std::vector<TetMesh> tets = MeshPieces(slabs, &volume);
     // The slabs add up to the solid (the cut and the snap keep the volume to rounding: a snapped
     // vertex moves along the axis by at most `snap`, which changes the volume a little).
     EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
     // Each section is the plate's 0.1 × 0.02 m cross-section (the hole lies in the middle slab).
     for (const TriangleMesh& section : slabs.sections) {
-      double area = 0.0;
-      for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
-        const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
-                              b = section.vertices.col(section.triangles(1, f)),
-                              c = section.vertices.col(section.triangles(2, f));
-        area += 0.5 * (b - a).cross(c - a).x();  // counter-clockwise seen from +x: positive
-      }
+      const double area = SignedArea(section, 0);  // counter-clockwise seen from +x: positive
       // Marching tetrahedra chamfers the section's four edges by up to a cell.
       EXPECT_NEAR(area, 0.1 * 0.02, 0.15 * 0.002);
       std::printf("section area %.4e m^2 (0.1 x 0.02 = 2e-3), %ld triangles, %ld vertices\n", area,
@@ -151,17 +183,7 @@ TEST(SlabMesher, SlabsAreClosedAndJoinConformingly) {
         EXPECT_EQ(interior, 0);
       }
     }
-    const SlabTetMesh joined = JoinSlabs(tets);
-    EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
-    const FaceCount faces = CountFaces(joined.mesh, Cut().planes);
-    EXPECT_EQ(faces.shared_by_more, 0);
-    EXPECT_EQ(faces.boundary_on_planes, 0);  // the planes are inside the joined mesh
-    long surface_faces = 0;
-    for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
-    for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
-    EXPECT_EQ(faces.boundary, surface_faces);
-    for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
-      ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
+    ExpectConformingJoin(slabs, JoinSlabs(tets), Cut().planes);
   }
 }
 
@@ -200,17 +222,7 @@ TEST(SlabMesher, StripsAreClosedAndJoinConformingly) {
     ASSERT_EQ(slabs.slabs.size(), 6u);
     ASSERT_EQ(slabs.sections.size(), 5u);
     double volume = 0.0;
-    std::vector<TetMesh> tets;
-    for (std::size_t k = 0; k < slabs.slabs.size(); ++k) {
-      SCOPED_TRACE("piece " + std::to_string(k));
-      const TriangleMesh& s = slabs.slabs[k];
-      EXPECT_NO_THROW(CheckSurface(s));
-      volume += MeshVolume(s);
-      TetMeshSettings ts;
-      ts.max_radius_edge = 2.0;
-      tets.push_back(TetrahedralizeSlab(s, ts));
-      EXPECT_NEAR(TotalVolume(tets.back()), MeshVolume(s), 1e-12 * MeshVolume(s));
-    }
+    const std::vector<TetMesh> tets = MeshPieces(slabs, &volume);
     EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
     // The strip sections: the plate's 0.1 (slab width) × 0.02 m section across y, less the hole's
     // chord for the plane through it (x from −0.0755 to 0.0245 or 0.15).
@@ -218,27 +230,14 @@ TEST(SlabMesher, StripsAreClosedAndJoinConformingly) {
                               0.15 - 0.0245};
     for (int j = 0; j < 3; ++j) {
       const TriangleMesh& section = slabs.sections[2 + j];
-      double area = 0.0;
-      for (Eigen::Index f = 0; f < section.triangles.cols(); ++f) {
-        const Eigen::Vector3d a = section.vertices.col(section.triangles(0, f)),
-                              b = section.vertices.col(section.triangles(1, f)),
-                              c = section.vertices.col(section.triangles(2, f));
-        area += 0.5 * (b - a).cross(c - a).y();  // counter-clockwise seen from +y: positive
-      }
+      const double area = SignedArea(section, 1);  // counter-clockwise seen from +y: positive
       // Marching tetrahedra chamfers the plate's edges and the hole by up to a cell.
       EXPECT_NEAR(area, widths[j] * 0.02, 0.2 * widths[j] * 0.02) << "strip section " << j;
     }
     const SlabTetMesh joined = JoinSlabs(tets);
-    EXPECT_NO_THROW(ValidateTetMesh(joined.mesh));
     EXPECT_NEAR(TotalVolume(joined.mesh), volume, 1e-12 * volume);
-    const FaceCount faces = CountFaces(joined.mesh, cut.planes);
-    EXPECT_EQ(faces.shared_by_more, 0);
-    EXPECT_EQ(faces.boundary_on_planes, 0);  // the slab planes are inside the joined mesh
-    long surface_faces = 0;
-    for (const TriangleMesh& s : slabs.slabs) surface_faces += s.triangles.cols();
-    for (const TriangleMesh& s : slabs.sections) surface_faces -= 2 * s.triangles.cols();
-    // Every piece face on a section is matched by its neighbour's: none is left on the boundary.
-    EXPECT_EQ(faces.boundary, surface_faces);
+    // Every piece face on a section (strip sections included) is matched by its neighbour's.
+    ExpectConformingJoin(slabs, joined, cut.planes);
     // Nodes on the lines x = plane, y = strip plane belong to three pieces.
     std::vector<std::set<int>> pieces_of(joined.mesh.nodes.cols());
     for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
@@ -246,9 +245,32 @@ TEST(SlabMesher, StripsAreClosedAndJoinConformingly) {
     long on_three = 0;
     for (const std::set<int>& p : pieces_of) on_three += p.size() == 3;
     EXPECT_GT(on_three, 0);
-    for (Eigen::Index t = 0; t < joined.mesh.tets.cols(); ++t)
-      ASSERT_GT(TetVolume(joined.mesh, t), 0.0);
   }
+}
+
+// A block 60 mm thick with a tube along y through it that the second slab plane cuts: that
+// section is two wide strips above and below the tube, so each strip plane's line crosses it in
+// two stretches, with interior points on both sides. Three strip planes in the middle slab (two
+// of them 3 mm apart, so that one line's points are inserted next to the other's stretch), one
+// in the last: the pieces are closed and join conformingly.
+TEST(SlabMesher, StripLinesAcrossASectionInTwoStretchesKeepThePiecesClosed) {
+  ImplicitNode block(BoxParams{Eigen::Vector3d(0.3, 0.1, 0.06)});
+  ImplicitNode tube(TranslateParams{Eigen::Vector3d(0.03, 0.0, 0.0)},
+                    {ImplicitNode(RotateParams{Eigen::Vector3d(1, 0, 0), 1.5707963267948966},
+                                  {ImplicitNode(CylinderParams{0.012, 0.2})})});
+  const TriangleMesh surface =
+      Surface(CompiledSolid::Compile(ImplicitNode(DifferenceParams{}, {block, tube})));
+  SlabCut cut = Cut(0.5 * kCell);
+  cut.strip_planes = {{}, {-0.0155, -0.0045, -0.0015}, {-0.0015}};  // off the grid planes
+  const SlabSurfaces slabs = CutSurfaceIntoSlabs(surface, cut);
+  ASSERT_EQ(slabs.slabs.size(), 7u);
+  double volume = 0.0;
+  const std::vector<TetMesh> tets = MeshPieces(slabs, &volume);
+  EXPECT_NEAR(volume, MeshVolume(surface), 2e-3 * MeshVolume(surface));
+  ExpectConformingJoin(slabs, JoinSlabs(tets), cut.planes);
+  // The section at x = 0.0245 m misses the tube's band: two parts, each crossed by every line.
+  const double band = 2 * std::sqrt(0.012 * 0.012 - 0.0055 * 0.0055);
+  EXPECT_NEAR(SignedArea(slabs.sections[1], 0), 0.1 * (0.06 - band), 0.1 * 0.1 * 0.06);
 }
 
 TEST(SlabMesher, EditInsideOneStripLeavesTheOtherPiecesBitForBit) {

@@ -731,6 +731,7 @@ bool FeMode::StartSetUp(SceneModel* model, ObjectId source, bool check_budget, b
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
       input.strips = mesh_strips_;
+      input.strip_min_triangles = mesh_strip_min_triangles_;
       input.cache_directory = SlabCacheDirectory();
     }
   } catch (const std::exception& e) {
@@ -799,6 +800,7 @@ bool FeMode::StartRefresh(SceneModel* model) {
     if (mesh_in_slabs_ && SlabbedKind(input.kind)) {
       input.slabs = kFeSlabs;
       input.strips = mesh_strips_;
+      input.strip_min_triangles = mesh_strip_min_triangles_;
       input.previous_slabs = SlabsOf(model->document(), bound_key_.mesh);
       input.cache_directory = SlabCacheDirectory();
     }

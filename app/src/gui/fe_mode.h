@@ -171,8 +171,9 @@ class FeMode {
   // edit reached; on by default.
   bool& mesh_in_slabs() { return mesh_in_slabs_; }
   // In slabs, a solid's large slabs in this many strips (FeMeshInput::strips; kFeStrips by
-  // default, 0: none).
+  // default, 0: none), from this many surface triangles on (FeMeshInput::strip_min_triangles).
   int& mesh_strips() { return mesh_strips_; }
+  long& mesh_strip_min_triangles() { return mesh_strip_min_triangles_; }
   // Refresh a stale mesh by itself while the mode is on and a model is shown (the old model stays
   // felt until the new one is ready), once per revision of its source (so not after the undo of
   // a refresh); on by default.
@@ -316,6 +317,7 @@ class FeMode {
   std::vector<std::shared_ptr<const SlabFeMesh>> slab_meshes_;
   bool mesh_in_slabs_ = true;
   int mesh_strips_ = kFeStrips;
+  long mesh_strip_min_triangles_ = kStripMinTriangles;
   bool refresh_on_edit_ = true;
   // The source and its revision of the last refresh on edit.
   std::pair<ObjectId, std::uint64_t> auto_refreshed_{0, 0};

@@ -354,26 +354,35 @@ bool MeshInSlabs(const FeMeshInput& input, const Eigen::AlignedBox3d& box, doubl
   so.cancel = cancel;
   so.progress = progress;
   so.cache_directory = input.cache_directory;
+  // Strips for a solid only (a sculpt's planes are moved off its triangles; strip planes are not).
+  so.strips = input.kind == FeSourceKind::kSolid ? input.strips : 0;
+  so.strip_min_triangles = input.strip_min_triangles;
   struct Try {
     Eigen::AlignedBox3d box;
     double spacing;
     std::vector<double> planes;
+    bool strips = true;  // with so.strips (and the previous mesh's), or none
   };
   std::vector<Try> tries;
-  if (previous != nullptr && static_cast<int>(previous->planes.size()) + 1 == input.slabs) {
-    so.previous = previous;  // ignored by the mesher for another box, spacing or planes
+  if (previous != nullptr && static_cast<int>(previous->planes.size()) + 1 == input.slabs)
     tries.push_back({previous->grid_bounds, previous->cell, previous->planes});
-  }
   for (double shift : {0.0, 0.25, -0.25}) {
     Eigen::AlignedBox3d shifted = box;  // moves the planes by the shift
     shifted.min().x() += shift * spacing;
     shifted.max().x() += shift * spacing;
     tries.push_back({box, spacing, fresh(shifted)});
   }
+  // Last, without strips: a strip plane may meet a face of the solid, or the earlier mesh's
+  // strips may no longer suit it.
+  if (so.strips > 1) tries.push_back({box, spacing, fresh(box), false});
   std::string why;
   for (const Try& t : tries) {
     try {
-      auto slabs = std::make_shared<const SlabFeMesh>(mesh(t.box, t.spacing, t.planes, so));
+      SlabMeshOptions o = so;
+      // The previous mesh is ignored by the mesher for another box, spacing or planes.
+      o.previous = t.strips ? previous : nullptr;
+      if (!t.strips) o.strips = 0;
+      auto slabs = std::make_shared<const SlabFeMesh>(mesh(t.box, t.spacing, t.planes, o));
       if (slabs->volume->tets.cols() == 0) throw std::runtime_error("no tetrahedra");
       result->settings.slab_planes = slabs->planes;
       result->settings.slab_strip_axis = slabs->strip_axis;
@@ -487,7 +496,6 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
               snapped.snap_cells = modeling::kProductSnapCells;
               snapped.lattice = lattice;
               snapped.flat_coarsen_cells = input.settings.flat_cells;
-              snapped.strips = input.strips;
               return MeshSolidInSlabs(compiled, box, h, planes, snapped);
             },
             cancel, progress, &result))

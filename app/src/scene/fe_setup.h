@@ -81,8 +81,10 @@ struct FeMeshInput {
   // mesher "cgal", for a surface only and for the other kinds; a source the slabs fail for (a plane
   // through a gap in it) is meshed in one piece, FeMeshResult::slab_note saying why.
   int slabs = 0;
-  // A solid's large slabs in this many strips (SlabMeshOptions::strips; 0: none).
+  // A solid's large slabs in this many strips (SlabMeshOptions::strips; 0: none), and the least
+  // number of surface triangles a slab needs for them (SlabMeshOptions::strip_min_triangles).
   int strips = 0;
+  long strip_min_triangles = kStripMinTriangles;
   // The slab mesh of an earlier version of the source (may be null): its box, spacing and planes
   // are kept, and its slabs whose input is unchanged are taken as they are, when it was made in
   // as many slabs and its box holds the source's (a solid: also at the same cell size).

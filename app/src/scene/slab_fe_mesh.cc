@@ -160,7 +160,21 @@ void ChooseStrips(const modeling::TriangleMesh& surface, const Eigen::AlignedBox
     for (int j = 1; j < options.strips; ++j) {
       const double c = PlaneOffTheGrid(box, cell, options.lattice, a,
                                        lo[k] + (hi[k] - lo[k]) * j / options.strips);
-      if (c > lo[k] && c < hi[k] && (p.empty() || c > p.back())) p.push_back(c);
+      if (!(c > lo[k] && c < hi[k] && (p.empty() || c > p.back()))) continue;
+      // The plane must cross one of the slab's triangles (not only a gap between them).
+      bool crosses = false;
+      for (Eigen::Index t = 0; t < surface.triangles.cols() && !crosses; ++t) {
+        double x = 0.0, below = 1e300, above = -1e300;
+        for (int i = 0; i < 3; ++i) {
+          const auto q = surface.vertices.col(surface.triangles(i, t));
+          x += q.x() / 3.0;
+          below = std::min(below, q[a]);
+          above = std::max(above, q[a]);
+        }
+        crosses = below < c && above > c &&
+                  std::lower_bound(planes.begin(), planes.end(), x) - planes.begin() == k;
+      }
+      if (crosses) p.push_back(c);
     }
     any = any || !p.empty();
   }

@@ -35,33 +35,34 @@ struct SlabFeMesh {
   // (shared, e.g. with the mesh object that holds it).
   fem::TetMesh mesh;
   std::shared_ptr<const modeling::TetMesh> volume;
-  // Slab of each element (fem::SubstructuredSolver's element_block).
+  // Piece of each element: its slab, or its strip of a slab cut into strips (below; fem::
+  // SubstructuredSolver's element_block).
   Eigen::VectorXi slab;
   // The cutting planes x = planes[k] (m), and the grid they were placed on.
   std::vector<double> planes;
+  Eigen::AlignedBox3d grid_bounds;
+  double cell = 0.0;
   // Strips (modeling::SlabCut::strip_planes): slab k cut further across strip_axis at
   // strip_planes[k] (m); empty: no strips. The pieces (slabs, or strips of one) are numbered as
-  // the cut numbers them; `slab`, slab_surfaces and slab_tets are per piece.
+  // the cut numbers them; `slab`, slab_surfaces, slab_tets, remeshed and loaded are per piece.
   int strip_axis = 1;
   std::vector<std::vector<double>> strip_planes;
   // With strips, the slab of each piece (fem::SubstructuredSolver's block_place); else empty.
   std::vector<int> piece_slab;
-  Eigen::AlignedBox3d grid_bounds;
-  double cell = 0.0;
-  // Each slab's closed surface (TetGen's input, canonical order) and its tets.
+  // Each piece's closed surface (TetGen's input, canonical order) and its tets.
   std::vector<modeling::TriangleMesh> slab_surfaces;
   std::vector<modeling::TetMesh> slab_tets;
-  // Per slab: 1 when TetGen ran for it, 0 when it came from the earlier mesh or the cache
+  // Per piece: 1 when TetGen ran for it, 0 when it came from the earlier mesh or the cache
   // directory; and 1 when it came from the cache directory.
   std::vector<char> remeshed;
   std::vector<char> loaded;
-  // Wall time (s) of looking slabs up in, and writing them to, the cache directory; and why a
-  // slab file was refused or not written (each line names the slab and the file).
+  // Wall time (s) of looking pieces up in, and writing them to, the cache directory; and why a
+  // piece's file was refused or not written (each line names the piece and the file).
   double cache_read_seconds = 0.0, cache_write_seconds = 0.0;
   std::vector<std::string> cache_notes;
-  // Wall time (s) of the surface, the cut, TetGen (summed over re-meshed slabs) and the join.
+  // Wall time (s) of the surface, the cut, TetGen (summed over re-meshed pieces) and the join.
   double surface_seconds = 0.0, cut_seconds = 0.0, tetgen_seconds = 0.0, join_seconds = 0.0;
-  // Number of slabs TetGen ran for.
+  // Number of pieces TetGen ran for.
   int num_remeshed() const;
 };
 

@@ -70,11 +70,13 @@ struct SlabSurfaces {
 };
 
 // Cuts a closed, outward-oriented surface. Throws std::invalid_argument for a bad axis or strip
-// axis, planes not strictly increasing, strip planes not one list per slab, a negative snap or
+// axis, planes not strictly increasing, strip planes not one list per slab or closer than two
+// snaps (within a slab, or unequal ones of neighbouring slabs), a negative snap or
 // section spacing (or one giving a section over 1e7 grid points), or a plane that a triangle lies
 // in (a face of the
 // solid on the plane: move the plane), and SurfaceDefectError when a cross-section cannot be
-// triangulated (cut curves that cross).
+// triangulated (cut curves that cross, a strip plane's line across them) or a plane misses its
+// part of the solid (a section with no area).
 SlabSurfaces CutSurfaceIntoSlabs(const TriangleMesh& surface, const SlabCut& cut);
 
 // FNV-1a 64 of a surface's vertices and triangles (the identity of a slab's input).
