@@ -126,6 +126,15 @@ double PlaneOffTheGrid(const Eigen::AlignedBox3d& grid_bounds, double cell, bool
   return origin + cell * (std::floor((x - origin) / cell) + (lattice ? 0.25 : 0.5));
 }
 
+// The slab of each piece, in the cut's order of pieces (a slab's strips in order; SlabFeMesh::
+// piece_slab): empty without strips.
+std::vector<int> PieceSlabs(const std::vector<std::vector<double>>& strip_planes) {
+  std::vector<int> slab;
+  for (std::size_t k = 0; k < strip_planes.size(); ++k)
+    slab.insert(slab.end(), strip_planes[k].size() + 1, static_cast<int>(k));
+  return slab;
+}
+
 // SlabMeshOptions::strips: the strips of the slabs (across x at `planes`) that hold more than
 // kStripSlabShare times the mean of the surface's triangles per slab (by centroid), and at least
 // options.strip_min_triangles of them, across the
@@ -139,15 +148,26 @@ void ChooseStrips(const modeling::TriangleMesh& surface, const Eigen::AlignedBox
   *strip_axis = a;
   std::vector<long> count(n, 0);
   std::vector<double> lo(n, 1e300), hi(n, -1e300);  // the slab's part across the strip axis
-  for (Eigen::Index t = 0; t < surface.triangles.cols(); ++t) {
+  // Each triangle's slab (by centroid, as the cut assigns it) and its extent across the axis.
+  const Eigen::Index nt = surface.triangles.cols();
+  std::vector<int> slab_of(nt);
+  std::vector<double> below(nt), above(nt);
+  for (Eigen::Index t = 0; t < nt; ++t) {
     double x = 0.0;
-    for (int j = 0; j < 3; ++j) x += surface.vertices(0, surface.triangles(j, t)) / 3.0;
-    const auto k = std::lower_bound(planes.begin(), planes.end(), x) - planes.begin();
-    ++count[k];
+    below[t] = 1e300;
+    above[t] = -1e300;
     for (int j = 0; j < 3; ++j) {
-      lo[k] = std::min(lo[k], surface.vertices(a, surface.triangles(j, t)));
-      hi[k] = std::max(hi[k], surface.vertices(a, surface.triangles(j, t)));
+      const auto q = surface.vertices.col(surface.triangles(j, t));
+      x += q.x() / 3.0;
+      below[t] = std::min(below[t], q[a]);
+      above[t] = std::max(above[t], q[a]);
     }
+    const int k =
+        static_cast<int>(std::lower_bound(planes.begin(), planes.end(), x) - planes.begin());
+    slab_of[t] = k;
+    ++count[k];
+    lo[k] = std::min(lo[k], below[t]);
+    hi[k] = std::max(hi[k], above[t]);
   }
   const double mean = static_cast<double>(surface.triangles.cols()) / n;
   strip_planes->assign(n, {});
@@ -163,17 +183,8 @@ void ChooseStrips(const modeling::TriangleMesh& surface, const Eigen::AlignedBox
       if (!(c > lo[k] && c < hi[k] && (p.empty() || c > p.back()))) continue;
       // The plane must cross one of the slab's triangles (not only a gap between them).
       bool crosses = false;
-      for (Eigen::Index t = 0; t < surface.triangles.cols() && !crosses; ++t) {
-        double x = 0.0, below = 1e300, above = -1e300;
-        for (int i = 0; i < 3; ++i) {
-          const auto q = surface.vertices.col(surface.triangles(i, t));
-          x += q.x() / 3.0;
-          below = std::min(below, q[a]);
-          above = std::max(above, q[a]);
-        }
-        crosses = below < c && above > c &&
-                  std::lower_bound(planes.begin(), planes.end(), x) - planes.begin() == k;
-      }
+      for (Eigen::Index t = 0; t < nt && !crosses; ++t)
+        crosses = slab_of[t] == k && below[t] < c && above[t] > c;
       if (crosses) p.push_back(c);
     }
     any = any || !p.empty();
@@ -188,17 +199,16 @@ Eigen::VectorXi SlabPieceLabels(const fem::TetMesh& mesh, const std::vector<doub
                                 const std::vector<std::vector<double>>& strip_planes,
                                 std::vector<int>* piece_slab) {
   Eigen::VectorXi slab = fem::SlabBlocks(mesh, 0, planes);
-  piece_slab->clear();
-  if (strip_planes.empty()) return slab;
-  if (strip_planes.size() != planes.size() + 1 || strip_axis < 1 || strip_axis > 2)
+  if (!strip_planes.empty() &&
+      (strip_planes.size() != planes.size() + 1 || strip_axis < 1 || strip_axis > 2))
     throw std::invalid_argument("slab pieces: " + std::to_string(strip_planes.size()) +
                                 " strip lists for " + std::to_string(planes.size() + 1) +
                                 " slabs, or a strip axis other than y or z");
-  std::vector<int> first(strip_planes.size() + 1, 0);
-  for (std::size_t k = 0; k < strip_planes.size(); ++k) {
+  *piece_slab = PieceSlabs(strip_planes);
+  if (strip_planes.empty()) return slab;
+  std::vector<int> first(strip_planes.size() + 1, 0);  // each slab's first piece
+  for (std::size_t k = 0; k < strip_planes.size(); ++k)
     first[k + 1] = first[k] + static_cast<int>(strip_planes[k].size()) + 1;
-    piece_slab->insert(piece_slab->end(), strip_planes[k].size() + 1, static_cast<int>(k));
-  }
   Eigen::VectorXi piece(mesh.num_elements());
   for (int e = 0; e < mesh.num_elements(); ++e) {
     double c = 0.0;
@@ -330,9 +340,7 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
     ChooseStrips(surface, box, spacing, planes, options, &out.strip_axis, &out.strip_planes);
   }
 
-  for (std::size_t k = 0; k < out.strip_planes.size(); ++k)
-    out.piece_slab.insert(out.piece_slab.end(), out.strip_planes[k].size() + 1,
-                          static_cast<int>(k));
+  out.piece_slab = PieceSlabs(out.strip_planes);
 
   auto t = Clock::now();
   modeling::SlabCut cut;
