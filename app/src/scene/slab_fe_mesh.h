@@ -72,8 +72,8 @@ inline constexpr double kStripSlabShare = 1.5;
 // ...when it holds at least this many of them (SlabMeshOptions::strip_min_triangles). Strips add
 // their planes to the interface group of the slab's plane, whose dense factor an edit of a strip
 // then redoes (0.2 s at 5 mm): that pays for a large slab only (the platform at 5 mm, P1: the
-// clamped-end edit 1.5-1.7 s -> 1.25-1.35 s; at 10 mm, P2, 0.03-0.08 s slower;
-// docs/design/2026-12-07-bracket-strips.md).
+// clamped-end edit 1.52-2.18 s -> 1.24-1.61 s; at 10 mm, P2, no gain beyond the run-to-run
+// spread; docs/design/2026-12-07-bracket-strips.md).
 inline constexpr long kStripMinTriangles = 10000;
 
 // How MeshSolidInSlabs meshes, and what it may reuse.
