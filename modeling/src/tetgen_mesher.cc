@@ -1,6 +1,8 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
 #include "spidarcad/modeling/tetgen_mesher.h"
 
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -9,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <new>
 #include <string>
 #include <unordered_map>
@@ -20,6 +23,49 @@
 // TetGen defines REAL and many lowercase macros: this is the only file that includes it.
 #define TETLIBRARY
 #include <tetgen.h>
+
+// TetGen 1.5 writes two sets of globals at the start of every run: the exact predicates'
+// constants and static filters (exactinit, from the run's bounding box) and the tables that walk
+// its mesh (tetgenmesh::inittables). libtet calls both through its PLT, so these definitions,
+// which the executable exports, replace them: the library's own version runs once, with the static
+// filter off (the filter is the one value that depends on the run), and later calls write nothing.
+// Runs on several threads then share read-only globals (TetgenRunsConcurrently checks that the
+// library's calls reach these definitions).
+namespace {
+std::once_flag tetgen_predicates_once, tetgen_tables_once;
+bool tetgen_predicates_ready = false, tetgen_tables_ready = false;
+
+template <class Function>
+Function LibraryTetgen(const char* symbol) {
+  return reinterpret_cast<Function>(dlsym(RTLD_NEXT, symbol));
+}
+}  // namespace
+
+void exactinit(int /*verbose*/, int /*noexact*/, int /*nofilter*/, REAL /*maxx*/, REAL /*maxy*/,
+               REAL /*maxz*/) {
+  std::call_once(tetgen_predicates_once, [] {
+    using ExactInit = void (*)(int, int, int, REAL, REAL, REAL);
+    if (const auto library = LibraryTetgen<ExactInit>("_Z9exactinitiiiddd")) {
+      library(0, 0, 1, 1.0, 1.0, 1.0);  // exact arithmetic, no static filter
+      tetgen_predicates_ready = true;
+    }
+  });
+  // Never uninitialised predicates (they would give wrong signs): a failed run instead.
+  if (!tetgen_predicates_ready)
+    throw spidarcad::modeling::TetgenError(2, "TetGen failed: libtet's exactinit was not found");
+}
+
+void tetgenmesh::inittables() {
+  std::call_once(tetgen_tables_once, [this] {
+    using InitTables = void (*)(tetgenmesh*);
+    if (const auto library = LibraryTetgen<InitTables>("_ZN10tetgenmesh10inittablesEv")) {
+      library(this);
+      tetgen_tables_ready = true;
+    }
+  });
+  if (!tetgen_tables_ready)
+    throw spidarcad::modeling::TetgenError(2, "TetGen failed: libtet's inittables was not found");
+}
 
 namespace spidarcad::modeling {
 
@@ -525,6 +571,21 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
   }
   progress(1.0);
   return mesh;
+}
+
+bool TetgenRunsConcurrently() {
+  // libtet's PLT calls bind to the first definition in the global lookup order: it must be the
+  // one in this object (the executable), not libtet's own (RTLD_NEXT from here).
+  Dl_info own{};
+  if (dladdr(reinterpret_cast<void*>(&TetgenRunsConcurrently), &own) == 0) return false;
+  for (const char* symbol : {"_Z9exactinitiiiddd", "_ZN10tetgenmesh10inittablesEv"}) {
+    void* first = dlsym(RTLD_DEFAULT, symbol);
+    Dl_info found{};
+    if (first == nullptr || first == dlsym(RTLD_NEXT, symbol) || dladdr(first, &found) == 0 ||
+        found.dli_fbase != own.dli_fbase)
+      return false;
+  }
+  return true;
 }
 
 }  // namespace spidarcad::modeling

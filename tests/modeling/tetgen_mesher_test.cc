@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "spidarcad/base/faces_seen_once.h"
@@ -138,6 +139,38 @@ TEST(TetgenMesher, SphereTetsSumToTheEnclosedVolume) {
   // Every surface vertex is a node: each one is at most the weld tolerance from a node.
   for (Eigen::Index i = 0; i < surface.vertices.cols(); ++i) {
     ASSERT_LE((mesh.nodes.colwise() - surface.vertices.col(i)).colwise().norm().minCoeff(), 1e-9);
+  }
+}
+
+TEST(TetgenMesher, RunsOnSeveralThreadsAtOnceAsInTurn) {
+  // libtet's calls to exactinit and tetgenmesh::inittables must reach this program's versions,
+  // which write TetGen's globals once (tetgen_mesher.cc); FE mode's slab mesher runs TetGen on
+  // several threads only then.
+  ASSERT_TRUE(TetgenRunsConcurrently());
+  // Surfaces of very different bounding boxes (TetGen 1.5's own exactinit set its predicates'
+  // static filters from each run's box), meshed in turn, then all at once, four times over.
+  const std::vector<TriangleMesh> surfaces = {
+      SphereSurface(Eigen::Vector3d(0.01, -0.02, 0.03), 0.05, 0.008),
+      SphereSurface(Eigen::Vector3d(2.0, 1.0, -3.0), 0.002, 0.0004),
+      BoxSurface(Eigen::Vector3d(-1.0, -0.5, -0.2), Eigen::Vector3d(1.0, 0.5, 0.2)),
+      Join(BoxSurface(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.01, 0.02, 0.03)),
+           SphereSurface(Eigen::Vector3d(0.1, 0.0, 0.0), 0.02, 0.004))};
+  TetMeshSettings settings;
+  settings.max_radius_edge = 1.5;
+  settings.max_volume = 1e-3;
+  std::vector<TetMesh> in_turn;
+  for (const TriangleMesh& s : surfaces) in_turn.push_back(TetrahedralizeSurface(s, settings));
+  for (int round = 0; round < 4; ++round) {
+    std::vector<TetMesh> at_once(surfaces.size());
+    std::vector<std::thread> threads;
+    for (std::size_t k = 0; k < surfaces.size(); ++k)
+      threads.emplace_back([&, k] { at_once[k] = TetrahedralizeSurface(surfaces[k], settings); });
+    for (std::thread& t : threads) t.join();
+    for (std::size_t k = 0; k < surfaces.size(); ++k) {
+      ASSERT_GT(in_turn[k].tets.cols(), 0);
+      EXPECT_EQ(at_once[k].nodes, in_turn[k].nodes) << "surface " << k << ", round " << round;
+      EXPECT_EQ(at_once[k].tets, in_turn[k].tets) << "surface " << k << ", round " << round;
+    }
   }
 }
 

@@ -2,12 +2,16 @@
 #include "scene/slab_fe_mesh.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <utility>
 
 #include "scene/vtu_io.h"
@@ -361,10 +365,19 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
   out.slab_tets.resize(n);
   out.remeshed.assign(n, 0);
   out.loaded.assign(n, 0);
+  auto cancelled = [&options] {
+    return options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed);
+  };
+  // Each piece from the previous mesh (same surface), from the cache directory, or else from
+  // TetGen (`todo`, in piece order).
+  std::vector<std::size_t> todo;
+  std::vector<std::uint64_t> keys(n, 0);
+  auto file_of = [&](std::size_t k) {
+    return cache_directory.empty() ? std::filesystem::path()
+                                   : cache_directory / (fem::HexKey(keys[k]) + ".slab");
+  };
   for (std::size_t k = 0; k < n; ++k) {
-    report(0.35 + 0.6 * static_cast<double>(k) / static_cast<double>(n));
-    if (options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed))
-      throw modeling::TetMeshingCancelled();
+    if (cancelled()) throw modeling::TetMeshingCancelled();
     const modeling::TriangleMesh& s = out.slab_surfaces[k];
     if (previous != nullptr && k < previous->slab_surfaces.size() &&
         modeling::SurfaceHash(s) == modeling::SurfaceHash(previous->slab_surfaces[k]) &&
@@ -372,16 +385,14 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
       out.slab_tets[k] = previous->slab_tets[k];
       continue;
     }
-    const std::uint64_t key = SlabKey(s, max_radius_edge);
-    const std::filesystem::path file = cache_directory.empty()
-                                           ? std::filesystem::path()
-                                           : cache_directory / (fem::HexKey(key) + ".slab");
+    keys[k] = SlabKey(s, max_radius_edge);
+    const std::filesystem::path file = file_of(k);
     if (!file.empty()) {
       t = Clock::now();
       std::string why;
       std::optional<modeling::TetMesh> tets;
       if (auto body = fem::MapCacheFile(file, kSlabFileMagic, &why)) {
-        tets = DeserializeSlab(*body, key, max_radius_edge, s, &why);
+        tets = DeserializeSlab(*body, keys[k], max_radius_edge, s, &why);
         if (!tets) why = file.string() + ": " + why;
       }
       out.cache_read_seconds += Seconds(t);
@@ -393,18 +404,62 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
       if (why != "absent")
         out.cache_notes.push_back("slab " + std::to_string(k) + ": refused " + why);
     }
-    t = Clock::now();
-    out.slab_tets[k] = modeling::TetrahedralizeSlab(s, ts);
-    out.tetgen_seconds += Seconds(t);
-    out.remeshed[k] = 1;
-    if (!file.empty()) {
-      t = Clock::now();
-      std::string error;
-      if (!fem::WriteCacheFile(file, kSlabFileMagic,
-                               SerializeSlab(key, max_radius_edge, s, out.slab_tets[k]), &error))
-        out.cache_notes.push_back("slab " + std::to_string(k) + ": not saved: " + error);
-      out.cache_write_seconds += Seconds(t);
+    todo.push_back(k);
+  }
+  report(0.35 + 0.6 * static_cast<double>(n - todo.size()) / static_cast<double>(n));
+
+  // TetGen on the pieces left, on as many threads as there are cores (this one among them) when
+  // libtet's globals are written once (modeling::TetgenRunsConcurrently), else in turn. The first
+  // failure in piece order is thrown once every thread has stopped; a failure or a cancel stops
+  // the others from taking another piece.
+  t = Clock::now();
+  {
+    std::vector<std::exception_ptr> errors(todo.size());
+    std::atomic<std::size_t> next{0}, done{n - todo.size()};
+    std::atomic<bool> stop{false};
+    auto work = [&](bool reports) {
+      for (std::size_t i; !stop.load() && (i = next.fetch_add(1)) < todo.size();) {
+        try {
+          if (cancelled()) throw modeling::TetMeshingCancelled();
+          out.slab_tets[todo[i]] = modeling::TetrahedralizeSlab(out.slab_surfaces[todo[i]], ts);
+        } catch (...) {
+          errors[i] = std::current_exception();
+          stop.store(true);
+        }
+        const std::size_t finished = done.fetch_add(1) + 1;
+        if (reports) report(0.35 + 0.6 * static_cast<double>(finished) / static_cast<double>(n));
+      }
+    };
+    const std::size_t threads_wanted =
+        modeling::TetgenRunsConcurrently()
+            ? std::min<std::size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency()))
+            : 1;
+    std::vector<std::thread> helpers;
+    for (std::size_t h = 1; h < threads_wanted; ++h) {
+      try {
+        helpers.emplace_back(work, false);
+      } catch (const std::system_error&) {
+        break;  // fewer threads: this one does the rest
+      }
     }
+    work(true);
+    for (std::thread& helper : helpers) helper.join();
+    for (const std::exception_ptr& error : errors)
+      if (error) std::rethrow_exception(error);
+  }
+  out.tetgen_seconds += Seconds(t);
+  for (const std::size_t k : todo) {
+    out.remeshed[k] = 1;
+    const std::filesystem::path file = file_of(k);
+    if (file.empty()) continue;
+    t = Clock::now();
+    std::string error;
+    if (!fem::WriteCacheFile(
+            file, kSlabFileMagic,
+            SerializeSlab(keys[k], max_radius_edge, out.slab_surfaces[k], out.slab_tets[k]),
+            &error))
+      out.cache_notes.push_back("slab " + std::to_string(k) + ": not saved: " + error);
+    out.cache_write_seconds += Seconds(t);
   }
 
   t = Clock::now();
