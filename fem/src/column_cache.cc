@@ -182,9 +182,12 @@ void ColumnCache::WorkerLoop() {
   param.sched_priority = 0;
   pthread_setschedparam(pthread_self(), SCHED_OTHER, &param);
   while (!stop_.load()) {
-    const bool worked = WorkStep();
-    MakeNeighbours();  // after the first block (no-op once made)
-    if (worked) continue;
+    if (WorkStep()) {
+      // After the first block of columns (a no-op once made): not before it, as a worker
+      // started before its first focus would otherwise make them while the focus arrives.
+      MakeNeighbours();
+      continue;
+    }
     std::unique_lock<std::mutex> lock(wake_mutex_);
     wake_.wait_for(lock, std::chrono::duration<double>(settings_.idle_poll_seconds),
                    [this] { return stop_.load(); });
