@@ -60,7 +60,8 @@ struct SlabFeMesh {
   // piece's file was refused or not written (each line names the piece and the file).
   double cache_read_seconds = 0.0, cache_write_seconds = 0.0;
   std::vector<std::string> cache_notes;
-  // Wall time (s) of the surface, the cut, TetGen (summed over re-meshed pieces) and the join.
+  // Wall time (s) of the surface, the cut, TetGen (the re-meshed pieces, on as many threads as
+  // there are cores when modeling::TetgenRunsConcurrently) and the join.
   double surface_seconds = 0.0, cut_seconds = 0.0, tetgen_seconds = 0.0, join_seconds = 0.0;
   // Number of pieces TetGen ran for.
   int num_remeshed() const;
