@@ -7,11 +7,14 @@
 
 #include <cstdint>
 #include <cstring>
+#include <mutex>
 #include <string>
 
 extern "C" {
 char* openblas_get_corename(void);
 char* openblas_get_config(void);
+int openblas_get_num_threads(void);
+void openblas_set_num_threads(int);
 
 // The symbol fem's link options name (--undefined), so that every program linked with
 // spidarcad::fem takes this file, and with it the getenv below, from the static library.
@@ -75,6 +78,25 @@ std::string BlasKernelDescription() {
     line += " (chosen by OpenBLAS)";
   }
   return line;
+}
+
+namespace {
+std::mutex single_threaded_mutex;
+int single_threaded_users = 0;
+int threads_before = 1;
+}  // namespace
+
+SingleThreadedBlas::SingleThreadedBlas() {
+  const std::lock_guard<std::mutex> lock(single_threaded_mutex);
+  if (single_threaded_users++ == 0) {
+    threads_before = openblas_get_num_threads();
+    openblas_set_num_threads(1);
+  }
+}
+
+SingleThreadedBlas::~SingleThreadedBlas() {
+  const std::lock_guard<std::mutex> lock(single_threaded_mutex);
+  if (--single_threaded_users == 0) openblas_set_num_threads(threads_before);
 }
 
 }  // namespace spidarcad::fem

@@ -25,6 +25,7 @@
 #include <utility>
 
 #include "solve_checks.h"
+#include "spidarcad/fem/blas_kernels.h"
 #include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/precompute_cache.h"
 
@@ -258,9 +259,16 @@ std::vector<int> InteriorNodeOrder(const std::vector<int>& interior,
   graph.packed = 1;
   std::vector<int> node_perm(m);
   Common common;
-  if (!cholmod_metis(&graph, nullptr, 0, 1, node_perm.data(), &common.c) &&
-      !cholmod_amd(&graph, nullptr, 0, node_perm.data(), &common.c))
-    throw std::runtime_error("substructure: no fill-reducing order of a block's nodes");
+  {
+    // METIS 5.1 draws from one random generator for the whole process, seeded at the start of
+    // each call: two calls at once (blocks factored on two threads) would draw from each other's
+    // sequence, and the orders, the factors and the solves would no longer be the same each run.
+    static std::mutex metis_mutex;
+    const std::lock_guard<std::mutex> lock(metis_mutex);
+    if (!cholmod_metis(&graph, nullptr, 0, 1, node_perm.data(), &common.c) &&
+        !cholmod_amd(&graph, nullptr, 0, node_perm.data(), &common.c))
+      throw std::runtime_error("substructure: no fill-reducing order of a block's nodes");
+  }
   for (int w : node_perm)
     for (int c = 0; c < count[w]; ++c) order.push_back(start[w] + c);
   return order;
@@ -974,6 +982,11 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
                                          const std::atomic<bool>* cancel,
                                          const std::vector<int>& block_place)
     : bcs_(bcs), interface_(std::make_unique<Interface>()) {
+  // Every BLAS call of the set-up on its caller's thread: the blocks are factored one per core
+  // (step 3), and the interface's dense factor took up to 1.3 s instead of 0.1 s with OpenBLAS's
+  // two threads as soon as another thread wanted a core
+  // (docs/design/2026-12-07-edit-critical-path.md).
+  const SingleThreadedBlas single_threaded;
   auto check_cancel = [cancel] {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw SubstructureCancelled();
   };
@@ -1142,16 +1155,51 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
     }
   }
 
-  // 3. The rest factored here (CHOLMOD and BLAS use the cores), each written to the cache
-  // directory by the writer's thread while the next is factored.
+  // 3. The rest factored here, one block per core at a time, each with single-threaded BLAS
+  // (OpenBLAS's threads under CHOLMOD's supernodes on a 2-core machine spent much of their time
+  // waiting for each other, and several times as long as soon as another thread wanted a core).
+  // The first failure in block order is thrown once every thread has stopped. Then each is
+  // written to the cache directory by the writer's thread.
+  {
+    std::vector<int> todo;
+    for (int b = 0; b < nb; ++b)
+      if (!found[b]) todo.push_back(b);
+    std::vector<std::exception_ptr> errors(todo.size());
+    std::atomic<std::size_t> next{0};
+    std::atomic<bool> stop{false};
+    auto factor = [&] {
+      for (std::size_t i; !stop.load() && (i = next.fetch_add(1)) < todo.size();) {
+        try {
+          check_cancel();
+          contents[todo[i]]->Factor();
+        } catch (...) {
+          errors[i] = std::current_exception();
+          stop.store(true);
+        }
+      }
+    };
+    const std::size_t helpers =
+        std::min<std::size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency())) -
+        (todo.empty() ? 0 : 1);
+    std::vector<std::thread> threads;
+    for (std::size_t t = 0; t < helpers; ++t) {
+      try {
+        threads.emplace_back(factor);
+      } catch (const std::system_error&) {
+        break;  // fewer threads: this one does the rest
+      }
+    }
+    factor();
+    for (std::thread& t : threads) t.join();
+    for (const std::exception_ptr& error : errors)
+      if (error) std::rethrow_exception(error);
+  }
   for (int b = 0; b < nb; ++b) {
     Block& block = blocks_[b];
     if (found[b]) {
       block.factor = found[b];
     } else {
-      check_cancel();
       BlockFactor& content = *contents[b];
-      content.Factor();
       block.factor = contents[b];
       ++stats_.factored_blocks;
       stats_.block_assembly_seconds += content.assembly_seconds;

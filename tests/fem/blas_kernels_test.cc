@@ -11,8 +11,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 
 extern "C" char* openblas_get_corename(void);
+extern "C" int openblas_get_num_threads(void);
+extern "C" void openblas_set_num_threads(int);
 
 namespace spidarcad::fem {
 namespace {
@@ -82,6 +85,30 @@ TEST(BlasKernels, GetenvAnswersEveryNameAsTheEnvironmentHoldsIt) {
   if (was_set) {
     ASSERT_EQ(setenv("OPENBLAS_CORETYPE", saved.c_str(), 1), 0);
   }
+}
+
+// While any SingleThreadedBlas lives (nested, or on several threads at once), OpenBLAS runs one
+// thread; the count it had before comes back when the last one ends.
+TEST(SingleThreadedBlas, OneThreadWhileAnyLivesThenTheCountItHad) {
+  const int before = openblas_get_num_threads();
+  openblas_set_num_threads(2);
+  {
+    const SingleThreadedBlas outer;
+    EXPECT_EQ(openblas_get_num_threads(), 1);
+    {
+      const SingleThreadedBlas inner;
+      EXPECT_EQ(openblas_get_num_threads(), 1);
+    }
+    EXPECT_EQ(openblas_get_num_threads(), 1);
+    std::thread other([] {
+      const SingleThreadedBlas on_another_thread;
+      EXPECT_EQ(openblas_get_num_threads(), 1);
+    });
+    other.join();
+    EXPECT_EQ(openblas_get_num_threads(), 1);
+  }
+  EXPECT_EQ(openblas_get_num_threads(), 2);
+  openblas_set_num_threads(before);
 }
 
 }  // namespace

@@ -31,4 +31,18 @@ const char* CpuBlasCoreType();
 // or "OpenBLAS 0.3.21, Haswell kernels (OPENBLAS_CORETYPE=Haswell)".
 std::string BlasKernelDescription();
 
+// While an object of this class lives, OpenBLAS runs each call on its caller's thread
+// (openblas_set_num_threads(1)); the count it had comes back when the last such object in the
+// process ends. For work that runs BLAS-heavy tasks on threads of its own, one per core: OpenBLAS's
+// own threads then neither wait for each other's callers nor spin (sched_yield, up to 0.1 s after
+// each call) on a core another task needs. Calls made meanwhile on other threads run
+// single-threaded too. Thread-safe; nests.
+class SingleThreadedBlas {
+ public:
+  SingleThreadedBlas();
+  ~SingleThreadedBlas();
+  SingleThreadedBlas(const SingleThreadedBlas&) = delete;
+  SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
+};
+
 }  // namespace spidarcad::fem
