@@ -25,6 +25,7 @@
 #include <utility>
 
 #include "solve_checks.h"
+#include "spidarcad/base/every_core.h"
 #include "spidarcad/fem/blas_kernels.h"
 #include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/precompute_cache.h"
@@ -1130,19 +1131,7 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
         blocks_[b].stats.load_seconds = Seconds(t_read);
       }
     };
-    const std::size_t helpers =
-        std::min<std::size_t>(wanted.size(), std::max(1u, std::thread::hardware_concurrency())) -
-        (wanted.empty() ? 0 : 1);
-    std::vector<std::thread> threads;
-    for (std::size_t t = 0; t < helpers; ++t) {
-      try {
-        threads.emplace_back(load);
-      } catch (const std::system_error&) {
-        break;  // fewer threads: this one does the rest
-      }
-    }
-    load();
-    for (std::thread& t : threads) t.join();
+    base::RunOnEveryCore(wanted.size(), load);
     for (int b : wanted) {
       Block& block = blocks_[b];
       block.stats.loaded = found[b] != nullptr;
@@ -1178,19 +1167,7 @@ SubstructuredSolver::SubstructuredSolver(const TetMesh& mesh, const MaterialTabl
         }
       }
     };
-    const std::size_t helpers =
-        std::min<std::size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency())) -
-        (todo.empty() ? 0 : 1);
-    std::vector<std::thread> threads;
-    for (std::size_t t = 0; t < helpers; ++t) {
-      try {
-        threads.emplace_back(factor);
-      } catch (const std::system_error&) {
-        break;  // fewer threads: this one does the rest
-      }
-    }
-    factor();
-    for (std::thread& t : threads) t.join();
+    base::RunOnEveryCore(todo.size(), factor);
     for (const std::exception_ptr& error : errors)
       if (error) std::rethrow_exception(error);
   }

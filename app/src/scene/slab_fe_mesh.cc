@@ -10,11 +10,11 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <system_error>
 #include <thread>
 #include <utility>
 
 #include "scene/vtu_io.h"
+#include "spidarcad/base/every_core.h"
 #include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/substructure.h"
@@ -430,20 +430,12 @@ SlabFeMesh MeshSurfaceInSlabs(const modeling::TriangleMesh& surface, const Eigen
         if (reports) report(0.35 + 0.6 * static_cast<double>(finished) / static_cast<double>(n));
       }
     };
-    const std::size_t threads_wanted =
-        modeling::TetgenRunsConcurrently()
-            ? std::min<std::size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency()))
-            : 1;
-    std::vector<std::thread> helpers;
-    for (std::size_t h = 1; h < threads_wanted; ++h) {
-      try {
-        helpers.emplace_back(work, false);
-      } catch (const std::system_error&) {
-        break;  // fewer threads: this one does the rest
-      }
+    if (modeling::TetgenRunsConcurrently()) {
+      const std::thread::id caller = std::this_thread::get_id();
+      base::RunOnEveryCore(todo.size(), [&] { work(std::this_thread::get_id() == caller); });
+    } else {
+      work(true);
     }
-    work(true);
-    for (std::thread& helper : helpers) helper.join();
     for (const std::exception_ptr& error : errors)
       if (error) std::rethrow_exception(error);
   }
