@@ -2,7 +2,6 @@
 #include "spidarcad/fem/substructure.h"
 
 #include <cholmod.h>
-#include <sys/mman.h>
 
 #include <algorithm>
 #include <array>
@@ -10,7 +9,6 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <cstdint>
 #include <cstring>
 #include <exception>
 #include <functional>
@@ -103,8 +101,7 @@ struct OwnedFactor {
 // straight from mmap (and malloc followed by a fill may be compiled into calloc, which skips the
 // fill): a first read maps the shared zero page, and the write after it replaces the page and
 // flushes every core's TLB, an interprocessor interrupt per 4 KiB page (the interface's group of
-// 2,100 dofs: 35 MB, 0.1 s on a 2-core VM). Large ones are also asked for transparent huge pages
-// (512 times fewer faults where the system allows them on request).
+// 2,100 dofs: 35 MB, 0.1 s on a 2-core VM).
 Eigen::MatrixXd WrittenZero(Eigen::Index rows, Eigen::Index cols) {
   Eigen::MatrixXd m(rows, cols);
   // The compiler may not merge the allocation and the fill below into calloc across this.
@@ -401,7 +398,8 @@ struct SubstructuredSolver::BlockFactor {
       max_gg = std::max(max_gg, std::abs(k.coeff(interface[g], interface[g])));
     *sigma = kInterfaceShift * max_gg;
 
-    // ||K^b_ff||_F² (and K^b_ΓΓ without interior dofs), over k in its own order.
+    std::vector<Eigen::Triplet<double, int>> ta, tig;
+    ta.reserve(static_cast<size_t>(k.nonZeros() / 2 + nd));
     ff_norm2 = 0.0;
     *kgg = Eigen::MatrixXd::Zero(ni_ == 0 ? ng_ : 0, ni_ == 0 ? ng_ : 0);
     for (int c = 0; c < k.outerSize(); ++c) {
@@ -411,76 +409,20 @@ struct SubstructuredSolver::BlockFactor {
         const int ar = a_index[it.row()];
         if (ar < 0) continue;
         ff_norm2 += it.value() * it.value();
+        if (ar >= ac) ta.emplace_back(ar, ac, it.value());
+        if (ar < ni_ && ac >= ni_) tig.emplace_back(ar, ac - ni_, it.value());
         if (ni_ == 0) (*kgg)(ar, ac) = it.value();
       }
     }
-    // A's lower triangle and K^b_IΓ, written straight into their compressed columns. Column ac of
-    // A comes from column c of k: its rows r map to A rows ascending within each class (interior,
-    // interface), so the interior rows, then the interface rows, come out sorted. An interface
-    // column's diagonal gets σ (added after k's entry, or alone when k has none).
-    const int na = ni_ + ng_;
-    std::vector<int> a_dof(na);
-    for (int i = 0; i < ni_; ++i) a_dof[i] = interior[i];
-    for (int g = 0; g < ng_; ++g) a_dof[ni_ + g] = interface[g];
-    auto for_column = [&](int ac, auto&& emit) {
-      const int c = a_dof[ac];
-      const bool own_diagonal = ac >= ni_;
-      bool diagonal_done = !own_diagonal;
-      for (int pass = ac < ni_ ? 0 : 1; pass < 2; ++pass) {
-        for (SparseMatrixd::InnerIterator it(k, c); it; ++it) {
-          const int ar = a_index[it.row()];
-          if (ar < ac || (pass == 0) != (ar < ni_)) continue;
-          if (ar == ac && own_diagonal) {
-            emit(ar, it.value() + *sigma);
-            diagonal_done = true;
-          } else {
-            if (!diagonal_done) {
-              emit(ac, *sigma);
-              diagonal_done = true;
-            }
-            emit(ar, it.value());
-          }
-        }
-      }
-      if (!diagonal_done) emit(ac, *sigma);
-    };
     k_ig.resize(ni_, ng_);
-    {
-      std::vector<int> counts(ng_ + 1, 0);
-      for (int g = 0; g < ng_; ++g)
-        for (SparseMatrixd::InnerIterator it(k, interface[g]); it; ++it) {
-          const int ar = a_index[it.row()];
-          if (ar >= 0 && ar < ni_) ++counts[g + 1];
-        }
-      for (int g = 0; g < ng_; ++g) counts[g + 1] += counts[g];
-      k_ig.resizeNonZeros(counts[ng_]);
-      std::copy(counts.begin(), counts.end(), k_ig.outerIndexPtr());
-      int p = 0;
-      for (int g = 0; g < ng_; ++g)
-        for (SparseMatrixd::InnerIterator it(k, interface[g]); it; ++it) {
-          const int ar = a_index[it.row()];
-          if (ar < 0 || ar >= ni_) continue;
-          k_ig.innerIndexPtr()[p] = ar;
-          k_ig.valuePtr()[p++] = it.value();
-        }
-    }
+    k_ig.setFromTriplets(tig.begin(), tig.end());
+    k_ig.makeCompressed();
     SparseMatrixd a;
     if (ni_ == 0) return a;
-    a.resize(na, na);
-    std::vector<int> counts(na + 1, 0);
-    for (int ac = 0; ac < na; ++ac) {
-      int count = 0;
-      for_column(ac, [&count](int, double) { ++count; });
-      counts[ac + 1] = counts[ac] + count;
-    }
-    a.resizeNonZeros(counts[na]);
-    std::copy(counts.begin(), counts.end(), a.outerIndexPtr());
-    int p = 0;
-    for (int ac = 0; ac < na; ++ac)
-      for_column(ac, [&](int ar, double v) {
-        a.innerIndexPtr()[p] = ar;
-        a.valuePtr()[p++] = v;
-      });
+    for (int g = 0; g < ng_; ++g) ta.emplace_back(ni_ + g, ni_ + g, *sigma);
+    a.resize(ni_ + ng_, ni_ + ng_);
+    a.setFromTriplets(ta.begin(), ta.end());
+    a.makeCompressed();
     return a;
   }
 
