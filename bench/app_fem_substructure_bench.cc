@@ -7,7 +7,9 @@
 // Arguments: order, cell (um), slabs, lattice (1: every surface by the lattice route, the case
 // named "..., lattice"), flat fans coarsened, in hundredths of a cell (0: not; 50: the
 // marching-tetrahedra surfaces with SurfaceMeshSettings::flat_coarsen_cells = 0.5, the case
-// named "..., flat 0.5"; docs/design/2026-12-06-flat-faces.md).
+// named "..., flat 0.5"; docs/design/2026-12-06-flat-faces.md). The cases named "..._fe_mode"
+// mesh as FE mode meshes a solid: surfaces snapped (modeling::kProductSnapCells), the bracket
+// slab in three strips (app::kFeStrips).
 // Run: build/bench/app_fem_substructure_bench   (P2 at 10 mm, P1 at 6 mm, P1 at 5 mm: 105k tets)
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2
 //      build/bench/app_fem_substructure_bench --benchmark_filter=P2_10mm/2/10000/4/1
@@ -21,6 +23,8 @@
 #include "bench_cli.h"
 #include "bench_paths.h"
 #include "cli/edit_to_force.h"
+#include "scene/fe_setup.h"
+#include "spidarcad/modeling/surface_mesher.h"
 
 namespace spidarcad {
 namespace {
@@ -35,20 +39,30 @@ std::vector<app::EditToForceCase>& Cases() {
   return rows;
 }
 
-void BM_EditToForce(benchmark::State& state) {
+// `fe_mode`: the surfaces snapped and the bracket slab in strips, as FE mode meshes a solid.
+void EditToForce(benchmark::State& state, bool fe_mode) {
   const int order = static_cast<int>(state.range(0)), res_um = static_cast<int>(state.range(1));
   const int num_slabs = static_cast<int>(state.range(2));
   const bool lattice = state.range(3) != 0;  // the lattice route's surfaces
-  const double flat_cells = state.range(4) * 0.01;
+  app::EditToForceMeshing meshing;
+  meshing.lattice = lattice;
+  meshing.flat_cells = state.range(4) * 0.01;
+  if (fe_mode) {
+    meshing.strips = app::kFeStrips;
+    meshing.snap_cells = modeling::kProductSnapCells;
+  }
   app::EditToForceCase row;
   for (auto _ : state)
-    row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs, 4, lattice,
-                                  flat_cells);
+    row = app::MeasureEditToForce(ScenePath(), order, res_um * 1e-6, num_slabs, 4, meshing);
   state.counters["interface_dofs"] = row.interface;
   state.counters["full_s"] = row.full_wall();
   state.counters["edit1_s"] = row.edits.empty() ? 0.0 : row.edits.front().total_wall;
   Cases().push_back(row);
 }
+void BM_EditToForce(benchmark::State& state) { EditToForce(state, false); }
+// As FE mode meshes a solid: snapped surfaces, the bracket slab in strips ("..., 3 strips, snap
+// 0.2").
+void BM_EditToForceAsFeMode(benchmark::State& state) { EditToForce(state, true); }
 
 void PrintTables() {
   bench::PrintLoadAverage();
@@ -88,6 +102,11 @@ BENCHMARK(BM_EditToForce)
     ->Args({1, 5000, 4, 1, 0})
     ->Args({1, 5000, 6, 0, 0})
     ->Args({1, 5000, 6, 1, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
+BENCHMARK(BM_EditToForceAsFeMode)
+    ->Name("P1_5mm_fe_mode")
+    ->Args({1, 5000, 4, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

@@ -182,16 +182,24 @@ std::string Format(const char* format, Args... args) {
 }  // namespace
 
 EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, double cell,
-                                   int num_slabs, int num_edits, bool lattice, double flat_cells) {
+                                   int num_slabs, int num_edits,
+                                   const EditToForceMeshing& meshing) {
+  const bool lattice = meshing.lattice;
+  const double flat_cells = meshing.flat_cells, snap_cells = meshing.snap_cells;
+  const int strips = meshing.strips;
   EditToForceCase row;
   row.name =
       Format("P%d %g mm, %d slabs%s", order, cell * 1000.0, num_slabs, lattice ? ", lattice" : "");
+  if (strips > 1) row.name += Format(", %d strips", strips);
+  if (snap_cells > 0.0) row.name += Format(", snap %g", snap_cells);
   if (flat_cells > 0.0) row.name += Format(", flat %g", flat_cells);
   row.order = order;
   row.cell = cell;
   row.num_slabs = num_slabs;
   row.lattice = lattice;
   row.flat_cells = flat_cells;
+  row.strips = strips;
+  row.snap_cells = snap_cells;
   const SceneSolidGrid base = PrepareSceneSolid(scene_path, "platform", cell);
   const fem::MaterialTable steel(kSteel);
   // Today: the whole part meshed in one piece, factored, the patch's columns.
@@ -201,6 +209,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     ss.bounds = base.bounds;
     ss.cell_size = cell;
     ss.flat_coarsen_cells = flat_cells;
+    ss.snap_cells = snap_cells;
     if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
     const modeling::TriangleMesh surface = modeling::MeshSurface(base.compiled, ss);
     modeling::TetMeshSettings ts;
@@ -226,11 +235,14 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
   SlabMeshOptions fresh_options;
   fresh_options.lattice = lattice;
   fresh_options.flat_coarsen_cells = flat_cells;
+  fresh_options.strips = strips;
+  fresh_options.snap_cells = snap_cells;
   const std::vector<double> planes = SlabPlanes(grid, cell, num_slabs, fresh_options);
   Timer tf;
   const SlabFeMesh slab_mesh = MeshSolidInSlabs(base.compiled, grid, cell, planes, fresh_options);
   const fem::TetMesh mesh0 = order == 2 ? fem::MakeQuadratic(slab_mesh.mesh) : slab_mesh.mesh;
-  const fem::SubstructuredSolver fresh(mesh0, steel, Conditions(mesh0), slab_mesh.slab);
+  const fem::SubstructuredSolver fresh(mesh0, steel, Conditions(mesh0), slab_mesh.slab, nullptr, {},
+                                       nullptr, slab_mesh.piece_slab);
   row.slab_fresh_wall = tf.Wall();
   row.slab_fresh_cpu = tf.Cpu();
   row.free = fresh.num_free();
@@ -254,25 +266,34 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     TickProbe probe(&cache0, patch0);
     probe.Start();
     e.edit = edit.name;
-    e.slabs = static_cast<int>(planes.size()) + 1;
+    e.slabs = static_cast<int>(slab_mesh.slab_tets.size());  // slabs, or pieces with strips
     Timer t;
     const SceneSolidGrid changed = PrepareSceneSolid(edit.path, "platform", cell);
     SlabMeshOptions reuse;
     reuse.previous = &slab_mesh;
     reuse.lattice = lattice;
     reuse.flat_coarsen_cells = flat_cells;
+    reuse.strips = strips;
+    reuse.snap_cells = snap_cells;
     const SlabFeMesh m = MeshSolidInSlabs(changed.compiled, grid, cell, planes, reuse);
     const fem::TetMesh mesh1 = order == 2 ? fem::MakeQuadratic(m.mesh) : m.mesh;
     const fem::BoundaryConditions bcs1 = Conditions(mesh1);
     Timer ts;
-    const fem::SubstructuredSolver after(mesh1, steel, bcs1, m.slab, &fresh);
+    const fem::SubstructuredSolver after(mesh1, steel, bcs1, m.slab, &fresh, {}, nullptr,
+                                         m.piece_slab);
     e.blocks = after.stats().block_assembly_seconds + after.stats().block_factor_seconds +
                after.stats().block_schur_seconds;
     e.interface = after.stats().interface_seconds;
     const std::vector<int> patch = Patch(mesh1, bcs1);
     Timer tp;
     Eigen::MatrixXd x;
-    after.SolveFreeInBlocks(PatchRhs(after, patch), {e.slabs - 1}, &x);
+    std::vector<int> patch_blocks;  // the blocks of the patch's nodes (the last slab's)
+    for (int v : patch) {
+      const int b = after.BlockOfNode(v);
+      if (b >= 0 && std::find(patch_blocks.begin(), patch_blocks.end(), b) == patch_blocks.end())
+        patch_blocks.push_back(b);
+    }
+    after.SolveFreeInBlocks(PatchRhs(after, patch), patch_blocks, &x);
     const Eigen::MatrixXd g = PatchBlock(after, patch, x);
     e.patch = tp.Wall();
     e.total_wall = t.Wall();

@@ -44,14 +44,16 @@ struct EditToForceRow {
 
 // One case (element order, cell, slabs) with its full recompute and its edits.
 struct EditToForceCase {
-  // e.g. "P2 10 mm, 4 slabs" (", lattice" with the lattice surface, ", flat 0.5" with flat fans
-  // coarsened)
+  // e.g. "P2 10 mm, 4 slabs" (", lattice" with the lattice surface, ", 3 strips", ", snap 0.2"
+  // with snapped surfaces, ", flat 0.5" with flat fans coarsened)
   std::string name;
   int order = 1;    // element order
   double cell = 0;  // cell size, m
   int num_slabs = 0;
   bool lattice = false;         // every surface by the lattice route
   double flat_cells = 0.0;      // SurfaceMeshSettings::flat_coarsen_cells of every surface
+  int strips = 0;               // SlabMeshOptions::strips (0: none)
+  double snap_cells = 0.0;      // SurfaceMeshSettings::snap_cells of every surface
   int free = 0, interface = 0;  // free dofs, interface dofs of the fresh slab model
   double full_mesh = 0, full_factor = 0, full_patch = 0, full_cpu = 0;  // today's recompute, s
   double slab_fresh_wall = 0, slab_fresh_cpu = 0;  // every slab meshed and factored, s
@@ -67,15 +69,24 @@ struct EditToForceCase {
   double full_wall() const { return full_mesh + full_factor + full_patch; }
 };
 
+// How a case meshes: the surface route and the pieces.
+struct EditToForceMeshing {
+  bool lattice = false;     // every surface by the lattice route (SlabMeshOptions::lattice)
+  double flat_cells = 0.0;  // > 0: flat fans coarsened (SurfaceMeshSettings::flat_coarsen_cells)
+  // > 1: a large slab cut into this many strips, each a block of the solver, as FE mode cuts the
+  // platform's bracket slab (SlabMeshOptions::strips, kFeStrips)
+  int strips = 0;
+  // SurfaceMeshSettings::snap_cells of every marching-tetrahedra surface (FE mode:
+  // modeling::kProductSnapCells)
+  double snap_cells = 0.0;
+};
+
 // Measures one case on the scene at `scene_path` (the platform): element order 1 or 2, cell
-// size (m), number of slabs, the first `num_edits` edits of the list above (1..4); with
-// `lattice`, every surface (the full recompute's and the slabs') by the lattice route
-// (SlabMeshOptions::lattice) instead of marching tetrahedra; with `flat_cells` > 0, the marching
-// tetrahedra surfaces with their flat fans coarsened (SurfaceMeshSettings::flat_coarsen_cells).
-// Throws what meshing and loading throw.
+// size (m), number of slabs, the first `num_edits` edits of the list above (1..4), every surface
+// (the full recompute's and the slabs') meshed as `meshing` says. Throws what meshing and
+// loading throw.
 EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, double cell, int slabs,
-                                   int num_edits = 4, bool lattice = false,
-                                   double flat_cells = 0.0);
+                                   int num_edits = 4, const EditToForceMeshing& meshing = {});
 
 // The markdown tables of `cases` (cases, edits, the tick during the update, mesh quality).
 std::string EditToForceTables(const std::vector<EditToForceCase>& cases);
