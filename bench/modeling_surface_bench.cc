@@ -237,6 +237,21 @@ BENCHMARK(BM_LatticeSpeed)
     ->ArgsProduct({{2}, {20, 40}})
     ->Unit(benchmark::kMillisecond);
 
+// MeshSharpSurface's volume test (EstimateSolidVolume, kSharpVolumePoints Halton points over the
+// case's bounds), which every sharpened surface of the product pays once: case state.range(0).
+// Counter: the estimate, cm³.
+void BM_SolidVolumeEstimate(benchmark::State& state) {
+  const Case& c = Cases().at(static_cast<size_t>(state.range(0)));
+  double volume = 0.0;
+  for (auto _ : state) {
+    volume = EstimateSolidVolume(c.solid, c.bounds, kSharpVolumePoints);
+    benchmark::DoNotOptimize(volume);
+  }
+  state.SetLabel(c.name);
+  state.counters["volume_cm3"] = volume * 1e6;
+}
+BENCHMARK(BM_SolidVolumeEstimate)->DenseRange(0, 4)->Unit(benchmark::kMillisecond);
+
 // What keeps sharpened creases under 10°: MeshSurface (snap_cells = state.range(2) / 100) then
 // SharpenFeatures with min_angle_deg = state.range(3), relax_angle_deg = state.range(4) and
 // sliver_angle_deg = state.range(5) (the sliver repair, step 4b), on case state.range(0) at cell

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <utility>
@@ -284,6 +285,8 @@ TEST(MeshImport, BadFilesNameTheFileLineAndFieldThroughReadMeshFile) {
 
   // A .node that is not there is named, not its .ele; a .ele that is not there is named next.
   const std::string missing = OutputPath("missing");
+  std::filesystem::remove(missing + ".node");  // written below by an earlier run
+  std::filesystem::remove(missing + ".ele");
   what = FileErrorOf(missing + ".node");
   EXPECT_NE(what.find(missing + ".node: cannot open the file"), std::string::npos) << what;
   std::ofstream(missing + ".node") << "4 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n";

@@ -647,13 +647,31 @@ void RunMesh(const MeshOptions& o) {
   settings.progress = progress.Stage("surface");
   SurfaceMeshStats stats;
   TriangleMesh surface;
+  FeatureSettings features;
+  features.cell_size = cell;
+  features.cancel = &g_interrupted;
+  features.sliver_angle_deg = o.sliver_angle;
+  features.sliver_fallback_deviation_cells = kProductSliverFallbackCells;
+  // The lattice leaves no vertex near a box corner to move onto it: insert one there.
+  features.insert_corners = lattice;
+  FeatureStats feature_stats;
+  SharpSurface sharp;  // with --sharp
   try {
     const SurfaceMeshEstimate estimate = EstimateSurfaceMesh(compiled, settings);
     progress.Note("estimate: " + estimate.Describe());
     CheckBudget(estimate.grid_cells, o.max_cells, "grid cells", "--max-cells", estimate, "");
     CheckBudget(estimate.bytes, o.max_memory, "memory", "--max-memory", estimate, " bytes");
     CheckBudget(estimate.work, o.max_work, "work", "--max-work", estimate, " tape instructions");
-    surface = MeshSurface(compiled, settings, &stats);
+    if (o.sharp) {
+      // Sharpened, on another grid placement where the first leaves triangles under the sliver
+      // angle (a part about a cell thick).
+      sharp = MeshSharpSurface(compiled, settings, features);
+      surface = std::move(sharp.mesh);
+      stats = sharp.surface;
+      feature_stats = sharp.features;
+    } else {
+      surface = MeshSurface(compiled, settings, &stats);
+    }
   } catch (const std::invalid_argument& e) {
     throw InputError(std::string("--resolution ") + Fmt(cell) + ": " + e.what());
   }
@@ -662,18 +680,6 @@ void RunMesh(const MeshOptions& o) {
   if (surface.triangles.cols() == 0)
     throw InputError("solid '" + grid.solid_name + "': the surface mesh is empty at cell " +
                      Fmt(cell) + " m");
-  FeatureStats feature_stats;
-  if (o.sharp) {
-    FeatureSettings features;
-    features.cell_size = cell;
-    features.cancel = &g_interrupted;
-    features.sliver_angle_deg = o.sliver_angle;
-    features.sliver_fallback_deviation_cells = kProductSliverFallbackCells;
-    // The lattice leaves no vertex near a box corner to move onto it: insert one there.
-    features.insert_corners = lattice;
-    surface = SharpenFeatures(compiled, std::move(surface), features, &feature_stats);
-    CheckInterrupted();
-  }
   const TriangleAngleStats angles = MeasureTriangleAngles(surface, 5.0);
   const SurfaceError error = MeasureSurfaceError(compiled, surface);
   std::cout << "scene " << o.scene << ", solid '" << grid.solid_name << "'\n";
@@ -706,6 +712,20 @@ void RunMesh(const MeshOptions& o) {
                 << feature_stats.sliver_snaps << " snaps, " << feature_stats.sliver_flips
                 << " flips, " << feature_stats.sliver_moves << " moves";
     std::cout << ", " << Fmt(feature_stats.seconds, 3) << " s\n";
+    if (sharp.placements > 1) {
+      // Percent of the solid's volume (EstimateSolidVolume), signed.
+      auto off = [&](double volume) {
+        return Fmt(100.0 * (volume / sharp.solid_volume - 1.0), 3) + " %";
+      };
+      std::cout << "grid placement: the first left " << sharp.first_under << " triangle"
+                << (sharp.first_under == 1 ? "" : "s") << " under " << Fmt(o.sliver_angle)
+                << " deg (min " << Fmt(sharp.first_min_angle_deg, 4) << " deg), volume "
+                << off(sharp.solid_volume * (1.0 + sharp.first_volume_error))
+                << " from the solid's; " << sharp.placements
+                << " placements meshed and sharpened, kept the grid moved by "
+                << Fmt(sharp.grid_shift) << " cell along each axis (volume "
+                << off(MeshVolume(surface)) << ")\n";
+    }
   }
   // Four digits, so that an angle a hair under 10° does not print as 10.
   const long under_10 = MeasureTriangleAngles(surface, 10.0).small_angle;

@@ -511,10 +511,7 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
   ss.cancel = cancel;
   const double surface_share = input.volume ? 0.3 : 0.9;
   if (progress) ss.progress = [&progress, surface_share](double f) { progress(surface_share * f); };
-  modeling::TriangleMesh surface = modeling::MeshSurface(compiled, ss);
-  if (surface.triangles.cols() == 0)
-    throw std::invalid_argument("solid '" + input.source_name + "': the surface mesh is empty at " +
-                                std::to_string(cell) + " m cells");
+  modeling::TriangleMesh surface;
   if (input.settings.sharp_edges) {
     modeling::FeatureSettings fs;
     fs.cell_size = cell;
@@ -526,8 +523,14 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     // The lattice leaves no vertex near a box corner to move there (`spidarcad mesh --mesher
     // lattice --sharp`).
     fs.insert_corners = lattice;
-    surface = modeling::SharpenFeatures(compiled, std::move(surface), fs);
+    // On another grid placement where a part about a cell thick loses volume or keeps slivers.
+    surface = modeling::MeshSharpSurface(compiled, ss, fs).mesh;
+  } else {
+    surface = modeling::MeshSurface(compiled, ss);
   }
+  if (surface.triangles.cols() == 0)
+    throw std::invalid_argument("solid '" + input.source_name + "': the surface mesh is empty at " +
+                                std::to_string(cell) + " m cells");
   Report(progress, input.volume ? 0.35 : 1.0);
   if (input.volume) {
     result.volume = std::make_shared<const modeling::TetMesh>(

@@ -175,4 +175,57 @@ struct FeatureStats {
 TriangleMesh SharpenFeatures(const CompiledSolid& solid, TriangleMesh mesh,
                              const FeatureSettings& settings, FeatureStats* stats = nullptr);
 
+// Grid placements MeshSharpSurface tries, as fractions of a cell along each axis (the grid of
+// surface_settings first, then moved by a quarter, an eighth and three eighths of a cell).
+inline constexpr double kSharpGridShifts[] = {0.0, 0.25, 0.125, 0.375};
+
+// MeshSharpSurface's volume test: Halton points in the bounds; the volume error (relative to the
+// solid's) past which it tries another grid placement, and the tolerance within which two
+// placements' volumes count as equal.
+inline constexpr int kSharpVolumePoints = 1 << 16;
+inline constexpr double kSharpVolumeRetry = 0.05;
+inline constexpr double kSharpVolumeTolerance = 0.02;
+
+// Volume of `solid` inside `box` (m³): the share of `points` Halton points (bases 2, 3, 5) of
+// the box where its value is negative, times the box's volume.
+double EstimateSolidVolume(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, int points);
+
+// `settings` with its grid moved by `shift` cells along each axis, as MeshSharpSurface moves it:
+// the bounds grown by a cell on every side (the grid, centred on them, keeps its nodes) and
+// moved by the shift. A shift of 0 returns `settings` as they are.
+SurfaceMeshSettings SharpGridPlacement(const SurfaceMeshSettings& settings, double shift);
+
+// What MeshSharpSurface made, and how.
+struct SharpSurface {
+  TriangleMesh mesh;
+  SurfaceMeshStats surface;          // of the placement kept
+  FeatureStats features;             // of the placement kept
+  int placements = 0;                // grid placements meshed and sharpened (1: the first was kept)
+  double grid_shift = 0.0;           // the kept placement's shift, cells along each axis
+  long first_under = 0;              // triangles under sliver_angle_deg at the first placement
+  double first_min_angle_deg = 0.0;  // smallest triangle angle at the first placement
+  double first_volume_error = 0.0;   // (mesh − solid) / solid volume at the first placement
+  double solid_volume = 0.0;         // EstimateSolidVolume over the bounds, m³
+};
+
+// MeshSurface of `solid` with `surface_settings`, then SharpenFeatures with `features`. Where
+// a part is about a cell thick, its faces and creases fall in one cell: on some grid placements
+// whole stretches of it are lost (the platform's 10 mm plate at 10 mm cells whose planes lie on
+// its faces: a quarter of its volume left), and the sliver repair can leave triangles sharper
+// than features.sliver_angle_deg that no local change mends. When the first placement leaves such
+// a triangle, or a volume more than kSharpVolumeRetry off the solid's (EstimateSolidVolume over
+// surface_settings.bounds), the grid is moved by the next of kSharpGridShifts cells along each
+// axis (SharpGridPlacement: the bounds hold what they held) and the solid meshed and sharpened
+// again, until a placement leaves neither. A placement counts only if its volume is as close to
+// the solid's as the first's, or within kSharpVolumeTolerance of it. Of those the one kept has a
+// volume within kSharpVolumeRetry if any does; then the fewest triangles under the angle (or,
+// past kSharpVolumeRetry, the closest volume); then the closest volume (beyond
+// kSharpVolumeTolerance), the fewest triangles under the angle, the largest smallest angle; then
+// it comes first. A mesh the first placement makes well is that of
+// MeshSurface and SharpenFeatures alone, at the cost of one run and the volume estimate. Throws
+// what MeshSurface and SharpenFeatures throw.
+SharpSurface MeshSharpSurface(const CompiledSolid& solid,
+                              const SurfaceMeshSettings& surface_settings,
+                              const FeatureSettings& features);
+
 }  // namespace spidarcad::modeling
