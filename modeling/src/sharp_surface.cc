@@ -22,15 +22,14 @@ double RadicalInverse(int i, int base) {
 
 }  // namespace
 
-double EstimateSolidVolume(const CompiledSolid& solid, const Eigen::AlignedBox3d& box,
-                           int points) {
+double EstimateSolidVolume(const CompiledSolid& solid, const Eigen::AlignedBox3d& box, int points) {
   if (points <= 0 || box.isEmpty()) return 0.0;
   Eigen::Matrix3Xd p(3, points);
   const Eigen::Vector3d size = box.sizes();
   for (int i = 0; i < points; ++i)
-    p.col(i) = box.min() + size.cwiseProduct(Eigen::Vector3d(
-                               RadicalInverse(i + 1, 2), RadicalInverse(i + 1, 3),
-                               RadicalInverse(i + 1, 5)));
+    p.col(i) = box.min() +
+               size.cwiseProduct(Eigen::Vector3d(RadicalInverse(i + 1, 2), RadicalInverse(i + 1, 3),
+                                                 RadicalInverse(i + 1, 5)));
   Eigen::VectorXd values(points);
   solid.Values(p, values);
   const long inside = (values.array() < 0.0).count();
@@ -84,8 +83,7 @@ SharpSurface MeshSharpSurface(const CompiledSolid& solid,
     score.min_angle = angles.min_angle_deg;
     ++best.placements;
     if (best.placements == 1) {
-      const double volume =
-          EstimateSolidVolume(solid, surface_settings.bounds, kSharpVolumePoints);
+      const double volume = EstimateSolidVolume(solid, surface_settings.bounds, kSharpVolumePoints);
       const double signed_error = MeshVolume(run.mesh) - volume;
       tolerance = kSharpVolumeTolerance * volume;
       retry = kSharpVolumeRetry * volume;
