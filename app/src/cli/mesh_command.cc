@@ -308,7 +308,9 @@ constexpr const char* kMeshHelp =
     "cell data region/volume/min_dihedral_deg) or .node (+ .ele beside it) with --tets.\n"
     "Prints counts, times, the smallest triangle angle, the surface error (max |f| sampled at\n"
     "vertices, edge midpoints and centroids: the distance to the true surface for exact\n"
-    "distance fields) and the tets' worst dihedral angles. Bad input exits with status 2.\n"
+    "distance fields), the volume against the solid's (estimated from its function at 2^16\n"
+    "quasi-random points; a warning past 5 %: a wall about a cell thick can fall between the\n"
+    "grid's planes) and the tets' worst dihedral angles. Bad input exits with status 2.\n"
     "\n"
     "Budget (docs/limits.md): before meshing, the cost is estimated from the box and the\n"
     "resolution (grid cells, surface cells, triangles, field evaluations, memory); past a limit\n"
@@ -736,7 +738,25 @@ void RunMesh(const MeshOptions& o) {
             << under_10 << (under_10 == 1 ? " triangle" : " triangles") << " under 10 deg, "
             << angles.small_angle << " under 5 deg, " << angles.zero_area
             << " zero-area; error max " << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3)
-            << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3\n";
+            << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3";
+  // The solid's volume from the function (as --sharp's grid placement measures it): a wall about
+  // a cell thick can fall between grid planes and be lost without any other figure showing it.
+  const double solid_volume = sharp.placements > 0
+                                  ? sharp.solid_volume
+                                  : EstimateSolidVolume(compiled, bounds, kSharpVolumePoints);
+  const double volume_off = solid_volume > 0.0 ? MeshVolume(surface) / solid_volume - 1.0 : 0.0;
+  if (solid_volume > 0.0)
+    std::cout << " (" << (volume_off >= 0.0 ? "+" : "") << Fmt(100.0 * volume_off, 2)
+              << " % from the solid's, sampled from its function)";
+  std::cout << "\n";
+  if (std::abs(volume_off) > kSharpVolumeRetry)
+    std::cerr << "warning: the surface holds " << Fmt(100.0 * std::abs(volume_off), 2) << " % "
+              << (volume_off < 0.0 ? "less" : "more")
+              << " volume than the solid: a part about a cell thick or thinner can fall between "
+                 "the grid's planes at --resolution "
+              << Fmt(cell) << "; a finer --resolution"
+              << (o.sharp ? "" : ", or --sharp (which tries other grid placements),")
+              << " keeps it\n";
 
   if (o.tets.empty()) {
     const auto start = std::chrono::steady_clock::now();
