@@ -91,7 +91,7 @@ void ReportEditToForce(ReportContext& ctx) {
                      : c.flat_cells > 0.0 ? "tetrahedra flat"
                      : c.snap_cells > 0.0 ? "tetrahedra snapped"
                                           : "tetrahedra",
-                     std::to_string(c.strips), e.edit, std::to_string(e.remeshed_tets),
+                     e.edit, std::to_string(c.strips), std::to_string(e.remeshed_tets),
                      std::to_string(e.remeshed), std::to_string(e.planes_refactored),
                      Sig(e.total_wall, 4), Sig(e.total_cpu, 4), Sig(c.full_wall(), 4),
                      Sig(e.error, 3), Sig(e.tick_cpu_p999, 3), Sig(e.tick_late_p999, 4)});
@@ -106,7 +106,7 @@ void ReportEditToForce(ReportContext& ctx) {
     chart.series.push_back(full);
   }
   ctx.Csv("edit",
-          {"order", "cell_mm", "slabs", "surface", "strips", "edit", "tets_remeshed",
+          {"order", "cell_mm", "slabs", "surface", "edit", "strips", "tets_remeshed",
            "slabs_remeshed", "planes_refactored", "edit_to_force_s", "edit_to_force_cpu_s",
            "full_recompute_s", "relative_difference", "tick_cpu_p999_us", "tick_late_p999_us"},
           csv);
