@@ -791,19 +791,23 @@ TEST(SharpenFeatures, SliverFallbackMendsWhatTheTightRepairLeaves) {
   EXPECT_GE(identical, 1);  // the identity is checked at least once (measured: 4 meshes)
 }
 
-// The product's surface for sharpening: the platform on the tests' grid (PlatformGrid), by the
-// snapped marching-tetrahedra route (`spidarcad mesh --sharp`) or the lattice.
-TriangleMesh PlatformProductSurface(const CompiledSolid& platform, double h, bool half,
-                                    bool lattice) {
+// The product's surface settings for sharpening: the platform on the tests' grid
+// (PlatformGrid), by the snapped marching-tetrahedra route (`spidarcad mesh --sharp`) or the
+// lattice.
+SurfaceMeshSettings PlatformProductSettings(const CompiledSolid& platform, double h, bool half,
+                                            bool lattice) {
   SurfaceMeshSettings ss;
   ss.bounds = PlatformGrid(platform, h, half);
   ss.cell_size = h;
   ss.snap_cells = kProductSnapCells;
   if (lattice) ss.mesher = SurfaceMesher::kLattice;
-  return MeshSurface(platform, ss);
+  return ss;
 }
-SurfaceMeshSettings PlatformProductSettings(const CompiledSolid& platform, double h, bool half,
-                                            bool lattice);
+// The product's surface for sharpening (PlatformProductSettings).
+TriangleMesh PlatformProductSurface(const CompiledSolid& platform, double h, bool half,
+                                    bool lattice) {
+  return MeshSurface(platform, PlatformProductSettings(platform, h, half, lattice));
+}
 
 // The product's sharpening settings (`spidarcad mesh --sharp`; the lattice route inserts
 // corners).
@@ -951,17 +955,6 @@ TEST(SharpenFeatures, FanMovesMendWhatNoOtherOperationCan) {
     EXPECT_EQ(EulerOfClosedManifold(with), EulerOfClosedManifold(plain)) << what;
     ExpectPassesSurfaceCheck(with, what);
   }
-}
-
-// The product's surface settings of the platform (PlatformProductSurface).
-SurfaceMeshSettings PlatformProductSettings(const CompiledSolid& platform, double h, bool half,
-                                            bool lattice) {
-  SurfaceMeshSettings ss;
-  ss.bounds = PlatformGrid(platform, h, half);
-  ss.cell_size = h;
-  ss.snap_cells = kProductSnapCells;
-  if (lattice) ss.mesher = SurfaceMesher::kLattice;
-  return ss;
 }
 
 // One product sharpening of the platform (`spidarcad mesh --sharp`: MeshSharpSurface): its
