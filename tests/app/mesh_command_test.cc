@@ -787,7 +787,7 @@ TEST(MeshCommand, VolumeLostBetweenGridPlanesIsWarnedAndSharpMovesTheGrid) {
       "'" + Platform() + "' --out '" + out + "' --mesher tetrahedra --resolution 0.0135", "lost");
   EXPECT_EQ(lost.status, 0) << lost.all();
   EXPECT_NE(lost.out.find("% from the solid's"), std::string::npos) << lost.out;
-  EXPECT_NE(lost.err.find("warning: the surface holds "), std::string::npos) << lost.err;
+  EXPECT_NE(lost.err.find("warning: the mesh holds "), std::string::npos) << lost.err;
   EXPECT_NE(lost.err.find("less volume than the solid"), std::string::npos) << lost.err;
   EXPECT_NE(lost.err.find("--sharp"), std::string::npos) << lost.err;
   const CommandRun sharp =

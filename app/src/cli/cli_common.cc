@@ -7,6 +7,8 @@
 #include <functional>
 #include <sstream>
 
+#include "spidarcad/modeling/feature_sharpening.h"
+
 namespace spidarcad::app {
 
 namespace {
@@ -100,6 +102,16 @@ void ValidateGeometry(const haptics::SpidarGeometry& geometry) {
   } catch (const std::invalid_argument& e) {
     throw InputError(std::string("--frame/--pole: ") + e.what());
   }
+}
+
+std::string VolumeOffWarning(double off, double cell, const std::string& way_out) {
+  if (!(std::abs(off) > modeling::kSharpVolumeRetry)) return "";
+  char percent[32];
+  std::snprintf(percent, sizeof percent, "%.3g", 100.0 * std::abs(off));
+  return std::string("warning: the mesh holds ") + percent + " % " + (off < 0.0 ? "less" : "more") +
+         " volume than the solid: a part about a cell thick or thinner can fall between the "
+         "grid's planes at --resolution " +
+         FormatNumber(cell) + "; " + way_out + "\n";
 }
 
 }  // namespace spidarcad::app

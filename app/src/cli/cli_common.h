@@ -47,4 +47,11 @@ bool LatticeMesherOption(const std::string& mesher, const char* default_route);
 // the option and how to fix it.
 void CheckFlatCellsOption(double flat_cells, bool lattice);
 
+// The warning `spidarcad mesh` and `spidarcad fem` print on stderr when a mesh of a solid at cell
+// `cell` (m) holds a volume `off` = (mesh − solid) / solid more than modeling::kSharpVolumeRetry
+// away from the solid's (modeling::EstimateSolidVolume): a wall about a cell thick or thinner can
+// fall between the grid's planes. `way_out` ends it ("a finer --resolution keeps it"). Empty
+// when the volume is within the bound.
+std::string VolumeOffWarning(double off, double cell, const std::string& way_out);
+
 }  // namespace spidarcad::app

@@ -36,6 +36,7 @@
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/stiffness.h"
 #include "spidarcad/fem/substructure.h"
+#include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/mesh_repair.h"
 #include "spidarcad/modeling/scene_io.h"
@@ -126,6 +127,23 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
   return tail == suffix;
 }
 
+// The tets' volume against the solid's (modeling::EstimateSolidVolume over the grid's bounds)
+// under report["meshing"], and the warning on stderr past modeling::kSharpVolumeRetry: a wall
+// about a cell thick can fall between the grid's planes, and its stiffness with it.
+void CheckMeshVolume(const SceneSolidGrid& grid, const modeling::TetMesh& tets,
+                     nlohmann::ordered_json* report) {
+  const double volume = modeling::MeasureTetQuality(tets).total_volume;
+  const double solid =
+      modeling::EstimateSolidVolume(grid.compiled, grid.bounds, modeling::kSharpVolumePoints);
+  const double off = solid > 0.0 ? volume / solid - 1.0 : 0.0;
+  (*report)["meshing"]["volume_m3"] = volume;
+  (*report)["meshing"]["solid_volume_m3"] = solid;
+  (*report)["meshing"]["volume_off"] = off;
+  std::cerr << VolumeOffWarning(off, grid.cell,
+                                "the part's stiffness is missing with it; a finer --resolution "
+                                "keeps it");
+}
+
 // Meshes one solid of a scene in slabs (scene/slab_fe_mesh.h), with the slab of each element in
 // *slab; slab meshes come from and go to the cache directory when one is given.
 fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& grid,
@@ -173,6 +191,7 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
                           {"per_slab", per_slab}};
   if (!slabs.cache_notes.empty()) (*report)["meshing"]["cache_notes"] = slabs.cache_notes;
   if (options.flat_cells > 0.0) (*report)["meshing"]["flat_cells"] = options.flat_cells;
+  CheckMeshVolume(grid, *slabs.volume, report);
   *slab = slabs.slab;
   return std::move(slabs.mesh);
 }
@@ -215,6 +234,7 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
     (*report)["meshing"]["flat_cells"] = options.flat_cells;
     (*report)["meshing"]["flat_collapses"] = surface_stats.flat_collapses;
   }
+  CheckMeshVolume(grid, tets, report);
   return ToFemMesh(tets);
 }
 

@@ -749,14 +749,10 @@ void RunMesh(const MeshOptions& o) {
     std::cout << " (" << (volume_off >= 0.0 ? "+" : "") << Fmt(100.0 * volume_off, 2)
               << " % from the solid's, sampled from its function)";
   std::cout << "\n";
-  if (std::abs(volume_off) > kSharpVolumeRetry)
-    std::cerr << "warning: the surface holds " << Fmt(100.0 * std::abs(volume_off), 2) << " % "
-              << (volume_off < 0.0 ? "less" : "more")
-              << " volume than the solid: a part about a cell thick or thinner can fall between "
-                 "the grid's planes at --resolution "
-              << Fmt(cell) << "; a finer --resolution"
-              << (o.sharp ? "" : ", or --sharp (which tries other grid placements),")
-              << " keeps it\n";
+  std::cerr << VolumeOffWarning(volume_off, cell,
+                                o.sharp ? "a finer --resolution keeps it"
+                                        : "a finer --resolution, or --sharp (which tries other "
+                                          "grid placements), keeps it");
 
   if (o.tets.empty()) {
     const auto start = std::chrono::steady_clock::now();
