@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <mutex>
@@ -53,6 +54,61 @@ void exactinit(int /*verbose*/, int /*noexact*/, int /*nofilter*/, REAL /*maxx*/
   // Never uninitialised predicates (they would give wrong signs): a failed run instead.
   if (!tetgen_predicates_ready)
     throw spidarcad::modeling::TetgenError(2, "TetGen failed: libtet's exactinit was not found");
+}
+
+// TetGen 1.5 also shuffles its points with srand(seed) and rand() (incrementaldelaunay,
+// collectremovepoints, insertconstrainedpoints), and glibc's generator is one for the process:
+// two runs at once interleave their draws and insert the points in another order, so each makes
+// another (valid) mesh from run to run. Inside a run (TetgenDraws, around tetrahedralize) these
+// definitions draw from the calling thread's own generator, glibc's own algorithm
+// (srandom_r/random_r on a 128-byte state, as rand's), so a run makes the mesh it makes alone;
+// elsewhere they forward to glibc's.
+namespace {
+thread_local bool tetgen_draws = false;
+struct ThreadRandom {
+  random_data data{};
+  char state[128] = {};
+  bool ready = false;
+  // random() is seeded with 1 until srandom is called.
+  void Seed(unsigned seed) {
+    if (!ready) {
+      initstate_r(seed, state, sizeof state, &data);
+      ready = true;
+    } else {
+      srandom_r(seed, &data);
+    }
+  }
+};
+thread_local ThreadRandom tetgen_random;
+
+// Marks the calling thread's TetGen run for rand and srand.
+class TetgenDraws {
+ public:
+  TetgenDraws() { tetgen_draws = true; }
+  ~TetgenDraws() { tetgen_draws = false; }
+  TetgenDraws(const TetgenDraws&) = delete;
+  TetgenDraws& operator=(const TetgenDraws&) = delete;
+};
+}  // namespace
+
+void srand(unsigned seed) noexcept {
+  if (tetgen_draws) {
+    tetgen_random.Seed(seed);
+    return;
+  }
+  static const auto library = reinterpret_cast<void (*)(unsigned)>(dlsym(RTLD_NEXT, "srand"));
+  if (library != nullptr) library(seed);
+}
+
+int rand() noexcept {
+  if (tetgen_draws) {
+    if (!tetgen_random.ready) tetgen_random.Seed(1);
+    std::int32_t value = 0;
+    random_r(&tetgen_random.data, &value);
+    return value;
+  }
+  static const auto library = reinterpret_cast<int (*)()>(dlsym(RTLD_NEXT, "rand"));
+  return library != nullptr ? library() : 0;
 }
 
 void tetgenmesh::inittables() {
@@ -471,6 +527,7 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& input, const TetMeshSettings& 
     try {
       std::vector<char> command(switches.begin(), switches.end());
       command.push_back('\0');
+      const TetgenDraws draws;
       tetrahedralize(command.data(), from, to);
     } catch (const TetgenError&) {
       throw;
@@ -578,7 +635,8 @@ bool TetgenRunsConcurrently() {
   // one in this object (the executable), not libtet's own (RTLD_NEXT from here).
   Dl_info own{};
   if (dladdr(reinterpret_cast<void*>(&TetgenRunsConcurrently), &own) == 0) return false;
-  for (const char* symbol : {"_Z9exactinitiiiddd", "_ZN10tetgenmesh10inittablesEv"}) {
+  for (const char* symbol :
+       {"_Z9exactinitiiiddd", "_ZN10tetgenmesh10inittablesEv", "rand", "srand"}) {
     void* first = dlsym(RTLD_DEFAULT, symbol);
     Dl_info found{};
     if (first == nullptr || first == dlsym(RTLD_NEXT, symbol) || dladdr(first, &found) == 0 ||

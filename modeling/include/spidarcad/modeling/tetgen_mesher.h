@@ -137,10 +137,13 @@ TetMesh TetrahedralizeSurface(const TriangleMesh& surface, const TetMeshSettings
 // predicates' constants and its mesh-walking tables in globals that every run writes again
 // (exactinit, tetgenmesh::inittables), and one write goes through an intermediate value, so two
 // runs at once are a data race. This program replaces both (tetgen_mesher.cc) with versions that
-// write them once; the answer is whether libtet's calls reach those replacements, which the
-// dynamic linker decides (true in the program's own builds; false, say, if libtet were linked
-// with -Bsymbolic). Without the static filter of TetGen's predicates (which needs the mesh's
-// bounding box in a global) a predicate returns the same value, after a longer error bound check.
+// write them once, and it gives each thread its own rand and srand while it runs TetGen (which
+// shuffles its points with them; glibc has one generator for the process, so runs at once would
+// each make another mesh from run to run); the answer is whether libtet's calls reach those
+// replacements, which the dynamic linker decides (true in the program's own builds; false, say,
+// if libtet were linked with -Bsymbolic). Without the static filter of TetGen's predicates (which
+// needs the mesh's bounding box in a global) a predicate returns the same value, after a longer
+// error bound check.
 bool TetgenRunsConcurrently();
 
 }  // namespace spidarcad::modeling
