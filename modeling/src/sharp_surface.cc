@@ -1,8 +1,11 @@
 // Copyright the spidarcad authors. SPDX-License-Identifier: AGPL-3.0-or-later
-// MeshSharpSurface: a sharpened surface, on another grid placement where the first leaves
-// triangles under the sliver angle (feature_sharpening.h).
+// MeshSharpSurface and MeshSurfaceKeepingVolume: a surface, sharpened or not, on another grid
+// placement where the first loses volume or leaves triangles under the sliver angle
+// (feature_sharpening.h).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <functional>
 
 #include "spidarcad/modeling/feature_sharpening.h"
 
@@ -46,9 +49,14 @@ SurfaceMeshSettings SharpGridPlacement(const SurfaceMeshSettings& settings, doub
   return moved;
 }
 
-SharpSurface MeshSharpSurface(const CompiledSolid& solid,
-                              const SurfaceMeshSettings& surface_settings,
-                              const FeatureSettings& features) {
+namespace {
+
+// The placement search of MeshSharpSurface and MeshSurfaceKeepingVolume: `mesh_one(settings,
+// run)` fills run->mesh (and its stats) for one grid placement; triangles under `sliver_angle`
+// degrees (0: none counted) and the volume against the solid's rank the placements.
+SharpSurface SearchPlacements(
+    const CompiledSolid& solid, const SurfaceMeshSettings& surface_settings, double sliver_angle,
+    const std::function<void(const SurfaceMeshSettings&, SharpSurface*)>& mesh_one) {
   // How good a placement is: its volume error (m³, against the estimate), whether that is past
   // the retry bound, its triangles under the sliver angle and its smallest angle.
   struct Score {
@@ -69,17 +77,15 @@ SharpSurface MeshSharpSurface(const CompiledSolid& solid,
     if (std::abs(a.error - b.error) > tolerance) return a.error < b.error;
     return a.min_angle > b.min_angle;
   };
+  const auto start = std::chrono::steady_clock::now();
   SharpSurface best;
   Score best_score, first_score;
   for (double shift : kSharpGridShifts) {
     SharpSurface run;
-    run.mesh = SharpenFeatures(
-        solid, MeshSurface(solid, SharpGridPlacement(surface_settings, shift), &run.surface),
-        features, &run.features);
-    const TriangleAngleStats angles =
-        MeasureTriangleAngles(run.mesh, std::max(features.sliver_angle_deg, 0.0));
+    mesh_one(SharpGridPlacement(surface_settings, shift), &run);
+    const TriangleAngleStats angles = MeasureTriangleAngles(run.mesh, std::max(sliver_angle, 0.0));
     Score score;
-    score.under = features.sliver_angle_deg > 0.0 ? angles.small_angle : 0;
+    score.under = sliver_angle > 0.0 ? angles.small_angle : 0;
     score.min_angle = angles.min_angle_deg;
     ++best.placements;
     if (best.placements == 1) {
@@ -116,7 +122,29 @@ SharpSurface MeshSharpSurface(const CompiledSolid& solid,
     }
     if (best_score.under == 0 && !best_score.far) break;
   }
+  best.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return best;
+}
+
+}  // namespace
+
+SharpSurface MeshSharpSurface(const CompiledSolid& solid,
+                              const SurfaceMeshSettings& surface_settings,
+                              const FeatureSettings& features) {
+  return SearchPlacements(solid, surface_settings, features.sliver_angle_deg,
+                          [&](const SurfaceMeshSettings& placed, SharpSurface* run) {
+                            run->mesh =
+                                SharpenFeatures(solid, MeshSurface(solid, placed, &run->surface),
+                                                features, &run->features);
+                          });
+}
+
+SharpSurface MeshSurfaceKeepingVolume(const CompiledSolid& solid,
+                                      const SurfaceMeshSettings& surface_settings) {
+  return SearchPlacements(solid, surface_settings, 0.0,
+                          [&](const SurfaceMeshSettings& placed, SharpSurface* run) {
+                            run->mesh = MeshSurface(solid, placed, &run->surface);
+                          });
 }
 
 }  // namespace spidarcad::modeling

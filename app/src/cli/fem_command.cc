@@ -209,9 +209,11 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
   surface_settings.cell_size = cell;
   surface_settings.flat_coarsen_cells = options.flat_cells;
   if (options.lattice) surface_settings.mesher = modeling::SurfaceMesher::kLattice;
-  modeling::SurfaceMeshStats surface_stats;
-  const modeling::TriangleMesh surface =
-      modeling::MeshSurface(grid.compiled, surface_settings, &surface_stats);
+  // On another grid placement where a wall about a cell thick falls between grid planes.
+  modeling::SharpSurface placed =
+      modeling::MeshSurfaceKeepingVolume(grid.compiled, surface_settings);
+  const modeling::TriangleMesh surface = std::move(placed.mesh);
+  const modeling::SurfaceMeshStats& surface_stats = placed.surface;
   modeling::TetMeshSettings tet_settings;
   tet_settings.max_radius_edge = options.max_radius_edge;
   modeling::TetMeshStats tet_stats;
@@ -226,10 +228,12 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
   (*report)["meshing"] = {{"solid", grid.solid_name},
                           {"resolution_m", cell},
                           {"surface_triangles", surface.triangles.cols()},
-                          {"surface_seconds", surface_stats.seconds},
+                          {"surface_seconds", placed.seconds},
                           {"tetgen_seconds", tet_stats.tetgen_seconds},
                           {"tetgen_switches", tet_stats.switches},
-                          {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg}};
+                          {"min_dihedral_deg", tet_stats.quality.min_dihedral_deg},
+                          {"grid_placements", placed.placements},
+                          {"grid_shift_cells", placed.grid_shift}};
   if (options.flat_cells > 0.0) {
     (*report)["meshing"]["flat_cells"] = options.flat_cells;
     (*report)["meshing"]["flat_collapses"] = surface_stats.flat_collapses;
@@ -954,7 +958,9 @@ void RegisterFemCommand(CLI::App& app) {
       "fem", "Static linear-elastic FE solve of a tetrahedral mesh or a scene solid (VTU out)");
   cmd->footer(
       "Input: a .vtu with VTK_TETRA or VTK_QUADRATIC_TETRA cells, or a .json scene whose solid\n"
-      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen),\n"
+      "(the first, or --solid NAME) is meshed first (surface grid of --resolution, then TetGen;\n"
+      "a surface over 5 % off the solid's volume, a wall about a cell thick fallen between grid\n"
+      "planes, is meshed again on the grid moved by a fraction of a cell: meshing.grid_*),\n"
       "or a .json document (version 2) and its object --object NAME (default: the first\n"
       "fe_model, else the first solid, mesh or sculpt). An fe_model brings its tet mesh,\n"
       "material, region materials, fixed boxes, loads (each box's force spread evenly over its\n"

@@ -286,10 +286,13 @@ constexpr const char* kMeshHelp =
     "surfaces get no triangle under about 10 deg; --snap-cells 0 gives the mesh of before\n"
     "2026-12-05. --flat-cells F (default 0: off) then collapses edges under F cells in flat\n"
     "fans, so a flat face has as few triangles wherever the grid crosses it (fewer tets for\n"
-    "TetGen; `spidarcad fem` takes it too). --sharp then moves vertices onto creases and corners;\n"
-    "where a part about a cell thick keeps a triangle under --sliver-angle or loses over 5 % of\n"
-    "the solid's volume on the grid, it meshes and sharpens again on the grid moved by a\n"
-    "fraction of a cell and keeps the better placement (the line 'grid placement').\n"
+    "TetGen; `spidarcad fem` takes it too). --sharp then moves vertices onto creases and corners,\n"
+    "and where a part about a cell thick keeps a triangle under --sliver-angle it sharpens again\n"
+    "on the grid moved by a fraction of a cell.\n"
+    "Every route: where the surface holds over 5 % more or less volume than the solid (sampled\n"
+    "from its function; a wall about a cell thick fallen between grid planes), the solid is\n"
+    "meshed again on the grid moved by 1/4, 1/8, 3/8 of a cell along each axis and the best\n"
+    "placement is kept (the line 'grid placement'); a warning says when none keeps it.\n"
     "--mesher lattice --sharp sharpens the lattice surface instead, putting a new vertex on each\n"
     "corner no vertex could reach: on boxes and holes it halves the error of the other route in\n"
     "less time, but it leaves concave creases at general angles cut by up to R/2 (docs/cli.md).\n"
@@ -660,7 +663,7 @@ void RunMesh(const MeshOptions& o) {
   // The lattice leaves no vertex near a box corner to move onto it: insert one there.
   features.insert_corners = lattice;
   FeatureStats feature_stats;
-  SharpSurface sharp;  // with --sharp
+  SharpSurface placed;  // the grid placement kept, and the first's figures
   try {
     const SurfaceMeshEstimate estimate = EstimateSurfaceMesh(compiled, settings);
     progress.Note("estimate: " + estimate.Describe());
@@ -670,13 +673,14 @@ void RunMesh(const MeshOptions& o) {
     if (o.sharp) {
       // Sharpened, on another grid placement where the first leaves triangles under the sliver
       // angle (a part about a cell thick).
-      sharp = MeshSharpSurface(compiled, settings, features);
-      surface = std::move(sharp.mesh);
-      stats = sharp.surface;
-      feature_stats = sharp.features;
+      placed = MeshSharpSurface(compiled, settings, features);
+      feature_stats = placed.features;
     } else {
-      surface = MeshSurface(compiled, settings, &stats);
+      // On another grid placement where a wall about a cell thick falls between grid planes.
+      placed = MeshSurfaceKeepingVolume(compiled, settings);
     }
+    surface = std::move(placed.mesh);
+    stats = placed.surface;
   } catch (const std::invalid_argument& e) {
     throw InputError(std::string("--resolution ") + Fmt(cell) + ": " + e.what());
   }
@@ -717,20 +721,26 @@ void RunMesh(const MeshOptions& o) {
                 << feature_stats.sliver_snaps << " snaps, " << feature_stats.sliver_flips
                 << " flips, " << feature_stats.sliver_moves << " moves";
     std::cout << ", " << Fmt(feature_stats.seconds, 3) << " s\n";
-    if (sharp.placements > 1) {
-      // Percent of the solid's volume (EstimateSolidVolume), signed.
-      auto off = [&](double volume) {
-        return Fmt(100.0 * (volume / sharp.solid_volume - 1.0), 3) + " %";
-      };
-      std::cout << "grid placement: the first left " << sharp.first_under << " triangle"
-                << (sharp.first_under == 1 ? "" : "s") << " under " << Fmt(o.sliver_angle)
-                << " deg (min " << Fmt(sharp.first_min_angle_deg, 4) << " deg), volume "
-                << off(sharp.solid_volume * (1.0 + sharp.first_volume_error))
-                << " from the solid's; " << sharp.placements
-                << " placements meshed and sharpened, kept the grid moved by "
-                << Fmt(sharp.grid_shift) << " cell along each axis (volume "
-                << off(MeshVolume(surface)) << ")\n";
-    }
+  }
+  if (placed.placements > 1) {
+    // Percent of the solid's volume (EstimateSolidVolume), signed.
+    auto off = [&](double volume) {
+      return Fmt(100.0 * (volume / placed.solid_volume - 1.0), 3) + " %";
+    };
+    std::cout << "grid placement: the first";
+    if (o.sharp)
+      std::cout << " left " << placed.first_under << " triangle"
+                << (placed.first_under == 1 ? "" : "s") << " under " << Fmt(o.sliver_angle)
+                << " deg (min " << Fmt(placed.first_min_angle_deg, 4) << " deg),";
+    std::cout << " volume " << off(placed.solid_volume * (1.0 + placed.first_volume_error))
+              << " from the solid's; " << placed.placements << " placements meshed"
+              << (o.sharp ? " and sharpened" : "") << ", kept ";
+    if (placed.grid_shift == 0.0)
+      std::cout << "the first";
+    else
+      std::cout << "the grid moved by " << Fmt(placed.grid_shift) << " cell along each axis";
+    std::cout << " (volume " << off(MeshVolume(surface)) << "), " << Fmt(placed.seconds, 3)
+              << " s in all\n";
   }
   // Four digits, so that an angle a hair under 10° does not print as 10.
   const long under_10 = MeasureTriangleAngles(surface, 10.0).small_angle;
@@ -739,20 +749,16 @@ void RunMesh(const MeshOptions& o) {
             << angles.small_angle << " under 5 deg, " << angles.zero_area
             << " zero-area; error max " << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3)
             << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3";
-  // The solid's volume from the function (as --sharp's grid placement measures it): a wall about
-  // a cell thick can fall between grid planes and be lost without any other figure showing it.
-  const double solid_volume = sharp.placements > 0
-                                  ? sharp.solid_volume
-                                  : EstimateSolidVolume(compiled, bounds, kSharpVolumePoints);
+  // The solid's volume from the function (as the grid placement measures it): a wall about a
+  // cell thick can fall between grid planes and be lost without any other figure showing it.
+  const double solid_volume = placed.solid_volume;
   const double volume_off = solid_volume > 0.0 ? MeshVolume(surface) / solid_volume - 1.0 : 0.0;
   if (solid_volume > 0.0)
     std::cout << " (" << (volume_off >= 0.0 ? "+" : "") << Fmt(100.0 * volume_off, 2)
               << " % from the solid's, sampled from its function)";
   std::cout << "\n";
   std::cerr << VolumeOffWarning(volume_off, cell,
-                                o.sharp ? "a finer --resolution keeps it"
-                                        : "a finer --resolution, or --sharp (which tries other "
-                                          "grid placements), keeps it");
+                                "no grid placement tried keeps it; a finer --resolution does");
 
   if (o.tets.empty()) {
     const auto start = std::chrono::steady_clock::now();

@@ -16,6 +16,7 @@
 #include "scene/worker_process.h"
 #include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/stiffness.h"
+#include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
@@ -422,7 +423,8 @@ fem::TetMesh MeshSceneSolidForFe(const std::string& scene_path, const std::strin
   ss.cell_size = grid.cell;
   ss.flat_coarsen_cells = flat_cells;
   if (lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
-  const modeling::TriangleMesh surface = modeling::MeshSurface(grid.compiled, ss);
+  // On another grid placement where a wall about a cell thick falls between grid planes.
+  const modeling::TriangleMesh surface = modeling::MeshSurfaceKeepingVolume(grid.compiled, ss).mesh;
   if (progress) progress(0.3);
   check();
   modeling::TetMeshSettings ts;

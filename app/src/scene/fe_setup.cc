@@ -526,7 +526,8 @@ FeMeshResult MeshFeSource(const FeMeshInput& input, const std::atomic<bool>* can
     // On another grid placement where a part about a cell thick loses volume or keeps slivers.
     surface = modeling::MeshSharpSurface(compiled, ss, fs).mesh;
   } else {
-    surface = modeling::MeshSurface(compiled, ss);
+    // On another grid placement where a wall about a cell thick falls between grid planes.
+    surface = modeling::MeshSurfaceKeepingVolume(compiled, ss).mesh;
   }
   if (surface.triangles.cols() == 0)
     throw std::invalid_argument("solid '" + input.source_name + "': the surface mesh is empty at " +

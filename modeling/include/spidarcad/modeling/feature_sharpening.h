@@ -195,17 +195,18 @@ double EstimateSolidVolume(const CompiledSolid& solid, const Eigen::AlignedBox3d
 // moved by the shift. A shift of 0 returns `settings` as they are.
 SurfaceMeshSettings SharpGridPlacement(const SurfaceMeshSettings& settings, double shift);
 
-// What MeshSharpSurface made, and how.
+// What MeshSharpSurface (or MeshSurfaceKeepingVolume) made, and how.
 struct SharpSurface {
   TriangleMesh mesh;
   SurfaceMeshStats surface;          // of the placement kept
   FeatureStats features;             // of the placement kept
-  int placements = 0;                // grid placements meshed and sharpened (1: the first was kept)
+  int placements = 0;                // grid placements meshed (1: the first was kept)
   double grid_shift = 0.0;           // the kept placement's shift, cells along each axis
   long first_under = 0;              // triangles under sliver_angle_deg at the first placement
   double first_min_angle_deg = 0.0;  // smallest triangle angle at the first placement
   double first_volume_error = 0.0;   // (mesh − solid) / solid volume at the first placement
   double solid_volume = 0.0;         // EstimateSolidVolume over the bounds, m³
+  double seconds = 0.0;              // wall time of every placement and the estimate, s
 };
 
 // MeshSurface of `solid` with `surface_settings`, then SharpenFeatures with `features`. Where
@@ -227,5 +228,16 @@ struct SharpSurface {
 SharpSurface MeshSharpSurface(const CompiledSolid& solid,
                               const SurfaceMeshSettings& surface_settings,
                               const FeatureSettings& features);
+
+// MeshSurface of `solid` with `surface_settings` on the grid placements MeshSharpSurface tries,
+// for the routes that do not sharpen: where the first placement's volume is more than
+// kSharpVolumeRetry off the solid's (a wall about a cell thick fallen between grid planes), the
+// grid is moved by the next of kSharpGridShifts cells and the solid meshed again, until a
+// placement is within it; the one kept is chosen as MeshSharpSurface chooses, with no triangle
+// counted as a sliver (features stay empty, first_under 0). Where the first placement keeps the
+// volume the mesh is MeshSurface's, at the cost of the volume estimate. Throws what MeshSurface
+// throws.
+SharpSurface MeshSurfaceKeepingVolume(const CompiledSolid& solid,
+                                      const SurfaceMeshSettings& surface_settings);
 
 }  // namespace spidarcad::modeling
