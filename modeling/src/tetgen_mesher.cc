@@ -67,7 +67,7 @@ namespace {
 thread_local bool tetgen_draws = false;
 struct ThreadRandom {
   random_data data{};
-  char state[128] = {};
+  alignas(std::int32_t) char state[128] = {};  // random_r reads it as int32_t
   bool ready = false;
   // random() is seeded with 1 until srandom is called.
   void Seed(unsigned seed) {
