@@ -284,10 +284,14 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
 // At 20 mm cells no placement tried keeps it (measured 2026-12-07: -10.9 % at best): the command
 // solves what it has, reports it and warns on stderr with the way out.
 TEST(FemCommand, VolumeLostBetweenGridPlanesMovesTheGridOrIsWarned) {
-  const std::string scene = std::string(SPIDARCAD_SOURCE_DIR) + "/assets/scenes/platform.json";
-  const CommandRun moved = RunSpidarcad(
-      scene + " --resolution 0.0135 --fix=-1,-1,-1,0.001,1,1 --out " + OutputPath("fem_moved.vtu"),
-      "moved");
+  // The platform clamped at x = 0, meshed at `resolution` (m).
+  auto run_at = [](const std::string& resolution, const std::string& tag) {
+    return RunSpidarcad(std::string(SPIDARCAD_SOURCE_DIR) +
+                            "/assets/scenes/platform.json --resolution " + resolution +
+                            " --fix=-1,-1,-1,0.001,1,1 --out " + OutputPath("fem_" + tag + ".vtu"),
+                        tag);
+  };
+  const CommandRun moved = run_at("0.0135", "moved");
   ASSERT_EQ(moved.status, 0) << moved.err;
   const nlohmann::json kept = nlohmann::json::parse(moved.out);
   EXPECT_GT(kept["meshing"]["grid_placements"].get<int>(), 1);
@@ -295,9 +299,7 @@ TEST(FemCommand, VolumeLostBetweenGridPlanesMovesTheGridOrIsWarned) {
   EXPECT_LT(std::abs(kept["meshing"]["volume_off"].get<double>()), 0.05);
   EXPECT_GT(kept["meshing"]["solid_volume_m3"].get<double>(), 1.0e-3);
   EXPECT_EQ(moved.err.find("warning"), std::string::npos) << moved.err;
-  const CommandRun run = RunSpidarcad(
-      scene + " --resolution 0.02 --fix=-1,-1,-1,0.001,1,1 --out " + OutputPath("fem_lost.vtu"),
-      "lost");
+  const CommandRun run = run_at("0.02", "lost");
   ASSERT_EQ(run.status, 0) << run.err;
   const nlohmann::json report = nlohmann::json::parse(run.out);
   EXPECT_EQ(report["meshing"]["grid_placements"].get<int>(), 4);

@@ -127,14 +127,13 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
   return tail == suffix;
 }
 
-// The tets' volume against the solid's (modeling::EstimateSolidVolume over the grid's bounds)
-// under report["meshing"], and the warning on stderr past modeling::kSharpVolumeRetry: a wall
-// about a cell thick can fall between the grid's planes, and its stiffness with it.
-void CheckMeshVolume(const SceneSolidGrid& grid, const modeling::TetMesh& tets,
+// The tets' volume against the solid's (`solid`, m³: modeling::EstimateSolidVolume over the
+// grid's bounds) under report["meshing"], and the warning on stderr past
+// modeling::kSharpVolumeRetry: a wall about a cell thick can fall between the grid's planes, and
+// its stiffness with it.
+void CheckMeshVolume(const SceneSolidGrid& grid, double solid, const modeling::TetMesh& tets,
                      nlohmann::ordered_json* report) {
   const double volume = modeling::MeasureTetQuality(tets).total_volume;
-  const double solid =
-      modeling::EstimateSolidVolume(grid.compiled, grid.bounds, modeling::kSharpVolumePoints);
   const double off = solid > 0.0 ? volume / solid - 1.0 : 0.0;
   (*report)["meshing"]["volume_m3"] = volume;
   (*report)["meshing"]["solid_volume_m3"] = solid;
@@ -191,7 +190,9 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
                           {"per_slab", per_slab}};
   if (!slabs.cache_notes.empty()) (*report)["meshing"]["cache_notes"] = slabs.cache_notes;
   if (options.flat_cells > 0.0) (*report)["meshing"]["flat_cells"] = options.flat_cells;
-  CheckMeshVolume(grid, *slabs.volume, report);
+  CheckMeshVolume(
+      grid, modeling::EstimateSolidVolume(grid.compiled, grid.bounds, modeling::kSharpVolumePoints),
+      *slabs.volume, report);
   *slab = slabs.slab;
   return std::move(slabs.mesh);
 }
@@ -238,7 +239,7 @@ fem::TetMesh MeshScene(const FemOptions& options, const OpenedDocument& opened,
     (*report)["meshing"]["flat_cells"] = options.flat_cells;
     (*report)["meshing"]["flat_collapses"] = surface_stats.flat_collapses;
   }
-  CheckMeshVolume(grid, tets, report);
+  CheckMeshVolume(grid, placed.solid_volume, tets, report);  // estimated over grid.bounds
   return ToFemMesh(tets);
 }
 

@@ -722,25 +722,26 @@ void RunMesh(const MeshOptions& o) {
                 << " flips, " << feature_stats.sliver_moves << " moves";
     std::cout << ", " << Fmt(feature_stats.seconds, 3) << " s\n";
   }
+  const double volume = MeshVolume(surface);
+  // The volume against the solid's (EstimateSolidVolume): a wall about a cell thick can fall
+  // between grid planes and be lost without any other figure showing it.
+  const double volume_off = placed.solid_volume > 0.0 ? volume / placed.solid_volume - 1.0 : 0.0;
   if (placed.placements > 1) {
-    // Percent of the solid's volume (EstimateSolidVolume), signed.
-    auto off = [&](double volume) {
-      return Fmt(100.0 * (volume / placed.solid_volume - 1.0), 3) + " %";
-    };
+    // A relative volume error in percent, signed.
+    auto off = [&](double error) { return Fmt(100.0 * error, 3) + " %"; };
     std::cout << "grid placement: the first";
     if (o.sharp)
       std::cout << " left " << placed.first_under << " triangle"
                 << (placed.first_under == 1 ? "" : "s") << " under " << Fmt(o.sliver_angle)
                 << " deg (min " << Fmt(placed.first_min_angle_deg, 4) << " deg),";
-    std::cout << " volume " << off(placed.solid_volume * (1.0 + placed.first_volume_error))
-              << " from the solid's; " << placed.placements << " placements meshed"
-              << (o.sharp ? " and sharpened" : "") << ", kept ";
+    std::cout << " volume " << off(placed.first_volume_error) << " from the solid's; "
+              << placed.placements << " placements meshed" << (o.sharp ? " and sharpened" : "")
+              << ", kept ";
     if (placed.grid_shift == 0.0)
       std::cout << "the first";
     else
       std::cout << "the grid moved by " << Fmt(placed.grid_shift) << " cell along each axis";
-    std::cout << " (volume " << off(MeshVolume(surface)) << "), " << Fmt(placed.seconds, 3)
-              << " s in all\n";
+    std::cout << " (volume " << off(volume_off) << "), " << Fmt(placed.seconds, 3) << " s in all\n";
   }
   // Four digits, so that an angle a hair under 10° does not print as 10.
   const long under_10 = MeasureTriangleAngles(surface, 10.0).small_angle;
@@ -748,12 +749,8 @@ void RunMesh(const MeshOptions& o) {
             << under_10 << (under_10 == 1 ? " triangle" : " triangles") << " under 10 deg, "
             << angles.small_angle << " under 5 deg, " << angles.zero_area
             << " zero-area; error max " << Fmt(error.max, 3) << " m, rms " << Fmt(error.rms, 3)
-            << " m; volume " << Fmt(MeshVolume(surface) * 1e6, 6) << " cm^3";
-  // The solid's volume from the function (as the grid placement measures it): a wall about a
-  // cell thick can fall between grid planes and be lost without any other figure showing it.
-  const double solid_volume = placed.solid_volume;
-  const double volume_off = solid_volume > 0.0 ? MeshVolume(surface) / solid_volume - 1.0 : 0.0;
-  if (solid_volume > 0.0)
+            << " m; volume " << Fmt(volume * 1e6, 6) << " cm^3";
+  if (placed.solid_volume > 0.0)
     std::cout << " (" << (volume_off >= 0.0 ? "+" : "") << Fmt(100.0 * volume_off, 2)
               << " % from the solid's, sampled from its function)";
   std::cout << "\n";
