@@ -201,6 +201,14 @@ class LatticeMesher {
     ds.reserve(2 * kBlock * kBlock * kBlock);
     const bool specialize = solid_.instruction_count() > PointField::kMinPrunedInstructions &&
                             solid_.instruction_count() <= PointField::kMaxPrunedInstructions;
+    // First the interval bounds of every block, so that the sampled blocks' storage is made
+    // once at its size (growing it by copies touched twice the memory).
+    struct Near {
+      std::array<int, 3> b;
+      Eigen::AlignedBox3d box;
+      double solid_lo, box_hi;
+    };
+    std::vector<Near> near;
     long done = 0;
     for (int bk = 0; bk < blocks_[2]; ++bk)
       for (int bj = 0; bj < blocks_[1]; ++bj)
@@ -208,7 +216,7 @@ class LatticeMesher {
           if (settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed))
             throw MeshingCancelled();
           if (settings_.progress && done % 4096 == 0)
-            settings_.progress(0.5 * static_cast<double>(done) / static_cast<double>(total));
+            settings_.progress(0.25 * static_cast<double>(done) / static_cast<double>(total));
           const std::array<int, 3> b = {bi, bj, bk};
           // Lattice index i of either kind in [b kBlock, b kBlock + kBlock) lies at
           // origin + cell (i - 1) (corner) or (i - 1/2) (centre); grown by one cell.
@@ -231,39 +239,47 @@ class LatticeMesher {
             block_slot_[block] = bound.lo > 0.0 ? kFarOutside : kFarInside;
             continue;
           }
-          ds.clear();
-          for (int kind = 0; kind < 2; ++kind) {
-            const int* dims = kind == 0 ? corners_ : centres_;
-            for (int k = b[2] * kBlock; k < std::min(dims[2], b[2] * kBlock + kBlock); ++k)
-              for (int j = b[1] * kBlock; j < std::min(dims[1], b[1] * kBlock + kBlock); ++j)
-                for (int i = b[0] * kBlock; i < std::min(dims[0], b[0] * kBlock + kBlock); ++i)
-                  ds.push_back({2 * i - 2 + kind, 2 * j - 2 + kind, 2 * k - 2 + kind});
-          }
-          block_slot_[block] = static_cast<int>(near_blocks_data_.size());
-          near_blocks_data_.emplace_back();
-          near_.push_back(b);
-          NearBlock& data = near_blocks_data_.back();
-          const int count = static_cast<int>(ds.size());
-          for (int p = 0; p < count; ++p) points.col(p) = Position(ds[p]);
-          if (specialize) {
-            const CompiledSolid tape = solid_.Specialize(box);
-            tape.Values(points.leftCols(count), values.head(count));
-          } else {
-            solid_.Values(points.leftCols(count), values.head(count));
-          }
-          evaluations_ += count;
-          // The block's values are already in Local's order when it is whole (not cut off by the
-          // grid's upper ends); the bounds' box does not change them where it stays farther from
-          // every point than the solid (by a margin above the rounding of either).
-          const bool whole = count == 2 * kBlockVertices;
-          if (whole && box_hi < solid_lo - kBoxMargin * (1.0 + std::abs(solid_lo))) {
-            std::copy(values.data(), values.data() + count, data.values);
-          } else {
-            for (int p = 0; p < count; ++p)
-              data.values[whole ? p : Local(ds[p])] =
-                  std::max(values[p], BoxDistance(points.col(p)));
-          }
+          block_slot_[block] = static_cast<int>(near.size());
+          near.push_back({b, box, solid_lo, box_hi});
         }
+    near_blocks_data_.resize(near.size());
+    near_.reserve(near.size());
+    for (size_t n = 0; n < near.size(); ++n) {
+      if (settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed))
+        throw MeshingCancelled();
+      if (settings_.progress && n % 1024 == 0)
+        settings_.progress(0.25 + 0.25 * static_cast<double>(n) / static_cast<double>(near.size()));
+      const auto& [b, box, solid_lo, box_hi] = near[n];
+      ds.clear();
+      for (int kind = 0; kind < 2; ++kind) {
+        const int* dims = kind == 0 ? corners_ : centres_;
+        for (int k = b[2] * kBlock; k < std::min(dims[2], b[2] * kBlock + kBlock); ++k)
+          for (int j = b[1] * kBlock; j < std::min(dims[1], b[1] * kBlock + kBlock); ++j)
+            for (int i = b[0] * kBlock; i < std::min(dims[0], b[0] * kBlock + kBlock); ++i)
+              ds.push_back({2 * i - 2 + kind, 2 * j - 2 + kind, 2 * k - 2 + kind});
+      }
+      near_.push_back(b);
+      NearBlock& data = near_blocks_data_[n];
+      const int count = static_cast<int>(ds.size());
+      for (int p = 0; p < count; ++p) points.col(p) = Position(ds[p]);
+      if (specialize) {
+        const CompiledSolid tape = solid_.Specialize(box);
+        tape.Values(points.leftCols(count), values.head(count));
+      } else {
+        solid_.Values(points.leftCols(count), values.head(count));
+      }
+      evaluations_ += count;
+      // The block's values are already in Local's order when it is whole (not cut off by the
+      // grid's upper ends); the bounds' box does not change them where it stays farther from
+      // every point than the solid (by a margin above the rounding of either).
+      const bool whole = count == 2 * kBlockVertices;
+      if (whole && box_hi < solid_lo - kBoxMargin * (1.0 + std::abs(solid_lo))) {
+        std::copy(values.data(), values.data() + count, data.values);
+      } else {
+        for (int p = 0; p < count; ++p)
+          data.values[whole ? p : Local(ds[p])] = std::max(values[p], BoxDistance(points.col(p)));
+      }
+    }
   }
 
   // The faces between neighbouring cells whose four tetrahedra have vertices on both sides
