@@ -285,10 +285,12 @@ TEST(FemCommand, SceneIsMeshedAndSolved) {
 // solves what it has, reports it and warns on stderr with the way out.
 TEST(FemCommand, VolumeLostBetweenGridPlanesMovesTheGridOrIsWarned) {
   // The platform clamped at x = 0, meshed at `resolution` (m).
-  auto run_at = [](const std::string& resolution, const std::string& tag) {
+  auto run_at = [](const std::string& resolution, const std::string& tag,
+                   const std::string& extra = "") {
     return RunSpidarcad(std::string(SPIDARCAD_SOURCE_DIR) +
                             "/assets/scenes/platform.json --resolution " + resolution +
-                            " --fix=-1,-1,-1,0.001,1,1 --out " + OutputPath("fem_" + tag + ".vtu"),
+                            " --fix=-1,-1,-1,0.001,1,1" + extra + " --out " +
+                            OutputPath("fem_" + tag + ".vtu"),
                         tag);
   };
   const CommandRun moved = run_at("0.0135", "moved");
@@ -307,6 +309,29 @@ TEST(FemCommand, VolumeLostBetweenGridPlanesMovesTheGridOrIsWarned) {
   EXPECT_NE(run.err.find("warning: the mesh holds "), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("less volume than the solid"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("a finer --resolution"), std::string::npos) << run.err;
+
+  // In slabs the grid moves too, and its planes with it; a second run on a cache directory finds
+  // every slab of the moved grid there.
+  const std::string dir = OutputPath("fem_volume_slabs_cache");
+  std::filesystem::remove_all(dir);
+  const std::string in_slabs = " --slabs 4 --cache-dir " + dir;
+  const CommandRun first = run_at("0.0135", "moved_slabs", in_slabs);
+  ASSERT_EQ(first.status, 0) << first.err;
+  const nlohmann::json slabs = nlohmann::json::parse(first.out);
+  EXPECT_GT(slabs["meshing"]["grid_placements"].get<int>(), 1);
+  const double shift = slabs["meshing"]["grid_shift_cells"].get<double>();
+  EXPECT_NE(shift, 0.0);
+  EXPECT_LT(std::abs(slabs["meshing"]["volume_off"].get<double>()), 0.05);
+  EXPECT_EQ(first.err.find("warning"), std::string::npos) << first.err;
+  const std::vector<double> planes = slabs["meshing"]["planes_x_m"].get<std::vector<double>>();
+  ASSERT_EQ(planes.size(), 3u);
+  const CommandRun again = run_at("0.0135", "moved_slabs_again", in_slabs);
+  ASSERT_EQ(again.status, 0) << again.err;
+  const nlohmann::json cached = nlohmann::json::parse(again.out);
+  EXPECT_EQ(cached["meshing"]["planes_x_m"].get<std::vector<double>>(), planes);
+  EXPECT_EQ(cached["meshing"]["grid_shift_cells"].get<double>(), shift);
+  for (const auto& piece : cached["meshing"]["per_slab"])
+    EXPECT_EQ(piece["mesh"].get<std::string>(), "cache") << cached["meshing"].dump();
 }
 
 // The platform scene and a copy with its load holes widened (r 4 -> 4.5 mm, the free end),

@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -22,6 +23,7 @@
 #include "spidarcad/fem/boundary.h"
 #include "spidarcad/fem/static_solver.h"
 #include "spidarcad/fem/substructure.h"
+#include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/implicit_evaluator.h"
 #include "spidarcad/modeling/implicit_node.h"
 #include "spidarcad/modeling/sculpt.h"
@@ -129,8 +131,8 @@ TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
   // The load holes (x = 0.27 m, last slab) from 4 to 4.5 mm radius.
   const SceneSolidGrid edited = PrepareSceneSolid(
       EditedPlatform("load_hole", "radius", 0.0045, "slab_fe_mesh_hole"), "platform", kCell);
-  const SlabFeMesh after =
-      MeshSolidInSlabs(edited.compiled, grid, kCell, planes, Options(2.0, &before));
+  const SlabFeMesh after = MeshSolidInSlabs(edited.compiled, before.grid_bounds, kCell,
+                                            before.planes, Options(2.0, &before));
   EXPECT_EQ(after.num_remeshed(), 1);
   EXPECT_TRUE(after.remeshed.back());
   for (int k = 0; k + 1 < kSlabs; ++k) {
@@ -142,6 +144,47 @@ TEST(SlabFeMesh, EditInTheLastSlabRemeshesAndRefactorsOnlyThatSlab) {
             modeling::TotalVolume(before.slab_tets.back()));
 
   ExpectOnlyTheLastSlabRefactoredAndExact(before, after);
+}
+
+// A wall about a cell thick (the platform's 10 mm plate at 13.5 mm cells, snapped as FE mode
+// snaps) falls between the grid's planes on the first placement: MeshSolidInSlabs meshes the
+// surface on a grid moved by a fraction of a cell, moves the slab planes with it, and keeps the
+// solid's volume; meshed again on its grid and planes with it as the earlier mesh, every slab
+// comes back as it was.
+TEST(SlabFeMesh, MovesTheGridAndItsPlanesWhereAWallFallsBetweenGridPlanes) {
+  const double cell = 0.0135;
+  const SceneSolidGrid base = PrepareSceneSolid(PlatformScenePath(), "platform", cell);
+  SlabMeshOptions o;
+  o.snap_cells = modeling::kProductSnapCells;
+  const std::vector<double> planes = SlabPlanes(base.bounds, cell, kSlabs, o);
+  const SlabFeMesh m = MeshSolidInSlabs(base.compiled, base.bounds, cell, planes, o);
+  // The solid's volume sampled from its function, and the surface of the unmoved grid.
+  const double solid =
+      modeling::EstimateSolidVolume(base.compiled, base.bounds, modeling::kSharpVolumePoints);
+  modeling::SurfaceMeshSettings ss;
+  ss.bounds = base.bounds;
+  ss.cell_size = cell;
+  ss.snap_cells = o.snap_cells;
+  EXPECT_LT(modeling::MeshVolume(modeling::MeshSurface(base.compiled, ss)),
+            (1.0 - modeling::kSharpVolumeRetry) * solid)
+      << "the first placement no longer loses the wall";
+  EXPECT_GT(m.grid_placements, 1);
+  ASSERT_NE(m.grid_shift_cells, 0.0);
+  EXPECT_NEAR(m.solid_volume, solid, 1e-15);
+  EXPECT_LT(std::abs(modeling::TotalVolume(*m.volume) / solid - 1.0), modeling::kSharpVolumeRetry);
+  EXPECT_TRUE(
+      m.grid_bounds.isApprox(modeling::SharpGridPlacement(ss, m.grid_shift_cells).bounds, 0.0));
+  ASSERT_EQ(m.planes.size(), planes.size());
+  for (std::size_t k = 0; k < planes.size(); ++k)
+    EXPECT_DOUBLE_EQ(m.planes[k], planes[k] + m.grid_shift_cells * cell) << k;
+  ASSERT_NO_THROW(m.mesh.Validate());
+
+  o.previous = &m;
+  const SlabFeMesh again = MeshSolidInSlabs(base.compiled, m.grid_bounds, cell, m.planes, o);
+  EXPECT_EQ(again.grid_placements, 1);
+  EXPECT_EQ(again.grid_shift_cells, 0.0);
+  EXPECT_EQ(again.planes, m.planes);
+  EXPECT_EQ(again.num_remeshed(), 0);
 }
 
 // A sculpt of the platform (its snapped grid surface, as a sculpt made from the solid holds it)
@@ -243,7 +286,8 @@ TEST(SlabFeMesh, BoltHoleEditInBracketStripsRemeshesOnlyTheOuterStrips) {
   const SceneSolidGrid edited = PrepareSceneSolid(
       EditedPlatform("bolt_hole", "radius", 0.006, "slab_fe_mesh_bolt"), "platform", cell);
   o.previous = &before;
-  const SlabFeMesh after = MeshSolidInSlabs(edited.compiled, grid, cell, planes, o);
+  const SlabFeMesh after =
+      MeshSolidInSlabs(edited.compiled, before.grid_bounds, cell, before.planes, o);
   EXPECT_EQ(after.strip_planes, before.strip_planes);
   for (std::size_t k = 0; k < after.slab_tets.size(); ++k) {
     SCOPED_TRACE("piece " + std::to_string(k));
@@ -268,7 +312,7 @@ TEST(SlabFeMesh, BoltHoleEditInBracketStripsRemeshesOnlyTheOuterStrips) {
   EXPECT_EQ(after.piece_slab, (std::vector<int>{0, 0, 0, 1, 2, 3}));
   // The labels follow from the planes and strips alone (a mesh read back from a document).
   std::vector<int> place;
-  EXPECT_EQ(SlabPieceLabels(after.mesh, planes, after.strip_axis, after.strip_planes, &place),
+  EXPECT_EQ(SlabPieceLabels(after.mesh, after.planes, after.strip_axis, after.strip_planes, &place),
             after.slab);
   EXPECT_EQ(place, after.piece_slab);
   // FE mode's bound leaves this slab whole.

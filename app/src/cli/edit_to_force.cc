@@ -231,7 +231,7 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     row.one_piece = Measure(base.compiled, one_piece);
   }
   // The slab route, fresh.
-  const Eigen::AlignedBox3d grid = base.bounds;  // kept for every edit
+  const Eigen::AlignedBox3d grid = base.bounds;  // the edits mesh on slab_mesh's grid
   SlabMeshOptions fresh_options;
   fresh_options.lattice = lattice;
   fresh_options.flat_coarsen_cells = flat_cells;
@@ -275,7 +275,10 @@ EditToForceCase MeasureEditToForce(const std::string& scene_path, int order, dou
     reuse.flat_coarsen_cells = flat_cells;
     reuse.strips = strips;
     reuse.snap_cells = snap_cells;
-    const SlabFeMesh m = MeshSolidInSlabs(changed.compiled, grid, cell, planes, reuse);
+    // On the first mesh's grid and planes (moved with its grid when that kept a wall), as FE
+    // mode meshes an edit.
+    const SlabFeMesh m =
+        MeshSolidInSlabs(changed.compiled, slab_mesh.grid_bounds, cell, slab_mesh.planes, reuse);
     const fem::TetMesh mesh1 = order == 2 ? fem::MakeQuadratic(m.mesh) : m.mesh;
     const fem::BoundaryConditions bcs1 = Conditions(mesh1);
     Timer ts;

@@ -187,12 +187,12 @@ fem::TetMesh MeshSceneInSlabs(const FemOptions& options, const SceneSolidGrid& g
                           {"cache_read_seconds", slabs.cache_read_seconds},
                           {"cache_write_seconds", slabs.cache_write_seconds},
                           {"min_dihedral_deg", min_dihedral},
+                          {"grid_placements", slabs.grid_placements},
+                          {"grid_shift_cells", slabs.grid_shift_cells},
                           {"per_slab", per_slab}};
   if (!slabs.cache_notes.empty()) (*report)["meshing"]["cache_notes"] = slabs.cache_notes;
   if (options.flat_cells > 0.0) (*report)["meshing"]["flat_cells"] = options.flat_cells;
-  CheckMeshVolume(
-      grid, modeling::EstimateSolidVolume(grid.compiled, grid.bounds, modeling::kSharpVolumePoints),
-      *slabs.volume, report);
+  CheckMeshVolume(grid, slabs.solid_volume, *slabs.volume, report);  // estimated over grid.bounds
   *slab = slabs.slab;
   return std::move(slabs.mesh);
 }
@@ -991,8 +991,8 @@ void RegisterFemCommand(CLI::App& app) {
       "is upgraded to 10-node elements, and --order 1 with it is an error.\n"
       "--slabs N solves in N slabs across x: each slab's stiffness is factored on its own and\n"
       "condensed onto the planes between slabs (on a given mesh, the one-piece answer to\n"
-      "rounding); a scene solid is then meshed slab by slab, conforming across the planes. "
-      "--cache-dir DIR (implies\n"
+      "rounding); a scene solid is then meshed slab by slab, conforming across the planes\n"
+      "(moved with the grid when the grid moves). --cache-dir DIR (implies\n"
       "--slabs 4) keeps every slab's mesh and factor, and the factor of every plane between\n"
       "slabs, in DIR; a later run reads those whose input is unchanged, so after a local edit\n"
       "(a hole moved) only the slabs the edit reached, and the planes from the first of them\n"

@@ -18,6 +18,7 @@
 #include "spidarcad/fem/cache_file.h"
 #include "spidarcad/fem/precompute_cache.h"
 #include "spidarcad/fem/substructure.h"
+#include "spidarcad/modeling/feature_sharpening.h"
 #include "spidarcad/modeling/surface_mesher.h"
 #include "spidarcad/modeling/tetgen_mesher.h"
 
@@ -289,10 +290,19 @@ SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
   if (options.lattice) ss.mesher = modeling::SurfaceMesher::kLattice;
   ss.cancel = options.cancel;
   if (options.progress) ss.progress = [&options](double f) { options.progress(0.3 * f); };
-  const modeling::TriangleMesh surface = modeling::MeshSurface(solid, ss);
+  modeling::SharpSurface placed = modeling::MeshSurfaceKeepingVolume(solid, ss);
   const double surface_seconds = Seconds(t);
-  SlabFeMesh out = MeshSurfaceInSlabs(surface, grid_bounds, cell, planes, options);
+  Eigen::AlignedBox3d grid = grid_bounds;
+  std::vector<double> moved_planes = planes;
+  if (placed.grid_shift != 0.0) {
+    grid = modeling::SharpGridPlacement(ss, placed.grid_shift).bounds;
+    for (double& x : moved_planes) x += placed.grid_shift * cell;
+  }
+  SlabFeMesh out = MeshSurfaceInSlabs(placed.mesh, grid, cell, moved_planes, options);
   out.surface_seconds = surface_seconds;
+  out.grid_placements = placed.placements;
+  out.grid_shift_cells = placed.grid_shift;
+  out.solid_volume = placed.solid_volume;
   return out;
 }
 

@@ -63,6 +63,13 @@ struct SlabFeMesh {
   // Wall time (s) of the surface, the cut, TetGen (the re-meshed pieces, on as many threads as
   // there are cores when modeling::TetgenRunsConcurrently) and the join.
   double surface_seconds = 0.0, cut_seconds = 0.0, tetgen_seconds = 0.0, join_seconds = 0.0;
+  // MeshSolidInSlabs: the grid placements its surface was meshed on (1: the first was kept), the
+  // kept one's shift (cells along each axis: grid_bounds and planes moved with it, see
+  // MeshSolidInSlabs) and the solid's volume (m³, modeling::EstimateSolidVolume over the
+  // grid_bounds it was given). 0 from MeshSurfaceInSlabs.
+  int grid_placements = 0;
+  double grid_shift_cells = 0.0;
+  double solid_volume = 0.0;
   // Number of pieces TetGen ran for.
   int num_remeshed() const;
 };
@@ -123,9 +130,15 @@ struct SlabMeshOptions {
 std::vector<double> SlabPlanes(const Eigen::AlignedBox3d& grid_bounds, double cell, int slabs,
                                const SlabMeshOptions& options = {}, int axis = 0);
 
-// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`: MeshSurface, then
-// MeshSurfaceInSlabs with the cell as the spacing. Throws what MeshSurface, CutSurfaceIntoSlabs
-// and TetrahedralizeSlab throw.
+// Meshes `solid` on the grid (grid_bounds, cell) in the slabs of `planes`: the surface, then
+// MeshSurfaceInSlabs with the cell as the spacing. The surface is modeling::
+// MeshSurfaceKeepingVolume's: where a wall about a cell thick falls between the grid's planes
+// (the surface's volume more than modeling::kSharpVolumeRetry off the solid's), the grid is moved
+// by a fraction s of a cell along each axis (modeling::SharpGridPlacement); then the result's
+// grid_bounds are the moved grid's and its planes are `planes` + s × cell, which keeps them where
+// SlabPlanes put them relative to the grid's planes (grid_placements, grid_shift_cells). A later
+// call on the result's grid_bounds and planes keeps the placement, and the slabs an edit did not
+// reach. Throws what MeshSurface, CutSurfaceIntoSlabs and TetrahedralizeSlab throw.
 SlabFeMesh MeshSolidInSlabs(const modeling::CompiledSolid& solid,
                             const Eigen::AlignedBox3d& grid_bounds, double cell,
                             const std::vector<double>& planes, const SlabMeshOptions& options = {});
