@@ -284,8 +284,15 @@ modeling::TetMesh VolumeFrom(const json& j, const std::string& p) {
 }
 
 // Surface mesh of a tree at cell size h (the bounds found within ±2 m, padded by a cell).
-modeling::TriangleMesh MeshTree(const modeling::ImplicitNode& root, double h,
-                                const std::string& p) {
+// The most triangles (modeling::EstimateSurfaceMesh, which errs high) a mesh made at open time
+// may have: about seven times the example documents' largest (3e4). A file can ask for a mesh
+// that would take minutes to make and TetGen to fill; it is refused instead, before any work.
+constexpr double kOpenMaxTriangles = 2e5;
+
+// The surface of `root` (its field at pointer p) at cell h (m, the field at cell_pointer), made
+// at open time.
+modeling::TriangleMesh MeshTree(const modeling::ImplicitNode& root, double h, const std::string& p,
+                                const std::string& cell_pointer) {
   const modeling::CompiledSolid solid = modeling::CompiledSolid::Compile(root, p);
   const Eigen::Vector3d r = Eigen::Vector3d::Constant(2.0);
   const Eigen::AlignedBox3d bounds = modeling::FindBounds(solid, Eigen::AlignedBox3d(-r, r), h);
@@ -295,6 +302,16 @@ modeling::TriangleMesh MeshTree(const modeling::ImplicitNode& root, double h,
                                  bounds.max() + Eigen::Vector3d::Constant(h));
   s.cell_size = h;
   try {
+    const modeling::SurfaceMeshEstimate estimate = modeling::EstimateSurfaceMesh(solid, s);
+    if (estimate.triangles > kOpenMaxTriangles) {
+      char over[96];
+      std::snprintf(over, sizeof over, "about %.2g triangles, over the %.2g", estimate.triangles,
+                    kOpenMaxTriangles);
+      Fail(cell_pointer, std::string("meshing at open time would make ") + over +
+                             " a document may ask for (" + estimate.Describe() +
+                             "; docs/limits.md): raise the cell size, store the mesh in the "
+                             "file, or mesh the solid in the window");
+    }
     return modeling::MeshSurface(solid, s);
   } catch (const std::invalid_argument& e) {
     Fail(p, e.what());
@@ -537,7 +554,7 @@ Content ContentFromJson(const json& j) {
         const double h = Number(Need(g, gp, "cell_size"), gp + "/cell_size");
         if (!(h >= 1e-4)) Fail(gp + "/cell_size", "must be >= 1e-4 m");
         s.mesh = std::make_shared<SculptMesh>(
-            MeshTree(tree(Need(g, gp, "root"), gp + "/root"), h, gp + "/root"));
+            MeshTree(tree(Need(g, gp, "root"), gp + "/root"), h, gp + "/root", gp + "/cell_size"));
       }
       d.data = std::move(s);
     } else if (kind == "fe_model") {
@@ -663,8 +680,9 @@ Content ContentFromJson(const json& j) {
     const auto* src = std::get_if<SolidData>(&c.objects[mesh_source[i]].data);
     if (src == nullptr) Fail(p + "/source", "a generated mesh's source must be a solid");
     auto& m = std::get<MeshData>(c.objects[i].data);
-    auto surface = MeshTree(src->root, m.settings.cell_size,
-                            "/objects/" + std::to_string(mesh_source[i]) + "/root");
+    auto surface =
+        MeshTree(src->root, m.settings.cell_size,
+                 "/objects/" + std::to_string(mesh_source[i]) + "/root", p + "/settings/cell_size");
     if (generate[i] == "volume") {
       modeling::TetMeshSettings ts;
       if (m.settings.max_radius_edge > 0) ts.max_radius_edge = m.settings.max_radius_edge;
