@@ -201,14 +201,14 @@ class LatticeMesher {
     ds.reserve(2 * kBlock * kBlock * kBlock);
     const bool specialize = solid_.instruction_count() > PointField::kMinPrunedInstructions &&
                             solid_.instruction_count() <= PointField::kMaxPrunedInstructions;
-    // First the interval bounds of every block, so that the sampled blocks' storage is made
-    // once at its size (growing it by copies touched twice the memory).
-    struct Near {
-      std::array<int, 3> b;
+    // First the interval bounds of every block (the blocks to sample in near_, their boxes and
+    // bounds here), so that the sampled blocks' storage is made once at its size (growing it by
+    // copies touched twice the memory).
+    struct Bound {
       Eigen::AlignedBox3d box;
       double solid_lo, box_hi;
     };
-    std::vector<Near> near;
+    std::vector<Bound> near;
     long done = 0;
     for (int bk = 0; bk < blocks_[2]; ++bk)
       for (int bj = 0; bj < blocks_[1]; ++bj)
@@ -240,16 +240,17 @@ class LatticeMesher {
             continue;
           }
           block_slot_[block] = static_cast<int>(near.size());
-          near.push_back({b, box, solid_lo, box_hi});
+          near_.push_back(b);
+          near.push_back({box, solid_lo, box_hi});
         }
     near_blocks_data_.resize(near.size());
-    near_.reserve(near.size());
     for (size_t n = 0; n < near.size(); ++n) {
       if (settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed))
         throw MeshingCancelled();
       if (settings_.progress && n % 1024 == 0)
         settings_.progress(0.25 + 0.25 * static_cast<double>(n) / static_cast<double>(near.size()));
-      const auto& [b, box, solid_lo, box_hi] = near[n];
+      const std::array<int, 3>& b = near_[n];
+      const auto& [box, solid_lo, box_hi] = near[n];
       ds.clear();
       for (int kind = 0; kind < 2; ++kind) {
         const int* dims = kind == 0 ? corners_ : centres_;
@@ -258,7 +259,6 @@ class LatticeMesher {
             for (int i = b[0] * kBlock; i < std::min(dims[0], b[0] * kBlock + kBlock); ++i)
               ds.push_back({2 * i - 2 + kind, 2 * j - 2 + kind, 2 * k - 2 + kind});
       }
-      near_.push_back(b);
       NearBlock& data = near_blocks_data_[n];
       const int count = static_cast<int>(ds.size());
       for (int p = 0; p < count; ++p) points.col(p) = Position(ds[p]);
